@@ -1,0 +1,1 @@
+"""repertoire.diagrams: builders returning named Diagrams, rendering, replay."""

@@ -1,0 +1,86 @@
+"""A registry of named diagrams.
+
+Each world module in ``repertoire.diagrams`` registers its builders with
+:func:`register_diagram`. A builder has the signature
+``build(scenario, *, meshcat=None) -> pydrake.systems.framework.Diagram`` and
+returns a Diagram whose name is the registered name. The CLI (``repertoire
+list | render | simulate``) and the demo work only through this registry.
+"""
+
+import dataclasses
+import importlib
+import pkgutil
+from collections.abc import Callable
+from typing import Any
+
+from repertoire.errors import UnknownNameError
+
+
+@dataclasses.dataclass
+class DiagramEntry:
+    """One registered diagram.
+
+    Attributes:
+        name: unique registered name (snake_case), also the Diagram's name.
+        description: one line for ``repertoire list``.
+        scenario_type: the typed Scenario dataclass the builder takes.
+        build: ``build(scenario, *, meshcat=None) -> Diagram``.
+        duration: default simulated seconds for ``simulate`` and the demo.
+        check: optional ``check(diagram, context) -> dict[str, float]`` run after
+            a simulation; returns named figures (for example a height error).
+    """
+
+    name: str
+    description: str
+    scenario_type: type
+    build: Callable[..., Any]
+    duration: float = 1.0
+    check: Callable[..., dict] | None = None
+
+
+_REGISTRY: dict[str, DiagramEntry] = {}
+_LOADED = False
+
+
+def register_diagram(name: str, *, scenario_type: type, description: str, duration: float = 1.0,
+                     check: Callable[..., dict] | None = None):
+    """Decorator registering a diagram builder under ``name``."""
+
+    def decorator(build):
+        if name in _REGISTRY and _REGISTRY[name].build is not build:
+            raise ValueError(f"diagram name '{name}' registered twice")
+        _REGISTRY[name] = DiagramEntry(name, description, scenario_type, build, duration, check)
+        return build
+
+    return decorator
+
+
+def _load_all() -> None:
+    """Imports every module of repertoire.diagrams so that they register."""
+    global _LOADED
+    if _LOADED:
+        return
+    import repertoire.diagrams as pkg
+
+    for info in pkgutil.iter_modules(pkg.__path__):
+        if not info.name.startswith("_"):
+            importlib.import_module(f"{pkg.__name__}.{info.name}")
+    _LOADED = True
+
+
+def diagram_names() -> list[str]:
+    """Sorted names of every registered diagram."""
+    _load_all()
+    return sorted(_REGISTRY)
+
+
+def get_diagram_entry(name: str) -> DiagramEntry:
+    """Looks up a registered diagram.
+
+    Raises:
+        UnknownNameError: with the list of known names.
+    """
+    _load_all()
+    if name not in _REGISTRY:
+        raise UnknownNameError(f"unknown diagram '{name}'; registered diagrams: {diagram_names()}")
+    return _REGISTRY[name]

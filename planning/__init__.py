@@ -1,0 +1,1 @@
+"""repertoire.planning layer (see DESIGN.md)."""

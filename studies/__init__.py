@@ -1,0 +1,1 @@
+"""repertoire.studies layer (see DESIGN.md)."""

@@ -1,0 +1,1 @@
+"""repertoire.systems layer (see DESIGN.md)."""

@@ -1,0 +1,158 @@
+"""Rendering a Diagram's graph: Graphviz text from Drake, images through pydot.
+
+``render_diagram`` always writes the ``.dot`` text of
+``diagram.GetGraphvizString(max_depth=...)`` and then, when Graphviz's ``dot``
+program is available, SVG/PNG images made by pydot. Without ``dot`` (or when
+``dot`` fails) it keeps the ``.dot`` file, logs a warning saying why, and
+reports the reason in the returned :class:`RenderResult`; nothing raises, so a
+machine without Graphviz still gets the graph text.
+"""
+
+import dataclasses
+import logging
+import shutil
+from collections.abc import Sequence
+from pathlib import Path
+
+import pydot
+from pydrake.systems.framework import Diagram, System
+
+from repertoire.errors import RepertoireError
+
+_LOG = logging.getLogger(__name__)
+
+IMAGE_FORMATS = ("svg", "png", "pdf")
+
+
+@dataclasses.dataclass
+class RenderResult:
+    """What ``render_diagram`` wrote.
+
+    Attributes:
+        files: format ("dot", "svg", "png", "pdf") -> path written.
+        skipped: image formats that were asked for but not written.
+        reason: why ``skipped`` is not empty (None when every format was written).
+    """
+
+    files: dict[str, Path]
+    skipped: list[str]
+    reason: str | None = None
+
+    def describe(self) -> str:
+        """One line listing the files written and, if any, why images are missing."""
+        text = ", ".join(str(p) for p in self.files.values())
+        if self.reason:
+            text += f" (no {'/'.join(self.skipped)}: {self.reason})"
+        return text
+
+
+def graphviz_text(system: System, max_depth: int | None = None) -> str:
+    """The Graphviz (dot language) text of ``system``.
+
+    Args:
+        system: a Diagram or LeafSystem.
+        max_depth: how many levels of nested diagrams to expand (None = all, 0 = the
+            system as one box).
+
+    Raises:
+        RepertoireError: ``max_depth`` is negative or not an integer.
+    """
+    if max_depth is not None and (
+        isinstance(max_depth, bool) or not isinstance(max_depth, int) or max_depth < 0
+    ):
+        raise RepertoireError(f"max_depth must be None or an integer >= 0, got {max_depth!r}")
+    return system.GetGraphvizString(max_depth=max_depth)
+
+
+def _stem(out_path: str | Path) -> Path:
+    """``out_path`` without a rendering suffix (``a/b.svg`` -> ``a/b``)."""
+    path = Path(out_path)
+    if path.suffix.lower().lstrip(".") in (*IMAGE_FORMATS, "dot"):
+        path = path.with_suffix("")
+    if not path.name:
+        raise RepertoireError(f"out_path must name a file, got {str(out_path)!r}")
+    return path
+
+
+def render_diagram(
+    diagram: System,
+    out_path: str | Path,
+    *,
+    max_depth: int | None = None,
+    formats: Sequence[str] = ("svg", "png"),
+) -> RenderResult:
+    """Writes the graph of ``diagram`` as ``.dot`` text and SVG/PNG images.
+
+    Args:
+        diagram: the Diagram (or LeafSystem) to draw.
+        out_path: the output file stem; ``out/arm_hold`` (or ``out/arm_hold.svg``)
+            writes ``out/arm_hold.dot``, ``out/arm_hold.svg``, ``out/arm_hold.png``.
+            Parent folders are created.
+        max_depth: levels of nested diagrams to expand (None = all).
+        formats: image formats among "svg", "png", "pdf" (may be empty: only .dot).
+
+    Returns:
+        A RenderResult listing the files written, and why images are missing if the
+        ``dot`` program is absent or failed (a warning is logged too).
+
+    Raises:
+        RepertoireError: not a System, unknown format, bad max_depth or out_path.
+    """
+    if not isinstance(diagram, System):
+        raise RepertoireError(
+            f"render_diagram needs a pydrake System, got {type(diagram).__name__}"
+        )
+    if isinstance(formats, str):
+        formats = (formats,)
+    formats = [str(f).lower().lstrip(".") for f in formats]
+    unknown = [f for f in formats if f not in IMAGE_FORMATS]
+    if unknown:
+        raise RepertoireError(
+            f"unknown image format(s) {unknown}; expected some of {list(IMAGE_FORMATS)}"
+        )
+    stem = _stem(out_path)
+    text = graphviz_text(diagram, max_depth)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    dot_path = stem.with_suffix(".dot")
+    dot_path.write_text(text)
+    result = RenderResult(files={"dot": dot_path}, skipped=[])
+    if not formats:
+        return result
+    if shutil.which("dot") is None:
+        result.skipped = list(formats)
+        result.reason = (
+            "Graphviz's 'dot' program is not on PATH; install it (for example "
+            "'sudo apt-get install graphviz') to get images. The graph text is in "
+            f"{dot_path}"
+        )
+        _LOG.warning("render_diagram: wrote only %s: %s", dot_path, result.reason)
+        return result
+    try:
+        graphs = pydot.graph_from_dot_data(text)
+        if not graphs:
+            raise RuntimeError("pydot could not parse the Graphviz text")
+        graph = graphs[0]
+        for fmt in formats:
+            path = stem.with_suffix(f".{fmt}")
+            graph.write(str(path), prog="dot", format=fmt)
+            result.files[fmt] = path
+    except Exception as e:  # pydot raises FileNotFoundError, AssertionError, OSError, ...
+        result.skipped = [f for f in formats if f not in result.files]
+        result.reason = f"the 'dot' program failed ({type(e).__name__}: {e})"
+        _LOG.warning("render_diagram: images %s not written: %s", result.skipped, result.reason)
+    return result
+
+
+def diagram_system_names(diagram: Diagram, max_depth: int | None = None) -> list[str]:
+    """Names of the subsystems shown when ``diagram`` is drawn to ``max_depth`` levels.
+
+    Args:
+        diagram: the Diagram.
+        max_depth: levels expanded (None = all); nested diagrams beyond it are one name.
+    """
+    names = []
+    for sub in diagram.GetSystems():
+        names.append(sub.get_name())
+        if isinstance(sub, Diagram) and (max_depth is None or max_depth > 1):
+            names.extend(diagram_system_names(sub, None if max_depth is None else max_depth - 1))
+    return names

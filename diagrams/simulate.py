@@ -1,0 +1,234 @@
+"""Simulation helpers: run a Diagram with NaN detection, or run a registered world.
+
+``simulate`` wraps :class:`pydrake.systems.analysis.Simulator` with a per-step
+monitor that stops the run the moment any state of the diagram becomes
+non-finite and reports the time and the system whose state diverged.
+``simulate_registered`` builds a diagram from the registry, simulates it for its
+registered duration and returns the figures of the world's ``check()``.
+"""
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Context, Diagram, EventStatus, System
+from repertoire.diagrams.registry import DiagramEntry, get_diagram_entry
+from repertoire.diagrams.scenario import load_scenario
+
+from repertoire.errors import RepertoireError
+
+
+class SimulationDivergedError(RepertoireError):
+    """A state of the simulated diagram became NaN or infinite."""
+
+
+def _leaf_systems(system: System) -> list[System]:
+    """Every leaf system of ``system`` (depth first); a leaf returns itself."""
+    if isinstance(system, Diagram):
+        leaves = []
+        for sub in system.GetSystems():
+            leaves.extend(_leaf_systems(sub))
+        return leaves
+    return [system]
+
+
+def _state_values(context: Context) -> np.ndarray:
+    """The continuous and discrete state of ``context`` as one flat vector."""
+    parts = [context.get_continuous_state_vector().CopyToVector()]
+    if context.num_discrete_state_groups() > 0:
+        discrete = context.get_discrete_state()
+        parts.extend(discrete.get_vector(i).CopyToVector() for i in range(discrete.num_groups()))
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def nonfinite_state_systems(diagram: System, root_context: Context) -> list[str]:
+    """Path names of the leaf systems whose continuous or discrete state is not finite.
+
+    Args:
+        diagram: the root system that owns ``root_context``.
+        root_context: a context of ``diagram``.
+
+    Returns:
+        System path names such as ``::arm_hold::plant`` (empty when all states are finite).
+    """
+    bad = []
+    for leaf in _leaf_systems(diagram):
+        context = leaf.GetMyContextFromRoot(root_context) if leaf is not diagram else root_context
+        values = _state_values(context)
+        if values.size and not np.all(np.isfinite(values)):
+            bad.append(leaf.GetSystemPathname())
+    return bad
+
+
+def _check_duration(duration: float) -> float:
+    try:
+        value = float(duration)
+    except (TypeError, ValueError) as e:
+        raise RepertoireError(f"duration must be a number of seconds, got {duration!r}") from e
+    if not math.isfinite(value) or value <= 0.0:
+        raise RepertoireError(f"duration must be a finite number of seconds > 0, got {duration!r}")
+    return value
+
+
+def simulate(
+    diagram: Diagram,
+    duration: float,
+    *,
+    context: Context | None = None,
+    realtime_rate: float = 0.0,
+    meshcat: Any = None,
+    record: bool = False,
+) -> tuple[Simulator, Context]:
+    """Simulates ``diagram`` for ``duration`` seconds, stopping on non-finite state.
+
+    Args:
+        diagram: the Diagram to simulate.
+        duration: simulated seconds to advance (> 0), counted from the context's time.
+        context: a context of ``diagram`` to start from (default: a fresh default one).
+        realtime_rate: target real-time rate (0 = as fast as possible, 1 = wall clock).
+        meshcat: the ``pydrake.geometry.Meshcat`` the diagram's visualizer publishes
+            to; needed only when ``record`` is true.
+        record: record the run on ``meshcat`` (``StartRecording`` before,
+            ``PublishRecording`` after, so the animation can be replayed or saved).
+
+    Returns:
+        The simulator and its (root) context at the final time.
+
+    Raises:
+        RepertoireError: bad duration / rate, ``record`` without a meshcat, or a
+            context that does not belong to ``diagram``.
+        SimulationDivergedError: a state became NaN or infinite; the message gives the
+            simulated time and the systems whose state diverged.
+    """
+    if not isinstance(diagram, Diagram):
+        raise RepertoireError(f"simulate needs a pydrake Diagram, got {type(diagram).__name__}")
+    duration = _check_duration(duration)
+    if not math.isfinite(realtime_rate) or realtime_rate < 0.0:
+        raise RepertoireError(f"realtime_rate must be finite and >= 0, got {realtime_rate!r}")
+    if record and meshcat is None:
+        raise RepertoireError("record=True needs meshcat= (the Meshcat the diagram publishes to)")
+    if context is None:
+        simulator = Simulator(diagram)
+    else:
+        try:
+            diagram.ValidateContext(context)
+        except RuntimeError as e:
+            raise RepertoireError(
+                f"the context given does not belong to diagram '{diagram.get_name()}': {e}"
+            ) from e
+        simulator = Simulator(diagram, context)
+    simulator.set_target_realtime_rate(realtime_rate)
+
+    diverged: dict[str, Any] = {}
+
+    def monitor(root_context: Context) -> EventStatus:
+        if np.all(np.isfinite(_state_values(root_context))):
+            return EventStatus.Succeeded()
+        diverged["time"] = root_context.get_time()
+        diverged["systems"] = nonfinite_state_systems(diagram, root_context)
+        return EventStatus.Failed(diagram, "non-finite state")
+
+    simulator.set_monitor(monitor)
+    root_context = simulator.get_mutable_context()
+    end_time = root_context.get_time() + duration
+    if record:
+        meshcat.StartRecording()
+    try:
+        simulator.Initialize()
+        simulator.AdvanceTo(end_time)
+    except RuntimeError as e:
+        if not diverged:
+            bad = nonfinite_state_systems(diagram, root_context)
+            if not bad:
+                raise
+            diverged.update(time=root_context.get_time(), systems=bad)
+        raise SimulationDivergedError(
+            f"diagram '{diagram.get_name()}' diverged: the state of "
+            f"{', '.join(diverged['systems']) or 'the diagram'} became non-finite (NaN/inf) at "
+            f"t = {diverged['time']:.6g} s of a run to t = {end_time:.6g} s. Check gains, time "
+            f"step and initial conditions."
+        ) from e
+    finally:
+        if record:
+            meshcat.StopRecording()
+            meshcat.PublishRecording()
+    return simulator, root_context
+
+
+def resolve_scenario(entry: DiagramEntry, scenario: Any = None) -> Any:
+    """The scenario object for a registered diagram.
+
+    Args:
+        entry: the registry entry.
+        scenario: None (the scenario type's defaults), a YAML file path (str or Path),
+            or an instance of ``entry.scenario_type``.
+
+    Raises:
+        ScenarioError: the YAML file is missing, malformed or mistyped.
+        RepertoireError: ``scenario`` is an object of the wrong type.
+    """
+    if scenario is None:
+        return entry.scenario_type()
+    if isinstance(scenario, str | Path):
+        return load_scenario(entry.scenario_type, filename=scenario)
+    if not isinstance(scenario, entry.scenario_type):
+        raise RepertoireError(
+            f"diagram '{entry.name}' takes a {entry.scenario_type.__name__} scenario (or a YAML "
+            f"file of one), got {type(scenario).__name__}"
+        )
+    return scenario
+
+
+def build_registered(name: str, *, scenario: Any = None, meshcat: Any = None) -> Diagram:
+    """Builds the registered diagram ``name`` from its scenario.
+
+    Args:
+        name: a registered diagram name (see ``repertoire list``).
+        scenario: None, a YAML file path, or a scenario instance (see ``resolve_scenario``).
+        meshcat: passed to the builder, which then adds a MeshcatVisualizer.
+
+    Raises:
+        UnknownNameError: ``name`` is not registered (the message lists known names).
+        ScenarioError: the scenario YAML is bad.
+    """
+    entry = get_diagram_entry(name)
+    diagram = entry.build(resolve_scenario(entry, scenario), meshcat=meshcat)
+    if not isinstance(diagram, Diagram):
+        raise RepertoireError(
+            f"builder of '{name}' returned {type(diagram).__name__}, expected a pydrake Diagram"
+        )
+    return diagram
+
+
+def run_check(entry: DiagramEntry, diagram: Diagram, context: Context) -> dict[str, float]:
+    """Runs the entry's ``check(diagram, context)`` (empty dict when it has none)."""
+    if entry.check is None:
+        return {}
+    return {str(k): float(v) for k, v in entry.check(diagram, context).items()}
+
+
+def simulate_registered(
+    name: str, *, scenario: Any = None, duration: float | None = None, meshcat: Any = None
+) -> dict[str, float]:
+    """Builds and simulates a registered diagram, then returns its check() figures.
+
+    Args:
+        name: a registered diagram name.
+        scenario: None (defaults), a YAML file path, or a scenario instance.
+        duration: simulated seconds (default: the registered duration).
+        meshcat: optional Meshcat to watch the run on (the builder adds a visualizer).
+
+    Returns:
+        ``{"sim_time_s": final time, **check figures}``.
+
+    Raises:
+        UnknownNameError, ScenarioError, RepertoireError: bad name, scenario or duration.
+        SimulationDivergedError: the state became non-finite.
+    """
+    entry = get_diagram_entry(name)
+    duration = _check_duration(entry.duration if duration is None else duration)
+    diagram = build_registered(name, scenario=scenario, meshcat=meshcat)
+    _, context = simulate(diagram, duration, meshcat=meshcat)
+    return {"sim_time_s": context.get_time(), **run_check(entry, diagram, context)}

@@ -1,0 +1,69 @@
+"""Shared test fixtures: a small pendulum world and an isolated diagram registry."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from pydrake.geometry import Box, MeshcatVisualizer
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.multibody.tree import RevoluteJoint, SpatialInertia
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
+
+
+@dataclasses.dataclass
+class PendulumScenario:
+    """Test-only scenario: a box on a pin joint, released from ``angle``."""
+
+    angle: float = 0.5
+    torque: float = 0.0
+
+
+def build_pendulum(scenario: PendulumScenario, *, meshcat=None):
+    """A MultibodyPlant pendulum (1 kg box, 0.5 m arm) with SceneGraph; named "test_pendulum"."""
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.002)
+    plant.set_name("plant")
+    bob = plant.AddRigidBody("bob", SpatialInertia.SolidBoxWithMass(1.0, 0.1, 0.1, 0.1))
+    X_BG = RigidTransform([0.0, 0.0, -0.5])
+    plant.RegisterVisualGeometry(
+        bob, X_BG, Box(0.1, 0.1, 0.1), "bob_visual", np.array([0.8, 0.1, 0.1, 1.0])
+    )
+    pin = plant.AddJoint(RevoluteJoint("pin", plant.world_frame(), bob.body_frame(), [0, 1, 0]))
+    plant.AddJointActuator("pin_motor", pin)
+    plant.Finalize()
+    pin.set_default_angle(scenario.angle)
+    torque = builder.AddNamedSystem("torque_source", ConstantVectorSource([scenario.torque]))
+    builder.Connect(torque.get_output_port(), plant.get_actuation_input_port())
+    if meshcat is not None:
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("test_pendulum")
+    return diagram
+
+
+def pendulum_check(diagram, context) -> dict[str, float]:
+    """Figures after a run: the pin angle and the total energy."""
+    plant = diagram.GetSubsystemByName("plant")
+    plant_context = plant.GetMyContextFromRoot(context)
+    angle = plant.GetJointByName("pin").get_angle(plant_context)
+    energy = plant.CalcKineticEnergy(plant_context) + plant.CalcPotentialEnergy(plant_context)
+    return {"angle_rad": angle, "energy_J": energy}
+
+
+@pytest.fixture
+def isolated_registry(monkeypatch):
+    """An empty diagram registry holding only "test_pendulum" (restored after the test)."""
+    from repertoire.diagrams import registry
+
+    monkeypatch.setattr(registry, "_REGISTRY", {})
+    monkeypatch.setattr(registry, "_LOADED", True)
+    registry.register_diagram(
+        "test_pendulum",
+        scenario_type=PendulumScenario,
+        description="test-only pendulum",
+        duration=0.2,
+        check=pendulum_check,
+    )(build_pendulum)
+    return registry

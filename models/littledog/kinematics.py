@@ -1,0 +1,259 @@
+"""Closed-form kinematics of the LittleDog quadruped (one leg at a time).
+
+All positions are in the body frame B of LittleDog: origin at the body's
+centre, x forward, y to the left, z up. A leg is named by two letters:
+``lf`` (left front), ``rf`` (right front), ``lh`` (left hind), ``rh`` (right
+hind). Every leg has three joints, in this order:
+
+- ``<leg>_hip_roll``: axis +x of B, at ``(±0.101, ±0.036, 0)`` m from B's origin;
+- ``<leg>_hip_pitch``: axis +y, ``0.024`` m further outwards (along ±y) from the
+  hip roll axis;
+- ``<leg>_knee``: axis +y, ``0.0751`` m below the hip pitch axis (upper leg);
+
+and the foot frame ``<leg>_foot`` (the centre of the foot sphere, radius
+``0.0103`` m) is ``0.102`` m below the knee (lower leg). At zero joint angles
+the legs point straight down. A positive pitch or knee angle swings the foot
+backwards (towards -x). Front knees bend with negative angles and hind knees
+with positive angles, so the knees point towards the body's middle.
+
+The functions are vectorised: joint angles of shape ``(..., 3)`` map to foot
+positions of shape ``(..., 3)`` and back.
+"""
+
+import dataclasses
+
+import numpy as np
+
+from repertoire.errors import RepertoireError
+
+LEGS: list[str] = ["lf", "rf", "lh", "rh"]
+"""Leg prefixes, in the order used for joint vectors and foot arrays."""
+
+JOINT_SUFFIXES: list[str] = ["hip_roll", "hip_pitch", "knee"]
+JOINT_NAMES: list[str] = [f"{leg}_{s}" for leg in LEGS for s in JOINT_SUFFIXES]
+"""The 12 actuated joint names, leg by leg (``lf_hip_roll, lf_hip_pitch, lf_knee, rf_...``)."""
+
+FOOT_FRAMES: list[str] = [f"{leg}_foot" for leg in LEGS]
+"""Names of the foot frames (centre of each foot sphere) in the URDF."""
+
+HIP_X = 0.101
+HIP_Y = 0.036
+HIP_PITCH_OFFSET_Y = 0.024
+UPPER_LEG_LENGTH = 0.0751
+LOWER_LEG_LENGTH = 0.102
+FOOT_RADIUS = 0.0103
+STANDING_HEIGHT = 0.146
+"""Nominal height of the body origin above the ground when standing (m)."""
+
+BODY_MASS = 1.8
+TOTAL_MASS = 2.75
+
+
+@dataclasses.dataclass(frozen=True)
+class LegGeometry:
+    """Fixed geometry and joint limits of one leg.
+
+    Attributes:
+        name: leg prefix (``lf``, ``rf``, ``lh``, ``rh``).
+        p_BH: hip roll joint position in the body frame (m).
+        pitch_offset_y: signed lateral offset from hip roll to hip pitch (m).
+        upper_length: hip pitch to knee (m).
+        lower_length: knee to foot centre (m).
+        knee_sign: -1 for front legs (knee angles <= 0), +1 for hind legs.
+        lower: lower joint limits (roll, pitch, knee) in rad.
+        upper: upper joint limits (roll, pitch, knee) in rad.
+    """
+
+    name: str
+    p_BH: tuple[float, float, float]
+    pitch_offset_y: float
+    upper_length: float
+    lower_length: float
+    knee_sign: float
+    lower: tuple[float, float, float]
+    upper: tuple[float, float, float]
+
+
+def _make_leg(name: str) -> LegGeometry:
+    front = name[1] == "f"
+    side = 1.0 if name[0] == "l" else -1.0
+    if front:
+        lower, upper = (-0.6, -3.5, -3.1), (0.6, 2.4, 1.0)
+    else:
+        lower, upper = (-0.6, -2.4, -1.0), (0.6, 3.5, 3.1)
+    return LegGeometry(
+        name=name,
+        p_BH=((HIP_X if front else -HIP_X), side * HIP_Y, 0.0),
+        pitch_offset_y=side * HIP_PITCH_OFFSET_Y,
+        upper_length=UPPER_LEG_LENGTH,
+        lower_length=LOWER_LEG_LENGTH,
+        knee_sign=-1.0 if front else 1.0,
+        lower=lower,
+        upper=upper,
+    )
+
+
+LEG_GEOMETRY: dict[str, LegGeometry] = {leg: _make_leg(leg) for leg in LEGS}
+
+
+def leg_geometry(leg: str) -> LegGeometry:
+    """Returns the geometry of a leg.
+
+    Args:
+        leg: one of ``lf``, ``rf``, ``lh``, ``rh`` (case-insensitive).
+
+    Raises:
+        RepertoireError: for an unknown leg name.
+    """
+    key = str(leg).lower()
+    if key not in LEG_GEOMETRY:
+        raise RepertoireError(f"unknown LittleDog leg '{leg}'; expected one of {LEGS}")
+    return LEG_GEOMETRY[key]
+
+
+def _as_angles(q, name: str) -> np.ndarray:
+    q = np.asarray(q, dtype=float)
+    if q.shape[-1:] != (3,):
+        raise RepertoireError(f"{name} must have shape (..., 3) (roll, pitch, knee), got {q.shape}")
+    if not np.all(np.isfinite(q)):
+        raise RepertoireError(f"{name} contains NaN or infinite values")
+    return q
+
+
+def leg_fk(leg: str, q) -> np.ndarray:
+    """Foot position p_BF in the body frame from one leg's joint angles.
+
+    Args:
+        leg: leg prefix (``lf``, ``rf``, ``lh``, ``rh``).
+        q: joint angles (hip roll, hip pitch, knee) in rad, shape ``(3,)`` or ``(..., 3)``.
+
+    Returns:
+        Foot centre positions, same leading shape as ``q``, last axis (x, y, z) in m.
+
+    Raises:
+        RepertoireError: unknown leg, wrong shape or non-finite angles.
+    """
+    g = leg_geometry(leg)
+    q = _as_angles(q, "q")
+    roll, pitch, knee = q[..., 0], q[..., 1], q[..., 2]
+    # Foot in the hip-roll link frame (before the roll rotation).
+    vx = -g.upper_length * np.sin(pitch) - g.lower_length * np.sin(pitch + knee)
+    vz = -g.upper_length * np.cos(pitch) - g.lower_length * np.cos(pitch + knee)
+    vy = np.full_like(vx, g.pitch_offset_y)
+    c, s = np.cos(roll), np.sin(roll)
+    p = np.stack([vx, c * vy - s * vz, s * vy + c * vz], axis=-1)
+    return p + np.asarray(g.p_BH)
+
+
+def leg_ik(leg: str, p_BF, *, check_limits: bool = True) -> np.ndarray:
+    """Joint angles that put one leg's foot at p_BF (closed form).
+
+    The solution is the one with the foot below the hip (roll in (-pi/2, pi/2)
+    for feet under the body) and the knee bent the leg's way (front knees <= 0,
+    hind knees >= 0).
+
+    Args:
+        leg: leg prefix (``lf``, ``rf``, ``lh``, ``rh``).
+        p_BF: desired foot centre in the body frame (m), shape ``(3,)`` or ``(..., 3)``.
+        check_limits: if True, raise when a solution violates the joint limits.
+
+    Returns:
+        Joint angles (hip roll, hip pitch, knee) in rad, same shape as ``p_BF``.
+
+    Raises:
+        RepertoireError: unknown leg, wrong shape, non-finite input, target out of
+            reach (too far from or too close to the hip), or (with ``check_limits``)
+            outside the joint limits.
+    """
+    g = leg_geometry(leg)
+    p = _as_angles(p_BF, "p_BF")
+    r = p - np.asarray(g.p_BH)
+    rx, ry, rz = r[..., 0], r[..., 1], r[..., 2]
+    a = g.pitch_offset_y
+    d2_yz = ry**2 + rz**2 - a**2
+    L1, L2 = g.upper_length, g.lower_length
+    vx = rx
+    vz = -np.sqrt(np.maximum(d2_yz, 0.0))
+    D2 = vx**2 + vz**2
+    cos_knee = (D2 - L1**2 - L2**2) / (2.0 * L1 * L2)
+    bad = (d2_yz < 0.0) | (cos_knee > 1.0 + 1e-12) | (cos_knee < -1.0 - 1e-12)
+    if np.any(bad):
+        reach = np.sqrt(np.maximum(D2, 0.0))
+        raise RepertoireError(
+            f"leg {g.name}: foot target out of reach (hip-to-foot distance in the leg plane "
+            f"{np.ravel(reach)[np.argmax(np.ravel(bad))]:.4f} m; reachable range "
+            f"[{abs(L1 - L2):.4f}, {L1 + L2:.4f}] m and at least {abs(a):.3f} m from the roll axis)"
+        )
+    knee = g.knee_sign * np.arccos(np.clip(cos_knee, -1.0, 1.0))
+    alpha = np.arctan2(-vx, -vz)
+    pitch = alpha - np.arctan2(L2 * np.sin(knee), L1 + L2 * np.cos(knee))
+    roll = np.arctan2(rz, ry) - np.arctan2(vz, a)
+    roll = (roll + np.pi) % (2.0 * np.pi) - np.pi
+    q = np.stack([roll, pitch, knee], axis=-1)
+    if check_limits:
+        lo, hi = np.asarray(g.lower), np.asarray(g.upper)
+        out = (q < lo - 1e-9) | (q > hi + 1e-9)
+        if np.any(out):
+            idx = np.argwhere(out)[0]
+            joint = JOINT_SUFFIXES[idx[-1]]
+            raise RepertoireError(
+                f"leg {g.name}: IK solution {joint}={q[tuple(idx[:-1])][idx[-1]]:.3f} rad is "
+                f"outside the joint limits [{lo[idx[-1]]}, {hi[idx[-1]]}] rad"
+            )
+    return q
+
+
+def nominal_foot_positions(
+    base_height: float = STANDING_HEIGHT,
+    foot_heights=None,
+    *,
+    offset_x: float = 0.0,
+    offset_y: float = 0.0,
+) -> np.ndarray:
+    """Foot centre positions p_BF (4 x 3, in LEGS order) of the nominal stance.
+
+    Each foot is under its hip pitch joint (plus optional offsets), its sphere
+    touching ground at ``foot_heights[i]`` while the body origin is at
+    ``base_height`` (both in the same vertical frame, body level).
+
+    Args:
+        base_height: height of the body origin (m).
+        foot_heights: ground heights under the four feet (m); default all zero.
+        offset_x: forward shift of every foot from under its hip (m).
+        offset_y: outward shift of every foot (m, positive = away from the body).
+    """
+    heights = np.zeros(4) if foot_heights is None else np.asarray(foot_heights, dtype=float)
+    if heights.shape != (4,) or not np.all(np.isfinite(heights)):
+        raise RepertoireError(f"foot_heights must be 4 finite numbers, got {foot_heights!r}")
+    if not np.isfinite(base_height):
+        raise RepertoireError(f"base_height must be finite, got {base_height}")
+    p = np.zeros((4, 3))
+    for i, leg in enumerate(LEGS):
+        g = LEG_GEOMETRY[leg]
+        side = np.sign(g.pitch_offset_y)
+        p[i, 0] = g.p_BH[0] + offset_x
+        p[i, 1] = g.p_BH[1] + g.pitch_offset_y + side * offset_y
+        p[i, 2] = heights[i] + FOOT_RADIUS - base_height
+    return p
+
+
+def standing_configuration(
+    base_height: float = STANDING_HEIGHT,
+    foot_heights=None,
+    *,
+    offset_x: float = 0.0,
+    offset_y: float = 0.0,
+) -> np.ndarray:
+    """The 12 joint angles (JOINT_NAMES order) of the nominal standing stance.
+
+    Args:
+        base_height: height of the body origin above the reference (m).
+        foot_heights: ground heights under the four feet (m); default all zero.
+        offset_x: forward shift of every foot from under its hip (m).
+        offset_y: outward shift of every foot (m).
+
+    Raises:
+        RepertoireError: when a foot cannot reach its ground within the joint limits.
+    """
+    p = nominal_foot_positions(base_height, foot_heights, offset_x=offset_x, offset_y=offset_y)
+    return np.concatenate([leg_ik(leg, p[i]) for i, leg in enumerate(LEGS)])

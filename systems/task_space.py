@@ -1,0 +1,414 @@
+"""Task-space control of an arm: resolved-motion-rate IK with quaternion feedback.
+
+Pastor et al. (2009), section IV-D: the DMP's desired end-effector position,
+velocity, orientation (unit quaternion) and angular velocity are turned into
+reference joint velocities by a velocity-based inverse kinematics controller;
+the reference joint positions and accelerations come from integrating and
+differentiating those velocities; orientation is tracked with quaternion
+feedback (Yuan 1988). An inverse-dynamics feed-forward plus PD torque
+controller (Drake's ``InverseDynamicsController``) then tracks the references.
+
+The math lives in plain functions (:func:`quaternion_error`,
+:func:`damped_pseudoinverse`, :func:`joint_limit_gradient`,
+:func:`rmrc_joint_velocity`, :func:`reach_bound`); :class:`ResolvedMotionRateIK`
+only wraps them.
+
+Quaternions are ``[w, x, y, z]`` (Drake's order), angular velocities and
+Jacobians are expressed in the world frame W.
+"""
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RotationMatrix
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import Frame, JacobianWrtVariable
+from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
+
+from repertoire.errors import RepertoireError
+
+#: Status codes of :class:`ResolvedMotionRateIK` (output port ``status``).
+STATUS_OK = 0
+#: The desired position lies outside the sphere the arm can reach at all.
+STATUS_TARGET_OUT_OF_REACH = 1
+#: The task-space error stayed above tolerance longer than the hold time
+#: (target inside the sphere but not attainable: joint limits, base, singularity).
+STATUS_TRACKING_LOST = 2
+
+STATUS_NAMES = {
+    STATUS_OK: "ok",
+    STATUS_TARGET_OUT_OF_REACH: "target out of reach",
+    STATUS_TRACKING_LOST: "task-space tracking lost",
+}
+
+
+def quaternion_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product ``a * b`` of quaternions ``[w, x, y, z]``."""
+    aw, av = a[0], np.asarray(a[1:])
+    bw, bv = b[0], np.asarray(b[1:])
+    return np.concatenate([[aw * bw - av @ bv], aw * bv + bw * av + np.cross(av, bv)])
+
+
+def quaternion_error(q_desired: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Quaternion feedback error (Yuan 1988), the vector part of ``q_d * conj(q)``.
+
+    ``e = eta * eps_d - eta_d * eps - eps_d x eps`` with ``q = [eta, eps]``. It is
+    ``sin(theta / 2) * axis`` of the rotation ``R_d R^T`` taking the current to the
+    desired orientation, expressed in the world frame; the sign is chosen for the
+    shorter way round (``q`` and ``-q`` are the same rotation).
+
+    Args:
+        q_desired: desired unit quaternion ``[w, x, y, z]``.
+        q: current unit quaternion ``[w, x, y, z]``.
+
+    Returns:
+        The 3-vector error; ``w_ref = w_d + K_o * e`` drives ``q`` to ``q_desired``.
+    """
+    q_desired = np.asarray(q_desired, dtype=float)
+    q = np.asarray(q, dtype=float)
+    eta_d, eps_d = q_desired[0], q_desired[1:]
+    eta, eps = q[0], q[1:]
+    scalar = eta_d * eta + eps_d @ eps
+    e = eta * eps_d - eta_d * eps - np.cross(eps_d, eps)
+    return -e if scalar < 0.0 else e
+
+
+def damped_pseudoinverse(J: np.ndarray, damping: float) -> np.ndarray:
+    """Damped least-squares inverse ``J^T (J J^T + damping^2 I)^-1``.
+
+    Args:
+        J: an ``m x n`` Jacobian.
+        damping: the damping factor lambda (0 gives the right pseudo-inverse of a
+            full-row-rank ``J``).
+    """
+    m = J.shape[0]
+    return J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(m), np.eye(m))
+
+
+def joint_limit_gradient(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Gradient of ``H(q) = sum(((q - q_mid) / (upper - lower))^2)``.
+
+    ``H`` grows toward the joint limits; following ``-grad H`` in the null space
+    of the task keeps the joints near the middle of their ranges.
+
+    Args:
+        q: joint positions.
+        lower: lower joint limits (finite).
+        upper: upper joint limits (finite).
+    """
+    span = upper - lower
+    return 2.0 * (q - 0.5 * (lower + upper)) / span**2
+
+
+def rmrc_joint_velocity(
+    J: np.ndarray,
+    xdot_ref: np.ndarray,
+    q: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    damping: float,
+    null_gain: float,
+) -> np.ndarray:
+    """Resolved-motion-rate joint velocity with joint-limit avoidance in the null space.
+
+    ``qdot = J# xdot_ref + (I - J# J) (-null_gain * grad H(q))`` with the damped
+    least-squares inverse ``J#``.
+
+    Args:
+        J: ``6 x n`` spatial-velocity Jacobian ``[angular; translational]``.
+        xdot_ref: reference spatial velocity ``[w_ref; v_ref]`` (6).
+        q: joint positions (n).
+        lower: lower joint limits (n).
+        upper: upper joint limits (n).
+        damping: damped least-squares factor.
+        null_gain: gain of the joint-limit avoidance in the null space.
+    """
+    J_pinv = damped_pseudoinverse(J, damping)
+    n = J.shape[1]
+    qdot_null = -null_gain * joint_limit_gradient(q, lower, upper)
+    return J_pinv @ xdot_ref + (np.eye(n) - J_pinv @ J) @ qdot_null
+
+
+def reach_bound(points: np.ndarray) -> float:
+    """Upper bound on the reach of a serial chain: the length of its joint polyline.
+
+    Args:
+        points: ``k x 3`` world positions of the shoulder (first row), every joint
+            origin down the chain, and the end-effector point (last row).
+
+    Returns:
+        The summed segment lengths; no configuration puts the end-effector
+        farther than this from the first point (triangle inequality).
+    """
+    points = np.asarray(points, dtype=float)
+    return float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
+
+
+def check_reachable(p_W: np.ndarray, center_W: np.ndarray, reach: float, *, what: str) -> None:
+    """Raises a clear error if ``p_W`` is outside the sphere ``center_W``, ``reach``.
+
+    Args:
+        p_W: target point in the world frame.
+        center_W: shoulder point in the world frame.
+        reach: reach radius (see :func:`reach_bound`).
+        what: what the target is, for the message (e.g. ``"grasp goal"``).
+
+    Raises:
+        RepertoireError: the target is out of reach (says by how much).
+    """
+    p_W = np.asarray(p_W, dtype=float)
+    if p_W.shape != (3,) or not np.all(np.isfinite(p_W)):
+        raise RepertoireError(f"{what} must be a finite 3-vector, got {p_W!r}")
+    distance = float(np.linalg.norm(p_W - center_W))
+    if distance > reach:
+        raise RepertoireError(
+            f"IK target out of reach: {what} {np.round(p_W, 4).tolist()} is {distance:.3f} m "
+            f"from the shoulder {np.round(center_W, 4).tolist()}, beyond the arm's reach of "
+            f"{reach:.3f} m by {distance - reach:.3f} m; move the target closer"
+        )
+
+
+class ResolvedMotionRateIK(LeafSystem):
+    """Resolved-motion-rate IK with quaternion feedback (Pastor et al. 2009, IV-D).
+
+    Every ``period`` seconds the reference joint positions ``q_r`` (discrete
+    state) are advanced by ``period * qdot_r`` with
+
+    ``qdot_r = J# [w_d + K_o e_o; v_d + K_p (p_d - p(q_r))] + (I - J# J)(-k_n grad H)``
+
+    where ``J`` is the end-effector Jacobian at ``q_r`` (evaluated in a plant
+    Context held in a cache entry), ``J#`` its damped least-squares inverse and
+    ``e_o`` the quaternion error. ``qdd_r`` is the backward difference of
+    ``qdot_r``. ``q_r`` starts at the measured joint positions (initialisation
+    event) and is kept inside the joint limits. The kinematic loop is closed on
+    ``q_r`` (as in the paper's Fig. 11); the torque controller closes the loop on
+    the measured state.
+
+    Target monitoring: ``status`` is :data:`STATUS_TARGET_OUT_OF_REACH` as soon as
+    the desired position is farther than ``max_reach`` from ``reach_center``, and
+    :data:`STATUS_TRACKING_LOST` when the position error stayed above
+    ``error_tolerance`` for longer than ``error_hold_time``. The status latches.
+
+    Input ports:
+        position_desired: p_d, 3.
+        velocity_desired: v_d, 3.
+        orientation_desired: q_d, unit quaternion [w, x, y, z], 4.
+        angular_velocity_desired: w_d in W, 3.
+        arm_state_measured: [q; v] of the n arm joints, 2n.
+
+    Output ports:
+        arm_reference_state: [q_r; qdot_r], 2n.
+        arm_reference_acceleration: qdd_r, n.
+        status: [status code], 1 (see ``STATUS_NAMES``).
+        task_error: [|p_d - p(q_r)| in m, orientation error angle in rad], 2.
+
+    Numeric parameter (index ``gains_parameter_index``): ``[K_p, K_o, damping,
+    null_gain]``.
+    """
+
+    def __init__(
+        self,
+        plant: MultibodyPlant,
+        frame_E: Frame,
+        arm_velocity_indices: list[int],
+        *,
+        period: float = 0.004,
+        position_gain: float = 20.0,
+        orientation_gain: float = 20.0,
+        damping: float = 0.02,
+        null_gain: float = 0.5,
+        reach_center: np.ndarray | None = None,
+        max_reach: float = np.inf,
+        error_tolerance: float = 0.03,
+        error_hold_time: float = 0.5,
+    ):
+        """Builds the IK system for a finalized control plant.
+
+        Args:
+            plant: finalized control plant (positions equal velocities for the arm
+                joints). Positions not in ``arm_velocity_indices`` stay at defaults.
+            frame_E: end-effector frame of ``plant``; its origin is the controlled point.
+            arm_velocity_indices: indices of the n arm joints in the plant's
+                position (= velocity) vector, in the order of ``arm_state_measured``.
+            period: update period of the discrete reference in seconds.
+            position_gain: K_p in 1/s.
+            orientation_gain: K_o in 1/s.
+            damping: damped least-squares factor.
+            null_gain: joint-limit avoidance gain.
+            reach_center: shoulder point in W for the reach check.
+            max_reach: reach radius in m (see :func:`reach_bound`); inf disables.
+            error_tolerance: position error in m above which tracking counts as lost.
+            error_hold_time: seconds the error may stay above tolerance.
+
+        Raises:
+            RepertoireError: bad period, gains, indices or unfinalized plant.
+        """
+        super().__init__()
+        if not plant.is_finalized():
+            raise RepertoireError("ResolvedMotionRateIK needs a finalized control plant")
+        if not period > 0.0:
+            raise RepertoireError(f"period must be > 0 s, got {period}")
+        for name, value in (
+            ("position_gain", position_gain),
+            ("orientation_gain", orientation_gain),
+            ("damping", damping),
+            ("null_gain", null_gain),
+        ):
+            if not (np.isfinite(value) and value >= 0.0):
+                raise RepertoireError(f"{name} must be finite and >= 0, got {value}")
+        idx = np.asarray(arm_velocity_indices, dtype=int)
+        if (
+            idx.ndim != 1
+            or len(idx) == 0
+            or len(set(idx.tolist())) != len(idx)
+            or idx.min() < 0
+            or idx.max() >= plant.num_velocities()
+        ):
+            raise RepertoireError(
+                f"arm_velocity_indices must be distinct indices below {plant.num_velocities()}, "
+                f"got {arm_velocity_indices}"
+            )
+        if plant.num_positions() != plant.num_velocities():
+            raise RepertoireError("the control plant must have as many positions as velocities")
+        self._plant = plant
+        self._frame_E = frame_E
+        self._idx = idx
+        n = len(idx)
+        self._n = n
+        self._period = float(period)
+        lower = plant.GetPositionLowerLimits()[idx]
+        upper = plant.GetPositionUpperLimits()[idx]
+        if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
+            raise RepertoireError("every arm joint needs finite position limits")
+        self._lower, self._upper = lower, upper
+        self._center = (
+            np.zeros(3) if reach_center is None else np.asarray(reach_center, dtype=float)
+        )
+        self._max_reach = float(max_reach)
+        self._tol = float(error_tolerance)
+        self._hold = float(error_hold_time)
+
+        self._p_d = self.DeclareVectorInputPort("position_desired", 3)
+        self._v_d = self.DeclareVectorInputPort("velocity_desired", 3)
+        self._q_d = self.DeclareVectorInputPort("orientation_desired", 4)
+        self._w_d = self.DeclareVectorInputPort("angular_velocity_desired", 3)
+        self._x_meas = self.DeclareVectorInputPort("arm_state_measured", 2 * n)
+
+        self.gains_parameter_index = self.DeclareNumericParameter(
+            BasicVector([position_gain, orientation_gain, damping, null_gain])
+        )
+        # Group 0: [q_r, qdot_r, qdd_r]; group 1: [status, seconds above tolerance,
+        # position error, orientation error].
+        self._ref_group = self.DeclareDiscreteState(3 * n)
+        self._monitor_group = self.DeclareDiscreteState(4)
+        self.DeclarePeriodicDiscreteUpdateEvent(self._period, 0.0, self._update)
+        self.DeclareInitializationDiscreteUpdateEvent(self._initialize)
+
+        self._plant_context = self.DeclareCacheEntry(
+            "control plant context at q_r",
+            ValueProducer(
+                allocate=lambda: AbstractValue.Make(plant.CreateDefaultContext()),
+                calc=self._calc_plant_context,
+            ),
+            prerequisites_of_calc={self.discrete_state_ticket(self._ref_group)},
+        )
+
+        self.DeclareVectorOutputPort(
+            "arm_reference_state",
+            2 * n,
+            lambda c, o: o.SetFromVector(c.get_discrete_state(self._ref_group).value()[: 2 * n]),
+            prerequisites_of_calc={self.discrete_state_ticket(self._ref_group)},
+        )
+        self.DeclareVectorOutputPort(
+            "arm_reference_acceleration",
+            n,
+            lambda c, o: o.SetFromVector(c.get_discrete_state(self._ref_group).value()[2 * n :]),
+            prerequisites_of_calc={self.discrete_state_ticket(self._ref_group)},
+        )
+        self.DeclareVectorOutputPort(
+            "status",
+            1,
+            lambda c, o: o.SetFromVector(c.get_discrete_state(self._monitor_group).value()[:1]),
+            prerequisites_of_calc={self.discrete_state_ticket(self._monitor_group)},
+        )
+        self.DeclareVectorOutputPort(
+            "task_error",
+            2,
+            lambda c, o: o.SetFromVector(c.get_discrete_state(self._monitor_group).value()[2:]),
+            prerequisites_of_calc={self.discrete_state_ticket(self._monitor_group)},
+        )
+
+    @property
+    def num_arm_joints(self) -> int:
+        return self._n
+
+    def _calc_plant_context(self, context: Context, value: AbstractValue) -> None:
+        plant_context = value.get_mutable_value()
+        q = self._plant.GetPositions(plant_context).copy()
+        q[self._idx] = context.get_discrete_state(self._ref_group).value()[: self._n]
+        self._plant.SetPositions(plant_context, q)
+
+    def end_effector_pose(self, context: Context) -> tuple[np.ndarray, RotationMatrix]:
+        """Position and rotation of the end-effector at the reference ``q_r``."""
+        plant_context = self._plant_context.Eval(context)
+        X_WE = self._frame_E.CalcPoseInWorld(plant_context)
+        return X_WE.translation(), X_WE.rotation()
+
+    def _initialize(self, context: Context, discrete_state) -> None:
+        n = self._n
+        q_meas = self._x_meas.Eval(context)[:n]
+        x = np.zeros(3 * n)
+        x[:n] = np.clip(q_meas, self._lower, self._upper)
+        discrete_state.get_mutable_vector(self._ref_group).SetFromVector(x)
+        discrete_state.get_mutable_vector(self._monitor_group).SetFromVector(np.zeros(4))
+
+    def _update(self, context: Context, discrete_state) -> None:
+        n = self._n
+        h = self._period
+        kp, ko, damping, null_gain = context.get_numeric_parameter(
+            self.gains_parameter_index
+        ).value()
+        ref = context.get_discrete_state(self._ref_group).value()
+        q_r, qd_prev = ref[:n], ref[n : 2 * n]
+        plant_context = self._plant_context.Eval(context)
+        X_WE = self._frame_E.CalcPoseInWorld(plant_context)
+        J = self._plant.CalcJacobianSpatialVelocity(
+            plant_context,
+            JacobianWrtVariable.kV,
+            self._frame_E,
+            np.zeros(3),
+            self._plant.world_frame(),
+            self._plant.world_frame(),
+        )[:, self._idx]
+        p_d = self._p_d.Eval(context)
+        q_d = np.asarray(self._q_d.Eval(context), dtype=float)
+        norm = np.linalg.norm(q_d)
+        if not (np.isfinite(norm) and abs(norm - 1.0) < 1e-3):
+            raise RepertoireError(
+                f"orientation_desired must be a unit quaternion [w, x, y, z], got {q_d} "
+                f"(norm {norm})"
+            )
+        e_p = p_d - X_WE.translation()
+        e_o = quaternion_error(q_d / norm, X_WE.rotation().ToQuaternion().wxyz())
+        xdot_ref = np.concatenate(
+            [self._w_d.Eval(context) + ko * e_o, self._v_d.Eval(context) + kp * e_p]
+        )
+        qd = rmrc_joint_velocity(J, xdot_ref, q_r, self._lower, self._upper, damping, null_gain)
+        q_new = np.clip(q_r + h * qd, self._lower, self._upper)
+        qd = (q_new - q_r) / h
+        discrete_state.get_mutable_vector(self._ref_group).SetFromVector(
+            np.concatenate([q_new, qd, (qd - qd_prev) / h])
+        )
+
+        monitor = context.get_discrete_state(self._monitor_group).value()
+        status, above = int(monitor[0]), monitor[1]
+        pos_err = float(np.linalg.norm(e_p))
+        ori_err = float(2.0 * np.arcsin(min(1.0, np.linalg.norm(e_o))))
+        above = above + h if pos_err > self._tol else 0.0
+        if status == STATUS_OK:
+            if np.linalg.norm(p_d - self._center) > self._max_reach:
+                status = STATUS_TARGET_OUT_OF_REACH
+            elif above > self._hold:
+                status = STATUS_TRACKING_LOST
+        discrete_state.get_mutable_vector(self._monitor_group).SetFromVector(
+            [status, above, pos_err, ori_err]
+        )

@@ -1,0 +1,230 @@
+"""Tests of systems/task_space.py: the RMRC math and the ResolvedMotionRateIK LeafSystem."""
+
+import numpy as np
+import pytest
+from pydrake.math import RollPitchYaw, RotationMatrix
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import Simulator
+from repertoire.systems.task_space import (
+    STATUS_OK,
+    STATUS_TARGET_OUT_OF_REACH,
+    STATUS_TRACKING_LOST,
+    ResolvedMotionRateIK,
+    check_reachable,
+    damped_pseudoinverse,
+    joint_limit_gradient,
+    quaternion_error,
+    quaternion_multiply,
+    reach_bound,
+    rmrc_joint_velocity,
+)
+
+from repertoire.errors import RepertoireError
+
+# A 7-DOF test arm written here so the tests need no other model: z-y-z shoulder,
+# y elbow, z-y-z wrist; links of 0.3 m, 0.3 m and 0.1 m.
+AXES = ["0 0 1", "0 1 0", "0 0 1", "0 1 0", "0 0 1", "0 1 0", "0 0 1"]
+OFFSETS = [0.1, 0.0, 0.15, 0.15, 0.15, 0.15, 0.05]
+
+
+def _arm_urdf() -> str:
+    links = ['<link name="base"/>']
+    joints = []
+    for i in range(7):
+        links.append(
+            f'<link name="l{i + 1}"><inertial><mass value="1"/>'
+            f'<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+        )
+        parent = "base" if i == 0 else f"l{i}"
+        joints.append(
+            f'<joint name="j{i + 1}" type="revolute"><parent link="{parent}"/>'
+            f'<child link="l{i + 1}"/><origin xyz="0 0 {OFFSETS[i]}"/><axis xyz="{AXES[i]}"/>'
+            f'<limit lower="-2.9" upper="2.9" effort="100" velocity="3"/></joint>'
+        )
+    links.append('<link name="ee"/>')
+    joints.append(
+        '<joint name="ee_joint" type="fixed"><parent link="l7"/><child link="ee"/>'
+        '<origin xyz="0 0 0.1"/></joint>'
+    )
+    return '<robot name="arm">' + "".join(links + joints) + "</robot>"
+
+
+def _make_plant() -> MultibodyPlant:
+    plant = MultibodyPlant(0.0)
+    Parser(plant).AddModelsFromString(_arm_urdf(), "urdf")
+    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base"))
+    plant.Finalize()
+    return plant
+
+
+ZERO3 = np.zeros(3)
+Q0 = np.array([0.1, 0.5, -0.2, -1.2, 0.3, 0.6, 0.2])
+
+
+def _pose(plant, q):
+    ctx = plant.CreateDefaultContext()
+    plant.SetPositions(ctx, q)
+    return plant.GetFrameByName("ee").CalcPoseInWorld(ctx)
+
+
+def _system(plant, **kwargs):
+    return ResolvedMotionRateIK(plant, plant.GetFrameByName("ee"), list(range(7)), **kwargs)
+
+
+def _fix(system, context, p_d, q_d, v_d=ZERO3, w_d=ZERO3, q_meas=Q0):
+    system.GetInputPort("position_desired").FixValue(context, p_d)
+    system.GetInputPort("velocity_desired").FixValue(context, v_d)
+    system.GetInputPort("orientation_desired").FixValue(context, q_d)
+    system.GetInputPort("angular_velocity_desired").FixValue(context, w_d)
+    system.GetInputPort("arm_state_measured").FixValue(
+        context, np.concatenate([q_meas, 0 * q_meas])
+    )
+
+
+def test_quaternion_error_closed_form():
+    q = RotationMatrix(RollPitchYaw(0.2, -0.1, 0.4)).ToQuaternion().wxyz()
+    assert np.allclose(quaternion_error(q, q), 0.0, atol=1e-15)
+    assert np.allclose(quaternion_error(-q, q), 0.0, atol=1e-15)  # double cover
+    # Desired = rotation of 0.3 rad about world z applied to q: e = sin(0.15) z.
+    r = np.array([np.cos(0.15), 0, 0, np.sin(0.15)])
+    e = quaternion_error(quaternion_multiply(r, q), q)
+    assert np.allclose(e, [0, 0, np.sin(0.15)], atol=1e-15)
+    e = quaternion_error(-quaternion_multiply(r, q), q)
+    assert np.allclose(e, [0, 0, np.sin(0.15)], atol=1e-15)
+
+
+def test_damped_pseudoinverse_and_null_space():
+    J = np.array([[1.0, 0.0, 2.0], [0.0, 1.0, 1.0]])
+    assert np.allclose(J @ damped_pseudoinverse(J, 0.0), np.eye(2), atol=1e-14)
+    assert np.allclose(damped_pseudoinverse(J, 0.0), np.linalg.pinv(J), atol=1e-14)
+    lower, upper = -np.ones(3), 3 * np.ones(3)
+    assert np.allclose(joint_limit_gradient(np.ones(3), lower, upper), 0.0)
+    assert np.allclose(joint_limit_gradient(np.array([3.0, 1, 1]), lower, upper), [0.25, 0, 0])
+    qd = rmrc_joint_velocity(
+        J, np.array([1.0, -1.0]), np.array([2.5, 0, 1]), lower, upper, 0.0, 1.0
+    )
+    assert np.allclose(J @ qd, [1.0, -1.0], atol=1e-14)  # the null-space motion adds no task motion
+
+
+def test_reach_bound_and_check():
+    assert reach_bound(np.array([[0, 0, 0], [0, 0, 1], [0, 1, 1]])) == pytest.approx(2.0)
+    check_reachable(np.array([0, 0, 1.9]), np.zeros(3), 2.0, what="goal")
+    with pytest.raises(RepertoireError, match="IK target out of reach: grasp goal .* by 0.500 m"):
+        check_reachable(np.array([0, 0, 2.5]), np.zeros(3), 2.0, what="grasp goal")
+    with pytest.raises(RepertoireError, match="finite 3-vector"):
+        check_reachable(np.array([0, np.nan, 1.0]), np.zeros(3), 2.0, what="goal")
+
+
+def test_zero_error_keeps_reference_at_measured():
+    plant = _make_plant()
+    system = _system(plant)
+    context = system.CreateDefaultContext()
+    # Joint-limit avoidance moves in the null space; with null gain 0 nothing may move.
+    context.get_mutable_numeric_parameter(system.gains_parameter_index).SetAtIndex(3, 0.0)
+    X = _pose(plant, Q0)
+    _fix(system, context, X.translation(), X.rotation().ToQuaternion().wxyz())
+    simulator = Simulator(system, context)
+    simulator.AdvanceTo(0.012)  # initialisation (q_r <- measured), then 4 updates
+    state = system.GetOutputPort("arm_reference_state").Eval(context)
+    assert np.array_equal(state[:7], Q0)
+    assert np.array_equal(state[7:], np.zeros(7))
+    assert np.array_equal(
+        system.GetOutputPort("arm_reference_acceleration").Eval(context), np.zeros(7)
+    )
+    assert system.GetOutputPort("status").Eval(context)[0] == STATUS_OK
+    assert np.allclose(system.GetOutputPort("task_error").Eval(context), 0.0, atol=1e-12)
+
+
+def test_null_space_motion_keeps_the_pose():
+    plant = _make_plant()
+    system = _system(
+        plant, null_gain=2.0, position_gain=0.0, orientation_gain=0.0, damping=0.0, period=1e-3
+    )
+    context = system.CreateDefaultContext()
+    X = _pose(plant, Q0)
+    _fix(system, context, X.translation(), X.rotation().ToQuaternion().wxyz())
+    simulator = Simulator(system, context)
+    simulator.AdvanceTo(0.001)
+    q1 = system.GetOutputPort("arm_reference_state").Eval(context)[:7]
+    assert np.linalg.norm(q1 - Q0) > 5e-6  # it moved toward the middle of the ranges
+    assert np.linalg.norm(_pose(plant, q1).translation() - X.translation()) < 1e-9
+
+
+def test_velocity_step_matches_finite_difference():
+    plant = _make_plant()
+    period = 1e-4
+    system = _system(plant, period=period, damping=0.0, null_gain=0.0)
+    context = system.CreateDefaultContext()
+    X = _pose(plant, Q0)
+    v_d = np.array([0.1, -0.05, 0.08])
+    w_d = np.array([0.2, 0.1, -0.3])
+    _fix(system, context, X.translation(), X.rotation().ToQuaternion().wxyz(), v_d, w_d)
+    simulator = Simulator(system, context)
+    simulator.AdvanceTo(period)
+    q1 = system.GetOutputPort("arm_reference_state").Eval(context)[:7]
+    X1 = _pose(plant, q1)
+    # One step of h along qdot = J^+ [w_d; v_d]: the pose moves by h [w_d; v_d] to first order.
+    assert np.allclose((X1.translation() - X.translation()) / period, v_d, atol=1e-4)
+    dR = (X1.rotation() @ X.rotation().inverse()).ToAngleAxis()
+    assert np.allclose(dR.axis() * dR.angle() / period, w_d, atol=1e-4)
+
+
+def test_position_error_converges_to_target():
+    plant = _make_plant()
+    system = _system(plant)
+    context = system.CreateDefaultContext()
+    X = _pose(plant, Q0)
+    target = X.translation() + np.array([0.05, -0.03, 0.04])
+    _fix(system, context, target, X.rotation().ToQuaternion().wxyz())
+    simulator = Simulator(system, context)
+    simulator.AdvanceTo(0.6)  # K_p = 20 1/s: 12 time constants
+    q = system.GetOutputPort("arm_reference_state").Eval(context)[:7]
+    X1 = _pose(plant, q)
+    assert np.linalg.norm(X1.translation() - target) < 1e-5
+    assert system.GetOutputPort("status").Eval(context)[0] == STATUS_OK
+
+
+def test_unreachable_target_is_reported():
+    plant = _make_plant()
+    system = _system(plant, reach_center=np.array([0, 0, 0.1]), max_reach=0.8)
+    context = system.CreateDefaultContext()
+    X = _pose(plant, Q0)
+    _fix(system, context, np.array([1.5, 0.0, 0.1]), X.rotation().ToQuaternion().wxyz())
+    simulator = Simulator(system, context)
+    simulator.AdvanceTo(0.008)
+    assert system.GetOutputPort("status").Eval(context)[0] == STATUS_TARGET_OUT_OF_REACH
+
+
+def test_tracking_lost_inside_the_sphere_is_reported():
+    plant = _make_plant()
+    # No reach sphere: a target 1.5 m away can only show up as lost tracking.
+    system = _system(plant, error_hold_time=0.2)
+    context = system.CreateDefaultContext()
+    X = _pose(plant, Q0)
+    _fix(system, context, np.array([1.5, 0.0, 0.1]), X.rotation().ToQuaternion().wxyz())
+    simulator = Simulator(system, context)
+    simulator.AdvanceTo(0.3)
+    assert system.GetOutputPort("status").Eval(context)[0] == STATUS_TRACKING_LOST
+    q = system.GetOutputPort("arm_reference_state").Eval(context)[:7]
+    assert np.all(np.abs(q) <= 2.9)  # references stay inside the joint limits
+
+
+def test_bad_construction_and_input():
+    plant = _make_plant()
+    with pytest.raises(RepertoireError, match="period must be > 0"):
+        _system(plant, period=0.0)
+    with pytest.raises(RepertoireError, match="arm_velocity_indices"):
+        ResolvedMotionRateIK(plant, plant.GetFrameByName("ee"), [0, 1, 9])
+    with pytest.raises(RepertoireError, match="damping must be finite"):
+        _system(plant, damping=-1.0)
+    unfinalized = MultibodyPlant(0.0)
+    with pytest.raises(RepertoireError, match="finalized"):
+        ResolvedMotionRateIK(unfinalized, unfinalized.world_frame(), [0])
+    system = _system(plant)
+    context = system.CreateDefaultContext()
+    X = _pose(plant, Q0)
+    _fix(system, context, X.translation(), np.array([1.0, 0.5, 0.0, 0.0]))
+    simulator = Simulator(system, context)
+    with pytest.raises(RepertoireError, match="unit quaternion"):
+        simulator.AdvanceTo(0.01)

@@ -1,0 +1,424 @@
+"""The ``repertoire`` command line: list, render, simulate, study, demo.
+
+Everything goes through the diagram registry (``repertoire.diagrams.registry``)
+and the study registry (``repertoire.studies.engine``), so a world or study
+added to the package shows up here without touching this file. Heavy imports
+(pydrake) happen inside the sub-commands so that ``--help`` is instant.
+
+Exit codes: 0 success, 1 a run failed (diverged simulation, failed demo part),
+2 bad input (unknown name, bad scenario/config YAML, bad option); on exit code 2
+nothing has been written.
+"""
+
+import argparse
+import sys
+import textwrap
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+EPILOG = """\
+examples:
+  repertoire list                                   what diagrams and studies exist
+  repertoire render arm_hold --out out/graphs       out/graphs/arm_hold.{dot,svg,png}
+  repertoire render littledog_stand --max-depth 1   top level only
+  repertoire simulate littledog_stand               run it, print its check figures
+  repertoire simulate arm_hold --duration 2 --scenario my_arm.yaml
+  repertoire simulate biped_stand --replay          also write out/simulate/biped_stand.html
+  repertoire simulate diffdrive_drive --live        watch at http://localhost:7000 (Ctrl-C stops)
+  repertoire study NAME --episodes 200 --workers 2  Monte-Carlo study, resumable
+  repertoire study NAME --executor dask --scheduler tcp://host:8786
+  repertoire demo                                   everything above, into out/demo
+
+Scenario and config files are YAML with the fields of the world's Scenario (or
+the study's Config) dataclass; unknown keys are errors. `repertoire CMD --help`
+explains each command. Exit codes: 0 ok, 1 a run failed, 2 bad input.
+"""
+
+
+def _wrap(text: str) -> str:
+    """``text`` wrapped at 79 columns (RawDescriptionHelpFormatter keeps line breaks)."""
+    return textwrap.fill(text, 79)
+
+
+def _add_scenario(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--scenario",
+        metavar="YAML",
+        type=Path,
+        help="scenario YAML file (fields of the world's Scenario dataclass; "
+        "default: the built-in scenario)",
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argparse parser of the ``repertoire`` command (sub-commands and their options)."""
+    parser = argparse.ArgumentParser(
+        prog="repertoire",
+        description=_wrap(
+            "repertoire: Drake worlds (named diagrams) and Monte-Carlo studies of robots "
+            "that reuse a repertoire of skills. Pick a command; NAME is a registered "
+            "diagram or study (see `repertoire list`)."
+        ),
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    raw = argparse.RawDescriptionHelpFormatter
+
+    sub.add_parser(
+        "list",
+        help="list registered diagrams and studies",
+        description=_wrap(
+            "List every registered diagram (world) and study with a one-line description."
+        ),
+        formatter_class=raw,
+    )
+
+    p = sub.add_parser(
+        "render",
+        help="draw a diagram's graph (SVG/PNG, .dot text)",
+        description=_wrap(
+            "Build diagram NAME and draw its system graph with Graphviz. "
+            "Writes DIR/NAME.dot always, and DIR/NAME.svg/.png when the "
+            "'dot' program is installed."
+        ),
+        epilog="example: repertoire render arm_hold --out out/graphs --max-depth 1",
+        formatter_class=raw,
+    )
+    p.add_argument("name", metavar="NAME", help="registered diagram name")
+    _add_scenario(p)
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        type=Path,
+        default=Path("out/render"),
+        help="output folder (default: out/render)",
+    )
+    p.add_argument(
+        "--max-depth",
+        metavar="N",
+        type=int,
+        default=None,
+        help="levels of nested diagrams to expand (default: all)",
+    )
+    p.add_argument(
+        "--format",
+        dest="formats",
+        nargs="+",
+        default=["svg", "png"],
+        choices=["svg", "png", "pdf"],
+        help="image formats (default: svg png)",
+    )
+
+    p = sub.add_parser(
+        "simulate",
+        help="simulate a diagram and print its check figures",
+        description=_wrap(
+            "Build diagram NAME, simulate it (its registered duration "
+            "unless --duration), stop with an error if any state turns "
+            "NaN, and print the world's check figures (e.g. height "
+            "error). --replay writes a self-contained HTML replay; "
+            "--live serves a Meshcat view on localhost."
+        ),
+        epilog="examples:\n  repertoire simulate arm_hold --duration 2\n"
+        "  repertoire simulate littledog_stand --replay --out out/sim\n"
+        "  repertoire simulate biped_stand --live --live-seconds 60",
+        formatter_class=raw,
+    )
+    p.add_argument("name", metavar="NAME", help="registered diagram name")
+    _add_scenario(p)
+    p.add_argument(
+        "--duration",
+        metavar="S",
+        type=float,
+        default=None,
+        help="simulated seconds (default: the diagram's registered duration)",
+    )
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        type=Path,
+        default=Path("out/simulate"),
+        help="folder for the --replay HTML (default: out/simulate)",
+    )
+    p.add_argument(
+        "--replay",
+        action="store_true",
+        help="record in Meshcat and write DIR/NAME.html (opens offline)",
+    )
+    p.add_argument(
+        "--live",
+        action="store_true",
+        help="run at real time, print the Meshcat URL and keep serving until "
+        "Ctrl-C (or --live-seconds)",
+    )
+    p.add_argument(
+        "--live-seconds",
+        metavar="S",
+        type=float,
+        default=None,
+        help="with --live: stop serving after S seconds",
+    )
+
+    p = sub.add_parser(
+        "study",
+        help="run a Monte-Carlo study (resumable, parallel)",
+        description=_wrap(
+            "Run study NAME for --episodes seeds. Every episode is "
+            "stored in DIR/NAME.sqlite as it finishes; running again "
+            "runs only missing seeds. A changed config is refused for an "
+            "existing store unless --fresh. Tables (CSV, Markdown) and "
+            "figures (PNG) go to DIR."
+        ),
+        epilog="examples:\n  repertoire study NAME --episodes 200 --workers 2\n"
+        "  repertoire study NAME --config my_config.yaml --fresh\n"
+        "  repertoire study NAME --executor dask "
+        "--scheduler tcp://127.0.0.1:8786",
+        formatter_class=raw,
+    )
+    p.add_argument("name", metavar="NAME", help="registered study name")
+    p.add_argument(
+        "--config",
+        metavar="YAML",
+        type=Path,
+        default=None,
+        help="study config YAML (fields of the study's Config dataclass)",
+    )
+    p.add_argument(
+        "--episodes",
+        metavar="N",
+        type=int,
+        default=100,
+        help="number of seeds/episodes (default: 100)",
+    )
+    p.add_argument("--first-seed", metavar="N", type=int, default=0, help="first seed (default: 0)")
+    p.add_argument(
+        "--workers",
+        metavar="N",
+        type=int,
+        default=None,
+        help="parallel workers (default: all cores)",
+    )
+    p.add_argument(
+        "--executor",
+        choices=["process", "inline", "dask"],
+        default=None,
+        help="process pool (default), inline (one process) or dask",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDR",
+        default=None,
+        help="Dask scheduler address, e.g. tcp://host:8786 (implies --executor dask)",
+    )
+    p.add_argument(
+        "--fresh", action="store_true", help="discard an existing store and start afresh"
+    )
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        type=Path,
+        default=None,
+        help="output folder (default: out/studies/NAME)",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    p = sub.add_parser(
+        "demo",
+        help="render, simulate, replay every world; run every study",
+        description=_wrap(
+            "Render every registered diagram (SVG/PNG), simulate each "
+            "briefly printing its check figures, write HTML replays, run "
+            "every registered study with its demo config, and write "
+            "DIR/index.md listing every file. Exits 1 if any part "
+            "failed (the others still run)."
+        ),
+        epilog="example: repertoire demo --out out/demo",
+        formatter_class=raw,
+    )
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        type=Path,
+        default=Path("out/demo"),
+        help="output folder (default: out/demo)",
+    )
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="shorter simulations and smoke-size studies (a quick check)",
+    )
+    return parser
+
+
+def _print_figures(figures: dict[str, float], indent: str = "  ") -> None:
+    for key, value in figures.items():
+        print(f"{indent}{key} = {value:.6g}")
+
+
+def _cmd_list(args: argparse.Namespace) -> int:
+    from repertoire.diagrams.registry import diagram_names, get_diagram_entry
+
+    print("diagrams (repertoire render|simulate NAME):")
+    for name in diagram_names():
+        entry = get_diagram_entry(name)
+        print(f"  {name:<24} {entry.description} [{entry.duration:g} s]")
+    from repertoire.studies.engine import get_study, study_names
+
+    print("studies (repertoire study NAME):")
+    names = study_names()
+    for name in names:
+        print(f"  {name:<24} {getattr(get_study(name), 'description', '')}")
+    if not names:
+        print("  (none registered)")
+    return 0
+
+
+def _cmd_render(args: argparse.Namespace) -> int:
+    from repertoire.diagrams.registry import get_diagram_entry
+    from repertoire.diagrams.render import render_diagram
+    from repertoire.diagrams.simulate import build_registered, resolve_scenario
+    from repertoire.errors import RepertoireError
+
+    if args.max_depth is not None and args.max_depth < 0:
+        raise RepertoireError(f"--max-depth must be >= 0, got {args.max_depth}")
+    entry = get_diagram_entry(args.name)
+    scenario = resolve_scenario(entry, args.scenario)
+    diagram = build_registered(args.name, scenario=scenario)
+    result = render_diagram(
+        diagram, args.out / args.name, max_depth=args.max_depth, formats=args.formats
+    )
+    for path in result.files.values():
+        print(f"wrote {path}")
+    if result.reason:
+        print(f"note: no {'/'.join(result.skipped)} images: {result.reason}", file=sys.stderr)
+    return 0
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from repertoire.diagrams.registry import get_diagram_entry
+    from repertoire.diagrams.simulate import (
+        SimulationDivergedError,
+        _check_duration,
+        resolve_scenario,
+        simulate_registered,
+    )
+    from repertoire.errors import RepertoireError
+
+    entry = get_diagram_entry(args.name)
+    duration = _check_duration(entry.duration if args.duration is None else args.duration)
+    if args.live_seconds is not None and not args.live:
+        raise RepertoireError("--live-seconds needs --live")
+    if args.live_seconds is not None and args.live_seconds < 0:
+        raise RepertoireError(f"--live-seconds must be >= 0, got {args.live_seconds}")
+    scenario = resolve_scenario(entry, args.scenario)
+    start = time.perf_counter()
+    try:
+        if args.replay or args.live:
+            from repertoire.diagrams.replay import record_replay
+
+            html = args.out / f"{args.name}.html" if args.replay else None
+            result = record_replay(
+                args.name,
+                duration,
+                html,
+                scenario=scenario,
+                realtime_rate=1.0 if args.live else 0.0,
+                live=args.live,
+                live_seconds=args.live_seconds,
+            )
+            figures = {"sim_time_s": result.sim_time_s, **result.figures}
+        else:
+            figures = simulate_registered(args.name, scenario=scenario, duration=duration)
+    except SimulationDivergedError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    wall = time.perf_counter() - start
+    print(f"{args.name}: simulated {figures['sim_time_s']:.3g} s in {wall:.2f} s wall")
+    _print_figures({k: v for k, v in figures.items() if k != "sim_time_s"})
+    if args.replay:
+        print(f"wrote {result.html_path} (self-contained; open it in a browser)")
+    return 0
+
+
+def _cmd_study(args: argparse.Namespace) -> int:
+    from repertoire.diagrams.scenario import load_scenario
+    from repertoire.errors import RepertoireError
+    from repertoire.studies.engine import get_study, run_study
+
+    entry = get_study(args.name)
+    if args.episodes <= 0:
+        raise RepertoireError(f"--episodes must be > 0, got {args.episodes}")
+    if args.first_seed < 0:
+        raise RepertoireError(f"--first-seed must be >= 0, got {args.first_seed}")
+    if args.workers is not None and args.workers <= 0:
+        raise RepertoireError(f"--workers must be > 0, got {args.workers}")
+    executor = args.executor or ("dask" if args.scheduler else "process")
+    if args.scheduler and executor != "dask":
+        raise RepertoireError(f"--scheduler needs --executor dask, got --executor {executor}")
+    config = None
+    if args.config is not None:
+        config = load_scenario(entry.config_type, filename=args.config)
+    out_dir = args.out if args.out is not None else Path("out/studies") / args.name
+    result = run_study(
+        args.name,
+        config,
+        episodes=args.episodes,
+        first_seed=args.first_seed,
+        store=out_dir / f"{args.name}.sqlite",
+        out_dir=out_dir,
+        executor=executor,
+        workers=args.workers,
+        scheduler_address=args.scheduler,
+        fresh=args.fresh,
+        progress=not args.no_progress,
+    )
+    print(
+        f"{args.name}: {len(result.records)} episodes in {result.elapsed_s:.1f} s; "
+        f"store {result.store}"
+    )
+    for label, path in {**result.tables, **result.figures}.items():
+        print(f"  {label}: {path}")
+    return 0
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from repertoire.demo import run_demo
+
+    result = run_demo(args.out, quick=args.quick)
+    return 0 if result.ok else 1
+
+
+_COMMANDS = {
+    "list": _cmd_list,
+    "render": _cmd_render,
+    "simulate": _cmd_simulate,
+    "study": _cmd_study,
+    "demo": _cmd_demo,
+}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Runs the ``repertoire`` command line; returns the exit code.
+
+    Args:
+        argv: the arguments after the program name (default: ``sys.argv[1:]``).
+    """
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from repertoire.errors import RepertoireError
+
+    try:
+        return _COMMANDS[args.command](args)
+    except RepertoireError as e:
+        print(f"repertoire {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,254 @@
+"""``repertoire demo``: render, simulate and replay every world; run every study.
+
+For each registered diagram: draw its graph (``diagrams/NAME.svg|png|dot``),
+simulate it for its registered duration while recording in Meshcat, print its
+check() figures and write the HTML replay (``replays/NAME.html``). Then run
+every registered study with its demo config and demo episode count on the
+process pool (``studies/NAME/``). Finally print an index and write
+``index.md``. A failure in one part is reported and the rest still runs; the
+result says which parts failed (and the CLI then exits 1).
+"""
+
+import dataclasses
+import time
+import traceback
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+QUICK_DURATION_S = 0.25
+QUICK_EPISODES = 2
+
+
+@dataclasses.dataclass
+class DemoItem:
+    """One world or study of the demo.
+
+    Attributes:
+        kind: "diagram" or "study".
+        name: the registered name.
+        files: label -> path of every file written for it.
+        figures: named figures (check() figures, or episodes / elapsed for a study).
+        error: None when it worked, else what failed.
+        elapsed_s: wall seconds spent on it.
+    """
+
+    kind: str
+    name: str
+    files: dict[str, Path] = dataclasses.field(default_factory=dict)
+    figures: dict[str, float] = dataclasses.field(default_factory=dict)
+    notes: list[str] = dataclasses.field(default_factory=list)
+    error: str | None = None
+    elapsed_s: float = 0.0
+
+
+@dataclasses.dataclass
+class DemoResult:
+    """Everything the demo did.
+
+    Attributes:
+        out_dir: the demo's output folder.
+        items: one DemoItem per world and study, in the order run.
+        failures: "kind name: error" for every part that failed (including a
+            registry that could not be loaded).
+        index_path: the index.md written.
+    """
+
+    out_dir: Path
+    items: list[DemoItem]
+    failures: list[str]
+    index_path: Path
+
+    @property
+    def ok(self) -> bool:
+        """True when nothing failed."""
+        return not self.failures
+
+
+def _study_api() -> tuple[Callable[[], list[str]], Callable[[str], Any], Callable[..., Any]]:
+    """(study_names, get_study, run_study) of the study engine (imported lazily)."""
+    from repertoire.studies.engine import get_study, run_study, study_names
+
+    return study_names, get_study, run_study
+
+
+def _short_error(e: BaseException) -> str:
+    return f"{type(e).__name__}: {e}".strip().splitlines()[0][:500]
+
+
+def _demo_diagram(name: str, out: Path, quick: bool, say: Callable[[str], None]) -> DemoItem:
+    from repertoire.diagrams.registry import get_diagram_entry
+    from repertoire.diagrams.render import render_diagram
+    from repertoire.diagrams.replay import record_replay
+    from repertoire.diagrams.simulate import build_registered
+
+    item = DemoItem("diagram", name)
+    start = time.perf_counter()
+    errors = []
+    try:
+        result = render_diagram(build_registered(name), out / "diagrams" / name)
+        item.files.update({f"graph {k}": v for k, v in result.files.items()})
+        if result.reason:
+            item.notes.append(f"no {'/'.join(result.skipped)} images: {result.reason}")
+    except Exception as e:
+        errors.append(f"render: {_short_error(e)}")
+        say(f"  render failed:\n{traceback.format_exc()}")
+    try:
+        duration = get_diagram_entry(name).duration
+        if quick:
+            duration = min(duration, QUICK_DURATION_S)
+        sim_start = time.perf_counter()
+        replay = record_replay(name, duration, out / "replays" / f"{name}.html")
+        item.files["replay html"] = replay.html_path
+        item.figures = {
+            "sim_time_s": replay.sim_time_s,
+            "wall_time_s": time.perf_counter() - sim_start,
+            **replay.figures,
+        }
+    except Exception as e:
+        errors.append(f"simulate/replay: {_short_error(e)}")
+        say(f"  simulate/replay failed:\n{traceback.format_exc()}")
+    item.error = "; ".join(errors) or None
+    item.elapsed_s = time.perf_counter() - start
+    return item
+
+
+def _demo_study(name: str, out: Path, quick: bool, say: Callable[[str], None]) -> DemoItem:
+    _, get_study, run_study = _study_api()
+    item = DemoItem("study", name)
+    start = time.perf_counter()
+    try:
+        entry = get_study(name)
+        make_config = getattr(entry, "smoke_config", None) if quick else None
+        make_config = make_config or getattr(entry, "demo_config", None)
+        config = make_config() if make_config is not None else None
+        episodes = int(getattr(entry, "demo_episodes", 4) or 4)
+        if quick:
+            episodes = min(episodes, QUICK_EPISODES)
+        study_dir = out / "studies" / name
+        result = run_study(
+            name,
+            config,
+            episodes=episodes,
+            first_seed=0,
+            store=study_dir / f"{name}.sqlite",
+            out_dir=study_dir,
+            executor="inline" if quick else "process",
+            fresh=True,
+            progress=True,
+        )
+        item.files["store"] = Path(result.store)
+        item.files.update({str(k): Path(v) for k, v in result.tables.items()})
+        item.files.update({str(k): Path(v) for k, v in result.figures.items()})
+        item.figures = {"episodes": float(len(result.records)), "wall_time_s": result.elapsed_s}
+    except Exception as e:
+        item.error = _short_error(e)
+        say(f"  study failed:\n{traceback.format_exc()}")
+    item.elapsed_s = time.perf_counter() - start
+    return item
+
+
+def _rel(path: Path, out: Path) -> str:
+    try:
+        return str(Path(path).resolve().relative_to(out.resolve()))
+    except ValueError:
+        return str(path)
+
+
+def write_index(out: Path, items: list[DemoItem], failures: list[str], total_s: float) -> Path:
+    """Writes ``out/index.md`` listing every file, figure and failure of the demo."""
+    lines = [
+        "# repertoire demo",
+        "",
+        f"Written by `repertoire demo` in {total_s:.0f} s. "
+        "Paths are relative to this folder; the HTML replays open offline.",
+        "",
+    ]
+    for kind, title in (("diagram", "Worlds (diagrams)"), ("study", "Studies")):
+        lines += [f"## {title}", ""]
+        chosen = [i for i in items if i.kind == kind]
+        if not chosen:
+            lines += ["(none registered)", ""]
+        for item in chosen:
+            status = "FAILED: " + item.error if item.error else f"ok ({item.elapsed_s:.1f} s)"
+            lines += [f"### {item.name} - {status}", ""]
+            lines += [
+                f"- {label}: [{_rel(p, out)}]({_rel(p, out)})" for label, p in item.files.items()
+            ]
+            lines += [f"- {key} = {value:.6g}" for key, value in item.figures.items()]
+            lines += [f"- note: {note}" for note in item.notes]
+            lines.append("")
+    lines += ["## Failures", ""]
+    lines += [f"- {f}" for f in failures] or ["none"]
+    path = out / "index.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def run_demo(
+    out_dir: str | Path = "out/demo", *, quick: bool = False, printer: Callable[[str], None] = print
+) -> DemoResult:
+    """Runs the demo; never raises for a failing world or study (see ``DemoResult``).
+
+    Args:
+        out_dir: output folder (created).
+        quick: cap simulations at 0.25 s and run studies with their smoke config (if any)
+            and at most 2 episodes in-process.
+        printer: where progress lines go.
+
+    Returns:
+        The DemoResult; ``result.ok`` is False when any part failed.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    items: list[DemoItem] = []
+    failures: list[str] = []
+
+    try:
+        from repertoire.diagrams.registry import diagram_names
+
+        names = diagram_names()
+    except Exception as e:
+        names = []
+        failures.append(f"diagram registry: {_short_error(e)}")
+        printer(f"could not load the diagram registry:\n{traceback.format_exc()}")
+    for name in names:
+        printer(f"== world {name}")
+        item = _demo_diagram(name, out, quick, printer)
+        items.append(item)
+        for key, value in item.figures.items():
+            printer(f"  {key} = {value:.6g}")
+        for note in item.notes:
+            printer(f"  note: {note}")
+        if item.error:
+            failures.append(f"diagram {name}: {item.error}")
+
+    try:
+        study_names = _study_api()[0]()
+    except Exception as e:
+        study_names = []
+        failures.append(f"study registry: {_short_error(e)}")
+        printer(f"could not load the study registry:\n{traceback.format_exc()}")
+    for name in study_names:
+        printer(f"== study {name}")
+        item = _demo_study(name, out, quick, printer)
+        items.append(item)
+        if item.error:
+            failures.append(f"study {name}: {item.error}")
+
+    total = time.perf_counter() - start
+    index = write_index(out, items, failures, total)
+    printer("")
+    printer(f"== repertoire demo: {len(items)} parts in {total:.0f} s; index: {index}")
+    for item in items:
+        printer(f"{item.kind} {item.name}: {'FAILED' if item.error else 'ok'}")
+        for label, path in item.files.items():
+            printer(f"  {label}: {path}")
+    if failures:
+        printer(f"{len(failures)} part(s) FAILED:")
+        for failure in failures:
+            printer(f"  {failure}")
+    else:
+        printer("all parts ok")
+    return DemoResult(out, items, failures, index)

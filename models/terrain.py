@@ -1,0 +1,395 @@
+"""LittleDog-style terrain boards built from boxes, with their exact height function.
+
+Drake has no height-field shape, and a mesh collapses to its convex hull under
+point contact, so a board is a list of boxes (each with a yaw about the world
+z axis and no roll or pitch). The generator is seeded and returns a typed
+:class:`TerrainBoard` that can add itself to a MultibodyPlant, write an SDF
+file, and give the exact height ``z(x, y)`` of what it built.
+
+Conventions (world frame W, z up):
+
+- the world ground is z = 0 everywhere (a thin 6 m x 6 m box with its top at z = 0
+  when added; a box, not a HalfSpace, so that every query type supports it);
+- the board covers ``[-size_x/2, size_x/2] x [-size_y/2, size_y/2]``, centred on
+  the origin, LittleDog walking along +x;
+- the board's base slab has its top at ``z = base_thickness``; a *gap* is a strip
+  of missing slab (full board width), so inside a gap and outside the board the
+  height is the ground, 0: the gap depth is ``base_thickness``;
+- every other box (rock, step) stands on the ground (its bottom at z = 0), so
+  each vertical column is solid from the ground up to ``z(x, y)``.
+
+Kinds: ``flat`` (slab only), ``rocks`` (slab plus yawed boxes of random size
+and height), ``steps`` (bands across x at rising and falling heights),
+``gaps`` (slab strips separated by gaps across the board), ``mixed`` (the board
+cut along x into sections: the first flat, the others rocks/steps/gaps at random).
+"""
+
+import dataclasses
+import math
+from pathlib import Path
+from xml.sax.saxutils import escape
+
+import numpy as np
+
+from repertoire.errors import RepertoireError
+
+BOARD_KINDS: list[str] = ["flat", "rocks", "steps", "gaps", "mixed"]
+
+_COLORS = {
+    "slab": (0.78, 0.70, 0.55, 1.0),
+    "rock": (0.50, 0.48, 0.45, 1.0),
+    "step": (0.62, 0.52, 0.40, 1.0),
+    "ground": (0.85, 0.85, 0.85, 1.0),
+}
+
+GROUND_SIZE: list[float] = [6.0, 6.0, 0.2]
+"""Size of the ground box (m); its top face is z = 0 and it is centred on the origin."""
+
+
+def _ground_box() -> "TerrainBox":
+    return TerrainBox([0.0, 0.0, -0.5 * GROUND_SIZE[2]], list(GROUND_SIZE), 0.0, "ground")
+
+
+@dataclasses.dataclass
+class TerrainParams:
+    """Parameters of the board generator (YAML-loadable: lists, not tuples).
+
+    Attributes:
+        kind: one of ``flat``, ``rocks``, ``steps``, ``gaps``, ``mixed``.
+        size_x: board length along x (m).
+        size_y: board width along y (m).
+        base_thickness: height of the slab top above the ground (m); also the gap depth.
+        rock_count: number of rocks on a ``rocks`` board (scaled by area in ``mixed``).
+        rock_size: [min, max] side length of a rock's footprint (m).
+        rock_height: [min, max] height of a rock's top above the slab (m).
+        step_count: number of step bands on a ``steps`` board (after a flat start band).
+        step_rise: [min, max] height change between neighbouring bands (m); the sign
+            is random, heights never go below the slab.
+        gap_count: number of gaps on a ``gaps`` board.
+        gap_width: [min, max] width of a gap along x (m).
+        mixed_sections: number of sections along x of a ``mixed`` board.
+    """
+
+    kind: str = "flat"
+    size_x: float = 0.6
+    size_y: float = 0.6
+    base_thickness: float = 0.04
+    rock_count: int = 14
+    rock_size: list[float] = dataclasses.field(default_factory=lambda: [0.04, 0.10])
+    rock_height: list[float] = dataclasses.field(default_factory=lambda: [0.01, 0.04])
+    step_count: int = 4
+    step_rise: list[float] = dataclasses.field(default_factory=lambda: [0.015, 0.035])
+    gap_count: int = 2
+    gap_width: list[float] = dataclasses.field(default_factory=lambda: [0.03, 0.07])
+    mixed_sections: int = 4
+
+    def validate(self) -> None:
+        """Checks every field.
+
+        Raises:
+            RepertoireError: naming the field, its value and what is expected.
+        """
+        if self.kind not in BOARD_KINDS:
+            raise RepertoireError(
+                f"unknown terrain board kind '{self.kind}'; expected one of {BOARD_KINDS}"
+            )
+        for name in ("size_x", "size_y", "base_thickness"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise RepertoireError(f"terrain {name} must be a positive length, got {value}")
+        for name in ("rock_count", "step_count", "gap_count", "mixed_sections"):
+            value = getattr(self, name)
+            if int(value) != value or value < 0:
+                raise RepertoireError(f"terrain {name} must be a non-negative integer, got {value}")
+        if self.mixed_sections < 1:
+            raise RepertoireError(f"terrain mixed_sections must be >= 1, got {self.mixed_sections}")
+        for name in ("rock_size", "rock_height", "step_rise", "gap_width"):
+            value = list(getattr(self, name))
+            if (
+                len(value) != 2
+                or not all(math.isfinite(v) for v in value)
+                or value[0] < 0.0
+                or value[0] > value[1]
+            ):
+                raise RepertoireError(
+                    f"terrain {name} must be a range [min, max] with 0 <= min <= max, got {value}"
+                )
+        if self.rock_size[0] <= 0.0:
+            raise RepertoireError(f"terrain rock_size must be positive, got {self.rock_size}")
+        if self.gap_width[1] * max(self.gap_count, 1) >= 0.8 * self.size_x:
+            raise RepertoireError(
+                f"terrain gaps ({self.gap_count} of up to {self.gap_width[1]} m) leave too little "
+                f"board along size_x={self.size_x} m; expected gap_count*max width < 0.8*size_x"
+            )
+        if self.rock_size[1] >= min(self.size_x, self.size_y):
+            raise RepertoireError(
+                f"terrain rock_size max {self.rock_size[1]} m must be smaller than the board"
+            )
+
+
+@dataclasses.dataclass
+class TerrainBox:
+    """One box of a board.
+
+    Attributes:
+        center: [x, y, z] of the box centre in the world frame (m).
+        size: [sx, sy, sz] full side lengths (m), sx and sy before the yaw.
+        yaw: rotation about the world z axis (rad).
+        label: ``slab``, ``rock``, ``step`` or ``ground`` (used for colours and names).
+    """
+
+    center: list[float]
+    size: list[float]
+    yaw: float = 0.0
+    label: str = "slab"
+
+    @property
+    def top(self) -> float:
+        """Height of the box's top face (m)."""
+        return self.center[2] + 0.5 * self.size[2]
+
+    def contains_xy(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """True where (x, y) lies inside the box's footprint (closed set)."""
+        dx, dy = x - self.center[0], y - self.center[1]
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        u = c * dx + s * dy
+        v = -s * dx + c * dy
+        eps = 1e-12
+        return (np.abs(u) <= 0.5 * self.size[0] + eps) & (np.abs(v) <= 0.5 * self.size[1] + eps)
+
+
+@dataclasses.dataclass
+class TerrainBoard:
+    """A generated board: its boxes and the exact height function.
+
+    Attributes:
+        params: the parameters it was generated from.
+        seed: the generator seed.
+        boxes: the boxes (all welded to the world).
+    """
+
+    params: TerrainParams
+    seed: int
+    boxes: list[TerrainBox]
+
+    @property
+    def kind(self) -> str:
+        return self.params.kind
+
+    def height(self, x, y) -> np.ndarray:
+        """Exact terrain height z(x, y) in m (vectorised; broadcasts x and y).
+
+        The ground (outside the board and inside gaps) has height 0.
+
+        Args:
+            x: world x coordinates (m), any shape.
+            y: world y coordinates (m), broadcastable with ``x``.
+        """
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+            raise RepertoireError("terrain height query needs finite x and y")
+        z = np.zeros(x.shape)
+        for box in self.boxes:
+            inside = box.contains_xy(x, y)
+            z = np.where(inside, np.maximum(z, box.top), z)
+        return z
+
+    def max_height(self) -> float:
+        """Highest box top (m)."""
+        return max((b.top for b in self.boxes), default=0.0)
+
+    def add_to_plant(self, plant, *, name: str = "terrain", friction=None, ground: bool = True):
+        """Welds the boxes (collision + visual) to the plant's world body.
+
+        Call before ``plant.Finalize()``; the plant must have a SceneGraph.
+
+        Args:
+            plant: a ``MultibodyPlant`` registered with a SceneGraph.
+            name: prefix of the geometry names (must be unique in the plant).
+            friction: a ``CoulombFriction``; default static = dynamic = 1.0.
+            ground: also add the ground box (top face z = 0).
+
+        Returns:
+            The list of collision GeometryIds (ground first when added).
+        """
+        from pydrake.geometry import Box
+        from pydrake.math import RigidTransform, RotationMatrix
+        from pydrake.multibody.plant import CoulombFriction
+
+        if friction is None:
+            friction = CoulombFriction(1.0, 1.0)
+        world = plant.world_body()
+        ids = []
+        if ground:
+            X_WG = RigidTransform([0.0, 0.0, -0.5 * GROUND_SIZE[2]])
+            shape = Box(*GROUND_SIZE)
+            ids.append(
+                plant.RegisterCollisionGeometry(world, X_WG, shape, f"{name}_ground", friction)
+            )
+            plant.RegisterVisualGeometry(
+                world, X_WG, shape, f"{name}_ground_visual", np.asarray(_COLORS["ground"])
+            )
+        for i, box in enumerate(self.boxes):
+            X_WB = RigidTransform(RotationMatrix.MakeZRotation(box.yaw), np.asarray(box.center))
+            shape = Box(*box.size)
+            gname = f"{name}_{box.label}_{i}"
+            ids.append(plant.RegisterCollisionGeometry(world, X_WB, shape, gname, friction))
+            plant.RegisterVisualGeometry(
+                world, X_WB, shape, f"{gname}_visual", np.asarray(_COLORS[box.label])
+            )
+        return ids
+
+    def sdf_text(self, *, model_name: str = "terrain_board", ground: bool = True) -> str:
+        """SDFormat text of a static model with one link holding every box.
+
+        Args:
+            model_name: the SDF model name.
+            ground: include the ground box (top face z = 0).
+        """
+        lines = [
+            '<?xml version="1.0"?>',
+            '<sdf version="1.9" xmlns:drake="http://drake.mit.edu">',
+            f'  <model name="{escape(model_name)}">',
+            "    <static>true</static>",
+            '    <link name="board">',
+        ]
+        friction = (
+            "        <drake:proximity_properties>\n"
+            "          <drake:mu_static>1.0</drake:mu_static>\n"
+            "          <drake:mu_dynamic>1.0</drake:mu_dynamic>\n"
+            "        </drake:proximity_properties>"
+        )
+        boxes = list(enumerate(self.boxes))
+        if ground:
+            boxes.insert(0, ("ground", _ground_box()))
+        for i, box in boxes:
+            pose = " ".join(f"{v:.9g}" for v in [*box.center, 0.0, 0.0, box.yaw])
+            geom = "<box><size>" + " ".join(f"{v:.9g}" for v in box.size) + "</size></box>"
+            rgba = " ".join(f"{v:g}" for v in _COLORS[box.label])
+            gname = f"{box.label}_{i}" if box.label != "ground" else "ground"
+            lines += [
+                f'      <collision name="{gname}">',
+                f"        <pose>{pose}</pose>",
+                f"        <geometry>{geom}</geometry>",
+                friction,
+                "      </collision>",
+                f'      <visual name="{gname}_visual">',
+                f"        <pose>{pose}</pose>",
+                f"        <geometry>{geom}</geometry>",
+                f"        <material><diffuse>{rgba}</diffuse></material>",
+                "      </visual>",
+            ]
+        lines += ["    </link>", "  </model>", "</sdf>", ""]
+        return "\n".join(lines)
+
+    def write_sdf(self, path: str | Path, **kwargs) -> Path:
+        """Writes :meth:`sdf_text` to ``path`` (parent folders created) and returns it."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(self.sdf_text(**kwargs))
+        return path
+
+
+def _slab(x0: float, x1: float, p: TerrainParams) -> TerrainBox:
+    t = p.base_thickness
+    return TerrainBox([0.5 * (x0 + x1), 0.0, 0.5 * t], [x1 - x0, p.size_y, t], 0.0, "slab")
+
+
+def _rocks(x0: float, x1: float, count: int, p: TerrainParams, rng) -> list[TerrainBox]:
+    boxes = [_slab(x0, x1, p)]
+    half_y = 0.5 * p.size_y
+    for _ in range(count):
+        sx, sy = rng.uniform(p.rock_size[0], p.rock_size[1], size=2)
+        yaw = float(rng.uniform(0.0, math.pi))
+        # Half extents of the yawed footprint, so the rock stays inside its region.
+        ex = 0.5 * (abs(math.cos(yaw)) * sx + abs(math.sin(yaw)) * sy)
+        ey = 0.5 * (abs(math.sin(yaw)) * sx + abs(math.cos(yaw)) * sy)
+        if 2.0 * ex >= x1 - x0:
+            scale = 0.95 * (x1 - x0) / (2.0 * ex)
+            sx, sy, ex, ey = sx * scale, sy * scale, ex * scale, ey * scale
+        cx = float(rng.uniform(x0 + ex, x1 - ex))
+        cy = float(rng.uniform(-half_y + ey, half_y - ey))
+        top = p.base_thickness + float(rng.uniform(p.rock_height[0], p.rock_height[1]))
+        boxes.append(TerrainBox([cx, cy, 0.5 * top], [float(sx), float(sy), top], yaw, "rock"))
+    return boxes
+
+
+def _steps(x0: float, x1: float, count: int, p: TerrainParams, rng) -> list[TerrainBox]:
+    bands = count + 1
+    edges = np.linspace(x0, x1, bands + 1)
+    boxes = [_slab(edges[0], edges[1], p)]
+    height = 0.0
+    for i in range(1, bands):
+        rise = float(rng.uniform(p.step_rise[0], p.step_rise[1]))
+        sign = 1.0 if (height - rise < 0.0 or rng.random() < 0.6) else -1.0
+        height = max(0.0, height + sign * rise)
+        top = p.base_thickness + height
+        boxes.append(
+            TerrainBox(
+                [0.5 * (edges[i] + edges[i + 1]), 0.0, 0.5 * top],
+                [float(edges[i + 1] - edges[i]), p.size_y, top],
+                0.0,
+                "slab" if height == 0.0 else "step",
+            )
+        )
+    return boxes
+
+
+def _gaps(x0: float, x1: float, count: int, p: TerrainParams, rng) -> list[TerrainBox]:
+    if count == 0:
+        return [_slab(x0, x1, p)]
+    length = x1 - x0
+    widths = rng.uniform(p.gap_width[0], p.gap_width[1], size=count)
+    # Split the rest of the length into count + 1 slab pieces of random share.
+    solid = length - widths.sum()
+    shares = rng.uniform(0.6, 1.4, size=count + 1)
+    pieces = solid * shares / shares.sum()
+    boxes, x = [], x0
+    for i in range(count + 1):
+        boxes.append(_slab(x, x + pieces[i], p))
+        x += pieces[i] + (widths[i] if i < count else 0.0)
+    return boxes
+
+
+def generate_board(params: TerrainParams | None = None, seed: int = 0) -> TerrainBoard:
+    """Generates a board of ``params.kind`` with ``np.random.default_rng(seed)``.
+
+    Args:
+        params: generator parameters (validated here); default a flat board.
+        seed: the random seed; the same (params, seed) always gives the same board.
+
+    Raises:
+        RepertoireError: invalid parameters (unknown kind, negative sizes, bad ranges).
+    """
+    params = TerrainParams() if params is None else params
+    if not isinstance(params, TerrainParams):
+        raise RepertoireError(f"generate_board needs TerrainParams, got {type(params).__name__}")
+    params.validate()
+    if int(seed) != seed:
+        raise RepertoireError(f"terrain seed must be an integer, got {seed!r}")
+    rng = np.random.default_rng(int(seed))
+    x0, x1 = -0.5 * params.size_x, 0.5 * params.size_x
+    kind = params.kind
+    if kind == "flat":
+        boxes = [_slab(x0, x1, params)]
+    elif kind == "rocks":
+        boxes = _rocks(x0, x1, params.rock_count, params, rng)
+    elif kind == "steps":
+        boxes = _steps(x0, x1, params.step_count, params, rng)
+    elif kind == "gaps":
+        boxes = _gaps(x0, x1, params.gap_count, params, rng)
+    else:  # mixed
+        n = params.mixed_sections
+        edges = np.linspace(x0, x1, n + 1)
+        boxes = [_slab(edges[0], edges[1], params)]
+        for i in range(1, n):
+            a, b = float(edges[i]), float(edges[i + 1])
+            section = ["rocks", "steps", "gaps"][int(rng.integers(3))]
+            if section == "rocks":
+                count = max(1, round(params.rock_count / n))
+                boxes += _rocks(a, b, count, params, rng)
+            elif section == "steps":
+                boxes += _steps(a, b, max(1, round(params.step_count / n)), params, rng)
+            else:
+                boxes += _gaps(a, b, 1, params, rng)
+    return TerrainBoard(params=params, seed=int(seed), boxes=boxes)

@@ -1,0 +1,349 @@
+"""SQLite storage of study episodes, and plain-data conversion of configs and records.
+
+One row per seed, each written in its own transaction the moment its episode
+finishes (WAL journal, ``INSERT OR IGNORE`` on ``PRIMARY KEY (seed)``), so a
+SIGKILL loses at most the episodes in flight and never duplicates or corrupts a
+row. A ``meta`` table holds the study name, the canonical JSON of the config,
+its SHA-256 and the record's field names; opening a store with another config
+is refused unless ``fresh=True``.
+
+Configs and records cross process boundaries and land in the store only as
+plain data (JSON): :func:`to_plain` and :func:`from_plain` convert dataclasses
+both ways using their type hints. Nothing is pickled.
+"""
+
+import dataclasses
+import hashlib
+import json
+import sqlite3
+import time
+import types
+import typing
+from pathlib import Path
+from typing import Any
+
+from repertoire.errors import RepertoireError
+
+SCHEMA_VERSION = "1"
+
+
+def to_plain(value: Any, path: str = "value") -> Any:
+    """Converts a dataclass (recursively) to JSON-compatible plain data.
+
+    Args:
+        value: a dataclass instance, list, dict, scalar or numpy array/scalar.
+        path: where ``value`` sits, for error messages.
+
+    Raises:
+        RepertoireError: a value that is not plain data (names the field).
+    """
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {
+            f.name: to_plain(getattr(value, f.name), f"{path}.{f.name}")
+            for f in dataclasses.fields(value)
+        }
+    if isinstance(value, (list, tuple)):
+        return [to_plain(v, f"{path}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, dict):
+        out = {}
+        for k, v in value.items():
+            if not isinstance(k, str):
+                raise RepertoireError(f"{path} has a non-string key {k!r}; expected str keys")
+            out[k] = to_plain(v, f"{path}.{k}")
+        return out
+    np = _numpy_if_loaded()
+    if np is not None:
+        if isinstance(value, np.ndarray):
+            return to_plain(value.tolist(), path)
+        if isinstance(value, np.generic):
+            return value.item()
+    raise RepertoireError(
+        f"{path} has type {type(value).__name__}; expected float/int/str/bool, "
+        "lists or dicts of those, or a dataclass"
+    )
+
+
+def _numpy_if_loaded():
+    import sys
+
+    return sys.modules.get("numpy")
+
+
+def from_plain(tp: Any, value: Any, path: str = "value") -> Any:
+    """Rebuilds a value of type ``tp`` from plain data made by :func:`to_plain`.
+
+    Args:
+        tp: the target type (a dataclass, ``list[X]``, ``dict[str, X]``,
+            ``X | None``, float, int, str, bool, numpy.ndarray or Any).
+        value: plain data.
+        path: where ``value`` sits, for error messages.
+
+    Raises:
+        RepertoireError: the data does not fit the type.
+    """
+    if tp is Any or tp is None:
+        return value
+    if isinstance(tp, type) and dataclasses.is_dataclass(tp):
+        if not isinstance(value, dict):
+            raise RepertoireError(f"{path}: expected a mapping for {tp.__name__}, got {value!r}")
+        hints = typing.get_type_hints(tp)
+        names = {f.name for f in dataclasses.fields(tp) if f.init}
+        unknown = sorted(set(value) - names)
+        if unknown:
+            raise RepertoireError(
+                f"{path}: unknown keys {unknown} for {tp.__name__}; expected {sorted(names)}"
+            )
+        kwargs = {k: from_plain(hints.get(k, Any), v, f"{path}.{k}") for k, v in value.items()}
+        return tp(**kwargs)
+    origin = typing.get_origin(tp)
+    args = typing.get_args(tp)
+    if origin in (list, typing.List):  # noqa: UP006
+        if not isinstance(value, list):
+            raise RepertoireError(f"{path}: expected a list, got {value!r}")
+        item = args[0] if args else Any
+        return [from_plain(item, v, f"{path}[{i}]") for i, v in enumerate(value)]
+    if origin in (dict, typing.Dict):  # noqa: UP006
+        if not isinstance(value, dict):
+            raise RepertoireError(f"{path}: expected a mapping, got {value!r}")
+        item = args[1] if len(args) == 2 else Any
+        return {k: from_plain(item, v, f"{path}.{k}") for k, v in value.items()}
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        errors = []
+        for arg in args:
+            if arg is type(None):
+                continue
+            try:
+                return from_plain(arg, value, path)
+            except RepertoireError as e:
+                errors.append(str(e))
+        raise RepertoireError(f"{path}: {value!r} fits none of {args}: {errors}")
+    if tp is float:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+    elif tp is int:
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+    elif tp is bool or tp is str:
+        if isinstance(value, tp):
+            return value
+    elif getattr(tp, "__module__", "") == "numpy" and getattr(tp, "__name__", "") == "ndarray":
+        import numpy as np
+
+        return np.asarray(value, dtype=float)
+    else:
+        return value
+    raise RepertoireError(f"{path}: expected {tp.__name__}, got {value!r}")
+
+
+def canonical_json(plain: Any) -> str:
+    """Canonical JSON text (sorted keys, no spaces) of plain data."""
+    return json.dumps(plain, sort_keys=True, separators=(",", ":"))
+
+
+def config_hash(config_json: str) -> str:
+    """SHA-256 hex digest of a canonical config JSON text."""
+    return hashlib.sha256(config_json.encode()).hexdigest()
+
+
+def _flatten(plain: Any, prefix: str = "") -> dict[str, Any]:
+    if isinstance(plain, dict):
+        out: dict[str, Any] = {}
+        for k, v in plain.items():
+            out.update(_flatten(v, f"{prefix}.{k}" if prefix else k))
+        return out
+    return {prefix or "config": plain}
+
+
+def describe_config_change(old_json: str, new_json: str) -> str:
+    """Lists the fields that differ between two config JSON texts, one per clause."""
+    old, new = _flatten(json.loads(old_json)), _flatten(json.loads(new_json))
+    parts = []
+    for key in sorted(set(old) | set(new)):
+        a, b = old.get(key, "<absent>"), new.get(key, "<absent>")
+        if a != b:
+            parts.append(f"{key}: {a!r} -> {b!r}")
+    return "; ".join(parts) if parts else "(no field differs)"
+
+
+@dataclasses.dataclass
+class StoredEpisode:
+    """One stored row.
+
+    Attributes:
+        seed: the episode's seed.
+        record_json: the record as JSON text.
+        episode_s: wall time of run_episode measured by the engine.
+        finished_unix: when the row was written (Unix time).
+        worker: ``host:pid`` of the process that ran the episode.
+    """
+
+    seed: int
+    record_json: str
+    episode_s: float
+    finished_unix: float
+    worker: str
+
+
+class EpisodeStore:
+    """An SQLite file holding the episodes of one study with one config.
+
+    Use :meth:`open`; close with :meth:`close` (or as a context manager).
+    """
+
+    def __init__(self, path: Path, conn: sqlite3.Connection):
+        self.path = path
+        self._conn = conn
+
+    @classmethod
+    def open(
+        cls,
+        path: str | Path,
+        *,
+        study: str,
+        config_json: str,
+        record_fields: list[str],
+        fresh: bool = False,
+    ) -> "EpisodeStore":
+        """Opens (or creates) the store at ``path`` for ``study`` with this config.
+
+        Args:
+            path: the SQLite file; parent folders are created.
+            study: the study name.
+            config_json: canonical JSON of the config.
+            record_fields: field names of the study's record type.
+            fresh: drop every stored episode and start afresh with this config.
+
+        Raises:
+            RepertoireError: the file is not a store, or holds another study,
+                another config or another record layout and ``fresh`` is False.
+        """
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            conn = sqlite3.connect(str(path), isolation_level=None, timeout=30.0)
+            conn.execute("PRAGMA journal_mode=WAL")
+            # WAL + NORMAL: a committed row survives any process crash (SIGKILL);
+            # only an OS crash / power cut may lose the last commits.
+            conn.execute("PRAGMA synchronous=NORMAL")
+            rows = conn.execute("SELECT name FROM sqlite_master WHERE type='table'")
+            tables = {r[0] for r in rows}
+        except sqlite3.DatabaseError as e:
+            raise RepertoireError(f"'{path}' is not a study store (SQLite said: {e})") from e
+        store = cls(path, conn)
+        try:
+            store._init(tables, study, config_json, record_fields, fresh)
+        except BaseException:
+            conn.close()
+            raise
+        return store
+
+    def _init(
+        self, tables: set[str], study: str, config_json: str, record_fields: list[str], fresh: bool
+    ) -> None:
+        conn = self._conn
+        if tables and not {"meta", "episodes"} <= tables:
+            raise RepertoireError(
+                f"'{self.path}' is an SQLite file but not a study store (tables {sorted(tables)})"
+            )
+        meta = dict(conn.execute("SELECT key, value FROM meta")) if tables else {}
+        wanted = {
+            "schema_version": SCHEMA_VERSION,
+            "study": study,
+            "config_json": config_json,
+            "config_sha256": config_hash(config_json),
+            "record_fields": json.dumps(record_fields),
+        }
+        if meta and not fresh:
+            hint = "pass fresh=True (CLI: --fresh) to start the store afresh"
+            if meta.get("study") != study:
+                raise RepertoireError(
+                    f"store '{self.path}' holds study '{meta.get('study')}', not '{study}'; "
+                    f"use another store path or {hint}"
+                )
+            if meta.get("config_sha256") != wanted["config_sha256"]:
+                change = describe_config_change(meta["config_json"], config_json)
+                raise RepertoireError(
+                    f"store '{self.path}' was filled with another config for study '{study}' "
+                    f"(changed: {change}); {hint} or use another store path"
+                )
+            if meta.get("record_fields") != wanted["record_fields"]:
+                raise RepertoireError(
+                    f"store '{self.path}' holds records with fields {meta.get('record_fields')} "
+                    f"but study '{study}' now returns {record_fields}; {hint}"
+                )
+            if meta.get("schema_version") != SCHEMA_VERSION:
+                raise RepertoireError(
+                    f"store '{self.path}' has schema version {meta.get('schema_version')}, "
+                    f"this engine writes {SCHEMA_VERSION}; {hint}"
+                )
+            return
+        conn.execute("BEGIN IMMEDIATE")
+        try:
+            conn.execute(
+                "CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)"
+            )
+            conn.execute(
+                "CREATE TABLE IF NOT EXISTS episodes (seed INTEGER PRIMARY KEY, "
+                "record TEXT NOT NULL, episode_s REAL NOT NULL, finished_unix REAL NOT NULL, "
+                "worker TEXT NOT NULL)"
+            )
+            conn.execute("DELETE FROM episodes")
+            conn.execute("DELETE FROM meta")
+            wanted["created_unix"] = repr(time.time())
+            conn.executemany("INSERT INTO meta (key, value) VALUES (?, ?)", wanted.items())
+            conn.execute("COMMIT")
+        except BaseException:
+            conn.execute("ROLLBACK")
+            raise
+
+    def seeds(self, first_seed: int, episodes: int) -> set[int]:
+        """The stored seeds among ``first_seed .. first_seed + episodes - 1``."""
+        rows = self._conn.execute(
+            "SELECT seed FROM episodes WHERE seed >= ? AND seed < ?",
+            (first_seed, first_seed + episodes),
+        )
+        return {r[0] for r in rows}
+
+    def insert(self, seed: int, record_json: str, episode_s: float, worker: str) -> bool:
+        """Writes one episode in its own transaction; never overwrites a stored seed.
+
+        Returns:
+            True if the row was new, False if the seed was already stored.
+        """
+        cur = self._conn.execute(
+            "INSERT OR IGNORE INTO episodes (seed, record, episode_s, finished_unix, worker) "
+            "VALUES (?, ?, ?, ?, ?)",
+            (seed, record_json, float(episode_s), time.time(), worker),
+        )
+        return cur.rowcount == 1
+
+    def load(self, first_seed: int, episodes: int) -> list[StoredEpisode]:
+        """The stored rows among the given seeds, sorted by seed."""
+        rows = self._conn.execute(
+            "SELECT seed, record, episode_s, finished_unix, worker FROM episodes "
+            "WHERE seed >= ? AND seed < ? ORDER BY seed",
+            (first_seed, first_seed + episodes),
+        )
+        return [StoredEpisode(*r) for r in rows]
+
+    def count(self) -> int:
+        """Number of stored episodes (all seeds)."""
+        return self._conn.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
+
+    def meta(self) -> dict[str, str]:
+        """The meta table as a dict."""
+        return dict(self._conn.execute("SELECT key, value FROM meta"))
+
+    def close(self) -> None:
+        """Closes the connection."""
+        self._conn.close()
+
+    def __enter__(self) -> "EpisodeStore":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -11,6 +11,7 @@ machine without Graphviz still gets the graph text.
 import dataclasses
 import logging
 import shutil
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -128,7 +129,9 @@ def render_diagram(
         _LOG.warning("render_diagram: wrote only %s: %s", dot_path, result.reason)
         return result
     try:
-        graphs = pydot.graph_from_dot_data(text)
+        with warnings.catch_warnings():  # pydot's pyparsing grammar uses deprecated names
+            warnings.simplefilter("ignore", DeprecationWarning)
+            graphs = pydot.graph_from_dot_data(text)
         if not graphs:
             raise RuntimeError("pydot could not parse the Graphviz text")
         graph = graphs[0]

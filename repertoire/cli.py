@@ -166,64 +166,25 @@ def build_parser() -> argparse.ArgumentParser:
         "study",
         help="run a Monte-Carlo study (resumable, parallel)",
         description=_wrap(
-            "Run study NAME for --episodes seeds. Every episode is "
-            "stored in DIR/NAME.sqlite as it finishes; running again "
-            "runs only missing seeds. A changed config is refused for an "
-            "existing store unless --fresh. Tables (CSV, Markdown) and "
-            "figures (PNG) go to DIR."
+            "Run study NAME for --episodes seeds (default: the study's demo episode count) "
+            "with its demo config, or --config YAML. Every episode is stored in the SQLite "
+            "store as it finishes; running again runs only missing seeds, and a changed "
+            "config is refused for an existing store unless --fresh. Tables (CSV, Markdown) "
+            "and figures (PNG) go to --out-dir (default out/studies/NAME)."
         ),
         epilog="examples:\n  repertoire study NAME --episodes 200 --workers 2\n"
+        "  repertoire study NAME --smoke --executor inline\n"
         "  repertoire study NAME --config my_config.yaml --fresh\n"
-        "  repertoire study NAME --executor dask "
-        "--scheduler tcp://127.0.0.1:8786",
+        "  repertoire study NAME --executor dask --scheduler tcp://127.0.0.1:8786",
         formatter_class=raw,
     )
-    p.add_argument("name", metavar="NAME", help="registered study name")
-    p.add_argument(
-        "--config",
-        metavar="YAML",
-        type=Path,
-        default=None,
-        help="study config YAML (fields of the study's Config dataclass)",
-    )
-    p.add_argument(
-        "--episodes",
-        metavar="N",
-        type=int,
-        default=100,
-        help="number of seeds/episodes (default: 100)",
-    )
-    p.add_argument("--first-seed", metavar="N", type=int, default=0, help="first seed (default: 0)")
-    p.add_argument(
-        "--workers",
-        metavar="N",
-        type=int,
-        default=None,
-        help="parallel workers (default: all cores)",
-    )
-    p.add_argument(
-        "--executor",
-        choices=["process", "inline", "dask"],
-        default=None,
-        help="process pool (default), inline (one process) or dask",
-    )
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDR",
-        default=None,
-        help="Dask scheduler address, e.g. tcp://host:8786 (implies --executor dask)",
-    )
-    p.add_argument(
-        "--fresh", action="store_true", help="discard an existing store and start afresh"
-    )
-    p.add_argument(
-        "--out",
-        metavar="DIR",
-        type=Path,
-        default=None,
-        help="output folder (default: out/studies/NAME)",
-    )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    try:
+        from repertoire.studies.engine import add_study_arguments
+    except Exception as e:  # keep `repertoire --help` and the other commands usable
+        p.add_argument("name", metavar="NAME", help="registered study name")
+        p.epilog = f"(the study engine failed to import: {type(e).__name__}: {e})"
+    else:
+        add_study_arguments(p)
 
     p = sub.add_parser(
         "demo",
@@ -344,43 +305,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
-    from repertoire.diagrams.scenario import load_scenario
-    from repertoire.errors import RepertoireError
-    from repertoire.studies.engine import get_study, run_study
+    from repertoire.studies.engine import run_study_from_args
 
-    entry = get_study(args.name)
-    if args.episodes <= 0:
-        raise RepertoireError(f"--episodes must be > 0, got {args.episodes}")
-    if args.first_seed < 0:
-        raise RepertoireError(f"--first-seed must be >= 0, got {args.first_seed}")
-    if args.workers is not None and args.workers <= 0:
-        raise RepertoireError(f"--workers must be > 0, got {args.workers}")
-    executor = args.executor or ("dask" if args.scheduler else "process")
-    if args.scheduler and executor != "dask":
-        raise RepertoireError(f"--scheduler needs --executor dask, got --executor {executor}")
-    config = None
-    if args.config is not None:
-        config = load_scenario(entry.config_type, filename=args.config)
-    out_dir = args.out if args.out is not None else Path("out/studies") / args.name
-    result = run_study(
-        args.name,
-        config,
-        episodes=args.episodes,
-        first_seed=args.first_seed,
-        store=out_dir / f"{args.name}.sqlite",
-        out_dir=out_dir,
-        executor=executor,
-        workers=args.workers,
-        scheduler_address=args.scheduler,
-        fresh=args.fresh,
-        progress=not args.no_progress,
-    )
-    print(
-        f"{args.name}: {len(result.records)} episodes in {result.elapsed_s:.1f} s; "
-        f"store {result.store}"
-    )
-    for label, path in {**result.tables, **result.figures}.items():
-        print(f"  {label}: {path}")
+    run_study_from_args(args)
     return 0
 
 

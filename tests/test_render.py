@@ -5,9 +5,9 @@ import xml.etree.ElementTree as ET
 import pytest
 from conftest import PendulumScenario, build_pendulum
 from pydrake.systems.framework import DiagramBuilder
-
 from repertoire.diagrams import render
 from repertoire.diagrams.render import diagram_system_names, render_diagram
+
 from repertoire.errors import RepertoireError
 
 needs_dot = pytest.mark.skipif(

@@ -24,9 +24,7 @@ from pydrake.multibody.plant import (
 from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
-
 from repertoire.diagrams.registry import register_diagram
-from repertoire.errors import RepertoireError, ScenarioError
 from repertoire.models import ConfigureParser, package_url
 from repertoire.models.littledog import (
     FOOT_FRAMES,
@@ -39,6 +37,8 @@ from repertoire.models.littledog import (
     standing_configuration,
 )
 from repertoire.models.terrain import TerrainBoard, TerrainParams, generate_board
+
+from repertoire.errors import RepertoireError, ScenarioError
 
 CONTACT_APPROXIMATIONS = ["lagged", "sap", "similar"]
 BODY_NAME = "body"

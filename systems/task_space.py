@@ -18,10 +18,12 @@ Jacobians are expressed in the world frame W.
 """
 
 import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
 from pydrake.common.value import AbstractValue
-from pydrake.math import RotationMatrix
-from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import Frame, JacobianWrtVariable
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.math import SpatialForce, SpatialVelocity
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce, MultibodyPlant
+from pydrake.multibody.tree import BodyIndex, Frame, JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
 from repertoire.errors import RepertoireError
@@ -412,3 +414,263 @@ class ResolvedMotionRateIK(LeafSystem):
         discrete_state.get_mutable_vector(self._monitor_group).SetFromVector(
             [status, above, pos_err, ori_err]
         )
+
+
+def grip_wrench(
+    X_WH: RigidTransform,
+    X_WO: RigidTransform,
+    X_HO_held: RigidTransform,
+    V_WH: SpatialVelocity,
+    V_WO: SpatialVelocity,
+    stiffness: float,
+    damping: float,
+    rotational_stiffness: float,
+    rotational_damping: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Spring-damper wrench that holds an object at ``X_HO_held`` in the hand.
+
+    The force acts at the object's origin and pulls it toward the pose
+    ``X_WH * X_HO_held``; the damping term pulls its velocity toward that of the
+    hand's material point at the same place.
+
+    Args:
+        X_WH: hand pose in W.
+        X_WO: object pose in W.
+        X_HO_held: the object pose in the hand frame captured when the grip closed.
+        V_WH: hand spatial velocity in W (about the hand origin).
+        V_WO: object spatial velocity in W (about the object origin).
+        stiffness: translational stiffness in N/m.
+        damping: translational damping in N s/m.
+        rotational_stiffness: in N m/rad.
+        rotational_damping: in N m s/rad.
+
+    Returns:
+        ``(torque_W, force_W)`` on the object at its origin; the hand gets the opposite.
+    """
+    X_WT = X_WH @ X_HO_held
+    p_WO = X_WO.translation()
+    w_WH = V_WH.rotational()
+    v_WHq = V_WH.translational() + np.cross(w_WH, p_WO - X_WH.translation())
+    force = stiffness * (X_WT.translation() - p_WO) + damping * (v_WHq - V_WO.translational())
+    R_err = X_WT.rotation() @ X_WO.rotation().inverse()
+    aa = R_err.ToAngleAxis()
+    torque = rotational_stiffness * aa.angle() * aa.axis() + rotational_damping * (
+        w_WH - V_WO.rotational()
+    )
+    return torque, force
+
+
+class GraspWrench(LeafSystem):
+    """The hand's grip on a grasped object, as a stiff spring-damper wrench.
+
+    Physically motivated stand-in for frictional finger contact (documented
+    choice): when the commanded finger closure exceeds ``close_threshold`` and a
+    graspable object's origin is within ``capture_radius`` of the palm point, the
+    object is latched and its pose in the hand frame is recorded; from then on a
+    6-D spring-damper (the grip) holds it at that pose, with the reaction on the
+    hand, until the closure drops below ``open_threshold`` (release). The object
+    is then free and falls or rests under contact as usual. The latch and the
+    recorded pose are discrete state updated every ``period``.
+
+    Input ports:
+        body_poses: the plant's ``body_poses`` (abstract list of RigidTransform).
+        body_spatial_velocities: the plant's ``body_spatial_velocities``.
+        finger_command: commanded finger positions, ``num_fingers``.
+
+    Output ports:
+        spatial_forces: abstract list of ExternallyAppliedSpatialForce for the
+            plant's ``applied_spatial_force`` input (empty while nothing is held).
+        held_object: [index into ``object_bodies`` of the held object, or -1], 1.
+
+    Numeric parameter (index ``grip_parameter_index``): ``[stiffness, damping,
+    rotational_stiffness, rotational_damping]``.
+    """
+
+    def __init__(
+        self,
+        hand_body_index: BodyIndex,
+        object_body_indices: list[BodyIndex],
+        *,
+        num_fingers: int,
+        closure_weights: np.ndarray,
+        close_threshold: float,
+        open_threshold: float,
+        palm_point_H: np.ndarray,
+        capture_radius: float,
+        period: float,
+        stiffness: float = 3000.0,
+        damping: float = 60.0,
+        rotational_stiffness: float = 20.0,
+        rotational_damping: float = 0.5,
+    ):
+        """Builds the grip.
+
+        Args:
+            hand_body_index: the hand (palm) body in the simulation plant.
+            object_body_indices: graspable bodies in the simulation plant.
+            num_fingers: size of ``finger_command``.
+            closure_weights: closure = ``closure_weights @ finger_command``.
+            close_threshold: closure at or above which the grip latches.
+            open_threshold: closure below which a held object is released.
+            palm_point_H: point in the hand frame where objects are captured.
+            capture_radius: largest distance (m) from the palm point to an object's
+                origin at which closing the hand grips it.
+            period: update period of the latch in s (use the plant's time step).
+            stiffness: translational grip stiffness, N/m.
+            damping: translational grip damping, N s/m.
+            rotational_stiffness: N m/rad.
+            rotational_damping: N m s/rad.
+
+        Raises:
+            RepertoireError: inconsistent thresholds, sizes, or non-positive values.
+        """
+        super().__init__()
+        closure_weights = np.asarray(closure_weights, dtype=float)
+        if closure_weights.shape != (num_fingers,):
+            raise RepertoireError(
+                f"closure_weights must have {num_fingers} entries, got {closure_weights.shape}"
+            )
+        if not open_threshold < close_threshold:
+            raise RepertoireError(
+                f"open_threshold ({open_threshold}) must be below close_threshold "
+                f"({close_threshold})"
+            )
+        if not (capture_radius > 0.0 and period > 0.0):
+            raise RepertoireError("capture_radius and period must be > 0")
+        if len(object_body_indices) == 0:
+            raise RepertoireError("GraspWrench needs at least one graspable object body")
+        self._hand = hand_body_index
+        self._objects = list(object_body_indices)
+        self._weights = closure_weights
+        self._close = float(close_threshold)
+        self._open = float(open_threshold)
+        self._palm = np.asarray(palm_point_H, dtype=float)
+        self._radius = float(capture_radius)
+
+        self._poses = self.DeclareAbstractInputPort(
+            "body_poses", AbstractValue.Make([RigidTransform()])
+        )
+        self._velocities = self.DeclareAbstractInputPort(
+            "body_spatial_velocities", AbstractValue.Make([SpatialVelocity()])
+        )
+        self._fingers = self.DeclareVectorInputPort("finger_command", num_fingers)
+        self.grip_parameter_index = self.DeclareNumericParameter(
+            BasicVector([stiffness, damping, rotational_stiffness, rotational_damping])
+        )
+        # [held object (-1 none), p_HO (3), quaternion_HO (4)]
+        self._latch = self.DeclareDiscreteState(np.array([-1.0, 0, 0, 0, 1, 0, 0, 0]))
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclareAbstractOutputPort(
+            "spatial_forces",
+            lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
+            self._calc_forces,
+        )
+        self.DeclareVectorOutputPort(
+            "held_object",
+            1,
+            lambda c, o: o.SetFromVector(c.get_discrete_state(self._latch).value()[:1]),
+            prerequisites_of_calc={self.discrete_state_ticket(self._latch)},
+        )
+
+    def _update(self, context: Context, discrete_state) -> None:
+        latch = context.get_discrete_state(self._latch).value().copy()
+        closure = float(self._weights @ self._fingers.Eval(context))
+        held = int(latch[0])
+        if held >= 0 and closure < self._open:
+            latch[0] = -1.0
+        elif held < 0 and closure >= self._close:
+            poses = self._poses.Eval(context)
+            X_WH = poses[int(self._hand)]
+            p_WP = X_WH @ self._palm
+            distances = [np.linalg.norm(poses[int(b)].translation() - p_WP) for b in self._objects]
+            best = int(np.argmin(distances))
+            if distances[best] <= self._radius:
+                X_HO = X_WH.inverse() @ poses[int(self._objects[best])]
+                latch = np.concatenate(
+                    [[best], X_HO.translation(), X_HO.rotation().ToQuaternion().wxyz()]
+                )
+        discrete_state.get_mutable_vector(self._latch).SetFromVector(latch)
+
+    def _calc_forces(self, context: Context, output: AbstractValue) -> None:
+        latch = context.get_discrete_state(self._latch).value()
+        held = int(latch[0])
+        if held < 0:
+            output.set_value([])
+            return
+        k, c, kr, cr = context.get_numeric_parameter(self.grip_parameter_index).value()
+        poses = self._poses.Eval(context)
+        velocities = self._velocities.Eval(context)
+        body_O = self._objects[held]
+        X_HO = RigidTransform(Quaternion(latch[4:8] / np.linalg.norm(latch[4:8])), latch[1:4])
+        X_WH, X_WO = poses[int(self._hand)], poses[int(body_O)]
+        torque, force = grip_wrench(
+            X_WH, X_WO, X_HO, velocities[int(self._hand)], velocities[int(body_O)], k, c, kr, cr
+        )
+        on_object = ExternallyAppliedSpatialForce()
+        on_object.body_index = body_O
+        on_object.p_BoBq_B = np.zeros(3)
+        on_object.F_Bq_W = SpatialForce(torque, force)
+        on_hand = ExternallyAppliedSpatialForce()
+        on_hand.body_index = self._hand
+        on_hand.p_BoBq_B = X_WH.inverse() @ X_WO.translation()
+        on_hand.F_Bq_W = SpatialForce(-torque, -force)
+        output.set_value([on_object, on_hand])
+
+
+class JointReferenceMux(LeafSystem):
+    """Assembles the control plant's desired state and acceleration from arm and hand parts.
+
+    Input ports:
+        arm_reference_state: [q_r; qdot_r] of the arm joints, 2n.
+        arm_reference_acceleration: qdd_r of the arm joints, n.
+        hand_position: finger positions, m.
+        hand_velocity: finger velocities, m.
+        hand_acceleration: finger accelerations, m.
+
+    Output ports:
+        desired_state: [q; v] in the control plant's order, 2(n + m).
+        desired_acceleration: vdot in the control plant's order, n + m.
+    """
+
+    def __init__(self, arm_indices: list[int], hand_indices: list[int]):
+        """Builds the mux.
+
+        Args:
+            arm_indices: positions of the arm joints in the control plant's vectors.
+            hand_indices: positions of the finger joints in the control plant's vectors.
+
+        Raises:
+            RepertoireError: the indices are not a permutation of ``0..n+m-1``.
+        """
+        super().__init__()
+        self._arm = np.asarray(arm_indices, dtype=int)
+        self._hand = np.asarray(hand_indices, dtype=int)
+        n, m = len(self._arm), len(self._hand)
+        if sorted(np.concatenate([self._arm, self._hand]).tolist()) != list(range(n + m)):
+            raise RepertoireError(
+                f"arm_indices {arm_indices} and hand_indices {hand_indices} must together be a "
+                f"permutation of 0..{n + m - 1}"
+            )
+        self._n, self._m = n, m
+        self._arm_state = self.DeclareVectorInputPort("arm_reference_state", 2 * n)
+        self._arm_acc = self.DeclareVectorInputPort("arm_reference_acceleration", n)
+        self._hand_q = self.DeclareVectorInputPort("hand_position", m)
+        self._hand_v = self.DeclareVectorInputPort("hand_velocity", m)
+        self._hand_a = self.DeclareVectorInputPort("hand_acceleration", m)
+        self.DeclareVectorOutputPort("desired_state", 2 * (n + m), self._calc_state)
+        self.DeclareVectorOutputPort("desired_acceleration", n + m, self._calc_acceleration)
+
+    def _calc_state(self, context: Context, output: BasicVector) -> None:
+        n, m = self._n, self._m
+        arm = self._arm_state.Eval(context)
+        q = np.zeros(n + m)
+        v = np.zeros(n + m)
+        q[self._arm], v[self._arm] = arm[:n], arm[n:]
+        q[self._hand], v[self._hand] = self._hand_q.Eval(context), self._hand_v.Eval(context)
+        output.SetFromVector(np.concatenate([q, v]))
+
+    def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
+        a = np.zeros(self._n + self._m)
+        a[self._arm] = self._arm_acc.Eval(context)
+        a[self._hand] = self._hand_a.Eval(context)
+        output.SetFromVector(a)

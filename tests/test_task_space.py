@@ -2,17 +2,22 @@
 
 import numpy as np
 import pytest
-from pydrake.math import RollPitchYaw, RotationMatrix
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.analysis import Simulator
 from repertoire.systems.task_space import (
     STATUS_OK,
     STATUS_TARGET_OUT_OF_REACH,
     STATUS_TRACKING_LOST,
+    GraspWrench,
+    JointReferenceMux,
     ResolvedMotionRateIK,
     check_reachable,
     damped_pseudoinverse,
+    grip_wrench,
     joint_limit_gradient,
     quaternion_error,
     quaternion_multiply,
@@ -228,3 +233,86 @@ def test_bad_construction_and_input():
     simulator = Simulator(system, context)
     with pytest.raises(RepertoireError, match="unit quaternion"):
         simulator.AdvanceTo(0.01)
+
+
+def test_grip_wrench_closed_form():
+    X_WH = RigidTransform(RollPitchYaw(0.0, 0.0, 0.5), [0.1, 0.2, 0.3])
+    X_HO = RigidTransform([0.0, 0.0, 0.1])
+    zero = SpatialVelocity(np.zeros(3), np.zeros(3))
+    # Object exactly at the held pose and at rest: no wrench.
+    torque, force = grip_wrench(X_WH, X_WH @ X_HO, X_HO, zero, zero, 1000.0, 10.0, 5.0, 0.1)
+    assert np.allclose(torque, 0.0) and np.allclose(force, 0.0)
+    # Displaced by 2 mm along -z and turned by 0.1 rad about x: F = k d, tau = k_r * 0.1 x.
+    X_WO = RigidTransform(RotationMatrix.MakeXRotation(-0.1), [0, 0, -0.002]) @ (X_WH @ X_HO)
+    X_WO = RigidTransform(X_WO.rotation(), (X_WH @ X_HO).translation() - [0, 0, 0.002])
+    torque, force = grip_wrench(X_WH, X_WO, X_HO, zero, zero, 1000.0, 10.0, 5.0, 0.1)
+    assert np.allclose(force, [0, 0, 2.0])
+    assert np.allclose(torque, [0.5, 0, 0])
+    # The hand translating at 1 m/s drags the object with c * 1 m/s.
+    moving = SpatialVelocity(np.zeros(3), np.array([1.0, 0, 0]))
+    torque, force = grip_wrench(X_WH, X_WH @ X_HO, X_HO, moving, zero, 1000.0, 10.0, 5.0, 0.1)
+    assert np.allclose(force, [10.0, 0, 0]) and np.allclose(torque, 0.0)
+
+
+def test_grasp_wrench_latches_and_releases():
+    grip = GraspWrench(
+        BodyIndex(1),
+        [BodyIndex(2), BodyIndex(3)],
+        num_fingers=3,
+        closure_weights=np.array([1.0, 0.0, 0.0]),
+        close_threshold=0.8,
+        open_threshold=0.2,
+        palm_point_H=np.array([0.0, 0.0, 0.1]),
+        capture_radius=0.03,
+        period=0.01,
+    )
+    context = grip.CreateDefaultContext()
+    X_WH = RigidTransform([0.5, 0.0, 0.4])
+    poses = [RigidTransform(), X_WH, RigidTransform([0.5, 0.01, 0.5]), RigidTransform([0, 0, 1])]
+    zero = SpatialVelocity(np.zeros(3), np.zeros(3))
+    grip.GetInputPort("body_poses").FixValue(context, poses)
+    grip.GetInputPort("body_spatial_velocities").FixValue(context, [zero] * 4)
+    fingers = grip.GetInputPort("finger_command").FixValue(context, np.array([0.5, 0, 0]))
+    simulator = Simulator(grip, context)
+    simulator.AdvanceTo(0.02)
+    assert grip.GetOutputPort("held_object").Eval(context)[0] == -1  # not closed yet
+    assert grip.GetOutputPort("spatial_forces").Eval(context) == []
+    fingers.GetMutableData().set_value(np.array([0.9, 0, 0]))
+    simulator.AdvanceTo(0.04)
+    assert grip.GetOutputPort("held_object").Eval(context)[0] == 0  # body 2: 1 cm from palm point
+    forces = grip.GetOutputPort("spatial_forces").Eval(context)
+    assert [int(f.body_index) for f in forces] == [2, 1]
+    assert np.allclose(forces[0].F_Bq_W.get_coeffs(), 0.0)  # held where it was caught
+    fingers.GetMutableData().set_value(np.array([0.1, 0, 0]))
+    simulator.AdvanceTo(0.06)
+    assert grip.GetOutputPort("held_object").Eval(context)[0] == -1
+    with pytest.raises(RepertoireError, match="open_threshold"):
+        GraspWrench(
+            BodyIndex(1),
+            [BodyIndex(2)],
+            num_fingers=1,
+            closure_weights=np.ones(1),
+            close_threshold=0.2,
+            open_threshold=0.5,
+            palm_point_H=np.zeros(3),
+            capture_radius=0.03,
+            period=0.01,
+        )
+
+
+def test_joint_reference_mux_orders_arm_and_hand():
+    mux = JointReferenceMux([0, 1, 3], [2, 4])
+    context = mux.CreateDefaultContext()
+    mux.GetInputPort("arm_reference_state").FixValue(context, [1, 2, 3, 10, 20, 30])
+    mux.GetInputPort("arm_reference_acceleration").FixValue(context, [100, 200, 300])
+    mux.GetInputPort("hand_position").FixValue(context, [7, 8])
+    mux.GetInputPort("hand_velocity").FixValue(context, [70, 80])
+    mux.GetInputPort("hand_acceleration").FixValue(context, [700, 800])
+    assert np.array_equal(
+        mux.GetOutputPort("desired_state").Eval(context), [1, 2, 7, 3, 8, 10, 20, 70, 30, 80]
+    )
+    assert np.array_equal(
+        mux.GetOutputPort("desired_acceleration").Eval(context), [100, 200, 700, 300, 800]
+    )
+    with pytest.raises(RepertoireError, match="permutation"):
+        JointReferenceMux([0, 1], [1, 2])

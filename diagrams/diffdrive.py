@@ -1,0 +1,236 @@
+"""The differential-drive robot driving a wheel-speed command (registered as ``diffdrive_drive``).
+
+The wheel actuators carry PD gains with zero stiffness, so the plant's
+``desired_state`` input is a wheel *velocity* controller (torque = kd (w_d - w),
+clamped at the motor effort limit, implicit in the discrete solver and so stable
+at any kd). The command, (left, right) wheel speeds in rad/s, is a constant
+source named ``wheel_speed_command``; a gain maps it to the desired state.
+World: ``soccer`` (field, goals, ball), ``kitchen`` (room, tables, cups) or ``empty``.
+"""
+
+import dataclasses
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
+from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
+from repertoire.diagrams.biped import add_ground, validate_plant_fields
+from repertoire.diagrams.registry import register_diagram
+from repertoire.models import ConfigureParser, package_url
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+WHEEL_RADIUS = 0.0975  # [m]
+TRACK = 0.33  # distance between the wheel centres [m]
+MAX_WHEEL_SPEED = 12.0  # [rad/s], the URDF velocity limit
+WORLDS = {"soccer": "diffdrive/soccer.sdf", "kitchen": "diffdrive/kitchen.sdf", "empty": None}
+ROBOT_URL_PATH = "diffdrive/diffdrive.urdf"
+
+
+def wheel_speeds_for_twist(
+    v: float, omega: float, *, radius: float = WHEEL_RADIUS, track: float = TRACK
+) -> np.ndarray:
+    """(left, right) wheel speeds [rad/s] for a forward speed and a yaw rate.
+
+    Args:
+        v: forward speed of the axle midpoint [m/s].
+        omega: yaw rate [rad/s], positive counter-clockwise.
+        radius: wheel radius [m].
+        track: distance between the wheel centres [m].
+    """
+    return np.array([(v - omega * track / 2) / radius, (v + omega * track / 2) / radius])
+
+
+def twist_from_wheel_speeds(
+    wheel_speeds: np.ndarray, *, radius: float = WHEEL_RADIUS, track: float = TRACK
+) -> tuple[float, float]:
+    """Forward speed [m/s] and yaw rate [rad/s] of the ideal rolling robot.
+
+    Args:
+        wheel_speeds: (2,) left and right wheel speeds [rad/s].
+        radius: wheel radius [m].
+        track: distance between the wheel centres [m].
+    """
+    w = check_wheel_speeds(wheel_speeds)
+    return float(radius * (w[0] + w[1]) / 2), float(radius * (w[1] - w[0]) / track)
+
+
+def check_wheel_speeds(wheel_speeds) -> np.ndarray:
+    """Returns the command as a (2,) array, or raises RepertoireError saying what is wrong."""
+    w = np.asarray(wheel_speeds, dtype=float).reshape(-1)
+    if w.shape != (2,):
+        raise RepertoireError(
+            f"wheel speed command must have 2 values (left, right) in rad/s, got {w.size}: "
+            f"{list(np.asarray(wheel_speeds).reshape(-1))}"
+        )
+    if not np.all(np.isfinite(w)) or np.any(np.abs(w) > MAX_WHEEL_SPEED):
+        raise RepertoireError(
+            f"wheel speeds must be finite and within +-{MAX_WHEEL_SPEED} rad/s, got {list(w)}"
+        )
+    return w
+
+
+@dataclasses.dataclass
+class DiffDriveScenario:
+    """The differential-drive robot in a world, driving a constant wheel-speed command.
+
+    Attributes:
+        world: ``soccer``, ``kitchen`` or ``empty``.
+        wheel_speeds: (left, right) wheel speed command [rad/s].
+        initial_pose: robot start (x [m], y [m], yaw [rad]) on the ground.
+        time_step: discrete plant time step [s].
+        contact_approximation: ``lagged`` (default), ``sap`` or ``similar``.
+        wheel_kd: velocity gain of the wheel controller [N m s/rad].
+        ground_friction: Coulomb friction of the ground.
+    """
+
+    world: str = "soccer"
+    wheel_speeds: list[float] = dataclasses.field(default_factory=lambda: [5.0, 5.0])
+    initial_pose: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    time_step: float = 1e-3
+    contact_approximation: str = "lagged"
+    wheel_kd: float = 2.0
+    ground_friction: float = 1.0
+
+    def validate(self) -> None:
+        """Raises ScenarioError naming the first bad field."""
+        if self.world not in WORLDS:
+            raise ScenarioError(f"unknown world {self.world!r}; expected one of {sorted(WORLDS)}")
+        try:
+            check_wheel_speeds(self.wheel_speeds)
+        except RepertoireError as e:
+            raise ScenarioError(f"wheel_speeds: {e}") from e
+        if len(self.initial_pose) != 3 or not np.all(np.isfinite(self.initial_pose)):
+            raise ScenarioError(
+                f"initial_pose must be 3 finite values (x, y, yaw), got {self.initial_pose}"
+            )
+        validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
+        if not (np.isfinite(self.wheel_kd) and self.wheel_kd > 0):
+            raise ScenarioError(f"wheel_kd must be > 0, got {self.wheel_kd}")
+
+
+def add_diffdrive(plant: MultibodyPlant, parser: Parser, *, wheel_kd: float) -> ModelInstanceIndex:
+    """Adds the robot to an unfinalized plant with velocity-only PD gains on both wheels.
+
+    Args:
+        plant: an unfinalized discrete ``MultibodyPlant``.
+        parser: a Parser on that plant.
+        wheel_kd: the wheel velocity gain [N m s/rad].
+
+    Returns:
+        The robot's ModelInstanceIndex.
+    """
+    ConfigureParser(parser)
+    (instance,) = parser.AddModels(url=package_url(ROBOT_URL_PATH))
+    for side in ("left", "right"):
+        actuator = plant.GetJointActuatorByName(f"{side}_wheel_motor", instance)
+        actuator.set_controller_gains(PdControllerGains(p=0.0, d=wheel_kd))
+    return instance
+
+
+def add_world(plant: MultibodyPlant, parser: Parser, world: str) -> list[ModelInstanceIndex]:
+    """Adds a named world's models (static fixtures and free objects) to the plant.
+
+    Raises:
+        UnknownNameError-like ScenarioError for an unknown world.
+    """
+    if world not in WORLDS:
+        raise ScenarioError(f"unknown world {world!r}; expected one of {sorted(WORLDS)}")
+    if WORLDS[world] is None:
+        return []
+    ConfigureParser(parser)
+    return parser.AddModels(url=package_url(WORLDS[world]))
+
+
+@register_diagram(
+    "diffdrive_drive",
+    scenario_type=DiffDriveScenario,
+    description="Pioneer-like differential-drive robot driving a wheel-speed command "
+    "(world: soccer / kitchen / empty)",
+    duration=2.0,
+    check=lambda diagram, context: check_diffdrive(diagram, context),
+)
+def build_diffdrive_drive(scenario: DiffDriveScenario, *, meshcat=None) -> Diagram:
+    """Builds the robot in its world under a constant wheel-speed command.
+
+    Args:
+        scenario: a :class:`DiffDriveScenario` (validated here).
+        meshcat: optional Meshcat instance for a visualizer.
+
+    Returns:
+        The Diagram ``diffdrive_drive`` with subsystems ``plant``, ``scene_graph``,
+        ``wheel_speed_command`` and ``wheel_desired_state``.
+    """
+    scenario.validate()
+    builder = DiagramBuilder()
+    config = MultibodyPlantConfig(
+        time_step=scenario.time_step,
+        discrete_contact_approximation=scenario.contact_approximation,
+        contact_model="point",
+    )
+    plant, scene_graph = AddMultibodyPlant(config, builder)
+    add_ground(plant, scenario.ground_friction)
+    parser = Parser(plant)
+    robot = add_diffdrive(plant, parser, wheel_kd=scenario.wheel_kd)
+    add_world(plant, parser, scenario.world)
+    plant.Finalize()
+    x, y, yaw = scenario.initial_pose
+    plant.SetDefaultFloatingBaseBodyPose(
+        plant.GetBodyByName("chassis", robot),
+        RigidTransform(RollPitchYaw(0.0, 0.0, yaw), [x, y, WHEEL_RADIUS]),
+    )
+    command = builder.AddSystem(ConstantVectorSource(check_wheel_speeds(scenario.wheel_speeds)))
+    command.set_name("wheel_speed_command")
+    # desired state = [q_left, q_right, v_left, v_right]; kp = 0 so q is ignored.
+    to_state = builder.AddSystem(MatrixGain(np.vstack([np.zeros((2, 2)), np.eye(2)])))
+    to_state.set_name("wheel_desired_state")
+    builder.Connect(command.get_output_port(), to_state.get_input_port())
+    builder.Connect(to_state.get_output_port(), plant.get_desired_state_input_port(robot))
+    if meshcat is not None:
+        from pydrake.geometry import MeshcatVisualizer
+
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("diffdrive_drive")
+    return diagram
+
+
+def chassis_pose(diagram: Diagram, context: Context) -> RigidTransform:
+    """World pose of the robot's chassis (axle midpoint) in a diagram with subsystem ``plant``."""
+    plant = diagram.GetSubsystemByName("plant")
+    return plant.EvalBodyPoseInWorld(
+        plant.GetMyContextFromRoot(context), plant.GetBodyByName("chassis")
+    )
+
+
+def check_diffdrive(diagram: Diagram, context: Context) -> dict[str, float]:
+    """Figures after a drive: distance, heading change and speed against the ideal rolling model.
+
+    Returns:
+        ``distance_m`` (axle midpoint from its start), ``heading_change_deg``,
+        ``expected_heading_change_deg`` (ideal rolling at the commanded speeds),
+        ``speed_ratio`` (mean forward speed over the ideal r (w_l + w_r) / 2),
+        ``tilt_rad`` (chassis roll/pitch magnitude).
+    """
+    plant = diagram.GetSubsystemByName("plant")
+    default_context = plant.CreateDefaultContext()
+    X0 = plant.EvalBodyPoseInWorld(default_context, plant.GetBodyByName("chassis"))
+    X = chassis_pose(diagram, context)
+    command = diagram.GetSubsystemByName("wheel_speed_command")
+    w = command.get_output_port().Eval(command.GetMyContextFromRoot(context))
+    v, omega = twist_from_wheel_speeds(w)
+    t = context.get_time()
+    yaw0 = RollPitchYaw(X0.rotation()).yaw_angle()
+    rpy = RollPitchYaw(X.rotation())
+    dyaw = float(np.angle(np.exp(1j * (rpy.yaw_angle() - yaw0))))
+    distance = float(np.linalg.norm(X.translation()[:2] - X0.translation()[:2]))
+    return {
+        "distance_m": distance,
+        "heading_change_deg": float(np.degrees(dyaw)),
+        "expected_heading_change_deg": float(np.degrees(omega * t)),
+        "speed_ratio": float(distance / (abs(v) * t)) if v != 0 and t > 0 else float("nan"),
+        "tilt_rad": float(np.hypot(rpy.roll_angle(), rpy.pitch_angle())),
+    }

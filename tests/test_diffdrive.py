@@ -1,0 +1,104 @@
+"""Differential-drive robot, its worlds, the drive diagram and bad input."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.analysis import Simulator
+from repertoire.diagrams.diffdrive import (
+    TRACK,
+    WHEEL_RADIUS,
+    DiffDriveScenario,
+    add_diffdrive,
+    add_world,
+    build_diffdrive_drive,
+    check_diffdrive,
+    check_wheel_speeds,
+    twist_from_wheel_speeds,
+    wheel_speeds_for_twist,
+)
+from repertoire.diagrams.registry import get_diagram_entry
+from repertoire.diagrams.scenario import load_scenario
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "diagrams" / "scenarios"
+
+
+def test_robot_and_worlds_parse():
+    plant = MultibodyPlant(1e-3)
+    parser = Parser(plant)
+    robot = add_diffdrive(plant, parser, wheel_kd=2.0)
+    soccer = add_world(plant, parser, "soccer")
+    kitchen_plant = MultibodyPlant(1e-3)
+    kitchen = add_world(kitchen_plant, Parser(kitchen_plant), "kitchen")
+    plant.Finalize()
+    kitchen_plant.Finalize()
+    context = plant.CreateDefaultContext()
+    assert plant.CalcTotalMass(context, [robot]) == pytest.approx(9.0)
+    assert plant.num_actuators() == 2
+    names = {plant.GetModelInstanceName(m) for m in soccer}
+    assert names == {"soccer_field", "goal_blue", "goal_yellow", "ball"}
+    assert plant.GetBodyByName("ball").default_mass() == pytest.approx(0.43)
+    names = {kitchen_plant.GetModelInstanceName(m) for m in kitchen}
+    assert {"table_0", "table_1", "cup_0", "cup_4", "counter"} <= names
+    assert add_world(plant, parser, "empty") == []
+
+
+def test_twist_closed_forms():
+    w = wheel_speeds_for_twist(0.5, 1.0)
+    np.testing.assert_allclose(
+        w, [(0.5 - TRACK / 2) / WHEEL_RADIUS, (0.5 + TRACK / 2) / WHEEL_RADIUS]
+    )
+    v, omega = twist_from_wheel_speeds(w)
+    assert v == pytest.approx(0.5) and omega == pytest.approx(1.0)
+
+
+def test_drives_straight_two_metres():
+    scenario = load_scenario(DiffDriveScenario, filename=SCENARIOS / "diffdrive_empty.yaml")
+    diagram = build_diffdrive_drive(scenario)
+    simulator = Simulator(diagram)
+    v, _ = twist_from_wheel_speeds(scenario.wheel_speeds)
+    simulator.AdvanceTo(2.0 / v + 0.2)
+    figures = check_diffdrive(diagram, simulator.get_context())
+    assert figures["distance_m"] >= 2.0
+    assert abs(figures["heading_change_deg"]) < 1.0
+    assert 0.9 < figures["speed_ratio"] <= 1.0
+    assert figures["tilt_rad"] < 0.01
+
+
+@pytest.mark.parametrize("name", ["diffdrive_soccer.yaml", "diffdrive_kitchen.yaml"])
+def test_worlds_simulate_one_second(name):
+    scenario = load_scenario(DiffDriveScenario, filename=SCENARIOS / name)
+    diagram = build_diffdrive_drive(scenario)
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(1.0)
+    context = simulator.get_context()
+    assert np.all(np.isfinite(context.get_discrete_state_vector().CopyToVector()))
+    figures = check_diffdrive(diagram, context)
+    assert figures["distance_m"] > 0.3
+    # Turning left when the right wheel is faster, at most the ideal rolling rate.
+    if scenario.wheel_speeds[1] > scenario.wheel_speeds[0]:
+        assert 0 < figures["heading_change_deg"] <= figures["expected_heading_change_deg"]
+    assert get_diagram_entry("diffdrive_drive").build is build_diffdrive_drive
+
+
+def test_bad_input():
+    with pytest.raises(ScenarioError, match="unknown world 'moon'.*kitchen"):
+        load_scenario(DiffDriveScenario, data="world: moon\n")
+    with pytest.raises(ScenarioError, match="could not load"):
+        load_scenario(DiffDriveScenario, data="world: [soccer\n")
+    with pytest.raises(ScenarioError, match="could not load"):
+        load_scenario(DiffDriveScenario, data="wheels: [1.0, 1.0]\n")
+    with pytest.raises(ScenarioError, match="2 values"):
+        load_scenario(DiffDriveScenario, data="wheel_speeds: [1.0, 1.0, 1.0]\n")
+    with pytest.raises(ScenarioError, match="within"):
+        build_diffdrive_drive(DiffDriveScenario(wheel_speeds=[100.0, 1.0]))
+    with pytest.raises(ScenarioError, match="initial_pose"):
+        build_diffdrive_drive(DiffDriveScenario(initial_pose=[0.0, 0.0]))
+    with pytest.raises(RepertoireError, match="2 values"):
+        check_wheel_speeds([1.0])
+    with pytest.raises(RepertoireError, match="finite"):
+        check_wheel_speeds([np.nan, 1.0])

@@ -25,7 +25,9 @@ def build_pendulum(scenario: PendulumScenario, *, meshcat=None):
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.002)
     plant.set_name("plant")
-    bob = plant.AddRigidBody("bob", SpatialInertia.SolidBoxWithMass(1.0, 0.1, 0.1, 0.1))
+    # Body frame B on the pin; the box centre (and centre of mass) 0.5 m below it.
+    M_BBcm = SpatialInertia.SolidBoxWithMass(1.0, 0.1, 0.1, 0.1)
+    bob = plant.AddRigidBody("bob", M_BBcm.Shift([0.0, 0.0, 0.5]))
     X_BG = RigidTransform([0.0, 0.0, -0.5])
     plant.RegisterVisualGeometry(
         bob, X_BG, Box(0.1, 0.1, 0.1), "bob_visual", np.array([0.8, 0.1, 0.1, 1.0])

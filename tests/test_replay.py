@@ -1,0 +1,249 @@
+"""Simulation helpers and HTML replays (self-contained, loads in headless Chromium)."""
+
+import math
+import re
+import shutil
+import subprocess
+import urllib.request
+
+import numpy as np
+import pytest
+from conftest import PendulumScenario, build_pendulum
+from pydrake.geometry import Meshcat
+from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+from repertoire.diagrams.replay import record_replay
+from repertoire.diagrams.simulate import (
+    SimulationDivergedError,
+    nonfinite_state_systems,
+    simulate,
+    simulate_registered,
+)
+from scipy.integrate import solve_ivp
+
+from repertoire.errors import RepertoireError, ScenarioError, UnknownNameError
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+needs_chromium = pytest.mark.skipif(
+    CHROMIUM is None, reason="chromium is not installed (make test installs it when root)"
+)
+
+# The test pendulum: 1 kg box of side 0.1 m whose centre is 0.5 m below the pin.
+MASS, ARM, SIDE, G = 1.0, 0.5, 0.1, 9.81
+I_PIN = MASS * (ARM**2 + SIDE**2 / 6.0)
+
+
+class Multiplier(LeafSystem):
+    """x[n+1] = factor * x[n] every ``period`` seconds; no ports."""
+
+    def __init__(self, factor: float, period: float = 0.01):
+        super().__init__()
+        self._factor = factor
+        self.DeclareDiscreteState(BasicVector([1.0]))
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+
+    def _update(self, context, discrete_state):
+        x = context.get_discrete_state_vector().GetAtIndex(0)
+        discrete_state.get_mutable_vector().SetAtIndex(0, self._factor * x)
+
+
+def diverging_diagram():
+    """Two multipliers: "steady" (x -> x) and "blowup" (x -> 1e100 x).
+
+    Updates happen at t = 0, 0.01, 0.02, ...; the 4th (at t = 0.03) overflows to inf,
+    so the state is first non-finite at the end of that step, t = 0.04.
+    """
+    builder = DiagramBuilder()
+    builder.AddNamedSystem("steady", Multiplier(1.0))
+    builder.AddNamedSystem("blowup", Multiplier(1e100))
+    diagram = builder.Build()
+    diagram.set_name("diverging")
+    return diagram
+
+
+def pendulum_angle_closed_form(theta0: float, t: float) -> float:
+    """Angle of the rigid pendulum I theta'' = -m g L sin(theta), released at rest."""
+    sol = solve_ivp(
+        lambda _, y: [y[1], -MASS * G * ARM / I_PIN * math.sin(y[0])],
+        (0.0, t),
+        [theta0, 0.0],
+        rtol=1e-10,
+        atol=1e-12,
+    )
+    return float(sol.y[0, -1])
+
+
+def test_simulate_pendulum_follows_the_rigid_pendulum_ode():
+    diagram = build_pendulum(PendulumScenario(angle=0.5))
+    simulator, context = simulate(diagram, 0.5)
+    assert context.get_time() == pytest.approx(0.5)
+    plant = diagram.GetSubsystemByName("plant")
+    angle = plant.GetJointByName("pin").get_angle(plant.GetMyContextFromRoot(context))
+    assert angle == pytest.approx(pendulum_angle_closed_form(0.5, 0.5), abs=0.01)
+    # Simulating again continues from the same context for another `duration`.
+    _, context = simulate(diagram, 0.25, context=context)
+    assert context.get_time() == pytest.approx(0.75)
+
+
+def test_nan_state_stops_the_run_and_names_the_system_and_time():
+    diagram = diverging_diagram()
+    with pytest.raises(
+        SimulationDivergedError,
+        match=r"state of ::diverging::blowup became non-finite .* at t = 0\.04 s",
+    ):
+        simulate(diagram, 1.0)
+    context = diagram.CreateDefaultContext()
+    assert nonfinite_state_systems(diagram, context) == []
+    diagram.GetSubsystemByName("steady").GetMyMutableContextFromRoot(
+        context
+    ).get_mutable_discrete_state_vector().SetAtIndex(0, np.nan)
+    assert nonfinite_state_systems(diagram, context) == ["::diverging::steady"]
+
+
+@pytest.mark.parametrize("duration", [0.0, -1.0, math.nan, math.inf, "abc"])
+def test_bad_duration_is_refused(duration):
+    with pytest.raises(RepertoireError, match="duration must be a"):
+        simulate(build_pendulum(PendulumScenario()), duration)
+
+
+def test_bad_simulate_options_are_refused():
+    diagram = build_pendulum(PendulumScenario())
+    with pytest.raises(RepertoireError, match="record=True needs meshcat="):
+        simulate(diagram, 0.1, record=True)
+    with pytest.raises(RepertoireError, match="realtime_rate must be finite and >= 0"):
+        simulate(diagram, 0.1, realtime_rate=-1.0)
+    with pytest.raises(RepertoireError, match="does not belong to diagram 'test_pendulum'"):
+        simulate(diagram, 0.1, context=diverging_diagram().CreateDefaultContext())
+    with pytest.raises(RepertoireError, match="needs a pydrake Diagram, got str"):
+        simulate("test_pendulum", 0.1)
+
+
+def test_simulate_registered_returns_check_figures(isolated_registry, tmp_path):
+    figures = simulate_registered("test_pendulum")
+    assert set(figures) == {"sim_time_s", "angle_rad", "energy_J"}
+    assert figures["sim_time_s"] == pytest.approx(0.2)
+    assert figures["angle_rad"] == pytest.approx(pendulum_angle_closed_form(0.5, 0.2), abs=0.01)
+    scenario = tmp_path / "down.yaml"
+    scenario.write_text("angle: 0.0\n")
+    figures = simulate_registered("test_pendulum", scenario=scenario, duration=0.1)
+    assert figures["sim_time_s"] == pytest.approx(0.1)
+    assert figures["angle_rad"] == pytest.approx(0.0, abs=1e-9)
+    assert figures["energy_J"] == pytest.approx(-MASS * G * ARM, abs=1e-6)  # at rest, hanging
+
+
+def test_simulate_registered_bad_input(isolated_registry, tmp_path):
+    with pytest.raises(UnknownNameError, match=r"unknown diagram 'nope'.*\['test_pendulum'\]"):
+        simulate_registered("nope")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("angle: 0.1\nlength: 2.0\n")
+    with pytest.raises(ScenarioError, match="length"):
+        simulate_registered("test_pendulum", scenario=bad)
+    with pytest.raises(ScenarioError, match="does not exist"):
+        simulate_registered("test_pendulum", scenario=tmp_path / "missing.yaml")
+    with pytest.raises(RepertoireError, match="takes a PendulumScenario scenario"):
+        simulate_registered("test_pendulum", scenario=42)
+    with pytest.raises(RepertoireError, match="duration must be"):
+        simulate_registered("test_pendulum", duration=-0.5)
+
+
+def assert_self_contained(html: str) -> None:
+    """No tag of the page fetches anything over the network."""
+    tags = re.findall(r"<(?:script|link|img|iframe|source|video|audio)\b[^>]*>", html, re.I)
+    assert tags, "the replay has no script tags at all"
+    for tag in tags:
+        assert not re.search(r"""(?:src|href)\s*=\s*["']?(?:https?:)?//""", tag, re.I), tag
+    assert not re.search(r"""@import\s+(?:url\()?["']?(?:https?:)?//""", html)
+
+
+def run_chromium(tmp_path, url: str, *args: str) -> subprocess.CompletedProcess:
+    """Headless Chromium with every host name unresolvable (so nothing reaches a network)."""
+    cmd = [
+        CHROMIUM,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--enable-unsafe-swiftshader",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--host-resolver-rules=MAP * ~NOTFOUND",
+        f"--user-data-dir={tmp_path / 'chromium-profile'}",
+        "--virtual-time-budget=4000",
+        "--window-size=800,600",
+        *args,
+        url,
+    ]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+
+
+def test_replay_html_is_self_contained(isolated_registry, tmp_path):
+    html_path = tmp_path / "replays" / "pendulum.html"
+    result = record_replay("test_pendulum", None, html_path)
+    assert result.html_path == html_path
+    assert result.sim_time_s == pytest.approx(0.2)
+    assert set(result.figures) == {"angle_rad", "energy_J"}
+    html = html_path.read_text()
+    assert_self_contained(html)
+    assert "three" in html.lower() and "animation" in html.lower()
+
+
+@needs_chromium
+def test_replay_loads_and_draws_in_headless_chromium(tmp_path):
+    html_path = tmp_path / "pendulum.html"
+    record_replay(
+        lambda meshcat: build_pendulum(PendulumScenario(), meshcat=meshcat), 0.3, html_path
+    )
+    url = html_path.resolve().as_uri()
+    dom = run_chromium(tmp_path, url, "--dump-dom")
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    # meshcat's viewer created its three.js canvas and its controls pane, and has the
+    # recorded animation (play/pause controls) loaded.
+    assert re.search(r'<canvas data-engine="three\.js', dom.stdout)
+    assert 'class="dg main' in dom.stdout
+    for control in ("play", "pause", "reset", "timeScale"):
+        assert f'class="property-name">{control}<' in dom.stdout
+    shot = tmp_path / "replay.png"
+    run = run_chromium(tmp_path, url, f"--screenshot={shot}")
+    assert run.returncode == 0 and shot.is_file(), run.stderr[-2000:]
+    import matplotlib.image
+
+    rgb = matplotlib.image.imread(shot)[..., :3]
+    red = (rgb[..., 0] > 0.5) & (rgb[..., 1] < 0.3) & (rgb[..., 2] < 0.3)
+    assert red.sum() > 20, "the red pendulum bob is not visible in the screenshot"
+
+
+def test_live_view_serves_the_scene_on_localhost(isolated_registry):
+    fetched = {}
+
+    def printer(line: str) -> None:
+        if "live view at" in line and not fetched:
+            url = re.search(r"(http://\S+)", line).group(1)
+            with urllib.request.urlopen(url, timeout=10) as response:
+                fetched["status"] = response.status
+                fetched["body"] = response.read().decode("utf-8", "replace")
+
+    meshcat = Meshcat()
+    result = record_replay(
+        "test_pendulum", 0.05, None, meshcat=meshcat, live=True, live_seconds=0.2, printer=printer
+    )
+    assert result.html_path is None and result.web_url == meshcat.web_url()
+    assert fetched["status"] == 200 and "meshcat" in fetched["body"].lower()
+
+
+def test_record_replay_bad_input(isolated_registry, tmp_path):
+    with pytest.raises(RepertoireError, match="needs html_path= or live=True"):
+        record_replay("test_pendulum", 0.1, None)
+    with pytest.raises(RepertoireError, match="builder function needs a duration"):
+        record_replay(
+            lambda meshcat: build_pendulum(PendulumScenario(), meshcat=meshcat),
+            None,
+            tmp_path / "x.html",
+        )
+    with pytest.raises(RepertoireError, match="registered diagram name or a builder function"):
+        record_replay(42, 0.1, tmp_path / "x.html")
+    with pytest.raises(UnknownNameError, match="test_pendulum"):
+        record_replay("nope", 0.1, tmp_path / "x.html")
+    with pytest.raises(RepertoireError, match="returned int, expected a pydrake Diagram"):
+        record_replay(lambda meshcat: 3, 0.1, tmp_path / "x.html")
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,253 @@
+"""The `repertoire` command line and `repertoire demo`, on test-only worlds and studies."""
+
+import dataclasses
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import PendulumScenario
+
+from repertoire.cli import main
+from repertoire.demo import run_demo
+
+
+@dataclasses.dataclass
+class ToyConfig:
+    scale: float = 2.0
+
+
+@dataclasses.dataclass
+class ToyRecord:
+    value: float = 0.0
+    wall_time_s: float = 0.0
+
+
+def run_toy_episode(config: ToyConfig, seed: int) -> ToyRecord:
+    return ToyRecord(value=config.scale * float(np.random.default_rng(seed).random()))
+
+
+def run_broken_episode(config: ToyConfig, seed: int) -> ToyRecord:
+    raise RuntimeError(f"episode {seed} exploded")
+
+
+def build_broken(scenario: PendulumScenario, *, meshcat=None):
+    raise RuntimeError("this world cannot be built")
+
+
+@pytest.fixture
+def registries(isolated_registry, monkeypatch):
+    """Diagram registry with test_pendulum; study registry with toy_study only."""
+    from repertoire.studies import registry as study_registry
+
+    monkeypatch.setattr(study_registry, "_REGISTRY", {})
+    monkeypatch.setattr(study_registry, "_LOADED", True)
+    study_registry.register_study(
+        "toy_study",
+        config_type=ToyConfig,
+        record_type=ToyRecord,
+        run_episode=run_toy_episode,
+        description="test-only toy study",
+        demo_config=lambda: ToyConfig(scale=3.0),
+        demo_episodes=3,
+        smoke_config=lambda: ToyConfig(scale=1.0),
+    )
+    return isolated_registry, study_registry
+
+
+@pytest.fixture
+def broken_parts(registries):
+    diagrams, studies = registries
+    diagrams.register_diagram(
+        "test_broken", scenario_type=PendulumScenario, description="a world whose builder fails"
+    )(build_broken)
+    studies.register_study(
+        "broken_study",
+        config_type=ToyConfig,
+        record_type=ToyRecord,
+        run_episode=run_broken_episode,
+        description="a failing study",
+    )
+    return registries
+
+
+def test_help_works_as_a_module_and_shows_every_command_with_examples():
+    run = subprocess.run(
+        [sys.executable, "-m", "repertoire", "--help"], capture_output=True, text=True, timeout=60
+    )
+    assert run.returncode == 0, run.stderr
+    for command in (
+        "list",
+        "render",
+        "simulate",
+        "study",
+        "demo",
+        "examples:",
+        "repertoire simulate littledog_stand",
+        "Exit codes",
+    ):
+        assert command in run.stdout
+
+
+@pytest.mark.parametrize(
+    "command, option",
+    [
+        ("render", "--max-depth"),
+        ("simulate", "--replay"),
+        ("simulate", "--live"),
+        ("study", "--episodes"),
+        ("study", "--scheduler"),
+        ("demo", "--quick"),
+    ],
+)
+def test_subcommand_help(capsys, command, option):
+    with pytest.raises(SystemExit) as exit_info:
+        main([command, "--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    assert option in out and "example" in out
+
+
+def test_usage_errors_exit_2(capsys):
+    for argv in ([], ["frobnicate"], ["render"], ["render", "x", "--max-depth", "two"]):
+        with pytest.raises(SystemExit) as exit_info:
+            main(argv)
+        assert exit_info.value.code == 2
+
+
+def test_list_names_diagrams_and_studies(registries, capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert "test_pendulum" in out and "test-only pendulum [0.2 s]" in out
+    assert "toy_study" in out and "test-only toy study" in out
+
+
+@pytest.mark.parametrize(
+    "argv, what",
+    [
+        (["render", "nope", "--out", "{out}"], "diagram"),
+        (["simulate", "nope", "--replay", "--out", "{out}"], "diagram"),
+        (["study", "nope", "--out-dir", "{out}", "--store", "{out}/s.sqlite"], "study"),
+    ],
+)
+def test_unknown_name_lists_known_names_exits_2_writes_nothing(
+    registries, tmp_path, capsys, argv, what
+):
+    out = tmp_path / "out"
+    assert main([a.format(out=out) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert f"unknown {what} 'nope'" in err
+    assert ("test_pendulum" if what == "diagram" else "toy_study") in err
+    assert not out.exists()
+
+
+def test_render_writes_graph_files(registries, tmp_path, capsys):
+    assert main(["render", "test_pendulum", "--out", str(tmp_path), "--max-depth", "1"]) == 0
+    for suffix in (".dot", ".svg", ".png"):
+        assert (tmp_path / f"test_pendulum{suffix}").is_file()
+    assert f"wrote {tmp_path / 'test_pendulum.svg'}" in capsys.readouterr().out
+
+
+def test_simulate_prints_check_figures_and_writes_replay(registries, tmp_path, capsys):
+    assert main(["simulate", "test_pendulum", "--duration", "0.1"]) == 0
+    out = capsys.readouterr().out
+    assert "test_pendulum: simulated 0.1 s" in out and "angle_rad = " in out
+    scenario = tmp_path / "hanging.yaml"
+    scenario.write_text("angle: 0.0\n")
+    assert (
+        main(
+            [
+                "simulate",
+                "test_pendulum",
+                "--scenario",
+                str(scenario),
+                "--replay",
+                "--out",
+                str(tmp_path / "sim"),
+            ]
+        )
+        == 0
+    )
+    out = capsys.readouterr().out
+    assert "angle_rad = 0\n" in out and "energy_J = -4.905\n" in out
+    assert (tmp_path / "sim" / "test_pendulum.html").stat().st_size > 100_000
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--duration", "-1"], "duration must be a finite number of seconds > 0"),
+        (["--scenario", "{tmp}/bad.yaml"], "could not load PendulumScenario"),
+        (["--scenario", "{tmp}/missing.yaml"], "does not exist"),
+        (["--live-seconds", "3"], "--live-seconds needs --live"),
+    ],
+)
+def test_simulate_bad_input_exits_2_writes_nothing(registries, tmp_path, capsys, extra, message):
+    (tmp_path / "bad.yaml").write_text("angle: 0.1\nspeed: 3\n")
+    out = tmp_path / "sim"
+    argv = ["simulate", "test_pendulum", "--replay", "--out", str(out)]
+    assert main(argv + [a.format(tmp=tmp_path) for a in extra]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_study_runs_stores_and_summarizes(registries, tmp_path, capsys):
+    argv = [
+        "study",
+        "toy_study",
+        "--episodes",
+        "3",
+        "--executor",
+        "inline",
+        "--no-progress",
+        "--store",
+        str(tmp_path / "toy.sqlite"),
+        "--out-dir",
+        str(tmp_path / "toy"),
+    ]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "study toy_study: 3 episodes" in out
+    assert (tmp_path / "toy.sqlite").is_file()
+    assert (tmp_path / "toy" / "summary.csv").is_file()
+    assert main(argv[:2] + ["--episodes", "0"] + argv[4:]) == 2
+    assert "episodes" in capsys.readouterr().err
+
+
+def test_demo_reports_every_part_and_exits_1_when_one_fails(broken_parts, tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--quick"]) == 1
+    printed = capsys.readouterr().out
+    # The healthy world and study still produced everything.
+    for rel in (
+        "diagrams/test_pendulum.svg",
+        "diagrams/test_pendulum.png",
+        "diagrams/test_pendulum.dot",
+        "replays/test_pendulum.html",
+        "studies/toy_study/summary.csv",
+        "studies/toy_study/toy_study.sqlite",
+        "index.md",
+    ):
+        assert (out / rel).is_file(), rel
+    assert "angle_rad = " in printed and "energy_J = " in printed
+    assert "2 part(s) FAILED" in printed
+    assert "diagram test_broken: render: RuntimeError: this world cannot be built" in printed
+    assert "study broken_study:" in printed and "exploded" in printed
+    index = (out / "index.md").read_text()
+    assert "### test_pendulum - ok" in index and "### toy_study - ok" in index
+    assert "[replays/test_pendulum.html](replays/test_pendulum.html)" in index
+    assert "### test_broken - FAILED" in index and "### broken_study - FAILED" in index
+
+
+def test_demo_all_ok(registries, tmp_path):
+    result = run_demo(tmp_path / "demo", quick=True, printer=lambda line: None)
+    assert result.ok and result.failures == []
+    assert [(i.kind, i.name) for i in result.items] == [
+        ("diagram", "test_pendulum"),
+        ("study", "toy_study"),
+    ]
+    pendulum, toy = result.items
+    assert pendulum.figures["sim_time_s"] == pytest.approx(0.2)
+    assert toy.figures["episodes"] == 2  # quick: at most 2 episodes of the smoke config
+    assert "all parts ok" not in result.index_path.read_text()
+    assert "## Failures\n\nnone" in result.index_path.read_text()

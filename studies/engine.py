@@ -288,7 +288,7 @@ def _iter_dask(
         for s in seeds
     ]
     try:
-        for fut in as_completed(futures):
+        for fut in as_completed(futures, loop=client.loop):
             yield fut.result()
     finally:
         client.cancel(futures)

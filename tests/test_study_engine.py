@@ -1,0 +1,465 @@
+"""Tests of the Monte-Carlo study engine (repertoire.studies.engine / store / registry)."""
+
+import dataclasses
+import json
+import os
+import signal
+import socket
+import sqlite3
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import pytest
+from repertoire.studies import registry
+from repertoire.studies.engine import (
+    EpisodeError,
+    comparable,
+    get_study,
+    is_timing_field,
+    register_study,
+    run_study,
+    study_main,
+    study_names,
+    summary_rows,
+)
+from repertoire.studies.pendulum import PendulumConfig, PendulumRecord, smoke_config
+from repertoire.studies.store import EpisodeStore, canonical_json, from_plain, to_plain
+
+from repertoire.errors import RepertoireError, UnknownNameError
+
+# ---------------------------------------------------------------------------
+# Test-only studies (inline executor; removed from the registry after each test).
+
+
+@dataclasses.dataclass
+class ToyConfig:
+    scale: float = 2.0
+    offsets: list[float] = dataclasses.field(default_factory=lambda: [1.0, -1.0])
+
+
+@dataclasses.dataclass
+class ToyRecord:
+    value: float
+    parity: int
+    even: bool
+    samples: list[float]
+    wall_time_s: float
+
+
+def toy_episode(config: ToyConfig, seed: int) -> ToyRecord:
+    return ToyRecord(
+        value=config.scale * seed,
+        parity=seed % 2,
+        even=seed % 2 == 0,
+        samples=[o * seed for o in config.offsets],
+        wall_time_s=0.0,
+    )
+
+
+def wrong_record_episode(config: ToyConfig, seed: int) -> dict:
+    return {"value": float(seed)}
+
+
+def failing_episode(config: ToyConfig, seed: int) -> ToyRecord:
+    if seed == 3:
+        raise FloatingPointError("diverged at seed 3")
+    return toy_episode(config, seed)
+
+
+@pytest.fixture
+def toy_studies():
+    names = {
+        "_toy": toy_episode,
+        "_toy_wrong_record": wrong_record_episode,
+        "_toy_failing": failing_episode,
+    }
+    for name, fn in names.items():
+        register_study(
+            name,
+            config_type=ToyConfig,
+            record_type=ToyRecord,
+            run_episode=fn,
+            description="test-only study",
+        )
+    yield names
+    for name in names:
+        registry._REGISTRY.pop(name, None)
+
+
+def _kw(tmp_path: Path, tag: str = "s") -> dict:
+    return dict(store=tmp_path / f"{tag}.sqlite", out_dir=tmp_path / f"out_{tag}", progress=False)
+
+
+# ---------------------------------------------------------------------------
+# Registry and bad input.
+
+
+def test_pendulum_is_discovered_and_unknown_name_lists_known_ones():
+    assert "pendulum" in study_names()
+    entry = get_study("pendulum")
+    assert entry.module == "repertoire.studies.pendulum"
+    assert entry.config_type is PendulumConfig and entry.record_type is PendulumRecord
+    with pytest.raises(UnknownNameError, match=r"unknown study 'no_such_study'.*pendulum"):
+        run_study("no_such_study", episodes=1, progress=False)
+
+
+def test_register_rejects_non_dataclass_and_nested_function():
+    def local_episode(config, seed):
+        return None
+
+    with pytest.raises(RepertoireError, match="config_type must be a dataclass"):
+        register_study(
+            "_bad", config_type=int, record_type=ToyRecord, run_episode=toy_episode, description=""
+        )
+    with pytest.raises(RepertoireError, match="module-level function"):
+        register_study(
+            "_bad",
+            config_type=ToyConfig,
+            record_type=ToyRecord,
+            run_episode=local_episode,
+            description="",
+        )
+    assert "_bad" not in registry._REGISTRY
+
+
+@pytest.mark.parametrize("episodes", [0, -3])
+def test_non_positive_episodes_is_refused_and_creates_nothing(tmp_path, episodes):
+    with pytest.raises(RepertoireError, match=r"episodes must be an int >= 1, got -?\d"):
+        run_study("pendulum", smoke_config(), episodes=episodes, executor="inline", **_kw(tmp_path))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_other_bad_arguments(tmp_path, toy_studies):
+    with pytest.raises(RepertoireError, match="executor must be one of"):
+        run_study("_toy", episodes=2, executor="threads", **_kw(tmp_path))
+    with pytest.raises(RepertoireError, match="first_seed must be an int >= 0"):
+        run_study("_toy", episodes=2, first_seed=-1, executor="inline", **_kw(tmp_path))
+    with pytest.raises(RepertoireError, match="takes a ToyConfig config, got PendulumConfig"):
+        run_study("_toy", smoke_config(), episodes=2, executor="inline", **_kw(tmp_path))
+    with pytest.raises(RepertoireError, match="needs scheduler_address"):
+        run_study("_toy", episodes=2, executor="dask", **_kw(tmp_path))
+    with pytest.raises(RepertoireError, match="damping_min <= damping_max"):
+        run_study(
+            "pendulum",
+            PendulumConfig(damping_min=1.0, damping_max=0.5),
+            episodes=2,
+            executor="inline",
+            **_kw(tmp_path),
+        )
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unreachable_dask_scheduler_fails_fast_and_names_the_address(tmp_path):
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    outcome = {}
+
+    def call():
+        try:
+            run_study(
+                "pendulum",
+                smoke_config(),
+                episodes=2,
+                executor="dask",
+                scheduler_address=address,
+                **_kw(tmp_path),
+            )
+        except Exception as e:
+            outcome["error"] = e
+
+    worker = threading.Thread(target=call, daemon=True)
+    worker.start()
+    worker.join(timeout=30.0)  # a no-hang guard; the engine's own timeout is 3 s
+    assert not worker.is_alive(), "run_study hung on an unreachable scheduler"
+    assert isinstance(outcome.get("error"), RepertoireError)
+    assert f"Dask scheduler at '{address}'" in str(outcome["error"])
+    assert not (tmp_path / "s.sqlite").exists()
+
+
+def test_wrong_record_type_is_a_clear_error(tmp_path, toy_studies):
+    with pytest.raises(
+        RepertoireError,
+        match=r"returned builtins\.dict, expected the registered "
+        r"record_type .*ToyRecord",
+    ):
+        run_study("_toy_wrong_record", episodes=2, executor="inline", **_kw(tmp_path))
+
+
+def test_failing_episode_raises_with_seed_and_keeps_finished_rows(tmp_path, toy_studies):
+    with pytest.raises(EpisodeError, match=r"seed 3: FloatingPointError: diverged at seed 3"):
+        run_study("_toy_failing", episodes=6, executor="inline", **_kw(tmp_path))
+    with sqlite3.connect(tmp_path / "s.sqlite") as db:
+        assert [r[0] for r in db.execute("SELECT seed FROM episodes ORDER BY seed")] == [0, 1, 2]
+
+
+# ---------------------------------------------------------------------------
+# Store, resume and config change.
+
+
+def test_resume_runs_only_missing_seeds_and_tables_are_exact(tmp_path, toy_studies):
+    first = run_study("_toy", episodes=4, executor="inline", **_kw(tmp_path))
+    assert (first.n_run, first.n_reused) == (4, 0)
+    more = run_study("_toy", episodes=6, executor="inline", **_kw(tmp_path))
+    assert (more.n_run, more.n_reused) == (2, 4)
+    assert more.seeds == [0, 1, 2, 3, 4, 5]
+    assert [r.value for r in more.records] == [0.0, 2.0, 4.0, 6.0, 8.0, 10.0]
+    assert more.records[5].samples == [5.0, -5.0]
+    shifted = run_study(
+        "_toy",
+        episodes=3,
+        first_seed=4,
+        executor="inline",
+        store=tmp_path / "s.sqlite",
+        out_dir=tmp_path / "out_shifted",
+        progress=False,
+    )
+    assert (shifted.n_run, shifted.n_reused, shifted.seeds) == (1, 2, [4, 5, 6])
+
+    rows = {r["field"]: r for r in summary_rows(ToyRecord, more.records)}
+    assert set(rows) == {"value", "parity", "even", "wall_time_s"}  # lists are skipped
+    assert rows["value"]["mean"] == pytest.approx(5.0)
+    assert rows["value"]["std"] == pytest.approx((70.0 / 6.0) ** 0.5 * 1.0)
+    assert (rows["value"]["min"], rows["value"]["max"], rows["value"]["n"]) == (0.0, 10.0, 6)
+    assert rows["even"]["success_rate"] == pytest.approx(0.5)
+    csv_text = more.tables["summary.csv"].read_text().splitlines()
+    assert csv_text[0] == "field,n,mean,std,min,max,success_rate"
+    assert csv_text[1].startswith("value,6,5.0,")
+    assert "| even | 6 |  |  |  |  | 0.5 |" in more.tables["summary.md"].read_text()
+    # No summarize(): one histogram per numeric field.
+    assert set(more.figures) == {"hist_value", "hist_parity", "hist_wall_time_s"}
+    assert all(p.read_bytes()[:4] == b"\x89PNG" for p in more.figures.values())
+
+
+def test_changed_config_is_refused_unless_fresh(tmp_path, toy_studies):
+    run_study("_toy", ToyConfig(scale=2.0), episodes=3, executor="inline", **_kw(tmp_path))
+    with pytest.raises(RepertoireError, match=r"another config.*scale: 2\.0 -> 3\.0.*fresh=True"):
+        run_study("_toy", ToyConfig(scale=3.0), episodes=3, executor="inline", **_kw(tmp_path))
+    with sqlite3.connect(tmp_path / "s.sqlite") as db:  # the refusal changed nothing
+        assert db.execute("SELECT COUNT(*) FROM episodes").fetchone()[0] == 3
+    again = run_study(
+        "_toy", ToyConfig(scale=3.0), episodes=2, executor="inline", fresh=True, **_kw(tmp_path)
+    )
+    assert (again.n_run, again.n_reused) == (2, 0)
+    assert [r.value for r in again.records] == [0.0, 3.0]
+    with sqlite3.connect(tmp_path / "s.sqlite") as db:
+        assert db.execute("SELECT COUNT(*) FROM episodes").fetchone()[0] == 2
+        meta = dict(db.execute("SELECT key, value FROM meta"))
+    assert meta["study"] == "_toy"
+    assert json.loads(meta["config_json"]) == {"offsets": [1.0, -1.0], "scale": 3.0}
+    with pytest.raises(RepertoireError, match="holds study '_toy', not 'pendulum'"):
+        run_study("pendulum", smoke_config(), episodes=1, executor="inline", **_kw(tmp_path))
+
+
+def test_store_never_duplicates_and_rejects_foreign_files(tmp_path):
+    path = tmp_path / "x.sqlite"
+    with EpisodeStore.open(path, study="a", config_json="{}", record_fields=["v"]) as db:
+        assert db.insert(7, '{"v": 1}', 0.1, "h:1") is True
+        assert db.insert(7, '{"v": 2}', 0.1, "h:2") is False
+        assert db.count() == 1
+        assert [r.record_json for r in db.load(0, 10)] == ['{"v": 1}']
+        assert db.meta()["record_fields"] == '["v"]'
+    with pytest.raises(RepertoireError, match="now returns"):
+        EpisodeStore.open(path, study="a", config_json="{}", record_fields=["v", "w"])
+    text = tmp_path / "notes.sqlite"
+    text.write_text("not a database at all, just some text " * 20)
+    with pytest.raises(RepertoireError, match="is not a study store"):
+        EpisodeStore.open(text, study="a", config_json="{}", record_fields=["v"])
+
+
+def test_plain_round_trip_and_errors():
+    @dataclasses.dataclass
+    class Inner:
+        gains: list[float] = dataclasses.field(default_factory=list)
+        label: str | None = None
+
+    @dataclasses.dataclass
+    class Outer:
+        inner: Inner = dataclasses.field(default_factory=Inner)
+        table: dict[str, int] = dataclasses.field(default_factory=dict)
+        rate: float = 1.0
+
+    value = Outer(Inner([1.0, 2.5], None), {"a": 3}, 2.0)
+    plain = to_plain(value)
+    assert plain == {"inner": {"gains": [1.0, 2.5], "label": None}, "table": {"a": 3}, "rate": 2.0}
+    assert from_plain(Outer, json.loads(canonical_json(plain))) == value
+    assert from_plain(Outer, {"rate": 3}) == Outer(rate=3.0)
+    with pytest.raises(RepertoireError, match=r"value\.inner: unknown keys \['gain'\]"):
+        from_plain(Outer, {"inner": {"gain": [1.0]}})
+    with pytest.raises(RepertoireError, match=r"value\.table\.a: expected int, got 'x'"):
+        from_plain(Outer, {"table": {"a": "x"}})
+    with pytest.raises(RepertoireError, match=r"rec\.extra has type object"):
+        to_plain({"extra": object()}, "rec")
+    assert is_timing_field("wall_time_s") and is_timing_field("wall_build_s")
+    assert not is_timing_field("time_s") and not is_timing_field("wall_clock")
+
+
+# ---------------------------------------------------------------------------
+# Same records whatever the executor; resume after SIGKILL.
+
+
+@pytest.fixture(scope="module")
+def dask_cluster():
+    distributed = pytest.importorskip("distributed", reason="dask.distributed not installed")
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    )
+    yield cluster
+    cluster.close()
+
+
+def test_same_records_inline_process_and_dask(tmp_path, dask_cluster):
+    config = smoke_config()
+    n = 8
+    runs = {
+        "inline": run_study(
+            "pendulum", config, episodes=n, executor="inline", **_kw(tmp_path, "inline")
+        ),
+        "process1": run_study(
+            "pendulum", config, episodes=n, executor="process", workers=1, **_kw(tmp_path, "p1")
+        ),
+        "process2": run_study(
+            "pendulum", config, episodes=n, executor="process", workers=2, **_kw(tmp_path, "p2")
+        ),
+        "dask2": run_study(
+            "pendulum",
+            config,
+            episodes=n,
+            executor="dask",
+            scheduler_address=dask_cluster.scheduler_address,
+            **_kw(tmp_path, "dask"),
+        ),
+    }
+    reference = [comparable(r) for r in runs["inline"].records]
+    assert len(reference) == n and len({r["initial_angle_rad"] for r in reference}) == n
+    for label, result in runs.items():
+        assert result.seeds == list(range(n)), label
+        assert [comparable(r) for r in result.records] == reference, label
+        assert result.figures["energy_vs_damping"].is_file()
+    assert runs["process2"].workers == 2
+    with sqlite3.connect(runs["process2"].store) as db:
+        workers = {r[0] for r in db.execute("SELECT worker FROM episodes")}
+    assert len(workers) == 2  # both pool processes ran episodes
+
+
+_KILL_SCRIPT = textwrap.dedent(
+    """
+    import sys
+    from repertoire.studies.engine import run_study
+    from repertoire.studies.pendulum import demo_config
+
+    if __name__ == "__main__":
+        run_study("pendulum", demo_config(), episodes=int(sys.argv[2]), store=sys.argv[1],
+                  out_dir=sys.argv[1] + ".out", executor="process", workers=2, progress=False)
+    """
+)
+
+
+def _count_rows(path: Path) -> int:
+    if not path.exists():
+        return 0
+    try:
+        with sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=1.0) as db:
+            return db.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
+    except sqlite3.OperationalError:  # tables not created yet
+        return 0
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_resume_after_sigkill_loses_nothing_and_duplicates_nothing(tmp_path):
+    n = 16
+    store = tmp_path / "killed.sqlite"
+    script = tmp_path / "run_pendulum.py"
+    script.write_text(_KILL_SCRIPT)
+    proc = subprocess.Popen(
+        [sys.executable, str(script), str(store), str(n)],
+        start_new_session=True,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        deadline = time.monotonic() + 60.0
+        while _count_rows(store) < 3 and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert proc.poll() is None, proc.stderr.read().decode()
+        os.kill(proc.pid, signal.SIGKILL)  # only the engine's process, as `kill -9 PID` would
+        proc.wait(timeout=10.0)
+        # The orphaned pool workers notice their parent is gone and exit by themselves.
+        deadline = time.monotonic() + 15.0
+        while _group_alive(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not _group_alive(proc.pid), "pool workers outlived the killed engine"
+    finally:
+        if _group_alive(proc.pid):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.stderr.close()
+
+    landed = _count_rows(store)
+    assert 3 <= landed < n
+    with sqlite3.connect(store) as db:
+        assert db.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+        for (text,) in db.execute("SELECT record FROM episodes"):
+            json.loads(text)
+
+    resumed = run_study(
+        "pendulum",
+        get_study("pendulum").demo_config(),
+        episodes=n,
+        executor="inline",
+        store=store,
+        out_dir=tmp_path / "resumed",
+        progress=False,
+    )
+    assert (resumed.n_reused, resumed.n_run) == (landed, n - landed)
+    with sqlite3.connect(store) as db:
+        counts = db.execute("SELECT seed, COUNT(*) FROM episodes GROUP BY seed ORDER BY seed")
+        assert [tuple(r) for r in counts] == [(s, 1) for s in range(n)]
+    clean = run_study(
+        "pendulum",
+        get_study("pendulum").demo_config(),
+        episodes=n,
+        executor="inline",
+        **_kw(tmp_path, "clean"),
+    )
+    assert [comparable(r) for r in resumed.records] == [comparable(r) for r in clean.records]
+
+
+def test_study_main_runs_and_reports_bad_input(tmp_path, capsys):
+    store = tmp_path / "cli.sqlite"
+    code = study_main(
+        "pendulum",
+        [
+            "--smoke",
+            "-n",
+            "3",
+            "--executor",
+            "inline",
+            "--store",
+            str(store),
+            "--out-dir",
+            str(tmp_path / "cli"),
+            "--no-progress",
+        ],
+    )
+    assert code == 0
+    out = capsys.readouterr().out
+    assert "study pendulum: 3 episodes (3 run, 0 from the store)" in out
+    assert "summary.md" in out and "energy_vs_damping" in out
+    assert (
+        study_main(
+            "pendulum", ["-n", "0", "--executor", "inline", "--store", str(store), "--no-progress"]
+        )
+        == 2
+    )
+    assert "episodes must be an int >= 1" in capsys.readouterr().err

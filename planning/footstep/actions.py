@@ -1,0 +1,172 @@
+"""The biped's footstep actions: robot constants, nominal and example tables, pose algebra.
+
+The robot is ASIMO-like: 1.2 m tall, feet 0.16 m x 0.10 m, nominal stance width 0.19 m
+(distance between the sole centres). Seven actions per foot, named in :data:`ACTIONS`.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+from repertoire.planning.footstep.types import ActionTable, Foot, wrap_angle
+
+
+@dataclasses.dataclass(frozen=True)
+class BipedGeometry:
+    """Geometry of the planned biped.
+
+    Attributes:
+        foot_length: sole length along the foot's x axis (m).
+        foot_width: sole width along the foot's y axis (m).
+        stance_width: nominal lateral distance between the sole centres (m).
+        body_radius: radius of the bounding circle of the whole robot seen from above (m),
+            used by the 2-D mobile-robot planner.
+    """
+
+    foot_length: float = 0.16
+    foot_width: float = 0.10
+    stance_width: float = 0.19
+    body_radius: float = 0.30
+
+
+ASIMO_LIKE = BipedGeometry()
+
+#: The seven actions (same for both feet), index order of every table.
+ACTIONS: list[str] = [
+    "forward_long",
+    "forward_medium",
+    "forward_short",
+    "side_step",
+    "turn_left",
+    "turn_right",
+    "stop",
+]
+#: Left/right mirror pairs (other actions mirror to themselves).
+MIRROR: dict[str, str] = {"turn_left": "turn_right", "turn_right": "turn_left"}
+#: Default step costs (a long step is the cheapest way to make progress).
+STEP_COST: dict[str, float] = {
+    "forward_long": 1.0,
+    "forward_medium": 1.05,
+    "forward_short": 1.1,
+    "side_step": 1.3,
+    "turn_left": 1.2,
+    "turn_right": 1.2,
+    "stop": 1.2,
+}
+TURN_ANGLE = 0.35  # rad per turning step
+STEP_DURATION = 0.8  # s
+
+
+def commanded_displacement(
+    action: str, stance: Foot, geometry: BipedGeometry = ASIMO_LIKE
+) -> tuple[float, float, float]:
+    """The commanded landing pose of the swing foot in the stance foot's frame.
+
+    Args:
+        action: one of :data:`ACTIONS`.
+        stance: the stance foot (the swing foot is the other one).
+        geometry: robot geometry (stance width).
+
+    Returns:
+        ``(dx, dy, dyaw)``.
+    """
+    s = 1.0 if Foot(stance) == Foot.RIGHT else -1.0  # +1: the swing foot is the left one
+    w = geometry.stance_width
+    forward = {"forward_long": 0.30, "forward_medium": 0.20, "forward_short": 0.10}
+    if action in forward:
+        return forward[action], s * w, 0.0
+    if action == "side_step":
+        return 0.0, s * (w + 0.10), 0.0
+    if action == "stop":
+        return 0.0, s * w, 0.0
+    if action in ("turn_left", "turn_right"):
+        th = TURN_ANGLE if action == "turn_left" else -TURN_ANGLE
+        # Rotate the swing foot's nominal place about the midpoint between the feet and
+        # move 5 cm forward.
+        mx, my = 0.0, s * w / 2.0
+        return 0.05 + mx - math.sin(th) * s * w / 2.0, my + math.cos(th) * s * w / 2.0, th
+    raise ValueError(f"unknown action {action!r}; expected one of {ACTIONS}")
+
+
+def nominal_action_table(
+    geometry: BipedGeometry = ASIMO_LIKE, *, step_duration: float = STEP_DURATION
+) -> ActionTable:
+    """The table of commanded displacements, the same for every history.
+
+    Args:
+        geometry: robot geometry.
+        step_duration: seconds per step.
+    """
+    n = len(ACTIONS)
+    disp = np.zeros((n, n, 2, n, 3))
+    for f in (Foot.LEFT, Foot.RIGHT):
+        for a, name in enumerate(ACTIONS):
+            disp[:, :, int(f), a] = commanded_displacement(name, f, geometry)
+    return ActionTable(
+        actions=list(ACTIONS),
+        displacement=disp,
+        duration=np.full((n, n, 2, n), step_duration),
+        step_cost=np.array([STEP_COST[a] for a in ACTIONS]),
+        rest_action="stop",
+        mirror=dict(MIRROR),
+    )
+
+
+def state_dependent_example_table(geometry: BipedGeometry = ASIMO_LIKE) -> ActionTable:
+    """A synthetic history-dependent table in the spirit of the paper's Fig. 2.
+
+    Not measured: it only makes the state dependence visible before a measured table
+    exists. From standing (previous action ``stop``) forward steps are 60 % as long and
+    take 0.2 s longer; a ``stop`` after a long or medium forward step still moves 40 % of
+    that step forward (the robot slows down over one more small step).
+
+    Args:
+        geometry: robot geometry.
+    """
+    table = nominal_action_table(geometry)
+    disp = table.displacement.copy()
+    dur = table.duration.copy()
+    i = {a: k for k, a in enumerate(ACTIONS)}
+    stop = i["stop"]
+    for name in ("forward_long", "forward_medium", "forward_short"):
+        a = i[name]
+        disp[:, stop, :, a, 0] *= 0.6
+        dur[:, stop, :, a] += 0.2
+    for name in ("forward_long", "forward_medium"):
+        prev = i[name]
+        for f in (0, 1):
+            disp[:, prev, f, stop, 0] = 0.4 * table.displacement[0, 0, f, prev, 0]
+    return dataclasses.replace(table, displacement=disp, duration=dur)
+
+
+def apply_displacement(
+    pose: "tuple[float, float, float] | np.ndarray", d: "tuple[float, float, float] | np.ndarray"
+) -> tuple[float, float, float]:
+    """Compose a stance pose with a displacement expressed in its frame.
+
+    Args:
+        pose: ``(x, y, yaw)`` of the stance foot in the world.
+        d: ``(dx, dy, dyaw)`` in the stance foot's frame.
+
+    Returns:
+        the world pose ``(x, y, yaw)`` of the landed foot (yaw wrapped to [-pi, pi)).
+    """
+    x, y, th = (float(v) for v in pose)
+    c, s = math.cos(th), math.sin(th)
+    return x + c * d[0] - s * d[1], y + s * d[0] + c * d[1], wrap_angle(th + d[2])
+
+
+def relative_displacement(
+    stance: "tuple[float, float, float] | np.ndarray",
+    landed: "tuple[float, float, float] | np.ndarray",
+) -> tuple[float, float, float]:
+    """Inverse of :func:`apply_displacement`: ``landed`` in the frame of ``stance``.
+
+    Args:
+        stance: world pose of the stance foot.
+        landed: world pose of the landed foot.
+    """
+    x, y, th = (float(v) for v in stance)
+    c, s = math.cos(th), math.sin(th)
+    ex, ey = float(landed[0]) - x, float(landed[1]) - y
+    return c * ex + s * ey, -s * ex + c * ey, wrap_angle(float(landed[2]) - th)

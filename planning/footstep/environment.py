@@ -1,0 +1,377 @@
+"""Environments of the footstep planner: occupancy grids and time-indexed grids E(t).
+
+A grid has square cells of side ``resolution`` (2.5 cm in the paper); cell ``(ix, iy)``
+covers ``[x0 + ix r, x0 + (ix + 1) r) x [y0 + iy r, y0 + (iy + 1) r)``. ``occupied[ix, iy]``
+is True where the robot may not step; heights are optional. A dynamic world is a list of
+grids with times; ``E(t)`` is the grid of the nearest time.
+"""
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from repertoire.planning.footstep.types import GridError
+
+
+def rect_overlaps_cells(
+    center: Sequence[float],
+    half_extents: Sequence[float],
+    yaw: float,
+    cell_centers: np.ndarray,
+    half_cell: float,
+) -> np.ndarray:
+    """Exact overlap (positive area) of an oriented rectangle with axis-aligned squares.
+
+    Separating-axis test on the two grid axes and the rectangle's two axes; touching
+    boundaries do not count as overlap.
+
+    Args:
+        center: rectangle centre ``(x, y)``.
+        half_extents: half length along the rectangle's x axis and half width.
+        yaw: rectangle orientation (rad).
+        cell_centers: (m, 2) centres of the squares.
+        half_cell: half side of the squares.
+
+    Returns:
+        (m,) bool array.
+    """
+    c, s = math.cos(yaw), math.sin(yaw)
+    hl, hw = float(half_extents[0]), float(half_extents[1])
+    d = np.asarray(cell_centers, dtype=float) - np.asarray(center, dtype=float)[None, :]
+    eps = 1e-12
+    # grid axes
+    ext_x = hl * abs(c) + hw * abs(s)
+    ext_y = hl * abs(s) + hw * abs(c)
+    sep = np.abs(d[:, 0]) >= ext_x + half_cell - eps
+    sep |= np.abs(d[:, 1]) >= ext_y + half_cell - eps
+    # rectangle axes u = (c, s), v = (-s, c)
+    cell_u = half_cell * (abs(c) + abs(s))
+    sep |= np.abs(d[:, 0] * c + d[:, 1] * s) >= hl + cell_u - eps
+    sep |= np.abs(-d[:, 0] * s + d[:, 1] * c) >= hw + cell_u - eps
+    return ~sep
+
+
+@dataclasses.dataclass
+class RectObstacle:
+    """A flat rectangular obstacle.
+
+    Attributes:
+        center: ``[x, y]`` (m).
+        size: ``[length, width]`` along the obstacle's own x and y axes (m).
+        yaw: orientation (rad).
+        height: height (m), stored in the grid's heights.
+    """
+
+    center: list[float]
+    size: list[float]
+    yaw: float = 0.0
+    height: float = 0.02
+
+
+@dataclasses.dataclass
+class MovingRectObstacle:
+    """A rectangle translating at constant velocity: ``center(t) = center + velocity t``.
+
+    Attributes:
+        center: ``[x, y]`` at t = 0 (m).
+        size: ``[length, width]`` (m).
+        velocity: ``[vx, vy]`` (m/s).
+        yaw: orientation (rad).
+        height: height (m).
+    """
+
+    center: list[float]
+    size: list[float]
+    velocity: list[float]
+    yaw: float = 0.0
+    height: float = 0.02
+
+    def at(self, t: float) -> RectObstacle:
+        """The obstacle at time ``t``.
+
+        Args:
+            t: time (s).
+        """
+        return RectObstacle(
+            center=[self.center[0] + self.velocity[0] * t, self.center[1] + self.velocity[1] * t],
+            size=list(self.size),
+            yaw=self.yaw,
+            height=self.height,
+        )
+
+
+@dataclasses.dataclass
+class OccupancyGrid:
+    """An obstacle bitmap on square cells, with optional heights.
+
+    Attributes:
+        occupied: (nx, ny) bool, True where the robot may not step.
+        resolution: cell side (m).
+        origin: ``(x0, y0)`` of the corner of cell (0, 0) (m).
+        heights: optional (nx, ny) heights (m).
+    """
+
+    occupied: np.ndarray
+    resolution: float = 0.025
+    origin: tuple[float, float] = (0.0, 0.0)
+    heights: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.occupied = np.asarray(self.occupied, dtype=bool)
+        if self.occupied.ndim != 2 or min(self.occupied.shape) == 0:
+            raise GridError(f"occupied must be a non-empty 2-D array, got {self.occupied.shape}")
+        if not (math.isfinite(self.resolution) and self.resolution > 0):
+            raise GridError(
+                f"resolution must be a positive number of metres, got {self.resolution}"
+            )
+        self.origin = (float(self.origin[0]), float(self.origin[1]))
+        if not all(math.isfinite(v) for v in self.origin):
+            raise GridError(f"origin must be finite, got {self.origin}")
+        if self.heights is not None:
+            self.heights = np.asarray(self.heights, dtype=float)
+            if self.heights.shape != self.occupied.shape:
+                raise GridError(
+                    f"heights shape {self.heights.shape} differs from occupied "
+                    f"{self.occupied.shape}"
+                )
+            if not np.all(np.isfinite(self.heights)):
+                raise GridError("heights must be finite")
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.occupied.shape  # type: ignore[return-value]
+
+    @property
+    def size(self) -> tuple[float, float]:
+        return self.shape[0] * self.resolution, self.shape[1] * self.resolution
+
+    def contains(self, x: float, y: float) -> bool:
+        """Whether the point is inside the mapped area.
+
+        Args:
+            x: world x (m).
+            y: world y (m).
+        """
+        sx, sy = self.size
+        return (
+            self.origin[0] <= x < self.origin[0] + sx and self.origin[1] <= y < self.origin[1] + sy
+        )
+
+    def cell_of(self, x: float, y: float) -> tuple[int, int]:
+        """Cell indices containing a point (may lie outside the grid).
+
+        Args:
+            x: world x (m).
+            y: world y (m).
+        """
+        return (
+            int(math.floor((x - self.origin[0]) / self.resolution)),
+            int(math.floor((y - self.origin[1]) / self.resolution)),
+        )
+
+    def cell_centers(self) -> np.ndarray:
+        """(nx, ny, 2) cell centres."""
+        ix = self.origin[0] + (np.arange(self.shape[0]) + 0.5) * self.resolution
+        iy = self.origin[1] + (np.arange(self.shape[1]) + 0.5) * self.resolution
+        return np.stack(np.meshgrid(ix, iy, indexing="ij"), axis=-1)
+
+    def same_geometry(self, other: "OccupancyGrid") -> bool:
+        return (
+            self.shape == other.shape
+            and abs(self.resolution - other.resolution) < 1e-12
+            and np.allclose(self.origin, other.origin)
+        )
+
+    @classmethod
+    def empty(
+        cls, size: Sequence[float], resolution: float = 0.025, origin: Sequence[float] = (0.0, 0.0)
+    ) -> "OccupancyGrid":
+        """A free grid covering ``size`` metres.
+
+        Args:
+            size: ``(width_x, width_y)`` (m).
+            resolution: cell side (m).
+            origin: corner of cell (0, 0).
+        """
+        if not (math.isfinite(resolution) and resolution > 0):
+            raise GridError(f"resolution must be positive, got {resolution}")
+        if len(size) != 2 or not all(math.isfinite(s) and s > 0 for s in size):
+            raise GridError(f"size must be two positive lengths, got {size}")
+        nx = int(round(size[0] / resolution))
+        ny = int(round(size[1] / resolution))
+        return cls(np.zeros((nx, ny), bool), resolution, (origin[0], origin[1]))
+
+    @classmethod
+    def from_rectangles(
+        cls,
+        size: Sequence[float],
+        rectangles: Sequence[RectObstacle],
+        resolution: float = 0.025,
+        origin: Sequence[float] = (0.0, 0.0),
+        with_heights: bool = False,
+    ) -> "OccupancyGrid":
+        """Rasterise rectangles: a cell is occupied if it overlaps one with positive area.
+
+        Args:
+            size: ``(width_x, width_y)`` (m).
+            rectangles: the obstacles.
+            resolution: cell side (m).
+            origin: corner of cell (0, 0).
+            with_heights: also fill a heights array from the obstacles' heights.
+        """
+        grid = cls.empty(size, resolution, origin)
+        heights = np.zeros(grid.shape) if with_heights else None
+        centers = grid.cell_centers()
+        for rect in rectangles:
+            grid._paint(rect, centers, heights)
+        grid.heights = heights
+        return grid
+
+    def _paint(self, rect: RectObstacle, centers: np.ndarray, heights: np.ndarray | None) -> None:
+        hl, hw = rect.size[0] / 2.0, rect.size[1] / 2.0
+        reach = math.hypot(hl, hw) + self.resolution
+        x0, y0 = self.origin
+        r = self.resolution
+        i0 = max(0, int(math.floor((rect.center[0] - reach - x0) / r)))
+        i1 = min(self.shape[0], int(math.ceil((rect.center[0] + reach - x0) / r)) + 1)
+        j0 = max(0, int(math.floor((rect.center[1] - reach - y0) / r)))
+        j1 = min(self.shape[1], int(math.ceil((rect.center[1] + reach - y0) / r)) + 1)
+        if i0 >= i1 or j0 >= j1:
+            return
+        sub = centers[i0:i1, j0:j1].reshape(-1, 2)
+        hit = rect_overlaps_cells(rect.center, (hl, hw), rect.yaw, sub, r / 2.0)
+        hit = hit.reshape(i1 - i0, j1 - j0)
+        self.occupied[i0:i1, j0:j1] |= hit
+        if heights is not None:
+            block = heights[i0:i1, j0:j1]
+            block[hit] = np.maximum(block[hit], rect.height)
+
+
+@dataclasses.dataclass
+class DynamicEnvironment:
+    """Time-indexed grids: ``E(t)`` is the grid whose time is nearest to ``t``.
+
+    Attributes:
+        times: increasing grid times (s).
+        grids: one grid per time, all with the same shape, resolution and origin.
+        max_time_gap: a request further than this from every grid time is an error (s).
+    """
+
+    times: np.ndarray
+    grids: list[OccupancyGrid]
+    max_time_gap: float
+
+    def __post_init__(self) -> None:
+        self.times = np.asarray(self.times, dtype=float)
+        if self.times.ndim != 1 or len(self.times) == 0:
+            raise GridError("a dynamic environment needs at least one grid time")
+        if len(self.grids) != len(self.times):
+            raise GridError(f"{len(self.times)} times but {len(self.grids)} grids")
+        if not np.all(np.isfinite(self.times)) or np.any(np.diff(self.times) <= 0):
+            raise GridError("grid times must be finite and strictly increasing")
+        if not (math.isfinite(self.max_time_gap) and self.max_time_gap >= 0):
+            raise GridError(f"max_time_gap must be >= 0, got {self.max_time_gap}")
+        g0 = self.grids[0]
+        for k, g in enumerate(self.grids):
+            if not g0.same_geometry(g):
+                raise GridError(
+                    f"grid {k} has shape {g.shape}, resolution {g.resolution}, origin {g.origin}; "
+                    f"grid 0 has {g0.shape}, {g0.resolution}, {g0.origin}: all grids of a dynamic "
+                    "environment must share shape, resolution and origin"
+                )
+        self._stack: np.ndarray | None = None
+
+    @property
+    def resolution(self) -> float:
+        return self.grids[0].resolution
+
+    @property
+    def reference(self) -> OccupancyGrid:
+        return self.grids[0]
+
+    @property
+    def stack(self) -> np.ndarray:
+        """(K, nx, ny) occupancy of every grid."""
+        if self._stack is None:
+            self._stack = np.stack([g.occupied for g in self.grids])
+        return self._stack
+
+    def covers(self, t: float) -> bool:
+        """Whether a grid lies within ``max_time_gap`` of ``t``.
+
+        Args:
+            t: time (s).
+        """
+        k = self.nearest_index_unchecked(t)
+        return abs(self.times[k] - t) <= self.max_time_gap + 1e-9
+
+    def nearest_index_unchecked(self, t: float) -> int:
+        k = int(np.searchsorted(self.times, t))
+        if k == 0:
+            return 0
+        if k >= len(self.times):
+            return len(self.times) - 1
+        return k if self.times[k] - t < t - self.times[k - 1] else k - 1
+
+    def index_at(self, t: float) -> int:
+        """Index of the grid nearest ``t``; :class:`GridError` if none is near.
+
+        Args:
+            t: time (s).
+        """
+        if not math.isfinite(t):
+            raise GridError(f"time must be finite, got {t}")
+        k = self.nearest_index_unchecked(t)
+        if abs(self.times[k] - t) > self.max_time_gap + 1e-9:
+            raise GridError(
+                f"no grid near t = {t:.3f} s: grids cover [{self.times[0]:.3f}, "
+                f"{self.times[-1]:.3f}] s with max_time_gap {self.max_time_gap:.3f} s"
+            )
+        return k
+
+    def at(self, t: float) -> OccupancyGrid:
+        """E(t): the grid nearest ``t``.
+
+        Args:
+            t: time (s).
+        """
+        return self.grids[self.index_at(t)]
+
+    @classmethod
+    def from_moving_obstacles(
+        cls,
+        size: Sequence[float],
+        *,
+        moving: Sequence[MovingRectObstacle],
+        static: Sequence[RectObstacle] = (),
+        t_end: float,
+        dt: float = 0.1,
+        resolution: float = 0.025,
+        origin: Sequence[float] = (0.0, 0.0),
+    ) -> "DynamicEnvironment":
+        """Grids every ``dt`` seconds over ``[0, t_end]`` of obstacles on known trajectories.
+
+        Args:
+            size: ``(width_x, width_y)`` (m).
+            moving: obstacles moving at constant velocity.
+            static: obstacles that stay.
+            t_end: last grid time (s).
+            dt: spacing of the grid times (s); also ``2 max_time_gap``.
+            resolution: cell side (m).
+            origin: corner of cell (0, 0).
+        """
+        if not (math.isfinite(dt) and dt > 0):
+            raise GridError(f"dt must be positive, got {dt}")
+        if not (math.isfinite(t_end) and t_end >= 0):
+            raise GridError(f"t_end must be >= 0, got {t_end}")
+        base = OccupancyGrid.from_rectangles(size, list(static), resolution, origin)
+        centers = base.cell_centers()
+        times = np.arange(0.0, t_end + 0.5 * dt, dt)
+        grids = []
+        for t in times:
+            g = OccupancyGrid(base.occupied.copy(), resolution, origin)
+            for m in moving:
+                g._paint(m.at(float(t)), centers, None)
+            grids.append(g)
+        return cls(times, grids, max_time_gap=dt / 2.0)

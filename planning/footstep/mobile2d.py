@@ -1,0 +1,102 @@
+"""The comparison baseline: a 2-D mobile-robot planner with the robot's bounding circle.
+
+The grid is inflated by the bounding-circle radius (a cell is blocked when its centre lies
+within the radius of an occupied cell's centre or of the map border) and an 8-connected
+Dijkstra finds the shortest path between cell centres. Such a robot must go around every
+obstacle, including the flat ones a biped steps over.
+"""
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+from repertoire.planning.footstep.environment import OccupancyGrid
+from repertoire.planning.footstep.heuristic import grid_graph
+from repertoire.planning.footstep.types import FootstepError, PlanStatus
+from scipy import ndimage
+from scipy.sparse.csgraph import dijkstra
+
+
+@dataclasses.dataclass
+class Mobile2DPlan:
+    """Result of the 2-D planner.
+
+    Attributes:
+        status: SUCCESS or UNREACHABLE.
+        path: list of ``[x, y]`` cell centres from start to goal (empty if unreachable).
+        length: path length (m), inf if unreachable.
+        planning_time_s: wall time (s).
+        reason: why it failed ("" on success).
+    """
+
+    status: PlanStatus
+    path: list[list[float]]
+    length: float
+    planning_time_s: float
+    reason: str = ""
+
+
+def inflate(grid: OccupancyGrid, radius: float) -> np.ndarray:
+    """Cells a disc of ``radius`` centred there would overlap an obstacle or leave the map.
+
+    Args:
+        grid: the grid.
+        radius: bounding-circle radius (m).
+
+    Returns:
+        (nx, ny) bool, True where the robot's centre may not be.
+    """
+    if not (math.isfinite(radius) and radius >= 0):
+        raise FootstepError(f"radius must be >= 0, got {radius}")
+    occ = np.pad(grid.occupied, 1, constant_values=True)
+    dist = ndimage.distance_transform_edt(~occ) * grid.resolution
+    # distance from a centre to an occupied centre, minus half a cell: reach of that cell
+    blocked = dist - grid.resolution / 2.0 < radius
+    return blocked[1:-1, 1:-1]
+
+
+def plan_mobile2d(
+    grid: OccupancyGrid,
+    start: "tuple[float, float]",
+    goal: "tuple[float, float]",
+    radius: float,
+) -> Mobile2DPlan:
+    """Shortest 8-connected path of the robot's centre on the inflated grid.
+
+    Args:
+        grid: the grid.
+        start: start ``(x, y)`` (m), inside the map.
+        goal: goal ``(x, y)`` (m), inside the map.
+        radius: bounding-circle radius (m).
+    """
+    t0 = time.perf_counter()
+    for name, p in (("start", start), ("goal", goal)):
+        if not all(math.isfinite(v) for v in p[:2]) or not grid.contains(p[0], p[1]):
+            raise FootstepError(f"{name} {tuple(p[:2])} lies outside the map of size {grid.size}")
+    blocked = inflate(grid, radius)
+    s = grid.cell_of(*start[:2])
+    g = grid.cell_of(*goal[:2])
+
+    def fail(reason: str) -> Mobile2DPlan:
+        return Mobile2DPlan(PlanStatus.UNREACHABLE, [], math.inf, time.perf_counter() - t0, reason)
+
+    if blocked[s]:
+        return fail("start is within the bounding radius of an obstacle")
+    if blocked[g]:
+        return fail("goal is within the bounding radius of an obstacle")
+    cost = np.where(blocked, np.inf, 1.0)
+    graph = grid_graph(cost, grid.resolution).tocsr()
+    ny = grid.shape[1]
+    si, gi = s[0] * ny + s[1], g[0] * ny + g[1]
+    dist, pred = dijkstra(graph, directed=False, indices=si, return_predecessors=True)
+    if not np.isfinite(dist[gi]):
+        return fail("no collision-free path for the bounding circle")
+    cells = [gi]
+    while cells[-1] != si:
+        cells.append(int(pred[cells[-1]]))
+    cells.reverse()
+    r = grid.resolution
+    x0, y0 = grid.origin
+    path = [[x0 + (c // ny + 0.5) * r, y0 + (c % ny + 0.5) * r] for c in cells]
+    return Mobile2DPlan(PlanStatus.SUCCESS, path, float(dist[gi]), time.perf_counter() - t0)

@@ -1,0 +1,465 @@
+"""A* footstep planner over state-dependent actions (Chestnutt et al., Algorithm 1).
+
+A state is the stance foot pose ``(x, y, yaw)``, which foot stands, the last two commanded
+actions and the time. Successors come from the action table T for the actions F allows;
+each costs ``step_cost(a) + location_cost(landing)`` (infinite when the foot rectangle
+overlaps an occupied cell of E(t)); the queue is ordered by ``g + w h`` with ``h`` the
+expected cost-to-go. States are merged on a lattice of ``xy_resolution`` x ``yaw_bins``
+(x time bins in dynamic worlds) while the poses themselves stay continuous, so a plan's
+poses are exactly what T predicts. When the time limit runs out, or the open list is
+exhausted, the best partial plan (smallest cost-to-go) is returned with its status.
+"""
+
+import dataclasses
+import heapq
+import math
+import time
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry, apply_displacement
+from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
+from repertoire.planning.footstep.footprint import FootprintChecker, footprint_masks
+from repertoire.planning.footstep.heuristic import dijkstra_cost_to_go
+from repertoire.planning.footstep.types import (
+    ActionTable,
+    Foot,
+    FootstepError,
+    FootstepPlan,
+    PlanStatus,
+    parse_foot,
+    wrap_angle,
+)
+
+HEURISTICS = ("dijkstra", "euclidean", "none")
+
+
+@dataclasses.dataclass
+class PlannerOptions:
+    """Options of :func:`plan_footsteps`.
+
+    Attributes:
+        time_limit: wall-time budget of the search (s), > 0.
+        heuristic: ``"dijkstra"`` (backward 2-D Dijkstra, informed, inadmissible; static
+            grids only), ``"euclidean"`` (straight-line distance, admissible) or ``"none"``
+            (uniform-cost search).
+        heuristic_weight: w in ``g + w h`` (>= 0).
+        goal_tolerance: the goal is reached when the stance foot centre is within this
+            distance of the goal point (m).
+        obstacle_cost: Dijkstra traversal cost per metre over occupied cells (free = 1).
+        xy_resolution: lattice spacing used to merge states (m).
+        yaw_bins: yaw bins per turn used to merge states.
+        time_resolution: time bins used to merge states in dynamic worlds (s).
+        height_cost_weight: location cost per metre of height variation under a foot.
+    """
+
+    time_limit: float = 1.0
+    heuristic: str = "dijkstra"
+    heuristic_weight: float = 1.0
+    goal_tolerance: float = 0.15
+    obstacle_cost: float = 3.0
+    xy_resolution: float = 0.025
+    yaw_bins: int = 72
+    time_resolution: float = 0.1
+    height_cost_weight: float = 0.0
+
+    @classmethod
+    def admissible(cls, **overrides: float) -> "PlannerOptions":
+        """Options for optimal plans: Euclidean heuristic (admissible), weight 1.
+
+        Args:
+            **overrides: other fields to set.
+        """
+        return cls(**{"heuristic": "euclidean", "heuristic_weight": 1.0, **overrides})
+
+    def validate(self) -> None:
+        if not (isinstance(self.time_limit, (int, float)) and math.isfinite(self.time_limit)):
+            raise FootstepError(
+                f"time_limit must be a finite number of seconds, got {self.time_limit}"
+            )
+        if self.time_limit <= 0:
+            raise FootstepError(f"time_limit must be positive, got {self.time_limit} s")
+        if self.heuristic not in HEURISTICS:
+            raise FootstepError(
+                f"unknown heuristic {self.heuristic!r}; expected one of {HEURISTICS}"
+            )
+        for name in ("heuristic_weight", "obstacle_cost", "height_cost_weight"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise FootstepError(f"{name} must be finite and >= 0, got {v}")
+        for name in ("goal_tolerance", "xy_resolution", "time_resolution"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise FootstepError(f"{name} must be finite and > 0, got {v}")
+        if int(self.yaw_bins) != self.yaw_bins or self.yaw_bins < 4:
+            raise FootstepError(f"yaw_bins must be an integer >= 4, got {self.yaw_bins}")
+
+
+ActionFilter = Callable[[str, str, Foot], Sequence[str]]
+
+
+def history_classes(table: ActionTable) -> np.ndarray:
+    """Merge histories ``(a_prev2, a_prev1)`` whose futures are identical under T.
+
+    Two histories are equivalent when they give the same displacements and durations for
+    every foot and action, and the histories they lead to after any action are equivalent
+    again (partition refinement, as in DFA minimisation). States that differ only by
+    equivalent histories are merged by the search without changing any plan's cost.
+
+    Args:
+        table: the action table.
+
+    Returns:
+        (n, n) int array: class id of each history.
+    """
+    n = table.n
+    sig: dict[bytes, int] = {}
+    cls = np.zeros((n, n), dtype=int)
+    for i2 in range(n):
+        for i1 in range(n):
+            b = table.displacement[i2, i1].tobytes() + table.duration[i2, i1].tobytes()
+            cls[i2, i1] = sig.setdefault(b, len(sig))
+    while True:
+        sig2: dict[tuple, int] = {}
+        new = np.zeros_like(cls)
+        for i2 in range(n):
+            for i1 in range(n):
+                key = (int(cls[i2, i1]), *(int(cls[i1, a]) for a in range(n)))
+                new[i2, i1] = sig2.setdefault(key, len(sig2))
+        if len(sig2) == len(np.unique(cls)):
+            return new
+        cls = new
+
+
+def _pose3(p: Sequence[float], name: str) -> tuple[float, float, float]:
+    try:
+        vals = [float(v) for v in p]
+    except (TypeError, ValueError):
+        raise FootstepError(f"{name} must be a sequence of numbers, got {p!r}") from None
+    if len(vals) == 2:
+        vals.append(0.0)
+    if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
+        raise FootstepError(f"{name} must be finite (x, y[, yaw]), got {p!r}")
+    return vals[0], vals[1], wrap_angle(vals[2])
+
+
+class _Checkers:
+    """Footprint checkers per time index (dynamic) or one checker (static)."""
+
+    def __init__(
+        self, world: "OccupancyGrid | DynamicEnvironment", geometry: BipedGeometry, hold: float
+    ) -> None:
+        self.world = world
+        grid0 = world if isinstance(world, OccupancyGrid) else world.reference
+        self.masks = footprint_masks(geometry.foot_length, geometry.foot_width, grid0.resolution)
+        self.hold = hold
+        self._cache: dict[int, FootprintChecker] = {}
+        self.static = isinstance(world, OccupancyGrid)
+        if self.static:
+            self._cache[0] = FootprintChecker(world, self.masks)
+
+    def index(self, t: float) -> int:
+        """Time index of ``t``, or -1 when no grid is near (always 0 in static worlds)."""
+        if self.static:
+            return 0
+        env = self.world
+        k = env.nearest_index_unchecked(t)
+        return k if abs(env.times[k] - t) <= env.max_time_gap + 1e-9 else -1
+
+    def checker(self, k: int) -> FootprintChecker:
+        c = self._cache.get(k)
+        if c is None:
+            env = self.world
+            t_hold = env.times[k] + self.hold
+            k2 = int(np.searchsorted(env.times, t_hold + env.max_time_gap + 1e-9))
+            union = env.stack[k : max(k2, k + 1)].any(axis=0)
+            ref = env.reference
+            c = FootprintChecker(
+                OccupancyGrid(union, ref.resolution, ref.origin, ref.heights), self.masks
+            )
+            self._cache[k] = c
+        return c
+
+
+def plan_footsteps(
+    world: "OccupancyGrid | DynamicEnvironment",
+    start: Sequence[float],
+    start_foot: "Foot | int | str",
+    goal: Sequence[float],
+    table: ActionTable,
+    options: PlannerOptions | None = None,
+    *,
+    geometry: BipedGeometry = ASIMO_LIKE,
+    initial_swing_pose: Sequence[float] | None = None,
+    start_time: float = 0.0,
+    initial_history: Sequence[str] | None = None,
+    action_filter: ActionFilter | None = None,
+) -> FootstepPlan:
+    """Plan footsteps from a stance pose to a goal point (Algorithm 1 with a time limit).
+
+    Args:
+        world: a static :class:`OccupancyGrid` or a :class:`DynamicEnvironment` E(t).
+        start: ``(x, y, yaw)`` of the stance foot at the start.
+        start_foot: which foot stands at ``start`` (the other one moves first).
+        goal: ``(x, y)`` of the goal point (a third value, yaw, is ignored).
+        table: the displacement table T (with durations and step costs).
+        options: planner options (defaults: :class:`PlannerOptions`).
+        geometry: foot size and stance width.
+        initial_swing_pose: the other foot at the start; default: beside the stance foot
+            at the nominal stance width.
+        start_time: time of the start state (s); dynamic worlds need a grid near it.
+        initial_history: ``(a_prev2, a_prev1)`` before the first action; default
+            ``(rest_action, rest_action)`` (standing still).
+        action_filter: F: ``(a_prev2, a_prev1, stance_foot) -> allowed action names``;
+            default all actions.
+
+    Returns:
+        the plan; its status says whether it reaches the goal.
+    """
+    t_begin = time.perf_counter()
+    opts = options if options is not None else PlannerOptions()
+    opts.validate()
+    if not isinstance(table, ActionTable):
+        raise FootstepError(f"table must be an ActionTable, got {type(table).__name__}")
+    table.validate()
+    if not isinstance(world, (OccupancyGrid, DynamicEnvironment)):
+        raise FootstepError(
+            f"world must be an OccupancyGrid or DynamicEnvironment, got {type(world).__name__}"
+        )
+    dynamic = isinstance(world, DynamicEnvironment)
+    if dynamic and opts.heuristic == "dijkstra":
+        raise FootstepError(
+            "the 'dijkstra' heuristic needs a static grid; use 'euclidean' in dynamic worlds"
+        )
+    if not math.isfinite(start_time):
+        raise FootstepError(f"start_time must be finite, got {start_time}")
+    foot0 = parse_foot(start_foot)
+    sx, sy, sth = _pose3(start, "start")
+    gx, gy, _ = _pose3(goal, "goal")
+    ref = world if not dynamic else world.reference
+    if dynamic:
+        world.index_at(start_time)  # raises GridError when no grid is near the start time
+    for name, (px, py) in (("start", (sx, sy)), ("goal", (gx, gy))):
+        if not ref.contains(px, py):
+            x0, y0 = ref.origin
+            w, h = ref.size
+            raise FootstepError(
+                f"{name} ({px:.3f}, {py:.3f}) lies outside the map "
+                f"[{x0}, {x0 + w}] x [{y0}, {y0 + h}]"
+            )
+    history = list(initial_history) if initial_history is not None else [table.rest_action] * 2
+    if len(history) != 2:
+        raise FootstepError(f"initial_history must hold two actions, got {history}")
+    h2, h1 = table.index(history[0]), table.index(history[1])
+
+    hold = float(table.duration.max())
+    checkers = _Checkers(world, geometry, hold)
+    k0 = checkers.index(start_time)
+    chk0 = checkers.checker(k0)
+    if not chk0.is_free(sx, sy, sth):
+        raise FootstepError(
+            f"start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) overlaps an obstacle or the map edge"
+        )
+    if initial_swing_pose is None:
+        side = 1.0 if foot0 == Foot.RIGHT else -1.0
+        swing0 = apply_displacement((sx, sy, sth), (0.0, side * geometry.stance_width, 0.0))
+    else:
+        swing0 = _pose3(initial_swing_pose, "initial_swing_pose")
+    if not chk0.is_free(*swing0):
+        raise FootstepError(
+            f"initial swing foot at ({swing0[0]:.3f}, {swing0[1]:.3f}) overlaps an obstacle "
+            "or the map edge"
+        )
+    gcell = ref.cell_of(gx, gy)
+    goal_blocked = (
+        world.stack[:, gcell[0], gcell[1]].all() if dynamic else bool(ref.occupied[gcell])
+    )
+    if goal_blocked:
+        raise FootstepError(f"goal ({gx:.3f}, {gy:.3f}) lies inside an obstacle")
+
+    # ---------------------------------------------------------------- heuristic
+    tol = opts.goal_tolerance
+    max_forward = float(np.max(table.displacement[..., 0]))
+    c_min = float(table.step_cost.min())
+    nxg, nyg = ref.shape
+    if opts.heuristic == "dijkstra":
+        cost_per_m = c_min / max(max_forward, 1e-3)
+        dist = dijkstra_cost_to_go(ref, (gx, gy), tol, obstacle_cost=opts.obstacle_cost)
+        h_cells = (dist * cost_per_m).ravel().tolist()
+    else:
+        cost_per_m = c_min / max(table.max_reach(), 1e-3) if opts.heuristic == "euclidean" else 0.0
+        h_cells = None
+    w_h = opts.heuristic_weight
+    inv_res = 1.0 / ref.resolution
+    ox, oy = ref.origin
+
+    def cost_to_go(x: float, y: float) -> float:
+        if h_cells is not None:
+            return h_cells[int((x - ox) * inv_res) * nyg + int((y - oy) * inv_res)]
+        return max(0.0, math.hypot(x - gx, y - gy) - tol) * cost_per_m
+
+    # ---------------------------------------------------------------- successors (T, F)
+    n = table.n
+    names = table.actions
+    succ: list[list[list[list[tuple]]]] = [
+        [[[] for _ in range(2)] for _ in range(n)] for _ in range(n)
+    ]
+    for i2 in range(n):
+        for i1 in range(n):
+            for f in (0, 1):
+                allowed = (
+                    set(action_filter(names[i2], names[i1], Foot(f)))
+                    if action_filter is not None
+                    else set(names)
+                )
+                unknown = allowed - set(names)
+                if unknown:
+                    raise FootstepError(f"action_filter returned unknown actions {sorted(unknown)}")
+                for a in range(n):
+                    if names[a] in allowed:
+                        dx, dy, dth = table.displacement[i2, i1, f, a]
+                        succ[i2][i1][f].append(
+                            (
+                                a,
+                                float(dx),
+                                float(dy),
+                                float(dth),
+                                float(table.duration[i2, i1, f, a]),
+                                float(table.step_cost[a]),
+                            )
+                        )
+
+    # ---------------------------------------------------------------- search
+    inv_q = 1.0 / opts.xy_resolution
+    yaw_scale = opts.yaw_bins / (2.0 * math.pi)
+    nyaw = int(opts.yaw_bins)
+    KY = int(math.ceil(ref.size[1] * inv_q)) + 3
+    inv_tq = 1.0 / opts.time_resolution
+    height_w = opts.height_cost_weight
+    use_heights = height_w > 0 and ref.heights is not None
+
+    hist = history_classes(table).tolist()
+    n_hist = max(max(row) for row in hist) + 1
+
+    def make_key(x: float, y: float, th: float, f: int, a2: int, a1: int, t: float) -> int:
+        k = (int(round((x - ox) * inv_q)) * KY + int(round((y - oy) * inv_q))) * nyaw + int(
+            round(th * yaw_scale)
+        ) % nyaw
+        k = (k * 2 + f) * n_hist + hist[a2][a1]
+        if dynamic:
+            k = k * 1_000_000 + int(round(t * inv_tq))
+        return k
+
+    X = [sx]
+    Y = [sy]
+    TH = [sth]
+    FT = [int(foot0)]
+    A2 = [h2]
+    A1 = [h1]
+    T = [float(start_time)]
+    G = [0.0]
+    P = [-1]
+    H = [cost_to_go(sx, sy)]
+    keys = [make_key(sx, sy, sth, int(foot0), h2, h1, start_time)]
+    best_g = {keys[0]: 0.0}
+    closed: set[int] = set()
+    heap = [(w_h * H[0], 0.0, 0)]
+    best_node = 0
+    deadline = t_begin + opts.time_limit
+    tol2 = tol * tol
+    expanded = 0
+    generated = 0
+    goal_node = -1
+    status = PlanStatus.UNREACHABLE
+    static_checker = chk0 if not dynamic else None
+    perf = time.perf_counter
+    heappush, heappop = heapq.heappush, heapq.heappop
+    cos, sin, pi, two_pi = math.cos, math.sin, math.pi, 2.0 * math.pi
+
+    while heap:
+        if perf() > deadline:
+            status = PlanStatus.TIME_LIMIT
+            break
+        _, _, i = heappop(heap)
+        key = keys[i]
+        if key in closed:
+            continue
+        closed.add(key)
+        expanded += 1
+        x, y, th = X[i], Y[i], TH[i]
+        if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
+            goal_node = i
+            status = PlanStatus.SUCCESS
+            break
+        f = FT[i]
+        nf = 1 - f
+        a2_, a1_ = A2[i], A1[i]
+        g, t = G[i], T[i]
+        c, s = cos(th), sin(th)
+        for a, dx, dy, dth, dur, sc in succ[a2_][a1_][f]:
+            x2 = x + c * dx - s * dy
+            y2 = y + s * dx + c * dy
+            th2 = (th + dth + pi) % two_pi - pi
+            t2 = t + dur
+            generated += 1
+            k2 = make_key(x2, y2, th2, nf, a1_, a, t2)
+            if k2 in closed:
+                continue
+            if static_checker is not None:
+                chk = static_checker
+            else:
+                kt = checkers.index(t2)
+                if kt < 0:
+                    continue
+                chk = checkers.checker(kt)
+            if not chk.is_free(x2, y2, th2):
+                continue
+            g2 = g + sc
+            if use_heights:
+                g2 += height_w * chk.height_range(x2, y2, th2)
+            old = best_g.get(k2)
+            if old is not None and old <= g2:
+                continue
+            best_g[k2] = g2
+            h = cost_to_go(x2, y2)
+            if not math.isfinite(h):
+                continue
+            j = len(X)
+            X.append(x2)
+            Y.append(y2)
+            TH.append(th2)
+            FT.append(nf)
+            A2.append(a1_)
+            A1.append(a)
+            T.append(t2)
+            G.append(g2)
+            P.append(i)
+            H.append(h)
+            keys.append(k2)
+            if h < H[best_node] or (h == H[best_node] and g2 < G[best_node]):
+                best_node = j
+            heappush(heap, (g2 + w_h * h, -g2, j))
+
+    end = goal_node if goal_node >= 0 else best_node
+    chain = []
+    j = end
+    while j >= 0:
+        chain.append(j)
+        j = P[j]
+    chain.reverse()
+    return FootstepPlan(
+        poses=[[X[j], Y[j], TH[j]] for j in chain],
+        feet=[FT[j] for j in chain],
+        actions=[names[A1[j]] for j in chain[1:]],
+        times=[T[j] for j in chain],
+        status=status,
+        cost=G[end],
+        cost_to_go=H[end],
+        nodes_expanded=expanded,
+        nodes_generated=generated,
+        planning_time_s=time.perf_counter() - t_begin,
+        initial_swing_pose=list(swing0),
+        goal=[gx, gy],
+        goal_tolerance=tol,
+        initial_history=[names[h2], names[h1]],
+    )

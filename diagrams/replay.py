@@ -15,11 +15,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from pydrake.geometry import Meshcat
-from pydrake.systems.framework import Diagram
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import BodyIndex
+from pydrake.systems.framework import Context, Diagram
 from repertoire.diagrams.registry import get_diagram_entry
 from repertoire.diagrams.simulate import (
     _check_duration,
+    _leaf_systems,
     build_registered,
     run_check,
     simulate,
@@ -43,6 +47,44 @@ class ReplayResult:
     web_url: str
     sim_time_s: float
     figures: dict[str, float]
+
+
+def moving_body_positions(diagram: Diagram, context: Context) -> np.ndarray:
+    """World positions (n x 3) of every body not welded to the world, over all plants.
+
+    Args:
+        diagram: a diagram containing MultibodyPlants.
+        context: a context of ``diagram``.
+    """
+    points = []
+    for system in _leaf_systems(diagram):
+        if not isinstance(system, MultibodyPlant):
+            continue
+        plant_context = system.GetMyContextFromRoot(context)
+        welded = {b.index() for b in system.GetBodiesWeldedTo(system.world_body())}
+        for i in range(system.num_bodies()):
+            body = system.get_body(BodyIndex(i))
+            if body.index() not in welded:
+                points.append(system.EvalBodyPoseInWorld(plant_context, body).translation())
+    return np.array(points).reshape(-1, 3)
+
+
+def camera_for(points: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """A camera position and target that frame ``points`` (None if there are none).
+
+    The camera looks at the centre of the points' bounding box from the front right,
+    slightly above, at a distance that grows with the box size (at least 0.3 m).
+
+    Args:
+        points: n x 3 world positions.
+    """
+    if points.size == 0 or not np.all(np.isfinite(points)):
+        return None
+    low, high = points.min(axis=0), points.max(axis=0)
+    target = 0.5 * (low + high)
+    extent = max(float(np.linalg.norm(high - low)), 0.3)
+    direction = np.array([1.0, -1.2, 0.6]) / np.linalg.norm([1.0, -1.2, 0.6])
+    return target + (1.5 * extent + 0.4) * direction, target
 
 
 def write_static_html(meshcat: Meshcat, html_path: str | Path) -> Path:
@@ -93,6 +135,7 @@ def record_replay(
     realtime_rate: float = 0.0,
     live: bool = False,
     live_seconds: float | None = None,
+    frame_camera: bool = True,
     printer: Callable[[str], None] = print,
 ) -> ReplayResult:
     """Simulates a diagram while recording it in Meshcat and writes an HTML replay.
@@ -109,6 +152,8 @@ def record_replay(
         live: after the run, print the URL and keep serving (see ``serve_live``).
         live_seconds: how long to keep the live view (None = until Ctrl-C).
         printer: where live-view messages go.
+        frame_camera: point the camera at the bodies that move (not welded to the world),
+            from their start and end positions, instead of Meshcat's default view.
 
     Returns:
         A ReplayResult (HTML path, URL, final time, check figures).
@@ -145,11 +190,22 @@ def record_replay(
                 f"the builder function returned {type(diagram).__name__}, "
                 f"expected a pydrake Diagram"
             )
+    context = diagram.CreateDefaultContext()
+    start_points = moving_body_positions(diagram, context) if frame_camera else np.zeros((0, 3))
     written = None
     try:
         _, context = simulate(
-            diagram, duration, meshcat=meshcat, record=True, realtime_rate=realtime_rate
+            diagram,
+            duration,
+            context=context,
+            meshcat=meshcat,
+            record=True,
+            realtime_rate=realtime_rate,
         )
+        if frame_camera:
+            camera = camera_for(np.vstack([start_points, moving_body_positions(diagram, context)]))
+            if camera is not None:
+                meshcat.SetCameraPose(*camera)
     finally:
         if html_path is not None:
             written = write_static_html(meshcat, html_path)

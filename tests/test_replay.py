@@ -247,3 +247,20 @@ def test_record_replay_bad_input(isolated_registry, tmp_path):
     with pytest.raises(RepertoireError, match="returned int, expected a pydrake Diagram"):
         record_replay(lambda meshcat: 3, 0.1, tmp_path / "x.html")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_camera_frames_the_moving_bodies():
+    from repertoire.diagrams.replay import camera_for, moving_body_positions
+
+    assert camera_for(np.zeros((0, 3))) is None
+    assert camera_for(np.array([[0.0, 0.0, np.nan]])) is None
+    camera, target = camera_for(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
+    np.testing.assert_allclose(target, [0.5, 0.0, 0.0])
+    assert np.linalg.norm(camera - target) == pytest.approx(1.5 * 1.0 + 0.4)
+    assert camera[0] > target[0] and camera[1] < target[1] and camera[2] > target[2]
+    # A single point is framed as a 0.3 m scene.
+    camera, target = camera_for(np.array([[0.0, 0.0, 1.0]]))
+    assert np.linalg.norm(camera - target) == pytest.approx(1.5 * 0.3 + 0.4)
+    diagram = build_pendulum(PendulumScenario())
+    points = moving_body_positions(diagram, diagram.CreateDefaultContext())
+    np.testing.assert_allclose(points, [[0.0, 0.0, 0.0]])  # the bob's frame is on the pin

@@ -302,3 +302,26 @@ def test_stands_on_the_yaml_mixed_board():
     figures = check_littledog_stand(diagram, context)
     assert abs(figures["height_error_m"]) < 0.01
     assert figures["tilt_rad"] < 0.02
+
+
+@pytest.mark.parametrize("kind", ["rocks", "steps", "gaps"])
+def test_stands_on_rough_boards(kind):
+    for seed in range(2):
+        scenario = LittleDogScenario(terrain=TerrainParams(kind=kind), board_seed=seed)
+        diagram = build_littledog_stand(scenario)
+        _, context = simulate(diagram, 0.5)
+        figures = check_littledog_stand(diagram, context)
+        assert figures["finite"] == 1.0
+        assert abs(figures["height_error_m"]) < 0.01, (kind, seed, figures)
+        assert figures["tilt_rad"] < 0.05, (kind, seed, figures)
+
+
+def test_scenario_gains_reach_the_actuators():
+    scenario = LittleDogScenario(kp=[5.0, 6.0, 7.0], kd=[0.1, 0.2, 0.3])
+    diagram = build_littledog_stand(scenario)
+    plant = diagram.GetSubsystemByName("plant")
+    for name in JOINT_NAMES:
+        actuator = plant.GetJointActuatorByName(f"{name}_motor")
+        k = ["hip_roll", "hip_pitch", "knee"].index(name[3:])
+        gains = actuator.get_controller_gains()
+        assert (gains.p, gains.d) == (scenario.kp[k], scenario.kd[k])

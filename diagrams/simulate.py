@@ -141,6 +141,11 @@ def simulate(
     except RuntimeError as e:
         if not diverged:
             bad = nonfinite_state_systems(diagram, root_context)
+            if not bad and "nan" in str(e).lower():
+                raise SimulationDivergedError(
+                    f"diagram '{diagram.get_name()}' stopped at t = {root_context.get_time():.6g}"
+                    f" s on a NaN: {e}"
+                ) from e
             if not bad:
                 raise
             diverged.update(time=root_context.get_time(), systems=bad)

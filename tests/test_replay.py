@@ -264,3 +264,20 @@ def test_camera_frames_the_moving_bodies():
     diagram = build_pendulum(PendulumScenario())
     points = moving_body_positions(diagram, diagram.CreateDefaultContext())
     np.testing.assert_allclose(points, [[0.0, 0.0, 0.0]])  # the bob's frame is on the pin
+
+
+@pytest.mark.parametrize(
+    "scenario, match",
+    [
+        (
+            PendulumScenario(angle=math.nan),
+            r"state of ::test_pendulum::plant became non-finite "
+            r"\(NaN/inf\) at t = 0 s",
+        ),
+        (PendulumScenario(torque=1e200), r"state of ::test_pendulum::plant became non-finite"),
+        (PendulumScenario(torque=math.nan), r"stopped at t = 0 s on a NaN: .*actuation input"),
+    ],
+)
+def test_plant_divergence_is_reported(scenario, match):
+    with pytest.raises(SimulationDivergedError, match=match):
+        simulate(build_pendulum(scenario), 1.0)

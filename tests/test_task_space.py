@@ -240,17 +240,21 @@ def test_grip_wrench_closed_form():
     X_HO = RigidTransform([0.0, 0.0, 0.1])
     zero = SpatialVelocity(np.zeros(3), np.zeros(3))
     # Object exactly at the held pose and at rest: no wrench.
-    torque, force = grip_wrench(X_WH, X_WH @ X_HO, X_HO, zero, zero, 1000.0, 10.0, 5.0, 0.1)
+    torque, force = grip_wrench(
+        X_WH, X_WH @ X_HO, X_HO, zero, zero, np.zeros(3), 1000.0, 10.0, 5.0, 0.1
+    )
     assert np.allclose(torque, 0.0) and np.allclose(force, 0.0)
     # Displaced by 2 mm along -z and turned by 0.1 rad about x: F = k d, tau = k_r * 0.1 x.
     X_WO = RigidTransform(RotationMatrix.MakeXRotation(-0.1), [0, 0, -0.002]) @ (X_WH @ X_HO)
     X_WO = RigidTransform(X_WO.rotation(), (X_WH @ X_HO).translation() - [0, 0, 0.002])
-    torque, force = grip_wrench(X_WH, X_WO, X_HO, zero, zero, 1000.0, 10.0, 5.0, 0.1)
+    torque, force = grip_wrench(X_WH, X_WO, X_HO, zero, zero, np.zeros(3), 1000.0, 10.0, 5.0, 0.1)
     assert np.allclose(force, [0, 0, 2.0])
     assert np.allclose(torque, [0.5, 0, 0])
     # The hand translating at 1 m/s drags the object with c * 1 m/s.
     moving = SpatialVelocity(np.zeros(3), np.array([1.0, 0, 0]))
-    torque, force = grip_wrench(X_WH, X_WH @ X_HO, X_HO, moving, zero, 1000.0, 10.0, 5.0, 0.1)
+    torque, force = grip_wrench(
+        X_WH, X_WH @ X_HO, X_HO, moving, zero, np.zeros(3), 1000.0, 10.0, 5.0, 0.1
+    )
     assert np.allclose(force, [10.0, 0, 0]) and np.allclose(torque, 0.0)
 
 

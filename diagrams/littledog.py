@@ -21,7 +21,7 @@ from pydrake.multibody.plant import (
     MultibodyPlant,
     MultibodyPlantConfig,
 )
-from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
+from pydrake.multibody.tree import JointActuatorIndex, ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 from repertoire.diagrams.registry import register_diagram
@@ -196,8 +196,11 @@ def add_littledog(
     ConfigureParser(parser)
     (instance,) = parser.AddModels(url=package_url(URDF_PATH))
     if kp is not None or kd is not None:
-        for index in plant.GetJointActuatorIndices(instance):
-            actuator = plant.get_joint_actuator(index)
+        # GetJointActuatorIndices(instance) is empty before Finalize(): scan all actuators.
+        for k in range(plant.num_actuators()):
+            actuator = plant.get_joint_actuator(JointActuatorIndex(k))
+            if actuator.model_instance() != instance:
+                continue
             k = [s in actuator.joint().name() for s in ("hip_roll", "hip_pitch", "knee")].index(
                 True
             )

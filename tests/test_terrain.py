@@ -21,7 +21,11 @@ N_PROBES = 1000
 
 
 def _query_object(board: TerrainBoard, *, sdf_path=None):
-    """A SceneGraph QueryObject holding only the board (from the plant or from its SDF)."""
+    """A SceneGraph QueryObject holding only the board (from the plant or from its SDF).
+
+    Returns ``(diagram, context, query_object)``: the QueryObject refers to the
+    context, so the caller must keep all three alive while querying.
+    """
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.001)
     if sdf_path is None:
@@ -31,7 +35,10 @@ def _query_object(board: TerrainBoard, *, sdf_path=None):
     plant.Finalize()
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
-    return scene_graph.get_query_output_port().Eval(scene_graph.GetMyContextFromRoot(context))
+    query_object = scene_graph.get_query_output_port().Eval(
+        scene_graph.GetMyContextFromRoot(context)
+    )
+    return diagram, context, query_object
 
 
 def _ray_cast_heights(query_object, xy: np.ndarray, z_low=-0.05, z_high=0.3) -> np.ndarray:
@@ -73,11 +80,13 @@ def test_height_function_agrees_with_drake_geometry(kind, tmp_path):
     board = generate_board(TerrainParams(kind=kind), seed=11)
     xy = _probe_points(board, seed=100 + BOARD_KINDS.index(kind))
     expected = board.height(xy[:, 0], xy[:, 1])
-    measured = _ray_cast_heights(_query_object(board), xy)
+    diagram, context, query_object = _query_object(board)
+    measured = _ray_cast_heights(query_object, xy)
     np.testing.assert_allclose(measured, expected, atol=1e-8)
     # The SDF file describes the same terrain.
     sdf = board.write_sdf(tmp_path / f"{kind}.sdf")
-    measured_sdf = _ray_cast_heights(_query_object(board, sdf_path=sdf), xy[:200])
+    diagram_sdf, context_sdf, query_object_sdf = _query_object(board, sdf_path=sdf)
+    measured_sdf = _ray_cast_heights(query_object_sdf, xy[:200])
     np.testing.assert_allclose(measured_sdf, expected[:200], atol=1e-8)
     # The probes saw the ground, the slab and (rocks, steps, mixed) higher tops.
     levels = np.unique(np.round(expected, 9))

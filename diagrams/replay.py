@@ -114,8 +114,8 @@ def serve_live(
         raise RepertoireError(f"live seconds must be finite and >= 0, got {seconds!r}")
     until = "Ctrl-C" if seconds is None else f"Ctrl-C or {seconds:g} s"
     printer(
-        f"live view at {meshcat.web_url()} (open it in a browser; press play in the "
-        f"Animation panel to replay); serving until {until}"
+        f"serving {meshcat.web_url()} until {until} (press play in the Animation panel "
+        f"to replay the recording)"
     )
     deadline = None if seconds is None else time.monotonic() + seconds
     try:
@@ -145,7 +145,8 @@ def record_replay(
             ``source(meshcat=meshcat)`` that returns a Diagram with a MeshcatVisualizer.
         duration: simulated seconds (default: the registered duration; required for a
             builder function).
-        html_path: where to write the self-contained HTML (None: no file, e.g. live only).
+        html_path: where to write the self-contained HTML (None: no file; then give
+            ``live=True`` or your own ``meshcat`` to look at).
         scenario: for a registered name: None, a YAML path or a scenario instance.
         meshcat: reuse this Meshcat (default: a new one on a free localhost port).
         realtime_rate: 0 = as fast as possible; 1 = wall clock (used for live views).
@@ -164,8 +165,10 @@ def record_replay(
         SimulationDivergedError: the state became non-finite (the HTML is still written
             with the part that was recorded).
     """
-    if html_path is None and not live:
-        raise RepertoireError("record_replay needs html_path= or live=True (nothing to produce)")
+    if html_path is None and not live and meshcat is None:
+        raise RepertoireError(
+            "record_replay needs html_path=, live=True or meshcat= (nothing to produce)"
+        )
     entry = None
     if isinstance(source, str):
         entry = get_diagram_entry(source)
@@ -181,6 +184,11 @@ def record_replay(
         )
     if meshcat is None:
         meshcat = Meshcat()
+    if live:
+        printer(
+            f"live view at {meshcat.web_url()}: open it in a browser now; simulating "
+            f"{duration:g} s at real-time rate {realtime_rate:g}"
+        )
     if entry is not None:
         diagram = build_registered(entry.name, scenario=scenario, meshcat=meshcat)
     else:

@@ -276,19 +276,27 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise RepertoireError(f"--live-seconds must be >= 0, got {args.live_seconds}")
     scenario = resolve_scenario(entry, args.scenario)
     start = time.perf_counter()
+    meshcat = None
     try:
         if args.replay or args.live:
-            from repertoire.diagrams.replay import record_replay
+            from repertoire.diagrams.replay import record_replay, serve_live
 
+            if args.live:
+                from pydrake.geometry import Meshcat
+
+                meshcat = Meshcat()
+                print(
+                    f"live view at {meshcat.web_url()}: open it in a browser now; "
+                    f"simulating {duration:g} s at real time"
+                )
             html = args.out / f"{args.name}.html" if args.replay else None
             result = record_replay(
                 args.name,
                 duration,
                 html,
                 scenario=scenario,
+                meshcat=meshcat,
                 realtime_rate=1.0 if args.live else 0.0,
-                live=args.live,
-                live_seconds=args.live_seconds,
             )
             figures = {"sim_time_s": result.sim_time_s, **result.figures}
         else:
@@ -301,6 +309,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     _print_figures({k: v for k, v in figures.items() if k != "sim_time_s"})
     if args.replay:
         print(f"wrote {result.html_path} (self-contained; open it in a browser)")
+    if meshcat is not None:
+        serve_live(meshcat, args.live_seconds)
     return 0
 
 

@@ -251,3 +251,14 @@ def test_demo_all_ok(registries, tmp_path):
     assert toy.figures["episodes"] == 2  # quick: at most 2 episodes of the smoke config
     assert "all parts ok" not in result.index_path.read_text()
     assert "## Failures\n\nnone" in result.index_path.read_text()
+
+
+def test_simulate_live_prints_the_url_first_and_serves_for_the_given_time(registries, capsys):
+    argv = ["simulate", "test_pendulum", "--duration", "0.05", "--live", "--live-seconds", "0.2"]
+    assert main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("live view at http://localhost:")
+    assert lines[1] == "test_pendulum: simulated 0.05 s" or lines[1].startswith(
+        "test_pendulum: simulated 0.05 s in "
+    )
+    assert lines[-1].startswith("serving http://localhost:") and "Ctrl-C or 0.2 s" in lines[-1]

@@ -218,7 +218,7 @@ def test_live_view_serves_the_scene_on_localhost(isolated_registry):
 
     def printer(line: str) -> None:
         if "live view at" in line and not fetched:
-            url = re.search(r"(http://\S+)", line).group(1)
+            url = re.search(r"(http://[\w.]+:\d+)", line).group(1)
             with urllib.request.urlopen(url, timeout=10) as response:
                 fetched["status"] = response.status
                 fetched["body"] = response.read().decode("utf-8", "replace")
@@ -232,7 +232,7 @@ def test_live_view_serves_the_scene_on_localhost(isolated_registry):
 
 
 def test_record_replay_bad_input(isolated_registry, tmp_path):
-    with pytest.raises(RepertoireError, match="needs html_path= or live=True"):
+    with pytest.raises(RepertoireError, match="needs html_path=, live=True or meshcat="):
         record_replay("test_pendulum", 0.1, None)
     with pytest.raises(RepertoireError, match="builder function needs a duration"):
         record_replay(

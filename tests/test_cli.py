@@ -258,7 +258,5 @@ def test_simulate_live_prints_the_url_first_and_serves_for_the_given_time(regist
     assert main(argv) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("live view at http://localhost:")
-    assert lines[1] == "test_pendulum: simulated 0.05 s" or lines[1].startswith(
-        "test_pendulum: simulated 0.05 s in "
-    )
+    assert lines[1].startswith("test_pendulum: simulated 0.05 s")
     assert lines[-1].startswith("serving http://localhost:") and "Ctrl-C or 0.2 s" in lines[-1]

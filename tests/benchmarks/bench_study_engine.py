@@ -1,0 +1,163 @@
+"""Benchmark of the study engine on the pendulum study (a short simulation-bound episode).
+
+Prints episodes/s for the bare loop (run_episode called directly, no engine),
+inline, a 1- and a 2-process pool and a Dask LocalCluster with 2 single-thread
+worker processes; the 2-worker / 1-worker ratio (target >= 1.7); and the
+engine's per-episode overhead (target < 5 ms): engine wall time minus the sum
+of the run_episode times of the same episodes, per episode.
+
+"total" rates include pool start-up (spawning workers, importing pydrake) and
+store writes; "steady" rates are measured between the first and the last
+stored row, so they exclude start-up. Summaries (tables, figures) are not
+timed here except once, in their own line.
+
+Each engine run is repeated (``--repeats``, default 2) and the fastest kept,
+since the machine may be shared.
+
+Run: .venv/bin/python tests/benchmarks/bench_study_engine.py [--episodes 60]
+"""
+
+import argparse
+import os
+import sqlite3
+import tempfile
+import time
+from pathlib import Path
+
+from repertoire.studies.engine import get_study, run_study
+
+
+def _stored_timing(store: Path) -> tuple[float, float, int]:
+    """(sum of engine-measured run_episode times, first-to-last finish span, rows)."""
+    with sqlite3.connect(store) as db:
+        total, first, last, n = db.execute(
+            "SELECT SUM(episode_s), MIN(finished_unix), MAX(finished_unix), COUNT(*) FROM episodes"
+        ).fetchone()
+    return total, last - first, n
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--episodes", "-n", type=int, default=60)
+    parser.add_argument("--repeats", type=int, default=2, help="runs per executor; best kept")
+    parser.add_argument("--no-dask", action="store_true", help="skip the Dask LocalCluster row")
+    args = parser.parse_args()
+    n = args.episodes
+    entry = get_study("pendulum")
+    config = entry.demo_config()
+    print(
+        f"pendulum study, demo config ({config.duration_s:g} s simulated at "
+        f"{config.time_step_s:g} s steps), {n} episodes, {os.cpu_count()} cores"
+    )
+
+    # Bare loop: what the episodes cost without the engine.
+    t0 = time.perf_counter()
+    for seed in range(n):
+        entry.run_episode(config, seed)
+    bare_s = time.perf_counter() - t0
+
+    rows = [("bare run_episode loop", n / bare_s, None, None, None)]
+    rates: dict[str, tuple[float, float]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        runs = [
+            ("inline", "inline", None),
+            ("process, 1 worker", "process", 1),
+            ("process, 2 workers", "process", 2),
+        ]
+        cluster = None
+        if not args.no_dask:
+            from distributed import LocalCluster
+
+            cluster = LocalCluster(
+                n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+            )
+            runs.append(("dask LocalCluster, 2 workers", "dask", None))
+        try:
+            for i, (label, executor, workers) in enumerate(runs):
+                best = None
+                for rep in range(args.repeats):
+                    store = tmp / f"run{i}_{rep}.sqlite"
+                    result = run_study(
+                        "pendulum",
+                        config,
+                        episodes=n,
+                        store=store,
+                        out_dir=tmp / f"out{i}",
+                        executor=executor,
+                        workers=workers,
+                        progress=False,
+                        summarize=False,
+                        scheduler_address=(
+                            cluster.scheduler_address if executor == "dask" else None
+                        ),
+                    )
+                    episode_sum, span, count = _stored_timing(store)
+                    assert count == n
+                    if best is None or result.elapsed_s < best[0].elapsed_s:
+                        best = (result, episode_sum, span)
+                result, episode_sum, span = best
+                total_rate = n / result.elapsed_s
+                steady_rate = (n - 1) / span if span > 0 else float("nan")
+                if executor == "inline":  # whole run: engine time minus episode time
+                    overhead_ms = 1e3 * (result.elapsed_s - episode_sum) / n
+                elif workers == 1:  # steady state: interval between rows minus episode time
+                    overhead_ms = 1e3 * (span / (n - 1) - episode_sum / n)
+                else:
+                    overhead_ms = None
+                rows.append((label, total_rate, steady_rate, result.elapsed_s, overhead_ms))
+                rates[label] = (total_rate, steady_rate)
+        finally:
+            if cluster is not None:
+                cluster.close()
+
+        t0 = time.perf_counter()
+        summary = run_study(
+            "pendulum",
+            config,
+            episodes=n,
+            store=tmp / "run0_0.sqlite",
+            out_dir=tmp / "summary",
+            executor="inline",
+            progress=False,
+        )
+        summary_s = time.perf_counter() - t0
+        assert summary.n_run == 0
+
+    print()
+    print(f"| {'executor':<30} | {'ep/s total':>10} | {'ep/s steady':>11} | {'wall s':>7} |")
+    print(f"|{'-' * 32}|{'-' * 12}|{'-' * 13}|{'-' * 9}|")
+    for label, total_rate, steady, wall, _ in rows:
+        steady_txt = f"{steady:11.2f}" if steady is not None else f"{'':>11}"
+        wall_txt = f"{wall:7.2f}" if wall is not None else f"{bare_s:7.2f}"
+        print(f"| {label:<30} | {total_rate:10.2f} | {steady_txt} | {wall_txt} |")
+    print()
+    one, two = rates["process, 1 worker"], rates["process, 2 workers"]
+    print(
+        f"2 workers / 1 worker (target >= 1.7): total {two[0] / one[0]:.2f}, "
+        f"steady {two[1] / one[1]:.2f}"
+    )
+    if "dask LocalCluster, 2 workers" in rates:
+        d = rates["dask LocalCluster, 2 workers"]
+        print(
+            f"dask 2 workers / process 1 worker: total {d[0] / one[0]:.2f}, "
+            f"steady {d[1] / one[1]:.2f}"
+        )
+    print(
+        f"engine overhead per episode (target < 5 ms): inline {rows[1][4]:.3f} ms "
+        "(engine wall time minus the engine-timed run_episode calls, per episode); "
+        f"1-process pool {rows[2][4]:.3f} ms (steady interval between stored rows minus "
+        "the mean run_episode time)"
+    )
+    print(
+        f"inline against the separate bare loop: {1e3 * (rows[1][3] - bare_s) / n:.3f} ms "
+        "per episode (includes run-to-run noise of a shared machine)"
+    )
+    print(
+        f"summary tables + figure for {n} stored episodes: {summary_s:.2f} s "
+        "(once per study, not per episode)"
+    )
+
+
+if __name__ == "__main__":
+    main()

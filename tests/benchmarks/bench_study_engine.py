@@ -47,7 +47,8 @@ def main() -> None:
     config = entry.demo_config()
     print(
         f"pendulum study, demo config ({config.duration_s:g} s simulated at "
-        f"{config.time_step_s:g} s steps), {n} episodes, {os.cpu_count()} cores"
+        f"{config.time_step_s:g} s steps), {n} episodes, {os.cpu_count()} cores, "
+        f"load average {os.getloadavg()[0]:.2f} at start (other processes share the cores)"
     )
 
     # Bare loop: what the episodes cost without the engine.
@@ -153,6 +154,7 @@ def main() -> None:
         f"inline against the separate bare loop: {1e3 * (rows[1][3] - bare_s) / n:.3f} ms "
         "per episode (includes run-to-run noise of a shared machine)"
     )
+    print(f"load average at the end: {os.getloadavg()[0]:.2f}")
     print(
         f"summary tables + figure for {n} stored episodes: {summary_s:.2f} s "
         "(once per study, not per episode)"

@@ -65,7 +65,8 @@ class ArmScenario:
             commanding larger angles than ``initial_fingers``).
         kp: joint PD stiffness per arm joint [N m/rad] (7 values).
         kd: joint PD damping per arm joint [N m s/rad] (7 values).
-        finger_kp: finger PD stiffness [N m/rad] (3 values).
+        finger_kp: finger PD stiffness [N m/rad] (3 values); the thumb opposes two
+            fingers, so its default is twice theirs and a grasped object stays centred.
         finger_kd: finger PD damping [N m s/rad] (3 values).
         world: the table and the objects on it.
     """
@@ -85,8 +86,8 @@ class ArmScenario:
     kd: list[float] = dataclasses.field(
         default_factory=lambda: [40.0, 40.0, 20.0, 20.0, 2.0, 2.0, 2.0]
     )
-    finger_kp: list[float] = dataclasses.field(default_factory=lambda: [2.0] * 3)
-    finger_kd: list[float] = dataclasses.field(default_factory=lambda: [0.02] * 3)
+    finger_kp: list[float] = dataclasses.field(default_factory=lambda: [4.0, 2.0, 2.0])
+    finger_kd: list[float] = dataclasses.field(default_factory=lambda: [0.04, 0.02, 0.02])
     world: ArmWorld = dataclasses.field(default_factory=default_arm_world)
 
     def validate(self) -> None:

@@ -129,3 +129,76 @@ def test_build_validates_a_hand_made_scenario():
     scenario.world.objects.append(ArmObject(name="cup_red", kind="cup", xy=[0.3, 0.5]))
     with pytest.raises(ScenarioError, match="repeated: \\['cup_red'\\]"):
         build_arm_hold(scenario)
+
+
+def _side_grasp_ik(control_plant, p_WT, q_guess):
+    """Joint angles putting tcp at p_WT with approach +x_W and finger spread +z_W."""
+    from pydrake.math import RotationMatrix
+    from pydrake.multibody.inverse_kinematics import InverseKinematics
+    from pydrake.solvers import Solve
+
+    R_WT = RotationMatrix(np.column_stack([[0, 0, 1], [0, -1, 0], [1, 0, 0]]))
+    ik = InverseKinematics(control_plant)
+    tcp = control_plant.GetFrameByName("tcp")
+    world = control_plant.world_frame()
+    ik.AddPositionConstraint(tcp, [0, 0, 0], world, p_WT - 1e-4, p_WT + 1e-4)
+    ik.AddOrientationConstraint(tcp, RotationMatrix(), world, R_WT, 1e-3)
+    prog = ik.get_mutable_prog()
+    prog.AddQuadraticErrorCost(np.eye(7), q_guess, ik.q())
+    prog.SetInitialGuess(ik.q(), q_guess)
+    result = Solve(prog)
+    assert result.is_success()
+    return result.GetSolution(ik.q())
+
+
+def test_hand_grasps_and_lifts_a_cup():
+    """Side grasp of a free cup: approach, close the hand, lift 12 cm; the cup comes along."""
+    from pydrake.systems.primitives import TrajectorySource
+    from pydrake.trajectories import PiecewisePolynomial
+
+    from repertoire.models.arm7 import (
+        HAND_GRASP_7CM,
+        HAND_OPEN,
+        ArmWorld,
+        arm7_home_configuration,
+        make_arm7_control_plant,
+    )
+
+    xy = [0.55, -0.10]
+    z_grasp = TABLE_HEIGHT + 0.055
+    control = make_arm7_control_plant(finger_positions=HAND_OPEN)
+    q_pre = _side_grasp_ik(
+        control, np.array([xy[0] - 0.10, xy[1], z_grasp + 0.02]), arm7_home_configuration()
+    )
+    q_grasp = _side_grasp_ik(control, np.array([xy[0], xy[1], z_grasp]), q_pre)
+    q_lift = _side_grasp_ik(control, np.array([xy[0], xy[1], z_grasp + 0.12]), q_grasp)
+    scenario = ArmScenario()
+    scenario.initial_q = q_pre.tolist()
+    scenario.world = ArmWorld(objects=[ArmObject(name="cup_red", kind="cup", xy=xy)])
+    builder = DiagramBuilder()
+    station = add_arm_station(builder, scenario)
+    ctrl = add_arm_controllers(builder, station)
+    times = [0.0, 1.0, 1.3, 1.9, 2.9]
+    arm_q = np.column_stack([q_pre, q_grasp, q_grasp, q_grasp, q_lift])
+    hand_q = np.column_stack([HAND_OPEN] * 3 + [HAND_GRASP_7CM] * 2)
+    arm_src = builder.AddSystem(
+        TrajectorySource(
+            PiecewisePolynomial.CubicShapePreserving(times, arm_q, True), output_derivative_order=1
+        )
+    )
+    hand_src = builder.AddSystem(
+        TrajectorySource(
+            PiecewisePolynomial.FirstOrderHold(times, hand_q), output_derivative_order=1
+        )
+    )
+    builder.Connect(arm_src.get_output_port(), ctrl.arm_desired_state)
+    builder.Connect(hand_src.get_output_port(), ctrl.hand_desired_state)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(3.2)
+    plant = station.plant
+    plant_context = plant.GetMyContextFromRoot(simulator.get_context())
+    X_WC = plant.EvalBodyPoseInWorld(plant_context, plant.GetBodyByName("cup"))
+    assert X_WC.translation()[2] == pytest.approx(TABLE_HEIGHT + 0.12, abs=0.01)
+    assert X_WC.translation()[:2] == pytest.approx(xy, abs=0.005)
+    assert X_WC.rotation().matrix()[2, 2] > np.cos(np.radians(3))  # still upright

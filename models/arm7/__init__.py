@@ -27,7 +27,7 @@ finger_1, finger_2   palm +x close (tips move towards -y_palm)     [-0.4, 1.0]
 Lengths: shoulder centre 1.10 m above ``base``; shoulder centre to elbow axis
 0.30 m; elbow axis to wrist centre 0.30 m (the three wrist axes meet there);
 wrist centre to the palm face 0.08 m; palm face to ``tcp`` 0.085 m. Moving
-mass 10.5 kg. Effort limits 120/120/60/80/15/15/15 N m (arm), 2 N m (fingers).
+mass 10.5 kg. Effort limits 120/120/60/80/15/15/15 N m (arm), 4 N m (thumb), 2 N m (fingers).
 
 Frames on the hand (both fixed to body ``hand``, same orientation):
 

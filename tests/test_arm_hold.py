@@ -2,8 +2,13 @@
 
 import numpy as np
 import pytest
+from pydrake.math import RotationMatrix
+from pydrake.multibody.inverse_kinematics import InverseKinematics
+from pydrake.solvers import Solve
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
 from repertoire.diagrams.arm import (
     ArmScenario,
     add_arm_controllers,
@@ -14,7 +19,17 @@ from repertoire.diagrams.arm import (
 from repertoire.diagrams.registry import get_diagram_entry
 from repertoire.diagrams.scenario import dump_scenario, load_scenario
 from repertoire.models import MODELS_DIR
-from repertoire.models.arm7 import ARM_JOINTS, HAND_JOINTS, TABLE_HEIGHT, ArmObject
+from repertoire.models.arm7 import (
+    ARM_JOINTS,
+    HAND_GRASP_7CM,
+    HAND_JOINTS,
+    HAND_OPEN,
+    TABLE_HEIGHT,
+    ArmObject,
+    ArmWorld,
+    arm7_home_configuration,
+    make_arm7_control_plant,
+)
 
 from repertoire.errors import ScenarioError
 
@@ -133,10 +148,6 @@ def test_build_validates_a_hand_made_scenario():
 
 def _side_grasp_ik(control_plant, p_WT, q_guess):
     """Joint angles putting tcp at p_WT with approach +x_W and finger spread +z_W."""
-    from pydrake.math import RotationMatrix
-    from pydrake.multibody.inverse_kinematics import InverseKinematics
-    from pydrake.solvers import Solve
-
     R_WT = RotationMatrix(np.column_stack([[0, 0, 1], [0, -1, 0], [1, 0, 0]]))
     ik = InverseKinematics(control_plant)
     tcp = control_plant.GetFrameByName("tcp")
@@ -153,16 +164,6 @@ def _side_grasp_ik(control_plant, p_WT, q_guess):
 
 def test_hand_grasps_and_lifts_a_cup():
     """Side grasp of a free cup: approach, close the hand, lift 12 cm; the cup comes along."""
-    from pydrake.systems.primitives import TrajectorySource
-    from pydrake.trajectories import PiecewisePolynomial
-
-    from repertoire.models.arm7 import (
-        HAND_GRASP_7CM,
-        HAND_OPEN,
-        ArmWorld,
-        arm7_home_configuration,
-        make_arm7_control_plant,
-    )
 
     xy = [0.55, -0.10]
     z_grasp = TABLE_HEIGHT + 0.055

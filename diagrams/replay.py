@@ -22,9 +22,9 @@ from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.framework import Context, Diagram
 from repertoire.diagrams.registry import get_diagram_entry
 from repertoire.diagrams.simulate import (
-    _check_duration,
-    _leaf_systems,
     build_registered,
+    check_duration,
+    leaf_systems,
     run_check,
     simulate,
 )
@@ -57,7 +57,7 @@ def moving_body_positions(diagram: Diagram, context: Context) -> np.ndarray:
         context: a context of ``diagram``.
     """
     points = []
-    for system in _leaf_systems(diagram):
+    for system in leaf_systems(diagram):
         if not isinstance(system, MultibodyPlant):
             continue
         plant_context = system.GetMyContextFromRoot(context)
@@ -172,11 +172,11 @@ def record_replay(
     entry = None
     if isinstance(source, str):
         entry = get_diagram_entry(source)
-        duration = _check_duration(entry.duration if duration is None else duration)
+        duration = check_duration(entry.duration if duration is None else duration)
     elif callable(source):
         if duration is None:
             raise RepertoireError("record_replay with a builder function needs a duration")
-        duration = _check_duration(duration)
+        duration = check_duration(duration)
     else:
         raise RepertoireError(
             f"source must be a registered diagram name or a builder function, "

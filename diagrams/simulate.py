@@ -24,12 +24,12 @@ class SimulationDivergedError(RepertoireError):
     """A state of the simulated diagram became NaN or infinite."""
 
 
-def _leaf_systems(system: System) -> list[System]:
+def leaf_systems(system: System) -> list[System]:
     """Every leaf system of ``system`` (depth first); a leaf returns itself."""
     if isinstance(system, Diagram):
         leaves = []
         for sub in system.GetSystems():
-            leaves.extend(_leaf_systems(sub))
+            leaves.extend(leaf_systems(sub))
         return leaves
     return [system]
 
@@ -54,7 +54,7 @@ def nonfinite_state_systems(diagram: System, root_context: Context) -> list[str]
         System path names such as ``::arm_hold::plant`` (empty when all states are finite).
     """
     bad = []
-    for leaf in _leaf_systems(diagram):
+    for leaf in leaf_systems(diagram):
         context = leaf.GetMyContextFromRoot(root_context) if leaf is not diagram else root_context
         values = _state_values(context)
         if values.size and not np.all(np.isfinite(values)):
@@ -62,7 +62,12 @@ def nonfinite_state_systems(diagram: System, root_context: Context) -> list[str]
     return bad
 
 
-def _check_duration(duration: float) -> float:
+def check_duration(duration: float) -> float:
+    """``duration`` as a float after checking it is a finite number of seconds > 0.
+
+    Raises:
+        RepertoireError: not a number, not finite, or <= 0.
+    """
     try:
         value = float(duration)
     except (TypeError, ValueError) as e:
@@ -104,7 +109,7 @@ def simulate(
     """
     if not isinstance(diagram, Diagram):
         raise RepertoireError(f"simulate needs a pydrake Diagram, got {type(diagram).__name__}")
-    duration = _check_duration(duration)
+    duration = check_duration(duration)
     if not math.isfinite(realtime_rate) or realtime_rate < 0.0:
         raise RepertoireError(f"realtime_rate must be finite and >= 0, got {realtime_rate!r}")
     if record and meshcat is None:
@@ -233,7 +238,7 @@ def simulate_registered(
         SimulationDivergedError: the state became non-finite.
     """
     entry = get_diagram_entry(name)
-    duration = _check_duration(entry.duration if duration is None else duration)
+    duration = check_duration(entry.duration if duration is None else duration)
     diagram = build_registered(name, scenario=scenario, meshcat=meshcat)
     _, context = simulate(diagram, duration, meshcat=meshcat)
     return {"sim_time_s": context.get_time(), **run_check(entry, diagram, context)}

@@ -262,14 +262,14 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from repertoire.diagrams.registry import get_diagram_entry
     from repertoire.diagrams.simulate import (
         SimulationDivergedError,
-        _check_duration,
+        check_duration,
         resolve_scenario,
         simulate_registered,
     )
     from repertoire.errors import RepertoireError
 
     entry = get_diagram_entry(args.name)
-    duration = _check_duration(entry.duration if args.duration is None else args.duration)
+    duration = check_duration(entry.duration if args.duration is None else args.duration)
     if args.live_seconds is not None and not args.live:
         raise RepertoireError("--live-seconds needs --live")
     if args.live_seconds is not None and args.live_seconds < 0:

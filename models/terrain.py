@@ -194,6 +194,58 @@ class TerrainBoard:
             z = np.where(inside, np.maximum(z, box.top), z)
         return z
 
+    def height_grid(
+        self,
+        origin_xy,
+        yaw: float = 0.0,
+        *,
+        length: float = 0.35,
+        width: float = 0.20,
+        resolution: float = 0.012,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Heights on a regular grid in a local frame L (origin, yaw about world z).
+
+        The grid has ``floor(length / resolution)`` points along L's x axis and
+        ``floor(width / resolution)`` along its y axis, spaced by ``resolution`` and
+        centred on the origin. The defaults are the 29 x 16 = 464-point profile of
+        Stolle et al.'s terrain features (0.35 m x 0.20 m at 0.012 m).
+
+        Args:
+            origin_xy: [x, y] of L's origin in the world (m).
+            yaw: heading of L's x axis about world z (rad).
+            length: grid extent along L's x axis (m).
+            width: grid extent along L's y axis (m).
+            resolution: grid spacing (m).
+
+        Returns:
+            ``(p_W, z)``: world (x, y) of the grid points, shape (n_y, n_x, 2), and
+            the heights there, shape (n_y, n_x).
+
+        Raises:
+            RepertoireError: non-finite input or a grid with fewer than one point per axis.
+        """
+        origin = np.asarray(origin_xy, dtype=float)
+        values = [length, width, resolution, yaw]
+        if origin.shape != (2,) or not (
+            np.all(np.isfinite(origin)) and np.all(np.isfinite(values))
+        ):
+            raise RepertoireError(
+                f"height_grid needs a finite origin [x, y] and finite sizes, got {origin_xy!r}"
+            )
+        if resolution <= 0.0 or length < resolution or width < resolution:
+            raise RepertoireError(
+                f"height_grid needs resolution > 0 and length, width >= resolution; got "
+                f"length={length}, width={width}, resolution={resolution}"
+            )
+        n_x = int(math.floor(length / resolution + 1e-9))
+        n_y = int(math.floor(width / resolution + 1e-9))
+        u = (np.arange(n_x) - 0.5 * (n_x - 1)) * resolution
+        v = (np.arange(n_y) - 0.5 * (n_y - 1)) * resolution
+        U, V = np.meshgrid(u, v)
+        c, s = math.cos(yaw), math.sin(yaw)
+        p_W = np.stack([origin[0] + c * U - s * V, origin[1] + s * U + c * V], axis=-1)
+        return p_W, self.height(p_W[..., 0], p_W[..., 1])
+
     def max_height(self) -> float:
         """Highest box top (m)."""
         return max((b.top for b in self.boxes), default=0.0)

@@ -19,7 +19,7 @@ from repertoire.diagrams.littledog import (
     standing_pose,
 )
 from repertoire.diagrams.registry import diagram_names, get_diagram_entry
-from repertoire.diagrams.scenario import load_scenario
+from repertoire.diagrams.scenario import dump_scenario, load_scenario
 from repertoire.diagrams.simulate import simulate
 from repertoire.models import MODELS_DIR, ConfigureParser, package_url
 from repertoire.models.littledog import (
@@ -325,3 +325,9 @@ def test_scenario_gains_reach_the_actuators():
         k = ["hip_roll", "hip_pitch", "knee"].index(name[3:])
         gains = actuator.get_controller_gains()
         assert (gains.p, gains.d) == (scenario.kp[k], scenario.kd[k])
+
+
+def test_scenario_round_trips_through_yaml():
+    scenario = LittleDogScenario(terrain=TerrainParams(kind="steps", step_count=3), board_seed=7)
+    text = dump_scenario(scenario)
+    assert load_scenario(LittleDogScenario, data=text) == scenario

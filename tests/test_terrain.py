@@ -202,3 +202,29 @@ def test_bad_calls():
     board = generate_board(TerrainParams(), seed=0)
     with pytest.raises(RepertoireError, match="finite"):
         board.height(np.nan, 0.0)
+
+
+def test_height_grid_is_the_papers_464_point_profile():
+    board = generate_board(TerrainParams(kind="flat"), seed=0)
+    p_W, z = board.height_grid([0.0, 0.0])
+    assert z.shape == (16, 29) and z.size == 464
+    assert p_W.shape == (16, 29, 2)
+    np.testing.assert_allclose(np.diff(p_W[0, :, 0]), 0.012)
+    np.testing.assert_allclose(p_W.mean(axis=(0, 1)), [0.0, 0.0], atol=1e-15)
+    np.testing.assert_array_equal(z, 0.04)
+
+
+def test_height_grid_rotated_closed_form():
+    # A step: everything with x >= 0 is 0.05 m high, the rest is ground.
+    step = TerrainBox([0.5, 0.0, 0.025], [1.0, 2.0, 0.05], 0.0, "step")
+    board = TerrainBoard(params=TerrainParams(), seed=0, boxes=[step])
+    p_W, z = board.height_grid([0.0, 0.0], yaw=math.pi / 2, length=0.1, width=0.1, resolution=0.02)
+    # Rotated by 90 degrees, the grid's y axis points along -x of the world.
+    assert z.shape == (5, 5)
+    np.testing.assert_allclose(p_W[:, 0, 0], [0.04, 0.02, 0.0, -0.02, -0.04], atol=1e-15)
+    np.testing.assert_array_equal(z[:3], 0.05)
+    np.testing.assert_array_equal(z[3:], 0.0)
+    with pytest.raises(RepertoireError, match="resolution > 0"):
+        board.height_grid([0.0, 0.0], resolution=0.0)
+    with pytest.raises(RepertoireError, match="finite origin"):
+        board.height_grid([0.0, np.nan])

@@ -221,6 +221,7 @@ def _iter_process(
     module: str, name: str, config_json: str, seeds: list[int], workers: int
 ) -> Iterator[dict]:
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
 
     # spawn: pydrake and fork do not mix; every worker rebuilds the study from its name.
     pool = ProcessPoolExecutor(
@@ -231,11 +232,20 @@ def _iter_process(
     )
     finished = False
     try:
-        pending = {pool.submit(_run_task, module, name, config_json, s) for s in seeds}
+        seed_of = {pool.submit(_run_task, module, name, config_json, s): s for s in seeds}
+        pending = set(seed_of)
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
-                yield fut.result()
+                try:
+                    result = fut.result()
+                except BrokenProcessPool as e:
+                    raise EpisodeError(
+                        f"study '{name}': a worker process died (crash or out of memory) while "
+                        f"running seed {seed_of[fut]}; finished episodes are stored, rerun to "
+                        "resume"
+                    ) from e
+                yield result
         finished = True
     finally:
         pool.shutdown(wait=finished, cancel_futures=True)
@@ -281,15 +291,23 @@ def _iter_dask(
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]
-    futures = [
+    seed_of = {
         client.submit(
             _run_task, module, name, config_json, s, key=f"{name}-{token}-{s}", pure=False
-        )
+        ): s
         for s in seeds
-    ]
+    }
+    futures = list(seed_of)
     try:
         for fut in as_completed(futures, loop=client.loop):
-            yield fut.result()
+            try:
+                result = fut.result()
+            except Exception as e:  # KilledWorker, lost scheduler, ...
+                raise EpisodeError(
+                    f"study '{name}': the Dask cluster could not run seed {seed_of[fut]} "
+                    f"({type(e).__name__}: {e}); finished episodes are stored, rerun to resume"
+                ) from e
+            yield result
     finally:
         client.cancel(futures)
 
@@ -605,6 +623,13 @@ def run_study(
     )
 
 
+def _all_cores() -> int:
+    """Cores this process may use (its CPU affinity where the OS reports it)."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0)) or 1
+    return os.cpu_count() or 1
+
+
 def _run_missing(
     entry: StudyEntry,
     db: EpisodeStore,
@@ -629,7 +654,7 @@ def _run_missing(
     if executor == "inline":
         n_workers = 1
     elif executor == "process":
-        n_workers = workers or os.cpu_count() or 1
+        n_workers = workers or _all_cores()
     else:
         n_workers = None
     if not missing:

@@ -463,3 +463,61 @@ def test_study_main_runs_and_reports_bad_input(tmp_path, capsys):
         == 2
     )
     assert "episodes must be an int >= 1" in capsys.readouterr().err
+
+
+_CRASH_MODULE = textwrap.dedent(
+    """
+    import dataclasses
+    import os
+
+    from repertoire.studies.engine import register_study
+
+
+    @dataclasses.dataclass
+    class CrashConfig:
+        crash_seed: int = 2
+
+
+    @dataclasses.dataclass
+    class CrashRecord:
+        seed_squared: int
+
+
+    def run_episode(config, seed):
+        if seed == config.crash_seed:
+            os._exit(3)  # a hard crash, as a segfaulting simulation would
+        return CrashRecord(seed_squared=seed * seed)
+
+
+    register_study("_crash_study", config_type=CrashConfig, record_type=CrashRecord,
+                   run_episode=run_episode, description="test-only")
+    """
+)
+
+
+def test_worker_crash_is_reported_and_study_outside_the_package_runs(tmp_path, monkeypatch):
+    (tmp_path / "crash_study_module.py").write_text(_CRASH_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))  # spawned workers inherit sys.path
+    import crash_study_module
+
+    try:
+        config = crash_study_module.CrashConfig(crash_seed=-1)
+        ok = run_study(
+            "_crash_study", config, episodes=3, executor="process", workers=1, **_kw(tmp_path, "ok")
+        )
+        assert [r.seed_squared for r in ok.records] == [0, 1, 4]
+        with pytest.raises(EpisodeError, match=r"a worker process died .* rerun to resume"):
+            run_study(
+                "_crash_study",
+                crash_study_module.CrashConfig(crash_seed=2),
+                episodes=4,
+                executor="process",
+                workers=1,
+                **_kw(tmp_path, "crash"),
+            )
+        with sqlite3.connect(tmp_path / "crash.sqlite") as db:
+            stored = {r[0] for r in db.execute("SELECT seed FROM episodes")}
+        assert stored <= {0, 1}
+    finally:
+        registry._REGISTRY.pop("_crash_study", None)
+        sys.modules.pop("crash_study_module", None)

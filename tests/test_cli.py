@@ -6,7 +6,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import PendulumScenario
+from conftest import PendulumScenario, build_pendulum
 
 from repertoire.cli import main
 from repertoire.demo import run_demo
@@ -33,6 +33,10 @@ def run_broken_episode(config: ToyConfig, seed: int) -> ToyRecord:
 
 def build_broken(scenario: PendulumScenario, *, meshcat=None):
     raise RuntimeError("this world cannot be built")
+
+
+def build_diverging(scenario: PendulumScenario, *, meshcat=None):
+    return build_pendulum(PendulumScenario(torque=1e200), meshcat=meshcat)
 
 
 @pytest.fixture
@@ -230,7 +234,9 @@ def test_demo_reports_every_part_and_exits_1_when_one_fails(broken_parts, tmp_pa
     ):
         assert (out / rel).is_file(), rel
     assert "angle_rad = " in printed and "energy_J = " in printed
-    assert "2 part(s) FAILED" in printed
+    assert "3 part(s) FAILED" in printed
+    assert (out / "diagrams" / "test_diverging.svg").is_file()  # rendered before it blew up
+    assert "diagram test_diverging: simulate/replay: SimulationDivergedError" in printed
     assert "diagram test_broken: render: RuntimeError: this world cannot be built" in printed
     assert "study broken_study:" in printed and "exploded" in printed
     index = (out / "index.md").read_text()

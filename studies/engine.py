@@ -796,9 +796,20 @@ def study_main(
     Returns:
         The process exit code (2 with a one-line message on bad input).
     """
+    prog = f"python -m {get_study(name).module}" if name else "python -m repertoire.studies.engine"
     parser = argparse.ArgumentParser(
+        prog=prog,
         description=description or (__doc__ or "").split("\n\n")[0],
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=(
+            "examples:\n"
+            f"  {prog} {'' if name else 'NAME '}--smoke -n 4 --executor inline\n"
+            f"  {prog} {'' if name else 'NAME '}-n 200 -j 2            "
+            "# resumable: rerun to finish missing seeds\n"
+            f"  {prog} {'' if name else 'NAME '}--config my.yaml --fresh  "
+            "# a changed config needs --fresh\n"
+            f"  {prog} {'' if name else 'NAME '}--executor dask --scheduler tcp://host:8786"
+        ),
     )
     add_study_arguments(parser, with_name=name is None)
     args = parser.parse_args(argv)

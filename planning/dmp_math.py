@@ -1,0 +1,755 @@
+"""Pure, vectorised math of dynamic movement primitives (Pastor et al. 2009, eq. 1-10).
+
+Everything here is plain NumPy so it can be tested against closed forms; the
+LeafSystems in :mod:`repertoire.systems.dmp` and the learning code in
+:mod:`repertoire.planning.dmp` only wrap these functions.
+
+Conventions (the paper's):
+
+* phase ``theta`` obeys ``tau * theta' = -alpha * theta`` with ``theta(0) = 1``, so
+  ``theta(t) = exp(-alpha * t / tau)``;
+* the transformation system state is ``(x, v)`` with ``tau * x' = v``; ``v`` is the
+  *scaled* velocity ``tau * dx/dt``. Physical velocity and acceleration are
+  ``v / tau`` and ``v' / tau``;
+* ``formulation="new"`` is eq. 6-7:
+  ``tau v' = K (g - x) - D v - K (g - x0) theta + K f(theta) + p``;
+  ``formulation="old"`` is eq. 1-2: ``tau v' = K (g - x) - D v + (g - x0) f(theta) + p``;
+* ``f(theta) = sum_i w_i psi_i(theta) theta / sum_i psi_i(theta)`` with
+  ``psi_i = exp(-h_i (theta - c_i)^2)`` (eq. 3).
+
+Quaternions are ``(w, x, y, z)`` (Drake's order). ``quat_exp(u)`` maps a 3-vector ``u``
+to ``(cos|u|, sin|u| u/|u|)`` (a rotation by ``2|u|``), and ``quat_log`` is its inverse.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+from repertoire.errors import RepertoireError
+
+FORMULATIONS = ("new", "old")
+
+
+# --------------------------------------------------------------------------- canonical system
+def canonical_phase(t: np.ndarray | float, tau: float, alpha: float) -> np.ndarray:
+    """Closed-form phase ``theta(t) = exp(-alpha t / tau)`` of eq. 4.
+
+    Args:
+        t: Time(s) since movement onset [s].
+        tau: Temporal scaling (movement duration) [s], > 0.
+        alpha: Canonical-system constant, > 0.
+    """
+    check_positive("tau", tau)
+    check_positive("alpha", alpha)
+    return np.exp(-alpha * np.asarray(t, dtype=float) / tau)
+
+
+def canonical_derivative(theta: np.ndarray | float, tau: float, alpha: float) -> np.ndarray:
+    """Time derivative ``theta' = -alpha theta / tau`` of eq. 4.
+
+    Args:
+        theta: Phase value(s).
+        tau: Temporal scaling [s], > 0.
+        alpha: Canonical-system constant, > 0.
+    """
+    return -alpha * np.asarray(theta, dtype=float) / tau
+
+
+def alpha_for_final_phase(final_phase: float = 0.01) -> float:
+    """Canonical constant alpha such that ``theta(tau) = final_phase``.
+
+    Args:
+        final_phase: Phase value reached at ``t = tau``, in (0, 1).
+    """
+    if not 0.0 < final_phase < 1.0:
+        raise RepertoireError(f"final_phase must be in (0, 1), got {final_phase}")
+    return float(-np.log(final_phase))
+
+
+# --------------------------------------------------------------------------- basis functions
+def basis_centres(n_basis: int, alpha: float) -> np.ndarray:
+    """Centres ``c_i`` in phase, spaced equally in time over ``[0, tau]``.
+
+    ``c_i = exp(-alpha * i / (n_basis - 1))``; independent of tau.
+
+    Args:
+        n_basis: Number of Gaussian basis functions, >= 1.
+        alpha: Canonical-system constant, > 0.
+    """
+    n_basis = check_n_basis(n_basis)
+    check_positive("alpha", alpha)
+    if n_basis == 1:
+        return np.array([1.0])
+    s = np.linspace(0.0, 1.0, n_basis)
+    return np.exp(-alpha * s)
+
+
+def basis_widths(centres: np.ndarray, alpha: float, overlap: float = 0.5) -> np.ndarray:
+    """Widths ``h_i`` so that ``psi_i(c_{i+1}) = overlap`` (neighbouring centres).
+
+    The last width repeats the previous one. With a single centre the width spans the
+    whole phase range ``[exp(-alpha), 1]``.
+
+    Args:
+        centres: Basis centres in phase, decreasing.
+        alpha: Canonical-system constant (used with a single centre).
+        overlap: Value of a Gaussian at its neighbour's centre, in (0, 1).
+    """
+    centres = np.asarray(centres, dtype=float)
+    if not 0.0 < overlap < 1.0:
+        raise RepertoireError(f"overlap must be in (0, 1), got {overlap}")
+    if centres.size == 0:
+        raise RepertoireError("need at least one basis function, got 0 centres")
+    log_overlap = -np.log(overlap)
+    if centres.size == 1:
+        span = 1.0 - np.exp(-alpha)
+        return np.array([log_overlap / span**2])
+    diff = np.diff(centres)
+    if np.any(diff == 0.0):
+        raise RepertoireError("basis centres must be distinct")
+    h = log_overlap / diff**2
+    return np.append(h, h[-1])
+
+
+def basis_activations(theta: np.ndarray, centres: np.ndarray, widths: np.ndarray) -> np.ndarray:
+    """Gaussian activations ``psi_i(theta)``, shape ``theta.shape + (n_basis,)``.
+
+    Args:
+        theta: Phase value(s).
+        centres: Basis centres, shape (n_basis,).
+        widths: Basis widths, shape (n_basis,).
+    """
+    theta = np.asarray(theta, dtype=float)[..., None]
+    return np.exp(-widths * (theta - centres) ** 2)
+
+
+def forcing_features(theta: np.ndarray, centres: np.ndarray, widths: np.ndarray) -> np.ndarray:
+    """Normalised, phase-gated features ``psi_i theta / sum_j psi_j`` (the regressors of eq. 3).
+
+    Returns shape ``theta.shape + (n_basis,)``; ``f = features @ w``.
+
+    Args:
+        theta: Phase value(s).
+        centres: Basis centres, shape (n_basis,).
+        widths: Basis widths, shape (n_basis,).
+    """
+    psi = basis_activations(theta, centres, widths)
+    total = psi.sum(axis=-1, keepdims=True)
+    total = np.where(total > 1e-300, total, 1e-300)
+    return psi * np.asarray(theta, dtype=float)[..., None] / total
+
+
+def forcing_term(
+    theta: np.ndarray, weights: np.ndarray, centres: np.ndarray, widths: np.ndarray
+) -> np.ndarray:
+    """Forcing term ``f(theta)`` of eq. 3 for every DOF.
+
+    Args:
+        theta: Phase value(s), any shape S.
+        weights: Weights, shape (n_dims, n_basis).
+        centres: Basis centres, shape (n_basis,).
+        widths: Basis widths, shape (n_basis,).
+
+    Returns:
+        Array of shape S + (n_dims,).
+    """
+    return forcing_features(theta, centres, widths) @ np.asarray(weights).T
+
+
+# --------------------------------------------------------------------------- transformation
+def transformation_derivatives(
+    x: np.ndarray,
+    v: np.ndarray,
+    theta: np.ndarray | float,
+    goal: np.ndarray,
+    x0: np.ndarray,
+    f: np.ndarray,
+    K: np.ndarray | float,
+    D: np.ndarray | float,
+    tau: float,
+    formulation: str = "new",
+    coupling: np.ndarray | float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Right-hand side ``(x', v')`` of the transformation system (eq. 1-2 or 6-7, 9).
+
+    Args:
+        x: Position(s), shape (..., n).
+        v: Scaled velocity ``tau dx/dt``, shape (..., n).
+        theta: Phase, broadcastable against x[..., 0].
+        goal: Goal(s), shape (..., n).
+        x0: Start position, shape (n,).
+        f: Forcing term value(s), shape (..., n).
+        K: Spring constant(s), scalar or (n,).
+        D: Damping constant(s), scalar or (n,).
+        tau: Temporal scaling [s].
+        formulation: ``"new"`` (eq. 6) or ``"old"`` (eq. 1).
+        coupling: Coupling term ``p`` added to ``tau v'`` (eq. 9).
+    """
+    theta = np.asarray(theta, dtype=float)
+    if theta.ndim and theta.shape != np.shape(x)[:-1]:
+        theta = theta.reshape(np.shape(x)[:-1])
+    th = theta[..., None] if theta.ndim else theta
+    if formulation == "new":
+        tau_vd = K * (goal - x) - D * v - K * (goal - x0) * th + K * f + coupling
+    elif formulation == "old":
+        tau_vd = K * (goal - x) - D * v + (goal - x0) * f + coupling
+    else:
+        raise RepertoireError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+    return v / tau, tau_vd / tau
+
+
+def forcing_target(
+    x: np.ndarray,
+    xd: np.ndarray,
+    xdd: np.ndarray,
+    theta: np.ndarray,
+    goal: np.ndarray,
+    x0: np.ndarray,
+    K: np.ndarray | float,
+    D: np.ndarray | float,
+    tau: float,
+    formulation: str = "new",
+) -> np.ndarray:
+    """Target forcing values from a demonstration (eq. 8 for "new", eq. 5 for "old").
+
+    Uses physical derivatives: ``v = tau xd`` and ``tau v' = tau^2 xdd``. Note that eq. 8 as
+    printed has ``- D y'``; solving eq. 6 for f gives ``+ D v`` (the sign used here and by
+    every implementation that reproduces the demonstration).
+
+    Args:
+        x: Demonstrated positions, shape (N, n).
+        xd: Their time derivatives, shape (N, n).
+        xdd: Their second time derivatives, shape (N, n).
+        theta: Phase at each sample, shape (N,).
+        goal: Goal (last sample), shape (n,).
+        x0: Start (first sample), shape (n,).
+        K: Spring constant(s).
+        D: Damping constant(s).
+        tau: Temporal scaling [s].
+        formulation: ``"new"`` or ``"old"``.
+    """
+    v = tau * xd
+    tau_vd = tau * tau * xdd
+    th = np.asarray(theta)[:, None]
+    if formulation == "new":
+        return (tau_vd + D * v) / K - (goal - x) + (goal - x0) * th
+    if formulation == "old":
+        scale = goal - x0
+        return (tau_vd + D * v - K * (goal - x)) / scale
+    raise RepertoireError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+
+
+@dataclass
+class Rollout:
+    """A DMP trajectory sampled at times ``t``.
+
+    Attributes:
+        t: Times [s], shape (N,).
+        theta: Phase, shape (N,).
+        x: Positions, shape (N, n).
+        xd: Physical velocities, shape (N, n).
+        xdd: Physical accelerations, shape (N, n).
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    x: np.ndarray
+    xd: np.ndarray
+    xdd: np.ndarray
+
+
+def _foh_matrices(K: np.ndarray, D: np.ndarray, tau: float, dt: float) -> tuple:
+    """Exact first-order-hold discretisation of ``x' = v/tau, v' = (-K x - D v + u)/tau``.
+
+    Returns per-DOF arrays Phi (n, 2, 2), Gu (n, 2), Gd (n, 2) such that
+    ``z_{k+1} = Phi z_k + Gu u_k + Gd (u_{k+1} - u_k)`` for input linear in time.
+    """
+    n = K.shape[0]
+    Phi = np.empty((n, 2, 2))
+    Gu = np.empty((n, 2))
+    Gd = np.empty((n, 2))
+    cache: dict = {}
+    for i in range(n):
+        key = (float(K[i]), float(D[i]))
+        if key not in cache:
+            M = np.zeros((4, 4))
+            M[0, 1] = 1.0 / tau
+            M[1, 0] = -K[i] / tau
+            M[1, 1] = -D[i] / tau
+            M[1, 2] = 1.0 / tau
+            M[2, 3] = 1.0 / dt
+            E = expm(M * dt)
+            cache[key] = (E[:2, :2], E[:2, 2], E[:2, 3])
+        Phi[i], Gu[i], Gd[i] = cache[key]
+    return Phi, Gu, Gd
+
+
+def _linear_recurrence(Phi: np.ndarray, C: np.ndarray, z0: np.ndarray) -> np.ndarray:
+    """Solve ``z_{k+1} = Phi_i z_k + c_k`` for every DOF i at once with ``lfilter`` (in C).
+
+    By Cayley-Hamilton each state component obeys the scalar recurrence
+    ``z_{k+2} - tr z_{k+1} + det z_k = c_{k+1} + (Phi - tr I) c_k``, a second-order IIR
+    filter; initial conditions enter as the first two input samples.
+
+    Args:
+        Phi: Per-DOF transition matrices, shape (n, 2, 2).
+        C: Inputs, shape (N-1, 2, n).
+        z0: Initial states, shape (2, n).
+
+    Returns:
+        States, shape (N, 2, n).
+    """
+    from scipy.signal import lfilter
+
+    n = Phi.shape[0]
+    N = C.shape[0] + 1
+    Z = np.empty((N, 2, n))
+    keys = {}
+    for i in range(n):
+        keys.setdefault(Phi[i].tobytes(), []).append(i)
+    for idx in keys.values():
+        P = Phi[idx[0]]
+        tr = P[0, 0] + P[1, 1]
+        det = P[0, 0] * P[1, 1] - P[0, 1] * P[1, 0]
+        c = C[:, :, idx]
+        z0i = z0[:, idx]
+        z1 = np.einsum("ab,bj->aj", P, z0i) + c[0]
+        W = np.empty((N, 2, len(idx)))
+        W[0] = z0i
+        W[1] = z1 - tr * z0i
+        if N > 2:
+            W[2:] = c[1:] + np.einsum("ab,kbj->kaj", P - tr * np.eye(2), c[:-1])
+        Z[:, :, idx] = lfilter([1.0], [1.0, -tr, det], W, axis=0)
+    return Z
+
+
+def rollout(
+    weights: np.ndarray,
+    centres: np.ndarray,
+    widths: np.ndarray,
+    K: np.ndarray | float,
+    D: np.ndarray | float,
+    alpha: float,
+    tau: float,
+    x0: np.ndarray,
+    goal: np.ndarray,
+    *,
+    dt: float = 1e-3,
+    n_steps: int | None = None,
+    formulation: str = "new",
+    v0: np.ndarray | None = None,
+    method: str = "exact",
+    coupling=None,
+    x_init: np.ndarray | None = None,
+) -> Rollout:
+    """Vectorised NumPy rollout of an n-DOF DMP from ``t = 0`` for ``n_steps`` steps of ``dt``.
+
+    The canonical system has a closed form, so phase and forcing values are precomputed in
+    one vectorised call; only the 2n-dimensional linear recurrence remains.
+
+    ``method="exact"`` integrates the linear spring-damper exactly, with the input (goal,
+    phase and forcing terms) linear between samples (first-order hold): the only error is
+    that interpolation. ``method="euler"`` is semi-implicit Euler (v first, then x) and
+    accepts a state-dependent ``coupling(x, xd) -> p`` callable (e.g. eq. 10).
+
+    Args:
+        weights: Shape (n, n_basis).
+        centres: Shape (n_basis,).
+        widths: Shape (n_basis,).
+        K: Spring constant(s), scalar or (n,).
+        D: Damping constant(s), scalar or (n,).
+        alpha: Canonical-system constant.
+        tau: Temporal scaling [s].
+        x0: Start position, shape (n,) (also the x0 of the equations).
+        goal: Goal, shape (n,), or one goal per sample, shape (n_steps + 1, n).
+        dt: Time step [s].
+        n_steps: Number of steps; default ``round(tau / dt)``.
+        formulation: ``"new"`` or ``"old"``.
+        v0: Initial physical velocity, shape (n,); default zero.
+        method: ``"exact"`` or ``"euler"``.
+        coupling: Optional callable ``(x, xd) -> p`` (shape (n,)), euler only.
+        x_init: Initial position if it differs from the equations' x0 (chaining with
+            acceleration handoff); default x0.
+
+    Returns:
+        A :class:`Rollout` with ``n_steps + 1`` samples.
+    """
+    check_positive("tau", tau)
+    check_positive("dt", dt)
+    weights = np.atleast_2d(np.asarray(weights, dtype=float))
+    n = weights.shape[0]
+    x0 = np.asarray(x0, dtype=float).reshape(-1)
+    if x0.shape != (n,):
+        raise RepertoireError(f"x0 has {x0.size} entries but weights have {n} DOF")
+    if n_steps is None:
+        n_steps = int(round(tau / dt))
+    N = n_steps + 1
+    goal = np.asarray(goal, dtype=float)
+    if goal.ndim == 1:
+        if goal.shape != (n,):
+            raise RepertoireError(f"goal has {goal.size} entries but weights have {n} DOF")
+        G = np.broadcast_to(goal, (N, n))
+    elif goal.shape == (N, n):
+        G = goal
+    else:
+        raise RepertoireError(f"goal must have shape ({n},) or ({N}, {n}), got {goal.shape}")
+    Kv = np.broadcast_to(np.asarray(K, dtype=float), (n,))
+    Dv = np.broadcast_to(np.asarray(D, dtype=float), (n,))
+    t = np.arange(N) * dt
+    theta = canonical_phase(t, tau, alpha)
+    f = forcing_term(theta, weights, centres, widths)
+    v_init = np.zeros(n) if v0 is None else tau * np.asarray(v0, dtype=float).reshape(n)
+    X = np.empty((N, n))
+    V = np.empty((N, n))
+    x_init = x0 if x_init is None else np.asarray(x_init, dtype=float).reshape(n)
+    X[0], V[0] = x_init, v_init
+    if method == "exact":
+        if coupling is not None:
+            raise RepertoireError("coupling needs method='euler' (it depends on the state)")
+        # Input u = tau v' + K x + D v (everything not depending on the state).
+        if formulation == "new":
+            U = Kv * G - Kv * (G - x0) * theta[:, None] + Kv * f
+        elif formulation == "old":
+            U = Kv * G + (G - x0) * f
+        else:
+            raise RepertoireError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+        Phi, Gu, Gd = _foh_matrices(Kv, Dv, tau, dt)
+        dU = np.diff(U, axis=0)
+        # Per-step input contribution c_k (shape (N-1, 2, n)) of z_{k+1} = Phi z_k + c_k.
+        C = Gu.T[None] * U[:-1, None, :] + Gd.T[None] * dU[:, None, :]
+        Z = _linear_recurrence(Phi, C, np.stack([x_init, v_init]))
+        X, V = Z[:, 0, :], Z[:, 1, :]
+        P = 0.0
+    elif method == "euler":
+        P = np.zeros((N, n))
+        x, v = X[0].copy(), V[0].copy()
+        for k in range(N - 1):
+            p = 0.0
+            if coupling is not None:
+                p = np.asarray(coupling(x, v / tau), dtype=float)
+                P[k] = p
+            _, vd = transformation_derivatives(
+                x, v, theta[k], G[k], x0, f[k], Kv, Dv, tau, formulation, p
+            )
+            v = v + dt * vd
+            x = x + dt * v / tau
+            X[k + 1], V[k + 1] = x, v
+        if coupling is not None:
+            P[-1] = coupling(X[-1], V[-1] / tau)
+    else:
+        raise RepertoireError(f"method must be 'exact' or 'euler', got {method!r}")
+    _, VD = transformation_derivatives(X, V, theta, G, x0, f, Kv, Dv, tau, formulation, P)
+    return Rollout(t=t, theta=theta, x=X, xd=V / tau, xdd=VD / tau)
+
+
+# --------------------------------------------------------------------------- quaternions
+def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product ``p * q`` of (w, x, y, z) quaternions, broadcasting over leading axes.
+
+    Args:
+        p: Shape (..., 4).
+        q: Shape (..., 4).
+    """
+    p = np.asarray(p, dtype=float)
+    q = np.asarray(q, dtype=float)
+    pw, pv = p[..., :1], p[..., 1:]
+    qw, qv = q[..., :1], q[..., 1:]
+    w = pw * qw - np.sum(pv * qv, axis=-1, keepdims=True)
+    v = pw * qv + qw * pv + np.cross(pv, qv)
+    return np.concatenate([w, v], axis=-1)
+
+
+def quat_conjugate(q: np.ndarray) -> np.ndarray:
+    """Conjugate ``(w, -x, -y, -z)``.
+
+    Args:
+        q: Shape (..., 4).
+    """
+    q = np.asarray(q, dtype=float)
+    return np.concatenate([q[..., :1], -q[..., 1:]], axis=-1)
+
+
+def quat_exp(u: np.ndarray) -> np.ndarray:
+    """Exponential map ``u -> (cos|u|, sin|u| u/|u|)`` (unit quaternion; rotation by 2|u|).
+
+    Args:
+        u: Shape (..., 3).
+    """
+    u = np.asarray(u, dtype=float)
+    a = np.linalg.norm(u, axis=-1, keepdims=True)
+    small = a < 1e-8
+    safe = np.where(small, 1.0, a)
+    s = np.where(small, 1.0 - a * a / 6.0, np.sin(safe) / safe)
+    q = np.concatenate([np.cos(a), s * u], axis=-1)
+    return q
+
+
+def quat_log(q: np.ndarray) -> np.ndarray:
+    """Logarithm of a unit quaternion, the inverse of :func:`quat_exp` (|result| <= pi).
+
+    Args:
+        q: Shape (..., 4), unit norm.
+    """
+    q = np.asarray(q, dtype=float)
+    w = q[..., :1]
+    v = q[..., 1:]
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    angle = np.arctan2(n, w)
+    small = n < 1e-12
+    safe = np.where(small, 1.0, n)
+    scale = np.where(small, 1.0 / np.where(np.abs(w) > 0, w, 1.0), angle / safe)
+    return scale * v
+
+
+def quat_error(goal: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Rotation vector ``2 log(goal * conj(q))`` along the shortest arc (world frame).
+
+    Args:
+        goal: Shape (..., 4).
+        q: Shape (..., 4).
+    """
+    d = quat_multiply(goal, quat_conjugate(q))
+    d = np.where(d[..., :1] < 0.0, -d, d)
+    return 2.0 * quat_log(d)
+
+
+def angular_velocity(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """World-frame angular velocity ``omega = 2 vec(qd * conj(q))``.
+
+    Args:
+        q: Quaternions, shape (..., 4).
+        qd: Their time derivatives, shape (..., 4).
+    """
+    return 2.0 * quat_multiply(qd, quat_conjugate(q))[..., 1:]
+
+
+def quaternion_derivatives(
+    q: np.ndarray,
+    eta: np.ndarray,
+    theta: np.ndarray | float,
+    goal: np.ndarray,
+    q0: np.ndarray,
+    f: np.ndarray,
+    K: float,
+    D: float,
+    tau: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """On-manifold quaternion DMP in the paper's new form, world-frame rotation vectors.
+
+    ``tau eta' = K e(g, q) - D eta - K e(g, q0) theta + K f(theta)`` and
+    ``tau q' = 0.5 eta * q``, with ``e(g, q) = 2 log(g * conj(q))`` and ``eta = tau omega``.
+
+    Args:
+        q: Orientation, shape (4,).
+        eta: Scaled angular velocity ``tau omega``, shape (3,).
+        theta: Phase.
+        goal: Goal orientation, shape (4,).
+        q0: Start orientation, shape (4,).
+        f: Forcing term, shape (3,).
+        K: Spring constant.
+        D: Damping constant.
+        tau: Temporal scaling [s].
+
+    Returns:
+        ``(q', eta')``.
+    """
+    tau_etad = (
+        K * quat_error(goal, q) - D * eta - K * quat_error(goal, q0) * theta + K * np.asarray(f)
+    )
+    qd = 0.5 * quat_multiply(np.concatenate([[0.0], eta]), q) / tau
+    return qd, tau_etad / tau
+
+
+def quaternion_rollout(
+    weights: np.ndarray,
+    centres: np.ndarray,
+    widths: np.ndarray,
+    K: float,
+    D: float,
+    alpha: float,
+    tau: float,
+    q0: np.ndarray,
+    goal: np.ndarray,
+    *,
+    dt: float = 1e-3,
+    n_steps: int | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """On-manifold rollout: semi-implicit Euler on eta, exponential map on q.
+
+    ``q_{k+1} = exp(dt eta_{k+1} / (2 tau)) * q_k`` is a product of unit quaternions, so the
+    norm stays 1 up to rounding.
+
+    Args:
+        weights: Shape (3, n_basis).
+        centres: Shape (n_basis,).
+        widths: Shape (n_basis,).
+        K: Spring constant.
+        D: Damping constant.
+        alpha: Canonical-system constant.
+        tau: Temporal scaling [s].
+        q0: Start orientation (unit), shape (4,).
+        goal: Goal orientation (unit), shape (4,).
+        dt: Time step [s].
+        n_steps: Number of steps; default ``round(tau / dt)``.
+
+    Returns:
+        ``(t, q, omega)`` with shapes (N,), (N, 4), (N, 3).
+    """
+    check_positive("tau", tau)
+    if n_steps is None:
+        n_steps = int(round(tau / dt))
+    N = n_steps + 1
+    t = np.arange(N) * dt
+    theta = canonical_phase(t, tau, alpha)
+    f = forcing_term(theta, weights, centres, widths)
+    q0 = np.asarray(q0, dtype=float)
+    goal = np.asarray(goal, dtype=float)
+    e0 = quat_error(goal, q0)
+    Q = np.empty((N, 4))
+    E = np.empty((N, 3))
+    q = q0.copy()
+    eta = np.zeros(3)
+    Q[0], E[0] = q, eta
+    for k in range(N - 1):
+        tau_etad = K * quat_error(goal, q) - D * eta - K * e0 * theta[k] + K * f[k]
+        eta = eta + dt * tau_etad / tau
+        q = quat_multiply(quat_exp(0.5 * dt * eta / tau), q)
+        Q[k + 1], E[k + 1] = q, eta
+    return t, Q, E / tau
+
+
+# --------------------------------------------------------------------------- obstacle coupling
+def obstacle_coupling(
+    x: np.ndarray, xd: np.ndarray, obstacle: np.ndarray, gamma: float, beta: float
+) -> np.ndarray:
+    """Obstacle coupling term ``p = gamma R v phi exp(-beta phi)`` of eq. 10 in 3-D.
+
+    ``phi`` is the angle between the direction to the obstacle ``o - x`` and the velocity.
+    ``R`` rotates by pi/2 about ``r = (o - x) x v``, which turns ``v`` away from the obstacle
+    (the paper prints ``(x - o) x v``; with a right-handed +pi/2 rotation that axis would turn
+    ``v`` *towards* the obstacle, so we use the sign of Hoffmann et al. 2009 and
+    movement_primitives). Cases: ``v = 0`` gives ``p = 0``; ``v`` parallel to ``o - x``
+    (heading straight at it: ``phi = 0``; straight away: ``phi = pi``) has no unique axis, so
+    any axis perpendicular to ``v`` is used (deterministically); at ``phi = 0`` the term is 0.
+
+    Args:
+        x: Position, shape (3,).
+        xd: Velocity, shape (3,).
+        obstacle: Obstacle position, shape (3,).
+        gamma: Gain (>= 0).
+        beta: Angular decay (the paper's c, >= 0).
+    """
+    x = np.asarray(x, dtype=float)
+    v = np.asarray(xd, dtype=float)
+    d = np.asarray(obstacle, dtype=float) - x
+    speed = np.linalg.norm(v)
+    dist = np.linalg.norm(d)
+    if speed < 1e-12 or dist < 1e-12:
+        return np.zeros(3)
+    cos_phi = np.clip(d @ v / (dist * speed), -1.0, 1.0)
+    phi = np.arccos(cos_phi)
+    r = np.cross(d, v)
+    rn = np.linalg.norm(r)
+    if rn < 1e-12 * dist * speed:
+        # Parallel: pick the axis perpendicular to v that is closest to world z x v.
+        helper = np.array([0.0, 0.0, 1.0])
+        if abs(helper @ v) > 0.9 * speed:
+            helper = np.array([1.0, 0.0, 0.0])
+        r = np.cross(helper, v)
+        rn = np.linalg.norm(r)
+    axis = r / rn
+    # Rotation of v by +pi/2 about axis (v is perpendicular to axis): R v = axis x v.
+    Rv = np.cross(axis, v) + axis * (axis @ v)
+    return gamma * Rv * phi * np.exp(-beta * phi)
+
+
+# --------------------------------------------------------------------------- demonstrations
+def minimum_jerk(
+    x_start: np.ndarray, x_end: np.ndarray, duration: float, t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Minimum-jerk segment (closed form) with zero boundary velocity and acceleration.
+
+    Args:
+        x_start: Start, shape (n,).
+        x_end: End, shape (n,).
+        duration: Segment duration [s], > 0.
+        t: Sample times in [0, duration], shape (N,).
+
+    Returns:
+        ``(x, xd, xdd)`` each of shape (N, n).
+    """
+    check_positive("duration", duration)
+    s = np.clip(np.asarray(t, dtype=float) / duration, 0.0, 1.0)[:, None]
+    delta = np.asarray(x_end, dtype=float) - np.asarray(x_start, dtype=float)
+    pos = 10 * s**3 - 15 * s**4 + 6 * s**5
+    vel = (30 * s**2 - 60 * s**3 + 30 * s**4) / duration
+    acc = (60 * s - 180 * s**2 + 120 * s**3) / duration**2
+    return x_start + delta * pos, delta * vel, delta * acc
+
+
+def minimum_jerk_via_points(
+    points: np.ndarray, duration: float, n_samples: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Minimum-jerk movement through via points (rest-to-rest, smooth through the via points).
+
+    The path is the minimum-jerk polynomial spline through the points: a quintic spline
+    (``scipy`` ``make_interp_spline`` with k=5 on chord-length-proportional knots) with zero
+    velocity and acceleration at both ends, which is the jerk-optimal interpolant.
+
+    Args:
+        points: Via points including start and end, shape (m, n), m >= 2.
+        duration: Movement duration [s].
+        n_samples: Number of uniform samples, >= 3.
+
+    Returns:
+        ``(t, x)`` with shapes (n_samples,), (n_samples, n).
+    """
+    from scipy.interpolate import make_interp_spline
+
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    check_positive("duration", duration)
+    if n_samples < 3:
+        raise RepertoireError(f"need at least 3 samples, got {n_samples}")
+    t = np.linspace(0.0, duration, n_samples)
+    if points.shape[0] == 2:
+        x, _, _ = minimum_jerk(points[0], points[1], duration, t)
+        return t, x
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    if np.any(seg <= 0):
+        raise RepertoireError("consecutive via points must differ")
+    knots_t = np.concatenate([[0.0], np.cumsum(np.sqrt(seg))])
+    knots_t = knots_t / knots_t[-1] * duration
+    zeros = np.zeros(points.shape[1])
+    spline = make_interp_spline(
+        knots_t,
+        points,
+        k=5,
+        bc_type=([(1, zeros), (2, zeros)], [(1, zeros), (2, zeros)]),
+    )
+    return t, spline(t)
+
+
+# --------------------------------------------------------------------------- validation helpers
+def check_positive(name: str, value: float) -> float:
+    """Raise RepertoireError unless ``value`` is a finite number > 0.
+
+    Args:
+        name: Parameter name for the message.
+        value: Value to check.
+    """
+    v = float(np.asarray(value).reshape(-1)[0]) if np.size(value) == 1 else None
+    if v is None or not np.isfinite(v) or v <= 0.0:
+        raise RepertoireError(f"{name} must be a finite number > 0, got {value}")
+    return v
+
+
+def check_n_basis(n_basis: int) -> int:
+    """Raise RepertoireError unless ``n_basis`` is an integer >= 1.
+
+    Args:
+        n_basis: Number of basis functions.
+    """
+    if int(n_basis) != n_basis or n_basis < 1:
+        raise RepertoireError(f"need at least one basis function (n_basis >= 1), got {n_basis}")
+    return int(n_basis)

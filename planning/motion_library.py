@@ -1,0 +1,328 @@
+"""Motion library: labelled DMPs with context, task composition, grasp orientation (sec. III, IV-C).
+
+A :class:`MotionLibrary` stores learned DMPs as :class:`MotionPrimitive`s with a semantic
+label (grasp, place, release, pour, retreat) and a context (object, approach side, ...).
+Tasks are sequences of labels (pick-and-place = grasp -> place -> release); a library
+composes a task by recalling one primitive per label. Section IV-C's automatic final grasp
+orientation propagates the DMP to the new goal, averages the velocity over the end of the
+movement to get the approach direction, and turns the demonstrated final orientation by
+the rotation that takes the demonstrated approach direction to the new one.
+Libraries save to / load from one JSON file exactly.
+"""
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from repertoire.planning.dmp import (
+    DmpParameters,
+    QuaternionDmpParameters,
+    TaskSpaceDmp,
+    check_unit_quaternions,
+    dmp_from_dict,
+)
+from repertoire.planning.dmp_math import quat_multiply
+
+from repertoire.errors import RepertoireError, UnknownNameError
+
+LABELS = ("grasp", "place", "release", "pour", "retreat")
+TASKS: dict[str, list[str]] = {
+    "pick_and_place": ["grasp", "place", "release"],
+    "serve_water": ["grasp", "pour", "place", "release"],
+}
+
+
+@dataclass
+class MotionPrimitive:
+    """A labelled DMP in the library.
+
+    Attributes:
+        name: Unique name in the library.
+        label: Semantic label, one of LABELS.
+        dmp: The learned DMP (TaskSpaceDmp, DmpParameters or QuaternionDmpParameters).
+        context: Free-form context: strings, numbers or lists of them (object, side, ...).
+    """
+
+    name: str
+    label: str
+    dmp: TaskSpaceDmp | DmpParameters | QuaternionDmpParameters
+    context: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise RepertoireError("a motion primitive needs a non-empty name")
+        if self.label not in LABELS:
+            raise RepertoireError(f"label must be one of {LABELS}, got {self.label!r}")
+        try:
+            json.dumps(self.context)
+        except TypeError as err:
+            raise RepertoireError(
+                f"context of {self.name!r} must hold only JSON values: {err}"
+            ) from err
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "label": self.label,
+            "dmp": self.dmp.to_dict(),
+            "context": self.context,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "MotionPrimitive":
+        return cls(d["name"], d["label"], dmp_from_dict(d["dmp"]), dict(d.get("context", {})))
+
+
+class MotionLibrary:
+    """A set of labelled motion primitives."""
+
+    def __init__(self, primitives: list[MotionPrimitive] | None = None) -> None:
+        self._primitives: dict[str, MotionPrimitive] = {}
+        for p in primitives or []:
+            self.add(p)
+
+    def __len__(self) -> int:
+        return len(self._primitives)
+
+    def __iter__(self):
+        return iter(self._primitives.values())
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._primitives
+
+    def add(self, primitive: MotionPrimitive, *, replace: bool = False) -> MotionPrimitive:
+        """Add a primitive.
+
+        Args:
+            primitive: The primitive.
+            replace: Allow replacing one with the same name.
+        """
+        if primitive.name in self._primitives and not replace:
+            raise RepertoireError(f"the library already has a primitive named {primitive.name!r}")
+        self._primitives[primitive.name] = primitive
+        return primitive
+
+    def add_dmp(self, name: str, label: str, dmp, context: dict | None = None) -> MotionPrimitive:
+        """Shortcut: wrap a DMP as a MotionPrimitive and add it.
+
+        Args:
+            name: Unique name.
+            label: Semantic label.
+            dmp: The DMP artefact.
+            context: Context dict.
+        """
+        return self.add(MotionPrimitive(name, label, dmp, dict(context or {})))
+
+    def get(self, name: str) -> MotionPrimitive:
+        """The primitive called ``name``.
+
+        Args:
+            name: Primitive name.
+        """
+        if name not in self._primitives:
+            raise UnknownNameError(
+                f"no primitive named {name!r}; library has {sorted(self._primitives)}"
+            )
+        return self._primitives[name]
+
+    def find(self, label: str, **context) -> list[MotionPrimitive]:
+        """Primitives with ``label`` whose context matches every given key.
+
+        Args:
+            label: Semantic label.
+            **context: Context keys and required values.
+        """
+        if label not in LABELS:
+            raise RepertoireError(f"label must be one of {LABELS}, got {label!r}")
+        return [
+            p
+            for p in self._primitives.values()
+            if p.label == label and all(p.context.get(k) == v for k, v in context.items())
+        ]
+
+    def select(self, label: str, **context) -> MotionPrimitive:
+        """The first primitive with ``label`` matching ``context``; raises if there is none.
+
+        Args:
+            label: Semantic label.
+            **context: Context constraints.
+        """
+        found = self.find(label, **context)
+        if not found:
+            if not self._primitives:
+                raise RepertoireError("the motion library is empty")
+            raise UnknownNameError(
+                f"no {label!r} primitive with context {context}; labels in the library: "
+                f"{sorted({p.label for p in self._primitives.values()})}"
+            )
+        return found[0]
+
+    def compose(self, task: str | list[str], **context) -> list[MotionPrimitive]:
+        """Recall one primitive per label of a task (e.g. pick_and_place).
+
+        Args:
+            task: A name in TASKS or an explicit list of labels.
+            **context: Context constraints applied to every step.
+        """
+        if isinstance(task, str):
+            if task not in TASKS:
+                raise UnknownNameError(f"unknown task {task!r}; known: {sorted(TASKS)}")
+            labels = TASKS[task]
+        else:
+            labels = list(task)
+        return [self.select(label, **context) for label in labels]
+
+    def to_dict(self) -> dict:
+        return {
+            "type": "MotionLibrary",
+            "primitives": [p.to_dict() for p in self._primitives.values()],
+        }
+
+    def save(self, path: str | Path) -> Path:
+        """Write the library as JSON (exact).
+
+        Args:
+            path: Output file.
+        """
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(self.to_dict(), indent=1))
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "MotionLibrary":
+        """Read a library saved by :meth:`save`.
+
+        Args:
+            path: JSON file.
+        """
+        d = json.loads(Path(path).read_text())
+        if d.get("type") != "MotionLibrary":
+            raise RepertoireError(f"{path} is not a MotionLibrary file")
+        return cls([MotionPrimitive.from_dict(p) for p in d["primitives"]])
+
+
+def approach_direction(
+    dmp: DmpParameters, goal: np.ndarray, start: np.ndarray | None = None, *, fraction=0.2
+) -> np.ndarray:
+    """Unit approach direction at the end of a 3-D position DMP propagated to ``goal``.
+
+    Averages the velocity vectors over the last ``fraction`` of the movement (sec. IV-C).
+
+    Args:
+        dmp: 3-D position DMP.
+        goal: Goal position, shape (3,).
+        start: Start position; default the learned start.
+        fraction: Final fraction of the movement to average over, in (0, 1].
+    """
+    if dmp.n_dims != 3:
+        raise RepertoireError(f"approach direction needs a 3-D position DMP, got {dmp.n_dims}")
+    if not 0.0 < fraction <= 1.0:
+        raise RepertoireError(f"fraction must be in (0, 1], got {fraction}")
+    r = dmp.rollout(goal=np.asarray(goal, float), x0=start, dt=dmp.tau / 500)
+    k0 = int(round((1.0 - fraction) * (len(r.t) - 1)))
+    mean_v = r.xd[k0:].mean(axis=0)
+    n = np.linalg.norm(mean_v)
+    if n < 1e-9:
+        raise RepertoireError("the movement does not move at its end; no approach direction")
+    return mean_v / n
+
+
+def _shortest_arc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Unit quaternion of the smallest rotation taking unit vector a to unit vector b."""
+    c = float(a @ b)
+    if c < -1.0 + 1e-12:
+        axis = np.cross(a, [1.0, 0.0, 0.0])
+        if np.linalg.norm(axis) < 1e-6:
+            axis = np.cross(a, [0.0, 1.0, 0.0])
+        axis /= np.linalg.norm(axis)
+        return np.concatenate([[0.0], axis])
+    q = np.concatenate([[1.0 + c], np.cross(a, b)])
+    return q / np.linalg.norm(q)
+
+
+def grasp_orientation(
+    dmp: TaskSpaceDmp,
+    goal_position: np.ndarray,
+    start_position: np.ndarray | None = None,
+    *,
+    fraction: float = 0.2,
+    yaw_only: bool = True,
+) -> np.ndarray:
+    """Automatic final grasp orientation for a new goal (sec. IV-C).
+
+    The approach direction of the demonstration and of the DMP propagated to the new goal
+    are computed by averaging velocity vectors at the end of the movement; the
+    demonstrated final orientation is turned by the rotation between the two directions
+    (about the world z axis only with ``yaw_only``, which keeps the gripper's tilt).
+
+    Args:
+        dmp: A TaskSpaceDmp learned from a grasp.
+        goal_position: New goal position, shape (3,).
+        start_position: New start; default the learned start.
+        fraction: Final fraction of the movement used for the average.
+        yaw_only: Rotate about world z only (horizontal approach directions).
+
+    Returns:
+        Unit quaternion (w, x, y, z) for the goal_orientation input.
+    """
+    demo = approach_direction(dmp.position, dmp.position.goal, dmp.position.x0, fraction=fraction)
+    new = approach_direction(dmp.position, goal_position, start_position, fraction=fraction)
+    if yaw_only:
+        a, b = demo[:2], new[:2]
+        if np.linalg.norm(a) < 1e-6 or np.linalg.norm(b) < 1e-6:
+            rot = np.array([1.0, 0.0, 0.0, 0.0])  # vertical approach: keep the demo's yaw
+        else:
+            yaw = np.arctan2(b[1], b[0]) - np.arctan2(a[1], a[0])
+            rot = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+    else:
+        rot = _shortest_arc(demo, new)
+    q = quat_multiply(rot, dmp.orientation.goal)
+    q = q / np.linalg.norm(q)
+    check_unit_quaternions(q[None], name="grasp orientation")
+    return q
+
+
+def instantiate(
+    primitive: MotionPrimitive,
+    *,
+    position: np.ndarray | None = None,
+    orientation: np.ndarray | None = None,
+    fingers: np.ndarray | None = None,
+    auto_grasp_orientation: bool = True,
+) -> TaskSpaceDmp:
+    """Set a task-space primitive's goals for a new situation (sec. IV-C).
+
+    For a grasp with ``orientation=None`` and ``auto_grasp_orientation`` the final
+    orientation is computed from the approach direction; otherwise the demonstrated one
+    is kept (place, release).
+
+    Args:
+        primitive: A primitive holding a TaskSpaceDmp.
+        position: Goal position.
+        orientation: Goal orientation (w, x, y, z).
+        fingers: Goal finger positions.
+        auto_grasp_orientation: Compute grasp orientations automatically.
+    """
+    if not isinstance(primitive.dmp, TaskSpaceDmp):
+        raise RepertoireError(f"{primitive.name!r} does not hold a TaskSpaceDmp")
+    if (
+        orientation is None
+        and position is not None
+        and auto_grasp_orientation
+        and primitive.label == "grasp"
+    ):
+        orientation = grasp_orientation(primitive.dmp, position)
+    return primitive.dmp.with_goal(position=position, orientation=orientation, fingers=fingers)
+
+
+__all__ = [
+    "LABELS",
+    "TASKS",
+    "MotionLibrary",
+    "MotionPrimitive",
+    "approach_direction",
+    "grasp_orientation",
+    "instantiate",
+]

@@ -1,0 +1,781 @@
+"""DMP LeafSystems: canonical system, transformation system, quaternion DMPs, obstacle coupling.
+
+The math lives in :mod:`repertoire.planning.dmp_math`; these systems only wrap it (Pastor
+et al. 2009, eq. 1-10). Conventions: the transformation state is ``(x, v)`` with
+``v = tau dx/dt`` (the paper's scaled velocity); output ports give physical velocity and
+acceleration. Gains, weights, basis, tau and x0 are numeric parameters, so a Monte-Carlo
+run can vary them in the Context without rebuilding.
+"""
+
+import numpy as np
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    LeafSystem,
+)
+from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters, check_unit_quaternions
+from repertoire.planning.dmp_math import (
+    FORMULATIONS,
+    check_positive,
+    forcing_term,
+    obstacle_coupling,
+    quat_error,
+    quat_exp,
+    quat_multiply,
+    transformation_derivatives,
+)
+
+from repertoire.errors import RepertoireError
+
+
+def _check_size(name: str, value: np.ndarray, n: int) -> np.ndarray:
+    value = np.asarray(value, dtype=float).reshape(-1)
+    if value.size != n:
+        raise RepertoireError(f"{name} must have {n} entries, got {value.size}")
+    if not np.all(np.isfinite(value)):
+        raise RepertoireError(f"{name} contains NaN or inf")
+    return value
+
+
+class CanonicalSystem(LeafSystem):
+    """Canonical system ``tau theta' = -alpha theta`` (eq. 4), ``theta(0) = 1``.
+
+    Before the parameter ``start_time`` the phase is held at 1 (for a delayed start).
+
+    Input ports:
+        tau (1, optional, ``time_scaling_input=True``): online temporal scaling [s],
+            replaces the ``tau`` parameter.
+
+    Output ports:
+        phase (1): theta (depends on the state only).
+
+    Numeric parameters: tau, alpha, start_time.
+    """
+
+    def __init__(
+        self,
+        tau: float = 1.0,
+        alpha: float = float(np.log(100.0)),
+        *,
+        time_scaling_input: bool = False,
+        start_time: float = 0.0,
+    ) -> None:
+        super().__init__()
+        check_positive("tau", tau)
+        check_positive("alpha", alpha)
+        self._tau_index = self.DeclareNumericParameter(BasicVector([float(tau)]))
+        self._alpha_index = self.DeclareNumericParameter(BasicVector([float(alpha)]))
+        self._start_index = self.DeclareNumericParameter(BasicVector([float(start_time)]))
+        self.DeclareContinuousState(1)
+        self._tau_port = self.DeclareVectorInputPort("tau", 1) if time_scaling_input else None
+        self._phase_port = self.DeclareVectorOutputPort(
+            "phase", 1, self._calc_phase, prerequisites_of_calc={self.xc_ticket()}
+        )
+
+    def get_tau_input_port(self):
+        return self._tau_port
+
+    def get_phase_output_port(self):
+        return self._phase_port
+
+    def tau(self, context: Context) -> float:
+        """Effective tau (input if declared, else parameter); raises if <= 0.
+
+        Args:
+            context: This system's context.
+        """
+        if self._tau_port is not None:
+            tau = float(self._tau_port.Eval(context)[0])
+        else:
+            tau = float(context.get_numeric_parameter(self._tau_index).GetAtIndex(0))
+        if not tau > 0.0:
+            raise RepertoireError(f"tau must be > 0, got {tau}")
+        return tau
+
+    def set_tau(self, context: Context, tau: float) -> None:
+        """Set the tau parameter.
+
+        Args:
+            context: This system's context.
+            tau: Temporal scaling [s], > 0.
+        """
+        check_positive("tau", tau)
+        context.get_mutable_numeric_parameter(self._tau_index).SetAtIndex(0, float(tau))
+
+    def set_start_time(self, context: Context, start_time: float) -> None:
+        """Hold theta = 1 until ``start_time``.
+
+        Args:
+            context: This system's context.
+            start_time: Movement onset [s].
+        """
+        context.get_mutable_numeric_parameter(self._start_index).SetAtIndex(0, float(start_time))
+
+    def set_phase(self, context: Context, theta: float = 1.0) -> None:
+        """Set the phase state.
+
+        Args:
+            context: This system's context.
+            theta: Phase value.
+        """
+        context.get_mutable_continuous_state_vector().SetAtIndex(0, float(theta))
+
+    def DoCalcTimeDerivatives(self, context: Context, derivatives) -> None:
+        start = context.get_numeric_parameter(self._start_index).GetAtIndex(0)
+        if context.get_time() < start:
+            derivatives.get_mutable_vector().SetAtIndex(0, 0.0)
+            return
+        alpha = context.get_numeric_parameter(self._alpha_index).GetAtIndex(0)
+        theta = context.get_continuous_state_vector().GetAtIndex(0)
+        derivatives.get_mutable_vector().SetAtIndex(0, -alpha * theta / self.tau(context))
+
+    def _calc_phase(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, context.get_continuous_state_vector().GetAtIndex(0))
+
+
+class TransformationSystem(LeafSystem):
+    """n-DOF transformation system, the paper's new form (eq. 6, 9) or the old one (eq. 1).
+
+    Continuous state ``[x (n), v (n)]`` with ``v = tau dx/dt``; initial ``x = x0``, ``v = 0``.
+    Derivatives are zero before the ``start_time`` parameter.
+
+    Input ports:
+        phase (1): theta from a CanonicalSystem.
+        goal (n): goal g (may change during the movement).
+        coupling (n, optional): coupling term p added to ``tau v'`` (eq. 9).
+        tau (1, optional): online temporal scaling, replaces the tau parameter.
+
+    Output ports:
+        position (n): x (state only).
+        velocity (n): dx/dt = v / tau (state and parameters only, so a coupling computed
+            from it is not an algebraic loop).
+        acceleration (n): d2x/dt2 = v' / tau.
+
+    Numeric parameters: weights (n * n_basis, row-major (n, n_basis)), centres, widths,
+    K (n), D (n), tau (1), x0 (n), start_time (1).
+    """
+
+    def __init__(
+        self,
+        dmp: DmpParameters,
+        *,
+        coupling_input: bool = False,
+        time_scaling_input: bool = False,
+    ) -> None:
+        super().__init__()
+        if not isinstance(dmp, DmpParameters):
+            raise RepertoireError(f"TransformationSystem needs DmpParameters, got {type(dmp)}")
+        dmp.validate()
+        n, b = dmp.weights.shape
+        self._n, self._b = n, b
+        self._formulation = dmp.formulation
+        if self._formulation not in FORMULATIONS:
+            raise RepertoireError(f"unknown formulation {self._formulation!r}")
+        self._w = self.DeclareNumericParameter(BasicVector(dmp.weights.reshape(-1)))
+        self._c = self.DeclareNumericParameter(BasicVector(dmp.centres))
+        self._h = self.DeclareNumericParameter(BasicVector(dmp.widths))
+        self._K = self.DeclareNumericParameter(BasicVector(dmp.K))
+        self._D = self.DeclareNumericParameter(BasicVector(dmp.D))
+        self._tau = self.DeclareNumericParameter(BasicVector([dmp.tau]))
+        self._x0 = self.DeclareNumericParameter(BasicVector(dmp.x0))
+        self._start = self.DeclareNumericParameter(BasicVector([0.0]))
+        self.DeclareContinuousState(BasicVector(np.concatenate([dmp.x0, np.zeros(n)])), n, n, 0)
+        self._phase_port = self.DeclareVectorInputPort("phase", 1)
+        self._goal_port = self.DeclareVectorInputPort("goal", n)
+        self._coupling_port = self.DeclareVectorInputPort("coupling", n) if coupling_input else None
+        self._tau_port = self.DeclareVectorInputPort("tau", 1) if time_scaling_input else None
+        state_and_params = {self.xc_ticket(), self.all_parameters_ticket()}
+        self._position_port = self.DeclareVectorOutputPort(
+            "position", n, self._calc_position, prerequisites_of_calc={self.xc_ticket()}
+        )
+        vel_prereq = state_and_params if self._tau_port is None else {self.all_sources_ticket()}
+        self._velocity_port = self.DeclareVectorOutputPort(
+            "velocity", n, self._calc_velocity, prerequisites_of_calc=vel_prereq
+        )
+        self._acceleration_port = self.DeclareVectorOutputPort(
+            "acceleration", n, self._calc_acceleration
+        )
+
+    # ports
+    def get_phase_input_port(self):
+        return self._phase_port
+
+    def get_goal_input_port(self):
+        return self._goal_port
+
+    def get_coupling_input_port(self):
+        return self._coupling_port
+
+    def get_tau_input_port(self):
+        return self._tau_port
+
+    def get_position_output_port(self):
+        return self._position_port
+
+    def get_velocity_output_port(self):
+        return self._velocity_port
+
+    def get_acceleration_output_port(self):
+        return self._acceleration_port
+
+    @property
+    def n_dims(self) -> int:
+        return self._n
+
+    # context helpers
+    def set_start(self, context: Context, x0: np.ndarray, xd0: np.ndarray | None = None) -> None:
+        """Set the start x0 (parameter and state) and the initial physical velocity.
+
+        Args:
+            context: This system's context.
+            x0: Start position, shape (n,).
+            xd0: Initial velocity dx/dt, shape (n,); default zero.
+        """
+        x0 = _check_size("x0", x0, self._n)
+        xd0 = np.zeros(self._n) if xd0 is None else _check_size("xd0", xd0, self._n)
+        context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
+        tau = self._tau_value(context)
+        context.get_mutable_continuous_state_vector().SetFromVector(np.concatenate([x0, tau * xd0]))
+
+    def set_start_time(self, context: Context, start_time: float) -> None:
+        """Hold the state until ``start_time``.
+
+        Args:
+            context: This system's context.
+            start_time: Movement onset [s].
+        """
+        context.get_mutable_numeric_parameter(self._start).SetAtIndex(0, float(start_time))
+
+    def set_dmp(self, context: Context, dmp: DmpParameters) -> None:
+        """Load another DMP of the same size into the parameters (and start state).
+
+        Args:
+            context: This system's context.
+            dmp: Parameters with the same (n_dims, n_basis) and formulation.
+        """
+        if dmp.weights.shape != (self._n, self._b):
+            raise RepertoireError(
+                f"DMP has weights {dmp.weights.shape}, this system was built for "
+                f"{(self._n, self._b)}"
+            )
+        if dmp.formulation != self._formulation:
+            raise RepertoireError(
+                f"DMP formulation {dmp.formulation!r} != system's {self._formulation!r}"
+            )
+        for index, value in (
+            (self._w, dmp.weights.reshape(-1)),
+            (self._c, dmp.centres),
+            (self._h, dmp.widths),
+            (self._K, dmp.K),
+            (self._D, dmp.D),
+            (self._tau, [dmp.tau]),
+        ):
+            context.get_mutable_numeric_parameter(index).SetFromVector(np.asarray(value))
+        self.set_start(context, dmp.x0)
+
+    def _tau_value(self, context: Context) -> float:
+        if self._tau_port is not None and self._tau_port.HasValue(context):
+            tau = float(self._tau_port.Eval(context)[0])
+        else:
+            tau = float(context.get_numeric_parameter(self._tau).GetAtIndex(0))
+        if not tau > 0.0:
+            raise RepertoireError(f"tau must be > 0, got {tau}")
+        return tau
+
+    def _derivatives(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        n = self._n
+        z = context.get_continuous_state_vector().CopyToVector()
+        x, v = z[:n], z[n:]
+        start = context.get_numeric_parameter(self._start).GetAtIndex(0)
+        if context.get_time() < start:
+            return np.zeros(n), np.zeros(n)
+        theta = float(self._phase_port.Eval(context)[0])
+        goal = self._goal_port.Eval(context)
+        p = context.get_numeric_parameter
+        W = p(self._w).value().reshape(n, self._b)
+        f = forcing_term(theta, W, p(self._c).value(), p(self._h).value())
+        coupling = 0.0
+        if self._coupling_port is not None and self._coupling_port.HasValue(context):
+            coupling = self._coupling_port.Eval(context)
+        return transformation_derivatives(
+            x,
+            v,
+            theta,
+            goal,
+            p(self._x0).value(),
+            f,
+            p(self._K).value(),
+            p(self._D).value(),
+            self._tau_value(context),
+            self._formulation,
+            coupling,
+        )
+
+    def DoCalcTimeDerivatives(self, context: Context, derivatives) -> None:
+        xd, vd = self._derivatives(context)
+        derivatives.get_mutable_vector().SetFromVector(np.concatenate([xd, vd]))
+
+    def _calc_position(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_continuous_state_vector().CopyToVector()[: self._n])
+
+    def _calc_velocity(self, context: Context, output: BasicVector) -> None:
+        v = context.get_continuous_state_vector().CopyToVector()[self._n :]
+        output.SetFromVector(v / self._tau_value(context))
+
+    def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
+        _, vd = self._derivatives(context)
+        output.SetFromVector(vd / self._tau_value(context))
+
+
+class QuaternionNormalizer(LeafSystem):
+    """Post-normalisation of the paper's component quaternion DMP (sec. IV-B).
+
+    Input ports:
+        quaternion (4): un-normalised (w, x, y, z) from a 4-DOF transformation system.
+        quaternion_rate (4): its time derivative.
+
+    Output ports:
+        orientation (4): ``n = q / |q|``.
+        angular_velocity (3): ``2 vec(n' n^*)`` (world frame), with
+            ``n' = (q' - n (n . q')) / |q|``.
+        norm_error (1): ``|q| - 1`` (how far the component DMP left the unit sphere).
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._in = self.DeclareVectorInputPort("quaternion", 4)
+        self._rate = self.DeclareVectorInputPort("quaternion_rate", 4)
+        self._out = self.DeclareVectorOutputPort("orientation", 4, self._calc)
+        self._omega = self.DeclareVectorOutputPort("angular_velocity", 3, self._calc_omega)
+        self._err = self.DeclareVectorOutputPort("norm_error", 1, self._calc_err)
+
+    def get_quaternion_input_port(self):
+        return self._in
+
+    def get_quaternion_rate_input_port(self):
+        return self._rate
+
+    def get_orientation_output_port(self):
+        return self._out
+
+    def get_angular_velocity_output_port(self):
+        return self._omega
+
+    def _normalised(self, context: Context) -> tuple[np.ndarray, float]:
+        q = self._in.Eval(context)
+        n = float(np.linalg.norm(q))
+        if not n > 0.0:
+            raise RepertoireError("component quaternion DMP reached |q| = 0; cannot normalise")
+        return q / n, n
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._normalised(context)[0])
+
+    def _calc_omega(self, context: Context, output: BasicVector) -> None:
+        u, n = self._normalised(context)
+        qd = self._rate.Eval(context)
+        ud = (qd - u * (u @ qd)) / n
+        output.SetFromVector(2.0 * quat_multiply(ud, np.array([u[0], -u[1], -u[2], -u[3]]))[1:])
+
+    def _calc_err(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, float(np.linalg.norm(self._in.Eval(context)) - 1.0))
+
+
+class ManifoldQuaternionSystem(LeafSystem):
+    """On-manifold quaternion DMP, discrete time (exact unit norm via the exponential map).
+
+    Discrete state ``[q (4), eta (3)]`` (eta = tau omega, world frame), updated every
+    ``time_step``: ``eta += dt/tau * eta'`` then ``q = exp(dt eta / (2 tau)) * q``, with
+    ``tau eta' = K e(g,q) - D eta - K e(g,q0) theta + K f(theta)``, ``e = 2 log(g q^*)``.
+    The state is held before the ``start_time`` parameter.
+
+    Input ports:
+        phase (1): theta.
+        goal (4): goal orientation (w, x, y, z), unit.
+
+    Output ports:
+        orientation (4): q.
+        angular_velocity (3): omega = eta / tau (world frame).
+
+    Numeric parameters: weights (3 * n_basis), centres, widths, K, D, tau, q0, start_time.
+    """
+
+    def __init__(self, dmp: QuaternionDmpParameters, *, time_step: float = 1e-3) -> None:
+        super().__init__()
+        if not isinstance(dmp, QuaternionDmpParameters) or dmp.mode != "manifold":
+            raise RepertoireError(
+                "ManifoldQuaternionSystem needs QuaternionDmpParameters(mode='manifold')"
+            )
+        check_positive("time_step", time_step)
+        self._b = dmp.n_basis
+        self._dt = float(time_step)
+        self._w = self.DeclareNumericParameter(BasicVector(dmp.weights.reshape(-1)))
+        self._c = self.DeclareNumericParameter(BasicVector(dmp.centres))
+        self._h = self.DeclareNumericParameter(BasicVector(dmp.widths))
+        self._gains = self.DeclareNumericParameter(BasicVector([dmp.K, dmp.D, dmp.tau]))
+        self._q0 = self.DeclareNumericParameter(BasicVector(dmp.q0))
+        self._start = self.DeclareNumericParameter(BasicVector([0.0]))
+        self._state = self.DeclareDiscreteState(np.concatenate([dmp.q0, np.zeros(3)]))
+        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
+        self._phase_port = self.DeclareVectorInputPort("phase", 1)
+        self._goal_port = self.DeclareVectorInputPort("goal", 4)
+        self._q_port = self.DeclareVectorOutputPort(
+            "orientation", 4, self._calc_q, prerequisites_of_calc={self.xd_ticket()}
+        )
+        self._w_port = self.DeclareVectorOutputPort(
+            "angular_velocity",
+            3,
+            self._calc_omega,
+            prerequisites_of_calc={self.xd_ticket(), self.all_parameters_ticket()},
+        )
+
+    def get_phase_input_port(self):
+        return self._phase_port
+
+    def get_goal_input_port(self):
+        return self._goal_port
+
+    def get_orientation_output_port(self):
+        return self._q_port
+
+    def get_angular_velocity_output_port(self):
+        return self._w_port
+
+    def set_start(self, context: Context, q0: np.ndarray, omega0: np.ndarray | None = None):
+        """Set start orientation (parameter and state) and initial angular velocity.
+
+        Args:
+            context: This system's context.
+            q0: Unit quaternion (w, x, y, z).
+            omega0: Initial angular velocity (world), default zero.
+        """
+        q0 = _check_size("q0", q0, 4)
+        check_unit_quaternions(q0[None], name="q0")
+        om = np.zeros(3) if omega0 is None else _check_size("omega0", omega0, 3)
+        tau = context.get_numeric_parameter(self._gains).GetAtIndex(2)
+        context.get_mutable_numeric_parameter(self._q0).SetFromVector(q0)
+        context.get_mutable_discrete_state(self._state).SetFromVector(
+            np.concatenate([q0, tau * om])
+        )
+
+    def set_start_time(self, context: Context, start_time: float) -> None:
+        """Hold the state until ``start_time``.
+
+        Args:
+            context: This system's context.
+            start_time: Movement onset [s].
+        """
+        context.get_mutable_numeric_parameter(self._start).SetAtIndex(0, float(start_time))
+
+    def _update(self, context: Context, discrete_state) -> None:
+        s = context.get_discrete_state(self._state).CopyToVector()
+        if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):
+            discrete_state.get_mutable_vector(self._state).SetFromVector(s)
+            return
+        q, eta = s[:4], s[4:]
+        p = context.get_numeric_parameter
+        K, D, tau = p(self._gains).value()
+        theta = float(self._phase_port.Eval(context)[0])
+        goal = self._goal_port.Eval(context)
+        f = forcing_term(
+            theta, p(self._w).value().reshape(3, self._b), p(self._c).value(), p(self._h).value()
+        )
+        q0 = p(self._q0).value()
+        tau_etad = K * quat_error(goal, q) - D * eta - K * quat_error(goal, q0) * theta + K * f
+        eta = eta + self._dt * tau_etad / tau
+        q = quat_multiply(quat_exp(0.5 * self._dt * eta / tau), q)
+        discrete_state.get_mutable_vector(self._state).SetFromVector(np.concatenate([q, eta]))
+
+    def _calc_q(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._state).CopyToVector()[:4])
+
+    def _calc_omega(self, context: Context, output: BasicVector) -> None:
+        tau = context.get_numeric_parameter(self._gains).GetAtIndex(2)
+        output.SetFromVector(context.get_discrete_state(self._state).CopyToVector()[4:] / tau)
+
+
+class ObstacleCoupling(LeafSystem):
+    """Obstacle-avoidance coupling term of eq. 10 in 3-D.
+
+    ``p = gamma R v phi exp(-beta phi)``; see
+    :func:`repertoire.planning.dmp_math.obstacle_coupling` for the axis sign and the
+    v = 0 / parallel cases.
+
+    Input ports:
+        position (3): end-effector position x.
+        velocity (3): end-effector velocity dx/dt.
+        obstacle (3): obstacle position o.
+
+    Output ports:
+        coupling (3): p, to be fed to a TransformationSystem's coupling input.
+
+    Numeric parameters: gamma, beta.
+    """
+
+    def __init__(self, gamma: float = 1000.0, beta: float = 20.0 / np.pi) -> None:
+        super().__init__()
+        if gamma < 0 or beta < 0:
+            raise RepertoireError(f"gamma and beta must be >= 0, got {gamma}, {beta}")
+        self._params = self.DeclareNumericParameter(BasicVector([float(gamma), float(beta)]))
+        self._x = self.DeclareVectorInputPort("position", 3)
+        self._v = self.DeclareVectorInputPort("velocity", 3)
+        self._o = self.DeclareVectorInputPort("obstacle", 3)
+        self._out = self.DeclareVectorOutputPort("coupling", 3, self._calc)
+
+    def set_gains(self, context: Context, gamma: float, beta: float) -> None:
+        """Set gamma and beta.
+
+        Args:
+            context: This system's context.
+            gamma: Gain >= 0.
+            beta: Angular decay >= 0.
+        """
+        if gamma < 0 or beta < 0:
+            raise RepertoireError(f"gamma and beta must be >= 0, got {gamma}, {beta}")
+        context.get_mutable_numeric_parameter(self._params).SetFromVector([gamma, beta])
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        gamma, beta = context.get_numeric_parameter(self._params).value()
+        output.SetFromVector(
+            obstacle_coupling(
+                self._x.Eval(context), self._v.Eval(context), self._o.Eval(context), gamma, beta
+            )
+        )
+
+
+class _DiscreteTables:
+    """Per-step coefficients of the exact discrete DMP update (see DiscreteDmpSystem).
+
+    ``z_{k+1} = z_k @ bigT + (a[k] * g + b[k] * x0 + c[k] + d * p).ravel()`` with
+    ``z = [x, v]`` (v = tau dx/dt); row ``k >= last`` uses theta = 0, f = 0.
+    """
+
+    def __init__(self, dmp: DmpParameters, dt: float) -> None:
+        from repertoire.planning.dmp_math import _foh_matrices
+
+        n = dmp.n_dims
+        self.n, self.dt, self.tau = n, dt, dmp.tau
+        decay = dmp.alpha * self.dt / dmp.tau
+        n_table = int(np.ceil(np.log(1e12) / decay)) + 2  # until theta < 1e-12
+        theta = np.exp(-decay * np.arange(n_table))
+        theta[-1] = 0.0  # beyond the table: theta = 0, f = 0
+        F = forcing_term(theta, dmp.weights, dmp.centres, dmp.widths)
+        F[-1] = 0.0
+        K = dmp.K
+        Phi, Gu, Gd = _foh_matrices(K, dmp.D, dmp.tau, self.dt)
+        G0 = (Gu - Gd).T[None]  # (1, 2, n), weight of the step's start input
+        G1 = Gd.T[None]  # weight of the step's end input
+        th0, th1 = theta[:-1, None, None], theta[1:, None, None]
+        F0, F1 = F[:-1, None, :], F[1:, None, :]
+        if dmp.formulation == "new":
+            # U = K (1 - theta) g + K theta x0 + K f + p
+            a = G0 * K * (1 - th0) + G1 * K * (1 - th1)
+            b = G0 * K * th0 + G1 * K * th1
+            c = G0 * K * F0 + G1 * K * F1
+        else:
+            # U = (K + f) g - f x0 + p
+            a = G0 * (K + F0) + G1 * (K + F1)
+            b = -(G0 * F0 + G1 * F1)
+            c = np.zeros_like(a)
+        last = np.stack([G0[0] * K + G1[0] * K, np.zeros((2, n)), np.zeros((2, n))])
+        self.a = np.concatenate([a, last[:1]])  # (rows, 2, n)
+        self.b = np.concatenate([b, last[1:2]])
+        self.c = np.concatenate([c, last[2:]])
+        self.d = Gu.T.copy()
+        self.theta, self.F = theta, F
+        self.last = self.a.shape[0] - 1
+        big = np.zeros((2 * n, 2 * n))
+        idx = np.arange(n)
+        big[idx, idx] = Phi[:, 0, 0]
+        big[idx, n + idx] = Phi[:, 0, 1]
+        big[n + idx, idx] = Phi[:, 1, 0]
+        big[n + idx, n + idx] = Phi[:, 1, 1]
+        self.bigT = big.T.copy()
+
+    def step(self, z: np.ndarray, k: int, goal: np.ndarray, x0: np.ndarray, p=None) -> np.ndarray:
+        """One exact step of the flattened state ``z = [x, v]``.
+
+        Args:
+            z: State, shape (2n,).
+            k: Steps since onset.
+            goal: Goal, shape (n,).
+            x0: Start, shape (n,).
+            p: Coupling term held over the step, or None.
+        """
+        k = min(k, self.last)
+        u = self.a[k] * goal + self.b[k] * x0 + self.c[k]
+        if p is not None:
+            u += self.d * p
+        return z @ self.bigT + u.ravel()
+
+    def phase_and_f(self, k: float) -> tuple[float, np.ndarray]:
+        """Phase and forcing term after k steps.
+
+        Args:
+            k: Steps since onset.
+        """
+        k = int(k)
+        if k < self.last:
+            return float(self.theta[k]), self.F[k]
+        return 0.0, np.zeros(self.n)
+
+
+class DiscreteDmpSystem(LeafSystem):
+    """Canonical + transformation system in one discrete-time LeafSystem (fast, exact).
+
+    Every ``time_step`` the spring-damper state is advanced by the exact first-order-hold
+    discretisation used by :func:`repertoire.planning.dmp_math.rollout` (goal, x0 and
+    coupling held over the step; phase and forcing term linear between the step's ends).
+    The phase after k steps is ``exp(-alpha k dt / tau)`` exactly, so the per-step
+    coefficients are tabulated at construction and one step costs a few vector operations:
+    a 1 kHz rollout is cheap and reproduces the NumPy rollout to rounding.
+
+    Discrete state ``[k, x (n), v (n)]`` (k = steps since onset, v = tau dx/dt); the state
+    is held before the ``start_time`` parameter.
+
+    Input ports:
+        goal (n): goal g (may change during the movement).
+        coupling (n, optional): coupling term p added to ``tau v'``.
+
+    Output ports:
+        position (n), velocity (n) (dx/dt), acceleration (n) (d2x/dt2 at the current
+        state and inputs), phase (1).
+
+    Numeric parameters: x0 (n), start_time (1). Weights, basis, K, D, tau, alpha and the
+    time step are construction arguments (the discretisation is precomputed from them); use
+    :class:`TransformationSystem` when they must vary per context.
+    """
+
+    def __init__(
+        self, dmp: DmpParameters, *, time_step: float = 1e-3, coupling_input: bool = False
+    ) -> None:
+        super().__init__()
+
+        if not isinstance(dmp, DmpParameters):
+            raise RepertoireError(f"DiscreteDmpSystem needs DmpParameters, got {type(dmp)}")
+        dmp.validate()
+        check_positive("time_step", time_step)
+        n = dmp.n_dims
+        self._n = n
+        self._dmp = dmp
+        self._dt = float(time_step)
+        self._formulation = dmp.formulation
+        self._tau = dmp.tau
+        self._tab = _DiscreteTables(dmp, self._dt)
+        self._x0 = self.DeclareNumericParameter(BasicVector(dmp.x0))
+        self._start = self.DeclareNumericParameter(BasicVector([0.0]))
+        self._state = self.DeclareDiscreteState(np.concatenate([[0.0], dmp.x0, np.zeros(n)]))
+        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
+        self._goal_port = self.DeclareVectorInputPort("goal", n)
+        self._coupling_port = self.DeclareVectorInputPort("coupling", n) if coupling_input else None
+        only_state = {self.xd_ticket()}
+        self._position_port = self.DeclareVectorOutputPort(
+            "position", n, self._calc_position, prerequisites_of_calc=only_state
+        )
+        self._velocity_port = self.DeclareVectorOutputPort(
+            "velocity", n, self._calc_velocity, prerequisites_of_calc=only_state
+        )
+        self._acceleration_port = self.DeclareVectorOutputPort(
+            "acceleration", n, self._calc_acceleration
+        )
+        self._phase_port = self.DeclareVectorOutputPort(
+            "phase", 1, self._calc_phase, prerequisites_of_calc=only_state
+        )
+
+    def get_goal_input_port(self):
+        return self._goal_port
+
+    def get_coupling_input_port(self):
+        return self._coupling_port
+
+    def get_position_output_port(self):
+        return self._position_port
+
+    def get_velocity_output_port(self):
+        return self._velocity_port
+
+    def get_acceleration_output_port(self):
+        return self._acceleration_port
+
+    def get_phase_output_port(self):
+        return self._phase_port
+
+    @property
+    def n_dims(self) -> int:
+        return self._n
+
+    @property
+    def time_step(self) -> float:
+        return self._dt
+
+    def set_start(self, context: Context, x0: np.ndarray, xd0: np.ndarray | None = None) -> None:
+        """Set the start x0 (parameter and state) and initial velocity; phase back to 1.
+
+        Args:
+            context: This system's context.
+            x0: Start position, shape (n,).
+            xd0: Initial velocity dx/dt; default zero.
+        """
+        x0 = _check_size("x0", x0, self._n)
+        xd0 = np.zeros(self._n) if xd0 is None else _check_size("xd0", xd0, self._n)
+        context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
+        context.get_mutable_discrete_state(self._state).SetFromVector(
+            np.concatenate([[0.0], x0, self._tau * xd0])
+        )
+
+    def set_start_time(self, context: Context, start_time: float) -> None:
+        """Hold the state until ``start_time``.
+
+        Args:
+            context: This system's context.
+            start_time: Movement onset [s].
+        """
+        context.get_mutable_numeric_parameter(self._start).SetAtIndex(0, float(start_time))
+
+    def _update(self, context: Context, discrete_state) -> None:
+        s = context.get_discrete_state(self._state).get_value()
+        if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):
+            discrete_state.set_value(self._state, s)
+            return
+        goal = self._goal_port.Eval(context)
+        x0 = context.get_numeric_parameter(self._x0).get_value()
+        p = None
+        if self._coupling_port is not None and self._coupling_port.HasValue(context):
+            p = self._coupling_port.Eval(context)
+        out = np.empty_like(s)
+        out[0] = s[0] + 1.0
+        out[1:] = self._tab.step(s[1:], int(s[0]), goal, x0, p)
+        discrete_state.set_value(self._state, out)
+
+    def _calc_position(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._state).get_value()[1 : 1 + self._n])
+
+    def _calc_velocity(self, context: Context, output: BasicVector) -> None:
+        s = context.get_discrete_state(self._state).get_value()
+        output.SetFromVector(s[1 + self._n :] / self._tau)
+
+    def _calc_phase(self, context: Context, output: BasicVector) -> None:
+        k = context.get_discrete_state(self._state).GetAtIndex(0)
+        output.SetAtIndex(0, self._tab.phase_and_f(k)[0])
+
+    def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
+        s = context.get_discrete_state(self._state).get_value()
+        n = self._n
+        theta, f = self._tab.phase_and_f(s[0])
+        coupling = 0.0
+        if self._coupling_port is not None and self._coupling_port.HasValue(context):
+            coupling = self._coupling_port.Eval(context)
+        _, vd = transformation_derivatives(
+            s[1 : 1 + n],
+            s[1 + n :],
+            theta,
+            self._goal_port.Eval(context),
+            context.get_numeric_parameter(self._x0).get_value(),
+            f,
+            self._dmp.K,
+            self._dmp.D,
+            self._tau,
+            self._formulation,
+            coupling,
+        )
+        output.SetFromVector(vd / self._tau)

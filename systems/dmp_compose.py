@@ -1,0 +1,456 @@
+"""Composing DMPs in diagrams: the 10-D DmpSystem, ``add_dmp`` and the chaining sequencer.
+
+* :class:`DmpSystem` - a Diagram wrapping a learned DMP (an n-DOF :class:`DmpParameters`
+  or the paper's 10-D :class:`TaskSpaceDmp`: position + quaternion + fingers) with goal
+  inputs and optional obstacle coupling (eq. 10) on the position;
+* :func:`add_dmp` - add a DmpSystem to a DiagramBuilder;
+* :class:`DmpSequencer` - chaining (sec. III-C, Fig. 5): starts the next DMP at settable
+  switching times, before the previous one has ended, initialising it with its
+  predecessor's position and velocity.
+"""
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import PassThrough
+from repertoire.planning.dmp import (
+    HANDOFFS,
+    DmpParameters,
+    TaskSpaceDmp,
+    acceleration_matched_start,
+)
+from repertoire.planning.dmp_math import check_positive, transformation_derivatives
+from repertoire.systems.dmp import (
+    CanonicalSystem,
+    DiscreteDmpSystem,
+    ManifoldQuaternionSystem,
+    ObstacleCoupling,
+    QuaternionNormalizer,
+    TransformationSystem,
+    _check_size,
+    _DiscreteTables,
+)
+
+from repertoire.errors import RepertoireError
+
+
+class _VectorDmp:
+    """Builder-side handle of one vector DMP (discrete fused or continuous pair)."""
+
+    def __init__(
+        self,
+        builder: DiagramBuilder,
+        dmp: DmpParameters,
+        time_step: float | None,
+        coupling: bool,
+        name: str,
+        canonical: CanonicalSystem | None = None,
+    ) -> None:
+        self.time_step = time_step
+        if time_step is not None:
+            self.system = builder.AddNamedSystem(
+                name, DiscreteDmpSystem(dmp, time_step=time_step, coupling_input=coupling)
+            )
+            self.phase = self.system.get_phase_output_port()
+            self.canonical = None
+        else:
+            if canonical is None:
+                canonical = builder.AddNamedSystem(
+                    name + "_canonical", CanonicalSystem(dmp.tau, dmp.alpha)
+                )
+            self.canonical = canonical
+            self.system = builder.AddNamedSystem(
+                name, TransformationSystem(dmp, coupling_input=coupling)
+            )
+            builder.Connect(canonical.get_phase_output_port(), self.system.get_phase_input_port())
+            self.phase = canonical.get_phase_output_port()
+
+
+class DmpSystem(Diagram):
+    """A learned DMP as a Diagram with goal inputs (the paper's Fig. 7 when 10-D).
+
+    For a :class:`DmpParameters` (n DOF):
+
+    Input ports:
+        goal (n).
+        obstacle (3, only with ``obstacle_avoidance=True``; needs n == 3).
+
+    Output ports:
+        position (n), velocity (n), acceleration (n), phase (1).
+
+    For a :class:`TaskSpaceDmp` (position 3 + quaternion 4 + k fingers, one phase):
+
+    Input ports:
+        goal_position (3): p_WE goal [m].
+        goal_orientation (4): goal quaternion (w, x, y, z). For ``mode="component"`` it
+            should be on the start's hemisphere (q0 . g >= 0).
+        goal_fingers (k, if the DMP has fingers).
+        obstacle (3, only with ``obstacle_avoidance=True``): obstacle position p_WO.
+
+    Output ports:
+        position (3), velocity (3), acceleration (3), orientation (4, unit),
+        angular_velocity (3, world frame), fingers (k), finger_velocity (k), phase (1).
+
+    With ``time_step`` (default 1 ms) the vector parts are exact discrete-time
+    :class:`DiscreteDmpSystem`s; with ``time_step=None`` they are continuous
+    :class:`CanonicalSystem` + :class:`TransformationSystem` pairs. The on-manifold
+    quaternion part is always discrete (``time_step`` or 1 ms).
+    """
+
+    def __init__(
+        self,
+        dmp: DmpParameters | TaskSpaceDmp,
+        *,
+        time_step: float | None = 1e-3,
+        obstacle_avoidance: bool = False,
+        gamma: float = 1000.0,
+        beta: float = 20.0 / np.pi,
+    ) -> None:
+        super().__init__()
+        if time_step is not None:
+            check_positive("time_step", time_step)
+        self.dmp = dmp
+        builder = DiagramBuilder()
+        if isinstance(dmp, DmpParameters):
+            self._build_vector(builder, dmp, time_step, obstacle_avoidance, gamma, beta)
+        elif isinstance(dmp, TaskSpaceDmp):
+            self._build_task_space(builder, dmp, time_step, obstacle_avoidance, gamma, beta)
+        else:
+            raise RepertoireError(
+                f"DmpSystem needs DmpParameters or TaskSpaceDmp, got {type(dmp).__name__}"
+            )
+        builder.BuildInto(self)
+
+    # ------------------------------------------------------------------ building
+    def _coupling(self, builder, vec: _VectorDmp, gamma: float, beta: float) -> None:
+        obs = builder.AddNamedSystem("obstacle_coupling", ObstacleCoupling(gamma, beta))
+        builder.Connect(vec.system.get_position_output_port(), obs.GetInputPort("position"))
+        builder.Connect(vec.system.get_velocity_output_port(), obs.GetInputPort("velocity"))
+        builder.Connect(obs.GetOutputPort("coupling"), vec.system.get_coupling_input_port())
+        builder.ExportInput(obs.GetInputPort("obstacle"), "obstacle")
+        self.obstacle_coupling = obs
+
+    def _build_vector(self, builder, dmp, time_step, obstacle, gamma, beta) -> None:
+        if obstacle and dmp.n_dims != 3:
+            raise RepertoireError(f"obstacle avoidance needs a 3-D DMP, got {dmp.n_dims}-D")
+        vec = _VectorDmp(builder, dmp, time_step, obstacle, "dmp")
+        self._parts = {"position": vec}
+        builder.ExportInput(vec.system.get_goal_input_port(), "goal")
+        if obstacle:
+            self._coupling(builder, vec, gamma, beta)
+        builder.ExportOutput(vec.system.get_position_output_port(), "position")
+        builder.ExportOutput(vec.system.get_velocity_output_port(), "velocity")
+        builder.ExportOutput(vec.system.get_acceleration_output_port(), "acceleration")
+        builder.ExportOutput(vec.phase, "phase")
+
+    def _build_task_space(self, builder, dmp: TaskSpaceDmp, time_step, obstacle, gamma, beta):
+        pos = _VectorDmp(builder, dmp.position, time_step, obstacle, "position_dmp")
+        self._parts = {"position": pos}
+        builder.ExportInput(pos.system.get_goal_input_port(), "goal_position")
+        if obstacle:
+            self._coupling(builder, pos, gamma, beta)
+        builder.ExportOutput(pos.system.get_position_output_port(), "position")
+        builder.ExportOutput(pos.system.get_velocity_output_port(), "velocity")
+        builder.ExportOutput(pos.system.get_acceleration_output_port(), "acceleration")
+        ori = dmp.orientation
+        if ori.mode == "component":
+            comp = _VectorDmp(
+                builder,
+                ori.component_parameters(),
+                time_step,
+                False,
+                "orientation_dmp",
+                canonical=pos.canonical,
+            )
+            norm = builder.AddNamedSystem("quaternion_normalizer", QuaternionNormalizer())
+            builder.Connect(
+                comp.system.get_position_output_port(), norm.get_quaternion_input_port()
+            )
+            builder.Connect(
+                comp.system.get_velocity_output_port(), norm.get_quaternion_rate_input_port()
+            )
+            builder.ExportInput(comp.system.get_goal_input_port(), "goal_orientation")
+            builder.ExportOutput(norm.get_orientation_output_port(), "orientation")
+            builder.ExportOutput(norm.get_angular_velocity_output_port(), "angular_velocity")
+            self._parts["orientation"] = comp
+        else:
+            man = builder.AddNamedSystem(
+                "orientation_dmp",
+                ManifoldQuaternionSystem(ori, time_step=time_step or 1e-3),
+            )
+            builder.Connect(pos.phase, man.get_phase_input_port())
+            builder.ExportInput(man.get_goal_input_port(), "goal_orientation")
+            builder.ExportOutput(man.get_orientation_output_port(), "orientation")
+            builder.ExportOutput(man.get_angular_velocity_output_port(), "angular_velocity")
+            self._parts["orientation"] = man
+        if dmp.fingers is not None:
+            fin = _VectorDmp(
+                builder, dmp.fingers, time_step, False, "finger_dmp", canonical=pos.canonical
+            )
+            builder.ExportInput(fin.system.get_goal_input_port(), "goal_fingers")
+            builder.ExportOutput(fin.system.get_position_output_port(), "fingers")
+            builder.ExportOutput(fin.system.get_velocity_output_port(), "finger_velocity")
+            self._parts["fingers"] = fin
+        phase = builder.AddNamedSystem("phase", PassThrough(1))
+        builder.Connect(pos.phase, phase.get_input_port())
+        builder.ExportOutput(phase.get_output_port(), "phase")
+
+    # ------------------------------------------------------------------ context helpers
+    def _subsystems(self):
+        for part in self._parts.values():
+            if isinstance(part, _VectorDmp):
+                yield part.system
+                if part.canonical is not None:
+                    yield part.canonical
+            else:
+                yield part
+
+    def set_start(
+        self,
+        context: Context,
+        position: np.ndarray | None = None,
+        velocity: np.ndarray | None = None,
+        orientation: np.ndarray | None = None,
+        fingers: np.ndarray | None = None,
+    ) -> None:
+        """Set start states (and the equations' x0) in this DmpSystem's context.
+
+        Args:
+            context: This diagram's context (``dmp_system.GetMyMutableContextFromRoot``).
+            position: Start of the position part (or of the n-DOF DMP).
+            velocity: Initial velocity of that part; default zero.
+            orientation: Start quaternion (TaskSpaceDmp only).
+            fingers: Start finger positions (TaskSpaceDmp only).
+        """
+        if position is not None:
+            part = self._parts["position"]
+            part.system.set_start(
+                self.GetMutableSubsystemContext(part.system, context), position, velocity
+            )
+        if orientation is not None:
+            part = self._parts.get("orientation")
+            if part is None:
+                raise RepertoireError("this DMP has no orientation part")
+            q = _check_size("orientation", orientation, 4)
+            if isinstance(part, _VectorDmp):
+                part.system.set_start(self.GetMutableSubsystemContext(part.system, context), q)
+            else:
+                part.set_start(self.GetMutableSubsystemContext(part, context), q)
+        if fingers is not None:
+            part = self._parts.get("fingers")
+            if part is None:
+                raise RepertoireError("this DMP has no finger part")
+            part.system.set_start(self.GetMutableSubsystemContext(part.system, context), fingers)
+
+    def set_start_time(self, context: Context, start_time: float) -> None:
+        """Hold the whole DMP (phase 1, start state) until ``start_time``.
+
+        Args:
+            context: This diagram's context.
+            start_time: Movement onset [s].
+        """
+        for sys in self._subsystems():
+            sys.set_start_time(self.GetMutableSubsystemContext(sys, context), start_time)
+
+
+def add_dmp(
+    builder: DiagramBuilder,
+    dmp: DmpParameters | TaskSpaceDmp,
+    *,
+    name: str = "dmp",
+    time_step: float | None = 1e-3,
+    obstacle_avoidance: bool = False,
+    gamma: float = 1000.0,
+    beta: float = 20.0 / np.pi,
+) -> DmpSystem:
+    """Add a learned DMP to ``builder`` as a named :class:`DmpSystem`.
+
+    Args:
+        builder: The DiagramBuilder.
+        dmp: DmpParameters (n-D) or TaskSpaceDmp (the paper's 10-D setup).
+        name: System name.
+        time_step: Discrete update period [s] (exact discretisation); None = continuous.
+        obstacle_avoidance: Add eq. 10 coupling on the position with an ``obstacle`` input.
+        gamma: Coupling gain.
+        beta: Coupling angular decay.
+
+    Returns:
+        The added DmpSystem; its ports are named as in its docstring.
+    """
+    system = DmpSystem(
+        dmp,
+        time_step=time_step,
+        obstacle_avoidance=obstacle_avoidance,
+        gamma=gamma,
+        beta=beta,
+    )
+    system.set_name(name)
+    return builder.AddSystem(system)
+
+
+class DmpSequencer(LeafSystem):
+    """Chains vector DMPs (sec. III-C, Fig. 5): segment i starts at ``switch_times[i]``.
+
+    At a switch the next segment's phase restarts at 1 and, by ``handoff``:
+
+    * ``"none"``: it restarts from rest at the current position (for comparison);
+    * ``"velocity"`` (the paper, default): it starts with the current position (also its
+      x0) and physical velocity (``x_pred -> x_succ``, ``v_pred -> v_succ``);
+    * ``"acceleration"``: as "velocity", with the equations' x0 shifted so the initial
+      acceleration equals the predecessor's (see
+      :func:`repertoire.planning.dmp.acceleration_matched_start`).
+
+    Switching times are rounded to the time-step grid. Each step is the exact discrete
+    update of :class:`DiscreteDmpSystem`.
+
+    Discrete state ``[segment, k, x0 (n), x (n), v (n)]`` with v = tau_segment dx/dt.
+
+    Input ports:
+        goal (n, only with ``goal_input=True``): goal of the active segment (overrides
+            the stored per-segment goal while connected).
+
+    Output ports:
+        position (n), velocity (n), acceleration (n), phase (1), segment (1).
+    """
+
+    def __init__(
+        self,
+        segments: list[DmpParameters],
+        goals: list[np.ndarray],
+        switch_times: list[float],
+        *,
+        time_step: float = 1e-3,
+        handoff: str = "velocity",
+        goal_input: bool = False,
+    ) -> None:
+        super().__init__()
+        check_positive("time_step", time_step)
+        if not segments:
+            raise RepertoireError("DmpSequencer needs at least one segment")
+        n = segments[0].n_dims
+        if len(goals) != len(segments) or len(switch_times) != len(segments):
+            raise RepertoireError(
+                f"{len(segments)} segments need as many goals and switch times, got "
+                f"{len(goals)} goals and {len(switch_times)} switch times"
+            )
+        for i, s in enumerate(segments):
+            if not isinstance(s, DmpParameters) or s.n_dims != n:
+                raise RepertoireError(f"segment {i} is not a {n}-DOF DmpParameters")
+        times = np.asarray(switch_times, dtype=float)
+        if np.any(np.diff(times) <= 0) or times[0] < 0:
+            raise RepertoireError(f"switch times must be increasing and >= 0, got {times}")
+        self._n = n
+        self._dt = float(time_step)
+        self._segments = list(segments)
+        self._goals = [_check_size(f"goal {i}", g, n) for i, g in enumerate(goals)]
+        self._steps = np.round(times / self._dt).astype(int)
+        if handoff not in HANDOFFS:
+            raise RepertoireError(f"handoff must be one of {HANDOFFS}, got {handoff!r}")
+        self._handoff = handoff
+        self._tabs = [_DiscreteTables(s, self._dt) for s in segments]
+        x0 = segments[0].x0
+        self._state = self.DeclareDiscreteState(np.concatenate([[0.0, 0.0], x0, x0, np.zeros(n)]))
+        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
+        self._goal_port = self.DeclareVectorInputPort("goal", n) if goal_input else None
+        only_state = {self.xd_ticket()}
+        self._position_port = self.DeclareVectorOutputPort(
+            "position", n, self._calc_position, prerequisites_of_calc=only_state
+        )
+        self._velocity_port = self.DeclareVectorOutputPort(
+            "velocity", n, self._calc_velocity, prerequisites_of_calc=only_state
+        )
+        self._acceleration_port = self.DeclareVectorOutputPort(
+            "acceleration", n, self._calc_acceleration
+        )
+        self._phase_port = self.DeclareVectorOutputPort(
+            "phase", 1, self._calc_phase, prerequisites_of_calc=only_state
+        )
+        self._segment_port = self.DeclareVectorOutputPort(
+            "segment", 1, self._calc_segment, prerequisites_of_calc=only_state
+        )
+
+    def get_goal_input_port(self):
+        return self._goal_port
+
+    def get_position_output_port(self):
+        return self._position_port
+
+    def get_velocity_output_port(self):
+        return self._velocity_port
+
+    def get_acceleration_output_port(self):
+        return self._acceleration_port
+
+    def get_phase_output_port(self):
+        return self._phase_port
+
+    def get_segment_output_port(self):
+        return self._segment_port
+
+    def set_start(self, context: Context, x0: np.ndarray) -> None:
+        """Start the first segment at rest at ``x0``.
+
+        Args:
+            context: This system's context.
+            x0: Start position, shape (n,).
+        """
+        x0 = _check_size("x0", x0, self._n)
+        context.get_mutable_discrete_state(self._state).SetFromVector(
+            np.concatenate([[0.0, 0.0], x0, x0, np.zeros(self._n)])
+        )
+
+    def _split(self, s: np.ndarray):
+        n = self._n
+        return int(s[0]), int(s[1]), s[2 : 2 + n], s[2 + n : 2 + 2 * n], s[2 + 2 * n :]
+
+    def _goal(self, context: Context, seg: int) -> np.ndarray:
+        if self._goal_port is not None and self._goal_port.HasValue(context):
+            return self._goal_port.Eval(context)
+        return self._goals[seg]
+
+    def _update(self, context: Context, discrete_state) -> None:
+        s = context.get_discrete_state(self._state).get_value()
+        seg, k, x0, x, v = self._split(s)
+        step = int(round(context.get_time() / self._dt))
+        if seg + 1 < len(self._segments) and step >= self._steps[seg + 1]:
+            acc = self._acceleration(context, seg, k, x0, x, v)
+            tau_old, seg = self._segments[seg].tau, seg + 1
+            new = self._segments[seg]
+            xd = v / tau_old
+            x0, k = x.copy(), 0
+            if self._handoff == "none":
+                v = np.zeros(self._n)
+            else:
+                v = new.tau * xd
+            if self._handoff == "acceleration":
+                x0 = acceleration_matched_start(new, x, xd, acc)
+        z = self._tabs[seg].step(np.concatenate([x, v]), k, self._goal(context, seg), x0)
+        discrete_state.set_value(self._state, np.concatenate([[float(seg), float(k + 1)], x0, z]))
+
+    def _calc_position(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._split(context.get_discrete_state(self._state).get_value())[3])
+
+    def _calc_velocity(self, context: Context, output: BasicVector) -> None:
+        seg, _, _, _, v = self._split(context.get_discrete_state(self._state).get_value())
+        output.SetFromVector(v / self._segments[seg].tau)
+
+    def _calc_phase(self, context: Context, output: BasicVector) -> None:
+        seg, k, *_ = self._split(context.get_discrete_state(self._state).get_value())
+        output.SetAtIndex(0, self._tabs[seg].phase_and_f(k)[0])
+
+    def _calc_segment(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, context.get_discrete_state(self._state).GetAtIndex(0))
+
+    def _acceleration(self, context, seg, k, x0, x, v) -> np.ndarray:
+        dmp = self._segments[seg]
+        theta, f = self._tabs[seg].phase_and_f(k)
+        _, vd = transformation_derivatives(
+            x, v, theta, self._goal(context, seg), x0, f, dmp.K, dmp.D, dmp.tau, dmp.formulation
+        )
+        return vd / dmp.tau
+
+    def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
+        seg, k, x0, x, v = self._split(context.get_discrete_state(self._state).get_value())
+        output.SetFromVector(self._acceleration(context, seg, k, x0, x, v))
+
+
+__all__ = ["DmpSequencer", "DmpSystem", "add_dmp"]

@@ -192,6 +192,8 @@ def summarize(
 ) -> dict[str, Path]:
     """Writes a scatter of energy lost against damping, coloured by release angle.
 
+    The small-angle closed form ``1 - exp(-b T / I)`` is drawn over the points.
+
     Returns:
         ``{"energy_vs_damping": png_path}``.
     """
@@ -214,6 +216,9 @@ def summarize(
         linewidths=0.3,
     )
     fig.colorbar(sc, ax=ax, label="|release angle| (rad)")
+    b = np.linspace(0.0, max(config.damping_max, max(damping, default=0.0)), 100)
+    closed_form = 1.0 - np.exp(-b * config.duration_s / pendulum_inertia(config))
+    ax.plot(b, closed_form, color="tab:red", lw=1.2, label=r"small-angle $1-e^{-bT/I}$")
     ax.axhline(0.5, color="0.5", lw=0.8, ls="--", label="half the energy")
     ax.set_xlabel("joint damping (N·m·s)")
     ax.set_ylabel("fraction of energy lost")

@@ -65,6 +65,9 @@ def broken_parts(registries):
     diagrams.register_diagram(
         "test_broken", scenario_type=PendulumScenario, description="a world whose builder fails"
     )(build_broken)
+    diagrams.register_diagram(
+        "test_diverging", scenario_type=PendulumScenario, description="a world that blows up"
+    )(build_diverging)
     studies.register_study(
         "broken_study",
         config_type=ToyConfig,

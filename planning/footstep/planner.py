@@ -51,17 +51,20 @@ class PlannerOptions:
         yaw_bins: yaw bins per turn used to merge states.
         time_resolution: time bins used to merge states in dynamic worlds (s).
         height_cost_weight: location cost per metre of height variation under a foot.
+        max_expansions: stop after this many expansions with status NODE_LIMIT (0 = no
+            limit); a deterministic budget for reproducible studies.
     """
 
     time_limit: float = 1.0
     heuristic: str = "dijkstra"
-    heuristic_weight: float = 1.0
+    heuristic_weight: float = 1.5
     goal_tolerance: float = 0.15
     obstacle_cost: float = 3.0
     xy_resolution: float = 0.025
     yaw_bins: int = 72
     time_resolution: float = 0.1
     height_cost_weight: float = 0.0
+    max_expansions: int = 0
 
     @classmethod
     def admissible(cls, **overrides: float) -> "PlannerOptions":
@@ -91,6 +94,10 @@ class PlannerOptions:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise FootstepError(f"{name} must be finite and > 0, got {v}")
+        if int(self.max_expansions) != self.max_expansions or self.max_expansions < 0:
+            raise FootstepError(
+                f"max_expansions must be an integer >= 0, got {self.max_expansions}"
+            )
         if int(self.yaw_bins) != self.yaw_bins or self.yaw_bins < 4:
             raise FootstepError(f"yaw_bins must be an integer >= 4, got {self.yaw_bins}")
 
@@ -368,6 +375,7 @@ def plan_footsteps(
     deadline = t_begin + opts.time_limit
     tol2 = tol * tol
     expanded = 0
+    max_exp = int(opts.max_expansions) if opts.max_expansions > 0 else -1
     generated = 0
     goal_node = -1
     status = PlanStatus.UNREACHABLE
@@ -384,6 +392,9 @@ def plan_footsteps(
         key = keys[i]
         if key in closed:
             continue
+        if expanded == max_exp:
+            status = PlanStatus.NODE_LIMIT
+            break
         closed.add(key)
         expanded += 1
         x, y, th = X[i], Y[i], TH[i]

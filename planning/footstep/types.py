@@ -69,6 +69,7 @@ class PlanStatus(str, enum.Enum):
     SUCCESS = "SUCCESS"  # the plan reaches the goal region
     TIME_LIMIT = "TIME_LIMIT"  # time ran out; the plan is the best partial plan
     UNREACHABLE = "UNREACHABLE"  # open list exhausted; the plan is the best partial plan
+    NODE_LIMIT = "NODE_LIMIT"  # max_expansions reached; the plan is the best partial plan
 
 
 def wrap_angle(a: float) -> float:
@@ -384,7 +385,7 @@ class FootstepPlan:
         feet: N+1 foot indices (0 left, 1 right): ``feet[k]`` stands at ``poses[k]``.
         actions: N action names.
         times: N+1 times (s): ``times[k]`` is when ``poses[k]`` becomes the stance foot.
-        status: SUCCESS, TIME_LIMIT or UNREACHABLE (the last two give a partial plan).
+        status: SUCCESS, or TIME_LIMIT / UNREACHABLE / NODE_LIMIT with the best partial plan.
         cost: accumulated location + step cost of the plan.
         cost_to_go: heuristic estimate left at the last pose (0 means at the goal).
         nodes_expanded: nodes taken from the open list.

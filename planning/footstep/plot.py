@@ -1,0 +1,190 @@
+"""Figures of footstep plans in the style of the paper's Fig. 3 and Fig. 5 (matplotlib)."""
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle, Polygon
+from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
+from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
+from repertoire.planning.footstep.types import FootstepPlan
+
+LEFT_COLOR = "#1f5fd6"
+RIGHT_COLOR = "#d6541f"
+
+
+def foot_polygon(pose: Sequence[float], geometry: BipedGeometry = ASIMO_LIKE) -> np.ndarray:
+    """Corners (4, 2) of the sole rectangle at ``pose``.
+
+    Args:
+        pose: ``(x, y, yaw)``.
+        geometry: foot size.
+    """
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    hl, hw = geometry.foot_length / 2, geometry.foot_width / 2
+    local = np.array([[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]])
+    return np.array([pose[0], pose[1]]) + local @ np.array([[c, s], [-s, c]])
+
+
+def draw_grid(ax: Axes, grid: OccupancyGrid, color: str = "#c0392b", alpha: float = 1.0) -> None:
+    """Draw occupied cells as solid squares.
+
+    Args:
+        ax: matplotlib axes.
+        grid: the grid.
+        color: obstacle colour.
+        alpha: opacity.
+    """
+    x0, y0 = grid.origin
+    sx, sy = grid.size
+    rgba = np.zeros((*grid.shape[::-1], 4))
+    from matplotlib.colors import to_rgba
+
+    rgba[grid.occupied.T] = to_rgba(color, alpha)
+    ax.imshow(rgba, origin="lower", extent=(x0, x0 + sx, y0, y0 + sy), interpolation="nearest")
+    ax.set_xlim(x0, x0 + sx)
+    ax.set_ylim(y0, y0 + sy)
+    ax.set_aspect("equal")
+
+
+def draw_plan(
+    ax: Axes,
+    plan: FootstepPlan,
+    geometry: BipedGeometry = ASIMO_LIKE,
+    *,
+    upto: int | None = None,
+    numbers: bool = False,
+    alpha: float = 0.9,
+) -> None:
+    """Draw the footprints of a plan (blue left, red right), start and goal circles.
+
+    Args:
+        ax: matplotlib axes.
+        plan: the plan.
+        geometry: foot size.
+        upto: draw only poses 0..upto.
+        numbers: label each footprint with its step index.
+        alpha: footprint opacity.
+    """
+    poses = plan.poses_array()
+    last = len(poses) if upto is None else min(upto + 1, len(poses))
+    other = 1 - plan.feet[0]
+    ax.add_patch(
+        Polygon(
+            foot_polygon(plan.initial_swing_pose, geometry),
+            closed=True,
+            fc=LEFT_COLOR if other == 0 else RIGHT_COLOR,
+            ec="k",
+            lw=0.5,
+            alpha=0.4,
+        )
+    )
+    for k in range(last):
+        color = LEFT_COLOR if plan.feet[k] == 0 else RIGHT_COLOR
+        ax.add_patch(
+            Polygon(
+                foot_polygon(poses[k], geometry), closed=True, fc=color, ec="k", lw=0.5, alpha=alpha
+            )
+        )
+        if numbers:
+            ax.text(
+                poses[k, 0],
+                poses[k, 1],
+                str(k),
+                fontsize=5,
+                ha="center",
+                va="center",
+                color="white",
+            )
+    ax.add_patch(Circle(tuple(poses[0, :2]), 0.12, fill=False, ec="k", lw=1.2))
+    ax.add_patch(Circle(tuple(plan.goal), plan.goal_tolerance, fill=False, ec="g", lw=1.5))
+
+
+def static_plan_figure(
+    grid: OccupancyGrid,
+    plan: FootstepPlan,
+    path: "str | Path",
+    *,
+    mobile_path: Sequence[Sequence[float]] | None = None,
+    title: str = "",
+    geometry: BipedGeometry = ASIMO_LIKE,
+) -> Path:
+    """Write a Fig. 3-like PNG: obstacles, footprints and the 2-D planner's path.
+
+    Args:
+        grid: the grid.
+        plan: the footstep plan.
+        path: output PNG.
+        mobile_path: the 2-D planner's path, if any.
+        title: axes title.
+        geometry: foot size.
+    """
+    fig = Figure(figsize=(5.2, 5.2), dpi=130)
+    ax = fig.add_subplot(1, 1, 1)
+    draw_grid(ax, grid)
+    draw_plan(ax, plan, geometry)
+    if mobile_path:
+        mp = np.asarray(mobile_path)
+        ax.plot(mp[:, 0], mp[:, 1], "--", color="0.3", lw=1.2, label="2-D planner (circle)")
+        ax.legend(loc="lower right", fontsize=7)
+    ax.set_title(title, fontsize=8)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path)
+    return path
+
+
+def dynamic_plan_figure(
+    env: DynamicEnvironment,
+    plan: FootstepPlan,
+    path: "str | Path",
+    *,
+    panels: int = 6,
+    title: str = "",
+    geometry: BipedGeometry = ASIMO_LIKE,
+) -> Path:
+    """Write a Fig. 5-like PNG: snapshots of the moving obstacles with the steps so far.
+
+    Each panel shows E(t) at the landing time of one step, the footprints up to that step
+    (the current one outlined in black) and the steps still to come faded.
+
+    Args:
+        env: the time-indexed grids.
+        plan: the footstep plan.
+        path: output PNG.
+        panels: number of snapshots.
+        title: figure title.
+        geometry: foot size.
+    """
+    n = plan.num_steps
+    steps = sorted(set(int(round(v)) for v in np.linspace(0, n, panels)))
+    cols = min(3, len(steps))
+    rows = int(math.ceil(len(steps) / cols))
+    fig = Figure(figsize=(3.3 * cols, 3.4 * rows), dpi=120)
+    poses = plan.poses_array()
+    for p, k in enumerate(steps):
+        ax = fig.add_subplot(rows, cols, p + 1)
+        t = plan.times[k]
+        draw_grid(ax, env.grids[env.nearest_index_unchecked(t)])
+        for j in range(k + 1, len(poses)):
+            ax.add_patch(
+                Polygon(foot_polygon(poses[j], geometry), closed=True, fill=False, ec="0.6", lw=0.4)
+            )
+        draw_plan(ax, plan, geometry, upto=k, alpha=0.6)
+        ax.add_patch(
+            Polygon(foot_polygon(poses[k], geometry), closed=True, fill=False, ec="k", lw=1.5)
+        )
+        action = plan.actions[k - 1] if k > 0 else "start"
+        ax.set_title(f"step {k}: {action}, t = {t:.1f} s", fontsize=8)
+        ax.tick_params(labelsize=6)
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path)
+    return path

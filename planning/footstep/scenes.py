@@ -1,0 +1,179 @@
+"""Seeded scenes of the paper's experiments: random static floors and the strings scene.
+
+Static (Sec. IV-B): a 3 m x 3 m floor with 2.5 cm cells, flat obstacles (long thin strips
+a biped steps over and a few larger blocks), start and goal in opposite corners.
+Dynamic (Sec. IV-C, Fig. 5): two rows of blocks joined by strings pulled sideways (first
+row at 0.18 m/s); the strings span the floor, so the start and goal regions are
+disconnected for a wheeled robot, and the phases of the rows are random.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+from repertoire.planning.footstep.environment import (
+    DynamicEnvironment,
+    MovingRectObstacle,
+    OccupancyGrid,
+    RectObstacle,
+    rect_overlaps_cells,
+)
+
+
+@dataclasses.dataclass
+class StaticScene:
+    """A static planning problem.
+
+    Attributes:
+        grid: the occupancy grid.
+        obstacles: the rectangles that were rasterised.
+        start: ``(x, y, yaw)`` of the starting stance foot.
+        start_foot: the starting stance foot ("left" or "right").
+        goal: ``(x, y)``.
+        body_start: ``(x, y)`` of the robot centre at the start (for the 2-D planner).
+    """
+
+    grid: OccupancyGrid
+    obstacles: list[RectObstacle]
+    start: tuple[float, float, float]
+    start_foot: str
+    goal: tuple[float, float]
+    body_start: tuple[float, float]
+
+
+@dataclasses.dataclass
+class DynamicScene:
+    """A dynamic planning problem.
+
+    Attributes:
+        env: time-indexed grids E(t).
+        moving: the moving obstacles (blocks and strings).
+        start: ``(x, y, yaw)`` of the starting stance foot.
+        start_foot: the starting stance foot.
+        goal: ``(x, y)``.
+        body_start: ``(x, y)`` of the robot centre at the start.
+        rows_y: y of the two rows.
+    """
+
+    env: DynamicEnvironment
+    moving: list[MovingRectObstacle]
+    start: tuple[float, float, float]
+    start_foot: str
+    goal: tuple[float, float]
+    body_start: tuple[float, float]
+    rows_y: list[float]
+
+
+def _disc_clear(rect: RectObstacle, center: tuple[float, float], radius: float) -> bool:
+    probe = np.array([[center[0], center[1]]])
+    half = (rect.size[0] / 2 + radius, rect.size[1] / 2 + radius)
+    return not rect_overlaps_cells(rect.center, half, rect.yaw, probe, 0.0)[0]
+
+
+def random_static_scene(
+    seed: int,
+    *,
+    size: float = 3.0,
+    resolution: float = 0.025,
+    n_strips: int = 6,
+    n_blocks: int = 3,
+    strip_length: tuple[float, float] = (0.6, 1.8),
+    strip_width: tuple[float, float] = (0.03, 0.12),
+    block_size: tuple[float, float] = (0.2, 0.5),
+    corner_margin: float = 0.35,
+    clear_radius: float = 0.45,
+) -> StaticScene:
+    """A random floor of flat obstacles with start and goal in opposite corners.
+
+    Args:
+        seed: random seed.
+        size: side of the square floor (m).
+        resolution: cell side (m).
+        n_strips: long thin flat obstacles (a wheeled robot must go around them).
+        n_blocks: larger blocks.
+        strip_length: range of strip lengths (m).
+        strip_width: range of strip widths (m).
+        block_size: range of block sides (m).
+        corner_margin: distance of the start and goal from the walls (m).
+        clear_radius: no obstacle comes closer than this to the start and goal (m).
+    """
+    rng = np.random.default_rng(seed)
+    start_xy = (corner_margin, corner_margin)
+    goal = (size - corner_margin, size - corner_margin)
+    rects: list[RectObstacle] = []
+    wanted = [("strip", n_strips), ("block", n_blocks)]
+    for kind, count in wanted:
+        placed = 0
+        tries = 0
+        while placed < count and tries < 200 * max(count, 1):
+            tries += 1
+            if kind == "strip":
+                dims = [rng.uniform(*strip_length), rng.uniform(*strip_width)]
+            else:
+                dims = [rng.uniform(*block_size), rng.uniform(*block_size)]
+            rect = RectObstacle(
+                center=[float(v) for v in rng.uniform(0.2 * size, 0.8 * size, 2)]
+                if kind == "block"
+                else [float(v) for v in rng.uniform(0.1 * size, 0.9 * size, 2)],
+                size=[float(d) for d in dims],
+                yaw=float(rng.uniform(0, math.pi)),
+                height=0.02,
+            )
+            if _disc_clear(rect, start_xy, clear_radius) and _disc_clear(rect, goal, clear_radius):
+                rects.append(rect)
+                placed += 1
+    grid = OccupancyGrid.from_rectangles((size, size), rects, resolution)
+    yaw = math.atan2(goal[1] - start_xy[1], goal[0] - start_xy[0])
+    # left foot stands, the right foot beside it; the body centre is between them
+    half_w = 0.095
+    start = (start_xy[0] - half_w * math.sin(yaw), start_xy[1] + half_w * math.cos(yaw), yaw)
+    return StaticScene(grid, rects, start, "left", goal, start_xy)
+
+
+def strings_scene(
+    seed: int,
+    *,
+    size: float = 3.0,
+    resolution: float = 0.025,
+    rows_y: tuple[float, float] = (1.1, 1.9),
+    speeds: tuple[float, float] = (0.18, 0.12),
+    spacings: tuple[float, float] = (0.9, 1.2),
+    block_size: tuple[float, float] = (0.30, 0.20),
+    string_width: float = 0.02,
+    t_end: float = 40.0,
+    dt: float = 0.1,
+) -> DynamicScene:
+    """The paper's Fig. 5 scene with random phases of the two rows.
+
+    Args:
+        seed: random seed (phases of the rows).
+        size: side of the square floor (m).
+        resolution: cell side (m).
+        rows_y: y of the two rows (m).
+        speeds: speeds of the rows along +x (m/s); the first is the paper's 0.18.
+        spacings: centre distance between blocks in each row (m).
+        block_size: block length (along the row) and depth (m).
+        string_width: width of the strings (m); the robot may not step on them.
+        t_end: last grid time (s).
+        dt: grid time spacing (s).
+    """
+    rng = np.random.default_rng(seed)
+    moving: list[MovingRectObstacle] = []
+    for y, v, sp in zip(rows_y, speeds, spacings):
+        phase = float(rng.uniform(0.0, sp))
+        x = -v * t_end - sp + phase
+        while x < size + sp:
+            moving.append(MovingRectObstacle([x, y], list(block_size), [v, 0.0]))
+            x += sp
+        # the string: long enough to span the floor over the whole horizon
+        length = size + 2 * (v * t_end + 2 * sp)
+        moving.append(
+            MovingRectObstacle([size / 2.0, y], [length, string_width], [v, 0.0], height=0.005)
+        )
+    env = DynamicEnvironment.from_moving_obstacles(
+        (size, size), moving=moving, t_end=t_end, dt=dt, resolution=resolution
+    )
+    body = (size / 2.0, 0.4)
+    start = (body[0] - 0.095, body[1], math.pi / 2)  # left foot, facing +y
+    goal = (size / 2.0, size - 0.4)
+    return DynamicScene(env, moving, start, "left", goal, body, list(rows_y))

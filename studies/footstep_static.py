@@ -1,0 +1,361 @@
+"""Footstep planning among static flat obstacles (Chestnutt et al., Sec. IV-B, Fig. 3).
+
+Each episode draws a random 3 m x 3 m floor with 2.5 cm cells (long thin strips a biped
+may step over and a few larger blocks), plans footsteps from one corner to the opposite
+corner with the A* footstep planner, and plans the same trip with a 2-D mobile-robot
+planner using the robot's bounding circle, which has to go around every obstacle. It
+records success, steps, planning time, nodes expanded and how many steps cross over an
+obstacle.
+
+Run it with ``python -m repertoire.studies.footstep_static --help``.
+"""
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+from repertoire.studies.engine import register_study, study_main
+
+from repertoire.errors import RepertoireError
+
+
+@dataclasses.dataclass
+class FootstepStaticConfig:
+    """What every episode shares.
+
+    Attributes:
+        size_m: side of the square floor.
+        resolution_m: grid cell side.
+        n_strips: long thin flat obstacles per map.
+        n_blocks: larger blocks per map.
+        time_limit_s: planner time limit (generous: the node budget binds first).
+        max_expansions: deterministic node budget of the planner.
+        heuristic_weight: w in g + w h (Dijkstra cost-to-go heuristic).
+        body_radius_m: bounding-circle radius of the 2-D planner's robot.
+        table_path: action table file (.json/.npz); empty for the nominal table.
+        example_figures: number of example plans drawn by the summary.
+    """
+
+    size_m: float = 3.0
+    resolution_m: float = 0.025
+    n_strips: int = 4
+    n_blocks: int = 2
+    time_limit_s: float = 30.0
+    max_expansions: int = 200000
+    heuristic_weight: float = 1.5
+    body_radius_m: float = 0.30
+    table_path: str = ""
+    example_figures: int = 4
+
+    def validate(self) -> None:
+        """Raise RepertoireError if a field is out of range."""
+        for name in ("size_m", "resolution_m", "time_limit_s", "body_radius_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise RepertoireError(f"FootstepStaticConfig.{name} must be > 0, got {v}")
+        if self.size_m < 1.5:
+            raise RepertoireError(f"FootstepStaticConfig.size_m must be >= 1.5, got {self.size_m}")
+        for name in ("n_strips", "n_blocks", "max_expansions", "example_figures"):
+            if getattr(self, name) < 0:
+                raise RepertoireError(f"FootstepStaticConfig.{name} must be >= 0")
+        if not (math.isfinite(self.heuristic_weight) and self.heuristic_weight >= 0):
+            raise RepertoireError("FootstepStaticConfig.heuristic_weight must be >= 0")
+
+
+@dataclasses.dataclass
+class FootstepStaticRecord:
+    """One random floor.
+
+    Attributes:
+        seed: the episode seed (the map).
+        n_obstacles: rectangles on the floor.
+        status: planner status (SUCCESS, TIME_LIMIT, UNREACHABLE, NODE_LIMIT).
+        success: the footstep plan reaches the goal.
+        steps: steps in the (possibly partial) plan.
+        cost: plan cost.
+        cost_to_go: heuristic cost left at the end of the plan (0 at the goal).
+        plan_duration_s: time the robot needs to walk the plan (simulated seconds).
+        nodes_expanded: A* expansions.
+        nodes_generated: successors evaluated.
+        steps_over: steps whose swing foot passes over an obstacle.
+        body_path_m: length of the path of the feet midpoints.
+        mobile2d_success: the bounding-circle planner found a path.
+        mobile2d_length_m: its path length (-1 if none).
+        biped_only: the biped succeeds where the 2-D planner fails.
+        wall_plan_time_s: footstep planning wall time (timing field).
+        wall_mobile2d_time_s: 2-D planning wall time (timing field).
+    """
+
+    seed: int
+    n_obstacles: int
+    status: str
+    success: bool
+    steps: int
+    cost: float
+    cost_to_go: float
+    plan_duration_s: float
+    nodes_expanded: int
+    nodes_generated: int
+    steps_over: int
+    body_path_m: float
+    mobile2d_success: bool
+    mobile2d_length_m: float
+    biped_only: bool
+    wall_plan_time_s: float
+    wall_mobile2d_time_s: float
+
+
+def _table(config: FootstepStaticConfig):
+    from repertoire.planning.footstep import ActionTable, nominal_action_table
+
+    return ActionTable.load(config.table_path) if config.table_path else nominal_action_table()
+
+
+def _scene(config: FootstepStaticConfig, seed: int):
+    from repertoire.planning.footstep.scenes import random_static_scene
+
+    return random_static_scene(
+        seed,
+        size=config.size_m,
+        resolution=config.resolution_m,
+        n_strips=config.n_strips,
+        n_blocks=config.n_blocks,
+    )
+
+
+def _plan(config: FootstepStaticConfig, scene, table):
+    from repertoire.planning.footstep import PlannerOptions, plan_footsteps, plan_mobile2d
+
+    plan = plan_footsteps(
+        scene.grid,
+        scene.start,
+        scene.start_foot,
+        scene.goal,
+        table,
+        PlannerOptions(
+            time_limit=config.time_limit_s,
+            heuristic="dijkstra",
+            heuristic_weight=config.heuristic_weight,
+            max_expansions=config.max_expansions,
+        ),
+    )
+    mobile = plan_mobile2d(scene.grid, scene.body_start, scene.goal, config.body_radius_m)
+    return plan, mobile
+
+
+def run_episode(config: FootstepStaticConfig, seed: int) -> FootstepStaticRecord:
+    """Plan footsteps and a 2-D path on the seeded random floor.
+
+    Args:
+        config: the study config.
+        seed: the episode seed (the map).
+
+    Returns:
+        The episode's record.
+    """
+    from repertoire.planning.footstep.metrics import body_path_length, steps_over_obstacles
+
+    config.validate()
+    scene = _scene(config, seed)
+    plan, mobile = _plan(config, scene, _table(config))
+    ok2d = mobile.status == "SUCCESS"
+    return FootstepStaticRecord(
+        seed=int(seed),
+        n_obstacles=len(scene.obstacles),
+        status=plan.status.value,
+        success=plan.succeeded,
+        steps=plan.num_steps,
+        cost=float(plan.cost),
+        cost_to_go=float(plan.cost_to_go),
+        plan_duration_s=float(plan.duration),
+        nodes_expanded=plan.nodes_expanded,
+        nodes_generated=plan.nodes_generated,
+        steps_over=steps_over_obstacles(scene.grid, plan),
+        body_path_m=body_path_length(plan),
+        mobile2d_success=ok2d,
+        mobile2d_length_m=float(mobile.length) if ok2d else -1.0,
+        biped_only=bool(plan.succeeded and not ok2d),
+        wall_plan_time_s=float(plan.planning_time_s),
+        wall_mobile2d_time_s=float(mobile.planning_time_s),
+    )
+
+
+def _pct(values: list[float], q: float) -> float:
+    return float(np.percentile(values, q)) if values else float("nan")
+
+
+def summary_table(records: list[FootstepStaticRecord]) -> str:
+    """Markdown table of the study's headline figures.
+
+    Args:
+        records: the episodes.
+    """
+    n = len(records)
+    ok = [r for r in records if r.success]
+    times = [r.wall_plan_time_s for r in records]
+    rate = [r.nodes_expanded / r.wall_plan_time_s for r in records if r.wall_plan_time_s > 0]
+    both = [r for r in ok if r.mobile2d_success]
+    ratio = [r.body_path_m / r.mobile2d_length_m for r in both if r.mobile2d_length_m > 0]
+    rows = [
+        ("maps", f"{n}"),
+        ("footstep planner success", f"{len(ok)}/{n} ({100 * len(ok) / max(n, 1):.1f} %)"),
+        (
+            "2-D bounding-circle planner success",
+            f"{sum(r.mobile2d_success for r in records)}/{n} "
+            f"({100 * sum(r.mobile2d_success for r in records) / max(n, 1):.1f} %)",
+        ),
+        ("biped succeeds where the 2-D planner fails", f"{sum(r.biped_only for r in records)}"),
+        (
+            "steps per successful plan: median [min, max]",
+            f"{_pct([r.steps for r in ok], 50):.0f} [{min((r.steps for r in ok), default=0)}, "
+            f"{max((r.steps for r in ok), default=0)}]",
+        ),
+        ("plans stepping over an obstacle", f"{sum(r.steps_over > 0 for r in ok)}/{len(ok)}"),
+        (
+            "steps over obstacles per plan (mean)",
+            f"{np.mean([r.steps_over for r in ok]) if ok else float('nan'):.2f}",
+        ),
+        (
+            "plan time median / 90th pct / max (s)",
+            f"{_pct(times, 50):.4f} / {_pct(times, 90):.4f} / {max(times, default=0):.4f}",
+        ),
+        (
+            "nodes expanded median / 90th pct",
+            f"{_pct([r.nodes_expanded for r in records], 50):.0f} / "
+            f"{_pct([r.nodes_expanded for r in records], 90):.0f}",
+        ),
+        ("nodes expanded per second (median)", f"{_pct(rate, 50):.0f}"),
+        (
+            "feet-midpoint path / 2-D path length where both succeed (median)",
+            f"{_pct(ratio, 50):.3f} (n = {len(ratio)})",
+        ),
+    ]
+    lines = ["| quantity | value |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]
+    return "\n".join(lines) + "\n"
+
+
+def summarize(
+    records: list[FootstepStaticRecord], config: FootstepStaticConfig, out_dir: Path
+) -> dict[str, Path]:
+    """Write the headline table, example plans (Fig. 3 style) and distributions.
+
+    Args:
+        records: the episodes (sorted by seed; seeds are 0.. in order unless first_seed).
+        config: the study config.
+        out_dir: output folder.
+
+    Returns:
+        ``{label: path}`` of the files written.
+    """
+    from matplotlib.figure import Figure
+    from repertoire.planning.footstep.plot import draw_grid, draw_plan
+
+    out_dir = Path(out_dir)
+    out: dict[str, Path] = {}
+    md = out_dir / "footstep_static.md"
+    md.write_text("# Footstep planning, static obstacles\n\n" + summary_table(records))
+    out["table"] = md
+
+    # example plans: prefer maps where the biped steps over and the 2-D planner fails
+    seeds = _seeds_of(records)
+    order = sorted(
+        range(len(records)),
+        key=lambda i: (not records[i].biped_only, records[i].steps_over == 0, i),
+    )
+    pick = order[: config.example_figures]
+    if pick:
+        cols = min(2, len(pick))
+        rows = int(math.ceil(len(pick) / cols))
+        fig = Figure(figsize=(4.6 * cols, 4.6 * rows), dpi=110)
+        table = _table(config)
+        for p, i in enumerate(pick):
+            scene = _scene(config, seeds[i])
+            plan, mobile = _plan(config, scene, table)
+            ax = fig.add_subplot(rows, cols, p + 1)
+            draw_grid(ax, scene.grid)
+            draw_plan(ax, plan)
+            if mobile.path:
+                mp = np.asarray(mobile.path)
+                ax.plot(mp[:, 0], mp[:, 1], "--", color="0.25", lw=1.2, label="2-D planner")
+                ax.legend(loc="lower right", fontsize=7)
+            r = records[i]
+            ax.set_title(
+                f"seed {seeds[i]}: {r.status}, {r.steps} steps, {r.steps_over} over obstacles, "
+                f"2-D {'ok' if r.mobile2d_success else 'fails'}",
+                fontsize=7,
+            )
+            ax.tick_params(labelsize=6)
+        fig.tight_layout()
+        path = out_dir / "footstep_static_examples.png"
+        fig.savefig(path)
+        out["examples"] = path
+
+    if records:
+        fig = Figure(figsize=(11, 3.4), dpi=110)
+        ax = fig.add_subplot(1, 3, 1)
+        ax.hist([r.steps for r in records if r.success], bins=20, color="#1f5fd6")
+        ax.set_xlabel("steps per successful plan")
+        ax.set_ylabel("maps")
+        ax = fig.add_subplot(1, 3, 2)
+        ax.scatter(
+            [r.steps for r in records],
+            [1000 * r.wall_plan_time_s for r in records],
+            s=8,
+            c=["#1f5fd6" if r.success else "#d6541f" for r in records],
+        )
+        ax.set_yscale("log")
+        ax.set_xlabel("steps")
+        ax.set_ylabel("plan time (ms)")
+        ax = fig.add_subplot(1, 3, 3)
+        ax.hist([r.nodes_expanded for r in records], bins=30, color="0.4")
+        ax.set_xlabel("nodes expanded")
+        fig.suptitle(
+            f"{len(records)} random floors: footstep success "
+            f"{100 * np.mean([r.success for r in records]):.0f} %, 2-D planner "
+            f"{100 * np.mean([r.mobile2d_success for r in records]):.0f} %",
+            fontsize=9,
+        )
+        fig.tight_layout()
+        path = out_dir / "footstep_static_distributions.png"
+        fig.savefig(path)
+        out["distributions"] = path
+    return out
+
+
+def _seeds_of(records: list) -> list[int]:
+    return [int(r.seed) for r in records]
+
+
+def demo_config() -> FootstepStaticConfig:
+    """The demo config (the paper's setting, the default)."""
+    return FootstepStaticConfig()
+
+
+def smoke_config() -> FootstepStaticConfig:
+    """A tiny config for tests: a 1.5 m floor, two strips, small node budget."""
+    return FootstepStaticConfig(
+        size_m=1.5, n_strips=2, n_blocks=0, max_expansions=3000, example_figures=1
+    )
+
+
+register_study(
+    "footstep_static",
+    config_type=FootstepStaticConfig,
+    record_type=FootstepStaticRecord,
+    run_episode=run_episode,
+    description="A* footstep plans on random 3 m floors of flat obstacles vs a 2-D planner",
+    summarize=summarize,
+    demo_config=demo_config,
+    demo_episodes=8,
+    smoke_config=smoke_config,
+)
+
+
+def main() -> int:
+    """Run the static footstep study from the command line."""
+    return study_main("footstep_static", description=__doc__.split("\n\n")[0])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -275,6 +275,39 @@ def _base_pose(plant: MultibodyPlant, arm: ModelInstanceIndex) -> RigidTransform
     )
 
 
+def check_initial_clearance(
+    diagram: Diagram, plant: MultibodyPlant, *, tolerance: float = 1e-3
+) -> None:
+    """Refuses a default state in which the arm penetrates the table, an object or itself.
+
+    Args:
+        diagram: the built diagram holding ``plant`` (and its SceneGraph).
+        plant: the simulated plant.
+        tolerance: penetration depth allowed [m] (resting contacts are ~1e-6 m).
+
+    Raises:
+        ScenarioError: naming the colliding bodies and the depth.
+    """
+    context = diagram.CreateDefaultContext()
+    plant_context = plant.GetMyContextFromRoot(context)
+    query = plant.get_geometry_query_input_port().Eval(plant_context)
+    inspector = query.inspector()
+    arm = plant.GetModelInstanceByName("arm7")
+    for pair in query.ComputePointPairPenetration():
+        if pair.depth <= tolerance:
+            continue
+        bodies = [plant.GetBodyFromFrameId(inspector.GetFrameId(g)) for g in (pair.id_A, pair.id_B)]
+        if any(b.model_instance() == arm for b in bodies):
+            names = [
+                f"{plant.GetModelInstanceName(b.model_instance())}::{b.name()}" for b in bodies
+            ]
+            raise ScenarioError(
+                f"initial configuration in collision: {names[0]} penetrates {names[1]} by "
+                f"{pair.depth * 1000:.1f} mm; choose initial_q / initial_fingers / base pose / "
+                "object positions that keep the arm clear"
+            )
+
+
 def add_meshcat(builder: DiagramBuilder, scene_graph: SceneGraph, meshcat) -> None:
     """Adds a MeshcatVisualizer when ``meshcat`` is not None."""
     if meshcat is not None:
@@ -338,6 +371,10 @@ def build_arm_hold(scenario: ArmScenario, *, meshcat=None) -> Diagram:
     Returns:
         The Diagram named ``arm_hold``; its default context starts at the
         scenario's initial state with the objects resting on the table.
+
+    Raises:
+        ScenarioError: an invalid scenario, or an initial arm pose that
+            penetrates the table, an object or the arm itself.
     """
     scenario.validate()
     builder = DiagramBuilder()
@@ -355,4 +392,5 @@ def build_arm_hold(scenario: ArmScenario, *, meshcat=None) -> Diagram:
     add_meshcat(builder, station.scene_graph, meshcat)
     diagram = builder.Build()
     diagram.set_name("arm_hold")
+    check_initial_clearance(diagram, station.plant)
     return diagram

@@ -203,3 +203,15 @@ def test_hand_grasps_and_lifts_a_cup():
     assert X_WC.translation()[2] == pytest.approx(TABLE_HEIGHT + 0.12, abs=0.01)
     assert X_WC.translation()[:2] == pytest.approx(xy, abs=0.005)
     assert X_WC.rotation().matrix()[2, 2] > np.cos(np.radians(3))  # still upright
+
+
+def test_initial_pose_in_collision_is_refused():
+    scenario = ArmScenario()
+    scenario.initial_q = [0.9, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # straight arm into the table
+    with pytest.raises(ScenarioError, match="forearm penetrates table::table"):
+        build_arm_hold(scenario)
+    scenario = ArmScenario()
+    ball = next(o for o in scenario.world.objects if o.kind == "obstacle")
+    ball.xy, ball.z_above_table = [0.52, -0.06], 0.12  # the ball where the hand is
+    with pytest.raises(ScenarioError, match="initial configuration in collision.*obstacle_blue"):
+        build_arm_hold(scenario)

@@ -108,6 +108,9 @@ def _demo_diagram(name: str, out: Path, quick: bool, say: Callable[[str], None])
     except Exception as e:
         errors.append(f"simulate/replay: {_short_error(e)}")
         say(f"  simulate/replay failed:\n{traceback.format_exc()}")
+        partial = out / "replays" / f"{name}.html"
+        if partial.is_file():  # record_replay saves what was recorded before the failure
+            item.files["replay html (up to the failure)"] = partial
     item.error = "; ".join(errors) or None
     item.elapsed_s = time.perf_counter() - start
     return item

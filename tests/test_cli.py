@@ -240,6 +240,7 @@ def test_demo_reports_every_part_and_exits_1_when_one_fails(broken_parts, tmp_pa
     assert "3 part(s) FAILED" in printed
     assert (out / "diagrams" / "test_diverging.svg").is_file()  # rendered before it blew up
     assert "diagram test_diverging: simulate/replay: SimulationDivergedError" in printed
+    assert "replay html (up to the failure): " in printed
     assert "diagram test_broken: render: RuntimeError: this world cannot be built" in printed
     assert "study broken_study:" in printed and "exploded" in printed
     index = (out / "index.md").read_text()

@@ -119,6 +119,7 @@ def add_biped_world(
     q_joints: np.ndarray,
     pelvis_height: float,
     X_WP: RigidTransform | None = None,
+    extra=None,
 ) -> tuple[MultibodyPlant, SceneGraph, ModelInstanceIndex]:
     """Adds plant + scene graph with ground and the biped at a default standing pose.
 
@@ -131,6 +132,7 @@ def add_biped_world(
         q_joints: (12,) default joint angles in ``JOINT_NAMES`` order.
         pelvis_height: default pelvis height above the ground [m].
         X_WP: optional default pelvis pose (overrides ``pelvis_height``).
+        extra: optional ``extra(plant)`` called before ``Finalize`` (adds more geometry).
 
     Returns:
         ``(plant, scene_graph, biped_instance)`` with the plant finalized.
@@ -143,6 +145,8 @@ def add_biped_world(
     plant, scene_graph = AddMultibodyPlant(config, builder)
     add_ground(plant, ground_friction)
     instance = add_biped(plant, Parser(plant), gains=gains)
+    if extra is not None:
+        extra(plant)
     plant.Finalize()
     for name, q in zip(JOINT_NAMES, q_joints):
         plant.GetJointByName(name, instance).set_default_angle(float(q))

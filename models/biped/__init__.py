@@ -236,3 +236,55 @@ def add_biped(plant, parser, *, gains: LegGains | None = None, name: str | None 
             actuator = plant.GetJointActuatorByName(f"{side}_{joint}_motor", instance)
             actuator.set_controller_gains(PdControllerGains(p=gains.kp[k], d=gains.kd[k]))
     return instance
+
+
+#: (mass [kg], CoM [m] in the pelvis frame) of the bodies fixed to the pelvis, as in the URDF:
+#: pelvis, torso, head, left arm, right arm (arms hang from the shoulders rolled out by 0.06 rad).
+UPPER_BODY_MASSES = (
+    (9.0, (0.0, 0.0, 0.02)),
+    (17.0, (-0.01, 0.0, 0.23)),
+    (3.0, (0.0, 0.0, 0.48)),
+    (3.0, (0.0, 0.195 + 0.22 * np.sin(0.06), 0.34 - 0.22 * np.cos(0.06))),
+    (3.0, (0.0, -0.195 - 0.22 * np.sin(0.06), 0.34 - 0.22 * np.cos(0.06))),
+)
+#: Leg link masses [kg]: hip yaw link, hip roll link, thigh, shank, ankle link, foot.
+LEG_LINK_MASSES = (0.5, 0.5, 3.5, 2.0, 0.2, 0.8)
+
+
+def _leg_com_moment(q_leg: np.ndarray, side: str) -> np.ndarray:
+    """Sum of mass times CoM position (pelvis frame) over the six links of one leg."""
+    q = np.asarray(q_leg, dtype=float)
+    m_yaw, m_roll, m_thigh, m_shank, m_ankle, m_foot = LEG_LINK_MASSES
+    hip = np.array([0.0, _side_sign(side) * HIP_Y, 0.0])
+    R = _rot_z(q[0]) @ _rot_x(q[1]) @ _rot_y(q[2])
+    thigh_com = hip + R @ np.array([0.0, 0.0, -THIGH_LENGTH / 2])
+    knee = hip + R @ np.array([0.0, 0.0, -THIGH_LENGTH])
+    R = R @ _rot_y(q[3])
+    shank_com = knee + R @ np.array([0.0, 0.0, -SHANK_LENGTH / 2])
+    ankle = knee + R @ np.array([0.0, 0.0, -SHANK_LENGTH])
+    R = R @ _rot_y(q[4]) @ _rot_x(q[5])
+    foot_com = ankle + R @ np.array([0.0, 0.0, -ANKLE_HEIGHT + 0.015])
+    return (
+        (m_yaw + m_roll) * hip
+        + m_thigh * thigh_com
+        + m_shank * shank_com
+        + m_ankle * ankle
+        + m_foot * foot_com
+    )
+
+
+def com_in_pelvis(q_joints: np.ndarray) -> np.ndarray:
+    """Whole-body centre of mass in the pelvis frame.
+
+    Args:
+        q_joints: (12,) joint angles in ``JOINT_NAMES`` order.
+
+    Returns:
+        (3,) CoM position in the pelvis frame [m].
+    """
+    q = np.asarray(q_joints, dtype=float)
+    if q.shape != (12,):
+        raise RepertoireError(f"com_in_pelvis needs 12 joint angles, got shape {q.shape}")
+    moment = sum(m * np.asarray(c) for m, c in UPPER_BODY_MASSES)
+    moment = moment + _leg_com_moment(q[:6], "left") + _leg_com_moment(q[6:], "right")
+    return moment / TOTAL_MASS

@@ -1,0 +1,451 @@
+"""The biped executing a footstep plan in the physics simulation (registered as ``biped_walk``).
+
+Wiring: plan source -> :class:`CommandStepper` (the controller's stateful stepping
+rule turns the plan's *commands* into footsteps) -> :class:`ZmpComPlanner` (ZMP
+reference and Drake's ``ZmpPlanner`` CoM) and :class:`SwingFootPlanner` (sole
+trajectories) -> :class:`WalkingIK` (CoM-exact pelvis placement + closed-form
+leg IK) -> the plant's ``desired_state`` input (joint PD in the discrete solver).
+"""
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.geometry import Box, Rgba
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.primitives import ConstantValueSource
+from repertoire.diagrams.biped import add_biped_world, validate_plant_fields
+from repertoire.diagrams.registry import register_diagram
+from repertoire.models.biped import LegGains
+from repertoire.planning.footstep.actions import ACTIONS, apply_displacement
+from repertoire.planning.footstep.types import ActionTable, Foot, FootstepPlan, wrap_angle
+from repertoire.systems.walking import (
+    CommandStepper,
+    FootstepSequence,
+    SteppingRule,
+    SwingFootPlanner,
+    WalkingIK,
+    ZmpComPlanner,
+    plan_com,
+    realize_plan,
+    standing_com_height,
+    whole_body_ik,
+)
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+#: Gains for walking: stiffer than standing so the soles track the pattern closely.
+WALK_GAINS = LegGains(
+    kp=[20000.0, 40000.0, 40000.0, 40000.0, 30000.0, 20000.0],
+    kd=[120.0, 250.0, 250.0, 250.0, 190.0, 120.0],
+)
+
+
+@dataclasses.dataclass
+class BipedWalkScenario:
+    """The biped executing a command sequence (or a saved footstep plan) on flat ground.
+
+    Attributes:
+        actions: commanded actions, one per step (names from the footstep ACTIONS), used
+            when ``plan_file`` is empty.
+        start: ``[x, y, yaw]`` of the midpoint between the soles at the start.
+        first_stance: ``left`` or ``right``: the foot that stands during the first step.
+        plan_file: optional JSON ``FootstepPlan`` to execute instead of ``actions``.
+        pelvis_height: pelvis height during walking [m].
+        time_step: plant time step [s].
+        contact_approximation: ``lagged``, ``sap`` or ``similar``.
+        ground_friction: Coulomb friction of the ground.
+        max_speed_change: stepping rule: largest change of the forward step [m].
+        base_duration: stepping rule: seconds per step at constant speed.
+    """
+
+    actions: list[str] = dataclasses.field(
+        default_factory=lambda: [
+            "forward_long",
+            "forward_long",
+            "forward_long",
+            "turn_left",
+            "forward_medium",
+            "stop",
+            "stop",
+        ]
+    )
+    start: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    first_stance: str = "left"
+    plan_file: str = ""
+    pelvis_height: float = 0.60
+    time_step: float = 1e-3
+    contact_approximation: str = "lagged"
+    ground_friction: float = 1.0
+    max_speed_change: float = 0.12
+    base_duration: float = 1.0
+
+    def validate(self) -> None:
+        """Raises ScenarioError naming the first bad field."""
+        for a in self.actions:
+            if a not in ACTIONS:
+                raise ScenarioError(f"unknown action {a!r} in actions; expected one of {ACTIONS}")
+        if len(self.start) != 3 or not np.all(np.isfinite(self.start)):
+            raise ScenarioError(f"start must be 3 finite values (x, y, yaw), got {self.start}")
+        if self.first_stance not in ("left", "right"):
+            raise ScenarioError(
+                f"first_stance must be 'left' or 'right', got {self.first_stance!r}"
+            )
+        if self.plan_file and not Path(self.plan_file).is_file():
+            raise ScenarioError(f"plan_file '{self.plan_file}' does not exist")
+        if not 0.5 <= self.pelvis_height <= 0.64:
+            raise ScenarioError(f"pelvis_height must be in [0.5, 0.64] m, got {self.pelvis_height}")
+        validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
+        try:
+            self.rule().validate()
+        except RepertoireError as e:
+            raise ScenarioError(str(e)) from e
+
+    def rule(self) -> SteppingRule:
+        """The stepping rule of this scenario."""
+        return SteppingRule(
+            max_speed_change=self.max_speed_change, base_duration=self.base_duration
+        )
+
+
+def start_feet(start: list[float], first_stance: str, stance_width: float = 0.19):
+    """Sole poses (stance, swing) standing at ``start`` = midpoint (x, y, yaw)."""
+    x, y, yaw = start
+    s = 1.0 if first_stance == "left" else -1.0
+    c, sn = np.cos(yaw), np.sin(yaw)
+    off = np.array([-sn, c]) * stance_width / 2
+    stance = [x + s * off[0], y + s * off[1], yaw]
+    swing = [x - s * off[0], y - s * off[1], yaw]
+    return stance, swing
+
+
+def plan_from_actions(
+    actions: list[str],
+    stance_pose: list[float],
+    stance_foot: str,
+    swing_pose: list[float],
+    table: ActionTable,
+    *,
+    history: list[str] | None = None,
+) -> FootstepPlan:
+    """The plan a footstep planner would output for given commands, predicted with ``table``.
+
+    Args:
+        actions: commanded actions.
+        stance_pose: ``[x, y, yaw]`` of the first stance sole.
+        stance_foot: ``left`` or ``right``.
+        swing_pose: the other sole.
+        table: the action table used to predict landings and times.
+        history: two actions before the first (default: standing).
+    """
+    history = list(history or [table.rest_action, table.rest_action])
+    foot = Foot.LEFT if stance_foot == "left" else Foot.RIGHT
+    poses, feet, times = [list(stance_pose)], [int(foot)], [0.0]
+    hist = list(history)
+    for a in actions:
+        dx, dy, dyaw, dur = table.lookup(hist[-2], hist[-1], int(foot), a)
+        poses.append(list(apply_displacement(poses[-1], (dx, dy, dyaw))))
+        foot = foot.other()
+        feet.append(int(foot))
+        times.append(times[-1] + float(dur))
+        hist.append(a)
+    return FootstepPlan(
+        poses=poses,
+        feet=feet,
+        actions=list(actions),
+        times=times,
+        status="SUCCESS",
+        cost=0.0,
+        cost_to_go=0.0,
+        nodes_expanded=0,
+        nodes_generated=0,
+        planning_time_s=0.0,
+        initial_swing_pose=list(swing_pose),
+        goal=list(poses[-1][:2]),
+        goal_tolerance=0.1,
+        initial_history=history,
+    )
+
+
+def _scenario_plan(scenario: BipedWalkScenario) -> FootstepPlan:
+    if scenario.plan_file:
+        return FootstepPlan.load(scenario.plan_file)
+    from repertoire.planning.footstep.actions import nominal_action_table
+
+    stance, swing = start_feet(scenario.start, scenario.first_stance)
+    return plan_from_actions(
+        scenario.actions, stance, scenario.first_stance, swing, nominal_action_table()
+    )
+
+
+def build_walk_diagram(
+    plan: FootstepPlan,
+    *,
+    rule: SteppingRule | None = None,
+    pelvis_height: float = 0.60,
+    time_step: float = 1e-3,
+    contact_approximation: str = "lagged",
+    ground_friction: float = 1.0,
+    obstacles: list[list[float]] | None = None,
+    meshcat=None,
+    name: str = "biped_walk",
+) -> Diagram:
+    """Builds the biped executing ``plan``'s commands.
+
+    Args:
+        plan: the footstep plan (its start poses place the robot; its actions are the commands).
+        rule: the controller's stepping rule.
+        pelvis_height: pelvis height during walking [m].
+        time_step: plant time step [s].
+        contact_approximation: ``lagged``, ``sap`` or ``similar``.
+        ground_friction: Coulomb friction of the ground.
+        obstacles: optional flat obstacles as ``[x_min, y_min, x_max, y_max]`` drawn as
+            thin visual-only tiles (the robot steps over them; they have no collision).
+        meshcat: optional Meshcat instance for a visualizer.
+        name: the Diagram's name.
+
+    Returns:
+        The Diagram with subsystems ``plant``, ``plan_source``, ``command_stepper``,
+        ``zmp_com_planner``, ``swing_foot_planner`` and ``walking_ik``.
+    """
+    rule = rule or SteppingRule()
+    seq = realize_plan(plan, rule)
+    com_height = standing_com_height(pelvis_height)
+    planner = plan_com(seq, com_height)
+    from repertoire.systems.walking import foot_poses_at
+
+    left, right, _ = foot_poses_at(seq, 0.0)
+    q0, pelvis0 = whole_body_ik(planner.get_nominal_com(0.0).ravel(), left, right, pelvis_height)
+    builder = DiagramBuilder()
+    X_WP = RigidTransform(RollPitchYaw(0.0, 0.0, pelvis0[3]), pelvis0[:3])
+    plant, scene_graph, instance = add_biped_world(
+        builder,
+        time_step=time_step,
+        contact_approximation=contact_approximation,
+        gains=WALK_GAINS,
+        ground_friction=ground_friction,
+        q_joints=q0,
+        pelvis_height=pelvis_height,
+        X_WP=X_WP,
+        extra=lambda p: _add_obstacle_tiles(p, obstacles or []),
+    )
+    source = builder.AddSystem(ConstantValueSource(AbstractValue.Make(plan)))
+    source.set_name("plan_source")
+    stepper = builder.AddSystem(CommandStepper(rule))
+    stepper.set_name("command_stepper")
+    zmp = builder.AddSystem(ZmpComPlanner(com_height))
+    zmp.set_name("zmp_com_planner")
+    swing = builder.AddSystem(SwingFootPlanner())
+    swing.set_name("swing_foot_planner")
+    ik = builder.AddSystem(WalkingIK(pelvis_height))
+    ik.set_name("walking_ik")
+    builder.Connect(source.get_output_port(), stepper.GetInputPort("plan"))
+    builder.Connect(stepper.GetOutputPort("footsteps"), zmp.GetInputPort("footsteps"))
+    builder.Connect(stepper.GetOutputPort("footsteps"), swing.GetInputPort("footsteps"))
+    builder.Connect(zmp.GetOutputPort("com"), ik.GetInputPort("com"))
+    builder.Connect(swing.GetOutputPort("left_foot"), ik.GetInputPort("left_foot"))
+    builder.Connect(swing.GetOutputPort("right_foot"), ik.GetInputPort("right_foot"))
+    builder.Connect(ik.GetOutputPort("desired_state"), plant.get_desired_state_input_port(instance))
+    if meshcat is not None:
+        from pydrake.geometry import MeshcatVisualizer
+
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+    diagram = builder.Build()
+    diagram.set_name(name)
+    return diagram
+
+
+def _add_obstacle_tiles(plant, obstacles: list[list[float]]) -> None:
+    for k, (x0, y0, x1, y1) in enumerate(obstacles):
+        X = RigidTransform([(x0 + x1) / 2, (y0 + y1) / 2, 0.001])
+        plant.RegisterVisualGeometry(
+            plant.world_body(),
+            X,
+            Box(x1 - x0, y1 - y0, 0.002),
+            f"obstacle_{k}",
+            Rgba(0.8, 0.1, 0.1, 1),
+        )
+
+
+@register_diagram(
+    "biped_walk",
+    scenario_type=BipedWalkScenario,
+    description="biped executing footstep commands: stepping rule -> ZMP/CoM (ZmpPlanner) -> "
+    "swing feet -> leg IK -> joint PD",
+    duration=8.0,
+    check=lambda diagram, context: check_biped_walk(diagram, context),
+)
+def build_biped_walk(scenario: BipedWalkScenario, *, meshcat=None) -> Diagram:
+    """Builds the walking biped from a scenario (see :func:`build_walk_diagram`).
+
+    Args:
+        scenario: a :class:`BipedWalkScenario` (validated here).
+        meshcat: optional Meshcat instance.
+    """
+    scenario.validate()
+    return build_walk_diagram(
+        _scenario_plan(scenario),
+        rule=scenario.rule(),
+        pelvis_height=scenario.pelvis_height,
+        time_step=scenario.time_step,
+        contact_approximation=scenario.contact_approximation,
+        ground_friction=scenario.ground_friction,
+        meshcat=meshcat,
+    )
+
+
+def footstep_sequence(diagram: Diagram, context: Context) -> FootstepSequence:
+    """The realized footstep sequence of a walking diagram."""
+    stepper = diagram.GetSubsystemByName("command_stepper")
+    return stepper.GetOutputPort("footsteps").Eval(stepper.GetMyContextFromRoot(context))
+
+
+def sole_poses(diagram: Diagram, context: Context) -> dict[int, np.ndarray]:
+    """Measured (x, y, yaw) of both soles {0: left, 1: right} and their heights."""
+    plant = diagram.GetSubsystemByName("plant")
+    pc = plant.GetMyContextFromRoot(context)
+    out = {}
+    for f, name in ((0, "left_sole"), (1, "right_sole")):
+        X = plant.GetFrameByName(name).CalcPoseInWorld(pc)
+        R = X.rotation().matrix()
+        out[f] = np.array([X.translation()[0], X.translation()[1], np.arctan2(R[1, 0], R[0, 0])])
+    return out
+
+
+def pelvis_state(diagram: Diagram, context: Context) -> tuple[np.ndarray, float]:
+    """Pelvis position (3,) and tilt from vertical [rad]."""
+    plant = diagram.GetSubsystemByName("plant")
+    pc = plant.GetMyContextFromRoot(context)
+    X = plant.EvalBodyPoseInWorld(pc, plant.GetBodyByName("pelvis"))
+    tilt = float(np.arccos(np.clip(X.rotation().matrix()[2, 2], -1.0, 1.0)))
+    return X.translation().copy(), tilt
+
+
+@dataclasses.dataclass
+class WalkResult:
+    """Outcome of executing a plan.
+
+    Attributes:
+        landed: measured (x, y, yaw) of each step's swing sole after landing.
+        expected: the controller's own target of each step (stepping rule).
+        planned: the plan's pose of each step (what the planner predicted).
+        durations: commanded-to-landing time of each step [s].
+        fell: the pelvis dropped below 0.4 m or tilted more than 0.5 rad.
+        final_time: simulated time reached [s].
+        max_tilt: largest pelvis tilt seen at the sampled instants [rad].
+    """
+
+    landed: list[list[float]]
+    expected: list[list[float]]
+    planned: list[list[float]]
+    durations: list[float]
+    fell: bool
+    final_time: float
+    max_tilt: float
+
+
+def execute_plan(
+    plan: FootstepPlan,
+    *,
+    rule: SteppingRule | None = None,
+    pelvis_height: float = 0.60,
+    time_step: float = 1e-3,
+    settle: float = 0.1,
+    diagram: Diagram | None = None,
+    simulator: Simulator | None = None,
+) -> WalkResult:
+    """Simulates the biped executing ``plan`` and measures every landing.
+
+    A landing is measured ``settle`` seconds after the step's touch-down time (the swing
+    sole then stands still until it lifts again).
+
+    Args:
+        plan: the footstep plan.
+        rule: the controller's stepping rule.
+        pelvis_height: pelvis height [m].
+        time_step: plant time step [s].
+        settle: delay after touch-down before measuring [s].
+        diagram: optionally a diagram already built by :func:`build_walk_diagram` for ``plan``.
+        simulator: optionally a simulator of ``diagram``.
+    """
+    rule = rule or SteppingRule()
+    if diagram is None:
+        diagram = build_walk_diagram(
+            plan, rule=rule, pelvis_height=pelvis_height, time_step=time_step
+        )
+    if simulator is None:
+        simulator = Simulator(diagram)
+    context = simulator.get_context()
+    simulator.Initialize()
+    seq = footstep_sequence(diagram, context)
+    landed, max_tilt, fell = [], 0.0, False
+    for k in range(seq.num_steps):
+        simulator.AdvanceTo(seq.land_times[k] + settle)
+        p, tilt = pelvis_state(diagram, context)
+        max_tilt = max(max_tilt, tilt)
+        if p[2] < 0.4 or tilt > 0.5 or not np.all(np.isfinite(p)):
+            fell = True
+            break
+        landed.append(sole_poses(diagram, context)[seq.swing_feet[k]].tolist())
+    if not fell:
+        simulator.AdvanceTo(seq.end_time)
+        p, tilt = pelvis_state(diagram, context)
+        max_tilt = max(max_tilt, tilt)
+        fell = bool(p[2] < 0.4 or tilt > 0.5 or not np.all(np.isfinite(p)))
+    durations = [tl - tc for tc, tl in zip(seq.command_times, seq.land_times)]
+    return WalkResult(
+        landed=landed,
+        expected=[list(p) for p in seq.poses],
+        planned=[list(p) for p in plan.poses[1:]],
+        durations=durations,
+        fell=fell,
+        final_time=context.get_time(),
+        max_tilt=max_tilt,
+    )
+
+
+def landing_errors(
+    landed: list[list[float]], target: list[list[float]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Position [m] and yaw [rad] error of each measured landing against a target pose."""
+    n = min(len(landed), len(target))
+    if n == 0:
+        return np.zeros(0), np.zeros(0)
+    a = np.asarray(landed[:n], float)
+    b = np.asarray(target[:n], float)
+    pos = np.linalg.norm(a[:, :2] - b[:, :2], axis=1)
+    yaw = np.abs(np.array([wrap_angle(x) for x in a[:, 2] - b[:, 2]]))
+    return pos, yaw
+
+
+def check_biped_walk(diagram: Diagram, context: Context) -> dict[str, float]:
+    """Figures after a walk: pelvis height and tilt, distance walked, steps taken so far."""
+    p, tilt = pelvis_state(diagram, context)
+    seq = footstep_sequence(diagram, context)
+    t = context.get_time()
+    done = sum(1 for tl in seq.land_times if tl <= t)
+    start = 0.5 * (np.asarray(seq.initial_left[:2]) + np.asarray(seq.initial_right[:2]))
+    return {
+        "pelvis_height_m": float(p[2]),
+        "tilt_rad": tilt,
+        "distance_m": float(np.linalg.norm(p[:2] - start)),
+        "steps_landed": float(done),
+        "fell": float(p[2] < 0.4 or tilt > 0.5),
+    }
+
+
+__all__ = [
+    "BipedWalkScenario",
+    "WalkResult",
+    "build_biped_walk",
+    "build_walk_diagram",
+    "check_biped_walk",
+    "execute_plan",
+    "landing_errors",
+    "plan_from_actions",
+    "sole_poses",
+    "start_feet",
+]

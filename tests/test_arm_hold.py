@@ -29,6 +29,7 @@ from repertoire.models.arm7 import (
     ArmWorld,
     arm7_home_configuration,
     make_arm7_control_plant,
+    side_grasp_rotation,
 )
 
 from repertoire.errors import ScenarioError
@@ -148,7 +149,7 @@ def test_build_validates_a_hand_made_scenario():
 
 def _side_grasp_ik(control_plant, p_WT, q_guess):
     """Joint angles putting tcp at p_WT with approach +x_W and finger spread +z_W."""
-    R_WT = RotationMatrix(np.column_stack([[0, 0, 1], [0, -1, 0], [1, 0, 0]]))
+    R_WT = side_grasp_rotation(0.0)
     ik = InverseKinematics(control_plant)
     tcp = control_plant.GetFrameByName("tcp")
     world = control_plant.world_frame()

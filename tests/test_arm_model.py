@@ -25,6 +25,7 @@ from repertoire.models.arm7 import (
     check_arm_configuration,
     default_arm_world,
     make_arm7_control_plant,
+    side_grasp_rotation,
 )
 from repertoire.models.arm7.generate import (
     box_inertia,
@@ -232,3 +233,18 @@ def test_world_validation_errors(objects, match):
 def test_welded_cup_in_the_air_is_allowed():
     world = ArmWorld(objects=[ArmObject(name="a", z_above_table=0.1, mount="welded")])
     world.validate()
+
+
+def test_side_grasp_rotation_closed_form():
+    R = side_grasp_rotation(0.0).matrix()
+    assert R == pytest.approx(np.column_stack([[0, 0, 1], [0, -1, 0], [1, 0, 0]]))
+    R = side_grasp_rotation(math.pi / 2).matrix()
+    assert R[:, 2] == pytest.approx([0, 1, 0], abs=1e-12)  # approach towards +y
+    assert R[:, 0] == pytest.approx([0, 0, 1], abs=1e-12)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    # The elbow-at-90-degrees pose (forearm forward) is exactly the yaw-0 side grasp.
+    q = np.zeros(7)
+    q[3] = math.pi / 2
+    plant, _, context = _arm_plant(q)
+    R_tcp = _X_WF(plant, context, "tcp").rotation().matrix()
+    assert R_tcp == pytest.approx(side_grasp_rotation(0.0).matrix(), abs=1e-9)

@@ -135,6 +135,26 @@ def arm7_home_configuration() -> np.ndarray:
     return np.array([0.45, 0.15, 0.0, 1.45, 0.0, 0.0, 0.33])
 
 
+def side_grasp_rotation(yaw: float = 0.0):
+    """Orientation R_WT of ``tcp``/``palm`` for a side grasp of an upright cylinder.
+
+    The approach axis (z) is horizontal at heading ``yaw`` (0 = +x_W, towards the
+    table), the finger-spread axis (x) points up, so the thumb and the two
+    fingers close horizontally around the cylinder: x_T = +z_W,
+    y_T = (sin yaw, -cos yaw, 0), z_T = (cos yaw, sin yaw, 0).
+
+    Args:
+        yaw: approach heading about +z_W [rad].
+
+    Returns:
+        A ``pydrake.math.RotationMatrix``.
+    """
+    from pydrake.math import RotationMatrix
+
+    c, s = math.cos(yaw), math.sin(yaw)
+    return RotationMatrix(np.array([[0.0, s, c], [0.0, -c, s], [1.0, 0.0, 0.0]]))
+
+
 def arm7_joint_limits(joints: tuple[str, ...] = ARM_JOINTS) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper position limits [rad] of the given joints (default: the arm's 7).
 

@@ -181,6 +181,12 @@ def write_index(out: Path, items: list[DemoItem], failures: list[str], total_s: 
             lines += [f"- {key} = {value:.6g}" for key, value in item.figures.items()]
             lines += [f"- note: {note}" for note in item.notes]
             lines.append("")
+            lines += [
+                f"![{item.name} {label}]({_rel(p, out)})"
+                for label, p in item.files.items()
+                if Path(p).suffix == ".png"
+            ]
+            lines.append("")
     lines += ["## Failures", ""]
     lines += [f"- {f}" for f in failures] or ["none"]
     path = out / "index.md"

@@ -327,18 +327,11 @@ def check_arm_hold(diagram: Diagram, context: Context) -> dict[str, float]:
     plant = diagram.GetSubsystemByName("plant")
     plant_context = plant.GetMyContextFromRoot(context)
     arm = plant.GetModelInstanceByName("arm7")
-    q = plant.GetPositions(plant_context, arm)
     arm_src = diagram.GetSubsystemByName("arm_desired_state")
     hand_src = diagram.GetSubsystemByName("hand_desired_state")
     q_arm_d = arm_src.get_source_value(arm_src.GetMyContextFromRoot(context)).value()[:7]
     q_hand_d = hand_src.get_source_value(hand_src.GetMyContextFromRoot(context)).value()[:3]
-    q_by_joint = {
-        j: q[
-            plant.GetJointByName(j, arm).position_start()
-            - plant.GetJointByName(ARM_JOINTS[0], arm).position_start()
-        ]
-        for j in ALL_JOINTS
-    }
+    q_by_joint = {j: plant.GetJointByName(j, arm).get_angle(plant_context) for j in ALL_JOINTS}
     arm_err = max(abs(q_by_joint[j] - q_arm_d[k]) for k, j in enumerate(ARM_JOINTS))
     hand_err = max(abs(q_by_joint[j] - q_hand_d[k]) for k, j in enumerate(HAND_JOINTS))
     speed = 0.0

@@ -73,6 +73,7 @@ __all__ = [
 
 EXECUTORS = ("inline", "process", "dask")
 DASK_CONNECT_TIMEOUT_S = 3.0
+WINDOW_PER_WORKER = 4  # seeds submitted ahead per worker
 
 
 class EpisodeError(RuntimeError):
@@ -231,8 +232,18 @@ def _iter_process(
         initargs=(os.getpid(), module, name),
     )
     finished = False
+    todo = iter(seeds)
+    seed_of: dict = {}
+
+    def submit_next() -> None:
+        seed = next(todo, None)
+        if seed is not None:
+            seed_of[pool.submit(_run_task, module, name, config_json, seed)] = seed
+
     try:
-        seed_of = {pool.submit(_run_task, module, name, config_json, s): s for s in seeds}
+        # A bounded window of submitted seeds keeps memory flat for long studies.
+        for _ in range(workers * WINDOW_PER_WORKER):
+            submit_next()
         pending = set(seed_of)
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
@@ -245,7 +256,10 @@ def _iter_process(
                         f"running seed {seed_of[fut]}; finished episodes are stored, rerun to "
                         "resume"
                     ) from e
+                del seed_of[fut]
+                submit_next()
                 yield result
+            pending = set(seed_of)
         finished = True
     finally:
         pool.shutdown(wait=finished, cancel_futures=True)
@@ -291,15 +305,25 @@ def _iter_dask(
     from distributed import as_completed
 
     token = uuid.uuid4().hex[:8]
-    seed_of = {
-        client.submit(
-            _run_task, module, name, config_json, s, key=f"{name}-{token}-{s}", pure=False
-        ): s
-        for s in seeds
-    }
-    futures = list(seed_of)
+    todo = iter(seeds)
+    seed_of: dict = {}
+    threads = sum(client.nthreads().values()) or 1
+    window = max(64, threads * WINDOW_PER_WORKER)
+    ac = as_completed(loop=client.loop)
+
+    def submit_next() -> None:
+        seed = next(todo, None)
+        if seed is not None:
+            key = f"{name}-{token}-{seed}"
+            fut = client.submit(_run_task, module, name, config_json, seed, key=key, pure=False)
+            seed_of[fut] = seed
+            ac.add(fut)
+
     try:
-        for fut in as_completed(futures, loop=client.loop):
+        # A bounded window of submitted seeds keeps the scheduler's load flat.
+        for _ in range(window):
+            submit_next()
+        for fut in ac:
             try:
                 result = fut.result()
             except Exception as e:  # KilledWorker, lost scheduler, ...
@@ -307,9 +331,11 @@ def _iter_dask(
                     f"study '{name}': the Dask cluster could not run seed {seed_of[fut]} "
                     f"({type(e).__name__}: {e}); finished episodes are stored, rerun to resume"
                 ) from e
+            del seed_of[fut]
+            submit_next()
             yield result
     finally:
-        client.cancel(futures)
+        client.cancel(list(seed_of))
 
 
 # ---------------------------------------------------------------------------

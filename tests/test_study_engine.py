@@ -521,3 +521,14 @@ def test_worker_crash_is_reported_and_study_outside_the_package_runs(tmp_path, m
     finally:
         registry._REGISTRY.pop("_crash_study", None)
         sys.modules.pop("crash_study_module", None)
+
+
+def test_engine_import_is_cheap():
+    code = (
+        "import sys, repertoire.studies.engine\n"
+        "heavy = [m for m in ('pydrake', 'dask', 'distributed', 'matplotlib', 'numpy') "
+        "if m in sys.modules]\n"
+        "print(heavy)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -193,6 +193,7 @@ def summary_table(records: list[FootstepDynamicRecord]) -> str:
     n = len(records)
     ok = [r for r in records if r.success]
     times = [r.wall_plan_time_s for r in records]
+    arrivals = [r.arrival_s for r in ok]
 
     def pct(v: list[float], q: float) -> float:
         return float(np.percentile(v, q)) if v else float("nan")
@@ -219,8 +220,8 @@ def summary_table(records: list[FootstepDynamicRecord]) -> str:
         ),
         (
             "arrival time median [min, max] (s)",
-            f"{pct([r.arrival_s for r in ok], 50):.1f} [{min((r.arrival_s for r in ok), default=0):.1f}"
-            f", {max((r.arrival_s for r in ok), default=0):.1f}]",
+            f"{pct(arrivals, 50):.1f} [{min(arrivals, default=0):.1f}, "
+            f"{max(arrivals, default=0):.1f}]",
         ),
         (
             "steps over strings or blocks per plan (mean)",

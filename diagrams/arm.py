@@ -217,16 +217,30 @@ def add_arm_controllers(
     The feed-forward torque is ``InverseDynamics`` of the control-only arm plant
     at the measured arm state and the reference acceleration (zero for the
     fingers), mapped to the plant's actuation input; the PD feedback is the
-    plant's own actuator PD (gains set by :func:`add_arm_station`). The desired
-    inputs are left for the caller to connect.
+    plant's own actuator PD (gains set by :func:`add_arm_station`; a station
+    built by hand must set ``PdControllerGains`` on all ten arm7 actuators
+    before ``Finalize``). The desired inputs are left for the caller to connect.
 
     Args:
         builder: the diagram builder holding ``station``.
         station: from :func:`add_arm_station`.
         reference_acceleration: whether to expose a desired arm acceleration
             input (feed-forward of a reference trajectory); zero otherwise.
+
+    Raises:
+        RepertoireError: an arm7 actuator without PD gains.
     """
     plant, arm = station.plant, station.arm
+    missing = [
+        j
+        for j in ALL_JOINTS
+        if not plant.GetJointActuatorByName(f"{j}_motor", arm).has_controller()
+    ]
+    if missing:
+        raise RepertoireError(
+            f"arm7 actuators {missing} have no PD gains: set PdControllerGains on every arm7 "
+            "actuator before plant.Finalize() (add_arm_station does) so the plant runs the PD"
+        )
     control_plant = make_arm7_control_plant(X_WBase=_base_pose(plant, arm))
     ff = builder.AddNamedSystem(
         "arm_feedforward",

@@ -32,7 +32,7 @@ from repertoire.models.arm7 import (
     side_grasp_rotation,
 )
 
-from repertoire.errors import ScenarioError
+from repertoire.errors import RepertoireError, ScenarioError
 
 YAML = MODELS_DIR.parent / "diagrams" / "scenarios" / "arm_hold.yaml"
 
@@ -216,3 +216,16 @@ def test_initial_pose_in_collision_is_refused():
     ball.xy, ball.z_above_table = [0.52, -0.06], 0.12  # the ball where the hand is
     with pytest.raises(ScenarioError, match="initial configuration in collision.*obstacle_blue"):
         build_arm_hold(scenario)
+
+
+def test_controllers_need_pd_gains_on_the_plant():
+    from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
+    from repertoire.diagrams.arm import ArmStation
+    from repertoire.models.arm7 import add_arm7
+
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(time_step=1e-3), builder)
+    arm = add_arm7(plant)
+    plant.Finalize()
+    with pytest.raises(RepertoireError, match="have no PD gains"):
+        add_arm_controllers(builder, ArmStation(plant, scene_graph, arm, {}))

@@ -814,9 +814,7 @@ class TaskSpaceDmpChain(LeafSystem):
         self._times = times
         self._goal = self.DeclareVectorInputPort("goal", n)
         self._coupling = self.DeclareVectorInputPort("coupling", 3)
-        self.DeclareContinuousState(
-            BasicVector(np.concatenate([[1.0], x_start, np.zeros(n)])), 1 + n, n, 0
-        )
+        self.DeclareContinuousState(BasicVector(np.concatenate([[1.0], x_start, np.zeros(n)])))
         self._switch = self.DeclareDiscreteState(np.concatenate([[0.0], x_start]))
         self.DeclarePeriodicUnrestrictedUpdateEvent(switch_period, 0.0, self._maybe_switch)
         xc = {self.xc_ticket(), self.discrete_state_ticket(self._switch)}

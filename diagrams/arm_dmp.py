@@ -1,0 +1,1084 @@
+"""DMP-driven arm7 worlds of the DMP paper: pick-and-place (Fig. 13) and serving water (Fig. 12).
+
+Pipeline (Pastor et al. 2009, sec. IV, Fig. 7 and 11)::
+
+    TaskSpaceDmpChain (10-D DMPs: position, quaternion, 3 fingers; grasp -> place -> ...)
+      -> ResolvedMotionRateIK (quaternion feedback, damped least squares, null-space
+         joint-limit avoidance; reports targets out of reach)
+      -> inverse-dynamics feed-forward + joint PD (diagrams/arm.py controllers)
+      -> arm7 MultibodyPlant with the hand, a table and the objects.
+
+The movements are synthesised once as demonstrations (minimum-jerk movements
+through via points for the position, minimum-jerk slerps for the orientation,
+two minimum-jerk movements for opening and closing the hand, as in sec. IV-B),
+learned into DMPs (``learn_task_space_dmp`` with the paper's component
+quaternion DMP) and stored in a motion library with semantic labels (grasp,
+place, release, pour, retreat). Only the learned DMPs drive the arm: each
+segment gets its goal from the scene (the cup, the moving coaster, the cups to
+pour into), and the grasp orientation is computed from the approach direction
+of the grasp DMP rolled out to the new goal (sec. IV-C).
+
+Grasping: by default the hand grasps physically, by finger contact (the
+fingers' PD squeezes the object, friction holds it; ``grasp_mode: contact``).
+``grasp_mode: grip`` replaces friction by :class:`GraspWrench`, a stiff
+spring-damper between palm and object that latches when the commanded fingers
+close around an object within 2 cm of the grasp point and lets go when they
+open (a physically motivated stand-in, like a suction or magnetic gripper).
+
+Pick-and-place: the coaster rides on two actuated prismatic joints (a small
+x-y table under it) and moves ``coaster_move_delay`` seconds after the onset of
+the placing movement; the placing DMP's goal input is read from the coaster's
+pose in the plant every step, so the movement adapts online (sec. II-B). The
+ball-like obstacle feeds the DMP's coupling term (eq. 10) through
+``ObstacleCoupling``.
+"""
+
+import dataclasses
+import functools
+import time
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
+from pydrake.multibody.tree import (
+    FixedOffsetFrame,
+    PdControllerGains,
+    PrismaticJoint,
+    SpatialInertia,
+    UnitInertia,
+)
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    LogVectorOutput,
+    MatrixGain,
+    Multiplexer,
+    TrajectorySource,
+)
+from pydrake.trajectories import PiecewisePolynomial
+from repertoire.diagrams.arm import ArmStation, add_arm_controllers, add_meshcat
+from repertoire.diagrams.registry import register_diagram
+from repertoire.models import ConfigureParser, package_url
+from repertoire.models.arm7 import (
+    ALL_JOINTS,
+    ARM_JOINTS,
+    HAND_GRASP_7CM,
+    HAND_OPEN,
+    SHOULDER_FRAME,
+    TABLE_HEIGHT,
+    TCP_FRAME,
+    ArmObject,
+    ArmWorld,
+    add_arm7,
+    add_arm_world,
+    arm7_home_configuration,
+    make_arm7_control_plant,
+)
+from repertoire.planning.dmp import TaskSpaceDmp, learn_task_space_dmp
+from repertoire.planning.dmp_math import minimum_jerk, minimum_jerk_via_points
+from repertoire.systems.dmp import ObstacleCoupling
+from repertoire.systems.task_space import (
+    STATUS_NAMES,
+    STATUS_OK,
+    GraspWrench,
+    ResolvedMotionRateIK,
+    TaskSpaceDmpChain,
+    check_reachable,
+    reach_bound,
+)
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+GRASP_MODES = ("contact", "grip")
+#: Height of the cup's and the bottle's grasp frame above their bottom [m].
+CUP_GRASP_HEIGHT = 0.055
+BOTTLE_GRASP_HEIGHT = 0.10
+#: Bottle spout (tip) above the grasp point, along the bottle axis [m].
+BOTTLE_TIP_ABOVE_GRASP = 0.15
+COASTER_TOP = 0.006
+PLACE_CLEARANCE = 0.004
+#: Tilt of the bottle when pouring: rotation about the approach axis z_palm [rad].
+POUR_TILT = -1.65
+#: Height of the bottle tip above the cup rim when pouring [m].
+POUR_TIP_ABOVE_RIM = 0.05
+CUP_RIM = 0.10
+
+
+def _rotation_from_approach(approach_W: np.ndarray) -> RotationMatrix:
+    """Side-grasp orientation of the palm for a horizontal approach direction (sec. IV-C).
+
+    z_palm (approach) is the horizontal part of ``approach_W``, x_palm is up (the
+    axis of an upright cylinder), y_palm = z_palm x x_palm closes across it.
+    """
+    a = np.array([approach_W[0], approach_W[1], 0.0])
+    norm = np.linalg.norm(a)
+    if norm < 1e-9:
+        raise RepertoireError(
+            f"the grasp approach direction {approach_W} has no horizontal part; a side grasp "
+            "needs a horizontal approach"
+        )
+    z = a / norm
+    x = np.array([0.0, 0.0, 1.0])
+    y = np.cross(z, x)
+    return RotationMatrix(np.column_stack([x, y, z]))
+
+
+def _quat(R: RotationMatrix) -> np.ndarray:
+    return R.ToQuaternion().wxyz()
+
+
+def _slerp(q0: np.ndarray, q1: np.ndarray, s: np.ndarray) -> np.ndarray:
+    q1 = q1 if q0 @ q1 >= 0 else -q1
+    dot = np.clip(q0 @ q1, -1.0, 1.0)
+    angle = np.arccos(dot)
+    if angle < 1e-9:
+        return np.tile(q0, (len(s), 1))
+    s = s[:, None]
+    return (np.sin((1 - s) * angle) * q0 + np.sin(s * angle) * q1) / np.sin(angle)
+
+
+def _min_jerk_profile(t: np.ndarray, t0: float, t1: float) -> np.ndarray:
+    """0 -> 1 minimum-jerk profile between t0 and t1 (0 before, 1 after)."""
+    s, _, _ = minimum_jerk(np.zeros(1), np.ones(1), t1 - t0, np.clip(t - t0, 0.0, t1 - t0))
+    return s[:, 0]
+
+
+def synthesize_demonstration(
+    via_points: np.ndarray,
+    move_window: tuple,
+    q_start: np.ndarray,
+    q_end: np.ndarray,
+    turn_window: tuple,
+    fingers: list,
+    duration: float,
+    n_samples: int = 600,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A synthetic demonstration: what an exoskeleton recording would give (sec. IV-B).
+
+    Args:
+        via_points: end-effector via points (m x 3), a minimum-jerk path through them
+            during ``move_window`` (fractions of the duration), at rest outside it.
+        move_window: (start, end) of the position movement, fractions of ``duration``.
+        q_start: start orientation [w, x, y, z].
+        q_end: end orientation; a minimum-jerk slerp during ``turn_window``.
+        turn_window: (start, end) of the rotation, fractions of ``duration``.
+        fingers: list of (start fraction, end fraction, from (3), to (3)) minimum-jerk
+            finger movements; the hand holds between them.
+        duration: seconds.
+        n_samples: samples of the demonstration.
+
+    Returns:
+        ``(t, positions (N x 3), quaternions (N x 4), fingers (N x 3))``.
+    """
+    t = np.linspace(0.0, duration, n_samples)
+    t0, t1 = move_window[0] * duration, move_window[1] * duration
+    inside = (t >= t0) & (t <= t1)
+    n_in = int(inside.sum())
+    _, path = minimum_jerk_via_points(np.asarray(via_points, float), t1 - t0, n_in)
+    p = np.empty((n_samples, 3))
+    p[t < t0] = via_points[0]
+    p[inside] = path
+    p[t > t1] = via_points[-1]
+    s = _min_jerk_profile(t, turn_window[0] * duration, turn_window[1] * duration)
+    q = _slerp(np.asarray(q_start, float), np.asarray(q_end, float), s)
+    f = np.tile(np.asarray(fingers[0][2], float), (n_samples, 1))
+    for a, b, f_from, f_to in fingers:
+        s = _min_jerk_profile(t, a * duration, b * duration)
+        active = t >= a * duration
+        f[active] = (np.asarray(f_from) + np.outer(s, np.asarray(f_to) - np.asarray(f_from)))[
+            active
+        ]
+    return t, p, q, f
+
+
+# ----------------------------------------------------------------------------- motion library
+#: The canonical layout the demonstrations were "recorded" in.
+DEMO_CUP_XY = (0.55, -0.25)
+DEMO_COASTER_XY = (0.55, 0.10)
+DEMO_BOTTLE_XY = (0.52, -0.28)
+DEMO_POUR_CUP_XY = (0.66, 0.0)
+R_SIDE = _rotation_from_approach(np.array([1.0, 0.0, 0.0]))
+R_POUR = R_SIDE @ RotationMatrix.MakeZRotation(POUR_TILT)
+
+
+def home_tcp_pose() -> RigidTransform:
+    """The tcp pose of arm7 in its home configuration (base at the world origin)."""
+    plant = _control_plant()
+    context = plant.CreateDefaultContext()
+    plant.SetPositions(context, np.concatenate([arm7_home_configuration(), HAND_OPEN]))
+    return plant.GetFrameByName(TCP_FRAME).CalcPoseInWorld(context)
+
+
+@functools.lru_cache(maxsize=1)
+def _control_plant() -> MultibodyPlant:
+    return make_arm7_control_plant()
+
+
+def pour_tcp_position(cup_xy, R_WE: RotationMatrix) -> np.ndarray:
+    """Tcp position that puts the bottle tip above a cup's centre (bottle held upright in E)."""
+    tip = np.array([cup_xy[0], cup_xy[1], TABLE_HEIGHT + CUP_RIM + POUR_TIP_ABOVE_RIM])
+    return tip - BOTTLE_TIP_ABOVE_GRASP * R_WE.matrix()[:, 0]
+
+
+@functools.lru_cache(maxsize=1)
+def motion_library() -> dict[str, TaskSpaceDmp]:
+    """Learns the labelled DMPs (grasp, place, release, pour, retreat) from synthetic demos.
+
+    Returns:
+        label -> learned 10-D :class:`TaskSpaceDmp` (component quaternion DMP).
+    """
+    home = home_tcp_pose()
+    p_home, q_home = home.translation(), _quat(home.rotation())
+    q_side = _quat(R_SIDE)
+    open_, grasp = np.array(HAND_OPEN), np.array(HAND_GRASP_7CM)
+    demos = {}
+    cup = np.array([*DEMO_CUP_XY, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
+    radial = np.array([cup[0], cup[1], 0.0]) / np.hypot(cup[0], cup[1])
+    pre = cup - 0.10 * radial + np.array([0.0, 0.0, 0.03])
+    demos["grasp"] = synthesize_demonstration(
+        [p_home, (p_home + pre) / 2 + [0, 0, 0.02], pre, cup],
+        (0.0, 0.8),
+        q_home,
+        q_side,
+        (0.0, 0.6),
+        [(0.0, 0.3, open_, open_), (0.82, 1.0, open_, grasp)],
+        2.5,
+    )
+    coaster = np.array([*DEMO_COASTER_XY, TABLE_HEIGHT + COASTER_TOP + CUP_GRASP_HEIGHT])
+    coaster = coaster + [0, 0, PLACE_CLEARANCE]
+    lift = np.array([0, 0, 0.14])
+    demos["place"] = synthesize_demonstration(
+        [cup, cup + lift, (cup + coaster) / 2 + lift + [0, 0, 0.02], coaster + lift, coaster],
+        (0.0, 0.85),
+        q_side,
+        q_side,
+        (0.0, 1.0),
+        [(0.0, 1.0, grasp, grasp)],
+        3.0,
+    )
+    retreat = coaster + np.array([-0.12, 0.0, 0.08])
+    demos["release"] = synthesize_demonstration(
+        [coaster, coaster + [-0.02, 0, 0.03], retreat],
+        (0.35, 1.0),
+        q_side,
+        q_side,
+        (0.0, 1.0),
+        [(0.0, 0.3, grasp, open_)],
+        1.5,
+    )
+    bottle = np.array([*DEMO_BOTTLE_XY, TABLE_HEIGHT + BOTTLE_GRASP_HEIGHT])
+    pour = pour_tcp_position(DEMO_POUR_CUP_XY, R_POUR)
+    demos["pour"] = synthesize_demonstration(
+        [bottle, bottle + [0, 0, 0.12], (bottle + pour) / 2 + [0, 0, 0.14], pour],
+        (0.0, 0.8),
+        q_side,
+        _quat(R_POUR),
+        (0.35, 0.95),
+        [(0.0, 1.0, grasp, grasp)],
+        2.2,
+    )
+    up = pour + np.array([0.0, 0.0, 0.06])
+    demos["retreat"] = synthesize_demonstration(
+        [pour, up],
+        (0.2, 1.0),
+        _quat(R_POUR),
+        q_side,
+        (0.0, 0.8),
+        [(0.0, 1.0, grasp, grasp)],
+        1.2,
+    )
+    return {
+        label: learn_task_space_dmp(t, p, q, f, orientation_mode="component", n_basis=30)
+        for label, (t, p, q, f) in demos.items()
+    }
+
+
+def approach_direction(dmp: TaskSpaceDmp, x_start: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """Approach direction at the end of a movement (sec. IV-C).
+
+    Rolls the position DMP out from ``x_start`` to ``goal`` and averages the
+    velocity vectors over the last part of the movement where it still moves.
+
+    Args:
+        dmp: the grasp DMP.
+        x_start: start position (3).
+        goal: goal position (3).
+
+    Returns:
+        Unit 3-vector.
+    """
+    r = dmp.position.rollout(goal=goal, x0=x_start, dt=0.005)
+    speed = np.linalg.norm(r.xd, axis=1)
+    moving = np.nonzero(speed > 0.05 * speed.max())[0]
+    last = moving[-1]
+    window = r.xd[max(0, last - int(0.25 * len(moving))) : last + 1]
+    v = window.mean(axis=0)
+    return v / np.linalg.norm(v)
+
+
+# ----------------------------------------------------------------------------- systems
+@dataclasses.dataclass
+class SegmentGoal:
+    """The goal of one chain segment.
+
+    Attributes:
+        label: motion library label.
+        position: fixed goal position (3), or the offset from ``body`` when tracking.
+        orientation: goal quaternion [w, x, y, z].
+        fingers: goal finger angles (3).
+        body: a tracked body (the goal follows it) as a body index or "instance:body",
+            or -1 for a fixed goal.
+    """
+
+    label: str
+    position: np.ndarray
+    orientation: np.ndarray
+    fingers: np.ndarray
+    body: int | str = -1
+
+
+class GoalSchedule(LeafSystem):
+    """Gives the DMP chain the goal of its active segment; tracked goals follow a body.
+
+    This is the "vision" of the paper's experiment: a goal tied to a body (the
+    coaster) is re-read from the plant every step, so the DMP's goal changes when
+    the body moves.
+
+    Input ports:
+        segment: [active segment index] (1).
+        body_poses: the plant's body poses (abstract).
+
+    Output ports:
+        goal: [p (3), q (4), fingers (3)] (10).
+    """
+
+    def __init__(self, goals: list[SegmentGoal]):
+        super().__init__()
+        self._goals = goals
+        self._segment = self.DeclareVectorInputPort("segment", 1)
+        self._poses = self.DeclareAbstractInputPort(
+            "body_poses", AbstractValue.Make([RigidTransform()])
+        )
+        self.DeclareVectorOutputPort("goal", 10, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        g = self._goals[int(self._segment.Eval(context)[0])]
+        p = np.asarray(g.position, float)
+        if g.body >= 0:
+            p = self._poses.Eval(context)[g.body].translation() + p
+        output.SetFromVector(np.concatenate([p, g.orientation, g.fingers]))
+
+
+class BodyPointAndAxis(LeafSystem):
+    """A point of a body and the body's z axis in the world (for logging).
+
+    Input ports:
+        body_poses: the plant's body poses (abstract).
+
+    Output ports:
+        point_and_axis: [p_WQ (3), z axis of the body in W (3)] (6).
+    """
+
+    def __init__(self, body: int, p_BQ: np.ndarray):
+        super().__init__()
+        self._body = int(body)
+        self._p_BQ = np.asarray(p_BQ, float)
+        self._poses = self.DeclareAbstractInputPort(
+            "body_poses", AbstractValue.Make([RigidTransform()])
+        )
+        self.DeclareVectorOutputPort("point_and_axis", 6, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        X = self._poses.Eval(context)[self._body]
+        output.SetFromVector(np.concatenate([X @ self._p_BQ, X.rotation().matrix()[:, 2]]))
+
+
+# ----------------------------------------------------------------------------- scenarios
+def _check_xy(name: str, xy) -> np.ndarray:
+    v = np.asarray(xy, dtype=float).reshape(-1)
+    if v.size != 2 or not np.all(np.isfinite(v)):
+        raise ScenarioError(f"{name} must be 2 finite numbers (x, y) in m, got {xy}")
+    return v
+
+
+def _check_common(s) -> None:
+    if not (np.isfinite(s.time_step) and 0 < s.time_step <= 0.005):
+        raise ScenarioError(f"time_step must be in (0, 0.005] s, got {s.time_step}")
+    if s.contact_approximation not in ("lagged", "sap", "similar"):
+        raise ScenarioError(
+            f"contact_approximation '{s.contact_approximation}' unknown; expected lagged, sap "
+            "or similar"
+        )
+    if s.grasp_mode not in GRASP_MODES:
+        raise ScenarioError(f"grasp_mode '{s.grasp_mode}' unknown; expected one of {GRASP_MODES}")
+    if not (np.isfinite(s.settle_time) and 0.0 <= s.settle_time <= 5.0):
+        raise ScenarioError(f"settle_time must be in [0, 5] s, got {s.settle_time}")
+
+
+@dataclasses.dataclass
+class PickPlaceScenario:
+    """Pick a cup, place it on a coaster that moves after onset, around a ball (Fig. 13).
+
+    Attributes:
+        time_step: discrete plant time step [s].
+        contact_approximation: ``lagged``, ``sap`` or ``similar``.
+        grasp_mode: ``contact`` (finger friction) or ``grip`` (GraspWrench latch).
+        cup_xy: the cup's position on the table [m].
+        coaster_xy: the coaster's position at the start [m].
+        coaster_final_xy: where the coaster moves to after the placing onset [m].
+        coaster_move_delay: seconds after the placing onset when the coaster starts moving.
+        coaster_move_duration: seconds the coaster takes to move.
+        obstacle_xyz: centre of the ball-like obstacle (radius 0.06 m) [m].
+        obstacle_coupling: whether the obstacle feeds the DMP coupling term (eq. 10).
+        obstacle_gamma: gamma of eq. 10.
+        obstacle_beta: the angular decay c of eq. 10.
+        settle_time: pause after each DMP's tau before the next segment starts [s].
+    """
+
+    time_step: float = 0.002
+    contact_approximation: str = "lagged"
+    grasp_mode: str = "contact"
+    cup_xy: list[float] = dataclasses.field(default_factory=lambda: [0.55, -0.25])
+    coaster_xy: list[float] = dataclasses.field(default_factory=lambda: [0.52, 0.08])
+    coaster_final_xy: list[float] = dataclasses.field(default_factory=lambda: [0.58, 0.14])
+    coaster_move_delay: float = 0.8
+    coaster_move_duration: float = 1.0
+    obstacle_xyz: list[float] = dataclasses.field(default_factory=lambda: [0.64, -0.08, 0.98])
+    obstacle_coupling: bool = True
+    obstacle_gamma: float = 3000.0
+    obstacle_beta: float = float(20.0 / np.pi)
+    settle_time: float = 0.4
+
+    def validate(self) -> None:
+        """Raises ScenarioError on the first bad field."""
+        _check_common(self)
+        _check_xy("cup_xy", self.cup_xy)
+        _check_xy("coaster_xy", self.coaster_xy)
+        _check_xy("coaster_final_xy", self.coaster_final_xy)
+        o = np.asarray(self.obstacle_xyz, dtype=float).reshape(-1)
+        if o.size != 3 or not np.all(np.isfinite(o)):
+            raise ScenarioError(f"obstacle_xyz must be 3 finite numbers, got {self.obstacle_xyz}")
+        if o[2] - 0.06 < TABLE_HEIGHT + 0.05:
+            raise ScenarioError(
+                f"obstacle_xyz z = {o[2]} m puts the ball within 5 cm of the table top "
+                f"({TABLE_HEIGHT} m); raise it"
+            )
+        for name in (
+            "coaster_move_delay",
+            "coaster_move_duration",
+            "obstacle_gamma",
+            "obstacle_beta",
+        ):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ScenarioError(f"{name} must be finite and >= 0, got {value}")
+
+
+@dataclasses.dataclass
+class ServingScenario:
+    """Grasp a bottle and pour over three cups (Fig. 12).
+
+    Attributes:
+        time_step: discrete plant time step [s].
+        contact_approximation: ``lagged``, ``sap`` or ``similar``.
+        grasp_mode: ``contact`` (finger friction) or ``grip`` (GraspWrench latch).
+        bottle_xy: the bottle's position on the table [m].
+        cup_xys: the three cups' positions [m], poured over in this order.
+        settle_time: pause after each DMP's tau before the next segment starts [s].
+    """
+
+    time_step: float = 0.002
+    contact_approximation: str = "lagged"
+    grasp_mode: str = "contact"
+    bottle_xy: list[float] = dataclasses.field(default_factory=lambda: [0.52, -0.28])
+    cup_xys: list[list[float]] = dataclasses.field(
+        default_factory=lambda: [[0.64, -0.10], [0.68, 0.04], [0.64, 0.18]]
+    )
+    settle_time: float = 0.3
+
+    def validate(self) -> None:
+        """Raises ScenarioError on the first bad field."""
+        _check_common(self)
+        _check_xy("bottle_xy", self.bottle_xy)
+        if len(self.cup_xys) != 3:
+            raise ScenarioError(f"cup_xys must list three cups, got {len(self.cup_xys)}")
+        for k, xy in enumerate(self.cup_xys):
+            _check_xy(f"cup_xys[{k}]", xy)
+
+
+# ----------------------------------------------------------------------------- building
+@dataclasses.dataclass
+class ArmDmpParts:
+    """Handles into a built arm DMP world (found again by name in a Diagram)."""
+
+    start_times: list
+    goals: list
+    duration: float
+
+
+#: The coaster rides 1 mm above the table top (no rubbing on the table).
+COASTER_RAIL_HEIGHT = TABLE_HEIGHT + 0.001
+
+
+def _coaster_on_slider(plant: MultibodyPlant, xy: np.ndarray):
+    """Adds the coaster on two PD-actuated prismatic joints (x, then y) just above the table.
+
+    Returns:
+        (model instance, coaster body).
+    """
+    from pydrake.multibody.parsing import Parser
+
+    parser = Parser(plant)
+    ConfigureParser(parser)
+    (instance,) = parser.AddModels(url=package_url("arm7/coaster.sdf"))
+    coaster = plant.GetBodyByName("coaster", instance)
+    slider = plant.AddRigidBody(
+        "coaster_slider", instance, SpatialInertia(0.05, np.zeros(3), UnitInertia.SolidSphere(0.01))
+    )
+    rail = plant.AddFrame(
+        FixedOffsetFrame(
+            "coaster_rail", plant.world_frame(), RigidTransform([0, 0, COASTER_RAIL_HEIGHT])
+        )
+    )
+    jx = plant.AddJoint(PrismaticJoint("coaster_x", rail, slider.body_frame(), [1, 0, 0]))
+    jy = plant.AddJoint(
+        PrismaticJoint("coaster_y", slider.body_frame(), coaster.body_frame(), [0, 1, 0])
+    )
+    for joint in (jx, jy):
+        actuator = plant.AddJointActuator(f"{joint.name()}_motor", joint, 50.0)
+        actuator.set_controller_gains(PdControllerGains(p=400.0, d=40.0))
+    jx.set_default_translation(float(xy[0]))
+    jy.set_default_translation(float(xy[1]))
+    return instance, coaster
+
+
+#: Joint PD gains of the arm (diagrams/arm.py defaults) and of the fingers.
+ARM_KP = (800.0, 800.0, 400.0, 400.0, 60.0, 60.0, 60.0)
+ARM_KD = (40.0, 40.0, 20.0, 20.0, 2.0, 2.0, 2.0)
+FINGER_KP = (2.0, 2.0, 2.0)
+FINGER_KD = (0.02, 0.02, 0.02)
+IK_PERIOD = 0.004
+LOG_PERIOD = 0.02
+TABLE_CENTER = [0.65, 0.0]
+
+
+def shoulder_and_reach() -> tuple[np.ndarray, float]:
+    """Shoulder centre in W and the reach bound of the tcp (joint polyline length)."""
+    plant = _control_plant()
+    context = plant.CreateDefaultContext()
+    shoulder = plant.GetFrameByName(SHOULDER_FRAME).CalcPoseInWorld(context).translation()
+    points = [shoulder]
+    for name in ARM_JOINTS:
+        points.append(
+            plant.GetJointByName(name).frame_on_child().CalcPoseInWorld(context).translation()
+        )
+    points.append(plant.GetFrameByName(TCP_FRAME).CalcPoseInWorld(context).translation())
+    return shoulder, reach_bound(np.array(points))
+
+
+def _segment_timing(labels: list[str], settle: float) -> tuple[list[float], float]:
+    lib = motion_library()
+    starts, t = [], 0.0
+    for label in labels:
+        starts.append(t)
+        t += lib[label].tau + settle
+    return starts, t
+
+
+def _build_world(
+    name: str,
+    scenario,
+    objects: list[ArmObject],
+    goals: list[SegmentGoal],
+    *,
+    graspable: list[str],
+    coaster: dict | None = None,
+    obstacle: dict | None = None,
+    logs: dict | None = None,
+    meshcat=None,
+) -> Diagram:
+    """Wires DMP chain -> RMRC IK -> ID + PD -> arm7 plant for one world (see module doc)."""
+    lib = motion_library()
+    shoulder, reach = shoulder_and_reach()
+    for g in goals:
+        if isinstance(g.body, int) and g.body < 0:
+            check_reachable(g.position, shoulder, reach, what=f"{g.label} goal")
+    builder = DiagramBuilder()
+    config = MultibodyPlantConfig(
+        time_step=scenario.time_step,
+        discrete_contact_approximation=scenario.contact_approximation,
+    )
+    plant, scene_graph = AddMultibodyPlant(config, builder)
+    arm = add_arm7(plant)
+    instances = add_arm_world(plant, ArmWorld(table_center=TABLE_CENTER, objects=objects))
+    coaster_instance = None
+    if coaster is not None:
+        coaster_instance, coaster_body = _coaster_on_slider(plant, coaster["xy"])
+        instances["coaster"] = coaster_instance
+    for joint, p, d in zip(ALL_JOINTS, ARM_KP + FINGER_KP, ARM_KD + FINGER_KD):
+        plant.GetJointActuatorByName(f"{joint}_motor", arm).set_controller_gains(
+            PdControllerGains(p=p, d=d)
+        )
+    plant.Finalize()
+    plant.SetDefaultPositions(arm, np.concatenate([arm7_home_configuration(), HAND_OPEN]))
+    station = ArmStation(plant, scene_graph, arm, instances)
+    controllers = add_arm_controllers(builder, station, reference_acceleration=True)
+    ctrl = controllers.control_plant
+    home = home_tcp_pose()
+    # Tracked goals (bodies) resolved to body indices of the simulated plant.
+    resolved = []
+    for g in goals:
+        body = g.body
+        if isinstance(body, str):  # "instance:body"
+            instance_name, body_name = body.split(":")
+            body = int(plant.GetBodyByName(body_name, instances[instance_name]).index())
+        resolved.append(dataclasses.replace(g, body=body))
+    labels = [g.label for g in goals]
+    starts, duration = _segment_timing(labels, scenario.settle_time)
+    chain = builder.AddNamedSystem(
+        "dmp_chain",
+        TaskSpaceDmpChain(
+            [lib[label] for label in labels],
+            starts,
+            np.concatenate([home.translation(), _quat(home.rotation()), HAND_OPEN]),
+            switch_period=IK_PERIOD,
+        ),
+    )
+    schedule = builder.AddNamedSystem("goal_schedule", GoalSchedule(resolved))
+    builder.Connect(chain.GetOutputPort("segment"), schedule.GetInputPort("segment"))
+    builder.Connect(plant.get_body_poses_output_port(), schedule.GetInputPort("body_poses"))
+    builder.Connect(schedule.GetOutputPort("goal"), chain.GetInputPort("goal"))
+    if obstacle is not None and obstacle["coupling"]:
+        coupling = builder.AddNamedSystem(
+            "obstacle_coupling", ObstacleCoupling(obstacle["gamma"], obstacle["beta"])
+        )
+        o_src = builder.AddNamedSystem(
+            "obstacle_position", ConstantVectorSource(np.asarray(obstacle["xyz"], float))
+        )
+        builder.Connect(chain.GetOutputPort("position"), coupling.GetInputPort("position"))
+        builder.Connect(chain.GetOutputPort("velocity"), coupling.GetInputPort("velocity"))
+        builder.Connect(o_src.get_output_port(), coupling.GetInputPort("obstacle"))
+        builder.Connect(coupling.GetOutputPort("coupling"), chain.GetInputPort("coupling"))
+    else:
+        zero = builder.AddNamedSystem("no_coupling", ConstantVectorSource(np.zeros(3)))
+        builder.Connect(zero.get_output_port(), chain.GetInputPort("coupling"))
+
+    arm_v = [ctrl.GetJointByName(j).velocity_start() for j in ARM_JOINTS]
+    rmrc = builder.AddNamedSystem(
+        "rmrc",
+        ResolvedMotionRateIK(
+            ctrl,
+            ctrl.GetFrameByName(TCP_FRAME),
+            arm_v,
+            period=IK_PERIOD,
+            reach_center=shoulder,
+            max_reach=reach,
+        ),
+    )
+    for src, dst in (
+        ("position", "position_desired"),
+        ("velocity", "velocity_desired"),
+        ("orientation", "orientation_desired"),
+        ("angular_velocity", "angular_velocity_desired"),
+    ):
+        builder.Connect(chain.GetOutputPort(src), rmrc.GetInputPort(dst))
+    selector = builder.AddNamedSystem(
+        "arm_state_selector",
+        MatrixGain(
+            plant.MakeStateSelectorMatrix(
+                [plant.GetJointByName(j, arm).index() for j in ARM_JOINTS]
+            )
+        ),
+    )
+    builder.Connect(plant.get_state_output_port(), selector.get_input_port())
+    builder.Connect(selector.get_output_port(), rmrc.GetInputPort("arm_state_measured"))
+    builder.Connect(rmrc.GetOutputPort("arm_reference_state"), controllers.arm_desired_state)
+    builder.Connect(
+        rmrc.GetOutputPort("arm_reference_acceleration"), controllers.arm_desired_acceleration
+    )
+    hand_mux = builder.AddNamedSystem("hand_reference", Multiplexer([3, 3]))
+    builder.Connect(chain.GetOutputPort("finger_position"), hand_mux.get_input_port(0))
+    builder.Connect(chain.GetOutputPort("finger_velocity"), hand_mux.get_input_port(1))
+    builder.Connect(hand_mux.get_output_port(), controllers.hand_desired_state)
+
+    hand_body = plant.GetBodyByName("hand", arm)
+    X_HTcp = plant.GetFrameByName(TCP_FRAME, arm).GetFixedPoseInBodyFrame()
+    if scenario.grasp_mode == "grip":
+        bodies = [
+            plant.GetBodyByName(n.split(":")[1], instances[n.split(":")[0]]) for n in graspable
+        ]
+        grip = builder.AddNamedSystem(
+            "grip",
+            GraspWrench(
+                hand_body.index(),
+                [b.index() for b in bodies],
+                num_fingers=3,
+                closure_weights=np.full(3, 1.0 / 3.0),
+                close_threshold=0.45,
+                open_threshold=0.0,
+                palm_point_H=X_HTcp.translation(),
+                capture_radius=0.02,
+                period=scenario.time_step,
+                object_com_offsets=[b.default_com() for b in bodies],
+            ),
+        )
+        builder.Connect(plant.get_body_poses_output_port(), grip.GetInputPort("body_poses"))
+        builder.Connect(
+            plant.get_body_spatial_velocities_output_port(),
+            grip.GetInputPort("body_spatial_velocities"),
+        )
+        builder.Connect(chain.GetOutputPort("finger_position"), grip.GetInputPort("finger_command"))
+        builder.Connect(
+            grip.GetOutputPort("spatial_forces"), plant.get_applied_spatial_force_input_port()
+        )
+
+    if coaster is not None:
+        times = [0.0, coaster["t0"], coaster["t1"], coaster["t1"] + 1.0]
+        xy0, xy1 = np.asarray(coaster["xy"], float), np.asarray(coaster["final_xy"], float)
+        knots = np.column_stack([xy0, xy0, xy1, xy1])
+        traj = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+            times, knots, np.zeros(2), np.zeros(2)
+        )
+        source = builder.AddNamedSystem("coaster_motion", TrajectorySource(traj, 1))
+        builder.Connect(
+            source.get_output_port(), plant.get_desired_state_input_port(coaster_instance)
+        )
+
+    tcp_point = builder.AddNamedSystem(
+        "tcp_point", BodyPointAndAxis(hand_body.index(), X_HTcp.translation())
+    )
+    builder.Connect(plant.get_body_poses_output_port(), tcp_point.GetInputPort("body_poses"))
+    log_mux = builder.AddNamedSystem("log_mux", Multiplexer([6, 10, 1]))
+    builder.Connect(tcp_point.get_output_port(), log_mux.get_input_port(0))
+    builder.Connect(schedule.GetOutputPort("goal"), log_mux.get_input_port(1))
+    builder.Connect(chain.GetOutputPort("segment"), log_mux.get_input_port(2))
+    sink = LogVectorOutput(log_mux.get_output_port(), builder, LOG_PERIOD)
+    sink.set_name("tcp_log")
+    for log_name, (body_name, instance_name, p_BQ) in (logs or {}).items():
+        body = plant.GetBodyByName(body_name, instances[instance_name])
+        point = builder.AddNamedSystem(f"{log_name}_point", BodyPointAndAxis(body.index(), p_BQ))
+        builder.Connect(plant.get_body_poses_output_port(), point.GetInputPort("body_poses"))
+        s = LogVectorOutput(point.get_output_port(), builder, LOG_PERIOD)
+        s.set_name(f"{log_name}_log")
+    add_meshcat(builder, scene_graph, meshcat)
+    diagram = builder.Build()
+    diagram.set_name(name)
+    return diagram
+
+
+# ----------------------------------------------------------------------------- the two worlds
+PICK_PLACE_LABELS = ["grasp", "place", "release"]
+SERVING_LABELS = ["grasp", "pour", "retreat", "pour", "retreat", "pour", "retreat"]
+
+
+def _place_offset() -> np.ndarray:
+    return np.array([0.0, 0.0, COASTER_TOP + CUP_GRASP_HEIGHT + PLACE_CLEARANCE])
+
+
+RELEASE_OFFSET = np.array([-0.12, 0.0, 0.08])
+
+
+def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]:
+    """Goals of grasp -> place -> release for a scenario (sec. IV-C, IV-E).
+
+    The grasp goal is the cup's grasp point, its orientation computed from the
+    approach direction of the grasp DMP rolled out to that goal; the place and
+    release goals follow the coaster (their orientations are the demonstration's).
+
+    Returns:
+        (goals, duration of the whole sequence in s).
+    """
+    lib = motion_library()
+    home = home_tcp_pose()
+    cup = np.array([*s.cup_xy, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
+    R_grasp = _rotation_from_approach(approach_direction(lib["grasp"], home.translation(), cup))
+    grasp, open_ = np.array(HAND_GRASP_7CM), np.array(HAND_OPEN)
+    q_side = _quat(R_SIDE)
+    goals = [
+        SegmentGoal("grasp", cup, _quat(R_grasp), grasp),
+        SegmentGoal("place", _place_offset(), q_side, grasp, body="coaster:coaster"),
+        SegmentGoal("release", _place_offset() + RELEASE_OFFSET, q_side, open_, "coaster:coaster"),
+    ]
+    shoulder, reach = shoulder_and_reach()
+    for xy_name in ("coaster_xy", "coaster_final_xy"):
+        xy = getattr(s, xy_name)
+        base = np.array([xy[0], xy[1], COASTER_RAIL_HEIGHT])
+        check_reachable(base + _place_offset(), shoulder, reach, what=f"place goal ({xy_name})")
+        check_reachable(
+            base + _place_offset() + RELEASE_OFFSET, shoulder, reach, what=f"release ({xy_name})"
+        )
+    _, duration = _segment_timing(PICK_PLACE_LABELS, s.settle_time)
+    return goals, duration
+
+
+@register_diagram(
+    "arm_pick_and_place",
+    scenario_type=PickPlaceScenario,
+    description="arm7 driven by learned DMPs (RMRC IK + ID/PD): grasp a cup, place it on a "
+    "coaster that moves after onset, around a ball obstacle (Pastor et al. Fig. 13)",
+    duration=8.2,
+    check=lambda diagram, context: pick_and_place_figures(diagram, context),
+)
+def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagram:
+    """Builds the pick-and-place world.
+
+    Args:
+        scenario: a :class:`PickPlaceScenario` (validated here).
+        meshcat: optional Meshcat for a visualizer (HTML replay).
+
+    Raises:
+        ScenarioError: bad scenario fields.
+        RepertoireError: a goal out of the arm's reach.
+    """
+    scenario.validate()
+    goals, _ = plan_pick_and_place(scenario)
+    starts, _ = _segment_timing(PICK_PLACE_LABELS, scenario.settle_time)
+    t0 = starts[1] + scenario.coaster_move_delay
+    objects = [
+        ArmObject(name="cup_red", kind="cup", xy=list(scenario.cup_xy)),
+        ArmObject(
+            name="obstacle_blue",
+            kind="obstacle",
+            xy=list(scenario.obstacle_xyz[:2]),
+            z_above_table=float(scenario.obstacle_xyz[2] - 0.06 - TABLE_HEIGHT),
+            mount="welded",
+        ),
+    ]
+    return _build_world(
+        "arm_pick_and_place",
+        scenario,
+        objects,
+        goals,
+        graspable=["cup_red:cup"],
+        coaster={
+            "xy": scenario.coaster_xy,
+            "final_xy": scenario.coaster_final_xy,
+            "t0": t0,
+            "t1": t0 + max(scenario.coaster_move_duration, 1e-3),
+        },
+        obstacle={
+            "xyz": scenario.obstacle_xyz,
+            "coupling": scenario.obstacle_coupling,
+            "gamma": scenario.obstacle_gamma,
+            "beta": scenario.obstacle_beta,
+        },
+        meshcat=meshcat,
+    )
+
+
+def plan_serving(s: ServingScenario) -> tuple[list[SegmentGoal], float]:
+    """Goals of grasp(bottle) -> (pour -> retreat) x 3 cups (sec. IV-E, Fig. 12).
+
+    Returns:
+        (goals, duration of the whole sequence in s).
+    """
+    lib = motion_library()
+    home = home_tcp_pose()
+    bottle = np.array([*s.bottle_xy, TABLE_HEIGHT + BOTTLE_GRASP_HEIGHT])
+    R_grasp = _rotation_from_approach(approach_direction(lib["grasp"], home.translation(), bottle))
+    grasp = np.array(HAND_GRASP_7CM)
+    goals = [SegmentGoal("grasp", bottle, _quat(R_grasp), grasp)]
+    for xy in s.cup_xys:
+        pour = pour_tcp_position(xy, R_POUR)
+        goals.append(SegmentGoal("pour", pour, _quat(R_POUR), grasp))
+        goals.append(SegmentGoal("retreat", pour + [0.0, 0.0, 0.06], _quat(R_SIDE), grasp))
+    _, duration = _segment_timing(SERVING_LABELS, s.settle_time)
+    return goals, duration
+
+
+@register_diagram(
+    "arm_serving_water",
+    scenario_type=ServingScenario,
+    description="arm7 driven by learned DMPs: grasp a bottle and pour over three cups "
+    "(Pastor et al. Fig. 12)",
+    duration=14.0,
+    check=lambda diagram, context: serving_figures(diagram, context),
+)
+def build_serving_water(scenario: ServingScenario, *, meshcat=None) -> Diagram:
+    """Builds the serving-water world.
+
+    Args:
+        scenario: a :class:`ServingScenario` (validated here).
+        meshcat: optional Meshcat for a visualizer.
+
+    Raises:
+        ScenarioError: bad scenario fields.
+        RepertoireError: a goal out of the arm's reach.
+    """
+    scenario.validate()
+    goals, _ = plan_serving(scenario)
+    objects = [ArmObject(name="bottle", kind="bottle", xy=list(scenario.bottle_xy))]
+    objects += [
+        ArmObject(name=f"cup_{k + 1}", kind="cup", xy=list(xy))
+        for k, xy in enumerate(scenario.cup_xys)
+    ]
+    return _build_world(
+        "arm_serving_water",
+        scenario,
+        objects,
+        goals,
+        graspable=["bottle:bottle"],
+        logs={"tip": ("bottle", "bottle", np.array([0.0, 0.0, 0.25]))},
+        meshcat=meshcat,
+    )
+
+
+# ----------------------------------------------------------------------------- running
+class IkTargetError(RepertoireError):
+    """The task-space IK reported a target out of reach or lost tracking during a run."""
+
+
+def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
+    """Simulates an arm DMP world, stopping with a clear error if the IK reports a problem.
+
+    Args:
+        diagram: a diagram built by this module.
+        duration: simulated seconds.
+
+    Returns:
+        (final root context, wall-clock seconds of the simulation).
+
+    Raises:
+        IkTargetError: the IK reported a target out of reach or lost tracking (says
+            when, which segment and where the target was).
+    """
+    simulator = Simulator(diagram)
+    root = simulator.get_mutable_context()
+    rmrc = diagram.GetSubsystemByName("rmrc")
+    chain = diagram.GetSubsystemByName("dmp_chain")
+    status_port = rmrc.GetOutputPort("status")
+    problem = {}
+
+    def monitor(context: Context):
+        from pydrake.systems.framework import EventStatus
+
+        rmrc_context = rmrc.GetMyContextFromRoot(context)
+        status = int(status_port.Eval(rmrc_context)[0])
+        if status == STATUS_OK:
+            return EventStatus.Succeeded()
+        chain_context = chain.GetMyContextFromRoot(context)
+        problem.update(
+            status=status,
+            time=context.get_time(),
+            segment=int(chain.GetOutputPort("segment").Eval(chain_context)[0]),
+            target=chain.GetOutputPort("position").Eval(chain_context).copy(),
+            error=rmrc.GetOutputPort("task_error").Eval(rmrc_context).copy(),
+        )
+        return EventStatus.ReachedTermination(rmrc, STATUS_NAMES[status])
+
+    simulator.set_monitor(monitor)
+    start = time.perf_counter()
+    simulator.Initialize()
+    simulator.AdvanceTo(duration)
+    wall = time.perf_counter() - start
+    if problem:
+        raise IkTargetError(
+            f"{diagram.get_name()}: IK reported '{STATUS_NAMES[problem['status']]}' at "
+            f"t = {problem['time']:.3f} s in segment {problem['segment']}: desired tcp "
+            f"position {np.round(problem['target'], 3).tolist()}, tcp error "
+            f"{problem['error'][0]:.3f} m; the simulation was stopped there"
+        )
+    return root, wall
+
+
+def _log(diagram: Diagram, context: Context, name: str) -> np.ndarray:
+    sink = diagram.GetSubsystemByName(name)
+    log = sink.FindLog(context)
+    return np.vstack([log.sample_times(), log.data()]).T
+
+
+def segment_reach_errors(diagram: Diagram, context: Context) -> list[float]:
+    """|tcp - goal| at the end of each segment (the last log sample of the segment) [m]."""
+    log = _log(diagram, context, "tcp_log")  # t, tcp (3), axis (3), goal (10), segment
+    errors = []
+    segments = log[:, -1].astype(int)
+    for k in range(int(segments.max()) + 1):
+        rows = np.nonzero(segments == k)[0]
+        if len(rows):
+            r = log[rows[-1]]
+            errors.append(float(np.linalg.norm(r[1:4] - r[7:10])))
+    return errors
+
+
+def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, float]:
+    """Figures of a pick-and-place run (also the registry's check).
+
+    Returns:
+        ``cup_to_coaster_m`` (horizontal), ``cup_height_above_coaster_m`` (cup bottom
+        above the coaster top), ``cup_tilt_rad``, ``min_obstacle_clearance_m`` (tcp
+        to the ball's surface), ``grasp_reach_error_m``, ``place_reach_error_m``,
+        ``success`` (1 if the cup stands on the coaster within 2 cm of its centre).
+    """
+    plant = diagram.GetSubsystemByName("plant")
+    pc = plant.GetMyContextFromRoot(context)
+    X_cup = plant.GetBodyByName("cup", plant.GetModelInstanceByName("cup_red")).EvalPoseInWorld(pc)
+    X_coaster = plant.GetBodyByName(
+        "coaster", plant.GetModelInstanceByName("coaster")
+    ).EvalPoseInWorld(pc)
+    d_xy = float(np.linalg.norm(X_cup.translation()[:2] - X_coaster.translation()[:2]))
+    height = float(X_cup.translation()[2] - (X_coaster.translation()[2] + COASTER_TOP))
+    tilt = float(np.arccos(np.clip(X_cup.rotation().matrix()[2, 2], -1, 1)))
+    obstacle = plant.GetBodyByName(
+        "obstacle", plant.GetModelInstanceByName("obstacle_blue")
+    ).EvalPoseInWorld(pc)
+    log = _log(diagram, context, "tcp_log")
+    clearance = float(np.min(np.linalg.norm(log[:, 1:4] - obstacle.translation(), axis=1)) - 0.06)
+    errors = segment_reach_errors(diagram, context) + [np.nan] * 3
+    success = d_xy < 0.02 and abs(height) < 0.01 and tilt < 0.2
+    return {
+        "cup_to_coaster_m": d_xy,
+        "cup_height_above_coaster_m": height,
+        "cup_tilt_rad": tilt,
+        "min_obstacle_clearance_m": clearance,
+        "grasp_reach_error_m": errors[0],
+        "place_reach_error_m": errors[1],
+        "success": float(success),
+    }
+
+
+#: The tip must come within this horizontal distance of a cup's axis (inside the rim).
+POUR_RADIUS = 0.03
+#: Tilt of the bottle above which it counts as pouring [rad].
+POUR_MIN_TILT = np.pi / 3
+
+
+def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
+    """Figures of a serving run (also the registry's check).
+
+    Returns:
+        ``tip_to_cup_k_m`` (k = 1..3): closest horizontal distance of the bottle tip to
+        cup k while the bottle is tilted past 60 degrees during that cup's pour;
+        ``cups_served`` (how many within 3 cm), ``bottle_in_hand_m`` (bottle grasp
+        point to tcp at the end), ``grasp_reach_error_m``, ``pour_reach_error_m``
+        (largest over the pours), ``success`` (1 if all three cups were served).
+    """
+    plant = diagram.GetSubsystemByName("plant")
+    pc = plant.GetMyContextFromRoot(context)
+    tip = _log(diagram, context, "tip_log")  # t, tip (3), bottle z axis (3)
+    tcp = _log(diagram, context, "tcp_log")
+    n = min(len(tip), len(tcp))
+    tip, segments = tip[:n], tcp[:n, -1].astype(int)
+    tilt = np.arccos(np.clip(tip[:, 6], -1.0, 1.0))
+    figures = {}
+    served = 0
+    for k in range(3):
+        cup = plant.GetBodyByName("cup", plant.GetModelInstanceByName(f"cup_{k + 1}"))
+        p_cup = cup.EvalPoseInWorld(pc).translation()
+        rows = ((segments == 1 + 2 * k) | (segments == 2 + 2 * k)) & (tilt > POUR_MIN_TILT)
+        d = np.linalg.norm(tip[rows, 1:3] - p_cup[:2], axis=1) if rows.any() else [np.inf]
+        figures[f"tip_to_cup_{k + 1}_m"] = float(np.min(d))
+        served += int(np.min(d) < POUR_RADIUS)
+    bottle = plant.GetBodyByName("bottle", plant.GetModelInstanceByName("bottle"))
+    X_B = bottle.EvalPoseInWorld(pc)
+    grasp_point = X_B @ np.array([0, 0, BOTTLE_GRASP_HEIGHT])
+    errors = segment_reach_errors(diagram, context)
+    figures.update(
+        cups_served=float(served),
+        bottle_in_hand_m=float(np.linalg.norm(grasp_point - tcp[n - 1, 1:4])),
+        grasp_reach_error_m=errors[0],
+        pour_reach_error_m=float(max(errors[1::2][:3])) if len(errors) > 1 else np.nan,
+        success=float(served == 3),
+    )
+    return figures

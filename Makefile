@@ -53,7 +53,7 @@ test: $(VENV)/.stamp-dev graphviz chromium
 	$(PY) -m pytest -q -n 2 --dist loadfile
 
 bench: $(VENV)/.stamp-dev
-	@set -e; for f in benchmarks/bench_*.py; do echo "== $$f"; $(PY) $$f; done
+	@set -e; for f in tests/benchmarks/bench_*.py; do echo "== $$f"; $(PY) $$f; done
 
 lint: $(VENV)/.stamp-dev
 	$(VENV)/bin/ruff check .

@@ -541,15 +541,18 @@ def estimate_derivatives(
 
     ``"savgol"`` (uniform time stamps): Savitzky-Golay filter of polynomial order 5 (exact
     for minimum-jerk segments), edge samples from a polynomial fit of the edge window.
+    ``"local_poly"`` (any time stamps): the same idea on non-uniform stamps, a least-squares
+    polynomial of order 5 fitted to the ``window`` nearest samples around each sample.
     ``"spline"`` (any time stamps): a smoothing spline (``scipy`` ``make_smoothing_spline``;
-    ``smoothing`` is its lambda, None = generalised cross-validation) differentiated
-    analytically. ``"auto"`` picks savgol when the stamps are uniform to 1e-6 relative.
+    ``smoothing`` is its lambda, None = generalised cross-validation, which can over-smooth
+    noise-free data) differentiated analytically. ``"auto"`` picks savgol when the stamps
+    are uniform to 1e-6 relative, local_poly otherwise.
 
     Args:
         t: Time stamps, strictly increasing, shape (N,).
         x: Samples, shape (N, n).
-        method: ``"auto"``, ``"savgol"`` or ``"spline"``.
-        window: Savitzky-Golay window (odd); default about N/40, at least 7.
+        method: ``"auto"``, ``"savgol"``, ``"local_poly"`` or ``"spline"``.
+        window: Savitzky-Golay / local-polynomial window (odd); default about N/40, >= 7.
         smoothing: Smoothing-spline lambda.
     """
     t, x = check_demonstration(t, x)
@@ -557,7 +560,7 @@ def estimate_derivatives(
     dt = np.diff(t)
     uniform = np.ptp(dt) <= 1e-6 * dt.mean()
     if method == "auto":
-        method = "savgol" if uniform else "spline"
+        method = "savgol" if uniform else "local_poly"
     if method == "savgol":
         from scipy.signal import savgol_filter
 
@@ -573,6 +576,8 @@ def estimate_derivatives(
         xd = savgol_filter(x, w, order, deriv=1, delta=h, axis=0, mode="interp")
         xdd = savgol_filter(x, w, order, deriv=2, delta=h, axis=0, mode="interp")
         return xd, xdd
+    if method == "local_poly":
+        return _local_polynomial_derivatives(t, x, window)
     if method == "spline":
         if n < 5:
             from scipy.interpolate import make_interp_spline
@@ -583,7 +588,31 @@ def estimate_derivatives(
 
             spline = make_smoothing_spline(t, x, lam=smoothing, axis=0)
         return spline.derivative(1)(t), spline.derivative(2)(t)
-    raise RepertoireError(f"method must be 'auto', 'savgol' or 'spline', got {method!r}")
+    raise RepertoireError(
+        f"method must be 'auto', 'savgol', 'local_poly' or 'spline', got {method!r}"
+    )
+
+
+def _local_polynomial_derivatives(
+    t: np.ndarray, x: np.ndarray, window: int | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Savitzky-Golay on non-uniform stamps: per-sample least-squares polynomial fits."""
+    n = t.size
+    max_w = n if n % 2 else n - 1
+    w = window if window is not None else max(7, 2 * (n // 80) + 1)
+    w = min(w, max_w)
+    if w % 2 == 0 or w < 3:
+        raise RepertoireError(f"local-polynomial window must be odd and >= 3, got {w}")
+    order = min(5, w - 1)
+    half = w // 2
+    start = np.clip(np.arange(n) - half, 0, n - w)
+    idx = start[:, None] + np.arange(w)[None, :]  # (n, w) window indices
+    dt = t[idx] - t[:, None]
+    scale = np.abs(dt).max(axis=1, keepdims=True)
+    V = (dt / scale)[..., None] ** np.arange(order + 1)  # (n, w, order+1)
+    coef = np.linalg.pinv(V) @ x[idx]  # (n, order+1, n_dims)
+    s = scale[:, :, None][:, 0]
+    return coef[:, 1] / s, 2.0 * coef[:, 2] / s**2
 
 
 # --------------------------------------------------------------------------- least squares

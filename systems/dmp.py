@@ -37,6 +37,12 @@ def _check_size(name: str, value: np.ndarray, n: int) -> np.ndarray:
     return value
 
 
+def _finite_goal(goal: np.ndarray) -> np.ndarray:
+    if not np.isfinite(goal).all():
+        raise RepertoireError(f"goal input contains NaN or inf: {goal}")
+    return goal
+
+
 class CanonicalSystem(LeafSystem):
     """Canonical system ``tau theta' = -alpha theta`` (eq. 4), ``theta(0) = 1``.
 
@@ -66,7 +72,7 @@ class CanonicalSystem(LeafSystem):
         self._tau_index = self.DeclareNumericParameter(BasicVector([float(tau)]))
         self._alpha_index = self.DeclareNumericParameter(BasicVector([float(alpha)]))
         self._start_index = self.DeclareNumericParameter(BasicVector([float(start_time)]))
-        self.DeclareContinuousState(1)
+        self.DeclareContinuousState(BasicVector([1.0]))
         self._tau_port = self.DeclareVectorInputPort("tau", 1) if time_scaling_input else None
         self._phase_port = self.DeclareVectorOutputPort(
             "phase", 1, self._calc_phase, prerequisites_of_calc={self.xc_ticket()}
@@ -290,7 +296,7 @@ class TransformationSystem(LeafSystem):
         if context.get_time() < start:
             return np.zeros(n), np.zeros(n)
         theta = float(self._phase_port.Eval(context)[0])
-        goal = self._goal_port.Eval(context)
+        goal = _finite_goal(self._goal_port.Eval(context))
         p = context.get_numeric_parameter
         W = p(self._w).value().reshape(n, self._b)
         f = forcing_term(theta, W, p(self._c).value(), p(self._h).value())
@@ -476,7 +482,7 @@ class ManifoldQuaternionSystem(LeafSystem):
         p = context.get_numeric_parameter
         K, D, tau = p(self._gains).value()
         theta = float(self._phase_port.Eval(context)[0])
-        goal = self._goal_port.Eval(context)
+        goal = _finite_goal(self._goal_port.Eval(context))
         f = forcing_term(
             theta, p(self._w).value().reshape(3, self._b), p(self._c).value(), p(self._h).value()
         )
@@ -737,7 +743,7 @@ class DiscreteDmpSystem(LeafSystem):
         if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):
             discrete_state.set_value(self._state, s)
             return
-        goal = self._goal_port.Eval(context)
+        goal = _finite_goal(self._goal_port.Eval(context))
         x0 = context.get_numeric_parameter(self._x0).get_value()
         p = None
         if self._coupling_port is not None and self._coupling_port.HasValue(context):

@@ -1,0 +1,424 @@
+"""DMP math and learning (planning layer): closed forms, reproduction, save/load, bad input."""
+
+import json
+
+import numpy as np
+import pytest
+from pydrake.solvers import MathematicalProgram
+from repertoire.planning.dmp import (
+    DmpParameters,
+    QuaternionDmpParameters,
+    TaskSpaceDmp,
+    acceleration_matched_start,
+    chain_rollout,
+    check_unit_quaternions,
+    estimate_derivatives,
+    learn_dmp,
+    learn_dmp_from_demonstrations,
+    learn_quaternion_dmp,
+    learn_task_space_dmp,
+    load_dmp,
+    save_dmp,
+    solve_program,
+)
+from repertoire.planning.dmp_demos import slerp_minimum_jerk, synthesize_demonstration
+from repertoire.planning.dmp_math import (
+    alpha_for_final_phase,
+    basis_activations,
+    basis_centres,
+    basis_widths,
+    canonical_derivative,
+    canonical_phase,
+    forcing_target,
+    forcing_term,
+    minimum_jerk,
+    minimum_jerk_via_points,
+    obstacle_coupling,
+    quat_exp,
+    quat_log,
+    quat_multiply,
+    rollout,
+)
+from repertoire.planning.motion_library import (
+    MotionLibrary,
+    approach_direction,
+    grasp_orientation,
+    instantiate,
+)
+from scipy.integrate import solve_ivp
+
+from repertoire.errors import RepertoireError, SolverError, UnknownNameError
+
+
+def _demo(n_dims=3, n=400, T=1.0, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, T, n)
+    pts = rng.uniform(-1, 1, size=(3, n_dims))
+    _, x = minimum_jerk_via_points(pts, T, n)
+    return t, x
+
+
+# ------------------------------------------------------------------ closed forms
+def test_canonical_closed_form_matches_integration():
+    tau, alpha = 1.7, 3.2
+    sol = solve_ivp(
+        lambda t, y: canonical_derivative(y, tau, alpha), (0, 2), [1.0], rtol=1e-11, atol=1e-13
+    )
+    np.testing.assert_allclose(sol.y[0], canonical_phase(sol.t, tau, alpha), rtol=1e-8)
+    assert canonical_phase(tau, tau, alpha_for_final_phase(0.01)) == pytest.approx(0.01)
+
+
+def test_basis_widths_give_overlap_at_neighbour():
+    c = basis_centres(10, 4.0)
+    h = basis_widths(c, 4.0, overlap=0.5)
+    psi = basis_activations(c[1:], c, h)
+    np.testing.assert_allclose(np.diag(psi[:, :-1]), 0.5, rtol=1e-12)
+    # centres equally spaced in time: c_i = exp(-alpha i / (B - 1))
+    np.testing.assert_allclose(np.log(c), -4.0 * np.linspace(0, 1, 10))
+
+
+def test_forcing_vanishes_at_end_of_movement():
+    c = basis_centres(20, 4.6)
+    h = basis_widths(c, 4.6)
+    w = np.random.default_rng(1).normal(scale=100, size=(3, 20))
+    f = forcing_term(np.array([1e-3, 1e-6, 1e-9]), w, c, h)
+    assert np.all(np.abs(f[1]) < 1e-6 * 100 * 20)
+    assert np.all(np.abs(f[2]) < 1e-9 * 100 * 20)
+    assert np.all(np.abs(f[0]) > np.abs(f[1]))
+
+
+@pytest.mark.parametrize("formulation", ["old", "new"])
+def test_critically_damped_convergence_closed_form(formulation):
+    # Zero weights and g - x0 = 0 or theta term: old form is the pure spring-damper.
+    K, tau = 100.0, 0.8
+    D = 2.0 * np.sqrt(K)
+    x0, g = np.array([0.3, -1.0]), np.array([1.0, 2.0])
+    c = basis_centres(5, 4.6)
+    h = basis_widths(c, 4.6)
+    r = rollout(
+        np.zeros((2, 5)),
+        c,
+        h,
+        K,
+        D,
+        4.6,
+        tau,
+        x0,
+        g,
+        dt=1e-3,
+        n_steps=3000,
+        formulation=formulation,
+    )
+    w = np.sqrt(K) / tau
+    if formulation == "old":
+        expected = g + (x0 - g) * ((1 + w * r.t) * np.exp(-w * r.t))[:, None]
+        np.testing.assert_allclose(r.x, expected, atol=1e-10)
+    # Both converge to the goal without overshoot beyond rounding.
+    np.testing.assert_allclose(r.x[-1], g, atol=1e-6)
+
+
+def test_rollout_exact_matches_fine_ode_solution():
+    t, x = _demo()
+    p = learn_dmp(t, x, n_basis=20)
+    r = p.rollout(dt=1e-3, n_steps=1000)
+
+    def rhs(time, z):
+        from repertoire.planning.dmp_math import transformation_derivatives
+
+        th = canonical_phase(time, p.tau, p.alpha)
+        f = forcing_term(th, p.weights, p.centres, p.widths)
+        xd, vd = transformation_derivatives(
+            z[:3], z[3:], th, p.goal, p.x0, f, p.K, p.D, p.tau, "new"
+        )
+        return np.concatenate([xd, vd])
+
+    sol = solve_ivp(
+        rhs, (0, 1), np.concatenate([p.x0, np.zeros(3)]), t_eval=r.t, rtol=1e-11, atol=1e-12
+    )
+    # First-order hold of the forcing input over 1 ms steps: second-order small error.
+    assert np.abs(sol.y[:3].T - r.x).max() < 1e-5
+
+
+def test_forcing_target_inverts_the_dynamics_with_plus_D():
+    # Exact derivatives of a DMP rollout give f_target == f: eq. 8 needs + D v.
+    c = basis_centres(10, 4.6)
+    h = basis_widths(c, 4.6)
+    w = np.random.default_rng(3).normal(scale=30, size=(2, 10))
+    r = rollout(w, c, h, 150.0, 2 * np.sqrt(150.0), 4.6, 1.3, np.zeros(2), np.ones(2))
+    ft = forcing_target(
+        r.x, r.xd, r.xdd, r.theta, np.ones(2), np.zeros(2), 150.0, 2 * np.sqrt(150.0), 1.3
+    )
+    np.testing.assert_allclose(ft, forcing_term(r.theta, w, c, h), atol=1e-9)
+
+
+# ------------------------------------------------------------------ learning
+def test_reproduction_of_demonstration():
+    t, x = _demo(n_dims=3, n=1000)
+    p = learn_dmp(t, x, n_basis=50)
+    r = p.rollout(dt=t[1] - t[0], n_steps=len(t) - 1)
+    assert np.abs(r.x - x).max() < 1e-4
+    assert np.abs(r.x[-1] - x[-1]).max() < 1e-5
+    assert p.D == pytest.approx(2 * np.sqrt(p.K))
+
+
+def test_learning_with_non_uniform_time_stamps():
+    rng = np.random.default_rng(4)
+    t = np.sort(np.concatenate([[0.0, 1.0], rng.uniform(0, 1, 600)]))
+    x, _, _ = minimum_jerk(np.array([0.0, 1.0]), np.array([1.0, -0.5]), 1.0, t)
+    p = learn_dmp(t, x, n_basis=30)
+    r = p.rollout(dt=1e-3)
+    ref, _, _ = minimum_jerk(np.array([0.0, 1.0]), np.array([1.0, -0.5]), 1.0, r.t)
+    assert np.abs(r.x - ref).max() < 2e-3
+
+
+def test_derivatives_savgol_and_spline_on_minimum_jerk():
+    t = np.linspace(0, 2, 401)
+    x, xd, xdd = minimum_jerk(np.zeros(2), np.ones(2), 2.0, t)
+    d1, d2 = estimate_derivatives(t, x, method="savgol")
+    np.testing.assert_allclose(d1, xd, atol=1e-9)
+    np.testing.assert_allclose(d2, xdd, atol=1e-7)
+    s1, s2 = estimate_derivatives(t, x, method="spline")
+    assert np.abs(s1 - xd).max() < 1e-3
+    # Noise: the smoothing spline keeps the acceleration usable where differencing does not.
+    noisy = x + np.random.default_rng(0).normal(scale=1e-4, size=x.shape)
+    _, n2 = estimate_derivatives(t, noisy, method="spline")
+    raw = np.gradient(np.gradient(noisy, t, axis=0), t, axis=0)
+    assert np.abs(n2 - xdd).max() < 0.2 * np.abs(raw - xdd).max()
+
+
+def test_learning_from_several_demonstrations_and_ridge():
+    t = np.linspace(0, 1, 300)
+    demos = [(t, minimum_jerk(np.zeros(2), np.array([1.0, s]), 1.0, t)[0]) for s in (0.8, 1.0, 1.2)]
+    p = learn_dmp_from_demonstrations(demos, n_basis=20)
+    np.testing.assert_allclose(p.goal, [1.0, 1.0])
+    r = p.rollout()
+    ref = minimum_jerk(np.zeros(2), np.ones(2), 1.0, r.t)[0]
+    assert np.abs(r.x - ref).max() < 1e-3
+    ridge = learn_dmp(*demos[0], n_basis=20, ridge=10.0)
+    plain = learn_dmp(*demos[0], n_basis=20)
+    assert np.linalg.norm(ridge.weights) < np.linalg.norm(plain.weights)
+
+
+def test_solver_failure_names_the_solver():
+    prog = MathematicalProgram()
+    x = prog.NewContinuousVariables(1)
+    prog.AddLinearConstraint(x[0] >= 1)
+    prog.AddLinearConstraint(x[0] <= 0)
+    with pytest.raises(SolverError, match="solver .* failed"):
+        solve_program(prog, "infeasible test")
+
+
+# ------------------------------------------------------------------ generalisation old vs new
+def test_old_form_cannot_leave_start_when_goal_equals_start_new_form_can():
+    t, x = _demo(n_dims=2)
+    new = learn_dmp(t, x, n_basis=30)
+    old = learn_dmp(t, x, n_basis=30, formulation="old")
+    r_old = old.rollout(goal=old.x0)
+    r_new = new.rollout(goal=new.x0)
+    assert np.abs(r_old.x - old.x0).max() < 1e-12
+    assert np.abs(r_new.x - new.x0).max() > 0.1
+
+
+def test_old_form_mirrors_when_sign_of_g_minus_x0_flips():
+    # x moves 0 -> 1; y ends only 5 cm above its start but bulges 0.4 upwards on the way.
+    t = np.linspace(0, 1, 500)
+    x, _, _ = minimum_jerk(np.zeros(2), np.array([1.0, 0.05]), 1.0, t)
+    x[:, 1] += 0.4 * 16 * t**2 * (1 - t) ** 2
+    old = learn_dmp(t, x, n_basis=30, formulation="old")
+    new = learn_dmp(t, x, n_basis=30)
+    flipped = np.array([1.0, -0.05])
+    y_old = old.rollout(goal=flipped).x[:, 1]
+    y_new = new.rollout(goal=flipped).x[:, 1]
+    assert y_old.min() < -0.3  # mirrored: the bulge now goes down
+    assert y_new.max() > 0.3  # new form keeps the bulge up
+
+
+def test_old_form_learning_rejects_start_equal_goal():
+    t = np.linspace(0, 1, 100)
+    x = np.stack([np.sin(np.pi * t), t], axis=1)
+    with pytest.raises(RepertoireError, match="start equals goal in DOF \\[0\\]"):
+        learn_dmp(t, x, formulation="old")
+
+
+# ------------------------------------------------------------------ quaternions
+def _quat_demo(n=500, T=1.0):
+    t = np.linspace(0, T, n)
+    q0 = quat_exp(np.array([0.1, -0.2, 0.3]))
+    q1 = quat_exp(np.array([-0.5, 0.6, 0.2]))
+    return t, slerp_minimum_jerk(q0, q1, t)
+
+
+def test_quaternion_dmps_manifold_keeps_unit_norm_component_does_not():
+    t, q = _quat_demo()
+    man = learn_quaternion_dmp(t, q, mode="manifold", n_basis=30)
+    comp = learn_quaternion_dmp(t, q, mode="component", n_basis=30)
+    goal = quat_multiply(quat_exp(np.array([0.0, 0.0, 0.6])), q[-1])
+    _, Qm, _ = man.rollout(goal=goal, n_steps=2000)
+    _, Qc, raw = comp.rollout(goal=goal, n_steps=2000)
+    assert np.abs(np.linalg.norm(Qm, axis=1) - 1).max() < 1e-12
+    assert np.abs(np.linalg.norm(raw, axis=1) - 1).max() > 1e-3  # components leave the sphere
+    assert np.abs(np.linalg.norm(Qc, axis=1) - 1).max() < 1e-12  # after post-normalisation
+    for Q in (Qm, Qc):
+        assert np.linalg.norm(quat_log(quat_multiply(goal, Q[-1] * [1, -1, -1, -1]))) < 1e-3
+    # Reproduction of the demonstration.
+    _, Qr, _ = man.rollout(dt=t[1] - t[0], n_steps=len(t) - 1)
+    assert np.abs(Qr - q).max() < 2e-3
+
+
+def test_non_unit_quaternion_demo_says_how_far_off():
+    t, q = _quat_demo(n=50)
+    q = q.copy()
+    q[7] *= 1.01
+    with pytest.raises(RepertoireError, match="not unit: .* = 0.01 at sample 7"):
+        learn_quaternion_dmp(t, q)
+    with pytest.raises(RepertoireError, match="shape \\(N, 4\\)"):
+        check_unit_quaternions(np.ones((3, 3)))
+
+
+# ------------------------------------------------------------------ obstacle coupling
+def test_obstacle_coupling_turns_away_and_special_cases():
+    o = np.array([1.0, 0.2, 0.0])
+    x = np.zeros(3)
+    v = np.array([1.0, 0.0, 0.0])
+    p = obstacle_coupling(x, v, o, 1000.0, 20 / np.pi)
+    phi = np.arccos(o @ v / np.linalg.norm(o))
+    assert np.linalg.norm(p) == pytest.approx(1000 * phi * np.exp(-20 / np.pi * phi))
+    assert p[1] < 0 and abs(p[0]) < 1e-12  # pushes to -y, away from the obstacle at +y
+    np.testing.assert_array_equal(obstacle_coupling(x, np.zeros(3), o, 1000, 1), np.zeros(3))
+    straight = obstacle_coupling(x, v, np.array([2.0, 0, 0]), 1000, 1)
+    np.testing.assert_allclose(straight, 0.0, atol=1e-9)  # phi = 0
+    away = obstacle_coupling(x, v, np.array([-2.0, 0, 0]), 1000, 1)
+    assert np.all(np.isfinite(away)) and np.linalg.norm(away) > 0  # phi = pi, any axis
+
+
+# ------------------------------------------------------------------ chaining
+def test_chain_rollout_handoffs():
+    t = np.linspace(0, 1, 300)
+    p = learn_dmp(t, minimum_jerk(np.zeros(2), np.array([1.0, 0.0]), 1.0, t)[0], n_basis=20)
+    goals = [np.array(g, float) for g in ([1, 0], [1, 1], [0, 1], [0, 0])]
+    times = [0.0, 0.6, 1.2, 1.8]
+    vel = chain_rollout([p] * 4, goals, times, handoff="velocity")
+    acc = chain_rollout([p] * 4, goals, times, handoff="acceleration")
+    none = chain_rollout([p] * 4, goals, times, handoff="none")
+    assert max(vel.velocity_jumps) < 1e-12 and max(acc.velocity_jumps) < 1e-12
+    assert max(none.velocity_jumps) > 0.1
+    assert max(acc.acceleration_jumps) < 1e-9 < max(vel.acceleration_jumps)
+    x0 = acceleration_matched_start(p, np.zeros(2), np.ones(2), np.zeros(2))
+    assert x0.shape == (2,)
+    with pytest.raises(RepertoireError, match="handoff must be one of"):
+        chain_rollout([p], goals[:1], [0.0], handoff="jerk")
+
+
+# ------------------------------------------------------------------ save / load
+def test_save_load_exact(tmp_path):
+    t, x = _demo()
+    p = learn_dmp(t, x, n_basis=17, names=["a", "b", "c"])
+    tq, q = _quat_demo()
+    tsd = learn_task_space_dmp(
+        tq,
+        x[:500] if len(x) >= 500 else np.resize(x, (500, 3)),
+        q,
+        np.zeros((500, 3)) + np.linspace(0, 1, 500)[:, None],
+    )
+    for art in (p, tsd.orientation, tsd):
+        loaded = load_dmp(save_dmp(art, tmp_path / "a.json"))
+        assert type(loaded) is type(art)
+        assert json.dumps(loaded.to_dict()) == json.dumps(art.to_dict())
+    loaded = load_dmp(save_dmp(p, tmp_path / "p.json"))
+    for name in ("weights", "centres", "widths", "K", "D", "x0", "goal"):
+        assert np.array_equal(getattr(loaded, name), getattr(p, name))
+    (tmp_path / "bad.json").write_text(json.dumps({"type": "Pickle"}))
+    with pytest.raises(RepertoireError, match="unknown DMP artefact type"):
+        load_dmp(tmp_path / "bad.json")
+
+
+# ------------------------------------------------------------------ motion library
+def _grasp_dmp():
+    demo = synthesize_demonstration(
+        np.array([[0.3, 0.3, 0.4], [0.5, 0.1, 0.25], [0.6, 0.0, 0.1]]),
+        np.array([[0, 1, 0, 0], [0, 0.7071067811865476, 0.7071067811865476, 0]]),
+        finger_keys=[[0.0] * 3, [0.8] * 3, [0.2] * 3],
+        finger_times=[0, 0.6, 1],
+        duration=1.0,
+        n_samples=300,
+    )
+    return learn_task_space_dmp(demo.t, demo.position, demo.orientation, demo.fingers, n_basis=20)
+
+
+def test_motion_library_compose_save_load_and_grasp_orientation(tmp_path):
+    g = _grasp_dmp()
+    lib = MotionLibrary()
+    lib.add_dmp("grasp_cup", "grasp", g, {"object": "cup"})
+    lib.add_dmp("place_cup", "place", g, {"object": "cup"})
+    lib.add_dmp("release_cup", "release", g, {"object": "cup"})
+    seq = lib.compose("pick_and_place", object="cup")
+    assert [p.label for p in seq] == ["grasp", "place", "release"]
+    with pytest.raises(UnknownNameError, match="no 'grasp' primitive"):
+        lib.compose("pick_and_place", object="bottle")
+    with pytest.raises(UnknownNameError, match="unknown task"):
+        lib.compose("juggle")
+    with pytest.raises(RepertoireError, match="empty"):
+        MotionLibrary().select("grasp")
+    with pytest.raises(RepertoireError, match="label must be one of"):
+        lib.add_dmp("x", "throw", g)
+    loaded = MotionLibrary.load(lib.save(tmp_path / "lib.json"))
+    assert json.dumps(loaded.to_dict()) == json.dumps(lib.to_dict())
+    # Grasp orientation: the demonstrated goal gives back the demonstrated orientation;
+    # a goal reached from another side yaws the gripper by the approach-direction change.
+    q_same = grasp_orientation(g, g.position.goal)
+    np.testing.assert_allclose(q_same, g.orientation.goal, atol=1e-9)
+    new_goal = np.array([0.3, 0.5, 0.1])
+    a0 = approach_direction(g.position, g.position.goal)
+    a1 = approach_direction(g.position, new_goal)
+    q_new = grasp_orientation(g, new_goal)
+    rel = quat_multiply(q_new, g.orientation.goal * [1, -1, -1, -1])
+    yaw = 2 * np.arctan2(rel[3], rel[0])
+    expected = np.arctan2(a1[1], a1[0]) - np.arctan2(a0[1], a0[0])
+    assert np.angle(np.exp(1j * (yaw - expected))) == pytest.approx(0.0, abs=1e-9)
+    inst = instantiate(seq[0], position=new_goal)
+    np.testing.assert_allclose(inst.orientation.goal, q_new)
+
+
+# ------------------------------------------------------------------ bad input
+@pytest.mark.parametrize(
+    "t, x, match",
+    [
+        (np.linspace(0, 1, 10), np.r_[np.zeros(5), np.nan, np.zeros(4)], "NaN or inf .* 5"),
+        (np.linspace(0, 1, 10), np.r_[np.zeros(3), np.inf, np.zeros(6)], "NaN or inf .* 3"),
+        (np.array([0.0, 1.0]), np.array([0.0, 1.0]), "at least 3 samples, got 2"),
+        (np.array([0.0, 0.5, 0.4, 1.0]), np.arange(4.0), "strictly increasing"),
+        (np.linspace(0, 1, 5), np.zeros((4, 2)), "4 samples but 5 time stamps"),
+    ],
+)
+def test_bad_demonstrations(t, x, match):
+    with pytest.raises(RepertoireError, match=match):
+        learn_dmp(t, x)
+
+
+def test_bad_parameters():
+    t, x = _demo()
+    with pytest.raises(RepertoireError, match="at least one basis function"):
+        learn_dmp(t, x, n_basis=0)
+    p = learn_dmp(t, x, n_basis=5)
+    with pytest.raises(RepertoireError, match="goal has 2 entries but weights have 3 DOF"):
+        p.rollout(goal=np.zeros(2))
+    with pytest.raises(RepertoireError, match="x0 has 4 entries but weights have 3 DOF"):
+        DmpParameters(p.weights, p.centres, p.widths, p.K, p.D, p.alpha, p.tau, np.zeros(4), p.goal)
+    with pytest.raises(RepertoireError, match="tau must be a finite number > 0"):
+        p.rollout(tau=0.0)
+    with pytest.raises(RepertoireError, match="tau must be a finite number > 0"):
+        DmpParameters(p.weights, p.centres, p.widths, p.K, p.D, p.alpha, -1.0, p.x0, p.goal)
+    with pytest.raises(RepertoireError, match="centres has shape"):
+        DmpParameters(p.weights, p.centres[:3], p.widths, p.K, p.D, p.alpha, 1.0, p.x0, p.goal)
+    with pytest.raises(RepertoireError, match="formulation must be one of"):
+        learn_dmp(t, x, formulation="newest")
+    with pytest.raises(RepertoireError, match="need at least one demonstration"):
+        learn_dmp_from_demonstrations([])
+    with pytest.raises(RepertoireError, match="demonstration 1 has 2 DOF"):
+        learn_dmp_from_demonstrations([(t, x), (t, x[:, :2])])
+    with pytest.raises(RepertoireError, match="position DMP must be 3-D"):
+        TaskSpaceDmp(learn_dmp(t, x[:, :2], n_basis=5), _grasp_dmp().orientation)
+    with pytest.raises(RepertoireError, match="mode 'manifold' needs weights of shape"):
+        QuaternionDmpParameters(
+            np.zeros((4, 5)), p.centres, p.widths, 1, 1, 1, 1, [1, 0, 0, 0], [1, 0, 0, 0]
+        )

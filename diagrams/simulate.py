@@ -8,6 +8,7 @@ registered duration and returns the figures of the world's ``check()``.
 """
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +42,34 @@ def _state_values(context: Context) -> np.ndarray:
         discrete = context.get_discrete_state()
         parts.extend(discrete.get_vector(i).CopyToVector() for i in range(discrete.num_groups()))
     return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def _state_finite_check(diagram: System, root_context: Context) -> Callable[[], bool]:
+    """A cheap per-step test that every state of ``root_context`` is finite.
+
+    The leaf contexts that hold state are looked up once (they live as long as the root
+    context), so each call only reads their vectors.
+    """
+    holders = []
+    for leaf in leaf_systems(diagram):
+        context = leaf.GetMyContextFromRoot(root_context) if leaf is not diagram else root_context
+        n_groups = context.num_discrete_state_groups()
+        if context.num_continuous_states() > 0 or n_groups > 0:
+            holders.append((context, context.num_continuous_states() > 0, range(n_groups)))
+
+    def all_finite() -> bool:
+        for context, continuous, groups in holders:
+            if (
+                continuous
+                and not np.isfinite(context.get_continuous_state_vector().CopyToVector()).all()
+            ):
+                return False
+            for i in groups:
+                if not np.isfinite(context.get_discrete_state(i).value()).all():
+                    return False
+        return True
+
+    return all_finite
 
 
 def nonfinite_state_systems(diagram: System, root_context: Context) -> list[str]:
@@ -128,8 +157,10 @@ def simulate(
 
     diverged: dict[str, Any] = {}
 
+    all_finite = _state_finite_check(diagram, simulator.get_context())
+
     def monitor(root_context: Context) -> EventStatus:
-        if np.all(np.isfinite(_state_values(root_context))):
+        if all_finite():
             return EventStatus.Succeeded()
         diverged["time"] = root_context.get_time()
         diverged["systems"] = nonfinite_state_systems(diagram, root_context)

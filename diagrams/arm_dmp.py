@@ -102,7 +102,7 @@ PLACE_CLEARANCE = 0.004
 #: Tilt of the bottle when pouring: rotation about the approach axis z_palm [rad].
 POUR_TILT = -1.65
 #: Height of the bottle tip above the cup rim when pouring [m].
-POUR_TIP_ABOVE_RIM = 0.05
+POUR_TIP_ABOVE_RIM = 0.10
 CUP_RIM = 0.10
 
 
@@ -1050,9 +1050,10 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
     Returns:
         ``tip_to_cup_k_m`` (k = 1..3): closest horizontal distance of the bottle tip to
         cup k while the bottle is tilted past 60 degrees during that cup's pour;
-        ``cups_served`` (how many within 3 cm), ``bottle_in_hand_m`` (bottle grasp
+        ``cups_served`` (how many within 3 cm), ``max_cup_displacement_m`` (how far
+        the bottle or the hand pushed a cup), ``bottle_in_hand_m`` (bottle grasp
         point to tcp at the end), ``grasp_reach_error_m``, ``pour_reach_error_m``
-        (largest over the pours), ``success`` (1 if all three cups were served).
+        (largest over the pours), ``success`` (1 if all three cups were served and none was pushed by more than 1 cm).
     """
     plant = diagram.GetSubsystemByName("plant")
     pc = plant.GetMyContextFromRoot(context)
@@ -1063,9 +1064,11 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
     tilt = np.arccos(np.clip(tip[:, 6], -1.0, 1.0))
     figures = {}
     served = 0
+    knocked = 0.0
     for k in range(3):
         cup = plant.GetBodyByName("cup", plant.GetModelInstanceByName(f"cup_{k + 1}"))
-        p_cup = cup.EvalPoseInWorld(pc).translation()
+        p_cup = plant.GetDefaultFloatingBaseBodyPose(cup).translation()
+        knocked = max(knocked, float(np.linalg.norm(cup.EvalPoseInWorld(pc).translation() - p_cup)))
         rows = ((segments == 1 + 2 * k) | (segments == 2 + 2 * k)) & (tilt > POUR_MIN_TILT)
         d = np.linalg.norm(tip[rows, 1:3] - p_cup[:2], axis=1) if rows.any() else [np.inf]
         figures[f"tip_to_cup_{k + 1}_m"] = float(np.min(d))
@@ -1076,9 +1079,10 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
     errors = segment_reach_errors(diagram, context)
     figures.update(
         cups_served=float(served),
+        max_cup_displacement_m=knocked,
         bottle_in_hand_m=float(np.linalg.norm(grasp_point - tcp[n - 1, 1:4])),
         grasp_reach_error_m=errors[0],
         pour_reach_error_m=float(max(errors[1::2][:3])) if len(errors) > 1 else np.nan,
-        success=float(served == 3),
+        success=float(served == 3 and knocked < 0.01),
     )
     return figures

@@ -1,0 +1,208 @@
+"""Benchmark: repertoire DMPs against movement_primitives 0.9.1, same demo, same machine.
+
+Setting (issue 3): 7 DOF, a 1000-sample minimum-jerk demonstration at 1 ms, 50 basis
+functions, 1000 rollout steps at dt = 1 ms. Timings are medians over repetitions run
+interleaved (the machine is shared), ratios are ours / theirs.
+
+Run: ``.venv/bin/python tests/benchmarks/bench_dmp.py``.
+"""
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+
+N_DOF, N_SAMPLES, N_BASIS, DT = 7, 1000, 50, 1e-3
+
+
+def median_time(fn, repeats: int) -> tuple[float, object]:
+    times, out = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), out
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--repeats", type=int, default=15)
+    args = parser.parse_args()
+
+    from movement_primitives.dmp import DMP
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    from repertoire.planning.dmp import learn_dmp, learn_quaternion_dmp
+    from repertoire.planning.dmp_demos import slerp_minimum_jerk
+    from repertoire.planning.dmp_math import minimum_jerk, quat_exp
+    from repertoire.systems.dmp import (
+        CanonicalSystem,
+        DiscreteDmpSystem,
+        ManifoldQuaternionSystem,
+    )
+
+    rng = np.random.default_rng(0)
+    T = np.arange(N_SAMPLES) * DT
+    duration = T[-1]
+    x0, g = rng.uniform(-1, 1, N_DOF), rng.uniform(-1, 1, N_DOF)
+    Y, _, _ = minimum_jerk(x0, g, duration, T)
+    n_steps = N_SAMPLES - 1  # 999 steps cover the demo; 1000 steps run 1 ms past it
+    rows = []
+
+    # ---- learning
+    def mp_learn():
+        d = DMP(n_dims=N_DOF, execution_time=duration, dt=DT, n_weights_per_dim=N_BASIS, int_dt=DT)
+        d.imitate(T, Y)
+        d.configure(start_y=Y[0], goal_y=Y[-1])
+        return d
+
+    def our_learn():
+        return learn_dmp(T, Y, n_basis=N_BASIS)
+
+    mp_learn(), our_learn()  # warm-up
+    t_mp, t_our = [], []
+    for _ in range(args.repeats):
+        t_mp.append(median_time(mp_learn, 1)[0])
+        t_our.append(median_time(our_learn, 1)[0])
+    mp_dmp, ours = mp_learn(), our_learn()
+    learn_mp, learn_our = statistics.median(t_mp), statistics.median(t_our)
+    rows.append(("learn (ms)", learn_mp * 1e3, learn_our * 1e3, learn_our / learn_mp, "<= 1"))
+
+    # ---- rollouts (1000 steps at 1 ms)
+    def mp_roll():
+        return mp_dmp.open_loop(run_t=1000 * DT, step_function="euler-cython")
+
+    def our_roll():
+        return ours.rollout(dt=DT, n_steps=1000)
+
+    mp_roll(), our_roll()
+    r_mp, r_our = [], []
+    for _ in range(args.repeats):
+        r_mp.append(median_time(mp_roll, 1)[0])
+        r_our.append(median_time(our_roll, 1)[0])
+    roll_mp, roll_our = statistics.median(r_mp), statistics.median(r_our)
+    rows.append(("NumPy rollout (ms)", roll_mp * 1e3, roll_our * 1e3, roll_our / roll_mp, "<= 1"))
+
+    builder = DiagramBuilder()
+    ds = builder.AddSystem(DiscreteDmpSystem(ours, time_step=DT))
+    src = builder.AddSystem(ConstantVectorSource(ours.goal))
+    builder.Connect(src.get_output_port(), ds.get_goal_input_port())
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    default = diagram.CreateDefaultContext()
+
+    def drake_roll():
+        context.SetTimeStateAndParametersFrom(default)
+        simulator.Initialize()
+        simulator.AdvanceTo(1000 * DT)
+        return ds.get_position_output_port().Eval(ds.GetMyContextFromRoot(context))
+
+    drake_roll()
+    d_mp, d_our = [], []
+    for _ in range(args.repeats):
+        d_mp.append(median_time(mp_roll, 1)[0])
+        d_our.append(median_time(drake_roll, 1)[0])
+    sim_mp, sim_our = statistics.median(d_mp), statistics.median(d_our)
+    rows.append(
+        ("Drake Simulator 1 kHz (ms)", sim_mp * 1e3, sim_our * 1e3, sim_our / sim_mp, "<= 3")
+    )
+
+    # ---- accuracy
+    _, Y_mp = mp_dmp.open_loop(run_t=duration, step_function="euler-cython")
+    k = min(len(Y_mp), N_SAMPLES)
+    err_mp = float(np.abs(Y_mp[:k] - Y[:k]).max())
+    ro = ours.rollout(dt=DT, n_steps=n_steps)
+    err_our = float(np.abs(ro.x - Y).max())
+    rows.append(
+        ("reproduction error (max abs)", err_mp, err_our, err_mp / err_our, ">= 10 (theirs/ours)")
+    )
+    goal_mp = float(np.abs(Y_mp[k - 1] - g).max())
+    goal_our = float(np.abs(ro.x[-1] - g).max())
+    rows.append(("final goal error at T", goal_mp, goal_our, float("nan"), "ours < 1e-5"))
+    x_drake = drake_roll()
+    r1000 = ours.rollout(dt=DT, n_steps=1000)
+    rows.append(
+        (
+            "Drake vs NumPy rollout",
+            float("nan"),
+            float(np.abs(x_drake - r1000.x[-1]).max()),
+            float("nan"),
+            "rounding",
+        )
+    )
+
+    # ---- quaternions
+    tq = T
+    q = slerp_minimum_jerk(
+        quat_exp(np.array([0.1, -0.2, 0.3])), quat_exp(np.array([-0.6, 0.5, 0.4])), tq
+    )
+    man = learn_quaternion_dmp(tq, q, mode="manifold", n_basis=N_BASIS)
+    comp = learn_quaternion_dmp(tq, q, mode="component", n_basis=N_BASIS)
+    goal_q = quat_exp(np.array([0.4, 0.9, -0.3]))
+    _, Qm, _ = man.rollout(goal=goal_q, dt=DT, n_steps=1000)
+    _, Qc, raw = comp.rollout(
+        goal=goal_q if goal_q @ comp.q0 >= 0 else -goal_q, dt=DT, n_steps=1000
+    )
+    norm_m = float(np.abs(np.linalg.norm(Qm, axis=1) - 1).max())
+    norm_raw = float(np.abs(np.linalg.norm(raw, axis=1) - 1).max())
+    b2 = DiagramBuilder()
+    cs = b2.AddSystem(CanonicalSystem(man.tau, man.alpha))
+    ms = b2.AddSystem(ManifoldQuaternionSystem(man, time_step=DT))
+    s2 = b2.AddSystem(ConstantVectorSource(goal_q))
+    b2.Connect(cs.get_phase_output_port(), ms.get_phase_input_port())
+    b2.Connect(s2.get_output_port(), ms.get_goal_input_port())
+    sim2 = Simulator(b2.Build())
+    sim2.AdvanceTo(1000 * DT)
+    qd = ms.get_orientation_output_port().Eval(ms.GetMyContextFromRoot(sim2.get_context()))
+    rows.append(
+        ("quat norm error, on-manifold (NumPy)", float("nan"), norm_m, float("nan"), "< 1e-12")
+    )
+    rows.append(
+        (
+            "quat norm error, on-manifold (Drake)",
+            float("nan"),
+            abs(float(np.linalg.norm(qd)) - 1),
+            float("nan"),
+            "< 1e-12",
+        )
+    )
+    rows.append(
+        (
+            "quat |q|-1 before post-normalisation (paper)",
+            float("nan"),
+            norm_raw,
+            float("nan"),
+            "info",
+        )
+    )
+    _, Qr, _ = man.rollout(dt=DT, n_steps=n_steps)
+    rows.append(
+        (
+            "quat reproduction error (manifold)",
+            float("nan"),
+            float(np.abs(Qr - q).max()),
+            float("nan"),
+            "info",
+        )
+    )
+
+    print(
+        f"repertoire DMP vs movement_primitives 0.9.1 ({N_DOF} DOF, {N_SAMPLES} samples, "
+        f"{N_BASIS} basis functions, dt = 1 ms, medians of {args.repeats})"
+    )
+    print()
+    print("| figure | movement_primitives | repertoire | ratio | target |")
+    print("|---|---|---|---|---|")
+    for name, a, b, r, target in rows:
+        fa = "" if np.isnan(a) else f"{a:.4g}"
+        fr = "" if np.isnan(r) else f"{r:.3g}"
+        print(f"| {name} | {fa} | {b:.4g} | {fr} | {target} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -34,7 +34,6 @@ def main() -> int:
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ConstantVectorSource
-
     from repertoire.planning.dmp import learn_dmp, learn_quaternion_dmp
     from repertoire.planning.dmp_demos import slerp_minimum_jerk
     from repertoire.planning.dmp_math import minimum_jerk, quat_exp

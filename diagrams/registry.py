@@ -39,6 +39,7 @@ class DiagramEntry:
 
 
 _REGISTRY: dict[str, DiagramEntry] = {}
+_BROKEN: dict[str, str] = {}
 _LOADED = False
 
 
@@ -63,9 +64,20 @@ def _load_all() -> None:
     import repertoire.diagrams as pkg
 
     for info in pkgutil.iter_modules(pkg.__path__):
-        if not info.name.startswith("_"):
-            importlib.import_module(f"{pkg.__name__}.{info.name}")
+        if info.name.startswith("_"):
+            continue
+        module = f"{pkg.__name__}.{info.name}"
+        try:
+            importlib.import_module(module)
+        except Exception as e:  # one broken world must not hide the others
+            _BROKEN[module] = f"{type(e).__name__}: {e}"
     _LOADED = True
+
+
+def broken_modules() -> dict[str, str]:
+    """Diagram modules that failed to import, with the error each raised."""
+    _load_all()
+    return dict(_BROKEN)
 
 
 def diagram_names() -> list[str]:
@@ -82,5 +94,8 @@ def get_diagram_entry(name: str) -> DiagramEntry:
     """
     _load_all()
     if name not in _REGISTRY:
-        raise UnknownNameError(f"unknown diagram '{name}'; registered diagrams: {diagram_names()}")
+        broken = f"; modules that failed to import: {_BROKEN}" if _BROKEN else ""
+        raise UnknownNameError(
+            f"unknown diagram '{name}'; registered diagrams: {diagram_names()}{broken}"
+        )
     return _REGISTRY[name]

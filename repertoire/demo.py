@@ -215,9 +215,12 @@ def run_demo(
     failures: list[str] = []
 
     try:
-        from repertoire.diagrams.registry import diagram_names
+        from repertoire.diagrams.registry import broken_modules, diagram_names
 
         names = diagram_names()
+        for module, error in broken_modules().items():
+            failures.append(f"diagram module {module} failed to import: {error}")
+            printer(f"diagram module {module} failed to import: {error}")
     except Exception as e:
         names = []
         failures.append(f"diagram registry: {_short_error(e)}")

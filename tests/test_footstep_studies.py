@@ -1,0 +1,80 @@
+"""Footstep studies: smoke configs through the study engine, records, summaries, validation."""
+
+import dataclasses
+
+import pytest
+
+from repertoire.errors import RepertoireError
+from repertoire.studies import footstep_dynamic, footstep_static
+from repertoire.studies.engine import run_study
+
+
+def _strip_wall(record) -> dict:
+    return {k: v for k, v in dataclasses.asdict(record).items() if not k.startswith("wall")}
+
+
+def test_static_study_smoke(tmp_path):
+    cfg = footstep_static.smoke_config()
+    result = run_study(
+        "footstep_static",
+        cfg,
+        episodes=3,
+        store=tmp_path / "s.sqlite",
+        out_dir=tmp_path,
+        executor="inline",
+        progress=False,
+    )
+    assert [r.seed for r in result.records] == [0, 1, 2]
+    for r in result.records:
+        assert r.status in ("SUCCESS", "NODE_LIMIT", "UNREACHABLE")
+        assert r.success == (r.status == "SUCCESS")
+        assert r.biped_only == (r.success and not r.mobile2d_success)
+        assert r.nodes_expanded <= cfg.max_expansions
+    again = footstep_static.run_episode(cfg, 1)
+    assert _strip_wall(again) == _strip_wall(result.records[1])
+    table = (tmp_path / "footstep_static.md").read_text()
+    assert "| footstep planner success |" in table and "| maps | 3 |" in table
+    assert result.figures["examples"].stat().st_size > 0
+    assert result.figures["distributions"].stat().st_size > 0
+
+
+def test_static_paper_setting_episode():
+    # the paper's setting: 3 m floor, start and goal in opposite corners
+    cfg = footstep_static.FootstepStaticConfig()
+    around = footstep_static.run_episode(cfg, 0)  # the circle goes around, the biped steps over
+    assert around.success and 10 <= around.steps <= 30 and around.steps_over >= 1
+    assert around.mobile2d_success and around.mobile2d_length_m > 1.2 * around.body_path_m
+    blocked = footstep_static.run_episode(cfg, 2)  # the circle cannot pass at all
+    assert blocked.success and blocked.steps_over >= 1
+    assert not blocked.mobile2d_success and blocked.biped_only
+
+
+def test_dynamic_study_smoke(tmp_path):
+    cfg = footstep_dynamic.smoke_config()
+    result = run_study(
+        "footstep_dynamic",
+        cfg,
+        episodes=2,
+        store=tmp_path / "d.sqlite",
+        out_dir=tmp_path,
+        executor="inline",
+        progress=False,
+    )
+    for r in result.records:
+        assert not r.mobile2d_success  # the strings disconnect start and goal in 2-D
+        assert r.success == (r.status == "SUCCESS")
+        if r.success:
+            assert r.steps_over >= 2 and r.arrival_s > 0
+    assert "| phase pairs | 2 |" in (tmp_path / "footstep_dynamic.md").read_text()
+    assert result.figures["distributions"].stat().st_size > 0
+
+
+def test_study_configs_validate():
+    with pytest.raises(RepertoireError, match="size_m must be > 0"):
+        footstep_static.FootstepStaticConfig(size_m=-1.0).validate()
+    with pytest.raises(RepertoireError, match="n_strips must be >= 0"):
+        footstep_static.FootstepStaticConfig(n_strips=-1).validate()
+    with pytest.raises(RepertoireError, match="no gap"):
+        footstep_dynamic.FootstepDynamicConfig(block_length_m=1.5).validate()
+    with pytest.raises(RepertoireError, match="grid_dt_s must be > 0"):
+        footstep_dynamic.FootstepDynamicConfig(grid_dt_s=0.0).validate()

@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 from pydrake.systems.framework import DiagramBuilder
-
 from repertoire.planning.footstep import FootstepError, FootstepPlan, PlanStatus
 from repertoire.systems.footstep_source import FootstepPlanSource, plan_phase_at
 

@@ -3,10 +3,10 @@
 import dataclasses
 
 import pytest
-
-from repertoire.errors import RepertoireError
 from repertoire.studies import footstep_dynamic, footstep_static
 from repertoire.studies.engine import run_study
+
+from repertoire.errors import RepertoireError
 
 
 def _strip_wall(record) -> dict:

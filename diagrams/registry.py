@@ -43,8 +43,14 @@ _BROKEN: dict[str, str] = {}
 _LOADED = False
 
 
-def register_diagram(name: str, *, scenario_type: type, description: str, duration: float = 1.0,
-                     check: Callable[..., dict] | None = None):
+def register_diagram(
+    name: str,
+    *,
+    scenario_type: type,
+    description: str,
+    duration: float = 1.0,
+    check: Callable[..., dict] | None = None,
+):
     """Decorator registering a diagram builder under ``name``."""
 
     def decorator(build):

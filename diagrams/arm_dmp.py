@@ -82,6 +82,7 @@ from repertoire.systems.dmp import ObstacleCoupling
 from repertoire.systems.task_space import (
     STATUS_NAMES,
     STATUS_OK,
+    STATUS_TARGET_OUT_OF_REACH,
     GraspWrench,
     ResolvedMotionRateIK,
     TaskSpaceDmpChain,
@@ -941,14 +942,17 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
         (final root context, wall-clock seconds of the simulation).
 
     Raises:
-        IkTargetError: the IK reported a target out of reach or lost tracking (says
-            when, which segment and where the target was).
+        IkTargetError: the active goal left the arm's reach, or the IK reported a
+            desired position out of reach or lost tracking (says when, which segment
+            and where the goal and the target were).
     """
     simulator = Simulator(diagram)
     root = simulator.get_mutable_context()
     rmrc = diagram.GetSubsystemByName("rmrc")
     chain = diagram.GetSubsystemByName("dmp_chain")
+    schedule = diagram.GetSubsystemByName("goal_schedule")
     status_port = rmrc.GetOutputPort("status")
+    shoulder, reach = shoulder_and_reach()
     problem = {}
 
     def monitor(context: Context):
@@ -956,6 +960,9 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
 
         rmrc_context = rmrc.GetMyContextFromRoot(context)
         status = int(status_port.Eval(rmrc_context)[0])
+        goal = schedule.GetOutputPort("goal").Eval(schedule.GetMyContextFromRoot(context))[:3]
+        if status == STATUS_OK and np.linalg.norm(goal - shoulder) > reach:
+            status = STATUS_TARGET_OUT_OF_REACH
         if status == STATUS_OK:
             return EventStatus.Succeeded()
         chain_context = chain.GetMyContextFromRoot(context)
@@ -964,6 +971,7 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
             time=context.get_time(),
             segment=int(chain.GetOutputPort("segment").Eval(chain_context)[0]),
             target=chain.GetOutputPort("position").Eval(chain_context).copy(),
+            goal=goal.copy(),
             error=rmrc.GetOutputPort("task_error").Eval(rmrc_context).copy(),
         )
         return EventStatus.ReachedTermination(rmrc, STATUS_NAMES[status])
@@ -974,11 +982,14 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
     simulator.AdvanceTo(duration)
     wall = time.perf_counter() - start
     if problem:
+        distance = float(np.linalg.norm(problem["goal"] - shoulder))
         raise IkTargetError(
             f"{diagram.get_name()}: IK reported '{STATUS_NAMES[problem['status']]}' at "
-            f"t = {problem['time']:.3f} s in segment {problem['segment']}: desired tcp "
-            f"position {np.round(problem['target'], 3).tolist()}, tcp error "
-            f"{problem['error'][0]:.3f} m; the simulation was stopped there"
+            f"t = {problem['time']:.3f} s in segment {problem['segment']}: goal "
+            f"{np.round(problem['goal'], 3).tolist()} ({distance:.3f} m from"
+            f" the shoulder, reach {reach:.3f} m), desired tcp position "
+            f"{np.round(problem['target'], 3).tolist()}, tcp error {problem['error'][0]:.3f} m; "
+            "the simulation was stopped there"
         )
     return root, wall
 
@@ -1053,7 +1064,8 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
         ``cups_served`` (how many within 3 cm), ``max_cup_displacement_m`` (how far
         the bottle or the hand pushed a cup), ``bottle_in_hand_m`` (bottle grasp
         point to tcp at the end), ``grasp_reach_error_m``, ``pour_reach_error_m``
-        (largest over the pours), ``success`` (1 if all three cups were served and none was pushed by more than 1 cm).
+        (largest over the pours), ``success`` (1 if all three cups were served and
+        none was pushed by more than 1 cm).
     """
     plant = diagram.GetSubsystemByName("plant")
     pc = plant.GetMyContextFromRoot(context)

@@ -320,3 +320,92 @@ def test_joint_reference_mux_orders_arm_and_hand():
     )
     with pytest.raises(RepertoireError, match="permutation"):
         JointReferenceMux([0, 1], [1, 2])
+
+
+def _demo_dmp(p0, p1, duration=1.0):
+    from repertoire.planning.dmp import learn_task_space_dmp
+    from repertoire.planning.dmp_math import minimum_jerk
+
+    t = np.linspace(0.0, duration, 300)
+    p, _, _ = minimum_jerk(np.asarray(p0, float), np.asarray(p1, float), duration, t)
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (len(t), 1))
+    f, _, _ = minimum_jerk(np.zeros(3), np.full(3, 0.5), duration, t)
+    return learn_task_space_dmp(t, p, q, f, orientation_mode="component", n_basis=20)
+
+
+def test_dmp_chain_single_segment_matches_the_rollout():
+    from repertoire.systems.task_space import TaskSpaceDmpChain, stack_task_space_dmp
+
+    dmp = _demo_dmp([0.5, 0.0, 0.9], [0.6, -0.1, 0.8])
+    x0 = np.concatenate([[0.5, 0.0, 0.9], [1, 0, 0, 0], np.zeros(3)])
+    chain = TaskSpaceDmpChain([dmp], [0.0], x0)
+    context = chain.CreateDefaultContext()
+    goal = np.concatenate([[0.62, -0.05, 0.85], [1, 0, 0, 0], [0.4, 0.4, 0.4]])
+    chain.GetInputPort("goal").FixValue(context, goal)
+    chain.GetInputPort("coupling").FixValue(context, np.zeros(3))
+    simulator = Simulator(chain, context)
+    simulator.get_mutable_integrator().set_target_accuracy(1e-9)
+    simulator.AdvanceTo(0.6)
+    reference = stack_task_space_dmp(dmp).rollout(goal=goal, x0=x0, dt=1e-4, n_steps=6000)
+    assert np.allclose(
+        chain.GetOutputPort("position").Eval(context), reference.x[-1, :3], atol=1e-5
+    )
+    assert np.allclose(
+        chain.GetOutputPort("velocity").Eval(context), reference.xd[-1, :3], atol=1e-4
+    )
+    assert np.allclose(
+        chain.GetOutputPort("finger_position").Eval(context), reference.x[-1, 7:], atol=1e-5
+    )
+    assert np.allclose(chain.GetOutputPort("orientation").Eval(context), [1, 0, 0, 0])
+    assert np.allclose(chain.GetOutputPort("angular_velocity").Eval(context), 0.0)
+    assert chain.GetOutputPort("phase").Eval(context)[0] == pytest.approx(
+        np.exp(-dmp.alpha * 0.6 / dmp.tau), rel=1e-6
+    )
+
+
+def test_dmp_chain_hands_over_position_and_velocity():
+    from repertoire.systems.task_space import TaskSpaceDmpChain
+
+    first = _demo_dmp([0.5, 0.0, 0.9], [0.6, 0.0, 0.9])
+    second = _demo_dmp([0.6, 0.0, 0.9], [0.6, 0.1, 0.9], duration=0.8)
+    x0 = np.concatenate([[0.5, 0.0, 0.9], [1, 0, 0, 0], np.zeros(3)])
+    chain = TaskSpaceDmpChain([first, second], [0.0, 0.5], x0, switch_period=0.01)
+    context = chain.CreateDefaultContext()
+    goal = chain.GetInputPort("goal").FixValue(
+        context, np.concatenate([[0.6, 0.0, 0.9], [1, 0, 0, 0], [0.5] * 3])
+    )
+    chain.GetInputPort("coupling").FixValue(context, np.zeros(3))
+    simulator = Simulator(chain, context)
+    simulator.AdvanceTo(0.5 - 1e-6)
+    before = [chain.GetOutputPort(n).Eval(context).copy() for n in ("position", "velocity")]
+    assert chain.GetOutputPort("segment").Eval(context)[0] == 0
+    goal.GetMutableData().set_value(np.concatenate([[0.6, 0.1, 0.9], [1, 0, 0, 0], [0.5] * 3]))
+    simulator.AdvanceTo(0.5 + 1e-6)
+    after = [chain.GetOutputPort(n).Eval(context).copy() for n in ("position", "velocity")]
+    assert chain.GetOutputPort("segment").Eval(context)[0] == 1
+    assert chain.GetOutputPort("phase").Eval(context)[0] == pytest.approx(1.0, abs=1e-4)
+    assert np.allclose(after[0], before[0], atol=1e-5)  # x_pred -> x_succ
+    assert np.allclose(after[1], before[1], atol=1e-3)  # v_pred -> v_succ
+    simulator.AdvanceTo(2.5)
+    assert np.allclose(chain.GetOutputPort("position").Eval(context), [0.6, 0.1, 0.9], atol=1e-3)
+
+
+def test_dmp_chain_bad_input():
+    from repertoire.systems.task_space import TaskSpaceDmpChain
+
+    dmp = _demo_dmp([0.5, 0.0, 0.9], [0.6, -0.1, 0.8])
+    x0 = np.concatenate([[0.5, 0.0, 0.9], [1, 0, 0, 0], np.zeros(3)])
+    with pytest.raises(RepertoireError, match="at least one segment"):
+        TaskSpaceDmpChain([], [], x0)
+    with pytest.raises(RepertoireError, match="start at 0 and increase"):
+        TaskSpaceDmpChain([dmp, dmp], [0.0, 0.0], x0)
+    with pytest.raises(RepertoireError, match="x_start must have 10 entries"):
+        TaskSpaceDmpChain([dmp], [0.0], x0[:7])
+    chain = TaskSpaceDmpChain([dmp], [0.0], x0)
+    context = chain.CreateDefaultContext()
+    with pytest.raises(RuntimeError, match="size=10 for input port 'goal'"):
+        chain.GetInputPort("goal").FixValue(context, np.zeros(7))
+    chain.GetInputPort("goal").FixValue(context, np.full(10, np.nan))
+    chain.GetInputPort("coupling").FixValue(context, np.zeros(3))
+    with pytest.raises(RepertoireError, match="goal must be finite"):
+        chain.GetOutputPort("finger_acceleration").Eval(context)

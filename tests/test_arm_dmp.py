@@ -1,0 +1,133 @@
+"""Tests of diagrams/arm_dmp.py: the DMP-driven arm7 worlds (brief simulations, bad input)."""
+
+import numpy as np
+import pytest
+from repertoire.diagrams.arm_dmp import (
+    CUP_GRASP_HEIGHT,
+    PICK_PLACE_LABELS,
+    R_SIDE,
+    IkTargetError,
+    PickPlaceScenario,
+    SegmentGoal,
+    ServingScenario,
+    _build_world,
+    _quat,
+    _rotation_from_approach,
+    approach_direction,
+    build_pick_and_place,
+    build_serving_water,
+    home_tcp_pose,
+    motion_library,
+    plan_pick_and_place,
+    run_arm_world,
+    shoulder_and_reach,
+)
+from repertoire.diagrams.registry import get_diagram_entry
+from repertoire.diagrams.scenario import load_scenario
+from repertoire.models.arm7 import HAND_GRASP_7CM, TABLE_HEIGHT, ArmObject
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+
+def _tcp_and_dmp(diagram, context):
+    tcp = diagram.GetSubsystemByName("tcp_point")
+    chain = diagram.GetSubsystemByName("dmp_chain")
+    p_tcp = tcp.get_output_port().Eval(tcp.GetMyContextFromRoot(context))[:3]
+    p_dmp = chain.GetOutputPort("position").Eval(chain.GetMyContextFromRoot(context))
+    return p_tcp, p_dmp
+
+
+def test_motion_library_reproduces_its_demonstrations():
+    lib = motion_library()
+    assert sorted(lib) == ["grasp", "place", "pour", "release", "retreat"]
+    for label, dmp in lib.items():
+        assert dmp.orientation.mode == "component", label
+        r = dmp.position.rollout(dt=0.002, n_steps=int(1.6 * dmp.tau / 0.002))
+        assert np.linalg.norm(r.x[-1] - dmp.position.goal) < 1e-3, label
+
+
+def test_grasp_orientation_from_approach_direction():
+    R = _rotation_from_approach(np.array([2.0, 0.0, -1.0]))
+    assert np.allclose(R.matrix(), R_SIDE.matrix())
+    assert np.allclose(R.matrix()[:, 0], [0, 0, 1])  # x_palm up: the cup's axis
+    with pytest.raises(RepertoireError, match="no horizontal part"):
+        _rotation_from_approach(np.array([0.0, 0.0, -1.0]))
+    lib = motion_library()
+    home = home_tcp_pose().translation()
+    goal = np.array([0.50, -0.20, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
+    a = approach_direction(lib["grasp"], home, goal)
+    radial = np.array([goal[0], goal[1], 0.0]) / np.hypot(goal[0], goal[1])
+    assert abs(np.linalg.norm(a) - 1.0) < 1e-12
+    assert a @ radial > 0.8  # the demonstration approaches radially, from the shoulder
+
+
+def test_pick_and_place_simulates_briefly_and_tracks_the_dmp():
+    diagram = build_pick_and_place(PickPlaceScenario())
+    assert diagram.get_name() == "arm_pick_and_place"
+    context, wall = run_arm_world(diagram, 0.6)
+    p_tcp, p_dmp = _tcp_and_dmp(diagram, context)
+    assert np.linalg.norm(p_tcp - p_dmp) < 0.01
+    assert np.linalg.norm(p_dmp - home_tcp_pose().translation()) > 0.02  # it is moving
+    assert wall > 0.0
+
+
+def test_serving_simulates_briefly():
+    diagram = build_serving_water(ServingScenario(grasp_mode="grip"))
+    assert diagram.get_name() == "arm_serving_water"
+    context, _ = run_arm_world(diagram, 0.4)
+    p_tcp, p_dmp = _tcp_and_dmp(diagram, context)
+    assert np.linalg.norm(p_tcp - p_dmp) < 0.01
+
+
+def test_registered_worlds():
+    for name in ("arm_pick_and_place", "arm_serving_water"):
+        entry = get_diagram_entry(name)
+        assert entry.check is not None and entry.duration > 5.0
+
+
+def test_plan_goals_and_timing():
+    goals, duration = plan_pick_and_place(PickPlaceScenario())
+    assert [g.label for g in goals] == PICK_PLACE_LABELS
+    assert goals[1].body == "coaster:coaster"  # the placing goal follows the coaster
+    lib = motion_library()
+    assert duration == pytest.approx(sum(lib[k].tau for k in PICK_PLACE_LABELS) + 3 * 0.4)
+
+
+def test_bad_scenarios():
+    with pytest.raises(ScenarioError, match="grasp_mode 'glue' unknown"):
+        build_pick_and_place(PickPlaceScenario(grasp_mode="glue"))
+    with pytest.raises(ScenarioError, match="time_step"):
+        build_pick_and_place(PickPlaceScenario(time_step=0.05))
+    with pytest.raises(ScenarioError, match="cup_xy must be 2 finite numbers"):
+        build_pick_and_place(PickPlaceScenario(cup_xy=[0.5]))
+    with pytest.raises(ScenarioError, match="within 5 cm of the table"):
+        build_pick_and_place(PickPlaceScenario(obstacle_xyz=[0.6, 0.0, 0.8]))
+    with pytest.raises(ScenarioError, match="three cups"):
+        build_serving_water(ServingScenario(cup_xys=[[0.6, 0.0]]))
+    with pytest.raises(ScenarioError, match="Expected keys"):
+        load_scenario(PickPlaceScenario, data="cup_xy: [0.5, -0.2]\nflavour: red\n")
+
+
+def test_goal_out_of_reach_is_refused_before_building():
+    # On the table, but 1.1 m from the shoulder (reach 0.765 m).
+    with pytest.raises(RepertoireError, match="IK target out of reach: grasp goal"):
+        build_pick_and_place(PickPlaceScenario(cup_xy=[0.95, -0.5]))
+    shoulder, reach = shoulder_and_reach()
+    assert np.allclose(shoulder, [0, 0, 1.1])
+    assert reach == pytest.approx(0.06 + 0.24 + 0.30 + 0.08 + 0.085)
+
+
+def test_target_leaving_the_reach_during_a_run_stops_it():
+    scenario = PickPlaceScenario()
+    q = _quat(R_SIDE)
+    # A goal tied to the cup but 0.9 m above it: out of reach only once the run starts.
+    goals = [SegmentGoal("grasp", np.array([0, 0, 0.9]), q, np.array(HAND_GRASP_7CM), "cup:cup")]
+    diagram = _build_world(
+        "unreachable",
+        scenario,
+        [ArmObject(name="cup", kind="cup", xy=[0.55, -0.25])],
+        goals,
+        graspable=["cup:cup"],
+    )
+    with pytest.raises(IkTargetError, match="target out of reach.* at t = 0.00"):
+        run_arm_world(diagram, 1.0)

@@ -1,0 +1,417 @@
+"""DMP goal generalisation, old (eq. 1-5) vs new (eq. 6-8) formulation (Pastor et al., Fig. 2).
+
+Each episode draws a 2-D demonstration like Fig. 2 (Y1 moves 1 m; Y2 ends a few cm above
+its start but bulges upwards on the way), learns it with both formulations and runs the
+learned DMPs in a Drake diagram (DmpSystem, 1 kHz exact discrete update) for four cases:
+
+* before: the goal is moved before movement onset;
+* during: the goal jumps to a new place during the movement;
+* flip: the Y2 goal is moved below the start, flipping the sign of g - x0;
+* near_start: the demonstration's Y2 ends delta (log-uniform 1e-12 .. 1e-2 m) from its
+  start (g ~ x0, a placing movement), and the DMP is sent to a goal 10 cm higher.
+
+It records peak accelerations (relative to the demonstration's), final goal errors and
+whether the Y2 bulge is mirrored. Run ``python -m repertoire.studies.dmp_goals --help``.
+"""
+
+import dataclasses
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from repertoire.studies.engine import register_study, study_main
+
+from repertoire.errors import RepertoireError
+
+
+@dataclasses.dataclass
+class DmpGoalsConfig:
+    """What every episode shares.
+
+    Attributes:
+        n_basis: basis functions per DOF.
+        duration_s: demonstration duration (tau).
+        n_samples: demonstration samples.
+        time_step_s: DmpSystem update period.
+        sim_factor: simulated time as a multiple of tau.
+        bulge_min_m: smallest Y2 bulge of the demonstration.
+        bulge_max_m: largest Y2 bulge.
+        rise_min_m: smallest Y2 goal - start of the demonstration.
+        rise_max_m: largest.
+        goal_shift_m: goal shifts are uniform in [-goal_shift_m, goal_shift_m] per axis.
+        switch_min: earliest goal jump, fraction of tau.
+        switch_max: latest goal jump.
+        near_start_log10_min: log10 of the smallest delta for the g ~ x0 case.
+        near_start_log10_max: log10 of the largest delta.
+        near_start_goal_m: Y2 goal offset used to generalise the g ~ x0 demonstration.
+    """
+
+    n_basis: int = 30
+    duration_s: float = 1.0
+    n_samples: int = 500
+    time_step_s: float = 1e-3
+    sim_factor: float = 2.0
+    bulge_min_m: float = 0.2
+    bulge_max_m: float = 0.4
+    rise_min_m: float = 0.02
+    rise_max_m: float = 0.1
+    goal_shift_m: float = 0.3
+    switch_min: float = 0.2
+    switch_max: float = 0.6
+    near_start_log10_min: float = -12.0
+    near_start_log10_max: float = -2.0
+    near_start_goal_m: float = 0.1
+
+    def validate(self) -> None:
+        """Raises RepertoireError if a field is out of range."""
+        for name in ("duration_s", "time_step_s", "sim_factor", "near_start_goal_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise RepertoireError(f"DmpGoalsConfig.{name} must be finite and > 0, got {v}")
+        if self.n_basis < 1 or self.n_samples < 3:
+            raise RepertoireError("DmpGoalsConfig needs n_basis >= 1 and n_samples >= 3")
+        if not 0 < self.switch_min <= self.switch_max < 1:
+            raise RepertoireError("DmpGoalsConfig needs 0 < switch_min <= switch_max < 1")
+
+
+@dataclasses.dataclass
+class DmpGoalsRecord:
+    """One episode: per case, old vs new.
+
+    Attributes:
+        demo_peak_acc: peak |acceleration| of the demonstration (m/s^2).
+        before_peak_acc_old: peak |acc| / demo peak, goal moved before onset, old form.
+        before_peak_acc_new: same, new form.
+        before_final_err_old: |x(T_sim) - g| (m), old form.
+        before_final_err_new: same, new form.
+        during_peak_acc_old: peak |acc| / demo peak, goal jump during the movement, old.
+        during_peak_acc_new: same, new.
+        during_final_err_old: final error after the jump, old.
+        during_final_err_new: same, new.
+        flip_mirrored_old: the Y2 bulge points down after flipping sign(g - x0), old.
+        flip_mirrored_new: same, new.
+        flip_bulge_old_m: signed extreme Y2 deviation from the start-goal line, old.
+        flip_bulge_new_m: same, new.
+        near_start_log10_delta: log10 of the demonstration's |g - x0| in Y2.
+        near_start_peak_acc_old: peak |acc| / demo peak, g ~ x0 demo sent 10 cm up, old.
+        near_start_peak_acc_new: same, new.
+        near_start_final_err_old: final error, old (inf/NaN shown as 1e300).
+        near_start_final_err_new: final error, new.
+        wall_time_s: episode wall time.
+    """
+
+    demo_peak_acc: float
+    before_peak_acc_old: float
+    before_peak_acc_new: float
+    before_final_err_old: float
+    before_final_err_new: float
+    during_peak_acc_old: float
+    during_peak_acc_new: float
+    during_final_err_old: float
+    during_final_err_new: float
+    flip_mirrored_old: bool
+    flip_mirrored_new: bool
+    flip_bulge_old_m: float
+    flip_bulge_new_m: float
+    near_start_log10_delta: float
+    near_start_peak_acc_old: float
+    near_start_peak_acc_new: float
+    near_start_final_err_old: float
+    near_start_final_err_new: float
+    wall_time_s: float
+
+
+def demonstration(config: DmpGoalsConfig, rise: float, bulge: float):
+    """The Fig. 2-like 2-D demonstration: Y1 0 -> 1 m, Y2 0 -> rise with an upward bulge.
+
+    Args:
+        config: Study config.
+        rise: Y2 goal - start [m].
+        bulge: Height of the Y2 bulge [m].
+
+    Returns:
+        ``(t, Y, Ydd)`` with Y of shape (n_samples, 2).
+    """
+    from repertoire.planning.dmp_math import minimum_jerk
+
+    T = config.duration_s
+    t = np.linspace(0.0, T, config.n_samples)
+    x, _, xdd = minimum_jerk(np.zeros(2), np.array([1.0, rise]), T, t)
+    s = t / T
+    x[:, 1] += bulge * 16 * s**2 * (1 - s) ** 2
+    xdd[:, 1] += bulge * 16 * (2 - 12 * s + 12 * s**2) / T**2
+    return t, x, xdd
+
+
+def simulate_dmp(
+    dmp,
+    goal_times: list[float],
+    goals: list[np.ndarray],
+    duration: float,
+    *,
+    time_step: float = 1e-3,
+    obstacle: np.ndarray | None = None,
+    gamma: float = 1000.0,
+    beta: float = 20.0 / np.pi,
+):
+    """Run a vector DMP in a Drake diagram with a piecewise-constant goal.
+
+    Args:
+        dmp: DmpParameters.
+        goal_times: Times at which ``goals[i]`` becomes the goal (first 0).
+        goals: Goals.
+        duration: Simulated time [s].
+        time_step: DmpSystem update period.
+        obstacle: Obstacle position (enables eq. 10 coupling) or None.
+        gamma: Coupling gain.
+        beta: Coupling decay.
+
+    Returns:
+        ``(t, x, xd, xdd)`` logged every time step.
+    """
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource, TrajectorySource, VectorLogSink
+    from pydrake.trajectories import PiecewisePolynomial
+    from repertoire.systems.dmp_compose import add_dmp
+
+    builder = DiagramBuilder()
+    sys = add_dmp(
+        builder,
+        dmp,
+        name="dmp",
+        time_step=time_step,
+        obstacle_avoidance=obstacle is not None,
+        gamma=gamma,
+        beta=beta,
+    )
+    if len(goals) == 1:
+        src = builder.AddSystem(ConstantVectorSource(np.asarray(goals[0], float)))
+    else:
+        times = list(goal_times) + [max(duration, goal_times[-1]) + 1.0]
+        values = np.column_stack([np.asarray(g, float) for g in goals] + [goals[-1]])
+        src = builder.AddSystem(TrajectorySource(PiecewisePolynomial.ZeroOrderHold(times, values)))
+    builder.Connect(src.get_output_port(), sys.GetInputPort("goal"))
+    if obstacle is not None:
+        obs = builder.AddSystem(ConstantVectorSource(np.asarray(obstacle, float)))
+        builder.Connect(obs.get_output_port(), sys.GetInputPort("obstacle"))
+    logs = {}
+    n = dmp.n_dims
+    for name in ("position", "velocity", "acceleration"):
+        logs[name] = builder.AddSystem(VectorLogSink(n, publish_period=time_step))
+        builder.Connect(sys.GetOutputPort(name), logs[name].get_input_port())
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(duration)
+    ctx = simulator.get_context()
+    data = {k: v.FindLog(ctx) for k, v in logs.items()}
+    t = data["position"].sample_times()
+    return (
+        t,
+        data["position"].data().T,
+        data["velocity"].data().T,
+        data["acceleration"].data().T,
+    )
+
+
+def _peak(a: np.ndarray) -> float:
+    v = float(np.max(np.abs(a))) if np.all(np.isfinite(a)) else 1e300
+    return min(v, 1e300)
+
+
+def _final_err(x: np.ndarray, goal: np.ndarray) -> float:
+    e = float(np.max(np.abs(x[-1] - goal)))
+    return e if math.isfinite(e) else 1e300
+
+
+def _signed_bulge(x: np.ndarray) -> float:
+    """Signed extreme deviation of Y2 from the straight line between start and end."""
+    s = np.linspace(0.0, 1.0, len(x))
+    line = x[0, 1] + (x[-1, 1] - x[0, 1]) * s
+    d = x[:, 1] - line
+    return float(d[np.argmax(np.abs(d))])
+
+
+def sample_episode(config: DmpGoalsConfig, seed: int) -> dict:
+    """The seeded random quantities of an episode.
+
+    Args:
+        config: Study config.
+        seed: Episode seed.
+    """
+    rng = np.random.default_rng(seed)
+    return {
+        "rise": float(rng.uniform(config.rise_min_m, config.rise_max_m)),
+        "bulge": float(rng.uniform(config.bulge_min_m, config.bulge_max_m)),
+        "shift_before": rng.uniform(-config.goal_shift_m, config.goal_shift_m, 2),
+        "shift_during": rng.uniform(-config.goal_shift_m, config.goal_shift_m, 2),
+        "switch": float(rng.uniform(config.switch_min, config.switch_max)),
+        "log10_delta": float(rng.uniform(config.near_start_log10_min, config.near_start_log10_max)),
+    }
+
+
+def run_episode(config: DmpGoalsConfig, seed: int) -> DmpGoalsRecord:
+    """Learns both formulations from the seeded demo and runs the four goal cases.
+
+    Args:
+        config: Study config.
+        seed: Episode seed.
+    """
+    from repertoire.planning.dmp import learn_dmp
+
+    t0 = time.perf_counter()
+    config.validate()
+    ep = sample_episode(config, seed)
+    T = config.duration_s
+    sim_t = config.sim_factor * T
+    t, Y, Ydd = demonstration(config, ep["rise"], ep["bulge"])
+    demo_peak = float(np.abs(Ydd).max())
+    dmps = {f: learn_dmp(t, Y, n_basis=config.n_basis, formulation=f) for f in ("old", "new")}
+    g = Y[-1]
+    out: dict = {"demo_peak_acc": demo_peak}
+    for f, dmp in dmps.items():
+        run = simulate_dmp  # same diagram for every case
+        g1 = g + ep["shift_before"]
+        _, x, _, a = run(dmp, [0.0], [g1], sim_t, time_step=config.time_step_s)
+        out[f"before_peak_acc_{f}"] = _peak(a) / demo_peak
+        out[f"before_final_err_{f}"] = _final_err(x, g1)
+        g2 = g + ep["shift_during"]
+        _, x, _, a = run(dmp, [0.0, ep["switch"] * T], [g, g2], sim_t, time_step=config.time_step_s)
+        out[f"during_peak_acc_{f}"] = _peak(a) / demo_peak
+        out[f"during_final_err_{f}"] = _final_err(x, g2)
+        gf = np.array([g[0], -ep["rise"]])
+        _, x, _, _ = run(dmp, [0.0], [gf], sim_t, time_step=config.time_step_s)
+        bulge = _signed_bulge(x)
+        out[f"flip_bulge_{f}_m"] = bulge
+        out[f"flip_mirrored_{f}"] = bool(bulge < 0)
+    delta = 10.0 ** ep["log10_delta"]
+    tn, Yn, _ = demonstration(config, delta, ep["bulge"])
+    gn = np.array([1.0, config.near_start_goal_m])
+    for f in ("old", "new"):
+        dmp = learn_dmp(tn, Yn, n_basis=config.n_basis, formulation=f)
+        with np.errstate(all="ignore"):
+            _, x, _, a = simulate_dmp(dmp, [0.0], [gn], sim_t, time_step=config.time_step_s)
+        out[f"near_start_peak_acc_{f}"] = _peak(a) / demo_peak
+        out[f"near_start_final_err_{f}"] = _final_err(x, gn)
+    out["near_start_log10_delta"] = ep["log10_delta"]
+    return DmpGoalsRecord(**out, wall_time_s=time.perf_counter() - t0)
+
+
+def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Path):
+    """Fig. 2 panels for seed 0's demo, peak acceleration vs delta, and a Markdown table.
+
+    Args:
+        records: Episode records.
+        config: Study config.
+        out_dir: Output directory.
+    """
+    from matplotlib.figure import Figure
+    from repertoire.planning.dmp import learn_dmp
+
+    out_dir = Path(out_dir)
+    ep = sample_episode(config, 0)
+    T = config.duration_s
+    t, Y, _ = demonstration(config, ep["rise"], ep["bulge"])
+    fig = Figure(figsize=(10, 7.5), layout="constrained")
+    axes = fig.subplots(2, 2, sharex=True, sharey=True)
+    goals = [np.array([gx, gy]) for gx in (0.7, 1.0, 1.3) for gy in (-0.15, 0.05, 0.25)]
+    for col, f in enumerate(("old", "new")):
+        dmp = learn_dmp(t, Y, n_basis=config.n_basis, formulation=f)
+        for row, during in enumerate((False, True)):
+            ax = axes[row, col]
+            ax.plot(Y[:, 0], Y[:, 1], "k-", lw=2.5, label="demonstration")
+            for g in goals:
+                # NumPy rollout (identical to the DmpSystem to rounding, see the tests).
+                n_steps = int(round(1.5 * T / config.time_step_s))
+                G = np.tile(g, (n_steps + 1, 1))
+                if during:
+                    k = int(round(0.4 * T / config.time_step_s))
+                    G[:k] = Y[-1]
+                x = dmp.rollout(goal=G, dt=config.time_step_s, n_steps=n_steps).x
+                ax.plot(x[:, 0], x[:, 1], "--", lw=1.2)
+                ax.plot(*g, "ko", ms=4)
+            ax.set_title(
+                f"{f} formulation, goal changed {'during (t = 0.4 tau)' if during else 'before'}"
+            )
+            ax.set_xlabel("Y1 (m)")
+            ax.set_ylabel("Y2 (m)")
+            ax.grid(alpha=0.3)
+    axes[0, 0].legend(loc="upper left")
+    p1 = out_dir / "dmp_goals_fig2.png"
+    fig.savefig(p1, dpi=100)
+
+    fig = Figure(figsize=(6.5, 4.2), layout="constrained")
+    ax = fig.add_subplot()
+    d = [r.near_start_log10_delta for r in records]
+    ax.semilogy(
+        d, [r.near_start_peak_acc_old for r in records], "o", c="tab:red", label="old (eq. 1)"
+    )
+    ax.semilogy(
+        d, [r.near_start_peak_acc_new for r in records], "s", c="tab:blue", label="new (eq. 6)"
+    )
+    ax.set_xlabel("log10 |g - x0| of the demonstrated Y2 (m)")
+    ax.set_ylabel("peak |acceleration| / demonstration's")
+    ax.set_title(f"g ~ x0 demo sent {config.near_start_goal_m * 100:g} cm up ({len(records)} runs)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend()
+    p2 = out_dir / "dmp_goals_near_start.png"
+    fig.savefig(p2, dpi=100)
+
+    def stats(vals):
+        v = np.asarray(vals, float)
+        return f"{np.median(v):.3g}", f"{np.max(v):.3g}"
+
+    lines = [
+        f"# DMP goal generalisation, old vs new ({len(records)} episodes)",
+        "",
+        "| case | figure | old: median | old: max | new: median | new: max |",
+        "|---|---|---|---|---|---|",
+    ]
+    for case, label in (
+        ("before", "goal moved before onset"),
+        ("during", "goal jump during movement"),
+        ("near_start", "demo with g ~ x0, goal moved 10 cm"),
+    ):
+        for fig_name, key in (("peak acc / demo", "peak_acc"), ("final error (m)", "final_err")):
+            o = stats([getattr(r, f"{case}_{key}_old") for r in records])
+            n = stats([getattr(r, f"{case}_{key}_new") for r in records])
+            lines.append(f"| {label} | {fig_name} | {o[0]} | {o[1]} | {n[0]} | {n[1]} |")
+    mo = np.mean([r.flip_mirrored_old for r in records])
+    mn = np.mean([r.flip_mirrored_new for r in records])
+    lines.append(f"| sign of g - x0 flipped | fraction mirrored | {mo:.2f} |  | {mn:.2f} |  |")
+    p3 = out_dir / "dmp_goals_table.md"
+    p3.write_text("\n".join(lines) + "\n")
+    return {"fig2": p1, "near_start": p2, "table": p3}
+
+
+def demo_config() -> DmpGoalsConfig:
+    """The demo config."""
+    return DmpGoalsConfig()
+
+
+def smoke_config() -> DmpGoalsConfig:
+    """A tiny config for tests: fewer samples and basis functions."""
+    return DmpGoalsConfig(n_basis=10, n_samples=100, sim_factor=1.2, time_step_s=2e-3)
+
+
+register_study(
+    "dmp_goals",
+    config_type=DmpGoalsConfig,
+    record_type=DmpGoalsRecord,
+    run_episode=run_episode,
+    description="DMP goal generalisation, old vs new formulation: blow-up and mirroring",
+    summarize=summarize,
+    demo_config=demo_config,
+    demo_episodes=40,
+    smoke_config=smoke_config,
+)
+
+
+def main() -> int:
+    """Runs the study from the command line."""
+    return study_main("dmp_goals", description=__doc__.split("\n\n")[0])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

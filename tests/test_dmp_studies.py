@@ -1,0 +1,53 @@
+"""DMP studies: smoke runs through the study engine, determinism, the headline effects."""
+
+import pytest
+from repertoire.studies.engine import comparable, run_study
+
+from repertoire.errors import RepertoireError
+from repertoire.studies import dmp_chaining, dmp_goals, dmp_obstacles
+
+
+def test_goals_study_smoke_shows_old_form_failures(tmp_path):
+    result = run_study(
+        "dmp_goals",
+        dmp_goals.smoke_config(),
+        episodes=1,
+        store=tmp_path / "g.sqlite",
+        out_dir=tmp_path / "g",
+        executor="inline",
+        progress=False,
+    )
+    assert len(result.records) == 1
+    for r in result.records:
+        assert r.flip_mirrored_old and not r.flip_mirrored_new
+        assert r.near_start_peak_acc_new < 5
+        assert r.near_start_peak_acc_old > 10 * r.near_start_peak_acc_new
+    assert set(result.figures) >= {"fig2", "near_start", "table"}
+    assert all(p.exists() for p in result.figures.values())
+
+
+def test_obstacles_study_smoke_and_determinism(tmp_path):
+    config = dmp_obstacles.smoke_config()
+    a, b = dmp_obstacles.run_episode(config, 3), dmp_obstacles.run_episode(config, 3)
+    assert comparable(a) == comparable(b)
+    assert a.clearance_with_m > a.clearance_without_m
+    assert not a.success_without  # the obstacle is placed on the learned path
+    with pytest.raises(RepertoireError, match="radius_m must be > 0"):
+        dmp_obstacles.run_episode(dmp_obstacles.DmpObstaclesConfig(radius_m=0.0), 0)
+
+
+def test_chaining_study_smoke(tmp_path):
+    result = run_study(
+        "dmp_chaining",
+        dmp_chaining.smoke_config(),
+        episodes=1,
+        store=tmp_path / "c.sqlite",
+        out_dir=tmp_path / "c",
+        executor="inline",
+        progress=False,
+    )
+    (r,) = result.records
+    assert r.vel_jump_velocity < 1e-12 and r.vel_jump_none > 0.1
+    assert r.acc_jump_acceleration < 1e-9 < r.acc_jump_velocity
+    assert r.drake_vs_numpy < 1e-10
+    assert result.figures["fig5"].exists()

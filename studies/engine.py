@@ -50,6 +50,7 @@ from repertoire.studies.store import (
     EpisodeStore,
     canonical_json,
     from_plain,
+    read_store,
     to_plain,
 )
 
@@ -64,6 +65,7 @@ __all__ = [
     "comparable",
     "get_study",
     "is_timing_field",
+    "load_records",
     "register_study",
     "run_study",
     "run_study_from_args",
@@ -500,6 +502,34 @@ def _records_from_rows(entry: StudyEntry, rows) -> list:
                 f"{e}; pass fresh=True (CLI: --fresh) to start the store afresh"
             ) from e
     return records
+
+
+def load_records(store: str | Path, name: str | None = None) -> tuple[Any, dict[int, Any]]:
+    """Reads every stored episode of a study store as typed records.
+
+    For programs that learn from a study's episodes (for example an action
+    model): no episode is run and the config is not checked against anything.
+
+    Args:
+        store: the SQLite store written by :func:`run_study`.
+        name: the study expected in the store (default: whatever it holds).
+
+    Returns:
+        ``(config, {seed: record})`` with the store's config and records.
+
+    Raises:
+        RepertoireError: missing or foreign file, another study than ``name``,
+            or records that no longer fit the study's record type.
+        UnknownNameError: the stored study is not registered.
+    """
+    meta, rows = read_store(store)
+    stored = meta.get("study")
+    if name is not None and stored != name:
+        raise RepertoireError(f"store '{store}' holds study '{stored}', not '{name}'")
+    entry = get_study(stored)
+    config = from_plain(entry.config_type, json.loads(meta["config_json"]), "config")
+    records = _records_from_rows(entry, rows)
+    return config, {row.seed: rec for row, rec in zip(rows, records)}
 
 
 def run_study(

@@ -347,3 +347,24 @@ class EpisodeStore:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def read_store(path: str | Path) -> tuple[dict[str, str], list[StoredEpisode]]:
+    """Reads a store without checking its config: (meta table, every row sorted by seed).
+
+    Raises:
+        RepertoireError: the file is missing or not a study store.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise RepertoireError(f"study store '{path}' does not exist")
+    try:
+        with sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=30.0) as conn:
+            meta = dict(conn.execute("SELECT key, value FROM meta"))
+            rows = conn.execute(
+                "SELECT seed, record, episode_s, finished_unix, worker FROM episodes ORDER BY seed"
+            )
+            episodes = [StoredEpisode(*r) for r in rows]
+    except sqlite3.DatabaseError as e:
+        raise RepertoireError(f"'{path}' is not a study store (SQLite said: {e})") from e
+    return meta, episodes

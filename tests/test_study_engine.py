@@ -532,3 +532,16 @@ def test_engine_import_is_cheap():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_load_records_reads_a_store_back(tmp_path, toy_studies):
+    from repertoire.studies.engine import load_records
+
+    run_study("_toy", ToyConfig(scale=4.0), episodes=3, executor="inline", **_kw(tmp_path))
+    config, records = load_records(tmp_path / "s.sqlite", "_toy")
+    assert config == ToyConfig(scale=4.0)
+    assert {seed: r.value for seed, r in records.items()} == {0: 0.0, 1: 4.0, 2: 8.0}
+    with pytest.raises(RepertoireError, match="holds study '_toy', not 'pendulum'"):
+        load_records(tmp_path / "s.sqlite", "pendulum")
+    with pytest.raises(RepertoireError, match="does not exist"):
+        load_records(tmp_path / "missing.sqlite")

@@ -1,10 +1,10 @@
 """DMP studies: smoke runs through the study engine, determinism, the headline effects."""
 
 import pytest
+from repertoire.studies import dmp_chaining, dmp_goals, dmp_obstacles
 from repertoire.studies.engine import comparable, run_study
 
 from repertoire.errors import RepertoireError
-from repertoire.studies import dmp_chaining, dmp_goals, dmp_obstacles
 
 
 def test_goals_study_smoke_shows_old_form_failures(tmp_path):

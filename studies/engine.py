@@ -122,10 +122,24 @@ def is_timing_field(name: str) -> bool:
     return name.startswith("wall") and name.endswith("_s")
 
 
+def _nan_safe(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return repr(value)  # 'nan', 'inf', '-inf': equal to themselves
+    if isinstance(value, list):
+        return [_nan_safe(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _nan_safe(v) for k, v in value.items()}
+    return value
+
+
 def comparable(record: Any) -> dict[str, Any]:
-    """A record as plain data without its timing fields, for determinism checks."""
+    """A record as plain data without its timing fields, for determinism checks.
+
+    Non-finite floats become the strings ``'nan'``, ``'inf'``, ``'-inf'`` so that
+    two runs that both produced NaN compare equal.
+    """
     plain = to_plain(record, type(record).__name__)
-    return {k: v for k, v in plain.items() if not is_timing_field(k)}
+    return {k: _nan_safe(v) for k, v in plain.items() if not is_timing_field(k)}
 
 
 # ---------------------------------------------------------------------------

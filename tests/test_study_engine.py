@@ -295,6 +295,9 @@ def test_plain_round_trip_and_errors():
         from_plain(Outer, {"table": {"a": "x"}})
     with pytest.raises(RepertoireError, match=r"rec\.extra has type object"):
         to_plain({"extra": object()}, "rec")
+    nan_record = ToyRecord(float("nan"), 1, True, [float("inf")], 3.0)
+    assert comparable(nan_record) == comparable(dataclasses.replace(nan_record, wall_time_s=4.0))
+    assert comparable(nan_record) == {"value": "nan", "parity": 1, "even": True, "samples": ["inf"]}
     assert is_timing_field("wall_time_s") and is_timing_field("wall_build_s")
     assert not is_timing_field("time_s") and not is_timing_field("wall_clock")
 

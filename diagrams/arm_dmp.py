@@ -450,7 +450,7 @@ class PickPlaceScenario:
     obstacle_coupling: bool = True
     obstacle_gamma: float = 3000.0
     obstacle_beta: float = float(20.0 / np.pi)
-    settle_time: float = 0.4
+    settle_time: float = 0.25
 
     def validate(self) -> None:
         """Raises ScenarioError on the first bad field."""
@@ -497,7 +497,7 @@ class ServingScenario:
     cup_xys: list[list[float]] = dataclasses.field(
         default_factory=lambda: [[0.64, -0.10], [0.68, 0.04], [0.64, 0.18]]
     )
-    settle_time: float = 0.3
+    settle_time: float = 0.2
 
     def validate(self) -> None:
         """Raises ScenarioError on the first bad field."""
@@ -819,7 +819,7 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
     scenario_type=PickPlaceScenario,
     description="arm7 driven by learned DMPs (RMRC IK + ID/PD): grasp a cup, place it on a "
     "coaster that moves after onset, around a ball obstacle (Pastor et al. Fig. 13)",
-    duration=8.2,
+    duration=7.75,
     check=lambda diagram, context: pick_and_place_figures(diagram, context),
 )
 def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagram:
@@ -894,7 +894,7 @@ def plan_serving(s: ServingScenario) -> tuple[list[SegmentGoal], float]:
     scenario_type=ServingScenario,
     description="arm7 driven by learned DMPs: grasp a bottle and pour over three cups "
     "(Pastor et al. Fig. 12)",
-    duration=14.0,
+    duration=14.1,
     check=lambda diagram, context: serving_figures(diagram, context),
 )
 def build_serving_water(scenario: ServingScenario, *, meshcat=None) -> Diagram:

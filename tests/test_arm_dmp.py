@@ -90,7 +90,7 @@ def test_plan_goals_and_timing():
     assert [g.label for g in goals] == PICK_PLACE_LABELS
     assert goals[1].body == "coaster:coaster"  # the placing goal follows the coaster
     lib = motion_library()
-    assert duration == pytest.approx(sum(lib[k].tau for k in PICK_PLACE_LABELS) + 3 * 0.4)
+    assert duration == pytest.approx(sum(lib[k].tau for k in PICK_PLACE_LABELS) + 3 * 0.25)
 
 
 def test_bad_scenarios():

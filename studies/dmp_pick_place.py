@@ -1,0 +1,346 @@
+"""Pick-and-place study (Pastor et al. 2009, Fig. 13) in the physics simulation.
+
+Each episode draws the cup, the coaster (start and where it moves after the
+placing onset) and the ball obstacle from the seed, builds the
+``arm_pick_and_place`` world (learned DMPs -> RMRC IK -> ID + PD -> arm7 with
+finger-contact grasping by default) and runs grasp -> place -> release. Success:
+the cup stands on the coaster at the end, its axis within 2 cm of the
+coaster's centre. Also recorded: the reach error at the end of the grasp and
+the place, the closest approach of the tcp to the ball's surface, and the wall
+time of the simulation.
+
+Run it with ``python -m repertoire.studies.dmp_pick_place --help``.
+"""
+
+import dataclasses
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from repertoire.studies.engine import register_study, study_main
+
+from repertoire.errors import RepertoireError
+
+
+@dataclasses.dataclass
+class PickPlaceConfig:
+    """What every pick-and-place episode shares.
+
+    Attributes:
+        cup_x: range [min, max] of the cup's x [m]; likewise the other ranges.
+        cup_y: range of the cup's y [m].
+        coaster_x: range of the coaster's starting x [m].
+        coaster_y: range of the coaster's starting y [m].
+        coaster_shift: range of the distance the coaster moves after onset [m]
+            (direction uniform).
+        obstacle_beyond: range of how far beyond the cup-coaster midpoint (+x) the
+            ball's centre is [m].
+        obstacle_z: range of the ball centre's height [m].
+        obstacle_coupling: feed the obstacle into the DMP coupling term (eq. 10).
+        obstacle_gamma: gamma of eq. 10.
+        grasp_mode: ``contact`` (finger friction) or ``grip`` (GraspWrench latch).
+        time_step: plant time step [s].
+        sim_duration_s: simulated seconds (0 = the whole sequence); smoke tests
+            use a fraction.
+        path_every_s: sampling period of the stored tcp path [s].
+    """
+
+    cup_x: list[float] = dataclasses.field(default_factory=lambda: [0.50, 0.60])
+    cup_y: list[float] = dataclasses.field(default_factory=lambda: [-0.30, -0.18])
+    coaster_x: list[float] = dataclasses.field(default_factory=lambda: [0.50, 0.60])
+    coaster_y: list[float] = dataclasses.field(default_factory=lambda: [0.02, 0.12])
+    coaster_shift: list[float] = dataclasses.field(default_factory=lambda: [0.03, 0.07])
+    obstacle_beyond: list[float] = dataclasses.field(default_factory=lambda: [0.10, 0.13])
+    obstacle_z: list[float] = dataclasses.field(default_factory=lambda: [0.96, 1.00])
+    obstacle_coupling: bool = True
+    obstacle_gamma: float = 3000.0
+    grasp_mode: str = "contact"
+    time_step: float = 0.002
+    sim_duration_s: float = 0.0
+    path_every_s: float = 0.1
+
+    def validate(self) -> None:
+        """Raises RepertoireError for an empty or reversed range or a bad value."""
+        for name in (
+            "cup_x",
+            "cup_y",
+            "coaster_x",
+            "coaster_y",
+            "coaster_shift",
+            "obstacle_beyond",
+            "obstacle_z",
+        ):
+            r = getattr(self, name)
+            if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
+                raise RepertoireError(f"PickPlaceConfig.{name} must be [min, max], got {r}")
+        if not (self.sim_duration_s >= 0 and self.path_every_s > 0):
+            raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
+
+
+@dataclasses.dataclass
+class PickPlaceRecord:
+    """One pick-and-place episode.
+
+    Attributes:
+        cup_xy: the cup's start.
+        coaster_xy: the coaster's start.
+        coaster_final_xy: where the coaster moved to.
+        obstacle_xyz: the ball's centre.
+        success: the cup stands on the coaster within 2 cm of its centre.
+        cup_to_coaster_m: final horizontal distance cup axis - coaster centre.
+        cup_height_above_coaster_m: cup bottom above the coaster top at the end.
+        cup_tilt_rad: the cup's tilt at the end.
+        min_obstacle_clearance_m: closest tcp approach to the ball's surface.
+        grasp_reach_error_m: |tcp - goal| at the end of the grasp (physics).
+        place_reach_error_m: |tcp - goal| at the end of the place (physics).
+        failure: empty, or why the run stopped (IK report).
+        path_x: tcp x every ``path_every_s`` [m].
+        path_y: tcp y.
+        path_z: tcp z.
+        sim_time_s: simulated seconds.
+        wall_time_s: wall seconds of the episode (timing field).
+        wall_sim_s: wall seconds of the simulation alone (timing field).
+    """
+
+    cup_xy: list[float]
+    coaster_xy: list[float]
+    coaster_final_xy: list[float]
+    obstacle_xyz: list[float]
+    success: bool
+    cup_to_coaster_m: float
+    cup_height_above_coaster_m: float
+    cup_tilt_rad: float
+    min_obstacle_clearance_m: float
+    grasp_reach_error_m: float
+    place_reach_error_m: float
+    failure: str
+    path_x: list[float]
+    path_y: list[float]
+    path_z: list[float]
+    sim_time_s: float
+    wall_time_s: float
+    wall_sim_s: float
+
+
+def sample_scenario(config: PickPlaceConfig, seed: int):
+    """The seeded PickPlaceScenario of an episode."""
+    from repertoire.diagrams.arm_dmp import PickPlaceScenario
+
+    rng = np.random.default_rng(seed)
+    cup = [rng.uniform(*config.cup_x), rng.uniform(*config.cup_y)]
+    coaster = [rng.uniform(*config.coaster_x), rng.uniform(*config.coaster_y)]
+    angle = rng.uniform(0.0, 2.0 * np.pi)
+    shift = rng.uniform(*config.coaster_shift)
+    final = [coaster[0] + shift * np.cos(angle), coaster[1] + shift * np.sin(angle)]
+    mid = 0.5 * (np.asarray(cup) + np.asarray(coaster))
+    obstacle = [
+        float(mid[0] + rng.uniform(*config.obstacle_beyond)),
+        float(mid[1]),
+        float(rng.uniform(*config.obstacle_z)),
+    ]
+    return PickPlaceScenario(
+        time_step=config.time_step,
+        grasp_mode=config.grasp_mode,
+        cup_xy=[float(v) for v in cup],
+        coaster_xy=[float(v) for v in coaster],
+        coaster_final_xy=[float(v) for v in final],
+        obstacle_xyz=obstacle,
+        obstacle_coupling=config.obstacle_coupling,
+        obstacle_gamma=config.obstacle_gamma,
+    )
+
+
+def tcp_path(diagram, context, every_s: float) -> np.ndarray:
+    """The logged tcp positions, one every ``every_s`` seconds (k x 3)."""
+    from repertoire.diagrams.arm_dmp import LOG_PERIOD, _log
+
+    log = _log(diagram, context, "tcp_log")
+    step = max(1, int(round(every_s / LOG_PERIOD)))
+    return log[::step, 1:4]
+
+
+def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
+    """Builds and runs one seeded pick-and-place episode.
+
+    Args:
+        config: the study config.
+        seed: the episode seed.
+    """
+    from repertoire.diagrams.arm_dmp import (
+        IkTargetError,
+        build_pick_and_place,
+        pick_and_place_figures,
+        plan_pick_and_place,
+        run_arm_world,
+    )
+
+    t0 = time.perf_counter()
+    config.validate()
+    scenario = sample_scenario(config, seed)
+    nan = float("nan")
+    figures = dict.fromkeys(
+        (
+            "cup_to_coaster_m",
+            "cup_height_above_coaster_m",
+            "cup_tilt_rad",
+            "min_obstacle_clearance_m",
+            "grasp_reach_error_m",
+            "place_reach_error_m",
+        ),
+        nan,
+    )
+    failure, path, wall_sim, duration = "", np.zeros((0, 3)), 0.0, 0.0
+    try:
+        _, duration = plan_pick_and_place(scenario)
+        if config.sim_duration_s > 0:
+            duration = min(duration, config.sim_duration_s)
+        diagram = build_pick_and_place(scenario)
+        context, wall_sim = run_arm_world(diagram, duration)
+        figures.update(pick_and_place_figures(diagram, context))
+        path = tcp_path(diagram, context, config.path_every_s)
+    except (IkTargetError, RepertoireError) as e:
+        failure = str(e)
+    figures.pop("success", None)
+    success = (
+        not failure
+        and figures["cup_to_coaster_m"] < 0.02
+        and abs(figures["cup_height_above_coaster_m"]) < 0.01
+        and figures["cup_tilt_rad"] < 0.2
+    )
+    return PickPlaceRecord(
+        cup_xy=scenario.cup_xy,
+        coaster_xy=scenario.coaster_xy,
+        coaster_final_xy=scenario.coaster_final_xy,
+        obstacle_xyz=scenario.obstacle_xyz,
+        success=bool(success),
+        **{k: float(v) for k, v in figures.items()},
+        failure=failure,
+        path_x=[round(float(v), 5) for v in path[:, 0]],
+        path_y=[round(float(v), 5) for v in path[:, 1]],
+        path_z=[round(float(v), 5) for v in path[:, 2]],
+        sim_time_s=float(duration),
+        wall_time_s=time.perf_counter() - t0,
+        wall_sim_s=float(wall_sim),
+    )
+
+
+def summarize(
+    records: list[PickPlaceRecord], config: PickPlaceConfig, out_dir: Path
+) -> dict[str, Path]:
+    """Top view of every episode and the final cup-to-coaster distances; a Markdown table.
+
+    Returns:
+        ``{"top_view": png, "distances": png, "results": md}``.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Circle
+
+    out_dir = Path(out_dir)
+    fig = Figure(figsize=(11, 5), layout="constrained")
+    ax, ax2 = fig.subplots(1, 2, width_ratios=[1.3, 1])
+    for k, r in enumerate(records):
+        color = "tab:green" if r.success else "tab:red"
+        if k < 25 and r.path_x:
+            ax.plot(r.path_y, r.path_x, color=color, lw=0.7, alpha=0.6)
+        ax.plot(r.cup_xy[1], r.cup_xy[0], "o", color="tab:red", ms=4, mfc="none")
+        ax.annotate(
+            "",
+            xy=(r.coaster_final_xy[1], r.coaster_final_xy[0]),
+            xytext=(r.coaster_xy[1], r.coaster_xy[0]),
+            arrowprops={"arrowstyle": "->", "color": "tab:green", "lw": 0.6},
+        )
+        ax.add_patch(
+            Circle((r.obstacle_xyz[1], r.obstacle_xyz[0]), 0.06, color="tab:blue", alpha=0.08)
+        )
+    ax.set_xlabel("y (m, left)")
+    ax.set_ylabel("x (m, forward)")
+    ax.invert_xaxis()
+    ax.set_aspect("equal")
+    ax.set_title(
+        "top view: cups (o), coaster moves (arrows), balls (blue),\n"
+        "tcp paths of the first 25 episodes (green success, red failure)"
+    )
+    d = np.array([r.cup_to_coaster_m for r in records], dtype=float)
+    finite = d[np.isfinite(d)]
+    ax2.hist(np.clip(finite * 100, 0, 10), bins=30, color="tab:gray")
+    ax2.axvline(2.0, color="tab:red", ls="--", label="2 cm success bound")
+    ax2.set_xlabel("final cup axis to coaster centre (cm, clipped at 10)")
+    ax2.set_ylabel("episodes")
+    rate = np.mean([r.success for r in records]) if records else float("nan")
+    ax2.set_title(f"success {rate:.0%} of {len(records)} episodes")
+    ax2.legend()
+    top = out_dir / "dmp_pick_place_top_view.png"
+    fig.savefig(top, dpi=110)
+
+    fig = Figure(figsize=(6.5, 4), layout="constrained")
+    ax = fig.add_subplot()
+    grasp = np.array([r.grasp_reach_error_m for r in records], dtype=float) * 1000
+    place = np.array([r.place_reach_error_m for r in records], dtype=float) * 1000
+    clearance = np.array([r.min_obstacle_clearance_m for r in records], dtype=float) * 100
+    ax.scatter(range(len(records)), grasp, s=10, label="grasp reach error (mm)")
+    ax.scatter(range(len(records)), place, s=10, label="place reach error (mm)")
+    ax.scatter(range(len(records)), clearance, s=10, label="tcp clearance to ball (cm)")
+    ax.axhline(5.0, color="tab:red", ls="--", lw=0.8, label="5 (mm / cm)")
+    ax.set_xlabel("episode")
+    ax.legend(fontsize=8)
+    ax.set_title("reach errors at the end of grasp and place; obstacle clearance")
+    errors = out_dir / "dmp_pick_place_errors.png"
+    fig.savefig(errors, dpi=110)
+
+    ok = [r for r in records if not r.failure]
+    walls = np.array([r.wall_sim_s for r in ok]) if ok else np.array([np.nan])
+    lines = [
+        "| figure | value |",
+        "|---|---|",
+        f"| episodes | {len(records)} |",
+        f"| success (cup on coaster within 2 cm) | {rate:.1%} |",
+        f"| IK reports (stopped runs) | {sum(bool(r.failure) for r in records)} |",
+        f"| cup to coaster, median / max [cm] | {np.nanmedian(d) * 100:.2f} / "
+        f"{np.nanmax(d) * 100:.2f} |",
+        f"| grasp reach error, median / max [mm] | {np.nanmedian(grasp):.2f} / "
+        f"{np.nanmax(grasp):.2f} |",
+        f"| place reach error, median / max [mm] | {np.nanmedian(place):.2f} / "
+        f"{np.nanmax(place):.2f} |",
+        f"| tcp clearance to the ball, min / median [cm] | {np.nanmin(clearance):.2f} / "
+        f"{np.nanmedian(clearance):.2f} |",
+        f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
+        f"| wall time per simulation, mean / max [s] | {np.nanmean(walls):.2f} / "
+        f"{np.nanmax(walls):.2f} |",
+    ]
+    table = out_dir / "dmp_pick_place_results.md"
+    table.write_text("\n".join(lines) + "\n")
+    return {"top_view": top, "errors": errors, "results": table}
+
+
+def demo_config() -> PickPlaceConfig:
+    """The full config (the demo runs a few episodes of it)."""
+    return PickPlaceConfig()
+
+
+def smoke_config() -> PickPlaceConfig:
+    """A tiny config for tests: the first 0.3 s of an episode."""
+    return PickPlaceConfig(sim_duration_s=0.3)
+
+
+register_study(
+    "dmp_pick_place",
+    config_type=PickPlaceConfig,
+    record_type=PickPlaceRecord,
+    run_episode=run_episode,
+    description="arm7 + learned DMPs: pick a cup, place it on a moving coaster around a ball; "
+    "success rate over random layouts",
+    summarize=summarize,
+    demo_config=demo_config,
+    demo_episodes=4,
+    smoke_config=smoke_config,
+)
+
+
+def main() -> int:
+    """Command-line entry point."""
+    return study_main("dmp_pick_place", description=__doc__.split("\n\n")[0])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

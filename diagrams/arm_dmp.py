@@ -224,11 +224,14 @@ def pour_tcp_position(cup_xy, R_WE: RotationMatrix) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=1)
-def motion_library() -> dict[str, TaskSpaceDmp]:
-    """Learns the labelled DMPs (grasp, place, release, pour, retreat) from synthetic demos.
+def synthetic_demonstrations() -> dict[str, tuple]:
+    """The demonstrations of grasp, place, release, pour and retreat (sec. IV-B).
+
+    Recorded in the canonical layout (``DEMO_*``): minimum-jerk paths through via
+    points, minimum-jerk slerps, two minimum-jerk finger movements for the hand.
 
     Returns:
-        label -> learned 10-D :class:`TaskSpaceDmp` (component quaternion DMP).
+        label -> ``(t, positions, quaternions, fingers)``.
     """
     home = home_tcp_pose()
     p_home, q_home = home.translation(), _quat(home.rotation())
@@ -290,9 +293,19 @@ def motion_library() -> dict[str, TaskSpaceDmp]:
         [(0.0, 1.0, grasp, grasp)],
         1.2,
     )
+    return demos
+
+
+@functools.lru_cache(maxsize=1)
+def motion_library() -> dict[str, TaskSpaceDmp]:
+    """Learns the labelled DMPs (grasp, place, release, pour, retreat) from the demos.
+
+    Returns:
+        label -> learned 10-D :class:`TaskSpaceDmp` (component quaternion DMP).
+    """
     return {
         label: learn_task_space_dmp(t, p, q, f, orientation_mode="component", n_basis=30)
-        for label, (t, p, q, f) in demos.items()
+        for label, (t, p, q, f) in synthetic_demonstrations().items()
     }
 
 
@@ -373,27 +386,27 @@ class GoalSchedule(LeafSystem):
 
 
 class BodyPointAndAxis(LeafSystem):
-    """A point of a body and the body's z axis in the world (for logging).
+    """The origin and z axis of a frame Q fixed to a body, in the world (for logging).
 
     Input ports:
         body_poses: the plant's body poses (abstract).
 
     Output ports:
-        point_and_axis: [p_WQ (3), z axis of the body in W (3)] (6).
+        point_and_axis: [p_WQ (3), z axis of Q in W (3)] (6).
     """
 
-    def __init__(self, body: int, p_BQ: np.ndarray):
+    def __init__(self, body: int, X_BQ: RigidTransform):
         super().__init__()
         self._body = int(body)
-        self._p_BQ = np.asarray(p_BQ, float)
+        self._X_BQ = X_BQ
         self._poses = self.DeclareAbstractInputPort(
             "body_poses", AbstractValue.Make([RigidTransform()])
         )
         self.DeclareVectorOutputPort("point_and_axis", 6, self._calc)
 
     def _calc(self, context: Context, output: BasicVector) -> None:
-        X = self._poses.Eval(context)[self._body]
-        output.SetFromVector(np.concatenate([X @ self._p_BQ, X.rotation().matrix()[:, 2]]))
+        X = self._poses.Eval(context)[self._body] @ self._X_BQ
+        output.SetFromVector(np.concatenate([X.translation(), X.rotation().matrix()[:, 2]]))
 
 
 # ----------------------------------------------------------------------------- scenarios
@@ -747,9 +760,7 @@ def _build_world(
             source.get_output_port(), plant.get_desired_state_input_port(coaster_instance)
         )
 
-    tcp_point = builder.AddNamedSystem(
-        "tcp_point", BodyPointAndAxis(hand_body.index(), X_HTcp.translation())
-    )
+    tcp_point = builder.AddNamedSystem("tcp_point", BodyPointAndAxis(hand_body.index(), X_HTcp))
     builder.Connect(plant.get_body_poses_output_port(), tcp_point.GetInputPort("body_poses"))
     log_mux = builder.AddNamedSystem("log_mux", Multiplexer([6, 10, 1]))
     builder.Connect(tcp_point.get_output_port(), log_mux.get_input_port(0))
@@ -759,7 +770,9 @@ def _build_world(
     sink.set_name("tcp_log")
     for log_name, (body_name, instance_name, p_BQ) in (logs or {}).items():
         body = plant.GetBodyByName(body_name, instances[instance_name])
-        point = builder.AddNamedSystem(f"{log_name}_point", BodyPointAndAxis(body.index(), p_BQ))
+        point = builder.AddNamedSystem(
+            f"{log_name}_point", BodyPointAndAxis(body.index(), RigidTransform(p_BQ))
+        )
         builder.Connect(plant.get_body_poses_output_port(), point.GetInputPort("body_poses"))
         s = LogVectorOutput(point.get_output_port(), builder, LOG_PERIOD)
         s.set_name(f"{log_name}_log")

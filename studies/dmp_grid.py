@@ -1,0 +1,287 @@
+"""Generalisation grid (Pastor et al. 2009, Fig. 10) in the physics simulation.
+
+The grasp and the place DMP, learned once from their demonstrations, are sent
+to a grid of new goals: episode ``k`` grasps at grasp-grid cell ``k`` and then
+places at place-grid cell ``k`` (no object in the hand: this measures the
+movement generation and the task-space control alone). The arm7 runs under
+RMRC IK and inverse dynamics + PD in the MultibodyPlant; the figure of the
+study is the grid of adapted tcp paths beside the demonstrations. Pass
+criterion: the tcp reaches each goal within 5 mm.
+
+Run it with ``python -m repertoire.studies.dmp_grid --help``.
+"""
+
+import dataclasses
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from repertoire.studies.engine import register_study, study_main
+
+from repertoire.errors import RepertoireError
+
+REACH_TOLERANCE_M = 0.005
+
+
+@dataclasses.dataclass
+class GridConfig:
+    """The goal grids.
+
+    Attributes:
+        grasp_x: [min, max] of the grasp goals' x [m] (``n`` values across).
+        grasp_y: [min, max] of the grasp goals' y [m].
+        place_x: [min, max] of the place goals' x [m].
+        place_y: [min, max] of the place goals' y [m].
+        n: grid points per axis (``n * n`` cells; episode k uses cell k mod n^2).
+        time_step: plant time step [s].
+        sim_duration_s: simulated seconds (0 = grasp and place in full).
+        path_every_s: sampling period of the stored tcp path [s].
+    """
+
+    grasp_x: list[float] = dataclasses.field(default_factory=lambda: [0.48, 0.62])
+    grasp_y: list[float] = dataclasses.field(default_factory=lambda: [-0.34, -0.16])
+    place_x: list[float] = dataclasses.field(default_factory=lambda: [0.48, 0.62])
+    place_y: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.18])
+    n: int = 3
+    time_step: float = 0.002
+    sim_duration_s: float = 0.0
+    path_every_s: float = 0.05
+
+    def validate(self) -> None:
+        """Raises RepertoireError for a bad range or grid size."""
+        for name in ("grasp_x", "grasp_y", "place_x", "place_y"):
+            r = getattr(self, name)
+            if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
+                raise RepertoireError(f"GridConfig.{name} must be [min, max], got {r}")
+        if int(self.n) != self.n or self.n < 1:
+            raise RepertoireError(f"GridConfig.n must be an integer >= 1, got {self.n}")
+        if not (self.sim_duration_s >= 0 and self.path_every_s > 0):
+            raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
+
+    def cell(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        """(grasp goal, place goal) of the episode with this seed."""
+        from repertoire.diagrams.arm_dmp import (
+            COASTER_RAIL_HEIGHT,
+            CUP_GRASP_HEIGHT,
+            _place_offset,
+        )
+        from repertoire.models.arm7 import TABLE_HEIGHT
+
+        k = seed % (self.n * self.n)
+        i, j = divmod(k, self.n)
+
+        def grid(r, index):
+            return r[0] if self.n == 1 else r[0] + (r[1] - r[0]) * index / (self.n - 1)
+
+        grasp = np.array(
+            [grid(self.grasp_x, i), grid(self.grasp_y, j), TABLE_HEIGHT + CUP_GRASP_HEIGHT]
+        )
+        place = np.array([grid(self.place_x, i), grid(self.place_y, j), COASTER_RAIL_HEIGHT])
+        return grasp, place + _place_offset()
+
+
+@dataclasses.dataclass
+class GridRecord:
+    """One grid episode.
+
+    Attributes:
+        cell: the grid cell.
+        grasp_goal: the grasp goal [m].
+        place_goal: the place goal [m].
+        grasp_reach_error_m: |tcp - grasp goal| at the end of the grasp (physics).
+        place_reach_error_m: |tcp - place goal| at the end of the place (physics).
+        grasp_orientation_error_rad: tcp orientation error at the end of the grasp.
+        reached: both errors within 5 mm.
+        failure: empty, or why the run stopped (IK report).
+        path_x: tcp x every ``path_every_s`` [m].
+        path_y: tcp y.
+        path_z: tcp z.
+        wall_time_s: wall seconds of the episode (timing field).
+        wall_sim_s: wall seconds of the simulation (timing field).
+    """
+
+    cell: int
+    grasp_goal: list[float]
+    place_goal: list[float]
+    grasp_reach_error_m: float
+    place_reach_error_m: float
+    grasp_orientation_error_rad: float
+    reached: bool
+    failure: str
+    path_x: list[float]
+    path_y: list[float]
+    path_z: list[float]
+    wall_time_s: float
+    wall_sim_s: float
+
+
+def run_episode(config: GridConfig, seed: int) -> GridRecord:
+    """Grasp at one grid cell, then place at the matching place cell.
+
+    Args:
+        config: the study config.
+        seed: the episode seed (selects the cell).
+    """
+    from pydrake.common.eigen_geometry import Quaternion
+    from repertoire.diagrams.arm_dmp import (
+        HAND_GRASP_7CM,
+        LOG_PERIOD,
+        R_SIDE,
+        IkTargetError,
+        PickPlaceScenario,
+        SegmentGoal,
+        _build_world,
+        _log,
+        _quat,
+        _rotation_from_approach,
+        _segment_timing,
+        approach_direction,
+        home_tcp_pose,
+        motion_library,
+        run_arm_world,
+        segment_reach_errors,
+    )
+
+    t0 = time.perf_counter()
+    config.validate()
+    grasp, place = config.cell(seed)
+    lib = motion_library()
+    R_grasp = _rotation_from_approach(
+        approach_direction(lib["grasp"], home_tcp_pose().translation(), grasp)
+    )
+    fingers = np.array(HAND_GRASP_7CM)
+    goals = [
+        SegmentGoal("grasp", grasp, _quat(R_grasp), fingers),
+        SegmentGoal("place", place, _quat(R_SIDE), fingers),
+    ]
+    scenario = PickPlaceScenario(time_step=config.time_step)
+    starts, duration = _segment_timing(["grasp", "place"], scenario.settle_time)
+    if config.sim_duration_s > 0:
+        duration = min(duration, config.sim_duration_s)
+    nan = float("nan")
+    errors, ori_error, failure, path, wall_sim = [nan, nan], nan, "", np.zeros((0, 3)), 0.0
+    try:
+        diagram = _build_world("dmp_grid", scenario, [], goals, graspable=[])
+        context, wall_sim = run_arm_world(diagram, duration)
+        errors = (segment_reach_errors(diagram, context) + [nan, nan])[:2]
+        log = _log(diagram, context, "tcp_log")
+        step = max(1, int(round(config.path_every_s / LOG_PERIOD)))
+        path = log[::step, 1:4]
+        # Orientation error at the end of the grasp: from the logged palm z axis.
+        rows = np.nonzero(log[:, -1] == 0)[0]
+        z_axis = log[rows[-1], 4:7]
+        z_goal = Quaternion(goals[0].orientation).rotation()[:, 2]
+        ori_error = float(np.arccos(np.clip(z_axis @ z_goal, -1.0, 1.0)))
+    except (IkTargetError, RepertoireError) as e:
+        failure = str(e)
+    del starts
+    reached = not failure and max(errors) < REACH_TOLERANCE_M
+    return GridRecord(
+        cell=int(seed % (config.n * config.n)),
+        grasp_goal=[float(v) for v in grasp],
+        place_goal=[float(v) for v in place],
+        grasp_reach_error_m=float(errors[0]),
+        place_reach_error_m=float(errors[1]),
+        grasp_orientation_error_rad=ori_error,
+        reached=bool(reached),
+        failure=failure,
+        path_x=[round(float(v), 5) for v in path[:, 0]],
+        path_y=[round(float(v), 5) for v in path[:, 1]],
+        path_z=[round(float(v), 5) for v in path[:, 2]],
+        wall_time_s=time.perf_counter() - t0,
+        wall_sim_s=float(wall_sim),
+    )
+
+
+def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> dict:
+    """Fig. 10: demonstrated paths (blue) and the adapted physical tcp paths (red).
+
+    Returns:
+        ``{"grid": png, "results": md}``.
+    """
+    from matplotlib.figure import Figure
+    from repertoire.diagrams.arm_dmp import synthetic_demonstrations
+
+    out_dir = Path(out_dir)
+    demos = synthetic_demonstrations()
+    fig = Figure(figsize=(12, 5.2), layout="constrained")
+    ax3 = fig.add_subplot(1, 2, 1, projection="3d")
+    ax = fig.add_subplot(1, 2, 2)
+    for label in ("grasp", "place"):
+        p = demos[label][1]
+        ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="tab:blue", lw=2.0)
+        ax.plot(p[:, 1], p[:, 0], color="tab:blue", lw=2.0, label=f"demonstrated {label}")
+    for r in records:
+        color = "tab:red" if r.reached else "k"
+        ax3.plot(r.path_x, r.path_y, r.path_z, color=color, lw=0.7)
+        ax.plot(r.path_y, r.path_x, color=color, lw=0.7)
+        for g in (r.grasp_goal, r.place_goal):
+            ax3.scatter(*g, color="tab:green", s=12)
+            ax.plot(g[1], g[0], "+", color="tab:green", ms=8)
+    ax3.set_xlabel("x (m)")
+    ax3.set_ylabel("y (m)")
+    ax3.set_zlabel("z (m)")
+    ax3.set_title("tcp paths in the physics simulation (red) to new goals (green)")
+    ax.set_xlabel("y (m, left)")
+    ax.set_ylabel("x (m, forward)")
+    ax.invert_xaxis()
+    ax.set_aspect("equal")
+    ax.legend(loc="lower left", fontsize=8)
+    ax.set_title("top view: grasp grid (right), place grid (left)")
+    grid = out_dir / "dmp_grid_paths.png"
+    fig.savefig(grid, dpi=110)
+    g = np.array([r.grasp_reach_error_m for r in records], dtype=float) * 1000
+    p = np.array([r.place_reach_error_m for r in records], dtype=float) * 1000
+    o = np.degrees(np.array([r.grasp_orientation_error_rad for r in records], dtype=float))
+    lines = [
+        "| cell | grasp goal [m] | place goal [m] | grasp error [mm] | place error [mm] | "
+        "approach-axis error [deg] | within 5 mm |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r, ge, pe, oe in zip(records, g, p, o):
+        lines.append(
+            f"| {r.cell} | {np.round(r.grasp_goal, 3).tolist()} | "
+            f"{np.round(r.place_goal, 3).tolist()} | {ge:.2f} | {pe:.2f} | {oe:.2f} | "
+            f"{'yes' if r.reached else 'no: ' + (r.failure[:80] or 'error')} |"
+        )
+    lines.append(
+        f"\n{sum(r.reached for r in records)} of {len(records)} cells reached within 5 mm; "
+        f"max grasp error {np.nanmax(g):.2f} mm, max place error {np.nanmax(p):.2f} mm."
+    )
+    table = out_dir / "dmp_grid_results.md"
+    table.write_text("\n".join(lines) + "\n")
+    return {"grid": grid, "results": table}
+
+
+def demo_config() -> GridConfig:
+    """The 3 x 3 grid (run 9 episodes to cover it)."""
+    return GridConfig()
+
+
+def smoke_config() -> GridConfig:
+    """A tiny config for tests: one cell, the first 0.3 s."""
+    return GridConfig(n=1, sim_duration_s=0.3)
+
+
+register_study(
+    "dmp_grid",
+    config_type=GridConfig,
+    record_type=GridRecord,
+    run_episode=run_episode,
+    description="arm7 + learned grasp/place DMPs sent to a grid of new goals (Fig. 10): "
+    "physical reach error per goal",
+    summarize=summarize,
+    demo_config=demo_config,
+    demo_episodes=9,
+    smoke_config=smoke_config,
+)
+
+
+def main() -> int:
+    """Command-line entry point."""
+    return study_main("dmp_grid", description=__doc__.split("\n\n")[0])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -695,12 +695,14 @@ def _basis(n_basis: int, alpha: float | None, overlap: float) -> tuple:
     return a, c, basis_widths(c, a, overlap)
 
 
-def _demo_targets(t, x, xd, xdd, alpha, Kv, Dv, tau, formulation, centres, widths):
+def _demo_targets(
+    t, x, xd, xdd, alpha, Kv, Dv, tau, formulation, centres, widths, min_displacement=1e-9
+):
     s = t - t[0]
     theta = canonical_phase(s, tau, alpha)
     x0, g = x[0], x[-1]
     if formulation == "old":
-        small = np.abs(g - x0) < 1e-9
+        small = np.abs(g - x0) <= min_displacement
         if small.any():
             raise RepertoireError(
                 "the old formulation (eq. 5) divides by g - x0, but start equals goal in DOF "
@@ -727,6 +729,7 @@ def learn_dmp(
     xd: np.ndarray | None = None,
     xdd: np.ndarray | None = None,
     names: list[str] | None = None,
+    min_displacement: float = 1e-9,
 ) -> DmpParameters:
     """Learn an n-DOF DMP from one demonstration (eq. 5 or 8 + linear least squares).
 
@@ -748,6 +751,8 @@ def learn_dmp(
         xd: Known velocities (skip estimation), shape (N, n).
         xdd: Known accelerations, shape (N, n).
         names: Optional DOF names.
+        min_displacement: Old form only: |g - x0| at or below this in any DOF is an error
+            (eq. 5 divides by it); 0 allows tiny displacements (to show the blow-up).
     """
     t, x = check_demonstration(t, x)
     if formulation not in FORMULATIONS:
@@ -764,7 +769,7 @@ def learn_dmp(
     xd = np.asarray(xd, float).reshape(x.shape)
     xdd = np.asarray(xdd, float).reshape(x.shape)
     tau = float(t[-1] - t[0])
-    Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h)
+    Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h, min_displacement)
     weights = fit_forcing_weights(Phi, F, ridge)
     return DmpParameters(
         weights, c, h, Kv, Dv, a, tau, x[0], x[-1], formulation, names=list(names or [])
@@ -1084,4 +1089,51 @@ def chain_rollout(
         steps[1:],
         acc_jumps,
         vel_jumps,
+    )
+
+
+def directional_primitive(
+    dmp: DmpParameters, start: np.ndarray, goal: np.ndarray, *, dof: int = 0
+) -> DmpParameters:
+    """An n-D DMP that moves along ``goal - start`` with the shape of one learned DOF.
+
+    The new formulation does not scale the forcing term with ``g - x0`` (that is what cures
+    the old form's blow-up and mirroring), so a primitive learned along one axis, sent to
+    a goal along another axis, still pushes along the first one (it moves out and back).
+    This helper generalises a 1-D shape to any direction: DOF ``dof`` of ``dmp`` (learned
+    displacement ``A = goal_dof - x0_dof``, nonzero) drives every output DOF d with weights
+    ``w * (goal_d - start_d) / A`` - linear amplitude scaling chosen by the user, as for a
+    Fig. 5 square made of one minimum-jerk primitive.
+
+    Args:
+        dmp: A learned DMP (any number of DOF).
+        start: Start of the new movement, shape (n,).
+        goal: Goal of the new movement, shape (n,).
+        dof: Which learned DOF gives the shape.
+    """
+    start = np.asarray(start, float).reshape(-1)
+    goal = np.asarray(goal, float).reshape(-1)
+    if start.shape != goal.shape:
+        raise RepertoireError(f"start has {start.size} entries, goal {goal.size}")
+    if not 0 <= dof < dmp.n_dims:
+        raise RepertoireError(f"dof must be in [0, {dmp.n_dims}), got {dof}")
+    amplitude = dmp.goal[dof] - dmp.x0[dof]
+    if abs(amplitude) < 1e-9:
+        raise RepertoireError(
+            f"DOF {dof} of the primitive does not move (g - x0 = {amplitude:.3g}); "
+            "cannot scale its shape"
+        )
+    n = start.size
+    weights = np.outer((goal - start) / amplitude, dmp.weights[dof])
+    return DmpParameters(
+        weights,
+        dmp.centres,
+        dmp.widths,
+        np.full(n, dmp.K[dof]),
+        np.full(n, dmp.D[dof]),
+        dmp.alpha,
+        dmp.tau,
+        start,
+        goal,
+        dmp.formulation,
     )

@@ -1,9 +1,14 @@
 """DMP chaining (Pastor et al., sec. III-C, Fig. 5): a square from one primitive, four goals.
 
-One minimum-jerk primitive (learned from a straight 1-D-like movement in the plane) is
+One minimum-jerk primitive (learned from a straight movement (0,0) -> (1,0) m) is
 generalised to the four corners of a square and chained with a DmpSequencer (Drake,
 1 kHz): each DMP starts before its predecessor has finished, at a switching interval of
-``switch`` x tau. Each episode takes one switching interval (cycled over the config's
+``switch`` x tau. With ``scaling="directional"`` (default) each leg uses the learned Y1
+shape along the leg's direction (:func:`repertoire.planning.dmp.directional_primitive`);
+with ``"none"`` the 2-D primitive is sent to each corner as it is (the new form then
+pushes along Y1 on the vertical legs too, since its forcing term is not scaled by g - x0).
+
+Each episode takes one switching interval (cycled over the config's
 list by seed) and a seeded square size and rotation, and runs the three handoffs:
 
 * none: the successor restarts from rest at the current position;
@@ -41,6 +46,7 @@ class DmpChainingConfig:
         side_min_m: smallest square side.
         side_max_m: largest square side.
         settle_factor: simulated time after the last switch, multiple of tau.
+        scaling: "directional" or "none" (see the module docstring).
     """
 
     n_basis: int = 30
@@ -53,11 +59,16 @@ class DmpChainingConfig:
     side_min_m: float = 0.2
     side_max_m: float = 0.5
     settle_factor: float = 1.5
+    scaling: str = "directional"
 
     def validate(self) -> None:
         """Raises RepertoireError if a field is out of range."""
         if not self.switches or any(not 0 < s for s in self.switches):
             raise RepertoireError("DmpChainingConfig.switches must be non-empty and > 0")
+        if self.scaling not in ("directional", "none"):
+            raise RepertoireError(
+                f"DmpChainingConfig.scaling must be 'directional' or 'none', got {self.scaling}"
+            )
         for name in ("duration_s", "time_step_s", "side_min_m", "settle_factor"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
@@ -131,6 +142,22 @@ def square(config: DmpChainingConfig, seed: int) -> tuple[float, float, list[np.
     return switch, side, corners
 
 
+def leg_primitives(config: DmpChainingConfig, goals: list[np.ndarray]) -> list:
+    """One DMP per leg of the square (start at the origin).
+
+    Args:
+        config: Study config.
+        goals: The four corners.
+    """
+    from repertoire.planning.dmp import directional_primitive
+
+    p = primitive(config)
+    if config.scaling == "none":
+        return [p.with_goal(g, x0=np.zeros(2)) for g in goals]
+    starts = [np.zeros(2)] + list(goals[:-1])
+    return [directional_primitive(p, s, g) for s, g in zip(starts, goals)]
+
+
 def run_chain(config: DmpChainingConfig, switch: float, goals: list[np.ndarray], handoff: str):
     """Run the DmpSequencer in a Drake diagram; returns (t, x, xd, xdd, switch_steps).
 
@@ -145,11 +172,11 @@ def run_chain(config: DmpChainingConfig, switch: float, goals: list[np.ndarray],
     from pydrake.systems.primitives import VectorLogSink
     from repertoire.systems.dmp_compose import DmpSequencer
 
-    p = primitive(config).with_goal(goals[0], x0=np.zeros(2))
+    segments = leg_primitives(config, goals)
     dt = config.time_step_s
     times = [i * switch * config.duration_s for i in range(4)]
     builder = DiagramBuilder()
-    seq = builder.AddSystem(DmpSequencer([p] * 4, goals, times, time_step=dt, handoff=handoff))
+    seq = builder.AddSystem(DmpSequencer(segments, goals, times, time_step=dt, handoff=handoff))
     logs = {}
     for name in ("position", "velocity", "acceleration"):
         logs[name] = builder.AddSystem(VectorLogSink(2, publish_period=dt))
@@ -165,7 +192,7 @@ def run_chain(config: DmpChainingConfig, switch: float, goals: list[np.ndarray],
         data["velocity"].data().T,
         data["acceleration"].data().T,
         steps,
-        p,
+        segments,
         times,
     )
 
@@ -184,9 +211,9 @@ def run_episode(config: DmpChainingConfig, seed: int) -> DmpChainingRecord:
     switch, side, goals = square(config, seed)
     out: dict = {"switch": switch, "side_m": side}
     for h in HANDOFF_NAMES:
-        t, x, xd, xdd, steps, p, times = run_chain(config, switch, goals, h)
+        t, x, xd, xdd, steps, segs, times = run_chain(config, switch, goals, h)
         ref = chain_rollout(
-            [p] * 4, goals, times, x0=np.zeros(2), handoff=h, dt=config.time_step_s, duration=t[-1]
+            segs, goals, times, x0=np.zeros(2), handoff=h, dt=config.time_step_s, duration=t[-1]
         )
         out[f"acc_jump_{h}"] = max(ref.acceleration_jumps)
         out[f"vel_jump_{h}"] = max(ref.velocity_jumps)
@@ -213,8 +240,8 @@ def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_d
 
     out_dir = Path(out_dir)
     goals = [np.array(c, float) for c in ((1, 0), (1, 1), (0, 1), (0, 0))]
-    fig = Figure(figsize=(13, 4.5), layout="constrained")
-    axes = fig.subplots(1, 3)
+    fig = Figure(figsize=(17, 4.5), layout="constrained")
+    axes = fig.subplots(1, 4)
     sw = sorted(set(config.switches), reverse=True)
     cmap = colormaps["Blues"]
     for i, s in enumerate(sw):
@@ -239,10 +266,13 @@ def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_d
                 ("velocity", "tab:red"),
                 ("acceleration", "tab:blue"),
             ):
-                th, xh, _, ah, st, _, _ = run_chain(config, s, goals, h)
-                axes[2].plot(th, np.linalg.norm(ah, axis=1), c=c, lw=1.2, label=f"handoff {h}")
+                th, xh, vh, ah, st, _, _ = run_chain(config, s, goals, h)
+                ls = "--" if h == "none" else "-"
+                axes[2].plot(th, np.linalg.norm(ah, axis=1), ls, c=c, lw=1.2, label=f"handoff {h}")
+                axes[3].plot(th, np.linalg.norm(vh, axis=1), ls, c=c, lw=1.2, label=f"handoff {h}")
             for k in st:
                 axes[2].axvline(th[k], color="k", ls=":", lw=0.8)
+                axes[3].axvline(th[k], color="k", ls=":", lw=0.8)
     for ax in axes[:2]:
         ax.plot(*np.array(goals).T, "ko", ms=6)
         ax.plot(0, 0, "k^", ms=6)
@@ -257,6 +287,10 @@ def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_d
     axes[2].set_xlabel("t (s)")
     axes[2].set_ylabel("m/s^2")
     axes[2].legend(fontsize=8)
+    axes[3].set_title(f"|velocity|, switch {min(sw):g} tau")
+    axes[3].set_xlabel("t (s)")
+    axes[3].set_ylabel("m/s")
+    axes[3].legend(fontsize=8)
     p1 = out_dir / "dmp_chaining_fig5.png"
     fig.savefig(p1, dpi=100)
 

@@ -289,7 +289,7 @@ def run_episode(config: DmpGoalsConfig, seed: int) -> DmpGoalsRecord:
     tn, Yn, _ = demonstration(config, delta, ep["bulge"])
     gn = np.array([1.0, config.near_start_goal_m])
     for f in ("old", "new"):
-        dmp = learn_dmp(tn, Yn, n_basis=config.n_basis, formulation=f)
+        dmp = learn_dmp(tn, Yn, n_basis=config.n_basis, formulation=f, min_displacement=0.0)
         with np.errstate(all="ignore"):
             _, x, _, a = simulate_dmp(dmp, [0.0], [gn], sim_t, time_step=config.time_step_s)
         out[f"near_start_peak_acc_{f}"] = _peak(a) / demo_peak

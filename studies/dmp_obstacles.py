@@ -235,7 +235,7 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
     ax.set_xlabel("along start-goal (m)")
     ax.set_ylabel("detour direction (m)")
     ax.set_title("seed 0 (projection)")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.25), ncol=2)
     bins = np.linspace(0, max(max(r.clearance_with_m for r in records), 2 * config.radius_m), 30)
     ax2.hist(
         [r.clearance_without_m for r in records],

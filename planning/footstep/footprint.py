@@ -67,6 +67,10 @@ class FootprintMasks:
                     self.outer.append((di[out], dj[out]))
                     self.inner.append((di[inn], dj[inn]))
                     self.ring.append((di[ring], dj[ring]))
+        # the same masks as (row offset, bit set of column offsets + R) per grid row
+        self.outer_rows = [_row_bits(a, b, R) for a, b in self.outer]
+        self.inner_rows = [_row_bits(a, b, R) for a, b in self.inner]
+        self.ring_rows = [_row_bits(a, b, R) for a, b in self.ring]
 
     def index(self, yaw: float, fx: float, fy: float) -> int:
         """Mask index for a yaw and the fractional position of the centre in its cell.
@@ -80,6 +84,13 @@ class FootprintMasks:
         qx = min(int(fx * self.sub), self.sub - 1)
         qy = min(int(fy * self.sub), self.sub - 1)
         return (yb * self.sub + qx) * self.sub + qy
+
+
+def _row_bits(di: np.ndarray, dj: np.ndarray, R: int) -> tuple[tuple[int, int], ...]:
+    rows: dict[int, int] = {}
+    for i, j in zip(di.tolist(), dj.tolist()):
+        rows[i] = rows.get(i, 0) | (1 << (j + R))
+    return tuple(sorted(rows.items()))
 
 
 @functools.lru_cache(maxsize=8)
@@ -133,8 +144,9 @@ class FootprintChecker:
         self.x0, self.y0 = grid.origin
         nyp = self.nyp
         self.outer = [di * nyp + dj for di, dj in masks.outer]
-        self.inner = [di * nyp + dj for di, dj in masks.inner]
-        self.ring = [(di * nyp + dj, di, dj) for di, dj in masks.ring]
+        # each padded grid row as a Python int: bit j set when cell (i, j) is occupied
+        packed = np.packbits(occ, axis=1, bitorder="little")
+        self.rows = [int.from_bytes(packed[i].tobytes(), "little") for i in range(occ.shape[0])]
         if grid.heights is not None:
             h = np.zeros(occ.shape)
             h[pad : pad + nx, pad : pad + ny] = grid.heights
@@ -161,22 +173,47 @@ class FootprintChecker:
         return self._check_masks(base, ix, iy, fx - ix, fy - iy, yaw)
 
     def _check_masks(self, base: int, ix: int, iy: int, fx: float, fy: float, yaw: float) -> bool:
-        m = self.masks.index(yaw, fx, fy)
-        occ = self.occ_flat
-        if not occ[base + self.outer[m]].any():
+        masks = self.masks
+        m = masks.index(yaw, fx, fy)
+        rows = self.rows
+        px = ix + self.pad
+        shift = iy + self.pad - masks.radius_cells
+        for di, bits in masks.outer_rows[m]:
+            if (rows[px + di] >> shift) & bits:
+                break
+        else:
             return True
-        if occ[base + self.inner[m]].any():
-            return False
-        ring_flat, di, dj = self.ring[m]
-        hit = occ[base + ring_flat]
-        if not hit.any():
-            return True
-        r = self.grid.resolution
-        cx = (ix + di[hit] + 0.5) * r
-        cy = (iy + dj[hit] + 0.5) * r
-        centers = np.stack([cx, cy], axis=1)
-        p = ((ix + fx) * r, (iy + fy) * r)
-        return not rect_overlaps_cells(p, self.masks.half, yaw, centers, r / 2.0).any()
+        for di, bits in masks.inner_rows[m]:
+            if (rows[px + di] >> shift) & bits:
+                return False
+        # occupied cells of the ring: exact separating-axis test for this pose
+        R = masks.radius_cells
+        c, s = math.cos(yaw), math.sin(yaw)
+        hl, hw = masks.half
+        h = 0.5  # half cell, in cells
+        ext_x = (hl * abs(c) + hw * abs(s)) * self.inv_res + h
+        ext_y = (hl * abs(s) + hw * abs(c)) * self.inv_res + h
+        cell_u = h * (abs(c) + abs(s))
+        lim_u = hl * self.inv_res + cell_u
+        lim_v = hw * self.inv_res + cell_u
+        eps = 1e-9
+        for di, bits in masks.ring_rows[m]:
+            hit = (rows[px + di] >> shift) & bits
+            while hit:
+                low = hit & -hit
+                hit ^= low
+                dj = low.bit_length() - 1 - R
+                # cell centre minus foot centre, in cells
+                dx = di + 0.5 - fx
+                dy = dj + 0.5 - fy
+                if (
+                    abs(dx) < ext_x - eps
+                    and abs(dy) < ext_y - eps
+                    and abs(dx * c + dy * s) < lim_u - eps
+                    and abs(-dx * s + dy * c) < lim_v - eps
+                ):
+                    return False
+        return True
 
     def height_range(self, x: float, y: float, yaw: float) -> float:
         """Max minus min height over the cells a foot may overlap (outer mask), 0 without heights.

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid
+from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
@@ -54,6 +55,8 @@ def dijkstra_cost_to_go(
     goal_tolerance: float,
     *,
     obstacle_cost: float = 3.0,
+    impassable_depth: float = math.inf,
+    deep_cost: float = 30.0,
 ) -> np.ndarray:
     """Backward Dijkstra distance (m, weighted) from every cell to the goal region.
 
@@ -62,11 +65,19 @@ def dijkstra_cost_to_go(
         goal: goal ``(x, y)``.
         goal_tolerance: cells whose centre lies within this radius of the goal are sources.
         obstacle_cost: traversal cost per metre of an occupied cell (free cells cost 1).
+        impassable_depth: occupied cells farther than this from every free cell lie inside
+            an obstacle too thick to step over (m); they cost ``deep_cost`` per metre.
+        deep_cost: traversal cost per metre of those cells; finite, so that every cell
+            keeps an ordered estimate and the best partial plan of an unreachable goal
+            still ends as close to it as the robot can get.
 
     Returns:
         (nx, ny) array of distances, inf where the goal cannot be reached.
     """
     cost = np.where(grid.occupied, obstacle_cost, 1.0)
+    if math.isfinite(impassable_depth) and grid.occupied.any():
+        depth = ndimage.distance_transform_edt(grid.occupied) * grid.resolution
+        cost[depth > impassable_depth] = deep_cost
     centers = grid.cell_centers()
     d_goal = np.hypot(centers[..., 0] - goal[0], centers[..., 1] - goal[1])
     sources = np.flatnonzero(d_goal <= max(goal_tolerance, grid.resolution * 0.75))

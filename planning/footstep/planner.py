@@ -47,6 +47,11 @@ class PlannerOptions:
         goal_tolerance: the goal is reached when the stance foot centre is within this
             distance of the goal point (m).
         obstacle_cost: Dijkstra traversal cost per metre over occupied cells (free = 1).
+        step_over_depth: occupied cells deeper than this inside an obstacle (distance to
+            the nearest free cell, m) cost ``10 obstacle_cost`` in the Dijkstra heuristic
+            (too thick to step over); negative:
+            derived from the table as half of (longest forward step - foot length) plus one
+            cell; ``inf``: every obstacle may be crossed at ``obstacle_cost``.
         xy_resolution: lattice spacing used to merge states (m).
         yaw_bins: yaw bins per turn used to merge states.
         time_resolution: time bins used to merge states in dynamic worlds (s).
@@ -60,6 +65,7 @@ class PlannerOptions:
     heuristic_weight: float = 1.5
     goal_tolerance: float = 0.15
     obstacle_cost: float = 3.0
+    step_over_depth: float = -1.0
     xy_resolution: float = 0.025
     yaw_bins: int = 72
     time_resolution: float = 0.1
@@ -291,7 +297,17 @@ def plan_footsteps(
     nxg, nyg = ref.shape
     if opts.heuristic == "dijkstra":
         cost_per_m = c_min / max(max_forward, 1e-3)
-        dist = dijkstra_cost_to_go(ref, (gx, gy), tol, obstacle_cost=opts.obstacle_cost)
+        depth = opts.step_over_depth
+        if depth < 0:
+            depth = 0.5 * max(max_forward - geometry.foot_length, 0.0) + ref.resolution
+        dist = dijkstra_cost_to_go(
+            ref,
+            (gx, gy),
+            tol,
+            obstacle_cost=opts.obstacle_cost,
+            impassable_depth=depth,
+            deep_cost=10.0 * opts.obstacle_cost,
+        )
         h_cells = (dist * cost_per_m).ravel().tolist()
     else:
         cost_per_m = c_min / max(table.max_reach(), 1e-3) if opts.heuristic == "euclidean" else 0.0
@@ -347,14 +363,17 @@ def plan_footsteps(
 
     hist = history_classes(table).tolist()
     n_hist = max(max(row) for row in hist) + 1
+    yaw_off = nyaw + 0.5  # th * yaw_scale + yaw_off > 0: int() rounds to the nearest bin
+    pad, nyp = chk0.pad, chk0.nyp
+    inf = math.inf
 
     def make_key(x: float, y: float, th: float, f: int, a2: int, a1: int, t: float) -> int:
-        k = (int(round((x - ox) * inv_q)) * KY + int(round((y - oy) * inv_q))) * nyaw + int(
-            round(th * yaw_scale)
+        k = (int((x - ox) * inv_q + 0.5) * KY + int((y - oy) * inv_q + 0.5)) * nyaw + int(
+            th * yaw_scale + yaw_off
         ) % nyaw
         k = (k * 2 + f) * n_hist + hist[a2][a1]
         if dynamic:
-            k = k * 1_000_000 + int(round(t * inv_tq))
+            k = k * 1_000_000 + int(t * inv_tq + 0.5)
         return k
 
     X = [sx]
@@ -379,7 +398,6 @@ def plan_footsteps(
     generated = 0
     goal_node = -1
     status = PlanStatus.UNREACHABLE
-    static_checker = chk0 if not dynamic else None
     perf = time.perf_counter
     heappush, heappop = heapq.heappush, heapq.heappop
     cos, sin, pi, two_pi = math.cos, math.sin, math.pi, 2.0 * math.pi
@@ -407,33 +425,54 @@ def plan_footsteps(
         a2_, a1_ = A2[i], A1[i]
         g, t = G[i], T[i]
         c, s = cos(th), sin(th)
+        hist_row = hist[a1_]
         for a, dx, dy, dth, dur, sc in succ[a2_][a1_][f]:
             x2 = x + c * dx - s * dy
             y2 = y + s * dx + c * dy
             th2 = (th + dth + pi) % two_pi - pi
             t2 = t + dur
             generated += 1
-            k2 = make_key(x2, y2, th2, nf, a1_, a, t2)
+            k2 = (
+                (
+                    (int((x2 - ox) * inv_q + 0.5) * KY + int((y2 - oy) * inv_q + 0.5)) * nyaw
+                    + int(th2 * yaw_scale + yaw_off) % nyaw
+                )
+                * 2
+                + nf
+            ) * n_hist + hist_row[a]
+            if dynamic:
+                k2 = k2 * 1_000_000 + int(t2 * inv_tq + 0.5)
             if k2 in closed:
                 continue
-            if static_checker is not None:
-                chk = static_checker
-            else:
+            g2 = g + sc
+            old = best_g.get(k2)
+            if old is not None and old <= g2:
+                continue
+            # location cost: infinite if the foot overlaps an occupied cell of E(t2)
+            fx = (x2 - ox) * inv_res
+            fy = (y2 - oy) * inv_res
+            if not (0.0 <= fx < nxg and 0.0 <= fy < nyg):
+                continue
+            ix = int(fx)
+            iy = int(fy)
+            if dynamic:
                 kt = checkers.index(t2)
                 if kt < 0:
                     continue
                 chk = checkers.checker(kt)
-            if not chk.is_free(x2, y2, th2):
+            else:
+                chk = chk0
+            if not chk.free_bytes[(ix + pad) * nyp + iy + pad] and not chk._check_masks(
+                0, ix, iy, fx - ix, fy - iy, th2
+            ):
                 continue
-            g2 = g + sc
             if use_heights:
                 g2 += height_w * chk.height_range(x2, y2, th2)
-            old = best_g.get(k2)
-            if old is not None and old <= g2:
-                continue
+                if old is not None and old <= g2:
+                    continue
             best_g[k2] = g2
-            h = cost_to_go(x2, y2)
-            if not math.isfinite(h):
+            h = h_cells[ix * nyg + iy] if h_cells is not None else cost_to_go(x2, y2)
+            if h == inf:
                 continue
             j = len(X)
             X.append(x2)

@@ -63,7 +63,7 @@ def parse_foot(value: "Foot | int | str") -> Foot:
     return Foot(int(value))
 
 
-class PlanStatus(str, enum.Enum):
+class PlanStatus(str, enum.Enum):  # noqa: UP042 (str mix-in keeps Python 3.10 support)
     """Outcome of a planner call."""
 
     SUCCESS = "SUCCESS"  # the plan reaches the goal region

@@ -403,7 +403,9 @@ def test_admissible_mode_is_optimal_on_tiny_map():
         foot,
         goal,
         t,
-        PlannerOptions(heuristic="none", goal_tolerance=tol, time_limit=20),
+        PlannerOptions(
+            heuristic="none", goal_tolerance=tol, time_limit=20, xy_resolution=0.025, yaw_bins=72
+        ),
     )
     assert astar.succeeded and ucs.succeeded
     assert astar.cost == pytest.approx(ucs.cost, abs=1e-9)

@@ -66,20 +66,30 @@ class PlannerOptions:
     goal_tolerance: float = 0.15
     obstacle_cost: float = 3.0
     step_over_depth: float = -1.0
-    xy_resolution: float = 0.025
-    yaw_bins: int = 72
+    xy_resolution: float = 0.05
+    yaw_bins: int = 36
     time_resolution: float = 0.1
     height_cost_weight: float = 0.0
     max_expansions: int = 0
 
     @classmethod
     def admissible(cls, **overrides: float) -> "PlannerOptions":
-        """Options for optimal plans: Euclidean heuristic (admissible), weight 1.
+        """Options for optimal plans: Euclidean heuristic (admissible), weight 1, fine lattice.
+
+        Optimal with respect to the state lattice: states closer than ``xy_resolution``
+        and ``yaw_bins`` are merged (2.5 cm and 5 degrees here), exactly so when the table's
+        displacements lie on that lattice.
 
         Args:
             **overrides: other fields to set.
         """
-        return cls(**{"heuristic": "euclidean", "heuristic_weight": 1.0, **overrides})
+        base = {
+            "heuristic": "euclidean",
+            "heuristic_weight": 1.0,
+            "xy_resolution": 0.025,
+            "yaw_bins": 72,
+        }
+        return cls(**{**base, **overrides})
 
     def validate(self) -> None:
         if not (isinstance(self.time_limit, (int, float)) and math.isfinite(self.time_limit)):
@@ -403,7 +413,7 @@ def plan_footsteps(
     cos, sin, pi, two_pi = math.cos, math.sin, math.pi, 2.0 * math.pi
 
     while heap:
-        if perf() > deadline:
+        if expanded and perf() > deadline:  # at least one expansion: a partial plan moves
             status = PlanStatus.TIME_LIMIT
             break
         _, _, i = heappop(heap)

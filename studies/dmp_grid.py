@@ -194,6 +194,11 @@ def run_episode(config: GridConfig, seed: int) -> GridRecord:
     )
 
 
+def _finite_max(values: np.ndarray) -> float:
+    finite = values[np.isfinite(values)]
+    return float(finite.max()) if finite.size else float("nan")
+
+
 def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> dict:
     """Fig. 10: demonstrated paths (blue) and the adapted physical tcp paths (red).
 
@@ -247,7 +252,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
         )
     lines.append(
         f"\n{sum(r.reached for r in records)} of {len(records)} cells reached within 5 mm; "
-        f"max grasp error {np.nanmax(g):.2f} mm, max place error {np.nanmax(p):.2f} mm."
+        f"max grasp error {_finite_max(g):.2f} mm, max place error {_finite_max(p):.2f} mm."
     )
     table = out_dir / "dmp_grid_results.md"
     table.write_text("\n".join(lines) + "\n")

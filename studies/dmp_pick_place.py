@@ -225,6 +225,15 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
     )
 
 
+def _pair(values: np.ndarray, first, second, digits: int = 2) -> str:
+    """'first / second' of the finite values (e.g. median / max), or 'n/a' if none."""
+    finite = np.asarray(values, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return "n/a"
+    return f"{first(finite):.{digits}f} / {second(finite):.{digits}f}"
+
+
 def summarize(
     records: list[PickPlaceRecord], config: PickPlaceConfig, out_dir: Path
 ) -> dict[str, Path]:
@@ -296,17 +305,12 @@ def summarize(
         f"| episodes | {len(records)} |",
         f"| success (cup on coaster within 2 cm) | {rate:.1%} |",
         f"| IK reports (stopped runs) | {sum(bool(r.failure) for r in records)} |",
-        f"| cup to coaster, median / max [cm] | {np.nanmedian(d) * 100:.2f} / "
-        f"{np.nanmax(d) * 100:.2f} |",
-        f"| grasp reach error, median / max [mm] | {np.nanmedian(grasp):.2f} / "
-        f"{np.nanmax(grasp):.2f} |",
-        f"| place reach error, median / max [mm] | {np.nanmedian(place):.2f} / "
-        f"{np.nanmax(place):.2f} |",
-        f"| tcp clearance to the ball, min / median [cm] | {np.nanmin(clearance):.2f} / "
-        f"{np.nanmedian(clearance):.2f} |",
+        f"| cup to coaster, median / max [cm] | {_pair(d * 100, np.median, np.max)} |",
+        f"| grasp reach error, median / max [mm] | {_pair(grasp, np.median, np.max)} |",
+        f"| place reach error, median / max [mm] | {_pair(place, np.median, np.max)} |",
+        f"| tcp clearance to the ball, min / median [cm] | {_pair(clearance, np.min, np.median)} |",
         f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
-        f"| wall time per simulation, mean / max [s] | {np.nanmean(walls):.2f} / "
-        f"{np.nanmax(walls):.2f} |",
+        f"| wall time per simulation, mean / max [s] | {_pair(walls, np.mean, np.max)} |",
     ]
     table = out_dir / "dmp_pick_place_results.md"
     table.write_text("\n".join(lines) + "\n")

@@ -183,6 +183,15 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
     )
 
 
+def _pair(values: np.ndarray, first, second, digits: int = 2) -> str:
+    """'first / second' of the finite values (e.g. median / max), or 'n/a' if none."""
+    finite = np.asarray(values, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return "n/a"
+    return f"{first(finite):.{digits}f} / {second(finite):.{digits}f}"
+
+
 def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path) -> dict:
     """Top view of the bottle tip over the cups and the tip distances; a Markdown table.
 
@@ -240,17 +249,14 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
         f"| success (tip over all 3 cups, none pushed) | {rate:.1%} |",
         f"| cups served, mean | {np.mean([r.cups_served for r in records]):.2f} of 3 |",
         f"| IK reports (stopped runs) | {sum(bool(r.failure) for r in records)} |",
-        f"| tip to cup axis, median / max [cm] | {np.nanmedian(d) * 100:.2f} / "
-        f"{np.nanmax(d) * 100:.2f} |",
-        f"| grasp reach error, median / max [mm] | {np.nanmedian(grasp):.2f} / "
-        f"{np.nanmax(grasp):.2f} |",
-        f"| pour reach error (bottle in hand), median / max [mm] | {np.nanmedian(pour):.2f} / "
-        f"{np.nanmax(pour):.2f} |",
-        f"| bottle grasp point to tcp at the end, median / max [mm] | {np.nanmedian(slip):.1f}"
-        f" / {np.nanmax(slip):.1f} |",
+        f"| tip to cup axis, median / max [cm] | {_pair(d * 100, np.median, np.max)} |",
+        f"| grasp reach error, median / max [mm] | {_pair(grasp, np.median, np.max)} |",
+        "| pour reach error (bottle in hand), median / max [mm] | "
+        f"{_pair(pour, np.median, np.max)} |",
+        "| bottle grasp point to tcp at the end, median / max [mm] | "
+        f"{_pair(slip, np.median, np.max, 1)} |",
         f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
-        f"| wall time per simulation, mean / max [s] | {np.nanmean(walls):.2f} / "
-        f"{np.nanmax(walls):.2f} |",
+        f"| wall time per simulation, mean / max [s] | {_pair(walls, np.mean, np.max)} |",
     ]
     table = out_dir / "dmp_serving_results.md"
     table.write_text("\n".join(lines) + "\n")

@@ -1,0 +1,51 @@
+"""Smoke tests of the arm DMP studies (dmp_grid, dmp_pick_place, dmp_serving): short episodes."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from repertoire.studies import dmp_grid, dmp_pick_place, dmp_serving
+
+from repertoire.errors import RepertoireError
+
+
+@pytest.mark.parametrize("module", [dmp_grid, dmp_pick_place, dmp_serving])
+def test_smoke_episode_is_deterministic_and_summarizes(module, tmp_path):
+    config = module.smoke_config()
+    first = module.run_episode(config, 3)
+    again = module.run_episode(config, 3)
+    a, b = dataclasses.asdict(first), dataclasses.asdict(again)
+    for key in a:
+        if not key.startswith("wall"):
+            assert a[key] == b[key] or (a[key] != a[key] and b[key] != b[key]), key
+    assert first.failure == ""
+    assert first.wall_sim_s > 0.0
+    files = module.summarize([first], config, tmp_path)
+    for path in files.values():
+        assert path.is_file() and path.stat().st_size > 0
+
+
+def test_seeds_draw_layouts_inside_the_ranges():
+    config = dmp_pick_place.PickPlaceConfig()
+    for seed in range(20):
+        s = dmp_pick_place.sample_scenario(config, seed)
+        assert config.cup_x[0] <= s.cup_xy[0] <= config.cup_x[1]
+        assert config.coaster_y[0] <= s.coaster_xy[1] <= config.coaster_y[1]
+        shift = np.linalg.norm(np.subtract(s.coaster_final_xy, s.coaster_xy))
+        assert config.coaster_shift[0] - 1e-12 <= shift <= config.coaster_shift[1] + 1e-12
+    serving = dmp_serving.ServingConfig()
+    s = dmp_serving.sample_scenario(serving, 7)
+    ys = [xy[1] for xy in s.cup_xys]
+    assert ys == sorted(ys) and min(np.diff(ys)) >= 0.08  # the cups cannot overlap
+    grid = dmp_grid.GridConfig()
+    goals = {tuple(np.round(grid.cell(k)[0], 6)) for k in range(9)}
+    assert len(goals) == 9 and grid.cell(9)[0].tolist() == grid.cell(0)[0].tolist()
+
+
+def test_bad_configs():
+    with pytest.raises(RepertoireError, match="cup_x must be \\[min, max\\]"):
+        dmp_pick_place.run_episode(dmp_pick_place.PickPlaceConfig(cup_x=[0.6, 0.5]), 0)
+    with pytest.raises(RepertoireError, match="needs 3 ranges"):
+        dmp_serving.run_episode(dmp_serving.ServingConfig(cup_y=[[0.0, 0.1]]), 0)
+    with pytest.raises(RepertoireError, match="integer >= 1"):
+        dmp_grid.run_episode(dmp_grid.GridConfig(n=0), 0)

@@ -1,0 +1,180 @@
+"""Benchmark: footstep planning time on static 3 m x 3 m floors, and the 0.05 s limit.
+
+Setting (issue 4): the paper's floor (3 m x 3 m, 2.5 cm cells, start and goal in opposite
+corners) with random flat obstacles: the study's maps (4 strips, 2 blocks) and denser maps
+(8 strips, 4 blocks) whose plans mostly have 20-30 steps. Reports the median plan time
+(heuristic precomputation included) overall and for 20-30 step plans, nodes expanded per
+second of search, the peers measured in the same run (the 2-D bounding-circle planner on
+the same maps; the exact reference footprint test against the planner's masks), and
+whether every map still yields a partial plan with a 0.05 s limit. ``--profile`` prints
+the planner's hot spots. The machine is shared: the load average is printed with the
+figures.
+
+Run: ``.venv/bin/python tests/benchmarks/bench_footstep.py``.
+"""
+
+import argparse
+import cProfile
+import io
+import os
+import pstats
+import statistics
+import time
+
+import numpy as np
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--maps", type=int, default=60, help="maps per family")
+    parser.add_argument("--limit", type=float, default=0.05, help="short time limit (s)")
+    parser.add_argument("--profile", action="store_true", help="profile the hardest maps")
+    args = parser.parse_args()
+
+    from repertoire.planning.footstep import (
+        PlannerOptions,
+        nominal_action_table,
+        plan_footsteps,
+        plan_mobile2d,
+    )
+    from repertoire.planning.footstep.footprint import (
+        FootprintChecker,
+        foot_collides_reference,
+        footprint_masks,
+    )
+    from repertoire.planning.footstep.heuristic import dijkstra_cost_to_go
+    from repertoire.planning.footstep.scenes import random_static_scene
+
+    table = nominal_action_table()
+    footprint_masks(0.16, 0.10, 0.025)  # built once per process (cached), not per plan
+    print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores)")
+    families = {"study (4 strips, 2 blocks)": (4, 2), "dense (8 strips, 4 blocks)": (8, 4)}
+    all_rows = []
+    hard = []
+    for label, (ns, nb) in families.items():
+        rows = []
+        for seed in range(args.maps):
+            sc = random_static_scene(seed, n_strips=ns, n_blocks=nb)
+            t0 = time.perf_counter()
+            dijkstra_cost_to_go(sc.grid, sc.goal, 0.15)
+            t_h = time.perf_counter() - t0
+            plan = plan_footsteps(
+                sc.grid, sc.start, sc.start_foot, sc.goal, table, PlannerOptions(time_limit=5.0)
+            )
+            mobile = plan_mobile2d(sc.grid, sc.body_start, sc.goal, 0.30)
+            short = plan_footsteps(
+                sc.grid,
+                sc.start,
+                sc.start_foot,
+                sc.goal,
+                table,
+                PlannerOptions(time_limit=args.limit),
+            )
+            rows.append(
+                dict(
+                    seed=seed,
+                    steps=plan.num_steps,
+                    ok=plan.succeeded,
+                    t=plan.planning_time_s,
+                    t_h=t_h,
+                    nodes=plan.nodes_expanded,
+                    t2d=mobile.planning_time_s,
+                    ok2d=mobile.status == "SUCCESS",
+                    short_status=short.status.value,
+                    short_steps=short.num_steps,
+                    short_t=short.planning_time_s,
+                    short_ctg=short.cost_to_go,
+                    ctg0=plan_footsteps(
+                        sc.grid,
+                        sc.start,
+                        sc.start_foot,
+                        sc.goal,
+                        table,
+                        PlannerOptions(max_expansions=1),
+                    ).cost_to_go,
+                )
+            )
+            hard.append((plan.nodes_expanded, ns, nb, seed))
+        all_rows += rows
+        _report(label, rows, args.limit)
+    _report("all maps", all_rows, args.limit)
+
+    # peer: the exact reference footprint test (SAT against every occupied cell)
+    sc = random_static_scene(0, n_strips=8, n_blocks=4)
+    chk = FootprintChecker(sc.grid, footprint_masks(0.16, 0.10, 0.025))
+    rng = np.random.default_rng(0)
+    poses = np.column_stack(
+        [rng.uniform(0, 3, 4000), rng.uniform(0, 3, 4000), rng.uniform(-np.pi, np.pi, 4000)]
+    ).tolist()
+    t0 = time.perf_counter()
+    fast = [chk.is_free(*p) for p in poses]
+    t_fast = (time.perf_counter() - t0) / len(poses)
+    t0 = time.perf_counter()
+    ref = [not foot_collides_reference(sc.grid, p, 0.16, 0.10) for p in poses[:800]]
+    t_ref = (time.perf_counter() - t0) / 800
+    agree = sum(a == b for a, b in zip(fast, ref))
+    print(
+        f"\nfootprint check: masks {1e6 * t_fast:.2f} us/pose, exact reference "
+        f"{1e6 * t_ref:.1f} us/pose (ratio {t_ref / t_fast:.0f}x), agreement {agree}/800"
+    )
+
+    if args.profile:
+        hard.sort(reverse=True)
+        prof = cProfile.Profile()
+        for _, ns, nb, seed in hard[:5]:
+            sc = random_static_scene(seed, n_strips=ns, n_blocks=nb)
+            prof.enable()
+            plan_footsteps(
+                sc.grid, sc.start, sc.start_foot, sc.goal, table, PlannerOptions(time_limit=5.0)
+            )
+            prof.disable()
+        buf = io.StringIO()
+        pstats.Stats(prof, stream=buf).sort_stats("tottime").print_stats(10)
+        print("\nprofile of the 5 hardest maps (tottime):")
+        print("\n".join(buf.getvalue().splitlines()[:30]))
+    print(f"load average at end: {os.getloadavg()[0]:.1f}")
+    return 0
+
+
+def _report(label: str, rows: list[dict], limit: float) -> None:
+    med = statistics.median
+    ok = [r for r in rows if r["ok"]]
+    band = [r for r in rows if 20 <= r["steps"] <= 30 and r["ok"]]
+    search_rate = [r["nodes"] / max(r["t"] - r["t_h"], 1e-6) for r in rows if r["nodes"] > 50]
+    partial = [r for r in rows if r["short_steps"] >= 1]
+    closer = [r for r in rows if r["short_ctg"] < r["ctg0"]]
+    print(f"\n== {label}: {len(rows)} maps")
+    print(f"  success {len(ok)}/{len(rows)}; steps median {med([r['steps'] for r in ok]):.0f}")
+    print(
+        f"  plan time median {1e3 * med([r['t'] for r in rows]):.1f} ms "
+        f"(heuristic precomputation {1e3 * med([r['t_h'] for r in rows]):.1f} ms), "
+        f"90th pct {1e3 * float(np.percentile([r['t'] for r in rows], 90)):.1f} ms"
+    )
+    if band:
+        print(
+            f"  20-30 step plans: {len(band)} maps, median plan time "
+            f"{1e3 * med([r['t'] for r in band]):.1f} ms, median nodes "
+            f"{med([r['nodes'] for r in band]):.0f}"
+        )
+    if search_rate:
+        print(
+            f"  nodes expanded per second of search (maps with > 50 nodes): median "
+            f"{med(search_rate):.0f}"
+        )
+    print(
+        f"  2-D planner (peer): success {sum(r['ok2d'] for r in rows)}/{len(rows)}, median "
+        f"{1e3 * med([r['t2d'] for r in rows]):.1f} ms; footstep/2-D time ratio "
+        f"{med([r['t'] for r in rows]) / med([r['t2d'] for r in rows]):.1f}"
+    )
+    statuses: dict[str, int] = {}
+    for r in rows:
+        statuses[r["short_status"]] = statuses.get(r["short_status"], 0) + 1
+    print(
+        f"  time limit {limit} s: plan with >= 1 step on {len(partial)}/{len(rows)} maps, "
+        f"closer to the goal than the start on {len(closer)}/{len(rows)}, statuses "
+        f"{statuses}, wall time max {1e3 * max(r['short_t'] for r in rows):.1f} ms"
+    )
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

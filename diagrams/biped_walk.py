@@ -11,15 +11,13 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
-from pydrake.common.value import AbstractValue
-from pydrake.geometry import Box, Rgba
+from pydrake.geometry import Box
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
-from pydrake.systems.primitives import ConstantValueSource
 from repertoire.diagrams.biped import add_biped_world, validate_plant_fields
 from repertoire.diagrams.registry import register_diagram
-from repertoire.models.biped import LegGains
+from repertoire.models.biped import LEARNED_TABLE_PATH, LegGains
 from repertoire.planning.footstep.actions import ACTIONS, apply_displacement
 from repertoire.planning.footstep.types import ActionTable, Foot, FootstepPlan, wrap_angle
 from repertoire.systems.walking import (
@@ -46,11 +44,16 @@ WALK_GAINS = LegGains(
 
 @dataclasses.dataclass
 class BipedWalkScenario:
-    """The biped executing a command sequence (or a saved footstep plan) on flat ground.
+    """The biped executing footstep commands on flat ground.
+
+    The commands come from (first that applies): ``plan_file``; a footstep plan made
+    with the learned table on the random 3 m floor of ``map_seed`` (``map_seed >= 0``,
+    obstacles drawn as flat red tiles); else ``actions``.
 
     Attributes:
-        actions: commanded actions, one per step (names from the footstep ACTIONS), used
-            when ``plan_file`` is empty.
+        map_seed: seed of the random static floor to plan on (-1: use ``actions``).
+        map_size: side of that floor [m].
+        actions: commanded actions, one per step (names from the footstep ACTIONS).
         start: ``[x, y, yaw]`` of the midpoint between the soles at the start.
         first_stance: ``left`` or ``right``: the foot that stands during the first step.
         plan_file: optional JSON ``FootstepPlan`` to execute instead of ``actions``.
@@ -62,6 +65,8 @@ class BipedWalkScenario:
         base_duration: stepping rule: seconds per step at constant speed.
     """
 
+    map_seed: int = 0
+    map_size: float = 3.0
     actions: list[str] = dataclasses.field(
         default_factory=lambda: [
             "forward_long",
@@ -77,8 +82,8 @@ class BipedWalkScenario:
     first_stance: str = "left"
     plan_file: str = ""
     pelvis_height: float = 0.60
-    time_step: float = 1e-3
-    contact_approximation: str = "lagged"
+    time_step: float = 2e-3
+    contact_approximation: str = "sap"
     ground_friction: float = 1.0
     max_speed_change: float = 0.12
     base_duration: float = 1.0
@@ -94,6 +99,8 @@ class BipedWalkScenario:
             raise ScenarioError(
                 f"first_stance must be 'left' or 'right', got {self.first_stance!r}"
             )
+        if self.map_seed >= 0 and not (np.isfinite(self.map_size) and self.map_size >= 1.5):
+            raise ScenarioError(f"map_size must be >= 1.5 m, got {self.map_size}")
         if self.plan_file and not Path(self.plan_file).is_file():
             raise ScenarioError(f"plan_file '{self.plan_file}' does not exist")
         if not 0.5 <= self.pelvis_height <= 0.64:
@@ -170,15 +177,36 @@ def plan_from_actions(
     )
 
 
-def _scenario_plan(scenario: BipedWalkScenario) -> FootstepPlan:
+def _scenario_plan(scenario: BipedWalkScenario) -> tuple[FootstepPlan, list[list[float]]]:
+    """The plan to execute and the obstacle rectangles to draw."""
     if scenario.plan_file:
-        return FootstepPlan.load(scenario.plan_file)
+        return FootstepPlan.load(scenario.plan_file), []
+    if scenario.map_seed >= 0:
+        from repertoire.planning.footstep.planner import PlannerOptions, plan_footsteps
+        from repertoire.planning.footstep.scenes import random_static_scene
+
+        if not LEARNED_TABLE_PATH.is_file():
+            raise ScenarioError(
+                f"learned footstep table {LEARNED_TABLE_PATH} missing; run the footstep_table "
+                "study or set map_seed: -1"
+            )
+        scene = random_static_scene(scenario.map_seed, size=scenario.map_size)
+        plan = plan_footsteps(
+            scene.grid,
+            scene.start,
+            scene.start_foot,
+            scene.goal,
+            ActionTable.load(LEARNED_TABLE_PATH),
+            PlannerOptions(time_limit=10.0, max_expansions=60000),
+        )
+        return plan, [obstacle_cells(scene.grid)]
     from repertoire.planning.footstep.actions import nominal_action_table
 
     stance, swing = start_feet(scenario.start, scenario.first_stance)
-    return plan_from_actions(
+    plan = plan_from_actions(
         scenario.actions, stance, scenario.first_stance, swing, nominal_action_table()
     )
+    return plan, []
 
 
 def build_walk_diagram(
@@ -186,8 +214,8 @@ def build_walk_diagram(
     *,
     rule: SteppingRule | None = None,
     pelvis_height: float = 0.60,
-    time_step: float = 1e-3,
-    contact_approximation: str = "lagged",
+    time_step: float = 2e-3,
+    contact_approximation: str = "sap",
     ground_friction: float = 1.0,
     obstacles: list[list[float]] | None = None,
     meshcat=None,
@@ -208,7 +236,7 @@ def build_walk_diagram(
         name: the Diagram's name.
 
     Returns:
-        The Diagram with subsystems ``plant``, ``plan_source``, ``command_stepper``,
+        The Diagram with subsystems ``plant``, ``command_stepper``,
         ``zmp_com_planner``, ``swing_foot_planner`` and ``walking_ik``.
     """
     rule = rule or SteppingRule()
@@ -232,9 +260,7 @@ def build_walk_diagram(
         X_WP=X_WP,
         extra=lambda p: _add_obstacle_tiles(p, obstacles or []),
     )
-    source = builder.AddSystem(ConstantValueSource(AbstractValue.Make(plan)))
-    source.set_name("plan_source")
-    stepper = builder.AddSystem(CommandStepper(rule))
+    stepper = builder.AddSystem(CommandStepper(plan, rule))
     stepper.set_name("command_stepper")
     zmp = builder.AddSystem(ZmpComPlanner(com_height))
     zmp.set_name("zmp_com_planner")
@@ -242,7 +268,6 @@ def build_walk_diagram(
     swing.set_name("swing_foot_planner")
     ik = builder.AddSystem(WalkingIK(pelvis_height))
     ik.set_name("walking_ik")
-    builder.Connect(source.get_output_port(), stepper.GetInputPort("plan"))
     builder.Connect(stepper.GetOutputPort("footsteps"), zmp.GetInputPort("footsteps"))
     builder.Connect(stepper.GetOutputPort("footsteps"), swing.GetInputPort("footsteps"))
     builder.Connect(zmp.GetOutputPort("com"), ik.GetInputPort("com"))
@@ -258,6 +283,28 @@ def build_walk_diagram(
     return diagram
 
 
+def obstacle_cells(grid) -> list[list[float]]:
+    """Occupied cells of an occupancy grid as ``[x_min, y_min, x_max, y_max]`` rectangles.
+
+    Runs of occupied cells along y in each column are merged into one rectangle.
+    """
+    rects = []
+    r = grid.resolution
+    x0, y0 = grid.origin
+    occ = grid.occupied
+    for ix in range(occ.shape[0]):
+        iy = 0
+        while iy < occ.shape[1]:
+            if occ[ix, iy]:
+                start = iy
+                while iy < occ.shape[1] and occ[ix, iy]:
+                    iy += 1
+                rects.append([x0 + ix * r, y0 + start * r, x0 + (ix + 1) * r, y0 + iy * r])
+            else:
+                iy += 1
+    return rects
+
+
 def _add_obstacle_tiles(plant, obstacles: list[list[float]]) -> None:
     for k, (x0, y0, x1, y1) in enumerate(obstacles):
         X = RigidTransform([(x0 + x1) / 2, (y0 + y1) / 2, 0.001])
@@ -266,7 +313,7 @@ def _add_obstacle_tiles(plant, obstacles: list[list[float]]) -> None:
             X,
             Box(x1 - x0, y1 - y0, 0.002),
             f"obstacle_{k}",
-            Rgba(0.8, 0.1, 0.1, 1),
+            np.array([0.8, 0.1, 0.1, 1.0]),
         )
 
 
@@ -275,7 +322,7 @@ def _add_obstacle_tiles(plant, obstacles: list[list[float]]) -> None:
     scenario_type=BipedWalkScenario,
     description="biped executing footstep commands: stepping rule -> ZMP/CoM (ZmpPlanner) -> "
     "swing feet -> leg IK -> joint PD",
-    duration=8.0,
+    duration=20.0,
     check=lambda diagram, context: check_biped_walk(diagram, context),
 )
 def build_biped_walk(scenario: BipedWalkScenario, *, meshcat=None) -> Diagram:
@@ -286,8 +333,10 @@ def build_biped_walk(scenario: BipedWalkScenario, *, meshcat=None) -> Diagram:
         meshcat: optional Meshcat instance.
     """
     scenario.validate()
+    plan, obstacles = _scenario_plan(scenario)
     return build_walk_diagram(
-        _scenario_plan(scenario),
+        plan,
+        obstacles=obstacles[0] if obstacles else None,
         rule=scenario.rule(),
         pelvis_height=scenario.pelvis_height,
         time_step=scenario.time_step,
@@ -330,6 +379,7 @@ class WalkResult:
 
     Attributes:
         landed: measured (x, y, yaw) of each step's swing sole after landing.
+        stance: measured (x, y, yaw) of the stance sole at the same instants.
         expected: the controller's own target of each step (stepping rule).
         planned: the plan's pose of each step (what the planner predicted).
         durations: commanded-to-landing time of each step [s].
@@ -339,6 +389,7 @@ class WalkResult:
     """
 
     landed: list[list[float]]
+    stance: list[list[float]]
     expected: list[list[float]]
     planned: list[list[float]]
     durations: list[float]
@@ -352,10 +403,12 @@ def execute_plan(
     *,
     rule: SteppingRule | None = None,
     pelvis_height: float = 0.60,
-    time_step: float = 1e-3,
+    time_step: float = 2e-3,
+    contact_approximation: str = "sap",
     settle: float = 0.1,
     diagram: Diagram | None = None,
     simulator: Simulator | None = None,
+    max_steps: int | None = None,
 ) -> WalkResult:
     """Simulates the biped executing ``plan`` and measures every landing.
 
@@ -367,30 +420,39 @@ def execute_plan(
         rule: the controller's stepping rule.
         pelvis_height: pelvis height [m].
         time_step: plant time step [s].
+        contact_approximation: ``sap`` (default), ``lagged`` or ``similar``.
         settle: delay after touch-down before measuring [s].
         diagram: optionally a diagram already built by :func:`build_walk_diagram` for ``plan``.
         simulator: optionally a simulator of ``diagram``.
+        max_steps: stop after measuring this many landings (default: all, then the final hold).
     """
     rule = rule or SteppingRule()
     if diagram is None:
         diagram = build_walk_diagram(
-            plan, rule=rule, pelvis_height=pelvis_height, time_step=time_step
+            plan,
+            rule=rule,
+            pelvis_height=pelvis_height,
+            time_step=time_step,
+            contact_approximation=contact_approximation,
         )
     if simulator is None:
         simulator = Simulator(diagram)
     context = simulator.get_context()
     simulator.Initialize()
     seq = footstep_sequence(diagram, context)
-    landed, max_tilt, fell = [], 0.0, False
-    for k in range(seq.num_steps):
+    landed, stance, max_tilt, fell = [], [], 0.0, False
+    n_steps = seq.num_steps if max_steps is None else min(max_steps, seq.num_steps)
+    for k in range(n_steps):
         simulator.AdvanceTo(seq.land_times[k] + settle)
         p, tilt = pelvis_state(diagram, context)
         max_tilt = max(max_tilt, tilt)
         if p[2] < 0.4 or tilt > 0.5 or not np.all(np.isfinite(p)):
             fell = True
             break
-        landed.append(sole_poses(diagram, context)[seq.swing_feet[k]].tolist())
-    if not fell:
+        soles = sole_poses(diagram, context)
+        landed.append(soles[seq.swing_feet[k]].tolist())
+        stance.append(soles[1 - seq.swing_feet[k]].tolist())
+    if not fell and n_steps == seq.num_steps:
         simulator.AdvanceTo(seq.end_time)
         p, tilt = pelvis_state(diagram, context)
         max_tilt = max(max_tilt, tilt)
@@ -398,6 +460,7 @@ def execute_plan(
     durations = [tl - tc for tc, tl in zip(seq.command_times, seq.land_times)]
     return WalkResult(
         landed=landed,
+        stance=stance,
         expected=[list(p) for p in seq.poses],
         planned=[list(p) for p in plan.poses[1:]],
         durations=durations,

@@ -40,7 +40,13 @@ import math
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.planning import ZmpPlanner
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.systems.framework import (
+    AbstractParameterIndex,
+    BasicVector,
+    Context,
+    DiscreteValues,
+    LeafSystem,
+)
 from pydrake.trajectories import PiecewisePolynomial
 from repertoire.models.biped import (
     ANKLE_HEIGHT,
@@ -404,6 +410,7 @@ def whole_body_ik(
     pelvis_height: float,
     *,
     iterations: int = 4,
+    offset_guess: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles that put the whole-body CoM at ``com`` (x, y) with the soles at their poses.
 
@@ -416,6 +423,8 @@ def whole_body_ik(
         right: right sole pose (x, y, z, yaw).
         pelvis_height: pelvis origin height above the ground [m].
         iterations: fixed-point iterations (the CoM error shrinks ~10x per iteration).
+        offset_guess: initial pelvis-minus-CoM horizontal offset (e.g. the previous
+            solution's); default zero.
 
     Returns:
         ``(q, pelvis)``: (12,) joint angles and the pelvis pose (x, y, z, yaw).
@@ -423,6 +432,8 @@ def whole_body_ik(
     yaw = math.atan2(math.sin(left[3]) + math.sin(right[3]), math.cos(left[3]) + math.cos(right[3]))
     R_WP = rotation_rpy(0.0, 0.0, yaw)
     p = np.array([com[0], com[1], pelvis_height], dtype=float)
+    if offset_guess is not None:
+        p[:2] += np.asarray(offset_guess, dtype=float)[:2]
     q = np.zeros(12)
     for _ in range(iterations):
         for i, (foot, side) in enumerate(((left, "left"), (right, "right"))):
@@ -457,34 +468,56 @@ def standing_com_height(pelvis_height: float) -> float:
 class CommandStepper(LeafSystem):
     """Turns a footstep plan's commands into the footsteps the controller takes.
 
-    Applies the stateful stepping rule (:func:`realize_plan`) to the plan's actions.
-
-    Input ports:
-        plan: abstract ``FootstepPlan``.
+    Applies the stateful stepping rule (:func:`realize_plan`) to the plan's actions. The
+    plan is an abstract parameter (replace it per context with :meth:`SetPlan`), so the
+    footsteps are computed once per plan and cached.
 
     Output ports:
-        footsteps: abstract :class:`FootstepSequence` (recomputed only when the plan changes).
+        plan: abstract ``FootstepPlan`` (the commands being executed).
+        footsteps: abstract :class:`FootstepSequence`.
     """
 
-    def __init__(self, rule: SteppingRule | None = None, *, start_time: float = 0.0):
+    def __init__(
+        self, plan: FootstepPlan, rule: SteppingRule | None = None, *, start_time: float = 0.0
+    ):
         super().__init__()
         self._rule = rule or SteppingRule()
         self._rule.validate()
+        if not isinstance(plan, FootstepPlan):
+            raise RepertoireError(f"CommandStepper needs a FootstepPlan, got {type(plan).__name__}")
+        realize_plan(plan, self._rule)  # validates the plan's actions now
         self._start_time = start_time
-        self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(_empty_plan()))
-        self._footsteps = self.DeclareAbstractOutputPort(
+        self._plan_index = AbstractParameterIndex(
+            self.DeclareAbstractParameter(AbstractValue.Make(plan))
+        )
+        ticket = {self.abstract_parameter_ticket(self._plan_index)}
+        self.DeclareAbstractOutputPort(
+            "plan",
+            lambda: AbstractValue.Make(plan),
+            self._calc_plan,
+            prerequisites_of_calc=ticket,
+        )
+        self.DeclareAbstractOutputPort(
             "footsteps",
-            lambda: AbstractValue.Make(realize_plan(_empty_plan(), self._rule)),
+            lambda: AbstractValue.Make(realize_plan(plan, self._rule)),
             self._calc_footsteps,
-            prerequisites_of_calc={self.input_port_ticket(self._plan.get_index())},
+            prerequisites_of_calc=ticket,
         )
 
     @property
     def rule(self) -> SteppingRule:
         return self._rule
 
+    def SetPlan(self, context: Context, plan: FootstepPlan) -> None:
+        """Replaces the executed plan in ``context``."""
+        realize_plan(plan, self._rule)
+        context.get_mutable_abstract_parameter(self._plan_index).set_value(plan)
+
+    def _calc_plan(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(context.get_abstract_parameter(self._plan_index).get_value())
+
     def _calc_footsteps(self, context: Context, output: AbstractValue) -> None:
-        plan = self._plan.Eval(context)
+        plan = context.get_abstract_parameter(self._plan_index).get_value()
         output.set_value(realize_plan(plan, self._rule, start_time=self._start_time))
 
 
@@ -610,7 +643,8 @@ class WalkingIK(LeafSystem):
         self._left = self.DeclareVectorInputPort("left_foot", 4)
         self._right = self.DeclareVectorInputPort("right_foot", 4)
         self._height_index = self.DeclareNumericParameter(BasicVector([pelvis_height]))
-        self._state = self.DeclareDiscreteState(24 + 4)
+        # [q (12), v (12), pelvis x, y, z, yaw, pelvis-minus-CoM offset x, y]
+        self._state = self.DeclareDiscreteState(24 + 4 + 2)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self.DeclareInitializationDiscreteUpdateEvent(self._initialize)
         self.DeclareVectorOutputPort(
@@ -620,26 +654,34 @@ class WalkingIK(LeafSystem):
             "pelvis_reference", 4, self._calc_pelvis, prerequisites_of_calc={self.xd_ticket()}
         )
 
-    def _solve(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+    def _solve(
+        self, context: Context, offset: np.ndarray | None, iterations: int
+    ) -> tuple[np.ndarray, np.ndarray]:
         height = context.get_numeric_parameter(self._height_index).GetAtIndex(0)
         com = self._com.Eval(context)
-        return whole_body_ik(com[:2], self._left.Eval(context), self._right.Eval(context), height)
+        left, right = self._left.Eval(context), self._right.Eval(context)
+        return whole_body_ik(
+            com[:2], left, right, height, iterations=iterations, offset_guess=offset
+        )
 
     def _initialize(self, context: Context, discrete_state: DiscreteValues) -> None:
-        q, pelvis = self._solve(context)
-        discrete_state.set_value(self._state, np.concatenate([q, np.zeros(12), pelvis]))
+        q, pelvis = self._solve(context, None, 6)
+        offset = pelvis[:2] - self._com.Eval(context)[:2]
+        discrete_state.set_value(self._state, np.concatenate([q, np.zeros(12), pelvis, offset]))
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         old = context.get_discrete_state(self._state).get_value()
-        q, pelvis = self._solve(context)
+        # Warm start from the previous pelvis-minus-CoM offset: two iterations suffice.
+        q, pelvis = self._solve(context, old[28:30], 2)
         v = (q - old[:12]) / self._period
-        discrete_state.set_value(self._state, np.concatenate([q, v, pelvis]))
+        offset = pelvis[:2] - self._com.Eval(context)[:2]
+        discrete_state.set_value(self._state, np.concatenate([q, v, pelvis, offset]))
 
     def _calc_desired(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._state).get_value()[:24])
 
     def _calc_pelvis(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state(self._state).get_value()[24:])
+        output.SetFromVector(context.get_discrete_state(self._state).get_value()[24:28])
 
 
 __all__ = [

@@ -15,6 +15,7 @@ with the foot. With all joints at zero the legs are straight and vertical.
 """
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 
@@ -22,6 +23,9 @@ from repertoire.errors import RepertoireError
 
 MODEL_URL = "package://repertoire/biped/biped.urdf"
 MODEL_RELATIVE_PATH = "biped/biped.urdf"
+#: The footstep table T learned on this biped in simulation (studies/footstep_table.py,
+#: all 343 three-command sequences), used by the footstep planner for this robot.
+LEARNED_TABLE_PATH = Path(__file__).resolve().parent / "learned_footstep_table.json"
 
 HIP_Y = 0.075  # lateral offset of each hip point from the pelvis origin [m]
 THIGH_LENGTH = 0.30  # hip point to knee axis [m]
@@ -247,6 +251,7 @@ UPPER_BODY_MASSES = (
     (3.0, (0.0, 0.195 + 0.22 * np.sin(0.06), 0.34 - 0.22 * np.cos(0.06))),
     (3.0, (0.0, -0.195 - 0.22 * np.sin(0.06), 0.34 - 0.22 * np.cos(0.06))),
 )
+_UPPER_BODY_MOMENT = sum(m * np.asarray(c) for m, c in UPPER_BODY_MASSES)
 #: Leg link masses [kg]: hip yaw link, hip roll link, thigh, shank, ankle link, foot.
 LEG_LINK_MASSES = (0.5, 0.5, 3.5, 2.0, 0.2, 0.8)
 
@@ -285,6 +290,5 @@ def com_in_pelvis(q_joints: np.ndarray) -> np.ndarray:
     q = np.asarray(q_joints, dtype=float)
     if q.shape != (12,):
         raise RepertoireError(f"com_in_pelvis needs 12 joint angles, got shape {q.shape}")
-    moment = sum(m * np.asarray(c) for m, c in UPPER_BODY_MASSES)
-    moment = moment + _leg_com_moment(q[:6], "left") + _leg_com_moment(q[6:], "right")
+    moment = _UPPER_BODY_MOMENT + _leg_com_moment(q[:6], "left") + _leg_com_moment(q[6:], "right")
     return moment / TOTAL_MASS

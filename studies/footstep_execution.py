@@ -1,0 +1,413 @@
+"""Footstep plans executed by the physics biped: learned table T vs nominal (commanded) table.
+
+Each episode draws the static-obstacle floor of ``footstep_static`` for its seed
+(3 m x 3 m, 2.5 cm cells, flat obstacles the biped may step over), plans footsteps
+from corner to corner twice, once with the table T learned on the simulated biped
+(``footstep_table`` study, saved as JSON) and once with the nominal table of
+commanded displacements, and sends each plan's *commands* to the walking biped.
+It measures where each foot really landed: the fraction of steps within 2 cm and
+5 degrees of the plan (world frame), per-step errors, whether the run reached the
+goal without falling, and how many real footprints touch an obstacle.
+
+Run it with ``python -m repertoire.studies.footstep_execution --help``.
+"""
+
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from repertoire.diagrams.biped_walk import execute_plan, landing_errors
+from repertoire.models.biped import LEARNED_TABLE_PATH
+from repertoire.planning.footstep.actions import ASIMO_LIKE, nominal_action_table
+from repertoire.planning.footstep.footprint import foot_collides_reference
+from repertoire.planning.footstep.planner import PlannerOptions, plan_footsteps
+from repertoire.planning.footstep.scenes import random_static_scene
+from repertoire.planning.footstep.types import ActionTable, FootstepPlan
+from repertoire.studies.engine import register_study, study_main
+from repertoire.systems.walking import SteppingRule
+
+from repertoire.errors import RepertoireError
+
+#: The table learned by the footstep_table study on the physics biped (343 sequences).
+LEARNED_TABLE = LEARNED_TABLE_PATH
+POSITION_TOLERANCE_M = 0.02
+YAW_TOLERANCE_RAD = math.radians(5.0)
+
+
+@dataclasses.dataclass
+class FootstepExecutionConfig:
+    """What every episode shares.
+
+    Attributes:
+        size_m: side of the square floor.
+        n_strips: long thin flat obstacles per map.
+        n_blocks: larger blocks per map.
+        table_path: learned action table (JSON); empty: the shipped learned table.
+        compare_nominal: also plan and execute with the nominal table.
+        max_expansions: deterministic node budget of the planner.
+        time_limit_s: planner wall-time limit (generous; the node budget binds first).
+        heuristic_weight: w in g + w h.
+        time_step: plant time step [s].
+        contact_approximation: ``sap`` (default), ``lagged`` or ``similar``.
+        pelvis_height: pelvis height while walking [m].
+    """
+
+    size_m: float = 3.0
+    n_strips: int = 4
+    n_blocks: int = 2
+    table_path: str = ""
+    compare_nominal: bool = True
+    max_expansions: int = 60000
+    time_limit_s: float = 30.0
+    heuristic_weight: float = 1.5
+    time_step: float = 2e-3
+    contact_approximation: str = "sap"
+    pelvis_height: float = 0.60
+
+    def validate(self) -> None:
+        """Raise RepertoireError if a field is out of range."""
+        if not (math.isfinite(self.size_m) and self.size_m >= 1.5):
+            raise RepertoireError(f"size_m must be >= 1.5, got {self.size_m}")
+        if self.n_strips < 0 or self.n_blocks < 0 or self.max_expansions < 0:
+            raise RepertoireError("n_strips, n_blocks and max_expansions must be >= 0")
+        if not self.time_limit_s > 0:
+            raise RepertoireError(f"time_limit_s must be > 0, got {self.time_limit_s}")
+        path = self.table()
+        if not path.is_file():
+            raise RepertoireError(
+                f"learned action table '{path}' not found; run the footstep_table study "
+                "(python -m repertoire.studies.footstep_table -n 343) and pass its JSON"
+            )
+
+    def table(self) -> Path:
+        """Path of the learned table."""
+        return Path(self.table_path) if self.table_path else LEARNED_TABLE
+
+
+@dataclasses.dataclass
+class FootstepExecutionRecord:
+    """One map, planned and executed with the learned (``learned_*``) and nominal tables.
+
+    Attributes:
+        seed: the map seed.
+        learned_status: planner status with the learned table.
+        learned_steps: steps in that plan.
+        learned_executed: steps that landed before the end or a fall.
+        learned_within: steps within 2 cm and 5 degrees of the plan (world frame).
+        learned_within_frac: ``learned_within / learned_steps``.
+        learned_mean_err_m: mean landing position error against the plan [m].
+        learned_max_err_m: largest landing position error [m].
+        learned_max_yaw_err_deg: largest landing yaw error [deg].
+        learned_step_err_m: mean error of each step relative to the *measured* stance
+            sole (the table's own accuracy, without accumulated drift) [m].
+        learned_fell: the biped fell.
+        learned_reached: no fall and a final sole within the plan's goal tolerance.
+        learned_on_obstacle: measured footprints touching an obstacle cell.
+        nominal_*: the same with the nominal table (zeros when not compared).
+        wall_time_s: wall time of the episode.
+    """
+
+    seed: int
+    learned_status: str
+    learned_steps: int
+    learned_executed: int
+    learned_within: int
+    learned_within_frac: float
+    learned_mean_err_m: float
+    learned_max_err_m: float
+    learned_max_yaw_err_deg: float
+    learned_step_err_m: float
+    learned_fell: bool
+    learned_reached: bool
+    learned_on_obstacle: int
+    nominal_status: str
+    nominal_steps: int
+    nominal_executed: int
+    nominal_within: int
+    nominal_within_frac: float
+    nominal_mean_err_m: float
+    nominal_max_err_m: float
+    nominal_max_yaw_err_deg: float
+    nominal_step_err_m: float
+    nominal_fell: bool
+    nominal_reached: bool
+    nominal_on_obstacle: int
+    wall_time_s: float
+
+
+def _plan(scene, table: ActionTable, config: FootstepExecutionConfig) -> FootstepPlan:
+    options = PlannerOptions(
+        time_limit=config.time_limit_s,
+        heuristic_weight=config.heuristic_weight,
+        max_expansions=config.max_expansions,
+    )
+    return plan_footsteps(scene.grid, scene.start, scene.start_foot, scene.goal, table, options)
+
+
+def evaluate_execution(plan: FootstepPlan, result, grid) -> dict:
+    """Landing statistics of one executed plan (see the record's fields).
+
+    Args:
+        plan: the executed plan.
+        result: the ``WalkResult`` of ``execute_plan``.
+        grid: the occupancy grid of the map.
+    """
+    n = plan.num_steps
+    pos, yaw = landing_errors(result.landed, plan.poses[1:])
+    within = int(np.sum((pos <= POSITION_TOLERANCE_M) & (yaw <= YAW_TOLERANCE_RAD)))
+    step_err = []
+    poses = plan.poses_array()
+    for k, (s, p) in enumerate(zip(result.stance, result.landed)):
+        # Planned displacement of step k from its stance (poses[k]) vs the measured one.
+        c, sn = math.cos(poses[k][2]), math.sin(poses[k][2])
+        d_plan = poses[k + 1][:2] - poses[k][:2]
+        d_plan = np.array([c * d_plan[0] + sn * d_plan[1], -sn * d_plan[0] + c * d_plan[1]])
+        c, sn = math.cos(s[2]), math.sin(s[2])
+        d = np.array(p[:2]) - np.array(s[:2])
+        d_meas = np.array([c * d[0] + sn * d[1], -sn * d[0] + c * d[1]])
+        step_err.append(float(np.linalg.norm(d_meas - d_plan)))
+    goal = np.asarray(plan.goal[:2], float)
+    final = [result.landed[-1]] if result.landed else []
+    if len(result.stance):
+        final.append(result.stance[-1])
+    reached = (not result.fell) and any(
+        np.linalg.norm(np.asarray(f[:2]) - goal) <= plan.goal_tolerance for f in final
+    )
+    on_obstacle = sum(
+        foot_collides_reference(grid, tuple(p), ASIMO_LIKE.foot_length, ASIMO_LIKE.foot_width)
+        for p in result.landed
+    )
+    return {
+        "status": plan.status.value,
+        "steps": n,
+        "executed": len(result.landed),
+        "within": within,
+        "within_frac": within / n if n else 0.0,
+        "mean_err_m": float(pos.mean()) if len(pos) else 0.0,
+        "max_err_m": float(pos.max()) if len(pos) else 0.0,
+        "max_yaw_err_deg": float(np.degrees(yaw.max())) if len(yaw) else 0.0,
+        "step_err_m": float(np.mean(step_err)) if step_err else 0.0,
+        "fell": bool(result.fell),
+        "reached": bool(reached),
+        "on_obstacle": int(on_obstacle),
+    }
+
+
+def _empty() -> dict:
+    return {
+        "status": "",
+        "steps": 0,
+        "executed": 0,
+        "within": 0,
+        "within_frac": 0.0,
+        "mean_err_m": 0.0,
+        "max_err_m": 0.0,
+        "max_yaw_err_deg": 0.0,
+        "step_err_m": 0.0,
+        "fell": False,
+        "reached": False,
+        "on_obstacle": 0,
+    }
+
+
+def run_scene(config: FootstepExecutionConfig, seed: int, table: ActionTable):
+    """Plans the seeded map with ``table`` and executes the plan; returns (scene, plan, result)."""
+    scene = random_static_scene(
+        seed, size=config.size_m, n_strips=config.n_strips, n_blocks=config.n_blocks
+    )
+    plan = _plan(scene, table, config)
+    result = execute_plan(
+        plan,
+        rule=SteppingRule(),
+        pelvis_height=config.pelvis_height,
+        time_step=config.time_step,
+        contact_approximation=config.contact_approximation,
+    )
+    return scene, plan, result
+
+
+def run_episode(config: FootstepExecutionConfig, seed: int) -> FootstepExecutionRecord:
+    """Plans and executes one map with the learned (and the nominal) table.
+
+    Args:
+        config: the study config.
+        seed: the map seed.
+    """
+    config.validate()
+    t0 = time.perf_counter()
+    learned = ActionTable.load(config.table())
+    scene, plan, result = run_scene(config, seed, learned)
+    stats = {"learned": evaluate_execution(plan, result, scene.grid), "nominal": _empty()}
+    if config.compare_nominal:
+        scene, plan, result = run_scene(config, seed, nominal_action_table())
+        stats["nominal"] = evaluate_execution(plan, result, scene.grid)
+    fields = {f"{which}_{k}": v for which, s in stats.items() for k, v in s.items()}
+    return FootstepExecutionRecord(seed=int(seed), wall_time_s=time.perf_counter() - t0, **fields)
+
+
+def _draw_example(config: FootstepExecutionConfig, seed: int, out: Path) -> Path:
+    """Fig. 3-style plot: map, planned footprints and the real landings, both tables."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+    from matplotlib.transforms import Affine2D
+
+    tables = [("learned T", ActionTable.load(config.table()))]
+    if config.compare_nominal:
+        tables.append(("nominal T", nominal_action_table()))
+    fig, axes = plt.subplots(1, len(tables), figsize=(6 * len(tables), 6))
+    axes = np.atleast_1d(axes)
+    for ax, (label, table) in zip(axes, tables):
+        scene, plan, result = run_scene(config, seed, table)
+        occ = scene.grid.occupied
+        x0, y0 = scene.grid.origin
+        sx, sy = scene.grid.size
+        ax.imshow(
+            occ.T,
+            origin="lower",
+            extent=(x0, x0 + sx, y0, y0 + sy),
+            cmap="Reds",
+            alpha=0.8,
+            vmin=0,
+            vmax=1.5,
+        )
+        for k, p in enumerate(plan.poses):
+            color = "tab:blue" if plan.feet[k] == 0 else "tab:red"
+            tr = Affine2D().rotate_around(p[0], p[1], p[2]) + ax.transData
+            ax.add_patch(
+                Rectangle(
+                    (p[0] - 0.08, p[1] - 0.05), 0.16, 0.10, fill=False, ec=color, transform=tr
+                )
+            )
+        landed = np.asarray(result.landed).reshape(-1, 3)
+        ax.plot(landed[:, 0], landed[:, 1], "k.", ms=5, label="real landings")
+        ax.plot(*scene.goal, "g*", ms=14, label="goal")
+        stats = evaluate_execution(plan, result, scene.grid)
+        ax.set_title(
+            f"{label}: {stats['within']}/{stats['steps']} steps within 2 cm/5 deg\n"
+            f"max error {100 * stats['max_err_m']:.1f} cm, reached={stats['reached']}"
+        )
+        ax.set_xlim(x0, x0 + sx)
+        ax.set_ylim(y0, y0 + sy)
+        ax.set_aspect("equal")
+        ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> dict:
+    """Writes the execution table (Markdown + JSON), a histogram and an example figure.
+
+    Args:
+        records: the episodes.
+        config: the study config.
+        out_dir: output folder.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(out_dir)
+    out = {}
+    rows = {}
+    for which in ("learned", "nominal") if config.compare_nominal else ("learned",):
+        steps = sum(getattr(r, f"{which}_steps") for r in records)
+        within = sum(getattr(r, f"{which}_within") for r in records)
+        rows[which] = {
+            "runs": len(records),
+            "steps": steps,
+            "steps_within_2cm_5deg": within / steps if steps else 0.0,
+            "runs_reached_goal_without_fall": float(
+                np.mean([getattr(r, f"{which}_reached") for r in records])
+            ),
+            "runs_fell": int(sum(getattr(r, f"{which}_fell") for r in records)),
+            "mean_landing_error_m": float(
+                np.mean([getattr(r, f"{which}_mean_err_m") for r in records])
+            ),
+            "median_max_landing_error_m": float(
+                np.median([getattr(r, f"{which}_max_err_m") for r in records])
+            ),
+            "mean_step_error_m": float(
+                np.mean([getattr(r, f"{which}_step_err_m") for r in records])
+            ),
+            "landings_on_obstacles": int(sum(getattr(r, f"{which}_on_obstacle") for r in records)),
+            "plans_success": int(sum(getattr(r, f"{which}_status") == "SUCCESS" for r in records)),
+        }
+    path = out_dir / "execution_summary.json"
+    path.write_text(json.dumps(rows, indent=1))
+    out["execution_summary"] = path
+    keys = list(next(iter(rows.values())).keys())
+    lines = ["| table | " + " | ".join(keys) + " |", "|---" * (len(keys) + 1) + "|"]
+    for which, row in rows.items():
+        lines.append(
+            f"| {which} | "
+            + " | ".join(f"{v:.4g}" if isinstance(v, float) else str(v) for v in row.values())
+            + " |"
+        )
+    md = out_dir / "execution_summary.md"
+    md.write_text("\n".join(lines) + "\n")
+    out["execution_table"] = md
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for which in rows:
+        ax.hist(
+            [100 * getattr(r, f"{which}_max_err_m") for r in records],
+            bins=20,
+            alpha=0.6,
+            label=f"{which} table",
+        )
+    ax.set_xlabel("largest landing error of a run [cm] (world frame, vs plan)")
+    ax.set_ylabel("runs")
+    ax.legend()
+    fig.tight_layout()
+    hist = out_dir / "landing_error_hist.png"
+    fig.savefig(hist, dpi=110)
+    plt.close(fig)
+    out["landing_error_hist"] = hist
+    if records:
+        out["example"] = _draw_example(
+            config, int(records[0].seed), out_dir / "example_execution.png"
+        )
+    return out
+
+
+def demo_config() -> FootstepExecutionConfig:
+    """The demo config: the paper's 3 m floor (few episodes in the demo)."""
+    return FootstepExecutionConfig()
+
+
+def smoke_config() -> FootstepExecutionConfig:
+    """A tiny config for tests: a 1.5 m floor with one strip, learned table only."""
+    return FootstepExecutionConfig(
+        size_m=1.5, n_strips=1, n_blocks=0, max_expansions=5000, compare_nominal=False
+    )
+
+
+register_study(
+    "footstep_execution",
+    config_type=FootstepExecutionConfig,
+    record_type=FootstepExecutionRecord,
+    run_episode=run_episode,
+    description="footstep plans (learned vs nominal T) executed by the physics biped: "
+    "landing accuracy, goal reached",
+    summarize=summarize,
+    demo_config=demo_config,
+    demo_episodes=2,
+    smoke_config=smoke_config,
+)
+
+
+def main() -> int:
+    """Run the execution study from the command line."""
+    return study_main("footstep_execution", description=__doc__.split("\n\n")[0])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

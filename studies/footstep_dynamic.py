@@ -92,6 +92,8 @@ class FootstepDynamicRecord:
         waits: steps in place (``stop``) in the plan.
         side_steps: side steps in the plan.
         waited_or_side_stepped: the plan contains a step in place or a side step.
+        timing_steps_near_rows: steps in place or side steps landing within 0.6 m of a
+            row (waiting for a block to pass, as the paper saw at the second row).
         steps_over: steps whose swing foot passes over a string or block.
         nodes_expanded: A* expansions.
         mobile2d_success: the 2-D planner connects start and goal on E(0).
@@ -106,6 +108,7 @@ class FootstepDynamicRecord:
     waits: int
     side_steps: int
     waited_or_side_stepped: bool
+    timing_steps_near_rows: int
     steps_over: int
     nodes_expanded: int
     mobile2d_success: bool
@@ -177,6 +180,12 @@ def run_episode(config: FootstepDynamicConfig, seed: int) -> FootstepDynamicReco
         waits=waits,
         side_steps=side,
         waited_or_side_stepped=bool(waits + side > 0),
+        timing_steps_near_rows=sum(
+            1
+            for k, a in enumerate(plan.actions, start=1)
+            if a in ("stop", "side_step")
+            and min(abs(plan.poses[k][1] - y) for y in scene.rows_y) < 0.6
+        ),
         steps_over=steps_over_obstacles(scene.env, plan),
         nodes_expanded=plan.nodes_expanded,
         mobile2d_success=mobile.status == "SUCCESS",

@@ -225,7 +225,10 @@ def summary_table(records: list[FootstepStaticRecord]) -> str:
             f"{_pct([r.nodes_expanded for r in records], 50):.0f} / "
             f"{_pct([r.nodes_expanded for r in records], 90):.0f}",
         ),
-        ("nodes expanded per second (median)", f"{_pct(rate, 50):.0f}"),
+        (
+            "nodes expanded per second of planning time, heuristic included (median)",
+            f"{_pct(rate, 50):.0f}",
+        ),
         (
             "feet-midpoint path / 2-D path length where both succeed (median)",
             f"{_pct(ratio, 50):.3f} (n = {len(ratio)})",

@@ -151,7 +151,8 @@ def dynamic_plan_figure(
     """Write a Fig. 5-like PNG: snapshots of the moving obstacles with the steps so far.
 
     Each panel shows E(t) at the landing time of one step, the footprints up to that step
-    (the current one outlined in black) and the steps still to come faded.
+    (the current one outlined in black) and the steps still to come faded. Steps in place
+    and side steps always get a panel.
 
     Args:
         env: the time-indexed grids.
@@ -162,7 +163,17 @@ def dynamic_plan_figure(
         geometry: foot size.
     """
     n = plan.num_steps
-    steps = sorted(set(int(round(v)) for v in np.linspace(0, n, panels)))
+    # every step in place or side step gets a panel (with the step before it), the rest
+    # of the panels are spread evenly over the plan
+    special = [k for k in range(1, n + 1) if plan.actions[k - 1] in ("stop", "side_step")]
+    steps = set()
+    for k in special:
+        steps.update((k - 1, k))
+    for v in np.linspace(0, n, panels):
+        if len(steps) >= panels:
+            break
+        steps.add(int(round(v)))
+    steps = sorted(steps)
     cols = min(3, len(steps))
     rows = int(math.ceil(len(steps) / cols))
     fig = Figure(figsize=(3.3 * cols, 3.4 * rows), dpi=120)

@@ -139,8 +139,9 @@ def demonstration(config: DmpGoalsConfig, rise: float, bulge: float):
     t = np.linspace(0.0, T, config.n_samples)
     x, _, xdd = minimum_jerk(np.zeros(2), np.array([1.0, rise]), T, t)
     s = t / T
-    x[:, 1] += bulge * 16 * s**2 * (1 - s) ** 2
-    xdd[:, 1] += bulge * 16 * (2 - 12 * s + 12 * s**2) / T**2
+    # Bulge 64 s^3 (1 - s)^3: zero velocity and acceleration at both ends, height 1 at s=1/2.
+    x[:, 1] += bulge * 64 * s**3 * (1 - s) ** 3
+    xdd[:, 1] += bulge * 64 * (6 * s - 36 * s**2 + 60 * s**3 - 30 * s**4) / T**2
     return t, x, xdd
 
 

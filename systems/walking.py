@@ -435,11 +435,13 @@ def whole_body_ik(
     if offset_guess is not None:
         p[:2] += np.asarray(offset_guess, dtype=float)[:2]
     q = np.zeros(12)
-    for _ in range(iterations):
+    for k in range(max(iterations, 1)):
         for i, (foot, side) in enumerate(((left, "left"), (right, "right"))):
             p_PS = R_WP.T @ (np.array([foot[0], foot[1], foot[2]]) - p)
             R_PS = R_WP.T @ rotation_rpy(0.0, 0.0, foot[3])
             q[6 * i : 6 * i + 6] = leg_ik(p_PS, R_PS, side, strict=False)
+        if k == iterations - 1:
+            break  # q is the IK of this pelvis position: return them together
         c = p + R_WP @ com_in_pelvis(q)
         p[:2] += np.asarray(com[:2]) - c[:2]
     return q, np.array([p[0], p[1], p[2], yaw])

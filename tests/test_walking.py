@@ -1,0 +1,248 @@
+"""Walking controller: stepping rule, ZMP/CoM, swing, whole-body IK, LeafSystems, physics walk."""
+
+import math
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from repertoire.diagrams.biped_walk import (
+    BipedWalkScenario,
+    build_biped_walk,
+    check_biped_walk,
+    execute_plan,
+    landing_errors,
+    obstacle_cells,
+    plan_from_actions,
+    start_feet,
+)
+from repertoire.diagrams.scenario import load_scenario
+from repertoire.models.biped import com_in_pelvis, leg_fk, rotation_rpy
+from repertoire.planning.footstep.actions import nominal_action_table
+from repertoire.planning.footstep.environment import OccupancyGrid
+from repertoire.planning.footstep.types import Foot
+from repertoire.systems.walking import (
+    CommandStepper,
+    SteppingRule,
+    SwingFootPlanner,
+    WalkingIK,
+    ZmpComPlanner,
+    compose,
+    foot_poses_at,
+    plan_com,
+    realize_commands,
+    realize_plan,
+    realize_step,
+    relative,
+    standing_com_height,
+    swing_pose,
+    whole_body_ik,
+    zmp_reference,
+)
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+RULE = SteppingRule()
+
+
+def _plan(actions, stance="left"):
+    s, w = start_feet([0.0, 0.0, 0.0], stance)
+    return plan_from_actions(actions, s, stance, w, nominal_action_table())
+
+
+def test_stepping_rule_closed_forms():
+    # From standing (v = 0) a long step is clipped to the 0.12 m speed change.
+    d, t = realize_step("stop", "stop", "forward_long", Foot.RIGHT, RULE)
+    np.testing.assert_allclose(d, [0.12, 0.19, 0.0], atol=1e-12)
+    assert t == pytest.approx(1.0 + 0.12)
+    # One long step earlier (v = 0.15): 0.27 m.
+    d, t = realize_step("stop", "forward_long", "forward_long", Foot.LEFT, RULE)
+    np.testing.assert_allclose(d, [0.27, -0.19, 0.0], atol=1e-12)
+    assert t == pytest.approx(1.12)
+    # A stop after full speed (v = 0.30) takes one more 0.18 m step.
+    d, t = realize_step("forward_long", "forward_long", "stop", Foot.RIGHT, RULE)
+    np.testing.assert_allclose(d, [0.18, 0.19, 0.0], atol=1e-12)
+    # At constant speed the command is obeyed and takes the base duration.
+    d, t = realize_step("forward_medium", "forward_medium", "forward_medium", Foot.RIGHT, RULE)
+    np.testing.assert_allclose(d, [0.20, 0.19, 0.0], atol=1e-12)
+    assert t == pytest.approx(1.0)
+    # Side steps and turns keep their lateral and yaw parts.
+    d, _ = realize_step("stop", "stop", "side_step", Foot.LEFT, RULE)
+    np.testing.assert_allclose(d, [0.0, -0.29, 0.0], atol=1e-12)
+    d, _ = realize_step("stop", "stop", "turn_left", Foot.RIGHT, RULE)
+    assert d[2] == pytest.approx(0.35)
+
+
+def test_pose_algebra_round_trip():
+    a = np.array([0.3, -0.2, 0.7])
+    d = np.array([0.1, 0.19, -0.2])
+    np.testing.assert_allclose(relative(a, compose(a, d)), d, atol=1e-12)
+
+
+def test_realize_commands_alternates_and_times():
+    seq = realize_commands(
+        [0.0, 0.095, 0.0], Foot.LEFT, [0.0, -0.095, 0.0], ["forward_long"] * 3 + ["stop"], RULE
+    )
+    assert seq.swing_feet == [1, 0, 1, 0]
+    assert seq.command_times[0] == pytest.approx(RULE.initial_hold)
+    # Each step is commanded the moment the previous one lands.
+    np.testing.assert_allclose(seq.command_times[1:], seq.land_times[:-1])
+    np.testing.assert_allclose([p[0] for p in seq.poses], [0.12, 0.39, 0.69, 0.87], atol=1e-12)
+    assert seq.end_time == pytest.approx(seq.land_times[-1] + RULE.double_support + RULE.final_hold)
+
+
+def test_zmp_reference_and_com_plan():
+    seq = realize_commands(
+        [0.0, 0.095, 0.0], Foot.LEFT, [0.0, -0.095, 0.0], ["forward_medium"] * 4, RULE
+    )
+    zmp = zmp_reference(seq)
+    np.testing.assert_allclose(zmp.value(0.0).ravel(), [0.0, 0.0], atol=1e-12)
+    # During the first swing the ZMP sits on the left (stance) sole.
+    t_mid = 0.5 * (seq.command_times[0] + RULE.double_support + seq.land_times[0])
+    np.testing.assert_allclose(zmp.value(t_mid).ravel(), [0.0, 0.095], atol=1e-12)
+    final_mid = 0.5 * (np.array(seq.poses[-1][:2]) + np.array(seq.poses[-2][:2]))
+    np.testing.assert_allclose(zmp.value(seq.end_time).ravel(), final_mid, atol=1e-12)
+    planner = plan_com(seq, 0.68)
+    # The LIPM CoM starts at rest between the feet and ends near the final midpoint.
+    np.testing.assert_allclose(planner.get_nominal_com(0.0).ravel(), [0.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(planner.get_nominal_com(seq.end_time).ravel(), final_mid, atol=0.01)
+    # Its centre of pressure follows the reference within a few centimetres.
+    errs = []
+    for t in np.linspace(0.0, seq.end_time, 200):
+        com = planner.get_nominal_com(t).ravel()
+        comdd = planner.get_nominal_comdd(t).ravel()
+        cop = com - 0.68 / 9.81 * comdd
+        errs.append(np.linalg.norm(cop - zmp.value(t).ravel()))
+    assert max(errs) < 0.03
+
+
+def test_swing_pose_shape():
+    p0, p1 = np.array([0.0, 0.1, 0.0]), np.array([0.3, 0.1, 0.2])
+    np.testing.assert_allclose(swing_pose(p0, p1, 0.0, 0.05), [0, 0.1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(swing_pose(p0, p1, 1.0, 0.05), [0.3, 0.1, 0, 0.2], atol=1e-12)
+    mid = swing_pose(p0, p1, 0.5, 0.05)
+    assert mid[2] == pytest.approx(0.05) and mid[0] == pytest.approx(0.15)
+    # Before phase 0.15 the foot only lifts.
+    assert swing_pose(p0, p1, 0.1, 0.05)[0] == 0.0
+
+
+def test_whole_body_ik_meets_com_and_feet():
+    left = np.array([0.1, 0.12, 0.03, 0.2])
+    right = np.array([-0.05, -0.08, 0.0, 0.1])
+    com = np.array([0.03, 0.01])
+    q, pelvis = whole_body_ik(com, left, right, 0.6, iterations=8)
+    R_WP = rotation_rpy(0, 0, pelvis[3])
+    c = pelvis[:3] + R_WP @ com_in_pelvis(q)
+    np.testing.assert_allclose(c[:2], com, atol=1e-6)
+    assert pelvis[3] == pytest.approx(0.15)
+    for k, (foot, side) in enumerate(((left, "left"), (right, "right"))):
+        p, R = leg_fk(q[6 * k : 6 * k + 6], side)
+        p_W = pelvis[:3] + R_WP @ p
+        np.testing.assert_allclose(p_W, foot[:3], atol=1e-9)
+        assert math.atan2((R_WP @ R)[1, 0], (R_WP @ R)[0, 0]) == pytest.approx(foot[3])
+    assert 0.6 < standing_com_height(0.6) < 0.75
+
+
+def test_leaf_systems_match_pure_functions():
+    plan = _plan(["forward_long", "turn_left", "stop"])
+    stepper = CommandStepper(plan, RULE)
+    ctx = stepper.CreateDefaultContext()
+    seq = stepper.GetOutputPort("footsteps").Eval(ctx)
+    assert seq.poses == realize_plan(plan, RULE).poses
+    assert stepper.GetOutputPort("plan").Eval(ctx).actions == plan.actions
+    other = _plan(["side_step"])
+    stepper.SetPlan(ctx, other)
+    assert stepper.GetOutputPort("footsteps").Eval(ctx).actions == ["side_step"]
+
+    swing = SwingFootPlanner()
+    sctx = swing.CreateDefaultContext()
+    swing.GetInputPort("footsteps").FixValue(sctx, seq)
+    t = seq.command_times[0] + RULE.double_support + 0.3
+    sctx.SetTime(t)
+    left, right, support = foot_poses_at(seq, t)
+    np.testing.assert_allclose(swing.GetOutputPort("left_foot").Eval(sctx), left)
+    np.testing.assert_allclose(swing.GetOutputPort("right_foot").Eval(sctx), right)
+    assert swing.GetOutputPort("support").Eval(sctx)[0] == support == 1
+
+    zmp = ZmpComPlanner(0.68)
+    zctx = zmp.CreateDefaultContext()
+    zmp.GetInputPort("footsteps").FixValue(zctx, seq)
+    zctx.SetTime(1.0)
+    planner = plan_com(seq, 0.68)
+    np.testing.assert_allclose(
+        zmp.GetOutputPort("com").Eval(zctx)[:2], planner.get_nominal_com(1.0).ravel(), atol=1e-12
+    )
+    np.testing.assert_allclose(
+        zmp.GetOutputPort("zmp_reference").Eval(zctx), zmp_reference(seq).value(1.0).ravel()
+    )
+
+    ik = WalkingIK(0.6)
+    ictx = ik.CreateDefaultContext()
+    com = np.array([0.01, 0.0, 0.0, 0.0])
+    ik.GetInputPort("com").FixValue(ictx, com)
+    ik.GetInputPort("left_foot").FixValue(ictx, [0.0, 0.095, 0.0, 0.0])
+    ik.GetInputPort("right_foot").FixValue(ictx, [0.0, -0.095, 0.0, 0.0])
+    simulator = Simulator(ik, ictx)
+    simulator.Initialize()
+    q, pelvis = whole_body_ik(com[:2], [0, 0.095, 0, 0], [0, -0.095, 0, 0], 0.6, iterations=6)
+    desired = ik.GetOutputPort("desired_state").Eval(ictx)
+    np.testing.assert_allclose(desired[:12], q, atol=1e-9)
+    np.testing.assert_allclose(desired[12:], 0.0, atol=1e-6)
+    np.testing.assert_allclose(ik.GetOutputPort("pelvis_reference").Eval(ictx), pelvis, atol=1e-9)
+
+
+def test_physics_walk_lands_on_the_controller_targets():
+    plan = _plan(["forward_long", "forward_long", "stop"])
+    result = execute_plan(plan)
+    assert not result.fell
+    assert len(result.landed) == 3
+    pos, yaw = landing_errors(result.landed, result.expected)
+    assert pos.max() < 0.01 and yaw.max() < math.radians(2)
+    # The state-dependent rule: the commanded 0.30 m first step is only 0.12 m, and the
+    # plan made with the nominal table is off by that much.
+    pos_plan, _ = landing_errors(result.landed, result.planned)
+    assert pos_plan[0] == pytest.approx(0.18, abs=0.01)
+    assert result.max_tilt < 0.1
+
+
+def test_registered_diagram_from_actions():
+    scenario = load_scenario(
+        BipedWalkScenario, data="map_seed: -1\nactions: [forward_short, stop]\n"
+    )
+    diagram = build_biped_walk(scenario)
+    assert diagram.get_name() == "biped_walk"
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(3.0)
+    figures = check_biped_walk(diagram, simulator.get_context())
+    assert figures["fell"] == 0.0 and figures["steps_landed"] == 2.0
+    assert abs(figures["pelvis_height_m"] - 0.6) < 0.01
+
+
+def test_obstacle_cells_merge_columns():
+    occ = np.zeros((4, 5), dtype=bool)
+    occ[1, 1:4] = True
+    occ[3, 0] = True
+    grid = OccupancyGrid(occ, 0.5, (0.0, 0.0))
+    assert obstacle_cells(grid) == [[0.5, 0.5, 1.0, 2.0], [1.5, 0.0, 2.0, 0.5]]
+
+
+def test_bad_input():
+    with pytest.raises(RepertoireError, match="unknown action 'jump'"):
+        realize_step("stop", "stop", "jump", Foot.LEFT, RULE)
+    with pytest.raises(RepertoireError, match="double_support"):
+        realize_commands([0, 0.1, 0], Foot.LEFT, [0, -0.1, 0], [], SteppingRule(double_support=2.0))
+    with pytest.raises(RepertoireError, match="finite"):
+        realize_commands([np.nan, 0.1, 0], Foot.LEFT, [0, -0.1, 0], ["stop"], RULE)
+    with pytest.raises(RepertoireError, match="FootstepPlan"):
+        CommandStepper("not a plan")
+    with pytest.raises(RepertoireError, match="com_height"):
+        ZmpComPlanner(2.0)
+    with pytest.raises(ScenarioError, match="unknown action 'hop'"):
+        load_scenario(BipedWalkScenario, data="actions: [hop]\n")
+    with pytest.raises(ScenarioError, match="could not load"):
+        load_scenario(BipedWalkScenario, data="actions: forward_long: 1\n")
+    with pytest.raises(ScenarioError, match="plan_file"):
+        load_scenario(BipedWalkScenario, data="plan_file: /nonexistent/plan.json\n")
+    with pytest.raises(ScenarioError, match="pelvis_height"):
+        load_scenario(BipedWalkScenario, data="pelvis_height: 0.9\n")
+    with pytest.raises(ScenarioError, match="first_stance"):
+        BipedWalkScenario(first_stance="middle").validate()

@@ -1,0 +1,142 @@
+"""Learning the footstep table T from simulated steps; executing plans made with it."""
+
+import itertools
+import json
+
+import numpy as np
+import pytest
+from repertoire.models.biped import LEARNED_TABLE_PATH
+from repertoire.planning.footstep.actions import ACTIONS, nominal_action_table
+from repertoire.planning.footstep.types import ActionTableError, Foot
+from repertoire.planning.footstep_learning import (
+    command_sequences,
+    covered_keys,
+    learn_action_table,
+    sequence_for_index,
+    step_samples,
+    table_differences,
+)
+from repertoire.studies.footstep_execution import (
+    FootstepExecutionConfig,
+    smoke_config,
+)
+from repertoire.studies.footstep_execution import (
+    run_episode as run_execution_episode,
+)
+from repertoire.studies.footstep_table import (
+    FootstepTableConfig,
+    rule_table_displacement,
+    run_episode,
+    samples_of,
+    summarize,
+)
+from repertoire.systems.walking import SteppingRule, compose, realize_step
+
+from repertoire.errors import RepertoireError
+
+
+def test_sequence_indexing():
+    seqs = command_sequences()
+    assert len(seqs) == 343
+    assert [sequence_for_index(i) for i in range(343)] == seqs
+    assert sequence_for_index(0) == ("forward_long",) * 3
+    assert sequence_for_index(342) == ("stop",) * 3
+    with pytest.raises(RepertoireError, match="out of range"):
+        sequence_for_index(343)
+    with pytest.raises(RepertoireError, match="length"):
+        command_sequences(length=0)
+
+
+def test_step_samples_closed_form():
+    stance = [[0.0, 0.095, 0.0], [0.3, -0.095, 0.1]]
+    landed = [[0.3, -0.095, 0.1], [0.5, 0.2, 0.1]]
+    samples = step_samples(["forward_long", "stop"], "left", stance, landed, [1.1, 1.0])
+    assert samples[0][:4] == ("stop", "stop", "left", "forward_long")
+    np.testing.assert_allclose(samples[0][4:], [0.3, -0.19, 0.1, 1.1], atol=1e-12)
+    assert samples[1][:4] == ("stop", "forward_long", "right", "stop")
+    c, s = np.cos(0.1), np.sin(0.1)
+    d = np.array([0.2, 0.295])
+    np.testing.assert_allclose(samples[1][4:6], [c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+    with pytest.raises(RepertoireError, match="do not match"):
+        step_samples(["stop"], "left", stance, landed, [1.0])
+    with pytest.raises(RepertoireError, match="non-finite"):
+        step_samples(["stop"], "left", [[np.nan, 0, 0]], [[0, 0, 0]], [1.0])
+
+
+def _rule_samples(rule: SteppingRule) -> list:
+    """Exact samples of the controller's rule for all 343 sequences from standing."""
+    samples = []
+    for seq in command_sequences():
+        poses = {Foot.LEFT: np.array([0.0, 0.095, 0.0]), Foot.RIGHT: np.array([0.0, -0.095, 0.0])}
+        stance = Foot.LEFT
+        hist = ["stop", "stop"]
+        st, ld, du = [], [], []
+        for a in seq:
+            d, t = realize_step(hist[-2], hist[-1], a, stance, rule)
+            landed = compose(poses[stance], d)
+            st.append(poses[stance].tolist())
+            ld.append(landed.tolist())
+            du.append(t)
+            poses[stance.other()] = landed
+            stance = stance.other()
+            hist.append(a)
+        samples += step_samples(list(seq), "left", st, ld, du)
+    return samples
+
+
+def test_learned_table_from_rule_samples_is_the_rule():
+    rule = SteppingRule()
+    samples = _rule_samples(rule)
+    assert len(covered_keys(samples)) == 2 * 343
+    table, filled = learn_action_table(samples)
+    assert filled == 0
+    np.testing.assert_allclose(table.displacement, rule_table_displacement(rule), atol=1e-9)
+    assert table.lookup("stop", "stop", "right", "forward_long")[0] == pytest.approx(0.12)
+    assert table.lookup("forward_long", "forward_long", "left", "stop")[0] == pytest.approx(0.18)
+    diff = table_differences(table)
+    assert diff["max_position_diff_m"] == pytest.approx(0.18)
+    assert 0.1 < diff["fraction_over_2cm"] < 0.9
+    # Without complete coverage the table refuses, unless filled from another table.
+    with pytest.raises(ActionTableError, match="missing"):
+        learn_action_table(samples[:30])
+    _, filled = learn_action_table(samples[:30], fill_from=nominal_action_table())
+    assert 0 < filled < 2 * 343
+
+
+def test_physics_stop_after_fast_walking_takes_one_more_step(tmp_path):
+    config = FootstepTableConfig()
+    index = list(itertools.product(ACTIONS, repeat=3)).index(
+        ("forward_long", "forward_long", "stop")
+    )
+    record = run_episode(config, index)
+    assert not record.fell and record.steps_measured == 3
+    # Commanded: 0.30, 0.30, 0.00 forward. Measured: 0.12 (from standing), 0.27, 0.18.
+    np.testing.assert_allclose(record.dx, [0.12, 0.27, 0.18], atol=0.01)
+    np.testing.assert_allclose(np.abs(record.dy), 0.19, atol=0.01)
+    assert max(record.rule_error_m) < 0.01
+    out = summarize([record], config, tmp_path)
+    summary = json.loads(out["summary"].read_text())
+    assert summary["keys_filled_from_nominal"] > 0
+    assert summary["physics_vs_rule_measured_max_m"] < 0.01
+    assert out["table"].is_file() and out["fig2"].is_file()
+    assert samples_of([record], "left")[2][:4] == ("forward_long", "forward_long", "left", "stop")
+
+
+@pytest.mark.skipif(
+    not LEARNED_TABLE_PATH.is_file(), reason="learned table not yet generated (footstep_table)"
+)
+def test_execution_smoke_with_learned_table():
+    record = run_execution_episode(smoke_config(), 0)
+    assert not record.learned_fell
+    assert record.learned_steps > 0 and record.learned_executed == record.learned_steps
+    assert record.learned_within_frac >= 0.8
+    assert record.learned_max_err_m < 0.05
+
+
+def test_execution_config_bad_input(tmp_path):
+    with pytest.raises(RepertoireError, match="not found"):
+        FootstepExecutionConfig(table_path=str(tmp_path / "none.json")).validate()
+    with pytest.raises(RepertoireError, match="size_m"):
+        FootstepExecutionConfig(size_m=0.5).validate()
+    with pytest.raises(RepertoireError, match="table_file"):
+        FootstepTableConfig(table_file="t.txt").validate()

@@ -599,3 +599,23 @@ def test_metrics_closed_form():
         nominal_action_table(),
     )
     assert body_path_length(straight) == pytest.approx(0.15 + 0.3 * (straight.num_steps - 1))
+
+
+def test_height_cost_penalises_uneven_footholds():
+    heights = np.zeros((80, 40))
+    heights[40:, :] = 0.05  # a 5 cm step in the floor at x = 1.0 (not an obstacle)
+    grid = OccupancyGrid(np.zeros((80, 40), bool), heights=heights)
+    chk = FootprintChecker(grid, footprint_masks(0.16, 0.10, 0.025))
+    assert chk.height_range(1.0, 0.5, 0.0) == pytest.approx(0.05)  # straddles the edge
+    assert chk.height_range(0.8, 0.5, 0.0) == 0.0 and chk.height_range(1.2, 0.5, 0.0) == 0.0
+    t = nominal_action_table()
+    start, goal = (0.40, 0.595, 0.0), (1.75, 0.5)
+    flat = plan_footsteps(grid, start, "left", goal, t)
+    w = 40.0
+    careful = plan_footsteps(grid, start, "left", goal, t, PlannerOptions(height_cost_weight=w))
+    assert careful.succeeded
+    ranges = [chk.height_range(*p) for p in careful.poses[1:]]
+    steps = sum(t.step_cost[t.index(a)] for a in careful.actions)
+    assert careful.cost == pytest.approx(steps + w * sum(ranges))
+    assert sum(chk.height_range(*p) for p in flat.poses[1:]) > 0  # ignores the edge
+    assert sum(ranges) == 0.0  # no foot straddles the edge when it costs

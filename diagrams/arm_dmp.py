@@ -451,7 +451,7 @@ class PickPlaceScenario:
         settle_time: pause after each DMP's tau before the next segment starts [s].
     """
 
-    time_step: float = 0.002
+    time_step: float = 0.004
     contact_approximation: str = "lagged"
     grasp_mode: str = "contact"
     cup_xy: list[float] = dataclasses.field(default_factory=lambda: [0.55, -0.25])
@@ -503,7 +503,7 @@ class ServingScenario:
         settle_time: pause after each DMP's tau before the next segment starts [s].
     """
 
-    time_step: float = 0.002
+    time_step: float = 0.004
     contact_approximation: str = "lagged"
     grasp_mode: str = "contact"
     bottle_xy: list[float] = dataclasses.field(default_factory=lambda: [0.52, -0.28])

@@ -44,7 +44,7 @@ class GridConfig:
     place_x: list[float] = dataclasses.field(default_factory=lambda: [0.48, 0.62])
     place_y: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.18])
     n: int = 3
-    time_step: float = 0.002
+    time_step: float = 0.004
     sim_duration_s: float = 0.0
     path_every_s: float = 0.05
 

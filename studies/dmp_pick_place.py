@@ -56,7 +56,7 @@ class PickPlaceConfig:
     obstacle_coupling: bool = True
     obstacle_gamma: float = 3000.0
     grasp_mode: str = "contact"
-    time_step: float = 0.002
+    time_step: float = 0.004
     sim_duration_s: float = 0.0
     path_every_s: float = 0.1
 

@@ -46,7 +46,7 @@ class ServingConfig:
         default_factory=lambda: [[-0.14, -0.06], [0.02, 0.08], [0.16, 0.22]]
     )
     grasp_mode: str = "contact"
-    time_step: float = 0.002
+    time_step: float = 0.004
     sim_duration_s: float = 0.0
     path_every_s: float = 0.1
 

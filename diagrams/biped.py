@@ -9,7 +9,7 @@ walking diagram.
 import dataclasses
 
 import numpy as np
-from pydrake.geometry import HalfSpace, SceneGraph
+from pydrake.geometry import Box, HalfSpace, SceneGraph
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import (
@@ -98,14 +98,25 @@ def validate_plant_fields(time_step: float, contact_approximation: str, friction
         raise ScenarioError(f"ground_friction must be > 0, got {friction}")
 
 
-def add_ground(plant: MultibodyPlant, friction: float = 1.0) -> None:
-    """Registers a flat ground half-space (z = 0) with collision and a grey visual."""
+def add_ground(plant: MultibodyPlant, friction: float = 1.0, size: float = 12.0) -> None:
+    """Registers a flat ground half-space (z = 0) with collision and a grey visual.
+
+    Args:
+        plant: an unfinalized plant.
+        friction: Coulomb friction of the ground.
+        size: side of the square visual floor [m] (collision is the infinite half-space).
+    """
     X = RigidTransform()
     plant.RegisterCollisionGeometry(
         plant.world_body(), X, HalfSpace(), "ground_collision", CoulombFriction(friction, friction)
     )
+    # Meshcat does not draw half-spaces: the visual is a large thin box whose top is z = 0.
     plant.RegisterVisualGeometry(
-        plant.world_body(), X, HalfSpace(), "ground_visual", np.array([0.55, 0.57, 0.6, 1.0])
+        plant.world_body(),
+        RigidTransform([0.0, 0.0, -0.005]),
+        Box(size, size, 0.01),
+        "ground_visual",
+        np.array([0.55, 0.57, 0.6, 1.0]),
     )
 
 

@@ -211,8 +211,6 @@ def _draw_fig2(table, nominal, out: Path) -> Path:
                         (dx - 0.08, dy - 0.05), 0.16, 0.10, color=colors[k], transform=tr, **style
                     )
                 )
-            dx, dy, _, _ = table.lookup(h2, h1, "right", a)
-            ax.annotate(a, (dx, dy), fontsize=6, ha="center", va="center")
         ax.set_title(f"left-foot landings {title}\n(filled: learned, dashed: commanded)")
         ax.set_xlim(-0.25, 0.5)
         ax.set_ylim(-0.12, 0.42)
@@ -220,7 +218,9 @@ def _draw_fig2(table, nominal, out: Path) -> Path:
         ax.set_xlabel("x in right-sole frame [m]")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("y [m]")
-    fig.tight_layout()
+    handles = [Rectangle((0, 0), 1, 1, color=colors[k], alpha=0.55) for k in range(len(ACTIONS))]
+    fig.legend(handles, ACTIONS, loc="lower center", ncol=len(ACTIONS), fontsize=8)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     fig.savefig(out, dpi=130)
     plt.close(fig)
     return out

@@ -219,6 +219,10 @@ def summary_table(records: list[FootstepDynamicRecord]) -> str:
             f"{sum(r.waited_or_side_stepped for r in ok)}/{len(ok)}",
         ),
         (
+            "plans that wait or side-step within 0.6 m of a row",
+            f"{sum(r.timing_steps_near_rows > 0 for r in ok)}/{len(ok)}",
+        ),
+        (
             "plans that wait / that side-step",
             f"{sum(r.waits > 0 for r in ok)} / {sum(r.side_steps > 0 for r in ok)}",
         ),

@@ -297,7 +297,8 @@ def summarize(
     if records:
         fig = Figure(figsize=(11, 3.4), dpi=110)
         ax = fig.add_subplot(1, 3, 1)
-        ax.hist([r.steps for r in records if r.success], bins=20, color="#1f5fd6")
+        steps_ok = [r.steps for r in records if r.success] or [0]
+        ax.hist(steps_ok, bins=np.arange(min(steps_ok) - 0.5, max(steps_ok) + 1.5), color="#1f5fd6")
         ax.set_xlabel("steps per successful plan")
         ax.set_ylabel("maps")
         ax = fig.add_subplot(1, 3, 2)

@@ -1,7 +1,7 @@
 """The biped executing a footstep plan in the physics simulation (registered as ``biped_walk``).
 
-Wiring: plan source -> :class:`CommandStepper` (the controller's stateful stepping
-rule turns the plan's *commands* into footsteps) -> :class:`ZmpComPlanner` (ZMP
+Wiring: ``FootstepPlanSource`` (the plan) -> :class:`CommandStepper` (the controller's
+stateful stepping rule turns the plan's *commands* into footsteps) -> :class:`ZmpComPlanner` (ZMP
 reference and Drake's ``ZmpPlanner`` CoM) and :class:`SwingFootPlanner` (sole
 trajectories) -> :class:`WalkingIK` (CoM-exact pelvis placement + closed-form
 leg IK) -> the plant's ``desired_state`` input (joint PD in the discrete solver).
@@ -20,6 +20,7 @@ from repertoire.diagrams.registry import register_diagram
 from repertoire.models.biped import LEARNED_TABLE_PATH, LegGains
 from repertoire.planning.footstep.actions import ACTIONS, apply_displacement
 from repertoire.planning.footstep.types import ActionTable, Foot, FootstepPlan, wrap_angle
+from repertoire.systems.footstep_source import FootstepPlanSource
 from repertoire.systems.walking import (
     CommandStepper,
     FootstepSequence,
@@ -236,7 +237,8 @@ def build_walk_diagram(
         name: the Diagram's name.
 
     Returns:
-        The Diagram with subsystems ``plant``, ``command_stepper``,
+        The Diagram with subsystems ``plant``, ``plan_source`` (``FootstepPlanSource``),
+        ``command_stepper``,
         ``zmp_com_planner``, ``swing_foot_planner`` and ``walking_ik``.
     """
     rule = rule or SteppingRule()
@@ -260,7 +262,9 @@ def build_walk_diagram(
         X_WP=X_WP,
         extra=lambda p: _add_obstacle_tiles(p, obstacles or []),
     )
-    stepper = builder.AddSystem(CommandStepper(plan, rule))
+    source = builder.AddSystem(FootstepPlanSource(plan))
+    source.set_name("plan_source")
+    stepper = builder.AddSystem(CommandStepper(rule))
     stepper.set_name("command_stepper")
     zmp = builder.AddSystem(ZmpComPlanner(com_height))
     zmp.set_name("zmp_com_planner")
@@ -268,6 +272,7 @@ def build_walk_diagram(
     swing.set_name("swing_foot_planner")
     ik = builder.AddSystem(WalkingIK(pelvis_height))
     ik.set_name("walking_ik")
+    builder.Connect(source.GetOutputPort("plan"), stepper.GetInputPort("plan"))
     builder.Connect(stepper.GetOutputPort("footsteps"), zmp.GetInputPort("footsteps"))
     builder.Connect(stepper.GetOutputPort("footsteps"), swing.GetInputPort("footsteps"))
     builder.Connect(zmp.GetOutputPort("com"), ik.GetInputPort("com"))

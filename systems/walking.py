@@ -41,7 +41,6 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.planning import ZmpPlanner
 from pydrake.systems.framework import (
-    AbstractParameterIndex,
     BasicVector,
     Context,
     DiscreteValues,
@@ -470,56 +469,40 @@ def standing_com_height(pelvis_height: float) -> float:
 class CommandStepper(LeafSystem):
     """Turns a footstep plan's commands into the footsteps the controller takes.
 
-    Applies the stateful stepping rule (:func:`realize_plan`) to the plan's actions. The
-    plan is an abstract parameter (replace it per context with :meth:`SetPlan`), so the
-    footsteps are computed once per plan and cached.
+    Applies the stateful stepping rule (:func:`realize_plan`) to the actions of the plan
+    on its input (typically ``FootstepPlanSource``'s ``plan`` port, which is cached on
+    its parameters, so the footsteps are computed once per plan).
+
+    Input ports:
+        plan: abstract ``FootstepPlan`` (the commands to execute).
 
     Output ports:
-        plan: abstract ``FootstepPlan`` (the commands being executed).
         footsteps: abstract :class:`FootstepSequence`.
     """
 
-    def __init__(
-        self, plan: FootstepPlan, rule: SteppingRule | None = None, *, start_time: float = 0.0
-    ):
+    def __init__(self, rule: SteppingRule | None = None, *, start_time: float = 0.0):
         super().__init__()
         self._rule = rule or SteppingRule()
         self._rule.validate()
-        if not isinstance(plan, FootstepPlan):
-            raise RepertoireError(f"CommandStepper needs a FootstepPlan, got {type(plan).__name__}")
-        realize_plan(plan, self._rule)  # validates the plan's actions now
         self._start_time = start_time
-        self._plan_index = AbstractParameterIndex(
-            self.DeclareAbstractParameter(AbstractValue.Make(plan))
-        )
-        ticket = {self.abstract_parameter_ticket(self._plan_index)}
-        self.DeclareAbstractOutputPort(
-            "plan",
-            lambda: AbstractValue.Make(plan),
-            self._calc_plan,
-            prerequisites_of_calc=ticket,
-        )
+        self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(_empty_plan()))
         self.DeclareAbstractOutputPort(
             "footsteps",
-            lambda: AbstractValue.Make(realize_plan(plan, self._rule)),
+            lambda: AbstractValue.Make(realize_plan(_empty_plan(), self._rule)),
             self._calc_footsteps,
-            prerequisites_of_calc=ticket,
+            prerequisites_of_calc={self.input_port_ticket(self._plan.get_index())},
         )
 
     @property
     def rule(self) -> SteppingRule:
         return self._rule
 
-    def SetPlan(self, context: Context, plan: FootstepPlan) -> None:
-        """Replaces the executed plan in ``context``."""
-        realize_plan(plan, self._rule)
-        context.get_mutable_abstract_parameter(self._plan_index).set_value(plan)
-
-    def _calc_plan(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(context.get_abstract_parameter(self._plan_index).get_value())
-
     def _calc_footsteps(self, context: Context, output: AbstractValue) -> None:
-        plan = context.get_abstract_parameter(self._plan_index).get_value()
+        plan = self._plan.Eval(context)
+        if not isinstance(plan, FootstepPlan):
+            raise RepertoireError(
+                f"CommandStepper's plan input needs a FootstepPlan, got {type(plan).__name__}"
+            )
         output.set_value(realize_plan(plan, self._rule, start_time=self._start_time))
 
 

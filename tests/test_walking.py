@@ -144,13 +144,12 @@ def test_whole_body_ik_meets_com_and_feet():
 
 def test_leaf_systems_match_pure_functions():
     plan = _plan(["forward_long", "turn_left", "stop"])
-    stepper = CommandStepper(plan, RULE)
+    stepper = CommandStepper(RULE)
     ctx = stepper.CreateDefaultContext()
+    stepper.GetInputPort("plan").FixValue(ctx, plan)
     seq = stepper.GetOutputPort("footsteps").Eval(ctx)
     assert seq.poses == realize_plan(plan, RULE).poses
-    assert stepper.GetOutputPort("plan").Eval(ctx).actions == plan.actions
-    other = _plan(["side_step"])
-    stepper.SetPlan(ctx, other)
+    stepper.GetInputPort("plan").FixValue(ctx, _plan(["side_step"]))
     assert stepper.GetOutputPort("footsteps").Eval(ctx).actions == ["side_step"]
 
     swing = SwingFootPlanner()
@@ -232,8 +231,11 @@ def test_bad_input():
         realize_commands([0, 0.1, 0], Foot.LEFT, [0, -0.1, 0], [], SteppingRule(double_support=2.0))
     with pytest.raises(RepertoireError, match="finite"):
         realize_commands([np.nan, 0.1, 0], Foot.LEFT, [0, -0.1, 0], ["stop"], RULE)
+    stepper = CommandStepper()
+    ctx = stepper.CreateDefaultContext()
+    stepper.GetInputPort("plan").FixValue(ctx, "not a plan")
     with pytest.raises(RepertoireError, match="FootstepPlan"):
-        CommandStepper("not a plan")
+        stepper.GetOutputPort("footsteps").Eval(ctx)
     with pytest.raises(RepertoireError, match="com_height"):
         ZmpComPlanner(2.0)
     with pytest.raises(ScenarioError, match="unknown action 'hop'"):

@@ -260,13 +260,15 @@ def summarize(
     md.write_text("# Footstep planning, static obstacles\n\n" + summary_table(records))
     out["table"] = md
 
-    # example plans: prefer maps where the biped steps over and the 2-D planner fails
+    # example plans: half where the 2-D planner fails and the biped steps over, half where
+    # the 2-D planner has to go around what the biped steps over
     seeds = _seeds_of(records)
-    order = sorted(
-        range(len(records)),
-        key=lambda i: (not records[i].biped_only, records[i].steps_over == 0, i),
-    )
-    pick = order[: config.example_figures]
+    k = config.example_figures
+    fails = [i for i, r in enumerate(records) if r.biped_only and r.steps_over > 0]
+    around = [i for i, r in enumerate(records) if r.mobile2d_success and r.steps_over > 0]
+    pick = fails[: (k + 1) // 2] + around[: k // 2]
+    rest = [i for i in range(len(records)) if i not in pick]
+    pick = (pick + rest)[:k]
     if pick:
         cols = min(2, len(pick))
         rows = int(math.ceil(len(pick) / cols))

@@ -29,6 +29,13 @@ def main() -> int:
     parser.add_argument("--maps", type=int, default=60, help="maps per family")
     parser.add_argument("--limit", type=float, default=0.05, help="short time limit (s)")
     parser.add_argument("--profile", action="store_true", help="profile the hardest maps")
+    parser.add_argument(
+        "--weights",
+        type=float,
+        nargs="+",
+        default=[1.5, 2.0],
+        help="heuristic weights (the first is the planner's default)",
+    )
     args = parser.parse_args()
 
     from repertoire.planning.footstep import (
@@ -49,55 +56,58 @@ def main() -> int:
     footprint_masks(0.16, 0.10, 0.025)  # built once per process (cached), not per plan
     print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores)")
     families = {"study (4 strips, 2 blocks)": (4, 2), "dense (8 strips, 4 blocks)": (8, 4)}
-    all_rows = []
     hard = []
-    for label, (ns, nb) in families.items():
-        rows = []
-        for seed in range(args.maps):
-            sc = random_static_scene(seed, n_strips=ns, n_blocks=nb)
-            t0 = time.perf_counter()
-            dijkstra_cost_to_go(sc.grid, sc.goal, 0.15)
-            t_h = time.perf_counter() - t0
-            plan = plan_footsteps(
-                sc.grid, sc.start, sc.start_foot, sc.goal, table, PlannerOptions(time_limit=5.0)
-            )
-            mobile = plan_mobile2d(sc.grid, sc.body_start, sc.goal, 0.30)
-            short = plan_footsteps(
-                sc.grid,
-                sc.start,
-                sc.start_foot,
-                sc.goal,
-                table,
-                PlannerOptions(time_limit=args.limit),
-            )
-            rows.append(
-                dict(
-                    seed=seed,
-                    steps=plan.num_steps,
-                    ok=plan.succeeded,
-                    t=plan.planning_time_s,
-                    t_h=t_h,
-                    nodes=plan.nodes_expanded,
-                    t2d=mobile.planning_time_s,
-                    ok2d=mobile.status == "SUCCESS",
-                    short_status=short.status.value,
-                    short_steps=short.num_steps,
-                    short_t=short.planning_time_s,
-                    short_ctg=short.cost_to_go,
-                    ctg0=plan_footsteps(
-                        sc.grid,
-                        sc.start,
-                        sc.start_foot,
-                        sc.goal,
-                        table,
-                        PlannerOptions(max_expansions=1),
-                    ).cost_to_go,
+    for w in args.weights:
+        all_rows = []
+        for label, (ns, nb) in families.items():
+            rows = []
+            for seed in range(args.maps):
+                sc = random_static_scene(seed, n_strips=ns, n_blocks=nb)
+                t0 = time.perf_counter()
+                dijkstra_cost_to_go(sc.grid, sc.goal, 0.15)
+                t_h = time.perf_counter() - t0
+                opts = PlannerOptions(time_limit=5.0, heuristic_weight=w)
+                plan = plan_footsteps(sc.grid, sc.start, sc.start_foot, sc.goal, table, opts)
+                mobile = plan_mobile2d(sc.grid, sc.body_start, sc.goal, 0.30)
+                short = plan_footsteps(
+                    sc.grid,
+                    sc.start,
+                    sc.start_foot,
+                    sc.goal,
+                    table,
+                    PlannerOptions(time_limit=args.limit, heuristic_weight=w),
                 )
-            )
-            hard.append((plan.nodes_expanded, ns, nb, seed))
-        all_rows += rows
-        _report(label, rows, args.limit)
-    _report("all maps", all_rows, args.limit)
+                ctg0 = plan_footsteps(
+                    sc.grid,
+                    sc.start,
+                    sc.start_foot,
+                    sc.goal,
+                    table,
+                    PlannerOptions(max_expansions=1, heuristic_weight=w),
+                ).cost_to_go
+                rows.append(
+                    dict(
+                        seed=seed,
+                        steps=plan.num_steps,
+                        ok=plan.succeeded,
+                        t=plan.planning_time_s,
+                        t_h=t_h,
+                        nodes=plan.nodes_expanded,
+                        cost=plan.cost,
+                        t2d=mobile.planning_time_s,
+                        ok2d=mobile.status == "SUCCESS",
+                        short_status=short.status.value,
+                        short_steps=short.num_steps,
+                        short_t=short.planning_time_s,
+                        short_ctg=short.cost_to_go,
+                        ctg0=ctg0,
+                    )
+                )
+                if w == args.weights[0]:
+                    hard.append((plan.nodes_expanded, ns, nb, seed))
+            all_rows += rows
+            _report(f"{label}, heuristic weight {w}", rows, args.limit)
+        _report(f"all maps, heuristic weight {w}", all_rows, args.limit)
 
     # peer: the exact reference footprint test (SAT against every occupied cell)
     sc = random_static_scene(0, n_strips=8, n_blocks=4)
@@ -144,7 +154,10 @@ def _report(label: str, rows: list[dict], limit: float) -> None:
     partial = [r for r in rows if r["short_steps"] >= 1]
     closer = [r for r in rows if r["short_ctg"] < r["ctg0"]]
     print(f"\n== {label}: {len(rows)} maps")
-    print(f"  success {len(ok)}/{len(rows)}; steps median {med([r['steps'] for r in ok]):.0f}")
+    print(
+        f"  success {len(ok)}/{len(rows)}; steps median {med([r['steps'] for r in ok]):.0f}; "
+        f"mean plan cost {np.mean([r['cost'] for r in ok]):.2f}"
+    )
     print(
         f"  plan time median {1e3 * med([r['t'] for r in rows]):.1f} ms "
         f"(heuristic precomputation {1e3 * med([r['t_h'] for r in rows]):.1f} ms), "

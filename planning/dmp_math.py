@@ -21,6 +21,7 @@ Quaternions are ``(w, x, y, z)`` (Drake's order). ``quat_exp(u)`` maps a 3-vecto
 to ``(cos|u|, sin|u| u/|u|)`` (a rotation by ``2|u|``), and ``quat_log`` is its inverse.
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -640,28 +641,29 @@ def obstacle_coupling(
         gamma: Gain (>= 0).
         beta: Angular decay (the paper's c, >= 0).
     """
-    x = np.asarray(x, dtype=float)
-    v = np.asarray(xd, dtype=float)
-    d = np.asarray(obstacle, dtype=float) - x
-    speed = np.linalg.norm(v)
-    dist = np.linalg.norm(d)
+    # Plain-float arithmetic: called once per control step, numpy's per-call overhead on
+    # 3-vectors (np.cross, np.linalg.norm) dominates otherwise.
+    x1, x2, x3 = (float(c) for c in np.asarray(x, dtype=float).reshape(3))
+    v1, v2, v3 = (float(c) for c in np.asarray(xd, dtype=float).reshape(3))
+    o1, o2, o3 = (float(c) for c in np.asarray(obstacle, dtype=float).reshape(3))
+    d1, d2, d3 = o1 - x1, o2 - x2, o3 - x3
+    speed = math.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
+    dist = math.sqrt(d1 * d1 + d2 * d2 + d3 * d3)
     if speed < 1e-12 or dist < 1e-12:
         return np.zeros(3)
-    cos_phi = np.clip(d @ v / (dist * speed), -1.0, 1.0)
-    phi = np.arccos(cos_phi)
-    r = np.cross(d, v)
-    rn = np.linalg.norm(r)
+    cos_phi = min(1.0, max(-1.0, (d1 * v1 + d2 * v2 + d3 * v3) / (dist * speed)))
+    phi = math.acos(cos_phi)
+    r1, r2, r3 = d2 * v3 - d3 * v2, d3 * v1 - d1 * v3, d1 * v2 - d2 * v1
+    rn = math.sqrt(r1 * r1 + r2 * r2 + r3 * r3)
     if rn < 1e-12 * dist * speed:
-        # Parallel: pick the axis perpendicular to v that is closest to world z x v.
-        helper = np.array([0.0, 0.0, 1.0])
-        if abs(helper @ v) > 0.9 * speed:
-            helper = np.array([1.0, 0.0, 0.0])
-        r = np.cross(helper, v)
-        rn = np.linalg.norm(r)
-    axis = r / rn
-    # Rotation of v by +pi/2 about axis (v is perpendicular to axis): R v = axis x v.
-    Rv = np.cross(axis, v) + axis * (axis @ v)
-    return gamma * Rv * phi * np.exp(-beta * phi)
+        # Parallel: the axis perpendicular to v closest to world z x v (x x v if v ~ z).
+        h1, h2, h3 = (0.0, 0.0, 1.0) if abs(v3) <= 0.9 * speed else (1.0, 0.0, 0.0)
+        r1, r2, r3 = h2 * v3 - h3 * v2, h3 * v1 - h1 * v3, h1 * v2 - h2 * v1
+        rn = math.sqrt(r1 * r1 + r2 * r2 + r3 * r3)
+    a1, a2, a3 = r1 / rn, r2 / rn, r3 / rn
+    # Rotation of v by +pi/2 about the axis (v is perpendicular to it): R v = axis x v.
+    Rv = np.array([a2 * v3 - a3 * v2, a3 * v1 - a1 * v3, a1 * v2 - a2 * v1])
+    return gamma * phi * math.exp(-beta * phi) * Rv
 
 
 # --------------------------------------------------------------------------- demonstrations

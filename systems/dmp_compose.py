@@ -11,7 +11,12 @@
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import PassThrough
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    Demultiplexer,
+    Multiplexer,
+    PassThrough,
+)
 from repertoire.planning.dmp import (
     HANDOFFS,
     DmpParameters,
@@ -91,7 +96,8 @@ class DmpSystem(Diagram):
         angular_velocity (3, world frame), fingers (k), finger_velocity (k), phase (1).
 
     With ``time_step`` (default 1 ms) the vector parts are exact discrete-time
-    :class:`DiscreteDmpSystem`s; with ``time_step=None`` they are continuous
+    :class:`DiscreteDmpSystem`s (for a TaskSpaceDmp fused into one 10-D system, the paper's
+    Fig. 7, with multiplexed goals); with ``time_step=None`` they are continuous
     :class:`CanonicalSystem` + :class:`TransformationSystem` pairs. The on-manifold
     quaternion part is always discrete (``time_step`` or 1 ms).
     """
@@ -109,6 +115,9 @@ class DmpSystem(Diagram):
         if time_step is not None:
             check_positive("time_step", time_step)
         self.dmp = dmp
+        self._fused = None
+        self._manifold = None
+        self._slices: dict = {}
         builder = DiagramBuilder()
         if isinstance(dmp, DmpParameters):
             self._build_vector(builder, dmp, time_step, obstacle_avoidance, gamma, beta)
@@ -142,7 +151,103 @@ class DmpSystem(Diagram):
         builder.ExportOutput(vec.system.get_acceleration_output_port(), "acceleration")
         builder.ExportOutput(vec.phase, "phase")
 
+    def _build_fused(self, builder, dmp: TaskSpaceDmp, time_step, obstacle, gamma, beta) -> bool:
+        """All vector parts in one DiscreteDmpSystem (one Python call per step)."""
+        parts = [("position", dmp.position)]
+        if dmp.orientation.mode == "component":
+            parts.append(("orientation", dmp.orientation.component_parameters()))
+        if dmp.fingers is not None:
+            parts.append(("fingers", dmp.fingers))
+        first = dmp.position
+        for _, p in parts[1:]:
+            if not (
+                np.array_equal(p.centres, first.centres)
+                and np.array_equal(p.widths, first.widths)
+                and p.alpha == first.alpha
+                and p.tau == first.tau
+            ):
+                return False
+        fused = DmpParameters(
+            np.vstack([p.weights for _, p in parts]),
+            first.centres,
+            first.widths,
+            np.concatenate([p.K for _, p in parts]),
+            np.concatenate([p.D for _, p in parts]),
+            first.alpha,
+            first.tau,
+            np.concatenate([p.x0 for _, p in parts]),
+            np.concatenate([p.goal for _, p in parts]),
+        )
+        sizes = [p.n_dims for _, p in parts]
+        n = sum(sizes)
+        starts = np.cumsum([0] + sizes[:-1])
+        self._slices = {
+            name: slice(int(a), int(a + k)) for (name, _), a, k in zip(parts, starts, sizes)
+        }
+        sysd = builder.AddNamedSystem(
+            "task_space_dmp", DiscreteDmpSystem(fused, time_step=time_step, coupling_input=obstacle)
+        )
+        self._fused = sysd
+        mux = builder.AddNamedSystem("goal_mux", Multiplexer(sizes))
+        builder.Connect(mux.get_output_port(0), sysd.get_goal_input_port())
+        demux = {}
+        for sig, port in (
+            ("position", sysd.get_position_output_port()),
+            ("velocity", sysd.get_velocity_output_port()),
+            ("acceleration", sysd.get_acceleration_output_port()),
+        ):
+            demux[sig] = builder.AddNamedSystem(f"{sig}_demux", Demultiplexer(sizes))
+            builder.Connect(port, demux[sig].get_input_port(0))
+        index = {name: i for i, (name, _) in enumerate(parts)}
+        builder.ExportInput(mux.get_input_port(index["position"]), "goal_position")
+        for sig in ("position", "velocity", "acceleration"):
+            builder.ExportOutput(demux[sig].get_output_port(index["position"]), sig)
+        if obstacle:
+            obs = builder.AddNamedSystem("obstacle_coupling", ObstacleCoupling(gamma, beta))
+            builder.Connect(demux["position"].get_output_port(0), obs.GetInputPort("position"))
+            builder.Connect(demux["velocity"].get_output_port(0), obs.GetInputPort("velocity"))
+            pad = builder.AddNamedSystem("coupling_mux", Multiplexer([3, n - 3]))
+            zeros = builder.AddNamedSystem("coupling_zeros", ConstantVectorSource(np.zeros(n - 3)))
+            builder.Connect(obs.GetOutputPort("coupling"), pad.get_input_port(0))
+            builder.Connect(zeros.get_output_port(), pad.get_input_port(1))
+            builder.Connect(pad.get_output_port(0), sysd.get_coupling_input_port())
+            builder.ExportInput(obs.GetInputPort("obstacle"), "obstacle")
+            self.obstacle_coupling = obs
+        if "orientation" in index:
+            i = index["orientation"]
+            norm = builder.AddNamedSystem("quaternion_normalizer", QuaternionNormalizer())
+            builder.Connect(demux["position"].get_output_port(i), norm.get_quaternion_input_port())
+            builder.Connect(
+                demux["velocity"].get_output_port(i), norm.get_quaternion_rate_input_port()
+            )
+            builder.ExportInput(mux.get_input_port(i), "goal_orientation")
+            builder.ExportOutput(norm.get_orientation_output_port(), "orientation")
+            builder.ExportOutput(norm.get_angular_velocity_output_port(), "angular_velocity")
+        else:
+            man = builder.AddNamedSystem(
+                "orientation_dmp", ManifoldQuaternionSystem(dmp.orientation, time_step=time_step)
+            )
+            builder.Connect(sysd.get_phase_output_port(), man.get_phase_input_port())
+            builder.ExportInput(man.get_goal_input_port(), "goal_orientation")
+            builder.ExportOutput(man.get_orientation_output_port(), "orientation")
+            builder.ExportOutput(man.get_angular_velocity_output_port(), "angular_velocity")
+            self._manifold = man
+        if "fingers" in index:
+            i = index["fingers"]
+            builder.ExportInput(mux.get_input_port(i), "goal_fingers")
+            builder.ExportOutput(demux["position"].get_output_port(i), "fingers")
+            builder.ExportOutput(demux["velocity"].get_output_port(i), "finger_velocity")
+        phase = builder.AddNamedSystem("phase", PassThrough(1))
+        builder.Connect(sysd.get_phase_output_port(), phase.get_input_port())
+        builder.ExportOutput(phase.get_output_port(), "phase")
+        self._parts = {}
+        return True
+
     def _build_task_space(self, builder, dmp: TaskSpaceDmp, time_step, obstacle, gamma, beta):
+        if time_step is not None and self._build_fused(
+            builder, dmp, time_step, obstacle, gamma, beta
+        ):
+            return
         pos = _VectorDmp(builder, dmp.position, time_step, obstacle, "position_dmp")
         self._parts = {"position": pos}
         builder.ExportInput(pos.system.get_goal_input_port(), "goal_position")
@@ -196,6 +301,11 @@ class DmpSystem(Diagram):
 
     # ------------------------------------------------------------------ context helpers
     def _subsystems(self):
+        if self._fused is not None:
+            yield self._fused
+            if self._manifold is not None:
+                yield self._manifold
+            return
         for part in self._parts.values():
             if isinstance(part, _VectorDmp):
                 yield part.system
@@ -221,6 +331,9 @@ class DmpSystem(Diagram):
             orientation: Start quaternion (TaskSpaceDmp only).
             fingers: Start finger positions (TaskSpaceDmp only).
         """
+        if self._fused is not None:
+            self._set_start_fused(context, position, velocity, orientation, fingers)
+            return
         if position is not None:
             part = self._parts["position"]
             part.system.set_start(
@@ -240,6 +353,30 @@ class DmpSystem(Diagram):
             if part is None:
                 raise RepertoireError("this DMP has no finger part")
             part.system.set_start(self.GetMutableSubsystemContext(part.system, context), fingers)
+
+    def _set_start_fused(self, context, position, velocity, orientation, fingers) -> None:
+        sysd = self._fused
+        sub = self.GetMutableSubsystemContext(sysd, context)
+        x0 = sub.get_numeric_parameter(sysd._x0).get_value().copy()
+        xd0 = np.zeros_like(x0)
+        given = {"position": position, "orientation": orientation, "fingers": fingers}
+        for name, value in given.items():
+            if value is None:
+                continue
+            if name == "orientation" and self._manifold is not None:
+                q = _check_size("orientation", value, 4)
+                self._manifold.set_start(
+                    self.GetMutableSubsystemContext(self._manifold, context), q
+                )
+                continue
+            if name not in self._slices:
+                raise RepertoireError(f"this DMP has no {name} part")
+            sl = self._slices[name]
+            x0[sl] = _check_size(name, value, sl.stop - sl.start)
+        if velocity is not None:
+            sl = self._slices["position"]
+            xd0[sl] = _check_size("velocity", velocity, sl.stop - sl.start)
+        sysd.set_start(sub, x0, xd0)
 
     def set_start_time(self, context: Context, start_time: float) -> None:
         """Hold the whole DMP (phase 1, start state) until ``start_time``.

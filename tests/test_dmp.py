@@ -422,3 +422,19 @@ def test_bad_parameters():
         QuaternionDmpParameters(
             np.zeros((4, 5)), p.centres, p.widths, 1, 1, 1, 1, [1, 0, 0, 0], [1, 0, 0, 0]
         )
+
+
+def test_directional_primitive_moves_straight_along_any_direction():
+    from repertoire.planning.dmp import directional_primitive
+
+    t = np.linspace(0, 1, 300)
+    p = learn_dmp(t, minimum_jerk(np.zeros(2), np.array([1.0, 0.0]), 1.0, t)[0], n_basis=20)
+    d = directional_primitive(p, np.array([1.0, 0.0]), np.array([1.0, 0.5]))
+    r = d.rollout(n_steps=1000)
+    assert np.abs(r.x[:, 0] - 1.0).max() < 1e-12  # no push along the learned Y1
+    ref = minimum_jerk(np.zeros(1), np.array([0.5]), 1.0, r.t)[0][:, 0]
+    assert np.abs(r.x[:, 1] - ref).max() < 1e-3  # the learned shape, scaled
+    plain = p.rollout(goal=np.array([1.0, 0.5]), x0=np.array([1.0, 0.0]), n_steps=1000)
+    assert np.abs(plain.x[:, 0] - 1.0).max() > 0.1  # the unscaled new form pushes along Y1
+    with pytest.raises(RepertoireError, match="does not move"):
+        directional_primitive(p, np.zeros(2), np.ones(2), dof=1)

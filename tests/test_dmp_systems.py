@@ -275,3 +275,32 @@ def test_task_space_dmp_system_reaches_goals(mode):
     np.testing.assert_allclose(sys.GetOutputPort("fingers").Eval(ctx), 0.3, atol=1e-3)
     with pytest.raises(RepertoireError, match="DmpSystem needs DmpParameters or TaskSpaceDmp"):
         DmpSystem("not a dmp")
+
+
+def test_continuous_dmp_system_with_obstacle_input_matches_euler_reference(dmp3):
+    obstacle = np.array([0.5, 0.4, 0.0])
+    builder = DiagramBuilder()
+    sys = add_dmp(builder, dmp3, time_step=None, obstacle_avoidance=True, gamma=300.0, beta=2.0)
+    for port, val in (("goal", dmp3.goal), ("obstacle", obstacle)):
+        src = builder.AddSystem(ConstantVectorSource(val))
+        builder.Connect(src.get_output_port(), sys.GetInputPort(port))
+    sim = Simulator(builder.Build())
+    sim.get_mutable_integrator().set_target_accuracy(1e-8)
+    sim.AdvanceTo(1.0)
+    x = sys.GetOutputPort("position").Eval(sys.GetMyContextFromRoot(sim.get_context()))
+    ref = dmp3.rollout(
+        dt=1e-4,
+        n_steps=10000,
+        method="euler",
+        coupling=lambda p, v: obstacle_coupling(p, v, obstacle, 300.0, 2.0),
+    )
+    plain = dmp3.rollout(dt=1e-3, n_steps=1000)
+    assert np.abs(x - ref.x[-1]).max() < 2e-3  # Euler at 0.1 ms vs error-controlled RK3
+    assert np.abs(x - plain.x[-1]).max() > 1e-2  # the coupling changed the path
+    with pytest.raises(RepertoireError, match="obstacle avoidance needs a 3-D DMP"):
+        DmpSystem(
+            learn_dmp(
+                np.linspace(0, 1, 50), np.zeros((50, 2)) + np.linspace(0, 1, 50)[:, None], n_basis=5
+            ),
+            obstacle_avoidance=True,
+        )

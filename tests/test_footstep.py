@@ -262,6 +262,7 @@ def test_footprint_checker_matches_exact_reference():
     fast = [chk.is_free(*p) for p in poses]
     ref = [not foot_collides_reference(grid, p, 0.16, 0.10) for p in poses]
     assert fast == ref
+    assert [chk.is_free(p[0], p[1], p[2] - 4 * math.pi) for p in poses[:300]] == ref[:300]
     assert 0.2 < np.mean(ref) < 0.9  # both outcomes are exercised
     # a foot exactly between two obstacles whose edges it touches is free (no circle test)
     g = OccupancyGrid.from_rectangles(

@@ -40,6 +40,7 @@ class FootprintMasks:
         self.half = (foot_length / 2.0, foot_width / 2.0)
         self.resolution = resolution
         self.yaw_bins = yaw_bins
+        self.yaw_scale = yaw_bins / (2.0 * math.pi)
         self.sub = sub
         self.r_diag = math.hypot(*self.half)
         dyaw = 2.0 * math.pi / yaw_bins
@@ -80,7 +81,7 @@ class FootprintMasks:
             fx: fractional x in [0, 1) within the cell.
             fy: fractional y in [0, 1) within the cell.
         """
-        yb = int(round(yaw * self.yaw_bins / (2.0 * math.pi))) % self.yaw_bins
+        yb = int(yaw * self.yaw_scale + self.yaw_bins + 0.5) % self.yaw_bins
         qx = min(int(fx * self.sub), self.sub - 1)
         qy = min(int(fy * self.sub), self.sub - 1)
         return (yb * self.sub + qx) * self.sub + qy
@@ -166,6 +167,7 @@ class FootprintChecker:
         fy = (y - self.y0) * self.inv_res
         if not (0.0 <= fx < self.nx and 0.0 <= fy < self.ny):
             return False
+        yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
         ix, iy = int(fx), int(fy)
         base = (ix + self.pad) * self.nyp + iy + self.pad
         if self.free_bytes[base]:
@@ -173,8 +175,16 @@ class FootprintChecker:
         return self._check_masks(base, ix, iy, fx - ix, fy - iy, yaw)
 
     def _check_masks(self, base: int, ix: int, iy: int, fx: float, fy: float, yaw: float) -> bool:
+        """Mask test of a foot centred at fraction (fx, fy) of cell (ix, iy); yaw in [-pi, pi)."""
         masks = self.masks
-        m = masks.index(yaw, fx, fy)
+        sub = masks.sub
+        nb = masks.yaw_bins
+        qx = int(fx * sub)
+        qy = int(fy * sub)
+        m = (
+            ((int(yaw * masks.yaw_scale + nb + 0.5) % nb) * sub + (qx if qx < sub else sub - 1))
+            * sub
+        ) + (qy if qy < sub else sub - 1)
         rows = self.rows
         px = ix + self.pad
         shift = iy + self.pad - masks.radius_cells
@@ -225,6 +235,7 @@ class FootprintChecker:
         """
         if self.heights_flat is None:
             return 0.0
+        yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
         fx = (x - self.x0) * self.inv_res
         fy = (y - self.y0) * self.inv_res
         ix, iy = int(math.floor(fx)), int(math.floor(fy))

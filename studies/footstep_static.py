@@ -252,13 +252,18 @@ def summarize(
         ``{label: path}`` of the files written.
     """
     from matplotlib.figure import Figure
-    from repertoire.planning.footstep.plot import draw_grid, draw_plan
+    from repertoire.planning.footstep.plot import action_effects_figure, draw_grid, draw_plan
 
     out_dir = Path(out_dir)
     out: dict[str, Path] = {}
     md = out_dir / "footstep_static.md"
     md.write_text("# Footstep planning, static obstacles\n\n" + summary_table(records))
     out["table"] = md
+    out["action_effects"] = action_effects_figure(
+        _table(config),
+        out_dir / "footstep_action_effects.png",
+        title=f"action table: {config.table_path or 'nominal'} (black: stance foot)",
+    )
 
     # example plans: half where the 2-D planner fails and the biped steps over, half where
     # the 2-D planner has to go around what the biped steps over

@@ -36,6 +36,7 @@ def test_static_study_smoke(tmp_path):
     assert "| footstep planner success |" in table and "| maps | 3 |" in table
     assert result.figures["examples"].stat().st_size > 0
     assert result.figures["distributions"].stat().st_size > 0
+    assert result.figures["action_effects"].stat().st_size > 0
 
 
 def test_static_paper_setting_episode():

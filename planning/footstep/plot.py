@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
-from repertoire.planning.footstep.types import FootstepPlan
+from repertoire.planning.footstep.types import ActionTable, FootstepPlan
 
 LEFT_COLOR = "#1f5fd6"
 RIGHT_COLOR = "#d6541f"
@@ -193,6 +193,79 @@ def dynamic_plan_figure(
         action = plan.actions[k - 1] if k > 0 else "start"
         ax.set_title(f"step {k}: {action}, t = {t:.1f} s", fontsize=8)
         ax.tick_params(labelsize=6)
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path)
+    return path
+
+
+def action_effects_figure(
+    table: ActionTable,
+    path: "str | Path",
+    *,
+    histories: Sequence[Sequence[str]] | None = None,
+    stance_foot: int = 1,
+    geometry: BipedGeometry = ASIMO_LIKE,
+    title: str = "",
+) -> Path:
+    """Write a Fig. 2-like PNG: where the swing foot lands for every action, per history.
+
+    The stance foot (black) stands at the origin facing +x; each outline is the landing
+    pose of the other foot for one action, labelled with the action's name.
+
+    Args:
+        table: the action table.
+        path: output PNG.
+        histories: ``(a_prev2, a_prev1)`` per panel; default standing still and full-speed
+            walking (the longest forward action twice).
+        stance_foot: 0 left, 1 right.
+        geometry: foot size.
+        title: figure title.
+    """
+    if histories is None:
+        fwd = max(range(table.n), key=lambda a: table.displacement[0, 0, stance_foot, a, 0])
+        histories = [
+            (table.rest_action, table.rest_action),
+            (table.actions[fwd], table.actions[fwd]),
+        ]
+    fig = Figure(figsize=(3.6 * len(histories), 3.8), dpi=120)
+    colors = [
+        "#1f77b4",
+        "#ff7f0e",
+        "#2ca02c",
+        "#d62728",
+        "#9467bd",
+        "#8c564b",
+        "#e377c2",
+        "#7f7f7f",
+        "#bcbd22",
+        "#17becf",
+    ]
+    for p, (h2, h1) in enumerate(histories):
+        ax = fig.add_subplot(1, len(histories), p + 1)
+        ax.add_patch(Polygon(foot_polygon((0, 0, 0), geometry), closed=True, fc="k"))
+        for a, name in enumerate(table.actions):
+            dx, dy, dth, dur = table.lookup(h2, h1, stance_foot, name)
+            c = colors[a % len(colors)]
+            ax.add_patch(
+                Polygon(
+                    foot_polygon((dx, dy, dth), geometry),
+                    closed=True,
+                    fill=False,
+                    ec=c,
+                    lw=1.3,
+                    label=f"{name} ({dur:.2f} s)",
+                )
+            )
+        ax.set_xlim(-0.25, 0.45)
+        lo = -0.15 if stance_foot == 1 else -0.45
+        ax.set_ylim(lo, lo + 0.6)
+        ax.set_aspect("equal")
+        ax.set_title(f"after {h2}, {h1}", fontsize=8)
+        ax.tick_params(labelsize=6)
+        ax.legend(fontsize=5, loc="upper left" if stance_foot == 0 else "lower right")
     if title:
         fig.suptitle(title, fontsize=9)
     fig.tight_layout()

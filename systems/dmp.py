@@ -18,9 +18,9 @@ from repertoire.planning.dmp_math import (
     FORMULATIONS,
     check_positive,
     forcing_term,
+    manifold_step,
     obstacle_coupling,
     quat_error,
-    quat_exp,
     quat_multiply,
     transformation_derivatives,
 )
@@ -391,8 +391,10 @@ class ManifoldQuaternionSystem(LeafSystem):
     """On-manifold quaternion DMP, discrete time (exact unit norm via the exponential map).
 
     Discrete state ``[q (4), eta (3)]`` (eta = tau omega, world frame), updated every
-    ``time_step``: ``eta += dt/tau * eta'`` then ``q = exp(dt eta / (2 tau)) * q``, with
+    ``time_step`` by :func:`repertoire.planning.dmp_math.manifold_step` (velocity Verlet
+    with the rotation applied through the exponential map) for
     ``tau eta' = K e(g,q) - D eta - K e(g,q0) theta + K f(theta)``, ``e = 2 log(g q^*)``.
+    The phase at the end of a step is ``theta exp(-alpha dt / tau)`` (constant tau).
     The state is held before the ``start_time`` parameter.
 
     Input ports:
@@ -415,6 +417,9 @@ class ManifoldQuaternionSystem(LeafSystem):
         check_positive("time_step", time_step)
         self._b = dmp.n_basis
         self._dt = float(time_step)
+        # The phase input is assumed to decay as the canonical system with this DMP's
+        # tau and alpha (used for the phase at the end of each step).
+        self._decay = float(np.exp(-dmp.alpha * self._dt / dmp.tau))
         self._w = self.DeclareNumericParameter(BasicVector(dmp.weights.reshape(-1)))
         self._c = self.DeclareNumericParameter(BasicVector(dmp.centres))
         self._h = self.DeclareNumericParameter(BasicVector(dmp.widths))
@@ -482,14 +487,13 @@ class ManifoldQuaternionSystem(LeafSystem):
         p = context.get_numeric_parameter
         K, D, tau = p(self._gains).value()
         theta = float(self._phase_port.Eval(context)[0])
+        theta_next = theta * self._decay
         goal = _finite_goal(self._goal_port.Eval(context))
-        f = forcing_term(
-            theta, p(self._w).value().reshape(3, self._b), p(self._c).value(), p(self._h).value()
-        )
-        q0 = p(self._q0).value()
-        tau_etad = K * quat_error(goal, q) - D * eta - K * quat_error(goal, q0) * theta + K * f
-        eta = eta + self._dt * tau_etad / tau
-        q = quat_multiply(quat_exp(0.5 * self._dt * eta / tau), q)
+        W = p(self._w).value().reshape(3, self._b)
+        f = forcing_term(np.array([theta, theta_next]), W, p(self._c).value(), p(self._h).value())
+        e0 = quat_error(goal, p(self._q0).value())
+        a = (K * quat_error(goal, q) - K * e0 * theta + K * f[0]) / tau
+        eta, q, _ = manifold_step(q, eta, a, goal, e0, theta_next, f[1], K, D, tau, self._dt)
         discrete_state.get_mutable_vector(self._state).SetFromVector(np.concatenate([q, eta]))
 
     def _calc_q(self, context: Context, output: BasicVector) -> None:

@@ -39,8 +39,8 @@ class GridConfig:
         path_every_s: sampling period of the stored tcp path [s].
     """
 
-    grasp_x: list[float] = dataclasses.field(default_factory=lambda: [0.48, 0.62])
-    grasp_y: list[float] = dataclasses.field(default_factory=lambda: [-0.34, -0.16])
+    grasp_x: list[float] = dataclasses.field(default_factory=lambda: [0.48, 0.60])
+    grasp_y: list[float] = dataclasses.field(default_factory=lambda: [-0.32, -0.16])
     place_x: list[float] = dataclasses.field(default_factory=lambda: [0.48, 0.62])
     place_y: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.18])
     n: int = 3

@@ -291,6 +291,13 @@ def test_dynamic_environment_nearest_time_and_errors():
         DynamicEnvironment([0.0, 1.0], [env.grids[0], coarse], max_time_gap=0.5)
     with pytest.raises(GridError, match="strictly increasing"):
         DynamicEnvironment([0.0, 0.0], env.grids[:2], max_time_gap=0.5)
+    path = MovingRectObstacle(
+        [0, 0], [0.1, 0.1], waypoints=[[0, 0.2, 0.2], [2, 0.6, 0.2], [4, 0.6, 0.8]]
+    )
+    assert path.center_at(-1) == [0.2, 0.2] and path.center_at(1) == pytest.approx([0.4, 0.2])
+    assert path.center_at(3) == pytest.approx([0.6, 0.5]) and path.center_at(9) == [0.6, 0.8]
+    with pytest.raises(GridError, match="increase strictly"):
+        MovingRectObstacle([0, 0], [0.1, 0.1], waypoints=[[1, 0, 0], [1, 1, 1]])
     with pytest.raises(GridError, match="2 times but 1 grids"):
         DynamicEnvironment([0.0, 1.0], env.grids[:1], max_time_gap=0.5)
 

@@ -71,7 +71,11 @@ class RectObstacle:
 
 @dataclasses.dataclass
 class MovingRectObstacle:
-    """A rectangle translating at constant velocity: ``center(t) = center + velocity t``.
+    """A rectangle moving on a known trajectory.
+
+    Without waypoints it translates at constant velocity: ``center(t) = center + velocity t``.
+    With waypoints ``[[t0, x0, y0], [t1, x1, y1], ...]`` (increasing times) its centre is
+    interpolated linearly between them and held before the first and after the last.
 
     Attributes:
         center: ``[x, y]`` at t = 0 (m).
@@ -79,13 +83,34 @@ class MovingRectObstacle:
         velocity: ``[vx, vy]`` (m/s).
         yaw: orientation (rad).
         height: height (m).
+        waypoints: optional ``[t, x, y]`` rows of a piecewise-linear trajectory.
     """
 
     center: list[float]
     size: list[float]
-    velocity: list[float]
+    velocity: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0])
     yaw: float = 0.0
     height: float = 0.02
+    waypoints: list[list[float]] = dataclasses.field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if self.waypoints:
+            w = np.asarray(self.waypoints, dtype=float)
+            if w.ndim != 2 or w.shape[1] != 3 or not np.all(np.isfinite(w)):
+                raise GridError(f"waypoints must be finite [t, x, y] rows, got {self.waypoints}")
+            if np.any(np.diff(w[:, 0]) <= 0):
+                raise GridError("waypoint times must increase strictly")
+
+    def center_at(self, t: float) -> list[float]:
+        """Centre ``[x, y]`` at time ``t``.
+
+        Args:
+            t: time (s).
+        """
+        if self.waypoints:
+            w = np.asarray(self.waypoints, dtype=float)
+            return [float(np.interp(t, w[:, 0], w[:, 1])), float(np.interp(t, w[:, 0], w[:, 2]))]
+        return [self.center[0] + self.velocity[0] * t, self.center[1] + self.velocity[1] * t]
 
     def at(self, t: float) -> RectObstacle:
         """The obstacle at time ``t``.
@@ -94,10 +119,7 @@ class MovingRectObstacle:
             t: time (s).
         """
         return RectObstacle(
-            center=[self.center[0] + self.velocity[0] * t, self.center[1] + self.velocity[1] * t],
-            size=list(self.size),
-            yaw=self.yaw,
-            height=self.height,
+            center=self.center_at(t), size=list(self.size), yaw=self.yaw, height=self.height
         )
 
 

@@ -213,12 +213,20 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
     fig = Figure(figsize=(12, 5.2), layout="constrained")
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ax = fig.add_subplot(1, 2, 2)
-    for label in ("grasp", "place"):
+    for label, style in (("grasp", "-"), ("place", "--")):
         p = demos[label][1]
-        ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="tab:blue", lw=2.0)
-        ax.plot(p[:, 1], p[:, 0], color="tab:blue", lw=2.0, label=f"demonstrated {label}")
+        ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="tab:blue", lw=2.5, ls=style, zorder=5)
+        ax.plot(
+            p[:, 1],
+            p[:, 0],
+            color="tab:blue",
+            lw=2.5,
+            ls=style,
+            zorder=5,
+            label=f"demonstrated {label}",
+        )
     for r in records:
-        color = "tab:red" if r.reached else "k"
+        color = "tab:red" if r.reached else "0.3"
         ax3.plot(r.path_x, r.path_y, r.path_z, color=color, lw=0.7)
         ax.plot(r.path_y, r.path_x, color=color, lw=0.7)
         for g in (r.grasp_goal, r.place_goal):
@@ -227,7 +235,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
     ax3.set_xlabel("x (m)")
     ax3.set_ylabel("y (m)")
     ax3.set_zlabel("z (m)")
-    ax3.set_title("tcp paths in the physics simulation (red) to new goals (green)")
+    ax3.set_title("demonstrations (blue) and physical tcp paths (red) to new goals (green)")
     ax.set_xlabel("y (m, left)")
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()

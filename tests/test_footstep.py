@@ -627,3 +627,16 @@ def test_height_cost_penalises_uneven_footholds():
     assert careful.cost == pytest.approx(steps + w * sum(ranges))
     assert sum(chk.height_range(*p) for p in flat.poses[1:]) > 0  # ignores the edge
     assert sum(ranges) == 0.0  # no foot straddles the edge when it costs
+
+
+def test_start_in_goal_and_turning_around():
+    g = OccupancyGrid.empty((2.0, 2.0))
+    t = nominal_action_table()
+    here = plan_footsteps(g, (1.0, 1.0, 0.0), "left", (1.05, 1.0), t)
+    assert here.status == PlanStatus.SUCCESS and here.num_steps == 0 and here.cost == 0.0
+    # facing away from the goal: turning steps of 0.35 rad first, then walking
+    back = plan_footsteps(g, (1.0, 1.0, 3.0), "left", (1.9, 1.0), t)
+    assert back.succeeded
+    turns = sum(a in ("turn_left", "turn_right") for a in back.actions)
+    assert turns >= math.ceil((3.0 - 0.6) / 0.35)
+    follows_table(back, t)

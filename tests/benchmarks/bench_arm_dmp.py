@@ -57,7 +57,8 @@ def main() -> None:
             print(
                 f"{name} dt={dt * 1000:.0f} ms: {sim:.2f} s simulated in {wall:.2f} s wall "
                 f"({cpu:.2f} s CPU), real-time factor {sim / wall:.2f}; success "
-                f"{fig['success']:.0f}, grasp reach error {fig['grasp_reach_error_m'] * 1000:.2f} mm"
+                f"{fig['success']:.0f}, grasp reach error "
+                f"{fig['grasp_reach_error_m'] * 1000:.2f} mm"
             )
         print(f"{name}: CPU ratio 4 ms / 2 ms step = {cpus[0.004] / cpus[0.002]:.2f}")
 

@@ -304,3 +304,28 @@ def test_continuous_dmp_system_with_obstacle_input_matches_euler_reference(dmp3)
             ),
             obstacle_avoidance=True,
         )
+
+
+def test_online_time_scaling_input(dmp3):
+    ts = TransformationSystem(dmp3, time_scaling_input=True)
+    ctx = ts.CreateDefaultContext()
+    ts.get_phase_input_port().FixValue(ctx, [0.5])
+    ts.get_goal_input_port().FixValue(ctx, dmp3.goal)
+    ts.get_tau_input_port().FixValue(ctx, [2.0 * dmp3.tau])
+    ctx.get_mutable_continuous_state_vector().SetFromVector(np.r_[dmp3.x0, 0.3, -0.2, 0.1])
+    f = forcing_term(0.5, dmp3.weights, dmp3.centres, dmp3.widths)
+    exp_xd, exp_vd = transformation_derivatives(
+        dmp3.x0,
+        np.array([0.3, -0.2, 0.1]),
+        0.5,
+        dmp3.goal,
+        dmp3.x0,
+        f,
+        dmp3.K,
+        dmp3.D,
+        2.0 * dmp3.tau,
+    )
+    np.testing.assert_allclose(ts.EvalTimeDerivatives(ctx).CopyToVector(), np.r_[exp_xd, exp_vd])
+    ts.get_tau_input_port().FixValue(ctx, [-1.0])
+    with pytest.raises(RepertoireError, match="tau must be > 0"):
+        ts.EvalTimeDerivatives(ctx)

@@ -110,6 +110,42 @@ def main() -> int:
         ("Drake Simulator 1 kHz (ms)", sim_mp * 1e3, sim_our * 1e3, sim_our / sim_mp, "<= 3")
     )
 
+    # Continuous CanonicalSystem + TransformationSystem, RK2 fixed step 1 ms (information).
+    from pydrake.systems.analysis import ResetIntegratorFromFlags
+    from repertoire.systems.dmp import TransformationSystem
+
+    b3 = DiagramBuilder()
+    cs3 = b3.AddSystem(CanonicalSystem(ours.tau, ours.alpha))
+    ts3 = b3.AddSystem(TransformationSystem(ours))
+    s3 = b3.AddSystem(ConstantVectorSource(ours.goal))
+    b3.Connect(cs3.get_phase_output_port(), ts3.get_phase_input_port())
+    b3.Connect(s3.get_output_port(), ts3.get_goal_input_port())
+    d3 = b3.Build()
+    sim3 = Simulator(d3)
+    ResetIntegratorFromFlags(sim3, "runge_kutta2", DT)
+    sim3.get_mutable_integrator().set_fixed_step_mode(True)
+    ctx3, default3 = sim3.get_mutable_context(), d3.CreateDefaultContext()
+
+    def continuous_roll():
+        ctx3.SetTimeStateAndParametersFrom(default3)
+        sim3.Initialize()
+        sim3.AdvanceTo(1000 * DT)
+
+    continuous_roll()
+    c_mp, c_our = [], []
+    for _ in range(max(3, args.repeats // 3)):
+        c_mp.append(median_time(mp_roll, 1)[0])
+        c_our.append(median_time(continuous_roll, 1)[0])
+    rows.append(
+        (
+            "Drake continuous RK2 1 kHz (ms, info)",
+            statistics.median(c_mp) * 1e3,
+            statistics.median(c_our) * 1e3,
+            statistics.median(c_our) / statistics.median(c_mp),
+            "info",
+        )
+    )
+
     # ---- accuracy
     _, Y_mp = mp_dmp.open_loop(run_t=duration, step_function="euler-cython")
     k = min(len(Y_mp), N_SAMPLES)

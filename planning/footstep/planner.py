@@ -386,27 +386,21 @@ def plan_footsteps(
             k = k * 1_000_000 + int(t * inv_tq + 0.5)
         return k
 
-    X = [sx]
-    Y = [sy]
-    TH = [sth]
-    FT = [int(foot0)]
-    A2 = [h2]
-    A1 = [h1]
-    T = [float(start_time)]
-    G = [0.0]
-    P = [-1]
-    H = [cost_to_go(sx, sy)]
-    keys = [make_key(sx, sy, sth, int(foot0), h2, h1, start_time)]
-    best_g = {keys[0]: 0.0}
+    # a node is a tuple (key, x, y, yaw, foot, a_prev2, a_prev1, t, g, h, parent node)
+    key0 = make_key(sx, sy, sth, int(foot0), h2, h1, start_time)
+    root = (key0, sx, sy, sth, int(foot0), h2, h1, float(start_time), 0.0, cost_to_go(sx, sy), None)
+    best_g = {key0: 0.0}
     closed: set[int] = set()
-    heap = [(w_h * H[0], 0.0, 0)]
-    best_node = 0
+    heap = [(w_h * root[9], 0.0, 0, root)]
+    best_node = root
+    best_h, best_gg = root[9], 0.0
+    counter = 1
     deadline = t_begin + opts.time_limit
     tol2 = tol * tol
     expanded = 0
     max_exp = int(opts.max_expansions) if opts.max_expansions > 0 else -1
     generated = 0
-    goal_node = -1
+    goal_node = None
     status = PlanStatus.UNREACHABLE
     perf = time.perf_counter
     heappush, heappop = heapq.heappush, heapq.heappop
@@ -416,8 +410,8 @@ def plan_footsteps(
         if expanded and perf() > deadline:  # at least one expansion: a partial plan moves
             status = PlanStatus.TIME_LIMIT
             break
-        _, _, i = heappop(heap)
-        key = keys[i]
+        node = heappop(heap)[3]
+        key, x, y, th, f, a2_, a1_, t, g, _, _ = node
         if key in closed:
             continue
         if expanded == max_exp:
@@ -425,15 +419,11 @@ def plan_footsteps(
             break
         closed.add(key)
         expanded += 1
-        x, y, th = X[i], Y[i], TH[i]
         if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
-            goal_node = i
+            goal_node = node
             status = PlanStatus.SUCCESS
             break
-        f = FT[i]
         nf = 1 - f
-        a2_, a1_ = A2[i], A1[i]
-        g, t = G[i], T[i]
         c, s = cos(th), sin(th)
         hist_row = hist[a1_]
         for a, dx, dy, dth, dur, sc in succ[a2_][a1_][f]:
@@ -484,37 +474,27 @@ def plan_footsteps(
             h = h_cells[ix * nyg + iy] if h_cells is not None else cost_to_go(x2, y2)
             if h == inf:
                 continue
-            j = len(X)
-            X.append(x2)
-            Y.append(y2)
-            TH.append(th2)
-            FT.append(nf)
-            A2.append(a1_)
-            A1.append(a)
-            T.append(t2)
-            G.append(g2)
-            P.append(i)
-            H.append(h)
-            keys.append(k2)
-            if h < H[best_node] or (h == H[best_node] and g2 < G[best_node]):
-                best_node = j
-            heappush(heap, (g2 + w_h * h, -g2, j))
+            child = (k2, x2, y2, th2, nf, a1_, a, t2, g2, h, node)
+            if h < best_h or (h == best_h and g2 < best_gg):
+                best_node, best_h, best_gg = child, h, g2
+            heappush(heap, (g2 + w_h * h, -g2, counter, child))
+            counter += 1
 
-    end = goal_node if goal_node >= 0 else best_node
+    end = goal_node if goal_node is not None else best_node
     chain = []
-    j = end
-    while j >= 0:
-        chain.append(j)
-        j = P[j]
+    nd = end
+    while nd is not None:
+        chain.append(nd)
+        nd = nd[10]
     chain.reverse()
     return FootstepPlan(
-        poses=[[X[j], Y[j], TH[j]] for j in chain],
-        feet=[FT[j] for j in chain],
-        actions=[names[A1[j]] for j in chain[1:]],
-        times=[T[j] for j in chain],
+        poses=[[nd[1], nd[2], nd[3]] for nd in chain],
+        feet=[nd[4] for nd in chain],
+        actions=[names[nd[6]] for nd in chain[1:]],
+        times=[nd[7] for nd in chain],
         status=status,
-        cost=G[end],
-        cost_to_go=H[end],
+        cost=end[8],
+        cost_to_go=end[9],
         nodes_expanded=expanded,
         nodes_generated=generated,
         planning_time_s=time.perf_counter() - t_begin,

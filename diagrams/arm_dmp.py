@@ -523,15 +523,6 @@ class ServingScenario:
 
 
 # ----------------------------------------------------------------------------- building
-@dataclasses.dataclass
-class ArmDmpParts:
-    """Handles into a built arm DMP world (found again by name in a Diagram)."""
-
-    start_times: list
-    goals: list
-    duration: float
-
-
 #: The coaster rides 1 mm above the table top (no rubbing on the table).
 COASTER_RAIL_HEIGHT = TABLE_HEIGHT + 0.001
 
@@ -613,7 +604,23 @@ def _build_world(
     logs: dict | None = None,
     meshcat=None,
 ) -> Diagram:
-    """Wires DMP chain -> RMRC IK -> ID + PD -> arm7 plant for one world (see module doc)."""
+    """Wires DMP chain -> RMRC IK -> ID + PD -> arm7 plant for one world (see module doc).
+
+    Args:
+        name: the Diagram's name.
+        scenario: a validated scenario (time_step, contact_approximation,
+            grasp_mode, settle_time).
+        objects: the table's objects (table and arm are always added).
+        goals: one goal per chain segment, in order (labels from the motion library).
+        graspable: "instance:body" of the objects the grip may hold (grip mode).
+        coaster: optional moving coaster {"xy", "final_xy", "t0", "t1"}.
+        obstacle: optional {"xyz", "coupling", "gamma", "beta"} for ObstacleCoupling.
+        logs: extra logs: name -> (body, instance, point in the body frame).
+        meshcat: optional Meshcat for a visualizer.
+
+    Raises:
+        RepertoireError: a fixed goal out of the arm's reach.
+    """
     lib = motion_library()
     shoulder, reach = shoulder_and_reach()
     for g in goals:

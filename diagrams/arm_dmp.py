@@ -369,7 +369,34 @@ class GoalSchedule(LeafSystem):
     """
 
     def __init__(self, goals: list[SegmentGoal]):
+        """Builds the schedule.
+
+        Args:
+            goals: one goal per chain segment.
+
+        Raises:
+            RepertoireError: a goal of the wrong size, not finite, or a non-unit
+                orientation.
+        """
         super().__init__()
+        for k, g in enumerate(goals):
+            for what, value, size in (
+                ("position", g.position, 3),
+                ("orientation", g.orientation, 4),
+                ("fingers", g.fingers, 3),
+            ):
+                v = np.asarray(value, dtype=float).reshape(-1)
+                if v.size != size or not np.all(np.isfinite(v)):
+                    raise RepertoireError(
+                        f"goal {k} ({g.label}): {what} must be {size} finite numbers, got "
+                        f"{np.asarray(value).tolist()}"
+                    )
+            norm = float(np.linalg.norm(g.orientation))
+            if abs(norm - 1.0) > 1e-6:
+                raise RepertoireError(
+                    f"goal {k} ({g.label}): orientation must be a unit quaternion [w, x, y, z], "
+                    f"its norm is {norm:.6f} (off by {abs(norm - 1.0):.2e})"
+                )
         self._goals = goals
         self._segment = self.DeclareVectorInputPort("segment", 1)
         self._poses = self.DeclareAbstractInputPort(

@@ -131,3 +131,16 @@ def test_target_leaving_the_reach_during_a_run_stops_it():
     )
     with pytest.raises(IkTargetError, match="target out of reach.* at t = 0.00"):
         run_arm_world(diagram, 1.0)
+
+
+def test_goal_of_the_wrong_size_is_refused():
+    from repertoire.diagrams.arm_dmp import GoalSchedule
+
+    q = _quat(R_SIDE)
+    fingers = np.array(HAND_GRASP_7CM)
+    with pytest.raises(RepertoireError, match="position must be 3 finite numbers"):
+        GoalSchedule([SegmentGoal("grasp", np.zeros(2), q, fingers)])
+    with pytest.raises(RepertoireError, match="fingers must be 3 finite numbers"):
+        GoalSchedule([SegmentGoal("grasp", np.zeros(3), q, np.zeros(10))])
+    with pytest.raises(RepertoireError, match="unit quaternion .* off by 1.00e"):
+        GoalSchedule([SegmentGoal("grasp", np.zeros(3), 2 * q, fingers)])

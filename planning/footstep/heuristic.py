@@ -6,47 +6,59 @@ the mean traversal cost of the two cells (1 on free cells, ``obstacle_cost`` on 
 ones, which the biped may still step over). It is informed but not admissible.
 """
 
+import functools
 import math
 
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid
 from scipy import ndimage
-from scipy.sparse import coo_matrix
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 _NEIGHBOURS = ((1, 0), (0, 1), (1, 1), (1, -1))
 
 
-def grid_graph(cell_cost: np.ndarray, resolution: float) -> coo_matrix:
-    """Undirected 8-connected graph over the cells with finite cost.
+@functools.lru_cache(maxsize=8)
+def _grid_structure(nx: int, ny: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Both directions of every 8-connected edge, sorted by source: (src, dst, length, indptr)."""
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    src, dst, length = [], [], []
+    for di, dj in _NEIGHBOURS:
+        i0, i1 = max(0, -di), nx - max(0, di)
+        j0, j1 = max(0, -dj), ny - max(0, dj)
+        a = idx[i0:i1, j0:j1].ravel()
+        b = idx[i0 + di : i1 + di, j0 + dj : j1 + dj].ravel()
+        d = np.full(a.shape, math.hypot(di, dj))
+        src += [a, b]
+        dst += [b, a]
+        length += [d, d]
+    s, t, L = np.concatenate(src), np.concatenate(dst), np.concatenate(length)
+    order = np.argsort(s, kind="stable")
+    s, t, L = s[order], t[order], L[order]
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(s, minlength=nx * ny))])
+    return s, t, L, indptr
+
+
+def grid_graph(cell_cost: np.ndarray, resolution: float) -> csr_matrix:
+    """8-connected graph over the cells; an edge costs its length times the mean cell cost.
 
     Args:
         cell_cost: (nx, ny) traversal cost per metre of each cell (inf = no passage).
         resolution: cell side (m).
 
     Returns:
-        a sparse (nx ny) x (nx ny) matrix of edge lengths (only the upper direction; use
-        ``directed=False``).
+        a sparse (nx ny) x (nx ny) matrix with both directions of every finite edge (use
+        ``directed=True``).
     """
     nx, ny = cell_cost.shape
-    idx = np.arange(nx * ny).reshape(nx, ny)
-    rows, cols, weights = [], [], []
-    for di, dj in _NEIGHBOURS:
-        i0, i1 = max(0, -di), nx - max(0, di)
-        j0, j1 = max(0, -dj), ny - max(0, dj)
-        a = idx[i0:i1, j0:j1]
-        b = idx[i0 + di : i1 + di, j0 + dj : j1 + dj]
-        ca = cell_cost[i0:i1, j0:j1]
-        cb = cell_cost[i0 + di : i1 + di, j0 + dj : j1 + dj]
-        w = 0.5 * (ca + cb) * resolution * math.hypot(di, dj)
-        ok = np.isfinite(w)
-        rows.append(a[ok])
-        cols.append(b[ok])
-        weights.append(w[ok])
-    return coo_matrix(
-        (np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
-        shape=(nx * ny, nx * ny),
-    )
+    s, t, L, indptr = _grid_structure(nx, ny)
+    flat = np.asarray(cell_cost, dtype=float).ravel()
+    w = 0.5 * (flat[s] + flat[t]) * (L * resolution)
+    ok = np.isfinite(w)
+    if ok.all():
+        return csr_matrix((w, t, indptr), shape=(nx * ny, nx * ny))
+    ptr = np.concatenate([[0], np.cumsum(np.bincount(s[ok], minlength=nx * ny))])
+    return csr_matrix((w[ok], t[ok], ptr), shape=(nx * ny, nx * ny))
 
 
 def dijkstra_cost_to_go(
@@ -83,6 +95,6 @@ def dijkstra_cost_to_go(
     sources = np.flatnonzero(d_goal <= max(goal_tolerance, grid.resolution * 0.75))
     if len(sources) == 0:
         sources = np.array([int(np.argmin(d_goal))])
-    g = grid_graph(cost, grid.resolution).tocsr()
-    dist = dijkstra(g, directed=False, indices=sources, min_only=True)
+    g = grid_graph(cost, grid.resolution)
+    dist = dijkstra(g, directed=True, indices=sources, min_only=True)
     return np.asarray(dist).reshape(grid.shape)

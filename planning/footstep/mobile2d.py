@@ -86,10 +86,10 @@ def plan_mobile2d(
     if blocked[g]:
         return fail("goal is within the bounding radius of an obstacle")
     cost = np.where(blocked, np.inf, 1.0)
-    graph = grid_graph(cost, grid.resolution).tocsr()
+    graph = grid_graph(cost, grid.resolution)
     ny = grid.shape[1]
     si, gi = s[0] * ny + s[1], g[0] * ny + g[1]
-    dist, pred = dijkstra(graph, directed=False, indices=si, return_predecessors=True)
+    dist, pred = dijkstra(graph, directed=True, indices=si, return_predecessors=True)
     if not np.isfinite(dist[gi]):
         return fail("no collision-free path for the bounding circle")
     cells = [gi]

@@ -142,5 +142,7 @@ def test_goal_of_the_wrong_size_is_refused():
         GoalSchedule([SegmentGoal("grasp", np.zeros(2), q, fingers)])
     with pytest.raises(RepertoireError, match="fingers must be 3 finite numbers"):
         GoalSchedule([SegmentGoal("grasp", np.zeros(3), q, np.zeros(10))])
-    with pytest.raises(RepertoireError, match=r"unit quaternion .*norm is 2.000000 \(off by 1.00e\+00\)"):
+    with pytest.raises(
+        RepertoireError, match=r"unit quaternion .*norm is 2.000000 \(off by 1.00e\+00\)"
+    ):
         GoalSchedule([SegmentGoal("grasp", np.zeros(3), 2 * q, fingers)])

@@ -8,6 +8,9 @@ collision if an inner cell is; only occupied cells of the thin ring between the 
 tested exactly (separating axes) for the actual pose. Far from obstacles a distance
 transform answers without any mask. The answer is always the exact one for the
 rectangle: a cell blocks a foot only if they overlap with positive area.
+
+The grid's rows are Python integers (one bit per cell) and each mask is a few
+``(row offset, bit pattern)`` pairs, so a test is a handful of shifts and ANDs.
 """
 
 import functools

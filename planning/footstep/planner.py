@@ -49,10 +49,11 @@ class PlannerOptions:
         obstacle_cost: Dijkstra traversal cost per metre over occupied cells (free = 1).
         step_over_depth: occupied cells deeper than this inside an obstacle (distance to
             the nearest free cell, m) cost ``10 obstacle_cost`` in the Dijkstra heuristic
-            (too thick to step over); negative:
-            derived from the table as half of (longest forward step - foot length) plus one
-            cell; ``inf``: every obstacle may be crossed at ``obstacle_cost``.
-        xy_resolution: lattice spacing used to merge states (m).
+            (too thick to step over); negative: derived from the table as half of (longest
+            forward step - foot length) plus one cell; ``inf``: every obstacle may be
+            crossed at ``obstacle_cost``.
+        xy_resolution: lattice spacing used to merge states (m); poses stay continuous,
+            states closer than this (same foot, yaw bin and history class) are one state.
         yaw_bins: yaw bins per turn used to merge states.
         time_resolution: time bins used to merge states in dynamic worlds (s).
         height_cost_weight: location cost per metre of height variation under a foot.

@@ -40,8 +40,8 @@ class ServingConfig:
     """
 
     bottle_x: list[float] = dataclasses.field(default_factory=lambda: [0.48, 0.56])
-    bottle_y: list[float] = dataclasses.field(default_factory=lambda: [-0.32, -0.24])
-    cup_x: list[float] = dataclasses.field(default_factory=lambda: [0.60, 0.70])
+    bottle_y: list[float] = dataclasses.field(default_factory=lambda: [-0.32, -0.26])
+    cup_x: list[float] = dataclasses.field(default_factory=lambda: [0.58, 0.66])
     cup_y: list[list[float]] = dataclasses.field(
         default_factory=lambda: [[-0.14, -0.06], [0.02, 0.08], [0.16, 0.22]]
     )

@@ -235,7 +235,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
     ax3.set_xlabel("x (m)")
     ax3.set_ylabel("y (m)")
     ax3.set_zlabel("z (m)")
-    ax3.set_title("demonstrations (blue) and physical tcp paths (red) to new goals (green)")
+    ax3.set_title("demos (blue), physical tcp paths (red), new goals (green)", fontsize=10)
     ax.set_xlabel("y (m, left)")
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()

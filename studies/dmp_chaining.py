@@ -348,7 +348,7 @@ register_study(
     description="DMP chaining (Fig. 5 square): acceleration/velocity jumps at switches",
     summarize=summarize,
     demo_config=demo_config,
-    demo_episodes=24,
+    demo_episodes=12,
     smoke_config=smoke_config,
 )
 

@@ -404,7 +404,7 @@ register_study(
     description="DMP goal generalisation, old vs new formulation: blow-up and mirroring",
     summarize=summarize,
     demo_config=demo_config,
-    demo_episodes=40,
+    demo_episodes=20,
     smoke_config=smoke_config,
 )
 

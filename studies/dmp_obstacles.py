@@ -300,7 +300,7 @@ register_study(
     description="DMP obstacle avoidance (eq. 10): clearance above the radius with/without",
     summarize=summarize,
     demo_config=demo_config,
-    demo_episodes=100,
+    demo_episodes=40,
     smoke_config=smoke_config,
 )
 

@@ -147,7 +147,8 @@ class FootprintChecker:
         self.inv_res = 1.0 / grid.resolution
         self.x0, self.y0 = grid.origin
         nyp = self.nyp
-        self.outer = [di * nyp + dj for di, dj in masks.outer]
+        # flat offsets of the outer masks, only needed for heights
+        self.outer = [di * nyp + dj for di, dj in masks.outer] if grid.heights is not None else []
         # each padded grid row as a Python int: bit j set when cell (i, j) is occupied
         packed = np.packbits(occ, axis=1, bitorder="little")
         self.rows = [int.from_bytes(packed[i].tobytes(), "little") for i in range(occ.shape[0])]

@@ -2,7 +2,8 @@
 
 Pipeline (Pastor et al. 2009, sec. IV, Fig. 7 and 11)::
 
-    TaskSpaceDmpChain (10-D DMPs: position, quaternion, 3 fingers; grasp -> place -> ...)
+    TaskSpaceDmpChain (10-D DMPs: position, quaternion, 3 fingers; grasp -> place -> ...;
+      segments run one after another, each started from its predecessor's x and v)
       -> ResolvedMotionRateIK (quaternion feedback, damped least squares, null-space
          joint-limit avoidance; reports targets out of reach)
       -> inverse-dynamics feed-forward + joint PD (diagrams/arm.py controllers)
@@ -12,8 +13,9 @@ The movements are synthesised once as demonstrations (minimum-jerk movements
 through via points for the position, minimum-jerk slerps for the orientation,
 two minimum-jerk movements for opening and closing the hand, as in sec. IV-B),
 learned into DMPs (``learn_task_space_dmp`` with the paper's component
-quaternion DMP) and stored in a motion library with semantic labels (grasp,
-place, release, pour, retreat). Only the learned DMPs drive the arm: each
+quaternion DMP) and stored in a ``MotionLibrary`` with semantic labels (grasp,
+place, release, pour, retreat); pick-and-place is recalled from it with
+``compose("pick_and_place")`` (grasp -> place -> release). Only the learned DMPs drive the arm: each
 segment gets its goal from the scene (the cup, the moving coaster, the cups to
 pour into), and the grasp orientation is computed from the approach direction
 of the grasp DMP rolled out to the new goal (sec. IV-C).
@@ -78,6 +80,7 @@ from repertoire.models.arm7 import (
 )
 from repertoire.planning.dmp import TaskSpaceDmp, learn_task_space_dmp
 from repertoire.planning.dmp_math import minimum_jerk, minimum_jerk_via_points
+from repertoire.planning.motion_library import MotionLibrary
 from repertoire.systems.dmp import ObstacleCoupling
 from repertoire.systems.task_space import (
     STATUS_NAMES,
@@ -307,6 +310,21 @@ def motion_library() -> dict[str, TaskSpaceDmp]:
         label: learn_task_space_dmp(t, p, q, f, orientation_mode="component", n_basis=30)
         for label, (t, p, q, f) in synthetic_demonstrations().items()
     }
+
+
+@functools.lru_cache(maxsize=1)
+def arm_motion_library() -> MotionLibrary:
+    """The learned DMPs as a labelled :class:`MotionLibrary` (sec. III-B).
+
+    One primitive per label (``grasp``, ``place``, ``release``, ``pour``, ``retreat``),
+    named ``<label>_arm7`` with context ``{"robot": "arm7"}``; the worlds recall
+    their sequences from it (``compose("pick_and_place")`` is grasp -> place ->
+    release).
+    """
+    lib = MotionLibrary()
+    for label, dmp in motion_library().items():
+        lib.add_dmp(f"{label}_arm7", label, dmp, {"robot": "arm7"})
+    return lib
 
 
 def approach_direction(dmp: TaskSpaceDmp, x_start: np.ndarray, goal: np.ndarray) -> np.ndarray:
@@ -648,7 +666,6 @@ def _build_world(
     Raises:
         RepertoireError: a fixed goal out of the arm's reach.
     """
-    lib = motion_library()
     shoulder, reach = shoulder_and_reach()
     for g in goals:
         if isinstance(g.body, int) and g.body < 0:
@@ -685,10 +702,11 @@ def _build_world(
         resolved.append(dataclasses.replace(g, body=body))
     labels = [g.label for g in goals]
     starts, duration = _segment_timing(labels, scenario.settle_time)
+    library = arm_motion_library()
     chain = builder.AddNamedSystem(
         "dmp_chain",
         TaskSpaceDmpChain(
-            [lib[label] for label in labels],
+            [library.select(label, robot="arm7").dmp for label in labels],
             starts,
             np.concatenate([home.translation(), _quat(home.rotation()), HAND_OPEN]),
             switch_period=IK_PERIOD,
@@ -838,16 +856,26 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
     Returns:
         (goals, duration of the whole sequence in s).
     """
-    lib = motion_library()
+    grasp_primitive, place_primitive, release_primitive = arm_motion_library().compose(
+        "pick_and_place", robot="arm7"
+    )
     home = home_tcp_pose()
     cup = np.array([*s.cup_xy, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
-    R_grasp = _rotation_from_approach(approach_direction(lib["grasp"], home.translation(), cup))
+    R_grasp = _rotation_from_approach(
+        approach_direction(grasp_primitive.dmp, home.translation(), cup)
+    )
     grasp, open_ = np.array(HAND_GRASP_7CM), np.array(HAND_OPEN)
     q_side = _quat(R_SIDE)
     goals = [
-        SegmentGoal("grasp", cup, _quat(R_grasp), grasp),
-        SegmentGoal("place", _place_offset(), q_side, grasp, body="coaster:coaster"),
-        SegmentGoal("release", _place_offset() + RELEASE_OFFSET, q_side, open_, "coaster:coaster"),
+        SegmentGoal(grasp_primitive.label, cup, _quat(R_grasp), grasp),
+        SegmentGoal(place_primitive.label, _place_offset(), q_side, grasp, "coaster:coaster"),
+        SegmentGoal(
+            release_primitive.label,
+            _place_offset() + RELEASE_OFFSET,
+            q_side,
+            open_,
+            "coaster:coaster",
+        ),
     ]
     shoulder, reach = shoulder_and_reach()
     for xy_name in ("coaster_xy", "coaster_final_xy"):

@@ -85,6 +85,14 @@ def test_registered_worlds():
         assert entry.check is not None and entry.duration > 5.0
 
 
+def test_sequences_come_from_the_motion_library():
+    from repertoire.diagrams.arm_dmp import arm_motion_library
+
+    library = arm_motion_library()
+    assert [p.label for p in library.compose("pick_and_place", robot="arm7")] == PICK_PLACE_LABELS
+    assert library.select("pour", robot="arm7").dmp is motion_library()["pour"]
+
+
 def test_plan_goals_and_timing():
     goals, duration = plan_pick_and_place(PickPlaceScenario())
     assert [g.label for g in goals] == PICK_PLACE_LABELS

@@ -750,7 +750,10 @@ class TaskSpaceDmpChain(LeafSystem):
     over (``x_pred -> x_succ``, ``v_pred -> v_succ``, section III-C), so the
     references stay continuous. The goal is an input, read every step, so it
     may change during the movement (section II-B); the world supplies the
-    active segment's goal from the ``segment`` output.
+    active segment's goal from the ``segment`` output. (``DmpSequencer`` of
+    ``repertoire.systems.dmp_compose`` chains plain n-D DMPs with one goal; the arm
+    worlds need a goal per segment read from the scene, the post-normalised
+    orientation and the world angular velocity for the IK, hence this system.)
 
     Continuous state: [theta, x (10), v (10)] with ``v = tau dx/dt``. Discrete
     state: [segment index, x0 (10)], switched by a periodic unrestricted update.

@@ -206,6 +206,20 @@ class DmpParameters:
 class QuaternionDmpParameters:
     """A learned orientation DMP.
 
+    The two modes, measured on 50 seeded minimum-jerk slerp demonstrations (about 1 rad),
+    1 ms steps, goals turned by about 0.3 / 1.2 rad from the demonstrated one:
+
+    * ``"component"`` (paper): the four components leave the unit sphere during the
+      movement, ``| |q| - 1 |`` before post-normalisation median 0.04 / 0.11, max 0.21 /
+      0.38; the normalised output follows a different path than the geodesic-based
+      variant (max angle between the two outputs median 0.09 / 0.41 rad, up to 1.4 rad);
+      the interpolation is in R^4, so its angular velocity is not the demonstrated one
+      when the goal changes. Both reach the goal (< 2e-3 rad at 2 tau).
+    * ``"manifold"``: ``| |q| - 1 | < 1e-14`` throughout (exponential-map update), the
+      forcing term lives in rotation-vector space (world frame), the goal attractor is the
+      shortest-arc error ``2 log(g q^*)``. Reproduction error 1.7e-5 (component mode
+      1.8e-5) on 500-sample demonstrations.
+
     Attributes:
         weights: ``(4, n_basis)`` for ``mode="component"`` (one transformation system per
             quaternion component, the paper's approach) or ``(3, n_basis)`` for

@@ -489,6 +489,10 @@ class ManifoldQuaternionSystem(LeafSystem):
         theta = float(self._phase_port.Eval(context)[0])
         theta_next = theta * self._decay
         goal = _finite_goal(self._goal_port.Eval(context))
+        if abs(float(np.linalg.norm(goal)) - 1.0) > 1e-6:
+            raise RepertoireError(
+                f"goal orientation input is not a unit quaternion: |g| = {np.linalg.norm(goal)}"
+            )
         W = p(self._w).value().reshape(3, self._b)
         f = forcing_term(np.array([theta, theta_next]), W, p(self._c).value(), p(self._h).value())
         e0 = quat_error(goal, p(self._q0).value())

@@ -193,7 +193,7 @@ def test_manifold_quaternion_system_unit_norm_and_matches_numpy():
     ms.get_phase_input_port().FixValue(bad, [1.0])
     ms.get_goal_input_port().FixValue(bad, 1.1 * goal)
     with pytest.raises(RepertoireError, match="not a unit quaternion: \\|g\\| = 1.1"):
-        ms.CalcForcedDiscreteVariableUpdate(bad, bad.get_discrete_state().Clone())
+        ms.EvalUniquePeriodicDiscreteUpdate(bad)
     # Same discrete update; Drake's phase comes from the integrated canonical system.
     assert np.abs(Q[-1] - Qn[-1]).max() < 1e-7
 

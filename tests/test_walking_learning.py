@@ -23,6 +23,9 @@ from repertoire.studies.footstep_execution import (
 from repertoire.studies.footstep_execution import (
     run_episode as run_execution_episode,
 )
+from repertoire.studies.footstep_execution import (
+    summarize as execution_summarize,
+)
 from repertoire.studies.footstep_table import (
     FootstepTableConfig,
     rule_table_displacement,
@@ -136,12 +139,16 @@ def test_shipped_learned_table():
     assert np.abs(table.displacement[..., :2] - rule[..., :2]).max() < 0.01
 
 
-def test_execution_smoke_with_learned_table():
+def test_execution_smoke_with_learned_table(tmp_path):
     record = run_execution_episode(smoke_config(), 0)
     assert not record.learned_fell
     assert record.learned_steps > 0 and record.learned_executed == record.learned_steps
     assert record.learned_within_frac >= 0.8
     assert record.learned_max_err_m < 0.05
+    out = execution_summarize([record], smoke_config(), tmp_path)
+    rows = json.loads(out["execution_summary"].read_text())
+    assert rows["learned"]["runs"] == 1 and rows["learned"]["steps"] == record.learned_steps
+    assert out["example"].is_file() and out["landing_error_hist"].is_file()
 
 
 def test_execution_config_bad_input(tmp_path):

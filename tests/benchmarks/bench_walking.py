@@ -42,8 +42,8 @@ def main() -> None:
         rtf[time_step] = result.final_time / cpu
         print(
             f"biped walk, 10 steps, SAP {1000 * time_step:.0f} ms: simulated "
-            f"{result.final_time:.1f} s, wall {wall:.1f} s, cpu {cpu:.1f} s, real-time factor (cpu) "
-            f"{rtf[time_step]:.2f}, fell={result.fell}"
+            f"{result.final_time:.1f} s, wall {wall:.1f} s, cpu {cpu:.1f} s, "
+            f"real-time factor (cpu) {rtf[time_step]:.2f}, fell={result.fell}"
         )
     print(f"2 ms / 1 ms real-time factor ratio: {rtf[2e-3] / rtf[1e-3]:.2f}")
     record, wall, cpu = _timed(lambda: run_episode(FootstepTableConfig(), 0))

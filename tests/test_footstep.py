@@ -640,3 +640,44 @@ def test_start_in_goal_and_turning_around():
     turns = sum(a in ("turn_left", "turn_right") for a in back.actions)
     assert turns >= math.ceil((3.0 - 0.6) / 0.35)
     follows_table(back, t)
+
+
+def test_receding_horizon_reaches_goal_with_small_budgets():
+    from repertoire.planning.footstep.receding import plan_receding_horizon
+    from repertoire.planning.footstep.scenes import random_static_scene
+
+    sc = random_static_scene(5)
+    t = nominal_action_table()
+    one_shot = plan_footsteps(
+        sc.grid, sc.start, sc.start_foot, sc.goal, t, PlannerOptions(max_expansions=40)
+    )
+    assert one_shot.status == PlanStatus.NODE_LIMIT  # one small budget is not enough
+    res = plan_receding_horizon(
+        sc.grid,
+        sc.start,
+        sc.start_foot,
+        sc.goal,
+        t,
+        PlannerOptions(max_expansions=40),
+        execute_steps=3,
+    )
+    assert res.plan.status == PlanStatus.SUCCESS and res.rounds > 1
+    assert res.statuses[-1] == "SUCCESS" and res.statuses[0] == "NODE_LIMIT"
+    follows_table(res.plan, t)  # histories carried across rounds
+    assert res.plan.cost_to_go == 0.0
+    assert all(not foot_collides_reference(sc.grid, p, 0.16, 0.10) for p in res.plan.poses)
+    capped = plan_receding_horizon(
+        sc.grid,
+        sc.start,
+        sc.start_foot,
+        sc.goal,
+        t,
+        PlannerOptions(max_expansions=40),
+        max_rounds=1,
+    )
+    assert capped.plan.status == PlanStatus.NODE_LIMIT and capped.plan.num_steps == 4
+    assert 0 < capped.plan.cost_to_go
+    with pytest.raises(FootstepError, match="execute_steps"):
+        plan_receding_horizon(
+            sc.grid, sc.start, sc.start_foot, sc.goal, t, PlannerOptions(), execute_steps=0
+        )

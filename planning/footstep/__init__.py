@@ -25,6 +25,7 @@ from repertoire.planning.footstep.environment import (
 )
 from repertoire.planning.footstep.mobile2d import Mobile2DPlan, plan_mobile2d
 from repertoire.planning.footstep.planner import PlannerOptions, plan_footsteps
+from repertoire.planning.footstep.receding import RecedingResult, plan_receding_horizon
 from repertoire.planning.footstep.types import (
     ActionTable,
     ActionTableError,
@@ -54,6 +55,7 @@ __all__ = [
     "OccupancyGrid",
     "PlanStatus",
     "PlannerOptions",
+    "RecedingResult",
     "RectObstacle",
     "apply_displacement",
     "commanded_displacement",
@@ -61,6 +63,7 @@ __all__ = [
     "parse_foot",
     "plan_footsteps",
     "plan_mobile2d",
+    "plan_receding_horizon",
     "relative_displacement",
     "state_dependent_example_table",
 ]

@@ -50,6 +50,7 @@ def main() -> int:
         footprint_masks,
     )
     from repertoire.planning.footstep.heuristic import dijkstra_cost_to_go
+    from repertoire.planning.footstep.receding import plan_receding_horizon
     from repertoire.planning.footstep.scenes import random_static_scene
 
     table = nominal_action_table()
@@ -105,6 +106,18 @@ def main() -> int:
                 )
                 if w == args.weights[0]:
                     hard.append((plan.nodes_expanded, ns, nb, seed))
+                    rh = plan_receding_horizon(
+                        sc.grid,
+                        sc.start,
+                        sc.start_foot,
+                        sc.goal,
+                        table,
+                        PlannerOptions(time_limit=args.limit, heuristic_weight=w),
+                        execute_steps=4,
+                    )
+                    rows[-1].update(
+                        rh_ok=rh.plan.succeeded, rh_steps=rh.plan.num_steps, rh_rounds=rh.rounds
+                    )
             all_rows += rows
             _report(f"{label}, heuristic weight {w}", rows, args.limit)
         _report(f"all maps, heuristic weight {w}", all_rows, args.limit)
@@ -179,6 +192,15 @@ def _report(label: str, rows: list[dict], limit: float) -> None:
         f"{1e3 * med([r['t2d'] for r in rows]):.1f} ms; footstep/2-D time ratio "
         f"{med([r['t'] for r in rows]) / med([r['t2d'] for r in rows]):.1f}"
     )
+    rh = [r for r in rows if "rh_ok" in r]
+    if rh:
+        both = [r for r in rh if r["rh_ok"] and r["ok"]]
+        ratio = med([r["rh_steps"] / max(r["steps"], 1) for r in both]) if both else 0.0
+        print(
+            f"  receding horizon ({limit} s per round, 4 steps committed): goal reached on "
+            f"{sum(r['rh_ok'] for r in rh)}/{len(rh)} maps, median rounds "
+            f"{med([r['rh_rounds'] for r in rh]):.0f}, steps / one-shot steps median {ratio:.2f}"
+        )
     statuses: dict[str, int] = {}
     for r in rows:
         statuses[r["short_status"]] = statuses.get(r["short_status"], 0) + 1

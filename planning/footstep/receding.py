@@ -1,0 +1,141 @@
+"""Receding-horizon footstep planning: plan within a budget, walk a few steps, plan again.
+
+This is how a time-limited planner is used on a robot (the paper's "limited-horizon search
+that computes the best partial footstep path it can find in the time allowed"): each
+round plans from the current state with the given options (time limit or node budget),
+commits the first ``execute_steps`` steps of the (possibly partial) plan, and continues
+from there with the right stance foot, swing foot, action history and time.
+"""
+
+import dataclasses
+from collections.abc import Sequence
+
+from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
+from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
+from repertoire.planning.footstep.planner import PlannerOptions, plan_footsteps
+from repertoire.planning.footstep.types import (
+    ActionTable,
+    Foot,
+    FootstepError,
+    FootstepPlan,
+    PlanStatus,
+)
+
+
+@dataclasses.dataclass
+class RecedingResult:
+    """Outcome of :func:`plan_receding_horizon`.
+
+    Attributes:
+        plan: the committed steps of every round joined into one plan (status SUCCESS
+            when it reaches the goal, else the last round's status); its cost is the sum
+            of the committed actions' step costs, its planning time and node counts the
+            sums over the rounds.
+        rounds: planner calls made.
+        statuses: status of every round's plan.
+    """
+
+    plan: FootstepPlan
+    rounds: int
+    statuses: list[str]
+
+
+def plan_receding_horizon(
+    world: "OccupancyGrid | DynamicEnvironment",
+    start: Sequence[float],
+    start_foot: "Foot | int | str",
+    goal: Sequence[float],
+    table: ActionTable,
+    options: PlannerOptions,
+    *,
+    execute_steps: int = 4,
+    max_rounds: int = 30,
+    geometry: BipedGeometry = ASIMO_LIKE,
+    start_time: float = 0.0,
+) -> RecedingResult:
+    """Plan, commit ``execute_steps`` steps, replan from there, until the goal is reached.
+
+    Args:
+        world: the grid or time-indexed grids.
+        start: ``(x, y, yaw)`` of the starting stance foot.
+        start_foot: which foot stands at ``start``.
+        goal: ``(x, y)``.
+        table: the action table.
+        options: planner options of every round (its time limit is the per-round budget).
+        execute_steps: steps committed per round (a successful plan is committed whole).
+        max_rounds: give up after this many rounds.
+        geometry: robot geometry.
+        start_time: time of the start state (s).
+    """
+    if int(execute_steps) != execute_steps or execute_steps < 1:
+        raise FootstepError(f"execute_steps must be an integer >= 1, got {execute_steps}")
+    if int(max_rounds) != max_rounds or max_rounds < 1:
+        raise FootstepError(f"max_rounds must be an integer >= 1, got {max_rounds}")
+    plan = plan_footsteps(
+        world, start, start_foot, goal, table, options, geometry=geometry, start_time=start_time
+    )
+    statuses = [plan.status.value]
+    poses, feet, times = [plan.poses[0]], [plan.feet[0]], [plan.times[0]]
+    actions: list[str] = []
+    swing0, history0 = plan.initial_swing_pose, plan.initial_history
+    expanded, generated, wall = 0, 0, 0.0
+    rounds = 1
+    while True:
+        expanded += plan.nodes_expanded
+        generated += plan.nodes_generated
+        wall += plan.planning_time_s
+        k = plan.num_steps if plan.succeeded else min(execute_steps, plan.num_steps)
+        poses += plan.poses[1 : k + 1]
+        feet += plan.feet[1 : k + 1]
+        times += plan.times[1 : k + 1]
+        actions += plan.actions[:k]
+        if plan.succeeded or k == 0 or rounds >= max_rounds:
+            break
+        hist = (list(plan.initial_history) + plan.actions)[k : k + 2]
+        other = plan.poses[k - 1] if k >= 1 else plan.initial_swing_pose
+        plan = plan_footsteps(
+            world,
+            plan.poses[k],
+            plan.feet[k],
+            goal,
+            table,
+            options,
+            geometry=geometry,
+            initial_swing_pose=other,
+            start_time=plan.times[k],
+            initial_history=hist,
+        )
+        statuses.append(plan.status.value)
+        rounds += 1
+    if plan.succeeded:
+        ctg = 0.0
+    else:  # the estimate at the last committed pose: a planner call that expands only it
+        ctg = plan_footsteps(
+            world,
+            poses[-1],
+            feet[-1],
+            goal,
+            table,
+            dataclasses.replace(options, max_expansions=1),
+            geometry=geometry,
+            initial_swing_pose=poses[-2] if len(poses) > 1 else swing0,
+            start_time=times[-1],
+            initial_history=(list(history0) + actions)[-2:],
+        ).cost_to_go
+    joined = FootstepPlan(
+        poses=[list(p) for p in poses],
+        feet=list(feet),
+        actions=actions,
+        times=list(times),
+        status=PlanStatus.SUCCESS if plan.succeeded else plan.status,
+        cost=float(sum(table.step_cost[table.index(a)] for a in actions)),
+        cost_to_go=ctg,
+        nodes_expanded=expanded,
+        nodes_generated=generated,
+        planning_time_s=wall,
+        initial_swing_pose=list(swing0),
+        goal=list(plan.goal),
+        goal_tolerance=plan.goal_tolerance,
+        initial_history=list(history0),
+    )
+    return RecedingResult(joined, rounds, statuses)

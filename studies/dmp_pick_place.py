@@ -279,14 +279,21 @@ def summarize(
             arrowprops={"arrowstyle": "->", "color": "tab:green", "lw": 0.6},
         )
         ax.add_patch(
-            Circle((r.obstacle_xyz[1], r.obstacle_xyz[0]), 0.06, color="tab:blue", alpha=0.08)
+            Circle(
+                (r.obstacle_xyz[1], r.obstacle_xyz[0]),
+                0.06,
+                fill=False,
+                color="tab:blue",
+                lw=0.4,
+                alpha=0.5,
+            )
         )
     ax.set_xlabel("y (m, left)")
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()
     ax.set_aspect("equal")
     ax.set_title(
-        "top view: cups (o), coaster moves (arrows), balls (blue),\n"
+        "top view: cups (o), coaster moves (arrows), balls (blue circles),\n"
         "tcp paths of the first 25 episodes (green success, red failure)"
     )
     d = np.array([r.cup_to_coaster_m for r in records], dtype=float)
@@ -301,24 +308,33 @@ def summarize(
     top = out_dir / "dmp_pick_place_top_view.png"
     fig.savefig(top, dpi=110)
 
-    fig = Figure(figsize=(6.5, 4), layout="constrained")
-    ax = fig.add_subplot()
+    fig = Figure(figsize=(11, 4), layout="constrained")
+    ax, ax2 = fig.subplots(1, 2)
     grasp = np.array([r.grasp_reach_error_m for r in records], dtype=float) * 1000
     place = np.array([r.place_reach_error_m for r in records], dtype=float) * 1000
     clearance = np.array([r.min_obstacle_clearance_m for r in records], dtype=float) * 100
-    ax.scatter(range(len(records)), grasp, s=10, label="grasp reach error (mm)")
-    ax.scatter(range(len(records)), place, s=10, label="place reach error (mm)")
-    ax.scatter(range(len(records)), clearance, s=10, label="tcp clearance to ball (cm)")
-    ax.axhline(5.0, color="tab:red", ls="--", lw=0.8, label="5 (mm / cm)")
+    carry = np.array([carry_clearance(r, config) for r in records]) * 100
+    episodes = np.arange(len(records))
+    ax.scatter(episodes, grasp, s=10, label="end of grasp")
+    ax.scatter(episodes, place, s=10, label="end of place (cup in hand)")
+    ax.axhline(5.0, color="tab:red", ls="--", lw=0.8, label="5 mm")
     ax.set_xlabel("episode")
+    ax.set_ylabel("|tcp - goal| in the physics simulation (mm)")
+    ax.set_ylim(bottom=0)
     ax.legend(fontsize=8)
-    ax.set_title("reach errors at the end of grasp and place; obstacle clearance")
+    ax.set_title("reach errors")
+    ax2.scatter(episodes, carry, s=10, label="while carrying the cup")
+    ax2.scatter(episodes, clearance, s=10, marker="x", label="over the whole run")
+    ax2.axhline(3.5, color="tab:red", ls="--", lw=0.8, label="cup radius 3.5 cm")
+    ax2.set_xlabel("episode")
+    ax2.set_ylabel("closest tcp approach to the ball's surface (cm)")
+    ax2.legend(fontsize=8)
+    ax2.set_title("obstacle clearance")
     errors = out_dir / "dmp_pick_place_errors.png"
     fig.savefig(errors, dpi=110)
 
     ok = [r for r in records if not r.failure]
     walls = np.array([r.wall_sim_s for r in ok]) if ok else np.array([np.nan])
-    carry = np.array([carry_clearance(r, config) for r in records]) * 100
     lines = [
         "| figure | value |",
         "|---|---|",

@@ -356,14 +356,20 @@ def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> 
     md.write_text("\n".join(lines) + "\n")
     out["execution_table"] = md
     fig, ax = plt.subplots(figsize=(6, 4))
+    largest = (
+        max(100 * getattr(r, f"{w}_max_err_m") for r in records for w in rows) if records else 1
+    )
+    bins = np.geomspace(0.1, max(largest * 1.1, 1.0), 40)
     for which in rows:
         ax.hist(
-            [100 * getattr(r, f"{which}_max_err_m") for r in records],
-            bins=20,
+            [max(100 * getattr(r, f"{which}_max_err_m"), 0.1) for r in records],
+            bins=bins,
             alpha=0.6,
             label=f"{which} table",
         )
-    ax.set_xlabel("largest landing error of a run [cm] (world frame, vs plan)")
+    ax.set_xscale("log")
+    ax.axvline(100 * POSITION_TOLERANCE_M, color="k", ls="--", lw=1, label="2 cm")
+    ax.set_xlabel("largest landing error of a run [cm] (world frame, vs plan; log scale)")
     ax.set_ylabel("runs")
     ax.legend()
     fig.tight_layout()

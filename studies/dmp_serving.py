@@ -230,7 +230,7 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
         col = d[:, j][np.isfinite(d[:, j])]
         ax2.hist(np.clip(col * 100, 0, 6), bins=30, alpha=0.6, label=f"cup {j + 1}")
     ax2.axvline(3.0, color="tab:red", ls="--", label="3 cm (inside the rim)")
-    ax2.set_xlabel("closest tip-to-cup-axis distance while pouring (cm, clipped at 6)")
+    ax2.set_xlabel("closest tip-to-cup-axis distance while pouring (cm)")
     ax2.set_ylabel("episodes")
     rate = np.mean([r.success for r in records]) if records else float("nan")
     ax2.set_title(f"success {rate:.0%} of {len(records)} episodes")

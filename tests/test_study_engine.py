@@ -9,7 +9,6 @@ import sqlite3
 import subprocess
 import sys
 import textwrap
-import threading
 import time
 from pathlib import Path
 
@@ -158,10 +157,18 @@ def test_unreachable_dask_scheduler_fails_fast_and_names_the_address(tmp_path):
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     address = f"tcp://127.0.0.1:{port}"
-    outcome = {}
 
-    def call():
-        try:
+    # Call on the main thread with an alarm as the no-hang guard (the engine's own
+    # timeout is 3 s). Not a helper thread: a pydrake Meshcat left by an earlier test
+    # in this worker would be garbage-collected there, and Drake aborts when a Meshcat
+    # is destroyed off the thread that made it.
+    def hung(signum, frame):
+        raise AssertionError("run_study hung on an unreachable scheduler")
+
+    previous = signal.signal(signal.SIGALRM, hung)
+    signal.alarm(30)
+    try:
+        with pytest.raises(RepertoireError) as error:
             run_study(
                 "pendulum",
                 smoke_config(),
@@ -170,15 +177,10 @@ def test_unreachable_dask_scheduler_fails_fast_and_names_the_address(tmp_path):
                 scheduler_address=address,
                 **_kw(tmp_path),
             )
-        except Exception as e:
-            outcome["error"] = e
-
-    worker = threading.Thread(target=call, daemon=True)
-    worker.start()
-    worker.join(timeout=30.0)  # a no-hang guard; the engine's own timeout is 3 s
-    assert not worker.is_alive(), "run_study hung on an unreachable scheduler"
-    assert isinstance(outcome.get("error"), RepertoireError)
-    assert f"Dask scheduler at '{address}'" in str(outcome["error"])
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+    assert f"Dask scheduler at '{address}'" in str(error.value)
     assert not (tmp_path / "s.sqlite").exists()
 
 

@@ -369,6 +369,22 @@ def sole_poses(diagram: Diagram, context: Context) -> dict[int, np.ndarray]:
     return out
 
 
+TOUCHDOWN_DT = 0.004  # [s]
+
+
+def foot_in_contact(diagram: Diagram, context: Context, foot: int) -> bool:
+    """Whether a foot (0 left, 1 right) has a point contact with anything."""
+    plant = diagram.GetSubsystemByName("plant")
+    pc = plant.GetMyContextFromRoot(context)
+    body = plant.GetBodyByName("left_foot" if foot == 0 else "right_foot").index()
+    results = plant.get_contact_results_output_port().Eval(pc)
+    for i in range(results.num_point_pair_contacts()):
+        info = results.point_pair_contact_info(i)
+        if body in (info.bodyA_index(), info.bodyB_index()):
+            return True
+    return False
+
+
 def pelvis_state(diagram: Diagram, context: Context) -> tuple[np.ndarray, float]:
     """Pelvis position (3,) and tilt from vertical [rad]."""
     plant = diagram.GetSubsystemByName("plant")
@@ -387,7 +403,10 @@ class WalkResult:
         stance: measured (x, y, yaw) of the stance sole at the same instants.
         expected: the controller's own target of each step (stepping rule).
         planned: the plan's pose of each step (what the planner predicted).
-        durations: commanded-to-landing time of each step [s].
+        durations: measured time of each step from its command to the swing foot's
+            touch-down (first contact of the foot; 4 ms resolution; NaN if it had no
+            contact before the next step's lift-off) [s].
+        scheduled_durations: the controller's planned command-to-landing times [s].
         fell: the pelvis dropped below 0.4 m or tilted more than 0.5 rad.
         final_time: simulated time reached [s].
         max_tilt: largest pelvis tilt seen at the sampled instants [rad].
@@ -398,6 +417,7 @@ class WalkResult:
     expected: list[list[float]]
     planned: list[list[float]]
     durations: list[float]
+    scheduled_durations: list[float]
     fell: bool
     final_time: float
     max_tilt: float
@@ -447,8 +467,21 @@ def execute_plan(
     seq = footstep_sequence(diagram, context)
     landed, stance, max_tilt, fell = [], [], 0.0, False
     n_steps = seq.num_steps if max_steps is None else min(max_steps, seq.num_steps)
+    touchdowns = []
     for k in range(n_steps):
-        simulator.AdvanceTo(seq.land_times[k] + settle)
+        # Touch-down: the first instant (4 ms resolution) after mid-swing at which the
+        # swing foot has a contact; searched until the next step's lift-off.
+        t_lift = seq.command_times[k] + seq.double_support
+        t = t_lift + 0.5 * (seq.land_times[k] - t_lift)
+        touchdown = float("nan")
+        while t <= seq.land_times[k] + seq.double_support:
+            simulator.AdvanceTo(t)
+            if foot_in_contact(diagram, context, seq.swing_feet[k]):
+                touchdown = t
+                break
+            t += TOUCHDOWN_DT
+        touchdowns.append(touchdown)
+        simulator.AdvanceTo(max(seq.land_times[k] + settle, context.get_time()))
         p, tilt = pelvis_state(diagram, context)
         max_tilt = max(max_tilt, tilt)
         if p[2] < 0.4 or tilt > 0.5 or not np.all(np.isfinite(p)):
@@ -462,13 +495,15 @@ def execute_plan(
         p, tilt = pelvis_state(diagram, context)
         max_tilt = max(max_tilt, tilt)
         fell = bool(p[2] < 0.4 or tilt > 0.5 or not np.all(np.isfinite(p)))
-    durations = [tl - tc for tc, tl in zip(seq.command_times, seq.land_times)]
+    durations = [td - tc for tc, td in zip(seq.command_times, touchdowns)]
+    scheduled = [tl - tc for tc, tl in zip(seq.command_times, seq.land_times)]
     return WalkResult(
         landed=landed,
         stance=stance,
         expected=[list(p) for p in seq.poses],
         planned=[list(p) for p in plan.poses[1:]],
         durations=durations,
+        scheduled_durations=scheduled,
         fell=fell,
         final_time=context.get_time(),
         max_tilt=max_tilt,

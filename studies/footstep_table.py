@@ -3,7 +3,8 @@
 Episode ``seed`` (0..342) runs the ``seed``-th sequence of three commanded actions
 (7^3 = 343 sequences) from standing on the physics biped (ZMP walking controller
 with its stateful stepping rule) and records each step's landed swing sole in the
-measured stance sole's frame and the step time. The summary builds the table with
+measured stance sole's frame and the step time (command to the swing foot's first
+contact, 4 ms resolution). The summary builds the table with
 ``ActionTable.from_samples`` (missing keys of a partial run are filled from the
 nominal table and counted), saves it as JSON, compares it with the commanded
 displacements and with the controller's own rule, and draws the paper's Fig. 2

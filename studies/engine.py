@@ -743,6 +743,8 @@ def _run_missing(
         unit="ep",
         disable=not progress,
         dynamic_ncols=True,
+        # On a terminal, a live bar; in a log file, one line every 10 s instead of a flood.
+        mininterval=0.1 if sys.stderr.isatty() else 10.0,
     )
     try:
         for result in results:

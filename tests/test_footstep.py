@@ -402,8 +402,14 @@ def test_admissible_mode_is_optimal_on_tiny_map():
     grid, start, foot, goal = _tiny_problem()
     t = lattice_table()
     tol = 0.12
+    exact = {"footprint_margin_m": 0.0}  # the brute force checks the exact footprint
     astar = plan_footsteps(
-        grid, start, foot, goal, t, PlannerOptions.admissible(goal_tolerance=tol, time_limit=20)
+        grid,
+        start,
+        foot,
+        goal,
+        t,
+        PlannerOptions.admissible(goal_tolerance=tol, time_limit=20, **exact),
     )
     ucs = plan_footsteps(
         grid,
@@ -412,7 +418,12 @@ def test_admissible_mode_is_optimal_on_tiny_map():
         goal,
         t,
         PlannerOptions(
-            heuristic="none", goal_tolerance=tol, time_limit=20, xy_resolution=0.025, yaw_bins=72
+            heuristic="none",
+            goal_tolerance=tol,
+            time_limit=20,
+            xy_resolution=0.025,
+            yaw_bins=72,
+            **exact,
         ),
     )
     assert astar.succeeded and ucs.succeeded
@@ -627,6 +638,67 @@ def test_height_cost_penalises_uneven_footholds():
     assert careful.cost == pytest.approx(steps + w * sum(ranges))
     assert sum(chk.height_range(*p) for p in flat.poses[1:]) > 0  # ignores the edge
     assert sum(ranges) == 0.0  # no foot straddles the edge when it costs
+
+
+def _foot_to_cells_distance(grid: OccupancyGrid, pose, foot_length: float, foot_width: float):
+    """Euclidean distance (m) from the foot rectangle to the nearest occupied cell square."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    hl, hw = foot_length / 2, foot_width / 2
+    foot = [
+        (pose[0] + c * u - s * v, pose[1] + s * u + c * v)
+        for u, v in ((-hl, -hw), (hl, -hw), (hl, hw), (-hl, hw))
+    ]
+    h = grid.resolution / 2
+
+    def point_segment(p, a, b):
+        ab = np.subtract(b, a)
+        t = np.clip(np.dot(np.subtract(p, a), ab) / np.dot(ab, ab), 0.0, 1.0)
+        return float(np.hypot(*(np.subtract(p, a) - t * ab)))
+
+    best = math.inf
+    for cx, cy in grid.cell_centers()[grid.occupied]:
+        if math.hypot(cx - pose[0], cy - pose[1]) > math.hypot(hl, hw) + 2 * grid.resolution:
+            continue
+        cell = [(cx - h, cy - h), (cx + h, cy - h), (cx + h, cy + h), (cx - h, cy + h)]
+        # separated convex polygons: the distance is attained at a vertex of one of them
+        for p_set, q_set in ((foot, cell), (cell, foot)):
+            for p in p_set:
+                for i in range(4):
+                    best = min(best, point_segment(p, q_set[i], q_set[(i + 1) % 4]))
+    return best
+
+
+@pytest.mark.parametrize("margin", [0.01, 0.03])
+def test_footprint_margin_keeps_clearance_from_obstacles(margin):
+    from repertoire.planning.footstep.scenes import random_static_scene
+
+    sc = random_static_scene(3)
+    t = nominal_action_table()
+    plan = plan_footsteps(
+        sc.grid, sc.start, sc.start_foot, sc.goal, t, PlannerOptions(footprint_margin_m=margin)
+    )
+    assert plan.succeeded
+    for pose in plan.poses[1:]:
+        assert not foot_collides_reference(sc.grid, pose, 0.16, 0.10)
+        assert _foot_to_cells_distance(sc.grid, pose, 0.16, 0.10) >= margin - 1e-9
+    assert PlannerOptions().footprint_margin_m == 0.01  # the default keeps 1 cm
+    with pytest.raises(FootstepError, match="footprint_margin_m must be finite and >= 0"):
+        PlannerOptions(footprint_margin_m=-0.01).validate()
+
+
+def test_footprint_margin_zero_is_the_exact_check():
+    from repertoire.planning.footstep.scenes import random_static_scene
+
+    sc = random_static_scene(3)
+    t = nominal_action_table()
+    plan = plan_footsteps(
+        sc.grid, sc.start, sc.start_foot, sc.goal, t, PlannerOptions(footprint_margin_m=0.0)
+    )
+    assert plan.succeeded
+    assert all(not foot_collides_reference(sc.grid, p, 0.16, 0.10) for p in plan.poses[1:])
+    # without a margin a landing passes within millimetres of an obstacle (3.5 mm here)
+    closest = min(_foot_to_cells_distance(sc.grid, p, 0.16, 0.10) for p in plan.poses[1:])
+    assert closest < 0.01
 
 
 def test_start_in_goal_and_turning_around():

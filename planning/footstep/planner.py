@@ -59,6 +59,10 @@ class PlannerOptions:
         height_cost_weight: location cost per metre of height variation under a foot.
         max_expansions: stop after this many expansions with status NODE_LIMIT (0 = no
             limit); a deterministic budget for reproducible studies.
+        footprint_margin_m: clearance (m, >= 0) kept between a planned footprint and any
+            occupied cell: the foot rectangle is inflated by this much on every side for the
+            obstacle check of landings (0 keeps the exact check). The start feet are checked
+            exactly (they already stand there).
     """
 
     time_limit: float = 1.0
@@ -72,6 +76,7 @@ class PlannerOptions:
     time_resolution: float = 0.1
     height_cost_weight: float = 0.0
     max_expansions: int = 0
+    footprint_margin_m: float = 0.01
 
     @classmethod
     def admissible(cls, **overrides: float) -> "PlannerOptions":
@@ -103,7 +108,12 @@ class PlannerOptions:
             raise FootstepError(
                 f"unknown heuristic {self.heuristic!r}; expected one of {HEURISTICS}"
             )
-        for name in ("heuristic_weight", "obstacle_cost", "height_cost_weight"):
+        for name in (
+            "heuristic_weight",
+            "obstacle_cost",
+            "height_cost_weight",
+            "footprint_margin_m",
+        ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise FootstepError(f"{name} must be finite and >= 0, got {v}")
@@ -168,14 +178,25 @@ def _pose3(p: Sequence[float], name: str) -> tuple[float, float, float]:
 
 
 class _Checkers:
-    """Footprint checkers per time index (dynamic) or one checker (static)."""
+    """Footprint checkers per time index (dynamic) or one checker (static).
+
+    The foot rectangle is inflated by ``margin`` (m) on every side.
+    """
 
     def __init__(
-        self, world: "OccupancyGrid | DynamicEnvironment", geometry: BipedGeometry, hold: float
+        self,
+        world: "OccupancyGrid | DynamicEnvironment",
+        geometry: BipedGeometry,
+        hold: float,
+        margin: float = 0.0,
     ) -> None:
         self.world = world
         grid0 = world if isinstance(world, OccupancyGrid) else world.reference
-        self.masks = footprint_masks(geometry.foot_length, geometry.foot_width, grid0.resolution)
+        self.masks = footprint_masks(
+            geometry.foot_length + 2.0 * margin,
+            geometry.foot_width + 2.0 * margin,
+            grid0.resolution,
+        )
         self.hold = hold
         self._cache: dict[int, FootprintChecker] = {}
         self.static = isinstance(world, OccupancyGrid)
@@ -277,10 +298,13 @@ def plan_footsteps(
     h2, h1 = table.index(history[0]), table.index(history[1])
 
     hold = float(table.duration.max())
-    checkers = _Checkers(world, geometry, hold)
+    checkers = _Checkers(world, geometry, hold, opts.footprint_margin_m)
     k0 = checkers.index(start_time)
-    chk0 = checkers.checker(k0)
-    if not chk0.is_free(sx, sy, sth):
+    # the start feet already stand: checked with the exact footprint, without the margin;
+    # the height cost is also measured under the exact footprint (heights are the same at all t)
+    exact = _Checkers(world, geometry, hold) if opts.footprint_margin_m > 0 else checkers
+    chk_start = exact.checker(k0)
+    if not chk_start.is_free(sx, sy, sth):
         raise FootstepError(
             f"start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) overlaps an obstacle or the map edge"
         )
@@ -289,11 +313,12 @@ def plan_footsteps(
         swing0 = apply_displacement((sx, sy, sth), (0.0, side * geometry.stance_width, 0.0))
     else:
         swing0 = _pose3(initial_swing_pose, "initial_swing_pose")
-    if not chk0.is_free(*swing0):
+    if not chk_start.is_free(*swing0):
         raise FootstepError(
             f"initial swing foot at ({swing0[0]:.3f}, {swing0[1]:.3f}) overlaps an obstacle "
             "or the map edge"
         )
+    chk0 = checkers.checker(k0)
     gcell = ref.cell_of(gx, gy)
     goal_blocked = (
         world.stack[:, gcell[0], gcell[1]].all() if dynamic else bool(ref.occupied[gcell])
@@ -468,7 +493,7 @@ def plan_footsteps(
             ):
                 continue
             if use_heights:
-                g2 += height_w * chk.height_range(x2, y2, th2)
+                g2 += height_w * chk_start.height_range(x2, y2, th2)
                 if old is not None and old <= g2:
                     continue
             best_g[k2] = g2

@@ -555,7 +555,14 @@ class ZmpComPlanner(LeafSystem):
         self._zmp = self.DeclareVectorOutputPort("zmp_reference", 2, self._calc_zmp)
 
     def _calc_planner(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(plan_com(self._footsteps.Eval(context), self._com_height))
+        # cached on the footsteps input: checked once per new sequence, not per step
+        footsteps = self._footsteps.Eval(context)
+        if not isinstance(footsteps, FootstepSequence):
+            raise RepertoireError(
+                "ZmpComPlanner's footsteps input needs a FootstepSequence, "
+                f"got {type(footsteps).__name__}"
+            )
+        output.set_value(plan_com(footsteps, self._com_height))
 
     def _calc_com(self, context: Context, output: BasicVector) -> None:
         planner = self._planner.Eval(context)

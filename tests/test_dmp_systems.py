@@ -101,8 +101,13 @@ def test_goal_port_bad_values(dmp3):
     builder = DiagramBuilder()
     sys = add_dmp(builder, dmp3)
     src = builder.AddSystem(ConstantVectorSource(np.zeros(4)))
-    with pytest.raises(RuntimeError, match="mismatched sizes|size"):
+    # Drake refuses wrong sizes itself, with a message naming the port and both sizes
+    with pytest.raises(
+        RuntimeError, match=r"Mismatched vector sizes.*\(size 4\) to input port goal.*\(size 3\)"
+    ):
         builder.Connect(src.get_output_port(), sys.GetInputPort("goal"))
+    with pytest.raises(RuntimeError, match="size=3 for input port 'goal'.*size=4"):
+        sys.GetInputPort("goal").FixValue(sys.CreateDefaultContext(), np.ones(4))
 
 
 def _simulate(builder_fn, duration):
@@ -194,6 +199,8 @@ def test_manifold_quaternion_system_unit_norm_and_matches_numpy():
     ms.get_goal_input_port().FixValue(bad, 1.1 * goal)
     with pytest.raises(RepertoireError, match="not a unit quaternion: \\|g\\| = 1.1"):
         ms.EvalUniquePeriodicDiscreteUpdate(bad)
+    with pytest.raises(RuntimeError, match="size=4 for input port 'goal'.*size=3"):
+        ms.get_goal_input_port().FixValue(bad, goal[:3])  # Drake's own clear refusal
     # Same discrete update; Drake's phase comes from the integrated canonical system.
     assert np.abs(Q[-1] - Qn[-1]).max() < 1e-7
 

@@ -238,6 +238,11 @@ def test_bad_input():
         stepper.GetOutputPort("footsteps").Eval(ctx)
     with pytest.raises(RepertoireError, match="com_height"):
         ZmpComPlanner(2.0)
+    zmp = ZmpComPlanner(0.68)
+    zctx = zmp.CreateDefaultContext()
+    zmp.GetInputPort("footsteps").FixValue(zctx, _plan(["stop"]))  # a plan, not footsteps
+    with pytest.raises(RepertoireError, match="footsteps input needs a FootstepSequence"):
+        zmp.GetOutputPort("com").Eval(zctx)
     with pytest.raises(ScenarioError, match="unknown action 'hop'"):
         load_scenario(BipedWalkScenario, data="actions: [hop]\n")
     with pytest.raises(ScenarioError, match="could not load"):

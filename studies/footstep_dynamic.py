@@ -16,6 +16,12 @@ import math
 from pathlib import Path
 
 import numpy as np
+from repertoire.studies._footstep_common import (
+    load_table,
+    markdown_table,
+    percentile,
+    planner_rows,
+)
 from repertoire.studies.engine import register_study, study_main
 
 from repertoire.errors import RepertoireError
@@ -129,14 +135,9 @@ def _scene(config: FootstepDynamicConfig, seed: int):
 
 
 def _plan(config: FootstepDynamicConfig, scene):
-    from repertoire.planning.footstep import (
-        ActionTable,
-        PlannerOptions,
-        nominal_action_table,
-        plan_footsteps,
-    )
+    from repertoire.planning.footstep import PlannerOptions, plan_footsteps
 
-    table = ActionTable.load(config.table_path) if config.table_path else nominal_action_table()
+    table = load_table(config.table_path)
     return plan_footsteps(
         scene.env,
         scene.start,
@@ -201,15 +202,16 @@ def summary_table(records: list[FootstepDynamicRecord]) -> str:
     """
     n = len(records)
     ok = [r for r in records if r.success]
-    times = [r.wall_plan_time_s for r in records]
     arrivals = [r.arrival_s for r in ok]
-
-    def pct(v: list[float], q: float) -> float:
-        return float(np.percentile(v, q)) if v else float("nan")
-
+    common = planner_rows(
+        records,
+        steps_label="steps median [min, max]",
+        steps_over_label="steps over strings or blocks per plan (mean)",
+        time_digits=3,
+    )
     rows = [
         ("phase pairs", f"{n}"),
-        ("footstep planner success", f"{len(ok)}/{n} ({100 * len(ok) / max(n, 1):.1f} %)"),
+        common["success"],
         (
             "2-D bounding-circle planner success (on E(0))",
             f"{sum(r.mobile2d_success for r in records)}/{n}",
@@ -226,32 +228,17 @@ def summary_table(records: list[FootstepDynamicRecord]) -> str:
             "plans that wait / that side-step",
             f"{sum(r.waits > 0 for r in ok)} / {sum(r.side_steps > 0 for r in ok)}",
         ),
-        (
-            "steps median [min, max]",
-            f"{pct([r.steps for r in ok], 50):.0f} [{min((r.steps for r in ok), default=0)}, "
-            f"{max((r.steps for r in ok), default=0)}]",
-        ),
+        common["steps"],
         (
             "arrival time median [min, max] (s)",
-            f"{pct(arrivals, 50):.1f} [{min(arrivals, default=0):.1f}, "
+            f"{percentile(arrivals, 50):.1f} [{min(arrivals, default=0):.1f}, "
             f"{max(arrivals, default=0):.1f}]",
         ),
-        (
-            "steps over strings or blocks per plan (mean)",
-            f"{np.mean([r.steps_over for r in ok]) if ok else float('nan'):.2f}",
-        ),
-        (
-            "plan time median / 90th pct / max (s)",
-            f"{pct(times, 50):.3f} / {pct(times, 90):.3f} / {max(times, default=0):.3f}",
-        ),
-        (
-            "nodes expanded median / 90th pct",
-            f"{pct([r.nodes_expanded for r in records], 50):.0f} / "
-            f"{pct([r.nodes_expanded for r in records], 90):.0f}",
-        ),
+        common["steps_over"],
+        common["plan_time"],
+        common["nodes"],
     ]
-    lines = ["| quantity | value |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]
-    return "\n".join(lines) + "\n"
+    return markdown_table(rows)
 
 
 def summarize(

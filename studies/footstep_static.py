@@ -15,6 +15,12 @@ import math
 from pathlib import Path
 
 import numpy as np
+from repertoire.studies._footstep_common import (
+    load_table,
+    markdown_table,
+    percentile,
+    planner_rows,
+)
 from repertoire.studies.engine import register_study, study_main
 
 from repertoire.errors import RepertoireError
@@ -107,9 +113,7 @@ class FootstepStaticRecord:
 
 
 def _table(config: FootstepStaticConfig):
-    from repertoire.planning.footstep import ActionTable, nominal_action_table
-
-    return ActionTable.load(config.table_path) if config.table_path else nominal_action_table()
+    return load_table(config.table_path)
 
 
 def _scene(config: FootstepStaticConfig, seed: int):
@@ -181,10 +185,6 @@ def run_episode(config: FootstepStaticConfig, seed: int) -> FootstepStaticRecord
     )
 
 
-def _pct(values: list[float], q: float) -> float:
-    return float(np.percentile(values, q)) if values else float("nan")
-
-
 def summary_table(records: list[FootstepStaticRecord]) -> str:
     """Markdown table of the study's headline figures.
 
@@ -193,49 +193,36 @@ def summary_table(records: list[FootstepStaticRecord]) -> str:
     """
     n = len(records)
     ok = [r for r in records if r.success]
-    times = [r.wall_plan_time_s for r in records]
     rate = [r.nodes_expanded / r.wall_plan_time_s for r in records if r.wall_plan_time_s > 0]
     both = [r for r in ok if r.mobile2d_success]
     ratio = [r.body_path_m / r.mobile2d_length_m for r in both if r.mobile2d_length_m > 0]
+    common = planner_rows(
+        records,
+        steps_label="steps per successful plan: median [min, max]",
+        steps_over_label="steps over obstacles per plan (mean)",
+        time_digits=4,
+    )
+    n2d = sum(r.mobile2d_success for r in records)
     rows = [
         ("maps", f"{n}"),
-        ("footstep planner success", f"{len(ok)}/{n} ({100 * len(ok) / max(n, 1):.1f} %)"),
-        (
-            "2-D bounding-circle planner success",
-            f"{sum(r.mobile2d_success for r in records)}/{n} "
-            f"({100 * sum(r.mobile2d_success for r in records) / max(n, 1):.1f} %)",
-        ),
+        common["success"],
+        ("2-D bounding-circle planner success", f"{n2d}/{n} ({100 * n2d / max(n, 1):.1f} %)"),
         ("biped succeeds where the 2-D planner fails", f"{sum(r.biped_only for r in records)}"),
-        (
-            "steps per successful plan: median [min, max]",
-            f"{_pct([r.steps for r in ok], 50):.0f} [{min((r.steps for r in ok), default=0)}, "
-            f"{max((r.steps for r in ok), default=0)}]",
-        ),
+        common["steps"],
         ("plans stepping over an obstacle", f"{sum(r.steps_over > 0 for r in ok)}/{len(ok)}"),
-        (
-            "steps over obstacles per plan (mean)",
-            f"{np.mean([r.steps_over for r in ok]) if ok else float('nan'):.2f}",
-        ),
-        (
-            "plan time median / 90th pct / max (s)",
-            f"{_pct(times, 50):.4f} / {_pct(times, 90):.4f} / {max(times, default=0):.4f}",
-        ),
-        (
-            "nodes expanded median / 90th pct",
-            f"{_pct([r.nodes_expanded for r in records], 50):.0f} / "
-            f"{_pct([r.nodes_expanded for r in records], 90):.0f}",
-        ),
+        common["steps_over"],
+        common["plan_time"],
+        common["nodes"],
         (
             "nodes expanded per second of planning time, heuristic included (median)",
-            f"{_pct(rate, 50):.0f}",
+            f"{percentile(rate, 50):.0f}",
         ),
         (
             "feet-midpoint path / 2-D path length where both succeed (median)",
-            f"{_pct(ratio, 50):.3f} (n = {len(ratio)})",
+            f"{percentile(ratio, 50):.3f} (n = {len(ratio)})",
         ),
     ]
-    lines = ["| quantity | value |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows]
-    return "\n".join(lines) + "\n"
+    return markdown_table(rows)
 
 
 def summarize(

@@ -235,22 +235,16 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
     ax.set_xlabel("along start-goal (m)")
     ax.set_ylabel("detour direction (m)")
     ax.set_title("seed 0 (projection)")
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.25), ncol=2)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.35), ncol=2)
     bins = np.linspace(0, max(max(r.clearance_with_m for r in records), 2 * config.radius_m), 30)
-    ax2.hist(
-        [r.clearance_without_m for r in records],
-        bins=bins,
-        alpha=0.6,
-        color="tab:red",
-        label="without coupling",
-    )
-    ax2.hist(
-        [r.clearance_with_m for r in records],
-        bins=bins,
-        alpha=0.6,
-        color="tab:blue",
-        label="with coupling",
-    )
+    for key, color in (("without", "tab:red"), ("with", "tab:blue")):
+        ax2.hist(
+            [getattr(r, f"clearance_{key}_m") for r in records],
+            bins=bins,
+            alpha=0.6,
+            color=color,
+            label=f"{key} coupling",
+        )
     ax2.axvline(config.radius_m, color="k", ls="--", label="obstacle radius")
     ax2.set_xlabel("clearance to obstacle centre (m)")
     ax2.set_ylabel("episodes")

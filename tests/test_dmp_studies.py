@@ -7,16 +7,22 @@ from repertoire.studies.engine import comparable, run_study
 from repertoire.errors import RepertoireError
 
 
-def test_goals_study_smoke_shows_old_form_failures(tmp_path):
-    result = run_study(
-        "dmp_goals",
-        dmp_goals.smoke_config(),
-        episodes=1,
-        store=tmp_path / "g.sqlite",
-        out_dir=tmp_path / "g",
+def _smoke_run(module, tmp_path, episodes: int = 1):
+    """One inline run of a study's smoke config through the engine."""
+    name = module.__name__.rsplit(".", 1)[-1]
+    return run_study(
+        name,
+        module.smoke_config(),
+        episodes=episodes,
+        store=tmp_path / f"{name}.sqlite",
+        out_dir=tmp_path / name,
         executor="inline",
         progress=False,
     )
+
+
+def test_goals_study_smoke_shows_old_form_failures(tmp_path):
+    result = _smoke_run(dmp_goals, tmp_path)
     assert len(result.records) == 1
     for r in result.records:
         assert r.flip_mirrored_old and not r.flip_mirrored_new
@@ -34,18 +40,14 @@ def test_obstacles_study_smoke_and_determinism(tmp_path):
     assert not a.success_without  # the obstacle is placed on the learned path
     with pytest.raises(RepertoireError, match="radius_m must be > 0"):
         dmp_obstacles.run_episode(dmp_obstacles.DmpObstaclesConfig(radius_m=0.0), 0)
+    figures = dmp_obstacles.summarize([a, b], config, tmp_path)
+    assert set(figures) == {"paths_and_clearance", "table"}
+    assert all(p.exists() for p in figures.values())
+    assert "| fraction with clearance > r | 0.00 | 1.00 |" in figures["table"].read_text()
 
 
 def test_chaining_study_smoke(tmp_path):
-    result = run_study(
-        "dmp_chaining",
-        dmp_chaining.smoke_config(),
-        episodes=1,
-        store=tmp_path / "c.sqlite",
-        out_dir=tmp_path / "c",
-        executor="inline",
-        progress=False,
-    )
+    result = _smoke_run(dmp_chaining, tmp_path)
     (r,) = result.records
     assert r.vel_jump_velocity < 1e-12 and r.vel_jump_none > 0.1
     assert r.acc_jump_acceleration < 1e-9 < r.acc_jump_velocity

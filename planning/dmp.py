@@ -22,6 +22,7 @@ import dataclasses
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Self
 
 import numpy as np
 from pydrake.solvers import MathematicalProgram, Solve
@@ -51,8 +52,38 @@ QUATERNION_MODES = ("component", "manifold")
 
 
 # --------------------------------------------------------------------------- artefacts
+class _FieldsRecord:
+    """``to_dict``/``from_dict`` of a dataclass of arrays, numbers, strings and lists.
+
+    The record is ``{"type": class name, field: value}`` with arrays as lists; ``from_dict``
+    checks the type and the constructor validates the values.
+    """
+
+    def to_dict(self) -> dict:
+        """JSON-ready record: ``type`` and every field (arrays as lists)."""
+        out: dict = {"type": type(self).__name__}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, np.ndarray):
+                v = v.tolist()
+            elif isinstance(v, list):
+                v = list(v)
+            out[f.name] = v
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Self:
+        """Rebuild from :meth:`to_dict`'s record.
+
+        Args:
+            d: the record.
+        """
+        _check_type(d, cls.__name__)
+        return cls(**{k: v for k, v in d.items() if k != "type"})
+
+
 @dataclass
-class DmpParameters:
+class DmpParameters(_FieldsRecord):
     """A learned n-DOF DMP.
 
     Attributes:
@@ -180,30 +211,9 @@ class DmpParameters:
             **kwargs,
         )
 
-    def to_dict(self) -> dict:
-        return {
-            "type": "DmpParameters",
-            "weights": self.weights.tolist(),
-            "centres": self.centres.tolist(),
-            "widths": self.widths.tolist(),
-            "K": self.K.tolist(),
-            "D": self.D.tolist(),
-            "alpha": self.alpha,
-            "tau": self.tau,
-            "x0": self.x0.tolist(),
-            "goal": self.goal.tolist(),
-            "formulation": self.formulation,
-            "names": list(self.names),
-        }
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "DmpParameters":
-        _check_type(d, "DmpParameters")
-        return cls(**{k: v for k, v in d.items() if k != "type"})
-
 
 @dataclass
-class QuaternionDmpParameters:
+class QuaternionDmpParameters(_FieldsRecord):
     """A learned orientation DMP.
 
     The two modes, measured on 50 seeded minimum-jerk slerp demonstrations (about 1 rad),
@@ -332,26 +342,6 @@ class QuaternionDmpParameters:
             dt=dt,
             n_steps=n_steps,
         )
-
-    def to_dict(self) -> dict:
-        return {
-            "type": "QuaternionDmpParameters",
-            "weights": self.weights.tolist(),
-            "centres": self.centres.tolist(),
-            "widths": self.widths.tolist(),
-            "K": self.K,
-            "D": self.D,
-            "alpha": self.alpha,
-            "tau": self.tau,
-            "q0": self.q0.tolist(),
-            "goal": self.goal.tolist(),
-            "mode": self.mode,
-        }
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "QuaternionDmpParameters":
-        _check_type(d, "QuaternionDmpParameters")
-        return cls(**{k: v for k, v in d.items() if k != "type"})
 
 
 @dataclass

@@ -139,7 +139,81 @@ class CanonicalSystem(LeafSystem):
         output.SetAtIndex(0, context.get_continuous_state_vector().GetAtIndex(0))
 
 
-class TransformationSystem(LeafSystem):
+class _VectorDmpPorts:
+    """Port getters shared by the vector DMP LeafSystems (mixed in before LeafSystem).
+
+    The system sets ``_n``, ``_goal_port`` (None without a goal input) and the
+    ``_position_port``, ``_velocity_port`` and ``_acceleration_port`` outputs.
+    """
+
+    def get_goal_input_port(self):
+        return self._goal_port
+
+    def get_position_output_port(self):
+        return self._position_port
+
+    def get_velocity_output_port(self):
+        return self._velocity_port
+
+    def get_acceleration_output_port(self):
+        return self._acceleration_port
+
+    @property
+    def n_dims(self) -> int:
+        return self._n
+
+
+class _CouplingAndOnset(_VectorDmpPorts):
+    """Optional coupling input and the ``start_time`` parameter (``_coupling_port``, ``_start``)."""
+
+    def get_coupling_input_port(self):
+        return self._coupling_port
+
+    def set_start_time(self, context: Context, start_time: float) -> None:
+        """Hold the state until ``start_time``.
+
+        Args:
+            context: This system's context.
+            start_time: Movement onset [s].
+        """
+        context.get_mutable_numeric_parameter(self._start).SetAtIndex(0, float(start_time))
+
+    def _has_coupling(self, context: Context) -> bool:
+        """Whether the coupling input is declared and connected (or fixed)."""
+        return self._coupling_port is not None and self._coupling_port.HasValue(context)
+
+    def _coupling(self, context: Context) -> "np.ndarray | float":
+        """The coupling input if declared and connected, else 0."""
+        return self._coupling_port.Eval(context) if self._has_coupling(context) else 0.0
+
+
+class _DiscreteDmpOutputs(_VectorDmpPorts):
+    """The outputs of the discrete DMP systems: position, velocity, acceleration, phase.
+
+    Position, velocity and phase depend on the discrete state only; the system provides
+    ``_calc_position``, ``_calc_velocity``, ``_calc_acceleration`` and ``_calc_phase``.
+    """
+
+    def _declare_discrete_outputs(self, n: int) -> None:
+        only_state = {self.xd_ticket()}
+        self._position_port = self.DeclareVectorOutputPort(
+            "position", n, self._calc_position, prerequisites_of_calc=only_state
+        )
+        self._velocity_port = self.DeclareVectorOutputPort(
+            "velocity", n, self._calc_velocity, prerequisites_of_calc=only_state
+        )
+        self._acceleration_port = self.DeclareVectorOutputPort(
+            "acceleration", n, self._calc_acceleration
+        )
+        self._phase_port = self.DeclareVectorOutputPort(
+            "phase", 1, self._calc_phase, prerequisites_of_calc=only_state
+        )
+
+    def get_phase_output_port(self):
+        return self._phase_port
+
+
+class TransformationSystem(_CouplingAndOnset, LeafSystem):
     """n-DOF transformation system, the paper's new form (eq. 6, 9) or the old one (eq. 1).
 
     Continuous state ``[x (n), v (n)]`` with ``v = tau dx/dt``; initial ``x = x0``, ``v = 0``.
@@ -202,31 +276,12 @@ class TransformationSystem(LeafSystem):
             "acceleration", n, self._calc_acceleration
         )
 
-    # ports
+    # ports (goal, coupling, position, velocity, acceleration: see _VectorDmpPorts)
     def get_phase_input_port(self):
         return self._phase_port
 
-    def get_goal_input_port(self):
-        return self._goal_port
-
-    def get_coupling_input_port(self):
-        return self._coupling_port
-
     def get_tau_input_port(self):
         return self._tau_port
-
-    def get_position_output_port(self):
-        return self._position_port
-
-    def get_velocity_output_port(self):
-        return self._velocity_port
-
-    def get_acceleration_output_port(self):
-        return self._acceleration_port
-
-    @property
-    def n_dims(self) -> int:
-        return self._n
 
     # context helpers
     def set_start(self, context: Context, x0: np.ndarray, xd0: np.ndarray | None = None) -> None:
@@ -242,15 +297,6 @@ class TransformationSystem(LeafSystem):
         context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
         tau = self._tau_value(context)
         context.get_mutable_continuous_state_vector().SetFromVector(np.concatenate([x0, tau * xd0]))
-
-    def set_start_time(self, context: Context, start_time: float) -> None:
-        """Hold the state until ``start_time``.
-
-        Args:
-            context: This system's context.
-            start_time: Movement onset [s].
-        """
-        context.get_mutable_numeric_parameter(self._start).SetAtIndex(0, float(start_time))
 
     def set_dmp(self, context: Context, dmp: DmpParameters) -> None:
         """Load another DMP of the same size into the parameters (and start state).
@@ -300,9 +346,7 @@ class TransformationSystem(LeafSystem):
         p = context.get_numeric_parameter
         W = p(self._w).value().reshape(n, self._b)
         f = forcing_term(theta, W, p(self._c).value(), p(self._h).value())
-        coupling = 0.0
-        if self._coupling_port is not None and self._coupling_port.HasValue(context):
-            coupling = self._coupling_port.Eval(context)
+        coupling = self._coupling(context)
         return transformation_derivatives(
             x,
             v,
@@ -634,7 +678,7 @@ class _DiscreteTables:
         return 0.0, np.zeros(self.n)
 
 
-class DiscreteDmpSystem(LeafSystem):
+class DiscreteDmpSystem(_CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
     """Canonical + transformation system in one discrete-time LeafSystem (fast, exact).
 
     Every ``time_step`` the spring-damper state is advanced by the exact first-order-hold
@@ -682,41 +726,7 @@ class DiscreteDmpSystem(LeafSystem):
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
         self._goal_port = self.DeclareVectorInputPort("goal", n)
         self._coupling_port = self.DeclareVectorInputPort("coupling", n) if coupling_input else None
-        only_state = {self.xd_ticket()}
-        self._position_port = self.DeclareVectorOutputPort(
-            "position", n, self._calc_position, prerequisites_of_calc=only_state
-        )
-        self._velocity_port = self.DeclareVectorOutputPort(
-            "velocity", n, self._calc_velocity, prerequisites_of_calc=only_state
-        )
-        self._acceleration_port = self.DeclareVectorOutputPort(
-            "acceleration", n, self._calc_acceleration
-        )
-        self._phase_port = self.DeclareVectorOutputPort(
-            "phase", 1, self._calc_phase, prerequisites_of_calc=only_state
-        )
-
-    def get_goal_input_port(self):
-        return self._goal_port
-
-    def get_coupling_input_port(self):
-        return self._coupling_port
-
-    def get_position_output_port(self):
-        return self._position_port
-
-    def get_velocity_output_port(self):
-        return self._velocity_port
-
-    def get_acceleration_output_port(self):
-        return self._acceleration_port
-
-    def get_phase_output_port(self):
-        return self._phase_port
-
-    @property
-    def n_dims(self) -> int:
-        return self._n
+        self._declare_discrete_outputs(n)
 
     @property
     def time_step(self) -> float:
@@ -737,15 +747,6 @@ class DiscreteDmpSystem(LeafSystem):
             np.concatenate([[0.0], x0, self._tau * xd0])
         )
 
-    def set_start_time(self, context: Context, start_time: float) -> None:
-        """Hold the state until ``start_time``.
-
-        Args:
-            context: This system's context.
-            start_time: Movement onset [s].
-        """
-        context.get_mutable_numeric_parameter(self._start).SetAtIndex(0, float(start_time))
-
     def _update(self, context: Context, discrete_state) -> None:
         s = context.get_discrete_state(self._state).get_value()
         if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):
@@ -753,9 +754,7 @@ class DiscreteDmpSystem(LeafSystem):
             return
         goal = _finite_goal(self._goal_port.Eval(context))
         x0 = context.get_numeric_parameter(self._x0).get_value()
-        p = None
-        if self._coupling_port is not None and self._coupling_port.HasValue(context):
-            p = self._coupling_port.Eval(context)
+        p = self._coupling_port.Eval(context) if self._has_coupling(context) else None
         out = np.empty_like(s)
         out[0] = s[0] + 1.0
         out[1:] = self._tab.step(s[1:], int(s[0]), goal, x0, p)
@@ -776,9 +775,7 @@ class DiscreteDmpSystem(LeafSystem):
         s = context.get_discrete_state(self._state).get_value()
         n = self._n
         theta, f = self._tab.phase_and_f(s[0])
-        coupling = 0.0
-        if self._coupling_port is not None and self._coupling_port.HasValue(context):
-            coupling = self._coupling_port.Eval(context)
+        coupling = self._coupling(context)
         _, vd = transformation_derivatives(
             s[1 : 1 + n],
             s[1 + n :],

@@ -32,6 +32,7 @@ from repertoire.systems.dmp import (
     QuaternionNormalizer,
     TransformationSystem,
     _check_size,
+    _DiscreteDmpOutputs,
     _DiscreteTables,
 )
 
@@ -424,7 +425,7 @@ def add_dmp(
     return builder.AddSystem(system)
 
 
-class DmpSequencer(LeafSystem):
+class DmpSequencer(_DiscreteDmpOutputs, LeafSystem):
     """Chains vector DMPs (sec. III-C, Fig. 5): segment i starts at ``switch_times[i]``.
 
     At a switch the next segment's phase restarts at 1 and, by ``handoff``:
@@ -488,37 +489,10 @@ class DmpSequencer(LeafSystem):
         self._state = self.DeclareDiscreteState(np.concatenate([[0.0, 0.0], x0, x0, np.zeros(n)]))
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
         self._goal_port = self.DeclareVectorInputPort("goal", n) if goal_input else None
-        only_state = {self.xd_ticket()}
-        self._position_port = self.DeclareVectorOutputPort(
-            "position", n, self._calc_position, prerequisites_of_calc=only_state
-        )
-        self._velocity_port = self.DeclareVectorOutputPort(
-            "velocity", n, self._calc_velocity, prerequisites_of_calc=only_state
-        )
-        self._acceleration_port = self.DeclareVectorOutputPort(
-            "acceleration", n, self._calc_acceleration
-        )
-        self._phase_port = self.DeclareVectorOutputPort(
-            "phase", 1, self._calc_phase, prerequisites_of_calc=only_state
-        )
+        self._declare_discrete_outputs(n)
         self._segment_port = self.DeclareVectorOutputPort(
-            "segment", 1, self._calc_segment, prerequisites_of_calc=only_state
+            "segment", 1, self._calc_segment, prerequisites_of_calc={self.xd_ticket()}
         )
-
-    def get_goal_input_port(self):
-        return self._goal_port
-
-    def get_position_output_port(self):
-        return self._position_port
-
-    def get_velocity_output_port(self):
-        return self._velocity_port
-
-    def get_acceleration_output_port(self):
-        return self._acceleration_port
-
-    def get_phase_output_port(self):
-        return self._phase_port
 
     def get_segment_output_port(self):
         return self._segment_port

@@ -51,6 +51,22 @@ def _add_scenario(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_out(p: argparse.ArgumentParser, default: str, what: str = "output folder") -> None:
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        type=Path,
+        default=Path(default),
+        help=f"{what} (default: {default})",
+    )
+
+
+def _add_diagram_name(p: argparse.ArgumentParser) -> None:
+    """The NAME of a registered diagram and its optional --scenario YAML."""
+    p.add_argument("name", metavar="NAME", help="registered diagram name")
+    _add_scenario(p)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argparse parser of the ``repertoire`` command (sub-commands and their options)."""
     parser = argparse.ArgumentParser(
@@ -87,15 +103,8 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="example: repertoire render arm_hold --out out/graphs --max-depth 1",
         formatter_class=raw,
     )
-    p.add_argument("name", metavar="NAME", help="registered diagram name")
-    _add_scenario(p)
-    p.add_argument(
-        "--out",
-        metavar="DIR",
-        type=Path,
-        default=Path("out/render"),
-        help="output folder (default: out/render)",
-    )
+    _add_diagram_name(p)
+    _add_out(p, "out/render")
     p.add_argument(
         "--max-depth",
         metavar="N",
@@ -127,8 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
         "  repertoire simulate biped_stand --live --live-seconds 60",
         formatter_class=raw,
     )
-    p.add_argument("name", metavar="NAME", help="registered diagram name")
-    _add_scenario(p)
+    _add_diagram_name(p)
     p.add_argument(
         "--duration",
         metavar="S",
@@ -136,13 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="simulated seconds (default: the diagram's registered duration)",
     )
-    p.add_argument(
-        "--out",
-        metavar="DIR",
-        type=Path,
-        default=Path("out/simulate"),
-        help="folder for the --replay HTML (default: out/simulate)",
-    )
+    _add_out(p, "out/simulate", "folder for the --replay HTML")
     p.add_argument(
         "--replay",
         action="store_true",
@@ -199,13 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="example: repertoire demo --out out/demo",
         formatter_class=raw,
     )
-    p.add_argument(
-        "--out",
-        metavar="DIR",
-        type=Path,
-        default=Path("out/demo"),
-        help="output folder (default: out/demo)",
-    )
+    _add_out(p, "out/demo")
     p.add_argument(
         "--quick",
         action="store_true",

@@ -194,6 +194,13 @@ def write_index(out: Path, items: list[DemoItem], failures: list[str], total_s: 
     return path
 
 
+def _collect(item: DemoItem, what: str, items: list[DemoItem], failures: list[str]) -> None:
+    """Append a finished part, and its failure (``"what: error"``) if it failed."""
+    items.append(item)
+    if item.error:
+        failures.append(f"{what}: {item.error}")
+
+
 def run_demo(
     out_dir: str | Path = "out/demo", *, quick: bool = False, printer: Callable[[str], None] = print
 ) -> DemoResult:
@@ -228,13 +235,11 @@ def run_demo(
     for name in names:
         printer(f"== world {name}")
         item = _demo_diagram(name, out, quick, printer)
-        items.append(item)
         for key, value in item.figures.items():
             printer(f"  {key} = {value:.6g}")
         for note in item.notes:
             printer(f"  note: {note}")
-        if item.error:
-            failures.append(f"diagram {name}: {item.error}")
+        _collect(item, f"diagram {name}", items, failures)
 
     try:
         study_names = _study_api()[0]()
@@ -244,10 +249,7 @@ def run_demo(
         printer(f"could not load the study registry:\n{traceback.format_exc()}")
     for name in study_names:
         printer(f"== study {name}")
-        item = _demo_study(name, out, quick, printer)
-        items.append(item)
-        if item.error:
-            failures.append(f"study {name}: {item.error}")
+        _collect(_demo_study(name, out, quick, printer), f"study {name}", items, failures)
 
     total = time.perf_counter() - start
     index = write_index(out, items, failures, total)

@@ -41,6 +41,7 @@ import time
 
 import numpy as np
 from pydrake.common.value import AbstractValue
+from pydrake.geometry import QueryObject
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
 from pydrake.multibody.tree import (
@@ -66,8 +67,11 @@ from repertoire.models import ConfigureParser, package_url
 from repertoire.models.arm7 import (
     ALL_JOINTS,
     ARM_JOINTS,
+    CUP_HEIGHT,
+    CUP_RADIUS,
     HAND_GRASP_7CM,
     HAND_OPEN,
+    OBSTACLE_RADIUS,
     SHOULDER_FRAME,
     TABLE_HEIGHT,
     TCP_FRAME,
@@ -81,12 +85,12 @@ from repertoire.models.arm7 import (
 from repertoire.planning.dmp import TaskSpaceDmp, learn_task_space_dmp
 from repertoire.planning.dmp_math import minimum_jerk, minimum_jerk_via_points
 from repertoire.planning.motion_library import MotionLibrary
-from repertoire.systems.dmp import ObstacleCoupling
 from repertoire.systems.task_space import (
     STATUS_NAMES,
     STATUS_OK,
     STATUS_TARGET_OUT_OF_REACH,
     GraspWrench,
+    MultiPointObstacleCoupling,
     ResolvedMotionRateIK,
     TaskSpaceDmpChain,
     check_reachable,
@@ -454,6 +458,136 @@ class BodyPointAndAxis(LeafSystem):
         output.SetFromVector(np.concatenate([X.translation(), X.rotation().matrix()[:, 2]]))
 
 
+# ----------------------------------------------------------------------------- obstacle
+#: Where eq. 10 acts while carrying (tcp frame E; in a side grasp x_E is up, y_E closes the
+#: hand across the cup, z_E is the approach): the tcp on the cup's axis, the cup's lower
+#: part, the two finger groups and the palm (8.5 cm behind the tcp).
+CARRY_CONTROL_POINTS = (
+    (0.0, 0.0, 0.0),
+    (-0.045, 0.0, 0.0),
+    (0.0, 0.06, 0.0),
+    (0.0, -0.06, 0.0),
+    (0.0, 0.0, -0.085),
+)
+#: The default ball: 1 cm below the uncoupled carry path of the default layout, 62 % of the
+#: way along it (``carry_path_point([0.55, -0.25], [0.54, 0.20], 0.62) - [0, 0, 0.01]``,
+#: rounded to mm; nearer the middle it would touch the open hand at home).
+DEFAULT_OBSTACLE_XYZ = (0.543, 0.07, 0.971)
+
+
+def _ball_cylinder_gap(
+    centre: np.ndarray, xy: np.ndarray, z0: float, radius: float, height: float
+) -> float:
+    """Exact distance between a ball of radius OBSTACLE_RADIUS and an upright cylinder.
+
+    Args:
+        centre: ball centre (3).
+        xy: the cylinder's axis (2).
+        z0: the cylinder's bottom height.
+        radius: the cylinder's radius.
+        height: the cylinder's height.
+
+    Returns:
+        Distance between the surfaces [m]; <= 0 when they overlap.
+    """
+    radial = max(float(np.hypot(centre[0] - xy[0], centre[1] - xy[1])) - radius, 0.0)
+    vertical = max(z0 - centre[2], centre[2] - (z0 + height), 0.0)
+    return float(np.hypot(radial, vertical)) - OBSTACLE_RADIUS
+
+
+def carry_path(cup_xy, coaster_xy, dt: float = 0.005) -> np.ndarray:
+    """The tcp path of the learned place DMP without coupling (k x 3), cup to coaster.
+
+    The place DMP rolled out (NumPy) from the cup's grasp point to the place goal
+    above ``coaster_xy``: where the arm carries the cup when nothing is in the way.
+
+    Args:
+        cup_xy: the cup's position on the table (2).
+        coaster_xy: the coaster's position (2).
+        dt: rollout step [s].
+    """
+    cup = np.array([cup_xy[0], cup_xy[1], TABLE_HEIGHT + CUP_GRASP_HEIGHT])
+    goal = np.array([coaster_xy[0], coaster_xy[1], COASTER_RAIL_HEIGHT]) + _place_offset()
+    return motion_library()["place"].position.rollout(goal=goal, x0=cup, dt=dt).x
+
+
+def carry_path_point(cup_xy, coaster_xy, fraction: float = 0.5) -> np.ndarray:
+    """The point at ``fraction`` of the arc length of :func:`carry_path` (3).
+
+    Args:
+        cup_xy: the cup's position on the table (2).
+        coaster_xy: the coaster's position (2).
+        fraction: 0 = the grasp point, 1 = the place goal.
+    """
+    path = carry_path(cup_xy, coaster_xy)
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    return np.array([np.interp(fraction * arc[-1], arc, path[:, i]) for i in range(3)])
+
+
+class ObstacleClearanceMonitor(LeafSystem):
+    """Running minimum of the signed distance between the ball and the robot or its load.
+
+    Every ``period`` it asks SceneGraph for the signed distance from the ball's
+    centre to each watched collision geometry (``ComputeSignedDistanceToPoint``:
+    exact for the spheres, capsules, boxes and cylinders of arm7 and the cup) and
+    subtracts the ball's radius: the gap between the ball's surface and the
+    geometry, negative when they overlap.
+
+    Input ports:
+        geometry_query: SceneGraph's query object.
+
+    Output ports:
+        clearance: [running minimum gap (m), time of the minimum (s)] (2).
+    """
+
+    def __init__(
+        self,
+        centre_W: np.ndarray,
+        radius: float,
+        geometries: list,
+        *,
+        period: float,
+        horizon: float = 0.5,
+    ) -> None:
+        """Builds the monitor.
+
+        Args:
+            centre_W: the ball's centre (fixed) in W.
+            radius: the ball's radius.
+            geometries: GeometryIds watched (the arm's and the carried object's).
+            period: update period [s].
+            horizon: geometries farther than this from the centre are not reported; the
+                gap then reads ``horizon - radius``.
+        """
+        super().__init__()
+        self._centre = np.asarray(centre_W, dtype=float).reshape(3)
+        self._radius = float(radius)
+        self._ids = set(geometries)
+        self._horizon = float(horizon)
+        self._query = self.DeclareAbstractInputPort(
+            "geometry_query", AbstractValue.Make(QueryObject())
+        )
+        self._state = self.DeclareDiscreteState([self._horizon - self._radius, 0.0])
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclareStateOutputPort("clearance", self._state)
+
+    def gap(self, context: Context) -> float:
+        """The current gap between the ball and the nearest watched geometry [m]."""
+        query = self._query.Eval(context)
+        gaps = [
+            d.distance
+            for d in query.ComputeSignedDistanceToPoint(self._centre, self._horizon)
+            if d.id_G in self._ids
+        ]
+        return float(min(gaps, default=self._horizon)) - self._radius
+
+    def _update(self, context: Context, state) -> None:
+        gap = self.gap(context)
+        best = context.get_discrete_state(self._state).value()
+        if gap < best[0]:
+            state.get_mutable_vector(self._state).SetFromVector([gap, context.get_time()])
+
+
 # ----------------------------------------------------------------------------- scenarios
 def _check_xy(name: str, xy) -> np.ndarray:
     v = np.asarray(xy, dtype=float).reshape(-1)
@@ -489,10 +623,20 @@ class PickPlaceScenario:
         coaster_final_xy: where the coaster moves to after the placing onset [m].
         coaster_move_delay: seconds after the placing onset when the coaster starts moving.
         coaster_move_duration: seconds the coaster takes to move.
-        obstacle_xyz: centre of the ball-like obstacle (radius 0.06 m) [m].
+        obstacle_xyz: centre of the ball-like obstacle (radius 0.06 m) [m]. The
+            default sits on the carry path (1 cm below the uncoupled tcp path, 62 % of
+            the way, see :func:`carry_path_point`): without coupling the cup hits it.
         obstacle_coupling: whether the obstacle feeds the DMP coupling term (eq. 10).
         obstacle_gamma: gamma of eq. 10.
-        obstacle_beta: the angular decay c of eq. 10.
+        obstacle_beta: the angular decay c of eq. 10 (the paper: 20/pi).
+        obstacle_points: control points in the tcp frame where eq. 10 is applied and
+            summed (:class:`MultiPointObstacleCoupling`): by default the tcp (the
+            carried cup's axis), the cup's lower part (x_tcp is up in a side grasp),
+            the two finger groups (+-y_tcp) and the palm (-z_tcp). ``[[0, 0, 0]]`` is the paper's
+            end-effector-only term.
+        obstacle_length_scale: decay length [m] of the distance factor
+            ``exp(-max(d - 0.06, 0) / length_scale)`` (our extension); 0 = the paper's
+            eq. 10 exactly.
         settle_time: pause after each DMP's tau before the next segment starts [s].
     """
 
@@ -500,14 +644,20 @@ class PickPlaceScenario:
     contact_approximation: str = "lagged"
     grasp_mode: str = "contact"
     cup_xy: list[float] = dataclasses.field(default_factory=lambda: [0.55, -0.25])
-    coaster_xy: list[float] = dataclasses.field(default_factory=lambda: [0.52, 0.08])
-    coaster_final_xy: list[float] = dataclasses.field(default_factory=lambda: [0.58, 0.14])
+    coaster_xy: list[float] = dataclasses.field(default_factory=lambda: [0.54, 0.20])
+    coaster_final_xy: list[float] = dataclasses.field(default_factory=lambda: [0.58, 0.22])
     coaster_move_delay: float = 0.8
     coaster_move_duration: float = 1.0
-    obstacle_xyz: list[float] = dataclasses.field(default_factory=lambda: [0.64, -0.08, 0.98])
+    obstacle_xyz: list[float] = dataclasses.field(
+        default_factory=lambda: list(DEFAULT_OBSTACLE_XYZ)
+    )
     obstacle_coupling: bool = True
-    obstacle_gamma: float = 3000.0
-    obstacle_beta: float = float(20.0 / np.pi)
+    obstacle_gamma: float = 50000.0
+    obstacle_beta: float = 4.0
+    obstacle_points: list[list[float]] = dataclasses.field(
+        default_factory=lambda: [list(p) for p in CARRY_CONTROL_POINTS]
+    )
+    obstacle_length_scale: float = 0.03
     settle_time: float = 0.25
 
     def validate(self) -> None:
@@ -519,6 +669,12 @@ class PickPlaceScenario:
         o = np.asarray(self.obstacle_xyz, dtype=float).reshape(-1)
         if o.size != 3 or not np.all(np.isfinite(o)):
             raise ScenarioError(f"obstacle_xyz must be 3 finite numbers, got {self.obstacle_xyz}")
+        if o[2] - OBSTACLE_RADIUS < TABLE_HEIGHT:
+            raise ScenarioError(
+                f"obstacle_xyz z = {o[2]} m: the ball (radius {OBSTACLE_RADIUS} m) overlaps the "
+                f"table (top at {TABLE_HEIGHT} m); its centre must be at least "
+                f"{TABLE_HEIGHT + OBSTACLE_RADIUS + 0.05:.2f} m high"
+            )
         if o[2] - 0.06 < TABLE_HEIGHT + 0.05:
             raise ScenarioError(
                 f"obstacle_xyz z = {o[2]} m puts the ball within 5 cm of the table top "
@@ -529,10 +685,36 @@ class PickPlaceScenario:
             "coaster_move_duration",
             "obstacle_gamma",
             "obstacle_beta",
+            "obstacle_length_scale",
         ):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ScenarioError(f"{name} must be finite and >= 0, got {value}")
+        pts = np.asarray(self.obstacle_points, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.all(np.isfinite(pts)):
+            raise ScenarioError(
+                "obstacle_points must list one or more [x, y, z] points, got "
+                f"{self.obstacle_points}"
+            )
+        # The ball must not overlap the cup where it starts or where it is put down.
+        bottom = TABLE_HEIGHT
+        placed = TABLE_HEIGHT + COASTER_TOP + PLACE_CLEARANCE
+        for what, xy, z0 in (
+            ("the cup at its start (cup_xy)", self.cup_xy, bottom),
+            ("the cup placed on the coaster (coaster_xy)", self.coaster_xy, placed),
+            (
+                "the cup placed on the moved coaster (coaster_final_xy)",
+                self.coaster_final_xy,
+                placed,
+            ),
+        ):
+            gap = _ball_cylinder_gap(o, np.asarray(xy, float), z0, CUP_RADIUS, CUP_HEIGHT)
+            if gap <= 0.0:
+                raise ScenarioError(
+                    f"obstacle_xyz {list(map(float, o))} puts the ball inside {what} "
+                    f"(overlap {-gap * 100:.1f} cm); the ball must stay clear of the start and "
+                    "the goal"
+                )
 
 
 @dataclasses.dataclass
@@ -659,7 +841,9 @@ def _build_world(
         goals: one goal per chain segment, in order (labels from the motion library).
         graspable: "instance:body" of the objects the grip may hold (grip mode).
         coaster: optional moving coaster {"xy", "final_xy", "t0", "t1"}.
-        obstacle: optional {"xyz", "coupling", "gamma", "beta"} for ObstacleCoupling.
+        obstacle: optional {"xyz", "coupling", "gamma", "beta", "points", "length_scale"}
+            for MultiPointObstacleCoupling, and a clearance monitor between the ball and
+            the arm and the graspable objects.
         logs: extra logs: name -> (body, instance, point in the body frame).
         meshcat: optional Meshcat for a visualizer.
 
@@ -718,13 +902,21 @@ def _build_world(
     builder.Connect(schedule.GetOutputPort("goal"), chain.GetInputPort("goal"))
     if obstacle is not None and obstacle["coupling"]:
         coupling = builder.AddNamedSystem(
-            "obstacle_coupling", ObstacleCoupling(obstacle["gamma"], obstacle["beta"])
+            "obstacle_coupling",
+            MultiPointObstacleCoupling(
+                np.asarray(obstacle["points"], float),
+                gamma=obstacle["gamma"],
+                beta=obstacle["beta"],
+                obstacle_radius=OBSTACLE_RADIUS,
+                length_scale=obstacle["length_scale"],
+            ),
         )
         o_src = builder.AddNamedSystem(
             "obstacle_position", ConstantVectorSource(np.asarray(obstacle["xyz"], float))
         )
         builder.Connect(chain.GetOutputPort("position"), coupling.GetInputPort("position"))
         builder.Connect(chain.GetOutputPort("velocity"), coupling.GetInputPort("velocity"))
+        builder.Connect(chain.GetOutputPort("orientation"), coupling.GetInputPort("orientation"))
         builder.Connect(o_src.get_output_port(), coupling.GetInputPort("obstacle"))
         builder.Connect(coupling.GetOutputPort("coupling"), chain.GetInputPort("coupling"))
     else:
@@ -828,6 +1020,22 @@ def _build_world(
         builder.Connect(plant.get_body_poses_output_port(), point.GetInputPort("body_poses"))
         s = LogVectorOutput(point.get_output_port(), builder, LOG_PERIOD)
         s.set_name(f"{log_name}_log")
+    if obstacle is not None:
+        watched = [
+            plant.GetBodyByName(n.split(":")[1], instances[n.split(":")[0]]) for n in graspable
+        ]
+        watched += [plant.get_body(i) for i in plant.GetBodyIndices(arm)]
+        ids = [g for b in watched for g in plant.GetCollisionGeometriesForBody(b)]
+        monitor = builder.AddNamedSystem(
+            "obstacle_clearance",
+            ObstacleClearanceMonitor(
+                np.asarray(obstacle["xyz"], float),
+                OBSTACLE_RADIUS,
+                ids,
+                period=IK_PERIOD,
+            ),
+        )
+        builder.Connect(scene_graph.get_query_output_port(), monitor.GetInputPort("geometry_query"))
     add_meshcat(builder, scene_graph, meshcat)
     diagram = builder.Build()
     diagram.set_name(name)
@@ -939,6 +1147,8 @@ def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagra
             "coupling": scenario.obstacle_coupling,
             "gamma": scenario.obstacle_gamma,
             "beta": scenario.obstacle_beta,
+            "points": scenario.obstacle_points,
+            "length_scale": scenario.obstacle_length_scale,
         },
         meshcat=meshcat,
     )
@@ -1095,7 +1305,11 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
         ``cup_to_coaster_m`` (horizontal), ``cup_height_above_coaster_m`` (cup bottom
         above the coaster top), ``cup_tilt_rad``, ``min_obstacle_clearance_m`` (tcp
         to the ball's surface), ``grasp_reach_error_m``, ``place_reach_error_m``,
-        ``success`` (1 if the cup stands on the coaster within 2 cm of its centre).
+        ``success`` (1 if the cup stands on the coaster within 2 cm of its centre),
+        ``min_ball_gap_m`` (smallest signed distance between the ball and any collision
+        geometry of the arm, the hand, the fingers or the cup over the run, from
+        SceneGraph every 4 ms; negative = they touched), ``min_ball_gap_time_s``
+        (when) and ``collision_free`` (1 if ``min_ball_gap_m > 0``).
     """
     plant = diagram.GetSubsystemByName("plant")
     pc = plant.GetMyContextFromRoot(context)
@@ -1111,6 +1325,8 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
     ).EvalPoseInWorld(pc)
     log = _log(diagram, context, "tcp_log")
     clearance = float(np.min(np.linalg.norm(log[:, 1:4] - obstacle.translation(), axis=1)) - 0.06)
+    monitor = diagram.GetSubsystemByName("obstacle_clearance")
+    gap, gap_time = monitor.get_output_port().Eval(monitor.GetMyContextFromRoot(context))
     errors = segment_reach_errors(diagram, context) + [np.nan] * 3
     success = d_xy < 0.02 and abs(height) < 0.01 and tilt < 0.2
     return {
@@ -1121,6 +1337,9 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
         "grasp_reach_error_m": errors[0],
         "place_reach_error_m": errors[1],
         "success": float(success),
+        "min_ball_gap_m": float(gap),
+        "min_ball_gap_time_s": float(gap_time),
+        "collision_free": float(gap > 0.0),
     }
 
 

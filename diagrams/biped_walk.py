@@ -160,22 +160,7 @@ def plan_from_actions(
         feet.append(int(foot))
         times.append(times[-1] + float(dur))
         hist.append(a)
-    return FootstepPlan(
-        poses=poses,
-        feet=feet,
-        actions=list(actions),
-        times=times,
-        status="SUCCESS",
-        cost=0.0,
-        cost_to_go=0.0,
-        nodes_expanded=0,
-        nodes_generated=0,
-        planning_time_s=0.0,
-        initial_swing_pose=list(swing_pose),
-        goal=list(poses[-1][:2]),
-        goal_tolerance=0.1,
-        initial_history=history,
-    )
+    return FootstepPlan.from_commands(poses, feet, list(actions), times, list(swing_pose), history)
 
 
 def _scenario_plan(scenario: BipedWalkScenario) -> tuple[FootstepPlan, list[list[float]]]:

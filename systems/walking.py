@@ -507,21 +507,8 @@ class CommandStepper(LeafSystem):
 
 
 def _empty_plan() -> FootstepPlan:
-    return FootstepPlan(
-        poses=[[0.0, 0.095, 0.0]],
-        feet=[0],
-        actions=[],
-        times=[0.0],
-        status="SUCCESS",
-        cost=0.0,
-        cost_to_go=0.0,
-        nodes_expanded=0,
-        nodes_generated=0,
-        planning_time_s=0.0,
-        initial_swing_pose=[0.0, -0.095, 0.0],
-        goal=[0.0, 0.0],
-        goal_tolerance=0.1,
-        initial_history=["stop", "stop"],
+    return FootstepPlan.from_commands(
+        [[0.0, 0.095, 0.0]], [0], [], [0.0], [0.0, -0.095, 0.0], ["stop", "stop"], goal=[0.0, 0.0]
     )
 
 

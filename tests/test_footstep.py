@@ -369,6 +369,20 @@ def test_plan_json_roundtrip(tmp_path):
         FootstepPlan.from_dict({"poses": []})
 
 
+def test_plan_from_commands():
+    poses = [[0.0, 0.1, 0.0], [0.3, -0.1, 0.0]]
+    plan = FootstepPlan.from_commands(
+        poses, [0, 1], ["forward_long"], [0.0, 0.8], [0.0, -0.1, 0.0], ["stop", "stop"]
+    )
+    assert plan.status is PlanStatus.SUCCESS and plan.num_steps == 1
+    assert plan.goal == [0.3, -0.1] and plan.goal_tolerance == 0.1
+    assert (plan.cost, plan.cost_to_go, plan.nodes_expanded, plan.planning_time_s) == (0, 0, 0, 0)
+    standing = FootstepPlan.from_commands(poses[:1], [0], [], [0.0], [0, 0, 0], ["stop"] * 2)
+    assert standing.goal == [0.0, 0.1] and standing.num_steps == 0
+    with pytest.raises(FootstepError, match="a plan with 1 actions needs 2 poses"):
+        FootstepPlan.from_commands(poses[:1], [0], ["stop"], [0.0], [0, 0, 0], ["stop"] * 2)
+
+
 def _tiny_problem():
     # the right foot's lane (y = 0.1) is blocked by a block it must step over
     grid = OccupancyGrid.from_rectangles((1.0, 0.6), [RectObstacle([0.5, 0.085], [0.1, 0.17])])

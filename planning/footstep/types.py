@@ -436,6 +436,50 @@ class FootstepPlan:
     def poses_array(self) -> np.ndarray:
         return np.asarray(self.poses, dtype=float).reshape(-1, 3)
 
+    @classmethod
+    def from_commands(
+        cls,
+        poses: list[list[float]],
+        feet: list[int],
+        actions: list[str],
+        times: list[float],
+        initial_swing_pose: list[float],
+        initial_history: list[str],
+        *,
+        goal: list[float] | None = None,
+        goal_tolerance: float = 0.1,
+    ) -> "FootstepPlan":
+        """A plan given as commands rather than found by a search.
+
+        Its status is SUCCESS and its cost, cost-to-go and search figures are zero.
+
+        Args:
+            poses: (N+1) stance poses ``[x, y, yaw]``.
+            feet: N+1 foot indices.
+            actions: N action names.
+            times: N+1 times (s).
+            initial_swing_pose: the other foot at the start.
+            initial_history: the two actions before the first one.
+            goal: ``[x, y]``; default the last pose's position.
+            goal_tolerance: radius of the goal region (m).
+        """
+        return cls(
+            poses=poses,
+            feet=feet,
+            actions=actions,
+            times=times,
+            status="SUCCESS",
+            cost=0.0,
+            cost_to_go=0.0,
+            nodes_expanded=0,
+            nodes_generated=0,
+            planning_time_s=0.0,
+            initial_swing_pose=initial_swing_pose,
+            goal=list(poses[-1][:2]) if goal is None else goal,
+            goal_tolerance=goal_tolerance,
+            initial_history=initial_history,
+        )
+
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
         d["status"] = self.status.value

@@ -69,3 +69,18 @@ def isolated_registry(monkeypatch):
         check=pendulum_check,
     )(build_pendulum)
     return registry
+
+
+@pytest.fixture(scope="session")
+def grasp_demo():
+    """A 1 s task-space grasp demonstration (3 via points, a 90 degree turn, 3 fingers)."""
+    from repertoire.planning.dmp_demos import synthesize_demonstration
+
+    return synthesize_demonstration(
+        np.array([[0.3, 0.3, 0.4], [0.5, 0.1, 0.25], [0.6, 0.0, 0.1]]),
+        np.array([[0, 1, 0, 0], [0, 0.7071067811865476, 0.7071067811865476, 0]]),
+        finger_keys=[[0.0] * 3, [0.8] * 3, [0.2] * 3],
+        finger_times=[0, 0.6, 1],
+        duration=1.0,
+        n_samples=300,
+    )

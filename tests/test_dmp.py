@@ -21,7 +21,7 @@ from repertoire.planning.dmp import (
     save_dmp,
     solve_program,
 )
-from repertoire.planning.dmp_demos import slerp_minimum_jerk, synthesize_demonstration
+from repertoire.planning.dmp_demos import slerp_minimum_jerk
 from repertoire.planning.dmp_math import (
     alpha_for_final_phase,
     basis_activations,
@@ -333,20 +333,14 @@ def test_save_load_exact(tmp_path):
 
 
 # ------------------------------------------------------------------ motion library
-def _grasp_dmp():
-    demo = synthesize_demonstration(
-        np.array([[0.3, 0.3, 0.4], [0.5, 0.1, 0.25], [0.6, 0.0, 0.1]]),
-        np.array([[0, 1, 0, 0], [0, 0.7071067811865476, 0.7071067811865476, 0]]),
-        finger_keys=[[0.0] * 3, [0.8] * 3, [0.2] * 3],
-        finger_times=[0, 0.6, 1],
-        duration=1.0,
-        n_samples=300,
-    )
-    return learn_task_space_dmp(demo.t, demo.position, demo.orientation, demo.fingers, n_basis=20)
+@pytest.fixture(scope="module")
+def grasp_dmp(grasp_demo):
+    d = grasp_demo
+    return learn_task_space_dmp(d.t, d.position, d.orientation, d.fingers, n_basis=20)
 
 
-def test_motion_library_compose_save_load_and_grasp_orientation(tmp_path):
-    g = _grasp_dmp()
+def test_motion_library_compose_save_load_and_grasp_orientation(tmp_path, grasp_dmp):
+    g = grasp_dmp
     lib = MotionLibrary()
     lib.add_dmp("grasp_cup", "grasp", g, {"object": "cup"})
     lib.add_dmp("place_cup", "place", g, {"object": "cup"})
@@ -395,7 +389,7 @@ def test_bad_demonstrations(t, x, match):
         learn_dmp(t, x)
 
 
-def test_bad_parameters():
+def test_bad_parameters(grasp_dmp):
     t, x = _demo()
     with pytest.raises(RepertoireError, match="at least one basis function"):
         learn_dmp(t, x, n_basis=0)
@@ -417,7 +411,7 @@ def test_bad_parameters():
     with pytest.raises(RepertoireError, match="demonstration 1 has 2 DOF"):
         learn_dmp_from_demonstrations([(t, x), (t, x[:, :2])])
     with pytest.raises(RepertoireError, match="position DMP must be 3-D"):
-        TaskSpaceDmp(learn_dmp(t, x[:, :2], n_basis=5), _grasp_dmp().orientation)
+        TaskSpaceDmp(learn_dmp(t, x[:, :2], n_basis=5), grasp_dmp.orientation)
     with pytest.raises(RepertoireError, match="mode 'manifold' needs weights of shape"):
         QuaternionDmpParameters(
             np.zeros((4, 5)), p.centres, p.widths, 1, 1, 1, 1, [1, 0, 0, 0], [1, 0, 0, 0]

@@ -11,7 +11,7 @@ from repertoire.planning.dmp import (
     learn_quaternion_dmp,
     learn_task_space_dmp,
 )
-from repertoire.planning.dmp_demos import slerp_minimum_jerk, synthesize_demonstration
+from repertoire.planning.dmp_demos import slerp_minimum_jerk
 from repertoire.planning.dmp_math import (
     forcing_term,
     minimum_jerk,
@@ -246,15 +246,8 @@ def test_sequencer_matches_numpy_chaining():
 
 
 @pytest.mark.parametrize("mode", ["manifold", "component"])
-def test_task_space_dmp_system_reaches_goals(mode):
-    demo = synthesize_demonstration(
-        np.array([[0.3, 0.3, 0.4], [0.5, 0.1, 0.25], [0.6, 0.0, 0.1]]),
-        np.array([[0, 1, 0, 0], [0, 0.7071067811865476, 0.7071067811865476, 0]]),
-        finger_keys=[[0.0] * 3, [0.8] * 3, [0.2] * 3],
-        finger_times=[0, 0.6, 1],
-        duration=1.0,
-        n_samples=300,
-    )
+def test_task_space_dmp_system_reaches_goals(mode, grasp_demo):
+    demo = grasp_demo
     dmp = learn_task_space_dmp(
         demo.t, demo.position, demo.orientation, demo.fingers, orientation_mode=mode, n_basis=20
     )

@@ -734,36 +734,18 @@ def test_receding_horizon_reaches_goal_with_small_budgets():
 
     sc = random_static_scene(5)
     t = nominal_action_table()
-    one_shot = plan_footsteps(
-        sc.grid, sc.start, sc.start_foot, sc.goal, t, PlannerOptions(max_expansions=40)
-    )
+    problem = (sc.grid, sc.start, sc.start_foot, sc.goal, t)
+    small = PlannerOptions(max_expansions=40)
+    one_shot = plan_footsteps(*problem, small)
     assert one_shot.status == PlanStatus.NODE_LIMIT  # one small budget is not enough
-    res = plan_receding_horizon(
-        sc.grid,
-        sc.start,
-        sc.start_foot,
-        sc.goal,
-        t,
-        PlannerOptions(max_expansions=40),
-        execute_steps=3,
-    )
+    res = plan_receding_horizon(*problem, small, execute_steps=3)
     assert res.plan.status == PlanStatus.SUCCESS and res.rounds > 1
     assert res.statuses[-1] == "SUCCESS" and res.statuses[0] == "NODE_LIMIT"
     follows_table(res.plan, t)  # histories carried across rounds
     assert res.plan.cost_to_go == 0.0
     assert all(not foot_collides_reference(sc.grid, p, 0.16, 0.10) for p in res.plan.poses)
-    capped = plan_receding_horizon(
-        sc.grid,
-        sc.start,
-        sc.start_foot,
-        sc.goal,
-        t,
-        PlannerOptions(max_expansions=40),
-        max_rounds=1,
-    )
+    capped = plan_receding_horizon(*problem, small, max_rounds=1)
     assert capped.plan.status == PlanStatus.NODE_LIMIT and capped.plan.num_steps == 4
     assert 0 < capped.plan.cost_to_go
     with pytest.raises(FootstepError, match="execute_steps"):
-        plan_receding_horizon(
-            sc.grid, sc.start, sc.start_foot, sc.goal, t, PlannerOptions(), execute_steps=0
-        )
+        plan_receding_horizon(*problem, PlannerOptions(), execute_steps=0)

@@ -13,17 +13,22 @@ def _strip_wall(record) -> dict:
     return {k: v for k, v in dataclasses.asdict(record).items() if not k.startswith("wall")}
 
 
-def test_static_study_smoke(tmp_path):
-    cfg = footstep_static.smoke_config()
-    result = run_study(
-        "footstep_static",
-        cfg,
-        episodes=3,
-        store=tmp_path / "s.sqlite",
+def _smoke_run(name: str, config, episodes: int, tmp_path):
+    """An inline run of a study through the engine, tables and figures into ``tmp_path``."""
+    return run_study(
+        name,
+        config,
+        episodes=episodes,
+        store=tmp_path / f"{name}.sqlite",
         out_dir=tmp_path,
         executor="inline",
         progress=False,
     )
+
+
+def test_static_study_smoke(tmp_path):
+    cfg = footstep_static.smoke_config()
+    result = _smoke_run("footstep_static", cfg, 3, tmp_path)
     assert [r.seed for r in result.records] == [0, 1, 2]
     for r in result.records:
         assert r.status in ("SUCCESS", "NODE_LIMIT", "UNREACHABLE")
@@ -52,15 +57,7 @@ def test_static_paper_setting_episode():
 
 def test_dynamic_study_smoke(tmp_path):
     cfg = footstep_dynamic.smoke_config()
-    result = run_study(
-        "footstep_dynamic",
-        cfg,
-        episodes=2,
-        store=tmp_path / "d.sqlite",
-        out_dir=tmp_path,
-        executor="inline",
-        progress=False,
-    )
+    result = _smoke_run("footstep_dynamic", cfg, 2, tmp_path)
     for r in result.records:
         assert not r.mobile2d_success  # the strings disconnect start and goal in 2-D
         assert r.success == (r.status == "SUCCESS")

@@ -200,139 +200,105 @@ class JointSpec:
     damping: float
 
 
+def _arm_joint(
+    name: str,
+    parent: str,
+    child: str,
+    xyz: tuple,
+    axis: tuple,
+    limits: tuple[float, float],
+    effort: float,
+    velocity: float,
+    damping: float,
+) -> JointSpec:
+    """An arm joint: child frame aligned with the parent's (rpy = 0)."""
+    return JointSpec(name, parent, child, xyz, (0, 0, 0), axis, *limits, effort, velocity, damping)
+
+
+def _finger_joint(name: str, xyz: tuple, axis: tuple, effort: float) -> JointSpec:
+    """A hand joint: frame aligned with the palm frame (rpy = pi about x from the hand)."""
+    return JointSpec(
+        name, "hand", f"{name}_link", xyz, (math.pi, 0, 0), axis, -0.4, 1.0, effort, 4.0, 0.005
+    )
+
+
+_FINGER_Z = -(PALM_OFFSET + FINGER_BASE_Z)
+
 #: Arm joints (Sarcos naming: SFE, SAA, HR, EB, WR, WFE, WAA) then hand joints.
 JOINTS: list[JointSpec] = [
-    JointSpec(
+    # name, parent, child, xyz, axis, (lower, upper), effort, velocity, damping
+    _arm_joint(
         "shoulder_flexion",
         "base",
         "shoulder_link",
         (0, 0, SHOULDER_HEIGHT),
-        (0, 0, 0),
         (0, -1, 0),
-        -0.9,
-        2.8,
+        (-0.9, 2.8),
         120.0,
         2.5,
         1.0,
     ),
-    JointSpec(
+    _arm_joint(
         "shoulder_abduction",
         "shoulder_link",
         "shoulder_yoke",
         (0, 0, 0),
-        (0, 0, 0),
         (-1, 0, 0),
-        -0.4,
-        2.4,
+        (-0.4, 2.4),
         120.0,
         2.5,
         1.0,
     ),
-    JointSpec(
+    _arm_joint(
         "humeral_rotation",
         "shoulder_yoke",
         "upper_arm",
         (0, 0, -SHOULDER_TO_HR),
-        (0, 0, 0),
         (0, 0, 1),
-        -1.6,
-        1.6,
+        (-1.6, 1.6),
         60.0,
         3.0,
         0.5,
     ),
-    JointSpec(
+    _arm_joint(
         "elbow",
         "upper_arm",
         "forearm",
         (0, 0, -(UPPER_ARM - SHOULDER_TO_HR)),
-        (0, 0, 0),
         (0, -1, 0),
-        0.0,
-        2.6,
+        (0.0, 2.6),
         80.0,
         3.0,
         0.5,
     ),
-    JointSpec(
+    _arm_joint(
         "wrist_rotation",
         "forearm",
         "wrist_link",
         (0, 0, -FOREARM),
-        (0, 0, 0),
         (0, 0, 1),
-        -1.6,
-        1.6,
+        (-1.6, 1.6),
         15.0,
         4.0,
         0.1,
     ),
-    JointSpec(
+    _arm_joint(
         "wrist_flexion",
         "wrist_link",
         "wrist_yoke",
         (0, 0, 0),
-        (0, 0, 0),
         (1, 0, 0),
-        -1.2,
-        1.2,
+        (-1.2, 1.2),
         15.0,
         4.0,
         0.1,
     ),
-    JointSpec(
-        "wrist_abduction",
-        "wrist_yoke",
-        "hand",
-        (0, 0, 0),
-        (0, 0, 0),
-        (0, 1, 0),
-        -0.6,
-        0.6,
-        15.0,
-        4.0,
-        0.1,
+    _arm_joint(
+        "wrist_abduction", "wrist_yoke", "hand", (0, 0, 0), (0, 1, 0), (-0.6, 0.6), 15.0, 4.0, 0.1
     ),
-    # Finger frames are aligned with the palm frame (rpy = pi about x from the hand).
-    JointSpec(
-        "thumb",
-        "hand",
-        "thumb_link",
-        (0, FINGER_BASE_Y, -(PALM_OFFSET + FINGER_BASE_Z)),
-        (math.pi, 0, 0),
-        (-1, 0, 0),
-        -0.4,
-        1.0,
-        4.0,
-        4.0,
-        0.005,
-    ),
-    JointSpec(
-        "finger_1",
-        "hand",
-        "finger_1_link",
-        (FINGER_SPREAD_X, -FINGER_BASE_Y, -(PALM_OFFSET + FINGER_BASE_Z)),
-        (math.pi, 0, 0),
-        (1, 0, 0),
-        -0.4,
-        1.0,
-        2.0,
-        4.0,
-        0.005,
-    ),
-    JointSpec(
-        "finger_2",
-        "hand",
-        "finger_2_link",
-        (-FINGER_SPREAD_X, -FINGER_BASE_Y, -(PALM_OFFSET + FINGER_BASE_Z)),
-        (math.pi, 0, 0),
-        (1, 0, 0),
-        -0.4,
-        1.0,
-        2.0,
-        4.0,
-        0.005,
-    ),
+    _finger_joint("thumb", (0, FINGER_BASE_Y, _FINGER_Z), (-1, 0, 0), 4.0),
+    _finger_joint("finger_1", (FINGER_SPREAD_X, -FINGER_BASE_Y, _FINGER_Z), (1, 0, 0), 2.0),
+    _finger_joint("finger_2", (-FINGER_SPREAD_X, -FINGER_BASE_Y, _FINGER_Z), (1, 0, 0), 2.0),
 ]
 
 

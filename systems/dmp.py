@@ -747,6 +747,14 @@ class DiscreteDmpSystem(_CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
             np.concatenate([[0.0], x0, self._tau * xd0])
         )
 
+    def get_start(self, context: Context) -> np.ndarray:
+        """A copy of the start x0 (numeric parameter).
+
+        Args:
+            context: This system's context.
+        """
+        return context.get_numeric_parameter(self._x0).get_value().copy()
+
     def _update(self, context: Context, discrete_state) -> None:
         s = context.get_discrete_state(self._state).get_value()
         if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):

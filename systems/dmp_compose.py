@@ -358,7 +358,7 @@ class DmpSystem(Diagram):
     def _set_start_fused(self, context, position, velocity, orientation, fingers) -> None:
         sysd = self._fused
         sub = self.GetMutableSubsystemContext(sysd, context)
-        x0 = sub.get_numeric_parameter(sysd._x0).get_value().copy()
+        x0 = sysd.get_start(sub)
         xd0 = np.zeros_like(x0)
         given = {"position": position, "orientation": orientation, "fingers": fingers}
         for name, value in given.items():

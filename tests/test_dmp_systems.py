@@ -150,6 +150,10 @@ def test_drake_rollouts_match_numpy(dmp3):
     assert np.abs(data - ref.x).max() < 1e-10
     dctx = ds.GetMyContextFromRoot(sim.get_context())
     assert ds.get_phase_output_port().Eval(dctx)[0] == pytest.approx(ref.theta[-1])
+    np.testing.assert_array_equal(ds.get_start(dctx), dmp3.x0)
+    fresh = ds.CreateDefaultContext()
+    ds.set_start(fresh, [0.1, 0.2, 0.3])
+    np.testing.assert_array_equal(ds.get_start(fresh), [0.1, 0.2, 0.3])
     np.testing.assert_allclose(ds.get_velocity_output_port().Eval(dctx), ref.xd[-1], atol=1e-9)
     np.testing.assert_allclose(ds.get_acceleration_output_port().Eval(dctx), ref.xdd[-1], atol=1e-8)
 

@@ -2,12 +2,13 @@
 
 A state is the stance foot pose ``(x, y, yaw)``, which foot stands, the last two commanded
 actions and the time. Successors come from the action table T for the actions F allows;
-each costs ``step_cost(a) + location_cost(landing)`` (infinite when the foot rectangle
-overlaps an occupied cell of E(t)); the queue is ordered by ``g + w h`` with ``h`` the
-expected cost-to-go. States are merged on a lattice of ``xy_resolution`` x ``yaw_bins``
-(x time bins in dynamic worlds) while the poses themselves stay continuous, so a plan's
-poses are exactly what T predicts. When the time limit runs out, or the open list is
-exhausted, the best partial plan (smallest cost-to-go) is returned with its status.
+each costs ``step_cost(a) + location_cost(landing)`` (infinite when the foot rectangle,
+inflated by ``footprint_margin_m``, overlaps an occupied cell of E(t)); the queue is
+ordered by ``g + w h`` with ``h`` the expected cost-to-go. States are merged on a lattice
+of ``xy_resolution`` x ``yaw_bins`` (x time bins in dynamic worlds) while the poses
+themselves stay continuous, so a plan's poses are exactly what T predicts. When the time
+limit runs out, or the open list is exhausted, the best partial plan (smallest cost-to-go)
+is returned with its status.
 """
 
 import dataclasses

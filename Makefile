@@ -50,6 +50,8 @@ demo: $(VENV)/.stamp-run graphviz
 	$(VENV)/bin/repertoire demo
 
 test: $(VENV)/.stamp-dev graphviz chromium
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
 	$(PY) -m pytest -q -n 2 --dist loadfile
 
 bench: $(VENV)/.stamp-dev

@@ -16,8 +16,13 @@ from repertoire.errors import ScenarioError
 T = TypeVar("T")
 
 
-def load_scenario(schema: type[T], *, filename: str | Path | None = None, data: str | None = None,
-                  defaults: T | None = None) -> T:
+def load_scenario(
+    schema: type[T],
+    *,
+    filename: str | Path | None = None,
+    data: str | None = None,
+    defaults: T | None = None,
+) -> T:
     """Loads a typed scenario from a YAML file or string; unknown keys are errors.
 
     Args:

@@ -461,13 +461,16 @@ class BodyPointAndAxis(LeafSystem):
 # ----------------------------------------------------------------------------- obstacle
 #: Where eq. 10 acts while carrying (tcp frame E; in a side grasp x_E is up, y_E closes the
 #: hand across the cup, z_E is the approach): the tcp on the cup's axis, the cup's lower
-#: part, the two finger groups and the palm (8.5 cm behind the tcp).
+#: part, the two finger groups, the palm's centre (8.5 cm behind the tcp) and its two ends
+#: (+-6.5 cm along y_E; with only the centre the palm's trailing end grazed the ball).
 CARRY_CONTROL_POINTS = (
     (0.0, 0.0, 0.0),
     (-0.045, 0.0, 0.0),
     (0.0, 0.06, 0.0),
     (0.0, -0.06, 0.0),
     (0.0, 0.0, -0.085),
+    (0.0, 0.065, -0.085),
+    (0.0, -0.065, -0.085),
 )
 #: The default ball: 1 cm below the uncoupled carry path of the default layout, 62 % of the
 #: way along it (``carry_path_point([0.55, -0.25], [0.54, 0.20], 0.62) - [0, 0, 0.01]``,
@@ -632,8 +635,8 @@ class PickPlaceScenario:
         obstacle_points: control points in the tcp frame where eq. 10 is applied and
             summed (:class:`MultiPointObstacleCoupling`): by default the tcp (the
             carried cup's axis), the cup's lower part (x_tcp is up in a side grasp),
-            the two finger groups (+-y_tcp) and the palm (-z_tcp). ``[[0, 0, 0]]`` is the paper's
-            end-effector-only term.
+            the two finger groups (+-y_tcp) and the palm (-z_tcp; centre and ends).
+            ``[[0, 0, 0]]`` is the paper's end-effector-only term.
         obstacle_length_scale: decay length [m] of the distance factor
             ``exp(-max(d - 0.06, 0) / length_scale)`` (our extension); 0 = the paper's
             eq. 10 exactly.

@@ -6,9 +6,9 @@ puts the ball (radius 6 cm, on its post) on that path: at a seeded fraction of
 its arc length, shifted by a few cm sideways and down, where the carried cup or
 the fingers hit it when nothing steers. The same layout then runs twice in the
 ``arm_pick_and_place`` world: with the DMP coupling term (eq. 10 at the tcp,
-the cup's lower part, the two finger groups and the palm, faded with the distance to the
-ball: :class:`repertoire.systems.task_space.MultiPointObstacleCoupling`) and
-without it. Recorded per arm: success (the cup stands on the coaster, within
+the cup's lower part, the two finger groups and the palm (centre and ends),
+faded with the distance to the ball:
+:class:`repertoire.systems.task_space.MultiPointObstacleCoupling`) and without it. Recorded per arm: success (the cup stands on the coaster, within
 2 cm of its centre), collision-free (the smallest signed distance between the
 ball and any collision geometry of the arm, hand, fingers or cup, from
 SceneGraph every 4 ms, stays > 0), that distance, and the tcp path.
@@ -74,6 +74,8 @@ class ObstacleArmConfig:
             [0.0, 0.06, 0.0],
             [0.0, -0.06, 0.0],
             [0.0, 0.0, -0.085],
+            [0.0, 0.065, -0.085],
+            [0.0, -0.065, -0.085],
         ]
     )
     time_step: float = 0.004
@@ -122,6 +124,7 @@ class ObstacleArmRecord:
         path_z: per arm: tcp z.
         sim_time_s: simulated seconds per run.
         wall_time_s: wall seconds of the episode (timing field).
+        wall_sim_s: wall seconds of the two simulations alone (timing field).
     """
 
     cup_xy: list[float]
@@ -139,6 +142,7 @@ class ObstacleArmRecord:
     path_z: dict[str, list[float]]
     sim_time_s: float
     wall_time_s: float
+    wall_sim_s: float
 
 
 def sample_scenario(config: ObstacleArmConfig, seed: int, *, coupling: bool = True):
@@ -200,14 +204,14 @@ def _run(scenario, config: ObstacleArmConfig) -> dict:
     )
     from repertoire.studies.dmp_pick_place import tcp_path
 
-    out = {"failure": "", "path": np.zeros((0, 3)), "duration": 0.0}
+    out = {"failure": "", "path": np.zeros((0, 3)), "duration": 0.0, "wall": 0.0}
     try:
         _, duration = plan_pick_and_place(scenario)
         if config.sim_duration_s > 0:
             duration = min(duration, config.sim_duration_s)
         out["duration"] = duration
         diagram = build_pick_and_place(scenario)
-        context, _ = run_arm_world(diagram, duration)
+        context, out["wall"] = run_arm_world(diagram, duration)
         out.update(pick_and_place_figures(diagram, context))
         out["path"] = tcp_path(diagram, context, config.path_every_s)
     except (IkTargetError, RepertoireError) as e:
@@ -254,6 +258,7 @@ def run_episode(config: ObstacleArmConfig, seed: int) -> ObstacleArmRecord:
         path_z={a: [round(float(v), 5) for v in r["path"][:, 2]] for a, r in runs.items()},
         sim_time_s=float(runs["coupled"]["duration"]),
         wall_time_s=time.perf_counter() - t0,
+        wall_sim_s=float(sum(r["wall"] for r in runs.values())),
     )
 
 
@@ -284,6 +289,7 @@ def summarize(
             o = r.obstacle_xyz
             top.add_patch(Circle((o[1], o[0]), 0.06, color="tab:blue", alpha=0.25))
             side.add_patch(Circle((o[1], o[2]), 0.06, color="tab:blue", alpha=0.25))
+            side.plot([o[1], o[1]], [0.75, o[2] - 0.06], color="tab:gray", lw=1.5)  # its post
             if r.path_x[arm]:
                 y, x, z = np.array(r.path_y[arm]), np.array(r.path_x[arm]), np.array(r.path_z[arm])
                 top.plot(y, x, color=colors[arm], alpha=shade, lw=1.0)
@@ -301,7 +307,10 @@ def summarize(
                 )
             top.plot(r.cup_xy[1], r.cup_xy[0], "o", color="tab:red", mfc="none")
             top.plot(r.coaster_xy[1], r.coaster_xy[0], "s", color="tab:green", mfc="none")
-        top.set_title(f"{arm}: top view (first {len(shown)} episodes; blue = ball)")
+        top.set_title(
+            f"{arm}: top view, tcp home -> cup (o) -> coaster (square) -> retreat\n"
+            f"(first {len(shown)} episodes; blue = ball)"
+        )
         top.set_xlabel("y (m)")
         top.set_ylabel("x (m)")
         top.invert_xaxis()

@@ -39,6 +39,11 @@ class PickPlaceConfig:
         obstacle_z: range of the ball centre's height [m].
         obstacle_coupling: feed the obstacle into the DMP coupling term (eq. 10).
         obstacle_gamma: gamma of eq. 10.
+        obstacle_beta: the angular decay c of eq. 10.
+        obstacle_length_scale: decay length of the distance factor [m] (0 = the paper's
+            eq. 10 exactly).
+        obstacle_points: control points in the tcp frame where eq. 10 acts (summed);
+            ``[[0, 0, 0]]`` = the tcp only.
         grasp_mode: ``contact`` (finger friction) or ``grip`` (GraspWrench latch).
         time_step: plant time step [s].
         sim_duration_s: simulated seconds (0 = the whole sequence); smoke tests
@@ -54,7 +59,20 @@ class PickPlaceConfig:
     obstacle_beyond: list[float] = dataclasses.field(default_factory=lambda: [0.10, 0.13])
     obstacle_z: list[float] = dataclasses.field(default_factory=lambda: [0.96, 1.00])
     obstacle_coupling: bool = True
-    obstacle_gamma: float = 3000.0
+    obstacle_gamma: float = 50000.0
+    obstacle_beta: float = 4.0
+    obstacle_length_scale: float = 0.03
+    obstacle_points: list[list[float]] = dataclasses.field(
+        default_factory=lambda: [
+            [0.0, 0.0, 0.0],
+            [-0.045, 0.0, 0.0],
+            [0.0, 0.06, 0.0],
+            [0.0, -0.06, 0.0],
+            [0.0, 0.0, -0.085],
+            [0.0, 0.065, -0.085],
+            [0.0, -0.065, -0.085],
+        ]
+    )
     grasp_mode: str = "contact"
     time_step: float = 0.004
     sim_duration_s: float = 0.0
@@ -148,6 +166,9 @@ def sample_scenario(config: PickPlaceConfig, seed: int):
         obstacle_xyz=obstacle,
         obstacle_coupling=config.obstacle_coupling,
         obstacle_gamma=config.obstacle_gamma,
+        obstacle_beta=config.obstacle_beta,
+        obstacle_length_scale=config.obstacle_length_scale,
+        obstacle_points=[list(map(float, p)) for p in config.obstacle_points],
     )
 
 

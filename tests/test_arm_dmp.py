@@ -109,7 +109,7 @@ def test_bad_scenarios():
     with pytest.raises(ScenarioError, match="cup_xy must be 2 finite numbers"):
         build_pick_and_place(PickPlaceScenario(cup_xy=[0.5]))
     with pytest.raises(ScenarioError, match="within 5 cm of the table"):
-        build_pick_and_place(PickPlaceScenario(obstacle_xyz=[0.6, 0.0, 0.8]))
+        build_pick_and_place(PickPlaceScenario(obstacle_xyz=[0.6, 0.0, 0.85]))
     with pytest.raises(ScenarioError, match="three cups"):
         build_serving_water(ServingScenario(cup_xys=[[0.6, 0.0]]))
     with pytest.raises(ScenarioError, match="Expected keys"):
@@ -154,3 +154,61 @@ def test_goal_of_the_wrong_size_is_refused():
         RepertoireError, match=r"unit quaternion .*norm is 2.000000 \(off by 1.00e\+00\)"
     ):
         GoalSchedule([SegmentGoal("grasp", np.zeros(3), 2 * q, fingers)])
+
+
+def test_ball_inside_the_start_the_goal_or_the_table_is_refused():
+    from repertoire.models.arm7 import CUP_RADIUS
+
+    s = PickPlaceScenario()
+    with pytest.raises(ScenarioError, match="overlaps the table"):
+        PickPlaceScenario(obstacle_xyz=[0.6, 0.0, TABLE_HEIGHT + 0.03]).validate()
+    # 2 cm above the cup's rim, 1.5 cm outside its wall: 2.5 cm from the cup, 3.5 cm overlap.
+    inside_cup = [s.cup_xy[0] + 0.05, s.cup_xy[1], TABLE_HEIGHT + 0.12]
+    with pytest.raises(
+        ScenarioError, match=r"inside the cup at its start \(cup_xy\) \(overlap 3.5 cm\)"
+    ):
+        PickPlaceScenario(obstacle_xyz=inside_cup).validate()
+    above_coaster = [s.coaster_xy[0], s.coaster_xy[1], TABLE_HEIGHT + 0.15]
+    with pytest.raises(ScenarioError, match="placed on the coaster"):
+        PickPlaceScenario(obstacle_xyz=above_coaster).validate()
+    final = [s.coaster_final_xy[0] + CUP_RADIUS + 0.025, s.coaster_final_xy[1], TABLE_HEIGHT + 0.12]
+    with pytest.raises(ScenarioError, match="moved coaster"):
+        PickPlaceScenario(obstacle_xyz=final).validate()
+    with pytest.raises(ScenarioError, match="obstacle_points must list"):
+        PickPlaceScenario(obstacle_points=[[0.0, 0.0]]).validate()
+    with pytest.raises(ScenarioError, match="obstacle_length_scale must be finite"):
+        PickPlaceScenario(obstacle_length_scale=-1.0).validate()
+
+
+def test_default_ball_sits_on_the_carry_path():
+    from repertoire.diagrams.arm_dmp import DEFAULT_OBSTACLE_XYZ, carry_path, carry_path_point
+
+    s = PickPlaceScenario()
+    point = carry_path_point(s.cup_xy, s.coaster_xy, 0.62) - [0.0, 0.0, 0.01]
+    assert np.max(np.abs(point - DEFAULT_OBSTACLE_XYZ)) < 1e-3
+    path = carry_path(s.cup_xy, s.coaster_xy)
+    # The uncoupled tcp passes 1 cm from the ball's centre: the carried cup would hit it.
+    assert np.min(np.linalg.norm(path - DEFAULT_OBSTACLE_XYZ, axis=1)) < 0.02
+    assert carry_path_point(s.cup_xy, s.coaster_xy, 0.0) == pytest.approx(path[0])
+
+
+def test_clearance_monitor_reads_the_ball_gap_from_scene_graph():
+    from repertoire.diagrams.arm_dmp import OBSTACLE_RADIUS
+
+    diagram = build_pick_and_place(PickPlaceScenario())
+    context = diagram.CreateDefaultContext()
+    monitor = diagram.GetSubsystemByName("obstacle_clearance")
+    gap = monitor.gap(monitor.GetMyContextFromRoot(context))
+    # The open hand at home is the nearest watched geometry; the scene graph's exact
+    # distance to the nearest watched geometry, minus the radius.
+    scene_graph = diagram.GetSubsystemByName("scene_graph")
+    query = scene_graph.get_query_output_port().Eval(scene_graph.GetMyContextFromRoot(context))
+    pairs = [
+        (query.inspector().GetName(d.id_G), d.distance)
+        for d in query.ComputeSignedDistanceToPoint(np.array(PickPlaceScenario().obstacle_xyz), 0.5)
+    ]
+    ball = [v for k, v in pairs if k == "obstacle_blue::ball"]
+    assert ball == [pytest.approx(-OBSTACLE_RADIUS)]  # the ball itself is not watched
+    watched = [v for k, v in pairs if k.startswith(("arm7::", "cup_red::"))]
+    assert gap == pytest.approx(min(watched) - OBSTACLE_RADIUS, abs=1e-12)
+    assert 0.0 < gap < 0.02

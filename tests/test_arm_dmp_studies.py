@@ -4,12 +4,12 @@ import dataclasses
 
 import numpy as np
 import pytest
-from repertoire.studies import dmp_grid, dmp_pick_place, dmp_serving
+from repertoire.studies import dmp_grid, dmp_obstacle_arm, dmp_pick_place, dmp_serving
 
 from repertoire.errors import RepertoireError
 
 
-@pytest.mark.parametrize("module", [dmp_grid, dmp_pick_place, dmp_serving])
+@pytest.mark.parametrize("module", [dmp_grid, dmp_pick_place, dmp_serving, dmp_obstacle_arm])
 def test_smoke_episode_is_deterministic_and_summarizes(module, tmp_path):
     config = module.smoke_config()
     first = module.run_episode(config, 3)
@@ -18,7 +18,7 @@ def test_smoke_episode_is_deterministic_and_summarizes(module, tmp_path):
     for key in a:
         if not key.startswith("wall"):
             assert a[key] == b[key] or (a[key] != a[key] and b[key] != b[key]), key
-    assert first.failure == ""
+    assert first.failure in ("", {"coupled": "", "uncoupled": ""})
     assert first.wall_sim_s > 0.0
     files = module.summarize([first], config, tmp_path)
     for path in files.values():
@@ -49,3 +49,36 @@ def test_bad_configs():
         dmp_serving.run_episode(dmp_serving.ServingConfig(cup_y=[[0.0, 0.1]]), 0)
     with pytest.raises(RepertoireError, match="integer >= 1"):
         dmp_grid.run_episode(dmp_grid.GridConfig(n=0), 0)
+
+
+def test_obstacle_study_puts_the_ball_on_the_carry_path():
+    from repertoire.diagrams.arm_dmp import carry_path, home_tcp_pose
+
+    config = dmp_obstacle_arm.ObstacleArmConfig()
+    home = home_tcp_pose().translation()
+    for seed in range(6):
+        coupled, gap = dmp_obstacle_arm.sample_scenario(config, seed)
+        uncoupled, _ = dmp_obstacle_arm.sample_scenario(config, seed, coupling=False)
+        assert coupled.obstacle_xyz == uncoupled.obstacle_xyz  # same layout in both arms
+        assert coupled.obstacle_coupling and not uncoupled.obstacle_coupling
+        o = np.asarray(coupled.obstacle_xyz)
+        path = carry_path(coupled.cup_xy, coupled.coaster_xy)
+        # The uncoupled tcp runs through the ball (4-6 cm inside its surface).
+        assert gap == pytest.approx(np.min(np.linalg.norm(path - o, axis=1)) - 0.06, abs=1e-4)
+        assert gap < -0.03
+        assert np.linalg.norm(o - home) >= dmp_obstacle_arm.HOME_CLEARANCE
+
+
+def test_obstacle_study_bad_config():
+    with pytest.raises(RepertoireError, match="path_fraction must be \\[min, max\\]"):
+        dmp_obstacle_arm.run_episode(
+            dmp_obstacle_arm.ObstacleArmConfig(path_fraction=[0.7, 0.6]), 0
+        )
+    with pytest.raises(RepertoireError, match="must lie in \\[0, 1\\]"):
+        dmp_obstacle_arm.run_episode(
+            dmp_obstacle_arm.ObstacleArmConfig(path_fraction=[0.5, 1.2]), 0
+        )
+    with pytest.raises(RepertoireError, match="no ball placement"):
+        dmp_obstacle_arm.sample_scenario(
+            dmp_obstacle_arm.ObstacleArmConfig(path_fraction=[0.5, 0.5], coaster_y=[0.0, 0.0]), 0
+        )

@@ -8,17 +8,20 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.analysis import Simulator
+from repertoire.planning.dmp_math import obstacle_coupling
 from repertoire.systems.task_space import (
     STATUS_OK,
     STATUS_TARGET_OUT_OF_REACH,
     STATUS_TRACKING_LOST,
     GraspWrench,
     JointReferenceMux,
+    MultiPointObstacleCoupling,
     ResolvedMotionRateIK,
     check_reachable,
     damped_pseudoinverse,
     grip_wrench,
     joint_limit_gradient,
+    multi_point_obstacle_coupling,
     quaternion_error,
     quaternion_multiply,
     reach_bound,
@@ -409,3 +412,95 @@ def test_dmp_chain_bad_input():
     chain.GetInputPort("coupling").FixValue(context, np.zeros(3))
     with pytest.raises(RepertoireError, match="goal must be finite"):
         chain.GetOutputPort("finger_acceleration").Eval(context)
+
+
+# ----------------------------------------------------------------------------- obstacle coupling
+def _eq10_closed_form(gamma: float, beta: float, phi: float, speed: float) -> float:
+    return gamma * speed * phi * np.exp(-beta * phi)
+
+
+def test_coupling_at_a_control_point_turns_it_away_from_the_ball():
+    # The control point sits 0.1 m along y_E of a hand turned 90 deg about z (R_WE maps y_E
+    # to -x_W), so 0.1 m behind the tcp along x. Moving along +y_W at 0.5 m/s with the ball
+    # 1 m ahead and 0.05 m to the +x side: phi = atan(0.05 / 1), p points along -x (away).
+    R_WE = RotationMatrix.MakeZRotation(np.pi / 2).matrix()
+    x = np.array([0.3, 0.0, 0.9])
+    c = x + R_WE @ [0.0, 0.1, 0.0]
+    assert c == pytest.approx([0.2, 0.0, 0.9])
+    v = np.array([0.0, 0.5, 0.0])
+    ball = c + [0.05, 1.0, 0.0]
+    p = multi_point_obstacle_coupling(x, v, R_WE, [[0.0, 0.1, 0.0]], ball, 1000.0, 20 / np.pi)
+    phi = np.arctan2(0.05, 1.0)
+    expected = _eq10_closed_form(1000.0, 20 / np.pi, phi, 0.5)
+    np.testing.assert_allclose(p, [-expected, 0.0, 0.0], rtol=1e-12, atol=1e-15)
+    # The ball on the other side: pushed the other way.
+    mirrored = c + [-0.05, 1.0, 0.0]
+    p2 = multi_point_obstacle_coupling(x, v, R_WE, [[0.0, 0.1, 0.0]], mirrored, 1000.0, 20 / np.pi)
+    np.testing.assert_allclose(p2, [expected, 0.0, 0.0], rtol=1e-12, atol=1e-15)
+
+
+def test_single_tcp_point_without_fade_is_eq10():
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        x, v, o = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
+        R = RotationMatrix(RollPitchYaw(rng.normal(size=3))).matrix()
+        p = multi_point_obstacle_coupling(x, v, R, [[0.0, 0.0, 0.0]], o, 700.0, 3.0)
+        np.testing.assert_array_equal(p, obstacle_coupling(x, v, o, 700.0, 3.0))
+
+
+def test_multi_point_sum_with_distance_fade():
+    x = np.array([0.5, 0.0, 1.0])
+    v = np.array([0.0, 0.3, 0.0])
+    o = np.array([0.52, 0.2, 0.95])
+    points = np.array([[0.0, 0.0, 0.0], [-0.045, 0.0, 0.0], [0.0, 0.06, 0.0]])
+    R = RotationMatrix(RollPitchYaw(0.1, -0.2, 0.3)).matrix()
+    total = multi_point_obstacle_coupling(
+        x, v, R, points, o, 5000.0, 4.0, obstacle_radius=0.06, length_scale=0.03
+    )
+    expected = np.zeros(3)
+    for r in points:
+        c = x + R @ r
+        fade = np.exp(-max(np.linalg.norm(c - o) - 0.06, 0.0) / 0.03)
+        expected += fade * obstacle_coupling(c, v, o, 5000.0, 4.0)
+    np.testing.assert_allclose(total, expected, rtol=1e-12)
+    # Inside the ball's radius the fade is 1: the plain term.
+    near = o + [0.0, -0.05, 0.0]
+    p = multi_point_obstacle_coupling(
+        near, v, np.eye(3), [[0, 0, 0]], o, 5000.0, 4.0, obstacle_radius=0.06, length_scale=0.03
+    )
+    np.testing.assert_allclose(p, obstacle_coupling(near, v, o, 5000.0, 4.0), rtol=1e-12)
+
+
+def test_multi_point_coupling_system_wraps_the_function():
+    points = [[0.0, 0.0, 0.0], [0.0, 0.0, -0.085]]
+    system = MultiPointObstacleCoupling(
+        points, gamma=2000.0, beta=4.0, obstacle_radius=0.06, length_scale=0.03
+    )
+    context = system.CreateDefaultContext()
+    q = RollPitchYaw(0.0, np.pi / 2, 0.0).ToQuaternion()
+    x, v, o = np.array([0.5, 0.0, 0.9]), np.array([0.0, 0.4, 0.05]), np.array([0.45, 0.1, 0.9])
+    system.GetInputPort("position").FixValue(context, x)
+    system.GetInputPort("velocity").FixValue(context, v)
+    system.GetInputPort("orientation").FixValue(context, 2.0 * q.wxyz())  # normalised inside
+    system.GetInputPort("obstacle").FixValue(context, o)
+    out = system.GetOutputPort("coupling").Eval(context)
+    R = RotationMatrix(q).matrix()
+    expected = multi_point_obstacle_coupling(
+        x, v, R, points, o, 2000.0, 4.0, obstacle_radius=0.06, length_scale=0.03
+    )
+    np.testing.assert_allclose(out, expected, rtol=1e-12)
+    assert np.linalg.norm(out) > 0.0
+    system.GetInputPort("orientation").FixValue(context, np.zeros(4))
+    with pytest.raises(RepertoireError, match="non-zero quaternion"):
+        system.GetOutputPort("coupling").Eval(context)
+
+
+def test_multi_point_coupling_bad_input():
+    with pytest.raises(RepertoireError, match="must be >= 0"):
+        multi_point_obstacle_coupling(
+            np.zeros(3), np.ones(3), np.eye(3), [[0, 0, 0]], np.ones(3), -1.0, 1.0
+        )
+    with pytest.raises(RepertoireError, match="non-empty k x 3 array"):
+        MultiPointObstacleCoupling([[0.0, 0.0]])
+    with pytest.raises(RepertoireError, match="non-empty k x 3 array"):
+        MultiPointObstacleCoupling(np.zeros((0, 3)))

@@ -112,6 +112,10 @@ class PickPlaceRecord:
         min_obstacle_clearance_m: closest tcp approach to the ball's surface.
         grasp_reach_error_m: |tcp - goal| at the end of the grasp (physics).
         place_reach_error_m: |tcp - goal| at the end of the place (physics).
+        min_ball_gap_m: smallest signed distance between the ball and any collision
+            geometry of the arm, hand, fingers or cup (SceneGraph, every 4 ms).
+        min_ball_gap_time_s: when it occurred.
+        collision_free: ``min_ball_gap_m > 0``.
         failure: empty, or why the run stopped (IK report).
         path_x: tcp x every ``path_every_s`` [m].
         path_y: tcp y.
@@ -132,6 +136,9 @@ class PickPlaceRecord:
     min_obstacle_clearance_m: float
     grasp_reach_error_m: float
     place_reach_error_m: float
+    min_ball_gap_m: float
+    min_ball_gap_time_s: float
+    collision_free: bool
     failure: str
     path_x: list[float]
     path_y: list[float]
@@ -208,6 +215,8 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
             "min_obstacle_clearance_m",
             "grasp_reach_error_m",
             "place_reach_error_m",
+            "min_ball_gap_m",
+            "min_ball_gap_time_s",
         ),
         nan,
     )
@@ -223,6 +232,7 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
     except (IkTargetError, RepertoireError) as e:
         failure = str(e)
     figures.pop("success", None)
+    figures.pop("collision_free", None)
     success = (
         not failure
         and figures["cup_to_coaster_m"] < 0.02
@@ -236,6 +246,7 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
         obstacle_xyz=scenario.obstacle_xyz,
         success=bool(success),
         **{k: float(v) for k, v in figures.items()},
+        collision_free=bool(figures["min_ball_gap_m"] > 0.0),
         failure=failure,
         path_x=[round(float(v), 5) for v in path[:, 0]],
         path_y=[round(float(v), 5) for v in path[:, 1]],
@@ -354,6 +365,7 @@ def summarize(
     errors = out_dir / "dmp_pick_place_errors.png"
     fig.savefig(errors, dpi=110)
 
+    ball_gap = np.array([r.min_ball_gap_m for r in records], dtype=float)
     ok = [r for r in records if not r.failure]
     walls = np.array([r.wall_sim_s for r in ok]) if ok else np.array([np.nan])
     lines = [
@@ -362,6 +374,10 @@ def summarize(
         f"| episodes | {len(records)} |",
         f"| success (cup on coaster within 2 cm) | {rate:.1%} |",
         f"| IK reports (stopped runs) | {sum(bool(r.failure) for r in records)} |",
+        "| collision-free (ball vs arm/hand/fingers/cup gap > 0) | "
+        f"{np.mean([r.collision_free for r in records]) if records else float('nan'):.1%} |",
+        "| smallest ball gap (SceneGraph), min / median [cm] | "
+        f"{_pair(ball_gap * 100, np.min, np.median)} |",
         f"| cup to coaster, median / max [cm] | {_pair(d * 100, np.median, np.max)} |",
         f"| grasp reach error, median / max [mm] | {_pair(grasp, np.median, np.max)} |",
         f"| place reach error, median / max [mm] | {_pair(place, np.median, np.max)} |",

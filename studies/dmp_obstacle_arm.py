@@ -281,8 +281,12 @@ def summarize(
     out_dir = Path(out_dir)
     colors = {"coupled": "tab:green", "uncoupled": "tab:red"}
     fig = Figure(figsize=(12, 9), layout="constrained")
-    axes = fig.subplots(2, 2)
-    shown = records[:4]
+    axes = fig.subplots(2, 2, sharex="all", sharey="row")
+    shown = records[:3]
+    fig.suptitle(
+        f"tcp paths of the first {len(shown)} episodes: home -> cup (o) -> coaster (square) -> "
+        "retreat\nblue = the ball (radius 6 cm) on its post; the same layouts in both columns"
+    )
     for col, arm in enumerate(ARMS):
         top, side = axes[0, col], axes[1, col]
         for k, r in enumerate(shown):
@@ -308,10 +312,7 @@ def summarize(
                 )
             top.plot(r.cup_xy[1], r.cup_xy[0], "o", color="tab:red", mfc="none")
             top.plot(r.coaster_xy[1], r.coaster_xy[0], "s", color="tab:green", mfc="none")
-        top.set_title(
-            f"{arm}: top view, tcp home -> cup (o) -> coaster (square) -> retreat\n"
-            f"(first {len(shown)} episodes; blue = ball)"
-        )
+        top.set_title(f"{arm}: top view")
         top.set_xlabel("y (m)")
         top.set_ylabel("x (m)")
         top.invert_xaxis()
@@ -333,8 +334,8 @@ def summarize(
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_xlabel("episode")
     ax.set_ylabel("smallest gap ball - arm/hand/fingers/cup (cm)")
-    ax.set_title("signed distance from SceneGraph (< 0: they touched)")
-    ax.legend()
+    ax.set_title("signed distance from SceneGraph (< 0: they touched; contact pushes back)")
+    ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5))
     gaps = out_dir / "dmp_obstacle_arm_gaps.png"
     fig.savefig(gaps, dpi=110)
 

@@ -507,6 +507,45 @@ def _ball_cylinder_gap(
     return float(np.hypot(radial, vertical)) - OBSTACLE_RADIUS
 
 
+@functools.lru_cache(maxsize=1)
+def _home_arm_query():
+    """arm7 alone at home (hand open) with its SceneGraph: (diagram, context, geometry ids)."""
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(time_step=0.0), builder)
+    arm = add_arm7(plant)
+    plant.Finalize()
+    plant.SetDefaultPositions(arm, np.concatenate([arm7_home_configuration(), HAND_OPEN]))
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    ids = {
+        g
+        for i in plant.GetBodyIndices(arm)
+        for g in plant.GetCollisionGeometriesForBody(plant.get_body(i))
+    }
+    return diagram, scene_graph, context, ids
+
+
+def ball_gap_at_home(centre_W: np.ndarray, radius: float = OBSTACLE_RADIUS) -> float:
+    """Signed distance between a ball and arm7 in its home configuration, hand open [m].
+
+    Exact (SceneGraph ``ComputeSignedDistanceToPoint`` from the ball's centre to the
+    arm's collision geometries, minus the radius); <= 0 when the ball overlaps the arm
+    where every world starts.
+
+    Args:
+        centre_W: the ball's centre in W (3).
+        radius: the ball's radius.
+    """
+    diagram, scene_graph, context, ids = _home_arm_query()
+    query = scene_graph.get_query_output_port().Eval(scene_graph.GetMyContextFromRoot(context))
+    gaps = [
+        d.distance
+        for d in query.ComputeSignedDistanceToPoint(np.asarray(centre_W, float), 1.0)
+        if d.id_G in ids
+    ]
+    return float(min(gaps, default=1.0)) - radius
+
+
 def carry_path(cup_xy, coaster_xy, dt: float = 0.005) -> np.ndarray:
     """The tcp path of the learned place DMP without coupling (k x 3), cup to coaster.
 
@@ -707,6 +746,12 @@ class PickPlaceScenario:
             raise ScenarioError(
                 "obstacle_points must list one or more [x, y, z] points, got "
                 f"{self.obstacle_points}"
+            )
+        home_gap = ball_gap_at_home(o)
+        if home_gap <= 0.0:
+            raise ScenarioError(
+                f"obstacle_xyz {list(map(float, o))} puts the ball inside the arm at its start "
+                f"(home configuration, hand open; overlap {-home_gap * 100:.1f} cm); move it away"
             )
         # The ball must not overlap the cup where it starts or where it is put down.
         bottom = TABLE_HEIGHT

@@ -35,7 +35,8 @@ class PickPlaceConfig:
         coaster_shift: range of the distance the coaster moves after onset [m]
             (direction uniform).
         obstacle_beyond: range of how far beyond the cup-coaster midpoint (+x) the
-            ball's centre is [m].
+            ball's centre is [m] (drawn again, with ``obstacle_z``, while the ball would
+            overlap the open hand at home).
         obstacle_z: range of the ball centre's height [m].
         obstacle_coupling: feed the obstacle into the DMP coupling term (eq. 10).
         obstacle_gamma: gamma of eq. 10.
@@ -150,7 +151,7 @@ class PickPlaceRecord:
 
 def sample_scenario(config: PickPlaceConfig, seed: int):
     """The seeded PickPlaceScenario of an episode."""
-    from repertoire.diagrams.arm_dmp import PickPlaceScenario
+    from repertoire.diagrams.arm_dmp import PickPlaceScenario, ball_gap_at_home
 
     rng = np.random.default_rng(seed)
     cup = [rng.uniform(*config.cup_x), rng.uniform(*config.cup_y)]
@@ -159,11 +160,20 @@ def sample_scenario(config: PickPlaceConfig, seed: int):
     shift = rng.uniform(*config.coaster_shift)
     final = [coaster[0] + shift * np.cos(angle), coaster[1] + shift * np.sin(angle)]
     mid = 0.5 * (np.asarray(cup) + np.asarray(coaster))
-    obstacle = [
-        float(mid[0] + rng.uniform(*config.obstacle_beyond)),
-        float(mid[1]),
-        float(rng.uniform(*config.obstacle_z)),
-    ]
+    for _ in range(100):
+        obstacle = [
+            float(mid[0] + rng.uniform(*config.obstacle_beyond)),
+            float(mid[1]),
+            float(rng.uniform(*config.obstacle_z)),
+        ]
+        # A ball that overlaps the open hand at home is drawn again (the world refuses it).
+        if ball_gap_at_home(obstacle) > 0.0:
+            break
+    else:
+        raise RepertoireError(
+            "no obstacle placement clear of the arm at home in 100 draws; change "
+            "obstacle_beyond / obstacle_z"
+        )
     return PickPlaceScenario(
         time_step=config.time_step,
         grasp_mode=config.grasp_mode,

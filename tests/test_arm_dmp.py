@@ -174,6 +174,10 @@ def test_ball_inside_the_start_the_goal_or_the_table_is_refused():
     final = [s.coaster_final_xy[0] + CUP_RADIUS + 0.025, s.coaster_final_xy[1], TABLE_HEIGHT + 0.12]
     with pytest.raises(ScenarioError, match="moved coaster"):
         PickPlaceScenario(obstacle_xyz=final).validate()
+    # Overlapping the open hand at home by 2.4 mm (a layout the beside-the-path study drew).
+    at_home = [0.62948, -0.09747, 0.96172]
+    with pytest.raises(ScenarioError, match=r"inside the arm at its start .*overlap 0.2 cm"):
+        PickPlaceScenario(obstacle_xyz=at_home).validate()
     with pytest.raises(ScenarioError, match="obstacle_points must list"):
         PickPlaceScenario(obstacle_points=[[0.0, 0.0]]).validate()
     with pytest.raises(ScenarioError, match="obstacle_length_scale must be finite"):

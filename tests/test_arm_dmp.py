@@ -216,3 +216,20 @@ def test_clearance_monitor_reads_the_ball_gap_from_scene_graph():
     watched = [v for k, v in pairs if k.startswith(("arm7::", "cup_red::"))]
     assert gap == pytest.approx(min(watched) - OBSTACLE_RADIUS, abs=1e-12)
     assert 0.0 < gap < 0.02
+
+
+def test_default_world_avoids_the_ball_on_the_carry_path_only_with_coupling():
+    """The whole default pick-and-place, with and without the coupling term (about 6 s)."""
+    from repertoire.diagrams.arm_dmp import pick_and_place_figures
+
+    figures = {}
+    for coupling in (True, False):
+        scenario = PickPlaceScenario(obstacle_coupling=coupling)
+        _, duration = plan_pick_and_place(scenario)
+        diagram = build_pick_and_place(scenario)
+        context, _ = run_arm_world(diagram, duration)
+        figures[coupling] = pick_and_place_figures(diagram, context)
+    assert figures[True]["success"] == 1.0 and figures[True]["collision_free"] == 1.0
+    assert figures[True]["min_ball_gap_m"] > 0.005
+    assert figures[False]["collision_free"] == 0.0 and figures[False]["min_ball_gap_m"] < 0.0
+    assert figures[False]["success"] == 0.0  # the cup is knocked off its path

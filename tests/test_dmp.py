@@ -432,3 +432,16 @@ def test_directional_primitive_moves_straight_along_any_direction():
     assert np.abs(plain.x[:, 0] - 1.0).max() > 0.1  # the unscaled new form pushes along Y1
     with pytest.raises(RepertoireError, match="does not move"):
         directional_primitive(p, np.zeros(2), np.ones(2), dof=1)
+
+
+@pytest.mark.parametrize(("n", "w"), [(1000, 25), (200, 9), (50, 7), (7, 7)])
+def test_cached_savgol_operators_equal_scipy_interp_mode(n, w):
+    from repertoire.planning.dmp import _savgol_derivatives
+    from scipy.signal import savgol_filter
+
+    x = np.random.default_rng(n).standard_normal((n, 3)).cumsum(axis=0)
+    order, h = min(5, w - 1), 0.0013
+    xd, xdd = _savgol_derivatives(x, w, order, h)
+    for k, ours in ((1, xd), (2, xdd)):
+        ref = savgol_filter(x, w, order, deriv=k, delta=h, axis=0, mode="interp")
+        assert np.abs(ours - ref).max() <= 1e-8 * np.abs(ref).max()

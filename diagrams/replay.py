@@ -9,6 +9,7 @@ keeps a live view on localhost (``meshcat.web_url()``) until Ctrl-C or a timeout
 """
 
 import dataclasses
+import gc
 import math
 import time
 from collections.abc import Callable
@@ -182,8 +183,58 @@ def record_replay(
             f"source must be a registered diagram name or a builder function, "
             f"got {type(source).__name__}"
         )
-    if meshcat is None:
-        meshcat = Meshcat()
+    if meshcat is not None:
+        return _record(
+            entry,
+            source,
+            duration,
+            html_path,
+            scenario,
+            meshcat,
+            realtime_rate,
+            live,
+            live_seconds,
+            frame_camera,
+            printer,
+        )
+    meshcat = Meshcat()
+    try:
+        return _record(
+            entry,
+            source,
+            duration,
+            html_path,
+            scenario,
+            meshcat,
+            realtime_rate,
+            live,
+            live_seconds,
+            frame_camera,
+            printer,
+        )
+    finally:
+        # pydrake keeps the diagram and its MeshcatVisualizer in a reference cycle, so the
+        # Meshcat made here would be destroyed whenever the garbage collector next runs, on
+        # whatever thread runs it; Drake aborts the process when a Meshcat is destroyed off
+        # the thread that made it. Collect now, on this thread.
+        del meshcat
+        gc.collect()
+
+
+def _record(
+    entry,
+    source,
+    duration,
+    html_path,
+    scenario,
+    meshcat,
+    realtime_rate,
+    live,
+    live_seconds,
+    frame_camera,
+    printer,
+) -> ReplayResult:
+    """The body of :func:`record_replay`, with its arguments checked and a Meshcat."""
     if live:
         printer(
             f"live view at {meshcat.web_url()}: open it in a browser now; simulating "

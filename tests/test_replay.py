@@ -4,6 +4,7 @@ import math
 import re
 import shutil
 import subprocess
+import sys
 import urllib.request
 
 import numpy as np
@@ -281,3 +282,23 @@ def test_camera_frames_the_moving_bodies():
 def test_plant_divergence_is_reported(scenario, match):
     with pytest.raises(SimulationDivergedError, match=match):
         simulate(build_pendulum(scenario), 1.0)
+
+
+def test_replay_meshcat_is_released_on_the_calling_thread(tmp_path):
+    # Drake aborts the process when a Meshcat is destroyed off the thread that made it;
+    # record_replay must not leave its own Meshcat for a later garbage collection to
+    # destroy on another thread. Run in a subprocess: the failure mode is an abort.
+    code = (
+        "import gc, threading\n"
+        "from repertoire.diagrams.replay import record_replay\n"
+        f"record_replay('arm_hold', 0.02, {str(tmp_path / 'r.html')!r})\n"
+        "worker = threading.Thread(target=gc.collect)\n"
+        "worker.start()\n"
+        "worker.join()\n"
+        "print('survived')\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "survived" in result.stdout

@@ -13,6 +13,7 @@ import pkgutil
 from collections.abc import Callable
 from typing import Any
 
+from repertoire.criteria import Bound
 from repertoire.errors import UnknownNameError
 
 
@@ -28,6 +29,8 @@ class DiagramEntry:
         duration: default simulated seconds for ``simulate`` and the demo.
         check: optional ``check(diagram, context) -> dict[str, float]`` run after
             a simulation; returns named figures (for example a height error).
+        criteria: what a passing run looks like: figure name -> Bound on the
+            figures ``check`` returns (see repertoire.criteria).
     """
 
     name: str
@@ -36,6 +39,7 @@ class DiagramEntry:
     build: Callable[..., Any]
     duration: float = 1.0
     check: Callable[..., dict] | None = None
+    criteria: dict[str, Bound] = dataclasses.field(default_factory=dict)
 
 
 _REGISTRY: dict[str, DiagramEntry] = {}
@@ -50,13 +54,20 @@ def register_diagram(
     description: str,
     duration: float = 1.0,
     check: Callable[..., dict] | None = None,
+    criteria: dict[str, Bound] | None = None,
 ):
-    """Decorator registering a diagram builder under ``name``."""
+    """Decorator registering a diagram builder under ``name``.
+
+    ``criteria`` (figure name -> Bound) says what a passing run of the world
+    looks like, in terms of the figures ``check`` returns.
+    """
 
     def decorator(build):
         if name in _REGISTRY and _REGISTRY[name].build is not build:
             raise ValueError(f"diagram name '{name}' registered twice")
-        _REGISTRY[name] = DiagramEntry(name, description, scenario_type, build, duration, check)
+        _REGISTRY[name] = DiagramEntry(
+            name, description, scenario_type, build, duration, check, dict(criteria or {})
+        )
         return build
 
     return decorator

@@ -1,0 +1,64 @@
+"""Resource limits checked before work starts.
+
+A grid sized from user input (a map size, a resolution, a number of headings)
+can ask for more memory than the machine has; allocating it would run until
+the kernel kills the process. :func:`require_memory` refuses such a request
+up front, with the figure, in the project's exception type.
+"""
+
+import os
+
+from repertoire.errors import RepertoireError
+
+# Default ceiling for one allocation request: 4 GiB, or REPERTOIRE_MAX_MEMORY_BYTES.
+DEFAULT_LIMIT_BYTES = 4 * 1024**3
+
+
+class ResourceLimitError(RepertoireError):
+    """A request would exceed a resource limit (memory); the message gives the figure."""
+
+
+def memory_limit_bytes() -> int:
+    """The per-request memory ceiling: ``REPERTOIRE_MAX_MEMORY_BYTES`` or 4 GiB."""
+    raw = os.environ.get("REPERTOIRE_MAX_MEMORY_BYTES")
+    if raw is None:
+        return DEFAULT_LIMIT_BYTES
+    try:
+        value = int(raw)
+    except ValueError:
+        raise ResourceLimitError(
+            f"REPERTOIRE_MAX_MEMORY_BYTES={raw!r} is not a whole number of bytes"
+        ) from None
+    if value <= 0:
+        raise ResourceLimitError(f"REPERTOIRE_MAX_MEMORY_BYTES={value} must be positive")
+    return value
+
+
+def format_bytes(nbytes: float) -> str:
+    """``1536`` -> ``'1.5 KiB'``; binary units up to TiB."""
+    value = float(nbytes)
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if abs(value) < 1024.0:
+            return f"{value:.1f} {unit}" if unit != "B" else f"{int(value)} B"
+        value /= 1024.0
+    return f"{value:.1f} TiB"
+
+
+def require_memory(nbytes: float, what: str, *, limit_bytes: int | None = None) -> None:
+    """Raises ResourceLimitError when ``nbytes`` exceeds the limit.
+
+    Args:
+        nbytes: the estimated size of the allocation.
+        what: what would be allocated, with the inputs that size it (for
+            example ``"occupancy grid for map_size=1000 m at 0.025 m"``).
+        limit_bytes: the ceiling; default :func:`memory_limit_bytes`.
+
+    Raises:
+        ResourceLimitError: naming ``what``, the estimate and the limit.
+    """
+    limit = memory_limit_bytes() if limit_bytes is None else int(limit_bytes)
+    if nbytes > limit:
+        raise ResourceLimitError(
+            f"{what} would need about {format_bytes(nbytes)}, over the "
+            f"{format_bytes(limit)} limit (set REPERTOIRE_MAX_MEMORY_BYTES to change it)"
+        )

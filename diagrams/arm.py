@@ -43,6 +43,7 @@ from repertoire.models.arm7 import (
     make_arm7_control_plant,
 )
 
+from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
 
 CONTACT_APPROXIMATIONS = ("lagged", "sap", "similar")
@@ -367,6 +368,10 @@ def check_arm_hold(diagram: Diagram, context: Context) -> dict[str, float]:
     "dynamics + PD) beside a table with cups, a bottle, a coaster and a ball",
     duration=1.0,
     check=check_arm_hold,
+    criteria={
+        "max_joint_error_rad": Bound(hi=0.01),
+        "max_object_speed_m_s": Bound(hi=0.01),
+    },
 )
 def build_arm_hold(scenario: ArmScenario, *, meshcat=None) -> Diagram:
     """Builds the arm holding ``scenario.initial_q`` and commanding ``finger_targets``.

@@ -106,6 +106,7 @@ from repertoire.systems.task_space import (
     reach_bound,
 )
 
+from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
 
 GRASP_MODES = ("contact", "grip")
@@ -1161,6 +1162,7 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
     "coaster that moves after onset, around a ball obstacle (Pastor et al. Fig. 13)",
     duration=7.75,
     check=lambda diagram, context: pick_and_place_figures(diagram, context),
+    criteria={"success": Bound(lo=1.0), "collision_free": Bound(lo=1.0)},
 )
 def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagram:
     """Builds the pick-and-place world.
@@ -1238,6 +1240,7 @@ def plan_serving(s: ServingScenario) -> tuple[list[SegmentGoal], float]:
     "(Pastor et al. Fig. 12)",
     duration=14.1,
     check=lambda diagram, context: serving_figures(diagram, context),
+    criteria={"success": Bound(lo=1.0), "cups_served": Bound(lo=3.0)},
 )
 def build_serving_water(scenario: ServingScenario, *, meshcat=None) -> Diagram:
     """Builds the serving-water world.

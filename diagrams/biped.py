@@ -33,6 +33,7 @@ from repertoire.models.biped import (
     standing_joint_angles,
 )
 
+from repertoire.criteria import Bound
 from repertoire.errors import ScenarioError
 
 CONTACT_APPROXIMATIONS = ("lagged", "sap", "similar")
@@ -180,6 +181,7 @@ def _add_meshcat(builder: DiagramBuilder, scene_graph: SceneGraph, meshcat) -> N
     description="ASIMO-like biped (12 leg joints, floating base) standing under joint PD",
     duration=1.0,
     check=lambda diagram, context: check_biped_stand(diagram, context),
+    criteria={"height_error_m": Bound(-0.02, 0.02), "tilt_rad": Bound(hi=0.05)},
 )
 def build_biped_stand(scenario: BipedStandScenario, *, meshcat=None) -> Diagram:
     """Builds the standing biped.

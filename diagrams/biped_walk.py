@@ -34,6 +34,7 @@ from repertoire.systems.walking import (
     whole_body_ik,
 )
 
+from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
 
 #: Gains for walking: stiffer than standing so the soles track the pattern closely.
@@ -314,6 +315,7 @@ def _add_obstacle_tiles(plant, obstacles: list[list[float]]) -> None:
     "swing feet -> leg IK -> joint PD",
     duration=20.0,
     check=lambda diagram, context: check_biped_walk(diagram, context),
+    criteria={"fell": Bound(hi=0.0), "steps_landed": Bound(lo=10.0)},
 )
 def build_biped_walk(scenario: BipedWalkScenario, *, meshcat=None) -> Diagram:
     """Builds the walking biped from a scenario (see :func:`build_walk_diagram`).

@@ -21,6 +21,7 @@ from repertoire.diagrams.biped import add_ground, validate_plant_fields
 from repertoire.diagrams.registry import register_diagram
 from repertoire.models import ConfigureParser, package_url
 
+from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
 
 WHEEL_RADIUS = 0.0975  # [m]
@@ -152,6 +153,7 @@ def add_world(plant: MultibodyPlant, parser: Parser, world: str) -> list[ModelIn
     "(world: soccer / kitchen / empty)",
     duration=2.0,
     check=lambda diagram, context: check_diffdrive(diagram, context),
+    criteria={"speed_ratio": Bound(0.9, 1.1), "tilt_rad": Bound(hi=0.01)},
 )
 def build_diffdrive_drive(scenario: DiffDriveScenario, *, meshcat=None) -> Diagram:
     """Builds the robot in its world under a constant wheel-speed command.

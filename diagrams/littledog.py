@@ -38,6 +38,7 @@ from repertoire.models.littledog import (
 )
 from repertoire.models.terrain import TerrainBoard, TerrainParams, generate_board
 
+from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
 
 CONTACT_APPROXIMATIONS = ["lagged", "sap", "similar"]
@@ -267,6 +268,11 @@ def add_littledog_world(
     "under joint PD",
     duration=1.0,
     check=lambda diagram, context: check_littledog_stand(diagram, context),
+    criteria={
+        "height_error_m": Bound(-0.01, 0.01),
+        "tilt_rad": Bound(hi=0.05),
+        "finite": Bound(lo=1.0),
+    },
 )
 def build_littledog_stand(scenario: LittleDogScenario, *, meshcat=None) -> Diagram:
     """Builds LittleDog standing on a terrain board.

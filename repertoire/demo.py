@@ -16,6 +16,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from repertoire.criteria import evaluate_criteria
+
 QUICK_DURATION_S = 0.25
 QUICK_EPISODES = 2
 
@@ -29,8 +31,11 @@ class DemoItem:
         name: the registered name.
         files: label -> path of every file written for it.
         figures: named figures (check() figures, or episodes / elapsed for a study).
-        error: None when it worked, else what failed.
+        notes: remarks for the index (for example images that could not be drawn).
+        error: None when it ran, else what raised.
         elapsed_s: wall seconds spent on it.
+        failed_criteria: one line per pass criterion the figures missed
+            (``"success = 0, expected >= 1"``).
     """
 
     kind: str
@@ -40,6 +45,14 @@ class DemoItem:
     notes: list[str] = dataclasses.field(default_factory=list)
     error: str | None = None
     elapsed_s: float = 0.0
+    failed_criteria: list[str] = dataclasses.field(default_factory=list)
+
+    @property
+    def status(self) -> str:
+        """"errored" (it raised), "failed" (a pass criterion missed) or "passed"."""
+        if self.error:
+            return "errored"
+        return "failed" if self.failed_criteria else "passed"
 
 
 @dataclasses.dataclass
@@ -94,8 +107,9 @@ def _demo_diagram(name: str, out: Path, quick: bool, say: Callable[[str], None])
         errors.append(f"render: {_short_error(e)}")
         say(f"  render failed:\n{traceback.format_exc()}")
     try:
-        duration = get_diagram_entry(name).duration
-        if quick:
+        entry = get_diagram_entry(name)
+        duration = entry.duration
+        if quick and not entry.criteria:  # a world with criteria runs long enough to pass
             duration = min(duration, QUICK_DURATION_S)
         sim_start = time.perf_counter()
         replay = record_replay(name, duration, out / "replays" / f"{name}.html")
@@ -105,6 +119,9 @@ def _demo_diagram(name: str, out: Path, quick: bool, say: Callable[[str], None])
             "wall_time_s": time.perf_counter() - sim_start,
             **replay.figures,
         }
+        item.failed_criteria = [
+            r.reason for r in evaluate_criteria(replay.figures, entry.criteria) if not r.passed
+        ]
     except Exception as e:
         errors.append(f"simulate/replay: {_short_error(e)}")
         say(f"  simulate/replay failed:\n{traceback.format_exc()}")
@@ -173,13 +190,16 @@ def write_index(out: Path, items: list[DemoItem], failures: list[str], total_s: 
         if not chosen:
             lines += ["(none registered)", ""]
         for item in chosen:
-            status = "FAILED: " + item.error if item.error else f"ok ({item.elapsed_s:.1f} s)"
+            status = f"{item.status} ({item.elapsed_s:.1f} s)"
+            if item.error:
+                status = f"errored: {item.error}"
             lines += [f"### {item.name} - {status}", ""]
             lines += [
                 f"- {label}: [{_rel(p, out)}]({_rel(p, out)})" for label, p in item.files.items()
             ]
             lines += [f"- {key} = {value:.6g}" for key, value in item.figures.items()]
             lines += [f"- note: {note}" for note in item.notes]
+            lines += [f"- FAILED criterion: {reason}" for reason in item.failed_criteria]
             lines.append("")
             lines += [
                 f"![{item.name} {label}]({_rel(p, out)})"
@@ -198,7 +218,9 @@ def _collect(item: DemoItem, what: str, items: list[DemoItem], failures: list[st
     """Append a finished part, and its failure (``"what: error"``) if it failed."""
     items.append(item)
     if item.error:
-        failures.append(f"{what}: {item.error}")
+        failures.append(f"{what}: errored: {item.error}")
+    elif item.failed_criteria:
+        failures.append(f"{what}: failed: {'; '.join(item.failed_criteria)}")
 
 
 def run_demo(
@@ -256,7 +278,9 @@ def run_demo(
     printer("")
     printer(f"== repertoire demo: {len(items)} parts in {total:.0f} s; index: {index}")
     for item in items:
-        printer(f"{item.kind} {item.name}: {'FAILED' if item.error else 'ok'}")
+        printer(f"{item.kind} {item.name}: {item.status}")
+        for reason in item.failed_criteria:
+            printer(f"  failed criterion: {reason}")
         for label, path in item.files.items():
             printer(f"  {label}: {path}")
     if failures:
@@ -264,5 +288,5 @@ def run_demo(
         for failure in failures:
             printer(f"  {failure}")
     else:
-        printer("all parts ok")
+        printer("all parts passed")
     return DemoResult(out, items, failures, index)

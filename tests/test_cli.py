@@ -239,14 +239,16 @@ def test_demo_reports_every_part_and_exits_1_when_one_fails(broken_parts, tmp_pa
     assert "angle_rad = " in printed and "energy_J = " in printed
     assert "3 part(s) FAILED" in printed
     assert (out / "diagrams" / "test_diverging.svg").is_file()  # rendered before it blew up
-    assert "diagram test_diverging: simulate/replay: SimulationDivergedError" in printed
+    assert "diagram test_diverging: errored: simulate/replay: SimulationDivergedError" in printed
     assert "replay html (up to the failure): " in printed
-    assert "diagram test_broken: render: RuntimeError: this world cannot be built" in printed
+    assert (
+        "diagram test_broken: errored: render: RuntimeError: this world cannot be built" in printed
+    )
     assert "study broken_study:" in printed and "exploded" in printed
     index = (out / "index.md").read_text()
-    assert "### test_pendulum - ok" in index and "### toy_study - ok" in index
+    assert "### test_pendulum - passed" in index and "### toy_study - passed" in index
     assert "[replays/test_pendulum.html](replays/test_pendulum.html)" in index
-    assert "### test_broken - FAILED" in index and "### broken_study - FAILED" in index
+    assert "### test_broken - errored" in index and "### broken_study - errored" in index
 
 
 def test_demo_all_ok(registries, tmp_path):
@@ -259,8 +261,23 @@ def test_demo_all_ok(registries, tmp_path):
     pendulum, toy = result.items
     assert pendulum.figures["sim_time_s"] == pytest.approx(0.2)
     assert toy.figures["episodes"] == 2  # quick: at most 2 episodes of the smoke config
-    assert "all parts ok" not in result.index_path.read_text()
+    assert [i.status for i in result.items] == ["passed", "passed"]
     assert "## Failures\n\nnone" in result.index_path.read_text()
+
+
+def test_demo_fails_a_world_whose_figures_miss_its_criteria(registries, tmp_path, capsys):
+    from repertoire.criteria import Bound
+    from repertoire.diagrams import registry
+
+    entry = registry.get_diagram_entry("test_pendulum")
+    entry.criteria = {"energy_J": Bound(lo=1e9)}
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--quick"]) == 1
+    printed = capsys.readouterr().out
+    assert "diagram test_pendulum: failed" in printed
+    assert "failed criterion: energy_J = " in printed and "expected >= 1e+09" in printed
+    assert "study toy_study: passed" in printed
+    assert "### test_pendulum - failed" in (out / "index.md").read_text()
 
 
 def test_simulate_live_prints_the_url_first_and_serves_for_the_given_time(registries, capsys):

@@ -49,7 +49,7 @@ class DemoItem:
 
     @property
     def status(self) -> str:
-        """"errored" (it raised), "failed" (a pass criterion missed) or "passed"."""
+        """The outcome: "errored" (it raised), "failed" (a criterion missed) or "passed"."""
         if self.error:
             return "errored"
         return "failed" if self.failed_criteria else "passed"

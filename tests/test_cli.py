@@ -266,8 +266,9 @@ def test_demo_all_ok(registries, tmp_path):
 
 
 def test_demo_fails_a_world_whose_figures_miss_its_criteria(registries, tmp_path, capsys):
-    from repertoire.criteria import Bound
     from repertoire.diagrams import registry
+
+    from repertoire.criteria import Bound
 
     entry = registry.get_diagram_entry("test_pendulum")
     entry.criteria = {"energy_J": Bound(lo=1e9)}

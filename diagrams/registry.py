@@ -8,13 +8,11 @@ list | render | simulate``) and the demo work only through this registry.
 """
 
 import dataclasses
-import importlib
-import pkgutil
 from collections.abc import Callable
 from typing import Any
 
 from repertoire.criteria import Bound
-from repertoire.errors import UnknownNameError
+from repertoire.registry import add_entry, discover, lookup
 
 
 @dataclasses.dataclass
@@ -60,17 +58,24 @@ def register_diagram(
 
     ``criteria`` (figure name -> Bound) says what a passing run of the world
     looks like, in terms of the figures ``check`` returns.
+
+    Raises:
+        RepertoireError: an empty name, or a name registered by two modules.
     """
 
     def decorator(build):
-        if name in _REGISTRY and _REGISTRY[name].build is not build:
-            raise ValueError(f"diagram name '{name}' registered twice")
-        _REGISTRY[name] = DiagramEntry(
+        entry = DiagramEntry(
             name, description, scenario_type, build, duration, check, dict(criteria or {})
         )
+        add_entry("diagram", _REGISTRY, name, entry, _owner)
         return build
 
     return decorator
+
+
+def _owner(entry: DiagramEntry) -> str:
+    """The module that registered ``entry`` (the builder's module)."""
+    return f"{getattr(entry.build, '__module__', '?')}.{getattr(entry.build, '__qualname__', '?')}"
 
 
 def _load_all() -> None:
@@ -78,16 +83,7 @@ def _load_all() -> None:
     global _LOADED
     if _LOADED:
         return
-    import repertoire.diagrams as pkg
-
-    for info in pkgutil.iter_modules(pkg.__path__):
-        if info.name.startswith("_"):
-            continue
-        module = f"{pkg.__name__}.{info.name}"
-        try:
-            importlib.import_module(module)
-        except Exception as e:  # one broken world must not hide the others
-            _BROKEN[module] = f"{type(e).__name__}: {e}"
+    discover("repertoire.diagrams", (), _BROKEN)
     _LOADED = True
 
 
@@ -110,9 +106,4 @@ def get_diagram_entry(name: str) -> DiagramEntry:
         UnknownNameError: with the list of known names.
     """
     _load_all()
-    if name not in _REGISTRY:
-        broken = f"; modules that failed to import: {_BROKEN}" if _BROKEN else ""
-        raise UnknownNameError(
-            f"unknown diagram '{name}'; registered diagrams: {diagram_names()}{broken}"
-        )
-    return _REGISTRY[name]
+    return lookup("diagram", _REGISTRY, name, _BROKEN)

@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies.engine import register_study, study_main
+from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
 
@@ -350,13 +350,4 @@ register_study(
     demo_config=demo_config,
     demo_episodes=12,
     smoke_config=smoke_config,
-)
-
-
-def main() -> int:
-    """Runs the study from the command line."""
-    return study_main("dmp_chaining", description=__doc__.split("\n\n")[0])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+).run_if_main(__name__)

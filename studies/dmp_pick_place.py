@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies.engine import register_study, study_main
+from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
 
@@ -424,13 +424,4 @@ register_study(
     demo_config=demo_config,
     demo_episodes=4,
     smoke_config=smoke_config,
-)
-
-
-def main() -> int:
-    """Command-line entry point."""
-    return study_main("dmp_pick_place", description=__doc__.split("\n\n")[0])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+).run_if_main(__name__)

@@ -26,7 +26,7 @@ from repertoire.planning.footstep.footprint import foot_collides_reference
 from repertoire.planning.footstep.planner import PlannerOptions, plan_footsteps
 from repertoire.planning.footstep.scenes import random_static_scene
 from repertoire.planning.footstep.types import ActionTable, FootstepPlan
-from repertoire.studies.engine import register_study, study_main
+from repertoire.studies.engine import register_study
 from repertoire.systems.walking import SteppingRule
 
 from repertoire.errors import RepertoireError
@@ -410,13 +410,4 @@ register_study(
     demo_config=demo_config,
     demo_episodes=2,
     smoke_config=smoke_config,
-)
-
-
-def main() -> int:
-    """Run the execution study from the command line."""
-    return study_main("footstep_execution", description=__doc__.split("\n\n")[0])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+).run_if_main(__name__)

@@ -21,7 +21,7 @@ from repertoire.studies._footstep_common import (
     percentile,
     planner_rows,
 )
-from repertoire.studies.engine import register_study, study_main
+from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
 
@@ -347,13 +347,4 @@ register_study(
     demo_config=demo_config,
     demo_episodes=8,
     smoke_config=smoke_config,
-)
-
-
-def main() -> int:
-    """Run the static footstep study from the command line."""
-    return study_main("footstep_static", description=__doc__.split("\n\n")[0])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+).run_if_main(__name__)

@@ -29,7 +29,7 @@ from repertoire.planning.footstep_learning import (
     step_samples,
     table_differences,
 )
-from repertoire.studies.engine import register_study, study_main
+from repertoire.studies.engine import register_study
 from repertoire.systems.walking import SteppingRule, realize_step
 
 from repertoire.errors import RepertoireError
@@ -322,13 +322,4 @@ register_study(
     demo_config=demo_config,
     demo_episodes=2,
     smoke_config=smoke_config,
-)
-
-
-def main() -> int:
-    """Run the footstep-table study from the command line."""
-    return study_main("footstep_table", description=__doc__.split("\n\n")[0])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+).run_if_main(__name__)

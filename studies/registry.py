@@ -13,18 +13,18 @@ imports nothing heavy (no pydrake, no dask).
 
 import dataclasses
 import importlib
-import pkgutil
 import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, UnknownNameError
+from repertoire.registry import add_entry, discover, lookup
 
 # Modules of repertoire.studies that are the engine itself, not studies.
 ENGINE_MODULES = frozenset({"engine", "store", "registry"})
-_MAIN_MODULES = frozenset({"__main__", "__mp_main__"})
 
 
 @dataclasses.dataclass
@@ -44,6 +44,9 @@ class StudyEntry:
         demo_config: optional factory of the config ``repertoire demo`` runs.
         demo_episodes: how many episodes the demo runs.
         smoke_config: optional factory of a tiny config for tests.
+        criteria: what a passing study looks like: summary figure name -> Bound
+            (a summary figure is ``mean_<field>``, ``std_<field>``, ``min_<field>``,
+            ``max_<field>`` of a numeric record field, over the stored episodes).
     """
 
     name: str
@@ -56,10 +59,37 @@ class StudyEntry:
     demo_config: Callable[[], Any] | None = None
     demo_episodes: int = 4
     smoke_config: Callable[[], Any] | None = None
+    criteria: dict[str, Bound] = dataclasses.field(default_factory=dict)
 
     def default_config(self) -> Any:
         """The demo config if the study has one, otherwise ``config_type()``."""
         return self.demo_config() if self.demo_config is not None else self.config_type()
+
+    def main(self, argv: list[str] | None = None) -> int:
+        """Runs this study from the command line (``python -m <module>``).
+
+        Returns:
+            The process exit code (2 with a one-line message on bad input).
+        """
+        from repertoire.studies.engine import study_main
+
+        doc = getattr(sys.modules.get(self.module), "__doc__", None) or self.description
+        return study_main(self.name, argv, description=doc.split("\n\n")[0])
+
+    def run_if_main(self, module_name: str) -> "StudyEntry":
+        """Ends a study module: runs :meth:`main` and exits when the module is run as a script.
+
+        A study module's last statement is ``register_study(...).run_if_main(__name__)``.
+
+        Args:
+            module_name: the calling module's ``__name__``.
+
+        Returns:
+            This entry (when the module was imported, not run).
+        """
+        if module_name == "__main__":
+            raise SystemExit(self.main())
+        return self
 
 
 _REGISTRY: dict[str, StudyEntry] = {}
@@ -78,6 +108,7 @@ def register_study(
     demo_config: Callable[[], Any] | None = None,
     demo_episodes: int = 4,
     smoke_config: Callable[[], Any] | None = None,
+    criteria: dict[str, Bound] | None = None,
 ) -> StudyEntry:
     """Registers a study under ``name``.
 
@@ -94,9 +125,11 @@ def register_study(
         demo_config: optional factory of the demo config.
         demo_episodes: number of episodes for the demo.
         smoke_config: optional factory of a tiny config for tests.
+        criteria: optional summary figure name -> Bound a passing study meets
+            (``repertoire demo`` holds the study's summary figures to them).
 
     Returns:
-        The registered entry.
+        The registered entry; end the module with ``.run_if_main(__name__)``.
 
     Raises:
         RepertoireError: non-dataclass types, a run_episode that workers cannot
@@ -130,19 +163,9 @@ def register_study(
         demo_config=demo_config,
         demo_episodes=demo_episodes,
         smoke_config=smoke_config,
+        criteria=dict(criteria or {}),
     )
-    old = _REGISTRY.get(name)
-    if old is not None and old.module != module:
-        if module in _MAIN_MODULES:
-            # A study module run as a script registers again as __main__; keep
-            # the importable registration that worker processes can rebuild.
-            return old
-        if old.module not in _MAIN_MODULES:
-            raise RepertoireError(
-                f"study name '{name}' registered twice, by {old.module} and {module}"
-            )
-    _REGISTRY[name] = entry
-    return entry
+    return add_entry("study", _REGISTRY, name, entry, lambda e: e.module)
 
 
 def _load_all() -> None:
@@ -154,18 +177,19 @@ def _load_all() -> None:
     global _LOADED
     if _LOADED:
         return
-    import repertoire.studies as pkg
-
-    for info in pkgutil.iter_modules(pkg.__path__):
-        if info.name.startswith("_") or info.name in ENGINE_MODULES:
-            continue
-        qualified = f"{pkg.__name__}.{info.name}"
-        try:
-            importlib.import_module(qualified)
-        except Exception as e:  # a broken study must not hide the others
-            _IMPORT_FAILURES[qualified] = f"{type(e).__name__}: {e}"
-            warnings.warn(f"study module {qualified} failed to import: {e}", stacklevel=2)
+    before = set(_IMPORT_FAILURES)
+    discover("repertoire.studies", ENGINE_MODULES, _IMPORT_FAILURES)
+    for module in sorted(set(_IMPORT_FAILURES) - before):
+        warnings.warn(
+            f"study module {module} failed to import: {_IMPORT_FAILURES[module]}", stacklevel=2
+        )
     _LOADED = True
+
+
+def broken_modules() -> dict[str, str]:
+    """Study modules that failed to import, with the error each raised."""
+    _load_all()
+    return dict(_IMPORT_FAILURES)
 
 
 def study_names() -> list[str]:
@@ -182,12 +206,7 @@ def get_study(name: str) -> StudyEntry:
             that failed to import, if any).
     """
     _load_all()
-    if name not in _REGISTRY:
-        msg = f"unknown study '{name}'; registered studies: {study_names()}"
-        if _IMPORT_FAILURES:
-            msg += f"; study modules that failed to import: {_IMPORT_FAILURES}"
-        raise UnknownNameError(msg)
-    return _REGISTRY[name]
+    return lookup("study", _REGISTRY, name, _IMPORT_FAILURES)
 
 
 def lookup_in_module(module: str, name: str) -> StudyEntry:

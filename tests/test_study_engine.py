@@ -550,3 +550,32 @@ def test_load_records_reads_a_store_back(tmp_path, toy_studies):
         load_records(tmp_path / "s.sqlite", "pendulum")
     with pytest.raises(RepertoireError, match="does not exist"):
         load_records(tmp_path / "missing.sqlite")
+
+
+def test_both_registries_share_one_mechanism_with_the_same_errors(isolated_registry):
+    from repertoire.diagrams.registry import get_diagram_entry, register_diagram
+    from repertoire.studies import registry as study_registry
+
+    def other_build(scenario, *, meshcat=None):
+        return None
+
+    with pytest.raises(RepertoireError, match="diagram name 'test_pendulum' registered twice"):
+        register_diagram("test_pendulum", scenario_type=object, description="clash")(other_build)
+    with pytest.raises(RepertoireError, match="diagram name must be a non-empty string"):
+        register_diagram("", scenario_type=object, description="no name")(other_build)
+    with pytest.raises(UnknownNameError, match=r"unknown diagram 'x'; registered diagram names"):
+        get_diagram_entry("x")
+    with pytest.raises(UnknownNameError, match=r"unknown study 'x'; registered study names"):
+        study_registry.get_study("x")
+    assert study_registry.broken_modules() == {}
+
+
+def test_a_study_module_ends_in_one_call_that_runs_main_only_as_a_script(tmp_path, monkeypatch):
+    entry = get_study("pendulum")
+    assert entry.run_if_main("repertoire.studies.pendulum") is entry
+    argv = ["pendulum", "--smoke", "-n", "1", "--executor", "inline", "--out-dir", str(tmp_path)]
+    monkeypatch.setattr(sys, "argv", argv)
+    with pytest.raises(SystemExit) as stop:
+        entry.run_if_main("__main__")
+    assert stop.value.code == 0
+    assert (tmp_path / "summary.md").read_text().startswith("# Study `pendulum`: 1 episodes")

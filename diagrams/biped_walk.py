@@ -36,6 +36,7 @@ from repertoire.systems.walking import (
 
 from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
+from repertoire.limits import require_grid_memory
 
 #: Gains for walking: stiffer than standing so the soles track the pattern closely.
 WALK_GAINS = LegGains(
@@ -103,6 +104,8 @@ class BipedWalkScenario:
             )
         if self.map_seed >= 0 and not (np.isfinite(self.map_size) and self.map_size >= 1.5):
             raise ScenarioError(f"map_size must be >= 1.5 m, got {self.map_size}")
+        if self.map_seed >= 0:
+            require_grid_memory(self.map_size, 0.025, f"biped_walk map_size={self.map_size}")
         if self.plan_file and not Path(self.plan_file).is_file():
             raise ScenarioError(f"plan_file '{self.plan_file}' does not exist")
         if not 0.5 <= self.pelvis_height <= 0.64:

@@ -62,3 +62,66 @@ def require_memory(nbytes: float, what: str, *, limit_bytes: int | None = None) 
             f"{what} would need about {format_bytes(nbytes)}, over the "
             f"{format_bytes(limit)} limit (set REPERTOIRE_MAX_MEMORY_BYTES to change it)"
         )
+
+
+# Conservative bytes per cell of a footstep grid: float64 x 40 layers (terrain,
+# cost, obstacle distance and the per-heading maps a planner keeps).
+GRID_BYTES_PER_CELL = 8 * 40
+
+
+def require_grid_memory(size_m: float, resolution_m: float, what: str) -> None:
+    """Refuses a square grid of side ``size_m`` at ``resolution_m`` above the memory limit.
+
+    Args:
+        size_m: side of the square map [m].
+        resolution_m: cell side [m] (> 0).
+        what: the input that sized it, for example ``"biped_walk map_size=1000"``.
+
+    Raises:
+        ResourceLimitError: the estimate (cells x GRID_BYTES_PER_CELL) exceeds the limit.
+    """
+    cells = (float(size_m) / float(resolution_m)) ** 2
+    require_memory(
+        cells * GRID_BYTES_PER_CELL,
+        f"a {size_m:g} m grid at {resolution_m:g} m cells ({cells:.3g} cells) for {what}",
+    )
+
+
+def require_writable_dir(path, what: str) -> None:
+    """Checks, before any work, that ``path`` is or can become a writable folder.
+
+    Args:
+        path: the output folder (may not exist yet).
+        what: the option that named it, for example ``"--out-dir"``.
+
+    Raises:
+        RepertoireError: ``path`` or one of its parents is a file, or the
+            nearest existing folder is not writable.
+    """
+    from pathlib import Path
+
+    p = Path(path)
+    for parent in (p, *p.parents):
+        if parent.exists():
+            if not parent.is_dir():
+                raise RepertoireError(f"{what} '{p}': '{parent}' is a file, expected a folder")
+            if not os.access(parent, os.W_OK | os.X_OK):
+                raise RepertoireError(f"{what} '{p}': folder '{parent}' is not writable")
+            return
+
+
+def require_writable_file(path, what: str) -> None:
+    """Checks, before any work, that ``path`` can be written as a file.
+
+    Raises:
+        RepertoireError: ``path`` is a folder, an existing read-only file, or its
+            folder cannot be written.
+    """
+    from pathlib import Path
+
+    p = Path(path)
+    if p.is_dir():
+        raise RepertoireError(f"{what} '{p}' is a folder, expected a file path")
+    if p.exists() and not os.access(p, os.W_OK):
+        raise RepertoireError(f"{what} '{p}' is not writable")
+    require_writable_dir(p.parent, what)

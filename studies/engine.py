@@ -30,6 +30,7 @@ import json
 import math
 import multiprocessing
 import os
+import re
 import socket
 import sys
 import threading
@@ -55,6 +56,7 @@ from repertoire.studies.store import (
 )
 
 from repertoire.errors import RepertoireError
+from repertoire.limits import require_writable_dir, require_writable_file
 
 __all__ = [
     "EXECUTORS",
@@ -115,6 +117,10 @@ class StudyResult:
     n_reused: int
     executor: str
     workers: int | None
+
+
+# Seeds are below this; ``load(0, STORE_SEED_LIMIT)`` is every stored seed.
+STORE_SEED_LIMIT = 2**62
 
 
 def is_timing_field(name: str) -> bool:
@@ -281,6 +287,33 @@ def _iter_process(
         pool.shutdown(wait=finished, cancel_futures=True)
 
 
+_ADDRESS = re.compile(r"^(tcp|tls|ws|wss|ucx)://(\[[0-9a-fA-F:]+\]|[A-Za-z0-9._-]+):(\d{1,5})$")
+
+
+def parse_scheduler_address(address: Any) -> str:
+    """Checks a Dask scheduler address before any connection is tried.
+
+    Args:
+        address: ``PROTOCOL://HOST:PORT`` with PROTOCOL tcp, tls, ws, wss or ucx
+            and PORT in 1..65535, for example ``tcp://127.0.0.1:8786``.
+
+    Returns:
+        The address.
+
+    Raises:
+        RepertoireError: a missing or malformed address (says what is expected).
+    """
+    example = "expected PROTOCOL://HOST:PORT, e.g. tcp://127.0.0.1:8786"
+    if not isinstance(address, str) or not address:
+        raise RepertoireError(
+            f"--executor dask needs --scheduler (scheduler_address); {example}; got {address!r}"
+        )
+    m = _ADDRESS.match(address)
+    if m is None or not 1 <= int(m.group(3)) <= 65535:
+        raise RepertoireError(f"--scheduler {address!r} is not a Dask address; {example}")
+    return address
+
+
 def connect_dask(scheduler_address: str, timeout_s: float = DASK_CONNECT_TIMEOUT_S):
     """Connects a ``dask.distributed.Client`` to a scheduler, failing fast.
 
@@ -292,16 +325,13 @@ def connect_dask(scheduler_address: str, timeout_s: float = DASK_CONNECT_TIMEOUT
         RepertoireError: dask.distributed is not installed, or the scheduler is
             not reachable within ``timeout_s`` (names the address).
     """
-    if not isinstance(scheduler_address, str) or not scheduler_address:
-        raise RepertoireError(
-            "executor='dask' needs scheduler_address, e.g. 'tcp://127.0.0.1:8786' "
-            f"(got {scheduler_address!r})"
-        )
+    scheduler_address = parse_scheduler_address(scheduler_address)
     try:
         from distributed import Client
     except ImportError as e:
         raise RepertoireError(
-            "executor='dask' needs dask.distributed: pip install 'repertoire[dask]'"
+            "--executor dask (executor='dask') needs dask.distributed: "
+            "pip install 'repertoire[dask]'"
         ) from e
     try:
         return Client(scheduler_address, timeout=f"{timeout_s}s", set_as_default=False)
@@ -309,7 +339,7 @@ def connect_dask(scheduler_address: str, timeout_s: float = DASK_CONNECT_TIMEOUT
         raise RepertoireError(
             f"could not connect to the Dask scheduler at '{scheduler_address}' within "
             f"{timeout_s:g} s ({type(e).__name__}: {e}); start one with `dask scheduler` "
-            "and `dask worker <address>`, or use executor='process'"
+            "and `dask worker <address>`, or use --executor process"
         ) from e
 
 
@@ -358,11 +388,21 @@ def _iter_dask(
 # Summaries.
 
 
+def is_identifier_field(name: str) -> bool:
+    """Fields that name an episode rather than measure it (``seed``, ``*_seed``, ``*_id``)."""
+    return name in ("seed", "id", "index") or name.endswith(("_seed", "_id", "_index"))
+
+
 def _numeric_fields(record_type: type, records: list) -> tuple[list[str], list[str]]:
-    """(numeric field names, bool field names) of the record type, in field order."""
+    """(numeric field names, bool field names) of the record type, in field order.
+
+    None is a missing value (for example "no path"); identifiers are skipped.
+    """
     numeric, boolean = [], []
     for f in dataclasses.fields(record_type):
-        values = [getattr(r, f.name) for r in records]
+        if is_identifier_field(f.name):
+            continue
+        values = [getattr(r, f.name) for r in records if getattr(r, f.name) is not None]
         if values and all(isinstance(v, bool) for v in values):
             boolean.append(f.name)
         elif values and all(
@@ -372,16 +412,22 @@ def _numeric_fields(record_type: type, records: list) -> tuple[list[str], list[s
     return numeric, boolean
 
 
+def _present(value: Any) -> bool:
+    """False for a missing value: None or NaN."""
+    return value is not None and not (isinstance(value, float) and math.isnan(value))
+
+
 def summary_rows(record_type: type, records: list) -> list[dict[str, Any]]:
     """One summary row per numeric or bool record field.
 
     Numeric fields get ``n`` (finite values), ``mean``, ``std`` (population),
-    ``min``, ``max``; bool fields get ``n`` and ``success_rate``.
+    ``min``, ``max``; bool fields get ``n`` and ``success_rate``. Missing values
+    (None, NaN) and identifier fields (``seed``) are left out.
     """
     numeric, boolean = _numeric_fields(record_type, records)
     rows = []
     for name in numeric:
-        vals = [float(getattr(r, name)) for r in records]
+        vals = [float(v) for r in records if _present(v := getattr(r, name))]
         finite = [v for v in vals if math.isfinite(v)]
         n = len(finite)
         mean = sum(finite) / n if n else math.nan
@@ -398,7 +444,7 @@ def summary_rows(record_type: type, records: list) -> list[dict[str, Any]]:
             }
         )
     for name in boolean:
-        vals = [bool(getattr(r, name)) for r in records]
+        vals = [bool(v) for r in records if _present(v := getattr(r, name))]
         rows.append(
             {
                 "field": name,
@@ -407,7 +453,7 @@ def summary_rows(record_type: type, records: list) -> list[dict[str, Any]]:
                 "std": "",
                 "min": "",
                 "max": "",
-                "success_rate": sum(vals) / len(vals),
+                "success_rate": sum(vals) / len(vals) if vals else math.nan,
             }
         )
     return rows
@@ -434,6 +480,10 @@ def write_tables(
     md_path = out_dir / "summary.md"
     lines = [
         f"# Study `{name}`: {len(records)} episodes (seeds {seeds[0]}..{seeds[-1]})",
+        "",
+        f"Every one of the {len(records)} episodes stored for this config (the store may hold "
+        "more seeds than the last run asked for). `n` counts the finite values of a field; "
+        "missing values (no result) are left out.",
         "",
         "| " + " | ".join(cols) + " |",
         "|" + "|".join(["---"] + ["---:"] * (len(cols) - 1)) + "|",
@@ -475,7 +525,7 @@ def write_histograms(record_type: type, records: list, out_dir: Path) -> dict[st
     numeric, _ = _numeric_fields(record_type, records)
     figures = {}
     for name in numeric:
-        vals = [float(getattr(r, name)) for r in records]
+        vals = [float(v) for r in records if _present(v := getattr(r, name))]
         finite = [v for v in vals if math.isfinite(v)]
         fig = Figure(figsize=(5, 3.5), layout="constrained")
         ax = fig.add_subplot()
@@ -513,7 +563,7 @@ def _records_from_rows(entry: StudyEntry, rows) -> list:
         except (RepertoireError, TypeError) as e:
             raise RepertoireError(
                 f"stored record for seed {row.seed} does not fit {entry.record_type.__name__}: "
-                f"{e}; pass fresh=True (CLI: --fresh) to start the store afresh"
+                f"{e}; pass --fresh (fresh=True) to start the store afresh"
             ) from e
     return records
 
@@ -570,8 +620,8 @@ def run_study(
             else ``config_type()``).
         episodes: number of seeds, ``first_seed .. first_seed + episodes - 1``.
         first_seed: the first seed (>= 0).
-        store: the SQLite file (default ``out/studies/<name>/episodes.sqlite``).
-        out_dir: folder for tables and figures (default ``out/studies/<name>``).
+        store: the SQLite file (default ``<out_dir>/episodes.sqlite``).
+        out_dir: folder for the store, tables and figures (default ``out/studies/<name>``).
         executor: ``"inline"``, ``"process"`` or ``"dask"``.
         workers: process-pool size (default: all cores); ignored by dask.
         scheduler_address: the Dask scheduler (``executor="dask"`` only).
@@ -617,15 +667,18 @@ def run_study(
             f"study '{name}': the config does not survive the trip to plain data and back "
             "(workers could not rebuild it); use plain dataclass fields"
         )
-    default_dir = Path("out") / "studies" / name
-    store_path = Path(store) if store is not None else default_dir / "episodes.sqlite"
-    out_path = Path(out_dir) if out_dir is not None else default_dir
+    out_path = Path(out_dir) if out_dir is not None else Path("out") / "studies" / name
+    store_path = Path(store) if store is not None else out_path / "episodes.sqlite"
+    require_writable_dir(out_path, "--out-dir (out_dir)")
+    require_writable_file(store_path, "--store (store)")
 
     client = None
     if executor == "dask":  # fail fast, before touching the store
         client = connect_dask(scheduler_address, dask_timeout_s)
     elif scheduler_address is not None:
-        raise RepertoireError("scheduler_address is only used with executor='dask'")
+        raise RepertoireError(
+            "--scheduler (scheduler_address) is only used with --executor dask (executor='dask')"
+        )
     try:
         record_fields = [f.name for f in dataclasses.fields(entry.record_type)]
         with EpisodeStore.open(
@@ -651,6 +704,7 @@ def run_study(
                 progress,
             )
             rows = db.load(first_seed, episodes)
+            stored = db.load(0, STORE_SEED_LIMIT)  # every stored seed of this config
     finally:
         if client is not None:
             client.close()
@@ -660,12 +714,14 @@ def run_study(
             f"study '{name}': seeds {lost[:10]} missing from the store after the run"
         )
     records = _records_from_rows(entry, rows)
+    stored_records = _records_from_rows(entry, stored)
+    stored_seeds = [r.seed for r in stored]
 
     tables: dict[str, Path] = {}
     figures: dict[str, Path] = {}
     if summarize:
         out_path.mkdir(parents=True, exist_ok=True)
-        tables = write_tables(name, entry.record_type, records, seeds, out_path)
+        tables = write_tables(name, entry.record_type, stored_records, stored_seeds, out_path)
         _use_agg()
         if entry.summarize is not None:
             made = entry.summarize(records, rebuilt, out_path)
@@ -830,7 +886,7 @@ def run_study_from_args(args: argparse.Namespace, name: str | None = None) -> St
     if args.config is not None:
         from repertoire.diagrams.scenario import load_scenario
 
-        config = load_scenario(entry.config_type, filename=args.config)
+        config = load_scenario(entry.config_type, filename=args.config, what="config")
     elif args.smoke:
         if entry.smoke_config is None:
             raise RepertoireError(f"study '{name}' has no smoke config")

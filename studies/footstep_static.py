@@ -24,6 +24,7 @@ from repertoire.studies._footstep_common import (
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
+from repertoire.limits import require_grid_memory
 
 
 @dataclasses.dataclass
@@ -62,6 +63,7 @@ class FootstepStaticConfig:
                 raise RepertoireError(f"FootstepStaticConfig.{name} must be > 0, got {v}")
         if self.size_m < 1.5:
             raise RepertoireError(f"FootstepStaticConfig.size_m must be >= 1.5, got {self.size_m}")
+        require_grid_memory(self.size_m, self.resolution_m, f"footstep_static size_m={self.size_m}")
         for name in ("n_strips", "n_blocks", "max_expansions", "example_figures"):
             if getattr(self, name) < 0:
                 raise RepertoireError(f"FootstepStaticConfig.{name} must be >= 0")
@@ -87,7 +89,7 @@ class FootstepStaticRecord:
         steps_over: steps whose swing foot passes over an obstacle.
         body_path_m: length of the path of the feet midpoints.
         mobile2d_success: the bounding-circle planner found a path.
-        mobile2d_length_m: its path length (-1 if none).
+        mobile2d_length_m: its path length (None when it found none: missing in summaries).
         biped_only: the biped succeeds where the 2-D planner fails.
         wall_plan_time_s: footstep planning wall time (timing field).
         wall_mobile2d_time_s: 2-D planning wall time (timing field).
@@ -106,7 +108,7 @@ class FootstepStaticRecord:
     steps_over: int
     body_path_m: float
     mobile2d_success: bool
-    mobile2d_length_m: float
+    mobile2d_length_m: float | None
     biped_only: bool
     wall_plan_time_s: float
     wall_mobile2d_time_s: float
@@ -178,7 +180,7 @@ def run_episode(config: FootstepStaticConfig, seed: int) -> FootstepStaticRecord
         steps_over=steps_over_obstacles(scene.grid, plan),
         body_path_m=body_path_length(plan),
         mobile2d_success=ok2d,
-        mobile2d_length_m=float(mobile.length) if ok2d else -1.0,
+        mobile2d_length_m=float(mobile.length) if ok2d else None,
         biped_only=bool(plan.succeeded and not ok2d),
         wall_plan_time_s=float(plan.planning_time_s),
         wall_mobile2d_time_s=float(mobile.planning_time_s),
@@ -195,7 +197,7 @@ def summary_table(records: list[FootstepStaticRecord]) -> str:
     ok = [r for r in records if r.success]
     rate = [r.nodes_expanded / r.wall_plan_time_s for r in records if r.wall_plan_time_s > 0]
     both = [r for r in ok if r.mobile2d_success]
-    ratio = [r.body_path_m / r.mobile2d_length_m for r in both if r.mobile2d_length_m > 0]
+    ratio = [r.body_path_m / r.mobile2d_length_m for r in both if (r.mobile2d_length_m or 0.0) > 0]
     common = planner_rows(
         records,
         steps_label="steps per successful plan: median [min, max]",

@@ -258,7 +258,7 @@ class EpisodeStore:
             "record_fields": json.dumps(record_fields),
         }
         if meta and not fresh:
-            hint = "pass fresh=True (CLI: --fresh) to start the store afresh"
+            hint = "pass --fresh (fresh=True) to start the store afresh"
             if meta.get("study") != study:
                 raise RepertoireError(
                     f"store '{self.path}' holds study '{meta.get('study')}', not '{study}'; "

@@ -139,8 +139,19 @@ def test_other_bad_arguments(tmp_path, toy_studies):
         run_study("_toy", episodes=2, first_seed=-1, executor="inline", **_kw(tmp_path))
     with pytest.raises(RepertoireError, match="takes a ToyConfig config, got PendulumConfig"):
         run_study("_toy", smoke_config(), episodes=2, executor="inline", **_kw(tmp_path))
-    with pytest.raises(RepertoireError, match="needs scheduler_address"):
+    with pytest.raises(RepertoireError, match=r"--executor dask needs --scheduler"):
         run_study("_toy", episodes=2, executor="dask", **_kw(tmp_path))
+    for bad in ("127.0.0.1:8786", "tcp://host", "tcp://host:99999", "http://h:1", "tcp://a b:1"):
+        with pytest.raises(RepertoireError, match=r"is not a Dask address; expected PROTOCOL"):
+            run_study("_toy", episodes=2, executor="dask", scheduler_address=bad, **_kw(tmp_path))
+    with pytest.raises(RepertoireError, match=r"--scheduler \(scheduler_address\) is only used"):
+        run_study("_toy", episodes=2, scheduler_address="tcp://h:1", **_kw(tmp_path))
+    (tmp_path / "a_file").write_text("x")
+    with pytest.raises(RepertoireError, match=r"--out-dir \(out_dir\) .*is a file, expected a"):
+        run_study("_toy", episodes=2, out_dir=tmp_path / "a_file" / "sub", store=None)
+    with pytest.raises(RepertoireError, match=r"--store \(store\) .* is a folder, expected a file"):
+        run_study("_toy", episodes=2, out_dir=tmp_path / "o", store=tmp_path)
+    (tmp_path / "a_file").unlink()
     with pytest.raises(RepertoireError, match="damping_min <= damping_max"):
         run_study(
             "pendulum",
@@ -579,3 +590,38 @@ def test_a_study_module_ends_in_one_call_that_runs_main_only_as_a_script(tmp_pat
         entry.run_if_main("__main__")
     assert stop.value.code == 0
     assert (tmp_path / "summary.md").read_text().startswith("# Study `pendulum`: 1 episodes")
+
+
+def test_summaries_skip_identifiers_and_missing_values():
+    from repertoire.studies.engine import summary_rows
+
+    @dataclasses.dataclass
+    class Rec:
+        seed: int
+        length_m: float | None
+        ok: bool
+
+    rows = summary_rows(Rec, [Rec(0, 2.0, True), Rec(1, None, False), Rec(2, 4.0, True)])
+    assert [r["field"] for r in rows] == ["length_m", "ok"]
+    assert rows[0]["n"] == 2 and rows[0]["mean"] == 3.0 and rows[0]["min"] == 2.0
+    assert rows[1]["n"] == 3 and rows[1]["success_rate"] == pytest.approx(2 / 3)
+
+
+def test_the_store_lives_in_the_out_dir_and_summaries_cover_every_stored_seed(tmp_path):
+    kw = dict(executor="inline", progress=False, out_dir=tmp_path / "o")
+    run_study("pendulum", smoke_config(), episodes=3, **kw)
+    assert (tmp_path / "o" / "episodes.sqlite").is_file()
+    result = run_study("pendulum", smoke_config(), episodes=1, **kw)  # a smaller rerun
+    assert result.n_reused == 1 and len(result.records) == 1
+    summary = (tmp_path / "o" / "summary.md").read_text()
+    assert summary.startswith("# Study `pendulum`: 3 episodes (seeds 0..2)")
+    assert "| seed |" not in summary
+
+
+def test_a_wrong_type_in_yaml_names_its_field_and_a_config_is_called_a_config(tmp_path):
+    from repertoire.diagrams.scenario import load_scenario
+
+    with pytest.raises(RepertoireError, match=r"field 'duration_s' expects a number .*'two'"):
+        load_scenario(PendulumConfig, data="duration_s: two")
+    with pytest.raises(RepertoireError, match=r"^config file '.*nope.yaml' does not exist"):
+        load_scenario(PendulumConfig, filename=tmp_path / "nope.yaml", what="config")

@@ -1,4 +1,4 @@
-"""The ``repertoire`` command line: list, render, simulate, study, demo.
+"""The ``repertoire`` command line: list, show, render, simulate, study, demo.
 
 Everything goes through the diagram registry (``repertoire.diagrams.registry``)
 and the study registry (``repertoire.studies.engine``), so a world or study
@@ -20,6 +20,7 @@ from pathlib import Path
 EPILOG = """\
 examples:
   repertoire list                                   what diagrams and studies exist
+  repertoire show biped_walk > walk.yaml            its settings, commented, to edit
   repertoire render arm_hold --out out/graphs       out/graphs/arm_hold.{dot,svg,png}
   repertoire render littledog_stand --max-depth 1   top level only
   repertoire simulate littledog_stand               run it, print its check figures
@@ -91,6 +92,21 @@ def build_parser() -> argparse.ArgumentParser:
         ),
         formatter_class=raw,
     )
+
+    p = sub.add_parser(
+        "show",
+        help="print a world's scenario or a study's config as commented YAML",
+        description=_wrap(
+            "Print the default scenario of world NAME (or the default config of study "
+            "NAME) as YAML with each field's meaning and unit in a comment above it. "
+            "Save it, edit it, and pass it back with --scenario (simulate, render) or "
+            "--config (study)."
+        ),
+        epilog="example: repertoire show biped_walk > walk.yaml\n"
+        "         repertoire simulate biped_walk --scenario walk.yaml",
+        formatter_class=raw,
+    )
+    p.add_argument("name", metavar="NAME", help="registered diagram or study name")
 
     p = sub.add_parser(
         "render",
@@ -233,14 +249,23 @@ def _cmd_list(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_show(args: argparse.Namespace) -> int:
+    from repertoire.show import show_text
+
+    sys.stdout.write(show_text(args.name))
+    return 0
+
+
 def _cmd_render(args: argparse.Namespace) -> int:
     from repertoire.diagrams.registry import get_diagram_entry
     from repertoire.diagrams.render import render_diagram
     from repertoire.diagrams.simulate import build_registered, resolve_scenario
     from repertoire.errors import RepertoireError
+    from repertoire.limits import require_writable_dir
 
     if args.max_depth is not None and args.max_depth < 0:
         raise RepertoireError(f"--max-depth must be >= 0, got {args.max_depth}")
+    require_writable_dir(args.out, "--out")
     entry = get_diagram_entry(args.name)
     scenario = resolve_scenario(entry, args.scenario)
     diagram = build_registered(args.name, scenario=scenario)
@@ -263,8 +288,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         simulate_registered,
     )
     from repertoire.errors import RepertoireError
+    from repertoire.limits import require_writable_dir
 
     entry = get_diagram_entry(args.name)
+    if args.replay:
+        require_writable_dir(args.out, "--out")
     duration = check_duration(entry.duration if args.duration is None else args.duration)
     if args.live_seconds is not None and not args.live:
         raise RepertoireError("--live-seconds needs --live")
@@ -319,13 +347,16 @@ def _cmd_study(args: argparse.Namespace) -> int:
 
 def _cmd_demo(args: argparse.Namespace) -> int:
     from repertoire.demo import run_demo
+    from repertoire.limits import require_writable_dir
 
+    require_writable_dir(args.out, "--out")
     result = run_demo(args.out, quick=args.quick)
     return 0 if result.ok else 1
 
 
 _COMMANDS = {
     "list": _cmd_list,
+    "show": _cmd_show,
     "render": _cmd_render,
     "simulate": _cmd_simulate,
     "study": _cmd_study,

@@ -151,7 +151,6 @@ def _demo_study(name: str, out: Path, quick: bool, say: Callable[[str], None]) -
             config,
             episodes=episodes,
             first_seed=0,
-            store=study_dir / f"{name}.sqlite",
             out_dir=study_dir,
             executor="inline" if quick else "process",
             fresh=True,

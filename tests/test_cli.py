@@ -232,7 +232,7 @@ def test_demo_reports_every_part_and_exits_1_when_one_fails(broken_parts, tmp_pa
         "diagrams/test_pendulum.dot",
         "replays/test_pendulum.html",
         "studies/toy_study/summary.csv",
-        "studies/toy_study/toy_study.sqlite",
+        "studies/toy_study/episodes.sqlite",
         "index.md",
     ):
         assert (out / rel).is_file(), rel
@@ -288,3 +288,18 @@ def test_simulate_live_prints_the_url_first_and_serves_for_the_given_time(regist
     assert lines[0].startswith("live view at http://localhost:")
     assert lines[1].startswith("test_pendulum: simulated 0.05 s")
     assert lines[-1].startswith("serving http://localhost:") and "Ctrl-C or 0.2 s" in lines[-1]
+
+
+def test_output_paths_are_checked_before_any_work(registries, tmp_path, capsys):
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    for argv in (
+        ["render", "test_pendulum", "--out", str(a_file)],
+        ["simulate", "test_pendulum", "--replay", "--out", str(a_file / "sub")],
+        ["demo", "--quick", "--out", str(a_file)],
+        ["study", "toy_study", "--out-dir", str(a_file), "--executor", "inline"],
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert "is a file, expected a folder" in err and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]

@@ -1,0 +1,51 @@
+"""``repertoire show``: every registered world and study prints commented YAML that loads back."""
+
+import pytest
+from repertoire.diagrams.registry import diagram_names, get_diagram_entry
+from repertoire.diagrams.scenario import load_scenario
+from repertoire.studies.registry import get_study, study_names
+
+from repertoire.cli import main
+from repertoire.show import attribute_docs, show_text, undocumented_fields
+
+
+def _schema_and_default(name: str):
+    if name in diagram_names():
+        entry = get_diagram_entry(name)
+        return entry.scenario_type, entry.scenario_type()
+    entry = get_study(name)
+    return entry.config_type, entry.default_config()
+
+
+@pytest.mark.parametrize("name", diagram_names() + study_names())
+def test_show_prints_commented_yaml_that_loads_back_unchanged(name):
+    schema, default = _schema_and_default(name)
+    text = show_text(name)
+    assert load_scenario(schema, data=text) == default
+    assert undocumented_fields(schema) == []  # every field has a comment
+    for field, doc in attribute_docs(schema).items():
+        assert f"# {field}: {doc}\n{field}:" in text
+
+
+def test_attribute_docs_join_continuation_lines_and_stop_at_the_next_section():
+    class Documented:
+        """Summary.
+
+        Attributes:
+            a: first line
+                continued.
+            b (float): second [m].
+
+        Raises:
+            c: not a field.
+        """
+
+    assert attribute_docs(Documented) == {"a": "first line continued.", "b": "second [m]."}
+
+
+def test_show_cli_prints_and_an_unknown_name_exits_2(capsys):
+    assert main(["show", "pendulum"]) == 0
+    assert "repertoire study pendulum --config FILE.yaml" in capsys.readouterr().out
+    assert main(["show", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("repertoire show: error: unknown name 'nope'") and "pendulum" in err

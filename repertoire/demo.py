@@ -160,6 +160,15 @@ def _demo_study(name: str, out: Path, quick: bool, say: Callable[[str], None]) -
         item.files.update({str(k): Path(v) for k, v in result.tables.items()})
         item.files.update({str(k): Path(v) for k, v in result.figures.items()})
         item.figures = {"episodes": float(len(result.records)), "wall_time_s": result.elapsed_s}
+        criteria = getattr(entry, "criteria", None) or {}
+        if criteria:
+            from repertoire.studies.engine import summary_figures
+
+            summary = summary_figures(entry.record_type, result.records)
+            item.figures.update({k: summary[k] for k in criteria if k in summary})
+            item.failed_criteria = [
+                r.reason for r in evaluate_criteria(summary, criteria) if not r.passed
+            ]
     except Exception as e:
         item.error = _short_error(e)
         say(f"  study failed:\n{traceback.format_exc()}")

@@ -459,6 +459,22 @@ def summary_rows(record_type: type, records: list) -> list[dict[str, Any]]:
     return rows
 
 
+def summary_figures(record_type: type, records: list) -> dict[str, float]:
+    """The summary as named figures, the ones study criteria bound.
+
+    ``mean_<field>``, ``std_<field>``, ``min_<field>``, ``max_<field>`` of numeric
+    fields and ``rate_<field>`` of bool fields.
+    """
+    figures: dict[str, float] = {}
+    for row in summary_rows(record_type, records):
+        if row["success_rate"] != "":
+            figures[f"rate_{row['field']}"] = float(row["success_rate"])
+        else:
+            for key in ("mean", "std", "min", "max"):
+                figures[f"{key}_{row['field']}"] = float(row[key])
+    return figures
+
+
 def _fmt(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.6g}"

@@ -46,7 +46,8 @@ class StudyEntry:
         smoke_config: optional factory of a tiny config for tests.
         criteria: what a passing study looks like: summary figure name -> Bound
             (a summary figure is ``mean_<field>``, ``std_<field>``, ``min_<field>``,
-            ``max_<field>`` of a numeric record field, over the stored episodes).
+            ``max_<field>`` of a numeric record field or ``rate_<field>`` of a bool
+            one, over the demo's episodes; see engine.summary_figures).
     """
 
     name: str

@@ -303,3 +303,15 @@ def test_output_paths_are_checked_before_any_work(registries, tmp_path, capsys):
         err = capsys.readouterr().err
         assert "is a file, expected a folder" in err and err.count("\n") == 1, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
+
+
+def test_demo_holds_a_study_to_its_criteria_on_summary_figures(registries, tmp_path, capsys):
+    from repertoire.criteria import Bound
+
+    _, studies = registries
+    studies.get_study("toy_study").criteria = {"mean_value": Bound(hi=-1e9)}
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--quick"]) == 1
+    printed = capsys.readouterr().out
+    assert "study toy_study: failed" in printed
+    assert "failed criterion: mean_value = " in printed and "expected <= -1e+09" in printed

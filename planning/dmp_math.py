@@ -793,6 +793,11 @@ def check_n_basis(n_basis: int) -> int:
     Args:
         n_basis: Number of basis functions.
     """
-    if int(n_basis) != n_basis or n_basis < 1:
+    if (
+        not isinstance(n_basis, (int, float, np.integer))
+        or not math.isfinite(n_basis)
+        or int(n_basis) != n_basis
+        or n_basis < 1
+    ):
         raise RepertoireError(f"need at least one basis function (n_basis >= 1), got {n_basis}")
     return int(n_basis)

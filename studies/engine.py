@@ -537,6 +537,7 @@ def _use_agg() -> None:
 def write_histograms(record_type: type, records: list, out_dir: Path) -> dict[str, Path]:
     """One histogram PNG per numeric record field; returns ``{label: path}``."""
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     numeric, _ = _numeric_fields(record_type, records)
     figures = {}
@@ -548,7 +549,10 @@ def write_histograms(record_type: type, records: list, out_dir: Path) -> dict[st
         ax.hist(finite, bins=min(30, max(5, len(finite) // 3)), color="tab:blue", alpha=0.8)
         ax.set_xlabel(name)
         ax.set_ylabel("episodes")
-        ax.set_title(f"{name} over {len(finite)} episodes")
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts: whole ticks
+        missing = len(records) - len(finite)
+        left_out = f" ({missing} missing or non-finite left out)" if missing else ""
+        ax.set_title(f"{name} over {len(finite)} episodes{left_out}", fontsize=9)
         path = out_dir / f"hist_{name}.png"
         fig.savefig(path, dpi=100)
         figures[f"hist_{name}"] = path

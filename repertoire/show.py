@@ -92,28 +92,22 @@ def show_text(name: str) -> str:
 
     if name in diagram_names():
         entry = get_diagram_entry(name)
-        scenario = entry.scenario_type()
-        header = (
-            f"{name}: {entry.description}\n"
-            f"Default {entry.scenario_type.__name__}. Save, edit, then:\n"
-            f"  repertoire simulate {name} --scenario FILE.yaml\n"
-            "Keys you leave out keep these defaults; unknown keys are errors.\n"
-        )
-        return commented_yaml(scenario, header)
-    if name in study_names():
+        value, verb, option = entry.scenario_type(), "simulate", "--scenario"
+    elif name in study_names():
         entry = get_study(name)
-        config = entry.default_config()
-        header = (
-            f"{name}: {entry.description}\n"
-            f"Default {entry.config_type.__name__} (the demo config). Save, edit, then:\n"
-            f"  repertoire study {name} --config FILE.yaml\n"
-            "Keys you leave out keep their defaults; unknown keys are errors.\n"
+        value, verb, option = entry.default_config(), "study", "--config"
+    else:
+        raise UnknownNameError(
+            f"unknown name '{name}'; registered diagrams: {diagram_names()}; "
+            f"registered studies: {study_names()}"
         )
-        return commented_yaml(config, header)
-    raise UnknownNameError(
-        f"unknown name '{name}'; registered diagrams: {diagram_names()}; "
-        f"registered studies: {study_names()}"
+    header = (
+        f"{name}: {entry.description}\n"
+        f"Default {type(value).__name__}. Save, edit, then:\n"
+        f"  repertoire {verb} {name} {option} FILE.yaml\n"
+        "Keys you leave out keep these defaults; unknown keys are errors.\n"
     )
+    return commented_yaml(value, header)
 
 
 __all__ = ["attribute_docs", "commented_yaml", "show_text"]

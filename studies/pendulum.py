@@ -214,6 +214,7 @@ def summarize(
         s=28,
         edgecolors="k",
         linewidths=0.3,
+        label="one episode (colour: |release angle|)",
     )
     fig.colorbar(sc, ax=ax, label="|release angle| (rad)")
     b = np.linspace(0.0, max(config.damping_max, max(damping, default=0.0)), 100)
@@ -224,7 +225,7 @@ def summarize(
     ax.set_ylabel("fraction of energy lost")
     ax.set_title(f"Pendulum: energy lost in {config.duration_s:g} s ({len(records)} episodes)")
     ax.set_ylim(bottom=min(0.0, min(lost, default=0.0)))
-    ax.legend(loc="lower right")
+    ax.legend(loc="best")
     path = Path(out_dir) / "pendulum_energy_vs_damping.png"
     fig.savefig(path, dpi=110)
     return {"energy_vs_damping": path}

@@ -644,65 +644,6 @@ class GraspWrench(LeafSystem):
         output.set_value([on_object, on_hand])
 
 
-class JointReferenceMux(LeafSystem):
-    """Assembles the control plant's desired state and acceleration from arm and hand parts.
-
-    Input ports:
-        arm_reference_state: [q_r; qdot_r] of the arm joints, 2n.
-        arm_reference_acceleration: qdd_r of the arm joints, n.
-        hand_position: finger positions, m.
-        hand_velocity: finger velocities, m.
-        hand_acceleration: finger accelerations, m.
-
-    Output ports:
-        desired_state: [q; v] in the control plant's order, 2(n + m).
-        desired_acceleration: vdot in the control plant's order, n + m.
-    """
-
-    def __init__(self, arm_indices: list[int], hand_indices: list[int]):
-        """Builds the mux.
-
-        Args:
-            arm_indices: positions of the arm joints in the control plant's vectors.
-            hand_indices: positions of the finger joints in the control plant's vectors.
-
-        Raises:
-            RepertoireError: the indices are not a permutation of ``0..n+m-1``.
-        """
-        super().__init__()
-        self._arm = np.asarray(arm_indices, dtype=int)
-        self._hand = np.asarray(hand_indices, dtype=int)
-        n, m = len(self._arm), len(self._hand)
-        if sorted(np.concatenate([self._arm, self._hand]).tolist()) != list(range(n + m)):
-            raise RepertoireError(
-                f"arm_indices {arm_indices} and hand_indices {hand_indices} must together be a "
-                f"permutation of 0..{n + m - 1}"
-            )
-        self._n, self._m = n, m
-        self._arm_state = self.DeclareVectorInputPort("arm_reference_state", 2 * n)
-        self._arm_acc = self.DeclareVectorInputPort("arm_reference_acceleration", n)
-        self._hand_q = self.DeclareVectorInputPort("hand_position", m)
-        self._hand_v = self.DeclareVectorInputPort("hand_velocity", m)
-        self._hand_a = self.DeclareVectorInputPort("hand_acceleration", m)
-        self.DeclareVectorOutputPort("desired_state", 2 * (n + m), self._calc_state)
-        self.DeclareVectorOutputPort("desired_acceleration", n + m, self._calc_acceleration)
-
-    def _calc_state(self, context: Context, output: BasicVector) -> None:
-        n, m = self._n, self._m
-        arm = self._arm_state.Eval(context)
-        q = np.zeros(n + m)
-        v = np.zeros(n + m)
-        q[self._arm], v[self._arm] = arm[:n], arm[n:]
-        q[self._hand], v[self._hand] = self._hand_q.Eval(context), self._hand_v.Eval(context)
-        output.SetFromVector(np.concatenate([q, v]))
-
-    def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
-        a = np.zeros(self._n + self._m)
-        a[self._arm] = self._arm_acc.Eval(context)
-        a[self._hand] = self._hand_a.Eval(context)
-        output.SetFromVector(a)
-
-
 def stack_task_space_dmp(dmp: TaskSpaceDmp) -> DmpParameters:
     """The paper's 10-D DMP (Fig. 7) as one DmpParameters: [x y z, qw qx qy qz, fingers].
 

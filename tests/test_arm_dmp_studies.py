@@ -8,7 +8,6 @@ from repertoire.studies import dmp_grid, dmp_obstacle_arm, dmp_pick_place, dmp_s
 
 from repertoire.errors import RepertoireError
 
-
 # Seed 3 at smoke size (0.2-0.3 s of simulation): the figures each record must hold
 # (measured once; deterministic), and the files each summary writes.
 SMOKE_EXPECTED = {

@@ -14,7 +14,6 @@ from repertoire.systems.task_space import (
     STATUS_TARGET_OUT_OF_REACH,
     STATUS_TRACKING_LOST,
     GraspWrench,
-    JointReferenceMux,
     MultiPointObstacleCoupling,
     ResolvedMotionRateIK,
     check_reachable,
@@ -305,24 +304,6 @@ def test_grasp_wrench_latches_and_releases():
             capture_radius=0.03,
             period=0.01,
         )
-
-
-def test_joint_reference_mux_orders_arm_and_hand():
-    mux = JointReferenceMux([0, 1, 3], [2, 4])
-    context = mux.CreateDefaultContext()
-    mux.GetInputPort("arm_reference_state").FixValue(context, [1, 2, 3, 10, 20, 30])
-    mux.GetInputPort("arm_reference_acceleration").FixValue(context, [100, 200, 300])
-    mux.GetInputPort("hand_position").FixValue(context, [7, 8])
-    mux.GetInputPort("hand_velocity").FixValue(context, [70, 80])
-    mux.GetInputPort("hand_acceleration").FixValue(context, [700, 800])
-    assert np.array_equal(
-        mux.GetOutputPort("desired_state").Eval(context), [1, 2, 7, 3, 8, 10, 20, 70, 30, 80]
-    )
-    assert np.array_equal(
-        mux.GetOutputPort("desired_acceleration").Eval(context), [100, 200, 700, 300, 800]
-    )
-    with pytest.raises(RepertoireError, match="permutation"):
-        JointReferenceMux([0, 1], [1, 2])
 
 
 def _demo_dmp(p0, p1, duration=1.0):

@@ -123,7 +123,7 @@ POUR_TIP_ABOVE_RIM = 0.10
 CUP_RIM = 0.10
 
 
-def _rotation_from_approach(approach_W: np.ndarray) -> RotationMatrix:
+def rotation_from_approach(approach_W: np.ndarray) -> RotationMatrix:
     """Side-grasp orientation of the palm for a horizontal approach direction (sec. IV-C).
 
     z_palm (approach) is the horizontal part of ``approach_W``, x_palm is up (the
@@ -142,7 +142,8 @@ def _rotation_from_approach(approach_W: np.ndarray) -> RotationMatrix:
     return RotationMatrix(np.column_stack([x, y, z]))
 
 
-def _quat(R: RotationMatrix) -> np.ndarray:
+def quaternion_wxyz(R: RotationMatrix) -> np.ndarray:
+    """The unit quaternion (w, x, y, z) of a rotation matrix."""
     return R.ToQuaternion().wxyz()
 
 
@@ -216,7 +217,7 @@ DEMO_CUP_XY = (0.55, -0.25)
 DEMO_COASTER_XY = (0.55, 0.10)
 DEMO_BOTTLE_XY = (0.52, -0.28)
 DEMO_POUR_CUP_XY = (0.66, 0.0)
-R_SIDE = _rotation_from_approach(np.array([1.0, 0.0, 0.0]))
+R_SIDE = rotation_from_approach(np.array([1.0, 0.0, 0.0]))
 R_POUR = R_SIDE @ RotationMatrix.MakeZRotation(POUR_TILT)
 
 
@@ -250,8 +251,8 @@ def synthetic_demonstrations() -> dict[str, tuple]:
         label -> ``(t, positions, quaternions, fingers)``.
     """
     home = home_tcp_pose()
-    p_home, q_home = home.translation(), _quat(home.rotation())
-    q_side = _quat(R_SIDE)
+    p_home, q_home = home.translation(), quaternion_wxyz(home.rotation())
+    q_side = quaternion_wxyz(R_SIDE)
     open_, grasp = np.array(HAND_OPEN), np.array(HAND_GRASP_7CM)
     demos = {}
     cup = np.array([*DEMO_CUP_XY, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
@@ -294,7 +295,7 @@ def synthetic_demonstrations() -> dict[str, tuple]:
         [bottle, bottle + [0, 0, 0.12], (bottle + pour) / 2 + [0, 0, 0.14], pour],
         (0.0, 0.8),
         q_side,
-        _quat(R_POUR),
+        quaternion_wxyz(R_POUR),
         (0.35, 0.95),
         [(0.0, 1.0, grasp, grasp)],
         2.2,
@@ -303,7 +304,7 @@ def synthetic_demonstrations() -> dict[str, tuple]:
     demos["retreat"] = synthesize_demonstration(
         [pour, up],
         (0.2, 1.0),
-        _quat(R_POUR),
+        quaternion_wxyz(R_POUR),
         q_side,
         (0.0, 0.8),
         [(0.0, 1.0, grasp, grasp)],
@@ -726,7 +727,7 @@ class PickPlaceScenario:
                 f"table (top at {TABLE_HEIGHT} m); its centre must be at least "
                 f"{TABLE_HEIGHT + OBSTACLE_RADIUS + 0.05:.2f} m high"
             )
-        if o[2] - 0.06 < TABLE_HEIGHT + 0.05:
+        if o[2] - OBSTACLE_RADIUS < TABLE_HEIGHT + 0.05:
             raise ScenarioError(
                 f"obstacle_xyz z = {o[2]} m puts the ball within 5 cm of the table top "
                 f"({TABLE_HEIGHT} m); raise it"
@@ -867,7 +868,13 @@ def shoulder_and_reach() -> tuple[np.ndarray, float]:
     return shoulder, reach_bound(np.array(points))
 
 
-def _segment_timing(labels: list[str], settle: float) -> tuple[list[float], float]:
+def segment_timing(labels: list[str], settle: float) -> tuple[list[float], float]:
+    """Start time of each segment of a chain and the total duration [s].
+
+    Args:
+        labels: Motion-library labels of the segments, in order.
+        settle: Settling time after each segment [s].
+    """
     lib = motion_library()
     starts, t = [], 0.0
     for label in labels:
@@ -876,7 +883,7 @@ def _segment_timing(labels: list[str], settle: float) -> tuple[list[float], floa
     return starts, t
 
 
-def _build_world(
+def build_arm_world(
     name: str,
     scenario,
     objects: list[ArmObject],
@@ -942,14 +949,14 @@ def _build_world(
             body = int(plant.GetBodyByName(body_name, instances[instance_name]).index())
         resolved.append(dataclasses.replace(g, body=body))
     labels = [g.label for g in goals]
-    starts, duration = _segment_timing(labels, scenario.settle_time)
+    starts, duration = segment_timing(labels, scenario.settle_time)
     library = arm_motion_library()
     chain = builder.AddNamedSystem(
         "dmp_chain",
         TaskSpaceDmpChain(
             [library.select(label, robot="arm7").dmp for label in labels],
             starts,
-            np.concatenate([home.translation(), _quat(home.rotation()), HAND_OPEN]),
+            np.concatenate([home.translation(), quaternion_wxyz(home.rotation()), HAND_OPEN]),
             switch_period=IK_PERIOD,
         ),
     )
@@ -1126,13 +1133,13 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
     )
     home = home_tcp_pose()
     cup = np.array([*s.cup_xy, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
-    R_grasp = _rotation_from_approach(
+    R_grasp = rotation_from_approach(
         approach_direction(grasp_primitive.dmp, home.translation(), cup)
     )
     grasp, open_ = np.array(HAND_GRASP_7CM), np.array(HAND_OPEN)
-    q_side = _quat(R_SIDE)
+    q_side = quaternion_wxyz(R_SIDE)
     goals = [
-        SegmentGoal(grasp_primitive.label, cup, _quat(R_grasp), grasp),
+        SegmentGoal(grasp_primitive.label, cup, quaternion_wxyz(R_grasp), grasp),
         SegmentGoal(place_primitive.label, _place_offset(), q_side, grasp, "coaster:coaster"),
         SegmentGoal(
             release_primitive.label,
@@ -1150,7 +1157,7 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
         check_reachable(
             base + _place_offset() + RELEASE_OFFSET, shoulder, reach, what=f"release ({xy_name})"
         )
-    _, duration = _segment_timing(PICK_PLACE_LABELS, s.settle_time)
+    _, duration = segment_timing(PICK_PLACE_LABELS, s.settle_time)
     return goals, duration
 
 
@@ -1175,7 +1182,7 @@ def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagra
     """
     scenario.validate()
     goals, _ = plan_pick_and_place(scenario)
-    starts, _ = _segment_timing(PICK_PLACE_LABELS, scenario.settle_time)
+    starts, _ = segment_timing(PICK_PLACE_LABELS, scenario.settle_time)
     t0 = starts[1] + scenario.coaster_move_delay
     objects = [
         ArmObject(name="cup_red", kind="cup", xy=list(scenario.cup_xy)),
@@ -1183,11 +1190,11 @@ def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagra
             name="obstacle_blue",
             kind="obstacle",
             xy=list(scenario.obstacle_xyz[:2]),
-            z_above_table=float(scenario.obstacle_xyz[2] - 0.06 - TABLE_HEIGHT),
+            z_above_table=float(scenario.obstacle_xyz[2] - OBSTACLE_RADIUS - TABLE_HEIGHT),
             mount="welded",
         ),
     ]
-    return _build_world(
+    return build_arm_world(
         "arm_pick_and_place",
         scenario,
         objects,
@@ -1220,14 +1227,16 @@ def plan_serving(s: ServingScenario) -> tuple[list[SegmentGoal], float]:
     lib = motion_library()
     home = home_tcp_pose()
     bottle = np.array([*s.bottle_xy, TABLE_HEIGHT + BOTTLE_GRASP_HEIGHT])
-    R_grasp = _rotation_from_approach(approach_direction(lib["grasp"], home.translation(), bottle))
+    R_grasp = rotation_from_approach(approach_direction(lib["grasp"], home.translation(), bottle))
     grasp = np.array(HAND_GRASP_7CM)
-    goals = [SegmentGoal("grasp", bottle, _quat(R_grasp), grasp)]
+    goals = [SegmentGoal("grasp", bottle, quaternion_wxyz(R_grasp), grasp)]
     for xy in s.cup_xys:
         pour = pour_tcp_position(xy, R_POUR)
-        goals.append(SegmentGoal("pour", pour, _quat(R_POUR), grasp))
-        goals.append(SegmentGoal("retreat", pour + [0.0, 0.0, 0.06], _quat(R_SIDE), grasp))
-    _, duration = _segment_timing(SERVING_LABELS, s.settle_time)
+        goals.append(SegmentGoal("pour", pour, quaternion_wxyz(R_POUR), grasp))
+        goals.append(
+            SegmentGoal("retreat", pour + [0.0, 0.0, 0.06], quaternion_wxyz(R_SIDE), grasp)
+        )
+    _, duration = segment_timing(SERVING_LABELS, s.settle_time)
     return goals, duration
 
 
@@ -1257,7 +1266,7 @@ def build_serving_water(scenario: ServingScenario, *, meshcat=None) -> Diagram:
         ArmObject(name=f"cup_{k + 1}", kind="cup", xy=list(xy))
         for k, xy in enumerate(scenario.cup_xys)
     ]
-    return _build_world(
+    return build_arm_world(
         "arm_serving_water",
         scenario,
         objects,
@@ -1336,22 +1345,74 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
     return root, wall
 
 
-def _log(diagram: Diagram, context: Context, name: str) -> np.ndarray:
-    sink = diagram.GetSubsystemByName(name)
-    log = sink.FindLog(context)
-    return np.vstack([log.sample_times(), log.data()]).T
+@dataclasses.dataclass
+class PointLog:
+    """A logged body point and axis (``BodyPointAndAxis``), by field.
+
+    Attributes:
+        t: Sample times, shape (N,) [s].
+        point: The point in world, shape (N, 3) [m].
+        axis: The body's z axis in world, shape (N, 3).
+    """
+
+    t: np.ndarray
+    point: np.ndarray
+    axis: np.ndarray
+
+
+@dataclasses.dataclass
+class TcpLog(PointLog):
+    """The ``tcp_log`` of an arm world, by field (``point`` is the tcp, ``axis`` the palm z).
+
+    Attributes:
+        goal: The current segment's goal (position 3, quaternion 4, fingers 3), (N, 10).
+        segment: Index of the running chain segment, shape (N,).
+    """
+
+    goal: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 10)))
+    segment: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=int))
+
+
+def point_log(diagram: Diagram, context: Context, name: str) -> PointLog:
+    """The samples of a point logger (``"tip_log"``, ...) of an arm world.
+
+    Args:
+        diagram: The arm world.
+        context: Its root context after a run.
+        name: The logger's name.
+    """
+    log = diagram.GetSubsystemByName(name).FindLog(context)
+    data = log.data().T
+    return PointLog(log.sample_times().copy(), data[:, 0:3], data[:, 3:6])
+
+
+def tcp_log(diagram: Diagram, context: Context) -> TcpLog:
+    """The arm world's ``tcp_log``: tcp, palm axis, segment goal and segment index.
+
+    Args:
+        diagram: The arm world.
+        context: Its root context after a run.
+    """
+    log = diagram.GetSubsystemByName("tcp_log").FindLog(context)
+    data = log.data().T
+    return TcpLog(
+        log.sample_times().copy(),
+        data[:, 0:3],
+        data[:, 3:6],
+        data[:, 6:16],
+        data[:, 16].astype(int),
+    )
 
 
 def segment_reach_errors(diagram: Diagram, context: Context) -> list[float]:
     """|tcp - goal| at the end of each segment (the last log sample of the segment) [m]."""
-    log = _log(diagram, context, "tcp_log")  # t, tcp (3), axis (3), goal (10), segment
+    log = tcp_log(diagram, context)
     errors = []
-    segments = log[:, -1].astype(int)
-    for k in range(int(segments.max()) + 1):
-        rows = np.nonzero(segments == k)[0]
+    for k in range(int(log.segment.max()) + 1):
+        rows = np.nonzero(log.segment == k)[0]
         if len(rows):
-            r = log[rows[-1]]
-            errors.append(float(np.linalg.norm(r[1:4] - r[7:10])))
+            last = rows[-1]
+            errors.append(float(np.linalg.norm(log.point[last] - log.goal[last, :3])))
     return errors
 
 
@@ -1380,8 +1441,10 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
     obstacle = plant.GetBodyByName(
         "obstacle", plant.GetModelInstanceByName("obstacle_blue")
     ).EvalPoseInWorld(pc)
-    log = _log(diagram, context, "tcp_log")
-    clearance = float(np.min(np.linalg.norm(log[:, 1:4] - obstacle.translation(), axis=1)) - 0.06)
+    tcp = tcp_log(diagram, context).point
+    clearance = float(
+        np.min(np.linalg.norm(tcp - obstacle.translation(), axis=1)) - OBSTACLE_RADIUS
+    )
     monitor = diagram.GetSubsystemByName("obstacle_clearance")
     gap, gap_time = monitor.get_output_port().Eval(monitor.GetMyContextFromRoot(context))
     errors = segment_reach_errors(diagram, context) + [np.nan] * 3
@@ -1420,11 +1483,11 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
     """
     plant = diagram.GetSubsystemByName("plant")
     pc = plant.GetMyContextFromRoot(context)
-    tip = _log(diagram, context, "tip_log")  # t, tip (3), bottle z axis (3)
-    tcp = _log(diagram, context, "tcp_log")
-    n = min(len(tip), len(tcp))
-    tip, segments = tip[:n], tcp[:n, -1].astype(int)
-    tilt = np.arccos(np.clip(tip[:, 6], -1.0, 1.0))
+    tip = point_log(diagram, context, "tip_log")  # the bottle tip and the bottle's z axis
+    tcp = tcp_log(diagram, context)
+    n = min(len(tip.t), len(tcp.t))
+    tip_xy, segments = tip.point[:n, :2], tcp.segment[:n]
+    tilt = np.arccos(np.clip(tip.axis[:n, 2], -1.0, 1.0))
     figures = {}
     served = 0
     knocked = 0.0
@@ -1433,7 +1496,7 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
         p_cup = plant.GetDefaultFloatingBaseBodyPose(cup).translation()
         knocked = max(knocked, float(np.linalg.norm(cup.EvalPoseInWorld(pc).translation() - p_cup)))
         rows = ((segments == 1 + 2 * k) | (segments == 2 + 2 * k)) & (tilt > POUR_MIN_TILT)
-        d = np.linalg.norm(tip[rows, 1:3] - p_cup[:2], axis=1) if rows.any() else [np.inf]
+        d = np.linalg.norm(tip_xy[rows] - p_cup[:2], axis=1) if rows.any() else [np.inf]
         figures[f"tip_to_cup_{k + 1}_m"] = float(np.min(d))
         served += int(np.min(d) < POUR_RADIUS)
     bottle = plant.GetBodyByName("bottle", plant.GetModelInstanceByName("bottle"))
@@ -1443,7 +1506,7 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
     figures.update(
         cups_served=float(served),
         max_cup_displacement_m=knocked,
-        bottle_in_hand_m=float(np.linalg.norm(grasp_point - tcp[n - 1, 1:4])),
+        bottle_in_hand_m=float(np.linalg.norm(grasp_point - tcp.point[n - 1])),
         grasp_reach_error_m=errors[0],
         pour_reach_error_m=float(max(errors[1::2][:3])) if len(errors) > 1 else np.nan,
         success=float(served == 3 and knocked < 0.01),

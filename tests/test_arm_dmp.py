@@ -10,16 +10,16 @@ from repertoire.diagrams.arm_dmp import (
     PickPlaceScenario,
     SegmentGoal,
     ServingScenario,
-    _build_world,
-    _quat,
-    _rotation_from_approach,
     approach_direction,
+    build_arm_world,
     build_pick_and_place,
     build_serving_water,
     home_tcp_pose,
     motion_library,
     plan_pick_and_place,
     plan_serving,
+    quaternion_wxyz,
+    rotation_from_approach,
     run_arm_world,
     shoulder_and_reach,
 )
@@ -48,11 +48,11 @@ def test_motion_library_reproduces_its_demonstrations():
 
 
 def test_grasp_orientation_from_approach_direction():
-    R = _rotation_from_approach(np.array([2.0, 0.0, -1.0]))
+    R = rotation_from_approach(np.array([2.0, 0.0, -1.0]))
     assert np.allclose(R.matrix(), R_SIDE.matrix())
     assert np.allclose(R.matrix()[:, 0], [0, 0, 1])  # x_palm up: the cup's axis
     with pytest.raises(RepertoireError, match="no horizontal part"):
-        _rotation_from_approach(np.array([0.0, 0.0, -1.0]))
+        rotation_from_approach(np.array([0.0, 0.0, -1.0]))
     lib = motion_library()
     home = home_tcp_pose().translation()
     goal = np.array([0.50, -0.20, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
@@ -135,10 +135,10 @@ def test_goal_out_of_reach_is_refused_before_building():
 
 def test_target_leaving_the_reach_during_a_run_stops_it():
     scenario = PickPlaceScenario()
-    q = _quat(R_SIDE)
+    q = quaternion_wxyz(R_SIDE)
     # A goal tied to the cup but 0.9 m above it: out of reach only once the run starts.
     goals = [SegmentGoal("grasp", np.array([0, 0, 0.9]), q, np.array(HAND_GRASP_7CM), "cup:cup")]
-    diagram = _build_world(
+    diagram = build_arm_world(
         "unreachable",
         scenario,
         [ArmObject(name="cup", kind="cup", xy=[0.55, -0.25])],
@@ -152,7 +152,7 @@ def test_target_leaving_the_reach_during_a_run_stops_it():
 def test_goal_of_the_wrong_size_is_refused():
     from repertoire.diagrams.arm_dmp import GoalSchedule
 
-    q = _quat(R_SIDE)
+    q = quaternion_wxyz(R_SIDE)
     fingers = np.array(HAND_GRASP_7CM)
     with pytest.raises(RepertoireError, match="position must be 3 finite numbers"):
         GoalSchedule([SegmentGoal("grasp", np.zeros(2), q, fingers)])

@@ -94,17 +94,17 @@ from repertoire.models.arm7 import (
 from repertoire.planning.dmp import TaskSpaceDmp, learn_task_space_dmp
 from repertoire.planning.dmp_math import minimum_jerk, minimum_jerk_via_points
 from repertoire.planning.motion_library import MotionLibrary
+from repertoire.systems.grasp import GraspWrench
+from repertoire.systems.obstacle_coupling import MultiPointObstacleCoupling
 from repertoire.systems.task_space import (
     STATUS_NAMES,
     STATUS_OK,
     STATUS_TARGET_OUT_OF_REACH,
-    GraspWrench,
-    MultiPointObstacleCoupling,
     ResolvedMotionRateIK,
-    TaskSpaceDmpChain,
     check_reachable,
     reach_bound,
 )
+from repertoire.systems.task_space_chain import TaskSpaceDmpChain
 
 from repertoire.errors import RepertoireError, ScenarioError
 

@@ -8,7 +8,7 @@ the fingers hit it when nothing steers. The same layout then runs twice in the
 ``arm_pick_and_place`` world: with the DMP coupling term (eq. 10 at the tcp,
 the cup's lower part, the two finger groups and the palm (centre and ends),
 faded with the distance to the ball:
-:class:`repertoire.systems.task_space.MultiPointObstacleCoupling`) and without it.
+:class:`repertoire.systems.obstacle_coupling.MultiPointObstacleCoupling`) and without it.
 Recorded per arm: success (the cup stands on the coaster, within 2 cm of its
 centre), collision-free (the smallest signed distance between the
 ball and any collision geometry of the arm, hand, fingers or cup, from

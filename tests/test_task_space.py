@@ -9,18 +9,19 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.analysis import Simulator
 from repertoire.planning.dmp_math import obstacle_coupling
+from repertoire.systems.grasp import GraspWrench, grip_wrench
+from repertoire.systems.obstacle_coupling import (
+    MultiPointObstacleCoupling,
+    multi_point_obstacle_coupling,
+)
 from repertoire.systems.task_space import (
     STATUS_OK,
     STATUS_TARGET_OUT_OF_REACH,
     STATUS_TRACKING_LOST,
-    GraspWrench,
-    MultiPointObstacleCoupling,
     ResolvedMotionRateIK,
     check_reachable,
     damped_pseudoinverse,
-    grip_wrench,
     joint_limit_gradient,
-    multi_point_obstacle_coupling,
     quaternion_error,
     quaternion_multiply,
     reach_bound,
@@ -318,7 +319,7 @@ def _demo_dmp(p0, p1, duration=1.0):
 
 
 def test_dmp_chain_single_segment_matches_the_rollout():
-    from repertoire.systems.task_space import TaskSpaceDmpChain, stack_task_space_dmp
+    from repertoire.systems.task_space_chain import TaskSpaceDmpChain, stack_task_space_dmp
 
     dmp = _demo_dmp([0.5, 0.0, 0.9], [0.6, -0.1, 0.8])
     x0 = np.concatenate([[0.5, 0.0, 0.9], [1, 0, 0, 0], np.zeros(3)])
@@ -348,7 +349,7 @@ def test_dmp_chain_single_segment_matches_the_rollout():
 
 
 def test_dmp_chain_hands_over_position_and_velocity():
-    from repertoire.systems.task_space import TaskSpaceDmpChain
+    from repertoire.systems.task_space_chain import TaskSpaceDmpChain
 
     first = _demo_dmp([0.5, 0.0, 0.9], [0.6, 0.0, 0.9])
     second = _demo_dmp([0.6, 0.0, 0.9], [0.6, 0.1, 0.9], duration=0.8)
@@ -375,7 +376,7 @@ def test_dmp_chain_hands_over_position_and_velocity():
 
 
 def test_dmp_chain_bad_input():
-    from repertoire.systems.task_space import TaskSpaceDmpChain
+    from repertoire.systems.task_space_chain import TaskSpaceDmpChain
 
     dmp = _demo_dmp([0.5, 0.0, 0.9], [0.6, -0.1, 0.8])
     x0 = np.concatenate([[0.5, 0.0, 0.9], [1, 0, 0, 0], np.zeros(3)])

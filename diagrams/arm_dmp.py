@@ -49,8 +49,6 @@ import functools
 import time
 
 import numpy as np
-from pydrake.common.value import AbstractValue
-from pydrake.geometry import QueryObject
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
 from pydrake.multibody.tree import (
@@ -61,7 +59,7 @@ from pydrake.multibody.tree import (
     UnitInertia,
 )
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
@@ -94,6 +92,8 @@ from repertoire.models.arm7 import (
 from repertoire.planning.dmp import TaskSpaceDmp, learn_task_space_dmp
 from repertoire.planning.dmp_math import minimum_jerk, minimum_jerk_via_points
 from repertoire.planning.motion_library import MotionLibrary
+from repertoire.systems.arm_goals import GoalSchedule, SegmentGoal
+from repertoire.systems.arm_monitors import BodyPointAndAxis, ObstacleClearanceMonitor
 from repertoire.systems.grasp import GraspWrench
 from repertoire.systems.obstacle_coupling import MultiPointObstacleCoupling
 from repertoire.systems.task_space import (
@@ -364,110 +364,6 @@ def approach_direction(dmp: TaskSpaceDmp, x_start: np.ndarray, goal: np.ndarray)
     return v / np.linalg.norm(v)
 
 
-# ----------------------------------------------------------------------------- systems
-@dataclasses.dataclass
-class SegmentGoal:
-    """The goal of one chain segment.
-
-    Attributes:
-        label: motion library label.
-        position: fixed goal position (3), or the offset from ``body`` when tracking.
-        orientation: goal quaternion [w, x, y, z].
-        fingers: goal finger angles (3).
-        body: a tracked body (the goal follows it) as a body index or "instance:body",
-            or -1 for a fixed goal.
-    """
-
-    label: str
-    position: np.ndarray
-    orientation: np.ndarray
-    fingers: np.ndarray
-    body: int | str = -1
-
-
-class GoalSchedule(LeafSystem):
-    """Gives the DMP chain the goal of its active segment; tracked goals follow a body.
-
-    This is the "vision" of the paper's experiment: a goal tied to a body (the
-    coaster) is re-read from the plant every step, so the DMP's goal changes when
-    the body moves.
-
-    Input ports:
-        segment: [active segment index] (1).
-        body_poses: the plant's body poses (abstract).
-
-    Output ports:
-        goal: [p (3), q (4), fingers (3)] (10).
-    """
-
-    def __init__(self, goals: list[SegmentGoal]):
-        """Builds the schedule.
-
-        Args:
-            goals: one goal per chain segment.
-
-        Raises:
-            RepertoireError: a goal of the wrong size, not finite, or a non-unit
-                orientation.
-        """
-        super().__init__()
-        for k, g in enumerate(goals):
-            for what, value, size in (
-                ("position", g.position, 3),
-                ("orientation", g.orientation, 4),
-                ("fingers", g.fingers, 3),
-            ):
-                v = np.asarray(value, dtype=float).reshape(-1)
-                if v.size != size or not np.all(np.isfinite(v)):
-                    raise RepertoireError(
-                        f"goal {k} ({g.label}): {what} must be {size} finite numbers, got "
-                        f"{np.asarray(value).tolist()}"
-                    )
-            norm = float(np.linalg.norm(g.orientation))
-            if abs(norm - 1.0) > 1e-6:
-                raise RepertoireError(
-                    f"goal {k} ({g.label}): orientation must be a unit quaternion [w, x, y, z], "
-                    f"its norm is {norm:.6f} (off by {abs(norm - 1.0):.2e})"
-                )
-        self._goals = goals
-        self._segment = self.DeclareVectorInputPort("segment", 1)
-        self._poses = self.DeclareAbstractInputPort(
-            "body_poses", AbstractValue.Make([RigidTransform()])
-        )
-        self.DeclareVectorOutputPort("goal", 10, self._calc)
-
-    def _calc(self, context: Context, output: BasicVector) -> None:
-        g = self._goals[int(self._segment.Eval(context)[0])]
-        p = np.asarray(g.position, float)
-        if g.body >= 0:
-            p = self._poses.Eval(context)[g.body].translation() + p
-        output.SetFromVector(np.concatenate([p, g.orientation, g.fingers]))
-
-
-class BodyPointAndAxis(LeafSystem):
-    """The origin and z axis of a frame Q fixed to a body, in the world (for logging).
-
-    Input ports:
-        body_poses: the plant's body poses (abstract).
-
-    Output ports:
-        point_and_axis: [p_WQ (3), z axis of Q in W (3)] (6).
-    """
-
-    def __init__(self, body: int, X_BQ: RigidTransform):
-        super().__init__()
-        self._body = int(body)
-        self._X_BQ = X_BQ
-        self._poses = self.DeclareAbstractInputPort(
-            "body_poses", AbstractValue.Make([RigidTransform()])
-        )
-        self.DeclareVectorOutputPort("point_and_axis", 6, self._calc)
-
-    def _calc(self, context: Context, output: BasicVector) -> None:
-        X = self._poses.Eval(context)[self._body] @ self._X_BQ
-        output.SetFromVector(np.concatenate([X.translation(), X.rotation().matrix()[:, 2]]))
-
-
 # ----------------------------------------------------------------------------- obstacle
 #: Where eq. 10 acts while carrying (tcp frame E; in a side grasp x_E is up, y_E closes the
 #: hand across the cup, z_E is the approach): the tcp on the cup's axis, the cup's lower
@@ -574,70 +470,6 @@ def carry_path_point(cup_xy, coaster_xy, fraction: float = 0.5) -> np.ndarray:
     path = carry_path(cup_xy, coaster_xy)
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
     return np.array([np.interp(fraction * arc[-1], arc, path[:, i]) for i in range(3)])
-
-
-class ObstacleClearanceMonitor(LeafSystem):
-    """Running minimum of the signed distance between the ball and the robot or its load.
-
-    Every ``period`` it asks SceneGraph for the signed distance from the ball's
-    centre to each watched collision geometry (``ComputeSignedDistanceToPoint``:
-    exact for the spheres, capsules, boxes and cylinders of arm7 and the cup) and
-    subtracts the ball's radius: the gap between the ball's surface and the
-    geometry, negative when they overlap.
-
-    Input ports:
-        geometry_query: SceneGraph's query object.
-
-    Output ports:
-        clearance: [running minimum gap (m), time of the minimum (s)] (2).
-    """
-
-    def __init__(
-        self,
-        centre_W: np.ndarray,
-        radius: float,
-        geometries: list,
-        *,
-        period: float,
-        horizon: float = 0.5,
-    ) -> None:
-        """Builds the monitor.
-
-        Args:
-            centre_W: the ball's centre (fixed) in W.
-            radius: the ball's radius.
-            geometries: GeometryIds watched (the arm's and the carried object's).
-            period: update period [s].
-            horizon: geometries farther than this from the centre are not reported; the
-                gap then reads ``horizon - radius``.
-        """
-        super().__init__()
-        self._centre = np.asarray(centre_W, dtype=float).reshape(3)
-        self._radius = float(radius)
-        self._ids = set(geometries)
-        self._horizon = float(horizon)
-        self._query = self.DeclareAbstractInputPort(
-            "geometry_query", AbstractValue.Make(QueryObject())
-        )
-        self._state = self.DeclareDiscreteState([self._horizon - self._radius, 0.0])
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self.DeclareStateOutputPort("clearance", self._state)
-
-    def gap(self, context: Context) -> float:
-        """The current gap between the ball and the nearest watched geometry [m]."""
-        query = self._query.Eval(context)
-        gaps = [
-            d.distance
-            for d in query.ComputeSignedDistanceToPoint(self._centre, self._horizon)
-            if d.id_G in self._ids
-        ]
-        return float(min(gaps, default=self._horizon)) - self._radius
-
-    def _update(self, context: Context, state) -> None:
-        gap = self.gap(context)
-        best = context.get_discrete_state(self._state).value()
-        if gap < best[0]:
-            state.get_mutable_vector(self._state).SetFromVector([gap, context.get_time()])
 
 
 # ----------------------------------------------------------------------------- scenarios

@@ -150,7 +150,7 @@ def test_target_leaving_the_reach_during_a_run_stops_it():
 
 
 def test_goal_of_the_wrong_size_is_refused():
-    from repertoire.diagrams.arm_dmp import GoalSchedule
+    from repertoire.systems.arm_goals import GoalSchedule
 
     q = quaternion_wxyz(R_SIDE)
     fingers = np.array(HAND_GRASP_7CM)

@@ -58,8 +58,7 @@ from pydrake.multibody.tree import (
     SpatialInertia,
     UnitInertia,
 )
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, EventStatus
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
@@ -70,6 +69,7 @@ from pydrake.systems.primitives import (
 from pydrake.trajectories import PiecewisePolynomial
 from repertoire.diagrams.arm import ArmStation, add_arm_controllers, add_meshcat
 from repertoire.diagrams.registry import register_diagram
+from repertoire.diagrams.simulate import simulate
 from repertoire.models import ConfigureParser, package_url
 from repertoire.models.arm7 import (
     ALL_JOINTS,
@@ -1117,6 +1117,9 @@ class IkTargetError(RepertoireError):
 def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
     """Simulates an arm DMP world, stopping with a clear error if the IK reports a problem.
 
+    Runs through :func:`repertoire.diagrams.simulate.simulate` (its non-finite-state check)
+    with the IK-status monitor added.
+
     Args:
         diagram: a diagram built by this module.
         duration: simulated seconds.
@@ -1129,8 +1132,6 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
             desired position out of reach or lost tracking (says when, which segment
             and where the goal and the target were).
     """
-    simulator = Simulator(diagram)
-    root = simulator.get_mutable_context()
     rmrc = diagram.GetSubsystemByName("rmrc")
     chain = diagram.GetSubsystemByName("dmp_chain")
     schedule = diagram.GetSubsystemByName("goal_schedule")
@@ -1138,9 +1139,7 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
     shoulder, reach = shoulder_and_reach()
     problem = {}
 
-    def monitor(context: Context):
-        from pydrake.systems.framework import EventStatus
-
+    def ik_monitor(context: Context) -> EventStatus:
         rmrc_context = rmrc.GetMyContextFromRoot(context)
         status = int(status_port.Eval(rmrc_context)[0])
         goal = schedule.GetOutputPort("goal").Eval(schedule.GetMyContextFromRoot(context))[:3]
@@ -1159,10 +1158,8 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
         )
         return EventStatus.ReachedTermination(rmrc, STATUS_NAMES[status])
 
-    simulator.set_monitor(monitor)
     start = time.perf_counter()
-    simulator.Initialize()
-    simulator.AdvanceTo(duration)
+    _, root = simulate(diagram, duration, monitors=[ik_monitor])
     wall = time.perf_counter() - start
     if problem:
         distance = float(np.linalg.norm(problem["goal"] - shoulder))

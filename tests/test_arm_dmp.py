@@ -241,3 +241,32 @@ def test_default_world_avoids_the_ball_on_the_carry_path_only_with_coupling():
     assert figures[True]["min_ball_gap_m"] > 0.005
     assert figures[False]["collision_free"] == 0.0 and figures[False]["min_ball_gap_m"] < 0.0
     assert figures[False]["success"] == 0.0  # the cup is knocked off its path
+
+
+def test_simulate_runs_extra_monitors_in_order_and_stops_on_termination():
+    from pydrake.systems.framework import DiagramBuilder, EventStatus
+    from pydrake.systems.primitives import ConstantVectorSource, Integrator
+    from repertoire.diagrams.simulate import simulate
+
+    builder = DiagramBuilder()
+    source = builder.AddSystem(ConstantVectorSource([1.0]))
+    integrator = builder.AddNamedSystem("integrator", Integrator(1))
+    builder.Connect(source.get_output_port(), integrator.get_input_port())
+    diagram = builder.Build()
+    calls = []
+
+    def first(context):
+        calls.append("first")
+        return EventStatus.DidNothing()
+
+    def stop_after_half_a_second(context):
+        calls.append("second")
+        if context.get_time() >= 0.5:
+            return EventStatus.ReachedTermination(diagram, "half a second")
+        return EventStatus.Succeeded()
+
+    _, context = simulate(diagram, 2.0, monitors=[first, stop_after_half_a_second])
+    assert 0.5 <= context.get_time() < 2.0  # stopped early, normally
+    assert calls[:2] == ["first", "second"] and calls.count("first") == calls.count("second")
+    with pytest.raises(RepertoireError, match="monitors must be callables"):
+        simulate(diagram, 1.0, monitors=[3])

@@ -715,6 +715,61 @@ def segment_timing(labels: list[str], settle: float) -> tuple[list[float], float
     return starts, t
 
 
+@dataclasses.dataclass
+class CoasterMotion:
+    """A coaster that slides from ``xy`` to ``final_xy`` between ``t0`` and ``t1`` (Fig. 13).
+
+    Attributes:
+        xy: Start position on the table [m].
+        final_xy: End position [m].
+        t0: Time the move starts [s].
+        t1: Time the move ends [s] (> t0).
+    """
+
+    xy: list[float]
+    final_xy: list[float]
+    t0: float
+    t1: float
+
+
+@dataclasses.dataclass
+class BallObstacle:
+    """The ball obstacle of a world and the DMP coupling term around it (eq. 10).
+
+    Attributes:
+        xyz: Centre of the ball [m] (radius ``models.arm7.OBSTACLE_RADIUS``).
+        coupling: Add the coupling term to the DMP chain (False: only the monitor).
+        gamma: Coupling gain.
+        beta: Coupling steering constant.
+        points: Control points in the tcp frame E [m] (see CARRY_CONTROL_POINTS).
+        length_scale: Distance fade of the coupling [m] (0 = the paper's, no fade).
+    """
+
+    xyz: list[float]
+    coupling: bool
+    gamma: float
+    beta: float
+    points: list[list[float]]
+    length_scale: float
+
+
+@dataclasses.dataclass
+class BodyPointLog:
+    """An extra named logger ``<name>_log`` of a body-fixed point and the body's z axis.
+
+    Attributes:
+        name: Logger name prefix.
+        body: Body name.
+        instance: Model instance name.
+        p_BQ: The point in the body frame [m].
+    """
+
+    name: str
+    body: str
+    instance: str
+    p_BQ: list[float]
+
+
 def build_arm_world(
     name: str,
     scenario,
@@ -722,9 +777,9 @@ def build_arm_world(
     goals: list[SegmentGoal],
     *,
     graspable: list[str],
-    coaster: dict | None = None,
-    obstacle: dict | None = None,
-    logs: dict | None = None,
+    coaster: CoasterMotion | None = None,
+    obstacle: BallObstacle | None = None,
+    logs: list[BodyPointLog] | None = None,
     meshcat=None,
 ) -> Diagram:
     """Wires DMP chain -> RMRC IK -> ID + PD -> arm7 plant for one world (see module doc).
@@ -736,11 +791,10 @@ def build_arm_world(
         objects: the table's objects (table and arm are always added).
         goals: one goal per chain segment, in order (labels from the motion library).
         graspable: "instance:body" of the objects the grip may hold (grip mode).
-        coaster: optional moving coaster {"xy", "final_xy", "t0", "t1"}.
-        obstacle: optional {"xyz", "coupling", "gamma", "beta", "points", "length_scale"}
-            for MultiPointObstacleCoupling, and a clearance monitor between the ball and
-            the arm and the graspable objects.
-        logs: extra logs: name -> (body, instance, point in the body frame).
+        coaster: optional moving coaster.
+        obstacle: optional ball: MultiPointObstacleCoupling (if ``coupling``) and a
+            clearance monitor between the ball and the arm and the graspable objects.
+        logs: extra named point loggers.
         meshcat: optional Meshcat for a visualizer.
 
     Raises:
@@ -760,7 +814,7 @@ def build_arm_world(
     instances = add_arm_world(plant, ArmWorld(table_center=TABLE_CENTER, objects=objects))
     coaster_instance = None
     if coaster is not None:
-        coaster_instance, coaster_body = _coaster_on_slider(plant, coaster["xy"])
+        coaster_instance, coaster_body = _coaster_on_slider(plant, coaster.xy)
         instances["coaster"] = coaster_instance
     for joint, p, d in zip(ALL_JOINTS, ARM_KP + FINGER_KP, ARM_KD + FINGER_KD):
         plant.GetJointActuatorByName(f"{joint}_motor", arm).set_controller_gains(
@@ -796,19 +850,19 @@ def build_arm_world(
     builder.Connect(chain.GetOutputPort("segment"), schedule.GetInputPort("segment"))
     builder.Connect(plant.get_body_poses_output_port(), schedule.GetInputPort("body_poses"))
     builder.Connect(schedule.GetOutputPort("goal"), chain.GetInputPort("goal"))
-    if obstacle is not None and obstacle["coupling"]:
+    if obstacle is not None and obstacle.coupling:
         coupling = builder.AddNamedSystem(
             "obstacle_coupling",
             MultiPointObstacleCoupling(
-                np.asarray(obstacle["points"], float),
-                gamma=obstacle["gamma"],
-                beta=obstacle["beta"],
+                np.asarray(obstacle.points, float),
+                gamma=obstacle.gamma,
+                beta=obstacle.beta,
                 obstacle_radius=OBSTACLE_RADIUS,
-                length_scale=obstacle["length_scale"],
+                length_scale=obstacle.length_scale,
             ),
         )
         o_src = builder.AddNamedSystem(
-            "obstacle_position", ConstantVectorSource(np.asarray(obstacle["xyz"], float))
+            "obstacle_position", ConstantVectorSource(np.asarray(obstacle.xyz, float))
         )
         builder.Connect(chain.GetOutputPort("position"), coupling.GetInputPort("position"))
         builder.Connect(chain.GetOutputPort("velocity"), coupling.GetInputPort("velocity"))
@@ -889,8 +943,8 @@ def build_arm_world(
         )
 
     if coaster is not None:
-        times = [0.0, coaster["t0"], coaster["t1"], coaster["t1"] + 1.0]
-        xy0, xy1 = np.asarray(coaster["xy"], float), np.asarray(coaster["final_xy"], float)
+        times = [0.0, coaster.t0, coaster.t1, coaster.t1 + 1.0]
+        xy0, xy1 = np.asarray(coaster.xy, float), np.asarray(coaster.final_xy, float)
         knots = np.column_stack([xy0, xy0, xy1, xy1])
         traj = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
             times, knots, np.zeros(2), np.zeros(2)
@@ -908,14 +962,14 @@ def build_arm_world(
     builder.Connect(chain.GetOutputPort("segment"), log_mux.get_input_port(2))
     sink = LogVectorOutput(log_mux.get_output_port(), builder, LOG_PERIOD)
     sink.set_name("tcp_log")
-    for log_name, (body_name, instance_name, p_BQ) in (logs or {}).items():
-        body = plant.GetBodyByName(body_name, instances[instance_name])
+    for spec in logs or []:
+        body = plant.GetBodyByName(spec.body, instances[spec.instance])
         point = builder.AddNamedSystem(
-            f"{log_name}_point", BodyPointAndAxis(body.index(), RigidTransform(p_BQ))
+            f"{spec.name}_point", BodyPointAndAxis(body.index(), RigidTransform(spec.p_BQ))
         )
         builder.Connect(plant.get_body_poses_output_port(), point.GetInputPort("body_poses"))
         s = LogVectorOutput(point.get_output_port(), builder, LOG_PERIOD)
-        s.set_name(f"{log_name}_log")
+        s.set_name(f"{spec.name}_log")
     if obstacle is not None:
         watched = [
             plant.GetBodyByName(n.split(":")[1], instances[n.split(":")[0]]) for n in graspable
@@ -925,7 +979,7 @@ def build_arm_world(
         monitor = builder.AddNamedSystem(
             "obstacle_clearance",
             ObstacleClearanceMonitor(
-                np.asarray(obstacle["xyz"], float),
+                np.asarray(obstacle.xyz, float),
                 OBSTACLE_RADIUS,
                 ids,
                 period=IK_PERIOD,
@@ -1032,20 +1086,20 @@ def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagra
         objects,
         goals,
         graspable=["cup_red:cup"],
-        coaster={
-            "xy": scenario.coaster_xy,
-            "final_xy": scenario.coaster_final_xy,
-            "t0": t0,
-            "t1": t0 + max(scenario.coaster_move_duration, 1e-3),
-        },
-        obstacle={
-            "xyz": scenario.obstacle_xyz,
-            "coupling": scenario.obstacle_coupling,
-            "gamma": scenario.obstacle_gamma,
-            "beta": scenario.obstacle_beta,
-            "points": scenario.obstacle_points,
-            "length_scale": scenario.obstacle_length_scale,
-        },
+        coaster=CoasterMotion(
+            xy=list(scenario.coaster_xy),
+            final_xy=list(scenario.coaster_final_xy),
+            t0=t0,
+            t1=t0 + max(scenario.coaster_move_duration, 1e-3),
+        ),
+        obstacle=BallObstacle(
+            xyz=list(scenario.obstacle_xyz),
+            coupling=scenario.obstacle_coupling,
+            gamma=scenario.obstacle_gamma,
+            beta=scenario.obstacle_beta,
+            points=scenario.obstacle_points,
+            length_scale=scenario.obstacle_length_scale,
+        ),
         meshcat=meshcat,
     )
 
@@ -1104,7 +1158,7 @@ def build_serving_water(scenario: ServingScenario, *, meshcat=None) -> Diagram:
         objects,
         goals,
         graspable=["bottle:bottle"],
-        logs={"tip": ("bottle", "bottle", np.array([0.0, 0.0, 0.25]))},
+        logs=[BodyPointLog(name="tip", body="bottle", instance="bottle", p_BQ=[0.0, 0.0, 0.25])],
         meshcat=meshcat,
     )
 

@@ -90,7 +90,7 @@ from repertoire.models.arm7 import (
     make_arm7_control_plant,
 )
 from repertoire.planning.dmp import TaskSpaceDmp, learn_task_space_dmp
-from repertoire.planning.dmp_math import minimum_jerk, minimum_jerk_via_points
+from repertoire.planning.dmp_demos import Demonstration, synthesize_demonstration
 from repertoire.planning.motion_library import MotionLibrary
 from repertoire.systems.arm_goals import GoalSchedule, SegmentGoal
 from repertoire.systems.arm_monitors import BodyPointAndAxis, ObstacleClearanceMonitor
@@ -147,70 +147,6 @@ def quaternion_wxyz(R: RotationMatrix) -> np.ndarray:
     return R.ToQuaternion().wxyz()
 
 
-def _slerp(q0: np.ndarray, q1: np.ndarray, s: np.ndarray) -> np.ndarray:
-    q1 = q1 if q0 @ q1 >= 0 else -q1
-    dot = np.clip(q0 @ q1, -1.0, 1.0)
-    angle = np.arccos(dot)
-    if angle < 1e-9:
-        return np.tile(q0, (len(s), 1))
-    s = s[:, None]
-    return (np.sin((1 - s) * angle) * q0 + np.sin(s * angle) * q1) / np.sin(angle)
-
-
-def _min_jerk_profile(t: np.ndarray, t0: float, t1: float) -> np.ndarray:
-    """0 -> 1 minimum-jerk profile between t0 and t1 (0 before, 1 after)."""
-    s, _, _ = minimum_jerk(np.zeros(1), np.ones(1), t1 - t0, np.clip(t - t0, 0.0, t1 - t0))
-    return s[:, 0]
-
-
-def synthesize_demonstration(
-    via_points: np.ndarray,
-    move_window: tuple,
-    q_start: np.ndarray,
-    q_end: np.ndarray,
-    turn_window: tuple,
-    fingers: list,
-    duration: float,
-    n_samples: int = 600,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """A synthetic demonstration: what an exoskeleton recording would give (sec. IV-B).
-
-    Args:
-        via_points: end-effector via points (m x 3), a minimum-jerk path through them
-            during ``move_window`` (fractions of the duration), at rest outside it.
-        move_window: (start, end) of the position movement, fractions of ``duration``.
-        q_start: start orientation [w, x, y, z].
-        q_end: end orientation; a minimum-jerk slerp during ``turn_window``.
-        turn_window: (start, end) of the rotation, fractions of ``duration``.
-        fingers: list of (start fraction, end fraction, from (3), to (3)) minimum-jerk
-            finger movements; the hand holds between them.
-        duration: seconds.
-        n_samples: samples of the demonstration.
-
-    Returns:
-        ``(t, positions (N x 3), quaternions (N x 4), fingers (N x 3))``.
-    """
-    t = np.linspace(0.0, duration, n_samples)
-    t0, t1 = move_window[0] * duration, move_window[1] * duration
-    inside = (t >= t0) & (t <= t1)
-    n_in = int(inside.sum())
-    _, path = minimum_jerk_via_points(np.asarray(via_points, float), t1 - t0, n_in)
-    p = np.empty((n_samples, 3))
-    p[t < t0] = via_points[0]
-    p[inside] = path
-    p[t > t1] = via_points[-1]
-    s = _min_jerk_profile(t, turn_window[0] * duration, turn_window[1] * duration)
-    q = _slerp(np.asarray(q_start, float), np.asarray(q_end, float), s)
-    f = np.tile(np.asarray(fingers[0][2], float), (n_samples, 1))
-    for a, b, f_from, f_to in fingers:
-        s = _min_jerk_profile(t, a * duration, b * duration)
-        active = t >= a * duration
-        f[active] = (np.asarray(f_from) + np.outer(s, np.asarray(f_to) - np.asarray(f_from)))[
-            active
-        ]
-    return t, p, q, f
-
-
 # ----------------------------------------------------------------------------- motion library
 #: The canonical layout the demonstrations were "recorded" in.
 DEMO_CUP_XY = (0.55, -0.25)
@@ -241,7 +177,7 @@ def pour_tcp_position(cup_xy, R_WE: RotationMatrix) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=1)
-def synthetic_demonstrations() -> dict[str, tuple]:
+def synthetic_demonstrations() -> dict[str, Demonstration]:
     """The demonstrations of grasp, place, release, pour and retreat (sec. IV-B).
 
     Recorded in the canonical layout (``DEMO_*``): minimum-jerk paths through via
@@ -322,7 +258,10 @@ def motion_library() -> dict[str, TaskSpaceDmp]:
     """
     return {
         label: learn_task_space_dmp(t, p, q, f, orientation_mode="component", n_basis=30)
-        for label, (t, p, q, f) in synthetic_demonstrations().items()
+        for label, (t, p, q, f) in (
+            (k, (d.t, d.position, d.orientation, d.fingers))
+            for k, d in synthetic_demonstrations().items()
+        )
     }
 
 

@@ -213,7 +213,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ax = fig.add_subplot(1, 2, 2)
     for label, style in (("grasp", "-"), ("place", "--")):
-        p = demos[label][1]
+        p = demos[label].position
         ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="tab:blue", lw=2.5, ls=style, zorder=5)
         ax.plot(
             p[:, 1],

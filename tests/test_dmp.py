@@ -476,3 +476,52 @@ def test_noisy_demonstration_learned_smoothly_with_defaults():
     peak = np.abs(np.diff(x, 2, axis=0)).max() / dt**2 / np.abs(clean_dd).max()
     assert rms < 1.5e-3  # 1 mm noise; movement_primitives 0.9.1 is near 1e-2 here
     assert 0.9 < peak < 1.15  # no noise-driven acceleration spikes
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"via_points": np.zeros((1, 3))}, "via_points must have shape"),
+        ({"via_points": np.full((2, 3), np.nan)}, "NaN or inf"),
+        ({"duration": 0.0}, "duration must be > 0"),
+        ({"move_window": (0.5, 0.2)}, "move_window must be fractions"),
+        ({"turn_window": (0.0, 1.5)}, "turn_window must be fractions"),
+        ({"q_end": np.array([1.0, 1.0, 0.0, 0.0])}, "q_end must be a unit quaternion"),
+        ({"fingers": []}, "at least one"),
+    ],
+)
+def test_synthesize_demonstration_bad_input(change, match):
+    from repertoire.planning.dmp_demos import synthesize_demonstration
+
+    args = {
+        "via_points": np.array([[0.3, 0.0, 0.9], [0.5, 0.0, 0.8]]),
+        "move_window": (0.1, 0.9),
+        "q_start": np.array([1.0, 0.0, 0.0, 0.0]),
+        "q_end": np.array([0.0, 1.0, 0.0, 0.0]),
+        "turn_window": (0.0, 1.0),
+        "fingers": [(0.2, 0.8, [0.0] * 3, [0.5] * 3)],
+        "duration": 1.0,
+    }
+    with pytest.raises(RepertoireError, match=match):
+        synthesize_demonstration(**{**args, **change})
+
+
+def test_synthesize_demonstration_rests_outside_its_windows():
+    from repertoire.planning.dmp_demos import synthesize_demonstration
+
+    d = synthesize_demonstration(
+        np.array([[0.3, 0.0, 0.9], [0.5, 0.0, 0.8]]),
+        (0.25, 0.75),
+        np.array([1.0, 0.0, 0.0, 0.0]),
+        np.array([0.0, 1.0, 0.0, 0.0]),
+        (0.0, 1.0),
+        [(0.5, 1.0, [0.0] * 3, [0.5] * 3)],
+        2.0,
+        n_samples=201,
+    )
+    assert np.array_equal(d.position[d.t < 0.5], np.tile([0.3, 0.0, 0.9], ((d.t < 0.5).sum(), 1)))
+    assert np.allclose(d.position[-1], [0.5, 0.0, 0.8], atol=1e-15)
+    assert np.allclose(d.orientation[-1], [0.0, 1.0, 0.0, 0.0], atol=1e-12)
+    assert np.allclose(np.linalg.norm(d.orientation, axis=1), 1.0, atol=1e-12)
+    assert np.array_equal(d.fingers[d.t <= 1.0], np.zeros(((d.t <= 1.0).sum(), 3)))
+    assert np.allclose(d.fingers[-1], [0.5] * 3, atol=1e-15)

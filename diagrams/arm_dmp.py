@@ -42,6 +42,11 @@ cup in hand needs about 9.5 cm). ``obstacle_points: [[0, 0, 0]]`` with
 :class:`ObstacleClearanceMonitor` records the smallest signed distance between
 the ball and the arm, hand, fingers and cup (SceneGraph) for the
 ``collision_free`` figure.
+
+Size: over 600 lines because it still holds the motion-library demonstrations and
+learning, the two scenarios, the world builder and the scoring of both worlds; moving the
+demonstrations and library to planning/ and the scoring beside the studies is the next
+step of issue 7 (the LeafSystems already live in systems/).
 """
 
 import dataclasses

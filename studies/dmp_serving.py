@@ -202,6 +202,7 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     """
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle
+    from repertoire.models.arm7 import CUP_RADIUS
 
     out_dir = Path(out_dir)
     fig = Figure(figsize=(11, 5), layout="constrained")
@@ -215,15 +216,16 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
         ax.plot(np.where(pouring, y, np.nan), np.where(pouring, x, np.nan), color=color, lw=1.2)
         for j in range(3):
             cx, cy = r.cup_xys[2 * j], r.cup_xys[2 * j + 1]
-            ax.add_patch(Circle((cy, cx), 0.035, fill=False, color="tab:red", lw=0.5))
+            ax.add_patch(Circle((cy, cx), CUP_RADIUS, fill=False, color="tab:purple", lw=0.5))
         ax.plot(r.bottle_xy[1], r.bottle_xy[0], "s", color="tab:blue", ms=4, mfc="none")
     ax.set_xlabel("y (m, left)")
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()
     ax.set_aspect("equal")
     ax.set_title(
-        "bottle tip, first 12 episodes (grey; bold while tilted > 60 deg),\n"
-        "cups (red circles), bottles (blue squares)"
+        "bottle tip, first 12 episodes (grey; while tilted > 60 deg:\n"
+        "green in a successful episode, red in a failed one),\n"
+        "cups (purple circles), bottles (blue squares)"
     )
     d = np.array(
         [[r.tip_to_cup_1_m, r.tip_to_cup_2_m, r.tip_to_cup_3_m] for r in records], dtype=float

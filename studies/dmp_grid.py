@@ -205,7 +205,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
         ``{"grid": png, "results": md}``.
     """
     from matplotlib.figure import Figure
-    from repertoire.diagrams.arm_dmp import synthetic_demonstrations
+    from repertoire.planning.arm_library import synthetic_demonstrations
 
     out_dir = Path(out_dir)
     demos = synthetic_demonstrations()

@@ -12,7 +12,7 @@ Pipeline (Pastor et al. 2009, sec. IV, Fig. 7 and 11)::
 The movements are synthesised once as demonstrations (minimum-jerk movements
 through via points for the position, minimum-jerk slerps for the orientation,
 two minimum-jerk movements for opening and closing the hand, as in sec. IV-B),
-learned into DMPs (``learn_task_space_dmp`` with the paper's component
+learned into DMPs in planning/arm_library.py (``learn_task_space_dmp`` with the paper's component
 quaternion DMP) and stored in a ``MotionLibrary`` with semantic labels (grasp,
 place, release, pour, retreat); pick-and-place is recalled from it with
 ``compose("pick_and_place")`` (grasp -> place -> release). Only the learned DMPs drive the arm: each
@@ -42,6 +42,10 @@ cup in hand needs about 9.5 cm). ``obstacle_points: [[0, 0, 0]]`` with
 :class:`ObstacleClearanceMonitor` records the smallest signed distance between
 the ball and the arm, hand, fingers and cup (SceneGraph) for the
 ``collision_free`` figure.
+
+Size: over 600 lines because it still holds the two scenarios, the world builder and the
+scoring of both worlds; the motion library is in planning/arm_library.py and the
+LeafSystems in systems/; moving the scoring beside the studies is the next step.
 """
 
 import dataclasses
@@ -49,9 +53,7 @@ import functools
 import time
 
 import numpy as np
-from pydrake.common.value import AbstractValue
-from pydrake.geometry import QueryObject
-from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.math import RigidTransform
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
 from pydrake.multibody.tree import (
     FixedOffsetFrame,
@@ -60,8 +62,7 @@ from pydrake.multibody.tree import (
     SpatialInertia,
     UnitInertia,
 )
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, EventStatus
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
@@ -72,6 +73,7 @@ from pydrake.systems.primitives import (
 from pydrake.trajectories import PiecewisePolynomial
 from repertoire.diagrams.arm import ArmStation, add_arm_controllers, add_meshcat
 from repertoire.diagrams.registry import register_diagram
+from repertoire.diagrams.simulate import simulate
 from repertoire.models import ConfigureParser, package_url
 from repertoire.models.arm7 import (
     ALL_JOINTS,
@@ -89,385 +91,41 @@ from repertoire.models.arm7 import (
     add_arm7,
     add_arm_world,
     arm7_home_configuration,
-    make_arm7_control_plant,
 )
-from repertoire.planning.dmp import TaskSpaceDmp, learn_task_space_dmp
-from repertoire.planning.dmp_math import minimum_jerk, minimum_jerk_via_points
-from repertoire.planning.motion_library import MotionLibrary
+from repertoire.planning.arm_library import (
+    BOTTLE_GRASP_HEIGHT,
+    COASTER_TOP,
+    CUP_GRASP_HEIGHT,
+    PLACE_CLEARANCE,
+    R_POUR,
+    R_SIDE,
+    approach_direction,
+    arm_control_plant,
+    arm_motion_library,
+    home_tcp_pose,
+    motion_library,
+    pour_tcp_position,
+    quaternion_wxyz,
+    rotation_from_approach,
+)
+from repertoire.systems.arm_goals import GoalSchedule, SegmentGoal
+from repertoire.systems.arm_monitors import BodyPointAndAxis, ObstacleClearanceMonitor
+from repertoire.systems.grasp import GraspWrench
+from repertoire.systems.obstacle_coupling import MultiPointObstacleCoupling
 from repertoire.systems.task_space import (
     STATUS_NAMES,
     STATUS_OK,
     STATUS_TARGET_OUT_OF_REACH,
-    GraspWrench,
-    MultiPointObstacleCoupling,
     ResolvedMotionRateIK,
-    TaskSpaceDmpChain,
     check_reachable,
     reach_bound,
 )
+from repertoire.systems.task_space_chain import TaskSpaceDmpChain
 
 from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
 
 GRASP_MODES = ("contact", "grip")
-#: Height of the cup's and the bottle's grasp frame above their bottom [m].
-CUP_GRASP_HEIGHT = 0.055
-BOTTLE_GRASP_HEIGHT = 0.10
-#: Bottle spout (tip) above the grasp point, along the bottle axis [m].
-BOTTLE_TIP_ABOVE_GRASP = 0.15
-COASTER_TOP = 0.006
-PLACE_CLEARANCE = 0.004
-#: Tilt of the bottle when pouring: rotation about the approach axis z_palm [rad].
-POUR_TILT = -1.65
-#: Height of the bottle tip above the cup rim when pouring [m].
-POUR_TIP_ABOVE_RIM = 0.10
-CUP_RIM = 0.10
-
-
-def _rotation_from_approach(approach_W: np.ndarray) -> RotationMatrix:
-    """Side-grasp orientation of the palm for a horizontal approach direction (sec. IV-C).
-
-    z_palm (approach) is the horizontal part of ``approach_W``, x_palm is up (the
-    axis of an upright cylinder), y_palm = z_palm x x_palm closes across it.
-    """
-    a = np.array([approach_W[0], approach_W[1], 0.0])
-    norm = np.linalg.norm(a)
-    if norm < 1e-9:
-        raise RepertoireError(
-            f"the grasp approach direction {approach_W} has no horizontal part; a side grasp "
-            "needs a horizontal approach"
-        )
-    z = a / norm
-    x = np.array([0.0, 0.0, 1.0])
-    y = np.cross(z, x)
-    return RotationMatrix(np.column_stack([x, y, z]))
-
-
-def _quat(R: RotationMatrix) -> np.ndarray:
-    return R.ToQuaternion().wxyz()
-
-
-def _slerp(q0: np.ndarray, q1: np.ndarray, s: np.ndarray) -> np.ndarray:
-    q1 = q1 if q0 @ q1 >= 0 else -q1
-    dot = np.clip(q0 @ q1, -1.0, 1.0)
-    angle = np.arccos(dot)
-    if angle < 1e-9:
-        return np.tile(q0, (len(s), 1))
-    s = s[:, None]
-    return (np.sin((1 - s) * angle) * q0 + np.sin(s * angle) * q1) / np.sin(angle)
-
-
-def _min_jerk_profile(t: np.ndarray, t0: float, t1: float) -> np.ndarray:
-    """0 -> 1 minimum-jerk profile between t0 and t1 (0 before, 1 after)."""
-    s, _, _ = minimum_jerk(np.zeros(1), np.ones(1), t1 - t0, np.clip(t - t0, 0.0, t1 - t0))
-    return s[:, 0]
-
-
-def synthesize_demonstration(
-    via_points: np.ndarray,
-    move_window: tuple,
-    q_start: np.ndarray,
-    q_end: np.ndarray,
-    turn_window: tuple,
-    fingers: list,
-    duration: float,
-    n_samples: int = 600,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """A synthetic demonstration: what an exoskeleton recording would give (sec. IV-B).
-
-    Args:
-        via_points: end-effector via points (m x 3), a minimum-jerk path through them
-            during ``move_window`` (fractions of the duration), at rest outside it.
-        move_window: (start, end) of the position movement, fractions of ``duration``.
-        q_start: start orientation [w, x, y, z].
-        q_end: end orientation; a minimum-jerk slerp during ``turn_window``.
-        turn_window: (start, end) of the rotation, fractions of ``duration``.
-        fingers: list of (start fraction, end fraction, from (3), to (3)) minimum-jerk
-            finger movements; the hand holds between them.
-        duration: seconds.
-        n_samples: samples of the demonstration.
-
-    Returns:
-        ``(t, positions (N x 3), quaternions (N x 4), fingers (N x 3))``.
-    """
-    t = np.linspace(0.0, duration, n_samples)
-    t0, t1 = move_window[0] * duration, move_window[1] * duration
-    inside = (t >= t0) & (t <= t1)
-    n_in = int(inside.sum())
-    _, path = minimum_jerk_via_points(np.asarray(via_points, float), t1 - t0, n_in)
-    p = np.empty((n_samples, 3))
-    p[t < t0] = via_points[0]
-    p[inside] = path
-    p[t > t1] = via_points[-1]
-    s = _min_jerk_profile(t, turn_window[0] * duration, turn_window[1] * duration)
-    q = _slerp(np.asarray(q_start, float), np.asarray(q_end, float), s)
-    f = np.tile(np.asarray(fingers[0][2], float), (n_samples, 1))
-    for a, b, f_from, f_to in fingers:
-        s = _min_jerk_profile(t, a * duration, b * duration)
-        active = t >= a * duration
-        f[active] = (np.asarray(f_from) + np.outer(s, np.asarray(f_to) - np.asarray(f_from)))[
-            active
-        ]
-    return t, p, q, f
-
-
-# ----------------------------------------------------------------------------- motion library
-#: The canonical layout the demonstrations were "recorded" in.
-DEMO_CUP_XY = (0.55, -0.25)
-DEMO_COASTER_XY = (0.55, 0.10)
-DEMO_BOTTLE_XY = (0.52, -0.28)
-DEMO_POUR_CUP_XY = (0.66, 0.0)
-R_SIDE = _rotation_from_approach(np.array([1.0, 0.0, 0.0]))
-R_POUR = R_SIDE @ RotationMatrix.MakeZRotation(POUR_TILT)
-
-
-def home_tcp_pose() -> RigidTransform:
-    """The tcp pose of arm7 in its home configuration (base at the world origin)."""
-    plant = _control_plant()
-    context = plant.CreateDefaultContext()
-    plant.SetPositions(context, np.concatenate([arm7_home_configuration(), HAND_OPEN]))
-    return plant.GetFrameByName(TCP_FRAME).CalcPoseInWorld(context)
-
-
-@functools.lru_cache(maxsize=1)
-def _control_plant() -> MultibodyPlant:
-    return make_arm7_control_plant()
-
-
-def pour_tcp_position(cup_xy, R_WE: RotationMatrix) -> np.ndarray:
-    """Tcp position that puts the bottle tip above a cup's centre (bottle held upright in E)."""
-    tip = np.array([cup_xy[0], cup_xy[1], TABLE_HEIGHT + CUP_RIM + POUR_TIP_ABOVE_RIM])
-    return tip - BOTTLE_TIP_ABOVE_GRASP * R_WE.matrix()[:, 0]
-
-
-@functools.lru_cache(maxsize=1)
-def synthetic_demonstrations() -> dict[str, tuple]:
-    """The demonstrations of grasp, place, release, pour and retreat (sec. IV-B).
-
-    Recorded in the canonical layout (``DEMO_*``): minimum-jerk paths through via
-    points, minimum-jerk slerps, two minimum-jerk finger movements for the hand.
-
-    Returns:
-        label -> ``(t, positions, quaternions, fingers)``.
-    """
-    home = home_tcp_pose()
-    p_home, q_home = home.translation(), _quat(home.rotation())
-    q_side = _quat(R_SIDE)
-    open_, grasp = np.array(HAND_OPEN), np.array(HAND_GRASP_7CM)
-    demos = {}
-    cup = np.array([*DEMO_CUP_XY, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
-    radial = np.array([cup[0], cup[1], 0.0]) / np.hypot(cup[0], cup[1])
-    pre = cup - 0.10 * radial + np.array([0.0, 0.0, 0.03])
-    demos["grasp"] = synthesize_demonstration(
-        [p_home, (p_home + pre) / 2 + [0, 0, 0.02], pre, cup],
-        (0.0, 0.8),
-        q_home,
-        q_side,
-        (0.0, 0.6),
-        [(0.0, 0.3, open_, open_), (0.82, 1.0, open_, grasp)],
-        2.5,
-    )
-    coaster = np.array([*DEMO_COASTER_XY, TABLE_HEIGHT + COASTER_TOP + CUP_GRASP_HEIGHT])
-    coaster = coaster + [0, 0, PLACE_CLEARANCE]
-    lift = np.array([0, 0, 0.14])
-    demos["place"] = synthesize_demonstration(
-        [cup, cup + lift, (cup + coaster) / 2 + lift + [0, 0, 0.02], coaster + lift, coaster],
-        (0.0, 0.85),
-        q_side,
-        q_side,
-        (0.0, 1.0),
-        [(0.0, 1.0, grasp, grasp)],
-        3.0,
-    )
-    retreat = coaster + np.array([-0.12, 0.0, 0.08])
-    demos["release"] = synthesize_demonstration(
-        [coaster, coaster + [-0.02, 0, 0.03], retreat],
-        (0.35, 1.0),
-        q_side,
-        q_side,
-        (0.0, 1.0),
-        [(0.0, 0.3, grasp, open_)],
-        1.5,
-    )
-    bottle = np.array([*DEMO_BOTTLE_XY, TABLE_HEIGHT + BOTTLE_GRASP_HEIGHT])
-    pour = pour_tcp_position(DEMO_POUR_CUP_XY, R_POUR)
-    demos["pour"] = synthesize_demonstration(
-        [bottle, bottle + [0, 0, 0.12], (bottle + pour) / 2 + [0, 0, 0.14], pour],
-        (0.0, 0.8),
-        q_side,
-        _quat(R_POUR),
-        (0.35, 0.95),
-        [(0.0, 1.0, grasp, grasp)],
-        2.2,
-    )
-    up = pour + np.array([0.0, 0.0, 0.06])
-    demos["retreat"] = synthesize_demonstration(
-        [pour, up],
-        (0.2, 1.0),
-        _quat(R_POUR),
-        q_side,
-        (0.0, 0.8),
-        [(0.0, 1.0, grasp, grasp)],
-        1.2,
-    )
-    return demos
-
-
-@functools.lru_cache(maxsize=1)
-def motion_library() -> dict[str, TaskSpaceDmp]:
-    """Learns the labelled DMPs (grasp, place, release, pour, retreat) from the demos.
-
-    Returns:
-        label -> learned 10-D :class:`TaskSpaceDmp` (component quaternion DMP).
-    """
-    return {
-        label: learn_task_space_dmp(t, p, q, f, orientation_mode="component", n_basis=30)
-        for label, (t, p, q, f) in synthetic_demonstrations().items()
-    }
-
-
-@functools.lru_cache(maxsize=1)
-def arm_motion_library() -> MotionLibrary:
-    """The learned DMPs as a labelled :class:`MotionLibrary` (sec. III-B).
-
-    One primitive per label (``grasp``, ``place``, ``release``, ``pour``, ``retreat``),
-    named ``<label>_arm7`` with context ``{"robot": "arm7"}``; the worlds recall
-    their sequences from it (``compose("pick_and_place")`` is grasp -> place ->
-    release).
-    """
-    lib = MotionLibrary()
-    for label, dmp in motion_library().items():
-        lib.add_dmp(f"{label}_arm7", label, dmp, {"robot": "arm7"})
-    return lib
-
-
-def approach_direction(dmp: TaskSpaceDmp, x_start: np.ndarray, goal: np.ndarray) -> np.ndarray:
-    """Approach direction at the end of a movement (sec. IV-C).
-
-    Rolls the position DMP out from ``x_start`` to ``goal`` and averages the
-    velocity vectors over the last part of the movement where it still moves.
-
-    Args:
-        dmp: the grasp DMP.
-        x_start: start position (3).
-        goal: goal position (3).
-
-    Returns:
-        Unit 3-vector.
-    """
-    r = dmp.position.rollout(goal=goal, x0=x_start, dt=0.005)
-    speed = np.linalg.norm(r.xd, axis=1)
-    moving = np.nonzero(speed > 0.05 * speed.max())[0]
-    last = moving[-1]
-    window = r.xd[max(0, last - int(0.25 * len(moving))) : last + 1]
-    v = window.mean(axis=0)
-    return v / np.linalg.norm(v)
-
-
-# ----------------------------------------------------------------------------- systems
-@dataclasses.dataclass
-class SegmentGoal:
-    """The goal of one chain segment.
-
-    Attributes:
-        label: motion library label.
-        position: fixed goal position (3), or the offset from ``body`` when tracking.
-        orientation: goal quaternion [w, x, y, z].
-        fingers: goal finger angles (3).
-        body: a tracked body (the goal follows it) as a body index or "instance:body",
-            or -1 for a fixed goal.
-    """
-
-    label: str
-    position: np.ndarray
-    orientation: np.ndarray
-    fingers: np.ndarray
-    body: int | str = -1
-
-
-class GoalSchedule(LeafSystem):
-    """Gives the DMP chain the goal of its active segment; tracked goals follow a body.
-
-    This is the "vision" of the paper's experiment: a goal tied to a body (the
-    coaster) is re-read from the plant every step, so the DMP's goal changes when
-    the body moves.
-
-    Input ports:
-        segment: [active segment index] (1).
-        body_poses: the plant's body poses (abstract).
-
-    Output ports:
-        goal: [p (3), q (4), fingers (3)] (10).
-    """
-
-    def __init__(self, goals: list[SegmentGoal]):
-        """Builds the schedule.
-
-        Args:
-            goals: one goal per chain segment.
-
-        Raises:
-            RepertoireError: a goal of the wrong size, not finite, or a non-unit
-                orientation.
-        """
-        super().__init__()
-        for k, g in enumerate(goals):
-            for what, value, size in (
-                ("position", g.position, 3),
-                ("orientation", g.orientation, 4),
-                ("fingers", g.fingers, 3),
-            ):
-                v = np.asarray(value, dtype=float).reshape(-1)
-                if v.size != size or not np.all(np.isfinite(v)):
-                    raise RepertoireError(
-                        f"goal {k} ({g.label}): {what} must be {size} finite numbers, got "
-                        f"{np.asarray(value).tolist()}"
-                    )
-            norm = float(np.linalg.norm(g.orientation))
-            if abs(norm - 1.0) > 1e-6:
-                raise RepertoireError(
-                    f"goal {k} ({g.label}): orientation must be a unit quaternion [w, x, y, z], "
-                    f"its norm is {norm:.6f} (off by {abs(norm - 1.0):.2e})"
-                )
-        self._goals = goals
-        self._segment = self.DeclareVectorInputPort("segment", 1)
-        self._poses = self.DeclareAbstractInputPort(
-            "body_poses", AbstractValue.Make([RigidTransform()])
-        )
-        self.DeclareVectorOutputPort("goal", 10, self._calc)
-
-    def _calc(self, context: Context, output: BasicVector) -> None:
-        g = self._goals[int(self._segment.Eval(context)[0])]
-        p = np.asarray(g.position, float)
-        if g.body >= 0:
-            p = self._poses.Eval(context)[g.body].translation() + p
-        output.SetFromVector(np.concatenate([p, g.orientation, g.fingers]))
-
-
-class BodyPointAndAxis(LeafSystem):
-    """The origin and z axis of a frame Q fixed to a body, in the world (for logging).
-
-    Input ports:
-        body_poses: the plant's body poses (abstract).
-
-    Output ports:
-        point_and_axis: [p_WQ (3), z axis of Q in W (3)] (6).
-    """
-
-    def __init__(self, body: int, X_BQ: RigidTransform):
-        super().__init__()
-        self._body = int(body)
-        self._X_BQ = X_BQ
-        self._poses = self.DeclareAbstractInputPort(
-            "body_poses", AbstractValue.Make([RigidTransform()])
-        )
-        self.DeclareVectorOutputPort("point_and_axis", 6, self._calc)
-
-    def _calc(self, context: Context, output: BasicVector) -> None:
-        X = self._poses.Eval(context)[self._body] @ self._X_BQ
-        output.SetFromVector(np.concatenate([X.translation(), X.rotation().matrix()[:, 2]]))
-
-
 # ----------------------------------------------------------------------------- obstacle
 #: Where eq. 10 acts while carrying (tcp frame E; in a side grasp x_E is up, y_E closes the
 #: hand across the cup, z_E is the approach): the tcp on the cup's axis, the cup's lower
@@ -576,70 +234,6 @@ def carry_path_point(cup_xy, coaster_xy, fraction: float = 0.5) -> np.ndarray:
     return np.array([np.interp(fraction * arc[-1], arc, path[:, i]) for i in range(3)])
 
 
-class ObstacleClearanceMonitor(LeafSystem):
-    """Running minimum of the signed distance between the ball and the robot or its load.
-
-    Every ``period`` it asks SceneGraph for the signed distance from the ball's
-    centre to each watched collision geometry (``ComputeSignedDistanceToPoint``:
-    exact for the spheres, capsules, boxes and cylinders of arm7 and the cup) and
-    subtracts the ball's radius: the gap between the ball's surface and the
-    geometry, negative when they overlap.
-
-    Input ports:
-        geometry_query: SceneGraph's query object.
-
-    Output ports:
-        clearance: [running minimum gap (m), time of the minimum (s)] (2).
-    """
-
-    def __init__(
-        self,
-        centre_W: np.ndarray,
-        radius: float,
-        geometries: list,
-        *,
-        period: float,
-        horizon: float = 0.5,
-    ) -> None:
-        """Builds the monitor.
-
-        Args:
-            centre_W: the ball's centre (fixed) in W.
-            radius: the ball's radius.
-            geometries: GeometryIds watched (the arm's and the carried object's).
-            period: update period [s].
-            horizon: geometries farther than this from the centre are not reported; the
-                gap then reads ``horizon - radius``.
-        """
-        super().__init__()
-        self._centre = np.asarray(centre_W, dtype=float).reshape(3)
-        self._radius = float(radius)
-        self._ids = set(geometries)
-        self._horizon = float(horizon)
-        self._query = self.DeclareAbstractInputPort(
-            "geometry_query", AbstractValue.Make(QueryObject())
-        )
-        self._state = self.DeclareDiscreteState([self._horizon - self._radius, 0.0])
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self.DeclareStateOutputPort("clearance", self._state)
-
-    def gap(self, context: Context) -> float:
-        """The current gap between the ball and the nearest watched geometry [m]."""
-        query = self._query.Eval(context)
-        gaps = [
-            d.distance
-            for d in query.ComputeSignedDistanceToPoint(self._centre, self._horizon)
-            if d.id_G in self._ids
-        ]
-        return float(min(gaps, default=self._horizon)) - self._radius
-
-    def _update(self, context: Context, state) -> None:
-        gap = self.gap(context)
-        best = context.get_discrete_state(self._state).value()
-        if gap < best[0]:
-            state.get_mutable_vector(self._state).SetFromVector([gap, context.get_time()])
-
-
 # ----------------------------------------------------------------------------- scenarios
 def _check_xy(name: str, xy) -> np.ndarray:
     v = np.asarray(xy, dtype=float).reshape(-1)
@@ -727,7 +321,7 @@ class PickPlaceScenario:
                 f"table (top at {TABLE_HEIGHT} m); its centre must be at least "
                 f"{TABLE_HEIGHT + OBSTACLE_RADIUS + 0.05:.2f} m high"
             )
-        if o[2] - 0.06 < TABLE_HEIGHT + 0.05:
+        if o[2] - OBSTACLE_RADIUS < TABLE_HEIGHT + 0.05:
             raise ScenarioError(
                 f"obstacle_xyz z = {o[2]} m puts the ball within 5 cm of the table top "
                 f"({TABLE_HEIGHT} m); raise it"
@@ -856,7 +450,7 @@ TABLE_CENTER = [0.65, 0.0]
 
 def shoulder_and_reach() -> tuple[np.ndarray, float]:
     """Shoulder centre in W and the reach bound of the tcp (joint polyline length)."""
-    plant = _control_plant()
+    plant = arm_control_plant()
     context = plant.CreateDefaultContext()
     shoulder = plant.GetFrameByName(SHOULDER_FRAME).CalcPoseInWorld(context).translation()
     points = [shoulder]
@@ -868,7 +462,13 @@ def shoulder_and_reach() -> tuple[np.ndarray, float]:
     return shoulder, reach_bound(np.array(points))
 
 
-def _segment_timing(labels: list[str], settle: float) -> tuple[list[float], float]:
+def segment_timing(labels: list[str], settle: float) -> tuple[list[float], float]:
+    """Start time of each segment of a chain and the total duration [s].
+
+    Args:
+        labels: Motion-library labels of the segments, in order.
+        settle: Settling time after each segment [s].
+    """
     lib = motion_library()
     starts, t = [], 0.0
     for label in labels:
@@ -877,16 +477,71 @@ def _segment_timing(labels: list[str], settle: float) -> tuple[list[float], floa
     return starts, t
 
 
-def _build_world(
+@dataclasses.dataclass
+class CoasterMotion:
+    """A coaster that slides from ``xy`` to ``final_xy`` between ``t0`` and ``t1`` (Fig. 13).
+
+    Attributes:
+        xy: Start position on the table [m].
+        final_xy: End position [m].
+        t0: Time the move starts [s].
+        t1: Time the move ends [s] (> t0).
+    """
+
+    xy: list[float]
+    final_xy: list[float]
+    t0: float
+    t1: float
+
+
+@dataclasses.dataclass
+class BallObstacle:
+    """The ball obstacle of a world and the DMP coupling term around it (eq. 10).
+
+    Attributes:
+        xyz: Centre of the ball [m] (radius ``models.arm7.OBSTACLE_RADIUS``).
+        coupling: Add the coupling term to the DMP chain (False: only the monitor).
+        gamma: Coupling gain.
+        beta: Coupling steering constant.
+        points: Control points in the tcp frame E [m] (see CARRY_CONTROL_POINTS).
+        length_scale: Distance fade of the coupling [m] (0 = the paper's, no fade).
+    """
+
+    xyz: list[float]
+    coupling: bool
+    gamma: float
+    beta: float
+    points: list[list[float]]
+    length_scale: float
+
+
+@dataclasses.dataclass
+class BodyPointLog:
+    """An extra named logger ``<name>_log`` of a body-fixed point and the body's z axis.
+
+    Attributes:
+        name: Logger name prefix.
+        body: Body name.
+        instance: Model instance name.
+        p_BQ: The point in the body frame [m].
+    """
+
+    name: str
+    body: str
+    instance: str
+    p_BQ: list[float]
+
+
+def build_arm_world(
     name: str,
     scenario,
     objects: list[ArmObject],
     goals: list[SegmentGoal],
     *,
     graspable: list[str],
-    coaster: dict | None = None,
-    obstacle: dict | None = None,
-    logs: dict | None = None,
+    coaster: CoasterMotion | None = None,
+    obstacle: BallObstacle | None = None,
+    logs: list[BodyPointLog] | None = None,
     meshcat=None,
 ) -> Diagram:
     """Wires DMP chain -> RMRC IK -> ID + PD -> arm7 plant for one world (see module doc).
@@ -898,11 +553,10 @@ def _build_world(
         objects: the table's objects (table and arm are always added).
         goals: one goal per chain segment, in order (labels from the motion library).
         graspable: "instance:body" of the objects the grip may hold (grip mode).
-        coaster: optional moving coaster {"xy", "final_xy", "t0", "t1"}.
-        obstacle: optional {"xyz", "coupling", "gamma", "beta", "points", "length_scale"}
-            for MultiPointObstacleCoupling, and a clearance monitor between the ball and
-            the arm and the graspable objects.
-        logs: extra logs: name -> (body, instance, point in the body frame).
+        coaster: optional moving coaster.
+        obstacle: optional ball: MultiPointObstacleCoupling (if ``coupling``) and a
+            clearance monitor between the ball and the arm and the graspable objects.
+        logs: extra named point loggers.
         meshcat: optional Meshcat for a visualizer.
 
     Raises:
@@ -922,7 +576,7 @@ def _build_world(
     instances = add_arm_world(plant, ArmWorld(table_center=TABLE_CENTER, objects=objects))
     coaster_instance = None
     if coaster is not None:
-        coaster_instance, coaster_body = _coaster_on_slider(plant, coaster["xy"])
+        coaster_instance, coaster_body = _coaster_on_slider(plant, coaster.xy)
         instances["coaster"] = coaster_instance
     for joint, p, d in zip(ALL_JOINTS, ARM_KP + FINGER_KP, ARM_KD + FINGER_KD):
         plant.GetJointActuatorByName(f"{joint}_motor", arm).set_controller_gains(
@@ -943,14 +597,14 @@ def _build_world(
             body = int(plant.GetBodyByName(body_name, instances[instance_name]).index())
         resolved.append(dataclasses.replace(g, body=body))
     labels = [g.label for g in goals]
-    starts, duration = _segment_timing(labels, scenario.settle_time)
+    starts, duration = segment_timing(labels, scenario.settle_time)
     library = arm_motion_library()
     chain = builder.AddNamedSystem(
         "dmp_chain",
         TaskSpaceDmpChain(
             [library.select(label, robot="arm7").dmp for label in labels],
             starts,
-            np.concatenate([home.translation(), _quat(home.rotation()), HAND_OPEN]),
+            np.concatenate([home.translation(), quaternion_wxyz(home.rotation()), HAND_OPEN]),
             switch_period=IK_PERIOD,
         ),
     )
@@ -958,19 +612,19 @@ def _build_world(
     builder.Connect(chain.GetOutputPort("segment"), schedule.GetInputPort("segment"))
     builder.Connect(plant.get_body_poses_output_port(), schedule.GetInputPort("body_poses"))
     builder.Connect(schedule.GetOutputPort("goal"), chain.GetInputPort("goal"))
-    if obstacle is not None and obstacle["coupling"]:
+    if obstacle is not None and obstacle.coupling:
         coupling = builder.AddNamedSystem(
             "obstacle_coupling",
             MultiPointObstacleCoupling(
-                np.asarray(obstacle["points"], float),
-                gamma=obstacle["gamma"],
-                beta=obstacle["beta"],
+                np.asarray(obstacle.points, float),
+                gamma=obstacle.gamma,
+                beta=obstacle.beta,
                 obstacle_radius=OBSTACLE_RADIUS,
-                length_scale=obstacle["length_scale"],
+                length_scale=obstacle.length_scale,
             ),
         )
         o_src = builder.AddNamedSystem(
-            "obstacle_position", ConstantVectorSource(np.asarray(obstacle["xyz"], float))
+            "obstacle_position", ConstantVectorSource(np.asarray(obstacle.xyz, float))
         )
         builder.Connect(chain.GetOutputPort("position"), coupling.GetInputPort("position"))
         builder.Connect(chain.GetOutputPort("velocity"), coupling.GetInputPort("velocity"))
@@ -1051,8 +705,8 @@ def _build_world(
         )
 
     if coaster is not None:
-        times = [0.0, coaster["t0"], coaster["t1"], coaster["t1"] + 1.0]
-        xy0, xy1 = np.asarray(coaster["xy"], float), np.asarray(coaster["final_xy"], float)
+        times = [0.0, coaster.t0, coaster.t1, coaster.t1 + 1.0]
+        xy0, xy1 = np.asarray(coaster.xy, float), np.asarray(coaster.final_xy, float)
         knots = np.column_stack([xy0, xy0, xy1, xy1])
         traj = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
             times, knots, np.zeros(2), np.zeros(2)
@@ -1070,14 +724,14 @@ def _build_world(
     builder.Connect(chain.GetOutputPort("segment"), log_mux.get_input_port(2))
     sink = LogVectorOutput(log_mux.get_output_port(), builder, LOG_PERIOD)
     sink.set_name("tcp_log")
-    for log_name, (body_name, instance_name, p_BQ) in (logs or {}).items():
-        body = plant.GetBodyByName(body_name, instances[instance_name])
+    for spec in logs or []:
+        body = plant.GetBodyByName(spec.body, instances[spec.instance])
         point = builder.AddNamedSystem(
-            f"{log_name}_point", BodyPointAndAxis(body.index(), RigidTransform(p_BQ))
+            f"{spec.name}_point", BodyPointAndAxis(body.index(), RigidTransform(spec.p_BQ))
         )
         builder.Connect(plant.get_body_poses_output_port(), point.GetInputPort("body_poses"))
         s = LogVectorOutput(point.get_output_port(), builder, LOG_PERIOD)
-        s.set_name(f"{log_name}_log")
+        s.set_name(f"{spec.name}_log")
     if obstacle is not None:
         watched = [
             plant.GetBodyByName(n.split(":")[1], instances[n.split(":")[0]]) for n in graspable
@@ -1087,7 +741,7 @@ def _build_world(
         monitor = builder.AddNamedSystem(
             "obstacle_clearance",
             ObstacleClearanceMonitor(
-                np.asarray(obstacle["xyz"], float),
+                np.asarray(obstacle.xyz, float),
                 OBSTACLE_RADIUS,
                 ids,
                 period=IK_PERIOD,
@@ -1127,13 +781,13 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
     )
     home = home_tcp_pose()
     cup = np.array([*s.cup_xy, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
-    R_grasp = _rotation_from_approach(
+    R_grasp = rotation_from_approach(
         approach_direction(grasp_primitive.dmp, home.translation(), cup)
     )
     grasp, open_ = np.array(HAND_GRASP_7CM), np.array(HAND_OPEN)
-    q_side = _quat(R_SIDE)
+    q_side = quaternion_wxyz(R_SIDE)
     goals = [
-        SegmentGoal(grasp_primitive.label, cup, _quat(R_grasp), grasp),
+        SegmentGoal(grasp_primitive.label, cup, quaternion_wxyz(R_grasp), grasp),
         SegmentGoal(place_primitive.label, _place_offset(), q_side, grasp, "coaster:coaster"),
         SegmentGoal(
             release_primitive.label,
@@ -1151,7 +805,7 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
         check_reachable(
             base + _place_offset() + RELEASE_OFFSET, shoulder, reach, what=f"release ({xy_name})"
         )
-    _, duration = _segment_timing(PICK_PLACE_LABELS, s.settle_time)
+    _, duration = segment_timing(PICK_PLACE_LABELS, s.settle_time)
     return goals, duration
 
 
@@ -1177,7 +831,7 @@ def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagra
     """
     scenario.validate()
     goals, _ = plan_pick_and_place(scenario)
-    starts, _ = _segment_timing(PICK_PLACE_LABELS, scenario.settle_time)
+    starts, _ = segment_timing(PICK_PLACE_LABELS, scenario.settle_time)
     t0 = starts[1] + scenario.coaster_move_delay
     objects = [
         ArmObject(name="cup_red", kind="cup", xy=list(scenario.cup_xy)),
@@ -1185,30 +839,30 @@ def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagra
             name="obstacle_blue",
             kind="obstacle",
             xy=list(scenario.obstacle_xyz[:2]),
-            z_above_table=float(scenario.obstacle_xyz[2] - 0.06 - TABLE_HEIGHT),
+            z_above_table=float(scenario.obstacle_xyz[2] - OBSTACLE_RADIUS - TABLE_HEIGHT),
             mount="welded",
         ),
     ]
-    return _build_world(
+    return build_arm_world(
         "arm_pick_and_place",
         scenario,
         objects,
         goals,
         graspable=["cup_red:cup"],
-        coaster={
-            "xy": scenario.coaster_xy,
-            "final_xy": scenario.coaster_final_xy,
-            "t0": t0,
-            "t1": t0 + max(scenario.coaster_move_duration, 1e-3),
-        },
-        obstacle={
-            "xyz": scenario.obstacle_xyz,
-            "coupling": scenario.obstacle_coupling,
-            "gamma": scenario.obstacle_gamma,
-            "beta": scenario.obstacle_beta,
-            "points": scenario.obstacle_points,
-            "length_scale": scenario.obstacle_length_scale,
-        },
+        coaster=CoasterMotion(
+            xy=list(scenario.coaster_xy),
+            final_xy=list(scenario.coaster_final_xy),
+            t0=t0,
+            t1=t0 + max(scenario.coaster_move_duration, 1e-3),
+        ),
+        obstacle=BallObstacle(
+            xyz=list(scenario.obstacle_xyz),
+            coupling=scenario.obstacle_coupling,
+            gamma=scenario.obstacle_gamma,
+            beta=scenario.obstacle_beta,
+            points=scenario.obstacle_points,
+            length_scale=scenario.obstacle_length_scale,
+        ),
         meshcat=meshcat,
     )
 
@@ -1222,14 +876,16 @@ def plan_serving(s: ServingScenario) -> tuple[list[SegmentGoal], float]:
     lib = motion_library()
     home = home_tcp_pose()
     bottle = np.array([*s.bottle_xy, TABLE_HEIGHT + BOTTLE_GRASP_HEIGHT])
-    R_grasp = _rotation_from_approach(approach_direction(lib["grasp"], home.translation(), bottle))
+    R_grasp = rotation_from_approach(approach_direction(lib["grasp"], home.translation(), bottle))
     grasp = np.array(HAND_GRASP_7CM)
-    goals = [SegmentGoal("grasp", bottle, _quat(R_grasp), grasp)]
+    goals = [SegmentGoal("grasp", bottle, quaternion_wxyz(R_grasp), grasp)]
     for xy in s.cup_xys:
         pour = pour_tcp_position(xy, R_POUR)
-        goals.append(SegmentGoal("pour", pour, _quat(R_POUR), grasp))
-        goals.append(SegmentGoal("retreat", pour + [0.0, 0.0, 0.06], _quat(R_SIDE), grasp))
-    _, duration = _segment_timing(SERVING_LABELS, s.settle_time)
+        goals.append(SegmentGoal("pour", pour, quaternion_wxyz(R_POUR), grasp))
+        goals.append(
+            SegmentGoal("retreat", pour + [0.0, 0.0, 0.06], quaternion_wxyz(R_SIDE), grasp)
+        )
+    _, duration = segment_timing(SERVING_LABELS, s.settle_time)
     return goals, duration
 
 
@@ -1260,13 +916,13 @@ def build_serving_water(scenario: ServingScenario, *, meshcat=None) -> Diagram:
         ArmObject(name=f"cup_{k + 1}", kind="cup", xy=list(xy))
         for k, xy in enumerate(scenario.cup_xys)
     ]
-    return _build_world(
+    return build_arm_world(
         "arm_serving_water",
         scenario,
         objects,
         goals,
         graspable=["bottle:bottle"],
-        logs={"tip": ("bottle", "bottle", np.array([0.0, 0.0, 0.25]))},
+        logs=[BodyPointLog(name="tip", body="bottle", instance="bottle", p_BQ=[0.0, 0.0, 0.25])],
         meshcat=meshcat,
     )
 
@@ -1278,6 +934,9 @@ class IkTargetError(RepertoireError):
 
 def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
     """Simulates an arm DMP world, stopping with a clear error if the IK reports a problem.
+
+    Runs through :func:`repertoire.diagrams.simulate.simulate` (its non-finite-state check)
+    with the IK-status monitor added.
 
     Args:
         diagram: a diagram built by this module.
@@ -1291,8 +950,6 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
             desired position out of reach or lost tracking (says when, which segment
             and where the goal and the target were).
     """
-    simulator = Simulator(diagram)
-    root = simulator.get_mutable_context()
     rmrc = diagram.GetSubsystemByName("rmrc")
     chain = diagram.GetSubsystemByName("dmp_chain")
     schedule = diagram.GetSubsystemByName("goal_schedule")
@@ -1300,9 +957,7 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
     shoulder, reach = shoulder_and_reach()
     problem = {}
 
-    def monitor(context: Context):
-        from pydrake.systems.framework import EventStatus
-
+    def ik_monitor(context: Context) -> EventStatus:
         rmrc_context = rmrc.GetMyContextFromRoot(context)
         status = int(status_port.Eval(rmrc_context)[0])
         goal = schedule.GetOutputPort("goal").Eval(schedule.GetMyContextFromRoot(context))[:3]
@@ -1321,10 +976,8 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
         )
         return EventStatus.ReachedTermination(rmrc, STATUS_NAMES[status])
 
-    simulator.set_monitor(monitor)
     start = time.perf_counter()
-    simulator.Initialize()
-    simulator.AdvanceTo(duration)
+    _, root = simulate(diagram, duration, monitors=[ik_monitor])
     wall = time.perf_counter() - start
     if problem:
         distance = float(np.linalg.norm(problem["goal"] - shoulder))
@@ -1339,22 +992,74 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
     return root, wall
 
 
-def _log(diagram: Diagram, context: Context, name: str) -> np.ndarray:
-    sink = diagram.GetSubsystemByName(name)
-    log = sink.FindLog(context)
-    return np.vstack([log.sample_times(), log.data()]).T
+@dataclasses.dataclass
+class PointLog:
+    """A logged body point and axis (``BodyPointAndAxis``), by field.
+
+    Attributes:
+        t: Sample times, shape (N,) [s].
+        point: The point in world, shape (N, 3) [m].
+        axis: The body's z axis in world, shape (N, 3).
+    """
+
+    t: np.ndarray
+    point: np.ndarray
+    axis: np.ndarray
+
+
+@dataclasses.dataclass
+class TcpLog(PointLog):
+    """The ``tcp_log`` of an arm world, by field (``point`` is the tcp, ``axis`` the palm z).
+
+    Attributes:
+        goal: The current segment's goal (position 3, quaternion 4, fingers 3), (N, 10).
+        segment: Index of the running chain segment, shape (N,).
+    """
+
+    goal: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 10)))
+    segment: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=int))
+
+
+def point_log(diagram: Diagram, context: Context, name: str) -> PointLog:
+    """The samples of a point logger (``"tip_log"``, ...) of an arm world.
+
+    Args:
+        diagram: The arm world.
+        context: Its root context after a run.
+        name: The logger's name.
+    """
+    log = diagram.GetSubsystemByName(name).FindLog(context)
+    data = log.data().T
+    return PointLog(log.sample_times().copy(), data[:, 0:3], data[:, 3:6])
+
+
+def tcp_log(diagram: Diagram, context: Context) -> TcpLog:
+    """The arm world's ``tcp_log``: tcp, palm axis, segment goal and segment index.
+
+    Args:
+        diagram: The arm world.
+        context: Its root context after a run.
+    """
+    log = diagram.GetSubsystemByName("tcp_log").FindLog(context)
+    data = log.data().T
+    return TcpLog(
+        log.sample_times().copy(),
+        data[:, 0:3],
+        data[:, 3:6],
+        data[:, 6:16],
+        data[:, 16].astype(int),
+    )
 
 
 def segment_reach_errors(diagram: Diagram, context: Context) -> list[float]:
     """|tcp - goal| at the end of each segment (the last log sample of the segment) [m]."""
-    log = _log(diagram, context, "tcp_log")  # t, tcp (3), axis (3), goal (10), segment
+    log = tcp_log(diagram, context)
     errors = []
-    segments = log[:, -1].astype(int)
-    for k in range(int(segments.max()) + 1):
-        rows = np.nonzero(segments == k)[0]
+    for k in range(int(log.segment.max()) + 1):
+        rows = np.nonzero(log.segment == k)[0]
         if len(rows):
-            r = log[rows[-1]]
-            errors.append(float(np.linalg.norm(r[1:4] - r[7:10])))
+            last = rows[-1]
+            errors.append(float(np.linalg.norm(log.point[last] - log.goal[last, :3])))
     return errors
 
 
@@ -1383,8 +1088,10 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
     obstacle = plant.GetBodyByName(
         "obstacle", plant.GetModelInstanceByName("obstacle_blue")
     ).EvalPoseInWorld(pc)
-    log = _log(diagram, context, "tcp_log")
-    clearance = float(np.min(np.linalg.norm(log[:, 1:4] - obstacle.translation(), axis=1)) - 0.06)
+    tcp = tcp_log(diagram, context).point
+    clearance = float(
+        np.min(np.linalg.norm(tcp - obstacle.translation(), axis=1)) - OBSTACLE_RADIUS
+    )
     monitor = diagram.GetSubsystemByName("obstacle_clearance")
     gap, gap_time = monitor.get_output_port().Eval(monitor.GetMyContextFromRoot(context))
     errors = segment_reach_errors(diagram, context) + [np.nan] * 3
@@ -1423,11 +1130,11 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
     """
     plant = diagram.GetSubsystemByName("plant")
     pc = plant.GetMyContextFromRoot(context)
-    tip = _log(diagram, context, "tip_log")  # t, tip (3), bottle z axis (3)
-    tcp = _log(diagram, context, "tcp_log")
-    n = min(len(tip), len(tcp))
-    tip, segments = tip[:n], tcp[:n, -1].astype(int)
-    tilt = np.arccos(np.clip(tip[:, 6], -1.0, 1.0))
+    tip = point_log(diagram, context, "tip_log")  # the bottle tip and the bottle's z axis
+    tcp = tcp_log(diagram, context)
+    n = min(len(tip.t), len(tcp.t))
+    tip_xy, segments = tip.point[:n, :2], tcp.segment[:n]
+    tilt = np.arccos(np.clip(tip.axis[:n, 2], -1.0, 1.0))
     figures = {}
     served = 0
     knocked = 0.0
@@ -1436,7 +1143,7 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
         p_cup = plant.GetDefaultFloatingBaseBodyPose(cup).translation()
         knocked = max(knocked, float(np.linalg.norm(cup.EvalPoseInWorld(pc).translation() - p_cup)))
         rows = ((segments == 1 + 2 * k) | (segments == 2 + 2 * k)) & (tilt > POUR_MIN_TILT)
-        d = np.linalg.norm(tip[rows, 1:3] - p_cup[:2], axis=1) if rows.any() else [np.inf]
+        d = np.linalg.norm(tip_xy[rows] - p_cup[:2], axis=1) if rows.any() else [np.inf]
         figures[f"tip_to_cup_{k + 1}_m"] = float(np.min(d))
         served += int(np.min(d) < POUR_RADIUS)
     bottle = plant.GetBodyByName("bottle", plant.GetModelInstanceByName("bottle"))
@@ -1446,7 +1153,7 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
     figures.update(
         cups_served=float(served),
         max_cup_displacement_m=knocked,
-        bottle_in_hand_m=float(np.linalg.norm(grasp_point - tcp[n - 1, 1:4])),
+        bottle_in_hand_m=float(np.linalg.norm(grasp_point - tcp.point[n - 1])),
         grasp_reach_error_m=errors[0],
         pour_reach_error_m=float(max(errors[1::2][:3])) if len(errors) > 1 else np.nan,
         success=float(served == 3 and knocked < 0.01),

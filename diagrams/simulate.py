@@ -8,7 +8,7 @@ registered duration and returns the figures of the world's ``check()``.
 """
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -106,6 +106,9 @@ def check_duration(duration: float) -> float:
     return value
 
 
+_CARRY_ON = (EventStatus.Severity.kDidNothing, EventStatus.Severity.kSucceeded)
+
+
 def simulate(
     diagram: Diagram,
     duration: float,
@@ -114,6 +117,7 @@ def simulate(
     realtime_rate: float = 0.0,
     meshcat: Any = None,
     record: bool = False,
+    monitors: Sequence[Callable[[Context], EventStatus]] = (),
 ) -> tuple[Simulator, Context]:
     """Simulates ``diagram`` for ``duration`` seconds, stopping on non-finite state.
 
@@ -126,6 +130,10 @@ def simulate(
             to; needed only when ``record`` is true.
         record: record the run on ``meshcat`` (``StartRecording`` before,
             ``PublishRecording`` after, so the animation can be replayed or saved).
+        monitors: extra per-step monitors ``f(root_context) -> EventStatus``, called in
+            order after the finiteness check; the first status that is not
+            ``Succeeded`` is returned (``ReachedTermination`` ends the run early and
+            normally, ``Failed`` raises from the simulator).
 
     Returns:
         The simulator and its (root) context at the final time.
@@ -159,8 +167,19 @@ def simulate(
 
     all_finite = _state_finite_check(diagram, simulator.get_context())
 
+    extra = list(monitors)
+    for m in extra:
+        if not callable(m):
+            raise RepertoireError(
+                f"monitors must be callables f(context) -> EventStatus, got {m!r}"
+            )
+
     def monitor(root_context: Context) -> EventStatus:
         if all_finite():
+            for m in extra:
+                status = m(root_context)
+                if status.severity() not in _CARRY_ON:
+                    return status
             return EventStatus.Succeeded()
         diverged["time"] = root_context.get_time()
         diverged["systems"] = nonfinite_state_systems(diagram, root_context)

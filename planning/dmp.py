@@ -564,7 +564,10 @@ def estimate_derivatives(
         t: Time stamps, strictly increasing, shape (N,).
         x: Samples, shape (N, n).
         method: ``"auto"``, ``"savgol"``, ``"local_poly"`` or ``"spline"``.
-        window: Savitzky-Golay / local-polynomial window (odd); default about N/40, >= 7.
+        window: Savitzky-Golay / local-polynomial window (odd). Default: savgol chooses it
+            by generalised cross-validation (see _gcv_savgol_window), so noisy
+            demonstrations are smoothed and clean ones keep about N/40 (>= 7);
+            local_poly uses about N/40, >= 7.
         smoothing: Smoothing-spline lambda.
     """
     t, x = check_demonstration(t, x)
@@ -578,8 +581,10 @@ def estimate_derivatives(
             raise RepertoireError("method='savgol' needs uniform time stamps; use 'spline'")
         h = float(dt.mean())
         max_w = n if n % 2 else n - 1
-        w = window if window is not None else max(7, 2 * (n // 80) + 1)
-        w = min(w, max_w)
+        if window is None:
+            w = _gcv_savgol_window(x, h, max_w)
+        else:
+            w = min(window, max_w)
         if w % 2 == 0 or w < 3:
             raise RepertoireError(f"Savitzky-Golay window must be odd and >= 3, got {w}")
         order = min(5, w - 1)
@@ -605,13 +610,15 @@ def estimate_derivatives(
 def _savgol_operators(w: int, order: int, h: float) -> tuple[np.ndarray, ...]:
     """Savitzky-Golay first/second-derivative operators for uniform samples, cached.
 
-    Returns ``(c1, c2, E1_first, E2_first, E1_last, E2_last)``: interior dot-product
-    coefficients, and for the ``w // 2`` samples at each edge the derivative of the
-    polynomial fitted to the edge window (scipy's ``mode="interp"``) as a matrix on it.
+    Returns ``(c1, c2, E1_first, E2_first, E1_last, E2_last, c0, E0_first, E0_last)``:
+    interior dot-product coefficients, and for the ``w // 2`` samples at each edge the
+    derivative of the polynomial fitted to the edge window (scipy's ``mode="interp"``) as a
+    matrix on it; the ``0`` entries are the smoothing (zeroth-derivative) operators.
     """
     from scipy.signal import savgol_coeffs
 
     half = w // 2
+    c0 = savgol_coeffs(w, order, deriv=0, use="dot")
     c1 = savgol_coeffs(w, order, deriv=1, delta=h, use="dot")
     c2 = savgol_coeffs(w, order, deriv=2, delta=h, use="dot")
     s = np.arange(w, dtype=float)
@@ -627,14 +634,59 @@ def _savgol_operators(w: int, order: int, h: float) -> tuple[np.ndarray, ...]:
         return (falling * powers) @ fit / (half * h) ** k
 
     first, last = u[:half], u[w - half :]
-    return c1, c2, evaluate(first, 1), evaluate(first, 2), evaluate(last, 1), evaluate(last, 2)
+    return (
+        c1,
+        c2,
+        evaluate(first, 1),
+        evaluate(first, 2),
+        evaluate(last, 1),
+        evaluate(last, 2),
+        c0,
+        evaluate(first, 0),
+        evaluate(last, 0),
+    )
+
+
+def _gcv_savgol_window(x: np.ndarray, h: float, max_w: int) -> int:
+    """Savitzky-Golay window (order 5) chosen by generalised cross-validation.
+
+    Candidates grow geometrically (x1.5) from ``max(7, 2 (N // 80) + 1)`` to about N / 4.
+    For each, the smoothed positions ``S_w x`` give ``GCV(w) = RSS / (1 - tr(S_w) / N)^2``
+    (summed over DOF); the smallest window within 1e-6 of the minimum (or of a round-off
+    floor) wins, so noise-free demonstrations keep the smallest window and stay exact for
+    minimum-jerk segments, and noisy ones get the window that averages the noise out.
+    """
+    n = x.shape[0]
+    w = min(max(7, 2 * (n // 80) + 1), max_w)
+    candidates = [w]
+    while True:
+        nxt = int(round(candidates[-1] * 1.5)) | 1
+        if nxt > min(max_w, n // 4):
+            break
+        candidates.append(nxt)
+    scores = []
+    for w in candidates:
+        order = min(5, w - 1)
+        ops = _savgol_operators(w, order, h)
+        c0, e0f, e0l = ops[6], ops[7], ops[8]
+        half = w // 2
+        smooth = np.empty_like(x)
+        windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)
+        smooth[half : n - half] = windows @ c0
+        smooth[:half], smooth[n - half :] = e0f @ x[:w], e0l @ x[-w:]
+        trace = c0[half] * (n - 2 * half) + np.trace(e0f[:, :half]) + np.trace(e0l[:, w - half :])
+        rss = float(np.sum((smooth - x) ** 2))
+        scores.append(rss / max(1.0 - trace / n, 1e-12) ** 2)
+    floor = x.size * (1e-10 * max(1.0, float(np.max(np.abs(x))))) ** 2
+    best = max(min(scores), floor) * (1.0 + 1e-6)
+    return next(w for w, g in zip(candidates, scores, strict=True) if g <= best)
 
 
 def _savgol_derivatives(
     x: np.ndarray, w: int, order: int, h: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """``savgol_filter(x, w, order, deriv=1|2, delta=h, axis=0, mode="interp")``, both at once."""
-    c1, c2, e1f, e2f, e1l, e2l = _savgol_operators(w, order, h)
+    c1, c2, e1f, e2f, e1l, e2l = _savgol_operators(w, order, h)[:6]
     half = w // 2
     windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)  # (n - w + 1, dims, w)
     xd, xdd = np.empty_like(x), np.empty_like(x)

@@ -40,18 +40,6 @@ class Demonstration:
     fingers: np.ndarray
 
 
-def _min_jerk_keyframes(keys: np.ndarray, key_times: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Rest-to-rest minimum-jerk segments between keyframes held at given times."""
-    out = np.empty((t.size, keys.shape[1]))
-    out[:] = keys[0]
-    for i in range(len(keys) - 1):
-        t0, t1 = key_times[i], key_times[i + 1]
-        sel = t >= t0
-        x, _, _ = minimum_jerk(keys[i], keys[i + 1], t1 - t0, t[sel] - t0)
-        out[sel] = x
-    return out
-
-
 def slerp_minimum_jerk(q_start: np.ndarray, q_end: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Shortest-arc interpolation with a minimum-jerk time law over ``[t[0], t[-1]]``.
 
@@ -70,39 +58,84 @@ def slerp_minimum_jerk(q_start: np.ndarray, q_end: np.ndarray, t: np.ndarray) ->
     return quat_multiply(quat_exp(s * u), q_start)
 
 
+def _slerp(q0: np.ndarray, q1: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Shortest-arc slerp from q0 to q1 at fractions s (N,)."""
+    q1 = q1 if q0 @ q1 >= 0 else -q1
+    dot = np.clip(q0 @ q1, -1.0, 1.0)
+    angle = np.arccos(dot)
+    if angle < 1e-9:
+        return np.tile(q0, (len(s), 1))
+    s = s[:, None]
+    return (np.sin((1 - s) * angle) * q0 + np.sin(s * angle) * q1) / np.sin(angle)
+
+
+def _min_jerk_profile(t: np.ndarray, t0: float, t1: float) -> np.ndarray:
+    """0 -> 1 minimum-jerk profile between t0 and t1 (0 before, 1 after)."""
+    s, _, _ = minimum_jerk(np.zeros(1), np.ones(1), t1 - t0, np.clip(t - t0, 0.0, t1 - t0))
+    return s[:, 0]
+
+
 def synthesize_demonstration(
     via_points: np.ndarray,
-    orientations: np.ndarray,
-    finger_keys: np.ndarray | None = None,
-    finger_times: np.ndarray | None = None,
-    *,
-    duration: float = 2.0,
-    n_samples: int = 481,
+    move_window: tuple,
+    q_start: np.ndarray,
+    q_end: np.ndarray,
+    turn_window: tuple,
+    fingers: list,
+    duration: float,
+    n_samples: int = 600,
 ) -> Demonstration:
-    """A minimum-jerk demonstration through via points.
+    """A synthetic demonstration: what an exoskeleton recording would give (sec. IV-B).
 
     Args:
-        via_points: Positions incl. start and end, shape (m, 3).
-        orientations: Start and end orientation (w, x, y, z), shape (2, 4).
-        finger_keys: Finger key positions, shape (r, k); None for no fingers.
-        finger_times: Fractions of the duration (in [0, 1], increasing, first 0, last 1) at
-            which the finger keys are reached.
-        duration: Duration [s].
-        n_samples: Number of samples (the paper recorded at 480 Hz).
+        via_points: end-effector via points (m x 3), a minimum-jerk path through them
+            during ``move_window`` (fractions of the duration), at rest outside it.
+        move_window: (start, end) of the position movement, fractions of ``duration``.
+        q_start: start orientation [w, x, y, z].
+        q_end: end orientation; a minimum-jerk slerp during ``turn_window``.
+        turn_window: (start, end) of the rotation, fractions of ``duration``.
+        fingers: list of (start fraction, end fraction, from (3), to (3)) minimum-jerk
+            finger movements; the hand holds between them.
+        duration: seconds.
+        n_samples: samples of the demonstration.
+
+    Returns:
+        The Demonstration (t, positions (N x 3), quaternions (N x 4), fingers (N x 3)).
     """
-    t, pos = minimum_jerk_via_points(via_points, duration, n_samples)
-    orientations = np.asarray(orientations, float)
-    if orientations.shape != (2, 4):
-        raise RepertoireError(f"orientations must have shape (2, 4), got {orientations.shape}")
-    quat = slerp_minimum_jerk(orientations[0], orientations[1], t)
-    if finger_keys is None:
-        fingers = np.zeros((t.size, 0))
-    else:
-        keys = np.atleast_2d(np.asarray(finger_keys, float))
-        times = np.linspace(0, 1, len(keys)) if finger_times is None else np.asarray(finger_times)
-        if times.shape != (len(keys),) or times[0] != 0 or times[-1] != 1:
-            raise RepertoireError("finger_times must start at 0, end at 1, one per finger key")
-        if np.any(np.diff(times) <= 0):
-            raise RepertoireError("finger_times must be increasing")
-        fingers = _min_jerk_keyframes(keys, times * duration, t)
-    return Demonstration(t, pos, quat, fingers)
+    via_points = np.asarray(via_points, float)
+    if via_points.ndim != 2 or via_points.shape[1] != 3 or len(via_points) < 2:
+        raise RepertoireError(f"via_points must have shape (m >= 2, 3), got {via_points.shape}")
+    if not np.all(np.isfinite(via_points)):
+        raise RepertoireError("via_points contain NaN or inf")
+    if not (np.isfinite(duration) and duration > 0) or int(n_samples) < 3:
+        raise RepertoireError(
+            f"duration must be > 0 and n_samples >= 3, got {duration} and {n_samples}"
+        )
+    for what, (a, b) in (("move_window", move_window), ("turn_window", turn_window)):
+        if not 0.0 <= a < b <= 1.0:
+            raise RepertoireError(f"{what} must be fractions 0 <= start < end <= 1, got {(a, b)}")
+    for what, q in (("q_start", q_start), ("q_end", q_end)):
+        q = np.asarray(q, float)
+        if q.shape != (4,) or abs(np.linalg.norm(q) - 1.0) > 1e-6:
+            raise RepertoireError(f"{what} must be a unit quaternion [w, x, y, z], got {q}")
+    if not fingers:
+        raise RepertoireError("fingers needs at least one (start, end, from, to) movement")
+    t = np.linspace(0.0, duration, n_samples)
+    t0, t1 = move_window[0] * duration, move_window[1] * duration
+    inside = (t >= t0) & (t <= t1)
+    n_in = int(inside.sum())
+    _, path = minimum_jerk_via_points(np.asarray(via_points, float), t1 - t0, n_in)
+    p = np.empty((n_samples, 3))
+    p[t < t0] = via_points[0]
+    p[inside] = path
+    p[t > t1] = via_points[-1]
+    s = _min_jerk_profile(t, turn_window[0] * duration, turn_window[1] * duration)
+    q = _slerp(np.asarray(q_start, float), np.asarray(q_end, float), s)
+    f = np.tile(np.asarray(fingers[0][2], float), (n_samples, 1))
+    for a, b, f_from, f_to in fingers:
+        s = _min_jerk_profile(t, a * duration, b * duration)
+        active = t >= a * duration
+        f[active] = (np.asarray(f_from) + np.outer(s, np.asarray(f_to) - np.asarray(f_from)))[
+            active
+        ]
+    return Demonstration(t, p, q, f)

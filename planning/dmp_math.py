@@ -525,43 +525,6 @@ def angular_velocity(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     return 2.0 * quat_multiply(qd, quat_conjugate(q))[..., 1:]
 
 
-def quaternion_derivatives(
-    q: np.ndarray,
-    eta: np.ndarray,
-    theta: np.ndarray | float,
-    goal: np.ndarray,
-    q0: np.ndarray,
-    f: np.ndarray,
-    K: float,
-    D: float,
-    tau: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """On-manifold quaternion DMP in the paper's new form, world-frame rotation vectors.
-
-    ``tau eta' = K e(g, q) - D eta - K e(g, q0) theta + K f(theta)`` and
-    ``tau q' = 0.5 eta * q``, with ``e(g, q) = 2 log(g * conj(q))`` and ``eta = tau omega``.
-
-    Args:
-        q: Orientation, shape (4,).
-        eta: Scaled angular velocity ``tau omega``, shape (3,).
-        theta: Phase.
-        goal: Goal orientation, shape (4,).
-        q0: Start orientation, shape (4,).
-        f: Forcing term, shape (3,).
-        K: Spring constant.
-        D: Damping constant.
-        tau: Temporal scaling [s].
-
-    Returns:
-        ``(q', eta')``.
-    """
-    tau_etad = (
-        K * quat_error(goal, q) - D * eta - K * quat_error(goal, q0) * theta + K * np.asarray(f)
-    )
-    qd = 0.5 * quat_multiply(np.concatenate([[0.0], eta]), q) / tau
-    return qd, tau_etad / tau
-
-
 def manifold_step(
     q: np.ndarray,
     eta: np.ndarray,

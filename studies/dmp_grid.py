@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from repertoire.studies._dmp_common import log_stride
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -126,51 +127,49 @@ def run_episode(config: GridConfig, seed: int) -> GridRecord:
     from pydrake.common.eigen_geometry import Quaternion
     from repertoire.diagrams.arm_dmp import (
         HAND_GRASP_7CM,
-        LOG_PERIOD,
         R_SIDE,
         IkTargetError,
         PickPlaceScenario,
         SegmentGoal,
-        _build_world,
-        _log,
-        _quat,
-        _rotation_from_approach,
-        _segment_timing,
         approach_direction,
+        build_arm_world,
         home_tcp_pose,
         motion_library,
+        quaternion_wxyz,
+        rotation_from_approach,
         run_arm_world,
         segment_reach_errors,
+        segment_timing,
+        tcp_log,
     )
 
     t0 = time.perf_counter()
     config.validate()
     grasp, place = config.cell(seed)
     lib = motion_library()
-    R_grasp = _rotation_from_approach(
+    R_grasp = rotation_from_approach(
         approach_direction(lib["grasp"], home_tcp_pose().translation(), grasp)
     )
     fingers = np.array(HAND_GRASP_7CM)
     goals = [
-        SegmentGoal("grasp", grasp, _quat(R_grasp), fingers),
-        SegmentGoal("place", place, _quat(R_SIDE), fingers),
+        SegmentGoal("grasp", grasp, quaternion_wxyz(R_grasp), fingers),
+        SegmentGoal("place", place, quaternion_wxyz(R_SIDE), fingers),
     ]
     scenario = PickPlaceScenario(time_step=config.time_step)
-    starts, duration = _segment_timing(["grasp", "place"], scenario.settle_time)
+    starts, duration = segment_timing(["grasp", "place"], scenario.settle_time)
     if config.sim_duration_s > 0:
         duration = min(duration, config.sim_duration_s)
     nan = float("nan")
     errors, ori_error, failure, path, wall_sim = [nan, nan], nan, "", np.zeros((0, 3)), 0.0
     try:
-        diagram = _build_world("dmp_grid", scenario, [], goals, graspable=[])
+        diagram = build_arm_world("dmp_grid", scenario, [], goals, graspable=[])
         context, wall_sim = run_arm_world(diagram, duration)
         errors = (segment_reach_errors(diagram, context) + [nan, nan])[:2]
-        log = _log(diagram, context, "tcp_log")
-        step = max(1, int(round(config.path_every_s / LOG_PERIOD)))
-        path = log[::step, 1:4]
+        log = tcp_log(diagram, context)
+        path = log.point[:: log_stride(config.path_every_s)]
         # Orientation error at the end of the grasp: from the logged palm z axis.
-        rows = np.nonzero(log[:, -1] == 0)[0]
-        z_axis = log[rows[-1], 4:7]
+        rows = np.nonzero(log.segment == 0)[0]
+        z_axis = log.axis[rows[-1]]
         z_goal = Quaternion(goals[0].orientation).rotation()[:, 2]
         ori_error = float(np.arccos(np.clip(z_axis @ z_goal, -1.0, 1.0)))
     except (IkTargetError, RepertoireError) as e:
@@ -206,7 +205,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
         ``{"grid": png, "results": md}``.
     """
     from matplotlib.figure import Figure
-    from repertoire.diagrams.arm_dmp import synthetic_demonstrations
+    from repertoire.planning.arm_library import synthetic_demonstrations
 
     out_dir = Path(out_dir)
     demos = synthetic_demonstrations()
@@ -214,7 +213,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ax = fig.add_subplot(1, 2, 2)
     for label, style in (("grasp", "-"), ("place", "--")):
-        p = demos[label][1]
+        p = demos[label].position
         ax3.plot(p[:, 0], p[:, 1], p[:, 2], color="tab:blue", lw=2.5, ls=style, zorder=5)
         ax.plot(
             p[:, 1],

@@ -8,7 +8,7 @@ the fingers hit it when nothing steers. The same layout then runs twice in the
 ``arm_pick_and_place`` world: with the DMP coupling term (eq. 10 at the tcp,
 the cup's lower part, the two finger groups and the palm (centre and ends),
 faded with the distance to the ball:
-:class:`repertoire.systems.task_space.MultiPointObstacleCoupling`) and without it.
+:class:`repertoire.systems.obstacle_coupling.MultiPointObstacleCoupling`) and without it.
 Recorded per arm: success (the cup stands on the coaster, within 2 cm of its
 centre), collision-free (the smallest signed distance between the
 ball and any collision geometry of the arm, hand, fingers or cup, from
@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from repertoire.studies._dmp_common import carry_control_points, obstacle_radius, tcp_path
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -68,17 +69,7 @@ class ObstacleArmConfig:
     obstacle_gamma: float = 50000.0
     obstacle_beta: float = 4.0
     obstacle_length_scale: float = 0.03
-    obstacle_points: list[list[float]] = dataclasses.field(
-        default_factory=lambda: [
-            [0.0, 0.0, 0.0],
-            [-0.045, 0.0, 0.0],
-            [0.0, 0.06, 0.0],
-            [0.0, -0.06, 0.0],
-            [0.0, 0.0, -0.085],
-            [0.0, 0.065, -0.085],
-            [0.0, -0.065, -0.085],
-        ]
-    )
+    obstacle_points: list[list[float]] = dataclasses.field(default_factory=carry_control_points)
     time_step: float = 0.004
     sim_duration_s: float = 0.0
     path_every_s: float = 0.1
@@ -179,7 +170,9 @@ def sample_scenario(config: ObstacleArmConfig, seed: int, *, coupling: bool = Tr
             f"no ball placement {HOME_CLEARANCE} m away from the tcp at home in 100 draws; "
             "move path_fraction away from the middle of the carry path"
         )
-    gap = float(np.min(np.linalg.norm(carry_path(cup, coaster) - centre, axis=1)) - 0.06)
+    gap = float(
+        np.min(np.linalg.norm(carry_path(cup, coaster) - centre, axis=1)) - obstacle_radius()
+    )
     scenario = PickPlaceScenario(
         time_step=config.time_step,
         cup_xy=cup,
@@ -203,7 +196,6 @@ def _run(scenario, config: ObstacleArmConfig) -> dict:
         plan_pick_and_place,
         run_arm_world,
     )
-    from repertoire.studies.dmp_pick_place import tcp_path
 
     out = {"failure": "", "path": np.zeros((0, 3)), "duration": 0.0, "wall": 0.0}
     try:
@@ -289,12 +281,13 @@ def summarize(
     )
     for col, arm in enumerate(ARMS):
         top, side = axes[0, col], axes[1, col]
+        radius = obstacle_radius()
         for k, r in enumerate(shown):
             shade = 0.35 + 0.65 * (k + 1) / len(shown)
             o = r.obstacle_xyz
-            top.add_patch(Circle((o[1], o[0]), 0.06, color="tab:blue", alpha=0.25))
-            side.add_patch(Circle((o[1], o[2]), 0.06, color="tab:blue", alpha=0.25))
-            side.plot([o[1], o[1]], [0.75, o[2] - 0.06], color="tab:gray", lw=1.5)  # its post
+            top.add_patch(Circle((o[1], o[0]), radius, color="tab:blue", alpha=0.25))
+            side.add_patch(Circle((o[1], o[2]), radius, color="tab:blue", alpha=0.25))
+            side.plot([o[1], o[1]], [0.75, o[2] - radius], color="tab:gray", lw=1.5)  # its post
             if r.path_x[arm]:
                 y, x, z = np.array(r.path_y[arm]), np.array(r.path_x[arm]), np.array(r.path_z[arm])
                 top.plot(y, x, color=colors[arm], alpha=shade, lw=1.0)

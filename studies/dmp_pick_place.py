@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from repertoire.studies._dmp_common import carry_control_points, obstacle_radius, tcp_path
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -63,17 +64,7 @@ class PickPlaceConfig:
     obstacle_gamma: float = 50000.0
     obstacle_beta: float = 4.0
     obstacle_length_scale: float = 0.03
-    obstacle_points: list[list[float]] = dataclasses.field(
-        default_factory=lambda: [
-            [0.0, 0.0, 0.0],
-            [-0.045, 0.0, 0.0],
-            [0.0, 0.06, 0.0],
-            [0.0, -0.06, 0.0],
-            [0.0, 0.0, -0.085],
-            [0.0, 0.065, -0.085],
-            [0.0, -0.065, -0.085],
-        ]
-    )
+    obstacle_points: list[list[float]] = dataclasses.field(default_factory=carry_control_points)
     grasp_mode: str = "contact"
     time_step: float = 0.004
     sim_duration_s: float = 0.0
@@ -189,15 +180,6 @@ def sample_scenario(config: PickPlaceConfig, seed: int):
     )
 
 
-def tcp_path(diagram, context, every_s: float) -> np.ndarray:
-    """The logged tcp positions, one every ``every_s`` seconds (k x 3)."""
-    from repertoire.diagrams.arm_dmp import LOG_PERIOD, _log
-
-    log = _log(diagram, context, "tcp_log")
-    step = max(1, int(round(every_s / LOG_PERIOD)))
-    return log[::step, 1:4]
-
-
 def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
     """Builds and runs one seeded pick-and-place episode.
 
@@ -282,17 +264,19 @@ def carry_clearance(record: PickPlaceRecord, config: PickPlaceConfig) -> float:
     Read from the stored tcp path (one point every ``path_every_s`` from t = 0) over
     the place segment's time window.
     """
-    from repertoire.diagrams.arm_dmp import PICK_PLACE_LABELS, PickPlaceScenario, _segment_timing
+    from repertoire.diagrams.arm_dmp import PICK_PLACE_LABELS, PickPlaceScenario, segment_timing
 
     if not record.path_x:
         return float("nan")
-    starts, _ = _segment_timing(PICK_PLACE_LABELS, PickPlaceScenario().settle_time)
+    starts, _ = segment_timing(PICK_PLACE_LABELS, PickPlaceScenario().settle_time)
     t = np.arange(len(record.path_x)) * config.path_every_s
     rows = (t >= starts[1]) & (t < starts[2])
     if not rows.any():
         return float("nan")
     p = np.column_stack([record.path_x, record.path_y, record.path_z])[rows]
-    return float(np.min(np.linalg.norm(p - np.asarray(record.obstacle_xyz), axis=1)) - 0.06)
+    return float(
+        np.min(np.linalg.norm(p - np.asarray(record.obstacle_xyz), axis=1)) - obstacle_radius()
+    )
 
 
 def summarize(
@@ -304,26 +288,29 @@ def summarize(
         ``{"top_view": png, "distances": png, "results": md}``.
     """
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
     from matplotlib.patches import Circle
 
     out_dir = Path(out_dir)
     fig = Figure(figsize=(11, 5), layout="constrained")
     ax, ax2 = fig.subplots(1, 2, width_ratios=[1.3, 1])
+
+    radius = obstacle_radius()
     for k, r in enumerate(records):
         color = "tab:green" if r.success else "tab:red"
         if k < 25 and r.path_x:
             ax.plot(r.path_y, r.path_x, color=color, lw=0.7, alpha=0.6)
-        ax.plot(r.cup_xy[1], r.cup_xy[0], "o", color="tab:red", ms=4, mfc="none")
+        ax.plot(r.cup_xy[1], r.cup_xy[0], "o", color="tab:purple", ms=4, mfc="none")
         ax.annotate(
             "",
             xy=(r.coaster_final_xy[1], r.coaster_final_xy[0]),
             xytext=(r.coaster_xy[1], r.coaster_xy[0]),
-            arrowprops={"arrowstyle": "->", "color": "tab:green", "lw": 0.6},
+            arrowprops={"arrowstyle": "->", "color": "tab:brown", "lw": 0.6},
         )
         ax.add_patch(
             Circle(
                 (r.obstacle_xyz[1], r.obstacle_xyz[0]),
-                0.06,
+                radius,
                 fill=False,
                 color="tab:blue",
                 lw=0.4,
@@ -334,9 +321,17 @@ def summarize(
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()
     ax.set_aspect("equal")
-    ax.set_title(
-        "top view: cups (o), coaster moves (arrows), balls (blue circles),\n"
-        "tcp paths of the first 25 episodes (green success, red failure)"
+    ax.set_title(f"top view of {len(records)} episodes (tcp paths: first 25)")
+    ax.legend(
+        handles=[
+            Line2D([], [], color="tab:green", lw=1, label="tcp path, success"),
+            Line2D([], [], color="tab:red", lw=1, label="tcp path, failure"),
+            Line2D([], [], ls="", marker="o", mfc="none", color="tab:purple", label="cup start"),
+            Line2D([], [], color="tab:brown", lw=1, marker=">", label="coaster move"),
+            Line2D([], [], ls="", marker="o", mfc="none", ms=10, color="tab:blue", label="ball"),
+        ],
+        fontsize=8,
+        loc="best",
     )
     d = np.array([r.cup_to_coaster_m for r in records], dtype=float)
     finite = d[np.isfinite(d)]

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from repertoire.studies._dmp_common import log_stride
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -128,11 +129,10 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
         seed: the episode seed.
     """
     from repertoire.diagrams.arm_dmp import (
-        LOG_PERIOD,
         IkTargetError,
-        _log,
         build_serving_water,
         plan_serving,
+        point_log,
         run_arm_world,
         serving_figures,
     )
@@ -151,7 +151,8 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
         "pour_reach_error_m",
     )
     figures = dict.fromkeys(keys, nan)
-    failure, tip, wall_sim, duration, served = "", np.zeros((0, 7)), 0.0, 0.0, 0
+    failure, wall_sim, duration, served = "", 0.0, 0.0, 0
+    tip_x = tip_y = tip_z = np.zeros(0)
     try:
         _, duration = plan_serving(scenario)
         if config.sim_duration_s > 0:
@@ -161,12 +162,13 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
         all_figures = serving_figures(diagram, context)
         served = int(all_figures["cups_served"])
         figures.update({k: all_figures[k] for k in keys})
-        step = max(1, int(round(config.path_every_s / LOG_PERIOD)))
-        tip = _log(diagram, context, "tip_log")[::step]
+        tip = point_log(diagram, context, "tip_log")
+        step = log_stride(config.path_every_s)
+        tip_x, tip_y, tip_z = tip.point[::step, 0], tip.point[::step, 1], tip.axis[::step, 2]
     except (IkTargetError, RepertoireError) as e:
         failure = str(e)
     success = not failure and served == 3 and figures["max_cup_displacement_m"] < 0.01
-    tilt = np.arccos(np.clip(tip[:, 6], -1.0, 1.0)) if len(tip) else np.zeros(0)
+    tilt = np.arccos(np.clip(tip_z, -1.0, 1.0))
     return ServingRecord(
         bottle_xy=scenario.bottle_xy,
         cup_xys=[float(v) for xy in scenario.cup_xys for v in xy],
@@ -174,8 +176,8 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
         cups_served=served,
         **{k: float(v) for k, v in figures.items()},
         failure=failure,
-        tip_x=[round(float(v), 5) for v in tip[:, 1]],
-        tip_y=[round(float(v), 5) for v in tip[:, 2]],
+        tip_x=[round(float(v), 5) for v in tip_x],
+        tip_y=[round(float(v), 5) for v in tip_y],
         tip_tilt=[round(float(v), 4) for v in tilt],
         sim_time_s=float(duration),
         wall_time_s=time.perf_counter() - t0,
@@ -200,6 +202,7 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     """
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle
+    from repertoire.models.arm7 import CUP_RADIUS
 
     out_dir = Path(out_dir)
     fig = Figure(figsize=(11, 5), layout="constrained")
@@ -213,15 +216,16 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
         ax.plot(np.where(pouring, y, np.nan), np.where(pouring, x, np.nan), color=color, lw=1.2)
         for j in range(3):
             cx, cy = r.cup_xys[2 * j], r.cup_xys[2 * j + 1]
-            ax.add_patch(Circle((cy, cx), 0.035, fill=False, color="tab:red", lw=0.5))
+            ax.add_patch(Circle((cy, cx), CUP_RADIUS, fill=False, color="tab:purple", lw=0.5))
         ax.plot(r.bottle_xy[1], r.bottle_xy[0], "s", color="tab:blue", ms=4, mfc="none")
     ax.set_xlabel("y (m, left)")
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()
     ax.set_aspect("equal")
     ax.set_title(
-        "bottle tip, first 12 episodes (grey; bold while tilted > 60 deg),\n"
-        "cups (red circles), bottles (blue squares)"
+        "bottle tip, first 12 episodes (grey; while tilted > 60 deg:\n"
+        "green in a successful episode, red in a failed one),\n"
+        "cups (purple circles), bottles (blue squares)"
     )
     d = np.array(
         [[r.tip_to_cup_1_m, r.tip_to_cup_2_m, r.tip_to_cup_3_m] for r in records], dtype=float

@@ -5,6 +5,10 @@ et al. 2009, eq. 1-10). Conventions: the transformation state is ``(x, v)`` with
 ``v = tau dx/dt`` (the paper's scaled velocity); output ports give physical velocity and
 acceleration. Gains, weights, basis, tau and x0 are numeric parameters, so a Monte-Carlo
 run can vary them in the Context without rebuilding.
+
+Over 600 lines on purpose: one concept (the DMP's LeafSystems), with the continuous and the
+discrete (1 kHz, exact first-order-hold) forms side by side so they can be compared and
+tested against each other.
 """
 
 import numpy as np

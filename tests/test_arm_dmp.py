@@ -10,15 +10,16 @@ from repertoire.diagrams.arm_dmp import (
     PickPlaceScenario,
     SegmentGoal,
     ServingScenario,
-    _build_world,
-    _quat,
-    _rotation_from_approach,
     approach_direction,
+    build_arm_world,
     build_pick_and_place,
     build_serving_water,
     home_tcp_pose,
     motion_library,
     plan_pick_and_place,
+    plan_serving,
+    quaternion_wxyz,
+    rotation_from_approach,
     run_arm_world,
     shoulder_and_reach,
 )
@@ -47,11 +48,11 @@ def test_motion_library_reproduces_its_demonstrations():
 
 
 def test_grasp_orientation_from_approach_direction():
-    R = _rotation_from_approach(np.array([2.0, 0.0, -1.0]))
+    R = rotation_from_approach(np.array([2.0, 0.0, -1.0]))
     assert np.allclose(R.matrix(), R_SIDE.matrix())
     assert np.allclose(R.matrix()[:, 0], [0, 0, 1])  # x_palm up: the cup's axis
     with pytest.raises(RepertoireError, match="no horizontal part"):
-        _rotation_from_approach(np.array([0.0, 0.0, -1.0]))
+        rotation_from_approach(np.array([0.0, 0.0, -1.0]))
     lib = motion_library()
     home = home_tcp_pose().translation()
     goal = np.array([0.50, -0.20, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
@@ -67,8 +68,10 @@ def test_pick_and_place_simulates_briefly_and_tracks_the_dmp():
     context, wall = run_arm_world(diagram, 0.6)
     p_tcp, p_dmp = _tcp_and_dmp(diagram, context)
     assert np.linalg.norm(p_tcp - p_dmp) < 0.01
-    assert np.linalg.norm(p_dmp - home_tcp_pose().translation()) > 0.02  # it is moving
-    assert wall > 0.0
+    assert context.get_time() == 0.6
+    # The DMP chain's position at 0.6 s (deterministic: measured once, 8.7 cm from home).
+    assert p_dmp == pytest.approx([0.52764646, -0.12793492, 0.90584354], abs=1e-6)
+    assert np.isfinite(wall)
 
 
 def test_serving_simulates_briefly():
@@ -80,9 +83,14 @@ def test_serving_simulates_briefly():
 
 
 def test_registered_worlds():
-    for name in ("arm_pick_and_place", "arm_serving_water"):
-        entry = get_diagram_entry(name)
-        assert entry.check is not None and entry.duration > 5.0
+    # Each world's registered duration is its plan's length (all segments and settling).
+    pick = get_diagram_entry("arm_pick_and_place")
+    assert pick.build is build_pick_and_place
+    assert pick.duration == plan_pick_and_place(PickPlaceScenario())[1] == 7.75
+    serving = get_diagram_entry("arm_serving_water")
+    assert serving.build is build_serving_water
+    assert serving.duration == pytest.approx(plan_serving(ServingScenario())[1], abs=1e-12)
+    assert serving.duration == 14.1
 
 
 def test_sequences_come_from_the_motion_library():
@@ -127,10 +135,10 @@ def test_goal_out_of_reach_is_refused_before_building():
 
 def test_target_leaving_the_reach_during_a_run_stops_it():
     scenario = PickPlaceScenario()
-    q = _quat(R_SIDE)
+    q = quaternion_wxyz(R_SIDE)
     # A goal tied to the cup but 0.9 m above it: out of reach only once the run starts.
     goals = [SegmentGoal("grasp", np.array([0, 0, 0.9]), q, np.array(HAND_GRASP_7CM), "cup:cup")]
-    diagram = _build_world(
+    diagram = build_arm_world(
         "unreachable",
         scenario,
         [ArmObject(name="cup", kind="cup", xy=[0.55, -0.25])],
@@ -142,9 +150,9 @@ def test_target_leaving_the_reach_during_a_run_stops_it():
 
 
 def test_goal_of_the_wrong_size_is_refused():
-    from repertoire.diagrams.arm_dmp import GoalSchedule
+    from repertoire.systems.arm_goals import GoalSchedule
 
-    q = _quat(R_SIDE)
+    q = quaternion_wxyz(R_SIDE)
     fingers = np.array(HAND_GRASP_7CM)
     with pytest.raises(RepertoireError, match="position must be 3 finite numbers"):
         GoalSchedule([SegmentGoal("grasp", np.zeros(2), q, fingers)])
@@ -233,3 +241,32 @@ def test_default_world_avoids_the_ball_on_the_carry_path_only_with_coupling():
     assert figures[True]["min_ball_gap_m"] > 0.005
     assert figures[False]["collision_free"] == 0.0 and figures[False]["min_ball_gap_m"] < 0.0
     assert figures[False]["success"] == 0.0  # the cup is knocked off its path
+
+
+def test_simulate_runs_extra_monitors_in_order_and_stops_on_termination():
+    from pydrake.systems.framework import DiagramBuilder, EventStatus
+    from pydrake.systems.primitives import ConstantVectorSource, Integrator
+    from repertoire.diagrams.simulate import simulate
+
+    builder = DiagramBuilder()
+    source = builder.AddSystem(ConstantVectorSource([1.0]))
+    integrator = builder.AddNamedSystem("integrator", Integrator(1))
+    builder.Connect(source.get_output_port(), integrator.get_input_port())
+    diagram = builder.Build()
+    calls = []
+
+    def first(context):
+        calls.append("first")
+        return EventStatus.DidNothing()
+
+    def stop_after_half_a_second(context):
+        calls.append("second")
+        if context.get_time() >= 0.5:
+            return EventStatus.ReachedTermination(diagram, "half a second")
+        return EventStatus.Succeeded()
+
+    _, context = simulate(diagram, 2.0, monitors=[first, stop_after_half_a_second])
+    assert 0.5 <= context.get_time() < 2.0  # stopped early, normally
+    assert calls[:2] == ["first", "second"] and calls.count("first") == calls.count("second")
+    with pytest.raises(RepertoireError, match="monitors must be callables"):
+        simulate(diagram, 1.0, monitors=[3])

@@ -8,11 +8,45 @@ from repertoire.studies import dmp_grid, dmp_obstacle_arm, dmp_pick_place, dmp_s
 
 from repertoire.errors import RepertoireError
 
+# Seed 3 at smoke size (0.2-0.3 s of simulation): the figures each record must hold
+# (measured once; deterministic), and the files each summary writes.
+SMOKE_EXPECTED = {
+    "dmp_grid": (
+        {"cell": 0, "reached": False, "grasp_reach_error_m": 0.2798825340912381},
+        {"grid", "results"},
+    ),
+    "dmp_pick_place": (
+        {
+            "success": False,
+            "collision_free": True,
+            "grasp_reach_error_m": 0.23674098971825003,
+            "min_ball_gap_m": 0.023226100510671407,
+            "cup_to_coaster_m": 0.35630108377405284,
+        },
+        {"errors", "results", "top_view"},
+    ),
+    "dmp_serving": (
+        {"success": False, "cups_served": 0, "bottle_in_hand_m": 0.25105020033910314},
+        {"results", "top_view"},
+    ),
+    "dmp_obstacle_arm": (
+        {
+            "success": {"coupled": False, "uncoupled": False},
+            "uncoupled_path_gap_m": -0.05430767892268275,
+            "min_ball_gap_m": {"coupled": 0.019954150481016827, "uncoupled": 0.019954150481016827},
+        },
+        {"gaps", "paths", "results"},
+    ),
+}
+
 
 @pytest.mark.parametrize("module", [dmp_grid, dmp_pick_place, dmp_serving, dmp_obstacle_arm])
 def test_smoke_episode_is_deterministic_and_summarizes(module, tmp_path):
     config = module.smoke_config()
     first = module.run_episode(config, 3)
+    figures, file_keys = SMOKE_EXPECTED[module.__name__.rsplit(".", 1)[1]]
+    for key, value in figures.items():
+        assert getattr(first, key) == pytest.approx(value, rel=1e-6), key
     again = module.run_episode(config, 3)
     a, b = dataclasses.asdict(first), dataclasses.asdict(again)
     for key in a:
@@ -21,6 +55,7 @@ def test_smoke_episode_is_deterministic_and_summarizes(module, tmp_path):
     assert first.failure in ("", {"coupled": "", "uncoupled": ""})
     assert first.wall_sim_s > 0.0
     files = module.summarize([first], config, tmp_path)
+    assert set(files) == file_keys
     for path in files.values():
         assert path.is_file() and path.stat().st_size > 0
 

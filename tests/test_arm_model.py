@@ -233,6 +233,13 @@ def test_world_validation_errors(objects, match):
 def test_welded_cup_in_the_air_is_allowed():
     world = ArmWorld(objects=[ArmObject(name="a", z_above_table=0.1, mount="welded")])
     world.validate()
+    plant = MultibodyPlant(0.0)
+    instances = arm7.add_arm_world(plant, world)
+    plant.Finalize()
+    cup = plant.GetBodyByName("cup", instances["a"])
+    X_WC = cup.EvalPoseInWorld(plant.CreateDefaultContext())
+    assert X_WC.translation() == pytest.approx([0.5, 0.0, arm7.TABLE_HEIGHT + 0.1], abs=1e-15)
+    assert plant.num_positions() == 0  # welded: no free-body coordinates
 
 
 def test_side_grasp_rotation_closed_form():

@@ -9,19 +9,19 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import BodyIndex
 from pydrake.systems.analysis import Simulator
 from repertoire.planning.dmp_math import obstacle_coupling
+from repertoire.systems.grasp import GraspWrench, grip_wrench
+from repertoire.systems.obstacle_coupling import (
+    MultiPointObstacleCoupling,
+    multi_point_obstacle_coupling,
+)
 from repertoire.systems.task_space import (
     STATUS_OK,
     STATUS_TARGET_OUT_OF_REACH,
     STATUS_TRACKING_LOST,
-    GraspWrench,
-    JointReferenceMux,
-    MultiPointObstacleCoupling,
     ResolvedMotionRateIK,
     check_reachable,
     damped_pseudoinverse,
-    grip_wrench,
     joint_limit_gradient,
-    multi_point_obstacle_coupling,
     quaternion_error,
     quaternion_multiply,
     reach_bound,
@@ -307,24 +307,6 @@ def test_grasp_wrench_latches_and_releases():
         )
 
 
-def test_joint_reference_mux_orders_arm_and_hand():
-    mux = JointReferenceMux([0, 1, 3], [2, 4])
-    context = mux.CreateDefaultContext()
-    mux.GetInputPort("arm_reference_state").FixValue(context, [1, 2, 3, 10, 20, 30])
-    mux.GetInputPort("arm_reference_acceleration").FixValue(context, [100, 200, 300])
-    mux.GetInputPort("hand_position").FixValue(context, [7, 8])
-    mux.GetInputPort("hand_velocity").FixValue(context, [70, 80])
-    mux.GetInputPort("hand_acceleration").FixValue(context, [700, 800])
-    assert np.array_equal(
-        mux.GetOutputPort("desired_state").Eval(context), [1, 2, 7, 3, 8, 10, 20, 70, 30, 80]
-    )
-    assert np.array_equal(
-        mux.GetOutputPort("desired_acceleration").Eval(context), [100, 200, 700, 300, 800]
-    )
-    with pytest.raises(RepertoireError, match="permutation"):
-        JointReferenceMux([0, 1], [1, 2])
-
-
 def _demo_dmp(p0, p1, duration=1.0):
     from repertoire.planning.dmp import learn_task_space_dmp
     from repertoire.planning.dmp_math import minimum_jerk
@@ -337,7 +319,7 @@ def _demo_dmp(p0, p1, duration=1.0):
 
 
 def test_dmp_chain_single_segment_matches_the_rollout():
-    from repertoire.systems.task_space import TaskSpaceDmpChain, stack_task_space_dmp
+    from repertoire.systems.task_space_chain import TaskSpaceDmpChain, stack_task_space_dmp
 
     dmp = _demo_dmp([0.5, 0.0, 0.9], [0.6, -0.1, 0.8])
     x0 = np.concatenate([[0.5, 0.0, 0.9], [1, 0, 0, 0], np.zeros(3)])
@@ -367,7 +349,7 @@ def test_dmp_chain_single_segment_matches_the_rollout():
 
 
 def test_dmp_chain_hands_over_position_and_velocity():
-    from repertoire.systems.task_space import TaskSpaceDmpChain
+    from repertoire.systems.task_space_chain import TaskSpaceDmpChain
 
     first = _demo_dmp([0.5, 0.0, 0.9], [0.6, 0.0, 0.9])
     second = _demo_dmp([0.6, 0.0, 0.9], [0.6, 0.1, 0.9], duration=0.8)
@@ -394,7 +376,7 @@ def test_dmp_chain_hands_over_position_and_velocity():
 
 
 def test_dmp_chain_bad_input():
-    from repertoire.systems.task_space import TaskSpaceDmpChain
+    from repertoire.systems.task_space_chain import TaskSpaceDmpChain
 
     dmp = _demo_dmp([0.5, 0.0, 0.9], [0.6, -0.1, 0.8])
     x0 = np.concatenate([[0.5, 0.0, 0.9], [1, 0, 0, 0], np.zeros(3)])

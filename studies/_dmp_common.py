@@ -1,0 +1,47 @@
+"""Helpers shared by the arm DMP studies (grid, pick-and-place, serving, obstacle arm).
+
+Logged paths subsampled for figures, the default carry control points, the ball's radius.
+
+The diagrams layer is imported inside the functions, as the studies do, so importing a study
+module stays cheap.
+"""
+
+import numpy as np
+
+
+def log_stride(every_s: float) -> int:
+    """How many log samples to step to keep one every ``every_s`` seconds (>= 1).
+
+    Args:
+        every_s: Wanted spacing of the kept samples [s].
+    """
+    from repertoire.diagrams.arm_dmp import LOG_PERIOD
+
+    return max(1, int(round(every_s / LOG_PERIOD)))
+
+
+def tcp_path(diagram, context, every_s: float) -> np.ndarray:
+    """The logged tcp positions, one every ``every_s`` seconds, shape (k, 3) [m].
+
+    Args:
+        diagram: An arm world after a run.
+        context: Its root context.
+        every_s: Spacing of the kept samples [s].
+    """
+    from repertoire.diagrams.arm_dmp import tcp_log
+
+    return tcp_log(diagram, context).point[:: log_stride(every_s)]
+
+
+def carry_control_points() -> list[list[float]]:
+    """The default eq.-10 control points while carrying (``arm_dmp.CARRY_CONTROL_POINTS``)."""
+    from repertoire.diagrams.arm_dmp import CARRY_CONTROL_POINTS
+
+    return [list(p) for p in CARRY_CONTROL_POINTS]
+
+
+def obstacle_radius() -> float:
+    """Radius of the ball obstacle [m] (``models.arm7.OBSTACLE_RADIUS``)."""
+    from repertoire.models.arm7 import OBSTACLE_RADIUS
+
+    return float(OBSTACLE_RADIUS)

@@ -1,0 +1,93 @@
+"""Goals of the arm's DMP chain segments: fixed, or following a body (Pastor et al. 2009, Fig. 13).
+
+:class:`SegmentGoal` is one segment's goal; :class:`GoalSchedule` gives the chain the goal of
+its active segment, re-reading a tracked body's pose every step (the paper's moving coaster).
+"""
+
+import dataclasses
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
+
+from repertoire.errors import RepertoireError
+
+
+@dataclasses.dataclass
+class SegmentGoal:
+    """The goal of one chain segment.
+
+    Attributes:
+        label: motion library label.
+        position: fixed goal position (3), or the offset from ``body`` when tracking.
+        orientation: goal quaternion [w, x, y, z].
+        fingers: goal finger angles (3).
+        body: a tracked body (the goal follows it) as a body index or "instance:body",
+            or -1 for a fixed goal.
+    """
+
+    label: str
+    position: np.ndarray
+    orientation: np.ndarray
+    fingers: np.ndarray
+    body: int | str = -1
+
+
+class GoalSchedule(LeafSystem):
+    """Gives the DMP chain the goal of its active segment; tracked goals follow a body.
+
+    This is the "vision" of the paper's experiment: a goal tied to a body (the
+    coaster) is re-read from the plant every step, so the DMP's goal changes when
+    the body moves.
+
+    Input ports:
+        segment: [active segment index] (1).
+        body_poses: the plant's body poses (abstract).
+
+    Output ports:
+        goal: [p (3), q (4), fingers (3)] (10).
+    """
+
+    def __init__(self, goals: list[SegmentGoal]):
+        """Builds the schedule.
+
+        Args:
+            goals: one goal per chain segment.
+
+        Raises:
+            RepertoireError: a goal of the wrong size, not finite, or a non-unit
+                orientation.
+        """
+        super().__init__()
+        for k, g in enumerate(goals):
+            for what, value, size in (
+                ("position", g.position, 3),
+                ("orientation", g.orientation, 4),
+                ("fingers", g.fingers, 3),
+            ):
+                v = np.asarray(value, dtype=float).reshape(-1)
+                if v.size != size or not np.all(np.isfinite(v)):
+                    raise RepertoireError(
+                        f"goal {k} ({g.label}): {what} must be {size} finite numbers, got "
+                        f"{np.asarray(value).tolist()}"
+                    )
+            norm = float(np.linalg.norm(g.orientation))
+            if abs(norm - 1.0) > 1e-6:
+                raise RepertoireError(
+                    f"goal {k} ({g.label}): orientation must be a unit quaternion [w, x, y, z], "
+                    f"its norm is {norm:.6f} (off by {abs(norm - 1.0):.2e})"
+                )
+        self._goals = goals
+        self._segment = self.DeclareVectorInputPort("segment", 1)
+        self._poses = self.DeclareAbstractInputPort(
+            "body_poses", AbstractValue.Make([RigidTransform()])
+        )
+        self.DeclareVectorOutputPort("goal", 10, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        g = self._goals[int(self._segment.Eval(context)[0])]
+        p = np.asarray(g.position, float)
+        if g.body >= 0:
+            p = self._poses.Eval(context)[g.body].translation() + p
+        output.SetFromVector(np.concatenate([p, g.orientation, g.fingers]))

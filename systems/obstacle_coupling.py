@@ -1,0 +1,181 @@
+"""Obstacle avoidance coupling term (Pastor et al. 2009, eq. 10) at several points of the hand.
+
+:func:`multi_point_obstacle_coupling` is the math, :class:`MultiPointObstacleCoupling`
+the LeafSystem. Split out of systems/task_space.py (one concept per module).
+"""
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RotationMatrix
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
+from repertoire.planning.dmp_math import (
+    obstacle_coupling,
+)
+
+from repertoire.errors import RepertoireError
+
+
+# ----------------------------------------------------------------------------- obstacle coupling
+def multi_point_obstacle_coupling(
+    x: np.ndarray,
+    xd: np.ndarray,
+    R_WE: np.ndarray,
+    points_E: np.ndarray,
+    obstacle: np.ndarray,
+    gamma: float,
+    beta: float,
+    *,
+    obstacle_radius: float = 0.0,
+    length_scale: float = 0.0,
+) -> np.ndarray:
+    """Eq. 10 applied at several control points of the hand and its load, summed.
+
+    Control point ``i`` sits at ``c_i = x + R_WE @ points_E[i]`` (``x`` is the
+    end-effector's position, ``R_WE`` its orientation); it moves with the
+    end-effector's linear velocity ``xd`` (the rotation's contribution is left out:
+    the orientation DMPs turn slowly while carrying). Each point gets the paper's
+    term ``p_i = gamma R_i v phi_i exp(-beta phi_i)``
+    (:func:`repertoire.planning.dmp_math.obstacle_coupling`, same axis sign) and
+    the sum drives the end-effector's position DMP::
+
+        p = sum_i s(d_i) p_i,   s(d) = exp(-max(d - obstacle_radius, 0) / length_scale)
+
+    with ``d_i = |c_i - o|``. ``length_scale = 0`` gives ``s = 1``: the paper's
+    eq. 10 exactly, summed over the points (with the single point ``[0, 0, 0]`` it
+    *is* eq. 10 on the end-effector). ``length_scale > 0`` is our extension: eq. 10
+    depends on the angle only, so a gain strong enough to clear a cup-sized load
+    (which needs a smaller ``beta``, acting over a wider angle) would also bend the
+    movement far from the obstacle and keep it from its goal; the distance factor
+    fades the term out beyond a few ``length_scale`` from the ball's surface.
+
+    Args:
+        x: End-effector position in W, shape (3,).
+        xd: End-effector velocity dx/dt in W, shape (3,).
+        R_WE: End-effector orientation (3 x 3 rotation matrix).
+        points_E: Control points in the end-effector frame E, shape (k, 3), k >= 1.
+        obstacle: Obstacle centre o in W, shape (3,).
+        gamma: Gain of eq. 10 (>= 0).
+        beta: Angular decay of eq. 10 (the paper's c, >= 0).
+        obstacle_radius: Radius of the obstacle [m] (>= 0), where ``s`` is 1.
+        length_scale: Decay length of ``s`` [m] (>= 0; 0 switches the factor off).
+
+    Returns:
+        The summed coupling term, shape (3,).
+
+    Raises:
+        RepertoireError: a negative gain, radius or length, or badly shaped points.
+    """
+    if gamma < 0 or beta < 0 or obstacle_radius < 0 or length_scale < 0:
+        raise RepertoireError(
+            "gamma, beta, obstacle_radius and length_scale must be >= 0, got "
+            f"{gamma}, {beta}, {obstacle_radius}, {length_scale}"
+        )
+    pts = np.asarray(points_E, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] == 0 or not np.all(np.isfinite(pts)):
+        raise RepertoireError(
+            f"control points must be a non-empty k x 3 array of finite numbers, got shape "
+            f"{pts.shape}"
+        )
+    x = np.asarray(x, dtype=float).reshape(3)
+    o = np.asarray(obstacle, dtype=float).reshape(3)
+    R = np.asarray(R_WE, dtype=float).reshape(3, 3)
+    total = np.zeros(3)
+    for c in x + pts @ R.T:
+        scale = 1.0
+        if length_scale > 0.0:
+            gap = max(float(np.linalg.norm(c - o)) - obstacle_radius, 0.0)
+            scale = float(np.exp(-gap / length_scale))
+            if scale < 1e-12:
+                continue
+        total += scale * obstacle_coupling(c, xd, o, gamma, beta)
+    return total
+
+
+class MultiPointObstacleCoupling(LeafSystem):
+    """Eq. 10 at several control points (tcp, the carried cup, the fingers), summed.
+
+    Wraps :func:`multi_point_obstacle_coupling`; with the single control point
+    ``[0, 0, 0]`` and ``length_scale = 0`` it outputs the paper's eq. 10 on the
+    end-effector (as ``repertoire.systems.dmp.ObstacleCoupling``).
+
+    Input ports:
+        position: end-effector position x in W (3).
+        velocity: end-effector velocity dx/dt in W (3).
+        orientation: end-effector orientation [w, x, y, z] (4; normalised here).
+        obstacle: obstacle centre o in W (3).
+
+    Output ports:
+        coupling: the summed coupling term p (3), for the DMP chain's ``coupling`` input.
+
+    Numeric parameters: [gamma, beta, obstacle_radius, length_scale].
+    """
+
+    def __init__(
+        self,
+        points_E: np.ndarray,
+        *,
+        gamma: float = 1000.0,
+        beta: float = 20.0 / np.pi,
+        obstacle_radius: float = 0.0,
+        length_scale: float = 0.0,
+    ) -> None:
+        """Builds the coupling.
+
+        Args:
+            points_E: control points in the end-effector frame, shape (k, 3).
+            gamma: gain of eq. 10.
+            beta: angular decay of eq. 10.
+            obstacle_radius: obstacle radius [m] for the distance factor.
+            length_scale: decay length of the distance factor [m] (0: off, exact eq. 10).
+
+        Raises:
+            RepertoireError: negative gains or badly shaped control points.
+        """
+        super().__init__()
+        # Validates everything once (a zero velocity gives a zero term).
+        multi_point_obstacle_coupling(
+            np.zeros(3),
+            np.zeros(3),
+            np.eye(3),
+            points_E,
+            np.ones(3),
+            gamma,
+            beta,
+            obstacle_radius=obstacle_radius,
+            length_scale=length_scale,
+        )
+        self._points = np.array(points_E, dtype=float)
+        self._params = self.DeclareNumericParameter(
+            BasicVector([float(gamma), float(beta), float(obstacle_radius), float(length_scale)])
+        )
+        self._x = self.DeclareVectorInputPort("position", 3)
+        self._v = self.DeclareVectorInputPort("velocity", 3)
+        self._q = self.DeclareVectorInputPort("orientation", 4)
+        self._o = self.DeclareVectorInputPort("obstacle", 3)
+        self.DeclareVectorOutputPort("coupling", 3, self._calc)
+
+    @property
+    def points_E(self) -> np.ndarray:
+        """The control points in the end-effector frame (k x 3)."""
+        return self._points.copy()
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        gamma, beta, radius, length = context.get_numeric_parameter(self._params).value()
+        q = np.asarray(self._q.Eval(context), dtype=float)
+        norm = float(np.linalg.norm(q))
+        if not np.isfinite(norm) or norm < 1e-9:
+            raise RepertoireError(f"orientation must be a non-zero quaternion, got {q}")
+        R = RotationMatrix(Quaternion(q / norm)).matrix()
+        output.SetFromVector(
+            multi_point_obstacle_coupling(
+                self._x.Eval(context),
+                self._v.Eval(context),
+                R,
+                self._points,
+                self._o.Eval(context),
+                gamma,
+                beta,
+                obstacle_radius=radius,
+                length_scale=length,
+            )
+        )

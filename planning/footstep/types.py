@@ -295,7 +295,7 @@ class ActionTable:
         mirror: "dict[str, str] | None" = None,
         fill_missing_foot_by_mirror: bool = True,
     ) -> "ActionTable":
-        """Build a table from measured steps (see /work/helpers/FOOTSTEP_API.md).
+        """Build a table from measured steps (Chestnutt et al.: T(a-2, a-1, l, a) from data).
 
         Each sample is ``(a_prev2, a_prev1, foot, a, dx, dy, dyaw, duration)``: actions by
         name or index, ``foot`` the stance foot when ``a`` was commanded (``"left"``,

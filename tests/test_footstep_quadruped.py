@@ -1,13 +1,9 @@
 """Tests of the generic search core and the LittleDog crawl step model."""
 
-import itertools
 import math
 
 import numpy as np
 import pytest
-
-from repertoire.errors import RepertoireError
-from repertoire.limits import ResourceLimitError
 from repertoire.models.littledog.kinematics import (
     FOOT_RADIUS,
     LEGS,
@@ -24,6 +20,9 @@ from repertoire.planning.footstep.quadruped import (
 )
 from repertoire.planning.footstep.search import anytime_search, search
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
+
+from repertoire.errors import RepertoireError
+from repertoire.limits import ResourceLimitError
 
 
 class GridWalk:
@@ -191,3 +190,13 @@ def test_crawl_bad_input():
     steep = HeightMap(origin=(-0.3, -0.3), resolution=0.01, heights=heights)
     with pytest.raises(FootstepError, match=r"lf at \[0.101, 0.06\] is on ground too steep"):
         plan_crawl(steep, start, (0.2, 0.0))
+
+
+def test_crawl_plan_figure_has_height_colour_bar_and_legend(tmp_path):
+    from repertoire.planning.footstep.plot import crawl_plan_figure
+
+    hm = _board_map("rocks")
+    plan = plan_crawl(hm, nominal_foot_positions()[:, :2], (0.2, 0.0), time_limit=10.0)
+    out = crawl_plan_figure(hm, plan, tmp_path / "crawl.png", goal=(0.2, 0.0, 0.03))
+    assert out.stat().st_size > 10_000
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

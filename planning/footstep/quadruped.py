@@ -37,10 +37,6 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy import ndimage
-
-from repertoire.errors import RepertoireError
-from repertoire.limits import require_memory
 from repertoire.models.littledog.kinematics import (
     FOOT_RADIUS,
     LEGS,
@@ -50,6 +46,10 @@ from repertoire.models.littledog.kinematics import (
 )
 from repertoire.planning.footstep.search import SearchResult, anytime_search, search
 from repertoire.planning.footstep.types import FootstepError, GridError, PlanStatus
+from scipy import ndimage
+
+from repertoire.errors import RepertoireError
+from repertoire.limits import require_memory
 
 # Bytes per height-map cell: the heights and the roughness array (float64 each).
 _BYTES_PER_CELL = 16
@@ -364,10 +364,13 @@ class CrawlModel:
         feet = self.footholds(self._start)
         if not all(_reachable(LEGS[i], self._body_frame(feet, feet[i])[None])[0] for i in range(4)):
             raise FootstepError(f"crawl start stance {feet.tolist()} is out of the legs' reach")
-        self._max_travel = math.hypot(
-            max(abs(v) for v in params.offsets_x) + 0.5 * height_map.resolution,
-            max(abs(v) for v in params.offsets_y) + 0.5 * height_map.resolution,
-        ) + self._max_nominal_drift()
+        self._max_travel = (
+            math.hypot(
+                max(abs(v) for v in params.offsets_x) + 0.5 * height_map.resolution,
+                max(abs(v) for v in params.offsets_y) + 0.5 * height_map.resolution,
+            )
+            + self._max_nominal_drift()
+        )
         dx, dy = np.meshgrid(params.offsets_x, params.offsets_y)
         self._offsets = np.stack([dx.ravel(), dy.ravel()], axis=-1)
 

@@ -64,6 +64,12 @@ class PlannerOptions:
             occupied cell: the foot rectangle is inflated by this much on every side for the
             obstacle check of landings (0 keeps the exact check). The start feet are checked
             exactly (they already stand there).
+        refinements: when the open list runs empty after states were merged (a successor
+            dropped because its lattice cell was already reached), the search is repeated
+            with half the ``xy_resolution`` and twice the ``yaw_bins``, up to this many
+            times within the time limit, so UNREACHABLE is reported only when the lattice
+            reachable from the start is exhausted at the finest resolution tried (recorded
+            in the plan). 0 keeps one search.
     """
 
     time_limit: float = 1.0
@@ -78,6 +84,7 @@ class PlannerOptions:
     height_cost_weight: float = 0.0
     max_expansions: int = 0
     footprint_margin_m: float = 0.01
+    refinements: int = 2
 
     @classmethod
     def admissible(cls, **overrides: float) -> "PlannerOptions":
@@ -126,6 +133,8 @@ class PlannerOptions:
             raise FootstepError(
                 f"max_expansions must be an integer >= 0, got {self.max_expansions}"
             )
+        if int(self.refinements) != self.refinements or not 0 <= self.refinements <= 4:
+            raise FootstepError(f"refinements must be an integer in [0, 4], got {self.refinements}")
         if int(self.yaw_bins) != self.yaw_bins or self.yaw_bins < 4:
             raise FootstepError(f"yaw_bins must be an integer >= 4, got {self.yaw_bins}")
 
@@ -234,14 +243,75 @@ def plan_footsteps(
     goal: Sequence[float],
     table: ActionTable,
     options: PlannerOptions | None = None,
+    **kwargs,
+) -> FootstepPlan:
+    """Plan footsteps from a stance pose to a goal point (Algorithm 1 with a time limit).
+
+    Runs :func:`plan_footsteps_at_resolution`; when it reports UNREACHABLE after merging
+    states, repeats it on a finer lattice (see :attr:`PlannerOptions.refinements`) with
+    the time left. The plan records the lattice (``xy_resolution``, ``yaw_bins``) of the
+    search that produced it.
+
+    Args:
+        world, start, start_foot, goal, table, options, **kwargs: as in
+            :func:`plan_footsteps_at_resolution` (keyword-only ``geometry``,
+            ``initial_swing_pose``, ``start_time``, ``initial_history``, ``action_filter``).
+    """
+    t_begin = time.perf_counter()
+    opts = options if options is not None else PlannerOptions()
+    opts.validate()
+    plan, merged = _plan_once(world, start, start_foot, goal, table, opts, **kwargs)
+    level = 0
+    while plan.status is PlanStatus.UNREACHABLE and merged and level < opts.refinements:
+        left = opts.time_limit - (time.perf_counter() - t_begin)
+        if left <= 0.0:
+            plan.status = PlanStatus.TIME_LIMIT
+            break
+        level += 1
+        finer = dataclasses.replace(
+            opts,
+            xy_resolution=opts.xy_resolution / 2**level,
+            yaw_bins=int(opts.yaw_bins) * 2**level,
+            time_limit=left,
+        )
+        plan, merged = _plan_once(world, start, start_foot, goal, table, finer, **kwargs)
+    plan.planning_time_s = time.perf_counter() - t_begin
+    return plan
+
+
+def plan_footsteps_at_resolution(
+    world: "OccupancyGrid | DynamicEnvironment",
+    start: Sequence[float],
+    start_foot: "Foot | int | str",
+    goal: Sequence[float],
+    table: ActionTable,
+    options: PlannerOptions | None = None,
+    **kwargs,
+) -> FootstepPlan:
+    """One A* search at the options' lattice resolution (no refinement).
+
+    UNREACHABLE here means the lattice at ``options.xy_resolution`` / ``yaw_bins`` is
+    exhausted; a finer lattice may still find a plan (:func:`plan_footsteps` retries).
+    Arguments as in :func:`_plan_once`.
+    """
+    return _plan_once(world, start, start_foot, goal, table, options, **kwargs)[0]
+
+
+def _plan_once(
+    world: "OccupancyGrid | DynamicEnvironment",
+    start: Sequence[float],
+    start_foot: "Foot | int | str",
+    goal: Sequence[float],
+    table: ActionTable,
+    options: PlannerOptions | None = None,
     *,
     geometry: BipedGeometry = ASIMO_LIKE,
     initial_swing_pose: Sequence[float] | None = None,
     start_time: float = 0.0,
     initial_history: Sequence[str] | None = None,
     action_filter: ActionFilter | None = None,
-) -> FootstepPlan:
-    """Plan footsteps from a stance pose to a goal point (Algorithm 1 with a time limit).
+) -> tuple[FootstepPlan, int]:
+    """One A* search (Algorithm 1 with a time limit) at the options' lattice resolution.
 
     Args:
         world: a static :class:`OccupancyGrid` or a :class:`DynamicEnvironment` E(t).
@@ -260,7 +330,8 @@ def plan_footsteps(
             default all actions.
 
     Returns:
-        the plan; its status says whether it reaches the goal.
+        the plan (its status says whether it reaches the goal) and the number of
+        successors dropped because their lattice state was already reached.
     """
     t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
@@ -427,6 +498,7 @@ def plan_footsteps(
     expanded = 0
     max_exp = int(opts.max_expansions) if opts.max_expansions > 0 else -1
     generated = 0
+    merged = 0
     goal_node = None
     status = PlanStatus.UNREACHABLE
     perf = time.perf_counter
@@ -470,10 +542,12 @@ def plan_footsteps(
             if dynamic:
                 k2 = k2 * 1_000_000 + int(t2 * inv_tq + 0.5)
             if k2 in closed:
+                merged += 1
                 continue
             g2 = g + sc
             old = best_g.get(k2)
             if old is not None and old <= g2:
+                merged += 1
                 continue
             # location cost: infinite if the foot overlaps an occupied cell of E(t2)
             fx = (x2 - ox) * inv_res
@@ -529,4 +603,6 @@ def plan_footsteps(
         goal=[gx, gy],
         goal_tolerance=tol,
         initial_history=[names[h2], names[h1]],
-    )
+        xy_resolution=opts.xy_resolution,
+        yaw_bins=int(opts.yaw_bins),
+    ), merged

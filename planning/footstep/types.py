@@ -395,6 +395,9 @@ class FootstepPlan:
         goal: ``[x, y]`` of the goal (stance foot within ``goal_tolerance``).
         goal_tolerance: radius of the goal region (m).
         initial_history: the two actions before the plan's first action.
+        xy_resolution: lattice spacing (m) of the search that produced the plan (0: not
+            from a search).
+        yaw_bins: yaw bins per turn of that search (0: not from a search).
     """
 
     poses: list[list[float]]
@@ -411,6 +414,8 @@ class FootstepPlan:
     goal: list[float]
     goal_tolerance: float
     initial_history: list[str]
+    xy_resolution: float = 0.0
+    yaw_bins: int = 0
 
     def __post_init__(self) -> None:
         self.status = PlanStatus(self.status)

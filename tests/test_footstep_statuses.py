@@ -1,0 +1,67 @@
+"""UNREACHABLE only when the lattice is exhausted: refinement against a fine-lattice search."""
+
+import numpy as np
+import pytest
+from repertoire.planning.footstep import (
+    OccupancyGrid,
+    PlannerOptions,
+    PlanStatus,
+    nominal_action_table,
+    plan_footsteps,
+)
+from repertoire.planning.footstep.planner import plan_footsteps_at_resolution
+from repertoire.planning.footstep.types import FootstepError
+
+
+def _stepping_stones(seed: int, gap: float) -> OccupancyGrid:
+    """Stones 22-30 cm long across a 2 m room, ``gap`` apart, floor at both ends (1 cm cells)."""
+    rng = np.random.default_rng(seed)
+    res = 0.01
+    occ = np.ones((200, 80), dtype=bool)
+    occ[0:40, :] = False
+    occ[160:, :] = False
+    x = 0.40
+    while x < 1.6:
+        w = rng.uniform(0.22, 0.3)
+        occ[int(x / res) : int((x + w) / res), 10:70] = False
+        x += w + gap
+    return OccupancyGrid(occ, res)
+
+
+START, GOAL = (0.2, 0.45, 0.0), (1.8, 0.4)
+
+
+@pytest.mark.parametrize(("seed", "gap"), [(0, 0.10), (4, 0.10), (1, 0.08), (2, 0.06)])
+def test_no_unreachable_where_a_fine_lattice_finds_a_plan(seed, gap):
+    grid = _stepping_stones(seed, gap)
+    table = nominal_action_table()
+    fine = plan_footsteps_at_resolution(
+        grid, START, "left", GOAL, table,
+        PlannerOptions(time_limit=20.0, xy_resolution=0.01, yaw_bins=144, refinements=0),
+    )  # fmt: skip
+    plan = plan_footsteps(grid, START, "left", GOAL, table, PlannerOptions(time_limit=20.0))
+    assert fine.status is PlanStatus.SUCCESS
+    assert plan.status is PlanStatus.SUCCESS
+    coarse = plan_footsteps_at_resolution(
+        grid, START, "left", GOAL, table, PlannerOptions(time_limit=20.0, refinements=0)
+    )
+    assert coarse.xy_resolution == 0.05 and coarse.yaw_bins == 36
+    if coarse.status is PlanStatus.UNREACHABLE:  # seeds 0 and 4: the 5 cm lattice merged
+        assert (seed, plan.xy_resolution, plan.yaw_bins) in ((0, 0.025, 72), (4, 0.025, 72))
+    else:
+        assert plan.xy_resolution == 0.05
+
+
+def test_unreachable_reported_at_the_finest_lattice_tried():
+    occ = np.zeros((120, 60), dtype=bool)
+    occ[50:90, :] = True  # a 40 cm band across the room: no step crosses it
+    grid = OccupancyGrid(occ, 0.01)
+    plan = plan_footsteps(
+        grid, (0.2, 0.3, 0.0), "left", (1.1, 0.3), nominal_action_table(),
+        PlannerOptions(time_limit=20.0, refinements=1),
+    )  # fmt: skip
+    assert plan.status is PlanStatus.UNREACHABLE
+    assert (plan.xy_resolution, plan.yaw_bins) == (0.025, 72)
+    assert max(p[0] for p in plan.poses) < 0.5
+    with pytest.raises(FootstepError, match="refinements must be an integer in"):
+        PlannerOptions(refinements=7).validate()

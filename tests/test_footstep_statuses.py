@@ -10,30 +10,15 @@ from repertoire.planning.footstep import (
     plan_footsteps,
 )
 from repertoire.planning.footstep.planner import plan_footsteps_at_resolution
+from repertoire.planning.footstep.scenes import stepping_stones_grid
 from repertoire.planning.footstep.types import FootstepError
-
-
-def _stepping_stones(seed: int, gap: float) -> OccupancyGrid:
-    """Stones 22-30 cm long across a 2 m room, ``gap`` apart, floor at both ends (1 cm cells)."""
-    rng = np.random.default_rng(seed)
-    res = 0.01
-    occ = np.ones((200, 80), dtype=bool)
-    occ[0:40, :] = False
-    occ[160:, :] = False
-    x = 0.40
-    while x < 1.6:
-        w = rng.uniform(0.22, 0.3)
-        occ[int(x / res) : int((x + w) / res), 10:70] = False
-        x += w + gap
-    return OccupancyGrid(occ, res)
-
 
 START, GOAL = (0.2, 0.45, 0.0), (1.8, 0.4)
 
 
 @pytest.mark.parametrize(("seed", "gap"), [(0, 0.10), (4, 0.10), (1, 0.08), (2, 0.06)])
 def test_no_unreachable_where_a_fine_lattice_finds_a_plan(seed, gap):
-    grid = _stepping_stones(seed, gap)
+    grid = stepping_stones_grid(seed, gap)
     table = nominal_action_table()
     fine = plan_footsteps_at_resolution(
         grid, START, "left", GOAL, table,
@@ -63,5 +48,7 @@ def test_unreachable_reported_at_the_finest_lattice_tried():
     assert plan.status is PlanStatus.UNREACHABLE
     assert (plan.xy_resolution, plan.yaw_bins) == (0.025, 72)
     assert max(p[0] for p in plan.poses) < 0.5
+    with pytest.raises(FootstepError, match="gap must be >= 0 m, got -0.1"):
+        stepping_stones_grid(0, -0.1)
     with pytest.raises(FootstepError, match="refinements must be an integer in"):
         PlannerOptions(refinements=7).validate()

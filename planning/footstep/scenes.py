@@ -18,6 +18,7 @@ from repertoire.planning.footstep.environment import (
     RectObstacle,
     rect_overlaps_cells,
 )
+from repertoire.planning.footstep.types import GridError
 
 
 @dataclasses.dataclass
@@ -177,3 +178,46 @@ def strings_scene(
     start = (body[0] - 0.095, body[1], math.pi / 2)  # left foot, facing +y
     goal = (size / 2.0, size - 0.4)
     return DynamicScene(env, moving, start, "left", goal, body, list(rows_y))
+
+
+def stepping_stones_grid(
+    seed: int,
+    gap: float,
+    *,
+    stone_length: tuple[float, float] = (0.22, 0.30),
+    resolution: float = 0.01,
+) -> OccupancyGrid:
+    """A 2 m x 0.8 m room of stepping stones: floor for x < 0.4 m and x >= 1.6 m.
+
+    Between, stones 0.6 m wide (y in [0.1, 0.7] m) of a random length in
+    ``stone_length`` follow each other ``gap`` apart along x; everything else is
+    occupied. Start at (0.2, 0.45), goal at (1.8, 0.4) suit it.
+
+    Args:
+        seed: seed of the stone lengths.
+        gap: free-of-footholds gap between stones along x (m), >= 0.
+        stone_length: [min, max] stone length along x (m).
+        resolution: cell side (m).
+
+    Raises:
+        GridError: negative gap, bad stone lengths or resolution.
+    """
+    if not (math.isfinite(gap) and gap >= 0.0):
+        raise GridError(f"stepping-stone gap must be >= 0 m, got {gap}")
+    lo, hi = stone_length
+    if not (0.0 < lo <= hi and math.isfinite(hi)):
+        raise GridError(f"stone_length must be [min, max] with 0 < min <= max, got {stone_length}")
+    if not (math.isfinite(resolution) and 0.0 < resolution <= 0.1):
+        raise GridError(f"stepping-stone resolution must be in (0, 0.1] m, got {resolution}")
+    rng = np.random.default_rng(seed)
+    nx, ny = int(round(2.0 / resolution)), int(round(0.8 / resolution))
+    occ = np.ones((nx, ny), dtype=bool)
+    occ[: int(round(0.4 / resolution)), :] = False
+    occ[int(round(1.6 / resolution)) :, :] = False
+    y0, y1 = int(round(0.1 / resolution)), int(round(0.7 / resolution))
+    x = 0.40
+    while x < 1.6:
+        w = rng.uniform(lo, hi)
+        occ[int(x / resolution) : int((x + w) / resolution), y0:y1] = False
+        x += w + gap
+    return OccupancyGrid(occ, resolution)

@@ -9,7 +9,6 @@ from repertoire.planning.footstep import (
     nominal_action_table,
     plan_footsteps,
 )
-from repertoire.planning.footstep.planner import plan_footsteps_at_resolution
 from repertoire.planning.footstep.scenes import stepping_stones_grid
 from repertoire.planning.footstep.types import FootstepError
 
@@ -20,14 +19,14 @@ START, GOAL = (0.2, 0.45, 0.0), (1.8, 0.4)
 def test_no_unreachable_where_a_fine_lattice_finds_a_plan(seed, gap):
     grid = stepping_stones_grid(seed, gap)
     table = nominal_action_table()
-    fine = plan_footsteps_at_resolution(
+    fine = plan_footsteps(
         grid, START, "left", GOAL, table,
         PlannerOptions(time_limit=20.0, xy_resolution=0.01, yaw_bins=144, refinements=0),
     )  # fmt: skip
     plan = plan_footsteps(grid, START, "left", GOAL, table, PlannerOptions(time_limit=20.0))
     assert fine.status is PlanStatus.SUCCESS
     assert plan.status is PlanStatus.SUCCESS
-    coarse = plan_footsteps_at_resolution(
+    coarse = plan_footsteps(
         grid, START, "left", GOAL, table, PlannerOptions(time_limit=20.0, refinements=0)
     )
     assert coarse.xy_resolution == 0.05 and coarse.yaw_bins == 36

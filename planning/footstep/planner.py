@@ -247,15 +247,15 @@ def plan_footsteps(
 ) -> FootstepPlan:
     """Plan footsteps from a stance pose to a goal point (Algorithm 1 with a time limit).
 
-    Runs :func:`plan_footsteps_at_resolution`; when it reports UNREACHABLE after merging
+    Runs one A* search at the options' lattice; when it reports UNREACHABLE after merging
     states, repeats it on a finer lattice (see :attr:`PlannerOptions.refinements`) with
     the time left. The plan records the lattice (``xy_resolution``, ``yaw_bins``) of the
     search that produced it.
 
     Args:
         world, start, start_foot, goal, table, options, **kwargs: as in
-            :func:`plan_footsteps_at_resolution` (keyword-only ``geometry``,
-            ``initial_swing_pose``, ``start_time``, ``initial_history``, ``action_filter``).
+            :func:`_plan_once` (keyword-only ``geometry``, ``initial_swing_pose``,
+            ``start_time``, ``initial_history``, ``action_filter``).
     """
     t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
@@ -277,24 +277,6 @@ def plan_footsteps(
         plan, merged = _plan_once(world, start, start_foot, goal, table, finer, **kwargs)
     plan.planning_time_s = time.perf_counter() - t_begin
     return plan
-
-
-def plan_footsteps_at_resolution(
-    world: "OccupancyGrid | DynamicEnvironment",
-    start: Sequence[float],
-    start_foot: "Foot | int | str",
-    goal: Sequence[float],
-    table: ActionTable,
-    options: PlannerOptions | None = None,
-    **kwargs,
-) -> FootstepPlan:
-    """One A* search at the options' lattice resolution (no refinement).
-
-    UNREACHABLE here means the lattice at ``options.xy_resolution`` / ``yaw_bins`` is
-    exhausted; a finer lattice may still find a plan (:func:`plan_footsteps` retries).
-    Arguments as in :func:`_plan_once`.
-    """
-    return _plan_once(world, start, start_foot, goal, table, options, **kwargs)[0]
 
 
 def _plan_once(

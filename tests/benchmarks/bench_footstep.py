@@ -164,7 +164,6 @@ def main() -> int:
 def _bench_stepping_stones(table) -> None:
     """Honest statuses: one search at 5 cm / 36 bins against the refining planner."""
     from repertoire.planning.footstep import PlannerOptions, PlanStatus, plan_footsteps
-    from repertoire.planning.footstep.planner import plan_footsteps_at_resolution
     from repertoire.planning.footstep.scenes import stepping_stones_grid
 
     print("\n== stepping stones (2 m room, 1 cm cells), 10 seeds x gaps 6/8/10/12 cm")
@@ -174,7 +173,7 @@ def _bench_stepping_stones(table) -> None:
         for seed in range(10):
             grid = stepping_stones_grid(seed, gap)
             args = (grid, (0.2, 0.45, 0.0), "left", (1.8, 0.4), table)
-            coarse = plan_footsteps_at_resolution(*args, PlannerOptions(refinements=0))
+            coarse = plan_footsteps(*args, PlannerOptions(refinements=0))
             plan = plan_footsteps(*args, PlannerOptions(time_limit=5.0))
             times.append(plan.planning_time_s)
             if coarse.status is PlanStatus.UNREACHABLE:

@@ -200,3 +200,19 @@ def test_crawl_plan_figure_has_height_colour_bar_and_legend(tmp_path):
     out = crawl_plan_figure(hm, plan, tmp_path / "crawl.png", goal=(0.2, 0.0, 0.03))
     assert out.stat().st_size > 10_000
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_crawl_climbs_steps_board():
+    board = generate_board(TerrainParams(kind="steps", size_x=1.0, size_y=0.6), seed=0)
+    hm = height_map_from_board(board, (-0.55, 0.55), (-0.3, 0.3), 0.01)
+    params = CrawlParams()
+    start = nominal_foot_positions()[:, :2] + [-0.25, 0.0]
+    plan = plan_crawl(hm, start, (0.05, 0.0), params, time_limit=10.0)
+    assert plan.status is PlanStatus.SUCCESS
+    heights = {round(float(s.p_WF[2]), 4) for s in plan.steps}
+    assert len(heights) >= 2  # footholds on more than one band
+    prev = plan.start_stance
+    for step in plan.steps:
+        assert abs(step.p_WF[2] - prev[step.foot, 2]) <= params.max_step_height
+        prev = step.stance
+    _check_plan(plan, hm, params)

@@ -189,15 +189,15 @@ def _bench_crawl() -> None:
     from repertoire.models.terrain import TerrainParams, generate_board
     from repertoire.planning.footstep.quadruped import height_map_from_board, plan_crawl
 
-    print("\n== LittleDog crawl, 1 m x 0.6 m boards, 1 cm map, goal 0.3 m ahead, 5 seeds")
-    start = nominal_foot_positions()[:, :2]
+    print("\n== LittleDog crawl, 1 m x 0.6 m boards, 1 cm map, x -0.25 -> 0.05 m, 5 seeds")
+    start = nominal_foot_positions()[:, :2] + [-0.25, 0.0]
     for kind in ("flat", "rocks", "gaps", "steps"):
         rows = []
         for seed in range(5):
             board = generate_board(TerrainParams(kind=kind, size_x=1.0, size_y=0.6), seed=seed)
-            hm = height_map_from_board(board, (-0.3, 0.7), (-0.3, 0.3), 0.01)
+            hm = height_map_from_board(board, (-0.55, 0.55), (-0.3, 0.3), 0.01)
             try:
-                plan = plan_crawl(hm, start, (0.3, 0.0), time_limit=2.0)
+                plan = plan_crawl(hm, start, (0.05, 0.0), time_limit=2.0)
             except ValueError as err:  # e.g. a start foothold on a rock edge
                 rows.append(("refused", 0.0, 0, 0, str(err)[:40]))
                 continue

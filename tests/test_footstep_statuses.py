@@ -51,3 +51,18 @@ def test_unreachable_reported_at_the_finest_lattice_tried():
         stepping_stones_grid(0, -0.1)
     with pytest.raises(FootstepError, match="refinements must be an integer in"):
         PlannerOptions(refinements=7).validate()
+
+
+def test_maze_grid_is_seeded_and_connected():
+    from repertoire.planning.footstep.scenes import maze_grid
+    from scipy import ndimage
+
+    a, b = maze_grid(3), maze_grid(3)
+    np.testing.assert_array_equal(a.occupied, b.occupied)
+    assert not np.array_equal(a.occupied, maze_grid(4).occupied)
+    labels, count = ndimage.label(~a.occupied)
+    assert count == 1  # every room reachable through 0.5 m doorways
+    assert a.shape == (240, 240)
+    assert a.occupied[:, 0].all() and a.occupied[0, :].all()  # walled boundary
+    with pytest.raises(FootstepError, match="do not fit"):
+        maze_grid(0, door=1.2)

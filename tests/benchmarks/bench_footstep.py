@@ -156,6 +156,7 @@ def main() -> int:
         print("\nprofile of the 5 hardest maps (tottime):")
         print("\n".join(buf.getvalue().splitlines()[:30]))
     _bench_stepping_stones(table)
+    _bench_mazes(table)
     _bench_crawl()
     print(f"load average at end: {os.getloadavg()[0]:.1f}")
     return 0
@@ -181,6 +182,26 @@ def _bench_stepping_stones(table) -> None:
                 counts["refined SUCCESS among those"] += plan.status is PlanStatus.SUCCESS
             counts["refined UNREACHABLE"] += plan.status is PlanStatus.UNREACHABLE
     print(f"  {counts}; refining planner median {1e3 * statistics.median(times):.1f} ms")
+
+
+def _bench_mazes(table) -> None:
+    """6 m x 6 m mazes (4 x 4 rooms, 0.5 m doorways, 0.3 m walls): first plan and optimum."""
+    from repertoire.planning.footstep import PlannerOptions, plan_footsteps
+    from repertoire.planning.footstep.scenes import maze_grid
+
+    print("\n== mazes 6 m x 6 m, 0.5 m doorways, 5 seeds (default options, 5 s limit)")
+    first, statuses, adm = [], [], []
+    for seed in range(5):
+        args = (maze_grid(seed), (0.6, 0.6, 0.0), "left", (5.4, 5.4), table)
+        plan = plan_footsteps(*args, PlannerOptions(time_limit=5.0))
+        first.append(plan.planning_time_s)
+        statuses.append(plan.status.value)
+        best = plan_footsteps(*args, PlannerOptions.admissible(time_limit=5.0))
+        adm.append(best.status.value)
+    print(
+        f"  default: statuses {statuses}, median plan time {statistics.median(first):.2f} s; "
+        f"admissible (5 s): {adm}"
+    )
 
 
 def _bench_crawl() -> None:

@@ -66,3 +66,27 @@ def test_maze_grid_is_seeded_and_connected():
     assert a.occupied[:, 0].all() and a.occupied[0, :].all()  # walled boundary
     with pytest.raises(FootstepError, match="do not fit"):
         maze_grid(0, door=1.2)
+
+
+def test_swing_clearance_blocks_tall_walls_only():
+    from repertoire.planning.footstep import RectObstacle
+
+    wall = OccupancyGrid.from_rectangles((2.0, 1.0), [RectObstacle([1.0, 0.5], [0.05, 1.0])])
+    table = nominal_action_table()
+    args = ((0.4, 0.595, 0.0), "left", (1.6, 0.5), table)
+    opts = PlannerOptions(time_limit=20.0, swing_clearance=0.1, refinements=1)
+    for height, status in ((0.5, PlanStatus.UNREACHABLE), (0.05, PlanStatus.SUCCESS)):
+        grid = OccupancyGrid(wall.occupied, wall.resolution, wall.origin, height * wall.occupied)
+        plan = plan_footsteps(grid, *args, opts)
+        assert plan.status is status, height
+        if status is PlanStatus.UNREACHABLE:
+            assert max(p[0] for p in plan.poses) < 1.0  # never past the wall
+    # without a clearance (the default) the 5 cm thick wall of any height is stepped over
+    tall = OccupancyGrid(wall.occupied, wall.resolution, wall.origin, 0.5 * wall.occupied)
+    assert plan_footsteps(tall, *args, PlannerOptions(time_limit=20.0)).succeeded
+    with pytest.raises(FootstepError, match=r"cell \(0, 0\) is -0.2 m"):
+        OccupancyGrid(wall.occupied, wall.resolution, wall.origin, -0.2 * np.ones(wall.shape))
+    with pytest.raises(FootstepError, match=r"cell \(0, 0\) is nan"):
+        OccupancyGrid(wall.occupied, wall.resolution, wall.origin, np.full(wall.shape, np.nan))
+    with pytest.raises(FootstepError, match="swing_clearance must be > 0 m, got -1"):
+        PlannerOptions(swing_clearance=-1.0).validate()

@@ -70,6 +70,10 @@ class PlannerOptions:
             times within the time limit, so UNREACHABLE is reported only when the lattice
             reachable from the start is exhausted at the finest resolution tried (recorded
             in the plan). 0 keeps one search.
+        swing_clearance: obstacle cells taller than this (m, the grid's ``heights``) block
+            the swing foot's path: a step whose straight centre line from the swing foot's
+            previous position to its landing crosses such a cell is refused. ``inf`` (the
+            default) or a grid without heights: every flat obstacle may be stepped over.
     """
 
     time_limit: float = 1.0
@@ -85,6 +89,7 @@ class PlannerOptions:
     max_expansions: int = 0
     footprint_margin_m: float = 0.01
     refinements: int = 2
+    swing_clearance: float = math.inf
 
     @classmethod
     def admissible(cls, **overrides: float) -> "PlannerOptions":
@@ -125,6 +130,8 @@ class PlannerOptions:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise FootstepError(f"{name} must be finite and >= 0, got {v}")
+        if math.isnan(self.swing_clearance) or self.swing_clearance <= 0.0:
+            raise FootstepError(f"swing_clearance must be > 0 m, got {self.swing_clearance}")
         for name in ("goal_tolerance", "xy_resolution", "time_resolution"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
@@ -234,6 +241,21 @@ class _Checkers:
             )
             self._cache[k] = c
         return c
+
+
+def _swing_crosses(
+    tall: np.ndarray, x0: float, y0: float, x1: float, y1: float, ox: float, oy: float, inv: float
+) -> bool:
+    """Whether the segment (x0, y0) -> (x1, y1) passes over a True cell of ``tall``."""
+    n = int(math.hypot(x1 - x0, y1 - y0) * inv * 2.0) + 2
+    nx, ny = tall.shape
+    for k in range(n + 1):
+        u = k / n
+        i = int(((x0 + u * (x1 - x0)) - ox) * inv)
+        j = int(((y0 + u * (y1 - y0)) - oy) * inv)
+        if 0 <= i < nx and 0 <= j < ny and tall[i, j]:
+            return True
+    return False
 
 
 def plan_footsteps(
@@ -450,6 +472,11 @@ def _plan_once(
     inv_tq = 1.0 / opts.time_resolution
     height_w = opts.height_cost_weight
     use_heights = height_w > 0 and ref.heights is not None
+    tall = None
+    if ref.heights is not None and math.isfinite(opts.swing_clearance):
+        tall = ref.occupied & (ref.heights > opts.swing_clearance)
+        if not tall.any():
+            tall = None
 
     hist = history_classes(table).tolist()
     n_hist = max(max(row) for row in hist) + 1
@@ -549,6 +576,11 @@ def _plan_once(
                 0, ix, iy, fx - ix, fy - iy, th2
             ):
                 continue
+            if tall is not None:
+                par = node[10]
+                px, py = (par[1], par[2]) if par is not None else (swing0[0], swing0[1])
+                if _swing_crosses(tall, px, py, x2, y2, ox, oy, inv_res):
+                    continue
             if use_heights:
                 g2 += height_w * chk_start.height_range(x2, y2, th2)
                 if old is not None and old <= g2:

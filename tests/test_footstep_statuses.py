@@ -90,3 +90,20 @@ def test_swing_clearance_blocks_tall_walls_only():
         OccupancyGrid(wall.occupied, wall.resolution, wall.origin, np.full(wall.shape, np.nan))
     with pytest.raises(FootstepError, match="swing_clearance must be > 0 m, got -1"):
         PlannerOptions(swing_clearance=-1.0).validate()
+
+
+def test_landing_only_on_flat_enough_ground():
+    occ = np.zeros((80, 40), dtype=bool)
+    heights = np.zeros((80, 40))
+    heights[30:50, :] = np.linspace(0.0, 0.3, 40)[None, :]  # a steep ramp band across y
+    occ_grid = OccupancyGrid(occ, 0.025, (0.0, 0.0), heights)
+    table = nominal_action_table()
+    opts = PlannerOptions(time_limit=20.0, max_height_range=0.01, refinements=0)
+    plan = plan_footsteps(occ_grid, (0.2, 0.5, 0.0), "left", (1.8, 0.5), table, opts)
+    assert plan.status is PlanStatus.UNREACHABLE  # the 0.5 m band is too wide to step over
+    xs = [p[0] for p in plan.poses]
+    assert max(xs) < 0.75 + 0.08 + 0.025  # no sole centre on the ramp band x in [0.75, 1.25]
+    flat = PlannerOptions(time_limit=20.0)
+    assert plan_footsteps(occ_grid, (0.2, 0.5, 0.0), "left", (1.8, 0.5), table, flat).succeeded
+    with pytest.raises(FootstepError, match="start at \\(1.000, 0.500\\) stands on ground too"):
+        plan_footsteps(occ_grid, (1.0, 0.5, 0.0), "left", (1.8, 0.5), table, opts)

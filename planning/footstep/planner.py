@@ -74,6 +74,9 @@ class PlannerOptions:
             the swing foot's path: a step whose straight centre line from the swing foot's
             previous position to its landing crosses such a cell is refused. ``inf`` (the
             default) or a grid without heights: every flat obstacle may be stepped over.
+        max_height_range: a foot lands only where the height range under its sole (the
+            grid's ``heights``) is at most this (m): flat enough ground. The start feet
+            must satisfy it too. ``inf`` (the default): no flatness limit.
     """
 
     time_limit: float = 1.0
@@ -90,6 +93,7 @@ class PlannerOptions:
     footprint_margin_m: float = 0.01
     refinements: int = 2
     swing_clearance: float = math.inf
+    max_height_range: float = math.inf
 
     @classmethod
     def admissible(cls, **overrides: float) -> "PlannerOptions":
@@ -130,6 +134,8 @@ class PlannerOptions:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise FootstepError(f"{name} must be finite and >= 0, got {v}")
+        if math.isnan(self.max_height_range) or self.max_height_range < 0.0:
+            raise FootstepError(f"max_height_range must be >= 0 m, got {self.max_height_range}")
         if math.isnan(self.swing_clearance) or self.swing_clearance <= 0.0:
             raise FootstepError(f"swing_clearance must be > 0 m, got {self.swing_clearance}")
         for name in ("goal_tolerance", "xy_resolution", "time_resolution"):
@@ -472,6 +478,15 @@ def _plan_once(
     inv_tq = 1.0 / opts.time_resolution
     height_w = opts.height_cost_weight
     use_heights = height_w > 0 and ref.heights is not None
+    flat_limit = opts.max_height_range if ref.heights is not None else math.inf
+    if math.isfinite(flat_limit):
+        for name, pose in (("start", (sx, sy, sth)), ("initial swing foot", swing0)):
+            rng_h = chk_start.height_range(*pose)
+            if rng_h > flat_limit:
+                raise FootstepError(
+                    f"{name} at ({pose[0]:.3f}, {pose[1]:.3f}) stands on ground too steep: "
+                    f"height range {rng_h:.3f} m under the sole > max_height_range {flat_limit} m"
+                )
     tall = None
     if ref.heights is not None and math.isfinite(opts.swing_clearance):
         tall = ref.occupied & (ref.heights > opts.swing_clearance)
@@ -575,6 +590,8 @@ def _plan_once(
             if not chk.free_bytes[(ix + pad) * nyp + iy + pad] and not chk._check_masks(
                 0, ix, iy, fx - ix, fy - iy, th2
             ):
+                continue
+            if flat_limit < inf and chk_start.height_range(x2, y2, th2) > flat_limit:
                 continue
             if tall is not None:
                 par = node[10]

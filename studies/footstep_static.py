@@ -241,7 +241,12 @@ def summarize(
         ``{label: path}`` of the files written.
     """
     from matplotlib.figure import Figure
-    from repertoire.planning.footstep.plot import action_effects_figure, draw_grid, draw_plan
+    from repertoire.planning.footstep.plot import (
+        action_effects_figure,
+        draw_grid,
+        draw_plan,
+        plan_legend_handles,
+    )
 
     out_dir = Path(out_dir)
     out: dict[str, Path] = {}
@@ -274,10 +279,13 @@ def summarize(
             ax = fig.add_subplot(rows, cols, p + 1)
             draw_grid(ax, scene.grid)
             draw_plan(ax, plan)
+            handles = plan_legend_handles()
             if mobile.path:
                 mp = np.asarray(mobile.path)
-                ax.plot(mp[:, 0], mp[:, 1], "--", color="0.25", lw=1.2, label="2-D planner")
-                ax.legend(loc="lower right", fontsize=7)
+                (line,) = ax.plot(mp[:, 0], mp[:, 1], "--", color="0.25", lw=1.2)
+                line.set_label("2-D planner")
+                handles.append(line)
+            ax.legend(handles=handles, loc="lower right", fontsize=6, framealpha=0.85)
             r = records[i]
             ax.set_title(
                 f"seed {seeds[i]}: {r.status}, {r.steps} steps, {r.steps_over} over obstacles, "

@@ -2,7 +2,8 @@
 
 Public API: :class:`ActionTable`, :func:`nominal_action_table`, :class:`OccupancyGrid`,
 :class:`DynamicEnvironment`, :class:`PlannerOptions`, :func:`plan_footsteps`,
-:class:`FootstepPlan`, :func:`plan_mobile2d`. See /work/helpers/FOOTSTEP_API.md.
+:class:`FootstepPlan`, :func:`plan_mobile2d`; a generic weighted A* core
+(:mod:`.search`) and a LittleDog crawl step model (:mod:`.quadruped`).
 """
 
 from repertoire.planning.footstep.actions import (

@@ -158,7 +158,17 @@ class OccupancyGrid:
                     f"{self.occupied.shape}"
                 )
             if not np.all(np.isfinite(self.heights)):
-                raise GridError("heights must be finite")
+                bad = np.argwhere(~np.isfinite(self.heights))[0]
+                raise GridError(
+                    f"heights must be finite; cell ({bad[0]}, {bad[1]}) is "
+                    f"{self.heights[tuple(bad)]}"
+                )
+            if np.any(self.heights < 0.0):
+                bad = np.argwhere(self.heights < 0.0)[0]
+                raise GridError(
+                    f"heights must be >= 0 m (ground level 0); cell ({bad[0]}, {bad[1]}) is "
+                    f"{self.heights[tuple(bad)]} m"
+                )
 
     @property
     def shape(self) -> tuple[int, int]:

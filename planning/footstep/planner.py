@@ -64,6 +64,19 @@ class PlannerOptions:
             occupied cell: the foot rectangle is inflated by this much on every side for the
             obstacle check of landings (0 keeps the exact check). The start feet are checked
             exactly (they already stand there).
+        refinements: when the open list runs empty after states were merged (a successor
+            dropped because its lattice cell was already reached), the search is repeated
+            with half the ``xy_resolution`` and twice the ``yaw_bins``, up to this many
+            times within the time limit, so UNREACHABLE is reported only when the lattice
+            reachable from the start is exhausted at the finest resolution tried (recorded
+            in the plan). 0 keeps one search.
+        swing_clearance: obstacle cells taller than this (m, the grid's ``heights``) block
+            the swing foot's path: a step whose straight centre line from the swing foot's
+            previous position to its landing crosses such a cell is refused. ``inf`` (the
+            default) or a grid without heights: every flat obstacle may be stepped over.
+        max_height_range: a foot lands only where the height range under its sole (the
+            grid's ``heights``) is at most this (m): flat enough ground. The start feet
+            must satisfy it too. ``inf`` (the default): no flatness limit.
     """
 
     time_limit: float = 1.0
@@ -78,6 +91,9 @@ class PlannerOptions:
     height_cost_weight: float = 0.0
     max_expansions: int = 0
     footprint_margin_m: float = 0.01
+    refinements: int = 2
+    swing_clearance: float = math.inf
+    max_height_range: float = math.inf
 
     @classmethod
     def admissible(cls, **overrides: float) -> "PlannerOptions":
@@ -118,6 +134,10 @@ class PlannerOptions:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise FootstepError(f"{name} must be finite and >= 0, got {v}")
+        if math.isnan(self.max_height_range) or self.max_height_range < 0.0:
+            raise FootstepError(f"max_height_range must be >= 0 m, got {self.max_height_range}")
+        if math.isnan(self.swing_clearance) or self.swing_clearance <= 0.0:
+            raise FootstepError(f"swing_clearance must be > 0 m, got {self.swing_clearance}")
         for name in ("goal_tolerance", "xy_resolution", "time_resolution"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
@@ -126,6 +146,8 @@ class PlannerOptions:
             raise FootstepError(
                 f"max_expansions must be an integer >= 0, got {self.max_expansions}"
             )
+        if int(self.refinements) != self.refinements or not 0 <= self.refinements <= 4:
+            raise FootstepError(f"refinements must be an integer in [0, 4], got {self.refinements}")
         if int(self.yaw_bins) != self.yaw_bins or self.yaw_bins < 4:
             raise FootstepError(f"yaw_bins must be an integer >= 4, got {self.yaw_bins}")
 
@@ -227,7 +249,65 @@ class _Checkers:
         return c
 
 
+def _swing_crosses(
+    tall: np.ndarray, x0: float, y0: float, x1: float, y1: float, ox: float, oy: float, inv: float
+) -> bool:
+    """Whether the segment (x0, y0) -> (x1, y1) passes over a True cell of ``tall``."""
+    n = int(math.hypot(x1 - x0, y1 - y0) * inv * 2.0) + 2
+    nx, ny = tall.shape
+    for k in range(n + 1):
+        u = k / n
+        i = int(((x0 + u * (x1 - x0)) - ox) * inv)
+        j = int(((y0 + u * (y1 - y0)) - oy) * inv)
+        if 0 <= i < nx and 0 <= j < ny and tall[i, j]:
+            return True
+    return False
+
+
 def plan_footsteps(
+    world: "OccupancyGrid | DynamicEnvironment",
+    start: Sequence[float],
+    start_foot: "Foot | int | str",
+    goal: Sequence[float],
+    table: ActionTable,
+    options: PlannerOptions | None = None,
+    **kwargs,
+) -> FootstepPlan:
+    """Plan footsteps from a stance pose to a goal point (Algorithm 1 with a time limit).
+
+    Runs one A* search at the options' lattice; when it reports UNREACHABLE after merging
+    states, repeats it on a finer lattice (see :attr:`PlannerOptions.refinements`) with
+    the time left. The plan records the lattice (``xy_resolution``, ``yaw_bins``) of the
+    search that produced it.
+
+    Args:
+        world, start, start_foot, goal, table, options, **kwargs: as in
+            :func:`_plan_once` (keyword-only ``geometry``, ``initial_swing_pose``,
+            ``start_time``, ``initial_history``, ``action_filter``).
+    """
+    t_begin = time.perf_counter()
+    opts = options if options is not None else PlannerOptions()
+    opts.validate()
+    plan, merged = _plan_once(world, start, start_foot, goal, table, opts, **kwargs)
+    level = 0
+    while plan.status is PlanStatus.UNREACHABLE and merged and level < opts.refinements:
+        left = opts.time_limit - (time.perf_counter() - t_begin)
+        if left <= 0.0:
+            plan.status = PlanStatus.TIME_LIMIT
+            break
+        level += 1
+        finer = dataclasses.replace(
+            opts,
+            xy_resolution=opts.xy_resolution / 2**level,
+            yaw_bins=int(opts.yaw_bins) * 2**level,
+            time_limit=left,
+        )
+        plan, merged = _plan_once(world, start, start_foot, goal, table, finer, **kwargs)
+    plan.planning_time_s = time.perf_counter() - t_begin
+    return plan
+
+
+def _plan_once(
     world: "OccupancyGrid | DynamicEnvironment",
     start: Sequence[float],
     start_foot: "Foot | int | str",
@@ -240,8 +320,8 @@ def plan_footsteps(
     start_time: float = 0.0,
     initial_history: Sequence[str] | None = None,
     action_filter: ActionFilter | None = None,
-) -> FootstepPlan:
-    """Plan footsteps from a stance pose to a goal point (Algorithm 1 with a time limit).
+) -> tuple[FootstepPlan, int]:
+    """One A* search (Algorithm 1 with a time limit) at the options' lattice resolution.
 
     Args:
         world: a static :class:`OccupancyGrid` or a :class:`DynamicEnvironment` E(t).
@@ -260,7 +340,8 @@ def plan_footsteps(
             default all actions.
 
     Returns:
-        the plan; its status says whether it reaches the goal.
+        the plan (its status says whether it reaches the goal) and the number of
+        successors dropped because their lattice state was already reached.
     """
     t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
@@ -397,6 +478,20 @@ def plan_footsteps(
     inv_tq = 1.0 / opts.time_resolution
     height_w = opts.height_cost_weight
     use_heights = height_w > 0 and ref.heights is not None
+    flat_limit = opts.max_height_range if ref.heights is not None else math.inf
+    if math.isfinite(flat_limit):
+        for name, pose in (("start", (sx, sy, sth)), ("initial swing foot", swing0)):
+            rng_h = chk_start.height_range(*pose)
+            if rng_h > flat_limit:
+                raise FootstepError(
+                    f"{name} at ({pose[0]:.3f}, {pose[1]:.3f}) stands on ground too steep: "
+                    f"height range {rng_h:.3f} m under the sole > max_height_range {flat_limit} m"
+                )
+    tall = None
+    if ref.heights is not None and math.isfinite(opts.swing_clearance):
+        tall = ref.occupied & (ref.heights > opts.swing_clearance)
+        if not tall.any():
+            tall = None
 
     hist = history_classes(table).tolist()
     n_hist = max(max(row) for row in hist) + 1
@@ -427,6 +522,7 @@ def plan_footsteps(
     expanded = 0
     max_exp = int(opts.max_expansions) if opts.max_expansions > 0 else -1
     generated = 0
+    merged = 0
     goal_node = None
     status = PlanStatus.UNREACHABLE
     perf = time.perf_counter
@@ -470,10 +566,12 @@ def plan_footsteps(
             if dynamic:
                 k2 = k2 * 1_000_000 + int(t2 * inv_tq + 0.5)
             if k2 in closed:
+                merged += 1
                 continue
             g2 = g + sc
             old = best_g.get(k2)
             if old is not None and old <= g2:
+                merged += 1
                 continue
             # location cost: infinite if the foot overlaps an occupied cell of E(t2)
             fx = (x2 - ox) * inv_res
@@ -493,6 +591,13 @@ def plan_footsteps(
                 0, ix, iy, fx - ix, fy - iy, th2
             ):
                 continue
+            if flat_limit < inf and chk_start.height_range(x2, y2, th2) > flat_limit:
+                continue
+            if tall is not None:
+                par = node[10]
+                px, py = (par[1], par[2]) if par is not None else (swing0[0], swing0[1])
+                if _swing_crosses(tall, px, py, x2, y2, ox, oy, inv_res):
+                    continue
             if use_heights:
                 g2 += height_w * chk_start.height_range(x2, y2, th2)
                 if old is not None and old <= g2:
@@ -529,4 +634,6 @@ def plan_footsteps(
         goal=[gx, gy],
         goal_tolerance=tol,
         initial_history=[names[h2], names[h1]],
-    )
+        xy_resolution=opts.xy_resolution,
+        yaw_bins=int(opts.yaw_bins),
+    ), merged

@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
-from matplotlib.patches import Circle, Polygon
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch, Polygon
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
 from repertoire.planning.footstep.types import ActionTable, FootstepPlan
@@ -103,6 +104,17 @@ def draw_plan(
     ax.add_patch(Circle(tuple(plan.goal), plan.goal_tolerance, fill=False, ec="g", lw=1.5))
 
 
+def plan_legend_handles() -> list:
+    """Legend proxies for what :func:`draw_plan` and :func:`draw_grid` draw."""
+    return [
+        Patch(fc=LEFT_COLOR, ec="k", lw=0.5, label="left foot"),
+        Patch(fc=RIGHT_COLOR, ec="k", lw=0.5, label="right foot"),
+        Line2D([], [], ls="", marker="o", mfc="none", mec="k", ms=8, label="start"),
+        Line2D([], [], ls="", marker="o", mfc="none", mec="g", ms=8, label="goal region"),
+        Patch(fc="#c0392b", label="obstacle cell"),
+    ]
+
+
 def static_plan_figure(
     grid: OccupancyGrid,
     plan: FootstepPlan,
@@ -126,10 +138,13 @@ def static_plan_figure(
     ax = fig.add_subplot(1, 1, 1)
     draw_grid(ax, grid)
     draw_plan(ax, plan, geometry)
+    handles = plan_legend_handles()
     if mobile_path:
         mp = np.asarray(mobile_path)
-        ax.plot(mp[:, 0], mp[:, 1], "--", color="0.3", lw=1.2, label="2-D planner (circle)")
-        ax.legend(loc="lower right", fontsize=7)
+        (line,) = ax.plot(mp[:, 0], mp[:, 1], "--", color="0.3", lw=1.2)
+        line.set_label("2-D planner (circle)")
+        handles.append(line)
+    ax.legend(handles=handles, loc="lower right", fontsize=6, framealpha=0.85)
     ax.set_title(title, fontsize=8)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
@@ -193,8 +208,79 @@ def dynamic_plan_figure(
         action = plan.actions[k - 1] if k > 0 else "start"
         ax.set_title(f"step {k}: {action}, t = {t:.1f} s", fontsize=8)
         ax.tick_params(labelsize=6)
+    handles = plan_legend_handles() + [
+        Patch(fill=False, ec="k", lw=1.5, label="current step"),
+        Patch(fill=False, ec="0.6", lw=0.4, label="steps to come"),
+    ]
+    fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=7)
     if title:
         fig.suptitle(title, fontsize=9)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    path = Path(path)
+    fig.savefig(path)
+    return path
+
+
+CRAWL_LEG_COLORS = ("#1f5fd6", "#d6541f", "#2ca02c", "#9467bd")
+
+
+def crawl_plan_figure(height_map, plan, path: "str | Path", *, goal=None, title: str = "") -> Path:
+    """Write a PNG of a crawl plan over the height map (heights as a colour bar).
+
+    Args:
+        height_map: a :class:`repertoire.planning.footstep.quadruped.HeightMap`.
+        plan: a :class:`repertoire.planning.footstep.quadruped.CrawlPlan`.
+        path: output PNG.
+        goal: the goal point and radius ``(x, y, r)`` to draw, if given.
+        title: axes title.
+    """
+    from repertoire.models.littledog.kinematics import LEGS
+
+    fig = Figure(figsize=(7.0, 4.6), dpi=130)
+    ax = fig.add_subplot(1, 1, 1)
+    h = height_map.heights
+    res = height_map.resolution
+    x0, y0 = height_map.origin
+    extent = (
+        x0 - res / 2,
+        x0 + (h.shape[1] - 0.5) * res,
+        y0 - res / 2,
+        y0 + (h.shape[0] - 0.5) * res,
+    )
+    im = ax.imshow(100.0 * h, origin="lower", extent=extent, cmap="Greys", interpolation="nearest")
+    fig.colorbar(im, ax=ax, label="ground height (cm)", shrink=0.8)
+    handles = []
+    for leg in range(4):
+        pts = [plan.start_stance[leg]] + [s.p_WF for s in plan.steps if s.foot == leg]
+        pts = np.asarray(pts)
+        ax.plot(pts[:, 0], pts[:, 1], "-", color=CRAWL_LEG_COLORS[leg], lw=0.8)
+        ax.plot(pts[0, 0], pts[0, 1], "s", color=CRAWL_LEG_COLORS[leg], ms=5, mfc="none")
+        ax.plot(pts[1:, 0], pts[1:, 1], "o", color=CRAWL_LEG_COLORS[leg], ms=3.5)
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color=CRAWL_LEG_COLORS[leg],
+                marker="o",
+                ms=3.5,
+                label=f"{LEGS[leg]} footholds",
+            )
+        )
+    handles.append(
+        Line2D([], [], ls="", marker="s", mfc="none", mec="k", ms=5, label="start foothold")
+    )
+    if goal is not None:
+        ax.add_patch(Circle((goal[0], goal[1]), goal[2], fill=False, ec="g", lw=1.5))
+        handles.append(
+            Line2D(
+                [], [], ls="", marker="o", mfc="none", mec="g", ms=8, label="goal (feet centroid)"
+            )
+        )
+    ax.legend(handles=handles, loc="upper left", fontsize=6, framealpha=0.85)
+    ax.set_title(title or f"crawl plan: {plan.status.value}, {len(plan.steps)} steps", fontsize=8)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal")
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path)

@@ -18,6 +18,7 @@ from repertoire.planning.footstep.environment import (
     RectObstacle,
     rect_overlaps_cells,
 )
+from repertoire.planning.footstep.types import GridError
 
 
 @dataclasses.dataclass
@@ -177,3 +178,120 @@ def strings_scene(
     start = (body[0] - 0.095, body[1], math.pi / 2)  # left foot, facing +y
     goal = (size / 2.0, size - 0.4)
     return DynamicScene(env, moving, start, "left", goal, body, list(rows_y))
+
+
+def stepping_stones_grid(
+    seed: int,
+    gap: float,
+    *,
+    stone_length: tuple[float, float] = (0.22, 0.30),
+    resolution: float = 0.01,
+) -> OccupancyGrid:
+    """A 2 m x 0.8 m room of stepping stones: floor for x < 0.4 m and x >= 1.6 m.
+
+    Between, stones 0.6 m wide (y in [0.1, 0.7] m) of a random length in
+    ``stone_length`` follow each other ``gap`` apart along x; everything else is
+    occupied. Start at (0.2, 0.45), goal at (1.8, 0.4) suit it.
+
+    Args:
+        seed: seed of the stone lengths.
+        gap: free-of-footholds gap between stones along x (m), >= 0.
+        stone_length: [min, max] stone length along x (m).
+        resolution: cell side (m).
+
+    Raises:
+        GridError: negative gap, bad stone lengths or resolution.
+    """
+    if not (math.isfinite(gap) and gap >= 0.0):
+        raise GridError(f"stepping-stone gap must be >= 0 m, got {gap}")
+    lo, hi = stone_length
+    if not (0.0 < lo <= hi and math.isfinite(hi)):
+        raise GridError(f"stone_length must be [min, max] with 0 < min <= max, got {stone_length}")
+    if not (math.isfinite(resolution) and 0.0 < resolution <= 0.1):
+        raise GridError(f"stepping-stone resolution must be in (0, 0.1] m, got {resolution}")
+    rng = np.random.default_rng(seed)
+    nx, ny = int(round(2.0 / resolution)), int(round(0.8 / resolution))
+    occ = np.ones((nx, ny), dtype=bool)
+    occ[: int(round(0.4 / resolution)), :] = False
+    occ[int(round(1.6 / resolution)) :, :] = False
+    y0, y1 = int(round(0.1 / resolution)), int(round(0.7 / resolution))
+    x = 0.40
+    while x < 1.6:
+        w = rng.uniform(lo, hi)
+        occ[int(x / resolution) : int((x + w) / resolution), y0:y1] = False
+        x += w + gap
+    return OccupancyGrid(occ, resolution)
+
+
+def maze_grid(
+    seed: int,
+    *,
+    size: float = 6.0,
+    cells: int = 4,
+    door: float = 0.5,
+    wall: float = 0.3,
+    resolution: float = 0.025,
+) -> OccupancyGrid:
+    """A seeded maze on a square floor: ``cells`` x ``cells`` rooms, ``door``-wide doorways.
+
+    The rooms form a spanning tree (randomised depth-first search), so every room is
+    reachable; each tree edge gets one doorway at a random position along the wall.
+    Walls are ``wall`` thick (thicker than a biped's step, so it uses the doorways);
+    the outer boundary is walled too. Start near (0.5, 0.5), goal near (size-0.5, size-0.5).
+
+    Args:
+        seed: maze seed.
+        size: floor side (m).
+        cells: rooms per side (>= 2).
+        door: doorway width (m), smaller than a room.
+        wall: wall thickness (m).
+        resolution: cell side of the grid (m).
+
+    Raises:
+        GridError: sizes that do not fit (door wider than a room, non-positive values).
+    """
+    values = (size, door, wall, resolution)
+    if not all(math.isfinite(v) and v > 0.0 for v in values):
+        raise GridError(f"maze size, door, wall and resolution must be positive, got {values}")
+    if int(cells) != cells or cells < 2:
+        raise GridError(f"maze cells must be an integer >= 2, got {cells}")
+    room = size / cells
+    if door + 2.0 * wall >= room:
+        raise GridError(f"maze door {door} m plus walls {wall} m do not fit a {room:.2f} m room")
+    rng = np.random.default_rng(seed)
+    n = int(round(size / resolution))
+    occ = np.zeros((n, n), dtype=bool)
+
+    def fill(x0: float, x1: float, y0: float, y1: float, value: bool) -> None:
+        i0, i1 = max(int(x0 / resolution), 0), min(int(math.ceil(x1 / resolution)), n)
+        j0, j1 = max(int(y0 / resolution), 0), min(int(math.ceil(y1 / resolution)), n)
+        occ[i0:i1, j0:j1] = value
+
+    h = wall / 2.0
+    for k in range(cells + 1):
+        c = k * room
+        fill(c - h, c + h, 0.0, size, True)  # walls x = c
+        fill(0.0, size, c - h, c + h, True)  # walls y = c
+    seen = {(0, 0)}
+    stack = [(0, 0)]
+    while stack:
+        i, j = stack[-1]
+        nbrs = [
+            (i + di, j + dj)
+            for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1))
+            if 0 <= i + di < cells and 0 <= j + dj < cells and (i + di, j + dj) not in seen
+        ]
+        if not nbrs:
+            stack.pop()
+            continue
+        a, b = nbrs[rng.integers(len(nbrs))]
+        along = rng.uniform(wall, room - wall - door)
+        if a != i:  # door in the wall x = max(i, a) * room
+            c = max(i, a) * room
+            fill(c - h, c + h, j * room + along, j * room + along + door, False)
+        else:  # door in the wall y = max(j, b) * room
+            c = max(j, b) * room
+            fill(i * room + along, i * room + along + door, c - h, c + h, False)
+        seen.add((a, b))
+        stack.append((a, b))
+    return OccupancyGrid(occ, resolution)

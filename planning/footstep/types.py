@@ -296,7 +296,7 @@ class ActionTable:
         mirror: "dict[str, str] | None" = None,
         fill_missing_foot_by_mirror: bool = True,
     ) -> "ActionTable":
-        """Build a table from measured steps (see /work/helpers/FOOTSTEP_API.md).
+        """Build a table from measured steps (Chestnutt et al.: T(a-2, a-1, l, a) from data).
 
         Each sample is ``(a_prev2, a_prev1, foot, a, dx, dy, dyaw, duration)``: actions by
         name or index, ``foot`` the stance foot when ``a`` was commanded (``"left"``,
@@ -396,6 +396,9 @@ class FootstepPlan:
         goal: ``[x, y]`` of the goal (stance foot within ``goal_tolerance``).
         goal_tolerance: radius of the goal region (m).
         initial_history: the two actions before the plan's first action.
+        xy_resolution: lattice spacing (m) of the search that produced the plan (0: not
+            from a search).
+        yaw_bins: yaw bins per turn of that search (0: not from a search).
     """
 
     poses: list[list[float]]
@@ -412,6 +415,8 @@ class FootstepPlan:
     goal: list[float]
     goal_tolerance: float
     initial_history: list[str]
+    xy_resolution: float = 0.0
+    yaw_bins: int = 0
 
     def __post_init__(self) -> None:
         self.status = PlanStatus(self.status)

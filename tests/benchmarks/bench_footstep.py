@@ -155,8 +155,83 @@ def main() -> int:
         pstats.Stats(prof, stream=buf).sort_stats("tottime").print_stats(10)
         print("\nprofile of the 5 hardest maps (tottime):")
         print("\n".join(buf.getvalue().splitlines()[:30]))
+    _bench_stepping_stones(table)
+    _bench_mazes(table)
+    _bench_crawl()
     print(f"load average at end: {os.getloadavg()[0]:.1f}")
     return 0
+
+
+def _bench_stepping_stones(table) -> None:
+    """Honest statuses: one search at 5 cm / 36 bins against the refining planner."""
+    from repertoire.planning.footstep import PlannerOptions, PlanStatus, plan_footsteps
+    from repertoire.planning.footstep.scenes import stepping_stones_grid
+
+    print("\n== stepping stones (2 m room, 1 cm cells), 10 seeds x gaps 6/8/10/12 cm")
+    counts = {"coarse UNREACHABLE": 0, "refined SUCCESS among those": 0, "refined UNREACHABLE": 0}
+    times = []
+    for gap in (0.06, 0.08, 0.10, 0.12):
+        for seed in range(10):
+            grid = stepping_stones_grid(seed, gap)
+            args = (grid, (0.2, 0.45, 0.0), "left", (1.8, 0.4), table)
+            coarse = plan_footsteps(*args, PlannerOptions(refinements=0))
+            plan = plan_footsteps(*args, PlannerOptions(time_limit=5.0))
+            times.append(plan.planning_time_s)
+            if coarse.status is PlanStatus.UNREACHABLE:
+                counts["coarse UNREACHABLE"] += 1
+                counts["refined SUCCESS among those"] += plan.status is PlanStatus.SUCCESS
+            counts["refined UNREACHABLE"] += plan.status is PlanStatus.UNREACHABLE
+    print(f"  {counts}; refining planner median {1e3 * statistics.median(times):.1f} ms")
+
+
+def _bench_mazes(table) -> None:
+    """6 m x 6 m mazes (4 x 4 rooms, 0.5 m doorways, 0.3 m walls): first plan and optimum."""
+    from repertoire.planning.footstep import PlannerOptions, plan_footsteps
+    from repertoire.planning.footstep.scenes import maze_grid
+
+    print("\n== mazes 6 m x 6 m, 0.5 m doorways, 5 seeds (default options, 5 s limit)")
+    first, statuses, adm = [], [], []
+    for seed in range(5):
+        args = (maze_grid(seed), (0.6, 0.6, 0.0), "left", (5.4, 5.4), table)
+        plan = plan_footsteps(*args, PlannerOptions(time_limit=5.0))
+        first.append(plan.planning_time_s)
+        statuses.append(plan.status.value)
+        best = plan_footsteps(*args, PlannerOptions.admissible(time_limit=5.0))
+        adm.append(best.status.value)
+    print(
+        f"  default: statuses {statuses}, median plan time {statistics.median(first):.2f} s; "
+        f"admissible (5 s): {adm}"
+    )
+
+
+def _bench_crawl() -> None:
+    """The LittleDog crawl step model on generated terrain boards (generic Python core)."""
+    from repertoire.models.littledog.kinematics import nominal_foot_positions
+    from repertoire.models.terrain import TerrainParams, generate_board
+    from repertoire.planning.footstep.quadruped import height_map_from_board, plan_crawl
+
+    print("\n== LittleDog crawl, 1 m x 0.6 m boards, 1 cm map, x -0.25 -> 0.05 m, 5 seeds")
+    start = nominal_foot_positions()[:, :2] + [-0.25, 0.0]
+    for kind in ("flat", "rocks", "gaps", "steps"):
+        rows = []
+        for seed in range(5):
+            board = generate_board(TerrainParams(kind=kind, size_x=1.0, size_y=0.6), seed=seed)
+            hm = height_map_from_board(board, (-0.55, 0.55), (-0.3, 0.3), 0.01)
+            try:
+                plan = plan_crawl(hm, start, (0.05, 0.0), time_limit=2.0)
+            except ValueError as err:  # e.g. a start foothold on a rock edge
+                rows.append(("refused", 0.0, 0, 0, str(err)[:40]))
+                continue
+            rows.append((plan.status.value, plan.seconds, plan.expansions, len(plan.steps), ""))
+        ok = [r for r in rows if r[0] == "SUCCESS"]
+        secs = sum(r[1] for r in rows)
+        exp = sum(r[2] for r in rows)
+        print(
+            f"  {kind}: statuses {[r[0] for r in rows]}, median steps "
+            f"{statistics.median([r[3] for r in ok]) if ok else 0}, median plan time "
+            f"{1e3 * statistics.median([r[1] for r in rows]):.1f} ms, expansions/s "
+            f"{exp / max(secs, 1e-9):.0f}"
+        )
 
 
 def _report(label: str, rows: list[dict], limit: float) -> None:

@@ -1,0 +1,540 @@
+"""A quadruped crawl step model for LittleDog on a 2.5-D height map.
+
+A crawl moves one foot at a time, in a fixed order (default ``lh, lf, rh,
+rf``). The state is the four footholds (ground contact points p_WF, x y z in
+m, on the height map's cell centres) and the index of the foot that moves
+next. A successor moves that foot to one of a discretised set of candidate
+footholds around its nominal position (the nominal stance of
+:func:`repertoire.models.littledog.kinematics.nominal_foot_positions` placed at
+the feet's centroid), and keeps a candidate only if
+
+- the ground there is flat: the height range within ``flat_radius`` of the
+  foothold is at most ``max_roughness`` (rejects steep spots and edges);
+- the step up or down is at most ``max_step_height``;
+- the swing clears the ground: the highest cell under the straight swing line
+  is at most ``swing_clearance`` above the higher of the two footholds;
+- every leg reaches its foothold by the closed-form leg IK
+  (:func:`~repertoire.models.littledog.kinematics.leg_ik`, joint limits
+  checked), with the body level, its origin above the four feet's centroid at
+  ``body_height`` over their mean height (yaw 0: the body faces +x);
+- during the swing the body projection lies inside the support triangle of the
+  three stance feet with ``support_margin``; the body is taken as shifted by
+  ``body_shift`` from the four feet's centroid towards the triangle's centroid
+  (the body sway of a crawl).
+
+The goal test: the feet's centroid within ``goal_radius`` of the goal point.
+Step cost: ``step_cost`` plus the foot's horizontal travel plus
+``height_cost`` times its height change; the heuristic, 4 x the centroid's
+distance beyond the goal radius plus ``step_cost`` times the least number of
+steps, is admissible (a step moves the centroid by a quarter of the foot's
+travel).
+
+Use :func:`height_map_from_board` to sample a terrain board, then
+:func:`plan_crawl`; the plan's steps are typed :class:`CrawlStep` records.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+from repertoire.models.littledog.kinematics import (
+    FOOT_RADIUS,
+    LEGS,
+    STANDING_HEIGHT,
+    leg_ik,
+    nominal_foot_positions,
+)
+from repertoire.planning.footstep.search import SearchResult, anytime_search, search
+from repertoire.planning.footstep.types import FootstepError, GridError, PlanStatus
+from scipy import ndimage
+
+from repertoire.errors import RepertoireError
+from repertoire.limits import require_memory
+
+# Bytes per height-map cell: the heights and the roughness array (float64 each).
+_BYTES_PER_CELL = 16
+
+
+@dataclasses.dataclass(frozen=True)
+class HeightMap:
+    """A 2.5-D map: ground height per square cell.
+
+    Attributes:
+        origin: world (x, y) of cell (0, 0)'s centre (m).
+        resolution: cell side (m).
+        heights: ground heights (m), shape (n_y, n_x), finite and >= 0.
+    """
+
+    origin: tuple[float, float]
+    resolution: float
+    heights: np.ndarray
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.resolution) and self.resolution > 0.0):
+            raise GridError(f"height map resolution must be positive, got {self.resolution}")
+        if len(self.origin) != 2 or not all(math.isfinite(v) for v in self.origin):
+            raise GridError(f"height map origin must be a finite (x, y), got {self.origin}")
+        h = np.asarray(self.heights, dtype=float)
+        if h.ndim != 2 or min(h.shape) < 1:
+            raise GridError(f"height map heights must be a 2-D array, got shape {h.shape}")
+        if not np.all(np.isfinite(h)):
+            bad = np.argwhere(~np.isfinite(h))[0]
+            raise GridError(
+                f"height map height at cell (row {bad[0]}, col {bad[1]}) is "
+                f"{h[tuple(bad)]}; heights must be finite"
+            )
+        if np.any(h < 0.0):
+            bad = np.argwhere(h < 0.0)[0]
+            raise GridError(
+                f"height map height at cell (row {bad[0]}, col {bad[1]}) is "
+                f"{h[tuple(bad)]} m; heights must be >= 0 (ground level 0)"
+            )
+        object.__setattr__(self, "heights", h)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.heights.shape
+
+    def cell(self, x, y) -> tuple[np.ndarray, np.ndarray]:
+        """(row, col) indices of the cells holding world points (x, y)."""
+        col = np.rint((np.asarray(x, dtype=float) - self.origin[0]) / self.resolution)
+        row = np.rint((np.asarray(y, dtype=float) - self.origin[1]) / self.resolution)
+        return row.astype(int), col.astype(int)
+
+    def inside(self, row, col) -> np.ndarray:
+        """True where (row, col) is a cell of the map."""
+        row, col = np.asarray(row), np.asarray(col)
+        return (row >= 0) & (row < self.shape[0]) & (col >= 0) & (col < self.shape[1])
+
+    def center(self, row, col) -> tuple[np.ndarray, np.ndarray]:
+        """World (x, y) of cell centres."""
+        return (
+            self.origin[0] + np.asarray(col) * self.resolution,
+            self.origin[1] + np.asarray(row) * self.resolution,
+        )
+
+    def roughness(self, radius: float) -> np.ndarray:
+        """Height range (max - min) within ``radius`` of each cell, shape like heights."""
+        r = max(int(math.ceil(radius / self.resolution - 1e-9)), 0)
+        ii, jj = np.mgrid[-r : r + 1, -r : r + 1]
+        disk = (ii**2 + jj**2) * self.resolution**2 <= radius**2 + 1e-12
+        hi = ndimage.maximum_filter(self.heights, footprint=disk, mode="nearest")
+        lo = ndimage.minimum_filter(self.heights, footprint=disk, mode="nearest")
+        return hi - lo
+
+
+def height_map_from_board(
+    board,
+    x_range: tuple[float, float],
+    y_range: tuple[float, float],
+    resolution: float = 0.01,
+) -> HeightMap:
+    """Samples a terrain board's exact height at cell centres.
+
+    Args:
+        board: a :class:`repertoire.models.terrain.TerrainBoard` (anything with a
+            vectorised ``height(x, y)``).
+        x_range: [x_min, x_max] of the map (m).
+        y_range: [y_min, y_max] of the map (m).
+        resolution: cell side (m).
+
+    Raises:
+        GridError: empty or non-finite ranges, bad resolution.
+        ResourceLimitError: the map would need more memory than allowed (the figure
+            is in the message), checked before allocating.
+    """
+    values = [*x_range, *y_range, resolution]
+    if len(values) != 5 or not all(math.isfinite(v) for v in values):
+        raise GridError(f"height map ranges and resolution must be finite, got {values}")
+    if resolution <= 0.0:
+        raise GridError(f"height map resolution must be positive, got {resolution}")
+    if x_range[1] <= x_range[0] or y_range[1] <= y_range[0]:
+        raise GridError(f"height map ranges must be [min, max] with min < max: {x_range} {y_range}")
+    n_x = int(math.floor((x_range[1] - x_range[0]) / resolution + 1e-9)) + 1
+    n_y = int(math.floor((y_range[1] - y_range[0]) / resolution + 1e-9)) + 1
+    require_memory(
+        float(n_x) * n_y * _BYTES_PER_CELL,
+        f"a {n_x} x {n_y} height map at {resolution} m",
+    )
+    xs = x_range[0] + np.arange(n_x) * resolution
+    ys = y_range[0] + np.arange(n_y) * resolution
+    X, Y = np.meshgrid(xs, ys)
+    return HeightMap(
+        origin=(float(x_range[0]), float(y_range[0])),
+        resolution=float(resolution),
+        heights=np.asarray(board.height(X, Y), dtype=float),
+    )
+
+
+@dataclasses.dataclass
+class CrawlParams:
+    """Parameters of the crawl step model (YAML-loadable).
+
+    Attributes:
+        order: leg indices (into LEGS = lf, rf, lh, rh) in crawl order.
+        offsets_x: candidate foothold offsets along x from the nominal position (m).
+        offsets_y: candidate foothold offsets along y (m).
+        body_height: body origin above the feet's mean ground height (m).
+        flat_radius: radius of the flatness check around a foothold (m).
+        max_roughness: largest height range allowed within ``flat_radius`` (m).
+        max_step_height: largest height change of one foot (m).
+        swing_clearance: highest ground along a swing above the higher foothold (m).
+        support_margin: distance the body projection keeps inside the support triangle (m).
+        body_shift: fraction of the way the body sways towards the triangle's centroid.
+        goal_radius: goal region radius around the goal point (m).
+        step_cost: fixed cost per step.
+        height_cost: cost per metre of height change.
+    """
+
+    order: list[int] = dataclasses.field(default_factory=lambda: [2, 0, 3, 1])
+    offsets_x: list[float] = dataclasses.field(
+        default_factory=lambda: [-0.02, 0.0, 0.02, 0.04, 0.06]
+    )
+    offsets_y: list[float] = dataclasses.field(default_factory=lambda: [-0.02, 0.0, 0.02])
+    body_height: float = STANDING_HEIGHT - FOOT_RADIUS
+    flat_radius: float = 0.012
+    max_roughness: float = 0.006
+    max_step_height: float = 0.05
+    swing_clearance: float = 0.05
+    support_margin: float = 0.005
+    body_shift: float = 0.5
+    goal_radius: float = 0.03
+    step_cost: float = 0.01
+    height_cost: float = 1.0
+
+    def validate(self) -> None:
+        """Raises FootstepError naming the first bad field."""
+        if sorted(self.order) != [0, 1, 2, 3]:
+            raise FootstepError(f"crawl order must be a permutation of 0..3, got {self.order}")
+        if not self.offsets_x or not self.offsets_y:
+            raise FootstepError(
+                f"crawl candidate offsets are empty (offsets_x={self.offsets_x}, "
+                f"offsets_y={self.offsets_y}): the step model would have no successors"
+            )
+        for name in ("offsets_x", "offsets_y"):
+            if not all(math.isfinite(v) for v in getattr(self, name)):
+                raise FootstepError(f"crawl {name} must be finite, got {getattr(self, name)}")
+        for name in (
+            "body_height",
+            "flat_radius",
+            "max_step_height",
+            "swing_clearance",
+            "goal_radius",
+            "step_cost",
+        ):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise FootstepError(f"crawl {name} must be positive, got {value}")
+        for name in ("max_roughness", "support_margin", "height_cost"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise FootstepError(f"crawl {name} must be >= 0, got {value}")
+        if not (0.0 <= self.body_shift <= 1.0):
+            raise FootstepError(f"crawl body_shift must be in [0, 1], got {self.body_shift}")
+
+
+@dataclasses.dataclass(frozen=True)
+class CrawlState:
+    """A search state: foothold cells (4 x (row, col)) and the next crawl phase."""
+
+    cells: tuple[tuple[int, int], ...]
+    phase: int
+
+
+@dataclasses.dataclass(frozen=True)
+class CrawlStep:
+    """One step of a crawl plan.
+
+    Attributes:
+        foot: leg index into LEGS (lf, rf, lh, rh).
+        leg: leg name.
+        p_WF: the new foothold (ground contact point, world frame, m).
+        stance: the four footholds after the step, shape (4, 3), LEGS order.
+    """
+
+    foot: int
+    leg: str
+    p_WF: np.ndarray
+    stance: np.ndarray
+
+
+@dataclasses.dataclass
+class CrawlPlan:
+    """A crawl plan.
+
+    Attributes:
+        status: SUCCESS, UNREACHABLE, NODE_LIMIT or TIME_LIMIT (see search.py).
+        start_stance: the four start footholds, shape (4, 3).
+        steps: the steps in order (a best partial plan unless SUCCESS).
+        cost: summed step costs.
+        weight: suboptimality bound of the plan (1 = optimal on the lattice).
+        resolution: lattice resolution (the height map's cell side, m).
+        expansions: states expanded (all searches).
+        seconds: planning wall time.
+        bounds: (cost, weight) of every plan the anytime search found, in order.
+    """
+
+    status: PlanStatus
+    start_stance: np.ndarray
+    steps: list[CrawlStep]
+    cost: float
+    weight: float
+    resolution: float
+    expansions: int
+    seconds: float
+    bounds: list[tuple[float, float]] = dataclasses.field(default_factory=list)
+
+
+def _point_in_triangle_margin(p: np.ndarray, tri: np.ndarray) -> float:
+    """Signed distance of p inside triangle tri (3 x 2): min over edges, > 0 inside."""
+    area = (tri[1, 0] - tri[0, 0]) * (tri[2, 1] - tri[0, 1]) - (tri[1, 1] - tri[0, 1]) * (
+        tri[2, 0] - tri[0, 0]
+    )
+    sign = 1.0 if area > 0.0 else -1.0
+    d = math.inf
+    for i in range(3):
+        a, b = tri[i], tri[(i + 1) % 3]
+        e = b - a
+        n = math.hypot(e[0], e[1])
+        if n == 0.0:
+            return -math.inf
+        cross = e[0] * (p[1] - a[1]) - e[1] * (p[0] - a[0])
+        d = min(d, sign * cross / n)
+    return d
+
+
+def _reachable(leg: str, p_BF: np.ndarray) -> np.ndarray:
+    """Mask of rows of p_BF (K x 3) the leg IK solves within joint limits.
+
+    One vectorised call when every row is reachable (the common case); a batch
+    that fails is split in halves, so the calls grow with the failures only.
+    """
+    try:
+        leg_ik(leg, p_BF)
+        return np.ones(len(p_BF), dtype=bool)
+    except RepertoireError:
+        if len(p_BF) == 1:
+            return np.zeros(1, dtype=bool)
+    mid = len(p_BF) // 2
+    return np.concatenate([_reachable(leg, p_BF[:mid]), _reachable(leg, p_BF[mid:])])
+
+
+class CrawlModel:
+    """The crawl step model for :func:`repertoire.planning.footstep.search.search`.
+
+    Args:
+        height_map: the terrain.
+        start_xy: the four start footholds' (x, y), shape (4, 2), LEGS order.
+        goal_xy: goal point for the feet's centroid (m).
+        params: model parameters (validated).
+
+    Raises:
+        FootstepError: bad parameters, a start foothold off the map or on ground
+            too steep, a start stance out of reach or unstable, a goal off the map.
+    """
+
+    def __init__(self, height_map: HeightMap, start_xy, goal_xy, params: CrawlParams) -> None:
+        params.validate()
+        self.map = height_map
+        self.params = params
+        self._rough = height_map.roughness(params.flat_radius)
+        self._nominal = nominal_foot_positions()[:, :2]
+        goal = np.asarray(goal_xy, dtype=float)
+        if goal.shape != (2,) or not np.all(np.isfinite(goal)):
+            raise FootstepError(f"crawl goal must be a finite (x, y), got {goal_xy!r}")
+        if not bool(height_map.inside(*height_map.cell(goal[0], goal[1]))):
+            raise FootstepError(f"crawl goal {goal.tolist()} is outside the height map")
+        self.goal = goal
+        start = np.asarray(start_xy, dtype=float)
+        if start.shape != (4, 2) or not np.all(np.isfinite(start)):
+            raise FootstepError(f"crawl start footholds must be finite, shape (4, 2); got {start}")
+        rows, cols = height_map.cell(start[:, 0], start[:, 1])
+        if not np.all(height_map.inside(rows, cols)):
+            raise FootstepError(f"crawl start footholds {start.tolist()} leave the height map")
+        for i in range(4):
+            if self._rough[rows[i], cols[i]] > params.max_roughness:
+                raise FootstepError(
+                    f"crawl start foothold of {LEGS[i]} at {start[i].tolist()} is on ground too "
+                    f"steep: height range {self._rough[rows[i], cols[i]]:.4f} m within "
+                    f"{params.flat_radius} m > max_roughness {params.max_roughness} m"
+                )
+        self._start = CrawlState(
+            cells=tuple((int(r), int(c)) for r, c in zip(rows, cols, strict=True)), phase=0
+        )
+        feet = self.footholds(self._start)
+        if not all(_reachable(LEGS[i], self._body_frame(feet, feet[i])[None])[0] for i in range(4)):
+            raise FootstepError(f"crawl start stance {feet.tolist()} is out of the legs' reach")
+        self._max_travel = (
+            math.hypot(
+                max(abs(v) for v in params.offsets_x) + 0.5 * height_map.resolution,
+                max(abs(v) for v in params.offsets_y) + 0.5 * height_map.resolution,
+            )
+            + self._max_nominal_drift()
+        )
+        dx, dy = np.meshgrid(params.offsets_x, params.offsets_y)
+        self._offsets = np.stack([dx.ravel(), dy.ravel()], axis=-1)
+
+    def _max_nominal_drift(self) -> float:
+        # Bound on how far a foot's nominal position lies from the foot itself: the
+        # reach region of a leg lies within the leg lengths of its hip.
+        return 0.0751 + 0.102 + 0.036
+
+    def footholds(self, state: CrawlState) -> np.ndarray:
+        """The four footholds (4 x 3, ground contact points) of a state."""
+        rows = np.array([c[0] for c in state.cells])
+        cols = np.array([c[1] for c in state.cells])
+        x, y = self.map.center(rows, cols)
+        return np.stack([x, y, self.map.heights[rows, cols]], axis=-1)
+
+    def _body_frame(self, feet: np.ndarray, p_WF: np.ndarray) -> np.ndarray:
+        """Foot centre(s) p_WF (..., 3 ground points) in the body frame of stance ``feet``."""
+        body = np.array(
+            [feet[:, 0].mean(), feet[:, 1].mean(), feet[:, 2].mean() + self.params.body_height]
+        )
+        p = np.asarray(p_WF, dtype=float) - body
+        return p + np.array([0.0, 0.0, FOOT_RADIUS])
+
+    # --- the StepModel protocol ---
+    def start(self) -> CrawlState:
+        return self._start
+
+    def key(self, state: CrawlState) -> CrawlState:
+        return state
+
+    def is_goal(self, state: CrawlState) -> bool:
+        feet = self.footholds(state)
+        c = feet[:, :2].mean(axis=0)
+        return bool(math.hypot(*(c - self.goal)) <= self.params.goal_radius)
+
+    def heuristic(self, state: CrawlState) -> float:
+        feet = self.footholds(state)
+        d = float(np.hypot(*(feet[:, :2].mean(axis=0) - self.goal))) - self.params.goal_radius
+        if d <= 0.0:
+            return 0.0
+        min_steps = math.ceil(d / (self._max_travel / 4.0) - 1e-9)
+        return 4.0 * d + self.params.step_cost * min_steps
+
+    def successors(self, state: CrawlState) -> list[tuple[CrawlState, float]]:
+        p = self.params
+        m = self.map
+        leg = p.order[state.phase]
+        feet = self.footholds(state)
+        centroid = feet[:, :2].mean(axis=0)
+        targets = centroid + self._nominal[leg] + self._offsets
+        rows, cols = m.cell(targets[:, 0], targets[:, 1])
+        ok = m.inside(rows, cols)
+        rows, cols = rows[ok], cols[ok]
+        if len(rows) == 0:
+            return []
+        # Unique cells (offsets may snap to the same cell); skip "no move".
+        cells = np.unique(np.stack([rows, cols], axis=-1), axis=0)
+        old = state.cells[leg]
+        cells = cells[~((cells[:, 0] == old[0]) & (cells[:, 1] == old[1]))]
+        rows, cols = cells[:, 0], cells[:, 1]
+        z_new = m.heights[rows, cols]
+        z_old = feet[leg, 2]
+        keep = (self._rough[rows, cols] <= p.max_roughness) & (
+            np.abs(z_new - z_old) <= p.max_step_height
+        )
+        # Swing clearance along the straight line old -> new.
+        for k in np.flatnonzero(keep):
+            n = max(abs(rows[k] - old[0]), abs(cols[k] - old[1])) + 1
+            rr = np.rint(np.linspace(old[0], rows[k], n + 1)).astype(int)
+            cc = np.rint(np.linspace(old[1], cols[k], n + 1)).astype(int)
+            if m.heights[rr, cc].max() > max(z_new[k], z_old) + p.swing_clearance:
+                keep[k] = False
+        # Support triangle of the three stance feet during the swing.
+        stance_idx = [i for i in range(4) if i != leg]
+        tri = feet[stance_idx, :2]
+        sway = (1.0 - p.body_shift) * centroid + p.body_shift * tri.mean(axis=0)
+        if _point_in_triangle_margin(sway, tri) < p.support_margin:
+            return []
+        idx = np.flatnonzero(keep)
+        if len(idx) == 0:
+            return []
+        x_new, y_new = m.center(rows[idx], cols[idx])
+        p_new = np.stack([x_new, y_new, z_new[idx]], axis=-1)  # K x 3
+        # Reach of all four legs at the body pose after the step.
+        K = len(idx)
+        new_feet = np.repeat(feet[None], K, axis=0)
+        new_feet[:, leg] = p_new
+        body = np.stack(
+            [
+                new_feet[:, :, 0].mean(axis=1),
+                new_feet[:, :, 1].mean(axis=1),
+                new_feet[:, :, 2].mean(axis=1) + p.body_height,
+            ],
+            axis=-1,
+        )
+        p_BF = new_feet - body[:, None, :] + np.array([0.0, 0.0, FOOT_RADIUS])
+        reach = np.ones(K, dtype=bool)
+        for i in range(4):
+            reach &= _reachable(LEGS[i], p_BF[:, i])
+        out = []
+        next_phase = (state.phase + 1) % 4
+        for j in np.flatnonzero(reach):
+            cells_new = list(state.cells)
+            cells_new[leg] = (int(rows[idx[j]]), int(cols[idx[j]]))
+            travel = math.hypot(p_new[j, 0] - feet[leg, 0], p_new[j, 1] - feet[leg, 1])
+            cost = p.step_cost + travel + p.height_cost * abs(p_new[j, 2] - z_old)
+            out.append((CrawlState(cells=tuple(cells_new), phase=next_phase), cost))
+        return out
+
+
+def plan_crawl(
+    height_map: HeightMap,
+    start_xy,
+    goal_xy,
+    params: CrawlParams | None = None,
+    *,
+    time_limit: float = 2.0,
+    max_expansions: int = 50_000,
+    anytime: bool = False,
+    weight: float = 3.0,
+) -> CrawlPlan:
+    """Plans a LittleDog crawl on a height map.
+
+    Args:
+        height_map: the terrain (e.g. from :func:`height_map_from_board`).
+        start_xy: the four start footholds' (x, y), shape (4, 2), LEGS order (lf, rf, lh, rh).
+        goal_xy: goal point for the feet's centroid.
+        params: crawl model parameters; default :class:`CrawlParams`.
+        time_limit: wall-time budget (s).
+        max_expansions: expansion budget (per search).
+        anytime: if True, weighted A* with weights 3, 2, 1.5, 1.2, 1 while time
+            remains; the returned plan is the cheapest success.
+        weight: heuristic weight of the single search when ``anytime`` is False (the
+            plan costs at most ``weight`` times the lattice optimum; 1 = optimal, slow).
+
+    Raises:
+        FootstepError: see :class:`CrawlModel` and the search's budget checks.
+    """
+    model = CrawlModel(height_map, start_xy, goal_xy, params or CrawlParams())
+    if anytime:
+        results = anytime_search(model, max_expansions=max_expansions, time_limit=time_limit)
+    else:
+        results = [
+            search(model, weight=weight, max_expansions=max_expansions, time_limit=time_limit)
+        ]
+    successes = [r for r in results if r.status is PlanStatus.SUCCESS]
+    best: SearchResult = min(successes, key=lambda r: r.cost) if successes else results[-1]
+    if not successes and any(r.status is PlanStatus.UNREACHABLE for r in results):
+        best = next(r for r in results if r.status is PlanStatus.UNREACHABLE)
+    steps = []
+    prev = best.path[0]
+    for st in best.path[1:]:
+        leg = model.params.order[prev.phase]
+        stance = model.footholds(st)
+        steps.append(CrawlStep(foot=leg, leg=LEGS[leg], p_WF=stance[leg].copy(), stance=stance))
+        prev = st
+    return CrawlPlan(
+        status=best.status,
+        start_stance=model.footholds(best.path[0]),
+        steps=steps,
+        cost=best.cost,
+        weight=best.weight,
+        resolution=height_map.resolution,
+        expansions=sum(r.expansions for r in results),
+        seconds=sum(r.seconds for r in results),
+        bounds=[(r.cost, r.weight) for r in successes],
+    )

@@ -1,0 +1,209 @@
+"""A generic best-first (weighted A*) search over a robot's step model.
+
+The search knows nothing about feet: a :class:`StepModel` gives the start
+state, the successors of a state with their step costs, a hashable lattice key
+for duplicate detection, a goal test and an admissible heuristic. The
+quadruped crawl model (:mod:`repertoire.planning.footstep.quadruped`) is one
+such model. The biped planner (:func:`repertoire.planning.footstep.plan_footsteps`)
+still runs its own loop; porting it onto this core is future work.
+
+Statuses are honest:
+
+- ``SUCCESS``: a goal state was expanded; the plan's cost is at most ``weight``
+  times the optimum over the model's lattice (admissible heuristic).
+- ``UNREACHABLE``: the open list was exhausted, so no state of the lattice
+  reachable from the start satisfies the goal test.
+- ``NODE_LIMIT`` / ``TIME_LIMIT``: the budget ran out first; the path is the
+  best partial one (the expanded state with the lowest heuristic).
+
+:func:`anytime_search` runs weighted A* with decreasing weights while time
+remains (a restarting ARA*-style schedule) and reports each plan with its
+suboptimality bound.
+"""
+
+import dataclasses
+import heapq
+import itertools
+import math
+import time
+from collections.abc import Hashable, Iterable, Sequence
+from typing import Any, Protocol
+
+from repertoire.planning.footstep.types import FootstepError, PlanStatus
+
+
+class StepModel(Protocol):
+    """What :func:`search` needs from a robot's step model."""
+
+    def start(self) -> Any:
+        """The start state."""
+
+    def successors(self, state: Any) -> Iterable[tuple[Any, float]]:
+        """``(next_state, step_cost)`` pairs, costs > 0."""
+
+    def key(self, state: Any) -> Hashable:
+        """Lattice key for duplicate detection (equal keys = the same state)."""
+
+    def is_goal(self, state: Any) -> bool:
+        """True when ``state`` satisfies the goal."""
+
+    def heuristic(self, state: Any) -> float:
+        """Admissible lower bound on the cost to the goal."""
+
+
+@dataclasses.dataclass
+class SearchResult:
+    """The outcome of one search.
+
+    Attributes:
+        status: see the module docstring.
+        path: states from the start to the last state (goal, or best partial).
+        cost: summed step costs along ``path``.
+        weight: heuristic weight used; with SUCCESS, ``cost <= weight * optimum``.
+        expansions: states expanded.
+        seconds: wall time of the search.
+    """
+
+    status: PlanStatus
+    path: list[Any]
+    cost: float
+    weight: float
+    expansions: int
+    seconds: float
+
+
+def _validate_budget(weight: float, max_expansions: int, time_limit: float) -> None:
+    if not (math.isfinite(weight) and weight >= 1.0):
+        raise FootstepError(f"search weight must be a finite number >= 1, got {weight}")
+    if int(max_expansions) != max_expansions or max_expansions < 1:
+        raise FootstepError(f"max_expansions must be a positive integer, got {max_expansions}")
+    if not (math.isfinite(time_limit) and time_limit > 0.0):
+        raise FootstepError(f"time_limit must be a positive number of seconds, got {time_limit}")
+
+
+def search(
+    model: StepModel,
+    *,
+    weight: float = 1.0,
+    max_expansions: int = 200_000,
+    time_limit: float = 10.0,
+) -> SearchResult:
+    """Weighted A* from ``model.start()`` to the first expanded goal state.
+
+    Args:
+        model: the step model.
+        weight: heuristic inflation (1 = optimal A*).
+        max_expansions: expansion budget (NODE_LIMIT when exhausted).
+        time_limit: wall-time budget in s (TIME_LIMIT when exhausted).
+
+    Raises:
+        FootstepError: bad budget, or a start state that is not a goal and has no
+            successors (the step model offers no step at all).
+    """
+    _validate_budget(weight, max_expansions, time_limit)
+    t0 = time.perf_counter()
+    start = model.start()
+    if not model.is_goal(start) and not any(True for _ in model.successors(start)):
+        raise FootstepError(
+            "the step model's successors of the start state are empty: no step is possible "
+            "from the start (check the candidate set, reach and terrain around the start)"
+        )
+    tie = itertools.count()
+    start_key = model.key(start)
+    g: dict[Hashable, float] = {start_key: 0.0}
+    parent: dict[Hashable, Hashable | None] = {start_key: None}
+    states: dict[Hashable, Any] = {start_key: start}
+    closed: set[Hashable] = set()
+    h0 = model.heuristic(start)
+    open_list: list[tuple[float, float, int, Hashable]] = [(weight * h0, h0, next(tie), start_key)]
+    best_key, best_h = start_key, h0
+    expansions = 0
+    status = PlanStatus.UNREACHABLE
+    end_key = None
+    while open_list:
+        _, h, _, key = heapq.heappop(open_list)
+        if key in closed:
+            continue
+        state = states[key]
+        if model.is_goal(state):
+            status, end_key = PlanStatus.SUCCESS, key
+            break
+        if expansions >= max_expansions:
+            status = PlanStatus.NODE_LIMIT
+            break
+        if (expansions & 63) == 0 and time.perf_counter() - t0 > time_limit:
+            status = PlanStatus.TIME_LIMIT
+            break
+        closed.add(key)
+        expansions += 1
+        if h < best_h:
+            best_key, best_h = key, h
+        g_state = g[key]
+        for nxt, step_cost in model.successors(state):
+            nkey = model.key(nxt)
+            if nkey in closed:
+                continue
+            g_new = g_state + step_cost
+            if g_new < g.get(nkey, math.inf):
+                g[nkey] = g_new
+                parent[nkey] = key
+                states[nkey] = nxt
+                h_new = model.heuristic(nxt)
+                heapq.heappush(open_list, (g_new + weight * h_new, h_new, next(tie), nkey))
+    if end_key is None:
+        end_key = best_key
+    path_keys = []
+    k: Hashable | None = end_key
+    while k is not None:
+        path_keys.append(k)
+        k = parent[k]
+    path_keys.reverse()
+    return SearchResult(
+        status=status,
+        path=[states[k] for k in path_keys],
+        cost=g[end_key],
+        weight=weight,
+        expansions=expansions,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def anytime_search(
+    model: StepModel,
+    *,
+    weights: Sequence[float] = (3.0, 2.0, 1.5, 1.2, 1.0),
+    max_expansions: int = 200_000,
+    time_limit: float = 1.0,
+) -> list[SearchResult]:
+    """Weighted A* with decreasing weights while time remains.
+
+    Each result carries its weight, the bound on its suboptimality. The list
+    holds every search that ran (the last one may end in TIME_LIMIT with a
+    partial path); the best plan is the cheapest SUCCESS.
+
+    Args:
+        model: the step model.
+        weights: decreasing weights, each >= 1.
+        max_expansions: expansion budget of each search.
+        time_limit: total wall-time budget in s.
+
+    Raises:
+        FootstepError: bad weights or budget.
+    """
+    ws = [float(w) for w in weights]
+    if not ws or any(not (math.isfinite(w) and w >= 1.0) for w in ws):
+        raise FootstepError(f"anytime weights must be numbers >= 1, got {list(weights)}")
+    if any(b > a for a, b in itertools.pairwise(ws)):
+        raise FootstepError(f"anytime weights must not increase, got {ws}")
+    _validate_budget(ws[0], max_expansions, time_limit)
+    t0 = time.perf_counter()
+    results: list[SearchResult] = []
+    for w in ws:
+        left = time_limit - (time.perf_counter() - t0)
+        if left <= 0.0:
+            break
+        result = search(model, weight=w, max_expansions=max_expansions, time_limit=left)
+        results.append(result)
+        if result.status is PlanStatus.UNREACHABLE:
+            break
+    return results

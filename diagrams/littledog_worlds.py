@@ -24,10 +24,9 @@ from pydrake.systems.primitives import TrajectorySource, VectorLogSink
 from pydrake.trajectories import PiecewisePolynomial
 from repertoire.diagrams.littledog import BODY_NAME, add_littledog
 from repertoire.models.littledog import FOOT_FRAMES, JOINT_NAMES
-from repertoire.models.littledog.pose import rpy_from_rotation
 from repertoire.models.terrain import TerrainBoard
 from repertoire.planning.littledog_crawl import CrawlPlan
-from repertoire.systems.littledog_contact import FootContactSensor
+from repertoire.systems.littledog_sensors import FootContactSensor, body_pose_from_positions
 
 from repertoire.errors import RepertoireError
 
@@ -118,28 +117,6 @@ def joint_positions(plant: MultibodyPlant, instance: ModelInstanceIndex, q_plant
     return np.asarray(q_plant)[..., starts]
 
 
-def body_pose_from_positions(q_plant) -> np.ndarray:
-    """Body pose [x, y, z, roll, pitch, yaw] from plant positions (quaternion w, x, y, z, then xyz).
-
-    LittleDog's floating base comes first in the plant's positions.
-    """
-    q = np.asarray(q_plant, dtype=float)
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    n = np.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w / n, x / n, y / n, z / n
-    R = np.empty(q.shape[:-1] + (3, 3))
-    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    R[..., 0, 1] = 2 * (x * y - z * w)
-    R[..., 0, 2] = 2 * (x * z + y * w)
-    R[..., 1, 0] = 2 * (x * y + z * w)
-    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    R[..., 1, 2] = 2 * (y * z - x * w)
-    R[..., 2, 0] = 2 * (x * z - y * w)
-    R[..., 2, 1] = 2 * (y * z + x * w)
-    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
-    return np.concatenate([q[..., 4:7], rpy_from_rotation(R)], axis=-1)
-
-
 def world_foot_positions(plant: MultibodyPlant, plant_context: Context) -> np.ndarray:
     """World positions (4 x 3, ``LEGS`` order) of the foot centres."""
     return np.array(
@@ -159,8 +136,9 @@ def build_crawl_playback(
 
     The initial state is the plan's first body pose and joint angles. Subsystems:
     ``plant``, ``scene_graph``, ``commands`` (TrajectorySource of [q, qdot] in actuator
-    order), ``contact`` (FootContactSensor), ``state_log`` and ``contact_log``
-    (VectorLogSinks publishing every ``log_period``).
+    order), ``contact`` (FootContactSensor), ``state_log``, ``contact_log`` and
+    ``slip_log`` (VectorLogSinks of the plant state, contact flags and slip speeds,
+    publishing every ``log_period``).
 
     Args:
         board: the terrain.
@@ -191,6 +169,9 @@ def build_crawl_playback(
     contact_log = builder.AddSystem(VectorLogSink(4, log_period))
     contact_log.set_name("contact_log")
     builder.Connect(contact.contact_output, contact_log.get_input_port())
+    slip_log = builder.AddSystem(VectorLogSink(4, log_period))
+    slip_log.set_name("slip_log")
+    builder.Connect(contact.slip_speed_output, slip_log.get_input_port())
     if meshcat is not None:
         from pydrake.geometry import MeshcatVisualizer
 
@@ -204,7 +185,6 @@ __all__ = [
     "PlantSettings",
     "actuator_order",
     "add_littledog_on_terrain",
-    "body_pose_from_positions",
     "build_crawl_playback",
     "joint_positions",
     "world_foot_positions",

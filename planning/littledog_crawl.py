@@ -77,6 +77,9 @@ class CrawlParams:
         shift_time: time to shift the body over the support triangle (s).
         swing_time: time of one foot's swing (s).
         settle_time: pause with four feet down after touchdown (s).
+        lift_delay: pause after the body shift before the foot lifts (s).
+        shift_margin: the body goes this much beyond the support triangle's centroid,
+            away from the foot about to lift (m).
         clearance: swing height above the highest terrain under the path (m).
         press: how far below its foothold a stance foot is commanded, to keep it loaded (m).
         standing_height: body origin above the mean ground under the feet (m).
@@ -88,16 +91,18 @@ class CrawlParams:
         dt: sample period of the joint commands (s).
     """
 
-    stride: float = 0.08
+    stride: float = 0.07
     shift_time: float = 0.5
     swing_time: float = 0.5
     settle_time: float = 0.15
+    lift_delay: float = 0.1
+    shift_margin: float = 0.01
     clearance: float = 0.025
     press: float = 0.003
     standing_height: float = 0.14
-    search_radius: float = 0.03
+    search_radius: float = 0.04
     search_step: float = 0.005
-    edge_radius: float = 0.015
+    edge_radius: float = 0.02
     flat_tolerance: float = 0.003
     max_rise: float = 0.045
     dt: float = 0.01
@@ -109,6 +114,8 @@ class CrawlParams:
             "shift_time": (0.05, 5.0),
             "swing_time": (0.05, 5.0),
             "settle_time": (0.0, 5.0),
+            "lift_delay": (0.0, 5.0),
+            "shift_margin": (0.0, 0.04),
             "clearance": (0.0, 0.08),
             "press": (0.0, 0.02),
             "standing_height": (0.08, 0.17),
@@ -195,6 +202,34 @@ def joint_angles(pose: np.ndarray, p_WF: np.ndarray, what: str = "") -> np.ndarr
     return q
 
 
+MAX_LEG_EXTENSION = 0.165
+"""Largest hip-to-foot distance the crawl plans with (m; the legs reach 0.177 m)."""
+
+
+def reachable_height(pose: np.ndarray, points: np.ndarray, legs, params: CrawlParams) -> float:
+    """Body height, at most ``pose[2]``, keeping every foot point within its leg's reach.
+
+    Args:
+        pose: the body pose (its z is the wanted height).
+        points: foot centres the legs must reach (M x 3).
+        legs: the ``LEGS`` index of each point (M,).
+        params: crawl parameters (stance feet are commanded ``press`` lower).
+    """
+    from repertoire.models.littledog.kinematics import LEG_GEOMETRY
+
+    hips = np.array([LEG_GEOMETRY[LEGS[i]].p_BH for i in legs])
+    z = float(pose[2])
+    for _ in range(20):
+        trial = pose.copy()
+        trial[2] = z
+        p_B = world_to_body(trial, points - np.array([0.0, 0.0, params.press]))
+        excess = float(np.linalg.norm(p_B - hips, axis=1).max() - MAX_LEG_EXTENSION)
+        if excess <= 0.0:
+            break
+        z -= excess + 1e-4
+    return z
+
+
 def _swing_path(p0, p1, s, params: CrawlParams, board) -> np.ndarray:
     """Foot centre along a lift / travel / lower path for phases ``s`` in [0, 1]."""
     u = np.linspace(0.0, 1.0, 25)
@@ -268,7 +303,12 @@ def plan_crawl(
         after = feet.copy()
         after[f] = step.p_WF
         target = support_pose(after, stance, params, board)
-        target[:2] = feet[stance, :2].mean(axis=0)
+        centroid = feet[stance, :2].mean(axis=0)
+        away = centroid - feet[f, :2]
+        target[:2] = centroid + params.shift_margin * away / max(np.linalg.norm(away), 1e-9)
+        target[2] = reachable_height(
+            target, np.vstack([feet, after[f][None]]), [0, 1, 2, 3, f], params
+        )
         # Shift: body moves, all four feet stay.
         n = max(1, round(params.shift_time / dt))
         s = _smooth((np.arange(1, n + 1)) / n)[:, None]
@@ -276,6 +316,10 @@ def plan_crawl(
         d[5] = (d[5] + math.pi) % (2.0 * math.pi) - math.pi
         emit(n, pose + s * d, np.repeat((feet - down)[None], n, 0), np.ones(4, bool), k)
         pose = target
+        n = round(params.lift_delay / dt)
+        if n:
+            emit(n, np.repeat(pose[None], n, 0), np.repeat((feet - down)[None], n, 0),
+                 np.ones(4, bool), k)
         # Swing: body still, foot f travels.
         n = max(1, round(params.swing_time / dt))
         s = np.arange(1, n + 1) / n

@@ -124,7 +124,12 @@ class IntegralFootController(LeafSystem):
         self._gains = self.DeclareNumericParameter(BasicVector([gain, decay]))
         self._state = self.DeclareDiscreteState(12)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self.q_desired_output = self.DeclareVectorOutputPort("q_desired", 12, self._calc_q)
+        self.q_desired_output = self.DeclareVectorOutputPort(
+            "q_desired",
+            12,
+            self._calc_q,
+            prerequisites_of_calc={self.xd_ticket(), self.q_playback_input.ticket()},
+        )
         self.integrators_output = self.DeclareStateOutputPort("integrators", self._state)
 
     def set_gains(self, context: Context, gain: float, decay: float) -> None:

@@ -136,7 +136,7 @@ class BodyStateSensor(LeafSystem):
         """
         super().__init__()
         body = plant.GetBodyByName("body", instance)
-        if not body.is_floating() or body.floating_positions_start() != 0:
+        if not body.is_floating_base_body() or body.floating_positions_start() != 0:
             raise RepertoireError("BodyStateSensor needs LittleDog's floating base first in q")
         self._joint_starts = [
             plant.GetJointByName(n, instance).position_start() for n in JOINT_NAMES

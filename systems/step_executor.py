@@ -60,12 +60,13 @@ def interpolate_step(step: LibraryStep, tau: float) -> tuple[np.ndarray, np.ndar
 class StepExecutor(LeafSystem):
     """Plays back the steps the policy chooses.
 
-    Discrete state ``[step index, start time, blend duration, q_from (12)]``,
-    updated every ``period``: when the current step's playback is over and the
-    policy's choice is fresh (made at most ``1.5 period`` ago, i.e. with all four
-    feet down after the step), the chosen step starts: a cubic blend of
-    :func:`spline_duration` from the last played angles to its first angles, then
-    its recorded angles.
+    Discrete state ``[step index, start time, blend duration, q_from (12), q (12),
+    ideal pose (6), ideal pose set]``, updated every ``period`` (the commands are held between
+    updates, as a 100 Hz controller's would be): when the current step's playback
+    is over and the policy's choice is fresh (made at most ``1.5 period`` ago, i.e.
+    with all four feet down after the step), the chosen step starts: a cubic blend
+    of :func:`spline_duration` from the last played angles to its first angles,
+    then its recorded angles.
 
     Input ports:
         choice: the policy's :class:`StepChoice` (abstract).
@@ -113,11 +114,20 @@ class StepExecutor(LeafSystem):
             "choice", AbstractValue.Make(StepChoice())
         )
         self.body_pose_input = self.DeclareVectorInputPort("body_pose", 6)
-        self._state = self.DeclareDiscreteState(np.concatenate([[-1.0, 0.0, 0.0], q0]))
+        self._state = self.DeclareDiscreteState(
+            np.concatenate([[-1.0, 0.0, 0.0], q0, q0, np.zeros(6), [0.0]])
+        )
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self.q_playback_output = self.DeclareVectorOutputPort("q_playback", 12, self._calc_q)
-        self.ideal_pose_output = self.DeclareVectorOutputPort("ideal_pose", 6, self._calc_pose)
-        self.step_index_output = self.DeclareVectorOutputPort("step_index", 1, self._calc_index)
+        ticket = {self.xd_ticket()}
+        self.q_playback_output = self.DeclareVectorOutputPort(
+            "q_playback", 12, self._calc_q, prerequisites_of_calc=ticket
+        )
+        self.ideal_pose_output = self.DeclareVectorOutputPort(
+            "ideal_pose", 6, self._calc_pose, prerequisites_of_calc=ticket
+        )
+        self.step_index_output = self.DeclareVectorOutputPort(
+            "step_index", 1, self._calc_index, prerequisites_of_calc=ticket
+        )
 
     def playback(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray | None, bool]:
         """``(q, ideal pose or None, finished)`` for discrete state ``x`` at time ``t``."""
@@ -132,27 +142,28 @@ class StepExecutor(LeafSystem):
         return q, pose, tau - x[2] >= step.duration
 
     def _update(self, context: Context, discrete_state) -> None:
-        x = context.get_discrete_state(self._state).value()
+        x = context.get_discrete_state(self._state).value().copy()
         t = context.get_time()
-        q, _, finished = self.playback(x, t)
+        q, _, finished = self.playback(x[:15], t)
         choice = self.choice_input.Eval(context)
-        if not finished or choice.index < 0 or choice.time < t - 1.5 * self._period:
-            return
-        step = self._library[choice.index]
-        body = self.body_pose_input.Eval(context)
-        T = max(spline_duration(body, step.start_pose, **self._blend), 1e-3)
-        discrete_state.get_mutable_vector(self._state).SetFromVector(
-            np.concatenate([[choice.index, t, T], q])
-        )
+        if finished and choice.index >= 0 and choice.time >= t - 1.5 * self._period:
+            step = self._library[choice.index]
+            body = self.body_pose_input.Eval(context)
+            T = max(spline_duration(body, step.start_pose, **self._blend), 1e-3)
+            x[:15] = np.concatenate([[choice.index, t, T], q])
+        q, pose, _ = self.playback(x[:15], t)
+        x[15:27] = q
+        x[27:33] = self.body_pose_input.Eval(context) if pose is None else pose
+        x[33] = 1.0
+        discrete_state.get_mutable_vector(self._state).SetFromVector(x)
 
     def _calc_q(self, context: Context, output: BasicVector) -> None:
-        x = context.get_discrete_state(self._state).value()
-        output.SetFromVector(self.playback(x, context.get_time())[0])
+        output.SetFromVector(context.get_discrete_state(self._state).value()[15:27])
 
     def _calc_pose(self, context: Context, output: BasicVector) -> None:
         x = context.get_discrete_state(self._state).value()
-        _, pose, _ = self.playback(x, context.get_time())
-        output.SetFromVector(self.body_pose_input.Eval(context) if pose is None else pose)
+        # Before the first update the ideal pose is the measured one.
+        output.SetFromVector(x[27:33] if x[33] else self.body_pose_input.Eval(context))
 
     def _calc_index(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, context.get_discrete_state(self._state).value()[0])

@@ -243,15 +243,16 @@ def crossing_figures(
     Returns:
         ``crossed`` (1.0 when both front feet passed the goal line), ``time_to_cross_s``
         (NaN if never), ``min_clearance_m`` (lowest body height above the terrain under
-        it), ``max_tilt_rad``, ``fell`` (1.0 on tilt > 0.5 rad or clearance < 4 cm),
+        it until the goal or the end), ``max_tilt_rad`` (the same span), ``fell`` (1.0 on tilt > 0.5 rad or clearance < 4 cm),
         ``steps_started``.
     """
     d = np.array([math.cos(heading), math.sin(heading)])
     f = np.asarray(feet).reshape(-1, 4, 3)
     front = np.minimum(f[:, 0, :2] @ d, f[:, 1, :2] @ d)
     past = np.flatnonzero(front >= goal)
-    clearance = body_pose[:, 2] - board.height(body_pose[:, 0], body_pose[:, 1])
-    tilt = float(np.max(np.abs(body_pose[:, 3:5])))
+    end = past[0] + 1 if len(past) else len(times)  # judge the crossing up to the goal
+    clearance = body_pose[:end, 2] - board.height(body_pose[:end, 0], body_pose[:end, 1])
+    tilt = float(np.max(np.abs(body_pose[:end, 3:5])))
     changes = int(np.count_nonzero(np.diff(np.asarray(steps).ravel()) != 0))
     min_clear = float(np.min(clearance))
     return {

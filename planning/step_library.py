@@ -19,6 +19,7 @@ into steps by stance configuration.
 import dataclasses
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -279,7 +280,8 @@ class StepLibrary:
             "legs": LEGS,
         }
         npz, js = base.with_suffix(".npz"), base.with_suffix(".json")
-        tmp_npz, tmp_js = base.with_suffix(".npz.tmp"), base.with_suffix(".json.tmp")
+        tag = f".{os.getpid()}.tmp"  # unique per process: parallel writers never share a file
+        tmp_npz, tmp_js = base.with_suffix(".npz" + tag), base.with_suffix(".json" + tag)
         with open(tmp_npz, "wb") as f:
             np.savez(f, **arrays)
         tmp_js.write_text(json.dumps(meta, indent=1))
@@ -354,13 +356,14 @@ def segment_recording(
     terrain: str,
     direction: float,
     min_flight: int = 20,
+    settle: int = 10,
 ) -> list[LibraryStep]:
     """Cuts a recording into steps: a step starts whenever all four feet are down.
 
     A *flight* is a run of at least ``min_flight`` samples with one foot up (shorter
     runs are contact flicker or a foot unloading while the body rocks). Step ``k`` spans from the first all-down
     sample after flight ``k - 1`` (or the first sample) to the first all-down sample
-    after flight ``k``; its start state is the foot positions and body pose there.
+    after flight ``k`` plus up to ``settle`` samples of all four feet down; its start state is the foot positions and body pose there.
 
     Args:
         times: sample times (N,) (s).
@@ -371,6 +374,7 @@ def segment_recording(
         terrain: source terrain name.
         direction: crossing direction (rad).
         min_flight: shortest flight counted (samples).
+        settle: up to this many all-down samples after the touchdown end the step.
 
     Raises:
         StepLibraryError: inconsistent shapes, a flight with two feet up, or no step.
@@ -407,6 +411,10 @@ def segment_recording(
         if len(after) == 0:
             break  # the recording ends before the feet are down again
         end = b + int(after[0])
+        # Keep the touchdown's settling samples (all four down) in the action, so the
+        # landed foot is pressed down as it was in the recording.
+        while end + 1 < n and end - (b + int(after[0])) < settle and all_down[end + 1]:
+            end += 1
         sl = slice(start, end + 1)  # the first all-down sample closes the step
         steps.append(
             LibraryStep(

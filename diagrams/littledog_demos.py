@@ -1,10 +1,11 @@
 """Demonstrations for the LittleDog step library: scripted crossings recorded in physics.
 
 The scripted operator (:func:`~repertoire.planning.littledog_crawl.choose_footholds`)
-picks footholds across a terrain; the crawl (:func:`~repertoire.planning.littledog_crawl.plan_crawl`)
-turns them into joint commands; :func:`record_crossing` plays them into the plant's PD
-and records, every 10 ms, the commanded joint angles, the measured body pose, foot
-positions and contact flags, and cuts the recording into steps
+picks footholds across a terrain; the crawl
+(:func:`~repertoire.planning.littledog_crawl.plan_crawl`) turns them into joint
+commands; :func:`record_crossing` plays them into the plant's PD, records every
+10 ms the commanded joint angles, the measured body pose, foot positions and
+contact flags, and cuts the recording into steps
 (:func:`~repertoire.planning.step_library.segment_recording`).
 
 The library terrains (:data:`LIBRARY_TERRAINS`) follow the paper's set-up: two
@@ -78,8 +79,12 @@ def library_terrain(name: str) -> LibraryTerrain:
 
 
 def crossing_start(
-    board: TerrainBoard, heading: float, half_extent: float, standing_height: float,
-    offset_xy=(0.0, 0.0), yaw_offset: float = 0.0,
+    board: TerrainBoard,
+    heading: float,
+    half_extent: float,
+    standing_height: float,
+    offset_xy=(0.0, 0.0),
+    yaw_offset: float = 0.0,
 ):
     """Standing pose at ``-half_extent`` along ``heading`` (plus offsets), as (pose6, feet, q)."""
     d = np.array([math.cos(heading), math.sin(heading)])
@@ -198,7 +203,9 @@ def record_crossing(
     body = body_pose_from_positions(X[:, :7])
     from repertoire.diagrams.littledog_worlds import joint_positions
 
-    q_meas = joint_positions(plant, plant.GetModelInstanceByName("littledog"), X[:, : plant.num_positions()])
+    q_meas = joint_positions(
+        plant, plant.GetModelInstanceByName("littledog"), X[:, : plant.num_positions()]
+    )
     feet = np.stack([feet_in_world(p, q) for p, q in zip(body, q_meas)])
     contact = clog.data().T[:n]
     slip_speed = diagram.GetSubsystemByName("slip_log").FindLog(context).data().T[:n]
@@ -237,8 +244,14 @@ def record_library(names: list[str] | None = None, **kwargs) -> tuple[StepLibrar
             rec = record_crossing(terrain, direction, **kwargs)
             steps += rec.steps
             summaries.append(
-                dict(terrain=name, direction_deg=direction, steps=len(rec.steps),
-                     slip_m=rec.slip_m, fell=rec.fell, wall_s=rec.wall_s)
+                dict(
+                    terrain=name,
+                    direction_deg=direction,
+                    steps=len(rec.steps),
+                    slip_m=rec.slip_m,
+                    fell=rec.fell,
+                    wall_s=rec.wall_s,
+                )
             )
     return StepLibrary(steps), summaries
 

@@ -9,7 +9,8 @@ The closed loop of Stolle et al. (sections III-IV) in physics::
     q_playback, ideal_pose, body_pose, joint_angles, contact -> IntegralFootController
         -> q_desired -> desired_state (actuator order, zero velocities) -> plant PD
 
-The scenario names the source terrain (:data:`~repertoire.diagrams.littledog_demos.LIBRARY_TERRAINS`),
+The scenario names the source terrain
+(:data:`~repertoire.diagrams.littledog_demos.LIBRARY_TERRAINS`),
 the crossing direction, the start offsets, the controller gains and the library
 file. With ``library: ""`` the library of all demonstrations is loaded from
 ``out/littledog/step_library.{npz,json}`` and, if that file does not exist yet,
@@ -23,7 +24,6 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import MatrixGain, VectorLogSink
-from repertoire.criteria import Bound
 from repertoire.diagrams.littledog_demos import (
     crossing_start,
     flat_start,
@@ -43,6 +43,7 @@ from repertoire.systems.library_policy import LibraryPolicy
 from repertoire.systems.littledog_sensors import BodyStateSensor, FootContactSensor
 from repertoire.systems.step_executor import StepExecutor
 
+from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
 
 DEFAULT_LIBRARY = Path("out") / "littledog" / "step_library"
@@ -243,7 +244,8 @@ def crossing_figures(
     Returns:
         ``crossed`` (1.0 when both front feet passed the goal line), ``time_to_cross_s``
         (NaN if never), ``min_clearance_m`` (lowest body height above the terrain under
-        it until the goal or the end), ``max_tilt_rad`` (the same span), ``fell`` (1.0 on tilt > 0.5 rad or clearance < 4 cm),
+        it until the goal or the end), ``max_tilt_rad`` (the same span),
+        ``fell`` (1.0 on tilt > 0.5 rad or clearance < 4 cm),
         ``steps_started``.
     """
     d = np.array([math.cos(heading), math.sin(heading)])

@@ -1,4 +1,4 @@
-"""LittleDog on any terrain at a given start pose: the plant world shared by the crawl and library diagrams.
+"""LittleDog on any terrain at a given start pose (the crawl and library diagrams' world).
 
 ``add_littledog_on_terrain`` puts the board(s) and LittleDog (PD actuators) into a
 builder with the plant's default state at a given body pose and joint angles;
@@ -26,7 +26,7 @@ from repertoire.diagrams.littledog import BODY_NAME, add_littledog
 from repertoire.models.littledog import FOOT_FRAMES, JOINT_NAMES
 from repertoire.models.terrain import TerrainBoard
 from repertoire.planning.littledog_crawl import CrawlPlan
-from repertoire.systems.littledog_sensors import FootContactSensor, body_pose_from_positions
+from repertoire.systems.littledog_sensors import FootContactSensor
 
 from repertoire.errors import RepertoireError
 
@@ -105,8 +105,7 @@ def add_littledog_on_terrain(
 def actuator_order(plant: MultibodyPlant, instance: ModelInstanceIndex) -> np.ndarray:
     """Index into ``JOINT_NAMES`` of each actuator, in the plant's actuator order."""
     names = [
-        plant.get_joint_actuator(i).joint().name()
-        for i in plant.GetJointActuatorIndices(instance)
+        plant.get_joint_actuator(i).joint().name() for i in plant.GetJointActuatorIndices(instance)
     ]
     return np.array([JOINT_NAMES.index(n) for n in names])
 
@@ -156,7 +155,9 @@ def build_crawl_playback(
     )
     order = actuator_order(plant, instance)
     q = plan.q[:, order]
-    traj = PiecewisePolynomial.CubicShapePreserving(plan.times, q.T, zero_end_point_derivatives=True)
+    traj = PiecewisePolynomial.CubicShapePreserving(
+        plan.times, q.T, zero_end_point_derivatives=True
+    )
     commands = builder.AddSystem(TrajectorySource(traj, output_derivative_order=1))
     commands.set_name("commands")
     builder.Connect(commands.get_output_port(), plant.get_desired_state_input_port(instance))

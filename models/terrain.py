@@ -251,8 +251,9 @@ class TerrainBoard:
         if not (math.isfinite(dx) and math.isfinite(dy)):
             raise RepertoireError(f"board translation must be finite, got ({dx}, {dy})")
         boxes = [
-            TerrainBox([b.center[0] + dx, b.center[1] + dy, b.center[2]], list(b.size), b.yaw,
-                       b.label)
+            TerrainBox(
+                [b.center[0] + dx, b.center[1] + dy, b.center[2]], list(b.size), b.yaw, b.label
+            )
             for b in self.boxes
         ]
         return TerrainBoard(params=self.params, seed=self.seed, boxes=boxes)

@@ -27,8 +27,6 @@ import math
 import time
 
 import numpy as np
-
-from repertoire.errors import RepertoireError
 from repertoire.models.littledog import (
     FOOT_RADIUS,
     LEGS,
@@ -37,6 +35,8 @@ from repertoire.models.littledog import (
     nominal_foot_positions,
 )
 from repertoire.models.littledog.pose import world_to_body
+
+from repertoire.errors import RepertoireError
 
 CRAWL_ORDER: list[int] = [2, 0, 3, 1]
 """Crawl gait order as ``LEGS`` indices: left hind, left front, right hind, right front."""
@@ -292,8 +292,13 @@ def plan_crawl(
         indices.append(np.full(n, k))
 
     n_hold = max(1, round(hold_time / dt))
-    emit(n_hold, np.repeat(pose[None], n_hold, 0), np.repeat((feet - down)[None], n_hold, 0),
-         np.ones(4, bool), -1)
+    emit(
+        n_hold,
+        np.repeat(pose[None], n_hold, 0),
+        np.repeat((feet - down)[None], n_hold, 0),
+        np.ones(4, bool),
+        -1,
+    )
     history = [feet.copy()]
     for k, step in enumerate(steps):
         if not isinstance(step, CrawlStep):
@@ -318,8 +323,13 @@ def plan_crawl(
         pose = target
         n = round(params.lift_delay / dt)
         if n:
-            emit(n, np.repeat(pose[None], n, 0), np.repeat((feet - down)[None], n, 0),
-                 np.ones(4, bool), k)
+            emit(
+                n,
+                np.repeat(pose[None], n, 0),
+                np.repeat((feet - down)[None], n, 0),
+                np.ones(4, bool),
+                k,
+            )
         # Swing: body still, foot f travels.
         n = max(1, round(params.swing_time / dt))
         s = np.arange(1, n + 1) / n
@@ -331,8 +341,13 @@ def plan_crawl(
         feet = after
         n = max(1, round(params.settle_time / dt)) if params.settle_time > 0 else 0
         if n:
-            emit(n, np.repeat(pose[None], n, 0), np.repeat((feet - down)[None], n, 0),
-                 np.ones(4, bool), k)
+            emit(
+                n,
+                np.repeat(pose[None], n, 0),
+                np.repeat((feet - down)[None], n, 0),
+                np.ones(4, bool),
+                k,
+            )
         history.append(feet.copy())
     body_pose = np.concatenate(poses)
     cmds = np.concatenate(foot_cmds)
@@ -364,8 +379,13 @@ def foothold_ok(board, xy, params: CrawlParams) -> np.ndarray:
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     r = params.edge_radius
     angles = np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)
-    ring = np.concatenate([[[0.0, 0.0]], r * np.column_stack([np.cos(angles), np.sin(angles)]),
-                           0.5 * r * np.column_stack([np.cos(angles), np.sin(angles)])])
+    ring = np.concatenate(
+        [
+            [[0.0, 0.0]],
+            r * np.column_stack([np.cos(angles), np.sin(angles)]),
+            0.5 * r * np.column_stack([np.cos(angles), np.sin(angles)]),
+        ]
+    )
     pts = xy[:, None, :] + ring[None]
     h = board.height(pts[..., 0], pts[..., 1])
     return (h.max(axis=1) - h.min(axis=1)) <= params.flat_tolerance
@@ -447,9 +467,7 @@ def choose_footholds(
     k = 0
     while min(feet[0, :2] @ direction, feet[1, :2] @ direction) < goal:
         if len(steps) >= max_steps:
-            raise CrawlError(
-                f"crawl did not reach the goal line {goal} m within {max_steps} steps"
-            )
+            raise CrawlError(f"crawl did not reach the goal line {goal} m within {max_steps} steps")
         if time.monotonic() - start > time_limit:
             raise CrawlError(f"foothold search exceeded its time limit of {time_limit} s")
         f = CRAWL_ORDER[k % 4]

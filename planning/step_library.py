@@ -23,11 +23,11 @@ import os
 from pathlib import Path
 
 import numpy as np
-
-from repertoire.errors import RepertoireError
 from repertoire.models.littledog import LEGS
 from repertoire.models.littledog.kinematics import LEG_GEOMETRY
 from repertoire.models.littledog.pose import wrap_angle
+
+from repertoire.errors import RepertoireError
 
 FORMAT_VERSION = 1
 """Version of the saved library format; files of another version are refused."""
@@ -91,8 +91,8 @@ def validate_step(step: LibraryStep, where: str = "step") -> None:
             s is not None and a.shape[i] != s for i, s in enumerate(shape_tail)
         ):
             raise StepLibraryError(
-                f"{where}: {name} must have shape {tuple('T' if s is None else s for s in shape_tail)}"
-                f", got {a.shape}"
+                f"{where}: {name} must have shape "
+                f"{tuple('T' if s is None else s for s in shape_tail)}, got {a.shape}"
             )
         return a
 
@@ -118,8 +118,13 @@ def validate_step(step: LibraryStep, where: str = "step") -> None:
             f"{where}: q ({q.shape[0]}), body_pose ({body.shape[0]}) and times ({n}) must have "
             f"the same number of samples"
         )
-    for name, a in (("start_feet", feet), ("start_pose", pose), ("times", times), ("q", q),
-                    ("body_pose", body)):
+    for name, a in (
+        ("start_feet", feet),
+        ("start_pose", pose),
+        ("times", times),
+        ("q", q),
+        ("body_pose", body),
+    ):
         if not np.all(np.isfinite(a)):
             raise StepLibraryError(f"{where}: {name} contains NaN or infinite values")
     if times[0] != 0.0 or np.any(np.diff(times) <= 0.0):
@@ -318,26 +323,47 @@ class StepLibrary:
                 a = {k: data[k] for k in data.files}
         except (ValueError, OSError) as e:
             raise StepLibraryError(f"cannot read {npz}: {e}") from e
-        need = ["start_feet", "start_pose", "offsets", "times", "q", "body_pose", "stance",
-                "foot", "direction"]
+        need = [
+            "start_feet",
+            "start_pose",
+            "offsets",
+            "times",
+            "q",
+            "body_pose",
+            "stance",
+            "foot",
+            "direction",
+        ]
         missing = [k for k in need if k not in a]
         if missing:
             raise StepLibraryError(f"{npz} lacks the arrays {missing}")
         n = int(meta.get("num_steps", -1))
         off = a["offsets"]
-        if n < 1 or len(off) != n + 1 or len(meta.get("terrain", [])) != n or len(
-            meta.get("kind", [])
-        ) != n or off[0] != 0 or np.any(np.diff(off) < 1) or off[-1] != len(a["times"]):
+        if (
+            n < 1
+            or len(off) != n + 1
+            or len(meta.get("terrain", [])) != n
+            or len(meta.get("kind", [])) != n
+            or off[0] != 0
+            or np.any(np.diff(off) < 1)
+            or off[-1] != len(a["times"])
+        ):
             raise StepLibraryError(f"{npz}/{js}: inconsistent step counts or offsets")
         steps = []
         for i in range(n):
             sl = slice(int(off[i]), int(off[i + 1]))
             step = LibraryStep.__new__(LibraryStep)
             fields = dict(
-                start_feet=a["start_feet"][i], start_pose=a["start_pose"][i],
-                times=a["times"][sl], q=a["q"][sl], body_pose=a["body_pose"][sl],
-                stance=a["stance"][sl], foot=int(a["foot"][i]), terrain=meta["terrain"][i],
-                direction=float(a["direction"][i]), kind=meta["kind"][i],
+                start_feet=a["start_feet"][i],
+                start_pose=a["start_pose"][i],
+                times=a["times"][sl],
+                q=a["q"][sl],
+                body_pose=a["body_pose"][sl],
+                stance=a["stance"][sl],
+                foot=int(a["foot"][i]),
+                terrain=meta["terrain"][i],
+                direction=float(a["direction"][i]),
+                kind=meta["kind"][i],
             )
             for k, v in fields.items():
                 object.__setattr__(step, k, v)
@@ -361,9 +387,11 @@ def segment_recording(
     """Cuts a recording into steps: a step starts whenever all four feet are down.
 
     A *flight* is a run of at least ``min_flight`` samples with one foot up (shorter
-    runs are contact flicker or a foot unloading while the body rocks). Step ``k`` spans from the first all-down
-    sample after flight ``k - 1`` (or the first sample) to the first all-down sample
-    after flight ``k`` plus up to ``settle`` samples of all four feet down; its start state is the foot positions and body pose there.
+    runs are contact flicker or a foot unloading while the body rocks). Step ``k``
+    spans from the first all-down sample after flight ``k - 1`` (or the first
+    sample) to the first all-down sample after flight ``k`` plus up to ``settle``
+    samples of all four feet down; its start state is the foot positions and body
+    pose there.
 
     Args:
         times: sample times (N,) (s).
@@ -383,8 +411,11 @@ def segment_recording(
     n = len(times)
     q, body_pose = np.asarray(q, dtype=float), np.asarray(body_pose, dtype=float)
     feet, down = np.asarray(feet, dtype=float), np.asarray(contact) != 0
-    if q.shape != (n, 12) or body_pose.shape != (n, 6) or feet.shape != (n, 4, 3) or (
-        down.shape != (n, 4)
+    if (
+        q.shape != (n, 12)
+        or body_pose.shape != (n, 6)
+        or feet.shape != (n, 4, 3)
+        or (down.shape != (n, 4))
     ):
         raise StepLibraryError(
             f"recording arrays must be N x 12, N x 6, N x 4 x 3 and N x 4 with N = {n}; got "
@@ -395,7 +426,7 @@ def segment_recording(
         edges = np.flatnonzero(np.diff(np.concatenate([[0], (~down[:, f]).astype(int), [0]])))
         flights += [(a, b, f) for a, b in zip(edges[::2], edges[1::2]) if b - a >= min_flight]
     flights.sort()
-    for (a0, b0, f0), (a1, _, f1) in zip(flights, flights[1:]):
+    for (_, b0, f0), (a1, _, f1) in zip(flights, flights[1:]):
         if a1 < b0:
             raise StepLibraryError(
                 f"recording at t = {times[a1]:.2f} s: feet {LEGS[f0]} and {LEGS[f1]} are in "

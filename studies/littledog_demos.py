@@ -16,9 +16,9 @@ import math
 from pathlib import Path
 
 import numpy as np
+from repertoire.studies.engine import register_study, study_main
 
 from repertoire.errors import RepertoireError
-from repertoire.studies.engine import register_study, study_main
 
 
 @dataclasses.dataclass
@@ -87,9 +87,7 @@ def run_episode(config: LittleDogDemoConfig, seed: int) -> LittleDogDemoRecord:
 
     config.validate()
     name, direction = crossings(config)[seed % len(crossings(config))]
-    rec = record_crossing(
-        library_terrain(name), direction, max_steps=config.max_steps or None
-    )
+    rec = record_crossing(library_terrain(name), direction, max_steps=config.max_steps or None)
     return LittleDogDemoRecord(
         terrain=name,
         direction_deg=float(direction),
@@ -113,7 +111,6 @@ def summarize(
         ``{"footholds": png, "table": md}``.
     """
     from matplotlib.figure import Figure
-
     from repertoire.diagrams.littledog_demos import library_terrain
     from repertoire.models.littledog import LEGS
 
@@ -138,8 +135,14 @@ def summarize(
             ]
             if pts:
                 p = np.concatenate(pts)
-                ax.scatter(p[:, 0], p[:, 1], s=9, marker=markers[f], color=colours[f],
-                           label=f"{LEGS[f]} foot at a step start")
+                ax.scatter(
+                    p[:, 0],
+                    p[:, 1],
+                    s=9,
+                    marker=markers[f],
+                    color=colours[f],
+                    label=f"{LEGS[f]} foot at a step start",
+                )
         n_steps = sum(r.steps for r in records if r.terrain == name)
         dirs = sorted({r.direction_deg for r in records if r.terrain == name})
         ax.set_title(f"{name}: {n_steps} steps\ncrossed at {', '.join(f'{d:g}°' for d in dirs)}")
@@ -148,14 +151,20 @@ def summarize(
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8)
     path = Path(out_dir) / "littledog_demo_footholds.png"
     fig.savefig(path, dpi=110)
-    lines = ["| terrain | direction (deg) | steps | max slip (mm) | min clearance (cm) | fell |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "| terrain | direction (deg) | steps | max slip (mm) | min clearance (cm) | fell |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in records:
-        lines.append(f"| {r.terrain} | {r.direction_deg:g} | {r.steps} | {1000 * r.slip_m:.1f} "
-                     f"| {100 * r.min_clearance_m:.1f} | {r.fell} |")
-    lines.append(f"| all | | {sum(r.steps for r in records)} | "
-                 f"{1000 * max((r.slip_m for r in records), default=math.nan):.1f} | | "
-                 f"{sum(r.fell for r in records)} fell |")
+        lines.append(
+            f"| {r.terrain} | {r.direction_deg:g} | {r.steps} | {1000 * r.slip_m:.1f} "
+            f"| {100 * r.min_clearance_m:.1f} | {r.fell} |"
+        )
+    lines.append(
+        f"| all | | {sum(r.steps for r in records)} | "
+        f"{1000 * max((r.slip_m for r in records), default=math.nan):.1f} | | "
+        f"{sum(r.fell for r in records)} fell |"
+    )
     table = Path(out_dir) / "littledog_demos.md"
     table.write_text("\n".join(lines) + "\n")
     return {"footholds": path, "table": table}

@@ -19,9 +19,9 @@ import math
 from pathlib import Path
 
 import numpy as np
+from repertoire.studies.engine import register_study, study_main
 
 from repertoire.errors import RepertoireError
-from repertoire.studies.engine import register_study, study_main
 
 TRACE_PERIOD_S = 0.2
 """Sampling period of the traces stored in a record (s)."""
@@ -180,38 +180,65 @@ def run_episode(config: LittleDogExecutionConfig, seed: int) -> LittleDogExecuti
     )
 
 
-def _band(ax, series: list[list[float]], colour: str, label: str) -> None:
+def _until(trace: list[float], t_end: float) -> np.ndarray:
+    """The trace with samples after ``t_end`` (the crossing time, if any) set to NaN."""
+    a = np.asarray(trace, dtype=float).copy()
+    if math.isfinite(t_end):
+        a[np.arange(len(a)) * TRACE_PERIOD_S > t_end] = np.nan
+    return a
+
+
+def _band(ax, series: list[np.ndarray], colour: str, label: str) -> None:
+    """Median and 10-90 percentile band over the episodes still walking at each time.
+
+    Drawn while at least a quarter of the episodes are still before their goal.
+    """
     n = min(len(s) for s in series)
     a = np.array([s[:n] for s in series])
-    t = np.arange(n) * TRACE_PERIOD_S
-    ax.plot(t, np.median(a, axis=0), color=colour, lw=1.6, label=f"{label}: median")
-    ax.fill_between(t, np.percentile(a, 10, axis=0), np.percentile(a, 90, axis=0),
-                    color=colour, alpha=0.2, label=f"{label}: 10-90 percentile")
+    active = np.sum(np.isfinite(a), axis=0) >= max(1, len(series) // 4)
+    a = a[:, active]
+    t = np.arange(n)[active] * TRACE_PERIOD_S
+    ax.plot(t, np.nanmedian(a, axis=0), color=colour, lw=1.6, label=f"{label}: median")
+    ax.fill_between(
+        t,
+        np.nanpercentile(a, 10, axis=0),
+        np.nanpercentile(a, 90, axis=0),
+        color=colour,
+        alpha=0.2,
+        label=f"{label}: 10-90 percentile",
+    )
 
 
 def summarize(
     records: list[LittleDogExecutionRecord], config: LittleDogExecutionConfig, out_dir: Path
 ) -> dict[str, Path]:
-    """Success table, body pose error over time (both conditions), integrators of one crossing.
+    """Success table, body pose error over time, integrators of one crossing.
+
+    The integrators are those of the first successful episode, up to its goal.
 
     Returns:
         ``{"table": md, "pose_error": png, "integrators": png}``.
     """
     from matplotlib.figure import Figure
-
     from repertoire.models.littledog import LEGS
 
     out_dir = Path(out_dir)
-    lines = ["| terrain | condition | episodes | success | fell | median time to cross (s) |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "| terrain | condition | episodes | success | fell | median time to cross (s) |",
+        "|---|---|---|---|---|---|",
+    ]
     for name in config.terrains:
         rs = [r for r in records if r.terrain == name]
         if not rs:
             continue
         for label, suc, fell, ttc in (
             ("integral controller", "success", "fell", "time_to_cross_s"),
-            ("no integral controller", "success_ablation", "fell_ablation",
-             "time_to_cross_ablation_s"),
+            (
+                "no integral controller",
+                "success_ablation",
+                "fell_ablation",
+                "time_to_cross_ablation_s",
+            ),
         ):
             times = [getattr(r, ttc) for r in rs if getattr(r, suc)]
             med = f"{np.median(times):.1f}" if times else "-"
@@ -224,22 +251,39 @@ def summarize(
 
     fig = Figure(figsize=(9.5, 4.2), layout="constrained")
     for k, (key, key_off, ylabel) in enumerate(
-        [("position_error_m", "position_error_ablation_m", "body position error (m)"),
-         ("heading_error_rad", "heading_error_ablation_rad", "body heading error (rad)")]
+        [
+            ("position_error_m", "position_error_ablation_m", "body position error (m)"),
+            ("heading_error_rad", "heading_error_ablation_rad", "body heading error (rad)"),
+        ]
     ):
         ax = fig.add_subplot(1, 2, k + 1)
-        _band(ax, [getattr(r, key) for r in records], "tab:blue", "with integral controller")
-        _band(ax, [getattr(r, key_off) for r in records], "tab:red", "without (ablation)")
+        _band(
+            ax,
+            [_until(getattr(r, key), r.time_to_cross_s) for r in records],
+            "tab:blue",
+            "with integral controller",
+        )
+        _band(
+            ax,
+            [_until(getattr(r, key_off), r.time_to_cross_ablation_s) for r in records],
+            "tab:red",
+            "without (ablation)",
+        )
         ax.set_xlabel("time (s)")
         ax.set_ylabel(ylabel)
         ax.set_ylim(bottom=0.0)
         ax.legend(fontsize=7, loc="upper left")
-    fig.suptitle(f"Body pose vs the step's recorded pose, {len(records)} perturbed starts")
+    fig.suptitle(
+        f"Body pose vs the step's recorded pose, {len(records)} perturbed starts "
+        f"(each run until its front feet pass the goal)"
+    )
     pose_png = out_dir / "littledog_pose_error.png"
     fig.savefig(pose_png, dpi=110)
 
-    r0 = min(records, key=lambda r: (not r.success, 0))
+    r0 = next((r for r in records if r.success), records[0])
     integ = np.asarray(r0.integrators_m).reshape(-1, 12)
+    if math.isfinite(r0.time_to_cross_s):
+        integ = integ[: int(r0.time_to_cross_s / TRACE_PERIOD_S) + 1]
     fig = Figure(figsize=(9.5, 6.0), layout="constrained")
     t = np.arange(len(integ)) * TRACE_PERIOD_S
     for f in range(4):

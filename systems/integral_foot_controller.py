@@ -17,10 +17,10 @@ import math
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
-
-from repertoire.errors import RepertoireError
 from repertoire.models.littledog import LEGS, leg_fk, leg_ik
 from repertoire.models.littledog.pose import body_to_world, world_to_body
+
+from repertoire.errors import RepertoireError
 
 
 def body_feet(q_joints) -> np.ndarray:
@@ -30,7 +30,14 @@ def body_feet(q_joints) -> np.ndarray:
 
 
 def integrator_update(
-    integrators, q_measured, body_pose, ideal_pose, contact, *, gain: float, decay: float,
+    integrators,
+    q_measured,
+    body_pose,
+    ideal_pose,
+    contact,
+    *,
+    gain: float,
+    decay: float,
     limit: float,
 ) -> np.ndarray:
     """One update of the four integrators (4 x 3).
@@ -55,8 +62,9 @@ def integrator_update(
 
 
 def corrected_angles(q_playback, integrators) -> tuple[np.ndarray, int]:
-    """IK(FK(q_playback) + I) per leg; a leg whose corrected target is unreachable keeps
-    its played-back angles.
+    """IK(FK(q_playback) + I) per leg.
+
+    A leg whose corrected target is unreachable keeps its played-back angles.
 
     Returns:
         ``(q, fallbacks)``: the 12 desired angles and how many legs fell back.
@@ -100,7 +108,9 @@ class IntegralFootController(LeafSystem):
         limit: float = 0.04,
         period: float = 0.01,
     ) -> None:
-        """Args:
+        """Creates the system.
+
+        Args:
         gain: k in [0, 1] (0 turns the controller off).
         decay: per-update factor of a flying foot's integrator, in [0, 1).
         limit: saturation of each integrator's length (m), > 0.
@@ -135,14 +145,16 @@ class IntegralFootController(LeafSystem):
     def set_gains(self, context: Context, gain: float, decay: float) -> None:
         """Sets ``[gain, decay]`` in this system's ``context``."""
         if not (0.0 <= gain <= 1.0 and 0.0 <= decay < 1.0):
-            raise RepertoireError(f"gain must be in [0, 1] and decay in [0, 1), got {gain}, {decay}")
+            raise RepertoireError(
+                f"gain must be in [0, 1] and decay in [0, 1), got {gain}, {decay}"
+            )
         context.get_mutable_numeric_parameter(int(self._gains)).SetFromVector([gain, decay])
 
     def _update(self, context: Context, discrete_state) -> None:
         gain, decay = context.get_numeric_parameter(int(self._gains)).value()
-        I = context.get_discrete_state(self._state).value().reshape(4, 3)
+        integrators = context.get_discrete_state(self._state).value().reshape(4, 3)
         new = integrator_update(
-            I,
+            integrators,
             self.joint_angles_input.Eval(context),
             self.body_pose_input.Eval(context),
             self.ideal_pose_input.Eval(context),
@@ -154,8 +166,8 @@ class IntegralFootController(LeafSystem):
         discrete_state.get_mutable_vector(self._state).SetFromVector(new.reshape(12))
 
     def _calc_q(self, context: Context, output: BasicVector) -> None:
-        I = context.get_discrete_state(self._state).value().reshape(4, 3)
-        q, _ = corrected_angles(self.q_playback_input.Eval(context), I)
+        integrators = context.get_discrete_state(self._state).value().reshape(4, 3)
+        q, _ = corrected_angles(self.q_playback_input.Eval(context), integrators)
         output.SetFromVector(q)
 
 

@@ -16,10 +16,10 @@ import dataclasses
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem
+from repertoire.planning.step_library import StepLibrary
 from scipy.spatial import cKDTree
 
 from repertoire.errors import RepertoireError
-from repertoire.planning.step_library import StepLibrary
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,7 +84,7 @@ class StepIndex:
             i = int(np.argmin(sums))
             return i, float(sums[i])
         _, i0 = self._tree.query(feet)
-        bound = float(foot_distance_sums(self.keys[i0], feet))
+        bound = float(foot_distance_sums(self.keys[i0 : i0 + 1], feet)[0])
         near = np.asarray(self._tree.query_ball_point(feet, bound * (1 + 1e-12)), dtype=int)
         sums = foot_distance_sums(self.keys[near], feet)
         j = int(np.argmin(sums))
@@ -119,7 +119,9 @@ class LibraryPolicy(LeafSystem):
     """
 
     def __init__(self, library: StepLibrary, period: float = 0.01) -> None:
-        """Args:
+        """Creates the system.
+
+        Args:
         library: the step library (at least one step).
         period: update period (s).
         """

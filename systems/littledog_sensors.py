@@ -1,6 +1,7 @@
 """What LittleDog's controllers measure: feet in contact, body pose, joint angles, feet.
 
-:class:`FootContactSensor`: only the foot spheres of LittleDog collide (one per lower leg), so a foot is
+:class:`FootContactSensor`: only the foot spheres of LittleDog collide (one per lower
+leg), so a foot is
 down when a contact pair involving its lower-leg body pushes with at least
 ``min_force``. :class:`BodyStateSensor`: body pose ``[x, y, z, roll, pitch, yaw]``, the
 12 joint angles (``JOINT_NAMES`` order) and the world foot centres (closed-form FK)
@@ -12,10 +13,10 @@ from pydrake.common.value import AbstractValue
 from pydrake.multibody.plant import ContactResults, MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
-
-from repertoire.errors import RepertoireError
 from repertoire.models.littledog import JOINT_NAMES, LEGS, leg_fk
 from repertoire.models.littledog.pose import body_to_world, rpy_from_rotation
+
+from repertoire.errors import RepertoireError
 
 
 def foot_contact_flags(
@@ -61,7 +62,9 @@ class FootContactSensor(LeafSystem):
     def __init__(
         self, plant: MultibodyPlant, instance: ModelInstanceIndex, min_force: float = 0.5
     ) -> None:
-        """Args:
+        """Creates the system.
+
+        Args:
         plant: the finalized plant holding LittleDog.
         instance: LittleDog's model instance.
         min_force: smallest contact force counted as contact (N), > 0.
@@ -130,7 +133,9 @@ class BodyStateSensor(LeafSystem):
     """
 
     def __init__(self, plant: MultibodyPlant, instance: ModelInstanceIndex) -> None:
-        """Args:
+        """Creates the system.
+
+        Args:
         plant: the finalized plant; LittleDog's floating base must be its first positions.
         instance: LittleDog's model instance.
         """

@@ -13,22 +13,23 @@ import math
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
-
-from repertoire.errors import RepertoireError
 from repertoire.models.littledog.pose import wrap_angle
 from repertoire.planning.step_library import LibraryStep, StepLibrary
 from repertoire.systems.library_policy import StepChoice
+
+from repertoire.errors import RepertoireError
 
 
 def spline_duration(
     body_pose, start_pose, *, min_time: float, speed: float, turn_rate: float
 ) -> float:
-    """Duration (s) of the blend: ``min_time + |dxyz| / speed + |dyaw, droll, dpitch|_max / turn_rate``."""
+    """Duration (s) of the blend.
+
+    ``min_time + |dxyz| / speed + max(|droll|, |dpitch|, |dyaw|) / turn_rate``.
+    """
     d = np.asarray(body_pose, dtype=float) - np.asarray(start_pose, dtype=float)
     return float(
-        min_time
-        + np.linalg.norm(d[:3]) / speed
-        + np.max(np.abs(wrap_angle(d[3:]))) / turn_rate
+        min_time + np.linalg.norm(d[:3]) / speed + np.max(np.abs(wrap_angle(d[3:]))) / turn_rate
     )
 
 
@@ -88,7 +89,9 @@ class StepExecutor(LeafSystem):
         speed: float = 0.1,
         turn_rate: float = 1.0,
     ) -> None:
-        """Args:
+        """Creates the system.
+
+        Args:
         library: the step library.
         q_initial: joint angles played before the first step (12).
         period: update period (s).

@@ -47,8 +47,10 @@ def foot_distance_sums(keys: np.ndarray, feet: np.ndarray) -> np.ndarray:
     Returns:
         (S,) or (B, S) sums (m).
     """
-    d = np.asarray(feet)[..., None, :] - keys
-    return np.sqrt((d.reshape(d.shape[:-1] + (4, 3)) ** 2).sum(-1)).sum(-1)
+    keys = np.asarray(keys, dtype=float).reshape(-1, 4, 3)
+    feet = np.asarray(feet, dtype=float)
+    d = feet.reshape(feet.shape[:-1] + (1, 4, 3)) - keys
+    return np.sqrt(np.einsum("...k,...k->...", d, d)).sum(-1)
 
 
 class StepIndex:
@@ -63,6 +65,7 @@ class StepIndex:
         if not isinstance(library, StepLibrary):
             raise RepertoireError(f"StepIndex needs a StepLibrary, got {type(library).__name__}")
         self.keys = np.ascontiguousarray(library.keys)
+        self._keys43 = self.keys.reshape(-1, 4, 3)
         self._tree = cKDTree(self.keys) if len(self.keys) >= brute_force_below else None
 
     def _check(self, feet) -> np.ndarray:
@@ -70,18 +73,19 @@ class StepIndex:
         if feet.shape[-1:] != (12,) and feet.shape[-2:] != (4, 3):
             raise RepertoireError(f"feet must be (..., 12) or (..., 4, 3), got {feet.shape}")
         feet = feet.reshape(feet.shape[:-2] + (12,)) if feet.shape[-2:] == (4, 3) else feet
-        if not np.all(np.isfinite(feet)):
+        if not np.isfinite(feet).all():
             raise RepertoireError("feet contain NaN or infinite values")
         return feet
 
     def query(self, feet) -> tuple[int, float]:
         """The nearest step to one set of foot positions: ``(index, distance sum)``."""
         feet = self._check(feet)
-        if feet.ndim != 1:
+        if feet.shape != (12,):
             raise RepertoireError(f"query takes one foot set (12,), got {feet.shape}")
         if self._tree is None:
-            sums = foot_distance_sums(self.keys, feet)
-            i = int(np.argmin(sums))
+            d = self._keys43 - feet.reshape(4, 3)
+            sums = np.sqrt(np.einsum("sfk,sfk->sf", d, d)).sum(1)
+            i = int(sums.argmin())
             return i, float(sums[i])
         _, i0 = self._tree.query(feet)
         bound = float(foot_distance_sums(self.keys[i0 : i0 + 1], feet)[0])
@@ -95,7 +99,7 @@ class StepIndex:
         feet = np.atleast_2d(self._check(feet))
         out_i = np.empty(len(feet), dtype=int)
         out_d = np.empty(len(feet))
-        chunk = max(1, 200_000 // max(len(self.keys), 1))
+        chunk = max(1, 100_000 // max(len(self.keys), 1))
         for a in range(0, len(feet), chunk):
             sums = foot_distance_sums(self.keys, feet[a : a + chunk])
             out_i[a : a + chunk] = np.argmin(sums, axis=1)

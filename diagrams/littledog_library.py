@@ -148,7 +148,7 @@ def crossing_geometry(scenario: LittleDogLibraryScenario):
     scenario_type=LittleDogLibraryScenario,
     description="LittleDog crossing a rough two-board terrain by replaying its step library "
     "(nearest-step policy, spline blend, integral foot controller)",
-    duration=32.0,
+    duration=34.0,
     check=lambda diagram, context: check_littledog_library(diagram, context),
     criteria={"crossed": Bound(lo=1.0), "min_clearance_m": Bound(lo=0.04), "fell": Bound(hi=0.0)},
 )

@@ -22,7 +22,7 @@ from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import TrajectorySource, VectorLogSink
 from pydrake.trajectories import PiecewisePolynomial
-from repertoire.diagrams.littledog import BODY_NAME, add_littledog
+from repertoire.diagrams.littledog import BODY_NAME, LittleDogScenario, add_littledog
 from repertoire.models.littledog import FOOT_FRAMES, JOINT_NAMES
 from repertoire.models.terrain import TerrainBoard
 from repertoire.planning.littledog_crawl import CrawlPlan
@@ -50,22 +50,14 @@ class PlantSettings:
     friction: float = 1.0
 
     def validate(self) -> None:
-        """Raises RepertoireError naming a bad field."""
-        if not (np.isfinite(self.time_step) and 0.0 < self.time_step <= 0.01):
-            raise RepertoireError(f"time_step must be in (0, 0.01] s, got {self.time_step}")
-        if self.contact_approximation not in ("lagged", "sap", "similar"):
-            raise RepertoireError(
-                f"contact_approximation must be lagged, sap or similar, got "
-                f"{self.contact_approximation!r}"
-            )
-        for name in ("kp", "kd"):
-            v = list(getattr(self, name))
-            if len(v) != 3 or not all(np.isfinite(x) and x >= 0 for x in v):
-                raise RepertoireError(f"{name} must be 3 finite gains >= 0, got {v}")
-        if min(self.kp) <= 0.0:
-            raise RepertoireError(f"kp must be > 0, got {self.kp}")
-        if not (np.isfinite(self.friction) and self.friction > 0.0):
-            raise RepertoireError(f"friction must be > 0, got {self.friction}")
+        """Raises ScenarioError naming a bad field (the checks of ``LittleDogScenario``)."""
+        LittleDogScenario(
+            time_step=self.time_step,
+            contact_approximation=self.contact_approximation,
+            kp=list(self.kp),
+            kd=list(self.kd),
+            friction=self.friction,
+        ).validate()
 
 
 def add_littledog_on_terrain(

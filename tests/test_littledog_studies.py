@@ -106,3 +106,43 @@ def test_execution_study_smoke(tmp_path, short_library):
     assert set(result.figures) >= {"table", "pose_error", "integrators"}
     with pytest.raises(RepertoireError, match="max_offset_m"):
         littledog_execution.LittleDogExecutionConfig(max_offset_m=1.0).validate()
+
+
+def test_body_state_sensor_matches_the_plant():
+    from pydrake.math import RigidTransform, RollPitchYaw
+    from pydrake.systems.framework import DiagramBuilder
+    from repertoire.diagrams.littledog_worlds import (
+        PlantSettings,
+        add_littledog_on_terrain,
+        world_foot_positions,
+    )
+    from repertoire.models.littledog import JOINT_NAMES, standing_configuration
+    from repertoire.models.terrain import generate_board
+    from repertoire.systems.littledog_sensors import BodyStateSensor
+
+    builder = DiagramBuilder()
+    q0 = standing_configuration(0.14)
+    plant, _, instance = add_littledog_on_terrain(
+        builder, generate_board(), [0, 0, 0.2, 0, 0, 0], q0, PlantSettings()
+    )
+    plant_context = plant.CreateDefaultContext()
+    rng = np.random.default_rng(7)
+    q = q0 + rng.uniform(-0.2, 0.2, 12)
+    for name, v in zip(JOINT_NAMES, q):
+        plant.GetJointByName(name, instance).set_angle(plant_context, v)
+    rpy = [0.1, -0.05, 2.0]
+    plant.SetFreeBodyPose(
+        plant_context,
+        plant.GetBodyByName("body"),
+        RigidTransform(RollPitchYaw(rpy), [0.1, 0.2, 0.3]),
+    )
+    sensor = BodyStateSensor(plant, instance)
+    context = sensor.CreateDefaultContext()
+    sensor.state_input.FixValue(context, plant.GetPositionsAndVelocities(plant_context))
+    assert np.allclose(sensor.body_pose_output.Eval(context), [0.1, 0.2, 0.3, *rpy])
+    assert np.allclose(sensor.joint_angles_output.Eval(context), q)
+    assert np.allclose(
+        sensor.feet_output.Eval(context).reshape(4, 3), world_foot_positions(plant, plant_context)
+    )
+    with pytest.raises(ScenarioError, match="kp must be > 0"):
+        PlantSettings(kp=[0.0, 1.0, 1.0]).validate()

@@ -148,7 +148,7 @@ def summarize(
         ax.set_title(f"{name}: {n_steps} steps\ncrossed at {', '.join(f'{d:g}°' for d in dirs)}")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2, fontsize=8)
     path = Path(out_dir) / "littledog_demo_footholds.png"
     fig.savefig(path, dpi=110)
     lines = [

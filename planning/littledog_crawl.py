@@ -146,6 +146,8 @@ class CrawlPlan:
         step_index: which step each sample belongs to, shape (N,) (-1 for the initial hold).
         feet: foot centres after each step, shape (len(steps) + 1, 4, 3); row 0 is the start.
         steps: the executed steps.
+        foot_commands: commanded foot centres at each sample (N, 4, 3); stance feet are
+            commanded ``press`` below their footholds.
     """
 
     times: np.ndarray
@@ -155,6 +157,7 @@ class CrawlPlan:
     step_index: np.ndarray
     feet: np.ndarray
     steps: list[CrawlStep]
+    foot_commands: np.ndarray
 
     @property
     def duration(self) -> float:
@@ -371,7 +374,42 @@ def plan_crawl(
         step_index=index,
         feet=np.stack(history),
         steps=list(steps),
+        foot_commands=cmds,
     )
+
+
+def plan_to_steps(plan: CrawlPlan, *, terrain: str, direction: float, kind: str = "planned"):
+    """Library steps made from a crawl plan's commands (no physics), for example planned steps.
+
+    The plan is cut like a recording (:func:`~repertoire.planning.step_library.segment_recording`)
+    with its planned stance labels, commanded foot centres (raised by the press depth,
+    i.e. the footholds) and intended body poses.
+
+    Args:
+        plan: a crawl plan.
+        terrain: the terrain name stored with the steps.
+        direction: the direction stored with the steps (rad).
+        kind: ``planned`` (default) or ``recorded``.
+
+    Returns:
+        One :class:`~repertoire.planning.step_library.LibraryStep` per crawl step.
+    """
+    import dataclasses as _dc
+
+    from repertoire.planning.step_library import segment_recording
+
+    press = plan.foot_commands[0, 0, 2] - plan.feet[0, 0, 2]
+    steps = segment_recording(
+        plan.times,
+        plan.q,
+        plan.body_pose,
+        plan.foot_commands - np.array([0.0, 0.0, press]),
+        plan.stance,
+        terrain=terrain,
+        direction=direction,
+        min_flight=1,
+    )
+    return [_dc.replace(s, kind=kind) for s in steps]
 
 
 def foothold_ok(board, xy, params: CrawlParams) -> np.ndarray:
@@ -493,5 +531,6 @@ __all__ = [
     "heading_of",
     "joint_angles",
     "plan_crawl",
+    "plan_to_steps",
     "support_pose",
 ]

@@ -23,6 +23,7 @@ from repertoire.planning.littledog_crawl import (
     CrawlStep,
     choose_footholds,
     plan_crawl,
+    plan_to_steps,
 )
 from repertoire.planning.step_library import (
     FORMAT_VERSION,
@@ -336,6 +337,18 @@ def test_crawl_on_flat_board_follows_the_gait_and_reaches_the_goal():
         sum(s.foot == CRAWL_ORDER[0] for s in steps)
     )
     assert np.allclose(plan.feet[-1][[s.foot for s in steps[-4:]]], [s.p_WF for s in steps[-4:]])
+
+
+def test_plan_to_steps_gives_planned_library_steps():
+    board, feet, pose = _flat_start()
+    steps = choose_footholds(board, feet, 0.0, 0.13)
+    plan = plan_crawl(feet, pose, steps, board)
+    lib = StepLibrary(plan_to_steps(plan, terrain="flat", direction=0.0))
+    assert len(lib) == len(steps) and {s.kind for s in lib} == {"planned"}
+    assert [s.foot for s in lib] == [s.foot for s in steps]
+    assert np.allclose(lib[0].start_feet, feet)
+    for k in range(1, len(lib)):
+        assert np.allclose(lib[k].start_feet, plan.feet[k])  # footholds after step k - 1
 
 
 def test_crawl_bad_input():

@@ -19,11 +19,20 @@ import time
 
 import numpy as np
 from repertoire.diagrams.littledog import LittleDogScenario, standing_pose
-from repertoire.diagrams.littledog_worlds import PlantSettings, build_crawl_playback
+from repertoire.diagrams.littledog_worlds import (
+    PlantSettings,
+    build_crawl_playback,
+    joint_positions,
+)
 from repertoire.diagrams.simulate import simulate
 from repertoire.models.littledog.pose import rpy_from_rotation
 from repertoire.models.terrain import TerrainBoard, TerrainParams, generate_board, join_boards
-from repertoire.planning.littledog_crawl import CrawlParams, choose_footholds, plan_crawl
+from repertoire.planning.littledog_crawl import (
+    CrawlParams,
+    choose_footholds,
+    foothold_ok,
+    plan_crawl,
+)
 from repertoire.planning.step_library import LibraryStep, StepLibrary, segment_recording
 from repertoire.systems.littledog_sensors import body_pose_from_positions, feet_in_world
 
@@ -121,8 +130,6 @@ def stance_slip(slip_speed: np.ndarray, contact: np.ndarray, dt: float) -> float
 
 def flat_start(board: TerrainBoard, heading: float, half_extent: float, params: CrawlParams):
     """The start offset (within 6 cm, nearest first) that puts all four feet on flat spots."""
-    from repertoire.planning.littledog_crawl import foothold_ok
-
     g = np.arange(-6, 7) * 0.01
     offsets = sorted(((x, y) for x in g for y in g), key=lambda o: o[0] ** 2 + o[1] ** 2)
     for off in offsets:
@@ -201,8 +208,6 @@ def record_crossing(
     X = log.data().T[:n]
     times = log.sample_times()[:n]
     body = body_pose_from_positions(X[:, :7])
-    from repertoire.diagrams.littledog_worlds import joint_positions
-
     q_meas = joint_positions(
         plant, plant.GetModelInstanceByName("littledog"), X[:, : plant.num_positions()]
     )

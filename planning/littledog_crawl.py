@@ -34,7 +34,9 @@ from repertoire.models.littledog import (
     leg_ik,
     nominal_foot_positions,
 )
+from repertoire.models.littledog.kinematics import LEG_GEOMETRY
 from repertoire.models.littledog.pose import world_to_body
+from repertoire.planning.step_library import segment_recording
 
 from repertoire.errors import RepertoireError
 
@@ -218,8 +220,6 @@ def reachable_height(pose: np.ndarray, points: np.ndarray, legs, params: CrawlPa
         legs: the ``LEGS`` index of each point (M,).
         params: crawl parameters (stance feet are commanded ``press`` lower).
     """
-    from repertoire.models.littledog.kinematics import LEG_GEOMETRY
-
     hips = np.array([LEG_GEOMETRY[LEGS[i]].p_BH for i in legs])
     z = float(pose[2])
     for _ in range(20):
@@ -394,10 +394,6 @@ def plan_to_steps(plan: CrawlPlan, *, terrain: str, direction: float, kind: str 
     Returns:
         One :class:`~repertoire.planning.step_library.LibraryStep` per crawl step.
     """
-    import dataclasses as _dc
-
-    from repertoire.planning.step_library import segment_recording
-
     press = plan.foot_commands[0, 0, 2] - plan.feet[0, 0, 2]
     steps = segment_recording(
         plan.times,
@@ -409,7 +405,7 @@ def plan_to_steps(plan: CrawlPlan, *, terrain: str, direction: float, kind: str 
         direction=direction,
         min_flight=1,
     )
-    return [_dc.replace(s, kind=kind) for s in steps]
+    return [dataclasses.replace(s, kind=kind) for s in steps]
 
 
 def foothold_ok(board, xy, params: CrawlParams) -> np.ndarray:

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from repertoire.models.littledog import LEGS
 from repertoire.models.littledog.kinematics import LEG_GEOMETRY
-from repertoire.models.littledog.pose import wrap_angle
+from repertoire.models.littledog.pose import rotation_from_rpy, rpy_from_rotation, wrap_angle
 
 from repertoire.errors import RepertoireError
 
@@ -163,8 +163,6 @@ def planar_transform(x: float, y: float, yaw: float):
         return np.asarray(p, dtype=float) @ R.T + t
 
     def poses(pose):
-        from repertoire.models.littledog.pose import rotation_from_rpy, rpy_from_rotation
-
         pose = np.asarray(pose, dtype=float)
         out = pose.copy()
         out[..., :3] = points(pose[..., :3])

@@ -246,6 +246,18 @@ class TerrainBoard:
         p_W = np.stack([origin[0] + c * U - s * V, origin[1] + s * U + c * V], axis=-1)
         return p_W, self.height(p_W[..., 0], p_W[..., 1])
 
+    def translated(self, dx: float, dy: float) -> "TerrainBoard":
+        """A copy with every box moved by ``(dx, dy)`` in the world x-y plane (m)."""
+        if not (math.isfinite(dx) and math.isfinite(dy)):
+            raise RepertoireError(f"board translation must be finite, got ({dx}, {dy})")
+        boxes = [
+            TerrainBox(
+                [b.center[0] + dx, b.center[1] + dy, b.center[2]], list(b.size), b.yaw, b.label
+            )
+            for b in self.boxes
+        ]
+        return TerrainBoard(params=self.params, seed=self.seed, boxes=boxes)
+
     def max_height(self) -> float:
         """Highest box top (m)."""
         return max((b.top for b in self.boxes), default=0.0)
@@ -445,3 +457,28 @@ def generate_board(params: TerrainParams | None = None, seed: int = 0) -> Terrai
             else:
                 boxes += _gaps(a, b, 1, params, rng)
     return TerrainBoard(params=params, seed=int(seed), boxes=boxes)
+
+
+def join_boards(boards: list[TerrainBoard], offsets_xy) -> TerrainBoard:
+    """One terrain made of several boards, board ``i`` moved by ``offsets_xy[i]``.
+
+    The result's ``params`` and ``seed`` are those of the first board; its boxes are
+    every board's boxes, so ``height`` is the exact height of the whole terrain.
+
+    Args:
+        boards: the boards (at least one).
+        offsets_xy: one ``[dx, dy]`` per board (m).
+
+    Raises:
+        RepertoireError: no boards, or offsets of the wrong shape or not finite.
+    """
+    offsets = np.asarray(offsets_xy, dtype=float)
+    if not boards or offsets.shape != (len(boards), 2) or not np.all(np.isfinite(offsets)):
+        raise RepertoireError(
+            f"join_boards needs at least one board and one finite [dx, dy] per board, got "
+            f"{len(boards)} boards and offsets of shape {offsets.shape}"
+        )
+    boxes = []
+    for board, (dx, dy) in zip(boards, offsets):
+        boxes += board.translated(float(dx), float(dy)).boxes
+    return TerrainBoard(params=boards[0].params, seed=boards[0].seed, boxes=boxes)

@@ -178,11 +178,12 @@ def leg_ik(leg: str, p_BF, *, check_limits: bool = True) -> np.ndarray:
     cos_knee = (D2 - L1**2 - L2**2) / (2.0 * L1 * L2)
     bad = (d2_yz < 0.0) | (cos_knee > 1.0 + 1e-12) | (cos_knee < -1.0 - 1e-12)
     if np.any(bad):
-        reach = np.sqrt(np.maximum(D2, 0.0))
+        reach = float(np.ravel(np.sqrt(np.maximum(D2, 0.0)))[np.argmax(np.ravel(bad))])
+        by = max(reach - (L1 + L2), abs(L1 - L2) - reach, 0.0)
         raise RepertoireError(
             f"leg {g.name}: foot target out of reach (hip-to-foot distance in the leg plane "
-            f"{np.ravel(reach)[np.argmax(np.ravel(bad))]:.4f} m; reachable range "
-            f"[{abs(L1 - L2):.4f}, {L1 + L2:.4f}] m and at least {abs(a):.3f} m from the roll axis)"
+            f"{reach:.4f} m; reachable range [{abs(L1 - L2):.4f}, {L1 + L2:.4f}] m and at least "
+            f"{abs(a):.3f} m from the roll axis; missed by {by:.4f} m)"
         )
     knee = g.knee_sign * np.arccos(np.clip(cos_knee, -1.0, 1.0))
     alpha = np.arctan2(-vx, -vz)

@@ -1,0 +1,299 @@
+"""LittleDog crossing a terrain with its step library (registered as ``littledog_library``).
+
+The closed loop of Stolle et al. (sections III-IV) in physics::
+
+    plant state -> BodyStateSensor -> body_pose, joint_angles, feet
+    contact results -> FootContactSensor -> contact
+    feet, contact -> LibraryPolicy -> choice (nearest step when all four feet are down)
+    choice, body_pose -> StepExecutor -> q_playback, ideal_pose (blend, then playback)
+    q_playback, ideal_pose, body_pose, joint_angles, contact -> IntegralFootController
+        -> q_desired -> desired_state (actuator order, zero velocities) -> plant PD
+
+The scenario names the source terrain
+(:data:`~repertoire.diagrams.littledog_demos.LIBRARY_TERRAINS`),
+the crossing direction, the start offsets, the controller gains and the library
+file. With ``library: ""`` the library of all demonstrations is loaded from
+``out/littledog/step_library.{npz,json}`` and, if that file does not exist yet,
+recorded in physics and saved there first (about a minute of wall time).
+"""
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.primitives import MatrixGain, VectorLogSink
+from repertoire.diagrams.littledog_demos import (
+    crossing_start,
+    flat_start,
+    library_terrain,
+    record_library,
+)
+from repertoire.diagrams.littledog_worlds import (
+    PlantSettings,
+    actuator_order,
+    add_littledog_on_terrain,
+)
+from repertoire.diagrams.registry import register_diagram
+from repertoire.planning.littledog_crawl import CrawlParams
+from repertoire.planning.step_library import StepLibrary
+from repertoire.systems.integral_foot_controller import IntegralFootController
+from repertoire.systems.library_policy import LibraryPolicy
+from repertoire.systems.littledog_sensors import BodyStateSensor, FootContactSensor
+from repertoire.systems.step_executor import StepExecutor
+
+from repertoire.criteria import Bound
+from repertoire.errors import RepertoireError, ScenarioError
+
+DEFAULT_LIBRARY = Path("out") / "littledog" / "step_library"
+"""Where the default library is cached (relative to the working directory)."""
+
+LOG_PERIOD = 0.01
+
+
+@dataclasses.dataclass
+class LittleDogLibraryScenario:
+    """LittleDog crossing a library terrain with the step library.
+
+    Attributes:
+        terrain: name of a library terrain (``terrain_a`` or ``terrain_b``).
+        direction_deg: crossing direction (degrees); the start and goal follow from it.
+        start_offset: [dx, dy] added to the nominal start position (m).
+        start_yaw_offset: added to the start heading (rad).
+        library: step library path (npz + JSON; ``""`` = the cached default library).
+        gain: integral controller gain k (0 = no integral correction).
+        decay: per-update decay of a flying foot's integrator.
+        integrator_limit: saturation of each integrator (m).
+        blend_speed: body distance per second of the executor's blend (m/s).
+        plant: physics settings.
+    """
+
+    terrain: str = "terrain_a"
+    direction_deg: float = 0.0
+    start_offset: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0])
+    start_yaw_offset: float = 0.0
+    library: str = ""
+    gain: float = 0.05
+    decay: float = 0.9
+    integrator_limit: float = 0.04
+    blend_speed: float = 0.1
+    plant: PlantSettings = dataclasses.field(default_factory=PlantSettings)
+
+    def validate(self) -> None:
+        """Raises ScenarioError naming a bad field."""
+        try:
+            library_terrain(self.terrain)
+            self.plant.validate()
+        except RepertoireError as e:
+            raise ScenarioError(f"LittleDogLibraryScenario: {e}") from e
+        if len(self.start_offset) != 2 or not all(math.isfinite(v) for v in self.start_offset):
+            raise ScenarioError(f"start_offset must be 2 finite numbers, got {self.start_offset}")
+        if max(abs(v) for v in self.start_offset) > 0.1:
+            raise ScenarioError(f"start_offset must be within +-0.1 m, got {self.start_offset}")
+        if not (math.isfinite(self.start_yaw_offset) and abs(self.start_yaw_offset) <= 0.5):
+            raise ScenarioError(
+                f"start_yaw_offset must be within +-0.5 rad, got {self.start_yaw_offset}"
+            )
+        if not math.isfinite(self.direction_deg):
+            raise ScenarioError(f"direction_deg must be finite, got {self.direction_deg}")
+        if not (0.0 <= self.gain <= 1.0 and 0.0 <= self.decay < 1.0):
+            raise ScenarioError(
+                f"gain must be in [0, 1] and decay in [0, 1), got {self.gain}, {self.decay}"
+            )
+        if not (0.0 < self.integrator_limit <= 0.1 and 0.0 < self.blend_speed <= 1.0):
+            raise ScenarioError(
+                f"integrator_limit must be in (0, 0.1] m and blend_speed in (0, 1] m/s, got "
+                f"{self.integrator_limit}, {self.blend_speed}"
+            )
+
+
+def load_library(path: str = "") -> StepLibrary:
+    """The library at ``path``; ``""`` = the default, recorded and cached on first use.
+
+    Raises:
+        ScenarioError: a given path that does not exist or is not a valid library.
+    """
+    if path:
+        try:
+            return StepLibrary.load(path)
+        except RepertoireError as e:
+            raise ScenarioError(f"library {path!r}: {e}") from e
+    if not DEFAULT_LIBRARY.with_suffix(".json").is_file():
+        library, _ = record_library()
+        library.save(DEFAULT_LIBRARY)
+    return StepLibrary.load(DEFAULT_LIBRARY)
+
+
+def crossing_geometry(scenario: LittleDogLibraryScenario):
+    """``(board, pose0, feet0, q0, heading, goal)`` of the scenario's crossing."""
+    terrain = library_terrain(scenario.terrain)
+    board = terrain.build()
+    heading = math.radians(scenario.direction_deg)
+    params = CrawlParams()
+    offset = flat_start(board, heading, terrain.half_extent, params)
+    pose0, feet0, q0 = crossing_start(
+        board,
+        heading,
+        terrain.half_extent,
+        params.standing_height,
+        offset + np.asarray(scenario.start_offset),
+        scenario.start_yaw_offset,
+    )
+    return board, pose0, feet0, q0, heading, terrain.half_extent - 0.02
+
+
+@register_diagram(
+    "littledog_library",
+    scenario_type=LittleDogLibraryScenario,
+    description="LittleDog crossing a rough two-board terrain by replaying its step library "
+    "(nearest-step policy, spline blend, integral foot controller)",
+    duration=34.0,
+    check=lambda diagram, context: check_littledog_library(diagram, context),
+    criteria={"crossed": Bound(lo=1.0), "min_clearance_m": Bound(lo=0.04), "fell": Bound(hi=0.0)},
+)
+def build_littledog_library(
+    scenario: LittleDogLibraryScenario, *, meshcat=None, library: StepLibrary | None = None
+) -> Diagram:
+    """Builds the closed loop.
+
+    Args:
+        scenario: the scenario (validated here).
+        meshcat: optional Meshcat for a visualizer.
+        library: an already loaded library (else ``scenario.library`` is loaded).
+
+    Returns:
+        The Diagram ``littledog_library`` with subsystems ``plant``, ``scene_graph``,
+        ``sensor``, ``contact``, ``policy``, ``executor``, ``integral``,
+        ``desired_state`` and the loggers ``body_log``, ``feet_log``, ``integrator_log``,
+        ``ideal_log``, ``step_log`` and ``contact_log`` (every 10 ms).
+    """
+    if not isinstance(scenario, LittleDogLibraryScenario):
+        raise ScenarioError(
+            f"littledog_library takes a LittleDogLibraryScenario, got {type(scenario).__name__}"
+        )
+    scenario.validate()
+    library = load_library(scenario.library) if library is None else library
+    board, pose0, _, q0, heading, goal = crossing_geometry(scenario)
+    builder = DiagramBuilder()
+    plant, scene_graph, instance = add_littledog_on_terrain(
+        builder, board, pose0, q0, scenario.plant
+    )
+    sensor = builder.AddNamedSystem("sensor", BodyStateSensor(plant, instance))
+    builder.Connect(plant.get_state_output_port(), sensor.state_input)
+    contact = builder.AddNamedSystem("contact", FootContactSensor(plant, instance))
+    builder.Connect(plant.get_contact_results_output_port(), contact.contact_results_input)
+    policy = builder.AddNamedSystem("policy", LibraryPolicy(library))
+    builder.Connect(sensor.feet_output, policy.feet_input)
+    builder.Connect(contact.contact_output, policy.contact_input)
+    executor = builder.AddNamedSystem(
+        "executor", StepExecutor(library, q0, speed=scenario.blend_speed)
+    )
+    builder.Connect(policy.choice_output, executor.choice_input)
+    builder.Connect(sensor.body_pose_output, executor.body_pose_input)
+    integral = builder.AddNamedSystem(
+        "integral",
+        IntegralFootController(
+            gain=scenario.gain, decay=scenario.decay, limit=scenario.integrator_limit
+        ),
+    )
+    builder.Connect(executor.q_playback_output, integral.q_playback_input)
+    builder.Connect(executor.ideal_pose_output, integral.ideal_pose_input)
+    builder.Connect(sensor.body_pose_output, integral.body_pose_input)
+    builder.Connect(sensor.joint_angles_output, integral.joint_angles_input)
+    builder.Connect(contact.contact_output, integral.contact_input)
+    P = np.zeros((24, 12))
+    P[np.arange(12), actuator_order(plant, instance)] = 1.0
+    desired = builder.AddNamedSystem("desired_state", MatrixGain(P))
+    builder.Connect(integral.q_desired_output, desired.get_input_port())
+    builder.Connect(desired.get_output_port(), plant.get_desired_state_input_port(instance))
+    for name, port, size in [
+        ("body_log", sensor.body_pose_output, 6),
+        ("feet_log", sensor.feet_output, 12),
+        ("integrator_log", integral.integrators_output, 12),
+        ("ideal_log", executor.ideal_pose_output, 6),
+        ("step_log", executor.step_index_output, 1),
+        ("contact_log", contact.contact_output, 4),
+    ]:
+        log = builder.AddNamedSystem(name, VectorLogSink(size, LOG_PERIOD))
+        builder.Connect(port, log.get_input_port())
+    if meshcat is not None:
+        from pydrake.geometry import MeshcatVisualizer
+
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("littledog_library")
+    diagram._repertoire_crossing = (board, heading, goal)  # read by the check
+    return diagram
+
+
+def crossing_figures(
+    times, body_pose, feet, steps, board, heading: float, goal: float
+) -> dict[str, float]:
+    """Success figures of a crossing from its logs.
+
+    Args:
+        times: log times (N,).
+        body_pose: body poses (N x 6).
+        feet: world foot centres (N x 12).
+        steps: executed step index (N,).
+        board: the terrain.
+        heading: crossing direction (rad).
+        goal: goal line along the heading (m).
+
+    Returns:
+        ``crossed`` (1.0 when both front feet passed the goal line), ``time_to_cross_s``
+        (NaN if never), ``min_clearance_m`` (lowest body height above the terrain under
+        it until the goal or the end), ``max_tilt_rad`` (the same span),
+        ``fell`` (1.0 on tilt > 0.5 rad or clearance < 4 cm),
+        ``steps_started``.
+    """
+    d = np.array([math.cos(heading), math.sin(heading)])
+    f = np.asarray(feet).reshape(-1, 4, 3)
+    front = np.minimum(f[:, 0, :2] @ d, f[:, 1, :2] @ d)
+    past = np.flatnonzero(front >= goal)
+    end = past[0] + 1 if len(past) else len(times)  # judge the crossing up to the goal
+    clearance = body_pose[:end, 2] - board.height(body_pose[:end, 0], body_pose[:end, 1])
+    tilt = float(np.max(np.abs(body_pose[:end, 3:5])))
+    changes = int(np.count_nonzero(np.diff(np.asarray(steps).ravel()) != 0))
+    min_clear = float(np.min(clearance))
+    return {
+        "crossed": float(len(past) > 0),
+        "time_to_cross_s": float(times[past[0]]) if len(past) else float("nan"),
+        "min_clearance_m": min_clear,
+        "max_tilt_rad": tilt,
+        "fell": float(tilt > 0.5 or min_clear < 0.04),
+        "steps_started": float(changes),
+    }
+
+
+def crossing_logs(diagram: Diagram, context: Context) -> dict[str, np.ndarray]:
+    """The logs of a simulated ``littledog_library`` diagram as arrays (N rows each)."""
+    out = {}
+    for name in ("body_log", "feet_log", "integrator_log", "ideal_log", "step_log", "contact_log"):
+        log = diagram.GetSubsystemByName(name).FindLog(context)
+        out[name] = log.data().T
+        out["times"] = log.sample_times()
+    n = min(len(v) for v in out.values())
+    return {k: v[:n] for k, v in out.items()}
+
+
+def check_littledog_library(diagram: Diagram, context: Context) -> dict[str, float]:
+    """:func:`crossing_figures` of a simulated ``littledog_library`` diagram."""
+    board, heading, goal = diagram._repertoire_crossing
+    logs = crossing_logs(diagram, context)
+    return crossing_figures(
+        logs["times"], logs["body_log"], logs["feet_log"], logs["step_log"], board, heading, goal
+    )
+
+
+__all__ = [
+    "DEFAULT_LIBRARY",
+    "LittleDogLibraryScenario",
+    "build_littledog_library",
+    "check_littledog_library",
+    "crossing_figures",
+    "crossing_geometry",
+    "crossing_logs",
+    "load_library",
+]

@@ -1,0 +1,174 @@
+"""The integral foot controller of Stolle et al. (section IV).
+
+Every foot f has a 3-D integrator I_f. The played-back joint angles j_f give the
+body-relative foot position x_f = FK_f(j_f); the leg is commanded to
+x_f' = x_f + I_f through inverse kinematics. The integrators are updated from
+the measured state: the measured feet X_f = POSE(FK_f(j_f measured)) are
+expressed in the ideal body frame (the body pose recorded with the step),
+xd_f = POSE_d^-1(X_f), and I_f += k (xd_f - x_f) for feet on the ground, where
+x_f is the measured body-relative foot position; a foot in flight has its
+integrator decayed towards zero, so that it steps where it was recorded.
+
+:func:`integrator_update` and :func:`corrected_angles` are the math;
+:class:`IntegralFootController` is the LeafSystem (discrete state, periodic update).
+"""
+
+import math
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
+from repertoire.models.littledog import LEGS, leg_fk, leg_ik
+from repertoire.models.littledog.pose import body_to_world, world_to_body
+
+from repertoire.errors import RepertoireError
+
+
+def body_feet(q_joints) -> np.ndarray:
+    """Body-frame foot centres (4 x 3) from 12 joint angles."""
+    q = np.asarray(q_joints, dtype=float)
+    return np.stack([leg_fk(leg, q[3 * i : 3 * i + 3]) for i, leg in enumerate(LEGS)])
+
+
+def integrator_update(
+    integrators,
+    q_measured,
+    body_pose,
+    ideal_pose,
+    contact,
+    *,
+    gain: float,
+    decay: float,
+    limit: float,
+) -> np.ndarray:
+    """One update of the four integrators (4 x 3).
+
+    Args:
+        integrators: current I (4 x 3, m).
+        q_measured: measured joint angles (12).
+        body_pose: measured body pose (6).
+        ideal_pose: the recorded (ideal) body pose (6).
+        contact: 4 contact flags (nonzero = down).
+        gain: k, the fraction of the error added per update.
+        decay: factor multiplying the integrator of a foot in flight per update, in [0, 1).
+        limit: each integrator's length is saturated to this (m), so the IK stays reachable.
+    """
+    x = body_feet(q_measured)
+    X = body_to_world(body_pose, x)
+    xd = world_to_body(ideal_pose, X)
+    down = np.asarray(contact) != 0
+    new = np.where(down[:, None], integrators + gain * (xd - x), decay * integrators)
+    norm = np.linalg.norm(new, axis=1, keepdims=True)
+    return np.where(norm > limit, new * (limit / np.maximum(norm, 1e-12)), new)
+
+
+def corrected_angles(q_playback, integrators) -> tuple[np.ndarray, int]:
+    """IK(FK(q_playback) + I) per leg.
+
+    A leg whose corrected target is unreachable keeps its played-back angles.
+
+    Returns:
+        ``(q, fallbacks)``: the 12 desired angles and how many legs fell back.
+    """
+    q_playback = np.asarray(q_playback, dtype=float)
+    x = body_feet(q_playback) + integrators
+    q = q_playback.copy()
+    fallbacks = 0
+    for i, leg in enumerate(LEGS):
+        try:
+            q[3 * i : 3 * i + 3] = leg_ik(leg, x[i])
+        except RepertoireError:
+            fallbacks += 1
+    return q, fallbacks
+
+
+class IntegralFootController(LeafSystem):
+    """Corrects played-back joint angles with per-foot integrators (section IV).
+
+    Discrete state: the 12 integrator values (I_f, ``LEGS`` order), updated every
+    ``period`` by :func:`integrator_update`. Numeric parameters: ``[gain, decay]``
+    (change them in a context to run an ablation, e.g. gain 0).
+
+    Input ports:
+        q_playback: played-back joint angles (12).
+        ideal_pose: the recorded body pose of the step now (6).
+        body_pose: measured body pose (6).
+        joint_angles: measured joint angles (12).
+        contact: 4 contact flags.
+
+    Output ports:
+        q_desired: corrected joint angles (12, ``JOINT_NAMES`` order).
+        integrators: I_f, 12 values (m).
+    """
+
+    def __init__(
+        self,
+        *,
+        gain: float = 0.05,
+        decay: float = 0.9,
+        limit: float = 0.04,
+        period: float = 0.01,
+    ) -> None:
+        """Creates the system.
+
+        Args:
+        gain: k in [0, 1] (0 turns the controller off).
+        decay: per-update factor of a flying foot's integrator, in [0, 1).
+        limit: saturation of each integrator's length (m), > 0.
+        period: update period (s), > 0.
+        """
+        super().__init__()
+        if not (math.isfinite(gain) and 0.0 <= gain <= 1.0):
+            raise RepertoireError(f"gain must be in [0, 1], got {gain}")
+        if not (math.isfinite(decay) and 0.0 <= decay < 1.0):
+            raise RepertoireError(f"decay must be in [0, 1), got {decay}")
+        if not (math.isfinite(limit) and limit > 0.0):
+            raise RepertoireError(f"limit must be > 0 m, got {limit}")
+        if not (math.isfinite(period) and period > 0.0):
+            raise RepertoireError(f"period must be > 0 s, got {period}")
+        self._limit = float(limit)
+        self.q_playback_input = self.DeclareVectorInputPort("q_playback", 12)
+        self.ideal_pose_input = self.DeclareVectorInputPort("ideal_pose", 6)
+        self.body_pose_input = self.DeclareVectorInputPort("body_pose", 6)
+        self.joint_angles_input = self.DeclareVectorInputPort("joint_angles", 12)
+        self.contact_input = self.DeclareVectorInputPort("contact", 4)
+        self._gains = self.DeclareNumericParameter(BasicVector([gain, decay]))
+        self._state = self.DeclareDiscreteState(12)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.q_desired_output = self.DeclareVectorOutputPort(
+            "q_desired",
+            12,
+            self._calc_q,
+            prerequisites_of_calc={self.xd_ticket(), self.q_playback_input.ticket()},
+        )
+        self.integrators_output = self.DeclareStateOutputPort("integrators", self._state)
+
+    def set_gains(self, context: Context, gain: float, decay: float) -> None:
+        """Sets ``[gain, decay]`` in this system's ``context``."""
+        if not (0.0 <= gain <= 1.0 and 0.0 <= decay < 1.0):
+            raise RepertoireError(
+                f"gain must be in [0, 1] and decay in [0, 1), got {gain}, {decay}"
+            )
+        context.get_mutable_numeric_parameter(int(self._gains)).SetFromVector([gain, decay])
+
+    def _update(self, context: Context, discrete_state) -> None:
+        gain, decay = context.get_numeric_parameter(int(self._gains)).value()
+        integrators = context.get_discrete_state(self._state).value().reshape(4, 3)
+        new = integrator_update(
+            integrators,
+            self.joint_angles_input.Eval(context),
+            self.body_pose_input.Eval(context),
+            self.ideal_pose_input.Eval(context),
+            self.contact_input.Eval(context),
+            gain=gain,
+            decay=decay,
+            limit=self._limit,
+        )
+        discrete_state.get_mutable_vector(self._state).SetFromVector(new.reshape(12))
+
+    def _calc_q(self, context: Context, output: BasicVector) -> None:
+        integrators = context.get_discrete_state(self._state).value().reshape(4, 3)
+        q, _ = corrected_angles(self.q_playback_input.Eval(context), integrators)
+        output.SetFromVector(q)
+
+
+__all__ = ["IntegralFootController", "body_feet", "corrected_angles", "integrator_update"]

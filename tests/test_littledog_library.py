@@ -1,0 +1,385 @@
+"""LittleDog step library: pose math, StepLibrary, segmentation, crawl, policy, executor,
+integral controller (plain functions and LeafSystems with FixValue), physics smoke runs."""
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+from pydrake.math import RollPitchYaw
+from repertoire.models.littledog import LEGS, leg_fk, standing_configuration
+from repertoire.models.littledog.pose import (
+    body_to_world,
+    rotation_from_rpy,
+    rpy_from_rotation,
+    world_to_body,
+)
+from repertoire.models.terrain import TerrainParams, generate_board, join_boards
+from repertoire.planning.littledog_crawl import (
+    CRAWL_ORDER,
+    CrawlError,
+    CrawlParams,
+    CrawlStep,
+    choose_footholds,
+    plan_crawl,
+    plan_to_steps,
+)
+from repertoire.planning.step_library import (
+    FORMAT_VERSION,
+    LibraryStep,
+    StepLibrary,
+    StepLibraryError,
+    segment_recording,
+)
+from repertoire.systems.integral_foot_controller import (
+    IntegralFootController,
+    body_feet,
+    corrected_angles,
+    integrator_update,
+)
+from repertoire.systems.library_policy import (
+    LibraryPolicy,
+    StepChoice,
+    StepIndex,
+    foot_distance_sums,
+)
+from repertoire.systems.step_executor import (
+    StepExecutor,
+    cubic_blend,
+    interpolate_step,
+    spline_duration,
+)
+
+from repertoire.errors import RepertoireError
+
+Q0 = standing_configuration(0.14)
+
+
+def make_step(rng, *, foot=0, n=5, shift=0.0, **overrides) -> LibraryStep:
+    feet = body_to_world([shift, 0, 0.14, 0, 0, 0], body_feet(Q0))
+    fields = dict(
+        start_feet=feet + rng.normal(0, 0.01, (4, 3)),
+        start_pose=np.array([shift, 0.0, 0.14, 0.0, 0.0, 0.0]),
+        times=np.arange(n) * 0.01,
+        q=np.repeat(Q0[None], n, 0) + rng.normal(0, 0.01, (n, 12)),
+        body_pose=np.tile([shift, 0.0, 0.14, 0.0, 0.0, 0.0], (n, 1)),
+        stance=np.ones((n, 4), bool),
+        foot=foot,
+        terrain="t",
+        direction=0.0,
+    )
+    fields.update(overrides)
+    return LibraryStep(**fields)
+
+
+@pytest.fixture
+def library():
+    rng = np.random.default_rng(0)
+    return StepLibrary([make_step(rng, foot=i % 4, shift=0.01 * i) for i in range(6)])
+
+
+# ---------------------------------------------------------------- pose math
+
+
+def test_pose_functions_match_drake_and_invert():
+    rpy = [0.1, -0.2, 2.5]
+    assert np.allclose(rotation_from_rpy(rpy), RollPitchYaw(rpy).ToRotationMatrix().matrix())
+    assert np.allclose(rpy_from_rotation(rotation_from_rpy(rpy)), rpy)
+    pose = [0.3, -0.1, 0.2, *rpy]
+    p = np.random.default_rng(1).normal(size=(4, 3))
+    assert np.allclose(world_to_body(pose, body_to_world(pose, p)), p)
+
+
+# ---------------------------------------------------------------- StepLibrary
+
+
+def test_library_save_load_is_exact(library, tmp_path):
+    npz, js = library.save(tmp_path / "lib")
+    assert npz.is_file() and js.is_file()
+    loaded = StepLibrary.load(tmp_path / "lib.json")
+    assert len(loaded) == len(library)
+    for a, b in zip(library, loaded):
+        for f in dataclasses.fields(LibraryStep):
+            va, vb = getattr(a, f.name), getattr(b, f.name)
+            assert np.array_equal(va, vb), f.name
+    assert np.array_equal(loaded.keys, library.keys)
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_library_transform_closed_form_and_inverse(library):
+    moved = library.transformed(0.5, -0.2, math.pi / 2)
+    s, m = library[0], moved[0]
+    # A quarter turn maps (x, y) to (-y, x), then the shift.
+    assert np.allclose(m.start_feet[:, 0], -s.start_feet[:, 1] + 0.5)
+    assert np.allclose(m.start_feet[:, 1], s.start_feet[:, 0] - 0.2)
+    assert np.allclose(m.start_feet[:, 2], s.start_feet[:, 2])
+    assert np.isclose(m.start_pose[5], math.pi / 2)
+    assert np.array_equal(m.q, s.q) and np.array_equal(m.times, s.times)
+    back = moved.transformed(-0.5, 0.2, 0.0).transformed(0.0, 0.0, -math.pi / 2)
+    assert np.allclose(back[0].start_feet, s.start_feet)
+    assert np.allclose(back[0].body_pose, s.body_pose)
+
+
+def test_library_concatenate_and_counts(library):
+    both = library + library.transformed(0.0, 0.0, math.pi)
+    assert len(both) == 12
+    assert both.counts() == {"t/0": 6, "t/180": 6}
+    planned = make_step(np.random.default_rng(3), kind="planned")
+    assert library.appended([planned])[6].kind == "planned"
+
+
+def test_library_bad_input(library, tmp_path):
+    rng = np.random.default_rng(2)
+    with pytest.raises(StepLibraryError, match="at least one step"):
+        StepLibrary([])
+    with pytest.raises(StepLibraryError, match="stance labels are missing"):
+        make_step(rng, stance=None)
+    with pytest.raises(StepLibraryError, match="stance labels must be T x 4"):
+        make_step(rng, stance=np.ones((5, 3), bool))
+    with pytest.raises(StepLibraryError, match="start with all four feet down"):
+        make_step(rng, stance=np.array([[1, 0, 1, 1]] * 5, bool))
+    q = np.repeat(Q0[None], 5, 0)
+    q[2, 4] = np.nan
+    with pytest.raises(StepLibraryError, match="q contains NaN"):
+        make_step(rng, q=q)
+    q[2, 4] = 5.0
+    with pytest.raises(StepLibraryError, match=r"joint angle 4 \(rf\) = 5.000 rad .* limits"):
+        make_step(rng, q=q)
+    library.save(tmp_path / "lib")
+    meta = json.loads((tmp_path / "lib.json").read_text())
+    meta["format_version"] = FORMAT_VERSION + 1
+    (tmp_path / "lib.json").write_text(json.dumps(meta))
+    with pytest.raises(StepLibraryError, match="format version 2; this code reads version 1"):
+        StepLibrary.load(tmp_path / "lib")
+    with pytest.raises(StepLibraryError, match="does not exist"):
+        StepLibrary.load(tmp_path / "missing")
+
+
+def test_segment_recording_by_stance():
+    n = 100
+    times = np.arange(n) * 0.01
+    contact = np.ones((n, 4))
+    contact[20:45, 2] = 0  # lh in flight
+    contact[50:52, 1] = 0  # flicker, not a step
+    contact[60:85, 0] = 0  # lf in flight
+    feet = np.repeat(body_feet(Q0)[None], n, 0) + np.arange(n)[:, None, None] * 1e-4
+    pose = np.zeros((n, 6))
+    q = np.repeat(Q0[None], n, 0)
+    steps = segment_recording(times, q, pose, feet, contact, terrain="t", direction=0.0, settle=5)
+    assert [s.foot for s in steps] == [2, 0]
+    # Touchdown at sample 45, settling until the flicker at 50 breaks "all four down".
+    assert len(steps[0].times) == 50 and np.isclose(steps[0].times[-1], 0.49)
+    assert np.array_equal(steps[1].start_feet, feet[49])
+    assert len(steps[1].times) == 90 - 49 + 1
+    assert steps[1].stance[:, 0].sum() == len(steps[1].times) - 25
+    contact[30:40, 3] = 0
+    contact[25:45, 1] = 0
+    with pytest.raises(StepLibraryError, match="in flight together"):
+        segment_recording(times, q, pose, feet, contact, terrain="t", direction=0.0)
+
+
+# ---------------------------------------------------------------- policy
+
+
+def test_step_index_is_exact_nearest_by_sum_of_distances(library):
+    rng = np.random.default_rng(4)
+    keys = rng.normal(size=(300, 12))
+    feet = rng.normal(size=(50, 12))
+    sums = np.array(
+        [[np.linalg.norm((f - k).reshape(4, 3), axis=1).sum() for k in keys] for f in feet]
+    )
+    assert np.allclose(foot_distance_sums(keys, feet), sums)
+    lib_steps = []
+    for k in keys[:40]:
+        lib_steps.append(dataclasses.replace(library[0], start_feet=k.reshape(4, 3)))
+    lib = StepLibrary(lib_steps)
+    for tree in (True, False):
+        index = StepIndex(lib, brute_force_below=0 if tree else 10_000)
+        for f, row in zip(feet, sums[:, :40]):
+            i, d = index.query(f)
+            assert i == int(np.argmin(row)) and np.isclose(d, row.min())
+        ib, db = index.query_batch(feet)
+        assert np.array_equal(ib, np.argmin(sums[:, :40], axis=1))
+    with pytest.raises(RepertoireError, match="NaN"):
+        index.query(np.full(12, np.nan))
+
+
+def test_library_policy_chooses_only_with_four_feet_down(library):
+    from pydrake.systems.analysis import Simulator
+
+    policy = LibraryPolicy(library)
+    context = policy.CreateDefaultContext()
+    policy.feet_input.FixValue(context, library.keys[3])
+    policy.contact_input.FixValue(context, [1, 1, 0, 1])
+    simulator = Simulator(policy, context)
+    simulator.AdvanceTo(0.505)
+    assert policy.choice_output.Eval(context).index == -1
+    policy.contact_input.FixValue(context, [1, 1, 1, 1])
+    simulator.AdvanceTo(0.515)  # the update at t = 0.51 chooses
+    choice = policy.choice_output.Eval(context)
+    assert choice.index == 3 and choice.distance == 0.0 and np.isclose(choice.time, 0.51)
+
+
+# ---------------------------------------------------------------- executor
+
+
+def test_executor_math():
+    assert np.allclose(cubic_blend([0, 1], [2, 3], 0.0), [0, 1])
+    assert np.allclose(cubic_blend([0, 1], [2, 3], 0.5), [1, 2])
+    assert np.allclose(cubic_blend([0, 1], [2, 3], 1.0), [2, 3])
+    d = spline_duration(
+        [0.03, 0.04, 0, 0, 0, 0.2], [0, 0, 0, 0, 0, 0], min_time=0.1, speed=0.1, turn_rate=0.5
+    )
+    assert np.isclose(d, 0.1 + 0.05 / 0.1 + 0.2 / 0.5)
+    step = make_step(np.random.default_rng(5))
+    q, pose = interpolate_step(step, 0.015)
+    assert np.allclose(q, 0.5 * (step.q[1] + step.q[2]))
+    assert np.allclose(interpolate_step(step, 10.0)[0], step.q[-1])
+
+
+def test_step_executor_blends_then_plays_back(library):
+    executor = StepExecutor(library, Q0, min_time=0.1, speed=0.1, turn_rate=1.0)
+    context = executor.CreateDefaultContext()
+    step = library[2]
+    body = step.start_pose + np.array([0.01, 0, 0, 0, 0, 0])
+    executor.body_pose_input.FixValue(context, body)
+    executor.choice_input.FixValue(context, StepChoice(2, 0.0, 1.0))
+    context.SetTime(1.0)
+    v = executor.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).value().copy()
+    assert v[0] == 2 and v[1] == 1.0 and np.isclose(v[2], 0.1 + 0.01 / 0.1)
+    assert np.allclose(v[15:27], Q0)  # the blend starts at the last played angles
+    context.SetDiscreteState(v)
+    context.SetTime(1.0 + 0.1)  # half way through the 0.2 s blend
+    v = executor.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).value().copy()
+    assert np.allclose(v[15:27], 0.5 * (Q0 + step.q[0]))
+    context.SetDiscreteState(v)
+    assert np.allclose(executor.q_playback_output.Eval(context), 0.5 * (Q0 + step.q[0]))
+    assert np.allclose(executor.ideal_pose_output.Eval(context), step.start_pose)
+    assert executor.step_index_output.Eval(context)[0] == 2
+    context.SetTime(1.0 + 0.2 + 0.015)  # playback: between samples 1 and 2
+    v = executor.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).value().copy()
+    assert np.allclose(v[15:27], 0.5 * (step.q[1] + step.q[2]))
+
+
+# ---------------------------------------------------------------- integral controller
+
+
+def test_integrator_update_closed_form():
+    I0 = np.zeros((4, 3))
+    ideal = np.array([0.0, 0.0, 0.14, 0.0, 0.0, 0.0])
+    body = ideal + np.array([0.02, -0.01, 0.0, 0, 0, 0])
+    new = integrator_update(I0, Q0, body, ideal, [1, 1, 1, 0], gain=0.1, decay=0.5, limit=1.0)
+    assert np.allclose(new[:3], [[0.002, -0.001, 0.0]] * 3)
+    assert np.allclose(new[3], 0.0)
+    flying = integrator_update(
+        np.ones((4, 3)) * 0.01, Q0, ideal, ideal, [0, 0, 0, 0], gain=0.1, decay=0.5, limit=1.0
+    )
+    assert np.allclose(flying, 0.005)
+    sat = integrator_update(I0, Q0, body, ideal, [1, 1, 1, 1], gain=1.0, decay=0.5, limit=0.01)
+    assert np.allclose(np.linalg.norm(sat, axis=1), 0.01)
+
+
+def test_corrected_angles_move_the_feet_by_the_integrators():
+    q, fallbacks = corrected_angles(Q0, np.zeros((4, 3)))
+    assert np.allclose(q, Q0) and fallbacks == 0
+    offsets = np.array([[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.01], [0.0, 0.0, 0.0]])
+    q, _ = corrected_angles(Q0, offsets)
+    for i, leg in enumerate(LEGS):
+        assert np.allclose(leg_fk(leg, q[3 * i : 3 * i + 3]), body_feet(Q0)[i] + offsets[i])
+
+
+def test_integral_controller_system_with_fixed_inputs():
+    ctrl = IntegralFootController(gain=0.1, decay=0.5, limit=1.0)
+    context = ctrl.CreateDefaultContext()
+    ideal = np.array([0.0, 0.0, 0.14, 0.0, 0.0, 0.0])
+    body = ideal + np.array([0.02, 0, 0, 0, 0, 0])
+    ctrl.q_playback_input.FixValue(context, Q0)
+    ctrl.ideal_pose_input.FixValue(context, ideal)
+    ctrl.body_pose_input.FixValue(context, body)
+    ctrl.joint_angles_input.FixValue(context, Q0)
+    ctrl.contact_input.FixValue(context, [1, 1, 1, 1])
+    assert np.allclose(ctrl.q_desired_output.Eval(context), Q0)
+    x = ctrl.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).value().copy()
+    expected = integrator_update(
+        np.zeros((4, 3)), Q0, body, ideal, [1] * 4, gain=0.1, decay=0.5, limit=1.0
+    )
+    assert np.allclose(x, expected.ravel())
+    context.SetDiscreteState(x)
+    assert np.allclose(ctrl.q_desired_output.Eval(context), corrected_angles(Q0, expected)[0])
+    ctrl.set_gains(context, 0.0, 0.5)  # the ablation: no correction
+    x2 = ctrl.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).value()
+    assert np.allclose(x2, expected.ravel())
+    with pytest.raises(RepertoireError, match="gain must be in"):
+        IntegralFootController(gain=2.0)
+
+
+# ---------------------------------------------------------------- crawl
+
+
+def _flat_start():
+    board = generate_board(TerrainParams(kind="flat"))
+    feet = body_to_world([0, 0, 0.18, 0, 0, 0], body_feet(standing_configuration(0.14)))
+    return board, feet, np.array([0, 0, 0.18, 0, 0, 0.0])
+
+
+def test_crawl_on_flat_board_follows_the_gait_and_reaches_the_goal():
+    board, feet, pose = _flat_start()
+    params = CrawlParams()
+    steps = choose_footholds(board, feet, 0.0, 0.15, params)
+    assert [s.foot for s in steps[:4]] == CRAWL_ORDER
+    plan = plan_crawl(feet, pose, steps, board, params)
+    assert np.all(plan.feet[-1][:2, 0] >= 0.15) and np.any(plan.feet[-2][:2, 0] < 0.15)
+    assert plan.q.shape == (len(plan.times), 12) and np.all(np.isfinite(plan.q))
+    # A flying foot is planned off the ground for exactly its swing samples.
+    swing = round(params.swing_time / params.dt)
+    assert np.sum(~plan.stance[:, CRAWL_ORDER[0]]) == swing * (
+        sum(s.foot == CRAWL_ORDER[0] for s in steps)
+    )
+    assert np.allclose(plan.feet[-1][[s.foot for s in steps[-4:]]], [s.p_WF for s in steps[-4:]])
+
+
+def test_plan_to_steps_gives_planned_library_steps():
+    board, feet, pose = _flat_start()
+    steps = choose_footholds(board, feet, 0.0, 0.13)
+    plan = plan_crawl(feet, pose, steps, board)
+    lib = StepLibrary(plan_to_steps(plan, terrain="flat", direction=0.0))
+    assert len(lib) == len(steps) and {s.kind for s in lib} == {"planned"}
+    assert [s.foot for s in lib] == [s.foot for s in steps]
+    assert np.allclose(lib[0].start_feet, feet)
+    for k in range(1, len(lib)):
+        assert np.allclose(lib[k].start_feet, plan.feet[k])  # footholds after step k - 1
+
+
+def test_crawl_bad_input():
+    board, feet, pose = _flat_start()
+    with pytest.raises(CrawlError, match="foot must be 0..3"):
+        CrawlStep(4, [0, 0, 0])
+    with pytest.raises(CrawlError, match="at least one CrawlStep"):
+        plan_crawl(feet, pose, [], board)
+    too_high = pose + np.array([0, 0, 0.1, 0, 0, 0])
+    with pytest.raises(
+        CrawlError,
+        match=r"start pose cannot be reached: leg lf: foot target "
+        r"out of reach \(hip-to-foot distance in the leg plane 0.2327 m.* missed by 0.0556 m\)",
+    ):
+        plan_crawl(feet, too_high, [CrawlStep(0, feet[0])], board)
+    with pytest.raises(CrawlError, match="time limit"):
+        choose_footholds(board, feet, 0.0, 5.0, time_limit=0.0)
+
+    class Jagged:  # every spot is an edge
+        def height(self, x, y):
+            return 0.01 * ((np.floor(np.asarray(x) / 0.004) + np.floor(np.asarray(y) / 0.004)) % 2)
+
+    with pytest.raises(CrawlError, match="no safe foothold for foot lh .* no crossable path"):
+        choose_footholds(Jagged(), feet, 0.0, 0.3)
+
+
+def test_join_boards_height_is_each_board_shifted():
+    p = TerrainParams(kind="rocks", size_x=0.4, size_y=0.8, rock_count=5)
+    a, b = generate_board(p, 1), generate_board(p, 2)
+    joined = join_boards([a, b], [[-0.2, 0.0], [0.2, 0.0]])
+    assert np.isclose(joined.height(-0.25, 0.1), a.height(-0.05, 0.1))
+    assert np.isclose(joined.height(0.1, -0.3), b.height(-0.1, -0.3))
+    with pytest.raises(RepertoireError, match="one finite"):
+        join_boards([a], [[0.0, 0.0], [1.0, 0.0]])

@@ -244,7 +244,7 @@ def fit_duration_tree(
     seed: int = 0,
     min_samples_leaf: int | None = None,
     candidate_leaves: Sequence[int] = (1, 2, 4, 8, 16, 32),
-    ridge: float = 1e-6,
+    ridge: float = 1e-10,
 ) -> TreeModel:
     """Fits an M5-like model tree (linear leaves, size chosen by linear-leaf error).
 

@@ -10,9 +10,9 @@ from collections.abc import Callable
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, ValueProducer
+from repertoire.planning.action_models import TreeModel, goto_pose_features
 
 from repertoire.errors import RepertoireError
-from repertoire.planning.action_models import TreeModel, goto_pose_features
 
 
 def goto_pose_parameter_features(parameters: np.ndarray) -> np.ndarray:

@@ -73,3 +73,41 @@ def test_summarize_fits_on_synthetic_records(tmp_path):
     assert paths["polar"].stat().st_size > 0 and paths["learning_curves"].stat().st_size > 0
     assert FEATURE_FUNCS["dist"](recs[0]) == pytest.approx(np.hypot(recs[0].x - 1, recs[0].y - 0.5))
     assert dataclasses.is_dataclass(recs[0])
+
+
+def test_generic_fit_on_an_existing_study(tmp_path, capsys):
+    from repertoire.studies.actions_fit import field_getters, main
+    from repertoire.studies.pendulum import smoke_config as pendulum_smoke
+
+    store = tmp_path / "pendulum" / "episodes.sqlite"
+    store.parent.mkdir()
+    run_study(
+        "pendulum",
+        pendulum_smoke(),
+        episodes=28,
+        executor="inline",
+        store=store,
+        out_dir=tmp_path,
+        fresh=True,
+    )
+    args = [
+        "--store",
+        str(store),
+        "--features",
+        "initial_angle_rad",
+        "damping",
+        "--out-dir",
+        str(tmp_path / "fit"),
+    ]
+    assert main([*args, "--target", "energy_lost_fraction"]) == 0
+    out = capsys.readouterr().out
+    assert "held-out MAE" in out and "train 21, held out 7" in out
+    assert (tmp_path / "fit" / "pendulum_energy_lost_fraction.json").exists()
+    assert main([*args, "--target", "lost_half_energy"]) == 0
+    assert "held-out accuracy" in capsys.readouterr().out
+    assert main([*args, "--target", "nope"]) == 2
+    assert "no target field 'nope'" in capsys.readouterr().out
+    with pytest.raises(RepertoireError, match="index"):
+        field_getters(["cup_xy.x"])
+    rec = type("R", (), {"cup_xy": [0.25, 0.5]})()
+    assert field_getters(["cup_xy.1"])["cup_xy.1"](rec) == 0.5

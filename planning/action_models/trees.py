@@ -102,12 +102,29 @@ class TreeModel:
             raise RepertoireError(f"features {bad} hold NaN or inf; every feature must be finite")
         return X
 
+    def _arrays(self) -> dict[str, np.ndarray]:
+        """The nodes and leaves as arrays, built once (the fields are not changed after a fit)."""
+        cached = self.__dict__.get("_cached_arrays")
+        if cached is None:
+            cached = {
+                "feature": np.asarray(self.feature, dtype=int),
+                "threshold": np.asarray(self.threshold, dtype=float),
+                "left": np.asarray(self.left, dtype=int),
+                "right": np.asarray(self.right, dtype=int),
+                "leaf_of_node": np.asarray(self.leaf_of_node, dtype=int),
+                "coef": np.array([leaf.coef for leaf in self.leaves], dtype=float),
+                "intercept": np.array([leaf.intercept for leaf in self.leaves], dtype=float),
+                "train_min": np.asarray(self.train_min, dtype=float),
+                "train_max": np.asarray(self.train_max, dtype=float),
+            }
+            self.__dict__["_cached_arrays"] = cached
+        return cached
+
     def leaf_index(self, X) -> np.ndarray:
         """The leaf (index into ``leaves``) of each row of ``X``."""
         X = self._check_x(X)
-        feature = np.asarray(self.feature)
-        thr = np.asarray(self.threshold)
-        left, right = np.asarray(self.left), np.asarray(self.right)
+        a = self._arrays()
+        feature, thr, left, right = a["feature"], a["threshold"], a["left"], a["right"]
         node = np.zeros(len(X), dtype=int)
         rows = np.arange(len(X))
         while True:
@@ -117,15 +134,14 @@ class TreeModel:
                 break
             go_left = X[rows, np.maximum(f, 0)] <= thr[node]
             node = np.where(active, np.where(go_left, left[node], right[node]), node)
-        return np.asarray(self.leaf_of_node)[node]
+        return a["leaf_of_node"][node]
 
     def predict(self, X) -> np.ndarray:
         """Duration (or failure probability) per row, from the leaf's hyperplane."""
         X = self._check_x(X)
         idx = self.leaf_index(X)
-        coef = np.array([leaf.coef for leaf in self.leaves])
-        icpt = np.array([leaf.intercept for leaf in self.leaves])
-        return np.einsum("ij,ij->i", X, coef[idx]) + icpt[idx]
+        a = self._arrays()
+        return np.einsum("ij,ij->i", X, a["coef"][idx]) + a["intercept"][idx]
 
     def predict_failure(self, X) -> np.ndarray:
         """True where a failure tree predicts failure."""
@@ -136,7 +152,8 @@ class TreeModel:
     def out_of_range(self, X) -> np.ndarray:
         """True per row where any feature lies outside the training range."""
         X = self._check_x(X)
-        return np.any((X < np.asarray(self.train_min)) | (X > np.asarray(self.train_max)), axis=1)
+        a = self._arrays()
+        return np.any((X < a["train_min"]) | (X > a["train_max"]), axis=1)
 
     def rules(self) -> str:
         """The tree as readable if-then rules, one per leaf."""

@@ -10,10 +10,11 @@ the model (JSON).
 Example (DMP pick-and-place episodes)::
 
     python -m repertoire.studies.dmp_pick_place -n 60 -j 2
-    python -m repertoire.studies.actions_fit \\
-        --store out/studies/dmp_pick_place/episodes.sqlite \\
-        --features cup_xy.0 cup_xy.1 coaster_xy.0 coaster_xy.1 obstacle_xyz.0 obstacle_xyz.1 \\
-        --target success
+    python -m repertoire.studies.actions_fit --target success
+        --store out/studies/dmp_pick_place/episodes.sqlite
+        --features cup_xy.0 cup_xy.1 coaster_xy.0 coaster_xy.1 obstacle_xyz.0 obstacle_xyz.1
+
+(one command line).
 """
 
 import argparse

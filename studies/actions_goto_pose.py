@@ -276,7 +276,7 @@ def summarize(
     tables.write_text("\n".join(md) + "\n")
 
     # learning curves
-    sizes = [n for n in (40, 80, 160, 320, 640, 1280, 2560) if n <= len(records)]
+    sizes = [n for n in (40, 80, 160, 320, 640, 1280, 2560) if n < len(records)] + [len(records)]
     maes, accs, ns_d = [], [], []
     for n in sizes:
         sub = records[:n]
@@ -300,7 +300,13 @@ def summarize(
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="lower left", fontsize=8)
-    ax.set_title("GoToPose: learning curves")
+    ax.set_xticks(sizes, [str(n) for n in sizes])
+    ax.minorticks_off()
+    n_failed = sum(r.failed for r in records)
+    ax.set_title(
+        f"GoToPose: learning curves ({n_failed} failed of {len(records)} episodes"
+        + ("; accuracy is trivial)" if n_failed == 0 else ")")
+    )
     curves = out_dir / "actions_goto_pose_learning_curves.png"
     fig.savefig(curves, dpi=110)
 
@@ -316,7 +322,7 @@ def summarize(
         pred = dur.model.predict(goto_pose_features(start, goal))
         ax.plot(theta, pred, color=colour, label=f"start {dist} m away, facing the goal")
     ax.set_title("Predicted duration (s, radial) by start direction\ngoal at centre facing 0°")
-    ax.legend(loc="lower center", bbox_to_anchor=(0.5, -0.2), fontsize=8)
+    ax.legend(loc="upper left", bbox_to_anchor=(-0.15, -0.05), fontsize=8)
     polar = out_dir / "actions_goto_pose_polar.png"
     fig.savefig(polar, dpi=110)
     return {"tables": tables, "learning_curves": curves, "polar": polar}

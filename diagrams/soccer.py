@@ -11,13 +11,11 @@ target is a constant source named ``target`` (a plan executor would replace it).
 import dataclasses
 
 import numpy as np
-from pydrake.math import RigidTransform, RollPitchYaw
-from pydrake.multibody.parsing import Parser
-from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
+from pydrake.math import RollPitchYaw
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
-from repertoire.diagrams.biped import add_ground, validate_plant_fields
-from repertoire.diagrams.diffdrive import TRACK, WHEEL_RADIUS, add_diffdrive, add_world
+from repertoire.diagrams.biped import validate_plant_fields
+from repertoire.diagrams.diffdrive import TRACK, WHEEL_RADIUS, add_robot_in_world
 from repertoire.diagrams.registry import register_diagram
 from repertoire.systems.go_to_pose import ActionStatus, DiffDriveStateReader, GoToPose
 
@@ -89,23 +87,14 @@ def build_soccer_goto_pose(scenario: GoToPoseScenario, *, meshcat=None) -> Diagr
     """
     scenario.validate()
     builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlant(
-        MultibodyPlantConfig(
-            time_step=scenario.time_step,
-            discrete_contact_approximation=scenario.contact_approximation,
-            contact_model="point",
-        ),
+    plant, scene_graph, robot = add_robot_in_world(
         builder,
-    )
-    add_ground(plant, scenario.ground_friction)
-    parser = Parser(plant)
-    robot = add_diffdrive(plant, parser, wheel_kd=scenario.wheel_kd)
-    add_world(plant, parser, "soccer")
-    plant.Finalize()
-    x, y, yaw = scenario.initial_pose
-    plant.SetDefaultFloatingBaseBodyPose(
-        plant.GetBodyByName("chassis", robot),
-        RigidTransform(RollPitchYaw(0.0, 0.0, yaw), [x, y, WHEEL_RADIUS]),
+        world="soccer",
+        initial_pose=scenario.initial_pose,
+        time_step=scenario.time_step,
+        contact_approximation=scenario.contact_approximation,
+        wheel_kd=scenario.wheel_kd,
+        ground_friction=scenario.ground_friction,
     )
     reader = builder.AddSystem(DiffDriveStateReader(plant))
     reader.set_name("state_reader")

@@ -38,6 +38,7 @@ class GoToPoseScenario:
         contact_approximation: discrete contact approximation.
         wheel_kd: wheel velocity gain.
         ground_friction: ground friction coefficient.
+        gains: overrides of GoToPose's gains (``GOTO_GAINS`` keys).
     """
 
     initial_pose: list[float] = dataclasses.field(default_factory=lambda: [-1.0, -0.5, 0.0])
@@ -48,6 +49,7 @@ class GoToPoseScenario:
     contact_approximation: str = "lagged"
     wheel_kd: float = 2.0
     ground_friction: float = 1.0
+    gains: dict[str, float] = dataclasses.field(default_factory=dict)
 
     def validate(self) -> None:
         """Raises ScenarioError naming the first bad field."""
@@ -98,7 +100,7 @@ def build_soccer_goto_pose(scenario: GoToPoseScenario, *, meshcat=None) -> Diagr
     )
     reader = builder.AddSystem(DiffDriveStateReader(plant))
     reader.set_name("state_reader")
-    goto = builder.AddSystem(GoToPose(period=scenario.control_period))
+    goto = builder.AddSystem(GoToPose(period=scenario.control_period, gains=scenario.gains))
     goto.set_name("goto_pose")
     target = builder.AddSystem(ConstantVectorSource(np.asarray(scenario.target, dtype=float)))
     target.set_name("target")

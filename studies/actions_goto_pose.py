@@ -48,6 +48,9 @@ class GoToPoseEpisodesConfig:
         state_period: time between kept states [s].
         time_step: plant step [s].
         control_period: GoToPose update period [s].
+        gains: GoToPose gain overrides; a weak heading term (k_beta -0.3, the
+            default -1.0 curves wide around the ball) drives straighter, so
+            approaches from the wrong side touch the ball, as in the paper.
     """
 
     x_range: list[float] = dataclasses.field(default_factory=lambda: [-1.5, 2.5])
@@ -60,6 +63,7 @@ class GoToPoseEpisodesConfig:
     state_period: float = 0.2
     time_step: float = 1e-2
     control_period: float = 0.02
+    gains: dict[str, float] = dataclasses.field(default_factory=lambda: {"k_beta": -0.3})
 
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
@@ -162,6 +166,7 @@ def run_episode(config: GoToPoseEpisodesConfig, seed: int) -> GoToPoseRecord:
             target=goal,
             time_step=config.time_step,
             control_period=config.control_period,
+            gains=dict(config.gains),
         )
     )
     plant = diagram.GetSubsystemByName("plant")

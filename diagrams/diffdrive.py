@@ -146,6 +146,49 @@ def add_world(plant: MultibodyPlant, parser: Parser, world: str) -> list[ModelIn
     return parser.AddModels(url=package_url(WORLDS[world]))
 
 
+def add_robot_in_world(
+    builder: DiagramBuilder,
+    *,
+    world: str,
+    initial_pose,
+    time_step: float,
+    contact_approximation: str,
+    wheel_kd: float,
+    ground_friction: float,
+):
+    """Adds a finalized discrete plant with the ground, the robot and a world to ``builder``.
+
+    Args:
+        builder: the DiagramBuilder.
+        world: a key of ``WORLDS``.
+        initial_pose: ``[x, y, yaw]`` of the chassis (its default pose).
+        time_step: plant step [s].
+        contact_approximation: discrete contact approximation.
+        wheel_kd: the wheel velocity gain.
+        ground_friction: ground friction coefficient.
+
+    Returns:
+        ``(plant, scene_graph, robot_instance)``.
+    """
+    config = MultibodyPlantConfig(
+        time_step=time_step,
+        discrete_contact_approximation=contact_approximation,
+        contact_model="point",
+    )
+    plant, scene_graph = AddMultibodyPlant(config, builder)
+    add_ground(plant, ground_friction)
+    parser = Parser(plant)
+    robot = add_diffdrive(plant, parser, wheel_kd=wheel_kd)
+    add_world(plant, parser, world)
+    plant.Finalize()
+    x, y, yaw = initial_pose
+    plant.SetDefaultFloatingBaseBodyPose(
+        plant.GetBodyByName("chassis", robot),
+        RigidTransform(RollPitchYaw(0.0, 0.0, yaw), [x, y, WHEEL_RADIUS]),
+    )
+    return plant, scene_graph, robot
+
+
 @register_diagram(
     "diffdrive_drive",
     scenario_type=DiffDriveScenario,
@@ -168,21 +211,14 @@ def build_diffdrive_drive(scenario: DiffDriveScenario, *, meshcat=None) -> Diagr
     """
     scenario.validate()
     builder = DiagramBuilder()
-    config = MultibodyPlantConfig(
+    plant, scene_graph, robot = add_robot_in_world(
+        builder,
+        world=scenario.world,
+        initial_pose=scenario.initial_pose,
         time_step=scenario.time_step,
-        discrete_contact_approximation=scenario.contact_approximation,
-        contact_model="point",
-    )
-    plant, scene_graph = AddMultibodyPlant(config, builder)
-    add_ground(plant, scenario.ground_friction)
-    parser = Parser(plant)
-    robot = add_diffdrive(plant, parser, wheel_kd=scenario.wheel_kd)
-    add_world(plant, parser, scenario.world)
-    plant.Finalize()
-    x, y, yaw = scenario.initial_pose
-    plant.SetDefaultFloatingBaseBodyPose(
-        plant.GetBodyByName("chassis", robot),
-        RigidTransform(RollPitchYaw(0.0, 0.0, yaw), [x, y, WHEEL_RADIUS]),
+        contact_approximation=scenario.contact_approximation,
+        wheel_kd=scenario.wheel_kd,
+        ground_friction=scenario.ground_friction,
     )
     command = builder.AddSystem(ConstantVectorSource(check_wheel_speeds(scenario.wheel_speeds)))
     command.set_name("wheel_speed_command")

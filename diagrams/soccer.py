@@ -1,0 +1,159 @@
+"""The soccer world with the GoToPose action wired (registered as ``soccer_goto_pose``).
+
+The differential-drive robot on the soccer field (diagrams/diffdrive.py) is
+driven by :class:`~repertoire.systems.go_to_pose.GoToPose`: the plant's state
+feeds a :class:`DiffDriveStateReader`, whose ``[x, y, phi, v]`` goes to the
+action; the action's ``[v, omega]`` command becomes wheel speeds (the ideal
+rolling map of ``wheel_speeds_for_twist``) and the wheels' desired state. The
+target is a constant source named ``target`` (a plan executor would replace it).
+"""
+
+import dataclasses
+
+import numpy as np
+from pydrake.math import RollPitchYaw
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
+from repertoire.diagrams.biped import validate_plant_fields
+from repertoire.diagrams.diffdrive import TRACK, WHEEL_RADIUS, add_robot_in_world
+from repertoire.diagrams.registry import register_diagram
+from repertoire.systems.go_to_pose import ActionStatus, DiffDriveStateReader, GoToPose
+
+from repertoire.criteria import Bound
+from repertoire.errors import ScenarioError
+
+BALL_POSITION = (1.0, 0.5)  # the ball's default position in models/diffdrive/soccer.sdf
+
+
+@dataclasses.dataclass
+class GoToPoseScenario:
+    """The robot on the soccer field going to a pose.
+
+    Attributes:
+        initial_pose: ``[x, y, yaw]`` of the chassis.
+        initial_speed: forward speed at the start [m/s].
+        target: ``[x_g, y_g, phi_g, v_g]``.
+        time_step: plant step [s].
+        control_period: GoToPose update period [s].
+        contact_approximation: discrete contact approximation.
+        wheel_kd: wheel velocity gain.
+        ground_friction: ground friction coefficient.
+        gains: overrides of GoToPose's gains (``GOTO_GAINS`` keys).
+    """
+
+    initial_pose: list[float] = dataclasses.field(default_factory=lambda: [-1.0, -0.5, 0.0])
+    initial_speed: float = 0.0
+    target: list[float] = dataclasses.field(default_factory=lambda: [0.6, 0.5, 0.0, 0.0])
+    time_step: float = 5e-3
+    control_period: float = 0.02
+    contact_approximation: str = "lagged"
+    wheel_kd: float = 2.0
+    ground_friction: float = 1.0
+    gains: dict[str, float] = dataclasses.field(default_factory=dict)
+
+    def validate(self) -> None:
+        """Raises ScenarioError naming the first bad field."""
+        if len(self.initial_pose) != 3 or not np.all(np.isfinite(self.initial_pose)):
+            raise ScenarioError(f"initial_pose must be 3 finite values, got {self.initial_pose}")
+        if len(self.target) != 4 or not np.all(np.isfinite(self.target)):
+            raise ScenarioError(f"target must be 4 finite values, got {self.target}")
+        if not np.isfinite(self.initial_speed):
+            raise ScenarioError(f"initial_speed must be finite, got {self.initial_speed}")
+        validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
+        if self.time_step <= 0:
+            raise ScenarioError("time_step must be > 0 (a discrete plant)")
+        if not (np.isfinite(self.control_period) and self.control_period >= self.time_step):
+            raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
+
+
+def twist_to_wheel_state_matrix() -> np.ndarray:
+    """``(4, 2)`` map from ``[v, omega]`` to the wheels' desired state ``[q_l, q_r, w_l, w_r]``."""
+    r, b = WHEEL_RADIUS, TRACK
+    return np.vstack([np.zeros((2, 2)), [[1 / r, -b / (2 * r)], [1 / r, b / (2 * r)]]])
+
+
+@register_diagram(
+    "soccer_goto_pose",
+    scenario_type=GoToPoseScenario,
+    description="diffdrive robot on the soccer field running the GoToPose action",
+    duration=8.0,
+    check=lambda diagram, context: check_goto_pose(diagram, context),
+    criteria={"status_succeeded": Bound(1.0, 1.0), "position_error_m": Bound(0.0, 0.1)},
+)
+def build_soccer_goto_pose(scenario: GoToPoseScenario, *, meshcat=None) -> Diagram:
+    """Builds the soccer world with GoToPose driving the robot.
+
+    Returns:
+        The Diagram ``soccer_goto_pose`` with subsystems ``plant``, ``scene_graph``,
+        ``state_reader``, ``goto_pose``, ``target``, ``wheel_desired_state``.
+    """
+    scenario.validate()
+    builder = DiagramBuilder()
+    plant, scene_graph, robot = add_robot_in_world(
+        builder,
+        world="soccer",
+        initial_pose=scenario.initial_pose,
+        time_step=scenario.time_step,
+        contact_approximation=scenario.contact_approximation,
+        wheel_kd=scenario.wheel_kd,
+        ground_friction=scenario.ground_friction,
+    )
+    reader = builder.AddSystem(DiffDriveStateReader(plant))
+    reader.set_name("state_reader")
+    goto = builder.AddSystem(GoToPose(period=scenario.control_period, gains=scenario.gains))
+    goto.set_name("goto_pose")
+    target = builder.AddSystem(ConstantVectorSource(np.asarray(scenario.target, dtype=float)))
+    target.set_name("target")
+    to_state = builder.AddSystem(MatrixGain(twist_to_wheel_state_matrix()))
+    to_state.set_name("wheel_desired_state")
+    builder.Connect(plant.get_state_output_port(), reader.get_input_port())
+    builder.Connect(reader.get_output_port(), goto.get_state_input_port())
+    builder.Connect(target.get_output_port(), goto.get_target_input_port())
+    builder.Connect(goto.get_command_output_port(), to_state.get_input_port())
+    builder.Connect(to_state.get_output_port(), plant.get_desired_state_input_port(robot))
+    if meshcat is not None:
+        from pydrake.geometry import MeshcatVisualizer
+
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("soccer_goto_pose")
+    return diagram
+
+
+def set_initial_speed(diagram: Diagram, context: Context, speed: float) -> None:
+    """Gives the chassis and wheels a rolling forward speed in ``context``."""
+    plant = diagram.GetSubsystemByName("plant")
+    pc = plant.GetMyMutableContextFromRoot(context)
+    chassis = plant.GetBodyByName("chassis")
+    yaw = RollPitchYaw(plant.EvalBodyPoseInWorld(pc, chassis).rotation()).yaw_angle()
+    from pydrake.multibody.math import SpatialVelocity
+
+    plant.SetFreeBodySpatialVelocity(
+        pc, chassis, SpatialVelocity([0, 0, 0], [speed * np.cos(yaw), speed * np.sin(yaw), 0])
+    )
+    for side in ("left", "right"):
+        plant.GetJointByName(f"{side}_wheel_joint").set_angular_rate(pc, speed / WHEEL_RADIUS)
+
+
+def goto_status(diagram: Diagram, context: Context) -> ActionStatus:
+    """The GoToPose status in a ``soccer_goto_pose`` diagram's context."""
+    goto = diagram.GetSubsystemByName("goto_pose")
+    return goto.get_status_output_port().Eval(goto.GetMyContextFromRoot(context))
+
+
+def robot_state(diagram: Diagram, context: Context) -> np.ndarray:
+    """``[x, y, phi, v]`` of the robot."""
+    reader = diagram.GetSubsystemByName("state_reader")
+    return reader.get_output_port().Eval(reader.GetMyContextFromRoot(context))
+
+
+def check_goto_pose(diagram: Diagram, context: Context) -> dict[str, float]:
+    """Figures: ``status_succeeded`` (1/0), ``position_error_m``, ``heading_error_rad``."""
+    target = diagram.GetSubsystemByName("target")
+    goal = target.get_output_port().Eval(target.GetMyContextFromRoot(context))
+    s = robot_state(diagram, context)
+    return {
+        "status_succeeded": float(goto_status(diagram, context) == ActionStatus.SUCCEEDED),
+        "position_error_m": float(np.hypot(goal[0] - s[0], goal[1] - s[1])),
+        "heading_error_rad": float(abs(np.angle(np.exp(1j * (goal[2] - s[2]))))),
+    }

@@ -1,0 +1,80 @@
+"""Features of Table 7 (Stulp & Beetz): goal-relative quantities of a navigation action.
+
+The robot is at ``(x, y)`` with heading ``phi`` and speed ``v``; the goal is
+``(x_g, y_g)`` with heading ``phi_g`` and speed ``v_g``. With ``beta`` the
+direction from the robot to the goal, ``atan2(y_g - y, x_g - x)``:
+
+- ``dist``: the Euclidean distance to the goal,
+- ``angle_to``: ``beta - phi`` wrapped to (-pi, pi] (how far the robot must turn
+  to face the goal),
+- ``angle_at``: ``phi_g - beta`` wrapped (how the robot must turn at the goal),
+- ``v`` and ``v_g``: the current and goal speeds.
+"""
+
+import numpy as np
+
+from repertoire.errors import RepertoireError
+
+GOTO_POSE_FEATURES = ("dist", "angle_to", "angle_at", "v", "v_g")
+
+
+def wrap_angle(a):
+    """Angle(s) wrapped to (-pi, pi]."""
+    return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), 2.0 * np.pi)
+
+
+def _check(name: str, values) -> np.ndarray:
+    arr = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(arr)):
+        raise RepertoireError(f"{name} must be finite, got {values!r}")
+    return arr
+
+
+def distance(x, y, x_g, y_g):
+    """Distance from (x, y) to (x_g, y_g) [m] (broadcasts over arrays)."""
+    dx = _check("x_g - x", np.asarray(x_g, float) - np.asarray(x, float))
+    dy = _check("y_g - y", np.asarray(y_g, float) - np.asarray(y, float))
+    return np.hypot(dx, dy)
+
+
+def angle_to(x, y, phi, x_g, y_g):
+    """Turn from the heading ``phi`` to the direction of the goal, wrapped [rad]."""
+    dx = _check("x_g - x", np.asarray(x_g, float) - np.asarray(x, float))
+    dy = _check("y_g - y", np.asarray(y_g, float) - np.asarray(y, float))
+    return wrap_angle(np.arctan2(dy, dx) - _check("phi", phi))
+
+
+def angle_at(x, y, x_g, y_g, phi_g):
+    """Turn from the direction of approach to the goal heading ``phi_g``, wrapped [rad]."""
+    dx = _check("x_g - x", np.asarray(x_g, float) - np.asarray(x, float))
+    dy = _check("y_g - y", np.asarray(y_g, float) - np.asarray(y, float))
+    return wrap_angle(_check("phi_g", phi_g) - np.arctan2(dy, dx))
+
+
+def goto_pose_features(state, goal) -> np.ndarray:
+    """The five Table 7 features for start state(s) and goal(s).
+
+    Args:
+        state: ``(4,)`` or ``(n, 4)`` of ``[x, y, phi, v]``.
+        goal: ``(4,)`` or ``(n, 4)`` of ``[x_g, y_g, phi_g, v_g]``.
+
+    Returns:
+        ``(n, 5)`` columns ``dist, angle_to, angle_at, v, v_g`` (``(5,)`` for one pair).
+    """
+    s = _check("state", state)
+    g = _check("goal", goal)
+    if s.shape[-1:] != (4,) or g.shape[-1:] != (4,):
+        raise RepertoireError(
+            f"state and goal need 4 values each [x, y, phi, v], got shapes {s.shape}, {g.shape}"
+        )
+    s2, g2 = np.atleast_2d(s), np.atleast_2d(g)
+    out = np.column_stack(
+        [
+            distance(s2[:, 0], s2[:, 1], g2[:, 0], g2[:, 1]),
+            angle_to(s2[:, 0], s2[:, 1], s2[:, 2], g2[:, 0], g2[:, 1]),
+            angle_at(s2[:, 0], s2[:, 1], g2[:, 0], g2[:, 1], g2[:, 2]),
+            s2[:, 3] + 0.0 * g2[:, 3],
+            g2[:, 3] + 0.0 * s2[:, 3],
+        ]
+    )
+    return out[0] if s.ndim == 1 and g.ndim == 1 else out

@@ -1,0 +1,511 @@
+"""Duration model trees and pessimistic failure trees on scikit-learn, as plain data.
+
+Duration (section 4 of Stulp & Beetz, M5-like model trees): a scikit-learn
+``DecisionTreeRegressor`` proposes the splits; every leaf gets its own linear
+fit (least squares on the leaf's episodes); the tree size (``max_leaf_nodes``)
+is chosen among candidates by the *linear-leaf* error on a validation part of
+the training set, which prunes the tree to the size that linear leaves need.
+
+Failure: a ``DecisionTreeClassifier`` whose class weights are a cost matrix
+(a missed failure costs ``failure_cost`` times a false alarm), as WEKA's
+CostSensitiveClassifier, so the tree is pessimistic: it predicts failure
+when in doubt.
+
+Both are stored as a :class:`TreeModel`: the nodes (feature, threshold,
+children) and one :class:`LeafBox` per leaf with its box (lower, upper per
+feature: ``lower < x <= upper``) and its hyperplane (``coef``, ``intercept``;
+for a failure tree ``coef = 0`` and ``intercept`` the leaf's failure
+probability). The subgoal-refinement issue enumerates these boxes. Models are
+saved as JSON with a version and printed as rules.
+"""
+
+import dataclasses
+import json
+import math
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from repertoire.errors import RepertoireError
+
+MODEL_VERSION = 1
+MIN_EPISODES = 20  # fewer episodes cannot give a 3/4 training part with two leaves of 5
+KINDS = ("duration", "failure")
+
+
+@dataclasses.dataclass
+class LeafBox:
+    """One leaf: the box of feature space it covers and its linear model.
+
+    Attributes:
+        lower: per-feature lower bounds (exclusive; -inf if unbounded).
+        upper: per-feature upper bounds (inclusive; +inf if unbounded).
+        coef: the hyperplane's coefficients (zeros for a failure tree).
+        intercept: the hyperplane's intercept (the failure probability for a
+            failure tree).
+        samples: training episodes in the leaf.
+    """
+
+    lower: list[float]
+    upper: list[float]
+    coef: list[float]
+    intercept: float
+    samples: int
+
+
+@dataclasses.dataclass
+class TreeModel:
+    """A tree with linear leaves, independent of scikit-learn once fitted.
+
+    Attributes:
+        kind: ``"duration"`` (predicts a value) or ``"failure"`` (predicts a
+            failure probability; failure if >= ``threshold``).
+        feature_names: the features' names, in column order.
+        feature: per node, the split feature index (-1 for a leaf).
+        threshold: per node, the split threshold (go left if x <= threshold).
+        left: per node, the left child (-1 for a leaf).
+        right: per node, the right child (-1 for a leaf).
+        leaf_of_node: per node, the index into ``leaves`` (-1 for a split).
+        leaves: the leaves' boxes and hyperplanes.
+        train_min: per-feature minimum seen in training.
+        train_max: per-feature maximum seen in training.
+        threshold_probability: failure decision threshold (failure trees).
+        version: the file format version.
+    """
+
+    kind: str
+    feature_names: list[str]
+    feature: list[int]
+    threshold: list[float]
+    left: list[int]
+    right: list[int]
+    leaf_of_node: list[int]
+    leaves: list[LeafBox]
+    train_min: list[float]
+    train_max: list[float]
+    threshold_probability: float = 0.5
+    version: int = MODEL_VERSION
+
+    def _check_x(self, X) -> np.ndarray:
+        X = np.asarray(X, dtype=float)
+        if X.ndim == 1:
+            X = X[None, :]
+        if X.ndim != 2 or X.shape[1] != len(self.feature_names):
+            raise RepertoireError(
+                f"features must be (n, {len(self.feature_names)}) for "
+                f"{self.feature_names}, got shape {X.shape}"
+            )
+        if not np.all(np.isfinite(X)):
+            bad = sorted({self.feature_names[j] for j in np.nonzero(~np.isfinite(X))[1]})
+            raise RepertoireError(f"features {bad} hold NaN or inf; every feature must be finite")
+        return X
+
+    def _arrays(self) -> dict[str, np.ndarray]:
+        """The nodes and leaves as arrays, built once (the fields are not changed after a fit)."""
+        cached = self.__dict__.get("_cached_arrays")
+        if cached is None:
+            cached = {
+                "feature": np.asarray(self.feature, dtype=int),
+                "threshold": np.asarray(self.threshold, dtype=float),
+                "left": np.asarray(self.left, dtype=int),
+                "right": np.asarray(self.right, dtype=int),
+                "leaf_of_node": np.asarray(self.leaf_of_node, dtype=int),
+                "coef": np.array([leaf.coef for leaf in self.leaves], dtype=float),
+                "intercept": np.array([leaf.intercept for leaf in self.leaves], dtype=float),
+                "train_min": np.asarray(self.train_min, dtype=float),
+                "train_max": np.asarray(self.train_max, dtype=float),
+            }
+            self.__dict__["_cached_arrays"] = cached
+        return cached
+
+    def leaf_index(self, X) -> np.ndarray:
+        """The leaf (index into ``leaves``) of each row of ``X``."""
+        X = self._check_x(X)
+        a = self._arrays()
+        feature, thr, left, right = a["feature"], a["threshold"], a["left"], a["right"]
+        node = np.zeros(len(X), dtype=int)
+        rows = np.arange(len(X))
+        while True:
+            f = feature[node]
+            active = f >= 0
+            if not active.any():
+                break
+            go_left = X[rows, np.maximum(f, 0)] <= thr[node]
+            node = np.where(active, np.where(go_left, left[node], right[node]), node)
+        return a["leaf_of_node"][node]
+
+    def predict(self, X) -> np.ndarray:
+        """Duration (or failure probability) per row, from the leaf's hyperplane."""
+        X = self._check_x(X)
+        idx = self.leaf_index(X)
+        a = self._arrays()
+        return np.einsum("ij,ij->i", X, a["coef"][idx]) + a["intercept"][idx]
+
+    def predict_failure(self, X) -> np.ndarray:
+        """True where a failure tree predicts failure."""
+        if self.kind != "failure":
+            raise RepertoireError("predict_failure needs a failure tree, this is a duration tree")
+        return self.predict(X) >= self.threshold_probability
+
+    def out_of_range(self, X) -> np.ndarray:
+        """True per row where any feature lies outside the training range."""
+        X = self._check_x(X)
+        a = self._arrays()
+        return np.any((X < a["train_min"]) | (X > a["train_max"]), axis=1)
+
+    def rules(self) -> str:
+        """The tree as readable if-then rules, one per leaf."""
+        lines = []
+        for k, leaf in enumerate(self.leaves):
+            conds = []
+            for j, name in enumerate(self.feature_names):
+                lo, hi = leaf.lower[j], leaf.upper[j]
+                if math.isfinite(lo) and math.isfinite(hi):
+                    conds.append(f"{lo:.3g} < {name} <= {hi:.3g}")
+                elif math.isfinite(lo):
+                    conds.append(f"{name} > {lo:.3g}")
+                elif math.isfinite(hi):
+                    conds.append(f"{name} <= {hi:.3g}")
+            cond = " and ".join(conds) or "always"
+            if self.kind == "failure":
+                verdict = "FAIL" if leaf.intercept >= self.threshold_probability else "succeed"
+                then = f"{verdict} (p_fail={leaf.intercept:.2f})"
+            else:
+                terms = " ".join(
+                    f"{c:+.3g}*{n}" for c, n in zip(leaf.coef, self.feature_names) if c != 0
+                )
+                then = f"duration = {leaf.intercept:.3g} {terms}".rstrip()
+            lines.append(f"rule {k} [{leaf.samples} episodes]: if {cond} then {then}")
+        return "\n".join(lines)
+
+
+def _check_training(X, y, feature_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    X = np.asarray(X, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if X.ndim != 2 or X.shape[1] != len(feature_names) or len(y) != len(X):
+        raise RepertoireError(
+            f"need X of shape (n, {len(feature_names)}) and y of length n, got {X.shape}, {y.shape}"
+        )
+    if len(X) < MIN_EPISODES:
+        raise RepertoireError(
+            f"{len(X)} episodes are too few to train an action model; at least {MIN_EPISODES} "
+            "are needed (the paper uses hundreds to thousands)"
+        )
+    if not np.all(np.isfinite(X)):
+        bad = sorted({feature_names[j] for j in np.nonzero(~np.isfinite(X))[1]})
+        raise RepertoireError(f"training features {bad} hold NaN or inf")
+    if not np.all(np.isfinite(y)):
+        raise RepertoireError("training targets hold NaN or inf")
+    return X, y
+
+
+def _extract(sk_tree, feature_names, X, leaf_models, kind, threshold_probability) -> TreeModel:
+    """Turns a fitted sklearn tree plus per-leaf (coef, intercept) into a TreeModel."""
+    t = sk_tree.tree_
+    d = len(feature_names)
+    n_nodes = t.node_count
+    leaf_of_node = [-1] * n_nodes
+    leaves: list[LeafBox] = []
+    stack = [(0, np.full(d, -np.inf), np.full(d, np.inf))]
+    while stack:
+        node, lo, hi = stack.pop()
+        if t.children_left[node] < 0:
+            coef, icpt, n = leaf_models[node]
+            leaf_of_node[node] = len(leaves)
+            leaves.append(LeafBox(lo.tolist(), hi.tolist(), list(map(float, coef)), icpt, n))
+            continue
+        f, thr = int(t.feature[node]), float(t.threshold[node])
+        hi_l = hi.copy()
+        hi_l[f] = min(hi_l[f], thr)
+        lo_r = lo.copy()
+        lo_r[f] = max(lo_r[f], thr)
+        stack.append((int(t.children_right[node]), lo_r, hi.copy()))
+        stack.append((int(t.children_left[node]), lo.copy(), hi_l))
+    is_leaf = t.children_left < 0
+    return TreeModel(
+        kind=kind,
+        feature_names=list(feature_names),
+        feature=[-1 if is_leaf[i] else int(t.feature[i]) for i in range(n_nodes)],
+        threshold=[0.0 if is_leaf[i] else float(t.threshold[i]) for i in range(n_nodes)],
+        left=[int(c) for c in t.children_left],
+        right=[int(c) for c in t.children_right],
+        leaf_of_node=leaf_of_node,
+        leaves=leaves,
+        train_min=X.min(axis=0).tolist(),
+        train_max=X.max(axis=0).tolist(),
+        threshold_probability=float(threshold_probability),
+    )
+
+
+def _linear_leaves(sk_tree, X, y, ridge: float) -> dict[int, tuple[np.ndarray, float, int]]:
+    node = sk_tree.apply(X)
+    out = {}
+    for leaf in np.unique(node):
+        m = node == leaf
+        Xl, yl = X[m], y[m]
+        mu = Xl.mean(axis=0)
+        Xc = Xl - mu
+        A = Xc.T @ Xc + ridge * len(Xl) * np.eye(X.shape[1])
+        coef = np.linalg.solve(A, Xc.T @ (yl - yl.mean()))
+        out[int(leaf)] = (coef, float(yl.mean() - mu @ coef), int(m.sum()))
+    return out
+
+
+def fit_duration_tree(
+    X,
+    y,
+    feature_names: Sequence[str],
+    *,
+    seed: int = 0,
+    min_samples_leaf: int | None = None,
+    candidate_leaves: Sequence[int] = (1, 2, 4, 8, 16, 32),
+    ridge: float = 1e-10,
+) -> TreeModel:
+    """Fits an M5-like model tree (linear leaves, size chosen by linear-leaf error).
+
+    Args:
+        X: ``(n, d)`` features.
+        y: ``(n,)`` durations.
+        feature_names: the ``d`` names.
+        seed: seed of the validation split and the tree.
+        min_samples_leaf: episodes per leaf at least (default ``max(5, 4 d)``).
+        candidate_leaves: tree sizes tried; the one with the smallest
+            validation MAE of the linear-leaf model wins (pruning).
+        ridge: Tikhonov weight of the leaf fits (relative to the leaf size).
+
+    Returns:
+        The fitted :class:`TreeModel` of kind ``"duration"``, refitted on all of ``X``.
+    """
+    from sklearn.tree import DecisionTreeRegressor
+
+    X, y = _check_training(X, y, feature_names)
+    d = X.shape[1]
+    msl = min_samples_leaf or max(5, 4 * d)
+    rng = np.random.default_rng(seed)
+    perm = rng.permutation(len(X))
+    n_val = max(1, len(X) // 5)
+    val, fit = perm[:n_val], perm[n_val:]
+
+    def make_tree(k: int, n: int):
+        if k == 1:  # a single leaf: one hyperplane over everything
+            return DecisionTreeRegressor(min_samples_leaf=n)
+        return DecisionTreeRegressor(max_leaf_nodes=k, min_samples_leaf=msl, random_state=seed)
+
+    best, best_err = 1, np.inf
+    for k in candidate_leaves:
+        if k < 1 or k * msl > len(fit):
+            continue
+        tree = make_tree(k, len(fit)).fit(X[fit], y[fit])
+        leaves = _linear_leaves(tree, X[fit], y[fit], ridge)
+        model = _extract(tree, feature_names, X[fit], leaves, "duration", 0.5)
+        err = float(np.mean(np.abs(model.predict(X[val]) - y[val])))
+        if err < best_err - 1e-12:
+            best, best_err = k, err
+    tree = make_tree(best, len(X)).fit(X, y)
+    return _extract(tree, feature_names, X, _linear_leaves(tree, X, y, ridge), "duration", 0.5)
+
+
+def fit_failure_tree(
+    X,
+    failed,
+    feature_names: Sequence[str],
+    *,
+    failure_cost: float = 3.0,
+    seed: int = 0,
+    min_samples_leaf: int = 10,
+    max_leaf_nodes: int = 24,
+) -> TreeModel:
+    """Fits a pessimistic decision tree for failure (cost-weighted classes).
+
+    Args:
+        X: ``(n, d)`` features.
+        failed: ``(n,)`` booleans, True where the episode failed.
+        feature_names: the ``d`` names.
+        failure_cost: cost of predicting success for a failure relative to the
+            cost of a false alarm (> 1 makes the tree pessimistic). The leaf
+            decides failure when its failure probability is at least
+            ``1 / (1 + failure_cost)`` (minimum expected cost).
+        seed: the tree's seed.
+        min_samples_leaf: episodes per leaf at least.
+        max_leaf_nodes: the largest tree.
+
+    Returns:
+        The fitted :class:`TreeModel` of kind ``"failure"``.
+    """
+    from sklearn.tree import DecisionTreeClassifier
+
+    if not (math.isfinite(failure_cost) and failure_cost > 0):
+        raise RepertoireError(f"failure_cost must be finite and > 0, got {failure_cost}")
+    X, y = _check_training(X, np.asarray(failed, dtype=float), feature_names)
+    if not np.all((y == 0) | (y == 1)):
+        raise RepertoireError("failure targets must be booleans (True = failed)")
+    tree = DecisionTreeClassifier(
+        class_weight={0.0: 1.0, 1.0: failure_cost},
+        min_samples_leaf=min_samples_leaf,
+        max_leaf_nodes=max_leaf_nodes,
+        random_state=seed,
+    ).fit(X, y)
+    node = tree.apply(X)
+    leaves = {}
+    d = X.shape[1]
+    for leaf in np.unique(node):
+        m = node == leaf
+        leaves[int(leaf)] = (np.zeros(d), float(y[m].mean()), int(m.sum()))
+    return _extract(tree, feature_names, X, leaves, "failure", 1.0 / (1.0 + failure_cost))
+
+
+def save_model(model: TreeModel, path: str | Path) -> Path:
+    """Writes a TreeModel as JSON (no pickle)."""
+    path = Path(path)
+    data = dataclasses.asdict(model)
+    path.write_text(json.dumps(data, allow_nan=True))
+    return path
+
+
+_REQUIRED = [f.name for f in dataclasses.fields(TreeModel)]
+
+
+def load_model(path: str | Path) -> TreeModel:
+    """Reads a TreeModel written by :func:`save_model`, checking version and fields.
+
+    Raises:
+        RepertoireError: missing file, not JSON, another version, missing fields.
+    """
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise RepertoireError(f"cannot read action model '{path}': {e}") from e
+    if not isinstance(data, dict):
+        raise RepertoireError(f"action model '{path}' is not a JSON object")
+    if data.get("version") != MODEL_VERSION:
+        raise RepertoireError(
+            f"action model '{path}' has version {data.get('version')!r}; this code reads "
+            f"version {MODEL_VERSION}: refit the model"
+        )
+    missing = [k for k in _REQUIRED if k not in data]
+    if missing:
+        raise RepertoireError(f"action model '{path}' lacks fields {missing}")
+    if data["kind"] not in KINDS:
+        raise RepertoireError(f"action model kind must be one of {KINDS}, got {data['kind']!r}")
+    try:
+        data["leaves"] = [LeafBox(**leaf) for leaf in data["leaves"]]
+    except TypeError as e:
+        raise RepertoireError(f"action model '{path}' has a malformed leaf: {e}") from e
+    n = len(data["feature"])
+    for k in ("threshold", "left", "right", "leaf_of_node"):
+        if len(data[k]) != n:
+            raise RepertoireError(f"action model '{path}': '{k}' has {len(data[k])} nodes, not {n}")
+    return TreeModel(**data)
+
+
+@dataclasses.dataclass
+class FittedModel:
+    """A model fitted by :func:`fit_action_model` with its held-out evaluation.
+
+    Attributes:
+        model: the tree (refitted on the training 3/4).
+        n_train: training episodes.
+        n_test: held-out episodes.
+        mae: held-out mean absolute error (duration models; NaN otherwise).
+        mean_target: mean target over all episodes.
+        confusion: held-out ``[[tn, fp], [fn, tp]]`` with failure the positive
+            class (failure models; empty otherwise).
+        accuracy: held-out fraction correct (failure models; NaN otherwise).
+    """
+
+    model: TreeModel
+    n_train: int
+    n_test: int
+    mae: float
+    mean_target: float
+    confusion: list[list[int]]
+    accuracy: float
+
+
+FeatureSpec = Sequence[str] | Mapping[str, Callable[[Any], float]]
+
+
+def _feature_matrix(records: Sequence[Any], features: FeatureSpec) -> tuple[np.ndarray, list[str]]:
+    if isinstance(features, Mapping):
+        names = list(features)
+        funcs = list(features.values())
+    else:
+        names = list(features)
+        funcs = [lambda r, n=n: getattr(r, n) for n in names]
+    if not names:
+        raise RepertoireError("fit_action_model needs at least one feature")
+    rows = []
+    for i, rec in enumerate(records):
+        try:
+            rows.append([float(f(rec)) for f in funcs])
+        except (AttributeError, TypeError, ValueError, KeyError) as e:
+            raise RepertoireError(
+                f"record {i} ({type(rec).__name__}) gives no feature among {names}: {e}"
+            ) from e
+    return np.asarray(rows, dtype=float).reshape(len(rows), len(names)), names
+
+
+def fit_action_model(
+    records: Sequence[Any],
+    features: FeatureSpec,
+    target: str,
+    *,
+    seed: int = 0,
+    failure_cost: float = 3.0,
+) -> FittedModel:
+    """Fits a duration model tree or a pessimistic failure tree on any study's records.
+
+    A boolean target field gives a failure tree (True = failed), a numeric one a
+    duration model tree. The records are shuffled (seeded); the first 3/4 train
+    the model, the last quarter measures it.
+
+    Args:
+        records: typed records (e.g. from ``load_records``).
+        features: field names, or ``{name: function(record) -> float}``.
+        target: the record field to predict.
+        seed: the shuffle and tree seed.
+        failure_cost: cost ratio for failure trees (see :func:`fit_failure_tree`).
+
+    Returns:
+        A :class:`FittedModel`.
+
+    Raises:
+        RepertoireError: too few records, a missing field, NaN features.
+    """
+    records = list(records)
+    if len(records) < MIN_EPISODES:
+        raise RepertoireError(
+            f"{len(records)} episodes are too few to train an action model; at least "
+            f"{MIN_EPISODES} are needed"
+        )
+    X, names = _feature_matrix(records, features)
+    try:
+        raw = [getattr(r, target) for r in records]
+    except AttributeError as e:
+        raise RepertoireError(f"records have no target field {target!r}") from e
+    is_bool = all(isinstance(v, bool | np.bool_) for v in raw)
+    y = np.asarray(raw, dtype=float)
+    perm = np.random.default_rng(seed).permutation(len(records))
+    n_train = (3 * len(records)) // 4
+    tr, te = perm[:n_train], perm[n_train:]
+    if len(tr) < MIN_EPISODES:
+        raise RepertoireError(
+            f"{len(records)} episodes leave {len(tr)} for training; at least "
+            f"{math.ceil(MIN_EPISODES * 4 / 3)} episodes are needed"
+        )
+    if is_bool:
+        model = fit_failure_tree(X[tr], y[tr], names, failure_cost=failure_cost, seed=seed)
+        pred = model.predict_failure(X[te])
+        truth = y[te] == 1
+        conf = [
+            [int(np.sum(~truth & ~pred)), int(np.sum(~truth & pred))],
+            [int(np.sum(truth & ~pred)), int(np.sum(truth & pred))],
+        ]
+        acc = float(np.mean(pred == truth))
+        return FittedModel(model, len(tr), len(te), math.nan, float(y.mean()), conf, acc)
+    model = fit_duration_tree(X[tr], y[tr], names, seed=seed)
+    mae = float(np.mean(np.abs(model.predict(X[te]) - y[te])))
+    return FittedModel(model, len(tr), len(te), mae, float(y.mean()), [], math.nan)

@@ -1,0 +1,365 @@
+"""GoToPose episodes on the soccer field: learn its duration and ball-collision failure.
+
+Each episode (Stulp & Beetz, section 5.1) samples a start ``[x, y, phi, v]``
+and a goal pose ``[x_g, y_g, phi_g, v_g]`` behind the ball (the robot must
+approach the ball to dribble it), uniformly from the config's ranges, and runs
+the ``soccer_goto_pose`` world until the action's status leaves RUNNING. The
+record holds the parameters, the duration, the failure flag (the robot touched
+the ball before reaching its pose, read from the plant's contact results, or
+the action failed or timed out) and the first ``n_states`` robot states.
+
+``summarize`` fits a duration model tree and a pessimistic failure tree on 3/4
+of the episodes (``fit_action_model``), measures them on the rest and writes
+Table 1 / Table 2 rows beside the paper's numbers, learning curves and a polar
+plot of predicted durations like the paper's Fig. 7.
+
+Run it with ``python -m repertoire.studies.actions_goto_pose --help``.
+"""
+
+import dataclasses
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from repertoire.planning.action_models import goto_pose_features
+from repertoire.planning.action_models.features import GOTO_POSE_FEATURES
+from repertoire.studies.engine import register_study, study_main
+
+from repertoire.errors import RepertoireError
+
+BALL_RADIUS = 0.11
+PAPER_GOTO_MAE_S = 0.32  # Table 1 of Stulp & Beetz: goToPose (simulated), mean absolute error
+PAPER_FAILURE_ACCURACY = 0.89  # section 5: failure (collision) tree, correctly classified
+
+
+@dataclasses.dataclass
+class GoToPoseEpisodesConfig:
+    """Sampling ranges and simulation settings of the GoToPose episodes.
+
+    Attributes:
+        x_range: start x range [m].
+        y_range: start y range [m].
+        v_range: start speed range [m/s].
+        goal_distance_range: goal distance behind the ball centre [m].
+        v_g_range: goal speed range [m/s].
+        min_start_clearance: starts closer than this to the ball are resampled [m].
+        n_states: intermediate states kept per episode.
+        state_period: time between kept states [s].
+        time_step: plant step [s].
+        control_period: GoToPose update period [s].
+        gains: GoToPose gain overrides; a weak heading term (k_beta -0.3, the
+            default -1.0 curves wide around the ball) drives straighter, so
+            approaches from the wrong side touch the ball, as in the paper.
+    """
+
+    x_range: list[float] = dataclasses.field(default_factory=lambda: [-1.5, 2.5])
+    y_range: list[float] = dataclasses.field(default_factory=lambda: [-1.5, 1.8])
+    v_range: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.5])
+    goal_distance_range: list[float] = dataclasses.field(default_factory=lambda: [0.35, 0.5])
+    v_g_range: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.1])
+    min_start_clearance: float = 0.6
+    n_states: int = 5
+    state_period: float = 0.2
+    time_step: float = 1e-2
+    control_period: float = 0.02
+    gains: dict[str, float] = dataclasses.field(default_factory=lambda: {"k_beta": -0.3})
+
+    def validate(self) -> None:
+        """Raises RepertoireError naming the first bad field."""
+        for name in ("x_range", "y_range", "v_range", "goal_distance_range", "v_g_range"):
+            r = getattr(self, name)
+            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
+                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
+        if not (-3 <= self.x_range[0] and self.x_range[1] <= 3):
+            raise RepertoireError(f"x_range must lie on the field [-3, 3], got {self.x_range}")
+        if not (-2 <= self.y_range[0] and self.y_range[1] <= 2):
+            raise RepertoireError(f"y_range must lie on the field [-2, 2], got {self.y_range}")
+        if self.goal_distance_range[0] <= BALL_RADIUS:
+            raise RepertoireError("goal_distance_range must start beyond the ball radius 0.11 m")
+        if self.n_states < 0 or self.state_period <= 0 or self.min_start_clearance < 0:
+            raise RepertoireError("n_states >= 0, state_period > 0, min_start_clearance >= 0")
+
+
+@dataclasses.dataclass
+class GoToPoseRecord:
+    """One GoToPose episode.
+
+    Attributes:
+        x: start x [m].
+        y: start y [m].
+        phi: start heading [rad].
+        v: start speed [m/s].
+        x_g: goal x [m].
+        y_g: goal y [m].
+        phi_g: goal heading [rad].
+        v_g: goal speed [m/s].
+        duration: time until the status left RUNNING [s].
+        status: the final ActionStatus name.
+        touched_ball: the robot touched the ball before the status left RUNNING.
+        failed: touched the ball, or the action failed or timed out.
+        states: the first ``n_states`` states ``[x, y, phi, v]``, flattened.
+        wall_time_s: wall time of the episode (timing field).
+    """
+
+    x: float
+    y: float
+    phi: float
+    v: float
+    x_g: float
+    y_g: float
+    phi_g: float
+    v_g: float
+    duration: float
+    status: str
+    touched_ball: bool
+    failed: bool
+    states: list[float]
+    wall_time_s: float
+
+
+def sample_parameters(config: GoToPoseEpisodesConfig, seed: int) -> tuple[list[float], list[float]]:
+    """Seeded start ``[x, y, phi, v]`` and goal ``[x_g, y_g, phi_g, v_g]``.
+
+    The goal faces the ball from ``goal_distance`` behind it along a uniform
+    approach heading; starts too close to the ball are resampled.
+    """
+    from repertoire.diagrams.soccer import BALL_POSITION
+
+    rng = np.random.default_rng(seed)
+    bx, by = BALL_POSITION
+    for _ in range(1000):
+        x, y = rng.uniform(*config.x_range), rng.uniform(*config.y_range)
+        if math.hypot(x - bx, y - by) >= config.min_start_clearance:
+            break
+    else:
+        raise RepertoireError("no start outside min_start_clearance in the x/y ranges")
+    phi = rng.uniform(-math.pi, math.pi)
+    v = rng.uniform(*config.v_range)
+    phi_g = rng.uniform(-math.pi, math.pi)
+    d = rng.uniform(*config.goal_distance_range)
+    v_g = rng.uniform(*config.v_g_range)
+    goal = [bx - d * math.cos(phi_g), by - d * math.sin(phi_g), phi_g, v_g]
+    return [float(x), float(y), float(phi), float(v)], [float(g) for g in goal]
+
+
+def run_episode(config: GoToPoseEpisodesConfig, seed: int) -> GoToPoseRecord:
+    """Runs one GoToPose episode in the soccer world."""
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import EventStatus
+    from repertoire.diagrams.soccer import (
+        GoToPoseScenario,
+        build_soccer_goto_pose,
+        goto_status,
+        robot_state,
+        set_initial_speed,
+    )
+    from repertoire.systems.go_to_pose import ActionStatus
+
+    config.validate()
+    t0 = time.perf_counter()
+    start, goal = sample_parameters(config, seed)
+    diagram = build_soccer_goto_pose(
+        GoToPoseScenario(
+            initial_pose=start[:3],
+            initial_speed=start[3],
+            target=goal,
+            time_step=config.time_step,
+            control_period=config.control_period,
+            gains=dict(config.gains),
+        )
+    )
+    plant = diagram.GetSubsystemByName("plant")
+    ball_body = plant.GetBodyByName("ball").index()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    set_initial_speed(diagram, context, start[3])
+    plant_context = plant.GetMyContextFromRoot(context)
+    touched = [False]
+    states: list[float] = []
+    next_state_time = [0.0]
+
+    def monitor(root_context) -> EventStatus:
+        results = plant.get_contact_results_output_port().Eval(plant_context)
+        for i in range(results.num_point_pair_contacts()):
+            info = results.point_pair_contact_info(i)
+            if ball_body in (info.bodyA_index(), info.bodyB_index()):
+                other = (
+                    info.bodyB_index() if info.bodyA_index() == ball_body else info.bodyA_index()
+                )
+                if plant.get_body(other).name() != "ground" and other != plant.world_body().index():
+                    touched[0] = True
+        if len(states) < 4 * config.n_states and root_context.get_time() >= next_state_time[0]:
+            states.extend(float(s) for s in robot_state(diagram, root_context))
+            next_state_time[0] += config.state_period
+        if goto_status(diagram, root_context) != ActionStatus.RUNNING:
+            return EventStatus.ReachedTermination(None, "action finished")
+        return EventStatus.Succeeded()
+
+    simulator.set_monitor(monitor)
+    goto = diagram.GetSubsystemByName("goto_pose")
+    timeout = goto.gains(goto.GetMyContextFromRoot(context))["timeout"]
+    simulator.AdvanceTo(timeout + 1.0)
+    status = goto_status(diagram, context)
+    return GoToPoseRecord(
+        *start,
+        *goal,
+        duration=float(context.get_time()),
+        status=status.name,
+        touched_ball=bool(touched[0]),
+        failed=bool(touched[0] or status != ActionStatus.SUCCEEDED),
+        states=states,
+        wall_time_s=time.perf_counter() - t0,
+    )
+
+
+def features_of(records: list[GoToPoseRecord]) -> np.ndarray:
+    """``(n, 5)`` Table 7 features of the records."""
+    start = np.array([[r.x, r.y, r.phi, r.v] for r in records], dtype=float)
+    goal = np.array([[r.x_g, r.y_g, r.phi_g, r.v_g] for r in records], dtype=float)
+    return np.atleast_2d(goto_pose_features(start, goal))
+
+
+FEATURE_FUNCS = {
+    name: (
+        lambda r, j=j: float(
+            goto_pose_features([r.x, r.y, r.phi, r.v], [r.x_g, r.y_g, r.phi_g, r.v_g])[j]
+        )
+    )
+    for j, name in enumerate(GOTO_POSE_FEATURES)
+}
+
+
+def summarize(
+    records: list[GoToPoseRecord], config: GoToPoseEpisodesConfig, out_dir: Path
+) -> dict[str, Path]:
+    """Fits the models and writes Table 1/2 (Markdown), learning curves and a Fig. 7 polar plot.
+
+    Returns:
+        Paths by name (nothing is fitted below ``MIN_EPISODES`` successful episodes).
+    """
+    from matplotlib.figure import Figure
+    from repertoire.planning.action_models import MIN_EPISODES, fit_action_model
+
+    out_dir = Path(out_dir)
+    done = [r for r in records if r.status == "SUCCEEDED" and not r.touched_ball]
+    if len(done) < MIN_EPISODES * 4 // 3 + 1 or len(records) < MIN_EPISODES * 4 // 3 + 1:
+        note = out_dir / "actions_goto_pose_tables.md"
+        note.write_text(
+            f"{len(records)} episodes ({len(done)} succeeded): too few to fit; at least "
+            f"{MIN_EPISODES * 4 // 3 + 1} are needed.\n"
+        )
+        return {"tables": note}
+    dur = fit_action_model(done, FEATURE_FUNCS, "duration")
+    fail = fit_action_model(records, FEATURE_FUNCS, "failed")
+    (tn, fp), (fn, tp) = fail.confusion
+    md = [
+        "## Table 1: duration models (held-out quarter)",
+        "",
+        "| action | episodes | mean duration (s) | MAE (s) ours | MAE (s) paper |",
+        "|---|---|---|---|---|",
+        f"| goToPose (soccer, sim) | {len(done)} | {np.mean([r.duration for r in done]):.2f} "
+        f"| {dur.mae:.3f} | {PAPER_GOTO_MAE_S} |",
+        "",
+        "## Table 2: failure (ball collision) tree, held-out quarter",
+        "",
+        "| | predicted success | predicted failure |",
+        "|---|---|---|",
+        f"| actual success | {tn} | {fp} |",
+        f"| actual failure | {fn} | {tp} |",
+        "",
+        f"Correct: ours {fail.accuracy:.1%}, paper ~{PAPER_FAILURE_ACCURACY:.0%}; "
+        f"missed failures (pessimism): {fn} of {fn + tp}.",
+        "",
+        "## Duration tree rules",
+        "",
+        "```",
+        dur.model.rules(),
+        "```",
+    ]
+    tables = out_dir / "actions_goto_pose_tables.md"
+    tables.write_text("\n".join(md) + "\n")
+
+    # learning curves
+    sizes = [n for n in (40, 80, 160, 320, 640, 1280, 2560) if n < len(records)] + [len(records)]
+    maes, accs, ns_d = [], [], []
+    for n in sizes:
+        sub = records[:n]
+        sub_done = [r for r in sub if r.status == "SUCCEEDED" and not r.touched_ball]
+        if len(sub_done) >= MIN_EPISODES * 4 // 3 + 1:
+            maes.append(fit_action_model(sub_done, FEATURE_FUNCS, "duration").mae)
+            ns_d.append(n)
+        accs.append(fit_action_model(sub, FEATURE_FUNCS, "failed").accuracy)
+    fig = Figure(figsize=(6.5, 4.0), layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(ns_d, maes, "o-", color="tab:blue", label="duration MAE (s), held-out")
+    ax.axhline(PAPER_GOTO_MAE_S, color="tab:blue", ls=":", label="paper's goToPose MAE")
+    ax.set_xscale("log")
+    ax.set_xlabel("episodes")
+    ax.set_ylabel("MAE (s)")
+    ax2 = ax.twinx()
+    ax2.plot(sizes, accs, "s-", color="tab:red", label="failure accuracy, held-out")
+    ax2.axhline(PAPER_FAILURE_ACCURACY, color="tab:red", ls=":", label="paper's accuracy")
+    ax2.set_ylabel("fraction correct")
+    ax2.set_ylim(0, 1)
+    h1, l1 = ax.get_legend_handles_labels()
+    h2, l2 = ax2.get_legend_handles_labels()
+    ax.legend(h1 + h2, l1 + l2, loc="lower left", fontsize=8)
+    ax.set_xticks(sizes, [str(n) for n in sizes])
+    ax.minorticks_off()
+    n_failed = sum(r.failed for r in records)
+    ax.set_title(
+        f"GoToPose: learning curves ({n_failed} failed of {len(records)} episodes"
+        + ("; accuracy is trivial)" if n_failed == 0 else ")")
+    )
+    curves = out_dir / "actions_goto_pose_learning_curves.png"
+    fig.savefig(curves, dpi=110)
+
+    # Fig. 7: predicted duration around a goal at the origin facing +x
+    fig = Figure(figsize=(5.5, 5.0), layout="constrained")
+    ax = fig.add_subplot(projection="polar")
+    theta = np.linspace(-np.pi, np.pi, 181)
+    for dist, colour in ((0.75, "tab:green"), (1.5, "tab:blue"), (2.5, "tab:purple")):
+        start = np.column_stack(
+            [dist * np.cos(theta), dist * np.sin(theta), theta + np.pi, np.zeros_like(theta)]
+        )
+        goal = np.tile([0.0, 0.0, 0.0, 0.0], (len(theta), 1))
+        pred = dur.model.predict(goto_pose_features(start, goal))
+        ax.plot(theta, pred, color=colour, label=f"start {dist} m away, facing the goal")
+    ax.set_title("Predicted duration (s, radial) by start direction\ngoal at centre facing 0°")
+    ax.legend(loc="upper left", bbox_to_anchor=(-0.15, -0.05), fontsize=8)
+    polar = out_dir / "actions_goto_pose_polar.png"
+    fig.savefig(polar, dpi=110)
+    return {"tables": tables, "learning_curves": curves, "polar": polar}
+
+
+def demo_config() -> GoToPoseEpisodesConfig:
+    """The demo config (the defaults)."""
+    return GoToPoseEpisodesConfig()
+
+
+def smoke_config() -> GoToPoseEpisodesConfig:
+    """A tiny config for tests: starts close to the goal region, a coarse step."""
+    return GoToPoseEpisodesConfig(x_range=[-0.5, 0.0], y_range=[0.0, 0.5], time_step=1e-2)
+
+
+register_study(
+    "actions_goto_pose",
+    config_type=GoToPoseEpisodesConfig,
+    record_type=GoToPoseRecord,
+    run_episode=run_episode,
+    description="GoToPose episodes on the soccer field: duration model tree, collision tree",
+    summarize=summarize,
+    demo_config=demo_config,
+    demo_episodes=8,
+    smoke_config=smoke_config,
+)
+
+
+def main() -> int:
+    """Runs the GoToPose episode study from the command line."""
+    return study_main("actions_goto_pose", description=__doc__.split("\n\n")[0])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

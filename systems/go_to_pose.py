@@ -1,0 +1,260 @@
+"""GoToPose: drive a differential-drive robot to a pose and speed, reporting its status.
+
+The controller is a smooth pose controller in polar coordinates (the
+navigation of Stulp & Beetz, section 3: translational and rotational velocity
+commands that turn towards the goal while approaching it and align with the
+goal heading on arrival). With ``rho`` the distance to the goal, ``alpha`` the
+turn to face it (``angle_to``) and ``beta = -(alpha + angle_at)``:
+
+    v     = clip(max(v_g, k_rho * rho) * cos(alpha), -v_max, v_max)
+    omega = clip(k_alpha * alpha + k_beta * beta, -omega_max, omega_max)
+
+and both commands are rate limited by ``a_max`` and ``alpha_max`` in the
+discrete update, so the command is continuous. Pure math is in
+:func:`pose_control`; the LeafSystem holds the limited command and the status
+in its discrete state.
+"""
+
+import enum
+import math
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from repertoire.planning.action_models.features import wrap_angle
+
+from repertoire.errors import RepertoireError
+
+
+class ActionStatus(enum.IntEnum):
+    """What an action reports on its ``status`` port."""
+
+    RUNNING = 0
+    SUCCEEDED = 1
+    FAILED = 2
+    TIMED_OUT = 3
+
+
+# name -> default, in the order of the numeric parameter vector.
+GOTO_GAINS = {
+    "v_max": 0.8,  # m/s
+    "omega_max": 2.5,  # rad/s
+    "a_max": 1.0,  # m/s^2
+    "alpha_max": 5.0,  # rad/s^2
+    "k_rho": 0.8,
+    "k_alpha": 3.0,
+    "k_beta": -1.0,
+    "position_tolerance": 0.05,  # m
+    "heading_tolerance": 0.15,  # rad
+    "timeout": 20.0,  # s
+}
+
+
+def pose_control(state, target, gains: dict[str, float]) -> tuple[float, float, float, float]:
+    """Unlimited (v, omega) commands and the remaining (distance, heading error).
+
+    Args:
+        state: ``[x, y, phi, v]``.
+        target: ``[x_g, y_g, phi_g, v_g]``.
+        gains: the :data:`GOTO_GAINS` keys.
+
+    Returns:
+        ``(v_cmd, omega_cmd, rho, heading_error)``.
+    """
+    x, y, phi, _ = state
+    xg, yg, phig, vg = target
+    dx, dy = xg - x, yg - y
+    rho = math.hypot(dx, dy)
+    heading_error = float(wrap_angle(phig - phi))
+    if rho < gains["position_tolerance"]:
+        # close enough: turn in place to the goal heading.
+        omega = float(np.clip(gains["k_alpha"] * heading_error, -1, 1)) * gains["omega_max"]
+        return 0.0, omega, rho, heading_error
+    direction = math.atan2(dy, dx)
+    alpha = float(wrap_angle(direction - phi))
+    beta = float(wrap_angle(phig - direction))
+    v = max(vg, gains["k_rho"] * rho) * math.cos(alpha)
+    omega = gains["k_alpha"] * alpha + gains["k_beta"] * beta
+    v = float(np.clip(v, -gains["v_max"], gains["v_max"]))
+    omega = float(np.clip(omega, -gains["omega_max"], gains["omega_max"]))
+    return v, omega, rho, heading_error
+
+
+class GoToPose(LeafSystem):
+    """Drives a differential-drive robot to a target pose and speed.
+
+    Input ports:
+        state: ``[x, y, phi, v]`` of the robot.
+        target: ``[x_g, y_g, phi_g, v_g]`` (a plan executor changes it).
+
+    Output ports:
+        command: ``[v, omega]`` rate-limited forward speed and yaw rate.
+        status: an :class:`ActionStatus` (abstract).
+
+    Parameters (numeric parameter 0, :data:`GOTO_GAINS` order): speed and
+    acceleration limits, gains, tolerances and the timeout. The workspace
+    ``[x_min, x_max, y_min, y_max]`` is numeric parameter 1: a target outside
+    it makes the action fail at once (no motion).
+
+    Discrete state: ``[v_cmd, omega_cmd, status]``, updated every ``period`` s.
+    """
+
+    def __init__(
+        self,
+        period: float = 0.01,
+        gains: dict[str, float] | None = None,
+        workspace: tuple[float, float, float, float] = (-3.0, 3.0, -2.0, 2.0),
+    ):
+        """Creates the action.
+
+        Args:
+            period: update period [s].
+            gains: overrides of :data:`GOTO_GAINS`.
+            workspace: the allowed target region ``[x_min, x_max, y_min, y_max]``.
+        """
+        super().__init__()
+        if not (math.isfinite(period) and period > 0):
+            raise RepertoireError(f"period must be finite and > 0, got {period}")
+        merged = dict(GOTO_GAINS)
+        for k, v in (gains or {}).items():
+            if k not in GOTO_GAINS:
+                raise RepertoireError(f"unknown GoToPose gain {k!r}; expected {list(GOTO_GAINS)}")
+            if not math.isfinite(v):
+                raise RepertoireError(f"GoToPose gain {k} must be finite, got {v}")
+            merged[k] = float(v)
+        for k in ("v_max", "omega_max", "a_max", "alpha_max", "timeout", "position_tolerance"):
+            if merged[k] <= 0:
+                raise RepertoireError(f"GoToPose gain {k} must be > 0, got {merged[k]}")
+        ws = np.asarray(workspace, dtype=float)
+        if ws.shape != (4,) or not np.all(np.isfinite(ws)) or ws[0] >= ws[1] or ws[2] >= ws[3]:
+            raise RepertoireError(
+                f"workspace must be finite [x_min, x_max, y_min, y_max] with min < max, got "
+                f"{workspace}"
+            )
+        self.period = period
+        self._gains_index = self.DeclareNumericParameter(
+            BasicVector(np.array(list(merged.values())))
+        )
+        self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
+        self._state_port = self.DeclareVectorInputPort("state", 4)
+        self._target_port = self.DeclareVectorInputPort("target", 4)
+        self._xd = self.DeclareDiscreteState(3)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self._command_port = self.DeclareVectorOutputPort(
+            "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
+        )
+        self._status_port = self.DeclareAbstractOutputPort(
+            "status",
+            lambda: AbstractValue.Make(ActionStatus.RUNNING),
+            self._calc_status,
+            {self.discrete_state_ticket(self._xd)},
+        )
+
+    def get_state_input_port(self):
+        return self._state_port
+
+    def get_target_input_port(self):
+        return self._target_port
+
+    def get_command_output_port(self):
+        return self._command_port
+
+    def get_status_output_port(self):
+        return self._status_port
+
+    def gains(self, context: Context) -> dict[str, float]:
+        """The gains in ``context`` as a dict."""
+        values = context.get_numeric_parameter(self._gains_index).get_value()
+        return dict(zip(GOTO_GAINS, map(float, values)))
+
+    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
+        xd = context.get_discrete_state(self._xd).get_value()
+        v_prev, w_prev, status = xd
+        out = discrete_state.get_mutable_vector(self._xd)
+        if status != ActionStatus.RUNNING:
+            out.SetFromVector([0.0, 0.0, status])
+            return
+        g = self.gains(context)
+        state = self._state_port.Eval(context)
+        target = self._target_port.Eval(context)
+        ws = context.get_numeric_parameter(self._workspace_index).get_value()
+        if (
+            not np.all(np.isfinite(target))
+            or not ws[0] <= target[0] <= ws[1]
+            or not ws[2] <= target[1] <= ws[3]
+        ):
+            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED])
+            return
+        v, w, rho, heading_error = pose_control(state, target, g)
+        if (
+            rho < g["position_tolerance"]
+            and abs(heading_error) < g["heading_tolerance"]
+            and abs(state[3] - target[3]) < max(0.1, 0.5 * target[3])
+        ):
+            out.SetFromVector([v_prev, w_prev, ActionStatus.SUCCEEDED])
+            return
+        if context.get_time() >= g["timeout"]:
+            out.SetFromVector([0.0, 0.0, ActionStatus.TIMED_OUT])
+            return
+        dv = g["a_max"] * self.period
+        dw = g["alpha_max"] * self.period
+        out.SetFromVector(
+            [
+                float(np.clip(v, v_prev - dv, v_prev + dv)),
+                float(np.clip(w, w_prev - dw, w_prev + dw)),
+                ActionStatus.RUNNING,
+            ]
+        )
+
+    def _calc_command(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])
+
+    def _calc_status(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(ActionStatus(int(context.get_discrete_state(self._xd).get_value()[2])))
+
+
+class DiffDriveStateReader(LeafSystem):
+    """Reads ``[x, y, phi, v]`` of the robot's chassis from the plant's state.
+
+    Input ports:
+        plant_state: the MultibodyPlant's full state ``[q, v]``.
+
+    Output ports:
+        state: ``[x, y, yaw, forward speed]`` of the chassis.
+    """
+
+    def __init__(self, plant, body_name: str = "chassis"):
+        """Creates the reader.
+
+        Args:
+            plant: the finalized plant (read for indices only).
+            body_name: the floating chassis body.
+        """
+        super().__init__()
+        body = plant.GetBodyByName(body_name)
+        if not body.is_floating_base_body():
+            raise RepertoireError(f"body {body_name!r} is not a floating base body")
+        self._q0 = body.floating_positions_start()
+        self._v0 = plant.num_positions() + body.floating_velocities_start_in_v()
+        self._in = self.DeclareVectorInputPort(
+            "plant_state", plant.num_positions() + plant.num_velocities()
+        )
+        self.DeclareVectorOutputPort("state", 4, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        x = self._in.Eval(context)
+        state = chassis_state(x[self._q0 : self._q0 + 7], x[self._v0 : self._v0 + 6])
+        output.SetFromVector(state)
+
+
+def chassis_state(q_floating, v_floating) -> np.ndarray:
+    """``[x, y, yaw, forward speed]`` from floating positions and velocities.
+
+    Args:
+        q_floating: ``[qw, qx, qy, qz, x, y, z]``.
+        v_floating: ``[wx, wy, wz, vx, vy, vz]`` (world frame).
+    """
+    qw, qx, qy, qz, x, y, _ = q_floating
+    yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    v = v_floating[3] * math.cos(yaw) + v_floating[4] * math.sin(yaw)
+    return np.array([x, y, yaw, v])

@@ -1,0 +1,169 @@
+import json
+import math
+
+import numpy as np
+import pytest
+from repertoire.planning.action_models import (
+    MIN_EPISODES,
+    angle_at,
+    angle_to,
+    distance,
+    fit_action_model,
+    fit_duration_tree,
+    fit_failure_tree,
+    goto_pose_features,
+    load_model,
+    save_model,
+    wrap_angle,
+)
+
+from repertoire.errors import RepertoireError
+
+
+def test_features_by_hand():
+    # robot at (1, 1) facing +y; goal at (4, 5) facing +x
+    assert distance(1, 1, 4, 5) == pytest.approx(5.0)
+    beta = math.atan2(4, 3)
+    assert angle_to(1, 1, math.pi / 2, 4, 5) == pytest.approx(beta - math.pi / 2)
+    assert angle_at(1, 1, 4, 5, 0.0) == pytest.approx(-beta)
+    f = goto_pose_features([1, 1, math.pi / 2, 0.3], [4, 5, 0.0, 0.1])
+    np.testing.assert_allclose(f, [5.0, beta - math.pi / 2, -beta, 0.3, 0.1])
+    # wrapping: facing -x, goal slightly below +x: turn by pi - 0.01 (not -pi - 0.01)
+    assert angle_to(0, 0, math.pi, 1, -0.01) == pytest.approx(
+        math.pi - math.atan2(0.01, 1), abs=1e-9
+    )
+    assert wrap_angle(3 * math.pi) == pytest.approx(math.pi)
+    assert wrap_angle(-math.pi) == pytest.approx(math.pi)
+
+
+def test_features_batched_and_bad():
+    s = np.array([[0, 0, 0, 0], [1, 0, 0, 0.5]])
+    g = np.array([[1, 0, 0, 0], [1, 2, 0, 0]])
+    f = goto_pose_features(s, g)
+    np.testing.assert_allclose(f[:, 0], [1, 2])
+    np.testing.assert_allclose(f[:, 1], [0, math.pi / 2])
+    with pytest.raises(RepertoireError, match="finite"):
+        goto_pose_features([0, 0, np.nan, 0], [1, 0, 0, 0])
+    with pytest.raises(RepertoireError, match="4 values"):
+        goto_pose_features([0, 0, 0], [1, 0, 0, 0])
+
+
+def _piecewise(n=800, seed=0):
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(-1, 1, (n, 2))
+    y = np.where(X[:, 0] > 0, 2 + 3 * X[:, 1], 1 - X[:, 1])
+    return X, y
+
+
+def test_duration_tree_recovers_linear_pieces_and_boxes():
+    X, y = _piecewise()
+    m = fit_duration_tree(X, y, ["a", "b"])
+    assert len(m.leaves) >= 2
+    # most predictions exact (only the leaf straddling a = 0 mixes the pieces)
+    err = np.abs(m.predict(X) - y)
+    assert np.median(err) < 1e-6
+    # leaf boxes partition the space: each point lies in exactly its leaf's box
+    idx = m.leaf_index(X)
+    for i in range(0, len(X), 37):
+        leaf = m.leaves[idx[i]]
+        assert np.all(np.array(leaf.lower) < X[i]) and np.all(X[i] <= np.array(leaf.upper))
+        assert np.dot(leaf.coef, X[i]) + leaf.intercept == pytest.approx(m.predict(X[i])[0])
+    assert "duration =" in m.rules()
+
+
+def test_single_linear_target_gives_one_exact_leaf():
+    rng = np.random.default_rng(1)
+    X = rng.uniform(0, 1, (100, 3))
+    y = 0.5 + X @ [1.0, -2.0, 0.25]
+    m = fit_duration_tree(X, y, ["a", "b", "c"])
+    np.testing.assert_allclose(m.predict(X), y, atol=1e-5)
+    np.testing.assert_allclose(m.leaves[0].coef, [1.0, -2.0, 0.25], atol=1e-4)
+
+
+def test_failure_tree_is_pessimistic():
+    rng = np.random.default_rng(2)
+    X = rng.uniform(-1, 1, (1000, 2))
+    p_fail = np.clip(X[:, 0] + 0.5, 0, 1) * 0.6
+    failed = rng.uniform(size=1000) < p_fail
+    neutral = fit_failure_tree(X, failed, ["a", "b"], failure_cost=1.0)
+    pessimist = fit_failure_tree(X, failed, ["a", "b"], failure_cost=5.0)
+    assert pessimist.threshold_probability == pytest.approx(1 / 6)
+    missed_n = np.sum(failed & ~neutral.predict_failure(X))
+    missed_p = np.sum(failed & ~pessimist.predict_failure(X))
+    assert missed_p < missed_n
+    assert pessimist.predict_failure(X).sum() > neutral.predict_failure(X).sum()
+
+
+def test_json_round_trip_and_bad_files(tmp_path):
+    X, y = _piecewise(200)
+    m = fit_duration_tree(X, y, ["a", "b"])
+    p = save_model(m, tmp_path / "m.json")
+    m2 = load_model(p)
+    np.testing.assert_array_equal(m2.predict(X), m.predict(X))
+    assert m2.rules() == m.rules()
+    data = json.loads(p.read_text())
+    data["version"] = 99
+    (tmp_path / "v.json").write_text(json.dumps(data))
+    with pytest.raises(RepertoireError, match="version 99"):
+        load_model(tmp_path / "v.json")
+    data = json.loads(p.read_text())
+    del data["leaves"]
+    (tmp_path / "f.json").write_text(json.dumps(data))
+    with pytest.raises(RepertoireError, match="lacks fields.*leaves"):
+        load_model(tmp_path / "f.json")
+    with pytest.raises(RepertoireError, match="cannot read"):
+        load_model(tmp_path / "missing.json")
+
+
+def test_out_of_range_flag_and_nan():
+    X, y = _piecewise(200)
+    m = fit_duration_tree(X, y, ["a", "b"])
+    flags = m.out_of_range([[0.0, 0.0], [2.0, 0.0], [0.0, -1.5]])
+    assert flags.tolist() == [False, True, True]
+    with pytest.raises(RepertoireError, match=r"\['b'\].*NaN"):
+        m.predict([[0.0, np.nan]])
+
+
+def test_too_few_episodes_and_nan_training():
+    X, y = _piecewise(MIN_EPISODES - 1)
+    with pytest.raises(RepertoireError, match=f"at least {MIN_EPISODES}"):
+        fit_duration_tree(X, y, ["a", "b"])
+    X, y = _piecewise(100)
+    X[3, 1] = np.nan
+    with pytest.raises(RepertoireError, match=r"\['b'\]"):
+        fit_duration_tree(X, y, ["a", "b"])
+
+
+class _Rec:
+    def __init__(self, a, b, t, ok):
+        self.a, self.b, self.t, self.ok = a, b, t, ok
+
+
+def test_fit_action_model_generic():
+    rng = np.random.default_rng(3)
+    recs = []
+    for _ in range(400):
+        a, b = rng.uniform(-1, 1, 2)
+        recs.append(_Rec(a, b, 1 + 2 * a + 0.5 * b, bool(a > 0.6)))
+    dur = fit_action_model(recs, ["a", "b"], "t")
+    assert dur.n_train == 300 and dur.n_test == 100
+    assert dur.mae < 1e-4
+    fail = fit_action_model(recs, {"a": lambda r: r.a, "b2": lambda r: 2 * r.b}, "ok")
+    assert fail.model.kind == "failure"
+    assert fail.accuracy > 0.9
+    assert sum(map(sum, fail.confusion)) == 100
+    with pytest.raises(RepertoireError, match="at least 20"):
+        fit_action_model(recs[:10], ["a"], "t")
+    with pytest.raises(RepertoireError, match="no target field 'zz'"):
+        fit_action_model(recs, ["a"], "zz")
+    with pytest.raises(RepertoireError, match="gives no feature"):
+        fit_action_model(recs, ["nope"], "t")
+
+
+def test_prediction_throughput_is_batched():
+    # Exactness of batched vs one-at-a-time prediction (speed is measured in the benchmark).
+    X, y = _piecewise(400)
+    m = fit_duration_tree(X, y, ["a", "b"])
+    batch = m.predict(X)
+    single = np.array([m.predict(x)[0] for x in X[:50]])
+    np.testing.assert_array_equal(batch[:50], single)

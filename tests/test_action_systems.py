@@ -1,0 +1,128 @@
+import math
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from repertoire.diagrams.soccer import (
+    GoToPoseScenario,
+    build_soccer_goto_pose,
+    check_goto_pose,
+    goto_status,
+)
+from repertoire.planning.action_models import fit_duration_tree, fit_failure_tree
+from repertoire.systems.action_model_predictor import (
+    ActionModelPredictor,
+    goto_pose_parameter_features,
+)
+from repertoire.systems.go_to_pose import (
+    GOTO_GAINS,
+    ActionStatus,
+    GoToPose,
+    chassis_state,
+    pose_control,
+)
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+
+def test_pose_control_by_hand():
+    g = dict(GOTO_GAINS)
+    # goal straight ahead 1 m, same heading: v = k_rho * rho, no turn
+    v, w, rho, he = pose_control([0, 0, 0, 0], [1, 0, 0, 0], g)
+    assert (v, w, rho, he) == pytest.approx((0.8, 0.0, 1.0, 0.0))
+    # goal to the left (alpha = pi/2): v = 0 (cos), omega saturates at omega_max
+    v, w, _, _ = pose_control([0, 0, 0, 0], [0, 1, math.pi / 2, 0], g)
+    assert v == pytest.approx(0.0, abs=1e-12) and w == pytest.approx(g["omega_max"])
+    # at the goal position: turn in place towards the goal heading
+    v, w, _, he = pose_control([0, 0, 0, 0], [0.01, 0, 0.1, 0], g)
+    assert v == 0.0 and w == pytest.approx(0.3 * g["omega_max"]) and he == pytest.approx(0.1)
+
+
+def _goto_context(target, state=(0, 0, 0, 0), time=0.0):
+    goto = GoToPose(period=0.1)
+    ctx = goto.CreateDefaultContext()
+    goto.get_state_input_port().FixValue(ctx, np.array(state, dtype=float))
+    goto.get_target_input_port().FixValue(ctx, np.array(target, dtype=float))
+    ctx.SetTime(time)
+    return goto, ctx
+
+
+def test_goto_pose_rate_limits_and_status():
+    goto, ctx = _goto_context([1, 0, 0, 0])
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    # v wants 0.8 but a_max * period = 0.1
+    np.testing.assert_allclose(xd, [0.1, 0.0, ActionStatus.RUNNING])
+    assert goto.get_status_output_port().Eval(ctx) == ActionStatus.RUNNING
+    # at the goal: succeeded
+    goto, ctx = _goto_context([0.01, 0, 0.05, 0])
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    assert xd[2] == ActionStatus.SUCCEEDED
+    # past the timeout: timed out, zero command
+    goto, ctx = _goto_context([1, 0, 0, 0], time=GOTO_GAINS["timeout"])
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.TIMED_OUT])
+
+
+def test_goto_pose_target_off_field_fails_without_motion():
+    goto, ctx = _goto_context([5.0, 0, 0, 0])
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.FAILED])
+    goto, ctx = _goto_context([np.nan, 0, 0, 0])
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    assert xd[2] == ActionStatus.FAILED
+
+
+def test_goto_pose_bad_construction():
+    with pytest.raises(RepertoireError, match="unknown GoToPose gain"):
+        GoToPose(gains={"speed": 1.0})
+    with pytest.raises(RepertoireError, match="v_max must be > 0"):
+        GoToPose(gains={"v_max": 0.0})
+    with pytest.raises(RepertoireError, match="workspace"):
+        GoToPose(workspace=(1, 0, 0, 1))
+
+
+def test_chassis_state_by_hand():
+    yaw = 0.7
+    q = [math.cos(yaw / 2), 0, 0, math.sin(yaw / 2), 1.0, 2.0, 0.1]
+    v = [0, 0, 0.3, 0.5 * math.cos(yaw), 0.5 * math.sin(yaw), 0]
+    np.testing.assert_allclose(chassis_state(q, v), [1.0, 2.0, yaw, 0.5])
+
+
+def test_soccer_goto_pose_reaches_its_pose():
+    diagram = build_soccer_goto_pose(GoToPoseScenario(time_step=1e-2))
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    sim.AdvanceTo(7.0)
+    figures = check_goto_pose(diagram, ctx)
+    assert goto_status(diagram, ctx) == ActionStatus.SUCCEEDED
+    assert figures["position_error_m"] < 0.1
+    with pytest.raises(ScenarioError, match="target"):
+        build_soccer_goto_pose(GoToPoseScenario(target=[0, 0, 0]))
+
+
+def test_predictor_exact_outputs():
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, (200, 2))
+    dur = fit_duration_tree(X, 2 + X[:, 0], ["a", "b"])
+    fail = fit_failure_tree(X, X[:, 1] > 0.5, ["a", "b"])
+    p = ActionModelPredictor(dur, fail, 2)
+    ctx = p.CreateDefaultContext()
+    p.get_input_port().FixValue(ctx, [0.5, 0.9])
+    assert p.GetOutputPort("duration").Eval(ctx)[0] == pytest.approx(2.5, abs=1e-6)
+    assert p.GetOutputPort("success").Eval(ctx)[0] == 0.0
+    assert p.GetOutputPort("out_of_range").Eval(ctx)[0] == 0.0
+    p.get_input_port().FixValue(ctx, [1.5, -0.9])
+    assert p.GetOutputPort("duration").Eval(ctx)[0] == pytest.approx(3.5, abs=1e-5)
+    assert p.GetOutputPort("success").Eval(ctx)[0] == 1.0
+    assert p.GetOutputPort("out_of_range").Eval(ctx)[0] == 1.0
+    with pytest.raises(RepertoireError, match="duration tree and a failure tree"):
+        ActionModelPredictor(fail, dur, 2)
+    with pytest.raises(RepertoireError, match="num_parameters"):
+        ActionModelPredictor(dur, fail, 3)
+
+
+def test_goto_parameter_features():
+    f = goto_pose_parameter_features(np.array([0, 0, 0, 0.2, 3, 4, 0, 0.1]))
+    assert f[0] == pytest.approx(5.0) and f[3] == 0.2 and f[4] == 0.1
+    with pytest.raises(RepertoireError, match="8 values"):
+        goto_pose_parameter_features(np.zeros(7))

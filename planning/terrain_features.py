@@ -661,3 +661,44 @@ def transfer_steps(
         placed.append(TransferredStep(m.step, f, p, m))
     timings = {"candidates": t1 - t0, "features": t2 - t1, "matching": t3 - t2, "refine": t4 - t3}
     return TransferResult(placed, result, frames, own.mean_height, timings)
+
+
+def stances_on_terrain(board: TerrainBoard, poses, stride=None) -> tuple[np.ndarray, np.ndarray]:
+    """LittleDog stances standing on ``board`` at planar body poses (no physics).
+
+    Each foot is placed at its nominal xy under the body (``nominal_foot_positions``,
+    optionally shifted forward by ``stride[i]`` along the body x axis), its sphere
+    resting on the board's exact height; the body sits at the nominal standing height
+    above the mean foot height, level.
+
+    Args:
+        board: the terrain.
+        poses: planar body poses [x, y, yaw], (N, 3).
+        stride: forward shift of each foot from nominal (N, 4) in m, default zeros.
+
+    Returns:
+        ``(feet, body_poses)``: (N, 4, 3) foot centres and (N, 6) poses
+        [x, y, z, roll, pitch, yaw].
+
+    Raises:
+        TransferError: malformed poses or strides.
+    """
+    from repertoire.models.littledog import FOOT_RADIUS, STANDING_HEIGHT, nominal_foot_positions
+
+    q = _as_frames(poses)
+    n = q.shape[0]
+    shift = np.zeros((n, 4)) if stride is None else np.asarray(stride, dtype=float)
+    if shift.shape != (n, 4) or not np.all(np.isfinite(shift)):
+        raise TransferError(f"stride must be a finite ({n}, 4) array, got {shift.shape}")
+    p_B = nominal_foot_positions()[:, :2]
+    local = p_B[None] + np.stack([shift, np.zeros_like(shift)], axis=-1)
+    c, s = np.cos(q[:, 2:3]), np.sin(q[:, 2:3])
+    x = q[:, 0:1] + c * local[..., 0] - s * local[..., 1]
+    y = q[:, 1:2] + s * local[..., 0] + c * local[..., 1]
+    z = board.height(x, y) + FOOT_RADIUS
+    feet = np.stack([x, y, z], axis=-1)
+    body = np.zeros((n, 6))
+    body[:, :2] = q[:, :2]
+    body[:, 2] = z.mean(axis=1) - FOOT_RADIUS + STANDING_HEIGHT
+    body[:, 5] = q[:, 2]
+    return feet, body

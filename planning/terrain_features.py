@@ -539,7 +539,10 @@ class TransferConfig:
         spacing: candidate position spacing (m).
         yaw_count: candidate yaws over [-yaw_range, yaw_range].
         yaw_range: half range of candidate yaws (rad).
-        threshold: PCA distance above which a match is discarded.
+        threshold: PCA distance above which a match is discarded (after refinement).
+        coarse_factor: the candidate-grid match keeps costs up to ``coarse_factor *
+            threshold`` (the grid misses the exact place by up to half a cell), then
+            refinement and the final threshold decide.
         multiple: keep several matches per step (local minima of the cost).
         min_spacing: minimum distance between two matches of one step (m).
         max_matches: cap on matches per step when ``multiple``.
@@ -549,11 +552,12 @@ class TransferConfig:
     spacing: float = 0.02
     yaw_count: int = 13
     yaw_range: float = math.pi / 4
-    threshold: float = 0.15
+    threshold: float = 0.05
+    coarse_factor: float = 5.0
     multiple: bool = False
     min_spacing: float = 0.1
     max_matches: int = 8
-    refine_levels: int = 3
+    refine_levels: int = 6
 
 
 @dataclasses.dataclass
@@ -583,6 +587,8 @@ class TransferResult:
         source_frames: each source step's own frame (S, 3).
         source_heights: each source step's profile mean height (S,).
         timings: wall seconds of ``candidates``, ``features``, ``matching``, ``refine``.
+        off_source: steps whose profile leaves their own (source) terrain: not matched
+            (reported, also listed in ``matches.discarded``).
     """
 
     steps: list[TransferredStep]
@@ -590,6 +596,7 @@ class TransferResult:
     source_frames: np.ndarray
     source_heights: np.ndarray
     timings: dict[str, float]
+    off_source: list[int]
 
 
 def transfer_steps(
@@ -612,10 +619,12 @@ def transfer_steps(
         config: transfer settings.
 
     Raises:
-        TransferError: missing source terrain, bad shapes, a source step whose profile
-            leaves its own terrain, or bad settings.
+        TransferError: missing source terrain, bad shapes or bad settings. Steps whose
+            profile leaves their own terrain are reported in ``off_source``, not refused.
     """
     config = TransferConfig() if config is None else config
+    if not (math.isfinite(config.coarse_factor) and config.coarse_factor >= 1.0):
+        raise TransferError(f"coarse_factor must be >= 1, got {config.coarse_factor}")
     if not isinstance(source, TerrainBoard):
         raise TransferError(
             "transfer_steps needs the steps' source terrain (a TerrainBoard) to read their "
@@ -629,9 +638,7 @@ def transfer_steps(
         )
     frames = stance_frame(feet)
     own = terrain_features(source, frames)
-    if own.off_terrain_count:
-        bad = np.flatnonzero(~own.on_terrain).tolist()
-        raise TransferError(f"source steps {bad} have profiles leaving their own terrain")
+    off_source = np.flatnonzero(~own.on_terrain).tolist()
     t0 = time.perf_counter()
     cand = candidate_frames(target, config.spacing, config.yaw_count, config.yaw_range)
     t1 = time.perf_counter()
@@ -641,7 +648,7 @@ def transfer_steps(
         own.values,
         feats,
         pca,
-        config.threshold,
+        config.threshold * config.coarse_factor,
         multiple=config.multiple,
         min_spacing=config.min_spacing,
         max_matches=config.max_matches,
@@ -652,6 +659,13 @@ def transfer_steps(
         result = refine_matches(
             target, own.values, result, pca, config.spacing, yaw_step, config.refine_levels
         )
+    kept = [m for m in result.matches if m.cost <= config.threshold and m.step not in off_source]
+    matched = {m.step for m in kept}
+    result = dataclasses.replace(
+        result,
+        matches=kept,
+        discarded=[i for i in range(feet.shape[0]) if i not in matched],
+    )
     t4 = time.perf_counter()
     placed = []
     for m in result.matches:
@@ -660,7 +674,7 @@ def transfer_steps(
         )
         placed.append(TransferredStep(m.step, f, p, m))
     timings = {"candidates": t1 - t0, "features": t2 - t1, "matching": t3 - t2, "refine": t4 - t3}
-    return TransferResult(placed, result, frames, own.mean_height, timings)
+    return TransferResult(placed, result, frames, own.mean_height, timings, off_source)
 
 
 def stances_on_terrain(board: TerrainBoard, poses, stride=None) -> tuple[np.ndarray, np.ndarray]:

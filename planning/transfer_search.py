@@ -82,22 +82,29 @@ class SearchConfig:
             stances join without planned steps.
         recorded_cost: cost of one recorded step.
         planned_cost: cost of one planned step (> recorded_cost).
-        step_reach: distance one foot moves in one step (m), for cost estimates.
+        step_reach: farthest one foot moves in one planned step (m); a gap's cost is
+            estimated as ``planned_cost`` times the sum over feet of
+            ``ceil(distance / step_reach)`` until the planner has filled it.
         goal_tolerance: distance (m) of a stance's centroid from the goal centroid that
-            counts as at the goal.
+            counts as at the goal; 0 means the goal stance itself must be joined (within
+            ``join_tolerance``, or by planned steps).
         max_gap: gaps whose centroids are farther apart than this (m) are not tried,
             except the direct start -> goal edge.
         time_limit: wall-time limit of the whole search (s).
+        heuristic_weight: weight of the distance-to-goal heuristic (recorded steps
+            needed at ``step_reach / 4`` of body progress each); 1 is A*, larger is
+            greedier best-first with fewer planner calls.
     """
 
     neighbours: int = 8
-    join_tolerance: float = 0.04
+    join_tolerance: float = 0.02
     recorded_cost: float = 1.0
     planned_cost: float = 3.0
     step_reach: float = 0.08
-    goal_tolerance: float = 0.05
+    goal_tolerance: float = 0.0
     max_gap: float = 0.3
     time_limit: float = 2.0
+    heuristic_weight: float = 2.0
 
     def validate(self) -> None:
         """Raises TransferSearchError naming a bad field."""
@@ -109,7 +116,7 @@ class SearchConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0.0):
                 raise TransferSearchError(f"{name} must be a non-negative length, got {v}")
-        for name in ("recorded_cost", "step_reach", "max_gap", "time_limit"):
+        for name in ("recorded_cost", "step_reach", "max_gap", "time_limit", "heuristic_weight"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
                 raise TransferSearchError(f"{name} must be positive, got {v}")
@@ -221,16 +228,19 @@ def search_transfer(
     goal_c = goal[:, :2].mean(axis=0)
     out_stance = [start] + list(s_out)
     out_c = np.array([s[:, :2].mean(axis=0) for s in out_stance])
-    in_c = s_in[:, :2].mean(axis=1) if m else np.zeros((0, 2))
+    in_c = s_in[:, :, :2].mean(axis=1) if m else np.zeros((0, 2))
     reach = config.step_reach
 
+    def h_dist(node: int) -> float:
+        return float(np.linalg.norm(out_c[node] - goal_c))
+
     def h(node: int) -> float:
-        d = float(np.linalg.norm(out_c[node] - goal_c))
-        return config.recorded_cost * 4.0 * d / reach
+        return config.heuristic_weight * config.recorded_cost * 4.0 * h_dist(node) / reach
 
     def gap_estimate(a: np.ndarray, b: np.ndarray) -> float:
-        d = float(np.max(np.linalg.norm(a - b, axis=-1)))
-        return config.planned_cost * 4.0 * math.ceil(d / reach)
+        # Each foot moves at most ``step_reach`` per planned step.
+        d = np.linalg.norm(a - b, axis=-1)
+        return config.planned_cost * float(np.ceil(d / reach - 1e-9).sum())
 
     t0 = time.perf_counter()
     counter = 0
@@ -268,7 +278,7 @@ def search_transfer(
             g = g_best[u] + est
             f = g + (0.0 if v == goal_node else h(v))
             counter += 1
-            heapq.heappush(queue, (f, counter, u, v, g, evaluated, []))
+            heapq.heappush(queue, (f, not evaluated, -g, counter, u, v, g, evaluated, []))
 
     push_edges(0)
     closed.add(0)
@@ -276,7 +286,7 @@ def search_transfer(
         if time.perf_counter() - t0 > config.time_limit:
             timed_out = True
             break
-        f, _, u, v, g, evaluated, fill = heapq.heappop(queue)
+        f, _, _, _, u, v, g, evaluated, fill = heapq.heappop(queue)
         if v in closed:
             continue
         if not evaluated:
@@ -297,7 +307,7 @@ def search_transfer(
             g = g_best[u] + step_cost + config.planned_cost * len(answer.steps)
             counter += 1
             f = g + (0.0 if v == goal_node else h(v))
-            heapq.heappush(queue, (f, counter, u, v, g, True, list(answer.steps)))
+            heapq.heappush(queue, (f, False, -g, counter, u, v, g, True, list(answer.steps)))
             continue
         closed.add(v)
         g_best[v] = g
@@ -306,7 +316,7 @@ def search_transfer(
         if v == goal_node:
             reached = True
             break
-        if float(np.linalg.norm(out_c[v] - goal_c)) <= config.goal_tolerance:
+        if config.goal_tolerance > 0.0 and h_dist(v) <= config.goal_tolerance:
             # At the goal already: join it directly.
             g_best[goal_node] = g
             parent[goal_node] = (v, [])
@@ -338,6 +348,6 @@ def search_transfer(
         message = f"{m} transferred steps"
     message += f"; {status}: {recorded} recorded and {planned} planned steps"
     if not reached:
-        left = float(np.linalg.norm(out_c[end] - goal_c))
+        left = h_dist(end)
         message += f"; best partial path ends {left:.3f} m from the goal"
     return SearchResult(status, path, cost, recorded, planned, planner_calls, expanded, message)

@@ -162,3 +162,24 @@ def test_bad_inputs_raise_clear_errors():
         search_transfer(start, goal, empty, empty, None)
     with pytest.raises(TransferSearchError, match="GapFill"):
         search_transfer(start, goal, empty, empty, lambda a, b, t: [])
+
+
+def test_crawl_gap_filler_plans_a_gap_on_a_flat_board():
+    # Needs the footstep planner's quadruped crawl model (issue 9), merged separately.
+    pytest.importorskip(
+        "repertoire.planning.footstep.quadruped",
+        reason="repertoire.planning.footstep.quadruped (issue 9) is not on this branch",
+    )
+    from repertoire.planning.footstep.quadruped import height_map_from_board
+    from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
+
+    board = generate_board(TerrainParams(kind="flat"), seed=0)
+    hmap = height_map_from_board(board, (-0.3, 0.3), (-0.3, 0.3), 0.01)
+    start = stance(-0.1)
+    start[:, 2] = board.params.base_thickness
+    target = stance(0.0)
+    answer = CrawlGapFiller(hmap)(start, target, 2.0)
+    assert answer.status == "reached"
+    assert len(answer.steps) >= 4
+    end = answer.steps[-1].end_feet
+    assert np.linalg.norm(end[:, :2].mean(0) - target[:, :2].mean(0)) <= 0.03 + 1e-9

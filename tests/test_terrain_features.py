@@ -239,3 +239,14 @@ def test_source_steps_off_their_terrain_are_reported(rough, pca):
     assert result.off_source == [1]
     assert 1 in result.matches.discarded
     assert [t.step for t in result.steps] == [0]
+
+
+def test_matched_steps_figure_writes_a_png(tmp_path, rough, pca):
+    from repertoire.planning.transfer_plot import matched_steps_figure
+
+    feet, body = stances_on_terrain(rough, [[0.0, 0.0, 0.1], [0.05, 0.02, -0.2]])
+    result = transfer_steps(rough, feet, body, rough, pca, TransferConfig(refine_levels=1))
+    out = matched_steps_figure(rough, result, tmp_path / "m.png", changed_from=0.1)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(TransferError, match="TransferResult"):
+        matched_steps_figure(rough, None, tmp_path / "x.png")

@@ -482,3 +482,89 @@ def join_boards(boards: list[TerrainBoard], offsets_xy) -> TerrainBoard:
     for board, (dx, dy) in zip(boards, offsets):
         boxes += board.translated(float(dx), float(dy)).boxes
     return TerrainBoard(params=boards[0].params, seed=boards[0].seed, boxes=boxes)
+
+
+# --- Library transfer (issue 12): modified and tiled boards --------------------------------
+
+
+def replace_with_rocks(
+    board: TerrainBoard, x_from: float, seed: int = 0, rock_count: int | None = None
+) -> TerrainBoard:
+    """A copy of ``board`` whose part at ``x >= x_from`` is replaced by a rocks section.
+
+    Boxes lying wholly before ``x_from`` are kept; boxes reaching past it are cut at
+    ``x_from`` (slabs and steps are axis-aligned bands; a yawed rock reaching past it
+    is dropped); the rest of the board becomes a slab with rocks generated with
+    ``seed`` (count scaled by the replaced length unless ``rock_count`` is given).
+    The unchanged part keeps exactly its heights.
+
+    Args:
+        board: the source board.
+        x_from: start of the replaced part (m), strictly inside the board along x.
+        seed: seed of the new rocks.
+        rock_count: number of rocks on the new part.
+
+    Raises:
+        RepertoireError: ``x_from`` outside the board or a bad count.
+    """
+    if not isinstance(board, TerrainBoard):
+        raise RepertoireError(f"replace_with_rocks needs a TerrainBoard, got {type(board)}")
+    x0, x1 = -0.5 * board.params.size_x, 0.5 * board.params.size_x
+    if not (math.isfinite(x_from) and x0 < x_from < x1):
+        raise RepertoireError(
+            f"replace_with_rocks: x_from={x_from} must lie strictly inside the board ({x0}, {x1})"
+        )
+    if rock_count is None:
+        rock_count = max(1, round(board.params.rock_count * (x1 - x_from) / (x1 - x0)))
+    if int(rock_count) != rock_count or rock_count < 0:
+        raise RepertoireError(f"rock_count must be a non-negative integer, got {rock_count}")
+    kept: list[TerrainBox] = []
+    for box in board.boxes:
+        lo = box.center[0] - 0.5 * box.size[0]
+        hi = box.center[0] + 0.5 * box.size[0]
+        if box.yaw == 0.0:
+            if lo >= x_from:
+                continue
+            if hi > x_from:
+                box = dataclasses.replace(
+                    box,
+                    center=[0.5 * (lo + x_from), box.center[1], box.center[2]],
+                    size=[x_from - lo, box.size[1], box.size[2]],
+                )
+            kept.append(box)
+        else:
+            c, s = abs(math.cos(box.yaw)), abs(math.sin(box.yaw))
+            if box.center[0] + 0.5 * (c * box.size[0] + s * box.size[1]) < x_from:
+                kept.append(box)
+    rng = np.random.default_rng(int(seed))
+    new = _rocks(float(x_from), x1, int(rock_count), board.params, rng)
+    params = dataclasses.replace(board.params, kind="mixed")
+    return TerrainBoard(params=params, seed=board.seed, boxes=kept + new)
+
+
+def tile_boards(boards: list[TerrainBoard]) -> TerrainBoard:
+    """Boards of equal width placed one after another along +x as one board.
+
+    The result is centred on the origin like every board; board ``i`` is shifted
+    along x so the boards touch. Its ``params`` are the first board's with ``kind``
+    ``mixed`` and the summed ``size_x``.
+
+    Raises:
+        RepertoireError: no boards, or boards of different widths.
+    """
+    if not boards or not all(isinstance(b, TerrainBoard) for b in boards):
+        raise RepertoireError("tile_boards needs a non-empty list of TerrainBoard")
+    width = boards[0].params.size_y
+    if any(abs(b.params.size_y - width) > 1e-12 for b in boards):
+        raise RepertoireError("tile_boards needs boards of equal size_y")
+    total = sum(b.params.size_x for b in boards)
+    x = -0.5 * total
+    boxes: list[TerrainBox] = []
+    for b in boards:
+        shift = x + 0.5 * b.params.size_x
+        for box in b.boxes:
+            center = [box.center[0] + shift, box.center[1], box.center[2]]
+            boxes.append(dataclasses.replace(box, center=center))
+        x += b.params.size_x
+    params = dataclasses.replace(boards[0].params, kind="mixed", size_x=total)
+    return TerrainBoard(params=params, seed=boards[0].seed, boxes=boxes)

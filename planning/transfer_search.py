@@ -1,0 +1,353 @@
+"""Best-first search over transferred steps with planner-filled gaps (Stolle et al., section V).
+
+The topological graph has a start node (the robot's stance), a goal node (a goal
+stance) and one node per transferred step. From a node's outgoing stance (the
+start stance, or a step's end stance) edges lead to the ``neighbours`` steps whose
+start stances are nearest by the foot-location metric (the sum over the four feet
+of the distance between corresponding feet), and to the goal. An edge whose
+stances differ by more than ``join_tolerance`` is a gap, filled by a footstep
+planner given as a callable (:class:`GapFiller`); planned steps cost more than
+recorded ones. Gaps are planned lazily: an edge enters the queue with an estimated
+cost and the planner runs only when that edge is popped (then it is re-queued with
+its real cost), so most gaps are never planned. Steps that do not lead towards the
+goal are never on the path and so are left out of the final sequence.
+
+The direct start -> goal edge always exists, so with no transferred steps (a match
+threshold that discarded all of them) the search plans with the planner alone and
+says so.
+"""
+
+import dataclasses
+import heapq
+import math
+import time
+from typing import Protocol
+
+import numpy as np
+from repertoire.models.terrain import TerrainBoard
+
+from repertoire.errors import RepertoireError
+
+GAP_STATUSES = ("reached", "partial", "failed", "time_limit")
+"""Statuses a gap filler may return; only ``reached`` makes an edge usable."""
+
+
+class TransferSearchError(RepertoireError):
+    """Bad input to the transfer search."""
+
+
+@dataclasses.dataclass
+class PlannedStep:
+    """One step from the gap-filling planner.
+
+    Attributes:
+        start_feet: foot centres before the step (4, 3).
+        end_feet: foot centres after the step (4, 3).
+        foot: index of the moving foot (``LEGS`` order).
+    """
+
+    start_feet: np.ndarray
+    end_feet: np.ndarray
+    foot: int
+
+
+@dataclasses.dataclass
+class GapFill:
+    """A gap filler's answer.
+
+    Attributes:
+        steps: planned steps from the start stance towards the target stance.
+        status: one of :data:`GAP_STATUSES`.
+    """
+
+    steps: list[PlannedStep]
+    status: str
+
+
+class GapFiller(Protocol):
+    """Plans steps from one stance to another (the footstep planner's quadruped model)."""
+
+    def __call__(self, start: np.ndarray, target: np.ndarray, time_limit: float) -> GapFill:
+        """Plans from ``start`` (4, 3) to ``target`` (4, 3) within ``time_limit`` seconds."""
+        ...
+
+
+@dataclasses.dataclass
+class SearchConfig:
+    """Settings of the transfer search (YAML-loadable).
+
+    Attributes:
+        neighbours: edges from each node to this many nearest steps.
+        join_tolerance: foot-location distance (sum over feet, m) under which two
+            stances join without planned steps.
+        recorded_cost: cost of one recorded step.
+        planned_cost: cost of one planned step (> recorded_cost).
+        step_reach: farthest one foot moves in one planned step (m); a gap's cost is
+            estimated as ``planned_cost`` times the sum over feet of
+            ``ceil(distance / step_reach)`` until the planner has filled it.
+        goal_tolerance: distance (m) of a stance's centroid from the goal centroid that
+            counts as at the goal; 0 means the goal stance itself must be joined (within
+            ``join_tolerance``, or by planned steps).
+        max_gap: gaps whose centroids are farther apart than this (m) are not tried,
+            except the direct start -> goal edge.
+        time_limit: wall-time limit of the whole search (s).
+        heuristic_weight: weight of the distance-to-goal heuristic (recorded steps
+            needed at ``step_reach / 4`` of body progress each); 1 is A*, larger is
+            greedier best-first with fewer planner calls.
+    """
+
+    neighbours: int = 8
+    join_tolerance: float = 0.02
+    recorded_cost: float = 1.0
+    planned_cost: float = 3.0
+    step_reach: float = 0.08
+    goal_tolerance: float = 0.0
+    max_gap: float = 0.3
+    time_limit: float = 2.0
+    heuristic_weight: float = 2.0
+
+    def validate(self) -> None:
+        """Raises TransferSearchError naming a bad field."""
+        if int(self.neighbours) != self.neighbours or self.neighbours < 1:
+            raise TransferSearchError(
+                f"neighbours must be a positive integer, got {self.neighbours}"
+            )
+        for name in ("join_tolerance", "goal_tolerance"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise TransferSearchError(f"{name} must be a non-negative length, got {v}")
+        for name in ("recorded_cost", "step_reach", "max_gap", "time_limit", "heuristic_weight"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise TransferSearchError(f"{name} must be positive, got {v}")
+        if not (math.isfinite(self.planned_cost) and self.planned_cost > self.recorded_cost):
+            raise TransferSearchError(
+                f"planned_cost ({self.planned_cost}) must exceed recorded_cost "
+                f"({self.recorded_cost}): planned steps cost more than recorded ones"
+            )
+
+
+@dataclasses.dataclass
+class PathItem:
+    """One entry of the found sequence.
+
+    Attributes:
+        kind: ``recorded`` (a transferred library step) or ``planned``.
+        step: index of the transferred step (``recorded``), else -1.
+        planned: the planned step (``planned``), else None.
+    """
+
+    kind: str
+    step: int = -1
+    planned: PlannedStep | None = None
+
+
+@dataclasses.dataclass
+class SearchResult:
+    """Outcome of :func:`search_transfer`.
+
+    Attributes:
+        status: ``reached``, ``time_limit`` (best partial path) or ``unreachable``
+            (best partial path).
+        path: the sequence of recorded and planned steps from the start.
+        cost: total cost of ``path``.
+        recorded_count: recorded steps on the path.
+        planned_count: planned steps on the path.
+        planner_calls: gap-filler calls made.
+        expanded: nodes expanded.
+        message: what happened, in words (e.g. planner-only because no step matched).
+    """
+
+    status: str
+    path: list[PathItem]
+    cost: float
+    recorded_count: int
+    planned_count: int
+    planner_calls: int
+    expanded: int
+    message: str
+
+
+def foot_distance(a, b) -> np.ndarray:
+    """The foot-location metric: sum over the four feet of ||a_i - b_i|| (broadcasts)."""
+    return np.linalg.norm(np.asarray(a, float) - np.asarray(b, float), axis=-1).sum(axis=-1)
+
+
+def _check_stances(name: str, value, batch: bool) -> np.ndarray:
+    a = np.asarray(value, dtype=float)
+    shape_ok = (a.ndim == 3 and a.shape[1:] == (4, 3)) if batch else a.shape == (4, 3)
+    if not shape_ok or not np.all(np.isfinite(a)):
+        want = "(M, 4, 3)" if batch else "(4, 3)"
+        raise TransferSearchError(f"{name} must be a finite {want} array, got {a.shape}")
+    return a
+
+
+def search_transfer(
+    start,
+    goal,
+    step_start_feet,
+    step_end_feet,
+    gap_filler: GapFiller,
+    config: SearchConfig | None = None,
+    terrain: TerrainBoard | None = None,
+) -> SearchResult:
+    """Best-first (lazy A*) search from ``start`` to ``goal`` over transferred steps.
+
+    Args:
+        start: the robot's start stance (4, 3).
+        goal: the goal stance (4, 3).
+        step_start_feet: start stances of the transferred steps (M, 4, 3), M may be 0.
+        step_end_feet: end stances of the transferred steps (M, 4, 3).
+        gap_filler: the planner filling gaps (see :class:`GapFiller`).
+        config: search settings.
+        terrain: if given, the goal must lie on it.
+
+    Raises:
+        TransferSearchError: malformed stances, a goal off the terrain, bad settings.
+    """
+    config = SearchConfig() if config is None else config
+    config.validate()
+    start = _check_stances("start", start, False)
+    goal = _check_stances("goal", goal, False)
+    s_in = _check_stances("step_start_feet", np.reshape(step_start_feet, (-1, 4, 3)), True)
+    s_out = _check_stances("step_end_feet", np.reshape(step_end_feet, (-1, 4, 3)), True)
+    if s_in.shape != s_out.shape:
+        raise TransferSearchError(
+            f"step start and end stances differ in count: {s_in.shape} vs {s_out.shape}"
+        )
+    if not callable(gap_filler):
+        raise TransferSearchError("gap_filler must be callable (start, target, time_limit)")
+    if terrain is not None:
+        hx, hy = 0.5 * terrain.params.size_x, 0.5 * terrain.params.size_y
+        if np.any(np.abs(goal[:, 0]) > hx) or np.any(np.abs(goal[:, 1]) > hy):
+            raise TransferSearchError(
+                f"goal stance lies off the terrain ([-{hx}, {hx}] x [-{hy}, {hy}] m): {goal[:, :2]}"
+            )
+    m = s_in.shape[0]
+    goal_node = m + 1
+    goal_c = goal[:, :2].mean(axis=0)
+    out_stance = [start] + list(s_out)
+    out_c = np.array([s[:, :2].mean(axis=0) for s in out_stance])
+    in_c = s_in[:, :, :2].mean(axis=1) if m else np.zeros((0, 2))
+    reach = config.step_reach
+
+    def h_dist(node: int) -> float:
+        return float(np.linalg.norm(out_c[node] - goal_c))
+
+    def h(node: int) -> float:
+        return config.heuristic_weight * config.recorded_cost * 4.0 * h_dist(node) / reach
+
+    def gap_estimate(a: np.ndarray, b: np.ndarray) -> float:
+        # Each foot moves at most ``step_reach`` per planned step.
+        d = np.linalg.norm(a - b, axis=-1)
+        return config.planned_cost * float(np.ceil(d / reach - 1e-9).sum())
+
+    t0 = time.perf_counter()
+    counter = 0
+    queue: list = []
+    g_best = {0: 0.0}
+    parent: dict[int, tuple[int, list[PlannedStep]]] = {}
+    closed: set[int] = set()
+    planner_calls = 0
+    expanded = 0
+    reached = False
+    timed_out = False
+
+    def push_edges(u: int) -> None:
+        nonlocal counter
+        a = out_stance[u]
+        targets: list[int] = []
+        if m:
+            d = foot_distance(a, s_in)
+            near = np.argsort(d, kind="stable")
+            near = [int(j) for j in near if j + 1 != u and j + 1 not in closed]
+            targets = [j + 1 for j in near[: config.neighbours]]
+        targets.append(goal_node)
+        for v in targets:
+            b = goal if v == goal_node else s_in[v - 1]
+            gap = float(foot_distance(a, b))
+            step_cost = 0.0 if v == goal_node else config.recorded_cost
+            if gap <= config.join_tolerance:
+                est, evaluated = step_cost, True
+            else:
+                cu = out_c[u]
+                cv = goal_c if v == goal_node else in_c[v - 1]
+                if not (u == 0 and v == goal_node) and np.linalg.norm(cu - cv) > config.max_gap:
+                    continue
+                est, evaluated = step_cost + gap_estimate(a, b), False
+            g = g_best[u] + est
+            f = g + (0.0 if v == goal_node else h(v))
+            counter += 1
+            heapq.heappush(queue, (f, not evaluated, -g, counter, u, v, g, evaluated, []))
+
+    push_edges(0)
+    closed.add(0)
+    while queue:
+        if time.perf_counter() - t0 > config.time_limit:
+            timed_out = True
+            break
+        f, _, _, _, u, v, g, evaluated, fill = heapq.heappop(queue)
+        if v in closed:
+            continue
+        if not evaluated:
+            b = goal if v == goal_node else s_in[v - 1]
+            remaining = config.time_limit - (time.perf_counter() - t0)
+            if remaining <= 0.0:
+                timed_out = True
+                break
+            planner_calls += 1
+            answer = gap_filler(out_stance[u].copy(), b.copy(), remaining)
+            if not isinstance(answer, GapFill) or answer.status not in GAP_STATUSES:
+                raise TransferSearchError(
+                    f"gap_filler must return GapFill with status in {GAP_STATUSES}, got {answer!r}"
+                )
+            if answer.status != "reached":
+                continue
+            step_cost = 0.0 if v == goal_node else config.recorded_cost
+            g = g_best[u] + step_cost + config.planned_cost * len(answer.steps)
+            counter += 1
+            f = g + (0.0 if v == goal_node else h(v))
+            heapq.heappush(queue, (f, False, -g, counter, u, v, g, True, list(answer.steps)))
+            continue
+        closed.add(v)
+        g_best[v] = g
+        parent[v] = (u, fill)
+        expanded += 1
+        if v == goal_node:
+            reached = True
+            break
+        if config.goal_tolerance > 0.0 and h_dist(v) <= config.goal_tolerance:
+            # At the goal already: join it directly.
+            g_best[goal_node] = g
+            parent[goal_node] = (v, [])
+            reached = True
+            break
+        push_edges(v)
+
+    if reached:
+        end = goal_node
+        status = "reached"
+    else:
+        end = min((n for n in closed if n != goal_node), key=h)
+        status = "time_limit" if timed_out else "unreachable"
+    path: list[PathItem] = []
+    node = end
+    while node != 0:
+        u, fill = parent[node]
+        items = [PathItem("planned", planned=p) for p in fill]
+        if node != goal_node:
+            items.append(PathItem("recorded", step=node - 1))
+        path = items + path
+        node = u
+    recorded = sum(1 for p in path if p.kind == "recorded")
+    planned = len(path) - recorded
+    cost = recorded * config.recorded_cost + planned * config.planned_cost
+    if m == 0:
+        message = "no transferred steps (every step discarded): planner alone"
+    else:
+        message = f"{m} transferred steps"
+    message += f"; {status}: {recorded} recorded and {planned} planned steps"
+    if not reached:
+        left = h_dist(end)
+        message += f"; best partial path ends {left:.3f} m from the goal"
+    return SearchResult(status, path, cost, recorded, planned, planner_calls, expanded, message)

@@ -1,0 +1,185 @@
+"""Best-first search over transferred steps with planner-filled gaps (section V)."""
+
+import time
+
+import numpy as np
+import pytest
+from repertoire.models.littledog import nominal_foot_positions
+from repertoire.models.terrain import TerrainParams, generate_board
+from repertoire.planning.transfer_search import (
+    GapFill,
+    PlannedStep,
+    SearchConfig,
+    TransferSearchError,
+    foot_distance,
+    search_transfer,
+)
+
+ORDER = (2, 0, 3, 1)  # lh, lf, rh, rf: the crawl gait's foot order
+REACH = 0.04
+
+
+def stance(x: float, y: float = 0.0) -> np.ndarray:
+    feet = nominal_foot_positions()
+    feet[:, 0] += x
+    feet[:, 1] += y
+    feet[:, 2] = 0.0
+    return feet
+
+
+def crawl(start: np.ndarray, count: int, first: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` crawl steps from ``start``: each moves one foot REACH along +x."""
+    starts, ends = [], []
+    cur = start.copy()
+    for k in range(count):
+        nxt = cur.copy()
+        nxt[ORDER[(first + k) % 4], 0] += REACH
+        starts.append(cur)
+        ends.append(nxt)
+        cur = nxt
+    return np.array(starts), np.array(ends)
+
+
+class StraightCrawl:
+    """Stand-in gap filler: moves feet in crawl order straight to the target."""
+
+    def __init__(self, status: str | None = None, delay: float = 0.0):
+        self.calls = 0
+        self.status = status
+        self.delay = delay
+
+    def __call__(self, start, target, time_limit):
+        self.calls += 1
+        if self.delay:
+            time.sleep(min(self.delay, time_limit))
+        if self.status is not None:
+            return GapFill([], self.status)
+        steps, cur = [], start.copy()
+        for _ in range(400):
+            if foot_distance(cur, target) < 1e-9:
+                return GapFill(steps, "reached")
+            for i in ORDER:
+                d = target[i] - cur[i]
+                n = np.linalg.norm(d)
+                if n < 1e-12:
+                    continue
+                nxt = cur.copy()
+                nxt[i] = cur[i] + d * min(1.0, REACH / n)
+                steps.append(PlannedStep(cur, nxt, i))
+                cur = nxt
+        return GapFill(steps, "failed")
+
+
+def test_recorded_chain_is_followed_and_spurious_steps_left_out():
+    start = stance(0.0)
+    s_in, s_out = crawl(start, 16)
+    goal = s_out[-1]
+    # Spurious steps: a crawl far to the side, not towards the goal.
+    side_in, side_out = crawl(stance(0.0, 0.5), 8)
+    filler = StraightCrawl()
+    result = search_transfer(
+        start,
+        goal,
+        np.concatenate([s_in, side_in]),
+        np.concatenate([s_out, side_out]),
+        filler,
+        SearchConfig(),
+    )
+    assert result.status == "reached"
+    assert [p.step for p in result.path] == list(range(16))
+    assert result.planned_count == 0 and result.recorded_count == 16
+    assert result.cost == pytest.approx(16.0)
+    assert filler.calls == 0
+
+
+def test_gap_in_the_chain_is_filled_by_the_planner():
+    start = stance(0.0)
+    a_in, a_out = crawl(start, 8)
+    # The second part starts 0.08 m further on: a gap of 8 planned steps.
+    b_start = a_out[-1].copy()
+    b_start[:, 0] += 0.08
+    b_in, b_out = crawl(b_start, 8)
+    goal = b_out[-1]
+    filler = StraightCrawl()
+    cfg = SearchConfig(step_reach=REACH)
+    result = search_transfer(
+        start, goal, np.concatenate([a_in, b_in]), np.concatenate([a_out, b_out]), filler, cfg
+    )
+    assert result.status == "reached"
+    kinds = [p.kind for p in result.path]
+    assert kinds == ["recorded"] * 8 + ["planned"] * 8 + ["recorded"] * 8
+    assert result.cost == pytest.approx(16 * 1.0 + 8 * 3.0)
+    # The planned steps join the two parts exactly.
+    planned = [p.planned for p in result.path if p.kind == "planned"]
+    np.testing.assert_allclose(planned[0].start_feet, a_out[-1])
+    np.testing.assert_allclose(planned[-1].end_feet, b_in[0])
+    # The gap estimate (feet x ceil(distance / reach)) is exact for this filler: one call.
+    assert filler.calls == 1
+
+
+def test_no_transferred_steps_plans_with_the_planner_alone():
+    start, goal = stance(0.0), stance(0.12)
+    result = search_transfer(start, goal, np.zeros((0, 4, 3)), np.zeros((0, 4, 3)), StraightCrawl())
+    assert result.status == "reached"
+    assert result.recorded_count == 0 and result.planned_count == 12
+    assert "planner alone" in result.message
+
+
+def test_failed_gaps_give_the_best_partial_path():
+    start = stance(0.0)
+    a_in, a_out = crawl(start, 8)
+    goal = stance(0.3)
+    result = search_transfer(start, goal, a_in, a_out, StraightCrawl(status="failed"))
+    assert result.status == "unreachable"
+    assert [p.step for p in result.path] == list(range(8))
+    assert "from the goal" in result.message
+
+
+def test_time_limit_returns_partial_path_and_says_so():
+    start = stance(0.0)
+    a_in, a_out = crawl(start, 8)
+    goal = stance(0.3)
+    cfg = SearchConfig(time_limit=0.05)
+    result = search_transfer(start, goal, a_in, a_out, StraightCrawl(delay=0.2), cfg)
+    assert result.status == "time_limit"
+    assert result.planned_count == 0
+    assert "time_limit" in result.message
+
+
+def test_bad_inputs_raise_clear_errors():
+    start, goal = stance(0.0), stance(0.1)
+    empty = np.zeros((0, 4, 3))
+    board = generate_board(TerrainParams(kind="flat"), seed=0)
+    with pytest.raises(TransferSearchError, match="off the terrain"):
+        search_transfer(start, stance(2.0), empty, empty, StraightCrawl(), terrain=board)
+    with pytest.raises(TransferSearchError, match="planned_cost"):
+        search_transfer(start, goal, empty, empty, StraightCrawl(), SearchConfig(planned_cost=0.5))
+    with pytest.raises(TransferSearchError, match=r"\(4, 3\)"):
+        search_transfer(np.zeros(3), goal, empty, empty, StraightCrawl())
+    with pytest.raises(TransferSearchError, match="differ in count"):
+        search_transfer(start, goal, np.zeros((2, 4, 3)), np.zeros((1, 4, 3)), StraightCrawl())
+    with pytest.raises(TransferSearchError, match="callable"):
+        search_transfer(start, goal, empty, empty, None)
+    with pytest.raises(TransferSearchError, match="GapFill"):
+        search_transfer(start, goal, empty, empty, lambda a, b, t: [])
+
+
+def test_crawl_gap_filler_plans_a_gap_on_a_flat_board():
+    # Needs the footstep planner's quadruped crawl model (issue 9), merged separately.
+    pytest.importorskip(
+        "repertoire.planning.footstep.quadruped",
+        reason="repertoire.planning.footstep.quadruped (issue 9) is not on this branch",
+    )
+    from repertoire.planning.footstep.quadruped import height_map_from_board
+    from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
+
+    board = generate_board(TerrainParams(kind="flat"), seed=0)
+    hmap = height_map_from_board(board, (-0.3, 0.3), (-0.3, 0.3), 0.01)
+    start = stance(-0.1)
+    start[:, 2] = board.params.base_thickness
+    target = stance(0.0)
+    answer = CrawlGapFiller(hmap)(start, target, 2.0)
+    assert answer.status == "reached"
+    assert len(answer.steps) >= 4
+    end = answer.steps[-1].end_feet
+    assert np.linalg.norm(end[:, :2].mean(0) - target[:, :2].mean(0)) <= 0.03 + 1e-9

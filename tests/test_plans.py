@@ -1,0 +1,153 @@
+"""Plans: PDDL planning in-process, causal links, instantiation (Algorithm 2, Figure 10)."""
+
+import math
+
+import pytest
+
+from repertoire.errors import RepertoireError
+from repertoire.planning.plans import (
+    AbstractPlan,
+    ActionRegistry,
+    ActionTemplate,
+    BeliefState,
+    CausalLink,
+    GroundAction,
+    ParameterTemplate,
+    PlanningError,
+    Range,
+    derive_causal_links,
+    instantiate_plan,
+    plan_pddl,
+)
+
+SOCCER_DOMAIN = """
+(define (domain soccer) (:requirements :strips :typing) (:types pos)
+ (:predicates (robot ?p - pos) (ball ?p - pos) (atball ?p - pos) (final ?p - pos))
+ (:action approachball :parameters (?from ?to - pos)
+   :precondition (and (robot ?from) (ball ?to))
+   :effect (and (atball ?to) (not (robot ?from))))
+ (:action dribbleball :parameters (?from ?to - pos)
+   :precondition (and (atball ?from) (final ?to))
+   :effect (and (atball ?to) (not (atball ?from)))))
+"""
+FIG10_PROBLEM = """
+(define (problem fig10) (:domain soccer) (:objects pos1 pos2 pos3 - pos)
+ (:init (robot pos1) (ball pos2) (final pos3))
+ (:goal (and (final pos3) (atball pos3))))
+"""
+
+
+def _pose(index: int, suffix: str = "") -> tuple[ParameterTemplate, ...]:
+    return tuple(ParameterTemplate(q + suffix, q, index) for q in ("x", "y", "phi", "v"))
+
+
+def soccer_registry() -> ActionRegistry:
+    registry = ActionRegistry()
+    for name in ("approachBall", "dribbleBall"):
+        registry.register(ActionTemplate(name, _pose(0) + _pose(1, "_g")))
+    return registry
+
+
+def fig10_belief() -> BeliefState:
+    return BeliefState(
+        values={
+            ("robot", "x"): 0.0, ("robot", "y"): 1.0, ("robot", "phi"): 0.0, ("robot", "v"): 0.0,
+            ("ball", "x"): 3.0, ("ball", "y"): 1.0,
+            ("final", "x"): 1.0, ("final", "y"): 3.0, ("final", "phi"): 2.6, ("final", "v"): 0.0,
+        },
+        constraints={("atball", "v"): (0.0, 0.3)},
+        defaults={"x": (-4.5, 4.5), "y": (-3.0, 3.0), "phi": (-math.pi, math.pi), "v": (0.0, 1.0)},
+    )  # fmt: skip
+
+
+def test_fig10_plan_links_and_instantiation():
+    plan = plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM)
+    assert [(a.name, a.args) for a in plan.actions] == [
+        ("approachball", ("pos1", "pos2")),
+        ("dribbleball", ("pos2", "pos3")),
+    ]
+    # Figure 10's links with sequential step numbers (approach = 1, dribble = 2, goal = 3)
+    assert set(plan.links) == {
+        CausalLink(0, ("robot", ("pos1",)), 1),
+        CausalLink(0, ("ball", ("pos2",)), 1),
+        CausalLink(1, ("atball", ("pos2",)), 2),
+        CausalLink(0, ("final", ("pos3",)), 2),
+        CausalLink(0, ("final", ("pos3",)), 3),
+        CausalLink(2, ("atball", ("pos3",)), 3),
+    }
+    assert plan.links_by_label() == {
+        "pos1": [(0, "robot")],
+        "pos2": [(0, "ball"), (1, "atball")],
+        "pos3": [(0, "final"), (2, "atball")],
+    }
+    inst = instantiate_plan(plan, soccer_registry(), fig10_belief())
+    pi = math.pi
+    # Algorithm 2, below line 14
+    assert inst.parameters_of(0) == {
+        "x": 0.0, "y": 1.0, "phi": 0.0, "v": 0.0,
+        "x_g": 3.0, "y_g": 1.0, "phi_g": Range(-pi, pi), "v_g": Range(0.0, 0.3),
+    }  # fmt: skip
+    assert inst.parameters_of(1) == {
+        "x": 3.0, "y": 1.0, "phi": Range(-pi, pi), "v": Range(0.0, 0.3),
+        "x_g": 1.0, "y_g": 3.0, "phi_g": 2.6, "v_g": 0.0,
+    }  # fmt: skip
+    # shared identities: approach's goal angle is the dribble's start angle
+    assert inst.free_ids == ["pos2.phi", "pos2.v"]
+    assert inst.actions[0].parameter_ids["phi_g"] == inst.actions[1].parameter_ids["phi"]
+    assert inst.parameters_of(1, {"pos2.phi": 0.5})["phi"] == 0.5
+
+
+def test_unreachable_goal_is_named():
+    problem = FIG10_PROBLEM.replace("(atball pos3))", "(atball pos3) (robot pos3))")
+    with pytest.raises(PlanningError, match=r"goal \(robot pos3\) is unreachable"):
+        plan_pddl(SOCCER_DOMAIN, problem)
+
+
+def test_jointly_unreachable_goals_are_said_so():
+    problem = FIG10_PROBLEM.replace("(atball pos3))", "(atball pos3) (robot pos1))")
+    with pytest.raises(PlanningError, match="each reachable but not together"):
+        plan_pddl(SOCCER_DOMAIN, problem)
+
+
+def test_bad_pddl():
+    with pytest.raises(PlanningError, match="could not parse"):
+        plan_pddl(SOCCER_DOMAIN, "(define (problem")
+    with pytest.raises(PlanningError, match="non-empty"):
+        plan_pddl(" ", FIG10_PROBLEM)
+
+
+def test_causal_links_reject_invalid_sequence():
+    step = GroundAction("dribbleball", ("pos2", "pos3"), (("atball", ("pos2",)),))
+    with pytest.raises(PlanningError, match=r"step 1 \(dribbleball\) needs \(atball pos2\)"):
+        derive_causal_links([], [step], [])
+
+
+def test_causal_links_use_latest_achiever():
+    a = GroundAction("a", (), (), (("p", ()),))
+    b = GroundAction("b", (), (("p", ()),), (("p", ()),))
+    links = derive_causal_links([("p", ())], [a, b], [("p", ())])
+    assert links == (CausalLink(1, ("p", ()), 2), CausalLink(2, ("p", ()), 3))
+
+
+def test_action_without_executable_counterpart():
+    plan = AbstractPlan((GroundAction("kickball", ("pos1",)),), ())
+    with pytest.raises(RepertoireError, match="'kickball' has no executable counterpart"):
+        instantiate_plan(plan, soccer_registry(), fig10_belief())
+
+
+def test_empty_ranges_are_refused():
+    with pytest.raises(RepertoireError, match="empty or NaN range"):
+        Range(1.0, 0.0)
+    belief = fig10_belief()
+    belief.constraints[("atball", "v")] = (2.0, 3.0)  # outside the default [0, 1]
+    plan = plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM)
+    with pytest.raises(RepertoireError, match="empty range"):
+        instantiate_plan(plan, soccer_registry(), belief)
+
+
+def test_template_validation():
+    with pytest.raises(RepertoireError, match="unique parameter names"):
+        ActionTemplate("a", (ParameterTemplate("x", "x", 0), ParameterTemplate("x", "x", 1)))
+    registry = soccer_registry()
+    with pytest.raises(RepertoireError, match="already registered"):
+        registry.register(ActionTemplate("approachBall", ()))

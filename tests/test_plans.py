@@ -3,8 +3,6 @@
 import math
 
 import pytest
-
-from repertoire.errors import RepertoireError
 from repertoire.planning.plans import (
     AbstractPlan,
     ActionRegistry,
@@ -19,6 +17,8 @@ from repertoire.planning.plans import (
     instantiate_plan,
     plan_pddl,
 )
+
+from repertoire.errors import RepertoireError
 
 SOCCER_DOMAIN = """
 (define (domain soccer) (:requirements :strips :typing) (:types pos)

@@ -145,6 +145,20 @@ def test_non_affine_features_use_black_box():
     assert refine_sequence(problem, 1, "de", seed=0).cost == pytest.approx(1.0, abs=1e-6)
 
 
+def test_model_save_load_roundtrip_and_version(tmp_path):
+    model = random_model_tree(4, 3, 4)
+    model.save(tmp_path / "m.json")
+    back = PiecewiseLinearModel.load(tmp_path / "m.json")
+    for name in ("lower", "upper", "coef", "intercept"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(model, name))
+    record = model.to_dict()
+    record["version"] = 0
+    with pytest.raises(RepertoireError, match="format version 0"):
+        PiecewiseLinearModel.from_dict(record)
+    with pytest.raises(RepertoireError, match="missing type"):
+        PiecewiseLinearModel.from_dict({"lower": []})
+
+
 def test_bad_input():
     problem = chain_problem(0, 3, 1, depth=2)
     with pytest.raises(RepertoireError, match="horizon 4 is not in 1..3"):

@@ -17,8 +17,11 @@ works on :class:`AbstractPlan` values from any source.
 """
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+
+import numpy as np
+from repertoire.planning.refinement import DurationTerm, RefinementProblem
 
 from repertoire.errors import RepertoireError, SolverError
 
@@ -474,3 +477,80 @@ def instantiate_plan(
             ids[par.name] = pid
         actions.append(ExecutableAction(template.name, step.args, ids))
     return InstantiatedPlan(tuple(actions), ranges)
+
+
+# --------------------------------------------------------------------------------------
+# From an instantiated plan to a refinement problem
+
+
+@dataclass(frozen=True)
+class ActionDurationModel:
+    """An executable action's duration model and its feature function.
+
+    Args:
+        model: the learned duration model (leaves as boxes + hyperplanes).
+        features: action parameters (name -> (n,) values) -> (n, d) features, e.g. the
+            paper's Table 7 features (distance, angle_to, angle_at, v) of a goToPose.
+    """
+
+    model: object
+    features: Callable[[dict[str, np.ndarray]], np.ndarray]
+
+
+@dataclass(frozen=True)
+class _PlanActionFeatures:
+    """Feature map of one plan action over the plan's free-parameter vector."""
+
+    features: Callable[[dict[str, np.ndarray]], np.ndarray]
+    bound: dict[str, float]
+    free: dict[str, int]
+
+    def __call__(self, params: np.ndarray) -> np.ndarray:
+        p = np.atleast_2d(params)
+        values = {name: np.full(p.shape[0], v) for name, v in self.bound.items()}
+        values.update({name: p[:, i] for name, i in self.free.items()})
+        return np.asarray(self.features(values), dtype=float)
+
+
+def refinement_problem(
+    plan: InstantiatedPlan, models: Mapping[str, ActionDurationModel]
+) -> RefinementProblem:
+    """The refinement problem of an instantiated plan (one term per executable action).
+
+    The problem's parameters are the plan's free identities (``plan.free_ids``, names
+    included); every action's term reads its bound values and the free parameters it
+    shares with its neighbours. Feature functions are arbitrary (angles), so solve with
+    ``"ga"`` or ``"de"``, or use :class:`~repertoire.planning.refinement.AffineFeatures`
+    directly where features are affine.
+
+    Args:
+        plan: from :func:`instantiate_plan`.
+        models: executable action name -> its duration model and feature function.
+
+    Raises:
+        RepertoireError: an action has no model, or the plan has no free parameter.
+    """
+    free_ids = plan.free_ids
+    if not free_ids:
+        raise RepertoireError("the plan has no free parameters: nothing to refine")
+    index = {pid: i for i, pid in enumerate(free_ids)}
+    terms = []
+    for i, action in enumerate(plan.actions):
+        if action.name not in models:
+            raise RepertoireError(
+                f"no duration model for action {action.name!r}; have {sorted(models)}"
+            )
+        entry = models[action.name]
+        bound = {
+            n: plan.ranges[pid].lo for n, pid in action.parameter_ids.items() if pid not in index
+        }
+        free = {n: index[pid] for n, pid in action.parameter_ids.items() if pid in index}
+        feats = _PlanActionFeatures(entry.features, bound, free)
+        terms.append(
+            DurationTerm(
+                entry.model, feats, tuple(sorted(set(free.values()))), f"{i}:{action.name}"
+            )
+        )
+    lower = np.array([plan.ranges[pid].lo for pid in free_ids])
+    upper = np.array([plan.ranges[pid].hi for pid in free_ids])
+    return RefinementProblem(tuple(terms), lower, upper, tuple(free_ids))

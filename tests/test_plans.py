@@ -2,9 +2,11 @@
 
 import math
 
+import numpy as np
 import pytest
 from repertoire.planning.plans import (
     AbstractPlan,
+    ActionDurationModel,
     ActionRegistry,
     ActionTemplate,
     BeliefState,
@@ -16,7 +18,9 @@ from repertoire.planning.plans import (
     derive_causal_links,
     instantiate_plan,
     plan_pddl,
+    refinement_problem,
 )
+from repertoire.planning.refinement import PiecewiseLinearModel, refine_sequence
 
 from repertoire.errors import RepertoireError
 
@@ -151,3 +155,68 @@ def test_template_validation():
     registry = soccer_registry()
     with pytest.raises(RepertoireError, match="already registered"):
         registry.register(ActionTemplate("approachBall", ()))
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def _leg_features(p: dict) -> np.ndarray:
+    """Table 7's features of a leg: dist, |angle_to|, |angle_at| and the goal speed."""
+    dx, dy = p["x_g"] - p["x"], p["y_g"] - p["y"]
+    heading = np.arctan2(dy, dx)
+    return np.column_stack(
+        [np.hypot(dx, dy), np.abs(_wrap(heading - p["phi"])), np.abs(_wrap(p["phi_g"] - heading)),
+         p["v_g"]]
+    )  # fmt: skip
+
+
+def _fig10_plan():
+    return instantiate_plan(
+        plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), soccer_registry(), fig10_belief()
+    )
+
+
+def _linear(coef) -> PiecewiseLinearModel:
+    d = len(coef)
+    return PiecewiseLinearModel([[-np.inf] * d], [[np.inf] * d], [coef], [0.5])
+
+
+def test_figure_11_refinement_of_the_instantiated_plan():
+    plan = instantiate_plan(
+        plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), soccer_registry(), fig10_belief()
+    )
+    models = {
+        # approaching: turning at the goal costs 0.8 s/rad, arriving faster saves time
+        "approachBall": ActionDurationModel(_linear([1.0, 0.3, 0.8, -1.0]), _leg_features),
+        # dribbling: turning towards the target costs 2 s/rad, a fast start 2 s per m/s
+        "dribbleBall": ActionDurationModel(_linear([2.0, 2.0, 0.1, 2.0]), _start_speed),
+    }
+    problem = refinement_problem(plan, models)
+    assert problem.names == ("pos2.phi", "pos2.v")
+    assert [t.uses for t in problem.terms] == [(0, 1), (0, 1)]
+    greedy = refine_sequence(problem, 1, "de", seed=0)
+    refined = refine_sequence(problem, 2, "de", seed=0)
+    ga = refine_sequence(problem, 2, "ga", seed=0)
+    # greedy: arrive heading straight at the ball (phi = 0) at full speed 0.3
+    np.testing.assert_allclose(greedy.params, [0.0, 0.3], atol=1e-3)
+    # refined: arrive already facing the target (3 pi / 4) and slow, cheaper overall
+    np.testing.assert_allclose(refined.params, [3 * np.pi / 4, 0.0], atol=1e-3)
+    assert refined.cost < greedy.cost - 2.0
+    assert ga.cost == pytest.approx(refined.cost, abs=0.05)
+
+
+def _start_speed(p: dict) -> np.ndarray:
+    features = _leg_features(p)
+    features[:, 3] = p["v"]
+    return features
+
+
+def test_refinement_problem_bad_input():
+    plan = instantiate_plan(
+        plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), soccer_registry(), fig10_belief()
+    )
+    with pytest.raises(RepertoireError, match="no duration model for action 'dribbleBall'"):
+        refinement_problem(
+            plan, {"approachBall": ActionDurationModel(_linear([0.0] * 4), _leg_features)}
+        )

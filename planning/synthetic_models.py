@@ -17,13 +17,23 @@ from repertoire.errors import RepertoireError
 
 
 def random_model_tree(
-    seed: int, n_features: int, depth: int, *, extent: float = 2.0, grid: float = 0.25
+    seed: int,
+    n_features: int,
+    depth: int,
+    *,
+    extent: float = 2.0,
+    grid: float = 0.25,
+    fitted: bool = False,
 ) -> PiecewiseLinearModel:
     """A random model tree of up to ``2**depth`` leaves over R^n_features.
 
     Splits are at multiples of ``grid`` inside [-extent, extent]; the outermost leaves
-    extend to +-inf. Each leaf predicts ``intercept + coef @ f`` with |coef| <= 1 and an
-    intercept large enough to stay positive for |f| <= extent.
+    extend to +-inf. With ``fitted=False`` each leaf predicts ``intercept + coef @ f``
+    with random |coef| <= 1 and an intercept keeping it positive for |f| <= extent (a
+    harsh, discontinuous landscape). With ``fitted=True`` each leaf's hyperplane is the
+    least-squares fit, over seeded samples of the leaf's box (clipped to the extent), of
+    a smooth positive duration ``2 + sum_i a_i |f_i - m_i| + b @ f``, the way an M5
+    model tree fits its leaves: nearly continuous, as learned duration models are.
 
     Args:
         seed: random seed.
@@ -31,6 +41,7 @@ def random_model_tree(
         depth: split depth >= 0.
         extent: half-width of the region holding the split thresholds.
         grid: spacing of the thresholds (> 0).
+        fitted: fit leaves to a smooth function instead of drawing them at random.
     """
     if n_features < 1 or depth < 0 or not (grid > 0 and extent > grid):
         raise RepertoireError(
@@ -56,13 +67,34 @@ def random_model_tree(
         stack.append((right_lo, hi, level - 1))
     lower = np.array([lo for lo, _ in leaves])
     upper = np.array([hi for _, hi in leaves])
-    coef = rng.uniform(-1.0, 1.0, lower.shape)
-    intercept = np.abs(coef).sum(axis=1) * extent + rng.uniform(0.5, 3.0, len(leaves))
+    if not fitted:
+        coef = rng.uniform(-1.0, 1.0, lower.shape)
+        intercept = np.abs(coef).sum(axis=1) * extent + rng.uniform(0.5, 3.0, len(leaves))
+        return PiecewiseLinearModel(lower, upper, coef, intercept)
+    a = rng.uniform(0.2, 1.0, n_features)
+    m = rng.uniform(-extent / 2, extent / 2, n_features)
+    slope = rng.uniform(-0.3, 0.3, n_features) * a
+    coef = np.empty(lower.shape)
+    intercept = np.empty(len(leaves))
+    for i in range(len(leaves)):
+        lo = np.clip(lower[i], -extent, extent)
+        hi = np.clip(upper[i], -extent, extent)
+        x = rng.uniform(lo, hi, (8 * (n_features + 1), n_features))
+        y = 2.0 + np.abs(x - m) @ a + x @ slope
+        design = np.hstack([x, np.ones((x.shape[0], 1))])
+        fit = np.linalg.lstsq(design, y, rcond=None)[0]
+        coef[i], intercept[i] = fit[:-1], fit[-1]
     return PiecewiseLinearModel(lower, upper, coef, intercept)
 
 
 def chain_problem(
-    seed: int, n_actions: int, per_subgoal: int, depth: int, *, bound: float = 1.0
+    seed: int,
+    n_actions: int,
+    per_subgoal: int,
+    depth: int,
+    *,
+    bound: float = 1.0,
+    fitted: bool = False,
 ) -> RefinementProblem:
     """A sequence like the paper's: action i reads the free parameters of subgoals i-1, i.
 
@@ -77,6 +109,7 @@ def chain_problem(
         per_subgoal: free parameters per subgoal >= 1.
         depth: tree depth.
         bound: half-width of every parameter range.
+        fitted: trees fitted to smooth durations (see :func:`random_model_tree`).
     """
     if n_actions < 2 or per_subgoal < 1:
         raise RepertoireError(f"need n_actions >= 2 and per_subgoal >= 1, got {n_actions}")
@@ -86,6 +119,6 @@ def chain_problem(
         cols = list(range(max(0, i - 1) * per_subgoal, min(i + 1, n_actions - 1) * per_subgoal))
         A = np.zeros((len(cols), P))
         A[np.arange(len(cols)), cols] = 2.0
-        model = random_model_tree(seed * 1000 + i, len(cols), depth)
+        model = random_model_tree(seed * 1000 + i, len(cols), depth, fitted=fitted)
         terms.append(DurationTerm(model, AffineFeatures(A, np.full(len(cols), 0.5)), name=f"a{i}"))
     return RefinementProblem(tuple(terms), np.full(P, -bound), np.full(P, bound))

@@ -36,12 +36,12 @@ def test_model_predicts_closed_form_and_lower_envelope():
     assert bounded.predict([[2.0]])[0] == np.inf
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3])
-def test_exact_backends_match_brute_force_grid(seed):
-    # 3 actions, 2 subgoals x 1 parameter... and x 2 parameters: thresholds map to
+@pytest.mark.parametrize("seed,fitted", [(0, False), (1, False), (2, True), (3, True)])
+def test_exact_backends_match_brute_force_grid(seed, fitted):
+    # 3 actions, 2 subgoals x 1 parameter, and x 2 parameters: thresholds map to
     # multiples of 0.125 in parameter space, so a 0.125 grid visits every corner.
     for per in (1, 2):
-        problem = chain_problem(seed, 3, per, depth=4)
+        problem = chain_problem(seed, 3, per, depth=4, fitted=fitted)
         brute = _grid_minimum(problem, 0.125)
         corners = solve_corners(problem)
         milp = solve_milp(problem)

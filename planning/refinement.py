@@ -757,7 +757,9 @@ def _named_solver(solver: Solver | str, options: dict) -> Solver:
             raise RepertoireError("options are only for named solvers")
         return solver
     if solver == "corners":
-        return lambda p: solve_corners(p, **options)
+        if options:
+            raise RepertoireError(f"corner enumeration takes no options, got {sorted(options)}")
+        return solve_corners
     if solver == "milp":
         return lambda p: solve_milp(p, **options)
     if solver in ("ga", "de"):

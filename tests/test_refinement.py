@@ -169,6 +169,8 @@ def test_bad_input():
         RefinementProblem(problem.terms, [0.0, 1.0], [1.0, 0.5], ("pos2.phi", "pos3.phi"))
     with pytest.raises(RepertoireError, match="at least one action"):
         RefinementProblem((), [0.0], [1.0])
+    with pytest.raises(RepertoireError, match="takes no options"):
+        refine_sequence(problem, 1, "corners", seed=0)
     with pytest.raises(RepertoireError, match="unknown solver"):
         refine_sequence(problem, 1, "simplex")
     with pytest.raises(RepertoireError, match="lower > upper"):

@@ -322,6 +322,16 @@ class ActionRegistry:
             raise RepertoireError(f"an executable action is already registered for {key!r}")
         self.templates[key] = template
 
+    def template(self, name: str) -> ActionTemplate:
+        """The template whose own name is ``name`` (as in an ExecutableAction)."""
+        for template in self.templates.values():
+            if template.name == name:
+                return template
+        raise RepertoireError(
+            f"no executable action template named {name!r}; registered: "
+            f"{sorted(t.name for t in self.templates.values())}"
+        )
+
     def get(self, symbolic_name: str) -> ActionTemplate:
         """The template for a symbolic action, or a clear error naming what exists."""
         try:
@@ -504,16 +514,24 @@ class _PlanActionFeatures:
     features: Callable[[dict[str, np.ndarray]], np.ndarray]
     bound: dict[str, float]
     free: dict[str, int]
+    succeeds: Callable[[dict[str, np.ndarray]], np.ndarray] | None = None
 
     def __call__(self, params: np.ndarray) -> np.ndarray:
         p = np.atleast_2d(params)
         values = {name: np.full(p.shape[0], v) for name, v in self.bound.items()}
         values.update({name: p[:, i] for name, i in self.free.items()})
-        return np.asarray(self.features(values), dtype=float)
+        features = np.array(self.features(values), dtype=float)
+        if self.succeeds is not None:  # NaN features lie in no leaf: predicted +inf
+            ok = np.asarray(self.succeeds(values), dtype=bool).reshape(-1)
+            features[~ok] = np.nan
+        return features
 
 
 def refinement_problem(
-    plan: InstantiatedPlan, models: Mapping[str, ActionDurationModel]
+    plan: InstantiatedPlan,
+    models: Mapping[str, ActionDurationModel],
+    *,
+    succeeds: Mapping[int, Callable[[dict[str, np.ndarray]], np.ndarray]] | None = None,
 ) -> RefinementProblem:
     """The refinement problem of an instantiated plan (one term per executable action).
 
@@ -526,10 +544,20 @@ def refinement_problem(
     Args:
         plan: from :func:`instantiate_plan`.
         models: executable action name -> its duration model and feature function.
+        succeeds: action index -> a failure model's success prediction from the
+            action's parameters (name -> (n,) values) -> (n,) booleans. Where it
+            predicts failure, the action's predicted duration is +inf: Algorithm 4's
+            INVALID, which the GA ranks last (used after :func:`insert_subgoal`).
 
     Raises:
-        RepertoireError: an action has no model, or the plan has no free parameter.
+        RepertoireError: an action has no model, the plan has no free parameter, or a
+            ``succeeds`` index is not an action of the plan.
     """
+    succeeds = dict(succeeds or {})
+    if any(not 0 <= i < len(plan.actions) for i in succeeds):
+        raise RepertoireError(
+            f"succeeds names actions {sorted(succeeds)}, the plan has {len(plan.actions)}"
+        )
     free_ids = plan.free_ids
     if not free_ids:
         raise RepertoireError("the plan has no free parameters: nothing to refine")
@@ -545,7 +573,7 @@ def refinement_problem(
             n: plan.ranges[pid].lo for n, pid in action.parameter_ids.items() if pid not in index
         }
         free = {n: index[pid] for n, pid in action.parameter_ids.items() if pid in index}
-        feats = _PlanActionFeatures(entry.features, bound, free)
+        feats = _PlanActionFeatures(entry.features, bound, free, succeeds.get(i))
         terms.append(
             DurationTerm(
                 entry.model, feats, tuple(sorted(set(free.values()))), f"{i}:{action.name}"
@@ -554,3 +582,66 @@ def refinement_problem(
     lower = np.array([plan.ranges[pid].lo for pid in free_ids])
     upper = np.array([plan.ranges[pid].hi for pid in free_ids])
     return RefinementProblem(tuple(terms), lower, upper, tuple(free_ids))
+
+
+def insert_subgoal(
+    plan: InstantiatedPlan,
+    i: int,
+    registry: ActionRegistry,
+    belief: BeliefState,
+    *,
+    replacement: str,
+    label: str = "subgoal1",
+) -> InstantiatedPlan:
+    """Algorithm 3, lines 18-20: action ``i`` becomes two ``replacement`` legs via a subgoal.
+
+    The first leg starts where action ``i`` started and ends at the new symbolic label;
+    the second starts there and ends where action ``i`` ended. The label's parameters
+    are new identities with the belief state's default ranges, free for refinement
+    (with :func:`refinement_problem`'s ``succeeds`` on the second leg, so only subgoals
+    the failure model accepts are chosen). Parameters are matched by index (0 = from,
+    1 = to) and quantity, as in Algorithm 2.
+
+    Args:
+        plan: the instantiated plan.
+        i: index of the action predicted to fail.
+        registry: holds the templates of action ``i`` and of ``replacement``.
+        belief: supplies the default ranges of the subgoal's quantities.
+        replacement: symbolic name of the action that replaces it (e.g. ``"goToPose"``).
+        label: the subgoal's symbolic label (must be new to the plan).
+
+    Raises:
+        RepertoireError: bad index, a label already in use, or a replacement parameter
+            with no counterpart of the same index and quantity in action ``i``.
+    """
+    if not 0 <= i < len(plan.actions):
+        raise RepertoireError(f"action index {i} is not in 0..{len(plan.actions) - 1}")
+    if any(pid.split(".", 1)[0] == label for pid in plan.ranges):
+        raise RepertoireError(f"subgoal label {label!r} is already used by the plan")
+    action = plan.actions[i]
+    old = registry.template(action.name)
+    new = registry.get(replacement)
+    ids = {(p.index, p.quantity): action.parameter_ids[p.name] for p in old.parameters}
+    ranges = dict(plan.ranges)
+    legs = []
+    for leg in (0, 1):
+        leg_ids = {}
+        for par in new.parameters:
+            if par.index not in (0, 1):
+                raise RepertoireError(f"{new.name}.{par.name}: index {par.index} is not 0 or 1")
+            if par.index != leg:  # the subgoal's side of this leg
+                pid = f"{label}.{par.quantity}"
+                if pid not in ranges:
+                    ranges[pid] = belief.value(par.quantity, [])
+            elif (par.index, par.quantity) in ids:
+                pid = ids[(par.index, par.quantity)]
+            else:
+                raise RepertoireError(
+                    f"{new.name}.{par.name} ({par.quantity} at index {par.index}) has no "
+                    f"counterpart in {old.name}"
+                )
+            leg_ids[par.name] = pid
+        args = (action.args[0], label) if leg == 0 else (label, action.args[-1])
+        legs.append(ExecutableAction(new.name, args, leg_ids))
+    actions = (*plan.actions[:i], *legs, *plan.actions[i + 1 :])
+    return InstantiatedPlan(actions, ranges)

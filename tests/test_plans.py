@@ -16,6 +16,7 @@ from repertoire.planning.plans import (
     PlanningError,
     Range,
     derive_causal_links,
+    insert_subgoal,
     instantiate_plan,
     plan_pddl,
     refinement_problem,
@@ -220,3 +221,56 @@ def test_refinement_problem_bad_input():
         refinement_problem(
             plan, {"approachBall": ActionDurationModel(_linear([0.0] * 4), _leg_features)}
         )
+
+
+def _from_left(p: dict) -> np.ndarray:
+    """Failure model stand-in: the approach succeeds arriving from the left, >= 0.5 m."""
+    dx, dy = p["x_g"] - p["x"], p["y_g"] - p["y"]
+    return (np.abs(np.arctan2(dy, dx)) <= np.radians(30.0)) & (np.hypot(dx, dy) >= 0.5)
+
+
+def test_figure_16_subgoal_inserted_into_the_plan_and_refined():
+    registry = soccer_registry()
+    registry.register(ActionTemplate("goToPose", _pose(0) + _pose(1, "_g")))
+    belief = fig10_belief()
+    belief.values[("robot", "x")] = 4.0  # right of the ball at x = 3: direct approach fails
+    plan = instantiate_plan(plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), registry, belief)
+    asserted = insert_subgoal(plan, 0, registry, belief, replacement="goToPose")
+    assert [(a.name, a.args) for a in asserted.actions] == [
+        ("goToPose", ("pos1", "subgoal1")),
+        ("goToPose", ("subgoal1", "pos2")),
+        ("dribbleBall", ("pos2", "pos3")),
+    ]
+    assert asserted.actions[0].parameter_ids["x"] == "pos1.x"
+    assert asserted.actions[1].parameter_ids["x_g"] == "pos2.x"
+    assert asserted.actions[1].parameter_ids["phi"] == asserted.actions[0].parameter_ids["phi_g"]
+    assert asserted.free_ids == [
+        "pos2.phi", "pos2.v", "subgoal1.x", "subgoal1.y", "subgoal1.phi", "subgoal1.v"
+    ]  # fmt: skip
+    assert asserted.ranges["subgoal1.x"] == Range(-4.5, 4.5)
+    leg = ActionDurationModel(_linear([1.0, 0.3, 0.3, 0.0]), _leg_features)
+    models = {
+        "goToPose": leg,
+        "dribbleBall": ActionDurationModel(_linear([2, 2, 0.1, 2]), _start_speed),
+    }
+    problem = refinement_problem(asserted, models, succeeds={1: _from_left})
+    result = refine_sequence(problem, 3, "ga", seed=1)
+    values = dict(zip(problem.names, result.params, strict=True))
+    sub = {"x": values["subgoal1.x"], "y": values["subgoal1.y"], "x_g": 3.0, "y_g": 1.0}
+    assert _from_left({k: np.array([v]) for k, v in sub.items()})[0]
+    assert np.isfinite(result.cost)
+    # a subgoal the failure model rejects is INVALID (+inf), as in Algorithm 4
+    bad = result.params.copy()
+    bad[problem.names.index("subgoal1.x")] = 3.5
+    assert problem.cost(bad)[0] == np.inf
+
+
+def test_insert_subgoal_bad_input():
+    registry = soccer_registry()
+    plan = _fig10_plan()
+    with pytest.raises(RepertoireError, match="'goToPose' has no executable counterpart"):
+        insert_subgoal(plan, 0, registry, fig10_belief(), replacement="goToPose")
+    with pytest.raises(RepertoireError, match="already used"):
+        insert_subgoal(plan, 0, registry, fig10_belief(), replacement="dribbleBall", label="pos2")
+    with pytest.raises(RepertoireError, match="action index 5"):
+        insert_subgoal(plan, 5, registry, fig10_belief(), replacement="dribbleBall")

@@ -274,3 +274,52 @@ def test_insert_subgoal_bad_input():
         insert_subgoal(plan, 0, registry, fig10_belief(), replacement="dribbleBall", label="pos2")
     with pytest.raises(RepertoireError, match="action index 5"):
         insert_subgoal(plan, 5, registry, fig10_belief(), replacement="dribbleBall")
+
+
+KITCHEN_DOMAIN = """
+(define (domain kitchen) (:requirements :strips :typing) (:types place cup)
+ (:predicates (robot ?p - place) (cupat ?c - cup ?p - place) (holding ?c - cup)
+              (handempty) (target ?c - cup ?p - place))
+ (:action gotopose :parameters (?from ?to - place)
+   :precondition (robot ?from) :effect (and (robot ?to) (not (robot ?from))))
+ (:action grip :parameters (?at - place ?c - cup)
+   :precondition (and (robot ?at) (cupat ?c ?at) (handempty))
+   :effect (and (holding ?c) (not (cupat ?c ?at)) (not (handempty))))
+ (:action put :parameters (?at - place ?c - cup)
+   :precondition (and (robot ?at) (holding ?c) (target ?c ?at))
+   :effect (and (cupat ?c ?at) (handempty) (not (holding ?c)))))
+"""
+KITCHEN_PROBLEM = """
+(define (problem s1) (:domain kitchen) (:objects door table1 table2 - place cup1 - cup)
+ (:init (robot door) (cupat cup1 table1) (handempty) (target cup1 table2))
+ (:goal (cupat cup1 table2)))
+"""
+
+
+def test_kitchen_scenario_1_plan_has_four_actions_sharing_waypoints():
+    plan = plan_pddl(KITCHEN_DOMAIN, KITCHEN_PROBLEM)
+    assert [(a.name, a.args) for a in plan.actions] == [
+        ("gotopose", ("door", "table1")),
+        ("grip", ("table1", "cup1")),
+        ("gotopose", ("table1", "table2")),
+        ("put", ("table2", "cup1")),
+    ]
+    assert CausalLink(1, ("robot", ("table1",)), 2) in plan.links
+    assert CausalLink(2, ("holding", ("cup1",)), 4) in plan.links
+    assert CausalLink(4, ("cupat", ("cup1", "table2")), 5) in plan.links
+    registry = ActionRegistry()
+    registry.register(ActionTemplate("goToPose", _pose(0) + _pose(1, "_g")))
+    for name in ("grip", "put"):  # the base pose where the arm works, and the reach
+        registry.register(ActionTemplate(name, _pose(0) + (ParameterTemplate("d", "reach", 0),)))
+    belief = BeliefState(
+        values={("robot", q): 0.0 for q in ("x", "y", "phi", "v")},
+        constraints={("cupat", "reach"): (0.4, 0.8), ("target", "reach"): (0.4, 0.8)},
+        defaults={"x": (-3, 3), "y": (-3, 3), "phi": (-math.pi, math.pi), "v": (0, 1),
+                  "reach": (0.0, 1.0)},
+    )  # fmt: skip
+    inst = instantiate_plan(plan, registry, belief)
+    # the pose at table1 is one set of free parameters shared by goto, grip and goto
+    assert inst.actions[0].parameter_ids["x_g"] == inst.actions[1].parameter_ids["x"]
+    assert inst.actions[1].parameter_ids["x"] == inst.actions[2].parameter_ids["x"]
+    assert inst.ranges["table1.reach"] == Range(0.4, 0.8)  # the precondition of grip
+    assert len(inst.free_ids) == 10  # two 4-D waypoints and two reach distances

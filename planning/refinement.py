@@ -557,6 +557,9 @@ def solve_milp(
         abs_tol: absolute optimality tolerance in seconds of duration (> 0).
         max_rounds: incumbent rounds before giving up (>= 1).
 
+    ``MixedIntegerBranchAndBound.Solve`` returns a ``SolutionResult`` rather than a
+    ``MathematicalProgramResult``, so success is checked as ``kSolutionFound``.
+
     Raises:
         SolverError: branch and bound (Clp) failed, naming the solution result.
         RepertoireError: non-affine features, bad tolerances or an infeasible incumbent.
@@ -716,7 +719,9 @@ def refine_sequence(
 
     Returns:
         All parameters, the *whole* sequence's predicted duration at them, and one
-        result per step in ``steps``.
+        result per step in ``steps``. The cost is +inf when the back-end found no
+        parameters every model accepts (all candidates INVALID, e.g. a failure model
+        rejecting every subgoal): keep the unrefined plan then.
     """
     n = len(problem.terms)
     if not isinstance(horizon, int | np.integer) or not 1 <= horizon <= n:

@@ -159,6 +159,14 @@ def test_model_save_load_roundtrip_and_version(tmp_path):
         PiecewiseLinearModel.from_dict({"lower": []})
 
 
+def test_every_candidate_invalid_gives_infinite_cost():
+    model = PiecewiseLinearModel([[-np.inf]], [[np.inf]], [[1.0]], [1.0])
+    rejected = DurationTerm(model, lambda p: np.full((p.shape[0], 1), np.nan), uses=(0,))
+    problem = RefinementProblem((rejected,), [0.0], [1.0])
+    opts = GaOptions(stagnation=3)
+    assert refine_sequence(problem, 1, "ga", seed=0, options=opts).cost == np.inf
+
+
 def test_bad_input():
     problem = chain_problem(0, 3, 1, depth=2)
     with pytest.raises(RepertoireError, match="horizon 4 is not in 1..3"):

@@ -100,6 +100,32 @@ class PiecewiseLinearModel:
         if (arrays["lower"] > arrays["upper"]).any():
             raise RepertoireError("a leaf box has lower > upper; expected lower <= upper")
 
+    @classmethod
+    def from_leaves(cls, leaves) -> "PiecewiseLinearModel":
+        """Builds a model from leaf objects with ``lower``, ``upper``, ``coef``, ``intercept``.
+
+        The adapter for model trees that keep a list of leaves (one box and hyperplane
+        each). A tree whose leaves are half-open (``lower < f <= upper``) differs from
+        this model only on shared faces, where this one takes the smaller neighbour:
+        refinement then returns the infimum, approached from inside the cheaper leaf.
+
+        Args:
+            leaves: a non-empty sequence of such leaf objects.
+        """
+        leaves = list(leaves)
+        if not leaves:
+            raise RepertoireError("a model needs at least one leaf")
+        try:
+            fields = [
+                [getattr(leaf, name) for leaf in leaves]
+                for name in ("lower", "upper", "coef", "intercept")
+            ]
+        except AttributeError as exc:
+            raise RepertoireError(
+                f"leaves need lower, upper, coef and intercept attributes: {exc}"
+            ) from None
+        return cls(*fields)
+
     @property
     def n_leaves(self) -> int:
         return int(self.intercept.shape[0])

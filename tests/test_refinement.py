@@ -145,6 +145,21 @@ def test_non_affine_features_use_black_box():
     assert refine_sequence(problem, 1, "de", seed=0).cost == pytest.approx(1.0, abs=1e-6)
 
 
+def test_model_from_leaf_objects():
+    from types import SimpleNamespace
+
+    leaves = [
+        SimpleNamespace(lower=[-np.inf], upper=[0.0], coef=[-1.0], intercept=1.0),
+        SimpleNamespace(lower=[0.0], upper=[np.inf], coef=[1.0], intercept=2.0),
+    ]
+    model = PiecewiseLinearModel.from_leaves(leaves)
+    np.testing.assert_allclose(model.predict([[-2.0], [0.0], [0.5]]), [3.0, 1.0, 2.5])
+    with pytest.raises(RepertoireError, match="need lower, upper, coef and intercept"):
+        PiecewiseLinearModel.from_leaves([SimpleNamespace(lower=[0.0])])
+    with pytest.raises(RepertoireError, match="at least one leaf"):
+        PiecewiseLinearModel.from_leaves([])
+
+
 def test_model_save_load_roundtrip_and_version(tmp_path):
     model = random_model_tree(4, 3, 4)
     model.save(tmp_path / "m.json")

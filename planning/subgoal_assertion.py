@@ -1,0 +1,140 @@
+"""Subgoal assertion's optimisation core (section 7 of Stulp & Beetz, JAIR 2008).
+
+When the failure model predicts that going straight from ``start`` to ``goal`` fails
+(the robot bumps the ball it approaches), an intermediate pose is inserted: the
+subgoal minimises the predicted duration of start -> subgoal -> goal over the subgoals
+from which the failure model predicts that the last leg succeeds (Algorithm 4: other
+subgoals are INVALID). Features of poses are angles and distances, not affine, so the
+paper's genetic algorithm does the search. If the failure model rejects every
+candidate, the result says so and the plan is kept.
+"""
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+from repertoire.planning.black_box import GaOptions, genetic_minimise
+
+from repertoire.errors import RepertoireError
+
+
+@runtime_checkable
+class FailureClassifier(Protocol):
+    """What subgoal assertion needs from a failure model."""
+
+    def predict_success(self, features: np.ndarray) -> np.ndarray:
+        """(n, d) features -> (n,) booleans, True where success is predicted."""
+        ...
+
+
+LegFeatures = Callable[[np.ndarray, np.ndarray], np.ndarray]
+"""(from states (n, s), to states (n, s)) -> (n, d) features of one goToPose leg."""
+
+LegDuration = Callable[[np.ndarray], np.ndarray]
+"""(n, d) features -> (n,) predicted durations of a leg (e.g. a model's ``predict``)."""
+
+
+@dataclass(frozen=True)
+class SubgoalAssertion:
+    """The outcome of :func:`assert_subgoal`.
+
+    Args:
+        asserted: True if a subgoal was inserted.
+        subgoal: (s,) the inserted intermediate state, or None.
+        predicted_duration: predicted duration of the resulting plan (one or two legs),
+            +inf if the kept plan's single leg is outside the duration model.
+        reason: why (direct leg predicted to succeed; subgoal found; every candidate
+            predicted to fail, plan kept).
+        candidates: subgoals evaluated.
+    """
+
+    asserted: bool
+    subgoal: np.ndarray | None
+    predicted_duration: float
+    reason: str
+    candidates: int = 0
+
+
+def assert_subgoal(
+    start: np.ndarray,
+    goal: np.ndarray,
+    *,
+    classifier: FailureClassifier,
+    leg_features: LegFeatures,
+    leg_duration: LegDuration,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    seed: int,
+    options: GaOptions | None = None,
+    n_fallback: int = 2000,
+) -> SubgoalAssertion:
+    """Inserts an intermediate state if the direct leg is predicted to fail.
+
+    Args:
+        start: (s,) the current state, e.g. [x, y, phi, v].
+        goal: (s,) the target state.
+        classifier: predicts success of a leg from its features.
+        leg_features: features of legs from/to batches of states.
+        leg_duration: predicted duration of legs from their features.
+        lower: (s,) lower bounds of the subgoal (finite).
+        upper: (s,) upper bounds of the subgoal (finite, >= lower).
+        seed: seed of the genetic algorithm and of the fallback sample.
+        options: GA settings (default: the paper's).
+        n_fallback: seeded uniform candidates checked when the GA finds no valid one.
+
+    Returns:
+        The assertion; ``asserted`` is False both when no subgoal is needed and when the
+        failure model rejects every candidate (``reason`` says which).
+
+    Raises:
+        RepertoireError: mismatched shapes, non-finite values or empty ranges.
+    """
+    start = np.asarray(start, dtype=float).reshape(-1)
+    goal = np.asarray(goal, dtype=float).reshape(-1)
+    lower = np.asarray(lower, dtype=float).reshape(-1)
+    upper = np.asarray(upper, dtype=float).reshape(-1)
+    if not (start.shape == goal.shape == lower.shape == upper.shape):
+        raise RepertoireError(
+            f"start, goal, lower, upper must have one shape, got {start.shape}, "
+            f"{goal.shape}, {lower.shape}, {upper.shape}"
+        )
+    arrays = (start, goal, lower, upper)
+    if not all(np.isfinite(a).all() for a in arrays):
+        raise RepertoireError("start, goal and the subgoal bounds must be finite")
+    if (lower > upper).any():
+        raise RepertoireError(f"empty subgoal ranges at {np.flatnonzero(lower > upper)}")
+    if n_fallback < 0:
+        raise RepertoireError(f"n_fallback must be >= 0, got {n_fallback}")
+
+    direct = leg_features(start[None], goal[None])
+    if bool(np.asarray(classifier.predict_success(direct)).reshape(-1)[0]):
+        t = float(np.asarray(leg_duration(direct)).reshape(-1)[0])
+        return SubgoalAssertion(False, None, t, "direct leg predicted to succeed", 0)
+
+    def cost(subgoals: np.ndarray) -> np.ndarray:
+        n = subgoals.shape[0]
+        first = leg_features(np.repeat(start[None], n, axis=0), subgoals)
+        last = leg_features(subgoals, np.repeat(goal[None], n, axis=0))
+        ok = np.asarray(classifier.predict_success(last), dtype=bool).reshape(-1)
+        t = np.asarray(leg_duration(first)) + np.asarray(leg_duration(last))
+        return np.where(ok, t, np.inf)
+
+    best, best_cost, evals, _ = genetic_minimise(cost, lower, upper, seed=seed, options=options)
+    if not np.isfinite(best_cost) and n_fallback:
+        sample = np.random.default_rng(seed).uniform(lower, upper, (n_fallback, lower.size))
+        costs = cost(sample)
+        evals += n_fallback
+        i = int(np.argmin(costs))
+        best, best_cost = sample[i], float(costs[i])
+    if not np.isfinite(best_cost):
+        kept = float(np.asarray(leg_duration(direct)).reshape(-1)[0])
+        return SubgoalAssertion(
+            False,
+            None,
+            kept,
+            f"the failure model predicts failure from every one of {evals} candidate "
+            "subgoals; keeping the plan unchanged",
+            evals,
+        )
+    return SubgoalAssertion(True, best, best_cost, "direct leg predicted to fail", evals)

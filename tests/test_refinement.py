@@ -1,0 +1,210 @@
+"""Subgoal refinement back-ends against brute force, horizons, GA/DE, bad input."""
+
+import itertools
+
+import numpy as np
+import pytest
+from repertoire.planning.black_box import GaOptions, genetic_minimise, solve_de, solve_ga
+from repertoire.planning.refinement import (
+    AffineFeatures,
+    DurationModel,
+    DurationTerm,
+    PiecewiseLinearModel,
+    RefinementProblem,
+    refine_sequence,
+    solve_corners,
+    solve_milp,
+)
+from repertoire.planning.synthetic_models import chain_problem, random_model_tree
+from scipy.optimize import linprog
+
+from repertoire.errors import RepertoireError
+
+
+def _grid_minimum(problem: RefinementProblem, step: float) -> float:
+    axes = [np.arange(lo, hi + step / 2, step) for lo, hi in zip(problem.lower, problem.upper)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, problem.n_params)
+    return float(problem.cost(grid).min())
+
+
+def test_model_predicts_closed_form_and_lower_envelope():
+    # f <= 0: 1 - f ; f >= 0: 2 + f  -> on the face f = 0 the smaller value, 1
+    model = PiecewiseLinearModel([[-np.inf], [0.0]], [[0.0], [np.inf]], [[-1.0], [1.0]], [1, 2])
+    assert isinstance(model, DurationModel)
+    np.testing.assert_allclose(model.predict([[-2.0], [0.0], [0.5]]), [3.0, 1.0, 2.5])
+    bounded = PiecewiseLinearModel([[0.0]], [[1.0]], [[1.0]], [0.0])
+    assert bounded.predict([[2.0]])[0] == np.inf
+
+
+@pytest.mark.parametrize("seed,fitted", [(0, False), (1, False), (2, True), (3, True)])
+def test_exact_backends_match_brute_force_grid(seed, fitted):
+    # 3 actions, 2 subgoals x 1 parameter, and x 2 parameters: thresholds map to
+    # multiples of 0.125 in parameter space, so a 0.125 grid visits every corner.
+    for per in (1, 2):
+        problem = chain_problem(seed, 3, per, depth=4, fitted=fitted)
+        brute = _grid_minimum(problem, 0.125)
+        corners = solve_corners(problem)
+        milp = solve_milp(problem)
+        assert corners.cost == pytest.approx(brute, abs=1e-9)
+        assert problem.cost(corners.params)[0] == pytest.approx(corners.cost, abs=1e-9)
+        assert milp.cost == pytest.approx(brute, abs=1e-6)
+        assert np.all(milp.params >= problem.lower) and np.all(milp.params <= problem.upper)
+
+
+def test_milp_handles_mixing_affine_features_exactly():
+    # features mix parameters (f0 = p0 + p1, f1 = p0 - p1): corners refuse, the MILP
+    # agrees with enumerating every leaf combination's LP.
+    A = np.array([[1.0, 1.0], [1.0, -1.0]])
+    terms = tuple(
+        DurationTerm(random_model_tree(s, 2, 3), AffineFeatures(A * (1 + s), [0.1, -0.2]))
+        for s in range(2)
+    )
+    problem = RefinementProblem(terms, [-1.0, -1.0], [1.0, 1.0])
+    with pytest.raises(RepertoireError, match="use method='milp'"):
+        solve_corners(problem)
+    best = np.inf
+    models = [t.model for t in terms]
+    for leaves in itertools.product(*[range(m.n_leaves) for m in models]):
+        c, k, rows, rhs = np.zeros(2), 0.0, [], []
+        for term, m, leaf in zip(terms, models, leaves, strict=True):
+            Af, bf = term.features.A, term.features.b
+            c += m.coef[leaf] @ Af
+            k += m.coef[leaf] @ bf + m.intercept[leaf]
+            for j in range(2):
+                if np.isfinite(m.upper[leaf, j]):
+                    rows.append(Af[j]), rhs.append(m.upper[leaf, j] - bf[j])
+                if np.isfinite(m.lower[leaf, j]):
+                    rows.append(-Af[j]), rhs.append(bf[j] - m.lower[leaf, j])
+        lp = linprog(c, A_ub=np.array(rows), b_ub=rhs, bounds=[(-1, 1)] * 2)
+        if lp.status == 0:
+            best = min(best, lp.fun + k)
+    milp = solve_milp(problem)
+    assert milp.cost == pytest.approx(best, abs=1e-6)
+
+
+def test_black_box_backends_near_exact_and_seeded():
+    problem = chain_problem(5, 3, 1, depth=4)
+    exact = solve_corners(problem).cost
+    ga = solve_ga(problem, seed=3)
+    de = solve_de(problem, seed=3)
+    for result in (ga, de):
+        assert result.cost >= exact - 1e-9  # exact is a true lower bound
+        assert result.cost <= exact + 0.02 * abs(exact)
+    again = solve_ga(problem, seed=3)
+    np.testing.assert_array_equal(again.params, ga.params)
+    assert ga.iterations <= 500 and ga.evaluations >= 25 * 2
+
+
+def test_ga_paper_settings_and_stopping():
+    calls = []
+
+    def cost(x):
+        calls.append(x.shape[0])
+        return np.sum((x - 0.3) ** 2, axis=1) + 1.0
+
+    best, value, evals, generations = genetic_minimise(cost, np.zeros(3), np.ones(3), seed=1)
+    assert calls[0] == 75  # 25 chromosomes per free parameter
+    assert calls[1] == 75 - 2  # 2% elitism (round(1.5) = 2 elites re-used unevaluated)
+    assert generations <= 500 and evals == sum(calls)
+    np.testing.assert_allclose(best, 0.3, atol=0.05)
+    assert value == pytest.approx(cost(best[None])[0])
+    # all-invalid costs keep running until stagnation and report +inf
+    _, inf_value, _, gens = genetic_minimise(
+        lambda x: np.full(x.shape[0], np.inf), np.zeros(2), np.ones(2), seed=0,
+        options=GaOptions(stagnation=5),
+    )  # fmt: skip
+    assert inf_value == np.inf and gens == 5
+
+
+def test_horizons():
+    problem = chain_problem(7, 4, 2, depth=4)
+    exact = solve_corners(problem).cost
+    results = {h: refine_sequence(problem, h) for h in (1, 2, 3, 4)}
+    assert results[4].cost == pytest.approx(exact, abs=1e-9)
+    for r in results.values():
+        assert r.cost >= exact - 1e-9
+        assert problem.cost(r.params)[0] == pytest.approx(r.cost)
+        assert len(r.steps) == 3  # the last action has no free parameter left
+    assert results[1].cost >= results[4].cost
+    # the MILP back-end follows the same receding horizon
+    assert refine_sequence(problem, 2, "milp").cost == pytest.approx(results[2].cost, abs=1e-6)
+    ga = refine_sequence(problem, 2, "ga", seed=0)
+    assert ga.method == "ga" and ga.cost >= exact - 1e-9
+
+
+def test_non_affine_features_use_black_box():
+    # duration depends on an angle through cos: only GA/DE apply
+    model = PiecewiseLinearModel([[-np.inf]], [[np.inf]], [[-1.0]], [2.0])
+    term = DurationTerm(model, lambda p: np.cos(p[:, :1]), uses=(0,), name="turn")
+    problem = RefinementProblem((term,), [-np.pi], [np.pi])
+    with pytest.raises(RepertoireError, match="needs affine features"):
+        solve_corners(problem)
+    with pytest.raises(RepertoireError, match="needs affine features"):
+        solve_milp(problem)
+    assert solve_ga(problem, seed=0).cost == pytest.approx(1.0, abs=1e-4)
+    assert refine_sequence(problem, 1, "de", seed=0).cost == pytest.approx(1.0, abs=1e-6)
+
+
+def test_model_from_leaf_objects():
+    from types import SimpleNamespace
+
+    leaves = [
+        SimpleNamespace(lower=[-np.inf], upper=[0.0], coef=[-1.0], intercept=1.0),
+        SimpleNamespace(lower=[0.0], upper=[np.inf], coef=[1.0], intercept=2.0),
+    ]
+    model = PiecewiseLinearModel.from_leaves(leaves)
+    np.testing.assert_allclose(model.predict([[-2.0], [0.0], [0.5]]), [3.0, 1.0, 2.5])
+    with pytest.raises(RepertoireError, match="need lower, upper, coef and intercept"):
+        PiecewiseLinearModel.from_leaves([SimpleNamespace(lower=[0.0])])
+    with pytest.raises(RepertoireError, match="at least one leaf"):
+        PiecewiseLinearModel.from_leaves([])
+
+
+def test_model_save_load_roundtrip_and_version(tmp_path):
+    model = random_model_tree(4, 3, 4)
+    model.save(tmp_path / "m.json")
+    back = PiecewiseLinearModel.load(tmp_path / "m.json")
+    for name in ("lower", "upper", "coef", "intercept"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(model, name))
+    record = model.to_dict()
+    record["version"] = 0
+    with pytest.raises(RepertoireError, match="format version 0"):
+        PiecewiseLinearModel.from_dict(record)
+    with pytest.raises(RepertoireError, match="missing type"):
+        PiecewiseLinearModel.from_dict({"lower": []})
+
+
+def test_every_candidate_invalid_gives_infinite_cost():
+    model = PiecewiseLinearModel([[-np.inf]], [[np.inf]], [[1.0]], [1.0])
+    rejected = DurationTerm(model, lambda p: np.full((p.shape[0], 1), np.nan), uses=(0,))
+    problem = RefinementProblem((rejected,), [0.0], [1.0])
+    opts = GaOptions(stagnation=3)
+    assert refine_sequence(problem, 1, "ga", seed=0, options=opts).cost == np.inf
+
+
+def test_bad_input():
+    problem = chain_problem(0, 3, 1, depth=2)
+    with pytest.raises(RepertoireError, match="horizon 4 is not in 1..3"):
+        refine_sequence(problem, 4)
+    with pytest.raises(RepertoireError, match="horizon 0"):
+        refine_sequence(problem, 0)
+    with pytest.raises(RepertoireError, match="empty ranges"):
+        RefinementProblem(problem.terms, [0.0, 1.0], [1.0, 0.5], ("pos2.phi", "pos3.phi"))
+    with pytest.raises(RepertoireError, match="at least one action"):
+        RefinementProblem((), [0.0], [1.0])
+    with pytest.raises(RepertoireError, match="takes no options"):
+        refine_sequence(problem, 1, "corners", seed=0)
+    with pytest.raises(RepertoireError, match="unknown solver"):
+        refine_sequence(problem, 1, "simplex")
+    with pytest.raises(RepertoireError, match="lower > upper"):
+        PiecewiseLinearModel([[1.0]], [[0.0]], [[0.0]], [0.0])
+    with pytest.raises(RepertoireError, match="non-affine features need `uses`"):
+        DurationTerm(PiecewiseLinearModel([[0.0]], [[1.0]], [[0.0]], [0.0]), np.cos)
+    with pytest.raises(RepertoireError, match="invalid GA options"):
+        GaOptions(elite_fraction=1.5)
+    outside = RefinementProblem(
+        (DurationTerm(PiecewiseLinearModel([[5.0]], [[6.0]], [[0.0]], [1.0]),
+                      AffineFeatures([[1.0]], [0.0])),), [0.0], [1.0],
+    )  # fmt: skip
+    with pytest.raises(RepertoireError, match="no leaf of its model covers"):
+        solve_corners(outside)

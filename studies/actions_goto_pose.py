@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from repertoire.planning.action_models import goto_pose_features
 from repertoire.planning.action_models.features import GOTO_POSE_FEATURES
-from repertoire.studies.engine import register_study, study_main
+from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
 
@@ -353,13 +353,4 @@ register_study(
     demo_config=demo_config,
     demo_episodes=8,
     smoke_config=smoke_config,
-)
-
-
-def main() -> int:
-    """Runs the GoToPose episode study from the command line."""
-    return study_main("actions_goto_pose", description=__doc__.split("\n\n")[0])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+).run_if_main(__name__)

@@ -16,7 +16,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies.engine import register_study, study_main
+from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
 
@@ -190,13 +190,4 @@ register_study(
     demo_config=demo_config,
     demo_episodes=7,
     smoke_config=smoke_config,
-)
-
-
-def main() -> int:
-    """Runs the demonstration study from the command line."""
-    return study_main("littledog_demos", description=__doc__.split("\n\n")[0])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+).run_if_main(__name__)

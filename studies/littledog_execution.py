@@ -19,7 +19,7 @@ import math
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies.engine import register_study, study_main
+from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
 
@@ -324,13 +324,4 @@ register_study(
     demo_config=demo_config,
     demo_episodes=2,
     smoke_config=smoke_config,
-)
-
-
-def main() -> int:
-    """Runs the execution study from the command line."""
-    return study_main("littledog_execution", description=__doc__.split("\n\n")[0])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+).run_if_main(__name__)

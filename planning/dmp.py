@@ -657,6 +657,11 @@ def _gcv_savgol_window(x: np.ndarray, h: float, max_w: int) -> int:
     minimum-jerk segments, and noisy ones get the window that averages the noise out.
     """
     n = x.shape[0]
+    # GCV's argmin does not change with the data's scale; scaling keeps huge
+    # coordinates from overflowing the residual sums.
+    scale = float(np.max(np.abs(x))) if x.size else 0.0
+    if scale > 0.0 and np.isfinite(scale):
+        x = x / scale
     w = min(max(7, 2 * (n // 80) + 1), max_w)
     candidates = [w]
     while True:

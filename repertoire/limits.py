@@ -87,16 +87,38 @@ def require_grid_memory(size_m: float, resolution_m: float, what: str) -> None:
     )
 
 
+def _probe_folder(folder, shown, what: str) -> None:
+    """Creates and removes a file in ``folder``; raises RepertoireError when that fails.
+
+    Permission bits do not tell (root may write anywhere they forbid; /proc and
+    read-only mounts refuse even root), so the folder is tried for real.
+    """
+    import tempfile
+
+    try:
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".repertoire-write-probe-")
+    except OSError as e:
+        reason = e.strerror or type(e).__name__
+        raise RepertoireError(
+            f"{what} '{shown}': cannot write in folder '{folder}' ({reason})"
+        ) from None
+    os.close(fd)
+    os.unlink(probe)
+
+
 def require_writable_dir(path, what: str) -> None:
     """Checks, before any work, that ``path`` is or can become a writable folder.
+
+    Nothing is created: the nearest existing folder is probed with a file that
+    is removed at once.
 
     Args:
         path: the output folder (may not exist yet).
         what: the option that named it, for example ``"--out-dir"``.
 
     Raises:
-        RepertoireError: ``path`` or one of its parents is a file, or the
-            nearest existing folder is not writable.
+        RepertoireError: ``path`` or one of its parents is a file, or a file
+            cannot be created in the nearest existing folder.
     """
     from pathlib import Path
 
@@ -105,8 +127,7 @@ def require_writable_dir(path, what: str) -> None:
         if parent.exists():
             if not parent.is_dir():
                 raise RepertoireError(f"{what} '{p}': '{parent}' is a file, expected a folder")
-            if not os.access(parent, os.W_OK | os.X_OK):
-                raise RepertoireError(f"{what} '{p}': folder '{parent}' is not writable")
+            _probe_folder(parent, p, what)
             return
 
 
@@ -114,14 +135,21 @@ def require_writable_file(path, what: str) -> None:
     """Checks, before any work, that ``path`` can be written as a file.
 
     Raises:
-        RepertoireError: ``path`` is a folder, an existing read-only file, or its
-            folder cannot be written.
+        RepertoireError: ``path`` is a folder, an existing file that cannot be
+            opened for writing, or its folder cannot be written.
     """
     from pathlib import Path
 
     p = Path(path)
     if p.is_dir():
         raise RepertoireError(f"{what} '{p}' is a folder, expected a file path")
-    if p.exists() and not os.access(p, os.W_OK):
-        raise RepertoireError(f"{what} '{p}' is not writable")
+    if p.exists():
+        try:
+            with p.open("ab"):  # appends nothing: contents and size stay as they were
+                pass
+        except OSError as e:
+            raise RepertoireError(
+                f"{what} '{p}' is not writable ({e.strerror or type(e).__name__})"
+            ) from None
+        return
     require_writable_dir(p.parent, what)

@@ -3,6 +3,7 @@
 import dataclasses
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -303,6 +304,42 @@ def test_output_paths_are_checked_before_any_work(registries, tmp_path, capsys):
         err = capsys.readouterr().err
         assert "is a file, expected a folder" in err and err.count("\n") == 1, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
+
+
+def test_unwritable_folders_are_refused_before_any_work_even_for_root(registries, tmp_path, capsys):
+    # /proc refuses new files even to root, so this runs the real check whoever runs the tests.
+    unwritable = Path("/proc/repertoire-test-out")
+    if not Path("/proc").is_dir():
+        pytest.skip("no /proc on this system")
+    for argv in (
+        ["render", "test_pendulum", "--out", str(unwritable)],
+        ["simulate", "test_pendulum", "--replay", "--out", str(unwritable)],
+        ["demo", "--quick", "--out", str(unwritable / "demo")],
+        ["study", "toy_study", "--out-dir", str(unwritable), "--executor", "inline"],
+        ["study", "toy_study", "--store", "/proc/s.sqlite", "--out-dir", str(tmp_path / "o")],
+    ):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert "cannot write in folder '/proc'" in err and err.count("\n") == 1, err
+    assert list(tmp_path.iterdir()) == []
+    assert not [p for p in Path("/proc").glob(".repertoire-write-probe-*")]
+
+
+def test_writable_checks_probe_and_leave_nothing_behind(tmp_path):
+    from repertoire.errors import RepertoireError
+    from repertoire.limits import require_writable_dir, require_writable_file
+
+    existing = tmp_path / "kept.sqlite"
+    existing.write_bytes(b"abc")
+    require_writable_dir(tmp_path / "new" / "deeper", "--out")
+    require_writable_file(existing, "--store")
+    require_writable_file(tmp_path / "new.sqlite", "--store")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.sqlite"]
+    assert existing.read_bytes() == b"abc"
+    with pytest.raises(RepertoireError, match="--store '.*' is a folder, expected a file path"):
+        require_writable_file(tmp_path, "--store")
+    with pytest.raises(RepertoireError, match="'.*kept.sqlite' is a file, expected a folder"):
+        require_writable_dir(existing / "sub", "--out")
 
 
 def test_demo_holds_a_study_to_its_criteria_on_summary_figures(registries, tmp_path, capsys):

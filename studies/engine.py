@@ -5,45 +5,65 @@ dataclass and a module-level ``run_episode(config, seed)`` that builds its own
 diagram. :func:`run_study` runs the seeds ``first_seed .. first_seed+episodes-1``
 
 - ``executor="inline"``: in this process;
-- ``executor="process"``: on a local pool of ``workers`` spawned processes
-  (default: all cores);
-- ``executor="dask"``: on a Dask distributed cluster at ``scheduler_address``,
+- ``executor="process"``: on a local pool of ``workers`` processes (default:
+  all cores), forked from a fork server that has imported pydrake once
+  (:mod:`repertoire.studies.engine_pool`);
+- ``executor="dask"``: on a Dask distributed cluster at ``scheduler_address``
+  (:mod:`repertoire.studies.engine_dask`),
 
 and writes every record to an SQLite store the moment it finishes (see
-:mod:`repertoire.studies.store`); a rerun runs only the missing seeds. Workers
-receive only ``(module name, study name, config JSON, seed)`` and send back
-plain dicts: nothing from pydrake is pickled, every worker rebuilds the study
-from the config. Records are identical whatever the executor or worker count
-(fields named ``wall*_s`` are timing fields and excepted).
+:mod:`repertoire.studies.store`), with the episode's wall and CPU time; a
+rerun runs only the missing seeds. Workers receive only ``(module name, study
+name, config JSON, seed)`` and send back plain dicts: nothing from pydrake is
+pickled, every worker rebuilds the study from the config. Records are
+identical whatever the executor or worker count (fields named ``wall*_s`` are
+timing fields and excepted). An episode that kills its pool worker (a
+segfault, the out-of-memory killer) is recorded in the store's ``crashes``
+table, the other seeds run on, and the call then raises :class:`EpisodeError`
+naming the crashed seeds; a rerun tries them again.
 
 At the end the engine writes ``summary.csv``, ``summary.md`` and
 ``episodes.csv`` to ``out_dir``, plus the study's own figures (its
-``summarize``), or one histogram per numeric field when it has none.
+``summarize``), or one histogram per numeric field when it has none
+(:mod:`repertoire.studies.engine_summary`).
 
 This module imports neither pydrake nor dask at import time.
 """
 
 import argparse
-import csv
 import dataclasses
 import json
-import math
-import multiprocessing
 import os
-import re
-import socket
 import sys
-import threading
 import time
-import traceback
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from repertoire.studies.engine_dask import (
+    DASK_CONNECT_TIMEOUT_S,
+    connect_dask,
+    iter_dask,
+    parse_scheduler_address,
+)
+from repertoire.studies.engine_pool import (
+    EpisodeError,
+    WorkerPool,
+    iter_inline,
+    raise_task_error,
+)
+from repertoire.studies.engine_summary import (
+    comparable,
+    is_identifier_field,
+    is_timing_field,
+    summary_figures,
+    summary_rows,
+    use_agg,
+    write_histograms,
+    write_tables,
+)
 from repertoire.studies.registry import (
     StudyEntry,
     get_study,
-    lookup_in_module,
     register_study,
     study_names,
 )
@@ -66,22 +86,23 @@ __all__ = [
     "add_study_arguments",
     "comparable",
     "get_study",
+    "is_identifier_field",
     "is_timing_field",
+    "connect_dask",
     "load_records",
+    "parse_scheduler_address",
     "register_study",
     "run_study",
     "run_study_from_args",
     "study_main",
     "study_names",
+    "summary_figures",
+    "summary_rows",
+    "write_histograms",
+    "write_tables",
 ]
 
 EXECUTORS = ("inline", "process", "dask")
-DASK_CONNECT_TIMEOUT_S = 3.0
-WINDOW_PER_WORKER = 4  # seeds submitted ahead per worker
-
-
-class EpisodeError(RuntimeError):
-    """``run_episode`` raised for some seed; the message carries the worker's traceback."""
 
 
 @dataclasses.dataclass
@@ -121,442 +142,6 @@ class StudyResult:
 
 # Seeds are below this; ``load(0, STORE_SEED_LIMIT)`` is every stored seed.
 STORE_SEED_LIMIT = 2**62
-
-
-def is_timing_field(name: str) -> bool:
-    """True for timing fields (``wall*_s``), which may differ between runs."""
-    return name.startswith("wall") and name.endswith("_s")
-
-
-def _nan_safe(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return repr(value)  # 'nan', 'inf', '-inf': equal to themselves
-    if isinstance(value, list):
-        return [_nan_safe(v) for v in value]
-    if isinstance(value, dict):
-        return {k: _nan_safe(v) for k, v in value.items()}
-    return value
-
-
-def comparable(record: Any) -> dict[str, Any]:
-    """A record as plain data without its timing fields, for determinism checks.
-
-    Non-finite floats become the strings ``'nan'``, ``'inf'``, ``'-inf'`` so that
-    two runs that both produced NaN compare equal.
-    """
-    plain = to_plain(record, type(record).__name__)
-    return {k: _nan_safe(v) for k, v in plain.items() if not is_timing_field(k)}
-
-
-# ---------------------------------------------------------------------------
-# Work done per episode (the same function in-process, in pool workers and on
-# Dask workers). It takes and returns plain data only.
-
-_CONFIG_CACHE: dict[tuple[str, str], Any] = {}
-
-
-def _run_task(module: str, name: str, config_json: str, seed: int) -> dict[str, Any]:
-    """Runs one episode; returns ``{"seed", "record", "episode_s", "worker"}`` or an error dict."""
-    try:
-        entry = lookup_in_module(module, name)
-        key = (name, config_json)
-        config = _CONFIG_CACHE.get(key)
-        if config is None:
-            config = from_plain(entry.config_type, json.loads(config_json), "config")
-            _CONFIG_CACHE.clear()
-            _CONFIG_CACHE[key] = config
-        t0 = time.perf_counter()
-        record = entry.run_episode(config, seed)
-        episode_s = time.perf_counter() - t0
-        if type(record) is not entry.record_type:
-            return {
-                "seed": seed,
-                "error": "record_type",
-                "message": (
-                    f"study '{name}': run_episode(config, seed={seed}) returned "
-                    f"{type(record).__module__}.{type(record).__qualname__}, expected the "
-                    f"registered record_type {entry.record_type.__module__}."
-                    f"{entry.record_type.__qualname__}"
-                ),
-            }
-        plain = to_plain(record, f"{entry.record_type.__name__}(seed={seed})")
-        return {
-            "seed": seed,
-            "record": plain,
-            "episode_s": episode_s,
-            "worker": f"{socket.gethostname()}:{os.getpid()}",
-        }
-    except RepertoireError as e:
-        return {
-            "seed": seed,
-            "error": "repertoire",
-            "message": str(e),
-            "traceback": traceback.format_exc(),
-        }
-    except Exception as e:
-        return {
-            "seed": seed,
-            "error": "exception",
-            "message": f"{type(e).__name__}: {e}",
-            "traceback": traceback.format_exc(),
-        }
-
-
-def _raise_task_error(name: str, result: dict[str, Any]) -> None:
-    seed = result["seed"]
-    if result["error"] == "record_type":
-        raise RepertoireError(result["message"])
-    if result["error"] == "repertoire":
-        raise RepertoireError(f"study '{name}', seed {seed}: {result['message']}")
-    raise EpisodeError(
-        f"study '{name}': run_episode failed for seed {seed}: {result['message']}\n"
-        f"worker traceback:\n{result['traceback']}"
-        "Episodes finished before the failure are stored; rerun to resume."
-    )
-
-
-def _watch_parent(parent_pid: int) -> None:
-    """Exits this worker when the process that started it is gone (e.g. SIGKILLed)."""
-    while True:
-        time.sleep(0.5)
-        if os.getppid() != parent_pid:
-            os._exit(1)
-
-
-def _worker_init(parent_pid: int, module: str, name: str) -> None:
-    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True).start()
-    try:
-        lookup_in_module(module, name)  # import the study (and pydrake) once, up front
-    except Exception:  # reported per task by _run_task, with its traceback
-        pass
-
-
-# ---------------------------------------------------------------------------
-# Executors: each yields result dicts as episodes finish.
-
-
-def _iter_inline(module: str, name: str, config_json: str, seeds: list[int]) -> Iterator[dict]:
-    for seed in seeds:
-        yield _run_task(module, name, config_json, seed)
-
-
-def _iter_process(
-    module: str, name: str, config_json: str, seeds: list[int], workers: int
-) -> Iterator[dict]:
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-    from concurrent.futures.process import BrokenProcessPool
-
-    # spawn: pydrake and fork do not mix; every worker rebuilds the study from its name.
-    pool = ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=_worker_init,
-        initargs=(os.getpid(), module, name),
-    )
-    finished = False
-    todo = iter(seeds)
-    seed_of: dict = {}
-
-    def submit_next() -> None:
-        seed = next(todo, None)
-        if seed is not None:
-            seed_of[pool.submit(_run_task, module, name, config_json, seed)] = seed
-
-    try:
-        # A bounded window of submitted seeds keeps memory flat for long studies.
-        for _ in range(workers * WINDOW_PER_WORKER):
-            submit_next()
-        pending = set(seed_of)
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                try:
-                    result = fut.result()
-                except BrokenProcessPool as e:
-                    raise EpisodeError(
-                        f"study '{name}': a worker process died (crash or out of memory) while "
-                        f"running seed {seed_of[fut]}; finished episodes are stored, rerun to "
-                        "resume"
-                    ) from e
-                del seed_of[fut]
-                submit_next()
-                yield result
-            pending = set(seed_of)
-        finished = True
-    finally:
-        pool.shutdown(wait=finished, cancel_futures=True)
-
-
-_ADDRESS = re.compile(r"^(tcp|tls|ws|wss|ucx)://(\[[0-9a-fA-F:]+\]|[A-Za-z0-9._-]+):(\d{1,5})$")
-
-
-def parse_scheduler_address(address: Any) -> str:
-    """Checks a Dask scheduler address before any connection is tried.
-
-    Args:
-        address: ``PROTOCOL://HOST:PORT`` with PROTOCOL tcp, tls, ws, wss or ucx
-            and PORT in 1..65535, for example ``tcp://127.0.0.1:8786``.
-
-    Returns:
-        The address.
-
-    Raises:
-        RepertoireError: a missing or malformed address (says what is expected).
-    """
-    example = "expected PROTOCOL://HOST:PORT, e.g. tcp://127.0.0.1:8786"
-    if not isinstance(address, str) or not address:
-        raise RepertoireError(
-            f"--executor dask needs --scheduler (scheduler_address); {example}; got {address!r}"
-        )
-    m = _ADDRESS.match(address)
-    if m is None or not 1 <= int(m.group(3)) <= 65535:
-        raise RepertoireError(f"--scheduler {address!r} is not a Dask address; {example}")
-    return address
-
-
-def connect_dask(scheduler_address: str, timeout_s: float = DASK_CONNECT_TIMEOUT_S):
-    """Connects a ``dask.distributed.Client`` to a scheduler, failing fast.
-
-    Args:
-        scheduler_address: e.g. ``tcp://10.0.0.5:8786``.
-        timeout_s: connection timeout.
-
-    Raises:
-        RepertoireError: dask.distributed is not installed, or the scheduler is
-            not reachable within ``timeout_s`` (names the address).
-    """
-    scheduler_address = parse_scheduler_address(scheduler_address)
-    try:
-        from distributed import Client
-    except ImportError as e:
-        raise RepertoireError(
-            "--executor dask (executor='dask') needs dask.distributed: "
-            "pip install 'repertoire[dask]'"
-        ) from e
-    try:
-        return Client(scheduler_address, timeout=f"{timeout_s}s", set_as_default=False)
-    except Exception as e:
-        raise RepertoireError(
-            f"could not connect to the Dask scheduler at '{scheduler_address}' within "
-            f"{timeout_s:g} s ({type(e).__name__}: {e}); start one with `dask scheduler` "
-            "and `dask worker <address>`, or use --executor process"
-        ) from e
-
-
-def _iter_dask(
-    client, module: str, name: str, config_json: str, seeds: list[int]
-) -> Iterator[dict]:
-    import uuid
-
-    from distributed import as_completed
-
-    token = uuid.uuid4().hex[:8]
-    todo = iter(seeds)
-    seed_of: dict = {}
-    threads = sum(client.nthreads().values()) or 1
-    window = max(64, threads * WINDOW_PER_WORKER)
-    ac = as_completed(loop=client.loop)
-
-    def submit_next() -> None:
-        seed = next(todo, None)
-        if seed is not None:
-            key = f"{name}-{token}-{seed}"
-            fut = client.submit(_run_task, module, name, config_json, seed, key=key, pure=False)
-            seed_of[fut] = seed
-            ac.add(fut)
-
-    try:
-        # A bounded window of submitted seeds keeps the scheduler's load flat.
-        for _ in range(window):
-            submit_next()
-        for fut in ac:
-            try:
-                result = fut.result()
-            except Exception as e:  # KilledWorker, lost scheduler, ...
-                raise EpisodeError(
-                    f"study '{name}': the Dask cluster could not run seed {seed_of[fut]} "
-                    f"({type(e).__name__}: {e}); finished episodes are stored, rerun to resume"
-                ) from e
-            del seed_of[fut]
-            submit_next()
-            yield result
-    finally:
-        client.cancel(list(seed_of))
-
-
-# ---------------------------------------------------------------------------
-# Summaries.
-
-
-def is_identifier_field(name: str) -> bool:
-    """Fields that name an episode rather than measure it (``seed``, ``*_seed``, ``*_id``)."""
-    return name in ("seed", "id", "index") or name.endswith(("_seed", "_id", "_index"))
-
-
-def _numeric_fields(record_type: type, records: list) -> tuple[list[str], list[str]]:
-    """(numeric field names, bool field names) of the record type, in field order.
-
-    None is a missing value (for example "no path"); identifiers are skipped.
-    """
-    numeric, boolean = [], []
-    for f in dataclasses.fields(record_type):
-        if is_identifier_field(f.name):
-            continue
-        values = [getattr(r, f.name) for r in records if getattr(r, f.name) is not None]
-        if values and all(isinstance(v, bool) for v in values):
-            boolean.append(f.name)
-        elif values and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in values
-        ):
-            numeric.append(f.name)
-    return numeric, boolean
-
-
-def _present(value: Any) -> bool:
-    """False for a missing value: None or NaN."""
-    return value is not None and not (isinstance(value, float) and math.isnan(value))
-
-
-def summary_rows(record_type: type, records: list) -> list[dict[str, Any]]:
-    """One summary row per numeric or bool record field.
-
-    Numeric fields get ``n`` (finite values), ``mean``, ``std`` (population),
-    ``min``, ``max``; bool fields get ``n`` and ``success_rate``. Missing values
-    (None, NaN) and identifier fields (``seed``) are left out.
-    """
-    numeric, boolean = _numeric_fields(record_type, records)
-    rows = []
-    for name in numeric:
-        vals = [float(v) for r in records if _present(v := getattr(r, name))]
-        finite = [v for v in vals if math.isfinite(v)]
-        n = len(finite)
-        mean = sum(finite) / n if n else math.nan
-        std = math.sqrt(sum((v - mean) ** 2 for v in finite) / n) if n else math.nan
-        rows.append(
-            {
-                "field": name,
-                "n": n,
-                "mean": mean,
-                "std": std,
-                "min": min(finite) if n else math.nan,
-                "max": max(finite) if n else math.nan,
-                "success_rate": "",
-            }
-        )
-    for name in boolean:
-        vals = [bool(v) for r in records if _present(v := getattr(r, name))]
-        rows.append(
-            {
-                "field": name,
-                "n": len(vals),
-                "mean": "",
-                "std": "",
-                "min": "",
-                "max": "",
-                "success_rate": sum(vals) / len(vals) if vals else math.nan,
-            }
-        )
-    return rows
-
-
-def summary_figures(record_type: type, records: list) -> dict[str, float]:
-    """The summary as named figures, the ones study criteria bound.
-
-    ``mean_<field>``, ``std_<field>``, ``min_<field>``, ``max_<field>`` of numeric
-    fields and ``rate_<field>`` of bool fields.
-    """
-    figures: dict[str, float] = {}
-    for row in summary_rows(record_type, records):
-        if row["success_rate"] != "":
-            figures[f"rate_{row['field']}"] = float(row["success_rate"])
-        else:
-            for key in ("mean", "std", "min", "max"):
-                figures[f"{key}_{row['field']}"] = float(row[key])
-    return figures
-
-
-def _fmt(v: Any) -> str:
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    return str(v)
-
-
-def write_tables(
-    name: str, record_type: type, records: list, seeds: list[int], out_dir: Path
-) -> dict[str, Path]:
-    """Writes summary.csv, summary.md and episodes.csv; returns their paths."""
-    rows = summary_rows(record_type, records)
-    cols = ["field", "n", "mean", "std", "min", "max", "success_rate"]
-    csv_path = out_dir / "summary.csv"
-    with csv_path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=cols)
-        w.writeheader()
-        for row in rows:
-            w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in row.items()})
-    md_path = out_dir / "summary.md"
-    lines = [
-        f"# Study `{name}`: {len(records)} episodes (seeds {seeds[0]}..{seeds[-1]})",
-        "",
-        f"Every one of the {len(records)} episodes stored for this config (the store may hold "
-        "more seeds than the last run asked for). `n` counts the finite values of a field; "
-        "missing values (no result) are left out.",
-        "",
-        "| " + " | ".join(cols) + " |",
-        "|" + "|".join(["---"] + ["---:"] * (len(cols) - 1)) + "|",
-    ]
-    lines += ["| " + " | ".join(_fmt(row[c]) for c in cols) + " |" for row in rows]
-    md_path.write_text("\n".join(lines) + "\n")
-    ep_path = out_dir / "episodes.csv"
-    fields = [f.name for f in dataclasses.fields(record_type)]
-    with ep_path.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["seed", *fields])
-        for seed, rec in zip(seeds, records):
-            row = [seed]
-            for f in fields:
-                v = getattr(rec, f)
-                row.append(
-                    repr(v)
-                    if isinstance(v, float)
-                    else (v if isinstance(v, (int, str, bool)) else json.dumps(to_plain(v)))
-                )
-            w.writerow(row)
-    return {"summary.csv": csv_path, "summary.md": md_path, "episodes.csv": ep_path}
-
-
-def _use_agg() -> None:
-    import matplotlib
-
-    if matplotlib.get_backend().lower() != "agg":
-        try:
-            matplotlib.use("Agg")
-        except Exception:  # a GUI backend already in use: our figures use Figure() anyway
-            pass
-
-
-def write_histograms(record_type: type, records: list, out_dir: Path) -> dict[str, Path]:
-    """One histogram PNG per numeric record field; returns ``{label: path}``."""
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import MaxNLocator
-
-    numeric, _ = _numeric_fields(record_type, records)
-    figures = {}
-    for name in numeric:
-        vals = [float(v) for r in records if _present(v := getattr(r, name))]
-        finite = [v for v in vals if math.isfinite(v)]
-        fig = Figure(figsize=(5, 3.5), layout="constrained")
-        ax = fig.add_subplot()
-        ax.hist(finite, bins=min(30, max(5, len(finite) // 3)), color="tab:blue", alpha=0.8)
-        ax.set_xlabel(name)
-        ax.set_ylabel("episodes")
-        ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts: whole ticks
-        missing = len(records) - len(finite)
-        left_out = f" ({missing} missing or non-finite left out)" if missing else ""
-        ax.set_title(f"{name} over {len(finite)} episodes{left_out}", fontsize=9)
-        path = out_dir / f"hist_{name}.png"
-        fig.savefig(path, dpi=100)
-        figures[f"hist_{name}"] = path
-    return figures
 
 
 # ---------------------------------------------------------------------------
@@ -699,6 +284,11 @@ def run_study(
         raise RepertoireError(
             "--scheduler (scheduler_address) is only used with --executor dask (executor='dask')"
         )
+    n_workers = {"inline": 1, "process": workers or _all_cores(), "dask": None}[executor]
+    pool = None
+    if executor == "process" and (fresh or not store_path.exists()):
+        # Every seed will run: start the workers now, while the store is being opened.
+        pool = WorkerPool(entry.module, name, config_json, min(n_workers, episodes))
     try:
         record_fields = [f.name for f in dataclasses.fields(entry.record_type)]
         with EpisodeStore.open(
@@ -711,21 +301,25 @@ def run_study(
             present = db.seeds(first_seed, episodes)
             seeds = list(range(first_seed, first_seed + episodes))
             missing = [s for s in seeds if s not in present]
-            n_workers = _run_missing(
-                entry,
-                db,
-                config_json,
-                missing,
-                len(present),
-                episodes,
-                executor,
-                workers,
-                client,
-                progress,
-            )
+            if executor == "process" and missing:
+                n_workers = min(n_workers, len(missing))
+                if pool is None:
+                    pool = WorkerPool(entry.module, name, config_json, n_workers)
+            if executor == "inline":
+                results = iter_inline(entry.module, name, config_json, missing)
+            elif executor == "process":
+                results = pool.run(missing) if missing else iter([])
+            else:
+                results = iter_dask(client, entry.module, name, config_json, missing)
+            _store_results(name, db, results, len(present), episodes, progress)
+            if pool is not None:
+                pool.close()
+                pool = None
             rows = db.load(first_seed, episodes)
             stored = db.load(0, STORE_SEED_LIMIT)  # every stored seed of this config
     finally:
+        if pool is not None:
+            pool.close(abort=True)
         if client is not None:
             client.close()
     if [r.seed for r in rows] != seeds:
@@ -742,7 +336,7 @@ def run_study(
     if summarize:
         out_path.mkdir(parents=True, exist_ok=True)
         tables = write_tables(name, entry.record_type, stored_records, stored_seeds, out_path)
-        _use_agg()
+        use_agg()
         if entry.summarize is not None:
             made = entry.summarize(records, rebuilt, out_path)
             if not isinstance(made, dict):
@@ -776,42 +370,17 @@ def _all_cores() -> int:
     return os.cpu_count() or 1
 
 
-def _run_missing(
-    entry: StudyEntry,
-    db: EpisodeStore,
-    config_json: str,
-    missing: list[int],
-    n_present: int,
-    episodes: int,
-    executor: str,
-    workers: int | None,
-    client,
-    progress: bool,
-) -> int | None:
-    """Runs ``missing`` seeds on the executor, storing each result as it arrives.
+def _store_results(
+    name: str, db: EpisodeStore, results, n_present: int, episodes: int, progress: bool
+) -> None:
+    """Stores each result as it arrives; records crashes and raises for them at the end.
 
-    Returns:
-        The number of worker processes used (None for dask).
+    Raises:
+        RepertoireError, EpisodeError: an episode raised (at once), or one or
+            more episodes killed their worker (after every other seed ran).
     """
     from tqdm import tqdm
 
-    module, name = entry.module, entry.name
-    n_workers: int | None
-    if executor == "inline":
-        n_workers = 1
-    elif executor == "process":
-        n_workers = workers or _all_cores()
-    else:
-        n_workers = None
-    if not missing:
-        return n_workers
-    if executor == "inline":
-        results = _iter_inline(module, name, config_json, missing)
-    elif executor == "process":
-        n_workers = min(n_workers, len(missing))
-        results = _iter_process(module, name, config_json, missing, n_workers)
-    else:
-        results = _iter_dask(client, module, name, config_json, missing)
     bar = tqdm(
         total=episodes,
         initial=n_present,
@@ -822,12 +391,23 @@ def _run_missing(
         # On a terminal, a live bar; in a log file, one line every 10 s instead of a flood.
         mininterval=0.1 if sys.stderr.isatty() else 10.0,
     )
+    crashes = []
     try:
         for result in results:
+            if result.get("error") == "crash":
+                db.record_crash(
+                    result["seed"], result["exitcode"], result["message"], result["worker"]
+                )
+                crashes.append(result)
+                continue
             if "error" in result:
-                _raise_task_error(name, result)
+                raise_task_error(name, result)
             db.insert(
-                result["seed"], json.dumps(result["record"]), result["episode_s"], result["worker"]
+                result["seed"],
+                json.dumps(result["record"]),
+                result["episode_s"],
+                result["worker"],
+                cpu_s=result.get("cpu_s"),
             )
             bar.update(1)
     finally:
@@ -835,7 +415,14 @@ def _run_missing(
         close = getattr(results, "close", None)
         if close is not None:
             close()
-    return n_workers
+    if crashes:
+        seeds = sorted(c["seed"] for c in crashes)
+        raise EpisodeError(
+            f"study '{name}': a worker process died (crash or out of memory) while running "
+            f"seed{'s' if len(seeds) > 1 else ''} {seeds[:10]}{' ...' if len(seeds) > 10 else ''} "
+            f"({crashes[0]['message']}); every other episode is stored and the crashes are in "
+            f"the store's crashes table; rerun to resume (crashed seeds are tried again)"
+        )
 
 
 # ---------------------------------------------------------------------------

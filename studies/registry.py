@@ -24,7 +24,9 @@ from repertoire.errors import RepertoireError, UnknownNameError
 from repertoire.registry import add_entry, discover, lookup
 
 # Modules of repertoire.studies that are the engine itself, not studies.
-ENGINE_MODULES = frozenset({"engine", "store", "registry"})
+ENGINE_MODULES = frozenset(
+    {"engine", "engine_dask", "engine_pool", "engine_summary", "store", "registry"}
+)
 
 
 @dataclasses.dataclass

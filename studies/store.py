@@ -5,7 +5,12 @@ finishes (WAL journal, ``INSERT OR IGNORE`` on ``PRIMARY KEY (seed)``), so a
 SIGKILL loses at most the episodes in flight and never duplicates or corrupts a
 row. A ``meta`` table holds the study name, the canonical JSON of the config,
 its SHA-256 and the record's field names; opening a store with another config
-is refused unless ``fresh=True``.
+is refused unless ``fresh=True``. Each row keeps the episode's wall time
+``episode_s`` and CPU time ``cpu_s`` (NULL in stores written before it was
+measured: the column is added when such a store is opened). A ``crashes``
+table lists seeds whose episode killed its worker process (a seed may appear
+once per run that tried it); such seeds have no episode row, so a rerun tries
+them again.
 
 Configs and records cross process boundaries and land in the store only as
 plain data (JSON): :func:`to_plain` and :func:`from_plain` convert dataclasses
@@ -25,6 +30,10 @@ from typing import Any
 from repertoire.errors import RepertoireError
 
 SCHEMA_VERSION = "1"
+_CREATE_CRASHES = (
+    "CREATE TABLE IF NOT EXISTS crashes (seed INTEGER NOT NULL, exitcode INTEGER, "
+    "message TEXT NOT NULL, worker TEXT NOT NULL, finished_unix REAL NOT NULL)"
+)
 
 
 def to_plain(value: Any, path: str = "value") -> Any:
@@ -179,6 +188,7 @@ class StoredEpisode:
         episode_s: wall time of run_episode measured by the engine.
         finished_unix: when the row was written (Unix time).
         worker: ``host:pid`` of the process that ran the episode.
+        cpu_s: CPU time of run_episode in its process (None if not measured).
     """
 
     seed: int
@@ -186,6 +196,29 @@ class StoredEpisode:
     episode_s: float
     finished_unix: float
     worker: str
+    cpu_s: float | None = None
+
+
+@dataclasses.dataclass
+class StoredCrash:
+    """One episode that killed its worker process.
+
+    Attributes:
+        seed: the episode's seed.
+        exitcode: the worker's exit code (negative: killed by that signal).
+        message: what the engine said about it.
+        worker: ``host:pid`` of the process that died.
+        finished_unix: when the crash was seen (Unix time).
+    """
+
+    seed: int
+    exitcode: int | None
+    message: str
+    worker: str
+    finished_unix: float
+
+
+_EPISODE_COLUMNS = "seed, record, episode_s, finished_unix, worker, cpu_s"
 
 
 class EpisodeStore:
@@ -280,6 +313,7 @@ class EpisodeStore:
                     f"store '{self.path}' has schema version {meta.get('schema_version')}, "
                     f"this engine writes {SCHEMA_VERSION}; {hint}"
                 )
+            self._add_later_columns()
             return
         conn.execute("BEGIN IMMEDIATE")
         try:
@@ -289,9 +323,11 @@ class EpisodeStore:
             conn.execute(
                 "CREATE TABLE IF NOT EXISTS episodes (seed INTEGER PRIMARY KEY, "
                 "record TEXT NOT NULL, episode_s REAL NOT NULL, finished_unix REAL NOT NULL, "
-                "worker TEXT NOT NULL)"
+                "worker TEXT NOT NULL, cpu_s REAL)"
             )
+            conn.execute(_CREATE_CRASHES)
             conn.execute("DELETE FROM episodes")
+            conn.execute("DELETE FROM crashes")
             conn.execute("DELETE FROM meta")
             wanted["created_unix"] = repr(time.time())
             conn.executemany("INSERT INTO meta (key, value) VALUES (?, ?)", wanted.items())
@@ -299,6 +335,14 @@ class EpisodeStore:
         except BaseException:
             conn.execute("ROLLBACK")
             raise
+        self._add_later_columns()
+
+    def _add_later_columns(self) -> None:
+        """Brings a store written by an older engine up to date (cpu_s, crashes)."""
+        columns = {r[1] for r in self._conn.execute("PRAGMA table_info(episodes)")}
+        if "cpu_s" not in columns:
+            self._conn.execute("ALTER TABLE episodes ADD COLUMN cpu_s REAL")
+        self._conn.execute(_CREATE_CRASHES)
 
     def seeds(self, first_seed: int, episodes: int) -> set[int]:
         """The stored seeds among ``first_seed .. first_seed + episodes - 1``."""
@@ -308,24 +352,53 @@ class EpisodeStore:
         )
         return {r[0] for r in rows}
 
-    def insert(self, seed: int, record_json: str, episode_s: float, worker: str) -> bool:
+    def insert(
+        self,
+        seed: int,
+        record_json: str,
+        episode_s: float,
+        worker: str,
+        *,
+        cpu_s: float | None = None,
+    ) -> bool:
         """Writes one episode in its own transaction; never overwrites a stored seed.
 
         Returns:
             True if the row was new, False if the seed was already stored.
         """
         cur = self._conn.execute(
-            "INSERT OR IGNORE INTO episodes (seed, record, episode_s, finished_unix, worker) "
-            "VALUES (?, ?, ?, ?, ?)",
-            (seed, record_json, float(episode_s), time.time(), worker),
+            f"INSERT OR IGNORE INTO episodes ({_EPISODE_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?)",
+            (
+                seed,
+                record_json,
+                float(episode_s),
+                time.time(),
+                worker,
+                None if cpu_s is None else float(cpu_s),
+            ),
         )
         return cur.rowcount == 1
+
+    def record_crash(self, seed: int, exitcode: int | None, message: str, worker: str) -> None:
+        """Notes that the episode of ``seed`` killed its worker (in its own transaction)."""
+        self._conn.execute(
+            "INSERT INTO crashes (seed, exitcode, message, worker, finished_unix) "
+            "VALUES (?, ?, ?, ?, ?)",
+            (seed, exitcode, message, worker, time.time()),
+        )
+
+    def crashes(self) -> list[StoredCrash]:
+        """Every recorded crash, oldest first."""
+        rows = self._conn.execute(
+            "SELECT seed, exitcode, message, worker, finished_unix FROM crashes "
+            "ORDER BY finished_unix, rowid"
+        )
+        return [StoredCrash(*r) for r in rows]
 
     def load(self, first_seed: int, episodes: int) -> list[StoredEpisode]:
         """The stored rows among the given seeds, sorted by seed."""
         rows = self._conn.execute(
-            "SELECT seed, record, episode_s, finished_unix, worker FROM episodes "
-            "WHERE seed >= ? AND seed < ? ORDER BY seed",
+            f"SELECT {_EPISODE_COLUMNS} FROM episodes WHERE seed >= ? AND seed < ? ORDER BY seed",
             (first_seed, first_seed + episodes),
         )
         return [StoredEpisode(*r) for r in rows]
@@ -361,8 +434,11 @@ def read_store(path: str | Path) -> tuple[dict[str, str], list[StoredEpisode]]:
     try:
         with sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=30.0) as conn:
             meta = dict(conn.execute("SELECT key, value FROM meta"))
+            columns = {r[1] for r in conn.execute("PRAGMA table_info(episodes)")}
+            cpu = "cpu_s" if "cpu_s" in columns else "NULL"  # older stores: not measured
             rows = conn.execute(
-                "SELECT seed, record, episode_s, finished_unix, worker FROM episodes ORDER BY seed"
+                "SELECT seed, record, episode_s, finished_unix, worker, "
+                f"{cpu} FROM episodes ORDER BY seed"
             )
             episodes = [StoredEpisode(*r) for r in rows]
     except sqlite3.DatabaseError as e:

@@ -533,7 +533,21 @@ def test_worker_crash_is_reported_and_study_outside_the_package_runs(tmp_path, m
             )
         with sqlite3.connect(tmp_path / "crash.sqlite") as db:
             stored = {r[0] for r in db.execute("SELECT seed FROM episodes")}
-        assert stored <= {0, 1}
+            crashes = list(db.execute("SELECT seed, exitcode, message FROM crashes"))
+        # Exactly the crashing seed is lost; the study went on with the others.
+        assert stored == {0, 1, 3}
+        assert [(seed, code) for seed, code, _ in crashes] == [(2, 3)]
+        assert "died (exit code 3) while running seed 2" in crashes[0][2]
+        # A rerun tries the crashed seed again (and it crashes again, alone).
+        with pytest.raises(EpisodeError, match=r"while running seed \[2\]"):
+            run_study(
+                "_crash_study",
+                crash_study_module.CrashConfig(crash_seed=2),
+                episodes=4,
+                executor="process",
+                workers=2,
+                **_kw(tmp_path, "crash"),
+            )
     finally:
         registry._REGISTRY.pop("_crash_study", None)
         sys.modules.pop("crash_study_module", None)

@@ -1,0 +1,207 @@
+"""Tests of the engine's worker pool (engine_pool), the store's cpu_s and crashes, and the
+engine's module split (engine_* modules are not studies)."""
+
+import importlib
+import json
+import sqlite3
+import sys
+import textwrap
+import types
+
+import pytest
+from repertoire.studies import registry
+from repertoire.studies.engine import EpisodeError, run_study
+from repertoire.studies.engine_pool import WorkerPool, describe_exit, run_task
+from repertoire.studies.store import EpisodeStore, read_store
+
+from repertoire.errors import RepertoireError
+
+_MODULE = textwrap.dedent(
+    """
+    import dataclasses
+    import os
+    import signal
+
+    from repertoire.studies.engine import register_study
+
+
+    @dataclasses.dataclass
+    class PoolConfig:
+        exit_seeds: list[int] = dataclasses.field(default_factory=list)
+        segv_seeds: list[int] = dataclasses.field(default_factory=list)
+
+
+    @dataclasses.dataclass
+    class PoolRecord:
+        seed_cubed: int
+        pid: int
+
+
+    def run_episode(config, seed):
+        if seed in config.exit_seeds:
+            os._exit(7)
+        if seed in config.segv_seeds:
+            os.kill(os.getpid(), signal.SIGSEGV)  # as a crashing simulation would
+        return PoolRecord(seed_cubed=seed**3, pid=os.getpid())
+
+
+    register_study("_pool_study", config_type=PoolConfig, record_type=PoolRecord,
+                   run_episode=run_episode, description="test-only")
+    """
+)
+
+
+@pytest.fixture
+def pool_study(tmp_path, monkeypatch):
+    (tmp_path / "pool_study_module.py").write_text(_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))  # workers take the engine's sys.path
+    module = importlib.import_module("pool_study_module")
+    yield module
+    registry._REGISTRY.pop("_pool_study", None)
+    sys.modules.pop("pool_study_module", None)
+
+
+def _config_json(module, **kw) -> str:
+    import dataclasses
+
+    from repertoire.studies.store import canonical_json
+
+    return canonical_json(dataclasses.asdict(module.PoolConfig(**kw)))
+
+
+def test_pool_crash_costs_exactly_the_crashing_seeds_and_the_rest_runs(pool_study):
+    config_json = _config_json(pool_study, exit_seeds=[1, 6], segv_seeds=[4])
+    with WorkerPool("pool_study_module", "_pool_study", config_json, 2) as pool:
+        results = list(pool.run(list(range(9))))
+    by_seed = {r["seed"]: r for r in results}
+    assert sorted(by_seed) == list(range(9))  # one result per seed, none twice
+    crashed = {s: r for s, r in by_seed.items() if r.get("error") == "crash"}
+    assert sorted(crashed) == [1, 4, 6]
+    assert crashed[1]["exitcode"] == 7 and crashed[6]["exitcode"] == 7
+    assert crashed[4]["exitcode"] == -11
+    assert "killed by signal SIGSEGV) while running seed 4" in crashed[4]["message"]
+    for seed in (0, 2, 3, 5, 7, 8):
+        assert by_seed[seed]["record"]["seed_cubed"] == seed**3
+        assert by_seed[seed]["cpu_s"] >= 0.0 and by_seed[seed]["episode_s"] >= 0.0
+    # Three distinct workers died; each was replaced, so 2 + 3 processes ran in all.
+    dead = {r["worker"] for r in crashed.values()}
+    pids = {by_seed[s]["record"]["pid"] for s in (0, 2, 3, 5, 7, 8)}
+    assert len(dead) == 3 and len(pids | {int(w.split(":")[1]) for w in dead}) <= 5
+
+
+def test_study_records_crashes_goes_on_and_a_rerun_retries_them(pool_study, tmp_path):
+    kw = dict(store=tmp_path / "s.sqlite", out_dir=tmp_path / "o", progress=False)
+    with pytest.raises(EpisodeError, match=r"while running seeds \[3, 5\] .* crashes table"):
+        run_study(
+            "_pool_study",
+            pool_study.PoolConfig(exit_seeds=[3, 5]),
+            episodes=8,
+            executor="process",
+            workers=2,
+            **kw,
+        )
+    meta, rows = read_store(tmp_path / "s.sqlite")
+    assert [r.seed for r in rows] == [0, 1, 2, 4, 6, 7]
+    assert all(r.cpu_s is not None and r.cpu_s >= 0.0 for r in rows)
+    with sqlite3.connect(tmp_path / "s.sqlite") as db:
+        assert sorted(r[0] for r in db.execute("SELECT seed FROM crashes")) == [3, 5]
+    assert not (tmp_path / "o" / "summary.md").exists()  # no summary over a hole
+    with pytest.raises(EpisodeError, match=r"seeds \[3, 5\]"):  # only those two run again
+        run_study(
+            "_pool_study",
+            pool_study.PoolConfig(exit_seeds=[3, 5]),
+            episodes=8,
+            executor="process",
+            workers=2,
+            **kw,
+        )
+    with sqlite3.connect(tmp_path / "s.sqlite") as db:
+        assert sorted(r[0] for r in db.execute("SELECT seed FROM crashes")) == [3, 3, 5, 5]
+        assert db.execute("SELECT COUNT(*) FROM episodes").fetchone()[0] == 6
+
+
+def test_inline_and_pool_store_cpu_time_per_episode(tmp_path):
+    from repertoire.studies.pendulum import smoke_config
+
+    for executor in ("inline", "process"):
+        run_study(
+            "pendulum",
+            smoke_config(),
+            episodes=2,
+            executor=executor,
+            workers=1,
+            store=tmp_path / f"{executor}.sqlite",
+            out_dir=tmp_path / executor,
+            progress=False,
+            summarize=False,
+        )
+        _, rows = read_store(tmp_path / f"{executor}.sqlite")
+        assert len(rows) == 2
+        for row in rows:  # a simulation is CPU-bound: its CPU time is most of its wall time
+            assert 0.0 < row.cpu_s <= row.episode_s * 1.5 + 0.05
+
+
+def test_a_store_without_cpu_s_is_brought_up_to_date(tmp_path):
+    path = tmp_path / "old.sqlite"
+    with sqlite3.connect(path) as db:  # the layout before cpu_s and crashes
+        db.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)")
+        db.execute(
+            "CREATE TABLE episodes (seed INTEGER PRIMARY KEY, record TEXT NOT NULL, "
+            "episode_s REAL NOT NULL, finished_unix REAL NOT NULL, worker TEXT NOT NULL)"
+        )
+        from repertoire.studies.store import SCHEMA_VERSION, config_hash
+
+        meta = {
+            "schema_version": SCHEMA_VERSION,
+            "study": "x",
+            "config_json": "{}",
+            "config_sha256": config_hash("{}"),
+            "record_fields": json.dumps(["a"]),
+        }
+        db.executemany("INSERT INTO meta VALUES (?, ?)", meta.items())
+        db.execute("INSERT INTO episodes VALUES (0, '{\"a\": 1}', 0.5, 1.0, 'h:1')")
+    _, rows = read_store(path)  # read-only reader copes with the old layout
+    assert rows[0].cpu_s is None
+    with EpisodeStore.open(path, study="x", config_json="{}", record_fields=["a"]) as store:
+        assert store.insert(1, '{"a": 2}', 0.25, "h:2", cpu_s=0.2)
+        store.record_crash(2, -9, "killed", "h:3")
+        assert [(r.seed, r.cpu_s) for r in store.load(0, 10)] == [(0, None), (1, 0.2)]
+        assert [(c.seed, c.exitcode) for c in store.crashes()] == [(2, -9)]
+
+
+def test_run_task_and_describe_exit():
+    assert describe_exit(-11) == "killed by signal SIGSEGV"
+    assert describe_exit(-9) == "killed by signal SIGKILL"
+    assert describe_exit(3) == "exit code 3"
+    assert describe_exit(None) == "no exit code"
+    result = run_task("repertoire.studies.pendulum", "pendulum", "{}", 0)
+    assert result["seed"] == 0 and "record" in result and result["cpu_s"] > 0
+    bad = run_task("repertoire.studies.pendulum", "pendulum", '{"length_m": "x"}', 0)
+    assert bad["error"] == "repertoire" and "length_m" in bad["message"]
+    with pytest.raises(RepertoireError, match="workers must be >= 1, got 0"):
+        WorkerPool("repertoire.studies.pendulum", "pendulum", "{}", 0)
+
+
+def test_engine_modules_are_not_taken_for_studies(monkeypatch):
+    import pkgutil
+
+    import repertoire.studies as package
+
+    import repertoire.registry as common
+
+    engine_like = {
+        info.name
+        for info in pkgutil.iter_modules(package.__path__)
+        if info.name.startswith("engine") or info.name in ("store", "registry")
+    }
+    assert engine_like == set(registry.ENGINE_MODULES)
+    imported = []
+
+    def recording_import(name):
+        imported.append(name)
+        return importlib.import_module(name)
+
+    monkeypatch.setattr(common, "importlib", types.SimpleNamespace(import_module=recording_import))
+    common.discover("repertoire.studies", registry.ENGINE_MODULES, {})
+    assert "repertoire.studies.pendulum" in imported
+    assert not [m for m in imported if m.rsplit(".", 1)[-1] in registry.ENGINE_MODULES]

@@ -100,7 +100,8 @@ def _probe_folder(folder, shown, what: str) -> None:
     except OSError as e:
         reason = e.strerror or type(e).__name__
         raise RepertoireError(
-            f"{what} '{shown}': cannot write in folder '{folder}' ({reason})"
+            f"{what} '{shown}': cannot write in folder '{folder}' (creating a file there "
+            f"failed: {reason})"
         ) from None
     os.close(fd)
     os.unlink(probe)

@@ -248,12 +248,12 @@ def run_study(
         EpisodeError: ``run_episode`` raised (finished episodes stay stored).
     """
     t_start = time.perf_counter()
-    episodes = _check_int("episodes", episodes, 1)
-    first_seed = _check_int("first_seed", first_seed, 0)
+    episodes = _check_int("--episodes (episodes)", episodes, 1)
+    first_seed = _check_int("--first-seed (first_seed)", first_seed, 0)
     if executor not in EXECUTORS:
         raise RepertoireError(f"executor must be one of {list(EXECUTORS)}, got {executor!r}")
     if workers is not None:
-        workers = _check_int("workers", workers, 1)
+        workers = _check_int("--workers (workers)", workers, 1)
     entry = get_study(name)
     if config is None:
         config = entry.default_config()

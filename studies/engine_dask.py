@@ -38,7 +38,8 @@ def parse_scheduler_address(address: Any) -> str:
     example = "expected PROTOCOL://HOST:PORT, e.g. tcp://127.0.0.1:8786"
     if not isinstance(address, str) or not address:
         raise RepertoireError(
-            f"--executor dask needs --scheduler (scheduler_address); {example}; got {address!r}"
+            f"--executor dask needs --scheduler (scheduler_address); {example}; got "
+            + ("none" if address is None else repr(address))
         )
     m = _ADDRESS.match(address)
     if m is None or not 1 <= int(m.group(3)) <= 65535:

@@ -127,7 +127,9 @@ def test_register_rejects_non_dataclass_and_nested_function():
 
 @pytest.mark.parametrize("episodes", [0, -3])
 def test_non_positive_episodes_is_refused_and_creates_nothing(tmp_path, episodes):
-    with pytest.raises(RepertoireError, match=r"episodes must be an int >= 1, got -?\d"):
+    with pytest.raises(
+        RepertoireError, match=r"--episodes \(episodes\) must be an int >= 1, got -?\d"
+    ):
         run_study("pendulum", smoke_config(), episodes=episodes, executor="inline", **_kw(tmp_path))
     assert list(tmp_path.iterdir()) == []
 
@@ -135,7 +137,7 @@ def test_non_positive_episodes_is_refused_and_creates_nothing(tmp_path, episodes
 def test_other_bad_arguments(tmp_path, toy_studies):
     with pytest.raises(RepertoireError, match="executor must be one of"):
         run_study("_toy", episodes=2, executor="threads", **_kw(tmp_path))
-    with pytest.raises(RepertoireError, match="first_seed must be an int >= 0"):
+    with pytest.raises(RepertoireError, match=r"--first-seed \(first_seed\) must be an int >= 0"):
         run_study("_toy", episodes=2, first_seed=-1, executor="inline", **_kw(tmp_path))
     with pytest.raises(RepertoireError, match="takes a ToyConfig config, got PendulumConfig"):
         run_study("_toy", smoke_config(), episodes=2, executor="inline", **_kw(tmp_path))
@@ -478,7 +480,7 @@ def test_study_main_runs_and_reports_bad_input(tmp_path, capsys):
         )
         == 2
     )
-    assert "episodes must be an int >= 1" in capsys.readouterr().err
+    assert "--episodes (episodes) must be an int >= 1" in capsys.readouterr().err
 
 
 _CRASH_MODULE = textwrap.dedent(

@@ -339,9 +339,13 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
-    from repertoire.studies.engine import run_study_from_args
+    from repertoire.studies.engine import EpisodeError, run_study_from_args
 
-    run_study_from_args(args)
+    try:
+        run_study_from_args(args)
+    except EpisodeError as e:  # an episode failed or crashed: a failed run, not bad input
+        print(f"repertoire study: run failed: {e}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -553,6 +553,9 @@ def study_main(
     except RepertoireError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except EpisodeError as e:  # an episode failed or crashed: a failed run, not bad input
+        print(f"run failed: {e}", file=sys.stderr)
+        return 1
     return 0
 
 

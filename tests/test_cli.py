@@ -352,3 +352,13 @@ def test_demo_holds_a_study_to_its_criteria_on_summary_figures(registries, tmp_p
     printed = capsys.readouterr().out
     assert "study toy_study: failed" in printed
     assert "failed criterion: mean_value = " in printed and "expected <= -1e+09" in printed
+
+
+def test_a_failing_episode_is_a_failed_run_exit_1_without_an_engine_traceback(
+    broken_parts, tmp_path, capsys
+):
+    argv = ["study", "broken_study", "--executor", "inline", "--out-dir", str(tmp_path / "b")]
+    assert main([*argv, "-n", "2", "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("repertoire study: run failed: study 'broken_study': run_episode failed")
+    assert "RuntimeError: episode 0 exploded" in err and "rerun to resume" in err

@@ -248,13 +248,16 @@ def run_episode(config: FootstepExecutionConfig, seed: int) -> FootstepExecution
     return FootstepExecutionRecord(seed=int(seed), wall_time_s=time.perf_counter() - t0, **fields)
 
 
+FOOT_COLOURS = ("tab:blue", "tab:orange")  # left, right: neither is the obstacles' red
+
+
 def _draw_example(config: FootstepExecutionConfig, seed: int, out: Path) -> Path:
     """Fig. 3-style plot: map, planned footprints and the real landings, both tables."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Rectangle
+    from matplotlib.patches import Patch, Rectangle
     from matplotlib.transforms import Affine2D
 
     tables = [("learned T", ActionTable.load(config.table()))]
@@ -277,7 +280,7 @@ def _draw_example(config: FootstepExecutionConfig, seed: int, out: Path) -> Path
             vmax=1.5,
         )
         for k, p in enumerate(plan.poses):
-            color = "tab:blue" if plan.feet[k] == 0 else "tab:red"
+            color = FOOT_COLOURS[plan.feet[k]]
             tr = Affine2D().rotate_around(p[0], p[1], p[2]) + ax.transData
             ax.add_patch(
                 Rectangle(
@@ -290,12 +293,22 @@ def _draw_example(config: FootstepExecutionConfig, seed: int, out: Path) -> Path
         stats = evaluate_execution(plan, result, scene.grid)
         ax.set_title(
             f"{label}: {stats['within']}/{stats['steps']} steps within 2 cm/5 deg\n"
-            f"max error {100 * stats['max_err_m']:.1f} cm, reached={stats['reached']}"
+            f"largest landing error {1000 * stats['max_err_m']:.1f} mm, "
+            f"goal {'reached' if stats['reached'] else 'not reached'}"
         )
         ax.set_xlim(x0, x0 + sx)
         ax.set_ylim(y0, y0 + sy)
         ax.set_aspect("equal")
-        ax.legend(loc="lower right", fontsize=8)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        handles, _ = ax.get_legend_handles_labels()
+        handles = [
+            Patch(facecolor="white", edgecolor=FOOT_COLOURS[0], label="planned left foot"),
+            Patch(facecolor="white", edgecolor=FOOT_COLOURS[1], label="planned right foot"),
+            Patch(color=plt.cm.Reds(0.8 / 1.5), alpha=0.8, label="obstacle cells"),
+            *handles,
+        ]
+        ax.legend(handles=handles, loc="lower right", fontsize=8)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)
@@ -314,6 +327,7 @@ def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> 
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     out_dir = Path(out_dir)
     out = {}
@@ -368,9 +382,13 @@ def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> 
             label=f"{which} table",
         )
     ax.set_xscale("log")
-    ax.axvline(100 * POSITION_TOLERANCE_M, color="k", ls="--", lw=1, label="2 cm")
-    ax.set_xlabel("largest landing error of a run [cm] (world frame, vs plan; log scale)")
+    ax.axvline(100 * POSITION_TOLERANCE_M, color="k", ls="--", lw=1, label="2 cm tolerance")
+    ax.set_xlabel(
+        "largest landing error of a run [cm] (world frame, vs plan; log scale;\n"
+        "errors below 0.1 cm drawn at 0.1)"
+    )
     ax.set_ylabel("runs")
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts: whole ticks
     ax.legend()
     fig.tight_layout()
     hist = out_dir / "landing_error_hist.png"

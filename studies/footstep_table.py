@@ -220,8 +220,15 @@ def _draw_fig2(table, nominal, out: Path) -> Path:
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("y [m]")
     handles = [Rectangle((0, 0), 1, 1, color=colors[k], alpha=0.55) for k in range(len(ACTIONS))]
-    fig.legend(handles, ACTIONS, loc="lower center", ncol=len(ACTIONS), fontsize=8)
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    labels = [f"action {a}" for a in ACTIONS]
+    handles += [
+        Rectangle((0, 0), 1, 1, color="k"),
+        Rectangle((0, 0), 1, 1, color="0.5", alpha=0.55),
+        Rectangle((0, 0), 1, 1, fill=False, ls="--", ec="0.3"),
+    ]
+    labels += ["right sole (stance)", "learned landing (filled)", "commanded landing (dashed)"]
+    fig.legend(handles, labels, loc="lower center", ncol=5, fontsize=8)
+    fig.tight_layout(rect=(0, 0.12, 1, 1))
     fig.savefig(out, dpi=130)
     plt.close(fig)
     return out

@@ -102,6 +102,9 @@ def run_episode(config: LittleDogDemoConfig, seed: int) -> LittleDogDemoRecord:
     )
 
 
+_LEG_NAMES = {"lf": "left-front", "rf": "right-front", "lh": "left-hind", "rh": "right-hind"}
+
+
 def summarize(
     records: list[LittleDogDemoRecord], config: LittleDogDemoConfig, out_dir: Path
 ) -> dict[str, Path]:
@@ -141,7 +144,7 @@ def summarize(
                     s=9,
                     marker=markers[f],
                     color=colours[f],
-                    label=f"{LEGS[f]} foot at a step start",
+                    label=f"{_LEG_NAMES.get(LEGS[f], LEGS[f])} foot at a step start",
                 )
         n_steps = sum(r.steps for r in records if r.terrain == name)
         dirs = sorted({r.direction_deg for r in records if r.terrain == name})

@@ -188,6 +188,9 @@ def _until(trace: list[float], t_end: float) -> np.ndarray:
     return a
 
 
+_LEG_NAMES = {"lf": "left-front", "rf": "right-front", "lh": "left-hind", "rh": "right-hind"}
+
+
 def _band(ax, series: list[np.ndarray], colour: str, label: str) -> None:
     """Median and 10-90 percentile band over the episodes still walking at each time.
 
@@ -289,13 +292,14 @@ def summarize(
     for f in range(4):
         ax = fig.add_subplot(2, 2, f + 1)
         for a, c in zip(range(3), ["tab:red", "tab:green", "tab:blue"]):
-            ax.plot(t, 1000 * integ[:, 3 * f + a], color=c, label=f"I_{LEGS[f]} {'xyz'[a]}")
-        ax.set_title(f"foot {LEGS[f]}")
+            ax.plot(t, 1000 * integ[:, 3 * f + a], color=c, label=f"{'xyz'[a]} (body frame)")
+        ax.set_title(f"{_LEG_NAMES[LEGS[f]]} foot ({LEGS[f]})")
         ax.set_xlabel("time (s)")
         ax.set_ylabel("integrator (mm, body frame)")
         ax.legend(fontsize=7)
+    run = "one crossing" if r0.success else "one run that did not reach the goal"
     fig.suptitle(
-        f"Integrator states over one crossing ({r0.terrain}, start offset "
+        f"Integrator states over {run} ({r0.terrain}, start offset "
         f"{100 * r0.offset_x_m:+.1f}, {100 * r0.offset_y_m:+.1f} cm, {r0.offset_yaw_deg:+.1f} deg)"
     )
     integ_png = out_dir / "littledog_integrators.png"

@@ -162,6 +162,10 @@ def _worker_main(
         lookup_in_module(module, name)  # import the study once, before the first seed
     except Exception:  # reported per seed by run_task, with its traceback
         pass
+    try:
+        conn.send({"ready": os.getpid()})  # from here on, a death is the running seed's
+    except (BrokenPipeError, OSError):
+        return
     while True:
         try:
             seeds = conn.recv()
@@ -208,6 +212,7 @@ class _Worker:
         self.proc = proc
         self.conn = conn
         self.queued: collections.deque[int] = collections.deque()
+        self.ready = False  # it said it is up (a death before that is no seed's fault)
 
 
 class WorkerPool:
@@ -288,7 +293,6 @@ class WorkerPool:
         lost_starts = 0  # workers in a row that died before taking a seed
 
         def feed(worker: _Worker) -> None:
-            nonlocal lost_starts
             chunk = []
             while todo and len(worker.queued) + len(chunk) < SEEDS_AHEAD:
                 chunk.append(todo.popleft())
@@ -296,18 +300,24 @@ class WorkerPool:
                 return
             try:
                 worker.conn.send(chunk)
-            except OSError:  # it died between seeds: none of these reached it
+            except OSError:  # it died: none of these reached it; its sentinel tells the rest
                 todo.extendleft(reversed(chunk))
                 if not worker.queued:
-                    lost_starts += 1
-                    if lost_starts > MAX_LOST_STARTS:
-                        raise RepertoireError(
-                            f"pool workers keep dying before they take a seed ({lost_starts} "
-                            "in a row); use --executor inline to see why"
-                        ) from None
-                    self._replace(worker, True)
+                    lost(worker)
                 return
             worker.queued.extend(chunk)
+
+        def lost(worker: _Worker) -> None:
+            """A worker died with no seed of ours running: count it, replace it."""
+            nonlocal lost_starts
+            lost_starts += 1
+            if lost_starts > MAX_LOST_STARTS:
+                raise RepertoireError(
+                    f"pool workers keep dying before they run a seed ({lost_starts} in a row, "
+                    f"the last {describe_exit(worker.proc.exitcode)}); a script read from stdin "
+                    "cannot start workers; use --executor inline (executor='inline') to see why"
+                )
+            self._replace(worker, True)
 
         while True:
             for worker in list(self._workers):
@@ -324,7 +334,7 @@ class WorkerPool:
             ready = {id(by_handle[h]): by_handle[h] for h in wait_for(list(by_handle))}
             for worker in ready.values():
                 results, crash, dead = self._collect(worker)
-                if results:
+                if worker.ready:
                     lost_starts = 0
                 yield from results
                 if crash is not None:
@@ -332,7 +342,10 @@ class WorkerPool:
                 if dead:
                     todo.extendleft(reversed(worker.queued))  # the others' turn, in order
                     worker.queued.clear()
-                    self._replace(worker, bool(todo))
+                    if worker.ready:
+                        self._replace(worker, bool(todo))
+                    else:
+                        lost(worker)
 
     def _collect(self, worker: _Worker) -> tuple[list[dict], dict | None, bool]:
         """Reads what a worker sent: (results, the crash of the seed it ran or None, dead)."""
@@ -341,6 +354,9 @@ class WorkerPool:
         try:
             while worker.queued and worker.conn.poll():
                 result = worker.conn.recv()
+                if "ready" in result:
+                    worker.ready = True
+                    continue
                 seed = worker.queued.popleft()
                 if result.get("seed") != seed:  # a broken protocol, not an episode's fault
                     raise RepertoireError(
@@ -352,9 +368,9 @@ class WorkerPool:
             alive = False
         if alive:
             return results, None, False
-        if not worker.queued:  # died between seeds: nothing of ours was running
+        worker.proc.join(STOP_TIMEOUT_S)  # for its exit code
+        if not worker.queued or not worker.ready:  # died with none of our seeds running
             return results, None, True
-        worker.proc.join(STOP_TIMEOUT_S)
         seed = worker.queued.popleft()
         how = describe_exit(worker.proc.exitcode)
         crash = {

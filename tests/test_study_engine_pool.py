@@ -61,12 +61,16 @@ def pool_study(tmp_path, monkeypatch):
     sys.modules.pop("pool_study_module", None)
 
 
-def _config_json(module, **kw) -> str:
+def _config_json_of(config) -> str:
     import dataclasses
 
     from repertoire.studies.store import canonical_json
 
-    return canonical_json(dataclasses.asdict(module.PoolConfig(**kw)))
+    return canonical_json(dataclasses.asdict(config))
+
+
+def _config_json(module, **kw) -> str:
+    return _config_json_of(module.PoolConfig(**kw))
 
 
 def test_pool_crash_costs_exactly_the_crashing_seeds_and_the_rest_runs(pool_study):
@@ -205,3 +209,21 @@ def test_engine_modules_are_not_taken_for_studies(monkeypatch):
     common.discover("repertoire.studies", registry.ENGINE_MODULES, {})
     assert "repertoire.studies.pendulum" in imported
     assert not [m for m in imported if m.rsplit(".", 1)[-1] in registry.ENGINE_MODULES]
+
+
+def test_workers_that_die_at_start_up_blame_no_seed_and_give_a_clear_error(tmp_path, monkeypatch):
+    (tmp_path / "dies_at_import.py").write_text(
+        _MODULE.replace("PoolConfig", "DiesConfig").replace("_pool_study", "_dies_study")
+        + "\nimport multiprocessing\nif multiprocessing.parent_process() is not None:\n"
+        "    os._exit(5)  # only in pool workers\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    module = importlib.import_module("dies_at_import")
+    try:
+        config_json = _config_json_of(module.DiesConfig())
+        with WorkerPool("dies_at_import", "_dies_study", config_json, 2) as pool:
+            with pytest.raises(RepertoireError, match=r"dying before .* exit code 5"):
+                list(pool.run([0, 1, 2]))
+    finally:
+        registry._REGISTRY.pop("_dies_study", None)
+        sys.modules.pop("dies_at_import", None)

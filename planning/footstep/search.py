@@ -4,8 +4,9 @@ The search knows nothing about feet: a :class:`StepModel` gives the start
 state, the successors of a state with their step costs, a hashable lattice key
 for duplicate detection, a goal test and an admissible heuristic. The
 quadruped crawl model (:mod:`repertoire.planning.footstep.quadruped`) is one
-such model. The biped planner (:func:`repertoire.planning.footstep.plan_footsteps`)
-still runs its own loop; porting it onto this core is future work.
+such model, the biped's table T (:mod:`repertoire.planning.footstep.biped_model`) another;
+:func:`repertoire.planning.footstep.plan_footsteps` runs the biped through this core (or
+through its compiled twin :mod:`repertoire.planning.footstep.fastcore`).
 
 Statuses are honest:
 
@@ -62,6 +63,10 @@ class SearchResult:
         weight: heuristic weight used; with SUCCESS, ``cost <= weight * optimum``.
         expansions: states expanded.
         seconds: wall time of the search.
+        generated: successors evaluated (returned by the model).
+        merged: successors dropped because their lattice state was already reached at
+            no higher cost (0 means no plan was discarded by duplicate detection).
+        cost_to_go: the heuristic at the path's last state.
     """
 
     status: PlanStatus
@@ -70,6 +75,9 @@ class SearchResult:
     weight: float
     expansions: int
     seconds: float
+    generated: int = 0
+    merged: int = 0
+    cost_to_go: float = 0.0
 
 
 def _validate_budget(weight: float, max_expansions: int, time_limit: float) -> None:
@@ -87,6 +95,7 @@ def search(
     weight: float = 1.0,
     max_expansions: int = 200_000,
     time_limit: float = 10.0,
+    require_successors: bool = True,
 ) -> SearchResult:
     """Weighted A* from ``model.start()`` to the first expanded goal state.
 
@@ -95,6 +104,8 @@ def search(
         weight: heuristic inflation (1 = optimal A*).
         max_expansions: expansion budget (NODE_LIMIT when exhausted).
         time_limit: wall-time budget in s (TIME_LIMIT when exhausted).
+        require_successors: refuse a start without successors (an empty step model); when
+            False such a start gives UNREACHABLE (a robot boxed in by obstacles).
 
     Raises:
         FootstepError: bad budget, or a start state that is not a goal and has no
@@ -103,7 +114,11 @@ def search(
     _validate_budget(weight, max_expansions, time_limit)
     t0 = time.perf_counter()
     start = model.start()
-    if not model.is_goal(start) and not any(True for _ in model.successors(start)):
+    if (
+        require_successors
+        and not model.is_goal(start)
+        and not any(True for _ in model.successors(start))
+    ):
         raise FootstepError(
             "the step model's successors of the start state are empty: no step is possible "
             "from the start (check the candidate set, reach and terrain around the start)"
@@ -117,7 +132,7 @@ def search(
     h0 = model.heuristic(start)
     open_list: list[tuple[float, float, int, Hashable]] = [(weight * h0, h0, next(tie), start_key)]
     best_key, best_h = start_key, h0
-    expansions = 0
+    expansions = generated = merged = 0
     status = PlanStatus.UNREACHABLE
     end_key = None
     while open_list:
@@ -136,15 +151,19 @@ def search(
             break
         closed.add(key)
         expansions += 1
-        if h < best_h:
-            best_key, best_h = key, h
         g_state = g[key]
+        if h < best_h or (h == best_h and g_state < g[best_key]):
+            best_key, best_h = key, h
         for nxt, step_cost in model.successors(state):
+            generated += 1
             nkey = model.key(nxt)
             if nkey in closed:
+                merged += 1
                 continue
             g_new = g_state + step_cost
-            if g_new < g.get(nkey, math.inf):
+            if g_new >= g.get(nkey, math.inf):
+                merged += 1
+            else:
                 g[nkey] = g_new
                 parent[nkey] = key
                 states[nkey] = nxt
@@ -165,6 +184,9 @@ def search(
         weight=weight,
         expansions=expansions,
         seconds=time.perf_counter() - t0,
+        generated=generated,
+        merged=merged,
+        cost_to_go=model.heuristic(states[end_key]),
     )
 
 

@@ -342,40 +342,47 @@ class BipedStepModel:
     def _setup_successors(self, action_filter: ActionFilter | None) -> None:
         table = self.table
         n, names = table.n, table.actions
-        succ: list[list[list[tuple[Successor, ...]]]] = []
-        for i2 in range(n):
-            row = []
-            for i1 in range(n):
-                per_foot = []
-                for f in (0, 1):
-                    allowed = (
-                        set(action_filter(names[i2], names[i1], Foot(f)))
-                        if action_filter is not None
-                        else set(names)
-                    )
-                    unknown = allowed - set(names)
-                    if unknown:
-                        raise FootstepError(
-                            f"action_filter returned unknown actions {sorted(unknown)}"
-                        )
-                    per_foot.append(
-                        tuple(
-                            Successor(
-                                a,
-                                *(float(v) for v in table.displacement[i2, i1, f, a]),
-                                float(table.duration[i2, i1, f, a]),
-                                float(table.step_cost[a]),
+        allowed = np.ones((n, n, 2, n), dtype=bool)
+        if action_filter is not None:
+            index = {name: a for a, name in enumerate(names)}
+            for i2 in range(n):
+                for i1 in range(n):
+                    for f in (0, 1):
+                        ok = set(action_filter(names[i2], names[i1], Foot(f)))
+                        unknown = ok - set(names)
+                        if unknown:
+                            raise FootstepError(
+                                f"action_filter returned unknown actions {sorted(unknown)}"
                             )
-                            for a in range(n)
-                            if names[a] in allowed
-                        )
-                    )
-                row.append(per_foot)
-            succ.append(row)
-        self.succ = succ
+                        allowed[i2, i1, f] = False
+                        allowed[i2, i1, f, [index[a] for a in ok]] = True
+        # rows in (a_prev2, a_prev1, foot, a) order; succ_ptr[(a2 * n + a1) * 2 + f] starts a block
+        counts = allowed.reshape(-1, n).sum(axis=1)
+        self.succ_ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.succ_a = np.nonzero(allowed)[3].astype(np.int64)
+        cost = np.broadcast_to(np.asarray(table.step_cost, float), allowed.shape)
+        self.succ_f = np.column_stack(
+            [
+                table.displacement[allowed],
+                table.duration[allowed],
+                cost[allowed],
+            ]
+        ).astype(float)
+        self._succ_rows: list[tuple[Successor, ...]] | None = None
         self.hist = history_classes(table)
         self._hist_rows = self.hist.tolist()
         self.n_hist = int(self.hist.max()) + 1
+
+    def successor_rows(self, a_prev2: int, a_prev1: int, foot: int) -> tuple[Successor, ...]:
+        """The actions F allows after ``(a_prev2, a_prev1)`` on ``foot``, with T's values."""
+        if self._succ_rows is None:
+            rows = [
+                Successor(a, *vals)
+                for a, vals in zip(self.succ_a.tolist(), self.succ_f.tolist(), strict=True)
+            ]
+            ptr = self.succ_ptr.tolist()
+            self._succ_rows = [tuple(rows[ptr[k] : ptr[k + 1]]) for k in range(len(ptr) - 1)]
+        return self._succ_rows[(a_prev2 * self.table.n + a_prev1) * 2 + foot]
 
     def _setup_lattice(self) -> None:
         opts, ref = self.opts, self.ref
@@ -449,7 +456,7 @@ class BipedStepModel:
         nx, ny = self.ref.shape
         c, sn = math.cos(s.yaw), math.sin(s.yaw)
         nf = 1 - s.foot
-        for m in self.succ[s.a_prev2][s.a_prev1][s.foot]:
+        for m in self.successor_rows(s.a_prev2, s.a_prev1, s.foot):
             x2 = s.x + c * m.dx - sn * m.dy
             y2 = s.y + sn * m.dx + c * m.dy
             th2 = (s.yaw + m.dyaw + math.pi) % (2.0 * math.pi) - math.pi

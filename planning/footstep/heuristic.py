@@ -3,17 +3,19 @@
 The Dijkstra estimate is the paper's "standard mobile robot planner run backwards from
 the goal": 8-connected moves between cell centres, each move costing its length times
 the mean traversal cost of the two cells (1 on free cells, ``obstacle_cost`` on occupied
-ones, which the biped may still step over). It is informed but not admissible.
+ones, which the biped may still step over). It is informed but not admissible. The
+search runs compiled (:func:`grid_dijkstra`, numba); :func:`grid_graph` gives the same
+graph to scipy's ``dijkstra`` for reference.
 """
 
 import functools
 import math
 
+import numba
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid
 from scipy import ndimage
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 _NEIGHBOURS = ((1, 0), (0, 1), (1, 1), (1, -1))
 
@@ -95,6 +97,87 @@ def dijkstra_cost_to_go(
     sources = np.flatnonzero(d_goal <= max(goal_tolerance, grid.resolution * 0.75))
     if len(sources) == 0:
         sources = np.array([int(np.argmin(d_goal))])
-    g = grid_graph(cost, grid.resolution)
-    dist = dijkstra(g, directed=True, indices=sources, min_only=True)
-    return np.asarray(dist).reshape(grid.shape)
+    return grid_dijkstra(cost, grid.resolution, sources)
+
+
+def grid_dijkstra(cell_cost: np.ndarray, resolution: float, sources: np.ndarray) -> np.ndarray:
+    """Multi-source Dijkstra over :func:`grid_graph`'s graph, compiled.
+
+    Args:
+        cell_cost: (nx, ny) traversal cost per metre of each cell (inf = no passage).
+        resolution: cell side (m).
+        sources: flat indices of the source cells (distance 0).
+
+    Returns:
+        (nx, ny) distances (inf where no source is reachable).
+    """
+    cost = np.ascontiguousarray(cell_cost, dtype=float)
+    src = np.asarray(sources, dtype=np.int64).ravel()
+    return _dijkstra8(cost, float(resolution), src)
+
+
+@numba.njit(cache=True)
+def _dijkstra8(cost, res, sources):
+    nx, ny = cost.shape
+    dist = np.full((nx, ny), np.inf)
+    done = np.zeros((nx, ny), np.uint8)
+    cap = 4 * nx * ny + sources.size + 1
+    hd = np.empty(cap)
+    hc = np.empty(cap, np.int64)
+    size = 0
+    for s in sources:
+        i, j = s // ny, s % ny
+        dist[i, j] = 0.0
+        k = size
+        size += 1
+        while k > 0 and hd[(k - 1) >> 1] > 0.0:
+            hd[k], hc[k] = hd[(k - 1) >> 1], hc[(k - 1) >> 1]
+            k = (k - 1) >> 1
+        hd[k], hc[k] = 0.0, s
+    diag = math.sqrt(2.0) * res
+    while size > 0:
+        d, c = hd[0], hc[0]
+        size -= 1
+        ld, lc = hd[size], hc[size]
+        k = 0
+        while True:
+            ch = 2 * k + 1
+            if ch >= size:
+                break
+            if ch + 1 < size and hd[ch + 1] < hd[ch]:
+                ch += 1
+            if hd[ch] < ld:
+                hd[k], hc[k] = hd[ch], hc[ch]
+                k = ch
+            else:
+                break
+        hd[k], hc[k] = ld, lc
+        i, j = c // ny, c % ny
+        if done[i, j]:
+            continue
+        done[i, j] = 1
+        ci = cost[i, j]
+        for di in range(-1, 2):
+            for dj in range(-1, 2):
+                if di == 0 and dj == 0:
+                    continue
+                a, b = i + di, j + dj
+                if a < 0 or a >= nx or b < 0 or b >= ny or done[a, b]:
+                    continue
+                step = diag if di != 0 and dj != 0 else res
+                nd = d + 0.5 * (ci + cost[a, b]) * step
+                if nd < dist[a, b]:
+                    dist[a, b] = nd
+                    if size == hd.size:
+                        hd2 = np.empty(2 * size)
+                        hc2 = np.empty(2 * size, np.int64)
+                        hd2[:size] = hd[:size]
+                        hc2[:size] = hc[:size]
+                        hd, hc = hd2, hc2
+                    k = size
+                    size += 1
+                    while k > 0 and hd[(k - 1) >> 1] > nd:
+                        hd[k], hc[k] = hd[(k - 1) >> 1], hc[(k - 1) >> 1]
+                        k = (k - 1) >> 1
+                    hd[k], hc[k] = nd, a * ny + b
+    return dist

@@ -232,7 +232,7 @@ def _plan_once(
     budget = int(opts.max_expansions) if opts.max_expansions > 0 else 2**62
     backend = opts.backend
     if backend == "auto":
-        backend = "python"
+        backend = "python" if model.dynamic else "compiled"
     if backend == "compiled":
         if model.dynamic:
             raise FootstepError("the compiled backend plans on static grids only; use 'python'")

@@ -146,18 +146,30 @@ class FootprintChecker:
         self.free_bytes = surely_free.astype(np.uint8).ravel().tobytes()
         self.inv_res = 1.0 / grid.resolution
         self.x0, self.y0 = grid.origin
-        nyp = self.nyp
-        # flat offsets of the outer masks, only needed for heights
-        self.outer = [di * nyp + dj for di, dj in masks.outer] if grid.heights is not None else []
-        # each padded grid row as a Python int: bit j set when cell (i, j) is occupied
-        packed = np.packbits(occ, axis=1, bitorder="little")
-        self.rows = [int.from_bytes(packed[i].tobytes(), "little") for i in range(occ.shape[0])]
+        self._occ = occ
+        self._rows: list[int] | None = None
+        self._outer: list[np.ndarray] | None = None
         if grid.heights is not None:
             h = np.zeros(occ.shape)
             h[pad : pad + nx, pad : pad + ny] = grid.heights
             self.heights_flat: np.ndarray | None = h.ravel()
         else:
             self.heights_flat = None
+
+    @property
+    def rows(self) -> list[int]:
+        """Each padded grid row as a Python int: bit j set when cell (i, j) is occupied."""
+        if self._rows is None:
+            packed = np.packbits(self._occ, axis=1, bitorder="little")
+            self._rows = [int.from_bytes(r.tobytes(), "little") for r in packed]
+        return self._rows
+
+    @property
+    def outer(self) -> list[np.ndarray]:
+        """Flat offsets (``di * nyp + dj``) of the outer masks, for the height queries."""
+        if self._outer is None:
+            self._outer = [di * self.nyp + dj for di, dj in self.masks.outer]
+        return self._outer
 
     def is_free(self, x: float, y: float, yaw: float) -> bool:
         """Whether a foot at ``(x, y, yaw)`` overlaps no occupied cell and lies in the map.

@@ -126,3 +126,37 @@ def test_backend_option_errors():
             sc.env, sc.start, sc.start_foot, sc.goal, nominal_action_table(),
             PlannerOptions(heuristic="euclidean", backend="compiled"),
         )  # fmt: skip
+
+
+def test_ara_star_compiled_matches_python_and_bounds_hold():
+    from repertoire.planning.footstep import plan_footsteps_anytime
+
+    sc = random_static_scene(2, size=2.0, n_strips=3, n_blocks=2)
+    table = nominal_action_table()
+    runs = [
+        plan_footsteps_anytime(
+            sc.grid,
+            sc.start,
+            sc.start_foot,
+            sc.goal,
+            table,
+            PlannerOptions(heuristic="euclidean", time_limit=60.0, refinements=0, backend=b),
+        )  # fmt: skip
+        for b in ("python", "compiled")
+    ]
+    py, cc = runs
+    assert [a.weight for a in cc] == [3.0, 2.0, 1.5, 1.2, 1.0]
+    for a, b in zip(py, cc, strict=True):
+        assert a.plan.poses == b.plan.poses and a.plan.cost == b.plan.cost
+        assert a.bound == b.bound and a.plan.nodes_expanded == b.plan.nodes_expanded
+    assert all(a.plan.status is PlanStatus.SUCCESS for a in cc)
+    optimum = cc[-1].plan.cost  # weight 1, admissible and consistent heuristic
+    costs = [a.plan.cost for a in cc]
+    assert costs == sorted(costs, reverse=True)
+    assert all(a.plan.cost <= a.bound * optimum + 1e-9 for a in cc)
+    assert all(1.0 <= a.bound <= a.weight for a in cc) and cc[-1].bound == 1.0
+    fresh = plan_footsteps(
+        sc.grid, sc.start, sc.start_foot, sc.goal, table,
+        PlannerOptions.admissible(time_limit=60.0, xy_resolution=0.05, yaw_bins=36),
+    )  # fmt: skip
+    assert fresh.cost == pytest.approx(optimum, rel=1e-12)

@@ -188,7 +188,7 @@ def _now():
 
 
 @numba.njit(cache=True)
-def _astar(
+def _arastar(
     start,  # x, y, yaw, foot, a2, a1, t, swing_x, swing_y, h
     succ_ptr,
     succ_a,
@@ -210,10 +210,15 @@ def _astar(
     ex_ptr,
     tall,
     use_tall,
-    weight,
+    weights,
     max_expansions,
     time_limit,
 ):
+    """ARA* over the biped lattice, step for step as ``search.anytime_search``.
+
+    One weight is plain weighted A* (``search.search``). Returns per search: status code,
+    end node, cost, bound, expansions, seconds, generated, merged; then the node arrays.
+    """
     t0 = _now()
     n = hist.shape[0]
     ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist = (
@@ -250,7 +255,9 @@ def _astar(
     na2 = np.empty(cap, np.int64)
     na1 = np.empty(cap, np.int64)
     npar = np.empty(cap, np.int64)
-    nclosed = np.zeros(cap, np.uint8)
+    nexp = np.full(cap, -1, np.int64)  # search index in which the node was expanded
+    nopen = np.zeros(cap, np.uint8)
+    nincons = np.zeros(cap, np.uint8)
     keys = np.full(4096, -1, np.int64)
     vals = np.empty(4096, np.int64)
     hcap = 1024
@@ -275,128 +282,157 @@ def _astar(
         start[9],
         0.0,
     )
-    nfoot[0], na2[0], na1[0], npar[0] = f0, a20, a10, -1
+    nfoot[0], na2[0], na1[0], npar[0], nopen[0] = f0, a20, a10, -1, 1
     count = 1
     j = _slot(keys, key0)
     keys[j] = key0
     vals[j] = 0
     used = 1
-    _heap_push(hf, hh, ht, hn, 0, weight * start[9], start[9], 0, 0)
-    hsize = 1
-    tie = 1
     best, best_h = 0, start[9]
     expansions = generated = merged = 0
-    status = 1  # UNREACHABLE
-    end = -1
-    while hsize > 0:
-        h = hh[0]
-        node = hn[0]
-        _heap_pop(hf, hh, ht, hn, hsize)
-        hsize -= 1
-        if nclosed[node]:
-            continue
-        x, y, th, foot = nxs[node], nys[node], nth[node], nfoot[node]
-        if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
-            status, end = 0, node
-            break
-        if expansions >= max_expansions:
-            status = 2
-            break
-        if (expansions & 1023) == 0 and _now() - t0 > time_limit:
-            status = 3
-            break
-        nclosed[node] = 1
-        expansions += 1
-        g = ng[node]
-        if h < best_h or (h == best_h and g < ng[best]):
-            best, best_h = node, h
-        a2, a1 = na2[node], na1[node]
-        c, s = math.cos(th), math.sin(th)
-        nf = 1 - foot
-        row = (a2 * n + a1) * 2 + foot
-        for r in range(succ_ptr[row], succ_ptr[row + 1]):
-            dx, dy = succ_f[r, 0], succ_f[r, 1]
-            x2 = x + c * dx - s * dy
-            y2 = y + s * dx + c * dy
-            th2 = (th + succ_f[r, 2] + math.pi) % two_pi - math.pi
-            fx = (x2 - ox) * inv_res
-            fy = (y2 - oy) * inv_res
-            if not (0.0 <= fx < nx and 0.0 <= fy < ny):
+    nw = weights.size
+    out_i = np.zeros((nw, 5), np.int64)  # status, end, expansions, generated, merged
+    out_f = np.zeros((nw, 3))  # cost, bound, seconds
+    solution = -1
+    runs = 0
+    for it in range(nw):
+        w = weights[it]
+        t_it = _now()
+        hsize = 0
+        for k in range(count):
+            if nopen[k] or nincons[k]:
+                if hsize == hf.size:
+                    hf, hh, ht, hn = _grow(hf), _grow(hh), _grow(ht), _grow(hn)
+                _heap_push(hf, hh, ht, hn, hsize, ng[k] + w * nh[k], nh[k], hsize, k)
+                hsize += 1
+                nopen[k], nincons[k] = 1, 0
+        tie = hsize
+        status, end, exp_it = 1, -1, 0  # UNREACHABLE
+        while hsize > 0:
+            h = hh[0]
+            node = hn[0]
+            _heap_pop(hf, hh, ht, hn, hsize)
+            hsize -= 1
+            if nexp[node] == it:
                 continue
-            if not _foot_free(
-                x2, y2, th2, grid, chk, occ, free, outer_off, outer_di, outer_dj, outer_ptr
-            ):
-                continue
-            if flat_limit < np.inf and (
-                _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
-            ):
-                continue
-            if use_tall and _swing_crosses(tall, nsx[node], nsy[node], x2, y2, ox, oy, inv_res):
-                continue
-            if use_cells:
-                h2 = h_cells[int(fx) * ny + int(fy)]
-            else:
-                h2 = max(0.0, math.hypot(x2 - gx, y2 - gy) - tol) * cost_per_m
-            if h2 == np.inf:
-                continue
-            cost = succ_f[r, 4]
-            if height_w > 0.0:
-                cost += height_w * _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)
-            generated += 1
-            a = succ_a[r]
-            k2 = (int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)) * nyaw + int(
-                th2 * yaw_scale + nyaw + 0.5
-            ) % nyaw
-            k2 = (k2 * 2 + nf) * n_hist + hist[a1, a]
-            j = _slot(keys, k2)
-            if keys[j] == k2:
-                idx = vals[j]
-                if nclosed[idx] or g + cost >= ng[idx]:
-                    merged += 1
+            x, y, th, foot = nxs[node], nys[node], nth[node], nfoot[node]
+            if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
+                status, end = 0, node
+                break
+            if expansions >= max_expansions:
+                status = 2
+                break
+            if (expansions & 1023) == 0 and _now() - t0 > time_limit:
+                status = 3
+                break
+            nopen[node], nexp[node] = 0, it
+            expansions += 1
+            exp_it += 1
+            g = ng[node]
+            if h < best_h or (h == best_h and g < ng[best]):
+                best, best_h = node, h
+            a2, a1 = na2[node], na1[node]
+            c, s = math.cos(th), math.sin(th)
+            nf = 1 - foot
+            row = (a2 * n + a1) * 2 + foot
+            for r in range(succ_ptr[row], succ_ptr[row + 1]):
+                dx, dy = succ_f[r, 0], succ_f[r, 1]
+                x2 = x + c * dx - s * dy
+                y2 = y + s * dx + c * dy
+                th2 = (th + succ_f[r, 2] + math.pi) % two_pi - math.pi
+                fx = (x2 - ox) * inv_res
+                fy = (y2 - oy) * inv_res
+                if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                     continue
-            else:
-                if count == nxs.size:
-                    nxs, nys, nth, nt = _grow(nxs), _grow(nys), _grow(nth), _grow(nt)
-                    nsx, nsy, nh, ng = _grow(nsx), _grow(nsy), _grow(nh), _grow(ng)
-                    nfoot, na2, na1, npar = _grow(nfoot), _grow(na2), _grow(na1), _grow(npar)
-                    nc = np.zeros(nxs.size, np.uint8)
-                    nc[:count] = nclosed[:count]
-                    nclosed = nc
-                idx = count
-                count += 1
-                keys[j] = k2
-                vals[j] = idx
-                used += 1
-                if 2 * used > keys.size:
-                    keys, vals = _rehash(keys, vals)
-            g2 = g + cost
-            nxs[idx], nys[idx], nth[idx], nt[idx] = x2, y2, th2, nt[node] + succ_f[r, 3]
-            nsx[idx], nsy[idx], nh[idx], ng[idx] = x, y, h2, g2
-            nfoot[idx], na2[idx], na1[idx], npar[idx] = nf, a1, a, node
-            if hsize == hf.size:
-                hf, hh, ht, hn = _grow(hf), _grow(hh), _grow(ht), _grow(hn)
-            _heap_push(hf, hh, ht, hn, hsize, g2 + weight * h2, h2, tie, idx)
-            hsize += 1
-            tie += 1
-    if end < 0:
-        end = best
-    length = 0
-    k = end
-    while k >= 0:
-        length += 1
-        k = npar[k]
-    path = np.empty(length, np.int64)
-    k = end
-    for i in range(length - 1, -1, -1):
-        path[i] = k
-        k = npar[k]
-    states = np.empty((length, 10))
-    for i in range(length):
-        p = path[i]
-        states[i, 0], states[i, 1], states[i, 2] = nxs[p], nys[p], nth[p]
-        states[i, 3], states[i, 4], states[i, 5] = nfoot[p], na2[p], na1[p]
-        states[i, 6], states[i, 7], states[i, 8], states[i, 9] = nt[p], nsx[p], nsy[p], nh[p]
-    return status, states, ng[end], expansions, generated, merged
+                if not _foot_free(
+                    x2, y2, th2, grid, chk, occ, free, outer_off, outer_di, outer_dj, outer_ptr
+                ):
+                    continue
+                if flat_limit < np.inf and (
+                    _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
+                ):
+                    continue
+                if use_tall and _swing_crosses(tall, nsx[node], nsy[node], x2, y2, ox, oy, inv_res):
+                    continue
+                if use_cells:
+                    h2 = h_cells[int(fx) * ny + int(fy)]
+                else:
+                    h2 = max(0.0, math.hypot(x2 - gx, y2 - gy) - tol) * cost_per_m
+                if h2 == np.inf:
+                    continue
+                cost = succ_f[r, 4]
+                if height_w > 0.0:
+                    cost += height_w * _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)
+                generated += 1
+                a = succ_a[r]
+                g2 = g + cost
+                k2 = (
+                    int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
+                ) * nyaw + int(th2 * yaw_scale + nyaw + 0.5) % nyaw
+                k2 = (k2 * 2 + nf) * n_hist + hist[a1, a]
+                j = _slot(keys, k2)
+                idx = -1
+                closed_now = False
+                if keys[j] == k2:
+                    idx = vals[j]
+                    closed_now = nexp[idx] == it or nincons[idx] == 1
+                    if closed_now or g2 >= ng[idx]:
+                        merged += 1
+                    if g2 >= ng[idx]:
+                        continue
+                    if nexp[idx] >= 0:  # has children: a new node keeps them consistent
+                        idx = -1
+                if idx < 0:
+                    if count == nxs.size:
+                        nxs, nys, nth, nt = _grow(nxs), _grow(nys), _grow(nth), _grow(nt)
+                        nsx, nsy, nh, ng = _grow(nsx), _grow(nsy), _grow(nh), _grow(ng)
+                        nfoot, na2, na1, npar = _grow(nfoot), _grow(na2), _grow(na1), _grow(npar)
+                        nexp = _grow(nexp)
+                        nopen, nincons = _grow(nopen), _grow(nincons)
+                    idx = count
+                    count += 1
+                    nexp[idx] = -1
+                    nopen[idx] = 0 if closed_now else 1
+                    nincons[idx] = 1 if closed_now else 0
+                    if keys[j] != k2:
+                        keys[j] = k2
+                        used += 1
+                    vals[j] = idx
+                    if 2 * used > keys.size:
+                        keys, vals = _rehash(keys, vals)
+                nxs[idx], nys[idx], nth[idx], nt[idx] = x2, y2, th2, nt[node] + succ_f[r, 3]
+                nsx[idx], nsy[idx], nh[idx], ng[idx] = x, y, h2, g2
+                nfoot[idx], na2[idx], na1[idx], npar[idx] = nf, a1, a, node
+                if nincons[idx] == 0:
+                    if hsize == hf.size:
+                        hf, hh, ht, hn = _grow(hf), _grow(hh), _grow(ht), _grow(hn)
+                    _heap_push(hf, hh, ht, hn, hsize, g2 + w * h2, h2, tie, idx)
+                    hsize += 1
+                    tie += 1
+        bound = w
+        if status == 0:
+            solution = end
+            low = np.inf
+            for k in range(count):
+                if (nopen[k] or nincons[k]) and ng[k] + nh[k] < low:
+                    low = ng[k] + nh[k]
+            if low == np.inf:
+                low = ng[end]
+            bound = min(w, ng[end] / low) if low > 0 else w
+        last = end if end >= 0 else (solution if solution >= 0 else best)
+        out_i[it, 0], out_i[it, 1], out_i[it, 2] = status, last, exp_it
+        out_i[it, 3], out_i[it, 4] = generated, merged
+        out_f[it, 0], out_f[it, 1], out_f[it, 2] = ng[last], bound, _now() - t_it
+        runs += 1
+        if status != 0:
+            break
+    return (
+        out_i[:runs],
+        out_f[:runs],
+        np.column_stack((nxs[:count], nys[:count], nth[:count])),
+        np.column_stack((nt[:count], nsx[:count], nsy[:count], nh[:count])),
+        np.column_stack((nfoot[:count], na2[:count], na1[:count], npar[:count])),
+    )
 
 
 def _mask_arrays(masks, nyp: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -498,6 +534,20 @@ def compiled_search(
         max_expansions: expansion budget (NODE_LIMIT when exhausted).
         time_limit: wall-time budget in s (TIME_LIMIT when exhausted).
     """
+    return compiled_anytime(model, [weight], max_expansions, time_limit)[0]
+
+
+def compiled_anytime(
+    model: BipedStepModel, weights, max_expansions: int, time_limit: float
+) -> list[SearchResult]:
+    """ARA* on the compiled core; the same results as ``search.anytime_search(model, ...)``.
+
+    Args:
+        model: a biped step model on a static grid.
+        weights: non-increasing heuristic weights.
+        max_expansions: expansion budget over all searches.
+        time_limit: wall-time budget in s over all searches.
+    """
     t0 = time.perf_counter()
     tab = compiled_tables(model)
     s0 = model.start()
@@ -505,32 +555,38 @@ def compiled_search(
         [s0.x, s0.y, s0.yaw, s0.foot, s0.a_prev2, s0.a_prev1, s0.t, s0.swing_x, s0.swing_y, s0.h]
     )
     left = time_limit - (time.perf_counter() - t0)
-    status, states, cost, expansions, generated, merged = _astar(
-        start, *tab.values(), float(weight), int(max_expansions), float(max(left, 1e-9))
+    ws = np.asarray(weights, dtype=float)
+    out_i, out_f, pose, more, ints = _arastar(
+        start, *tab.values(), ws, int(max_expansions), float(max(left, 1e-9))
     )
-    path = [
-        BipedState(
-            float(r[0]),
-            float(r[1]),
-            float(r[2]),
-            int(r[3]),
-            int(r[4]),
-            int(r[5]),
-            float(r[6]),
-            float(r[7]),
-            float(r[8]),
-            float(r[9]),
+    pose_l, more_l, ints_l = pose.tolist(), more.tolist(), ints.tolist()
+
+    def state(k: int) -> BipedState:
+        (x, y, yaw), (t, sx, sy, h), (f, a2, a1, _) = pose_l[k], more_l[k], ints_l[k]
+        return BipedState(x, y, yaw, int(f), int(a2), int(a1), t, sx, sy, h)
+
+    results = []
+    for (status, last, exp, gen, mer), (cost, bound, secs), w in zip(
+        out_i.tolist(), out_f.tolist(), ws.tolist(), strict=False
+    ):
+        chain = []
+        k = last
+        while k >= 0:
+            chain.append(k)
+            k = int(ints_l[k][3])
+        path = [state(k) for k in reversed(chain)]
+        results.append(
+            SearchResult(
+                status=_STATUS[status],
+                path=path,
+                cost=cost,
+                weight=w,
+                expansions=exp,
+                seconds=secs,
+                generated=gen,
+                merged=mer,
+                cost_to_go=path[-1].h,
+                bound=bound,
+            )
         )
-        for r in states
-    ]
-    return SearchResult(
-        status=_STATUS[status],
-        path=path,
-        cost=float(cost),
-        weight=float(weight),
-        expansions=int(expansions),
-        seconds=time.perf_counter() - t0,
-        generated=int(generated),
-        merged=int(merged),
-        cost_to_go=path[-1].h,
-    )
+    return results

@@ -24,7 +24,7 @@ from repertoire.planning.footstep.biped_model import (
     history_classes,
 )
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
-from repertoire.planning.footstep.search import SearchResult, search
+from repertoire.planning.footstep.search import SearchResult, anytime_search, search
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -33,7 +33,14 @@ from repertoire.planning.footstep.types import (
     PlanStatus,
 )
 
-__all__ = ["ActionFilter", "PlannerOptions", "history_classes", "plan_footsteps"]
+__all__ = [
+    "ActionFilter",
+    "AnytimePlan",
+    "PlannerOptions",
+    "history_classes",
+    "plan_footsteps",
+    "plan_footsteps_anytime",
+]
 
 BACKENDS = ("auto", "compiled", "python")
 HEURISTICS = ("dijkstra", "euclidean", "none")
@@ -273,3 +280,75 @@ def _to_plan(model: BipedStepModel, result: SearchResult, seconds: float) -> Foo
         xy_resolution=model.opts.xy_resolution,
         yaw_bins=int(model.opts.yaw_bins),
     )
+
+
+@dataclasses.dataclass
+class AnytimePlan:
+    """One plan of :func:`plan_footsteps_anytime`.
+
+    Attributes:
+        plan: the footstep plan (SUCCESS, or the final search's status).
+        weight: heuristic weight of the search that produced it.
+        bound: suboptimality bound: with an admissible heuristic (``"euclidean"``),
+            ``plan.cost <= bound * optimum`` over the lattice.
+        elapsed_s: wall time from the call to this plan (s).
+    """
+
+    plan: FootstepPlan
+    weight: float
+    bound: float
+    elapsed_s: float
+
+
+def plan_footsteps_anytime(
+    world: "OccupancyGrid | DynamicEnvironment",
+    start: Sequence[float],
+    start_foot: "Foot | int | str",
+    goal: Sequence[float],
+    table: ActionTable,
+    options: PlannerOptions | None = None,
+    *,
+    weights: Sequence[float] = (3.0, 2.0, 1.5, 1.2, 1.0),
+    **kwargs,
+) -> list[AnytimePlan]:
+    """ARA* footstep planning: a first plan fast, better ones while time remains.
+
+    The search is reused between weights (OPEN plus INCONS, see
+    :func:`repertoire.planning.footstep.search.anytime_search`); each plan carries its
+    bound. ``options.heuristic_weight`` is ignored (``weights`` set it), the other options
+    apply; ``time_limit`` and ``max_expansions`` cover all searches.
+
+    Args:
+        world, start, start_foot, goal, table, options, **kwargs: as in
+            :func:`plan_footsteps`.
+        weights: non-increasing weights, each >= 1.
+
+    Returns:
+        the plans in order (costs non-increasing); the last one may be a partial plan with
+        status TIME_LIMIT / NODE_LIMIT / UNREACHABLE.
+    """
+    t_begin = time.perf_counter()
+    opts = options if options is not None else PlannerOptions()
+    opts.validate()
+    model = BipedStepModel(world, start, start_foot, goal, table, opts, **kwargs)
+    left = max(opts.time_limit - (time.perf_counter() - t_begin), 1e-9)
+    budget = int(opts.max_expansions) if opts.max_expansions > 0 else 2**62
+    backend = opts.backend
+    if backend == "auto":
+        backend = "python" if model.dynamic else "compiled"
+    if backend == "compiled":
+        if model.dynamic:
+            raise FootstepError("the compiled backend plans on static grids only; use 'python'")
+        from repertoire.planning.footstep.fastcore import compiled_anytime
+
+        results = compiled_anytime(model, list(weights), budget, left)
+    else:
+        results = anytime_search(
+            model, weights=weights, max_expansions=budget, time_limit=left, require_successors=False
+        )
+    out = []
+    elapsed = time.perf_counter() - t_begin - sum(r.seconds for r in results)
+    for r in results:
+        elapsed += r.seconds
+        out.append(AnytimePlan(_to_plan(model, r, elapsed), r.weight, r.bound, elapsed))
+    return out

@@ -24,7 +24,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry, apply_displacement
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
-from repertoire.planning.footstep.footprint import FootprintChecker, footprint_masks
+from repertoire.planning.footstep.footprint import (
+    FootprintChecker,
+    edge_distance,
+    footprint_masks,
+)
 from repertoire.planning.footstep.heuristic import dijkstra_cost_to_go
 from repertoire.planning.footstep.types import (
     ActionTable,
@@ -114,7 +118,8 @@ def pose3(p: Sequence[float], name: str) -> tuple[float, float, float]:
 class Checkers:
     """Footprint checkers per time index (dynamic) or one checker (static).
 
-    The foot rectangle is inflated by ``margin`` (m) on every side.
+    The foot rectangle is inflated by ``margin`` (m) on every side; ``distance`` is the
+    static grid's :func:`~repertoire.planning.footstep.footprint.edge_distance` when known.
     """
 
     def __init__(
@@ -123,6 +128,7 @@ class Checkers:
         geometry: BipedGeometry,
         hold: float,
         margin: float = 0.0,
+        distance: np.ndarray | None = None,
     ) -> None:
         self.world = world
         grid0 = world if isinstance(world, OccupancyGrid) else world.reference
@@ -135,7 +141,7 @@ class Checkers:
         self._cache: dict[int, FootprintChecker] = {}
         self.static = isinstance(world, OccupancyGrid)
         if self.static:
-            self._cache[0] = FootprintChecker(world, self.masks)
+            self._cache[0] = FootprintChecker(world, self.masks, distance)
 
     def index(self, t: float) -> int:
         """Time index of ``t``, or -1 when no grid is near (always 0 in static worlds)."""
@@ -260,11 +266,16 @@ class BipedStepModel:
         self.start_time = float(start_time)
 
         hold = float(table.duration.max())
-        self.checkers = Checkers(world, geometry, hold, opts.footprint_margin_m)
+        dist = None if dynamic else edge_distance(world)
+        self.checkers = Checkers(world, geometry, hold, opts.footprint_margin_m, dist)
         self.k0 = self.checkers.index(start_time)
         # the start feet already stand: checked exactly, without the margin; the height
         # cost is also measured under the exact footprint (heights are the same at all t)
-        exact = Checkers(world, geometry, hold) if opts.footprint_margin_m > 0 else self.checkers
+        exact = (
+            Checkers(world, geometry, hold, 0.0, dist)
+            if opts.footprint_margin_m > 0
+            else self.checkers
+        )
         self.exact = chk_start = exact.checker(self.k0)
         if not chk_start.is_free(sx, sy, sth):
             raise FootstepError(
@@ -337,7 +348,7 @@ class BipedStepModel:
             self.cost_per_m = c_min / max(table.max_reach(), 1e-3)
         else:
             self.cost_per_m = 0.0
-        self._h_flat = self.h_cells.ravel().tolist() if self.h_cells is not None else None
+        self._h_flat: list[float] | None = None
 
     def _setup_successors(self, action_filter: ActionFilter | None) -> None:
         table = self.table
@@ -415,7 +426,9 @@ class BipedStepModel:
 
     def cost_to_go(self, x: float, y: float) -> float:
         """Heuristic at a point of the map (inf where the Dijkstra field says unreachable)."""
-        if self._h_flat is not None:
+        if self.h_cells is not None:
+            if self._h_flat is None:
+                self._h_flat = self.h_cells.ravel().tolist()
             ox, oy = self.origin
             ny = self.ref.shape[1]
             return self._h_flat[int((x - ox) * self.inv_res) * ny + int((y - oy) * self.inv_res)]

@@ -132,7 +132,12 @@ def _foot_free(x, y, th, grid, chk, occ, free, outer_off, outer_di, outer_dj, ou
     lim_u = hl * inv_res + cell_u
     lim_v = hw * inv_res + cell_u
     eps = 1e-9
-    for k in range(outer_ptr[m], outer_ptr[m + 1]):
+    if occ[base]:  # the sole centre lies in this cell: they overlap with positive area
+        return False
+    for k in range(outer_ptr[m, 0], outer_ptr[m, 1]):  # inner cells: overlapped for sure
+        if occ[base + outer_off[k]]:
+            return False
+    for k in range(outer_ptr[m, 1], outer_ptr[m, 2]):  # ring cells: exact test
         if occ[base + outer_off[k]]:
             dx = outer_di[k] + 0.5 - fx
             dy = outer_dj[k] + 0.5 - fy
@@ -160,7 +165,7 @@ def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
     qy = min(int((fy - iy) * sub), sub - 1)
     m = ((int(th * yaw_scale + nb + 0.5) % nb) * sub + qx) * sub + qy
     lo, hi = np.inf, -np.inf
-    for k in range(ex_ptr[m], ex_ptr[m + 1]):
+    for k in range(ex_ptr[m, 0], ex_ptr[m, 2]):
         v = heights[base + ex_off[k]]
         lo = min(lo, v)
         hi = max(hi, v)
@@ -426,23 +431,32 @@ def _arastar(
         runs += 1
         if status != 0:
             break
-    return (
-        out_i[:runs],
-        out_f[:runs],
-        np.column_stack((nxs[:count], nys[:count], nth[:count])),
-        np.column_stack((nt[:count], nsx[:count], nsy[:count], nh[:count])),
-        np.column_stack((nfoot[:count], na2[:count], na1[:count], npar[:count])),
-    )
+    nodes = np.empty((count, 10))  # x, y, yaw, t, swing_x, swing_y, h, foot, a2, a1
+    parents = npar[:count]
+    for it in range(runs):  # only the nodes on the paths are filled
+        k = out_i[it, 1]
+        while k >= 0:
+            nodes[k, 0], nodes[k, 1], nodes[k, 2], nodes[k, 3] = nxs[k], nys[k], nth[k], nt[k]
+            nodes[k, 4], nodes[k, 5], nodes[k, 6] = nsx[k], nsy[k], nh[k]
+            nodes[k, 7], nodes[k, 8], nodes[k, 9] = nfoot[k], na2[k], na1[k]
+            k = npar[k]
+    return out_i[:runs], out_f[:runs], nodes, parents
 
 
 def _mask_arrays(masks, nyp: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Outer masks flattened: offsets ``di * nyp + dj``, ``di``, ``dj`` and row pointers."""
-    di = [np.asarray(a, np.int64) for a, _ in masks.outer]
-    dj = [np.asarray(b, np.int64) for _, b in masks.outer]
-    ptr = np.zeros(len(di) + 1, np.int64)
-    ptr[1:] = np.cumsum([len(a) for a in di])
-    di_all = np.concatenate(di) if di else np.zeros(0, np.int64)
-    dj_all = np.concatenate(dj) if dj else np.zeros(0, np.int64)
+    """Outer masks, inner cells first then ring cells.
+
+    Returns offsets ``di * nyp + dj``, ``di``, ``dj`` and per mask ``(start, ring start, end)``.
+    """
+    di_parts, dj_parts, ptr = [], [], np.zeros((len(masks.outer), 3), np.int64)
+    at = 0
+    for m, ((ia, ib), (ra, rb)) in enumerate(zip(masks.inner, masks.ring, strict=True)):
+        di_parts += [np.asarray(ia, np.int64), np.asarray(ra, np.int64)]
+        dj_parts += [np.asarray(ib, np.int64), np.asarray(rb, np.int64)]
+        ptr[m] = (at, at + len(ia), at + len(ia) + len(ra))
+        at = int(ptr[m, 2])
+    di_all = np.concatenate(di_parts) if di_parts else np.zeros(0, np.int64)
+    dj_all = np.concatenate(dj_parts) if dj_parts else np.zeros(0, np.int64)
     return di_all * nyp + dj_all, di_all, dj_all, ptr
 
 
@@ -556,13 +570,12 @@ def compiled_anytime(
     )
     left = time_limit - (time.perf_counter() - t0)
     ws = np.asarray(weights, dtype=float)
-    out_i, out_f, pose, more, ints = _arastar(
+    out_i, out_f, nodes, parents = _arastar(
         start, *tab.values(), ws, int(max_expansions), float(max(left, 1e-9))
     )
-    pose_l, more_l, ints_l = pose.tolist(), more.tolist(), ints.tolist()
 
     def state(k: int) -> BipedState:
-        (x, y, yaw), (t, sx, sy, h), (f, a2, a1, _) = pose_l[k], more_l[k], ints_l[k]
+        x, y, yaw, t, sx, sy, h, f, a2, a1 = nodes[k].tolist()
         return BipedState(x, y, yaw, int(f), int(a2), int(a1), t, sx, sy, h)
 
     results = []
@@ -573,7 +586,7 @@ def compiled_anytime(
         k = last
         while k >= 0:
             chain.append(k)
-            k = int(ints_l[k][3])
+            k = int(parents[k])
         path = [state(k) for k in reversed(chain)]
         results.append(
             SearchResult(

@@ -113,15 +113,34 @@ def footprint_masks(
     return FootprintMasks(foot_length, foot_width, resolution, yaw_bins, sub)
 
 
+def edge_distance(grid: OccupancyGrid) -> np.ndarray:
+    """Distance (m) from each cell centre to the nearest occupied cell or cell off the map.
+
+    The nearest cell off the map always lies in the ring just outside it, so one ring of
+    padding gives the distance any wider padding would.
+
+    Args:
+        grid: the grid.
+    """
+    nx, ny = grid.shape
+    occ = np.ones((nx + 2, ny + 2), dtype=bool)
+    occ[1:-1, 1:-1] = grid.occupied
+    return ndimage.distance_transform_edt(~occ)[1:-1, 1:-1] * grid.resolution
+
+
 class FootprintChecker:
     """Collision checks of foot poses against one occupancy grid.
 
     Args:
         grid: the grid (outside the grid counts as occupied).
         masks: precomputed masks for the grid's resolution.
+        distance: :func:`edge_distance` of the grid, when already computed (shared by
+            checkers of the same grid).
     """
 
-    def __init__(self, grid: OccupancyGrid, masks: FootprintMasks) -> None:
+    def __init__(
+        self, grid: OccupancyGrid, masks: FootprintMasks, distance: np.ndarray | None = None
+    ) -> None:
         if abs(masks.resolution - grid.resolution) > 1e-12:
             raise ValueError(
                 f"footprint masks were built for resolution {masks.resolution}, "
@@ -137,11 +156,13 @@ class FootprintChecker:
         occ[pad : pad + nx, pad : pad + ny] = grid.occupied
         self.nyp = ny + 2 * pad
         self.occ_flat = occ.ravel()
-        # distance (m) from each cell centre to the nearest occupied cell centre
-        if occ.any():
-            dist = ndimage.distance_transform_edt(~occ) * grid.resolution
-        else:
-            dist = np.full(occ.shape, np.inf)
+        # distance (m) from each cell centre to the nearest occupied (or outside) cell centre
+        if distance is None:
+            distance = edge_distance(grid)
+        elif distance.shape != grid.shape:
+            raise ValueError(f"distance field of shape {distance.shape} for a {grid.shape} grid")
+        dist = np.zeros(occ.shape)
+        dist[pad : pad + nx, pad : pad + ny] = distance
         surely_free = dist > masks.r_diag + grid.resolution * math.sqrt(2.0) + 1e-9
         self.free_bytes = surely_free.astype(np.uint8).ravel().tobytes()
         self.inv_res = 1.0 / grid.resolution

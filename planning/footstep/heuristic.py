@@ -117,67 +117,75 @@ def grid_dijkstra(cell_cost: np.ndarray, resolution: float, sources: np.ndarray)
 
 
 @numba.njit(cache=True)
+def _sift_up(hd, hc, pos, k, d, c):
+    while k > 0:
+        p = (k - 1) >> 1
+        if hd[p] <= d:
+            break
+        hd[k], hc[k] = hd[p], hc[p]
+        pos[hc[k]] = k
+        k = p
+    hd[k], hc[k] = d, c
+    pos[c] = k
+
+
+@numba.njit(cache=True)
 def _dijkstra8(cost, res, sources):
+    """Indexed binary heap with decrease-key: each cell enters the heap at most once."""
     nx, ny = cost.shape
-    dist = np.full((nx, ny), np.inf)
-    done = np.zeros((nx, ny), np.uint8)
-    cap = 4 * nx * ny + sources.size + 1
-    hd = np.empty(cap)
-    hc = np.empty(cap, np.int64)
+    flat = cost.ravel()
+    dist = np.full(nx * ny, np.inf)
+    pos = np.full(nx * ny, -1, np.int64)  # heap position; -2 once settled
+    hd = np.empty(nx * ny)
+    hc = np.empty(nx * ny, np.int64)
     size = 0
     for s in sources:
-        i, j = s // ny, s % ny
-        dist[i, j] = 0.0
-        k = size
-        size += 1
-        while k > 0 and hd[(k - 1) >> 1] > 0.0:
-            hd[k], hc[k] = hd[(k - 1) >> 1], hc[(k - 1) >> 1]
-            k = (k - 1) >> 1
-        hd[k], hc[k] = 0.0, s
+        if pos[s] == -1:
+            dist[s] = 0.0
+            _sift_up(hd, hc, pos, size, 0.0, s)
+            size += 1
     diag = math.sqrt(2.0) * res
     while size > 0:
         d, c = hd[0], hc[0]
+        pos[c] = -2
         size -= 1
-        ld, lc = hd[size], hc[size]
-        k = 0
-        while True:
-            ch = 2 * k + 1
-            if ch >= size:
-                break
-            if ch + 1 < size and hd[ch + 1] < hd[ch]:
-                ch += 1
-            if hd[ch] < ld:
-                hd[k], hc[k] = hd[ch], hc[ch]
-                k = ch
-            else:
-                break
-        hd[k], hc[k] = ld, lc
+        if size > 0:
+            ld, lc = hd[size], hc[size]
+            k = 0
+            while True:
+                ch = 2 * k + 1
+                if ch >= size:
+                    break
+                if ch + 1 < size and hd[ch + 1] < hd[ch]:
+                    ch += 1
+                if hd[ch] < ld:
+                    hd[k], hc[k] = hd[ch], hc[ch]
+                    pos[hc[k]] = k
+                    k = ch
+                else:
+                    break
+            hd[k], hc[k] = ld, lc
+            pos[lc] = k
         i, j = c // ny, c % ny
-        if done[i, j]:
-            continue
-        done[i, j] = 1
-        ci = cost[i, j]
+        ci = flat[c]
         for di in range(-1, 2):
+            a = i + di
+            if a < 0 or a >= nx:
+                continue
             for dj in range(-1, 2):
-                if di == 0 and dj == 0:
+                b = j + dj
+                if b < 0 or b >= ny or (di == 0 and dj == 0):
                     continue
-                a, b = i + di, j + dj
-                if a < 0 or a >= nx or b < 0 or b >= ny or done[a, b]:
+                nb = a * ny + b
+                if pos[nb] == -2:
                     continue
                 step = diag if di != 0 and dj != 0 else res
-                nd = d + 0.5 * (ci + cost[a, b]) * step
-                if nd < dist[a, b]:
-                    dist[a, b] = nd
-                    if size == hd.size:
-                        hd2 = np.empty(2 * size)
-                        hc2 = np.empty(2 * size, np.int64)
-                        hd2[:size] = hd[:size]
-                        hc2[:size] = hc[:size]
-                        hd, hc = hd2, hc2
-                    k = size
-                    size += 1
-                    while k > 0 and hd[(k - 1) >> 1] > nd:
-                        hd[k], hc[k] = hd[(k - 1) >> 1], hc[(k - 1) >> 1]
-                        k = (k - 1) >> 1
-                    hd[k], hc[k] = nd, a * ny + b
-    return dist
+                nd = d + 0.5 * (ci + flat[nb]) * step
+                if nd < dist[nb]:
+                    dist[nb] = nd
+                    if pos[nb] == -1:
+                        _sift_up(hd, hc, pos, size, nd, nb)
+                        size += 1
+                    else:
+                        _sift_up(hd, hc, pos, pos[nb], nd, nb)
+    return dist.reshape(nx, ny)

@@ -160,3 +160,24 @@ def test_ara_star_compiled_matches_python_and_bounds_hold():
         PlannerOptions.admissible(time_limit=60.0, xy_resolution=0.05, yaw_bins=36),
     )  # fmt: skip
     assert fresh.cost == pytest.approx(optimum, rel=1e-12)
+
+
+def test_bad_inputs_named(monkeypatch):
+    from repertoire.limits import ResourceLimitError
+
+    table = nominal_action_table()
+    with pytest.raises(ResourceLimitError, match=r"400000 x 400000 occupancy grid"):
+        OccupancyGrid.empty((10_000.0, 10_000.0), 0.025)
+    grid = OccupancyGrid.empty((2.0, 2.0), 0.025)
+    with monkeypatch.context() as m:
+        m.setenv("REPERTOIRE_MAX_MEMORY_BYTES", "100000")  # the grid fits, planning does not
+        with pytest.raises(ResourceLimitError, match=r"planning fields .* of a 80 x 80 map"):
+            plan_footsteps(grid, (0.3, 0.3, 0.0), "left", (1.5, 1.5), table)
+    with pytest.raises(FootstepError, match="successors are empty: the action_filter allows"):
+        plan_footsteps(
+            grid, (0.3, 0.3, 0.0), "left", (1.5, 1.5), table, action_filter=lambda *_: []
+        )
+    occ = np.zeros((80, 80), dtype=bool)
+    occ[58:62, 58:62] = True
+    with pytest.raises(FootstepError, match=r"goal \(1.500, 1.500\) lies inside an obstacle"):
+        plan_footsteps(OccupancyGrid(occ, 0.025), (0.3, 0.3, 0.0), "left", (1.5, 1.5), table)

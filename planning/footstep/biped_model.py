@@ -38,10 +38,16 @@ from repertoire.planning.footstep.types import (
     wrap_angle,
 )
 
+from repertoire.limits import require_memory
+
 if TYPE_CHECKING:
     from repertoire.planning.footstep.planner import PlannerOptions
 
 ActionFilter = Callable[[str, str, Foot], Sequence[str]]
+
+# per map cell: the Dijkstra field, its indexed heap (4 arrays), the cost and depth fields,
+# the edge distance and two padded footprint grids (occupancy, distance, free flag)
+PLANNING_BYTES_PER_CELL = 120
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -210,8 +216,10 @@ class BipedStepModel:
         action_filter: F: ``(a_prev2, a_prev1, stance_foot) -> allowed action names``.
 
     Raises:
-        FootstepError: a bad world, table, pose, history or filter; a start or goal off the
-            map, a start foot on an obstacle or on ground too steep, a goal in an obstacle.
+        FootstepError: a bad world, table, pose, history or filter (also one that allows no
+            action at all); a start or goal off the map, a start foot on an obstacle or on
+            ground too steep, a goal in an obstacle.
+        ResourceLimitError: a map whose planning fields would not fit in memory.
     """
 
     def __init__(
@@ -249,6 +257,12 @@ class BipedStepModel:
         gx, gy, _ = pose3(goal, "goal")
         self.goal = (gx, gy)
         self.ref = ref = world if not dynamic else world.reference
+        nx, ny = ref.shape
+        require_memory(
+            PLANNING_BYTES_PER_CELL * nx * ny,
+            f"planning fields (cost-to-go, distances, padded footprint grids) of a {nx} x {ny} "
+            f"map at {ref.resolution} m",
+        )
         if dynamic:
             world.index_at(start_time)  # raises GridError when no grid is near the start time
         for name, (px, py) in (("start", (sx, sy)), ("goal", (gx, gy))):
@@ -368,6 +382,11 @@ class BipedStepModel:
                         allowed[i2, i1, f] = False
                         allowed[i2, i1, f, [index[a] for a in ok]] = True
         # rows in (a_prev2, a_prev1, foot, a) order; succ_ptr[(a2 * n + a1) * 2 + f] starts a block
+        if not allowed.any():
+            raise FootstepError(
+                "the step model's successors are empty: the action_filter allows no action "
+                "after any history"
+            )
         counts = allowed.reshape(-1, n).sum(axis=1)
         self.succ_ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         self.succ_a = np.nonzero(allowed)[3].astype(np.int64)

@@ -181,3 +181,25 @@ def test_bad_inputs_named(monkeypatch):
     occ[58:62, 58:62] = True
     with pytest.raises(FootstepError, match=r"goal \(1.500, 1.500\) lies inside an obstacle"):
         plan_footsteps(OccupancyGrid(occ, 0.025), (0.3, 0.3, 0.0), "left", (1.5, 1.5), table)
+
+
+def test_step_up_and_step_down_limits():
+    occ = np.zeros((80, 40), dtype=bool)
+    heights = np.zeros((80, 40))
+    heights[40:, :] = 0.15  # a free platform 15 cm up for x >= 1 m
+    grid = OccupancyGrid(occ, 0.025, (0.0, 0.0), heights)
+    table = nominal_action_table()
+    up = (grid, (0.3, 0.595, 0.0), "left", (1.7, 0.5), table)
+    down = (grid, (1.7, 0.595, np.pi), "right", (0.3, 0.5), table)
+    common = {"time_limit": 30.0, "refinements": 0}
+    assert _both(*up, max_step_up=0.1, **common).status is PlanStatus.UNREACHABLE
+    climbed = _both(*up, max_step_up=0.2, max_step_down=0.0, **common)
+    assert climbed.status is PlanStatus.SUCCESS
+    assert _both(*down, max_step_down=0.1, **common).status is PlanStatus.UNREACHABLE
+    assert _both(*down, max_step_down=0.2, max_step_up=0.0, **common).succeeded
+    blocked = _both(*up, max_step_up=0.1, **common)
+    assert max(p[0] for p in blocked.poses) < 1.0 + 0.09  # never stood on the platform
+    with pytest.raises(FootstepError, match="max_step_up must be >= 0 m, got nan"):
+        PlannerOptions(max_step_up=float("nan")).validate()
+    with pytest.raises(FootstepError, match="max_step_down must be >= 0 m, got -0.1"):
+        PlannerOptions(max_step_down=-0.1).validate()

@@ -5,7 +5,8 @@ the last two commanded actions, the time and where the swing foot stands. Its su
 come from the displacement table ``T(a_prev2, a_prev1, stance foot, a)`` for the actions the
 filter F allows; each costs ``step_cost(a) + location_cost(landing)`` and is dropped when
 the landing foot rectangle (inflated by the margin) overlaps an occupied cell of E(t), is
-not flat enough, or its swing line crosses an obstacle taller than the swing clearance.
+not flat enough, steps up or down more than the limits (highest ground under each sole),
+or its swing line crosses an obstacle taller than the swing clearance.
 States are merged on a lattice of ``xy_resolution`` x ``yaw_bins`` (x time bins in dynamic
 worlds, x history classes) by :meth:`BipedStepModel.lattice_key`, the one place the key is
 written; the poses themselves stay continuous.
@@ -324,6 +325,10 @@ class BipedStepModel:
         opts, ref = self.opts, self.ref
         self.height_w = opts.height_cost_weight if ref.heights is not None else 0.0
         self.flat_limit = opts.max_height_range if ref.heights is not None else math.inf
+        has_h = ref.heights is not None
+        self.step_up = opts.max_step_up if has_h else math.inf
+        self.step_down = opts.max_step_down if has_h else math.inf
+        self.step_limits = math.isfinite(self.step_up) or math.isfinite(self.step_down)
         if math.isfinite(self.flat_limit):
             for name, pose in (("start", self.start_pose), ("initial swing foot", self.swing0)):
                 rng_h = self.exact.height_range(*pose)
@@ -488,6 +493,7 @@ class BipedStepModel:
         nx, ny = self.ref.shape
         c, sn = math.cos(s.yaw), math.sin(s.yaw)
         nf = 1 - s.foot
+        z1 = self.exact.height_bounds(s.x, s.y, s.yaw)[1] if self.step_limits else 0.0
         for m in self.successor_rows(s.a_prev2, s.a_prev1, s.foot):
             x2 = s.x + c * m.dx - sn * m.dy
             y2 = s.y + sn * m.dx + c * m.dy
@@ -514,6 +520,10 @@ class BipedStepModel:
                 and self.exact.height_range(x2, y2, th2) > self.flat_limit
             ):
                 continue
+            if self.step_limits:
+                dz = self.exact.height_bounds(x2, y2, th2)[1] - z1
+                if dz > self.step_up or -dz > self.step_down:
+                    continue
             if self.tall is not None and swing_crosses(
                 self.tall, s.swing_x, s.swing_y, x2, y2, ox, oy, inv_res
             ):

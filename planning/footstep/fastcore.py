@@ -12,7 +12,8 @@ everything in arrays so that numba compiles it:
 - successor expansion reads the flattened table T (per history and stance foot);
 - footprint checks use the model's precomputed checker: the distance-transform shortcut,
   then an exact separating-axis test of the occupied cells of the pose's outer mask;
-  flatness and height cost read the exact checker's outer mask over the height map;
+  flatness, height cost and step-up/down limits read the exact checker's outer mask over
+  the height map;
   swing lines are sampled over the cells taller than the swing clearance.
 
 Dynamic worlds and models that are not table-driven stay on the Python loop. The functions
@@ -152,8 +153,8 @@ def _foot_free(x, y, th, grid, chk, occ, free, outer_off, outer_di, outer_dj, ou
 
 
 @numba.njit(cache=True)
-def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
-    """Max minus min height over the exact footprint's outer mask (as FootprintChecker)."""
+def _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr):
+    """Min and max height over the exact footprint's outer mask (as FootprintChecker)."""
     ox, oy, inv_res = grid[0], grid[1], grid[2]
     pad, nyp, sub, nb, yaw_scale = int(ex[0]), int(ex[1]), int(ex[2]), int(ex[3]), ex[4]
     fx = (x - ox) * inv_res
@@ -169,6 +170,12 @@ def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
         v = heights[base + ex_off[k]]
         lo = min(lo, v)
         hi = max(hi, v)
+    return lo, hi
+
+
+@numba.njit(cache=True)
+def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
+    lo, hi = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)
     return hi - lo
 
 
@@ -200,7 +207,7 @@ def _arastar(
     succ_f,  # rows: dx, dy, dyaw, duration, cost
     hist,
     lat,  # ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist
-    grid,  # ox, oy, inv_res, nx, ny, gx, gy, tol, cost_per_m, flat_limit, height_w
+    grid,  # ox, oy, inv_res, nx, ny, gx, gy, tol, cost_per_m, flat_limit, height_w, up, down
     h_cells,  # flat (nx*ny) Dijkstra field, or empty for the Euclidean heuristic
     chk,  # pad, nyp, sub, yaw_bins, yaw_scale, hl, hw
     occ,
@@ -244,6 +251,8 @@ def _arastar(
         grid[9],
         grid[10],
     )
+    step_up, step_down = grid[11], grid[12]
+    step_limits = step_up < np.inf or step_down < np.inf
     use_cells = h_cells.size > 0
     tol2 = tol * tol
     two_pi = 2.0 * math.pi
@@ -340,6 +349,9 @@ def _arastar(
             c, s = math.cos(th), math.sin(th)
             nf = 1 - foot
             row = (a2 * n + a1) * 2 + foot
+            z1 = 0.0
+            if step_limits:
+                z1 = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)[1]
             for r in range(succ_ptr[row], succ_ptr[row + 1]):
                 dx, dy = succ_f[r, 0], succ_f[r, 1]
                 x2 = x + c * dx - s * dy
@@ -357,6 +369,10 @@ def _arastar(
                     _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
                 ):
                     continue
+                if step_limits:
+                    dz = _height_bounds(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)[1] - z1
+                    if dz > step_up or -dz > step_down:
+                        continue
                 if use_tall and _swing_crosses(tall, nsx[node], nsy[node], x2, y2, ox, oy, inv_res):
                     continue
                 if use_cells:
@@ -511,6 +527,8 @@ def compiled_tables(model: BipedStepModel) -> dict:
                 model.cost_per_m,
                 model.flat_limit,
                 model.height_w,
+                model.step_up,
+                model.step_down,
             ],
             float,
         ),

@@ -270,15 +270,26 @@ class FootprintChecker:
             y: sole centre y (m).
             yaw: foot yaw (rad).
         """
+        lo, hi = self.height_bounds(x, y, yaw)
+        return hi - lo
+
+    def height_bounds(self, x: float, y: float, yaw: float) -> tuple[float, float]:
+        """Min and max height over the cells a foot may overlap (outer mask); 0, 0 without.
+
+        Args:
+            x: sole centre x (m).
+            y: sole centre y (m).
+            yaw: foot yaw (rad).
+        """
         if self.heights_flat is None:
-            return 0.0
+            return 0.0, 0.0
         yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
         fx = (x - self.x0) * self.inv_res
         fy = (y - self.y0) * self.inv_res
         ix, iy = int(math.floor(fx)), int(math.floor(fy))
         base = (ix + self.pad) * self.nyp + iy + self.pad
         h = self.heights_flat[base + self.outer[self.masks.index(yaw, fx - ix, fy - iy)]]
-        return float(h.max() - h.min())
+        return float(h.min()), float(h.max())
 
 
 def foot_collides_reference(

@@ -88,6 +88,10 @@ class PlannerOptions:
         max_height_range: a foot lands only where the height range under its sole (the
             grid's ``heights``) is at most this (m): flat enough ground. The start feet
             must satisfy it too. ``inf`` (the default): no flatness limit.
+        max_step_up: a step may raise the foot by at most this (m): the highest ground
+            under the landing sole minus the highest under the stance sole (the grid's
+            ``heights``); ``inf`` (the default) or no heights: no limit.
+        max_step_down: the same for lowering the foot (m).
         backend: ``"python"`` (the generic search loop), ``"compiled"`` (the numba core,
             static grids only; the same plans) or ``"auto"`` (compiled for static grids,
             python in dynamic worlds).
@@ -108,6 +112,8 @@ class PlannerOptions:
     refinements: int = 2
     swing_clearance: float = math.inf
     max_height_range: float = math.inf
+    max_step_up: float = math.inf
+    max_step_down: float = math.inf
     backend: str = "auto"
 
     @classmethod
@@ -149,6 +155,10 @@ class PlannerOptions:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise FootstepError(f"{name} must be finite and >= 0, got {v}")
+        for name in ("max_step_up", "max_step_down"):
+            v = getattr(self, name)
+            if math.isnan(v) or v < 0.0:
+                raise FootstepError(f"{name} must be >= 0 m, got {v}")
         if math.isnan(self.max_height_range) or self.max_height_range < 0.0:
             raise FootstepError(f"max_height_range must be >= 0 m, got {self.max_height_range}")
         if math.isnan(self.swing_clearance) or self.swing_clearance <= 0.0:

@@ -25,7 +25,12 @@ from repertoire.planning.footstep.environment import (
     RectObstacle,
 )
 from repertoire.planning.footstep.mobile2d import Mobile2DPlan, plan_mobile2d
-from repertoire.planning.footstep.planner import PlannerOptions, plan_footsteps
+from repertoire.planning.footstep.planner import (
+    AnytimePlan,
+    PlannerOptions,
+    plan_footsteps,
+    plan_footsteps_anytime,
+)
 from repertoire.planning.footstep.receding import RecedingResult, plan_receding_horizon
 from repertoire.planning.footstep.types import (
     ActionTable,
@@ -63,6 +68,8 @@ __all__ = [
     "nominal_action_table",
     "parse_foot",
     "plan_footsteps",
+    "plan_footsteps_anytime",
+    "AnytimePlan",
     "plan_mobile2d",
     "plan_receding_horizon",
     "relative_displacement",

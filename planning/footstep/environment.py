@@ -13,6 +13,8 @@ from collections.abc import Sequence
 import numpy as np
 from repertoire.planning.footstep.types import GridError
 
+from repertoire.limits import require_memory
+
 
 def rect_overlaps_cells(
     center: Sequence[float],
@@ -225,6 +227,10 @@ class OccupancyGrid:
             size: ``(width_x, width_y)`` (m).
             resolution: cell side (m).
             origin: corner of cell (0, 0).
+
+        Raises:
+            GridError: a bad size or resolution.
+            ResourceLimitError: a grid too large for memory (estimated before allocating).
         """
         if not (math.isfinite(resolution) and resolution > 0):
             raise GridError(f"resolution must be positive, got {resolution}")
@@ -232,6 +238,11 @@ class OccupancyGrid:
             raise GridError(f"size must be two positive lengths, got {size}")
         nx = int(round(size[0] / resolution))
         ny = int(round(size[1] / resolution))
+        # the grid, its cell centres and heights (from_rectangles): 1 + 16 + 8 bytes a cell
+        require_memory(
+            25.0 * nx * ny,
+            f"a {nx} x {ny} occupancy grid for size {tuple(size)} m at {resolution} m",
+        )
         return cls(np.zeros((nx, ny), bool), resolution, (origin[0], origin[1]))
 
     @classmethod

@@ -113,15 +113,34 @@ def footprint_masks(
     return FootprintMasks(foot_length, foot_width, resolution, yaw_bins, sub)
 
 
+def edge_distance(grid: OccupancyGrid) -> np.ndarray:
+    """Distance (m) from each cell centre to the nearest occupied cell or cell off the map.
+
+    The nearest cell off the map always lies in the ring just outside it, so one ring of
+    padding gives the distance any wider padding would.
+
+    Args:
+        grid: the grid.
+    """
+    nx, ny = grid.shape
+    occ = np.ones((nx + 2, ny + 2), dtype=bool)
+    occ[1:-1, 1:-1] = grid.occupied
+    return ndimage.distance_transform_edt(~occ)[1:-1, 1:-1] * grid.resolution
+
+
 class FootprintChecker:
     """Collision checks of foot poses against one occupancy grid.
 
     Args:
         grid: the grid (outside the grid counts as occupied).
         masks: precomputed masks for the grid's resolution.
+        distance: :func:`edge_distance` of the grid, when already computed (shared by
+            checkers of the same grid).
     """
 
-    def __init__(self, grid: OccupancyGrid, masks: FootprintMasks) -> None:
+    def __init__(
+        self, grid: OccupancyGrid, masks: FootprintMasks, distance: np.ndarray | None = None
+    ) -> None:
         if abs(masks.resolution - grid.resolution) > 1e-12:
             raise ValueError(
                 f"footprint masks were built for resolution {masks.resolution}, "
@@ -137,27 +156,41 @@ class FootprintChecker:
         occ[pad : pad + nx, pad : pad + ny] = grid.occupied
         self.nyp = ny + 2 * pad
         self.occ_flat = occ.ravel()
-        # distance (m) from each cell centre to the nearest occupied cell centre
-        if occ.any():
-            dist = ndimage.distance_transform_edt(~occ) * grid.resolution
-        else:
-            dist = np.full(occ.shape, np.inf)
+        # distance (m) from each cell centre to the nearest occupied (or outside) cell centre
+        if distance is None:
+            distance = edge_distance(grid)
+        elif distance.shape != grid.shape:
+            raise ValueError(f"distance field of shape {distance.shape} for a {grid.shape} grid")
+        dist = np.zeros(occ.shape)
+        dist[pad : pad + nx, pad : pad + ny] = distance
         surely_free = dist > masks.r_diag + grid.resolution * math.sqrt(2.0) + 1e-9
         self.free_bytes = surely_free.astype(np.uint8).ravel().tobytes()
         self.inv_res = 1.0 / grid.resolution
         self.x0, self.y0 = grid.origin
-        nyp = self.nyp
-        # flat offsets of the outer masks, only needed for heights
-        self.outer = [di * nyp + dj for di, dj in masks.outer] if grid.heights is not None else []
-        # each padded grid row as a Python int: bit j set when cell (i, j) is occupied
-        packed = np.packbits(occ, axis=1, bitorder="little")
-        self.rows = [int.from_bytes(packed[i].tobytes(), "little") for i in range(occ.shape[0])]
+        self._occ = occ
+        self._rows: list[int] | None = None
+        self._outer: list[np.ndarray] | None = None
         if grid.heights is not None:
             h = np.zeros(occ.shape)
             h[pad : pad + nx, pad : pad + ny] = grid.heights
             self.heights_flat: np.ndarray | None = h.ravel()
         else:
             self.heights_flat = None
+
+    @property
+    def rows(self) -> list[int]:
+        """Each padded grid row as a Python int: bit j set when cell (i, j) is occupied."""
+        if self._rows is None:
+            packed = np.packbits(self._occ, axis=1, bitorder="little")
+            self._rows = [int.from_bytes(r.tobytes(), "little") for r in packed]
+        return self._rows
+
+    @property
+    def outer(self) -> list[np.ndarray]:
+        """Flat offsets (``di * nyp + dj``) of the outer masks, for the height queries."""
+        if self._outer is None:
+            self._outer = [di * self.nyp + dj for di, dj in self.masks.outer]
+        return self._outer
 
     def is_free(self, x: float, y: float, yaw: float) -> bool:
         """Whether a foot at ``(x, y, yaw)`` overlaps no occupied cell and lies in the map.
@@ -237,15 +270,26 @@ class FootprintChecker:
             y: sole centre y (m).
             yaw: foot yaw (rad).
         """
+        lo, hi = self.height_bounds(x, y, yaw)
+        return hi - lo
+
+    def height_bounds(self, x: float, y: float, yaw: float) -> tuple[float, float]:
+        """Min and max height over the cells a foot may overlap (outer mask); 0, 0 without.
+
+        Args:
+            x: sole centre x (m).
+            y: sole centre y (m).
+            yaw: foot yaw (rad).
+        """
         if self.heights_flat is None:
-            return 0.0
+            return 0.0, 0.0
         yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
         fx = (x - self.x0) * self.inv_res
         fy = (y - self.y0) * self.inv_res
         ix, iy = int(math.floor(fx)), int(math.floor(fy))
         base = (ix + self.pad) * self.nyp + iy + self.pad
         h = self.heights_flat[base + self.outer[self.masks.index(yaw, fx - ix, fy - iy)]]
-        return float(h.max() - h.min())
+        return float(h.min()), float(h.max())
 
 
 def foot_collides_reference(

@@ -3,17 +3,19 @@
 The Dijkstra estimate is the paper's "standard mobile robot planner run backwards from
 the goal": 8-connected moves between cell centres, each move costing its length times
 the mean traversal cost of the two cells (1 on free cells, ``obstacle_cost`` on occupied
-ones, which the biped may still step over). It is informed but not admissible.
+ones, which the biped may still step over). It is informed but not admissible. The
+search runs compiled (:func:`grid_dijkstra`, numba); :func:`grid_graph` gives the same
+graph to scipy's ``dijkstra`` for reference.
 """
 
 import functools
 import math
 
+import numba
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid
 from scipy import ndimage
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 _NEIGHBOURS = ((1, 0), (0, 1), (1, 1), (1, -1))
 
@@ -95,6 +97,95 @@ def dijkstra_cost_to_go(
     sources = np.flatnonzero(d_goal <= max(goal_tolerance, grid.resolution * 0.75))
     if len(sources) == 0:
         sources = np.array([int(np.argmin(d_goal))])
-    g = grid_graph(cost, grid.resolution)
-    dist = dijkstra(g, directed=True, indices=sources, min_only=True)
-    return np.asarray(dist).reshape(grid.shape)
+    return grid_dijkstra(cost, grid.resolution, sources)
+
+
+def grid_dijkstra(cell_cost: np.ndarray, resolution: float, sources: np.ndarray) -> np.ndarray:
+    """Multi-source Dijkstra over :func:`grid_graph`'s graph, compiled.
+
+    Args:
+        cell_cost: (nx, ny) traversal cost per metre of each cell (inf = no passage).
+        resolution: cell side (m).
+        sources: flat indices of the source cells (distance 0).
+
+    Returns:
+        (nx, ny) distances (inf where no source is reachable).
+    """
+    cost = np.ascontiguousarray(cell_cost, dtype=float)
+    src = np.asarray(sources, dtype=np.int64).ravel()
+    return _dijkstra8(cost, float(resolution), src)
+
+
+@numba.njit(cache=True)
+def _sift_up(hd, hc, pos, k, d, c):
+    while k > 0:
+        p = (k - 1) >> 1
+        if hd[p] <= d:
+            break
+        hd[k], hc[k] = hd[p], hc[p]
+        pos[hc[k]] = k
+        k = p
+    hd[k], hc[k] = d, c
+    pos[c] = k
+
+
+@numba.njit(cache=True)
+def _dijkstra8(cost, res, sources):
+    """Indexed binary heap with decrease-key: each cell enters the heap at most once."""
+    nx, ny = cost.shape
+    flat = cost.ravel()
+    dist = np.full(nx * ny, np.inf)
+    pos = np.full(nx * ny, -1, np.int64)  # heap position; -2 once settled
+    hd = np.empty(nx * ny)
+    hc = np.empty(nx * ny, np.int64)
+    size = 0
+    for s in sources:
+        if pos[s] == -1:
+            dist[s] = 0.0
+            _sift_up(hd, hc, pos, size, 0.0, s)
+            size += 1
+    diag = math.sqrt(2.0) * res
+    while size > 0:
+        d, c = hd[0], hc[0]
+        pos[c] = -2
+        size -= 1
+        if size > 0:
+            ld, lc = hd[size], hc[size]
+            k = 0
+            while True:
+                ch = 2 * k + 1
+                if ch >= size:
+                    break
+                if ch + 1 < size and hd[ch + 1] < hd[ch]:
+                    ch += 1
+                if hd[ch] < ld:
+                    hd[k], hc[k] = hd[ch], hc[ch]
+                    pos[hc[k]] = k
+                    k = ch
+                else:
+                    break
+            hd[k], hc[k] = ld, lc
+            pos[lc] = k
+        i, j = c // ny, c % ny
+        ci = flat[c]
+        for di in range(-1, 2):
+            a = i + di
+            if a < 0 or a >= nx:
+                continue
+            for dj in range(-1, 2):
+                b = j + dj
+                if b < 0 or b >= ny or (di == 0 and dj == 0):
+                    continue
+                nb = a * ny + b
+                if pos[nb] == -2:
+                    continue
+                step = diag if di != 0 and dj != 0 else res
+                nd = d + 0.5 * (ci + flat[nb]) * step
+                if nd < dist[nb]:
+                    dist[nb] = nd
+                    if pos[nb] == -1:
+                        _sift_up(hd, hc, pos, size, nd, nb)
+                        size += 1
+                    else:
+                        _sift_up(hd, hc, pos, pos[nb], nd, nb)
+    return dist.reshape(nx, ny)

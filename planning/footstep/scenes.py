@@ -295,3 +295,62 @@ def maze_grid(
         seen.add((a, b))
         stack.append((a, b))
     return OccupancyGrid(occ, resolution)
+
+
+def random_floor_scene(
+    seed: int,
+    *,
+    size: float = 12.0,
+    occupancy: float = 0.30,
+    resolution: float = 0.025,
+    block_size: tuple[float, float] = (0.1, 0.6),
+    height: tuple[float, float] = (0.02, 0.30),
+    clear_radius: float = 0.5,
+) -> StaticScene:
+    """A large floor covered to ``occupancy`` by axis-aligned blocks of random heights.
+
+    Blocks of side in ``block_size`` and height in ``height`` (a 2.5-D map: low ones can be
+    stepped over, tall ones need a way around when the planner has a swing clearance) are
+    dropped until the occupied fraction reaches ``occupancy``, keeping discs of
+    ``clear_radius`` around the start (0.6 m from the low corner) and the goal (0.6 m from
+    the far edge, at a random y), 9-12 m apart on the default floor.
+
+    Args:
+        seed: random seed.
+        size: side of the square floor (m).
+        occupancy: occupied fraction to reach, in [0, 0.6].
+        resolution: cell side (m).
+        block_size: range of block sides (m).
+        height: range of block heights (m).
+        clear_radius: obstacle-free radius around start and goal (m).
+
+    Raises:
+        GridError: an occupancy outside [0, 0.6] or a floor too small for its margins.
+    """
+    if not (math.isfinite(occupancy) and 0.0 <= occupancy <= 0.6):
+        raise GridError(f"floor occupancy must be in [0, 0.6], got {occupancy}")
+    if not (math.isfinite(size) and size >= 4.0 * clear_radius + 1.2):
+        raise GridError(f"floor size {size} m is too small for clear_radius {clear_radius} m")
+    rng = np.random.default_rng(seed)
+    n = int(round(size / resolution))
+    occ = np.zeros((n, n), dtype=bool)
+    heights = np.zeros((n, n))
+    start_xy = (0.6, 0.6)
+    goal = (size - 0.6, float(rng.uniform(0.25 * size, size - 0.6)))
+    centers = (np.arange(n) + 0.5) * resolution
+    keep = np.zeros((n, n), dtype=bool)
+    for px, py in (start_xy, goal):
+        keep |= np.hypot(centers[:, None] - px, centers[None, :] - py) <= clear_radius
+    target = occupancy * n * n
+    while occ.sum() < target:
+        w, h = (rng.uniform(*block_size, 2) / resolution).astype(int) + 1
+        i, j = rng.integers(0, n - w), rng.integers(0, n - h)
+        if keep[i : i + w, j : j + h].any():
+            continue
+        occ[i : i + w, j : j + h] = True
+        heights[i : i + w, j : j + h] = rng.uniform(*height)
+    grid = OccupancyGrid(occ, resolution, (0.0, 0.0), heights)
+    yaw = math.atan2(goal[1] - start_xy[1], goal[0] - start_xy[0])
+    half_w = 0.095
+    start = (start_xy[0] - half_w * math.sin(yaw), start_xy[1] + half_w * math.cos(yaw), yaw)
+    return StaticScene(grid, [], start, "left", goal, start_xy)

@@ -4,8 +4,9 @@ The search knows nothing about feet: a :class:`StepModel` gives the start
 state, the successors of a state with their step costs, a hashable lattice key
 for duplicate detection, a goal test and an admissible heuristic. The
 quadruped crawl model (:mod:`repertoire.planning.footstep.quadruped`) is one
-such model. The biped planner (:func:`repertoire.planning.footstep.plan_footsteps`)
-still runs its own loop; porting it onto this core is future work.
+such model, the biped's table T (:mod:`repertoire.planning.footstep.biped_model`) another;
+:func:`repertoire.planning.footstep.plan_footsteps` runs the biped through this core (or
+through its compiled twin :mod:`repertoire.planning.footstep.fastcore`).
 
 Statuses are honest:
 
@@ -16,9 +17,9 @@ Statuses are honest:
 - ``NODE_LIMIT`` / ``TIME_LIMIT``: the budget ran out first; the path is the
   best partial one (the expanded state with the lowest heuristic).
 
-:func:`anytime_search` runs weighted A* with decreasing weights while time
-remains (a restarting ARA*-style schedule) and reports each plan with its
-suboptimality bound.
+:func:`anytime_search` is ARA*: weighted A* with decreasing weights that reuses
+the search between weights (OPEN plus the INCONS list) and reports each plan with
+its suboptimality bound.
 """
 
 import dataclasses
@@ -62,6 +63,12 @@ class SearchResult:
         weight: heuristic weight used; with SUCCESS, ``cost <= weight * optimum``.
         expansions: states expanded.
         seconds: wall time of the search.
+        generated: successors evaluated (returned by the model).
+        merged: successors dropped because their lattice state was already reached at
+            no higher cost (0 means no plan was discarded by duplicate detection).
+        cost_to_go: the heuristic at the path's last state.
+        bound: suboptimality bound of a SUCCESS (ARA*'s ``min(weight, cost / min f)``;
+            ``weight`` for a single search).
     """
 
     status: PlanStatus
@@ -70,6 +77,14 @@ class SearchResult:
     weight: float
     expansions: int
     seconds: float
+    generated: int = 0
+    merged: int = 0
+    cost_to_go: float = 0.0
+    bound: float = math.nan
+
+    def __post_init__(self) -> None:
+        if math.isnan(self.bound):
+            self.bound = self.weight
 
 
 def _validate_budget(weight: float, max_expansions: int, time_limit: float) -> None:
@@ -87,6 +102,7 @@ def search(
     weight: float = 1.0,
     max_expansions: int = 200_000,
     time_limit: float = 10.0,
+    require_successors: bool = True,
 ) -> SearchResult:
     """Weighted A* from ``model.start()`` to the first expanded goal state.
 
@@ -95,6 +111,8 @@ def search(
         weight: heuristic inflation (1 = optimal A*).
         max_expansions: expansion budget (NODE_LIMIT when exhausted).
         time_limit: wall-time budget in s (TIME_LIMIT when exhausted).
+        require_successors: refuse a start without successors (an empty step model); when
+            False such a start gives UNREACHABLE (a robot boxed in by obstacles).
 
     Raises:
         FootstepError: bad budget, or a start state that is not a goal and has no
@@ -103,7 +121,11 @@ def search(
     _validate_budget(weight, max_expansions, time_limit)
     t0 = time.perf_counter()
     start = model.start()
-    if not model.is_goal(start) and not any(True for _ in model.successors(start)):
+    if (
+        require_successors
+        and not model.is_goal(start)
+        and not any(True for _ in model.successors(start))
+    ):
         raise FootstepError(
             "the step model's successors of the start state are empty: no step is possible "
             "from the start (check the candidate set, reach and terrain around the start)"
@@ -117,7 +139,7 @@ def search(
     h0 = model.heuristic(start)
     open_list: list[tuple[float, float, int, Hashable]] = [(weight * h0, h0, next(tie), start_key)]
     best_key, best_h = start_key, h0
-    expansions = 0
+    expansions = generated = merged = 0
     status = PlanStatus.UNREACHABLE
     end_key = None
     while open_list:
@@ -136,15 +158,19 @@ def search(
             break
         closed.add(key)
         expansions += 1
-        if h < best_h:
-            best_key, best_h = key, h
         g_state = g[key]
+        if h < best_h or (h == best_h and g_state < g[best_key]):
+            best_key, best_h = key, h
         for nxt, step_cost in model.successors(state):
+            generated += 1
             nkey = model.key(nxt)
             if nkey in closed:
+                merged += 1
                 continue
             g_new = g_state + step_cost
-            if g_new < g.get(nkey, math.inf):
+            if g_new >= g.get(nkey, math.inf):
+                merged += 1
+            else:
                 g[nkey] = g_new
                 parent[nkey] = key
                 states[nkey] = nxt
@@ -165,6 +191,9 @@ def search(
         weight=weight,
         expansions=expansions,
         seconds=time.perf_counter() - t0,
+        generated=generated,
+        merged=merged,
+        cost_to_go=model.heuristic(states[end_key]),
     )
 
 
@@ -174,21 +203,33 @@ def anytime_search(
     weights: Sequence[float] = (3.0, 2.0, 1.5, 1.2, 1.0),
     max_expansions: int = 200_000,
     time_limit: float = 1.0,
+    require_successors: bool = True,
 ) -> list[SearchResult]:
-    """Weighted A* with decreasing weights while time remains.
+    """ARA* (Likhachev et al. 2003): weighted A* that reuses its search as the weight drops.
 
-    Each result carries its weight, the bound on its suboptimality. The list
-    holds every search that ran (the last one may end in TIME_LIMIT with a
-    partial path); the best plan is the cheapest SUCCESS.
+    The first search (the largest weight) is exactly :func:`search`. Each later one starts
+    from the previous open list plus the INCONS list (states whose cost improved after they
+    were expanded) with the new weight, and re-expands only states whose cost changed, so
+    better plans come for a fraction of a fresh search. Each result reports its weight and
+    ``bound = min(weight, cost / min over OPEN u INCONS of (g + h))``: with an admissible
+    heuristic the plan costs at most ``bound`` times the optimum. States merged on the
+    lattice keep their continuous poses: a state that improves after its expansion becomes
+    a new node, so every path stays a chain of real successors.
 
     Args:
         model: the step model.
         weights: decreasing weights, each >= 1.
-        max_expansions: expansion budget of each search.
+        max_expansions: expansion budget over all the searches.
         time_limit: total wall-time budget in s.
+        require_successors: as in :func:`search`.
+
+    Returns:
+        one result per search that ran: SUCCESS ones carry improving plans; the last may
+        end in TIME_LIMIT / NODE_LIMIT (best partial plan, or the previous plan's path when
+        one exists) or UNREACHABLE.
 
     Raises:
-        FootstepError: bad weights or budget.
+        FootstepError: bad weights or budget, or an empty step model (see :func:`search`).
     """
     ws = [float(w) for w in weights]
     if not ws or any(not (math.isfinite(w) and w >= 1.0) for w in ws):
@@ -197,13 +238,112 @@ def anytime_search(
         raise FootstepError(f"anytime weights must not increase, got {ws}")
     _validate_budget(ws[0], max_expansions, time_limit)
     t0 = time.perf_counter()
+    start = model.start()
+    if (
+        require_successors
+        and not model.is_goal(start)
+        and not any(True for _ in model.successors(start))
+    ):
+        raise FootstepError(
+            "the step model's successors of the start state are empty: no step is possible "
+            "from the start (check the candidate set, reach and terrain around the start)"
+        )
+    # nodes: parallel lists; a lattice key maps to its latest node
+    states, g, h, parent = [start], [0.0], [model.heuristic(start)], [-1]
+    expanded_in, in_open, in_incons = [-1], [True], [False]
+    index: dict[Hashable, int] = {model.key(start): 0}
+    best, best_h = 0, h[0]
+    expansions = generated = merged = 0
     results: list[SearchResult] = []
-    for w in ws:
-        left = time_limit - (time.perf_counter() - t0)
-        if left <= 0.0:
-            break
-        result = search(model, weight=w, max_expansions=max_expansions, time_limit=left)
-        results.append(result)
-        if result.status is PlanStatus.UNREACHABLE:
+    solution = -1
+    for it, w in enumerate(ws):
+        t_it = time.perf_counter()
+        heap = []
+        for i in range(len(states)):
+            if in_open[i] or in_incons[i]:
+                heap.append((g[i] + w * h[i], h[i], len(heap), i))
+                in_open[i], in_incons[i] = True, False
+        heapq.heapify(heap)
+        tie = len(heap)
+        status, end, exp_it = PlanStatus.UNREACHABLE, -1, 0
+        while heap:
+            _, hh, _, i = heapq.heappop(heap)
+            if expanded_in[i] == it:
+                continue
+            if model.is_goal(states[i]):
+                status, end = PlanStatus.SUCCESS, i
+                break
+            if expansions >= max_expansions:
+                status = PlanStatus.NODE_LIMIT
+                break
+            if (expansions & 63) == 0 and time.perf_counter() - t0 > time_limit:
+                status = PlanStatus.TIME_LIMIT
+                break
+            in_open[i], expanded_in[i] = False, it
+            expansions += 1
+            exp_it += 1
+            gi = g[i]
+            if hh < best_h or (hh == best_h and gi < g[best]):
+                best, best_h = i, hh
+            for nxt, step_cost in model.successors(states[i]):
+                generated += 1
+                nkey = model.key(nxt)
+                g2 = gi + step_cost
+                j = index.get(nkey)
+                closed_now = False
+                if j is not None:
+                    closed_now = expanded_in[j] == it or in_incons[j]
+                    if closed_now or g2 >= g[j]:
+                        merged += 1
+                    if g2 >= g[j]:
+                        continue
+                    if expanded_in[j] >= 0:  # has children: a new node keeps them consistent
+                        j = None
+                h2 = model.heuristic(nxt)
+                if j is None:
+                    j = len(states)
+                    states.append(nxt)
+                    g.append(g2)
+                    h.append(h2)
+                    parent.append(i)
+                    expanded_in.append(-1)
+                    in_open.append(not closed_now)
+                    in_incons.append(closed_now)
+                    index[nkey] = j
+                else:
+                    states[j], g[j], h[j], parent[j] = nxt, g2, h2, i
+                if not in_incons[j]:
+                    heapq.heappush(heap, (g2 + w * h2, h2, tie, j))
+                    tie += 1
+        bound = w
+        if status is PlanStatus.SUCCESS:
+            solution = end
+            low = min(
+                (g[k] + h[k] for k in range(len(states)) if in_open[k] or in_incons[k]),
+                default=g[end],
+            )
+            bound = min(w, g[end] / low) if low > 0 else w
+        last = end if end >= 0 else (solution if solution >= 0 else best)
+        path = []
+        k = last
+        while k >= 0:
+            path.append(states[k])
+            k = parent[k]
+        path.reverse()
+        results.append(
+            SearchResult(
+                status=status,
+                path=path,
+                cost=g[last],
+                weight=w,
+                expansions=exp_it,
+                seconds=time.perf_counter() - t_it,
+                generated=generated,
+                merged=merged,
+                cost_to_go=h[last],
+                bound=bound,
+            )
+        )
+        if status is not PlanStatus.SUCCESS:
             break
     return results

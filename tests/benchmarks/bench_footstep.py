@@ -1,4 +1,21 @@
-"""Benchmark: footstep planning time on static 3 m x 3 m floors, and the 0.05 s limit.
+"""Benchmark: footstep planning time, compiled vs Python core, anytime plans on large maps.
+
+Sections (``--sections``, default all but ``legacy``):
+
+- ``backends``: the static study's maps (3 m, 4 strips, 2 blocks, Dijkstra heuristic,
+  weight 1.5): the Python search loop and the compiled (numba) core on each map, in the
+  same run: success, identical plans, median plan time (setup included) and the ratio.
+- ``jit``: cold compilation (fresh numba cache, in a subprocess), load from the cache (a
+  second subprocess), and a warm in-process call.
+- ``rate``: expansions per second of the compiled core on a 12 m open floor (Euclidean
+  heuristic, weight 1), per wall second and per CPU second of the process (the machine is
+  shared: CPU seconds are the one-core figure).
+- ``large``: 12 m x 12 m floors at 30 % occupancy, 6 m x 6 m mazes with 0.5 m doorways,
+  stepping stones: ARA* (weights 3 .. 1, Dijkstra heuristic, 1 s): time to the first plan,
+  statuses, cost by 1 s against the lattice optimum (compiled A*, Euclidean, weight 1).
+- ``legacy``: the issue-4 figures below.
+
+Legacy (issue 4):
 
 Setting (issue 4): the paper's floor (3 m x 3 m, 2.5 cm cells, start and goal in opposite
 corners) with random flat obstacles: the study's maps (4 strips, 2 blocks) and denser maps
@@ -36,7 +53,26 @@ def main() -> int:
         default=[1.5, 2.0],
         help="heuristic weights (the first is the planner's default)",
     )
+    parser.add_argument(
+        "--sections",
+        default="backends,jit,rate,large",
+        help="comma-separated sections: backends, jit, rate, large, legacy",
+    )
+    parser.add_argument("--large-maps", type=int, default=5, help="maps per large family")
     args = parser.parse_args()
+    sections = set(args.sections.split(","))
+    print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores)")
+    if "backends" in sections:
+        _bench_backends(args.maps)
+    if "jit" in sections:
+        _bench_jit()
+    if "rate" in sections:
+        _bench_rate()
+    if "large" in sections:
+        _bench_large(args.large_maps)
+    if "legacy" not in sections:
+        print(f"load average at end: {os.getloadavg()[0]:.1f}")
+        return 0
 
     from repertoire.planning.footstep import (
         PlannerOptions,
@@ -55,7 +91,6 @@ def main() -> int:
 
     table = nominal_action_table()
     footprint_masks(0.16, 0.10, 0.025)  # built once per process (cached), not per plan
-    print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores)")
     families = {"study (4 strips, 2 blocks)": (4, 2), "dense (8 strips, 4 blocks)": (8, 4)}
     hard = []
     for w in args.weights:
@@ -160,6 +195,160 @@ def main() -> int:
     _bench_crawl()
     print(f"load average at end: {os.getloadavg()[0]:.1f}")
     return 0
+
+
+def _bench_backends(maps: int) -> None:
+    """The study's maps, planned by the Python loop and the compiled core in one run."""
+    from repertoire.planning.footstep import PlannerOptions, nominal_action_table, plan_footsteps
+    from repertoire.planning.footstep.scenes import random_static_scene
+
+    table = nominal_action_table()
+    warm = random_static_scene(0)
+    plan_footsteps(warm.grid, warm.start, "left", warm.goal, table, PlannerOptions())
+    times: dict[str, list[float]] = {"python": [], "compiled": []}
+    cpu: dict[str, list[float]] = {"python": [], "compiled": []}
+    ok = {"python": 0, "compiled": 0}
+    same = worst = 0.0
+    for seed in range(maps):
+        sc = random_static_scene(seed, n_strips=4, n_blocks=2)
+        plans = {}
+        for backend in ("python", "compiled"):
+            opts = PlannerOptions(
+                time_limit=30.0, heuristic_weight=1.5, max_expansions=200_000, backend=backend
+            )
+            t0, c0 = time.perf_counter(), time.process_time()
+            plans[backend] = plan_footsteps(sc.grid, sc.start, sc.start_foot, sc.goal, table, opts)
+            times[backend].append(time.perf_counter() - t0)
+            cpu[backend].append(time.process_time() - c0)
+            ok[backend] += plans[backend].succeeded
+        a, b = plans["python"], plans["compiled"]
+        same += a.poses == b.poses and a.cost == b.cost
+        worst = max(worst, abs(a.cost - b.cost) / max(a.cost, 1e-9))
+    med = statistics.median
+    print(f"\n== backends on the static study's maps ({maps} maps, weight 1.5, Dijkstra)")
+    print(
+        f"  success python {ok['python']}/{maps}, compiled {ok['compiled']}/{maps}; identical "
+        f"plans {same:.0f}/{maps}; max cost difference {100 * worst:.2f} %"
+    )
+    for kind, data in (("wall", times), ("CPU", cpu)):
+        print(
+            f"  median plan time ({kind}, setup included): python "
+            f"{1e3 * med(data['python']):.2f} ms, compiled {1e3 * med(data['compiled']):.2f} ms, "
+            f"ratio {med(data['python']) / med(data['compiled']):.1f}x"
+        )
+
+
+def _bench_jit() -> None:
+    """Cold compilation, loading from numba's cache, warm calls."""
+    import subprocess
+    import sys
+    import tempfile
+
+    code = (
+        "import time; t0 = time.perf_counter()\n"
+        "from repertoire.planning.footstep import PlannerOptions, nominal_action_table, "
+        "plan_footsteps\n"
+        "from repertoire.planning.footstep.scenes import random_static_scene\n"
+        "sc = random_static_scene(0); t1 = time.perf_counter()\n"
+        "plan_footsteps(sc.grid, sc.start, 'left', sc.goal, nominal_action_table(), "
+        "PlannerOptions()); t2 = time.perf_counter()\n"
+        "plan_footsteps(sc.grid, sc.start, 'left', sc.goal, nominal_action_table(), "
+        "PlannerOptions()); t3 = time.perf_counter()\n"
+        "print(t2 - t1, t3 - t2)\n"
+    )
+    print("\n== JIT warm-up (first plan of a process; second plan)")
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+        for label in ("cold (empty cache, compiles)", "cached (loads the compiled code)"):
+            out = subprocess.run(
+                [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+            )
+            first, second = (float(v) for v in out.stdout.split())
+            print(f"  {label}: first plan {first:.2f} s, second plan {1e3 * second:.1f} ms")
+
+
+def _bench_rate() -> None:
+    """Expansions per second of the compiled core on an open 12 m floor."""
+    from repertoire.planning.footstep import OccupancyGrid, PlannerOptions, nominal_action_table
+    from repertoire.planning.footstep.biped_model import BipedStepModel
+    from repertoire.planning.footstep.fastcore import compiled_search
+
+    grid = OccupancyGrid(np.zeros((480, 480), dtype=bool), 0.025)
+    model = BipedStepModel(
+        grid, (0.5, 0.5, 0.0), "left", (11.5, 11.5), nominal_action_table(),
+        PlannerOptions(heuristic="euclidean"),
+    )  # fmt: skip
+    compiled_search(model, 1.0, 1000, 10.0)
+    print("\n== compiled core expansion rate (12 m open floor, Euclidean, weight 1)")
+    for n in (10_000, 100_000, 300_000):
+        t0, c0 = time.perf_counter(), time.process_time()
+        r = compiled_search(model, 1.0, n, 60.0)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        print(
+            f"  {r.expansions} expansions ({r.generated} successors): {r.expansions / wall:,.0f}"
+            f"/s wall, {r.expansions / cpu:,.0f}/s CPU"
+        )
+
+
+def _bench_large(maps: int) -> None:
+    """ARA* first plans and costs by 1 s on large maps, against the lattice optimum."""
+    from repertoire.planning.footstep import (
+        PlannerOptions,
+        nominal_action_table,
+        plan_footsteps,
+        plan_footsteps_anytime,
+    )
+    from repertoire.planning.footstep.scenes import (
+        maze_grid,
+        random_floor_scene,
+        stepping_stones_grid,
+    )
+
+    table = nominal_action_table()
+    families = {
+        "12 m floors, 30 % occupancy": [
+            (sc.grid, sc.start, sc.start_foot, sc.goal)
+            for sc in (random_floor_scene(seed) for seed in range(maps))
+        ],
+        "6 m mazes, 0.5 m doorways": [
+            (maze_grid(seed), (0.6, 0.6, 0.0), "left", (5.4, 5.4)) for seed in range(maps)
+        ],
+        "stepping stones, 6-10 cm gaps": [
+            (
+                stepping_stones_grid(seed, 0.06 + 0.01 * (seed % 5)),
+                (0.2, 0.45, 0.0),
+                "left",
+                (1.8, 0.4),
+            )
+            for seed in range(maps)
+        ],  # fmt: skip
+    }
+    for label, problems in families.items():
+        first, statuses, ratios, opt_status = [], [], [], []
+        for args in problems:
+            runs = plan_footsteps_anytime(*args, table, PlannerOptions(time_limit=1.0))
+            found = [r for r in runs if r.plan.succeeded]
+            statuses.append(runs[-1].plan.status.value if not found else "SUCCESS")
+            first.append(found[0].elapsed_s if found else float("nan"))
+            best = min((r.plan.cost for r in found), default=float("nan"))
+            opt = plan_footsteps(
+                *args, table,
+                PlannerOptions(heuristic="euclidean", heuristic_weight=1.0, time_limit=30.0),
+            )  # fmt: skip
+            opt_status.append(opt.status.value)
+            if found and opt.succeeded:
+                ratios.append(best / opt.cost)
+        done = [t for t in first if t == t]
+        print(f"\n== {label}: {len(problems)} maps, ARA* 1 s (weights 3 .. 1)")
+        print(
+            f"  statuses {statuses}; first plan median "
+            f"{statistics.median(done) if done else float('nan'):.3f} s (max "
+            f"{max(done) if done else float('nan'):.3f} s)"
+        )
+        print(
+            f"  lattice optimum (A*, Euclidean, weight 1, 30 s): {opt_status}; cost by 1 s / "
+            f"optimum: {[round(r, 3) for r in ratios]}"
+        )
 
 
 def _bench_stepping_stones(table) -> None:

@@ -1,0 +1,537 @@
+"""The biped's search space and successors: Chestnutt et al.'s table T as a step model.
+
+A state (:class:`BipedState`) is the stance foot pose ``(x, y, yaw)``, which foot stands,
+the last two commanded actions, the time and where the swing foot stands. Its successors
+come from the displacement table ``T(a_prev2, a_prev1, stance foot, a)`` for the actions the
+filter F allows; each costs ``step_cost(a) + location_cost(landing)`` and is dropped when
+the landing foot rectangle (inflated by the margin) overlaps an occupied cell of E(t), is
+not flat enough, steps up or down more than the limits (highest ground under each sole),
+or its swing line crosses an obstacle taller than the swing clearance.
+States are merged on a lattice of ``xy_resolution`` x ``yaw_bins`` (x time bins in dynamic
+worlds, x history classes) by :meth:`BipedStepModel.lattice_key`, the one place the key is
+written; the poses themselves stay continuous.
+
+:class:`BipedStepModel` satisfies :class:`repertoire.planning.footstep.search.StepModel`,
+so the generic weighted A* runs it; for static grids it also exports its tables
+(:meth:`BipedStepModel.compiled_tables`) for the compiled core
+(:mod:`repertoire.planning.footstep.fastcore`).
+"""
+
+import dataclasses
+import math
+from collections.abc import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry, apply_displacement
+from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
+from repertoire.planning.footstep.footprint import (
+    FootprintChecker,
+    edge_distance,
+    footprint_masks,
+)
+from repertoire.planning.footstep.heuristic import dijkstra_cost_to_go
+from repertoire.planning.footstep.types import (
+    ActionTable,
+    Foot,
+    FootstepError,
+    parse_foot,
+    wrap_angle,
+)
+
+from repertoire.limits import require_memory
+
+if TYPE_CHECKING:
+    from repertoire.planning.footstep.planner import PlannerOptions
+
+ActionFilter = Callable[[str, str, Foot], Sequence[str]]
+
+# per map cell: the Dijkstra field, its indexed heap (4 arrays), the cost and depth fields,
+# the edge distance and two padded footprint grids (occupancy, distance, free flag)
+PLANNING_BYTES_PER_CELL = 120
+
+
+@dataclasses.dataclass(frozen=True, slots=True)
+class BipedState:
+    """One search state of the biped.
+
+    Attributes:
+        x, y, yaw: stance foot pose (m, m, rad), continuous.
+        foot: index of the stance foot (0 left, 1 right).
+        a_prev2, a_prev1: indices of the two last actions (``a_prev1`` led here).
+        t: time (s) at which this foot became the stance foot.
+        swing_x, swing_y: where the swing foot stands (the previous stance foot).
+        h: cost-to-go estimate of this state (the model's heuristic).
+    """
+
+    x: float
+    y: float
+    yaw: float
+    foot: int
+    a_prev2: int
+    a_prev1: int
+    t: float
+    swing_x: float
+    swing_y: float
+    h: float
+
+
+def history_classes(table: ActionTable) -> np.ndarray:
+    """Merge histories ``(a_prev2, a_prev1)`` whose futures are identical under T.
+
+    Two histories are equivalent when they give the same displacements and durations for
+    every foot and action, and the histories they lead to after any action are equivalent
+    again (partition refinement, as in DFA minimisation). States that differ only by
+    equivalent histories are merged by the search without changing any plan's cost.
+
+    Args:
+        table: the action table.
+
+    Returns:
+        (n, n) int array: class id of each history.
+    """
+    n = table.n
+    sig: dict[bytes, int] = {}
+    cls = np.zeros((n, n), dtype=int)
+    for i2 in range(n):
+        for i1 in range(n):
+            b = table.displacement[i2, i1].tobytes() + table.duration[i2, i1].tobytes()
+            cls[i2, i1] = sig.setdefault(b, len(sig))
+    while True:
+        sig2: dict[tuple, int] = {}
+        new = np.zeros_like(cls)
+        for i2 in range(n):
+            for i1 in range(n):
+                key = (int(cls[i2, i1]), *(int(cls[i1, a]) for a in range(n)))
+                new[i2, i1] = sig2.setdefault(key, len(sig2))
+        if len(sig2) == len(np.unique(cls)):
+            return new
+        cls = new
+
+
+def pose3(p: Sequence[float], name: str) -> tuple[float, float, float]:
+    """``(x, y[, yaw])`` as three finite floats with the yaw wrapped; errors name ``p``."""
+    try:
+        vals = [float(v) for v in p]
+    except (TypeError, ValueError):
+        raise FootstepError(f"{name} must be a sequence of numbers, got {p!r}") from None
+    if len(vals) == 2:
+        vals.append(0.0)
+    if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
+        raise FootstepError(f"{name} must be finite (x, y[, yaw]), got {p!r}")
+    return vals[0], vals[1], wrap_angle(vals[2])
+
+
+class Checkers:
+    """Footprint checkers per time index (dynamic) or one checker (static).
+
+    The foot rectangle is inflated by ``margin`` (m) on every side; ``distance`` is the
+    static grid's :func:`~repertoire.planning.footstep.footprint.edge_distance` when known.
+    """
+
+    def __init__(
+        self,
+        world: "OccupancyGrid | DynamicEnvironment",
+        geometry: BipedGeometry,
+        hold: float,
+        margin: float = 0.0,
+        distance: np.ndarray | None = None,
+    ) -> None:
+        self.world = world
+        grid0 = world if isinstance(world, OccupancyGrid) else world.reference
+        self.masks = footprint_masks(
+            geometry.foot_length + 2.0 * margin,
+            geometry.foot_width + 2.0 * margin,
+            grid0.resolution,
+        )
+        self.hold = hold
+        self._cache: dict[int, FootprintChecker] = {}
+        self.static = isinstance(world, OccupancyGrid)
+        if self.static:
+            self._cache[0] = FootprintChecker(world, self.masks, distance)
+
+    def index(self, t: float) -> int:
+        """Time index of ``t``, or -1 when no grid is near (always 0 in static worlds)."""
+        if self.static:
+            return 0
+        env = self.world
+        k = env.nearest_index_unchecked(t)
+        return k if abs(env.times[k] - t) <= env.max_time_gap + 1e-9 else -1
+
+    def checker(self, k: int) -> FootprintChecker:
+        c = self._cache.get(k)
+        if c is None:
+            env = self.world
+            t_hold = env.times[k] + self.hold
+            k2 = int(np.searchsorted(env.times, t_hold + env.max_time_gap + 1e-9))
+            union = env.stack[k : max(k2, k + 1)].any(axis=0)
+            ref = env.reference
+            c = FootprintChecker(
+                OccupancyGrid(union, ref.resolution, ref.origin, ref.heights), self.masks
+            )
+            self._cache[k] = c
+        return c
+
+
+def swing_crosses(
+    tall: np.ndarray, x0: float, y0: float, x1: float, y1: float, ox: float, oy: float, inv: float
+) -> bool:
+    """Whether the segment (x0, y0) -> (x1, y1) passes over a True cell of ``tall``."""
+    n = int(math.hypot(x1 - x0, y1 - y0) * inv * 2.0) + 2
+    nx, ny = tall.shape
+    for k in range(n + 1):
+        u = k / n
+        i = int(((x0 + u * (x1 - x0)) - ox) * inv)
+        j = int(((y0 + u * (y1 - y0)) - oy) * inv)
+        if 0 <= i < nx and 0 <= j < ny and tall[i, j]:
+            return True
+    return False
+
+
+@dataclasses.dataclass(frozen=True)
+class Successor:
+    """One row of the successor table: action ``a`` with its displacement, duration, cost."""
+
+    a: int
+    dx: float
+    dy: float
+    dyaw: float
+    duration: float
+    cost: float
+
+
+class BipedStepModel:
+    """The biped's step model over a static grid or a dynamic environment.
+
+    Args:
+        world: a static :class:`OccupancyGrid` or a :class:`DynamicEnvironment` E(t).
+        start: ``(x, y, yaw)`` of the stance foot at the start.
+        start_foot: which foot stands at ``start`` (the other one moves first).
+        goal: ``(x, y)`` of the goal point (a third value, yaw, is ignored).
+        table: the displacement table T (with durations and step costs).
+        opts: validated planner options (lattice, heuristic, margins, limits).
+        geometry: foot size and stance width.
+        initial_swing_pose: the other foot at the start; default: beside the stance foot.
+        start_time: time of the start state (s).
+        initial_history: ``(a_prev2, a_prev1)`` before the first action; default rest twice.
+        action_filter: F: ``(a_prev2, a_prev1, stance_foot) -> allowed action names``.
+
+    Raises:
+        FootstepError: a bad world, table, pose, history or filter (also one that allows no
+            action at all); a start or goal off the map, a start foot on an obstacle or on
+            ground too steep, a goal in an obstacle.
+        ResourceLimitError: a map whose planning fields would not fit in memory.
+    """
+
+    def __init__(
+        self,
+        world: "OccupancyGrid | DynamicEnvironment",
+        start: Sequence[float],
+        start_foot: "Foot | int | str",
+        goal: Sequence[float],
+        table: ActionTable,
+        opts: "PlannerOptions",
+        *,
+        geometry: BipedGeometry = ASIMO_LIKE,
+        initial_swing_pose: Sequence[float] | None = None,
+        start_time: float = 0.0,
+        initial_history: Sequence[str] | None = None,
+        action_filter: ActionFilter | None = None,
+    ) -> None:
+        if not isinstance(table, ActionTable):
+            raise FootstepError(f"table must be an ActionTable, got {type(table).__name__}")
+        table.validate()
+        if not isinstance(world, (OccupancyGrid, DynamicEnvironment)):
+            raise FootstepError(
+                f"world must be an OccupancyGrid or DynamicEnvironment, got {type(world).__name__}"
+            )
+        self.dynamic = dynamic = isinstance(world, DynamicEnvironment)
+        if dynamic and opts.heuristic == "dijkstra":
+            raise FootstepError(
+                "the 'dijkstra' heuristic needs a static grid; use 'euclidean' in dynamic worlds"
+            )
+        if not math.isfinite(start_time):
+            raise FootstepError(f"start_time must be finite, got {start_time}")
+        self.world, self.table, self.opts, self.geometry = world, table, opts, geometry
+        self.foot0 = parse_foot(start_foot)
+        self.start_pose = sx, sy, sth = pose3(start, "start")
+        gx, gy, _ = pose3(goal, "goal")
+        self.goal = (gx, gy)
+        self.ref = ref = world if not dynamic else world.reference
+        nx, ny = ref.shape
+        require_memory(
+            PLANNING_BYTES_PER_CELL * nx * ny,
+            f"planning fields (cost-to-go, distances, padded footprint grids) of a {nx} x {ny} "
+            f"map at {ref.resolution} m",
+        )
+        if dynamic:
+            world.index_at(start_time)  # raises GridError when no grid is near the start time
+        for name, (px, py) in (("start", (sx, sy)), ("goal", (gx, gy))):
+            if not ref.contains(px, py):
+                x0, y0 = ref.origin
+                w, h = ref.size
+                raise FootstepError(
+                    f"{name} ({px:.3f}, {py:.3f}) lies outside the map "
+                    f"[{x0}, {x0 + w}] x [{y0}, {y0 + h}]"
+                )
+        history = list(initial_history) if initial_history is not None else [table.rest_action] * 2
+        if len(history) != 2:
+            raise FootstepError(f"initial_history must hold two actions, got {history}")
+        self.history0 = (table.index(history[0]), table.index(history[1]))
+        self.start_time = float(start_time)
+
+        hold = float(table.duration.max())
+        dist = None if dynamic else edge_distance(world)
+        self.checkers = Checkers(world, geometry, hold, opts.footprint_margin_m, dist)
+        self.k0 = self.checkers.index(start_time)
+        # the start feet already stand: checked exactly, without the margin; the height
+        # cost is also measured under the exact footprint (heights are the same at all t)
+        exact = (
+            Checkers(world, geometry, hold, 0.0, dist)
+            if opts.footprint_margin_m > 0
+            else self.checkers
+        )
+        self.exact = chk_start = exact.checker(self.k0)
+        if not chk_start.is_free(sx, sy, sth):
+            raise FootstepError(
+                f"start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) overlaps an obstacle "
+                "or the map edge"
+            )
+        if initial_swing_pose is None:
+            side = 1.0 if self.foot0 == Foot.RIGHT else -1.0
+            swing0 = apply_displacement((sx, sy, sth), (0.0, side * geometry.stance_width, 0.0))
+        else:
+            swing0 = pose3(initial_swing_pose, "initial_swing_pose")
+        self.swing0 = swing0
+        if not chk_start.is_free(*swing0):
+            raise FootstepError(
+                f"initial swing foot at ({swing0[0]:.3f}, {swing0[1]:.3f}) overlaps an obstacle "
+                "or the map edge"
+            )
+        self.chk0 = self.checkers.checker(self.k0)
+        gcell = ref.cell_of(gx, gy)
+        goal_blocked = (
+            world.stack[:, gcell[0], gcell[1]].all() if dynamic else bool(ref.occupied[gcell])
+        )
+        if goal_blocked:
+            raise FootstepError(f"goal ({gx:.3f}, {gy:.3f}) lies inside an obstacle")
+        self._setup_terrain_limits()
+        self._setup_heuristic()
+        self._setup_successors(action_filter)
+        self._setup_lattice()
+
+    # ------------------------------------------------------------------ setup
+    def _setup_terrain_limits(self) -> None:
+        opts, ref = self.opts, self.ref
+        self.height_w = opts.height_cost_weight if ref.heights is not None else 0.0
+        self.flat_limit = opts.max_height_range if ref.heights is not None else math.inf
+        has_h = ref.heights is not None
+        self.step_up = opts.max_step_up if has_h else math.inf
+        self.step_down = opts.max_step_down if has_h else math.inf
+        self.step_limits = math.isfinite(self.step_up) or math.isfinite(self.step_down)
+        if math.isfinite(self.flat_limit):
+            for name, pose in (("start", self.start_pose), ("initial swing foot", self.swing0)):
+                rng_h = self.exact.height_range(*pose)
+                if rng_h > self.flat_limit:
+                    raise FootstepError(
+                        f"{name} at ({pose[0]:.3f}, {pose[1]:.3f}) stands on ground too steep: "
+                        f"height range {rng_h:.3f} m under the sole > max_height_range "
+                        f"{self.flat_limit} m"
+                    )
+        self.tall = None
+        if ref.heights is not None and math.isfinite(opts.swing_clearance):
+            tall = ref.occupied & (ref.heights > opts.swing_clearance)
+            self.tall = tall if tall.any() else None
+
+    def _setup_heuristic(self) -> None:
+        opts, ref, table = self.opts, self.ref, self.table
+        self.tol = tol = opts.goal_tolerance
+        max_forward = float(np.max(table.displacement[..., 0]))
+        c_min = float(table.step_cost.min())
+        self.h_cells: np.ndarray | None = None
+        if opts.heuristic == "dijkstra":
+            self.cost_per_m = c_min / max(max_forward, 1e-3)
+            depth = opts.step_over_depth
+            if depth < 0:
+                depth = 0.5 * max(max_forward - self.geometry.foot_length, 0.0) + ref.resolution
+            dist = dijkstra_cost_to_go(
+                ref,
+                self.goal,
+                tol,
+                obstacle_cost=opts.obstacle_cost,
+                impassable_depth=depth,
+                deep_cost=10.0 * opts.obstacle_cost,
+            )
+            self.h_cells = dist * self.cost_per_m
+        elif opts.heuristic == "euclidean":
+            self.cost_per_m = c_min / max(table.max_reach(), 1e-3)
+        else:
+            self.cost_per_m = 0.0
+        self._h_flat: list[float] | None = None
+
+    def _setup_successors(self, action_filter: ActionFilter | None) -> None:
+        table = self.table
+        n, names = table.n, table.actions
+        allowed = np.ones((n, n, 2, n), dtype=bool)
+        if action_filter is not None:
+            index = {name: a for a, name in enumerate(names)}
+            for i2 in range(n):
+                for i1 in range(n):
+                    for f in (0, 1):
+                        ok = set(action_filter(names[i2], names[i1], Foot(f)))
+                        unknown = ok - set(names)
+                        if unknown:
+                            raise FootstepError(
+                                f"action_filter returned unknown actions {sorted(unknown)}"
+                            )
+                        allowed[i2, i1, f] = False
+                        allowed[i2, i1, f, [index[a] for a in ok]] = True
+        # rows in (a_prev2, a_prev1, foot, a) order; succ_ptr[(a2 * n + a1) * 2 + f] starts a block
+        if not allowed.any():
+            raise FootstepError(
+                "the step model's successors are empty: the action_filter allows no action "
+                "after any history"
+            )
+        counts = allowed.reshape(-1, n).sum(axis=1)
+        self.succ_ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.succ_a = np.nonzero(allowed)[3].astype(np.int64)
+        cost = np.broadcast_to(np.asarray(table.step_cost, float), allowed.shape)
+        self.succ_f = np.column_stack(
+            [
+                table.displacement[allowed],
+                table.duration[allowed],
+                cost[allowed],
+            ]
+        ).astype(float)
+        self._succ_rows: list[tuple[Successor, ...]] | None = None
+        self.hist = history_classes(table)
+        self._hist_rows = self.hist.tolist()
+        self.n_hist = int(self.hist.max()) + 1
+
+    def successor_rows(self, a_prev2: int, a_prev1: int, foot: int) -> tuple[Successor, ...]:
+        """The actions F allows after ``(a_prev2, a_prev1)`` on ``foot``, with T's values."""
+        if self._succ_rows is None:
+            rows = [
+                Successor(a, *vals)
+                for a, vals in zip(self.succ_a.tolist(), self.succ_f.tolist(), strict=True)
+            ]
+            ptr = self.succ_ptr.tolist()
+            self._succ_rows = [tuple(rows[ptr[k] : ptr[k + 1]]) for k in range(len(ptr) - 1)]
+        return self._succ_rows[(a_prev2 * self.table.n + a_prev1) * 2 + foot]
+
+    def _setup_lattice(self) -> None:
+        opts, ref = self.opts, self.ref
+        self.inv_q = 1.0 / opts.xy_resolution
+        self.nyaw = int(opts.yaw_bins)
+        self.yaw_scale = self.nyaw / (2.0 * math.pi)
+        self.ky = int(math.ceil(ref.size[1] * self.inv_q)) + 3
+        self.inv_tq = 1.0 / opts.time_resolution
+        self.inv_res = 1.0 / ref.resolution
+        self.origin = ref.origin
+
+    # ------------------------------------------------------------------ lattice
+    def lattice_key(self, x: float, y: float, yaw: float, foot: int, hist: int, t: float) -> int:
+        """The lattice cell of a state: equal keys are the same search state.
+
+        Position rounded to ``xy_resolution``, yaw (in ``[-pi, pi)``) to ``yaw_bins``, the
+        foot, the history class and, in dynamic worlds, the time rounded to
+        ``time_resolution``. :mod:`~repertoire.planning.footstep.fastcore` computes the same
+        integer.
+        """
+        ox, oy = self.origin
+        inv_q = self.inv_q
+        k = (int((x - ox) * inv_q + 0.5) * self.ky + int((y - oy) * inv_q + 0.5)) * self.nyaw + int(
+            yaw * self.yaw_scale + self.nyaw + 0.5
+        ) % self.nyaw
+        k = (k * 2 + foot) * self.n_hist + hist
+        if self.dynamic:
+            k = k * 1_000_000 + int(t * self.inv_tq + 0.5)
+        return k
+
+    def cost_to_go(self, x: float, y: float) -> float:
+        """Heuristic at a point of the map (inf where the Dijkstra field says unreachable)."""
+        if self.h_cells is not None:
+            if self._h_flat is None:
+                self._h_flat = self.h_cells.ravel().tolist()
+            ox, oy = self.origin
+            ny = self.ref.shape[1]
+            return self._h_flat[int((x - ox) * self.inv_res) * ny + int((y - oy) * self.inv_res)]
+        gx, gy = self.goal
+        return max(0.0, math.hypot(x - gx, y - gy) - self.tol) * self.cost_per_m
+
+    # ------------------------------------------------------------------ StepModel
+    def start(self) -> BipedState:
+        sx, sy, sth = self.start_pose
+        a2, a1 = self.history0
+        return BipedState(
+            sx,
+            sy,
+            sth,
+            int(self.foot0),
+            a2,
+            a1,
+            self.start_time,
+            self.swing0[0],
+            self.swing0[1],
+            self.cost_to_go(sx, sy),
+        )
+
+    def key(self, s: BipedState) -> int:
+        return self.lattice_key(s.x, s.y, s.yaw, s.foot, self._hist_rows[s.a_prev2][s.a_prev1], s.t)
+
+    def is_goal(self, s: BipedState) -> bool:
+        gx, gy = self.goal
+        return (s.x - gx) ** 2 + (s.y - gy) ** 2 <= self.tol * self.tol
+
+    def heuristic(self, s: BipedState) -> float:
+        return s.h
+
+    def successors(self, s: BipedState) -> Iterator[tuple[BipedState, float]]:
+        """The landings T allows from ``s`` that are free, flat and reachable by the swing."""
+        ox, oy = self.origin
+        inv_res = self.inv_res
+        nx, ny = self.ref.shape
+        c, sn = math.cos(s.yaw), math.sin(s.yaw)
+        nf = 1 - s.foot
+        z1 = self.exact.height_bounds(s.x, s.y, s.yaw)[1] if self.step_limits else 0.0
+        for m in self.successor_rows(s.a_prev2, s.a_prev1, s.foot):
+            x2 = s.x + c * m.dx - sn * m.dy
+            y2 = s.y + sn * m.dx + c * m.dy
+            th2 = (s.yaw + m.dyaw + math.pi) % (2.0 * math.pi) - math.pi
+            t2 = s.t + m.duration
+            fx = (x2 - ox) * inv_res
+            fy = (y2 - oy) * inv_res
+            if not (0.0 <= fx < nx and 0.0 <= fy < ny):
+                continue
+            if self.dynamic:
+                kt = self.checkers.index(t2)
+                if kt < 0:
+                    continue
+                chk = self.checkers.checker(kt)
+            else:
+                chk = self.chk0
+            ix, iy = int(fx), int(fy)
+            if not chk.free_bytes[(ix + chk.pad) * chk.nyp + iy + chk.pad] and not (
+                chk._check_masks(0, ix, iy, fx - ix, fy - iy, th2)
+            ):
+                continue
+            if (
+                self.flat_limit < math.inf
+                and self.exact.height_range(x2, y2, th2) > self.flat_limit
+            ):
+                continue
+            if self.step_limits:
+                dz = self.exact.height_bounds(x2, y2, th2)[1] - z1
+                if dz > self.step_up or -dz > self.step_down:
+                    continue
+            if self.tall is not None and swing_crosses(
+                self.tall, s.swing_x, s.swing_y, x2, y2, ox, oy, inv_res
+            ):
+                continue
+            h = self.cost_to_go(x2, y2)
+            if h == math.inf:
+                continue
+            cost = m.cost
+            if self.height_w > 0.0:
+                cost += self.height_w * self.exact.height_range(x2, y2, th2)
+            yield BipedState(x2, y2, th2, nf, s.a_prev1, m.a, t2, s.x, s.y, h), cost

@@ -1,0 +1,623 @@
+"""Compiled (numba) weighted A* for table-driven step models on static grids.
+
+The same search as :func:`repertoire.planning.footstep.search.search` run on the biped
+step model (:class:`~repertoire.planning.footstep.biped_model.BipedStepModel`), with
+everything in arrays so that numba compiles it:
+
+- the open list is a binary heap of ``(f, h, tie, node)`` entries in parallel arrays,
+  ordered exactly as the Python loop's ``heapq`` tuples (so both pop the same states);
+- duplicate detection is an open-addressing hash table from lattice keys (the model's
+  :meth:`~repertoire.planning.footstep.biped_model.BipedStepModel.lattice_key`, computed
+  here by the same formula) to node indices; nodes are named field arrays;
+- successor expansion reads the flattened table T (per history and stance foot);
+- footprint checks use the model's precomputed checker: the distance-transform shortcut,
+  then an exact separating-axis test of the occupied cells of the pose's outer mask;
+  flatness, height cost and step-up/down limits read the exact checker's outer mask over
+  the height map;
+  swing lines are sampled over the cells taller than the swing clearance.
+
+Dynamic worlds and models that are not table-driven stay on the Python loop. The functions
+are compiled with ``cache=True`` (the first call in a fresh environment compiles them, a
+few seconds; later processes load them from the cache): :func:`warm_up` compiles them
+once ahead of a timed run.
+"""
+
+import math
+import time
+
+import numba
+import numpy as np
+from repertoire.planning.footstep.biped_model import BipedState, BipedStepModel
+from repertoire.planning.footstep.search import SearchResult
+from repertoire.planning.footstep.types import PlanStatus
+
+_STATUS = (PlanStatus.SUCCESS, PlanStatus.UNREACHABLE, PlanStatus.NODE_LIMIT, PlanStatus.TIME_LIMIT)
+
+
+@numba.njit(cache=True, inline="always")
+def _less(f1, h1, t1, f2, h2, t2):
+    if f1 != f2:
+        return f1 < f2
+    if h1 != h2:
+        return h1 < h2
+    return t1 < t2
+
+
+@numba.njit(cache=True)
+def _heap_push(hf, hh, ht, hn, size, f, h, tie, node):
+    i = size
+    while i > 0:
+        p = (i - 1) >> 1
+        if _less(f, h, tie, hf[p], hh[p], ht[p]):
+            hf[i], hh[i], ht[i], hn[i] = hf[p], hh[p], ht[p], hn[p]
+            i = p
+        else:
+            break
+    hf[i], hh[i], ht[i], hn[i] = f, h, tie, node
+
+
+@numba.njit(cache=True)
+def _heap_pop(hf, hh, ht, hn, size):
+    """Remove the root of a heap of ``size`` entries (the caller read it first)."""
+    size -= 1
+    f, h, tie, node = hf[size], hh[size], ht[size], hn[size]
+    i = 0
+    while True:
+        c = 2 * i + 1
+        if c >= size:
+            break
+        if c + 1 < size and _less(hf[c + 1], hh[c + 1], ht[c + 1], hf[c], hh[c], ht[c]):
+            c += 1
+        if _less(hf[c], hh[c], ht[c], f, h, tie):
+            hf[i], hh[i], ht[i], hn[i] = hf[c], hh[c], ht[c], hn[c]
+            i = c
+        else:
+            break
+    hf[i], hh[i], ht[i], hn[i] = f, h, tie, node
+
+
+@numba.njit(cache=True, inline="always")
+def _slot(keys, key):
+    mask = keys.size - 1
+    i = ((key * 0x9E3779B97F4A7C15) >> 17) & mask
+    while keys[i] != -1 and keys[i] != key:
+        i = (i + 1) & mask
+    return i
+
+
+@numba.njit(cache=True)
+def _rehash(keys, vals):
+    nk = np.full(keys.size * 2, -1, np.int64)
+    nv = np.empty(keys.size * 2, np.int64)
+    for i in range(keys.size):
+        if keys[i] != -1:
+            j = _slot(nk, keys[i])
+            nk[j] = keys[i]
+            nv[j] = vals[i]
+    return nk, nv
+
+
+@numba.njit(cache=True)
+def _grow(a):
+    b = np.empty(a.size * 2, a.dtype)
+    b[: a.size] = a
+    return b
+
+
+@numba.njit(cache=True)
+def _foot_free(x, y, th, grid, chk, occ, free, outer_off, outer_di, outer_dj, outer_ptr):
+    """The margin checker's answer: foot at (x, y, th) overlaps no occupied cell."""
+    ox, oy, inv_res = grid[0], grid[1], grid[2]
+    fx = (x - ox) * inv_res
+    fy = (y - oy) * inv_res
+    ix = int(fx)
+    iy = int(fy)
+    pad, nyp = int(chk[0]), int(chk[1])
+    base = (ix + pad) * nyp + iy + pad
+    if free[base]:
+        return True
+    sub, nb, yaw_scale, hl, hw = int(chk[2]), int(chk[3]), chk[4], chk[5], chk[6]
+    fx -= ix
+    fy -= iy
+    qx = int(fx * sub)
+    qy = int(fy * sub)
+    if qx >= sub:
+        qx = sub - 1
+    if qy >= sub:
+        qy = sub - 1
+    m = ((int(th * yaw_scale + nb + 0.5) % nb) * sub + qx) * sub + qy
+    c, s = math.cos(th), math.sin(th)
+    ext_x = (hl * abs(c) + hw * abs(s)) * inv_res + 0.5
+    ext_y = (hl * abs(s) + hw * abs(c)) * inv_res + 0.5
+    cell_u = 0.5 * (abs(c) + abs(s))
+    lim_u = hl * inv_res + cell_u
+    lim_v = hw * inv_res + cell_u
+    eps = 1e-9
+    if occ[base]:  # the sole centre lies in this cell: they overlap with positive area
+        return False
+    for k in range(outer_ptr[m, 0], outer_ptr[m, 1]):  # inner cells: overlapped for sure
+        if occ[base + outer_off[k]]:
+            return False
+    for k in range(outer_ptr[m, 1], outer_ptr[m, 2]):  # ring cells: exact test
+        if occ[base + outer_off[k]]:
+            dx = outer_di[k] + 0.5 - fx
+            dy = outer_dj[k] + 0.5 - fy
+            if (
+                abs(dx) < ext_x - eps
+                and abs(dy) < ext_y - eps
+                and abs(dx * c + dy * s) < lim_u - eps
+                and abs(-dx * s + dy * c) < lim_v - eps
+            ):
+                return False
+    return True
+
+
+@numba.njit(cache=True)
+def _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr):
+    """Min and max height over the exact footprint's outer mask (as FootprintChecker)."""
+    ox, oy, inv_res = grid[0], grid[1], grid[2]
+    pad, nyp, sub, nb, yaw_scale = int(ex[0]), int(ex[1]), int(ex[2]), int(ex[3]), ex[4]
+    fx = (x - ox) * inv_res
+    fy = (y - oy) * inv_res
+    ix = int(math.floor(fx))
+    iy = int(math.floor(fy))
+    base = (ix + pad) * nyp + iy + pad
+    qx = min(int((fx - ix) * sub), sub - 1)
+    qy = min(int((fy - iy) * sub), sub - 1)
+    m = ((int(th * yaw_scale + nb + 0.5) % nb) * sub + qx) * sub + qy
+    lo, hi = np.inf, -np.inf
+    for k in range(ex_ptr[m, 0], ex_ptr[m, 2]):
+        v = heights[base + ex_off[k]]
+        lo = min(lo, v)
+        hi = max(hi, v)
+    return lo, hi
+
+
+@numba.njit(cache=True)
+def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
+    lo, hi = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)
+    return hi - lo
+
+
+@numba.njit(cache=True)
+def _swing_crosses(tall, x0, y0, x1, y1, ox, oy, inv):
+    n = int(math.hypot(x1 - x0, y1 - y0) * inv * 2.0) + 2
+    nx, ny = tall.shape
+    for k in range(n + 1):
+        u = k / n
+        i = int(((x0 + u * (x1 - x0)) - ox) * inv)
+        j = int(((y0 + u * (y1 - y0)) - oy) * inv)
+        if 0 <= i < nx and 0 <= j < ny and tall[i, j]:
+            return True
+    return False
+
+
+@numba.njit(cache=True)
+def _now():
+    with numba.objmode(t="float64"):
+        t = time.perf_counter()
+    return t
+
+
+@numba.njit(cache=True)
+def _arastar(
+    start,  # x, y, yaw, foot, a2, a1, t, swing_x, swing_y, h
+    succ_ptr,
+    succ_a,
+    succ_f,  # rows: dx, dy, dyaw, duration, cost
+    hist,
+    lat,  # ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist
+    grid,  # ox, oy, inv_res, nx, ny, gx, gy, tol, cost_per_m, flat_limit, height_w, up, down
+    h_cells,  # flat (nx*ny) Dijkstra field, or empty for the Euclidean heuristic
+    chk,  # pad, nyp, sub, yaw_bins, yaw_scale, hl, hw
+    occ,
+    free,
+    outer_off,
+    outer_di,
+    outer_dj,
+    outer_ptr,
+    ex,  # exact checker: pad, nyp, sub, yaw_bins, yaw_scale
+    heights,
+    ex_off,
+    ex_ptr,
+    tall,
+    use_tall,
+    weights,
+    max_expansions,
+    time_limit,
+):
+    """ARA* over the biped lattice, step for step as ``search.anytime_search``.
+
+    One weight is plain weighted A* (``search.search``). Returns per search: status code,
+    end node, cost, bound, expansions, seconds, generated, merged; then the node arrays.
+    """
+    t0 = _now()
+    n = hist.shape[0]
+    ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist = (
+        lat[0],
+        lat[1],
+        lat[2],
+        int(lat[3]),
+        int(lat[4]),
+        lat[5],
+        int(lat[6]),
+    )
+    inv_res, nx, ny = grid[2], int(grid[3]), int(grid[4])
+    gx, gy, tol, cost_per_m, flat_limit, height_w = (
+        grid[5],
+        grid[6],
+        grid[7],
+        grid[8],
+        grid[9],
+        grid[10],
+    )
+    step_up, step_down = grid[11], grid[12]
+    step_limits = step_up < np.inf or step_down < np.inf
+    use_cells = h_cells.size > 0
+    tol2 = tol * tol
+    two_pi = 2.0 * math.pi
+    cap = 1024
+    nxs = np.empty(cap)
+    nys = np.empty(cap)
+    nth = np.empty(cap)
+    nt = np.empty(cap)
+    nsx = np.empty(cap)
+    nsy = np.empty(cap)
+    nh = np.empty(cap)
+    ng = np.empty(cap)
+    nfoot = np.empty(cap, np.int64)
+    na2 = np.empty(cap, np.int64)
+    na1 = np.empty(cap, np.int64)
+    npar = np.empty(cap, np.int64)
+    nexp = np.full(cap, -1, np.int64)  # search index in which the node was expanded
+    nopen = np.zeros(cap, np.uint8)
+    nincons = np.zeros(cap, np.uint8)
+    keys = np.full(4096, -1, np.int64)
+    vals = np.empty(4096, np.int64)
+    hcap = 1024
+    hf = np.empty(hcap)
+    hh = np.empty(hcap)
+    ht = np.empty(hcap, np.int64)
+    hn = np.empty(hcap, np.int64)
+
+    sx, sy, sth = start[0], start[1], start[2]
+    f0, a20, a10 = int(start[3]), int(start[4]), int(start[5])
+    key0 = (int((sx - ox) * inv_q + 0.5) * ky + int((sy - oy) * inv_q + 0.5)) * nyaw + int(
+        sth * yaw_scale + nyaw + 0.5
+    ) % nyaw
+    key0 = (key0 * 2 + f0) * n_hist + hist[a20, a10]
+    nxs[0], nys[0], nth[0], nt[0], nsx[0], nsy[0], nh[0], ng[0] = (
+        sx,
+        sy,
+        sth,
+        start[6],
+        start[7],
+        start[8],
+        start[9],
+        0.0,
+    )
+    nfoot[0], na2[0], na1[0], npar[0], nopen[0] = f0, a20, a10, -1, 1
+    count = 1
+    j = _slot(keys, key0)
+    keys[j] = key0
+    vals[j] = 0
+    used = 1
+    best, best_h = 0, start[9]
+    expansions = generated = merged = 0
+    nw = weights.size
+    out_i = np.zeros((nw, 5), np.int64)  # status, end, expansions, generated, merged
+    out_f = np.zeros((nw, 3))  # cost, bound, seconds
+    solution = -1
+    runs = 0
+    for it in range(nw):
+        w = weights[it]
+        t_it = _now()
+        hsize = 0
+        for k in range(count):
+            if nopen[k] or nincons[k]:
+                if hsize == hf.size:
+                    hf, hh, ht, hn = _grow(hf), _grow(hh), _grow(ht), _grow(hn)
+                _heap_push(hf, hh, ht, hn, hsize, ng[k] + w * nh[k], nh[k], hsize, k)
+                hsize += 1
+                nopen[k], nincons[k] = 1, 0
+        tie = hsize
+        status, end, exp_it = 1, -1, 0  # UNREACHABLE
+        while hsize > 0:
+            h = hh[0]
+            node = hn[0]
+            _heap_pop(hf, hh, ht, hn, hsize)
+            hsize -= 1
+            if nexp[node] == it:
+                continue
+            x, y, th, foot = nxs[node], nys[node], nth[node], nfoot[node]
+            if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
+                status, end = 0, node
+                break
+            if expansions >= max_expansions:
+                status = 2
+                break
+            if (expansions & 1023) == 0 and _now() - t0 > time_limit:
+                status = 3
+                break
+            nopen[node], nexp[node] = 0, it
+            expansions += 1
+            exp_it += 1
+            g = ng[node]
+            if h < best_h or (h == best_h and g < ng[best]):
+                best, best_h = node, h
+            a2, a1 = na2[node], na1[node]
+            c, s = math.cos(th), math.sin(th)
+            nf = 1 - foot
+            row = (a2 * n + a1) * 2 + foot
+            z1 = 0.0
+            if step_limits:
+                z1 = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)[1]
+            for r in range(succ_ptr[row], succ_ptr[row + 1]):
+                dx, dy = succ_f[r, 0], succ_f[r, 1]
+                x2 = x + c * dx - s * dy
+                y2 = y + s * dx + c * dy
+                th2 = (th + succ_f[r, 2] + math.pi) % two_pi - math.pi
+                fx = (x2 - ox) * inv_res
+                fy = (y2 - oy) * inv_res
+                if not (0.0 <= fx < nx and 0.0 <= fy < ny):
+                    continue
+                if not _foot_free(
+                    x2, y2, th2, grid, chk, occ, free, outer_off, outer_di, outer_dj, outer_ptr
+                ):
+                    continue
+                if flat_limit < np.inf and (
+                    _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
+                ):
+                    continue
+                if step_limits:
+                    dz = _height_bounds(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)[1] - z1
+                    if dz > step_up or -dz > step_down:
+                        continue
+                if use_tall and _swing_crosses(tall, nsx[node], nsy[node], x2, y2, ox, oy, inv_res):
+                    continue
+                if use_cells:
+                    h2 = h_cells[int(fx) * ny + int(fy)]
+                else:
+                    h2 = max(0.0, math.hypot(x2 - gx, y2 - gy) - tol) * cost_per_m
+                if h2 == np.inf:
+                    continue
+                cost = succ_f[r, 4]
+                if height_w > 0.0:
+                    cost += height_w * _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)
+                generated += 1
+                a = succ_a[r]
+                g2 = g + cost
+                k2 = (
+                    int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
+                ) * nyaw + int(th2 * yaw_scale + nyaw + 0.5) % nyaw
+                k2 = (k2 * 2 + nf) * n_hist + hist[a1, a]
+                j = _slot(keys, k2)
+                idx = -1
+                closed_now = False
+                if keys[j] == k2:
+                    idx = vals[j]
+                    closed_now = nexp[idx] == it or nincons[idx] == 1
+                    if closed_now or g2 >= ng[idx]:
+                        merged += 1
+                    if g2 >= ng[idx]:
+                        continue
+                    if nexp[idx] >= 0:  # has children: a new node keeps them consistent
+                        idx = -1
+                if idx < 0:
+                    if count == nxs.size:
+                        nxs, nys, nth, nt = _grow(nxs), _grow(nys), _grow(nth), _grow(nt)
+                        nsx, nsy, nh, ng = _grow(nsx), _grow(nsy), _grow(nh), _grow(ng)
+                        nfoot, na2, na1, npar = _grow(nfoot), _grow(na2), _grow(na1), _grow(npar)
+                        nexp = _grow(nexp)
+                        nopen, nincons = _grow(nopen), _grow(nincons)
+                    idx = count
+                    count += 1
+                    nexp[idx] = -1
+                    nopen[idx] = 0 if closed_now else 1
+                    nincons[idx] = 1 if closed_now else 0
+                    if keys[j] != k2:
+                        keys[j] = k2
+                        used += 1
+                    vals[j] = idx
+                    if 2 * used > keys.size:
+                        keys, vals = _rehash(keys, vals)
+                nxs[idx], nys[idx], nth[idx], nt[idx] = x2, y2, th2, nt[node] + succ_f[r, 3]
+                nsx[idx], nsy[idx], nh[idx], ng[idx] = x, y, h2, g2
+                nfoot[idx], na2[idx], na1[idx], npar[idx] = nf, a1, a, node
+                if nincons[idx] == 0:
+                    if hsize == hf.size:
+                        hf, hh, ht, hn = _grow(hf), _grow(hh), _grow(ht), _grow(hn)
+                    _heap_push(hf, hh, ht, hn, hsize, g2 + w * h2, h2, tie, idx)
+                    hsize += 1
+                    tie += 1
+        bound = w
+        if status == 0:
+            solution = end
+            low = np.inf
+            for k in range(count):
+                if (nopen[k] or nincons[k]) and ng[k] + nh[k] < low:
+                    low = ng[k] + nh[k]
+            if low == np.inf:
+                low = ng[end]
+            bound = min(w, ng[end] / low) if low > 0 else w
+        last = end if end >= 0 else (solution if solution >= 0 else best)
+        out_i[it, 0], out_i[it, 1], out_i[it, 2] = status, last, exp_it
+        out_i[it, 3], out_i[it, 4] = generated, merged
+        out_f[it, 0], out_f[it, 1], out_f[it, 2] = ng[last], bound, _now() - t_it
+        runs += 1
+        if status != 0:
+            break
+    nodes = np.empty((count, 10))  # x, y, yaw, t, swing_x, swing_y, h, foot, a2, a1
+    parents = npar[:count]
+    for it in range(runs):  # only the nodes on the paths are filled
+        k = out_i[it, 1]
+        while k >= 0:
+            nodes[k, 0], nodes[k, 1], nodes[k, 2], nodes[k, 3] = nxs[k], nys[k], nth[k], nt[k]
+            nodes[k, 4], nodes[k, 5], nodes[k, 6] = nsx[k], nsy[k], nh[k]
+            nodes[k, 7], nodes[k, 8], nodes[k, 9] = nfoot[k], na2[k], na1[k]
+            k = npar[k]
+    return out_i[:runs], out_f[:runs], nodes, parents
+
+
+def _mask_arrays(masks, nyp: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Outer masks, inner cells first then ring cells.
+
+    Returns offsets ``di * nyp + dj``, ``di``, ``dj`` and per mask ``(start, ring start, end)``.
+    """
+    di_parts, dj_parts, ptr = [], [], np.zeros((len(masks.outer), 3), np.int64)
+    at = 0
+    for m, ((ia, ib), (ra, rb)) in enumerate(zip(masks.inner, masks.ring, strict=True)):
+        di_parts += [np.asarray(ia, np.int64), np.asarray(ra, np.int64)]
+        dj_parts += [np.asarray(ib, np.int64), np.asarray(rb, np.int64)]
+        ptr[m] = (at, at + len(ia), at + len(ia) + len(ra))
+        at = int(ptr[m, 2])
+    di_all = np.concatenate(di_parts) if di_parts else np.zeros(0, np.int64)
+    dj_all = np.concatenate(dj_parts) if dj_parts else np.zeros(0, np.int64)
+    return di_all * nyp + dj_all, di_all, dj_all, ptr
+
+
+def _masks_key(chk) -> tuple:
+    return (id(chk.masks), chk.nyp)
+
+
+_MASK_CACHE: dict[tuple, tuple] = {}
+
+
+def _cached_masks(chk) -> tuple:
+    key = _masks_key(chk)
+    arrays = _MASK_CACHE.get(key)
+    if arrays is None:
+        if len(_MASK_CACHE) > 16:
+            _MASK_CACHE.clear()
+        arrays = _MASK_CACHE[key] = (chk.masks, *_mask_arrays(chk.masks, chk.nyp))
+    return arrays[1:]
+
+
+def compiled_tables(model: BipedStepModel) -> dict:
+    """The model's search space as the arrays :func:`_astar` reads (static grids only)."""
+    if model.dynamic:
+        raise ValueError("the compiled core plans on static grids only")
+    chk, exact, ref = model.chk0, model.exact, model.ref
+    ox, oy = model.origin
+    nx, ny = ref.shape
+    gx, gy = model.goal
+    off, di, dj, optr = _cached_masks(chk)
+    ex_off, _, _, ex_ptr = _cached_masks(exact)
+    mk, emk = chk.masks, exact.masks
+    heights = exact.heights_flat if exact.heights_flat is not None else np.zeros(1)
+    tall = model.tall if model.tall is not None else np.zeros((1, 1), bool)
+    return {
+        "succ_ptr": model.succ_ptr,
+        "succ_a": model.succ_a,
+        "succ_f": np.ascontiguousarray(model.succ_f),
+        "hist": np.asarray(model.hist, np.int64),
+        "lat": np.array(
+            [ox, oy, model.inv_q, model.ky, model.nyaw, model.yaw_scale, model.n_hist], float
+        ),
+        "grid": np.array(
+            [
+                ox,
+                oy,
+                model.inv_res,
+                nx,
+                ny,
+                gx,
+                gy,
+                model.tol,
+                model.cost_per_m,
+                model.flat_limit,
+                model.height_w,
+                model.step_up,
+                model.step_down,
+            ],
+            float,
+        ),
+        "h_cells": (
+            np.ascontiguousarray(model.h_cells, float).ravel()
+            if model.h_cells is not None
+            else np.zeros(0)
+        ),
+        "chk": np.array(
+            [chk.pad, chk.nyp, mk.sub, mk.yaw_bins, mk.yaw_scale, mk.half[0], mk.half[1]], float
+        ),
+        "occ": chk.occ_flat.astype(np.uint8),
+        "free": np.frombuffer(chk.free_bytes, np.uint8),
+        "outer_off": off,
+        "outer_di": di,
+        "outer_dj": dj,
+        "outer_ptr": optr,
+        "ex": np.array([exact.pad, exact.nyp, emk.sub, emk.yaw_bins, emk.yaw_scale], float),
+        "heights": np.asarray(heights, float),
+        "ex_off": ex_off,
+        "ex_ptr": ex_ptr,
+        "tall": np.ascontiguousarray(tall, bool),
+        "use_tall": model.tall is not None,
+    }
+
+
+def compiled_search(
+    model: BipedStepModel, weight: float, max_expansions: int, time_limit: float
+) -> SearchResult:
+    """Weighted A* on the compiled core; the same result as ``search.search(model, ...)``.
+
+    Args:
+        model: a biped step model on a static grid.
+        weight: heuristic inflation (>= 1 for the bound; any >= 0 runs).
+        max_expansions: expansion budget (NODE_LIMIT when exhausted).
+        time_limit: wall-time budget in s (TIME_LIMIT when exhausted).
+    """
+    return compiled_anytime(model, [weight], max_expansions, time_limit)[0]
+
+
+def compiled_anytime(
+    model: BipedStepModel, weights, max_expansions: int, time_limit: float
+) -> list[SearchResult]:
+    """ARA* on the compiled core; the same results as ``search.anytime_search(model, ...)``.
+
+    Args:
+        model: a biped step model on a static grid.
+        weights: non-increasing heuristic weights.
+        max_expansions: expansion budget over all searches.
+        time_limit: wall-time budget in s over all searches.
+    """
+    t0 = time.perf_counter()
+    tab = compiled_tables(model)
+    s0 = model.start()
+    start = np.array(
+        [s0.x, s0.y, s0.yaw, s0.foot, s0.a_prev2, s0.a_prev1, s0.t, s0.swing_x, s0.swing_y, s0.h]
+    )
+    left = time_limit - (time.perf_counter() - t0)
+    ws = np.asarray(weights, dtype=float)
+    out_i, out_f, nodes, parents = _arastar(
+        start, *tab.values(), ws, int(max_expansions), float(max(left, 1e-9))
+    )
+
+    def state(k: int) -> BipedState:
+        x, y, yaw, t, sx, sy, h, f, a2, a1 = nodes[k].tolist()
+        return BipedState(x, y, yaw, int(f), int(a2), int(a1), t, sx, sy, h)
+
+    results = []
+    for (status, last, exp, gen, mer), (cost, bound, secs), w in zip(
+        out_i.tolist(), out_f.tolist(), ws.tolist(), strict=False
+    ):
+        chain = []
+        k = last
+        while k >= 0:
+            chain.append(k)
+            k = int(parents[k])
+        path = [state(k) for k in reversed(chain)]
+        results.append(
+            SearchResult(
+                status=_STATUS[status],
+                path=path,
+                cost=cost,
+                weight=w,
+                expansions=exp,
+                seconds=secs,
+                generated=gen,
+                merged=mer,
+                cost_to_go=path[-1].h,
+                bound=bound,
+            )
+        )
+    return results

@@ -1,0 +1,205 @@
+"""The compiled search core gives the Python loop's plans; its parts against references."""
+
+import heapq
+
+import numpy as np
+import pytest
+from repertoire.planning.footstep import (
+    OccupancyGrid,
+    PlannerOptions,
+    PlanStatus,
+    RectObstacle,
+    nominal_action_table,
+    plan_footsteps,
+)
+from repertoire.planning.footstep.scenes import random_static_scene, stepping_stones_grid
+from repertoire.planning.footstep.types import FootstepError
+
+
+def _both(grid, start, foot, goal, table, **opts):
+    plans = [
+        plan_footsteps(grid, start, foot, goal, table, PlannerOptions(backend=b, **opts))
+        for b in ("python", "compiled")
+    ]
+    py, cc = plans
+    assert py.status is cc.status
+    assert py.poses == cc.poses and py.actions == cc.actions and py.times == cc.times
+    assert py.cost == cc.cost and py.cost_to_go == cc.cost_to_go
+    assert (py.nodes_expanded, py.nodes_generated) == (cc.nodes_expanded, cc.nodes_generated)
+    assert (py.xy_resolution, py.yaw_bins) == (cc.xy_resolution, cc.yaw_bins)
+    return cc
+
+
+@pytest.mark.parametrize("seed", [0, 3, 7])
+def test_identical_plans_on_study_maps(seed):
+    sc = random_static_scene(seed, n_strips=8, n_blocks=4)
+    table = nominal_action_table()
+    plan = _both(sc.grid, sc.start, sc.start_foot, sc.goal, table, time_limit=30.0)
+    assert plan.status is PlanStatus.SUCCESS
+    # the Euclidean heuristic (expansion budget); and a short budget: the same partial plan
+    _both(
+        sc.grid, sc.start, sc.start_foot, sc.goal, table,
+        time_limit=30.0, heuristic="euclidean", max_expansions=3000, refinements=0,
+    )  # fmt: skip
+    cut = _both(sc.grid, sc.start, sc.start_foot, sc.goal, table, max_expansions=50)
+    assert cut.status is PlanStatus.NODE_LIMIT and cut.nodes_expanded == 50
+
+
+def test_identical_plans_on_stepping_stones_with_refinement():
+    grid = stepping_stones_grid(0, 0.10)
+    table = nominal_action_table()
+    plan = _both(grid, (0.2, 0.45, 0.0), "left", (1.8, 0.4), table, time_limit=30.0)
+    assert plan.status is PlanStatus.SUCCESS and plan.xy_resolution == 0.025
+
+
+def test_identical_plans_with_heights_clearance_and_flatness():
+    wall = OccupancyGrid.from_rectangles((2.0, 1.0), [RectObstacle([1.0, 0.5], [0.05, 1.0])])
+    heights = 0.3 * wall.occupied
+    heights[50:60, :] += np.linspace(0.0, 0.02, 40)[None, :]  # a gentle ramp across the room
+    grid = OccupancyGrid(wall.occupied, wall.resolution, wall.origin, heights)
+    table = nominal_action_table()
+    args = (grid, (0.4, 0.595, 0.0), "left", (1.6, 0.5), table)
+    blocked = _both(*args, time_limit=30.0, swing_clearance=0.1, refinements=0)
+    assert blocked.status is PlanStatus.UNREACHABLE
+    crossed = _both(*args, time_limit=30.0, max_height_range=0.5, height_cost_weight=5.0)
+    assert crossed.status is PlanStatus.SUCCESS
+    plain = plan_footsteps(*args, PlannerOptions(time_limit=30.0))
+    assert crossed.cost > plain.cost  # the height cost is paid on the ramp
+
+
+def test_unreachable_band_on_both_backends():
+    occ = np.zeros((60, 30), dtype=bool)
+    occ[25:41, :] = True  # a 40 cm band across the room: no step crosses it
+    grid = OccupancyGrid(occ, 0.025)
+    plan = _both(
+        grid, (0.2, 0.3, 0.0), "left", (1.2, 0.3), nominal_action_table(),
+        time_limit=30.0, refinements=1,
+    )  # fmt: skip
+    assert plan.status is PlanStatus.UNREACHABLE and plan.xy_resolution == 0.025
+    assert max(p[0] for p in plan.poses) < 0.625
+
+
+def test_compiled_heap_pops_in_tuple_order():
+    from repertoire.planning.footstep.fastcore import _heap_pop, _heap_push
+
+    rng = np.random.default_rng(0)
+    n = 500
+    f = rng.integers(0, 20, n).astype(float)  # many ties on f, broken by h, then tie
+    h = rng.integers(0, 5, n).astype(float)
+    hf, hh = np.empty(n), np.empty(n)
+    ht, hn = np.empty(n, np.int64), np.empty(n, np.int64)
+    for k in range(n):
+        _heap_push(hf, hh, ht, hn, k, f[k], h[k], k, 10 * k)
+    ref = [(f[k], h[k], k) for k in range(n)]
+    heapq.heapify(ref)
+    for size in range(n, 0, -1):
+        want = heapq.heappop(ref)
+        assert (hf[0], hh[0], ht[0], hn[0]) == (*want, 10 * want[2])
+        _heap_pop(hf, hh, ht, hn, size)
+
+
+def test_grid_dijkstra_matches_scipy():
+    from repertoire.planning.footstep.heuristic import grid_dijkstra, grid_graph
+    from scipy.sparse.csgraph import dijkstra
+
+    rng = np.random.default_rng(1)
+    cost = rng.choice([1.0, 3.0, 30.0, np.inf], size=(37, 23), p=[0.6, 0.2, 0.1, 0.1])
+    sources = np.array([5 * 23 + 7, 30 * 23 + 2])
+    cost.flat[sources] = 1.0
+    ref = dijkstra(grid_graph(cost, 0.05), directed=True, indices=sources, min_only=True)
+    got = grid_dijkstra(cost, 0.05, sources)
+    np.testing.assert_allclose(got.ravel(), ref, rtol=1e-12)
+    assert np.array_equal(np.isinf(got.ravel()), np.isinf(ref))
+    # closed form: one source on a free 3 x 3 grid; the corner is one diagonal + one straight
+    d = grid_dijkstra(np.ones((3, 3)), 1.0, np.array([0]))
+    assert d[2, 1] == pytest.approx(np.sqrt(2.0) + 1.0) and d[0, 2] == 2.0
+
+
+def test_backend_option_errors():
+    with pytest.raises(FootstepError, match="unknown backend 'fortran'"):
+        PlannerOptions(backend="fortran").validate()
+    from repertoire.planning.footstep.scenes import strings_scene
+
+    sc = strings_scene(0)
+    with pytest.raises(FootstepError, match="compiled backend plans on static grids only"):
+        plan_footsteps(
+            sc.env, sc.start, sc.start_foot, sc.goal, nominal_action_table(),
+            PlannerOptions(heuristic="euclidean", backend="compiled"),
+        )  # fmt: skip
+
+
+def test_ara_star_compiled_matches_python_and_bounds_hold():
+    from repertoire.planning.footstep import plan_footsteps_anytime
+
+    sc = random_static_scene(2, size=2.0, n_strips=3, n_blocks=2)
+    table = nominal_action_table()
+    runs = [
+        plan_footsteps_anytime(
+            sc.grid,
+            sc.start,
+            sc.start_foot,
+            sc.goal,
+            table,
+            PlannerOptions(heuristic="euclidean", time_limit=60.0, refinements=0, backend=b),
+        )  # fmt: skip
+        for b in ("python", "compiled")
+    ]
+    py, cc = runs
+    assert [a.weight for a in cc] == [3.0, 2.0, 1.5, 1.2, 1.0]
+    for a, b in zip(py, cc, strict=True):
+        assert a.plan.poses == b.plan.poses and a.plan.cost == b.plan.cost
+        assert a.bound == b.bound and a.plan.nodes_expanded == b.plan.nodes_expanded
+    assert all(a.plan.status is PlanStatus.SUCCESS for a in cc)
+    optimum = cc[-1].plan.cost  # weight 1, admissible and consistent heuristic
+    costs = [a.plan.cost for a in cc]
+    assert costs == sorted(costs, reverse=True)
+    assert all(a.plan.cost <= a.bound * optimum + 1e-9 for a in cc)
+    assert all(1.0 <= a.bound <= a.weight for a in cc) and cc[-1].bound == 1.0
+    fresh = plan_footsteps(
+        sc.grid, sc.start, sc.start_foot, sc.goal, table,
+        PlannerOptions.admissible(time_limit=60.0, xy_resolution=0.05, yaw_bins=36),
+    )  # fmt: skip
+    assert fresh.cost == pytest.approx(optimum, rel=1e-12)
+
+
+def test_bad_inputs_named(monkeypatch):
+    from repertoire.limits import ResourceLimitError
+
+    table = nominal_action_table()
+    with pytest.raises(ResourceLimitError, match=r"400000 x 400000 occupancy grid"):
+        OccupancyGrid.empty((10_000.0, 10_000.0), 0.025)
+    grid = OccupancyGrid.empty((2.0, 2.0), 0.025)
+    with monkeypatch.context() as m:
+        m.setenv("REPERTOIRE_MAX_MEMORY_BYTES", "100000")  # the grid fits, planning does not
+        with pytest.raises(ResourceLimitError, match=r"planning fields .* of a 80 x 80 map"):
+            plan_footsteps(grid, (0.3, 0.3, 0.0), "left", (1.5, 1.5), table)
+    with pytest.raises(FootstepError, match="successors are empty: the action_filter allows"):
+        plan_footsteps(
+            grid, (0.3, 0.3, 0.0), "left", (1.5, 1.5), table, action_filter=lambda *_: []
+        )
+    occ = np.zeros((80, 80), dtype=bool)
+    occ[58:62, 58:62] = True
+    with pytest.raises(FootstepError, match=r"goal \(1.500, 1.500\) lies inside an obstacle"):
+        plan_footsteps(OccupancyGrid(occ, 0.025), (0.3, 0.3, 0.0), "left", (1.5, 1.5), table)
+
+
+def test_step_up_and_step_down_limits():
+    occ = np.zeros((80, 40), dtype=bool)
+    heights = np.zeros((80, 40))
+    heights[40:, :] = 0.15  # a free platform 15 cm up for x >= 1 m
+    grid = OccupancyGrid(occ, 0.025, (0.0, 0.0), heights)
+    table = nominal_action_table()
+    up = (grid, (0.3, 0.595, 0.0), "left", (1.7, 0.5), table)
+    down = (grid, (1.7, 0.595, np.pi), "right", (0.3, 0.5), table)
+    common = {"time_limit": 30.0, "refinements": 0}
+    assert _both(*up, max_step_up=0.1, **common).status is PlanStatus.UNREACHABLE
+    climbed = _both(*up, max_step_up=0.2, max_step_down=0.0, **common)
+    assert climbed.status is PlanStatus.SUCCESS
+    assert _both(*down, max_step_down=0.1, **common).status is PlanStatus.UNREACHABLE
+    assert _both(*down, max_step_down=0.2, max_step_up=0.0, **common).succeeded
+    blocked = _both(*up, max_step_up=0.1, **common)
+    assert max(p[0] for p in blocked.poses) < 1.0 + 0.09  # never stood on the platform
+    with pytest.raises(FootstepError, match="max_step_up must be >= 0 m, got nan"):
+        PlannerOptions(max_step_up=float("nan")).validate()
+    with pytest.raises(FootstepError, match="max_step_down must be >= 0 m, got -0.1"):
+        PlannerOptions(max_step_down=-0.1).validate()

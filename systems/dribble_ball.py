@@ -13,7 +13,9 @@ ball in the robot frame and ``gamma = atan2(b_y, b_x)`` its bearing:
     v     = v_pose * max(0, cos(gamma))
     omega = omega_pose + k_ball * gamma
 
-both clipped to the limits and rate limited like GoToPose. The ball is *lost*
+both clipped to the limits, the yaw rate also to
+``max(omega_in_place, |v| / min_turn_radius)`` (turning on the spot throws the
+ball off), and rate limited like GoToPose. The ball is *lost*
 (status FAILED) when it is farther than ``lost_distance`` from its held spot
 ``(hold_distance, 0)`` in the robot frame; the action succeeds when the held
 spot is within ``position_tolerance`` of the goal's held spot and the heading
@@ -39,11 +41,13 @@ DRIBBLE_GAINS = {
     "k_alpha": 2.0,
     "k_beta": -0.5,
     "k_ball": 2.0,  # yaw rate per rad of ball bearing
+    "omega_in_place": 0.5,  # yaw rate limit at standstill [rad/s]
+    "min_turn_radius": 0.4,  # yaw rate limit v / radius when faster [m]
     "hold_distance": 0.31,  # ball centre ahead of the axle when held [m]
     "lost_distance": 0.25,  # ball farther than this from its held spot is lost [m]
     "position_tolerance": 0.1,  # m
-    "heading_tolerance": 0.3,  # rad
-    "timeout": 30.0,  # s
+    "heading_tolerance": 0.5,  # rad
+    "timeout": 15.0,  # s
 }
 
 
@@ -81,10 +85,11 @@ def dribble_control(state, ball, target, gains: dict[str, float]) -> tuple[float
     v, w, _, _ = pose_control(spot, spot_goal, gains)
     gamma = math.atan2(by, bx)
     align = max(0.0, math.cos(gamma)) ** 2
-    v = v * align
+    v = max(0.0, v) * align  # never back away from the ball
     w = w * align + gains["k_ball"] * gamma
     v = float(np.clip(v, -gains["v_max"], gains["v_max"]))
-    w = float(np.clip(w, -gains["omega_max"], gains["omega_max"]))
+    w_max = min(gains["omega_max"], max(gains["omega_in_place"], abs(v) / gains["min_turn_radius"]))
+    w = float(np.clip(w, -w_max, w_max))
     return v, w, held
 
 
@@ -132,7 +137,16 @@ class DribbleBall(LeafSystem):
             if not math.isfinite(v):
                 raise RepertoireError(f"DribbleBall gain {k} must be finite, got {v}")
             merged[k] = float(v)
-        positive = ("v_max", "omega_max", "a_max", "alpha_max", "timeout", "position_tolerance")
+        positive = (
+            "v_max",
+            "omega_max",
+            "omega_in_place",
+            "min_turn_radius",
+            "a_max",
+            "alpha_max",
+            "timeout",
+            "position_tolerance",
+        )
         for k in (*positive, "hold_distance", "lost_distance", "heading_tolerance"):
             if merged[k] <= 0:
                 raise RepertoireError(f"DribbleBall gain {k} must be > 0, got {merged[k]}")

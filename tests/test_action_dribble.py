@@ -35,9 +35,13 @@ def test_dribble_control_by_hand():
     gamma = math.atan2(0.05, 0.31)
     assert held and v == pytest.approx(g["v_max"] * math.cos(gamma) ** 2)
     assert w == pytest.approx(g["k_ball"] * gamma)
-    # ball beside the robot: no forward motion, lost
+    # ball beside the robot: no forward motion, lost, turning at the standstill limit
     v, w, held = dribble_control([0, 0, 0, 0], [0.0, 0.5], [2, 0, 0, 0], g)
-    assert not held and v == pytest.approx(0.0, abs=1e-12) and w == pytest.approx(g["omega_max"])
+    assert not held and v == pytest.approx(0.0, abs=1e-12)
+    assert w == pytest.approx(g["omega_in_place"])
+    # goal behind: never back away from the ball
+    v, _, held = dribble_control([0, 0, 0, 0], [0.31, 0.0], [-2, 0, 0, 0], g)
+    assert held and v == 0.0
 
 
 def _context(target, ball=(0.31, 0.0), state=(0, 0, 0, 0), time=0.0):
@@ -118,11 +122,16 @@ def test_soccer_dribble_delivers_the_ball():
     assert dribble_status(diagram, ctx) == ActionStatus.SUCCEEDED
     figures = check_dribble(diagram, ctx)
     assert figures["position_error_m"] < 0.15 and figures["ball_from_held_spot_m"] < 0.1
-    # turning back on itself loses the ball: reported failed, nothing crashes
-    diagram = build_soccer_dribble(DribbleScenario(target=[-1.0, 1.0, 3.0, 0.0]))
-    sim = Simulator(diagram)
-    sim.AdvanceTo(6.0)
-    assert dribble_status(diagram, sim.get_context()) == ActionStatus.FAILED
+    # a ball out of reach, or a target off the field: reported failed, nothing crashes
+    for scenario in (
+        DribbleScenario(ball_offset=[0.6, 0.0]),
+        DribbleScenario(target=[3.5, 0.0, 0.0, 0.0]),
+    ):
+        diagram = build_soccer_dribble(scenario)
+        sim = Simulator(diagram)
+        sim.AdvanceTo(0.5)
+        assert dribble_status(diagram, sim.get_context()) == ActionStatus.FAILED
+        assert check_dribble(diagram, sim.get_context())["status_succeeded"] == 0.0
 
 
 def test_dribble_scenario_rejects_bad_fields():
@@ -134,3 +143,69 @@ def test_dribble_scenario_rejects_bad_fields():
         build_soccer_dribble(DribbleScenario(gains={"nope": 1.0}))
     with pytest.raises(ScenarioError, match="ball_decel"):
         build_soccer_dribble(DribbleScenario(ball_decel=-1.0))
+
+
+def test_dribble_sampling_is_seeded_and_in_range():
+    from repertoire.studies.actions_dribble import DribbleEpisodesConfig, sample_parameters
+
+    c = DribbleEpisodesConfig()
+    assert sample_parameters(c, 3) == sample_parameters(c, 3) != sample_parameters(c, 4)
+    for seed in range(50):
+        start, goal = sample_parameters(c, seed)
+        d = math.hypot(goal[0] - start[0], goal[1] - start[1])
+        assert c.goal_distance_range[0] - 1e-9 <= d <= c.goal_distance_range[1] + 1e-9
+        assert -2.5 <= goal[0] <= 2.5 and -1.5 <= goal[1] <= 1.5
+        direction = math.atan2(goal[1] - start[1], goal[0] - start[0])
+        assert abs(math.remainder(goal[2] - direction, 2 * math.pi)) <= c.goal_heading_spread
+    with pytest.raises(RepertoireError, match="x_range must lie on the field"):
+        DribbleEpisodesConfig(x_range=[-4.0, 0.0]).validate()
+    with pytest.raises(RepertoireError, match="goal_heading_spread"):
+        DribbleEpisodesConfig(goal_heading_spread=4.0).validate()
+
+
+def test_dribble_study_smoke_and_summary(tmp_path):
+    from repertoire.studies.actions_dribble import (
+        FEATURE_FUNCS,
+        DribbleEpisodesConfig,
+        DribbleRecord,
+        smoke_config,
+        summarize,
+    )
+    from repertoire.studies.engine import load_records, run_study
+
+    result = run_study(
+        "actions_dribble",
+        smoke_config(),
+        episodes=2,
+        executor="inline",
+        store=tmp_path / "s.sqlite",
+        out_dir=tmp_path,
+        fresh=True,
+    )
+    _, records = load_records(tmp_path / "s.sqlite", "actions_dribble")
+    for rec in records.values():
+        assert rec.duration > 0 and len(rec.states) == 6 * smoke_config().n_states
+        assert rec.failed == (rec.status != "SUCCEEDED")
+        assert rec.lost_ball == (rec.status == "FAILED")
+        # the ball starts held: 0.31 m ahead of the axle
+        assert math.hypot(rec.x_ball - rec.x, rec.y_ball - rec.y) == pytest.approx(0.31)
+    assert "at least 27" in result.figures["tables"].read_text()
+    # synthetic records with a known duration law: the row, the loss tree and the figures
+    rng = np.random.default_rng(0)
+    recs = []
+    for _ in range(160):
+        x, y, phi = rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-3, 3)
+        d = math.hypot(x - 1.5, y)
+        lost = abs(math.remainder(math.atan2(-y, 1.5 - x) - phi, 2 * math.pi)) > 2.0
+        recs.append(
+            DribbleRecord(
+                x, y, phi, 0.0, x, y, 1.5, 0.0, 0.0, 0.0, 1 + 2 * d,
+                "FAILED" if lost else "SUCCEEDED", lost, lost, [], 0.0,
+            )
+        )  # fmt: skip
+    paths = summarize(recs, DribbleEpisodesConfig(), tmp_path)
+    text = paths["tables"].read_text()
+    assert "| dribbleBall (soccer, sim), paper (Table 1) | 1000 (750) | 7.4 | 0.29 |" in text
+    assert "predicted failure" in text
+    assert paths["polar"].stat().st_size > 0 and paths["learning_curves"].stat().st_size > 0
+    assert FEATURE_FUNCS["dist"](recs[0]) == pytest.approx(math.hypot(recs[0].x - 1.5, recs[0].y))

@@ -117,3 +117,56 @@ def test_arm_reach_world_reaches_and_reports():
         build_arm_reach(ReachScenario(start=[3.5, 0, 1, 0]))
     with pytest.raises(ScenarioError, match="unknown gains"):
         build_arm_reach(ReachScenario(gains={"nope": 1.0}))
+
+
+def test_reach_study_sampling_smoke_and_summary(tmp_path):
+    from repertoire.studies.actions_arm_reach import (
+        FEATURE_FUNCS,
+        ReachEpisodesConfig,
+        ReachRecord,
+        sample_parameters,
+        smoke_config,
+        summarize,
+    )
+    from repertoire.studies.engine import load_records, run_study
+
+    c = ReachEpisodesConfig()
+    assert sample_parameters(c, 5) == sample_parameters(c, 5) != sample_parameters(c, 6)
+    for seed in range(30):
+        for p in sample_parameters(c, seed):
+            assert c.theta_a_range[0] <= p[0] <= c.theta_a_range[1]
+            assert c.theta_b_range[0] <= p[2] <= c.theta_b_range[1]
+            assert c.speed_range[0] <= p[1] <= c.speed_range[1]
+    with pytest.raises(RepertoireError, match="joint limits"):
+        ReachEpisodesConfig(theta_b_range=[-0.5, 1.0]).validate()
+    result = run_study(
+        "actions_arm_reach",
+        smoke_config(),
+        episodes=2,
+        executor="inline",
+        store=tmp_path / "s.sqlite",
+        out_dir=tmp_path,
+        fresh=True,
+    )
+    _, records = load_records(tmp_path / "s.sqlite", "actions_arm_reach")
+    for rec in records.values():
+        assert rec.status == "SUCCEEDED" and not rec.failed and 0 < rec.duration < 2.0
+        # at most n_states, fewer when the reach ends first (every state_period s)
+        assert len(rec.states) == 4 * min(5, math.floor(rec.duration / 0.2 + 1e-9) + 1)
+        assert rec.states[:4] == pytest.approx([rec.theta_a, 0.0, rec.theta_b, 0.0], abs=1e-6)
+    assert "at least 27" in result.figures["tables"].read_text()
+    # synthetic records whose duration is linear in dist: the tree finds it
+    rng = np.random.default_rng(1)
+    recs = []
+    for _ in range(120):
+        a, b, ga, gb = rng.uniform(0, 2, 4)
+        recs.append(
+            ReachRecord(a, 0, b, 0, ga, 0, gb, 0, 0.5 + math.hypot(ga - a, gb - b), "SUCCEEDED",
+                        False, [], 0.0)
+        )  # fmt: skip
+    paths = summarize(recs, c, tmp_path)
+    text = paths["tables"].read_text()
+    assert "| reach (arm control, 2 joints), paper (Table 1) | 1466 (1100) | 2.9 | 0.21 |" in text
+    assert "no failure tree (one class)" in text
+    assert float(text.split("| reach (arm control, 2 joints), ours |")[1].split("|")[2]) < 0.05
+    assert FEATURE_FUNCS["dist"](recs[0]) == pytest.approx(recs[0].duration - 0.5)

@@ -1,8 +1,11 @@
 """Learned action models (Stulp & Beetz): features, duration model trees, failure trees."""
 
 from repertoire.planning.action_models.features import (
+    ARM_REACH_FEATURES,
+    DRIBBLE_FEATURES,
     angle_at,
     angle_to,
+    arm_reach_features,
     distance,
     goto_pose_features,
     wrap_angle,
@@ -21,6 +24,8 @@ from repertoire.planning.action_models.trees import (
 )
 
 __all__ = [
+    "ARM_REACH_FEATURES",
+    "DRIBBLE_FEATURES",
     "MIN_EPISODES",
     "MODEL_VERSION",
     "FittedModel",
@@ -28,6 +33,7 @@ __all__ = [
     "TreeModel",
     "angle_at",
     "angle_to",
+    "arm_reach_features",
     "distance",
     "fit_action_model",
     "fit_duration_tree",

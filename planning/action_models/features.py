@@ -78,3 +78,50 @@ def goto_pose_features(state, goal) -> np.ndarray:
         ]
     )
     return out[0] if s.ndim == 1 and g.ndim == 1 else out
+
+
+DRIBBLE_FEATURES = GOTO_POSE_FEATURES  # Table 7: dribbleBall shares goToPose's features
+ARM_REACH_FEATURES = ("dist", "angle_1", "angle_2", "v", "v_g")
+
+
+def arm_reach_features(state, goal) -> np.ndarray:
+    """Table 7's arm-control ``reach`` features in the two-joint space.
+
+    With ``d = (theta_g^a - theta^a, theta_g^b - theta^b)`` the joint-space offset:
+
+    - ``dist = |d|``,
+    - ``angle_1 = norm(atan2(d_b, d_a) - atan2(thetadot^b, thetadot^a))``: how far
+      the current joint velocity is turned from the goal direction,
+    - ``angle_2 = norm(-atan2(d_b, d_a) + atan2(thetadot_g^b, thetadot_g^a))``: how
+      far the goal velocity is turned from the approach direction,
+    - ``v = |thetadot|`` and ``v_g = |thetadot_g|``.
+
+    ``atan2(0, 0) = 0``: a zero velocity counts as pointing along joint a.
+
+    Args:
+        state: ``(4,)`` or ``(n, 4)`` of ``[theta^a, thetadot^a, theta^b, thetadot^b]`` (Table 6).
+        goal: ``(4,)`` or ``(n, 4)`` of ``[theta_g^a, thetadot_g^a, theta_g^b, thetadot_g^b]``.
+
+    Returns:
+        ``(n, 5)`` columns ``dist, angle_1, angle_2, v, v_g`` (``(5,)`` for one pair).
+    """
+    s = _check("state", state)
+    g = _check("goal", goal)
+    if s.shape[-1:] != (4,) or g.shape[-1:] != (4,):
+        raise RepertoireError(
+            "state and goal need 4 values each [theta_a, thetadot_a, theta_b, thetadot_b], got "
+            f"shapes {s.shape}, {g.shape}"
+        )
+    s2, g2 = np.atleast_2d(s), np.atleast_2d(g)
+    da, db = g2[:, 0] - s2[:, 0], g2[:, 2] - s2[:, 2]
+    direction = np.arctan2(db, da)
+    out = np.column_stack(
+        [
+            np.hypot(da, db),
+            wrap_angle(direction - np.arctan2(s2[:, 3], s2[:, 1])),
+            wrap_angle(-direction + np.arctan2(g2[:, 3], g2[:, 1])),
+            np.hypot(s2[:, 1], s2[:, 3]),
+            np.hypot(g2[:, 1], g2[:, 3]),
+        ]
+    )
+    return out[0] if s.ndim == 1 and g.ndim == 1 else out

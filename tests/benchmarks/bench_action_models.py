@@ -1,18 +1,30 @@
 """Benchmark of the learned action models: episode throughput, batched prediction, predictor.
 
-Prints (1) GoToPose episodes per second with the study engine on 1 and 2
-workers (the ratio is the peer in the same run), (2) batched predictions per
-second of a fitted duration model tree and failure tree (target >= 100,000/s),
+Prints (1) GoToPose, DribbleBall and two-joint arm Reach episodes per second
+with the study engine on 1 and 2 workers (the ratio is the peer in the same
+run; ``--episodes`` sets the 1-worker count, 2 workers run twice as many),
+(2) batched predictions per second of a fitted duration model tree and failure
+tree (target >= 100,000/s),
 with scikit-learn's own DecisionTreeRegressor.predict on the same tree size as
-the peer, and (3) the ActionModelPredictor LeafSystem's cost per evaluation.
+the peer, and (3) the ActionModelPredictor LeafSystem's cost per evaluation,
+with GoToPose features and with the arm's Table 7 features.
+
+Run: ``nice -n 10 python tests/benchmarks/bench_action_models.py [--episodes 4]``.
 """
 
+import argparse
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.planning.action_models import fit_duration_tree, fit_failure_tree
+from repertoire.planning.action_models import (
+    arm_reach_features,
+    fit_duration_tree,
+    fit_failure_tree,
+)
+from repertoire.studies.actions_arm_reach import ReachEpisodesConfig
+from repertoire.studies.actions_dribble import DribbleEpisodesConfig
 from repertoire.studies.actions_goto_pose import GoToPoseEpisodesConfig
 from repertoire.studies.engine import run_study
 from repertoire.systems.action_model_predictor import (
@@ -20,13 +32,19 @@ from repertoire.systems.action_model_predictor import (
     goto_pose_parameter_features,
 )
 
+STUDIES = {
+    "GoToPose": ("actions_goto_pose", GoToPoseEpisodesConfig),
+    "DribbleBall": ("actions_dribble", DribbleEpisodesConfig),
+    "Reach (arm7, 2 joints)": ("actions_arm_reach", ReachEpisodesConfig),
+}
 
-def episodes_per_second(workers: int, episodes: int) -> float:
+
+def episodes_per_second(study: str, config, workers: int, episodes: int) -> float:
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
         run_study(
-            "actions_goto_pose",
-            GoToPoseEpisodesConfig(),
+            study,
+            config,
             episodes=episodes,
             workers=workers,
             store=Path(tmp) / "s.sqlite",
@@ -38,9 +56,13 @@ def episodes_per_second(workers: int, episodes: int) -> float:
 
 
 def main() -> None:
-    e1 = episodes_per_second(1, 8)
-    e2 = episodes_per_second(2, 16)
-    print(f"GoToPose episodes: {e1:.2f}/s on 1 worker, {e2:.2f}/s on 2 workers ({e2 / e1:.2f}x)")
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--episodes", type=int, default=8, help="episodes on 1 worker")
+    args = parser.parse_args()
+    for label, (study, config_type) in STUDIES.items():
+        e1 = episodes_per_second(study, config_type(), 1, args.episodes)
+        e2 = episodes_per_second(study, config_type(), 2, 2 * args.episodes)
+        print(f"{label} episodes: {e1:.2f}/s on 1 worker, {e2:.2f}/s on 2 workers ({e2 / e1:.2f}x)")
 
     rng = np.random.default_rng(0)
     X = np.column_stack(
@@ -86,8 +108,20 @@ def main() -> None:
         port.FixValue(ctx, np.array([0, 0, 0, 0.1, 1 + k * 1e-4, 1, 0, 0]))
         out.Eval(ctx)
     print(
-        f"ActionModelPredictor: {1e6 * (time.perf_counter() - t) / n:.0f} us per evaluation "
-        "(new parameters each time)"
+        f"ActionModelPredictor (GoToPose features): {1e6 * (time.perf_counter() - t) / n:.0f} us "
+        "per evaluation (new parameters each time)"
+    )
+    # the arm's Table 7 features from the 8 reach parameters [start(4), goal(4)]
+    arm = ActionModelPredictor(dur, fail, 8, lambda p: arm_reach_features(p[:4], p[4:]))
+    ctx = arm.CreateDefaultContext()
+    port, out = arm.get_input_port(), arm.GetOutputPort("duration")
+    t = time.perf_counter()
+    for k in range(n):
+        port.FixValue(ctx, np.array([0.2, 0.1, 1.0, 0, 1 + k * 1e-4, 0, 0.5, 0.2]))
+        out.Eval(ctx)
+    print(
+        f"ActionModelPredictor (arm reach features): {1e6 * (time.perf_counter() - t) / n:.0f} us "
+        "per evaluation"
     )
 
 

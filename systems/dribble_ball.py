@@ -1,0 +1,350 @@
+"""DribbleBall: push the ball in front of a differential-drive robot to a target pose.
+
+Stulp & Beetz (section 3, Table 6) parameterise ``dribbleBall`` by the current
+state ``[x, y, phi, v]``, the ball ``[x_ball, y_ball]`` and the goal
+``[x_g, y_g, phi_g, v_g]``. The robot has no gripper: it keeps the ball in
+front of its flat bumper by steering towards it. The command is the GoToPose
+pose controller (:func:`~repertoire.systems.go_to_pose.pose_control`) with
+slower dribbling limits applied to the held spot (``hold_distance`` ahead of
+the axle, where the ball sits) and the goal's held spot, plus a ball-centering
+term that lets the pose command act only while the ball is in front. With ``(b_x, b_y)`` the
+ball in the robot frame and ``gamma = atan2(b_y, b_x)`` its bearing:
+
+    v     = v_pose * max(0, cos(gamma))
+    omega = omega_pose + k_ball * gamma
+
+both clipped to the limits, the yaw rate also to
+``max(omega_in_place, |v| / min_turn_radius)`` (turning on the spot throws the
+ball off), and rate limited like GoToPose. The ball is *lost*
+(status FAILED) when it is farther than ``lost_distance`` from its held spot
+``(hold_distance, 0)`` in the robot frame; the action succeeds when the held
+spot is within ``position_tolerance`` of the goal's held spot and the heading
+within ``heading_tolerance`` of ``phi_g``, with the ball still held.
+"""
+
+import math
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from repertoire.systems.go_to_pose import ActionStatus, pose_control
+
+from repertoire.errors import RepertoireError
+
+# name -> default, in the order of the numeric parameter vector.
+DRIBBLE_GAINS = {
+    "v_max": 0.4,  # m/s
+    "omega_max": 1.2,  # rad/s
+    "a_max": 0.6,  # m/s^2
+    "alpha_max": 3.0,  # rad/s^2
+    "k_rho": 0.8,
+    "k_alpha": 2.0,
+    "k_beta": -0.5,
+    "k_ball": 2.0,  # yaw rate per rad of ball bearing
+    "omega_in_place": 0.5,  # yaw rate limit at standstill [rad/s]
+    "min_turn_radius": 0.4,  # yaw rate limit v / radius when faster [m]
+    "hold_distance": 0.31,  # ball centre ahead of the axle when held [m]
+    "lost_distance": 0.25,  # ball farther than this from its held spot is lost [m]
+    "position_tolerance": 0.1,  # m
+    "heading_tolerance": 0.5,  # rad
+    "timeout": 15.0,  # s
+}
+
+
+def ball_in_robot_frame(state, ball) -> tuple[float, float]:
+    """``(b_x, b_y)``: the ball in the frame of the robot ``[x, y, phi, ...]``."""
+    dx, dy = ball[0] - state[0], ball[1] - state[1]
+    c, s = math.cos(state[2]), math.sin(state[2])
+    return c * dx + s * dy, -s * dx + c * dy
+
+
+def dribble_control(state, ball, target, gains: dict[str, float]) -> tuple[float, float, bool]:
+    """Unlimited-rate ``(v, omega)`` commands and whether the ball is held.
+
+    Args:
+        state: ``[x, y, phi, v]`` of the robot.
+        ball: ``[x_ball, y_ball]``.
+        target: ``[x_g, y_g, phi_g, v_g]``.
+        gains: the :data:`DRIBBLE_GAINS` keys.
+
+    Returns:
+        ``(v_cmd, omega_cmd, held)``, commands clipped to ``v_max``/``omega_max``.
+    """
+    bx, by = ball_in_robot_frame(state, ball)
+    held = math.hypot(bx - gains["hold_distance"], by) <= gains["lost_distance"]
+    # steer the held spot (hold_distance ahead) to the goal's held spot
+    h = gains["hold_distance"]
+    c, s = math.cos(state[2]), math.sin(state[2])
+    spot = [state[0] + h * c, state[1] + h * s, state[2], state[3]]
+    spot_goal = [
+        target[0] + h * math.cos(target[2]),
+        target[1] + h * math.sin(target[2]),
+        target[2],
+        target[3],
+    ]
+    v, w, _, _ = pose_control(spot, spot_goal, gains)
+    gamma = math.atan2(by, bx)
+    align = max(0.0, math.cos(gamma)) ** 2
+    v = max(0.0, v) * align  # never back away from the ball
+    w = w * align + gains["k_ball"] * gamma
+    v = float(np.clip(v, -gains["v_max"], gains["v_max"]))
+    w_max = min(gains["omega_max"], max(gains["omega_in_place"], abs(v) / gains["min_turn_radius"]))
+    w = float(np.clip(w, -w_max, w_max))
+    return v, w, held
+
+
+class DribbleBall(LeafSystem):
+    """Dribbles the ball in front of a differential-drive robot to a target pose.
+
+    Input ports:
+        state: ``[x, y, phi, v]`` of the robot.
+        ball: ``[x_ball, y_ball]``.
+        target: ``[x_g, y_g, phi_g, v_g]``.
+
+    Output ports:
+        command: ``[v, omega]`` rate-limited forward speed and yaw rate.
+        status: an :class:`~repertoire.systems.go_to_pose.ActionStatus` (abstract):
+            FAILED when the ball is lost or the target is off the workspace.
+
+    Parameters: numeric parameter 0 holds :data:`DRIBBLE_GAINS` (in order),
+    numeric parameter 1 the workspace ``[x_min, x_max, y_min, y_max]``.
+
+    Discrete state: ``[v_cmd, omega_cmd, status]``, updated every ``period`` s.
+    """
+
+    def __init__(
+        self,
+        period: float = 0.02,
+        gains: dict[str, float] | None = None,
+        workspace: tuple[float, float, float, float] = (-3.0, 3.0, -2.0, 2.0),
+    ):
+        """Creates the action.
+
+        Args:
+            period: update period [s].
+            gains: overrides of :data:`DRIBBLE_GAINS`.
+            workspace: the allowed target region ``[x_min, x_max, y_min, y_max]``.
+        """
+        super().__init__()
+        if not (math.isfinite(period) and period > 0):
+            raise RepertoireError(f"period must be finite and > 0, got {period}")
+        merged = dict(DRIBBLE_GAINS)
+        for k, v in (gains or {}).items():
+            if k not in DRIBBLE_GAINS:
+                raise RepertoireError(
+                    f"unknown DribbleBall gain {k!r}; expected {list(DRIBBLE_GAINS)}"
+                )
+            if not math.isfinite(v):
+                raise RepertoireError(f"DribbleBall gain {k} must be finite, got {v}")
+            merged[k] = float(v)
+        positive = (
+            "v_max",
+            "omega_max",
+            "omega_in_place",
+            "min_turn_radius",
+            "a_max",
+            "alpha_max",
+            "timeout",
+            "position_tolerance",
+        )
+        for k in (*positive, "hold_distance", "lost_distance", "heading_tolerance"):
+            if merged[k] <= 0:
+                raise RepertoireError(f"DribbleBall gain {k} must be > 0, got {merged[k]}")
+        ws = np.asarray(workspace, dtype=float)
+        if ws.shape != (4,) or not np.all(np.isfinite(ws)) or ws[0] >= ws[1] or ws[2] >= ws[3]:
+            raise RepertoireError(
+                f"workspace must be finite [x_min, x_max, y_min, y_max] with min < max, got "
+                f"{workspace}"
+            )
+        self.period = period
+        self._gains_index = self.DeclareNumericParameter(
+            BasicVector(np.array(list(merged.values())))
+        )
+        self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
+        self._state_port = self.DeclareVectorInputPort("state", 4)
+        self._ball_port = self.DeclareVectorInputPort("ball", 2)
+        self._target_port = self.DeclareVectorInputPort("target", 4)
+        self._xd = self.DeclareDiscreteState(3)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self._command_port = self.DeclareVectorOutputPort(
+            "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
+        )
+        self._status_port = self.DeclareAbstractOutputPort(
+            "status",
+            lambda: AbstractValue.Make(ActionStatus.RUNNING),
+            self._calc_status,
+            {self.discrete_state_ticket(self._xd)},
+        )
+
+    def get_state_input_port(self):
+        return self._state_port
+
+    def get_ball_input_port(self):
+        return self._ball_port
+
+    def get_target_input_port(self):
+        return self._target_port
+
+    def get_command_output_port(self):
+        return self._command_port
+
+    def get_status_output_port(self):
+        return self._status_port
+
+    def gains(self, context: Context) -> dict[str, float]:
+        """The gains in ``context`` as a dict."""
+        values = context.get_numeric_parameter(self._gains_index).get_value()
+        return dict(zip(DRIBBLE_GAINS, map(float, values)))
+
+    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
+        v_prev, w_prev, status = context.get_discrete_state(self._xd).get_value()
+        out = discrete_state.get_mutable_vector(self._xd)
+        if status != ActionStatus.RUNNING:
+            out.SetFromVector([0.0, 0.0, status])
+            return
+        g = self.gains(context)
+        state = self._state_port.Eval(context)
+        ball = self._ball_port.Eval(context)
+        target = self._target_port.Eval(context)
+        ws = context.get_numeric_parameter(self._workspace_index).get_value()
+        if (
+            not np.all(np.isfinite(target))
+            or not np.all(np.isfinite(ball))
+            or not ws[0] <= target[0] <= ws[1]
+            or not ws[2] <= target[1] <= ws[3]
+        ):
+            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED])
+            return
+        v, w, held = dribble_control(state, ball, target, g)
+        if not held:
+            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED])
+            return
+        h = g["hold_distance"]
+        rho = math.hypot(
+            target[0] + h * math.cos(target[2]) - state[0] - h * math.cos(state[2]),
+            target[1] + h * math.sin(target[2]) - state[1] - h * math.sin(state[2]),
+        )
+        heading_error = math.remainder(target[2] - state[2], 2 * math.pi)
+        if (
+            rho < g["position_tolerance"]
+            and abs(heading_error) < g["heading_tolerance"]
+            and abs(state[3] - target[3]) < max(0.1, 0.5 * target[3])
+        ):
+            out.SetFromVector([v_prev, w_prev, ActionStatus.SUCCEEDED])
+            return
+        if context.get_time() >= g["timeout"]:
+            out.SetFromVector([0.0, 0.0, ActionStatus.TIMED_OUT])
+            return
+        dv = g["a_max"] * self.period
+        dw = g["alpha_max"] * self.period
+        out.SetFromVector(
+            [
+                float(np.clip(v, v_prev - dv, v_prev + dv)),
+                float(np.clip(w, w_prev - dw, w_prev + dw)),
+                ActionStatus.RUNNING,
+            ]
+        )
+
+    def _calc_command(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])
+
+    def _calc_status(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(ActionStatus(int(context.get_discrete_state(self._xd).get_value()[2])))
+
+
+class BodyXYReader(LeafSystem):
+    """Reads the ``[x, y]`` position of a floating body (the ball) from the plant's state.
+
+    Input ports:
+        plant_state: the MultibodyPlant's full state ``[q, v]``.
+
+    Output ports:
+        xy: the body's world ``[x, y]``.
+    """
+
+    def __init__(self, plant, body_name: str = "ball"):
+        """Creates the reader.
+
+        Args:
+            plant: the finalized plant (read for indices only).
+            body_name: a floating body.
+        """
+        super().__init__()
+        body = plant.GetBodyByName(body_name)
+        if not body.is_floating_base_body():
+            raise RepertoireError(f"body {body_name!r} is not a floating base body")
+        # floating positions are [qw, qx, qy, qz, x, y, z]
+        self._i = body.floating_positions_start() + 4
+        self._in = self.DeclareVectorInputPort(
+            "plant_state", plant.num_positions() + plant.num_velocities()
+        )
+        self.DeclareVectorOutputPort("xy", 2, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._in.Eval(context)[self._i : self._i + 2])
+
+
+class RollingResistance(LeafSystem):
+    """Rolling resistance of a ball on grass as a force at its centre.
+
+    Point contact has no rolling friction, so a pushed ball would roll on for
+    ever. This applies ``F = -m * decel * u`` in the horizontal plane with
+    ``u = v_xy / max(|v_xy|, v_smooth)`` (a Coulomb-like resistance, linear
+    below ``v_smooth`` so the ball comes to rest without chatter).
+
+    Input ports:
+        plant_state: the MultibodyPlant's full state ``[q, v]``.
+
+    Output ports:
+        spatial_forces: a list of one ``ExternallyAppliedSpatialForce`` (abstract),
+            for the plant's ``applied_spatial_force`` input.
+    """
+
+    def __init__(self, plant, body_name: str = "ball", decel: float = 0.8, v_smooth: float = 0.05):
+        """Creates the force element.
+
+        Args:
+            plant: the finalized plant (read for indices and mass only).
+            body_name: a floating body.
+            decel: deceleration of a freely rolling ball [m/s^2] (grass: ~0.5-1).
+            v_smooth: speed below which the resistance is linear [m/s].
+        """
+        from pydrake.multibody.plant import ExternallyAppliedSpatialForce
+
+        super().__init__()
+        if not (math.isfinite(decel) and decel >= 0 and math.isfinite(v_smooth) and v_smooth > 0):
+            raise RepertoireError(
+                f"decel must be >= 0 and v_smooth > 0 (finite), got {decel}, {v_smooth}"
+            )
+        body = plant.GetBodyByName(body_name)
+        if not body.is_floating_base_body():
+            raise RepertoireError(f"body {body_name!r} is not a floating base body")
+        self._body = body.index()
+        self._v0 = plant.num_positions() + body.floating_velocities_start_in_v() + 3
+        self._force = body.default_mass() * decel
+        self._v_smooth = v_smooth
+        self._in = self.DeclareVectorInputPort(
+            "plant_state", plant.num_positions() + plant.num_velocities()
+        )
+        self._make = ExternallyAppliedSpatialForce
+        self.DeclareAbstractOutputPort(
+            "spatial_forces",
+            lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
+            self._calc,
+        )
+
+    def force(self, v_xy) -> np.ndarray:
+        """The horizontal force [N] for a ball velocity ``[vx, vy]``."""
+        v = np.asarray(v_xy, dtype=float)
+        return -self._force * v / max(float(np.hypot(*v)), self._v_smooth)
+
+    def _calc(self, context: Context, output: AbstractValue) -> None:
+        from pydrake.multibody.math import SpatialForce
+
+        v = self._in.Eval(context)[self._v0 : self._v0 + 2]
+        fx, fy = self.force(v)
+        f = self._make()
+        f.body_index = self._body
+        f.p_BoBq_B = np.zeros(3)
+        f.F_Bq_W = SpatialForce(np.zeros(3), [fx, fy, 0.0])
+        output.set_value([f])

@@ -1,0 +1,211 @@
+import math
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from repertoire.diagrams.soccer_dribble import (
+    DribbleScenario,
+    build_soccer_dribble,
+    check_dribble,
+    dribble_status,
+)
+from repertoire.systems.dribble_ball import (
+    DRIBBLE_GAINS,
+    DribbleBall,
+    RollingResistance,
+    ball_in_robot_frame,
+    dribble_control,
+)
+from repertoire.systems.go_to_pose import ActionStatus
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+
+def test_ball_in_robot_frame_by_hand():
+    # robot at (1, 1) facing +y: a ball at (1, 2) is 1 m ahead, one at (0, 1) 1 m to the left
+    assert ball_in_robot_frame([1, 1, math.pi / 2, 0], [1, 2]) == pytest.approx((1.0, 0.0))
+    assert ball_in_robot_frame([1, 1, math.pi / 2, 0], [0, 1]) == pytest.approx((0.0, 1.0))
+
+
+def test_dribble_control_by_hand():
+    g = dict(DRIBBLE_GAINS)
+    # ball held 5 cm left of centre, goal 2 m straight ahead: full speed scaled by
+    # cos^2 of the ball's bearing, turn towards the ball
+    v, w, held = dribble_control([0, 0, 0, 0], [0.31, 0.05], [2, 0, 0, 0], g)
+    gamma = math.atan2(0.05, 0.31)
+    assert held and v == pytest.approx(g["v_max"] * math.cos(gamma) ** 2)
+    assert w == pytest.approx(g["k_ball"] * gamma)
+    # ball beside the robot: no forward motion, lost, turning at the standstill limit
+    v, w, held = dribble_control([0, 0, 0, 0], [0.0, 0.5], [2, 0, 0, 0], g)
+    assert not held and v == pytest.approx(0.0, abs=1e-12)
+    assert w == pytest.approx(g["omega_in_place"])
+    # goal behind: never back away from the ball
+    v, _, held = dribble_control([0, 0, 0, 0], [0.31, 0.0], [-2, 0, 0, 0], g)
+    assert held and v == 0.0
+
+
+def _context(target, ball=(0.31, 0.0), state=(0, 0, 0, 0), time=0.0):
+    action = DribbleBall(period=0.1)
+    ctx = action.CreateDefaultContext()
+    action.get_state_input_port().FixValue(ctx, np.array(state, dtype=float))
+    action.get_ball_input_port().FixValue(ctx, np.array(ball, dtype=float))
+    action.get_target_input_port().FixValue(ctx, np.array(target, dtype=float))
+    ctx.SetTime(time)
+    return action, ctx
+
+
+def _update(action, ctx):
+    return action.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+
+
+def test_dribble_ball_statuses_exact():
+    # goal 1 m ahead: speed wants 0.4, rate limited to a_max * period = 0.06
+    action, ctx = _context([1, 0, 0, 0])
+    np.testing.assert_allclose(_update(action, ctx), [0.06, 0.0, ActionStatus.RUNNING])
+    assert action.get_status_output_port().Eval(ctx) == ActionStatus.RUNNING
+    # the ball 0.69 m from its held spot: lost -> failed, zero command
+    action, ctx = _context([1, 0, 0, 0], ball=(1.0, 0.0))
+    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.FAILED])
+    # held spot 5 cm from the goal's: succeeded
+    action, ctx = _context([0.05, 0, 0.1, 0])
+    assert _update(action, ctx)[2] == ActionStatus.SUCCEEDED
+    # timeout
+    action, ctx = _context([1, 0, 0, 0], time=DRIBBLE_GAINS["timeout"])
+    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.TIMED_OUT])
+
+
+def test_dribble_ball_bad_targets_fail_without_motion():
+    for target, ball in (([5.0, 0, 0, 0], (0.31, 0)), ([np.nan, 0, 0, 0], (0.31, 0))):
+        action, ctx = _context(target, ball=ball)
+        np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.FAILED])
+    action, ctx = _context([1, 0, 0, 0], ball=(np.nan, 0))
+    assert _update(action, ctx)[2] == ActionStatus.FAILED
+
+
+def test_dribble_ball_bad_construction():
+    with pytest.raises(RepertoireError, match="unknown DribbleBall gain 'speed'"):
+        DribbleBall(gains={"speed": 1.0})
+    with pytest.raises(RepertoireError, match="lost_distance must be > 0"):
+        DribbleBall(gains={"lost_distance": 0.0})
+    with pytest.raises(RepertoireError, match="period"):
+        DribbleBall(period=0.0)
+    with pytest.raises(RepertoireError, match="workspace"):
+        DribbleBall(workspace=(0, 1, 1, 0))
+
+
+def test_rolling_resistance_force_and_port():
+    diagram = build_soccer_dribble(DribbleScenario())
+    drag = diagram.GetSubsystemByName("ball_rolling_resistance")
+    plant = diagram.GetSubsystemByName("plant")
+    m = plant.GetBodyByName("ball").default_mass()
+    np.testing.assert_allclose(drag.force([1.0, 0.0]), [-m * 0.8, 0.0])
+    np.testing.assert_allclose(drag.force([0.01, 0.0]), [-m * 0.8 * 0.01 / 0.05, 0.0])
+    ctx = drag.CreateDefaultContext()
+    x = np.zeros(plant.num_positions() + plant.num_velocities())
+    ball = plant.GetBodyByName("ball")
+    x[plant.num_positions() + ball.floating_velocities_start_in_v() + 4] = 2.0  # vy
+    drag.get_input_port().FixValue(ctx, x)
+    (f,) = drag.get_output_port().Eval(ctx)
+    assert f.body_index == ball.index()
+    np.testing.assert_allclose(f.F_Bq_W.translational(), [0.0, -m * 0.8, 0.0])
+    with pytest.raises(RepertoireError, match="decel"):
+        RollingResistance(plant, decel=-1.0)
+    with pytest.raises(RepertoireError, match="not a floating base body"):
+        RollingResistance(plant, body_name="left_wheel")
+
+
+def test_soccer_dribble_delivers_the_ball():
+    diagram = build_soccer_dribble(DribbleScenario())
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    sim.AdvanceTo(8.0)
+    assert dribble_status(diagram, ctx) == ActionStatus.SUCCEEDED
+    figures = check_dribble(diagram, ctx)
+    assert figures["position_error_m"] < 0.15 and figures["ball_from_held_spot_m"] < 0.1
+    # a ball out of reach, or a target off the field: reported failed, nothing crashes
+    for scenario in (
+        DribbleScenario(ball_offset=[0.6, 0.0]),
+        DribbleScenario(target=[3.5, 0.0, 0.0, 0.0]),
+    ):
+        diagram = build_soccer_dribble(scenario)
+        sim = Simulator(diagram)
+        sim.AdvanceTo(0.5)
+        assert dribble_status(diagram, sim.get_context()) == ActionStatus.FAILED
+        assert check_dribble(diagram, sim.get_context())["status_succeeded"] == 0.0
+
+
+def test_dribble_scenario_rejects_bad_fields():
+    with pytest.raises(ScenarioError, match="inside the robot"):
+        build_soccer_dribble(DribbleScenario(ball_offset=[0.2, 0.0]))
+    with pytest.raises(ScenarioError, match="target"):
+        build_soccer_dribble(DribbleScenario(target=[0, 0, 0]))
+    with pytest.raises(ScenarioError, match="unknown gains"):
+        build_soccer_dribble(DribbleScenario(gains={"nope": 1.0}))
+    with pytest.raises(ScenarioError, match="ball_decel"):
+        build_soccer_dribble(DribbleScenario(ball_decel=-1.0))
+
+
+def test_dribble_sampling_is_seeded_and_in_range():
+    from repertoire.studies.actions_dribble import DribbleEpisodesConfig, sample_parameters
+
+    c = DribbleEpisodesConfig()
+    assert sample_parameters(c, 3) == sample_parameters(c, 3) != sample_parameters(c, 4)
+    for seed in range(50):
+        start, goal = sample_parameters(c, seed)
+        d = math.hypot(goal[0] - start[0], goal[1] - start[1])
+        assert c.goal_distance_range[0] - 1e-9 <= d <= c.goal_distance_range[1] + 1e-9
+        assert -2.5 <= goal[0] <= 2.5 and -1.5 <= goal[1] <= 1.5
+        direction = math.atan2(goal[1] - start[1], goal[0] - start[0])
+        assert abs(math.remainder(goal[2] - direction, 2 * math.pi)) <= c.goal_heading_spread
+    with pytest.raises(RepertoireError, match="x_range must lie on the field"):
+        DribbleEpisodesConfig(x_range=[-4.0, 0.0]).validate()
+    with pytest.raises(RepertoireError, match="goal_heading_spread"):
+        DribbleEpisodesConfig(goal_heading_spread=4.0).validate()
+
+
+def test_dribble_study_smoke_and_summary(tmp_path):
+    from repertoire.studies.actions_dribble import (
+        FEATURE_FUNCS,
+        DribbleEpisodesConfig,
+        DribbleRecord,
+        smoke_config,
+        summarize,
+    )
+    from repertoire.studies.engine import load_records, run_study
+
+    result = run_study(
+        "actions_dribble",
+        smoke_config(),
+        episodes=2,
+        executor="inline",
+        store=tmp_path / "s.sqlite",
+        out_dir=tmp_path,
+        fresh=True,
+    )
+    _, records = load_records(tmp_path / "s.sqlite", "actions_dribble")
+    for rec in records.values():
+        assert rec.duration > 0 and len(rec.states) == 6 * smoke_config().n_states
+        assert rec.failed == (rec.status != "SUCCEEDED")
+        assert rec.lost_ball == (rec.status == "FAILED")
+        # the ball starts held: 0.31 m ahead of the axle
+        assert math.hypot(rec.x_ball - rec.x, rec.y_ball - rec.y) == pytest.approx(0.31)
+    assert "at least 27" in result.figures["tables"].read_text()
+    # synthetic records with a known duration law: the row, the loss tree and the figures
+    rng = np.random.default_rng(0)
+    recs = []
+    for _ in range(160):
+        x, y, phi = rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-3, 3)
+        d = math.hypot(x - 1.5, y)
+        lost = abs(math.remainder(math.atan2(-y, 1.5 - x) - phi, 2 * math.pi)) > 2.0
+        recs.append(
+            DribbleRecord(
+                x, y, phi, 0.0, x, y, 1.5, 0.0, 0.0, 0.0, 1 + 2 * d,
+                "FAILED" if lost else "SUCCEEDED", lost, lost, [], 0.0,
+            )
+        )  # fmt: skip
+    paths = summarize(recs, DribbleEpisodesConfig(), tmp_path)
+    text = paths["tables"].read_text()
+    assert "| dribbleBall (soccer, sim), paper (Table 1) | 1000 (750) | 7.4 | 0.29 |" in text
+    assert "predicted failure" in text
+    assert paths["polar"].stat().st_size > 0 and paths["learning_curves"].stat().st_size > 0
+    assert FEATURE_FUNCS["dist"](recs[0]) == pytest.approx(math.hypot(recs[0].x - 1.5, recs[0].y))

@@ -32,7 +32,12 @@ from repertoire.diagrams.diffdrive import WHEEL_RADIUS, add_world
 from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
 from repertoire.models import ConfigureParser, package_url
-from repertoire.systems.go_to_pose import ActionStatus, DiffDriveStateReader, GoToPose
+from repertoire.systems.go_to_pose import (
+    GOTO_GAINS,
+    ActionStatus,
+    DiffDriveStateReader,
+    GoToPose,
+)
 from repertoire.systems.kitchen_actions import (
     ARM_JOINTS,
     FINGER_CLOSED,
@@ -48,7 +53,7 @@ from repertoire.systems.kitchen_actions import (
 )
 
 from repertoire.criteria import Bound
-from repertoire.errors import ScenarioError
+from repertoire.errors import RepertoireError, ScenarioError
 
 ACTIONS = ("goto_pose", "reach", "grip", "put")
 ROBOT_URL_PATH = "diffdrive/diffdrive_arm.urdf"
@@ -99,6 +104,7 @@ class KitchenScenario:
         contact_approximation: discrete contact approximation.
         wheel_kd: wheel velocity gain.
         ground_friction: ground friction coefficient.
+        gains: overrides of GoToPose's gains (``GOTO_GAINS`` keys), e.g. its timeout.
     """
 
     action: str = "reach"
@@ -113,6 +119,7 @@ class KitchenScenario:
     contact_approximation: str = "lagged"
     wheel_kd: float = 2.0
     ground_friction: float = 1.0
+    gains: dict[str, float] = dataclasses.field(default_factory=dict)
 
     def validate(self) -> None:
         """Raises ScenarioError naming the first bad field."""
@@ -135,6 +142,9 @@ class KitchenScenario:
             raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
         if not (np.isfinite(self.wheel_kd) and self.wheel_kd > 0):
             raise ScenarioError(f"wheel_kd must be > 0, got {self.wheel_kd}")
+        unknown = sorted(set(self.gains) - set(GOTO_GAINS))
+        if unknown:
+            raise ScenarioError(f"unknown GoToPose gains {unknown}; expected {list(GOTO_GAINS)}")
 
 
 def joint_state_selector(plant, joints) -> np.ndarray:
@@ -227,7 +237,11 @@ def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
     if scenario.cup_in_gripper:
         fingers0 = [FINGER_CLOSED] * 2
     if scenario.action == "goto_pose":
-        action = builder.AddSystem(GoToPose(period=period, workspace=KITCHEN_WORKSPACE))
+        try:
+            goto = GoToPose(period=period, gains=scenario.gains, workspace=KITCHEN_WORKSPACE)
+        except RepertoireError as e:
+            raise ScenarioError(f"gains: {e}") from e
+        action = builder.AddSystem(goto)
         guard = builder.AddSystem(FootprintGuard(KITCHEN_OBSTACLES, ROBOT_RADIUS))
         builder.Connect(
             target_source(scenario.goto_target).get_output_port(), guard.get_input_port()

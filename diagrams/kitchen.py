@@ -219,6 +219,7 @@ def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
     for system in (reader, arm_reader, finger_reader):
         builder.Connect(plant.get_state_output_port(), system.get_input_port())
     mux = builder.AddSystem(Multiplexer([2, 3, 2]))
+    mux.set_name("command_mux")  # [v, omega], arm joints, fingers
     to_state = builder.AddSystem(MatrixGain(desired_state_matrix()))
     to_state.set_name("desired_state")
     builder.Connect(mux.get_output_port(), to_state.get_input_port())
@@ -226,6 +227,7 @@ def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
 
     def hold(port_index: int, values) -> None:
         source = builder.AddSystem(ConstantVectorSource(np.asarray(values, dtype=float)))
+        source.set_name(("hold_wheels", "hold_arm", "hold_fingers")[port_index])
         builder.Connect(source.get_output_port(), mux.get_input_port(port_index))
 
     def target_source(values):
@@ -264,7 +266,9 @@ def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
         else:
             action = builder.AddSystem(Put(period, obstacles=KITCHEN_OBSTACLES))
             demux = builder.AddSystem(MatrixGain(np.eye(5)[:3]))
+            demux.set_name("put_arm_command")
             demux_f = builder.AddSystem(MatrixGain(np.eye(5)[3:]))
+            demux_f.set_name("put_finger_command")
             for d, i in ((demux, 1), (demux_f, 2)):
                 builder.Connect(action.get_command_output_port(), d.get_input_port())
                 builder.Connect(d.get_output_port(), mux.get_input_port(i))

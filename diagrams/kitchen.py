@@ -350,3 +350,83 @@ def check_kitchen_action(diagram: Diagram, context: Context) -> dict[str, float]
             np.linalg.norm(cup_position(diagram, context) - gripper_position(diagram, context))
         ),
     }
+
+
+@dataclasses.dataclass
+class StepResult:
+    """One executed step of :func:`run_kitchen_sequence`.
+
+    Attributes:
+        action: the action name.
+        status: the final ActionStatus name.
+        duration: simulated time the step took [s].
+    """
+
+    action: str
+    status: str
+    duration: float
+
+
+def run_kitchen_sequence(
+    steps: list[tuple[str, list[float]]],
+    scenario: KitchenScenario | None = None,
+    *,
+    step_limit: float = 30.0,
+) -> tuple[list[StepResult], Diagram, Context]:
+    """Runs kitchen actions one after the other in physics, carrying the plant state over.
+
+    Each step builds a ``kitchen_action`` diagram for its action (the plant is the
+    same every time), copies the previous step's plant state into it and holds
+    the channels the action does not drive at the previous step's setpoints (so
+    a gripped cup stays squeezed while the robot drives). The sequence stops at
+    the first step that does not succeed.
+
+    Args:
+        steps: ``(action, target)`` pairs: ``goto_pose`` with ``[x_g, y_g, phi_g,
+            v_g]``, ``reach`` and ``put`` with a gripper-centre point ``[x, y, z]``
+            in the *world* (converted to the chassis frame at the step's start),
+            ``grip`` with ``[]``.
+        scenario: the start (pose, arm, fingers) and plant settings.
+        step_limit: simulated seconds allowed per step.
+
+    Returns:
+        ``(results, diagram, context)`` of the executed steps and the last step.
+    """
+    from pydrake.systems.analysis import Simulator
+    from repertoire.diagrams.soccer import robot_state
+
+    base = dataclasses.replace(scenario or KitchenScenario())
+    results: list[StepResult] = []
+    x = None
+    diagram = context = None
+    for action, target in steps:
+        if action not in ACTIONS:
+            raise ScenarioError(f"unknown action {action!r} in the sequence; expected {ACTIONS}")
+        step = dataclasses.replace(base, action=action, cup_in_gripper=False)
+        if x is not None:
+            step.initial_pose = list(robot_state(diagram, context)[:3])
+        if action == "goto_pose":
+            step.goto_target = list(target)
+        elif action in ("reach", "put"):
+            pose = robot_state(diagram, context) if x is not None else [*step.initial_pose, 0.0]
+            step.arm_target = list(world_to_chassis(pose, target))
+        diagram = build_kitchen_action(step)
+        simulator = Simulator(diagram)
+        context = simulator.get_mutable_context()
+        plant = diagram.GetSubsystemByName("plant")
+        if x is not None:
+            plant.SetPositionsAndVelocities(plant.GetMyMutableContextFromRoot(context), x)
+        t = 0.0
+        while t < step_limit and action_status(diagram, context) == ActionStatus.RUNNING:
+            t += 0.1
+            simulator.AdvanceTo(t)
+        status = action_status(diagram, context)
+        results.append(StepResult(action, status.name, float(context.get_time())))
+        x = plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(context)).copy()
+        # the next step holds what this one commanded
+        command = diagram.GetSubsystemByName("command_mux").get_output_port()
+        held = command.Eval(diagram.GetSubsystemByName("command_mux").GetMyContextFromRoot(context))
+        base.initial_arm, base.initial_fingers = list(held[2:5]), float(held[5])
+        if status != ActionStatus.SUCCEEDED:
+            break
+    return results, diagram, context

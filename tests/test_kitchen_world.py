@@ -8,6 +8,7 @@ from repertoire.diagrams.kitchen import (
     build_kitchen_action,
     check_kitchen_action,
     cup_position,
+    run_kitchen_sequence,
     world_to_chassis,
 )
 from repertoire.systems.go_to_pose import ActionStatus
@@ -78,3 +79,17 @@ def test_bad_scenarios_are_named():
         build_kitchen_action(KitchenScenario(initial_arm=[2.0, 0.0, 0.3]))
     with pytest.raises(ScenarioError, match="arm_target"):
         build_kitchen_action(KitchenScenario(arm_target=[0.5, np.nan, 0.6]))
+
+
+def test_sequence_grips_lifts_and_puts_the_cup_elsewhere():
+    at_cup = list(arm_inverse(CUP_IN_CHASSIS))
+    steps = [("grip", []), ("reach", [2.0, 1.4, 0.90]), ("put", [1.8, 1.35, 0.8011])]
+    results, diagram, context = run_kitchen_sequence(steps, KitchenScenario(initial_arm=at_cup))
+    assert [r.status for r in results] == ["SUCCEEDED"] * 3
+    assert all(r.duration > 0 for r in results)
+    np.testing.assert_allclose(cup_position(diagram, context), [1.8, 1.35, 0.80], atol=0.01)
+    # a failing step ends the sequence: a reach into the table top
+    results, _, _ = run_kitchen_sequence([("reach", [2.0, 1.4, 0.6]), ("grip", [])])
+    assert [(r.action, r.status) for r in results] == [("reach", "FAILED")]
+    with pytest.raises(ScenarioError, match="unknown action 'jump'"):
+        run_kitchen_sequence([("jump", [])])

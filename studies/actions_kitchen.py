@@ -313,7 +313,7 @@ def summarize(
             fitted = fit_action_model(done, FEATURE_FUNCS[action], "duration")
             mae = f"{fitted.mae:.3f}"
             rules += [f"### {PAPER_NAMES[action]}", "", "```", fitted.model.rules(), "```", ""]
-            sizes = [n for n in (40, 80, 160, 320, 640, 1280, 2560) if n < len(done)]
+            sizes = [n for n in (40, 80, 160, 320, 640, 1280, 2560) if n < 0.9 * len(done)]
             sizes.append(len(done))
             maes = [fit_action_model(done[:n], FEATURE_FUNCS[action], "duration").mae
                     for n in sizes if n >= need]  # fmt: skip
@@ -337,6 +337,9 @@ def summarize(
                 PAPER_TABLE1[action][2], color=c, ls=":", label=f"{PAPER_NAMES[action]}: paper"
             )
         ax.set_xscale("log")
+        ticks = sorted({n for ns, _ in curves.values() for n in ns})
+        ax.set_xticks(ticks, [str(n) for n in ticks], fontsize=7)
+        ax.minorticks_off()
         ax.set_xlabel("succeeded episodes used (3/4 train, 1/4 test)")
         ax.set_ylabel("duration MAE (s)")
         ax.set_ylim(bottom=0)

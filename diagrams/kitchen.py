@@ -1,0 +1,432 @@
+"""The kitchen with the arm robot running one action (registered as ``kitchen_action``).
+
+The robot of ``models/diffdrive/diffdrive_arm.urdf`` (the diffdrive base with a
+lift / yaw / extend arm and two fingers) stands in the kitchen world of
+``models/diffdrive/kitchen.sdf`` and runs one of the kitchen actions of Stulp &
+Beetz: ``goto_pose`` (:class:`~repertoire.systems.go_to_pose.GoToPose`, its
+target passed through a :class:`FootprintGuard` so a pose inside a table fails
+at once), ``reach``, ``grip`` or ``put`` (:mod:`repertoire.systems.kitchen_actions`).
+The channels the action does not drive hold their start values (wheels still,
+arm and fingers at their initial setpoints).
+
+All actuators are the plant's PD-controlled actuators: the wheels velocity-only
+(as in diagrams/diffdrive.py), the arm joints and fingers position-controlled.
+The cup is held by contact: the fingers squeeze it (finger setpoint 2 cm inside
+the cup's surface, about 8 N each) and friction carries its weight; no weld.
+With ``cup_in_gripper`` the cup ``cup_0`` starts between the closed fingers
+(for ``put``).
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
+from pydrake.multibody.tree import PdControllerGains
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
+from repertoire.diagrams.biped import add_ground, validate_plant_fields
+from repertoire.diagrams.diffdrive import WHEEL_RADIUS, add_world
+from repertoire.diagrams.registry import register_diagram
+from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
+from repertoire.models import ConfigureParser, package_url
+from repertoire.systems.go_to_pose import (
+    GOTO_GAINS,
+    ActionStatus,
+    DiffDriveStateReader,
+    GoToPose,
+)
+from repertoire.systems.kitchen_actions import (
+    ARM_JOINTS,
+    FINGER_CLOSED,
+    FINGER_JOINTS,
+    FINGER_OPEN,
+    FootprintGuard,
+    Grip,
+    Put,
+    Reach,
+    arm_forward,
+    arm_inverse,
+    chassis_to_world,
+)
+
+from repertoire.criteria import Bound
+from repertoire.errors import RepertoireError, ScenarioError
+
+ACTIONS = ("goto_pose", "reach", "grip", "put")
+ROBOT_URL_PATH = "diffdrive/diffdrive_arm.urdf"
+ROBOT_RADIUS = 0.32  # footprint disc of the base (chassis corners and wheels) [m]
+CUP_RADIUS, CUP_HALF_HEIGHT = 0.04, 0.05
+TABLE_TOP = 0.75
+#: Obstacle boxes of kitchen.sdf, ``[cx, cy, yaw, half_x, half_y, top_z]`` (world).
+KITCHEN_OBSTACLES = np.array(
+    [
+        [-2.0, 2.6, 0.0, 1.2, 0.3, 0.9],  # counter
+        [2.1, 1.3, 0.0, 0.6, 0.4, TABLE_TOP],  # table_0
+        [2.0, -1.6, 0.3, 0.6, 0.4, TABLE_TOP],  # table_1
+        [0.0, 3.0, 0.0, 4.0, 0.05, 1.2],  # walls
+        [0.0, -3.0, 0.0, 4.0, 0.05, 1.2],
+        [4.0, 0.0, 0.0, 0.05, 3.0, 1.2],
+        [-4.0, 0.0, 0.0, 0.05, 3.0, 1.2],
+    ]
+)
+#: The region GoToPose targets may lie in: the room less the robot's radius and the walls.
+KITCHEN_WORKSPACE = (-3.6, 3.6, -2.6, 2.6)
+CUP_0_POSITION = (2.0, 1.4, 0.8001)  # cup_0's centre in kitchen.sdf
+ARM_TUCKED = (0.62, 0.0, 0.25)  # lift, yaw, extend: fingers above the tables
+#: PD gains (kp, kd) of the arm and finger actuators.
+ARM_GAINS = {
+    "arm_lift": (4000.0, 200.0),
+    "arm_yaw": (300.0, 30.0),
+    "arm_extend": (2000.0, 100.0),
+    "left_finger": (400.0, 10.0),
+    "right_finger": (400.0, 10.0),
+}
+
+
+@dataclasses.dataclass
+class KitchenScenario:
+    """The arm robot in the kitchen running one action.
+
+    Attributes:
+        action: ``goto_pose``, ``reach``, ``grip`` or ``put``.
+        initial_pose: ``[x, y, yaw]`` of the chassis.
+        initial_arm: ``[lift, yaw, extend]`` at the start.
+        initial_fingers: both fingers' position at the start [m].
+        goto_target: ``[x_g, y_g, phi_g, v_g]`` for ``goto_pose``.
+        arm_target: gripper-centre target ``[ax, ay, az]`` in the chassis frame
+            for ``reach`` and ``put``.
+        cup_in_gripper: ``cup_0`` starts at the gripper centre (for ``put``).
+        time_step: plant step [s].
+        control_period: the actions' update period [s].
+        contact_approximation: discrete contact approximation.
+        wheel_kd: wheel velocity gain.
+        ground_friction: ground friction coefficient.
+        gains: overrides of GoToPose's gains (``GOTO_GAINS`` keys), e.g. its timeout.
+    """
+
+    action: str = "reach"
+    initial_pose: list[float] = dataclasses.field(default_factory=lambda: [2.0, 0.55, math.pi / 2])
+    initial_arm: list[float] = dataclasses.field(default_factory=lambda: list(ARM_TUCKED))
+    initial_fingers: float = FINGER_OPEN
+    goto_target: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0])
+    arm_target: list[float] = dataclasses.field(default_factory=lambda: [0.85, 0.0, 0.7036])
+    cup_in_gripper: bool = False
+    time_step: float = 2e-3
+    control_period: float = 0.02
+    contact_approximation: str = "lagged"
+    wheel_kd: float = 2.0
+    ground_friction: float = 1.0
+    gains: dict[str, float] = dataclasses.field(default_factory=dict)
+
+    def validate(self) -> None:
+        """Raises ScenarioError naming the first bad field."""
+        if self.action not in ACTIONS:
+            raise ScenarioError(f"unknown action {self.action!r}; expected one of {ACTIONS}")
+        for name, size in (("initial_pose", 3), ("goto_target", 4), ("arm_target", 3)):
+            value = getattr(self, name)
+            if len(value) != size or not np.all(np.isfinite(value)):
+                raise ScenarioError(f"{name} must be {size} finite values, got {value}")
+        if len(self.initial_arm) != 3 or arm_inverse(arm_forward(self.initial_arm)) is None:
+            raise ScenarioError(
+                f"initial_arm must be [lift, yaw, extend] within the joint ranges, got "
+                f"{self.initial_arm}"
+            )
+        if not (np.isfinite(self.initial_fingers) and 0.03 <= self.initial_fingers <= 0.08):
+            raise ScenarioError(f"initial_fingers must be in [0.03, 0.08] m, got "
+                                f"{self.initial_fingers}")  # fmt: skip
+        validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
+        if not (np.isfinite(self.control_period) and self.control_period >= self.time_step):
+            raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
+        if not (np.isfinite(self.wheel_kd) and self.wheel_kd > 0):
+            raise ScenarioError(f"wheel_kd must be > 0, got {self.wheel_kd}")
+        unknown = sorted(set(self.gains) - set(GOTO_GAINS))
+        if unknown:
+            raise ScenarioError(f"unknown GoToPose gains {unknown}; expected {list(GOTO_GAINS)}")
+
+
+def joint_state_selector(plant, joints) -> np.ndarray:
+    """``(len(joints), nq + nv)`` matrix picking the named joints' positions from the state."""
+    n = plant.num_positions() + plant.num_velocities()
+    S = np.zeros((len(joints), n))
+    for i, name in enumerate(joints):
+        S[i, plant.GetJointByName(name).position_start()] = 1.0
+    return S
+
+
+def desired_state_matrix() -> np.ndarray:
+    """``(14, 7)`` map from ``[v, omega, lift, yaw, extend, left, right]`` to the desired state.
+
+    The desired state is ``[q_d, v_d]`` over the actuators in order (two wheels,
+    three arm joints, two fingers): the wheels get velocities only (their kp is
+    0), the arm and fingers positions with zero velocity.
+    """
+    M = np.zeros((14, 7))
+    M[7:9, 0:2] = twist_to_wheel_state_matrix()[2:]
+    M[2:7, 2:7] = np.eye(5)
+    return M
+
+
+@register_diagram(
+    "kitchen_action",
+    scenario_type=KitchenScenario,
+    description="diffdrive arm robot in the kitchen running GoToPose, Reach, Grip or Put",
+    duration=6.0,
+    check=lambda diagram, context: check_kitchen_action(diagram, context),
+    criteria={"status_succeeded": Bound(1.0, 1.0)},
+)
+def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
+    """Builds the kitchen with the robot running ``scenario.action``.
+
+    Returns:
+        The Diagram ``kitchen_action`` with subsystems ``plant``, ``scene_graph``,
+        ``state_reader``, ``arm_reader``, ``finger_reader``, ``action`` (the
+        running action), ``target`` (its target source, absent for ``grip``) and
+        ``desired_state``.
+    """
+    scenario.validate()
+    builder = DiagramBuilder()
+    config = MultibodyPlantConfig(
+        time_step=scenario.time_step,
+        discrete_contact_approximation=scenario.contact_approximation,
+        contact_model="point",
+    )
+    plant, scene_graph = AddMultibodyPlant(config, builder)
+    add_ground(plant, scenario.ground_friction)
+    parser = Parser(plant)
+    ConfigureParser(parser)
+    (robot,) = parser.AddModels(url=package_url(ROBOT_URL_PATH))
+    for side in ("left", "right"):
+        plant.GetJointActuatorByName(f"{side}_wheel_motor", robot).set_controller_gains(
+            PdControllerGains(p=0.0, d=scenario.wheel_kd)
+        )
+    for joint, (kp, kd) in ARM_GAINS.items():
+        plant.GetJointActuatorByName(f"{joint}_motor", robot).set_controller_gains(
+            PdControllerGains(p=kp, d=kd)
+        )
+    add_world(plant, parser, "kitchen")
+    plant.Finalize()
+    _set_default_state(plant, scenario)
+
+    reader = builder.AddSystem(DiffDriveStateReader(plant))
+    reader.set_name("state_reader")
+    arm_reader = builder.AddSystem(MatrixGain(joint_state_selector(plant, ARM_JOINTS)))
+    arm_reader.set_name("arm_reader")
+    finger_reader = builder.AddSystem(MatrixGain(joint_state_selector(plant, FINGER_JOINTS)))
+    finger_reader.set_name("finger_reader")
+    for system in (reader, arm_reader, finger_reader):
+        builder.Connect(plant.get_state_output_port(), system.get_input_port())
+    mux = builder.AddSystem(Multiplexer([2, 3, 2]))
+    mux.set_name("command_mux")  # [v, omega], arm joints, fingers
+    to_state = builder.AddSystem(MatrixGain(desired_state_matrix()))
+    to_state.set_name("desired_state")
+    builder.Connect(mux.get_output_port(), to_state.get_input_port())
+    builder.Connect(to_state.get_output_port(), plant.get_desired_state_input_port(robot))
+
+    def hold(port_index: int, values) -> None:
+        source = builder.AddSystem(ConstantVectorSource(np.asarray(values, dtype=float)))
+        source.set_name(("hold_wheels", "hold_arm", "hold_fingers")[port_index])
+        builder.Connect(source.get_output_port(), mux.get_input_port(port_index))
+
+    def target_source(values):
+        source = builder.AddSystem(ConstantVectorSource(np.asarray(values, dtype=float)))
+        source.set_name("target")
+        return source
+
+    period, fingers0 = scenario.control_period, [scenario.initial_fingers] * 2
+    if scenario.cup_in_gripper:
+        fingers0 = [FINGER_CLOSED] * 2
+    if scenario.action == "goto_pose":
+        try:
+            goto = GoToPose(period=period, gains=scenario.gains, workspace=KITCHEN_WORKSPACE)
+        except RepertoireError as e:
+            raise ScenarioError(f"gains: {e}") from e
+        action = builder.AddSystem(goto)
+        guard = builder.AddSystem(FootprintGuard(KITCHEN_OBSTACLES, ROBOT_RADIUS))
+        builder.Connect(
+            target_source(scenario.goto_target).get_output_port(), guard.get_input_port()
+        )
+        builder.Connect(guard.get_output_port(), action.get_target_input_port())
+        builder.Connect(reader.get_output_port(), action.get_state_input_port())
+        builder.Connect(action.get_command_output_port(), mux.get_input_port(0))
+        hold(1, scenario.initial_arm)
+        hold(2, fingers0)
+    else:
+        hold(0, [0.0, 0.0])
+        if scenario.action == "reach":
+            action = builder.AddSystem(Reach(period, obstacles=KITCHEN_OBSTACLES))
+            builder.Connect(action.get_command_output_port(), mux.get_input_port(1))
+            hold(2, fingers0)
+        elif scenario.action == "grip":
+            action = builder.AddSystem(Grip(period))
+            builder.Connect(action.get_command_output_port(), mux.get_input_port(2))
+            hold(1, scenario.initial_arm)
+        else:
+            action = builder.AddSystem(Put(period, obstacles=KITCHEN_OBSTACLES))
+            demux = builder.AddSystem(MatrixGain(np.eye(5)[:3]))
+            demux.set_name("put_arm_command")
+            demux_f = builder.AddSystem(MatrixGain(np.eye(5)[3:]))
+            demux_f.set_name("put_finger_command")
+            for d, i in ((demux, 1), (demux_f, 2)):
+                builder.Connect(action.get_command_output_port(), d.get_input_port())
+                builder.Connect(d.get_output_port(), mux.get_input_port(i))
+        builder.Connect(reader.get_output_port(), action.get_base_state_input_port())
+        if scenario.action in ("reach", "put"):
+            builder.Connect(arm_reader.get_output_port(), action.get_arm_position_input_port())
+            builder.Connect(
+                target_source(scenario.arm_target).get_output_port(),
+                action.get_target_input_port(),
+            )
+        if scenario.action in ("grip", "put"):
+            builder.Connect(
+                finger_reader.get_output_port(), action.get_finger_position_input_port()
+            )
+    action.set_name("action")
+    if meshcat is not None:
+        from pydrake.geometry import MeshcatVisualizer
+
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("kitchen_action")
+    return diagram
+
+
+def _set_default_state(plant, scenario: KitchenScenario) -> None:
+    """Default positions: chassis pose, arm, fingers and (optionally) the cup in the gripper."""
+    x, y, yaw = scenario.initial_pose
+    plant.SetDefaultFloatingBaseBodyPose(
+        plant.GetBodyByName("chassis"),
+        RigidTransform(RollPitchYaw(0.0, 0.0, yaw), [x, y, WHEEL_RADIUS]),
+    )
+    for name, value in zip(ARM_JOINTS, scenario.initial_arm):
+        plant.GetJointByName(name).set_default_positions([value])
+    fingers = scenario.initial_fingers
+    if scenario.cup_in_gripper:
+        fingers = CUP_RADIUS + 0.01 - 1e-4  # the fingers' inner faces on the cup
+        cup = chassis_to_world([x, y, yaw], arm_forward(scenario.initial_arm))
+        plant.SetDefaultFloatingBaseBodyPose(
+            plant.GetBodyByName("cup", plant.GetModelInstanceByName("cup_0")),
+            RigidTransform(RollPitchYaw(0.0, 0.0, yaw), cup),
+        )
+    for name in FINGER_JOINTS:
+        plant.GetJointByName(name).set_default_positions([fingers])
+
+
+def world_to_chassis(base_state, p) -> np.ndarray:
+    """A world point in the chassis frame of the robot at ``[x, y, phi, ...]``."""
+    x, y, phi = base_state[0], base_state[1], base_state[2]
+    c, s = math.cos(phi), math.sin(phi)
+    dx, dy = p[0] - x, p[1] - y
+    return np.array([c * dx + s * dy, -s * dx + c * dy, p[2] - WHEEL_RADIUS])
+
+
+def action_status(diagram: Diagram, context: Context) -> ActionStatus:
+    """The running action's status in a ``kitchen_action`` diagram's context."""
+    action = diagram.GetSubsystemByName("action")
+    return action.get_status_output_port().Eval(action.GetMyContextFromRoot(context))
+
+
+def cup_position(diagram: Diagram, context: Context, name: str = "cup_0") -> np.ndarray:
+    """World position of a cup's centre."""
+    plant = diagram.GetSubsystemByName("plant")
+    body = plant.GetBodyByName("cup", plant.GetModelInstanceByName(name))
+    return plant.EvalBodyPoseInWorld(plant.GetMyContextFromRoot(context), body).translation()
+
+
+def gripper_position(diagram: Diagram, context: Context) -> np.ndarray:
+    """World position of the gripper centre."""
+    plant = diagram.GetSubsystemByName("plant")
+    body = plant.GetBodyByName("arm_slide")
+    return plant.EvalBodyPoseInWorld(plant.GetMyContextFromRoot(context), body).translation()
+
+
+def check_kitchen_action(diagram: Diagram, context: Context) -> dict[str, float]:
+    """Figures: ``status_succeeded`` (1/0), ``gripper_to_cup_m`` (cup_0 from the gripper centre)."""
+    return {
+        "status_succeeded": float(action_status(diagram, context) == ActionStatus.SUCCEEDED),
+        "gripper_to_cup_m": float(
+            np.linalg.norm(cup_position(diagram, context) - gripper_position(diagram, context))
+        ),
+    }
+
+
+@dataclasses.dataclass
+class StepResult:
+    """One executed step of :func:`run_kitchen_sequence`.
+
+    Attributes:
+        action: the action name.
+        status: the final ActionStatus name.
+        duration: simulated time the step took [s].
+    """
+
+    action: str
+    status: str
+    duration: float
+
+
+def run_kitchen_sequence(
+    steps: list[tuple[str, list[float]]],
+    scenario: KitchenScenario | None = None,
+    *,
+    step_limit: float = 30.0,
+) -> tuple[list[StepResult], Diagram, Context]:
+    """Runs kitchen actions one after the other in physics, carrying the plant state over.
+
+    Each step builds a ``kitchen_action`` diagram for its action (the plant is the
+    same every time), copies the previous step's plant state into it and holds
+    the channels the action does not drive at the previous step's setpoints (so
+    a gripped cup stays squeezed while the robot drives). The sequence stops at
+    the first step that does not succeed.
+
+    Args:
+        steps: ``(action, target)`` pairs: ``goto_pose`` with ``[x_g, y_g, phi_g,
+            v_g]``, ``reach`` and ``put`` with a gripper-centre point ``[x, y, z]``
+            in the *world* (converted to the chassis frame at the step's start),
+            ``grip`` with ``[]``.
+        scenario: the start (pose, arm, fingers) and plant settings.
+        step_limit: simulated seconds allowed per step.
+
+    Returns:
+        ``(results, diagram, context)`` of the executed steps and the last step.
+    """
+    from pydrake.systems.analysis import Simulator
+    from repertoire.diagrams.soccer import robot_state
+
+    base = dataclasses.replace(scenario or KitchenScenario())
+    results: list[StepResult] = []
+    x = None
+    diagram = context = None
+    for action, target in steps:
+        if action not in ACTIONS:
+            raise ScenarioError(f"unknown action {action!r} in the sequence; expected {ACTIONS}")
+        step = dataclasses.replace(base, action=action, cup_in_gripper=False)
+        if x is not None:
+            step.initial_pose = list(robot_state(diagram, context)[:3])
+        if action == "goto_pose":
+            step.goto_target = list(target)
+        elif action in ("reach", "put"):
+            pose = robot_state(diagram, context) if x is not None else [*step.initial_pose, 0.0]
+            step.arm_target = list(world_to_chassis(pose, target))
+        diagram = build_kitchen_action(step)
+        simulator = Simulator(diagram)
+        context = simulator.get_mutable_context()
+        plant = diagram.GetSubsystemByName("plant")
+        if x is not None:
+            plant.SetPositionsAndVelocities(plant.GetMyMutableContextFromRoot(context), x)
+        t = 0.0
+        while t < step_limit and action_status(diagram, context) == ActionStatus.RUNNING:
+            t += 0.1
+            simulator.AdvanceTo(t)
+        status = action_status(diagram, context)
+        results.append(StepResult(action, status.name, float(context.get_time())))
+        x = plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(context)).copy()
+        # the next step holds what this one commanded
+        command = diagram.GetSubsystemByName("command_mux").get_output_port()
+        held = command.Eval(diagram.GetSubsystemByName("command_mux").GetMyContextFromRoot(context))
+        base.initial_arm, base.initial_fingers = list(held[2:5]), float(held[5])
+        if status != ActionStatus.SUCCEEDED:
+            break
+    return results, diagram, context

@@ -1,0 +1,1 @@
+"""The differential-drive robot, its arm variant and its worlds (soccer field, kitchen)."""

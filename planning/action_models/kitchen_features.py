@@ -1,0 +1,99 @@
+"""Kitchen features of Table 7 (Stulp & Beetz): goToPose and reach of the kitchen robot.
+
+goToPose (start ``[x, y, phi, v]``, goal ``[x_g, y_g, phi_g, v_g]``), with
+``angle_to_signed = norm(atan2(y_g - y, x_g - x) - phi)`` and ``norm`` wrapping
+to [-pi, pi]:
+
+- ``v_g``: the goal speed,
+- ``dist``: ``sqrt((x - x_g)^2 + (y - y_g)^2)``,
+- ``angle_to``: ``|angle_to_signed|``,
+- ``angle_at``: ``sgn(angle_to_signed) * norm(phi_g - atan2(y_g - y, x_g - x))``
+  (the soccer definitions of Table 7, which the kitchen row refers to),
+- ``delta_angle``: ``|norm(phi_g - phi)|``.
+
+reach (gripper start ``[x, y, z]`` and goal ``[x_g, y_g, z_g]``, both in the
+chassis frame here):
+
+- ``dist_xyz``, ``dist_xy``, ``dist_xz``, ``dist_yz``: Euclidean distances in
+  3-D and in the three coordinate planes,
+- ``angle_xy = atan2(y_g - y, x_g - x)``, ``angle_xz = atan2(z_g - z, x_g - x)``,
+  ``angle_yz = atan2(z_g - z, y_g - y)``.
+
+All functions take one pair (1-D arrays) or ``n`` pairs (``(n, k)`` arrays) and
+raise RepertoireError on NaN/inf or a wrong width.
+"""
+
+import numpy as np
+from repertoire.planning.action_models.features import wrap_angle
+
+from repertoire.errors import RepertoireError
+
+KITCHEN_GOTO_FEATURES = ("v_g", "dist", "angle_to", "angle_at", "delta_angle")
+KITCHEN_REACH_FEATURES = (
+    "dist_xyz",
+    "dist_xy",
+    "dist_xz",
+    "dist_yz",
+    "angle_xy",
+    "angle_xz",
+    "angle_yz",
+)
+
+
+def _pairs(name: str, start, goal, width: int) -> tuple[np.ndarray, np.ndarray, bool]:
+    s, g = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
+    if s.shape[-1:] != (width,) or g.shape[-1:] != (width,) or s.ndim > 2 or g.ndim > 2:
+        raise RepertoireError(
+            f"{name} needs start and goal of {width} values each (or (n, {width}) arrays), got "
+            f"shapes {s.shape} and {g.shape}"
+        )
+    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(g))):
+        raise RepertoireError(f"{name} start and goal must be finite, got {start!r}, {goal!r}")
+    single = s.ndim == 1 and g.ndim == 1
+    s2, g2 = np.broadcast_arrays(np.atleast_2d(s), np.atleast_2d(g))
+    return s2, g2, single
+
+
+def kitchen_goto_features(state, goal) -> np.ndarray:
+    """The five kitchen goToPose features (``KITCHEN_GOTO_FEATURES`` order).
+
+    Args:
+        state: ``[x, y, phi, v]`` or ``(n, 4)``.
+        goal: ``[x_g, y_g, phi_g, v_g]`` or ``(n, 4)``.
+    """
+    s, g, single = _pairs("kitchen goToPose features", state, goal, 4)
+    direction = np.arctan2(g[:, 1] - s[:, 1], g[:, 0] - s[:, 0])
+    signed = wrap_angle(direction - s[:, 2])
+    out = np.column_stack(
+        [
+            g[:, 3],
+            np.hypot(g[:, 0] - s[:, 0], g[:, 1] - s[:, 1]),
+            np.abs(signed),
+            np.where(signed < 0, -1.0, 1.0) * wrap_angle(g[:, 2] - direction),
+            np.abs(wrap_angle(g[:, 2] - s[:, 2])),
+        ]
+    )
+    return out[0] if single else out
+
+
+def kitchen_reach_features(start, goal) -> np.ndarray:
+    """The seven kitchen reach features (``KITCHEN_REACH_FEATURES`` order).
+
+    Args:
+        start: gripper ``[x, y, z]`` or ``(n, 3)``.
+        goal: gripper target ``[x_g, y_g, z_g]`` or ``(n, 3)``.
+    """
+    s, g, single = _pairs("kitchen reach features", start, goal, 3)
+    dx, dy, dz = (g - s).T
+    out = np.column_stack(
+        [
+            np.sqrt(dx**2 + dy**2 + dz**2),
+            np.hypot(dx, dy),
+            np.hypot(dx, dz),
+            np.hypot(dy, dz),
+            np.arctan2(dy, dx),
+            np.arctan2(dz, dx),
+            np.arctan2(dz, dy),
+        ]
+    )
+    return out[0] if single else out

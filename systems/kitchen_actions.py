@@ -1,0 +1,483 @@
+"""Kitchen actions of the diffdrive arm (Stulp & Beetz, section 2): Reach, Grip, Put.
+
+The arm of ``models/diffdrive/diffdrive_arm.urdf`` is a cylindrical manipulator
+(lift, yaw, extend) with two parallel fingers; its gripper centre in the chassis
+frame is, in closed form (:func:`arm_forward`),
+
+    a = (COLUMN_X + e cos(yaw), e sin(yaw), LIFT_BASE_Z + lift)
+
+and :func:`arm_inverse` inverts it (the target's yaw must be within the joint
+range and its horizontal distance from the column within the extend range).
+
+Each action is a LeafSystem with a periodic discrete update, a command output
+(joint setpoints for the plant's PD-controlled actuators) and a ``status`` output
+(:class:`~repertoire.systems.go_to_pose.ActionStatus`: running, succeeded,
+failed, timed out). Motions are straight lines in joint space at limited joint
+speeds, all joints arriving together. A target whose point (in the world, given
+the chassis pose on ``base_state``) lies inside an obstacle box (a table, the
+counter) or out of the arm's reach makes the action fail at once, with no motion.
+
+Grip closes the fingers and succeeds when both are blocked by an object (the
+fingers stop more than ``block_margin`` short of their closed setpoint: a grasp
+by contact, held by friction); closing on nothing fails.
+"""
+
+import math
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from repertoire.models.diffdrive.generate import (
+    COLUMN_X,
+    EXTEND_RANGE,
+    FINGER_RANGE,
+    LIFT_BASE_Z,
+    LIFT_RANGE,
+    YAW_RANGE,
+)
+from repertoire.systems.go_to_pose import ActionStatus
+
+from repertoire.errors import RepertoireError
+
+ARM_JOINTS = ("arm_lift", "arm_yaw", "arm_extend")
+FINGER_JOINTS = ("left_finger", "right_finger")
+ARM_SPEEDS = (0.15, 0.8, 0.2)  # lift m/s, yaw rad/s, extend m/s
+FINGER_SPEED = 0.05  # m/s
+FINGER_OPEN = 0.075  # finger centre from the gripper centre when open [m]
+FINGER_CLOSED = 0.03  # closed setpoint (the joint's lower limit) [m]
+
+
+def arm_forward(q) -> np.ndarray:
+    """Gripper centre ``[ax, ay, az]`` in the chassis frame for joints ``[lift, yaw, extend]``."""
+    lift, yaw, extend = np.asarray(q, dtype=float)
+    return np.array([COLUMN_X + extend * math.cos(yaw), extend * math.sin(yaw), LIFT_BASE_Z + lift])
+
+
+def arm_inverse(a) -> np.ndarray | None:
+    """Joints ``[lift, yaw, extend]`` putting the gripper centre at ``a`` (chassis frame).
+
+    Returns:
+        The joints, or None if ``a`` is not finite or out of the arm's reach
+        (joint ranges of ``models/diffdrive/generate.py``).
+    """
+    a = np.asarray(a, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        return None
+    dx, dy = a[0] - COLUMN_X, a[1]
+    q = np.array([a[2] - LIFT_BASE_Z, math.atan2(dy, dx), math.hypot(dx, dy)])
+    for value, (lo, hi) in zip(q, (LIFT_RANGE, YAW_RANGE, EXTEND_RANGE)):
+        if not lo - 1e-9 <= value <= hi + 1e-9:
+            return None
+    return q
+
+
+def joint_step(q_cmd, q_goal, speeds, dt: float) -> np.ndarray:
+    """One step of a synchronized straight-line joint motion at limited speeds.
+
+    Every joint moves towards ``q_goal`` along the straight line, scaled so the
+    joint that needs the longest time moves at its speed limit; the goal is
+    reached exactly on the last step.
+    """
+    q_cmd, q_goal = np.asarray(q_cmd, float), np.asarray(q_goal, float)
+    delta = q_goal - q_cmd
+    steps = np.max(np.abs(delta) / (np.asarray(speeds, float) * dt))
+    if steps <= 1.0:
+        return q_goal.copy()
+    return q_cmd + delta / steps
+
+
+def chassis_to_world(base_state, a) -> np.ndarray:
+    """A chassis-frame point ``a`` in the world, for the chassis at ``[x, y, phi, v]``.
+
+    The chassis frame origin is on the wheel axle, ``WHEEL_RADIUS`` above the floor.
+    """
+    from repertoire.diagrams.diffdrive import WHEEL_RADIUS
+
+    x, y, phi = base_state[0], base_state[1], base_state[2]
+    c, s = math.cos(phi), math.sin(phi)
+    return np.array([x + c * a[0] - s * a[1], y + s * a[0] + c * a[1], WHEEL_RADIUS + a[2]])
+
+
+def point_in_boxes(p, boxes, margin: float = 0.0) -> int:
+    """Index of the first obstacle box containing the world point ``p``, else -1.
+
+    Args:
+        p: ``[x, y, z]``.
+        boxes: ``(k, 6)`` rows ``[cx, cy, yaw, half_x, half_y, top_z]``: an
+            upright box from the floor to ``top_z`` (a table, a counter).
+        margin: grows every box by this much horizontally and on top [m].
+    """
+    for i, (cx, cy, yaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = p[0] - cx, p[1] - cy
+        u, w = c * dx + s * dy, -s * dx + c * dy
+        if abs(u) <= hx + margin and abs(w) <= hy + margin and p[2] <= top + margin:
+            return i
+    return -1
+
+
+def _check_boxes(boxes) -> np.ndarray:
+    b = np.asarray(boxes if boxes is not None else np.zeros((0, 6)), dtype=float)
+    if b.size % 6 or not np.all(np.isfinite(b)):
+        raise RepertoireError(f"obstacle boxes must be finite rows of 6 values, got {boxes!r}")
+    b = b.reshape(-1, 6)
+    if np.any(b[:, 3:5] <= 0):
+        raise RepertoireError(f"obstacle box half sizes must be > 0, got {b[:, 3:5].tolist()}")
+    return b
+
+
+def _check_positive(**values) -> None:
+    for name, v in values.items():
+        if not (math.isfinite(v) and v > 0):
+            raise RepertoireError(f"{name} must be finite and > 0, got {v}")
+
+
+class _Action(LeafSystem):
+    """Shared ports and state of the kitchen actions (not registered on its own)."""
+
+    def __init__(self, period: float, timeout: float, n_command: int, boxes, margin: float):
+        super().__init__()
+        _check_positive(period=period, timeout=timeout)
+        if not (math.isfinite(margin) and margin >= 0):
+            raise RepertoireError(f"margin must be finite and >= 0, got {margin}")
+        self.period, self.timeout, self.margin = period, timeout, margin
+        self._n = n_command
+        self._boxes = _check_boxes(boxes)
+        # state: [command (n), status, started, t0, phase, t_phase]
+        self._xd = self.DeclareDiscreteState(n_command + 5)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self._base_port = self.DeclareVectorInputPort("base_state", 4)
+        self._status_port = self.DeclareAbstractOutputPort(
+            "status",
+            lambda: AbstractValue.Make(ActionStatus.RUNNING),
+            self._calc_status,
+            {self.discrete_state_ticket(self._xd)},
+        )
+
+    def get_status_output_port(self):
+        return self._status_port
+
+    def get_base_state_input_port(self):
+        return self._base_port
+
+    def inside_obstacle(self, context: Context, a_chassis) -> int:
+        """Index of the obstacle box containing the chassis-frame point, else -1."""
+        base = self._base_port.Eval(context)
+        return point_in_boxes(chassis_to_world(base, a_chassis), self._boxes, self.margin)
+
+    def _calc_status(self, context: Context, output: AbstractValue) -> None:
+        xd = context.get_discrete_state(self._xd).get_value()
+        output.set_value(ActionStatus(int(xd[self._n])))
+
+    def _calc_command(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[: self._n])
+
+    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
+        xd = context.get_discrete_state(self._xd).get_value().copy()
+        n = self._n
+        status, started = int(xd[n]), bool(xd[n + 1])
+        out = discrete_state.get_mutable_vector(self._xd)
+        if status != ActionStatus.RUNNING:
+            out.SetFromVector(xd)
+            return
+        t = context.get_time()
+        if not started:
+            xd[:n] = self.measured(context)
+            xd[n + 1], xd[n + 2], xd[n + 3], xd[n + 4] = 1.0, t, 0.0, t
+            if not self.target_ok(context):
+                xd[n] = ActionStatus.FAILED
+                out.SetFromVector(xd)
+                return
+        if t - xd[n + 2] >= self.timeout:
+            xd[n] = ActionStatus.TIMED_OUT
+            out.SetFromVector(xd)
+            return
+        command, status, phase = self.step(context, xd[:n], int(xd[n + 3]), t - xd[n + 4])
+        xd[:n], xd[n] = command, status
+        if phase != xd[n + 3]:
+            xd[n + 3], xd[n + 4] = phase, t
+        out.SetFromVector(xd)
+
+    # Each action defines: measured(context) -> the command's measured start,
+    # target_ok(context) -> bool (checked on the first update), and
+    # step(context, command, phase, time_in_phase) -> (command, status, phase).
+
+
+class Reach(_Action):
+    """Moves the gripper centre to a target point in the chassis frame.
+
+    Input ports:
+        arm_position: measured ``[lift, yaw, extend]``.
+        target: ``[ax_g, ay_g, az_g]`` gripper-centre target in the chassis frame.
+        base_state: ``[x, y, phi, v]`` of the chassis (for the obstacle check).
+
+    Output ports:
+        arm_command: ``[lift, yaw, extend]`` setpoints.
+        status: an :class:`ActionStatus`.
+
+    Succeeds when the measured gripper centre is within ``tolerance`` of the
+    target; fails at once if the target is out of reach or inside an obstacle
+    box; times out ``timeout`` s after its first update.
+    """
+
+    def __init__(
+        self,
+        period: float = 0.02,
+        *,
+        speeds=ARM_SPEEDS,
+        tolerance: float = 0.01,
+        timeout: float = 10.0,
+        obstacles=None,
+        margin: float = 0.0,
+    ):
+        """Creates the action.
+
+        Args:
+            period: update period [s].
+            speeds: joint speed limits (lift m/s, yaw rad/s, extend m/s).
+            tolerance: success distance of the gripper centre [m].
+            timeout: time limit from the first update [s].
+            obstacles: ``(k, 6)`` boxes ``[cx, cy, yaw, half_x, half_y, top_z]`` (world).
+            margin: obstacle growth [m].
+        """
+        super().__init__(period, timeout, 3, obstacles, margin)
+        self.speeds = np.asarray(speeds, dtype=float)
+        if self.speeds.shape != (3,) or not np.all(np.isfinite(self.speeds) & (self.speeds > 0)):
+            raise RepertoireError(f"speeds must be 3 finite values > 0, got {speeds}")
+        _check_positive(tolerance=tolerance)
+        self.tolerance = tolerance
+        self._arm_port = self.DeclareVectorInputPort("arm_position", 3)
+        self._target_port = self.DeclareVectorInputPort("target", 3)
+        self._command_port = self.DeclareVectorOutputPort(
+            "arm_command", 3, self._calc_command, {self.discrete_state_ticket(self._xd)}
+        )
+
+    def get_arm_position_input_port(self):
+        return self._arm_port
+
+    def get_target_input_port(self):
+        return self._target_port
+
+    def get_command_output_port(self):
+        return self._command_port
+
+    def measured(self, context):
+        return self._arm_port.Eval(context)
+
+    def target_ok(self, context) -> bool:
+        target = self._target_port.Eval(context)
+        return arm_inverse(target) is not None and self.inside_obstacle(context, target) < 0
+
+    def step(self, context, command, phase, time_in_phase):
+        target = self._target_port.Eval(context)
+        goal = arm_inverse(target)
+        if goal is None:
+            return command, ActionStatus.FAILED, phase
+        error = np.linalg.norm(arm_forward(self._arm_port.Eval(context)) - target)
+        if error < self.tolerance:
+            return command, ActionStatus.SUCCEEDED, phase
+        return joint_step(command, goal, self.speeds, self.period), ActionStatus.RUNNING, 0
+
+
+class Grip(_Action):
+    """Closes the two fingers on an object; succeeds when both are blocked by it.
+
+    Input ports:
+        finger_position: measured ``[left, right]`` finger positions [m].
+        base_state: ``[x, y, phi, v]`` (unused by the check; kept for a uniform wiring).
+
+    Output ports:
+        finger_command: ``[left, right]`` setpoints.
+        status: an :class:`ActionStatus`.
+
+    The setpoints close at ``speed`` to ``closed``; once there and ``settle``
+    s later, the grip succeeded if both fingers stopped at least
+    ``block_margin`` short of ``closed`` (an object between them), else failed.
+    """
+
+    def __init__(
+        self,
+        period: float = 0.02,
+        *,
+        speed: float = FINGER_SPEED,
+        closed: float = FINGER_CLOSED,
+        block_margin: float = 0.01,
+        settle: float = 0.2,
+        timeout: float = 5.0,
+    ):
+        """Creates the action (arguments as in the class docstring)."""
+        super().__init__(period, timeout, 2, None, 0.0)
+        _check_positive(speed=speed, block_margin=block_margin, settle=settle)
+        if not FINGER_RANGE[0] <= closed <= FINGER_RANGE[1]:
+            raise RepertoireError(f"closed must be within the finger range {FINGER_RANGE}")
+        self.speed, self.closed = speed, closed
+        self.block_margin, self.settle = block_margin, settle
+        self._finger_port = self.DeclareVectorInputPort("finger_position", 2)
+        self._command_port = self.DeclareVectorOutputPort(
+            "finger_command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
+        )
+
+    def get_finger_position_input_port(self):
+        return self._finger_port
+
+    def get_command_output_port(self):
+        return self._command_port
+
+    def measured(self, context):
+        return self._finger_port.Eval(context)
+
+    def target_ok(self, context) -> bool:
+        return True
+
+    def step(self, context, command, phase, time_in_phase):
+        goal = np.full(2, self.closed)
+        if phase == 0:
+            command = joint_step(command, goal, (self.speed, self.speed), self.period)
+            return command, ActionStatus.RUNNING, int(np.allclose(command, goal))
+        if time_in_phase < self.settle:
+            return command, ActionStatus.RUNNING, 1
+        blocked = np.all(self._finger_port.Eval(context) >= self.closed + self.block_margin)
+        return command, ActionStatus.SUCCEEDED if blocked else ActionStatus.FAILED, 1
+
+
+class Put(_Action):
+    """Carries a held cup to a target, lowers it and opens the fingers.
+
+    Input ports:
+        arm_position: measured ``[lift, yaw, extend]``.
+        finger_position: measured ``[left, right]``.
+        target: ``[ax_g, ay_g, az_g]``: where the gripper centre (the cup's
+            centre) ends, chassis frame.
+        base_state: ``[x, y, phi, v]`` of the chassis (for the obstacle check).
+
+    Output ports:
+        command: ``[lift, yaw, extend, left, right]`` setpoints.
+        status: an :class:`ActionStatus`.
+
+    Phases: 0 move to ``clearance`` above the target holding the fingers
+    closed, 1 lower to the target, 2 open the fingers; succeeds when both are
+    measured open. Fails at once if the target or the point above it is out of
+    reach, or the cup's bottom (``cup_half_height`` below the target) would be
+    inside an obstacle box by more than ``margin``.
+    """
+
+    def __init__(
+        self,
+        period: float = 0.02,
+        *,
+        speeds=ARM_SPEEDS,
+        clearance: float = 0.05,
+        cup_half_height: float = 0.05,
+        tolerance: float = 0.01,
+        timeout: float = 15.0,
+        obstacles=None,
+        margin: float = 0.0,
+    ):
+        """Creates the action (arguments as in the class docstring and :class:`Reach`)."""
+        super().__init__(period, timeout, 5, obstacles, margin)
+        self.speeds = np.asarray(speeds, dtype=float)
+        if self.speeds.shape != (3,) or not np.all(np.isfinite(self.speeds) & (self.speeds > 0)):
+            raise RepertoireError(f"speeds must be 3 finite values > 0, got {speeds}")
+        _check_positive(clearance=clearance, cup_half_height=cup_half_height, tolerance=tolerance)
+        self.clearance, self.cup_half_height, self.tolerance = clearance, cup_half_height, tolerance
+        self._arm_port = self.DeclareVectorInputPort("arm_position", 3)
+        self._finger_port = self.DeclareVectorInputPort("finger_position", 2)
+        self._target_port = self.DeclareVectorInputPort("target", 3)
+        self._command_port = self.DeclareVectorOutputPort(
+            "command", 5, self._calc_command, {self.discrete_state_ticket(self._xd)}
+        )
+
+    def get_arm_position_input_port(self):
+        return self._arm_port
+
+    def get_finger_position_input_port(self):
+        return self._finger_port
+
+    def get_target_input_port(self):
+        return self._target_port
+
+    def get_command_output_port(self):
+        return self._command_port
+
+    def measured(self, context):
+        # hold the fingers closed on the cup while carrying it
+        return np.concatenate([self._arm_port.Eval(context), [FINGER_CLOSED, FINGER_CLOSED]])
+
+    def _waypoints(self, context):
+        target = np.asarray(self._target_port.Eval(context), dtype=float)
+        return target + [0.0, 0.0, self.clearance], target
+
+    def target_ok(self, context) -> bool:
+        above, target = self._waypoints(context)
+        if arm_inverse(above) is None or arm_inverse(target) is None:
+            return False
+        bottom = target - [0.0, 0.0, self.cup_half_height]
+        return self.inside_obstacle(context, bottom + [0.0, 0.0, self.margin]) < 0
+
+    def step(self, context, command, phase, time_in_phase):
+        above, target = self._waypoints(context)
+        measured = arm_forward(self._arm_port.Eval(context))
+        arm, fingers = command[:3], command[3:]
+        if phase in (0, 1):
+            point = above if phase == 0 else target
+            goal = arm_inverse(point)
+            if goal is None:
+                return command, ActionStatus.FAILED, phase
+            arm = joint_step(arm, goal, self.speeds, self.period)
+            done = np.linalg.norm(measured - point) < self.tolerance
+            return np.concatenate([arm, fingers]), ActionStatus.RUNNING, phase + int(done)
+        fingers = joint_step(fingers, [FINGER_OPEN] * 2, (FINGER_SPEED,) * 2, self.period)
+        opened = np.all(self._finger_port.Eval(context) >= FINGER_OPEN - 0.005)
+        status = ActionStatus.SUCCEEDED if opened else ActionStatus.RUNNING
+        return np.concatenate([arm, fingers]), status, 2
+
+
+def footprint_hits(xy, boxes, radius: float) -> int:
+    """Index of the first obstacle box a robot disc at ``xy`` overlaps, else -1.
+
+    Args:
+        xy: ``[x, y]`` of the robot's centre.
+        boxes: ``(k, 6)`` boxes as in :func:`point_in_boxes`.
+        radius: the robot's footprint radius [m].
+    """
+    for i, (cx, cy, yaw, hx, hy, _) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = xy[0] - cx, xy[1] - cy
+        u, w = c * dx + s * dy, -s * dx + c * dy
+        # distance from the disc centre to the box rectangle
+        if math.hypot(max(abs(u) - hx, 0.0), max(abs(w) - hy, 0.0)) < radius:
+            return i
+    return -1
+
+
+class FootprintGuard(LeafSystem):
+    """Passes a GoToPose target through, or NaN if the robot would stand inside an obstacle.
+
+    GoToPose fails at once on a non-finite target, so a pose inside a table
+    (the robot's footprint disc overlapping an obstacle box) is reported as
+    FAILED with no motion.
+
+    Input ports:
+        target: ``[x_g, y_g, phi_g, v_g]``.
+
+    Output ports:
+        target: the same, or all NaN.
+    """
+
+    def __init__(self, boxes, radius: float):
+        """Creates the guard.
+
+        Args:
+            boxes: ``(k, 6)`` obstacle boxes ``[cx, cy, yaw, half_x, half_y, top_z]``.
+            radius: the robot's footprint radius [m].
+        """
+        super().__init__()
+        _check_positive(radius=radius)
+        self._boxes, self.radius = _check_boxes(boxes), radius
+        self._in = self.DeclareVectorInputPort("target", 4)
+        self.DeclareVectorOutputPort("target", 4, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        target = self._in.Eval(context)
+        blocked = footprint_hits(target[:2], self._boxes, self.radius) >= 0
+        output.SetFromVector(np.full(4, np.nan) if blocked else target)

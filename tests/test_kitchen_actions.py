@@ -1,0 +1,168 @@
+import math
+
+import numpy as np
+import pytest
+from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
+from repertoire.systems.go_to_pose import ActionStatus
+from repertoire.systems.kitchen_actions import (
+    FINGER_CLOSED,
+    FINGER_OPEN,
+    FootprintGuard,
+    Grip,
+    Put,
+    Reach,
+    arm_forward,
+    arm_inverse,
+    chassis_to_world,
+    footprint_hits,
+    joint_step,
+    point_in_boxes,
+)
+
+from repertoire.errors import RepertoireError
+
+BASE = np.array([2.0, 0.55, math.pi / 2, 0.0])  # in front of table_0, facing it
+
+
+def test_arm_kinematics_closed_form():
+    # yaw 90 deg: the gripper is e to the left of the column (COLUMN_X = 0.05, LIFT_BASE_Z = 0.16)
+    np.testing.assert_allclose(arm_forward([0.5, math.pi / 2, 0.6]), [0.05, 0.6, 0.66], atol=1e-15)
+    q = np.array([0.55, -0.7, 0.42])
+    np.testing.assert_allclose(arm_inverse(arm_forward(q)), q, atol=1e-12)
+    assert arm_inverse([0.05 + 0.9, 0.0, 0.6]) is None  # extend 0.9 > 0.85
+    assert arm_inverse([0.5, 0.0, 1.2]) is None  # lift 1.04 > 0.80
+    assert arm_inverse([-0.5, 0.01, 0.6]) is None  # behind the column: yaw ~ pi
+    assert arm_inverse([np.nan, 0.0, 0.6]) is None
+
+
+def test_joint_step_synchronizes_the_joints():
+    # lift needs 0.15 / 0.15 = 1 s, yaw 0.8 / 0.8 = 1 s: 10 steps of 0.1 s each
+    step = joint_step([0, 0, 0], [0.15, 0.8, 0.0], (0.15, 0.8, 0.2), 0.1)
+    np.testing.assert_allclose(step, [0.015, 0.08, 0.0])
+    # extend is the slow one (0.4 m at 0.2 m/s = 2 s): lift moves at half its limit
+    np.testing.assert_allclose(
+        joint_step([0, 0, 0], [0.15, 0, 0.4], (0.15, 0.8, 0.2), 0.1), [0.0075, 0, 0.02]
+    )
+    np.testing.assert_allclose(
+        joint_step([0, 0, 0], [0.01, 0, 0], (0.15, 0.8, 0.2), 0.1), [0.01, 0, 0]
+    )
+
+
+def test_boxes_by_hand():
+    boxes = [[1.0, 0.0, math.pi / 2, 0.6, 0.4, 0.75]]  # rotated 90 deg: 0.8 wide in x, 1.2 in y
+    assert point_in_boxes([1.41, 0.0, 0.7], boxes) == -1  # 0.41 from the centre > 0.4
+    assert point_in_boxes([1.39, 0.55, 0.7], boxes) == 0
+    assert point_in_boxes([1.39, 0.55, 0.76], boxes) == -1  # above the top
+    assert point_in_boxes([1.39, 0.55, 0.76], boxes, margin=0.02) == 0
+    # disc of radius 0.3 at x = 1.0 + 0.4 + 0.29 overlaps; at + 0.31 does not
+    assert footprint_hits([1.69, 0.0], boxes, 0.3) == 0
+    assert footprint_hits([1.71, 0.0], boxes, 0.3) == -1
+    # corner: distance to the corner (1.4, 0.6) is hypot(0.2, 0.2) = 0.283
+    assert footprint_hits([1.6, 0.8], boxes, 0.3) == 0
+    assert footprint_hits([1.6, 0.8], boxes, 0.28) == -1
+    np.testing.assert_allclose(
+        chassis_to_world(BASE, [0.85, 0.0, 0.7]), [2.0, 1.4, 0.7975], atol=1e-12
+    )
+
+
+def _fixed(system, time=0.0, state=None, **ports):
+    ctx = system.CreateDefaultContext()
+    for name, value in ports.items():
+        system.GetInputPort(name).FixValue(ctx, np.asarray(value, dtype=float))
+    if state is not None:
+        ctx.SetDiscreteState(np.asarray(state, dtype=float))
+    ctx.SetTime(time)
+    return ctx
+
+
+def _update(system, ctx):
+    return system.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+
+
+def test_reach_moves_succeeds_and_fails():
+    reach = Reach(0.02, obstacles=KITCHEN_OBSTACLES)
+    q0 = [0.62, 0.0, 0.25]
+    target = arm_forward([0.62, 0.0, 0.35])
+    ctx = _fixed(reach, arm_position=q0, target=target, base_state=BASE)
+    xd = _update(reach, ctx)
+    # first update: command starts at the measured joints, extend moves 0.2 m/s * 0.02 s
+    np.testing.assert_allclose(xd, [0.62, 0.0, 0.254, ActionStatus.RUNNING, 1, 0, 0, 0])
+    assert reach.get_status_output_port().Eval(ctx) == ActionStatus.RUNNING
+    # measured at the target: succeeded, command held
+    ctx = _fixed(
+        reach, 1.0, [0.62, 0, 0.35, 0, 1, 0, 0, 0], arm_position=[0.62, 0, 0.345],
+        target=target, base_state=BASE,
+    )  # fmt: skip
+    np.testing.assert_allclose(_update(reach, ctx)[:4], [0.62, 0, 0.35, ActionStatus.SUCCEEDED])
+    # out of reach, and inside table_0 (gripper 0.1 m below its top): failed at once, no motion
+    for bad in ([2.0, 0.0, 0.6], [0.85, 0.0, 0.55]):
+        ctx = _fixed(reach, arm_position=q0, target=bad, base_state=BASE)
+        np.testing.assert_allclose(_update(reach, ctx)[:4], [*q0, ActionStatus.FAILED])
+    # timeout after 10 s from the start time stored in the state
+    ctx = _fixed(
+        reach, 12.5, [0.6, 0, 0.3, 0, 1, 2.5, 0, 2.5], arm_position=q0, target=target,
+        base_state=BASE,
+    )  # fmt: skip
+    assert _update(reach, ctx)[3] == ActionStatus.TIMED_OUT
+    # a finished action stays finished
+    ctx.SetDiscreteState([0.6, 0, 0.3, ActionStatus.FAILED, 1, 0, 0, 0])
+    assert _update(reach, ctx)[3] == ActionStatus.FAILED
+
+
+def test_grip_closes_then_judges_by_contact():
+    grip = Grip(0.02)
+    ctx = _fixed(grip, finger_position=[FINGER_OPEN] * 2, base_state=BASE)
+    xd = _update(grip, ctx)
+    np.testing.assert_allclose(xd, [0.074, 0.074, ActionStatus.RUNNING, 1, 0, 0, 0])
+    # closed setpoint reached at t = 1.0: phase 1 starts; settling for 0.2 s
+    ctx = _fixed(grip, 1.0, [0.0305, 0.0305, 0, 1, 0, 0, 0], finger_position=[0.05, 0.05],
+                 base_state=BASE)  # fmt: skip
+    np.testing.assert_allclose(_update(grip, ctx), [0.03, 0.03, 0, 1, 0, 1, 1.0])
+    # after settling: blocked at 0.05 (>= 0.03 + 0.01) -> succeeded; closed on nothing -> failed
+    for measured, status in ((0.05, ActionStatus.SUCCEEDED), (0.031, ActionStatus.FAILED)):
+        ctx = _fixed(grip, 1.3, [0.03, 0.03, 0, 1, 0, 1, 1.0], finger_position=[measured] * 2,
+                     base_state=BASE)  # fmt: skip
+        assert _update(grip, ctx)[2] == status
+
+
+def test_put_carries_lowers_and_releases():
+    put = Put(0.02, obstacles=KITCHEN_OBSTACLES)
+    q0 = [0.5, 0.0, 0.8]
+    target = [0.65, 0.25, 0.7036]  # on table_0, the cup's bottom 3.6 mm above the top
+    ports = dict(arm_position=q0, finger_position=[0.05, 0.05], target=target, base_state=BASE)
+    xd = _update(put, _fixed(put, **ports))
+    goal = arm_inverse(np.add(target, [0, 0, 0.05]))
+    np.testing.assert_allclose(xd[:3], joint_step(q0, goal, put.speeds, 0.02))
+    np.testing.assert_allclose(xd[3:5], [FINGER_CLOSED] * 2)  # holding the cup
+    assert xd[5] == ActionStatus.RUNNING
+    # phase 2: opening; measured open -> succeeded
+    at = arm_inverse(target)
+    state = [*at, 0.07, 0.07, 0, 1, 0, 2, 1.0]
+    ports |= dict(arm_position=at, finger_position=[FINGER_OPEN] * 2)
+    xd = _update(put, _fixed(put, 1.5, state, **ports))
+    np.testing.assert_allclose(xd[3:6], [0.071, 0.071, ActionStatus.SUCCEEDED])
+    # a target that puts the cup's bottom 2 cm into the table fails at once
+    ports |= dict(arm_position=q0, target=[0.65, 0.25, 0.6726])
+    assert _update(put, _fixed(put, **ports))[5] == ActionStatus.FAILED
+
+
+def test_footprint_guard():
+    guard = FootprintGuard(KITCHEN_OBSTACLES, 0.32)
+    ctx = guard.CreateDefaultContext()
+    guard.get_input_port().FixValue(ctx, [2.1, 1.3, 0.0, 0.0])  # table_0's centre
+    assert np.all(np.isnan(guard.get_output_port().Eval(ctx)))
+    guard.get_input_port().FixValue(ctx, [0.0, 0.0, 0.3, 0.1])
+    np.testing.assert_allclose(guard.get_output_port().Eval(ctx), [0.0, 0.0, 0.3, 0.1])
+
+
+def test_bad_construction_names_the_value():
+    with pytest.raises(RepertoireError, match="period"):
+        Reach(0.0)
+    with pytest.raises(RepertoireError, match="speeds"):
+        Reach(speeds=(0.1, -1.0, 0.2))
+    with pytest.raises(RepertoireError, match="rows of 6"):
+        Reach(obstacles=[1.0, 2.0])
+    with pytest.raises(RepertoireError, match="closed"):
+        Grip(closed=0.2)
+    with pytest.raises(RepertoireError, match="radius"):
+        FootprintGuard(KITCHEN_OBSTACLES, float("nan"))

@@ -1,0 +1,95 @@
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from repertoire.diagrams.kitchen import (
+    CUP_0_POSITION,
+    KitchenScenario,
+    action_status,
+    build_kitchen_action,
+    check_kitchen_action,
+    cup_position,
+    run_kitchen_sequence,
+    world_to_chassis,
+)
+from repertoire.systems.go_to_pose import ActionStatus
+from repertoire.systems.kitchen_actions import arm_inverse, chassis_to_world
+
+from repertoire.errors import ScenarioError
+
+CUP_IN_CHASSIS = [0.85, 0.0, 0.7036]  # cup_0's centre (+1 mm) seen from the default pose
+
+
+def _run(scenario, limit):
+    diagram = build_kitchen_action(scenario)
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    t = 0.0
+    while t < limit and action_status(diagram, context) == ActionStatus.RUNNING:
+        t += 0.1
+        simulator.AdvanceTo(t)
+    return diagram, context
+
+
+def test_world_to_chassis_inverts_chassis_to_world():
+    base = [2.0, 0.55, np.pi / 2, 0.0]
+    np.testing.assert_allclose(
+        world_to_chassis(base, CUP_0_POSITION), [0.85, 0, 0.7026], atol=1e-12
+    )
+    p = np.array([0.3, -0.2, 0.5])
+    np.testing.assert_allclose(world_to_chassis(base, chassis_to_world(base, p)), p, atol=1e-12)
+
+
+def test_reach_grip_put_in_physics():
+    diagram, context = _run(KitchenScenario(), 6.0)  # reach the cup
+    figures = check_kitchen_action(diagram, context)
+    assert figures["status_succeeded"] == 1.0 and figures["gripper_to_cup_m"] < 0.01
+    assert 1.0 < context.get_time() < 5.0
+    at_cup = list(arm_inverse(CUP_IN_CHASSIS))
+    diagram, context = _run(KitchenScenario(action="grip", initial_arm=at_cup), 4.0)
+    assert action_status(diagram, context) == ActionStatus.SUCCEEDED
+    # grip with nothing between the fingers fails
+    diagram, context = _run(KitchenScenario(action="grip"), 4.0)
+    assert action_status(diagram, context) == ActionStatus.FAILED
+    # put the held cup 0.25 m to the right on the same table: it stands there, upright
+    target = [0.65, 0.25, 0.7036]
+    scenario = KitchenScenario(
+        action="put", initial_arm=at_cup, cup_in_gripper=True, arm_target=target
+    )
+    diagram, context = _run(scenario, 8.0)
+    assert action_status(diagram, context) == ActionStatus.SUCCEEDED
+    expected = chassis_to_world([2.0, 0.55, np.pi / 2], target)
+    np.testing.assert_allclose(cup_position(diagram, context)[:2], expected[:2], atol=0.01)
+    assert cup_position(diagram, context)[2] == pytest.approx(0.80, abs=0.005)
+
+
+def test_pose_inside_a_table_fails_at_once():
+    scenario = KitchenScenario(action="goto_pose", goto_target=[2.1, 1.3, 0.0, 0.0])
+    diagram, context = _run(scenario, 2.0)
+    assert action_status(diagram, context) == ActionStatus.FAILED
+    assert context.get_time() == pytest.approx(0.1)
+    # a reach into the table top
+    diagram, context = _run(KitchenScenario(arm_target=[0.85, 0.0, 0.6]), 2.0)
+    assert action_status(diagram, context) == ActionStatus.FAILED
+
+
+def test_bad_scenarios_are_named():
+    with pytest.raises(ScenarioError, match="unknown action 'fly'"):
+        build_kitchen_action(KitchenScenario(action="fly"))
+    with pytest.raises(ScenarioError, match="initial_arm"):
+        build_kitchen_action(KitchenScenario(initial_arm=[2.0, 0.0, 0.3]))
+    with pytest.raises(ScenarioError, match="arm_target"):
+        build_kitchen_action(KitchenScenario(arm_target=[0.5, np.nan, 0.6]))
+
+
+def test_sequence_grips_lifts_and_puts_the_cup_elsewhere():
+    at_cup = list(arm_inverse(CUP_IN_CHASSIS))
+    steps = [("grip", []), ("reach", [2.0, 1.4, 0.90]), ("put", [1.8, 1.35, 0.8011])]
+    results, diagram, context = run_kitchen_sequence(steps, KitchenScenario(initial_arm=at_cup))
+    assert [r.status for r in results] == ["SUCCEEDED"] * 3
+    assert all(r.duration > 0 for r in results)
+    np.testing.assert_allclose(cup_position(diagram, context), [1.8, 1.35, 0.80], atol=0.01)
+    # a failing step ends the sequence: a reach into the table top
+    results, _, _ = run_kitchen_sequence([("reach", [2.0, 1.4, 0.6]), ("grip", [])])
+    assert [(r.action, r.status) for r in results] == [("reach", "FAILED")]
+    with pytest.raises(ScenarioError, match="unknown action 'jump'"):
+        run_kitchen_sequence([("jump", [])])

@@ -8,13 +8,16 @@ The crawl planner's goal is a point for the feet's centroid (within its
 ``goal_radius``), not a whole stance, so a filled gap ends with the feet's centroid
 near the target stance's centroid; the remaining foot offsets (up to the goal
 radius plus the lattice's offsets) are left to the executor that starts the next
-recorded step. The planner's statuses map to the protocol's: SUCCESS -> reached,
-TIME_LIMIT -> time_limit, NODE_LIMIT with steps -> partial, anything else -> failed.
+recorded step. Planned footholds (ground points) are raised by the foot radius to
+foot centres, like library stances. The planner's statuses map to the protocol's:
+SUCCESS -> reached, TIME_LIMIT -> time_limit, NODE_LIMIT with steps -> partial,
+anything else -> failed.
 """
 
 import dataclasses
 
 import numpy as np
+from repertoire.models.littledog import FOOT_RADIUS
 from repertoire.planning.footstep.quadruped import (
     CrawlParams,
     HeightMap,
@@ -60,7 +63,8 @@ class CrawlGapFiller:
         steps: list[PlannedStep] = []
         cur = start.copy()
         for s in plan.steps:
-            nxt = np.asarray(s.stance, dtype=float).copy()
+            # The planner's footholds are ground contact points; stances here are foot centres.
+            nxt = np.asarray(s.stance, dtype=float) + np.array([0.0, 0.0, FOOT_RADIUS])
             steps.append(PlannedStep(cur, nxt, int(s.foot)))
             cur = nxt
         if plan.status is PlanStatus.SUCCESS:

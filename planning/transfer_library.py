@@ -32,6 +32,7 @@ from repertoire.models.littledog import FOOT_RADIUS, LEGS, leg_fk
 from repertoire.models.littledog.pose import body_to_world
 from repertoire.models.terrain import TerrainBoard
 from repertoire.planning.littledog_crawl import (
+    CRAWL_ORDER,
     CrawlError,
     CrawlParams,
     CrawlStep,
@@ -298,14 +299,34 @@ def planned_library_steps(
     return plan_to_steps(plan, terrain=terrain_name, direction=heading, kind="planned")
 
 
+def placing_steps(current, target, tolerance: float = 0.005) -> list[PlannedStep]:
+    """One-foot steps (crawl order) moving each foot farther than ``tolerance`` onto ``target``."""
+    cur = np.array(current, dtype=float)
+    target = np.asarray(target, dtype=float)
+    out = []
+    for f in CRAWL_ORDER:
+        if np.linalg.norm(cur[f] - target[f]) > tolerance:
+            nxt = cur.copy()
+            nxt[f] = target[f]
+            out.append(PlannedStep(cur, nxt, f))
+            cur = nxt
+    return out
+
+
 def final_library(
     result: SearchResult,
     transferred: StepLibrary | None,
     board: TerrainBoard,
     terrain_name: str = "transferred",
     params: CrawlParams | None = None,
+    tolerance: float = 0.005,
 ) -> StepLibrary:
     """The final library of a search: path steps in order, planner runs as ``planned`` steps.
+
+    A planner run ends with the feet's centroid near the next recorded step's start
+    (the crawl planner aims at a centroid); :func:`placing_steps` then moves each foot
+    farther than ``tolerance`` (m) onto that step's start foothold, so every run ends
+    exactly where the recorded step begins and the nearest-step policy picks it next.
 
     Raises:
         TransferError: an empty path (nothing to execute) or a recorded step missing
@@ -329,10 +350,12 @@ def final_library(
         if item.kind == "planned":
             run.append(item.planned)
             continue
-        flush()
         if transferred is None or not 0 <= item.step < len(transferred):
             raise TransferError(f"path step {item.step} is not in the transferred library")
         step = transferred[item.step]
+        if run:
+            run += placing_steps(run[-1].end_feet, step.start_feet, tolerance)
+        flush()
         out.append(step)
         pose = step.body_pose[-1]
     flush()
@@ -344,6 +367,7 @@ __all__ = [
     "final_library",
     "fit_board_pca",
     "library_stances",
+    "placing_steps",
     "planned_library_steps",
     "search_library",
     "stance_pose",

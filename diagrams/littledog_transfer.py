@@ -25,6 +25,7 @@ terrain is cached per process (studies run many episodes on one terrain).
 import dataclasses
 import functools
 import math
+import time
 
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder
@@ -218,7 +219,11 @@ def library_transfer(scenario: LittleDogTransferScenario) -> LibraryTransfer:
 
 @dataclasses.dataclass
 class TransferPlan:
-    """What the builder runs: terrain, start, goal, the search and the final library."""
+    """What the builder runs: terrain, start, goal, the search and the final library.
+
+    ``search_s`` is the search's wall time with its planner (s); the transfer's is in
+    ``transfer.timings``.
+    """
 
     board: TerrainBoard
     pose0: np.ndarray
@@ -228,6 +233,7 @@ class TransferPlan:
     transfer: LibraryTransfer
     search: SearchResult | None
     library: StepLibrary
+    search_s: float = 0.0
 
 
 def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
@@ -259,18 +265,20 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
         return TransferPlan(board, pose0, feet0, q0, goal, transfer, None, transfer.library)
     lo = -0.5 * board.params.size_x
     hmap = height_map_from_board(board, (lo, -lo), (lo, -lo), 0.01)
-    filler = CrawlGapFiller(hmap)
+    filler = CrawlGapFiller(hmap, board=board)
     # Recorded (physics) steps end up to 2.7 cm (summed over the feet) from the next start.
     config = SearchConfig(
         join_tolerance=0.04, goal_tolerance=0.03, time_limit=scenario.planner_time_limit
     )
     source = None if scenario.mode == "planner" else transfer.library
+    t0 = time.perf_counter()
     try:
         result = search_library(source, feet0, goal_feet, filler, config, board)
+        search_s = time.perf_counter() - t0
         final = final_library(result, source, board, "new_terrain")
     except RepertoireError as e:
         raise ScenarioError(f"littledog_transfer: {e}") from e
-    return TransferPlan(board, pose0, feet0, q0, goal, transfer, result, final)
+    return TransferPlan(board, pose0, feet0, q0, goal, transfer, result, final, search_s)
 
 
 @register_diagram(

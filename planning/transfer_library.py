@@ -341,7 +341,12 @@ def final_library(
     def flush() -> None:
         nonlocal run, pose
         if run:
-            made = planned_library_steps(run, board, terrain_name, pose, params)
+            try:
+                made = planned_library_steps(run, board, terrain_name, pose, params)
+            except TransferError:
+                # From the previous step's last (recorded) body pose the legs may not reach;
+                # start the run level over its first stance instead (the executor blends).
+                made = planned_library_steps(run, board, terrain_name, None, params)
             out.extend(made)
             pose = made[-1].body_pose[-1]
             run = []

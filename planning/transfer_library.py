@@ -25,6 +25,7 @@ The result is saved and loaded in the StepLibrary format.
 
 import dataclasses
 import math
+import re
 from collections.abc import Mapping
 
 import numpy as np
@@ -279,7 +280,9 @@ def planned_library_steps(
         planned: consecutive planned steps (each starts where the previous ended).
         board: the terrain (exact heights for swing clearance).
         terrain_name: stored with the steps.
-        pose0: body pose at the run's start (default level over the first stance).
+        pose0: body pose at the run's start (default level over the first stance). Where
+            the legs cannot reach a step from the pose carried along the run, the run is
+            cut there and continues level over that step's stance (the executor blends).
         params: crawl timing and geometry.
 
     Raises:
@@ -288,15 +291,33 @@ def planned_library_steps(
     params = CrawlParams() if params is None else params
     if not planned:
         raise TransferError("planned_library_steps needs at least one planned step")
-    feet0 = np.asarray(planned[0].start_feet, dtype=float)
-    pose0 = stance_pose(feet0, params.standing_height) if pose0 is None else pose0
-    crawl = [CrawlStep(p.foot, np.asarray(p.end_feet, float)[p.foot]) for p in planned]
-    try:
-        plan = plan_crawl(feet0, pose0, crawl, board, params, hold_time=params.dt)
-    except CrawlError as e:
-        raise TransferError(f"planned steps cannot be executed by the crawl: {e}") from e
-    heading = float(pose0[5])
-    return plan_to_steps(plan, terrain=terrain_name, direction=heading, kind="planned")
+    out: list[LibraryStep] = []
+    rest = list(planned)
+    while rest:
+        feet0 = np.asarray(rest[0].start_feet, dtype=float)
+        level = stance_pose(feet0, params.standing_height)
+        pose = level if pose0 is None else np.asarray(pose0, dtype=float)
+        crawl = [CrawlStep(p.foot, np.asarray(p.end_feet, float)[p.foot]) for p in rest]
+        try:
+            plan = plan_crawl(feet0, pose, crawl, board, params, hold_time=params.dt)
+            done = len(rest)
+        except CrawlError as e:
+            # A run joined from several gaps carries the body pose from one into the next;
+            # execute up to the unreachable step, then restart level over its stance.
+            m = re.search(r"step (\d+) \(moving foot", str(e))
+            done = int(m.group(1)) if m else 0
+            if done == 0:
+                if pose0 is None:
+                    raise TransferError(
+                        f"planned steps cannot be executed by the crawl: {e}"
+                    ) from e
+                pose0 = None
+                continue
+            plan = plan_crawl(feet0, pose, crawl[:done], board, params, hold_time=params.dt)
+        out += plan_to_steps(plan, terrain=terrain_name, direction=float(pose[5]), kind="planned")
+        pose0 = out[-1].body_pose[-1]
+        rest = rest[done:]
+    return out
 
 
 def placing_steps(current, target, tolerance: float = 0.005) -> list[PlannedStep]:
@@ -341,12 +362,7 @@ def final_library(
     def flush() -> None:
         nonlocal run, pose
         if run:
-            try:
-                made = planned_library_steps(run, board, terrain_name, pose, params)
-            except TransferError:
-                # From the previous step's last (recorded) body pose the legs may not reach;
-                # start the run level over its first stance instead (the executor blends).
-                made = planned_library_steps(run, board, terrain_name, None, params)
+            made = planned_library_steps(run, board, terrain_name, pose, params)
             out.extend(made)
             pose = made[-1].body_pose[-1]
             run = []
@@ -359,8 +375,17 @@ def final_library(
             raise TransferError(f"path step {item.step} is not in the transferred library")
         step = transferred[item.step]
         if run:
+            gap = list(run)
             run += placing_steps(run[-1].end_feet, step.start_feet, tolerance)
-        flush()
+            try:
+                flush()
+            except TransferError:
+                # The legs cannot reach the placing moves: leave the last few cm to the
+                # executor's blend (the search's own gap steps were checked executable).
+                run = gap
+                flush()
+        else:
+            flush()
         out.append(step)
         pose = step.body_pose[-1]
     flush()

@@ -8,20 +8,64 @@ The crawl planner's goal is a point for the feet's centroid (within its
 ``goal_radius``), not a whole stance, so a filled gap ends with the feet's centroid
 near the target stance's centroid; the remaining foot offsets (up to the goal
 radius plus the lattice's offsets) are left to the executor that starts the next
-recorded step. The planner's statuses map to the protocol's: SUCCESS -> reached,
-TIME_LIMIT -> time_limit, NODE_LIMIT with steps -> partial, anything else -> failed.
+recorded step. Planned footholds (ground points) are raised by the foot radius to
+foot centres, like library stances. The planner's statuses map to the protocol's:
+SUCCESS -> reached, TIME_LIMIT -> time_limit, NODE_LIMIT with steps -> partial,
+anything else -> failed.
 """
 
 import dataclasses
 
 import numpy as np
+from repertoire.models.littledog import FOOT_RADIUS
 from repertoire.planning.footstep.quadruped import (
     CrawlParams,
     HeightMap,
     plan_crawl,
 )
 from repertoire.planning.footstep.types import PlanStatus
+from repertoire.planning.littledog_crawl import CrawlError, CrawlStep
+from repertoire.planning.littledog_crawl import CrawlParams as ExecParams
+from repertoire.planning.littledog_crawl import plan_crawl as execute_crawl
 from repertoire.planning.transfer_search import GapFill, PlannedStep, TransferSearchError
+
+
+def executable_prefix(steps: list[PlannedStep], params: ExecParams, board) -> int:
+    """How many of ``steps`` the scripted crawl can execute from a level start (leg IK)."""
+    from repertoire.planning.transfer_library import stance_pose
+
+    if not steps:
+        return 0
+    feet0 = np.asarray(steps[0].start_feet, dtype=float)
+    pose0 = stance_pose(feet0, params.standing_height)
+    crawl = [CrawlStep(p.foot, np.asarray(p.end_feet, float)[p.foot]) for p in steps]
+    try:
+        execute_crawl(feet0, pose0, crawl, board, params, hold_time=params.dt)
+    except CrawlError as e:
+        k = _failed_step(str(e))
+        return k if k is not None else 0
+    return len(steps)
+
+
+@dataclasses.dataclass
+class _MapBoard:
+    """A height map read like a board (cell heights; 0 off the map) for the crawl's swings."""
+
+    height_map: HeightMap
+
+    def height(self, x, y):
+        row, col = self.height_map.cell(*np.broadcast_arrays(x, y))
+        inside = self.height_map.inside(row, col)
+        r = np.clip(row, 0, self.height_map.shape[0] - 1)
+        c = np.clip(col, 0, self.height_map.shape[1] - 1)
+        return np.where(inside, self.height_map.heights[r, c], 0.0)
+
+
+def _failed_step(message: str) -> int | None:
+    import re
+
+    m = re.search(r"step (\d+) \(moving foot", message)
+    return int(m.group(1)) if m else None
 
 
 @dataclasses.dataclass
@@ -33,12 +77,18 @@ class CrawlGapFiller:
         params: crawl model parameters.
         weight: heuristic weight of the planner's search.
         max_expansions: expansion budget per gap.
+        crawl: parameters of the crawl that executes planned steps (their leg IK decides
+            whether a planned gap is usable).
+        board: the terrain's exact height function for that check (default: the map's
+            cell heights; the executing crawl reads the board, so pass it when known).
     """
 
     height_map: HeightMap
     params: CrawlParams = dataclasses.field(default_factory=CrawlParams)
     weight: float = 3.0
     max_expansions: int = 50_000
+    crawl: ExecParams = dataclasses.field(default_factory=ExecParams)
+    board: object = None
 
     def __call__(self, start: np.ndarray, target: np.ndarray, time_limit: float) -> GapFill:
         """Plans crawl steps from ``start`` (4, 3) towards ``target``'s centroid."""
@@ -60,9 +110,16 @@ class CrawlGapFiller:
         steps: list[PlannedStep] = []
         cur = start.copy()
         for s in plan.steps:
-            nxt = np.asarray(s.stance, dtype=float).copy()
+            # The planner's footholds are ground contact points; stances here are foot centres.
+            nxt = np.asarray(s.stance, dtype=float) + np.array([0.0, 0.0, FOOT_RADIUS])
             steps.append(PlannedStep(cur, nxt, int(s.foot)))
             cur = nxt
+        board = _MapBoard(self.height_map) if self.board is None else self.board
+        executable = executable_prefix(steps, self.crawl, board)
+        if executable < len(steps):
+            # The crawl planner's reach model is looser than the executing crawl's leg IK:
+            # a gap whose steps cannot all be executed is not usable (best prefix kept).
+            return GapFill(steps[:executable], "partial" if executable else "failed")
         if plan.status is PlanStatus.SUCCESS:
             status = "reached"
         elif plan.status is PlanStatus.TIME_LIMIT:

@@ -90,3 +90,86 @@ def matched_steps_figure(
     fig.savefig(out, dpi=130, bbox_inches="tight")
     plt.close(fig)
     return out
+
+
+def library_path_figure(
+    board: TerrainBoard,
+    transferred,
+    final,
+    path: str | Path,
+    *,
+    changed_from: float | None = None,
+    goal: float | None = None,
+    title: str = "",
+    resolution: float = 0.004,
+) -> Path:
+    """Writes a PNG of a transferred library and the search's final library over the height map.
+
+    Every transferred step is drawn at its start (feet centroid, arrow along its
+    heading, grey-blue); the final library's steps are joined in execution order,
+    recorded ones as green circles and planned ones as orange squares (like Stolle
+    et al.'s Figs. 11-12). Either library may be None (nothing transferred / no search).
+
+    Raises:
+        TransferError: not a board, or a non-positive resolution.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if not isinstance(board, TerrainBoard):
+        raise TransferError("library_path_figure needs a TerrainBoard")
+    if not resolution > 0.0:
+        raise TransferError(f"resolution must be positive, got {resolution}")
+    hx, hy = 0.5 * board.params.size_x, 0.5 * board.params.size_y
+    x = np.arange(-hx, hx + 1e-9, resolution)
+    y = np.arange(-hy, hy + 1e-9, resolution)
+    X, Y = np.meshgrid(x, y)
+    fig, ax = plt.subplots(figsize=(2.0 + 6.0 * hx / max(hx, hy), 1.4 + 6.0 * hy / max(hx, hy)))
+    im = ax.imshow(
+        board.height(X, Y) * 100.0,
+        origin="lower",
+        extent=(-hx, hx, -hy, hy),
+        cmap="Greys",
+        interpolation="nearest",
+    )
+    fig.colorbar(im, ax=ax, label="terrain height (cm)", shrink=0.8)
+    handles = []
+    if transferred is not None:
+        for s in transferred:
+            c = s.start_feet[:, :2].mean(axis=0)
+            yaw = s.start_pose[5]
+            ax.arrow(*c, 0.03 * np.cos(yaw), 0.03 * np.sin(yaw), color="tab:blue", width=0.0015)
+        handles.append(
+            plt.Line2D([], [], color="tab:blue", label=f"transferred step ({len(transferred)})")
+        )
+    if final is not None:
+        cs = np.array([s.start_feet[:, :2].mean(axis=0) for s in final])
+        ax.plot(cs[:, 0], cs[:, 1], "-", color="tab:red", lw=1.0)
+        handles.append(plt.Line2D([], [], color="tab:red", label="final library, in order"))
+        for kind, mark, colour in (("recorded", "o", "tab:green"), ("planned", "s", "tab:orange")):
+            sel = np.array([s.kind == kind for s in final])
+            if sel.any():
+                ax.plot(cs[sel, 0], cs[sel, 1], mark, color=colour, ms=4)
+            handles.append(
+                plt.Line2D(
+                    [], [], ls="", marker=mark, color=colour, label=f"{kind} step ({sel.sum()})"
+                )
+            )
+    if changed_from is not None:
+        ax.axvline(changed_from, color="tab:red", ls="--", lw=1.0)
+        handles.append(plt.Line2D([], [], color="tab:red", ls="--", label="modified from here"))
+    if goal is not None:
+        ax.axvline(goal, color="tab:purple", ls=":", lw=1.2)
+        handles.append(plt.Line2D([], [], color="tab:purple", ls=":", label="goal line"))
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2, fontsize=7)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal")
+    ax.set_title(title, fontsize=8)
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=130, bbox_inches="tight")
+    plt.close(fig)
+    return out

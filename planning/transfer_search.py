@@ -12,9 +12,9 @@ cost and the planner runs only when that edge is popped (then it is re-queued wi
 its real cost), so most gaps are never planned. Steps that do not lead towards the
 goal are never on the path and so are left out of the final sequence.
 
-The direct start -> goal edge always exists, so with no transferred steps (a match
-threshold that discarded all of them) the search plans with the planner alone and
-says so.
+Every node has an edge to the goal (the direct start -> goal edge included), so
+with no transferred steps (a match threshold that discarded all of them) the search
+plans with the planner alone and says so.
 """
 
 import dataclasses
@@ -88,8 +88,8 @@ class SearchConfig:
         goal_tolerance: distance (m) of a stance's centroid from the goal centroid that
             counts as at the goal; 0 means the goal stance itself must be joined (within
             ``join_tolerance``, or by planned steps).
-        max_gap: gaps whose centroids are farther apart than this (m) are not tried,
-            except the direct start -> goal edge.
+        max_gap: gaps between steps whose centroids are farther apart than this (m) are
+            not tried; gaps to the goal always are (lazily, so only when they may win).
         time_limit: wall-time limit of the whole search (s).
         heuristic_weight: weight of the distance-to-goal heuristic (recorded steps
             needed at ``step_reach / 4`` of body progress each); 1 is A*, larger is
@@ -272,7 +272,7 @@ def search_transfer(
             else:
                 cu = out_c[u]
                 cv = goal_c if v == goal_node else in_c[v - 1]
-                if not (u == 0 and v == goal_node) and np.linalg.norm(cu - cv) > config.max_gap:
+                if v != goal_node and np.linalg.norm(cu - cv) > config.max_gap:
                     continue
                 est, evaluated = step_cost + gap_estimate(a, b), False
             g = g_best[u] + est

@@ -6,8 +6,10 @@ and 4 boards generated with seeds the sources never used. Prints, per terrain:
 candidate frames (and how many leave the board), the time for candidate frames,
 features (exact height function), PCA matching and sub-grid refinement, the
 total, and how many steps matched. Target: under 5 s for the two-board terrain
-on 2 cores. The search with planner-filled gaps is not timed here: the footstep
-planner's quadruped model (issue 9) is not on this branch yet.
+on 2 cores. Then the whole recorded StepLibrary (``transfer_library``, the
+160-step library of the demonstrations, recorded on first use) onto the
+modified terrain, and the section-V search with gaps filled by the footstep
+planner's crawl model on it (target under 2 s), median of ``--repeats``.
 """
 
 import argparse
@@ -47,6 +49,7 @@ def main() -> None:
     parser.add_argument("--spacing", type=float, default=0.02, help="candidate spacing (m)")
     parser.add_argument("--yaws", type=int, default=13, help="candidate yaws in [-pi/4, pi/4]")
     parser.add_argument("--multiple", action="store_true", help="several matches per step")
+    parser.add_argument("--repeats", type=int, default=3, help="repeats of the library timings")
     args = parser.parse_args()
     print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores)")
     source, feet, body = source_library(args.steps, seed=0)
@@ -78,6 +81,50 @@ def main() -> None:
             f"{n} | {area:.2f} | {cands} ({r.matches.off_terrain_count}) | "
             f"{tm['candidates']:.3f} | {tm['features']:.2f} | {tm['matching']:.2f} | "
             f"{tm['refine']:.2f} | {total:.2f} | {matched} / {len(r.steps)}"
+        )
+
+    library_section(args.repeats)
+
+
+def library_section(repeats: int) -> None:
+    """Whole-StepLibrary transfer onto the modified terrain and the search there."""
+    import dataclasses
+
+    from repertoire.diagrams.littledog_library import load_library
+    from repertoire.diagrams.littledog_transfer import (
+        LittleDogTransferScenario,
+        _pca,
+        plan_transfer,
+        source_board,
+        target_board,
+    )
+    from repertoire.planning.transfer_library import transfer_library
+
+    library = load_library("")
+    scenario = LittleDogTransferScenario()
+    sources = {n: source_board(n) for n in ("terrain_a", "terrain_b")}
+    pca = _pca()
+    target = target_board(scenario)
+    walls, plans = [], []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        r = transfer_library(library, sources, target, pca)
+        walls.append(time.perf_counter() - t)
+    print(
+        f"whole StepLibrary ({len(library)} steps) onto the modified terrain (0.8 x 0.8 m): "
+        f"median {np.median(walls):.2f} s over {repeats} (features "
+        f"{r.timings['features']:.2f} s, matching {r.timings['matching']:.2f} s, refinement "
+        f"{r.timings['refine']:.2f} s); {r.message}"
+    )
+    for multiple in (False, True):
+        for _ in range(repeats):
+            plans.append(plan_transfer(dataclasses.replace(scenario, multiple=multiple)))
+        p = plans[-1]
+        print(
+            f"search with planner-filled gaps ({'multiple matches' if multiple else 'one match'}"
+            f", {len(p.transfer.library)} transferred steps): median "
+            f"{np.median([q.search_s for q in plans[-repeats:]]):.3f} s over {repeats}; "
+            f"{p.search.planner_calls} planner calls; {p.search.message}"
         )
 
 

@@ -1,0 +1,374 @@
+"""LittleDog crossing a terrain it never saw with a transferred library (``littledog_transfer``).
+
+Stolle et al., sections V-VI: the step library recorded on the source terrains
+(:data:`~repertoire.diagrams.littledog_demos.LIBRARY_TERRAINS`) is transferred
+onto a new terrain (:func:`~repertoire.planning.transfer_library.transfer_library`:
+terrain features, PCA matching), the section-V search joins the robot's stance
+to the goal through transferred steps with gaps filled by the footstep
+planner's quadruped crawl model
+(:class:`~repertoire.planning.transfer_crawl_filler.CrawlGapFiller`), and the
+final library (path steps plus the planned steps, executed by the scripted
+crawl) is run in physics by the same closed loop as ``littledog_library``:
+nearest-step policy, step executor (spline blend, playback) and integral foot
+controller.
+
+The new terrain is either ``modified`` (a source terrain whose part beyond
+``change_from`` is replaced by rocks of seed ``rock_seed``, the paper's Fig. 10)
+or ``generated`` (rough boards from ``board_seeds``, seeds the demonstrations
+never used). ``mode`` selects the ablations of the study: ``search`` (the
+paper), ``greedy`` (every transferred step, no search: the policy picks the
+nearest), ``planner`` (no library: the planner's steps alone). Transfer and
+search take a few seconds in the builder; the transfer of the library onto a
+terrain is cached per process (studies run many episodes on one terrain).
+"""
+
+import dataclasses
+import functools
+import math
+import time
+
+import numpy as np
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.primitives import MatrixGain, VectorLogSink
+from repertoire.diagrams.littledog_demos import (
+    LIBRARY_TERRAINS,
+    crossing_start,
+    flat_start,
+    library_terrain,
+)
+from repertoire.diagrams.littledog_library import (
+    LOG_PERIOD,
+    check_littledog_library,
+    load_library,
+)
+from repertoire.diagrams.littledog_worlds import (
+    PlantSettings,
+    actuator_order,
+    add_littledog_on_terrain,
+)
+from repertoire.diagrams.registry import register_diagram
+from repertoire.models.terrain import (
+    TerrainBoard,
+    generate_board,
+    replace_with_rocks,
+    tile_boards,
+)
+from repertoire.planning.footstep.quadruped import height_map_from_board
+from repertoire.planning.littledog_crawl import CrawlParams
+from repertoire.planning.step_library import StepLibrary
+from repertoire.planning.terrain_features import TransferConfig
+from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
+from repertoire.planning.transfer_library import (
+    LibraryTransfer,
+    final_library,
+    fit_board_pca,
+    search_library,
+    transfer_library,
+)
+from repertoire.planning.transfer_search import SearchConfig, SearchResult
+from repertoire.systems.integral_foot_controller import IntegralFootController
+from repertoire.systems.library_policy import LibraryPolicy
+from repertoire.systems.littledog_sensors import BodyStateSensor, FootContactSensor
+from repertoire.systems.step_executor import StepExecutor
+
+from repertoire.criteria import Bound
+from repertoire.errors import RepertoireError, ScenarioError
+
+MODES = ("search", "greedy", "planner")
+TARGETS = ("modified", "generated")
+HALF_EXTENT = 0.25
+"""Start at -HALF_EXTENT along +x; the goal line (front feet) is at HALF_EXTENT - 0.02."""
+
+
+@dataclasses.dataclass
+class LittleDogTransferScenario:
+    """LittleDog crossing a new terrain along +x with a transferred library.
+
+    Attributes:
+        target: ``modified`` (source terrain with rocks beyond ``change_from``) or
+            ``generated`` (rough boards of ``board_seeds``).
+        source: the library terrain modified (``modified``) and whose board kind is
+            generated (``generated``).
+        change_from: x (m) where the modified part starts.
+        rock_seed: seed of the rocks on the modified part.
+        board_seeds: one seed per generated board (two boards side by side).
+        mode: ``search`` | ``greedy`` (no search) | ``planner`` (no library).
+        threshold: PCA match threshold of the transfer.
+        multiple: several matches per step (section VII).
+        planner_time_limit: wall-time limit of the search with its planner (s).
+        start_offset: [dx, dy] added to the nominal start position (m).
+        start_yaw_offset: added to the start heading (rad).
+        library: source library path (``""`` = the cached default library).
+        gain: integral controller gain k (0 = no integral correction).
+        decay: per-update decay of a flying foot's integrator.
+        integrator_limit: saturation of each integrator (m).
+        blend_speed: body distance per second of the executor's blend (m/s).
+        plant: physics settings.
+    """
+
+    target: str = "modified"
+    source: str = "terrain_a"
+    change_from: float = 0.05
+    rock_seed: int = 5
+    board_seeds: list[int] = dataclasses.field(default_factory=lambda: [31, 32])
+    mode: str = "search"
+    threshold: float = 0.05
+    multiple: bool = False
+    planner_time_limit: float = 2.0
+    start_offset: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0])
+    start_yaw_offset: float = 0.0
+    library: str = ""
+    gain: float = 0.05
+    decay: float = 0.9
+    integrator_limit: float = 0.04
+    blend_speed: float = 0.1
+    plant: PlantSettings = dataclasses.field(default_factory=PlantSettings)
+
+    def validate(self) -> None:
+        """Raises ScenarioError naming a bad field."""
+        try:
+            library_terrain(self.source)
+            self.plant.validate()
+        except RepertoireError as e:
+            raise ScenarioError(f"LittleDogTransferScenario: {e}") from e
+        if self.target not in TARGETS:
+            raise ScenarioError(f"target must be one of {TARGETS}, got {self.target!r}")
+        if self.mode not in MODES:
+            raise ScenarioError(f"mode must be one of {MODES}, got {self.mode!r}")
+        if not (math.isfinite(self.change_from) and -0.35 < self.change_from < 0.35):
+            raise ScenarioError(f"change_from must lie in (-0.35, 0.35) m, got {self.change_from}")
+        if len(self.board_seeds) != 2 or any(int(s) != s for s in self.board_seeds):
+            raise ScenarioError(f"board_seeds must be 2 integers, got {self.board_seeds}")
+        if not (math.isfinite(self.threshold) and self.threshold > 0.0):
+            raise ScenarioError(f"threshold must be positive, got {self.threshold}")
+        if not (math.isfinite(self.planner_time_limit) and self.planner_time_limit > 0.0):
+            raise ScenarioError(
+                f"planner_time_limit must be positive, got {self.planner_time_limit}"
+            )
+        if len(self.start_offset) != 2 or not all(math.isfinite(v) for v in self.start_offset):
+            raise ScenarioError(f"start_offset must be 2 finite numbers, got {self.start_offset}")
+        if max(abs(v) for v in self.start_offset) > 0.1:
+            raise ScenarioError(f"start_offset must be within +-0.1 m, got {self.start_offset}")
+        if not (math.isfinite(self.start_yaw_offset) and abs(self.start_yaw_offset) <= 0.5):
+            raise ScenarioError(
+                f"start_yaw_offset must be within +-0.5 rad, got {self.start_yaw_offset}"
+            )
+        if not (0.0 <= self.gain <= 1.0 and 0.0 <= self.decay < 1.0):
+            raise ScenarioError(
+                f"gain must be in [0, 1] and decay in [0, 1), got {self.gain}, {self.decay}"
+            )
+        if not (0.0 < self.integrator_limit <= 0.1 and 0.0 < self.blend_speed <= 1.0):
+            raise ScenarioError(
+                f"integrator_limit must be in (0, 0.1] m and blend_speed in (0, 1] m/s, got "
+                f"{self.integrator_limit}, {self.blend_speed}"
+            )
+
+
+@functools.cache
+def source_board(name: str) -> TerrainBoard:
+    """A library terrain as one board with its true extent (boards tiled along x)."""
+    t = library_terrain(name)
+    return tile_boards([generate_board(t.board, int(s)) for s in t.seeds])
+
+
+def target_board(scenario: LittleDogTransferScenario) -> TerrainBoard:
+    """The scenario's new terrain."""
+    if scenario.target == "modified":
+        return replace_with_rocks(
+            source_board(scenario.source), scenario.change_from, seed=scenario.rock_seed
+        )
+    t = library_terrain(scenario.source)
+    return tile_boards([generate_board(t.board, int(s)) for s in scenario.board_seeds])
+
+
+@functools.cache
+def _pca():
+    return fit_board_pca([source_board(n) for n in sorted(LIBRARY_TERRAINS)])
+
+
+_TRANSFER_FIELDS = (
+    "target",
+    "source",
+    "change_from",
+    "rock_seed",
+    "board_seeds",
+    "threshold",
+    "multiple",
+    "library",
+)
+
+
+@functools.lru_cache(maxsize=8)
+def _transfer(key: tuple) -> LibraryTransfer:
+    values = dict(zip(_TRANSFER_FIELDS, key))
+    values["board_seeds"] = list(values["board_seeds"])
+    scenario = LittleDogTransferScenario(**values)
+    library = load_library(scenario.library)
+    sources = {n: source_board(n) for n in sorted({s.terrain for s in library})}
+    config = TransferConfig(threshold=scenario.threshold, multiple=scenario.multiple)
+    return transfer_library(
+        library, sources, target_board(scenario), _pca(), config, target_name="new_terrain"
+    )
+
+
+def library_transfer(scenario: LittleDogTransferScenario) -> LibraryTransfer:
+    """The library transferred onto the scenario's terrain (cached per terrain and settings)."""
+    key = tuple(getattr(scenario, f) for f in _TRANSFER_FIELDS)
+    return _transfer(tuple(tuple(v) if isinstance(v, list) else v for v in key))
+
+
+@dataclasses.dataclass
+class TransferPlan:
+    """What the builder runs: terrain, start, goal, the search and the final library.
+
+    ``search_s`` is the search's wall time with its planner (s); the transfer's is in
+    ``transfer.timings``.
+    """
+
+    board: TerrainBoard
+    pose0: np.ndarray
+    feet0: np.ndarray
+    q0: np.ndarray
+    goal: float
+    transfer: LibraryTransfer
+    search: SearchResult | None
+    library: StepLibrary
+    search_s: float = 0.0
+
+
+def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
+    """Transfer, search and final library of a scenario (no physics).
+
+    Raises:
+        ScenarioError: bad scenario, or the search found nothing to execute.
+    """
+    scenario.validate()
+    board = target_board(scenario)
+    params = CrawlParams()
+    offset = flat_start(board, 0.0, HALF_EXTENT, params)
+    pose0, feet0, q0 = crossing_start(
+        board,
+        0.0,
+        HALF_EXTENT,
+        params.standing_height,
+        offset + np.asarray(scenario.start_offset),
+        scenario.start_yaw_offset,
+    )
+    goal = HALF_EXTENT - 0.02
+    transfer = library_transfer(scenario)
+    shift = goal + 0.06 - min(feet0[0, 0], feet0[1, 0])  # the centroid stops within 3 cm
+    goal_feet = feet0 + np.array([shift, 0.0, 0.0])
+    goal_feet[:, 1] -= feet0[:, 1].mean()  # centred across the board
+    if scenario.mode == "greedy":
+        if transfer.library is None:
+            raise ScenarioError(f"greedy mode: no step transferred ({transfer.message})")
+        return TransferPlan(board, pose0, feet0, q0, goal, transfer, None, transfer.library)
+    lo = -0.5 * board.params.size_x
+    hmap = height_map_from_board(board, (lo, -lo), (lo, -lo), 0.01)
+    filler = CrawlGapFiller(hmap, board=board)
+    # Recorded (physics) steps end up to 2.7 cm (summed over the feet) from the next start.
+    config = SearchConfig(
+        join_tolerance=0.04, goal_tolerance=0.03, time_limit=scenario.planner_time_limit
+    )
+    source = None if scenario.mode == "planner" else transfer.library
+    t0 = time.perf_counter()
+    try:
+        result = search_library(source, feet0, goal_feet, filler, config, board)
+        search_s = time.perf_counter() - t0
+        final = final_library(result, source, board, "new_terrain")
+    except RepertoireError as e:
+        raise ScenarioError(f"littledog_transfer: {e}") from e
+    return TransferPlan(board, pose0, feet0, q0, goal, transfer, result, final, search_s)
+
+
+@register_diagram(
+    "littledog_transfer",
+    scenario_type=LittleDogTransferScenario,
+    description="LittleDog crossing a modified terrain with its step library transferred there "
+    "(terrain features, PCA matching, search with planner-filled gaps, integral foot controller)",
+    duration=40.0,
+    check=lambda diagram, context: check_littledog_library(diagram, context),
+    criteria={"crossed": Bound(lo=1.0), "min_clearance_m": Bound(lo=0.04), "fell": Bound(hi=0.0)},
+)
+def build_littledog_transfer(
+    scenario: LittleDogTransferScenario, *, meshcat=None, plan: TransferPlan | None = None
+) -> Diagram:
+    """Builds the closed loop on the new terrain with the final library.
+
+    Args:
+        scenario: the scenario (validated here).
+        meshcat: optional Meshcat for a visualizer.
+        plan: an already computed :func:`plan_transfer` of ``scenario``.
+
+    Returns:
+        The Diagram ``littledog_transfer`` with the subsystems and loggers of
+        ``littledog_library`` (``body_log``, ``feet_log``, ``integrator_log``,
+        ``ideal_log``, ``step_log``, ``contact_log``).
+    """
+    if not isinstance(scenario, LittleDogTransferScenario):
+        raise ScenarioError(
+            f"littledog_transfer takes a LittleDogTransferScenario, got {type(scenario).__name__}"
+        )
+    plan = plan_transfer(scenario) if plan is None else plan
+    builder = DiagramBuilder()
+    plant, scene_graph, instance = add_littledog_on_terrain(
+        builder, plan.board, plan.pose0, plan.q0, scenario.plant
+    )
+    sensor = builder.AddNamedSystem("sensor", BodyStateSensor(plant, instance))
+    builder.Connect(plant.get_state_output_port(), sensor.state_input)
+    contact = builder.AddNamedSystem("contact", FootContactSensor(plant, instance))
+    builder.Connect(plant.get_contact_results_output_port(), contact.contact_results_input)
+    policy = builder.AddNamedSystem("policy", LibraryPolicy(plan.library))
+    builder.Connect(sensor.feet_output, policy.feet_input)
+    builder.Connect(contact.contact_output, policy.contact_input)
+    executor = builder.AddNamedSystem(
+        "executor", StepExecutor(plan.library, plan.q0, speed=scenario.blend_speed)
+    )
+    builder.Connect(policy.choice_output, executor.choice_input)
+    builder.Connect(sensor.body_pose_output, executor.body_pose_input)
+    integral = builder.AddNamedSystem(
+        "integral",
+        IntegralFootController(
+            gain=scenario.gain, decay=scenario.decay, limit=scenario.integrator_limit
+        ),
+    )
+    builder.Connect(executor.q_playback_output, integral.q_playback_input)
+    builder.Connect(executor.ideal_pose_output, integral.ideal_pose_input)
+    builder.Connect(sensor.body_pose_output, integral.body_pose_input)
+    builder.Connect(sensor.joint_angles_output, integral.joint_angles_input)
+    builder.Connect(contact.contact_output, integral.contact_input)
+    P = np.zeros((24, 12))
+    P[np.arange(12), actuator_order(plant, instance)] = 1.0
+    desired = builder.AddNamedSystem("desired_state", MatrixGain(P))
+    builder.Connect(integral.q_desired_output, desired.get_input_port())
+    builder.Connect(desired.get_output_port(), plant.get_desired_state_input_port(instance))
+    for name, port, size in [
+        ("body_log", sensor.body_pose_output, 6),
+        ("feet_log", sensor.feet_output, 12),
+        ("integrator_log", integral.integrators_output, 12),
+        ("ideal_log", executor.ideal_pose_output, 6),
+        ("step_log", executor.step_index_output, 1),
+        ("contact_log", contact.contact_output, 4),
+    ]:
+        log = builder.AddNamedSystem(name, VectorLogSink(size, LOG_PERIOD))
+        builder.Connect(port, log.get_input_port())
+    if meshcat is not None:
+        from pydrake.geometry import MeshcatVisualizer
+
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+    diagram = builder.Build()
+    diagram.set_name("littledog_transfer")
+    diagram._repertoire_crossing = (plan.board, 0.0, plan.goal)  # read by the check
+    return diagram
+
+
+__all__ = [
+    "MODES",
+    "LittleDogTransferScenario",
+    "TransferPlan",
+    "build_littledog_transfer",
+    "library_transfer",
+    "plan_transfer",
+    "source_board",
+    "target_board",
+]

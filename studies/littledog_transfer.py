@@ -1,0 +1,340 @@
+"""LittleDog library transfer without physics: match-back, modified terrain, search (Figs. 9-12).
+
+Stolle et al., section VI. The step library recorded on the source terrains is
+transferred onto a new terrain per episode; the case follows from the seed:
+
+- seed 0, 1 (``match_back``): source terrain ``terrain_a`` / ``terrain_b`` with a
+  flat board of the same width tiled after it (Fig. 9). A step whose own heading
+  lies within the candidate yaws (the crossings at 0 degrees) should match back
+  within 2 cm and 5 degrees of its recorded place; placed steps farther away are
+  spurious, and those whose profile lies wholly on the flat board are counted.
+- seed 2 (``modified``): ``terrain_a`` with rocks in place of its part beyond
+  ``change_from`` (Fig. 10): matches where the terrain is unchanged, and how many
+  touch the changed part.
+- seeds >= 3 (``generated``): two rough boards with seeds the demonstrations never
+  used (``1000 + 2 k``, ``1001 + 2 k``).
+
+On the modified and generated terrains the section-V search runs from the nominal
+start to the goal, once with one match per step and once with multiple matches
+(section VII): recorded and planned steps on the path (Figs. 11-12). The summary
+tabulates every case and draws the modified terrain's matches and both searches
+over its height map. Run it with ``python -m repertoire.studies.littledog_transfer
+--help``.
+"""
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+from repertoire.studies.engine import register_study
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+FLAT_SEED = 0
+
+
+def profile_x(feet) -> np.ndarray:
+    """World x of the 464 profile samples of a stance (its terrain feature's footprint)."""
+    from repertoire.planning.terrain_features import profile_offsets, stance_frame
+
+    x, y, yaw = stance_frame(feet)
+    uv = profile_offsets()
+    return x + math.cos(yaw) * uv[:, 0] - math.sin(yaw) * uv[:, 1]
+
+
+@dataclasses.dataclass
+class LittleDogTransferConfig:
+    """What every episode shares.
+
+    Attributes:
+        threshold: PCA match threshold.
+        change_from: x (m) where the modified terrain starts to differ.
+        rock_seed: seed of the modified part's rocks.
+        library: step library file ("" = the cached default library).
+    """
+
+    threshold: float = 0.05
+    change_from: float = 0.05
+    rock_seed: int = 5
+    library: str = ""
+
+    def validate(self) -> None:
+        """Raises RepertoireError naming a bad field."""
+        if not (math.isfinite(self.threshold) and self.threshold > 0.0):
+            raise RepertoireError(f"threshold must be positive, got {self.threshold}")
+        if not (math.isfinite(self.change_from) and -0.35 < self.change_from < 0.35):
+            raise RepertoireError(
+                f"change_from must lie in (-0.35, 0.35) m, got {self.change_from}"
+            )
+
+
+@dataclasses.dataclass
+class LittleDogTransferRecord:
+    """One terrain.
+
+    Attributes:
+        case: ``match_back``, ``modified`` or ``generated``.
+        terrain: what the target terrain is made of.
+        placed: steps placed (one match per step).
+        discarded: library steps matched nowhere.
+        eligible: match-back only: steps heading within the candidate yaws on their
+            own terrain (could match back), else 0.
+        back_within: match-back only: of those, placed within 2 cm and 5 degrees.
+        spurious: match-back: placed more than 2 cm / 5 degrees from their own place
+            (steps of the other source terrain included); modified: placed with a profile
+            sample on the changed part.
+        on_flat: match-back only: placed with the whole profile on the flat board.
+        placed_multiple: placements with multiple matches per step.
+        status, recorded, planned: the search with one match per step (empty / 0 for
+            match-back).
+        status_multiple, recorded_multiple, planned_multiple: the same with multiple
+            matches.
+        transfer_s, transfer_multiple_s, search_s: wall times (s).
+    """
+
+    case: str
+    terrain: str
+    placed: int
+    discarded: int
+    eligible: int
+    back_within: int
+    spurious: int
+    on_flat: int
+    placed_multiple: int
+    status: str
+    recorded: int
+    planned: int
+    status_multiple: str
+    recorded_multiple: int
+    planned_multiple: int
+    transfer_s: float
+    transfer_multiple_s: float
+    search_s: float
+
+
+def _match_back(config, seed: int, library, pca):
+    import time
+
+    from repertoire.diagrams.littledog_transfer import source_board
+    from repertoire.models.terrain import TerrainParams, generate_board, tile_boards
+    from repertoire.planning.terrain_features import TransferConfig, wrap_angle
+    from repertoire.planning.transfer_library import transfer_library
+
+    name = ("terrain_a", "terrain_b")[seed]
+    source = source_board(name)
+    flat = generate_board(
+        TerrainParams(kind="flat", size_x=0.4, size_y=source.params.size_y), FLAT_SEED
+    )
+    target = tile_boards([source, flat])
+    shift = -0.5 * flat.params.size_x  # the source's centre moves by this along x
+    flat_from = target.params.size_x * 0.5 - flat.params.size_x
+    t = time.perf_counter()
+    cfg = TransferConfig(threshold=config.threshold)
+    r = transfer_library(
+        library,
+        {n: source_board(n) for n in ("terrain_a", "terrain_b")},
+        target,
+        pca,
+        cfg,
+        "match_back",
+    )
+    elapsed = time.perf_counter() - t
+    half_yaw = math.pi / 4 + 1e-9
+    eligible = [
+        i
+        for i, s in enumerate(library)
+        if s.terrain == name and abs(wrap_angle(s.direction)) <= half_yaw
+    ]
+    within = spurious = on_flat = 0
+    for new, j in zip(r.library or [], r.source_index):
+        old = library[int(j)]
+        if profile_x(new.start_feet).min() > flat_from:
+            on_flat += 1
+        dist = np.linalg.norm(new.start_feet[:, :2] - old.start_feet[:, :2] - [shift, 0.0], axis=1)
+        yaw = abs(math.degrees(wrap_angle(new.start_pose[5] - old.start_pose[5])))
+        ok = old.terrain == name and dist.max() < 0.02 and yaw < 5.0
+        within += int(ok and int(j) in eligible)
+        spurious += int(not ok)
+    placed = 0 if r.library is None else len(r.library)
+    return LittleDogTransferRecord(
+        "match_back",
+        f"{name} + flat board",
+        placed,
+        len(r.discarded),
+        len(eligible),
+        within,
+        spurious,
+        on_flat,
+        0,
+        "",
+        0,
+        0,
+        "",
+        0,
+        0,
+        elapsed,
+        0.0,
+        0.0,
+    )
+
+
+def run_episode(config: LittleDogTransferConfig, seed: int) -> LittleDogTransferRecord:
+    """One terrain (the case follows from the seed, see the module doc)."""
+    from repertoire.diagrams.littledog_library import load_library
+    from repertoire.diagrams.littledog_transfer import (
+        LittleDogTransferScenario,
+        _pca,
+        plan_transfer,
+    )
+
+    config.validate()
+    if seed < 0:
+        raise RepertoireError(f"seed must be >= 0, got {seed}")
+    library = load_library(config.library)
+    if seed < 2:
+        return _match_back(config, seed, library, _pca())
+    if seed == 2:
+        kw = dict(target="modified", change_from=config.change_from, rock_seed=config.rock_seed)
+        terrain = f"terrain_a, rocks from x = {config.change_from} m"
+    else:
+        seeds = [1000 + 2 * (seed - 3), 1001 + 2 * (seed - 3)]
+        kw = dict(target="generated", board_seeds=seeds)
+        terrain = f"rough boards {seeds}"
+    base = LittleDogTransferScenario(threshold=config.threshold, library=config.library, **kw)
+    try:
+        single = plan_transfer(base)
+        multi = plan_transfer(dataclasses.replace(base, multiple=True))
+    except ScenarioError as e:  # e.g. the planner cannot fill a gap: counted, not fatal
+        return LittleDogTransferRecord(
+            "modified" if seed == 2 else "generated",
+            terrain,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            0,
+            f"error: {e}",
+            0,
+            0,
+            "error",
+            0,
+            0,
+            0.0,
+            0.0,
+            0.0,
+        )
+    spurious = 0
+    if seed == 2 and single.transfer.library is not None:
+        spurious = sum(
+            profile_x(s.start_feet).max() >= config.change_from for s in single.transfer.library
+        )
+    placed = lambda p: 0 if p.transfer.library is None else len(p.transfer.library)  # noqa: E731
+    return LittleDogTransferRecord(
+        "modified" if seed == 2 else "generated",
+        terrain,
+        placed(single),
+        len(single.transfer.discarded),
+        0,
+        0,
+        int(spurious),
+        0,
+        placed(multi),
+        single.search.status,
+        single.search.recorded_count,
+        single.search.planned_count,
+        multi.search.status,
+        multi.search.recorded_count,
+        multi.search.planned_count,
+        sum(single.transfer.timings.values()),
+        sum(multi.transfer.timings.values()),
+        single.search_s,
+    )
+
+
+def summarize(
+    records: list[LittleDogTransferRecord], config: LittleDogTransferConfig, out_dir: Path
+) -> dict[str, Path]:
+    """Table of every case; the modified terrain's transferred steps and searches (figures).
+
+    Returns:
+        ``{"table": md, "modified": png, "modified_multiple": png}`` (figures only when a
+        modified-terrain episode ran).
+    """
+    from repertoire.diagrams.littledog_transfer import LittleDogTransferScenario, plan_transfer
+    from repertoire.planning.transfer_plot import library_path_figure
+
+    out_dir = Path(out_dir)
+    lines = [
+        "| case | terrain | placed | discarded | back within 2 cm / 5 deg | spurious | on flat "
+        "| search: recorded + planned (status) | multiple matches: placed; recorded + planned "
+        "(status) | transfer s | search s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in records:
+        back = f"{r.back_within}/{r.eligible}" if r.case == "match_back" else "-"
+        flat = str(r.on_flat) if r.case == "match_back" else "-"
+        one = f"{r.recorded} + {r.planned} ({r.status})" if r.status else "-"
+        many = (
+            f"{r.placed_multiple}; {r.recorded_multiple} + {r.planned_multiple} "
+            f"({r.status_multiple})"
+            if r.status_multiple
+            else "-"
+        )
+        lines.append(
+            f"| {r.case} | {r.terrain} | {r.placed} | {r.discarded} | {back} | {r.spurious} "
+            f"| {flat} | {one} | {many} | {r.transfer_s:.1f} | {r.search_s:.2f} |"
+        )
+    searched = [r for r in records if r.status]
+    if searched:
+        lines.append("")
+        lines.append(
+            f"Planned steps over {len(searched)} searched terrains: one match per step "
+            f"{sum(r.planned for r in searched)}, multiple matches "
+            f"{sum(r.planned_multiple for r in searched)}; recorded steps "
+            f"{sum(r.recorded for r in searched)} vs {sum(r.recorded_multiple for r in searched)}."
+        )
+    table = out_dir / "littledog_transfer.md"
+    table.write_text("\n".join(lines) + "\n")
+    files = {"table": table}
+    if any(r.case == "modified" for r in records):
+        base = LittleDogTransferScenario(
+            threshold=config.threshold,
+            library=config.library,
+            change_from=config.change_from,
+            rock_seed=config.rock_seed,
+        )
+        for key, multiple in (("modified", False), ("modified_multiple", True)):
+            plan = plan_transfer(dataclasses.replace(base, multiple=multiple))
+            what = "multiple matches per step" if multiple else "one match per step"
+            files[key] = library_path_figure(
+                plan.board,
+                plan.transfer.library,
+                plan.library,
+                out_dir / f"littledog_transfer_{key}.png",
+                changed_from=config.change_from,
+                goal=plan.goal,
+                title=f"Modified terrain, {what}: {plan.search.message}",
+            )
+    return files
+
+
+def demo_config() -> LittleDogTransferConfig:
+    """The defaults (about 10-30 s of wall time per episode)."""
+    return LittleDogTransferConfig()
+
+
+register_study(
+    "littledog_transfer",
+    config_type=LittleDogTransferConfig,
+    record_type=LittleDogTransferRecord,
+    run_episode=run_episode,
+    description="LittleDog library transfer without physics: match-back with spurious matches on "
+    "flat ground, modified terrain, search with planner-filled gaps, multiple matches",
+    summarize=summarize,
+    demo_config=demo_config,
+    demo_episodes=3,
+    smoke_config=demo_config,
+).run_if_main(__name__)

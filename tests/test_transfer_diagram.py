@@ -1,0 +1,94 @@
+"""The littledog_transfer diagram: transfer, search, final library and the closed loop."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from repertoire.diagrams.littledog_demos import crossing_start, flat_start
+from repertoire.diagrams.littledog_transfer import (
+    LittleDogTransferScenario,
+    build_littledog_transfer,
+    plan_transfer,
+    source_board,
+)
+from repertoire.planning.littledog_crawl import (
+    CrawlParams,
+    choose_footholds,
+    plan_crawl,
+    plan_to_steps,
+)
+from repertoire.planning.step_library import StepLibrary
+from repertoire.planning.transfer_library import step_end_feet
+
+from repertoire.errors import ScenarioError
+
+
+@pytest.fixture(scope="module")
+def library_path(tmp_path_factory):
+    """The scripted 0-degree crossing of terrain_a as a small library (kinematic, no physics)."""
+    board = source_board("terrain_a")
+    params = CrawlParams()
+    off = flat_start(board, 0.0, 0.25, params)
+    pose, feet, _ = crossing_start(board, 0.0, 0.25, params.standing_height, off)
+    plan = plan_crawl(feet, pose, choose_footholds(board, feet, 0.0, 0.23, params), board, params)
+    lib = StepLibrary(plan_to_steps(plan, terrain="terrain_a", direction=0.0, kind="recorded"))
+    path = tmp_path_factory.mktemp("lib") / "crossing"
+    lib.save(path)
+    return str(path)
+
+
+def test_search_plan_goes_from_the_start_to_the_goal(library_path):
+    scenario = LittleDogTransferScenario(library=library_path)
+    plan = plan_transfer(scenario)
+    assert plan.search.status == "reached" and plan.search.recorded_count >= 3
+    kinds = [s.kind for s in plan.library]
+    assert kinds.count("recorded") == plan.search.recorded_count
+    np.testing.assert_allclose(plan.library[0].start_feet, plan.feet0, atol=1e-9)
+    # Every step ends where the next one starts (planned runs end on the recorded start).
+    for a, b in zip(plan.library.steps[:-1], plan.library.steps[1:]):
+        assert np.linalg.norm(step_end_feet(a) - b.start_feet, axis=1).sum() < 0.04
+    end = step_end_feet(plan.library[-1])
+    assert min(end[0, 0], end[1, 0]) >= plan.goal  # the front feet pass the goal line
+    # Recorded steps come only from the unchanged part (before x = change_from).
+    for s in plan.library:
+        if s.kind == "recorded":
+            assert s.start_feet[:, 0].mean() + 0.17 < scenario.change_from
+
+
+def test_ablation_modes(library_path):
+    greedy = plan_transfer(LittleDogTransferScenario(library=library_path, mode="greedy"))
+    assert greedy.search is None and greedy.library is greedy.transfer.library
+    alone = plan_transfer(LittleDogTransferScenario(library=library_path, mode="planner"))
+    assert alone.search.recorded_count == 0 and "planner alone" in alone.search.message
+    assert {s.kind for s in alone.library} == {"planned"}
+
+
+def test_closed_loop_starts_the_first_step(library_path):
+    scenario = LittleDogTransferScenario(library=library_path)
+    diagram = build_littledog_transfer(scenario)
+    sim = Simulator(diagram)
+    sim.AdvanceTo(0.3)
+    log = diagram.GetSubsystemByName("step_log").FindLog(sim.get_context())
+    assert log.data()[0, -1] == 0.0  # the nearest step at the start is the first one
+    body = diagram.GetSubsystemByName("body_log").FindLog(sim.get_context()).data()
+    assert np.all(body[2] > 0.12)  # standing, not fallen
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        (dict(mode="fly"), "mode"),
+        (dict(target="moon"), "target"),
+        (dict(change_from=1.0), "change_from"),
+        (dict(threshold=0.0), "threshold"),
+        (dict(board_seeds=[1]), "board_seeds"),
+        (dict(source="terrain_z"), "terrain_z"),
+        (dict(start_offset=[0.5, 0.0]), "start_offset"),
+        (dict(library="/nonexistent/lib"), "nonexistent"),
+    ],
+)
+def test_bad_scenarios_are_refused(change, match):
+    scenario = dataclasses.replace(LittleDogTransferScenario(), **change)
+    with pytest.raises(ScenarioError, match=match):
+        plan_transfer(scenario)

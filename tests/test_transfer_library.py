@@ -1,0 +1,169 @@
+"""Whole-StepLibrary transfer, the search over it and the final library (issue 12)."""
+
+import math
+
+import numpy as np
+import pytest
+from repertoire.diagrams.littledog_demos import crossing_start, flat_start, library_terrain
+from repertoire.models.terrain import generate_board, replace_with_rocks, tile_boards
+from repertoire.planning.littledog_crawl import (
+    CrawlParams,
+    choose_footholds,
+    plan_crawl,
+    plan_to_steps,
+)
+from repertoire.planning.step_library import StepLibrary
+from repertoire.planning.terrain_features import TransferConfig, TransferError, wrap_angle
+from repertoire.planning.transfer_library import (
+    final_library,
+    fit_board_pca,
+    library_stances,
+    search_library,
+    step_end_feet,
+    transfer_library,
+)
+from repertoire.planning.transfer_search import (
+    GapFill,
+    PathItem,
+    PlannedStep,
+    SearchResult,
+)
+
+
+@pytest.fixture(scope="module")
+def source():
+    t = library_terrain("terrain_a")
+    return tile_boards([generate_board(t.board, s) for s in t.seeds])
+
+
+@pytest.fixture(scope="module")
+def library(source):
+    """The scripted 0-degree crossing of terrain_a, cut into steps (kinematic, no physics)."""
+    params = CrawlParams()
+    off = flat_start(source, 0.0, 0.25, params)
+    pose, feet, _ = crossing_start(source, 0.0, 0.25, params.standing_height, off)
+    steps = choose_footholds(source, feet, 0.0, 0.23, params)
+    plan = plan_crawl(feet, pose, steps, source, params)
+    return StepLibrary(plan_to_steps(plan, terrain="terrain_a", direction=0.0, kind="recorded"))
+
+
+@pytest.fixture(scope="module")
+def pca(source):
+    return fit_board_pca([source])
+
+
+def test_end_stance_is_the_next_start_less_the_press(library):
+    press = CrawlParams().press
+    for k in range(len(library) - 1):
+        end = step_end_feet(library[k])
+        nxt = library[k + 1].start_feet
+        f = library[k].foot
+        others = [i for i in range(4) if i != f]
+        np.testing.assert_allclose(end[others], library[k].start_feet[others])
+        # The action's last angles command the foot ``press`` below its foothold.
+        np.testing.assert_allclose(end[f], nxt[f] - [0.0, 0.0, press], atol=1e-9)
+    starts, ends = library_stances(library)
+    assert starts.shape == ends.shape == (len(library), 4, 3)
+    assert library_stances(None)[0].shape == (0, 4, 3)
+
+
+def test_library_matches_back_at_its_own_places(library, source, pca, tmp_path):
+    r = transfer_library(library, {"terrain_a": source}, source, pca, target_name="back")
+    assert r.library is not None
+    # Steps whose profile leaves the board (near its edge) are reported, never placed.
+    assert r.off_source and not set(r.off_source) & set(r.source_index.tolist())
+    assert len(r.library) + len(r.discarded) == len(library)
+    for new, j in zip(r.library, r.source_index):
+        old = library[int(j)]
+        assert np.max(np.linalg.norm(new.start_feet - old.start_feet, axis=1)) < 0.02
+        assert abs(math.degrees(wrap_angle(new.start_pose[5] - old.start_pose[5]))) < 5.0
+        # The action is unchanged; the body path moves rigidly with the start.
+        np.testing.assert_array_equal(new.q, old.q)
+        np.testing.assert_array_equal(new.times, old.times)
+        np.testing.assert_array_equal(new.stance, old.stance)
+        assert (new.kind, new.foot, new.terrain) == (old.kind, old.foot, "back")
+        rel_new = np.linalg.norm(new.body_pose[:, :2] - new.start_pose[:2], axis=1)
+        rel_old = np.linalg.norm(old.body_pose[:, :2] - old.start_pose[:2], axis=1)
+        np.testing.assert_allclose(rel_new, rel_old, atol=1e-9)
+        np.testing.assert_allclose(
+            new.body_pose[:, 2] - new.start_pose[2], old.body_pose[:, 2] - old.start_pose[2]
+        )
+    r.library.save(tmp_path / "back")
+    loaded = StepLibrary.load(tmp_path / "back")
+    np.testing.assert_array_equal(loaded.keys, r.library.keys)
+
+
+def test_modified_terrain_keeps_matches_only_before_the_change(library, source, pca):
+    x_from = 0.05
+    modified = replace_with_rocks(source, x_from, seed=5)
+    r = transfer_library(library, {"terrain_a": source}, modified, pca, target_name="mod")
+    assert r.library is not None and len(r.library) >= 3
+    for new, j in zip(r.library, r.source_index):
+        assert np.max(np.linalg.norm(new.start_feet - library[int(j)].start_feet, axis=1)) < 0.02
+        # Its whole profile (0.35 m long around the feet's centroid) lies before the change.
+        assert new.start_feet[:, 0].mean() + 0.17 < x_from
+
+
+def test_missing_source_terrain_is_named(library, source, pca):
+    with pytest.raises(TransferError, match="terrain_a"):
+        transfer_library(library, {"terrain_b": source}, source, pca)
+    with pytest.raises(TransferError, match="StepLibrary"):
+        transfer_library(library.steps, {"terrain_a": source}, source, pca)
+    with pytest.raises(TransferError, match="target"):
+        transfer_library(library, {"terrain_a": source}, None, pca)
+
+
+class Straight:
+    """A gap filler moving each foot straight to the target in one step per foot."""
+
+    def __call__(self, start, target, time_limit):
+        steps, cur = [], np.array(start, dtype=float)
+        for f in (2, 0, 3, 1):
+            nxt = cur.copy()
+            nxt[f] = target[f]
+            steps.append(PlannedStep(cur, nxt, f))
+            cur = nxt
+        return GapFill(steps, "reached")
+
+
+def test_threshold_discarding_every_step_leaves_the_planner_alone(library, source, pca):
+    cfg = TransferConfig(threshold=1e-9, coarse_factor=1.0, refine_levels=0)
+    r = transfer_library(
+        library, {"terrain_a": source}, generate_board(source.params, 99), pca, cfg
+    )
+    assert r.library is None and len(r.discarded) + len(r.off_source) >= len(library)
+    assert "planner alone" in r.message
+    start = library[0].start_feet
+    goal = start + [0.1, 0.0, 0.0]
+    result = search_library(None, start, goal, Straight())
+    assert result.status == "reached" and result.recorded_count == 0
+    assert result.planned_count == 4 and "planner alone" in result.message
+
+
+def test_final_library_orders_recorded_and_planned_steps(library, source):
+    a, b = library[3], library[4]
+    gap_end = b.start_feet.copy()
+    planned = Straight()(step_end_feet(a), gap_end, 1.0).steps
+    result = SearchResult(
+        "reached",
+        [PathItem("recorded", step=3)] + [PathItem("planned", planned=p) for p in planned],
+        0.0,
+        1,
+        4,
+        1,
+        2,
+        "test",
+    )
+    final = final_library(result, library, source, "test")
+    assert [s.kind for s in final] == ["recorded"] + ["planned"] * 4
+    assert final[0] is a
+    np.testing.assert_allclose(final[1].start_feet, planned[0].start_feet, atol=1e-9)
+    assert [s.foot for s in final[1:]] == [2, 0, 3, 1]
+    # The crawl starts from the recorded step's last body pose.
+    np.testing.assert_allclose(final[1].start_pose, a.body_pose[-1], atol=1e-9)
+    empty = SearchResult("unreachable", [], 0.0, 0, 0, 0, 0, "nothing")
+    with pytest.raises(TransferError, match="no steps"):
+        final_library(empty, library, source)
+    bad = SearchResult("reached", [PathItem("recorded", step=999)], 1.0, 1, 0, 0, 1, "x")
+    with pytest.raises(TransferError, match="999"):
+        final_library(bad, library, source)

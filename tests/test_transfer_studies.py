@@ -1,0 +1,80 @@
+"""The transfer studies run through the engine on a small kinematic library (no long physics)."""
+
+import math
+
+import pytest
+from repertoire.diagrams.littledog_demos import crossing_start, flat_start
+from repertoire.diagrams.littledog_transfer import source_board
+from repertoire.planning.littledog_crawl import (
+    CrawlParams,
+    choose_footholds,
+    plan_crawl,
+    plan_to_steps,
+)
+from repertoire.planning.step_library import StepLibrary
+from repertoire.studies import littledog_transfer as matching
+from repertoire.studies import littledog_transfer_execution as execution
+
+from repertoire.errors import RepertoireError
+
+
+@pytest.fixture(scope="module")
+def library_path(tmp_path_factory):
+    """The scripted 0-degree crossings of both source terrains (kinematic, no physics)."""
+    steps = []
+    params = CrawlParams()
+    for name in ("terrain_a", "terrain_b"):
+        board = source_board(name)
+        off = flat_start(board, 0.0, 0.25, params)
+        pose, feet, _ = crossing_start(board, 0.0, 0.25, params.standing_height, off)
+        crawl = choose_footholds(board, feet, 0.0, 0.23, params)
+        plan = plan_crawl(feet, pose, crawl, board, params)
+        steps += plan_to_steps(plan, terrain=name, direction=0.0, kind="recorded")
+    path = tmp_path_factory.mktemp("lib") / "crossings"
+    StepLibrary(steps).save(path)
+    return str(path)
+
+
+def test_match_back_finds_the_crossing_at_its_own_place(library_path):
+    config = matching.LittleDogTransferConfig(library=library_path)
+    r = matching.run_episode(config, 0)
+    assert r.case == "match_back" and r.eligible == len(
+        [s for s in StepLibrary.load(library_path) if s.terrain == "terrain_a"]
+    )
+    # Steps whose profile leaves their own board cannot match; all others come back.
+    assert r.back_within >= r.eligible - 5 and r.back_within > 0
+    assert r.placed + r.discarded == len(StepLibrary.load(library_path))
+
+
+def test_modified_terrain_case_searches_and_summarizes(library_path, tmp_path):
+    config = matching.LittleDogTransferConfig(library=library_path)
+    r = matching.run_episode(config, 2)
+    assert r.case == "modified" and r.status == "reached" and r.spurious == 0
+    assert r.recorded >= 3 and r.placed_multiple >= r.placed
+    files = matching.summarize([r], config, tmp_path)
+    assert files["modified"].stat().st_size > 10_000
+    assert f"{r.recorded} + {r.planned} (reached)" in files["table"].read_text()
+    with pytest.raises(RepertoireError, match="seed"):
+        matching.run_episode(config, -1)
+    with pytest.raises(RepertoireError, match="threshold"):
+        matching.run_episode(matching.LittleDogTransferConfig(threshold=-1.0), 2)
+
+
+def test_execution_episode_records_every_condition(library_path, tmp_path):
+    config = execution.TransferExecutionConfig(
+        terrains=["modified"],
+        conditions=["search", "planner"],
+        duration_s=0.5,
+        library=library_path,
+    )
+    r = execution.run_episode(config, 3)
+    assert r.conditions == ["search", "planner"] and len(r.success) == 2
+    assert r.success == [False, False]  # 0.5 s is far too short to cross
+    assert all(math.isnan(t) for t in r.time_to_cross_s)
+    assert r.recorded[1] == 0 and r.planned[1] > 0 and r.recorded[0] > 0
+    files = execution.summarize([r], config, tmp_path)
+    assert "| modified | search | 1 | 0/1 |" in files["table"].read_text()
+    with pytest.raises(RepertoireError, match="conditions"):
+        execution.TransferExecutionConfig(conditions=["fly"]).validate()
+    with pytest.raises(RepertoireError, match="terrains"):
+        execution.TransferExecutionConfig(terrains=["moon"]).validate()

@@ -41,6 +41,8 @@ class SoccerPlanScenario:
         ground_friction: ground friction coefficient.
         gains: overrides of GoToPose's gains for every action (``GOTO_GAINS`` keys); the
             ``timeout`` is measured from the plan's start.
+        action_gains: empty, or one dict per action of further overrides on top of
+            ``gains`` (e.g. a dribble that turns slowly to keep the ball in front).
     """
 
     initial_pose: list[float] = dataclasses.field(default_factory=lambda: [-1.0, -0.5, 0.0])
@@ -54,6 +56,7 @@ class SoccerPlanScenario:
     wheel_kd: float = 2.0
     ground_friction: float = 1.0
     gains: dict[str, float] = dataclasses.field(default_factory=dict)
+    action_gains: list[dict[str, float]] = dataclasses.field(default_factory=list)
 
     def validate(self) -> None:
         """Raises ScenarioError naming the first bad field."""
@@ -71,9 +74,17 @@ class SoccerPlanScenario:
             raise ScenarioError("time_step must be > 0 (a discrete plant)")
         if not (np.isfinite(self.control_period) and self.control_period >= self.time_step):
             raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
-        unknown = sorted(set(self.gains) - set(GOTO_GAINS))
-        if unknown:
-            raise ScenarioError(f"unknown GoToPose gains {unknown}; expected {list(GOTO_GAINS)}")
+        if self.action_gains and len(self.action_gains) != len(self.targets):
+            raise ScenarioError(
+                f"action_gains must be empty or hold one dict per target: got "
+                f"{len(self.action_gains)} for {len(self.targets)} targets"
+            )
+        for overrides in [self.gains, *self.action_gains]:
+            unknown = sorted(set(overrides) - set(GOTO_GAINS))
+            if unknown:
+                raise ScenarioError(
+                    f"unknown GoToPose gains {unknown}; expected {list(GOTO_GAINS)}"
+                )
 
 
 @register_diagram(
@@ -110,7 +121,8 @@ def build_soccer_plan(scenario: SoccerPlanScenario, *, meshcat=None) -> Diagram:
     )
     executor.set_name("executor")
     for i in range(len(scenario.targets)):
-        action = builder.AddSystem(GoToPose(period=scenario.control_period, gains=scenario.gains))
+        gains = {**scenario.gains, **(scenario.action_gains[i] if scenario.action_gains else {})}
+        action = builder.AddSystem(GoToPose(period=scenario.control_period, gains=gains))
         action.set_name(f"action_{i}")
         builder.Connect(reader.get_output_port(), action.get_state_input_port())
         builder.Connect(executor.GetOutputPort(f"target_{i}"), action.get_target_input_port())

@@ -40,6 +40,10 @@ STUDY_GAINS = {"k_beta": -0.3, "k_rho": 2.0}
 approaches, which can bump the ball) and a faster pose convergence (k_rho 2 instead of 0.8:
 with 0.8 the exponential slow-down near every goal, ~4 s per leg, hides what the approach
 angle costs)."""
+DRIBBLE_GAINS = {"omega_max": 1.0, "v_max": 0.5}
+"""The dribble leg: a GoToPose at most 0.5 m/s and 1 rad/s (0.8 and 2.5 for GoToPose), so
+turning with the ball costs time, as with the paper's dribbleBall. (0.6 rad/s at full
+speed orbits the goal: 2 of 10 trial plans timed out.)"""
 
 
 @dataclasses.dataclass
@@ -60,6 +64,8 @@ class SoccerPlanConfig:
         control_period: GoToPose and executor period [s].
         timeout: the plan's time limit (every GoToPose's timeout) [s].
         gains: GoToPose gain overrides.
+        dribble_gains: further overrides of the dribble leg (the last of a two-action
+            plan): it turns slowly, as a robot keeping the ball in front must.
     """
 
     x_range: list[float] = dataclasses.field(default_factory=lambda: [-1.5, 2.5])
@@ -73,6 +79,7 @@ class SoccerPlanConfig:
     control_period: float = 0.02
     timeout: float = 12.0
     gains: dict[str, float] = dataclasses.field(default_factory=lambda: dict(STUDY_GAINS))
+    dribble_gains: dict[str, float] = dataclasses.field(default_factory=lambda: dict(DRIBBLE_GAINS))
 
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
@@ -222,11 +229,12 @@ class PlanRun:
     wall_time_s: float
 
 
-def run_plan(config: SoccerPlanConfig, start, targets) -> PlanRun:
+def run_plan(config: SoccerPlanConfig, start, targets, *, dribble: bool = False) -> PlanRun:
     """Runs ``targets`` (one GoToPose each) from ``start`` in the ``soccer_plan`` world.
 
     Stops when the plan ends or at ``timeout + 1`` s. ``touched_ball_first`` is True if
     the robot touched the ball while the first action was active (a bumped approach).
+    With ``dribble`` the last action gets ``config.dribble_gains`` on top of ``gains``.
     """
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import EventStatus
@@ -249,6 +257,9 @@ def run_plan(config: SoccerPlanConfig, start, targets) -> PlanRun:
             time_step=config.time_step,
             control_period=config.control_period,
             gains={**config.gains, "timeout": config.timeout},
+            action_gains=[{}] * (len(targets) - 1) + [dict(config.dribble_gains)]
+            if dribble
+            else [],
         )
     )
     plant = diagram.GetSubsystemByName("plant")

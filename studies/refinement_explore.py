@@ -85,7 +85,7 @@ def run_episode(config: SoccerPlanConfig, seed: int) -> RefinementExploreRecord:
     phi_a = float(rng.uniform(-math.pi, math.pi))
     v_a = float(rng.uniform(0.0, config.approach_v_max))
     targets = [approach_target(phi_a, v_a, config.approach_distance), dest]
-    run = run_plan(config, start, targets)
+    run = run_plan(config, start, targets, dribble=True)
     t1, t2 = run.finish_times
     failed_action = -1 if run.status == "SUCCEEDED" else run.active
     return RefinementExploreRecord(

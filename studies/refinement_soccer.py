@@ -156,7 +156,7 @@ def run_episode(config: RefinementSoccerConfig, seed: int) -> RefinementSoccerRe
     out = []
     for phi_a, v_a, predicted in subgoals:
         targets = [approach_target(phi_a, v_a, config.approach_distance), dest]
-        run = run_plan(config, start, targets)
+        run = run_plan(config, start, targets, dribble=True)
         t = run.finish_times[-1] if run.status == "SUCCEEDED" else math.nan
         out += [float(phi_a), float(v_a), float(predicted), float(t), run.status]
     return RefinementSoccerRecord(
@@ -287,7 +287,47 @@ def summarize(
     ax.legend(loc="upper left")
     figure = out_dir / "refinement_soccer_paired.png"
     fig.savefig(figure, dpi=110)
-    return {"tables": tables, "paired": figure}
+    out = {"tables": tables, "paired": figure}
+    if both:
+        out["polar"] = fig11_polar(both[0], config, out_dir / "refinement_soccer_fig11.png")
+    return out
+
+
+def fig11_polar(record: RefinementSoccerRecord, config: RefinementSoccerConfig, path: Path):
+    """Fig. 11 for one situation: predicted durations over the approach angle.
+
+    Three polar plots (approach, dribble, their sum) of the models' predictions at the
+    refined approach speed, with the greedy (h = 1) and refined (h = 2) angles marked.
+    """
+    from matplotlib.figure import Figure
+    from repertoire.studies._refinement_common import approach_features, dribble_features
+
+    approach, dribble = load_duration_models(config.models_dir)
+    theta = np.linspace(-np.pi, np.pi, 361)
+    start = [record.x, record.y, record.phi, record.v]
+    dest = [record.dest_x, record.dest_y, record.dest_phi, 0.0]
+    d = config.approach_distance
+    t_a = approach.predict(approach_features(start, theta, record.v_2, d))
+    t_d = dribble.predict(dribble_features(theta, record.v_2, dest, d))
+    fig = Figure(figsize=(12.0, 4.6), layout="constrained")
+    for k, (values, title) in enumerate(
+        ((t_a, "approachBall"), (t_d, "dribbleBall"), (t_a + t_d, "sum (refinement's cost)"))
+    ):
+        ax = fig.add_subplot(1, 3, k + 1, projection="polar")
+        ax.plot(theta, values, color="tab:blue", label="predicted duration (s, radial)")
+        for phi, style, label in ((record.phi_1, "tab:orange", "greedy h = 1"),
+                                  (record.phi_2, "tab:green", "refined h = 2")):  # fmt: skip
+            ax.plot([phi, phi], [0, values.max()], color=style, lw=2, label=f"{label} angle")
+        ax.set_title(title)
+        if k == 0:
+            ax.legend(loc="upper left", bbox_to_anchor=(-0.25, -0.02), fontsize=8)
+    fig.suptitle(
+        f"Fig. 11 for one situation: approach angle at the ball (angular), speed "
+        f"{record.v_2:.2f} m/s; executed plan times {record.time_1:.2f} s (h = 1) and "
+        f"{record.time_2:.2f} s (h = 2)"
+    )
+    fig.savefig(path, dpi=110)
+    return path
 
 
 def demo_config() -> RefinementSoccerConfig:

@@ -121,3 +121,12 @@ def test_soccer_plan_world_runs_the_plan_and_dribbles_the_ball():
         build_soccer_plan(SoccerPlanScenario(targets=[]))
     with pytest.raises(ScenarioError, match=r"unknown GoToPose gains \['k_x'\]"):
         build_soccer_plan(SoccerPlanScenario(gains={"k_x": 1.0}))
+    with pytest.raises(ScenarioError, match=r"unknown GoToPose gains \['k_y'\]"):
+        build_soccer_plan(SoccerPlanScenario(action_gains=[{}, {"k_y": 1.0}]))
+    with pytest.raises(ScenarioError, match="one dict per target: got 1 for 2 targets"):
+        build_soccer_plan(SoccerPlanScenario(action_gains=[{}]))
+    slow = build_soccer_plan(SoccerPlanScenario(action_gains=[{}, {"omega_max": 0.6}]))
+    context = slow.CreateDefaultContext()
+    for name, omega in (("action_0", 2.5), ("action_1", 0.6)):
+        action = slow.GetSubsystemByName(name)
+        assert action.gains(action.GetMyContextFromRoot(context))["omega_max"] == omega

@@ -40,7 +40,7 @@ PAPER_TABLE3_SOCCER_SIM = {"n": 1000, "t1": 9.8, "t2": 9.1, "improvement": 0.066
 PAPER_SELECTIVE = {"always": 0.066, "selective": 0.086, "tree_accuracy": 0.87}
 SHIPPED_MODELS = "soccer_plan_models"
 """Folder in ``repertoire/models/diffdrive`` with the trees fitted on refinement_explore's
-800 episodes (the demo's models; refit with ``refinement_explore``)."""
+416 episodes (the demo's models; refit with ``refinement_explore``)."""
 SITUATION_FEATURES = ("dist_ball", "angle_to_ball", "turn_at_ball", "v", "dribble_dist")
 
 

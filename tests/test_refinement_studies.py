@@ -72,6 +72,24 @@ def test_config_bad_input():
         load_duration_models("/nonexistent/models")
 
 
+def test_models_of_another_version_are_refused(tmp_path):
+    import json
+    import shutil
+
+    from repertoire.studies.refinement_soccer import load_models, models_folder
+
+    shipped = models_folder("")
+    for name in ("approach_duration.json", "dribble_duration.json"):
+        shutil.copy(shipped / name, tmp_path / name)
+    record = json.loads((tmp_path / "dribble_duration.json").read_text())
+    record["version"] = 0
+    (tmp_path / "dribble_duration.json").write_text(json.dumps(record))
+    with pytest.raises(RepertoireError, match="has version 0; this code reads version"):
+        load_models(str(tmp_path), ("approach_duration", "dribble_duration"))
+    (approach,) = load_models("", ("approach_duration",))
+    assert approach.kind == "duration" and len(approach.leaves) >= 1
+
+
 def _synthetic_records(n: int) -> list[RefinementExploreRecord]:
     """Records whose durations follow distance and turn, as executed ones roughly do."""
     rng = np.random.default_rng(0)

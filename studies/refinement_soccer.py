@@ -264,8 +264,8 @@ def summarize(
             f"| ours | {np.mean(pred == yt):.0%} | {always:.1%} (p {p_always:.2g}) | "
             f"{selective:.1%} (p {p_sel:.2g}) |",
             "",
-            f"Refinement applied to {int(pred.sum())} of {len(test)} test episodes; it helped "
-            f"in {int(yt.sum())} of them in truth.",
+            f"Refinement applied to {int(pred.sum())} of {len(test)} test episodes; it "
+            f"truly helped in {int(yt.sum())} of the {len(test)}.",
             "",
             "```",
             export_text(tree, feature_names=list(SITUATION_FEATURES)),
@@ -288,8 +288,10 @@ def summarize(
     figure = out_dir / "refinement_soccer_paired.png"
     fig.savefig(figure, dpi=110)
     out = {"tables": tables, "paired": figure}
-    if both:
-        out["polar"] = fig11_polar(both[0], config, out_dir / "refinement_soccer_fig11.png")
+    if both:  # the situation where greedy and refined angles differ most
+        turn = [abs(math.remainder(r.phi_2 - r.phi_1, 2 * math.pi)) for r in both]
+        example = both[int(np.argmax(turn))]
+        out["polar"] = fig11_polar(example, config, out_dir / "refinement_soccer_fig11.png")
     return out
 
 
@@ -319,6 +321,7 @@ def fig11_polar(record: RefinementSoccerRecord, config: RefinementSoccerConfig, 
                                   (record.phi_2, "tab:green", "refined h = 2")):  # fmt: skip
             ax.plot([phi, phi], [0, values.max()], color=style, lw=2, label=f"{label} angle")
         ax.set_title(title)
+        ax.set_rlabel_position(200)
         if k == 0:
             ax.legend(loc="upper left", bbox_to_anchor=(-0.25, -0.02), fontsize=8)
     fig.suptitle(

@@ -68,6 +68,7 @@ def assert_subgoal(
     seed: int,
     options: GaOptions | None = None,
     n_fallback: int = 2000,
+    allowed: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> SubgoalAssertion:
     """Inserts an intermediate state if the direct leg is predicted to fail.
 
@@ -82,6 +83,9 @@ def assert_subgoal(
         seed: seed of the genetic algorithm and of the fallback sample.
         options: GA settings (default: the paper's).
         n_fallback: seeded uniform candidates checked when the GA finds no valid one.
+        allowed: optional (n, s) subgoals -> (n,) booleans, False for subgoals ruled out
+            besides the failure model (e.g. too close to the ball, where the failure
+            model was never trained); those are INVALID too.
 
     Returns:
         The assertion; ``asserted`` is False both when no subgoal is needed and when the
@@ -117,6 +121,8 @@ def assert_subgoal(
         first = leg_features(np.repeat(start[None], n, axis=0), subgoals)
         last = leg_features(subgoals, np.repeat(goal[None], n, axis=0))
         ok = np.asarray(classifier.predict_success(last), dtype=bool).reshape(-1)
+        if allowed is not None:
+            ok &= np.asarray(allowed(subgoals), dtype=bool).reshape(-1)
         t = np.asarray(leg_duration(first)) + np.asarray(leg_duration(last))
         return np.where(ok, t, np.inf)
 

@@ -12,9 +12,8 @@ from repertoire.planning.refinement import (
     PiecewiseLinearModel,
     RefinementProblem,
     refine_sequence,
-    solve_corners,
-    solve_milp,
 )
+from repertoire.planning.refinement_exact import solve_corners, solve_milp
 from repertoire.planning.synthetic_models import chain_problem, random_model_tree
 from scipy.optimize import linprog
 

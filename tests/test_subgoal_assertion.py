@@ -65,6 +65,25 @@ def test_subgoal_inserted_in_success_region_and_near_optimal():
     np.testing.assert_array_equal(again.subgoal, result.subgoal)
 
 
+def test_allowed_rules_out_subgoals_besides_the_failure_model():
+    start, goal = np.array([1.0, 0.0]), np.zeros(2)
+    result = assert_subgoal(
+        start, goal, classifier=ApproachFromLeft(), leg_features=leg_features,
+        leg_duration=leg_duration, seed=4, allowed=lambda s: s[:, 1] <= -0.1, **BOUNDS,
+    )  # fmt: skip
+    assert result.asserted and result.subgoal[1] <= -0.1
+    # the lower of the two mirror-image optima: s = 0.5 (-cos 30, -sin 30)
+    s = 0.5 * np.array([-np.cos(np.pi / 6), -np.sin(np.pi / 6)])
+    best = 2.0 + np.linalg.norm(start - s) + 0.5
+    assert best <= result.predicted_duration <= best + 0.05
+    none = assert_subgoal(
+        start, goal, classifier=ApproachFromLeft(), leg_features=leg_features,
+        leg_duration=leg_duration, seed=4, allowed=lambda s: s[:, 1] > 5.0, n_fallback=50,
+        **BOUNDS,
+    )  # fmt: skip
+    assert not none.asserted and "keeping the plan unchanged" in none.reason
+
+
 def test_every_candidate_failing_keeps_the_plan_and_says_so():
     result = assert_subgoal(
         np.array([1.0, 0.0]), np.zeros(2), classifier=NeverSucceeds(),

@@ -45,7 +45,11 @@ def main() -> int:
 
     from pydrake.solvers import ClpSolver, MixedIntegerBranchAndBound
     from repertoire.planning.black_box import solve_de, solve_ga
-    from repertoire.planning.refinement import build_refinement_milp, solve_corners, solve_milp
+    from repertoire.planning.refinement_exact import (
+        build_refinement_milp,
+        solve_corners,
+        solve_milp,
+    )
     from repertoire.planning.synthetic_models import chain_problem
 
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")

@@ -1,0 +1,302 @@
+"""Shared by the refinement and subgoal-assertion studies: the soccer plan and its episodes.
+
+The paper's soccer scenario (Stulp & Beetz, sections 6.3 and 7): a robot at a random
+state goes to the ball and dribbles it to a destination. The abstract plan comes from the
+PDDL planner (``approachball``, ``dribbleball``; Figure 10), is instantiated by
+Algorithm 2 (the approach angle and speed at the ball, ``pos2.phi`` and ``pos2.v``, stay
+free) and refined with the learned duration models. Executed in the ``soccer_plan``
+world: ``approachBall`` is a GoToPose to ``approach_distance`` behind the ball, facing
+``phi`` at speed ``v``; ``dribbleBall`` a GoToPose from there through the ball to the
+destination (pushing the ball).
+"""
+
+import dataclasses
+import functools
+import math
+import time
+
+import numpy as np
+from repertoire.planning.action_models.features import goto_pose_features
+
+from repertoire.errors import RepertoireError
+
+SOCCER_DOMAIN = """
+(define (domain soccer) (:requirements :strips :typing) (:types pos)
+ (:predicates (robot ?p - pos) (ball ?p - pos) (atball ?p - pos) (final ?p - pos))
+ (:action approachball :parameters (?from ?to - pos)
+   :precondition (and (robot ?from) (ball ?to))
+   :effect (and (atball ?to) (not (robot ?from))))
+ (:action dribbleball :parameters (?from ?to - pos)
+   :precondition (and (atball ?from) (final ?to))
+   :effect (and (atball ?to) (not (atball ?from)))))
+"""
+SOCCER_PROBLEM = """
+(define (problem dribble) (:domain soccer) (:objects pos1 pos2 pos3 - pos)
+ (:init (robot pos1) (ball pos2) (final pos3))
+ (:goal (and (final pos3) (atball pos3))))
+"""
+STUDY_GAINS = {"k_beta": -0.3, "k_rho": 2.0}
+"""GoToPose gains of the plan studies: the weak heading term of actions_goto_pose (straighter
+approaches, which can bump the ball) and a faster pose convergence (k_rho 2 instead of 0.8:
+with 0.8 the exponential slow-down near every goal, ~4 s per leg, hides what the approach
+angle costs)."""
+DRIBBLE_GAINS = {"omega_max": 1.0, "v_max": 0.5}
+"""The dribble leg: a GoToPose at most 0.5 m/s and 1 rad/s (0.8 and 2.5 for GoToPose), so
+turning with the ball costs time, as with the paper's dribbleBall. (0.6 rad/s at full
+speed orbits the goal: 2 of 10 trial plans timed out.)"""
+
+
+@dataclasses.dataclass
+class SoccerPlanConfig:
+    """Sampling ranges and simulation settings shared by the soccer plan studies.
+
+    Attributes:
+        x_range: start x range [m].
+        y_range: start y range [m].
+        v_range: start speed range [m/s].
+        min_start_clearance: starts closer than this to the ball are resampled [m].
+        dribble_distance_range: the destination's distance from the ball [m].
+        approach_distance: the approach pose's distance behind the ball centre [m].
+        approach_v_max: the approach speed is free in [0, approach_v_max] [m/s] (GoToPose
+            succeeds only within 0.1 m/s of its goal speed, so faster subgoals are missed
+            whenever the robot has to stop and turn at the pose).
+        time_step: plant step [s].
+        control_period: GoToPose and executor period [s].
+        timeout: the plan's time limit (every GoToPose's timeout) [s].
+        gains: GoToPose gain overrides.
+        dribble_gains: further overrides of the dribble leg (the last of a two-action
+            plan): it turns slowly, as a robot keeping the ball in front must.
+    """
+
+    x_range: list[float] = dataclasses.field(default_factory=lambda: [-1.5, 2.5])
+    y_range: list[float] = dataclasses.field(default_factory=lambda: [-1.5, 1.8])
+    v_range: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.5])
+    min_start_clearance: float = 0.6
+    dribble_distance_range: list[float] = dataclasses.field(default_factory=lambda: [0.8, 1.3])
+    approach_distance: float = 0.35
+    approach_v_max: float = 0.09
+    time_step: float = 1e-2
+    control_period: float = 0.02
+    timeout: float = 12.0
+    gains: dict[str, float] = dataclasses.field(default_factory=lambda: dict(STUDY_GAINS))
+    dribble_gains: dict[str, float] = dataclasses.field(default_factory=lambda: dict(DRIBBLE_GAINS))
+
+    def validate(self) -> None:
+        """Raises RepertoireError naming the first bad field."""
+        for name in ("x_range", "y_range", "v_range", "dribble_distance_range"):
+            r = getattr(self, name)
+            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
+                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
+        if not (-3 <= self.x_range[0] and self.x_range[1] <= 3):
+            raise RepertoireError(f"x_range must lie on the field [-3, 3], got {self.x_range}")
+        if not (-2 <= self.y_range[0] and self.y_range[1] <= 2):
+            raise RepertoireError(f"y_range must lie on the field [-2, 2], got {self.y_range}")
+        if not 0.11 < self.approach_distance < self.min_start_clearance:
+            raise RepertoireError(
+                f"approach_distance must lie between the ball radius 0.11 m and "
+                f"min_start_clearance, got {self.approach_distance}"
+            )
+        if not self.approach_v_max >= 0 or not self.timeout > 0:
+            raise RepertoireError("approach_v_max must be >= 0 and timeout > 0")
+        if self.dribble_distance_range[0] <= self.approach_distance:
+            raise RepertoireError("dribble_distance_range must start beyond approach_distance")
+
+
+def sample_situation(config: SoccerPlanConfig, rng: np.random.Generator):
+    """A start ``[x, y, phi, v]`` and a destination ``[x, y, phi, 0]`` beyond the ball.
+
+    The destination lies ``dribble_distance`` from the ball along a uniform direction,
+    facing away from the ball; one that leaves the field is resampled.
+    """
+    from repertoire.diagrams.soccer import BALL_POSITION
+
+    bx, by = BALL_POSITION
+    for _ in range(1000):
+        x, y = rng.uniform(*config.x_range), rng.uniform(*config.y_range)
+        if math.hypot(x - bx, y - by) >= config.min_start_clearance:
+            break
+    else:
+        raise RepertoireError("no start outside min_start_clearance in the x/y ranges")
+    start = [x, y, rng.uniform(-math.pi, math.pi), rng.uniform(*config.v_range)]
+    for _ in range(1000):
+        psi = rng.uniform(-math.pi, math.pi)
+        d = rng.uniform(*config.dribble_distance_range)
+        dest = [bx + d * math.cos(psi), by + d * math.sin(psi), psi, 0.0]
+        if abs(dest[0]) <= 2.7 and abs(dest[1]) <= 1.7:
+            break
+    else:
+        raise RepertoireError("no destination on the field in dribble_distance_range")
+    return np.array(start, dtype=float), np.array(dest, dtype=float)
+
+
+def approach_target(phi, v, distance: float) -> np.ndarray:
+    """GoToPose target(s) ``distance`` behind the ball, facing ``phi`` at speed ``v``."""
+    from repertoire.diagrams.soccer import BALL_POSITION
+
+    phi, v = np.broadcast_arrays(np.asarray(phi, dtype=float), np.asarray(v, dtype=float))
+    bx, by = BALL_POSITION
+    return np.stack([bx - distance * np.cos(phi), by - distance * np.sin(phi), phi, v], axis=-1)
+
+
+def approach_features(start, phi, v, distance: float) -> np.ndarray:
+    """Table 7 features of the approach leg(s) (start -> behind the ball)."""
+    target = approach_target(phi, v, distance)
+    start = np.broadcast_to(np.asarray(start, dtype=float), target.shape)
+    return np.atleast_2d(goto_pose_features(start, target))
+
+
+def dribble_features(phi, v, dest, distance: float) -> np.ndarray:
+    """Table 7 features of the dribble leg(s) (behind the ball -> destination)."""
+    start = approach_target(phi, v, distance)
+    dest = np.broadcast_to(np.asarray(dest, dtype=float), start.shape)
+    return np.atleast_2d(goto_pose_features(start, dest))
+
+
+@functools.cache
+def abstract_soccer_plan():
+    """The PDDL plan (approachball, dribbleball), planned once per process."""
+    from repertoire.planning.plans import plan_pddl
+
+    return plan_pddl(SOCCER_DOMAIN, SOCCER_PROBLEM)
+
+
+def instantiated_plan(start, dest, config: SoccerPlanConfig):
+    """Algorithm 2 on the episode's belief state: ``ball.phi`` and ``ball.v`` stay free."""
+    from repertoire.diagrams.soccer import BALL_POSITION
+    from repertoire.planning.plans import (
+        ActionRegistry,
+        ActionTemplate,
+        BeliefState,
+        ParameterTemplate,
+        instantiate_plan,
+    )
+
+    def pose(index: int, suffix: str = ""):
+        return tuple(ParameterTemplate(q + suffix, q, index) for q in ("x", "y", "phi", "v"))
+
+    registry = ActionRegistry()
+    for name in ("approachBall", "dribbleBall"):
+        registry.register(ActionTemplate(name, pose(0) + pose(1, "_g")))
+    values = {("robot", q): float(s) for q, s in zip(("x", "y", "phi", "v"), start, strict=True)}
+    values |= {("ball", "x"): BALL_POSITION[0], ("ball", "y"): BALL_POSITION[1]}
+    values |= {("final", q): float(d) for q, d in zip(("x", "y", "phi", "v"), dest, strict=True)}
+    belief = BeliefState(
+        values=values,
+        constraints={("atball", "v"): (0.0, config.approach_v_max)},
+        defaults={"x": (-3.0, 3.0), "y": (-2.0, 2.0), "phi": (-math.pi, math.pi), "v": (0, 1)},
+    )
+    return instantiate_plan(abstract_soccer_plan(), registry, belief)
+
+
+def soccer_duration_models(approach_model, dribble_model, config: SoccerPlanConfig) -> dict:
+    """``refinement_problem`` models of the two actions from fitted duration trees."""
+    from repertoire.planning.plans import ActionDurationModel
+    from repertoire.planning.refinement import PiecewiseLinearModel
+
+    d = config.approach_distance
+
+    def approach(p):
+        start = np.column_stack([p["x"], p["y"], p["phi"], p["v"]])
+        return approach_features(start, p["phi_g"], p["v_g"], d)
+
+    def dribble(p):
+        dest = np.column_stack([p["x_g"], p["y_g"], p["phi_g"], p["v_g"]])
+        return dribble_features(p["phi"], p["v"], dest, d)
+
+    return {
+        "approachBall": ActionDurationModel(
+            PiecewiseLinearModel.from_leaves(approach_model.leaves), approach
+        ),
+        "dribbleBall": ActionDurationModel(
+            PiecewiseLinearModel.from_leaves(dribble_model.leaves), dribble
+        ),
+    }
+
+
+@dataclasses.dataclass
+class PlanRun:
+    """One executed plan: status, finish time per action, contact and ball figures.
+
+    ``active`` is the action that was running when the plan ended (the failed one) or the
+    number of actions after success; a failed action's finish time is when it failed.
+    """
+
+    status: str
+    active: int
+    finish_times: list[float]
+    touched_ball_first: bool
+    ball_moved_m: float
+    wall_time_s: float
+
+
+def run_plan(config: SoccerPlanConfig, start, targets, *, dribble: bool = False) -> PlanRun:
+    """Runs ``targets`` (one GoToPose each) from ``start`` in the ``soccer_plan`` world.
+
+    Stops when the plan ends or at ``timeout + 1`` s. ``touched_ball_first`` is True if
+    the robot touched the ball while the first action was active (a bumped approach).
+    With ``dribble`` the last action gets ``config.dribble_gains`` on top of ``gains``.
+    """
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import EventStatus
+    from repertoire.diagrams.soccer import set_initial_speed
+    from repertoire.diagrams.soccer_plan import (
+        SoccerPlanScenario,
+        ball_moved,
+        build_soccer_plan,
+        finish_times,
+        plan_status,
+    )
+    from repertoire.systems.go_to_pose import ActionStatus
+
+    t0 = time.perf_counter()
+    diagram = build_soccer_plan(
+        SoccerPlanScenario(
+            initial_pose=[float(s) for s in start[:3]],
+            initial_speed=float(start[3]),
+            targets=[[float(x) for x in t] for t in targets],
+            time_step=config.time_step,
+            control_period=config.control_period,
+            gains={**config.gains, "timeout": config.timeout},
+            action_gains=[{}] * (len(targets) - 1) + [dict(config.dribble_gains)]
+            if dribble
+            else [],
+        )
+    )
+    plant = diagram.GetSubsystemByName("plant")
+    executor = diagram.GetSubsystemByName("executor")
+    ball = plant.GetBodyByName("ball").index()
+    robot_bodies = {plant.GetBodyByName(n).index() for n in ("chassis",)}
+    robot_bodies |= {
+        plant.GetBodyByName(f"{s}_wheel").index()
+        for s in ("left", "right")
+        if plant.HasBodyNamed(f"{s}_wheel")
+    }
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    set_initial_speed(diagram, context, float(start[3]))
+    plant_context = plant.GetMyContextFromRoot(context)
+    executor_context = executor.GetMyContextFromRoot(context)
+    touched = [False]
+
+    def monitor(root_context) -> EventStatus:
+        if executor.get_active_action_output_port().Eval(executor_context)[0] == 0:
+            results = plant.get_contact_results_output_port().Eval(plant_context)
+            for i in range(results.num_point_pair_contacts()):
+                info = results.point_pair_contact_info(i)
+                pair = {info.bodyA_index(), info.bodyB_index()}
+                if ball in pair and pair & robot_bodies:
+                    touched[0] = True
+        if plan_status(diagram, root_context) != ActionStatus.RUNNING:
+            return EventStatus.ReachedTermination(None, "plan ended")
+        return EventStatus.Succeeded()
+
+    simulator.set_monitor(monitor)
+    simulator.AdvanceTo(config.timeout + 1.0)
+    return PlanRun(
+        status=plan_status(diagram, context).name,
+        active=int(executor.get_active_action_output_port().Eval(executor_context)[0]),
+        finish_times=[float(t) for t in finish_times(diagram, context)],
+        touched_ball_first=bool(touched[0]),
+        ball_moved_m=ball_moved(diagram, context),
+        wall_time_s=time.perf_counter() - t0,
+    )

@@ -1,0 +1,358 @@
+"""Subgoal refinement in simulation: greedy (h = 1) vs refined (h = 2) soccer plans.
+
+Table 3 and section 6.3.2 of Stulp & Beetz (JAIR 2008). Each episode samples a start
+and a destination beyond the ball (as ``refinement_explore``), plans with PDDL,
+instantiates the plan (Algorithm 2: the approach angle and speed stay free), refines
+the free parameters with the learned duration models (``models_dir``, written by
+``refinement_explore``) once greedily (h = 1: the approach alone) and once with h = 2
+(approach + dribble), and executes both plans in the ``soccer_plan`` world. Every time in
+the tables is an executed time.
+
+``summarize`` writes Table 3 (mean times, the mean per-episode improvement
+``1 - t2/t1`` and a paired t-test, beside the paper's numbers) and section 6.3.2: a
+decision tree trained on every other paired episode predicts from the situation whether
+refinement helps; on the others refinement is then applied only where it predicts so.
+
+Run it with ``python -m repertoire.studies.refinement_soccer --help`` (``models_dir``:
+``refinement_explore``'s output folder, or the shipped models).
+"""
+
+import dataclasses
+import functools
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from repertoire.studies._refinement_common import (
+    SoccerPlanConfig,
+    approach_target,
+    instantiated_plan,
+    run_plan,
+    sample_situation,
+    soccer_duration_models,
+)
+from repertoire.studies.engine import register_study
+
+from repertoire.errors import RepertoireError
+
+PAPER_TABLE3_SOCCER_SIM = {"n": 1000, "t1": 9.8, "t2": 9.1, "improvement": 0.066, "p": 0.00}
+PAPER_SELECTIVE = {"always": 0.066, "selective": 0.086, "tree_accuracy": 0.87}
+SHIPPED_MODELS = "soccer_plan_models"
+"""Folder in ``repertoire/models/diffdrive`` with the trees fitted on refinement_explore's
+416 episodes (the demo's models; refit with ``refinement_explore``)."""
+SITUATION_FEATURES = ("dist_ball", "angle_to_ball", "turn_at_ball", "v", "dribble_dist")
+
+
+@dataclasses.dataclass
+class RefinementSoccerConfig(SoccerPlanConfig):
+    """The shared soccer plan settings plus where the models are and the search.
+
+    Attributes:
+        models_dir: folder with ``approach_duration.json`` and ``dribble_duration.json``
+            (``refinement_explore``'s output folder; empty: the models shipped in
+            ``repertoire/models/diffdrive/soccer_plan_models``).
+        solver: refinement back-end for these non-affine features, ``"ga"`` or ``"de"``.
+    """
+
+    models_dir: str = ""
+    solver: str = "ga"
+
+    def validate(self) -> None:
+        """Raises RepertoireError naming the first bad field."""
+        super().validate()
+        if self.solver not in ("ga", "de"):
+            raise RepertoireError(f"solver must be 'ga' or 'de' (angles), got {self.solver!r}")
+
+
+@dataclasses.dataclass
+class RefinementSoccerRecord:
+    """One situation executed with the greedy and the refined subgoal.
+
+    Attributes:
+        x, y, phi, v: the start state.
+        dest_x, dest_y, dest_phi: the destination pose.
+        phi_1, v_1: the greedy (h = 1) approach angle and speed.
+        predicted_1: the models' predicted plan duration at the greedy subgoal [s].
+        time_1: the executed plan's duration [s] (NaN unless it succeeded).
+        status_1: the executed plan's status.
+        phi_2, v_2, predicted_2, time_2, status_2: the same with h = 2.
+        wall_refine_s: wall time of both refinements (timing field).
+        wall_time_s: wall time of the episode (timing field).
+    """
+
+    x: float
+    y: float
+    phi: float
+    v: float
+    dest_x: float
+    dest_y: float
+    dest_phi: float
+    phi_1: float
+    v_1: float
+    predicted_1: float
+    time_1: float
+    status_1: str
+    phi_2: float
+    v_2: float
+    predicted_2: float
+    time_2: float
+    status_2: str
+    wall_refine_s: float
+    wall_time_s: float
+
+
+def models_folder(models_dir: str) -> Path:
+    """``models_dir``, or for ``""`` the models shipped with the package."""
+    if models_dir:
+        return Path(models_dir)
+    from importlib.resources import files
+
+    return Path(str(files("repertoire.models.diffdrive") / SHIPPED_MODELS))
+
+
+def load_models(models_dir: str, names) -> tuple:
+    """The named trees (``refinement_explore``'s ``MODEL_FILES`` keys) from ``models_dir``."""
+    from repertoire.planning.action_models import load_model
+    from repertoire.studies.refinement_explore import MODEL_FILES
+
+    folder = models_folder(models_dir)
+    paths = [folder / MODEL_FILES[k] for k in names]
+    missing = [str(p) for p in paths if not p.is_file()]
+    if missing:
+        raise RepertoireError(
+            f"no action models {missing}: run refinement_explore first (its --out-dir is "
+            "the models_dir)"
+        )
+    return tuple(load_model(p) for p in paths)
+
+
+@functools.cache
+def load_duration_models(models_dir: str):
+    """The approach and dribble duration trees (read once per process)."""
+    return load_models(models_dir, ("approach_duration", "dribble_duration"))
+
+
+def refine_subgoal(config: RefinementSoccerConfig, start, dest, horizon: int, seed: int):
+    """The refined approach ``(phi, v)`` and the predicted plan duration for a horizon."""
+    from repertoire.planning.plans import refinement_problem
+    from repertoire.planning.refinement import refine_sequence
+
+    approach, dribble = load_duration_models(config.models_dir)
+    plan = instantiated_plan(start, dest, config)
+    problem = refinement_problem(plan, soccer_duration_models(approach, dribble, config))
+    result = refine_sequence(problem, horizon, config.solver, seed=seed)
+    values = dict(zip(problem.names, result.params, strict=True))
+    return values["pos2.phi"], values["pos2.v"], result.cost
+
+
+def run_episode(config: RefinementSoccerConfig, seed: int) -> RefinementSoccerRecord:
+    """Refines the situation's subgoal with h = 1 and h = 2 and executes both plans."""
+    config.validate()
+    t0 = time.perf_counter()
+    start, dest = sample_situation(config, np.random.default_rng(seed))
+    subgoals = [refine_subgoal(config, start, dest, h, seed) for h in (1, 2)]
+    wall_refine = time.perf_counter() - t0
+    out = []
+    for phi_a, v_a, predicted in subgoals:
+        targets = [approach_target(phi_a, v_a, config.approach_distance), dest]
+        run = run_plan(config, start, targets, dribble=True)
+        t = run.finish_times[-1] if run.status == "SUCCEEDED" else math.nan
+        out += [float(phi_a), float(v_a), float(predicted), float(t), run.status]
+    return RefinementSoccerRecord(
+        *map(float, start),
+        *map(float, dest[:3]),
+        *out,
+        wall_refine_s=wall_refine,
+        wall_time_s=time.perf_counter() - t0,
+    )
+
+
+def situation_features(records) -> np.ndarray:
+    """``(n, 5)`` features of a situation (section 6.3.2): how far and how turned.
+
+    Columns: distance start -> ball, |angle to the ball| from the start heading, |turn
+    at the ball| between the start -> ball and ball -> destination directions, start
+    speed, ball -> destination distance.
+    """
+    from repertoire.diagrams.soccer import BALL_POSITION
+
+    bx, by = BALL_POSITION
+    rows = []
+    for r in records:
+        to_ball = math.atan2(by - r.y, bx - r.x)
+        to_dest = math.atan2(r.dest_y - by, r.dest_x - bx)
+        rows.append(
+            [
+                math.hypot(bx - r.x, by - r.y),
+                abs(math.remainder(to_ball - r.phi, 2 * math.pi)),
+                abs(math.remainder(to_dest - to_ball, 2 * math.pi)),
+                r.v,
+                math.hypot(r.dest_x - bx, r.dest_y - by),
+            ]
+        )
+    return np.array(rows, dtype=float).reshape(-1, len(SITUATION_FEATURES))
+
+
+def paired_improvement(t1: np.ndarray, t2: np.ndarray) -> tuple[float, float]:
+    """The paper's mean improvement ``mean(1 - t2/t1)`` and the paired t-test p-value."""
+    from scipy.stats import ttest_rel
+
+    if t1.size < 2:
+        return float(np.mean(1 - t2 / t1)) if t1.size else math.nan, math.nan
+    return float(np.mean(1 - t2 / t1)), float(ttest_rel(t1, t2).pvalue)
+
+
+def summarize(
+    records: list[RefinementSoccerRecord], config: RefinementSoccerConfig, out_dir: Path
+) -> dict[str, Path]:
+    """Writes Table 3, the section 6.3.2 selective refinement and a paired-time figure."""
+    from matplotlib.figure import Figure
+    from sklearn.tree import DecisionTreeClassifier, export_text
+
+    out_dir = Path(out_dir)
+    both = [r for r in records if r.status_1 == r.status_2 == "SUCCEEDED"]
+    t1 = np.array([r.time_1 for r in both])
+    t2 = np.array([r.time_2 for r in both])
+    imp, p = paired_improvement(t1, t2)
+    n = len(records)
+    ok1 = sum(r.status_1 == "SUCCEEDED" for r in records)
+    ok2 = sum(r.status_2 == "SUCCEEDED" for r in records)
+    paper = PAPER_TABLE3_SOCCER_SIM
+    md = [
+        "## Table 3: subgoal refinement, soccer (simulated), executed episodes",
+        "",
+        "| | a | n | t̄1 (s) | t̄2 (s) | t̄2/1 | p |",
+        "|---|---|---|---|---|---|---|",
+        f"| paper | 2 | {paper['n']} | {paper['t1']} | {paper['t2']} | "
+        f"{paper['improvement']:.1%} | {paper['p']:.2f} |",
+        f"| ours | 2 | {len(both)} | {np.mean(t1) if both else math.nan:.2f} | "
+        f"{np.mean(t2) if both else math.nan:.2f} | {imp:.1%} | {p:.2g} |",
+        "",
+        f"{n} episodes; plan succeeded with h = 1 in {ok1}, with h = 2 in {ok2}; the table "
+        f"pairs the {len(both)} where both succeeded. Refinement ({config.solver}) faster in "
+        f"{int(np.sum(t2 < t1))}, slower in {int(np.sum(t2 > t1))}. Predicted plan time "
+        f"(models) h = 1 / h = 2: {np.mean([r.predicted_1 for r in both]):.2f} / "
+        f"{np.mean([r.predicted_2 for r in both]):.2f} s.",
+        "",
+    ]
+    # section 6.3.2: predict from the situation whether refinement helps
+    train, test = both[0::2], both[1::2]  # records come in seed order
+    if len(train) >= 20 and len(test) >= 2:
+        X = situation_features(train)
+        y = np.array([r.time_2 < r.time_1 for r in train])
+        tree = DecisionTreeClassifier(max_depth=2, min_samples_leaf=10, random_state=0)
+        tree.fit(X, y)
+        Xt = situation_features(test)
+        yt = np.array([r.time_2 < r.time_1 for r in test])
+        pred = tree.predict(Xt)
+        a1 = np.array([r.time_1 for r in test])
+        a2 = np.array([r.time_2 for r in test])
+        sel = np.where(pred, a2, a1)
+        always, p_always = paired_improvement(a1, a2)
+        selective, p_sel = paired_improvement(a1, sel)
+        md += [
+            "## Section 6.3.2: refine only where a decision tree predicts it helps",
+            "",
+            f"Tree (depth <= 2) trained on {len(train)} paired episodes (every other one), "
+            f"tested on {len(test)} others.",
+            "",
+            "| | tree accuracy | improvement, always refine | improvement, selective |",
+            "|---|---|---|---|",
+            f"| paper | {PAPER_SELECTIVE['tree_accuracy']:.0%} | "
+            f"{PAPER_SELECTIVE['always']:.1%} | {PAPER_SELECTIVE['selective']:.1%} |",
+            f"| ours | {np.mean(pred == yt):.0%} | {always:.1%} (p {p_always:.2g}) | "
+            f"{selective:.1%} (p {p_sel:.2g}) |",
+            "",
+            f"Refinement applied to {int(pred.sum())} of {len(test)} test episodes; it "
+            f"truly helped in {int(yt.sum())} of the {len(test)}.",
+            "",
+            "```",
+            export_text(tree, feature_names=list(SITUATION_FEATURES)),
+            "```",
+        ]
+    tables = out_dir / "refinement_soccer_tables.md"
+    tables.write_text("\n".join(md) + "\n")
+    fig = Figure(figsize=(5.5, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    if both:
+        ax.scatter(t1, t2, s=8, alpha=0.6, label=f"episodes (n = {len(both)})")
+        lim = [min(t1.min(), t2.min()) * 0.95, max(t1.max(), t2.max()) * 1.05]
+        ax.plot(lim, lim, "k--", lw=1, label="equal time")
+        ax.set_xlim(lim)
+        ax.set_ylim(lim)
+    ax.set_xlabel("executed plan time, greedy h = 1 (s)")
+    ax.set_ylabel("executed plan time, refined h = 2 (s)")
+    ax.set_title(f"Subgoal refinement: mean improvement {imp:.1%} (paper 6.6%)")
+    ax.legend(loc="upper left")
+    figure = out_dir / "refinement_soccer_paired.png"
+    fig.savefig(figure, dpi=110)
+    out = {"tables": tables, "paired": figure}
+    if both:  # the situation where greedy and refined angles differ most
+        turn = [abs(math.remainder(r.phi_2 - r.phi_1, 2 * math.pi)) for r in both]
+        example = both[int(np.argmax(turn))]
+        out["polar"] = fig11_polar(example, config, out_dir / "refinement_soccer_fig11.png")
+    return out
+
+
+def fig11_polar(record: RefinementSoccerRecord, config: RefinementSoccerConfig, path: Path):
+    """Fig. 11 for one situation: predicted durations over the approach angle.
+
+    Three polar plots (approach, dribble, their sum) of the models' predictions at the
+    refined approach speed, with the greedy (h = 1) and refined (h = 2) angles marked.
+    """
+    from matplotlib.figure import Figure
+    from repertoire.studies._refinement_common import approach_features, dribble_features
+
+    approach, dribble = load_duration_models(config.models_dir)
+    theta = np.linspace(-np.pi, np.pi, 361)
+    start = [record.x, record.y, record.phi, record.v]
+    dest = [record.dest_x, record.dest_y, record.dest_phi, 0.0]
+    d = config.approach_distance
+    t_a = approach.predict(approach_features(start, theta, record.v_2, d))
+    t_d = dribble.predict(dribble_features(theta, record.v_2, dest, d))
+    fig = Figure(figsize=(12.0, 4.6), layout="constrained")
+    for k, (values, title) in enumerate(
+        ((t_a, "approachBall"), (t_d, "dribbleBall"), (t_a + t_d, "sum (refinement's cost)"))
+    ):
+        ax = fig.add_subplot(1, 3, k + 1, projection="polar")
+        ax.plot(theta, values, color="tab:blue", label="predicted duration (s, radial)")
+        for phi, style, label in ((record.phi_1, "tab:orange", "greedy h = 1"),
+                                  (record.phi_2, "tab:green", "refined h = 2")):  # fmt: skip
+            ax.plot([phi, phi], [0, values.max()], color=style, lw=2, label=f"{label} angle")
+        ax.set_title(title)
+        ax.set_rlabel_position(200)
+        if k == 0:
+            ax.legend(loc="upper left", bbox_to_anchor=(-0.25, -0.02), fontsize=8)
+    fig.suptitle(
+        f"Fig. 11 for one situation: approach angle at the ball (angular), speed "
+        f"{record.v_2:.2f} m/s; executed plan times {record.time_1:.2f} s (h = 1) and "
+        f"{record.time_2:.2f} s (h = 2)"
+    )
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def demo_config() -> RefinementSoccerConfig:
+    """The demo config (the shared defaults)."""
+    return RefinementSoccerConfig()
+
+
+def smoke_config() -> RefinementSoccerConfig:
+    """A tiny config for tests: starts near the ball, short dribbles, shipped models."""
+    return RefinementSoccerConfig(
+        x_range=[-0.2, 0.2], y_range=[0.0, 0.6], dribble_distance_range=[0.5, 0.6], timeout=8.0
+    )
+
+
+register_study(
+    "refinement_soccer",
+    config_type=RefinementSoccerConfig,
+    record_type=RefinementSoccerRecord,
+    run_episode=run_episode,
+    description="soccer plans refined greedily (h = 1) and with h = 2, executed: Table 3",
+    summarize=summarize,
+    demo_config=demo_config,
+    demo_episodes=8,
+    smoke_config=smoke_config,
+).run_if_main(__name__)

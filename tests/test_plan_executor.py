@@ -1,0 +1,132 @@
+"""PlanExecutor: switching rule, FixValue expectations, the soccer plan world, bad input."""
+
+import numpy as np
+import pytest
+from pydrake.systems.framework import DiscreteValues
+from repertoire.systems.go_to_pose import ActionStatus
+from repertoire.systems.plan_executor import PlanExecutor, next_plan_state
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+R, S, F, T = (
+    ActionStatus.RUNNING,
+    ActionStatus.SUCCEEDED,
+    ActionStatus.FAILED,
+    ActionStatus.TIMED_OUT,
+)
+
+
+def test_next_plan_state_rule():
+    assert next_plan_state(0, R, R, 2) == (0, R)
+    assert next_plan_state(0, R, S, 2) == (1, R)
+    assert next_plan_state(1, R, S, 2) == (2, S)
+    assert next_plan_state(1, R, F, 2) == (1, F)
+    assert next_plan_state(0, R, T, 2) == (0, T)
+    assert next_plan_state(2, S, F, 2) == (2, S)  # a finished plan stays finished
+
+
+def _fixed(executor, statuses, commands):
+    context = executor.CreateDefaultContext()
+    for i, (s, c) in enumerate(zip(statuses, commands, strict=True)):
+        executor.get_status_input_port(i).FixValue(context, s)
+        executor.get_command_input_port(i).FixValue(context, np.asarray(c, dtype=float))
+    return context
+
+
+def _step(executor, context, time):
+    context.SetTime(time)
+    xd = executor.AllocateDiscreteVariables()
+    executor.CalcForcedDiscreteVariableUpdate(context, xd)
+    context.SetDiscreteState(xd.get_vector(0).CopyToVector())
+
+
+def test_executor_routes_targets_and_commands_and_switches():
+    targets = [[1.0, 2.0, 0.5, 0.2], [3.0, 0.0, -1.0, 0.0]]
+    ex = PlanExecutor(targets, period=0.02)
+    context = _fixed(ex, [R, R], [[0.3, 0.1], [0.7, -0.2]])
+    np.testing.assert_array_equal(ex.GetOutputPort("target_0").Eval(context), targets[0])
+    np.testing.assert_array_equal(ex.GetOutputPort("target_1").Eval(context), targets[1])
+    np.testing.assert_array_equal(ex.get_command_output_port().Eval(context), [0.3, 0.1])
+    assert ex.get_status_output_port().Eval(context) == R
+    assert ex.get_active_action_output_port().Eval(context)[0] == 0
+    assert np.isnan(ex.get_finish_times_output_port().Eval(context)).all()
+
+    _step(ex, context, 0.5)  # action 0 still running: nothing changes
+    assert ex.get_active_action_output_port().Eval(context)[0] == 0
+
+    ex.get_status_input_port(0).FixValue(context, S)
+    _step(ex, context, 1.25)
+    assert ex.get_active_action_output_port().Eval(context)[0] == 1
+    np.testing.assert_array_equal(ex.get_command_output_port().Eval(context), [0.7, -0.2])
+    finish = ex.get_finish_times_output_port().Eval(context)
+    assert finish[0] == 1.25 and np.isnan(finish[1])
+
+    ex.get_status_input_port(1).FixValue(context, S)
+    _step(ex, context, 3.5)
+    assert ex.get_status_output_port().Eval(context) == S
+    assert ex.get_active_action_output_port().Eval(context)[0] == 2
+    np.testing.assert_array_equal(ex.get_finish_times_output_port().Eval(context), [1.25, 3.5])
+    np.testing.assert_array_equal(ex.get_command_output_port().Eval(context), [0.0, 0.0])
+    _step(ex, context, 4.0)  # finished: state frozen
+    np.testing.assert_array_equal(ex.get_finish_times_output_port().Eval(context), [1.25, 3.5])
+
+
+def test_executor_failure_ends_plan_and_targets_are_parameters():
+    ex = PlanExecutor([[0.0, 0.0, 0.0, 0.0]] * 3)
+    context = _fixed(ex, [R, T, R], [[1.0, 1.0]] * 3)
+    ex.get_status_input_port(0).FixValue(context, S)
+    _step(ex, context, 0.4)
+    _step(ex, context, 0.42)  # action 1 timed out
+    assert ex.get_status_output_port().Eval(context) == T
+    assert ex.get_active_action_output_port().Eval(context)[0] == 1
+    np.testing.assert_array_equal(ex.get_finish_times_output_port().Eval(context)[:2], [0.4, 0.42])
+    np.testing.assert_array_equal(ex.get_command_output_port().Eval(context), [0.0, 0.0])
+    ex.set_target(context, 2, [1.0, -1.0, 0.25, 0.0])
+    np.testing.assert_array_equal(ex.GetOutputPort("target_2").Eval(context), [1, -1, 0.25, 0])
+    assert isinstance(ex.AllocateDiscreteVariables(), DiscreteValues)
+
+
+def test_executor_bad_input():
+    with pytest.raises(RepertoireError, match=r"n >= 1 actions, got shape \(0,\)"):
+        PlanExecutor([])
+    with pytest.raises(RepertoireError, match=r"targets of actions \[1\] are not finite"):
+        PlanExecutor([[0.0, 0.0], [np.nan, 0.0]])
+    with pytest.raises(RepertoireError, match="period must be finite and > 0, got 0"):
+        PlanExecutor([[0.0]], period=0)
+    with pytest.raises(RepertoireError, match="command_size must be an int >= 1, got 0"):
+        PlanExecutor([[0.0]], command_size=0)
+    ex = PlanExecutor([[0.0, 0.0]])
+    context = ex.CreateDefaultContext()
+    with pytest.raises(RepertoireError, match="must be 2 finite values"):
+        ex.set_target(context, 0, [1.0, np.inf])
+    with pytest.raises(RepertoireError, match=r"action index 3 is not in 0..0"):
+        ex.set_target(context, 3, [1.0, 2.0])
+
+
+def test_soccer_plan_world_runs_the_plan_and_dribbles_the_ball():
+    from repertoire.diagrams.simulate import simulate_registered
+    from repertoire.diagrams.soccer_plan import SoccerPlanScenario, build_soccer_plan
+
+    figures = simulate_registered("soccer_plan", duration=10.0)
+    assert figures["plan_succeeded"] == 1.0
+    assert 0.0 < figures["plan_time_s"] < 10.0
+    assert figures["position_error_m"] < 0.1
+    assert figures["ball_moved_m"] > 0.3  # pushed along the second leg
+    diagram = build_soccer_plan(SoccerPlanScenario())
+    names = {diagram.GetSubsystemByName(n).get_name() for n in ("action_0", "action_1")}
+    assert names == {"action_0", "action_1"}
+    with pytest.raises(ScenarioError, match=r"targets\[1\] must be 4 finite values"):
+        build_soccer_plan(SoccerPlanScenario(targets=[[0, 0, 0, 0], [1, 2, 3]]))
+    with pytest.raises(ScenarioError, match="at least one"):
+        build_soccer_plan(SoccerPlanScenario(targets=[]))
+    with pytest.raises(ScenarioError, match=r"unknown GoToPose gains \['k_x'\]"):
+        build_soccer_plan(SoccerPlanScenario(gains={"k_x": 1.0}))
+    with pytest.raises(ScenarioError, match=r"unknown GoToPose gains \['k_y'\]"):
+        build_soccer_plan(SoccerPlanScenario(action_gains=[{}, {"k_y": 1.0}]))
+    with pytest.raises(ScenarioError, match="one dict per target: got 1 for 2 targets"):
+        build_soccer_plan(SoccerPlanScenario(action_gains=[{}]))
+    slow = build_soccer_plan(SoccerPlanScenario(action_gains=[{}, {"omega_max": 0.6}]))
+    context = slow.CreateDefaultContext()
+    for name, omega in (("action_0", 2.5), ("action_1", 0.6)):
+        action = slow.GetSubsystemByName(name)
+        assert action.gains(action.GetMyContextFromRoot(context))["omega_max"] == omega

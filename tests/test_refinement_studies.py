@@ -1,0 +1,252 @@
+"""The soccer plan studies: sampling, geometry, explore -> models -> refined episodes."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from repertoire.studies._refinement_common import (
+    SoccerPlanConfig,
+    approach_target,
+    instantiated_plan,
+    sample_situation,
+)
+from repertoire.studies.engine import run_study
+from repertoire.studies.refinement_explore import RefinementExploreRecord
+from repertoire.studies.refinement_explore import smoke_config as explore_smoke
+from repertoire.studies.refinement_explore import summarize as explore_summarize
+from repertoire.studies.refinement_soccer import (
+    RefinementSoccerConfig,
+    load_duration_models,
+    paired_improvement,
+    situation_features,
+)
+
+from repertoire.errors import RepertoireError
+
+
+def test_situations_are_seeded_and_on_the_field():
+    c = SoccerPlanConfig()
+    a = sample_situation(c, np.random.default_rng(3))
+    b = sample_situation(c, np.random.default_rng(3))
+    np.testing.assert_array_equal(a[0], b[0])
+    for seed in range(40):
+        start, dest = sample_situation(c, np.random.default_rng(seed))
+        assert math.hypot(start[0] - 1.0, start[1] - 0.5) >= c.min_start_clearance
+        d = math.hypot(dest[0] - 1.0, dest[1] - 0.5)
+        assert c.dribble_distance_range[0] <= d <= c.dribble_distance_range[1]
+        assert dest[2] == pytest.approx(math.atan2(dest[1] - 0.5, dest[0] - 1.0))
+        assert abs(dest[0]) <= 2.7 and abs(dest[1]) <= 1.7
+
+
+def test_approach_target_is_behind_the_ball_facing_it():
+    np.testing.assert_allclose(approach_target(0.0, 0.05, 0.35), [0.65, 0.5, 0.0, 0.05])
+    np.testing.assert_allclose(
+        approach_target(np.pi / 2, 0.0, 0.4), [1.0, 0.1, np.pi / 2, 0.0], atol=1e-12
+    )
+
+
+def test_plan_leaves_the_approach_angle_and_speed_free():
+    c = SoccerPlanConfig()
+    start, dest = sample_situation(c, np.random.default_rng(0))
+    plan = instantiated_plan(start, dest, c)
+    assert [a.name for a in plan.actions] == ["approachBall", "dribbleBall"]
+    assert plan.free_ids == ["pos2.phi", "pos2.v"]
+    assert plan.ranges["pos2.v"].hi == c.approach_v_max
+
+
+def test_paired_improvement_closed_form():
+    imp, p = paired_improvement(np.array([10.0, 10.0, 8.0]), np.array([9.0, 8.0, 8.0]))
+    assert imp == pytest.approx((0.1 + 0.2 + 0.0) / 3)
+    assert 0 < p < 1
+
+
+def test_config_bad_input():
+    with pytest.raises(RepertoireError, match="x_range must lie on the field"):
+        SoccerPlanConfig(x_range=[-4.0, 0.0]).validate()
+    with pytest.raises(RepertoireError, match="approach_distance must lie between"):
+        SoccerPlanConfig(approach_distance=0.05).validate()
+    with pytest.raises(RepertoireError, match="solver must be 'ga' or 'de'"):
+        RefinementSoccerConfig(solver="corners").validate()
+    with pytest.raises(RepertoireError, match="run refinement_explore first"):
+        load_duration_models("/nonexistent/models")
+
+
+def test_models_of_another_version_are_refused(tmp_path):
+    import json
+    import shutil
+
+    from repertoire.studies.refinement_soccer import load_models, models_folder
+
+    shipped = models_folder("")
+    for name in ("approach_duration.json", "dribble_duration.json"):
+        shutil.copy(shipped / name, tmp_path / name)
+    record = json.loads((tmp_path / "dribble_duration.json").read_text())
+    record["version"] = 0
+    (tmp_path / "dribble_duration.json").write_text(json.dumps(record))
+    with pytest.raises(RepertoireError, match="has version 0; this code reads version"):
+        load_models(str(tmp_path), ("approach_duration", "dribble_duration"))
+    (approach,) = load_models("", ("approach_duration",))
+    assert approach.kind == "duration" and len(approach.leaves) >= 1
+
+
+def _synthetic_records(n: int) -> list[RefinementExploreRecord]:
+    """Records whose durations follow distance and turn, as executed ones roughly do."""
+    rng = np.random.default_rng(0)
+    c = SoccerPlanConfig()
+    out = []
+    for _ in range(n):
+        start, dest = sample_situation(c, rng)
+        phi_a, v_a = rng.uniform(-np.pi, np.pi), rng.uniform(0, c.approach_v_max)
+        turn = abs(math.remainder(dest[2] - phi_a, 2 * math.pi))
+        t1 = 1.0 + math.hypot(start[0] - 1.0, start[1] - 0.5) / 0.6
+        out.append(
+            RefinementExploreRecord(
+                *start,
+                *dest[:3],
+                phi_a,
+                v_a,
+                "SUCCEEDED",
+                -1,
+                t1,
+                2.0 + turn,
+                bool(rng.random() < 0.2),
+                False,
+                0.5,
+                0.1,
+            )  # fmt: skip
+        )
+        out[-1].approach_failed = out[-1].touched_ball
+    return out
+
+
+def test_explore_smoke_then_models_then_refined_episode(tmp_path):
+    result = run_study(
+        "refinement_explore",
+        explore_smoke(),
+        episodes=2,
+        store=tmp_path / "explore.sqlite",
+        out_dir=tmp_path / "explore",
+        executor="inline",
+        progress=False,
+    )
+    assert len(result.records) == 2
+    for r in result.records:
+        assert r.status in ("SUCCEEDED", "FAILED", "TIMED_OUT")
+        if r.status == "SUCCEEDED":
+            assert r.t_approach > 0 and r.t_dribble > 0
+    models = tmp_path / "models"
+    models.mkdir()
+    paths = explore_summarize(_synthetic_records(80), SoccerPlanConfig(), models)
+    assert {"approach_duration", "dribble_duration", "approach_failure"} <= set(paths)
+    approach, dribble = load_duration_models(str(models))
+    assert approach.kind == dribble.kind == "duration"
+    config = dataclasses.replace(
+        RefinementSoccerConfig(**dataclasses.asdict(explore_smoke())), models_dir=str(models)
+    )
+    soccer = run_study(
+        "refinement_soccer",
+        config,
+        episodes=1,
+        store=tmp_path / "soccer.sqlite",
+        out_dir=tmp_path / "soccer",
+        executor="inline",
+        progress=False,
+    )
+    (rec,) = soccer.records
+    # the synthetic dribble model charges the turn at the ball: h = 2 aligns with the
+    # destination, greedy h = 1 ignores it
+    assert rec.predicted_2 <= rec.predicted_1 + 1e-9
+    turn_1 = abs(math.remainder(rec.phi_1 - rec.dest_phi, 2 * math.pi))
+    turn_2 = abs(math.remainder(rec.phi_2 - rec.dest_phi, 2 * math.pi))
+    assert turn_2 < turn_1
+    assert situation_features([rec]).shape == (1, 5)
+    assert (tmp_path / "soccer" / "refinement_soccer_tables.md").is_file()
+
+
+def _assertion_record(predicted_fail, asserted, ok_without, ok_with):
+    from repertoire.studies.subgoal_assertion_soccer import SubgoalAssertionRecord
+
+    nan = math.nan
+    return SubgoalAssertionRecord(
+        0.0, 0.0, 0.0, 0.0, 0.0, 0.0, predicted_fail, asserted, nan, nan, nan, nan,
+        ok_without, not ok_without, 3.0 if ok_without else nan,
+        ok_with, not ok_with, 4.0 if ok_with else nan, "", 0.1,
+    )  # fmt: skip
+
+
+def test_fig16b_table_percentages():
+    from repertoire.studies.subgoal_assertion_soccer import fig16b_table
+
+    records = [
+        _assertion_record(True, True, False, True),  # failure turned into success
+        _assertion_record(True, True, False, False),  # still fails
+        _assertion_record(True, True, True, True),  # needless assertion
+        _assertion_record(False, False, True, True),
+    ]
+    md = "\n".join(fig16b_table(records))
+    assert "| Predicted fail | 25% (50% without) | 50% (25% without) | 75% |" in md
+    assert "| Predicted success | 0% (0% without) | 25% (25% without) | 25% |" in md
+    assert "| ours (4 episodes) | 50% | 75% | 75% |" in md
+
+
+def test_subgoal_assertion_episode_with_synthetic_models(tmp_path):
+    from repertoire.studies.subgoal_assertion_soccer import (
+        SubgoalAssertionConfig,
+        summarize,
+    )
+    from repertoire.studies.subgoal_assertion_soccer import smoke_config as sa_smoke
+
+    models = tmp_path / "models"
+    models.mkdir()
+    explore_summarize(_synthetic_records(80), SoccerPlanConfig(), models)
+    config = dataclasses.replace(sa_smoke(), models_dir=str(models))
+    assert isinstance(config, SubgoalAssertionConfig)
+    result = run_study(
+        "subgoal_assertion_soccer",
+        config,
+        episodes=2,
+        store=tmp_path / "sa.sqlite",
+        out_dir=tmp_path / "sa",
+        executor="inline",
+        progress=False,
+    )
+    for r in result.records:
+        assert r.asserted == (not math.isnan(r.sub_x))
+        if r.asserted:  # subgoals keep the failure tree's training clearance from the ball
+            assert math.hypot(r.sub_x - 1.0, r.sub_y - 0.5) >= config.min_start_clearance
+        else:
+            assert r.success_with == r.success_without
+    paths = summarize(result.records, config, tmp_path / "sa")
+    assert paths["polar"].is_file()
+
+
+def test_tour_sampling_states_and_problem():
+    from repertoire.studies.refinement_horizons import (
+        RefinementHorizonsConfig,
+        sample_tour,
+        tour_problem,
+        tour_states,
+    )
+
+    c = RefinementHorizonsConfig()
+    start, wps, final_phi = sample_tour(c, np.random.default_rng(5))
+    legs = np.diff(np.vstack([start[:2], wps]), axis=0)
+    assert np.all((np.hypot(*legs.T) >= 0.8 - 1e-12) & (np.hypot(*legs.T) <= 1.4 + 1e-12))
+    assert np.all(wps[:, 0] <= 0.2)
+    params = np.arange(6.0) / 10
+    s = tour_states(start, wps, final_phi, params)[0]
+    np.testing.assert_array_equal(s[0], start)
+    np.testing.assert_array_equal(s[2], [*wps[1], 0.2, 0.3])
+    np.testing.assert_array_equal(s[4], [*wps[3], final_phi, 0.0])
+    # a model of one leaf: 1 s + 2 s per metre, whatever the angles
+    from repertoire.planning.action_models.trees import fit_duration_tree
+
+    X = np.column_stack([np.linspace(0.2, 3, 40), np.zeros((40, 4))])
+    tree = fit_duration_tree(
+        X, 1.0 + 2.0 * X[:, 0], ["dist", "a", "b", "v", "v_g"], candidate_leaves=(1,)
+    )
+    problem = tour_problem(tree, start, wps, final_phi, 0.09)
+    assert [t.uses for t in problem.terms] == [(0, 1), (0, 1, 2, 3), (2, 3, 4, 5), (4, 5)]
+    lengths = np.hypot(*np.diff(np.vstack([start[:2], wps]), axis=0).T)
+    assert problem.cost(params)[0] == pytest.approx(4.0 + 2.0 * lengths.sum(), rel=1e-6)

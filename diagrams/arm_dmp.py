@@ -2,7 +2,7 @@
 
 Pipeline (Pastor et al. 2009, sec. IV, Fig. 7 and 11)::
 
-    TaskSpaceDmpChain (10-D DMPs: position, quaternion, 3 fingers; grasp -> place -> ...;
+    DmpSequencer (10-D DMPs: position, quaternion, 3 fingers; grasp -> place -> ...;
       segments run one after another, each started from its predecessor's x and v)
       -> ResolvedMotionRateIK (quaternion feedback, damped least squares, null-space
          joint-limit avoidance; reports targets out of reach)
@@ -110,6 +110,7 @@ from repertoire.planning.arm_library import (
 )
 from repertoire.systems.arm_goals import GoalSchedule, SegmentGoal
 from repertoire.systems.arm_monitors import BodyPointAndAxis, ObstacleClearanceMonitor
+from repertoire.systems.dmp_sequencer import task_space_sequencer
 from repertoire.systems.grasp import GraspWrench
 from repertoire.systems.obstacle_coupling import MultiPointObstacleCoupling
 from repertoire.systems.task_space import (
@@ -120,7 +121,6 @@ from repertoire.systems.task_space import (
     check_reachable,
     reach_bound,
 )
-from repertoire.systems.task_space_chain import TaskSpaceDmpChain
 
 from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
@@ -601,7 +601,7 @@ def build_arm_world(
     library = arm_motion_library()
     chain = builder.AddNamedSystem(
         "dmp_chain",
-        TaskSpaceDmpChain(
+        task_space_sequencer(
             [library.select(label, robot="arm7").dmp for label in labels],
             starts,
             np.concatenate([home.translation(), quaternion_wxyz(home.rotation()), HAND_OPEN]),
@@ -609,9 +609,10 @@ def build_arm_world(
         ),
     )
     schedule = builder.AddNamedSystem("goal_schedule", GoalSchedule(resolved))
-    builder.Connect(chain.GetOutputPort("segment"), schedule.GetInputPort("segment"))
     builder.Connect(plant.get_body_poses_output_port(), schedule.GetInputPort("body_poses"))
-    builder.Connect(schedule.GetOutputPort("goal"), chain.GetInputPort("goal"))
+    builder.Connect(chain.GetOutputPort("segment"), schedule.GetInputPort("segment"))
+    for k in range(len(goals)):
+        builder.Connect(schedule.GetOutputPort(f"goal_{k}"), chain.GetInputPort(f"goal_{k}"))
     if obstacle is not None and obstacle.coupling:
         coupling = builder.AddNamedSystem(
             "obstacle_coupling",
@@ -626,8 +627,8 @@ def build_arm_world(
         o_src = builder.AddNamedSystem(
             "obstacle_position", ConstantVectorSource(np.asarray(obstacle.xyz, float))
         )
-        builder.Connect(chain.GetOutputPort("position"), coupling.GetInputPort("position"))
-        builder.Connect(chain.GetOutputPort("velocity"), coupling.GetInputPort("velocity"))
+        builder.Connect(chain.GetOutputPort("tcp_position"), coupling.GetInputPort("position"))
+        builder.Connect(chain.GetOutputPort("tcp_velocity"), coupling.GetInputPort("velocity"))
         builder.Connect(chain.GetOutputPort("orientation"), coupling.GetInputPort("orientation"))
         builder.Connect(o_src.get_output_port(), coupling.GetInputPort("obstacle"))
         builder.Connect(coupling.GetOutputPort("coupling"), chain.GetInputPort("coupling"))
@@ -648,8 +649,8 @@ def build_arm_world(
         ),
     )
     for src, dst in (
-        ("position", "position_desired"),
-        ("velocity", "velocity_desired"),
+        ("tcp_position", "position_desired"),
+        ("tcp_velocity", "velocity_desired"),
         ("orientation", "orientation_desired"),
         ("angular_velocity", "angular_velocity_desired"),
     ):
@@ -970,7 +971,7 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
             status=status,
             time=context.get_time(),
             segment=int(chain.GetOutputPort("segment").Eval(chain_context)[0]),
-            target=chain.GetOutputPort("position").Eval(chain_context).copy(),
+            target=chain.GetOutputPort("tcp_position").Eval(chain_context).copy(),
             goal=goal.copy(),
             error=rmrc.GetOutputPort("task_error").Eval(rmrc_context).copy(),
         )

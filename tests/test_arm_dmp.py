@@ -34,7 +34,7 @@ def _tcp_and_dmp(diagram, context):
     tcp = diagram.GetSubsystemByName("tcp_point")
     chain = diagram.GetSubsystemByName("dmp_chain")
     p_tcp = tcp.get_output_port().Eval(tcp.GetMyContextFromRoot(context))[:3]
-    p_dmp = chain.GetOutputPort("position").Eval(chain.GetMyContextFromRoot(context))
+    p_dmp = chain.GetOutputPort("tcp_position").Eval(chain.GetMyContextFromRoot(context))
     return p_tcp, p_dmp
 
 

@@ -9,8 +9,6 @@ from repertoire.planning.dmp import (
     DmpParameters,
     QuaternionDmpParameters,
     TaskSpaceDmp,
-    acceleration_matched_start,
-    chain_rollout,
     check_unit_quaternions,
     estimate_derivatives,
     learn_dmp,
@@ -289,24 +287,6 @@ def test_obstacle_coupling_turns_away_and_special_cases():
     np.testing.assert_allclose(straight, 0.0, atol=1e-9)  # phi = 0
     away = obstacle_coupling(x, v, np.array([-2.0, 0, 0]), 1000, 1)
     assert np.all(np.isfinite(away)) and np.linalg.norm(away) > 0  # phi = pi, any axis
-
-
-# ------------------------------------------------------------------ chaining
-def test_chain_rollout_handoffs():
-    t = np.linspace(0, 1, 300)
-    p = learn_dmp(t, minimum_jerk(np.zeros(2), np.array([1.0, 0.0]), 1.0, t)[0], n_basis=20)
-    goals = [np.array(g, float) for g in ([1, 0], [1, 1], [0, 1], [0, 0])]
-    times = [0.0, 0.6, 1.2, 1.8]
-    vel = chain_rollout([p] * 4, goals, times, handoff="velocity")
-    acc = chain_rollout([p] * 4, goals, times, handoff="acceleration")
-    none = chain_rollout([p] * 4, goals, times, handoff="none")
-    assert max(vel.velocity_jumps) < 1e-12 and max(acc.velocity_jumps) < 1e-12
-    assert max(none.velocity_jumps) > 0.1
-    assert max(acc.acceleration_jumps) < 1e-9 < max(vel.acceleration_jumps)
-    x0 = acceleration_matched_start(p, np.zeros(2), np.ones(2), np.zeros(2))
-    assert x0.shape == (2,)
-    with pytest.raises(RepertoireError, match="handoff must be one of"):
-        chain_rollout([p], goals[:1], [0.0], handoff="jerk")
 
 
 # ------------------------------------------------------------------ save / load

@@ -43,11 +43,8 @@ def main() -> int:
     from repertoire.planning.dmp import learn_dmp, learn_quaternion_dmp
     from repertoire.planning.dmp_demos import slerp_minimum_jerk
     from repertoire.planning.dmp_math import minimum_jerk, quat_exp
-    from repertoire.systems.dmp import (
-        CanonicalSystem,
-        DiscreteDmpSystem,
-        ManifoldQuaternionSystem,
-    )
+    from repertoire.systems.dmp import CanonicalSystem, ManifoldQuaternionSystem
+    from repertoire.systems.dmp_discrete import DiscreteDmpSystem
 
     rng = np.random.default_rng(0)
     T = np.arange(N_SAMPLES) * DT

@@ -118,7 +118,7 @@ class DmpChainingRecord:
 
 def primitive(config: DmpChainingConfig):
     """The minimum-jerk primitive (0,0) -> (1,0) m, learned once per episode."""
-    from repertoire.planning.dmp import learn_dmp
+    from repertoire.planning.dmp_learn import learn_dmp
     from repertoire.planning.dmp_math import minimum_jerk
 
     t = np.linspace(0, config.duration_s, config.n_samples)

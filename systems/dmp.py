@@ -101,16 +101,6 @@ class CanonicalSystem(LeafSystem):
             raise RepertoireError(f"tau must be > 0, got {tau}")
         return tau
 
-    def set_tau(self, context: Context, tau: float) -> None:
-        """Set the tau parameter.
-
-        Args:
-            context: This system's context.
-            tau: Temporal scaling [s], > 0.
-        """
-        check_positive("tau", tau)
-        context.get_mutable_numeric_parameter(self._tau_index).SetAtIndex(0, float(tau))
-
     def set_start_time(self, context: Context, start_time: float) -> None:
         """Hold theta = 1 until ``start_time``.
 
@@ -274,33 +264,6 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
         tau = self._tau_value(context)
         context.get_mutable_continuous_state_vector().SetFromVector(np.concatenate([x0, tau * xd0]))
-
-    def set_dmp(self, context: Context, dmp: DmpParameters) -> None:
-        """Load another DMP of the same size into the parameters (and start state).
-
-        Args:
-            context: This system's context.
-            dmp: Parameters with the same (n_dims, n_basis) and formulation.
-        """
-        if dmp.weights.shape != (self._n, self._b):
-            raise RepertoireError(
-                f"DMP has weights {dmp.weights.shape}, this system was built for "
-                f"{(self._n, self._b)}"
-            )
-        if dmp.formulation != self._formulation:
-            raise RepertoireError(
-                f"DMP formulation {dmp.formulation!r} != system's {self._formulation!r}"
-            )
-        for index, value in (
-            (self._w, dmp.weights.reshape(-1)),
-            (self._c, dmp.centres),
-            (self._h, dmp.widths),
-            (self._K, dmp.K),
-            (self._D, dmp.D),
-            (self._tau, [dmp.tau]),
-        ):
-            context.get_mutable_numeric_parameter(index).SetFromVector(np.asarray(value))
-        self.set_start(context, dmp.x0)
 
     def _tau_value(self, context: Context) -> float:
         if self._tau_port is not None and self._tau_port.HasValue(context):

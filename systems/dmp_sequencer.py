@@ -185,11 +185,6 @@ class DmpSequencer(LeafSystem):
                 prerequisites_of_calc=state,
             )
 
-    @property
-    def segment_parameters(self) -> list[DmpParameters]:
-        """The parameters of every segment."""
-        return self._segments
-
     def set_start(self, context: Context, x_start: np.ndarray) -> None:
         """Restart the chain at rest at ``x_start`` with the first segment.
 

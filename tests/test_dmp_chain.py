@@ -7,13 +7,14 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import VectorLogSink
-from repertoire.planning.dmp import DmpParameters, learn_dmp, learn_task_space_dmp
+from repertoire.planning.dmp import DmpParameters
 from repertoire.planning.dmp_chain import (
     acceleration_matched_start,
     chain_rollout,
     handoff_state,
     stack_task_space_dmp,
 )
+from repertoire.planning.dmp_learn import learn_dmp, learn_task_space_dmp
 from repertoire.planning.dmp_math import (
     basis_centres,
     basis_widths,

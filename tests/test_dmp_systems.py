@@ -5,12 +5,8 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
-from repertoire.planning.dmp import (
-    learn_dmp,
-    learn_quaternion_dmp,
-    learn_task_space_dmp,
-)
 from repertoire.planning.dmp_demos import slerp_minimum_jerk
+from repertoire.planning.dmp_learn import learn_dmp, learn_quaternion_dmp, learn_task_space_dmp
 from repertoire.planning.dmp_math import (
     forcing_term,
     minimum_jerk_via_points,

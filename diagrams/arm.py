@@ -32,6 +32,8 @@ from repertoire.diagrams.registry import register_diagram
 from repertoire.models.arm7 import (
     ALL_JOINTS,
     ARM_JOINTS,
+    ARM_KD,
+    ARM_KP,
     HAND_JOINTS,
     HAND_OPEN,
     ArmWorld,
@@ -81,12 +83,8 @@ class ArmScenario:
     )
     initial_fingers: list[float] = dataclasses.field(default_factory=lambda: list(HAND_OPEN))
     finger_targets: list[float] = dataclasses.field(default_factory=lambda: list(HAND_OPEN))
-    kp: list[float] = dataclasses.field(
-        default_factory=lambda: [800.0, 800.0, 400.0, 400.0, 60.0, 60.0, 60.0]
-    )
-    kd: list[float] = dataclasses.field(
-        default_factory=lambda: [40.0, 40.0, 20.0, 20.0, 2.0, 2.0, 2.0]
-    )
+    kp: list[float] = dataclasses.field(default_factory=lambda: list(ARM_KP))
+    kd: list[float] = dataclasses.field(default_factory=lambda: list(ARM_KD))
     finger_kp: list[float] = dataclasses.field(default_factory=lambda: [4.0, 2.0, 2.0])
     finger_kd: list[float] = dataclasses.field(default_factory=lambda: [0.04, 0.02, 0.02])
     world: ArmWorld = dataclasses.field(default_factory=default_arm_world)

@@ -2,7 +2,7 @@
 
 Pipeline (Pastor et al. 2009, sec. IV, Fig. 7 and 11)::
 
-    TaskSpaceDmpChain (10-D DMPs: position, quaternion, 3 fingers; grasp -> place -> ...;
+    DmpSequencer (10-D DMPs: position, quaternion, 3 fingers; grasp -> place -> ...;
       segments run one after another, each started from its predecessor's x and v)
       -> ResolvedMotionRateIK (quaternion feedback, damped least squares, null-space
          joint-limit avoidance; reports targets out of reach)
@@ -43,14 +43,13 @@ cup in hand needs about 9.5 cm). ``obstacle_points: [[0, 0, 0]]`` with
 the ball and the arm, hand, fingers and cup (SceneGraph) for the
 ``collision_free`` figure.
 
-Size: over 600 lines because it still holds the two scenarios, the world builder and the
-scoring of both worlds; the motion library is in planning/arm_library.py and the
-LeafSystems in systems/; moving the scoring beside the studies is the next step.
+This module is the wiring; the typed scenarios and the segment goals are in
+:mod:`repertoire.diagrams.arm_dmp_scenarios`, running and scoring a world in
+:mod:`repertoire.diagrams.arm_dmp_results`, the motion library in planning/arm_library.py
+and the LeafSystems in systems/.
 """
 
 import dataclasses
-import functools
-import time
 
 import numpy as np
 from pydrake.math import RigidTransform
@@ -62,7 +61,7 @@ from pydrake.multibody.tree import (
     SpatialInertia,
     UnitInertia,
 )
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder, EventStatus
+from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
@@ -72,18 +71,29 @@ from pydrake.systems.primitives import (
 )
 from pydrake.trajectories import PiecewisePolynomial
 from repertoire.diagrams.arm import ArmStation, add_arm_controllers, add_meshcat
+from repertoire.diagrams.arm_dmp_results import pick_and_place_figures, serving_figures
+from repertoire.diagrams.arm_dmp_scenarios import (
+    COASTER_RAIL_HEIGHT,
+    PICK_PLACE_LABELS,
+    BallObstacle,
+    BodyPointLog,
+    CoasterMotion,
+    PickPlaceScenario,
+    ServingScenario,
+    plan_pick_and_place,
+    plan_serving,
+    segment_timing,
+    shoulder_and_reach,
+)
 from repertoire.diagrams.registry import register_diagram
-from repertoire.diagrams.simulate import simulate
 from repertoire.models import ConfigureParser, package_url
 from repertoire.models.arm7 import (
     ALL_JOINTS,
     ARM_JOINTS,
-    CUP_HEIGHT,
-    CUP_RADIUS,
-    HAND_GRASP_7CM,
+    ARM_KD,
+    ARM_KP,
     HAND_OPEN,
     OBSTACLE_RADIUS,
-    SHOULDER_FRAME,
     TABLE_HEIGHT,
     TCP_FRAME,
     ArmObject,
@@ -93,319 +103,24 @@ from repertoire.models.arm7 import (
     arm7_home_configuration,
 )
 from repertoire.planning.arm_library import (
-    BOTTLE_GRASP_HEIGHT,
-    COASTER_TOP,
-    CUP_GRASP_HEIGHT,
-    PLACE_CLEARANCE,
-    R_POUR,
-    R_SIDE,
-    approach_direction,
-    arm_control_plant,
     arm_motion_library,
     home_tcp_pose,
-    motion_library,
-    pour_tcp_position,
     quaternion_wxyz,
-    rotation_from_approach,
 )
 from repertoire.systems.arm_goals import GoalSchedule, SegmentGoal
 from repertoire.systems.arm_monitors import BodyPointAndAxis, ObstacleClearanceMonitor
+from repertoire.systems.dmp_sequencer import task_space_sequencer
 from repertoire.systems.grasp import GraspWrench
 from repertoire.systems.obstacle_coupling import MultiPointObstacleCoupling
 from repertoire.systems.task_space import (
-    STATUS_NAMES,
-    STATUS_OK,
-    STATUS_TARGET_OUT_OF_REACH,
     ResolvedMotionRateIK,
     check_reachable,
-    reach_bound,
 )
-from repertoire.systems.task_space_chain import TaskSpaceDmpChain
 
 from repertoire.criteria import Bound
-from repertoire.errors import RepertoireError, ScenarioError
-
-GRASP_MODES = ("contact", "grip")
-# ----------------------------------------------------------------------------- obstacle
-#: Where eq. 10 acts while carrying (tcp frame E; in a side grasp x_E is up, y_E closes the
-#: hand across the cup, z_E is the approach): the tcp on the cup's axis, the cup's lower
-#: part, the two finger groups, the palm's centre (8.5 cm behind the tcp) and its two ends
-#: (+-6.5 cm along y_E; with only the centre the palm's trailing end grazed the ball).
-CARRY_CONTROL_POINTS = (
-    (0.0, 0.0, 0.0),
-    (-0.045, 0.0, 0.0),
-    (0.0, 0.06, 0.0),
-    (0.0, -0.06, 0.0),
-    (0.0, 0.0, -0.085),
-    (0.0, 0.065, -0.085),
-    (0.0, -0.065, -0.085),
-)
-#: The default ball: 1 cm below the uncoupled carry path of the default layout, 62 % of the
-#: way along it (``carry_path_point([0.55, -0.25], [0.54, 0.20], 0.62) - [0, 0, 0.01]``,
-#: rounded to mm; nearer the middle it would touch the open hand at home).
-DEFAULT_OBSTACLE_XYZ = (0.543, 0.07, 0.971)
-
-
-def _ball_cylinder_gap(
-    centre: np.ndarray, xy: np.ndarray, z0: float, radius: float, height: float
-) -> float:
-    """Exact distance between a ball of radius OBSTACLE_RADIUS and an upright cylinder.
-
-    Args:
-        centre: ball centre (3).
-        xy: the cylinder's axis (2).
-        z0: the cylinder's bottom height.
-        radius: the cylinder's radius.
-        height: the cylinder's height.
-
-    Returns:
-        Distance between the surfaces [m]; <= 0 when they overlap.
-    """
-    radial = max(float(np.hypot(centre[0] - xy[0], centre[1] - xy[1])) - radius, 0.0)
-    vertical = max(z0 - centre[2], centre[2] - (z0 + height), 0.0)
-    return float(np.hypot(radial, vertical)) - OBSTACLE_RADIUS
-
-
-@functools.lru_cache(maxsize=1)
-def _home_arm_query():
-    """arm7 alone at home (hand open) with its SceneGraph: (diagram, context, geometry ids)."""
-    builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(time_step=0.0), builder)
-    arm = add_arm7(plant)
-    plant.Finalize()
-    plant.SetDefaultPositions(arm, np.concatenate([arm7_home_configuration(), HAND_OPEN]))
-    diagram = builder.Build()
-    context = diagram.CreateDefaultContext()
-    ids = {
-        g
-        for i in plant.GetBodyIndices(arm)
-        for g in plant.GetCollisionGeometriesForBody(plant.get_body(i))
-    }
-    return diagram, scene_graph, context, ids
-
-
-def ball_gap_at_home(centre_W: np.ndarray, radius: float = OBSTACLE_RADIUS) -> float:
-    """Signed distance between a ball and arm7 in its home configuration, hand open [m].
-
-    Exact (SceneGraph ``ComputeSignedDistanceToPoint`` from the ball's centre to the
-    arm's collision geometries, minus the radius); <= 0 when the ball overlaps the arm
-    where every world starts.
-
-    Args:
-        centre_W: the ball's centre in W (3).
-        radius: the ball's radius.
-    """
-    diagram, scene_graph, context, ids = _home_arm_query()
-    query = scene_graph.get_query_output_port().Eval(scene_graph.GetMyContextFromRoot(context))
-    gaps = [
-        d.distance
-        for d in query.ComputeSignedDistanceToPoint(np.asarray(centre_W, float), 1.0)
-        if d.id_G in ids
-    ]
-    return float(min(gaps, default=1.0)) - radius
-
-
-def carry_path(cup_xy, coaster_xy, dt: float = 0.005) -> np.ndarray:
-    """The tcp path of the learned place DMP without coupling (k x 3), cup to coaster.
-
-    The place DMP rolled out (NumPy) from the cup's grasp point to the place goal
-    above ``coaster_xy``: where the arm carries the cup when nothing is in the way.
-
-    Args:
-        cup_xy: the cup's position on the table (2).
-        coaster_xy: the coaster's position (2).
-        dt: rollout step [s].
-    """
-    cup = np.array([cup_xy[0], cup_xy[1], TABLE_HEIGHT + CUP_GRASP_HEIGHT])
-    goal = np.array([coaster_xy[0], coaster_xy[1], COASTER_RAIL_HEIGHT]) + _place_offset()
-    return motion_library()["place"].position.rollout(goal=goal, x0=cup, dt=dt).x
-
-
-def carry_path_point(cup_xy, coaster_xy, fraction: float = 0.5) -> np.ndarray:
-    """The point at ``fraction`` of the arc length of :func:`carry_path` (3).
-
-    Args:
-        cup_xy: the cup's position on the table (2).
-        coaster_xy: the coaster's position (2).
-        fraction: 0 = the grasp point, 1 = the place goal.
-    """
-    path = carry_path(cup_xy, coaster_xy)
-    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
-    return np.array([np.interp(fraction * arc[-1], arc, path[:, i]) for i in range(3)])
-
-
-# ----------------------------------------------------------------------------- scenarios
-def _check_xy(name: str, xy) -> np.ndarray:
-    v = np.asarray(xy, dtype=float).reshape(-1)
-    if v.size != 2 or not np.all(np.isfinite(v)):
-        raise ScenarioError(f"{name} must be 2 finite numbers (x, y) in m, got {xy}")
-    return v
-
-
-def _check_common(s) -> None:
-    if not (np.isfinite(s.time_step) and 0 < s.time_step <= 0.005):
-        raise ScenarioError(f"time_step must be in (0, 0.005] s, got {s.time_step}")
-    if s.contact_approximation not in ("lagged", "sap", "similar"):
-        raise ScenarioError(
-            f"contact_approximation '{s.contact_approximation}' unknown; expected lagged, sap "
-            "or similar"
-        )
-    if s.grasp_mode not in GRASP_MODES:
-        raise ScenarioError(f"grasp_mode '{s.grasp_mode}' unknown; expected one of {GRASP_MODES}")
-    if not (np.isfinite(s.settle_time) and 0.0 <= s.settle_time <= 5.0):
-        raise ScenarioError(f"settle_time must be in [0, 5] s, got {s.settle_time}")
-
-
-@dataclasses.dataclass
-class PickPlaceScenario:
-    """Pick a cup, place it on a coaster that moves after onset, around a ball (Fig. 13).
-
-    Attributes:
-        time_step: discrete plant time step [s].
-        contact_approximation: ``lagged``, ``sap`` or ``similar``.
-        grasp_mode: ``contact`` (finger friction) or ``grip`` (GraspWrench latch).
-        cup_xy: the cup's position on the table [m].
-        coaster_xy: the coaster's position at the start [m].
-        coaster_final_xy: where the coaster moves to after the placing onset [m].
-        coaster_move_delay: seconds after the placing onset when the coaster starts moving.
-        coaster_move_duration: seconds the coaster takes to move.
-        obstacle_xyz: centre of the ball-like obstacle (radius 0.06 m) [m]. The
-            default sits on the carry path (1 cm below the uncoupled tcp path, 62 % of
-            the way, see :func:`carry_path_point`): without coupling the cup hits it.
-        obstacle_coupling: whether the obstacle feeds the DMP coupling term (eq. 10).
-        obstacle_gamma: gamma of eq. 10.
-        obstacle_beta: the angular decay c of eq. 10 (the paper: 20/pi).
-        obstacle_points: control points in the tcp frame where eq. 10 is applied and
-            summed (:class:`MultiPointObstacleCoupling`): by default the tcp (the
-            carried cup's axis), the cup's lower part (x_tcp is up in a side grasp),
-            the two finger groups (+-y_tcp) and the palm (-z_tcp; centre and ends).
-            ``[[0, 0, 0]]`` is the paper's end-effector-only term.
-        obstacle_length_scale: decay length [m] of the distance factor
-            ``exp(-max(d - 0.06, 0) / length_scale)`` (our extension); 0 = the paper's
-            eq. 10 exactly.
-        settle_time: pause after each DMP's tau before the next segment starts [s].
-    """
-
-    time_step: float = 0.004
-    contact_approximation: str = "lagged"
-    grasp_mode: str = "contact"
-    cup_xy: list[float] = dataclasses.field(default_factory=lambda: [0.55, -0.25])
-    coaster_xy: list[float] = dataclasses.field(default_factory=lambda: [0.54, 0.20])
-    coaster_final_xy: list[float] = dataclasses.field(default_factory=lambda: [0.58, 0.22])
-    coaster_move_delay: float = 0.8
-    coaster_move_duration: float = 1.0
-    obstacle_xyz: list[float] = dataclasses.field(
-        default_factory=lambda: list(DEFAULT_OBSTACLE_XYZ)
-    )
-    obstacle_coupling: bool = True
-    obstacle_gamma: float = 50000.0
-    obstacle_beta: float = 4.0
-    obstacle_points: list[list[float]] = dataclasses.field(
-        default_factory=lambda: [list(p) for p in CARRY_CONTROL_POINTS]
-    )
-    obstacle_length_scale: float = 0.03
-    settle_time: float = 0.25
-
-    def validate(self) -> None:
-        """Raises ScenarioError on the first bad field."""
-        _check_common(self)
-        _check_xy("cup_xy", self.cup_xy)
-        _check_xy("coaster_xy", self.coaster_xy)
-        _check_xy("coaster_final_xy", self.coaster_final_xy)
-        o = np.asarray(self.obstacle_xyz, dtype=float).reshape(-1)
-        if o.size != 3 or not np.all(np.isfinite(o)):
-            raise ScenarioError(f"obstacle_xyz must be 3 finite numbers, got {self.obstacle_xyz}")
-        if o[2] - OBSTACLE_RADIUS < TABLE_HEIGHT:
-            raise ScenarioError(
-                f"obstacle_xyz z = {o[2]} m: the ball (radius {OBSTACLE_RADIUS} m) overlaps the "
-                f"table (top at {TABLE_HEIGHT} m); its centre must be at least "
-                f"{TABLE_HEIGHT + OBSTACLE_RADIUS + 0.05:.2f} m high"
-            )
-        if o[2] - OBSTACLE_RADIUS < TABLE_HEIGHT + 0.05:
-            raise ScenarioError(
-                f"obstacle_xyz z = {o[2]} m puts the ball within 5 cm of the table top "
-                f"({TABLE_HEIGHT} m); raise it"
-            )
-        for name in (
-            "coaster_move_delay",
-            "coaster_move_duration",
-            "obstacle_gamma",
-            "obstacle_beta",
-            "obstacle_length_scale",
-        ):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise ScenarioError(f"{name} must be finite and >= 0, got {value}")
-        pts = np.asarray(self.obstacle_points, dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) == 0 or not np.all(np.isfinite(pts)):
-            raise ScenarioError(
-                "obstacle_points must list one or more [x, y, z] points, got "
-                f"{self.obstacle_points}"
-            )
-        home_gap = ball_gap_at_home(o)
-        if home_gap <= 0.0:
-            raise ScenarioError(
-                f"obstacle_xyz {list(map(float, o))} puts the ball inside the arm at its start "
-                f"(home configuration, hand open; overlap {-home_gap * 100:.1f} cm); move it away"
-            )
-        # The ball must not overlap the cup where it starts or where it is put down.
-        bottom = TABLE_HEIGHT
-        placed = TABLE_HEIGHT + COASTER_TOP + PLACE_CLEARANCE
-        for what, xy, z0 in (
-            ("the cup at its start (cup_xy)", self.cup_xy, bottom),
-            ("the cup placed on the coaster (coaster_xy)", self.coaster_xy, placed),
-            (
-                "the cup placed on the moved coaster (coaster_final_xy)",
-                self.coaster_final_xy,
-                placed,
-            ),
-        ):
-            gap = _ball_cylinder_gap(o, np.asarray(xy, float), z0, CUP_RADIUS, CUP_HEIGHT)
-            if gap <= 0.0:
-                raise ScenarioError(
-                    f"obstacle_xyz {list(map(float, o))} puts the ball inside {what} "
-                    f"(overlap {-gap * 100:.1f} cm); the ball must stay clear of the start and "
-                    "the goal"
-                )
-
-
-@dataclasses.dataclass
-class ServingScenario:
-    """Grasp a bottle and pour over three cups (Fig. 12).
-
-    Attributes:
-        time_step: discrete plant time step [s].
-        contact_approximation: ``lagged``, ``sap`` or ``similar``.
-        grasp_mode: ``contact`` (finger friction) or ``grip`` (GraspWrench latch).
-        bottle_xy: the bottle's position on the table [m].
-        cup_xys: the three cups' positions [m], poured over in this order.
-        settle_time: pause after each DMP's tau before the next segment starts [s].
-    """
-
-    time_step: float = 0.004
-    contact_approximation: str = "lagged"
-    grasp_mode: str = "contact"
-    bottle_xy: list[float] = dataclasses.field(default_factory=lambda: [0.52, -0.28])
-    cup_xys: list[list[float]] = dataclasses.field(
-        default_factory=lambda: [[0.64, -0.10], [0.68, 0.04], [0.64, 0.18]]
-    )
-    settle_time: float = 0.2
-
-    def validate(self) -> None:
-        """Raises ScenarioError on the first bad field."""
-        _check_common(self)
-        _check_xy("bottle_xy", self.bottle_xy)
-        if len(self.cup_xys) != 3:
-            raise ScenarioError(f"cup_xys must list three cups, got {len(self.cup_xys)}")
-        for k, xy in enumerate(self.cup_xys):
-            _check_xy(f"cup_xys[{k}]", xy)
 
 
 # ----------------------------------------------------------------------------- building
-#: The coaster rides 1 mm above the table top (no rubbing on the table).
-COASTER_RAIL_HEIGHT = TABLE_HEIGHT + 0.001
-
-
 def _coaster_on_slider(plant: MultibodyPlant, xy: np.ndarray):
     """Adds the coaster on two PD-actuated prismatic joints (x, then y) just above the table.
 
@@ -438,98 +153,13 @@ def _coaster_on_slider(plant: MultibodyPlant, xy: np.ndarray):
     return instance, coaster
 
 
-#: Joint PD gains of the arm (diagrams/arm.py defaults) and of the fingers.
-ARM_KP = (800.0, 800.0, 400.0, 400.0, 60.0, 60.0, 60.0)
-ARM_KD = (40.0, 40.0, 20.0, 20.0, 2.0, 2.0, 2.0)
+#: Finger PD gains of the DMP worlds (the arm's are ``models.arm7.ARM_KP``/``ARM_KD``): softer
+#: than ``ArmScenario.finger_kp`` and equal for the thumb, as the grasps were tuned with.
 FINGER_KP = (2.0, 2.0, 2.0)
 FINGER_KD = (0.02, 0.02, 0.02)
 IK_PERIOD = 0.004
 LOG_PERIOD = 0.02
 TABLE_CENTER = [0.65, 0.0]
-
-
-def shoulder_and_reach() -> tuple[np.ndarray, float]:
-    """Shoulder centre in W and the reach bound of the tcp (joint polyline length)."""
-    plant = arm_control_plant()
-    context = plant.CreateDefaultContext()
-    shoulder = plant.GetFrameByName(SHOULDER_FRAME).CalcPoseInWorld(context).translation()
-    points = [shoulder]
-    for name in ARM_JOINTS:
-        points.append(
-            plant.GetJointByName(name).frame_on_child().CalcPoseInWorld(context).translation()
-        )
-    points.append(plant.GetFrameByName(TCP_FRAME).CalcPoseInWorld(context).translation())
-    return shoulder, reach_bound(np.array(points))
-
-
-def segment_timing(labels: list[str], settle: float) -> tuple[list[float], float]:
-    """Start time of each segment of a chain and the total duration [s].
-
-    Args:
-        labels: Motion-library labels of the segments, in order.
-        settle: Settling time after each segment [s].
-    """
-    lib = motion_library()
-    starts, t = [], 0.0
-    for label in labels:
-        starts.append(t)
-        t += lib[label].tau + settle
-    return starts, t
-
-
-@dataclasses.dataclass
-class CoasterMotion:
-    """A coaster that slides from ``xy`` to ``final_xy`` between ``t0`` and ``t1`` (Fig. 13).
-
-    Attributes:
-        xy: Start position on the table [m].
-        final_xy: End position [m].
-        t0: Time the move starts [s].
-        t1: Time the move ends [s] (> t0).
-    """
-
-    xy: list[float]
-    final_xy: list[float]
-    t0: float
-    t1: float
-
-
-@dataclasses.dataclass
-class BallObstacle:
-    """The ball obstacle of a world and the DMP coupling term around it (eq. 10).
-
-    Attributes:
-        xyz: Centre of the ball [m] (radius ``models.arm7.OBSTACLE_RADIUS``).
-        coupling: Add the coupling term to the DMP chain (False: only the monitor).
-        gamma: Coupling gain.
-        beta: Coupling steering constant.
-        points: Control points in the tcp frame E [m] (see CARRY_CONTROL_POINTS).
-        length_scale: Distance fade of the coupling [m] (0 = the paper's, no fade).
-    """
-
-    xyz: list[float]
-    coupling: bool
-    gamma: float
-    beta: float
-    points: list[list[float]]
-    length_scale: float
-
-
-@dataclasses.dataclass
-class BodyPointLog:
-    """An extra named logger ``<name>_log`` of a body-fixed point and the body's z axis.
-
-    Attributes:
-        name: Logger name prefix.
-        body: Body name.
-        instance: Model instance name.
-        p_BQ: The point in the body frame [m].
-    """
-
-    name: str
-    body: str
-    instance: str
-    p_BQ: list[float]
 
 
 def build_arm_world(
@@ -601,7 +231,7 @@ def build_arm_world(
     library = arm_motion_library()
     chain = builder.AddNamedSystem(
         "dmp_chain",
-        TaskSpaceDmpChain(
+        task_space_sequencer(
             [library.select(label, robot="arm7").dmp for label in labels],
             starts,
             np.concatenate([home.translation(), quaternion_wxyz(home.rotation()), HAND_OPEN]),
@@ -609,9 +239,10 @@ def build_arm_world(
         ),
     )
     schedule = builder.AddNamedSystem("goal_schedule", GoalSchedule(resolved))
-    builder.Connect(chain.GetOutputPort("segment"), schedule.GetInputPort("segment"))
     builder.Connect(plant.get_body_poses_output_port(), schedule.GetInputPort("body_poses"))
-    builder.Connect(schedule.GetOutputPort("goal"), chain.GetInputPort("goal"))
+    builder.Connect(chain.GetOutputPort("segment"), schedule.GetInputPort("segment"))
+    for k in range(len(goals)):
+        builder.Connect(schedule.GetOutputPort(f"goal_{k}"), chain.GetInputPort(f"goal_{k}"))
     if obstacle is not None and obstacle.coupling:
         coupling = builder.AddNamedSystem(
             "obstacle_coupling",
@@ -626,8 +257,8 @@ def build_arm_world(
         o_src = builder.AddNamedSystem(
             "obstacle_position", ConstantVectorSource(np.asarray(obstacle.xyz, float))
         )
-        builder.Connect(chain.GetOutputPort("position"), coupling.GetInputPort("position"))
-        builder.Connect(chain.GetOutputPort("velocity"), coupling.GetInputPort("velocity"))
+        builder.Connect(chain.GetOutputPort("tcp_position"), coupling.GetInputPort("position"))
+        builder.Connect(chain.GetOutputPort("tcp_velocity"), coupling.GetInputPort("velocity"))
         builder.Connect(chain.GetOutputPort("orientation"), coupling.GetInputPort("orientation"))
         builder.Connect(o_src.get_output_port(), coupling.GetInputPort("obstacle"))
         builder.Connect(coupling.GetOutputPort("coupling"), chain.GetInputPort("coupling"))
@@ -648,8 +279,8 @@ def build_arm_world(
         ),
     )
     for src, dst in (
-        ("position", "position_desired"),
-        ("velocity", "velocity_desired"),
+        ("tcp_position", "position_desired"),
+        ("tcp_velocity", "velocity_desired"),
         ("orientation", "orientation_desired"),
         ("angular_velocity", "angular_velocity_desired"),
     ):
@@ -755,60 +386,6 @@ def build_arm_world(
 
 
 # ----------------------------------------------------------------------------- the two worlds
-PICK_PLACE_LABELS = ["grasp", "place", "release"]
-SERVING_LABELS = ["grasp", "pour", "retreat", "pour", "retreat", "pour", "retreat"]
-
-
-def _place_offset() -> np.ndarray:
-    return np.array([0.0, 0.0, COASTER_TOP + CUP_GRASP_HEIGHT + PLACE_CLEARANCE])
-
-
-RELEASE_OFFSET = np.array([-0.12, 0.0, 0.08])
-
-
-def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]:
-    """Goals of grasp -> place -> release for a scenario (sec. IV-C, IV-E).
-
-    The grasp goal is the cup's grasp point, its orientation computed from the
-    approach direction of the grasp DMP rolled out to that goal; the place and
-    release goals follow the coaster (their orientations are the demonstration's).
-
-    Returns:
-        (goals, duration of the whole sequence in s).
-    """
-    grasp_primitive, place_primitive, release_primitive = arm_motion_library().compose(
-        "pick_and_place", robot="arm7"
-    )
-    home = home_tcp_pose()
-    cup = np.array([*s.cup_xy, TABLE_HEIGHT + CUP_GRASP_HEIGHT])
-    R_grasp = rotation_from_approach(
-        approach_direction(grasp_primitive.dmp, home.translation(), cup)
-    )
-    grasp, open_ = np.array(HAND_GRASP_7CM), np.array(HAND_OPEN)
-    q_side = quaternion_wxyz(R_SIDE)
-    goals = [
-        SegmentGoal(grasp_primitive.label, cup, quaternion_wxyz(R_grasp), grasp),
-        SegmentGoal(place_primitive.label, _place_offset(), q_side, grasp, "coaster:coaster"),
-        SegmentGoal(
-            release_primitive.label,
-            _place_offset() + RELEASE_OFFSET,
-            q_side,
-            open_,
-            "coaster:coaster",
-        ),
-    ]
-    shoulder, reach = shoulder_and_reach()
-    for xy_name in ("coaster_xy", "coaster_final_xy"):
-        xy = getattr(s, xy_name)
-        base = np.array([xy[0], xy[1], COASTER_RAIL_HEIGHT])
-        check_reachable(base + _place_offset(), shoulder, reach, what=f"place goal ({xy_name})")
-        check_reachable(
-            base + _place_offset() + RELEASE_OFFSET, shoulder, reach, what=f"release ({xy_name})"
-        )
-    _, duration = segment_timing(PICK_PLACE_LABELS, s.settle_time)
-    return goals, duration
-
-
 @register_diagram(
     "arm_pick_and_place",
     scenario_type=PickPlaceScenario,
@@ -867,28 +444,6 @@ def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagra
     )
 
 
-def plan_serving(s: ServingScenario) -> tuple[list[SegmentGoal], float]:
-    """Goals of grasp(bottle) -> (pour -> retreat) x 3 cups (sec. IV-E, Fig. 12).
-
-    Returns:
-        (goals, duration of the whole sequence in s).
-    """
-    lib = motion_library()
-    home = home_tcp_pose()
-    bottle = np.array([*s.bottle_xy, TABLE_HEIGHT + BOTTLE_GRASP_HEIGHT])
-    R_grasp = rotation_from_approach(approach_direction(lib["grasp"], home.translation(), bottle))
-    grasp = np.array(HAND_GRASP_7CM)
-    goals = [SegmentGoal("grasp", bottle, quaternion_wxyz(R_grasp), grasp)]
-    for xy in s.cup_xys:
-        pour = pour_tcp_position(xy, R_POUR)
-        goals.append(SegmentGoal("pour", pour, quaternion_wxyz(R_POUR), grasp))
-        goals.append(
-            SegmentGoal("retreat", pour + [0.0, 0.0, 0.06], quaternion_wxyz(R_SIDE), grasp)
-        )
-    _, duration = segment_timing(SERVING_LABELS, s.settle_time)
-    return goals, duration
-
-
 @register_diagram(
     "arm_serving_water",
     scenario_type=ServingScenario,
@@ -925,237 +480,3 @@ def build_serving_water(scenario: ServingScenario, *, meshcat=None) -> Diagram:
         logs=[BodyPointLog(name="tip", body="bottle", instance="bottle", p_BQ=[0.0, 0.0, 0.25])],
         meshcat=meshcat,
     )
-
-
-# ----------------------------------------------------------------------------- running
-class IkTargetError(RepertoireError):
-    """The task-space IK reported a target out of reach or lost tracking during a run."""
-
-
-def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
-    """Simulates an arm DMP world, stopping with a clear error if the IK reports a problem.
-
-    Runs through :func:`repertoire.diagrams.simulate.simulate` (its non-finite-state check)
-    with the IK-status monitor added.
-
-    Args:
-        diagram: a diagram built by this module.
-        duration: simulated seconds.
-
-    Returns:
-        (final root context, wall-clock seconds of the simulation).
-
-    Raises:
-        IkTargetError: the active goal left the arm's reach, or the IK reported a
-            desired position out of reach or lost tracking (says when, which segment
-            and where the goal and the target were).
-    """
-    rmrc = diagram.GetSubsystemByName("rmrc")
-    chain = diagram.GetSubsystemByName("dmp_chain")
-    schedule = diagram.GetSubsystemByName("goal_schedule")
-    status_port = rmrc.GetOutputPort("status")
-    shoulder, reach = shoulder_and_reach()
-    problem = {}
-
-    def ik_monitor(context: Context) -> EventStatus:
-        rmrc_context = rmrc.GetMyContextFromRoot(context)
-        status = int(status_port.Eval(rmrc_context)[0])
-        goal = schedule.GetOutputPort("goal").Eval(schedule.GetMyContextFromRoot(context))[:3]
-        if status == STATUS_OK and np.linalg.norm(goal - shoulder) > reach:
-            status = STATUS_TARGET_OUT_OF_REACH
-        if status == STATUS_OK:
-            return EventStatus.Succeeded()
-        chain_context = chain.GetMyContextFromRoot(context)
-        problem.update(
-            status=status,
-            time=context.get_time(),
-            segment=int(chain.GetOutputPort("segment").Eval(chain_context)[0]),
-            target=chain.GetOutputPort("position").Eval(chain_context).copy(),
-            goal=goal.copy(),
-            error=rmrc.GetOutputPort("task_error").Eval(rmrc_context).copy(),
-        )
-        return EventStatus.ReachedTermination(rmrc, STATUS_NAMES[status])
-
-    start = time.perf_counter()
-    _, root = simulate(diagram, duration, monitors=[ik_monitor])
-    wall = time.perf_counter() - start
-    if problem:
-        distance = float(np.linalg.norm(problem["goal"] - shoulder))
-        raise IkTargetError(
-            f"{diagram.get_name()}: IK reported '{STATUS_NAMES[problem['status']]}' at "
-            f"t = {problem['time']:.3f} s in segment {problem['segment']}: goal "
-            f"{np.round(problem['goal'], 3).tolist()} ({distance:.3f} m from"
-            f" the shoulder, reach {reach:.3f} m), desired tcp position "
-            f"{np.round(problem['target'], 3).tolist()}, tcp error {problem['error'][0]:.3f} m; "
-            "the simulation was stopped there"
-        )
-    return root, wall
-
-
-@dataclasses.dataclass
-class PointLog:
-    """A logged body point and axis (``BodyPointAndAxis``), by field.
-
-    Attributes:
-        t: Sample times, shape (N,) [s].
-        point: The point in world, shape (N, 3) [m].
-        axis: The body's z axis in world, shape (N, 3).
-    """
-
-    t: np.ndarray
-    point: np.ndarray
-    axis: np.ndarray
-
-
-@dataclasses.dataclass
-class TcpLog(PointLog):
-    """The ``tcp_log`` of an arm world, by field (``point`` is the tcp, ``axis`` the palm z).
-
-    Attributes:
-        goal: The current segment's goal (position 3, quaternion 4, fingers 3), (N, 10).
-        segment: Index of the running chain segment, shape (N,).
-    """
-
-    goal: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 10)))
-    segment: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=int))
-
-
-def point_log(diagram: Diagram, context: Context, name: str) -> PointLog:
-    """The samples of a point logger (``"tip_log"``, ...) of an arm world.
-
-    Args:
-        diagram: The arm world.
-        context: Its root context after a run.
-        name: The logger's name.
-    """
-    log = diagram.GetSubsystemByName(name).FindLog(context)
-    data = log.data().T
-    return PointLog(log.sample_times().copy(), data[:, 0:3], data[:, 3:6])
-
-
-def tcp_log(diagram: Diagram, context: Context) -> TcpLog:
-    """The arm world's ``tcp_log``: tcp, palm axis, segment goal and segment index.
-
-    Args:
-        diagram: The arm world.
-        context: Its root context after a run.
-    """
-    log = diagram.GetSubsystemByName("tcp_log").FindLog(context)
-    data = log.data().T
-    return TcpLog(
-        log.sample_times().copy(),
-        data[:, 0:3],
-        data[:, 3:6],
-        data[:, 6:16],
-        data[:, 16].astype(int),
-    )
-
-
-def segment_reach_errors(diagram: Diagram, context: Context) -> list[float]:
-    """|tcp - goal| at the end of each segment (the last log sample of the segment) [m]."""
-    log = tcp_log(diagram, context)
-    errors = []
-    for k in range(int(log.segment.max()) + 1):
-        rows = np.nonzero(log.segment == k)[0]
-        if len(rows):
-            last = rows[-1]
-            errors.append(float(np.linalg.norm(log.point[last] - log.goal[last, :3])))
-    return errors
-
-
-def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, float]:
-    """Figures of a pick-and-place run (also the registry's check).
-
-    Returns:
-        ``cup_to_coaster_m`` (horizontal), ``cup_height_above_coaster_m`` (cup bottom
-        above the coaster top), ``cup_tilt_rad``, ``min_obstacle_clearance_m`` (tcp
-        to the ball's surface), ``grasp_reach_error_m``, ``place_reach_error_m``,
-        ``success`` (1 if the cup stands on the coaster within 2 cm of its centre),
-        ``min_ball_gap_m`` (smallest signed distance between the ball and any collision
-        geometry of the arm, the hand, the fingers or the cup over the run, from
-        SceneGraph every 4 ms; negative = they touched), ``min_ball_gap_time_s``
-        (when) and ``collision_free`` (1 if ``min_ball_gap_m > 0``).
-    """
-    plant = diagram.GetSubsystemByName("plant")
-    pc = plant.GetMyContextFromRoot(context)
-    X_cup = plant.GetBodyByName("cup", plant.GetModelInstanceByName("cup_red")).EvalPoseInWorld(pc)
-    X_coaster = plant.GetBodyByName(
-        "coaster", plant.GetModelInstanceByName("coaster")
-    ).EvalPoseInWorld(pc)
-    d_xy = float(np.linalg.norm(X_cup.translation()[:2] - X_coaster.translation()[:2]))
-    height = float(X_cup.translation()[2] - (X_coaster.translation()[2] + COASTER_TOP))
-    tilt = float(np.arccos(np.clip(X_cup.rotation().matrix()[2, 2], -1, 1)))
-    obstacle = plant.GetBodyByName(
-        "obstacle", plant.GetModelInstanceByName("obstacle_blue")
-    ).EvalPoseInWorld(pc)
-    tcp = tcp_log(diagram, context).point
-    clearance = float(
-        np.min(np.linalg.norm(tcp - obstacle.translation(), axis=1)) - OBSTACLE_RADIUS
-    )
-    monitor = diagram.GetSubsystemByName("obstacle_clearance")
-    gap, gap_time = monitor.get_output_port().Eval(monitor.GetMyContextFromRoot(context))
-    errors = segment_reach_errors(diagram, context) + [np.nan] * 3
-    success = d_xy < 0.02 and abs(height) < 0.01 and tilt < 0.2
-    return {
-        "cup_to_coaster_m": d_xy,
-        "cup_height_above_coaster_m": height,
-        "cup_tilt_rad": tilt,
-        "min_obstacle_clearance_m": clearance,
-        "grasp_reach_error_m": errors[0],
-        "place_reach_error_m": errors[1],
-        "success": float(success),
-        "min_ball_gap_m": float(gap),
-        "min_ball_gap_time_s": float(gap_time),
-        "collision_free": float(gap > 0.0),
-    }
-
-
-#: The tip must come within this horizontal distance of a cup's axis (inside the rim).
-POUR_RADIUS = 0.03
-#: Tilt of the bottle above which it counts as pouring [rad].
-POUR_MIN_TILT = np.pi / 3
-
-
-def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
-    """Figures of a serving run (also the registry's check).
-
-    Returns:
-        ``tip_to_cup_k_m`` (k = 1..3): closest horizontal distance of the bottle tip to
-        cup k while the bottle is tilted past 60 degrees during that cup's pour;
-        ``cups_served`` (how many within 3 cm), ``max_cup_displacement_m`` (how far
-        the bottle or the hand pushed a cup), ``bottle_in_hand_m`` (bottle grasp
-        point to tcp at the end), ``grasp_reach_error_m``, ``pour_reach_error_m``
-        (largest over the pours), ``success`` (1 if all three cups were served and
-        none was pushed by more than 1 cm).
-    """
-    plant = diagram.GetSubsystemByName("plant")
-    pc = plant.GetMyContextFromRoot(context)
-    tip = point_log(diagram, context, "tip_log")  # the bottle tip and the bottle's z axis
-    tcp = tcp_log(diagram, context)
-    n = min(len(tip.t), len(tcp.t))
-    tip_xy, segments = tip.point[:n, :2], tcp.segment[:n]
-    tilt = np.arccos(np.clip(tip.axis[:n, 2], -1.0, 1.0))
-    figures = {}
-    served = 0
-    knocked = 0.0
-    for k in range(3):
-        cup = plant.GetBodyByName("cup", plant.GetModelInstanceByName(f"cup_{k + 1}"))
-        p_cup = plant.GetDefaultFloatingBaseBodyPose(cup).translation()
-        knocked = max(knocked, float(np.linalg.norm(cup.EvalPoseInWorld(pc).translation() - p_cup)))
-        rows = ((segments == 1 + 2 * k) | (segments == 2 + 2 * k)) & (tilt > POUR_MIN_TILT)
-        d = np.linalg.norm(tip_xy[rows] - p_cup[:2], axis=1) if rows.any() else [np.inf]
-        figures[f"tip_to_cup_{k + 1}_m"] = float(np.min(d))
-        served += int(np.min(d) < POUR_RADIUS)
-    bottle = plant.GetBodyByName("bottle", plant.GetModelInstanceByName("bottle"))
-    X_B = bottle.EvalPoseInWorld(pc)
-    grasp_point = X_B @ np.array([0, 0, BOTTLE_GRASP_HEIGHT])
-    errors = segment_reach_errors(diagram, context)
-    figures.update(
-        cups_served=float(served),
-        max_cup_displacement_m=knocked,
-        bottle_in_hand_m=float(np.linalg.norm(grasp_point - tcp.point[n - 1])),
-        grasp_reach_error_m=errors[0],
-        pour_reach_error_m=float(max(errors[1::2][:3])) if len(errors) > 1 else np.nan,
-        success=float(served == 3 and knocked < 0.01),
-    )
-    return figures

@@ -21,8 +21,9 @@ from repertoire.models.arm7 import (
     arm7_home_configuration,
     make_arm7_control_plant,
 )
-from repertoire.planning.dmp import TaskSpaceDmp, learn_task_space_dmp
+from repertoire.planning.dmp import TaskSpaceDmp
 from repertoire.planning.dmp_demos import Demonstration, synthesize_demonstration
+from repertoire.planning.dmp_learn import learn_task_space_dmp
 from repertoire.planning.motion_library import MotionLibrary
 
 from repertoire.errors import RepertoireError

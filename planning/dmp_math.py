@@ -260,7 +260,7 @@ class Rollout:
     xdd: np.ndarray
 
 
-def _foh_matrices(K: np.ndarray, D: np.ndarray, tau: float, dt: float) -> tuple:
+def foh_matrices(K: np.ndarray, D: np.ndarray, tau: float, dt: float) -> tuple:
     """Exact first-order-hold discretisation of ``x' = v/tau, v' = (-K x - D v + u)/tau``.
 
     Returns per-DOF arrays Phi (n, 2, 2), Gu (n, 2), Gd (n, 2) such that
@@ -415,7 +415,7 @@ def rollout(
             U = Kv * G + (G - x0) * f
         else:
             raise RepertoireError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
-        Phi, Gu, Gd = _foh_matrices(Kv, Dv, tau, dt)
+        Phi, Gu, Gd = foh_matrices(Kv, Dv, tau, dt)
         dU = np.diff(U, axis=0)
         # Per-step input contribution c_k (shape (N-1, 2, n)) of z_{k+1} = Phi z_k + c_k.
         C = Gu.T[None] * U[:-1, None, :] + Gd.T[None] * dU[:, None, :]

@@ -28,14 +28,14 @@ def tcp_path(diagram, context, every_s: float) -> np.ndarray:
         context: Its root context.
         every_s: Spacing of the kept samples [s].
     """
-    from repertoire.diagrams.arm_dmp import tcp_log
+    from repertoire.diagrams.arm_dmp_results import tcp_log
 
     return tcp_log(diagram, context).point[:: log_stride(every_s)]
 
 
 def carry_control_points() -> list[list[float]]:
-    """The default eq.-10 control points while carrying (``arm_dmp.CARRY_CONTROL_POINTS``)."""
-    from repertoire.diagrams.arm_dmp import CARRY_CONTROL_POINTS
+    """The default eq.-10 control points while carrying (``CARRY_CONTROL_POINTS``)."""
+    from repertoire.diagrams.arm_dmp_scenarios import CARRY_CONTROL_POINTS
 
     return [list(p) for p in CARRY_CONTROL_POINTS]
 

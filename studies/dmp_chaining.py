@@ -118,7 +118,7 @@ class DmpChainingRecord:
 
 def primitive(config: DmpChainingConfig):
     """The minimum-jerk primitive (0,0) -> (1,0) m, learned once per episode."""
-    from repertoire.planning.dmp import learn_dmp
+    from repertoire.planning.dmp_learn import learn_dmp
     from repertoire.planning.dmp_math import minimum_jerk
 
     t = np.linspace(0, config.duration_s, config.n_samples)
@@ -170,13 +170,15 @@ def run_chain(config: DmpChainingConfig, switch: float, goals: list[np.ndarray],
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import VectorLogSink
-    from repertoire.systems.dmp_compose import DmpSequencer
+    from repertoire.systems.dmp_sequencer import DmpSequencer
 
     segments = leg_primitives(config, goals)
     dt = config.time_step_s
     times = [i * switch * config.duration_s for i in range(4)]
     builder = DiagramBuilder()
-    seq = builder.AddSystem(DmpSequencer(segments, goals, times, time_step=dt, handoff=handoff))
+    seq = builder.AddSystem(
+        DmpSequencer(segments, times, goals=goals, time_step=dt, handoff=handoff)
+    )
     logs = {}
     for name in ("position", "velocity", "acceleration"):
         logs[name] = builder.AddSystem(VectorLogSink(2, publish_period=dt))
@@ -204,7 +206,7 @@ def run_episode(config: DmpChainingConfig, seed: int) -> DmpChainingRecord:
         config: Study config.
         seed: Episode seed.
     """
-    from repertoire.planning.dmp import chain_rollout
+    from repertoire.planning.dmp_chain import chain_rollout
 
     t0 = time.perf_counter()
     config.validate()

@@ -259,7 +259,7 @@ def run_episode(config: DmpGoalsConfig, seed: int) -> DmpGoalsRecord:
         config: Study config.
         seed: Episode seed.
     """
-    from repertoire.planning.dmp import learn_dmp
+    from repertoire.planning.dmp_learn import learn_dmp
 
     t0 = time.perf_counter()
     config.validate()
@@ -308,7 +308,7 @@ def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Pa
         out_dir: Output directory.
     """
     from matplotlib.figure import Figure
-    from repertoire.planning.dmp import learn_dmp
+    from repertoire.planning.dmp_learn import learn_dmp
 
     out_dir = Path(out_dir)
     ep = sample_episode(config, 0)

@@ -62,12 +62,9 @@ class GridConfig:
 
     def cell(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """(grasp goal, place goal) of the episode with this seed."""
-        from repertoire.diagrams.arm_dmp import (
-            COASTER_RAIL_HEIGHT,
-            CUP_GRASP_HEIGHT,
-            _place_offset,
-        )
+        from repertoire.diagrams.arm_dmp_scenarios import COASTER_RAIL_HEIGHT, place_offset
         from repertoire.models.arm7 import TABLE_HEIGHT
+        from repertoire.planning.arm_library import CUP_GRASP_HEIGHT
 
         k = seed % (self.n * self.n)
         i, j = divmod(k, self.n)
@@ -79,7 +76,7 @@ class GridConfig:
             [grid(self.grasp_x, i), grid(self.grasp_y, j), TABLE_HEIGHT + CUP_GRASP_HEIGHT]
         )
         place = np.array([grid(self.place_x, i), grid(self.place_y, j), COASTER_RAIL_HEIGHT])
-        return grasp, place + _place_offset()
+        return grasp, place + place_offset()
 
 
 @dataclasses.dataclass
@@ -125,23 +122,24 @@ def run_episode(config: GridConfig, seed: int) -> GridRecord:
         seed: the episode seed (selects the cell).
     """
     from pydrake.common.eigen_geometry import Quaternion
-    from repertoire.diagrams.arm_dmp import (
-        HAND_GRASP_7CM,
-        R_SIDE,
+    from repertoire.diagrams.arm_dmp import build_arm_world
+    from repertoire.diagrams.arm_dmp_results import (
         IkTargetError,
-        PickPlaceScenario,
-        SegmentGoal,
+        run_arm_world,
+        segment_reach_errors,
+        tcp_log,
+    )
+    from repertoire.diagrams.arm_dmp_scenarios import PickPlaceScenario, segment_timing
+    from repertoire.models.arm7 import HAND_GRASP_7CM
+    from repertoire.planning.arm_library import (
+        R_SIDE,
         approach_direction,
-        build_arm_world,
         home_tcp_pose,
         motion_library,
         quaternion_wxyz,
         rotation_from_approach,
-        run_arm_world,
-        segment_reach_errors,
-        segment_timing,
-        tcp_log,
     )
+    from repertoire.systems.arm_goals import SegmentGoal
 
     t0 = time.perf_counter()
     config.validate()

@@ -1,7 +1,7 @@
 """Obstacle on the carry path (Pastor et al. 2009, Fig. 13, third row) in the physics simulation.
 
 Each episode draws a cup and a coaster from the seed, rolls the learned place
-DMP out without coupling (:func:`repertoire.diagrams.arm_dmp.carry_path`) and
+DMP out without coupling (:func:`repertoire.diagrams.arm_dmp_scenarios.carry_path`) and
 puts the ball (radius 6 cm, on its post) on that path: at a seeded fraction of
 its arc length, shifted by a few cm sideways and down, where the carried cup or
 the fingers hit it when nothing steers. The same layout then runs twice in the
@@ -148,12 +148,12 @@ def sample_scenario(config: ObstacleArmConfig, seed: int, *, coupling: bool = Tr
     Returns:
         ``(scenario, gap of the ball's surface to the uncoupled tcp carry path [m])``.
     """
-    from repertoire.diagrams.arm_dmp import (
+    from repertoire.diagrams.arm_dmp_scenarios import (
         PickPlaceScenario,
         carry_path,
         carry_path_point,
-        home_tcp_pose,
     )
+    from repertoire.planning.arm_library import home_tcp_pose
 
     rng = np.random.default_rng(seed)
     cup = [float(rng.uniform(*config.cup_x)), float(rng.uniform(*config.cup_y))]
@@ -189,13 +189,13 @@ def sample_scenario(config: ObstacleArmConfig, seed: int, *, coupling: bool = Tr
 
 
 def _run(scenario, config: ObstacleArmConfig) -> dict:
-    from repertoire.diagrams.arm_dmp import (
+    from repertoire.diagrams.arm_dmp import build_pick_and_place
+    from repertoire.diagrams.arm_dmp_results import (
         IkTargetError,
-        build_pick_and_place,
         pick_and_place_figures,
-        plan_pick_and_place,
         run_arm_world,
     )
+    from repertoire.diagrams.arm_dmp_scenarios import plan_pick_and_place
 
     out = {"failure": "", "path": np.zeros((0, 3)), "duration": 0.0, "wall": 0.0}
     try:

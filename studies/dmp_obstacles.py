@@ -152,7 +152,7 @@ def run_episode(config: DmpObstaclesConfig, seed: int) -> DmpObstaclesRecord:
         config: Study config.
         seed: Episode seed.
     """
-    from repertoire.planning.dmp import learn_dmp
+    from repertoire.planning.dmp_learn import learn_dmp
 
     t0 = time.perf_counter()
     config.validate()
@@ -196,7 +196,7 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
         out_dir: Output directory.
     """
     from matplotlib.figure import Figure
-    from repertoire.planning.dmp import learn_dmp
+    from repertoire.planning.dmp_learn import learn_dmp
 
     out_dir = Path(out_dir)
     sc = scene(config, 0)

@@ -142,7 +142,7 @@ class PickPlaceRecord:
 
 def sample_scenario(config: PickPlaceConfig, seed: int):
     """The seeded PickPlaceScenario of an episode."""
-    from repertoire.diagrams.arm_dmp import PickPlaceScenario, ball_gap_at_home
+    from repertoire.diagrams.arm_dmp_scenarios import PickPlaceScenario, ball_gap_at_home
 
     rng = np.random.default_rng(seed)
     cup = [rng.uniform(*config.cup_x), rng.uniform(*config.cup_y)]
@@ -187,13 +187,13 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
         config: the study config.
         seed: the episode seed.
     """
-    from repertoire.diagrams.arm_dmp import (
+    from repertoire.diagrams.arm_dmp import build_pick_and_place
+    from repertoire.diagrams.arm_dmp_results import (
         IkTargetError,
-        build_pick_and_place,
         pick_and_place_figures,
-        plan_pick_and_place,
         run_arm_world,
     )
+    from repertoire.diagrams.arm_dmp_scenarios import plan_pick_and_place
 
     t0 = time.perf_counter()
     config.validate()
@@ -264,7 +264,11 @@ def carry_clearance(record: PickPlaceRecord, config: PickPlaceConfig) -> float:
     Read from the stored tcp path (one point every ``path_every_s`` from t = 0) over
     the place segment's time window.
     """
-    from repertoire.diagrams.arm_dmp import PICK_PLACE_LABELS, PickPlaceScenario, segment_timing
+    from repertoire.diagrams.arm_dmp_scenarios import (
+        PICK_PLACE_LABELS,
+        PickPlaceScenario,
+        segment_timing,
+    )
 
     if not record.path_x:
         return float("nan")

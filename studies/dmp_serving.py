@@ -111,7 +111,7 @@ class ServingRecord:
 
 def sample_scenario(config: ServingConfig, seed: int):
     """The seeded ServingScenario of an episode."""
-    from repertoire.diagrams.arm_dmp import ServingScenario
+    from repertoire.diagrams.arm_dmp_scenarios import ServingScenario
 
     rng = np.random.default_rng(seed)
     bottle = [float(rng.uniform(*config.bottle_x)), float(rng.uniform(*config.bottle_y))]
@@ -128,14 +128,14 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
         config: the study config.
         seed: the episode seed.
     """
-    from repertoire.diagrams.arm_dmp import (
+    from repertoire.diagrams.arm_dmp import build_serving_water
+    from repertoire.diagrams.arm_dmp_results import (
         IkTargetError,
-        build_serving_water,
-        plan_serving,
         point_log,
         run_arm_world,
         serving_figures,
     )
+    from repertoire.diagrams.arm_dmp_scenarios import plan_serving
 
     t0 = time.perf_counter()
     config.validate()

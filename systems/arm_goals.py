@@ -1,7 +1,8 @@
 """Goals of the arm's DMP chain segments: fixed, or following a body (Pastor et al. 2009, Fig. 13).
 
 :class:`SegmentGoal` is one segment's goal; :class:`GoalSchedule` gives the chain the goal of
-its active segment, re-reading a tracked body's pose every step (the paper's moving coaster).
+every segment on its own port, a tracked body's pose re-read when evaluated (the paper's
+moving coaster; the chain reads only its active segment's port).
 """
 
 import dataclasses
@@ -35,18 +36,20 @@ class SegmentGoal:
 
 
 class GoalSchedule(LeafSystem):
-    """Gives the DMP chain the goal of its active segment; tracked goals follow a body.
+    """Gives the DMP chain the goal of every segment; tracked goals follow a body.
 
     This is the "vision" of the paper's experiment: a goal tied to a body (the
     coaster) is re-read from the plant every step, so the DMP's goal changes when
     the body moves.
 
     Input ports:
-        segment: [active segment index] (1).
         body_poses: the plant's body poses (abstract).
+        segment: [active segment index] (1), needed only by the ``goal`` output.
 
     Output ports:
-        goal: [p (3), q (4), fingers (3)] (10).
+        goal_0 ... goal_{m-1}: segment k's goal [p (3), q (4), fingers (3)] (10), for the
+            per-segment goal inputs of :class:`repertoire.systems.dmp_sequencer.DmpSequencer`.
+        goal: the active segment's goal (10), for logging.
     """
 
     def __init__(self, goals: list[SegmentGoal]):
@@ -79,14 +82,18 @@ class GoalSchedule(LeafSystem):
                     f"its norm is {norm:.6f} (off by {abs(norm - 1.0):.2e})"
                 )
         self._goals = goals
-        self._segment = self.DeclareVectorInputPort("segment", 1)
         self._poses = self.DeclareAbstractInputPort(
             "body_poses", AbstractValue.Make([RigidTransform()])
         )
-        self.DeclareVectorOutputPort("goal", 10, self._calc)
+        self._segment = self.DeclareVectorInputPort("segment", 1)
+        self.DeclareVectorOutputPort(
+            "goal", 10, lambda c, o: self._calc(c, o, int(self._segment.Eval(c)[0]))
+        )
+        for k in range(len(goals)):
+            self.DeclareVectorOutputPort(f"goal_{k}", 10, lambda c, o, k=k: self._calc(c, o, k))
 
-    def _calc(self, context: Context, output: BasicVector) -> None:
-        g = self._goals[int(self._segment.Eval(context)[0])]
+    def _calc(self, context: Context, output: BasicVector, k: int) -> None:
+        g = self._goals[k]
         p = np.asarray(g.position, float)
         if g.body >= 0:
             p = self._poses.Eval(context)[g.body].translation() + p

@@ -6,9 +6,8 @@ et al. 2009, eq. 1-10). Conventions: the transformation state is ``(x, v)`` with
 acceleration. Gains, weights, basis, tau and x0 are numeric parameters, so a Monte-Carlo
 run can vary them in the Context without rebuilding.
 
-Over 600 lines on purpose: one concept (the DMP's LeafSystems), with the continuous and the
-discrete (1 kHz, exact first-order-hold) forms side by side so they can be compared and
-tested against each other.
+The discrete-time form (exact first-order-hold steps) is in
+:mod:`repertoire.systems.dmp_discrete`; chaining in :mod:`repertoire.systems.dmp_sequencer`.
 """
 
 import numpy as np
@@ -32,7 +31,7 @@ from repertoire.planning.dmp_math import (
 from repertoire.errors import RepertoireError
 
 
-def _check_size(name: str, value: np.ndarray, n: int) -> np.ndarray:
+def check_vector(name: str, value: np.ndarray, n: int) -> np.ndarray:
     value = np.asarray(value, dtype=float).reshape(-1)
     if value.size != n:
         raise RepertoireError(f"{name} must have {n} entries, got {value.size}")
@@ -41,7 +40,7 @@ def _check_size(name: str, value: np.ndarray, n: int) -> np.ndarray:
     return value
 
 
-def _finite_goal(goal: np.ndarray) -> np.ndarray:
+def check_finite_goal(goal: np.ndarray) -> np.ndarray:
     if not np.isfinite(goal).all():
         raise RepertoireError(f"goal input contains NaN or inf: {goal}")
     return goal
@@ -102,16 +101,6 @@ class CanonicalSystem(LeafSystem):
             raise RepertoireError(f"tau must be > 0, got {tau}")
         return tau
 
-    def set_tau(self, context: Context, tau: float) -> None:
-        """Set the tau parameter.
-
-        Args:
-            context: This system's context.
-            tau: Temporal scaling [s], > 0.
-        """
-        check_positive("tau", tau)
-        context.get_mutable_numeric_parameter(self._tau_index).SetAtIndex(0, float(tau))
-
     def set_start_time(self, context: Context, start_time: float) -> None:
         """Hold theta = 1 until ``start_time``.
 
@@ -143,7 +132,7 @@ class CanonicalSystem(LeafSystem):
         output.SetAtIndex(0, context.get_continuous_state_vector().GetAtIndex(0))
 
 
-class _VectorDmpPorts:
+class VectorDmpPorts:
     """Port getters shared by the vector DMP LeafSystems (mixed in before LeafSystem).
 
     The system sets ``_n``, ``_goal_port`` (None without a goal input) and the
@@ -167,7 +156,7 @@ class _VectorDmpPorts:
         return self._n
 
 
-class _CouplingAndOnset(_VectorDmpPorts):
+class CouplingAndOnset(VectorDmpPorts):
     """Optional coupling input and the ``start_time`` parameter (``_coupling_port``, ``_start``)."""
 
     def get_coupling_input_port(self):
@@ -191,33 +180,7 @@ class _CouplingAndOnset(_VectorDmpPorts):
         return self._coupling_port.Eval(context) if self._has_coupling(context) else 0.0
 
 
-class _DiscreteDmpOutputs(_VectorDmpPorts):
-    """The outputs of the discrete DMP systems: position, velocity, acceleration, phase.
-
-    Position, velocity and phase depend on the discrete state only; the system provides
-    ``_calc_position``, ``_calc_velocity``, ``_calc_acceleration`` and ``_calc_phase``.
-    """
-
-    def _declare_discrete_outputs(self, n: int) -> None:
-        only_state = {self.xd_ticket()}
-        self._position_port = self.DeclareVectorOutputPort(
-            "position", n, self._calc_position, prerequisites_of_calc=only_state
-        )
-        self._velocity_port = self.DeclareVectorOutputPort(
-            "velocity", n, self._calc_velocity, prerequisites_of_calc=only_state
-        )
-        self._acceleration_port = self.DeclareVectorOutputPort(
-            "acceleration", n, self._calc_acceleration
-        )
-        self._phase_port = self.DeclareVectorOutputPort(
-            "phase", 1, self._calc_phase, prerequisites_of_calc=only_state
-        )
-
-    def get_phase_output_port(self):
-        return self._phase_port
-
-
-class TransformationSystem(_CouplingAndOnset, LeafSystem):
+class TransformationSystem(CouplingAndOnset, LeafSystem):
     """n-DOF transformation system, the paper's new form (eq. 6, 9) or the old one (eq. 1).
 
     Continuous state ``[x (n), v (n)]`` with ``v = tau dx/dt``; initial ``x = x0``, ``v = 0``.
@@ -280,7 +243,7 @@ class TransformationSystem(_CouplingAndOnset, LeafSystem):
             "acceleration", n, self._calc_acceleration
         )
 
-    # ports (goal, coupling, position, velocity, acceleration: see _VectorDmpPorts)
+    # ports (goal, coupling, position, velocity, acceleration: see VectorDmpPorts)
     def get_phase_input_port(self):
         return self._phase_port
 
@@ -296,38 +259,11 @@ class TransformationSystem(_CouplingAndOnset, LeafSystem):
             x0: Start position, shape (n,).
             xd0: Initial velocity dx/dt, shape (n,); default zero.
         """
-        x0 = _check_size("x0", x0, self._n)
-        xd0 = np.zeros(self._n) if xd0 is None else _check_size("xd0", xd0, self._n)
+        x0 = check_vector("x0", x0, self._n)
+        xd0 = np.zeros(self._n) if xd0 is None else check_vector("xd0", xd0, self._n)
         context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
         tau = self._tau_value(context)
         context.get_mutable_continuous_state_vector().SetFromVector(np.concatenate([x0, tau * xd0]))
-
-    def set_dmp(self, context: Context, dmp: DmpParameters) -> None:
-        """Load another DMP of the same size into the parameters (and start state).
-
-        Args:
-            context: This system's context.
-            dmp: Parameters with the same (n_dims, n_basis) and formulation.
-        """
-        if dmp.weights.shape != (self._n, self._b):
-            raise RepertoireError(
-                f"DMP has weights {dmp.weights.shape}, this system was built for "
-                f"{(self._n, self._b)}"
-            )
-        if dmp.formulation != self._formulation:
-            raise RepertoireError(
-                f"DMP formulation {dmp.formulation!r} != system's {self._formulation!r}"
-            )
-        for index, value in (
-            (self._w, dmp.weights.reshape(-1)),
-            (self._c, dmp.centres),
-            (self._h, dmp.widths),
-            (self._K, dmp.K),
-            (self._D, dmp.D),
-            (self._tau, [dmp.tau]),
-        ):
-            context.get_mutable_numeric_parameter(index).SetFromVector(np.asarray(value))
-        self.set_start(context, dmp.x0)
 
     def _tau_value(self, context: Context) -> float:
         if self._tau_port is not None and self._tau_port.HasValue(context):
@@ -346,7 +282,7 @@ class TransformationSystem(_CouplingAndOnset, LeafSystem):
         if context.get_time() < start:
             return np.zeros(n), np.zeros(n)
         theta = float(self._phase_port.Eval(context)[0])
-        goal = _finite_goal(self._goal_port.Eval(context))
+        goal = check_finite_goal(self._goal_port.Eval(context))
         p = context.get_numeric_parameter
         W = p(self._w).value().reshape(n, self._b)
         f = forcing_term(theta, W, p(self._c).value(), p(self._h).value())
@@ -508,9 +444,9 @@ class ManifoldQuaternionSystem(LeafSystem):
             q0: Unit quaternion (w, x, y, z).
             omega0: Initial angular velocity (world), default zero.
         """
-        q0 = _check_size("q0", q0, 4)
+        q0 = check_vector("q0", q0, 4)
         check_unit_quaternions(q0[None], name="q0")
-        om = np.zeros(3) if omega0 is None else _check_size("omega0", omega0, 3)
+        om = np.zeros(3) if omega0 is None else check_vector("omega0", omega0, 3)
         tau = context.get_numeric_parameter(self._gains).GetAtIndex(2)
         context.get_mutable_numeric_parameter(self._q0).SetFromVector(q0)
         context.get_mutable_discrete_state(self._state).SetFromVector(
@@ -536,7 +472,7 @@ class ManifoldQuaternionSystem(LeafSystem):
         K, D, tau = p(self._gains).value()
         theta = float(self._phase_port.Eval(context)[0])
         theta_next = theta * self._decay
-        goal = _finite_goal(self._goal_port.Eval(context))
+        goal = check_finite_goal(self._goal_port.Eval(context))
         if abs(float(np.linalg.norm(goal)) - 1.0) > 1e-6:
             raise RepertoireError(
                 f"goal orientation input is not a unit quaternion: |g| = {np.linalg.norm(goal)}"
@@ -603,202 +539,3 @@ class ObstacleCoupling(LeafSystem):
                 self._x.Eval(context), self._v.Eval(context), self._o.Eval(context), gamma, beta
             )
         )
-
-
-class _DiscreteTables:
-    """Per-step coefficients of the exact discrete DMP update (see DiscreteDmpSystem).
-
-    ``z_{k+1} = z_k @ bigT + (a[k] * g + b[k] * x0 + c[k] + d * p).ravel()`` with
-    ``z = [x, v]`` (v = tau dx/dt); row ``k >= last`` uses theta = 0, f = 0.
-    """
-
-    def __init__(self, dmp: DmpParameters, dt: float) -> None:
-        from repertoire.planning.dmp_math import _foh_matrices
-
-        n = dmp.n_dims
-        self.n, self.dt, self.tau = n, dt, dmp.tau
-        decay = dmp.alpha * self.dt / dmp.tau
-        n_table = int(np.ceil(np.log(1e12) / decay)) + 2  # until theta < 1e-12
-        theta = np.exp(-decay * np.arange(n_table))
-        theta[-1] = 0.0  # beyond the table: theta = 0, f = 0
-        F = forcing_term(theta, dmp.weights, dmp.centres, dmp.widths)
-        F[-1] = 0.0
-        K = dmp.K
-        Phi, Gu, Gd = _foh_matrices(K, dmp.D, dmp.tau, self.dt)
-        G0 = (Gu - Gd).T[None]  # (1, 2, n), weight of the step's start input
-        G1 = Gd.T[None]  # weight of the step's end input
-        th0, th1 = theta[:-1, None, None], theta[1:, None, None]
-        F0, F1 = F[:-1, None, :], F[1:, None, :]
-        if dmp.formulation == "new":
-            # U = K (1 - theta) g + K theta x0 + K f + p
-            a = G0 * K * (1 - th0) + G1 * K * (1 - th1)
-            b = G0 * K * th0 + G1 * K * th1
-            c = G0 * K * F0 + G1 * K * F1
-        else:
-            # U = (K + f) g - f x0 + p
-            a = G0 * (K + F0) + G1 * (K + F1)
-            b = -(G0 * F0 + G1 * F1)
-            c = np.zeros_like(a)
-        last = np.stack([G0[0] * K + G1[0] * K, np.zeros((2, n)), np.zeros((2, n))])
-        self.a = np.concatenate([a, last[:1]])  # (rows, 2, n)
-        self.b = np.concatenate([b, last[1:2]])
-        self.c = np.concatenate([c, last[2:]])
-        self.d = Gu.T.copy()
-        self.theta, self.F = theta, F
-        self.last = self.a.shape[0] - 1
-        big = np.zeros((2 * n, 2 * n))
-        idx = np.arange(n)
-        big[idx, idx] = Phi[:, 0, 0]
-        big[idx, n + idx] = Phi[:, 0, 1]
-        big[n + idx, idx] = Phi[:, 1, 0]
-        big[n + idx, n + idx] = Phi[:, 1, 1]
-        self.bigT = big.T.copy()
-
-    def step(self, z: np.ndarray, k: int, goal: np.ndarray, x0: np.ndarray, p=None) -> np.ndarray:
-        """One exact step of the flattened state ``z = [x, v]``.
-
-        Args:
-            z: State, shape (2n,).
-            k: Steps since onset.
-            goal: Goal, shape (n,).
-            x0: Start, shape (n,).
-            p: Coupling term held over the step, or None.
-        """
-        k = min(k, self.last)
-        u = self.a[k] * goal + self.b[k] * x0 + self.c[k]
-        if p is not None:
-            u += self.d * p
-        return z @ self.bigT + u.ravel()
-
-    def phase_and_f(self, k: float) -> tuple[float, np.ndarray]:
-        """Phase and forcing term after k steps.
-
-        Args:
-            k: Steps since onset.
-        """
-        k = int(k)
-        if k < self.last:
-            return float(self.theta[k]), self.F[k]
-        return 0.0, np.zeros(self.n)
-
-
-class DiscreteDmpSystem(_CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
-    """Canonical + transformation system in one discrete-time LeafSystem (fast, exact).
-
-    Every ``time_step`` the spring-damper state is advanced by the exact first-order-hold
-    discretisation used by :func:`repertoire.planning.dmp_math.rollout` (goal, x0 and
-    coupling held over the step; phase and forcing term linear between the step's ends).
-    The phase after k steps is ``exp(-alpha k dt / tau)`` exactly, so the per-step
-    coefficients are tabulated at construction and one step costs a few vector operations:
-    a 1 kHz rollout is cheap and reproduces the NumPy rollout to rounding.
-
-    Discrete state ``[k, x (n), v (n)]`` (k = steps since onset, v = tau dx/dt); the state
-    is held before the ``start_time`` parameter.
-
-    Input ports:
-        goal (n): goal g (may change during the movement).
-        coupling (n, optional): coupling term p added to ``tau v'``.
-
-    Output ports:
-        position (n), velocity (n) (dx/dt), acceleration (n) (d2x/dt2 at the current
-        state and inputs), phase (1).
-
-    Numeric parameters: x0 (n), start_time (1). Weights, basis, K, D, tau, alpha and the
-    time step are construction arguments (the discretisation is precomputed from them); use
-    :class:`TransformationSystem` when they must vary per context.
-    """
-
-    def __init__(
-        self, dmp: DmpParameters, *, time_step: float = 1e-3, coupling_input: bool = False
-    ) -> None:
-        super().__init__()
-
-        if not isinstance(dmp, DmpParameters):
-            raise RepertoireError(f"DiscreteDmpSystem needs DmpParameters, got {type(dmp)}")
-        dmp.validate()
-        check_positive("time_step", time_step)
-        n = dmp.n_dims
-        self._n = n
-        self._dmp = dmp
-        self._dt = float(time_step)
-        self._formulation = dmp.formulation
-        self._tau = dmp.tau
-        self._tab = _DiscreteTables(dmp, self._dt)
-        self._x0 = self.DeclareNumericParameter(BasicVector(dmp.x0))
-        self._start = self.DeclareNumericParameter(BasicVector([0.0]))
-        self._state = self.DeclareDiscreteState(np.concatenate([[0.0], dmp.x0, np.zeros(n)]))
-        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
-        self._goal_port = self.DeclareVectorInputPort("goal", n)
-        self._coupling_port = self.DeclareVectorInputPort("coupling", n) if coupling_input else None
-        self._declare_discrete_outputs(n)
-
-    @property
-    def time_step(self) -> float:
-        return self._dt
-
-    def set_start(self, context: Context, x0: np.ndarray, xd0: np.ndarray | None = None) -> None:
-        """Set the start x0 (parameter and state) and initial velocity; phase back to 1.
-
-        Args:
-            context: This system's context.
-            x0: Start position, shape (n,).
-            xd0: Initial velocity dx/dt; default zero.
-        """
-        x0 = _check_size("x0", x0, self._n)
-        xd0 = np.zeros(self._n) if xd0 is None else _check_size("xd0", xd0, self._n)
-        context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
-        context.get_mutable_discrete_state(self._state).SetFromVector(
-            np.concatenate([[0.0], x0, self._tau * xd0])
-        )
-
-    def get_start(self, context: Context) -> np.ndarray:
-        """A copy of the start x0 (numeric parameter).
-
-        Args:
-            context: This system's context.
-        """
-        return context.get_numeric_parameter(self._x0).get_value().copy()
-
-    def _update(self, context: Context, discrete_state) -> None:
-        s = context.get_discrete_state(self._state).get_value()
-        if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):
-            discrete_state.set_value(self._state, s)
-            return
-        goal = _finite_goal(self._goal_port.Eval(context))
-        x0 = context.get_numeric_parameter(self._x0).get_value()
-        p = self._coupling_port.Eval(context) if self._has_coupling(context) else None
-        out = np.empty_like(s)
-        out[0] = s[0] + 1.0
-        out[1:] = self._tab.step(s[1:], int(s[0]), goal, x0, p)
-        discrete_state.set_value(self._state, out)
-
-    def _calc_position(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state(self._state).get_value()[1 : 1 + self._n])
-
-    def _calc_velocity(self, context: Context, output: BasicVector) -> None:
-        s = context.get_discrete_state(self._state).get_value()
-        output.SetFromVector(s[1 + self._n :] / self._tau)
-
-    def _calc_phase(self, context: Context, output: BasicVector) -> None:
-        k = context.get_discrete_state(self._state).GetAtIndex(0)
-        output.SetAtIndex(0, self._tab.phase_and_f(k)[0])
-
-    def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
-        s = context.get_discrete_state(self._state).get_value()
-        n = self._n
-        theta, f = self._tab.phase_and_f(s[0])
-        coupling = self._coupling(context)
-        _, vd = transformation_derivatives(
-            s[1 : 1 + n],
-            s[1 + n :],
-            theta,
-            self._goal_port.Eval(context),
-            context.get_numeric_parameter(self._x0).get_value(),
-            f,
-            self._dmp.K,
-            self._dmp.D,
-            self._tau,
-            self._formulation,
-            coupling,
-        )
-        output.SetFromVector(vd / self._tau)

@@ -1,40 +1,33 @@
-"""Composing DMPs in diagrams: the 10-D DmpSystem, ``add_dmp`` and the chaining sequencer.
+"""Composing DMPs in diagrams: the 10-D DmpSystem and ``add_dmp``.
 
 * :class:`DmpSystem` - a Diagram wrapping a learned DMP (an n-DOF :class:`DmpParameters`
   or the paper's 10-D :class:`TaskSpaceDmp`: position + quaternion + fingers) with goal
   inputs and optional obstacle coupling (eq. 10) on the position;
-* :func:`add_dmp` - add a DmpSystem to a DiagramBuilder;
-* :class:`DmpSequencer` - chaining (sec. III-C, Fig. 5): starts the next DMP at settable
-  switching times, before the previous one has ended, initialising it with its
-  predecessor's position and velocity.
+* :func:`add_dmp` - add a DmpSystem to a DiagramBuilder.
+
+Chaining (sec. III-C) is :class:`repertoire.systems.dmp_sequencer.DmpSequencer`.
 """
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     Demultiplexer,
     Multiplexer,
     PassThrough,
 )
-from repertoire.planning.dmp import (
-    HANDOFFS,
-    DmpParameters,
-    TaskSpaceDmp,
-    acceleration_matched_start,
-)
-from repertoire.planning.dmp_math import check_positive, transformation_derivatives
+from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp
+from repertoire.planning.dmp_chain import stack_task_space_dmp
+from repertoire.planning.dmp_math import check_positive
 from repertoire.systems.dmp import (
     CanonicalSystem,
-    DiscreteDmpSystem,
     ManifoldQuaternionSystem,
     ObstacleCoupling,
     QuaternionNormalizer,
     TransformationSystem,
-    _check_size,
-    _DiscreteDmpOutputs,
-    _DiscreteTables,
+    check_vector,
 )
+from repertoire.systems.dmp_discrete import DiscreteDmpSystem
 
 from repertoire.errors import RepertoireError
 
@@ -154,37 +147,15 @@ class DmpSystem(Diagram):
 
     def _build_fused(self, builder, dmp: TaskSpaceDmp, time_step, obstacle, gamma, beta) -> bool:
         """All vector parts in one DiscreteDmpSystem (one Python call per step)."""
-        parts = [("position", dmp.position)]
-        if dmp.orientation.mode == "component":
-            parts.append(("orientation", dmp.orientation.component_parameters()))
-        if dmp.fingers is not None:
-            parts.append(("fingers", dmp.fingers))
-        first = dmp.position
-        for _, p in parts[1:]:
-            if not (
-                np.array_equal(p.centres, first.centres)
-                and np.array_equal(p.widths, first.widths)
-                and p.alpha == first.alpha
-                and p.tau == first.tau
-            ):
-                return False
-        fused = DmpParameters(
-            np.vstack([p.weights for _, p in parts]),
-            first.centres,
-            first.widths,
-            np.concatenate([p.K for _, p in parts]),
-            np.concatenate([p.D for _, p in parts]),
-            first.alpha,
-            first.tau,
-            np.concatenate([p.x0 for _, p in parts]),
-            np.concatenate([p.goal for _, p in parts]),
-        )
-        sizes = [p.n_dims for _, p in parts]
+        try:
+            stacked = stack_task_space_dmp(dmp)
+        except RepertoireError:  # parts on different bases: one system each
+            return False
+        fused = stacked.parameters
+        self._slices = stacked.slices
+        parts = list(stacked.slices)
+        sizes = [sl.stop - sl.start for sl in stacked.slices.values()]
         n = sum(sizes)
-        starts = np.cumsum([0] + sizes[:-1])
-        self._slices = {
-            name: slice(int(a), int(a + k)) for (name, _), a, k in zip(parts, starts, sizes)
-        }
         sysd = builder.AddNamedSystem(
             "task_space_dmp", DiscreteDmpSystem(fused, time_step=time_step, coupling_input=obstacle)
         )
@@ -199,7 +170,7 @@ class DmpSystem(Diagram):
         ):
             demux[sig] = builder.AddNamedSystem(f"{sig}_demux", Demultiplexer(sizes))
             builder.Connect(port, demux[sig].get_input_port(0))
-        index = {name: i for i, (name, _) in enumerate(parts)}
+        index = {name: i for i, name in enumerate(parts)}
         builder.ExportInput(mux.get_input_port(index["position"]), "goal_position")
         for sig in ("position", "velocity", "acceleration"):
             builder.ExportOutput(demux[sig].get_output_port(index["position"]), sig)
@@ -344,7 +315,7 @@ class DmpSystem(Diagram):
             part = self._parts.get("orientation")
             if part is None:
                 raise RepertoireError("this DMP has no orientation part")
-            q = _check_size("orientation", orientation, 4)
+            q = check_vector("orientation", orientation, 4)
             if isinstance(part, _VectorDmp):
                 part.system.set_start(self.GetMutableSubsystemContext(part.system, context), q)
             else:
@@ -365,7 +336,7 @@ class DmpSystem(Diagram):
             if value is None:
                 continue
             if name == "orientation" and self._manifold is not None:
-                q = _check_size("orientation", value, 4)
+                q = check_vector("orientation", value, 4)
                 self._manifold.set_start(
                     self.GetMutableSubsystemContext(self._manifold, context), q
                 )
@@ -373,10 +344,10 @@ class DmpSystem(Diagram):
             if name not in self._slices:
                 raise RepertoireError(f"this DMP has no {name} part")
             sl = self._slices[name]
-            x0[sl] = _check_size(name, value, sl.stop - sl.start)
+            x0[sl] = check_vector(name, value, sl.stop - sl.start)
         if velocity is not None:
             sl = self._slices["position"]
-            xd0[sl] = _check_size("velocity", velocity, sl.stop - sl.start)
+            xd0[sl] = check_vector("velocity", velocity, sl.stop - sl.start)
         sysd.set_start(sub, x0, xd0)
 
     def set_start_time(self, context: Context, start_time: float) -> None:
@@ -425,143 +396,4 @@ def add_dmp(
     return builder.AddSystem(system)
 
 
-class DmpSequencer(_DiscreteDmpOutputs, LeafSystem):
-    """Chains vector DMPs (sec. III-C, Fig. 5): segment i starts at ``switch_times[i]``.
-
-    At a switch the next segment's phase restarts at 1 and, by ``handoff``:
-
-    * ``"none"``: it restarts from rest at the current position (for comparison);
-    * ``"velocity"`` (the paper, default): it starts with the current position (also its
-      x0) and physical velocity (``x_pred -> x_succ``, ``v_pred -> v_succ``);
-    * ``"acceleration"``: as "velocity", with the equations' x0 shifted so the initial
-      acceleration equals the predecessor's (see
-      :func:`repertoire.planning.dmp.acceleration_matched_start`).
-
-    Switching times are rounded to the time-step grid. Each step is the exact discrete
-    update of :class:`DiscreteDmpSystem`.
-
-    Discrete state ``[segment, k, x0 (n), x (n), v (n)]`` with v = tau_segment dx/dt.
-
-    Input ports:
-        goal (n, only with ``goal_input=True``): goal of the active segment (overrides
-            the stored per-segment goal while connected).
-
-    Output ports:
-        position (n), velocity (n), acceleration (n), phase (1), segment (1).
-    """
-
-    def __init__(
-        self,
-        segments: list[DmpParameters],
-        goals: list[np.ndarray],
-        switch_times: list[float],
-        *,
-        time_step: float = 1e-3,
-        handoff: str = "velocity",
-        goal_input: bool = False,
-    ) -> None:
-        super().__init__()
-        check_positive("time_step", time_step)
-        if not segments:
-            raise RepertoireError("DmpSequencer needs at least one segment")
-        n = segments[0].n_dims
-        if len(goals) != len(segments) or len(switch_times) != len(segments):
-            raise RepertoireError(
-                f"{len(segments)} segments need as many goals and switch times, got "
-                f"{len(goals)} goals and {len(switch_times)} switch times"
-            )
-        for i, s in enumerate(segments):
-            if not isinstance(s, DmpParameters) or s.n_dims != n:
-                raise RepertoireError(f"segment {i} is not a {n}-DOF DmpParameters")
-        times = np.asarray(switch_times, dtype=float)
-        if np.any(np.diff(times) <= 0) or times[0] < 0:
-            raise RepertoireError(f"switch times must be increasing and >= 0, got {times}")
-        self._n = n
-        self._dt = float(time_step)
-        self._segments = list(segments)
-        self._goals = [_check_size(f"goal {i}", g, n) for i, g in enumerate(goals)]
-        self._steps = np.round(times / self._dt).astype(int)
-        if handoff not in HANDOFFS:
-            raise RepertoireError(f"handoff must be one of {HANDOFFS}, got {handoff!r}")
-        self._handoff = handoff
-        self._tabs = [_DiscreteTables(s, self._dt) for s in segments]
-        x0 = segments[0].x0
-        self._state = self.DeclareDiscreteState(np.concatenate([[0.0, 0.0], x0, x0, np.zeros(n)]))
-        self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
-        self._goal_port = self.DeclareVectorInputPort("goal", n) if goal_input else None
-        self._declare_discrete_outputs(n)
-        self._segment_port = self.DeclareVectorOutputPort(
-            "segment", 1, self._calc_segment, prerequisites_of_calc={self.xd_ticket()}
-        )
-
-    def get_segment_output_port(self):
-        return self._segment_port
-
-    def set_start(self, context: Context, x0: np.ndarray) -> None:
-        """Start the first segment at rest at ``x0``.
-
-        Args:
-            context: This system's context.
-            x0: Start position, shape (n,).
-        """
-        x0 = _check_size("x0", x0, self._n)
-        context.get_mutable_discrete_state(self._state).SetFromVector(
-            np.concatenate([[0.0, 0.0], x0, x0, np.zeros(self._n)])
-        )
-
-    def _split(self, s: np.ndarray):
-        n = self._n
-        return int(s[0]), int(s[1]), s[2 : 2 + n], s[2 + n : 2 + 2 * n], s[2 + 2 * n :]
-
-    def _goal(self, context: Context, seg: int) -> np.ndarray:
-        if self._goal_port is not None and self._goal_port.HasValue(context):
-            return self._goal_port.Eval(context)
-        return self._goals[seg]
-
-    def _update(self, context: Context, discrete_state) -> None:
-        s = context.get_discrete_state(self._state).get_value()
-        seg, k, x0, x, v = self._split(s)
-        step = int(round(context.get_time() / self._dt))
-        if seg + 1 < len(self._segments) and step >= self._steps[seg + 1]:
-            acc = self._acceleration(context, seg, k, x0, x, v)
-            tau_old, seg = self._segments[seg].tau, seg + 1
-            new = self._segments[seg]
-            xd = v / tau_old
-            x0, k = x.copy(), 0
-            if self._handoff == "none":
-                v = np.zeros(self._n)
-            else:
-                v = new.tau * xd
-            if self._handoff == "acceleration":
-                x0 = acceleration_matched_start(new, x, xd, acc)
-        z = self._tabs[seg].step(np.concatenate([x, v]), k, self._goal(context, seg), x0)
-        discrete_state.set_value(self._state, np.concatenate([[float(seg), float(k + 1)], x0, z]))
-
-    def _calc_position(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._split(context.get_discrete_state(self._state).get_value())[3])
-
-    def _calc_velocity(self, context: Context, output: BasicVector) -> None:
-        seg, _, _, _, v = self._split(context.get_discrete_state(self._state).get_value())
-        output.SetFromVector(v / self._segments[seg].tau)
-
-    def _calc_phase(self, context: Context, output: BasicVector) -> None:
-        seg, k, *_ = self._split(context.get_discrete_state(self._state).get_value())
-        output.SetAtIndex(0, self._tabs[seg].phase_and_f(k)[0])
-
-    def _calc_segment(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, context.get_discrete_state(self._state).GetAtIndex(0))
-
-    def _acceleration(self, context, seg, k, x0, x, v) -> np.ndarray:
-        dmp = self._segments[seg]
-        theta, f = self._tabs[seg].phase_and_f(k)
-        _, vd = transformation_derivatives(
-            x, v, theta, self._goal(context, seg), x0, f, dmp.K, dmp.D, dmp.tau, dmp.formulation
-        )
-        return vd / dmp.tau
-
-    def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
-        seg, k, x0, x, v = self._split(context.get_discrete_state(self._state).get_value())
-        output.SetFromVector(self._acceleration(context, seg, k, x0, x, v))
-
-
-__all__ = ["DmpSequencer", "DmpSystem", "add_dmp"]
+__all__ = ["DmpSystem", "add_dmp"]

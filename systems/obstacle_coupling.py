@@ -154,11 +154,6 @@ class MultiPointObstacleCoupling(LeafSystem):
         self._o = self.DeclareVectorInputPort("obstacle", 3)
         self.DeclareVectorOutputPort("coupling", 3, self._calc)
 
-    @property
-    def points_E(self) -> np.ndarray:
-        """The control points in the end-effector frame (k x 3)."""
-        return self._points.copy()
-
     def _calc(self, context: Context, output: BasicVector) -> None:
         gamma, beta, radius, length = context.get_numeric_parameter(self._params).value()
         q = np.asarray(self._q.Eval(context), dtype=float)

@@ -19,7 +19,6 @@ Jacobians are expressed in the world frame W.
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RotationMatrix
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
@@ -337,21 +336,11 @@ class ResolvedMotionRateIK(LeafSystem):
             prerequisites_of_calc={self.discrete_state_ticket(self._monitor_group)},
         )
 
-    @property
-    def num_arm_joints(self) -> int:
-        return self._n
-
     def _calc_plant_context(self, context: Context, value: AbstractValue) -> None:
         plant_context = value.get_mutable_value()
         q = self._plant.GetPositions(plant_context).copy()
         q[self._idx] = context.get_discrete_state(self._ref_group).value()[: self._n]
         self._plant.SetPositions(plant_context, q)
-
-    def end_effector_pose(self, context: Context) -> tuple[np.ndarray, RotationMatrix]:
-        """Position and rotation of the end-effector at the reference ``q_r``."""
-        plant_context = self._plant_context.Eval(context)
-        X_WE = self._frame_E.CalcPoseInWorld(plant_context)
-        return X_WE.translation(), X_WE.rotation()
 
     def _initialize(self, context: Context, discrete_state) -> None:
         n = self._n

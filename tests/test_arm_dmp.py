@@ -2,30 +2,29 @@
 
 import numpy as np
 import pytest
-from repertoire.diagrams.arm_dmp import (
-    CUP_GRASP_HEIGHT,
+from repertoire.diagrams.arm_dmp import build_arm_world, build_pick_and_place, build_serving_water
+from repertoire.diagrams.arm_dmp_results import IkTargetError, run_arm_world
+from repertoire.diagrams.arm_dmp_scenarios import (
     PICK_PLACE_LABELS,
-    R_SIDE,
-    IkTargetError,
     PickPlaceScenario,
-    SegmentGoal,
     ServingScenario,
-    approach_direction,
-    build_arm_world,
-    build_pick_and_place,
-    build_serving_water,
-    home_tcp_pose,
-    motion_library,
     plan_pick_and_place,
     plan_serving,
-    quaternion_wxyz,
-    rotation_from_approach,
-    run_arm_world,
     shoulder_and_reach,
 )
 from repertoire.diagrams.registry import get_diagram_entry
 from repertoire.diagrams.scenario import load_scenario
 from repertoire.models.arm7 import HAND_GRASP_7CM, TABLE_HEIGHT, ArmObject
+from repertoire.planning.arm_library import (
+    CUP_GRASP_HEIGHT,
+    R_SIDE,
+    approach_direction,
+    home_tcp_pose,
+    motion_library,
+    quaternion_wxyz,
+    rotation_from_approach,
+)
+from repertoire.systems.arm_goals import SegmentGoal
 
 from repertoire.errors import RepertoireError, ScenarioError
 
@@ -34,7 +33,7 @@ def _tcp_and_dmp(diagram, context):
     tcp = diagram.GetSubsystemByName("tcp_point")
     chain = diagram.GetSubsystemByName("dmp_chain")
     p_tcp = tcp.get_output_port().Eval(tcp.GetMyContextFromRoot(context))[:3]
-    p_dmp = chain.GetOutputPort("position").Eval(chain.GetMyContextFromRoot(context))
+    p_dmp = chain.GetOutputPort("tcp_position").Eval(chain.GetMyContextFromRoot(context))
     return p_tcp, p_dmp
 
 
@@ -94,7 +93,7 @@ def test_registered_worlds():
 
 
 def test_sequences_come_from_the_motion_library():
-    from repertoire.diagrams.arm_dmp import arm_motion_library
+    from repertoire.planning.arm_library import arm_motion_library
 
     library = arm_motion_library()
     assert [p.label for p in library.compose("pick_and_place", robot="arm7")] == PICK_PLACE_LABELS
@@ -193,7 +192,11 @@ def test_ball_inside_the_start_the_goal_or_the_table_is_refused():
 
 
 def test_default_ball_sits_on_the_carry_path():
-    from repertoire.diagrams.arm_dmp import DEFAULT_OBSTACLE_XYZ, carry_path, carry_path_point
+    from repertoire.diagrams.arm_dmp_scenarios import (
+        DEFAULT_OBSTACLE_XYZ,
+        carry_path,
+        carry_path_point,
+    )
 
     s = PickPlaceScenario()
     point = carry_path_point(s.cup_xy, s.coaster_xy, 0.62) - [0.0, 0.0, 0.01]
@@ -205,7 +208,7 @@ def test_default_ball_sits_on_the_carry_path():
 
 
 def test_clearance_monitor_reads_the_ball_gap_from_scene_graph():
-    from repertoire.diagrams.arm_dmp import OBSTACLE_RADIUS
+    from repertoire.models.arm7 import OBSTACLE_RADIUS
 
     diagram = build_pick_and_place(PickPlaceScenario())
     context = diagram.CreateDefaultContext()
@@ -228,7 +231,7 @@ def test_clearance_monitor_reads_the_ball_gap_from_scene_graph():
 
 def test_default_world_avoids_the_ball_on_the_carry_path_only_with_coupling():
     """The whole default pick-and-place, with and without the coupling term (about 6 s)."""
-    from repertoire.diagrams.arm_dmp import pick_and_place_figures
+    from repertoire.diagrams.arm_dmp_results import pick_and_place_figures
 
     figures = {}
     for coupling in (True, False):

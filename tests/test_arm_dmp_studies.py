@@ -87,7 +87,8 @@ def test_bad_configs():
 
 
 def test_obstacle_study_puts_the_ball_on_the_carry_path():
-    from repertoire.diagrams.arm_dmp import carry_path, home_tcp_pose
+    from repertoire.diagrams.arm_dmp_scenarios import carry_path
+    from repertoire.planning.arm_library import home_tcp_pose
 
     config = dmp_obstacle_arm.ObstacleArmConfig()
     home = home_tcp_pose().translation()

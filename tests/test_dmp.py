@@ -9,19 +9,19 @@ from repertoire.planning.dmp import (
     DmpParameters,
     QuaternionDmpParameters,
     TaskSpaceDmp,
-    acceleration_matched_start,
-    chain_rollout,
     check_unit_quaternions,
-    estimate_derivatives,
+    load_dmp,
+    save_dmp,
+)
+from repertoire.planning.dmp_demos import slerp_minimum_jerk
+from repertoire.planning.dmp_derivatives import estimate_derivatives
+from repertoire.planning.dmp_learn import (
     learn_dmp,
     learn_dmp_from_demonstrations,
     learn_quaternion_dmp,
     learn_task_space_dmp,
-    load_dmp,
-    save_dmp,
     solve_program,
 )
-from repertoire.planning.dmp_demos import slerp_minimum_jerk
 from repertoire.planning.dmp_math import (
     alpha_for_final_phase,
     basis_activations,
@@ -291,24 +291,6 @@ def test_obstacle_coupling_turns_away_and_special_cases():
     assert np.all(np.isfinite(away)) and np.linalg.norm(away) > 0  # phi = pi, any axis
 
 
-# ------------------------------------------------------------------ chaining
-def test_chain_rollout_handoffs():
-    t = np.linspace(0, 1, 300)
-    p = learn_dmp(t, minimum_jerk(np.zeros(2), np.array([1.0, 0.0]), 1.0, t)[0], n_basis=20)
-    goals = [np.array(g, float) for g in ([1, 0], [1, 1], [0, 1], [0, 0])]
-    times = [0.0, 0.6, 1.2, 1.8]
-    vel = chain_rollout([p] * 4, goals, times, handoff="velocity")
-    acc = chain_rollout([p] * 4, goals, times, handoff="acceleration")
-    none = chain_rollout([p] * 4, goals, times, handoff="none")
-    assert max(vel.velocity_jumps) < 1e-12 and max(acc.velocity_jumps) < 1e-12
-    assert max(none.velocity_jumps) > 0.1
-    assert max(acc.acceleration_jumps) < 1e-9 < max(vel.acceleration_jumps)
-    x0 = acceleration_matched_start(p, np.zeros(2), np.ones(2), np.zeros(2))
-    assert x0.shape == (2,)
-    with pytest.raises(RepertoireError, match="handoff must be one of"):
-        chain_rollout([p], goals[:1], [0.0], handoff="jerk")
-
-
 # ------------------------------------------------------------------ save / load
 def test_save_load_exact(tmp_path):
     t, x = _demo()
@@ -436,12 +418,12 @@ def test_directional_primitive_moves_straight_along_any_direction():
 
 @pytest.mark.parametrize(("n", "w"), [(1000, 25), (200, 9), (50, 7), (7, 7)])
 def test_cached_savgol_operators_equal_scipy_interp_mode(n, w):
-    from repertoire.planning.dmp import _savgol_derivatives
+    from repertoire.planning.dmp_derivatives import savgol_derivatives
     from scipy.signal import savgol_filter
 
     x = np.random.default_rng(n).standard_normal((n, 3)).cumsum(axis=0)
     order, h = min(5, w - 1), 0.0013
-    xd, xdd = _savgol_derivatives(x, w, order, h)
+    xd, xdd = savgol_derivatives(x, w, order, h)
     for k, ours in ((1, xd), (2, xdd)):
         ref = savgol_filter(x, w, order, deriv=k, delta=h, axis=0, mode="interp")
         assert np.abs(ours - ref).max() <= 1e-8 * np.abs(ref).max()
@@ -460,12 +442,12 @@ def _noisy_smooth_demo(seed: int, sigma: float):
 
 
 def test_gcv_window_keeps_the_small_window_on_clean_demos_and_widens_on_noise():
-    from repertoire.planning.dmp import _gcv_savgol_window
+    from repertoire.planning.dmp_derivatives import gcv_savgol_window
 
     t, clean, _, noisy = _noisy_smooth_demo(3, 1e-3)
     h = float(t[1] - t[0])
-    assert _gcv_savgol_window(clean, h, 799) == 21  # 2 (800 // 80) + 1, the exact window
-    assert _gcv_savgol_window(noisy, h, 799) == 117  # candidates 21, 33, 51, 77, 117, 175
+    assert gcv_savgol_window(clean, h, 799) == 21  # 2 (800 // 80) + 1, the exact window
+    assert gcv_savgol_window(noisy, h, 799) == 117  # candidates 21, 33, 51, 77, 117, 175
 
 
 def test_noisy_demonstration_learned_smoothly_with_defaults():
@@ -525,3 +507,28 @@ def test_synthesize_demonstration_rests_outside_its_windows():
     assert np.allclose(np.linalg.norm(d.orientation, axis=1), 1.0, atol=1e-12)
     assert np.array_equal(d.fingers[d.t <= 1.0], np.zeros(((d.t <= 1.0).sum(), 3)))
     assert np.allclose(d.fingers[-1], [0.5] * 3, atol=1e-15)
+
+
+def test_more_basis_functions_than_samples_is_a_clear_value_error():
+    t = np.linspace(0.0, 1.0, 8)
+    x = np.column_stack([np.sin(t), t**2])
+    for learn, args in (
+        (learn_dmp, (t, x)),
+        (learn_dmp_from_demonstrations, ([(t[:4], x[:4]), (t[:4], x[:4] + 1.0)],)),
+    ):
+        with pytest.raises(ValueError, match=r"n_basis = 20 basis functions is more than the 8 "):
+            learn(*args, n_basis=20)
+    q = slerp_minimum_jerk(np.array([1.0, 0, 0, 0]), np.array([0.0, 1.0, 0, 0]), t)
+    with pytest.raises(ValueError, match=r"n_basis = 9 basis functions is more than the 8 "):
+        learn_quaternion_dmp(t, q, n_basis=9, mode="manifold")
+    assert learn_dmp(t, x, n_basis=8).n_basis == 8  # as many as samples is fine
+
+
+def test_basis_functions_the_phase_never_reaches_are_a_clear_error():
+    """alpha = 115 decays the phase before most centres: singular normal equations."""
+    t = np.array([1, 2, 3, 4, 5, 6, 6.5, 6.75, 7, 7.125, 7.1875])
+    x = np.zeros((11, 2))
+    x[-1, 1] = 1.0
+    with pytest.raises(RepertoireError, match="basis functions are not all excited"):
+        learn_dmp(t, x, n_basis=2, alpha=115.0)
+    assert np.all(np.isfinite(learn_dmp(t, x, n_basis=2, alpha=115.0, ridge=1e-6).weights))

@@ -1,20 +1,14 @@
-"""DMP LeafSystems and diagrams: FixValue expectations, Drake vs NumPy, quaternions, chaining."""
+"""DMP LeafSystems and diagrams: FixValue expectations, Drake vs NumPy, quaternions."""
 
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
-from repertoire.planning.dmp import (
-    chain_rollout,
-    learn_dmp,
-    learn_quaternion_dmp,
-    learn_task_space_dmp,
-)
 from repertoire.planning.dmp_demos import slerp_minimum_jerk
+from repertoire.planning.dmp_learn import learn_dmp, learn_quaternion_dmp, learn_task_space_dmp
 from repertoire.planning.dmp_math import (
     forcing_term,
-    minimum_jerk,
     minimum_jerk_via_points,
     obstacle_coupling,
     quat_exp,
@@ -24,13 +18,13 @@ from repertoire.planning.dmp_math import (
 )
 from repertoire.systems.dmp import (
     CanonicalSystem,
-    DiscreteDmpSystem,
     ManifoldQuaternionSystem,
     ObstacleCoupling,
     QuaternionNormalizer,
     TransformationSystem,
 )
-from repertoire.systems.dmp_compose import DmpSequencer, DmpSystem, add_dmp
+from repertoire.systems.dmp_compose import DmpSystem, add_dmp
+from repertoire.systems.dmp_discrete import DiscreteDmpSystem
 
 from repertoire.errors import RepertoireError
 
@@ -226,27 +220,6 @@ def test_quaternion_normalizer_and_obstacle_coupling_systems():
     np.testing.assert_array_equal(
         oc.GetOutputPort("coupling").Eval(c), obstacle_coupling(x, v, o, 500.0, 2.0)
     )
-
-
-def test_sequencer_matches_numpy_chaining():
-    t = np.linspace(0, 1, 300)
-    p = learn_dmp(t, minimum_jerk(np.zeros(2), np.array([1.0, 0]), 1.0, t)[0], n_basis=15)
-    goals = [np.array(g, float) for g in ([1, 0], [1, 1], [0, 1], [0, 0])]
-    times = [0.0, 0.7, 1.4, 2.1]
-    for handoff in ("none", "velocity", "acceleration"):
-        builder = DiagramBuilder()
-        seq = builder.AddSystem(DmpSequencer([p] * 4, goals, times, handoff=handoff))
-        log = builder.AddSystem(VectorLogSink(2, publish_period=1e-3))
-        builder.Connect(seq.get_position_output_port(), log.get_input_port())
-        sim = Simulator(builder.Build())
-        sim.AdvanceTo(2.5)
-        X = log.FindLog(sim.get_context()).data().T
-        ref = chain_rollout([p] * 4, goals, times, handoff=handoff)
-        assert np.abs(X - ref.x[: len(X)]).max() < 1e-10
-        sctx = seq.GetMyContextFromRoot(sim.get_context())
-        assert seq.get_segment_output_port().Eval(sctx)[0] == 3
-    with pytest.raises(RepertoireError, match="4 segments need as many goals"):
-        DmpSequencer([p] * 4, goals[:3], times)
 
 
 @pytest.mark.parametrize("mode", ["manifold", "component"])

@@ -23,7 +23,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from repertoire.diagrams.registry import diagram_names, get_diagram_entry
 from repertoire.diagrams.scenario import load_scenario
-from repertoire.planning.dmp import learn_dmp
+from repertoire.planning.dmp_learn import learn_dmp
 from repertoire.planning.footstep import (
     OccupancyGrid,
     PlannerOptions,
@@ -79,11 +79,17 @@ def _report():
             json.dump(old, fh, indent=1)
 
 
-def _call(test: str, fn, *args, **kwargs):
-    """Runs ``fn``; a RepertoireError with a message is fine, anything else fails the test."""
+def _call(test: str, fn, *args, _solver_error_ok: bool = True, **kwargs):
+    """Runs ``fn``; a RepertoireError with a message is fine, anything else fails the test.
+
+    A SolverError (a program that did not solve, named with its solver) is accepted unless
+    ``_solver_error_ok`` is False: then bad input must be refused before the solver runs.
+    """
     try:
         result = fn(*args, **kwargs)
-    except SolverError as e:  # a program that did not solve: named, with its solver
+    except SolverError as e:
+        if not _solver_error_ok:
+            raise AssertionError(f"{test}: bad input reached the solver: {e}") from e
         assert str(e).strip(), f"{test}: SolverError without a message"
         _record(test, "SolverError", str(e))
         return None
@@ -230,7 +236,7 @@ def dmp_inputs(draw):
 @given(dmp_inputs())
 def test_learn_dmp_rejects_bad_demonstrations_clearly(case):
     t, x, kwargs = case
-    params = _call("learn_dmp", learn_dmp, t, x, **kwargs)
+    params = _call("learn_dmp", learn_dmp, t, x, _solver_error_ok=False, **kwargs)
     if params is not None:
         assert np.all(np.isfinite(np.asarray(params.weights))), "learned non-finite weights"
 

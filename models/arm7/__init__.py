@@ -122,6 +122,10 @@ FINGER_CONTACT_ANGLE_7CM = math.asin(
 HAND_OPEN = (-0.3, -0.3, -0.3)
 #: Finger angles that squeeze a 7 cm object firmly under the default finger PD [rad].
 HAND_GRASP_7CM = (0.6, 0.6, 0.6)
+#: Joint PD gains of the arm's seven actuators: stiffness [N m/rad] and damping [N m s/rad]
+#: (the defaults of every arm world).
+ARM_KP = (800.0, 800.0, 400.0, 400.0, 60.0, 60.0, 60.0)
+ARM_KD = (40.0, 40.0, 20.0, 20.0, 2.0, 2.0, 2.0)
 
 
 def arm7_home_configuration() -> np.ndarray:

@@ -9,18 +9,19 @@ plant step (the ratio says what the 4 ms step saves).
 
 import time
 
-from repertoire.diagrams.arm_dmp import (
-    PickPlaceScenario,
-    ServingScenario,
-    build_pick_and_place,
-    build_serving_water,
-    motion_library,
+from repertoire.diagrams.arm_dmp import build_pick_and_place, build_serving_water
+from repertoire.diagrams.arm_dmp_results import (
     pick_and_place_figures,
-    plan_pick_and_place,
-    plan_serving,
     run_arm_world,
     serving_figures,
 )
+from repertoire.diagrams.arm_dmp_scenarios import (
+    PickPlaceScenario,
+    ServingScenario,
+    plan_pick_and_place,
+    plan_serving,
+)
+from repertoire.planning.arm_library import motion_library
 
 
 def _episode(build, plan, figures, scenario):

@@ -40,14 +40,11 @@ def main() -> int:
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ConstantVectorSource
-    from repertoire.planning.dmp import learn_dmp, learn_quaternion_dmp
     from repertoire.planning.dmp_demos import slerp_minimum_jerk
+    from repertoire.planning.dmp_learn import learn_dmp, learn_quaternion_dmp
     from repertoire.planning.dmp_math import minimum_jerk, quat_exp
-    from repertoire.systems.dmp import (
-        CanonicalSystem,
-        DiscreteDmpSystem,
-        ManifoldQuaternionSystem,
-    )
+    from repertoire.systems.dmp import CanonicalSystem, ManifoldQuaternionSystem
+    from repertoire.systems.dmp_discrete import DiscreteDmpSystem
 
     rng = np.random.default_rng(0)
     T = np.arange(N_SAMPLES) * DT
@@ -250,7 +247,7 @@ def main() -> int:
 def noisy_rows(repeats: int, n_basis: int = 30) -> list[tuple]:
     """Noisy-demonstration figures (see the module docstring), ours against theirs."""
     from movement_primitives.dmp import DMP
-    from repertoire.planning.dmp import learn_dmp
+    from repertoire.planning.dmp_learn import learn_dmp
     from scipy.interpolate import make_interp_spline
 
     n_dof, n, sigma = 6, 800, 1e-3

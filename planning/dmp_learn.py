@@ -1,0 +1,417 @@
+"""Learning DMPs from demonstrations (Pastor et al. 2009, sec. II, eq. 5 / 8).
+
+A least-squares fit of the forcing term solved as a Drake MathematicalProgram (a convex
+quadratic cost with the precomputed normal equations, optional ridge term), for n-DOF,
+quaternion and the paper's 10-D task-space DMPs. The artefacts are in
+:mod:`repertoire.planning.dmp`; derivatives of the demonstration in
+:mod:`repertoire.planning.dmp_derivatives`.
+"""
+
+import numpy as np
+from pydrake.solvers import (
+    Binding,
+    ChooseBestSolver,
+    MakeSolver,
+    MathematicalProgram,
+    QuadraticCost,
+    Solve,
+)
+from repertoire.planning.dmp import (
+    DEFAULT_ALPHA,
+    DEFAULT_K,
+    QUATERNION_MODES,
+    DmpParameters,
+    QuaternionDmpParameters,
+    TaskSpaceDmp,
+    check_demonstration,
+    check_unit_quaternions,
+)
+from repertoire.planning.dmp_derivatives import estimate_derivatives
+from repertoire.planning.dmp_math import (
+    FORMULATIONS,
+    angular_velocity,
+    basis_centres,
+    basis_widths,
+    canonical_phase,
+    check_n_basis,
+    check_positive,
+    forcing_features,
+    forcing_target,
+    quat_conjugate,
+    quat_error,
+    quat_multiply,
+)
+
+from repertoire.errors import RepertoireError, SolverError
+
+
+# --------------------------------------------------------------------------- least squares
+def build_forcing_fit_program(
+    features: np.ndarray, ridge: float = 0.0
+) -> tuple[MathematicalProgram, np.ndarray, Binding[QuadraticCost]]:
+    """Least-squares fit of one DOF's forcing weights as a MathematicalProgram.
+
+    Minimises ``||Phi w - f||^2 + ridge ||w||^2`` with the normal equations precomputed:
+    a convex QuadraticCost with Hessian ``2 (Phi^T Phi + ridge I)``. The Hessian is the same
+    for every DOF (eq. 8's regressors do not depend on the DOF), so one program serves them
+    all: :func:`fit_forcing_weights` only updates the cost's linear term ``-2 Phi^T f_d``.
+    This is about 6x faster than one stacked program over all DOFs, whose dense KKT system
+    grows with the square of the number of DOFs.
+
+    Args:
+        features: Regressors Phi, shape (N, n_basis).
+        ridge: Ridge (Tikhonov) weight, >= 0.
+
+    Returns:
+        ``(prog, w, cost)``: the program, its (n_basis,) decision variables, and the cost
+        binding (linear term zero until set).
+    """
+    if ridge < 0 or not np.isfinite(ridge):
+        raise RepertoireError(f"ridge must be a finite number >= 0, got {ridge}")
+    b = features.shape[1]
+    prog = MathematicalProgram()
+    w = prog.NewContinuousVariables(b, "w")
+    H = features.T @ features
+    if ridge > 0:
+        H = H + ridge * np.eye(b)
+    cost = prog.AddQuadraticCost(2.0 * H, np.zeros(b), 0.0, w, is_convex=True)
+    return prog, w, cost
+
+
+def solve_program(prog: MathematicalProgram, what: str = "program", *, solver=None):
+    """Solve and check ``is_success()``; raise SolverError naming the solver otherwise.
+
+    Args:
+        prog: The program.
+        what: Description used in the error message.
+        solver: A solver instance to reuse (default: Drake's best choice for ``prog``).
+    """
+    result = Solve(prog) if solver is None else solver.Solve(prog)
+    if not result.is_success():
+        raise SolverError(
+            f"{what}: solver {result.get_solver_id().name()} failed with "
+            f"{result.get_solution_result()}"
+        )
+    return result
+
+
+def fit_forcing_weights(features: np.ndarray, targets: np.ndarray, ridge: float = 0.0):
+    """Build the forcing fit once and solve it per DOF; returns weights (n_dims, n_basis).
+
+    Args:
+        features: Regressors, shape (N, n_basis).
+        targets: Targets, shape (N, n_dims).
+        ridge: Ridge weight, >= 0.
+    """
+    prog, w, cost = build_forcing_fit_program(features, ridge)
+    Q = cost.evaluator().Q()
+    linear = -2.0 * (features.T @ targets)
+    constant = np.sum(targets * targets, axis=0)
+    solver = MakeSolver(ChooseBestSolver(prog))
+    weights = np.empty((targets.shape[1], features.shape[1]))
+    for d in range(targets.shape[1]):
+        cost.evaluator().UpdateCoefficients(Q, linear[:, d], float(constant[d]), is_convex=True)
+        try:
+            result = solve_program(prog, "DMP forcing-term least squares", solver=solver)
+        except SolverError as e:
+            rank = int(np.linalg.matrix_rank(features.T @ features))
+            if rank < features.shape[1]:  # singular normal equations: say why
+                raise RepertoireError(
+                    f"the forcing term's {features.shape[1]} basis functions are not all "
+                    f"excited by the demonstration (normal equations of rank {rank}; e.g. a phase "
+                    "that decays before the basis centres, from a large alpha): use fewer "
+                    "basis functions, a smaller alpha or ridge > 0"
+                ) from e
+            raise
+        weights[d] = result.GetSolution(w)
+    return weights
+
+
+def _gains(n: int, K, D) -> tuple[np.ndarray, np.ndarray]:
+    Kv = np.broadcast_to(np.asarray(DEFAULT_K if K is None else K, dtype=float), (n,)).copy()
+    if np.any(~np.isfinite(Kv)) or np.any(Kv <= 0):
+        raise RepertoireError(f"K must be finite and > 0, got {K}")
+    Dv = 2.0 * np.sqrt(Kv) if D is None else np.broadcast_to(np.asarray(D, float), (n,)).copy()
+    if np.any(~np.isfinite(Dv)) or np.any(Dv < 0):
+        raise RepertoireError(f"D must be finite and >= 0, got {D}")
+    return Kv, Dv
+
+
+def _basis(n_basis: int, alpha: float | None, overlap: float, n_samples: int) -> tuple:
+    """(alpha, centres, widths) after checking ``n_basis`` against the samples to fit."""
+    n_basis = check_n_basis(n_basis)
+    if n_basis > n_samples:
+        raise RepertoireError(
+            f"n_basis = {n_basis} basis functions is more than the {n_samples} demonstration "
+            "samples: the forcing term is not determined; use at most as many basis "
+            "functions as samples"
+        )
+    a = DEFAULT_ALPHA if alpha is None else check_positive("alpha", alpha)
+    c = basis_centres(n_basis, a)
+    return a, c, basis_widths(c, a, overlap)
+
+
+def _demo_targets(
+    t, x, xd, xdd, alpha, Kv, Dv, tau, formulation, centres, widths, min_displacement=1e-9
+):
+    s = t - t[0]
+    theta = canonical_phase(s, tau, alpha)
+    x0, g = x[0], x[-1]
+    if formulation == "old":
+        small = np.abs(g - x0) <= min_displacement
+        if small.any():
+            raise RepertoireError(
+                "the old formulation (eq. 5) divides by g - x0, but start equals goal in DOF "
+                f"{np.flatnonzero(small).tolist()}; use formulation='new'"
+            )
+    F = forcing_target(x, xd, xdd, theta, g, x0, Kv, Dv, tau, formulation)
+    return forcing_features(theta, centres, widths), F
+
+
+def learn_dmp(
+    t: np.ndarray,
+    x: np.ndarray,
+    *,
+    n_basis: int = 50,
+    K: float | np.ndarray | None = None,
+    D: float | np.ndarray | None = None,
+    alpha: float | None = None,
+    formulation: str = "new",
+    ridge: float = 0.0,
+    overlap: float = 0.5,
+    derivatives: str = "auto",
+    window: int | None = None,
+    smoothing: float | None = None,
+    xd: np.ndarray | None = None,
+    xdd: np.ndarray | None = None,
+    names: list[str] | None = None,
+    min_displacement: float = 1e-9,
+) -> DmpParameters:
+    """Learn an n-DOF DMP from one demonstration (eq. 5 or 8 + linear least squares).
+
+    ``tau`` is the demonstration's duration, ``x0``/``goal`` its first/last sample.
+
+    Args:
+        t: Time stamps [s], strictly increasing (may be non-uniform), shape (N,), N >= 3.
+        x: Positions, shape (N, n) or (N,).
+        n_basis: Number of basis functions, >= 1.
+        K: Spring constant(s); default 156.25.
+        D: Damping; default critically damped ``2 sqrt(K)``.
+        alpha: Canonical constant; default ``ln(100)`` (theta(tau) = 0.01).
+        formulation: ``"new"`` (eq. 6-8) or ``"old"`` (eq. 1-5).
+        ridge: Ridge weight of the least squares, >= 0.
+        overlap: Basis-function overlap at neighbouring centres.
+        derivatives: ``"auto"``, ``"savgol"`` or ``"spline"`` (see estimate_derivatives).
+        window: Savitzky-Golay window.
+        smoothing: Smoothing-spline lambda.
+        xd: Known velocities (skip estimation), shape (N, n).
+        xdd: Known accelerations, shape (N, n).
+        names: Optional DOF names.
+        min_displacement: Old form only: |g - x0| at or below this in any DOF is an error
+            (eq. 5 divides by it); 0 allows tiny displacements (to show the blow-up).
+    """
+    t, x = check_demonstration(t, x)
+    if formulation not in FORMULATIONS:
+        raise RepertoireError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+    n = x.shape[1]
+    Kv, Dv = _gains(n, K, D)
+    a, c, h = _basis(n_basis, alpha, overlap, t.size)
+    if xd is None or xdd is None:
+        xd_e, xdd_e = estimate_derivatives(
+            t, x, method=derivatives, window=window, smoothing=smoothing
+        )
+        xd = xd_e if xd is None else xd
+        xdd = xdd_e if xdd is None else xdd
+    xd = np.asarray(xd, float).reshape(x.shape)
+    xdd = np.asarray(xdd, float).reshape(x.shape)
+    tau = float(t[-1] - t[0])
+    Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h, min_displacement)
+    weights = fit_forcing_weights(Phi, F, ridge)
+    return DmpParameters(
+        weights, c, h, Kv, Dv, a, tau, x[0], x[-1], formulation, names=list(names or [])
+    )
+
+
+def learn_dmp_from_demonstrations(
+    demonstrations: list[tuple[np.ndarray, np.ndarray]],
+    *,
+    n_basis: int = 50,
+    K: float | np.ndarray | None = None,
+    D: float | np.ndarray | None = None,
+    alpha: float | None = None,
+    formulation: str = "new",
+    ridge: float = 0.0,
+    overlap: float = 0.5,
+    derivatives: str = "auto",
+    names: list[str] | None = None,
+) -> DmpParameters:
+    """Learn one DMP from several demonstrations (a joint least-squares fit).
+
+    Each demonstration keeps its own duration (tau), start and goal when its f_target is
+    computed; the weights minimise the summed squared error over all of them. The result's
+    tau, x0 and goal are the means over the demonstrations.
+
+    Args:
+        demonstrations: List of ``(t, x)`` pairs with the same number of DOF.
+        n_basis: Number of basis functions.
+        K: Spring constant(s).
+        D: Damping; default critically damped.
+        alpha: Canonical constant.
+        formulation: ``"new"`` or ``"old"``.
+        ridge: Ridge weight.
+        overlap: Basis overlap.
+        derivatives: Derivative method.
+        names: Optional DOF names.
+    """
+    if not demonstrations:
+        raise RepertoireError("need at least one demonstration, got an empty list")
+    demos = [
+        check_demonstration(t, x, name=f"demonstration {i}")
+        for i, (t, x) in enumerate(demonstrations)
+    ]
+    n = demos[0][1].shape[1]
+    for i, (_, x) in enumerate(demos):
+        if x.shape[1] != n:
+            raise RepertoireError(
+                f"demonstration {i} has {x.shape[1]} DOF, demonstration 0 has {n}"
+            )
+    Kv, Dv = _gains(n, K, D)
+    a, c, h = _basis(n_basis, alpha, overlap, sum(t.size for t, _ in demos))
+    feats, targs, taus = [], [], []
+    for t, x in demos:
+        xd, xdd = estimate_derivatives(t, x, method=derivatives)
+        tau = float(t[-1] - t[0])
+        Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h)
+        feats.append(Phi)
+        targs.append(F)
+        taus.append(tau)
+    weights = fit_forcing_weights(np.vstack(feats), np.vstack(targs), ridge)
+    x0 = np.mean([x[0] for _, x in demos], axis=0)
+    g = np.mean([x[-1] for _, x in demos], axis=0)
+    return DmpParameters(
+        weights, c, h, Kv, Dv, a, float(np.mean(taus)), x0, g, formulation, names=list(names or [])
+    )
+
+
+def make_quaternions_continuous(q: np.ndarray) -> np.ndarray:
+    """Flip signs so consecutive quaternions are on the same hemisphere (q and -q agree).
+
+    Args:
+        q: Shape (N, 4).
+    """
+    q = np.array(q, dtype=float)
+    dots = np.sum(q[1:] * q[:-1], axis=1)
+    flips = np.cumsum(dots < 0) % 2
+    q[1:][flips == 1] *= -1.0
+    return q
+
+
+def learn_quaternion_dmp(
+    t: np.ndarray,
+    q: np.ndarray,
+    *,
+    mode: str = "manifold",
+    n_basis: int = 50,
+    K: float | None = None,
+    D: float | None = None,
+    alpha: float | None = None,
+    ridge: float = 0.0,
+    overlap: float = 0.5,
+    derivatives: str = "auto",
+    unit_tolerance: float = 1e-6,
+) -> QuaternionDmpParameters:
+    """Learn an orientation DMP from a unit-quaternion demonstration.
+
+    ``mode="component"`` is the paper's approach (sec. IV-B: one transformation system per
+    component, post-normalised at the output). ``mode="manifold"`` learns the forcing term
+    of ``tau eta' = K e(g,q) - D eta - K e(g,q0) theta + K f`` with ``e = 2 log(g q^*)``
+    and ``eta = tau omega``; its rollout keeps |q| = 1 to rounding.
+
+    Args:
+        t: Time stamps, shape (N,).
+        q: Quaternions (w, x, y, z), shape (N, 4), unit norm within unit_tolerance.
+        mode: ``"component"`` or ``"manifold"``.
+        n_basis: Number of basis functions.
+        K: Spring constant; default 156.25.
+        D: Damping; default 2 sqrt(K).
+        alpha: Canonical constant.
+        ridge: Ridge weight.
+        overlap: Basis overlap.
+        derivatives: Derivative method.
+        unit_tolerance: Allowed deviation of |q| from 1.
+    """
+    t, q = check_demonstration(t, q, name="quaternion demonstration")
+    check_unit_quaternions(q, tolerance=unit_tolerance, name="quaternion demonstration")
+    if mode not in QUATERNION_MODES:
+        raise RepertoireError(f"mode must be one of {QUATERNION_MODES}, got {mode!r}")
+    q = make_quaternions_continuous(q)
+    Kv, Dv = _gains(1, K, D)
+    if mode == "component":
+        p = learn_dmp(
+            t,
+            q,
+            n_basis=n_basis,
+            K=Kv[0],
+            D=Dv[0],
+            alpha=alpha,
+            ridge=ridge,
+            overlap=overlap,
+            derivatives=derivatives,
+        )
+        return QuaternionDmpParameters(
+            p.weights, p.centres, p.widths, Kv[0], Dv[0], p.alpha, p.tau, q[0], q[-1], mode
+        )
+    a, c, h = _basis(n_basis, alpha, overlap, t.size)
+    qd, qdd = estimate_derivatives(t, q, method=derivatives)
+    omega = angular_velocity(q, qd)
+    omegad = 2.0 * quat_multiply(qdd, quat_conjugate(q))[:, 1:]
+    tau = float(t[-1] - t[0])
+    theta = canonical_phase(t - t[0], tau, a)
+    g, q0 = q[-1], q[0]
+    F = (
+        (tau * tau * omegad + Dv[0] * tau * omega) / Kv[0]
+        - quat_error(g, q)
+        + quat_error(g, q0)[None] * theta[:, None]
+    )
+    weights = fit_forcing_weights(forcing_features(theta, c, h), F, ridge)
+    return QuaternionDmpParameters(weights, c, h, Kv[0], Dv[0], a, tau, q0, g, mode)
+
+
+def learn_task_space_dmp(
+    t: np.ndarray,
+    positions: np.ndarray,
+    quaternions: np.ndarray,
+    fingers: np.ndarray | None = None,
+    *,
+    orientation_mode: str = "manifold",
+    n_basis: int = 50,
+    K: float | None = None,
+    alpha: float | None = None,
+    ridge: float = 0.0,
+) -> TaskSpaceDmp:
+    """Learn the paper's 10-D DMP (position + quaternion + fingers) from one demonstration.
+
+    Args:
+        t: Time stamps, shape (N,).
+        positions: End-effector positions p_WE, shape (N, 3).
+        quaternions: End-effector orientations (w, x, y, z), shape (N, 4).
+        fingers: Finger positions, shape (N, k), or None.
+        orientation_mode: ``"component"`` (paper) or ``"manifold"``.
+        n_basis: Number of basis functions.
+        K: Spring constant; default 156.25.
+        alpha: Canonical constant.
+        ridge: Ridge weight.
+    """
+    positions = np.asarray(positions, float)
+    if positions.ndim != 2 or positions.shape[1] != 3:
+        raise RepertoireError(f"positions must have shape (N, 3), got {positions.shape}")
+    pos = learn_dmp(
+        t, positions, n_basis=n_basis, K=K, alpha=alpha, ridge=ridge, names=["x", "y", "z"]
+    )
+    ori = learn_quaternion_dmp(
+        t, quaternions, mode=orientation_mode, n_basis=n_basis, K=K, alpha=alpha, ridge=ridge
+    )
+    fin = None
+    if fingers is not None:
+        fin = learn_dmp(t, fingers, n_basis=n_basis, K=K, alpha=alpha, ridge=ridge)
+    return TaskSpaceDmp(pos, ori, fin)

@@ -1,0 +1,387 @@
+"""The DMP sequencer: chained DMPs in one LeafSystem (Pastor et al. 2009, sec. III-C, Fig. 5).
+
+:class:`DmpSequencer` runs n-D DMP segments one after another; segment i takes over at
+``start_times[i]``, before its predecessor has ended, from the predecessor's state by
+:func:`repertoire.planning.dmp_chain.handoff_state` (the one hand-off implementation; the
+NumPy reference is :func:`repertoire.planning.dmp_chain.chain_rollout`). Every segment has
+its own goal input port, read every step while the segment is active (goals may move,
+sec. II-B). Optionally a 4-DOF block holds quaternion components (the paper's 10-D arm DMP,
+Fig. 7): the goal is put in the start's hemisphere and the output is post-normalised with
+its world angular velocity. :func:`task_space_sequencer` is that configuration for
+:class:`repertoire.planning.dmp.TaskSpaceDmp` segments.
+
+Two integrations of the same equations (eq. 4, 6-7, 9):
+
+* ``time_step`` given: discrete state ``[segment, k, x0, x, v]`` advanced by the exact
+  first-order-hold step of :class:`repertoire.planning.dmp_discrete.DiscreteDmpTables`
+  (matches ``chain_rollout`` to rounding);
+* ``time_step=None``: continuous state ``[theta, x, v]`` integrated by the simulator, with
+  ``[segment, x0]`` switched by a periodic unrestricted update every ``switch_period``
+  (the arm worlds, whose plant and IK run on their own clocks).
+
+In both, v = tau dx/dt of the active segment.
+"""
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
+from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp
+from repertoire.planning.dmp_chain import (
+    check_handoff,
+    check_switch_times,
+    handoff_state,
+    stack_task_space_dmp,
+)
+from repertoire.planning.dmp_discrete import DiscreteDmpTables
+from repertoire.planning.dmp_math import (
+    angular_velocity,
+    check_positive,
+    forcing_term,
+    transformation_derivatives,
+)
+from repertoire.systems.dmp import check_finite_goal, check_vector
+
+from repertoire.errors import RepertoireError
+
+
+class DmpSequencer(LeafSystem):
+    """Chained n-D DMPs with per-segment goal inputs (sec. III-C).
+
+    Input ports:
+        goal_0 ... goal_{m-1} (n each): goal of segment i, read while it is active; when not
+            connected, the goal given at construction.
+        coupling (``coupling_dofs``, only if > 0): coupling term p (eq. 9) on the first
+            ``coupling_dofs`` DOF (e.g. the position under obstacle coupling, eq. 10).
+
+    Output ports:
+        position, velocity, acceleration (n): x, dx/dt and d2x/dt2 of the active segment.
+        phase (1), segment (1): theta and the active segment's index.
+        orientation (4), angular_velocity (3) (with ``quaternion_at``): the post-normalised
+            quaternion block [w, x, y, z] and its world-frame angular velocity.
+        NAME_position, NAME_velocity, NAME_acceleration: for every entry of ``parts``, that
+            slice of the three vector outputs.
+    """
+
+    def __init__(
+        self,
+        segments: list[DmpParameters],
+        start_times: list[float],
+        *,
+        goals: list[np.ndarray] | None = None,
+        x_start: np.ndarray | None = None,
+        time_step: float | None = 1e-3,
+        switch_period: float = 1e-3,
+        handoff: str = "velocity",
+        quaternion_at: int | None = None,
+        coupling_dofs: int = 0,
+        parts: dict[str, slice] | None = None,
+    ) -> None:
+        """Builds the sequencer.
+
+        Args:
+            segments: The DMPs in execution order, all with the same number of DOF n.
+            start_times: Onset of each segment [s], increasing, >= 0 (rounded to the time
+                step in discrete mode); the state is held before the first.
+            goals: Default goal of every segment (used while its port is not connected).
+            x_start: Start of the first segment; default its learned x0.
+            time_step: Discrete exact step [s]; None integrates continuously.
+            switch_period: How often the switch times are checked [s] (continuous only).
+            handoff: ``"none"``, ``"velocity"`` (the paper) or ``"acceleration"``.
+            quaternion_at: Index of a 4-DOF quaternion block, or None.
+            coupling_dofs: Size of the coupling input (0 = no input).
+            parts: Named slices with their own output ports.
+
+        Raises:
+            RepertoireError: an empty chain, bad times, mismatched segments or goals, a bad
+                handoff, quaternion block or coupling size.
+        """
+        super().__init__()
+        times = check_switch_times(start_times, len(segments), "start times")
+        for i, s in enumerate(segments):
+            if not isinstance(s, DmpParameters):
+                raise RepertoireError(f"segment {i} is {type(s).__name__}, not DmpParameters")
+        n = segments[0].n_dims
+        for i, s in enumerate(segments):
+            if s.n_dims != n:
+                raise RepertoireError(f"segment {i} has {s.n_dims} DOF, segment 0 has {n}")
+        self._handoff = check_handoff(handoff)
+        if handoff == "acceleration" and any(s.formulation != "new" for s in segments):
+            raise RepertoireError("acceleration handoff needs the new formulation (eq. 6)")
+        if quaternion_at is not None and not 0 <= quaternion_at <= n - 4:
+            raise RepertoireError(f"quaternion_at must be in [0, {n - 4}], got {quaternion_at}")
+        if not 0 <= coupling_dofs <= n:
+            raise RepertoireError(f"coupling_dofs must be in [0, {n}], got {coupling_dofs}")
+        if goals is not None and len(goals) != len(segments):
+            raise RepertoireError(f"{len(segments)} segments need as many goals, got {len(goals)}")
+        self._n, self._segments, self._times = n, list(segments), times
+        self._goals = (
+            [None] * len(segments)
+            if goals is None
+            else [check_vector(f"goal {i}", g, n) for i, g in enumerate(goals)]
+        )
+        x_start = segments[0].x0 if x_start is None else check_vector("x_start", x_start, n)
+        self._q = None if quaternion_at is None else slice(quaternion_at, quaternion_at + 4)
+        self._goal_ports = [
+            self.DeclareVectorInputPort(f"goal_{i}", n) for i in range(len(segments))
+        ]
+        self._coupling_dofs = coupling_dofs
+        self._coupling_port = (
+            self.DeclareVectorInputPort("coupling", coupling_dofs) if coupling_dofs else None
+        )
+        if time_step is None:
+            check_positive("switch_period", switch_period)
+            self._dt = None
+            self.DeclareContinuousState(BasicVector(np.concatenate([[1.0], x_start, np.zeros(n)])))
+            self._switch = self.DeclareDiscreteState(np.concatenate([[0.0], x_start]))
+            self.DeclarePeriodicUnrestrictedUpdateEvent(switch_period, 0.0, self._maybe_switch)
+            state = {self.xc_ticket(), self.discrete_state_ticket(self._switch)}
+        else:
+            self._dt = check_positive("time_step", time_step)
+            self._steps = np.round(times / self._dt).astype(int)
+            if np.any(np.diff(self._steps) <= 0):
+                raise RepertoireError(f"start times closer than the time step: {times.tolist()}")
+            self._tabs = [DiscreteDmpTables(s, self._dt) for s in segments]
+            self._state = self.DeclareDiscreteState(
+                np.concatenate([[0.0, 0.0], x_start, x_start, np.zeros(n)])
+            )
+            self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
+            state = {self.xd_ticket()}
+        self._declare_outputs(n, state, parts or {})
+
+    def _declare_outputs(self, n: int, state: set, parts: dict[str, slice]) -> None:
+        getters = {"position": self._x, "velocity": self._xd, "acceleration": self._acc}
+        for name, get in getters.items():
+            pre = state if name != "acceleration" else {self.all_sources_ticket()}
+            self.DeclareVectorOutputPort(
+                name, n, lambda c, o, g=get: o.SetFromVector(g(c)), prerequisites_of_calc=pre
+            )
+            for part, sl in parts.items():
+                size = len(range(n)[sl])
+                self.DeclareVectorOutputPort(
+                    f"{part}_{name}",
+                    size,
+                    lambda c, o, g=get, s=sl: o.SetFromVector(g(c)[s]),
+                    prerequisites_of_calc=pre,
+                )
+        self.DeclareVectorOutputPort(
+            "phase", 1, lambda c, o: o.SetFromVector([self._theta(c)]), prerequisites_of_calc=state
+        )
+        self.DeclareVectorOutputPort(
+            "segment",
+            1,
+            lambda c, o: o.SetFromVector([self._segment(c)]),
+            prerequisites_of_calc=state,
+        )
+        if self._q is not None:
+            self.DeclareVectorOutputPort(
+                "orientation",
+                4,
+                lambda c, o: o.SetFromVector(self._quaternion(c)[0]),
+                prerequisites_of_calc=state,
+            )
+            self.DeclareVectorOutputPort(
+                "angular_velocity",
+                3,
+                lambda c, o: o.SetFromVector(angular_velocity(*self._quaternion(c))),
+                prerequisites_of_calc=state,
+            )
+
+    def set_start(self, context: Context, x_start: np.ndarray) -> None:
+        """Restart the chain at rest at ``x_start`` with the first segment.
+
+        Args:
+            context: This system's context.
+            x_start: Start position, shape (n,).
+        """
+        x = check_vector("x_start", x_start, self._n)
+        if self._dt is None:
+            context.SetContinuousState(np.concatenate([[1.0], x, np.zeros(self._n)]))
+            context.SetDiscreteState(self._switch, np.concatenate([[0.0], x]))
+        else:
+            context.SetDiscreteState(
+                self._state, np.concatenate([[0.0, 0.0], x, x, np.zeros(self._n)])
+            )
+
+    # --- state access (both modes) ---------------------------------------------------
+    def _split(self, context: Context) -> tuple[int, float, np.ndarray, np.ndarray, np.ndarray]:
+        """(segment, theta or step count, x0, x, v) of the active segment."""
+        n = self._n
+        if self._dt is None:
+            sw = context.get_discrete_state(self._switch).value()
+            z = context.get_continuous_state_vector().CopyToVector()
+            return int(sw[0]), z[0], sw[1:], z[1 : 1 + n], z[1 + n :]
+        s = context.get_discrete_state(self._state).get_value()
+        return int(s[0]), s[1], s[2 : 2 + n], s[2 + n : 2 + 2 * n], s[2 + 2 * n :]
+
+    def _segment(self, context: Context) -> int:
+        return self._split(context)[0]
+
+    def _theta(self, context: Context) -> float:
+        seg, k, *_ = self._split(context)
+        return k if self._dt is None else self._tabs[seg].phase_and_f(k)[0]
+
+    def _x(self, context: Context) -> np.ndarray:
+        return self._split(context)[3]
+
+    def _xd(self, context: Context) -> np.ndarray:
+        seg, _, _, _, v = self._split(context)
+        return v / self._segments[seg].tau
+
+    def _quaternion(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        """Post-normalised quaternion and its time derivative."""
+        raw, raw_dot = self._x(context)[self._q], self._xd(context)[self._q]
+        norm = np.linalg.norm(raw)
+        q = raw / norm
+        return q, (raw_dot - q * (q @ raw_dot)) / norm
+
+    def _goal(self, context: Context, seg: int, x0: np.ndarray) -> np.ndarray:
+        port = self._goal_ports[seg]
+        if port.HasValue(context):
+            goal = np.array(port.Eval(context), dtype=float)
+        elif self._goals[seg] is not None:
+            goal = self._goals[seg].copy()
+        else:
+            raise RepertoireError(f"segment {seg} has no goal: connect goal_{seg} or pass goals")
+        check_finite_goal(goal)
+        if self._q is not None and goal[self._q] @ x0[self._q] < 0.0:
+            goal[self._q] = -goal[self._q]  # the start's hemisphere: the shortest rotation
+        return goal
+
+    def _coupling(self, context: Context) -> np.ndarray | None:
+        if self._coupling_port is None or not self._coupling_port.HasValue(context):
+            return None
+        p = np.zeros(self._n)
+        p[: self._coupling_dofs] = self._coupling_port.Eval(context)
+        return p
+
+    def _rhs(self, context: Context, seg, theta, x0, x, v, f) -> tuple[np.ndarray, np.ndarray]:
+        p = self._segments[seg]
+        coupling = self._coupling(context)
+        return transformation_derivatives(
+            x,
+            v,
+            theta,
+            self._goal(context, seg, x0),
+            x0,
+            f,
+            p.K,
+            p.D,
+            p.tau,
+            p.formulation,
+            0.0 if coupling is None else coupling,
+        )
+
+    def _acc(self, context: Context) -> np.ndarray:
+        seg, k, x0, x, v = self._split(context)
+        p = self._segments[seg]
+        if self._dt is None:
+            theta, f = k, forcing_term(k, p.weights, p.centres, p.widths)
+        else:
+            theta, f = self._tabs[seg].phase_and_f(k)
+        return self._rhs(context, seg, theta, x0, x, v, f)[1] / p.tau
+
+    def _held(self, context: Context) -> bool:
+        """Before the first start time the state is held."""
+        return context.get_time() < self._times[0] - 1e-9
+
+    def _next(self, context: Context, seg: int, x: np.ndarray, v: np.ndarray):
+        """Hand-off to segment ``seg + 1``: (x0, v) of the successor."""
+        acc = self._acc(context) if self._handoff == "acceleration" else None
+        return handoff_state(
+            self._segments[seg + 1], x, v, self._segments[seg].tau, self._handoff, acc
+        )
+
+    # --- continuous mode ---------------------------------------------------------------
+    def DoCalcTimeDerivatives(self, context: Context, derivatives) -> None:
+        seg, theta, x0, x, v = self._split(context)
+        if self._held(context):
+            derivatives.get_mutable_vector().SetZero()
+            return
+        p = self._segments[seg]
+        f = forcing_term(theta, p.weights, p.centres, p.widths)
+        xd, vd = self._rhs(context, seg, theta, x0, x, v, f)
+        derivatives.get_mutable_vector().SetFromVector(
+            np.concatenate([[-p.alpha * theta / p.tau], xd, p.tau * (vd / p.tau)])
+        )
+
+    def _maybe_switch(self, context: Context, state) -> None:
+        seg, _, _, x, v = self._split(context)
+        if seg + 1 >= len(self._times) or context.get_time() < self._times[seg + 1] - 1e-9:
+            return
+        x0, v_new = self._next(context, seg, x, v)
+        state.get_mutable_continuous_state().get_mutable_vector().SetFromVector(
+            np.concatenate([[1.0], x, v_new])
+        )
+        state.get_mutable_discrete_state(self._switch).SetFromVector(
+            np.concatenate([[seg + 1], x0])
+        )
+
+    # --- discrete mode -----------------------------------------------------------------
+    def _update(self, context: Context, discrete_state) -> None:
+        seg, k, x0, x, v = self._split(context)
+        step = int(round(context.get_time() / self._dt))
+        if step < self._steps[0]:
+            discrete_state.set_value(self._state, context.get_discrete_state(self._state).value())
+            return
+        if seg + 1 < len(self._segments) and step >= self._steps[seg + 1]:
+            x0, v = self._next(context, seg, x, v)
+            seg, k = seg + 1, 0
+        p = self._coupling(context)
+        z = self._tabs[seg].step(
+            np.concatenate([x, v]), int(k), self._goal(context, seg, x0), x0, p
+        )
+        discrete_state.set_value(self._state, np.concatenate([[float(seg), k + 1.0], x0, z]))
+
+
+def task_space_sequencer(
+    segments: list[TaskSpaceDmp],
+    start_times: list[float],
+    x_start: np.ndarray,
+    *,
+    switch_period: float = 0.004,
+) -> DmpSequencer:
+    """The arm's chain of 10-D DMPs (Fig. 7): position, quaternion components, fingers.
+
+    A continuous :class:`DmpSequencer` over the stacked segments
+    (:func:`repertoire.planning.dmp_chain.stack_task_space_dmp`) with the quaternion
+    block normalised, the coupling input on the position (3) and the output parts
+    ``tcp`` (position) and ``finger``, velocity hand-off. Goal ports take
+    ``[p (3), q (4), fingers]``.
+
+    Args:
+        segments: Task-space DMPs in execution order (component orientation, fingers).
+        start_times: Onset of each segment [s]; the first is 0, increasing.
+        x_start: The chain's start [p, q, fingers] (the robot's current state).
+        switch_period: How often the switch times are checked [s].
+
+    Raises:
+        RepertoireError: empty chain, bad times, a manifold orientation, no fingers, or
+            segments with different finger DOF.
+    """
+    if len(start_times) and float(start_times[0]) != 0.0:
+        raise RepertoireError(f"start_times must start at 0, got {list(start_times)}")
+    stacked = []
+    for i, dmp in enumerate(segments):
+        if dmp.orientation.mode != "component" or dmp.fingers is None:
+            raise RepertoireError(
+                f"segment {i}: the task-space chain runs the paper's component quaternion DMP "
+                "with finger DOF; learn it with orientation_mode='component' and fingers"
+            )
+        stacked.append(stack_task_space_dmp(dmp))
+    if not stacked:
+        raise RepertoireError("a DMP chain needs at least one segment")
+    n = stacked[0].parameters.n_dims
+    if any(s.parameters.n_dims != n for s in stacked):
+        raise RepertoireError("every segment must have the same number of finger DOF")
+    return DmpSequencer(
+        [s.parameters for s in stacked],
+        start_times,
+        x_start=x_start,
+        time_step=None,
+        switch_period=switch_period,
+        quaternion_at=3,
+        coupling_dofs=3,
+        parts={"tcp": slice(0, 3), "finger": slice(7, n)},
+    )
+
+
+__all__ = ["DmpSequencer", "task_space_sequencer"]

@@ -23,9 +23,20 @@ def attribute_docs(schema: type) -> dict[str, str]:
         schema: a dataclass type with a Google-style docstring.
 
     Returns:
-        The documented fields (continuation lines joined with spaces).
+        The documented fields (continuation lines joined with spaces). Fields
+        inherited from a base dataclass keep the base's documentation unless
+        the subclass documents them again.
     """
-    doc = inspect.getdoc(schema) or ""
+    docs: dict[str, str] = {}
+    for cls in reversed(inspect.getmro(schema)):
+        own = cls.__dict__.get("__doc__")
+        if cls is not object and own:
+            docs.update(_docstring_attributes(inspect.cleandoc(own)))
+    return docs
+
+
+def _docstring_attributes(doc: str) -> dict[str, str]:
+    """Field name -> doc from one docstring's ``Attributes:`` section."""
     docs: dict[str, str] = {}
     inside = False
     indent = None

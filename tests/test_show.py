@@ -49,3 +49,37 @@ def test_show_cli_prints_and_an_unknown_name_exits_2(capsys):
     assert main(["show", "nope"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("repertoire show: error: unknown name 'nope'") and "pendulum" in err
+
+
+def test_attribute_docs_include_fields_documented_on_a_base_dataclass():
+    import dataclasses
+
+    @dataclasses.dataclass
+    class Base:
+        """Base.
+
+        Attributes:
+            a: from the base [m].
+            b: base doc.
+        """
+
+        a: float = 1.0
+        b: float = 2.0
+
+    @dataclasses.dataclass
+    class Derived(Base):
+        """Derived.
+
+        Attributes:
+            b: overridden doc.
+            c: own field.
+        """
+
+        c: float = 3.0
+
+    assert attribute_docs(Derived) == {
+        "a": "from the base [m].",
+        "b": "overridden doc.",
+        "c": "own field.",
+    }
+    assert undocumented_fields(Derived) == []

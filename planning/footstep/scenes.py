@@ -86,6 +86,9 @@ def random_static_scene(
 ) -> StaticScene:
     """A random floor of flat obstacles with start and goal in opposite corners.
 
+    The obstacles are 2 cm high: the grid carries their heights (a 2.5-D map), so a
+    planner with a swing clearance above 2 cm steps over them.
+
     Args:
         seed: random seed.
         size: side of the square floor (m).
@@ -123,7 +126,7 @@ def random_static_scene(
             if _disc_clear(rect, start_xy, clear_radius) and _disc_clear(rect, goal, clear_radius):
                 rects.append(rect)
                 placed += 1
-    grid = OccupancyGrid.from_rectangles((size, size), rects, resolution)
+    grid = OccupancyGrid.from_rectangles((size, size), rects, resolution, with_heights=True)
     yaw = math.atan2(goal[1] - start_xy[1], goal[0] - start_xy[0])
     # left foot stands, the right foot beside it; the body centre is between them
     half_w = 0.095

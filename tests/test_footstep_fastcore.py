@@ -203,3 +203,25 @@ def test_step_up_and_step_down_limits():
         PlannerOptions(max_step_up=float("nan")).validate()
     with pytest.raises(FootstepError, match="max_step_down must be >= 0 m, got -0.1"):
         PlannerOptions(max_step_down=-0.1).validate()
+
+
+def test_dynamic_grids_carry_heights_and_the_swing_clearance_uses_them():
+    from repertoire.planning.footstep.biped_model import BipedStepModel, swing_crosses
+    from repertoire.planning.footstep.scenes import strings_scene
+
+    sc = strings_scene(0, t_end=12.0)
+    assert np.unique(sc.env.grids[0].heights).tolist() == [0.0, 0.005, 0.02]
+    table = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", time_limit=30.0, swing_clearance=0.01)
+    plan = plan_footsteps(sc.env, sc.start, sc.start_foot, sc.goal, table, opts)
+    assert plan.succeeded
+    opts.validate()
+    model = BipedStepModel(sc.env, sc.start, sc.start_foot, sc.goal, table, opts)
+    assert model.tall_at(0) is not None and model.tall_at(0).sum() > 0  # the 2 cm blocks
+    swing = [plan.initial_swing_pose[:2]] + [p[:2] for p in plan.poses[:-1]]
+    res, (ox, oy) = sc.env.resolution, sc.env.reference.origin
+    for k in range(1, len(plan.poses)):
+        tall = model.tall_at(model.checkers.index(plan.times[k]))
+        if tall is not None:
+            x0, y0 = swing[k - 1]
+            assert not swing_crosses(tall, x0, y0, *plan.poses[k][:2], ox, oy, 1.0 / res)

@@ -149,6 +149,8 @@ def strings_scene(
 ) -> DynamicScene:
     """The paper's Fig. 5 scene with random phases of the two rows.
 
+    The blocks are 2 cm and the strings 5 mm high; every grid of E(t) carries them.
+
     Args:
         seed: random seed (phases of the rows).
         size: side of the square floor (m).
@@ -175,7 +177,7 @@ def strings_scene(
             MovingRectObstacle([size / 2.0, y], [length, string_width], [v, 0.0], height=0.005)
         )
     env = DynamicEnvironment.from_moving_obstacles(
-        (size, size), moving=moving, t_end=t_end, dt=dt, resolution=resolution
+        (size, size), moving=moving, t_end=t_end, dt=dt, resolution=resolution, with_heights=True
     )
     body = (size / 2.0, 0.4)
     start = (body[0] - 0.095, body[1], math.pi / 2)  # left foot, facing +y

@@ -225,3 +225,18 @@ def test_dynamic_grids_carry_heights_and_the_swing_clearance_uses_them():
         if tall is not None:
             x0, y0 = swing[k - 1]
             assert not swing_crosses(tall, x0, y0, *plan.poses[k][:2], ox, oy, 1.0 / res)
+
+
+def test_compiled_distance_transform_matches_scipy():
+    from repertoire.planning.footstep.footprint import distance_to_features
+    from scipy import ndimage
+
+    rng = np.random.default_rng(3)
+    for shape, p in (((37, 23), 0.1), ((60, 70), 0.02), ((40, 9), 0.5)):
+        features = rng.random(shape) < p
+        want = ndimage.distance_transform_edt(~features)
+        np.testing.assert_array_equal(distance_to_features(features), want)
+    assert np.isinf(distance_to_features(np.zeros((4, 3), dtype=bool))).all()
+    one = np.zeros((5, 5), dtype=bool)
+    one[0, 0] = True
+    assert distance_to_features(one)[3, 4] == 5.0  # the 3-4-5 triangle

@@ -109,6 +109,20 @@ def history_classes(table: ActionTable) -> np.ndarray:
         cls = new
 
 
+_HIST_CACHE: dict[bytes, np.ndarray] = {}
+
+
+def _cached_history_classes(table: ActionTable) -> np.ndarray:
+    """:func:`history_classes`, remembered per table content (a few tables per process)."""
+    key = table.displacement.tobytes() + table.duration.tobytes()
+    cls = _HIST_CACHE.get(key)
+    if cls is None:
+        if len(_HIST_CACHE) >= 8:
+            _HIST_CACHE.clear()
+        cls = _HIST_CACHE[key] = history_classes(table)
+    return cls.copy()
+
+
 def pose3(p: Sequence[float], name: str) -> tuple[float, float, float]:
     """``(x, y[, yaw])`` as three finite floats with the yaw wrapped; errors name ``p``."""
     try:
@@ -412,7 +426,7 @@ class BipedStepModel:
             ]
         ).astype(float)
         self._succ_rows: list[tuple[Successor, ...]] | None = None
-        self.hist = history_classes(table)
+        self.hist = _cached_history_classes(table)
         self._hist_rows = self.hist.tolist()
         self.n_hist = int(self.hist.max()) + 1
 

@@ -240,3 +240,15 @@ def test_compiled_distance_transform_matches_scipy():
     one = np.zeros((5, 5), dtype=bool)
     one[0, 0] = True
     assert distance_to_features(one)[3, 4] == 5.0  # the 3-4-5 triangle
+
+
+def test_anytime_refines_before_unreachable():
+    from repertoire.planning.footstep import plan_footsteps_anytime
+
+    grid = stepping_stones_grid(0, 0.10)  # the 5 cm lattice merges the only way across
+    args = (grid, (0.2, 0.45, 0.0), "left", (1.8, 0.4), nominal_action_table())
+    coarse = plan_footsteps_anytime(*args, PlannerOptions(time_limit=30.0, refinements=0))
+    assert coarse[-1].plan.status is PlanStatus.UNREACHABLE
+    runs = plan_footsteps_anytime(*args, PlannerOptions(time_limit=30.0), weights=(2.0, 1.0))
+    assert [r.plan.status for r in runs] == [PlanStatus.SUCCESS] * 2
+    assert runs[-1].plan.xy_resolution == 0.025 and runs[-1].bound == 1.0

@@ -86,16 +86,15 @@ def test_compiled_heap_pops_in_tuple_order():
     n = 500
     f = rng.integers(0, 20, n).astype(float)  # many ties on f, broken by h, then tie
     h = rng.integers(0, 5, n).astype(float)
-    hf, hh = np.empty(n), np.empty(n)
-    ht, hn = np.empty(n, np.int64), np.empty(n, np.int64)
+    heap = np.empty((n, 4))
     for k in range(n):
-        _heap_push(hf, hh, ht, hn, k, f[k], h[k], k, 10 * k)
+        _heap_push(heap, k, f[k], h[k], k, 10 * k)
     ref = [(f[k], h[k], k) for k in range(n)]
     heapq.heapify(ref)
     for size in range(n, 0, -1):
         want = heapq.heappop(ref)
-        assert (hf[0], hh[0], ht[0], hn[0]) == (*want, 10 * want[2])
-        _heap_pop(hf, hh, ht, hn, size)
+        assert tuple(heap[0]) == (*want, 10 * want[2])
+        _heap_pop(heap, size)
 
 
 def test_grid_dijkstra_matches_scipy():

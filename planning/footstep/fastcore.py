@@ -4,7 +4,7 @@ The same search as :func:`repertoire.planning.footstep.search.search` run on the
 step model (:class:`~repertoire.planning.footstep.biped_model.BipedStepModel`), with
 everything in arrays so that numba compiles it:
 
-- the open list is a binary heap of ``(f, h, tie, node)`` entries in parallel arrays,
+- the open list is a binary heap of ``(f, h, tie, node)`` rows of one array,
   ordered exactly as the Python loop's ``heapq`` tuples (so both pop the same states);
 - duplicate detection is an open-addressing hash table from lattice keys (the model's
   :meth:`~repertoire.planning.footstep.biped_model.BipedStepModel.lattice_key`, computed
@@ -44,57 +44,77 @@ def _less(f1, h1, t1, f2, h2, t2):
 
 
 @numba.njit(cache=True)
-def _heap_push(hf, hh, ht, hn, size, f, h, tie, node):
+def _heap_push(heap, size, f, h, tie, node):
+    """Insert ``(f, h, tie, node)`` into a heap of ``size`` rows (one row per entry)."""
     i = size
     while i > 0:
         p = (i - 1) >> 1
-        if _less(f, h, tie, hf[p], hh[p], ht[p]):
-            hf[i], hh[i], ht[i], hn[i] = hf[p], hh[p], ht[p], hn[p]
+        if _less(f, h, tie, heap[p, 0], heap[p, 1], heap[p, 2]):
+            heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = (
+                heap[p, 0],
+                heap[p, 1],
+                heap[p, 2],
+                heap[p, 3],
+            )
             i = p
         else:
             break
-    hf[i], hh[i], ht[i], hn[i] = f, h, tie, node
+    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
 
 
 @numba.njit(cache=True)
-def _heap_pop(hf, hh, ht, hn, size):
-    """Remove the root of a heap of ``size`` entries (the caller read it first)."""
+def _heap_pop(heap, size):
+    """Remove the root of a heap of ``size`` rows (the caller read it first)."""
     size -= 1
-    f, h, tie, node = hf[size], hh[size], ht[size], hn[size]
+    f, h, tie, node = heap[size, 0], heap[size, 1], heap[size, 2], heap[size, 3]
     i = 0
     while True:
         c = 2 * i + 1
         if c >= size:
             break
-        if c + 1 < size and _less(hf[c + 1], hh[c + 1], ht[c + 1], hf[c], hh[c], ht[c]):
+        if c + 1 < size and _less(
+            heap[c + 1, 0], heap[c + 1, 1], heap[c + 1, 2], heap[c, 0], heap[c, 1], heap[c, 2]
+        ):
             c += 1
-        if _less(hf[c], hh[c], ht[c], f, h, tie):
-            hf[i], hh[i], ht[i], hn[i] = hf[c], hh[c], ht[c], hn[c]
+        if _less(heap[c, 0], heap[c, 1], heap[c, 2], f, h, tie):
+            heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = (
+                heap[c, 0],
+                heap[c, 1],
+                heap[c, 2],
+                heap[c, 3],
+            )
             i = c
         else:
             break
-    hf[i], hh[i], ht[i], hn[i] = f, h, tie, node
+    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
 
 
 @numba.njit(cache=True, inline="always")
-def _slot(keys, key):
-    mask = keys.size - 1
+def _slot(table, key):
+    """Row of ``key`` in an open-addressing table of (key, value) rows, or of its empty slot."""
+    mask = table.shape[0] - 1
     i = ((key * 0x9E3779B97F4A7C15) >> 17) & mask
-    while keys[i] != -1 and keys[i] != key:
+    while table[i, 0] != -1 and table[i, 0] != key:
         i = (i + 1) & mask
     return i
 
 
 @numba.njit(cache=True)
-def _rehash(keys, vals):
-    nk = np.full(keys.size * 2, -1, np.int64)
-    nv = np.empty(keys.size * 2, np.int64)
-    for i in range(keys.size):
-        if keys[i] != -1:
-            j = _slot(nk, keys[i])
-            nk[j] = keys[i]
-            nv[j] = vals[i]
-    return nk, nv
+def _rehash(table):
+    new = np.full((table.shape[0] * 2, 2), -1, np.int64)
+    for i in range(table.shape[0]):
+        if table[i, 0] != -1:
+            j = _slot(new, table[i, 0])
+            new[j, 0] = table[i, 0]
+            new[j, 1] = table[i, 1]
+    return new
+
+
+@numba.njit(cache=True)
+def _grow_rows(a):
+    b = np.empty((a.shape[0] * 2, a.shape[1]), a.dtype)
+    b[: a.shape[0]] = a
+    return b
 
 
 @numba.njit(cache=True)
@@ -272,13 +292,8 @@ def _arastar(
     nexp = np.full(cap, -1, np.int64)  # search index in which the node was expanded
     nopen = np.zeros(cap, np.uint8)
     nincons = np.zeros(cap, np.uint8)
-    keys = np.full(4096, -1, np.int64)
-    vals = np.empty(4096, np.int64)
-    hcap = 1024
-    hf = np.empty(hcap)
-    hh = np.empty(hcap)
-    ht = np.empty(hcap, np.int64)
-    hn = np.empty(hcap, np.int64)
+    table = np.full((4096, 2), -1, np.int64)
+    heap = np.empty((1024, 4))
 
     sx, sy, sth = start[0], start[1], start[2]
     f0, a20, a10 = int(start[3]), int(start[4]), int(start[5])
@@ -298,9 +313,9 @@ def _arastar(
     )
     nfoot[0], na2[0], na1[0], npar[0], nopen[0] = f0, a20, a10, -1, 1
     count = 1
-    j = _slot(keys, key0)
-    keys[j] = key0
-    vals[j] = 0
+    j = _slot(table, key0)
+    table[j, 0] = key0
+    table[j, 1] = 0
     used = 1
     best, best_h = 0, start[9]
     expansions = generated = merged = 0
@@ -315,17 +330,17 @@ def _arastar(
         hsize = 0
         for k in range(count):
             if nopen[k] or nincons[k]:
-                if hsize == hf.size:
-                    hf, hh, ht, hn = _grow(hf), _grow(hh), _grow(ht), _grow(hn)
-                _heap_push(hf, hh, ht, hn, hsize, ng[k] + w * nh[k], nh[k], hsize, k)
+                if hsize == heap.shape[0]:
+                    heap = _grow_rows(heap)
+                _heap_push(heap, hsize, ng[k] + w * nh[k], nh[k], hsize, k)
                 hsize += 1
                 nopen[k], nincons[k] = 1, 0
         tie = hsize
         status, end, exp_it = 1, -1, 0  # UNREACHABLE
         while hsize > 0:
-            h = hh[0]
-            node = hn[0]
-            _heap_pop(hf, hh, ht, hn, hsize)
+            h = heap[0, 1]
+            node = int(heap[0, 3])
+            _heap_pop(heap, hsize)
             hsize -= 1
             if nexp[node] == it:
                 continue
@@ -391,11 +406,11 @@ def _arastar(
                     int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
                 ) * nyaw + int(th2 * yaw_scale + nyaw + 0.5) % nyaw
                 k2 = (k2 * 2 + nf) * n_hist + hist[a1, a]
-                j = _slot(keys, k2)
+                j = _slot(table, k2)
                 idx = -1
                 closed_now = False
-                if keys[j] == k2:
-                    idx = vals[j]
+                if table[j, 0] == k2:
+                    idx = table[j, 1]
                     closed_now = nexp[idx] == it or nincons[idx] == 1
                     if closed_now or g2 >= ng[idx]:
                         merged += 1
@@ -415,19 +430,19 @@ def _arastar(
                     nexp[idx] = -1
                     nopen[idx] = 0 if closed_now else 1
                     nincons[idx] = 1 if closed_now else 0
-                    if keys[j] != k2:
-                        keys[j] = k2
+                    if table[j, 0] != k2:
+                        table[j, 0] = k2
                         used += 1
-                    vals[j] = idx
-                    if 2 * used > keys.size:
-                        keys, vals = _rehash(keys, vals)
+                    table[j, 1] = idx
+                    if 2 * used > table.shape[0]:
+                        table = _rehash(table)
                 nxs[idx], nys[idx], nth[idx], nt[idx] = x2, y2, th2, nt[node] + succ_f[r, 3]
                 nsx[idx], nsy[idx], nh[idx], ng[idx] = x, y, h2, g2
                 nfoot[idx], na2[idx], na1[idx], npar[idx] = nf, a1, a, node
                 if nincons[idx] == 0:
-                    if hsize == hf.size:
-                        hf, hh, ht, hn = _grow(hf), _grow(hh), _grow(ht), _grow(hn)
-                    _heap_push(hf, hh, ht, hn, hsize, g2 + w * h2, h2, tie, idx)
+                    if hsize == heap.shape[0]:
+                        heap = _grow_rows(heap)
+                    _heap_push(heap, hsize, g2 + w * h2, h2, tie, idx)
                     hsize += 1
                     tie += 1
         bound = w

@@ -45,6 +45,8 @@ class FootstepDynamicConfig:
         heuristic_weight: w in g + w h (Euclidean cost-to-go).
         body_radius_m: bounding-circle radius of the 2-D planner's robot.
         table_path: action table file; empty for the nominal table.
+        swing_clearance_m: the swing foot clears obstacles up to this height (the blocks
+            are 2 cm and the strings 5 mm high, every grid of E(t) carries them).
     """
 
     row1_speed_m_s: float = 0.18
@@ -60,6 +62,7 @@ class FootstepDynamicConfig:
     heuristic_weight: float = 1.5
     body_radius_m: float = 0.30
     table_path: str = ""
+    swing_clearance_m: float = 0.10
 
     def validate(self) -> None:
         """Raise RepertoireError if a field is out of range."""
@@ -72,6 +75,7 @@ class FootstepDynamicConfig:
             "grid_dt_s",
             "time_limit_s",
             "body_radius_m",
+            "swing_clearance_m",
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
@@ -149,6 +153,7 @@ def _plan(config: FootstepDynamicConfig, scene):
             heuristic="euclidean",
             heuristic_weight=config.heuristic_weight,
             max_expansions=config.max_expansions,
+            swing_clearance=config.swing_clearance_m,
         ),
     )
 

@@ -42,6 +42,8 @@ class FootstepStaticConfig:
         body_radius_m: bounding-circle radius of the 2-D planner's robot.
         table_path: action table file (.json/.npz); empty for the nominal table.
         example_figures: number of example plans drawn by the summary.
+        swing_clearance_m: the swing foot clears obstacles up to this height (the maps'
+            obstacles are 2 cm high, so they are stepped over; taller ones would block).
     """
 
     size_m: float = 3.0
@@ -54,10 +56,17 @@ class FootstepStaticConfig:
     body_radius_m: float = 0.30
     table_path: str = ""
     example_figures: int = 4
+    swing_clearance_m: float = 0.10
 
     def validate(self) -> None:
         """Raise RepertoireError if a field is out of range."""
-        for name in ("size_m", "resolution_m", "time_limit_s", "body_radius_m"):
+        for name in (
+            "size_m",
+            "resolution_m",
+            "time_limit_s",
+            "body_radius_m",
+            "swing_clearance_m",
+        ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise RepertoireError(f"FootstepStaticConfig.{name} must be > 0, got {v}")
@@ -144,6 +153,7 @@ def _plan(config: FootstepStaticConfig, scene, table):
             heuristic="dijkstra",
             heuristic_weight=config.heuristic_weight,
             max_expansions=config.max_expansions,
+            swing_clearance=config.swing_clearance_m,
         ),
     )
     mobile = plan_mobile2d(scene.grid, scene.body_start, scene.goal, config.body_radius_m)
@@ -259,6 +269,8 @@ def summarize(
         title=f"action table: {config.table_path or 'nominal'} (black: stance foot)",
     )
 
+    out["height_plan"] = _height_plan_figure(config, out_dir / "footstep_height_plan.png")
+
     # example plans: half where the 2-D planner fails and the biped steps over, half where
     # the 2-D planner has to go around what the biped steps over
     seeds = _seeds_of(records)
@@ -329,6 +341,30 @@ def summarize(
         fig.savefig(path)
         out["distributions"] = path
     return out
+
+
+def _height_plan_figure(config: FootstepStaticConfig, path: Path) -> Path:
+    """A plan over a 2.5-D floor (blocks 2-30 cm high) with the study's swing clearance."""
+    from repertoire.planning.footstep import PlannerOptions, plan_footsteps
+    from repertoire.planning.footstep.plot import height_plan_figure
+    from repertoire.planning.footstep.scenes import random_floor_scene
+
+    sc = random_floor_scene(3, size=4.0, occupancy=0.15, resolution=config.resolution_m)
+    opts = PlannerOptions(
+        time_limit=config.time_limit_s,
+        heuristic_weight=config.heuristic_weight,
+        max_expansions=config.max_expansions,
+        swing_clearance=config.swing_clearance_m,
+    )
+    plan = plan_footsteps(sc.grid, sc.start, sc.start_foot, sc.goal, _table(config), opts)
+    return height_plan_figure(
+        sc.grid,
+        plan,
+        path,
+        swing_clearance=config.swing_clearance_m,
+        title=f"4 m floor, blocks 2-30 cm: {plan.status.value}, {plan.num_steps} steps "
+        f"(swing clearance {100 * config.swing_clearance_m:.0f} cm)",
+    )
 
 
 def _seeds_of(records: list) -> list[int]:

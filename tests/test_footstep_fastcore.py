@@ -86,16 +86,15 @@ def test_compiled_heap_pops_in_tuple_order():
     n = 500
     f = rng.integers(0, 20, n).astype(float)  # many ties on f, broken by h, then tie
     h = rng.integers(0, 5, n).astype(float)
-    hf, hh = np.empty(n), np.empty(n)
-    ht, hn = np.empty(n, np.int64), np.empty(n, np.int64)
+    heap = np.empty((n, 4))
     for k in range(n):
-        _heap_push(hf, hh, ht, hn, k, f[k], h[k], k, 10 * k)
+        _heap_push(heap, k, f[k], h[k], k, 10 * k)
     ref = [(f[k], h[k], k) for k in range(n)]
     heapq.heapify(ref)
     for size in range(n, 0, -1):
         want = heapq.heappop(ref)
-        assert (hf[0], hh[0], ht[0], hn[0]) == (*want, 10 * want[2])
-        _heap_pop(hf, hh, ht, hn, size)
+        assert tuple(heap[0]) == (*want, 10 * want[2])
+        _heap_pop(heap, size)
 
 
 def test_grid_dijkstra_matches_scipy():
@@ -203,3 +202,52 @@ def test_step_up_and_step_down_limits():
         PlannerOptions(max_step_up=float("nan")).validate()
     with pytest.raises(FootstepError, match="max_step_down must be >= 0 m, got -0.1"):
         PlannerOptions(max_step_down=-0.1).validate()
+
+
+def test_dynamic_grids_carry_heights_and_the_swing_clearance_uses_them():
+    from repertoire.planning.footstep.biped_model import BipedStepModel, swing_crosses
+    from repertoire.planning.footstep.scenes import strings_scene
+
+    sc = strings_scene(0, t_end=12.0)
+    assert np.unique(sc.env.grids[0].heights).tolist() == [0.0, 0.005, 0.02]
+    table = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", time_limit=30.0, swing_clearance=0.01)
+    plan = plan_footsteps(sc.env, sc.start, sc.start_foot, sc.goal, table, opts)
+    assert plan.succeeded
+    opts.validate()
+    model = BipedStepModel(sc.env, sc.start, sc.start_foot, sc.goal, table, opts)
+    assert model.tall_at(0) is not None and model.tall_at(0).sum() > 0  # the 2 cm blocks
+    swing = [plan.initial_swing_pose[:2]] + [p[:2] for p in plan.poses[:-1]]
+    res, (ox, oy) = sc.env.resolution, sc.env.reference.origin
+    for k in range(1, len(plan.poses)):
+        tall = model.tall_at(model.checkers.index(plan.times[k]))
+        if tall is not None:
+            x0, y0 = swing[k - 1]
+            assert not swing_crosses(tall, x0, y0, *plan.poses[k][:2], ox, oy, 1.0 / res)
+
+
+def test_compiled_distance_transform_matches_scipy():
+    from repertoire.planning.footstep.footprint import distance_to_features
+    from scipy import ndimage
+
+    rng = np.random.default_rng(3)
+    for shape, p in (((37, 23), 0.1), ((60, 70), 0.02), ((40, 9), 0.5)):
+        features = rng.random(shape) < p
+        want = ndimage.distance_transform_edt(~features)
+        np.testing.assert_array_equal(distance_to_features(features), want)
+    assert np.isinf(distance_to_features(np.zeros((4, 3), dtype=bool))).all()
+    one = np.zeros((5, 5), dtype=bool)
+    one[0, 0] = True
+    assert distance_to_features(one)[3, 4] == 5.0  # the 3-4-5 triangle
+
+
+def test_anytime_refines_before_unreachable():
+    from repertoire.planning.footstep import plan_footsteps_anytime
+
+    grid = stepping_stones_grid(0, 0.10)  # the 5 cm lattice merges the only way across
+    args = (grid, (0.2, 0.45, 0.0), "left", (1.8, 0.4), nominal_action_table())
+    coarse = plan_footsteps_anytime(*args, PlannerOptions(time_limit=30.0, refinements=0))
+    assert coarse[-1].plan.status is PlanStatus.UNREACHABLE
+    runs = plan_footsteps_anytime(*args, PlannerOptions(time_limit=30.0), weights=(2.0, 1.0))
+    assert [r.plan.status for r in runs] == [PlanStatus.SUCCESS] * 2
+    assert runs[-1].plan.xy_resolution == 0.025 and runs[-1].bound == 1.0

@@ -109,6 +109,20 @@ def history_classes(table: ActionTable) -> np.ndarray:
         cls = new
 
 
+_HIST_CACHE: dict[bytes, np.ndarray] = {}
+
+
+def _cached_history_classes(table: ActionTable) -> np.ndarray:
+    """:func:`history_classes`, remembered per table content (a few tables per process)."""
+    key = table.displacement.tobytes() + table.duration.tobytes()
+    cls = _HIST_CACHE.get(key)
+    if cls is None:
+        if len(_HIST_CACHE) >= 8:
+            _HIST_CACHE.clear()
+        cls = _HIST_CACHE[key] = history_classes(table)
+    return cls.copy()
+
+
 def pose3(p: Sequence[float], name: str) -> tuple[float, float, float]:
     """``(x, y[, yaw])`` as three finite floats with the yaw wrapped; errors name ``p``."""
     try:
@@ -125,7 +139,9 @@ def pose3(p: Sequence[float], name: str) -> tuple[float, float, float]:
 class Checkers:
     """Footprint checkers per time index (dynamic) or one checker (static).
 
-    The foot rectangle is inflated by ``margin`` (m) on every side; ``distance`` is the
+    In a dynamic world the checker of time index k sees every cell occupied while the foot
+    stands (the hold time after k), with the tallest height over that window. The foot
+    rectangle is inflated by ``margin`` (m) on every side; ``distance`` is the
     static grid's :func:`~repertoire.planning.footstep.footprint.edge_distance` when known.
     """
 
@@ -164,10 +180,14 @@ class Checkers:
             env = self.world
             t_hold = env.times[k] + self.hold
             k2 = int(np.searchsorted(env.times, t_hold + env.max_time_gap + 1e-9))
-            union = env.stack[k : max(k2, k + 1)].any(axis=0)
+            window = slice(k, max(k2, k + 1))
+            union = env.stack[window].any(axis=0)
             ref = env.reference
+            heights = ref.heights
+            if heights is not None:  # the tallest obstacle over the window
+                heights = np.max([g.heights for g in env.grids[window]], axis=0)
             c = FootprintChecker(
-                OccupancyGrid(union, ref.resolution, ref.origin, ref.heights), self.masks
+                OccupancyGrid(union, ref.resolution, ref.origin, heights), self.masks
             )
             self._cache[k] = c
         return c
@@ -291,6 +311,8 @@ class BipedStepModel:
             if opts.footprint_margin_m > 0
             else self.checkers
         )
+        self.exact_checkers = exact
+        self._tall_cache: dict[int, np.ndarray | None] = {}
         self.exact = chk_start = exact.checker(self.k0)
         if not chk_start.is_free(sx, sy, sth):
             raise FootstepError(
@@ -329,6 +351,9 @@ class BipedStepModel:
         self.step_up = opts.max_step_up if has_h else math.inf
         self.step_down = opts.max_step_down if has_h else math.inf
         self.step_limits = math.isfinite(self.step_up) or math.isfinite(self.step_down)
+        self.uses_heights = (
+            self.step_limits or math.isfinite(self.flat_limit) or self.height_w > 0.0
+        )
         if math.isfinite(self.flat_limit):
             for name, pose in (("start", self.start_pose), ("initial swing foot", self.swing0)):
                 rng_h = self.exact.height_range(*pose)
@@ -338,10 +363,7 @@ class BipedStepModel:
                         f"height range {rng_h:.3f} m under the sole > max_height_range "
                         f"{self.flat_limit} m"
                     )
-        self.tall = None
-        if ref.heights is not None and math.isfinite(opts.swing_clearance):
-            tall = ref.occupied & (ref.heights > opts.swing_clearance)
-            self.tall = tall if tall.any() else None
+        self.tall = self.tall_at(self.k0) if not self.dynamic else None
 
     def _setup_heuristic(self) -> None:
         opts, ref, table = self.opts, self.ref, self.table
@@ -404,7 +426,7 @@ class BipedStepModel:
             ]
         ).astype(float)
         self._succ_rows: list[tuple[Successor, ...]] | None = None
-        self.hist = history_classes(table)
+        self.hist = _cached_history_classes(table)
         self._hist_rows = self.hist.tolist()
         self.n_hist = int(self.hist.max()) + 1
 
@@ -428,6 +450,18 @@ class BipedStepModel:
         self.inv_tq = 1.0 / opts.time_resolution
         self.inv_res = 1.0 / ref.resolution
         self.origin = ref.origin
+
+    def tall_at(self, k: int) -> np.ndarray | None:
+        """Cells the swing foot cannot cross at time index ``k`` (None: none or no limit)."""
+        if k in self._tall_cache:
+            return self._tall_cache[k]
+        tall = None
+        grid = self.checkers.checker(k).grid
+        if grid.heights is not None and math.isfinite(self.opts.swing_clearance):
+            mask = grid.occupied & (grid.heights > self.opts.swing_clearance)
+            tall = mask if mask.any() else None
+        self._tall_cache[k] = tall
+        return tall
 
     # ------------------------------------------------------------------ lattice
     def lattice_key(self, x: float, y: float, yaw: float, foot: int, hist: int, t: float) -> int:
@@ -493,7 +527,10 @@ class BipedStepModel:
         nx, ny = self.ref.shape
         c, sn = math.cos(s.yaw), math.sin(s.yaw)
         nf = 1 - s.foot
-        z1 = self.exact.height_bounds(s.x, s.y, s.yaw)[1] if self.step_limits else 0.0
+        ex1 = self.exact
+        if self.dynamic and self.step_limits:
+            ex1 = self.exact_checkers.checker(max(self.checkers.index(s.t), 0))
+        z1 = ex1.height_bounds(s.x, s.y, s.yaw)[1] if self.step_limits else 0.0
         for m in self.successor_rows(s.a_prev2, s.a_prev1, s.foot):
             x2 = s.x + c * m.dx - sn * m.dy
             y2 = s.y + sn * m.dx + c * m.dy
@@ -508,24 +545,23 @@ class BipedStepModel:
                 if kt < 0:
                     continue
                 chk = self.checkers.checker(kt)
+                ex = self.exact_checkers.checker(kt) if self.uses_heights else self.exact
+                tall = self.tall_at(kt)
             else:
-                chk = self.chk0
+                chk, ex, tall = self.chk0, self.exact, self.tall
             ix, iy = int(fx), int(fy)
             if not chk.free_bytes[(ix + chk.pad) * chk.nyp + iy + chk.pad] and not (
                 chk._check_masks(0, ix, iy, fx - ix, fy - iy, th2)
             ):
                 continue
-            if (
-                self.flat_limit < math.inf
-                and self.exact.height_range(x2, y2, th2) > self.flat_limit
-            ):
+            if self.flat_limit < math.inf and ex.height_range(x2, y2, th2) > self.flat_limit:
                 continue
             if self.step_limits:
-                dz = self.exact.height_bounds(x2, y2, th2)[1] - z1
+                dz = ex.height_bounds(x2, y2, th2)[1] - z1
                 if dz > self.step_up or -dz > self.step_down:
                     continue
-            if self.tall is not None and swing_crosses(
-                self.tall, s.swing_x, s.swing_y, x2, y2, ox, oy, inv_res
+            if tall is not None and swing_crosses(
+                tall, s.swing_x, s.swing_y, x2, y2, ox, oy, inv_res
             ):
                 continue
             h = self.cost_to_go(x2, y2)
@@ -533,5 +569,5 @@ class BipedStepModel:
                 continue
             cost = m.cost
             if self.height_w > 0.0:
-                cost += self.height_w * self.exact.height_range(x2, y2, th2)
+                cost += self.height_w * ex.height_range(x2, y2, th2)
             yield BipedState(x2, y2, th2, nf, s.a_prev1, m.a, t2, s.x, s.y, h), cost

@@ -392,6 +392,7 @@ class DynamicEnvironment:
         dt: float = 0.1,
         resolution: float = 0.025,
         origin: Sequence[float] = (0.0, 0.0),
+        with_heights: bool = False,
     ) -> "DynamicEnvironment":
         """Grids every ``dt`` seconds over ``[0, t_end]`` of obstacles on known trajectories.
 
@@ -403,18 +404,28 @@ class DynamicEnvironment:
             dt: spacing of the grid times (s); also ``2 max_time_gap``.
             resolution: cell side (m).
             origin: corner of cell (0, 0).
+            with_heights: every grid also carries its obstacles' heights (a 2.5-D E(t)).
         """
         if not (math.isfinite(dt) and dt > 0):
             raise GridError(f"dt must be positive, got {dt}")
         if not (math.isfinite(t_end) and t_end >= 0):
             raise GridError(f"t_end must be >= 0, got {t_end}")
-        base = OccupancyGrid.from_rectangles(size, list(static), resolution, origin)
+        base = OccupancyGrid.from_rectangles(
+            size, list(static), resolution, origin, with_heights=with_heights
+        )
         centers = base.cell_centers()
         times = np.arange(0.0, t_end + 0.5 * dt, dt)
+        nx, ny = base.shape
+        per_grid = nx * ny * (9.0 if with_heights else 1.0)
+        require_memory(
+            per_grid * len(times), f"{len(times)} grids of {nx} x {ny} cells (dt {dt} s)"
+        )
         grids = []
         for t in times:
+            heights = base.heights.copy() if with_heights else None
             g = OccupancyGrid(base.occupied.copy(), resolution, origin)
             for m in moving:
-                g._paint(m.at(float(t)), centers, None)
+                g._paint(m.at(float(t)), centers, heights)
+            g.heights = heights
             grids.append(g)
         return cls(times, grids, max_time_gap=dt / 2.0)

@@ -4,7 +4,7 @@ The same search as :func:`repertoire.planning.footstep.search.search` run on the
 step model (:class:`~repertoire.planning.footstep.biped_model.BipedStepModel`), with
 everything in arrays so that numba compiles it:
 
-- the open list is a binary heap of ``(f, h, tie, node)`` entries in parallel arrays,
+- the open list is a binary heap of ``(f, h, tie, node)`` rows of one array,
   ordered exactly as the Python loop's ``heapq`` tuples (so both pop the same states);
 - duplicate detection is an open-addressing hash table from lattice keys (the model's
   :meth:`~repertoire.planning.footstep.biped_model.BipedStepModel.lattice_key`, computed
@@ -17,9 +17,9 @@ everything in arrays so that numba compiles it:
   swing lines are sampled over the cells taller than the swing clearance.
 
 Dynamic worlds and models that are not table-driven stay on the Python loop. The functions
-are compiled with ``cache=True`` (the first call in a fresh environment compiles them, a
-few seconds; later processes load them from the cache): :func:`warm_up` compiles them
-once ahead of a timed run.
+are compiled with ``cache=True`` (the first call in a fresh environment compiles them, up
+to a minute; later processes load them from the cache in about a second): :func:`warm_up`
+does that once per process, before any plan's clock starts.
 """
 
 import math
@@ -44,57 +44,77 @@ def _less(f1, h1, t1, f2, h2, t2):
 
 
 @numba.njit(cache=True)
-def _heap_push(hf, hh, ht, hn, size, f, h, tie, node):
+def _heap_push(heap, size, f, h, tie, node):
+    """Insert ``(f, h, tie, node)`` into a heap of ``size`` rows (one row per entry)."""
     i = size
     while i > 0:
         p = (i - 1) >> 1
-        if _less(f, h, tie, hf[p], hh[p], ht[p]):
-            hf[i], hh[i], ht[i], hn[i] = hf[p], hh[p], ht[p], hn[p]
+        if _less(f, h, tie, heap[p, 0], heap[p, 1], heap[p, 2]):
+            heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = (
+                heap[p, 0],
+                heap[p, 1],
+                heap[p, 2],
+                heap[p, 3],
+            )
             i = p
         else:
             break
-    hf[i], hh[i], ht[i], hn[i] = f, h, tie, node
+    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
 
 
 @numba.njit(cache=True)
-def _heap_pop(hf, hh, ht, hn, size):
-    """Remove the root of a heap of ``size`` entries (the caller read it first)."""
+def _heap_pop(heap, size):
+    """Remove the root of a heap of ``size`` rows (the caller read it first)."""
     size -= 1
-    f, h, tie, node = hf[size], hh[size], ht[size], hn[size]
+    f, h, tie, node = heap[size, 0], heap[size, 1], heap[size, 2], heap[size, 3]
     i = 0
     while True:
         c = 2 * i + 1
         if c >= size:
             break
-        if c + 1 < size and _less(hf[c + 1], hh[c + 1], ht[c + 1], hf[c], hh[c], ht[c]):
+        if c + 1 < size and _less(
+            heap[c + 1, 0], heap[c + 1, 1], heap[c + 1, 2], heap[c, 0], heap[c, 1], heap[c, 2]
+        ):
             c += 1
-        if _less(hf[c], hh[c], ht[c], f, h, tie):
-            hf[i], hh[i], ht[i], hn[i] = hf[c], hh[c], ht[c], hn[c]
+        if _less(heap[c, 0], heap[c, 1], heap[c, 2], f, h, tie):
+            heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = (
+                heap[c, 0],
+                heap[c, 1],
+                heap[c, 2],
+                heap[c, 3],
+            )
             i = c
         else:
             break
-    hf[i], hh[i], ht[i], hn[i] = f, h, tie, node
+    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
 
 
 @numba.njit(cache=True, inline="always")
-def _slot(keys, key):
-    mask = keys.size - 1
+def _slot(table, key):
+    """Row of ``key`` in an open-addressing table of (key, value) rows, or of its empty slot."""
+    mask = table.shape[0] - 1
     i = ((key * 0x9E3779B97F4A7C15) >> 17) & mask
-    while keys[i] != -1 and keys[i] != key:
+    while table[i, 0] != -1 and table[i, 0] != key:
         i = (i + 1) & mask
     return i
 
 
 @numba.njit(cache=True)
-def _rehash(keys, vals):
-    nk = np.full(keys.size * 2, -1, np.int64)
-    nv = np.empty(keys.size * 2, np.int64)
-    for i in range(keys.size):
-        if keys[i] != -1:
-            j = _slot(nk, keys[i])
-            nk[j] = keys[i]
-            nv[j] = vals[i]
-    return nk, nv
+def _rehash(table):
+    new = np.full((table.shape[0] * 2, 2), -1, np.int64)
+    for i in range(table.shape[0]):
+        if table[i, 0] != -1:
+            j = _slot(new, table[i, 0])
+            new[j, 0] = table[i, 0]
+            new[j, 1] = table[i, 1]
+    return new
+
+
+@numba.njit(cache=True)
+def _grow_rows(a):
+    b = np.empty((a.shape[0] * 2, a.shape[1]), a.dtype)
+    b[: a.shape[0]] = a
+    return b
 
 
 @numba.njit(cache=True)
@@ -257,28 +277,12 @@ def _arastar(
     tol2 = tol * tol
     two_pi = 2.0 * math.pi
     cap = 1024
-    nxs = np.empty(cap)
-    nys = np.empty(cap)
-    nth = np.empty(cap)
-    nt = np.empty(cap)
-    nsx = np.empty(cap)
-    nsy = np.empty(cap)
-    nh = np.empty(cap)
-    ng = np.empty(cap)
-    nfoot = np.empty(cap, np.int64)
-    na2 = np.empty(cap, np.int64)
-    na1 = np.empty(cap, np.int64)
-    npar = np.empty(cap, np.int64)
-    nexp = np.full(cap, -1, np.int64)  # search index in which the node was expanded
-    nopen = np.zeros(cap, np.uint8)
-    nincons = np.zeros(cap, np.uint8)
-    keys = np.full(4096, -1, np.int64)
-    vals = np.empty(4096, np.int64)
-    hcap = 1024
-    hf = np.empty(hcap)
-    hh = np.empty(hcap)
-    ht = np.empty(hcap, np.int64)
-    hn = np.empty(hcap, np.int64)
+    fnode = np.empty((cap, 8))  # x, y, yaw, t, swing_x, swing_y, h, g
+    inode = np.zeros(
+        (cap, 7), np.int64
+    )  # foot, a_prev2, a_prev1, parent, expanded in, open, incons
+    table = np.full((4096, 2), -1, np.int64)
+    heap = np.empty((1024, 4))
 
     sx, sy, sth = start[0], start[1], start[2]
     f0, a20, a10 = int(start[3]), int(start[4]), int(start[5])
@@ -286,7 +290,16 @@ def _arastar(
         sth * yaw_scale + nyaw + 0.5
     ) % nyaw
     key0 = (key0 * 2 + f0) * n_hist + hist[a20, a10]
-    nxs[0], nys[0], nth[0], nt[0], nsx[0], nsy[0], nh[0], ng[0] = (
+    (
+        fnode[0, 0],
+        fnode[0, 1],
+        fnode[0, 2],
+        fnode[0, 3],
+        fnode[0, 4],
+        fnode[0, 5],
+        fnode[0, 6],
+        fnode[0, 7],
+    ) = (
         sx,
         sy,
         sth,
@@ -296,11 +309,18 @@ def _arastar(
         start[9],
         0.0,
     )
-    nfoot[0], na2[0], na1[0], npar[0], nopen[0] = f0, a20, a10, -1, 1
+    inode[0, 0], inode[0, 1], inode[0, 2], inode[0, 3], inode[0, 4], inode[0, 5] = (
+        f0,
+        a20,
+        a10,
+        -1,
+        -1,
+        1,
+    )
     count = 1
-    j = _slot(keys, key0)
-    keys[j] = key0
-    vals[j] = 0
+    j = _slot(table, key0)
+    table[j, 0] = key0
+    table[j, 1] = 0
     used = 1
     best, best_h = 0, start[9]
     expansions = generated = merged = 0
@@ -314,38 +334,38 @@ def _arastar(
         t_it = _now()
         hsize = 0
         for k in range(count):
-            if nopen[k] or nincons[k]:
-                if hsize == hf.size:
-                    hf, hh, ht, hn = _grow(hf), _grow(hh), _grow(ht), _grow(hn)
-                _heap_push(hf, hh, ht, hn, hsize, ng[k] + w * nh[k], nh[k], hsize, k)
+            if inode[k, 5] or inode[k, 6]:
+                if hsize == heap.shape[0]:
+                    heap = _grow_rows(heap)
+                _heap_push(heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize, k)
                 hsize += 1
-                nopen[k], nincons[k] = 1, 0
+                inode[k, 5], inode[k, 6] = 1, 0
         tie = hsize
         status, end, exp_it = 1, -1, 0  # UNREACHABLE
         while hsize > 0:
-            h = hh[0]
-            node = hn[0]
-            _heap_pop(hf, hh, ht, hn, hsize)
+            h = heap[0, 1]
+            node = int(heap[0, 3])
+            _heap_pop(heap, hsize)
             hsize -= 1
-            if nexp[node] == it:
+            if inode[node, 4] == it:
                 continue
-            x, y, th, foot = nxs[node], nys[node], nth[node], nfoot[node]
+            x, y, th, foot = fnode[node, 0], fnode[node, 1], fnode[node, 2], inode[node, 0]
             if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
                 status, end = 0, node
                 break
             if expansions >= max_expansions:
                 status = 2
                 break
-            if (expansions & 1023) == 0 and _now() - t0 > time_limit:
+            if expansions and (expansions & 1023) == 0 and _now() - t0 > time_limit:
                 status = 3
                 break
-            nopen[node], nexp[node] = 0, it
+            inode[node, 5], inode[node, 4] = 0, it
             expansions += 1
             exp_it += 1
-            g = ng[node]
-            if h < best_h or (h == best_h and g < ng[best]):
+            g = fnode[node, 7]
+            if h < best_h or (h == best_h and g < fnode[best, 7]):
                 best, best_h = node, h
-            a2, a1 = na2[node], na1[node]
+            a2, a1 = inode[node, 1], inode[node, 2]
             c, s = math.cos(th), math.sin(th)
             nf = 1 - foot
             row = (a2 * n + a1) * 2 + foot
@@ -373,7 +393,9 @@ def _arastar(
                     dz = _height_bounds(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)[1] - z1
                     if dz > step_up or -dz > step_down:
                         continue
-                if use_tall and _swing_crosses(tall, nsx[node], nsy[node], x2, y2, ox, oy, inv_res):
+                if use_tall and _swing_crosses(
+                    tall, fnode[node, 4], fnode[node, 5], x2, y2, ox, oy, inv_res
+                ):
                     continue
                 if use_cells:
                     h2 = h_cells[int(fx) * ny + int(fy)]
@@ -391,43 +413,44 @@ def _arastar(
                     int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
                 ) * nyaw + int(th2 * yaw_scale + nyaw + 0.5) % nyaw
                 k2 = (k2 * 2 + nf) * n_hist + hist[a1, a]
-                j = _slot(keys, k2)
+                j = _slot(table, k2)
                 idx = -1
                 closed_now = False
-                if keys[j] == k2:
-                    idx = vals[j]
-                    closed_now = nexp[idx] == it or nincons[idx] == 1
-                    if closed_now or g2 >= ng[idx]:
+                if table[j, 0] == k2:
+                    idx = table[j, 1]
+                    closed_now = inode[idx, 4] == it or inode[idx, 6] == 1
+                    if closed_now or g2 >= fnode[idx, 7]:
                         merged += 1
-                    if g2 >= ng[idx]:
+                    if g2 >= fnode[idx, 7]:
                         continue
-                    if nexp[idx] >= 0:  # has children: a new node keeps them consistent
+                    if inode[idx, 4] >= 0:  # has children: a new node keeps them consistent
                         idx = -1
                 if idx < 0:
-                    if count == nxs.size:
-                        nxs, nys, nth, nt = _grow(nxs), _grow(nys), _grow(nth), _grow(nt)
-                        nsx, nsy, nh, ng = _grow(nsx), _grow(nsy), _grow(nh), _grow(ng)
-                        nfoot, na2, na1, npar = _grow(nfoot), _grow(na2), _grow(na1), _grow(npar)
-                        nexp = _grow(nexp)
-                        nopen, nincons = _grow(nopen), _grow(nincons)
+                    if count == fnode.shape[0]:
+                        fnode, inode = _grow_rows(fnode), _grow_rows(inode)
                     idx = count
                     count += 1
-                    nexp[idx] = -1
-                    nopen[idx] = 0 if closed_now else 1
-                    nincons[idx] = 1 if closed_now else 0
-                    if keys[j] != k2:
-                        keys[j] = k2
+                    inode[idx, 4] = -1
+                    inode[idx, 5] = 0 if closed_now else 1
+                    inode[idx, 6] = 1 if closed_now else 0
+                    if table[j, 0] != k2:
+                        table[j, 0] = k2
                         used += 1
-                    vals[j] = idx
-                    if 2 * used > keys.size:
-                        keys, vals = _rehash(keys, vals)
-                nxs[idx], nys[idx], nth[idx], nt[idx] = x2, y2, th2, nt[node] + succ_f[r, 3]
-                nsx[idx], nsy[idx], nh[idx], ng[idx] = x, y, h2, g2
-                nfoot[idx], na2[idx], na1[idx], npar[idx] = nf, a1, a, node
-                if nincons[idx] == 0:
-                    if hsize == hf.size:
-                        hf, hh, ht, hn = _grow(hf), _grow(hh), _grow(ht), _grow(hn)
-                    _heap_push(hf, hh, ht, hn, hsize, g2 + w * h2, h2, tie, idx)
+                    table[j, 1] = idx
+                    if 2 * used > table.shape[0]:
+                        table = _rehash(table)
+                fnode[idx, 0], fnode[idx, 1], fnode[idx, 2], fnode[idx, 3] = (
+                    x2,
+                    y2,
+                    th2,
+                    fnode[node, 3] + succ_f[r, 3],
+                )
+                fnode[idx, 4], fnode[idx, 5], fnode[idx, 6], fnode[idx, 7] = x, y, h2, g2
+                inode[idx, 0], inode[idx, 1], inode[idx, 2], inode[idx, 3] = nf, a1, a, node
+                if inode[idx, 6] == 0:
+                    if hsize == heap.shape[0]:
+                        heap = _grow_rows(heap)
+                    _heap_push(heap, hsize, g2 + w * h2, h2, tie, idx)
                     hsize += 1
                     tie += 1
         bound = w
@@ -435,27 +458,32 @@ def _arastar(
             solution = end
             low = np.inf
             for k in range(count):
-                if (nopen[k] or nincons[k]) and ng[k] + nh[k] < low:
-                    low = ng[k] + nh[k]
+                if (inode[k, 5] or inode[k, 6]) and fnode[k, 7] + fnode[k, 6] < low:
+                    low = fnode[k, 7] + fnode[k, 6]
             if low == np.inf:
-                low = ng[end]
-            bound = min(w, ng[end] / low) if low > 0 else w
+                low = fnode[end, 7]
+            bound = min(w, fnode[end, 7] / low) if low > 0 else w
         last = end if end >= 0 else (solution if solution >= 0 else best)
         out_i[it, 0], out_i[it, 1], out_i[it, 2] = status, last, exp_it
         out_i[it, 3], out_i[it, 4] = generated, merged
-        out_f[it, 0], out_f[it, 1], out_f[it, 2] = ng[last], bound, _now() - t_it
+        out_f[it, 0], out_f[it, 1], out_f[it, 2] = fnode[last, 7], bound, _now() - t_it
         runs += 1
         if status != 0:
             break
     nodes = np.empty((count, 10))  # x, y, yaw, t, swing_x, swing_y, h, foot, a2, a1
-    parents = npar[:count]
+    parents = inode[:count, 3]
     for it in range(runs):  # only the nodes on the paths are filled
         k = out_i[it, 1]
         while k >= 0:
-            nodes[k, 0], nodes[k, 1], nodes[k, 2], nodes[k, 3] = nxs[k], nys[k], nth[k], nt[k]
-            nodes[k, 4], nodes[k, 5], nodes[k, 6] = nsx[k], nsy[k], nh[k]
-            nodes[k, 7], nodes[k, 8], nodes[k, 9] = nfoot[k], na2[k], na1[k]
-            k = npar[k]
+            nodes[k, 0], nodes[k, 1], nodes[k, 2], nodes[k, 3] = (
+                fnode[k, 0],
+                fnode[k, 1],
+                fnode[k, 2],
+                fnode[k, 3],
+            )
+            nodes[k, 4], nodes[k, 5], nodes[k, 6] = fnode[k, 4], fnode[k, 5], fnode[k, 6]
+            nodes[k, 7], nodes[k, 8], nodes[k, 9] = inode[k, 0], inode[k, 1], inode[k, 2]
+            k = inode[k, 3]
     return out_i[:runs], out_f[:runs], nodes, parents
 
 
@@ -621,3 +649,35 @@ def compiled_anytime(
             )
         )
     return results
+
+
+_WARM = False
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) every compiled function once per process.
+
+    :func:`repertoire.planning.footstep.plan_footsteps` calls it before starting its clock,
+    so the one-time compilation (tens of seconds cold, about a second from the cache) never
+    eats a plan's time limit.
+    """
+    global _WARM
+    if _WARM:
+        return
+    _WARM = True
+    from repertoire.planning.footstep.actions import nominal_action_table
+    from repertoire.planning.footstep.environment import OccupancyGrid
+    from repertoire.planning.footstep.planner import PlannerOptions
+
+    occ = np.zeros((24, 24), dtype=bool)
+    occ[12, :6] = True
+    heights = 0.01 * occ
+    grid = OccupancyGrid(occ, 0.025, (0.0, 0.0), heights)
+    opts = PlannerOptions(
+        max_expansions=3, max_height_range=1.0, max_step_up=1.0, swing_clearance=0.5,
+        height_cost_weight=0.1, backend="compiled",
+    )  # fmt: skip
+    model = BipedStepModel(
+        grid, (0.15, 0.35, 0.0), "left", (0.45, 0.45), nominal_action_table(), opts
+    )
+    compiled_anytime(model, [2.0, 1.0], 3, 60.0)

@@ -16,9 +16,9 @@ The grid's rows are Python integers (one bit per cell) and each mask is a few
 import functools
 import math
 
+import numba
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid, rect_overlaps_cells
-from scipy import ndimage
 
 
 class FootprintMasks:
@@ -113,6 +113,75 @@ def footprint_masks(
     return FootprintMasks(foot_length, foot_width, resolution, yaw_bins, sub)
 
 
+def distance_to_features(features: np.ndarray) -> np.ndarray:
+    """Exact Euclidean distance (in cells) from each cell centre to the nearest feature cell.
+
+    The same values as ``scipy.ndimage.distance_transform_edt(~features)`` (inf where there
+    is no feature), by Felzenszwalb and Huttenlocher's two-pass lower envelope of parabolas,
+    compiled.
+
+    Args:
+        features: (nx, ny) bool array.
+    """
+    return np.sqrt(_edt_sq(np.ascontiguousarray(features, dtype=np.bool_)))
+
+
+@numba.njit(cache=True)
+def _edt_sq(features):
+    nx, ny = features.shape
+    big = 1e20
+    col = np.empty((nx, ny))
+    for j in range(ny):  # pass 1: squared distance along x
+        last = -1
+        for i in range(nx):
+            if features[i, j]:
+                last = i
+            col[i, j] = big if last < 0 else float((i - last) * (i - last))
+        last = -1
+        for i in range(nx - 1, -1, -1):
+            if features[i, j]:
+                last = i
+            if last >= 0:
+                d = float((last - i) * (last - i))
+                if d < col[i, j]:
+                    col[i, j] = d
+    out = np.empty((nx, ny))
+    v = np.empty(ny, np.int64)
+    z = np.empty(ny + 1)
+    for i in range(nx):  # pass 2: lower envelope of parabolas along y
+        f = col[i]
+        k = -1
+        for q in range(ny):
+            if f[q] >= big:
+                continue
+            while k >= 0:
+                p = v[k]
+                s = ((f[q] + q * q) - (f[p] + p * p)) / (2.0 * (q - p))
+                if s <= z[k]:
+                    k -= 1
+                else:
+                    break
+            k += 1
+            v[k] = q
+            z[k] = (
+                -np.inf
+                if k == 0
+                else ((f[q] + q * q) - (f[v[k - 1]] + v[k - 1] ** 2)) / (2.0 * (q - v[k - 1]))
+            )
+            z[k + 1] = np.inf
+        if k < 0:
+            for q in range(ny):
+                out[i, q] = np.inf
+            continue
+        m = 0
+        for q in range(ny):
+            while z[m + 1] < q:
+                m += 1
+            p = v[m]
+            out[i, q] = (q - p) * (q - p) + f[p]
+    return out
+
+
 def edge_distance(grid: OccupancyGrid) -> np.ndarray:
     """Distance (m) from each cell centre to the nearest occupied cell or cell off the map.
 
@@ -125,7 +194,7 @@ def edge_distance(grid: OccupancyGrid) -> np.ndarray:
     nx, ny = grid.shape
     occ = np.ones((nx + 2, ny + 2), dtype=bool)
     occ[1:-1, 1:-1] = grid.occupied
-    return ndimage.distance_transform_edt(~occ)[1:-1, 1:-1] * grid.resolution
+    return distance_to_features(occ)[1:-1, 1:-1] * grid.resolution
 
 
 class FootprintChecker:

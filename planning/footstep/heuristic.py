@@ -14,7 +14,7 @@ import math
 import numba
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid
-from scipy import ndimage
+from repertoire.planning.footstep.footprint import distance_to_features
 from scipy.sparse import csr_matrix
 
 _NEIGHBOURS = ((1, 0), (0, 1), (1, 1), (1, -1))
@@ -90,7 +90,7 @@ def dijkstra_cost_to_go(
     """
     cost = np.where(grid.occupied, obstacle_cost, 1.0)
     if math.isfinite(impassable_depth) and grid.occupied.any():
-        depth = ndimage.distance_transform_edt(grid.occupied) * grid.resolution
+        depth = distance_to_features(~grid.occupied) * grid.resolution
         cost[depth > impassable_depth] = deep_cost
     centers = grid.cell_centers()
     d_goal = np.hypot(centers[..., 0] - goal[0], centers[..., 1] - goal[1])

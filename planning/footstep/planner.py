@@ -210,6 +210,9 @@ def plan_footsteps(
     Raises:
         FootstepError: bad options or inputs (see the step model).
     """
+    from repertoire.planning.footstep.fastcore import warm_up
+
+    warm_up()  # one-time compilation / cache load, outside the time limit
     t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
     opts.validate()
@@ -325,8 +328,10 @@ def plan_footsteps_anytime(
 
     The search is reused between weights (OPEN plus INCONS, see
     :func:`repertoire.planning.footstep.search.anytime_search`); each plan carries its
-    bound. ``options.heuristic_weight`` is ignored (``weights`` set it), the other options
-    apply; ``time_limit`` and ``max_expansions`` cover all searches.
+    bound. Like :func:`plan_footsteps`, an UNREACHABLE after merged states repeats the
+    search on finer lattices (``options.refinements``). ``options.heuristic_weight`` is
+    ignored (``weights`` set it), the other options apply; ``time_limit`` and
+    ``max_expansions`` cover all searches.
 
     Args:
         world, start, start_foot, goal, table, options, **kwargs: as in
@@ -337,11 +342,55 @@ def plan_footsteps_anytime(
         the plans in order (costs non-increasing); the last one may be a partial plan with
         status TIME_LIMIT / NODE_LIMIT / UNREACHABLE.
     """
+    from repertoire.planning.footstep.fastcore import warm_up
+
+    warm_up()  # one-time compilation / cache load, outside the time limit
     t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
     opts.validate()
+    model, results = _anytime_once(world, start, start_foot, goal, table, opts, weights, kwargs)
+    level = 0
+    while (
+        results[-1].status is PlanStatus.UNREACHABLE
+        and results[-1].merged
+        and level < opts.refinements
+    ):
+        left = opts.time_limit - (time.perf_counter() - t_begin)
+        if left <= 0.0:
+            results[-1].status = PlanStatus.TIME_LIMIT
+            break
+        level += 1
+        finer = dataclasses.replace(
+            opts,
+            xy_resolution=opts.xy_resolution / 2**level,
+            yaw_bins=int(opts.yaw_bins) * 2**level,
+            time_limit=left,
+        )
+        model, results = _anytime_once(
+            world, start, start_foot, goal, table, finer, weights, kwargs
+        )
+    out = []
+    elapsed = time.perf_counter() - t_begin - sum(r.seconds for r in results)
+    for r in results:
+        elapsed += r.seconds
+        out.append(AnytimePlan(_to_plan(model, r, elapsed), r.weight, r.bound, elapsed))
+    return out
+
+
+def _anytime_once(
+    world: "OccupancyGrid | DynamicEnvironment",
+    start: Sequence[float],
+    start_foot: "Foot | int | str",
+    goal: Sequence[float],
+    table: ActionTable,
+    opts: PlannerOptions,
+    weights: Sequence[float],
+    kwargs: dict,
+) -> tuple[BipedStepModel, list[SearchResult]]:
+    """ARA* at the options' lattice, on the backend the options choose."""
+    t0 = time.perf_counter()
     model = BipedStepModel(world, start, start_foot, goal, table, opts, **kwargs)
-    left = max(opts.time_limit - (time.perf_counter() - t_begin), 1e-9)
+    left = max(opts.time_limit - (time.perf_counter() - t0), 1e-9)
     budget = int(opts.max_expansions) if opts.max_expansions > 0 else 2**62
     backend = opts.backend
     if backend == "auto":
@@ -351,14 +400,7 @@ def plan_footsteps_anytime(
             raise FootstepError("the compiled backend plans on static grids only; use 'python'")
         from repertoire.planning.footstep.fastcore import compiled_anytime
 
-        results = compiled_anytime(model, list(weights), budget, left)
-    else:
-        results = anytime_search(
-            model, weights=weights, max_expansions=budget, time_limit=left, require_successors=False
-        )
-    out = []
-    elapsed = time.perf_counter() - t_begin - sum(r.seconds for r in results)
-    for r in results:
-        elapsed += r.seconds
-        out.append(AnytimePlan(_to_plan(model, r, elapsed), r.weight, r.bound, elapsed))
-    return out
+        return model, compiled_anytime(model, list(weights), budget, left)
+    return model, anytime_search(
+        model, weights=weights, max_expansions=budget, time_limit=left, require_successors=False
+    )

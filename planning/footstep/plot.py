@@ -224,6 +224,75 @@ def dynamic_plan_figure(
 CRAWL_LEG_COLORS = ("#1f5fd6", "#d6541f", "#2ca02c", "#9467bd")
 
 
+def height_plan_figure(
+    grid: OccupancyGrid,
+    plan: FootstepPlan,
+    path: "str | Path",
+    *,
+    swing_clearance: float = math.inf,
+    title: str = "",
+    geometry: BipedGeometry = ASIMO_LIKE,
+) -> Path:
+    """Write a PNG of a biped plan over a 2.5-D map: obstacle cells coloured by height.
+
+    Obstacles the swing foot clears (height <= ``swing_clearance``) and taller ones are
+    outlined differently; free ground is white (shaded by its height when it has any).
+
+    Args:
+        grid: the grid with ``heights``.
+        plan: the footstep plan.
+        path: output PNG.
+        swing_clearance: the planner's swing clearance (m), to mark the taller obstacles.
+        title: axes title.
+        geometry: foot size.
+
+    Raises:
+        ValueError: a grid without heights.
+    """
+    if grid.heights is None:
+        raise ValueError("height_plan_figure needs a grid with heights")
+    fig = Figure(figsize=(6.4, 6.0), dpi=130)
+    ax = fig.add_subplot(1, 1, 1)
+    nx, ny = grid.shape
+    x0, y0 = grid.origin
+    res = grid.resolution
+    extent = (x0, x0 + nx * res, y0, y0 + ny * res)
+    h_cm = np.where(grid.occupied, 100.0 * grid.heights, np.nan)
+    ground = np.where(grid.occupied, np.nan, 100.0 * grid.heights)
+    if np.nanmax(np.abs(ground), initial=0.0) > 0:
+        ax.imshow(
+            ground.T, origin="lower", extent=extent, cmap="Greys", alpha=0.35,
+            interpolation="nearest",
+        )  # fmt: skip
+    im = ax.imshow(
+        h_cm.T, origin="lower", extent=extent, cmap="viridis", interpolation="nearest", vmin=0.0
+    )
+    fig.colorbar(im, ax=ax, label="obstacle height (cm)", shrink=0.8)
+    handles = plan_legend_handles()[:4]
+    handles.append(Patch(fc=im.cmap(0.1), label="obstacle (colour: height)"))
+    if math.isfinite(swing_clearance):
+        tall = grid.occupied & (grid.heights > swing_clearance)
+        if tall.any():
+            ax.contour(
+                (np.arange(nx) + 0.5) * res + x0, (np.arange(ny) + 0.5) * res + y0,
+                tall.T.astype(float), levels=[0.5], colors="r", linewidths=0.8,
+            )  # fmt: skip
+            handles.append(
+                Line2D([], [], color="r", lw=0.8, label=f"taller than swing clearance "
+                       f"{100 * swing_clearance:.0f} cm (no step over)")
+            )  # fmt: skip
+    draw_plan(ax, plan, geometry)
+    fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=6, framealpha=0.9)
+    ax.set_title(title or f"plan: {plan.status.value}, {plan.num_steps} steps", fontsize=8)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal")
+    fig.tight_layout(rect=(0.0, 0.1, 1.0, 1.0))
+    path = Path(path)
+    fig.savefig(path)
+    return path
+
+
 def crawl_plan_figure(height_map, plan, path: "str | Path", *, goal=None, title: str = "") -> Path:
     """Write a PNG of a crawl plan over the height map (heights as a colour bar).
 

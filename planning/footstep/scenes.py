@@ -86,6 +86,9 @@ def random_static_scene(
 ) -> StaticScene:
     """A random floor of flat obstacles with start and goal in opposite corners.
 
+    The obstacles are 2 cm high: the grid carries their heights (a 2.5-D map), so a
+    planner with a swing clearance above 2 cm steps over them.
+
     Args:
         seed: random seed.
         size: side of the square floor (m).
@@ -123,7 +126,7 @@ def random_static_scene(
             if _disc_clear(rect, start_xy, clear_radius) and _disc_clear(rect, goal, clear_radius):
                 rects.append(rect)
                 placed += 1
-    grid = OccupancyGrid.from_rectangles((size, size), rects, resolution)
+    grid = OccupancyGrid.from_rectangles((size, size), rects, resolution, with_heights=True)
     yaw = math.atan2(goal[1] - start_xy[1], goal[0] - start_xy[0])
     # left foot stands, the right foot beside it; the body centre is between them
     half_w = 0.095
@@ -145,6 +148,8 @@ def strings_scene(
     dt: float = 0.1,
 ) -> DynamicScene:
     """The paper's Fig. 5 scene with random phases of the two rows.
+
+    The blocks are 2 cm and the strings 5 mm high; every grid of E(t) carries them.
 
     Args:
         seed: random seed (phases of the rows).
@@ -172,7 +177,7 @@ def strings_scene(
             MovingRectObstacle([size / 2.0, y], [length, string_width], [v, 0.0], height=0.005)
         )
     env = DynamicEnvironment.from_moving_obstacles(
-        (size, size), moving=moving, t_end=t_end, dt=dt, resolution=resolution
+        (size, size), moving=moving, t_end=t_end, dt=dt, resolution=resolution, with_heights=True
     )
     body = (size / 2.0, 0.4)
     start = (body[0] - 0.095, body[1], math.pi / 2)  # left foot, facing +y

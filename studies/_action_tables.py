@@ -98,7 +98,8 @@ def learning_curve_figure(
     from matplotlib.figure import Figure
     from repertoire.planning.action_models import fit_action_model
 
-    sizes = [n for n in (40, 80, 160, 320, 640, 1280) if n < len(records)] + [len(records)]
+    # doubling sizes, the last one replaced by all records when they are within 25% of it
+    sizes = [n for n in (40, 80, 160, 320, 640, 1280) if n * 1.25 < len(records)] + [len(records)]
     ns_d, maes, ns_f, accs = [], [], [], []
     for n in sizes:
         sub = list(records[:n])
@@ -118,13 +119,15 @@ def learning_curve_figure(
     ax.set_xlabel("episodes")
     ax.set_ylabel("MAE (s)")
     ax.set_ylim(bottom=0)
-    ax2 = ax.twinx()
-    ax2.plot(ns_f, accs, "s-", color="tab:red", label="failure tree accuracy, held-out")
-    ax2.set_ylabel("fraction correct")
-    ax2.set_ylim(0, 1)
-    h1, l1 = ax.get_legend_handles_labels()
-    h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, loc="lower left", fontsize=8)
+    h, lab = ax.get_legend_handles_labels()
+    if ns_f:  # a failure tree needs both outcomes
+        ax2 = ax.twinx()
+        ax2.plot(ns_f, accs, "s-", color="tab:red", label="failure tree accuracy, held-out")
+        ax2.set_ylabel("fraction correct")
+        ax2.set_ylim(0, 1)
+        h2, l2 = ax2.get_legend_handles_labels()
+        h, lab = h + h2, lab + l2
+    ax.legend(h, lab, loc="lower left", fontsize=8)
     ax.set_xticks(sizes, [str(n) for n in sizes])
     ax.minorticks_off()
     ax.set_title(title)

@@ -209,7 +209,8 @@ def summarize(
         lambda r: r.status == "SUCCEEDED",
         FEATURE_FUNCS,
         PAPER_REACH["mae"],
-        f"Reach (arm7, 2 joints): learning curves ({len(records)} episodes)",
+        f"Reach (arm7, 2 joints): learning curves ({sum(r.failed for r in records)} failed "
+        f"of {len(records)})",
         out_dir / "actions_arm_reach_learning_curves.png",
     )
     return {"tables": tables, "learning_curves": curves}

@@ -260,6 +260,7 @@ def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_d
                     "-" if k % 2 == 0 else "--",
                     c="tab:blue" if k % 2 == 0 else "tab:red",
                     lw=2,
+                    label=("segments 1, 3", "segments 2, 4")[k % 2] if k < 2 else None,
                 )
         axes[1].plot(x[:, 0], x[:, 1], c=col, lw=1.5, label=f"switch {s:g} tau")
         if s == min(sw):
@@ -283,6 +284,7 @@ def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_d
         ax.set_ylabel("Y2 (m)")
         ax.grid(alpha=0.3)
     axes[0].set_title("(a) one primitive, four goals (switch 1.0 tau)")
+    axes[0].legend(fontsize=7)
     axes[1].set_title("(b) switching times (lighter = earlier)")
     axes[1].legend(fontsize=7)
     axes[2].set_title(f"|acceleration|, switch {min(sw):g} tau")

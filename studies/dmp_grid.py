@@ -232,11 +232,18 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
     ax3.set_xlabel("x (m)")
     ax3.set_ylabel("y (m)")
     ax3.set_zlabel("z (m)")
-    ax3.set_title("demos (blue), physical tcp paths (red), new goals (green)", fontsize=10)
+    ax3.set_title(
+        "demos (blue), physical tcp paths (red: reached, grey: missed), new goals (green)",
+        fontsize=10,
+    )
     ax.set_xlabel("y (m, left)")
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()
     ax.set_aspect("equal")
+    ax.plot([], [], color="tab:red", lw=0.7, label="physical tcp path (goal reached)")
+    if not all(r.reached for r in records):
+        ax.plot([], [], color="0.3", lw=0.7, label="physical tcp path (goal missed)")
+    ax.plot([], [], "+", color="tab:green", ms=8, ls="", label="new goals")
     ax.legend(loc="lower left", fontsize=8)
     ax.set_title("top view: grasp grid (right), place grid (left)")
     grid = out_dir / "dmp_grid_paths.png"

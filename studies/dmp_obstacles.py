@@ -196,6 +196,7 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
         out_dir: Output directory.
     """
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
     from repertoire.planning.dmp_learn import learn_dmp
 
     out_dir = Path(out_dir)
@@ -248,6 +249,7 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
     ax2.axvline(config.radius_m, color="k", ls="--", label="obstacle radius")
     ax2.set_xlabel("clearance to obstacle centre (m)")
     ax2.set_ylabel("episodes")
+    ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax2.set_title(f"{len(records)} random obstacle placements on the path")
     ax2.legend(fontsize=8)
     p1 = out_dir / "dmp_obstacles.png"

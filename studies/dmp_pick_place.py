@@ -294,6 +294,7 @@ def summarize(
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.patches import Circle
+    from matplotlib.ticker import MaxNLocator
 
     out_dir = Path(out_dir)
     fig = Figure(figsize=(11, 5), layout="constrained")
@@ -338,11 +339,18 @@ def summarize(
         loc="best",
     )
     d = np.array([r.cup_to_coaster_m for r in records], dtype=float)
-    finite = d[np.isfinite(d)]
-    ax2.hist(np.clip(finite * 100, 0, 10), bins=30, color="tab:gray")
+    cm = d[np.isfinite(d)] * 100
+    # The axis ends just past the data (at least past the 2 cm bound, at most at 10 cm);
+    # larger distances are counted in the last bin, and the label says how many.
+    upper = float(np.clip(np.ceil(cm.max() * 2) / 2, 2.5, 10.0)) if cm.size else 2.5
+    over = int(np.sum(cm > upper))
+    ax2.hist(np.minimum(cm, upper), bins=np.linspace(0.0, upper, 26), color="tab:gray")
+    ax2.set_xlim(0.0, upper)
     ax2.axvline(2.0, color="tab:red", ls="--", label="2 cm success bound")
-    ax2.set_xlabel("final cup axis to coaster centre (cm, clipped at 10)")
+    clipped = f"; {over} above {upper:g} cm counted at {upper:g}" if over else ""
+    ax2.set_xlabel(f"final cup axis to coaster centre (cm{clipped})")
     ax2.set_ylabel("episodes")
+    ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
     rate = np.mean([r.success for r in records]) if records else float("nan")
     ax2.set_title(f"success {rate:.0%} of {len(records)} episodes")
     ax2.legend()
@@ -361,7 +369,9 @@ def summarize(
     ax.axhline(5.0, color="tab:red", ls="--", lw=0.8, label="5 mm")
     ax.set_xlabel("episode")
     ax.set_ylabel("|tcp - goal| in the physics simulation (mm)")
-    ax.set_ylim(bottom=0)
+    reach = np.concatenate([grasp, place])
+    reach = reach[np.isfinite(reach)]
+    ax.set_ylim(0, max(5.5, 1.1 * float(reach.max())) if reach.size else 5.5)  # 5 mm line shown
     ax.legend(fontsize=8)
     ax.set_title("reach errors")
     ax2.scatter(episodes, carry, s=10, label="while carrying the cup")

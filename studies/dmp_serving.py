@@ -202,6 +202,7 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     """
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle
+    from matplotlib.ticker import MaxNLocator
     from repertoire.models.arm7 import CUP_RADIUS
 
     out_dir = Path(out_dir)
@@ -230,12 +231,21 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     d = np.array(
         [[r.tip_to_cup_1_m, r.tip_to_cup_2_m, r.tip_to_cup_3_m] for r in records], dtype=float
     )
+    cm = d[np.isfinite(d)] * 100
+    # The axis ends just past the data and the 3 cm bound (at most at 6 cm; larger distances
+    # are counted in the last bin, and the label says how many).
+    upper = float(np.clip(np.ceil(cm.max() * 2) / 2, 3.5, 6.0)) if cm.size else 3.5
+    over = int(np.sum(cm > upper))
+    bins = np.linspace(0.0, upper, 36)
     for j in range(3):
-        col = d[:, j][np.isfinite(d[:, j])]
-        ax2.hist(np.clip(col * 100, 0, 6), bins=30, alpha=0.6, label=f"cup {j + 1}")
+        col = d[:, j][np.isfinite(d[:, j])] * 100
+        ax2.hist(np.minimum(col, upper), bins=bins, alpha=0.6, label=f"cup {j + 1}")
+    ax2.set_xlim(0.0, upper)
     ax2.axvline(3.0, color="tab:red", ls="--", label="3 cm (inside the rim)")
-    ax2.set_xlabel("closest tip-to-cup-axis distance while pouring (cm)")
-    ax2.set_ylabel("episodes")
+    clipped = f"; {over} above {upper:g} cm counted at {upper:g}" if over else ""
+    ax2.set_xlabel(f"closest tip-to-cup-axis distance while pouring (cm{clipped})")
+    ax2.set_ylabel("cup pours (episodes)")
+    ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
     rate = np.mean([r.success for r in records]) if records else float("nan")
     ax2.set_title(f"success {rate:.0%} of {len(records)} episodes")
     ax2.legend()

@@ -1,6 +1,7 @@
 """Helpers shared by the arm DMP studies (grid, pick-and-place, serving, obstacle arm).
 
-Logged paths subsampled for figures, the default carry control points, the ball's radius.
+Logged paths subsampled for figures, the default carry control points, the ball's radius, and
+the statistics of the results tables.
 
 The diagrams layer is imported inside the functions, as the studies do, so importing a study
 module stays cheap.
@@ -45,3 +46,30 @@ def obstacle_radius() -> float:
     from repertoire.models.arm7 import OBSTACLE_RADIUS
 
     return float(OBSTACLE_RADIUS)
+
+
+def stat_pair(values, first, second, digits: int = 2) -> str:
+    """'first / second' of the finite values (e.g. median / max), or 'n/a' if none.
+
+    Args:
+        values: Numbers (NaN and inf are left out).
+        first: Statistic printed first (e.g. ``np.median``).
+        second: Statistic printed second (e.g. ``np.max``).
+        digits: Decimals.
+    """
+    finite = np.asarray(values, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return "n/a"
+    return f"{first(finite):.{digits}f} / {second(finite):.{digits}f}"
+
+
+def finite_max(values) -> float:
+    """Largest finite value, NaN if there is none.
+
+    Args:
+        values: Numbers (NaN and inf are left out).
+    """
+    finite = np.asarray(values, dtype=float)
+    finite = finite[np.isfinite(finite)]
+    return float(finite.max()) if finite.size else float("nan")

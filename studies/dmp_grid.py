@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import log_stride
+from repertoire.studies._dmp_common import finite_max, log_stride
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -191,11 +191,6 @@ def run_episode(config: GridConfig, seed: int) -> GridRecord:
     )
 
 
-def _finite_max(values: np.ndarray) -> float:
-    finite = values[np.isfinite(values)]
-    return float(finite.max()) if finite.size else float("nan")
-
-
 def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> dict:
     """Fig. 10: demonstrated paths (blue) and the adapted physical tcp paths (red).
 
@@ -264,7 +259,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
         )
     lines.append(
         f"\n{sum(r.reached for r in records)} of {len(records)} cells reached within 5 mm; "
-        f"max grasp error {_finite_max(g):.2f} mm, max place error {_finite_max(p):.2f} mm."
+        f"max grasp error {finite_max(g):.2f} mm, max place error {finite_max(p):.2f} mm."
     )
     table = out_dir / "dmp_grid_results.md"
     table.write_text("\n".join(lines) + "\n")

@@ -18,7 +18,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import carry_control_points, obstacle_radius, tcp_path
+from repertoire.studies._dmp_common import (
+    carry_control_points,
+    obstacle_radius,
+    stat_pair,
+    tcp_path,
+)
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -249,15 +254,6 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
     )
 
 
-def _pair(values: np.ndarray, first, second, digits: int = 2) -> str:
-    """'first / second' of the finite values (e.g. median / max), or 'n/a' if none."""
-    finite = np.asarray(values, dtype=float)
-    finite = finite[np.isfinite(finite)]
-    if finite.size == 0:
-        return "n/a"
-    return f"{first(finite):.{digits}f} / {second(finite):.{digits}f}"
-
-
 def carry_clearance(record: PickPlaceRecord, config: PickPlaceConfig) -> float:
     """Closest approach of the tcp to the ball's surface during the placing movement [m].
 
@@ -396,16 +392,16 @@ def summarize(
         "| collision-free (ball vs arm/hand/fingers/cup gap > 0) | "
         f"{np.mean([r.collision_free for r in records]) if records else float('nan'):.1%} |",
         "| smallest ball gap (SceneGraph), min / median [cm] | "
-        f"{_pair(ball_gap * 100, np.min, np.median)} |",
-        f"| cup to coaster, median / max [cm] | {_pair(d * 100, np.median, np.max)} |",
-        f"| grasp reach error, median / max [mm] | {_pair(grasp, np.median, np.max)} |",
-        f"| place reach error, median / max [mm] | {_pair(place, np.median, np.max)} |",
+        f"{stat_pair(ball_gap * 100, np.min, np.median)} |",
+        f"| cup to coaster, median / max [cm] | {stat_pair(d * 100, np.median, np.max)} |",
+        f"| grasp reach error, median / max [mm] | {stat_pair(grasp, np.median, np.max)} |",
+        f"| place reach error, median / max [mm] | {stat_pair(place, np.median, np.max)} |",
         "| tcp clearance to the ball over the run, min / median [cm] | "
-        f"{_pair(clearance, np.min, np.median)} |",
+        f"{stat_pair(clearance, np.min, np.median)} |",
         "| tcp clearance to the ball while carrying the cup, min / median [cm] | "
-        f"{_pair(carry, np.min, np.median)} |",
+        f"{stat_pair(carry, np.min, np.median)} |",
         f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
-        f"| wall time per simulation, mean / max [s] | {_pair(walls, np.mean, np.max)} |",
+        f"| wall time per simulation, mean / max [s] | {stat_pair(walls, np.mean, np.max)} |",
     ]
     table = out_dir / "dmp_pick_place_results.md"
     table.write_text("\n".join(lines) + "\n")

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import log_stride
+from repertoire.studies._dmp_common import log_stride, stat_pair
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -185,15 +185,6 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
     )
 
 
-def _pair(values: np.ndarray, first, second, digits: int = 2) -> str:
-    """'first / second' of the finite values (e.g. median / max), or 'n/a' if none."""
-    finite = np.asarray(values, dtype=float)
-    finite = finite[np.isfinite(finite)]
-    if finite.size == 0:
-        return "n/a"
-    return f"{first(finite):.{digits}f} / {second(finite):.{digits}f}"
-
-
 def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path) -> dict:
     """Top view of the bottle tip over the cups and the tip distances; a Markdown table.
 
@@ -263,14 +254,14 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
         f"| success (tip over all 3 cups, none pushed) | {rate:.1%} |",
         f"| cups served, mean | {np.mean([r.cups_served for r in records]):.2f} of 3 |",
         f"| IK reports (stopped runs) | {sum(bool(r.failure) for r in records)} |",
-        f"| tip to cup axis, median / max [cm] | {_pair(d * 100, np.median, np.max)} |",
-        f"| grasp reach error, median / max [mm] | {_pair(grasp, np.median, np.max)} |",
+        f"| tip to cup axis, median / max [cm] | {stat_pair(d * 100, np.median, np.max)} |",
+        f"| grasp reach error, median / max [mm] | {stat_pair(grasp, np.median, np.max)} |",
         "| pour reach error (bottle in hand), median / max [mm] | "
-        f"{_pair(pour, np.median, np.max)} |",
+        f"{stat_pair(pour, np.median, np.max)} |",
         "| bottle grasp point to tcp at the end, median / max [mm] | "
-        f"{_pair(slip, np.median, np.max, 1)} |",
+        f"{stat_pair(slip, np.median, np.max, 1)} |",
         f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
-        f"| wall time per simulation, mean / max [s] | {_pair(walls, np.mean, np.max)} |",
+        f"| wall time per simulation, mean / max [s] | {stat_pair(walls, np.mean, np.max)} |",
     ]
     table = out_dir / "dmp_serving_results.md"
     table.write_text("\n".join(lines) + "\n")

@@ -1,13 +1,74 @@
-"""Helpers shared by the arm DMP studies (grid, pick-and-place, serving, obstacle arm).
+"""Helpers shared by the DMP studies.
 
-Logged paths subsampled for figures, the default carry control points, the ball's radius, and
-the statistics of the results tables.
+The studies are goals, obstacles, chaining, and the arm studies (grid, pick-and-place, serving,
+obstacle arm). Registration (every DMP study registers the same way), logged paths subsampled
+for figures, the default carry control points, the ball's radius, and the statistics and writing
+of the results tables.
 
 The diagrams layer is imported inside the functions, as the studies do, so importing a study
 module stays cheap.
 """
 
+import copy
+import sys
+from pathlib import Path
+
 import numpy as np
+from repertoire.studies.registry import StudyEntry, register_study
+
+
+def register_dmp_study(
+    module_name: str,
+    config_type: type,
+    record_type: type,
+    *,
+    description: str,
+    demo_episodes: int,
+    smoke: dict,
+) -> StudyEntry:
+    """Registers the DMP study defined by ``module_name`` and runs it when that is ``__main__``.
+
+    The study is named after the module; its ``run_episode`` and ``summarize`` are the module's
+    functions of those names. The demo runs the default config; the smoke config (for tests) is
+    the default with the ``smoke`` fields changed.
+
+    Args:
+        module_name: The study module's ``__name__`` (``repertoire.studies.<study>``).
+        config_type: The study's config dataclass.
+        record_type: The study's record dataclass.
+        description: One line saying what the study measures.
+        demo_episodes: Number of episodes the demo runs.
+        smoke: Config fields a tiny test run changes (e.g. ``{"sim_duration_s": 0.3}``).
+
+    Returns:
+        The registered entry (when the module was imported, not run).
+    """
+    module = sys.modules[module_name]
+    name = module.__spec__.name.rsplit(".", 1)[-1] if module.__spec__ else module_name
+    return register_study(
+        name,
+        config_type=config_type,
+        record_type=record_type,
+        run_episode=module.run_episode,
+        description=description,
+        summarize=module.summarize,
+        demo_config=config_type,
+        demo_episodes=demo_episodes,
+        smoke_config=lambda: config_type(**copy.deepcopy(smoke)),
+    ).run_if_main(module_name)
+
+
+def write_table(out_dir: Path, filename: str, lines: list[str]) -> Path:
+    """Writes a Markdown results table (one line per entry) and returns its path.
+
+    Args:
+        out_dir: Output directory.
+        filename: File name inside ``out_dir``.
+        lines: The table's lines, without newlines.
+    """
+    path = Path(out_dir) / filename
+    path.write_text("\n".join(lines) + "\n")
+    return path
 
 
 def log_stride(every_s: float) -> int:

@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies.engine import register_study
+from repertoire.studies._dmp_common import register_dmp_study, write_table
 
 from repertoire.errors import RepertoireError
 
@@ -327,31 +327,16 @@ def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_d
         f"Drake DmpSequencer vs NumPy chain_rollout: max difference "
         f"{max(r.drake_vs_numpy for r in records):.2g} m."
     )
-    p2 = out_dir / "dmp_chaining_table.md"
-    p2.write_text("\n".join(lines) + "\n")
+    p2 = write_table(out_dir, "dmp_chaining_table.md", lines)
     return {"fig5": p1, "table": p2}
 
 
-def demo_config() -> DmpChainingConfig:
-    """The demo config."""
-    return DmpChainingConfig()
-
-
-def smoke_config() -> DmpChainingConfig:
-    """A tiny config for tests."""
-    return DmpChainingConfig(
-        n_basis=10, n_samples=100, time_step_s=2e-3, switches=[0.7], settle_factor=0.3
-    )
-
-
-register_study(
-    "dmp_chaining",
-    config_type=DmpChainingConfig,
-    record_type=DmpChainingRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    DmpChainingConfig,
+    DmpChainingRecord,
     description="DMP chaining (Fig. 5 square): acceleration/velocity jumps at switches",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=12,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: one switching interval, a short settle
+    smoke=dict(n_basis=10, n_samples=100, time_step_s=2e-3, switches=[0.7], settle_factor=0.3),
+)

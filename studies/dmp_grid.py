@@ -17,8 +17,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import finite_max, log_stride
-from repertoire.studies.engine import register_study
+from repertoire.studies._dmp_common import finite_max, log_stride, register_dmp_study, write_table
 
 from repertoire.errors import RepertoireError
 
@@ -261,30 +260,17 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
         f"\n{sum(r.reached for r in records)} of {len(records)} cells reached within 5 mm; "
         f"max grasp error {finite_max(g):.2f} mm, max place error {finite_max(p):.2f} mm."
     )
-    table = out_dir / "dmp_grid_results.md"
-    table.write_text("\n".join(lines) + "\n")
+    table = write_table(out_dir, "dmp_grid_results.md", lines)
     return {"grid": grid, "results": table}
 
 
-def demo_config() -> GridConfig:
-    """The 3 x 3 grid (run 9 episodes to cover it)."""
-    return GridConfig()
-
-
-def smoke_config() -> GridConfig:
-    """A tiny config for tests: one cell, the first 0.3 s."""
-    return GridConfig(n=1, sim_duration_s=0.3)
-
-
-register_study(
-    "dmp_grid",
-    config_type=GridConfig,
-    record_type=GridRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    GridConfig,
+    GridRecord,
     description="arm7 + learned grasp/place DMPs sent to a grid of new goals (Fig. 10): "
     "physical reach error per goal",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=9,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: one cell, the first 0.3 s
+    smoke=dict(n=1, sim_duration_s=0.3),
+)

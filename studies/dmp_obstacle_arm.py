@@ -23,8 +23,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import carry_control_points, obstacle_radius, tcp_path
-from repertoire.studies.engine import register_study
+from repertoire.studies._dmp_common import (
+    carry_control_points,
+    obstacle_radius,
+    register_dmp_study,
+    tcp_path,
+    write_table,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -360,30 +365,17 @@ def summarize(
             f"| ball surface to the uncoupled tcp path, min / max [cm] | "
             f"{np.min(gap0):.2f} / {np.max(gap0):.2f} | |"
         )
-    table = out_dir / "dmp_obstacle_arm_results.md"
-    table.write_text("\n".join(lines) + "\n")
+    table = write_table(out_dir, "dmp_obstacle_arm_results.md", lines)
     return {"paths": paths, "gaps": gaps, "results": table}
 
 
-def demo_config() -> ObstacleArmConfig:
-    """The full config (the demo runs a few episodes of it)."""
-    return ObstacleArmConfig()
-
-
-def smoke_config() -> ObstacleArmConfig:
-    """A tiny config for tests: the first 0.2 s of each run."""
-    return ObstacleArmConfig(sim_duration_s=0.2)
-
-
-register_study(
-    "dmp_obstacle_arm",
-    config_type=ObstacleArmConfig,
-    record_type=ObstacleArmRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    ObstacleArmConfig,
+    ObstacleArmRecord,
     description="arm7 + learned DMPs: a ball on the carry path, pick-and-place with vs without "
     "the obstacle coupling term; collision-free and success rates",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=2,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: the first 0.2 s of each run
+    smoke=dict(sim_duration_s=0.2),
+)

@@ -21,10 +21,11 @@ import numpy as np
 from repertoire.studies._dmp_common import (
     carry_control_points,
     obstacle_radius,
+    register_dmp_study,
     stat_pair,
     tcp_path,
+    write_table,
 )
-from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
 
@@ -403,30 +404,17 @@ def summarize(
         f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
         f"| wall time per simulation, mean / max [s] | {stat_pair(walls, np.mean, np.max)} |",
     ]
-    table = out_dir / "dmp_pick_place_results.md"
-    table.write_text("\n".join(lines) + "\n")
+    table = write_table(out_dir, "dmp_pick_place_results.md", lines)
     return {"top_view": top, "errors": errors, "results": table}
 
 
-def demo_config() -> PickPlaceConfig:
-    """The full config (the demo runs a few episodes of it)."""
-    return PickPlaceConfig()
-
-
-def smoke_config() -> PickPlaceConfig:
-    """A tiny config for tests: the first 0.3 s of an episode."""
-    return PickPlaceConfig(sim_duration_s=0.3)
-
-
-register_study(
-    "dmp_pick_place",
-    config_type=PickPlaceConfig,
-    record_type=PickPlaceRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    PickPlaceConfig,
+    PickPlaceRecord,
     description="arm7 + learned DMPs: pick a cup, place it on a moving coaster around a ball; "
     "success rate over random layouts",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=4,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: the first 0.3 s of an episode
+    smoke=dict(sim_duration_s=0.3),
+)

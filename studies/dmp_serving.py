@@ -18,8 +18,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import log_stride, stat_pair
-from repertoire.studies.engine import register_study
+from repertoire.studies._dmp_common import log_stride, register_dmp_study, stat_pair, write_table
 
 from repertoire.errors import RepertoireError
 
@@ -263,30 +262,17 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
         f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
         f"| wall time per simulation, mean / max [s] | {stat_pair(walls, np.mean, np.max)} |",
     ]
-    table = out_dir / "dmp_serving_results.md"
-    table.write_text("\n".join(lines) + "\n")
+    table = write_table(out_dir, "dmp_serving_results.md", lines)
     return {"top_view": top, "results": table}
 
 
-def demo_config() -> ServingConfig:
-    """The full config (the demo runs a few episodes of it)."""
-    return ServingConfig()
-
-
-def smoke_config() -> ServingConfig:
-    """A tiny config for tests: the first 0.3 s of an episode."""
-    return ServingConfig(sim_duration_s=0.3)
-
-
-register_study(
-    "dmp_serving",
-    config_type=ServingConfig,
-    record_type=ServingRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    ServingConfig,
+    ServingRecord,
     description="arm7 + learned DMPs: grasp a bottle and pour over three cups; success rate "
     "over random layouts",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=3,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: the first 0.3 s of an episode
+    smoke=dict(sim_duration_s=0.3),
+)

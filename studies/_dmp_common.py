@@ -10,11 +10,15 @@ module stays cheap.
 """
 
 import copy
+import math
 import sys
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 from repertoire.studies.registry import StudyEntry, register_study
+
+from repertoire.errors import RepertoireError
 
 
 def register_dmp_study(
@@ -134,3 +138,38 @@ def finite_max(values) -> float:
     finite = np.asarray(values, dtype=float)
     finite = finite[np.isfinite(finite)]
     return float(finite.max()) if finite.size else float("nan")
+
+
+def check_arm_config(config, ranges: Mapping[str, Sequence[float]]) -> None:
+    """Checks an arm study config: sampling ranges and the run's timing.
+
+    Args:
+        config: The config (named in the messages; has ``sim_duration_s`` and ``path_every_s``).
+        ranges: Field name -> its ``[min, max]`` sampling range.
+
+    Raises:
+        RepertoireError: A range that is not two finite numbers in order, a negative
+            ``sim_duration_s`` or a ``path_every_s`` that is not positive.
+    """
+    owner = type(config).__name__
+    for name, r in ranges.items():
+        if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
+            raise RepertoireError(f"{owner}.{name} must be [min, max], got {r}")
+    if not (config.sim_duration_s >= 0 and config.path_every_s > 0):
+        raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
+
+
+def timing_rows(records) -> list[str]:
+    """The results-table rows of simulated time per episode and wall time per simulation.
+
+    The wall time counts the runs that were not stopped (``failure`` empty).
+
+    Args:
+        records: Episode records with ``sim_time_s``, ``wall_sim_s`` and ``failure``.
+    """
+    ok = [r for r in records if not r.failure]
+    walls = np.array([r.wall_sim_s for r in ok]) if ok else np.array([np.nan])
+    return [
+        f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
+        f"| wall time per simulation, mean / max [s] | {stat_pair(walls, np.mean, np.max)} |",
+    ]

@@ -12,12 +12,17 @@ Run it with ``python -m repertoire.studies.dmp_grid --help``.
 """
 
 import dataclasses
-import math
 import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import finite_max, log_stride, register_dmp_study, write_table
+from repertoire.studies._dmp_common import (
+    check_arm_config,
+    finite_max,
+    log_stride,
+    register_dmp_study,
+    write_table,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -50,14 +55,10 @@ class GridConfig:
 
     def validate(self) -> None:
         """Raises RepertoireError for a bad range or grid size."""
-        for name in ("grasp_x", "grasp_y", "place_x", "place_y"):
-            r = getattr(self, name)
-            if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
-                raise RepertoireError(f"GridConfig.{name} must be [min, max], got {r}")
         if int(self.n) != self.n or self.n < 1:
             raise RepertoireError(f"GridConfig.n must be an integer >= 1, got {self.n}")
-        if not (self.sim_duration_s >= 0 and self.path_every_s > 0):
-            raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
+        names = ("grasp_x", "grasp_y", "place_x", "place_y")
+        check_arm_config(self, {n: getattr(self, n) for n in names})
 
     def cell(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """(grasp goal, place goal) of the episode with this seed."""

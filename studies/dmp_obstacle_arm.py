@@ -18,13 +18,13 @@ Run it with ``python -m repertoire.studies.dmp_obstacle_arm --help``.
 """
 
 import dataclasses
-import math
 import time
 from pathlib import Path
 
 import numpy as np
 from repertoire.studies._dmp_common import (
     carry_control_points,
+    check_arm_config,
     obstacle_radius,
     register_dmp_study,
     tcp_path,
@@ -81,7 +81,7 @@ class ObstacleArmConfig:
 
     def validate(self) -> None:
         """Raises RepertoireError for an empty or reversed range or a bad value."""
-        for name in (
+        names = (
             "cup_x",
             "cup_y",
             "coaster_x",
@@ -89,16 +89,12 @@ class ObstacleArmConfig:
             "path_fraction",
             "offset_x",
             "offset_z",
-        ):
-            r = getattr(self, name)
-            if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
-                raise RepertoireError(f"ObstacleArmConfig.{name} must be [min, max], got {r}")
+        )
+        check_arm_config(self, {n: getattr(self, n) for n in names})
         if not (0.0 <= self.path_fraction[0] and self.path_fraction[1] <= 1.0):
             raise RepertoireError(
                 f"ObstacleArmConfig.path_fraction must lie in [0, 1], got {self.path_fraction}"
             )
-        if not (self.sim_duration_s >= 0 and self.path_every_s > 0):
-            raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
 
 
 @dataclasses.dataclass

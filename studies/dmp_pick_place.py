@@ -13,17 +13,18 @@ Run it with ``python -m repertoire.studies.dmp_pick_place --help``.
 """
 
 import dataclasses
-import math
 import time
 from pathlib import Path
 
 import numpy as np
 from repertoire.studies._dmp_common import (
     carry_control_points,
+    check_arm_config,
     obstacle_radius,
     register_dmp_study,
     stat_pair,
     tcp_path,
+    timing_rows,
     write_table,
 )
 
@@ -78,7 +79,7 @@ class PickPlaceConfig:
 
     def validate(self) -> None:
         """Raises RepertoireError for an empty or reversed range or a bad value."""
-        for name in (
+        names = (
             "cup_x",
             "cup_y",
             "coaster_x",
@@ -86,12 +87,8 @@ class PickPlaceConfig:
             "coaster_shift",
             "obstacle_beyond",
             "obstacle_z",
-        ):
-            r = getattr(self, name)
-            if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
-                raise RepertoireError(f"PickPlaceConfig.{name} must be [min, max], got {r}")
-        if not (self.sim_duration_s >= 0 and self.path_every_s > 0):
-            raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
+        )
+        check_arm_config(self, {n: getattr(self, n) for n in names})
 
 
 @dataclasses.dataclass
@@ -382,8 +379,6 @@ def summarize(
     fig.savefig(errors, dpi=110)
 
     ball_gap = np.array([r.min_ball_gap_m for r in records], dtype=float)
-    ok = [r for r in records if not r.failure]
-    walls = np.array([r.wall_sim_s for r in ok]) if ok else np.array([np.nan])
     lines = [
         "| figure | value |",
         "|---|---|",
@@ -401,8 +396,7 @@ def summarize(
         f"{stat_pair(clearance, np.min, np.median)} |",
         "| tcp clearance to the ball while carrying the cup, min / median [cm] | "
         f"{stat_pair(carry, np.min, np.median)} |",
-        f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
-        f"| wall time per simulation, mean / max [s] | {stat_pair(walls, np.mean, np.max)} |",
+        *timing_rows(records),
     ]
     table = write_table(out_dir, "dmp_pick_place_results.md", lines)
     return {"top_view": top, "errors": errors, "results": table}

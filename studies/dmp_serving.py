@@ -13,12 +13,18 @@ Run it with ``python -m repertoire.studies.dmp_serving --help``.
 """
 
 import dataclasses
-import math
 import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import log_stride, register_dmp_study, stat_pair, write_table
+from repertoire.studies._dmp_common import (
+    check_arm_config,
+    log_stride,
+    register_dmp_study,
+    stat_pair,
+    timing_rows,
+    write_table,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -56,11 +62,7 @@ class ServingConfig:
         if len(self.cup_y) != 3:
             raise RepertoireError(f"ServingConfig.cup_y needs 3 ranges, got {len(self.cup_y)}")
         ranges += [(f"cup_y[{k}]", r) for k, r in enumerate(self.cup_y)]
-        for name, r in ranges:
-            if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
-                raise RepertoireError(f"ServingConfig.{name} must be [min, max], got {r}")
-        if not (self.sim_duration_s >= 0 and self.path_every_s > 0):
-            raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
+        check_arm_config(self, dict(ranges))
 
 
 @dataclasses.dataclass
@@ -241,8 +243,6 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     ax2.legend()
     top = out_dir / "dmp_serving_top_view.png"
     fig.savefig(top, dpi=110)
-    ok = [r for r in records if not r.failure]
-    walls = np.array([r.wall_sim_s for r in ok]) if ok else np.array([np.nan])
     grasp = np.array([r.grasp_reach_error_m for r in records], dtype=float) * 1000
     pour = np.array([r.pour_reach_error_m for r in records], dtype=float) * 1000
     slip = np.array([r.bottle_in_hand_m for r in records], dtype=float) * 1000
@@ -259,8 +259,7 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
         f"{stat_pair(pour, np.median, np.max)} |",
         "| bottle grasp point to tcp at the end, median / max [mm] | "
         f"{stat_pair(slip, np.median, np.max, 1)} |",
-        f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
-        f"| wall time per simulation, mean / max [s] | {stat_pair(walls, np.mean, np.max)} |",
+        *timing_rows(records),
     ]
     table = write_table(out_dir, "dmp_serving_results.md", lines)
     return {"top_view": top, "results": table}

@@ -200,12 +200,7 @@ def run_chain(config: DmpChainingConfig, switch: float, goals: list[np.ndarray],
 
 
 def run_episode(config: DmpChainingConfig, seed: int) -> DmpChainingRecord:
-    """Run the square with the seeded switching interval and the three handoffs.
-
-    Args:
-        config: Study config.
-        seed: Episode seed.
-    """
+    """Run the square with the seeded switching interval and the three handoffs."""
     from repertoire.planning.dmp_chain import chain_rollout
 
     t0 = time.perf_counter()
@@ -230,13 +225,7 @@ def run_episode(config: DmpChainingConfig, seed: int) -> DmpChainingRecord:
 
 
 def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_dir: Path):
-    """Fig. 5-like squares for every switching interval, acceleration traces, a table.
-
-    Args:
-        records: Episode records.
-        config: Study config.
-        out_dir: Output directory.
-    """
+    """Fig. 5-like squares for every switching interval, acceleration traces, a table."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 

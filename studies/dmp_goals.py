@@ -253,12 +253,7 @@ def sample_episode(config: DmpGoalsConfig, seed: int) -> dict:
 
 
 def run_episode(config: DmpGoalsConfig, seed: int) -> DmpGoalsRecord:
-    """Learns both formulations from the seeded demo and runs the four goal cases.
-
-    Args:
-        config: Study config.
-        seed: Episode seed.
-    """
+    """Learns both formulations from the seeded demo and runs the four goal cases."""
     from repertoire.planning.dmp_learn import learn_dmp
 
     t0 = time.perf_counter()
@@ -300,13 +295,7 @@ def run_episode(config: DmpGoalsConfig, seed: int) -> DmpGoalsRecord:
 
 
 def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Path):
-    """Fig. 2 panels for seed 0's demo, peak acceleration vs delta, and a Markdown table.
-
-    Args:
-        records: Episode records.
-        config: Study config.
-        out_dir: Output directory.
-    """
+    """Fig. 2 panels for seed 0's demo, peak acceleration vs delta, and a Markdown table."""
     from matplotlib.figure import Figure
     from repertoire.planning.dmp_learn import learn_dmp
 

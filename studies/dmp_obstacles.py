@@ -146,12 +146,7 @@ def _clearance(x: np.ndarray, o: np.ndarray) -> float:
 
 
 def run_episode(config: DmpObstaclesConfig, seed: int) -> DmpObstaclesRecord:
-    """Learns the seeded demonstration and runs it with and without coupling.
-
-    Args:
-        config: Study config.
-        seed: Episode seed.
-    """
+    """Learns the seeded demonstration and runs it with and without coupling."""
     from repertoire.planning.dmp_learn import learn_dmp
 
     t0 = time.perf_counter()
@@ -188,13 +183,7 @@ def run_episode(config: DmpObstaclesConfig, seed: int) -> DmpObstaclesRecord:
 
 
 def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out_dir: Path):
-    """Seed-0 paths around the obstacle, a clearance histogram and a Markdown table.
-
-    Args:
-        records: Episode records.
-        config: Study config.
-        out_dir: Output directory.
-    """
+    """Seed-0 paths around the obstacle, a clearance histogram and a Markdown table."""
     from matplotlib.figure import Figure
     from matplotlib.ticker import MaxNLocator
     from repertoire.planning.dmp_learn import learn_dmp

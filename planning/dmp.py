@@ -25,8 +25,8 @@ from typing import Self
 
 import numpy as np
 from repertoire.planning.dmp_math import (
-    FORMULATIONS,
     alpha_for_final_phase,
+    check_formulation,
     check_positive,
     quaternion_rollout,
     rollout,
@@ -145,10 +145,7 @@ class DmpParameters(_FieldsRecord):
         check_positive("alpha", self.alpha)
         if np.any(self.K <= 0) or np.any(self.D < 0):
             raise RepertoireError("K must be > 0 and D >= 0")
-        if self.formulation not in FORMULATIONS:
-            raise RepertoireError(
-                f"formulation must be one of {FORMULATIONS}, got {self.formulation!r}"
-            )
+        check_formulation(self.formulation)
         if self.names and len(self.names) != n:
             raise RepertoireError(f"{len(self.names)} names for {n} DOF")
 

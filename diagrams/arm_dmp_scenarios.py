@@ -302,12 +302,13 @@ class PickPlaceScenario:
 class ServingScenario:
     """Grasp a bottle and pour over three cups (Fig. 12).
 
-    ``time_step``, ``contact_approximation``, ``grasp_mode`` and ``settle_time`` mean what they
-    mean in :class:`PickPlaceScenario` (both are checked by ``_check_common``).
-
     Attributes:
+        time_step: discrete plant time step [s].
+        contact_approximation: ``lagged``, ``sap`` or ``similar``.
+        grasp_mode: ``contact`` (finger friction) or ``grip`` (GraspWrench latch).
         bottle_xy: the bottle's position on the table [m].
         cup_xys: the three cups' positions [m], poured over in this order.
+        settle_time: pause after each DMP's tau before the next segment starts [s].
     """
 
     time_step: float = 0.004

@@ -454,15 +454,9 @@ def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagra
     criteria={"success": Bound(lo=1.0), "cups_served": Bound(lo=3.0)},
 )
 def build_serving_water(scenario: ServingScenario, *, meshcat=None) -> Diagram:
-    """Builds the serving-water world.
+    """Builds the serving-water world from a :class:`ServingScenario`.
 
-    Args:
-        scenario: a :class:`ServingScenario` (validated here).
-        meshcat: optional Meshcat for a visualizer.
-
-    Raises:
-        ScenarioError: bad scenario fields.
-        RepertoireError: a goal out of the arm's reach.
+    Arguments and errors as :func:`build_pick_and_place`.
     """
     scenario.validate()
     goals, _ = plan_serving(scenario)

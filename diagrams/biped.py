@@ -10,7 +10,7 @@ import dataclasses
 
 import numpy as np
 from pydrake.geometry import Box, HalfSpace, SceneGraph
-from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import (
     AddMultibodyPlant,
@@ -246,11 +246,6 @@ def check_biped_stand(diagram: Diagram, context: Context) -> dict[str, float]:
         "drift_m": float(np.linalg.norm(X.translation()[:2])),
         "max_joint_error_rad": float(np.max(np.abs(q_joints - q_des))),
     }
-
-
-def rpy_of(X: RigidTransform) -> np.ndarray:
-    """Roll, pitch, yaw of a pose (helper for checks and tests)."""
-    return RollPitchYaw(X.rotation()).vector()
 
 
 __all__ = [

@@ -25,8 +25,8 @@ from typing import Self
 
 import numpy as np
 from repertoire.planning.dmp_math import (
-    FORMULATIONS,
     alpha_for_final_phase,
+    check_formulation,
     check_positive,
     quaternion_rollout,
     rollout,
@@ -145,10 +145,7 @@ class DmpParameters(_FieldsRecord):
         check_positive("alpha", self.alpha)
         if np.any(self.K <= 0) or np.any(self.D < 0):
             raise RepertoireError("K must be > 0 and D >= 0")
-        if self.formulation not in FORMULATIONS:
-            raise RepertoireError(
-                f"formulation must be one of {FORMULATIONS}, got {self.formulation!r}"
-            )
+        check_formulation(self.formulation)
         if self.names and len(self.names) != n:
             raise RepertoireError(f"{len(self.names)} names for {n} DOF")
 
@@ -273,22 +270,15 @@ class QuaternionDmpParameters(_FieldsRecord):
     def n_basis(self) -> int:
         return int(self.weights.shape[1])
 
+    def _dynamics(self) -> tuple:
+        """``(weights, centres, widths, K, D, alpha, tau)``: what both modes' dynamics take."""
+        return self.weights, self.centres, self.widths, self.K, self.D, self.alpha, self.tau
+
     def component_parameters(self) -> DmpParameters:
         """The 4-D component DMP (``mode="component"`` only)."""
         if self.mode != "component":
             raise RepertoireError("component_parameters() needs mode='component'")
-        return DmpParameters(
-            self.weights,
-            self.centres,
-            self.widths,
-            self.K,
-            self.D,
-            self.alpha,
-            self.tau,
-            self.q0,
-            self.goal,
-            names=["qw", "qx", "qy", "qz"],
-        )
+        return DmpParameters(*self._dynamics(), self.q0, self.goal, names=["qw", "qx", "qy", "qz"])
 
     def rollout(
         self,
@@ -317,19 +307,7 @@ class QuaternionDmpParameters(_FieldsRecord):
             r = self.component_parameters().rollout(goal=g, x0=s, dt=dt, n_steps=n_steps)
             q = r.x / np.linalg.norm(r.x, axis=1, keepdims=True)
             return r.t, q, r.x
-        return quaternion_rollout(
-            self.weights,
-            self.centres,
-            self.widths,
-            self.K,
-            self.D,
-            self.alpha,
-            self.tau,
-            s,
-            g,
-            dt=dt,
-            n_steps=n_steps,
-        )
+        return quaternion_rollout(*self._dynamics(), s, g, dt=dt, n_steps=n_steps)
 
 
 @dataclass

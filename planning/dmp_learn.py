@@ -28,11 +28,11 @@ from repertoire.planning.dmp import (
 )
 from repertoire.planning.dmp_derivatives import estimate_derivatives
 from repertoire.planning.dmp_math import (
-    FORMULATIONS,
     angular_velocity,
     basis_centres,
     basis_widths,
     canonical_phase,
+    check_formulation,
     check_n_basis,
     check_positive,
     forcing_features,
@@ -211,8 +211,7 @@ def learn_dmp(
             (eq. 5 divides by it); 0 allows tiny displacements (to show the blow-up).
     """
     t, x = check_demonstration(t, x)
-    if formulation not in FORMULATIONS:
-        raise RepertoireError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+    check_formulation(formulation)
     n = x.shape[1]
     Kv, Dv = _gains(n, K, D)
     a, c, h = _basis(n_basis, alpha, overlap, t.size)

@@ -32,6 +32,16 @@ from repertoire.errors import RepertoireError
 FORMULATIONS = ("new", "old")
 
 
+def check_formulation(formulation: str) -> None:
+    """Raises RepertoireError unless ``formulation`` is one of :data:`FORMULATIONS`.
+
+    Args:
+        formulation: ``"new"`` (eq. 6-8) or ``"old"`` (eq. 1-5).
+    """
+    if formulation not in FORMULATIONS:
+        raise RepertoireError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+
+
 # --------------------------------------------------------------------------- canonical system
 def canonical_phase(t: np.ndarray | float, tau: float, alpha: float) -> np.ndarray:
     """Closed-form phase ``theta(t) = exp(-alpha t / tau)`` of eq. 4.
@@ -191,12 +201,11 @@ def transformation_derivatives(
     if theta.ndim and theta.shape != np.shape(x)[:-1]:
         theta = theta.reshape(np.shape(x)[:-1])
     th = theta[..., None] if theta.ndim else theta
+    check_formulation(formulation)
     if formulation == "new":
         tau_vd = K * (goal - x) - D * v - K * (goal - x0) * th + K * f + coupling
-    elif formulation == "old":
-        tau_vd = K * (goal - x) - D * v + (goal - x0) * f + coupling
     else:
-        raise RepertoireError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+        tau_vd = K * (goal - x) - D * v + (goal - x0) * f + coupling
     return v / tau, tau_vd / tau
 
 
@@ -233,12 +242,10 @@ def forcing_target(
     v = tau * xd
     tau_vd = tau * tau * xdd
     th = np.asarray(theta)[:, None]
+    check_formulation(formulation)
     if formulation == "new":
         return (tau_vd + D * v) / K - (goal - x) + (goal - x0) * th
-    if formulation == "old":
-        scale = goal - x0
-        return (tau_vd + D * v - K * (goal - x)) / scale
-    raise RepertoireError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+    return (tau_vd + D * v - K * (goal - x)) / (goal - x0)
 
 
 @dataclass
@@ -409,12 +416,11 @@ def rollout(
         if coupling is not None:
             raise RepertoireError("coupling needs method='euler' (it depends on the state)")
         # Input u = tau v' + K x + D v (everything not depending on the state).
+        check_formulation(formulation)
         if formulation == "new":
             U = Kv * G - Kv * (G - x0) * theta[:, None] + Kv * f
-        elif formulation == "old":
-            U = Kv * G + (G - x0) * f
         else:
-            raise RepertoireError(f"formulation must be one of {FORMULATIONS}, got {formulation!r}")
+            U = Kv * G + (G - x0) * f
         Phi, Gu, Gd = foh_matrices(Kv, Dv, tau, dt)
         dU = np.diff(U, axis=0)
         # Per-step input contribution c_k (shape (N-1, 2, n)) of z_{k+1} = Phi z_k + c_k.

@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies.engine import register_study
+from repertoire.studies._dmp_common import register_dmp_study, write_table
 
 from repertoire.errors import RepertoireError
 
@@ -200,12 +200,7 @@ def run_chain(config: DmpChainingConfig, switch: float, goals: list[np.ndarray],
 
 
 def run_episode(config: DmpChainingConfig, seed: int) -> DmpChainingRecord:
-    """Run the square with the seeded switching interval and the three handoffs.
-
-    Args:
-        config: Study config.
-        seed: Episode seed.
-    """
+    """Run the square with the seeded switching interval and the three handoffs."""
     from repertoire.planning.dmp_chain import chain_rollout
 
     t0 = time.perf_counter()
@@ -230,13 +225,7 @@ def run_episode(config: DmpChainingConfig, seed: int) -> DmpChainingRecord:
 
 
 def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_dir: Path):
-    """Fig. 5-like squares for every switching interval, acceleration traces, a table.
-
-    Args:
-        records: Episode records.
-        config: Study config.
-        out_dir: Output directory.
-    """
+    """Fig. 5-like squares for every switching interval, acceleration traces, a table."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
 
@@ -260,6 +249,7 @@ def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_d
                     "-" if k % 2 == 0 else "--",
                     c="tab:blue" if k % 2 == 0 else "tab:red",
                     lw=2,
+                    label=("segments 1, 3", "segments 2, 4")[k % 2] if k < 2 else None,
                 )
         axes[1].plot(x[:, 0], x[:, 1], c=col, lw=1.5, label=f"switch {s:g} tau")
         if s == min(sw):
@@ -283,6 +273,7 @@ def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_d
         ax.set_ylabel("Y2 (m)")
         ax.grid(alpha=0.3)
     axes[0].set_title("(a) one primitive, four goals (switch 1.0 tau)")
+    axes[0].legend(fontsize=7)
     axes[1].set_title("(b) switching times (lighter = earlier)")
     axes[1].legend(fontsize=7)
     axes[2].set_title(f"|acceleration|, switch {min(sw):g} tau")
@@ -325,31 +316,16 @@ def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_d
         f"Drake DmpSequencer vs NumPy chain_rollout: max difference "
         f"{max(r.drake_vs_numpy for r in records):.2g} m."
     )
-    p2 = out_dir / "dmp_chaining_table.md"
-    p2.write_text("\n".join(lines) + "\n")
+    p2 = write_table(out_dir, "dmp_chaining_table.md", lines)
     return {"fig5": p1, "table": p2}
 
 
-def demo_config() -> DmpChainingConfig:
-    """The demo config."""
-    return DmpChainingConfig()
-
-
-def smoke_config() -> DmpChainingConfig:
-    """A tiny config for tests."""
-    return DmpChainingConfig(
-        n_basis=10, n_samples=100, time_step_s=2e-3, switches=[0.7], settle_factor=0.3
-    )
-
-
-register_study(
-    "dmp_chaining",
-    config_type=DmpChainingConfig,
-    record_type=DmpChainingRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    DmpChainingConfig,
+    DmpChainingRecord,
     description="DMP chaining (Fig. 5 square): acceleration/velocity jumps at switches",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=12,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: one switching interval, a short settle
+    smoke=dict(n_basis=10, n_samples=100, time_step_s=2e-3, switches=[0.7], settle_factor=0.3),
+)

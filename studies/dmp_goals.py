@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies.engine import register_study
+from repertoire.studies._dmp_common import register_dmp_study, write_table
 
 from repertoire.errors import RepertoireError
 
@@ -253,12 +253,7 @@ def sample_episode(config: DmpGoalsConfig, seed: int) -> dict:
 
 
 def run_episode(config: DmpGoalsConfig, seed: int) -> DmpGoalsRecord:
-    """Learns both formulations from the seeded demo and runs the four goal cases.
-
-    Args:
-        config: Study config.
-        seed: Episode seed.
-    """
+    """Learns both formulations from the seeded demo and runs the four goal cases."""
     from repertoire.planning.dmp_learn import learn_dmp
 
     t0 = time.perf_counter()
@@ -300,13 +295,7 @@ def run_episode(config: DmpGoalsConfig, seed: int) -> DmpGoalsRecord:
 
 
 def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Path):
-    """Fig. 2 panels for seed 0's demo, peak acceleration vs delta, and a Markdown table.
-
-    Args:
-        records: Episode records.
-        config: Study config.
-        out_dir: Output directory.
-    """
+    """Fig. 2 panels for seed 0's demo, peak acceleration vs delta, and a Markdown table."""
     from matplotlib.figure import Figure
     from repertoire.planning.dmp_learn import learn_dmp
 
@@ -381,29 +370,16 @@ def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Pa
     mo = np.mean([r.flip_mirrored_old for r in records])
     mn = np.mean([r.flip_mirrored_new for r in records])
     lines.append(f"| sign of g - x0 flipped | fraction mirrored | {mo:.2f} |  | {mn:.2f} |  |")
-    p3 = out_dir / "dmp_goals_table.md"
-    p3.write_text("\n".join(lines) + "\n")
+    p3 = write_table(out_dir, "dmp_goals_table.md", lines)
     return {"fig2": p1, "near_start": p2, "table": p3}
 
 
-def demo_config() -> DmpGoalsConfig:
-    """The demo config."""
-    return DmpGoalsConfig()
-
-
-def smoke_config() -> DmpGoalsConfig:
-    """A tiny config for tests: fewer samples and basis functions."""
-    return DmpGoalsConfig(n_basis=10, n_samples=100, sim_factor=1.2, time_step_s=2e-3)
-
-
-register_study(
-    "dmp_goals",
-    config_type=DmpGoalsConfig,
-    record_type=DmpGoalsRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    DmpGoalsConfig,
+    DmpGoalsRecord,
     description="DMP goal generalisation, old vs new formulation: blow-up and mirroring",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=20,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: fewer samples and basis functions
+    smoke=dict(n_basis=10, n_samples=100, sim_factor=1.2, time_step_s=2e-3),
+)

@@ -12,13 +12,17 @@ Run it with ``python -m repertoire.studies.dmp_grid --help``.
 """
 
 import dataclasses
-import math
 import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import log_stride
-from repertoire.studies.engine import register_study
+from repertoire.studies._dmp_common import (
+    check_arm_config,
+    finite_max,
+    log_stride,
+    register_dmp_study,
+    write_table,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -51,14 +55,10 @@ class GridConfig:
 
     def validate(self) -> None:
         """Raises RepertoireError for a bad range or grid size."""
-        for name in ("grasp_x", "grasp_y", "place_x", "place_y"):
-            r = getattr(self, name)
-            if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
-                raise RepertoireError(f"GridConfig.{name} must be [min, max], got {r}")
         if int(self.n) != self.n or self.n < 1:
             raise RepertoireError(f"GridConfig.n must be an integer >= 1, got {self.n}")
-        if not (self.sim_duration_s >= 0 and self.path_every_s > 0):
-            raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
+        names = ("grasp_x", "grasp_y", "place_x", "place_y")
+        check_arm_config(self, {n: getattr(self, n) for n in names})
 
     def cell(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
         """(grasp goal, place goal) of the episode with this seed."""
@@ -191,11 +191,6 @@ def run_episode(config: GridConfig, seed: int) -> GridRecord:
     )
 
 
-def _finite_max(values: np.ndarray) -> float:
-    finite = values[np.isfinite(values)]
-    return float(finite.max()) if finite.size else float("nan")
-
-
 def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> dict:
     """Fig. 10: demonstrated paths (blue) and the adapted physical tcp paths (red).
 
@@ -232,11 +227,18 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
     ax3.set_xlabel("x (m)")
     ax3.set_ylabel("y (m)")
     ax3.set_zlabel("z (m)")
-    ax3.set_title("demos (blue), physical tcp paths (red), new goals (green)", fontsize=10)
+    ax3.set_title(
+        "demos (blue), physical tcp paths (red: reached, grey: missed), new goals (green)",
+        fontsize=10,
+    )
     ax.set_xlabel("y (m, left)")
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()
     ax.set_aspect("equal")
+    ax.plot([], [], color="tab:red", lw=0.7, label="physical tcp path (goal reached)")
+    if not all(r.reached for r in records):
+        ax.plot([], [], color="0.3", lw=0.7, label="physical tcp path (goal missed)")
+    ax.plot([], [], "+", color="tab:green", ms=8, ls="", label="new goals")
     ax.legend(loc="lower left", fontsize=8)
     ax.set_title("top view: grasp grid (right), place grid (left)")
     grid = out_dir / "dmp_grid_paths.png"
@@ -257,32 +259,19 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
         )
     lines.append(
         f"\n{sum(r.reached for r in records)} of {len(records)} cells reached within 5 mm; "
-        f"max grasp error {_finite_max(g):.2f} mm, max place error {_finite_max(p):.2f} mm."
+        f"max grasp error {finite_max(g):.2f} mm, max place error {finite_max(p):.2f} mm."
     )
-    table = out_dir / "dmp_grid_results.md"
-    table.write_text("\n".join(lines) + "\n")
+    table = write_table(out_dir, "dmp_grid_results.md", lines)
     return {"grid": grid, "results": table}
 
 
-def demo_config() -> GridConfig:
-    """The 3 x 3 grid (run 9 episodes to cover it)."""
-    return GridConfig()
-
-
-def smoke_config() -> GridConfig:
-    """A tiny config for tests: one cell, the first 0.3 s."""
-    return GridConfig(n=1, sim_duration_s=0.3)
-
-
-register_study(
-    "dmp_grid",
-    config_type=GridConfig,
-    record_type=GridRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    GridConfig,
+    GridRecord,
     description="arm7 + learned grasp/place DMPs sent to a grid of new goals (Fig. 10): "
     "physical reach error per goal",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=9,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: one cell, the first 0.3 s
+    smoke=dict(n=1, sim_duration_s=0.3),
+)

@@ -18,13 +18,18 @@ Run it with ``python -m repertoire.studies.dmp_obstacle_arm --help``.
 """
 
 import dataclasses
-import math
 import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import carry_control_points, obstacle_radius, tcp_path
-from repertoire.studies.engine import register_study
+from repertoire.studies._dmp_common import (
+    carry_control_points,
+    check_arm_config,
+    obstacle_radius,
+    register_dmp_study,
+    tcp_path,
+    write_table,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -76,7 +81,7 @@ class ObstacleArmConfig:
 
     def validate(self) -> None:
         """Raises RepertoireError for an empty or reversed range or a bad value."""
-        for name in (
+        names = (
             "cup_x",
             "cup_y",
             "coaster_x",
@@ -84,16 +89,12 @@ class ObstacleArmConfig:
             "path_fraction",
             "offset_x",
             "offset_z",
-        ):
-            r = getattr(self, name)
-            if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
-                raise RepertoireError(f"ObstacleArmConfig.{name} must be [min, max], got {r}")
+        )
+        check_arm_config(self, {n: getattr(self, n) for n in names})
         if not (0.0 <= self.path_fraction[0] and self.path_fraction[1] <= 1.0):
             raise RepertoireError(
                 f"ObstacleArmConfig.path_fraction must lie in [0, 1], got {self.path_fraction}"
             )
-        if not (self.sim_duration_s >= 0 and self.path_every_s > 0):
-            raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
 
 
 @dataclasses.dataclass
@@ -360,30 +361,17 @@ def summarize(
             f"| ball surface to the uncoupled tcp path, min / max [cm] | "
             f"{np.min(gap0):.2f} / {np.max(gap0):.2f} | |"
         )
-    table = out_dir / "dmp_obstacle_arm_results.md"
-    table.write_text("\n".join(lines) + "\n")
+    table = write_table(out_dir, "dmp_obstacle_arm_results.md", lines)
     return {"paths": paths, "gaps": gaps, "results": table}
 
 
-def demo_config() -> ObstacleArmConfig:
-    """The full config (the demo runs a few episodes of it)."""
-    return ObstacleArmConfig()
-
-
-def smoke_config() -> ObstacleArmConfig:
-    """A tiny config for tests: the first 0.2 s of each run."""
-    return ObstacleArmConfig(sim_duration_s=0.2)
-
-
-register_study(
-    "dmp_obstacle_arm",
-    config_type=ObstacleArmConfig,
-    record_type=ObstacleArmRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    ObstacleArmConfig,
+    ObstacleArmRecord,
     description="arm7 + learned DMPs: a ball on the carry path, pick-and-place with vs without "
     "the obstacle coupling term; collision-free and success rates",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=2,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: the first 0.2 s of each run
+    smoke=dict(sim_duration_s=0.2),
+)

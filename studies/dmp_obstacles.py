@@ -15,8 +15,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+from repertoire.studies._dmp_common import register_dmp_study, write_table
 from repertoire.studies.dmp_goals import simulate_dmp
-from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
 
@@ -146,12 +146,7 @@ def _clearance(x: np.ndarray, o: np.ndarray) -> float:
 
 
 def run_episode(config: DmpObstaclesConfig, seed: int) -> DmpObstaclesRecord:
-    """Learns the seeded demonstration and runs it with and without coupling.
-
-    Args:
-        config: Study config.
-        seed: Episode seed.
-    """
+    """Learns the seeded demonstration and runs it with and without coupling."""
     from repertoire.planning.dmp_learn import learn_dmp
 
     t0 = time.perf_counter()
@@ -188,14 +183,9 @@ def run_episode(config: DmpObstaclesConfig, seed: int) -> DmpObstaclesRecord:
 
 
 def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out_dir: Path):
-    """Seed-0 paths around the obstacle, a clearance histogram and a Markdown table.
-
-    Args:
-        records: Episode records.
-        config: Study config.
-        out_dir: Output directory.
-    """
+    """Seed-0 paths around the obstacle, a clearance histogram and a Markdown table."""
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
     from repertoire.planning.dmp_learn import learn_dmp
 
     out_dir = Path(out_dir)
@@ -248,6 +238,7 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
     ax2.axvline(config.radius_m, color="k", ls="--", label="obstacle radius")
     ax2.set_xlabel("clearance to obstacle centre (m)")
     ax2.set_ylabel("episodes")
+    ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax2.set_title(f"{len(records)} random obstacle placements on the path")
     ax2.legend(fontsize=8)
     p1 = out_dir / "dmp_obstacles.png"
@@ -271,29 +262,16 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
         f"| max goal error at {config.sim_factor:g} tau (m) | | "
         f"{max(r.goal_error_with_m for r in records):.2e} |",
     ]
-    p2 = out_dir / "dmp_obstacles_table.md"
-    p2.write_text("\n".join(lines) + "\n")
+    p2 = write_table(out_dir, "dmp_obstacles_table.md", lines)
     return {"paths_and_clearance": p1, "table": p2}
 
 
-def demo_config() -> DmpObstaclesConfig:
-    """The demo config."""
-    return DmpObstaclesConfig()
-
-
-def smoke_config() -> DmpObstaclesConfig:
-    """A tiny config for tests."""
-    return DmpObstaclesConfig(n_basis=10, n_samples=100, time_step_s=2e-3, sim_factor=1.1)
-
-
-register_study(
-    "dmp_obstacles",
-    config_type=DmpObstaclesConfig,
-    record_type=DmpObstaclesRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    DmpObstaclesConfig,
+    DmpObstaclesRecord,
     description="DMP obstacle avoidance (eq. 10): clearance above the radius with/without",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=40,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: fewer samples and basis functions
+    smoke=dict(n_basis=10, n_samples=100, time_step_s=2e-3, sim_factor=1.1),
+)

@@ -13,13 +13,20 @@ Run it with ``python -m repertoire.studies.dmp_pick_place --help``.
 """
 
 import dataclasses
-import math
 import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import carry_control_points, obstacle_radius, tcp_path
-from repertoire.studies.engine import register_study
+from repertoire.studies._dmp_common import (
+    carry_control_points,
+    check_arm_config,
+    obstacle_radius,
+    register_dmp_study,
+    stat_pair,
+    tcp_path,
+    timing_rows,
+    write_table,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -72,7 +79,7 @@ class PickPlaceConfig:
 
     def validate(self) -> None:
         """Raises RepertoireError for an empty or reversed range or a bad value."""
-        for name in (
+        names = (
             "cup_x",
             "cup_y",
             "coaster_x",
@@ -80,12 +87,8 @@ class PickPlaceConfig:
             "coaster_shift",
             "obstacle_beyond",
             "obstacle_z",
-        ):
-            r = getattr(self, name)
-            if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
-                raise RepertoireError(f"PickPlaceConfig.{name} must be [min, max], got {r}")
-        if not (self.sim_duration_s >= 0 and self.path_every_s > 0):
-            raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
+        )
+        check_arm_config(self, {n: getattr(self, n) for n in names})
 
 
 @dataclasses.dataclass
@@ -249,15 +252,6 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
     )
 
 
-def _pair(values: np.ndarray, first, second, digits: int = 2) -> str:
-    """'first / second' of the finite values (e.g. median / max), or 'n/a' if none."""
-    finite = np.asarray(values, dtype=float)
-    finite = finite[np.isfinite(finite)]
-    if finite.size == 0:
-        return "n/a"
-    return f"{first(finite):.{digits}f} / {second(finite):.{digits}f}"
-
-
 def carry_clearance(record: PickPlaceRecord, config: PickPlaceConfig) -> float:
     """Closest approach of the tcp to the ball's surface during the placing movement [m].
 
@@ -294,6 +288,7 @@ def summarize(
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.patches import Circle
+    from matplotlib.ticker import MaxNLocator
 
     out_dir = Path(out_dir)
     fig = Figure(figsize=(11, 5), layout="constrained")
@@ -338,11 +333,18 @@ def summarize(
         loc="best",
     )
     d = np.array([r.cup_to_coaster_m for r in records], dtype=float)
-    finite = d[np.isfinite(d)]
-    ax2.hist(np.clip(finite * 100, 0, 10), bins=30, color="tab:gray")
+    cm = d[np.isfinite(d)] * 100
+    # The axis ends just past the data (at least past the 2 cm bound, at most at 10 cm);
+    # larger distances are counted in the last bin, and the label says how many.
+    upper = float(np.clip(np.ceil(cm.max() * 2) / 2, 2.5, 10.0)) if cm.size else 2.5
+    over = int(np.sum(cm > upper))
+    ax2.hist(np.minimum(cm, upper), bins=np.linspace(0.0, upper, 26), color="tab:gray")
+    ax2.set_xlim(0.0, upper)
     ax2.axvline(2.0, color="tab:red", ls="--", label="2 cm success bound")
-    ax2.set_xlabel("final cup axis to coaster centre (cm, clipped at 10)")
+    clipped = f"; {over} above {upper:g} cm counted at {upper:g}" if over else ""
+    ax2.set_xlabel(f"final cup axis to coaster centre (cm{clipped})")
     ax2.set_ylabel("episodes")
+    ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
     rate = np.mean([r.success for r in records]) if records else float("nan")
     ax2.set_title(f"success {rate:.0%} of {len(records)} episodes")
     ax2.legend()
@@ -361,7 +363,9 @@ def summarize(
     ax.axhline(5.0, color="tab:red", ls="--", lw=0.8, label="5 mm")
     ax.set_xlabel("episode")
     ax.set_ylabel("|tcp - goal| in the physics simulation (mm)")
-    ax.set_ylim(bottom=0)
+    reach = np.concatenate([grasp, place])
+    reach = reach[np.isfinite(reach)]
+    ax.set_ylim(0, max(5.5, 1.1 * float(reach.max())) if reach.size else 5.5)  # 5 mm line shown
     ax.legend(fontsize=8)
     ax.set_title("reach errors")
     ax2.scatter(episodes, carry, s=10, label="while carrying the cup")
@@ -375,8 +379,6 @@ def summarize(
     fig.savefig(errors, dpi=110)
 
     ball_gap = np.array([r.min_ball_gap_m for r in records], dtype=float)
-    ok = [r for r in records if not r.failure]
-    walls = np.array([r.wall_sim_s for r in ok]) if ok else np.array([np.nan])
     lines = [
         "| figure | value |",
         "|---|---|",
@@ -386,41 +388,27 @@ def summarize(
         "| collision-free (ball vs arm/hand/fingers/cup gap > 0) | "
         f"{np.mean([r.collision_free for r in records]) if records else float('nan'):.1%} |",
         "| smallest ball gap (SceneGraph), min / median [cm] | "
-        f"{_pair(ball_gap * 100, np.min, np.median)} |",
-        f"| cup to coaster, median / max [cm] | {_pair(d * 100, np.median, np.max)} |",
-        f"| grasp reach error, median / max [mm] | {_pair(grasp, np.median, np.max)} |",
-        f"| place reach error, median / max [mm] | {_pair(place, np.median, np.max)} |",
+        f"{stat_pair(ball_gap * 100, np.min, np.median)} |",
+        f"| cup to coaster, median / max [cm] | {stat_pair(d * 100, np.median, np.max)} |",
+        f"| grasp reach error, median / max [mm] | {stat_pair(grasp, np.median, np.max)} |",
+        f"| place reach error, median / max [mm] | {stat_pair(place, np.median, np.max)} |",
         "| tcp clearance to the ball over the run, min / median [cm] | "
-        f"{_pair(clearance, np.min, np.median)} |",
+        f"{stat_pair(clearance, np.min, np.median)} |",
         "| tcp clearance to the ball while carrying the cup, min / median [cm] | "
-        f"{_pair(carry, np.min, np.median)} |",
-        f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
-        f"| wall time per simulation, mean / max [s] | {_pair(walls, np.mean, np.max)} |",
+        f"{stat_pair(carry, np.min, np.median)} |",
+        *timing_rows(records),
     ]
-    table = out_dir / "dmp_pick_place_results.md"
-    table.write_text("\n".join(lines) + "\n")
+    table = write_table(out_dir, "dmp_pick_place_results.md", lines)
     return {"top_view": top, "errors": errors, "results": table}
 
 
-def demo_config() -> PickPlaceConfig:
-    """The full config (the demo runs a few episodes of it)."""
-    return PickPlaceConfig()
-
-
-def smoke_config() -> PickPlaceConfig:
-    """A tiny config for tests: the first 0.3 s of an episode."""
-    return PickPlaceConfig(sim_duration_s=0.3)
-
-
-register_study(
-    "dmp_pick_place",
-    config_type=PickPlaceConfig,
-    record_type=PickPlaceRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    PickPlaceConfig,
+    PickPlaceRecord,
     description="arm7 + learned DMPs: pick a cup, place it on a moving coaster around a ball; "
     "success rate over random layouts",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=4,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: the first 0.3 s of an episode
+    smoke=dict(sim_duration_s=0.3),
+)

@@ -13,13 +13,18 @@ Run it with ``python -m repertoire.studies.dmp_serving --help``.
 """
 
 import dataclasses
-import math
 import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._dmp_common import log_stride
-from repertoire.studies.engine import register_study
+from repertoire.studies._dmp_common import (
+    check_arm_config,
+    log_stride,
+    register_dmp_study,
+    stat_pair,
+    timing_rows,
+    write_table,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -57,11 +62,7 @@ class ServingConfig:
         if len(self.cup_y) != 3:
             raise RepertoireError(f"ServingConfig.cup_y needs 3 ranges, got {len(self.cup_y)}")
         ranges += [(f"cup_y[{k}]", r) for k, r in enumerate(self.cup_y)]
-        for name, r in ranges:
-            if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
-                raise RepertoireError(f"ServingConfig.{name} must be [min, max], got {r}")
-        if not (self.sim_duration_s >= 0 and self.path_every_s > 0):
-            raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
+        check_arm_config(self, dict(ranges))
 
 
 @dataclasses.dataclass
@@ -185,15 +186,6 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
     )
 
 
-def _pair(values: np.ndarray, first, second, digits: int = 2) -> str:
-    """'first / second' of the finite values (e.g. median / max), or 'n/a' if none."""
-    finite = np.asarray(values, dtype=float)
-    finite = finite[np.isfinite(finite)]
-    if finite.size == 0:
-        return "n/a"
-    return f"{first(finite):.{digits}f} / {second(finite):.{digits}f}"
-
-
 def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path) -> dict:
     """Top view of the bottle tip over the cups and the tip distances; a Markdown table.
 
@@ -202,6 +194,7 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     """
     from matplotlib.figure import Figure
     from matplotlib.patches import Circle
+    from matplotlib.ticker import MaxNLocator
     from repertoire.models.arm7 import CUP_RADIUS
 
     out_dir = Path(out_dir)
@@ -230,19 +223,26 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     d = np.array(
         [[r.tip_to_cup_1_m, r.tip_to_cup_2_m, r.tip_to_cup_3_m] for r in records], dtype=float
     )
+    cm = d[np.isfinite(d)] * 100
+    # The axis ends just past the data and the 3 cm bound (at most at 6 cm; larger distances
+    # are counted in the last bin, and the label says how many).
+    upper = float(np.clip(np.ceil(cm.max() * 2) / 2, 3.5, 6.0)) if cm.size else 3.5
+    over = int(np.sum(cm > upper))
+    bins = np.linspace(0.0, upper, 36)
     for j in range(3):
-        col = d[:, j][np.isfinite(d[:, j])]
-        ax2.hist(np.clip(col * 100, 0, 6), bins=30, alpha=0.6, label=f"cup {j + 1}")
+        col = d[:, j][np.isfinite(d[:, j])] * 100
+        ax2.hist(np.minimum(col, upper), bins=bins, alpha=0.6, label=f"cup {j + 1}")
+    ax2.set_xlim(0.0, upper)
     ax2.axvline(3.0, color="tab:red", ls="--", label="3 cm (inside the rim)")
-    ax2.set_xlabel("closest tip-to-cup-axis distance while pouring (cm)")
-    ax2.set_ylabel("episodes")
+    clipped = f"; {over} above {upper:g} cm counted at {upper:g}" if over else ""
+    ax2.set_xlabel(f"closest tip-to-cup-axis distance while pouring (cm{clipped})")
+    ax2.set_ylabel("cup pours (episodes)")
+    ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
     rate = np.mean([r.success for r in records]) if records else float("nan")
     ax2.set_title(f"success {rate:.0%} of {len(records)} episodes")
     ax2.legend()
     top = out_dir / "dmp_serving_top_view.png"
     fig.savefig(top, dpi=110)
-    ok = [r for r in records if not r.failure]
-    walls = np.array([r.wall_sim_s for r in ok]) if ok else np.array([np.nan])
     grasp = np.array([r.grasp_reach_error_m for r in records], dtype=float) * 1000
     pour = np.array([r.pour_reach_error_m for r in records], dtype=float) * 1000
     slip = np.array([r.bottle_in_hand_m for r in records], dtype=float) * 1000
@@ -253,39 +253,25 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
         f"| success (tip over all 3 cups, none pushed) | {rate:.1%} |",
         f"| cups served, mean | {np.mean([r.cups_served for r in records]):.2f} of 3 |",
         f"| IK reports (stopped runs) | {sum(bool(r.failure) for r in records)} |",
-        f"| tip to cup axis, median / max [cm] | {_pair(d * 100, np.median, np.max)} |",
-        f"| grasp reach error, median / max [mm] | {_pair(grasp, np.median, np.max)} |",
+        f"| tip to cup axis, median / max [cm] | {stat_pair(d * 100, np.median, np.max)} |",
+        f"| grasp reach error, median / max [mm] | {stat_pair(grasp, np.median, np.max)} |",
         "| pour reach error (bottle in hand), median / max [mm] | "
-        f"{_pair(pour, np.median, np.max)} |",
+        f"{stat_pair(pour, np.median, np.max)} |",
         "| bottle grasp point to tcp at the end, median / max [mm] | "
-        f"{_pair(slip, np.median, np.max, 1)} |",
-        f"| simulated time per episode [s] | {np.mean([r.sim_time_s for r in records]):.1f} |",
-        f"| wall time per simulation, mean / max [s] | {_pair(walls, np.mean, np.max)} |",
+        f"{stat_pair(slip, np.median, np.max, 1)} |",
+        *timing_rows(records),
     ]
-    table = out_dir / "dmp_serving_results.md"
-    table.write_text("\n".join(lines) + "\n")
+    table = write_table(out_dir, "dmp_serving_results.md", lines)
     return {"top_view": top, "results": table}
 
 
-def demo_config() -> ServingConfig:
-    """The full config (the demo runs a few episodes of it)."""
-    return ServingConfig()
-
-
-def smoke_config() -> ServingConfig:
-    """A tiny config for tests: the first 0.3 s of an episode."""
-    return ServingConfig(sim_duration_s=0.3)
-
-
-register_study(
-    "dmp_serving",
-    config_type=ServingConfig,
-    record_type=ServingRecord,
-    run_episode=run_episode,
+register_dmp_study(
+    __name__,
+    ServingConfig,
+    ServingRecord,
     description="arm7 + learned DMPs: grasp a bottle and pour over three cups; success rate "
     "over random layouts",
-    summarize=summarize,
-    demo_config=demo_config,
     demo_episodes=3,
-    smoke_config=smoke_config,
-).run_if_main(__name__)
+    # a tiny config for tests: the first 0.3 s of an episode
+    smoke=dict(sim_duration_s=0.3),
+)

@@ -18,7 +18,6 @@ from pydrake.systems.framework import (
 )
 from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters, check_unit_quaternions
 from repertoire.planning.dmp_math import (
-    FORMULATIONS,
     check_positive,
     forcing_term,
     manifold_step,
@@ -216,8 +215,6 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         n, b = dmp.weights.shape
         self._n, self._b = n, b
         self._formulation = dmp.formulation
-        if self._formulation not in FORMULATIONS:
-            raise RepertoireError(f"unknown formulation {self._formulation!r}")
         self._w = self.DeclareNumericParameter(BasicVector(dmp.weights.reshape(-1)))
         self._c = self.DeclareNumericParameter(BasicVector(dmp.centres))
         self._h = self.DeclareNumericParameter(BasicVector(dmp.widths))

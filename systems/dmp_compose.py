@@ -137,13 +137,17 @@ class DmpSystem(Diagram):
             raise RepertoireError(f"obstacle avoidance needs a 3-D DMP, got {dmp.n_dims}-D")
         vec = _VectorDmp(builder, dmp, time_step, obstacle, "dmp")
         self._parts = {"position": vec}
-        builder.ExportInput(vec.system.get_goal_input_port(), "goal")
+        self._export_position(builder, vec, "goal", obstacle, gamma, beta)
+        builder.ExportOutput(vec.phase, "phase")
+
+    def _export_position(self, builder, vec: _VectorDmp, goal: str, obstacle, gamma, beta) -> None:
+        """Exports the goal input and the three vector outputs (with coupling if asked)."""
+        builder.ExportInput(vec.system.get_goal_input_port(), goal)
         if obstacle:
             self._coupling(builder, vec, gamma, beta)
         builder.ExportOutput(vec.system.get_position_output_port(), "position")
         builder.ExportOutput(vec.system.get_velocity_output_port(), "velocity")
         builder.ExportOutput(vec.system.get_acceleration_output_port(), "acceleration")
-        builder.ExportOutput(vec.phase, "phase")
 
     def _build_fused(self, builder, dmp: TaskSpaceDmp, time_step, obstacle, gamma, beta) -> bool:
         """All vector parts in one DiscreteDmpSystem (one Python call per step)."""
@@ -222,12 +226,7 @@ class DmpSystem(Diagram):
             return
         pos = _VectorDmp(builder, dmp.position, time_step, obstacle, "position_dmp")
         self._parts = {"position": pos}
-        builder.ExportInput(pos.system.get_goal_input_port(), "goal_position")
-        if obstacle:
-            self._coupling(builder, pos, gamma, beta)
-        builder.ExportOutput(pos.system.get_position_output_port(), "position")
-        builder.ExportOutput(pos.system.get_velocity_output_port(), "velocity")
-        builder.ExportOutput(pos.system.get_acceleration_output_port(), "acceleration")
+        self._export_position(builder, pos, "goal_position", obstacle, gamma, beta)
         ori = dmp.orientation
         if ori.mode == "component":
             comp = _VectorDmp(

@@ -5,6 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 from repertoire.studies import dmp_grid, dmp_obstacle_arm, dmp_pick_place, dmp_serving
+from repertoire.studies.registry import get_study
 
 from repertoire.errors import RepertoireError
 
@@ -42,7 +43,7 @@ SMOKE_EXPECTED = {
 
 @pytest.mark.parametrize("module", [dmp_grid, dmp_pick_place, dmp_serving, dmp_obstacle_arm])
 def test_smoke_episode_is_deterministic_and_summarizes(module, tmp_path):
-    config = module.smoke_config()
+    config = get_study(module.__name__.rsplit(".", 1)[1]).smoke_config()
     first = module.run_episode(config, 3)
     figures, file_keys = SMOKE_EXPECTED[module.__name__.rsplit(".", 1)[1]]
     for key, value in figures.items():

@@ -295,3 +295,30 @@ def test_task_space_sequencer_bad_input():
     )  # fmt: skip
     with pytest.raises(RepertoireError, match="segment 0: the task-space chain runs"):
         task_space_sequencer([no_fingers], [0.0], X_START)
+
+
+@pytest.mark.parametrize("time_step", [1e-3, None])
+def test_sequencer_outputs_at_the_start_are_the_closed_form(segment, time_step):
+    """At theta = 1, x = x0, v = 0: tau^2 xdd = K f(1) + p (new form, eq. 6-7, 9)."""
+    seq = DmpSequencer([segment] * 2, [0.0, 1.0], time_step=time_step, coupling_dofs=1)
+    ctx = seq.CreateDefaultContext()
+    x0 = np.array([0.3, -0.2])
+    seq.set_start(ctx, x0)
+    seq.GetInputPort("goal_0").FixValue(ctx, [1.0, 2.0])
+    seq.GetInputPort("coupling").FixValue(ctx, [5.0])
+    f1 = forcing_term(1.0, segment.weights, segment.centres, segment.widths)
+    expected = (segment.K * f1 + np.array([5.0, 0.0])) / segment.tau**2
+    np.testing.assert_allclose(seq.GetOutputPort("acceleration").Eval(ctx), expected, rtol=1e-12)
+    np.testing.assert_array_equal(seq.GetOutputPort("position").Eval(ctx), x0)
+    np.testing.assert_array_equal(seq.GetOutputPort("velocity").Eval(ctx), [0.0, 0.0])
+    assert seq.GetOutputPort("phase").Eval(ctx)[0] == 1.0
+    assert seq.GetOutputPort("segment").Eval(ctx)[0] == 0
+
+
+def test_sequencer_quaternion_block_is_post_normalised():
+    dmp = _flat_dmp(n=5)
+    seq = DmpSequencer([dmp], [0.0], time_step=None, quaternion_at=1, goals=[np.ones(5)])
+    ctx = seq.CreateDefaultContext()
+    seq.set_start(ctx, [7.0, 2.0, 0.0, 0.0, 0.0])  # the raw block has norm 2
+    np.testing.assert_array_equal(seq.GetOutputPort("orientation").Eval(ctx), [1, 0, 0, 0])
+    np.testing.assert_array_equal(seq.GetOutputPort("angular_velocity").Eval(ctx), [0, 0, 0])

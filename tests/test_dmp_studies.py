@@ -3,6 +3,7 @@
 import pytest
 from repertoire.studies import dmp_chaining, dmp_goals, dmp_obstacles
 from repertoire.studies.engine import comparable, run_study
+from repertoire.studies.registry import get_study
 
 from repertoire.errors import RepertoireError
 
@@ -12,7 +13,7 @@ def _smoke_run(module, tmp_path, episodes: int = 1):
     name = module.__name__.rsplit(".", 1)[-1]
     return run_study(
         name,
-        module.smoke_config(),
+        get_study(name).smoke_config(),
         episodes=episodes,
         store=tmp_path / f"{name}.sqlite",
         out_dir=tmp_path / name,
@@ -33,7 +34,7 @@ def test_goals_study_smoke_shows_old_form_failures(tmp_path):
 
 
 def test_obstacles_study_smoke_and_determinism(tmp_path):
-    config = dmp_obstacles.smoke_config()
+    config = get_study("dmp_obstacles").smoke_config()
     a, b = dmp_obstacles.run_episode(config, 3), dmp_obstacles.run_episode(config, 3)
     assert comparable(a) == comparable(b)
     assert a.clearance_with_m > a.clearance_without_m

@@ -193,14 +193,19 @@ def test_position_error_converges_to_target():
     assert system.GetOutputPort("status").Eval(context)[0] == STATUS_OK
 
 
-def test_unreachable_target_is_reported():
-    plant = _make_plant()
-    system = _system(plant, reach_center=np.array([0, 0, 0.1]), max_reach=0.8)
+def _run_towards_far_target(plant, system, t_end: float):
+    """Simulates ``system`` to ``t_end`` with a target 1.5 m out; returns its context."""
     context = system.CreateDefaultContext()
     X = _pose(plant, Q0)
     _fix(system, context, np.array([1.5, 0.0, 0.1]), X.rotation().ToQuaternion().wxyz())
-    simulator = Simulator(system, context)
-    simulator.AdvanceTo(0.008)
+    Simulator(system, context).AdvanceTo(t_end)
+    return context
+
+
+def test_unreachable_target_is_reported():
+    plant = _make_plant()
+    system = _system(plant, reach_center=np.array([0, 0, 0.1]), max_reach=0.8)
+    context = _run_towards_far_target(plant, system, 0.008)
     assert system.GetOutputPort("status").Eval(context)[0] == STATUS_TARGET_OUT_OF_REACH
 
 
@@ -208,11 +213,7 @@ def test_tracking_lost_inside_the_sphere_is_reported():
     plant = _make_plant()
     # No reach sphere: a target 1.5 m away can only show up as lost tracking.
     system = _system(plant, error_hold_time=0.2)
-    context = system.CreateDefaultContext()
-    X = _pose(plant, Q0)
-    _fix(system, context, np.array([1.5, 0.0, 0.1]), X.rotation().ToQuaternion().wxyz())
-    simulator = Simulator(system, context)
-    simulator.AdvanceTo(0.3)
+    context = _run_towards_far_target(plant, system, 0.3)
     assert system.GetOutputPort("status").Eval(context)[0] == STATUS_TRACKING_LOST
     q = system.GetOutputPort("arm_reference_state").Eval(context)[:7]
     assert np.all(np.abs(q) <= 2.9)  # references stay inside the joint limits

@@ -115,45 +115,6 @@ def plan_legend_handles() -> list:
     ]
 
 
-def static_plan_figure(
-    grid: OccupancyGrid,
-    plan: FootstepPlan,
-    path: "str | Path",
-    *,
-    mobile_path: Sequence[Sequence[float]] | None = None,
-    title: str = "",
-    geometry: BipedGeometry = ASIMO_LIKE,
-) -> Path:
-    """Write a Fig. 3-like PNG: obstacles, footprints and the 2-D planner's path.
-
-    Args:
-        grid: the grid.
-        plan: the footstep plan.
-        path: output PNG.
-        mobile_path: the 2-D planner's path, if any.
-        title: axes title.
-        geometry: foot size.
-    """
-    fig = Figure(figsize=(5.2, 5.2), dpi=130)
-    ax = fig.add_subplot(1, 1, 1)
-    draw_grid(ax, grid)
-    draw_plan(ax, plan, geometry)
-    handles = plan_legend_handles()
-    if mobile_path:
-        mp = np.asarray(mobile_path)
-        (line,) = ax.plot(mp[:, 0], mp[:, 1], "--", color="0.3", lw=1.2)
-        line.set_label("2-D planner (circle)")
-        handles.append(line)
-    ax.legend(handles=handles, loc="lower right", fontsize=6, framealpha=0.85)
-    ax.set_title(title, fontsize=8)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path)
-    return path
-
-
 def dynamic_plan_figure(
     env: DynamicEnvironment,
     plan: FootstepPlan,

@@ -236,6 +236,7 @@ class WorkerPool:
         self._n = workers
         self._ctx = pool_context()
         self._workers: list[_Worker] = []
+        self._retired: list[_Worker] = []
         self._start_error: BaseException | None = None
         self._lock = threading.Lock()
         self._closed = False
@@ -288,7 +289,8 @@ class WorkerPool:
         todo = collections.deque(seeds)
         keep = min(len(self._workers), len(seeds))
         for extra in self._workers[keep:]:
-            self._stop(extra)
+            self._stop(extra)  # not needed: asked to exit now, joined by close()
+        self._retired += self._workers[keep:]
         self._workers = self._workers[:keep]
         lost_starts = 0  # workers in a row that died before taking a seed
 
@@ -409,13 +411,13 @@ class WorkerPool:
             else:
                 self._stop(worker)
         deadline = time.monotonic() + STOP_TIMEOUT_S
-        for worker in self._workers:
+        for worker in self._workers + self._retired:
             worker.proc.join(max(0.0, deadline - time.monotonic()))
             if worker.proc.is_alive():
                 worker.proc.kill()
                 worker.proc.join(1.0)
             worker.conn.close()
-        self._workers = []
+        self._workers, self._retired = [], []
 
     def __enter__(self) -> "WorkerPool":
         return self

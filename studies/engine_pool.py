@@ -296,7 +296,9 @@ class WorkerPool:
 
         def feed(worker: _Worker) -> None:
             chunk = []
-            while todo and len(worker.queued) + len(chunk) < SEEDS_AHEAD:
+            # Near the end one seed each, so that no worker idles while another holds two.
+            ahead = SEEDS_AHEAD if len(todo) >= SEEDS_AHEAD * len(self._workers) else 1
+            while todo and len(worker.queued) + len(chunk) < ahead:
                 chunk.append(todo.popleft())
             if not chunk:
                 return
@@ -338,9 +340,6 @@ class WorkerPool:
                 results, crash, dead = self._collect(worker)
                 if worker.ready:
                     lost_starts = 0
-                yield from results
-                if crash is not None:
-                    yield crash
                 if dead:
                     todo.extendleft(reversed(worker.queued))  # the others' turn, in order
                     worker.queued.clear()
@@ -348,6 +347,11 @@ class WorkerPool:
                         self._replace(worker, bool(todo))
                     else:
                         lost(worker)
+                else:
+                    feed(worker)  # before the caller stores the results: no idle worker
+                yield from results
+                if crash is not None:
+                    yield crash
 
     def _collect(self, worker: _Worker) -> tuple[list[dict], dict | None, bool]:
         """Reads what a worker sent: (results, the crash of the seed it ran or None, dead)."""

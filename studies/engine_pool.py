@@ -195,6 +195,26 @@ def pool_context():
     return multiprocessing.get_context("spawn")
 
 
+def prestart_fork_server() -> threading.Thread | None:
+    """Starts the fork server (and its pydrake import) in the background, if there is one.
+
+    A command line calls this first thing, so that the server's imports overlap
+    the caller's own (study discovery, config loading); the pool it later makes
+    forks its workers at once.
+
+    Returns:
+        The thread doing it (None where workers are spawned).
+    """
+    ctx = pool_context()
+    if ctx.get_start_method() != "forkserver":
+        return None
+    from multiprocessing import forkserver
+
+    thread = threading.Thread(target=forkserver.ensure_running, daemon=True)
+    thread.start()
+    return thread
+
+
 def describe_exit(exitcode: int | None) -> str:
     """``-11`` -> ``'killed by signal SIGSEGV'``; ``3`` -> ``'exit code 3'``."""
     if exitcode is None:

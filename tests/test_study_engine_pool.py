@@ -238,3 +238,21 @@ def test_fewer_seeds_than_workers_and_every_worker_is_gone_after_close(pool_stud
     pool.close()
     assert [p.is_alive() for p in procs] == [False] * 3
     assert [p.exitcode for p in procs] == [0, 0, 0]  # asked to stop, not killed
+
+
+def test_prestart_fork_server_leaves_a_running_server_for_the_pool():
+    import multiprocessing
+    from multiprocessing import forkserver
+
+    from repertoire.studies.engine_pool import prestart_fork_server
+
+    thread = prestart_fork_server()
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        assert thread is None
+        return
+    thread.join(120.0)
+    assert not thread.is_alive()
+    pid = forkserver._forkserver._forkserver_pid  # the one server every pool forks from
+    assert pid is not None
+    prestart_fork_server().join(120.0)  # idempotent: the same server
+    assert forkserver._forkserver._forkserver_pid == pid

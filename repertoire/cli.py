@@ -340,7 +340,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 def _cmd_study(args: argparse.Namespace) -> int:
     from repertoire.studies.engine import EpisodeError, run_study_from_args
+    from repertoire.studies.engine_pool import prestart_fork_server
 
+    if args.executor == "process":
+        prestart_fork_server()  # its pydrake import overlaps study discovery here
     try:
         run_study_from_args(args)
     except EpisodeError as e:  # an episode failed or crashed: a failed run, not bad input

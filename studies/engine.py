@@ -49,6 +49,7 @@ from repertoire.studies.engine_pool import (
     EpisodeError,
     WorkerPool,
     iter_inline,
+    prestart_fork_server,
     raise_task_error,
 )
 from repertoire.studies.engine_summary import (
@@ -548,6 +549,8 @@ def study_main(
     )
     add_study_arguments(parser, with_name=name is None)
     args = parser.parse_args(argv)
+    if args.executor == "process":
+        prestart_fork_server()  # its pydrake import overlaps config loading here
     try:
         run_study_from_args(args, name)
     except RepertoireError as e:

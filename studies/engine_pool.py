@@ -195,6 +195,26 @@ def pool_context():
     return multiprocessing.get_context("spawn")
 
 
+def prestart_fork_server() -> threading.Thread | None:
+    """Starts the fork server (and its pydrake import) in the background, if there is one.
+
+    A command line calls this first thing, so that the server's imports overlap
+    the caller's own (study discovery, config loading); the pool it later makes
+    forks its workers at once.
+
+    Returns:
+        The thread doing it (None where workers are spawned).
+    """
+    ctx = pool_context()
+    if ctx.get_start_method() != "forkserver":
+        return None
+    from multiprocessing import forkserver
+
+    thread = threading.Thread(target=forkserver.ensure_running, daemon=True)
+    thread.start()
+    return thread
+
+
 def describe_exit(exitcode: int | None) -> str:
     """``-11`` -> ``'killed by signal SIGSEGV'``; ``3`` -> ``'exit code 3'``."""
     if exitcode is None:
@@ -236,6 +256,7 @@ class WorkerPool:
         self._n = workers
         self._ctx = pool_context()
         self._workers: list[_Worker] = []
+        self._retired: list[_Worker] = []
         self._start_error: BaseException | None = None
         self._lock = threading.Lock()
         self._closed = False
@@ -288,13 +309,16 @@ class WorkerPool:
         todo = collections.deque(seeds)
         keep = min(len(self._workers), len(seeds))
         for extra in self._workers[keep:]:
-            self._stop(extra)
+            self._stop(extra)  # not needed: asked to exit now, joined by close()
+        self._retired += self._workers[keep:]
         self._workers = self._workers[:keep]
         lost_starts = 0  # workers in a row that died before taking a seed
 
         def feed(worker: _Worker) -> None:
             chunk = []
-            while todo and len(worker.queued) + len(chunk) < SEEDS_AHEAD:
+            # Near the end one seed each, so that no worker idles while another holds two.
+            ahead = SEEDS_AHEAD if len(todo) >= SEEDS_AHEAD * len(self._workers) else 1
+            while todo and len(worker.queued) + len(chunk) < ahead:
                 chunk.append(todo.popleft())
             if not chunk:
                 return
@@ -336,9 +360,6 @@ class WorkerPool:
                 results, crash, dead = self._collect(worker)
                 if worker.ready:
                     lost_starts = 0
-                yield from results
-                if crash is not None:
-                    yield crash
                 if dead:
                     todo.extendleft(reversed(worker.queued))  # the others' turn, in order
                     worker.queued.clear()
@@ -346,6 +367,11 @@ class WorkerPool:
                         self._replace(worker, bool(todo))
                     else:
                         lost(worker)
+                else:
+                    feed(worker)  # before the caller stores the results: no idle worker
+                yield from results
+                if crash is not None:
+                    yield crash
 
     def _collect(self, worker: _Worker) -> tuple[list[dict], dict | None, bool]:
         """Reads what a worker sent: (results, the crash of the seed it ran or None, dead)."""
@@ -409,13 +435,13 @@ class WorkerPool:
             else:
                 self._stop(worker)
         deadline = time.monotonic() + STOP_TIMEOUT_S
-        for worker in self._workers:
+        for worker in self._workers + self._retired:
             worker.proc.join(max(0.0, deadline - time.monotonic()))
             if worker.proc.is_alive():
                 worker.proc.kill()
                 worker.proc.join(1.0)
             worker.conn.close()
-        self._workers = []
+        self._workers, self._retired = [], []
 
     def __enter__(self) -> "WorkerPool":
         return self

@@ -227,3 +227,32 @@ def test_workers_that_die_at_start_up_blame_no_seed_and_give_a_clear_error(tmp_p
     finally:
         registry._REGISTRY.pop("_dies_study", None)
         sys.modules.pop("dies_at_import", None)
+
+
+def test_fewer_seeds_than_workers_and_every_worker_is_gone_after_close(pool_study):
+    pool = WorkerPool("pool_study_module", "_pool_study", _config_json(pool_study), 3)
+    results = list(pool.run([5]))
+    assert [(r["seed"], r["record"]["seed_cubed"]) for r in results] == [(5, 125)]
+    procs = [w.proc for w in pool._workers + pool._retired]
+    assert len(procs) == 3
+    pool.close()
+    assert [p.is_alive() for p in procs] == [False] * 3
+    assert [p.exitcode for p in procs] == [0, 0, 0]  # asked to stop, not killed
+
+
+def test_prestart_fork_server_leaves_a_running_server_for_the_pool():
+    import multiprocessing
+    from multiprocessing import forkserver
+
+    from repertoire.studies.engine_pool import prestart_fork_server
+
+    thread = prestart_fork_server()
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        assert thread is None
+        return
+    thread.join(120.0)
+    assert not thread.is_alive()
+    pid = forkserver._forkserver._forkserver_pid  # the one server every pool forks from
+    assert pid is not None
+    prestart_fork_server().join(120.0)  # idempotent: the same server
+    assert forkserver._forkserver._forkserver_pid == pid

@@ -23,7 +23,7 @@ from repertoire.planning.footstep.quadruped import (
     HeightMap,
     plan_crawl,
 )
-from repertoire.planning.footstep.types import PlanStatus
+from repertoire.planning.footstep.types import FootstepError, PlanStatus
 from repertoire.planning.littledog_crawl import CrawlError, CrawlStep
 from repertoire.planning.littledog_crawl import CrawlParams as ExecParams
 from repertoire.planning.littledog_crawl import plan_crawl as execute_crawl
@@ -98,15 +98,19 @@ class CrawlGapFiller:
             raise TransferSearchError(
                 f"crawl gap filler needs (4, 3) stances, got {start.shape} and {target.shape}"
             )
-        plan = plan_crawl(
-            self.height_map,
-            start[:, :2],
-            target[:, :2].mean(axis=0),
-            self.params,
-            time_limit=max(float(time_limit), 1e-3),
-            max_expansions=self.max_expansions,
-            weight=self.weight,
-        )
+        try:
+            plan = plan_crawl(
+                self.height_map,
+                start[:, :2],
+                target[:, :2].mean(axis=0),
+                self.params,
+                time_limit=max(float(time_limit), 1e-3),
+                max_expansions=self.max_expansions,
+                weight=self.weight,
+            )
+        except FootstepError:
+            # A start or target the planner refuses (e.g. a foothold on a rock's edge).
+            return GapFill([], "failed")
         steps: list[PlannedStep] = []
         cur = start.copy()
         for s in plan.steps:

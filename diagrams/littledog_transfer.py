@@ -282,7 +282,7 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
         return TransferPlan(board, pose0, feet0, q0, goal, transfer, None, transfer.library)
     lo = -0.5 * board.params.size_x
     hmap = height_map_from_board(board, (lo, -lo), (lo, -lo), 0.01)
-    filler = CrawlGapFiller(hmap, board=board)
+    filler = CrawlGapFiller(hmap, board=board, place_feet=True)
     # Recorded (physics) steps end up to 2.7 cm (summed over the feet) from the next start.
     config = SearchConfig(
         join_tolerance=0.04, goal_tolerance=0.03, time_limit=scenario.planner_time_limit

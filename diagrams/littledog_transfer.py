@@ -54,7 +54,7 @@ from repertoire.models.terrain import (
     tile_boards,
 )
 from repertoire.planning.footstep.quadruped import height_map_from_board
-from repertoire.planning.littledog_crawl import CrawlParams
+from repertoire.planning.littledog_crawl import CrawlParams, foothold_ok
 from repertoire.planning.step_library import StepLibrary
 from repertoire.planning.terrain_features import TransferConfig
 from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
@@ -217,6 +217,25 @@ def library_transfer(scenario: LittleDogTransferScenario) -> LibraryTransfer:
     return _transfer(tuple(tuple(v) if isinstance(v, list) else v for v in key))
 
 
+def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) -> np.ndarray:
+    """The start offset nearest ``offset`` (within 4 cm) with all four feet on flat spots.
+
+    The footstep planner refuses start footholds on a rock's edge, and so would the robot's
+    first steps; a perturbed start is moved to the nearest flat one.
+
+    Raises:
+        ScenarioError: no flat start within 4 cm.
+    """
+    g = np.arange(-4, 5) * 0.01
+    trials = sorted(((x, y) for x in g for y in g), key=lambda o: o[0] ** 2 + o[1] ** 2)
+    for dx, dy in trials:
+        off = np.asarray(offset, dtype=float) + [dx, dy]
+        _, feet, _ = crossing_start(board, 0.0, HALF_EXTENT, params.standing_height, off, yaw)
+        if np.all(foothold_ok(board, feet[:, :2], params)):
+            return off
+    raise ScenarioError(f"no flat start within 4 cm of offset {list(offset)} at yaw {yaw:.3f} rad")
+
+
 @dataclasses.dataclass
 class TransferPlan:
     """What the builder runs: terrain, start, goal, the search and the final library.
@@ -246,13 +265,11 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
     board = target_board(scenario)
     params = CrawlParams()
     offset = flat_start(board, 0.0, HALF_EXTENT, params)
+    offset = flat_offset(
+        board, offset + np.asarray(scenario.start_offset), scenario.start_yaw_offset, params
+    )
     pose0, feet0, q0 = crossing_start(
-        board,
-        0.0,
-        HALF_EXTENT,
-        params.standing_height,
-        offset + np.asarray(scenario.start_offset),
-        scenario.start_yaw_offset,
+        board, 0.0, HALF_EXTENT, params.standing_height, offset, scenario.start_yaw_offset
     )
     goal = HALF_EXTENT - 0.02
     transfer = library_transfer(scenario)
@@ -265,7 +282,7 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
         return TransferPlan(board, pose0, feet0, q0, goal, transfer, None, transfer.library)
     lo = -0.5 * board.params.size_x
     hmap = height_map_from_board(board, (lo, -lo), (lo, -lo), 0.01)
-    filler = CrawlGapFiller(hmap, board=board)
+    filler = CrawlGapFiller(hmap, board=board, place_feet=True)
     # Recorded (physics) steps end up to 2.7 cm (summed over the feet) from the next start.
     config = SearchConfig(
         join_tolerance=0.04, goal_tolerance=0.03, time_limit=scenario.planner_time_limit

@@ -23,7 +23,7 @@ from repertoire.planning.footstep.quadruped import (
     HeightMap,
     plan_crawl,
 )
-from repertoire.planning.footstep.types import PlanStatus
+from repertoire.planning.footstep.types import FootstepError, PlanStatus
 from repertoire.planning.littledog_crawl import CrawlError, CrawlStep
 from repertoire.planning.littledog_crawl import CrawlParams as ExecParams
 from repertoire.planning.littledog_crawl import plan_crawl as execute_crawl
@@ -81,6 +81,9 @@ class CrawlGapFiller:
             whether a planned gap is usable).
         board: the terrain's exact height function for that check (default: the map's
             cell heights; the executing crawl reads the board, so pass it when known).
+        place_feet: with ``board``, end a reached gap with one-foot moves onto the target
+            stance when its footholds are flat (a recorded step's start; not a goal stance
+            on rocks), checked executable like the rest.
     """
 
     height_map: HeightMap
@@ -89,6 +92,7 @@ class CrawlGapFiller:
     max_expansions: int = 50_000
     crawl: ExecParams = dataclasses.field(default_factory=ExecParams)
     board: object = None
+    place_feet: bool = False
 
     def __call__(self, start: np.ndarray, target: np.ndarray, time_limit: float) -> GapFill:
         """Plans crawl steps from ``start`` (4, 3) towards ``target``'s centroid."""
@@ -98,15 +102,19 @@ class CrawlGapFiller:
             raise TransferSearchError(
                 f"crawl gap filler needs (4, 3) stances, got {start.shape} and {target.shape}"
             )
-        plan = plan_crawl(
-            self.height_map,
-            start[:, :2],
-            target[:, :2].mean(axis=0),
-            self.params,
-            time_limit=max(float(time_limit), 1e-3),
-            max_expansions=self.max_expansions,
-            weight=self.weight,
-        )
+        try:
+            plan = plan_crawl(
+                self.height_map,
+                start[:, :2],
+                target[:, :2].mean(axis=0),
+                self.params,
+                time_limit=max(float(time_limit), 1e-3),
+                max_expansions=self.max_expansions,
+                weight=self.weight,
+            )
+        except FootstepError:
+            # A start or target the planner refuses (e.g. a foothold on a rock's edge).
+            return GapFill([], "failed")
         steps: list[PlannedStep] = []
         cur = start.copy()
         for s in plan.steps:
@@ -115,6 +123,14 @@ class CrawlGapFiller:
             steps.append(PlannedStep(cur, nxt, int(s.foot)))
             cur = nxt
         board = _MapBoard(self.height_map) if self.board is None else self.board
+        if self.place_feet and plan.status is PlanStatus.SUCCESS and self.board is not None:
+            from repertoire.planning.littledog_crawl import foothold_ok
+            from repertoire.planning.transfer_library import placing_steps
+
+            # A recorded step's start (flat footholds): the gap ends on its exact stance,
+            # so the nearest-step policy picks it next; unreachable placing = gap unusable.
+            if np.all(foothold_ok(self.board, target[:, :2], self.crawl)):
+                steps += placing_steps(steps[-1].end_feet if steps else start, target)
         executable = executable_prefix(steps, self.crawl, board)
         if executable < len(steps):
             # The crawl planner's reach model is looser than the executing crawl's leg IK:

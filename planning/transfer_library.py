@@ -58,6 +58,7 @@ from repertoire.planning.transfer_search import (
     PlannedStep,
     SearchConfig,
     SearchResult,
+    foot_distance,
     search_transfer,
 )
 
@@ -341,6 +342,7 @@ def final_library(
     terrain_name: str = "transferred",
     params: CrawlParams | None = None,
     tolerance: float = 0.005,
+    join: float = 0.04,
 ) -> StepLibrary:
     """The final library of a search: path steps in order, planner runs as ``planned`` steps.
 
@@ -348,6 +350,8 @@ def final_library(
     (the crawl planner aims at a centroid); :func:`placing_steps` then moves each foot
     farther than ``tolerance`` (m) onto that step's start foothold, so every run ends
     exactly where the recorded step begins and the nearest-step policy picks it next.
+    Between two path steps joined by no planned step but farther apart than ``join``
+    (m, summed over the feet) the same placing moves are inserted.
 
     Raises:
         TransferError: an empty path (nothing to execute) or a recorded step missing
@@ -374,17 +378,20 @@ def final_library(
         if transferred is None or not 0 <= item.step < len(transferred):
             raise TransferError(f"path step {item.step} is not in the transferred library")
         step = transferred[item.step]
-        if run:
-            gap = list(run)
-            run += placing_steps(run[-1].end_feet, step.start_feet, tolerance)
-            try:
-                flush()
-            except TransferError:
-                # The legs cannot reach the placing moves: leave the last few cm to the
-                # executor's blend (the search's own gap steps were checked executable).
-                run = gap
-                flush()
-        else:
+        search_run, extra = list(run), []
+        if search_run:
+            extra = placing_steps(search_run[-1].end_feet, step.start_feet, tolerance)
+        elif out and float(foot_distance(step_end_feet(out[-1]), step.start_feet)) > join:
+            # A gap the planner "filled" with no steps (centroids already close): place the
+            # feet from the previous step's end so the policy can pick this step next.
+            extra = placing_steps(step_end_feet(out[-1]), step.start_feet, tolerance)
+        run = search_run + extra
+        try:
+            flush()
+        except TransferError:
+            # The legs cannot reach the placing moves: leave the last few cm to the
+            # executor's blend (the search's own gap steps were checked executable).
+            run = search_run
             flush()
         out.append(step)
         pose = step.body_pose[-1]

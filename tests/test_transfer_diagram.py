@@ -9,12 +9,14 @@ from repertoire.diagrams.littledog_demos import crossing_start, flat_start
 from repertoire.diagrams.littledog_transfer import (
     LittleDogTransferScenario,
     build_littledog_transfer,
+    flat_offset,
     plan_transfer,
     source_board,
 )
 from repertoire.planning.littledog_crawl import (
     CrawlParams,
     choose_footholds,
+    foothold_ok,
     plan_crawl,
     plan_to_steps,
 )
@@ -92,3 +94,13 @@ def test_bad_scenarios_are_refused(change, match):
     scenario = dataclasses.replace(LittleDogTransferScenario(), **change)
     with pytest.raises(ScenarioError, match=match):
         plan_transfer(scenario)
+
+
+def test_perturbed_start_snaps_to_the_nearest_flat_start():
+    board = source_board("terrain_a")
+    params = CrawlParams()
+    wanted = np.array([0.0082, -0.0138]) + flat_start(board, 0.0, 0.25, params)
+    got = flat_offset(board, wanted, -0.16, params)
+    assert np.max(np.abs(got - wanted)) <= 0.04 + 1e-12
+    _, feet, _ = crossing_start(board, 0.0, 0.25, params.standing_height, got, -0.16)
+    assert np.all(foothold_ok(board, feet[:, :2], params))

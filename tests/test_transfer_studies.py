@@ -12,8 +12,8 @@ from repertoire.planning.littledog_crawl import (
     plan_to_steps,
 )
 from repertoire.planning.step_library import StepLibrary
-from repertoire.studies import littledog_transfer as matching
 from repertoire.studies import littledog_transfer_execution as execution
+from repertoire.studies import littledog_transfer_matching as matching
 
 from repertoire.errors import RepertoireError
 

@@ -18,7 +18,7 @@ On the modified and generated terrains the section-V search runs from the nomina
 start to the goal, once with one match per step and once with multiple matches
 (section VII): recorded and planned steps on the path (Figs. 11-12). The summary
 tabulates every case and draws the modified terrain's matches and both searches
-over its height map. Run it with ``python -m repertoire.studies.littledog_transfer
+over its height map. Run it with ``python -m repertoire.studies.littledog_transfer_matching
 --help``.
 """
 
@@ -296,7 +296,7 @@ def summarize(
             f"{sum(r.planned_multiple for r in searched)}; recorded steps "
             f"{sum(r.recorded for r in searched)} vs {sum(r.recorded_multiple for r in searched)}."
         )
-    table = out_dir / "littledog_transfer.md"
+    table = out_dir / "littledog_transfer_matching.md"
     table.write_text("\n".join(lines) + "\n")
     files = {"table": table}
     if any(r.case == "modified" for r in records):
@@ -327,7 +327,7 @@ def demo_config() -> LittleDogTransferConfig:
 
 
 register_study(
-    "littledog_transfer",
+    "littledog_transfer_matching",
     config_type=LittleDogTransferConfig,
     record_type=LittleDogTransferRecord,
     run_episode=run_episode,

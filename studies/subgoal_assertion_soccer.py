@@ -250,6 +250,7 @@ def summarize(
             theta[~ok], radius[~ok], s=14, c="tab:red", marker="x", label=f"fail ({(~ok).sum()})"
         )
         ax.set_title(f"{title}: {ok.mean():.0%} succeed\n(start seen from the ball, m)")
+        ax.set_rlabel_position(112)
         ax.legend(loc="lower left", bbox_to_anchor=(-0.1, -0.12), fontsize=8)
     fig.suptitle("Ball approach outcome by start direction; approach heading points to 0°")
     polar = out_dir / "subgoal_assertion_polar.png"

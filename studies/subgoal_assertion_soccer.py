@@ -29,6 +29,7 @@ import numpy as np
 from repertoire.studies._refinement_common import (
     SoccerPlanConfig,
     approach_target,
+    document_shared_fields,
     run_plan,
     sample_situation,
 )
@@ -37,6 +38,7 @@ from repertoire.studies.engine import register_study
 PAPER_FIG16B = {"success_without": 0.47, "success_with": 0.97, "predicted_fail": 0.52}
 
 
+@document_shared_fields
 @dataclasses.dataclass
 class SubgoalAssertionConfig(SoccerPlanConfig):
     """The shared soccer plan settings plus the models and the subgoal box.

@@ -102,6 +102,20 @@ class SoccerPlanConfig:
             raise RepertoireError("dribble_distance_range must start beyond approach_distance")
 
 
+def document_shared_fields(cls: type) -> type:
+    """Appends :class:`SoccerPlanConfig`'s ``Attributes`` to a subclass's docstring.
+
+    The subclass's docstring must end with its own ``Attributes:`` section; ``repertoire
+    show`` then comments every field, inherited ones included.
+    """
+    import inspect
+
+    shared = inspect.getdoc(SoccerPlanConfig).split("Attributes:\n", 1)[1]
+    lines = [f"    {line}" if line else "" for line in shared.splitlines()]
+    cls.__doc__ = (cls.__doc__ or "").rstrip() + "\n" + "\n".join(lines) + "\n    "
+    return cls
+
+
 def sample_situation(config: SoccerPlanConfig, rng: np.random.Generator):
     """A start ``[x, y, phi, v]`` and a destination ``[x, y, phi, 0]`` beyond the ball.
 

@@ -23,7 +23,11 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._refinement_common import SoccerPlanConfig, run_plan
+from repertoire.studies._refinement_common import (
+    SoccerPlanConfig,
+    document_shared_fields,
+    run_plan,
+)
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -33,6 +37,7 @@ PAPER_TABLE4_SOCCER = {1: (22.7, None, None), 2: (20.3, 0.106, 0.000), 3: (20.2,
                        4: (20.2, 0.002, 0.053)}  # fmt: skip
 
 
+@document_shared_fields
 @dataclasses.dataclass
 class RefinementHorizonsConfig(SoccerPlanConfig):
     """The shared soccer plan settings plus the tour.

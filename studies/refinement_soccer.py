@@ -27,6 +27,7 @@ import numpy as np
 from repertoire.studies._refinement_common import (
     SoccerPlanConfig,
     approach_target,
+    document_shared_fields,
     instantiated_plan,
     run_plan,
     sample_situation,
@@ -44,6 +45,7 @@ SHIPPED_MODELS = "soccer_plan_models"
 SITUATION_FEATURES = ("dist_ball", "angle_to_ball", "turn_at_ball", "v", "dribble_dist")
 
 
+@document_shared_fields
 @dataclasses.dataclass
 class RefinementSoccerConfig(SoccerPlanConfig):
     """The shared soccer plan settings plus where the models are and the search.

@@ -29,6 +29,7 @@ import numpy as np
 from repertoire.studies._refinement_common import (
     SoccerPlanConfig,
     approach_target,
+    document_shared_fields,
     run_plan,
     sample_situation,
 )
@@ -37,6 +38,7 @@ from repertoire.studies.engine import register_study
 PAPER_FIG16B = {"success_without": 0.47, "success_with": 0.97, "predicted_fail": 0.52}
 
 
+@document_shared_fields
 @dataclasses.dataclass
 class SubgoalAssertionConfig(SoccerPlanConfig):
     """The shared soccer plan settings plus the models and the subgoal box.
@@ -250,6 +252,7 @@ def summarize(
             theta[~ok], radius[~ok], s=14, c="tab:red", marker="x", label=f"fail ({(~ok).sum()})"
         )
         ax.set_title(f"{title}: {ok.mean():.0%} succeed\n(start seen from the ball, m)")
+        ax.set_rlabel_position(112)
         ax.legend(loc="lower left", bbox_to_anchor=(-0.1, -0.12), fontsize=8)
     fig.suptitle("Ball approach outcome by start direction; approach heading points to 0°")
     polar = out_dir / "subgoal_assertion_polar.png"

@@ -449,7 +449,12 @@ def test_admissible_mode_is_optimal_on_tiny_map():
     assert brute == pytest.approx(astar.cost, abs=1e-9)
     # the inadmissible, weighted Dijkstra heuristic is never better than the optimum
     fast = plan_footsteps(
-        grid, start, foot, goal, t, PlannerOptions(heuristic_weight=3.0, goal_tolerance=tol)
+        grid,
+        start,
+        foot,
+        goal,
+        t,
+        PlannerOptions(heuristic_weight=3.0, goal_tolerance=tol, time_limit=30),
     )
     assert fast.succeeded and fast.cost >= astar.cost - 1e-9
     follows_table(astar, t)
@@ -478,7 +483,12 @@ def test_node_and_time_limits_return_partial_plans():
     sc = random_static_scene(1)
     t = nominal_action_table()
     h0 = plan_footsteps(
-        sc.grid, sc.start, sc.start_foot, sc.goal, t, PlannerOptions(max_expansions=1)
+        sc.grid,
+        sc.start,
+        sc.start_foot,
+        sc.goal,
+        t,
+        PlannerOptions(max_expansions=1, time_limit=30),
     ).cost_to_go
     part = plan_footsteps(
         sc.grid,
@@ -486,7 +496,9 @@ def test_node_and_time_limits_return_partial_plans():
         sc.start_foot,
         sc.goal,
         t,
-        PlannerOptions(heuristic="euclidean", heuristic_weight=1.0, max_expansions=300),
+        PlannerOptions(
+            heuristic="euclidean", heuristic_weight=1.0, max_expansions=300, time_limit=30
+        ),
     )
     assert part.status == PlanStatus.NODE_LIMIT and part.nodes_expanded == 300
     assert 0 < part.num_steps and part.cost_to_go < h0
@@ -497,7 +509,7 @@ def test_node_and_time_limits_return_partial_plans():
         sc.start_foot,
         sc.goal,
         t,
-        PlannerOptions(heuristic="none", time_limit=0.05),
+        PlannerOptions(heuristic="none", backend="python", time_limit=1e-3),
     )
     assert timed.status == PlanStatus.TIME_LIMIT
     assert timed.poses[0] == pytest.approx(list(sc.start))
@@ -589,7 +601,7 @@ def test_bad_inputs_raise_clear_errors():
             "left",
             (1.7, 1.7),
             t,
-            PlannerOptions(heuristic="euclidean"),
+            PlannerOptions(heuristic="euclidean", time_limit=30),
             start_time=10.0,
         )
     with pytest.raises(FootstepError, match="action_filter returned unknown actions"):
@@ -645,7 +657,9 @@ def test_height_cost_penalises_uneven_footholds():
     start, goal = (0.40, 0.595, 0.0), (1.75, 0.5)
     flat = plan_footsteps(grid, start, "left", goal, t)
     w = 40.0
-    careful = plan_footsteps(grid, start, "left", goal, t, PlannerOptions(height_cost_weight=w))
+    careful = plan_footsteps(
+        grid, start, "left", goal, t, PlannerOptions(height_cost_weight=w, time_limit=30)
+    )
     assert careful.succeeded
     ranges = [chk.height_range(*p) for p in careful.poses[1:]]
     steps = sum(t.step_cost[t.index(a)] for a in careful.actions)
@@ -689,7 +703,12 @@ def test_footprint_margin_keeps_clearance_from_obstacles(margin):
     sc = random_static_scene(3)
     t = nominal_action_table()
     plan = plan_footsteps(
-        sc.grid, sc.start, sc.start_foot, sc.goal, t, PlannerOptions(footprint_margin_m=margin)
+        sc.grid,
+        sc.start,
+        sc.start_foot,
+        sc.goal,
+        t,
+        PlannerOptions(footprint_margin_m=margin, time_limit=30),
     )
     assert plan.succeeded
     for pose in plan.poses[1:]:
@@ -706,7 +725,12 @@ def test_footprint_margin_zero_is_the_exact_check():
     sc = random_static_scene(3)
     t = nominal_action_table()
     plan = plan_footsteps(
-        sc.grid, sc.start, sc.start_foot, sc.goal, t, PlannerOptions(footprint_margin_m=0.0)
+        sc.grid,
+        sc.start,
+        sc.start_foot,
+        sc.goal,
+        t,
+        PlannerOptions(footprint_margin_m=0.0, time_limit=30),
     )
     assert plan.succeeded
     assert all(not foot_collides_reference(sc.grid, p, 0.16, 0.10) for p in plan.poses[1:])

@@ -17,6 +17,9 @@ from repertoire.planning.footstep.types import FootstepError
 
 
 def _both(grid, start, foot, goal, table, **opts):
+    # A generous wall-time budget: the comparison is of plans, not of speed, and a loaded
+    # machine must not make the slower Python core stop on its clock first.
+    opts.setdefault("time_limit", 60.0)
     plans = [
         plan_footsteps(grid, start, foot, goal, table, PlannerOptions(backend=b, **opts))
         for b in ("python", "compiled")

@@ -182,7 +182,8 @@ def target_board(scenario: LittleDogTransferScenario) -> TerrainBoard:
 
 
 @functools.cache
-def _pca():
+def library_terrains_pca():
+    """The PCA basis of the terrain profiles of the boards the library was recorded on."""
     return fit_board_pca([source_board(n) for n in sorted(LIBRARY_TERRAINS)])
 
 
@@ -207,7 +208,12 @@ def _transfer(key: tuple) -> LibraryTransfer:
     sources = {n: source_board(n) for n in sorted({s.terrain for s in library})}
     config = TransferConfig(threshold=scenario.threshold, multiple=scenario.multiple)
     return transfer_library(
-        library, sources, target_board(scenario), _pca(), config, target_name="new_terrain"
+        library,
+        sources,
+        target_board(scenario),
+        library_terrains_pca(),
+        config,
+        target_name="new_terrain",
     )
 
 

@@ -184,7 +184,7 @@ def run_episode(config: LittleDogTransferConfig, seed: int) -> LittleDogTransfer
     from repertoire.diagrams.littledog_library import load_library
     from repertoire.diagrams.littledog_transfer import (
         LittleDogTransferScenario,
-        _pca,
+        library_terrains_pca,
         plan_transfer,
     )
 
@@ -193,7 +193,7 @@ def run_episode(config: LittleDogTransferConfig, seed: int) -> LittleDogTransfer
         raise RepertoireError(f"seed must be >= 0, got {seed}")
     library = load_library(config.library)
     if seed < 2:
-        return _match_back(config, seed, library, _pca())
+        return _match_back(config, seed, library, library_terrains_pca())
     if seed == 2:
         kw = dict(target="modified", change_from=config.change_from, rock_seed=config.rock_seed)
         terrain = f"terrain_a, rocks from x = {config.change_from} m"

@@ -32,6 +32,11 @@ duration_per_speed_change * |s - v|`` seconds (changing speed takes longer).
 The result depends only on (a_{i-2}, a_{i-1}, a_i), as Chestnutt et al. found
 for ASIMO, so a table T(a_{i-2}, a_{i-1}, l_i, a_i) measured in simulation can
 describe it (plus whatever the physics adds).
+
+Length: one walking pipeline, kept in one file on purpose (DESIGN.md names it as the
+example to copy): the five plain functions carry the math and are tested against closed
+forms, and each of the thin systems only wraps one of them; splitting them apart would
+scatter one controller over several modules.
 """
 
 import dataclasses

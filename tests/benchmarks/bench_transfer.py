@@ -93,7 +93,7 @@ def library_section(repeats: int) -> None:
     from repertoire.diagrams.littledog_library import load_library
     from repertoire.diagrams.littledog_transfer import (
         LittleDogTransferScenario,
-        _pca,
+        library_terrains_pca,
         plan_transfer,
         source_board,
         target_board,
@@ -103,7 +103,7 @@ def library_section(repeats: int) -> None:
     library = load_library("")
     scenario = LittleDogTransferScenario()
     sources = {n: source_board(n) for n in ("terrain_a", "terrain_b")}
-    pca = _pca()
+    pca = library_terrains_pca()
     target = target_board(scenario)
     walls, plans = [], []
     for _ in range(repeats):

@@ -143,6 +143,88 @@ def crossing_geometry(scenario: LittleDogLibraryScenario):
     return board, pose0, feet0, q0, heading, terrain.half_extent - 0.02
 
 
+def add_library_loop(
+    builder: DiagramBuilder,
+    plant,
+    instance,
+    library: StepLibrary,
+    q0: np.ndarray,
+    *,
+    blend_speed: float,
+    gain: float,
+    decay: float,
+    integrator_limit: float,
+    log_period: float = LOG_PERIOD,
+) -> dict[str, object]:
+    """Adds the closed loop that replays a step library on a LittleDog in ``builder``.
+
+    Sensors (body state, foot contact), nearest-step policy, step executor,
+    integral foot controller and the desired-state gain into the plant's PD
+    input, plus the loggers ``body_log``, ``feet_log``, ``integrator_log``,
+    ``ideal_log``, ``step_log`` and ``contact_log``.
+
+    Args:
+        builder: the builder holding ``plant``.
+        plant: the MultibodyPlant (with PD-controlled actuators).
+        instance: the LittleDog model instance in ``plant``.
+        library: the step library the policy chooses from and the executor plays.
+        q0: the initial joint angles (start of the executor's first blend).
+        blend_speed: body distance per second of the executor's blend (m/s).
+        gain: integral controller gain k (0 = no integral correction).
+        decay: per-update decay of a flying foot's integrator.
+        integrator_limit: saturation of each integrator (m).
+        log_period: the loggers' period (s).
+
+    Returns:
+        The added systems by name: ``sensor``, ``contact``, ``policy``,
+        ``executor``, ``integral``, ``desired_state`` and the six loggers.
+    """
+    sensor = builder.AddNamedSystem("sensor", BodyStateSensor(plant, instance))
+    builder.Connect(plant.get_state_output_port(), sensor.state_input)
+    contact = builder.AddNamedSystem("contact", FootContactSensor(plant, instance))
+    builder.Connect(plant.get_contact_results_output_port(), contact.contact_results_input)
+    policy = builder.AddNamedSystem("policy", LibraryPolicy(library))
+    builder.Connect(sensor.feet_output, policy.feet_input)
+    builder.Connect(contact.contact_output, policy.contact_input)
+    executor = builder.AddNamedSystem("executor", StepExecutor(library, q0, speed=blend_speed))
+    builder.Connect(policy.choice_output, executor.choice_input)
+    builder.Connect(sensor.body_pose_output, executor.body_pose_input)
+    integral = builder.AddNamedSystem(
+        "integral",
+        IntegralFootController(gain=gain, decay=decay, limit=integrator_limit),
+    )
+    builder.Connect(executor.q_playback_output, integral.q_playback_input)
+    builder.Connect(executor.ideal_pose_output, integral.ideal_pose_input)
+    builder.Connect(sensor.body_pose_output, integral.body_pose_input)
+    builder.Connect(sensor.joint_angles_output, integral.joint_angles_input)
+    builder.Connect(contact.contact_output, integral.contact_input)
+    P = np.zeros((24, 12))
+    P[np.arange(12), actuator_order(plant, instance)] = 1.0
+    desired = builder.AddNamedSystem("desired_state", MatrixGain(P))
+    builder.Connect(integral.q_desired_output, desired.get_input_port())
+    builder.Connect(desired.get_output_port(), plant.get_desired_state_input_port(instance))
+    systems = {
+        "sensor": sensor,
+        "contact": contact,
+        "policy": policy,
+        "executor": executor,
+        "integral": integral,
+        "desired_state": desired,
+    }
+    for name, port, size in [
+        ("body_log", sensor.body_pose_output, 6),
+        ("feet_log", sensor.feet_output, 12),
+        ("integrator_log", integral.integrators_output, 12),
+        ("ideal_log", executor.ideal_pose_output, 6),
+        ("step_log", executor.step_index_output, 1),
+        ("contact_log", contact.contact_output, 4),
+    ]:
+        log = builder.AddNamedSystem(name, VectorLogSink(size, log_period))
+        builder.Connect(port, log.get_input_port())
+        systems[name] = log
+    return systems
+
+
 @register_diagram(
     "littledog_library",
     scenario_type=LittleDogLibraryScenario,
@@ -179,44 +261,17 @@ def build_littledog_library(
     plant, scene_graph, instance = add_littledog_on_terrain(
         builder, board, pose0, q0, scenario.plant
     )
-    sensor = builder.AddNamedSystem("sensor", BodyStateSensor(plant, instance))
-    builder.Connect(plant.get_state_output_port(), sensor.state_input)
-    contact = builder.AddNamedSystem("contact", FootContactSensor(plant, instance))
-    builder.Connect(plant.get_contact_results_output_port(), contact.contact_results_input)
-    policy = builder.AddNamedSystem("policy", LibraryPolicy(library))
-    builder.Connect(sensor.feet_output, policy.feet_input)
-    builder.Connect(contact.contact_output, policy.contact_input)
-    executor = builder.AddNamedSystem(
-        "executor", StepExecutor(library, q0, speed=scenario.blend_speed)
+    add_library_loop(
+        builder,
+        plant,
+        instance,
+        library,
+        q0,
+        blend_speed=scenario.blend_speed,
+        gain=scenario.gain,
+        decay=scenario.decay,
+        integrator_limit=scenario.integrator_limit,
     )
-    builder.Connect(policy.choice_output, executor.choice_input)
-    builder.Connect(sensor.body_pose_output, executor.body_pose_input)
-    integral = builder.AddNamedSystem(
-        "integral",
-        IntegralFootController(
-            gain=scenario.gain, decay=scenario.decay, limit=scenario.integrator_limit
-        ),
-    )
-    builder.Connect(executor.q_playback_output, integral.q_playback_input)
-    builder.Connect(executor.ideal_pose_output, integral.ideal_pose_input)
-    builder.Connect(sensor.body_pose_output, integral.body_pose_input)
-    builder.Connect(sensor.joint_angles_output, integral.joint_angles_input)
-    builder.Connect(contact.contact_output, integral.contact_input)
-    P = np.zeros((24, 12))
-    P[np.arange(12), actuator_order(plant, instance)] = 1.0
-    desired = builder.AddNamedSystem("desired_state", MatrixGain(P))
-    builder.Connect(integral.q_desired_output, desired.get_input_port())
-    builder.Connect(desired.get_output_port(), plant.get_desired_state_input_port(instance))
-    for name, port, size in [
-        ("body_log", sensor.body_pose_output, 6),
-        ("feet_log", sensor.feet_output, 12),
-        ("integrator_log", integral.integrators_output, 12),
-        ("ideal_log", executor.ideal_pose_output, 6),
-        ("step_log", executor.step_index_output, 1),
-        ("contact_log", contact.contact_output, 4),
-    ]:
-        log = builder.AddNamedSystem(name, VectorLogSink(size, LOG_PERIOD))
-        builder.Connect(port, log.get_input_port())
     if meshcat is not None:
         from pydrake.geometry import MeshcatVisualizer
 
@@ -290,6 +345,7 @@ def check_littledog_library(diagram: Diagram, context: Context) -> dict[str, flo
 __all__ = [
     "DEFAULT_LIBRARY",
     "LittleDogLibraryScenario",
+    "add_library_loop",
     "build_littledog_library",
     "check_littledog_library",
     "crossing_figures",

@@ -29,7 +29,6 @@ import time
 
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import MatrixGain, VectorLogSink
 from repertoire.diagrams.littledog_demos import (
     LIBRARY_TERRAINS,
     crossing_start,
@@ -37,13 +36,12 @@ from repertoire.diagrams.littledog_demos import (
     library_terrain,
 )
 from repertoire.diagrams.littledog_library import (
-    LOG_PERIOD,
+    add_library_loop,
     check_littledog_library,
     load_library,
 )
 from repertoire.diagrams.littledog_worlds import (
     PlantSettings,
-    actuator_order,
     add_littledog_on_terrain,
 )
 from repertoire.diagrams.registry import register_diagram
@@ -66,10 +64,6 @@ from repertoire.planning.transfer_library import (
     transfer_library,
 )
 from repertoire.planning.transfer_search import SearchConfig, SearchResult
-from repertoire.systems.integral_foot_controller import IntegralFootController
-from repertoire.systems.library_policy import LibraryPolicy
-from repertoire.systems.littledog_sensors import BodyStateSensor, FootContactSensor
-from repertoire.systems.step_executor import StepExecutor
 
 from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
@@ -337,44 +331,17 @@ def build_littledog_transfer(
     plant, scene_graph, instance = add_littledog_on_terrain(
         builder, plan.board, plan.pose0, plan.q0, scenario.plant
     )
-    sensor = builder.AddNamedSystem("sensor", BodyStateSensor(plant, instance))
-    builder.Connect(plant.get_state_output_port(), sensor.state_input)
-    contact = builder.AddNamedSystem("contact", FootContactSensor(plant, instance))
-    builder.Connect(plant.get_contact_results_output_port(), contact.contact_results_input)
-    policy = builder.AddNamedSystem("policy", LibraryPolicy(plan.library))
-    builder.Connect(sensor.feet_output, policy.feet_input)
-    builder.Connect(contact.contact_output, policy.contact_input)
-    executor = builder.AddNamedSystem(
-        "executor", StepExecutor(plan.library, plan.q0, speed=scenario.blend_speed)
+    add_library_loop(
+        builder,
+        plant,
+        instance,
+        plan.library,
+        plan.q0,
+        blend_speed=scenario.blend_speed,
+        gain=scenario.gain,
+        decay=scenario.decay,
+        integrator_limit=scenario.integrator_limit,
     )
-    builder.Connect(policy.choice_output, executor.choice_input)
-    builder.Connect(sensor.body_pose_output, executor.body_pose_input)
-    integral = builder.AddNamedSystem(
-        "integral",
-        IntegralFootController(
-            gain=scenario.gain, decay=scenario.decay, limit=scenario.integrator_limit
-        ),
-    )
-    builder.Connect(executor.q_playback_output, integral.q_playback_input)
-    builder.Connect(executor.ideal_pose_output, integral.ideal_pose_input)
-    builder.Connect(sensor.body_pose_output, integral.body_pose_input)
-    builder.Connect(sensor.joint_angles_output, integral.joint_angles_input)
-    builder.Connect(contact.contact_output, integral.contact_input)
-    P = np.zeros((24, 12))
-    P[np.arange(12), actuator_order(plant, instance)] = 1.0
-    desired = builder.AddNamedSystem("desired_state", MatrixGain(P))
-    builder.Connect(integral.q_desired_output, desired.get_input_port())
-    builder.Connect(desired.get_output_port(), plant.get_desired_state_input_port(instance))
-    for name, port, size in [
-        ("body_log", sensor.body_pose_output, 6),
-        ("feet_log", sensor.feet_output, 12),
-        ("integrator_log", integral.integrators_output, 12),
-        ("ideal_log", executor.ideal_pose_output, 6),
-        ("step_log", executor.step_index_output, 1),
-        ("contact_log", contact.contact_output, 4),
-    ]:
-        log = builder.AddNamedSystem(name, VectorLogSink(size, LOG_PERIOD))
-        builder.Connect(port, log.get_input_port())
     if meshcat is not None:
         from pydrake.geometry import MeshcatVisualizer
 

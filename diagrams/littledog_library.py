@@ -87,25 +87,39 @@ class LittleDogLibraryScenario:
             self.plant.validate()
         except RepertoireError as e:
             raise ScenarioError(f"LittleDogLibraryScenario: {e}") from e
-        if len(self.start_offset) != 2 or not all(math.isfinite(v) for v in self.start_offset):
-            raise ScenarioError(f"start_offset must be 2 finite numbers, got {self.start_offset}")
-        if max(abs(v) for v in self.start_offset) > 0.1:
-            raise ScenarioError(f"start_offset must be within +-0.1 m, got {self.start_offset}")
-        if not (math.isfinite(self.start_yaw_offset) and abs(self.start_yaw_offset) <= 0.5):
-            raise ScenarioError(
-                f"start_yaw_offset must be within +-0.5 rad, got {self.start_yaw_offset}"
-            )
         if not math.isfinite(self.direction_deg):
             raise ScenarioError(f"direction_deg must be finite, got {self.direction_deg}")
-        if not (0.0 <= self.gain <= 1.0 and 0.0 <= self.decay < 1.0):
-            raise ScenarioError(
-                f"gain must be in [0, 1] and decay in [0, 1), got {self.gain}, {self.decay}"
-            )
-        if not (0.0 < self.integrator_limit <= 0.1 and 0.0 < self.blend_speed <= 1.0):
-            raise ScenarioError(
-                f"integrator_limit must be in (0, 0.1] m and blend_speed in (0, 1] m/s, got "
-                f"{self.integrator_limit}, {self.blend_speed}"
-            )
+        validate_loop_fields(self)
+
+
+def validate_loop_fields(scenario) -> None:
+    """Checks the start perturbation and loop gains a LittleDog library scenario shares.
+
+    Args:
+        scenario: a scenario with ``start_offset``, ``start_yaw_offset``, ``gain``,
+            ``decay``, ``integrator_limit`` and ``blend_speed`` (as
+            :class:`LittleDogLibraryScenario` has them).
+
+    Raises:
+        ScenarioError: naming the first bad field.
+    """
+    if len(scenario.start_offset) != 2 or not all(math.isfinite(v) for v in scenario.start_offset):
+        raise ScenarioError(f"start_offset must be 2 finite numbers, got {scenario.start_offset}")
+    if max(abs(v) for v in scenario.start_offset) > 0.1:
+        raise ScenarioError(f"start_offset must be within +-0.1 m, got {scenario.start_offset}")
+    if not (math.isfinite(scenario.start_yaw_offset) and abs(scenario.start_yaw_offset) <= 0.5):
+        raise ScenarioError(
+            f"start_yaw_offset must be within +-0.5 rad, got {scenario.start_yaw_offset}"
+        )
+    if not (0.0 <= scenario.gain <= 1.0 and 0.0 <= scenario.decay < 1.0):
+        raise ScenarioError(
+            f"gain must be in [0, 1] and decay in [0, 1), got {scenario.gain}, {scenario.decay}"
+        )
+    if not (0.0 < scenario.integrator_limit <= 0.1 and 0.0 < scenario.blend_speed <= 1.0):
+        raise ScenarioError(
+            f"integrator_limit must be in (0, 0.1] m and blend_speed in (0, 1] m/s, got "
+            f"{scenario.integrator_limit}, {scenario.blend_speed}"
+        )
 
 
 def load_library(path: str = "") -> StepLibrary:
@@ -352,4 +366,5 @@ __all__ = [
     "crossing_geometry",
     "crossing_logs",
     "load_library",
+    "validate_loop_fields",
 ]

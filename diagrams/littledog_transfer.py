@@ -39,6 +39,7 @@ from repertoire.diagrams.littledog_library import (
     add_library_loop,
     check_littledog_library,
     load_library,
+    validate_loop_fields,
 )
 from repertoire.diagrams.littledog_worlds import (
     PlantSettings,
@@ -139,23 +140,7 @@ class LittleDogTransferScenario:
             raise ScenarioError(
                 f"planner_time_limit must be positive, got {self.planner_time_limit}"
             )
-        if len(self.start_offset) != 2 or not all(math.isfinite(v) for v in self.start_offset):
-            raise ScenarioError(f"start_offset must be 2 finite numbers, got {self.start_offset}")
-        if max(abs(v) for v in self.start_offset) > 0.1:
-            raise ScenarioError(f"start_offset must be within +-0.1 m, got {self.start_offset}")
-        if not (math.isfinite(self.start_yaw_offset) and abs(self.start_yaw_offset) <= 0.5):
-            raise ScenarioError(
-                f"start_yaw_offset must be within +-0.5 rad, got {self.start_yaw_offset}"
-            )
-        if not (0.0 <= self.gain <= 1.0 and 0.0 <= self.decay < 1.0):
-            raise ScenarioError(
-                f"gain must be in [0, 1] and decay in [0, 1), got {self.gain}, {self.decay}"
-            )
-        if not (0.0 < self.integrator_limit <= 0.1 and 0.0 < self.blend_speed <= 1.0):
-            raise ScenarioError(
-                f"integrator_limit must be in (0, 0.1] m and blend_speed in (0, 1] m/s, got "
-                f"{self.integrator_limit}, {self.blend_speed}"
-            )
+        validate_loop_fields(self)
 
 
 @functools.cache

@@ -27,7 +27,8 @@ import math
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
-from repertoire.systems.go_to_pose import ActionStatus, pose_control
+from repertoire.systems.action_status import ActionStatus, ActionSystem, check_workspace
+from repertoire.systems.go_to_pose import pose_control
 
 from repertoire.errors import RepertoireError
 
@@ -93,7 +94,7 @@ def dribble_control(state, ball, target, gains: dict[str, float]) -> tuple[float
     return v, w, held
 
 
-class DribbleBall(LeafSystem):
+class DribbleBall(ActionSystem):
     """Dribbles the ball in front of a differential-drive robot to a target pose.
 
     Input ports:
@@ -150,16 +151,9 @@ class DribbleBall(LeafSystem):
         for k in (*positive, "hold_distance", "lost_distance", "heading_tolerance"):
             if merged[k] <= 0:
                 raise RepertoireError(f"DribbleBall gain {k} must be > 0, got {merged[k]}")
-        ws = np.asarray(workspace, dtype=float)
-        if ws.shape != (4,) or not np.all(np.isfinite(ws)) or ws[0] >= ws[1] or ws[2] >= ws[3]:
-            raise RepertoireError(
-                f"workspace must be finite [x_min, x_max, y_min, y_max] with min < max, got "
-                f"{workspace}"
-            )
+        ws = check_workspace(workspace)
         self.period = period
-        self._gains_index = self.DeclareNumericParameter(
-            BasicVector(np.array(list(merged.values())))
-        )
+        self._declare_gains(DRIBBLE_GAINS, merged)
         self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
         self._state_port = self.DeclareVectorInputPort("state", 4)
         self._ball_port = self.DeclareVectorInputPort("ball", 2)
@@ -169,12 +163,7 @@ class DribbleBall(LeafSystem):
         self._command_port = self.DeclareVectorOutputPort(
             "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
         )
-        self._status_port = self.DeclareAbstractOutputPort(
-            "status",
-            lambda: AbstractValue.Make(ActionStatus.RUNNING),
-            self._calc_status,
-            {self.discrete_state_ticket(self._xd)},
-        )
+        self._declare_status_port(self._xd, 2)
 
     def get_state_input_port(self):
         return self._state_port
@@ -187,14 +176,6 @@ class DribbleBall(LeafSystem):
 
     def get_command_output_port(self):
         return self._command_port
-
-    def get_status_output_port(self):
-        return self._status_port
-
-    def gains(self, context: Context) -> dict[str, float]:
-        """The gains in ``context`` as a dict."""
-        values = context.get_numeric_parameter(self._gains_index).get_value()
-        return dict(zip(DRIBBLE_GAINS, map(float, values)))
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         v_prev, w_prev, status = context.get_discrete_state(self._xd).get_value()
@@ -247,9 +228,6 @@ class DribbleBall(LeafSystem):
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])
-
-    def _calc_status(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(ActionStatus(int(context.get_discrete_state(self._xd).get_value()[2])))
 
 
 class BodyXYReader(LeafSystem):

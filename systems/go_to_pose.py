@@ -15,25 +15,14 @@ discrete update, so the command is continuous. Pure math is in
 in its discrete state.
 """
 
-import enum
 import math
 
 import numpy as np
-from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 from repertoire.planning.action_models.features import wrap_angle
+from repertoire.systems.action_status import ActionStatus, ActionSystem, check_workspace
 
 from repertoire.errors import RepertoireError
-
-
-class ActionStatus(enum.IntEnum):
-    """What an action reports on its ``status`` port."""
-
-    RUNNING = 0
-    SUCCEEDED = 1
-    FAILED = 2
-    TIMED_OUT = 3
-
 
 # name -> default, in the order of the numeric parameter vector.
 GOTO_GAINS = {
@@ -80,7 +69,7 @@ def pose_control(state, target, gains: dict[str, float]) -> tuple[float, float, 
     return v, omega, rho, heading_error
 
 
-class GoToPose(LeafSystem):
+class GoToPose(ActionSystem):
     """Drives a differential-drive robot to a target pose and speed.
 
     Input ports:
@@ -125,16 +114,9 @@ class GoToPose(LeafSystem):
         for k in ("v_max", "omega_max", "a_max", "alpha_max", "timeout", "position_tolerance"):
             if merged[k] <= 0:
                 raise RepertoireError(f"GoToPose gain {k} must be > 0, got {merged[k]}")
-        ws = np.asarray(workspace, dtype=float)
-        if ws.shape != (4,) or not np.all(np.isfinite(ws)) or ws[0] >= ws[1] or ws[2] >= ws[3]:
-            raise RepertoireError(
-                f"workspace must be finite [x_min, x_max, y_min, y_max] with min < max, got "
-                f"{workspace}"
-            )
+        ws = check_workspace(workspace)
         self.period = period
-        self._gains_index = self.DeclareNumericParameter(
-            BasicVector(np.array(list(merged.values())))
-        )
+        self._declare_gains(GOTO_GAINS, merged)
         self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
         self._state_port = self.DeclareVectorInputPort("state", 4)
         self._target_port = self.DeclareVectorInputPort("target", 4)
@@ -143,12 +125,7 @@ class GoToPose(LeafSystem):
         self._command_port = self.DeclareVectorOutputPort(
             "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
         )
-        self._status_port = self.DeclareAbstractOutputPort(
-            "status",
-            lambda: AbstractValue.Make(ActionStatus.RUNNING),
-            self._calc_status,
-            {self.discrete_state_ticket(self._xd)},
-        )
+        self._declare_status_port(self._xd, 2)
 
     def get_state_input_port(self):
         return self._state_port
@@ -158,14 +135,6 @@ class GoToPose(LeafSystem):
 
     def get_command_output_port(self):
         return self._command_port
-
-    def get_status_output_port(self):
-        return self._status_port
-
-    def gains(self, context: Context) -> dict[str, float]:
-        """The gains in ``context`` as a dict."""
-        values = context.get_numeric_parameter(self._gains_index).get_value()
-        return dict(zip(GOTO_GAINS, map(float, values)))
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         xd = context.get_discrete_state(self._xd).get_value()
@@ -208,9 +177,6 @@ class GoToPose(LeafSystem):
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])
-
-    def _calc_status(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(ActionStatus(int(context.get_discrete_state(self._xd).get_value()[2])))
 
 
 class DiffDriveStateReader(LeafSystem):

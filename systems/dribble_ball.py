@@ -28,7 +28,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 from repertoire.systems.action_status import ActionStatus, ActionSystem, check_workspace
-from repertoire.systems.go_to_pose import pose_control
+from repertoire.systems.go_to_pose import drive_step, pose_control
 
 from repertoire.errors import RepertoireError
 
@@ -206,25 +206,9 @@ class DribbleBall(ActionSystem):
             target[1] + h * math.sin(target[2]) - state[1] - h * math.sin(state[2]),
         )
         heading_error = math.remainder(target[2] - state[2], 2 * math.pi)
-        if (
-            rho < g["position_tolerance"]
-            and abs(heading_error) < g["heading_tolerance"]
-            and abs(state[3] - target[3]) < max(0.1, 0.5 * target[3])
-        ):
-            out.SetFromVector([v_prev, w_prev, ActionStatus.SUCCEEDED])
-            return
-        if context.get_time() >= g["timeout"]:
-            out.SetFromVector([0.0, 0.0, ActionStatus.TIMED_OUT])
-            return
-        dv = g["a_max"] * self.period
-        dw = g["alpha_max"] * self.period
-        out.SetFromVector(
-            [
-                float(np.clip(v, v_prev - dv, v_prev + dv)),
-                float(np.clip(w, w_prev - dw, w_prev + dw)),
-                ActionStatus.RUNNING,
-            ]
-        )
+        control = (v, w, rho, heading_error)
+        t = context.get_time()
+        out.SetFromVector(drive_step(control, (v_prev, w_prev), state, target, g, t, self.period))
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])

@@ -69,6 +69,35 @@ def pose_control(state, target, gains: dict[str, float]) -> tuple[float, float, 
     return v, omega, rho, heading_error
 
 
+def drive_step(control, previous, state, target, gains, time: float, period: float) -> list:
+    """The next discrete state ``[v_cmd, omega_cmd, status]`` of a driving action.
+
+    ``control`` is ``(v, omega, rho, heading_error)`` (as :func:`pose_control`
+    returns it). SUCCEEDED (holding the ``previous`` command) within the
+    position and heading tolerances at about the target speed, TIMED_OUT at the
+    timeout, else RUNNING with ``(v, omega)`` rate limited by ``a_max`` and
+    ``alpha_max`` from ``previous``.
+    """
+    v, w, rho, heading_error = control
+    v_prev, w_prev = previous
+    g = gains
+    if (
+        rho < g["position_tolerance"]
+        and abs(heading_error) < g["heading_tolerance"]
+        and abs(state[3] - target[3]) < max(0.1, 0.5 * target[3])
+    ):
+        return [v_prev, w_prev, ActionStatus.SUCCEEDED]
+    if time >= g["timeout"]:
+        return [0.0, 0.0, ActionStatus.TIMED_OUT]
+    dv = g["a_max"] * period
+    dw = g["alpha_max"] * period
+    return [
+        float(np.clip(v, v_prev - dv, v_prev + dv)),
+        float(np.clip(w, w_prev - dw, w_prev + dw)),
+        ActionStatus.RUNNING,
+    ]
+
+
 class GoToPose(ActionSystem):
     """Drives a differential-drive robot to a target pose and speed.
 
@@ -154,26 +183,9 @@ class GoToPose(ActionSystem):
         ):
             out.SetFromVector([0.0, 0.0, ActionStatus.FAILED])
             return
-        v, w, rho, heading_error = pose_control(state, target, g)
-        if (
-            rho < g["position_tolerance"]
-            and abs(heading_error) < g["heading_tolerance"]
-            and abs(state[3] - target[3]) < max(0.1, 0.5 * target[3])
-        ):
-            out.SetFromVector([v_prev, w_prev, ActionStatus.SUCCEEDED])
-            return
-        if context.get_time() >= g["timeout"]:
-            out.SetFromVector([0.0, 0.0, ActionStatus.TIMED_OUT])
-            return
-        dv = g["a_max"] * self.period
-        dw = g["alpha_max"] * self.period
-        out.SetFromVector(
-            [
-                float(np.clip(v, v_prev - dv, v_prev + dv)),
-                float(np.clip(w, w_prev - dw, w_prev + dw)),
-                ActionStatus.RUNNING,
-            ]
-        )
+        control = pose_control(state, target, g)
+        t = context.get_time()
+        out.SetFromVector(drive_step(control, (v_prev, w_prev), state, target, g, t, self.period))
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])

@@ -9,6 +9,7 @@ parameter 0, read back by name with :meth:`ActionSystem.gains`.
 """
 
 import enum
+import math
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -73,3 +74,31 @@ def check_workspace(workspace) -> np.ndarray:
             f"workspace must be finite [x_min, x_max, y_min, y_max] with min < max, got {workspace}"
         )
     return ws
+
+
+def check_period(period: float) -> None:
+    """Raises unless the update period is finite and > 0."""
+    if not (math.isfinite(period) and period > 0):
+        raise RepertoireError(f"period must be finite and > 0, got {period}")
+
+
+def merge_gains(defaults: dict[str, float], overrides, owner: str, positive) -> dict[str, float]:
+    """``defaults`` with the finite ``overrides`` of known names; the ``positive`` ones checked > 0.
+
+    Args:
+        defaults: name -> default, in the order of the numeric parameter.
+        overrides: name -> value, or None.
+        owner: the action's name, for the error messages.
+        positive: names whose merged value must be > 0.
+    """
+    merged = dict(defaults)
+    for k, v in (overrides or {}).items():
+        if k not in defaults:
+            raise RepertoireError(f"unknown {owner} gain {k!r}; expected {list(defaults)}")
+        if not math.isfinite(v):
+            raise RepertoireError(f"{owner} gain {k} must be finite, got {v}")
+        merged[k] = float(v)
+    for k in positive:
+        if merged[k] <= 0:
+            raise RepertoireError(f"{owner} gain {k} must be > 0, got {merged[k]}")
+    return merged

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues
-from repertoire.systems.action_status import ActionStatus, ActionSystem
+from repertoire.systems.action_status import ActionStatus, ActionSystem, check_period
 
 from repertoire.errors import RepertoireError
 
@@ -95,8 +95,7 @@ class Reach(ActionSystem):
                 thetadot^b]``, where the reference begins (see :meth:`start_at`).
         """
         super().__init__()
-        if not (math.isfinite(period) and period > 0):
-            raise RepertoireError(f"period must be finite and > 0, got {period}")
+        check_period(period)
         merged = dict(REACH_GAINS)
         for k, v in (gains or {}).items():
             if k not in REACH_GAINS:

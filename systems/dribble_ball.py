@@ -27,7 +27,13 @@ import math
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
-from repertoire.systems.action_status import ActionStatus, ActionSystem, check_workspace
+from repertoire.systems.action_status import (
+    ActionStatus,
+    ActionSystem,
+    check_period,
+    check_workspace,
+    merge_gains,
+)
 from repertoire.systems.go_to_pose import drive_step, pose_control
 
 from repertoire.errors import RepertoireError
@@ -127,17 +133,7 @@ class DribbleBall(ActionSystem):
             workspace: the allowed target region ``[x_min, x_max, y_min, y_max]``.
         """
         super().__init__()
-        if not (math.isfinite(period) and period > 0):
-            raise RepertoireError(f"period must be finite and > 0, got {period}")
-        merged = dict(DRIBBLE_GAINS)
-        for k, v in (gains or {}).items():
-            if k not in DRIBBLE_GAINS:
-                raise RepertoireError(
-                    f"unknown DribbleBall gain {k!r}; expected {list(DRIBBLE_GAINS)}"
-                )
-            if not math.isfinite(v):
-                raise RepertoireError(f"DribbleBall gain {k} must be finite, got {v}")
-            merged[k] = float(v)
+        check_period(period)
         positive = (
             "v_max",
             "omega_max",
@@ -148,9 +144,8 @@ class DribbleBall(ActionSystem):
             "timeout",
             "position_tolerance",
         )
-        for k in (*positive, "hold_distance", "lost_distance", "heading_tolerance"):
-            if merged[k] <= 0:
-                raise RepertoireError(f"DribbleBall gain {k} must be > 0, got {merged[k]}")
+        positive = (*positive, "hold_distance", "lost_distance", "heading_tolerance")
+        merged = merge_gains(DRIBBLE_GAINS, gains, "DribbleBall", positive)
         ws = check_workspace(workspace)
         self.period = period
         self._declare_gains(DRIBBLE_GAINS, merged)

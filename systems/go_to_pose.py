@@ -20,7 +20,13 @@ import math
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 from repertoire.planning.action_models.features import wrap_angle
-from repertoire.systems.action_status import ActionStatus, ActionSystem, check_workspace
+from repertoire.systems.action_status import (
+    ActionStatus,
+    ActionSystem,
+    check_period,
+    check_workspace,
+    merge_gains,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -131,18 +137,9 @@ class GoToPose(ActionSystem):
             workspace: the allowed target region ``[x_min, x_max, y_min, y_max]``.
         """
         super().__init__()
-        if not (math.isfinite(period) and period > 0):
-            raise RepertoireError(f"period must be finite and > 0, got {period}")
-        merged = dict(GOTO_GAINS)
-        for k, v in (gains or {}).items():
-            if k not in GOTO_GAINS:
-                raise RepertoireError(f"unknown GoToPose gain {k!r}; expected {list(GOTO_GAINS)}")
-            if not math.isfinite(v):
-                raise RepertoireError(f"GoToPose gain {k} must be finite, got {v}")
-            merged[k] = float(v)
-        for k in ("v_max", "omega_max", "a_max", "alpha_max", "timeout", "position_tolerance"):
-            if merged[k] <= 0:
-                raise RepertoireError(f"GoToPose gain {k} must be > 0, got {merged[k]}")
+        check_period(period)
+        positive = ("v_max", "omega_max", "a_max", "alpha_max", "timeout", "position_tolerance")
+        merged = merge_gains(GOTO_GAINS, gains, "GoToPose", positive)
         ws = check_workspace(workspace)
         self.period = period
         self._declare_gains(GOTO_GAINS, merged)

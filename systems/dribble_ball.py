@@ -29,12 +29,10 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 from repertoire.systems.action_status import (
     ActionStatus,
-    ActionSystem,
     check_period,
-    check_workspace,
     merge_gains,
 )
-from repertoire.systems.go_to_pose import drive_step, pose_control
+from repertoire.systems.go_to_pose import DriveAction, drive_step, pose_control
 
 from repertoire.errors import RepertoireError
 
@@ -100,7 +98,7 @@ def dribble_control(state, ball, target, gains: dict[str, float]) -> tuple[float
     return v, w, held
 
 
-class DribbleBall(ActionSystem):
+class DribbleBall(DriveAction):
     """Dribbles the ball in front of a differential-drive robot to a target pose.
 
     Input ports:
@@ -146,31 +144,12 @@ class DribbleBall(ActionSystem):
         )
         positive = (*positive, "hold_distance", "lost_distance", "heading_tolerance")
         merged = merge_gains(DRIBBLE_GAINS, gains, "DribbleBall", positive)
-        ws = check_workspace(workspace)
-        self.period = period
-        self._declare_gains(DRIBBLE_GAINS, merged)
-        self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
-        self._state_port = self.DeclareVectorInputPort("state", 4)
-        self._ball_port = self.DeclareVectorInputPort("ball", 2)
-        self._target_port = self.DeclareVectorInputPort("target", 4)
-        self._xd = self.DeclareDiscreteState(3)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self._command_port = self.DeclareVectorOutputPort(
-            "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
-        )
-        self._declare_status_port(self._xd, 2)
-
-    def get_state_input_port(self):
-        return self._state_port
+        inputs = (("state", 4), ("ball", 2), ("target", 4))
+        ports = self._declare_drive(period, DRIBBLE_GAINS, merged, workspace, inputs)
+        self._ball_port = ports["ball"]
 
     def get_ball_input_port(self):
         return self._ball_port
-
-    def get_target_input_port(self):
-        return self._target_port
-
-    def get_command_output_port(self):
-        return self._command_port
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         v_prev, w_prev, status = context.get_discrete_state(self._xd).get_value()
@@ -204,9 +183,6 @@ class DribbleBall(ActionSystem):
         control = (v, w, rho, heading_error)
         t = context.get_time()
         out.SetFromVector(drive_step(control, (v_prev, w_prev), state, target, g, t, self.period))
-
-    def _calc_command(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])
 
 
 class BodyXYReader(LeafSystem):

@@ -104,7 +104,42 @@ def drive_step(control, previous, state, target, gains, time: float, period: flo
     ]
 
 
-class GoToPose(ActionSystem):
+class DriveAction(ActionSystem):
+    """What GoToPose and DribbleBall share: gains, workspace, ports and ``[v, omega, status]``."""
+
+    def _declare_drive(self, period: float, names, merged, workspace, inputs) -> dict:
+        """Declares gains, workspace, the ``inputs`` (name, size), state, command and status.
+
+        Returns the input ports by name; the subclass defines ``_update``.
+        """
+        ws = check_workspace(workspace)
+        self.period = period
+        self._declare_gains(names, merged)
+        self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
+        ports = {name: self.DeclareVectorInputPort(name, size) for name, size in inputs}
+        self._state_port, self._target_port = ports["state"], ports["target"]
+        self._xd = self.DeclareDiscreteState(3)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self._command_port = self.DeclareVectorOutputPort(
+            "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
+        )
+        self._declare_status_port(self._xd, 2)
+        return ports
+
+    def get_state_input_port(self):
+        return self._state_port
+
+    def get_target_input_port(self):
+        return self._target_port
+
+    def get_command_output_port(self):
+        return self._command_port
+
+    def _calc_command(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])
+
+
+class GoToPose(DriveAction):
     """Drives a differential-drive robot to a target pose and speed.
 
     Input ports:
@@ -140,27 +175,7 @@ class GoToPose(ActionSystem):
         check_period(period)
         positive = ("v_max", "omega_max", "a_max", "alpha_max", "timeout", "position_tolerance")
         merged = merge_gains(GOTO_GAINS, gains, "GoToPose", positive)
-        ws = check_workspace(workspace)
-        self.period = period
-        self._declare_gains(GOTO_GAINS, merged)
-        self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
-        self._state_port = self.DeclareVectorInputPort("state", 4)
-        self._target_port = self.DeclareVectorInputPort("target", 4)
-        self._xd = self.DeclareDiscreteState(3)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self._command_port = self.DeclareVectorOutputPort(
-            "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
-        )
-        self._declare_status_port(self._xd, 2)
-
-    def get_state_input_port(self):
-        return self._state_port
-
-    def get_target_input_port(self):
-        return self._target_port
-
-    def get_command_output_port(self):
-        return self._command_port
+        self._declare_drive(period, GOTO_GAINS, merged, workspace, (("state", 4), ("target", 4)))
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         xd = context.get_discrete_state(self._xd).get_value()
@@ -183,9 +198,6 @@ class GoToPose(ActionSystem):
         control = pose_control(state, target, g)
         t = context.get_time()
         out.SetFromVector(drive_step(control, (v_prev, w_prev), state, target, g, t, self.period))
-
-    def _calc_command(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])
 
 
 class DiffDriveStateReader(LeafSystem):

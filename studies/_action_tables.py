@@ -133,3 +133,27 @@ def learning_curve_figure(
     ax.set_title(title)
     fig.savefig(path, dpi=110)
     return path
+
+
+def polar_duration_figure(model, title: str, path: Path) -> Path:
+    """Fig. 7: a duration model's prediction around a goal at the origin facing +x.
+
+    Starts at 0.75, 1.5 and 2.5 m in every direction, facing the goal, at rest.
+    """
+    from matplotlib.figure import Figure
+    from repertoire.planning.action_models.features import goto_pose_features
+
+    fig = Figure(figsize=(5.5, 5.0), layout="constrained")
+    ax = fig.add_subplot(projection="polar")
+    theta = np.linspace(-np.pi, np.pi, 181)
+    for dist, colour in ((0.75, "tab:green"), (1.5, "tab:blue"), (2.5, "tab:purple")):
+        start = np.column_stack(
+            [dist * np.cos(theta), dist * np.sin(theta), theta + np.pi, np.zeros_like(theta)]
+        )
+        goal = np.tile([0.0, 0.0, 0.0, 0.0], (len(theta), 1))
+        pred = model.predict(goto_pose_features(start, goal))
+        ax.plot(theta, pred, color=colour, label=f"start {dist} m away, facing the goal")
+    ax.set_title(title)
+    ax.legend(loc="upper left", bbox_to_anchor=(-0.15, -0.05), fontsize=8)
+    fig.savefig(path, dpi=110)
+    return path

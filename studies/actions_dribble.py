@@ -260,10 +260,10 @@ def summarize(
     Returns:
         Paths by name (nothing is fitted below ``min_records()`` succeeded episodes).
     """
-    from matplotlib.figure import Figure
     from repertoire.studies._action_tables import (
         learning_curve_figure,
         min_records,
+        polar_duration_figure,
         table1_and_failure,
         too_few_note,
     )
@@ -292,20 +292,11 @@ def summarize(
         f"DribbleBall: learning curves ({sum(r.failed for r in records)} failed of {len(records)})",
         out_dir / "actions_dribble_learning_curves.png",
     )
-    fig = Figure(figsize=(5.5, 5.0), layout="constrained")
-    ax = fig.add_subplot(projection="polar")
-    theta = np.linspace(-np.pi, np.pi, 181)
-    for dist, colour in ((0.75, "tab:green"), (1.5, "tab:blue"), (2.5, "tab:purple")):
-        start = np.column_stack(
-            [dist * np.cos(theta), dist * np.sin(theta), theta + np.pi, np.zeros_like(theta)]
-        )
-        goal = np.tile([0.0, 0.0, 0.0, 0.0], (len(theta), 1))
-        pred = dur.model.predict(goto_pose_features(start, goal))
-        ax.plot(theta, pred, color=colour, label=f"start {dist} m away, facing the goal")
-    ax.set_title("DribbleBall: predicted duration (s, radial)\nby start direction, goal facing 0°")
-    ax.legend(loc="upper left", bbox_to_anchor=(-0.15, -0.05), fontsize=8)
-    polar = out_dir / "actions_dribble_polar.png"
-    fig.savefig(polar, dpi=110)
+    polar = polar_duration_figure(
+        dur.model,
+        "DribbleBall: predicted duration (s, radial)\nby start direction, goal facing 0°",
+        out_dir / "actions_dribble_polar.png",
+    )
     return {"tables": tables, "learning_curves": curves, "polar": polar}
 
 

@@ -240,6 +240,7 @@ def summarize(
     """
     from matplotlib.figure import Figure
     from repertoire.planning.action_models import MIN_EPISODES, fit_action_model
+    from repertoire.studies._action_tables import polar_duration_figure
 
     out_dir = Path(out_dir)
     done = [r for r in records if r.status == "SUCCEEDED" and not r.touched_ball]
@@ -316,20 +317,11 @@ def summarize(
     fig.savefig(curves, dpi=110)
 
     # Fig. 7: predicted duration around a goal at the origin facing +x
-    fig = Figure(figsize=(5.5, 5.0), layout="constrained")
-    ax = fig.add_subplot(projection="polar")
-    theta = np.linspace(-np.pi, np.pi, 181)
-    for dist, colour in ((0.75, "tab:green"), (1.5, "tab:blue"), (2.5, "tab:purple")):
-        start = np.column_stack(
-            [dist * np.cos(theta), dist * np.sin(theta), theta + np.pi, np.zeros_like(theta)]
-        )
-        goal = np.tile([0.0, 0.0, 0.0, 0.0], (len(theta), 1))
-        pred = dur.model.predict(goto_pose_features(start, goal))
-        ax.plot(theta, pred, color=colour, label=f"start {dist} m away, facing the goal")
-    ax.set_title("Predicted duration (s, radial) by start direction\ngoal at centre facing 0°")
-    ax.legend(loc="upper left", bbox_to_anchor=(-0.15, -0.05), fontsize=8)
-    polar = out_dir / "actions_goto_pose_polar.png"
-    fig.savefig(polar, dpi=110)
+    polar = polar_duration_figure(
+        dur.model,
+        "Predicted duration (s, radial) by start direction\ngoal at centre facing 0°",
+        out_dir / "actions_goto_pose_polar.png",
+    )
     return {"tables": tables, "learning_curves": curves, "polar": polar}
 
 

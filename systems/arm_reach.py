@@ -20,9 +20,8 @@ position_tolerance`` and the speed is within ``speed_tolerance`` of
 import math
 
 import numpy as np
-from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
-from repertoire.systems.go_to_pose import ActionStatus
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues
+from repertoire.systems.action_status import ActionStatus, ActionSystem, check_period
 
 from repertoire.errors import RepertoireError
 
@@ -60,7 +59,7 @@ def limit_acceleration(v_prev, u, dv_max: float) -> np.ndarray:
     return np.asarray(v_prev, dtype=float) + (dv if n <= dv_max else dv * (dv_max / n))
 
 
-class Reach(LeafSystem):
+class Reach(ActionSystem):
     """Moves two joints to target angles and speeds with velocity and acceleration limits.
 
     Input ports:
@@ -96,8 +95,7 @@ class Reach(LeafSystem):
                 thetadot^b]``, where the reference begins (see :meth:`start_at`).
         """
         super().__init__()
-        if not (math.isfinite(period) and period > 0):
-            raise RepertoireError(f"period must be finite and > 0, got {period}")
+        check_period(period)
         merged = dict(REACH_GAINS)
         for k, v in (gains or {}).items():
             if k not in REACH_GAINS:
@@ -117,9 +115,7 @@ class Reach(LeafSystem):
                 f"{joint_limits}"
             )
         self.period = period
-        self._gains_index = self.DeclareNumericParameter(
-            BasicVector(np.array(list(merged.values())))
-        )
+        self._declare_gains(REACH_GAINS, merged)
         self._limits_index = self.DeclareNumericParameter(BasicVector(lim))
         self._state_port = self.DeclareVectorInputPort("state", 4)
         self._target_port = self.DeclareVectorInputPort("target", 4)
@@ -133,12 +129,7 @@ class Reach(LeafSystem):
         self._desired_port = self.DeclareVectorOutputPort(
             "desired_state", 4, self._calc_desired, {self.discrete_state_ticket(self._xd)}
         )
-        self._status_port = self.DeclareAbstractOutputPort(
-            "status",
-            lambda: AbstractValue.Make(ActionStatus.RUNNING),
-            self._calc_status,
-            {self.discrete_state_ticket(self._xd)},
-        )
+        self._declare_status_port(self._xd, 4)
 
     def get_state_input_port(self):
         return self._state_port
@@ -148,14 +139,6 @@ class Reach(LeafSystem):
 
     def get_desired_state_output_port(self):
         return self._desired_port
-
-    def get_status_output_port(self):
-        return self._status_port
-
-    def gains(self, context: Context) -> dict[str, float]:
-        """The gains in ``context`` as a dict."""
-        values = context.get_numeric_parameter(self._gains_index).get_value()
-        return dict(zip(REACH_GAINS, map(float, values)))
 
     def start_at(self, context: Context, theta, thetadot=(0.0, 0.0)) -> None:
         """Sets the reference to the start angles and velocities, status RUNNING."""
@@ -198,6 +181,3 @@ class Reach(LeafSystem):
 
     def _calc_desired(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:4])
-
-    def _calc_status(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(ActionStatus(int(context.get_discrete_state(self._xd).get_value()[4])))

@@ -27,7 +27,12 @@ import math
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
-from repertoire.systems.go_to_pose import ActionStatus, pose_control
+from repertoire.systems.action_status import (
+    ActionStatus,
+    check_period,
+    merge_gains,
+)
+from repertoire.systems.go_to_pose import DriveAction, drive_step, pose_control
 
 from repertoire.errors import RepertoireError
 
@@ -93,7 +98,7 @@ def dribble_control(state, ball, target, gains: dict[str, float]) -> tuple[float
     return v, w, held
 
 
-class DribbleBall(LeafSystem):
+class DribbleBall(DriveAction):
     """Dribbles the ball in front of a differential-drive robot to a target pose.
 
     Input ports:
@@ -126,17 +131,7 @@ class DribbleBall(LeafSystem):
             workspace: the allowed target region ``[x_min, x_max, y_min, y_max]``.
         """
         super().__init__()
-        if not (math.isfinite(period) and period > 0):
-            raise RepertoireError(f"period must be finite and > 0, got {period}")
-        merged = dict(DRIBBLE_GAINS)
-        for k, v in (gains or {}).items():
-            if k not in DRIBBLE_GAINS:
-                raise RepertoireError(
-                    f"unknown DribbleBall gain {k!r}; expected {list(DRIBBLE_GAINS)}"
-                )
-            if not math.isfinite(v):
-                raise RepertoireError(f"DribbleBall gain {k} must be finite, got {v}")
-            merged[k] = float(v)
+        check_period(period)
         positive = (
             "v_max",
             "omega_max",
@@ -147,54 +142,14 @@ class DribbleBall(LeafSystem):
             "timeout",
             "position_tolerance",
         )
-        for k in (*positive, "hold_distance", "lost_distance", "heading_tolerance"):
-            if merged[k] <= 0:
-                raise RepertoireError(f"DribbleBall gain {k} must be > 0, got {merged[k]}")
-        ws = np.asarray(workspace, dtype=float)
-        if ws.shape != (4,) or not np.all(np.isfinite(ws)) or ws[0] >= ws[1] or ws[2] >= ws[3]:
-            raise RepertoireError(
-                f"workspace must be finite [x_min, x_max, y_min, y_max] with min < max, got "
-                f"{workspace}"
-            )
-        self.period = period
-        self._gains_index = self.DeclareNumericParameter(
-            BasicVector(np.array(list(merged.values())))
-        )
-        self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
-        self._state_port = self.DeclareVectorInputPort("state", 4)
-        self._ball_port = self.DeclareVectorInputPort("ball", 2)
-        self._target_port = self.DeclareVectorInputPort("target", 4)
-        self._xd = self.DeclareDiscreteState(3)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self._command_port = self.DeclareVectorOutputPort(
-            "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
-        )
-        self._status_port = self.DeclareAbstractOutputPort(
-            "status",
-            lambda: AbstractValue.Make(ActionStatus.RUNNING),
-            self._calc_status,
-            {self.discrete_state_ticket(self._xd)},
-        )
-
-    def get_state_input_port(self):
-        return self._state_port
+        positive = (*positive, "hold_distance", "lost_distance", "heading_tolerance")
+        merged = merge_gains(DRIBBLE_GAINS, gains, "DribbleBall", positive)
+        inputs = (("state", 4), ("ball", 2), ("target", 4))
+        ports = self._declare_drive(period, DRIBBLE_GAINS, merged, workspace, inputs)
+        self._ball_port = ports["ball"]
 
     def get_ball_input_port(self):
         return self._ball_port
-
-    def get_target_input_port(self):
-        return self._target_port
-
-    def get_command_output_port(self):
-        return self._command_port
-
-    def get_status_output_port(self):
-        return self._status_port
-
-    def gains(self, context: Context) -> dict[str, float]:
-        """The gains in ``context`` as a dict."""
-        values = context.get_numeric_parameter(self._gains_index).get_value()
-        return dict(zip(DRIBBLE_GAINS, map(float, values)))
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         v_prev, w_prev, status = context.get_discrete_state(self._xd).get_value()
@@ -225,31 +180,9 @@ class DribbleBall(LeafSystem):
             target[1] + h * math.sin(target[2]) - state[1] - h * math.sin(state[2]),
         )
         heading_error = math.remainder(target[2] - state[2], 2 * math.pi)
-        if (
-            rho < g["position_tolerance"]
-            and abs(heading_error) < g["heading_tolerance"]
-            and abs(state[3] - target[3]) < max(0.1, 0.5 * target[3])
-        ):
-            out.SetFromVector([v_prev, w_prev, ActionStatus.SUCCEEDED])
-            return
-        if context.get_time() >= g["timeout"]:
-            out.SetFromVector([0.0, 0.0, ActionStatus.TIMED_OUT])
-            return
-        dv = g["a_max"] * self.period
-        dw = g["alpha_max"] * self.period
-        out.SetFromVector(
-            [
-                float(np.clip(v, v_prev - dv, v_prev + dv)),
-                float(np.clip(w, w_prev - dw, w_prev + dw)),
-                ActionStatus.RUNNING,
-            ]
-        )
-
-    def _calc_command(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])
-
-    def _calc_status(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(ActionStatus(int(context.get_discrete_state(self._xd).get_value()[2])))
+        control = (v, w, rho, heading_error)
+        t = context.get_time()
+        out.SetFromVector(drive_step(control, (v_prev, w_prev), state, target, g, t, self.period))
 
 
 class BodyXYReader(LeafSystem):

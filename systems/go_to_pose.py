@@ -15,25 +15,20 @@ discrete update, so the command is continuous. Pure math is in
 in its discrete state.
 """
 
-import enum
 import math
 
 import numpy as np
-from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 from repertoire.planning.action_models.features import wrap_angle
+from repertoire.systems.action_status import (
+    ActionStatus,
+    ActionSystem,
+    check_period,
+    check_workspace,
+    merge_gains,
+)
 
 from repertoire.errors import RepertoireError
-
-
-class ActionStatus(enum.IntEnum):
-    """What an action reports on its ``status`` port."""
-
-    RUNNING = 0
-    SUCCEEDED = 1
-    FAILED = 2
-    TIMED_OUT = 3
-
 
 # name -> default, in the order of the numeric parameter vector.
 GOTO_GAINS = {
@@ -80,7 +75,71 @@ def pose_control(state, target, gains: dict[str, float]) -> tuple[float, float, 
     return v, omega, rho, heading_error
 
 
-class GoToPose(LeafSystem):
+def drive_step(control, previous, state, target, gains, time: float, period: float) -> list:
+    """The next discrete state ``[v_cmd, omega_cmd, status]`` of a driving action.
+
+    ``control`` is ``(v, omega, rho, heading_error)`` (as :func:`pose_control`
+    returns it). SUCCEEDED (holding the ``previous`` command) within the
+    position and heading tolerances at about the target speed, TIMED_OUT at the
+    timeout, else RUNNING with ``(v, omega)`` rate limited by ``a_max`` and
+    ``alpha_max`` from ``previous``.
+    """
+    v, w, rho, heading_error = control
+    v_prev, w_prev = previous
+    g = gains
+    if (
+        rho < g["position_tolerance"]
+        and abs(heading_error) < g["heading_tolerance"]
+        and abs(state[3] - target[3]) < max(0.1, 0.5 * target[3])
+    ):
+        return [v_prev, w_prev, ActionStatus.SUCCEEDED]
+    if time >= g["timeout"]:
+        return [0.0, 0.0, ActionStatus.TIMED_OUT]
+    dv = g["a_max"] * period
+    dw = g["alpha_max"] * period
+    return [
+        float(np.clip(v, v_prev - dv, v_prev + dv)),
+        float(np.clip(w, w_prev - dw, w_prev + dw)),
+        ActionStatus.RUNNING,
+    ]
+
+
+class DriveAction(ActionSystem):
+    """What GoToPose and DribbleBall share: gains, workspace, ports and ``[v, omega, status]``."""
+
+    def _declare_drive(self, period: float, names, merged, workspace, inputs) -> dict:
+        """Declares gains, workspace, the ``inputs`` (name, size), state, command and status.
+
+        Returns the input ports by name; the subclass defines ``_update``.
+        """
+        ws = check_workspace(workspace)
+        self.period = period
+        self._declare_gains(names, merged)
+        self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
+        ports = {name: self.DeclareVectorInputPort(name, size) for name, size in inputs}
+        self._state_port, self._target_port = ports["state"], ports["target"]
+        self._xd = self.DeclareDiscreteState(3)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self._command_port = self.DeclareVectorOutputPort(
+            "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
+        )
+        self._declare_status_port(self._xd, 2)
+        return ports
+
+    def get_state_input_port(self):
+        return self._state_port
+
+    def get_target_input_port(self):
+        return self._target_port
+
+    def get_command_output_port(self):
+        return self._command_port
+
+    def _calc_command(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])
+
+
+class GoToPose(DriveAction):
     """Drives a differential-drive robot to a target pose and speed.
 
     Input ports:
@@ -113,59 +172,10 @@ class GoToPose(LeafSystem):
             workspace: the allowed target region ``[x_min, x_max, y_min, y_max]``.
         """
         super().__init__()
-        if not (math.isfinite(period) and period > 0):
-            raise RepertoireError(f"period must be finite and > 0, got {period}")
-        merged = dict(GOTO_GAINS)
-        for k, v in (gains or {}).items():
-            if k not in GOTO_GAINS:
-                raise RepertoireError(f"unknown GoToPose gain {k!r}; expected {list(GOTO_GAINS)}")
-            if not math.isfinite(v):
-                raise RepertoireError(f"GoToPose gain {k} must be finite, got {v}")
-            merged[k] = float(v)
-        for k in ("v_max", "omega_max", "a_max", "alpha_max", "timeout", "position_tolerance"):
-            if merged[k] <= 0:
-                raise RepertoireError(f"GoToPose gain {k} must be > 0, got {merged[k]}")
-        ws = np.asarray(workspace, dtype=float)
-        if ws.shape != (4,) or not np.all(np.isfinite(ws)) or ws[0] >= ws[1] or ws[2] >= ws[3]:
-            raise RepertoireError(
-                f"workspace must be finite [x_min, x_max, y_min, y_max] with min < max, got "
-                f"{workspace}"
-            )
-        self.period = period
-        self._gains_index = self.DeclareNumericParameter(
-            BasicVector(np.array(list(merged.values())))
-        )
-        self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
-        self._state_port = self.DeclareVectorInputPort("state", 4)
-        self._target_port = self.DeclareVectorInputPort("target", 4)
-        self._xd = self.DeclareDiscreteState(3)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
-        self._command_port = self.DeclareVectorOutputPort(
-            "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
-        )
-        self._status_port = self.DeclareAbstractOutputPort(
-            "status",
-            lambda: AbstractValue.Make(ActionStatus.RUNNING),
-            self._calc_status,
-            {self.discrete_state_ticket(self._xd)},
-        )
-
-    def get_state_input_port(self):
-        return self._state_port
-
-    def get_target_input_port(self):
-        return self._target_port
-
-    def get_command_output_port(self):
-        return self._command_port
-
-    def get_status_output_port(self):
-        return self._status_port
-
-    def gains(self, context: Context) -> dict[str, float]:
-        """The gains in ``context`` as a dict."""
-        values = context.get_numeric_parameter(self._gains_index).get_value()
-        return dict(zip(GOTO_GAINS, map(float, values)))
+        check_period(period)
+        positive = ("v_max", "omega_max", "a_max", "alpha_max", "timeout", "position_tolerance")
+        merged = merge_gains(GOTO_GAINS, gains, "GoToPose", positive)
+        self._declare_drive(period, GOTO_GAINS, merged, workspace, (("state", 4), ("target", 4)))
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         xd = context.get_discrete_state(self._xd).get_value()
@@ -185,32 +195,9 @@ class GoToPose(LeafSystem):
         ):
             out.SetFromVector([0.0, 0.0, ActionStatus.FAILED])
             return
-        v, w, rho, heading_error = pose_control(state, target, g)
-        if (
-            rho < g["position_tolerance"]
-            and abs(heading_error) < g["heading_tolerance"]
-            and abs(state[3] - target[3]) < max(0.1, 0.5 * target[3])
-        ):
-            out.SetFromVector([v_prev, w_prev, ActionStatus.SUCCEEDED])
-            return
-        if context.get_time() >= g["timeout"]:
-            out.SetFromVector([0.0, 0.0, ActionStatus.TIMED_OUT])
-            return
-        dv = g["a_max"] * self.period
-        dw = g["alpha_max"] * self.period
-        out.SetFromVector(
-            [
-                float(np.clip(v, v_prev - dv, v_prev + dv)),
-                float(np.clip(w, w_prev - dw, w_prev + dw)),
-                ActionStatus.RUNNING,
-            ]
-        )
-
-    def _calc_command(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state(self._xd).get_value()[:2])
-
-    def _calc_status(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(ActionStatus(int(context.get_discrete_state(self._xd).get_value()[2])))
+        control = pose_control(state, target, g)
+        t = context.get_time()
+        out.SetFromVector(drive_step(control, (v_prev, w_prev), state, target, g, t, self.period))
 
 
 class DiffDriveStateReader(LeafSystem):

@@ -25,7 +25,6 @@ by contact, held by friction); closing on nothing fails.
 import math
 
 import numpy as np
-from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 from repertoire.models.diffdrive.generate import (
     COLUMN_X,
@@ -35,7 +34,7 @@ from repertoire.models.diffdrive.generate import (
     LIFT_RANGE,
     YAW_RANGE,
 )
-from repertoire.systems.go_to_pose import ActionStatus
+from repertoire.systems.action_status import ActionStatus, ActionSystem
 
 from repertoire.errors import RepertoireError
 
@@ -132,7 +131,7 @@ def _check_positive(**values) -> None:
             raise RepertoireError(f"{name} must be finite and > 0, got {v}")
 
 
-class _Action(LeafSystem):
+class _Action(ActionSystem):
     """Shared ports and state of the kitchen actions (not registered on its own)."""
 
     def __init__(self, period: float, timeout: float, n_command: int, boxes, margin: float):
@@ -147,15 +146,7 @@ class _Action(LeafSystem):
         self._xd = self.DeclareDiscreteState(n_command + 5)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self._base_port = self.DeclareVectorInputPort("base_state", 4)
-        self._status_port = self.DeclareAbstractOutputPort(
-            "status",
-            lambda: AbstractValue.Make(ActionStatus.RUNNING),
-            self._calc_status,
-            {self.discrete_state_ticket(self._xd)},
-        )
-
-    def get_status_output_port(self):
-        return self._status_port
+        self._declare_status_port(self._xd, n_command)
 
     def get_base_state_input_port(self):
         return self._base_port
@@ -164,10 +155,6 @@ class _Action(LeafSystem):
         """Index of the obstacle box containing the chassis-frame point, else -1."""
         base = self._base_port.Eval(context)
         return point_in_boxes(chassis_to_world(base, a_chassis), self._boxes, self.margin)
-
-    def _calc_status(self, context: Context, output: AbstractValue) -> None:
-        xd = context.get_discrete_state(self._xd).get_value()
-        output.set_value(ActionStatus(int(xd[self._n])))
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._xd).get_value()[: self._n])

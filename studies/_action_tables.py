@@ -11,6 +11,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from repertoire.planning.action_models.features import GOTO_POSE_FEATURES, goto_pose_features
+
+# Table 7's goToPose features of a record with start (x, y, phi, v) and goal
+# (x_g, y_g, phi_g, v_g) fields, by name (dribbleBall uses the same features).
+POSE_FEATURE_FUNCS: dict[str, Callable[[Any], float]] = {
+    name: (
+        lambda r, j=j: float(
+            goto_pose_features([r.x, r.y, r.phi, r.v], [r.x_g, r.y_g, r.phi_g, r.v_g])[j]
+        )
+    )
+    for j, name in enumerate(GOTO_POSE_FEATURES)
+}
 
 
 def min_records() -> int:

@@ -22,8 +22,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.planning.action_models import goto_pose_features
-from repertoire.planning.action_models.features import GOTO_POSE_FEATURES
+from repertoire.studies._action_tables import POSE_FEATURE_FUNCS as FEATURE_FUNCS
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -211,23 +210,6 @@ def run_episode(config: GoToPoseEpisodesConfig, seed: int) -> GoToPoseRecord:
         states=states,
         wall_time_s=time.perf_counter() - t0,
     )
-
-
-def features_of(records: list[GoToPoseRecord]) -> np.ndarray:
-    """``(n, 5)`` Table 7 features of the records."""
-    start = np.array([[r.x, r.y, r.phi, r.v] for r in records], dtype=float)
-    goal = np.array([[r.x_g, r.y_g, r.phi_g, r.v_g] for r in records], dtype=float)
-    return np.atleast_2d(goto_pose_features(start, goal))
-
-
-FEATURE_FUNCS = {
-    name: (
-        lambda r, j=j: float(
-            goto_pose_features([r.x, r.y, r.phi, r.v], [r.x_g, r.y_g, r.phi_g, r.v_g])[j]
-        )
-    )
-    for j, name in enumerate(GOTO_POSE_FEATURES)
-}
 
 
 def summarize(

@@ -7,6 +7,7 @@ walking diagram.
 """
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 from pydrake.geometry import Box, HalfSpace, SceneGraph
@@ -97,6 +98,24 @@ def validate_plant_fields(time_step: float, contact_approximation: str, friction
         )
     if not (np.isfinite(friction) and friction > 0):
         raise ScenarioError(f"ground_friction must be > 0, got {friction}")
+
+
+def validate_discrete_control_fields(scenario: Any) -> None:
+    """Checks a controlled world's plant fields and its control period.
+
+    Args:
+        scenario: has ``time_step``, ``contact_approximation``, ``ground_friction`` and
+            ``control_period`` (the period of the world's discrete controller).
+
+    Raises:
+        ScenarioError: naming the bad value and what is expected.
+    """
+    validate_plant_fields(
+        scenario.time_step, scenario.contact_approximation, scenario.ground_friction
+    )
+    period = scenario.control_period
+    if not (np.isfinite(period) and period >= scenario.time_step):
+        raise ScenarioError(f"control_period must be >= time_step, got {period}")
 
 
 def add_ground(plant: MultibodyPlant, friction: float = 1.0, size: float = 12.0) -> None:

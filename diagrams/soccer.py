@@ -14,7 +14,7 @@ import numpy as np
 from pydrake.math import RollPitchYaw
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
-from repertoire.diagrams.biped import validate_plant_fields
+from repertoire.diagrams.biped import validate_discrete_control_fields
 from repertoire.diagrams.diffdrive import TRACK, WHEEL_RADIUS, add_robot_in_world
 from repertoire.diagrams.registry import register_diagram
 from repertoire.systems.go_to_pose import ActionStatus, DiffDriveStateReader, GoToPose
@@ -59,11 +59,7 @@ class GoToPoseScenario:
             raise ScenarioError(f"target must be 4 finite values, got {self.target}")
         if not np.isfinite(self.initial_speed):
             raise ScenarioError(f"initial_speed must be finite, got {self.initial_speed}")
-        validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
-        if self.time_step <= 0:
-            raise ScenarioError("time_step must be > 0 (a discrete plant)")
-        if not (np.isfinite(self.control_period) and self.control_period >= self.time_step):
-            raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
+        validate_discrete_control_fields(self)
 
 
 def twist_to_wheel_state_matrix() -> np.ndarray:

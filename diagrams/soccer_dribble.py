@@ -18,7 +18,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, MultibodyPlantConfig
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
-from repertoire.diagrams.biped import add_ground, validate_plant_fields
+from repertoire.diagrams.biped import add_ground, validate_discrete_control_fields
 from repertoire.diagrams.diffdrive import WHEEL_RADIUS, add_diffdrive, add_world
 from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
@@ -129,11 +129,7 @@ class DribbleScenario:
             raise ScenarioError(f"unknown gains {sorted(unknown)}; expected {list(DRIBBLE_GAINS)}")
         if not (np.isfinite(self.ball_decel) and self.ball_decel >= 0):
             raise ScenarioError(f"ball_decel must be finite and >= 0, got {self.ball_decel}")
-        validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
-        if self.time_step <= 0:
-            raise ScenarioError("time_step must be > 0 (a discrete plant)")
-        if not (np.isfinite(self.control_period) and self.control_period >= self.time_step):
-            raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
+        validate_discrete_control_fields(self)
 
     def ball_xy(self) -> np.ndarray:
         """The ball's initial world ``[x, y]``."""

@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import MatrixGain
-from repertoire.diagrams.biped import validate_plant_fields
+from repertoire.diagrams.biped import validate_discrete_control_fields
 from repertoire.diagrams.diffdrive import add_robot_in_world
 from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.soccer import BALL_POSITION, robot_state, twist_to_wheel_state_matrix
@@ -69,11 +69,7 @@ class SoccerPlanScenario:
         for i, t in enumerate(self.targets):
             if len(t) != 4 or not np.all(np.isfinite(t)):
                 raise ScenarioError(f"targets[{i}] must be 4 finite values, got {t}")
-        validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
-        if self.time_step <= 0:
-            raise ScenarioError("time_step must be > 0 (a discrete plant)")
-        if not (np.isfinite(self.control_period) and self.control_period >= self.time_step):
-            raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
+        validate_discrete_control_fields(self)
         if self.action_gains and len(self.action_gains) != len(self.targets):
             raise ScenarioError(
                 f"action_gains must be empty or hold one dict per target: got "

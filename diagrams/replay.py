@@ -183,7 +183,8 @@ def record_replay(
             f"source must be a registered diagram name or a builder function, "
             f"got {type(source).__name__}"
         )
-    if meshcat is not None:
+
+    def record(meshcat):
         return _record(
             entry,
             source,
@@ -197,21 +198,12 @@ def record_replay(
             frame_camera,
             printer,
         )
+
+    if meshcat is not None:
+        return record(meshcat)
     meshcat = Meshcat()
     try:
-        return _record(
-            entry,
-            source,
-            duration,
-            html_path,
-            scenario,
-            meshcat,
-            realtime_rate,
-            live,
-            live_seconds,
-            frame_camera,
-            printer,
-        )
+        return record(meshcat)
     finally:
         # pydrake keeps the diagram and its MeshcatVisualizer in a reference cycle, so the
         # Meshcat made here would be destroyed whenever the garbage collector next runs, on

@@ -30,7 +30,7 @@ from repertoire.planning.footstep.footprint import (
     edge_distance,
     footprint_masks,
 )
-from repertoire.planning.footstep.heuristic import dijkstra_cost_to_go
+from repertoire.planning.footstep.heuristic import LazyCostToGo
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -370,26 +370,25 @@ class BipedStepModel:
         self.tol = tol = opts.goal_tolerance
         max_forward = float(np.max(table.displacement[..., 0]))
         c_min = float(table.step_cost.min())
-        self.h_cells: np.ndarray | None = None
+        self.h_lazy: LazyCostToGo | None = None
         if opts.heuristic == "dijkstra":
             self.cost_per_m = c_min / max(max_forward, 1e-3)
             depth = opts.step_over_depth
             if depth < 0:
                 depth = 0.5 * max(max_forward - self.geometry.foot_length, 0.0) + ref.resolution
-            dist = dijkstra_cost_to_go(
+            self.h_lazy = LazyCostToGo(
                 ref,
                 self.goal,
                 tol,
+                self.start_pose[:2],
                 obstacle_cost=opts.obstacle_cost,
                 impassable_depth=depth,
                 deep_cost=10.0 * opts.obstacle_cost,
             )
-            self.h_cells = dist * self.cost_per_m
         elif opts.heuristic == "euclidean":
             self.cost_per_m = c_min / max(table.max_reach(), 1e-3)
         else:
             self.cost_per_m = 0.0
-        self._h_flat: list[float] | None = None
 
     def _setup_successors(self, action_filter: ActionFilter | None) -> None:
         table = self.table
@@ -484,12 +483,11 @@ class BipedStepModel:
 
     def cost_to_go(self, x: float, y: float) -> float:
         """Heuristic at a point of the map (inf where the Dijkstra field says unreachable)."""
-        if self.h_cells is not None:
-            if self._h_flat is None:
-                self._h_flat = self.h_cells.ravel().tolist()
+        if self.h_lazy is not None:
             ox, oy = self.origin
             ny = self.ref.shape[1]
-            return self._h_flat[int((x - ox) * self.inv_res) * ny + int((y - oy) * self.inv_res)]
+            cell = int((x - ox) * self.inv_res) * ny + int((y - oy) * self.inv_res)
+            return self.h_lazy.value(cell) * self.cost_per_m
         gx, gy = self.goal
         return max(0.0, math.hypot(x - gx, y - gy) - self.tol) * self.cost_per_m
 

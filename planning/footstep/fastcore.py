@@ -6,6 +6,12 @@ everything in arrays so that numba compiles it:
 
 - the open list is a binary heap of ``(f, h, tie, node)`` rows of one array,
   ordered exactly as the Python loop's ``heapq`` tuples (so both pop the same states);
+- the Dijkstra cost-to-go is the model's
+  :class:`~repertoire.planning.footstep.heuristic.LazyCostToGo` (values equal to the full
+  field, settled on demand); a successor whose cell is not settled yet enters the open list
+  with a lower bound of its value (the backward search's frontier key, the straight line
+  to the goal) and gets its exact value when it reaches the top, then is reinserted with
+  its own tie number, so states are expanded in exactly the Python loop's order;
 - duplicate detection is an open-addressing hash table from lattice keys (the model's
   :meth:`~repertoire.planning.footstep.biped_model.BipedStepModel.lattice_key`, computed
   here by the same formula) to node indices; nodes are named field arrays;
@@ -28,6 +34,7 @@ import time
 import numba
 import numpy as np
 from repertoire.planning.footstep.biped_model import BipedState, BipedStepModel
+from repertoire.planning.footstep.heuristic import _rra_h, _rra_value
 from repertoire.planning.footstep.search import SearchResult
 from repertoire.planning.footstep.types import PlanStatus
 
@@ -44,29 +51,31 @@ def _less(f1, h1, t1, f2, h2, t2):
 
 
 @numba.njit(cache=True)
-def _heap_push(heap, size, f, h, tie, node):
-    """Insert ``(f, h, tie, node)`` into a heap of ``size`` rows (one row per entry)."""
+def _heap_push(heap, size, f, h, tie, node, g, cell):
+    """Insert ``(f, h, tie, node, g, cell)`` into a heap of ``size`` rows.
+
+    Rows are ordered by ``(f, h, tie)``; ``cell`` >= 0 marks ``h`` as a lower bound of that
+    grid cell's cost-to-go (the exact value is computed when the row reaches the top).
+    """
     i = size
     while i > 0:
         p = (i - 1) >> 1
         if _less(f, h, tie, heap[p, 0], heap[p, 1], heap[p, 2]):
-            heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = (
-                heap[p, 0],
-                heap[p, 1],
-                heap[p, 2],
-                heap[p, 3],
-            )
+            for q in range(6):
+                heap[i, q] = heap[p, q]
             i = p
         else:
             break
-    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
+    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3], heap[i, 4], heap[i, 5] = (
+        f, h, tie, node, g, cell
+    )  # fmt: skip
 
 
 @numba.njit(cache=True)
 def _heap_pop(heap, size):
     """Remove the root of a heap of ``size`` rows (the caller read it first)."""
     size -= 1
-    f, h, tie, node = heap[size, 0], heap[size, 1], heap[size, 2], heap[size, 3]
+    f, h, tie = heap[size, 0], heap[size, 1], heap[size, 2]
     i = 0
     while True:
         c = 2 * i + 1
@@ -77,16 +86,14 @@ def _heap_pop(heap, size):
         ):
             c += 1
         if _less(heap[c, 0], heap[c, 1], heap[c, 2], f, h, tie):
-            heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = (
-                heap[c, 0],
-                heap[c, 1],
-                heap[c, 2],
-                heap[c, 3],
-            )
+            for q in range(6):
+                heap[i, q] = heap[c, q]
             i = c
         else:
             break
-    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
+    if i != size:
+        for q in range(6):
+            heap[i, q] = heap[size, q]
 
 
 @numba.njit(cache=True, inline="always")
@@ -228,7 +235,11 @@ def _arastar(
     hist,
     lat,  # ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist
     grid,  # ox, oy, inv_res, nx, ny, gx, gy, tol, cost_per_m, flat_limit, height_w, up, down
-    h_cells,  # flat (nx*ny) Dijkstra field, or empty for the Euclidean heuristic
+    hf,  # the LazyCostToGo's arrays (f, i, occ, p, size), or empty for Euclidean
+    hi,
+    hocc,
+    hp,
+    hcount,
     chk,  # pad, nyp, sub, yaw_bins, yaw_scale, hl, hw
     occ,
     free,
@@ -273,16 +284,18 @@ def _arastar(
     )
     step_up, step_down = grid[11], grid[12]
     step_limits = step_up < np.inf or step_down < np.inf
-    use_cells = h_cells.size > 0
+    use_cells = hp.size > 0
+    res = 1.0 / inv_res
+    h_radius = max(tol, res * 0.75) + 1e-9
+    h_cmin = hp[8] / res if use_cells else 0.0  # cheapest cost per metre, shrunk by 1e-6
     tol2 = tol * tol
     two_pi = 2.0 * math.pi
     cap = 1024
     fnode = np.empty((cap, 8))  # x, y, yaw, t, swing_x, swing_y, h, g
-    inode = np.zeros(
-        (cap, 7), np.int64
-    )  # foot, a_prev2, a_prev1, parent, expanded in, open, incons
+    # foot, a_prev2, a_prev1, parent, expanded in, open, incons, lazy cell (-1: h exact)
+    inode = np.zeros((cap, 8), np.int64)
     table = np.full((4096, 2), -1, np.int64)
-    heap = np.empty((1024, 4))
+    heap = np.empty((1024, 6))
 
     sx, sy, sth = start[0], start[1], start[2]
     f0, a20, a10 = int(start[3]), int(start[4]), int(start[5])
@@ -317,6 +330,7 @@ def _arastar(
         -1,
         1,
     )
+    inode[0, 7] = -1
     count = 1
     j = _slot(table, key0)
     table[j, 0] = key0
@@ -337,7 +351,10 @@ def _arastar(
             if inode[k, 5] or inode[k, 6]:
                 if hsize == heap.shape[0]:
                     heap = _grow_rows(heap)
-                _heap_push(heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize, k)
+                _heap_push(
+                    heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize, k,
+                    fnode[k, 7], inode[k, 7],
+                )  # fmt: skip
                 hsize += 1
                 inode[k, 5], inode[k, 6] = 1, 0
         tie = hsize
@@ -345,10 +362,25 @@ def _arastar(
         while hsize > 0:
             h = heap[0, 1]
             node = int(heap[0, 3])
+            lazy = int(heap[0, 5])
+            if lazy >= 0 and inode[node, 4] != it:  # a lower bound: the exact key, same tie
+                h = _rra_value(lazy, hf, hi, hocc, hp, hcount) * cost_per_m
+                gp, tp = heap[0, 4], heap[0, 2]
+                _heap_pop(heap, hsize)
+                if inode[node, 7] == lazy:
+                    fnode[node, 6], inode[node, 7] = h, -1
+                if h < np.inf:
+                    _heap_push(heap, hsize - 1, gp + w * h, h, tp, node, gp, -1)
+                else:
+                    hsize -= 1
+                continue
             _heap_pop(heap, hsize)
             hsize -= 1
             if inode[node, 4] == it:
                 continue
+            if inode[node, 7] >= 0:  # the node moved since this entry: its own h, exact
+                fnode[node, 6] = _rra_value(inode[node, 7], hf, hi, hocc, hp, hcount) * cost_per_m
+                inode[node, 7] = -1
             x, y, th, foot = fnode[node, 0], fnode[node, 1], fnode[node, 2], inode[node, 0]
             if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
                 status, end = 0, node
@@ -397,8 +429,20 @@ def _arastar(
                     tall, fnode[node, 4], fnode[node, 5], x2, y2, ox, oy, inv_res
                 ):
                     continue
+                lazy = -1
                 if use_cells:
-                    h2 = h_cells[int(fx) * ny + int(fy)]
+                    cell = int(fx) * ny + int(fy)
+                    if hi[0, cell] == -2 or hcount[0] == 0:  # settled (or unreachable)
+                        h2 = _rra_value(cell, hf, hi, hocc, hp, hcount) * cost_per_m
+                    else:  # a lower bound now, the exact value when popped
+                        f_min = hf[1, 0]
+                        lb = f_min - _rra_h(cell, hp) - 1e-9 * (1.0 + abs(f_min))
+                        # every path to the goal region is at least as long as the straight line
+                        cx = ox + ((cell // ny) + 0.5) * res
+                        cy = oy + ((cell % ny) + 0.5) * res
+                        lb2 = (math.hypot(cx - gx, cy - gy) - h_radius) * h_cmin
+                        h2 = max(lb, lb2, 0.0) * cost_per_m
+                        lazy = cell
                 else:
                     h2 = max(0.0, math.hypot(x2 - gx, y2 - gy) - tol) * cost_per_m
                 if h2 == np.inf:
@@ -447,19 +491,24 @@ def _arastar(
                 )
                 fnode[idx, 4], fnode[idx, 5], fnode[idx, 6], fnode[idx, 7] = x, y, h2, g2
                 inode[idx, 0], inode[idx, 1], inode[idx, 2], inode[idx, 3] = nf, a1, a, node
+                inode[idx, 7] = lazy
                 if inode[idx, 6] == 0:
                     if hsize == heap.shape[0]:
                         heap = _grow_rows(heap)
-                    _heap_push(heap, hsize, g2 + w * h2, h2, tie, idx)
+                    _heap_push(heap, hsize, g2 + w * h2, h2, tie, idx, g2, lazy)
                     hsize += 1
                     tie += 1
         bound = w
         if status == 0:
             solution = end
             low = np.inf
-            for k in range(count):
+            for k in range(count):  # a lower bound above ``low`` needs no exact value
                 if (inode[k, 5] or inode[k, 6]) and fnode[k, 7] + fnode[k, 6] < low:
-                    low = fnode[k, 7] + fnode[k, 6]
+                    if inode[k, 7] >= 0:
+                        fnode[k, 6] = _rra_value(inode[k, 7], hf, hi, hocc, hp, hcount) * cost_per_m
+                        inode[k, 7] = -1
+                    if fnode[k, 7] + fnode[k, 6] < low:
+                        low = fnode[k, 7] + fnode[k, 6]
             if low == np.inf:
                 low = fnode[end, 7]
             bound = min(w, fnode[end, 7] / low) if low > 0 else w
@@ -521,6 +570,14 @@ def _cached_masks(chk) -> tuple:
     return arrays[1:]
 
 
+def _lazy_arrays(lazy) -> dict:
+    if lazy is None:
+        none = np.zeros((0, 0))
+        return {"hf": none, "hi": np.zeros((0, 0), np.int64), "hocc": np.zeros(0, np.uint8),
+                "hp": np.zeros(0), "hcount": np.zeros(1, np.int64)}  # fmt: skip
+    return {"hf": lazy.f, "hi": lazy.i, "hocc": lazy.occ, "hp": lazy.p, "hcount": lazy.size}
+
+
 def compiled_tables(model: BipedStepModel) -> dict:
     """The model's search space as the arrays :func:`_astar` reads (static grids only)."""
     if model.dynamic:
@@ -560,11 +617,7 @@ def compiled_tables(model: BipedStepModel) -> dict:
             ],
             float,
         ),
-        "h_cells": (
-            np.ascontiguousarray(model.h_cells, float).ravel()
-            if model.h_cells is not None
-            else np.zeros(0)
-        ),
+        **_lazy_arrays(model.h_lazy),
         "chk": np.array(
             [chk.pad, chk.nyp, mk.sub, mk.yaw_bins, mk.yaw_scale, mk.half[0], mk.half[1]], float
         ),

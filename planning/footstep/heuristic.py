@@ -5,7 +5,8 @@ the goal": 8-connected moves between cell centres, each move costing its length 
 the mean traversal cost of the two cells (1 on free cells, ``obstacle_cost`` on occupied
 ones, which the biped may still step over). It is informed but not admissible. The
 search runs compiled (:func:`grid_dijkstra`, numba); :func:`grid_graph` gives the same
-graph to scipy's ``dijkstra`` for reference.
+graph to scipy's ``dijkstra`` for reference. The planner reads it through
+:class:`LazyCostToGo`, which settles only the cells it is asked about (the same values).
 """
 
 import functools
@@ -88,16 +89,40 @@ def dijkstra_cost_to_go(
     Returns:
         (nx, ny) array of distances, inf where the goal cannot be reached.
     """
+    cost = _cell_costs(grid, obstacle_cost, impassable_depth, deep_cost)
+    return grid_dijkstra(cost, grid.resolution, _goal_cells(grid, goal, goal_tolerance))
+
+
+def _cell_costs(
+    grid: OccupancyGrid, obstacle_cost: float, impassable_depth: float, deep_cost: float
+) -> np.ndarray:
+    """Traversal cost per metre of every cell (see :func:`dijkstra_cost_to_go`)."""
     cost = np.where(grid.occupied, obstacle_cost, 1.0)
     if math.isfinite(impassable_depth) and grid.occupied.any():
         depth = distance_to_features(~grid.occupied) * grid.resolution
         cost[depth > impassable_depth] = deep_cost
+    return cost
+
+
+def _goal_cells(grid: OccupancyGrid, goal: "tuple[float, float]", tol: float) -> np.ndarray:
+    """Flat indices of the cells whose centre lies within the goal radius (the sources)."""
+    nx, ny = grid.shape
+    res, (x0, y0) = grid.resolution, grid.origin
+    radius = max(tol, res * 0.75)
+    i0 = min(max(int(math.floor((goal[0] - radius - x0) / res)) - 1, 0), nx)
+    i1 = min(max(int(math.floor((goal[0] + radius - x0) / res)) + 2, 0), nx)
+    j0 = min(max(int(math.floor((goal[1] - radius - y0) / res)) - 1, 0), ny)
+    j1 = min(max(int(math.floor((goal[1] + radius - y0) / res)) + 2, 0), ny)
+    ii, jj = np.arange(i0, i1), np.arange(j0, j1)  # the box around the goal (as cell_centers)
+    cx = x0 + (ii + 0.5) * res
+    cy = y0 + (jj + 0.5) * res
+    near = np.hypot(cx[:, None] - goal[0], cy[None, :] - goal[1]) <= radius
+    if near.any():
+        a, b = np.nonzero(near)
+        return (ii[a] * ny + jj[b]).astype(np.int64)
     centers = grid.cell_centers()
     d_goal = np.hypot(centers[..., 0] - goal[0], centers[..., 1] - goal[1])
-    sources = np.flatnonzero(d_goal <= max(goal_tolerance, grid.resolution * 0.75))
-    if len(sources) == 0:
-        sources = np.array([int(np.argmin(d_goal))])
-    return grid_dijkstra(cost, grid.resolution, sources)
+    return np.array([int(np.argmin(d_goal))])
 
 
 def grid_dijkstra(cell_cost: np.ndarray, resolution: float, sources: np.ndarray) -> np.ndarray:
@@ -189,3 +214,222 @@ def _dijkstra8(cost, res, sources):
                     else:
                         _sift_up(hd, hc, pos, pos[nb], nd, nb)
     return dist.reshape(nx, ny)
+
+
+class LazyCostToGo:
+    """:func:`dijkstra_cost_to_go`, computed only where it is asked for.
+
+    Reverse resumable A* (Silver, "Cooperative pathfinding", 2005): the backward search from
+    the goal region is an A* towards the ``toward`` point (the planner's start) with the
+    octile distance times the cheapest cell cost, shrunk by 1e-6 so that it stays consistent
+    beyond rounding; a query for a cell not yet closed resumes the search until that cell is
+    closed. A closed cell's value is final and equal, bit for bit, to the full Dijkstra's
+    (both are the minimum over paths of the left-to-right floating-point sums of the same
+    edge weights), so a planner reading it expands the same states; only the cells whose
+    values it needs (and the A* ellipse around them) are ever settled. Cell costs, the
+    deep-obstacle test included, are also computed on demand (the exact distance-transform
+    test, by scanning the cells within ``impassable_depth``).
+
+    Args:
+        grid, goal, goal_tolerance, obstacle_cost, impassable_depth, deep_cost: as in
+            :func:`dijkstra_cost_to_go`.
+        toward: ``(x, y)`` the search heads for (where most queries will be).
+    """
+
+    def __init__(
+        self,
+        grid: OccupancyGrid,
+        goal: "tuple[float, float]",
+        goal_tolerance: float,
+        toward: "tuple[float, float]",
+        *,
+        obstacle_cost: float = 3.0,
+        impassable_depth: float = math.inf,
+        deep_cost: float = 30.0,
+        retarget_cells: int | None = 4,
+    ) -> None:
+        nx, ny = grid.shape
+        n = nx * ny
+        res = grid.resolution
+        self.occ = np.ascontiguousarray(grid.occupied, dtype=np.uint8).ravel()
+        self.f = np.empty((3, n))  # distance, heap key (f = distance + octile), cell cost
+        self.f[0] = np.inf
+        radius = -1  # no deep-obstacle test
+        if math.isfinite(impassable_depth) and grid.occupied.any():
+            radius = int(impassable_depth / res) + 1
+        if 0 <= impassable_depth and radius <= 8:
+            self.f[2] = np.nan  # computed on demand
+        else:  # a wide scan per cell would cost more than the distance transform
+            self.f[2] = _cell_costs(grid, obstacle_cost, impassable_depth, deep_cost).ravel()
+            radius = -1
+        self.i = np.full((2, n), -1, np.int64)  # heap position (-2 closed), heap cells
+        self.size = np.zeros(1, np.int64)
+        ti = min(max(int((toward[0] - grid.origin[0]) / res), 0), nx - 1)
+        tj = min(max(int((toward[1] - grid.origin[1]) / res), 0), ny - 1)
+        c_min = min(1.0, obstacle_cost, deep_cost)
+        retarget = nx * ny if retarget_cells is None else retarget_cells
+        self.p = np.array(
+            [nx, ny, res, obstacle_cost, impassable_depth, deep_cost, ti, tj,
+             c_min * res * (1.0 - 1e-6), radius, retarget],
+            dtype=float,
+        )  # fmt: skip
+        _rra_start(_goal_cells(grid, goal, goal_tolerance), self.f, self.i, self.p, self.size)
+
+    def value(self, cell: int) -> float:
+        """The cost-to-go (m, weighted) of flat cell index ``cell`` (inf: unreachable)."""
+        return _rra_value(cell, self.f, self.i, self.occ, self.p, self.size)
+
+    @property
+    def settled(self) -> int:
+        """How many cells have been closed so far."""
+        return int(np.count_nonzero(self.i[0] == -2))
+
+
+@numba.njit(cache=True)
+def _rra_h(c, p):
+    ny = int(p[1])
+    dx = abs(c // ny - int(p[6]))
+    dy = abs(c % ny - int(p[7]))
+    return ((max(dx, dy) - min(dx, dy)) + math.sqrt(2.0) * min(dx, dy)) * p[8]
+
+
+@numba.njit(cache=True)
+def _rra_cost(c, f, occ, p):
+    v = f[2, c]
+    if v != v:  # not computed yet
+        if not occ[c]:
+            v = 1.0
+        else:
+            v = p[3]
+            radius = int(p[9])
+            if radius >= 0:  # deep unless a free cell lies within impassable_depth
+                nx, ny, res, depth = int(p[0]), int(p[1]), p[2], p[4]
+                i, j = c // ny, c % ny
+                deep = True
+                for di in range(-radius, radius + 1):
+                    a = i + di
+                    if a < 0 or a >= nx or not deep:
+                        continue
+                    for dj in range(-radius, radius + 1):
+                        b = j + dj
+                        if 0 <= b < ny and not occ[a * ny + b]:
+                            if math.sqrt(float(di * di + dj * dj)) * res <= depth:
+                                deep = False
+                                break
+                if deep:
+                    v = p[5]
+        f[2, c] = v
+    return v
+
+
+@numba.njit(cache=True)
+def _rra_retarget(ti, tj, f, i, p, n):
+    """Head the search for cell (ti, tj): new keys for the open cells, heap rebuilt.
+
+    Closed cells stay final (they were closed under a consistent heuristic), so any target
+    gives the same values; the nearest one closes the fewest cells.
+    """
+    p[6], p[7] = ti, tj
+    hd, hc, pos, dist = f[1], i[1], i[0], f[0]
+    for k in range(n):
+        hd[k] = dist[hc[k]] + _rra_h(hc[k], p)
+    for k0 in range(n // 2 - 1, -1, -1):
+        k = k0
+        d, c = hd[k], hc[k]
+        while True:
+            ch = 2 * k + 1
+            if ch >= n:
+                break
+            if ch + 1 < n and hd[ch + 1] < hd[ch]:
+                ch += 1
+            if hd[ch] < d:
+                hd[k], hc[k] = hd[ch], hc[ch]
+                k = ch
+            else:
+                break
+        hd[k], hc[k] = d, c
+    for k in range(n):
+        pos[hc[k]] = k
+
+
+@numba.njit(cache=True)
+def _rra_start(sources, f, i, p, size):
+    for s in sources:
+        if i[0, s] == -1:
+            f[0, s] = 0.0
+            _sift_up(f[1], i[1], i[0], size[0], _rra_h(s, p), s)
+            size[0] += 1
+
+
+@numba.njit(cache=True)
+def _rra_value(c, f, i, occ, p, size):
+    """Resume the backward A* until cell ``c`` is closed; its distance (inf: unreachable)."""
+    pos = i[0]
+    if pos[c] == -2:
+        return f[0, c]
+    hd, hc, dist = f[1], i[1], f[0]
+    nx, ny, res = int(p[0]), int(p[1]), p[2]
+    diag = math.sqrt(2.0) * res
+    n = size[0]
+    ti, tj = c // ny, c % ny
+    if n > 0 and max(abs(ti - int(p[6])), abs(tj - int(p[7]))) > int(p[10]):
+        _rra_retarget(ti, tj, f, i, p, n)
+    ti, tj = int(p[6]), int(p[7])
+    scale = p[8]
+    sqrt2 = math.sqrt(2.0)
+    while n > 0:
+        u = hc[0]
+        pos[u] = -2
+        n -= 1
+        if n > 0:
+            ld, lc = hd[n], hc[n]
+            k = 0
+            while True:
+                ch = 2 * k + 1
+                if ch >= n:
+                    break
+                if ch + 1 < n and hd[ch + 1] < hd[ch]:
+                    ch += 1
+                if hd[ch] < ld:
+                    hd[k], hc[k] = hd[ch], hc[ch]
+                    pos[hc[k]] = k
+                    k = ch
+                else:
+                    break
+            hd[k], hc[k] = ld, lc
+            pos[lc] = k
+        d = dist[u]
+        iu, ju = u // ny, u % ny
+        cu = f[2, u]
+        if cu != cu:
+            cu = _rra_cost(u, f, occ, p)
+        for di in range(-1, 2):
+            a = iu + di
+            if a < 0 or a >= nx:
+                continue
+            hx = abs(a - ti)
+            for dj in range(-1, 2):
+                b = ju + dj
+                if b < 0 or b >= ny or (di == 0 and dj == 0):
+                    continue
+                nb = a * ny + b
+                if pos[nb] == -2:
+                    continue
+                cn = f[2, nb]
+                if cn != cn:
+                    cn = _rra_cost(nb, f, occ, p)
+                step = diag if di != 0 and dj != 0 else res
+                nd = d + 0.5 * (cu + cn) * step
+                if nd < dist[nb]:
+                    dist[nb] = nd
+                    hy = abs(b - tj)
+                    key = nd + ((max(hx, hy) - min(hx, hy)) + sqrt2 * min(hx, hy)) * scale
+                    if pos[nb] == -1:
+                        _sift_up(hd, hc, pos, n, key, nb)
+                        n += 1
+                    else:
+                        _sift_up(hd, hc, pos, pos[nb], key, nb)
+        if u == c:
+            break
+    size[0] = n
+    return dist[c]

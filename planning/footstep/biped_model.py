@@ -27,7 +27,6 @@ from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry, appl
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
 from repertoire.planning.footstep.footprint import (
     FootprintChecker,
-    edge_distance,
     footprint_masks,
 )
 from repertoire.planning.footstep.heuristic import LazyCostToGo
@@ -141,8 +140,7 @@ class Checkers:
 
     In a dynamic world the checker of time index k sees every cell occupied while the foot
     stands (the hold time after k), with the tallest height over that window. The foot
-    rectangle is inflated by ``margin`` (m) on every side; ``distance`` is the
-    static grid's :func:`~repertoire.planning.footstep.footprint.edge_distance` when known.
+    rectangle is inflated by ``margin`` (m) on every side.
     """
 
     def __init__(
@@ -151,7 +149,6 @@ class Checkers:
         geometry: BipedGeometry,
         hold: float,
         margin: float = 0.0,
-        distance: np.ndarray | None = None,
     ) -> None:
         self.world = world
         grid0 = world if isinstance(world, OccupancyGrid) else world.reference
@@ -164,7 +161,7 @@ class Checkers:
         self._cache: dict[int, FootprintChecker] = {}
         self.static = isinstance(world, OccupancyGrid)
         if self.static:
-            self._cache[0] = FootprintChecker(world, self.masks, distance)
+            self._cache[0] = FootprintChecker(world, self.masks)
 
     def index(self, t: float) -> int:
         """Time index of ``t``, or -1 when no grid is near (always 0 in static worlds)."""
@@ -301,15 +298,12 @@ class BipedStepModel:
         self.start_time = float(start_time)
 
         hold = float(table.duration.max())
-        dist = None if dynamic else edge_distance(world)
-        self.checkers = Checkers(world, geometry, hold, opts.footprint_margin_m, dist)
+        self.checkers = Checkers(world, geometry, hold, opts.footprint_margin_m)
         self.k0 = self.checkers.index(start_time)
         # the start feet already stand: checked exactly, without the margin; the height
         # cost is also measured under the exact footprint (heights are the same at all t)
         exact = (
-            Checkers(world, geometry, hold, 0.0, dist)
-            if opts.footprint_margin_m > 0
-            else self.checkers
+            Checkers(world, geometry, hold, 0.0) if opts.footprint_margin_m > 0 else self.checkers
         )
         self.exact_checkers = exact
         self._tall_cache: dict[int, np.ndarray | None] = {}

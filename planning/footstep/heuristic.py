@@ -268,11 +268,23 @@ class LazyCostToGo:
         tj = min(max(int((toward[1] - grid.origin[1]) / res), 0), ny - 1)
         c_min = min(1.0, obstacle_cost, deep_cost)
         retarget = nx * ny if retarget_cells is None else retarget_cells
-        self.p = np.array(
-            [nx, ny, res, obstacle_cost, impassable_depth, deep_cost, ti, tj,
-             c_min * res * (1.0 - 1e-6), radius, retarget],
-            dtype=float,
-        )  # fmt: skip
+        # the cell offsets within impassable_depth, nearest first (the deep-obstacle scan)
+        offsets = np.zeros((0, 2))
+        if radius >= 0:
+            di, dj = np.mgrid[-radius : radius + 1, -radius : radius + 1]
+            di, dj = di.ravel(), dj.ravel()
+            within = np.sqrt((di * di + dj * dj).astype(float)) * res <= impassable_depth
+            order = np.argsort((di * di + dj * dj)[within], kind="stable")
+            offsets = np.column_stack([di[within][order], dj[within][order]]).astype(float)
+        # nx, ny, res, obstacle_cost, depth, deep_cost, target i, j, heuristic scale,
+        # scan radius (-1: none), retarget distance, offset count, then the offsets
+        self.p = np.concatenate(
+            [
+                [nx, ny, res, obstacle_cost, impassable_depth, deep_cost, ti, tj,
+                 c_min * res * (1.0 - 1e-6), radius, retarget, len(offsets)],
+                offsets.ravel(),
+            ]
+        ).astype(float)  # fmt: skip
         _rra_start(_goal_cells(grid, goal, goal_tolerance), self.f, self.i, self.p, self.size)
 
     def value(self, cell: int) -> float:
@@ -303,19 +315,15 @@ def _rra_cost(c, f, occ, p):
             v = p[3]
             radius = int(p[9])
             if radius >= 0:  # deep unless a free cell lies within impassable_depth
-                nx, ny, res, depth = int(p[0]), int(p[1]), p[2], p[4]
+                nx, ny = int(p[0]), int(p[1])
                 i, j = c // ny, c % ny
                 deep = True
-                for di in range(-radius, radius + 1):
-                    a = i + di
-                    if a < 0 or a >= nx or not deep:
-                        continue
-                    for dj in range(-radius, radius + 1):
-                        b = j + dj
-                        if 0 <= b < ny and not occ[a * ny + b]:
-                            if math.sqrt(float(di * di + dj * dj)) * res <= depth:
-                                deep = False
-                                break
+                for k in range(int(p[11])):  # nearest first: stops at the first free cell
+                    a = i + int(p[12 + 2 * k])
+                    b = j + int(p[13 + 2 * k])
+                    if 0 <= a < nx and 0 <= b < ny and not occ[a * ny + b]:
+                        deep = False
+                        break
                 if deep:
                     v = p[5]
         f[2, c] = v

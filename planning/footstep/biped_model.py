@@ -108,18 +108,31 @@ def history_classes(table: ActionTable) -> np.ndarray:
         cls = new
 
 
-_HIST_CACHE: dict[bytes, np.ndarray] = {}
+_TABLE_CACHE: dict[bytes, dict] = {}
 
 
-def _cached_history_classes(table: ActionTable) -> np.ndarray:
-    """:func:`history_classes`, remembered per table content (a few tables per process)."""
-    key = table.displacement.tobytes() + table.duration.tobytes()
-    cls = _HIST_CACHE.get(key)
-    if cls is None:
-        if len(_HIST_CACHE) >= 8:
-            _HIST_CACHE.clear()
-        cls = _HIST_CACHE[key] = history_classes(table)
-    return cls.copy()
+def _table_entry(table: ActionTable) -> dict:
+    """Work that depends on the table's content only, remembered for a few tables.
+
+    The table is validated the first time its content is seen; the entry then holds its
+    history classes (``"hist"``) and, once built, its successor rows without an action
+    filter (``"succ"``).
+    """
+    meta = repr((table.actions, table.rest_action, sorted(table.mirror.items())))
+    shapes = repr((table.displacement.shape, table.duration.shape, table.step_cost.shape))
+    key = (
+        table.displacement.tobytes()
+        + table.duration.tobytes()
+        + table.step_cost.tobytes()
+        + (meta + shapes).encode()
+    )
+    entry = _TABLE_CACHE.get(key)
+    if entry is None:
+        table.validate()
+        if len(_TABLE_CACHE) >= 8:
+            _TABLE_CACHE.clear()
+        entry = _TABLE_CACHE[key] = {"hist": history_classes(table)}
+    return entry
 
 
 def pose3(p: Sequence[float], name: str) -> tuple[float, float, float]:
@@ -257,7 +270,7 @@ class BipedStepModel:
     ) -> None:
         if not isinstance(table, ActionTable):
             raise FootstepError(f"table must be an ActionTable, got {type(table).__name__}")
-        table.validate()
+        self._table_entry = _table_entry(table)  # validates a table not seen before
         if not isinstance(world, (OccupancyGrid, DynamicEnvironment)):
             raise FootstepError(
                 f"world must be an OccupancyGrid or DynamicEnvironment, got {type(world).__name__}"
@@ -385,6 +398,19 @@ class BipedStepModel:
             self.cost_per_m = 0.0
 
     def _setup_successors(self, action_filter: ActionFilter | None) -> None:
+        entry = self._table_entry
+        if action_filter is None and "succ" in entry:
+            self.succ_ptr, self.succ_a, self.succ_f = entry["succ"]
+        else:
+            self._build_successors(action_filter)
+            if action_filter is None:
+                entry["succ"] = (self.succ_ptr, self.succ_a, self.succ_f)
+        self._succ_rows: list[tuple[Successor, ...]] | None = None
+        self.hist = entry["hist"]
+        self._hist_rows = self.hist.tolist()
+        self.n_hist = int(self.hist.max()) + 1
+
+    def _build_successors(self, action_filter: ActionFilter | None) -> None:
         table = self.table
         n, names = table.n, table.actions
         allowed = np.ones((n, n, 2, n), dtype=bool)
@@ -418,10 +444,6 @@ class BipedStepModel:
                 cost[allowed],
             ]
         ).astype(float)
-        self._succ_rows: list[tuple[Successor, ...]] | None = None
-        self.hist = _cached_history_classes(table)
-        self._hist_rows = self.hist.tolist()
-        self.n_hist = int(self.hist.max()) + 1
 
     def successor_rows(self, a_prev2: int, a_prev1: int, foot: int) -> tuple[Successor, ...]:
         """The actions F allows after ``(a_prev2, a_prev1)`` on ``foot``, with T's values."""

@@ -182,7 +182,8 @@ def _edt_sq(features):
     return out
 
 
-def surely_free_cells(occ_padded: np.ndarray, half_width: int, pad: int) -> np.ndarray:
+@numba.njit(cache=True)
+def surely_free_cells(occ_padded, half_width, pad):
     """Cells of a padded grid with no occupied cell within ``half_width`` cells (Chebyshev).
 
     A summed-area table answers each square window in four look-ups. Only cells at least
@@ -192,21 +193,28 @@ def surely_free_cells(occ_padded: np.ndarray, half_width: int, pad: int) -> np.n
         occ_padded: (NX, NY) bool, the grid with an occupied border of ``pad`` cells.
         half_width: half side of the square window, in cells (>= 0).
         pad: width of the occupied border.
+
+    Returns:
+        (NX, NY) uint8, 1 where surely free.
     """
     nxp, nyp = occ_padded.shape
-    sat = np.zeros((nxp + 1, nyp + 1), dtype=np.int32)
-    np.cumsum(np.cumsum(occ_padded, axis=0, dtype=np.int32), axis=1, out=sat[1:, 1:])
+    sat = np.zeros((nxp + 1, nyp + 1), np.int32)
+    for i in range(nxp):
+        row = 0
+        for j in range(nyp):
+            row += occ_padded[i, j]
+            sat[i + 1, j + 1] = sat[i, j + 1] + row
     m = half_width
-    free = np.zeros((nxp, nyp), dtype=bool)
-    lo_i, hi_i, lo_j, hi_j = pad, nxp - pad, pad, nyp - pad
-    if hi_i > lo_i and hi_j > lo_j:
-        count = (
-            sat[lo_i + m + 1 : hi_i + m + 1, lo_j + m + 1 : hi_j + m + 1]
-            - sat[lo_i - m : hi_i - m, lo_j + m + 1 : hi_j + m + 1]
-            - sat[lo_i + m + 1 : hi_i + m + 1, lo_j - m : hi_j - m]
-            + sat[lo_i - m : hi_i - m, lo_j - m : hi_j - m]
-        )
-        free[lo_i:hi_i, lo_j:hi_j] = count == 0
+    free = np.zeros((nxp, nyp), np.uint8)
+    for i in range(pad, nxp - pad):
+        for j in range(pad, nyp - pad):
+            count = (
+                sat[i + m + 1, j + m + 1]
+                - sat[i - m, j + m + 1]
+                - sat[i + m + 1, j - m]
+                + sat[i - m, j - m]
+            )
+            free[i, j] = count == 0
     return free
 
 
@@ -239,7 +247,7 @@ class FootprintChecker:
         # m cells (Chebyshev, which is <= Euclidean) guarantees a distance > m cells
         m = int((masks.r_diag + grid.resolution * math.sqrt(2.0)) / grid.resolution + 1e-9)
         surely_free = surely_free_cells(occ, m, pad)
-        self.free_bytes = surely_free.astype(np.uint8).ravel().tobytes()
+        self.free_bytes = surely_free.ravel().tobytes()
         self.inv_res = 1.0 / grid.resolution
         self.x0, self.y0 = grid.origin
         self._occ = occ

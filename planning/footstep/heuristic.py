@@ -269,20 +269,14 @@ class LazyCostToGo:
         c_min = min(1.0, obstacle_cost, deep_cost)
         retarget = nx * ny if retarget_cells is None else retarget_cells
         # the cell offsets within impassable_depth, nearest first (the deep-obstacle scan)
-        offsets = np.zeros((0, 2))
-        if radius >= 0:
-            di, dj = np.mgrid[-radius : radius + 1, -radius : radius + 1]
-            di, dj = di.ravel(), dj.ravel()
-            within = np.sqrt((di * di + dj * dj).astype(float)) * res <= impassable_depth
-            order = np.argsort((di * di + dj * dj)[within], kind="stable")
-            offsets = np.column_stack([di[within][order], dj[within][order]]).astype(float)
+        offsets = _scan_offsets(radius, res, impassable_depth) if radius >= 0 else ()
         # nx, ny, res, obstacle_cost, depth, deep_cost, target i, j, heuristic scale,
         # scan radius (-1: none), retarget distance, offset count, then the offsets
         self.p = np.concatenate(
             [
                 [nx, ny, res, obstacle_cost, impassable_depth, deep_cost, ti, tj,
-                 c_min * res * (1.0 - 1e-6), radius, retarget, len(offsets)],
-                offsets.ravel(),
+                 c_min * res * (1.0 - 1e-6), radius, retarget, len(offsets) // 2],
+                offsets,
             ]
         ).astype(float)  # fmt: skip
         _rra_start(_goal_cells(grid, goal, goal_tolerance), self.f, self.i, self.p, self.size)
@@ -295,6 +289,16 @@ class LazyCostToGo:
     def settled(self) -> int:
         """How many cells have been closed so far."""
         return int(np.count_nonzero(self.i[0] == -2))
+
+
+@functools.lru_cache(maxsize=16)
+def _scan_offsets(radius: int, res: float, depth: float) -> tuple[float, ...]:
+    """Cell offsets ``(di, dj)`` (flattened) whose centre lies within ``depth``, nearest first."""
+    di, dj = np.mgrid[-radius : radius + 1, -radius : radius + 1]
+    di, dj = di.ravel(), dj.ravel()
+    within = np.sqrt((di * di + dj * dj).astype(float)) * res <= depth
+    order = np.argsort((di * di + dj * dj)[within], kind="stable")
+    return tuple(np.column_stack([di[within][order], dj[within][order]]).ravel().tolist())
 
 
 @numba.njit(cache=True)

@@ -247,6 +247,7 @@ class LazyCostToGo:
         impassable_depth: float = math.inf,
         deep_cost: float = 30.0,
         retarget_cells: int | None = 4,
+        retarget_ratio: float = 1.0,
     ) -> None:
         nx, ny = grid.shape
         n = nx * ny
@@ -263,7 +264,7 @@ class LazyCostToGo:
             self.f[2] = _cell_costs(grid, obstacle_cost, impassable_depth, deep_cost).ravel()
             radius = -1
         self.i = np.full((2, n), -1, np.int64)  # heap position (-2 closed), heap cells
-        self.size = np.zeros(1, np.int64)
+        self.size = np.zeros(2, np.int64)  # heap size, cells closed since the last retarget
         ti = min(max(int((toward[0] - grid.origin[0]) / res), 0), nx - 1)
         tj = min(max(int((toward[1] - grid.origin[1]) / res), 0), ny - 1)
         c_min = min(1.0, obstacle_cost, deep_cost)
@@ -271,11 +272,12 @@ class LazyCostToGo:
         # the cell offsets within impassable_depth, nearest first (the deep-obstacle scan)
         offsets = _scan_offsets(radius, res, impassable_depth) if radius >= 0 else ()
         # nx, ny, res, obstacle_cost, depth, deep_cost, target i, j, heuristic scale,
-        # scan radius (-1: none), retarget distance, offset count, then the offsets
+        # scan radius (-1: none), retarget distance, rebuild ratio, offset count, offsets
         self.p = np.concatenate(
             [
                 [nx, ny, res, obstacle_cost, impassable_depth, deep_cost, ti, tj,
-                 c_min * res * (1.0 - 1e-6), radius, retarget, len(offsets) // 2],
+                 c_min * res * (1.0 - 1e-6), radius, retarget, retarget_ratio,
+                 len(offsets) // 2],
                 offsets,
             ]
         ).astype(float)  # fmt: skip
@@ -322,9 +324,9 @@ def _rra_cost(c, f, occ, p):
                 nx, ny = int(p[0]), int(p[1])
                 i, j = c // ny, c % ny
                 deep = True
-                for k in range(int(p[11])):  # nearest first: stops at the first free cell
-                    a = i + int(p[12 + 2 * k])
-                    b = j + int(p[13 + 2 * k])
+                for k in range(int(p[12])):  # nearest first: stops at the first free cell
+                    a = i + int(p[13 + 2 * k])
+                    b = j + int(p[14 + 2 * k])
                     if 0 <= a < nx and 0 <= b < ny and not occ[a * ny + b]:
                         deep = False
                         break
@@ -384,8 +386,13 @@ def _rra_value(c, f, i, occ, p, size):
     diag = math.sqrt(2.0) * res
     n = size[0]
     ti, tj = c // ny, c % ny
-    if n > 0 and max(abs(ti - int(p[6])), abs(tj - int(p[7]))) > int(p[10]):
+    # retarget when the query is far from the target and the heap rebuild is small or
+    # costs no more than the cells closed since the last one (rebuilds stay a fraction of
+    # the work on large maps)
+    far = max(abs(ti - int(p[6])), abs(tj - int(p[7]))) > int(p[10])
+    if n > 0 and far and (n <= 2048 or n <= p[11] * size[1]):
         _rra_retarget(ti, tj, f, i, p, n)
+        size[1] = 0
     ti, tj = int(p[6]), int(p[7])
     scale = p[8]
     sqrt2 = math.sqrt(2.0)
@@ -393,6 +400,7 @@ def _rra_value(c, f, i, occ, p, size):
         u = hc[0]
         pos[u] = -2
         n -= 1
+        size[1] += 1
         if n > 0:
             ld, lc = hd[n], hc[n]
             k = 0

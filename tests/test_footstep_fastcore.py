@@ -282,3 +282,24 @@ def test_lazy_cost_to_go_equals_the_full_dijkstra_bit_for_bit():
     assert lazy.value(1 * 50 + 0) == pytest.approx(0.1)
     assert lazy.settled < 10
     assert lazy.value(49 * 50 + 49) == pytest.approx(49 * 0.1 * np.sqrt(2.0))
+
+
+def test_numba_cache_directory_is_writable_for_every_compiled_function():
+    import os
+
+    import numba.core.registry
+    from repertoire.planning.footstep import fastcore, footprint, heuristic
+
+    fastcore.warm_up()
+    compiled = [
+        obj
+        for mod in (fastcore, footprint, heuristic)
+        for obj in vars(mod).values()
+        if isinstance(obj, numba.core.registry.CPUDispatcher)
+    ]
+    assert len(compiled) >= 15
+    for fn in compiled:
+        assert fn._cache._cache_path, fn.__name__  # cache=True: a cache locator was found
+        assert os.access(fn._cache._cache_path, os.W_OK), (fn.__name__, fn._cache._cache_path)
+    # the search core ran in this process: compiled here or loaded from that cache
+    assert fastcore._arastar.signatures

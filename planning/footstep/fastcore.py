@@ -132,18 +132,29 @@ def _grow(a):
 
 
 @numba.njit(cache=True)
-def _foot_free(x, y, th, grid, chk, occ, free, outer_off, outer_di, outer_dj, outer_ptr):
-    """The margin checker's answer: foot at (x, y, th) overlaps no occupied cell."""
+def _foot_free(x, y, th, grid, chk, occw, free, mbits, mrows):
+    """The margin checker's answer: foot at (x, y, th) overlaps no occupied cell.
+
+    As :meth:`~repertoire.planning.footstep.footprint.FootprintChecker.is_free`: the
+    surely-free shortcut, then per mask row a 64-bit window of the padded occupancy against
+    the row's inner cells (overlapped for sure) and ring cells (exact separating axes).
+    """
     ox, oy, inv_res = grid[0], grid[1], grid[2]
     fx = (x - ox) * inv_res
     fy = (y - oy) * inv_res
     ix = int(fx)
     iy = int(fy)
     pad, nyp = int(chk[0]), int(chk[1])
-    base = (ix + pad) * nyp + iy + pad
-    if free[base]:
+    if free[(ix + pad) * nyp + iy + pad]:
         return True
-    sub, nb, yaw_scale, hl, hw = int(chk[2]), int(chk[3]), chk[4], chk[5], chk[6]
+    sub, nb, yaw_scale, hl, hw, big_r = (
+        int(chk[2]),
+        int(chk[3]),
+        chk[4],
+        chk[5],
+        chk[6],
+        int(chk[7]),
+    )
     fx -= ix
     fy -= iy
     qx = int(fx * sub)
@@ -153,29 +164,42 @@ def _foot_free(x, y, th, grid, chk, occ, free, outer_off, outer_di, outer_dj, ou
     if qy >= sub:
         qy = sub - 1
     m = ((int(th * yaw_scale + nb + 0.5) % nb) * sub + qx) * sub + qy
-    c, s = math.cos(th), math.sin(th)
-    ext_x = (hl * abs(c) + hw * abs(s)) * inv_res + 0.5
-    ext_y = (hl * abs(s) + hw * abs(c)) * inv_res + 0.5
-    cell_u = 0.5 * (abs(c) + abs(s))
-    lim_u = hl * inv_res + cell_u
-    lim_v = hw * inv_res + cell_u
-    eps = 1e-9
-    if occ[base]:  # the sole centre lies in this cell: they overlap with positive area
-        return False
-    for k in range(outer_ptr[m, 0], outer_ptr[m, 1]):  # inner cells: overlapped for sure
-        if occ[base + outer_off[k]]:
+    col = iy + pad - big_r  # bit of the mask's column offset -R
+    q = col >> 6
+    sh = np.uint64(col & 63)
+    back = np.uint64(64 - (col & 63))
+    one = np.uint64(1)
+    exact = False
+    c = s = ext_x = ext_y = lim_u = lim_v = 0.0
+    for r in range(mrows[m, 0], mrows[m, 1]):
+        row = ix + pad + r - big_r
+        word = occw[row, q] >> sh
+        if sh:
+            word |= occw[row, q + 1] << back
+        if word & mbits[m, r, 0]:  # an inner cell is occupied
             return False
-    for k in range(outer_ptr[m, 1], outer_ptr[m, 2]):  # ring cells: exact test
-        if occ[base + outer_off[k]]:
-            dx = outer_di[k] + 0.5 - fx
-            dy = outer_dj[k] + 0.5 - fy
-            if (
-                abs(dx) < ext_x - eps
-                and abs(dy) < ext_y - eps
-                and abs(dx * c + dy * s) < lim_u - eps
-                and abs(-dx * s + dy * c) < lim_v - eps
-            ):
-                return False
+        hit = word & mbits[m, r, 1]
+        if hit:
+            if not exact:
+                exact = True
+                c, s = math.cos(th), math.sin(th)
+                ext_x = (hl * abs(c) + hw * abs(s)) * inv_res + 0.5
+                ext_y = (hl * abs(s) + hw * abs(c)) * inv_res + 0.5
+                cell_u = 0.5 * (abs(c) + abs(s))
+                lim_u = hl * inv_res + cell_u
+                lim_v = hw * inv_res + cell_u
+            dx = r - big_r + 0.5 - fx
+            for jj in range(2 * big_r + 1):
+                if (hit >> np.uint64(jj)) & one:
+                    dy = jj - big_r + 0.5 - fy
+                    eps = 1e-9
+                    if (
+                        abs(dx) < ext_x - eps
+                        and abs(dy) < ext_y - eps
+                        and abs(dx * c + dy * s) < lim_u - eps
+                        and abs(-dx * s + dy * c) < lim_v - eps
+                    ):
+                        return False
     return True
 
 
@@ -241,12 +265,10 @@ def _arastar(
     hp,
     hcount,
     chk,  # pad, nyp, sub, yaw_bins, yaw_scale, hl, hw
-    occ,
+    occw,
     free,
-    outer_off,
-    outer_di,
-    outer_dj,
-    outer_ptr,
+    mbits,
+    mrows,
     ex,  # exact checker: pad, nyp, sub, yaw_bins, yaw_scale
     heights,
     ex_off,
@@ -413,9 +435,7 @@ def _arastar(
                 fy = (y2 - oy) * inv_res
                 if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                     continue
-                if not _foot_free(
-                    x2, y2, th2, grid, chk, occ, free, outer_off, outer_di, outer_dj, outer_ptr
-                ):
+                if not _foot_free(x2, y2, th2, grid, chk, occw, free, mbits, mrows):
                     continue
                 if flat_limit < np.inf and (
                     _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
@@ -553,6 +573,48 @@ def _mask_arrays(masks, nyp: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     return di_all * nyp + dj_all, di_all, dj_all, ptr
 
 
+def _occupancy_words(chk) -> np.ndarray:
+    """The padded occupancy, bit j of row i at bit ``j % 64`` of word ``j // 64``.
+
+    One spare word per row lets a 64-bit window start at any bit.
+    """
+    nxp, nyp = chk._occ.shape
+    packed = np.packbits(chk._occ, axis=1, bitorder="little")
+    words = np.zeros((nxp, (nyp + 63) // 64 + 1), np.uint64)
+    words.view(np.uint8)[:, : packed.shape[1]] = packed
+    return words
+
+
+_BITS_CACHE: dict[int, tuple] = {}
+
+
+def _cached_mask_bits(masks) -> tuple[np.ndarray, np.ndarray]:
+    """Per mask and row ``di + R``: the inner and ring cells as bits ``dj + R``; row ranges."""
+    hit = _BITS_CACHE.get(id(masks))
+    if hit is not None and hit[0] is masks:
+        return hit[1], hit[2]
+    big_r = masks.radius_cells
+    if 2 * big_r + 1 > 64:
+        raise ValueError(f"footprint masks {2 * big_r + 1} cells wide exceed a 64-bit window")
+    n = len(masks.inner)
+    bits = np.zeros((n, 2 * big_r + 1, 2), np.uint64)
+    rows = np.zeros((n, 2), np.int64)
+    for m in range(n):
+        for k, part in ((0, masks.inner[m]), (1, masks.ring[m])):
+            di, dj = part
+            np.bitwise_or.at(
+                bits[m, :, k],
+                np.asarray(di, np.int64) + big_r,
+                np.left_shift(np.uint64(1), (np.asarray(dj, np.int64) + big_r).astype(np.uint64)),
+            )
+        used = np.flatnonzero(bits[m].any(axis=1))
+        rows[m] = (used[0], used[-1] + 1) if used.size else (0, 0)
+    if len(_BITS_CACHE) > 16:
+        _BITS_CACHE.clear()
+    _BITS_CACHE[id(masks)] = (masks, bits, rows)
+    return bits, rows
+
+
 def _masks_key(chk) -> tuple:
     return (id(chk.masks), chk.nyp)
 
@@ -586,7 +648,7 @@ def compiled_tables(model: BipedStepModel) -> dict:
     ox, oy = model.origin
     nx, ny = ref.shape
     gx, gy = model.goal
-    off, di, dj, optr = _cached_masks(chk)
+    mbits, mrows = _cached_mask_bits(chk.masks)
     ex_off, _, _, ex_ptr = _cached_masks(exact)
     mk, emk = chk.masks, exact.masks
     heights = exact.heights_flat if exact.heights_flat is not None else np.zeros(1)
@@ -619,14 +681,22 @@ def compiled_tables(model: BipedStepModel) -> dict:
         ),
         **_lazy_arrays(model.h_lazy),
         "chk": np.array(
-            [chk.pad, chk.nyp, mk.sub, mk.yaw_bins, mk.yaw_scale, mk.half[0], mk.half[1]], float
+            [
+                chk.pad,
+                chk.nyp,
+                mk.sub,
+                mk.yaw_bins,
+                mk.yaw_scale,
+                mk.half[0],
+                mk.half[1],
+                mk.radius_cells,
+            ],
+            float,
         ),
-        "occ": chk.occ_flat.astype(np.uint8),
+        "occw": _occupancy_words(chk),
         "free": np.frombuffer(chk.free_bytes, np.uint8),
-        "outer_off": off,
-        "outer_di": di,
-        "outer_dj": dj,
-        "outer_ptr": optr,
+        "mbits": mbits,
+        "mrows": mrows,
         "ex": np.array([exact.pad, exact.nyp, emk.sub, emk.yaw_bins, emk.yaw_scale], float),
         "heights": np.asarray(heights, float),
         "ex_off": ex_off,

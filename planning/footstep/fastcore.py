@@ -452,10 +452,10 @@ def _arastar(
                 lazy = -1
                 if use_cells:
                     cell = int(fx) * ny + int(fy)
-                    if hi[0, cell] == -2 or hcount[0] == 0:  # settled (or unreachable)
+                    if hf[cell, 2] == -2.0 or hcount[0] == 0:  # settled (or unreachable)
                         h2 = _rra_value(cell, hf, hi, hocc, hp, hcount) * cost_per_m
                     else:  # a lower bound now, the exact value when popped
-                        f_min = hf[1, 0]
+                        f_min = hi[0, 0]
                         lb = f_min - _rra_h(cell, hp) - 1e-9 * (1.0 + abs(f_min))
                         # every path to the goal region is at least as long as the straight line
                         cx = ox + ((cell // ny) + 0.5) * res
@@ -634,8 +634,7 @@ def _cached_masks(chk) -> tuple:
 
 def _lazy_arrays(lazy) -> dict:
     if lazy is None:
-        none = np.zeros((0, 0))
-        return {"hf": none, "hi": np.zeros((0, 0), np.int64), "hocc": np.zeros(0, np.uint8),
+        return {"hf": np.zeros((0, 3)), "hi": np.zeros((0, 2)), "hocc": np.zeros(0, np.uint8),
                 "hp": np.zeros(0), "hcount": np.zeros(1, np.int64)}  # fmt: skip
     return {"hf": lazy.f, "hi": lazy.i, "hocc": lazy.occ, "hp": lazy.p, "hcount": lazy.size}
 

@@ -253,17 +253,20 @@ class LazyCostToGo:
         n = nx * ny
         res = grid.resolution
         self.occ = np.ascontiguousarray(grid.occupied, dtype=np.uint8).ravel()
-        self.f = np.empty((3, n))  # distance, heap key (f = distance + octile), cell cost
-        self.f[0] = np.inf
+        # per cell: distance, cost, heap position (-1 not reached, -2 closed), as floats so
+        # one cell's fields share a cache line; the heap rows are (key, cell)
+        self.f = np.empty((n, 3))
+        self.f[:, 0] = np.inf
+        self.f[:, 2] = -1.0
         radius = -1  # no deep-obstacle test
         if math.isfinite(impassable_depth) and grid.occupied.any():
             radius = int(impassable_depth / res) + 1
         if 0 <= impassable_depth and radius <= 8:
-            self.f[2] = np.nan  # computed on demand
+            self.f[:, 1] = np.nan  # computed on demand
         else:  # a wide scan per cell would cost more than the distance transform
-            self.f[2] = _cell_costs(grid, obstacle_cost, impassable_depth, deep_cost).ravel()
+            self.f[:, 1] = _cell_costs(grid, obstacle_cost, impassable_depth, deep_cost).ravel()
             radius = -1
-        self.i = np.full((2, n), -1, np.int64)  # heap position (-2 closed), heap cells
+        self.i = np.empty((n, 2))  # the heap: (f = distance + octile, cell)
         self.size = np.zeros(2, np.int64)  # heap size, cells closed since the last retarget
         ti = min(max(int((toward[0] - grid.origin[0]) / res), 0), nx - 1)
         tj = min(max(int((toward[1] - grid.origin[1]) / res), 0), ny - 1)
@@ -290,7 +293,7 @@ class LazyCostToGo:
     @property
     def settled(self) -> int:
         """How many cells have been closed so far."""
-        return int(np.count_nonzero(self.i[0] == -2))
+        return int(np.count_nonzero(self.f[:, 2] == -2.0))
 
 
 @functools.lru_cache(maxsize=16)
@@ -313,7 +316,7 @@ def _rra_h(c, p):
 
 @numba.njit(cache=True)
 def _rra_cost(c, f, occ, p):
-    v = f[2, c]
+    v = f[c, 1]
     if v != v:  # not computed yet
         if not occ[c]:
             v = 1.0
@@ -332,56 +335,70 @@ def _rra_cost(c, f, occ, p):
                         break
                 if deep:
                     v = p[5]
-        f[2, c] = v
+        f[c, 1] = v
     return v
 
 
 @numba.njit(cache=True)
-def _rra_retarget(ti, tj, f, i, p, n):
+def _rra_sift_up(f, heap, k, key, c):
+    while k > 0:
+        up = (k - 1) >> 1
+        if heap[up, 0] <= key:
+            break
+        heap[k, 0], heap[k, 1] = heap[up, 0], heap[up, 1]
+        f[int(heap[k, 1]), 2] = k
+        k = up
+    heap[k, 0], heap[k, 1] = key, c
+    f[c, 2] = k
+
+
+@numba.njit(cache=True)
+def _rra_sift_down(f, heap, k, n, key, c):
+    while True:
+        ch = 2 * k + 1
+        if ch >= n:
+            break
+        if ch + 1 < n and heap[ch + 1, 0] < heap[ch, 0]:
+            ch += 1
+        if heap[ch, 0] < key:
+            heap[k, 0], heap[k, 1] = heap[ch, 0], heap[ch, 1]
+            f[int(heap[k, 1]), 2] = k
+            k = ch
+        else:
+            break
+    heap[k, 0], heap[k, 1] = key, c
+    f[c, 2] = k
+
+
+@numba.njit(cache=True)
+def _rra_retarget(ti, tj, f, heap, p, n):
     """Head the search for cell (ti, tj): new keys for the open cells, heap rebuilt.
 
     Closed cells stay final (they were closed under a consistent heuristic), so any target
     gives the same values; the nearest one closes the fewest cells.
     """
     p[6], p[7] = ti, tj
-    hd, hc, pos, dist = f[1], i[1], i[0], f[0]
     for k in range(n):
-        hd[k] = dist[hc[k]] + _rra_h(hc[k], p)
-    for k0 in range(n // 2 - 1, -1, -1):
-        k = k0
-        d, c = hd[k], hc[k]
-        while True:
-            ch = 2 * k + 1
-            if ch >= n:
-                break
-            if ch + 1 < n and hd[ch + 1] < hd[ch]:
-                ch += 1
-            if hd[ch] < d:
-                hd[k], hc[k] = hd[ch], hc[ch]
-                k = ch
-            else:
-                break
-        hd[k], hc[k] = d, c
-    for k in range(n):
-        pos[hc[k]] = k
+        c = int(heap[k, 1])
+        heap[k, 0] = f[c, 0] + _rra_h(c, p)
+    for k in range(n // 2 - 1, -1, -1):
+        _rra_sift_down(f, heap, k, n, heap[k, 0], int(heap[k, 1]))
 
 
 @numba.njit(cache=True)
-def _rra_start(sources, f, i, p, size):
+def _rra_start(sources, f, heap, p, size):
     for s in sources:
-        if i[0, s] == -1:
-            f[0, s] = 0.0
-            _sift_up(f[1], i[1], i[0], size[0], _rra_h(s, p), s)
+        if f[s, 2] == -1.0:
+            f[s, 0] = 0.0
+            _rra_sift_up(f, heap, size[0], _rra_h(s, p), s)
             size[0] += 1
 
 
 @numba.njit(cache=True)
-def _rra_value(c, f, i, occ, p, size):
+def _rra_value(c, f, heap, occ, p, size):
     """Resume the backward A* until cell ``c`` is closed; its distance (inf: unreachable)."""
-    pos = i[0]
-    if pos[c] == -2:
-        return f[0, c]
-    hd, hc, dist = f[1], i[1], f[0]
+    if f[c, 2] == -2.0:
+        return f[c, 0]
     nx, ny, res = int(p[0]), int(p[1]), p[2]
     diag = math.sqrt(2.0) * res
     n = size[0]
@@ -391,36 +408,22 @@ def _rra_value(c, f, i, occ, p, size):
     # the work on large maps)
     far = max(abs(ti - int(p[6])), abs(tj - int(p[7]))) > int(p[10])
     if n > 0 and far and (n <= 2048 or n <= p[11] * size[1]):
-        _rra_retarget(ti, tj, f, i, p, n)
+        _rra_retarget(ti, tj, f, heap, p, n)
         size[1] = 0
     ti, tj = int(p[6]), int(p[7])
     scale = p[8]
     sqrt2 = math.sqrt(2.0)
+    closed = 0
     while n > 0:
-        u = hc[0]
-        pos[u] = -2
+        u = int(heap[0, 1])
+        f[u, 2] = -2.0
         n -= 1
-        size[1] += 1
+        closed += 1
         if n > 0:
-            ld, lc = hd[n], hc[n]
-            k = 0
-            while True:
-                ch = 2 * k + 1
-                if ch >= n:
-                    break
-                if ch + 1 < n and hd[ch + 1] < hd[ch]:
-                    ch += 1
-                if hd[ch] < ld:
-                    hd[k], hc[k] = hd[ch], hc[ch]
-                    pos[hc[k]] = k
-                    k = ch
-                else:
-                    break
-            hd[k], hc[k] = ld, lc
-            pos[lc] = k
-        d = dist[u]
+            _rra_sift_down(f, heap, 0, n, heap[n, 0], int(heap[n, 1]))
+        d = f[u, 0]
         iu, ju = u // ny, u % ny
-        cu = f[2, u]
+        cu = f[u, 1]
         if cu != cu:
             cu = _rra_cost(u, f, occ, p)
         for di in range(-1, 2):
@@ -433,23 +436,25 @@ def _rra_value(c, f, i, occ, p, size):
                 if b < 0 or b >= ny or (di == 0 and dj == 0):
                     continue
                 nb = a * ny + b
-                if pos[nb] == -2:
+                where = f[nb, 2]
+                if where == -2.0:
                     continue
-                cn = f[2, nb]
+                cn = f[nb, 1]
                 if cn != cn:
                     cn = _rra_cost(nb, f, occ, p)
                 step = diag if di != 0 and dj != 0 else res
                 nd = d + 0.5 * (cu + cn) * step
-                if nd < dist[nb]:
-                    dist[nb] = nd
+                if nd < f[nb, 0]:
+                    f[nb, 0] = nd
                     hy = abs(b - tj)
                     key = nd + ((max(hx, hy) - min(hx, hy)) + sqrt2 * min(hx, hy)) * scale
-                    if pos[nb] == -1:
-                        _sift_up(hd, hc, pos, n, key, nb)
+                    if where == -1.0:
+                        _rra_sift_up(f, heap, n, key, nb)
                         n += 1
                     else:
-                        _sift_up(hd, hc, pos, pos[nb], key, nb)
+                        _rra_sift_up(f, heap, int(where), key, nb)
         if u == c:
             break
     size[0] = n
-    return dist[c]
+    size[1] += closed
+    return f[c, 0]

@@ -230,7 +230,7 @@ def _plan_before(commit: str, maps: int) -> list[list]:
     import sys
     import tempfile
 
-    root = pathlib.Path(__file__).resolve().parents[2]
+    root = pathlib.Path.cwd()  # run from the repository (a snapshot of it may run the bench)
     with tempfile.TemporaryDirectory() as tmp:
         src, pkg = pathlib.Path(tmp, "src"), pathlib.Path(tmp, "pkg", "repertoire")
         src.mkdir()

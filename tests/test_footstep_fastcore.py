@@ -89,14 +89,14 @@ def test_compiled_heap_pops_in_tuple_order():
     n = 500
     f = rng.integers(0, 20, n).astype(float)  # many ties on f, broken by h, then tie
     h = rng.integers(0, 5, n).astype(float)
-    heap = np.empty((n, 4))
+    heap = np.empty((n, 6))
     for k in range(n):
-        _heap_push(heap, k, f[k], h[k], k, 10 * k)
+        _heap_push(heap, k, f[k], h[k], k, 10 * k, 0.5 * k, -1)
     ref = [(f[k], h[k], k) for k in range(n)]
     heapq.heapify(ref)
     for size in range(n, 0, -1):
         want = heapq.heappop(ref)
-        assert tuple(heap[0]) == (*want, 10 * want[2])
+        assert tuple(heap[0]) == (*want, 10 * want[2], 0.5 * want[2], -1)
         _heap_pop(heap, size)
 
 
@@ -254,3 +254,52 @@ def test_anytime_refines_before_unreachable():
     runs = plan_footsteps_anytime(*args, PlannerOptions(time_limit=30.0), weights=(2.0, 1.0))
     assert [r.plan.status for r in runs] == [PlanStatus.SUCCESS] * 2
     assert runs[-1].plan.xy_resolution == 0.025 and runs[-1].bound == 1.0
+
+
+def test_lazy_cost_to_go_equals_the_full_dijkstra_bit_for_bit():
+    from repertoire.planning.footstep.heuristic import LazyCostToGo, dijkstra_cost_to_go
+
+    rng = np.random.default_rng(3)
+    for trial in range(40):
+        nx, ny = (int(v) for v in rng.integers(3, 30, 2))
+        res = float(rng.choice([0.01, 0.025, 0.1]))
+        grid = OccupancyGrid(rng.random((nx, ny)) < rng.uniform(0.0, 0.6), res, (-0.3, 0.2))
+        goal = (-0.3 + rng.uniform(0, nx * res), 0.2 + rng.uniform(0, ny * res))
+        toward = (-0.3 + rng.uniform(0, nx * res), 0.2 + rng.uniform(0, ny * res))
+        kw = {
+            "obstacle_cost": float(rng.choice([1.0, 3.0])),
+            "impassable_depth": float(rng.choice([np.inf, res, 2.5 * res, 20 * res])),
+            "deep_cost": 30.0,
+        }
+        full = dijkstra_cost_to_go(grid, goal, 0.1, **kw).ravel()
+        lazy = LazyCostToGo(grid, goal, 0.1, toward, retarget_cells=int(trial % 3), **kw)
+        order = rng.permutation(full.size)
+        got = np.array([lazy.value(int(c)) for c in order])
+        np.testing.assert_array_equal(got, full[order], err_msg=f"trial {trial}")
+    # open floor, goal cell in a corner, query the cell next to it: only a handful settle
+    grid = OccupancyGrid(np.zeros((50, 50), dtype=bool), 0.1)
+    lazy = LazyCostToGo(grid, (0.05, 0.05), 0.0, (0.15, 0.05))
+    assert lazy.value(1 * 50 + 0) == pytest.approx(0.1)
+    assert lazy.settled < 10
+    assert lazy.value(49 * 50 + 49) == pytest.approx(49 * 0.1 * np.sqrt(2.0))
+
+
+def test_numba_cache_directory_is_writable_for_every_compiled_function():
+    import os
+
+    import numba.core.registry
+    from repertoire.planning.footstep import fastcore, footprint, heuristic
+
+    fastcore.warm_up()
+    compiled = [
+        obj
+        for mod in (fastcore, footprint, heuristic)
+        for obj in vars(mod).values()
+        if isinstance(obj, numba.core.registry.CPUDispatcher)
+    ]
+    assert len(compiled) >= 15
+    for fn in compiled:
+        assert fn._cache._cache_path, fn.__name__  # cache=True: a cache locator was found
+        assert os.access(fn._cache._cache_path, os.W_OK), (fn.__name__, fn._cache._cache_path)
+    # the search core ran in this process: compiled here or loaded from that cache
+    assert fastcore._arastar.signatures

@@ -27,10 +27,9 @@ from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry, appl
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
 from repertoire.planning.footstep.footprint import (
     FootprintChecker,
-    edge_distance,
     footprint_masks,
 )
-from repertoire.planning.footstep.heuristic import dijkstra_cost_to_go
+from repertoire.planning.footstep.heuristic import LazyCostToGo
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -109,18 +108,31 @@ def history_classes(table: ActionTable) -> np.ndarray:
         cls = new
 
 
-_HIST_CACHE: dict[bytes, np.ndarray] = {}
+_TABLE_CACHE: dict[bytes, dict] = {}
 
 
-def _cached_history_classes(table: ActionTable) -> np.ndarray:
-    """:func:`history_classes`, remembered per table content (a few tables per process)."""
-    key = table.displacement.tobytes() + table.duration.tobytes()
-    cls = _HIST_CACHE.get(key)
-    if cls is None:
-        if len(_HIST_CACHE) >= 8:
-            _HIST_CACHE.clear()
-        cls = _HIST_CACHE[key] = history_classes(table)
-    return cls.copy()
+def _table_entry(table: ActionTable) -> dict:
+    """Work that depends on the table's content only, remembered for a few tables.
+
+    The table is validated the first time its content is seen; the entry then holds its
+    history classes (``"hist"``) and, once built, its successor rows without an action
+    filter (``"succ"``).
+    """
+    meta = repr((table.actions, table.rest_action, sorted(table.mirror.items())))
+    shapes = repr((table.displacement.shape, table.duration.shape, table.step_cost.shape))
+    key = (
+        table.displacement.tobytes()
+        + table.duration.tobytes()
+        + table.step_cost.tobytes()
+        + (meta + shapes).encode()
+    )
+    entry = _TABLE_CACHE.get(key)
+    if entry is None:
+        table.validate()
+        if len(_TABLE_CACHE) >= 8:
+            _TABLE_CACHE.clear()
+        entry = _TABLE_CACHE[key] = {"hist": history_classes(table)}
+    return entry
 
 
 def pose3(p: Sequence[float], name: str) -> tuple[float, float, float]:
@@ -141,8 +153,7 @@ class Checkers:
 
     In a dynamic world the checker of time index k sees every cell occupied while the foot
     stands (the hold time after k), with the tallest height over that window. The foot
-    rectangle is inflated by ``margin`` (m) on every side; ``distance`` is the
-    static grid's :func:`~repertoire.planning.footstep.footprint.edge_distance` when known.
+    rectangle is inflated by ``margin`` (m) on every side.
     """
 
     def __init__(
@@ -151,7 +162,6 @@ class Checkers:
         geometry: BipedGeometry,
         hold: float,
         margin: float = 0.0,
-        distance: np.ndarray | None = None,
     ) -> None:
         self.world = world
         grid0 = world if isinstance(world, OccupancyGrid) else world.reference
@@ -164,7 +174,7 @@ class Checkers:
         self._cache: dict[int, FootprintChecker] = {}
         self.static = isinstance(world, OccupancyGrid)
         if self.static:
-            self._cache[0] = FootprintChecker(world, self.masks, distance)
+            self._cache[0] = FootprintChecker(world, self.masks)
 
     def index(self, t: float) -> int:
         """Time index of ``t``, or -1 when no grid is near (always 0 in static worlds)."""
@@ -260,7 +270,7 @@ class BipedStepModel:
     ) -> None:
         if not isinstance(table, ActionTable):
             raise FootstepError(f"table must be an ActionTable, got {type(table).__name__}")
-        table.validate()
+        self._table_entry = _table_entry(table)  # validates a table not seen before
         if not isinstance(world, (OccupancyGrid, DynamicEnvironment)):
             raise FootstepError(
                 f"world must be an OccupancyGrid or DynamicEnvironment, got {type(world).__name__}"
@@ -301,15 +311,12 @@ class BipedStepModel:
         self.start_time = float(start_time)
 
         hold = float(table.duration.max())
-        dist = None if dynamic else edge_distance(world)
-        self.checkers = Checkers(world, geometry, hold, opts.footprint_margin_m, dist)
+        self.checkers = Checkers(world, geometry, hold, opts.footprint_margin_m)
         self.k0 = self.checkers.index(start_time)
         # the start feet already stand: checked exactly, without the margin; the height
         # cost is also measured under the exact footprint (heights are the same at all t)
         exact = (
-            Checkers(world, geometry, hold, 0.0, dist)
-            if opts.footprint_margin_m > 0
-            else self.checkers
+            Checkers(world, geometry, hold, 0.0) if opts.footprint_margin_m > 0 else self.checkers
         )
         self.exact_checkers = exact
         self._tall_cache: dict[int, np.ndarray | None] = {}
@@ -370,28 +377,40 @@ class BipedStepModel:
         self.tol = tol = opts.goal_tolerance
         max_forward = float(np.max(table.displacement[..., 0]))
         c_min = float(table.step_cost.min())
-        self.h_cells: np.ndarray | None = None
+        self.h_lazy: LazyCostToGo | None = None
         if opts.heuristic == "dijkstra":
             self.cost_per_m = c_min / max(max_forward, 1e-3)
             depth = opts.step_over_depth
             if depth < 0:
                 depth = 0.5 * max(max_forward - self.geometry.foot_length, 0.0) + ref.resolution
-            dist = dijkstra_cost_to_go(
+            self.h_lazy = LazyCostToGo(
                 ref,
                 self.goal,
                 tol,
+                self.start_pose[:2],
                 obstacle_cost=opts.obstacle_cost,
                 impassable_depth=depth,
                 deep_cost=10.0 * opts.obstacle_cost,
             )
-            self.h_cells = dist * self.cost_per_m
         elif opts.heuristic == "euclidean":
             self.cost_per_m = c_min / max(table.max_reach(), 1e-3)
         else:
             self.cost_per_m = 0.0
-        self._h_flat: list[float] | None = None
 
     def _setup_successors(self, action_filter: ActionFilter | None) -> None:
+        entry = self._table_entry
+        if action_filter is None and "succ" in entry:
+            self.succ_ptr, self.succ_a, self.succ_f = entry["succ"]
+        else:
+            self._build_successors(action_filter)
+            if action_filter is None:
+                entry["succ"] = (self.succ_ptr, self.succ_a, self.succ_f)
+        self._succ_rows: list[tuple[Successor, ...]] | None = None
+        self.hist = entry["hist"]
+        self._hist_rows = self.hist.tolist()
+        self.n_hist = int(self.hist.max()) + 1
+
+    def _build_successors(self, action_filter: ActionFilter | None) -> None:
         table = self.table
         n, names = table.n, table.actions
         allowed = np.ones((n, n, 2, n), dtype=bool)
@@ -425,10 +444,6 @@ class BipedStepModel:
                 cost[allowed],
             ]
         ).astype(float)
-        self._succ_rows: list[tuple[Successor, ...]] | None = None
-        self.hist = _cached_history_classes(table)
-        self._hist_rows = self.hist.tolist()
-        self.n_hist = int(self.hist.max()) + 1
 
     def successor_rows(self, a_prev2: int, a_prev1: int, foot: int) -> tuple[Successor, ...]:
         """The actions F allows after ``(a_prev2, a_prev1)`` on ``foot``, with T's values."""
@@ -484,12 +499,11 @@ class BipedStepModel:
 
     def cost_to_go(self, x: float, y: float) -> float:
         """Heuristic at a point of the map (inf where the Dijkstra field says unreachable)."""
-        if self.h_cells is not None:
-            if self._h_flat is None:
-                self._h_flat = self.h_cells.ravel().tolist()
+        if self.h_lazy is not None:
             ox, oy = self.origin
             ny = self.ref.shape[1]
-            return self._h_flat[int((x - ox) * self.inv_res) * ny + int((y - oy) * self.inv_res)]
+            cell = int((x - ox) * self.inv_res) * ny + int((y - oy) * self.inv_res)
+            return self.h_lazy.value(cell) * self.cost_per_m
         gx, gy = self.goal
         return max(0.0, math.hypot(x - gx, y - gy) - self.tol) * self.cost_per_m
 

@@ -6,6 +6,12 @@ everything in arrays so that numba compiles it:
 
 - the open list is a binary heap of ``(f, h, tie, node)`` rows of one array,
   ordered exactly as the Python loop's ``heapq`` tuples (so both pop the same states);
+- the Dijkstra cost-to-go is the model's
+  :class:`~repertoire.planning.footstep.heuristic.LazyCostToGo` (values equal to the full
+  field, settled on demand); a successor whose cell is not settled yet enters the open list
+  with a lower bound of its value (the backward search's frontier key, the straight line
+  to the goal) and gets its exact value when it reaches the top, then is reinserted with
+  its own tie number, so states are expanded in exactly the Python loop's order;
 - duplicate detection is an open-addressing hash table from lattice keys (the model's
   :meth:`~repertoire.planning.footstep.biped_model.BipedStepModel.lattice_key`, computed
   here by the same formula) to node indices; nodes are named field arrays;
@@ -28,6 +34,7 @@ import time
 import numba
 import numpy as np
 from repertoire.planning.footstep.biped_model import BipedState, BipedStepModel
+from repertoire.planning.footstep.heuristic import _rra_h, _rra_value
 from repertoire.planning.footstep.search import SearchResult
 from repertoire.planning.footstep.types import PlanStatus
 
@@ -44,29 +51,31 @@ def _less(f1, h1, t1, f2, h2, t2):
 
 
 @numba.njit(cache=True)
-def _heap_push(heap, size, f, h, tie, node):
-    """Insert ``(f, h, tie, node)`` into a heap of ``size`` rows (one row per entry)."""
+def _heap_push(heap, size, f, h, tie, node, g, cell):
+    """Insert ``(f, h, tie, node, g, cell)`` into a heap of ``size`` rows.
+
+    Rows are ordered by ``(f, h, tie)``; ``cell`` >= 0 marks ``h`` as a lower bound of that
+    grid cell's cost-to-go (the exact value is computed when the row reaches the top).
+    """
     i = size
     while i > 0:
         p = (i - 1) >> 1
         if _less(f, h, tie, heap[p, 0], heap[p, 1], heap[p, 2]):
-            heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = (
-                heap[p, 0],
-                heap[p, 1],
-                heap[p, 2],
-                heap[p, 3],
-            )
+            for q in range(6):
+                heap[i, q] = heap[p, q]
             i = p
         else:
             break
-    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
+    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3], heap[i, 4], heap[i, 5] = (
+        f, h, tie, node, g, cell
+    )  # fmt: skip
 
 
 @numba.njit(cache=True)
 def _heap_pop(heap, size):
     """Remove the root of a heap of ``size`` rows (the caller read it first)."""
     size -= 1
-    f, h, tie, node = heap[size, 0], heap[size, 1], heap[size, 2], heap[size, 3]
+    f, h, tie = heap[size, 0], heap[size, 1], heap[size, 2]
     i = 0
     while True:
         c = 2 * i + 1
@@ -77,16 +86,14 @@ def _heap_pop(heap, size):
         ):
             c += 1
         if _less(heap[c, 0], heap[c, 1], heap[c, 2], f, h, tie):
-            heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = (
-                heap[c, 0],
-                heap[c, 1],
-                heap[c, 2],
-                heap[c, 3],
-            )
+            for q in range(6):
+                heap[i, q] = heap[c, q]
             i = c
         else:
             break
-    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
+    if i != size:
+        for q in range(6):
+            heap[i, q] = heap[size, q]
 
 
 @numba.njit(cache=True, inline="always")
@@ -125,18 +132,29 @@ def _grow(a):
 
 
 @numba.njit(cache=True)
-def _foot_free(x, y, th, grid, chk, occ, free, outer_off, outer_di, outer_dj, outer_ptr):
-    """The margin checker's answer: foot at (x, y, th) overlaps no occupied cell."""
+def _foot_free(x, y, th, grid, chk, occw, free, mbits, mrows):
+    """The margin checker's answer: foot at (x, y, th) overlaps no occupied cell.
+
+    As :meth:`~repertoire.planning.footstep.footprint.FootprintChecker.is_free`: the
+    surely-free shortcut, then per mask row a 64-bit window of the padded occupancy against
+    the row's inner cells (overlapped for sure) and ring cells (exact separating axes).
+    """
     ox, oy, inv_res = grid[0], grid[1], grid[2]
     fx = (x - ox) * inv_res
     fy = (y - oy) * inv_res
     ix = int(fx)
     iy = int(fy)
     pad, nyp = int(chk[0]), int(chk[1])
-    base = (ix + pad) * nyp + iy + pad
-    if free[base]:
+    if free[(ix + pad) * nyp + iy + pad]:
         return True
-    sub, nb, yaw_scale, hl, hw = int(chk[2]), int(chk[3]), chk[4], chk[5], chk[6]
+    sub, nb, yaw_scale, hl, hw, big_r = (
+        int(chk[2]),
+        int(chk[3]),
+        chk[4],
+        chk[5],
+        chk[6],
+        int(chk[7]),
+    )
     fx -= ix
     fy -= iy
     qx = int(fx * sub)
@@ -146,29 +164,42 @@ def _foot_free(x, y, th, grid, chk, occ, free, outer_off, outer_di, outer_dj, ou
     if qy >= sub:
         qy = sub - 1
     m = ((int(th * yaw_scale + nb + 0.5) % nb) * sub + qx) * sub + qy
-    c, s = math.cos(th), math.sin(th)
-    ext_x = (hl * abs(c) + hw * abs(s)) * inv_res + 0.5
-    ext_y = (hl * abs(s) + hw * abs(c)) * inv_res + 0.5
-    cell_u = 0.5 * (abs(c) + abs(s))
-    lim_u = hl * inv_res + cell_u
-    lim_v = hw * inv_res + cell_u
-    eps = 1e-9
-    if occ[base]:  # the sole centre lies in this cell: they overlap with positive area
-        return False
-    for k in range(outer_ptr[m, 0], outer_ptr[m, 1]):  # inner cells: overlapped for sure
-        if occ[base + outer_off[k]]:
+    col = iy + pad - big_r  # bit of the mask's column offset -R
+    q = col >> 6
+    sh = np.uint64(col & 63)
+    back = np.uint64(64 - (col & 63))
+    one = np.uint64(1)
+    exact = False
+    c = s = ext_x = ext_y = lim_u = lim_v = 0.0
+    for r in range(mrows[m, 0], mrows[m, 1]):
+        row = ix + pad + r - big_r
+        word = occw[row, q] >> sh
+        if sh:
+            word |= occw[row, q + 1] << back
+        if word & mbits[m, r, 0]:  # an inner cell is occupied
             return False
-    for k in range(outer_ptr[m, 1], outer_ptr[m, 2]):  # ring cells: exact test
-        if occ[base + outer_off[k]]:
-            dx = outer_di[k] + 0.5 - fx
-            dy = outer_dj[k] + 0.5 - fy
-            if (
-                abs(dx) < ext_x - eps
-                and abs(dy) < ext_y - eps
-                and abs(dx * c + dy * s) < lim_u - eps
-                and abs(-dx * s + dy * c) < lim_v - eps
-            ):
-                return False
+        hit = word & mbits[m, r, 1]
+        if hit:
+            if not exact:
+                exact = True
+                c, s = math.cos(th), math.sin(th)
+                ext_x = (hl * abs(c) + hw * abs(s)) * inv_res + 0.5
+                ext_y = (hl * abs(s) + hw * abs(c)) * inv_res + 0.5
+                cell_u = 0.5 * (abs(c) + abs(s))
+                lim_u = hl * inv_res + cell_u
+                lim_v = hw * inv_res + cell_u
+            dx = r - big_r + 0.5 - fx
+            for jj in range(2 * big_r + 1):
+                if (hit >> np.uint64(jj)) & one:
+                    dy = jj - big_r + 0.5 - fy
+                    eps = 1e-9
+                    if (
+                        abs(dx) < ext_x - eps
+                        and abs(dy) < ext_y - eps
+                        and abs(dx * c + dy * s) < lim_u - eps
+                        and abs(-dx * s + dy * c) < lim_v - eps
+                    ):
+                        return False
     return True
 
 
@@ -228,14 +259,16 @@ def _arastar(
     hist,
     lat,  # ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist
     grid,  # ox, oy, inv_res, nx, ny, gx, gy, tol, cost_per_m, flat_limit, height_w, up, down
-    h_cells,  # flat (nx*ny) Dijkstra field, or empty for the Euclidean heuristic
+    hf,  # the LazyCostToGo's arrays (f, i, occ, p, size), or empty for Euclidean
+    hi,
+    hocc,
+    hp,
+    hcount,
     chk,  # pad, nyp, sub, yaw_bins, yaw_scale, hl, hw
-    occ,
+    occw,
     free,
-    outer_off,
-    outer_di,
-    outer_dj,
-    outer_ptr,
+    mbits,
+    mrows,
     ex,  # exact checker: pad, nyp, sub, yaw_bins, yaw_scale
     heights,
     ex_off,
@@ -273,16 +306,18 @@ def _arastar(
     )
     step_up, step_down = grid[11], grid[12]
     step_limits = step_up < np.inf or step_down < np.inf
-    use_cells = h_cells.size > 0
+    use_cells = hp.size > 0
+    res = 1.0 / inv_res
+    h_radius = max(tol, res * 0.75) + 1e-9
+    h_cmin = hp[8] / res if use_cells else 0.0  # cheapest cost per metre, shrunk by 1e-6
     tol2 = tol * tol
     two_pi = 2.0 * math.pi
     cap = 1024
     fnode = np.empty((cap, 8))  # x, y, yaw, t, swing_x, swing_y, h, g
-    inode = np.zeros(
-        (cap, 7), np.int64
-    )  # foot, a_prev2, a_prev1, parent, expanded in, open, incons
+    # foot, a_prev2, a_prev1, parent, expanded in, open, incons, lazy cell (-1: h exact)
+    inode = np.zeros((cap, 8), np.int64)
     table = np.full((4096, 2), -1, np.int64)
-    heap = np.empty((1024, 4))
+    heap = np.empty((1024, 6))
 
     sx, sy, sth = start[0], start[1], start[2]
     f0, a20, a10 = int(start[3]), int(start[4]), int(start[5])
@@ -317,6 +352,7 @@ def _arastar(
         -1,
         1,
     )
+    inode[0, 7] = -1
     count = 1
     j = _slot(table, key0)
     table[j, 0] = key0
@@ -337,7 +373,10 @@ def _arastar(
             if inode[k, 5] or inode[k, 6]:
                 if hsize == heap.shape[0]:
                     heap = _grow_rows(heap)
-                _heap_push(heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize, k)
+                _heap_push(
+                    heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize, k,
+                    fnode[k, 7], inode[k, 7],
+                )  # fmt: skip
                 hsize += 1
                 inode[k, 5], inode[k, 6] = 1, 0
         tie = hsize
@@ -345,10 +384,25 @@ def _arastar(
         while hsize > 0:
             h = heap[0, 1]
             node = int(heap[0, 3])
+            lazy = int(heap[0, 5])
+            if lazy >= 0 and inode[node, 4] != it:  # a lower bound: the exact key, same tie
+                h = _rra_value(lazy, hf, hi, hocc, hp, hcount) * cost_per_m
+                gp, tp = heap[0, 4], heap[0, 2]
+                _heap_pop(heap, hsize)
+                if inode[node, 7] == lazy:
+                    fnode[node, 6], inode[node, 7] = h, -1
+                if h < np.inf:
+                    _heap_push(heap, hsize - 1, gp + w * h, h, tp, node, gp, -1)
+                else:
+                    hsize -= 1
+                continue
             _heap_pop(heap, hsize)
             hsize -= 1
             if inode[node, 4] == it:
                 continue
+            if inode[node, 7] >= 0:  # the node moved since this entry: its own h, exact
+                fnode[node, 6] = _rra_value(inode[node, 7], hf, hi, hocc, hp, hcount) * cost_per_m
+                inode[node, 7] = -1
             x, y, th, foot = fnode[node, 0], fnode[node, 1], fnode[node, 2], inode[node, 0]
             if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
                 status, end = 0, node
@@ -381,9 +435,7 @@ def _arastar(
                 fy = (y2 - oy) * inv_res
                 if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                     continue
-                if not _foot_free(
-                    x2, y2, th2, grid, chk, occ, free, outer_off, outer_di, outer_dj, outer_ptr
-                ):
+                if not _foot_free(x2, y2, th2, grid, chk, occw, free, mbits, mrows):
                     continue
                 if flat_limit < np.inf and (
                     _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
@@ -397,8 +449,20 @@ def _arastar(
                     tall, fnode[node, 4], fnode[node, 5], x2, y2, ox, oy, inv_res
                 ):
                     continue
+                lazy = -1
                 if use_cells:
-                    h2 = h_cells[int(fx) * ny + int(fy)]
+                    cell = int(fx) * ny + int(fy)
+                    if hf[cell, 2] == -2.0 or hcount[0] == 0:  # settled (or unreachable)
+                        h2 = _rra_value(cell, hf, hi, hocc, hp, hcount) * cost_per_m
+                    else:  # a lower bound now, the exact value when popped
+                        f_min = hi[0, 0]
+                        lb = f_min - _rra_h(cell, hp) - 1e-9 * (1.0 + abs(f_min))
+                        # every path to the goal region is at least as long as the straight line
+                        cx = ox + ((cell // ny) + 0.5) * res
+                        cy = oy + ((cell % ny) + 0.5) * res
+                        lb2 = (math.hypot(cx - gx, cy - gy) - h_radius) * h_cmin
+                        h2 = max(lb, lb2, 0.0) * cost_per_m
+                        lazy = cell
                 else:
                     h2 = max(0.0, math.hypot(x2 - gx, y2 - gy) - tol) * cost_per_m
                 if h2 == np.inf:
@@ -447,19 +511,24 @@ def _arastar(
                 )
                 fnode[idx, 4], fnode[idx, 5], fnode[idx, 6], fnode[idx, 7] = x, y, h2, g2
                 inode[idx, 0], inode[idx, 1], inode[idx, 2], inode[idx, 3] = nf, a1, a, node
+                inode[idx, 7] = lazy
                 if inode[idx, 6] == 0:
                     if hsize == heap.shape[0]:
                         heap = _grow_rows(heap)
-                    _heap_push(heap, hsize, g2 + w * h2, h2, tie, idx)
+                    _heap_push(heap, hsize, g2 + w * h2, h2, tie, idx, g2, lazy)
                     hsize += 1
                     tie += 1
         bound = w
         if status == 0:
             solution = end
             low = np.inf
-            for k in range(count):
+            for k in range(count):  # a lower bound above ``low`` needs no exact value
                 if (inode[k, 5] or inode[k, 6]) and fnode[k, 7] + fnode[k, 6] < low:
-                    low = fnode[k, 7] + fnode[k, 6]
+                    if inode[k, 7] >= 0:
+                        fnode[k, 6] = _rra_value(inode[k, 7], hf, hi, hocc, hp, hcount) * cost_per_m
+                        inode[k, 7] = -1
+                    if fnode[k, 7] + fnode[k, 6] < low:
+                        low = fnode[k, 7] + fnode[k, 6]
             if low == np.inf:
                 low = fnode[end, 7]
             bound = min(w, fnode[end, 7] / low) if low > 0 else w
@@ -504,6 +573,48 @@ def _mask_arrays(masks, nyp: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     return di_all * nyp + dj_all, di_all, dj_all, ptr
 
 
+def _occupancy_words(chk) -> np.ndarray:
+    """The padded occupancy, bit j of row i at bit ``j % 64`` of word ``j // 64``.
+
+    One spare word per row lets a 64-bit window start at any bit.
+    """
+    nxp, nyp = chk._occ.shape
+    packed = np.packbits(chk._occ, axis=1, bitorder="little")
+    words = np.zeros((nxp, (nyp + 63) // 64 + 1), np.uint64)
+    words.view(np.uint8)[:, : packed.shape[1]] = packed
+    return words
+
+
+_BITS_CACHE: dict[int, tuple] = {}
+
+
+def _cached_mask_bits(masks) -> tuple[np.ndarray, np.ndarray]:
+    """Per mask and row ``di + R``: the inner and ring cells as bits ``dj + R``; row ranges."""
+    hit = _BITS_CACHE.get(id(masks))
+    if hit is not None and hit[0] is masks:
+        return hit[1], hit[2]
+    big_r = masks.radius_cells
+    if 2 * big_r + 1 > 64:
+        raise ValueError(f"footprint masks {2 * big_r + 1} cells wide exceed a 64-bit window")
+    n = len(masks.inner)
+    bits = np.zeros((n, 2 * big_r + 1, 2), np.uint64)
+    rows = np.zeros((n, 2), np.int64)
+    for m in range(n):
+        for k, part in ((0, masks.inner[m]), (1, masks.ring[m])):
+            di, dj = part
+            np.bitwise_or.at(
+                bits[m, :, k],
+                np.asarray(di, np.int64) + big_r,
+                np.left_shift(np.uint64(1), (np.asarray(dj, np.int64) + big_r).astype(np.uint64)),
+            )
+        used = np.flatnonzero(bits[m].any(axis=1))
+        rows[m] = (used[0], used[-1] + 1) if used.size else (0, 0)
+    if len(_BITS_CACHE) > 16:
+        _BITS_CACHE.clear()
+    _BITS_CACHE[id(masks)] = (masks, bits, rows)
+    return bits, rows
+
+
 def _masks_key(chk) -> tuple:
     return (id(chk.masks), chk.nyp)
 
@@ -521,6 +632,13 @@ def _cached_masks(chk) -> tuple:
     return arrays[1:]
 
 
+def _lazy_arrays(lazy) -> dict:
+    if lazy is None:
+        return {"hf": np.zeros((0, 3)), "hi": np.zeros((0, 2)), "hocc": np.zeros(0, np.uint8),
+                "hp": np.zeros(0), "hcount": np.zeros(1, np.int64)}  # fmt: skip
+    return {"hf": lazy.f, "hi": lazy.i, "hocc": lazy.occ, "hp": lazy.p, "hcount": lazy.size}
+
+
 def compiled_tables(model: BipedStepModel) -> dict:
     """The model's search space as the arrays :func:`_astar` reads (static grids only)."""
     if model.dynamic:
@@ -529,7 +647,7 @@ def compiled_tables(model: BipedStepModel) -> dict:
     ox, oy = model.origin
     nx, ny = ref.shape
     gx, gy = model.goal
-    off, di, dj, optr = _cached_masks(chk)
+    mbits, mrows = _cached_mask_bits(chk.masks)
     ex_off, _, _, ex_ptr = _cached_masks(exact)
     mk, emk = chk.masks, exact.masks
     heights = exact.heights_flat if exact.heights_flat is not None else np.zeros(1)
@@ -560,20 +678,24 @@ def compiled_tables(model: BipedStepModel) -> dict:
             ],
             float,
         ),
-        "h_cells": (
-            np.ascontiguousarray(model.h_cells, float).ravel()
-            if model.h_cells is not None
-            else np.zeros(0)
-        ),
+        **_lazy_arrays(model.h_lazy),
         "chk": np.array(
-            [chk.pad, chk.nyp, mk.sub, mk.yaw_bins, mk.yaw_scale, mk.half[0], mk.half[1]], float
+            [
+                chk.pad,
+                chk.nyp,
+                mk.sub,
+                mk.yaw_bins,
+                mk.yaw_scale,
+                mk.half[0],
+                mk.half[1],
+                mk.radius_cells,
+            ],
+            float,
         ),
-        "occ": chk.occ_flat.astype(np.uint8),
+        "occw": _occupancy_words(chk),
         "free": np.frombuffer(chk.free_bytes, np.uint8),
-        "outer_off": off,
-        "outer_di": di,
-        "outer_dj": dj,
-        "outer_ptr": optr,
+        "mbits": mbits,
+        "mrows": mrows,
         "ex": np.array([exact.pad, exact.nyp, emk.sub, emk.yaw_bins, emk.yaw_scale], float),
         "heights": np.asarray(heights, float),
         "ex_off": ex_off,

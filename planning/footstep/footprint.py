@@ -182,19 +182,40 @@ def _edt_sq(features):
     return out
 
 
-def edge_distance(grid: OccupancyGrid) -> np.ndarray:
-    """Distance (m) from each cell centre to the nearest occupied cell or cell off the map.
+@numba.njit(cache=True)
+def surely_free_cells(occ_padded, half_width, pad):
+    """Cells of a padded grid with no occupied cell within ``half_width`` cells (Chebyshev).
 
-    The nearest cell off the map always lies in the ring just outside it, so one ring of
-    padding gives the distance any wider padding would.
+    A summed-area table answers each square window in four look-ups. Only cells at least
+    ``pad`` > ``half_width`` from the padded border can be True (the padding is occupied).
 
     Args:
-        grid: the grid.
+        occ_padded: (NX, NY) bool, the grid with an occupied border of ``pad`` cells.
+        half_width: half side of the square window, in cells (>= 0).
+        pad: width of the occupied border.
+
+    Returns:
+        (NX, NY) uint8, 1 where surely free.
     """
-    nx, ny = grid.shape
-    occ = np.ones((nx + 2, ny + 2), dtype=bool)
-    occ[1:-1, 1:-1] = grid.occupied
-    return distance_to_features(occ)[1:-1, 1:-1] * grid.resolution
+    nxp, nyp = occ_padded.shape
+    sat = np.zeros((nxp + 1, nyp + 1), np.int32)
+    for i in range(nxp):
+        row = 0
+        for j in range(nyp):
+            row += occ_padded[i, j]
+            sat[i + 1, j + 1] = sat[i, j + 1] + row
+    m = half_width
+    free = np.zeros((nxp, nyp), np.uint8)
+    for i in range(pad, nxp - pad):
+        for j in range(pad, nyp - pad):
+            count = (
+                sat[i + m + 1, j + m + 1]
+                - sat[i - m, j + m + 1]
+                - sat[i + m + 1, j - m]
+                + sat[i - m, j - m]
+            )
+            free[i, j] = count == 0
+    return free
 
 
 class FootprintChecker:
@@ -203,13 +224,9 @@ class FootprintChecker:
     Args:
         grid: the grid (outside the grid counts as occupied).
         masks: precomputed masks for the grid's resolution.
-        distance: :func:`edge_distance` of the grid, when already computed (shared by
-            checkers of the same grid).
     """
 
-    def __init__(
-        self, grid: OccupancyGrid, masks: FootprintMasks, distance: np.ndarray | None = None
-    ) -> None:
+    def __init__(self, grid: OccupancyGrid, masks: FootprintMasks) -> None:
         if abs(masks.resolution - grid.resolution) > 1e-12:
             raise ValueError(
                 f"footprint masks were built for resolution {masks.resolution}, "
@@ -225,15 +242,12 @@ class FootprintChecker:
         occ[pad : pad + nx, pad : pad + ny] = grid.occupied
         self.nyp = ny + 2 * pad
         self.occ_flat = occ.ravel()
-        # distance (m) from each cell centre to the nearest occupied (or outside) cell centre
-        if distance is None:
-            distance = edge_distance(grid)
-        elif distance.shape != grid.shape:
-            raise ValueError(f"distance field of shape {distance.shape} for a {grid.shape} grid")
-        dist = np.zeros(occ.shape)
-        dist[pad : pad + nx, pad : pad + ny] = distance
-        surely_free = dist > masks.r_diag + grid.resolution * math.sqrt(2.0) + 1e-9
-        self.free_bytes = surely_free.astype(np.uint8).ravel().tobytes()
+        # a foot centred in a cell whose centre is farther than r_diag + one cell diagonal
+        # from every occupied (or outside) cell centre is free; no occupied cell within
+        # m cells (Chebyshev, which is <= Euclidean) guarantees a distance > m cells
+        m = int((masks.r_diag + grid.resolution * math.sqrt(2.0)) / grid.resolution + 1e-9)
+        surely_free = surely_free_cells(occ, m, pad)
+        self.free_bytes = surely_free.ravel().tobytes()
         self.inv_res = 1.0 / grid.resolution
         self.x0, self.y0 = grid.origin
         self._occ = occ

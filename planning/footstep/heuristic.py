@@ -5,7 +5,8 @@ the goal": 8-connected moves between cell centres, each move costing its length 
 the mean traversal cost of the two cells (1 on free cells, ``obstacle_cost`` on occupied
 ones, which the biped may still step over). It is informed but not admissible. The
 search runs compiled (:func:`grid_dijkstra`, numba); :func:`grid_graph` gives the same
-graph to scipy's ``dijkstra`` for reference.
+graph to scipy's ``dijkstra`` for reference. The planner reads it through
+:class:`LazyCostToGo`, which settles only the cells it is asked about (the same values).
 """
 
 import functools
@@ -88,16 +89,40 @@ def dijkstra_cost_to_go(
     Returns:
         (nx, ny) array of distances, inf where the goal cannot be reached.
     """
+    cost = _cell_costs(grid, obstacle_cost, impassable_depth, deep_cost)
+    return grid_dijkstra(cost, grid.resolution, _goal_cells(grid, goal, goal_tolerance))
+
+
+def _cell_costs(
+    grid: OccupancyGrid, obstacle_cost: float, impassable_depth: float, deep_cost: float
+) -> np.ndarray:
+    """Traversal cost per metre of every cell (see :func:`dijkstra_cost_to_go`)."""
     cost = np.where(grid.occupied, obstacle_cost, 1.0)
     if math.isfinite(impassable_depth) and grid.occupied.any():
         depth = distance_to_features(~grid.occupied) * grid.resolution
         cost[depth > impassable_depth] = deep_cost
+    return cost
+
+
+def _goal_cells(grid: OccupancyGrid, goal: "tuple[float, float]", tol: float) -> np.ndarray:
+    """Flat indices of the cells whose centre lies within the goal radius (the sources)."""
+    nx, ny = grid.shape
+    res, (x0, y0) = grid.resolution, grid.origin
+    radius = max(tol, res * 0.75)
+    i0 = min(max(int(math.floor((goal[0] - radius - x0) / res)) - 1, 0), nx)
+    i1 = min(max(int(math.floor((goal[0] + radius - x0) / res)) + 2, 0), nx)
+    j0 = min(max(int(math.floor((goal[1] - radius - y0) / res)) - 1, 0), ny)
+    j1 = min(max(int(math.floor((goal[1] + radius - y0) / res)) + 2, 0), ny)
+    ii, jj = np.arange(i0, i1), np.arange(j0, j1)  # the box around the goal (as cell_centers)
+    cx = x0 + (ii + 0.5) * res
+    cy = y0 + (jj + 0.5) * res
+    near = np.hypot(cx[:, None] - goal[0], cy[None, :] - goal[1]) <= radius
+    if near.any():
+        a, b = np.nonzero(near)
+        return (ii[a] * ny + jj[b]).astype(np.int64)
     centers = grid.cell_centers()
     d_goal = np.hypot(centers[..., 0] - goal[0], centers[..., 1] - goal[1])
-    sources = np.flatnonzero(d_goal <= max(goal_tolerance, grid.resolution * 0.75))
-    if len(sources) == 0:
-        sources = np.array([int(np.argmin(d_goal))])
-    return grid_dijkstra(cost, grid.resolution, sources)
+    return np.array([int(np.argmin(d_goal))])
 
 
 def grid_dijkstra(cell_cost: np.ndarray, resolution: float, sources: np.ndarray) -> np.ndarray:
@@ -189,3 +214,247 @@ def _dijkstra8(cost, res, sources):
                     else:
                         _sift_up(hd, hc, pos, pos[nb], nd, nb)
     return dist.reshape(nx, ny)
+
+
+class LazyCostToGo:
+    """:func:`dijkstra_cost_to_go`, computed only where it is asked for.
+
+    Reverse resumable A* (Silver, "Cooperative pathfinding", 2005): the backward search from
+    the goal region is an A* towards the ``toward`` point (the planner's start) with the
+    octile distance times the cheapest cell cost, shrunk by 1e-6 so that it stays consistent
+    beyond rounding; a query for a cell not yet closed resumes the search until that cell is
+    closed. A closed cell's value is final and equal, bit for bit, to the full Dijkstra's
+    (both are the minimum over paths of the left-to-right floating-point sums of the same
+    edge weights), so a planner reading it expands the same states; only the cells whose
+    values it needs (and the A* ellipse around them) are ever settled. Cell costs, the
+    deep-obstacle test included, are also computed on demand (the exact distance-transform
+    test, by scanning the cells within ``impassable_depth``).
+
+    Args:
+        grid, goal, goal_tolerance, obstacle_cost, impassable_depth, deep_cost: as in
+            :func:`dijkstra_cost_to_go`.
+        toward: ``(x, y)`` the search heads for (where most queries will be).
+    """
+
+    def __init__(
+        self,
+        grid: OccupancyGrid,
+        goal: "tuple[float, float]",
+        goal_tolerance: float,
+        toward: "tuple[float, float]",
+        *,
+        obstacle_cost: float = 3.0,
+        impassable_depth: float = math.inf,
+        deep_cost: float = 30.0,
+        retarget_cells: int | None = 4,
+        retarget_ratio: float = 1.0,
+    ) -> None:
+        nx, ny = grid.shape
+        n = nx * ny
+        res = grid.resolution
+        self.occ = np.ascontiguousarray(grid.occupied, dtype=np.uint8).ravel()
+        # per cell: distance, cost, heap position (-1 not reached, -2 closed), as floats so
+        # one cell's fields share a cache line; the heap rows are (key, cell)
+        self.f = np.empty((n, 3))
+        self.f[:, 0] = np.inf
+        self.f[:, 2] = -1.0
+        radius = -1  # no deep-obstacle test
+        if math.isfinite(impassable_depth) and grid.occupied.any():
+            radius = int(impassable_depth / res) + 1
+        if 0 <= impassable_depth and radius <= 8:
+            self.f[:, 1] = np.nan  # computed on demand
+        else:  # a wide scan per cell would cost more than the distance transform
+            self.f[:, 1] = _cell_costs(grid, obstacle_cost, impassable_depth, deep_cost).ravel()
+            radius = -1
+        self.i = np.empty((n, 2))  # the heap: (f = distance + octile, cell)
+        self.size = np.zeros(2, np.int64)  # heap size, cells closed since the last retarget
+        ti = min(max(int((toward[0] - grid.origin[0]) / res), 0), nx - 1)
+        tj = min(max(int((toward[1] - grid.origin[1]) / res), 0), ny - 1)
+        c_min = min(1.0, obstacle_cost, deep_cost)
+        retarget = nx * ny if retarget_cells is None else retarget_cells
+        # the cell offsets within impassable_depth, nearest first (the deep-obstacle scan)
+        offsets = _scan_offsets(radius, res, impassable_depth) if radius >= 0 else ()
+        # nx, ny, res, obstacle_cost, depth, deep_cost, target i, j, heuristic scale,
+        # scan radius (-1: none), retarget distance, rebuild ratio, offset count, offsets
+        self.p = np.concatenate(
+            [
+                [nx, ny, res, obstacle_cost, impassable_depth, deep_cost, ti, tj,
+                 c_min * res * (1.0 - 1e-6), radius, retarget, retarget_ratio,
+                 len(offsets) // 2],
+                offsets,
+            ]
+        ).astype(float)  # fmt: skip
+        _rra_start(_goal_cells(grid, goal, goal_tolerance), self.f, self.i, self.p, self.size)
+
+    def value(self, cell: int) -> float:
+        """The cost-to-go (m, weighted) of flat cell index ``cell`` (inf: unreachable)."""
+        return _rra_value(cell, self.f, self.i, self.occ, self.p, self.size)
+
+    @property
+    def settled(self) -> int:
+        """How many cells have been closed so far."""
+        return int(np.count_nonzero(self.f[:, 2] == -2.0))
+
+
+@functools.lru_cache(maxsize=16)
+def _scan_offsets(radius: int, res: float, depth: float) -> tuple[float, ...]:
+    """Cell offsets ``(di, dj)`` (flattened) whose centre lies within ``depth``, nearest first."""
+    di, dj = np.mgrid[-radius : radius + 1, -radius : radius + 1]
+    di, dj = di.ravel(), dj.ravel()
+    within = np.sqrt((di * di + dj * dj).astype(float)) * res <= depth
+    order = np.argsort((di * di + dj * dj)[within], kind="stable")
+    return tuple(np.column_stack([di[within][order], dj[within][order]]).ravel().tolist())
+
+
+@numba.njit(cache=True)
+def _rra_h(c, p):
+    ny = int(p[1])
+    dx = abs(c // ny - int(p[6]))
+    dy = abs(c % ny - int(p[7]))
+    return ((max(dx, dy) - min(dx, dy)) + math.sqrt(2.0) * min(dx, dy)) * p[8]
+
+
+@numba.njit(cache=True)
+def _rra_cost(c, f, occ, p):
+    v = f[c, 1]
+    if v != v:  # not computed yet
+        if not occ[c]:
+            v = 1.0
+        else:
+            v = p[3]
+            radius = int(p[9])
+            if radius >= 0:  # deep unless a free cell lies within impassable_depth
+                nx, ny = int(p[0]), int(p[1])
+                i, j = c // ny, c % ny
+                deep = True
+                for k in range(int(p[12])):  # nearest first: stops at the first free cell
+                    a = i + int(p[13 + 2 * k])
+                    b = j + int(p[14 + 2 * k])
+                    if 0 <= a < nx and 0 <= b < ny and not occ[a * ny + b]:
+                        deep = False
+                        break
+                if deep:
+                    v = p[5]
+        f[c, 1] = v
+    return v
+
+
+@numba.njit(cache=True)
+def _rra_sift_up(f, heap, k, key, c):
+    while k > 0:
+        up = (k - 1) >> 1
+        if heap[up, 0] <= key:
+            break
+        heap[k, 0], heap[k, 1] = heap[up, 0], heap[up, 1]
+        f[int(heap[k, 1]), 2] = k
+        k = up
+    heap[k, 0], heap[k, 1] = key, c
+    f[c, 2] = k
+
+
+@numba.njit(cache=True)
+def _rra_sift_down(f, heap, k, n, key, c):
+    while True:
+        ch = 2 * k + 1
+        if ch >= n:
+            break
+        if ch + 1 < n and heap[ch + 1, 0] < heap[ch, 0]:
+            ch += 1
+        if heap[ch, 0] < key:
+            heap[k, 0], heap[k, 1] = heap[ch, 0], heap[ch, 1]
+            f[int(heap[k, 1]), 2] = k
+            k = ch
+        else:
+            break
+    heap[k, 0], heap[k, 1] = key, c
+    f[c, 2] = k
+
+
+@numba.njit(cache=True)
+def _rra_retarget(ti, tj, f, heap, p, n):
+    """Head the search for cell (ti, tj): new keys for the open cells, heap rebuilt.
+
+    Closed cells stay final (they were closed under a consistent heuristic), so any target
+    gives the same values; the nearest one closes the fewest cells.
+    """
+    p[6], p[7] = ti, tj
+    for k in range(n):
+        c = int(heap[k, 1])
+        heap[k, 0] = f[c, 0] + _rra_h(c, p)
+    for k in range(n // 2 - 1, -1, -1):
+        _rra_sift_down(f, heap, k, n, heap[k, 0], int(heap[k, 1]))
+
+
+@numba.njit(cache=True)
+def _rra_start(sources, f, heap, p, size):
+    for s in sources:
+        if f[s, 2] == -1.0:
+            f[s, 0] = 0.0
+            _rra_sift_up(f, heap, size[0], _rra_h(s, p), s)
+            size[0] += 1
+
+
+@numba.njit(cache=True)
+def _rra_value(c, f, heap, occ, p, size):
+    """Resume the backward A* until cell ``c`` is closed; its distance (inf: unreachable)."""
+    if f[c, 2] == -2.0:
+        return f[c, 0]
+    nx, ny, res = int(p[0]), int(p[1]), p[2]
+    diag = math.sqrt(2.0) * res
+    n = size[0]
+    ti, tj = c // ny, c % ny
+    # retarget when the query is far from the target and the heap rebuild is small or
+    # costs no more than the cells closed since the last one (rebuilds stay a fraction of
+    # the work on large maps)
+    far = max(abs(ti - int(p[6])), abs(tj - int(p[7]))) > int(p[10])
+    if n > 0 and far and (n <= 2048 or n <= p[11] * size[1]):
+        _rra_retarget(ti, tj, f, heap, p, n)
+        size[1] = 0
+    ti, tj = int(p[6]), int(p[7])
+    scale = p[8]
+    sqrt2 = math.sqrt(2.0)
+    closed = 0
+    while n > 0:
+        u = int(heap[0, 1])
+        f[u, 2] = -2.0
+        n -= 1
+        closed += 1
+        if n > 0:
+            _rra_sift_down(f, heap, 0, n, heap[n, 0], int(heap[n, 1]))
+        d = f[u, 0]
+        iu, ju = u // ny, u % ny
+        cu = f[u, 1]
+        if cu != cu:
+            cu = _rra_cost(u, f, occ, p)
+        for di in range(-1, 2):
+            a = iu + di
+            if a < 0 or a >= nx:
+                continue
+            hx = abs(a - ti)
+            for dj in range(-1, 2):
+                b = ju + dj
+                if b < 0 or b >= ny or (di == 0 and dj == 0):
+                    continue
+                nb = a * ny + b
+                where = f[nb, 2]
+                if where == -2.0:
+                    continue
+                cn = f[nb, 1]
+                if cn != cn:
+                    cn = _rra_cost(nb, f, occ, p)
+                step = diag if di != 0 and dj != 0 else res
+                nd = d + 0.5 * (cu + cn) * step
+                if nd < f[nb, 0]:
+                    f[nb, 0] = nd
+                    hy = abs(b - tj)
+                    key = nd + ((max(hx, hy) - min(hx, hy)) + sqrt2 * min(hx, hy)) * scale
+                    if where == -1.0:
+                        _rra_sift_up(f, heap, n, key, nb)
+                        n += 1
+                    else:
+                        _rra_sift_up(f, heap, int(where), key, nb)
+        if u == c:
+            break
+    size[0] = n
+    size[1] += closed
+    return f[c, 0]

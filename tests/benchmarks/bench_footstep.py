@@ -5,6 +5,9 @@ Sections (``--sections``, default all but ``legacy``):
 - ``backends``: the static study's maps (3 m, 4 strips, 2 blocks, Dijkstra heuristic,
   weight 1.5): the Python search loop and the compiled (numba) core on each map, in the
   same run: success, identical plans, median plan time (setup included) and the ratio.
+  With ``--before COMMIT`` the planner of that commit (e.g. the one before issue 9) plans
+  the same maps in a subprocess (its tree exported with ``git archive``) in the same run:
+  success, cost against the compiled core's, median plan time and the speed-up.
 - ``jit``: cold compilation (fresh numba cache, in a subprocess), load from the cache (a
   second subprocess), and a warm in-process call.
 - ``rate``: expansions per second of the compiled core on a 12 m open floor (Euclidean
@@ -33,6 +36,7 @@ Run: ``.venv/bin/python tests/benchmarks/bench_footstep.py``.
 import argparse
 import cProfile
 import io
+import json
 import os
 import pstats
 import statistics
@@ -58,12 +62,15 @@ def main() -> int:
         default="backends,jit,rate,large",
         help="comma-separated sections: backends, jit, rate, large, legacy",
     )
-    parser.add_argument("--large-maps", type=int, default=5, help="maps per large family")
+    parser.add_argument("--large-maps", type=int, default=8, help="maps per large family")
+    parser.add_argument(
+        "--before", default="", help="git commit whose planner is the 'before' (backends)"
+    )
     args = parser.parse_args()
     sections = set(args.sections.split(","))
     print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores)")
     if "backends" in sections:
-        _bench_backends(args.maps)
+        _bench_backends(args.maps, args.before)
     if "jit" in sections:
         _bench_jit()
     if "rate" in sections:
@@ -197,7 +204,54 @@ def main() -> int:
     return 0
 
 
-def _bench_backends(maps: int) -> None:
+_BEFORE_CODE = """
+import json, sys, time
+from repertoire.planning.footstep import PlannerOptions, nominal_action_table, plan_footsteps
+from repertoire.planning.footstep.scenes import random_static_scene
+table = nominal_action_table()
+warm = random_static_scene(0)
+plan_footsteps(warm.grid, warm.start, "left", warm.goal, table, PlannerOptions())
+out = []
+for seed in range(int(sys.argv[1])):
+    sc = random_static_scene(seed, n_strips=4, n_blocks=2)
+    opts = PlannerOptions(time_limit=30.0, heuristic_weight=1.5, max_expansions=200_000)
+    t0, c0 = time.perf_counter(), time.process_time()
+    p = plan_footsteps(sc.grid, sc.start, sc.start_foot, sc.goal, table, opts)
+    out.append([p.status.name == "SUCCESS", p.cost, time.perf_counter() - t0,
+                time.process_time() - c0])
+print(json.dumps(out))
+"""
+
+
+def _plan_before(commit: str, maps: int) -> list[list]:
+    """Plan the study's maps with the planner of ``commit``, in a subprocess."""
+    import pathlib
+    import subprocess
+    import sys
+    import tempfile
+
+    root = pathlib.Path.cwd()  # run from the repository (a snapshot of it may run the bench)
+    with tempfile.TemporaryDirectory() as tmp:
+        src, pkg = pathlib.Path(tmp, "src"), pathlib.Path(tmp, "pkg", "repertoire")
+        src.mkdir()
+        archive = subprocess.run(
+            ["git", "-C", str(root), "archive", commit], capture_output=True, check=True
+        ).stdout
+        subprocess.run(["tar", "-x", "-C", str(src)], input=archive, check=True)
+        pkg.mkdir(parents=True)  # the package layout of pyproject's package-dir
+        for f in (src / "repertoire").iterdir():
+            (pkg / f.name).symlink_to(f)
+        for sub in ("systems", "planning", "diagrams", "studies", "models"):
+            (pkg / sub).symlink_to(src / sub)
+        env = {**os.environ, "PYTHONPATH": str(pkg.parent)}
+        out = subprocess.run(
+            [sys.executable, "-c", _BEFORE_CODE, str(maps)],
+            env=env, cwd=tmp, capture_output=True, text=True, check=True,
+        )  # fmt: skip
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _bench_backends(maps: int, before: str = "") -> None:
     """The study's maps, planned by the Python loop and the compiled core in one run."""
     from repertoire.planning.footstep import PlannerOptions, nominal_action_table, plan_footsteps
     from repertoire.planning.footstep.scenes import random_static_scene
@@ -209,23 +263,37 @@ def _bench_backends(maps: int) -> None:
     cpu: dict[str, list[float]] = {"python": [], "compiled": []}
     ok = {"python": 0, "compiled": 0}
     same = worst = 0.0
-    for seed in range(maps):
-        sc = random_static_scene(seed, n_strips=4, n_blocks=2)
-        plans = {}
-        for backend in ("python", "compiled"):
-            opts = PlannerOptions(
-                time_limit=30.0, heuristic_weight=1.5, max_expansions=200_000, backend=backend
-            )
+    costs = []
+    scenes = [random_static_scene(seed, n_strips=4, n_blocks=2) for seed in range(maps)]
+    plans: dict[str, list] = {"python": [], "compiled": []}
+    for backend in ("python", "compiled"):  # each backend over all maps (warm in its loop)
+        opts = PlannerOptions(
+            time_limit=30.0, heuristic_weight=1.5, max_expansions=200_000, backend=backend
+        )
+        for sc in scenes:
             t0, c0 = time.perf_counter(), time.process_time()
-            plans[backend] = plan_footsteps(sc.grid, sc.start, sc.start_foot, sc.goal, table, opts)
+            plan = plan_footsteps(sc.grid, sc.start, sc.start_foot, sc.goal, table, opts)
             times[backend].append(time.perf_counter() - t0)
             cpu[backend].append(time.process_time() - c0)
-            ok[backend] += plans[backend].succeeded
-        a, b = plans["python"], plans["compiled"]
+            ok[backend] += plan.succeeded
+            plans[backend].append(plan)
+    for a, b in zip(plans["python"], plans["compiled"], strict=True):
+        costs.append(b.cost)
         same += a.poses == b.poses and a.cost == b.cost
         worst = max(worst, abs(a.cost - b.cost) / max(a.cost, 1e-9))
     med = statistics.median
     print(f"\n== backends on the static study's maps ({maps} maps, weight 1.5, Dijkstra)")
+    if before:
+        rows = _plan_before(before, maps)
+        diffs = [abs(r[1] - c) / c for r, c in zip(rows, costs, strict=True) if r[0]]
+        print(
+            f"  before ({before}): success {sum(r[0] for r in rows)}/{maps}; cost vs compiled: "
+            f"max difference {100 * max(diffs):.2f} %, {sum(d == 0 for d in diffs)} identical; "
+            f"median plan time {1e3 * med(r[2] for r in rows):.2f} ms wall, "
+            f"{1e3 * med(r[3] for r in rows):.2f} ms CPU; compiled speed-up "
+            f"{med(r[2] for r in rows) / med(times['compiled']):.1f}x wall, "
+            f"{med(r[3] for r in rows) / med(cpu['compiled']):.1f}x CPU"
+        )
     print(
         f"  success python {ok['python']}/{maps}, compiled {ok['compiled']}/{maps}; identical "
         f"plans {same:.0f}/{maps}; max cost difference {100 * worst:.2f} %"

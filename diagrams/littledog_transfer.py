@@ -25,7 +25,6 @@ terrain is cached per process (studies run many episodes on one terrain).
 import dataclasses
 import functools
 import math
-import time
 
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder
@@ -90,7 +89,8 @@ class LittleDogTransferScenario:
         mode: ``search`` | ``greedy`` (no search) | ``planner`` (no library).
         threshold: PCA match threshold of the transfer.
         multiple: several matches per step (section VII).
-        planner_time_limit: wall-time limit of the search with its planner (s).
+        planner_time_limit: CPU-time limit of the search with its planner (s); a search
+            cut short by it is refused (its best partial path is not executed).
         start_offset: [dx, dy] added to the nominal start position (m).
         start_yaw_offset: added to the start heading (rad).
         library: source library path (``""`` = the cached default library).
@@ -225,8 +225,8 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
 class TransferPlan:
     """What the builder runs: terrain, start, goal, the search and the final library.
 
-    ``search_s`` is the search's wall time with its planner (s); the transfer's is in
-    ``transfer.timings``.
+    ``search_s`` is the search's CPU time with its planner (s); the transfer's wall
+    times are in ``transfer.timings``.
     """
 
     board: TerrainBoard
@@ -244,7 +244,9 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
     """Transfer, search and final library of a scenario (no physics).
 
     Raises:
-        ScenarioError: bad scenario, or the search found nothing to execute.
+        ScenarioError: bad scenario, or the search did not reach the goal (its CPU-time
+            limit reached, or no path): the status and the best partial path are named
+            and the partial path is not executed.
     """
     scenario.validate()
     board = target_board(scenario)
@@ -273,14 +275,17 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
         join_tolerance=0.04, goal_tolerance=0.03, time_limit=scenario.planner_time_limit
     )
     source = None if scenario.mode == "planner" else transfer.library
-    t0 = time.perf_counter()
     try:
         result = search_library(source, feet0, goal_feet, filler, config, board)
-        search_s = time.perf_counter() - t0
+        if result.status != "reached":
+            raise ScenarioError(
+                f"the search stopped with status {result.status} ({result.message}); "
+                "its best partial path is not executed"
+            )
         final = final_library(result, source, board, "new_terrain")
     except RepertoireError as e:
         raise ScenarioError(f"littledog_transfer: {e}") from e
-    return TransferPlan(board, pose0, feet0, q0, goal, transfer, result, final, search_s)
+    return TransferPlan(board, pose0, feet0, q0, goal, transfer, result, final, result.cpu_s)
 
 
 @register_diagram(

@@ -12,6 +12,11 @@ recorded step. Planned footholds (ground points) are raised by the foot radius t
 foot centres, like library stances. The planner's statuses map to the protocol's:
 SUCCESS -> reached, TIME_LIMIT -> time_limit, NODE_LIMIT with steps -> partial,
 anything else -> failed.
+
+The search's time limit is CPU time; the crawl planner measures wall time, which
+under load runs ahead of CPU time. Its budget per gap is therefore its expansion
+count (``max_expansions``, the same on any machine) with a wall-time safety limit
+of at least ``planner_wall_limit``, and the search checks its CPU budget between gaps.
 """
 
 import dataclasses
@@ -84,6 +89,8 @@ class CrawlGapFiller:
         place_feet: with ``board``, end a reached gap with one-foot moves onto the target
             stance when its footholds are flat (a recorded step's start; not a goal stance
             on rocks), checked executable like the rest.
+        planner_wall_limit: the planner's wall-time limit per gap is the larger of this
+            and the search's remaining CPU budget (s): a safety limit, not the budget.
     """
 
     height_map: HeightMap
@@ -93,6 +100,7 @@ class CrawlGapFiller:
     crawl: ExecParams = dataclasses.field(default_factory=ExecParams)
     board: object = None
     place_feet: bool = False
+    planner_wall_limit: float = 10.0
 
     def __call__(self, start: np.ndarray, target: np.ndarray, time_limit: float) -> GapFill:
         """Plans crawl steps from ``start`` (4, 3) towards ``target``'s centroid."""
@@ -108,7 +116,7 @@ class CrawlGapFiller:
                 start[:, :2],
                 target[:, :2].mean(axis=0),
                 self.params,
-                time_limit=max(float(time_limit), 1e-3),
+                time_limit=max(float(time_limit), self.planner_wall_limit),
                 max_expansions=self.max_expansions,
                 weight=self.weight,
             )

@@ -43,15 +43,20 @@ def crawl(start: np.ndarray, count: int, first: int = 0) -> tuple[np.ndarray, np
 class StraightCrawl:
     """Stand-in gap filler: moves feet in crawl order straight to the target."""
 
-    def __init__(self, status: str | None = None, delay: float = 0.0):
+    def __init__(self, status: str | None = None, delay: float = 0.0, busy: bool = True):
         self.calls = 0
         self.status = status
         self.delay = delay
+        self.busy = busy
 
     def __call__(self, start, target, time_limit):
         self.calls += 1
-        if self.delay:
-            time.sleep(min(self.delay, time_limit))
+        if self.delay and self.busy:  # burns CPU time
+            t0 = time.process_time()
+            while time.process_time() - t0 < min(self.delay, time_limit):
+                pass
+        elif self.delay:  # waits without CPU time (as under another process's load)
+            time.sleep(self.delay)
         if self.status is not None:
             return GapFill([], self.status)
         steps, cur = [], start.copy()
@@ -143,7 +148,20 @@ def test_time_limit_returns_partial_path_and_says_so():
     result = search_transfer(start, goal, a_in, a_out, StraightCrawl(delay=0.2), cfg)
     assert result.status == "time_limit"
     assert result.planned_count == 0
-    assert "time_limit" in result.message
+    assert [p.step for p in result.path] == list(range(8))  # the best partial path
+    assert "time_limit" in result.message and "CPU-time limit 0.05 s" in result.message
+    assert 0.05 <= result.cpu_s < 1.0
+
+
+def test_time_limit_counts_cpu_time_not_waiting():
+    # A filler that waits (wall time, no CPU) longer than the limit does not cut the search.
+    start = stance(0.0)
+    a_in, a_out = crawl(start, 8)
+    cfg = SearchConfig(time_limit=0.05, step_reach=REACH)
+    filler = StraightCrawl(delay=0.1, busy=False)
+    result = search_transfer(start, stance(0.36), a_in, a_out, filler, cfg)
+    assert result.status == "reached" and filler.calls >= 1
+    assert result.recorded_count == 8 and result.planned_count > 0
 
 
 def test_bad_inputs_raise_clear_errors():

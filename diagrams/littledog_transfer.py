@@ -71,6 +71,8 @@ from repertoire.errors import RepertoireError, ScenarioError
 MODES = ("search", "greedy", "planner")
 TARGETS = ("modified", "generated")
 HALF_EXTENT = 0.25
+MAP_RESOLUTION = 0.01
+"""Cell side of the height map the gap-filling crawl planner plans on (m)."""
 """Start at -HALF_EXTENT along +x; the goal line (front feet) is at HALF_EXTENT - 0.02."""
 
 
@@ -203,7 +205,7 @@ def library_transfer(scenario: LittleDogTransferScenario) -> LibraryTransfer:
 
 
 def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) -> np.ndarray:
-    """The start offset nearest ``offset`` (within 4 cm) with all four feet on flat spots.
+    """The start offset nearest ``offset`` (within 4 cm, on a 5 mm grid) with flat footholds.
 
     The footstep planner refuses start footholds on a rock's edge, and so would the robot's
     first steps; a perturbed start is moved to the nearest flat one.
@@ -211,8 +213,11 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
     Raises:
         ScenarioError: no flat start within 4 cm.
     """
-    g = np.arange(-4, 5) * 0.01
-    trials = sorted(((x, y) for x in g for y in g), key=lambda o: o[0] ** 2 + o[1] ** 2)
+    g = np.arange(-8, 9) * 0.005  # 5 mm grid (a 1 cm grid missed flat starts on rough boards)
+    trials = sorted(
+        ((x, y) for x in g for y in g if x * x + y * y <= 0.04**2 + 1e-12),
+        key=lambda o: o[0] ** 2 + o[1] ** 2,
+    )
     for dx, dy in trials:
         off = np.asarray(offset, dtype=float) + [dx, dy]
         _, feet, _ = crossing_start(board, 0.0, HALF_EXTENT, params.standing_height, off, yaw)
@@ -268,7 +273,7 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
             raise ScenarioError(f"greedy mode: no step transferred ({transfer.message})")
         return TransferPlan(board, pose0, feet0, q0, goal, transfer, None, transfer.library)
     lo = -0.5 * board.params.size_x
-    hmap = height_map_from_board(board, (lo, -lo), (lo, -lo), 0.01)
+    hmap = height_map_from_board(board, (lo, -lo), (lo, -lo), MAP_RESOLUTION)
     filler = CrawlGapFiller(hmap, board=board, place_feet=True)
     # Recorded (physics) steps end up to 2.7 cm (summed over the feet) from the next start.
     config = SearchConfig(

@@ -7,7 +7,8 @@ start stances are nearest by the foot-location metric (the sum over the four fee
 of the distance between corresponding feet), and to the goal. An edge whose
 stances differ by more than ``join_tolerance`` is a gap, filled by a footstep
 planner given as a callable (:class:`GapFiller`); planned steps cost more than
-recorded ones. Gaps are planned lazily: an edge enters the queue with an estimated
+recorded ones; a filled gap joins a step only if it ends on the step's start stance
+(within ``join_tolerance``). Gaps are planned lazily: an edge enters the queue with an estimated
 cost and the planner runs only when that edge is popped (then it is re-queued with
 its real cost), so most gaps are never planned. Steps that do not lead towards the
 goal are never on the path and so are left out of the final sequence.
@@ -312,6 +313,11 @@ def search_transfer(
                     f"gap_filler must return GapFill with status in {GAP_STATUSES}, got {answer!r}"
                 )
             if answer.status != "reached":
+                continue
+            end = answer.steps[-1].end_feet if answer.steps else out_stance[u]
+            if v != goal_node and float(foot_distance(end, b)) > config.join_tolerance:
+                # The planner aims at a centroid: a gap that does not end on the step's
+                # start stance would leave the nearest-step policy repeating the last step.
                 continue
             step_cost = 0.0 if v == goal_node else config.recorded_cost
             g = g_best[u] + step_cost + config.planned_cost * len(answer.steps)

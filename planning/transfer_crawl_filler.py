@@ -136,7 +136,7 @@ class CrawlGapFiller:
             cur = nxt
         return steps, plan.status
 
-    def _usable(self, steps: list[PlannedStep]) -> int:
+    def usable_prefix(self, steps: list[PlannedStep]) -> int:
         """How many of ``steps`` the executing crawl can do (flat footholds, leg IK)."""
         board = _MapBoard(self.height_map) if self.board is None else self.board
         n = len(steps)
@@ -183,7 +183,7 @@ class CrawlGapFiller:
                 from repertoire.planning.transfer_library import placing_steps
 
                 new += placing_steps(new[-1].end_feet if new else cur, target)
-            usable = self._usable(steps + new) - len(steps)
+            usable = self.usable_prefix(steps + new) - len(steps)
             if usable == len(new):
                 return GapFill(steps + new, _status(status, bool(steps + new)))
             if usable > 0:

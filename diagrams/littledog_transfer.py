@@ -35,15 +35,13 @@ from repertoire.diagrams.littledog_demos import (
     library_terrain,
 )
 from repertoire.diagrams.littledog_library import (
+    LibraryLoopFields,
     add_library_loop,
     check_littledog_library,
     load_library,
     validate_loop_fields,
 )
-from repertoire.diagrams.littledog_worlds import (
-    PlantSettings,
-    add_littledog_on_terrain,
-)
+from repertoire.diagrams.littledog_worlds import add_littledog_on_terrain
 from repertoire.diagrams.registry import register_diagram
 from repertoire.models.terrain import (
     TerrainBoard,
@@ -77,7 +75,7 @@ MAP_RESOLUTION = 0.01
 
 
 @dataclasses.dataclass
-class LittleDogTransferScenario:
+class LittleDogTransferScenario(LibraryLoopFields):
     """LittleDog crossing a new terrain along +x with a transferred library.
 
     Attributes:
@@ -93,14 +91,9 @@ class LittleDogTransferScenario:
         multiple: several matches per step (section VII).
         planner_time_limit: CPU-time limit of the search with its planner (s); a search
             cut short by it is refused (its best partial path is not executed).
-        start_offset: [dx, dy] added to the nominal start position (m).
-        start_yaw_offset: added to the start heading (rad).
-        library: source library path (``""`` = the cached default library).
-        gain: integral controller gain k (0 = no integral correction).
-        decay: per-update decay of a flying foot's integrator.
-        integrator_limit: saturation of each integrator (m).
-        blend_speed: body distance per second of the executor's blend (m/s).
-        plant: physics settings.
+
+    The start perturbation, source library, loop gains and physics are the fields of
+    :class:`~repertoire.diagrams.littledog_library.LibraryLoopFields`.
     """
 
     target: str = "modified"
@@ -112,14 +105,6 @@ class LittleDogTransferScenario:
     threshold: float = 0.05
     multiple: bool = False
     planner_time_limit: float = 2.0
-    start_offset: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0])
-    start_yaw_offset: float = 0.0
-    library: str = ""
-    gain: float = 0.05
-    decay: float = 0.9
-    integrator_limit: float = 0.04
-    blend_speed: float = 0.1
-    plant: PlantSettings = dataclasses.field(default_factory=PlantSettings)
 
     def validate(self) -> None:
         """Raises ScenarioError naming a bad field."""

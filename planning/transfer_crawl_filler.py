@@ -86,9 +86,10 @@ class CrawlGapFiller:
             whether a planned gap is usable).
         board: the terrain's exact height function for that check (default: the map's
             cell heights; the executing crawl reads the board, so pass it when known).
-            With a board, every planned foothold must also pass the planner's own flatness
-            rule (``flat_radius``, ``max_roughness``) on the exact board: the map samples
-            heights at cell centres and misses edges between them, where a foot slides off.
+            With a board, the ground under every planned foot (within the foot's radius)
+            must also be flat on the exact board (height spread at most the planner's
+            ``max_roughness``): the map samples heights at cell centres and misses edges
+            between them, and a foot landing on an edge slides off (seen in physics).
         place_feet: with ``board``, end a reached gap with one-foot moves onto the target
             stance when its footholds are flat (a recorded step's start; not a goal stance
             on rocks), checked executable like the rest.
@@ -146,7 +147,7 @@ class CrawlGapFiller:
             landing = np.array([p.end_feet[p.foot, :2] for p in steps])
             rule = dataclasses.replace(
                 self.crawl,
-                edge_radius=self.params.flat_radius,
+                edge_radius=FOOT_RADIUS,
                 flat_tolerance=self.params.max_roughness,
             )
             flat = foothold_ok(self.board, landing, rule)

@@ -258,8 +258,6 @@ def test_crawl_gap_filler_refuses_footholds_at_edges_its_map_misses():
     # Planning across the ridge, every foothold kept is flat on the exact board.
     answer = filler(start, stance(0.1), 2.0)
     assert answer.steps
-    rule = dataclasses.replace(
-        filler.crawl, edge_radius=filler.params.flat_radius, flat_tolerance=0.006
-    )
+    rule = dataclasses.replace(filler.crawl, edge_radius=FOOT_RADIUS, flat_tolerance=0.006)
     landing = np.array([p.end_feet[p.foot, :2] for p in answer.steps])
     assert np.all(foothold_ok(board, landing, rule))

@@ -53,12 +53,13 @@ LOG_PERIOD = 0.01
 
 
 @dataclasses.dataclass
-class LittleDogLibraryScenario:
-    """LittleDog crossing a library terrain with the step library.
+class LibraryLoopFields:
+    """Start perturbation, library file, loop gains and physics of a LittleDog library run.
+
+    The fields every scenario running a step library in the closed loop of
+    :func:`add_library_loop` shares (checked by :func:`validate_loop_fields`).
 
     Attributes:
-        terrain: name of a library terrain (``terrain_a`` or ``terrain_b``).
-        direction_deg: crossing direction (degrees); the start and goal follow from it.
         start_offset: [dx, dy] added to the nominal start position (m).
         start_yaw_offset: added to the start heading (rad).
         library: step library path (npz + JSON; ``""`` = the cached default library).
@@ -69,8 +70,6 @@ class LittleDogLibraryScenario:
         plant: physics settings.
     """
 
-    terrain: str = "terrain_a"
-    direction_deg: float = 0.0
     start_offset: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0])
     start_yaw_offset: float = 0.0
     library: str = ""
@@ -79,6 +78,19 @@ class LittleDogLibraryScenario:
     integrator_limit: float = 0.04
     blend_speed: float = 0.1
     plant: PlantSettings = dataclasses.field(default_factory=PlantSettings)
+
+
+@dataclasses.dataclass
+class LittleDogLibraryScenario(LibraryLoopFields):
+    """LittleDog crossing a library terrain with the step library.
+
+    Attributes:
+        terrain: name of a library terrain (``terrain_a`` or ``terrain_b``).
+        direction_deg: crossing direction (degrees); the start and goal follow from it.
+    """
+
+    terrain: str = "terrain_a"
+    direction_deg: float = 0.0
 
     def validate(self) -> None:
         """Raises ScenarioError naming a bad field."""
@@ -96,9 +108,7 @@ def validate_loop_fields(scenario) -> None:
     """Checks the start perturbation and loop gains a LittleDog library scenario shares.
 
     Args:
-        scenario: a scenario with ``start_offset``, ``start_yaw_offset``, ``gain``,
-            ``decay``, ``integrator_limit`` and ``blend_speed`` (as
-            :class:`LittleDogLibraryScenario` has them).
+        scenario: a :class:`LibraryLoopFields` (any scenario with its fields).
 
     Raises:
         ScenarioError: naming the first bad field.
@@ -358,6 +368,7 @@ def check_littledog_library(diagram: Diagram, context: Context) -> dict[str, flo
 
 __all__ = [
     "DEFAULT_LIBRARY",
+    "LibraryLoopFields",
     "LittleDogLibraryScenario",
     "add_library_loop",
     "build_littledog_library",

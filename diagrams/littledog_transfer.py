@@ -25,7 +25,6 @@ terrain is cached per process (studies run many episodes on one terrain).
 import dataclasses
 import functools
 import math
-import time
 
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder
@@ -36,15 +35,13 @@ from repertoire.diagrams.littledog_demos import (
     library_terrain,
 )
 from repertoire.diagrams.littledog_library import (
+    LibraryLoopFields,
     add_library_loop,
     check_littledog_library,
     load_library,
     validate_loop_fields,
 )
-from repertoire.diagrams.littledog_worlds import (
-    PlantSettings,
-    add_littledog_on_terrain,
-)
+from repertoire.diagrams.littledog_worlds import add_littledog_on_terrain
 from repertoire.diagrams.registry import register_diagram
 from repertoire.models.terrain import (
     TerrainBoard,
@@ -72,11 +69,13 @@ from repertoire.errors import RepertoireError, ScenarioError
 MODES = ("search", "greedy", "planner")
 TARGETS = ("modified", "generated")
 HALF_EXTENT = 0.25
+MAP_RESOLUTION = 0.01
+"""Cell side of the height map the gap-filling crawl planner plans on (m)."""
 """Start at -HALF_EXTENT along +x; the goal line (front feet) is at HALF_EXTENT - 0.02."""
 
 
 @dataclasses.dataclass
-class LittleDogTransferScenario:
+class LittleDogTransferScenario(LibraryLoopFields):
     """LittleDog crossing a new terrain along +x with a transferred library.
 
     Attributes:
@@ -90,15 +89,11 @@ class LittleDogTransferScenario:
         mode: ``search`` | ``greedy`` (no search) | ``planner`` (no library).
         threshold: PCA match threshold of the transfer.
         multiple: several matches per step (section VII).
-        planner_time_limit: wall-time limit of the search with its planner (s).
-        start_offset: [dx, dy] added to the nominal start position (m).
-        start_yaw_offset: added to the start heading (rad).
-        library: source library path (``""`` = the cached default library).
-        gain: integral controller gain k (0 = no integral correction).
-        decay: per-update decay of a flying foot's integrator.
-        integrator_limit: saturation of each integrator (m).
-        blend_speed: body distance per second of the executor's blend (m/s).
-        plant: physics settings.
+        planner_time_limit: CPU-time limit of the search with its planner (s); a search
+            cut short by it is refused (its best partial path is not executed).
+
+    The start perturbation, source library, loop gains and physics are the fields of
+    :class:`~repertoire.diagrams.littledog_library.LibraryLoopFields`.
     """
 
     target: str = "modified"
@@ -110,14 +105,6 @@ class LittleDogTransferScenario:
     threshold: float = 0.05
     multiple: bool = False
     planner_time_limit: float = 2.0
-    start_offset: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0])
-    start_yaw_offset: float = 0.0
-    library: str = ""
-    gain: float = 0.05
-    decay: float = 0.9
-    integrator_limit: float = 0.04
-    blend_speed: float = 0.1
-    plant: PlantSettings = dataclasses.field(default_factory=PlantSettings)
 
     def validate(self) -> None:
         """Raises ScenarioError naming a bad field."""
@@ -203,7 +190,7 @@ def library_transfer(scenario: LittleDogTransferScenario) -> LibraryTransfer:
 
 
 def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) -> np.ndarray:
-    """The start offset nearest ``offset`` (within 4 cm) with all four feet on flat spots.
+    """The start offset nearest ``offset`` (within 4 cm, on a 5 mm grid) with flat footholds.
 
     The footstep planner refuses start footholds on a rock's edge, and so would the robot's
     first steps; a perturbed start is moved to the nearest flat one.
@@ -211,8 +198,11 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
     Raises:
         ScenarioError: no flat start within 4 cm.
     """
-    g = np.arange(-4, 5) * 0.01
-    trials = sorted(((x, y) for x in g for y in g), key=lambda o: o[0] ** 2 + o[1] ** 2)
+    g = np.arange(-8, 9) * 0.005  # 5 mm grid (a 1 cm grid missed flat starts on rough boards)
+    trials = sorted(
+        ((x, y) for x in g for y in g if x * x + y * y <= 0.04**2 + 1e-12),
+        key=lambda o: o[0] ** 2 + o[1] ** 2,
+    )
     for dx, dy in trials:
         off = np.asarray(offset, dtype=float) + [dx, dy]
         _, feet, _ = crossing_start(board, 0.0, HALF_EXTENT, params.standing_height, off, yaw)
@@ -225,8 +215,8 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
 class TransferPlan:
     """What the builder runs: terrain, start, goal, the search and the final library.
 
-    ``search_s`` is the search's wall time with its planner (s); the transfer's is in
-    ``transfer.timings``.
+    ``search_s`` is the search's CPU time with its planner (s); the transfer's wall
+    times are in ``transfer.timings``.
     """
 
     board: TerrainBoard
@@ -244,7 +234,9 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
     """Transfer, search and final library of a scenario (no physics).
 
     Raises:
-        ScenarioError: bad scenario, or the search found nothing to execute.
+        ScenarioError: bad scenario, or the search did not reach the goal (its CPU-time
+            limit reached, or no path): the status and the best partial path are named
+            and the partial path is not executed.
     """
     scenario.validate()
     board = target_board(scenario)
@@ -266,21 +258,24 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
             raise ScenarioError(f"greedy mode: no step transferred ({transfer.message})")
         return TransferPlan(board, pose0, feet0, q0, goal, transfer, None, transfer.library)
     lo = -0.5 * board.params.size_x
-    hmap = height_map_from_board(board, (lo, -lo), (lo, -lo), 0.01)
+    hmap = height_map_from_board(board, (lo, -lo), (lo, -lo), MAP_RESOLUTION)
     filler = CrawlGapFiller(hmap, board=board, place_feet=True)
     # Recorded (physics) steps end up to 2.7 cm (summed over the feet) from the next start.
     config = SearchConfig(
         join_tolerance=0.04, goal_tolerance=0.03, time_limit=scenario.planner_time_limit
     )
     source = None if scenario.mode == "planner" else transfer.library
-    t0 = time.perf_counter()
     try:
         result = search_library(source, feet0, goal_feet, filler, config, board)
-        search_s = time.perf_counter() - t0
+        if result.status != "reached":
+            raise ScenarioError(
+                f"the search stopped with status {result.status} ({result.message}); "
+                "its best partial path is not executed"
+            )
         final = final_library(result, source, board, "new_terrain")
     except RepertoireError as e:
         raise ScenarioError(f"littledog_transfer: {e}") from e
-    return TransferPlan(board, pose0, feet0, q0, goal, transfer, result, final, search_s)
+    return TransferPlan(board, pose0, feet0, q0, goal, transfer, result, final, result.cpu_s)
 
 
 @register_diagram(

@@ -12,6 +12,11 @@ recorded step. Planned footholds (ground points) are raised by the foot radius t
 foot centres, like library stances. The planner's statuses map to the protocol's:
 SUCCESS -> reached, TIME_LIMIT -> time_limit, NODE_LIMIT with steps -> partial,
 anything else -> failed.
+
+The search's time limit is CPU time; the crawl planner measures wall time, which
+under load runs ahead of CPU time. Its budget per gap is therefore its expansion
+count (``max_expansions``, the same on any machine) with a wall-time safety limit
+of at least ``planner_wall_limit``, and the search checks its CPU budget between gaps.
 """
 
 import dataclasses
@@ -76,14 +81,23 @@ class CrawlGapFiller:
         height_map: the terrain (``height_map_from_board`` of the new terrain).
         params: crawl model parameters.
         weight: heuristic weight of the planner's search.
-        max_expansions: expansion budget per gap.
+        max_expansions: expansion budget per planner call.
         crawl: parameters of the crawl that executes planned steps (their leg IK decides
             whether a planned gap is usable).
         board: the terrain's exact height function for that check (default: the map's
             cell heights; the executing crawl reads the board, so pass it when known).
+            With a board, the ground under every planned foot (within the foot's radius)
+            must also be flat on the exact board (height spread at most the planner's
+            ``max_roughness``): the map samples heights at cell centres and misses edges
+            between them, and a foot landing on an edge slides off (seen in physics).
         place_feet: with ``board``, end a reached gap with one-foot moves onto the target
             stance when its footholds are flat (a recorded step's start; not a goal stance
             on rocks), checked executable like the rest.
+        planner_wall_limit: the planner's wall-time limit per call is the larger of this
+            and the search's remaining CPU budget (s): a safety limit, not the budget.
+        repairs: when the executing crawl cannot do a planned step (the planner's reach
+            model is looser than its leg IK), the steps before it are kept and the planner
+            is called again from there, up to this many times.
     """
 
     height_map: HeightMap
@@ -93,6 +107,52 @@ class CrawlGapFiller:
     crawl: ExecParams = dataclasses.field(default_factory=ExecParams)
     board: object = None
     place_feet: bool = False
+    planner_wall_limit: float = 10.0
+    repairs: int = 3
+
+    def __post_init__(self) -> None:
+        if int(self.repairs) != self.repairs or self.repairs < 0:
+            raise TransferSearchError(f"repairs must be a non-negative integer, got {self.repairs}")
+
+    def _plan(self, start: np.ndarray, goal_xy: np.ndarray, time_limit: float, params=None):
+        """Planned steps (foot centres) from ``start`` and the planner's status."""
+        try:
+            plan = plan_crawl(
+                self.height_map,
+                start[:, :2],
+                goal_xy,
+                self.params if params is None else params,
+                time_limit=max(float(time_limit), self.planner_wall_limit),
+                max_expansions=self.max_expansions,
+                weight=self.weight,
+            )
+        except FootstepError:
+            return [], None  # a start or goal the planner refuses (e.g. on a rock's edge)
+        steps: list[PlannedStep] = []
+        cur = start.copy()
+        for s in plan.steps:
+            # The planner's footholds are ground contact points; stances here are foot centres.
+            nxt = np.asarray(s.stance, dtype=float) + np.array([0.0, 0.0, FOOT_RADIUS])
+            steps.append(PlannedStep(cur, nxt, int(s.foot)))
+            cur = nxt
+        return steps, plan.status
+
+    def usable_prefix(self, steps: list[PlannedStep]) -> int:
+        """How many of ``steps`` the executing crawl can do (flat footholds, leg IK)."""
+        board = _MapBoard(self.height_map) if self.board is None else self.board
+        n = len(steps)
+        if self.board is not None and steps:
+            from repertoire.planning.littledog_crawl import foothold_ok
+
+            landing = np.array([p.end_feet[p.foot, :2] for p in steps])
+            rule = dataclasses.replace(
+                self.crawl,
+                edge_radius=FOOT_RADIUS,
+                flat_tolerance=self.params.max_roughness,
+            )
+            flat = foothold_ok(self.board, landing, rule)
+            n = int(np.argmin(flat)) if not flat.all() else n
+        return executable_prefix(steps[:n], self.crawl, board) if n else 0
 
     def __call__(self, start: np.ndarray, target: np.ndarray, time_limit: float) -> GapFill:
         """Plans crawl steps from ``start`` (4, 3) towards ``target``'s centroid."""
@@ -102,46 +162,43 @@ class CrawlGapFiller:
             raise TransferSearchError(
                 f"crawl gap filler needs (4, 3) stances, got {start.shape} and {target.shape}"
             )
-        try:
-            plan = plan_crawl(
-                self.height_map,
-                start[:, :2],
-                target[:, :2].mean(axis=0),
-                self.params,
-                time_limit=max(float(time_limit), 1e-3),
-                max_expansions=self.max_expansions,
-                weight=self.weight,
-            )
-        except FootstepError:
-            # A start or target the planner refuses (e.g. a foothold on a rock's edge).
-            return GapFill([], "failed")
-        steps: list[PlannedStep] = []
-        cur = start.copy()
-        for s in plan.steps:
-            # The planner's footholds are ground contact points; stances here are foot centres.
-            nxt = np.asarray(s.stance, dtype=float) + np.array([0.0, 0.0, FOOT_RADIUS])
-            steps.append(PlannedStep(cur, nxt, int(s.foot)))
-            cur = nxt
-        board = _MapBoard(self.height_map) if self.board is None else self.board
-        if self.place_feet and plan.status is PlanStatus.SUCCESS and self.board is not None:
+        goal_xy = target[:, :2].mean(axis=0)
+        place = False
+        if self.place_feet and self.board is not None:
             from repertoire.planning.littledog_crawl import foothold_ok
-            from repertoire.planning.transfer_library import placing_steps
 
             # A recorded step's start (flat footholds): the gap ends on its exact stance,
             # so the nearest-step policy picks it next; unreachable placing = gap unusable.
-            if np.all(foothold_ok(self.board, target[:, :2], self.crawl)):
-                steps += placing_steps(steps[-1].end_feet if steps else start, target)
-        executable = executable_prefix(steps, self.crawl, board)
-        if executable < len(steps):
-            # The crawl planner's reach model is looser than the executing crawl's leg IK:
-            # a gap whose steps cannot all be executed is not usable (best prefix kept).
-            return GapFill(steps[:executable], "partial" if executable else "failed")
-        if plan.status is PlanStatus.SUCCESS:
-            status = "reached"
-        elif plan.status is PlanStatus.TIME_LIMIT:
-            status = "time_limit"
-        elif plan.status is PlanStatus.NODE_LIMIT and steps:
-            status = "partial"
-        else:
-            status = "failed"
-        return GapFill(steps, status)
+            place = bool(np.all(foothold_ok(self.board, target[:, :2], self.crawl)))
+        steps: list[PlannedStep] = []
+        # Wide side steps are where the planner's reach model (body over the four feet) and
+        # the crawl's (body shifted over the three stance feet) disagree: a plan the crawl
+        # cannot do is planned again with half the lateral foothold offsets.
+        narrow = dataclasses.replace(
+            self.params, offsets_y=[0.5 * v for v in self.params.offsets_y]
+        )
+        for attempt in range(self.repairs + 1):
+            cur = steps[-1].end_feet if steps else start
+            new, status = self._plan(cur, goal_xy, time_limit, narrow if attempt else None)
+            if status is PlanStatus.SUCCESS and place:
+                from repertoire.planning.transfer_library import placing_steps
+
+                new += placing_steps(new[-1].end_feet if new else cur, target)
+            usable = self.usable_prefix(steps + new) - len(steps)
+            if usable == len(new):
+                return GapFill(steps + new, _status(status, bool(steps + new)))
+            if usable > 0:
+                steps += new[:usable]  # keep what the crawl can do; plan again from there
+            elif attempt > 0:
+                break
+        return GapFill(steps, "partial" if steps else "failed")
+
+
+def _status(status, any_steps: bool) -> str:
+    if status is PlanStatus.SUCCESS:
+        return "reached"
+    if status is PlanStatus.TIME_LIMIT:
+        return "time_limit"
+    if status is PlanStatus.NODE_LIMIT and any_steps:
+        return "partial"
+    return "failed"

@@ -15,7 +15,8 @@ once per condition:
 - ``multiple``: as ``search`` with multiple matches per step (section VII).
 
 Success: both front feet past the goal line, the body never lower than 4 cm
-above the terrain, no fall. A condition whose search finds nothing to execute
+above the terrain, no fall. A run ends early once it crossed or fell
+(:func:`early_stop_monitor`). A condition whose search finds nothing to execute
 (or greedy mode without transferred steps) counts as a failure with no steps.
 The summary tabulates success per terrain and condition and plots success rates
 with the steps used. Run it with
@@ -88,7 +89,7 @@ class TransferExecutionRecord:
         success: crossed without falling, per condition.
         fell: fell, per condition.
         time_to_cross_s: NaN if it did not cross, per condition.
-        steps_started: steps the executor started, per condition.
+        steps_started: steps the executor started until the run ended, per condition.
         recorded: recorded steps in the executed library, per condition.
         planned: planned steps in the executed library, per condition.
         error: why a condition had nothing to execute ("" if it ran), per condition.
@@ -126,6 +127,62 @@ def scenario_for(config: TransferExecutionConfig, terrain: str, condition: str, 
     )
 
 
+FALL_TILT = 0.5
+FALL_CLEARANCE = 0.04
+"""A fall as :func:`~repertoire.diagrams.littledog_library.crossing_figures` counts it."""
+
+
+def stop_reason(feet, body_pose, board, goal: float) -> str:
+    """``crossed`` (both front feet past the goal line along +x), ``fell`` or ``""``.
+
+    Args:
+        feet: world foot centres (4 x 3 or 12), LEGS order (front feet first).
+        body_pose: body pose [x, y, z, roll, pitch, yaw].
+        board: the terrain.
+        goal: the goal line (m along +x).
+    """
+    f = np.asarray(feet, dtype=float).reshape(4, 3)
+    p = np.asarray(body_pose, dtype=float)
+    if min(f[0, 0], f[1, 0]) >= goal:
+        return "crossed"
+    clearance = float(p[2] - board.height(np.array([p[0]]), np.array([p[1]]))[0])
+    if max(abs(p[3]), abs(p[4])) > FALL_TILT or clearance < FALL_CLEARANCE:
+        return "fell"
+    return ""
+
+
+def early_stop_monitor(diagram, period: float = 0.1):
+    """A simulator monitor ending a ``littledog_transfer`` run once it crossed or fell.
+
+    Checked every ``period`` s of simulated time from the inputs of the body and feet
+    logs; the run ends one period after the first detection, so the logs (sampled every
+    10 ms) hold the event and the diagram's check reads the same figures as a full run.
+    """
+    from pydrake.systems.framework import EventStatus
+
+    board, _, goal = diagram._repertoire_crossing
+    body = diagram.GetSubsystemByName("body_log")
+    feet = diagram.GetSubsystemByName("feet_log")
+    state = {"next": 0.0, "seen": ""}
+
+    def monitor(root):
+        t = root.get_time()
+        if t < state["next"]:
+            return EventStatus.Succeeded()
+        state["next"] = t + period
+        if state["seen"]:
+            return EventStatus.ReachedTermination(None, state["seen"])
+        state["seen"] = stop_reason(
+            feet.get_input_port().Eval(feet.GetMyContextFromRoot(root)),
+            body.get_input_port().Eval(body.GetMyContextFromRoot(root)),
+            board,
+            goal,
+        )
+        return EventStatus.Succeeded()
+
+    return monitor
+
+
 def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecutionRecord:
     """Draws the start perturbation from ``seed`` and runs every condition."""
     import time
@@ -153,7 +210,8 @@ def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecution
             out["error"].append(str(e))
             continue
         diagram = build_littledog_transfer(scenario, plan=plan)
-        _, context = simulate(diagram, config.duration_s)
+        # Runs end once crossed or fallen (the figures are those of the full duration).
+        _, context = simulate(diagram, config.duration_s, monitors=[early_stop_monitor(diagram)])
         f = check_littledog_library(diagram, context)
         kinds = [s.kind for s in plan.library]
         out["success"].append(bool(f["crossed"] >= 1.0 and f["fell"] == 0.0))

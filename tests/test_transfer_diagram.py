@@ -77,6 +77,12 @@ def test_closed_loop_starts_the_first_step(library_path):
     assert np.all(body[2] > 0.12)  # standing, not fallen
 
 
+def test_search_cut_short_by_its_cpu_limit_is_refused(library_path):
+    scenario = LittleDogTransferScenario(library=library_path, planner_time_limit=1e-9)
+    with pytest.raises(ScenarioError, match="status time_limit.*not executed"):
+        plan_transfer(scenario)
+
+
 @pytest.mark.parametrize(
     "change, match",
     [

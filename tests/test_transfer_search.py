@@ -1,5 +1,6 @@
 """Best-first search over transferred steps with planner-filled gaps (section V)."""
 
+import dataclasses
 import time
 
 import numpy as np
@@ -43,15 +44,20 @@ def crawl(start: np.ndarray, count: int, first: int = 0) -> tuple[np.ndarray, np
 class StraightCrawl:
     """Stand-in gap filler: moves feet in crawl order straight to the target."""
 
-    def __init__(self, status: str | None = None, delay: float = 0.0):
+    def __init__(self, status: str | None = None, delay: float = 0.0, busy: bool = True):
         self.calls = 0
         self.status = status
         self.delay = delay
+        self.busy = busy
 
     def __call__(self, start, target, time_limit):
         self.calls += 1
-        if self.delay:
-            time.sleep(min(self.delay, time_limit))
+        if self.delay and self.busy:  # burns CPU time
+            t0 = time.process_time()
+            while time.process_time() - t0 < min(self.delay, time_limit):
+                pass
+        elif self.delay:  # waits without CPU time (as under another process's load)
+            time.sleep(self.delay)
         if self.status is not None:
             return GapFill([], self.status)
         steps, cur = [], start.copy()
@@ -143,7 +149,20 @@ def test_time_limit_returns_partial_path_and_says_so():
     result = search_transfer(start, goal, a_in, a_out, StraightCrawl(delay=0.2), cfg)
     assert result.status == "time_limit"
     assert result.planned_count == 0
-    assert "time_limit" in result.message
+    assert [p.step for p in result.path] == list(range(8))  # the best partial path
+    assert "time_limit" in result.message and "CPU-time limit 0.05 s" in result.message
+    assert 0.05 <= result.cpu_s < 1.0
+
+
+def test_time_limit_counts_cpu_time_not_waiting():
+    # A filler that waits (wall time, no CPU) longer than the limit does not cut the search.
+    start = stance(0.0)
+    a_in, a_out = crawl(start, 8)
+    cfg = SearchConfig(time_limit=0.05, step_reach=REACH)
+    filler = StraightCrawl(delay=0.1, busy=False)
+    result = search_transfer(start, stance(0.36), a_in, a_out, filler, cfg)
+    assert result.status == "reached" and filler.calls >= 1
+    assert result.recorded_count == 8 and result.planned_count > 0
 
 
 def test_bad_inputs_raise_clear_errors():
@@ -183,3 +202,62 @@ def test_crawl_gap_filler_plans_a_gap_on_a_flat_board():
     assert len(answer.steps) >= 4
     end = answer.steps[-1].end_feet
     assert np.linalg.norm(end[:, :2].mean(0) - target[:, :2].mean(0)) <= 0.03 + 1e-9
+
+
+def test_a_gap_that_misses_the_step_start_does_not_join_it():
+    # The filler "reaches" the target's centroid but leaves every foot 3 cm to the side:
+    # the recorded chain cannot be joined, so the search plans to the goal without it.
+    start = stance(0.0)
+    a_in, a_out = crawl(stance(0.12), 8)
+
+    class SideCrawl(StraightCrawl):
+        def __call__(self, start, target, time_limit):
+            return super().__call__(start, target + np.array([0.0, 0.03, 0.0]), time_limit)
+
+    cfg = SearchConfig(step_reach=REACH, join_tolerance=0.04)
+    result = search_transfer(start, stance(0.4), a_in, a_out, SideCrawl(), cfg)
+    assert result.status == "reached"
+    assert result.recorded_count == 0 and result.planned_count > 0
+    plain = search_transfer(start, stance(0.4), a_in, a_out, StraightCrawl(), cfg)
+    assert plain.recorded_count > 0  # the same chain, joined exactly
+
+
+def test_crawl_gap_filler_refuses_footholds_at_edges_its_map_misses():
+    pytest.importorskip("repertoire.planning.footstep.quadruped")
+    from repertoire.models.littledog import FOOT_RADIUS
+    from repertoire.planning.footstep.quadruped import height_map_from_board
+    from repertoire.planning.littledog_crawl import foothold_ok
+    from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
+
+    flat = generate_board(TerrainParams(kind="flat"), seed=0)
+    base = flat.params.base_thickness
+
+    class RidgeBoard:
+        """A 3 cm ridge over 0.052 < x < 0.058: between the 1 cm map's cell centres."""
+
+        params = flat.params
+
+        def height(self, x, y):
+            x = np.asarray(x, dtype=float)
+            return np.where((x > 0.052) & (x < 0.058), base + 0.03, base) + 0.0 * np.asarray(y)
+
+    board = RidgeBoard()
+    hmap = height_map_from_board(board, (-0.3, 0.3), (-0.3, 0.3), 0.01)
+    assert np.ptp(hmap.heights) == 0.0  # the map does not see the ridge
+    filler = CrawlGapFiller(hmap, board=board)
+    start = stance(-0.1)
+    start[:, 2] = base + FOOT_RADIUS
+    steps, cur = [], start
+    for foot, x in ((2, cur[2, 0] + 0.04), (0, 0.062), (3, cur[3, 0] + 0.04)):
+        nxt = cur.copy()
+        nxt[foot, 0] = x  # lh forward, lf 4 mm past the ridge, rh forward
+        steps.append(PlannedStep(cur, nxt, foot))
+        cur = nxt
+    assert filler.usable_prefix(steps) == 1
+    assert CrawlGapFiller(hmap, board=flat).usable_prefix(steps) == 3
+    # Planning across the ridge, every foothold kept is flat on the exact board.
+    answer = filler(start, stance(0.1), 2.0)
+    assert answer.steps
+    rule = dataclasses.replace(filler.crawl, edge_radius=FOOT_RADIUS, flat_tolerance=0.006)
+    landing = np.array([p.end_feet[p.foot, :2] for p in answer.steps])
+    assert np.all(foothold_ok(board, landing, rule))

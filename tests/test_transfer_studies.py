@@ -78,3 +78,19 @@ def test_execution_episode_records_every_condition(library_path, tmp_path):
         execution.TransferExecutionConfig(conditions=["fly"]).validate()
     with pytest.raises(RepertoireError, match="terrains"):
         execution.TransferExecutionConfig(terrains=["moon"]).validate()
+
+
+def test_stop_reason_crossed_fell_or_running():
+    import numpy as np
+    from repertoire.models.terrain import TerrainParams, generate_board
+
+    board = generate_board(TerrainParams(kind="flat"), seed=0)
+    top = float(board.height(np.array([0.0]), np.array([0.0]))[0])
+    feet = np.array([[0.24, 0.05, top], [0.25, -0.05, top], [0.0, 0.05, top], [0.0, -0.05, top]])
+    pose = np.array([0.12, 0.0, top + 0.14, 0.0, 0.0, 0.0])
+    assert execution.stop_reason(feet, pose, board, goal=0.23) == "crossed"
+    assert execution.stop_reason(feet, pose, board, goal=0.245) == ""  # one front foot short
+    tilted = pose + [0.0, 0.0, 0.0, 0.0, 0.51, 0.0]
+    assert execution.stop_reason(feet, tilted, board, goal=0.3) == "fell"
+    low = pose - [0.0, 0.0, 0.101, 0.0, 0.0, 0.0]  # 3.9 cm above the ground
+    assert execution.stop_reason(feet, low, board, goal=0.3) == "fell"

@@ -30,6 +30,7 @@ from pydrake.systems.framework import BasicVector, Context, DiscreteValues, Leaf
 from repertoire.systems.action_status import (
     ActionStatus,
     check_period,
+    clip,
     merge_gains,
 )
 from repertoire.systems.go_to_pose import DriveAction, drive_step, pose_control
@@ -92,9 +93,9 @@ def dribble_control(state, ball, target, gains: dict[str, float]) -> tuple[float
     align = max(0.0, math.cos(gamma)) ** 2
     v = max(0.0, v) * align  # never back away from the ball
     w = w * align + gains["k_ball"] * gamma
-    v = float(np.clip(v, -gains["v_max"], gains["v_max"]))
+    v = clip(v, -gains["v_max"], gains["v_max"])
     w_max = min(gains["omega_max"], max(gains["omega_in_place"], abs(v) / gains["min_turn_radius"]))
-    w = float(np.clip(w, -w_max, w_max))
+    w = clip(w, -w_max, w_max)
     return v, w, held
 
 

@@ -42,6 +42,8 @@ def test_config_rejects_bad_ranges():
         KitchenEpisodesConfig(lift_range=[0.1, 0.5]).validate()
     with pytest.raises(RepertoireError, match="actions"):
         KitchenEpisodesConfig(actions=["fly"]).validate()
+    with pytest.raises(RepertoireError, match="cups must be distinct names"):
+        KitchenEpisodesConfig(cups=["cup_9"]).validate()
 
 
 def test_study_smoke_and_load_records(tmp_path):

@@ -31,6 +31,7 @@ from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multipl
 from repertoire.diagrams.biped import add_ground, validate_plant_fields
 from repertoire.diagrams.diffdrive import WHEEL_RADIUS, WORLDS
 from repertoire.diagrams.registry import register_diagram
+from repertoire.diagrams.simulate import SimulatorCache
 from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
 from repertoire.models import MODELS_DIR, ConfigureParser, package_url
 from repertoire.systems.go_to_pose import (
@@ -341,11 +342,6 @@ def source_values(scenario: KitchenScenario) -> dict[str, np.ndarray]:
     return {name: np.asarray(v, dtype=float) for name, v in held.items()}
 
 
-#: ``kitchen_action`` simulators by diagram structure (see :func:`kitchen_simulator`).
-_SIMULATORS: dict[tuple, object] = {}
-_MAX_SIMULATORS = 8
-
-
 def _structure(scenario: KitchenScenario) -> tuple:
     """The fields that shape the diagram (the others are start values and targets)."""
     s = scenario
@@ -354,18 +350,17 @@ def _structure(scenario: KitchenScenario) -> tuple:
             tuple(sorted(s.gains.items())))  # fmt: skip
 
 
+#: ``kitchen_action`` simulators by diagram structure (see :func:`kitchen_simulator`).
+KITCHEN_SIMULATORS = SimulatorCache(build_kitchen_action)
+
+
 def kitchen_simulator(scenario: KitchenScenario, *, reuse: bool = True):
     """A Simulator of the ``kitchen_action`` diagram at time 0 in ``scenario``'s start.
 
     The diagram is built the first time its structure (action, cups, plant
-    settings, gains) is asked for; afterwards the same diagram is reset: the
-    time, every state and parameter copied from a new context of the diagram
-    (so also the plant's abstract step memory: last step's contacts), the
-    plant's positions and velocities set to the scenario's start, the target
-    and hold sources to the scenario's values, the monitor cleared. A
-    reset diagram runs exactly as a new one (tests/test_kitchen_world.py), and
-    episode studies parse and build once per worker process instead of once
-    per episode. Change the context as needed, then call
+    settings, gains) is asked for in this process and reset afterwards
+    (:class:`~repertoire.diagrams.simulate.SimulatorCache`: a reset diagram
+    runs bit for bit as a new one). Change the context as needed, then call
     ``simulator.Initialize()`` before advancing.
 
     Args:
@@ -375,33 +370,14 @@ def kitchen_simulator(scenario: KitchenScenario, *, reuse: bool = True):
     Returns:
         ``(diagram, simulator)``.
     """
-    from pydrake.systems.analysis import Simulator
-
     scenario.validate()
-    key = _structure(scenario)
-    if not reuse:
-        _SIMULATORS.pop(key, None)
-    if key not in _SIMULATORS:
-        if len(_SIMULATORS) >= _MAX_SIMULATORS:
-            del _SIMULATORS[next(iter(_SIMULATORS))]
-        diagram = build_kitchen_action(scenario)
-        _SIMULATORS[key] = (diagram, Simulator(diagram), diagram.CreateDefaultContext())
-    diagram, simulator, pristine = _SIMULATORS[key]
-    simulator.clear_monitor()
-    context = simulator.get_mutable_context()
-    # everything as in a new context (also the plant's abstract step memory, which
-    # SetDefaultContext keeps: last step's contacts), then the scenario's start
-    context.SetTimeStateAndParametersFrom(pristine)
-    plant = diagram.GetSubsystemByName("plant")
-    _set_default_state(plant, scenario)
-    plant_context = plant.GetMyMutableContextFromRoot(context)
-    plant.SetDefaultState(plant_context, plant_context.get_mutable_state())
-    for name, value in source_values(scenario).items():
-        source = diagram.GetSubsystemByName(name)
-        source.get_mutable_source_value(source.GetMyMutableContextFromRoot(context)).SetFromVector(
-            value
-        )
-    return diagram, simulator
+    return KITCHEN_SIMULATORS.get(
+        _structure(scenario),
+        scenario,
+        lambda plant: _set_default_state(plant, scenario),
+        source_values(scenario),
+        reuse=reuse,
+    )
 
 
 def _set_default_state(plant, scenario: KitchenScenario) -> None:

@@ -15,7 +15,7 @@ from repertoire.diagrams.kitchen import (
 from repertoire.systems.go_to_pose import ActionStatus
 from repertoire.systems.kitchen_actions import arm_inverse, chassis_to_world
 
-from repertoire.errors import ScenarioError
+from repertoire.errors import RepertoireError, ScenarioError
 
 CUP_IN_CHASSIS = [0.85, 0.0, 0.7036]  # cup_0's centre (+1 mm) seen from the default pose
 
@@ -152,3 +152,23 @@ def test_sequence_grips_lifts_and_puts_the_cup_elsewhere():
     assert [(r.action, r.status) for r in results] == [("reach", "FAILED")]
     with pytest.raises(ScenarioError, match="unknown action 'jump'"):
         run_kitchen_sequence([("jump", [])])
+
+
+def test_simulator_cache_keeps_at_most_max_size_diagrams():
+    from repertoire.diagrams.simulate import SimulatorCache
+
+    built = []
+
+    def build(scenario):
+        built.append(scenario.action)
+        return build_kitchen_action(scenario)
+
+    cache = SimulatorCache(build, max_size=1)
+    reach, grip = KitchenScenario(cups=[]), KitchenScenario(action="grip", cups=[])
+    for scenario in (reach, reach, grip, reach):
+        cache.get(scenario.action, scenario, lambda plant: None, {})
+    assert built == ["reach", "grip", "reach"] and len(cache) == 1  # grip evicted reach
+    cache.clear()
+    assert len(cache) == 0
+    with pytest.raises(RepertoireError, match="max_size must be >= 1, got 0"):
+        SimulatorCache(build, max_size=0)

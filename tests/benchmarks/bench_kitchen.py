@@ -60,6 +60,38 @@ def update_cost_us(system, ports: dict, n: int = 2000) -> float:
     return 1e6 * (time.perf_counter() - t) / n
 
 
+def before_after(study: str, label: str, settings: dict, n: int) -> None:
+    """Prints episodes/s on 2 workers for each config of ``settings`` and how the outcome moved.
+
+    Args:
+        study: a registered study whose records have ``duration``, ``status``, ``wall_time_s``.
+        label: what the lines start with.
+        settings: ``{"before": config, "after": config}``, run on the same seeds.
+        n: episodes per setting.
+    """
+    runs = {}
+    for name, config in settings.items():
+        wall, records = timed_study(study, config, 2, n)
+        runs[name] = records
+        sim = sum(r.duration for r in records)
+        per_episode = np.mean([r.wall_time_s for r in records])
+        print(
+            f"{label} {name}: {n / wall:.2f} episodes/s on 2 workers "
+            f"({sim / wall:.1f} sim s/s; {1e3 * per_episode:.0f} ms wall per episode in a "
+            f"worker; load {os.getloadavg()[0]:.2f})"
+        )
+    before, after = runs["before"], runs["after"]
+    changed = sum(a.status != b.status for a, b in zip(before, after))
+    both = [(a.duration, b.duration) for a, b in zip(before, after)
+            if a.status == b.status == "SUCCEEDED"]  # fmt: skip
+    d = np.array(both).reshape(-1, 2)
+    moved = f"{np.max(np.abs(d[:, 1] - d[:, 0])):.3f} s" if len(d) else "-"
+    print(
+        f"  outcome: {changed} of {n} statuses changed; {len(d)} succeeded in both: mean "
+        f"duration {d[:, 0].mean():.3f} -> {d[:, 1].mean():.3f} s, largest change {moved}"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--episodes", type=int, default=60, help="episodes per action and setting")
@@ -76,27 +108,7 @@ def main() -> None:
             ),  # fmt: skip
             "after": KitchenEpisodesConfig(actions=[action]),
         }
-        runs = {}
-        for label, config in settings.items():
-            wall, records = timed_study("actions_kitchen", config, 2, n)
-            runs[label] = records
-            sim = sum(r.duration for r in records)
-            per_episode = np.mean([r.wall_time_s for r in records])
-            print(
-                f"kitchen {action} {label}: {n / wall:.2f} episodes/s on 2 workers "
-                f"({sim / wall:.1f} sim s/s; {1e3 * per_episode:.0f} ms wall per episode in a "
-                f"worker; load {os.getloadavg()[0]:.2f})"
-            )
-        before, after = runs["before"], runs["after"]
-        changed = sum(a.status != b.status for a, b in zip(before, after))
-        both = [(a.duration, b.duration) for a, b in zip(before, after)
-                if a.status == b.status == "SUCCEEDED"]  # fmt: skip
-        d = np.array(both).reshape(-1, 2)
-        moved = f"{np.max(np.abs(d[:, 1] - d[:, 0])):.3f} s" if len(d) else "-"
-        print(
-            f"  outcome: {changed} of {n} statuses changed; {len(d)} succeeded in both: mean "
-            f"duration {d[:, 0].mean():.3f} -> {d[:, 1].mean():.3f} s, largest change {moved}"
-        )
+        before_after("actions_kitchen", f"kitchen {action}", settings, n)
     base = [2.0, 0.55, np.pi / 2, 0.0]
     arm = dict(arm_position=[0.62, 0.0, 0.25], target=[0.85, 0.0, 0.7036], base_state=base)
     costs = {

@@ -36,7 +36,7 @@ raise RepertoireError on NaN/inf or a wrong width.
 """
 
 import numpy as np
-from repertoire.planning.action_models.features import wrap_angle
+from repertoire.planning.action_models.features import goto_pose_features, wrap_angle
 
 from repertoire.errors import RepertoireError
 
@@ -76,16 +76,9 @@ def kitchen_goto_features(state, goal) -> np.ndarray:
         goal: ``[x_g, y_g, phi_g, v_g]`` or ``(n, 4)``.
     """
     s, g, single = _pairs("kitchen goToPose features", state, goal, 4)
-    direction = np.arctan2(g[:, 1] - s[:, 1], g[:, 0] - s[:, 0])
-    signed = wrap_angle(direction - s[:, 2])
+    dist, angle_to, angle_at = goto_pose_features(s, g)[:, :3].T  # mirrored, as Table 7
     out = np.column_stack(
-        [
-            g[:, 3],
-            np.hypot(g[:, 0] - s[:, 0], g[:, 1] - s[:, 1]),
-            np.abs(signed),
-            np.where(signed < 0, -1.0, 1.0) * wrap_angle(g[:, 2] - direction),
-            np.abs(wrap_angle(g[:, 2] - s[:, 2])),
-        ]
+        [g[:, 3], dist, angle_to, angle_at, np.abs(wrap_angle(g[:, 2] - s[:, 2]))]
     )
     return out[0] if single else out
 

@@ -19,6 +19,7 @@ With ``cup_in_gripper`` the cup ``cup_0`` starts between the closed fingers
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
@@ -28,10 +29,11 @@ from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
 from repertoire.diagrams.biped import add_ground, validate_plant_fields
-from repertoire.diagrams.diffdrive import WHEEL_RADIUS, add_world
+from repertoire.diagrams.diffdrive import WHEEL_RADIUS, WORLDS
 from repertoire.diagrams.registry import register_diagram
+from repertoire.diagrams.simulate import SimulatorCache
 from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
-from repertoire.models import ConfigureParser, package_url
+from repertoire.models import MODELS_DIR, ConfigureParser, package_url
 from repertoire.systems.go_to_pose import (
     GOTO_GAINS,
     ActionStatus,
@@ -75,6 +77,8 @@ KITCHEN_OBSTACLES = np.array(
 #: The region GoToPose targets may lie in: the room less the robot's radius and the walls.
 KITCHEN_WORKSPACE = (-3.6, 3.6, -2.6, 2.6)
 CUP_0_POSITION = (2.0, 1.4, 0.8001)  # cup_0's centre in kitchen.sdf
+#: The free cups of kitchen.sdf.
+KITCHEN_CUPS = ("cup_0", "cup_1", "cup_2", "cup_3", "cup_4")
 ARM_TUCKED = (0.62, 0.0, 0.25)  # lift, yaw, extend: fingers above the tables
 #: PD gains (kp, kd) of the arm and finger actuators.
 ARM_GAINS = {
@@ -99,6 +103,9 @@ class KitchenScenario:
         arm_target: gripper-centre target ``[ax, ay, az]`` in the chassis frame
             for ``reach`` and ``put``.
         cup_in_gripper: ``cup_0`` starts at the gripper centre (for ``put``).
+        cups: the cups of ``KITCHEN_CUPS`` in the world (each a free body with
+            six velocities and its contact with the table: leaving out the cups an
+            episode never touches makes the plant's step about twice as cheap).
         time_step: plant step [s].
         control_period: the actions' update period [s].
         contact_approximation: discrete contact approximation.
@@ -114,6 +121,7 @@ class KitchenScenario:
     goto_target: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0])
     arm_target: list[float] = dataclasses.field(default_factory=lambda: [0.85, 0.0, 0.7036])
     cup_in_gripper: bool = False
+    cups: list[str] = dataclasses.field(default_factory=lambda: list(KITCHEN_CUPS))
     time_step: float = 2e-3
     control_period: float = 0.02
     contact_approximation: str = "lagged"
@@ -137,6 +145,11 @@ class KitchenScenario:
         if not (np.isfinite(self.initial_fingers) and 0.03 <= self.initial_fingers <= 0.08):
             raise ScenarioError(f"initial_fingers must be in [0.03, 0.08] m, got "
                                 f"{self.initial_fingers}")  # fmt: skip
+        unknown = [c for c in self.cups if c not in KITCHEN_CUPS]
+        if unknown or len(set(self.cups)) != len(self.cups):
+            raise ScenarioError(f"cups must be distinct names of {KITCHEN_CUPS}, got {self.cups}")
+        if self.cup_in_gripper and "cup_0" not in self.cups:
+            raise ScenarioError("cup_in_gripper needs cup_0 in cups")
         validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
         if not (np.isfinite(self.control_period) and self.control_period >= self.time_step):
             raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
@@ -145,6 +158,17 @@ class KitchenScenario:
         unknown = sorted(set(self.gains) - set(GOTO_GAINS))
         if unknown:
             raise ScenarioError(f"unknown GoToPose gains {unknown}; expected {list(GOTO_GAINS)}")
+
+
+def add_kitchen_world(parser: Parser, cups) -> None:
+    """Adds the models of kitchen.sdf to the parser's plant, of its cups only ``cups``."""
+    text = (MODELS_DIR / WORLDS["kitchen"]).read_text()
+    dropped = [c for c in KITCHEN_CUPS if c not in cups]
+    for cup in dropped:
+        text, n = re.subn(rf'\s*<model name="{cup}">.*?</model>', "", text, flags=re.S)
+        if n != 1:
+            raise ScenarioError(f"kitchen.sdf has no single model {cup!r}")  # the file changed
+    parser.AddModelsFromString(text, "sdf")
 
 
 def joint_state_selector(plant, joints) -> np.ndarray:
@@ -206,7 +230,7 @@ def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
         plant.GetJointActuatorByName(f"{joint}_motor", robot).set_controller_gains(
             PdControllerGains(p=kp, d=kd)
         )
-    add_world(plant, parser, "kitchen")
+    add_kitchen_world(parser, scenario.cups)
     plant.Finalize()
     _set_default_state(plant, scenario)
 
@@ -225,19 +249,20 @@ def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
     builder.Connect(mux.get_output_port(), to_state.get_input_port())
     builder.Connect(to_state.get_output_port(), plant.get_desired_state_input_port(robot))
 
-    def hold(port_index: int, values) -> None:
-        source = builder.AddSystem(ConstantVectorSource(np.asarray(values, dtype=float)))
-        source.set_name(("hold_wheels", "hold_arm", "hold_fingers")[port_index])
+    values = source_values(scenario)
+
+    def hold(port_index: int) -> None:
+        name = ("hold_wheels", "hold_arm", "hold_fingers")[port_index]
+        source = builder.AddSystem(ConstantVectorSource(values[name]))
+        source.set_name(name)
         builder.Connect(source.get_output_port(), mux.get_input_port(port_index))
 
-    def target_source(values):
-        source = builder.AddSystem(ConstantVectorSource(np.asarray(values, dtype=float)))
+    def target_source():
+        source = builder.AddSystem(ConstantVectorSource(values["target"]))
         source.set_name("target")
         return source
 
-    period, fingers0 = scenario.control_period, [scenario.initial_fingers] * 2
-    if scenario.cup_in_gripper:
-        fingers0 = [FINGER_CLOSED] * 2
+    period = scenario.control_period
     if scenario.action == "goto_pose":
         try:
             goto = GoToPose(period=period, gains=scenario.gains, workspace=KITCHEN_WORKSPACE)
@@ -245,24 +270,22 @@ def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
             raise ScenarioError(f"gains: {e}") from e
         action = builder.AddSystem(goto)
         guard = builder.AddSystem(FootprintGuard(KITCHEN_OBSTACLES, ROBOT_RADIUS))
-        builder.Connect(
-            target_source(scenario.goto_target).get_output_port(), guard.get_input_port()
-        )
+        builder.Connect(target_source().get_output_port(), guard.get_input_port())
         builder.Connect(guard.get_output_port(), action.get_target_input_port())
         builder.Connect(reader.get_output_port(), action.get_state_input_port())
         builder.Connect(action.get_command_output_port(), mux.get_input_port(0))
-        hold(1, scenario.initial_arm)
-        hold(2, fingers0)
+        hold(1)
+        hold(2)
     else:
-        hold(0, [0.0, 0.0])
+        hold(0)
         if scenario.action == "reach":
             action = builder.AddSystem(Reach(period, obstacles=KITCHEN_OBSTACLES))
             builder.Connect(action.get_command_output_port(), mux.get_input_port(1))
-            hold(2, fingers0)
+            hold(2)
         elif scenario.action == "grip":
             action = builder.AddSystem(Grip(period))
             builder.Connect(action.get_command_output_port(), mux.get_input_port(2))
-            hold(1, scenario.initial_arm)
+            hold(1)
         else:
             action = builder.AddSystem(Put(period, obstacles=KITCHEN_OBSTACLES))
             demux = builder.AddSystem(MatrixGain(np.eye(5)[:3]))
@@ -276,7 +299,7 @@ def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
         if scenario.action in ("reach", "put"):
             builder.Connect(arm_reader.get_output_port(), action.get_arm_position_input_port())
             builder.Connect(
-                target_source(scenario.arm_target).get_output_port(),
+                target_source().get_output_port(),
                 action.get_target_input_port(),
             )
         if scenario.action in ("grip", "put"):
@@ -291,6 +314,70 @@ def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
     diagram = builder.Build()
     diagram.set_name("kitchen_action")
     return diagram
+
+
+def source_values(scenario: KitchenScenario) -> dict[str, np.ndarray]:
+    """Values of the constant sources of ``scenario``'s diagram, by subsystem name.
+
+    ``target`` (goto_pose: ``goto_target``; reach, put: ``arm_target``; absent for
+    grip) and the hold values of the channels the action does not drive:
+    ``hold_wheels`` ``[v, omega] = 0``, ``hold_arm`` the start joints,
+    ``hold_fingers`` the start fingers (closed with ``cup_in_gripper``).
+    """
+    fingers = FINGER_CLOSED if scenario.cup_in_gripper else scenario.initial_fingers
+    held = {
+        "hold_wheels": [0.0, 0.0],
+        "hold_arm": scenario.initial_arm,
+        "hold_fingers": [fingers] * 2,
+    }
+    driven = {"goto_pose": "hold_wheels", "reach": "hold_arm", "grip": "hold_fingers"}
+    if scenario.action == "put":
+        del held["hold_arm"], held["hold_fingers"]
+    else:
+        del held[driven[scenario.action]]
+    if scenario.action == "goto_pose":
+        held["target"] = scenario.goto_target
+    elif scenario.action in ("reach", "put"):
+        held["target"] = scenario.arm_target
+    return {name: np.asarray(v, dtype=float) for name, v in held.items()}
+
+
+def _structure(scenario: KitchenScenario) -> tuple:
+    """The fields that shape the diagram (the others are start values and targets)."""
+    s = scenario
+    return (s.action, s.cup_in_gripper, tuple(s.cups), s.time_step, s.control_period,
+            s.contact_approximation, s.wheel_kd, s.ground_friction,
+            tuple(sorted(s.gains.items())))  # fmt: skip
+
+
+#: ``kitchen_action`` simulators by diagram structure (see :func:`kitchen_simulator`).
+KITCHEN_SIMULATORS = SimulatorCache(build_kitchen_action)
+
+
+def kitchen_simulator(scenario: KitchenScenario, *, reuse: bool = True):
+    """A Simulator of the ``kitchen_action`` diagram at time 0 in ``scenario``'s start.
+
+    The diagram is built the first time its structure (action, cups, plant
+    settings, gains) is asked for in this process and reset afterwards
+    (:class:`~repertoire.diagrams.simulate.SimulatorCache`: a reset diagram
+    runs bit for bit as a new one). Change the context as needed, then call
+    ``simulator.Initialize()`` before advancing.
+
+    Args:
+        scenario: the world, action and start.
+        reuse: False builds a new diagram (and forgets the one kept for this structure).
+
+    Returns:
+        ``(diagram, simulator)``.
+    """
+    scenario.validate()
+    return KITCHEN_SIMULATORS.get(
+        _structure(scenario),
+        scenario,
+        lambda plant: _set_default_state(plant, scenario),
+        source_values(scenario),
+        reuse=reuse,
+    )
 
 
 def _set_default_state(plant, scenario: KitchenScenario) -> None:
@@ -343,13 +430,15 @@ def gripper_position(diagram: Diagram, context: Context) -> np.ndarray:
 
 
 def check_kitchen_action(diagram: Diagram, context: Context) -> dict[str, float]:
-    """Figures: ``status_succeeded`` (1/0), ``gripper_to_cup_m`` (cup_0 from the gripper centre)."""
-    return {
-        "status_succeeded": float(action_status(diagram, context) == ActionStatus.SUCCEEDED),
-        "gripper_to_cup_m": float(
-            np.linalg.norm(cup_position(diagram, context) - gripper_position(diagram, context))
-        ),
-    }
+    """Figures: ``status_succeeded`` (1/0), ``gripper_to_cup_m`` (cup_0 from the gripper centre).
+
+    ``gripper_to_cup_m`` only if cup_0 is in the world.
+    """
+    figures = {"status_succeeded": float(action_status(diagram, context) == ActionStatus.SUCCEEDED)}
+    if diagram.GetSubsystemByName("plant").HasModelInstanceNamed("cup_0"):
+        gap = cup_position(diagram, context) - gripper_position(diagram, context)
+        figures["gripper_to_cup_m"] = float(np.linalg.norm(gap))
+    return figures
 
 
 @dataclasses.dataclass

@@ -292,3 +292,85 @@ def simulate_registered(
     diagram = build_registered(name, scenario=scenario, meshcat=meshcat)
     _, context = simulate(diagram, duration, meshcat=meshcat)
     return {"sim_time_s": context.get_time(), **run_check(entry, diagram, context)}
+
+
+class SimulatorCache:
+    """One Simulator per diagram structure, reset between episodes instead of rebuilt.
+
+    Episode studies run thousands of episodes of one world that differ only in
+    start states and constant-source values; parsing the models and building
+    the diagram can cost as much as a short episode. :meth:`get` builds a
+    diagram the first time its structure key is asked for and afterwards resets
+    it: time, every state and parameter copied from a new context of the
+    diagram (also the plant's abstract step memory, which ``SetDefaultContext``
+    keeps, so a new episode would otherwise see the last one's contacts), then
+    the plant's positions and velocities from its defaults (which the caller
+    sets for the episode), the named constant sources' values, the monitor
+    cleared. A reset diagram runs bit for bit as a new one (tests in
+    test_kitchen_world.py and test_action_dribble.py). Call
+    ``simulator.Initialize()`` before advancing (after any change to the
+    context). The context handed out is reset by the next :meth:`get` of the
+    same key.
+    """
+
+    def __init__(self, build: Callable[[Any], Diagram], max_size: int = 8):
+        """Creates an empty cache.
+
+        Args:
+            build: scenario -> the diagram (with a subsystem named ``plant``).
+            max_size: diagrams kept (the oldest is dropped first).
+        """
+        if max_size < 1:
+            raise RepertoireError(f"max_size must be >= 1, got {max_size}")
+        self._build, self._max = build, max_size
+        self._entries: dict[Any, tuple[Diagram, Simulator, Context]] = {}
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def clear(self) -> None:
+        """Forgets every diagram."""
+        self._entries.clear()
+
+    def get(
+        self,
+        key,
+        scenario,
+        set_plant_defaults: Callable[[Any], None],
+        sources: dict[str, np.ndarray],
+        *,
+        reuse: bool = True,
+    ) -> tuple[Diagram, Simulator]:
+        """``(diagram, simulator)`` for ``scenario`` at time 0 in its start state.
+
+        Args:
+            key: hashable; equal keys must build equal diagrams up to the plant's
+                default state and the ``sources`` values.
+            scenario: passed to ``build`` when the key is new.
+            set_plant_defaults: plant -> None, sets the plant's default positions
+                and velocities for this episode.
+            sources: ConstantVectorSource subsystem name -> its value.
+            reuse: False builds a new diagram for the key (forgetting the old one).
+        """
+        if not reuse:
+            self._entries.pop(key, None)
+        if key not in self._entries:
+            if len(self._entries) >= self._max:
+                del self._entries[next(iter(self._entries))]
+            diagram = self._build(scenario)
+            self._entries[key] = (diagram, Simulator(diagram), diagram.CreateDefaultContext())
+        diagram, simulator, pristine = self._entries[key]
+        simulator.clear_monitor()
+        context = simulator.get_mutable_context()
+        context.SetTimeStateAndParametersFrom(pristine)
+        plant = diagram.GetSubsystemByName("plant")
+        set_plant_defaults(plant)
+        plant_context = plant.GetMyMutableContextFromRoot(context)
+        plant.SetDefaultState(plant_context, plant_context.get_mutable_state())
+        for name, value in sources.items():
+            source = diagram.GetSubsystemByName(name)
+            value_in_context = source.get_mutable_source_value(
+                source.GetMyMutableContextFromRoot(context)
+            )
+            value_in_context.SetFromVector(np.asarray(value, dtype=float))
+        return diagram, simulator

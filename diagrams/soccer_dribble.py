@@ -21,6 +21,7 @@ from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
 from repertoire.diagrams.biped import add_ground, validate_discrete_control_fields
 from repertoire.diagrams.diffdrive import WHEEL_RADIUS, add_diffdrive, add_world
 from repertoire.diagrams.registry import register_diagram
+from repertoire.diagrams.simulate import SimulatorCache
 from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
 from repertoire.systems.dribble_ball import (
     DRIBBLE_GAINS,
@@ -70,11 +71,21 @@ def add_robot_with_dribbler(builder: DiagramBuilder, scenario: "DribbleScenario"
             chassis, X, Box(*GUIDE_SIZE), f"dribbler_{side}_visual", [0.2, 0.2, 0.2, 1.0]
         )
     plant.Finalize()
+    set_dribble_defaults(plant, scenario)
+    return plant, scene_graph, robot
+
+
+def set_dribble_defaults(plant, scenario: "DribbleScenario") -> None:
+    """Sets the plant's default poses of the chassis and the ball to the scenario's start."""
     x, y, yaw = scenario.initial_pose
     plant.SetDefaultFloatingBaseBodyPose(
-        chassis, RigidTransform(RollPitchYaw(0.0, 0.0, yaw), [x, y, WHEEL_RADIUS])
+        plant.GetBodyByName("chassis"),
+        RigidTransform(RollPitchYaw(0.0, 0.0, yaw), [x, y, WHEEL_RADIUS]),
     )
-    return plant, scene_graph, robot
+    bx, by = scenario.ball_xy()
+    plant.SetDefaultFloatingBaseBodyPose(
+        plant.GetBodyByName("ball"), RigidTransform([bx, by, BALL_RADIUS])
+    )
 
 
 @dataclasses.dataclass
@@ -163,10 +174,6 @@ def build_soccer_dribble(scenario: DribbleScenario, *, meshcat=None) -> Diagram:
     scenario.validate()
     builder = DiagramBuilder()
     plant, scene_graph, robot = add_robot_with_dribbler(builder, scenario)
-    bx, by = scenario.ball_xy()
-    plant.SetDefaultFloatingBaseBodyPose(
-        plant.GetBodyByName("ball"), RigidTransform([bx, by, BALL_RADIUS])
-    )
     reader = builder.AddNamedSystem("state_reader", DiffDriveStateReader(plant))
     ball_reader = builder.AddNamedSystem("ball_reader", BodyXYReader(plant, "ball"))
     action = builder.AddNamedSystem(
@@ -197,6 +204,34 @@ def build_soccer_dribble(scenario: DribbleScenario, *, meshcat=None) -> Diagram:
     diagram = builder.Build()
     diagram.set_name("soccer_dribble")
     return diagram
+
+
+#: ``soccer_dribble`` simulators by diagram structure (see :func:`dribble_simulator`).
+DRIBBLE_SIMULATORS = SimulatorCache(build_soccer_dribble)
+
+
+def dribble_simulator(scenario: DribbleScenario, *, reuse: bool = True):
+    """A Simulator of ``soccer_dribble`` at time 0 in ``scenario``'s start.
+
+    Built once per structure (every field but ``initial_pose``, ``ball_offset``
+    and ``target``) in this process and reset afterwards
+    (:class:`~repertoire.diagrams.simulate.SimulatorCache`). Change the context
+    as needed, then call ``simulator.Initialize()`` before advancing.
+
+    Returns:
+        ``(diagram, simulator)``.
+    """
+    scenario.validate()
+    s = scenario
+    key = (s.time_step, s.control_period, s.contact_approximation, s.wheel_kd,
+           s.ground_friction, tuple(sorted(s.gains.items())), s.ball_decel)  # fmt: skip
+    return DRIBBLE_SIMULATORS.get(
+        key,
+        scenario,
+        lambda plant: set_dribble_defaults(plant, scenario),
+        {"target": scenario.target},
+        reuse=reuse,
+    )
 
 
 def dribble_status(diagram: Diagram, context: Context) -> ActionStatus:

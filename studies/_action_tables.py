@@ -1,9 +1,10 @@
 """Shared summary pieces of the action studies: Table 1 rows, failure tables, learning curves.
 
-Each action study (``actions_dribble``, ``actions_arm_reach``) fits a duration
-model tree on its succeeded episodes and a pessimistic failure tree on all of
-them with :func:`~repertoire.planning.action_models.fit_action_model` (3/4
-train, 1/4 held out), and writes the paper's Table 1 row beside ours.
+Each action study (``actions_goto_pose``, ``actions_dribble``,
+``actions_arm_reach``, ``actions_kitchen``) fits a duration model tree on its
+succeeded episodes and a pessimistic failure tree on all of them with
+:func:`~repertoire.planning.action_models.fit_action_model` (3/4 train, 1/4
+held out), and writes the paper's Table 1 row beside ours.
 """
 
 from collections.abc import Callable, Sequence
@@ -41,6 +42,45 @@ def too_few_note(path: Path, n: int, n_done: int) -> dict[str, Path]:
     return {"tables": path}
 
 
+def failure_table(
+    records: Sequence[Any],
+    features: dict[str, Callable[[Any], float]],
+    heading: str,
+    paper_accuracy: float | None = None,
+) -> tuple[list[str], Any]:
+    """Markdown of the pessimistic failure tree's held-out confusion matrix.
+
+    Args:
+        records: all episodes (with a ``failed`` flag).
+        features: feature name -> function of a record.
+        heading: the section's title.
+        paper_accuracy: the paper's fraction correct, printed beside ours.
+
+    Returns:
+        ``(markdown lines, failure FittedModel or None when one class)``.
+    """
+    from repertoire.planning.action_models import fit_action_model
+
+    n_fail = sum(bool(r.failed) for r in records)
+    md = [f"## {heading}", ""]
+    if not 0 < n_fail < len(records):
+        md.append(f"{n_fail} of {len(records)} episodes failed: no failure tree (one class).")
+        return md, None
+    fail = fit_action_model(list(records), features, "failed")
+    (tn, fp), (fn, tp) = fail.confusion
+    paper = "" if paper_accuracy is None else f", paper ~{paper_accuracy:.0%}"
+    md += [
+        "| | predicted success | predicted failure |",
+        "|---|---|---|",
+        f"| actual success | {tn} | {fp} |",
+        f"| actual failure | {fn} | {tp} |",
+        "",
+        f"Correct: ours {fail.accuracy:.1%}{paper}; missed failures (pessimism): {fn} of "
+        f"{fn + tp}.",
+    ]
+    return md, fail
+
+
 def table1_and_failure(
     action: str,
     records: Sequence[Any],
@@ -48,6 +88,9 @@ def table1_and_failure(
     features: dict[str, Callable[[Any], float]],
     paper: dict[str, float],
     failure_label: str,
+    *,
+    failure_heading: str | None = None,
+    paper_accuracy: float | None = None,
 ) -> tuple[list[str], Any, Any]:
     """Markdown of Table 1 (duration) and the failure confusion matrix.
 
@@ -58,6 +101,8 @@ def table1_and_failure(
         features: feature name -> function of a record.
         paper: ``episodes`` (3/4 n_e), ``mean`` and ``mae`` of the paper's Table 1 row.
         failure_label: what the failure flag means, for the caption.
+        failure_heading: the failure section's title (default from ``failure_label``).
+        paper_accuracy: the paper's failure-tree fraction correct, if it gives one.
 
     Returns:
         ``(markdown lines, duration FittedModel, failure FittedModel or None)``.
@@ -65,10 +110,6 @@ def table1_and_failure(
     from repertoire.planning.action_models import fit_action_model
 
     dur = fit_action_model(list(done), features, "duration")
-    n_fail = sum(bool(r.failed) for r in records)
-    fail = None
-    if 0 < n_fail < len(records):
-        fail = fit_action_model(list(records), features, "failed")
     md = [
         "## Table 1: duration model (held-out quarter)",
         "",
@@ -79,22 +120,10 @@ def table1_and_failure(
         f"| {action}, paper (Table 1) | {paper['episodes'] * 4 // 3} ({paper['episodes']}) | "
         f"{paper['mean']} | {paper['mae']} |",
         "",
-        f"## Failure tree ({failure_label}), held-out quarter",
-        "",
     ]
-    if fail is None:
-        md.append(f"{n_fail} of {len(records)} episodes failed: no failure tree (one class).")
-    else:
-        (tn, fp), (fn, tp) = fail.confusion
-        md += [
-            "| | predicted success | predicted failure |",
-            "|---|---|---|",
-            f"| actual success | {tn} | {fp} |",
-            f"| actual failure | {fn} | {tp} |",
-            "",
-            f"Correct: {fail.accuracy:.1%}; missed failures (pessimism): {fn} of {fn + tp}.",
-        ]
-    md += ["", "## Duration tree rules", "", "```", dur.model.rules(), "```"]
+    heading = failure_heading or f"Failure tree ({failure_label}), held-out quarter"
+    fail_md, fail = failure_table(records, features, heading, paper_accuracy)
+    md += [*fail_md, "", "## Duration tree rules", "", "```", dur.model.rules(), "```"]
     return md, dur, fail
 
 
@@ -105,27 +134,48 @@ def learning_curve_figure(
     paper_mae: float,
     title: str,
     path: Path,
+    *,
+    paper_accuracy: float | None = None,
+    more_features: tuple[str, dict[str, Callable[[Any], float]]] | None = None,
 ) -> Path:
-    """Held-out duration MAE and failure accuracy against the number of episodes (PNG)."""
+    """Held-out duration MAE and failure accuracy against the number of episodes (PNG).
+
+    Args:
+        records: all episodes in seed order (the first n are used at size n).
+        is_done: whether a record's duration is learned (succeeded).
+        features: feature name -> function of a record.
+        paper_mae: the paper's MAE (a dotted line).
+        title: the figure's title.
+        path: the PNG to write.
+        paper_accuracy: the paper's failure-tree accuracy (a dotted line), if any.
+        more_features: ``(label, features)``: a second duration-MAE curve with other features.
+    """
     from matplotlib.figure import Figure
     from repertoire.planning.action_models import fit_action_model
 
     # doubling sizes, the last one replaced by all records when they are within 25% of it
-    sizes = [n for n in (40, 80, 160, 320, 640, 1280) if n * 1.25 < len(records)] + [len(records)]
-    ns_d, maes, ns_f, accs = [], [], [], []
+    sizes = [n for n in (40, 80, 160, 320, 640, 1280, 2560) if n * 1.25 < len(records)]
+    sizes.append(len(records))
+    curves: dict[str, tuple[list, list]] = {"duration MAE (s), held-out": ([], [])}
+    if more_features is not None:
+        curves[f"duration MAE (s), held-out, {more_features[0]}"] = ([], [])
+    ns_f, accs = [], []
     for n in sizes:
         sub = list(records[:n])
         sub_done = [r for r in sub if is_done(r)]
         if len(sub_done) >= min_records():
-            ns_d.append(n)
-            maes.append(fit_action_model(sub_done, features, "duration").mae)
+            feature_sets = [features] + ([more_features[1]] if more_features else [])
+            for (ns, maes), funcs in zip(curves.values(), feature_sets):
+                ns.append(n)
+                maes.append(fit_action_model(sub_done, funcs, "duration").mae)
         n_fail = sum(bool(r.failed) for r in sub)
         if 0 < n_fail < n and n >= min_records():
             ns_f.append(n)
             accs.append(fit_action_model(sub, features, "failed").accuracy)
     fig = Figure(figsize=(6.5, 4.0), layout="constrained")
     ax = fig.add_subplot()
-    ax.plot(ns_d, maes, "o-", color="tab:blue", label="duration MAE (s), held-out")
+    for (label, (ns, maes)), colour in zip(curves.items(), ("tab:blue", "tab:green")):
+        ax.plot(ns, maes, "o-", color=colour, label=label)
     ax.axhline(paper_mae, color="tab:blue", ls=":", label="paper's MAE (Table 1)")
     ax.set_xscale("log")
     ax.set_xlabel("episodes")
@@ -135,6 +185,8 @@ def learning_curve_figure(
     if ns_f:  # a failure tree needs both outcomes
         ax2 = ax.twinx()
         ax2.plot(ns_f, accs, "s-", color="tab:red", label="failure tree accuracy, held-out")
+        if paper_accuracy is not None:
+            ax2.axhline(paper_accuracy, color="tab:red", ls=":", label="paper's accuracy")
         ax2.set_ylabel("fraction correct")
         ax2.set_ylim(0, 1)
         h2, l2 = ax2.get_legend_handles_labels()

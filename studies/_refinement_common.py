@@ -153,17 +153,21 @@ def approach_target(phi, v, distance: float) -> np.ndarray:
 
 
 def approach_features(start, phi, v, distance: float) -> np.ndarray:
-    """Table 7 features of the approach leg(s) (start -> behind the ball)."""
+    """Table 7 features of the approach leg(s) (start -> behind the ball).
+
+    Un-mirrored (``goto_pose_features(..., mirrored=False)``), as the shipped models
+    were fitted; the refinement studies move to the mirrored form when they are refitted.
+    """
     target = approach_target(phi, v, distance)
     start = np.broadcast_to(np.asarray(start, dtype=float), target.shape)
-    return np.atleast_2d(goto_pose_features(start, target))
+    return np.atleast_2d(goto_pose_features(start, target, mirrored=False))
 
 
 def dribble_features(phi, v, dest, distance: float) -> np.ndarray:
-    """Table 7 features of the dribble leg(s) (behind the ball -> destination)."""
+    """Table 7 features of the dribble leg(s) (behind the ball -> destination), un-mirrored."""
     start = approach_target(phi, v, distance)
     dest = np.broadcast_to(np.asarray(dest, dtype=float), start.shape)
-    return np.atleast_2d(goto_pose_features(start, dest))
+    return np.atleast_2d(goto_pose_features(start, dest, mirrored=False))
 
 
 @functools.cache

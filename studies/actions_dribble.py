@@ -50,6 +50,8 @@ class DribbleEpisodesConfig:
         time_step: plant step [s].
         control_period: DribbleBall update period [s].
         gains: DribbleBall gain overrides.
+        reuse_diagram: build the world once per worker process and reset it for each
+            episode (False: build it for every episode, the old way; for benchmarks).
     """
 
     x_range: list[float] = dataclasses.field(default_factory=lambda: [-2.2, 2.2])
@@ -64,6 +66,7 @@ class DribbleEpisodesConfig:
     time_step: float = 1e-2
     control_period: float = 0.02
     gains: dict[str, float] = dataclasses.field(default_factory=dict)
+    reuse_diagram: bool = True
 
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
@@ -161,12 +164,11 @@ def sample_parameters(config: DribbleEpisodesConfig, seed: int) -> tuple[list[fl
 
 def run_episode(config: DribbleEpisodesConfig, seed: int) -> DribbleRecord:
     """Runs one DribbleBall episode in the soccer world."""
-    from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import EventStatus
     from repertoire.diagrams.soccer import set_initial_speed
     from repertoire.diagrams.soccer_dribble import (
         DribbleScenario,
-        build_soccer_dribble,
+        dribble_simulator,
         dribble_status,
         robot_and_ball,
     )
@@ -182,8 +184,7 @@ def run_episode(config: DribbleEpisodesConfig, seed: int) -> DribbleRecord:
         control_period=config.control_period,
         gains=dict(config.gains),
     )
-    diagram = build_soccer_dribble(scenario)
-    simulator = Simulator(diagram)
+    diagram, simulator = dribble_simulator(scenario, reuse=config.reuse_diagram)
     context = simulator.get_mutable_context()
     set_initial_speed(diagram, context, start[3])
     set_ball_velocity(
@@ -193,18 +194,22 @@ def run_episode(config: DribbleEpisodesConfig, seed: int) -> DribbleRecord:
     states: list[float] = []
     next_state_time = [0.0]
 
+    action = diagram.GetSubsystemByName("dribble_ball")
+    status_port = action.get_status_output_port()
+    action_context = action.GetMyContextFromRoot(context)
+
     def monitor(root_context) -> EventStatus:
         if len(states) < 6 * config.n_states and root_context.get_time() >= next_state_time[0]:
             s, b = robot_and_ball(diagram, root_context)
             states.extend(float(v) for v in (*s, *b))
             next_state_time[0] += config.state_period
-        if dribble_status(diagram, root_context) != ActionStatus.RUNNING:
+        if status_port.Eval(action_context) != ActionStatus.RUNNING:
             return EventStatus.ReachedTermination(None, "action finished")
         return EventStatus.Succeeded()
 
     simulator.set_monitor(monitor)
-    action = diagram.GetSubsystemByName("dribble_ball")
-    timeout = action.gains(action.GetMyContextFromRoot(context))["timeout"]
+    simulator.Initialize()  # the monitor sees the start state
+    timeout = action.gains(action_context)["timeout"]
     simulator.AdvanceTo(timeout + 1.0)
     status = dribble_status(diagram, context)
     return DribbleRecord(

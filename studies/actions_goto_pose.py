@@ -28,7 +28,8 @@ from repertoire.studies.engine import register_study
 from repertoire.errors import RepertoireError
 
 BALL_RADIUS = 0.11
-PAPER_GOTO_MAE_S = 0.32  # Table 1 of Stulp & Beetz: goToPose (simulated), mean absolute error
+#: Table 1 of Stulp & Beetz, soccer (simulated) goToPose: 3/4 n_e, mean duration [s], MAE [s].
+PAPER_GOTO = {"episodes": 750, "mean": 6.2, "mae": 0.22}
 PAPER_FAILURE_ACCURACY = 0.89  # section 5: failure (collision) tree, correctly classified
 
 
@@ -218,86 +219,42 @@ def summarize(
     """Fits the models and writes Table 1/2 (Markdown), learning curves and a Fig. 7 polar plot.
 
     Returns:
-        Paths by name (nothing is fitted below ``MIN_EPISODES`` successful episodes).
+        Paths by name (nothing is fitted below ``min_records()`` successful episodes).
     """
-    from matplotlib.figure import Figure
-    from repertoire.planning.action_models import MIN_EPISODES, fit_action_model
-    from repertoire.studies._action_tables import polar_duration_figure
+    from repertoire.studies._action_tables import (
+        learning_curve_figure,
+        min_records,
+        polar_duration_figure,
+        table1_and_failure,
+        too_few_note,
+    )
 
     out_dir = Path(out_dir)
-    done = [r for r in records if r.status == "SUCCEEDED" and not r.touched_ball]
-    if len(done) < MIN_EPISODES * 4 // 3 + 1 or len(records) < MIN_EPISODES * 4 // 3 + 1:
-        note = out_dir / "actions_goto_pose_tables.md"
-        note.write_text(
-            f"{len(records)} episodes ({len(done)} succeeded): too few to fit; at least "
-            f"{MIN_EPISODES * 4 // 3 + 1} are needed.\n"
-        )
-        return {"tables": note}
-    dur = fit_action_model(done, FEATURE_FUNCS, "duration")
-    fail = fit_action_model(records, FEATURE_FUNCS, "failed")
-    (tn, fp), (fn, tp) = fail.confusion
-    md = [
-        "## Table 1: duration models (held-out quarter)",
-        "",
-        "| action | episodes | mean duration (s) | MAE (s) ours | MAE (s) paper |",
-        "|---|---|---|---|---|",
-        f"| goToPose (soccer, sim) | {len(done)} | {np.mean([r.duration for r in done]):.2f} "
-        f"| {dur.mae:.3f} | {PAPER_GOTO_MAE_S} |",
-        "",
-        "## Table 2: failure (ball collision) tree, held-out quarter",
-        "",
-        "| | predicted success | predicted failure |",
-        "|---|---|---|",
-        f"| actual success | {tn} | {fp} |",
-        f"| actual failure | {fn} | {tp} |",
-        "",
-        f"Correct: ours {fail.accuracy:.1%}, paper ~{PAPER_FAILURE_ACCURACY:.0%}; "
-        f"missed failures (pessimism): {fn} of {fn + tp}.",
-        "",
-        "## Duration tree rules",
-        "",
-        "```",
-        dur.model.rules(),
-        "```",
-    ]
     tables = out_dir / "actions_goto_pose_tables.md"
-    tables.write_text("\n".join(md) + "\n")
-
-    # learning curves
-    sizes = [n for n in (40, 80, 160, 320, 640, 1280, 2560) if n < len(records)] + [len(records)]
-    maes, accs, ns_d = [], [], []
-    for n in sizes:
-        sub = records[:n]
-        sub_done = [r for r in sub if r.status == "SUCCEEDED" and not r.touched_ball]
-        if len(sub_done) >= MIN_EPISODES * 4 // 3 + 1:
-            maes.append(fit_action_model(sub_done, FEATURE_FUNCS, "duration").mae)
-            ns_d.append(n)
-        accs.append(fit_action_model(sub, FEATURE_FUNCS, "failed").accuracy)
-    fig = Figure(figsize=(6.5, 4.0), layout="constrained")
-    ax = fig.add_subplot()
-    ax.plot(ns_d, maes, "o-", color="tab:blue", label="duration MAE (s), held-out")
-    ax.axhline(PAPER_GOTO_MAE_S, color="tab:blue", ls=":", label="paper's goToPose MAE")
-    ax.set_xscale("log")
-    ax.set_xlabel("episodes")
-    ax.set_ylabel("MAE (s)")
-    ax2 = ax.twinx()
-    ax2.plot(sizes, accs, "s-", color="tab:red", label="failure accuracy, held-out")
-    ax2.axhline(PAPER_FAILURE_ACCURACY, color="tab:red", ls=":", label="paper's accuracy")
-    ax2.set_ylabel("fraction correct")
-    ax2.set_ylim(0, 1)
-    h1, l1 = ax.get_legend_handles_labels()
-    h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, loc="lower left", fontsize=8)
-    ax.set_xticks(sizes, [str(n) for n in sizes])
-    ax.minorticks_off()
-    n_failed = sum(r.failed for r in records)
-    ax.set_title(
-        f"GoToPose: learning curves ({n_failed} failed of {len(records)} episodes"
-        + ("; accuracy is trivial)" if n_failed == 0 else ")")
+    done = [r for r in records if r.status == "SUCCEEDED" and not r.touched_ball]
+    if len(done) < min_records() or len(records) < min_records():
+        return too_few_note(tables, len(records), len(done))
+    md, dur, _ = table1_and_failure(
+        "goToPose (soccer, sim)",
+        records,
+        done,
+        FEATURE_FUNCS,
+        PAPER_GOTO,
+        "ball collision",
+        failure_heading="Table 2: failure (ball collision) tree, held-out quarter",
+        paper_accuracy=PAPER_FAILURE_ACCURACY,
     )
-    curves = out_dir / "actions_goto_pose_learning_curves.png"
-    fig.savefig(curves, dpi=110)
-
+    tables.write_text("\n".join(md) + "\n")
+    n_failed = sum(r.failed for r in records)
+    curves = learning_curve_figure(
+        records,
+        lambda r: r.status == "SUCCEEDED" and not r.touched_ball,
+        FEATURE_FUNCS,
+        PAPER_GOTO["mae"],
+        f"GoToPose: learning curves ({n_failed} failed of {len(records)} episodes)",
+        out_dir / "actions_goto_pose_learning_curves.png",
+        paper_accuracy=PAPER_FAILURE_ACCURACY,
+    )
     # Fig. 7: predicted duration around a goal at the origin facing +x
     polar = polar_duration_figure(
         dur.model,

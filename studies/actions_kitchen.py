@@ -18,8 +18,12 @@ or the chassis touched furniture) and the first ``n_states`` states (chassis
 ``[x, y, phi, v]`` for goto_pose, gripper ``[ax, ay, az]`` for reach).
 
 ``summarize`` fits a duration model tree per action on 3/4 of the succeeded
-episodes with the kitchen features of Table 7 (``fit_action_model``) and writes
-Table 1's kitchen rows beside the paper's numbers and a learning-curve figure.
+episodes with the kitchen features of Table 7 (``fit_action_model``), and for
+reach also with the arm's joint displacements added (our arm is cylindrical:
+its duration is set by the turn, extension and lift, see
+``kitchen_reach_arm_features``); it writes Table 1's kitchen rows beside the
+paper's numbers, goToPose's failure tree (furniture contact) and a
+learning-curve figure per action.
 
 Run it with ``python -m repertoire.studies.actions_kitchen --help``.
 """
@@ -32,8 +36,10 @@ from pathlib import Path
 import numpy as np
 from repertoire.planning.action_models.kitchen_features import (
     KITCHEN_GOTO_FEATURES,
+    KITCHEN_REACH_ARM_FEATURES,
     KITCHEN_REACH_FEATURES,
     kitchen_goto_features,
+    kitchen_reach_arm_features,
     kitchen_reach_features,
 )
 from repertoire.studies.engine import register_study
@@ -65,6 +71,13 @@ class KitchenEpisodesConfig:
         goto_time_step: plant step of goto_pose episodes [s].
         reach_time_step: plant step of reach episodes [s].
         goto_timeout: GoToPose time limit [s].
+        cups: the cups of kitchen.sdf in the world (``KITCHEN_CUPS`` names). None by
+            default: reach episodes stand at the origin, over 2 m from every cup, and
+            a goto_pose robot meets furniture before its tucked fingers reach a cup
+            (they could only graze a cup's top, 1 cm lower, while the chassis drives
+            under a table); each cup costs six velocities and a contact in every step.
+        reuse_diagram: build the world once per worker process and reset it for each
+            episode (False: build it for every episode, the old way; for benchmarks).
     """
 
     actions: list[str] = dataclasses.field(default_factory=lambda: list(ACTIONS))
@@ -78,8 +91,10 @@ class KitchenEpisodesConfig:
     n_states: int = 5
     state_period: float = 0.2
     goto_time_step: float = 1e-2
-    reach_time_step: float = 5e-3
+    reach_time_step: float = 1e-2
     goto_timeout: float = 20.0
+    cups: list[str] = dataclasses.field(default_factory=list)
+    reuse_diagram: bool = True
 
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
@@ -109,6 +124,10 @@ class KitchenEpisodesConfig:
         for name in ("goto_time_step", "reach_time_step"):
             if not (0 < getattr(self, name) <= 0.01):
                 raise RepertoireError(f"{name} must be in (0, 0.01] s, got {getattr(self, name)}")
+        from repertoire.diagrams.kitchen import KITCHEN_CUPS
+
+        if any(c not in KITCHEN_CUPS for c in self.cups) or len(set(self.cups)) < len(self.cups):
+            raise RepertoireError(f"cups must be distinct names of {KITCHEN_CUPS}, got {self.cups}")
         if not (self.goto_timeout > 0 and math.isfinite(self.goto_timeout)):
             raise RepertoireError(f"goto_timeout must be finite and > 0, got {self.goto_timeout}")
 
@@ -173,13 +192,12 @@ def sample_parameters(config: KitchenEpisodesConfig, seed: int) -> tuple[str, li
 
 def run_episode(config: KitchenEpisodesConfig, seed: int) -> KitchenRecord:
     """Runs one kitchen episode."""
-    from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import EventStatus
     from repertoire.diagrams.kitchen import (
         KitchenScenario,
         action_status,
-        build_kitchen_action,
         gripper_position,
+        kitchen_simulator,
         world_to_chassis,
     )
     from repertoire.diagrams.soccer import robot_state, set_initial_speed
@@ -196,6 +214,7 @@ def run_episode(config: KitchenEpisodesConfig, seed: int) -> KitchenRecord:
             goto_target=goal,
             time_step=config.goto_time_step,
             gains={"timeout": config.goto_timeout},
+            cups=list(config.cups),
         )
         limit = config.goto_timeout + 0.1
     else:
@@ -205,29 +224,34 @@ def run_episode(config: KitchenEpisodesConfig, seed: int) -> KitchenRecord:
             initial_arm=list(arm_inverse(start)),
             arm_target=goal,
             time_step=config.reach_time_step,
+            cups=list(config.cups),
         )
         limit = 10.0
-    diagram = build_kitchen_action(scenario)
+    diagram, simulator = kitchen_simulator(scenario, reuse=config.reuse_diagram)
     plant = diagram.GetSubsystemByName("plant")
     furniture = {
         plant.GetBodyByName(name).index() for name in ("room", "counter")
     } | {plant.GetBodyByName("table", plant.GetModelInstanceByName(t)).index()
          for t in ("table_0", "table_1")}  # fmt: skip
     robot = set(plant.GetBodyIndices(plant.GetModelInstanceByName("diffdrive_arm")))
-    simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
     if action == "goto_pose":
         set_initial_speed(diagram, context, start[3])
     plant_context = plant.GetMyContextFromRoot(context)
     touched, states, next_time = [False], [], [0.0]
     width = 4 if action == "goto_pose" else 3
+    # ports and subcontexts looked up once, not on every step
+    contact_port = plant.get_contact_results_output_port()
+    status_system = diagram.GetSubsystemByName("action")
+    status_port = status_system.get_status_output_port()
+    status_context = status_system.GetMyContextFromRoot(context)
 
     def monitor(root_context) -> EventStatus:
-        results = plant.get_contact_results_output_port().Eval(plant_context)
+        results = contact_port.Eval(plant_context)
         for i in range(results.num_point_pair_contacts()):
             info = results.point_pair_contact_info(i)
-            pair = {info.bodyA_index(), info.bodyB_index()}
-            if pair & furniture and pair & robot:
+            a, b = info.bodyA_index(), info.bodyB_index()
+            if (a in furniture and b in robot) or (b in furniture and a in robot):
                 touched[0] = True
         if len(states) < width * config.n_states and root_context.get_time() >= next_time[0]:
             if action == "goto_pose":
@@ -239,7 +263,7 @@ def run_episode(config: KitchenEpisodesConfig, seed: int) -> KitchenRecord:
                     for s in world_to_chassis(base, gripper_position(diagram, root_context))
                 )
             next_time[0] += config.state_period
-        if action_status(diagram, root_context) != ActionStatus.RUNNING:
+        if status_port.Eval(status_context) != ActionStatus.RUNNING:
             return EventStatus.ReachedTermination(None, "action finished")
         if touched[0]:
             return EventStatus.ReachedTermination(None, "touched furniture: a failure")
@@ -248,6 +272,7 @@ def run_episode(config: KitchenEpisodesConfig, seed: int) -> KitchenRecord:
         return EventStatus.Succeeded()
 
     simulator.set_monitor(monitor)
+    simulator.Initialize()  # the monitor sees the start state
     simulator.AdvanceTo(limit + 1.0)
     status = action_status(diagram, context)
     if status == ActionStatus.RUNNING and not touched[0]:
@@ -265,90 +290,93 @@ def run_episode(config: KitchenEpisodesConfig, seed: int) -> KitchenRecord:
     )
 
 
-def _feature_funcs(action: str) -> dict:
-    if action == "goto_pose":
-        return {
-            name: (lambda r, j=j: float(kitchen_goto_features(r.start, r.goal)[j]))
-            for j, name in enumerate(KITCHEN_GOTO_FEATURES)
-        }
+def _feature_funcs(function, names) -> dict:
+    """Feature name -> function of a record, for a feature function of (start, goal)."""
     return {
-        name: (lambda r, j=j: float(kitchen_reach_features(r.start, r.goal)[j]))
-        for j, name in enumerate(KITCHEN_REACH_FEATURES)
+        name: (lambda r, j=j: float(function(r.start, r.goal)[j])) for j, name in enumerate(names)
     }
 
 
-FEATURE_FUNCS = {action: _feature_funcs(action) for action in ACTIONS}
+#: Feature functions by model: goToPose and reach with Table 7's features, and reach
+#: with Table 7's plus the arm's joint displacements (``reach_arm``).
+FEATURE_FUNCS = {
+    "goto_pose": _feature_funcs(kitchen_goto_features, KITCHEN_GOTO_FEATURES),
+    "reach": _feature_funcs(kitchen_reach_features, KITCHEN_REACH_FEATURES),
+    "reach_arm": _feature_funcs(kitchen_reach_features, KITCHEN_REACH_FEATURES)
+    | _feature_funcs(kitchen_reach_arm_features, KITCHEN_REACH_ARM_FEATURES),
+}
 
 
 def summarize(
     records: list[KitchenRecord], config: KitchenEpisodesConfig, out_dir: Path
 ) -> dict[str, Path]:
-    """Fits a duration model tree per action; writes Table 1's kitchen rows and learning curves.
+    """Fits duration model trees per action; writes Table 1's kitchen rows and learning curves.
+
+    Reach is fitted twice: with Table 7's Cartesian features and with the arm's
+    joint displacements added. goToPose also gets a failure tree (furniture
+    contact or not succeeded; the paper gives none for the kitchen).
 
     Returns:
         Paths by name (an action with too few succeeded episodes gets a row saying so).
     """
-    from matplotlib.figure import Figure
-    from repertoire.planning.action_models import MIN_EPISODES, fit_action_model
+    from repertoire.planning.action_models import fit_action_model
+    from repertoire.studies._action_tables import (
+        failure_table,
+        learning_curve_figure,
+        min_records,
+    )
 
     out_dir = Path(out_dir)
-    need = MIN_EPISODES * 4 // 3 + 1
+    need = min_records()
     md = [
         "## Table 1, kitchen rows: duration models (MAE on the held-out quarter)",
         "",
-        "| action | episodes (ours, all / succeeded) | failed | mean duration (s) ours "
-        "| MAE (s) ours | 3/4 n_e paper | mean duration (s) paper | MAE (s) paper |",
+        "| action | episodes (ours, all / succeeded; 3/4 train) | failed | mean duration (s) "
+        "ours | MAE (s) ours | 3/4 n_e paper | mean duration (s) paper | MAE (s) paper |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    curves: dict[str, tuple[list, list]] = {}
-    rules = []
+    rules, failure, paths = [], [], {}
     for action in config.actions:
         recs = [r for r in records if r.action == action]
         done = [r for r in recs if not r.failed]
         paper = PAPER_TABLE1[action]
         mean = f"{np.mean([r.duration for r in done]):.2f}" if done else "-"
-        if len(done) < need:
-            mae = f"too few ({len(done)} succeeded; at least {need} needed)"
-        else:
-            fitted = fit_action_model(done, FEATURE_FUNCS[action], "duration")
-            mae = f"{fitted.mae:.3f}"
-            rules += [f"### {PAPER_NAMES[action]}", "", "```", fitted.model.rules(), "```", ""]
-            sizes = [n for n in (40, 80, 160, 320, 640, 1280, 2560) if n < 0.9 * len(done)]
-            sizes.append(len(done))
-            maes = [fit_action_model(done[:n], FEATURE_FUNCS[action], "duration").mae
-                    for n in sizes if n >= need]  # fmt: skip
-            curves[action] = ([n for n in sizes if n >= need], maes)
-        md.append(
-            f"| {PAPER_NAMES[action]} (kitchen) | {len(recs)} / {len(done)} "
-            f"| {len(recs) - len(done)} | {mean} | {mae} | {paper[0]} | {paper[1]} | {paper[2]} |"
-        )
-    md += ["", "## Duration tree rules", "", *rules]
+        variants = [(f"{PAPER_NAMES[action]} (kitchen)", FEATURE_FUNCS[action])]
+        if action == "reach":
+            variants.append(("reach (kitchen), + arm features", FEATURE_FUNCS["reach_arm"]))
+        for label, funcs in variants:
+            train, mae = "", f"too few ({len(done)} succeeded; at least {need} needed)"
+            if len(done) >= need:
+                fitted = fit_action_model(done, funcs, "duration")
+                train, mae = f"; {fitted.n_train}", f"{fitted.mae:.3f}"
+                rules += [f"### {label}", "", "```", fitted.model.rules(), "```", ""]
+            md.append(
+                f"| {label} | {len(recs)} / {len(done)}{train} | {len(recs) - len(done)} | {mean} "
+                f"| {mae} | {paper[0]} | {paper[1]} | {paper[2]} |"
+            )
+        if action == "goto_pose" and len(recs) >= need:
+            failure, _ = failure_table(
+                recs,
+                FEATURE_FUNCS[action],
+                "Failure tree of kitchen goToPose (furniture contact or not succeeded; the "
+                "paper has none), held-out quarter",
+            )
+        if len(done) >= need:
+            more = ("+ arm features", FEATURE_FUNCS["reach_arm"]) if action == "reach" else None
+            paths[f"learning_curves_{action}"] = learning_curve_figure(
+                recs,
+                lambda r: not r.failed,
+                FEATURE_FUNCS[action],
+                paper[2],
+                f"Kitchen {PAPER_NAMES[action]}: learning curves ({len(recs) - len(done)} "
+                f"failed of {len(recs)})",
+                out_dir / f"actions_kitchen_{action}_learning_curves.png",
+                more_features=more,
+            )
+    md += ["", *failure, "", "## Duration tree rules", "", *rules]
     tables = out_dir / "actions_kitchen_tables.md"
     tables.write_text("\n".join(md) + "\n")
-    paths = {"tables": tables}
-    if curves:
-        fig = Figure(figsize=(6.5, 4.0), layout="constrained")
-        ax = fig.add_subplot()
-        colours = {"goto_pose": "tab:blue", "reach": "tab:orange"}
-        for action, (ns, maes) in curves.items():
-            c = colours[action]
-            ax.plot(ns, maes, "o-", color=c, label=f"{PAPER_NAMES[action]}: ours (held-out MAE)")
-            ax.axhline(
-                PAPER_TABLE1[action][2], color=c, ls=":", label=f"{PAPER_NAMES[action]}: paper"
-            )
-        ax.set_xscale("log")
-        ticks = sorted({n for ns, _ in curves.values() for n in ns})
-        ax.set_xticks(ticks, [str(n) for n in ticks], fontsize=7)
-        ax.minorticks_off()
-        ax.set_xlabel("succeeded episodes used (3/4 train, 1/4 test)")
-        ax.set_ylabel("duration MAE (s)")
-        ax.set_ylim(bottom=0)
-        ax.legend(fontsize=8)
-        ax.set_title("Kitchen action models: learning curves")
-        path = out_dir / "actions_kitchen_learning_curves.png"
-        fig.savefig(path, dpi=110)
-        paths["learning_curves"] = path
-    return paths
+    return {"tables": tables, **paths}
 
 
 def demo_config() -> KitchenEpisodesConfig:

@@ -146,7 +146,8 @@ def tour_problem(model, start, waypoints, final_phi: float, v_max: float):
 
         def features(params, leg=leg):
             s = tour_states(start, waypoints, final_phi, params)
-            return np.atleast_2d(goto_pose_features(s[:, leg], s[:, leg + 1]))
+            # un-mirrored, as the shipped models were fitted
+            return np.atleast_2d(goto_pose_features(s[:, leg], s[:, leg + 1], mirrored=False))
 
         uses = [i for k in (leg, leg + 1) if 1 <= k < N_LEGS for i in (2 * k - 2, 2 * k - 1)]
         terms.append(DurationTerm(pl, features, tuple(uses), f"{leg}:goToPose"))

@@ -138,14 +138,16 @@ def run_episode(config: SubgoalAssertionConfig, seed: int) -> SubgoalAssertionRe
         start,
         target,
         classifier=_FailureTreeClassifier(failure),
-        leg_features=lambda a, b: np.atleast_2d(goto_pose_features(a, b)),
+        # un-mirrored features, as the shipped models were fitted
+        leg_features=lambda a, b: np.atleast_2d(goto_pose_features(a, b, mirrored=False)),
         leg_duration=duration.predict,
         lower=np.array([-3.0 + m, -2.0 + m, -math.pi, 0.0]),
         upper=np.array([3.0 - m, 2.0 - m, math.pi, config.approach_v_max]),
         seed=seed,
         allowed=clear_of_ball,
     )
-    predicted_fail = bool(failure.predict_failure(goto_pose_features(start, target)[None])[0])
+    leg = goto_pose_features(start, target, mirrored=False)[None]
+    predicted_fail = bool(failure.predict_failure(leg)[0])
     direct = run_plan(config, start, [target])
     if assertion.asserted:
         with_run = run_plan(config, start, [assertion.subgoal, target])

@@ -30,6 +30,7 @@ from pydrake.systems.framework import BasicVector, Context, DiscreteValues, Leaf
 from repertoire.systems.action_status import (
     ActionStatus,
     check_period,
+    clip,
     merge_gains,
 )
 from repertoire.systems.go_to_pose import DriveAction, drive_step, pose_control
@@ -92,9 +93,9 @@ def dribble_control(state, ball, target, gains: dict[str, float]) -> tuple[float
     align = max(0.0, math.cos(gamma)) ** 2
     v = max(0.0, v) * align  # never back away from the ball
     w = w * align + gains["k_ball"] * gamma
-    v = float(np.clip(v, -gains["v_max"], gains["v_max"]))
+    v = clip(v, -gains["v_max"], gains["v_max"])
     w_max = min(gains["omega_max"], max(gains["omega_in_place"], abs(v) / gains["min_turn_radius"]))
-    w = float(np.clip(w, -w_max, w_max))
+    w = clip(w, -w_max, w_max)
     return v, w, held
 
 
@@ -259,7 +260,12 @@ class RollingResistance(LeafSystem):
         self._in = self.DeclareVectorInputPort(
             "plant_state", plant.num_positions() + plant.num_velocities()
         )
-        self._make = ExternallyAppliedSpatialForce
+        from pydrake.multibody.math import SpatialForce
+
+        self._spatial_force, self._zero = SpatialForce, np.zeros(3)
+        self._applied = ExternallyAppliedSpatialForce()
+        self._applied.body_index = self._body
+        self._applied.p_BoBq_B = np.zeros(3)
         self.DeclareAbstractOutputPort(
             "spatial_forces",
             lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
@@ -268,16 +274,13 @@ class RollingResistance(LeafSystem):
 
     def force(self, v_xy) -> np.ndarray:
         """The horizontal force [N] for a ball velocity ``[vx, vy]``."""
-        v = np.asarray(v_xy, dtype=float)
-        return -self._force * v / max(float(np.hypot(*v)), self._v_smooth)
+        vx, vy = float(v_xy[0]), float(v_xy[1])
+        speed = max(float(np.hypot(vx, vy)), self._v_smooth)
+        return np.array([-self._force * vx / speed, -self._force * vy / speed])
 
     def _calc(self, context: Context, output: AbstractValue) -> None:
-        from pydrake.multibody.math import SpatialForce
-
+        # evaluated on every plant step: one force object reused, its force replaced
         v = self._in.Eval(context)[self._v0 : self._v0 + 2]
         fx, fy = self.force(v)
-        f = self._make()
-        f.body_index = self._body
-        f.p_BoBq_B = np.zeros(3)
-        f.F_Bq_W = SpatialForce(np.zeros(3), [fx, fy, 0.0])
-        output.set_value([f])
+        self._applied.F_Bq_W = self._spatial_force(self._zero, [fx, fy, 0.0])
+        output.set_value([self._applied])

@@ -25,6 +25,7 @@ from repertoire.systems.action_status import (
     ActionSystem,
     check_period,
     check_workspace,
+    clip,
     merge_gains,
 )
 
@@ -63,15 +64,15 @@ def pose_control(state, target, gains: dict[str, float]) -> tuple[float, float, 
     heading_error = float(wrap_angle(phig - phi))
     if rho < gains["position_tolerance"]:
         # close enough: turn in place to the goal heading.
-        omega = float(np.clip(gains["k_alpha"] * heading_error, -1, 1)) * gains["omega_max"]
+        omega = clip(gains["k_alpha"] * heading_error, -1.0, 1.0) * gains["omega_max"]
         return 0.0, omega, rho, heading_error
     direction = math.atan2(dy, dx)
     alpha = float(wrap_angle(direction - phi))
     beta = float(wrap_angle(phig - direction))
     v = max(vg, gains["k_rho"] * rho) * math.cos(alpha)
     omega = gains["k_alpha"] * alpha + gains["k_beta"] * beta
-    v = float(np.clip(v, -gains["v_max"], gains["v_max"]))
-    omega = float(np.clip(omega, -gains["omega_max"], gains["omega_max"]))
+    v = clip(v, -gains["v_max"], gains["v_max"])
+    omega = clip(omega, -gains["omega_max"], gains["omega_max"])
     return v, omega, rho, heading_error
 
 
@@ -98,8 +99,8 @@ def drive_step(control, previous, state, target, gains, time: float, period: flo
     dv = g["a_max"] * period
     dw = g["alpha_max"] * period
     return [
-        float(np.clip(v, v_prev - dv, v_prev + dv)),
-        float(np.clip(w, w_prev - dw, w_prev + dw)),
+        clip(v, v_prev - dv, v_prev + dv),
+        clip(w, w_prev - dw, w_prev + dw),
         ActionStatus.RUNNING,
     ]
 

@@ -463,8 +463,13 @@ class FootprintGuard(LeafSystem):
         self._boxes, self.radius = _check_boxes(boxes), radius
         self._in = self.DeclareVectorInputPort("target", 4)
         self.DeclareVectorOutputPort("target", 4, self._calc)
+        self._last = (None, False)  # (x, y) of the last target checked, and its answer
 
     def _calc(self, context: Context, output: BasicVector) -> None:
         target = self._in.Eval(context)
-        blocked = footprint_hits(target[:2], self._boxes, self.radius) >= 0
-        output.SetFromVector(np.full(4, np.nan) if blocked else target)
+        # a pure function of the target's x, y: the last answer is reused while it holds
+        # (a constant-source target is re-read on every update of GoToPose)
+        xy = (float(target[0]), float(target[1]))
+        if xy != self._last[0]:
+            self._last = (xy, footprint_hits(xy, self._boxes, self.radius) >= 0)
+        output.SetFromVector(np.full(4, np.nan) if self._last[1] else target)

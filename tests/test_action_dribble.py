@@ -7,6 +7,7 @@ from repertoire.diagrams.soccer_dribble import (
     DribbleScenario,
     build_soccer_dribble,
     check_dribble,
+    dribble_simulator,
     dribble_status,
 )
 from repertoire.systems.dribble_ball import (
@@ -108,6 +109,12 @@ def test_rolling_resistance_force_and_port():
     (f,) = drag.get_output_port().Eval(ctx)
     assert f.body_index == ball.index()
     np.testing.assert_allclose(f.F_Bq_W.translational(), [0.0, -m * 0.8, 0.0])
+    x[plant.num_positions() + ball.floating_velocities_start_in_v() + 3] = -0.03  # vx, slow
+    x[plant.num_positions() + ball.floating_velocities_start_in_v() + 4] = 0.0
+    drag.get_input_port().FixValue(ctx, x)
+    (g,) = drag.get_output_port().Eval(ctx)
+    np.testing.assert_allclose(g.F_Bq_W.translational(), [m * 0.8 * 0.03 / 0.05, 0.0, 0.0])
+    np.testing.assert_allclose(f.F_Bq_W.translational(), [0.0, -m * 0.8, 0.0])  # unchanged
     with pytest.raises(RepertoireError, match="decel"):
         RollingResistance(plant, decel=-1.0)
     with pytest.raises(RepertoireError, match="not a floating base body"):
@@ -209,3 +216,25 @@ def test_dribble_study_smoke_and_summary(tmp_path):
     assert "predicted failure" in text
     assert paths["polar"].stat().st_size > 0 and paths["learning_curves"].stat().st_size > 0
     assert FEATURE_FUNCS["dist"](recs[0]) == pytest.approx(math.hypot(recs[0].x - 1.5, recs[0].y))
+
+
+def test_reused_dribble_simulator_runs_as_a_new_one():
+    first = DribbleScenario(initial_pose=[0.0, 0.0, 1.0], target=[1.0, 1.0, 0.0, 0.0])
+    diagram, simulator = dribble_simulator(first)
+    simulator.Initialize()
+    simulator.AdvanceTo(1.0)
+    second = DribbleScenario(initial_pose=[-1.0, 0.5, -0.5], target=[0.5, -0.5, 0.0, 0.0])
+    reused, simulator = dribble_simulator(second)
+    assert reused is diagram
+    fresh = Simulator(build_soccer_dribble(second))
+    for sim in (simulator, fresh):
+        sim.Initialize()
+        sim.AdvanceTo(1.0)
+    states = [sim.get_context().get_discrete_state() for sim in (simulator, fresh)]
+    for group in range(states[0].num_groups()):
+        np.testing.assert_array_equal(states[0].value(group), states[1].value(group))
+    target = reused.GetSubsystemByName("target")
+    np.testing.assert_array_equal(
+        target.get_output_port().Eval(target.GetMyContextFromRoot(simulator.get_context())),
+        second.target,
+    )

@@ -26,8 +26,16 @@ def test_features_by_hand():
     beta = math.atan2(4, 3)
     assert angle_to(1, 1, math.pi / 2, 4, 5) == pytest.approx(beta - math.pi / 2)
     assert angle_at(1, 1, 4, 5, 0.0) == pytest.approx(-beta)
-    f = goto_pose_features([1, 1, math.pi / 2, 0.3], [4, 5, 0.0, 0.1])
+    f = goto_pose_features([1, 1, math.pi / 2, 0.3], [4, 5, 0.0, 0.1], mirrored=False)
     np.testing.assert_allclose(f, [5.0, beta - math.pi / 2, -beta, 0.3, 0.1])
+    # Table 7: angle_to = |angle_to_signed|, angle_at times sgn(angle_to_signed) (here -1)
+    f = goto_pose_features([1, 1, math.pi / 2, 0.3], [4, 5, 0.0, 0.1])
+    np.testing.assert_allclose(f, [5.0, math.pi / 2 - beta, beta, 0.3, 0.1])
+    # the mirror image (y -> -y, angles negated) has the same features
+    mirror = goto_pose_features([1, -1, -math.pi / 2, 0.3], [4, -5, 0.0, 0.1])
+    np.testing.assert_allclose(mirror, f)
+    # straight ahead (angle_to_signed = 0): sgn counts as +1
+    np.testing.assert_allclose(goto_pose_features([0, 0, 0, 0], [2, 0, 0.5, 0])[1:3], [0, 0.5])
     # wrapping: facing -x, goal slightly below +x: turn by pi - 0.01 (not -pi - 0.01)
     assert angle_to(0, 0, math.pi, 1, -0.01) == pytest.approx(
         math.pi - math.atan2(0.01, 1), abs=1e-9

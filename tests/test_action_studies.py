@@ -69,7 +69,8 @@ def test_summarize_fits_on_synthetic_records(tmp_path):
         )
     paths = summarize(recs, GoToPoseEpisodesConfig(), tmp_path)
     text = paths["tables"].read_text()
-    assert "| goToPose (soccer, sim) |" in text and "Table 2" in text
+    assert "| goToPose (soccer, sim), paper (Table 1) | 1000 (750) | 6.2 | 0.22 |" in text
+    assert "Table 2: failure (ball collision) tree" in text and "paper ~89%" in text
     assert paths["polar"].stat().st_size > 0 and paths["learning_curves"].stat().st_size > 0
     assert FEATURE_FUNCS["dist"](recs[0]) == pytest.approx(np.hypot(recs[0].x - 1, recs[0].y - 0.5))
     assert dataclasses.is_dataclass(recs[0])

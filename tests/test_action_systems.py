@@ -14,6 +14,7 @@ from repertoire.systems.action_model_predictor import (
     ActionModelPredictor,
     goto_pose_parameter_features,
 )
+from repertoire.systems.action_status import clip
 from repertoire.systems.go_to_pose import (
     GOTO_GAINS,
     ActionStatus,
@@ -23,6 +24,13 @@ from repertoire.systems.go_to_pose import (
 )
 
 from repertoire.errors import RepertoireError, ScenarioError
+
+
+def test_scalar_clip_matches_numpy():
+    for x, lo, hi in ((0.5, -1.0, 1.0), (-3.0, -1.0, 1.0), (2.0, -1.0, 1.0), (1.0, 1.0, 1.0)):
+        assert clip(x, lo, hi) == float(np.clip(x, lo, hi))
+    assert clip(-3.0, -1.0, 1.0) == -1.0 and clip(2.0, -1.0, 1.0) == 1.0
+    assert math.isnan(clip(float("nan"), -1.0, 1.0))
 
 
 def test_pose_control_by_hand():

@@ -153,6 +153,11 @@ def test_footprint_guard():
     assert np.all(np.isnan(guard.get_output_port().Eval(ctx)))
     guard.get_input_port().FixValue(ctx, [0.0, 0.0, 0.3, 0.1])
     np.testing.assert_allclose(guard.get_output_port().Eval(ctx), [0.0, 0.0, 0.3, 0.1])
+    # the remembered answer follows the target: same x, y with other heading, then a table
+    guard.get_input_port().FixValue(ctx, [0.0, 0.0, -1.0, 0.0])
+    np.testing.assert_allclose(guard.get_output_port().Eval(ctx), [0.0, 0.0, -1.0, 0.0])
+    guard.get_input_port().FixValue(ctx, [2.0, -1.6, 0.0, 0.0])  # table_1's centre
+    assert np.all(np.isnan(guard.get_output_port().Eval(ctx)))
 
 
 def test_bad_construction_names_the_value():

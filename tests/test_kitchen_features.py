@@ -4,10 +4,13 @@ import numpy as np
 import pytest
 from repertoire.planning.action_models.kitchen_features import (
     KITCHEN_GOTO_FEATURES,
+    KITCHEN_REACH_ARM_FEATURES,
     KITCHEN_REACH_FEATURES,
     kitchen_goto_features,
+    kitchen_reach_arm_features,
     kitchen_reach_features,
 )
+from repertoire.systems.kitchen_actions import arm_forward
 
 from repertoire.errors import RepertoireError
 
@@ -43,6 +46,27 @@ def test_reach_features_by_hand():
     assert len(KITCHEN_REACH_FEATURES) == 7
     assert f == pytest.approx(expected)
     assert kitchen_reach_features([[0, 0, 0]] * 3, [1, 0, 0]).shape == (3, 7)
+
+
+def test_reach_arm_features_by_hand():
+    c = 0.05  # the arm's column, ahead of the axle
+    # yaw 0 at extension 0.3, height 0.5 -> yaw pi/2 at extension 0.6, height 0.7
+    f = kitchen_reach_arm_features([c + 0.3, 0.0, 0.5], [c, 0.6, 0.7])
+    assert KITCHEN_REACH_ARM_FEATURES == ("turn", "d_radial", "d_height")
+    assert f == pytest.approx([math.pi / 2, 0.3, 0.2])
+    # the turn is the short way round: yaw 3.0 -> -3.0 is 2 pi - 6
+    f = kitchen_reach_arm_features(
+        [c + 0.4 * math.cos(3.0), 0.4 * math.sin(3.0), 0.0],
+        [c + 0.4 * math.cos(-3.0), 0.4 * math.sin(-3.0), 0.0],
+    )
+    assert f == pytest.approx([2 * math.pi - 6.0, 0.0, 0.0], abs=1e-12)
+    # equal to the joint displacements of the arm's inverse kinematics
+    q0, q1 = np.array([0.4, -1.2, 0.35]), np.array([0.7, 0.9, 0.8])
+    f = kitchen_reach_arm_features(arm_forward(q0), arm_forward(q1))
+    assert f == pytest.approx(np.abs(q1 - q0)[[1, 2, 0]])
+    assert kitchen_reach_arm_features([[0.5, 0, 0]] * 2, [0.3, 0.3, 0.1]).shape == (2, 3)
+    with pytest.raises(RepertoireError, match="finite"):
+        kitchen_reach_arm_features([0, np.inf, 0], [1, 1, 1])
 
 
 def test_bad_feature_input():

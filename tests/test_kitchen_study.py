@@ -42,6 +42,8 @@ def test_config_rejects_bad_ranges():
         KitchenEpisodesConfig(lift_range=[0.1, 0.5]).validate()
     with pytest.raises(RepertoireError, match="actions"):
         KitchenEpisodesConfig(actions=["fly"]).validate()
+    with pytest.raises(RepertoireError, match="cups must be distinct names"):
+        KitchenEpisodesConfig(cups=["cup_9"]).validate()
 
 
 def test_study_smoke_and_load_records(tmp_path):
@@ -83,9 +85,14 @@ def test_summarize_fits_on_synthetic_records(tmp_path):
                                   i % 10 == 0, [], 0.0))  # fmt: skip
     paths = summarize(recs, KitchenEpisodesConfig(), tmp_path)
     text = paths["tables"].read_text()
-    assert "| goToPose (kitchen) | 160 / 144 | 16 |" in text
-    assert "| reach (kitchen) | 160 / 160 | 0 |" in text and "| 2200 | 2.6 | 0.1 |" in text
-    assert paths["learning_curves"].stat().st_size > 0
+    assert "| goToPose (kitchen) | 160 / 144; 108 | 16 |" in text
+    assert "| reach (kitchen) | 160 / 160; 120 | 0 |" in text and "| 2200 | 2.6 | 0.1 |" in text
+    assert "| reach (kitchen), + arm features | 160 / 160; 120 | 0 |" in text
+    assert "Failure tree of kitchen goToPose" in text and "actual failure" in text
+    for action in ("goto_pose", "reach"):
+        assert paths[f"learning_curves_{action}"].stat().st_size > 0
+    assert set(FEATURE_FUNCS["reach_arm"]) == {*FEATURE_FUNCS["reach"], "turn", "d_radial",
+                                               "d_height"}  # fmt: skip
     assert FEATURE_FUNCS["reach"]["dist_xyz"](recs[0]) == pytest.approx(
         np.linalg.norm(np.subtract(recs[0].goal, recs[0].start))
     )

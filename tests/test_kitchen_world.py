@@ -8,13 +8,14 @@ from repertoire.diagrams.kitchen import (
     build_kitchen_action,
     check_kitchen_action,
     cup_position,
+    kitchen_simulator,
     run_kitchen_sequence,
     world_to_chassis,
 )
 from repertoire.systems.go_to_pose import ActionStatus
 from repertoire.systems.kitchen_actions import arm_inverse, chassis_to_world
 
-from repertoire.errors import ScenarioError
+from repertoire.errors import RepertoireError, ScenarioError
 
 CUP_IN_CHASSIS = [0.85, 0.0, 0.7036]  # cup_0's centre (+1 mm) seen from the default pose
 
@@ -79,6 +80,64 @@ def test_bad_scenarios_are_named():
         build_kitchen_action(KitchenScenario(initial_arm=[2.0, 0.0, 0.3]))
     with pytest.raises(ScenarioError, match="arm_target"):
         build_kitchen_action(KitchenScenario(arm_target=[0.5, np.nan, 0.6]))
+    with pytest.raises(ScenarioError, match="cups must be distinct names"):
+        build_kitchen_action(KitchenScenario(cups=["cup_0", "mug"]))
+    with pytest.raises(ScenarioError, match="cups must be distinct names"):
+        build_kitchen_action(KitchenScenario(cups=["cup_1", "cup_1"]))
+    with pytest.raises(ScenarioError, match="cup_in_gripper needs cup_0"):
+        build_kitchen_action(KitchenScenario(cup_in_gripper=True, cups=["cup_1"]))
+
+
+def test_cups_field_loads_only_the_named_cups():
+    diagram = build_kitchen_action(KitchenScenario(cups=["cup_2"]))
+    plant = diagram.GetSubsystemByName("plant")
+    assert plant.HasModelInstanceNamed("cup_2") and not plant.HasModelInstanceNamed("cup_0")
+    assert plant.num_velocities() == 13 + 6  # the robot and one free cup
+    figures = check_kitchen_action(diagram, diagram.CreateDefaultContext())
+    assert list(figures) == ["status_succeeded"]  # no cup_0: no gripper_to_cup_m
+
+
+def _contact_pairs(diagram, context):
+    plant = diagram.GetSubsystemByName("plant")
+    results = plant.get_contact_results_output_port().Eval(plant.GetMyContextFromRoot(context))
+    infos = [results.point_pair_contact_info(i) for i in range(results.num_point_pair_contacts())]
+    return sorted((int(i.bodyA_index()), int(i.bodyB_index())) for i in infos)
+
+
+def test_reused_kitchen_simulator_runs_as_a_new_one():
+    # first an episode that drives into table_0's leg (a furniture contact at its end)
+    into_table = KitchenScenario(
+        action="goto_pose",
+        initial_pose=[2.65, 0.3, np.pi / 2],
+        goto_target=[2.65, 2.2, np.pi / 2, 0],
+        cups=[],
+    )
+    diagram, simulator = kitchen_simulator(into_table)
+    simulator.Initialize()
+    simulator.AdvanceTo(1.0)  # hitting the leg at (2.65, 0.95)
+    plant = diagram.GetSubsystemByName("plant")
+    table = plant.GetBodyByName("table", plant.GetModelInstanceByName("table_0")).index()
+    assert any(table in pair for pair in _contact_pairs(diagram, simulator.get_context()))
+    # then another start of the same structure: exactly as a newly built diagram
+    other = KitchenScenario(
+        action="goto_pose", initial_pose=[0, 0, 0], goto_target=[1.0, 0.5, 0, 0], cups=[]
+    )
+    reused, simulator = kitchen_simulator(other)
+    assert reused is diagram
+    fresh = Simulator(build_kitchen_action(other))
+    for sim in (simulator, fresh):
+        sim.Initialize()
+    assert _contact_pairs(reused, simulator.get_context()) == _contact_pairs(
+        fresh.get_system(), fresh.get_context()
+    )
+    for sim in (simulator, fresh):
+        sim.AdvanceTo(1.0)
+    states = [s.get_context().get_discrete_state() for s in (simulator, fresh)]
+    for group in range(states[0].num_groups()):  # the plant's and the action's
+        np.testing.assert_array_equal(states[0].value(group), states[1].value(group))
+    assert not any(table in pair for pair in _contact_pairs(reused, simulator.get_context()))
+    # reuse=False builds a new diagram
+    assert kitchen_simulator(other, reuse=False)[0] is not diagram
 
 
 def test_sequence_grips_lifts_and_puts_the_cup_elsewhere():
@@ -93,3 +152,23 @@ def test_sequence_grips_lifts_and_puts_the_cup_elsewhere():
     assert [(r.action, r.status) for r in results] == [("reach", "FAILED")]
     with pytest.raises(ScenarioError, match="unknown action 'jump'"):
         run_kitchen_sequence([("jump", [])])
+
+
+def test_simulator_cache_keeps_at_most_max_size_diagrams():
+    from repertoire.diagrams.simulate import SimulatorCache
+
+    built = []
+
+    def build(scenario):
+        built.append(scenario.action)
+        return build_kitchen_action(scenario)
+
+    cache = SimulatorCache(build, max_size=1)
+    reach, grip = KitchenScenario(cups=[]), KitchenScenario(action="grip", cups=[])
+    for scenario in (reach, reach, grip, reach):
+        cache.get(scenario.action, scenario, lambda plant: None, {})
+    assert built == ["reach", "grip", "reach"] and len(cache) == 1  # grip evicted reach
+    cache.clear()
+    assert len(cache) == 0
+    with pytest.raises(RepertoireError, match="max_size must be >= 1, got 0"):
+        SimulatorCache(build, max_size=0)

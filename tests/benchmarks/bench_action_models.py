@@ -9,6 +9,10 @@ with scikit-learn's own DecisionTreeRegressor.predict on the same tree size as
 the peer, and (3) the ActionModelPredictor LeafSystem's cost per evaluation,
 with GoToPose features and with the arm's Table 7 features.
 
+With ``--dribble-before-after N`` it first runs N DribbleBall episodes on 2
+workers with the world built for every episode and with it built once per
+worker and reset (``bench_kitchen.before_after``: rates, how the outcome moved).
+
 Run: ``nice -n 10 python tests/benchmarks/bench_action_models.py [--episodes 4]``.
 """
 
@@ -58,7 +62,19 @@ def episodes_per_second(study: str, config, workers: int, episodes: int) -> floa
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--episodes", type=int, default=8, help="episodes on 1 worker")
+    parser.add_argument(
+        "--dribble-before-after", type=int, default=0, metavar="N",
+        help="first: N DribbleBall episodes built per episode (before) and reused (after)",
+    )  # fmt: skip
     args = parser.parse_args()
+    if args.dribble_before_after:
+        from bench_kitchen import before_after
+
+        settings = {
+            "before": DribbleEpisodesConfig(reuse_diagram=False),
+            "after": DribbleEpisodesConfig(),
+        }
+        before_after("actions_dribble", "DribbleBall", settings, args.dribble_before_after)
     for label, (study, config_type) in STUDIES.items():
         e1 = episodes_per_second(study, config_type(), 1, args.episodes)
         e2 = episodes_per_second(study, config_type(), 2, 2 * args.episodes)

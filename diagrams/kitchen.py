@@ -75,6 +75,7 @@ KITCHEN_OBSTACLES = np.array(
 #: The region GoToPose targets may lie in: the room less the robot's radius and the walls.
 KITCHEN_WORKSPACE = (-3.6, 3.6, -2.6, 2.6)
 CUP_0_POSITION = (2.0, 1.4, 0.8001)  # cup_0's centre in kitchen.sdf
+CUPS = tuple(f"cup_{i}" for i in range(5))  # the cups' model names in kitchen.sdf
 ARM_TUCKED = (0.62, 0.0, 0.25)  # lift, yaw, extend: fingers above the tables
 #: PD gains (kp, kd) of the arm and finger actuators.
 ARM_GAINS = {
@@ -105,6 +106,8 @@ class KitchenScenario:
         wheel_kd: wheel velocity gain.
         ground_friction: ground friction coefficient.
         gains: overrides of GoToPose's gains (``GOTO_GAINS`` keys), e.g. its timeout.
+        cups: world centres ``[x, y, z]`` of cups moved from their ``kitchen.sdf`` places
+            (keys ``cup_0`` .. ``cup_4``), e.g. cups displaced on a table.
     """
 
     action: str = "reach"
@@ -120,6 +123,7 @@ class KitchenScenario:
     wheel_kd: float = 2.0
     ground_friction: float = 1.0
     gains: dict[str, float] = dataclasses.field(default_factory=dict)
+    cups: dict[str, list[float]] = dataclasses.field(default_factory=dict)
 
     def validate(self) -> None:
         """Raises ScenarioError naming the first bad field."""
@@ -142,6 +146,10 @@ class KitchenScenario:
             raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
         if not (np.isfinite(self.wheel_kd) and self.wheel_kd > 0):
             raise ScenarioError(f"wheel_kd must be > 0, got {self.wheel_kd}")
+        for name, p in self.cups.items():
+            if name not in CUPS or len(p) != 3 or not np.all(np.isfinite(p)):
+                raise ScenarioError(f"cups: {name!r} must be one of {CUPS} with 3 finite values, "
+                                    f"got {p}")  # fmt: skip
         unknown = sorted(set(self.gains) - set(GOTO_GAINS))
         if unknown:
             raise ScenarioError(f"unknown GoToPose gains {unknown}; expected {list(GOTO_GAINS)}")
@@ -302,6 +310,10 @@ def _set_default_state(plant, scenario: KitchenScenario) -> None:
     )
     for name, value in zip(ARM_JOINTS, scenario.initial_arm):
         plant.GetJointByName(name).set_default_positions([value])
+    for name, p in scenario.cups.items():
+        plant.SetDefaultFloatingBaseBodyPose(
+            plant.GetBodyByName("cup", plant.GetModelInstanceByName(name)), RigidTransform(p)
+        )
     fingers = scenario.initial_fingers
     if scenario.cup_in_gripper:
         fingers = CUP_RADIUS + 0.01 - 1e-4  # the fingers' inner faces on the cup

@@ -2,16 +2,17 @@
 
 Stulp & Beetz, section 6.3: "the goal is to put a cup from one table to another, which is
 achieved by a sequence of navigation and grasping actions" (scenario 1); scenario 2
-delivers two cups. Here a fetch of cup ``k`` is seven actions of the kitchen robot
+delivers two cups. Here a fetch of cup ``k`` is ten actions of the kitchen robot
 (``kitchen_action`` world, executed one after the other in physics by
 :func:`~repertoire.diagrams.kitchen.run_kitchen_sequence`):
 
 1. ``goto_pose`` to a *stand* pose beside ``table_0`` (arrival speed 0: the arm works
-   on a still base),
-2. ``reach`` to ``above_offset`` above the cup, 3. ``reach`` down to the cup,
-4. ``grip``, 5. ``reach`` up to a *carry* point (the cup above every table and
-   the counter),
-6. ``goto_pose`` to a *drop* pose beside ``table_1``, 7. ``put`` the cup at its target,
+   on a still base), 2. ``reach`` to ``above_offset`` above the cup, 3. ``reach`` there
+   again (the base turns a little under the arm's swing: aim again), 4. ``reach`` down
+   to the cup, 5. ``grip``, 6. ``reach`` straight up, 7. ``reach`` to a *carry* point
+   (the cup above every table and the counter), 8. ``goto_pose`` to a *drop* pose beside
+   ``table_1``, 9. ``reach`` with the cup over its target, 10. ``put`` it down (Put
+   converts its target at its start, so it aims again too),
 
 and, between two fetches, a ``reach`` straight up out of the placed cup. Free
 parameters (the paper: "the distance of the robot to the table ... is another free
@@ -23,12 +24,12 @@ construction; the carry point is ``(yaw, extend, z)``. Nine free parameters per 
 
 Models: the kitchen goToPose and reach duration trees (Table 7 features) fitted on
 ``actions_kitchen`` episodes (:func:`fit_kitchen_plan_models`, shipped in
-``repertoire/models/diffdrive/kitchen_plan_models``); ``put`` is the reach tree to the
-point above the target plus its lowering and opening, ``grip`` a constant, both in
-closed form from the actions' speeds. A stand or drop pose whose footprint overlaps
-furniture, or whose straight path from the previous pose does (GoToPose drives without
-obstacle avoidance), is INVALID (predicted +inf): a geometric precondition, not a
-learned failure model.
+``repertoire/models/diffdrive/kitchen_plan_models``); ``grip`` and ``put`` (lower, open)
+are constants in closed form from the actions' speeds. A stand or drop pose whose
+footprint overlaps furniture, or whose straight path from the previous pose does
+(GoToPose drives without obstacle avoidance), is INVALID (predicted +inf), and so is a
+stand with no straight free path to :func:`exit_point` (so a drop pose stays reachable
+whatever later steps choose): geometric preconditions, not learned failure models.
 """
 
 import dataclasses
@@ -52,6 +53,7 @@ CUP_POSITIONS = {
 }
 FETCHED = ("cup_0", "cup_1")
 PER_CUP = 9  # free parameters per fetch
+PUT_CLEARANCE = 0.05  # Put's default clearance: the cup is carried this far above its target
 MODEL_FILES = {"goto_pose": "goto_duration.json", "reach": "reach_duration.json"}
 SHIPPED_MODELS = "kitchen_plan_models"
 """Folder in ``repertoire/models/diffdrive`` with the goToPose and reach trees fitted on
@@ -310,9 +312,22 @@ def plan_steps(geometry: PlanGeometry, row: int, config: KitchenPlanConfig) -> l
             ("reach", [float(v) for v in g.cup[k] + up]),
             ("reach", [float(v) for v in chassis_to_world(stand, g.carry[row, k])]),
             ("goto_pose", [float(v) for v in drop]),
+            ("reach", [float(v) for v in g.target[k] + [0.0, 0.0, PUT_CLEARANCE]]),
             ("put", [float(v) for v in g.target[k]]),
         ]
     return steps
+
+
+def exit_point(target) -> np.ndarray:
+    """Where a robot stands in front of a put target: 0.9 m from it, off ``table_1``'s side.
+
+    A stand pose must see this point along a straight, free path (so a drop pose stays
+    reachable whatever the later refinement steps choose).
+    """
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
+
+    yaw = KITCHEN_OBSTACLES[2, 2]  # table_1; targets lie on its +y side
+    return np.asarray(target, dtype=float)[:2] + 0.9 * np.array([-math.sin(yaw), math.cos(yaw)])
 
 
 def _world_in_chassis(pose: np.ndarray, point) -> np.ndarray:
@@ -325,7 +340,8 @@ def _world_in_chassis(pose: np.ndarray, point) -> np.ndarray:
 
 def action_names(scenario: int) -> list[str]:
     """The actions of a scenario's plan in execution order (as :func:`plan_steps`)."""
-    fetch = ["goto_pose", "reach", "reach", "reach", "grip", "reach", "reach", "goto_pose", "put"]
+    fetch = ["goto_pose", "reach", "reach", "reach", "grip", "reach", "reach", "goto_pose"]
+    fetch += ["reach", "put"]
     return fetch + (["reach", *fetch] if scenario == 2 else [])
 
 
@@ -382,7 +398,8 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
     goto = PiecewiseLinearModel.from_leaves(models["goto_pose"].leaves)
     reach = PiecewiseLinearModel.from_leaves(models["reach"].leaves)
-    put = dataclasses.replace(reach, intercept=reach.intercept + put_tail_duration())
+    put = _constant_model(put_tail_duration())
+    put_up = np.array([0.0, 0.0, PUT_CLEARANCE])
     grip = _constant_model(grip_duration())
     lower, upper, names = parameter_bounds(config)
     start = np.asarray(start, dtype=float)
@@ -393,6 +410,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
     carry_radius = COLUMN_X + config.carry_extend_range[1] + 0.04 + config.clearance
     up = np.array([0.0, 0.0, config.above_offset])
+    exits = [exit_point(t) for t in np.asarray(targets, dtype=float)]
     terms: list = []
     actions: list[str] = []
 
@@ -432,6 +450,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
             g = geometry(params)
             f = kitchen_goto_features(prev_pose(g), g.stand[:, k])
             ok = path_clear(prev_pose(g), g.stand[:, k], KITCHEN_OBSTACLES, radius)
+            ok &= path_clear(g.stand[:, k], exits[k], KITCHEN_OBSTACLES, radius)
             return np.where(ok[:, None], f, np.nan)
 
         add("goto_pose", goto, goto_stand, prev_ids + stand_ids)
@@ -481,12 +500,13 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
         add("goto_pose", goto, goto_drop, stand_ids + drop_ids)
 
-        def put_features(params, k=k):
+        def reach_put(params, k=k):  # carry the cup over its target (Put then aims again)
             g = geometry(params)
-            above = _world_in_chassis(g.drop[:, k], g.target[k] + [0.0, 0.0, 0.05])
+            above = _world_in_chassis(g.drop[:, k], g.target[k] + put_up)
             return kitchen_reach_features(g.carry[:, k], above)
 
-        add("put", put, put_features, carry_ids + drop_ids)
+        add("reach", reach, reach_put, carry_ids + drop_ids)
+        add("put", put, lambda params: np.zeros((np.atleast_2d(params).shape[0], 1)), [])
     if actions != action_names(m):
         raise RepertoireError(f"internal: plan actions {actions} differ from action_names")
     return RefinementProblem(tuple(terms), lower, upper, names), actions

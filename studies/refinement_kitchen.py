@@ -2,7 +2,7 @@
 
 Table 3's kitchen rows of Stulp & Beetz (JAIR 2008): scenario 1 carries a cup from one
 table to the other, scenario 2 two cups (:mod:`repertoire.studies._kitchen_plan` builds
-the plans: 9 and 19 actions, 9 free parameters per cup). Each episode samples the
+the plans: 10 and 21 actions, 9 free parameters per cup). Each episode samples the
 robot's start, the cups' places on ``table_0`` and the put targets on ``table_1``,
 refines the free parameters with the learned kitchen duration trees once greedily (h =
 1: every subgoal for its own action) and once with h = 2 (the receding horizon of
@@ -51,8 +51,9 @@ class RefinementKitchenRecord:
         predicted_1: the models' predicted plan duration at them [s].
         durations_1: each executed action's duration [s].
         time_1: the executed plan's duration [s] (NaN unless it succeeded).
-        status_1: the executed plan's status (``SUCCEEDED``, ``MISSED`` or the failed
-            action's status).
+        status_1: the executed plan's status (``SUCCEEDED``, ``MISSED``, the failed
+            action's status, or ``NO_PLAN`` when refinement found no parameters every
+            precondition accepts: not executed).
         cup_errors_1: the fetched cups' final distances from their targets [m].
         params_2, predicted_2, durations_2, time_2, status_2, cup_errors_2: the same with
             h = 2.
@@ -98,10 +99,13 @@ def run_episode(config: KitchenPlanConfig, seed: int) -> RefinementKitchenRecord
     wall_refine = time.perf_counter() - t0
     out: list = []
     for params, predicted in refined:
+        values = [float(p) for p in params]
+        if not math.isfinite(predicted):  # no parameters every precondition accepts
+            out += [values, predicted, [], math.nan, "NO_PLAN", []]
+            continue
         run = run_kitchen_plan(config, start, cups, targets, params)
         t = run.total if run.status == "SUCCEEDED" else math.nan
-        out += [[float(p) for p in params], predicted, run.durations, t, run.status,
-                run.cup_errors]  # fmt: skip
+        out += [values, predicted, run.durations, t, run.status, run.cup_errors]
     return RefinementKitchenRecord(
         [float(s) for s in start],
         [float(c) for c in np.ravel(cups)],
@@ -144,7 +148,8 @@ def summarize(
         "",
         f"{len(records)} situations; plan outcomes with h = 1: {statuses[1]}, with h = 2: "
         f"{statuses[2]} (MISSED: every action succeeded but a cup ended more than "
-        f"{config.deliver_tolerance} m from its target). The table pairs the {len(both)} "
+        f"{config.deliver_tolerance} m from its target; NO_PLAN: no valid parameters, not "
+        f"executed). The table pairs the {len(both)} "
         f"situations where both plans delivered. Refinement ({config.solver}) faster in "
         f"{int(np.sum(t2 < t1))}, slower in {int(np.sum(t2 > t1))}. Predicted plan time "
         "(models) h = 1 / h = 2: "

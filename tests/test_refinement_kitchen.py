@@ -10,6 +10,7 @@ from repertoire.studies import _kitchen_plan as kp
 from repertoire.systems.kitchen_actions import (
     FINGER_CLOSED,
     FINGER_OPEN,
+    Put,
     chassis_to_world,
     footprint_hits,
 )
@@ -84,10 +85,11 @@ def test_problem_terms_costs_and_invalid_stands():
     config = kp.KitchenPlanConfig()
     start, cups, targets = kp.sample_situation(config, np.random.default_rng(0))
     problem, actions = kp.kitchen_problem(start, cups, targets, config, kp.load_kitchen_models(""))
-    assert actions == kp.action_names(1) and len(actions) == 9 and problem.n_params == 9
+    assert actions == kp.action_names(1) and len(actions) == 10 and problem.n_params == 9
     assert problem.names[:3] == ("stand0.phi", "stand0.yaw", "stand0.extend")
     assert problem.terms[0].uses == (0, 1, 2) and problem.terms[4].uses == ()
-    assert problem.terms[8].uses == (3, 4, 5, 6, 7, 8)  # put: carry and drop
+    assert problem.terms[8].uses == (3, 4, 5, 6, 7, 8)  # over the target: carry and drop
+    assert problem.terms[9].predict(np.zeros((1, 9)))[0] == pytest.approx(kp.put_tail_duration())
     # the grip term is the closed-form constant
     assert problem.terms[4].predict(np.zeros((1, 9)))[0] == pytest.approx(kp.grip_duration())
     # facing the table with the cup straight ahead at full extension: a valid stand
@@ -103,7 +105,7 @@ def test_problem_terms_costs_and_invalid_stands():
         start, cups, np.vstack([targets, targets + [0.3, 0, 0]]), kp.KitchenPlanConfig(scenario=2),
         kp.load_kitchen_models(""),
     )  # fmt: skip
-    assert names2 == kp.action_names(2) and len(names2) == 19 and two.n_params == 18
+    assert names2 == kp.action_names(2) and len(names2) == 21 and two.n_params == 18
 
 
 def test_plan_steps_follow_the_actions():
@@ -113,7 +115,8 @@ def test_plan_steps_follow_the_actions():
     steps = kp.plan_steps(kp.plan_geometry((lo + hi) / 2, cups, targets), 0, config)
     assert [s[0] for s in steps] == kp.action_names(2)
     np.testing.assert_allclose(steps[3][1], cups[0])  # reach down to the cup
-    np.testing.assert_allclose(steps[8][1], targets[0])  # put at the target
+    np.testing.assert_allclose(steps[8][1], targets[0] + [0, 0, Put().clearance])
+    np.testing.assert_allclose(steps[9][1], targets[0])  # put at the target
 
 
 def test_bad_configs_and_model_files_are_named(tmp_path):
@@ -141,9 +144,10 @@ def test_one_episode_executes_both_plans(tmp_path):
     config = smoke_config()
     record = run_episode(config, 0)
     for h in (1, 2):
-        assert getattr(record, f"status_{h}") in ("SUCCEEDED", "MISSED", "FAILED", "TIMED_OUT")
+        status = getattr(record, f"status_{h}")
+        assert status in ("SUCCEEDED", "MISSED", "FAILED", "TIMED_OUT", "NO_PLAN")
         durations = getattr(record, f"durations_{h}")
-        assert 1 <= len(durations) <= 9 and all(d > 0 for d in durations)
+        assert len(durations) <= 10 and all(d > 0 for d in durations)
     assert record.status_2 == "SUCCEEDED"  # the refined plan delivers the cup
     assert record.time_2 == pytest.approx(sum(record.durations_2))
     assert record.cup_errors_2[0] <= config.deliver_tolerance

@@ -517,12 +517,10 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
 
 def models_folder(models_dir: str) -> Path:
-    """``models_dir``, or for ``""`` the models shipped with the package."""
-    if models_dir:
-        return Path(models_dir)
-    from importlib.resources import files
+    """``models_dir``, or for ``""`` the kitchen models shipped with the package."""
+    from repertoire.studies.refinement_soccer import models_folder as folder
 
-    return Path(str(files("repertoire.models.diffdrive") / SHIPPED_MODELS))
+    return folder(models_dir, SHIPPED_MODELS)
 
 
 def load_kitchen_models(models_dir: str) -> dict:

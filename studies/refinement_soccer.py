@@ -104,13 +104,13 @@ class RefinementSoccerRecord:
     wall_time_s: float
 
 
-def models_folder(models_dir: str) -> Path:
-    """``models_dir``, or for ``""`` the models shipped with the package."""
+def models_folder(models_dir: str, shipped: str = SHIPPED_MODELS) -> Path:
+    """``models_dir``, or for ``""`` the ``shipped`` folder of ``repertoire.models.diffdrive``."""
     if models_dir:
         return Path(models_dir)
     from importlib.resources import files
 
-    return Path(str(files("repertoire.models.diffdrive") / SHIPPED_MODELS))
+    return Path(str(files("repertoire.models.diffdrive") / shipped))
 
 
 def load_models(models_dir: str, names) -> tuple:

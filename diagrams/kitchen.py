@@ -79,6 +79,14 @@ KITCHEN_WORKSPACE = (-3.6, 3.6, -2.6, 2.6)
 CUP_0_POSITION = (2.0, 1.4, 0.8001)  # cup_0's centre in kitchen.sdf
 #: The free cups of kitchen.sdf.
 KITCHEN_CUPS = ("cup_0", "cup_1", "cup_2", "cup_3", "cup_4")
+#: Each cup's centre (world) as placed in kitchen.sdf.
+KITCHEN_CUP_POSITIONS = {
+    "cup_0": CUP_0_POSITION,
+    "cup_1": (2.3, 1.2, 0.8001),
+    "cup_2": (1.8, -1.5, 0.8001),
+    "cup_3": (2.2, -1.7, 0.8001),
+    "cup_4": (-2.3, 2.55, 0.9501),
+}
 ARM_TUCKED = (0.62, 0.0, 0.25)  # lift, yaw, extend: fingers above the tables
 #: PD gains (kp, kd) of the arm and finger actuators.
 ARM_GAINS = {
@@ -112,6 +120,8 @@ class KitchenScenario:
         wheel_kd: wheel velocity gain.
         ground_friction: ground friction coefficient.
         gains: overrides of GoToPose's gains (``GOTO_GAINS`` keys), e.g. its timeout.
+        cup_positions: world centres ``[x, y, z]`` of cups moved from their
+            ``kitchen.sdf`` places (keys: names in ``cups``), e.g. cups displaced on a table.
     """
 
     action: str = "reach"
@@ -128,6 +138,7 @@ class KitchenScenario:
     wheel_kd: float = 2.0
     ground_friction: float = 1.0
     gains: dict[str, float] = dataclasses.field(default_factory=dict)
+    cup_positions: dict[str, list[float]] = dataclasses.field(default_factory=dict)
 
     def validate(self) -> None:
         """Raises ScenarioError naming the first bad field."""
@@ -155,6 +166,10 @@ class KitchenScenario:
             raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
         if not (np.isfinite(self.wheel_kd) and self.wheel_kd > 0):
             raise ScenarioError(f"wheel_kd must be > 0, got {self.wheel_kd}")
+        for name, p in self.cup_positions.items():
+            if name not in self.cups or len(p) != 3 or not np.all(np.isfinite(p)):
+                raise ScenarioError(f"cup_positions: {name!r} must be one of cups {self.cups} "
+                                    f"with 3 finite values, got {p}")  # fmt: skip
         unknown = sorted(set(self.gains) - set(GOTO_GAINS))
         if unknown:
             raise ScenarioError(f"unknown GoToPose gains {unknown}; expected {list(GOTO_GAINS)}")
@@ -389,6 +404,11 @@ def _set_default_state(plant, scenario: KitchenScenario) -> None:
     )
     for name, value in zip(ARM_JOINTS, scenario.initial_arm):
         plant.GetJointByName(name).set_default_positions([value])
+    for name in scenario.cups:  # every cup, as a reset diagram keeps the last defaults
+        plant.SetDefaultFloatingBaseBodyPose(
+            plant.GetBodyByName("cup", plant.GetModelInstanceByName(name)),
+            RigidTransform(scenario.cup_positions.get(name, KITCHEN_CUP_POSITIONS[name])),
+        )
     fingers = scenario.initial_fingers
     if scenario.cup_in_gripper:
         fingers = CUP_RADIUS + 0.01 - 1e-4  # the fingers' inner faces on the cup

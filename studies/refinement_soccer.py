@@ -104,13 +104,13 @@ class RefinementSoccerRecord:
     wall_time_s: float
 
 
-def models_folder(models_dir: str) -> Path:
-    """``models_dir``, or for ``""`` the models shipped with the package."""
+def models_folder(models_dir: str, shipped: str = SHIPPED_MODELS) -> Path:
+    """``models_dir``, or for ``""`` the ``shipped`` folder of ``repertoire.models.diffdrive``."""
     if models_dir:
         return Path(models_dir)
     from importlib.resources import files
 
-    return Path(str(files("repertoire.models.diffdrive") / SHIPPED_MODELS))
+    return Path(str(files("repertoire.models.diffdrive") / shipped))
 
 
 def load_models(models_dir: str, names) -> tuple:
@@ -209,7 +209,6 @@ def summarize(
     records: list[RefinementSoccerRecord], config: RefinementSoccerConfig, out_dir: Path
 ) -> dict[str, Path]:
     """Writes Table 3, the section 6.3.2 selective refinement and a paired-time figure."""
-    from matplotlib.figure import Figure
     from sklearn.tree import DecisionTreeClassifier, export_text
 
     out_dir = Path(out_dir)
@@ -275,26 +274,36 @@ def summarize(
         ]
     tables = out_dir / "refinement_soccer_tables.md"
     tables.write_text("\n".join(md) + "\n")
-    fig = Figure(figsize=(5.5, 5.0), layout="constrained")
-    ax = fig.add_subplot()
-    if both:
-        ax.scatter(t1, t2, s=8, alpha=0.6, label=f"episodes (n = {len(both)})")
-        lim = [min(t1.min(), t2.min()) * 0.95, max(t1.max(), t2.max()) * 1.05]
-        ax.plot(lim, lim, "k--", lw=1, label="equal time")
-        ax.set_xlim(lim)
-        ax.set_ylim(lim)
-    ax.set_xlabel("executed plan time, greedy h = 1 (s)")
-    ax.set_ylabel("executed plan time, refined h = 2 (s)")
-    ax.set_title(f"Subgoal refinement: mean improvement {imp:.1%} (paper 6.6%)")
-    ax.legend(loc="upper left")
-    figure = out_dir / "refinement_soccer_paired.png"
-    fig.savefig(figure, dpi=110)
+    figure = paired_times_figure(
+        t1, t2, f"Subgoal refinement: mean improvement {imp:.1%} (paper 6.6%)",
+        out_dir / "refinement_soccer_paired.png",
+    )  # fmt: skip
     out = {"tables": tables, "paired": figure}
     if both:  # the situation where greedy and refined angles differ most
         turn = [abs(math.remainder(r.phi_2 - r.phi_1, 2 * math.pi)) for r in both]
         example = both[int(np.argmax(turn))]
         out["polar"] = fig11_polar(example, config, out_dir / "refinement_soccer_fig11.png")
     return out
+
+
+def paired_times_figure(t1: np.ndarray, t2: np.ndarray, title: str, path: Path) -> Path:
+    """Scatter of paired executed plan times, greedy (x) vs refined (y), with the diagonal."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(5.5, 5.0), layout="constrained")
+    ax = fig.add_subplot()
+    if len(t1):
+        ax.scatter(t1, t2, s=8, alpha=0.6, label=f"episodes (n = {len(t1)})")
+        lim = [min(t1.min(), t2.min()) * 0.95, max(t1.max(), t2.max()) * 1.05]
+        ax.plot(lim, lim, "k--", lw=1, label="equal time")
+        ax.set_xlim(lim)
+        ax.set_ylim(lim)
+        ax.legend(loc="upper left")
+    ax.set_xlabel("executed plan time, greedy h = 1 (s)")
+    ax.set_ylabel("executed plan time, refined h = 2 (s)")
+    ax.set_title(title)
+    fig.savefig(path, dpi=110)
+    return path
 
 
 def fig11_polar(record: RefinementSoccerRecord, config: RefinementSoccerConfig, path: Path):

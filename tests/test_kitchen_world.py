@@ -172,3 +172,36 @@ def test_simulator_cache_keeps_at_most_max_size_diagrams():
     assert len(cache) == 0
     with pytest.raises(RepertoireError, match="max_size must be >= 1, got 0"):
         SimulatorCache(build, max_size=0)
+
+
+def test_cup_positions_table_matches_kitchen_sdf():
+    import re
+
+    from repertoire.diagrams.diffdrive import WORLDS
+    from repertoire.diagrams.kitchen import KITCHEN_CUP_POSITIONS, KITCHEN_CUPS
+    from repertoire.models import MODELS_DIR
+
+    text = (MODELS_DIR / WORLDS["kitchen"]).read_text()
+    for name in KITCHEN_CUPS:
+        pose = re.search(rf'<model name="{name}">\s*<pose>([^<]*)</pose>', text).group(1)
+        values = [float(v) for v in pose.split()]
+        np.testing.assert_allclose(KITCHEN_CUP_POSITIONS[name], values[:3], atol=0)
+        assert values[3:] == [0.0, 0.0, 0.0]
+
+
+def test_reset_simulator_puts_moved_cups_back():
+    from repertoire.diagrams.kitchen import KITCHEN_CUP_POSITIONS, kitchen_simulator
+
+    moved = KitchenScenario(cups=["cup_1"], cup_positions={"cup_1": [2.1, 1.0, 0.8001]})
+    diagram, simulator = kitchen_simulator(moved)
+    plant = diagram.GetSubsystemByName("plant")
+
+    def cup_1():
+        context = plant.GetMyContextFromRoot(simulator.get_context())
+        body = plant.GetBodyByName("cup", plant.GetModelInstanceByName("cup_1"))
+        return plant.EvalBodyPoseInWorld(context, body).translation()
+
+    np.testing.assert_allclose(cup_1(), [2.1, 1.0, 0.8001], atol=1e-12)
+    diagram, simulator = kitchen_simulator(KitchenScenario(cups=["cup_1"]))
+    plant = diagram.GetSubsystemByName("plant")
+    np.testing.assert_allclose(cup_1(), KITCHEN_CUP_POSITIONS["cup_1"], atol=1e-12)

@@ -1,0 +1,605 @@
+"""The kitchen plans of the refinement study: fetch cups from one table to the other.
+
+Stulp & Beetz, section 6.3: "the goal is to put a cup from one table to another, which is
+achieved by a sequence of navigation and grasping actions" (scenario 1); scenario 2
+delivers two cups. Here a fetch of cup ``k`` is ten actions of the kitchen robot
+(``kitchen_action`` world, executed one after the other in physics by
+:func:`~repertoire.diagrams.kitchen.run_kitchen_sequence`):
+
+1. ``goto_pose`` to a *stand* pose beside ``table_0`` (arrival speed 0: the arm works
+   on a still base), 2. ``reach`` to ``above_offset`` above the cup, 3. ``reach`` there
+   again (the base turns a little under the arm's swing: aim again), 4. ``reach`` down
+   to the cup, 5. ``grip``, 6. ``reach`` straight up, 7. ``reach`` to a *carry* point
+   (the cup above every table and the counter), 8. ``goto_pose`` to a *drop* pose beside
+   ``table_1``, 9. ``reach`` with the cup over its target, 10. ``put`` it down (Put
+   converts its target at its start, so it aims again too),
+
+and, between two fetches, a ``reach`` straight up out of the placed cup. Free
+parameters (the paper: "the distance of the robot to the table ... is another free
+parameter ... the velocity and orientation at waypoints are also not fixed"): a stand or
+drop pose is given by the robot's heading ``phi`` and the arm joints ``(yaw, extend)``
+at which the gripper meets the cup (or the target), so the robot's position
+``p - R(phi) (COLUMN_X + e cos(yaw), e sin(yaw))`` keeps the cup within reach by
+construction; the carry point is ``(yaw, extend, z)``. Nine free parameters per cup.
+
+Models: the kitchen goToPose and reach duration trees (Table 7 features) fitted on
+``actions_kitchen`` episodes (:func:`fit_kitchen_plan_models`, shipped in
+``repertoire/models/diffdrive/kitchen_plan_models``); ``grip`` and ``put`` (lower, open)
+are constants in closed form from the actions' speeds. A stand or drop pose whose
+footprint overlaps furniture, or whose straight path from the previous pose does
+(GoToPose drives without obstacle avoidance), is INVALID (predicted +inf), and so is a
+stand with no straight free path to :func:`exit_point` (so a drop pose stays reachable
+whatever later steps choose): geometric preconditions, not learned failure models.
+"""
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+from repertoire.planning.action_models.kitchen_features import (
+    kitchen_goto_features,
+    kitchen_reach_features,
+)
+
+from repertoire.errors import RepertoireError
+
+FETCHED = ("cup_0", "cup_1")
+PER_CUP = 9  # free parameters per fetch
+PUT_CLEARANCE = 0.05  # Put's default clearance: the cup is carried this far above its target
+MODEL_FILES = {"goto_pose": "goto_duration.json", "reach": "reach_duration.json"}
+SHIPPED_MODELS = "kitchen_plan_models"
+"""Folder in ``repertoire/models/diffdrive`` with the goToPose and reach trees fitted on
+600 + 600 ``actions_kitchen`` episodes (see the README)."""
+
+
+@dataclasses.dataclass
+class KitchenPlanConfig:
+    """The kitchen scenario, its free-parameter ranges and the simulation settings.
+
+    Attributes:
+        scenario: 1 (one cup, 7 actions) or 2 (two cups, 15 actions).
+        x_range: start x range of the robot [m] (the open part of the room: GoToPose
+            drives straight, without avoiding furniture).
+        y_range: start y range of the robot [m].
+        cup_x_range: x range of the fetched cups on ``table_0`` [m].
+        cup_y_range: y range of the fetched cups (near its edge facing ``table_1``) [m].
+        target_side_range: put targets lie this far [m] from ``table_1``'s long axis
+            towards ``table_0`` (its half width is 0.4 m; 0.1 m from the edge at most).
+        yaw_range: arm yaw at the cup / target (stand and drop poses) [rad].
+        extend_range: arm extension at the cup / target [m].
+        carry_yaw_range: arm yaw of the carry point [rad].
+        carry_extend_range: arm extension of the carry point [m].
+        carry_z_range: world height of the carried cup's centre [m] (its bottom above the
+            0.9 m counter).
+        above_offset: the first reach ends this far above the cup [m].
+        clearance: footprint margin of stand/drop poses and their straight paths [m].
+        time_step: plant step [s] (the contact grasp holds the cup while driving at
+            2 ms, not at 5 ms).
+        step_limit: simulated seconds allowed per action [s].
+        deliver_tolerance: the cup must end within this of its target [m].
+        models_dir: folder with ``goto_duration.json`` and ``reach_duration.json``
+            (empty: the shipped models).
+        solver: refinement back-end for these non-affine features, ``"ga"`` or ``"de"``.
+    """
+
+    scenario: int = 1
+    x_range: list[float] = dataclasses.field(default_factory=lambda: [-3.2, 0.8])
+    y_range: list[float] = dataclasses.field(default_factory=lambda: [-2.4, 2.4])
+    cup_x_range: list[float] = dataclasses.field(default_factory=lambda: [1.6, 2.6])
+    cup_y_range: list[float] = dataclasses.field(default_factory=lambda: [0.98, 1.25])
+    target_side_range: list[float] = dataclasses.field(default_factory=lambda: [0.1, 0.3])
+    yaw_range: list[float] = dataclasses.field(default_factory=lambda: [-1.2, 1.2])
+    extend_range: list[float] = dataclasses.field(default_factory=lambda: [0.35, 0.8])
+    carry_yaw_range: list[float] = dataclasses.field(default_factory=lambda: [-1.2, 1.2])
+    carry_extend_range: list[float] = dataclasses.field(default_factory=lambda: [0.3, 0.45])
+    carry_z_range: list[float] = dataclasses.field(default_factory=lambda: [0.96, 1.0])
+    above_offset: float = 0.1
+    clearance: float = 0.05
+    time_step: float = 2e-3
+    step_limit: float = 25.0
+    deliver_tolerance: float = 0.1
+    models_dir: str = ""
+    solver: str = "ga"
+
+    def validate(self) -> None:
+        """Raises RepertoireError naming the first bad field."""
+        from repertoire.models.diffdrive.generate import EXTEND_RANGE, YAW_RANGE
+
+        if self.scenario not in (1, 2):
+            raise RepertoireError(f"scenario must be 1 or 2, got {self.scenario!r}")
+        bounds = {
+            "x_range": (-3.6, 3.6),
+            "y_range": (-2.6, 2.6),
+            "cup_x_range": (1.55, 2.65),  # table_0's top less the cup radius
+            "cup_y_range": (0.95, 1.65),
+            "target_side_range": (-0.3, 0.3),
+            "yaw_range": YAW_RANGE,
+            "extend_range": EXTEND_RANGE,
+            "carry_yaw_range": YAW_RANGE,
+            "carry_extend_range": EXTEND_RANGE,
+            "carry_z_range": (0.91, 1.05),
+        }
+        for name, (lo, hi) in bounds.items():
+            r = getattr(self, name)
+            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
+                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
+            if r[0] < lo - 1e-9 or r[1] > hi + 1e-9:
+                raise RepertoireError(f"{name} must lie within [{lo}, {hi}], got {r}")
+        for name in ("above_offset", "clearance", "step_limit", "deliver_tolerance"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise RepertoireError(f"{name} must be finite and > 0, got {value}")
+        if not 0 < self.time_step <= 0.01:
+            raise RepertoireError(f"time_step must be in (0, 0.01] s, got {self.time_step}")
+        if self.solver not in ("ga", "de"):
+            raise RepertoireError(f"solver must be 'ga' or 'de' (angles), got {self.solver!r}")
+
+
+# --------------------------------------------------------------------------------------
+# Geometry
+
+
+def footprint_clear(xy, boxes, radius: float) -> np.ndarray:
+    """True per point where a robot disc at ``xy`` (n, 2) overlaps no box (vectorised).
+
+    ``boxes`` are rows ``[cx, cy, yaw, half_x, half_y, top_z]`` as in
+    :func:`~repertoire.systems.kitchen_actions.footprint_hits`.
+    """
+    p = np.atleast_2d(np.asarray(xy, dtype=float))
+    ok = np.ones(p.shape[0], dtype=bool)
+    for cx, cy, yaw, hx, hy, _ in np.asarray(boxes, dtype=float).reshape(-1, 6):
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = p[:, 0] - cx, p[:, 1] - cy
+        u = np.maximum(np.abs(c * dx + s * dy) - hx, 0.0)
+        w = np.maximum(np.abs(-s * dx + c * dy) - hy, 0.0)
+        ok &= np.hypot(u, w) >= radius
+    return ok
+
+
+def path_clear(a, b, boxes, radius: float, samples: int = 16) -> np.ndarray:
+    """True per row where the straight segment ``a -> b`` ((n, 2) each) stays clear."""
+    a, b = np.broadcast_arrays(np.atleast_2d(a)[:, :2], np.atleast_2d(b)[:, :2])
+    s = np.linspace(0.0, 1.0, samples)
+    points = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]
+    return footprint_clear(points.reshape(-1, 2), boxes, radius).reshape(-1, samples).all(axis=1)
+
+
+def arm_point(yaw, extend, z_chassis) -> np.ndarray:
+    """Gripper centre(s) ``(n, 3)`` in the chassis frame for arm yaw/extension and height."""
+    from repertoire.models.diffdrive.generate import COLUMN_X
+
+    yaw, extend, z = np.broadcast_arrays(*(np.asarray(v, float) for v in (yaw, extend, z_chassis)))
+    return np.stack([COLUMN_X + extend * np.cos(yaw), extend * np.sin(yaw), z], axis=-1)
+
+
+def base_pose(point, phi, yaw, extend) -> np.ndarray:
+    """Chassis ``(n, 4)`` poses ``[x, y, phi, 0]`` putting the gripper over ``point``'s x, y."""
+    a = arm_point(yaw, extend, 0.0)
+    phi = np.broadcast_to(np.asarray(phi, dtype=float), a.shape[:-1])
+    c, s = np.cos(phi), np.sin(phi)
+    x = point[0] - (c * a[..., 0] - s * a[..., 1])
+    y = point[1] - (s * a[..., 0] + c * a[..., 1])
+    return np.stack([x, y, phi, np.zeros_like(phi)], axis=-1)
+
+
+def to_chassis_z(z_world):
+    """A world height in the chassis frame (origin on the wheel axle)."""
+    from repertoire.diagrams.diffdrive import WHEEL_RADIUS
+
+    return np.asarray(z_world, dtype=float) - WHEEL_RADIUS
+
+
+# --------------------------------------------------------------------------------------
+# Situations and plans
+
+
+def sample_situation(config: KitchenPlanConfig, rng: np.random.Generator):
+    """A start, the two cups on ``table_0`` and one put target per fetched cup.
+
+    Returns ``(start, cups, targets)``: the start ``[x, y, phi, 0]`` off the furniture;
+    ``cup_0`` and ``cup_1`` (2, 3) uniform in the cup ranges, 0.25 m apart (both are
+    displaced in both scenarios); (m, 3) targets uniform on ``table_1``'s top (0.1 m from
+    its ends, ``target_side_range`` from its axis), at least 0.15 m from the cups standing
+    there and from each other.
+    """
+    from repertoire.diagrams.kitchen import KITCHEN_CUP_POSITIONS, KITCHEN_OBSTACLES, ROBOT_RADIUS
+
+    for _ in range(1000):
+        xy = np.array([rng.uniform(*config.x_range), rng.uniform(*config.y_range)])
+        if footprint_clear(xy, KITCHEN_OBSTACLES, ROBOT_RADIUS + 2 * config.clearance)[0]:
+            break
+    else:
+        raise RepertoireError("no free start in x_range x y_range: widen them")
+    start = np.array([*xy, rng.uniform(-math.pi, math.pi), 0.0])
+    cups = []
+    for _ in range(2):
+        for _ in range(1000):
+            p = np.array([rng.uniform(*config.cup_x_range), rng.uniform(*config.cup_y_range)])
+            if all(np.linalg.norm(p - q[:2]) >= 0.25 for q in cups):
+                break
+        else:
+            raise RepertoireError("no two cups 0.25 m apart in cup_x_range x cup_y_range")
+        cups.append(np.array([*p, KITCHEN_CUP_POSITIONS["cup_0"][2]]))
+    cx, cy, yaw, hx, hy, top = KITCHEN_OBSTACLES[2]  # table_1
+    taken = [np.array(KITCHEN_CUP_POSITIONS[c][:2]) for c in ("cup_2", "cup_3")]
+    targets = []
+    for _ in range(config.scenario):
+        for _ in range(1000):
+            u, w = rng.uniform(-hx + 0.1, hx - 0.1), rng.uniform(*config.target_side_range)
+            p = np.array([cx + math.cos(yaw) * u - math.sin(yaw) * w,
+                          cy + math.sin(yaw) * u + math.cos(yaw) * w])  # fmt: skip
+            if all(np.linalg.norm(p - q) >= 0.15 for q in taken):
+                break
+        else:
+            raise RepertoireError("no free put target on table_1")
+        taken.append(p)
+        targets.append([float(p[0]), float(p[1]), KITCHEN_CUP_POSITIONS["cup_0"][2] + 0.001])
+    return start, np.array(cups), np.array(targets)
+
+
+def parameter_bounds(config: KitchenPlanConfig) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """Lower and upper bounds and names of the plan's free parameters (9 per cup)."""
+    pi = math.pi
+    one_lo = [-pi, config.yaw_range[0], config.extend_range[0], config.carry_yaw_range[0],
+              config.carry_extend_range[0], config.carry_z_range[0], -pi, config.yaw_range[0],
+              config.extend_range[0]]  # fmt: skip
+    one_hi = [pi, config.yaw_range[1], config.extend_range[1], config.carry_yaw_range[1],
+              config.carry_extend_range[1], config.carry_z_range[1], pi, config.yaw_range[1],
+              config.extend_range[1]]  # fmt: skip
+    names = []
+    for k in range(config.scenario):
+        names += [f"stand{k}.phi", f"stand{k}.yaw", f"stand{k}.extend", f"carry{k}.yaw",
+                  f"carry{k}.extend", f"carry{k}.z", f"drop{k}.phi", f"drop{k}.yaw",
+                  f"drop{k}.extend"]  # fmt: skip
+    n = config.scenario
+    return np.tile(one_lo, n), np.tile(one_hi, n), tuple(names)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlanGeometry:
+    """Everything the actions of a plan need, for a batch of parameter vectors.
+
+    Attributes (n parameter vectors, m cups):
+        stand: (n, m, 4) stand poses. drop: (n, m, 4) drop poses.
+        carry: (n, m, 3) carry points (chassis frame).
+        cup: (m, 3) cup centres (world). target: (m, 3) put targets (world).
+    """
+
+    stand: np.ndarray
+    drop: np.ndarray
+    carry: np.ndarray
+    cup: np.ndarray
+    target: np.ndarray
+
+
+def plan_geometry(params, cups, targets) -> PlanGeometry:
+    """Stand, drop and carry poses of ``params`` (n, 9 m) for the situation's cups/targets."""
+    p = np.atleast_2d(np.asarray(params, dtype=float))
+    m = len(targets)
+    p = p.reshape(p.shape[0], m, PER_CUP)
+    cup = np.asarray(cups, dtype=float)[:m]
+    target = np.asarray(targets, dtype=float)
+    stand = np.stack([base_pose(cup[k], p[:, k, 0], p[:, k, 1], p[:, k, 2]) for k in range(m)], 1)
+    drop = np.stack([base_pose(target[k], p[:, k, 6], p[:, k, 7], p[:, k, 8]) for k in range(m)], 1)
+    carry = arm_point(p[:, :, 3], p[:, :, 4], to_chassis_z(p[:, :, 5]))
+    return PlanGeometry(stand, drop, carry, cup, target)
+
+
+def plan_steps(geometry: PlanGeometry, row: int, config: KitchenPlanConfig) -> list[tuple]:
+    """The executable ``run_kitchen_sequence`` steps of one parameter vector."""
+    from repertoire.systems.kitchen_actions import chassis_to_world
+
+    g, steps = geometry, []
+    up = np.array([0.0, 0.0, config.above_offset])
+    for k in range(g.cup.shape[0]):
+        if k:
+            steps.append(("reach", list(g.target[k - 1] + up)))  # out of the placed cup
+        stand, drop = g.stand[row, k], g.drop[row, k]
+        steps += [
+            ("goto_pose", [float(v) for v in stand]),
+            ("reach", [float(v) for v in g.cup[k] + up]),
+            ("reach", [float(v) for v in g.cup[k] + up]),
+            ("reach", [float(v) for v in g.cup[k]]),
+            ("grip", []),
+            ("reach", [float(v) for v in g.cup[k] + up]),
+            ("reach", [float(v) for v in chassis_to_world(stand, g.carry[row, k])]),
+            ("goto_pose", [float(v) for v in drop]),
+            ("reach", [float(v) for v in g.target[k] + [0.0, 0.0, PUT_CLEARANCE]]),
+            ("put", [float(v) for v in g.target[k]]),
+        ]
+    return steps
+
+
+def exit_point(target) -> np.ndarray:
+    """Where a robot stands in front of a put target: 0.9 m from it, off ``table_1``'s side.
+
+    A stand pose must see this point along a straight, free path (so a drop pose stays
+    reachable whatever the later refinement steps choose).
+    """
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
+
+    yaw = KITCHEN_OBSTACLES[2, 2]  # table_1; targets lie on its +y side
+    return np.asarray(target, dtype=float)[:2] + 0.9 * np.array([-math.sin(yaw), math.cos(yaw)])
+
+
+def _world_in_chassis(pose: np.ndarray, point) -> np.ndarray:
+    """(n, 3) chassis-frame coordinates of world ``point`` (3,) or (n, 3) for (n, 4) poses."""
+    point = np.broadcast_to(np.asarray(point, dtype=float), pose[:, :3].shape)
+    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+    dx, dy = point[:, 0] - pose[:, 0], point[:, 1] - pose[:, 1]
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, to_chassis_z(point[:, 2])])
+
+
+def action_names(scenario: int) -> list[str]:
+    """The actions of a scenario's plan in execution order (as :func:`plan_steps`)."""
+    fetch = ["goto_pose", "reach", "reach", "reach", "grip", "reach", "reach", "goto_pose"]
+    fetch += ["reach", "put"]
+    return fetch + (["reach", *fetch] if scenario == 2 else [])
+
+
+def grip_duration() -> float:
+    """Grip's duration in closed form: close at its speed from open, then settle [s]."""
+    from repertoire.systems.kitchen_actions import FINGER_CLOSED, FINGER_OPEN, FINGER_SPEED, Grip
+
+    return (FINGER_OPEN - FINGER_CLOSED) / FINGER_SPEED + Grip().settle
+
+
+def put_tail_duration() -> float:
+    """Put after reaching above its target: lower by its clearance, open the fingers [s]."""
+    from repertoire.systems.kitchen_actions import (
+        ARM_SPEEDS,
+        FINGER_CLOSED,
+        FINGER_OPEN,
+        FINGER_SPEED,
+        Put,
+    )
+
+    return Put().clearance / ARM_SPEEDS[0] + (FINGER_OPEN - FINGER_CLOSED) / FINGER_SPEED
+
+
+# --------------------------------------------------------------------------------------
+# The refinement problem
+
+
+def _constant_model(value: float):
+    from repertoire.planning.refinement import PiecewiseLinearModel
+
+    return PiecewiseLinearModel([[-np.inf]], [[np.inf]], [[0.0]], [value])
+
+
+def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dict):
+    """The refinement problem of a kitchen plan: one term per action, in execution order.
+
+    Args:
+        start: ``[x, y, phi, v]`` of the robot.
+        cups: (2, 3) centres of ``cup_0`` and ``cup_1``.
+        targets: (m, 3) put targets, one per fetched cup.
+        config: ranges and settings.
+        models: ``{"goto_pose": TreeModel, "reach": TreeModel}`` duration trees.
+
+    Returns:
+        ``(problem, action_names)``.
+    """
+    from repertoire.diagrams.kitchen import ARM_TUCKED, KITCHEN_OBSTACLES, ROBOT_RADIUS
+    from repertoire.planning.refinement import (
+        DurationTerm,
+        PiecewiseLinearModel,
+        RefinementProblem,
+    )
+    from repertoire.systems.kitchen_actions import arm_forward
+
+    goto = PiecewiseLinearModel.from_leaves(models["goto_pose"].leaves)
+    reach = PiecewiseLinearModel.from_leaves(models["reach"].leaves)
+    put = _constant_model(put_tail_duration())
+    put_up = np.array([0.0, 0.0, PUT_CLEARANCE])
+    grip = _constant_model(grip_duration())
+    lower, upper, names = parameter_bounds(config)
+    start = np.asarray(start, dtype=float)
+    m = len(targets)
+    radius = ROBOT_RADIUS + config.clearance
+    tall = KITCHEN_OBSTACLES[KITCHEN_OBSTACLES[:, 5] > config.carry_z_range[0] - 0.06]
+    from repertoire.models.diffdrive.generate import COLUMN_X
+
+    carry_radius = COLUMN_X + config.carry_extend_range[1] + 0.04 + config.clearance
+    up = np.array([0.0, 0.0, config.above_offset])
+    exits = [exit_point(t) for t in np.asarray(targets, dtype=float)]
+    terms: list = []
+    actions: list[str] = []
+
+    def geometry(params):
+        return plan_geometry(params, cups, targets)
+
+    def add(name, model, features, uses):
+        terms.append(DurationTerm(model, features, tuple(uses), f"{len(terms)}:{name}"))
+        actions.append(name)
+
+    for k in range(m):
+        base = PER_CUP * k
+        stand_ids, carry_ids = [base, base + 1, base + 2], [base + 3, base + 4, base + 5]
+        drop_ids = [base + 6, base + 7, base + 8]
+        prev_ids = [] if k == 0 else [base - 3, base - 2, base - 1]
+
+        def prev_pose(g, k=k):
+            if k == 0:
+                return np.broadcast_to(start, g.stand[:, 0].shape)
+            return g.drop[:, k - 1]
+
+        def arm_start(g, k=k):  # the gripper where the previous action left it
+            if k == 0:
+                return np.broadcast_to(arm_forward(ARM_TUCKED), g.stand[:, 0, :3].shape)
+            return _world_in_chassis(g.drop[:, k - 1], g.target[k - 1] + up)
+
+        if k:
+
+            def retract(params, k=k):  # straight up out of the placed cup: fixed
+                g = geometry(params)
+                a = _world_in_chassis(g.drop[:, k - 1], g.target[k - 1])
+                return kitchen_reach_features(a, a + up)
+
+            add("reach", reach, retract, prev_ids)
+
+        def goto_stand(params, k=k, prev_pose=prev_pose):
+            g = geometry(params)
+            f = kitchen_goto_features(prev_pose(g), g.stand[:, k])
+            ok = path_clear(prev_pose(g), g.stand[:, k], KITCHEN_OBSTACLES, radius)
+            ok &= path_clear(g.stand[:, k], exits[k], KITCHEN_OBSTACLES, radius)
+            return np.where(ok[:, None], f, np.nan)
+
+        add("goto_pose", goto, goto_stand, prev_ids + stand_ids)
+
+        def reach_above(params, k=k, arm_start=arm_start):
+            g = geometry(params)
+            above = _world_in_chassis(g.stand[:, k], g.cup[k] + up)
+            return kitchen_reach_features(arm_start(g), above)
+
+        add("reach", reach, reach_above, prev_ids + stand_ids)
+
+        def re_aim(params, k=k):  # the base turned under the arm's swing: aim again
+            g = geometry(params)
+            a = _world_in_chassis(g.stand[:, k], g.cup[k] + up)
+            return kitchen_reach_features(a, a)
+
+        add("reach", reach, re_aim, stand_ids)
+
+        def reach_down(params, k=k):
+            g = geometry(params)
+            a = _world_in_chassis(g.stand[:, k], g.cup[k])
+            return kitchen_reach_features(a + up, a)
+
+        add("reach", reach, reach_down, stand_ids)
+        add("grip", grip, lambda params: np.zeros((np.atleast_2d(params).shape[0], 1)), [])
+
+        def lift_up(params, k=k):  # straight up with the cup, clear of its neighbour
+            g = geometry(params)
+            a = _world_in_chassis(g.stand[:, k], g.cup[k])
+            return kitchen_reach_features(a, a + up)
+
+        add("reach", reach, lift_up, stand_ids)
+
+        def lift(params, k=k):
+            g = geometry(params)
+            a = _world_in_chassis(g.stand[:, k], g.cup[k] + up)
+            return kitchen_reach_features(a, g.carry[:, k])
+
+        add("reach", reach, lift, stand_ids + carry_ids)
+
+        def goto_drop(params, k=k):
+            g = geometry(params)
+            f = kitchen_goto_features(g.stand[:, k], g.drop[:, k])
+            ok = path_clear(g.stand[:, k], g.drop[:, k], KITCHEN_OBSTACLES, radius)
+            ok &= path_clear(g.stand[:, k], g.drop[:, k], tall, carry_radius)
+            return np.where(ok[:, None], f, np.nan)
+
+        add("goto_pose", goto, goto_drop, stand_ids + drop_ids)
+
+        def reach_put(params, k=k):  # carry the cup over its target (Put then aims again)
+            g = geometry(params)
+            above = _world_in_chassis(g.drop[:, k], g.target[k] + put_up)
+            return kitchen_reach_features(g.carry[:, k], above)
+
+        add("reach", reach, reach_put, carry_ids + drop_ids)
+        add("put", put, lambda params: np.zeros((np.atleast_2d(params).shape[0], 1)), [])
+    if actions != action_names(m):
+        raise RepertoireError(f"internal: plan actions {actions} differ from action_names")
+    return RefinementProblem(tuple(terms), lower, upper, names), actions
+
+
+# --------------------------------------------------------------------------------------
+# Models
+
+
+def models_folder(models_dir: str) -> Path:
+    """``models_dir``, or for ``""`` the kitchen models shipped with the package."""
+    from repertoire.studies.refinement_soccer import models_folder as folder
+
+    return folder(models_dir, SHIPPED_MODELS)
+
+
+def load_kitchen_models(models_dir: str) -> dict:
+    """The goToPose and reach duration trees (``MODEL_FILES``) from ``models_dir``."""
+    from repertoire.planning.action_models import load_model
+
+    folder = models_folder(models_dir)
+    paths = {a: folder / f for a, f in MODEL_FILES.items()}
+    missing = [str(p) for p in paths.values() if not p.is_file()]
+    if missing:
+        raise RepertoireError(
+            f"no kitchen action models {missing}: fit them from an actions_kitchen store "
+            "with fit_kitchen_plan_models"
+        )
+    return {a: load_model(p) for a, p in paths.items()}
+
+
+def fit_kitchen_plan_models(store: str | Path, out_dir: str | Path) -> dict[str, float]:
+    """Fits the goToPose and reach duration trees on an ``actions_kitchen`` store's episodes.
+
+    Succeeded episodes only, Table 7 features (``actions_kitchen.FEATURE_FUNCS``),
+    3/4 train and 1/4 held out (``fit_action_model``); writes ``MODEL_FILES`` to
+    ``out_dir``.
+
+    Returns:
+        The held-out MAE per action [s].
+    """
+    from repertoire.planning.action_models import fit_action_model, save_model
+    from repertoire.studies.actions_kitchen import FEATURE_FUNCS
+    from repertoire.studies.engine import load_records
+
+    _, records = load_records(store, "actions_kitchen")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    maes = {}
+    for action, file in MODEL_FILES.items():
+        done = [r for r in records.values() if r.action == action and not r.failed]
+        fitted = fit_action_model(done, FEATURE_FUNCS[action], "duration")
+        save_model(fitted.model, out_dir / file)
+        maes[action] = float(fitted.mae)
+    return maes
+
+
+# --------------------------------------------------------------------------------------
+# Execution
+
+
+@dataclasses.dataclass
+class KitchenRun:
+    """One kitchen plan executed in physics.
+
+    Attributes:
+        status: ``SUCCEEDED`` if every action succeeded and every cup ended within
+            ``deliver_tolerance`` of its target, else the failed action's status name
+            (``MISSED`` when the actions succeeded but a cup is not at its target).
+        durations: each executed action's duration [s].
+        total: their sum [s].
+        cup_errors: each fetched cup's final distance from its target [m].
+    """
+
+    status: str
+    durations: list[float]
+    total: float
+    cup_errors: list[float]
+
+
+def run_kitchen_plan(config: KitchenPlanConfig, start, cups, targets, params) -> KitchenRun:
+    """Executes the plan of ``params`` with ``run_kitchen_sequence`` (no second executor)."""
+    from repertoire.diagrams.kitchen import KitchenScenario, cup_position, run_kitchen_sequence
+
+    steps = plan_steps(plan_geometry(params, cups, targets), 0, config)
+    scenario = KitchenScenario(
+        initial_pose=[float(v) for v in start[:3]],
+        time_step=config.time_step,
+        cup_positions={name: [float(v) for v in c] for name, c in zip(FETCHED, cups, strict=True)},
+    )
+    results, diagram, context = run_kitchen_sequence(steps, scenario, step_limit=config.step_limit)
+    errors = [
+        float(np.linalg.norm(cup_position(diagram, context, name) - targets[k]))
+        for k, name in enumerate(FETCHED[: len(targets)])
+    ]
+    status = "SUCCEEDED"
+    failed = [r.status for r in results if r.status != "SUCCEEDED"]
+    if failed or len(results) < len(steps):
+        status = failed[0] if failed else "INCOMPLETE"
+    elif max(errors) > config.deliver_tolerance:
+        status = "MISSED"
+    durations = [float(r.duration) for r in results]
+    return KitchenRun(status, durations, float(sum(durations)), errors)

@@ -1,0 +1,161 @@
+"""Kitchen refinement plans (studies/_kitchen_plan.py, studies/refinement_kitchen.py)."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from repertoire.diagrams.kitchen import (
+    KITCHEN_CUP_POSITIONS,
+    KITCHEN_OBSTACLES,
+    ROBOT_RADIUS,
+    KitchenScenario,
+)
+from repertoire.studies import _kitchen_plan as kp
+from repertoire.systems.kitchen_actions import (
+    FINGER_CLOSED,
+    FINGER_OPEN,
+    Put,
+    chassis_to_world,
+    footprint_hits,
+)
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+BOX = np.array([[0.0, 0.0, 0.0, 1.0, 0.5, 0.75]])
+
+
+def test_footprint_clear_is_the_disc_to_rectangle_distance():
+    # straight out from an edge, from a corner (diagonal) and inside
+    xy = np.array([[1.3, 0.0], [1.29, 0.0], [1.0 + 0.3, 0.5 + 0.3], [0.0, 0.0]])
+    np.testing.assert_array_equal(kp.footprint_clear(xy, BOX, 0.3), [True, False, True, False])
+    corner = 1.0 + 0.3 / math.sqrt(2) - 1e-6  # just inside the rounded corner
+    assert not kp.footprint_clear([corner, 0.5 + 0.3 / math.sqrt(2) - 1e-6], BOX, 0.3)[0]
+    # a rotated box agrees with the per-point footprint_hits of systems/kitchen_actions
+    rng = np.random.default_rng(3)
+    pts = rng.uniform([-3.5, -2.5], [3.5, 2.5], (400, 2))
+    expected = [footprint_hits(p, KITCHEN_OBSTACLES, ROBOT_RADIUS) < 0 for p in pts]
+    np.testing.assert_array_equal(
+        kp.footprint_clear(pts, KITCHEN_OBSTACLES, ROBOT_RADIUS), expected
+    )
+
+
+def test_path_clear_checks_the_whole_segment():
+    a = np.array([[-2.0, 0.0], [-2.0, 1.0]])
+    b = np.array([[2.0, 0.0], [2.0, 1.0]])
+    np.testing.assert_array_equal(kp.path_clear(a, b, BOX, 0.3), [False, True])
+
+
+def test_base_pose_puts_the_gripper_over_the_point():
+    point = np.array([2.0, 1.2, 0.8])
+    phi, yaw, extend = np.array([0.3, -2.0]), np.array([0.5, -1.0]), np.array([0.6, 0.4])
+    poses = kp.base_pose(point, phi, yaw, extend)
+    assert poses.shape == (2, 4) and np.all(poses[:, 3] == 0)
+    for pose, a in zip(poses, kp.arm_point(yaw, extend, 0.7)):
+        np.testing.assert_allclose(chassis_to_world(pose, a)[:2], point[:2], atol=1e-12)
+    np.testing.assert_allclose(
+        kp._world_in_chassis(poses, point)[:, :2], kp.arm_point(yaw, extend, 0)[:, :2]
+    )
+
+
+def test_closed_form_durations():
+    assert kp.grip_duration() == pytest.approx((FINGER_OPEN - FINGER_CLOSED) / 0.05 + 0.2)
+    assert kp.put_tail_duration() == pytest.approx(
+        0.05 / 0.15 + (FINGER_OPEN - FINGER_CLOSED) / 0.05
+    )
+
+
+def test_situations_are_seeded_and_keep_their_ranges():
+    config = kp.KitchenPlanConfig(scenario=2)
+    s1 = kp.sample_situation(config, np.random.default_rng(5))
+    s2 = kp.sample_situation(config, np.random.default_rng(5))
+    for a, b in zip(s1, s2):
+        np.testing.assert_array_equal(a, b)
+    start, cups, targets = s1
+    assert config.x_range[0] <= start[0] <= config.x_range[1] and start[3] == 0
+    assert np.all((cups[:, 0] >= 1.6) & (cups[:, 0] <= 2.6) & (cups[:, 1] >= 0.98))
+    assert np.linalg.norm(cups[0, :2] - cups[1, :2]) >= 0.25
+    assert targets.shape == (2, 3)
+    others = [np.array(KITCHEN_CUP_POSITIONS[c][:2]) for c in ("cup_2", "cup_3")] + [targets[0, :2]]
+    assert all(np.linalg.norm(targets[1, :2] - q) >= 0.15 for q in others)
+    # on table_1's top, on its side towards table_0
+    cx, cy, yaw, hx, hy, _ = KITCHEN_OBSTACLES[2]
+    for t in targets:
+        u = math.cos(yaw) * (t[0] - cx) + math.sin(yaw) * (t[1] - cy)
+        w = -math.sin(yaw) * (t[0] - cx) + math.cos(yaw) * (t[1] - cy)
+        assert abs(u) <= hx - 0.1 + 1e-9 and 0.1 <= w <= 0.3
+
+
+def test_problem_terms_costs_and_invalid_stands():
+    config = kp.KitchenPlanConfig()
+    start, cups, targets = kp.sample_situation(config, np.random.default_rng(0))
+    problem, actions = kp.kitchen_problem(start, cups, targets, config, kp.load_kitchen_models(""))
+    assert actions == kp.action_names(1) and len(actions) == 10 and problem.n_params == 9
+    assert problem.names[:3] == ("stand0.phi", "stand0.yaw", "stand0.extend")
+    assert problem.terms[0].uses == (0, 1, 2) and problem.terms[4].uses == ()
+    assert problem.terms[8].uses == (3, 4, 5, 6, 7, 8)  # over the target: carry and drop
+    assert problem.terms[9].predict(np.zeros((1, 9)))[0] == pytest.approx(kp.put_tail_duration())
+    # the grip term is the closed-form constant
+    assert problem.terms[4].predict(np.zeros((1, 9)))[0] == pytest.approx(kp.grip_duration())
+    # facing the table with the cup straight ahead at full extension: a valid stand
+    good = np.array([math.pi / 2, 0.0, 0.8, 0.0, 0.4, 0.98, -math.pi / 2, 0.0, 0.8])
+    g = kp.plan_geometry(good, cups, targets)
+    assert kp.footprint_clear(g.stand[:, 0, :2], KITCHEN_OBSTACLES, ROBOT_RADIUS)[0]
+    # a stand at short extension from the table's edge lies inside table_0: INVALID
+    bad = good.copy()
+    bad[2] = 0.35
+    costs = problem.cost(np.stack([good, bad]))
+    assert np.isfinite(costs[0]) and costs[1] == np.inf
+    two, names2 = kp.kitchen_problem(
+        start, cups, np.vstack([targets, targets + [0.3, 0, 0]]), kp.KitchenPlanConfig(scenario=2),
+        kp.load_kitchen_models(""),
+    )  # fmt: skip
+    assert names2 == kp.action_names(2) and len(names2) == 21 and two.n_params == 18
+
+
+def test_plan_steps_follow_the_actions():
+    config = kp.KitchenPlanConfig(scenario=2)
+    start, cups, targets = kp.sample_situation(config, np.random.default_rng(1))
+    lo, hi, _ = kp.parameter_bounds(config)
+    steps = kp.plan_steps(kp.plan_geometry((lo + hi) / 2, cups, targets), 0, config)
+    assert [s[0] for s in steps] == kp.action_names(2)
+    np.testing.assert_allclose(steps[3][1], cups[0])  # reach down to the cup
+    np.testing.assert_allclose(steps[8][1], targets[0] + [0, 0, Put().clearance])
+    np.testing.assert_allclose(steps[9][1], targets[0])  # put at the target
+
+
+def test_bad_configs_and_model_files_are_named(tmp_path):
+    with pytest.raises(RepertoireError, match="scenario must be 1 or 2"):
+        kp.KitchenPlanConfig(scenario=3).validate()
+    with pytest.raises(RepertoireError, match="carry_z_range"):
+        kp.KitchenPlanConfig(carry_z_range=[0.5, 0.6]).validate()
+    with pytest.raises(RepertoireError, match="solver"):
+        kp.KitchenPlanConfig(solver="corners").validate()
+    with pytest.raises(RepertoireError, match="no kitchen action models"):
+        kp.load_kitchen_models(str(tmp_path))
+    for file in kp.MODEL_FILES.values():  # models of another format version
+        record = json.loads((kp.models_folder("") / file).read_text())
+        record["version"] = -1
+        (tmp_path / file).write_text(json.dumps(record))
+    with pytest.raises(RepertoireError, match="version"):
+        kp.load_kitchen_models(str(tmp_path))
+    with pytest.raises(ScenarioError, match="cup_9"):
+        KitchenScenario(cup_positions={"cup_9": [0.0, 0.0, 1.0]}).validate()
+
+
+def test_one_episode_executes_both_plans(tmp_path):
+    from repertoire.studies.refinement_kitchen import run_episode, smoke_config, summarize
+
+    config = smoke_config()
+    record = run_episode(config, 0)
+    for h in (1, 2):
+        status = getattr(record, f"status_{h}")
+        assert status in ("SUCCEEDED", "MISSED", "FAILED", "TIMED_OUT", "NO_PLAN")
+        durations = getattr(record, f"durations_{h}")
+        assert len(durations) <= 10 and all(d > 0 for d in durations)
+    assert record.status_2 == "SUCCEEDED"  # the refined plan delivers the cup
+    assert record.time_2 == pytest.approx(sum(record.durations_2))
+    assert record.cup_errors_2[0] <= config.deliver_tolerance
+    paths = summarize([record], config, tmp_path)
+    text = paths["tables"].read_text()
+    assert "Kitchen (scenario 1)" in text and "| paper | 4 | 100 | 46.5 | 41.5 | 10.0% |" in text

@@ -89,14 +89,14 @@ def test_compiled_heap_pops_in_tuple_order():
     n = 500
     f = rng.integers(0, 20, n).astype(float)  # many ties on f, broken by h, then tie
     h = rng.integers(0, 5, n).astype(float)
-    heap = np.empty((n, 6))
+    heap = np.empty((n, 3))
     for k in range(n):
-        _heap_push(heap, k, f[k], h[k], k, 10 * k, 0.5 * k, -1)
+        _heap_push(heap, k, f[k], h[k], k)
     ref = [(f[k], h[k], k) for k in range(n)]
     heapq.heapify(ref)
     for size in range(n, 0, -1):
         want = heapq.heappop(ref)
-        assert tuple(heap[0]) == (*want, 10 * want[2], 0.5 * want[2], -1)
+        assert tuple(heap[0]) == want
         _heap_pop(heap, size)
 
 

@@ -308,7 +308,7 @@ def _arastar(
     cap = 1024
     fnode = np.empty((cap, 8))  # x, y, yaw, t, swing_x, swing_y, h, g
     # foot, a_prev2, a_prev1, parent, expanded in, open, incons, lazy cell (-1: h exact)
-    inode = np.zeros((cap, 8), np.int64)
+    inode = np.zeros((cap, 8), np.int32)
     table = np.full((4096, 2), -1, np.int64)
     heap = np.empty((1024, 3))  # open list rows (f, h, tie)
     ent = np.empty((1024, 3))  # per tie: node, g at the push, lazy cell (-1: h exact)

@@ -319,33 +319,10 @@ def _arastar(
         sth * yaw_scale + nyaw + 0.5
     ) % nyaw
     key0 = (key0 * 2 + f0) * n_hist + hist[a20, a10]
-    (
-        fnode[0, 0],
-        fnode[0, 1],
-        fnode[0, 2],
-        fnode[0, 3],
-        fnode[0, 4],
-        fnode[0, 5],
-        fnode[0, 6],
-        fnode[0, 7],
-    ) = (
-        sx,
-        sy,
-        sth,
-        start[6],
-        start[7],
-        start[8],
-        start[9],
-        0.0,
-    )
-    inode[0, 0], inode[0, 1], inode[0, 2], inode[0, 3], inode[0, 4], inode[0, 5] = (
-        f0,
-        a20,
-        a10,
-        -1,
-        -1,
-        1,
-    )
+    for q, v in enumerate((sx, sy, sth, start[6], start[7], start[8], start[9], 0.0)):
+        fnode[0, q] = v
+    for q, v in enumerate((f0, a20, a10, -1, -1, 1, 0)):
+        inode[0, q] = v
     inode[0, 7] = -1
     count = 1
     j = _slot(table, key0)

@@ -89,14 +89,14 @@ def test_compiled_heap_pops_in_tuple_order():
     n = 500
     f = rng.integers(0, 20, n).astype(float)  # many ties on f, broken by h, then tie
     h = rng.integers(0, 5, n).astype(float)
-    heap = np.empty((n, 6))
+    heap = np.empty((n, 3))
     for k in range(n):
-        _heap_push(heap, k, f[k], h[k], k, 10 * k, 0.5 * k, -1)
+        _heap_push(heap, k, f[k], h[k], k)
     ref = [(f[k], h[k], k) for k in range(n)]
     heapq.heapify(ref)
     for size in range(n, 0, -1):
         want = heapq.heappop(ref)
-        assert tuple(heap[0]) == (*want, 10 * want[2], 0.5 * want[2], -1)
+        assert tuple(heap[0]) == want
         _heap_pop(heap, size)
 
 
@@ -303,3 +303,25 @@ def test_numba_cache_directory_is_writable_for_every_compiled_function():
         assert os.access(fn._cache._cache_path, os.W_OK), (fn.__name__, fn._cache._cache_path)
     # the search core ran in this process: compiled here or loaded from that cache
     assert fastcore._arastar.signatures
+
+
+def test_cost_to_go_is_shared_by_plans_on_the_same_map_and_goal():
+    from repertoire.planning.footstep.biped_model import BipedStepModel
+
+    sc = random_static_scene(4)
+    table = nominal_action_table()
+    opts = PlannerOptions(backend="compiled")
+    first = plan_footsteps(sc.grid, sc.start, sc.start_foot, sc.goal, table, opts)
+    model = BipedStepModel(sc.grid, sc.start, sc.start_foot, sc.goal, table, opts)
+    settled = model.h_lazy.settled
+    assert settled > 0  # the first plan's cells are already there
+    again = plan_footsteps(sc.grid, sc.start, sc.start_foot, sc.goal, table, opts)
+    assert again.poses == first.poses and again.cost == first.cost
+    # another start on the same map and goal reuses the field; an edited map does not
+    other = BipedStepModel(sc.grid, (0.3, 1.5, 0.0), "left", sc.goal, table, opts)
+    assert other.h_lazy is model.h_lazy
+    occ = sc.grid.occupied.copy()
+    occ[0, 0] = not occ[0, 0]
+    edited = OccupancyGrid(occ, sc.grid.resolution, sc.grid.origin, sc.grid.heights)
+    fresh = BipedStepModel(edited, sc.start, sc.start_foot, sc.goal, table, opts)
+    assert fresh.h_lazy is not model.h_lazy and fresh.h_lazy.settled < settled

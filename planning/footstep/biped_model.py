@@ -29,7 +29,7 @@ from repertoire.planning.footstep.footprint import (
     FootprintChecker,
     footprint_masks,
 )
-from repertoire.planning.footstep.heuristic import LazyCostToGo
+from repertoire.planning.footstep.heuristic import LazyCostToGo, shared_cost_to_go
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -383,7 +383,7 @@ class BipedStepModel:
             depth = opts.step_over_depth
             if depth < 0:
                 depth = 0.5 * max(max_forward - self.geometry.foot_length, 0.0) + ref.resolution
-            self.h_lazy = LazyCostToGo(
+            self.h_lazy = shared_cost_to_go(
                 ref,
                 self.goal,
                 tol,

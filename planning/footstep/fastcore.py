@@ -4,8 +4,9 @@ The same search as :func:`repertoire.planning.footstep.search.search` run on the
 step model (:class:`~repertoire.planning.footstep.biped_model.BipedStepModel`), with
 everything in arrays so that numba compiles it:
 
-- the open list is a binary heap of ``(f, h, tie, node)`` rows of one array,
-  ordered exactly as the Python loop's ``heapq`` tuples (so both pop the same states);
+- the open list is a 4-ary heap of ``(f, h, tie)`` rows of one array (the node, its g
+  and a lazy cell kept per tie beside it), ordered exactly as the Python loop's ``heapq``
+  tuples (so both pop the same states);
 - the Dijkstra cost-to-go is the model's
   :class:`~repertoire.planning.footstep.heuristic.LazyCostToGo` (values equal to the full
   field, settled on demand); a successor whose cell is not settled yet enters the open list
@@ -51,49 +52,41 @@ def _less(f1, h1, t1, f2, h2, t2):
 
 
 @numba.njit(cache=True)
-def _heap_push(heap, size, f, h, tie, node, g, cell):
-    """Insert ``(f, h, tie, node, g, cell)`` into a heap of ``size`` rows.
-
-    Rows are ordered by ``(f, h, tie)``; ``cell`` >= 0 marks ``h`` as a lower bound of that
-    grid cell's cost-to-go (the exact value is computed when the row reaches the top).
-    """
+def _heap_push(heap, size, f, h, tie):
+    """Insert ``(f, h, tie)`` into a 4-ary heap of ``size`` rows ordered by the triple."""
     i = size
     while i > 0:
-        p = (i - 1) >> 1
+        p = (i - 1) >> 2
         if _less(f, h, tie, heap[p, 0], heap[p, 1], heap[p, 2]):
-            for q in range(6):
-                heap[i, q] = heap[p, q]
+            heap[i, 0], heap[i, 1], heap[i, 2] = heap[p, 0], heap[p, 1], heap[p, 2]
             i = p
         else:
             break
-    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3], heap[i, 4], heap[i, 5] = (
-        f, h, tie, node, g, cell
-    )  # fmt: skip
+    heap[i, 0], heap[i, 1], heap[i, 2] = f, h, tie
 
 
 @numba.njit(cache=True)
 def _heap_pop(heap, size):
-    """Remove the root of a heap of ``size`` rows (the caller read it first)."""
+    """Remove the root of a 4-ary heap of ``size`` rows (the caller read it first)."""
     size -= 1
     f, h, tie = heap[size, 0], heap[size, 1], heap[size, 2]
     i = 0
     while True:
-        c = 2 * i + 1
+        c = 4 * i + 1
         if c >= size:
             break
-        if c + 1 < size and _less(
-            heap[c + 1, 0], heap[c + 1, 1], heap[c + 1, 2], heap[c, 0], heap[c, 1], heap[c, 2]
-        ):
-            c += 1
-        if _less(heap[c, 0], heap[c, 1], heap[c, 2], f, h, tie):
-            for q in range(6):
-                heap[i, q] = heap[c, q]
-            i = c
+        best = c
+        for c2 in range(c + 1, min(c + 4, size)):
+            if _less(
+                heap[c2, 0], heap[c2, 1], heap[c2, 2], heap[best, 0], heap[best, 1], heap[best, 2]
+            ):
+                best = c2
+        if _less(heap[best, 0], heap[best, 1], heap[best, 2], f, h, tie):
+            heap[i, 0], heap[i, 1], heap[i, 2] = heap[best, 0], heap[best, 1], heap[best, 2]
+            i = best
         else:
             break
-    if i != size:
-        for q in range(6):
-            heap[i, q] = heap[size, q]
+    heap[i, 0], heap[i, 1], heap[i, 2] = f, h, tie
 
 
 @numba.njit(cache=True, inline="always")
@@ -315,9 +308,10 @@ def _arastar(
     cap = 1024
     fnode = np.empty((cap, 8))  # x, y, yaw, t, swing_x, swing_y, h, g
     # foot, a_prev2, a_prev1, parent, expanded in, open, incons, lazy cell (-1: h exact)
-    inode = np.zeros((cap, 8), np.int64)
+    inode = np.zeros((cap, 8), np.int32)
     table = np.full((4096, 2), -1, np.int64)
-    heap = np.empty((1024, 6))
+    heap = np.empty((1024, 3))  # open list rows (f, h, tie)
+    ent = np.empty((1024, 3))  # per tie: node, g at the push, lazy cell (-1: h exact)
 
     sx, sy, sth = start[0], start[1], start[2]
     f0, a20, a10 = int(start[3]), int(start[4]), int(start[5])
@@ -325,33 +319,10 @@ def _arastar(
         sth * yaw_scale + nyaw + 0.5
     ) % nyaw
     key0 = (key0 * 2 + f0) * n_hist + hist[a20, a10]
-    (
-        fnode[0, 0],
-        fnode[0, 1],
-        fnode[0, 2],
-        fnode[0, 3],
-        fnode[0, 4],
-        fnode[0, 5],
-        fnode[0, 6],
-        fnode[0, 7],
-    ) = (
-        sx,
-        sy,
-        sth,
-        start[6],
-        start[7],
-        start[8],
-        start[9],
-        0.0,
-    )
-    inode[0, 0], inode[0, 1], inode[0, 2], inode[0, 3], inode[0, 4], inode[0, 5] = (
-        f0,
-        a20,
-        a10,
-        -1,
-        -1,
-        1,
-    )
+    for q, v in enumerate((sx, sy, sth, start[6], start[7], start[8], start[9], 0.0)):
+        fnode[0, q] = v
+    for q, v in enumerate((f0, a20, a10, -1, -1, 1, 0)):
+        inode[0, q] = v
     inode[0, 7] = -1
     count = 1
     j = _slot(table, key0)
@@ -373,26 +344,29 @@ def _arastar(
             if inode[k, 5] or inode[k, 6]:
                 if hsize == heap.shape[0]:
                     heap = _grow_rows(heap)
-                _heap_push(
-                    heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize, k,
-                    fnode[k, 7], inode[k, 7],
-                )  # fmt: skip
+                if hsize == ent.shape[0]:
+                    ent = _grow_rows(ent)
+                ent[hsize, 0], ent[hsize, 1], ent[hsize, 2] = k, fnode[k, 7], inode[k, 7]
+                _heap_push(heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize)
                 hsize += 1
                 inode[k, 5], inode[k, 6] = 1, 0
         tie = hsize
         status, end, exp_it = 1, -1, 0  # UNREACHABLE
         while hsize > 0:
             h = heap[0, 1]
-            node = int(heap[0, 3])
-            lazy = int(heap[0, 5])
+            tp = heap[0, 2]
+            e = int(tp)
+            node = int(ent[e, 0])
+            lazy = int(ent[e, 2])
             if lazy >= 0 and inode[node, 4] != it:  # a lower bound: the exact key, same tie
                 h = _rra_value(lazy, hf, hi, hocc, hp, hcount) * cost_per_m
-                gp, tp = heap[0, 4], heap[0, 2]
+                gp = ent[e, 1]
                 _heap_pop(heap, hsize)
                 if inode[node, 7] == lazy:
                     fnode[node, 6], inode[node, 7] = h, -1
                 if h < np.inf:
-                    _heap_push(heap, hsize - 1, gp + w * h, h, tp, node, gp, -1)
+                    ent[e, 2] = -1
+                    _heap_push(heap, hsize - 1, gp + w * h, h, tp)
                 else:
                     hsize -= 1
                 continue
@@ -515,7 +489,10 @@ def _arastar(
                 if inode[idx, 6] == 0:
                     if hsize == heap.shape[0]:
                         heap = _grow_rows(heap)
-                    _heap_push(heap, hsize, g2 + w * h2, h2, tie, idx, g2, lazy)
+                    if tie == ent.shape[0]:
+                        ent = _grow_rows(ent)
+                    ent[tie, 0], ent[tie, 1], ent[tie, 2] = idx, g2, lazy
+                    _heap_push(heap, hsize, g2 + w * h2, h2, tie)
                     hsize += 1
                     tie += 1
         bound = w

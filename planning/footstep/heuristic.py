@@ -296,6 +296,54 @@ class LazyCostToGo:
         return int(np.count_nonzero(self.f[:, 2] == -2.0))
 
 
+_SHARED: dict[tuple, LazyCostToGo] = {}
+
+
+def shared_cost_to_go(
+    grid: OccupancyGrid,
+    goal: "tuple[float, float]",
+    goal_tolerance: float,
+    toward: "tuple[float, float]",
+    *,
+    obstacle_cost: float = 3.0,
+    impassable_depth: float = math.inf,
+    deep_cost: float = 30.0,
+) -> LazyCostToGo:
+    """A :class:`LazyCostToGo`, reused while the map content, goal and costs stay the same.
+
+    Its values do not depend on ``toward`` (only the order in which cells settle does), so
+    plans on the same map towards the same goal (finer lattices after UNREACHABLE, ARA*
+    levels, receding-horizon rounds) share the cells already settled. The last 4 fields
+    are kept; the key holds the occupancy bytes, so an edited grid gets a fresh field.
+    """
+    key = (
+        grid.occupied.tobytes(),
+        grid.shape,
+        grid.resolution,
+        grid.origin,
+        (float(goal[0]), float(goal[1])),
+        float(goal_tolerance),
+        float(obstacle_cost),
+        float(impassable_depth),
+        float(deep_cost),
+    )
+    field = _SHARED.get(key)
+    if field is None:
+        field = LazyCostToGo(
+            grid,
+            goal,
+            goal_tolerance,
+            toward,
+            obstacle_cost=obstacle_cost,
+            impassable_depth=impassable_depth,
+            deep_cost=deep_cost,
+        )
+        if len(_SHARED) >= 4:
+            _SHARED.pop(next(iter(_SHARED)))
+        _SHARED[key] = field
+    return field
+
+
 @functools.lru_cache(maxsize=16)
 def _scan_offsets(radius: int, res: float, depth: float) -> tuple[float, ...]:
     """Cell offsets ``(di, dj)`` (flattened) whose centre lies within ``depth``, nearest first."""

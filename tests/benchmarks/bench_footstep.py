@@ -254,6 +254,7 @@ def _plan_before(commit: str, maps: int) -> list[list]:
 def _bench_backends(maps: int, before: str = "") -> None:
     """The study's maps, planned by the Python loop and the compiled core in one run."""
     from repertoire.planning.footstep import PlannerOptions, nominal_action_table, plan_footsteps
+    from repertoire.planning.footstep.heuristic import _SHARED
     from repertoire.planning.footstep.scenes import random_static_scene
 
     table = nominal_action_table()
@@ -267,6 +268,7 @@ def _bench_backends(maps: int, before: str = "") -> None:
     scenes = [random_static_scene(seed, n_strips=4, n_blocks=2) for seed in range(maps)]
     plans: dict[str, list] = {"python": [], "compiled": []}
     for backend in ("python", "compiled"):  # each backend over all maps (warm in its loop)
+        _SHARED.clear()  # no cost-to-go settled by the other backend's plans
         opts = PlannerOptions(
             time_limit=30.0, heuristic_weight=1.5, max_expansions=200_000, backend=backend
         )

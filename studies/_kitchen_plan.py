@@ -588,6 +588,7 @@ def run_kitchen_plan(config: KitchenPlanConfig, start, cups, targets, params) ->
     scenario = KitchenScenario(
         initial_pose=[float(v) for v in start[:3]],
         time_step=config.time_step,
+        cups=list(FETCHED),  # the cups this plan touches: a plant half as costly per step
         cup_positions={name: [float(v) for v in c] for name, c in zip(FETCHED, cups, strict=True)},
     )
     results, diagram, context = run_kitchen_sequence(steps, scenario, step_limit=config.step_limit)

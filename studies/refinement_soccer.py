@@ -301,7 +301,7 @@ def paired_times_figure(t1: np.ndarray, t2: np.ndarray, title: str, path: Path) 
         ax.legend(loc="upper left")
     ax.set_xlabel("executed plan time, greedy h = 1 (s)")
     ax.set_ylabel("executed plan time, refined h = 2 (s)")
-    ax.set_title(title)
+    ax.set_title(title, fontsize=10)
     fig.savefig(path, dpi=110)
     return path
 

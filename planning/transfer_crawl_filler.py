@@ -97,7 +97,8 @@ class CrawlGapFiller:
             and the search's remaining CPU budget (s): a safety limit, not the budget.
         repairs: when the executing crawl cannot do a planned step (the planner's reach
             model is looser than its leg IK), the steps before it are kept and the planner
-            is called again from there, up to this many times.
+            is called again from there with half the lateral foothold offsets (from one
+            crawl cycle earlier when that made no progress), up to this many times.
     """
 
     height_map: HeightMap
@@ -180,6 +181,7 @@ class CrawlGapFiller:
         for attempt in range(self.repairs + 1):
             cur = steps[-1].end_feet if steps else start
             new, status = self._plan(cur, goal_xy, time_limit, narrow if attempt else None)
+            planned = len(new)
             if status is PlanStatus.SUCCESS and place:
                 from repertoire.planning.transfer_library import placing_steps
 
@@ -187,8 +189,15 @@ class CrawlGapFiller:
             usable = self.usable_prefix(steps + new) - len(steps)
             if usable == len(new):
                 return GapFill(steps + new, _status(status, bool(steps + new)))
+            if usable >= planned and status is PlanStatus.SUCCESS:
+                # The planner's steps reach the target's centroid but the legs cannot place
+                # every foot on the target stance: enough for a goal (the search joins a
+                # recorded step only on its exact start, so it will not join one this way).
+                return GapFill(steps + new[:planned], "reached")
             if usable > 0:
                 steps += new[:usable]  # keep what the crawl can do; plan again from there
+            elif attempt > 0 and steps:
+                del steps[-4:]  # no progress from here: back off one crawl cycle
             elif attempt > 0:
                 break
         return GapFill(steps, "partial" if steps else "failed")

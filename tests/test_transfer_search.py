@@ -261,3 +261,23 @@ def test_crawl_gap_filler_refuses_footholds_at_edges_its_map_misses():
     rule = dataclasses.replace(filler.crawl, edge_radius=FOOT_RADIUS, flat_tolerance=0.006)
     landing = np.array([p.end_feet[p.foot, :2] for p in answer.steps])
     assert np.all(foothold_ok(board, landing, rule))
+
+
+def test_crawl_gap_filler_reaches_a_centroid_when_the_feet_cannot_be_placed():
+    pytest.importorskip("repertoire.planning.footstep.quadruped")
+    from repertoire.models.littledog import FOOT_RADIUS
+    from repertoire.planning.footstep.quadruped import height_map_from_board
+    from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
+
+    board = generate_board(TerrainParams(kind="flat"), seed=0)
+    hmap = height_map_from_board(board, (-0.3, 0.3), (-0.3, 0.3), 0.01)
+    start = stance(-0.1)
+    start[:, 2] = board.params.base_thickness + FOOT_RADIUS
+    wide = stance(0.0)
+    wide[:, 1] *= 3.0  # flat footholds no leg reaches from the crawl's stance
+    wide[:, 2] = start[0, 2]
+    answer = CrawlGapFiller(hmap, board=board, place_feet=True)(start, wide, 2.0)
+    assert answer.status == "reached"  # enough for a goal; a step is joined only exactly
+    end = answer.steps[-1].end_feet
+    assert np.linalg.norm(end[:, :2].mean(0) - wide[:, :2].mean(0)) <= 0.03 + 1e-9
+    assert foot_distance(end, wide) > 0.1

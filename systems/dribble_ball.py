@@ -20,6 +20,20 @@ ball off), and rate limited like GoToPose. The ball is *lost*
 ``(hold_distance, 0)`` in the robot frame; the action succeeds when the held
 spot is within ``position_tolerance`` of the goal's held spot and the heading
 within ``heading_tolerance`` of ``phi_g``, with the ball still held.
+
+Final approach. The paper's dribble goal has a heading (Algorithm 2's example
+instantiates ``dribbleBall(..., xg=1, yg=3, phi=2.6, vg=0)``), so arriving at the
+spot is not enough. Near the goal with a large heading error the spot law
+alone limit-cycles: turning in place swings the held spot (``hold_distance``
+ahead of the axle) out of the position tolerance, and driving it back undoes
+the turn. The action therefore keeps a mode in its discrete state
+(:func:`approach_mode`): when the held spot is near the goal's and turning in
+place by the heading error would swing it out of the tolerance, it *pivots*:
+the same pose law steers the axle (not the held spot) to the goal's axle
+position and then turns in place about it, which brings the held spot onto
+the goal's with the heading. (A loop-out to a staging pose behind the goal was
+tried first: at ``min_turn_radius`` it orbited the staging pose and timed out
+more often than the plain spot law.)
 """
 
 import math
@@ -64,7 +78,9 @@ def ball_in_robot_frame(state, ball) -> tuple[float, float]:
     return c * dx + s * dy, -s * dx + c * dy
 
 
-def dribble_control(state, ball, target, gains: dict[str, float]) -> tuple[float, float, bool]:
+def dribble_control(
+    state, ball, target, gains: dict[str, float], lead: float | None = None
+) -> tuple[float, float, bool]:
     """Unlimited-rate ``(v, omega)`` commands and whether the ball is held.
 
     Args:
@@ -72,14 +88,16 @@ def dribble_control(state, ball, target, gains: dict[str, float]) -> tuple[float
         ball: ``[x_ball, y_ball]``.
         target: ``[x_g, y_g, phi_g, v_g]``.
         gains: the :data:`DRIBBLE_GAINS` keys.
+        lead: the steered point's distance ahead of the axle (default
+            ``hold_distance``, the held spot; 0 steers the axle, :data:`PIVOT`).
 
     Returns:
         ``(v_cmd, omega_cmd, held)``, commands clipped to ``v_max``/``omega_max``.
     """
     bx, by = ball_in_robot_frame(state, ball)
     held = math.hypot(bx - gains["hold_distance"], by) <= gains["lost_distance"]
-    # steer the held spot (hold_distance ahead) to the goal's held spot
-    h = gains["hold_distance"]
+    # steer the point lead ahead (the held spot) to the goal's
+    h = gains["hold_distance"] if lead is None else lead
     c, s = math.cos(state[2]), math.sin(state[2])
     spot = [state[0] + h * c, state[1] + h * s, state[2], state[3]]
     spot_goal = [
@@ -99,6 +117,38 @@ def dribble_control(state, ball, target, gains: dict[str, float]) -> tuple[float
     return v, w, held
 
 
+APPROACH, PIVOT = 0, 1  # the final-approach modes (discrete state slot 3)
+
+
+def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
+    """The next final-approach mode, :data:`APPROACH` or :data:`PIVOT`.
+
+    Args:
+        mode: the current mode.
+        state: ``[x, y, phi, v]`` of the robot.
+        target: ``[x_g, y_g, phi_g, v_g]``.
+        gains: the :data:`DRIBBLE_GAINS` keys.
+
+    APPROACH -> PIVOT when the held spot is within ``2 * position_tolerance``
+    of the goal's and turning in place by the heading error beyond
+    ``heading_tolerance`` would swing it by more than ``position_tolerance``
+    (``2 * hold_distance * sin(turn / 2)``); PIVOT -> APPROACH when the held
+    spot is farther than ``2 * min_turn_radius`` from the goal's.
+    """
+    heading_error = math.remainder(target[2] - state[2], 2 * math.pi)
+    h = gains["hold_distance"]
+    rho = math.hypot(
+        target[0] + h * math.cos(target[2]) - state[0] - h * math.cos(state[2]),
+        target[1] + h * math.sin(target[2]) - state[1] - h * math.sin(state[2]),
+    )
+    if mode == APPROACH:
+        turn = max(0.0, abs(heading_error) - gains["heading_tolerance"])
+        swing = 2.0 * h * math.sin(min(turn, math.pi) / 2.0)
+        near = rho < 2.0 * gains["position_tolerance"]
+        return PIVOT if near and swing > gains["position_tolerance"] else APPROACH
+    return APPROACH if rho > 2.0 * gains["min_turn_radius"] else PIVOT
+
+
 class DribbleBall(DriveAction):
     """Dribbles the ball in front of a differential-drive robot to a target pose.
 
@@ -115,7 +165,9 @@ class DribbleBall(DriveAction):
     Parameters: numeric parameter 0 holds :data:`DRIBBLE_GAINS` (in order),
     numeric parameter 1 the workspace ``[x_min, x_max, y_min, y_max]``.
 
-    Discrete state: ``[v_cmd, omega_cmd, status]``, updated every ``period`` s.
+    Discrete state: ``[v_cmd, omega_cmd, status, mode]``, updated every
+    ``period`` s; ``mode`` is :data:`APPROACH` or :data:`PIVOT` (see
+    :func:`approach_mode`).
     """
 
     def __init__(
@@ -146,17 +198,17 @@ class DribbleBall(DriveAction):
         positive = (*positive, "hold_distance", "lost_distance", "heading_tolerance")
         merged = merge_gains(DRIBBLE_GAINS, gains, "DribbleBall", positive)
         inputs = (("state", 4), ("ball", 2), ("target", 4))
-        ports = self._declare_drive(period, DRIBBLE_GAINS, merged, workspace, inputs)
+        ports = self._declare_drive(period, DRIBBLE_GAINS, merged, workspace, inputs, 1)
         self._ball_port = ports["ball"]
 
     def get_ball_input_port(self):
         return self._ball_port
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        v_prev, w_prev, status = context.get_discrete_state(self._xd).get_value()
+        v_prev, w_prev, status, mode = context.get_discrete_state(self._xd).get_value()
         out = discrete_state.get_mutable_vector(self._xd)
         if status != ActionStatus.RUNNING:
-            out.SetFromVector([0.0, 0.0, status])
+            out.SetFromVector([0.0, 0.0, status, mode])
             return
         g = self.gains(context)
         state = self._state_port.Eval(context)
@@ -169,11 +221,12 @@ class DribbleBall(DriveAction):
             or not ws[0] <= target[0] <= ws[1]
             or not ws[2] <= target[1] <= ws[3]
         ):
-            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED])
+            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED, mode])
             return
-        v, w, held = dribble_control(state, ball, target, g)
+        mode = approach_mode(int(mode), state, target, g)
+        v, w, held = dribble_control(state, ball, target, g, 0.0 if mode == PIVOT else None)
         if not held:
-            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED])
+            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED, mode])
             return
         h = g["hold_distance"]
         rho = math.hypot(
@@ -183,7 +236,8 @@ class DribbleBall(DriveAction):
         heading_error = math.remainder(target[2] - state[2], 2 * math.pi)
         control = (v, w, rho, heading_error)
         t = context.get_time()
-        out.SetFromVector(drive_step(control, (v_prev, w_prev), state, target, g, t, self.period))
+        step = drive_step(control, (v_prev, w_prev), state, target, g, t, self.period)
+        out.SetFromVector([*step, mode])
 
 
 class BodyXYReader(LeafSystem):

@@ -108,9 +108,13 @@ def drive_step(control, previous, state, target, gains, time: float, period: flo
 class DriveAction(ActionSystem):
     """What GoToPose and DribbleBall share: gains, workspace, ports and ``[v, omega, status]``."""
 
-    def _declare_drive(self, period: float, names, merged, workspace, inputs) -> dict:
+    def _declare_drive(
+        self, period: float, names, merged, workspace, inputs, extra_slots: int = 0
+    ) -> dict:
         """Declares gains, workspace, the ``inputs`` (name, size), state, command and status.
 
+        The discrete state is ``[v_cmd, omega_cmd, status]`` followed by
+        ``extra_slots`` zeros the subclass uses (DribbleBall's approach mode).
         Returns the input ports by name; the subclass defines ``_update``.
         """
         ws = check_workspace(workspace)
@@ -119,7 +123,7 @@ class DriveAction(ActionSystem):
         self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
         ports = {name: self.DeclareVectorInputPort(name, size) for name, size in inputs}
         self._state_port, self._target_port = ports["state"], ports["target"]
-        self._xd = self.DeclareDiscreteState(3)
+        self._xd = self.DeclareDiscreteState(3 + extra_slots)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self._command_port = self.DeclareVectorOutputPort(
             "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}

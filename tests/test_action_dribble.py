@@ -11,9 +11,12 @@ from repertoire.diagrams.soccer_dribble import (
     dribble_status,
 )
 from repertoire.systems.dribble_ball import (
+    APPROACH,
     DRIBBLE_GAINS,
+    PIVOT,
     DribbleBall,
     RollingResistance,
+    approach_mode,
     ball_in_robot_frame,
     dribble_control,
 )
@@ -62,23 +65,65 @@ def _update(action, ctx):
 def test_dribble_ball_statuses_exact():
     # goal 1 m ahead: speed wants 0.4, rate limited to a_max * period = 0.06
     action, ctx = _context([1, 0, 0, 0])
-    np.testing.assert_allclose(_update(action, ctx), [0.06, 0.0, ActionStatus.RUNNING])
+    np.testing.assert_allclose(_update(action, ctx), [0.06, 0.0, ActionStatus.RUNNING, APPROACH])
     assert action.get_status_output_port().Eval(ctx) == ActionStatus.RUNNING
     # the ball 0.69 m from its held spot: lost -> failed, zero command
     action, ctx = _context([1, 0, 0, 0], ball=(1.0, 0.0))
-    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.FAILED])
+    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.FAILED, APPROACH])
     # held spot 5 cm from the goal's: succeeded
     action, ctx = _context([0.05, 0, 0.1, 0])
     assert _update(action, ctx)[2] == ActionStatus.SUCCEEDED
     # timeout
     action, ctx = _context([1, 0, 0, 0], time=DRIBBLE_GAINS["timeout"])
-    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.TIMED_OUT])
+    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.TIMED_OUT, APPROACH])
+
+
+def _spot_on_goal(heading_error, offset=0.0):
+    """A robot whose held spot is ``offset`` m beyond the goal's (goal [0, 0, 0, 0]) along x."""
+    h, phi = DRIBBLE_GAINS["hold_distance"], -heading_error
+    return [h + offset - h * math.cos(phi), -h * math.sin(phi), phi, 0.0]
+
+
+def test_approach_mode_switching_by_hand():
+    g, goal = dict(DRIBBLE_GAINS), [0.0, 0.0, 0.0, 0.0]
+    # spot on the goal's, heading 1.0 off: an in-place turn of 1.0 - 0.5 swings the spot
+    # 2 * 0.31 * sin(0.25) = 0.153 m > 0.1 -> pivot; 0.8 off: 0.093 m -> keep approaching
+    assert approach_mode(APPROACH, _spot_on_goal(1.0), goal, g) == PIVOT
+    assert approach_mode(APPROACH, _spot_on_goal(-1.0), goal, g) == PIVOT
+    assert approach_mode(APPROACH, _spot_on_goal(0.8), goal, g) == APPROACH
+    # 0.25 m away (beyond 2 * position_tolerance): not near, keep approaching
+    assert approach_mode(APPROACH, _spot_on_goal(1.0, 0.25), goal, g) == APPROACH
+    # a pivot goes on within 2 * min_turn_radius = 0.8 m, then approaches again
+    assert approach_mode(PIVOT, _spot_on_goal(1.0, 0.5), goal, g) == PIVOT
+    assert approach_mode(PIVOT, _spot_on_goal(0.0, 0.9), goal, g) == APPROACH
+
+
+def test_dribble_ball_pivot_mode_exact():
+    # spot on the goal's, heading 0.8 off: the spot law turns in place towards phi_g
+    # (k_alpha * 0.8 * omega_max clipped to omega_in_place, rate limited to alpha_max * 0.1)
+    state = _spot_on_goal(0.8)
+    action, ctx = _context([0, 0, 0, 0], ball=(0.31, 0.0), state=state)
+    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.3, ActionStatus.RUNNING, APPROACH])
+    # 1.0 off: pivot; the axle (0.142, 0.261) is steered to (0, 0): alpha = -1.071, so
+    # v = 0.8 * 0.297 * cos(alpha) = 0.114 (rate limited to 0.06) and omega turns away
+    # (-3.18, clipped to omega_in_place = 0.5, rate limited to -0.3)
+    state = _spot_on_goal(1.0)
+    action, ctx = _context([0, 0, 0, 0], ball=(0.31, 0.0), state=state)
+    np.testing.assert_allclose(_update(action, ctx), [0.06, -0.3, ActionStatus.RUNNING, PIVOT])
+    assert action.get_status_output_port().Eval(ctx) == ActionStatus.RUNNING
+    # the mode is kept in the discrete state: a pivot 0.5 m out goes on, 0.9 m out ends
+    for offset, mode in ((0.5, PIVOT), (0.9, APPROACH)):
+        state = _spot_on_goal(0.0, offset)
+        spot = [state[0] + 0.31, state[1]]
+        action, ctx = _context([0, 0, 0, 0], ball=spot, state=state)
+        ctx.SetDiscreteState(0, [0.0, 0.0, ActionStatus.RUNNING, PIVOT])
+        assert _update(action, ctx)[3] == mode
 
 
 def test_dribble_ball_bad_targets_fail_without_motion():
     for target, ball in (([5.0, 0, 0, 0], (0.31, 0)), ([np.nan, 0, 0, 0], (0.31, 0))):
         action, ctx = _context(target, ball=ball)
-        np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.FAILED])
+        np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.FAILED, APPROACH])
     action, ctx = _context([1, 0, 0, 0], ball=(np.nan, 0))
     assert _update(action, ctx)[2] == ActionStatus.FAILED
 

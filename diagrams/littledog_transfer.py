@@ -208,7 +208,10 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
         _, feet, _ = crossing_start(board, 0.0, HALF_EXTENT, params.standing_height, off, yaw)
         if np.all(foothold_ok(board, feet[:, :2], params)):
             return off
-    raise ScenarioError(f"no flat start within 4 cm of offset {list(offset)} at yaw {yaw:.3f} rad")
+    x, y = (float(v) for v in offset)
+    raise ScenarioError(
+        f"no flat start within 4 cm of offset [{x:.4f}, {y:.4f}] m at yaw {yaw:.3f} rad"
+    )
 
 
 @dataclasses.dataclass

@@ -18,7 +18,7 @@ $(VENV)/bin/python:
 
 # One stamp per extra set, redone when pyproject.toml changes.
 $(VENV)/.stamp-run: pyproject.toml | $(VENV)/bin/python
-	$(PIP) install -e .
+	$(PIP) install -e ".[pddl]"  # the demo's refinement studies plan with PDDL
 	touch $@
 
 $(VENV)/.stamp-dev: pyproject.toml | $(VENV)/bin/python

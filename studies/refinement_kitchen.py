@@ -120,13 +120,10 @@ def summarize(
     records: list[RefinementKitchenRecord], config: KitchenPlanConfig, out_dir: Path
 ) -> dict[str, Path]:
     """Writes the scenario's Table 3 row beside the paper's and a paired-time figure."""
-    from repertoire.studies.refinement_soccer import paired_improvement, paired_times_figure
+    from repertoire.studies.refinement_soccer import paired_succeeded, paired_times_figure
 
     out_dir = Path(out_dir)
-    both = [r for r in records if r.status_1 == r.status_2 == "SUCCEEDED"]
-    t1 = np.array([r.time_1 for r in both])
-    t2 = np.array([r.time_2 for r in both])
-    imp, p = paired_improvement(t1, t2)
+    both, t1, t2, imp, p = paired_succeeded(records)
     paper = PAPER_TABLE3_KITCHEN[config.scenario]
     from repertoire.studies._kitchen_plan import action_names
 

@@ -205,6 +205,19 @@ def paired_improvement(t1: np.ndarray, t2: np.ndarray) -> tuple[float, float]:
     return float(np.mean(1 - t2 / t1)), float(ttest_rel(t1, t2).pvalue)
 
 
+def paired_succeeded(records) -> tuple[list, np.ndarray, np.ndarray, float, float]:
+    """The records whose h = 1 and h = 2 plans both succeeded, their times, improvement and p.
+
+    Returns:
+        ``(both, t1, t2, improvement, p)`` over records with ``status_1``/``status_2``
+        and ``time_1``/``time_2`` fields.
+    """
+    both = [r for r in records if r.status_1 == r.status_2 == "SUCCEEDED"]
+    t1 = np.array([r.time_1 for r in both])
+    t2 = np.array([r.time_2 for r in both])
+    return (both, t1, t2, *paired_improvement(t1, t2))
+
+
 def summarize(
     records: list[RefinementSoccerRecord], config: RefinementSoccerConfig, out_dir: Path
 ) -> dict[str, Path]:
@@ -212,10 +225,7 @@ def summarize(
     from sklearn.tree import DecisionTreeClassifier, export_text
 
     out_dir = Path(out_dir)
-    both = [r for r in records if r.status_1 == r.status_2 == "SUCCEEDED"]
-    t1 = np.array([r.time_1 for r in both])
-    t2 = np.array([r.time_2 for r in both])
-    imp, p = paired_improvement(t1, t2)
+    both, t1, t2, imp, p = paired_succeeded(records)
     n = len(records)
     ok1 = sum(r.status_1 == "SUCCEEDED" for r in records)
     ok2 = sum(r.status_2 == "SUCCEEDED" for r in records)

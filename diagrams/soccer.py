@@ -68,6 +68,49 @@ def twist_to_wheel_state_matrix() -> np.ndarray:
     return np.vstack([np.zeros((2, 2)), [[1 / r, -b / (2 * r)], [1 / r, b / (2 * r)]]])
 
 
+def add_soccer_robot(builder: DiagramBuilder, scenario):
+    """The diffdrive robot on the soccer field with its ``state_reader`` connected.
+
+    ``scenario`` gives ``initial_pose``, ``time_step``, ``contact_approximation``,
+    ``wheel_kd`` and ``ground_friction``.
+
+    Returns:
+        ``(plant, scene_graph, robot, reader)``.
+    """
+    plant, scene_graph, robot = add_robot_in_world(
+        builder,
+        world="soccer",
+        initial_pose=scenario.initial_pose,
+        time_step=scenario.time_step,
+        contact_approximation=scenario.contact_approximation,
+        wheel_kd=scenario.wheel_kd,
+        ground_friction=scenario.ground_friction,
+    )
+    reader = builder.AddNamedSystem("state_reader", DiffDriveStateReader(plant))
+    builder.Connect(plant.get_state_output_port(), reader.get_input_port())
+    return plant, scene_graph, robot, reader
+
+
+def build_driven(builder, plant, scene_graph, robot, command_port, name, meshcat) -> Diagram:
+    """Feeds ``[v, omega]`` from ``command_port`` to the wheels and builds the diagram ``name``.
+
+    Adds ``wheel_desired_state`` (twist to the wheels' desired state) and, when
+    ``meshcat`` is given, a MeshcatVisualizer.
+    """
+    to_state = builder.AddNamedSystem(
+        "wheel_desired_state", MatrixGain(twist_to_wheel_state_matrix())
+    )
+    builder.Connect(command_port, to_state.get_input_port())
+    builder.Connect(to_state.get_output_port(), plant.get_desired_state_input_port(robot))
+    if meshcat is not None:
+        from pydrake.geometry import MeshcatVisualizer
+
+        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
+    diagram = builder.Build()
+    diagram.set_name(name)
+    return diagram
+
+
 @register_diagram(
     "soccer_goto_pose",
     scenario_type=GoToPoseScenario,
@@ -85,35 +128,17 @@ def build_soccer_goto_pose(scenario: GoToPoseScenario, *, meshcat=None) -> Diagr
     """
     scenario.validate()
     builder = DiagramBuilder()
-    plant, scene_graph, robot = add_robot_in_world(
-        builder,
-        world="soccer",
-        initial_pose=scenario.initial_pose,
-        time_step=scenario.time_step,
-        contact_approximation=scenario.contact_approximation,
-        wheel_kd=scenario.wheel_kd,
-        ground_friction=scenario.ground_friction,
-    )
-    reader = builder.AddSystem(DiffDriveStateReader(plant))
-    reader.set_name("state_reader")
+    plant, scene_graph, robot, reader = add_soccer_robot(builder, scenario)
     goto = builder.AddSystem(GoToPose(period=scenario.control_period, gains=scenario.gains))
     goto.set_name("goto_pose")
     target = builder.AddSystem(ConstantVectorSource(np.asarray(scenario.target, dtype=float)))
     target.set_name("target")
-    to_state = builder.AddSystem(MatrixGain(twist_to_wheel_state_matrix()))
-    to_state.set_name("wheel_desired_state")
-    builder.Connect(plant.get_state_output_port(), reader.get_input_port())
     builder.Connect(reader.get_output_port(), goto.get_state_input_port())
     builder.Connect(target.get_output_port(), goto.get_target_input_port())
-    builder.Connect(goto.get_command_output_port(), to_state.get_input_port())
-    builder.Connect(to_state.get_output_port(), plant.get_desired_state_input_port(robot))
-    if meshcat is not None:
-        from pydrake.geometry import MeshcatVisualizer
-
-        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
-    diagram = builder.Build()
-    diagram.set_name("soccer_goto_pose")
-    return diagram
+    return build_driven(
+        builder, plant, scene_graph, robot, goto.get_command_output_port(),
+        "soccer_goto_pose", meshcat,
+    )  # fmt: skip
 
 
 def set_initial_speed(diagram: Diagram, context: Context, speed: float) -> None:

@@ -17,12 +17,12 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, MultibodyPlantConfig
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
+from pydrake.systems.primitives import ConstantVectorSource
 from repertoire.diagrams.biped import add_ground, validate_discrete_control_fields
 from repertoire.diagrams.diffdrive import WHEEL_RADIUS, add_diffdrive, add_world
 from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.simulate import SimulatorCache
-from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
+from repertoire.diagrams.soccer import build_driven
 from repertoire.systems.dribble_ball import (
     DRIBBLE_GAINS,
     BodyXYReader,
@@ -182,9 +182,6 @@ def build_soccer_dribble(scenario: DribbleScenario, *, meshcat=None) -> Diagram:
     target = builder.AddNamedSystem(
         "target", ConstantVectorSource(np.asarray(scenario.target, dtype=float))
     )
-    to_state = builder.AddNamedSystem(
-        "wheel_desired_state", MatrixGain(twist_to_wheel_state_matrix())
-    )
     builder.Connect(plant.get_state_output_port(), reader.get_input_port())
     builder.Connect(plant.get_state_output_port(), ball_reader.get_input_port())
     drag = builder.AddNamedSystem(
@@ -195,15 +192,10 @@ def build_soccer_dribble(scenario: DribbleScenario, *, meshcat=None) -> Diagram:
     builder.Connect(reader.get_output_port(), action.get_state_input_port())
     builder.Connect(ball_reader.get_output_port(), action.get_ball_input_port())
     builder.Connect(target.get_output_port(), action.get_target_input_port())
-    builder.Connect(action.get_command_output_port(), to_state.get_input_port())
-    builder.Connect(to_state.get_output_port(), plant.get_desired_state_input_port(robot))
-    if meshcat is not None:
-        from pydrake.geometry import MeshcatVisualizer
-
-        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
-    diagram = builder.Build()
-    diagram.set_name("soccer_dribble")
-    return diagram
+    return build_driven(
+        builder, plant, scene_graph, robot, action.get_command_output_port(), "soccer_dribble",
+        meshcat,
+    )  # fmt: skip
 
 
 #: ``soccer_dribble`` simulators by diagram structure (see :func:`dribble_simulator`).

@@ -13,12 +13,10 @@ import dataclasses
 
 import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
-from pydrake.systems.primitives import MatrixGain
 from repertoire.diagrams.biped import validate_discrete_control_fields
-from repertoire.diagrams.diffdrive import add_robot_in_world
 from repertoire.diagrams.registry import register_diagram
-from repertoire.diagrams.soccer import BALL_POSITION, robot_state, twist_to_wheel_state_matrix
-from repertoire.systems.go_to_pose import GOTO_GAINS, ActionStatus, DiffDriveStateReader, GoToPose
+from repertoire.diagrams.soccer import BALL_POSITION, add_soccer_robot, build_driven, robot_state
+from repertoire.systems.go_to_pose import GOTO_GAINS, ActionStatus, GoToPose
 from repertoire.systems.plan_executor import PlanExecutor
 
 from repertoire.criteria import Bound
@@ -100,18 +98,7 @@ def build_soccer_plan(scenario: SoccerPlanScenario, *, meshcat=None) -> Diagram:
     """
     scenario.validate()
     builder = DiagramBuilder()
-    plant, scene_graph, robot = add_robot_in_world(
-        builder,
-        world="soccer",
-        initial_pose=scenario.initial_pose,
-        time_step=scenario.time_step,
-        contact_approximation=scenario.contact_approximation,
-        wheel_kd=scenario.wheel_kd,
-        ground_friction=scenario.ground_friction,
-    )
-    reader = builder.AddSystem(DiffDriveStateReader(plant))
-    reader.set_name("state_reader")
-    builder.Connect(plant.get_state_output_port(), reader.get_input_port())
+    plant, scene_graph, robot, reader = add_soccer_robot(builder, scenario)
     executor = builder.AddSystem(
         PlanExecutor(scenario.targets, command_size=2, period=scenario.control_period)
     )
@@ -124,17 +111,10 @@ def build_soccer_plan(scenario: SoccerPlanScenario, *, meshcat=None) -> Diagram:
         builder.Connect(executor.GetOutputPort(f"target_{i}"), action.get_target_input_port())
         builder.Connect(action.get_status_output_port(), executor.get_status_input_port(i))
         builder.Connect(action.get_command_output_port(), executor.get_command_input_port(i))
-    to_state = builder.AddSystem(MatrixGain(twist_to_wheel_state_matrix()))
-    to_state.set_name("wheel_desired_state")
-    builder.Connect(executor.get_command_output_port(), to_state.get_input_port())
-    builder.Connect(to_state.get_output_port(), plant.get_desired_state_input_port(robot))
-    if meshcat is not None:
-        from pydrake.geometry import MeshcatVisualizer
-
-        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
-    diagram = builder.Build()
-    diagram.set_name("soccer_plan")
-    return diagram
+    return build_driven(
+        builder, plant, scene_graph, robot, executor.get_command_output_port(), "soccer_plan",
+        meshcat,
+    )  # fmt: skip
 
 
 def plan_status(diagram: Diagram, context: Context) -> ActionStatus:

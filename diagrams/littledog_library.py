@@ -281,27 +281,44 @@ def build_littledog_library(
     scenario.validate()
     library = load_library(scenario.library) if library is None else library
     board, pose0, _, q0, heading, goal = crossing_geometry(scenario)
-    builder = DiagramBuilder()
-    plant, scene_graph, instance = add_littledog_on_terrain(
-        builder, board, pose0, q0, scenario.plant
+    return build_library_crossing(
+        "littledog_library", scenario, board, pose0, q0, library, heading, goal, meshcat
     )
+
+
+def build_library_crossing(
+    name: str, fields: LibraryLoopFields, board, pose0, q0, library, heading, goal, meshcat
+) -> Diagram:
+    """LittleDog on ``board`` replaying ``library`` with the loop of ``add_library_loop``.
+
+    Args:
+        name: the diagram's name.
+        fields: plant, blend speed and integral-controller gains.
+        board, pose0, q0: the terrain and the robot's start pose and joint angles.
+        library: the StepLibrary to replay.
+        heading, goal: the crossing direction [rad] and goal position, read by
+            :func:`check_littledog_library`.
+        meshcat: optional Meshcat for a visualizer.
+    """
+    builder = DiagramBuilder()
+    plant, scene_graph, instance = add_littledog_on_terrain(builder, board, pose0, q0, fields.plant)
     add_library_loop(
         builder,
         plant,
         instance,
         library,
         q0,
-        blend_speed=scenario.blend_speed,
-        gain=scenario.gain,
-        decay=scenario.decay,
-        integrator_limit=scenario.integrator_limit,
+        blend_speed=fields.blend_speed,
+        gain=fields.gain,
+        decay=fields.decay,
+        integrator_limit=fields.integrator_limit,
     )
     if meshcat is not None:
         from pydrake.geometry import MeshcatVisualizer
 
         MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
     diagram = builder.Build()
-    diagram.set_name("littledog_library")
+    diagram.set_name(name)
     diagram._repertoire_crossing = (board, heading, goal)  # read by the check
     return diagram
 

@@ -27,7 +27,7 @@ import functools
 import math
 
 import numpy as np
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import Diagram
 from repertoire.diagrams.littledog_demos import (
     LIBRARY_TERRAINS,
     crossing_start,
@@ -36,12 +36,11 @@ from repertoire.diagrams.littledog_demos import (
 )
 from repertoire.diagrams.littledog_library import (
     LibraryLoopFields,
-    add_library_loop,
+    build_library_crossing,
     check_littledog_library,
     load_library,
     validate_loop_fields,
 )
-from repertoire.diagrams.littledog_worlds import add_littledog_on_terrain
 from repertoire.diagrams.registry import register_diagram
 from repertoire.models.terrain import (
     TerrainBoard,
@@ -310,29 +309,10 @@ def build_littledog_transfer(
             f"littledog_transfer takes a LittleDogTransferScenario, got {type(scenario).__name__}"
         )
     plan = plan_transfer(scenario) if plan is None else plan
-    builder = DiagramBuilder()
-    plant, scene_graph, instance = add_littledog_on_terrain(
-        builder, plan.board, plan.pose0, plan.q0, scenario.plant
-    )
-    add_library_loop(
-        builder,
-        plant,
-        instance,
-        plan.library,
-        plan.q0,
-        blend_speed=scenario.blend_speed,
-        gain=scenario.gain,
-        decay=scenario.decay,
-        integrator_limit=scenario.integrator_limit,
-    )
-    if meshcat is not None:
-        from pydrake.geometry import MeshcatVisualizer
-
-        MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
-    diagram = builder.Build()
-    diagram.set_name("littledog_transfer")
-    diagram._repertoire_crossing = (plan.board, 0.0, plan.goal)  # read by the check
-    return diagram
+    return build_library_crossing(
+        "littledog_transfer", scenario, plan.board, plan.pose0, plan.q0, plan.library, 0.0,
+        plan.goal, meshcat,
+    )  # fmt: skip
 
 
 __all__ = [

@@ -210,13 +210,20 @@ def polar_duration_figure(model, title: str, path: Path) -> Path:
     fig = Figure(figsize=(5.5, 5.0), layout="constrained")
     ax = fig.add_subplot(projection="polar")
     theta = np.linspace(-np.pi, np.pi, 181)
+    below_zero = 0
     for dist, colour in ((0.75, "tab:green"), (1.5, "tab:blue"), (2.5, "tab:purple")):
         start = np.column_stack(
             [dist * np.cos(theta), dist * np.sin(theta), theta + np.pi, np.zeros_like(theta)]
         )
         goal = np.tile([0.0, 0.0, 0.0, 0.0], (len(theta), 1))
         pred = model.predict(goto_pose_features(start, goal))
-        ax.plot(theta, pred, color=colour, label=f"start {dist} m away, facing the goal")
+        below_zero += int(np.sum(pred < 0))
+        # a polar radius cannot show a negative duration honestly: draw it at 0 and say so
+        ax.plot(theta, np.maximum(pred, 0.0), color=colour,
+                label=f"start {dist} m away, facing the goal")  # fmt: skip
+    ax.set_rmin(0.0)
+    if below_zero:
+        title += f"\n({below_zero} of {3 * len(theta)} predictions below 0 s drawn at 0)"
     ax.set_title(title)
     ax.legend(loc="upper left", bbox_to_anchor=(-0.15, -0.05), fontsize=8)
     fig.savefig(path, dpi=110)

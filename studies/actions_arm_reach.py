@@ -236,6 +236,6 @@ register_study(
     description="two-joint Reach episodes on arm7: duration model tree (Table 1, arm control)",
     summarize=summarize,
     demo_config=demo_config,
-    demo_episodes=6,
+    demo_episodes=40,
     smoke_config=smoke_config,
 ).run_if_main(__name__)

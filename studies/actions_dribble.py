@@ -306,6 +306,6 @@ register_study(
     description="DribbleBall episodes on the soccer field: duration model tree, ball-loss tree",
     summarize=summarize,
     demo_config=demo_config,
-    demo_episodes=6,
+    demo_episodes=40,
     smoke_config=smoke_config,
 ).run_if_main(__name__)

@@ -282,6 +282,6 @@ register_study(
     description="GoToPose episodes on the soccer field: duration model tree, collision tree",
     summarize=summarize,
     demo_config=demo_config,
-    demo_episodes=8,
+    demo_episodes=40,
     smoke_config=smoke_config,
 ).run_if_main(__name__)

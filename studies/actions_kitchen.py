@@ -399,6 +399,6 @@ register_study(
     description="kitchen GoToPose and Reach episodes: duration model trees (Table 1 kitchen rows)",
     summarize=summarize,
     demo_config=demo_config,
-    demo_episodes=4,
+    demo_episodes=120,
     smoke_config=smoke_config,
 ).run_if_main(__name__)

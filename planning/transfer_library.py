@@ -26,6 +26,7 @@ The result is saved and loaded in the StepLibrary format.
 import dataclasses
 import math
 import re
+import time
 from collections.abc import Mapping
 
 import numpy as np
@@ -43,11 +44,16 @@ from repertoire.planning.littledog_crawl import (
 from repertoire.planning.step_library import LibraryStep, StepLibrary
 from repertoire.planning.terrain_features import (
     FeaturePCA,
+    Match,
+    MatchResult,
     TransferConfig,
     TransferError,
+    TransferredStep,
     TransferResult,
     candidate_frames,
     fit_pca,
+    refine_matches,
+    target_candidates,
     terrain_features,
     transfer_stance,
     transfer_steps,
@@ -77,10 +83,12 @@ class LibraryTransfer:
         off_source: source-library indices of steps whose profile leaves their own
             terrain (reported, not matched).
         per_terrain: the matching result of each source terrain.
-        timings: summed wall seconds of ``candidates``, ``features``, ``matching``,
-            ``refine``.
+        timings: wall seconds of ``candidates`` and ``features`` (once per new terrain),
+            ``matching``, ``refine`` and ``chains`` (summed over the source terrains).
         candidate_count: candidate frames on the new terrain (on the board).
         off_terrain_count: candidate frames whose profile leaves the new terrain.
+        chained: placements joined to a neighbour of their demonstration by
+            :func:`extend_chains` (0 without chains).
     """
 
     library: StepLibrary | None
@@ -92,6 +100,7 @@ class LibraryTransfer:
     timings: dict[str, float]
     candidate_count: int
     off_terrain_count: int
+    chained: int = 0
 
     @property
     def message(self) -> str:
@@ -99,6 +108,8 @@ class LibraryTransfer:
         placed = 0 if self.library is None else len(self.library)
         sources = len(set(self.source_index.tolist()))
         text = f"{placed} steps placed from {sources} source steps; {len(self.discarded)} discarded"
+        if self.chained:
+            text += f"; {self.chained} placements in recorded chains"
         if self.off_source:
             text += f"; {len(self.off_source)} steps' profiles leave their own terrain"
         if self.library is None:
@@ -175,15 +186,27 @@ def transfer_library(
     discarded: list[int] = []
     off_source: list[int] = []
     per_terrain: dict[str, TransferResult] = {}
-    timings = {"candidates": 0.0, "features": 0.0, "matching": 0.0, "refine": 0.0}
-    cands = off = 0
+    config = TransferConfig() if config is None else config
+    chains = config.multiple and config.chains
+    successor = chain_successors(library, config.chain_join) if chains else None
+    feats, timings = target_candidates(target, config)
+    timings.update(matching=0.0, refine=0.0, chains=0.0)
+    cands = off = chained = 0
     for name in names:
         rows = [i for i, s in enumerate(steps) if s.terrain == name]
         feet = np.stack([steps[i].start_feet for i in rows])
         poses = np.stack([steps[i].start_pose for i in rows])
-        r = transfer_steps(sources[name], feet, poses, target, pca, config)
+        r = transfer_steps(sources[name], feet, poses, target, pca, config, feats)
+        if chains:
+            t0 = time.perf_counter()
+            local = {g: a for a, g in enumerate(rows)}
+            nxt = np.array([local.get(int(successor[g]), -1) for g in rows])
+            ends = np.stack([step_end_feet(steps[g]) for g in rows])
+            r, added = extend_chains(r, target, pca, feet, poses, ends, nxt, config)
+            chained += added
+            timings["chains"] += time.perf_counter() - t0
         per_terrain[name] = r
-        for k in timings:
+        for k in ("matching", "refine"):
             timings[k] += r.timings[k]
         cands, off = r.matches.candidate_count, r.matches.off_terrain_count
         discarded += [rows[j] for j in r.matches.discarded]
@@ -217,6 +240,7 @@ def transfer_library(
         timings=timings,
         candidate_count=cands,
         off_terrain_count=off,
+        chained=chained,
     )
 
 
@@ -240,6 +264,192 @@ def library_stances(library: StepLibrary | None) -> tuple[np.ndarray, np.ndarray
     starts = np.stack([s.start_feet for s in library])
     ends = np.stack([step_end_feet(s) for s in library])
     return starts, ends
+
+
+def chain_successors(library: StepLibrary, join: float = 0.04) -> np.ndarray:
+    """The next step of each step's demonstration: its index, or -1 (M,).
+
+    Step ``i + 1`` continues step ``i`` when both come from the same terrain and step
+    ``i + 1`` starts within ``join`` (foot-location metric, m) of where step ``i`` ends
+    (:func:`step_end_feet`): a recorded crossing stores its steps in order.
+
+    Raises:
+        TransferError: a non-positive ``join``.
+    """
+    if not (math.isfinite(join) and join > 0.0):
+        raise TransferError(f"chain_join must be a positive length, got {join}")
+    steps = library.steps
+    out = np.full(len(steps), -1, dtype=int)
+    for i in range(len(steps) - 1):
+        a, b = steps[i], steps[i + 1]
+        if a.terrain == b.terrain and float(foot_distance(step_end_feet(a), b.start_feet)) <= join:
+            out[i] = i + 1
+    return out
+
+
+def chain_frames(source_from, source_to, matched) -> np.ndarray:
+    """Frames continuing chains: ``source_to`` moved by the transform ``source_from -> matched``.
+
+    All (N, 3) ``[x, y, yaw]``: the planar rigid transform taking each step's own frame
+    (``source_from``) to its match (``matched``) applied to the neighbouring step's own
+    frame (``source_to``).
+    """
+    a, b, m = (np.asarray(v, dtype=float).reshape(-1, 3) for v in (source_from, source_to, matched))
+    d = m[:, 2] - a[:, 2]
+    c, s = np.cos(d), np.sin(d)
+    rel = b[:, :2] - a[:, :2]
+    x = m[:, 0] + c * rel[:, 0] - s * rel[:, 1]
+    y = m[:, 1] + s * rel[:, 0] + c * rel[:, 1]
+    return np.column_stack([x, y, wrap_angle(b[:, 2] + d)])
+
+
+def extend_chains(
+    result: TransferResult,
+    target: TerrainBoard,
+    pca: FeaturePCA,
+    feet: np.ndarray,
+    poses: np.ndarray,
+    ends: np.ndarray,
+    successor: np.ndarray,
+    config: TransferConfig,
+) -> tuple[TransferResult, int]:
+    """Chain-consistent matches: recorded chains transferred as chains (section VII).
+
+    Independent matches are local minima of one step's cost, placed without regard to
+    where the next step matched, so two neighbouring steps of a demonstration rarely
+    join on the new terrain. Here every placed step's neighbours in its demonstration
+    (``successor`` and predecessor) are offered at the frame that continues the chain
+    (:func:`chain_frames`: the placed step's match applied to the neighbour's own
+    frame). An offer is kept if the neighbour's profile there matches within
+    ``config.threshold`` (offers matching only within ``coarse_factor`` times it are
+    refined locally as any match) and the two placed stances join within
+    ``config.chain_join``. The minimum spacing holds: an independent match of the same
+    step closer than ``min_spacing`` that does not join the chain is replaced by the
+    chain's (it is the same place, inconsistently refined); one that already joins it
+    carries the chain on; one that is in another chain is kept and the offer dropped.
+    Chains grow one at a time from the best (lowest-cost) matches, each until the
+    terrain stops matching, so a match joins at most one chain. At most
+    ``max_matches`` matches per step.
+
+    Args:
+        result: the independent matches of one source terrain's steps.
+        target: the new terrain.
+        pca: the PCA basis used for ``result``.
+        feet, poses, ends: the steps' start stances (S, 4, 3), start poses (S, 6) and
+            end stances (S, 4, 3) on their source terrain.
+        successor: next step of each step's demonstration, or -1 (S,).
+        config: transfer settings.
+
+    Returns:
+        the result with the chain matches, and how many placements are chain members
+        (joined to a neighbour of their demonstration).
+
+    Raises:
+        TransferError: a non-positive ``chain_join``.
+    """
+    if not (math.isfinite(config.chain_join) and config.chain_join > 0.0):
+        raise TransferError(f"chain_join must be a positive length, got {config.chain_join}")
+    successor = np.asarray(successor, dtype=int)
+    predecessor = np.full_like(successor, -1)
+    has = np.flatnonzero(successor >= 0)
+    predecessor[successor[has]] = has
+    frames, heights, values = result.source_frames, result.source_heights, result.step_values
+    off = set(result.off_source)
+    placed: list[TransferredStep | None] = list(result.steps)
+    by_step: dict[int, list[int]] = {}
+    for k, t in enumerate(placed):
+        by_step.setdefault(t.step, []).append(k)
+    members: set[int] = set()
+    yaw_step = 2.0 * config.yaw_range / max(config.yaw_count - 1, 1)
+
+    def end_stance(t: TransferredStep) -> np.ndarray:
+        s = t.step
+        return transfer_stance(
+            ends[s], poses[s], frames[s], heights[s], t.match.frame, t.match.height
+        )[0]
+
+    def joined(a: TransferredStep, b: TransferredStep) -> bool:
+        """Whether step ``b`` continues ``a`` (a's end on b's start)."""
+        return float(foot_distance(end_stance(a), b.feet)) <= config.chain_join
+
+    def offers(k: int) -> list[tuple[Match, bool]]:
+        """The neighbours of placement ``k`` at the frames continuing its chain, if they match."""
+        t = placed[k]
+        links = [
+            (int(j), forward)
+            for j, forward in ((successor[t.step], True), (predecessor[t.step], False))
+            if j >= 0 and int(j) not in off
+        ]
+        if not links:
+            return []
+        j = np.array([a[0] for a in links])
+        trial = chain_frames(frames[[t.step] * len(j)], frames[j], [t.match.frame] * len(j))
+        feats = terrain_features(target, trial)
+        out = []
+        for n in np.flatnonzero(feats.on_terrain):
+            z = pca.project(feats.values[n : n + 1]) - pca.project(values[j[n] : j[n] + 1])
+            m = Match(int(j[n]), trial[n], float(feats.mean_height[n]), float(np.linalg.norm(z)))
+            if config.threshold < m.cost <= config.threshold * config.coarse_factor:
+                if config.refine_levels:  # matching only coarsely: refined as any match
+                    sub = MatchResult([m], [], 1, 0)
+                    m = refine_matches(
+                        target, values, sub, pca, config.spacing, yaw_step, config.refine_levels
+                    ).matches[0]
+            if m.cost <= config.threshold:
+                out.append((m, links[n][1]))
+        return out
+
+    grown: set[int] = set()
+    for seed in sorted(range(len(placed)), key=lambda k: placed[k].match.cost):
+        queue = [seed]
+        while queue:
+            k = queue.pop()
+            if k in grown or placed[k] is None:
+                continue
+            grown.add(k)
+            t = placed[k]
+            for m, forward in offers(k):
+                jj = m.step
+                f, p = transfer_stance(
+                    feet[jj], poses[jj], frames[jj], heights[jj], m.frame, m.height
+                )
+                new = TransferredStep(jj, f, p, m)
+                if not (joined(t, new) if forward else joined(new, t)):
+                    continue
+                mine = [q for q in by_step.get(jj, []) if placed[q] is not None]
+                close = [
+                    q
+                    for q in mine
+                    if np.linalg.norm(placed[q].match.frame[:2] - m.frame[:2]) < config.min_spacing
+                ]
+                linked = [
+                    q for q in close if (joined(t, placed[q]) if forward else joined(placed[q], t))
+                ]
+                if linked:  # already in place: the chain goes on through it
+                    members.update((k, linked[0]))
+                    queue.append(linked[0])
+                    continue
+                if any(q in members for q in close) or len(mine) - len(close) >= config.max_matches:
+                    continue  # another chain holds this place, or the step has enough matches
+                for q in close:
+                    placed[q] = None
+                placed.append(new)
+                by_step.setdefault(jj, []).append(len(placed) - 1)
+                members.update((k, len(placed) - 1))
+                queue.append(len(placed) - 1)
+    kept = [t for t in placed if t is not None]
+    chained = sum(1 for q in members if placed[q] is not None)
+    matched = {t.step for t in kept}
+    out = dataclasses.replace(
+        result,
+        steps=kept,
+        matches=dataclasses.replace(
+            result.matches,
+            matches=[t.match for t in kept],
+            discarded=[d for d in result.matches.discarded if d not in matched],
+        ),
+    )
+    return out, chained
 
 
 def search_library(
@@ -401,6 +611,9 @@ def final_library(
 
 __all__ = [
     "LibraryTransfer",
+    "chain_frames",
+    "chain_successors",
+    "extend_chains",
     "final_library",
     "fit_board_pca",
     "library_stances",

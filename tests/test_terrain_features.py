@@ -22,6 +22,7 @@ from repertoire.planning.terrain_features import (
     profile_offsets,
     stance_frame,
     stances_on_terrain,
+    target_candidates,
     terrain_features,
     transfer_stance,
     transfer_steps,
@@ -124,6 +125,28 @@ def test_steps_match_back_at_their_own_places(rough):
         assert abs(math.degrees(wrap_angle(t.match.frame[2] - own[2]))) < 5.0
         np.testing.assert_allclose(t.feet, feet[t.step], atol=0.02)
         assert abs(t.body_pose[5] - body[t.step, 5]) < math.radians(5.0)
+
+
+def test_candidate_features_computed_once_give_the_same_transfer(rough):
+    feet, body = stances_on_terrain(rough, [[0.02, -0.03, 0.2], [-0.05, 0.04, -0.3]])
+    f = terrain_features(rough, candidate_frames(rough, 0.03, 5))
+    pca = fit_pca(f.values[f.on_terrain])
+    cfg = TransferConfig(refine_levels=1)
+    feats, times = target_candidates(rough, cfg)
+    np.testing.assert_array_equal(
+        feats.frames, candidate_frames(rough, cfg.spacing, cfg.yaw_count, cfg.yaw_range)
+    )
+    assert set(times) == {"candidates", "features"}
+    once = transfer_steps(rough, feet, body, rough, pca, cfg, feats)
+    fresh = transfer_steps(rough, feet, body, rough, pca, cfg)
+    assert once.timings["features"] == 0.0 and fresh.timings["features"] > 0.0
+    assert [t.step for t in once.steps] == [t.step for t in fresh.steps]
+    for a, b in zip(once.steps, fresh.steps):
+        np.testing.assert_array_equal(a.match.frame, b.match.frame)
+        np.testing.assert_array_equal(a.feet, b.feet)
+    np.testing.assert_array_equal(
+        once.step_values, terrain_features(rough, once.source_frames).values
+    )
 
 
 def test_flat_ground_matches_many_places(source, pca):

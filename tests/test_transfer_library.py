@@ -5,7 +5,12 @@ import math
 import numpy as np
 import pytest
 from repertoire.diagrams.littledog_demos import crossing_start, flat_start, library_terrain
-from repertoire.models.terrain import generate_board, replace_with_rocks, tile_boards
+from repertoire.models.terrain import (
+    TerrainParams,
+    generate_board,
+    replace_with_rocks,
+    tile_boards,
+)
 from repertoire.planning.littledog_crawl import (
     CrawlParams,
     choose_footholds,
@@ -15,6 +20,8 @@ from repertoire.planning.littledog_crawl import (
 from repertoire.planning.step_library import StepLibrary
 from repertoire.planning.terrain_features import TransferConfig, TransferError, wrap_angle
 from repertoire.planning.transfer_library import (
+    chain_frames,
+    chain_successors,
     final_library,
     fit_board_pca,
     library_stances,
@@ -27,6 +34,7 @@ from repertoire.planning.transfer_search import (
     PathItem,
     PlannedStep,
     SearchResult,
+    foot_distance,
 )
 
 
@@ -167,3 +175,81 @@ def test_final_library_orders_recorded_and_planned_steps(library, source):
     bad = SearchResult("reached", [PathItem("recorded", step=999)], 1.0, 1, 0, 0, 1, "x")
     with pytest.raises(TransferError, match="999"):
         final_library(bad, library, source)
+
+
+def test_chain_successors_follow_each_demonstration(library):
+    nxt = chain_successors(library)
+    np.testing.assert_array_equal(nxt, list(range(1, len(library))) + [-1])
+    # Two crossings back to back: the first one's last step does not continue into the second.
+    twice = chain_successors(StepLibrary(library.steps + library.steps))
+    n = len(library)
+    assert twice[n - 1] == -1 and twice[n] == n + 1 and twice[-1] == -1
+    with pytest.raises(TransferError, match="chain_join"):
+        chain_successors(library, 0.0)
+
+
+def test_chain_frame_is_the_matched_transform_of_the_neighbour():
+    # Own frame at the origin matched at (1, 2) turned by 90 degrees: a neighbour 0.1 m
+    # ahead (yaw 0.2) lands 0.1 m along the new heading, yaw 0.2 + 90 degrees.
+    out = chain_frames([[0.0, 0.0, 0.0]], [[0.1, 0.0, 0.2]], [[1.0, 2.0, math.pi / 2]])
+    np.testing.assert_allclose(out, [[1.0, 2.1, 0.2 + math.pi / 2]], atol=1e-12)
+    # The identity match leaves the neighbour's own frame.
+    a, b = np.array([[0.3, -0.1, 0.4]]), np.array([[0.35, -0.05, 0.5]])
+    np.testing.assert_allclose(chain_frames(a, b, a), b, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def flat_library():
+    """A scripted crossing of a flat board: every profile is flat and matches anywhere."""
+    flat = generate_board(TerrainParams(kind="flat"), 0)
+    params = CrawlParams()
+    pose, feet, _ = crossing_start(flat, 0.0, 0.25, params.standing_height, [0.0, 0.0])
+    plan = plan_crawl(feet, pose, choose_footholds(flat, feet, 0.0, 0.23, params), flat, params)
+    return flat, StepLibrary(plan_to_steps(plan, terrain="flat", direction=0.0, kind="recorded"))
+
+
+def joined_pairs(r) -> list[tuple[int, int]]:
+    """Placements (a, b) where b is the next step of a's demonstration and starts on a's end."""
+    starts, ends = library_stances(r.library)
+    idx = r.source_index
+    return [
+        (a, b)
+        for a in range(len(idx))
+        for b in range(len(idx))
+        if idx[b] == idx[a] + 1 and foot_distance(ends[a], starts[b]) <= 0.04
+    ]
+
+
+def test_multiple_matches_transfer_recorded_chains_as_chains(flat_library, pca):
+    flat, library = flat_library
+    sources = {"flat": flat}
+    single = transfer_library(library, sources, flat, pca)
+    lone = transfer_library(
+        library, sources, flat, pca, TransferConfig(multiple=True, chains=False)
+    )
+    cfg = TransferConfig(multiple=True)
+    chained = transfer_library(library, sources, flat, pca, cfg)
+    # Independent matches of flat profiles land anywhere: no two consecutive steps join.
+    assert joined_pairs(single) == [] and joined_pairs(lone) == []
+    assert single.chained == lone.chained == 0
+    pairs = joined_pairs(chained)
+    matched = sorted(set(chained.source_index.tolist()))
+    assert chained.chained > 0 and "recorded chains" in chained.message
+    # At least one whole chain: every matched step joined to its successor somewhere.
+    assert {int(chained.source_index[a]) for a, _ in pairs} == set(matched[:-1])
+    press = CrawlParams().press
+    for a, b in pairs:
+        # A chain is moved rigidly: the recorded gap (the press) is kept exactly.
+        gap = foot_distance(step_end_feet(chained.library[a]), chained.library[b].start_feet)
+        assert gap == pytest.approx(press, abs=1e-9)
+    # Minimum spacing and the cap per step still hold.
+    for j in matched:
+        rows = np.flatnonzero(chained.source_index == j)
+        assert len(rows) <= cfg.max_matches
+        c = np.array([chained.library[int(q)].start_feet[:, :2].mean(axis=0) for q in rows])
+        d = np.linalg.norm(c[:, None] - c[None], axis=2) + np.eye(len(rows))
+        assert d.min() >= cfg.min_spacing - 0.02  # frames >= min_spacing; centroids within 2 cm
+    with pytest.raises(TransferError, match="chain_join"):
+        transfer_library(
+            library, sources, flat, pca, TransferConfig(multiple=True, chain_join=-1.0)
+        )

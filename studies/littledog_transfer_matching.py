@@ -91,6 +91,8 @@ class LittleDogTransferRecord:
         status_multiple, recorded_multiple, planned_multiple: the same with multiple
             matches.
         transfer_s, transfer_multiple_s, search_s: wall times (s).
+        chained_multiple: of the multiple matches, placements in recorded chains (joined
+            to a neighbour of their demonstration, ``LibraryTransfer.chained``).
     """
 
     case: str
@@ -111,6 +113,7 @@ class LittleDogTransferRecord:
     transfer_s: float
     transfer_multiple_s: float
     search_s: float
+    chained_multiple: int = 0
 
 
 def _match_back(config, seed: int, library, pca):
@@ -251,6 +254,7 @@ def run_episode(config: LittleDogTransferConfig, seed: int) -> LittleDogTransfer
         sum(single.transfer.timings.values()),
         sum(multi.transfer.timings.values()),
         single.search_s,
+        chained_multiple=multi.transfer.chained,
     )
 
 
@@ -269,8 +273,8 @@ def summarize(
     out_dir = Path(out_dir)
     lines = [
         "| case | terrain | placed | discarded | back within 2 cm / 5 deg | spurious | on flat "
-        "| search: recorded + planned (status) | multiple matches: placed; recorded + planned "
-        "(status) | transfer s | search s |",
+        "| search: recorded + planned (status) | multiple matches: placed (in chains); "
+        "recorded + planned (status) | transfer s | search s |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in records:
@@ -278,7 +282,8 @@ def summarize(
         flat = str(r.on_flat) if r.case == "match_back" else "-"
         one = f"{r.recorded} + {r.planned} ({r.status})" if r.status else "-"
         many = (
-            f"{r.placed_multiple}; {r.recorded_multiple} + {r.planned_multiple} "
+            f"{r.placed_multiple} ({r.chained_multiple}); {r.recorded_multiple} + "
+            f"{r.planned_multiple} "
             f"({r.status_multiple})"
             if r.status_multiple
             else "-"

@@ -54,6 +54,9 @@ def test_modified_terrain_case_searches_and_summarizes(library_path, tmp_path):
     files = matching.summarize([r], config, tmp_path)
     assert files["modified"].stat().st_size > 10_000
     assert f"{r.recorded} + {r.planned} (reached)" in files["table"].read_text()
+    # The kinematic crossing joins exactly: its multiple matches on the unchanged part chain.
+    assert 0 < r.chained_multiple <= r.placed_multiple
+    assert f"{r.placed_multiple} ({r.chained_multiple}); " in files["table"].read_text()
     with pytest.raises(RepertoireError, match="seed"):
         matching.run_episode(config, -1)
     with pytest.raises(RepertoireError, match="threshold"):

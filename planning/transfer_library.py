@@ -89,6 +89,9 @@ class LibraryTransfer:
         off_terrain_count: candidate frames whose profile leaves the new terrain.
         chained: placements joined to a neighbour of their demonstration by
             :func:`extend_chains` (0 without chains).
+        links: pairs ``(a, b)`` of placements (indices into ``library``) where ``b`` is
+            the next step of ``a``'s demonstration and starts within ``chain_join`` of
+            ``a``'s end: recorded edges the search can take without planned steps.
     """
 
     library: StepLibrary | None
@@ -101,6 +104,7 @@ class LibraryTransfer:
     candidate_count: int
     off_terrain_count: int
     chained: int = 0
+    links: list[tuple[int, int]] = dataclasses.field(default_factory=list)
 
     @property
     def message(self) -> str:
@@ -188,7 +192,7 @@ def transfer_library(
     per_terrain: dict[str, TransferResult] = {}
     config = TransferConfig() if config is None else config
     chains = config.multiple and config.chains
-    successor = chain_successors(library, config.chain_join) if chains else None
+    successor = chain_successors(library, config.chain_join)
     feats, timings = target_candidates(target, config)
     timings.update(matching=0.0, refine=0.0, chains=0.0)
     cands = off = chained = 0
@@ -241,6 +245,7 @@ def transfer_library(
         candidate_count=cands,
         off_terrain_count=off,
         chained=chained,
+        links=placed_links(new_steps, np.array(index, dtype=int), successor, config.chain_join),
     )
 
 
@@ -284,6 +289,30 @@ def chain_successors(library: StepLibrary, join: float = 0.04) -> np.ndarray:
         a, b = steps[i], steps[i + 1]
         if a.terrain == b.terrain and float(foot_distance(step_end_feet(a), b.start_feet)) <= join:
             out[i] = i + 1
+    return out
+
+
+def placed_links(
+    placed: list[LibraryStep], source_index, successor, join: float
+) -> list[tuple[int, int]]:
+    """Recorded chain links among placed steps: pairs ``(a, b)`` of indices into ``placed``.
+
+    ``b``'s source step follows ``a``'s in its demonstration (``successor``, indexed by
+    ``source_index``) and ``b`` starts within ``join`` (foot-location metric) of ``a``'s end.
+    """
+    idx = np.asarray(source_index, dtype=int)
+    if not placed:
+        return []
+    starts = np.stack([s.start_feet for s in placed])
+    out = []
+    for a, step in enumerate(placed):
+        nxt = successor[idx[a]]
+        if nxt < 0:
+            continue
+        b = np.flatnonzero(idx == nxt)
+        if b.size:
+            d = foot_distance(step_end_feet(step), starts[b])
+            out += [(a, int(q)) for q in b[d <= join]]
     return out
 
 
@@ -612,6 +641,7 @@ def final_library(
 __all__ = [
     "LibraryTransfer",
     "chain_frames",
+    "placed_links",
     "chain_successors",
     "extend_chains",
     "final_library",

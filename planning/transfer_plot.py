@@ -102,11 +102,14 @@ def library_path_figure(
     goal: float | None = None,
     title: str = "",
     resolution: float = 0.004,
+    links=(),
 ) -> Path:
     """Writes a PNG of a transferred library and the search's final library over the height map.
 
     Every transferred step is drawn at its start (feet centroid, arrow along its
-    heading, grey-blue); the final library's steps are joined in execution order,
+    heading, grey-blue), recorded chain links ``links`` (pairs of indices into
+    ``transferred``, e.g. ``LibraryTransfer.links``) as cyan lines between their
+    starts; the final library's steps are joined in execution order,
     recorded ones as green circles and planned ones as orange squares (like Stolle
     et al.'s Figs. 11-12). Either library may be None (nothing transferred / no search).
 
@@ -144,6 +147,14 @@ def library_path_figure(
         handles.append(
             plt.Line2D([], [], color="tab:blue", label=f"transferred step ({len(transferred)})")
         )
+        links = list(links)
+        for a, b in links:
+            p = np.array([transferred[int(k)].start_feet[:, :2].mean(axis=0) for k in (a, b)])
+            ax.plot(p[:, 0], p[:, 1], "-", color="tab:cyan", lw=1.6)
+        if links:
+            handles.append(
+                plt.Line2D([], [], color="tab:cyan", label=f"recorded chain link ({len(links)})")
+            )
     if final is not None:
         cs = np.array([s.start_feet[:, :2].mean(axis=0) for s in final])
         ax.plot(cs[:, 0], cs[:, 1], "-", color="tab:red", lw=1.0)

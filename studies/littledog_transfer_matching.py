@@ -322,6 +322,7 @@ def summarize(
                 changed_from=config.change_from,
                 goal=plan.goal,
                 title=f"Modified terrain, {what}: {plan.search.message}",
+                links=plan.transfer.links,
             )
     return files
 

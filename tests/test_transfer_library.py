@@ -233,6 +233,7 @@ def test_multiple_matches_transfer_recorded_chains_as_chains(flat_library, pca):
     assert joined_pairs(single) == [] and joined_pairs(lone) == []
     assert single.chained == lone.chained == 0
     pairs = joined_pairs(chained)
+    assert sorted(chained.links) == sorted(pairs) and single.links == lone.links == []
     matched = sorted(set(chained.source_index.tolist()))
     assert chained.chained > 0 and "recorded chains" in chained.message
     # At least one whole chain: every matched step joined to its successor somewhere.

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from repertoire.studies.engine import register_study
 
-from repertoire.errors import RepertoireError, ScenarioError
+from repertoire.errors import RepertoireError
 
 FLAT_SEED = 0
 
@@ -208,7 +208,7 @@ def run_episode(config: LittleDogTransferConfig, seed: int) -> LittleDogTransfer
     try:
         single = plan_transfer(base)
         multi = plan_transfer(dataclasses.replace(base, multiple=True))
-    except ScenarioError as e:  # e.g. the planner cannot fill a gap: counted, not fatal
+    except RepertoireError as e:  # no flat start, no path: counted, not fatal
         return LittleDogTransferRecord(
             "modified" if seed == 2 else "generated",
             terrain,

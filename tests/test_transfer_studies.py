@@ -57,6 +57,10 @@ def test_modified_terrain_case_searches_and_summarizes(library_path, tmp_path):
     # The kinematic crossing joins exactly: its multiple matches on the unchanged part chain.
     assert 0 < r.chained_multiple <= r.placed_multiple
     assert f"{r.placed_multiple} ({r.chained_multiple}); " in files["table"].read_text()
+    # Rough boards 1004/1005 (seed 5) have no flat start near the nominal one: counted.
+    bad = matching.run_episode(config, 5)
+    assert bad.status.startswith("error: ") and "no flat start" in bad.status
+    assert (bad.placed, bad.recorded, bad.planned) == (0, 0, 0)
     with pytest.raises(RepertoireError, match="seed"):
         matching.run_episode(config, -1)
     with pytest.raises(RepertoireError, match="threshold"):

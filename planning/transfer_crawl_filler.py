@@ -26,6 +26,7 @@ from repertoire.models.littledog import FOOT_RADIUS
 from repertoire.planning.footstep.quadruped import (
     CrawlParams,
     HeightMap,
+    flat_on_ground,
     plan_crawl,
 )
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
@@ -50,20 +51,6 @@ def executable_prefix(steps: list[PlannedStep], params: ExecParams, board) -> in
         k = _failed_step(str(e))
         return k if k is not None else 0
     return len(steps)
-
-
-@dataclasses.dataclass
-class _MapBoard:
-    """A height map read like a board (cell heights; 0 off the map) for the crawl's swings."""
-
-    height_map: HeightMap
-
-    def height(self, x, y):
-        row, col = self.height_map.cell(*np.broadcast_arrays(x, y))
-        inside = self.height_map.inside(row, col)
-        r = np.clip(row, 0, self.height_map.shape[0] - 1)
-        c = np.clip(col, 0, self.height_map.shape[1] - 1)
-        return np.where(inside, self.height_map.heights[r, c], 0.0)
 
 
 def _failed_step(message: str) -> int | None:
@@ -120,12 +107,14 @@ class CrawlGapFiller:
         try:
             plan = plan_crawl(
                 self.height_map,
-                start[:, :2],
+                start - np.array([0.0, 0.0, FOOT_RADIUS]),  # ground contact points
                 goal_xy,
                 self.params if params is None else params,
                 time_limit=max(float(time_limit), self.planner_wall_limit),
                 max_expansions=self.max_expansions,
                 weight=self.weight,
+                crawl=self.crawl,
+                ground=self.board,
             )
         except FootstepError:
             return [], None  # a start or goal the planner refuses (e.g. on a rock's edge)
@@ -140,18 +129,11 @@ class CrawlGapFiller:
 
     def usable_prefix(self, steps: list[PlannedStep]) -> int:
         """How many of ``steps`` the executing crawl can do (flat footholds, leg IK)."""
-        board = _MapBoard(self.height_map) if self.board is None else self.board
+        board = self.height_map if self.board is None else self.board
         n = len(steps)
         if self.board is not None and steps:
-            from repertoire.planning.littledog_crawl import foothold_ok
-
             landing = np.array([p.end_feet[p.foot, :2] for p in steps])
-            rule = dataclasses.replace(
-                self.crawl,
-                edge_radius=FOOT_RADIUS,
-                flat_tolerance=self.params.max_roughness,
-            )
-            flat = foothold_ok(self.board, landing, rule)
+            flat = flat_on_ground(self.board, landing, self.params)
             n = int(np.argmin(flat)) if not flat.all() else n
         return executable_prefix(steps[:n], self.crawl, board) if n else 0
 

@@ -349,13 +349,16 @@ def step_reachable(feet, foot: int, p_new, params: CrawlParams, board) -> np.nda
     cand = np.asarray(p_new, dtype=float).reshape(-1, 3)
     poses = swing_pose(feet, foot, cand, params)
     cmd = swing_commands(feet, foot, cand, params, board)
-    before = np.repeat((feet - np.array([0.0, 0.0, params.press]))[None, None], len(cand), 0)
-    cmd = np.concatenate([before, cmd], axis=1)  # K x n x 4 x 3
     R = rotation_from_rpy(poses[:, 3:])
-    p_B = np.einsum("knmi,kij->knmj", cmd - poses[:, None, None, :3], R)
-    ok = np.ones(len(cand), dtype=bool)
+    origin = poses[:, None, :3]
+    # Before the lift every foot, and through the step every stance foot, is commanded
+    # at its foothold (press below): one point per leg; the swing foot's path varies.
+    held = feet - np.array([0.0, 0.0, params.press])
+    held_B = np.einsum("kmi,kij->kmj", held[None] - origin, R)
+    swing_B = np.einsum("kni,kij->knj", cmd[:, :, foot] - origin, R)
+    ok = leg_ik_feasible(LEGS[foot], swing_B).all(axis=1)
     for i, leg in enumerate(LEGS):
-        ok &= leg_ik_feasible(leg, p_B[:, :, i]).all(axis=1)
+        ok &= leg_ik_feasible(leg, held_B[:, i])
     return ok
 
 

@@ -317,7 +317,7 @@ def _point_in_triangle_margin(p: np.ndarray, tri: np.ndarray) -> float:
 
 
 def flat_on_ground(ground, xy, params: CrawlParams) -> np.ndarray:
-    """True where a foot at each point of ``xy`` (M x 2) stands on flat exact ground.
+    """True where a foot at each point of ``xy`` (M x 2 or more columns) stands on flat ground.
 
     The height spread of ``ground`` (an exact height function, e.g. the board the map
     was sampled from) under the foot, within its radius ``FOOT_RADIUS`` (centre and
@@ -326,7 +326,7 @@ def flat_on_ground(ground, xy, params: CrawlParams) -> np.ndarray:
     landing on an edge slides off.
     """
     rule = ExecutionParams(edge_radius=FOOT_RADIUS, flat_tolerance=params.max_roughness)
-    return foothold_ok(ground, xy, rule)
+    return foothold_ok(ground, np.asarray(xy, dtype=float)[:, :2], rule)
 
 
 class CrawlModel:
@@ -381,8 +381,16 @@ class CrawlModel:
         # A foot keeps its exact start foothold until it moves (the crawl does not snap it).
         z0 = start[:, 2] if start.shape[1] == 3 else height_map.heights[rows, cols]
         self._start_feet = np.column_stack([start[:, :2], z0])
+        # An exact ground judges the exact start footholds (the map, the cells holding them).
+        exact = None if self.ground is height_map else flat_on_ground(self.ground, start, params)
         for i in range(4):
-            if self._rough[rows[i], cols[i]] > params.max_roughness:
+            if exact is not None and not exact[i]:
+                raise FootstepError(
+                    f"crawl start foothold of {LEGS[i]} at {start[i].tolist()} is on ground too "
+                    f"steep: height range within {FOOT_RADIUS} m on the exact ground > "
+                    f"max_roughness {params.max_roughness} m"
+                )
+            if exact is None and self._rough[rows[i], cols[i]] > params.max_roughness:
                 raise FootstepError(
                     f"crawl start foothold of {LEGS[i]} at {start[i].tolist()} is on ground too "
                     f"steep: height range {self._rough[rows[i], cols[i]]:.4f} m within "

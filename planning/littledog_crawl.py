@@ -34,8 +34,8 @@ from repertoire.models.littledog import (
     leg_ik,
     nominal_foot_positions,
 )
-from repertoire.models.littledog.kinematics import LEG_GEOMETRY
-from repertoire.models.littledog.pose import world_to_body
+from repertoire.models.littledog.kinematics import LEG_GEOMETRY, leg_ik_feasible
+from repertoire.models.littledog.pose import rotation_from_rpy, world_to_body
 from repertoire.planning.step_library import segment_recording
 
 from repertoire.errors import RepertoireError
@@ -171,24 +171,51 @@ def _smooth(s: np.ndarray) -> np.ndarray:
     return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
 
 
-def heading_of(p_WF: np.ndarray) -> float:
-    """Yaw (rad) of the line from the hind feet's midpoint to the front feet's midpoint."""
-    d = 0.5 * (p_WF[0] + p_WF[1]) - 0.5 * (p_WF[2] + p_WF[3])
-    return float(math.atan2(d[1], d[0]))
+def heading_of(p_WF: np.ndarray):
+    """Yaw (rad) of the line from the hind feet's midpoint to the front feet's midpoint.
+
+    ``p_WF`` is one stance (4 x 3; a float is returned) or a stack (..., 4, 3).
+    """
+    p = np.asarray(p_WF, dtype=float)
+    d = 0.5 * (p[..., 0, :] + p[..., 1, :]) - 0.5 * (p[..., 2, :] + p[..., 3, :])
+    yaw = np.arctan2(d[..., 1], d[..., 0])
+    return float(yaw) if p.ndim == 2 else yaw
 
 
-def support_pose(p_WF: np.ndarray, stance: list[int], params: CrawlParams, board) -> np.ndarray:
-    """Level body pose over the centroid of the ``stance`` feet, heading from all four feet.
+def swing_pose(feet, foot: int, p_new, params: CrawlParams) -> np.ndarray:
+    """The body pose the crawl holds while ``foot`` swings from ``feet[foot]`` to ``p_new``.
+
+    Level, over the centroid of the three stance feet moved ``shift_margin`` away from
+    the lifting foot, heading from the four feet after the step (:func:`heading_of`),
+    ``standing_height`` above their mean ground, lowered (:func:`reachable_height`) until
+    every stance foot and the swing foot's old and new positions lie within
+    :data:`MAX_LEG_EXTENSION` of their hips. :func:`plan_crawl` executes every step with
+    it and the footstep planner's crawl model checks reach with it (one definition).
 
     Args:
-        p_WF: current foot centres (4 x 3).
-        stance: indices of the feet that carry the body.
-        params: crawl parameters (standing height).
-        board: terrain with ``height(x, y)``.
+        feet: foot centres before the step (4 x 3, ``LEGS`` order).
+        foot: the swing foot (``LEGS`` index).
+        p_new: its new foot centre (3,), or K candidates (K, 3).
+        params: crawl parameters.
+
+    Returns:
+        The pose ``[x, y, z, roll, pitch, yaw]`` (6,), or (K, 6) for K candidates.
     """
-    xy = p_WF[stance, :2].mean(axis=0)
-    ground = float(np.mean(p_WF[:, 2] - FOOT_RADIUS))
-    return np.array([xy[0], xy[1], ground + params.standing_height, 0.0, 0.0, heading_of(p_WF)])
+    feet = np.asarray(feet, dtype=float)
+    p = np.asarray(p_new, dtype=float)
+    cand = p.reshape(-1, 3)
+    after = np.repeat(feet[None], len(cand), axis=0)
+    after[:, foot] = cand
+    stance = [i for i in range(4) if i != foot]
+    centroid = feet[stance, :2].mean(axis=0)
+    away = centroid - feet[foot, :2]
+    pose = np.zeros((len(cand), 6))
+    pose[:, :2] = centroid + params.shift_margin * away / max(np.linalg.norm(away), 1e-9)
+    pose[:, 2] = np.mean(after[:, :, 2] - FOOT_RADIUS, axis=1) + params.standing_height
+    pose[:, 5] = heading_of(after)
+    points = np.concatenate([np.repeat(feet[None], len(cand), axis=0), cand[:, None]], axis=1)
+    pose[:, 2] = reachable_height(pose, points, [0, 1, 2, 3, foot], params)
+    return pose[0] if p.ndim == 1 else pose
 
 
 def joint_angles(pose: np.ndarray, p_WF: np.ndarray, what: str = "") -> np.ndarray:
@@ -211,43 +238,128 @@ MAX_LEG_EXTENSION = 0.165
 """Largest hip-to-foot distance the crawl plans with (m; the legs reach 0.177 m)."""
 
 
-def reachable_height(pose: np.ndarray, points: np.ndarray, legs, params: CrawlParams) -> float:
+def reachable_height(pose, points, legs, params: CrawlParams):
     """Body height, at most ``pose[2]``, keeping every foot point within its leg's reach.
 
     Args:
-        pose: the body pose (its z is the wanted height).
-        points: foot centres the legs must reach (M x 3).
+        pose: the body pose (its z is the wanted height), (6,) or K poses (K, 6).
+        points: foot centres the legs must reach, (M, 3) or (K, M, 3).
         legs: the ``LEGS`` index of each point (M,).
         params: crawl parameters (stance feet are commanded ``press`` lower).
+
+    Returns:
+        The height (a float), or K heights for K poses.
     """
+    pose = np.asarray(pose, dtype=float)
+    poses = pose.reshape(-1, 6)
+    pts = np.asarray(points, dtype=float).reshape(len(poses), -1, 3)
+    pts = pts - np.array([0.0, 0.0, params.press])
     hips = np.array([LEG_GEOMETRY[LEGS[i]].p_BH for i in legs])
-    z = float(pose[2])
+    R = rotation_from_rpy(poses[:, 3:])
+    z = poses[:, 2].copy()
     for _ in range(20):
-        trial = pose.copy()
-        trial[2] = z
-        p_B = world_to_body(trial, points - np.array([0.0, 0.0, params.press]))
-        excess = float(np.linalg.norm(p_B - hips, axis=1).max() - MAX_LEG_EXTENSION)
-        if excess <= 0.0:
+        origin = np.column_stack([poses[:, :2], z])
+        p_B = np.einsum("kmi,kij->kmj", pts - origin[:, None, :], R)
+        excess = np.linalg.norm(p_B - hips, axis=-1).max(axis=-1) - MAX_LEG_EXTENSION
+        low = excess > 0.0
+        if not low.any():
             break
-        z -= excess + 1e-4
-    return z
+        z[low] -= excess[low] + 1e-4
+    return float(z[0]) if pose.ndim == 1 else z
 
 
 def _swing_path(p0, p1, s, params: CrawlParams, board) -> np.ndarray:
-    """Foot centre along a lift / travel / lower path for phases ``s`` in [0, 1]."""
+    """Foot centre along a lift / travel / lower path for phases ``s`` in [0, 1].
+
+    ``p1`` is one target (3,) (returns (len(s), 3)) or K targets (K, 3) (returns (K, len(s), 3)).
+    """
+    p0 = np.asarray(p0, dtype=float)
+    p1 = np.asarray(p1, dtype=float)
+    ends = p1.reshape(-1, 3)
     u = np.linspace(0.0, 1.0, 25)
-    line = p0[:2] + u[:, None] * (p1[:2] - p0[:2])
+    line = p0[:2] + u[None, :, None] * (ends[:, None, :2] - p0[:2])
     r = params.edge_radius
     offsets = np.array([[0, 0], [r, 0], [-r, 0], [0, r], [0, -r]])
-    pts = (line[:, None, :] + offsets[None]).reshape(-1, 2)
-    top = float(np.max(board.height(pts[:, 0], pts[:, 1]))) + FOOT_RADIUS
-    zc = max(top, p0[2], p1[2]) + params.clearance
+    pts = (line[:, :, None, :] + offsets[None, None]).reshape(len(ends), -1, 2)
+    heights = np.asarray(board.height(pts[..., 0].ravel(), pts[..., 1].ravel()), dtype=float)
+    top = heights.reshape(len(ends), -1).max(axis=1) + FOOT_RADIUS
+    zc = (np.maximum(np.maximum(top, p0[2]), ends[:, 2]) + params.clearance)[:, None]
     lift, travel = _smooth(s / 0.3), _smooth((s - 0.3) / 0.4)
     lower = _smooth((s - 0.7) / 0.3)
-    xy = p0[:2] + travel[:, None] * (p1[:2] - p0[:2])
-    z0, z1 = p0[2] - params.press, p1[2] - params.press
+    xy = p0[:2] + travel[None, :, None] * (ends[:, None, :2] - p0[:2])
+    z0, z1 = p0[2] - params.press, ends[:, 2:3] - params.press
     z = np.where(s < 0.3, z0 + lift * (zc - z0), np.where(s < 0.7, zc, zc + lower * (z1 - zc)))
-    return np.column_stack([xy, z])
+    path = np.concatenate([xy, z[..., None]], axis=-1)
+    return path[0] if p1.ndim == 1 else path
+
+
+def swing_commands(feet, foot: int, p_new, params: CrawlParams, board) -> np.ndarray:
+    """Commanded foot centres from lift to settle of one step (what :func:`plan_crawl` emits).
+
+    The lift delay (feet before the step), the swing of ``foot`` to ``p_new`` (the other
+    feet at their footholds), then the settle (feet after the step); every stance foot
+    ``press`` below its foothold.
+
+    Args:
+        feet: foot centres before the step (4 x 3).
+        foot: the swing foot.
+        p_new: its new foot centre (3,), or K candidates (K, 3).
+        params: crawl parameters.
+        board: terrain with ``height(x, y)`` (the swing clears its highest point).
+
+    Returns:
+        (n_lift + n_swing + n_settle, 4, 3), or (K, ...) for K candidates.
+    """
+    feet = np.asarray(feet, dtype=float)
+    p = np.asarray(p_new, dtype=float)
+    cand = p.reshape(-1, 3)
+    K, dt = len(cand), params.dt
+    down = np.array([0.0, 0.0, params.press])
+    n_lift = round(params.lift_delay / dt)
+    n_swing = max(1, round(params.swing_time / dt))
+    n_settle = max(1, round(params.settle_time / dt)) if params.settle_time > 0 else 0
+    cmd = np.repeat((feet - down)[None, None], K, axis=0)
+    cmd = np.repeat(cmd, n_lift + n_swing + n_settle, axis=1)
+    s = np.arange(1, n_swing + 1) / n_swing
+    cmd[:, n_lift : n_lift + n_swing, foot] = _swing_path(feet[foot], cand, s, params, board)
+    cmd[:, n_lift + n_swing :, foot] = cand[:, None] - down
+    return cmd[0] if p.ndim == 1 else cmd
+
+
+def step_reachable(feet, foot: int, p_new, params: CrawlParams, board) -> np.ndarray:
+    """Which candidate steps the crawl can execute: leg IK at the :func:`swing_pose`.
+
+    Checks every leg (joint limits included) for every command of
+    :func:`swing_commands` with the body at the step's :func:`swing_pose`, and the feet
+    before the step there (the end of the body shift). The shift's intermediate poses
+    (between the previous step's pose and this one) are not checked here: they depend
+    on the previous step.
+
+    Args:
+        feet: foot centres before the step (4 x 3).
+        foot: the swing foot.
+        p_new: K candidate foot centres (K, 3).
+        params: crawl parameters.
+        board: terrain with ``height(x, y)``.
+
+    Returns:
+        Boolean mask (K,).
+    """
+    feet = np.asarray(feet, dtype=float)
+    cand = np.asarray(p_new, dtype=float).reshape(-1, 3)
+    poses = swing_pose(feet, foot, cand, params)
+    cmd = swing_commands(feet, foot, cand, params, board)
+    R = rotation_from_rpy(poses[:, 3:])
+    origin = poses[:, None, :3]
+    # Before the lift every foot, and through the step every stance foot, is commanded
+    # at its foothold (press below): one point per leg; the swing foot's path varies.
+    held = feet - np.array([0.0, 0.0, params.press])
+    held_B = np.einsum("kmi,kij->kmj", held[None] - origin, R)
+    swing_B = np.einsum("kni,kij->knj", cmd[:, :, foot] - origin, R)
+    ok = leg_ik_feasible(LEGS[foot], swing_B).all(axis=1)
+    for i, leg in enumerate(LEGS):
+        ok &= leg_ik_feasible(leg, held_B[:, i])
+    return ok
 
 
 def plan_crawl(
@@ -307,16 +419,9 @@ def plan_crawl(
         if not isinstance(step, CrawlStep):
             raise CrawlError(f"steps[{k}] must be a CrawlStep, got {type(step).__name__}")
         f = step.foot
-        stance = [i for i in range(4) if i != f]
         after = feet.copy()
         after[f] = step.p_WF
-        target = support_pose(after, stance, params, board)
-        centroid = feet[stance, :2].mean(axis=0)
-        away = centroid - feet[f, :2]
-        target[:2] = centroid + params.shift_margin * away / max(np.linalg.norm(away), 1e-9)
-        target[2] = reachable_height(
-            target, np.vstack([feet, after[f][None]]), [0, 1, 2, 3, f], params
-        )
+        target = swing_pose(feet, f, step.p_WF, params)
         # Shift: body moves, all four feet stay.
         n = max(1, round(params.shift_time / dt))
         s = _smooth((np.arange(1, n + 1)) / n)[:, None]
@@ -324,33 +429,17 @@ def plan_crawl(
         d[5] = (d[5] + math.pi) % (2.0 * math.pi) - math.pi
         emit(n, pose + s * d, np.repeat((feet - down)[None], n, 0), np.ones(4, bool), k)
         pose = target
-        n = round(params.lift_delay / dt)
-        if n:
-            emit(
-                n,
-                np.repeat(pose[None], n, 0),
-                np.repeat((feet - down)[None], n, 0),
-                np.ones(4, bool),
-                k,
-            )
-        # Swing: body still, foot f travels.
-        n = max(1, round(params.swing_time / dt))
-        s = np.arange(1, n + 1) / n
-        cmd = np.repeat((feet - down)[None], n, 0)
-        cmd[:, f] = _swing_path(feet[f], step.p_WF, s, params, board)
-        row = np.ones(4, bool)
-        row[f] = False
-        emit(n, np.repeat(pose[None], n, 0), cmd, row, k)
+        # Lift delay, swing of foot f, settle: body still (the commands the planner checks).
+        cmd = swing_commands(feet, f, step.p_WF, params, board)
+        n_lift = round(params.lift_delay / dt)
+        n_swing = max(1, round(params.swing_time / dt))
+        rows = np.ones((len(cmd), 4), bool)
+        rows[n_lift : n_lift + n_swing, f] = False
+        poses.append(np.repeat(pose[None], len(cmd), 0))
+        foot_cmds.append(cmd)
+        stances.append(rows)
+        indices.append(np.full(len(cmd), k))
         feet = after
-        n = max(1, round(params.settle_time / dt)) if params.settle_time > 0 else 0
-        if n:
-            emit(
-                n,
-                np.repeat(pose[None], n, 0),
-                np.repeat((feet - down)[None], n, 0),
-                np.ones(4, bool),
-                k,
-            )
         history.append(feet.copy())
     body_pose = np.concatenate(poses)
     cmds = np.concatenate(foot_cmds)
@@ -528,5 +617,8 @@ __all__ = [
     "joint_angles",
     "plan_crawl",
     "plan_to_steps",
-    "support_pose",
+    "reachable_height",
+    "step_reachable",
+    "swing_commands",
+    "swing_pose",
 ]

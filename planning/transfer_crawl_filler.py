@@ -26,6 +26,7 @@ from repertoire.models.littledog import FOOT_RADIUS
 from repertoire.planning.footstep.quadruped import (
     CrawlParams,
     HeightMap,
+    flat_on_ground,
     plan_crawl,
 )
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
@@ -52,20 +53,6 @@ def executable_prefix(steps: list[PlannedStep], params: ExecParams, board) -> in
     return len(steps)
 
 
-@dataclasses.dataclass
-class _MapBoard:
-    """A height map read like a board (cell heights; 0 off the map) for the crawl's swings."""
-
-    height_map: HeightMap
-
-    def height(self, x, y):
-        row, col = self.height_map.cell(*np.broadcast_arrays(x, y))
-        inside = self.height_map.inside(row, col)
-        r = np.clip(row, 0, self.height_map.shape[0] - 1)
-        c = np.clip(col, 0, self.height_map.shape[1] - 1)
-        return np.where(inside, self.height_map.heights[r, c], 0.0)
-
-
 def _failed_step(message: str) -> int | None:
     import re
 
@@ -82,23 +69,21 @@ class CrawlGapFiller:
         params: crawl model parameters.
         weight: heuristic weight of the planner's search.
         max_expansions: expansion budget per planner call.
-        crawl: parameters of the crawl that executes planned steps (their leg IK decides
-            whether a planned gap is usable).
-        board: the terrain's exact height function for that check (default: the map's
-            cell heights; the executing crawl reads the board, so pass it when known).
-            With a board, the ground under every planned foot (within the foot's radius)
-            must also be flat on the exact board (height spread at most the planner's
-            ``max_roughness``): the map samples heights at cell centres and misses edges
-            between them, and a foot landing on an edge slides off (seen in physics).
+        crawl: parameters of the crawl that executes planned steps: the planner checks
+            every step with its reach (:func:`~repertoire.planning.littledog_crawl.step_reachable`
+            at the crawl's own body pose), and the whole gap is executed by it once more
+            (:func:`executable_prefix`) before use.
+        board: the terrain's exact height function (default: the map's cell heights; the
+            executing crawl reads the board, so pass it when known). With a board the
+            planner's swings clear it and every planned foot lands on flat exact ground
+            (:func:`~repertoire.planning.footstep.quadruped.flat_on_ground`): the map
+            samples heights at cell centres and misses edges between them, and a foot
+            landing on an edge slides off (seen in physics).
         place_feet: with ``board``, end a reached gap with one-foot moves onto the target
             stance when its footholds are flat (a recorded step's start; not a goal stance
             on rocks), checked executable like the rest.
         planner_wall_limit: the planner's wall-time limit per call is the larger of this
             and the search's remaining CPU budget (s): a safety limit, not the budget.
-        repairs: when the executing crawl cannot do a planned step (the planner's reach
-            model is looser than its leg IK), the steps before it are kept and the planner
-            is called again from there with half the lateral foothold offsets (from one
-            crawl cycle earlier when that made no progress), up to this many times.
     """
 
     height_map: HeightMap
@@ -109,23 +94,20 @@ class CrawlGapFiller:
     board: object = None
     place_feet: bool = False
     planner_wall_limit: float = 10.0
-    repairs: int = 3
 
-    def __post_init__(self) -> None:
-        if int(self.repairs) != self.repairs or self.repairs < 0:
-            raise TransferSearchError(f"repairs must be a non-negative integer, got {self.repairs}")
-
-    def _plan(self, start: np.ndarray, goal_xy: np.ndarray, time_limit: float, params=None):
+    def _plan(self, start: np.ndarray, goal_xy: np.ndarray, time_limit: float):
         """Planned steps (foot centres) from ``start`` and the planner's status."""
         try:
             plan = plan_crawl(
                 self.height_map,
-                start[:, :2],
+                start - np.array([0.0, 0.0, FOOT_RADIUS]),  # ground contact points
                 goal_xy,
-                self.params if params is None else params,
+                self.params,
                 time_limit=max(float(time_limit), self.planner_wall_limit),
                 max_expansions=self.max_expansions,
                 weight=self.weight,
+                crawl=self.crawl,
+                ground=self.board,
             )
         except FootstepError:
             return [], None  # a start or goal the planner refuses (e.g. on a rock's edge)
@@ -140,18 +122,11 @@ class CrawlGapFiller:
 
     def usable_prefix(self, steps: list[PlannedStep]) -> int:
         """How many of ``steps`` the executing crawl can do (flat footholds, leg IK)."""
-        board = _MapBoard(self.height_map) if self.board is None else self.board
+        board = self.height_map if self.board is None else self.board
         n = len(steps)
         if self.board is not None and steps:
-            from repertoire.planning.littledog_crawl import foothold_ok
-
             landing = np.array([p.end_feet[p.foot, :2] for p in steps])
-            rule = dataclasses.replace(
-                self.crawl,
-                edge_radius=FOOT_RADIUS,
-                flat_tolerance=self.params.max_roughness,
-            )
-            flat = foothold_ok(self.board, landing, rule)
+            flat = flat_on_ground(self.board, landing, self.params)
             n = int(np.argmin(flat)) if not flat.all() else n
         return executable_prefix(steps[:n], self.crawl, board) if n else 0
 
@@ -171,36 +146,23 @@ class CrawlGapFiller:
             # A recorded step's start (flat footholds): the gap ends on its exact stance,
             # so the nearest-step policy picks it next; unreachable placing = gap unusable.
             place = bool(np.all(foothold_ok(self.board, target[:, :2], self.crawl)))
-        steps: list[PlannedStep] = []
-        # Wide side steps are where the planner's reach model (body over the four feet) and
-        # the crawl's (body shifted over the three stance feet) disagree: a plan the crawl
-        # cannot do is planned again with half the lateral foothold offsets.
-        narrow = dataclasses.replace(
-            self.params, offsets_y=[0.5 * v for v in self.params.offsets_y]
-        )
-        for attempt in range(self.repairs + 1):
-            cur = steps[-1].end_feet if steps else start
-            new, status = self._plan(cur, goal_xy, time_limit, narrow if attempt else None)
-            planned = len(new)
-            if status is PlanStatus.SUCCESS and place:
-                from repertoire.planning.transfer_library import placing_steps
+        new, status = self._plan(start, goal_xy, time_limit)
+        planned = len(new)
+        if status is PlanStatus.SUCCESS and place:
+            from repertoire.planning.transfer_library import placing_steps
 
-                new += placing_steps(new[-1].end_feet if new else cur, target)
-            usable = self.usable_prefix(steps + new) - len(steps)
-            if usable == len(new):
-                return GapFill(steps + new, _status(status, bool(steps + new)))
-            if usable >= planned and status is PlanStatus.SUCCESS:
-                # The planner's steps reach the target's centroid but the legs cannot place
-                # every foot on the target stance: enough for a goal (the search joins a
-                # recorded step only on its exact start, so it will not join one this way).
-                return GapFill(steps + new[:planned], "reached")
-            if usable > 0:
-                steps += new[:usable]  # keep what the crawl can do; plan again from there
-            elif attempt > 0 and steps:
-                del steps[-4:]  # no progress from here: back off one crawl cycle
-            elif attempt > 0:
-                break
-        return GapFill(steps, "partial" if steps else "failed")
+            new += placing_steps(new[-1].end_feet if new else start, target)
+        usable = self.usable_prefix(new)
+        if usable == len(new):
+            return GapFill(new, _status(status, bool(new)))
+        if usable >= planned and status is PlanStatus.SUCCESS:
+            # The planner's steps reach the target's centroid but the legs cannot place
+            # every foot on the target stance: enough for a goal (the search joins a
+            # recorded step only on its exact start, so it will not join one this way).
+            return GapFill(new[:planned], "reached")
+        # The planner checks each step with the crawl's own reach and flat-foothold rules;
+        # what it does not check (the body shift between two steps' poses) ends the gap.
+        return GapFill(new[:usable], "partial" if usable else "failed")
 
 
 def _status(status, any_steps: bool) -> str:

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from repertoire.models.littledog.kinematics import (
     FOOT_RADIUS,
-    LEGS,
+    LEG_GEOMETRY,
     leg_ik,
+    leg_ik_feasible,
     nominal_foot_positions,
 )
 from repertoire.models.terrain import TerrainParams, generate_board
@@ -20,6 +21,16 @@ from repertoire.planning.footstep.quadruped import (
 )
 from repertoire.planning.footstep.search import anytime_search, search
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
+from repertoire.planning.littledog_crawl import (
+    MAX_LEG_EXTENSION,
+    CrawlError,
+    heading_of,
+    step_reachable,
+    swing_pose,
+)
+from repertoire.planning.littledog_crawl import CrawlParams as ExecParams
+from repertoire.planning.littledog_crawl import CrawlStep as ExecStep
+from repertoire.planning.littledog_crawl import plan_crawl as execute
 
 from repertoire.errors import RepertoireError
 from repertoire.limits import ResourceLimitError
@@ -122,8 +133,18 @@ def _board_map(kind, seed=1):
     return height_map_from_board(board, (-0.3, 0.7), (-0.3, 0.3), 0.01)
 
 
-def _check_plan(plan, hm, params):
-    """Every stance reachable by the leg IK, every swing statically stable."""
+def _execute(plan, board):
+    """The planned steps executed by the scripted crawl from a level start (raises if not)."""
+    lift = np.array([0.0, 0.0, FOOT_RADIUS])
+    feet = plan.start_stance + lift
+    pose = np.r_[feet[:, :2].mean(axis=0), feet[:, 2].mean() - FOOT_RADIUS + 0.14, 0, 0, 0]
+    pose[5] = heading_of(feet)
+    steps = [ExecStep(s.foot, s.p_WF + lift) for s in plan.steps]
+    return execute(feet, pose, steps, board, ExecParams())
+
+
+def _check_plan(plan, hm, params, board=None):
+    """Every step executable by the crawl's leg IK, every swing statically stable."""
     prev = plan.start_stance
     for step in plan.steps:
         moved = np.flatnonzero(np.any(step.stance != prev, axis=1))
@@ -131,14 +152,14 @@ def _check_plan(plan, hm, params):
         np.testing.assert_array_equal(step.stance[step.foot], step.p_WF)
         r, c = hm.cell(step.p_WF[0], step.p_WF[1])
         assert step.p_WF[2] == hm.heights[r, c]
-        body = np.r_[step.stance[:, :2].mean(axis=0), step.stance[:, 2].mean() + params.body_height]
-        for i, leg in enumerate(LEGS):
-            leg_ik(leg, step.stance[i] - body + np.array([0.0, 0.0, FOOT_RADIUS]))
         stance = [i for i in range(4) if i != step.foot]
         tri = prev[stance, :2]
         sway = 0.5 * prev[:, :2].mean(axis=0) + 0.5 * tri.mean(axis=0)
         assert _point_in_triangle_margin(sway, tri) >= params.support_margin
         prev = step.stance
+    # Exact: the crawl's own IK over every sample of every step (CrawlError if any fails).
+    executed = _execute(plan, hm if board is None else board)
+    assert len(executed.steps) == len(plan.steps)
 
 
 @pytest.mark.parametrize("kind", ["flat", "rocks", "gaps"])
@@ -216,3 +237,87 @@ def test_crawl_climbs_steps_board():
         assert abs(step.p_WF[2] - prev[step.foot, 2]) <= params.max_step_height
         prev = step.stance
     _check_plan(plan, hm, params)
+
+
+def test_planned_steps_pass_the_crawls_leg_ik_where_the_four_feet_body_did_not():
+    # The start where the old reach model (body over the four feet, yaw 0) planned lf's
+    # step with hip roll 0.607 > 0.6 rad: the crawl's body over three feet cannot do it.
+    board = generate_board(TerrainParams(kind="gaps", size_x=1.0, size_y=0.6), seed=1)
+    hm = height_map_from_board(board, (-0.3, 0.7), (-0.3, 0.3), 0.01)
+    c, s = math.cos(0.008275), math.sin(0.008275)
+    start = nominal_foot_positions()[:, :2] @ np.array([[c, s], [-s, c]]) + [0.02703, -0.02135]
+    params = CrawlParams()
+    plan = plan_crawl(hm, start, (0.25, 0.0), params, time_limit=10.0, ground=board)
+    assert plan.status is PlanStatus.SUCCESS
+    _check_plan(plan, hm, params, board)
+
+
+def _flat_feet():
+    feet = nominal_foot_positions()
+    feet[:, 2] = FOOT_RADIUS  # foot centres on flat ground at height 0
+    return feet
+
+
+def test_swing_pose_closed_form():
+    p = ExecParams()
+    feet = _flat_feet()
+    new = feet[2] + [0.03, 0.0, 0.0]  # lh steps 3 cm forward
+    pose = swing_pose(feet, 2, new, p)
+    centroid = feet[[0, 1, 3], :2].mean(axis=0)
+    away = (centroid - feet[2, :2]) / np.linalg.norm(centroid - feet[2, :2])
+    np.testing.assert_allclose(pose[:2], centroid + p.shift_margin * away, atol=1e-15)
+    assert pose[2] == pytest.approx(p.standing_height, abs=1e-15)  # within reach: not lowered
+    assert pose[3] == 0.0 and pose[4] == 0.0
+    # Heading of the four feet after the step: front midpoint (0.101, 0), hind (-0.086, 0).
+    assert pose[5] == pytest.approx(math.atan2(0.0, 0.101 + 0.086), abs=1e-15)
+    far = feet[0] + [0.08, 0.0, 0.0]  # lf 8 cm ahead: beyond MAX_LEG_EXTENSION at 0.14 m
+    low = swing_pose(feet, 0, np.stack([feet[0], far]), p)
+    assert low.shape == (2, 6) and low[0, 2] == pytest.approx(p.standing_height, abs=1e-15)
+    assert low[1, 2] < p.standing_height
+    body = np.r_[low[1, :3]]
+    hip = body + LEG_GEOMETRY["lf"].p_BH
+    assert np.linalg.norm(far - [0, 0, p.press] - hip) <= MAX_LEG_EXTENSION
+
+
+def test_step_reachable_agrees_with_the_crawls_execution():
+    p = ExecParams()
+    board = HeightMap(origin=(-0.5, -0.5), resolution=0.01, heights=np.zeros((101, 101)))
+    feet = _flat_feet()
+    g = np.arange(-0.08, 0.081, 0.02)
+    dx, dy = np.meshgrid(g, g)
+    cand = feet[0] + np.stack([dx.ravel(), dy.ravel(), np.zeros(dx.size)], axis=-1)
+    mask = step_reachable(feet, 0, cand, p, board)
+    level = np.r_[feet[:, :2].mean(axis=0), p.standing_height, 0.0, 0.0, 0.0]
+    executed = []
+    for q in cand:
+        try:
+            execute(feet, level, [ExecStep(0, q)], board, p)
+            executed.append(True)
+        except CrawlError:
+            executed.append(False)
+    assert 0 < mask.sum() < len(mask)  # both kinds among the candidates
+    np.testing.assert_array_equal(mask, executed)
+
+
+def test_crawl_model_bad_execution_params():
+    hm = _board_map("flat")
+    with pytest.raises(CrawlError, match="standing_height"):
+        plan_crawl(
+            hm, nominal_foot_positions()[:, :2], (0.2, 0.0), crawl=ExecParams(standing_height=0.5)
+        )
+
+
+def test_leg_ik_feasible_is_where_leg_ik_succeeds():
+    rng = np.random.default_rng(0)
+    for leg in ("lf", "rf", "lh", "rh"):
+        hip = LEG_GEOMETRY[leg].p_BH
+        pts = hip + rng.uniform([-0.12, -0.12, -0.2], [0.12, 0.12, 0.05], size=(400, 3))
+        mask = leg_ik_feasible(leg, pts)
+        for p, ok in zip(pts, mask, strict=True):
+            try:
+                leg_ik(leg, p)
+                assert ok
+            except RepertoireError:
+                assert not ok
+        assert 50 < mask.sum() < 350  # both kinds among the samples
+    assert leg_ik_feasible("lf", np.zeros((2, 5, 3))).shape == (2, 5)

@@ -13,10 +13,11 @@ from repertoire.diagrams.littledog_transfer import (
     plan_transfer,
     source_board,
 )
+from repertoire.planning.footstep.quadruped import CrawlParams as PlannerParams
+from repertoire.planning.footstep.quadruped import flat_on_ground
 from repertoire.planning.littledog_crawl import (
     CrawlParams,
     choose_footholds,
-    foothold_ok,
     plan_crawl,
     plan_to_steps,
 )
@@ -109,4 +110,12 @@ def test_perturbed_start_snaps_to_the_nearest_flat_start():
     got = flat_offset(board, wanted, -0.16, params)
     assert np.max(np.abs(got - wanted)) <= 0.04 + 1e-12
     _, feet, _ = crossing_start(board, 0.0, 0.25, params.standing_height, got, -0.16)
-    assert np.all(foothold_ok(board, feet[:, :2], params))
+    assert np.all(flat_on_ground(board, feet[:, :2], PlannerParams()))
+    # Nearest first: every grid offset closer to the wanted one has a foot off flat ground.
+    g = np.arange(-8, 9) * 0.005
+    for dx in g:
+        for dy in g:
+            if dx * dx + dy * dy < float(np.sum((got - wanted) ** 2)) - 1e-12:
+                off = wanted + [dx, dy]
+                _, f, _ = crossing_start(board, 0.0, 0.25, params.standing_height, off, -0.16)
+                assert not np.all(flat_on_ground(board, f[:, :2], PlannerParams()))

@@ -166,18 +166,9 @@ def leg_ik(leg: str, p_BF, *, check_limits: bool = True) -> np.ndarray:
             outside the joint limits.
     """
     g = leg_geometry(leg)
-    p = _as_angles(p_BF, "p_BF")
-    r = p - np.asarray(g.p_BH)
-    rx, ry, rz = r[..., 0], r[..., 1], r[..., 2]
-    a = g.pitch_offset_y
-    d2_yz = ry**2 + rz**2 - a**2
-    L1, L2 = g.upper_length, g.lower_length
-    vx = rx
-    vz = -np.sqrt(np.maximum(d2_yz, 0.0))
-    D2 = vx**2 + vz**2
-    cos_knee = (D2 - L1**2 - L2**2) / (2.0 * L1 * L2)
-    bad = (d2_yz < 0.0) | (cos_knee > 1.0 + 1e-12) | (cos_knee < -1.0 - 1e-12)
+    q, bad, D2 = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"))
     if np.any(bad):
+        L1, L2, a = g.upper_length, g.lower_length, g.pitch_offset_y
         reach = float(np.ravel(np.sqrt(np.maximum(D2, 0.0)))[np.argmax(np.ravel(bad))])
         by = max(reach - (L1 + L2), abs(L1 - L2) - reach, 0.0)
         raise RepertoireError(
@@ -185,12 +176,6 @@ def leg_ik(leg: str, p_BF, *, check_limits: bool = True) -> np.ndarray:
             f"{reach:.4f} m; reachable range [{abs(L1 - L2):.4f}, {L1 + L2:.4f}] m and at least "
             f"{abs(a):.3f} m from the roll axis; missed by {by:.4f} m)"
         )
-    knee = g.knee_sign * np.arccos(np.clip(cos_knee, -1.0, 1.0))
-    alpha = np.arctan2(-vx, -vz)
-    pitch = alpha - np.arctan2(L2 * np.sin(knee), L1 + L2 * np.cos(knee))
-    roll = np.arctan2(rz, ry) - np.arctan2(vz, a)
-    roll = (roll + np.pi) % (2.0 * np.pi) - np.pi
-    q = np.stack([roll, pitch, knee], axis=-1)
     if check_limits:
         lo, hi = np.asarray(g.lower), np.asarray(g.upper)
         out = (q < lo - 1e-9) | (q > hi + 1e-9)
@@ -202,6 +187,42 @@ def leg_ik(leg: str, p_BF, *, check_limits: bool = True) -> np.ndarray:
                 f"outside the joint limits [{lo[idx[-1]]}, {hi[idx[-1]]}] rad"
             )
     return q
+
+
+def _leg_ik_solve(g: LegGeometry, p: np.ndarray):
+    """Closed-form IK of :func:`leg_ik`: angles, out-of-reach mask, squared leg-plane reach."""
+    r = p - np.asarray(g.p_BH)
+    rx, ry, rz = r[..., 0], r[..., 1], r[..., 2]
+    a = g.pitch_offset_y
+    d2_yz = ry**2 + rz**2 - a**2
+    L1, L2 = g.upper_length, g.lower_length
+    vx = rx
+    vz = -np.sqrt(np.maximum(d2_yz, 0.0))
+    D2 = vx**2 + vz**2
+    cos_knee = (D2 - L1**2 - L2**2) / (2.0 * L1 * L2)
+    bad = (d2_yz < 0.0) | (cos_knee > 1.0 + 1e-12) | (cos_knee < -1.0 - 1e-12)
+    knee = g.knee_sign * np.arccos(np.clip(cos_knee, -1.0, 1.0))
+    alpha = np.arctan2(-vx, -vz)
+    pitch = alpha - np.arctan2(L2 * np.sin(knee), L1 + L2 * np.cos(knee))
+    roll = np.arctan2(rz, ry) - np.arctan2(vz, a)
+    roll = (roll + np.pi) % (2.0 * np.pi) - np.pi
+    return np.stack([roll, pitch, knee], axis=-1), bad, D2
+
+
+def leg_ik_feasible(leg: str, p_BF) -> np.ndarray:
+    """Where :func:`leg_ik` (joint limits checked) succeeds, without raising: a mask.
+
+    Args:
+        leg: leg prefix.
+        p_BF: foot centres in the body frame, shape ``(..., 3)``.
+
+    Returns:
+        Boolean array of shape ``p_BF.shape[:-1]``: in reach and within the joint limits.
+    """
+    g = leg_geometry(leg)
+    q, bad, _ = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"))
+    lo, hi = np.asarray(g.lower), np.asarray(g.upper)
+    return ~bad & np.all((q >= lo - 1e-9) & (q <= hi + 1e-9), axis=-1)
 
 
 def nominal_foot_positions(

@@ -13,10 +13,18 @@ the feet's centroid), and keeps a candidate only if
 - the step up or down is at most ``max_step_height``;
 - the swing clears the ground: the highest cell under the straight swing line
   is at most ``swing_clearance`` above the higher of the two footholds;
-- every leg reaches its foothold by the closed-form leg IK
-  (:func:`~repertoire.models.littledog.kinematics.leg_ik`, joint limits
-  checked), with the body level, its origin above the four feet's centroid at
-  ``body_height`` over their mean height (yaw 0: the body faces +x);
+- the executing crawl (:mod:`repertoire.planning.littledog_crawl`, parameters
+  ``crawl``) can do the step: every leg's closed-form IK
+  (:func:`~repertoire.models.littledog.kinematics.leg_ik`, joint limits checked)
+  holds for every foot command of the step (lift delay, swing over the ground,
+  settle) with the body at the crawl's own pose for it
+  (:func:`~repertoire.planning.littledog_crawl.swing_pose`: over the three stance
+  feet, heading from the four feet, lowered to keep the legs within reach), by
+  :func:`~repertoire.planning.littledog_crawl.step_reachable` (one definition
+  for the planner and the crawl). The swing's ground is ``ground`` (the exact
+  board when given, else the map's cell heights);
+- with an exact ``ground``, the foot's landing spot is flat on it too
+  (:func:`flat_on_ground`: the map's cell centres miss edges between them);
 - during the swing the body projection lies inside the support triangle of the
   three stance feet with ``support_margin``; the body is taken as shifted by
   ``body_shift`` from the four feet's centroid towards the triangle's centroid
@@ -37,15 +45,16 @@ import dataclasses
 import math
 
 import numpy as np
-from repertoire.models.littledog.kinematics import (
-    FOOT_RADIUS,
-    LEGS,
-    STANDING_HEIGHT,
-    leg_ik,
-    nominal_foot_positions,
-)
+from repertoire.models.littledog.kinematics import FOOT_RADIUS, LEGS, nominal_foot_positions
 from repertoire.planning.footstep.search import SearchResult, anytime_search, search
 from repertoire.planning.footstep.types import FootstepError, GridError, PlanStatus
+from repertoire.planning.littledog_crawl import CrawlParams as ExecutionParams
+from repertoire.planning.littledog_crawl import (
+    foothold_ok,
+    heading_of,
+    joint_angles,
+    step_reachable,
+)
 from scipy import ndimage
 
 from repertoire.errors import RepertoireError
@@ -113,6 +122,13 @@ class HeightMap:
             self.origin[1] + np.asarray(row) * self.resolution,
         )
 
+    def height(self, x, y) -> np.ndarray:
+        """Heights of the cells holding world points (x, y); 0 off the map (like a board)."""
+        row, col = self.cell(*np.broadcast_arrays(x, y))
+        r = np.clip(row, 0, self.shape[0] - 1)
+        c = np.clip(col, 0, self.shape[1] - 1)
+        return np.where(self.inside(row, col), self.heights[r, c], 0.0)
+
     def roughness(self, radius: float) -> np.ndarray:
         """Height range (max - min) within ``radius`` of each cell, shape like heights."""
         r = max(int(math.ceil(radius / self.resolution - 1e-9)), 0)
@@ -174,7 +190,6 @@ class CrawlParams:
         order: leg indices (into LEGS = lf, rf, lh, rh) in crawl order.
         offsets_x: candidate foothold offsets along x from the nominal position (m).
         offsets_y: candidate foothold offsets along y (m).
-        body_height: body origin above the feet's mean ground height (m).
         flat_radius: radius of the flatness check around a foothold (m).
         max_roughness: largest height range allowed within ``flat_radius`` (m).
         max_step_height: largest height change of one foot (m).
@@ -191,7 +206,6 @@ class CrawlParams:
         default_factory=lambda: [-0.02, 0.0, 0.02, 0.04, 0.06]
     )
     offsets_y: list[float] = dataclasses.field(default_factory=lambda: [-0.02, 0.0, 0.02])
-    body_height: float = STANDING_HEIGHT - FOOT_RADIUS
     flat_radius: float = 0.012
     max_roughness: float = 0.006
     max_step_height: float = 0.05
@@ -215,7 +229,6 @@ class CrawlParams:
             if not all(math.isfinite(v) for v in getattr(self, name)):
                 raise FootstepError(f"crawl {name} must be finite, got {getattr(self, name)}")
         for name in (
-            "body_height",
             "flat_radius",
             "max_step_height",
             "swing_clearance",
@@ -303,20 +316,17 @@ def _point_in_triangle_margin(p: np.ndarray, tri: np.ndarray) -> float:
     return d
 
 
-def _reachable(leg: str, p_BF: np.ndarray) -> np.ndarray:
-    """Mask of rows of p_BF (K x 3) the leg IK solves within joint limits.
+def flat_on_ground(ground, xy, params: CrawlParams) -> np.ndarray:
+    """True where a foot at each point of ``xy`` (M x 2 or more columns) stands on flat ground.
 
-    One vectorised call when every row is reachable (the common case); a batch
-    that fails is split in halves, so the calls grow with the failures only.
+    The height spread of ``ground`` (an exact height function, e.g. the board the map
+    was sampled from) under the foot, within its radius ``FOOT_RADIUS`` (centre and
+    two rings, :func:`~repertoire.planning.littledog_crawl.foothold_ok`), at most
+    ``max_roughness``: the map's cell centres miss edges between them, and a foot
+    landing on an edge slides off.
     """
-    try:
-        leg_ik(leg, p_BF)
-        return np.ones(len(p_BF), dtype=bool)
-    except RepertoireError:
-        if len(p_BF) == 1:
-            return np.zeros(1, dtype=bool)
-    mid = len(p_BF) // 2
-    return np.concatenate([_reachable(leg, p_BF[:mid]), _reachable(leg, p_BF[mid:])])
+    rule = ExecutionParams(edge_radius=FOOT_RADIUS, flat_tolerance=params.max_roughness)
+    return foothold_ok(ground, np.asarray(xy, dtype=float)[:, :2], rule)
 
 
 class CrawlModel:
@@ -324,19 +334,34 @@ class CrawlModel:
 
     Args:
         height_map: the terrain.
-        start_xy: the four start footholds' (x, y), shape (4, 2), LEGS order.
+        start_xy: the four start footholds' (x, y), shape (4, 2), LEGS order, or
+            (x, y, z) ground contact points (4, 3) (default z: the map's); each foot
+            stays there exactly until it moves, then it steps onto cell centres.
         goal_xy: goal point for the feet's centroid (m).
         params: model parameters (validated).
+        crawl: parameters of the crawl that executes the plan (its reach decides).
+        ground: terrain with ``height(x, y)`` the swings clear (default: the map).
 
     Raises:
         FootstepError: bad parameters, a start foothold off the map or on ground
             too steep, a start stance out of reach or unstable, a goal off the map.
     """
 
-    def __init__(self, height_map: HeightMap, start_xy, goal_xy, params: CrawlParams) -> None:
+    def __init__(
+        self,
+        height_map: HeightMap,
+        start_xy,
+        goal_xy,
+        params: CrawlParams,
+        crawl: ExecutionParams | None = None,
+        ground=None,
+    ) -> None:
         params.validate()
         self.map = height_map
         self.params = params
+        self.crawl = ExecutionParams() if crawl is None else crawl
+        self.crawl.validate()
+        self.ground = height_map if ground is None else ground
         self._rough = height_map.roughness(params.flat_radius)
         self._nominal = nominal_foot_positions()[:, :2]
         goal = np.asarray(goal_xy, dtype=float)
@@ -346,13 +371,26 @@ class CrawlModel:
             raise FootstepError(f"crawl goal {goal.tolist()} is outside the height map")
         self.goal = goal
         start = np.asarray(start_xy, dtype=float)
-        if start.shape != (4, 2) or not np.all(np.isfinite(start)):
-            raise FootstepError(f"crawl start footholds must be finite, shape (4, 2); got {start}")
+        if start.shape not in ((4, 2), (4, 3)) or not np.all(np.isfinite(start)):
+            raise FootstepError(
+                f"crawl start footholds must be finite, shape (4, 2) or (4, 3); got {start}"
+            )
         rows, cols = height_map.cell(start[:, 0], start[:, 1])
         if not np.all(height_map.inside(rows, cols)):
             raise FootstepError(f"crawl start footholds {start.tolist()} leave the height map")
+        # A foot keeps its exact start foothold until it moves (the crawl does not snap it).
+        z0 = start[:, 2] if start.shape[1] == 3 else height_map.heights[rows, cols]
+        self._start_feet = np.column_stack([start[:, :2], z0])
+        # An exact ground judges the exact start footholds (the map, the cells holding them).
+        exact = None if self.ground is height_map else flat_on_ground(self.ground, start, params)
         for i in range(4):
-            if self._rough[rows[i], cols[i]] > params.max_roughness:
+            if exact is not None and not exact[i]:
+                raise FootstepError(
+                    f"crawl start foothold of {LEGS[i]} at {start[i].tolist()} is on ground too "
+                    f"steep: height range within {FOOT_RADIUS} m on the exact ground > "
+                    f"max_roughness {params.max_roughness} m"
+                )
+            if exact is None and self._rough[rows[i], cols[i]] > params.max_roughness:
                 raise FootstepError(
                     f"crawl start foothold of {LEGS[i]} at {start[i].tolist()} is on ground too "
                     f"steep: height range {self._rough[rows[i], cols[i]]:.4f} m within "
@@ -362,8 +400,20 @@ class CrawlModel:
             cells=tuple((int(r), int(c)) for r, c in zip(rows, cols, strict=True)), phase=0
         )
         feet = self.footholds(self._start)
-        if not all(_reachable(LEGS[i], self._body_frame(feet, feet[i])[None])[0] for i in range(4)):
-            raise FootstepError(f"crawl start stance {feet.tolist()} is out of the legs' reach")
+        # The crawl starts level over the four feet at its standing height.
+        centres = feet + np.array([0.0, 0.0, FOOT_RADIUS])
+        c = centres.mean(axis=0)
+        level = [c[0], c[1], feet[:, 2].mean() + self.crawl.standing_height]
+        try:
+            joint_angles(
+                np.array([*level, 0.0, 0.0, heading_of(centres)]),
+                centres - np.array([0.0, 0.0, self.crawl.press]),
+                "crawl start stance",
+            )
+        except RepertoireError as e:
+            raise FootstepError(
+                f"crawl start stance {feet.tolist()} is out of the legs' reach: {e}"
+            ) from e
         self._max_travel = (
             math.hypot(
                 max(abs(v) for v in params.offsets_x) + 0.5 * height_map.resolution,
@@ -380,19 +430,17 @@ class CrawlModel:
         return 0.0751 + 0.102 + 0.036
 
     def footholds(self, state: CrawlState) -> np.ndarray:
-        """The four footholds (4 x 3, ground contact points) of a state."""
+        """The four footholds (4 x 3, ground contact points) of a state.
+
+        Cell centres, except a foot in its start cell: its exact start foothold.
+        """
         rows = np.array([c[0] for c in state.cells])
         cols = np.array([c[1] for c in state.cells])
         x, y = self.map.center(rows, cols)
-        return np.stack([x, y, self.map.heights[rows, cols]], axis=-1)
-
-    def _body_frame(self, feet: np.ndarray, p_WF: np.ndarray) -> np.ndarray:
-        """Foot centre(s) p_WF (..., 3 ground points) in the body frame of stance ``feet``."""
-        body = np.array(
-            [feet[:, 0].mean(), feet[:, 1].mean(), feet[:, 2].mean() + self.params.body_height]
-        )
-        p = np.asarray(p_WF, dtype=float) - body
-        return p + np.array([0.0, 0.0, FOOT_RADIUS])
+        feet = np.stack([x, y, self.map.heights[rows, cols]], axis=-1)
+        at_start = [c == s for c, s in zip(state.cells, self._start.cells, strict=True)]
+        feet[at_start] = self._start_feet[at_start]
+        return feet
 
     # --- the StepModel protocol ---
     def start(self) -> CrawlState:
@@ -450,26 +498,16 @@ class CrawlModel:
         if _point_in_triangle_margin(sway, tri) < p.support_margin:
             return []
         idx = np.flatnonzero(keep)
+        if len(idx) and self.ground is not self.map:
+            x_new, y_new = m.center(rows[idx], cols[idx])
+            idx = idx[flat_on_ground(self.ground, np.column_stack([x_new, y_new]), p)]
         if len(idx) == 0:
             return []
         x_new, y_new = m.center(rows[idx], cols[idx])
         p_new = np.stack([x_new, y_new, z_new[idx]], axis=-1)  # K x 3
-        # Reach of all four legs at the body pose after the step.
-        K = len(idx)
-        new_feet = np.repeat(feet[None], K, axis=0)
-        new_feet[:, leg] = p_new
-        body = np.stack(
-            [
-                new_feet[:, :, 0].mean(axis=1),
-                new_feet[:, :, 1].mean(axis=1),
-                new_feet[:, :, 2].mean(axis=1) + p.body_height,
-            ],
-            axis=-1,
-        )
-        p_BF = new_feet - body[:, None, :] + np.array([0.0, 0.0, FOOT_RADIUS])
-        reach = np.ones(K, dtype=bool)
-        for i in range(4):
-            reach &= _reachable(LEGS[i], p_BF[:, i])
+        # The crawl's leg IK for the whole step at its own body pose (foot centres).
+        lift = np.array([0.0, 0.0, FOOT_RADIUS])
+        reach = step_reachable(feet + lift, leg, p_new + lift, self.crawl, self.ground)
         out = []
         next_phase = (state.phase + 1) % 4
         for j in np.flatnonzero(reach):
@@ -491,12 +529,15 @@ def plan_crawl(
     max_expansions: int = 50_000,
     anytime: bool = False,
     weight: float = 3.0,
+    crawl: ExecutionParams | None = None,
+    ground=None,
 ) -> CrawlPlan:
     """Plans a LittleDog crawl on a height map.
 
     Args:
         height_map: the terrain (e.g. from :func:`height_map_from_board`).
-        start_xy: the four start footholds' (x, y), shape (4, 2), LEGS order (lf, rf, lh, rh).
+        start_xy: the four start footholds' (x, y), shape (4, 2), LEGS order (lf, rf, lh, rh),
+            or their ground contact points (4, 3) (see :class:`CrawlModel`).
         goal_xy: goal point for the feet's centroid.
         params: crawl model parameters; default :class:`CrawlParams`.
         time_limit: wall-time budget (s).
@@ -505,11 +546,15 @@ def plan_crawl(
             remains; the returned plan is the cheapest success.
         weight: heuristic weight of the single search when ``anytime`` is False (the
             plan costs at most ``weight`` times the lattice optimum; 1 = optimal, slow).
+        crawl: parameters of the executing crawl (default
+            :class:`repertoire.planning.littledog_crawl.CrawlParams`).
+        ground: terrain with ``height(x, y)`` for the swings' clearance in the reach
+            check, e.g. the exact board the map was sampled from (default: the map).
 
     Raises:
         FootstepError: see :class:`CrawlModel` and the search's budget checks.
     """
-    model = CrawlModel(height_map, start_xy, goal_xy, params or CrawlParams())
+    model = CrawlModel(height_map, start_xy, goal_xy, params or CrawlParams(), crawl, ground)
     if anytime:
         results = anytime_search(model, max_expansions=max_expansions, time_limit=time_limit)
     else:

@@ -83,7 +83,7 @@ def test_unreachable_band_on_both_backends():
 
 
 def test_compiled_heap_pops_in_tuple_order():
-    from repertoire.planning.footstep.fastcore import _heap_pop, _heap_push
+    from repertoire.planning.footstep.fastkernels import _heap_pop, _heap_push
 
     rng = np.random.default_rng(0)
     n = 500
@@ -288,12 +288,12 @@ def test_numba_cache_directory_is_writable_for_every_compiled_function():
     import os
 
     import numba.core.registry
-    from repertoire.planning.footstep import fastcore, footprint, heuristic
+    from repertoire.planning.footstep import fastcore, fastkernels, footprint, heuristic
 
     fastcore.warm_up()
     compiled = [
         obj
-        for mod in (fastcore, footprint, heuristic)
+        for mod in (fastcore, fastkernels, footprint, heuristic)
         for obj in vars(mod).values()
         if isinstance(obj, numba.core.registry.CPUDispatcher)
     ]
@@ -325,3 +325,44 @@ def test_cost_to_go_is_shared_by_plans_on_the_same_map_and_goal():
     edited = OccupancyGrid(occ, sc.grid.resolution, sc.grid.origin, sc.grid.heights)
     fresh = BipedStepModel(edited, sc.start, sc.start_foot, sc.goal, table, opts)
     assert fresh.h_lazy is not model.h_lazy and fresh.h_lazy.settled < settled
+
+
+def test_compiled_yaw_wrap_and_bin_equal_the_modulo_formulas_bit_for_bit():
+    import math
+
+    from repertoire.planning.footstep.fastkernels import _wrap, _yaw_bin
+
+    rng = np.random.default_rng(3)
+    pi = math.pi
+    edge = [-pi, pi, -3 * pi, 3 * pi, 0.0, -0.0, 1e-17, -1e-17, 2 * pi, -2 * pi, 5 * pi, -7.5]
+    near = [pi + d for d in (-1e-15, 1e-15)] + [-pi + d for d in (-1e-15, 1e-15)]
+    values = edge + near + rng.uniform(-4 * pi, 4 * pi, 3000).tolist()
+    for t in values:
+        want = (t + pi) % (2.0 * pi) - pi
+        got = _wrap(t)
+        assert got == want and math.copysign(1.0, got) == math.copysign(1.0, want), t
+    for nb in (4, 36, 72, 144):
+        scale = nb / (2.0 * pi)
+        for th in edge + near + rng.uniform(-pi, pi, 500).tolist():
+            assert _yaw_bin(th, scale, nb) == int(th * scale + nb + 0.5) % nb, (th, nb)
+
+
+def test_lattice_table_finds_keys_and_rehash_keeps_the_node_rows():
+    from repertoire.planning.footstep.fastkernels import _rehash, _slot
+
+    n_local = 72
+    keys = np.random.default_rng(4).choice(50_000 * n_local, 300, replace=False)
+    table = np.full((1024, 4), -1, np.int64)
+    inode = np.zeros((300, 2), np.int32)
+    for node, key in enumerate(keys.tolist()):
+        j = _slot(table, key, key // n_local, key % n_local)
+        assert table[j, 0] == -1  # every key is new
+        table[j, 0], table[j, 1] = key, node
+        inode[node, 1] = j
+    table = _rehash(table, n_local, inode, 1)
+    assert table.shape == (2048, 4)
+    for node, key in enumerate(keys.tolist()):
+        j = _slot(table, key, key // n_local, key % n_local)
+        assert table[j, 0] == key and table[j, 1] == node and inode[node, 1] == j
+    missing = int(keys.max()) + 1
+    assert table[_slot(table, missing, missing // n_local, missing % n_local), 0] == -1

@@ -89,14 +89,14 @@ def test_compiled_heap_pops_in_tuple_order():
     n = 500
     f = rng.integers(0, 20, n).astype(float)  # many ties on f, broken by h, then tie
     h = rng.integers(0, 5, n).astype(float)
-    heap = np.empty((n, 3))
+    heap = np.empty((n, 4))
     for k in range(n):
-        _heap_push(heap, k, f[k], h[k], k)
+        _heap_push(heap, k, f[k], h[k], k, 7 * k + 1)  # the node rides along
     ref = [(f[k], h[k], k) for k in range(n)]
     heapq.heapify(ref)
     for size in range(n, 0, -1):
         want = heapq.heappop(ref)
-        assert tuple(heap[0]) == want
+        assert tuple(heap[0, :3]) == want and heap[0, 3] == 7 * want[2] + 1
         _heap_pop(heap, size)
 
 

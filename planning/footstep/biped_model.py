@@ -505,7 +505,8 @@ class BipedStepModel:
             cell = int((x - ox) * self.inv_res) * ny + int((y - oy) * self.inv_res)
             return self.h_lazy.value(cell) * self.cost_per_m
         gx, gy = self.goal
-        return max(0.0, math.hypot(x - gx, y - gy) - self.tol) * self.cost_per_m
+        dx, dy = x - gx, y - gy  # sqrt, not hypot: the compiled core's formula, bit for bit
+        return max(0.0, math.sqrt(dx * dx + dy * dy) - self.tol) * self.cost_per_m
 
     # ------------------------------------------------------------------ StepModel
     def start(self) -> BipedState:

@@ -120,6 +120,7 @@ def _arastar(
     step_up, step_down = grid[11], grid[12]
     step_limits = step_up < np.inf or step_down < np.inf
     use_cells = hp.size > 0
+    pad, nyp = int(chk[0]), int(chk[1])
     res = 1.0 / inv_res
     h_radius = max(tol, res * 0.75) + 1e-9
     h_cmin = hp[8] / res if use_cells else 0.0  # cheapest cost per metre, shrunk by 1e-6
@@ -134,8 +135,9 @@ def _arastar(
     table = np.full((4096, 4), -1, np.int64)
     tg = table.view(np.float64)
     n_local = nyaw * 2 * n_hist  # keys per map cell: key = cell * n_local + local
-    heap = np.empty((1024, 3))  # open list rows (f, h, tie)
-    ent = np.empty((1024, 3))  # per tie: node, g at the push, lazy cell (-1: h exact)
+    # open list rows (f, h, tie, node), node -1 - node when h is a lower bound (lazy)
+    heap = np.empty((1024, 4))
+    ent = np.empty((1024, 2))  # per tie of a lazy row: g at the push, lazy cell
 
     sx, sy, sth = start[0], start[1], start[2]
     f0, a20, a10 = int(start[3]), int(start[4]), int(start[5])
@@ -168,10 +170,12 @@ def _arastar(
             if inode[k, 5] or inode[k, 6]:
                 if hsize == heap.shape[0]:
                     heap = _grow_rows(heap)
-                if hsize == ent.shape[0]:
-                    ent = _grow_rows(ent)
-                ent[hsize, 0], ent[hsize, 1], ent[hsize, 2] = k, fnode[k, 7], inode[k, 7]
-                _heap_push(heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize)
+                code = k
+                if inode[k, 7] >= 0:
+                    if hsize >= ent.shape[0]:
+                        ent = _grow_rows(ent)
+                    ent[hsize, 0], ent[hsize, 1], code = fnode[k, 7], inode[k, 7], -1 - k
+                _heap_push(heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize, code)
                 hsize += 1
                 if inode[k, 6] and inode[k, 8] >= 0:
                     table[inode[k, 8], 3] -= 1  # no longer INCONS
@@ -181,23 +185,28 @@ def _arastar(
         while hsize > 0:
             h = heap[0, 1]
             tp = heap[0, 2]
-            e = int(tp)
-            node = int(ent[e, 0])
-            lazy = int(ent[e, 2])
-            if lazy >= 0 and inode[node, 4] != it:  # a lower bound: the exact key, same tie
+            code = int(heap[0, 3])
+            node = code if code >= 0 else -1 - code
+            if code < 0 and inode[node, 4] != it:  # a lower bound: the exact key, same tie
+                e = int(tp)
+                lazy = int(ent[e, 1])
                 h = _rra_value(lazy, hf, hi, hocc, hp, hcount) * cost_per_m
-                gp = ent[e, 1]
+                gp = ent[e, 0]
                 _heap_pop(heap, hsize)
                 if inode[node, 7] == lazy:
                     fnode[node, 6], inode[node, 7] = h, -1
                 if h < np.inf:
-                    ent[e, 2] = -1
-                    _heap_push(heap, hsize - 1, gp + w * h, h, tp)
+                    _heap_push(heap, hsize - 1, gp + w * h, h, tp, node)
                 else:
                     hsize -= 1
                 continue
             _heap_pop(heap, hsize)
             hsize -= 1
+            if hsize > 0:  # the next candidate's node rows load while this one expands
+                nxt = int(heap[0, 3])
+                nxt = nxt if nxt >= 0 else -1 - nxt
+                _prefetch_row(inode, nxt)
+                _prefetch_row(fnode, nxt)
             if inode[node, 4] == it:
                 continue
             if inode[node, 7] >= 0:  # the node moved since this entry: its own h, exact
@@ -229,8 +238,20 @@ def _arastar(
             z1 = 0.0
             if step_limits:
                 z1 = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)[1]
+            # room for every successor, made here: an array reassigned inside the successor
+            # loop would cost atomic reference counts on each successor
+            r0, r1 = succ_ptr[row], succ_ptr[row + 1]
+            while count + (r1 - r0) > fnode.shape[0]:
+                fnode, inode = _grow_rows(fnode), _grow_rows(inode)
+            while hsize + (r1 - r0) > heap.shape[0]:
+                heap = _grow_rows(heap)
+            while use_cells and tie + (r1 - r0) > ent.shape[0]:
+                ent = _grow_rows(ent)
+            while 2 * (used + r1 - r0) > table.shape[0]:
+                table = _rehash(table, n_local, inode, 8)
+                tg = table.view(np.float64)
             mask = table.shape[0] - 1
-            for r in range(succ_ptr[row], succ_ptr[row + 1]):  # prefetch the table rows
+            for r in range(r0, r1):  # prefetch the table rows
                 dx, dy = succ_f[r, 0], succ_f[r, 1]
                 x2 = x + c * dx - s * dy
                 y2 = y + s * dx + c * dy
@@ -238,7 +259,7 @@ def _arastar(
                 local = (_yaw_bin(_wrap(th + succ_f[r, 2]), yaw_scale, nyaw) * 2 + nf) * n_hist
                 local += hist[a1, succ_a[r]]
                 _prefetch_row(table, (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask)
-            for r in range(succ_ptr[row], succ_ptr[row + 1]):
+            for r in range(r0, r1):
                 dx, dy = succ_f[r, 0], succ_f[r, 1]
                 x2 = x + c * dx - s * dy
                 y2 = y + s * dx + c * dy
@@ -247,7 +268,9 @@ def _arastar(
                 fy = (y2 - oy) * inv_res
                 if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                     continue
-                if not _foot_free(x2, y2, th2, grid, chk, occw, free, mbits, mrows):
+                if not free[(int(fx) + pad) * nyp + int(fy) + pad] and not _foot_free(
+                    x2, y2, th2, grid, chk, occw, free, mbits, mrows
+                ):  # the surely-free shortcut first (inline), then the masks
                     continue
                 if flat_limit < np.inf and (
                     _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
@@ -274,11 +297,12 @@ def _arastar(
                         # every path to the goal region is at least as long as the straight line
                         cx = ox + ((cell // ny) + 0.5) * res
                         cy = oy + ((cell % ny) + 0.5) * res
-                        lb2 = (math.hypot(cx - gx, cy - gy) - h_radius) * h_cmin
+                        lb2 = (math.sqrt((cx - gx) ** 2 + (cy - gy) ** 2) - h_radius) * h_cmin
                         h2 = max(lb, lb2, 0.0) * cost_per_m
                         lazy = cell
                 else:
-                    h2 = max(0.0, math.hypot(x2 - gx, y2 - gy) - tol) * cost_per_m
+                    ddx, ddy = x2 - gx, y2 - gy
+                    h2 = max(0.0, math.sqrt(ddx * ddx + ddy * ddy) - tol) * cost_per_m
                 if h2 == np.inf:
                     continue
                 cost = succ_f[r, 4]
@@ -290,7 +314,11 @@ def _arastar(
                 cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
                 local = (_yaw_bin(th2, yaw_scale, nyaw) * 2 + nf) * n_hist + hist[a1, a]
                 k2 = cell2 * n_local + local
-                j = _slot(table, k2, cell2, local)
+                # _slot written out here: an inlined call costs two atomic reference counts
+                mask = table.shape[0] - 1
+                j = (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask
+                while table[j, 0] != -1 and table[j, 0] != k2:
+                    j = (j + 1) & mask
                 idx = -1
                 closed_now = False
                 if table[j, 0] == k2:
@@ -306,8 +334,6 @@ def _arastar(
                         inode[idx, 8] = -1  # no longer in the table
                         idx = -1
                 if idx < 0:
-                    if count == fnode.shape[0]:
-                        fnode, inode = _grow_rows(fnode), _grow_rows(inode)
                     idx = count
                     count += 1
                     inode[idx, 4] = -1
@@ -320,9 +346,6 @@ def _arastar(
                     table[j, 1] = idx
                     table[j, 3] = -1 if closed_now else -2
                     tg[j, 2] = g2
-                    if 2 * used > table.shape[0]:
-                        table = _rehash(table, n_local, inode, 8)
-                        tg = table.view(np.float64)
                 else:
                     tg[j, 2] = g2
                 fnode[idx, 0], fnode[idx, 1], fnode[idx, 2], fnode[idx, 3] = (
@@ -335,12 +358,10 @@ def _arastar(
                 inode[idx, 0], inode[idx, 1], inode[idx, 2], inode[idx, 3] = nf, a1, a, node
                 inode[idx, 7] = lazy
                 if inode[idx, 6] == 0:
-                    if hsize == heap.shape[0]:
-                        heap = _grow_rows(heap)
-                    if tie == ent.shape[0]:
-                        ent = _grow_rows(ent)
-                    ent[tie, 0], ent[tie, 1], ent[tie, 2] = idx, g2, lazy
-                    _heap_push(heap, hsize, g2 + w * h2, h2, tie)
+                    code = idx
+                    if lazy >= 0:
+                        ent[tie, 0], ent[tie, 1], code = g2, lazy, -1 - idx
+                    _heap_push(heap, hsize, g2 + w * h2, h2, tie, code)
                     hsize += 1
                     tie += 1
         bound = w

@@ -32,24 +32,28 @@ def _less(f1, h1, t1, f2, h2, t2):
 
 
 @numba.njit(cache=True, inline="always")
-def _heap_push(heap, size, f, h, tie):
-    """Insert ``(f, h, tie)`` into a 4-ary heap of ``size`` rows ordered by the triple."""
+def _heap_push(heap, size, f, h, tie, node):
+    """Insert the row ``(f, h, tie, node)`` into a 4-ary heap of ``size`` rows.
+
+    Rows are ordered by ``(f, h, tie)`` (``tie`` unique); ``node`` rides along.
+    """
     i = size
     while i > 0:
         p = (i - 1) >> 2
         if _less(f, h, tie, heap[p, 0], heap[p, 1], heap[p, 2]):
-            heap[i, 0], heap[i, 1], heap[i, 2] = heap[p, 0], heap[p, 1], heap[p, 2]
+            for q in range(4):
+                heap[i, q] = heap[p, q]
             i = p
         else:
             break
-    heap[i, 0], heap[i, 1], heap[i, 2] = f, h, tie
+    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
 
 
 @numba.njit(cache=True, inline="always")
 def _heap_pop(heap, size):
     """Remove the root of a 4-ary heap of ``size`` rows (the caller read it first)."""
     size -= 1
-    f, h, tie = heap[size, 0], heap[size, 1], heap[size, 2]
+    f, h, tie, node = heap[size, 0], heap[size, 1], heap[size, 2], heap[size, 3]
     i = 0
     while True:
         c = 4 * i + 1
@@ -62,11 +66,12 @@ def _heap_pop(heap, size):
             ):
                 best = c2
         if _less(heap[best, 0], heap[best, 1], heap[best, 2], f, h, tie):
-            heap[i, 0], heap[i, 1], heap[i, 2] = heap[best, 0], heap[best, 1], heap[best, 2]
+            for q in range(4):
+                heap[i, q] = heap[best, q]
             i = best
         else:
             break
-    heap[i, 0], heap[i, 1], heap[i, 2] = f, h, tie
+    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
 
 
 @numba.njit(cache=True, inline="always")

@@ -366,3 +366,28 @@ def test_lattice_table_finds_keys_and_rehash_keeps_the_node_rows():
         assert table[j, 0] == key and table[j, 1] == node and inode[node, 1] == j
     missing = int(keys.max()) + 1
     assert table[_slot(table, missing, missing // n_local, missing % n_local), 0] == -1
+
+
+def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
+    import dataclasses
+
+    from repertoire.planning.footstep import plan_footsteps_anytime
+
+    sc = random_static_scene(1, n_strips=8, n_blocks=4)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    opts = PlannerOptions(time_limit=60.0)
+    ara = plan_footsteps_anytime(*args, opts, restarts=False)
+    runs = plan_footsteps_anytime(*args, opts)
+    assert [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
+    assert [r.weight for r in runs] == [3.0, 2.0, 1.5, 1.2, 1.0, 2.0, 1.5]
+    for a, b in zip(ara, runs, strict=False):  # ARA*'s plans come first, unchanged
+        assert a.plan.poses == b.plan.poses and a.plan.cost == b.plan.cost
+    costs = [r.plan.cost for r in runs]
+    assert costs[5] < costs[4] and costs[6] < costs[5]  # only cheaper plans are added
+    assert costs[6] == pytest.approx(21.8) and costs[4] == pytest.approx(26.05)
+    for r in runs[5:]:  # each one is a fresh weighted A* at its weight
+        fresh = plan_footsteps(*args, dataclasses.replace(opts, heuristic_weight=r.weight))
+        assert r.plan.poses == fresh.poses and r.plan.cost == fresh.cost
+        assert r.plan.status is PlanStatus.SUCCESS and 1.0 <= r.bound <= r.weight
+    elapsed = [r.elapsed_s for r in runs]
+    assert elapsed == sorted(elapsed) and elapsed[-1] < 60.0

@@ -83,20 +83,20 @@ def test_unreachable_band_on_both_backends():
 
 
 def test_compiled_heap_pops_in_tuple_order():
-    from repertoire.planning.footstep.fastcore import _heap_pop, _heap_push
+    from repertoire.planning.footstep.fastkernels import _heap_pop, _heap_push
 
     rng = np.random.default_rng(0)
     n = 500
     f = rng.integers(0, 20, n).astype(float)  # many ties on f, broken by h, then tie
     h = rng.integers(0, 5, n).astype(float)
-    heap = np.empty((n, 3))
+    heap = np.empty((n, 4))
     for k in range(n):
-        _heap_push(heap, k, f[k], h[k], k)
+        _heap_push(heap, k, f[k], h[k], k, 7 * k + 1)  # the node rides along
     ref = [(f[k], h[k], k) for k in range(n)]
     heapq.heapify(ref)
     for size in range(n, 0, -1):
         want = heapq.heappop(ref)
-        assert tuple(heap[0]) == want
+        assert tuple(heap[0, :3]) == want and heap[0, 3] == 7 * want[2] + 1
         _heap_pop(heap, size)
 
 
@@ -288,12 +288,12 @@ def test_numba_cache_directory_is_writable_for_every_compiled_function():
     import os
 
     import numba.core.registry
-    from repertoire.planning.footstep import fastcore, footprint, heuristic
+    from repertoire.planning.footstep import fastcore, fastkernels, footprint, heuristic
 
     fastcore.warm_up()
     compiled = [
         obj
-        for mod in (fastcore, footprint, heuristic)
+        for mod in (fastcore, fastkernels, footprint, heuristic)
         for obj in vars(mod).values()
         if isinstance(obj, numba.core.registry.CPUDispatcher)
     ]
@@ -325,3 +325,69 @@ def test_cost_to_go_is_shared_by_plans_on_the_same_map_and_goal():
     edited = OccupancyGrid(occ, sc.grid.resolution, sc.grid.origin, sc.grid.heights)
     fresh = BipedStepModel(edited, sc.start, sc.start_foot, sc.goal, table, opts)
     assert fresh.h_lazy is not model.h_lazy and fresh.h_lazy.settled < settled
+
+
+def test_compiled_yaw_wrap_and_bin_equal_the_modulo_formulas_bit_for_bit():
+    import math
+
+    from repertoire.planning.footstep.fastkernels import _wrap, _yaw_bin
+
+    rng = np.random.default_rng(3)
+    pi = math.pi
+    edge = [-pi, pi, -3 * pi, 3 * pi, 0.0, -0.0, 1e-17, -1e-17, 2 * pi, -2 * pi, 5 * pi, -7.5]
+    near = [pi + d for d in (-1e-15, 1e-15)] + [-pi + d for d in (-1e-15, 1e-15)]
+    values = edge + near + rng.uniform(-4 * pi, 4 * pi, 3000).tolist()
+    for t in values:
+        want = (t + pi) % (2.0 * pi) - pi
+        got = _wrap(t)
+        assert got == want and math.copysign(1.0, got) == math.copysign(1.0, want), t
+    for nb in (4, 36, 72, 144):
+        scale = nb / (2.0 * pi)
+        for th in edge + near + rng.uniform(-pi, pi, 500).tolist():
+            assert _yaw_bin(th, scale, nb) == int(th * scale + nb + 0.5) % nb, (th, nb)
+
+
+def test_lattice_table_finds_keys_and_rehash_keeps_the_node_rows():
+    from repertoire.planning.footstep.fastkernels import _rehash, _slot
+
+    n_local = 72
+    keys = np.random.default_rng(4).choice(50_000 * n_local, 300, replace=False)
+    table = np.full((1024, 4), -1, np.int64)
+    inode = np.zeros((300, 2), np.int32)
+    for node, key in enumerate(keys.tolist()):
+        j = _slot(table, key, key // n_local, key % n_local)
+        assert table[j, 0] == -1  # every key is new
+        table[j, 0], table[j, 1] = key, node
+        inode[node, 1] = j
+    table = _rehash(table, n_local, inode, 1)
+    assert table.shape == (2048, 4)
+    for node, key in enumerate(keys.tolist()):
+        j = _slot(table, key, key // n_local, key % n_local)
+        assert table[j, 0] == key and table[j, 1] == node and inode[node, 1] == j
+    missing = int(keys.max()) + 1
+    assert table[_slot(table, missing, missing // n_local, missing % n_local), 0] == -1
+
+
+def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
+    import dataclasses
+
+    from repertoire.planning.footstep import plan_footsteps_anytime
+
+    sc = random_static_scene(1, n_strips=8, n_blocks=4)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    opts = PlannerOptions(time_limit=60.0)
+    ara = plan_footsteps_anytime(*args, opts, restarts=False)
+    runs = plan_footsteps_anytime(*args, opts)
+    assert [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
+    assert [r.weight for r in runs] == [3.0, 2.0, 1.5, 1.2, 1.0, 2.0, 1.5]
+    for a, b in zip(ara, runs, strict=False):  # ARA*'s plans come first, unchanged
+        assert a.plan.poses == b.plan.poses and a.plan.cost == b.plan.cost
+    costs = [r.plan.cost for r in runs]
+    assert costs[5] < costs[4] and costs[6] < costs[5]  # only cheaper plans are added
+    assert costs[6] == pytest.approx(21.8) and costs[4] == pytest.approx(26.05)
+    for r in runs[5:]:  # each one is a fresh weighted A* at its weight
+        fresh = plan_footsteps(*args, dataclasses.replace(opts, heuristic_weight=r.weight))
+        assert r.plan.poses == fresh.poses and r.plan.cost == fresh.cost
+        assert r.plan.status is PlanStatus.SUCCESS and 1.0 <= r.bound <= r.weight
+    elapsed = [r.elapsed_s for r in runs]
+    assert elapsed == sorted(elapsed) and elapsed[-1] < 60.0

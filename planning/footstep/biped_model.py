@@ -321,7 +321,7 @@ class BipedStepModel:
         self.exact_checkers = exact
         self._tall_cache: dict[int, np.ndarray | None] = {}
         self.exact = chk_start = exact.checker(self.k0)
-        if not chk_start.is_free(sx, sy, sth):
+        if not chk_start.is_free(sx, sy, sth, shortcut=False):
             raise FootstepError(
                 f"start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) overlaps an obstacle "
                 "or the map edge"
@@ -332,7 +332,7 @@ class BipedStepModel:
         else:
             swing0 = pose3(initial_swing_pose, "initial_swing_pose")
         self.swing0 = swing0
-        if not chk_start.is_free(*swing0):
+        if not chk_start.is_free(*swing0, shortcut=False):
             raise FootstepError(
                 f"initial swing foot at ({swing0[0]:.3f}, {swing0[1]:.3f}) overlaps an obstacle "
                 "or the map edge"
@@ -505,7 +505,8 @@ class BipedStepModel:
             cell = int((x - ox) * self.inv_res) * ny + int((y - oy) * self.inv_res)
             return self.h_lazy.value(cell) * self.cost_per_m
         gx, gy = self.goal
-        return max(0.0, math.hypot(x - gx, y - gy) - self.tol) * self.cost_per_m
+        dx, dy = x - gx, y - gy  # sqrt, not hypot: the compiled core's formula, bit for bit
+        return max(0.0, math.sqrt(dx * dx + dy * dy) - self.tol) * self.cost_per_m
 
     # ------------------------------------------------------------------ StepModel
     def start(self) -> BipedState:

@@ -13,9 +13,12 @@ everything in arrays so that numba compiles it:
   with a lower bound of its value (the backward search's frontier key, the straight line
   to the goal) and gets its exact value when it reaches the top, then is reinserted with
   its own tie number, so states are expanded in exactly the Python loop's order;
-- duplicate detection is an open-addressing hash table from lattice keys (the model's
+- duplicate detection is an open-addressing table from lattice keys (the model's
   :meth:`~repertoire.planning.footstep.biped_model.BipedStepModel.lattice_key`, computed
-  here by the same formula) to node indices; nodes are named field arrays;
+  here by the same formula) to the node, its g and its search flags, so testing a
+  successor reads one table row and no other node's row; the keys of one map cell share
+  cache lines, and the rows of a state's successors are prefetched before they are read
+  (:mod:`~repertoire.planning.footstep.fastkernels`);
 - successor expansion reads the flattened table T (per history and stance foot);
 - footprint checks use the model's precomputed checker: the distance-transform shortcut,
   then an exact separating-axis test of the occupied cells of the pose's outer mask;
@@ -35,212 +38,29 @@ import time
 import numba
 import numpy as np
 from repertoire.planning.footstep.biped_model import BipedState, BipedStepModel
+from repertoire.planning.footstep.fastkernels import (
+    _cached_mask_bits,
+    _cached_masks,
+    _foot_free,
+    _grow_rows,
+    _heap_pop,
+    _heap_push,
+    _height_bounds,
+    _height_range,
+    _now,
+    _occupancy_words,
+    _prefetch_row,
+    _rehash,
+    _slot,
+    _swing_crosses,
+    _wrap,
+    _yaw_bin,
+)
 from repertoire.planning.footstep.heuristic import _rra_h, _rra_value
 from repertoire.planning.footstep.search import SearchResult
 from repertoire.planning.footstep.types import PlanStatus
 
 _STATUS = (PlanStatus.SUCCESS, PlanStatus.UNREACHABLE, PlanStatus.NODE_LIMIT, PlanStatus.TIME_LIMIT)
-
-
-@numba.njit(cache=True, inline="always")
-def _less(f1, h1, t1, f2, h2, t2):
-    if f1 != f2:
-        return f1 < f2
-    if h1 != h2:
-        return h1 < h2
-    return t1 < t2
-
-
-@numba.njit(cache=True)
-def _heap_push(heap, size, f, h, tie):
-    """Insert ``(f, h, tie)`` into a 4-ary heap of ``size`` rows ordered by the triple."""
-    i = size
-    while i > 0:
-        p = (i - 1) >> 2
-        if _less(f, h, tie, heap[p, 0], heap[p, 1], heap[p, 2]):
-            heap[i, 0], heap[i, 1], heap[i, 2] = heap[p, 0], heap[p, 1], heap[p, 2]
-            i = p
-        else:
-            break
-    heap[i, 0], heap[i, 1], heap[i, 2] = f, h, tie
-
-
-@numba.njit(cache=True)
-def _heap_pop(heap, size):
-    """Remove the root of a 4-ary heap of ``size`` rows (the caller read it first)."""
-    size -= 1
-    f, h, tie = heap[size, 0], heap[size, 1], heap[size, 2]
-    i = 0
-    while True:
-        c = 4 * i + 1
-        if c >= size:
-            break
-        best = c
-        for c2 in range(c + 1, min(c + 4, size)):
-            if _less(
-                heap[c2, 0], heap[c2, 1], heap[c2, 2], heap[best, 0], heap[best, 1], heap[best, 2]
-            ):
-                best = c2
-        if _less(heap[best, 0], heap[best, 1], heap[best, 2], f, h, tie):
-            heap[i, 0], heap[i, 1], heap[i, 2] = heap[best, 0], heap[best, 1], heap[best, 2]
-            i = best
-        else:
-            break
-    heap[i, 0], heap[i, 1], heap[i, 2] = f, h, tie
-
-
-@numba.njit(cache=True, inline="always")
-def _slot(table, key):
-    """Row of ``key`` in an open-addressing table of (key, value) rows, or of its empty slot."""
-    mask = table.shape[0] - 1
-    i = ((key * 0x9E3779B97F4A7C15) >> 17) & mask
-    while table[i, 0] != -1 and table[i, 0] != key:
-        i = (i + 1) & mask
-    return i
-
-
-@numba.njit(cache=True)
-def _rehash(table):
-    new = np.full((table.shape[0] * 2, 2), -1, np.int64)
-    for i in range(table.shape[0]):
-        if table[i, 0] != -1:
-            j = _slot(new, table[i, 0])
-            new[j, 0] = table[i, 0]
-            new[j, 1] = table[i, 1]
-    return new
-
-
-@numba.njit(cache=True)
-def _grow_rows(a):
-    b = np.empty((a.shape[0] * 2, a.shape[1]), a.dtype)
-    b[: a.shape[0]] = a
-    return b
-
-
-@numba.njit(cache=True)
-def _grow(a):
-    b = np.empty(a.size * 2, a.dtype)
-    b[: a.size] = a
-    return b
-
-
-@numba.njit(cache=True)
-def _foot_free(x, y, th, grid, chk, occw, free, mbits, mrows):
-    """The margin checker's answer: foot at (x, y, th) overlaps no occupied cell.
-
-    As :meth:`~repertoire.planning.footstep.footprint.FootprintChecker.is_free`: the
-    surely-free shortcut, then per mask row a 64-bit window of the padded occupancy against
-    the row's inner cells (overlapped for sure) and ring cells (exact separating axes).
-    """
-    ox, oy, inv_res = grid[0], grid[1], grid[2]
-    fx = (x - ox) * inv_res
-    fy = (y - oy) * inv_res
-    ix = int(fx)
-    iy = int(fy)
-    pad, nyp = int(chk[0]), int(chk[1])
-    if free[(ix + pad) * nyp + iy + pad]:
-        return True
-    sub, nb, yaw_scale, hl, hw, big_r = (
-        int(chk[2]),
-        int(chk[3]),
-        chk[4],
-        chk[5],
-        chk[6],
-        int(chk[7]),
-    )
-    fx -= ix
-    fy -= iy
-    qx = int(fx * sub)
-    qy = int(fy * sub)
-    if qx >= sub:
-        qx = sub - 1
-    if qy >= sub:
-        qy = sub - 1
-    m = ((int(th * yaw_scale + nb + 0.5) % nb) * sub + qx) * sub + qy
-    col = iy + pad - big_r  # bit of the mask's column offset -R
-    q = col >> 6
-    sh = np.uint64(col & 63)
-    back = np.uint64(64 - (col & 63))
-    one = np.uint64(1)
-    exact = False
-    c = s = ext_x = ext_y = lim_u = lim_v = 0.0
-    for r in range(mrows[m, 0], mrows[m, 1]):
-        row = ix + pad + r - big_r
-        word = occw[row, q] >> sh
-        if sh:
-            word |= occw[row, q + 1] << back
-        if word & mbits[m, r, 0]:  # an inner cell is occupied
-            return False
-        hit = word & mbits[m, r, 1]
-        if hit:
-            if not exact:
-                exact = True
-                c, s = math.cos(th), math.sin(th)
-                ext_x = (hl * abs(c) + hw * abs(s)) * inv_res + 0.5
-                ext_y = (hl * abs(s) + hw * abs(c)) * inv_res + 0.5
-                cell_u = 0.5 * (abs(c) + abs(s))
-                lim_u = hl * inv_res + cell_u
-                lim_v = hw * inv_res + cell_u
-            dx = r - big_r + 0.5 - fx
-            for jj in range(2 * big_r + 1):
-                if (hit >> np.uint64(jj)) & one:
-                    dy = jj - big_r + 0.5 - fy
-                    eps = 1e-9
-                    if (
-                        abs(dx) < ext_x - eps
-                        and abs(dy) < ext_y - eps
-                        and abs(dx * c + dy * s) < lim_u - eps
-                        and abs(-dx * s + dy * c) < lim_v - eps
-                    ):
-                        return False
-    return True
-
-
-@numba.njit(cache=True)
-def _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr):
-    """Min and max height over the exact footprint's outer mask (as FootprintChecker)."""
-    ox, oy, inv_res = grid[0], grid[1], grid[2]
-    pad, nyp, sub, nb, yaw_scale = int(ex[0]), int(ex[1]), int(ex[2]), int(ex[3]), ex[4]
-    fx = (x - ox) * inv_res
-    fy = (y - oy) * inv_res
-    ix = int(math.floor(fx))
-    iy = int(math.floor(fy))
-    base = (ix + pad) * nyp + iy + pad
-    qx = min(int((fx - ix) * sub), sub - 1)
-    qy = min(int((fy - iy) * sub), sub - 1)
-    m = ((int(th * yaw_scale + nb + 0.5) % nb) * sub + qx) * sub + qy
-    lo, hi = np.inf, -np.inf
-    for k in range(ex_ptr[m, 0], ex_ptr[m, 2]):
-        v = heights[base + ex_off[k]]
-        lo = min(lo, v)
-        hi = max(hi, v)
-    return lo, hi
-
-
-@numba.njit(cache=True)
-def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
-    lo, hi = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)
-    return hi - lo
-
-
-@numba.njit(cache=True)
-def _swing_crosses(tall, x0, y0, x1, y1, ox, oy, inv):
-    n = int(math.hypot(x1 - x0, y1 - y0) * inv * 2.0) + 2
-    nx, ny = tall.shape
-    for k in range(n + 1):
-        u = k / n
-        i = int(((x0 + u * (x1 - x0)) - ox) * inv)
-        j = int(((y0 + u * (y1 - y0)) - oy) * inv)
-        if 0 <= i < nx and 0 <= j < ny and tall[i, j]:
-            return True
-    return False
-
-
-@numba.njit(cache=True)
-def _now():
-    with numba.objmode(t="float64"):
-        t = time.perf_counter()
-    return t
 
 
 @numba.njit(cache=True)
@@ -300,34 +120,40 @@ def _arastar(
     step_up, step_down = grid[11], grid[12]
     step_limits = step_up < np.inf or step_down < np.inf
     use_cells = hp.size > 0
+    pad, nyp = int(chk[0]), int(chk[1])
     res = 1.0 / inv_res
     h_radius = max(tol, res * 0.75) + 1e-9
     h_cmin = hp[8] / res if use_cells else 0.0  # cheapest cost per metre, shrunk by 1e-6
     tol2 = tol * tol
-    two_pi = 2.0 * math.pi
     cap = 1024
     fnode = np.empty((cap, 8))  # x, y, yaw, t, swing_x, swing_y, h, g
-    # foot, a_prev2, a_prev1, parent, expanded in, open, incons, lazy cell (-1: h exact)
-    inode = np.zeros((cap, 8), np.int32)
-    table = np.full((4096, 2), -1, np.int64)
-    heap = np.empty((1024, 3))  # open list rows (f, h, tie)
-    ent = np.empty((1024, 3))  # per tie: node, g at the push, lazy cell (-1: h exact)
+    # foot, a_prev2, a_prev1, parent, expanded in, open, incons, lazy cell (-1: h exact),
+    # row in the lattice table
+    inode = np.zeros((cap, 9), np.int32)
+    # lattice table rows: key, node, g (float bits), flags = 2 * expanded in + incons;
+    # the successor test reads only this row (no node row of another state)
+    table = np.full((4096, 4), -1, np.int64)
+    tg = table.view(np.float64)
+    n_local = nyaw * 2 * n_hist  # keys per map cell: key = cell * n_local + local
+    # open list rows (f, h, tie, node), node -1 - node when h is a lower bound (lazy)
+    heap = np.empty((1024, 4))
+    ent = np.empty((1024, 2))  # per tie of a lazy row: g at the push, lazy cell
 
     sx, sy, sth = start[0], start[1], start[2]
     f0, a20, a10 = int(start[3]), int(start[4]), int(start[5])
-    key0 = (int((sx - ox) * inv_q + 0.5) * ky + int((sy - oy) * inv_q + 0.5)) * nyaw + int(
-        sth * yaw_scale + nyaw + 0.5
-    ) % nyaw
-    key0 = (key0 * 2 + f0) * n_hist + hist[a20, a10]
+    cell0 = int((sx - ox) * inv_q + 0.5) * ky + int((sy - oy) * inv_q + 0.5)
+    local0 = (_yaw_bin(sth, yaw_scale, nyaw) * 2 + f0) * n_hist + hist[a20, a10]
+    key0 = cell0 * n_local + local0
     for q, v in enumerate((sx, sy, sth, start[6], start[7], start[8], start[9], 0.0)):
         fnode[0, q] = v
     for q, v in enumerate((f0, a20, a10, -1, -1, 1, 0)):
         inode[0, q] = v
     inode[0, 7] = -1
     count = 1
-    j = _slot(table, key0)
-    table[j, 0] = key0
-    table[j, 1] = 0
+    j = _slot(table, key0, cell0, local0)
+    table[j, 0], table[j, 1], table[j, 3] = key0, 0, -2
+    tg[j, 2] = 0.0
+    inode[0, 8] = j
     used = 1
     best, best_h = 0, start[9]
     expansions = generated = merged = 0
@@ -344,34 +170,43 @@ def _arastar(
             if inode[k, 5] or inode[k, 6]:
                 if hsize == heap.shape[0]:
                     heap = _grow_rows(heap)
-                if hsize == ent.shape[0]:
-                    ent = _grow_rows(ent)
-                ent[hsize, 0], ent[hsize, 1], ent[hsize, 2] = k, fnode[k, 7], inode[k, 7]
-                _heap_push(heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize)
+                code = k
+                if inode[k, 7] >= 0:
+                    if hsize >= ent.shape[0]:
+                        ent = _grow_rows(ent)
+                    ent[hsize, 0], ent[hsize, 1], code = fnode[k, 7], inode[k, 7], -1 - k
+                _heap_push(heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize, code)
                 hsize += 1
+                if inode[k, 6] and inode[k, 8] >= 0:
+                    table[inode[k, 8], 3] -= 1  # no longer INCONS
                 inode[k, 5], inode[k, 6] = 1, 0
         tie = hsize
         status, end, exp_it = 1, -1, 0  # UNREACHABLE
         while hsize > 0:
             h = heap[0, 1]
             tp = heap[0, 2]
-            e = int(tp)
-            node = int(ent[e, 0])
-            lazy = int(ent[e, 2])
-            if lazy >= 0 and inode[node, 4] != it:  # a lower bound: the exact key, same tie
+            code = int(heap[0, 3])
+            node = code if code >= 0 else -1 - code
+            if code < 0 and inode[node, 4] != it:  # a lower bound: the exact key, same tie
+                e = int(tp)
+                lazy = int(ent[e, 1])
                 h = _rra_value(lazy, hf, hi, hocc, hp, hcount) * cost_per_m
-                gp = ent[e, 1]
+                gp = ent[e, 0]
                 _heap_pop(heap, hsize)
                 if inode[node, 7] == lazy:
                     fnode[node, 6], inode[node, 7] = h, -1
                 if h < np.inf:
-                    ent[e, 2] = -1
-                    _heap_push(heap, hsize - 1, gp + w * h, h, tp)
+                    _heap_push(heap, hsize - 1, gp + w * h, h, tp, node)
                 else:
                     hsize -= 1
                 continue
             _heap_pop(heap, hsize)
             hsize -= 1
+            if hsize > 0:  # the next candidate's node rows load while this one expands
+                nxt = int(heap[0, 3])
+                nxt = nxt if nxt >= 0 else -1 - nxt
+                _prefetch_row(inode, nxt)
+                _prefetch_row(fnode, nxt)
             if inode[node, 4] == it:
                 continue
             if inode[node, 7] >= 0:  # the node moved since this entry: its own h, exact
@@ -388,6 +223,9 @@ def _arastar(
                 status = 3
                 break
             inode[node, 5], inode[node, 4] = 0, it
+            j = inode[node, 8]
+            if j >= 0:  # the lattice table maps its state to this node
+                table[j, 3] = 2 * it
             expansions += 1
             exp_it += 1
             g = fnode[node, 7]
@@ -400,16 +238,39 @@ def _arastar(
             z1 = 0.0
             if step_limits:
                 z1 = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)[1]
-            for r in range(succ_ptr[row], succ_ptr[row + 1]):
+            # room for every successor, made here: an array reassigned inside the successor
+            # loop would cost atomic reference counts on each successor
+            r0, r1 = succ_ptr[row], succ_ptr[row + 1]
+            while count + (r1 - r0) > fnode.shape[0]:
+                fnode, inode = _grow_rows(fnode), _grow_rows(inode)
+            while hsize + (r1 - r0) > heap.shape[0]:
+                heap = _grow_rows(heap)
+            while use_cells and tie + (r1 - r0) > ent.shape[0]:
+                ent = _grow_rows(ent)
+            while 2 * (used + r1 - r0) > table.shape[0]:
+                table = _rehash(table, n_local, inode, 8)
+                tg = table.view(np.float64)
+            mask = table.shape[0] - 1
+            for r in range(r0, r1):  # prefetch the table rows
                 dx, dy = succ_f[r, 0], succ_f[r, 1]
                 x2 = x + c * dx - s * dy
                 y2 = y + s * dx + c * dy
-                th2 = (th + succ_f[r, 2] + math.pi) % two_pi - math.pi
+                cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
+                local = (_yaw_bin(_wrap(th + succ_f[r, 2]), yaw_scale, nyaw) * 2 + nf) * n_hist
+                local += hist[a1, succ_a[r]]
+                _prefetch_row(table, (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask)
+            for r in range(r0, r1):
+                dx, dy = succ_f[r, 0], succ_f[r, 1]
+                x2 = x + c * dx - s * dy
+                y2 = y + s * dx + c * dy
+                th2 = _wrap(th + succ_f[r, 2])
                 fx = (x2 - ox) * inv_res
                 fy = (y2 - oy) * inv_res
                 if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                     continue
-                if not _foot_free(x2, y2, th2, grid, chk, occw, free, mbits, mrows):
+                if not free[(int(fx) + pad) * nyp + int(fy) + pad] and not _foot_free(
+                    x2, y2, th2, grid, chk, occw, free, mbits, mrows
+                ):  # the surely-free shortcut first (inline), then the masks
                     continue
                 if flat_limit < np.inf and (
                     _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
@@ -426,7 +287,9 @@ def _arastar(
                 lazy = -1
                 if use_cells:
                     cell = int(fx) * ny + int(fy)
-                    if hf[cell, 2] == -2.0 or hcount[0] == 0:  # settled (or unreachable)
+                    if hf[cell, 2] == -2.0:  # settled
+                        h2 = hf[cell, 0] * cost_per_m
+                    elif hcount[0] == 0:  # the backward search is over: unreachable
                         h2 = _rra_value(cell, hf, hi, hocc, hp, hcount) * cost_per_m
                     else:  # a lower bound now, the exact value when popped
                         f_min = hi[0, 0]
@@ -434,11 +297,12 @@ def _arastar(
                         # every path to the goal region is at least as long as the straight line
                         cx = ox + ((cell // ny) + 0.5) * res
                         cy = oy + ((cell % ny) + 0.5) * res
-                        lb2 = (math.hypot(cx - gx, cy - gy) - h_radius) * h_cmin
+                        lb2 = (math.sqrt((cx - gx) ** 2 + (cy - gy) ** 2) - h_radius) * h_cmin
                         h2 = max(lb, lb2, 0.0) * cost_per_m
                         lazy = cell
                 else:
-                    h2 = max(0.0, math.hypot(x2 - gx, y2 - gy) - tol) * cost_per_m
+                    ddx, ddy = x2 - gx, y2 - gy
+                    h2 = max(0.0, math.sqrt(ddx * ddx + ddy * ddy) - tol) * cost_per_m
                 if h2 == np.inf:
                     continue
                 cost = succ_f[r, 4]
@@ -447,36 +311,43 @@ def _arastar(
                 generated += 1
                 a = succ_a[r]
                 g2 = g + cost
-                k2 = (
-                    int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
-                ) * nyaw + int(th2 * yaw_scale + nyaw + 0.5) % nyaw
-                k2 = (k2 * 2 + nf) * n_hist + hist[a1, a]
-                j = _slot(table, k2)
+                cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
+                local = (_yaw_bin(th2, yaw_scale, nyaw) * 2 + nf) * n_hist + hist[a1, a]
+                k2 = cell2 * n_local + local
+                # _slot written out here: an inlined call costs two atomic reference counts
+                mask = table.shape[0] - 1
+                j = (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask
+                while table[j, 0] != -1 and table[j, 0] != k2:
+                    j = (j + 1) & mask
                 idx = -1
                 closed_now = False
                 if table[j, 0] == k2:
                     idx = table[j, 1]
-                    closed_now = inode[idx, 4] == it or inode[idx, 6] == 1
-                    if closed_now or g2 >= fnode[idx, 7]:
+                    flags = table[j, 3]
+                    closed_now = (flags >> 1) == it or (flags & 1) == 1
+                    g_old = tg[j, 2]
+                    if closed_now or g2 >= g_old:
                         merged += 1
-                    if g2 >= fnode[idx, 7]:
+                    if g2 >= g_old:
                         continue
-                    if inode[idx, 4] >= 0:  # has children: a new node keeps them consistent
+                    if flags >= 0:  # has children: a new node keeps them consistent
+                        inode[idx, 8] = -1  # no longer in the table
                         idx = -1
                 if idx < 0:
-                    if count == fnode.shape[0]:
-                        fnode, inode = _grow_rows(fnode), _grow_rows(inode)
                     idx = count
                     count += 1
                     inode[idx, 4] = -1
                     inode[idx, 5] = 0 if closed_now else 1
                     inode[idx, 6] = 1 if closed_now else 0
+                    inode[idx, 8] = j
                     if table[j, 0] != k2:
                         table[j, 0] = k2
                         used += 1
                     table[j, 1] = idx
-                    if 2 * used > table.shape[0]:
-                        table = _rehash(table)
+                    table[j, 3] = -1 if closed_now else -2
+                    tg[j, 2] = g2
+                else:
+                    tg[j, 2] = g2
                 fnode[idx, 0], fnode[idx, 1], fnode[idx, 2], fnode[idx, 3] = (
                     x2,
                     y2,
@@ -487,12 +358,10 @@ def _arastar(
                 inode[idx, 0], inode[idx, 1], inode[idx, 2], inode[idx, 3] = nf, a1, a, node
                 inode[idx, 7] = lazy
                 if inode[idx, 6] == 0:
-                    if hsize == heap.shape[0]:
-                        heap = _grow_rows(heap)
-                    if tie == ent.shape[0]:
-                        ent = _grow_rows(ent)
-                    ent[tie, 0], ent[tie, 1], ent[tie, 2] = idx, g2, lazy
-                    _heap_push(heap, hsize, g2 + w * h2, h2, tie)
+                    code = idx
+                    if lazy >= 0:
+                        ent[tie, 0], ent[tie, 1], code = g2, lazy, -1 - idx
+                    _heap_push(heap, hsize, g2 + w * h2, h2, tie, code)
                     hsize += 1
                     tie += 1
         bound = w
@@ -531,82 +400,6 @@ def _arastar(
             nodes[k, 7], nodes[k, 8], nodes[k, 9] = inode[k, 0], inode[k, 1], inode[k, 2]
             k = inode[k, 3]
     return out_i[:runs], out_f[:runs], nodes, parents
-
-
-def _mask_arrays(masks, nyp: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Outer masks, inner cells first then ring cells.
-
-    Returns offsets ``di * nyp + dj``, ``di``, ``dj`` and per mask ``(start, ring start, end)``.
-    """
-    di_parts, dj_parts, ptr = [], [], np.zeros((len(masks.outer), 3), np.int64)
-    at = 0
-    for m, ((ia, ib), (ra, rb)) in enumerate(zip(masks.inner, masks.ring, strict=True)):
-        di_parts += [np.asarray(ia, np.int64), np.asarray(ra, np.int64)]
-        dj_parts += [np.asarray(ib, np.int64), np.asarray(rb, np.int64)]
-        ptr[m] = (at, at + len(ia), at + len(ia) + len(ra))
-        at = int(ptr[m, 2])
-    di_all = np.concatenate(di_parts) if di_parts else np.zeros(0, np.int64)
-    dj_all = np.concatenate(dj_parts) if dj_parts else np.zeros(0, np.int64)
-    return di_all * nyp + dj_all, di_all, dj_all, ptr
-
-
-def _occupancy_words(chk) -> np.ndarray:
-    """The padded occupancy, bit j of row i at bit ``j % 64`` of word ``j // 64``.
-
-    One spare word per row lets a 64-bit window start at any bit.
-    """
-    nxp, nyp = chk._occ.shape
-    packed = np.packbits(chk._occ, axis=1, bitorder="little")
-    words = np.zeros((nxp, (nyp + 63) // 64 + 1), np.uint64)
-    words.view(np.uint8)[:, : packed.shape[1]] = packed
-    return words
-
-
-_BITS_CACHE: dict[int, tuple] = {}
-
-
-def _cached_mask_bits(masks) -> tuple[np.ndarray, np.ndarray]:
-    """Per mask and row ``di + R``: the inner and ring cells as bits ``dj + R``; row ranges."""
-    hit = _BITS_CACHE.get(id(masks))
-    if hit is not None and hit[0] is masks:
-        return hit[1], hit[2]
-    big_r = masks.radius_cells
-    if 2 * big_r + 1 > 64:
-        raise ValueError(f"footprint masks {2 * big_r + 1} cells wide exceed a 64-bit window")
-    n = len(masks.inner)
-    bits = np.zeros((n, 2 * big_r + 1, 2), np.uint64)
-    rows = np.zeros((n, 2), np.int64)
-    for m in range(n):
-        for k, part in ((0, masks.inner[m]), (1, masks.ring[m])):
-            di, dj = part
-            np.bitwise_or.at(
-                bits[m, :, k],
-                np.asarray(di, np.int64) + big_r,
-                np.left_shift(np.uint64(1), (np.asarray(dj, np.int64) + big_r).astype(np.uint64)),
-            )
-        used = np.flatnonzero(bits[m].any(axis=1))
-        rows[m] = (used[0], used[-1] + 1) if used.size else (0, 0)
-    if len(_BITS_CACHE) > 16:
-        _BITS_CACHE.clear()
-    _BITS_CACHE[id(masks)] = (masks, bits, rows)
-    return bits, rows
-
-
-def _masks_key(chk) -> tuple:
-    return (id(chk.masks), chk.nyp)
-
-
-_MASK_CACHE: dict[tuple, tuple] = {}
-
-
-def _cached_masks(chk) -> tuple:
-    key = _masks_key(chk)
-    arrays = _MASK_CACHE.get(key)
-    if arrays is None:
-        if len(_MASK_CACHE) > 16:
-            _MASK_CACHE.clear()
-        arrays = _MASK_CACHE[key] = (chk.masks, *_mask_arrays(chk.masks, chk.nyp))
-    return arrays[1:]
 
 
 def _lazy_arrays(lazy) -> dict:

@@ -245,9 +245,9 @@ class FootprintChecker:
         # a foot centred in a cell whose centre is farther than r_diag + one cell diagonal
         # from every occupied (or outside) cell centre is free; no occupied cell within
         # m cells (Chebyshev, which is <= Euclidean) guarantees a distance > m cells
-        m = int((masks.r_diag + grid.resolution * math.sqrt(2.0)) / grid.resolution + 1e-9)
-        surely_free = surely_free_cells(occ, m, pad)
-        self.free_bytes = surely_free.ravel().tobytes()
+        reach = masks.r_diag + grid.resolution * math.sqrt(2.0)
+        self._free_m = int(reach / grid.resolution + 1e-9)
+        self._free_bytes: bytes | None = None
         self.inv_res = 1.0 / grid.resolution
         self.x0, self.y0 = grid.origin
         self._occ = occ
@@ -259,6 +259,18 @@ class FootprintChecker:
             self.heights_flat: np.ndarray | None = h.ravel()
         else:
             self.heights_flat = None
+
+    @property
+    def free_bytes(self) -> bytes:
+        """Per padded cell, 1 when a foot centred anywhere in it is surely free (computed once).
+
+        Built on first use: a checker that only tests a few poses (the start feet) never
+        needs it.
+        """
+        if self._free_bytes is None:
+            free = surely_free_cells(self._occ, self._free_m, self.pad)
+            self._free_bytes = free.ravel().tobytes()
+        return self._free_bytes
 
     @property
     def rows(self) -> list[int]:
@@ -275,13 +287,16 @@ class FootprintChecker:
             self._outer = [di * self.nyp + dj for di, dj in self.masks.outer]
         return self._outer
 
-    def is_free(self, x: float, y: float, yaw: float) -> bool:
+    def is_free(self, x: float, y: float, yaw: float, *, shortcut: bool = True) -> bool:
         """Whether a foot at ``(x, y, yaw)`` overlaps no occupied cell and lies in the map.
 
         Args:
             x: sole centre x (m).
             y: sole centre y (m).
             yaw: foot yaw (rad).
+            shortcut: use (and build, the first time) the surely-free cells; False tests
+                the masks only (the same answer; cheaper for a checker that tests a few
+                poses).
         """
         fx = (x - self.x0) * self.inv_res
         fy = (y - self.y0) * self.inv_res
@@ -290,7 +305,7 @@ class FootprintChecker:
         yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
         ix, iy = int(fx), int(fy)
         base = (ix + self.pad) * self.nyp + iy + self.pad
-        if self.free_bytes[base]:
+        if shortcut and self.free_bytes[base]:
             return True
         return self._check_masks(base, ix, iy, fx - ix, fy - iy, yaw)
 

@@ -15,7 +15,8 @@ Sections (``--sections``, default all but ``legacy``):
   shared: CPU seconds are the one-core figure).
 - ``large``: 12 m x 12 m floors at 30 % occupancy, 6 m x 6 m mazes with 0.5 m doorways,
   stepping stones: ARA* (weights 3 .. 1, Dijkstra heuristic, 1 s): time to the first plan,
-  statuses, cost by 1 s against the lattice optimum (compiled A*, Euclidean, weight 1).
+  statuses, cost by 1 s against the cheapest plan of the references (A* with the
+  Euclidean heuristic at weight 1 on the same lattice and on 2.5 cm / 72 bins, ARA* 5 s).
 - ``legacy``: the issue-4 figures below.
 
 Legacy (issue 4):
@@ -349,14 +350,22 @@ def _bench_rate() -> None:
         PlannerOptions(heuristic="euclidean"),
     )  # fmt: skip
     compiled_search(model, 1.0, 1000, 10.0)
-    print("\n== compiled core expansion rate (12 m open floor, Euclidean, weight 1)")
+    print(
+        "\n== compiled core expansion rate (12 m open floor, Euclidean, weight 1; the first "
+        "search of each size, then the best of 3 repeats: the first one also pays the fresh "
+        "memory's page faults)"
+    )
     for n in (10_000, 100_000, 300_000):
-        t0, c0 = time.perf_counter(), time.process_time()
-        r = compiled_search(model, 1.0, n, 60.0)
-        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        rates = []
+        for _ in range(4):
+            t0, c0 = time.perf_counter(), time.process_time()
+            r = compiled_search(model, 1.0, n, 60.0)
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            rates.append((r.expansions / wall, r.expansions / cpu))
         print(
-            f"  {r.expansions} expansions ({r.generated} successors): {r.expansions / wall:,.0f}"
-            f"/s wall, {r.expansions / cpu:,.0f}/s CPU"
+            f"  {r.expansions} expansions ({r.generated} successors): first {rates[0][0]:,.0f}"
+            f"/s wall, {rates[0][1]:,.0f}/s CPU; best of 3 more "
+            f"{max(w for w, _ in rates[1:]):,.0f}/s wall, {max(c for _, c in rates[1:]):,.0f}/s CPU"
         )
 
 
@@ -393,21 +402,40 @@ def _bench_large(maps: int) -> None:
             for seed in range(maps)
         ],  # fmt: skip
     }
+    # The reference is the cheapest plan any of these searches finds. No single search gives
+    # a certified optimum: states merged on the lattice keep their continuous poses, so which
+    # pose survives in a lattice cell depends on the search order, and an A* with an
+    # admissible heuristic at weight 1 is optimal only over the poses it kept (ARA*, which
+    # keeps others, found plans up to 12 % cheaper on the same lattice); a finer lattice
+    # merges less. The ARA* "bound" uses the Dijkstra heuristic, which is not admissible.
+    refs = {
+        "A* same lattice": dict(heuristic="euclidean", heuristic_weight=1.0, time_limit=30.0),
+        "A* 2.5 cm / 72": dict(
+            heuristic="euclidean", heuristic_weight=1.0, time_limit=30.0,
+            xy_resolution=0.025, yaw_bins=72, refinements=0,
+        ),
+    }  # fmt: skip
     for label, problems in families.items():
-        first, statuses, ratios, opt_status = [], [], [], []
+        first, statuses, ratios, ref_costs = [], [], [], {k: [] for k in (*refs, "ARA* 5 s")}
         for args in problems:
             runs = plan_footsteps_anytime(*args, table, PlannerOptions(time_limit=1.0))
             found = [r for r in runs if r.plan.succeeded]
             statuses.append(runs[-1].plan.status.value if not found else "SUCCESS")
             first.append(found[0].elapsed_s if found else float("nan"))
             best = min((r.plan.cost for r in found), default=float("nan"))
-            opt = plan_footsteps(
-                *args, table,
-                PlannerOptions(heuristic="euclidean", heuristic_weight=1.0, time_limit=30.0),
-            )  # fmt: skip
-            opt_status.append(opt.status.value)
-            if found and opt.succeeded:
-                ratios.append(best / opt.cost)
+            known = []
+            for name, kw in refs.items():
+                ref = plan_footsteps(*args, table, PlannerOptions(**kw))
+                ref_costs[name].append(round(ref.cost, 2) if ref.succeeded else ref.status.value)
+                known += [ref.cost] if ref.succeeded else []
+            long = plan_footsteps_anytime(*args, table, PlannerOptions(time_limit=5.0))
+            costs = [r.plan.cost for r in long if r.plan.succeeded]
+            ref_costs["ARA* 5 s"].append(
+                round(min(costs), 2) if costs else long[-1].plan.status.value
+            )
+            known += costs
+            if found and known:
+                ratios.append(best / min(known))
         done = [t for t in first if t == t]
         print(f"\n== {label}: {len(problems)} maps, ARA* 1 s (weights 3 .. 1)")
         print(
@@ -415,9 +443,12 @@ def _bench_large(maps: int) -> None:
             f"{statistics.median(done) if done else float('nan'):.3f} s (max "
             f"{max(done) if done else float('nan'):.3f} s)"
         )
+        for name, costs in ref_costs.items():
+            print(f"  reference {name}: {costs}")
+        over = sum(r > 1.05 for r in ratios)
         print(
-            f"  lattice optimum (A*, Euclidean, weight 1, 30 s): {opt_status}; cost by 1 s / "
-            f"optimum: {[round(r, 3) for r in ratios]}"
+            f"  cost by 1 s / best reference: {[round(r, 3) for r in ratios]} "
+            f"({over} of {len(ratios)} above 1.05)"
         )
 
 

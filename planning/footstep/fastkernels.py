@@ -1,0 +1,362 @@
+"""Compiled kernels of the footstep search core: open list, lattice table, footprint checks.
+
+The parts of :mod:`repertoire.planning.footstep.fastcore` that are not the search loop:
+
+- the open list, a 4-ary heap of ``(f, h, tie)`` rows ordered exactly as Python's
+  ``heapq`` orders those tuples;
+- the lattice table (open addressing, keys grouped per map cell so that the states of one
+  cell share cache lines) holding each lattice state's node, g and search flags;
+- the footprint checks on the model's precomputed masks (64-bit occupancy words, exact
+  separating axes on the ring cells), the height bounds under a sole and the swing line;
+- the arrays the checks read, built once per mask set and map.
+"""
+
+import math
+import time
+
+import numba
+import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+
+@numba.njit(cache=True, inline="always")
+def _less(f1, h1, t1, f2, h2, t2):
+    if f1 != f2:
+        return f1 < f2
+    if h1 != h2:
+        return h1 < h2
+    return t1 < t2
+
+
+@numba.njit(cache=True, inline="always")
+def _heap_push(heap, size, f, h, tie, node):
+    """Insert the row ``(f, h, tie, node)`` into a 4-ary heap of ``size`` rows.
+
+    Rows are ordered by ``(f, h, tie)`` (``tie`` unique); ``node`` rides along.
+    """
+    i = size
+    while i > 0:
+        p = (i - 1) >> 2
+        if _less(f, h, tie, heap[p, 0], heap[p, 1], heap[p, 2]):
+            for q in range(4):
+                heap[i, q] = heap[p, q]
+            i = p
+        else:
+            break
+    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
+
+
+@numba.njit(cache=True, inline="always")
+def _heap_pop(heap, size):
+    """Remove the root of a 4-ary heap of ``size`` rows (the caller read it first)."""
+    size -= 1
+    f, h, tie, node = heap[size, 0], heap[size, 1], heap[size, 2], heap[size, 3]
+    i = 0
+    while True:
+        c = 4 * i + 1
+        if c >= size:
+            break
+        best = c
+        for c2 in range(c + 1, min(c + 4, size)):
+            if _less(
+                heap[c2, 0], heap[c2, 1], heap[c2, 2], heap[best, 0], heap[best, 1], heap[best, 2]
+            ):
+                best = c2
+        if _less(heap[best, 0], heap[best, 1], heap[best, 2], f, h, tie):
+            for q in range(4):
+                heap[i, q] = heap[best, q]
+            i = best
+        else:
+            break
+    heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
+
+
+@numba.njit(cache=True, inline="always")
+def _slot(table, key, cell, local):
+    """Row of ``key = cell * S + local`` in the lattice table, or of its empty slot.
+
+    Rows are ``(key, node, g bits, flags)`` (``-1`` key: empty). The keys of one map cell
+    (``cell``; ``local`` = yaw bin, foot and history class) start at the cell's hashed row
+    and run on consecutive rows, so the states of a cell share cache lines: the successors
+    of nearby states mostly read lines already loaded. Linear probing resolves collisions.
+    """
+    mask = table.shape[0] - 1
+    i = (((cell * 0x9E3779B97F4A7C15) >> 17) + local) & mask
+    while table[i, 0] != -1 and table[i, 0] != key:
+        i = (i + 1) & mask
+    return i
+
+
+@numba.njit(cache=True)
+def _rehash(table, s, inode, col):
+    """The table at twice the rows (keys ``cell * s + local``); ``inode[node, col]`` follows."""
+    new = np.full((table.shape[0] * 2, 4), -1, np.int64)
+    for i in range(table.shape[0]):
+        key = table[i, 0]
+        if key != -1:
+            j = _slot(new, key, key // s, key % s)
+            for q in range(4):
+                new[j, q] = table[i, q]
+            inode[table[i, 1], col] = j
+    return new
+
+
+@intrinsic
+def _prefetch_row(typingctx, arr, row):
+    """Hint the CPU to load row ``row`` of the 2-D array ``arr`` into the cache.
+
+    The search computes the lattice-table rows of all successors of a state first and
+    prefetches them, so their cache misses overlap instead of stalling one after another.
+    No effect on any value.
+    """
+    sig = types.void(arr, row)
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        r = context.cast(builder, args[1], signature.args[1], types.intp)
+        zero = context.get_constant(types.intp, 0)
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [r, zero])
+        i8p, i32 = ir.IntType(8).as_pointer(), ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0")
+        builder.call(fn, [builder.bitcast(ptr, i8p), i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@numba.njit(cache=True, inline="always")
+def _wrap(t):
+    """``(t + pi) % (2 pi) - pi`` bit for bit (Python's float modulo), without the modulo.
+
+    In the common ranges the modulo is one exact subtraction (Sterbenz) or Python's own
+    ``x + 2 pi`` for negative ``x``; elsewhere the modulo itself.
+    """
+    two_pi = 2.0 * math.pi
+    x = t + math.pi
+    if 0.0 <= x < two_pi:
+        pass
+    elif two_pi <= x < 2.0 * two_pi:
+        x = x - two_pi
+    elif -two_pi < x < 0.0:
+        x = x + two_pi
+    else:
+        x = x % two_pi
+    return x - math.pi
+
+
+@numba.njit(cache=True, inline="always")
+def _yaw_bin(th, yaw_scale, nb):
+    """``int(th * yaw_scale + nb + 0.5) % nb``; one subtraction for a wrapped yaw."""
+    v = int(th * yaw_scale + nb + 0.5)
+    if 0 <= v < nb:
+        return v
+    if nb <= v < 2 * nb:
+        return v - nb
+    return v % nb
+
+
+@numba.njit(cache=True)
+def _grow_rows(a):
+    b = np.empty((a.shape[0] * 2, a.shape[1]), a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@numba.njit(cache=True, inline="always")
+def _foot_free(x, y, th, grid, chk, occw, free, mbits, mrows):
+    """The margin checker's answer: foot at (x, y, th) overlaps no occupied cell.
+
+    As :meth:`~repertoire.planning.footstep.footprint.FootprintChecker.is_free`: the
+    surely-free shortcut, then per mask row a 64-bit window of the padded occupancy against
+    the row's inner cells (overlapped for sure) and ring cells (exact separating axes).
+    """
+    ox, oy, inv_res = grid[0], grid[1], grid[2]
+    fx = (x - ox) * inv_res
+    fy = (y - oy) * inv_res
+    ix = int(fx)
+    iy = int(fy)
+    pad, nyp = int(chk[0]), int(chk[1])
+    if free[(ix + pad) * nyp + iy + pad]:
+        return True
+    sub, nb, yaw_scale, hl, hw, big_r = (
+        int(chk[2]),
+        int(chk[3]),
+        chk[4],
+        chk[5],
+        chk[6],
+        int(chk[7]),
+    )
+    fx -= ix
+    fy -= iy
+    qx = int(fx * sub)
+    qy = int(fy * sub)
+    if qx >= sub:
+        qx = sub - 1
+    if qy >= sub:
+        qy = sub - 1
+    m = (_yaw_bin(th, yaw_scale, nb) * sub + qx) * sub + qy
+    col = iy + pad - big_r  # bit of the mask's column offset -R
+    q = col >> 6
+    sh = np.uint64(col & 63)
+    back = np.uint64(64 - (col & 63))
+    one = np.uint64(1)
+    exact = False
+    c = s = ext_x = ext_y = lim_u = lim_v = 0.0
+    for r in range(mrows[m, 0], mrows[m, 1]):
+        row = ix + pad + r - big_r
+        word = occw[row, q] >> sh
+        if sh:
+            word |= occw[row, q + 1] << back
+        if word & mbits[m, r, 0]:  # an inner cell is occupied
+            return False
+        hit = word & mbits[m, r, 1]
+        if hit:
+            if not exact:
+                exact = True
+                c, s = math.cos(th), math.sin(th)
+                ext_x = (hl * abs(c) + hw * abs(s)) * inv_res + 0.5
+                ext_y = (hl * abs(s) + hw * abs(c)) * inv_res + 0.5
+                cell_u = 0.5 * (abs(c) + abs(s))
+                lim_u = hl * inv_res + cell_u
+                lim_v = hw * inv_res + cell_u
+            dx = r - big_r + 0.5 - fx
+            for jj in range(2 * big_r + 1):
+                if (hit >> np.uint64(jj)) & one:
+                    dy = jj - big_r + 0.5 - fy
+                    eps = 1e-9
+                    if (
+                        abs(dx) < ext_x - eps
+                        and abs(dy) < ext_y - eps
+                        and abs(dx * c + dy * s) < lim_u - eps
+                        and abs(-dx * s + dy * c) < lim_v - eps
+                    ):
+                        return False
+    return True
+
+
+@numba.njit(cache=True)
+def _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr):
+    """Min and max height over the exact footprint's outer mask (as FootprintChecker)."""
+    ox, oy, inv_res = grid[0], grid[1], grid[2]
+    pad, nyp, sub, nb, yaw_scale = int(ex[0]), int(ex[1]), int(ex[2]), int(ex[3]), ex[4]
+    fx = (x - ox) * inv_res
+    fy = (y - oy) * inv_res
+    ix = int(math.floor(fx))
+    iy = int(math.floor(fy))
+    base = (ix + pad) * nyp + iy + pad
+    qx = min(int((fx - ix) * sub), sub - 1)
+    qy = min(int((fy - iy) * sub), sub - 1)
+    m = (_yaw_bin(th, yaw_scale, nb) * sub + qx) * sub + qy
+    lo, hi = np.inf, -np.inf
+    for k in range(ex_ptr[m, 0], ex_ptr[m, 2]):
+        v = heights[base + ex_off[k]]
+        lo = min(lo, v)
+        hi = max(hi, v)
+    return lo, hi
+
+
+@numba.njit(cache=True)
+def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
+    lo, hi = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)
+    return hi - lo
+
+
+@numba.njit(cache=True)
+def _swing_crosses(tall, x0, y0, x1, y1, ox, oy, inv):
+    n = int(math.hypot(x1 - x0, y1 - y0) * inv * 2.0) + 2
+    nx, ny = tall.shape
+    for k in range(n + 1):
+        u = k / n
+        i = int(((x0 + u * (x1 - x0)) - ox) * inv)
+        j = int(((y0 + u * (y1 - y0)) - oy) * inv)
+        if 0 <= i < nx and 0 <= j < ny and tall[i, j]:
+            return True
+    return False
+
+
+@numba.njit(cache=True)
+def _now():
+    with numba.objmode(t="float64"):
+        t = time.perf_counter()
+    return t
+
+
+def _mask_arrays(masks, nyp: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Outer masks, inner cells first then ring cells.
+
+    Returns offsets ``di * nyp + dj``, ``di``, ``dj`` and per mask ``(start, ring start, end)``.
+    """
+    di_parts, dj_parts, ptr = [], [], np.zeros((len(masks.outer), 3), np.int64)
+    at = 0
+    for m, ((ia, ib), (ra, rb)) in enumerate(zip(masks.inner, masks.ring, strict=True)):
+        di_parts += [np.asarray(ia, np.int64), np.asarray(ra, np.int64)]
+        dj_parts += [np.asarray(ib, np.int64), np.asarray(rb, np.int64)]
+        ptr[m] = (at, at + len(ia), at + len(ia) + len(ra))
+        at = int(ptr[m, 2])
+    di_all = np.concatenate(di_parts) if di_parts else np.zeros(0, np.int64)
+    dj_all = np.concatenate(dj_parts) if dj_parts else np.zeros(0, np.int64)
+    return di_all * nyp + dj_all, di_all, dj_all, ptr
+
+
+def _occupancy_words(chk) -> np.ndarray:
+    """The padded occupancy, bit j of row i at bit ``j % 64`` of word ``j // 64``.
+
+    One spare word per row lets a 64-bit window start at any bit.
+    """
+    nxp, nyp = chk._occ.shape
+    packed = np.packbits(chk._occ, axis=1, bitorder="little")
+    words = np.zeros((nxp, (nyp + 63) // 64 + 1), np.uint64)
+    words.view(np.uint8)[:, : packed.shape[1]] = packed
+    return words
+
+
+_BITS_CACHE: dict[int, tuple] = {}
+
+
+def _cached_mask_bits(masks) -> tuple[np.ndarray, np.ndarray]:
+    """Per mask and row ``di + R``: the inner and ring cells as bits ``dj + R``; row ranges."""
+    hit = _BITS_CACHE.get(id(masks))
+    if hit is not None and hit[0] is masks:
+        return hit[1], hit[2]
+    big_r = masks.radius_cells
+    if 2 * big_r + 1 > 64:
+        raise ValueError(f"footprint masks {2 * big_r + 1} cells wide exceed a 64-bit window")
+    n = len(masks.inner)
+    bits = np.zeros((n, 2 * big_r + 1, 2), np.uint64)
+    rows = np.zeros((n, 2), np.int64)
+    for m in range(n):
+        for k, part in ((0, masks.inner[m]), (1, masks.ring[m])):
+            di, dj = part
+            np.bitwise_or.at(
+                bits[m, :, k],
+                np.asarray(di, np.int64) + big_r,
+                np.left_shift(np.uint64(1), (np.asarray(dj, np.int64) + big_r).astype(np.uint64)),
+            )
+        used = np.flatnonzero(bits[m].any(axis=1))
+        rows[m] = (used[0], used[-1] + 1) if used.size else (0, 0)
+    if len(_BITS_CACHE) > 16:
+        _BITS_CACHE.clear()
+    _BITS_CACHE[id(masks)] = (masks, bits, rows)
+    return bits, rows
+
+
+def _masks_key(chk) -> tuple:
+    return (id(chk.masks), chk.nyp)
+
+
+_MASK_CACHE: dict[tuple, tuple] = {}
+
+
+def _cached_masks(chk) -> tuple:
+    key = _masks_key(chk)
+    arrays = _MASK_CACHE.get(key)
+    if arrays is None:
+        if len(_MASK_CACHE) > 16:
+            _MASK_CACHE.clear()
+        arrays = _MASK_CACHE[key] = (chk.masks, *_mask_arrays(chk.masks, chk.nyp))
+    return arrays[1:]

@@ -310,16 +310,27 @@ def test_transfer_drops_steps_the_new_board_does_not_support(flat_library, pca):
     cfg = TransferConfig(refine_levels=0)
     plain = transfer_library(library, sources, flat, pca, cfg)
     assert plain.library is not None and plain.unsupported == []
-    # Posts (1 cm wide, 4 cm tall) under every placed landing foot: each profile barely
-    # changes (4 samples at most), but no landing is supported any more.
-    posts = flat
-    for s in plain.library:
-        posts = with_box(posts, foot_path(s)[-1, :2], [0.006, 0.006], 0.04)
-    r = transfer_library(library, sources, posts, pca, cfg)
-    placed = [] if r.library is None else list(r.library)
-    for s in placed:
-        land = foot_path(s)[-1]
-        assert land[2] - FOOT_RADIUS - posts.height(*land[:2]) > -0.005
-    assert len(r.unsupported) > 0 and "the terrain does not support them" in r.message
+    # A post (6 mm wide, 4 cm tall, between the profile samples: the matches stay where
+    # they were) under the first placement's landing foot: exactly the placements with a
+    # foot there are dropped; the others, whose feet keep the post out of their radius, stay.
+    post = foot_path(plain.library[0])[-1, :2]
+    board = with_box(flat, post, [0.006, 0.006], 0.04)
+    r = transfer_library(library, sources, board, pca, cfg)
+
+    def feet_xy(s):
+        return np.vstack([s.start_feet[:, :2], foot_path(s)[-1:, :2]])
+
+    dist = np.array([np.linalg.norm(feet_xy(s) - post, axis=1).min() for s in plain.library])
+    on_post = plain.source_index[dist < 1e-9].tolist()
+    clear = dist[dist >= 1e-9]
+    assert 0 < len(on_post) < len(plain.library)
+    assert np.all(clear > FOOT_RADIUS + 0.003 * math.sqrt(2))
+    assert r.unsupported == on_post
+    assert f"{len(on_post)} matches dropped: the terrain does not support them" in r.message
+    kept = [j for j in plain.source_index.tolist() if j not in on_post]
+    assert r.source_index.tolist() == kept and r.discarded == plain.discarded
+    where = {int(j): s.start_feet for s, j in zip(plain.library, plain.source_index)}
+    for s, j in zip(r.library, r.source_index):
+        np.testing.assert_array_equal(s.start_feet, where[int(j)])  # kept at the same place
     with pytest.raises(TransferError, match="-1.0"):
         transfer_library(library, sources, flat, pca, TransferConfig(support_tolerance=-1.0))

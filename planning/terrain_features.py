@@ -563,6 +563,12 @@ class TransferConfig:
         chain_join: foot-location distance (sum over the feet, m) under which one step's
             end and the next step's start form a chain, in the source library and on the
             new terrain.
+        support_tolerance: a placed step is kept only if its terrain supports it the way
+            its source did (``transfer_library``): each stance and landing foot stands
+            this close (m) to its recorded height above the ground (about half the foot
+            radius, 10.3 mm; 0 = exact) on ground flat by the footstep planner's rule
+            where its source ground was, and the swing foot sinks no deeper into the
+            new ground than into its source (beyond this tolerance).
     """
 
     spacing: float = 0.02
@@ -576,6 +582,7 @@ class TransferConfig:
     refine_levels: int = 6
     chains: bool = True
     chain_join: float = 0.04
+    support_tolerance: float = 0.005
 
 
 @dataclasses.dataclass

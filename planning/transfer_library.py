@@ -27,12 +27,14 @@ import dataclasses
 import math
 import re
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 from repertoire.models.littledog import FOOT_RADIUS, LEGS, leg_fk
-from repertoire.models.littledog.pose import body_to_world
+from repertoire.models.littledog.pose import rotation_from_rpy
 from repertoire.models.terrain import TerrainBoard
+from repertoire.planning.footstep.quadruped import CrawlParams as PlannerParams
+from repertoire.planning.footstep.quadruped import flat_on_ground
 from repertoire.planning.littledog_crawl import (
     CRAWL_ORDER,
     CrawlError,
@@ -92,6 +94,10 @@ class LibraryTransfer:
         links: pairs ``(a, b)`` of placements (indices into ``library``) where ``b`` is
             the next step of ``a``'s demonstration and starts within ``chain_join`` of
             ``a``'s end: recorded edges the search can take without planned steps.
+        unsupported: source-library indices of matches (within the threshold) dropped
+            because the new terrain does not support the placed step
+            (:func:`step_supported`, ``TransferConfig.support_tolerance``), one per
+            dropped match; a step dropped everywhere is not in ``discarded``.
     """
 
     library: StepLibrary | None
@@ -105,6 +111,7 @@ class LibraryTransfer:
     off_terrain_count: int
     chained: int = 0
     links: list[tuple[int, int]] = dataclasses.field(default_factory=list)
+    unsupported: list[int] = dataclasses.field(default_factory=list)
 
     @property
     def message(self) -> str:
@@ -112,6 +119,8 @@ class LibraryTransfer:
         placed = 0 if self.library is None else len(self.library)
         sources = len(set(self.source_index.tolist()))
         text = f"{placed} steps placed from {sources} source steps; {len(self.discarded)} discarded"
+        if self.unsupported:
+            text += f"; {len(self.unsupported)} matches dropped: the terrain does not support them"
         if self.chained:
             text += f"; {self.chained} placements in recorded chains"
         if self.off_source:
@@ -189,8 +198,10 @@ def transfer_library(
     costs: list[float] = []
     discarded: list[int] = []
     off_source: list[int] = []
+    unsupported: list[int] = []
     per_terrain: dict[str, TransferResult] = {}
     config = TransferConfig() if config is None else config
+    _check_support_tolerance(config.support_tolerance)
     chains = config.multiple and config.chains
     successor = chain_successors(library, config.chain_join)
     feats, timings = target_candidates(target, config)
@@ -201,12 +212,24 @@ def transfer_library(
         feet = np.stack([steps[i].start_feet for i in rows])
         poses = np.stack([steps[i].start_pose for i in rows])
         r = transfer_steps(sources[name], feet, poses, target, pca, config, feats)
+
+        def supported(t: TransferredStep, r=r, rows=rows, name=name) -> bool:
+            src = steps[rows[t.step]]
+            placed = _placed_step(src, r, t, target_name)
+            return step_supported(sources[name], target, src, placed, config.support_tolerance)
+
+        keep = [supported(t) for t in r.steps]
+        unsupported += [rows[t.step] for t, k in zip(r.steps, keep) if not k]
+        kept = [t for t, k in zip(r.steps, keep) if k]
+        r = dataclasses.replace(
+            r, steps=kept, matches=dataclasses.replace(r.matches, matches=[t.match for t in kept])
+        )
         if chains:
             t0 = time.perf_counter()
             local = {g: a for a, g in enumerate(rows)}
             nxt = np.array([local.get(int(successor[g]), -1) for g in rows])
             ends = np.stack([step_end_feet(steps[g]) for g in rows])
-            r, added = extend_chains(r, target, pca, feet, poses, ends, nxt, config)
+            r, added = extend_chains(r, target, pca, feet, poses, ends, nxt, config, supported)
             chained += added
             timings["chains"] += time.perf_counter() - t0
         per_terrain[name] = r
@@ -216,22 +239,7 @@ def transfer_library(
         discarded += [rows[j] for j in r.matches.discarded]
         off_source += [rows[j] for j in r.off_source]
         for t in r.steps:
-            src = steps[rows[t.step]]
-            frame, height = r.source_frames[t.step], r.source_heights[t.step]
-            _, body = transfer_stance(
-                src.start_feet, src.body_pose, frame, height, t.match.frame, t.match.height
-            )
-            d = float(t.match.frame[2] - frame[2])
-            new_steps.append(
-                dataclasses.replace(
-                    src,
-                    start_feet=t.feet,
-                    start_pose=t.body_pose,
-                    body_pose=body,
-                    terrain=target_name,
-                    direction=float(wrap_angle(src.direction + d)),
-                )
-            )
+            new_steps.append(_placed_step(steps[rows[t.step]], r, t, target_name))
             index.append(rows[t.step])
             costs.append(t.match.cost)
     return LibraryTransfer(
@@ -246,20 +254,100 @@ def transfer_library(
         off_terrain_count=off,
         chained=chained,
         links=placed_links(new_steps, np.array(index, dtype=int), successor, config.chain_join),
+        unsupported=sorted(unsupported),
     )
+
+
+def _placed_step(
+    src: LibraryStep, r: TransferResult, t: TransferredStep, target_name: str
+) -> LibraryStep:
+    """Source step ``src`` re-expressed at placement ``t`` of transfer result ``r``."""
+    frame, height = r.source_frames[t.step], r.source_heights[t.step]
+    _, body = transfer_stance(
+        src.start_feet, src.body_pose, frame, height, t.match.frame, t.match.height
+    )
+    d = float(t.match.frame[2] - frame[2])
+    return dataclasses.replace(
+        src,
+        start_feet=t.feet,
+        start_pose=t.body_pose,
+        body_pose=body,
+        terrain=target_name,
+        direction=float(wrap_angle(src.direction + d)),
+    )
+
+
+def foot_path(step: LibraryStep) -> np.ndarray:
+    """The moving foot's centre at every sample of the step (T, 3), world frame.
+
+    Forward kinematics of its leg at the action's joint angles under the recorded body
+    poses.
+    """
+    f = int(step.foot)
+    p_BF = leg_fk(LEGS[f], step.q[:, 3 * f : 3 * f + 3])
+    R = rotation_from_rpy(step.body_pose[:, 3:])
+    return np.einsum("tij,tj->ti", R, p_BF) + step.body_pose[:, :3]
 
 
 def step_end_feet(step: LibraryStep) -> np.ndarray:
     """A step's end stance (4, 3): stance feet where they started, the moving foot by FK.
 
     The moving foot is where the action's last joint angles put it under the last
-    recorded body pose (forward kinematics of its leg).
+    recorded body pose (:func:`foot_path`).
     """
     end = np.array(step.start_feet, dtype=float)
-    f = int(step.foot)
-    p_BF = leg_fk(LEGS[f], step.q[-1, 3 * f : 3 * f + 3])
-    end[f] = body_to_world(step.body_pose[-1], p_BF)
+    end[int(step.foot)] = foot_path(step)[-1]
     return end
+
+
+def _check_support_tolerance(tolerance: float) -> None:
+    if not (math.isfinite(tolerance) and tolerance >= 0.0):
+        raise TransferError(f"support_tolerance must be a length >= 0 m, got {tolerance}")
+
+
+def step_supported(
+    source: TerrainBoard,
+    target: TerrainBoard,
+    step: LibraryStep,
+    placed: LibraryStep,
+    tolerance: float,
+    rule: PlannerParams | None = None,
+) -> bool:
+    """Whether ``target`` supports ``placed`` the way ``source`` supported ``step`` (section VII).
+
+    ``placed`` is ``step`` re-expressed at its match on the new terrain. Its stance feet
+    (the four at the start, which stay down while one foot swings) and the moving
+    foot's landing (:func:`foot_path`'s last sample) must each stand within
+    ``tolerance`` of their recorded height above the ground (foot centre minus
+    ``FOOT_RADIUS`` minus the exact terrain height under it) on ground flat by the
+    footstep planner's rule (:func:`~repertoire.planning.footstep.quadruped.flat_on_ground`)
+    wherever the source ground was; the swing foot (samples labelled off the ground)
+    must not sink deeper below the new ground than below its source (or above it, 0)
+    by more than ``tolerance``. A match at the step's own place on its own terrain
+    passes by construction; the terrain between the feet is the match's business.
+    The body and the legs' links are not checked.
+
+    Raises:
+        TransferError: a negative or non-finite ``tolerance``.
+    """
+    _check_support_tolerance(tolerance)
+    rule = PlannerParams() if rule is None else rule
+
+    def contacts(s: LibraryStep, board: TerrainBoard):
+        path = foot_path(s)
+        feet = np.vstack([s.start_feet, path[-1:]])
+        swing = path[~np.asarray(s.stance, dtype=bool)[:, int(s.foot)]]
+        gap = feet[:, 2] - FOOT_RADIUS - board.height(feet[:, 0], feet[:, 1])
+        air = swing[:, 2] - FOOT_RADIUS - board.height(swing[:, 0], swing[:, 1])
+        return gap, flat_on_ground(board, feet, rule), air
+
+    gap0, flat0, air0 = contacts(step, source)
+    gap1, flat1, air1 = contacts(placed, target)
+    return bool(
+        np.all(np.abs(gap1 - gap0) <= tolerance)
+        and np.all(flat1 | ~flat0)
+        and np.all(air1 >= np.minimum(air0, 0.0) - tolerance)
+    )
 
 
 def library_stances(library: StepLibrary | None) -> tuple[np.ndarray, np.ndarray]:
@@ -341,6 +429,7 @@ def extend_chains(
     ends: np.ndarray,
     successor: np.ndarray,
     config: TransferConfig,
+    supported: Callable[[TransferredStep], bool] | None = None,
 ) -> tuple[TransferResult, int]:
     """Chain-consistent matches: recorded chains transferred as chains (section VII).
 
@@ -368,6 +457,8 @@ def extend_chains(
             end stances (S, 4, 3) on their source terrain.
         successor: next step of each step's demonstration, or -1 (S,).
         config: transfer settings.
+        supported: whether the new terrain supports a placement (offers it refuses are
+            not kept); default: every placement.
 
     Returns:
         the result with the chain matches, and how many placements are chain members
@@ -444,6 +535,8 @@ def extend_chains(
                 )
                 new = TransferredStep(jj, f, p, m)
                 if not (joined(t, new) if forward else joined(new, t)):
+                    continue
+                if supported is not None and not supported(new):
                     continue
                 mine = [q for q in by_step.get(jj, []) if placed[q] is not None]
                 close = [

@@ -93,6 +93,10 @@ class LittleDogTransferRecord:
         transfer_s, transfer_multiple_s, search_s: wall times (s).
         chained_multiple: of the multiple matches, placements in recorded chains (joined
             to a neighbour of their demonstration, ``LibraryTransfer.chained``).
+        unsupported, unsupported_multiple: matches within the threshold dropped because
+            the new terrain does not support the placed step (``LibraryTransfer.unsupported``:
+            a foot off its recorded height or on an edge, the swing foot in the ground),
+            one match per step / multiple matches.
     """
 
     case: str
@@ -114,6 +118,8 @@ class LittleDogTransferRecord:
     transfer_multiple_s: float
     search_s: float
     chained_multiple: int = 0
+    unsupported: int = 0
+    unsupported_multiple: int = 0
 
 
 def _match_back(config, seed: int, library, pca):
@@ -179,6 +185,7 @@ def _match_back(config, seed: int, library, pca):
         elapsed,
         0.0,
         0.0,
+        unsupported=len(r.unsupported),
     )
 
 
@@ -255,6 +262,8 @@ def run_episode(config: LittleDogTransferConfig, seed: int) -> LittleDogTransfer
         sum(multi.transfer.timings.values()),
         single.search_s,
         chained_multiple=multi.transfer.chained,
+        unsupported=len(single.transfer.unsupported),
+        unsupported_multiple=len(multi.transfer.unsupported),
     )
 
 
@@ -272,10 +281,11 @@ def summarize(
 
     out_dir = Path(out_dir)
     lines = [
-        "| case | terrain | placed | discarded | back within 2 cm / 5 deg | spurious | on flat "
+        "| case | terrain | placed | discarded | unsupported (one / multiple) "
+        "| back within 2 cm / 5 deg | spurious | on flat "
         "| search: recorded + planned (status) | multiple matches: placed (in chains); "
         "recorded + planned (status) | transfer s | search s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in records:
         back = f"{r.back_within}/{r.eligible}" if r.case == "match_back" else "-"
@@ -289,7 +299,8 @@ def summarize(
             else "-"
         )
         lines.append(
-            f"| {r.case} | {r.terrain} | {r.placed} | {r.discarded} | {back} | {r.spurious} "
+            f"| {r.case} | {r.terrain} | {r.placed} | {r.discarded} "
+            f"| {r.unsupported} / {r.unsupported_multiple} | {back} | {r.spurious} "
             f"| {flat} | {one} | {many} | {r.transfer_s:.1f} | {r.search_s:.2f} |"
         )
     searched = [r for r in records if r.status]

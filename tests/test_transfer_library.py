@@ -5,7 +5,10 @@ import math
 import numpy as np
 import pytest
 from repertoire.diagrams.littledog_demos import crossing_start, flat_start, library_terrain
+from repertoire.models.littledog import FOOT_RADIUS
 from repertoire.models.terrain import (
+    TerrainBoard,
+    TerrainBox,
     TerrainParams,
     generate_board,
     replace_with_rocks,
@@ -24,9 +27,11 @@ from repertoire.planning.transfer_library import (
     chain_successors,
     final_library,
     fit_board_pca,
+    foot_path,
     library_stances,
     search_library,
     step_end_feet,
+    step_supported,
     transfer_library,
 )
 from repertoire.planning.transfer_search import (
@@ -78,6 +83,8 @@ def test_end_stance_is_the_next_start_less_the_press(library):
 def test_library_matches_back_at_its_own_places(library, source, pca, tmp_path):
     r = transfer_library(library, {"terrain_a": source}, source, pca, target_name="back")
     assert r.library is not None
+    # A step matched at its own place stands exactly as recorded: supported by construction.
+    assert r.unsupported == [] and "support" not in r.message
     # Steps whose profile leaves the board (near its edge) are reported, never placed.
     assert r.off_source and not set(r.off_source) & set(r.source_index.tolist())
     assert len(r.library) + len(r.discarded) == len(library)
@@ -254,3 +261,76 @@ def test_multiple_matches_transfer_recorded_chains_as_chains(flat_library, pca):
         transfer_library(
             library, sources, flat, pca, TransferConfig(multiple=True, chain_join=-1.0)
         )
+
+
+def with_box(board: TerrainBoard, center_xy, size_xy, rise: float) -> TerrainBoard:
+    """``board`` plus a box whose top is ``rise`` above the board's top at ``center_xy``."""
+    top = float(board.height(*center_xy))
+    box = TerrainBox([center_xy[0], center_xy[1], top], [size_xy[0], size_xy[1], 2 * rise])
+    return TerrainBoard(board.params, board.seed, [*board.boxes, box])
+
+
+def test_support_needs_the_feet_on_flat_ground_at_their_recorded_height(flat_library):
+    flat, library = flat_library
+    step = library[1]
+    f = step.foot
+    path = foot_path(step)
+    land = path[-1, :2]
+    stance = step.start_feet[(f + 1) % 4, :2]
+    tol = TransferConfig().support_tolerance
+
+    def ok(board, tolerance=tol):
+        return step_supported(flat, board, step, step, tolerance)
+
+    # Its own board, or a box 0.5 m away: supported.
+    assert ok(flat) and ok(flat, 0.0)
+    assert ok(with_box(flat, land + [0.5, 0.0], [0.04, 0.04], 0.02))
+    # The landing foot on top of a 2 cm box: 2 cm above its recorded height.
+    assert not ok(with_box(flat, land, [0.04, 0.04], 0.02))
+    # A stance foot's centre on the slab, a 1 cm box edge 5 mm from it: not flat.
+    edge = with_box(flat, stance + [0.005 + 0.02, 0.0], [0.04, 0.04], 0.01)
+    assert float(edge.height(*stance)) == float(flat.height(*stance))
+    assert not ok(edge)
+    # A 3 mm plate under a stance foot: 3 mm off, within 5 mm but not within 2 mm.
+    plate = with_box(flat, stance, [0.04, 0.04], 0.003)
+    assert ok(plate) and not ok(plate, 0.002)
+    # A 10 cm post (1 cm wide) under the middle of the swing, clear of every foot's disc.
+    swing = path[~step.stance[:, f]]
+    mid = swing[len(swing) // 2, :2]
+    feet = np.vstack([step.start_feet[:, :2], land])
+    assert np.linalg.norm(feet - mid, axis=1).min() > 0.005 * math.sqrt(2) + FOOT_RADIUS
+    assert not ok(with_box(flat, mid, [0.01, 0.01], 0.1))
+    with pytest.raises(TransferError, match="-0.001"):
+        ok(flat, -0.001)
+
+
+def test_transfer_drops_steps_the_new_board_does_not_support(flat_library, pca):
+    flat, library = flat_library
+    sources = {"flat": flat}
+    cfg = TransferConfig(refine_levels=0)
+    plain = transfer_library(library, sources, flat, pca, cfg)
+    assert plain.library is not None and plain.unsupported == []
+    # A post (6 mm wide, 4 cm tall, between the profile samples: the matches stay where
+    # they were) under the first placement's landing foot: exactly the placements with a
+    # foot there are dropped; the others, whose feet keep the post out of their radius, stay.
+    post = foot_path(plain.library[0])[-1, :2]
+    board = with_box(flat, post, [0.006, 0.006], 0.04)
+    r = transfer_library(library, sources, board, pca, cfg)
+
+    def feet_xy(s):
+        return np.vstack([s.start_feet[:, :2], foot_path(s)[-1:, :2]])
+
+    dist = np.array([np.linalg.norm(feet_xy(s) - post, axis=1).min() for s in plain.library])
+    on_post = plain.source_index[dist < 1e-9].tolist()
+    clear = dist[dist >= 1e-9]
+    assert 0 < len(on_post) < len(plain.library)
+    assert np.all(clear > FOOT_RADIUS + 0.003 * math.sqrt(2))
+    assert r.unsupported == on_post
+    assert f"{len(on_post)} matches dropped: the terrain does not support them" in r.message
+    kept = [j for j in plain.source_index.tolist() if j not in on_post]
+    assert r.source_index.tolist() == kept and r.discarded == plain.discarded
+    where = {int(j): s.start_feet for s, j in zip(plain.library, plain.source_index)}
+    for s, j in zip(r.library, r.source_index):
+        np.testing.assert_array_equal(s.start_feet, where[int(j)])  # kept at the same place
+    with pytest.raises(TransferError, match="-1.0"):
+        transfer_library(library, sources, flat, pca, TransferConfig(support_tolerance=-1.0))

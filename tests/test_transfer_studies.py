@@ -44,6 +44,8 @@ def test_match_back_finds_the_crossing_at_its_own_place(library_path):
     # Steps whose profile leaves their own board cannot match; all others come back.
     assert r.back_within >= r.eligible - 5 and r.back_within > 0
     assert r.placed + r.discarded == len(StepLibrary.load(library_path))
+    # Matched at their own places, the steps stand as recorded: none unsupported.
+    assert r.unsupported == 0
 
 
 def test_modified_terrain_case_searches_and_summarizes(library_path, tmp_path):
@@ -57,6 +59,7 @@ def test_modified_terrain_case_searches_and_summarizes(library_path, tmp_path):
     # The kinematic crossing joins exactly: its multiple matches on the unchanged part chain.
     assert 0 < r.chained_multiple <= r.placed_multiple
     assert f"{r.placed_multiple} ({r.chained_multiple}); " in files["table"].read_text()
+    assert f"| {r.unsupported} / {r.unsupported_multiple} |" in files["table"].read_text()
     # Rough boards 1004/1005 (seed 5) have no flat start near the nominal one: counted.
     bad = matching.run_episode(config, 5)
     assert bad.status.startswith("error: ") and "no flat start" in bad.status

@@ -54,9 +54,9 @@ from repertoire.planning.footstep.fastkernels import (
     _prefetch_row,
     _rehash,
     _slot,
-    _swing_crosses,
     _wrap,
     _yaw_bin,
+    swing_crosses,
 )
 from repertoire.planning.footstep.heuristic import _rra_h, _rra_value
 from repertoire.planning.footstep.search import SearchResult
@@ -282,7 +282,7 @@ def _arastar(
                     dz = _height_bounds(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)[1] - z1
                     if dz > step_up or -dz > step_down:
                         continue
-                if use_tall and _swing_crosses(
+                if use_tall and swing_crosses(
                     tall, fnode[node, 4], fnode[node, 5], x2, y2, ox, oy, inv_res
                 ):
                     continue

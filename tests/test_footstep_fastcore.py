@@ -391,3 +391,25 @@ def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
         assert r.plan.status is PlanStatus.SUCCESS and 1.0 <= r.bound <= r.weight
     elapsed = [r.elapsed_s for r in runs]
     assert elapsed == sorted(elapsed) and elapsed[-1] < 60.0
+
+
+def test_anytime_plan_times_leave_out_restarts_that_found_nothing(monkeypatch):
+    import time
+
+    from repertoire.planning.footstep import plan_footsteps_anytime, planner
+
+    real = planner._search_once
+
+    def slow(*args):  # every restart takes at least 0.3 s
+        time.sleep(0.3)
+        return real(*args)
+
+    monkeypatch.setattr(planner, "_search_once", slow)
+    sc = random_static_scene(2, size=2.0, n_strips=3, n_blocks=2)
+    opts = PlannerOptions(heuristic="euclidean", time_limit=60.0, refinements=0)
+    t0 = time.perf_counter()
+    runs = plan_footsteps_anytime(sc.grid, sc.start, sc.start_foot, sc.goal,
+                                  nominal_action_table(), opts)  # fmt: skip
+    wall = time.perf_counter() - t0
+    assert [r.weight for r in runs] == [3.0, 2.0, 1.5, 1.2, 1.0]  # no restart was cheaper
+    assert runs[-1].elapsed_s + 4 * 0.3 <= wall  # the four restarts are in no plan's time

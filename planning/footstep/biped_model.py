@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry, apply_displacement
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
+from repertoire.planning.footstep.fastkernels import swing_crosses
 from repertoire.planning.footstep.footprint import (
     FootprintChecker,
     footprint_masks,
@@ -201,21 +202,6 @@ class Checkers:
             )
             self._cache[k] = c
         return c
-
-
-def swing_crosses(
-    tall: np.ndarray, x0: float, y0: float, x1: float, y1: float, ox: float, oy: float, inv: float
-) -> bool:
-    """Whether the segment (x0, y0) -> (x1, y1) passes over a True cell of ``tall``."""
-    n = int(math.hypot(x1 - x0, y1 - y0) * inv * 2.0) + 2
-    nx, ny = tall.shape
-    for k in range(n + 1):
-        u = k / n
-        i = int(((x0 + u * (x1 - x0)) - ox) * inv)
-        j = int(((y0 + u * (y1 - y0)) - oy) * inv)
-        if 0 <= i < nx and 0 <= j < ny and tall[i, j]:
-            return True
-    return False
 
 
 @dataclasses.dataclass(frozen=True)

@@ -4,9 +4,9 @@ The same search as :func:`repertoire.planning.footstep.search.search` run on the
 step model (:class:`~repertoire.planning.footstep.biped_model.BipedStepModel`), with
 everything in arrays so that numba compiles it:
 
-- the open list is a 4-ary heap of ``(f, h, tie)`` rows of one array (the node, its g
-  and a lazy cell kept per tie beside it), ordered exactly as the Python loop's ``heapq``
-  tuples (so both pop the same states);
+- the open list is a 4-ary heap of ``(f, h, tie, node)`` rows ordered by ``(f, h, tie)``
+  exactly as the Python loop's ``heapq`` tuples (so both pop the same states); a row whose
+  h is a lower bound carries ``-1 - node`` and keeps its g and lazy cell per tie beside it;
 - the Dijkstra cost-to-go is the model's
   :class:`~repertoire.planning.footstep.heuristic.LazyCostToGo` (values equal to the full
   field, settled on demand); a successor whose cell is not settled yet enters the open list
@@ -19,9 +19,11 @@ everything in arrays so that numba compiles it:
   successor reads one table row and no other node's row; the keys of one map cell share
   cache lines, and the rows of a state's successors are prefetched before they are read
   (:mod:`~repertoire.planning.footstep.fastkernels`);
-- successor expansion reads the flattened table T (per history and stance foot);
-- footprint checks use the model's precomputed checker: the distance-transform shortcut,
-  then an exact separating-axis test of the occupied cells of the pose's outer mask;
+- successor expansion reads the flattened table T (per history and stance foot); room for
+  all successors of a state is made before its successor loop, so no array is reassigned
+  inside it (numba would count references on every successor);
+- footprint checks use the model's precomputed checker: the surely-free shortcut (read
+  in the loop), then an exact separating-axis test of the occupied cells of the pose's outer mask;
   flatness, height cost and step-up/down limits read the exact checker's outer mask over
   the height map;
   swing lines are sampled over the cells taller than the swing clearance.
@@ -52,9 +54,9 @@ from repertoire.planning.footstep.fastkernels import (
     _prefetch_row,
     _rehash,
     _slot,
-    _swing_crosses,
     _wrap,
     _yaw_bin,
+    swing_crosses,
 )
 from repertoire.planning.footstep.heuristic import _rra_h, _rra_value
 from repertoire.planning.footstep.search import SearchResult
@@ -280,7 +282,7 @@ def _arastar(
                     dz = _height_bounds(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)[1] - z1
                     if dz > step_up or -dz > step_down:
                         continue
-                if use_tall and _swing_crosses(
+                if use_tall and swing_crosses(
                     tall, fnode[node, 4], fnode[node, 5], x2, y2, ox, oy, inv_res
                 ):
                     continue

@@ -267,7 +267,11 @@ def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
 
 
 @numba.njit(cache=True)
-def _swing_crosses(tall, x0, y0, x1, y1, ox, oy, inv):
+def swing_crosses(tall, x0, y0, x1, y1, ox, oy, inv):
+    """Whether the segment (x0, y0) -> (x1, y1) passes over a True cell of ``tall``.
+
+    Both search cores call this one function (the swing line of a step).
+    """
     n = int(math.hypot(x1 - x0, y1 - y0) * inv * 2.0) + 2
     nx, ny = tall.shape
     for k in range(n + 1):

@@ -342,7 +342,7 @@ def plan_footsteps_anytime(
     t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
     opts.validate()
-    model, results = _anytime_once(
+    model, results, t_done = _anytime_once(
         world, start, start_foot, goal, table, opts, weights, kwargs, restarts
     )
     level = 0
@@ -362,11 +362,13 @@ def plan_footsteps_anytime(
             yaw_bins=int(opts.yaw_bins) * 2**level,
             time_limit=left,
         )
-        model, results = _anytime_once(
+        model, results, t_done = _anytime_once(
             world, start, start_foot, goal, table, finer, weights, kwargs, restarts
         )
     out = []
-    elapsed = time.perf_counter() - t_begin - sum(r.seconds for r in results)
+    # the results' seconds are contiguous and end when the last plan was found (restarts
+    # that found nothing cheaper after it are not part of any plan's time)
+    elapsed = t_done - t_begin - sum(r.seconds for r in results)
     for r in results:
         elapsed += r.seconds
         out.append(AnytimePlan(_to_plan(model, r, elapsed), r.weight, r.bound, elapsed))
@@ -383,8 +385,12 @@ def _anytime_once(
     weights: Sequence[float],
     kwargs: dict,
     restarts: bool = False,
-) -> tuple[BipedStepModel, list[SearchResult]]:
-    """ARA* at the options' lattice, on the backend the options choose, then restarts."""
+) -> tuple[BipedStepModel, list[SearchResult], float]:
+    """ARA* at the options' lattice, on the chosen backend, then restarts.
+
+    Returns the model, the results and the clock (``time.perf_counter``) when the last
+    result was found.
+    """
     t0 = time.perf_counter()
     model = BipedStepModel(world, start, start_foot, goal, table, opts, **kwargs)
     left = max(opts.time_limit - (time.perf_counter() - t0), 1e-9)
@@ -399,11 +405,11 @@ def _anytime_once(
             model, weights=weights, max_expansions=budget, time_limit=left,
             require_successors=False,
         )  # fmt: skip
+    t_last = time.perf_counter()
     if not (restarts and len(results) == len(weights) and results[-1].status is PlanStatus.SUCCESS):
-        return model, results
+        return model, results, t_last
     best = min(r.cost for r in results)
     used = sum(r.expansions for r in results)
-    t_last = time.perf_counter()
     for w in list(weights)[1:]:  # the first weight's plan is ARA*'s first plan already
         left = opts.time_limit - (time.perf_counter() - t0)
         if left <= 0.0 or used >= budget:
@@ -415,7 +421,7 @@ def _anytime_once(
             r.seconds = time.perf_counter() - t_last  # the fruitless restarts included
             t_last = time.perf_counter()
             results.append(r)
-    return model, results
+    return model, results, t_last
 
 
 def _backend(opts: PlannerOptions, model: BipedStepModel) -> str:

@@ -28,6 +28,7 @@ from repertoire.planning.footstep.quadruped import (
     HeightMap,
     flat_on_ground,
     plan_crawl,
+    swing_support_margin,
 )
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
 from repertoire.planning.littledog_crawl import CrawlError, CrawlStep
@@ -121,13 +122,24 @@ class CrawlGapFiller:
         return steps, plan.status
 
     def usable_prefix(self, steps: list[PlannedStep]) -> int:
-        """How many of ``steps`` the executing crawl can do (flat footholds, leg IK)."""
+        """How many of ``steps`` the executing crawl can do (stable, flat footholds, leg IK).
+
+        The planner's steps meet its rules by construction; moves added after it (placing
+        the feet on a recorded step's start) are held to the same ones: static stability
+        (:func:`~repertoire.planning.footstep.quadruped.swing_support_margin`, a
+        placing move off the support triangle tipped the robot over in physics), flat
+        footholds and the crawl's leg IK.
+        """
         board = self.height_map if self.board is None else self.board
-        n = len(steps)
+        stable = [
+            swing_support_margin(p.start_feet, p.foot, self.params) >= self.params.support_margin
+            for p in steps
+        ]
+        n = stable.index(False) if not all(stable) else len(steps)
         if self.board is not None and steps:
             landing = np.array([p.end_feet[p.foot, :2] for p in steps])
             flat = flat_on_ground(self.board, landing, self.params)
-            n = int(np.argmin(flat)) if not flat.all() else n
+            n = min(n, int(np.argmin(flat))) if not flat.all() else n
         return executable_prefix(steps[:n], self.crawl, board) if n else 0
 
     def __call__(self, start: np.ndarray, target: np.ndarray, time_limit: float) -> GapFill:

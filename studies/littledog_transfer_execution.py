@@ -287,10 +287,17 @@ def summarize(
             if math.isfinite(ri):
                 ax.text(xi, ri + 0.02, f"n={ni}", ha="center", fontsize=6)
     ax.set_xticks(x + 0.4 - 0.5 * width, terrains)
-    ax.set_ylim(0.0, 1.1)
+    ax.set_ylim(0.0, 1.3)  # room above the bars for the legend
+    ax.set_yticks(np.linspace(0.0, 1.0, 6))
     ax.set_ylabel("success rate (crossed, no fall)")
     ax.set_xlabel("new terrain")
-    ax.legend(fontsize=7, title="condition", title_fontsize=7)
+    ax.legend(
+        fontsize=7,
+        title="condition",
+        title_fontsize=7,
+        loc="upper center",
+        ncol=len(config.conditions),
+    )
     ax.set_title(
         f"Transferred library in physics, perturbed starts (+-{100 * config.max_offset_m:.0f} cm, "
         f"+-{config.max_yaw_deg:.0f} deg)",

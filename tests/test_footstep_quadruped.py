@@ -321,3 +321,25 @@ def test_leg_ik_feasible_is_where_leg_ik_succeeds():
                 assert not ok
         assert 50 < mask.sum() < 350  # both kinds among the samples
     assert leg_ik_feasible("lf", np.zeros((2, 5, 3))).shape == (2, 5)
+
+
+def test_swing_support_margin_closed_form_and_the_filler_holds_placing_moves_to_it():
+    from repertoire.planning.footstep.quadruped import swing_support_margin
+    from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
+    from repertoire.planning.transfer_search import PlannedStep
+
+    feet = _flat_feet()  # a 0.202 m x 0.12 m rectangle
+    # lh lifts: the body sways half way to the centroid of lf, rf, rh; the nearest edge is
+    # the diagonal lf-rh: distance |cross| / |edge| with the sway point (0.101/3/2, -0.01).
+    sway = np.array([0.101 / 6.0, -0.01])
+    e, a = feet[3, :2] - feet[0, :2], sway - feet[0, :2]
+    expected = abs(e[0] * a[1] - e[1] * a[0]) / math.hypot(*e)
+    assert swing_support_margin(feet, 2, CrawlParams()) == pytest.approx(expected, abs=1e-15)
+    assert expected == pytest.approx(0.0171, abs=1e-4)
+    hm = HeightMap(origin=(-0.5, -0.5), resolution=0.01, heights=np.zeros((101, 101)))
+    after = feet.copy()
+    after[2, 0] += 0.02
+    step = PlannedStep(feet, after, 2)
+    assert CrawlGapFiller(hm).usable_prefix([step]) == 1
+    strict = CrawlParams(support_margin=0.02)  # more than the step's 1.71 cm
+    assert CrawlGapFiller(hm, params=strict).usable_prefix([step]) == 0

@@ -316,6 +316,24 @@ def _point_in_triangle_margin(p: np.ndarray, tri: np.ndarray) -> float:
     return d
 
 
+def swing_support_margin(feet, leg: int, params: CrawlParams) -> float:
+    """How far inside the three stance feet's support triangle the swaying body stays (m).
+
+    The body is taken ``body_shift`` of the way from the four feet's centroid towards
+    the triangle's centroid; the step is statically stable if this is at least
+    ``support_margin`` (negative outside).
+
+    Args:
+        feet: the four footholds before the step (4 x 2 or 4 x 3).
+        leg: the swing foot.
+        params: model parameters.
+    """
+    xy = np.asarray(feet, dtype=float)[:, :2]
+    tri = xy[[i for i in range(4) if i != leg]]
+    sway = (1.0 - params.body_shift) * xy.mean(axis=0) + params.body_shift * tri.mean(axis=0)
+    return _point_in_triangle_margin(sway, tri)
+
+
 def flat_on_ground(ground, xy, params: CrawlParams) -> np.ndarray:
     """True where a foot at each point of ``xy`` (M x 2 or more columns) stands on flat ground.
 
@@ -492,10 +510,7 @@ class CrawlModel:
             if m.heights[rr, cc].max() > max(z_new[k], z_old) + p.swing_clearance:
                 keep[k] = False
         # Support triangle of the three stance feet during the swing.
-        stance_idx = [i for i in range(4) if i != leg]
-        tri = feet[stance_idx, :2]
-        sway = (1.0 - p.body_shift) * centroid + p.body_shift * tri.mean(axis=0)
-        if _point_in_triangle_margin(sway, tri) < p.support_margin:
+        if swing_support_margin(feet, leg, p) < p.support_margin:
             return []
         idx = np.flatnonzero(keep)
         if len(idx) and self.ground is not self.map:

@@ -359,8 +359,9 @@ def test_lattice_table_finds_keys_and_rehash_keeps_the_node_rows():
         assert table[j, 0] == -1  # every key is new
         table[j, 0], table[j, 1] = key, node
         inode[node, 1] = j
-    table = _rehash(table, n_local, inode, 1)
-    assert table.shape == (2048, 4)
+    new = np.full((2048, 4), -1, np.int64)
+    _rehash(table, new, n_local, inode, 1)
+    table = new
     for node, key in enumerate(keys.tolist()):
         j = _slot(table, key, key // n_local, key % n_local)
         assert table[j, 0] == key and table[j, 1] == node and inode[node, 1] == j
@@ -413,3 +414,33 @@ def test_anytime_plan_times_leave_out_restarts_that_found_nothing(monkeypatch):
     wall = time.perf_counter() - t0
     assert [r.weight for r in runs] == [3.0, 2.0, 1.5, 1.2, 1.0]  # no restart was cheaper
     assert runs[-1].elapsed_s + 4 * 0.3 <= wall  # the four restarts are in no plan's time
+
+
+def test_reused_work_arrays_give_the_fresh_search_and_large_ones_are_dropped(monkeypatch):
+    from repertoire.planning.footstep import fastcore
+    from repertoire.planning.footstep.biped_model import BipedStepModel
+
+    sc = random_static_scene(2, n_strips=8, n_blocks=4)
+    table = nominal_action_table()
+    model = BipedStepModel(sc.grid, sc.start, sc.start_foot, sc.goal, table, PlannerOptions())
+    floor = BipedStepModel(
+        OccupancyGrid(np.zeros((160, 160), dtype=bool), 0.025), (0.3, 0.3, 0.0), "left",
+        (3.7, 3.7), table, PlannerOptions(heuristic="euclidean"),
+    )  # fmt: skip
+    fastcore._WORK.clear()
+    fresh = fastcore.compiled_search(model, 1.5, 200_000, 60.0)
+    fastcore.compiled_search(floor, 1.0, 5_000, 60.0)  # grows the kept arrays
+    kept = fastcore._WORK["arrays"]
+    assert kept[0].shape[0] > 1024 and kept[4].shape[0] > 4096  # nodes, lattice table grew
+    again = fastcore.compiled_search(model, 1.5, 200_000, 60.0)  # in the grown, used arrays
+    assert fastcore._WORK["arrays"][0] is kept[0]  # reused, not reallocated
+    assert again.path == fresh.path and again.cost == fresh.cost
+    assert (again.expansions, again.generated, again.merged) == (
+        fresh.expansions,
+        fresh.generated,
+        fresh.merged,
+    )
+    monkeypatch.setattr(fastcore, "_WORK_KEEP_BYTES", 0)
+    fastcore._WORK.clear()
+    fastcore.compiled_search(model, 1.5, 200_000, 60.0)
+    assert "arrays" not in fastcore._WORK  # above the size kept: left to the allocator

@@ -91,9 +91,12 @@ def _slot(table, key, cell, local):
 
 
 @numba.njit(cache=True)
-def _rehash(table, s, inode, col):
-    """The table at twice the rows (keys ``cell * s + local``); ``inode[node, col]`` follows."""
-    new = np.full((table.shape[0] * 2, 4), -1, np.int64)
+def _rehash(table, new, s, inode, col):
+    """Move the keys (``cell * s + local``) into the empty table ``new``.
+
+    ``new`` has more rows than ``table`` and is filled with -1; ``inode[node, col]``
+    follows each key's row.
+    """
     for i in range(table.shape[0]):
         key = table[i, 0]
         if key != -1:
@@ -101,7 +104,6 @@ def _rehash(table, s, inode, col):
             for q in range(4):
                 new[j, q] = table[i, q]
             inode[table[i, 1], col] = j
-    return new
 
 
 @intrinsic

@@ -352,8 +352,8 @@ def _bench_rate() -> None:
     compiled_search(model, 1.0, 1000, 10.0)
     print(
         "\n== compiled core expansion rate (12 m open floor, Euclidean, weight 1; the first "
-        "search of each size, then the best of 3 repeats: the first one also pays the fresh "
-        "memory's page faults)"
+        "search of each size, which grows the work arrays kept from the smaller one and pays "
+        "the fresh memory's page faults, then the best of 3 repeats in the kept arrays)"
     )
     for n in (10_000, 100_000, 300_000):
         rates = []

@@ -359,6 +359,11 @@ def library_stances(library: StepLibrary | None) -> tuple[np.ndarray, np.ndarray
     return starts, ends
 
 
+def _check_chain_join(join: float) -> None:
+    if not (math.isfinite(join) and join > 0.0):
+        raise TransferError(f"chain_join must be a positive length, got {join}")
+
+
 def chain_successors(library: StepLibrary, join: float = 0.04) -> np.ndarray:
     """The next step of each step's demonstration: its index, or -1 (M,).
 
@@ -369,8 +374,7 @@ def chain_successors(library: StepLibrary, join: float = 0.04) -> np.ndarray:
     Raises:
         TransferError: a non-positive ``join``.
     """
-    if not (math.isfinite(join) and join > 0.0):
-        raise TransferError(f"chain_join must be a positive length, got {join}")
+    _check_chain_join(join)
     steps = library.steps
     out = np.full(len(steps), -1, dtype=int)
     for i in range(len(steps) - 1):
@@ -467,8 +471,7 @@ def extend_chains(
     Raises:
         TransferError: a non-positive ``chain_join``.
     """
-    if not (math.isfinite(config.chain_join) and config.chain_join > 0.0):
-        raise TransferError(f"chain_join must be a positive length, got {config.chain_join}")
+    _check_chain_join(config.chain_join)
     successor = np.asarray(successor, dtype=int)
     predecessor = np.full_like(successor, -1)
     has = np.flatnonzero(successor >= 0)

@@ -49,6 +49,9 @@ ActionFilter = Callable[[str, str, Foot], Sequence[str]]
 # per map cell: the Dijkstra field, its indexed heap (4 arrays), the cost and depth fields,
 # the edge distance and two padded footprint grids (occupancy, distance, free flag)
 PLANNING_BYTES_PER_CELL = 120
+# maps up to this many cells get the whole Dijkstra field at set-up (a bucket queue, ~25-60
+# ns per cell: at most a few tens of ms), larger ones settle it on demand
+EAGER_CELLS = 1 << 20
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -377,6 +380,7 @@ class BipedStepModel:
                 obstacle_cost=opts.obstacle_cost,
                 impassable_depth=depth,
                 deep_cost=10.0 * opts.obstacle_cost,
+                eager_cells=EAGER_CELLS,
             )
         elif opts.heuristic == "euclidean":
             self.cost_per_m = c_min / max(table.max_reach(), 1e-3)

@@ -268,9 +268,11 @@ class LazyCostToGo:
         self.occ = np.ascontiguousarray(grid.occupied, dtype=np.uint8).ravel()
         # per cell: distance, cost, heap position (-1 not reached, -2 closed), as floats so
         # one cell's fields share a cache line; the heap rows are (key, cell)
+        eager = n <= eager_cells
         self.f = np.empty((n, 3))
-        self.f[:, 0] = np.inf
-        self.f[:, 2] = -1.0
+        if not eager:  # (an eager field writes them all)
+            self.f[:, 0] = np.inf
+            self.f[:, 2] = -1.0
         radius = -1  # no deep-obstacle test
         if math.isfinite(impassable_depth) and grid.occupied.any():
             radius = int(impassable_depth / res) + 1
@@ -279,7 +281,6 @@ class LazyCostToGo:
         else:  # a wide scan per cell would cost more than the distance transform
             self.f[:, 1] = _cell_costs(grid, obstacle_cost, impassable_depth, deep_cost).ravel()
             radius = -1
-        eager = n <= eager_cells
         self.i = np.empty((1 if eager else n, 2))  # the heap: (f = distance + octile, cell)
         self.size = np.zeros(2, np.int64)  # heap size, cells closed since the last retarget
         ti = min(max(int((toward[0] - grid.origin[0]) / res), 0), nx - 1)
@@ -652,7 +653,9 @@ def _eager_field(sources, f, occ, p):
                 nd = d + 0.5 * (cu + cost[v]) * steps[k]
                 if nd < dist[v]:
                     dist[v] = nd
-                    b = int(nd * inv) % nb
+                    b = slot + int(nd * inv) - cur  # 2 to nb - 1 buckets ahead
+                    if b >= nb:
+                        b -= nb
                     if spare >= 0:
                         x, spare = spare, ent_n[spare]
                     else:

@@ -119,7 +119,8 @@ def _table_entry(table: ActionTable) -> dict:
     """Work that depends on the table's content only, remembered for a few tables.
 
     The table is validated the first time its content is seen; the entry then holds its
-    history classes (``"hist"``) and, once built, its successor rows without an action
+    history classes (``"hist"``, ``"n_hist"``), its longest duration, forward step,
+    cheapest step cost and reach, and, once built, its successor rows without an action
     filter (``"succ"``).
     """
     meta = repr((table.actions, table.rest_action, sorted(table.mirror.items())))
@@ -135,7 +136,15 @@ def _table_entry(table: ActionTable) -> dict:
         table.validate()
         if len(_TABLE_CACHE) >= 8:
             _TABLE_CACHE.clear()
-        entry = _TABLE_CACHE[key] = {"hist": history_classes(table)}
+        hist = history_classes(table)
+        entry = _TABLE_CACHE[key] = {
+            "hist": hist,
+            "n_hist": int(hist.max()) + 1,
+            "hold": float(table.duration.max()),
+            "max_forward": float(np.max(table.displacement[..., 0])),
+            "c_min": float(table.step_cost.min()),
+            "max_reach": table.max_reach(),
+        }
     return entry
 
 
@@ -299,7 +308,7 @@ class BipedStepModel:
         self.history0 = (table.index(history[0]), table.index(history[1]))
         self.start_time = float(start_time)
 
-        hold = float(table.duration.max())
+        hold = self._table_entry["hold"]
         self.checkers = Checkers(world, geometry, hold, opts.footprint_margin_m)
         self.k0 = self.checkers.index(start_time)
         # the start feet already stand: checked exactly, without the margin; the height
@@ -362,10 +371,10 @@ class BipedStepModel:
         self.tall = self.tall_at(self.k0) if not self.dynamic else None
 
     def _setup_heuristic(self) -> None:
-        opts, ref, table = self.opts, self.ref, self.table
+        opts, ref = self.opts, self.ref
         self.tol = tol = opts.goal_tolerance
-        max_forward = float(np.max(table.displacement[..., 0]))
-        c_min = float(table.step_cost.min())
+        entry = self._table_entry
+        max_forward, c_min = entry["max_forward"], entry["c_min"]
         self.h_lazy: LazyCostToGo | None = None
         if opts.heuristic == "dijkstra":
             self.cost_per_m = c_min / max(max_forward, 1e-3)
@@ -383,7 +392,7 @@ class BipedStepModel:
                 eager_cells=EAGER_CELLS,
             )
         elif opts.heuristic == "euclidean":
-            self.cost_per_m = c_min / max(table.max_reach(), 1e-3)
+            self.cost_per_m = c_min / max(entry["max_reach"], 1e-3)
         else:
             self.cost_per_m = 0.0
 
@@ -398,7 +407,7 @@ class BipedStepModel:
         self._succ_rows: list[tuple[Successor, ...]] | None = None
         self.hist = entry["hist"]
         self._hist_rows = self.hist.tolist()
-        self.n_hist = int(self.hist.max()) + 1
+        self.n_hist = entry["n_hist"]
 
     def _build_successors(self, action_filter: ActionFilter | None) -> None:
         table = self.table

@@ -114,16 +114,26 @@ def _goal_cells(grid: OccupancyGrid, goal: "tuple[float, float]", tol: float) ->
     i1 = min(max(int(math.floor((goal[0] + radius - x0) / res)) + 2, 0), nx)
     j0 = min(max(int(math.floor((goal[1] - radius - y0) / res)) - 1, 0), ny)
     j1 = min(max(int(math.floor((goal[1] + radius - y0) / res)) + 2, 0), ny)
-    ii, jj = np.arange(i0, i1), np.arange(j0, j1)  # the box around the goal (as cell_centers)
-    cx = x0 + (ii + 0.5) * res
-    cy = y0 + (jj + 0.5) * res
-    near = np.hypot(cx[:, None] - goal[0], cy[None, :] - goal[1]) <= radius
-    if near.any():
-        a, b = np.nonzero(near)
-        return (ii[a] * ny + jj[b]).astype(np.int64)
+    near = _near_cells(i0, i1, j0, j1, ny, x0, y0, res, goal[0], goal[1], radius)
+    if near.size:
+        return near
     centers = grid.cell_centers()
     d_goal = np.hypot(centers[..., 0] - goal[0], centers[..., 1] - goal[1])
     return np.array([int(np.argmin(d_goal))])
+
+
+@numba.njit(cache=True)
+def _near_cells(i0, i1, j0, j1, ny, x0, y0, res, gx, gy, radius):
+    """Flat indices of the cells of the box whose centre (as ``cell_centers``) is near."""
+    out = np.empty((i1 - i0) * max(j1 - j0, 0), np.int64)
+    k = 0
+    for i in range(i0, i1):
+        cx = x0 + (i + 0.5) * res
+        for j in range(j0, j1):
+            if math.hypot(cx - gx, y0 + (j + 0.5) * res - gy) <= radius:
+                out[k] = i * ny + j
+                k += 1
+    return out[:k]
 
 
 def grid_dijkstra(cell_cost: np.ndarray, resolution: float, sources: np.ndarray) -> np.ndarray:

@@ -656,10 +656,8 @@ def _eager_field(sources, f, occ, p):
                 continue
             closed[u] = 1
             d, cu = dist[u], cost[u]
-            for k in range(8):
+            for k in range(8):  # a closed neighbour has dist <= nd: no test needed
                 v = u + offs[k]
-                if closed[v]:
-                    continue
                 nd = d + 0.5 * (cu + cost[v]) * steps[k]
                 if nd < dist[v]:
                     dist[v] = nd

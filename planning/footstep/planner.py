@@ -313,12 +313,13 @@ def plan_footsteps_anytime(
 
     The search is reused between weights (OPEN plus INCONS, see
     :func:`repertoire.planning.footstep.search.anytime_search`); each plan carries its
-    bound. Like :func:`plan_footsteps`, an UNREACHABLE after merged states repeats the
-    search on finer lattices (``options.refinements``). ``options.heuristic_weight`` is
-    ignored (``weights`` set it), the other options apply; ``time_limit`` and
-    ``max_expansions`` cover all searches.
+    bound, and weights not below the last plan's bound are skipped. Like
+    :func:`plan_footsteps`, an UNREACHABLE after merged states repeats the search on finer
+    lattices (``options.refinements``). ``options.heuristic_weight`` is ignored
+    (``weights`` set it), the other options apply; ``time_limit`` and ``max_expansions``
+    cover all searches.
 
-    When ARA* has run every weight and time remains, the weights after the first are
+    When ARA* has run (or skipped) every weight and time remains, the weights after the first are
     searched again from scratch (restarting weighted A*, Richter et al. 2010, "The Joy of
     Forgetting"), the cost-to-go field shared: states merged on the lattice keep the
     continuous pose that reached them first, so a fresh search keeps other poses and can
@@ -406,7 +407,7 @@ def _anytime_once(
             require_successors=False,
         )  # fmt: skip
     t_last = time.perf_counter()
-    if not (restarts and len(results) == len(weights) and results[-1].status is PlanStatus.SUCCESS):
+    if not (restarts and results[-1].status is PlanStatus.SUCCESS):  # ARA* ran to its end
         return model, results, t_last
     best = min(r.cost for r in results)
     used = sum(r.expansions for r in results)

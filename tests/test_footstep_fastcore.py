@@ -405,24 +405,44 @@ def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
 
     from repertoire.planning.footstep import plan_footsteps_anytime
 
+    def fresh(args, opts, r):  # weighted A* alone at the restart's weight and lattice
+        return plan_footsteps(*args, dataclasses.replace(
+            opts, heuristic_weight=r.weight, xy_resolution=r.plan.xy_resolution,
+            yaw_bins=r.plan.yaw_bins, refinements=0,
+        ))  # fmt: skip
+
     sc = random_static_scene(1, n_strips=8, n_blocks=4)
     args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
-    opts = PlannerOptions(time_limit=60.0)
+    opts = PlannerOptions(time_limit=60.0, refinements=0)  # restarts on ARA*'s lattice only
     ara = plan_footsteps_anytime(*args, opts, restarts=False)
     runs = plan_footsteps_anytime(*args, opts)
     assert [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
     assert [r.weight for r in runs] == [3.0, 2.0, 1.5, 1.2, 1.0, 2.0, 1.5]
+    assert {r.plan.xy_resolution for r in runs} == {0.05}
     for a, b in zip(ara, runs, strict=False):  # ARA*'s plans come first, unchanged
         assert a.plan.poses == b.plan.poses and a.plan.cost == b.plan.cost
     costs = [r.plan.cost for r in runs]
     assert costs[5] < costs[4] and costs[6] < costs[5]  # only cheaper plans are added
     assert costs[6] == pytest.approx(21.8) and costs[4] == pytest.approx(26.05)
     for r in runs[5:]:  # each one is a fresh weighted A* at its weight
-        fresh = plan_footsteps(*args, dataclasses.replace(opts, heuristic_weight=r.weight))
-        assert r.plan.poses == fresh.poses and r.plan.cost == fresh.cost
+        f = fresh(args, opts, r)
+        assert r.plan.poses == f.poses and r.plan.cost == f.cost
         assert r.plan.status is PlanStatus.SUCCESS and 1.0 <= r.bound <= r.weight
     elapsed = [r.elapsed_s for r in runs]
     assert elapsed == sorted(elapsed) and elapsed[-1] < 60.0
+    # with refinements, the restarts search the finer lattice (2.5 cm, 72 bins) first:
+    # there, where gaps are narrow, weight 2 alone beats ARA*'s 5 cm plans by far
+    sc = random_static_scene(2, n_strips=8, n_blocks=4)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    opts = PlannerOptions(time_limit=60.0)
+    runs = plan_footsteps_anytime(*args, opts)
+    ara = [r for r in runs if r.plan.xy_resolution == 0.05]
+    fine = [r for r in runs if r.plan.xy_resolution == 0.025]
+    assert runs == ara + fine and [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
+    assert [(r.weight, r.plan.yaw_bins) for r in fine] == [(2.0, 72)]
+    assert fine[0].plan.cost == pytest.approx(22.6) and ara[-1].plan.cost == pytest.approx(36.7)
+    f = fresh(args, opts, fine[0])
+    assert fine[0].plan.poses == f.poses and fine[0].plan.cost == f.cost
 
 
 def test_anytime_plan_times_leave_out_restarts_that_found_nothing(monkeypatch):

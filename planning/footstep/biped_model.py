@@ -47,8 +47,10 @@ if TYPE_CHECKING:
 ActionFilter = Callable[[str, str, Foot], Sequence[str]]
 
 # per map cell: the Dijkstra field, its indexed heap (4 arrays), the cost and depth fields,
-# the edge distance and two padded footprint grids (occupancy, distance, free flag)
-PLANNING_BYTES_PER_CELL = 120
+# the edge distance and two padded footprint grids (occupancy, distance, free flag); a field
+# computed whole at set-up has no heap but padded distance and cost copies, row distances
+# and queue entries (~30 more)
+PLANNING_BYTES_PER_CELL = 150
 # maps up to this many cells get the whole Dijkstra field at set-up (a bucket queue, ~25-60
 # ns per cell: at most a few tens of ms), larger ones settle it on demand
 EAGER_CELLS = 1 << 20

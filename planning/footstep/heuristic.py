@@ -556,7 +556,7 @@ def _all_costs(f, occ, p):
         di, dj = int(p[13 + 2 * k]), abs(int(p[14 + 2 * k]))
         reach[di + radius] = max(reach[di + radius], dj)
     far = nx + ny + 1
-    run = np.empty((nx, ny), np.int64)  # distance along the row to the nearest free cell
+    run = np.empty((nx, ny), np.int32)  # distance along the row to the nearest free cell
     if radius >= 0:
         for i in range(nx):
             last = -far

@@ -97,6 +97,9 @@ class TransferExecutionRecord:
         same_run_as: per condition, the earlier condition of this episode whose run it
             shares ("" if simulated itself): the same final library, start and loop
             gains give the same deterministic simulation, so it is run once.
+        run_keys: per condition, :func:`run_key` of the run ("" if nothing ran): a later
+            code version whose plan has the same key (and the same closed loop) would
+            simulate the same run.
     """
 
     terrain: str
@@ -113,6 +116,7 @@ class TransferExecutionRecord:
     error: list[str]
     wall_time_s: float
     same_run_as: list[str] = dataclasses.field(default_factory=list)
+    run_keys: list[str] = dataclasses.field(default_factory=list)
 
 
 def run_key(scenario, plan) -> str:
@@ -226,7 +230,7 @@ def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecution
     terrain = config.terrains[seed % len(config.terrains)]
     offset = rng.uniform(-config.max_offset_m, config.max_offset_m, size=2)
     yaw = math.radians(float(rng.uniform(-config.max_yaw_deg, config.max_yaw_deg)))
-    keys = ("success", "fell", "ttc", "steps", "recorded", "planned", "error", "same")
+    keys = ("success", "fell", "ttc", "steps", "recorded", "planned", "error", "same", "key")
     out = {k: [] for k in keys}
     runs: dict[str, int] = {}  # run_key -> index of the condition that simulated it
     for condition in config.conditions:
@@ -240,6 +244,7 @@ def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecution
             out["planned"].append(0)
             out["error"].append(str(e))
             out["same"].append("")
+            out["key"].append("")
             continue
         key = run_key(scenario, plan)
         if key in runs:
@@ -262,6 +267,7 @@ def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecution
         out["planned"].append(kinds.count("planned"))
         out["error"].append("")
         out["same"].append("")
+        out["key"].append(key)
     return TransferExecutionRecord(
         terrain=terrain,
         offset_x_m=float(offset[0]),
@@ -277,6 +283,7 @@ def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecution
         error=out["error"],
         wall_time_s=time.perf_counter() - start,
         same_run_as=out["same"],
+        run_keys=out["key"],
     )
 
 

@@ -87,6 +87,7 @@ def test_execution_episode_records_every_condition(library_path, tmp_path):
     assert r.recorded[1] == 0 and r.planned[1] > 0 and r.recorded[0] > 0
     # The repeated condition's run is the first one's (same library, start and gains).
     assert r.same_run_as == ["", "", "planner"]
+    assert r.run_keys[2] == r.run_keys[1] != r.run_keys[0] and len(r.run_keys[0]) == 64
     assert r.steps_started[2] == r.steps_started[1] and r.planned[2] == r.planned[1]
     files = execution.summarize([r], config, tmp_path)
     assert "| modified | search | 1 | 0/1 |" in files["table"].read_text()

@@ -359,22 +359,113 @@ def _slab(x0: float, x1: float, p: TerrainParams) -> TerrainBox:
     return TerrainBox([0.5 * (x0 + x1), 0.0, 0.5 * t], [x1 - x0, p.size_y, t], 0.0, "slab")
 
 
-def _rocks(x0: float, x1: float, count: int, p: TerrainParams, rng) -> list[TerrainBox]:
-    boxes = [_slab(x0, x1, p)]
+def _random_rock(x0: float, x1: float, p: TerrainParams, rng) -> TerrainBox:
+    """One rock of random size, yaw and height inside ``[x0, x1]`` x the board's width."""
+    sx, sy = rng.uniform(p.rock_size[0], p.rock_size[1], size=2)
+    yaw = float(rng.uniform(0.0, math.pi))
+    # Half extents of the yawed footprint, so the rock stays inside its region.
+    ex = 0.5 * (abs(math.cos(yaw)) * sx + abs(math.sin(yaw)) * sy)
+    ey = 0.5 * (abs(math.sin(yaw)) * sx + abs(math.cos(yaw)) * sy)
+    if 2.0 * ex >= x1 - x0:
+        scale = 0.95 * (x1 - x0) / (2.0 * ex)
+        sx, sy, ex, ey = sx * scale, sy * scale, ex * scale, ey * scale
     half_y = 0.5 * p.size_y
-    for _ in range(count):
-        sx, sy = rng.uniform(p.rock_size[0], p.rock_size[1], size=2)
-        yaw = float(rng.uniform(0.0, math.pi))
-        # Half extents of the yawed footprint, so the rock stays inside its region.
-        ex = 0.5 * (abs(math.cos(yaw)) * sx + abs(math.sin(yaw)) * sy)
-        ey = 0.5 * (abs(math.sin(yaw)) * sx + abs(math.cos(yaw)) * sy)
-        if 2.0 * ex >= x1 - x0:
-            scale = 0.95 * (x1 - x0) / (2.0 * ex)
-            sx, sy, ex, ey = sx * scale, sy * scale, ex * scale, ey * scale
-        cx = float(rng.uniform(x0 + ex, x1 - ex))
-        cy = float(rng.uniform(-half_y + ey, half_y - ey))
-        top = p.base_thickness + float(rng.uniform(p.rock_height[0], p.rock_height[1]))
-        boxes.append(TerrainBox([cx, cy, 0.5 * top], [float(sx), float(sy), top], yaw, "rock"))
+    cx = float(rng.uniform(x0 + ex, x1 - ex))
+    cy = float(rng.uniform(-half_y + ey, half_y - ey))
+    top = p.base_thickness + float(rng.uniform(p.rock_height[0], p.rock_height[1]))
+    return TerrainBox([cx, cy, 0.5 * top], [float(sx), float(sy), top], yaw, "rock")
+
+
+def _rocks(x0: float, x1: float, count: int, p: TerrainParams, rng) -> list[TerrainBox]:
+    return [_slab(x0, x1, p)] + [_random_rock(x0, x1, p, rng) for _ in range(count)]
+
+
+ROCK_FIELD_COVERAGE: float = 0.8
+"""Default fraction of a rock field's slab covered by rocks (:func:`rock_field`)."""
+
+MAX_ROCK_COVERAGE: float = 0.9
+"""Highest coverage :func:`rock_field` accepts: rocks stay inside the slab, so its edges fill
+ever more slowly (rocks of 4-10 cm on 0.35 m x 0.8 m: about 60 for 0.6, 200 for 0.8, 600 for
+0.9, 3000 for 0.95)."""
+
+COVERAGE_CELL: float = 0.005
+"""Cell side of the grid on which :func:`rock_field` measures its coverage (m)."""
+
+
+def rock_coverage(boxes: list[TerrainBox], x0: float, x1: float, size_y: float) -> float:
+    """Fraction of ``[x0, x1] x [-size_y/2, size_y/2]`` under a rock of ``boxes``.
+
+    Measured at the centres of a grid of :data:`COVERAGE_CELL` cells (the union of the
+    rocks' footprints, overlaps counted once).
+    """
+    x, y = _coverage_grid(x0, x1, size_y)
+    covered = np.zeros(x.shape, dtype=bool)
+    for box in boxes:
+        if box.label == "rock":
+            covered |= box.contains_xy(x, y)
+    return float(covered.mean())
+
+
+def _coverage_grid(x0: float, x1: float, size_y: float) -> tuple[np.ndarray, np.ndarray]:
+    nx = max(1, int(round((x1 - x0) / COVERAGE_CELL)))
+    ny = max(1, int(round(size_y / COVERAGE_CELL)))
+    xs = x0 + (np.arange(nx) + 0.5) * (x1 - x0) / nx
+    ys = (np.arange(ny) + 0.5) * size_y / ny - 0.5 * size_y
+    return np.meshgrid(xs, ys)
+
+
+def rock_field(
+    x0: float, x1: float, p: TerrainParams, seed: int, coverage: float = ROCK_FIELD_COVERAGE
+) -> list[TerrainBox]:
+    """A slab over ``[x0, x1]`` densely covered by rocks (a LittleDog rock board).
+
+    Rocks of the sizes and heights of ``p`` (``rock_size``, ``rock_height``, random yaw)
+    are dropped at random places on the slab, one after another, until the fraction of
+    the slab's area under at least one rock (:func:`rock_coverage`) reaches
+    ``coverage``; overlapping rocks make a field of flat tops at different heights, as
+    on the rocky boards of Stolle et al.'s LittleDog terrains. The count therefore
+    follows from the area, the rock sizes and the seed, and the coverage reached exceeds
+    ``coverage`` by at most one rock's footprint over the slab's area.
+
+    Args:
+        x0, x1: the slab's extent along x (m), ``x0 < x1``; it spans the board's width.
+        p: board parameters (``size_y``, ``base_thickness``, rock sizes and heights).
+        seed: seed of ``np.random.default_rng``; the same arguments give the same field.
+        coverage: target fraction of the slab under rocks, in
+            ``[0, MAX_ROCK_COVERAGE]``; 0 gives the bare slab.
+
+    Returns:
+        The slab box followed by the rock boxes.
+
+    Raises:
+        RepertoireError: a coverage outside ``[0, MAX_ROCK_COVERAGE]`` or not finite, an
+            empty extent, or a non-integer seed.
+    """
+    if not (math.isfinite(coverage) and 0.0 <= coverage <= MAX_ROCK_COVERAGE):
+        raise RepertoireError(
+            f"rock field coverage must be a fraction in [0, {MAX_ROCK_COVERAGE}], got {coverage}"
+        )
+    if not (math.isfinite(x0) and math.isfinite(x1) and x0 < x1):
+        raise RepertoireError(f"rock field needs x0 < x1, got [{x0}, {x1}]")
+    if int(seed) != seed:
+        raise RepertoireError(f"rock field seed must be an integer, got {seed!r}")
+    p.validate()
+    rng = np.random.default_rng(int(seed))
+    x, y = _coverage_grid(x0, x1, p.size_y)
+    covered = np.zeros(x.shape, dtype=bool)
+    boxes = [_slab(x0, x1, p)]
+    # A guard, never reached with the board's rock sizes: 50 times the rocks of the
+    # smallest size that would tile the slab.
+    cap = 50 * int(math.ceil(covered.size * COVERAGE_CELL**2 / p.rock_size[0] ** 2)) + 10
+    while covered.mean() < coverage:
+        if len(boxes) > cap:
+            raise RepertoireError(
+                f"rock field: coverage {coverage} not reached with {cap} rocks "
+                f"(reached {covered.mean():.3f}); rocks too small for the grid"
+            )
+        rock = _random_rock(x0, x1, p, rng)
+        covered |= rock.contains_xy(x, y)
+        boxes.append(rock)
     return boxes
 
 
@@ -488,24 +579,30 @@ def join_boards(boards: list[TerrainBoard], offsets_xy) -> TerrainBoard:
 
 
 def replace_with_rocks(
-    board: TerrainBoard, x_from: float, seed: int = 0, rock_count: int | None = None
+    board: TerrainBoard,
+    x_from: float,
+    seed: int = 0,
+    coverage: float = ROCK_FIELD_COVERAGE,
 ) -> TerrainBoard:
-    """A copy of ``board`` whose part at ``x >= x_from`` is replaced by a rocks section.
+    """A copy of ``board`` whose part at ``x >= x_from`` is replaced by a rock field.
 
     Boxes lying wholly before ``x_from`` are kept; boxes reaching past it are cut at
     ``x_from`` (slabs and steps are axis-aligned bands; a yawed rock reaching past it
-    is dropped); the rest of the board becomes a slab with rocks generated with
-    ``seed`` (count scaled by the replaced length unless ``rock_count`` is given).
-    The unchanged part keeps exactly its heights.
+    is dropped); the rest of the board becomes :func:`rock_field` of ``seed``: a slab
+    with ``coverage`` (default :data:`ROCK_FIELD_COVERAGE`, 0.8) of its area under
+    rocks of the board's ``rock_size`` and ``rock_height`` (Stolle et al., Fig. 10:
+    new rocks in place of the terrain's last part). The unchanged part keeps exactly
+    its heights.
 
     Args:
         board: the source board.
         x_from: start of the replaced part (m), strictly inside the board along x.
         seed: seed of the new rocks.
-        rock_count: number of rocks on the new part.
+        coverage: fraction of the replaced part covered by rocks, in
+            ``[0, MAX_ROCK_COVERAGE]``.
 
     Raises:
-        RepertoireError: ``x_from`` outside the board or a bad count.
+        RepertoireError: ``x_from`` outside the board or a bad coverage.
     """
     if not isinstance(board, TerrainBoard):
         raise RepertoireError(f"replace_with_rocks needs a TerrainBoard, got {type(board)}")
@@ -514,10 +611,7 @@ def replace_with_rocks(
         raise RepertoireError(
             f"replace_with_rocks: x_from={x_from} must lie strictly inside the board ({x0}, {x1})"
         )
-    if rock_count is None:
-        rock_count = max(1, round(board.params.rock_count * (x1 - x_from) / (x1 - x0)))
-    if int(rock_count) != rock_count or rock_count < 0:
-        raise RepertoireError(f"rock_count must be a non-negative integer, got {rock_count}")
+    new = rock_field(float(x_from), x1, board.params, seed, coverage)
     kept: list[TerrainBox] = []
     for box in board.boxes:
         lo = box.center[0] - 0.5 * box.size[0]
@@ -536,8 +630,6 @@ def replace_with_rocks(
             c, s = abs(math.cos(box.yaw)), abs(math.sin(box.yaw))
             if box.center[0] + 0.5 * (c * box.size[0] + s * box.size[1]) < x_from:
                 kept.append(box)
-    rng = np.random.default_rng(int(seed))
-    new = _rocks(float(x_from), x1, int(rock_count), board.params, rng)
     params = dataclasses.replace(board.params, kind="mixed")
     return TerrainBoard(params=params, seed=board.seed, boxes=kept + new)
 

@@ -83,6 +83,10 @@ class CrawlGapFiller:
         place_feet: with ``board``, end a reached gap with one-foot moves onto the target
             stance when its footholds are flat (a recorded step's start; not a goal stance
             on rocks), checked executable like the rest.
+        place_within: summed foot offset (m) from the target stance left to the executor
+            (:func:`~repertoire.planning.transfer_library.placing_steps`: the fewest feet
+            are placed); 0 places every foot farther than 5 mm. Set it to the search's
+            ``join_tolerance``, the offset it accepts between recorded steps.
         planner_wall_limit: the planner's wall-time limit per call is the larger of this
             and the search's remaining CPU budget (s): a safety limit, not the budget.
     """
@@ -94,6 +98,7 @@ class CrawlGapFiller:
     crawl: ExecParams = dataclasses.field(default_factory=ExecParams)
     board: object = None
     place_feet: bool = False
+    place_within: float = 0.0
     planner_wall_limit: float = 10.0
 
     def _plan(self, start: np.ndarray, goal_xy: np.ndarray, time_limit: float):
@@ -163,7 +168,8 @@ class CrawlGapFiller:
         if status is PlanStatus.SUCCESS and place:
             from repertoire.planning.transfer_library import placing_steps
 
-            new += placing_steps(new[-1].end_feet if new else start, target)
+            end, before = (new[-1].end_feet, new[-1].start_feet) if new else (start, None)
+            new += placing_steps(end, target, within=self.place_within, before=before)
         usable = self.usable_prefix(new)
         if usable == len(new):
             return GapFill(new, _status(status, bool(new)))

@@ -656,13 +656,35 @@ def planned_library_steps(
     return out
 
 
-def placing_steps(current, target, tolerance: float = 0.005) -> list[PlannedStep]:
-    """One-foot steps (crawl order) moving each foot farther than ``tolerance`` onto ``target``."""
+def placing_steps(
+    current, target, tolerance: float = 0.005, within: float = 0.0, before=None
+) -> list[PlannedStep]:
+    """One-foot steps (crawl order) moving feet farther than ``tolerance`` onto ``target``.
+
+    With ``within`` = 0 every such foot is placed. With ``within`` > 0 (the search's join
+    tolerance: what the executor's blend and the integral foot controller take up, as
+    they do between a demonstration's own steps) the fewest feet are placed, largest
+    offsets first, that leave a summed offset of at most ``within`` AND at most half
+    the last move's length (the last placing move, or the move from ``before`` to
+    ``current``), so the nearest-step policy takes the target's step next rather than
+    that move again.
+    """
     cur = np.array(current, dtype=float)
     target = np.asarray(target, dtype=float)
+    off = np.linalg.norm(cur - target, axis=1)
+    far = [int(f) for f in np.argsort(-off, kind="stable") if off[f] > tolerance]
+    last = np.inf if before is None else float(foot_distance(before, cur))
+    k = len(far)
+    if within > 0.0:
+        for k in range(len(far) + 1):
+            moved = [f for f in CRAWL_ORDER if f in far[:k]]
+            rest = float(off.sum() - off[far[:k]].sum())
+            length = float(off[moved[-1]]) if moved else last
+            if rest <= within and rest <= 0.5 * length:
+                break
     out = []
     for f in CRAWL_ORDER:
-        if np.linalg.norm(cur[f] - target[f]) > tolerance:
+        if f in far[:k]:
             nxt = cur.copy()
             nxt[f] = target[f]
             out.append(PlannedStep(cur, nxt, f))
@@ -682,11 +704,12 @@ def final_library(
     """The final library of a search: path steps in order, planner runs as ``planned`` steps.
 
     A planner run ends with the feet's centroid near the next recorded step's start
-    (the crawl planner aims at a centroid); :func:`placing_steps` then moves each foot
-    farther than ``tolerance`` (m) onto that step's start foothold, so every run ends
-    exactly where the recorded step begins and the nearest-step policy picks it next.
-    Between two path steps joined by no planned step but farther apart than ``join``
-    (m, summed over the feet) the same placing moves are inserted.
+    (the crawl planner aims at a centroid); :func:`placing_steps` then moves the fewest
+    feet (farther than ``tolerance``, m) onto that step's start footholds that leave at
+    most ``join`` (m, summed over the feet: the search's join tolerance, taken up by the
+    executor's blend and the integral controller) and the nearest-step policy picking
+    the recorded step next. Between two path steps joined by no planned step but farther
+    apart than ``join`` the same placing moves are inserted.
 
     Raises:
         TransferError: an empty path (nothing to execute) or a recorded step missing
@@ -715,11 +738,12 @@ def final_library(
         step = transferred[item.step]
         search_run, extra = list(run), []
         if search_run:
-            extra = placing_steps(search_run[-1].end_feet, step.start_feet, tolerance)
+            last = search_run[-1]
+            extra = placing_steps(last.end_feet, step.start_feet, tolerance, join, last.start_feet)
         elif out and float(foot_distance(step_end_feet(out[-1]), step.start_feet)) > join:
             # A gap the planner "filled" with no steps (centroids already close): place the
             # feet from the previous step's end so the policy can pick this step next.
-            extra = placing_steps(step_end_feet(out[-1]), step.start_feet, tolerance)
+            extra = placing_steps(step_end_feet(out[-1]), step.start_feet, tolerance, join)
         run = search_run + extra
         try:
             flush()

@@ -15,7 +15,11 @@ goal are never on the path and so are left out of the final sequence.
 
 Every node has an edge to the goal (the direct start -> goal edge included), so
 with no transferred steps (a match threshold that discarded all of them) the search
-plans with the planner alone and says so.
+plans with the planner alone and says so. That direct edge, the planner alone, is
+planned first and queued at its real cost: goal entries leave the queue in order of
+their real cost, so the search never returns a path costlier than the planner alone,
+whatever the heuristic weight (which trades planner calls for path cost among the
+paths through recorded steps), and keeps it if the CPU-time limit cuts the search.
 
 The search's time limit is CPU time (``time.process_time``: the search and its
 planner calls), so the path found does not depend on how loaded the machine is;
@@ -101,7 +105,8 @@ class SearchConfig:
             budget is passed to the gap filler.
         heuristic_weight: weight of the distance-to-goal heuristic (recorded steps
             needed at ``step_reach / 4`` of body progress each); 1 is A*, larger is
-            greedier best-first with fewer planner calls.
+            greedier best-first with fewer planner calls. Either way no path costlier
+            than the planner alone is returned (it is planned first).
     """
 
     neighbours: int = 8
@@ -264,7 +269,7 @@ def search_transfer(
     reached = False
     timed_out = False
 
-    def push_edges(u: int) -> None:
+    def push_edges(u: int, skip_goal: bool = False) -> None:
         nonlocal counter
         a = out_stance[u]
         targets: list[int] = []
@@ -273,7 +278,8 @@ def search_transfer(
             near = np.argsort(d, kind="stable")
             near = [int(j) for j in near if j + 1 != u and j + 1 not in closed]
             targets = [j + 1 for j in near[: config.neighbours]]
-        targets.append(goal_node)
+        if not skip_goal:
+            targets.append(goal_node)
         for v in targets:
             b = goal if v == goal_node else s_in[v - 1]
             gap = float(foot_distance(a, b))
@@ -291,39 +297,59 @@ def search_transfer(
             counter += 1
             heapq.heappush(queue, (f, not evaluated, -g, counter, u, v, g, evaluated, []))
 
-    push_edges(0)
+    def fill_gap(u: int, v: int) -> tuple | None:
+        """Plans the gap of edge u -> v: its queue entry at the real cost, or None (unusable)."""
+        nonlocal counter, planner_calls
+        b = goal if v == goal_node else s_in[v - 1]
+        remaining = config.time_limit - (clock() - t0)
+        planner_calls += 1
+        answer = gap_filler(out_stance[u].copy(), b.copy(), remaining)
+        if not isinstance(answer, GapFill) or answer.status not in GAP_STATUSES:
+            raise TransferSearchError(
+                f"gap_filler must return GapFill with status in {GAP_STATUSES}, got {answer!r}"
+            )
+        if answer.status != "reached":
+            return None
+        end = answer.steps[-1].end_feet if answer.steps else out_stance[u]
+        if v != goal_node and float(foot_distance(end, b)) > config.join_tolerance:
+            # The planner aims at a centroid: a gap that does not end on the step's
+            # start stance would leave the nearest-step policy repeating the last step.
+            return None
+        step_cost = 0.0 if v == goal_node else config.recorded_cost
+        g = g_best[u] + step_cost + config.planned_cost * len(answer.steps)
+        counter += 1
+        f = g + (0.0 if v == goal_node else h(v))
+        return (f, False, -g, counter, u, v, g, True, list(answer.steps))
+
+    # The planner alone (start -> goal) is planned first: the fallback every path must
+    # beat. It enters the queue at its real cost, and goal entries leave the queue in
+    # order of their real cost, so no path costlier than the planner alone is returned
+    # (with any heuristic weight), and it is kept if the CPU-time limit cuts the search.
+    fallback = None
+    if (
+        float(foot_distance(start, goal)) > config.join_tolerance
+        and config.time_limit > clock() - t0
+    ):
+        fallback = fill_gap(0, goal_node)
+    push_edges(0, skip_goal=fallback is not None)
+    if fallback is not None:
+        heapq.heappush(queue, fallback)
     closed.add(0)
     while queue:
         if clock() - t0 > config.time_limit:
             timed_out = True
             break
-        f, _, _, _, u, v, g, evaluated, fill = heapq.heappop(queue)
+        entry = heapq.heappop(queue)
+        f, _, _, _, u, v, g, evaluated, fill = entry
         if v in closed:
             continue
         if not evaluated:
-            b = goal if v == goal_node else s_in[v - 1]
-            remaining = config.time_limit - (clock() - t0)
-            if remaining <= 0.0:
+            if config.time_limit - (clock() - t0) <= 0.0:
                 timed_out = True
                 break
-            planner_calls += 1
-            answer = gap_filler(out_stance[u].copy(), b.copy(), remaining)
-            if not isinstance(answer, GapFill) or answer.status not in GAP_STATUSES:
-                raise TransferSearchError(
-                    f"gap_filler must return GapFill with status in {GAP_STATUSES}, got {answer!r}"
-                )
-            if answer.status != "reached":
-                continue
-            end = answer.steps[-1].end_feet if answer.steps else out_stance[u]
-            if v != goal_node and float(foot_distance(end, b)) > config.join_tolerance:
-                # The planner aims at a centroid: a gap that does not end on the step's
-                # start stance would leave the nearest-step policy repeating the last step.
-                continue
-            step_cost = 0.0 if v == goal_node else config.recorded_cost
-            g = g_best[u] + step_cost + config.planned_cost * len(answer.steps)
-            counter += 1
-            f = g + (0.0 if v == goal_node else h(v))
-            heapq.heappush(queue, (f, False, -g, counter, u, v, g, True, list(answer.steps)))
+            entry = fill_gap(u, v)
+            if entry is not None:
+                heapq.heappush(queue, entry)
             continue
         closed.add(v)
         g_best[v] = g
@@ -340,6 +366,10 @@ def search_transfer(
             break
         push_edges(v)
 
+    if timed_out and fallback is not None:
+        # Cut short: the planner alone reached the goal, better than any partial path.
+        parent[goal_node] = (0, fallback[-1])
+        reached = True
     if reached:
         end = goal_node
         status = "reached"
@@ -363,6 +393,8 @@ def search_transfer(
     else:
         message = f"{m} transferred steps"
     message += f"; {status}: {recorded} recorded and {planned} planned steps"
+    if reached and timed_out:
+        message += f" (CPU-time limit {config.time_limit} s reached: the planner alone)"
     if not reached:
         left = h_dist(end)
         message += f"; best partial path ends {left:.3f} m from the goal"

@@ -94,6 +94,12 @@ class TransferExecutionRecord:
         planned: planned steps in the executed library, per condition.
         error: why a condition had nothing to execute ("" if it ran), per condition.
         wall_time_s: wall time of the episode (s).
+        same_run_as: per condition, the earlier condition of this episode whose run it
+            shares ("" if simulated itself): the same final library, start and loop
+            gains give the same deterministic simulation, so it is run once.
+        run_keys: per condition, :func:`run_key` of the run ("" if nothing ran): a later
+            code version whose plan has the same key (and the same closed loop) would
+            simulate the same run.
     """
 
     terrain: str
@@ -109,6 +115,33 @@ class TransferExecutionRecord:
     planned: list[int]
     error: list[str]
     wall_time_s: float
+    same_run_as: list[str] = dataclasses.field(default_factory=list)
+    run_keys: list[str] = dataclasses.field(default_factory=list)
+
+
+def run_key(scenario, plan) -> str:
+    """Digest of what a run's simulation depends on beyond the terrain and duration.
+
+    The loop fields of the scenario (gains, plant settings: every field but the
+    transfer's ``mode``, ``multiple`` and ``threshold``, which act only through the
+    library), the start (pose, joints) and every field of every step of the final
+    library. Two runs of one episode with equal keys simulate identically.
+    """
+    import hashlib
+
+    h = hashlib.sha256()
+    skip = {"mode", "multiple", "threshold", "planner_time_limit"}
+    loop = {f.name: getattr(scenario, f.name) for f in dataclasses.fields(scenario)}
+    h.update(repr(sorted((k, repr(v)) for k, v in loop.items() if k not in skip)).encode())
+    for a in (plan.pose0, plan.q0):
+        h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    for step in plan.library:
+        for f in dataclasses.fields(step):
+            v = getattr(step, f.name)
+            h.update(
+                np.ascontiguousarray(v).tobytes() if isinstance(v, np.ndarray) else repr(v).encode()
+            )
+    return h.hexdigest()
 
 
 def scenario_for(config: TransferExecutionConfig, terrain: str, condition: str, offset, yaw):
@@ -197,7 +230,9 @@ def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecution
     terrain = config.terrains[seed % len(config.terrains)]
     offset = rng.uniform(-config.max_offset_m, config.max_offset_m, size=2)
     yaw = math.radians(float(rng.uniform(-config.max_yaw_deg, config.max_yaw_deg)))
-    out = {k: [] for k in ("success", "fell", "ttc", "steps", "recorded", "planned", "error")}
+    keys = ("success", "fell", "ttc", "steps", "recorded", "planned", "error", "same", "key")
+    out = {k: [] for k in keys}
+    runs: dict[str, int] = {}  # run_key -> index of the condition that simulated it
     for condition in config.conditions:
         scenario = scenario_for(config, terrain, condition, offset, yaw)
         try:
@@ -208,7 +243,17 @@ def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecution
             out["recorded"].append(0)
             out["planned"].append(0)
             out["error"].append(str(e))
+            out["same"].append("")
+            out["key"].append("")
             continue
+        key = run_key(scenario, plan)
+        if key in runs:
+            i = runs[key]
+            for k in keys:
+                out[k].append(out[k][i])
+            out["same"][-1] = config.conditions[i]
+            continue
+        runs[key] = len(out["success"])
         diagram = build_littledog_transfer(scenario, plan=plan)
         # Runs end once crossed or fallen (the figures are those of the full duration).
         _, context = simulate(diagram, config.duration_s, monitors=[early_stop_monitor(diagram)])
@@ -221,6 +266,8 @@ def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecution
         out["recorded"].append(kinds.count("recorded"))
         out["planned"].append(kinds.count("planned"))
         out["error"].append("")
+        out["same"].append("")
+        out["key"].append(key)
     return TransferExecutionRecord(
         terrain=terrain,
         offset_x_m=float(offset[0]),
@@ -235,6 +282,8 @@ def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecution
         planned=out["planned"],
         error=out["error"],
         wall_time_s=time.perf_counter() - start,
+        same_run_as=out["same"],
+        run_keys=out["key"],
     )
 
 
@@ -251,8 +300,8 @@ def summarize(
     out_dir = Path(out_dir)
     lines = [
         "| terrain | condition | episodes | success | fell | nothing to execute | median time "
-        "to cross (s) | median recorded + planned steps |",
-        "|---|---|---|---|---|---|---|---|",
+        "to cross (s) | median recorded + planned steps | run shared with |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     rates: dict[str, list[float]] = {c: [] for c in config.conditions}
     terrains = [t for t in config.terrains if any(r.terrain == t for r in records)]
@@ -268,10 +317,12 @@ def summarize(
             med = f"{np.median(times):.1f}" if times else "-"
             rec = np.median([r.recorded[i] for r, i in rows])
             pla = np.median([r.planned[i] for r, i in rows])
+            same = [r.same_run_as[i] for r, i in rows if i < len(r.same_run_as)]
+            shared = ", ".join(f"{o} {same.count(o)}" for o in sorted(set(same) - {""})) or "-"
             lines.append(
                 f"| {name} | {c} | {len(rows)} | {sum(ok)}/{len(rows)} "
                 f"| {sum(r.fell[i] for r, i in rows)} | {sum(bool(r.error[i]) for r, i in rows)} "
-                f"| {med} | {rec:.0f} + {pla:.0f} |"
+                f"| {med} | {rec:.0f} + {pla:.0f} | {shared} |"
             )
             rates[c].append(sum(ok) / len(rows))
     table = out_dir / "littledog_transfer_execution.md"

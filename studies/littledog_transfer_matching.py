@@ -8,9 +8,12 @@ transferred onto a new terrain per episode; the case follows from the seed:
   lies within the candidate yaws (the crossings at 0 degrees) should match back
   within 2 cm and 5 degrees of its recorded place; placed steps farther away are
   spurious, and those whose profile lies wholly on the flat board are counted.
-- seed 2 (``modified``): ``terrain_a`` with rocks in place of its part beyond
-  ``change_from`` (Fig. 10): matches where the terrain is unchanged, and how many
-  touch the changed part.
+- seed 2 (``modified``): ``terrain_a`` with a rock field
+  (:func:`~repertoire.models.terrain.rock_field`: rocks of seed ``rock_seed`` over
+  ``ROCK_FIELD_COVERAGE`` = 0.8 of the area) in
+  place of its part beyond ``change_from`` (Fig. 10): the steps whose profile lies on
+  the unchanged part matched back at their places, and how many placements touch the
+  changed part (a profile sample at or beyond ``change_from``).
 - seeds >= 3 (``generated``): two rough boards with seeds the demonstrations never
   used (``1000 + 2 k``, ``1001 + 2 k``).
 
@@ -34,13 +37,59 @@ from repertoire.errors import RepertoireError
 FLAT_SEED = 0
 
 
-def profile_x(feet) -> np.ndarray:
-    """World x of the 464 profile samples of a stance (its terrain feature's footprint)."""
+def profile_xy(feet) -> np.ndarray:
+    """World (x, y) of the 464 profile samples of a stance (its terrain feature's footprint)."""
     from repertoire.planning.terrain_features import profile_offsets, stance_frame
 
     x, y, yaw = stance_frame(feet)
     uv = profile_offsets()
-    return x + math.cos(yaw) * uv[:, 0] - math.sin(yaw) * uv[:, 1]
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.column_stack([x + c * uv[:, 0] - s * uv[:, 1], y + s * uv[:, 0] + c * uv[:, 1]])
+
+
+def profile_x(feet) -> np.ndarray:
+    """World x of the 464 profile samples of a stance."""
+    return profile_xy(feet)[:, 0]
+
+
+def at_own_place(new, old, shift_x: float = 0.0) -> bool:
+    """A placed step lies within 2 cm (every start foot) and 5 degrees of its recorded place.
+
+    Args:
+        new: the placed step (on the target terrain).
+        old: the recorded step it was transferred from.
+        shift_x: how far the source terrain moved along x in the target (m).
+    """
+    from repertoire.planning.terrain_features import wrap_angle
+
+    dist = np.linalg.norm(new.start_feet[:, :2] - old.start_feet[:, :2] - [shift_x, 0.0], axis=1)
+    yaw = abs(math.degrees(wrap_angle(new.start_pose[5] - old.start_pose[5])))
+    return bool(dist.max() < 0.02 and yaw < 5.0)
+
+
+def could_match_back(library, name: str, region=None) -> list[int]:
+    """Steps of terrain ``name`` that can match at their own place on a copy of it.
+
+    Their heading lies within the candidate yaws ([-45, 45] degrees) and, when
+    ``region`` ``(x0, x1, half_y)`` is given, their whole profile lies in
+    ``[x0, x1) x [-half_y, half_y]`` (on the board, before a changed part).
+    """
+    from repertoire.planning.terrain_features import wrap_angle
+
+    half_yaw = math.pi / 4 + 1e-9
+
+    def inside(s) -> bool:
+        if region is None:
+            return True
+        p = profile_xy(s.start_feet)
+        x0, x1, half_y = region
+        return bool(p[:, 0].min() >= x0 and p[:, 0].max() < x1 and np.abs(p[:, 1]).max() <= half_y)
+
+    return [
+        i
+        for i, s in enumerate(library)
+        if s.terrain == name and abs(wrap_angle(s.direction)) <= half_yaw and inside(s)
+    ]
 
 
 @dataclasses.dataclass
@@ -78,9 +127,11 @@ class LittleDogTransferRecord:
         terrain: what the target terrain is made of.
         placed: steps placed (one match per step).
         discarded: library steps matched nowhere.
-        eligible: match-back only: steps heading within the candidate yaws on their
-            own terrain (could match back), else 0.
-        back_within: match-back only: of those, placed within 2 cm and 5 degrees.
+        eligible: steps heading within the candidate yaws on their own terrain (could
+            match back); modified: of the modified source terrain, those whose recorded
+            profile lies wholly on the board before ``change_from`` (the unchanged
+            part); else 0.
+        back_within: of those, placed within 2 cm and 5 degrees of their recorded place.
         spurious: match-back: placed more than 2 cm / 5 degrees from their own place
             (steps of the other source terrain included); modified: placed with a profile
             sample on the changed part.
@@ -127,7 +178,7 @@ def _match_back(config, seed: int, library, pca):
 
     from repertoire.diagrams.littledog_transfer import source_board
     from repertoire.models.terrain import TerrainParams, generate_board, tile_boards
-    from repertoire.planning.terrain_features import TransferConfig, wrap_angle
+    from repertoire.planning.terrain_features import TransferConfig
     from repertoire.planning.transfer_library import transfer_library
 
     name = ("terrain_a", "terrain_b")[seed]
@@ -149,20 +200,13 @@ def _match_back(config, seed: int, library, pca):
         "match_back",
     )
     elapsed = time.perf_counter() - t
-    half_yaw = math.pi / 4 + 1e-9
-    eligible = [
-        i
-        for i, s in enumerate(library)
-        if s.terrain == name and abs(wrap_angle(s.direction)) <= half_yaw
-    ]
+    eligible = could_match_back(library, name)
     within = spurious = on_flat = 0
     for new, j in zip(r.library or [], r.source_index):
         old = library[int(j)]
         if profile_x(new.start_feet).min() > flat_from:
             on_flat += 1
-        dist = np.linalg.norm(new.start_feet[:, :2] - old.start_feet[:, :2] - [shift, 0.0], axis=1)
-        yaw = abs(math.degrees(wrap_angle(new.start_pose[5] - old.start_pose[5])))
-        ok = old.terrain == name and dist.max() < 0.02 and yaw < 5.0
+        ok = old.terrain == name and at_own_place(new, old, shift)
         within += int(ok and int(j) in eligible)
         spurious += int(not ok)
     placed = 0 if r.library is None else len(r.library)
@@ -196,6 +240,7 @@ def run_episode(config: LittleDogTransferConfig, seed: int) -> LittleDogTransfer
         LittleDogTransferScenario,
         library_terrains_pca,
         plan_transfer,
+        source_board,
     )
 
     config.validate()
@@ -206,7 +251,7 @@ def run_episode(config: LittleDogTransferConfig, seed: int) -> LittleDogTransfer
         return _match_back(config, seed, library, library_terrains_pca())
     if seed == 2:
         kw = dict(target="modified", change_from=config.change_from, rock_seed=config.rock_seed)
-        terrain = f"terrain_a, rocks from x = {config.change_from} m"
+        terrain = f"terrain_a, rock field from x = {config.change_from} m"
     else:
         seeds = [1000 + 2 * (seed - 3), 1001 + 2 * (seed - 3)]
         kw = dict(target="generated", board_seeds=seeds)
@@ -236,19 +281,24 @@ def run_episode(config: LittleDogTransferConfig, seed: int) -> LittleDogTransfer
             0.0,
             0.0,
         )
-    spurious = 0
-    if seed == 2 and single.transfer.library is not None:
-        spurious = sum(
-            profile_x(s.start_feet).max() >= config.change_from for s in single.transfer.library
-        )
+    spurious = within = 0
+    eligible: list[int] = []
+    if seed == 2:
+        source = source_board(base.source).params
+        region = (-0.5 * source.size_x, config.change_from, 0.5 * source.size_y)
+        eligible = could_match_back(library, base.source, region)
+        placed_at = zip(single.transfer.library or [], single.transfer.source_index)
+        for new, j in placed_at:
+            spurious += int(profile_x(new.start_feet).max() >= config.change_from)
+            within += int(int(j) in eligible and at_own_place(new, library[int(j)]))
     placed = lambda p: 0 if p.transfer.library is None else len(p.transfer.library)  # noqa: E731
     return LittleDogTransferRecord(
         "modified" if seed == 2 else "generated",
         terrain,
         placed(single),
         len(single.transfer.discarded),
-        0,
-        0,
+        len(eligible),
+        within,
         int(spurious),
         0,
         placed(multi),
@@ -288,7 +338,7 @@ def summarize(
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in records:
-        back = f"{r.back_within}/{r.eligible}" if r.case == "match_back" else "-"
+        back = f"{r.back_within}/{r.eligible}" if r.case != "generated" else "-"
         flat = str(r.on_flat) if r.case == "match_back" else "-"
         one = f"{r.recorded} + {r.planned} ({r.status})" if r.status else "-"
         many = (

@@ -4,8 +4,16 @@ Stolle et al. (section III): before a chosen step is played back, every joint
 moves along a cubic spline from its current angle to the step's first angle,
 taking longer the farther the body is from the step's intended start pose;
 then the recorded joint angles are played back. The plain functions
-:func:`spline_duration`, :func:`cubic_blend` and :func:`interpolate_step` hold
-the math; :class:`StepExecutor` is the LeafSystem.
+:func:`spline_duration`, :func:`cubic_blend`, :func:`blend_pose` and
+:func:`interpolate_step` hold the math; :class:`StepExecutor` is the LeafSystem.
+
+The ideal body pose the executor reports (what the integral foot controller of
+section IV compares the measured feet against) follows the joints: during the
+blend it moves along the same cubic from the body pose MEASURED when the step
+was chosen to the step's recorded start pose, then it is the recorded pose.
+Reporting the start pose for the whole blend would make the controller read
+the distance still to be blended (up to ~9 cm after a skipped placing move) as
+foot error and wind its integrators up to their limit within 0.1 s.
 """
 
 import math
@@ -40,6 +48,17 @@ def cubic_blend(q_from, q_to, s: float) -> np.ndarray:
     return np.asarray(q_from) + h * (np.asarray(q_to) - np.asarray(q_from))
 
 
+def blend_pose(pose_from, pose_to, s: float) -> np.ndarray:
+    """Body pose on the cubic of :func:`cubic_blend` from ``pose_from`` to ``pose_to``.
+
+    Roll, pitch and yaw move along the shorter way.
+    """
+    a = np.asarray(pose_from, dtype=float)
+    d = np.asarray(pose_to, dtype=float) - a
+    d[3:] = wrap_angle(d[3:])
+    return cubic_blend(a, a + d, s)
+
+
 def interpolate_step(step: LibraryStep, tau: float) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles and recorded body pose of ``step`` at ``tau`` s into its action.
 
@@ -61,13 +80,14 @@ def interpolate_step(step: LibraryStep, tau: float) -> tuple[np.ndarray, np.ndar
 class StepExecutor(LeafSystem):
     """Plays back the steps the policy chooses.
 
-    Discrete state ``[step index, start time, blend duration, q_from (12), q (12),
-    ideal pose (6), ideal pose set]``, updated every ``period`` (the commands are held between
-    updates, as a 100 Hz controller's would be): when the current step's playback
-    is over and the policy's choice is fresh (made at most ``1.5 period`` ago, i.e.
-    with all four feet down after the step), the chosen step starts: a cubic blend
-    of :func:`spline_duration` from the last played angles to its first angles,
-    then its recorded angles.
+    Discrete state ``[step index, start time, blend duration, q_from (12), pose_from (6),
+    q (12), ideal pose (6), ideal pose set]``, updated every ``period`` (the commands are
+    held between updates, as a 100 Hz controller's would be): when the current step's
+    playback is over and the policy's choice is fresh (made at most ``1.5 period`` ago,
+    i.e. with all four feet down after the step), the chosen step starts: a cubic blend
+    of :func:`spline_duration` from the last played angles to its first angles, the
+    ideal pose blended alike from the measured body pose (``pose_from``) to the step's
+    start pose, then its recorded angles and poses.
 
     Input ports:
         choice: the policy's :class:`StepChoice` (abstract).
@@ -75,7 +95,8 @@ class StepExecutor(LeafSystem):
 
     Output ports:
         q_playback: the played-back joint angles (12, ``JOINT_NAMES`` order).
-        ideal_pose: the step's recorded body pose now (its start pose during the blend).
+        ideal_pose: the step's recorded body pose now (during the blend, on the cubic from
+            the body pose measured when the step started to the step's start pose).
         step_index: index of the step being executed (-1 before the first).
     """
 
@@ -118,7 +139,7 @@ class StepExecutor(LeafSystem):
         )
         self.body_pose_input = self.DeclareVectorInputPort("body_pose", 6)
         self._state = self.DeclareDiscreteState(
-            np.concatenate([[-1.0, 0.0, 0.0], q0, q0, np.zeros(6), [0.0]])
+            np.concatenate([[-1.0, 0.0, 0.0], q0, np.zeros(6), q0, np.zeros(6), [0.0]])
         )
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         ticket = {self.xd_ticket()}
@@ -136,40 +157,45 @@ class StepExecutor(LeafSystem):
         """``(q, ideal pose or None, finished)`` for discrete state ``x`` at time ``t``."""
         i = int(x[0])
         if i < 0:
-            return x[3:].copy(), None, True
+            return x[3:15].copy(), None, True
         step = self._library[i]
         tau = t - x[1]
         if tau < x[2]:
-            return cubic_blend(x[3:], step.q[0], tau / x[2]), step.start_pose.copy(), False
+            s = tau / x[2]
+            return (
+                cubic_blend(x[3:15], step.q[0], s),
+                blend_pose(x[15:21], step.start_pose, s),
+                False,
+            )
         q, pose = interpolate_step(step, tau - x[2])
         return q, pose, tau - x[2] >= step.duration
 
     def _update(self, context: Context, discrete_state) -> None:
         x = context.get_discrete_state(self._state).value().copy()
         t = context.get_time()
-        q, _, finished = self.playback(x[:15], t)
+        q, _, finished = self.playback(x[:21], t)
         choice = self.choice_input.Eval(context)
+        body = self.body_pose_input.Eval(context)
         if finished and choice.index >= 0 and choice.time >= t - 1.5 * self._period:
             step = self._library[choice.index]
-            body = self.body_pose_input.Eval(context)
             T = max(spline_duration(body, step.start_pose, **self._blend), 1e-3)
-            x[:15] = np.concatenate([[choice.index, t, T], q])
-        q, pose, _ = self.playback(x[:15], t)
-        x[15:27] = q
-        x[27:33] = self.body_pose_input.Eval(context) if pose is None else pose
-        x[33] = 1.0
+            x[:21] = np.concatenate([[choice.index, t, T], q, body])
+        q, pose, _ = self.playback(x[:21], t)
+        x[21:33] = q
+        x[33:39] = body if pose is None else pose
+        x[39] = 1.0
         discrete_state.get_mutable_vector(self._state).SetFromVector(x)
 
     def _calc_q(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state(self._state).value()[15:27])
+        output.SetFromVector(context.get_discrete_state(self._state).value()[21:33])
 
     def _calc_pose(self, context: Context, output: BasicVector) -> None:
         x = context.get_discrete_state(self._state).value()
         # Before the first update the ideal pose is the measured one.
-        output.SetFromVector(x[27:33] if x[33] else self.body_pose_input.Eval(context))
+        output.SetFromVector(x[33:39] if x[39] else self.body_pose_input.Eval(context))
 
     def _calc_index(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, context.get_discrete_state(self._state).value()[0])
 
 
-__all__ = ["StepExecutor", "cubic_blend", "interpolate_step", "spline_duration"]
+__all__ = ["StepExecutor", "blend_pose", "cubic_blend", "interpolate_step", "spline_duration"]

@@ -46,6 +46,7 @@ from repertoire.systems.library_policy import (
 )
 from repertoire.systems.step_executor import (
     StepExecutor,
+    blend_pose,
     cubic_blend,
     interpolate_step,
     spline_duration,
@@ -248,18 +249,37 @@ def test_step_executor_blends_then_plays_back(library):
     context.SetTime(1.0)
     v = executor.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).value().copy()
     assert v[0] == 2 and v[1] == 1.0 and np.isclose(v[2], 0.1 + 0.01 / 0.1)
-    assert np.allclose(v[15:27], Q0)  # the blend starts at the last played angles
+    assert np.array_equal(v[15:21], body)  # the pose the ideal pose blends from
+    assert np.allclose(v[21:33], Q0)  # the blend starts at the last played angles
+    assert np.allclose(v[33:39], body)  # ... and at the measured pose
     context.SetDiscreteState(v)
-    context.SetTime(1.0 + 0.1)  # half way through the 0.2 s blend
+    # Half way through the 0.2 s blend; the body has moved on, the blend's origin has not.
+    executor.body_pose_input.FixValue(context, body + 0.5)
+    context.SetTime(1.0 + 0.1)
     v = executor.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).value().copy()
-    assert np.allclose(v[15:27], 0.5 * (Q0 + step.q[0]))
+    assert np.allclose(v[21:33], 0.5 * (Q0 + step.q[0]))
+    assert np.array_equal(v[15:21], body)
     context.SetDiscreteState(v)
     assert np.allclose(executor.q_playback_output.Eval(context), 0.5 * (Q0 + step.q[0]))
-    assert np.allclose(executor.ideal_pose_output.Eval(context), step.start_pose)
+    half = step.start_pose + np.array([0.005, 0, 0, 0, 0, 0])
+    assert np.allclose(executor.ideal_pose_output.Eval(context), half, atol=1e-12)
     assert executor.step_index_output.Eval(context)[0] == 2
     context.SetTime(1.0 + 0.2 + 0.015)  # playback: between samples 1 and 2
     v = executor.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).value().copy()
-    assert np.allclose(v[15:27], 0.5 * (step.q[1] + step.q[2]))
+    assert np.allclose(v[21:33], 0.5 * (step.q[1] + step.q[2]))
+    assert np.allclose(v[33:39], interpolate_step(step, 0.015)[1])
+
+
+def test_blend_pose_closed_form_and_shorter_way():
+    a = np.array([0.0, 0.0, 0.1, 0.0, 0.0, 3.0])
+    b = np.array([0.2, -0.1, 0.1, 0.0, 0.2, -3.0])  # yaw: 0.283 rad the short way round
+    assert np.array_equal(blend_pose(a, b, 0.0), a)
+    end = blend_pose(a, b, 1.0)
+    assert np.allclose(end[:5], b[:5]) and np.isclose(end[5], 2 * np.pi - 3.0)
+    h = 0.25 * 0.25 * (3 - 2 * 0.25)  # the cubic at s = 0.25: 0.15625
+    mid = blend_pose(a, b, 0.25)
+    assert np.allclose(mid, a + h * np.array([0.2, -0.1, 0.0, 0.0, 0.2, 2 * np.pi - 6.0]))
+    assert np.array_equal(blend_pose(a, b, 2.0), blend_pose(a, b, 1.0))  # s clipped
 
 
 # ---------------------------------------------------------------- integral controller

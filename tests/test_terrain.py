@@ -9,10 +9,13 @@ from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.systems.framework import DiagramBuilder
 from repertoire.models.terrain import (
     BOARD_KINDS,
+    MAX_ROCK_COVERAGE,
     TerrainBoard,
     TerrainBox,
     TerrainParams,
     generate_board,
+    rock_coverage,
+    rock_field,
 )
 
 from repertoire.errors import RepertoireError
@@ -127,16 +130,69 @@ def test_rocks_stay_on_the_board_and_stand_on_the_ground():
     board = generate_board(params, seed=2)
     rocks = [b for b in board.boxes if b.label == "rock"]
     assert len(rocks) == 40
+    _assert_rocks_inside(rocks, params, -0.3, 0.3)
+
+
+def _assert_rocks_inside(rocks, params, x0, x1):
+    """Every rock's footprint lies in [x0, x1] x the board's width; it stands on the ground."""
+    half_y = 0.5 * params.size_y
     for rock in rocks:
         c, s = math.cos(rock.yaw), math.sin(rock.yaw)
         for u in (-0.5, 0.5):
             for v in (-0.5, 0.5):
                 x = rock.center[0] + c * u * rock.size[0] - s * v * rock.size[1]
                 y = rock.center[1] + s * u * rock.size[0] + c * v * rock.size[1]
-                assert abs(x) <= 0.3 + 1e-12 and abs(y) <= 0.3 + 1e-12
+                assert x0 - 1e-12 <= x <= x1 + 1e-12 and abs(y) <= half_y + 1e-12
         assert rock.center[2] - 0.5 * rock.size[2] == pytest.approx(0.0, abs=1e-15)
         height = rock.top - params.base_thickness
         assert params.rock_height[0] <= height <= params.rock_height[1]
+
+
+@pytest.mark.parametrize("coverage", [0.3, 0.8])
+def test_rock_field_reaches_its_coverage(coverage):
+    params = TerrainParams(kind="rocks", size_x=0.8, size_y=0.8)
+    x0, x1 = 0.05, 0.4
+    boxes = rock_field(x0, x1, params, seed=4, coverage=coverage)
+    slab = boxes[0]
+    assert slab.label == "slab" and slab.yaw == 0.0
+    np.testing.assert_allclose(slab.center + slab.size, [0.225, 0.0, 0.02, 0.35, 0.8, 0.04])
+    rocks = boxes[1:]
+    assert {b.label for b in rocks} == {"rock"}
+    _assert_rocks_inside(rocks, params, x0, x1)
+    # Coverage measured independently: the exact height above the slab on a 2 mm grid.
+    board = TerrainBoard(params=params, seed=4, boxes=boxes)
+    x, y = np.meshgrid(np.arange(x0 + 1e-3, x1, 2e-3), np.arange(-0.4 + 1e-3, 0.4, 2e-3))
+    reached = float(np.mean(board.height(x, y) > params.base_thickness))
+    # At least the target (up to the 5 mm measuring grid), at most one largest rock more.
+    one_rock = params.rock_size[1] ** 2 / ((x1 - x0) * params.size_y)
+    assert coverage - 0.01 <= reached <= coverage + one_rock + 0.01
+    assert rock_coverage(rocks, x0, x1, params.size_y) == pytest.approx(reached, abs=0.01)
+    # The last rock was needed: without it the field is below the target.
+    assert rock_coverage(rocks[:-1], x0, x1, params.size_y) < coverage
+
+
+def test_rock_field_is_deterministic_per_seed_and_bare_at_zero():
+    params = TerrainParams(kind="rocks")
+    a = rock_field(-0.3, 0.3, params, seed=8, coverage=0.5)
+    assert a == rock_field(-0.3, 0.3, params, seed=8, coverage=0.5)
+    assert a != rock_field(-0.3, 0.3, params, seed=9, coverage=0.5)
+    assert rock_field(-0.3, 0.3, params, seed=8, coverage=0.0) == [a[0]]
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(coverage=-0.1), r"coverage must be a fraction in \[0, 0.9\], got -0.1"),
+        (dict(coverage=MAX_ROCK_COVERAGE + 0.01), "got 0.91"),
+        (dict(coverage=math.nan), "got nan"),
+        (dict(x0=0.2, x1=0.1), r"x0 < x1, got \[0.2, 0.1\]"),
+        (dict(seed=1.5), "seed must be an integer, got 1.5"),
+    ],
+)
+def test_rock_field_bad_input(kwargs, match):
+    args = dict(x0=-0.3, x1=0.3, p=TerrainParams(kind="rocks"), seed=0) | kwargs
+    with pytest.raises(RepertoireError, match=match):
+        rock_field(**args)
 
 
 def test_steps_bands_cover_the_board():

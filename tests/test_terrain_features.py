@@ -164,7 +164,7 @@ def test_flat_ground_matches_many_places(source, pca):
 
 def test_modified_terrain_matches_where_unchanged_and_not_on_rocks(source, pca):
     x_from = 0.1
-    modified = replace_with_rocks(source, x_from, seed=7, rock_count=12)
+    modified = replace_with_rocks(source, x_from, seed=7)
     # The unchanged part keeps its heights exactly.
     x, y = np.meshgrid(np.linspace(-0.5, x_from - 1e-6, 60), np.linspace(-0.3, 0.3, 40))
     np.testing.assert_array_equal(source.height(x, y), modified.height(x, y))

@@ -44,7 +44,10 @@ def library_path(tmp_path_factory):
 def test_search_plan_goes_from_the_start_to_the_goal(library_path):
     scenario = LittleDogTransferScenario(library=library_path)
     plan = plan_transfer(scenario)
-    assert plan.search.status == "reached" and plan.search.recorded_count >= 3
+    assert plan.search.status == "reached"
+    # Never costlier than the planner alone (before: 5 recorded + 17 planned = 56 > 54).
+    alone = plan_transfer(dataclasses.replace(scenario, mode="planner"))
+    assert plan.search.cost <= alone.search.cost
     kinds = [s.kind for s in plan.library]
     assert kinds.count("recorded") == plan.search.recorded_count
     np.testing.assert_allclose(plan.library[0].start_feet, plan.feet0, atol=1e-9)

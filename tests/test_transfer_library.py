@@ -29,6 +29,7 @@ from repertoire.planning.transfer_library import (
     fit_board_pca,
     foot_path,
     library_stances,
+    placing_steps,
     search_library,
     step_end_feet,
     step_supported,
@@ -182,6 +183,29 @@ def test_final_library_orders_recorded_and_planned_steps(library, source):
     bad = SearchResult("reached", [PathItem("recorded", step=999)], 1.0, 1, 0, 0, 1, "x")
     with pytest.raises(TransferError, match="999"):
         final_library(bad, library, source)
+
+
+def test_placing_steps_place_the_fewest_feet_the_executor_cannot_take_up():
+    target = np.zeros((4, 3))
+    current = target.copy()
+    current[:, 0] = [0.003, 0.006, 0.036, 0.008]  # lf, rf, lh, rh offsets (m), summed 5.3 cm
+    # Every foot beyond 5 mm, in crawl order (lh, lf, rh, rf); lf (3 mm) stays.
+    every = placing_steps(current, target)
+    assert [p.foot for p in every] == [2, 3, 1]
+    np.testing.assert_allclose(every[-1].end_feet[1:], 0.0)
+    assert every[-1].end_feet[0, 0] == 0.003
+    # Within 4 cm: placing lh (the largest) leaves 1.7 cm, under 4 cm and under half of
+    # lh's 3.6 cm move (so the policy takes the target's step next, not that move again).
+    few = placing_steps(current, target, within=0.04)
+    assert [p.foot for p in few] == [2]
+    np.testing.assert_allclose(few[0].end_feet[2], 0.0)
+    np.testing.assert_allclose(few[0].end_feet[[0, 1, 3]], current[[0, 1, 3]])
+    # No placing when the move that led here is long: 5.3 cm <= 6 cm and <= half of 12 cm.
+    before = current.copy()
+    before[2, 0] -= 0.12
+    assert placing_steps(current, target, within=0.06, before=before) == []
+    before[2, 0] += 0.04  # an 8 cm move: 5.3 cm > 4 cm, lh is placed
+    assert [p.foot for p in placing_steps(current, target, within=0.06, before=before)] == [2]
 
 
 def test_chain_successors_follow_each_demonstration(library):

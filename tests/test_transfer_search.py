@@ -95,7 +95,7 @@ def test_recorded_chain_is_followed_and_spurious_steps_left_out():
     assert [p.step for p in result.path] == list(range(16))
     assert result.planned_count == 0 and result.recorded_count == 16
     assert result.cost == pytest.approx(16.0)
-    assert filler.calls == 0
+    assert filler.calls == 1  # the planner alone (start -> goal), planned first as the fallback
 
 
 def test_gap_in_the_chain_is_filled_by_the_planner():
@@ -119,8 +119,9 @@ def test_gap_in_the_chain_is_filled_by_the_planner():
     planned = [p.planned for p in result.path if p.kind == "planned"]
     np.testing.assert_allclose(planned[0].start_feet, a_out[-1])
     np.testing.assert_allclose(planned[-1].end_feet, b_in[0])
-    # The gap estimate (feet x ceil(distance / reach)) is exact for this filler: one call.
-    assert filler.calls == 1
+    # The gap estimate (feet x ceil(distance / reach)) is exact for this filler: one call
+    # besides the planner alone.
+    assert filler.calls == 2
 
 
 def test_no_transferred_steps_plans_with_the_planner_alone():
@@ -146,12 +147,63 @@ def test_time_limit_returns_partial_path_and_says_so():
     a_in, a_out = crawl(start, 8)
     goal = stance(0.3)
     cfg = SearchConfig(time_limit=0.05)
-    result = search_transfer(start, goal, a_in, a_out, StraightCrawl(delay=0.2), cfg)
+    calls = []
+    slow = StraightCrawl(status="time_limit", delay=0.2)
+
+    def filler(a, b, limit):
+        calls.append(limit)
+        if len(calls) == 1:
+            return GapFill([], "failed")  # the planner alone (planned first) fails at once
+        return slow(a, b, limit)  # the gap after the chain uses up the time
+
+    result = search_transfer(start, goal, a_in, a_out, filler, cfg)
     assert result.status == "time_limit"
     assert result.planned_count == 0
     assert [p.step for p in result.path] == list(range(8))  # the best partial path
     assert "time_limit" in result.message and "CPU-time limit 0.05 s" in result.message
     assert 0.05 <= result.cpu_s < 1.0
+
+
+def test_time_limit_after_the_planner_alone_returns_it():
+    start = stance(0.0)
+    a_in, a_out = crawl(start, 8)
+    cfg = SearchConfig(time_limit=0.05, step_reach=REACH)
+    result = search_transfer(start, stance(0.24), a_in, a_out, StraightCrawl(delay=0.2), cfg)
+    assert result.status == "reached" and result.recorded_count == 0
+    assert result.planned_count == 24 and result.cost == pytest.approx(72.0)
+    assert "CPU-time limit 0.05 s reached: the planner alone" in result.message
+
+
+def turned_chains(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Three recorded crawls of 4-11 steps at random places, each turned by up to 69 deg."""
+    rng = np.random.default_rng(seed)
+    ins, outs = [], []
+    for _ in range(3):
+        s0 = stance(rng.uniform(-0.05, 0.2), rng.uniform(-0.15, 0.15))
+        a, b = crawl(s0, int(rng.integers(4, 12)))
+        ang = rng.uniform(-1.2, 1.2)
+        rot = np.array([[np.cos(ang), -np.sin(ang), 0], [np.sin(ang), np.cos(ang), 0], [0, 0, 1]])
+        c0 = s0.mean(axis=0)
+        ins.append((a - c0) @ rot.T + c0)
+        outs.append((b - c0) @ rot.T + c0)
+    return np.concatenate(ins), np.concatenate(outs)
+
+
+@pytest.mark.parametrize("weight", [1.0, 2.0, 5.0])
+def test_search_never_costs_more_than_the_planner_alone(weight):
+    # A gap estimate above the planner's real cost (step_reach half the filler's reach) once
+    # let goal paths through detours (e.g. seed 39: 9 recorded + 23 planned = 78) leave the
+    # queue before the direct gap was planned (24 planned = 72).
+    start, goal = stance(0.0), stance(0.24)
+    cfg = SearchConfig(heuristic_weight=weight, step_reach=0.5 * REACH, max_gap=1.0)
+    none = np.zeros((0, 4, 3))
+    alone = search_transfer(start, goal, none, none, StraightCrawl(), cfg)
+    assert alone.cost == pytest.approx(72.0)
+    for seed in (36, 37, 38, 39):
+        s_in, s_out = turned_chains(seed)
+        result = search_transfer(start, goal, s_in, s_out, StraightCrawl(), cfg)
+        assert result.status == "reached"
+        assert result.cost <= alone.cost
 
 
 def test_time_limit_counts_cpu_time_not_waiting():
@@ -281,3 +333,28 @@ def test_crawl_gap_filler_reaches_a_centroid_when_the_feet_cannot_be_placed():
     end = answer.steps[-1].end_feet
     assert np.linalg.norm(end[:, :2].mean(0) - wide[:, :2].mean(0)) <= 0.03 + 1e-9
     assert foot_distance(end, wide) > 0.1
+
+
+def test_crawl_gap_filler_places_only_the_feet_the_executor_cannot_take_up():
+    pytest.importorskip("repertoire.planning.footstep.quadruped")
+    from repertoire.models.littledog import FOOT_RADIUS
+    from repertoire.planning.footstep.quadruped import height_map_from_board
+    from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
+
+    board = generate_board(TerrainParams(kind="flat"), seed=0)
+    hmap = height_map_from_board(board, (-0.3, 0.3), (-0.3, 0.3), 0.01)
+    start = stance(-0.1)
+    start[:, 2] = board.params.base_thickness + FOOT_RADIUS
+    target = stance(0.013, 0.007)  # off the planner's 2 cm lattice
+    target[:, 2] = start[0, 2]
+    every = CrawlGapFiller(hmap, board=board, place_feet=True)(start, target, 2.0)
+    few = CrawlGapFiller(hmap, board=board, place_feet=True, place_within=0.04)(start, target, 2.0)
+    assert every.status == few.status == "reached"
+    # The same planned steps; then every foot placed (within 5 mm) vs the fewest.
+    end = every.steps[-1].end_feet
+    assert np.all(np.linalg.norm(end - target, axis=1) <= 0.005 + 1e-9)
+    end = few.steps[-1].end_feet
+    rest = float(foot_distance(end, target))
+    last = few.steps[-1]
+    assert rest <= 0.04 and rest <= 0.5 * float(foot_distance(last.start_feet, last.end_feet))
+    assert len(few.steps) < len(every.steps)

@@ -1,5 +1,6 @@
 """The transfer studies run through the engine on a small kinematic library (no long physics)."""
 
+import dataclasses
 import math
 
 import pytest
@@ -52,7 +53,9 @@ def test_modified_terrain_case_searches_and_summarizes(library_path, tmp_path):
     config = matching.LittleDogTransferConfig(library=library_path)
     r = matching.run_episode(config, 2)
     assert r.case == "modified" and r.status == "reached" and r.spurious == 0
-    assert r.recorded >= 3 and r.placed_multiple >= r.placed
+    # The crossing's steps on the unchanged part match back at their places.
+    assert 0 < r.back_within == r.eligible
+    assert r.placed_multiple >= r.placed
     files = matching.summarize([r], config, tmp_path)
     assert files["modified"].stat().st_size > 10_000
     assert f"{r.recorded} + {r.planned} (reached)" in files["table"].read_text()
@@ -73,17 +76,27 @@ def test_modified_terrain_case_searches_and_summarizes(library_path, tmp_path):
 def test_execution_episode_records_every_condition(library_path, tmp_path):
     config = execution.TransferExecutionConfig(
         terrains=["modified"],
-        conditions=["search", "planner"],
+        conditions=["search", "planner", "planner"],
         duration_s=0.5,
         library=library_path,
     )
     r = execution.run_episode(config, 3)
-    assert r.conditions == ["search", "planner"] and len(r.success) == 2
-    assert r.success == [False, False]  # 0.5 s is far too short to cross
+    assert r.conditions == ["search", "planner", "planner"] and len(r.success) == 3
+    assert r.success == [False, False, False]  # 0.5 s is far too short to cross
     assert all(math.isnan(t) for t in r.time_to_cross_s)
     assert r.recorded[1] == 0 and r.planned[1] > 0 and r.recorded[0] > 0
+    # The repeated condition's run is the first one's (same library, start and gains).
+    assert r.same_run_as == ["", "", "planner"]
+    assert r.run_keys[2] == r.run_keys[1] != r.run_keys[0] and len(r.run_keys[0]) == 64
+    assert r.steps_started[2] == r.steps_started[1] and r.planned[2] == r.planned[1]
     files = execution.summarize([r], config, tmp_path)
     assert "| modified | search | 1 | 0/1 |" in files["table"].read_text()
+    # The table says which condition's run another one shared.
+    named = dataclasses.replace(r, conditions=["search", "planner", "multiple"])
+    config.conditions = named.conditions
+    table = execution.summarize([named], config, tmp_path)["table"].read_text()
+    assert "| modified | multiple | 1 | 0/1 | 0 | 0 | - | 0 + " in table
+    assert table.rstrip().endswith("| planner 1 |")
     with pytest.raises(RepertoireError, match="conditions"):
         execution.TransferExecutionConfig(conditions=["fly"]).validate()
     with pytest.raises(RepertoireError, match="terrains"):
@@ -104,3 +117,21 @@ def test_stop_reason_crossed_fell_or_running():
     assert execution.stop_reason(feet, tilted, board, goal=0.3) == "fell"
     low = pose - [0.0, 0.0, 0.101, 0.0, 0.0, 0.0]  # 3.9 cm above the ground
     assert execution.stop_reason(feet, low, board, goal=0.3) == "fell"
+
+
+def test_run_key_follows_library_start_and_gains(library_path):
+    import numpy as np
+    from repertoire.diagrams.littledog_transfer import plan_transfer
+
+    config = execution.TransferExecutionConfig(terrains=["modified"], library=library_path)
+    scenario = execution.scenario_for(config, "modified", "planner", [0.0, 0.0], 0.0)
+    plan = plan_transfer(scenario)
+    key = execution.run_key(scenario, plan)
+    # mode and multiple act only through the library: the same library, the same run.
+    same = dataclasses.replace(scenario, mode="search", multiple=True)
+    assert execution.run_key(same, plan) == key
+    assert execution.run_key(dataclasses.replace(scenario, gain=0.0), plan) != key
+    shorter = dataclasses.replace(plan, library=StepLibrary(plan.library.steps[:-1]))
+    assert execution.run_key(scenario, shorter) != key
+    moved = dataclasses.replace(plan, pose0=np.asarray(plan.pose0) + 1e-9)
+    assert execution.run_key(scenario, moved) != key

@@ -607,6 +607,8 @@ def _eager_work(nx: int, ny: int, n_sources: int) -> tuple[np.ndarray, np.ndarra
     need = (2 * m, m, 2 * (8 * n + n_sources + 1) + n)
     work = _EAGER_WORK.pop() if _EAGER_WORK else None
     if work is None or any(a.size < k for a, k in zip(work, need, strict=True)):
+        if work is not None:  # grown to cover both maps
+            need = tuple(max(a.size, k) for a, k in zip(work, need, strict=True))
         work = (np.empty(need[0]), np.empty(need[1], np.uint8), np.empty(need[2], np.int32))
     if sum(a.nbytes for a in work) <= _EAGER_KEEP_BYTES:
         _EAGER_WORK.append(work)

@@ -635,25 +635,26 @@ def _eager_field(sources, f, occ, p, fbuf, ubuf, ibuf):
     n_ent = 8 * n + sources.size + 1
     ent_c, ent_n = ibuf[:n_ent], ibuf[n_ent : 2 * n_ent]
     _all_costs(f, occ, p, ibuf[2 * n_ent : 2 * n_ent + n])
-    c_lo, c_hi = np.inf, 0.0
-    for c in range(n):
-        c_lo = min(c_lo, f[c, 1])
-        if f[c, 1] < np.inf:
-            c_hi = max(c_hi, f[c, 1])
-    if not c_lo > 0.0:
-        dist = _dijkstra8(f[:, 1].copy().reshape(nx, ny), res, sources).ravel()
-        for c in range(n):
-            f[c, 0], f[c, 2] = dist[c], -2.0
-        return
     dist, cost, closed = fbuf[:m], fbuf[m : 2 * m], ubuf[:m]
-    dist[:] = np.inf
-    cost[:] = np.inf
-    closed[:] = 1
+    for q in range(nyp):  # the border: closed, never entered
+        for e in (q, m - 1 - q):
+            dist[e], cost[e], closed[e] = np.inf, np.inf, 1
+    c_lo, c_hi = np.inf, 0.0
     for i in range(nx):
+        q = (i + 1) * nyp
+        dist[q], cost[q], closed[q] = np.inf, np.inf, 1
+        dist[q + ny + 1], cost[q + ny + 1], closed[q + ny + 1] = np.inf, np.inf, 1
         for j in range(ny):
-            q = (i + 1) * nyp + j + 1
-            cost[q] = f[i * ny + j, 1]
-            closed[q] = 0
+            v = f[i * ny + j, 1]
+            dist[q + j + 1], cost[q + j + 1], closed[q + j + 1] = np.inf, v, 0
+            c_lo = min(c_lo, v)
+            if v < np.inf:
+                c_hi = max(c_hi, v)
+    if not c_lo > 0.0:
+        full = _dijkstra8(f[:, 1].copy().reshape(nx, ny), res, sources).ravel()
+        for c in range(n):
+            f[c, 0], f[c, 2] = full[c], -2.0
+        return
     inv = 1.0 / (0.45 * res * c_lo)
     diag = math.sqrt(2.0) * res
     nb = int(diag * c_hi * inv) + 3  # buckets in the ring: a push lands < nb ahead

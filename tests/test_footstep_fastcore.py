@@ -308,6 +308,15 @@ def test_eager_cost_to_go_equals_the_full_dijkstra_bit_for_bit():
         assert eager.settled == nx * ny and eager.size[0] == 0
         np.testing.assert_array_equal(eager.f[:, 0], full.ravel(), err_msg=f"trial {trial}")
         assert eager.value(int(rng.integers(nx * ny))) in full
+    # the work arrays are kept: a smaller map after a larger one reuses them (dirty)
+    from repertoire.planning.footstep import heuristic
+
+    kept = heuristic._EAGER_WORK[0]
+    small = OccupancyGrid(rng.random((9, 7)) < 0.3, 0.05)
+    again = LazyCostToGo(small, (0.2, 0.2), 0.05, (0.0, 0.0), eager_cells=63)
+    assert heuristic._EAGER_WORK[0] is kept
+    full = dijkstra_cost_to_go(small, (0.2, 0.2), 0.05)
+    np.testing.assert_array_equal(again.f[:, 0], full.ravel())
     # a map larger than eager_cells settles on demand
     grid = OccupancyGrid(np.zeros((50, 50), dtype=bool), 0.1)
     assert LazyCostToGo(grid, (0.05, 0.05), 0.0, (0.15, 0.05), eager_cells=2499).settled == 0

@@ -2,6 +2,8 @@
 
 import heapq
 import itertools
+import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -504,3 +506,27 @@ def test_reused_work_arrays_give_the_fresh_search_and_large_ones_are_dropped(mon
     fastcore._WORK.clear()
     fastcore.compiled_search(model, 1.5, 200_000, 60.0)
     assert "arrays" not in fastcore._WORK  # above the size kept: left to the allocator
+
+
+def test_compiled_planner_caches_under_a_key_of_every_compiled_source(tmp_path):
+    """numba tells stale caches by one file's time stamp; ours by all the sources' contents."""
+    import shutil
+
+    import numba
+    from repertoire.planning.footstep import fastcore, heuristic, jitcache
+
+    key = jitcache.source_key()
+    for fn in (fastcore._arastar, heuristic._rra_value):
+        assert f"numba-{key}" in fn._cache._cache_path
+    # The decorator restored numba's own setting.
+    assert numba.config.CACHE_DIR == os.environ.get("NUMBA_CACHE_DIR", "")
+    same, edited = tmp_path / "same", tmp_path / "edited"
+    for folder in (same, edited):
+        folder.mkdir()
+        for name in jitcache.SOURCES:
+            shutil.copy(Path(jitcache.__file__).parent / name, folder / name)
+    assert jitcache.source_key(same) == key
+    # An edit to a kernel alone (not to fastcore.py, which calls it) changes the key.
+    with open(edited / "fastkernels.py", "a") as f:
+        f.write("\n# edited\n")
+    assert jitcache.source_key(edited) != key

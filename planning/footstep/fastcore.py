@@ -29,15 +29,16 @@ everything in arrays so that numba compiles it:
   swing lines are sampled over the cells taller than the swing clearance.
 
 Dynamic worlds and models that are not table-driven stay on the Python loop. The functions
-are compiled with ``cache=True`` (the first call in a fresh environment compiles them, up
-to a minute; later processes load them from the cache in about a second): :func:`warm_up`
+are compiled with numba's cache, keyed by the contents of every compiled planner source
+(:mod:`~repertoire.planning.footstep.jitcache`; the first call in a fresh environment or
+after an edit compiles them, up to a minute; later processes load them from the cache in
+about a second): :func:`warm_up`
 does that once per process, before any plan's clock starts.
 """
 
 import math
 import time
 
-import numba
 import numpy as np
 from repertoire.planning.footstep.biped_model import BipedState, BipedStepModel
 from repertoire.planning.footstep.fastkernels import (
@@ -59,13 +60,14 @@ from repertoire.planning.footstep.fastkernels import (
     swing_crosses,
 )
 from repertoire.planning.footstep.heuristic import _rra_h, _rra_value
+from repertoire.planning.footstep.jitcache import njit
 from repertoire.planning.footstep.search import SearchResult
 from repertoire.planning.footstep.types import PlanStatus
 
 _STATUS = (PlanStatus.SUCCESS, PlanStatus.UNREACHABLE, PlanStatus.NODE_LIMIT, PlanStatus.TIME_LIMIT)
 
 
-@numba.njit(cache=True)
+@njit()
 def _arastar(
     start,  # x, y, yaw, foot, a2, a1, t, swing_x, swing_y, h
     succ_ptr,

@@ -20,9 +20,10 @@ from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
+from repertoire.planning.footstep.jitcache import njit
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def _less(f1, h1, t1, f2, h2, t2):
     if f1 != f2:
         return f1 < f2
@@ -31,7 +32,7 @@ def _less(f1, h1, t1, f2, h2, t2):
     return t1 < t2
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def _heap_push(heap, size, f, h, tie, node):
     """Insert the row ``(f, h, tie, node)`` into a 4-ary heap of ``size`` rows.
 
@@ -49,7 +50,7 @@ def _heap_push(heap, size, f, h, tie, node):
     heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def _heap_pop(heap, size):
     """Remove the root of a 4-ary heap of ``size`` rows (the caller read it first)."""
     size -= 1
@@ -74,7 +75,7 @@ def _heap_pop(heap, size):
     heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def _slot(table, key, cell, local):
     """Row of ``key = cell * S + local`` in the lattice table, or of its empty slot.
 
@@ -90,7 +91,7 @@ def _slot(table, key, cell, local):
     return i
 
 
-@numba.njit(cache=True)
+@njit()
 def _rehash(table, new, s, inode, col):
     """Move the keys (``cell * s + local``) into the empty table ``new``.
 
@@ -131,7 +132,7 @@ def _prefetch_row(typingctx, arr, row):
     return sig, codegen
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def _wrap(t):
     """``(t + pi) % (2 pi) - pi`` bit for bit (Python's float modulo), without the modulo.
 
@@ -151,7 +152,7 @@ def _wrap(t):
     return x - math.pi
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def _yaw_bin(th, yaw_scale, nb):
     """``int(th * yaw_scale + nb + 0.5) % nb``; one subtraction for a wrapped yaw."""
     v = int(th * yaw_scale + nb + 0.5)
@@ -162,14 +163,14 @@ def _yaw_bin(th, yaw_scale, nb):
     return v % nb
 
 
-@numba.njit(cache=True)
+@njit()
 def _grow_rows(a):
     b = np.empty((a.shape[0] * 2, a.shape[1]), a.dtype)
     b[: a.shape[0]] = a
     return b
 
 
-@numba.njit(cache=True, inline="always")
+@njit(inline="always")
 def _foot_free(x, y, th, grid, chk, occw, free, mbits, mrows):
     """The margin checker's answer: foot at (x, y, th) overlaps no occupied cell.
 
@@ -241,7 +242,7 @@ def _foot_free(x, y, th, grid, chk, occw, free, mbits, mrows):
     return True
 
 
-@numba.njit(cache=True)
+@njit()
 def _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr):
     """Min and max height over the exact footprint's outer mask (as FootprintChecker)."""
     ox, oy, inv_res = grid[0], grid[1], grid[2]
@@ -262,13 +263,13 @@ def _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr):
     return lo, hi
 
 
-@numba.njit(cache=True)
+@njit()
 def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
     lo, hi = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)
     return hi - lo
 
 
-@numba.njit(cache=True)
+@njit()
 def swing_crosses(tall, x0, y0, x1, y1, ox, oy, inv):
     """Whether the segment (x0, y0) -> (x1, y1) passes over a True cell of ``tall``.
 
@@ -285,7 +286,7 @@ def swing_crosses(tall, x0, y0, x1, y1, ox, oy, inv):
     return False
 
 
-@numba.njit(cache=True)
+@njit()
 def _now():
     with numba.objmode(t="float64"):
         t = time.perf_counter()

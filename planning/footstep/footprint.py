@@ -16,9 +16,9 @@ The grid's rows are Python integers (one bit per cell) and each mask is a few
 import functools
 import math
 
-import numba
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid, rect_overlaps_cells
+from repertoire.planning.footstep.jitcache import njit
 
 
 class FootprintMasks:
@@ -126,7 +126,7 @@ def distance_to_features(features: np.ndarray) -> np.ndarray:
     return np.sqrt(_edt_sq(np.ascontiguousarray(features, dtype=np.bool_)))
 
 
-@numba.njit(cache=True)
+@njit()
 def _edt_sq(features):
     nx, ny = features.shape
     big = 1e20
@@ -182,7 +182,7 @@ def _edt_sq(features):
     return out
 
 
-@numba.njit(cache=True)
+@njit()
 def surely_free_cells(occ_padded, half_width, pad):
     """Cells of a padded grid with no occupied cell within ``half_width`` cells (Chebyshev).
 

@@ -13,10 +13,10 @@ or, on maps up to a size, every cell at once with a bucket queue (again the same
 import functools
 import math
 
-import numba
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid
 from repertoire.planning.footstep.footprint import distance_to_features
+from repertoire.planning.footstep.jitcache import njit
 from scipy.sparse import csr_matrix
 
 _NEIGHBOURS = ((1, 0), (0, 1), (1, 1), (1, -1))
@@ -122,7 +122,7 @@ def _goal_cells(grid: OccupancyGrid, goal: "tuple[float, float]", tol: float) ->
     return np.array([int(np.argmin(d_goal))])
 
 
-@numba.njit(cache=True)
+@njit()
 def _near_cells(i0, i1, j0, j1, ny, x0, y0, res, gx, gy, radius):
     """Flat indices of the cells of the box whose centre (as ``cell_centers``) is near."""
     out = np.empty((i1 - i0) * max(j1 - j0, 0), np.int64)
@@ -152,7 +152,7 @@ def grid_dijkstra(cell_cost: np.ndarray, resolution: float, sources: np.ndarray)
     return _dijkstra8(cost, float(resolution), src)
 
 
-@numba.njit(cache=True)
+@njit()
 def _sift_up(hd, hc, pos, k, d, c):
     while k > 0:
         p = (k - 1) >> 1
@@ -165,7 +165,7 @@ def _sift_up(hd, hc, pos, k, d, c):
     pos[c] = k
 
 
-@numba.njit(cache=True)
+@njit()
 def _dijkstra8(cost, res, sources):
     """Indexed binary heap with decrease-key: each cell enters the heap at most once."""
     nx, ny = cost.shape
@@ -387,7 +387,7 @@ def _scan_offsets(radius: int, res: float, depth: float) -> tuple[float, ...]:
     return tuple(np.column_stack([di[within][order], dj[within][order]]).ravel().tolist())
 
 
-@numba.njit(cache=True)
+@njit()
 def _rra_h(c, p):
     ny = int(p[1])
     dx = abs(c // ny - int(p[6]))
@@ -395,7 +395,7 @@ def _rra_h(c, p):
     return ((max(dx, dy) - min(dx, dy)) + math.sqrt(2.0) * min(dx, dy)) * p[8]
 
 
-@numba.njit(cache=True)
+@njit()
 def _rra_cost(c, f, occ, p):
     v = f[c, 1]
     if v != v:  # not computed yet
@@ -420,7 +420,7 @@ def _rra_cost(c, f, occ, p):
     return v
 
 
-@numba.njit(cache=True)
+@njit()
 def _rra_sift_up(f, heap, k, key, c):
     while k > 0:
         up = (k - 1) >> 1
@@ -433,7 +433,7 @@ def _rra_sift_up(f, heap, k, key, c):
     f[c, 2] = k
 
 
-@numba.njit(cache=True)
+@njit()
 def _rra_sift_down(f, heap, k, n, key, c):
     while True:
         ch = 2 * k + 1
@@ -451,7 +451,7 @@ def _rra_sift_down(f, heap, k, n, key, c):
     f[c, 2] = k
 
 
-@numba.njit(cache=True)
+@njit()
 def _rra_retarget(ti, tj, f, heap, p, n):
     """Head the search for cell (ti, tj): new keys for the open cells, heap rebuilt.
 
@@ -466,7 +466,7 @@ def _rra_retarget(ti, tj, f, heap, p, n):
         _rra_sift_down(f, heap, k, n, heap[k, 0], int(heap[k, 1]))
 
 
-@numba.njit(cache=True)
+@njit()
 def _rra_start(sources, f, heap, p, size):
     for s in sources:
         if f[s, 2] == -1.0:
@@ -475,7 +475,7 @@ def _rra_start(sources, f, heap, p, size):
             size[0] += 1
 
 
-@numba.njit(cache=True)
+@njit()
 def _rra_value(c, f, heap, occ, p, size):
     """Resume the backward A* until cell ``c`` is closed; its distance (inf: unreachable)."""
     if f[c, 2] == -2.0:
@@ -541,7 +541,7 @@ def _rra_value(c, f, heap, occ, p, size):
     return f[c, 0]
 
 
-@numba.njit(cache=True)
+@njit()
 def _all_costs(f, occ, p, run):
     """Every cell's cost into ``f[:, 1]``, equal to :func:`_rra_cost`'s, row by row.
 
@@ -615,7 +615,7 @@ def _eager_work(nx: int, ny: int, n_sources: int) -> tuple[np.ndarray, np.ndarra
     return work
 
 
-@numba.njit(cache=True)
+@njit()
 def _eager_field(sources, f, occ, p, fbuf, ubuf, ibuf):
     """Settle every cell at once: the values of :func:`_rra_value`, bit for bit.
 

@@ -1,6 +1,7 @@
 """The compiled search core gives the Python loop's plans; its parts against references."""
 
 import heapq
+import itertools
 
 import numpy as np
 import pytest
@@ -147,7 +148,9 @@ def test_ara_star_compiled_matches_python_and_bounds_hold():
         for b in ("python", "compiled")
     ]
     py, cc = runs
-    assert [a.weight for a in cc] == [3.0, 2.0, 1.5, 1.2, 1.0]
+    # 1.2 is skipped: the plan of 1.5 already reported a bound below it
+    assert [a.weight for a in cc] == [3.0, 2.0, 1.5, 1.0] and cc[2].bound <= 1.2
+    assert all(b.weight < a.bound for a, b in itertools.pairwise(cc))
     for a, b in zip(py, cc, strict=True):
         assert a.plan.poses == b.plan.poses and a.plan.cost == b.plan.cost
         assert a.bound == b.bound and a.plan.nodes_expanded == b.plan.nodes_expanded
@@ -284,6 +287,33 @@ def test_lazy_cost_to_go_equals_the_full_dijkstra_bit_for_bit():
     assert lazy.value(49 * 50 + 49) == pytest.approx(49 * 0.1 * np.sqrt(2.0))
 
 
+def test_eager_cost_to_go_equals_the_full_dijkstra_bit_for_bit():
+    from repertoire.planning.footstep.heuristic import LazyCostToGo, dijkstra_cost_to_go
+
+    rng = np.random.default_rng(5)
+    for trial in range(40):
+        nx, ny = (int(v) for v in rng.integers(1, 40, 2))
+        res = float(rng.choice([0.01, 0.025, 0.1]))
+        grid = OccupancyGrid(rng.random((nx, ny)) < rng.uniform(0.0, 0.7), res, (0.4, -0.2))
+        goal = (0.4 + rng.uniform(0, nx * res), -0.2 + rng.uniform(0, ny * res))
+        kw = {
+            # 0: a free-of-charge obstacle (no bucket width), the heap Dijkstra's values
+            "obstacle_cost": float(rng.choice([0.0, 0.5, 1.0, 3.0])),
+            "impassable_depth": float(rng.choice([np.inf, 0.0, res, 2.5 * res, 20 * res])),
+            "deep_cost": float(rng.choice([30.0, 1e3])),
+        }
+        tol = float(rng.choice([0.0, 0.1]))
+        full = dijkstra_cost_to_go(grid, goal, tol, **kw)
+        eager = LazyCostToGo(grid, goal, tol, goal, eager_cells=nx * ny, **kw)
+        assert eager.settled == nx * ny and eager.size[0] == 0
+        np.testing.assert_array_equal(eager.f[:, 0], full.ravel(), err_msg=f"trial {trial}")
+        assert eager.value(int(rng.integers(nx * ny))) in full
+    # a map larger than eager_cells settles on demand
+    grid = OccupancyGrid(np.zeros((50, 50), dtype=bool), 0.1)
+    assert LazyCostToGo(grid, (0.05, 0.05), 0.0, (0.15, 0.05), eager_cells=2499).settled == 0
+    assert LazyCostToGo(grid, (0.05, 0.05), 0.0, (0.15, 0.05), eager_cells=2500).settled == 2500
+
+
 def test_numba_cache_directory_is_writable_for_every_compiled_function():
     import os
 
@@ -324,7 +354,8 @@ def test_cost_to_go_is_shared_by_plans_on_the_same_map_and_goal():
     occ[0, 0] = not occ[0, 0]
     edited = OccupancyGrid(occ, sc.grid.resolution, sc.grid.origin, sc.grid.heights)
     fresh = BipedStepModel(edited, sc.start, sc.start_foot, sc.goal, table, opts)
-    assert fresh.h_lazy is not model.h_lazy and fresh.h_lazy.settled < settled
+    assert fresh.h_lazy is not model.h_lazy
+    assert fresh.h_lazy.f[0, 1] != model.h_lazy.f[0, 1]  # the edited cell's cost
 
 
 def test_compiled_yaw_wrap_and_bin_equal_the_modulo_formulas_bit_for_bit():
@@ -374,24 +405,44 @@ def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
 
     from repertoire.planning.footstep import plan_footsteps_anytime
 
+    def fresh(args, opts, r):  # weighted A* alone at the restart's weight and lattice
+        return plan_footsteps(*args, dataclasses.replace(
+            opts, heuristic_weight=r.weight, xy_resolution=r.plan.xy_resolution,
+            yaw_bins=r.plan.yaw_bins, refinements=0,
+        ))  # fmt: skip
+
     sc = random_static_scene(1, n_strips=8, n_blocks=4)
     args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
-    opts = PlannerOptions(time_limit=60.0)
+    opts = PlannerOptions(time_limit=60.0, refinements=0)  # restarts on ARA*'s lattice only
     ara = plan_footsteps_anytime(*args, opts, restarts=False)
     runs = plan_footsteps_anytime(*args, opts)
     assert [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
     assert [r.weight for r in runs] == [3.0, 2.0, 1.5, 1.2, 1.0, 2.0, 1.5]
+    assert {r.plan.xy_resolution for r in runs} == {0.05}
     for a, b in zip(ara, runs, strict=False):  # ARA*'s plans come first, unchanged
         assert a.plan.poses == b.plan.poses and a.plan.cost == b.plan.cost
     costs = [r.plan.cost for r in runs]
     assert costs[5] < costs[4] and costs[6] < costs[5]  # only cheaper plans are added
     assert costs[6] == pytest.approx(21.8) and costs[4] == pytest.approx(26.05)
     for r in runs[5:]:  # each one is a fresh weighted A* at its weight
-        fresh = plan_footsteps(*args, dataclasses.replace(opts, heuristic_weight=r.weight))
-        assert r.plan.poses == fresh.poses and r.plan.cost == fresh.cost
+        f = fresh(args, opts, r)
+        assert r.plan.poses == f.poses and r.plan.cost == f.cost
         assert r.plan.status is PlanStatus.SUCCESS and 1.0 <= r.bound <= r.weight
     elapsed = [r.elapsed_s for r in runs]
     assert elapsed == sorted(elapsed) and elapsed[-1] < 60.0
+    # with refinements, the restarts search the finer lattice (2.5 cm, 72 bins) first:
+    # there, where gaps are narrow, weight 2 alone beats ARA*'s 5 cm plans by far
+    sc = random_static_scene(2, n_strips=8, n_blocks=4)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    opts = PlannerOptions(time_limit=60.0)
+    runs = plan_footsteps_anytime(*args, opts)
+    ara = [r for r in runs if r.plan.xy_resolution == 0.05]
+    fine = [r for r in runs if r.plan.xy_resolution == 0.025]
+    assert runs == ara + fine and [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
+    assert [(r.weight, r.plan.yaw_bins) for r in fine] == [(2.0, 72)]
+    assert fine[0].plan.cost == pytest.approx(22.6) and ara[-1].plan.cost == pytest.approx(36.7)
+    f = fresh(args, opts, fine[0])
+    assert fine[0].plan.poses == f.poses and fine[0].plan.cost == f.cost
 
 
 def test_anytime_plan_times_leave_out_restarts_that_found_nothing(monkeypatch):
@@ -412,7 +463,7 @@ def test_anytime_plan_times_leave_out_restarts_that_found_nothing(monkeypatch):
     runs = plan_footsteps_anytime(sc.grid, sc.start, sc.start_foot, sc.goal,
                                   nominal_action_table(), opts)  # fmt: skip
     wall = time.perf_counter() - t0
-    assert [r.weight for r in runs] == [3.0, 2.0, 1.5, 1.2, 1.0]  # no restart was cheaper
+    assert [r.weight for r in runs] == [3.0, 2.0, 1.5, 1.0]  # 1.2 skipped, no restart cheaper
     assert runs[-1].elapsed_s + 4 * 0.3 <= wall  # the four restarts are in no plan's time
 
 

@@ -107,7 +107,11 @@ def test_anytime_search_bounds_decrease():
     free = np.ones((12, 12), dtype=bool)
     free[3:9, 5] = False
     results = anytime_search(GridWalk(free, (6, 0), (6, 11)), time_limit=5.0)
-    assert [r.weight for r in results] == [3.0, 2.0, 1.5, 1.2, 1.0]
+    # the plan of weight 3 reports a bound below 1.5: weights 2 and 1.5 are skipped
+    assert [r.weight for r in results] == [3.0, 1.2, 1.0]
+    assert 1.2 < results[0].bound < 1.5
+    every = anytime_search(GridWalk(free, (6, 0), (6, 11)), weights=[3.0, 1.3], time_limit=5.0)
+    assert [r.weight for r in every] == [3.0, 1.3] and every[0].cost == results[0].cost
     assert all(r.status is PlanStatus.SUCCESS for r in results)
     optimum = results[-1].cost
     assert optimum == _bfs_distance(free, (6, 0), (6, 11))

@@ -315,7 +315,8 @@ def test_crawl_gap_filler_refuses_footholds_at_edges_its_map_misses():
     assert np.all(foothold_ok(board, landing, rule))
 
 
-def test_crawl_gap_filler_reaches_a_centroid_when_the_feet_cannot_be_placed():
+def flat_filler(**kwargs):
+    """A crawl gap filler on a flat board (exact ground) and a start stance on it."""
     pytest.importorskip("repertoire.planning.footstep.quadruped")
     from repertoire.models.littledog import FOOT_RADIUS
     from repertoire.planning.footstep.quadruped import height_map_from_board
@@ -325,10 +326,15 @@ def test_crawl_gap_filler_reaches_a_centroid_when_the_feet_cannot_be_placed():
     hmap = height_map_from_board(board, (-0.3, 0.3), (-0.3, 0.3), 0.01)
     start = stance(-0.1)
     start[:, 2] = board.params.base_thickness + FOOT_RADIUS
+    return CrawlGapFiller(hmap, board=board, place_feet=True, **kwargs), start
+
+
+def test_crawl_gap_filler_reaches_a_centroid_when_the_feet_cannot_be_placed():
+    filler, start = flat_filler()
     wide = stance(0.0)
     wide[:, 1] *= 3.0  # flat footholds no leg reaches from the crawl's stance
     wide[:, 2] = start[0, 2]
-    answer = CrawlGapFiller(hmap, board=board, place_feet=True)(start, wide, 2.0)
+    answer = filler(start, wide, 2.0)
     assert answer.status == "reached"  # enough for a goal; a step is joined only exactly
     end = answer.steps[-1].end_feet
     assert np.linalg.norm(end[:, :2].mean(0) - wide[:, :2].mean(0)) <= 0.03 + 1e-9
@@ -336,19 +342,11 @@ def test_crawl_gap_filler_reaches_a_centroid_when_the_feet_cannot_be_placed():
 
 
 def test_crawl_gap_filler_places_only_the_feet_the_executor_cannot_take_up():
-    pytest.importorskip("repertoire.planning.footstep.quadruped")
-    from repertoire.models.littledog import FOOT_RADIUS
-    from repertoire.planning.footstep.quadruped import height_map_from_board
-    from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
-
-    board = generate_board(TerrainParams(kind="flat"), seed=0)
-    hmap = height_map_from_board(board, (-0.3, 0.3), (-0.3, 0.3), 0.01)
-    start = stance(-0.1)
-    start[:, 2] = board.params.base_thickness + FOOT_RADIUS
+    filler, start = flat_filler()
     target = stance(0.013, 0.007)  # off the planner's 2 cm lattice
     target[:, 2] = start[0, 2]
-    every = CrawlGapFiller(hmap, board=board, place_feet=True)(start, target, 2.0)
-    few = CrawlGapFiller(hmap, board=board, place_feet=True, place_within=0.04)(start, target, 2.0)
+    every = filler(start, target, 2.0)
+    few = flat_filler(place_within=0.04)[0](start, target, 2.0)
     assert every.status == few.status == "reached"
     # The same planned steps; then every foot placed (within 5 mm) vs the fewest.
     end = every.steps[-1].end_feet

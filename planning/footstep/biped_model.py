@@ -47,8 +47,13 @@ if TYPE_CHECKING:
 ActionFilter = Callable[[str, str, Foot], Sequence[str]]
 
 # per map cell: the Dijkstra field, its indexed heap (4 arrays), the cost and depth fields,
-# the edge distance and two padded footprint grids (occupancy, distance, free flag)
-PLANNING_BYTES_PER_CELL = 120
+# the edge distance and two padded footprint grids (occupancy, distance, free flag); a field
+# computed whole at set-up has no heap but padded distance and cost copies, row distances
+# and queue entries (~30 more)
+PLANNING_BYTES_PER_CELL = 150
+# maps up to this many cells get the whole Dijkstra field at set-up (a bucket queue, ~25-60
+# ns per cell: at most a few tens of ms), larger ones settle it on demand
+EAGER_CELLS = 1 << 20
 
 
 @dataclasses.dataclass(frozen=True, slots=True)
@@ -116,7 +121,8 @@ def _table_entry(table: ActionTable) -> dict:
     """Work that depends on the table's content only, remembered for a few tables.
 
     The table is validated the first time its content is seen; the entry then holds its
-    history classes (``"hist"``) and, once built, its successor rows without an action
+    history classes (``"hist"``, ``"n_hist"``), its longest duration, forward step,
+    cheapest step cost and reach, and, once built, its successor rows without an action
     filter (``"succ"``).
     """
     meta = repr((table.actions, table.rest_action, sorted(table.mirror.items())))
@@ -132,7 +138,15 @@ def _table_entry(table: ActionTable) -> dict:
         table.validate()
         if len(_TABLE_CACHE) >= 8:
             _TABLE_CACHE.clear()
-        entry = _TABLE_CACHE[key] = {"hist": history_classes(table)}
+        hist = history_classes(table)
+        entry = _TABLE_CACHE[key] = {
+            "hist": hist,
+            "n_hist": int(hist.max()) + 1,
+            "hold": float(table.duration.max()),
+            "max_forward": float(np.max(table.displacement[..., 0])),
+            "c_min": float(table.step_cost.min()),
+            "max_reach": table.max_reach(),
+        }
     return entry
 
 
@@ -296,7 +310,7 @@ class BipedStepModel:
         self.history0 = (table.index(history[0]), table.index(history[1]))
         self.start_time = float(start_time)
 
-        hold = float(table.duration.max())
+        hold = self._table_entry["hold"]
         self.checkers = Checkers(world, geometry, hold, opts.footprint_margin_m)
         self.k0 = self.checkers.index(start_time)
         # the start feet already stand: checked exactly, without the margin; the height
@@ -359,10 +373,10 @@ class BipedStepModel:
         self.tall = self.tall_at(self.k0) if not self.dynamic else None
 
     def _setup_heuristic(self) -> None:
-        opts, ref, table = self.opts, self.ref, self.table
+        opts, ref = self.opts, self.ref
         self.tol = tol = opts.goal_tolerance
-        max_forward = float(np.max(table.displacement[..., 0]))
-        c_min = float(table.step_cost.min())
+        entry = self._table_entry
+        max_forward, c_min = entry["max_forward"], entry["c_min"]
         self.h_lazy: LazyCostToGo | None = None
         if opts.heuristic == "dijkstra":
             self.cost_per_m = c_min / max(max_forward, 1e-3)
@@ -377,9 +391,10 @@ class BipedStepModel:
                 obstacle_cost=opts.obstacle_cost,
                 impassable_depth=depth,
                 deep_cost=10.0 * opts.obstacle_cost,
+                eager_cells=EAGER_CELLS,
             )
         elif opts.heuristic == "euclidean":
-            self.cost_per_m = c_min / max(table.max_reach(), 1e-3)
+            self.cost_per_m = c_min / max(entry["max_reach"], 1e-3)
         else:
             self.cost_per_m = 0.0
 
@@ -394,7 +409,7 @@ class BipedStepModel:
         self._succ_rows: list[tuple[Successor, ...]] | None = None
         self.hist = entry["hist"]
         self._hist_rows = self.hist.tolist()
-        self.n_hist = int(self.hist.max()) + 1
+        self.n_hist = entry["n_hist"]
 
     def _build_successors(self, action_filter: ActionFilter | None) -> None:
         table = self.table

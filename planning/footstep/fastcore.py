@@ -102,8 +102,9 @@ def _arastar(
 ):
     """ARA* over the biped lattice, step for step as ``search.anytime_search``.
 
-    One weight is plain weighted A* (``search.search``). Returns per search: status code,
-    end node, cost, bound, expansions, seconds, generated, merged; the path nodes; then
+    One weight is plain weighted A* (``search.search``); a weight not below the last plan's
+    bound is skipped. Returns per search that ran: status code, end node, expansions,
+    generated, merged; cost, bound, seconds, weight; the path nodes; then
     the work arrays (the caller may pass them to the next search: no fresh memory).
     """
     t0 = _now()
@@ -168,11 +169,14 @@ def _arastar(
     expansions = generated = merged = 0
     nw = weights.size
     out_i = np.zeros((nw, 5), np.int64)  # status, end, expansions, generated, merged
-    out_f = np.zeros((nw, 3))  # cost, bound, seconds
+    out_f = np.zeros((nw, 4))  # cost, bound, seconds, weight
     solution = -1
     runs = 0
+    met = np.inf  # the bound the last plan reported: weights not below it are skipped
     for it in range(nw):
         w = weights[it]
+        if w >= met:
+            continue
         t_it = _now()
         hsize = 0
         for k in range(count):
@@ -393,10 +397,12 @@ def _arastar(
             if low == np.inf:
                 low = fnode[end, 7]
             bound = min(w, fnode[end, 7] / low) if low > 0 else w
+            met = bound
         last = end if end >= 0 else (solution if solution >= 0 else best)
-        out_i[it, 0], out_i[it, 1], out_i[it, 2] = status, last, exp_it
-        out_i[it, 3], out_i[it, 4] = generated, merged
-        out_f[it, 0], out_f[it, 1], out_f[it, 2] = fnode[last, 7], bound, _now() - t_it
+        out_i[runs, 0], out_i[runs, 1], out_i[runs, 2] = status, last, exp_it
+        out_i[runs, 3], out_i[runs, 4] = generated, merged
+        out_f[runs, 0], out_f[runs, 1], out_f[runs, 2] = fnode[last, 7], bound, _now() - t_it
+        out_f[runs, 3] = w
         runs += 1
         if status != 0:
             break
@@ -554,8 +560,8 @@ def compiled_anytime(
         return BipedState(x, y, yaw, int(f), int(a2), int(a1), t, sx, sy, h)
 
     results = []
-    for (status, last, exp, gen, mer), (cost, bound, secs), w in zip(
-        out_i.tolist(), out_f.tolist(), ws.tolist(), strict=False
+    for (status, last, exp, gen, mer), (cost, bound, secs, w) in zip(
+        out_i.tolist(), out_f.tolist(), strict=True
     ):
         chain = []
         k = last

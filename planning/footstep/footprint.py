@@ -307,10 +307,26 @@ class FootprintChecker:
         base = (ix + self.pad) * self.nyp + iy + self.pad
         if shortcut and self.free_bytes[base]:
             return True
-        return self._check_masks(base, ix, iy, fx - ix, fy - iy, yaw)
+        rows = None if shortcut or self._rows is not None else self._rows_near(ix + self.pad)
+        return self._check_masks(base, ix, iy, fx - ix, fy - iy, yaw, rows)
 
-    def _check_masks(self, base: int, ix: int, iy: int, fx: float, fy: float, yaw: float) -> bool:
-        """Mask test of a foot centred at fraction (fx, fy) of cell (ix, iy); yaw in [-pi, pi)."""
+    def _rows_near(self, px: int) -> dict[int, int]:
+        """Rows ``px - R .. px + R`` (R the masks' radius) as :attr:`rows` gives them.
+
+        A checker that tests a few poses builds only these, not every row.
+        """
+        r = self.masks.radius_cells
+        lo, hi = max(px - r, 0), min(px + r + 1, self._occ.shape[0])
+        packed = np.packbits(self._occ[lo:hi], axis=1, bitorder="little")
+        return {lo + k: int.from_bytes(row.tobytes(), "little") for k, row in enumerate(packed)}
+
+    def _check_masks(
+        self, base: int, ix: int, iy: int, fx: float, fy: float, yaw: float, rows=None
+    ) -> bool:
+        """Mask test of a foot centred at fraction (fx, fy) of cell (ix, iy); yaw in [-pi, pi).
+
+        ``rows``: the occupancy rows the masks read (default: :attr:`rows`).
+        """
         masks = self.masks
         sub = masks.sub
         nb = masks.yaw_bins
@@ -320,7 +336,7 @@ class FootprintChecker:
             ((int(yaw * masks.yaw_scale + nb + 0.5) % nb) * sub + (qx if qx < sub else sub - 1))
             * sub
         ) + (qy if qy < sub else sub - 1)
-        rows = self.rows
+        rows = self.rows if rows is None else rows
         px = ix + self.pad
         shift = iy + self.pad - masks.radius_cells
         for di, bits in masks.outer_rows[m]:

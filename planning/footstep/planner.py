@@ -224,12 +224,7 @@ def plan_footsteps(
             plan.status = PlanStatus.TIME_LIMIT
             break
         level += 1
-        finer = dataclasses.replace(
-            opts,
-            xy_resolution=opts.xy_resolution / 2**level,
-            yaw_bins=int(opts.yaw_bins) * 2**level,
-            time_limit=left,
-        )
+        finer = _finer(opts, level, left)
         plan, merged = _plan_once(world, start, start_foot, goal, table, finer, t_begin, kwargs)
     plan.planning_time_s = time.perf_counter() - t_begin
     return plan
@@ -313,24 +308,29 @@ def plan_footsteps_anytime(
 
     The search is reused between weights (OPEN plus INCONS, see
     :func:`repertoire.planning.footstep.search.anytime_search`); each plan carries its
-    bound. Like :func:`plan_footsteps`, an UNREACHABLE after merged states repeats the
-    search on finer lattices (``options.refinements``). ``options.heuristic_weight`` is
-    ignored (``weights`` set it), the other options apply; ``time_limit`` and
-    ``max_expansions`` cover all searches.
+    bound, and weights not below the last plan's bound are skipped. Like
+    :func:`plan_footsteps`, an UNREACHABLE after merged states repeats the search on finer
+    lattices (``options.refinements``). ``options.heuristic_weight`` is ignored
+    (``weights`` set it), the other options apply; ``time_limit`` and ``max_expansions``
+    cover all searches.
 
-    When ARA* has run every weight and time remains, the weights after the first are
-    searched again from scratch (restarting weighted A*, Richter et al. 2010, "The Joy of
-    Forgetting"), the cost-to-go field shared: states merged on the lattice keep the
-    continuous pose that reached them first, so a fresh search keeps other poses and can
-    find a cheaper plan where ARA*'s reuse cannot (one 12 m floor: 118.1 by ARA* at weight
-    1, 110.4 by a fresh search at 1.5). A restart's plan is added only when it is cheaper
-    than every plan before it; its weight and bound are its own search's.
+    When ARA* has run (or skipped) every weight and time remains, the weights after the
+    first are searched again from scratch (restarting weighted A*, Richter et al. 2010, "The
+    Joy of Forgetting"), the cost-to-go field shared: first on the next finer lattice (the
+    first refinement's; not with ``refinements=0``), then on ARA*'s own. States merged on a
+    lattice keep the continuous pose that reached them first, so a fresh search keeps
+    other poses, and a finer lattice merges fewer, and either can find a cheaper plan where
+    ARA*'s reuse cannot (one 12 m floor: 118.1 by ARA* at weight 1, 110.4 by a fresh search
+    at 1.5 on the same lattice, 105.5 at 2 on the finer one). A restart's plan is added only
+    when it is cheaper than every plan before it; its weight, bound and lattice are its own
+    search's.
 
     Args:
         world, start, start_foot, goal, table, options, **kwargs: as in
             :func:`plan_footsteps`.
         weights: non-increasing weights, each >= 1.
-        restarts: search the weights again from scratch once ARA* is done (see above).
+        restarts: search the weights again from scratch once ARA* is done, on the finer
+            lattice then on ARA*'s (see above).
 
     Returns:
         the plans in order (costs non-increasing); the last one may be a partial plan with
@@ -342,37 +342,44 @@ def plan_footsteps_anytime(
     t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
     opts.validate()
-    model, results, t_done = _anytime_once(
-        world, start, start_foot, goal, table, opts, weights, kwargs, restarts
-    )
+    found, t_done = _anytime_once(
+        world, start, start_foot, goal, table, opts, weights, kwargs, restarts,
+        opts.refinements > 0,
+    )  # fmt: skip
     level = 0
     while (
-        results[-1].status is PlanStatus.UNREACHABLE
-        and results[-1].merged
+        found[-1][1].status is PlanStatus.UNREACHABLE
+        and found[-1][1].merged
         and level < opts.refinements
     ):
         left = opts.time_limit - (time.perf_counter() - t_begin)
         if left <= 0.0:
-            results[-1].status = PlanStatus.TIME_LIMIT
+            found[-1][1].status = PlanStatus.TIME_LIMIT
             break
         level += 1
-        finer = dataclasses.replace(
-            opts,
-            xy_resolution=opts.xy_resolution / 2**level,
-            yaw_bins=int(opts.yaw_bins) * 2**level,
-            time_limit=left,
-        )
-        model, results, t_done = _anytime_once(
-            world, start, start_foot, goal, table, finer, weights, kwargs, restarts
-        )
+        finer = _finer(opts, level, left)
+        found, t_done = _anytime_once(
+            world, start, start_foot, goal, table, finer, weights, kwargs, restarts,
+            level < opts.refinements,
+        )  # fmt: skip
     out = []
     # the results' seconds are contiguous and end when the last plan was found (restarts
     # that found nothing cheaper after it are not part of any plan's time)
-    elapsed = t_done - t_begin - sum(r.seconds for r in results)
-    for r in results:
+    elapsed = t_done - t_begin - sum(r.seconds for _, r in found)
+    for model, r in found:
         elapsed += r.seconds
         out.append(AnytimePlan(_to_plan(model, r, elapsed), r.weight, r.bound, elapsed))
     return out
+
+
+def _finer(opts: PlannerOptions, level: int, time_limit: float) -> PlannerOptions:
+    """The options on the lattice of refinement ``level`` (cells / 2**level, bins * 2**level)."""
+    return dataclasses.replace(
+        opts,
+        xy_resolution=opts.xy_resolution / 2**level,
+        yaw_bins=int(opts.yaw_bins) * 2**level,
+        time_limit=time_limit,
+    )
 
 
 def _anytime_once(
@@ -385,11 +392,13 @@ def _anytime_once(
     weights: Sequence[float],
     kwargs: dict,
     restarts: bool = False,
-) -> tuple[BipedStepModel, list[SearchResult], float]:
+    finer_restarts: bool = False,
+) -> tuple[list[tuple[BipedStepModel, SearchResult]], float]:
     """ARA* at the options' lattice, on the chosen backend, then restarts.
 
-    Returns the model, the results and the clock (``time.perf_counter``) when the last
-    result was found.
+    The restarts run first on the next finer lattice when ``finer_restarts``. Returns
+    each result with the model (lattice) it was found on, and the clock
+    (``time.perf_counter``) when the last result was found.
     """
     t0 = time.perf_counter()
     model = BipedStepModel(world, start, start_foot, goal, table, opts, **kwargs)
@@ -405,23 +414,33 @@ def _anytime_once(
             model, weights=weights, max_expansions=budget, time_limit=left,
             require_successors=False,
         )  # fmt: skip
+    found = [(model, r) for r in results]
     t_last = time.perf_counter()
-    if not (restarts and len(results) == len(weights) and results[-1].status is PlanStatus.SUCCESS):
-        return model, results, t_last
+    if not (restarts and results[-1].status is PlanStatus.SUCCESS):  # ARA* ran to its end
+        return found, t_last
     best = min(r.cost for r in results)
     used = sum(r.expansions for r in results)
-    for w in list(weights)[1:]:  # the first weight's plan is ARA*'s first plan already
-        left = opts.time_limit - (time.perf_counter() - t0)
-        if left <= 0.0 or used >= budget:
-            break
-        r = _search_once(model, backend, float(w), budget - used, left)
-        used += r.expansions
-        if r.status is PlanStatus.SUCCESS and r.cost < best * (1.0 - 1e-9):  # not rounding
-            best = r.cost
-            r.seconds = time.perf_counter() - t_last  # the fruitless restarts included
-            t_last = time.perf_counter()
-            results.append(r)
-    return model, results, t_last
+    models = [model]
+    if finer_restarts:  # the next finer lattice first, built when its turn comes
+        models.insert(0, None)
+    for k, m in enumerate(models):
+        for w in list(weights)[1:]:  # the first weight's plan is ARA*'s first plan already
+            left = opts.time_limit - (time.perf_counter() - t0)
+            if left <= 0.0 or used >= budget:
+                return found, t_last
+            if m is None:
+                m = models[k] = BipedStepModel(
+                    world, start, start_foot, goal, table, _finer(opts, 1, left), **kwargs
+                )
+                left = opts.time_limit - (time.perf_counter() - t0)
+            r = _search_once(m, backend, float(w), budget - used, max(left, 1e-9))
+            used += r.expansions
+            if r.status is PlanStatus.SUCCESS and r.cost < best * (1.0 - 1e-9):  # not rounding
+                best = r.cost
+                r.seconds = time.perf_counter() - t_last  # the fruitless restarts included
+                t_last = time.perf_counter()
+                found.append((m, r))
+    return found, t_last
 
 
 def _backend(opts: PlannerOptions, model: BipedStepModel) -> str:

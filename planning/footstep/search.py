@@ -213,7 +213,9 @@ def anytime_search(
     were expanded) with the new weight, and re-expands only states whose cost changed, so
     better plans come for a fraction of a fresh search. Each result reports its weight and
     ``bound = min(weight, cost / min over OPEN u INCONS of (g + h))``: with an admissible
-    heuristic the plan costs at most ``bound`` times the optimum. States merged on the
+    heuristic the plan costs at most ``bound`` times the optimum. A weight not below the
+    last plan's bound is skipped (its search could only promise what that plan already
+    has), so the time goes to the weights that can tighten it. States merged on the
     lattice keep their continuous poses: a state that improves after its expansion becomes
     a new node, so every path stays a chain of real successors.
 
@@ -225,9 +227,9 @@ def anytime_search(
         require_successors: as in :func:`search`.
 
     Returns:
-        one result per search that ran: SUCCESS ones carry improving plans; the last may
-        end in TIME_LIMIT / NODE_LIMIT (best partial plan, or the previous plan's path when
-        one exists) or UNREACHABLE.
+        one result per search that ran (skipped weights have none): SUCCESS ones carry
+        improving plans; the last may end in TIME_LIMIT / NODE_LIMIT (best partial plan, or
+        the previous plan's path when one exists) or UNREACHABLE.
 
     Raises:
         FootstepError: bad weights or budget, or an empty step model (see :func:`search`).
@@ -257,7 +259,10 @@ def anytime_search(
     expansions = generated = merged = 0
     results: list[SearchResult] = []
     solution = -1
+    met = math.inf  # the bound the last plan reported
     for it, w in enumerate(ws):
+        if w >= met:  # that plan already meets what this weight would promise: skipped
+            continue
         t_it = time.perf_counter()
         heap = []
         for i in range(len(states)):
@@ -324,6 +329,7 @@ def anytime_search(
                 default=g[end],
             )
             bound = min(w, g[end] / low) if low > 0 else w
+            met = bound
         last = end if end >= 0 else (solution if solution >= 0 else best)
         path = []
         k = last

@@ -51,8 +51,14 @@ def main() -> None:
     parser.add_argument("--yaws", type=int, default=13, help="candidate yaws in [-pi/4, pi/4]")
     parser.add_argument("--multiple", action="store_true", help="several matches per step")
     parser.add_argument("--repeats", type=int, default=3, help="repeats of the library timings")
+    parser.add_argument(
+        "--search-only", action="store_true", help="only the search on the modified terrain"
+    )
     args = parser.parse_args()
     print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores)")
+    if args.search_only:
+        search_section(args.repeats)
+        return
     source, feet, body = source_library(args.steps, seed=0)
     t0 = time.perf_counter()
     fit = terrain_features(source, candidate_frames(source, 0.03, 5))
@@ -89,13 +95,11 @@ def main() -> None:
 
 def library_section(repeats: int) -> None:
     """Whole-StepLibrary transfer onto the modified terrain and the search there."""
-    import dataclasses
 
     from repertoire.diagrams.littledog_library import load_library
     from repertoire.diagrams.littledog_transfer import (
         LittleDogTransferScenario,
         library_terrains_pca,
-        plan_transfer,
         source_board,
         target_board,
     )
@@ -106,7 +110,7 @@ def library_section(repeats: int) -> None:
     sources = {n: source_board(n) for n in ("terrain_a", "terrain_b")}
     pca = library_terrains_pca()
     target = target_board(scenario)
-    walls, cpus, plans = [], [], []
+    walls, cpus = [], []
     for _ in range(repeats):
         t, c = time.perf_counter(), time.process_time()
         r = transfer_library(library, sources, target, pca)
@@ -129,6 +133,17 @@ def library_section(repeats: int) -> None:
         f"refinement {m.timings['refine']:.2f} s, chains {m.timings['chains']:.2f} s); "
         f"{m.message}"
     )
+    search_section(repeats)
+
+
+def search_section(repeats: int) -> None:
+    """The search on the modified terrain (nominal start), one match and multiple matches."""
+    import dataclasses
+
+    from repertoire.diagrams.littledog_transfer import LittleDogTransferScenario, plan_transfer
+
+    scenario = LittleDogTransferScenario()
+    plans = []
     for multiple in (False, True):
         for _ in range(repeats):
             plans.append(plan_transfer(dataclasses.replace(scenario, multiple=multiple)))

@@ -24,6 +24,7 @@ with the steps used. Run it with
 """
 
 import dataclasses
+import hashlib
 import math
 from pathlib import Path
 
@@ -123,12 +124,10 @@ def run_key(scenario, plan) -> str:
     """Digest of what a run's simulation depends on beyond the terrain and duration.
 
     The loop fields of the scenario (gains, plant settings: every field but the
-    transfer's ``mode``, ``multiple`` and ``threshold``, which act only through the
-    library), the start (pose, joints) and every field of every step of the final
-    library. Two runs of one episode with equal keys simulate identically.
+    transfer's ``mode``, ``multiple``, ``threshold`` and ``planner_time_limit``, which act
+    only through the library), the start (pose, joints) and every field of every step of
+    the final library. Two runs of one episode with equal keys simulate identically.
     """
-    import hashlib
-
     h = hashlib.sha256()
     skip = {"mode", "multiple", "threshold", "planner_time_limit"}
     loop = {f.name: getattr(scenario, f.name) for f in dataclasses.fields(scenario)}

@@ -109,9 +109,10 @@ def library_path_figure(
     Every transferred step is drawn at its start (feet centroid, arrow along its
     heading, grey-blue), recorded chain links ``links`` (pairs of indices into
     ``transferred``, e.g. ``LibraryTransfer.links``) as cyan lines between their
-    starts; the final library's steps are joined in execution order,
-    recorded ones as green circles and planned ones as orange squares (like Stolle
-    et al.'s Figs. 11-12). Either library may be None (nothing transferred / no search).
+    starts; the final library's steps are joined in execution order at their starts'
+    feet centroids, recorded ones as green circles and planned ones as orange squares
+    (like Stolle et al.'s Figs. 11-12), up to the end of the last step (a red cross).
+    Either library may be None (nothing transferred / no search).
 
     Raises:
         TransferError: not a board, or a non-positive resolution.
@@ -156,9 +157,21 @@ def library_path_figure(
                 plt.Line2D([], [], color="tab:cyan", label=f"recorded chain link ({len(links)})")
             )
     if final is not None:
+        from repertoire.planning.transfer_library import step_end_feet
+
         cs = np.array([s.start_feet[:, :2].mean(axis=0) for s in final])
-        ax.plot(cs[:, 0], cs[:, 1], "-", color="tab:red", lw=1.0)
-        handles.append(plt.Line2D([], [], color="tab:red", label="final library, in order"))
+        end = step_end_feet(final[-1])[:, :2].mean(axis=0)
+        route = np.vstack([cs, end])
+        ax.plot(route[:, 0], route[:, 1], "-", color="tab:red", lw=1.0)
+        ax.plot(*end, "x", color="tab:red", ms=9, mew=2.5)
+        handles.append(
+            plt.Line2D([], [], color="tab:red", label="final library, in order (feet centroid)")
+        )
+        handles.append(
+            plt.Line2D(
+                [], [], ls="", marker="x", color="tab:red", mew=2, label="end of the last step"
+            )
+        )
         for kind, mark, colour in (("recorded", "o", "tab:green"), ("planned", "s", "tab:orange")):
             sel = np.array([s.kind == kind for s in final])
             if sel.any():
@@ -173,7 +186,9 @@ def library_path_figure(
         handles.append(plt.Line2D([], [], color="tab:red", ls="--", label="modified from here"))
     if goal is not None:
         ax.axvline(goal, color="tab:purple", ls=":", lw=1.2)
-        handles.append(plt.Line2D([], [], color="tab:purple", ls=":", label="goal line"))
+        handles.append(
+            plt.Line2D([], [], color="tab:purple", ls=":", label="goal line (front feet)")
+        )
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2, fontsize=7)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")

@@ -156,7 +156,7 @@ def test_threshold_discarding_every_step_leaves_the_planner_alone(library, sourc
     assert result.planned_count == 4 and "planner alone" in result.message
 
 
-def test_final_library_orders_recorded_and_planned_steps(library, source):
+def test_final_library_orders_recorded_and_planned_steps(library, source, tmp_path):
     a, b = library[3], library[4]
     gap_end = b.start_feet.copy()
     planned = Straight()(step_end_feet(a), gap_end, 1.0).steps
@@ -177,6 +177,11 @@ def test_final_library_orders_recorded_and_planned_steps(library, source):
     assert [s.foot for s in final[1:]] == [2, 0, 3, 1]
     # The crawl starts from the recorded step's last body pose.
     np.testing.assert_allclose(final[1].start_pose, a.body_pose[-1], atol=1e-9)
+    # Figs. 11-12: the final library (to the last step's end) over the height map.
+    from repertoire.planning.transfer_plot import library_path_figure
+
+    png = library_path_figure(source, library, final, tmp_path / "f.png", goal=0.2, links=[(3, 4)])
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     empty = SearchResult("unreachable", [], 0.0, 0, 0, 0, 0, "nothing")
     with pytest.raises(TransferError, match="no steps"):
         final_library(empty, library, source)

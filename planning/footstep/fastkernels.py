@@ -60,6 +60,10 @@ def _heap_pop(heap, size):
         c = 4 * i + 1
         if c >= size:
             break
+        g = 4 * c + 1
+        if g < size:  # the grandchildren's rows load while this level is compared
+            for k in range(g, min(g + 16, size), 2):
+                _prefetch_row(heap, k)
         best = c
         for c2 in range(c + 1, min(c + 4, size)):
             if _less(

@@ -66,6 +66,19 @@ from repertoire.planning.footstep.types import PlanStatus
 
 _STATUS = (PlanStatus.SUCCESS, PlanStatus.UNREACHABLE, PlanStatus.NODE_LIMIT, PlanStatus.TIME_LIMIT)
 
+# Node fields. Float rows (40 B): position, yaw, cost-to-go h (exact, or a lower bound while
+# the lazy cell is set) and g. A node's swing start is its parent's position and its time the
+# parent's time plus the step's duration: both are filled in for the path nodes only.
+_X, _Y, _YAW, _H, _G = 0, 1, 2, 3, 4
+# Integer rows (32 B): parent, the search it was expanded in (-1: none), lazy cell (-1: h
+# exact), row in the lattice table (-1: none), stance foot, the two previous actions, and
+# _OPEN or _INCONS (0: neither).
+_PARENT, _EXPANDED, _LAZY, _ROW, _FOOT, _A2, _A1, _LIST = 0, 1, 2, 3, 4, 5, 6, 7
+_OPEN, _INCONS = 1, 2
+# Work arrays pre-sized from a finite expansion budget hold at most this many node rows
+# (np.empty: only the rows written are ever faulted in; larger searches grow them).
+_PRESIZE_ROWS = 2**21
+
 
 @njit()
 def _arastar(
@@ -137,11 +150,9 @@ def _arastar(
     h_radius = max(tol, res * 0.75) + 1e-9
     h_cmin = hp[8] / res if use_cells else 0.0  # cheapest cost per metre, shrunk by 1e-6
     tol2 = tol * tol
-    # fnode rows: x, y, yaw, t, swing_x, swing_y, h, g; inode rows: foot, a_prev2,
-    # a_prev1, parent, expanded in, open, incons, lazy cell (-1: h exact), row in the
-    # lattice table. Lattice table rows: key, node, g (float bits), flags = 2 * expanded
-    # in + incons; the successor test reads only this row (no node row of another state).
-    # It lives in the first rows of tb0 (tb1: the spare a rehash fills).
+    # Lattice table rows: key, node, g (float bits), flags = 2 * expanded in + incons; the
+    # successor test reads only this row (no node row of another state). It lives in the
+    # first rows of tb0 (tb1: the spare a rehash fills).
     # Open list rows (f, h, tie, node), node -1 - node when h is a lower bound (lazy);
     # ent: per tie of a lazy row, g at the push and the lazy cell.
     if tb0.shape[0] < 4096:
@@ -150,22 +161,36 @@ def _arastar(
     table[:] = -1
     tg = table.view(np.float64)
     n_local = nyaw * 2 * n_hist  # keys per map cell: key = cell * n_local + local
+    if max_expansions < 2**62:  # a finite budget: room for every node it can create, capped
+        rows = _PRESIZE_ROWS
+        if max_expansions < _PRESIZE_ROWS:
+            rows = min(1 + max_expansions * np.max(succ_ptr[1:] - succ_ptr[:-1]), rows)
+        if fnode.shape[0] < rows:
+            fnode, inode = np.empty((rows, 5)), np.empty((rows, 8), np.int32)
+        if heap.shape[0] < rows:
+            heap = np.empty((rows, 4))
+        if use_cells and ent.shape[0] < rows:
+            ent = np.empty((rows, 2))
 
     sx, sy, sth = start[0], start[1], start[2]
     f0, a20, a10 = int(start[3]), int(start[4]), int(start[5])
     cell0 = int((sx - ox) * inv_q + 0.5) * ky + int((sy - oy) * inv_q + 0.5)
     local0 = (_yaw_bin(sth, yaw_scale, nyaw) * 2 + f0) * n_hist + hist[a20, a10]
     key0 = cell0 * n_local + local0
-    for q, v in enumerate((sx, sy, sth, start[6], start[7], start[8], start[9], 0.0)):
-        fnode[0, q] = v
-    for q, v in enumerate((f0, a20, a10, -1, -1, 1, 0)):
-        inode[0, q] = v
-    inode[0, 7] = -1
+    fnode[0, _X], fnode[0, _Y], fnode[0, _YAW], fnode[0, _H], fnode[0, _G] = (
+        sx,
+        sy,
+        sth,
+        start[9],
+        0.0,
+    )
+    inode[0, _PARENT], inode[0, _EXPANDED], inode[0, _LAZY], inode[0, _LIST] = -1, -1, -1, _OPEN
+    inode[0, _FOOT], inode[0, _A2], inode[0, _A1] = f0, a20, a10
     count = 1
     j = _slot(table, key0, cell0, local0)
     table[j, 0], table[j, 1], table[j, 3] = key0, 0, -2
     tg[j, 2] = 0.0
-    inode[0, 8] = j
+    inode[0, _ROW] = j
     used = 1
     best, best_h = 0, start[9]
     expansions = generated = merged = 0
@@ -182,19 +207,19 @@ def _arastar(
         t_it = _now()
         hsize = 0
         for k in range(count):
-            if inode[k, 5] or inode[k, 6]:
+            if inode[k, _LIST]:
                 if hsize == heap.shape[0]:
                     heap = _grow_rows(heap)
                 code = k
-                if inode[k, 7] >= 0:
+                if inode[k, _LAZY] >= 0:
                     if hsize >= ent.shape[0]:
                         ent = _grow_rows(ent)
-                    ent[hsize, 0], ent[hsize, 1], code = fnode[k, 7], inode[k, 7], -1 - k
-                _heap_push(heap, hsize, fnode[k, 7] + w * fnode[k, 6], fnode[k, 6], hsize, code)
+                    ent[hsize, 0], ent[hsize, 1], code = fnode[k, _G], inode[k, _LAZY], -1 - k
+                _heap_push(heap, hsize, fnode[k, _G] + w * fnode[k, _H], fnode[k, _H], hsize, code)
                 hsize += 1
-                if inode[k, 6] and inode[k, 8] >= 0:
-                    table[inode[k, 8], 3] -= 1  # no longer INCONS
-                inode[k, 5], inode[k, 6] = 1, 0
+                if inode[k, _LIST] == _INCONS and inode[k, _ROW] >= 0:
+                    table[inode[k, _ROW], 3] -= 1  # no longer INCONS
+                inode[k, _LIST] = _OPEN
         tie = hsize
         status, end, exp_it = 1, -1, 0  # UNREACHABLE
         while hsize > 0:
@@ -202,14 +227,14 @@ def _arastar(
             tp = heap[0, 2]
             code = int(heap[0, 3])
             node = code if code >= 0 else -1 - code
-            if code < 0 and inode[node, 4] != it:  # a lower bound: the exact key, same tie
+            if code < 0 and inode[node, _EXPANDED] != it:  # a lower bound: the exact key, same tie
                 e = int(tp)
                 lazy = int(ent[e, 1])
                 h = _rra_value(lazy, hf, hi, hocc, hp, hcount) * cost_per_m
                 gp = ent[e, 0]
                 _heap_pop(heap, hsize)
-                if inode[node, 7] == lazy:
-                    fnode[node, 6], inode[node, 7] = h, -1
+                if inode[node, _LAZY] == lazy:
+                    fnode[node, _H], inode[node, _LAZY] = h, -1
                 if h < np.inf:
                     _heap_push(heap, hsize - 1, gp + w * h, h, tp, node)
                 else:
@@ -222,12 +247,14 @@ def _arastar(
                 nxt = nxt if nxt >= 0 else -1 - nxt
                 _prefetch_row(inode, nxt)
                 _prefetch_row(fnode, nxt)
-            if inode[node, 4] == it:
+            if inode[node, _EXPANDED] == it:
                 continue
-            if inode[node, 7] >= 0:  # the node moved since this entry: its own h, exact
-                fnode[node, 6] = _rra_value(inode[node, 7], hf, hi, hocc, hp, hcount) * cost_per_m
-                inode[node, 7] = -1
-            x, y, th, foot = fnode[node, 0], fnode[node, 1], fnode[node, 2], inode[node, 0]
+            if inode[node, _LAZY] >= 0:  # the node moved since this entry: its own h, exact
+                fnode[node, _H] = (
+                    _rra_value(inode[node, _LAZY], hf, hi, hocc, hp, hcount) * cost_per_m
+                )
+                inode[node, _LAZY] = -1
+            x, y, th, foot = fnode[node, _X], fnode[node, _Y], fnode[node, _YAW], inode[node, _FOOT]
             if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
                 status, end = 0, node
                 break
@@ -237,22 +264,25 @@ def _arastar(
             if expansions and (expansions & 1023) == 0 and _now() - t0 > time_limit:
                 status = 3
                 break
-            inode[node, 5], inode[node, 4] = 0, it
-            j = inode[node, 8]
+            inode[node, _LIST], inode[node, _EXPANDED] = 0, it
+            j = inode[node, _ROW]
             if j >= 0:  # the lattice table maps its state to this node
                 table[j, 3] = 2 * it
             expansions += 1
             exp_it += 1
-            g = fnode[node, 7]
-            if h < best_h or (h == best_h and g < fnode[best, 7]):
+            g = fnode[node, _G]
+            if h < best_h or (h == best_h and g < fnode[best, _G]):
                 best, best_h = node, h
-            a2, a1 = inode[node, 1], inode[node, 2]
+            a2, a1 = inode[node, _A2], inode[node, _A1]
             c, s = math.cos(th), math.sin(th)
             nf = 1 - foot
             row = (a2 * n + a1) * 2 + foot
             z1 = 0.0
             if step_limits:
                 z1 = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)[1]
+            sw_x, sw_y = start[7], start[8]  # the swing starts where this foot stood before
+            if use_tall and inode[node, _PARENT] >= 0:
+                sw_x, sw_y = fnode[inode[node, _PARENT], _X], fnode[inode[node, _PARENT], _Y]
             # room for every successor, made here: an array reassigned inside the successor
             # loop would cost atomic reference counts on each successor
             r0, r1 = succ_ptr[row], succ_ptr[row + 1]
@@ -268,7 +298,7 @@ def _arastar(
                     tb1 = np.empty((rows, 4), np.int64)
                 new = tb1[:rows]
                 new[:] = -1
-                _rehash(table, new, n_local, inode, 8)
+                _rehash(table, new, n_local, inode, _ROW)
                 tb0, tb1, table = tb1, tb0, new
                 tg = table.view(np.float64)
             mask = table.shape[0] - 1
@@ -301,9 +331,7 @@ def _arastar(
                     dz = _height_bounds(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)[1] - z1
                     if dz > step_up or -dz > step_down:
                         continue
-                if use_tall and swing_crosses(
-                    tall, fnode[node, 4], fnode[node, 5], x2, y2, ox, oy, inv_res
-                ):
+                if use_tall and swing_crosses(tall, sw_x, sw_y, x2, y2, ox, oy, inv_res):
                     continue
                 lazy = -1
                 if use_cells:
@@ -352,15 +380,14 @@ def _arastar(
                     if g2 >= g_old:
                         continue
                     if flags >= 0:  # has children: a new node keeps them consistent
-                        inode[idx, 8] = -1  # no longer in the table
+                        inode[idx, _ROW] = -1  # no longer in the table
                         idx = -1
                 if idx < 0:
                     idx = count
                     count += 1
-                    inode[idx, 4] = -1
-                    inode[idx, 5] = 0 if closed_now else 1
-                    inode[idx, 6] = 1 if closed_now else 0
-                    inode[idx, 8] = j
+                    inode[idx, _EXPANDED] = -1
+                    inode[idx, _LIST] = _INCONS if closed_now else _OPEN
+                    inode[idx, _ROW] = j
                     if table[j, 0] != k2:
                         table[j, 0] = k2
                         used += 1
@@ -369,16 +396,11 @@ def _arastar(
                     tg[j, 2] = g2
                 else:
                     tg[j, 2] = g2
-                fnode[idx, 0], fnode[idx, 1], fnode[idx, 2], fnode[idx, 3] = (
-                    x2,
-                    y2,
-                    th2,
-                    fnode[node, 3] + succ_f[r, 3],
-                )
-                fnode[idx, 4], fnode[idx, 5], fnode[idx, 6], fnode[idx, 7] = x, y, h2, g2
-                inode[idx, 0], inode[idx, 1], inode[idx, 2], inode[idx, 3] = nf, a1, a, node
-                inode[idx, 7] = lazy
-                if inode[idx, 6] == 0:
+                fnode[idx, _X], fnode[idx, _Y], fnode[idx, _YAW] = x2, y2, th2
+                fnode[idx, _H], fnode[idx, _G] = h2, g2
+                inode[idx, _FOOT], inode[idx, _A2], inode[idx, _A1] = nf, a1, a
+                inode[idx, _PARENT], inode[idx, _LAZY] = node, lazy
+                if inode[idx, _LIST] == _OPEN:
                     code = idx
                     if lazy >= 0:
                         ent[tie, 0], ent[tie, 1], code = g2, lazy, -1 - idx
@@ -390,38 +412,47 @@ def _arastar(
             solution = end
             low = np.inf
             for k in range(count):  # a lower bound above ``low`` needs no exact value
-                if (inode[k, 5] or inode[k, 6]) and fnode[k, 7] + fnode[k, 6] < low:
-                    if inode[k, 7] >= 0:
-                        fnode[k, 6] = _rra_value(inode[k, 7], hf, hi, hocc, hp, hcount) * cost_per_m
-                        inode[k, 7] = -1
-                    if fnode[k, 7] + fnode[k, 6] < low:
-                        low = fnode[k, 7] + fnode[k, 6]
+                if inode[k, _LIST] and fnode[k, _G] + fnode[k, _H] < low:
+                    if inode[k, _LAZY] >= 0:
+                        fnode[k, _H] = (
+                            _rra_value(inode[k, _LAZY], hf, hi, hocc, hp, hcount) * cost_per_m
+                        )
+                        inode[k, _LAZY] = -1
+                    if fnode[k, _G] + fnode[k, _H] < low:
+                        low = fnode[k, _G] + fnode[k, _H]
             if low == np.inf:
-                low = fnode[end, 7]
-            bound = min(w, fnode[end, 7] / low) if low > 0 else w
+                low = fnode[end, _G]
+            bound = min(w, fnode[end, _G] / low) if low > 0 else w
             met = bound
         last = end if end >= 0 else (solution if solution >= 0 else best)
         out_i[runs, 0], out_i[runs, 1], out_i[runs, 2] = status, last, exp_it
         out_i[runs, 3], out_i[runs, 4] = generated, merged
-        out_f[runs, 0], out_f[runs, 1], out_f[runs, 2] = fnode[last, 7], bound, _now() - t_it
+        out_f[runs, 0], out_f[runs, 1], out_f[runs, 2] = fnode[last, _G], bound, _now() - t_it
         out_f[runs, 3] = w
         runs += 1
         if status != 0:
             break
     nodes = np.empty((count, 11))  # x, y, yaw, t, swing_x, swing_y, h, foot, a2, a1, parent
-    for it in range(runs):  # only the nodes on the paths are filled
-        k = out_i[it, 1]
+    chain = np.empty(count, np.int64)
+    for it in range(runs):  # only the nodes on the paths are filled, from the start on
+        k, m = out_i[it, 1], 0
         while k >= 0:
-            nodes[k, 0], nodes[k, 1], nodes[k, 2], nodes[k, 3] = (
-                fnode[k, 0],
-                fnode[k, 1],
-                fnode[k, 2],
-                fnode[k, 3],
-            )
-            nodes[k, 4], nodes[k, 5], nodes[k, 6] = fnode[k, 4], fnode[k, 5], fnode[k, 6]
-            nodes[k, 7], nodes[k, 8], nodes[k, 9] = inode[k, 0], inode[k, 1], inode[k, 2]
-            nodes[k, 10] = inode[k, 3]
-            k = inode[k, 3]
+            chain[m] = k
+            m += 1
+            k = inode[k, _PARENT]
+        for q in range(m - 1, -1, -1):
+            k = chain[q]
+            p = inode[k, _PARENT]
+            t, sw_x, sw_y = start[6], start[7], start[8]
+            if p >= 0:  # the parent's time plus the step's duration (T's row for the history)
+                r = succ_ptr[(inode[p, _A2] * n + inode[p, _A1]) * 2 + inode[p, _FOOT]]
+                while succ_a[r] != inode[k, _A1]:
+                    r += 1
+                t, sw_x, sw_y = nodes[p, 3] + succ_f[r, 3], fnode[p, _X], fnode[p, _Y]
+            nodes[k, 0], nodes[k, 1], nodes[k, 2] = fnode[k, _X], fnode[k, _Y], fnode[k, _YAW]
+            nodes[k, 3], nodes[k, 4], nodes[k, 5], nodes[k, 6] = t, sw_x, sw_y, fnode[k, _H]
+            nodes[k, 7], nodes[k, 8] = inode[k, _FOOT], inode[k, _A2]
+            nodes[k, 9], nodes[k, 10] = inode[k, _A1], p
     return out_i[:runs], out_f[:runs], nodes, (fnode, inode, heap, ent, tb0, tb1)
 
 
@@ -508,8 +539,8 @@ _WORK: dict[str, tuple] = {}
 def _fresh_work() -> tuple:
     """Small work arrays for :func:`_arastar` (it grows them)."""
     return (
-        np.empty((1024, 8)),
-        np.empty((1024, 9), np.int32),
+        np.empty((1024, 5)),
+        np.empty((1024, 8), np.int32),
         np.empty((1024, 4)),
         np.empty((1024, 2)),
         np.empty((4096, 4), np.int64),

@@ -394,19 +394,21 @@ def test_lattice_table_finds_keys_and_rehash_keeps_the_node_rows():
 
     n_local = 72
     keys = np.random.default_rng(4).choice(50_000 * n_local, 300, replace=False)
-    table = np.full((1024, 4), -1, np.int64)
+    table = np.full((1024, 2), -1, np.int64)
+    tnode = np.full(1024, -1, np.int32)
     inode = np.zeros((300, 2), np.int32)
     for node, key in enumerate(keys.tolist()):
         j = _slot(table, key, key // n_local, key % n_local)
         assert table[j, 0] == -1  # every key is new
-        table[j, 0], table[j, 1] = key, node
+        table[j, 0], table[j, 1], tnode[j] = key, 3 * node, node
         inode[node, 1] = j
-    new = np.full((2048, 4), -1, np.int64)
-    _rehash(table, new, n_local, inode, 1)
-    table = new
+    new, new_node = np.full((2048, 2), -1, np.int64), np.full(2048, -1, np.int32)
+    _rehash(table, tnode, new, new_node, n_local, inode, 1)
+    table, tnode = new, new_node
     for node, key in enumerate(keys.tolist()):
         j = _slot(table, key, key // n_local, key % n_local)
-        assert table[j, 0] == key and table[j, 1] == node and inode[node, 1] == j
+        assert table[j, 0] == key and table[j, 1] == 3 * node  # the g column moves with it
+        assert tnode[j] == node and inode[node, 1] == j
     missing = int(keys.max()) + 1
     assert table[_slot(table, missing, missing // n_local, missing % n_local), 0] == -1
 

@@ -15,10 +15,14 @@ everything in arrays so that numba compiles it:
   its own tie number, so states are expanded in exactly the Python loop's order;
 - duplicate detection is an open-addressing table from lattice keys (the model's
   :meth:`~repertoire.planning.footstep.biped_model.BipedStepModel.lattice_key`, computed
-  here by the same formula) to the node, its g and its search flags, so testing a
-  successor reads one table row and no other node's row; the keys of one map cell share
-  cache lines, and the rows of a state's successors are prefetched before they are read
+  here by the same formula) to its g (16-byte rows) and its node (a column beside), so
+  testing a successor reads one table row and no node's row (the node's search flags are
+  read only when a successor improves its g); the keys of one map cell share cache lines,
+  and the rows of a state's successors are prefetched before they are read
   (:mod:`~repertoire.planning.footstep.fastkernels`);
+- nodes are rows of named fields (40 bytes of floats, 32 of integers), pre-sized from a
+  finite expansion budget so that a search neither copies them nor touches rows it does
+  not use;
 - successor expansion reads the flattened table T (per history and stance foot); room for
   all successors of a state is made before its successor loop, so no array is reassigned
   inside it (numba would count references on every successor);
@@ -114,6 +118,8 @@ def _arastar(
     ent,
     tb0,
     tb1,
+    tn0,
+    tn1,
 ):
     """ARA* over the biped lattice, step for step as ``search.anytime_search``.
 
@@ -150,14 +156,14 @@ def _arastar(
     h_radius = max(tol, res * 0.75) + 1e-9
     h_cmin = hp[8] / res if use_cells else 0.0  # cheapest cost per metre, shrunk by 1e-6
     tol2 = tol * tol
-    # Lattice table rows: key, node, g (float bits), flags = 2 * expanded in + incons; the
-    # successor test reads only this row (no node row of another state). It lives in the
-    # first rows of tb0 (tb1: the spare a rehash fills).
+    # Lattice table rows: key, g (float bits); the successor test reads only this row (no
+    # node row of another state unless it improves that state's g). The rows live in the
+    # first rows of tb0, their nodes in tn0 (tb1, tn1: the spares a rehash fills).
     # Open list rows (f, h, tie, node), node -1 - node when h is a lower bound (lazy);
     # ent: per tie of a lazy row, g at the push and the lazy cell.
-    if tb0.shape[0] < 4096:
-        tb0 = np.empty((4096, 4), np.int64)
-    table = tb0[:4096]
+    if tb0.shape[0] < 4096 or tn0.shape[0] < tb0.shape[0]:
+        tb0, tn0 = np.empty((4096, 2), np.int64), np.empty(4096, np.int32)
+    table, tnode = tb0[:4096], tn0[:4096]
     table[:] = -1
     tg = table.view(np.float64)
     n_local = nyaw * 2 * n_hist  # keys per map cell: key = cell * n_local + local
@@ -188,8 +194,8 @@ def _arastar(
     inode[0, _FOOT], inode[0, _A2], inode[0, _A1] = f0, a20, a10
     count = 1
     j = _slot(table, key0, cell0, local0)
-    table[j, 0], table[j, 1], table[j, 3] = key0, 0, -2
-    tg[j, 2] = 0.0
+    table[j, 0], tnode[j] = key0, 0
+    tg[j, 1] = 0.0
     inode[0, _ROW] = j
     used = 1
     best, best_h = 0, start[9]
@@ -217,8 +223,6 @@ def _arastar(
                     ent[hsize, 0], ent[hsize, 1], code = fnode[k, _G], inode[k, _LAZY], -1 - k
                 _heap_push(heap, hsize, fnode[k, _G] + w * fnode[k, _H], fnode[k, _H], hsize, code)
                 hsize += 1
-                if inode[k, _LIST] == _INCONS and inode[k, _ROW] >= 0:
-                    table[inode[k, _ROW], 3] -= 1  # no longer INCONS
                 inode[k, _LIST] = _OPEN
         tie = hsize
         status, end, exp_it = 1, -1, 0  # UNREACHABLE
@@ -265,9 +269,6 @@ def _arastar(
                 status = 3
                 break
             inode[node, _LIST], inode[node, _EXPANDED] = 0, it
-            j = inode[node, _ROW]
-            if j >= 0:  # the lattice table maps its state to this node
-                table[j, 3] = 2 * it
             expansions += 1
             exp_it += 1
             g = fnode[node, _G]
@@ -294,12 +295,12 @@ def _arastar(
                 ent = _grow_rows(ent)
             while 2 * (used + r1 - r0) > table.shape[0]:
                 rows = 2 * table.shape[0]
-                if tb1.shape[0] < rows:
-                    tb1 = np.empty((rows, 4), np.int64)
-                new = tb1[:rows]
+                if tb1.shape[0] < rows or tn1.shape[0] < rows:
+                    tb1, tn1 = np.empty((rows, 2), np.int64), np.empty(rows, np.int32)
+                new, new_node = tb1[:rows], tn1[:rows]
                 new[:] = -1
-                _rehash(table, new, n_local, inode, _ROW)
-                tb0, tb1, table = tb1, tb0, new
+                _rehash(table, tnode, new, new_node, n_local, inode, _ROW)
+                tb0, tb1, table, tn0, tn1, tnode = tb1, tb0, new, tn1, tn0, new_node
                 tg = table.view(np.float64)
             mask = table.shape[0] - 1
             for r in range(r0, r1):  # prefetch the table rows
@@ -371,15 +372,14 @@ def _arastar(
                 idx = -1
                 closed_now = False
                 if table[j, 0] == k2:
-                    idx = table[j, 1]
-                    flags = table[j, 3]
-                    closed_now = (flags >> 1) == it or (flags & 1) == 1
-                    g_old = tg[j, 2]
-                    if closed_now or g2 >= g_old:
+                    if g2 >= tg[j, 1]:
                         merged += 1
-                    if g2 >= g_old:
                         continue
-                    if flags >= 0:  # has children: a new node keeps them consistent
+                    idx = tnode[j]
+                    closed_now = inode[idx, _EXPANDED] == it or inode[idx, _LIST] == _INCONS
+                    if closed_now:
+                        merged += 1
+                    if inode[idx, _EXPANDED] >= 0:  # has children: a new node keeps them
                         inode[idx, _ROW] = -1  # no longer in the table
                         idx = -1
                 if idx < 0:
@@ -391,11 +391,8 @@ def _arastar(
                     if table[j, 0] != k2:
                         table[j, 0] = k2
                         used += 1
-                    table[j, 1] = idx
-                    table[j, 3] = -1 if closed_now else -2
-                    tg[j, 2] = g2
-                else:
-                    tg[j, 2] = g2
+                    tnode[j] = idx
+                tg[j, 1] = g2
                 fnode[idx, _X], fnode[idx, _Y], fnode[idx, _YAW] = x2, y2, th2
                 fnode[idx, _H], fnode[idx, _G] = h2, g2
                 inode[idx, _FOOT], inode[idx, _A2], inode[idx, _A1] = nf, a1, a
@@ -453,7 +450,7 @@ def _arastar(
             nodes[k, 3], nodes[k, 4], nodes[k, 5], nodes[k, 6] = t, sw_x, sw_y, fnode[k, _H]
             nodes[k, 7], nodes[k, 8] = inode[k, _FOOT], inode[k, _A2]
             nodes[k, 9], nodes[k, 10] = inode[k, _A1], p
-    return out_i[:runs], out_f[:runs], nodes, (fnode, inode, heap, ent, tb0, tb1)
+    return out_i[:runs], out_f[:runs], nodes, (fnode, inode, heap, ent, tb0, tb1, tn0, tn1)
 
 
 def _lazy_arrays(lazy) -> dict:
@@ -543,8 +540,10 @@ def _fresh_work() -> tuple:
         np.empty((1024, 8), np.int32),
         np.empty((1024, 4)),
         np.empty((1024, 2)),
-        np.empty((4096, 4), np.int64),
-        np.empty((0, 4), np.int64),
+        np.empty((4096, 2), np.int64),
+        np.empty((0, 2), np.int64),
+        np.empty(4096, np.int32),
+        np.empty(0, np.int32),
     )
 
 

@@ -83,7 +83,8 @@ def _heap_pop(heap, size):
 def _slot(table, key, cell, local):
     """Row of ``key = cell * S + local`` in the lattice table, or of its empty slot.
 
-    Rows are ``(key, node, g bits, flags)`` (``-1`` key: empty). The keys of one map cell
+    Rows are ``(key, g bits)`` (``-1`` key: empty; the node is in a column beside the
+    table). The keys of one map cell
     (``cell``; ``local`` = yaw bin, foot and history class) start at the cell's hashed row
     and run on consecutive rows, so the states of a cell share cache lines: the successors
     of nearby states mostly read lines already loaded. Linear probing resolves collisions.
@@ -96,19 +97,19 @@ def _slot(table, key, cell, local):
 
 
 @njit()
-def _rehash(table, new, s, inode, col):
+def _rehash(table, tnode, new, new_node, s, inode, col):
     """Move the keys (``cell * s + local``) into the empty table ``new``.
 
-    ``new`` has more rows than ``table`` and is filled with -1; ``inode[node, col]``
-    follows each key's row.
+    ``new`` has more rows than ``table`` and is filled with -1; each key's node (``tnode``,
+    to ``new_node``) and ``inode[node, col]`` follow its row.
     """
     for i in range(table.shape[0]):
         key = table[i, 0]
         if key != -1:
             j = _slot(new, key, key // s, key % s)
-            for q in range(4):
-                new[j, q] = table[i, q]
-            inode[table[i, 1], col] = j
+            new[j, 0], new[j, 1] = key, table[i, 1]
+            new_node[j] = tnode[i]
+            inode[tnode[i], col] = j
 
 
 @intrinsic

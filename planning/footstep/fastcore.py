@@ -167,10 +167,11 @@ def _arastar(
     table[:] = -1
     tg = table.view(np.float64)
     n_local = nyaw * 2 * n_hist  # keys per map cell: key = cell * n_local + local
+    most = np.max(succ_ptr[1:] - succ_ptr[:-1])  # successors of one state, at most
     if max_expansions < 2**62:  # a finite budget: room for every node it can create, capped
         rows = _PRESIZE_ROWS
         if max_expansions < _PRESIZE_ROWS:
-            rows = min(1 + max_expansions * np.max(succ_ptr[1:] - succ_ptr[:-1]), rows)
+            rows = min(1 + max_expansions * most, rows)
         if fnode.shape[0] < rows:
             fnode, inode = np.empty((rows, 5)), np.empty((rows, 8), np.int32)
         if heap.shape[0] < rows:
@@ -212,88 +213,28 @@ def _arastar(
             continue
         t_it = _now()
         hsize = 0
+        while count > heap.shape[0]:  # room for every node (no array is reassigned inside
+            heap = _grow_rows(heap)  # a loop: numba would count references on each pass)
+        while use_cells and count > ent.shape[0]:
+            ent = _grow_rows(ent)
         for k in range(count):
             if inode[k, _LIST]:
-                if hsize == heap.shape[0]:
-                    heap = _grow_rows(heap)
                 code = k
                 if inode[k, _LAZY] >= 0:
-                    if hsize >= ent.shape[0]:
-                        ent = _grow_rows(ent)
                     ent[hsize, 0], ent[hsize, 1], code = fnode[k, _G], inode[k, _LAZY], -1 - k
                 _heap_push(heap, hsize, fnode[k, _G] + w * fnode[k, _H], fnode[k, _H], hsize, code)
                 hsize += 1
                 inode[k, _LIST] = _OPEN
         tie = hsize
         status, end, exp_it = 1, -1, 0  # UNREACHABLE
-        while hsize > 0:
-            h = heap[0, 1]
-            tp = heap[0, 2]
-            code = int(heap[0, 3])
-            node = code if code >= 0 else -1 - code
-            if code < 0 and inode[node, _EXPANDED] != it:  # a lower bound: the exact key, same tie
-                e = int(tp)
-                lazy = int(ent[e, 1])
-                h = _rra_value(lazy, hf, hi, hocc, hp, hcount) * cost_per_m
-                gp = ent[e, 0]
-                _heap_pop(heap, hsize)
-                if inode[node, _LAZY] == lazy:
-                    fnode[node, _H], inode[node, _LAZY] = h, -1
-                if h < np.inf:
-                    _heap_push(heap, hsize - 1, gp + w * h, h, tp, node)
-                else:
-                    hsize -= 1
-                continue
-            _heap_pop(heap, hsize)
-            hsize -= 1
-            if hsize > 0:  # the next candidate's node rows load while this one expands
-                nxt = int(heap[0, 3])
-                nxt = nxt if nxt >= 0 else -1 - nxt
-                _prefetch_row(inode, nxt)
-                _prefetch_row(fnode, nxt)
-            if inode[node, _EXPANDED] == it:
-                continue
-            if inode[node, _LAZY] >= 0:  # the node moved since this entry: its own h, exact
-                fnode[node, _H] = (
-                    _rra_value(inode[node, _LAZY], hf, hi, hocc, hp, hcount) * cost_per_m
-                )
-                inode[node, _LAZY] = -1
-            x, y, th, foot = fnode[node, _X], fnode[node, _Y], fnode[node, _YAW], inode[node, _FOOT]
-            if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
-                status, end = 0, node
-                break
-            if expansions >= max_expansions:
-                status = 2
-                break
-            if expansions and (expansions & 1023) == 0 and _now() - t0 > time_limit:
-                status = 3
-                break
-            inode[node, _LIST], inode[node, _EXPANDED] = 0, it
-            expansions += 1
-            exp_it += 1
-            g = fnode[node, _G]
-            if h < best_h or (h == best_h and g < fnode[best, _G]):
-                best, best_h = node, h
-            a2, a1 = inode[node, _A2], inode[node, _A1]
-            c, s = math.cos(th), math.sin(th)
-            nf = 1 - foot
-            row = (a2 * n + a1) * 2 + foot
-            z1 = 0.0
-            if step_limits:
-                z1 = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)[1]
-            sw_x, sw_y = start[7], start[8]  # the swing starts where this foot stood before
-            if use_tall and inode[node, _PARENT] >= 0:
-                sw_x, sw_y = fnode[inode[node, _PARENT], _X], fnode[inode[node, _PARENT], _Y]
-            # room for every successor, made here: an array reassigned inside the successor
-            # loop would cost atomic reference counts on each successor
-            r0, r1 = succ_ptr[row], succ_ptr[row + 1]
-            while count + (r1 - r0) > fnode.shape[0]:
+        while True:  # make room, then search until done or a node needs more room
+            while count + most > fnode.shape[0]:
                 fnode, inode = _grow_rows(fnode), _grow_rows(inode)
-            while hsize + (r1 - r0) > heap.shape[0]:
+            while hsize + most > heap.shape[0]:
                 heap = _grow_rows(heap)
-            while use_cells and tie + (r1 - r0) > ent.shape[0]:
+            while use_cells and tie + most > ent.shape[0]:
                 ent = _grow_rows(ent)
-            while 2 * (used + r1 - r0) > table.shape[0]:
+            while 2 * (used + most) > table.shape[0]:
                 rows = 2 * table.shape[0]
                 if tb1.shape[0] < rows or tn1.shape[0] < rows:
                     tb1, tn1 = np.empty((rows, 2), np.int64), np.empty(rows, np.int32)
@@ -302,108 +243,189 @@ def _arastar(
                 _rehash(table, tnode, new, new_node, n_local, inode, _ROW)
                 tb0, tb1, table, tn0, tn1, tnode = tb1, tb0, new, tn1, tn0, new_node
                 tg = table.view(np.float64)
-            mask = table.shape[0] - 1
-            for r in range(r0, r1):  # prefetch the table rows
-                dx, dy = succ_f[r, 0], succ_f[r, 1]
-                x2 = x + c * dx - s * dy
-                y2 = y + s * dx + c * dy
-                cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
-                local = (_yaw_bin(_wrap(th + succ_f[r, 2]), yaw_scale, nyaw) * 2 + nf) * n_hist
-                local += hist[a1, succ_a[r]]
-                _prefetch_row(table, (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask)
-            for r in range(r0, r1):
-                dx, dy = succ_f[r, 0], succ_f[r, 1]
-                x2 = x + c * dx - s * dy
-                y2 = y + s * dx + c * dy
-                th2 = _wrap(th + succ_f[r, 2])
-                fx = (x2 - ox) * inv_res
-                fy = (y2 - oy) * inv_res
-                if not (0.0 <= fx < nx and 0.0 <= fy < ny):
-                    continue
-                if not free[(int(fx) + pad) * nyp + int(fy) + pad] and not _foot_free(
-                    x2, y2, th2, grid, chk, occw, free, mbits, mrows
-                ):  # the surely-free shortcut first (inline), then the masks
-                    continue
-                if flat_limit < np.inf and (
-                    _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
+            # The search loop reassigns no array (numba would count references on each
+            # pass): it leaves when the next expansion might not fit.
+            room = True
+            while hsize > 0:
+                if (
+                    count + most > fnode.shape[0]
+                    or hsize + most > heap.shape[0]
+                    or (use_cells and tie + most > ent.shape[0])
+                    or 2 * (used + most) > table.shape[0]
                 ):
+                    room = False
+                    break
+                h = heap[0, 1]
+                tp = heap[0, 2]
+                code = int(heap[0, 3])
+                node = code if code >= 0 else -1 - code
+                if (
+                    code < 0 and inode[node, _EXPANDED] != it
+                ):  # a lower bound: the exact key, same tie
+                    e = int(tp)
+                    lazy = int(ent[e, 1])
+                    h = _rra_value(lazy, hf, hi, hocc, hp, hcount) * cost_per_m
+                    gp = ent[e, 0]
+                    _heap_pop(heap, hsize)
+                    if inode[node, _LAZY] == lazy:
+                        fnode[node, _H], inode[node, _LAZY] = h, -1
+                    if h < np.inf:
+                        _heap_push(heap, hsize - 1, gp + w * h, h, tp, node)
+                    else:
+                        hsize -= 1
                     continue
+                _heap_pop(heap, hsize)
+                hsize -= 1
+                if hsize > 0:  # the next candidate's node rows load while this one expands
+                    nxt = int(heap[0, 3])
+                    nxt = nxt if nxt >= 0 else -1 - nxt
+                    _prefetch_row(inode, nxt)
+                    _prefetch_row(fnode, nxt)
+                if inode[node, _EXPANDED] == it:
+                    continue
+                if inode[node, _LAZY] >= 0:  # the node moved since this entry: its own h, exact
+                    fnode[node, _H] = (
+                        _rra_value(inode[node, _LAZY], hf, hi, hocc, hp, hcount) * cost_per_m
+                    )
+                    inode[node, _LAZY] = -1
+                x, y, th, foot = (
+                    fnode[node, _X],
+                    fnode[node, _Y],
+                    fnode[node, _YAW],
+                    inode[node, _FOOT],
+                )
+                if (x - gx) * (x - gx) + (y - gy) * (y - gy) <= tol2:
+                    status, end = 0, node
+                    break
+                if expansions >= max_expansions:
+                    status = 2
+                    break
+                if expansions and (expansions & 1023) == 0 and _now() - t0 > time_limit:
+                    status = 3
+                    break
+                inode[node, _LIST], inode[node, _EXPANDED] = 0, it
+                expansions += 1
+                exp_it += 1
+                g = fnode[node, _G]
+                if h < best_h or (h == best_h and g < fnode[best, _G]):
+                    best, best_h = node, h
+                a2, a1 = inode[node, _A2], inode[node, _A1]
+                c, s = math.cos(th), math.sin(th)
+                nf = 1 - foot
+                row = (a2 * n + a1) * 2 + foot
+                z1 = 0.0
                 if step_limits:
-                    dz = _height_bounds(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)[1] - z1
-                    if dz > step_up or -dz > step_down:
-                        continue
-                if use_tall and swing_crosses(tall, sw_x, sw_y, x2, y2, ox, oy, inv_res):
-                    continue
-                lazy = -1
-                if use_cells:
-                    cell = int(fx) * ny + int(fy)
-                    if hf[cell, 2] == -2.0:  # settled
-                        h2 = hf[cell, 0] * cost_per_m
-                    elif hcount[0] == 0:  # the backward search is over: unreachable
-                        h2 = _rra_value(cell, hf, hi, hocc, hp, hcount) * cost_per_m
-                    else:  # a lower bound now, the exact value when popped
-                        f_min = hi[0, 0]
-                        lb = f_min - _rra_h(cell, hp) - 1e-9 * (1.0 + abs(f_min))
-                        # every path to the goal region is at least as long as the straight line
-                        cx = ox + ((cell // ny) + 0.5) * res
-                        cy = oy + ((cell % ny) + 0.5) * res
-                        lb2 = (math.sqrt((cx - gx) ** 2 + (cy - gy) ** 2) - h_radius) * h_cmin
-                        h2 = max(lb, lb2, 0.0) * cost_per_m
-                        lazy = cell
-                else:
-                    ddx, ddy = x2 - gx, y2 - gy
-                    h2 = max(0.0, math.sqrt(ddx * ddx + ddy * ddy) - tol) * cost_per_m
-                if h2 == np.inf:
-                    continue
-                cost = succ_f[r, 4]
-                if height_w > 0.0:
-                    cost += height_w * _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)
-                generated += 1
-                a = succ_a[r]
-                g2 = g + cost
-                cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
-                local = (_yaw_bin(th2, yaw_scale, nyaw) * 2 + nf) * n_hist + hist[a1, a]
-                k2 = cell2 * n_local + local
-                # _slot written out here: an inlined call costs two atomic reference counts
+                    z1 = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)[1]
+                sw_x, sw_y = start[7], start[8]  # the swing starts where this foot stood before
+                if use_tall and inode[node, _PARENT] >= 0:
+                    sw_x, sw_y = fnode[inode[node, _PARENT], _X], fnode[inode[node, _PARENT], _Y]
+                r0, r1 = succ_ptr[row], succ_ptr[row + 1]
                 mask = table.shape[0] - 1
-                j = (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask
-                while table[j, 0] != -1 and table[j, 0] != k2:
-                    j = (j + 1) & mask
-                idx = -1
-                closed_now = False
-                if table[j, 0] == k2:
-                    if g2 >= tg[j, 1]:
-                        merged += 1
+                for r in range(r0, r1):  # prefetch the table rows
+                    dx, dy = succ_f[r, 0], succ_f[r, 1]
+                    x2 = x + c * dx - s * dy
+                    y2 = y + s * dx + c * dy
+                    cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
+                    local = _yaw_bin(_wrap(th + succ_f[r, 2]), yaw_scale, nyaw) * 2 + nf
+                    local = local * n_hist + hist[a1, succ_a[r]]
+                    _prefetch_row(table, (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask)
+                for r in range(r0, r1):
+                    dx, dy = succ_f[r, 0], succ_f[r, 1]
+                    x2 = x + c * dx - s * dy
+                    y2 = y + s * dx + c * dy
+                    th2 = _wrap(th + succ_f[r, 2])
+                    fx = (x2 - ox) * inv_res
+                    fy = (y2 - oy) * inv_res
+                    if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                         continue
-                    idx = tnode[j]
-                    closed_now = inode[idx, _EXPANDED] == it or inode[idx, _LIST] == _INCONS
-                    if closed_now:
-                        merged += 1
-                    if inode[idx, _EXPANDED] >= 0:  # has children: a new node keeps them
-                        inode[idx, _ROW] = -1  # no longer in the table
-                        idx = -1
-                if idx < 0:
-                    idx = count
-                    count += 1
-                    inode[idx, _EXPANDED] = -1
-                    inode[idx, _LIST] = _INCONS if closed_now else _OPEN
-                    inode[idx, _ROW] = j
-                    if table[j, 0] != k2:
-                        table[j, 0] = k2
-                        used += 1
-                    tnode[j] = idx
-                tg[j, 1] = g2
-                fnode[idx, _X], fnode[idx, _Y], fnode[idx, _YAW] = x2, y2, th2
-                fnode[idx, _H], fnode[idx, _G] = h2, g2
-                inode[idx, _FOOT], inode[idx, _A2], inode[idx, _A1] = nf, a1, a
-                inode[idx, _PARENT], inode[idx, _LAZY] = node, lazy
-                if inode[idx, _LIST] == _OPEN:
-                    code = idx
-                    if lazy >= 0:
-                        ent[tie, 0], ent[tie, 1], code = g2, lazy, -1 - idx
-                    _heap_push(heap, hsize, g2 + w * h2, h2, tie, code)
-                    hsize += 1
-                    tie += 1
+                    if not free[(int(fx) + pad) * nyp + int(fy) + pad] and not _foot_free(
+                        x2, y2, th2, grid, chk, occw, free, mbits, mrows
+                    ):  # the surely-free shortcut first (inline), then the masks
+                        continue
+                    if flat_limit < np.inf and (
+                        _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
+                    ):
+                        continue
+                    if step_limits:
+                        dz = _height_bounds(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)[1] - z1
+                        if dz > step_up or -dz > step_down:
+                            continue
+                    if use_tall and swing_crosses(tall, sw_x, sw_y, x2, y2, ox, oy, inv_res):
+                        continue
+                    lazy = -1
+                    if use_cells:
+                        cell = int(fx) * ny + int(fy)
+                        if hf[cell, 2] == -2.0:  # settled
+                            h2 = hf[cell, 0] * cost_per_m
+                        elif hcount[0] == 0:  # the backward search is over: unreachable
+                            h2 = _rra_value(cell, hf, hi, hocc, hp, hcount) * cost_per_m
+                        else:  # a lower bound now, the exact value when popped
+                            f_min = hi[0, 0]
+                            lb = f_min - _rra_h(cell, hp) - 1e-9 * (1.0 + abs(f_min))
+                            # every path to the goal region is at least as long as the straight line
+                            cx = ox + ((cell // ny) + 0.5) * res
+                            cy = oy + ((cell % ny) + 0.5) * res
+                            lb2 = (math.sqrt((cx - gx) ** 2 + (cy - gy) ** 2) - h_radius) * h_cmin
+                            h2 = max(lb, lb2, 0.0) * cost_per_m
+                            lazy = cell
+                    else:
+                        ddx, ddy = x2 - gx, y2 - gy
+                        h2 = max(0.0, math.sqrt(ddx * ddx + ddy * ddy) - tol) * cost_per_m
+                    if h2 == np.inf:
+                        continue
+                    cost = succ_f[r, 4]
+                    if height_w > 0.0:
+                        cost += height_w * _height_range(
+                            x2, y2, th2, grid, ex, heights, ex_off, ex_ptr
+                        )
+                    generated += 1
+                    a = succ_a[r]
+                    g2 = g + cost
+                    cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
+                    local = (_yaw_bin(th2, yaw_scale, nyaw) * 2 + nf) * n_hist + hist[a1, a]
+                    k2 = cell2 * n_local + local
+                    # _slot written out here: an inlined call costs two atomic reference counts
+                    mask = table.shape[0] - 1
+                    j = (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask
+                    while table[j, 0] != -1 and table[j, 0] != k2:
+                        j = (j + 1) & mask
+                    idx = -1
+                    closed_now = False
+                    if table[j, 0] == k2:
+                        if g2 >= tg[j, 1]:
+                            merged += 1
+                            continue
+                        idx = tnode[j]
+                        closed_now = inode[idx, _EXPANDED] == it or inode[idx, _LIST] == _INCONS
+                        if closed_now:
+                            merged += 1
+                        if inode[idx, _EXPANDED] >= 0:  # has children: a new node keeps them
+                            inode[idx, _ROW] = -1  # no longer in the table
+                            idx = -1
+                    if idx < 0:
+                        idx = count
+                        count += 1
+                        inode[idx, _EXPANDED] = -1
+                        inode[idx, _LIST] = _INCONS if closed_now else _OPEN
+                        inode[idx, _ROW] = j
+                        if table[j, 0] != k2:
+                            table[j, 0] = k2
+                            used += 1
+                        tnode[j] = idx
+                    tg[j, 1] = g2
+                    fnode[idx, _X], fnode[idx, _Y], fnode[idx, _YAW] = x2, y2, th2
+                    fnode[idx, _H], fnode[idx, _G] = h2, g2
+                    inode[idx, _FOOT], inode[idx, _A2], inode[idx, _A1] = nf, a1, a
+                    inode[idx, _PARENT], inode[idx, _LAZY] = node, lazy
+                    if inode[idx, _LIST] == _OPEN:
+                        code = idx
+                        if lazy >= 0:
+                            ent[tie, 0], ent[tie, 1], code = g2, lazy, -1 - idx
+                        _heap_push(heap, hsize, g2 + w * h2, h2, tie, code)
+                        hsize += 1
+                        tie += 1
+            if room:
+                break
         bound = w
         if status == 0:
             solution = end

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid, rect_overlaps_cells
+from repertoire.planning.footstep.fastkernels import _occupancy_words
 from repertoire.planning.footstep.jitcache import njit
 
 
@@ -183,38 +184,44 @@ def _edt_sq(features):
 
 
 @njit()
-def surely_free_cells(occ_padded, half_width, pad):
-    """Cells of a padded grid with no occupied cell within ``half_width`` cells (Chebyshev).
+def surely_free_words(words, half_width):
+    """Cells with no occupied cell within ``half_width`` cells (Chebyshev), as bits.
 
-    A summed-area table answers each square window in four look-ups. Only cells at least
-    ``pad`` > ``half_width`` from the padded border can be True (the padding is occupied).
+    Bit-parallel: each row (bit j of word j // 64) is dilated by ``half_width`` along the
+    row by shifts, then the dilated rows within ``half_width`` are OR-ed; a cell is surely
+    free where the result is 0. Rows beyond the grid's first and last count as free, so
+    only cells whose square window lies in the grid are meaningful: with an occupied
+    border wider than ``half_width`` (a :class:`FootprintChecker`'s padding) every other
+    cell is occupied itself, hence never free.
 
     Args:
-        occ_padded: (NX, NY) bool, the grid with an occupied border of ``pad`` cells.
-        half_width: half side of the square window, in cells (>= 0).
-        pad: width of the occupied border.
+        words: (NX, W) uint64 occupancy bits, bit ``j % 64`` of word ``j // 64`` for cell
+            ``(i, j)``; bits past the last cell 0.
+        half_width: half side of the square window, in cells (0 <= half_width < 64).
 
     Returns:
-        (NX, NY) uint8, 1 where surely free.
+        (NX, W) uint64, bit set where surely free.
     """
-    nxp, nyp = occ_padded.shape
-    sat = np.zeros((nxp + 1, nyp + 1), np.int32)
+    nxp, nw = words.shape
+    rowd = np.empty_like(words)
     for i in range(nxp):
-        row = 0
-        for j in range(nyp):
-            row += occ_padded[i, j]
-            sat[i + 1, j + 1] = sat[i, j + 1] + row
-    m = half_width
-    free = np.zeros((nxp, nyp), np.uint8)
-    for i in range(pad, nxp - pad):
-        for j in range(pad, nyp - pad):
-            count = (
-                sat[i + m + 1, j + m + 1]
-                - sat[i - m, j + m + 1]
-                - sat[i + m + 1, j - m]
-                + sat[i - m, j - m]
-            )
-            free[i, j] = count == 0
+        for w in range(nw):
+            x = words[i, w]
+            lo = words[i, w - 1] if w > 0 else np.uint64(0)
+            hi = words[i, w + 1] if w + 1 < nw else np.uint64(0)
+            acc = x
+            for s in range(1, half_width + 1):
+                sh, back = np.uint64(s), np.uint64(64 - s)
+                acc |= (x << sh) | (lo >> back) | (x >> sh) | (hi << back)
+            rowd[i, w] = acc
+    free = np.empty_like(words)
+    for i in range(nxp):
+        a, b = max(i - half_width, 0), min(i + half_width + 1, nxp)
+        for w in range(nw):
+            acc = np.uint64(0)
+            for k in range(a, b):
+                acc |= rowd[k, w]
+            free[i, w] = ~acc
     return free
 
 
@@ -268,8 +275,9 @@ class FootprintChecker:
         needs it.
         """
         if self._free_bytes is None:
-            free = surely_free_cells(self._occ, self._free_m, self.pad)
-            self._free_bytes = free.ravel().tobytes()
+            free = surely_free_words(_occupancy_words(self), self._free_m)
+            bits = np.unpackbits(free.view(np.uint8), axis=1, bitorder="little")
+            self._free_bytes = bits[:, : self.nyp].tobytes()
         return self._free_bytes
 
     @property

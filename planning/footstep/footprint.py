@@ -260,12 +260,20 @@ class FootprintChecker:
         self._occ = occ
         self._rows: list[int] | None = None
         self._outer: list[np.ndarray] | None = None
-        if grid.heights is not None:
-            h = np.zeros(occ.shape)
-            h[pad : pad + nx, pad : pad + ny] = grid.heights
-            self.heights_flat: np.ndarray | None = h.ravel()
-        else:
-            self.heights_flat = None
+        self._heights_flat: np.ndarray | None = None
+
+    @property
+    def heights_flat(self) -> np.ndarray | None:
+        """The grid's heights padded like the occupancy (0 outside), flat; None without.
+
+        Built on first use: a plan without height limits or height cost never reads it.
+        """
+        if self._heights_flat is None and self.grid.heights is not None:
+            pad, nx, ny = self.pad, self.nx, self.ny
+            h = np.zeros(self._occ.shape)
+            h[pad : pad + nx, pad : pad + ny] = self.grid.heights
+            self._heights_flat = h.ravel()
+        return self._heights_flat
 
     @property
     def free_bytes(self) -> bytes:
@@ -315,6 +323,10 @@ class FootprintChecker:
         base = (ix + self.pad) * self.nyp + iy + self.pad
         if shortcut and self.free_bytes[base]:
             return True
+        if not shortcut:  # the masks read only the (2r + 1)^2 cells around the centre cell
+            r, px, py = self.masks.radius_cells, ix + self.pad, iy + self.pad
+            if not self._occ[px - r : px + r + 1, py - r : py + r + 1].any():
+                return True  # none occupied: the masks' answer, without building rows
         rows = None if shortcut or self._rows is not None else self._rows_near(ix + self.pad)
         return self._check_masks(base, ix, iy, fx - ix, fy - iy, yaw, rows)
 

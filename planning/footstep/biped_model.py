@@ -20,7 +20,7 @@ so the generic weighted A* runs it; for static grids it also exports its tables
 import dataclasses
 import math
 from collections.abc import Callable, Iterator, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry, apply_displacement
@@ -56,9 +56,11 @@ PLANNING_BYTES_PER_CELL = 150
 EAGER_CELLS = 1 << 20
 
 
-@dataclasses.dataclass(frozen=True, slots=True)
-class BipedState:
+class BipedState(NamedTuple):
     """One search state of the biped.
+
+    Immutable: a named tuple, built 4-5x faster than a frozen dataclass (the search builds
+    one per successor and per plan step).
 
     Attributes:
         x, y, yaw: stance foot pose (m, m, rad), continuous.

@@ -299,6 +299,20 @@ def test_surely_free_cells_equal_a_brute_force_window_count():
     assert blocked[:, 1].min() == 63 and blocked[:, 1].max() == 67 and len(blocked) == 25
 
 
+def test_table_entry_follows_a_table_edited_in_place():
+    from repertoire.planning.footstep.biped_model import _table_entry
+
+    table = nominal_action_table()
+    first = _table_entry(table)
+    assert _table_entry(table) is first  # the same object and content: remembered
+    table.step_cost[:] = table.step_cost + 0.5  # edited in place: a new entry
+    assert _table_entry(table)["c_min"] == pytest.approx(first["c_min"] + 0.5)
+    table.step_cost[:] = table.step_cost - 0.5  # back to the first content
+    assert _table_entry(table) is first
+    table.rest_action = table.actions[1]  # another rest action: not the first entry
+    assert _table_entry(table) is not first
+
+
 def test_dynamic_environment_nearest_time_and_errors():
     m = MovingRectObstacle([0.1, 0.5], [0.1, 0.1], [0.5, 0.0])
     env = DynamicEnvironment.from_moving_obstacles((1.0, 1.0), moving=[m], t_end=1.0, dt=0.1)

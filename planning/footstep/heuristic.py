@@ -679,13 +679,13 @@ def _eager_field(sources, f, occ, p, given, fbuf, ubuf, ibuf):
     head = np.full(nb, -1, np.int64)
     offs = (-nyp - 1, -nyp, -nyp + 1, -1, 1, nyp - 1, nyp, nyp + 1)
     steps = (diag, res, diag, res, res, diag, res, diag)
-    # edge weight from a cell of class a (state s, closed or not) in direction k to a cell
-    # of class b: w[s * 32 + k * 4 + b] = 0.5 (c_a + c_b) step_k
-    w = np.empty(8 * 32)
-    for s in range(8):
+    # edge weight from a cell of class a in direction k to a cell of class b:
+    # w[a * 32 + k * 4 + b] = 0.5 (c_a + c_b) step_k
+    w = np.empty(4 * 32)
+    for a in range(4):
         for k in range(8):
             for b in range(4):
-                w[s * 32 + k * 4 + b] = 0.5 * (val[s & 3] + val[b]) * steps[k]
+                w[a * 32 + k * 4 + b] = 0.5 * (val[a] + val[b]) * steps[k]
     # entries ent_c, ent_n (cell, next entry): one per improvement, at most 8 per cell plus
     # the sources; a taken entry is chained for reuse, so only the pending ones use memory
     top, spare, pending = 0, -1, 0
@@ -711,10 +711,13 @@ def _eager_field(sources, f, occ, p, given, fbuf, ubuf, ibuf):
                 continue
             state[u] = su | 4
             d = dist[u]
-            row = su * 32
-            for k in range(8):  # a closed neighbour has dist <= nd: no test needed
+            row = su * 32  # su: the class (a cell is taken open, the border never)
+            for k in range(8):
                 v = u + offs[k]
-                nd = d + w[row + 4 * k + (state[v] & 3)]
+                sv = state[v]
+                if sv & 4:  # closed (or the border): its dist <= nd already
+                    continue
+                nd = d + w[row + 4 * k + sv]
                 if nd < dist[v]:
                     dist[v] = nd
                     b = slot + int(nd * inv) - cur  # 2 to nb - 1 buckets ahead

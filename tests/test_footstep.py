@@ -297,6 +297,11 @@ def test_surely_free_cells_equal_a_brute_force_window_count():
     blocked = np.argwhere(free == 0)
     assert blocked[:, 0].min() == 2 and blocked[:, 0].max() == 6
     assert blocked[:, 1].min() == 63 and blocked[:, 1].max() == 67 and len(blocked) == 25
+    # a window wider than a word (dilated in passes of at most 63 cells)
+    words = np.zeros((3, 4), np.uint64)
+    words[1, 2] = np.uint64(1) << np.uint64(10)  # cell (1, 138)
+    free = np.unpackbits(surely_free_words(words, 100).view(np.uint8), axis=1, bitorder="little")
+    assert (free[:, 38:239] == 0).all() and free[:, :38].all() and free[:, 239:].all()
 
 
 def test_table_entry_follows_a_table_edited_in_place():

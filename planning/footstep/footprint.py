@@ -197,23 +197,28 @@ def surely_free_words(words, half_width):
     Args:
         words: (NX, W) uint64 occupancy bits, bit ``j % 64`` of word ``j // 64`` for cell
             ``(i, j)``; bits past the last cell 0.
-        half_width: half side of the square window, in cells (0 <= half_width < 64).
+        half_width: half side of the square window, in cells (>= 0).
 
     Returns:
         (NX, W) uint64, bit set where surely free.
     """
     nxp, nw = words.shape
-    rowd = np.empty_like(words)
-    for i in range(nxp):
-        for w in range(nw):
-            x = words[i, w]
-            lo = words[i, w - 1] if w > 0 else np.uint64(0)
-            hi = words[i, w + 1] if w + 1 < nw else np.uint64(0)
-            acc = x
-            for s in range(1, half_width + 1):
-                sh, back = np.uint64(s), np.uint64(64 - s)
-                acc |= (x << sh) | (lo >> back) | (x >> sh) | (hi << back)
-            rowd[i, w] = acc
+    rowd = words.copy()
+    left = half_width
+    while left > 0:  # dilations add up: passes of at most 63 (a shift stays below 64)
+        step = min(left, 63)
+        left -= step
+        prev = rowd.copy()
+        for i in range(nxp):
+            for w in range(nw):
+                x = prev[i, w]
+                lo = prev[i, w - 1] if w > 0 else np.uint64(0)
+                hi = prev[i, w + 1] if w + 1 < nw else np.uint64(0)
+                acc = x
+                for s in range(1, step + 1):
+                    sh, back = np.uint64(s), np.uint64(64 - s)
+                    acc |= (x << sh) | (lo >> back) | (x >> sh) | (hi << back)
+                rowd[i, w] = acc
     free = np.empty_like(words)
     for i in range(nxp):
         a, b = max(i - half_width, 0), min(i + half_width + 1, nxp)

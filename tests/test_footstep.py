@@ -274,6 +274,50 @@ def test_footprint_checker_matches_exact_reference():
     assert not chk2.is_free(0.5, 0.5, math.pi / 2)
 
 
+def test_surely_free_cells_equal_a_brute_force_window_count():
+    from repertoire.planning.footstep.footprint import surely_free_words
+
+    rng = np.random.default_rng(11)
+    for trial in range(40):
+        nx, ny = (int(v) for v in rng.integers(1, 150, 2))  # rows of 1 to 3 words
+        res = float(rng.choice([0.01, 0.025, 0.05]))
+        grid = OccupancyGrid(rng.random((nx, ny)) < rng.choice([0.0, 0.02, 0.2]), res)
+        chk = FootprintChecker(grid, footprint_masks(0.16, 0.10, res))
+        occ, m = chk._occ, chk._free_m
+        assert m < chk.pad  # the occupied border is wider than the window
+        want = np.zeros(occ.shape, np.uint8)
+        windows = np.lib.stride_tricks.sliding_window_view(occ, (2 * m + 1, 2 * m + 1))
+        want[m : occ.shape[0] - m, m : occ.shape[1] - m] = ~windows.any(axis=(2, 3))
+        got = np.frombuffer(chk.free_bytes, np.uint8).reshape(occ.shape)
+        np.testing.assert_array_equal(got, want, err_msg=f"trial {trial}")
+    # one occupied cell in a free 3-word row: exactly its (2m + 1)^2 window is not free
+    words = np.zeros((9, 3), np.uint64)
+    words[4, 1] = np.uint64(1) << np.uint64(1)  # cell (4, 65)
+    free = np.unpackbits(surely_free_words(words, 2).view(np.uint8), axis=1, bitorder="little")
+    blocked = np.argwhere(free == 0)
+    assert blocked[:, 0].min() == 2 and blocked[:, 0].max() == 6
+    assert blocked[:, 1].min() == 63 and blocked[:, 1].max() == 67 and len(blocked) == 25
+    # a window wider than a word (dilated in passes of at most 63 cells)
+    words = np.zeros((3, 4), np.uint64)
+    words[1, 2] = np.uint64(1) << np.uint64(10)  # cell (1, 138)
+    free = np.unpackbits(surely_free_words(words, 100).view(np.uint8), axis=1, bitorder="little")
+    assert (free[:, 38:239] == 0).all() and free[:, :38].all() and free[:, 239:].all()
+
+
+def test_table_entry_follows_a_table_edited_in_place():
+    from repertoire.planning.footstep.biped_model import _table_entry
+
+    table = nominal_action_table()
+    first = _table_entry(table)
+    assert _table_entry(table) is first  # the same object and content: remembered
+    table.step_cost[:] = table.step_cost + 0.5  # edited in place: a new entry
+    assert _table_entry(table)["c_min"] == pytest.approx(first["c_min"] + 0.5)
+    table.step_cost[:] = table.step_cost - 0.5  # back to the first content
+    assert _table_entry(table) is first
+    table.rest_action = table.actions[1]  # another rest action: not the first entry
+    assert _table_entry(table) is not first
+
+
 def test_dynamic_environment_nearest_time_and_errors():
     m = MovingRectObstacle([0.1, 0.5], [0.1, 0.1], [0.5, 0.0])
     env = DynamicEnvironment.from_moving_obstacles((1.0, 1.0), moving=[m], t_end=1.0, dt=0.1)

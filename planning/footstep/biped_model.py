@@ -20,7 +20,7 @@ so the generic weighted A* runs it; for static grids it also exports its tables
 import dataclasses
 import math
 from collections.abc import Callable, Iterator, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry, apply_displacement
@@ -56,9 +56,11 @@ PLANNING_BYTES_PER_CELL = 150
 EAGER_CELLS = 1 << 20
 
 
-@dataclasses.dataclass(frozen=True, slots=True)
-class BipedState:
+class BipedState(NamedTuple):
     """One search state of the biped.
+
+    Immutable: a named tuple, built 4-5x faster than a frozen dataclass (the search builds
+    one per successor and per plan step).
 
     Attributes:
         x, y, yaw: stance foot pose (m, m, rad), continuous.
@@ -115,6 +117,7 @@ def history_classes(table: ActionTable) -> np.ndarray:
 
 
 _TABLE_CACHE: dict[bytes, dict] = {}
+_TABLE_SEEN: dict[int, tuple] = {}  # by object: (it, content, names and shapes, entry)
 
 
 def _table_entry(table: ActionTable) -> dict:
@@ -125,14 +128,20 @@ def _table_entry(table: ActionTable) -> dict:
     cheapest step cost and reach, and, once built, its successor rows without an action
     filter (``"succ"``).
     """
+    content = table.displacement.tobytes() + table.duration.tobytes() + table.step_cost.tobytes()
+    shapes = (table.displacement.shape, table.duration.shape, table.step_cost.shape)
+    # the same table object again: its content compared with what it held (a memcmp and a
+    # few small equalities), not hashed and printed again (~10 us per plan)
+    seen = _TABLE_SEEN.get(id(table))
+    if (
+        seen is not None
+        and seen[0] is table
+        and seen[1] == content
+        and seen[2] == (list(table.actions), table.rest_action, table.mirror, shapes)
+    ):
+        return seen[3]
     meta = repr((table.actions, table.rest_action, sorted(table.mirror.items())))
-    shapes = repr((table.displacement.shape, table.duration.shape, table.step_cost.shape))
-    key = (
-        table.displacement.tobytes()
-        + table.duration.tobytes()
-        + table.step_cost.tobytes()
-        + (meta + shapes).encode()
-    )
+    key = content + (meta + repr(shapes)).encode()
     entry = _TABLE_CACHE.get(key)
     if entry is None:
         table.validate()
@@ -147,6 +156,10 @@ def _table_entry(table: ActionTable) -> dict:
             "c_min": float(table.step_cost.min()),
             "max_reach": table.max_reach(),
         }
+    if len(_TABLE_SEEN) >= 8:
+        _TABLE_SEEN.clear()
+    meta_now = (list(table.actions), table.rest_action, dict(table.mirror), shapes)  # copies
+    _TABLE_SEEN[id(table)] = (table, content, meta_now, entry)
     return entry
 
 

@@ -493,7 +493,9 @@ def compiled_tables(model: BipedStepModel) -> dict:
     mbits, mrows = _cached_mask_bits(chk.masks)
     ex_off, _, _, ex_ptr = _cached_masks(exact)
     mk, emk = chk.masks, exact.masks
-    heights = exact.heights_flat if exact.heights_flat is not None else np.zeros(1)
+    # the core reads heights only for the limits or the height cost (model.uses_heights)
+    heights = exact.heights_flat if model.uses_heights else None
+    heights = heights if heights is not None else np.zeros(1)
     tall = model.tall if model.tall is not None else np.zeros((1, 1), bool)
     return {
         "succ_ptr": model.succ_ptr,

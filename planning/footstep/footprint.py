@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid, rect_overlaps_cells
+from repertoire.planning.footstep.fastkernels import _occupancy_words
 from repertoire.planning.footstep.jitcache import njit
 
 
@@ -183,38 +184,49 @@ def _edt_sq(features):
 
 
 @njit()
-def surely_free_cells(occ_padded, half_width, pad):
-    """Cells of a padded grid with no occupied cell within ``half_width`` cells (Chebyshev).
+def surely_free_words(words, half_width):
+    """Cells with no occupied cell within ``half_width`` cells (Chebyshev), as bits.
 
-    A summed-area table answers each square window in four look-ups. Only cells at least
-    ``pad`` > ``half_width`` from the padded border can be True (the padding is occupied).
+    Bit-parallel: each row (bit j of word j // 64) is dilated by ``half_width`` along the
+    row by shifts, then the dilated rows within ``half_width`` are OR-ed; a cell is surely
+    free where the result is 0. Rows beyond the grid's first and last count as free, so
+    only cells whose square window lies in the grid are meaningful: with an occupied
+    border wider than ``half_width`` (a :class:`FootprintChecker`'s padding) every other
+    cell is occupied itself, hence never free.
 
     Args:
-        occ_padded: (NX, NY) bool, the grid with an occupied border of ``pad`` cells.
+        words: (NX, W) uint64 occupancy bits, bit ``j % 64`` of word ``j // 64`` for cell
+            ``(i, j)``; bits past the last cell 0.
         half_width: half side of the square window, in cells (>= 0).
-        pad: width of the occupied border.
 
     Returns:
-        (NX, NY) uint8, 1 where surely free.
+        (NX, W) uint64, bit set where surely free.
     """
-    nxp, nyp = occ_padded.shape
-    sat = np.zeros((nxp + 1, nyp + 1), np.int32)
+    nxp, nw = words.shape
+    rowd = words.copy()
+    left = half_width
+    while left > 0:  # dilations add up: passes of at most 63 (a shift stays below 64)
+        step = min(left, 63)
+        left -= step
+        prev = rowd.copy()
+        for i in range(nxp):
+            for w in range(nw):
+                x = prev[i, w]
+                lo = prev[i, w - 1] if w > 0 else np.uint64(0)
+                hi = prev[i, w + 1] if w + 1 < nw else np.uint64(0)
+                acc = x
+                for s in range(1, step + 1):
+                    sh, back = np.uint64(s), np.uint64(64 - s)
+                    acc |= (x << sh) | (lo >> back) | (x >> sh) | (hi << back)
+                rowd[i, w] = acc
+    free = np.empty_like(words)
     for i in range(nxp):
-        row = 0
-        for j in range(nyp):
-            row += occ_padded[i, j]
-            sat[i + 1, j + 1] = sat[i, j + 1] + row
-    m = half_width
-    free = np.zeros((nxp, nyp), np.uint8)
-    for i in range(pad, nxp - pad):
-        for j in range(pad, nyp - pad):
-            count = (
-                sat[i + m + 1, j + m + 1]
-                - sat[i - m, j + m + 1]
-                - sat[i + m + 1, j - m]
-                + sat[i - m, j - m]
-            )
-            free[i, j] = count == 0
+        a, b = max(i - half_width, 0), min(i + half_width + 1, nxp)
+        for w in range(nw):
+            acc = np.uint64(0)
+            for k in range(a, b):
+                acc |= rowd[k, w]
+            free[i, w] = ~acc
     return free
 
 
@@ -253,12 +265,20 @@ class FootprintChecker:
         self._occ = occ
         self._rows: list[int] | None = None
         self._outer: list[np.ndarray] | None = None
-        if grid.heights is not None:
-            h = np.zeros(occ.shape)
-            h[pad : pad + nx, pad : pad + ny] = grid.heights
-            self.heights_flat: np.ndarray | None = h.ravel()
-        else:
-            self.heights_flat = None
+        self._heights_flat: np.ndarray | None = None
+
+    @property
+    def heights_flat(self) -> np.ndarray | None:
+        """The grid's heights padded like the occupancy (0 outside), flat; None without.
+
+        Built on first use: a plan without height limits or height cost never reads it.
+        """
+        if self._heights_flat is None and self.grid.heights is not None:
+            pad, nx, ny = self.pad, self.nx, self.ny
+            h = np.zeros(self._occ.shape)
+            h[pad : pad + nx, pad : pad + ny] = self.grid.heights
+            self._heights_flat = h.ravel()
+        return self._heights_flat
 
     @property
     def free_bytes(self) -> bytes:
@@ -268,8 +288,9 @@ class FootprintChecker:
         needs it.
         """
         if self._free_bytes is None:
-            free = surely_free_cells(self._occ, self._free_m, self.pad)
-            self._free_bytes = free.ravel().tobytes()
+            free = surely_free_words(_occupancy_words(self), self._free_m)
+            bits = np.unpackbits(free.view(np.uint8), axis=1, bitorder="little")
+            self._free_bytes = bits[:, : self.nyp].tobytes()
         return self._free_bytes
 
     @property
@@ -307,6 +328,10 @@ class FootprintChecker:
         base = (ix + self.pad) * self.nyp + iy + self.pad
         if shortcut and self.free_bytes[base]:
             return True
+        if not shortcut:  # the masks read only the (2r + 1)^2 cells around the centre cell
+            r, px, py = self.masks.radius_cells, ix + self.pad, iy + self.pad
+            if not self._occ[px - r : px + r + 1, py - r : py + r + 1].any():
+                return True  # none occupied: the masks' answer, without building rows
         rows = None if shortcut or self._rows is not None else self._rows_near(ix + self.pad)
         return self._check_masks(base, ix, iy, fx - ix, fy - iy, yaw, rows)
 

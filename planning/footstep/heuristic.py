@@ -286,11 +286,12 @@ class LazyCostToGo:
         radius = -1  # no deep-obstacle test
         if math.isfinite(impassable_depth) and grid.occupied.any():
             radius = int(impassable_depth / res) + 1
-        if 0 <= impassable_depth and radius <= 8:
-            self.f[:, 1] = np.nan  # computed on demand
-        else:  # a wide scan per cell would cost more than the distance transform
+        given = not (0 <= impassable_depth and radius <= 8)
+        if given:  # a wide scan per cell would cost more than the distance transform
             self.f[:, 1] = _cell_costs(grid, obstacle_cost, impassable_depth, deep_cost).ravel()
             radius = -1
+        elif not eager:  # (an eager field writes them all)
+            self.f[:, 1] = np.nan  # computed on demand
         self.i = np.empty((1 if eager else n, 2))  # the heap: (f = distance + octile, cell)
         self.size = np.zeros(2, np.int64)  # heap size, cells closed since the last retarget
         ti = min(max(int((toward[0] - grid.origin[0]) / res), 0), nx - 1)
@@ -311,7 +312,8 @@ class LazyCostToGo:
         ).astype(float)  # fmt: skip
         sources = _goal_cells(grid, goal, goal_tolerance)
         if eager:  # every cell settled now (bucket Dijkstra); the heap stays empty
-            _eager_field(sources, self.f, self.occ, self.p, *_eager_work(nx, ny, sources.size))
+            work = _eager_work(nx, ny, sources.size)
+            _eager_field(sources, self.f, self.occ, self.p, given, *work)
         else:
             _rra_start(sources, self.f, self.i, self.p, self.size)
 
@@ -346,10 +348,10 @@ def shared_cost_to_go(
     Its values do not depend on ``toward`` (only the order in which cells settle does), so
     plans on the same map towards the same goal (finer lattices after UNREACHABLE, ARA*
     levels, receding-horizon rounds) share the cells already settled. The last 4 fields
-    are kept; the key holds the occupancy bytes, so an edited grid gets a fresh field.
+    are kept; the key holds the occupancy bits, so an edited grid gets a fresh field.
     """
     key = (
-        grid.occupied.tobytes(),
+        np.packbits(grid.occupied).tobytes(),  # with the shape: the content, 8x cheaper to hash
         grid.shape,
         grid.resolution,
         grid.origin,
@@ -542,14 +544,27 @@ def _rra_value(c, f, heap, occ, p, size):
 
 
 @njit()
-def _all_costs(f, occ, p, run):
-    """Every cell's cost into ``f[:, 1]``, equal to :func:`_rra_cost`'s, row by row.
+def _cost_classes(f, occ, p, given, state, run):
+    """Every cell's cost class into the padded ``state`` (0 free, 1 obstacle, 2 deep).
 
-    The deep-obstacle scan (a free cell among the offsets within ``impassable_depth``)
+    The costs are those of :func:`_rra_cost` (``given``: read from ``f[:, 1]``, which then
+    holds :func:`_cell_costs`' values): free 1, occupied ``p[3]``, deep ``p[5]``. The
+    deep-obstacle scan (a free cell among the offsets within ``impassable_depth``)
     becomes, per row offset ``di``, one look-up of the distance along row ``i + di`` to
     its nearest free cell: within the depth, the offsets of one row are ``|dj| <= m(di)``.
+    Returns which classes occur (a bit per class).
     """
     nx, ny = int(p[0]), int(p[1])
+    nyp = ny + 2
+    seen = 0
+    if given:
+        for i in range(nx):
+            for j in range(ny):
+                v = f[i * ny + j, 1]
+                k = 0 if v == 1.0 else (1 if v == p[3] else 2)
+                state[(i + 1) * nyp + j + 1] = k
+                seen |= 1 << k
+        return seen
     radius = int(p[9])
     reach = np.full(max(2 * radius + 1, 0), -1, np.int64)  # m(di), -1: no offset in that row
     for k in range(int(p[12])):
@@ -569,28 +584,25 @@ def _all_costs(f, occ, p, run):
                 if not occ[i * ny + j]:
                     last = j
                 run[i * ny + j] = min(run[i * ny + j], last - j)
-    for c in range(nx * ny):
-        if f[c, 1] == f[c, 1]:  # given
-            continue
-        if not occ[c]:
-            f[c, 1] = 1.0
-            continue
-        v = p[3]
-        if radius >= 0:
-            i, j = c // ny, c % ny
-            deep = True
-            for di in range(-radius, radius + 1):
-                a = i + di
-                if (
-                    0 <= a < nx
-                    and reach[di + radius] >= 0
-                    and run[a * ny + j] <= reach[di + radius]
-                ):
-                    deep = False
-                    break
-            if deep:
-                v = p[5]
-        f[c, 1] = v
+    for i in range(nx):
+        for j in range(ny):
+            k = 0
+            if occ[i * ny + j]:
+                k = 1
+                if radius >= 0:
+                    k = 2
+                    for di in range(-radius, radius + 1):
+                        a = i + di
+                        if (
+                            0 <= a < nx
+                            and reach[di + radius] >= 0
+                            and run[a * ny + j] <= reach[di + radius]
+                        ):
+                            k = 1
+                            break
+            state[(i + 1) * nyp + j + 1] = k
+            seen |= 1 << k
+    return seen
 
 
 _EAGER_KEEP_BYTES = 128 * 2**20
@@ -604,7 +616,7 @@ def _eager_work(nx: int, ny: int, n_sources: int) -> tuple[np.ndarray, np.ndarra
     arrays cost a study map's plan ~0.1-0.2 ms in faults.
     """
     m, n = (nx + 2) * (ny + 2), nx * ny
-    need = (2 * m, m, 2 * (8 * n + n_sources + 1) + n)
+    need = (m, m, 2 * (8 * n + n_sources + 1) + n)
     work = _EAGER_WORK.pop() if _EAGER_WORK else None
     if work is None or any(a.size < k for a, k in zip(work, need, strict=True)):
         if work is not None:  # grown to cover both maps
@@ -616,7 +628,7 @@ def _eager_work(nx: int, ny: int, n_sources: int) -> tuple[np.ndarray, np.ndarra
 
 
 @njit()
-def _eager_field(sources, f, occ, p, fbuf, ubuf, ibuf):
+def _eager_field(sources, f, occ, p, given, fbuf, ubuf, ibuf):
     """Settle every cell at once: the values of :func:`_rra_value`, bit for bit.
 
     Dijkstra with a bucket queue (Dial's): buckets of width ``0.45 * res * c_lo`` (c_lo the
@@ -624,9 +636,13 @@ def _eager_field(sources, f, occ, p, fbuf, ubuf, ibuf):
     current bucket cannot be improved by any other cell of that bucket (each of them adds
     at least two bucket widths): the cells of a bucket are closed in any order and every
     value is the minimum over paths of the same left-to-right sums as the heap's. A grid
-    padded by one closed cell needs no bounds tests. With a zero-cost cell, the heap
-    Dijkstra (:func:`_dijkstra8`) gives the values. ``fbuf``, ``ubuf``, ``ibuf``: work
-    arrays of at least :func:`_eager_work`'s sizes (contents ignored).
+    padded by one closed cell needs no bounds tests. A cell costs one of three values
+    (free, obstacle, deep: :func:`_cost_classes`), so the search reads one byte per cell,
+    its class with a closed flag, and each edge weight ``0.5 (c_u + c_v) step`` from a
+    table (the same products): a small working set. With a zero-cost cell, the heap
+    Dijkstra (:func:`_dijkstra8`) gives the values. ``given``: ``f[:, 1]`` holds the costs
+    already. Writes distance, cost and closed (-2) into ``f``. ``fbuf``, ``ubuf``,
+    ``ibuf``: work arrays of at least :func:`_eager_work`'s sizes (contents ignored).
     """
     nx, ny, res = int(p[0]), int(p[1]), p[2]
     n = nx * ny
@@ -634,23 +650,25 @@ def _eager_field(sources, f, occ, p, fbuf, ubuf, ibuf):
     m = (nx + 2) * nyp
     n_ent = 8 * n + sources.size + 1
     ent_c, ent_n = ibuf[:n_ent], ibuf[n_ent : 2 * n_ent]
-    _all_costs(f, occ, p, ibuf[2 * n_ent : 2 * n_ent + n])
-    dist, cost, closed = fbuf[:m], fbuf[m : 2 * m], ubuf[:m]
+    dist, state = fbuf[:m], ubuf[:m]
+    # state: cost class (0 free, 1 obstacle, 2 deep, 3 border) + 4 once closed
+    seen = _cost_classes(f, occ, p, given, state, ibuf[2 * n_ent : 2 * n_ent + n])
+    val = np.array([1.0, p[3], p[5], np.inf])
+    for q in range(m):
+        dist[q] = np.inf
     for q in range(nyp):  # the border: closed, never entered
-        for e in (q, m - 1 - q):
-            dist[e], cost[e], closed[e] = np.inf, np.inf, 1
-    c_lo, c_hi = np.inf, 0.0
+        state[q], state[m - 1 - q] = 7, 7
     for i in range(nx):
-        q = (i + 1) * nyp
-        dist[q], cost[q], closed[q] = np.inf, np.inf, 1
-        dist[q + ny + 1], cost[q + ny + 1], closed[q + ny + 1] = np.inf, np.inf, 1
-        for j in range(ny):
-            v = f[i * ny + j, 1]
-            dist[q + j + 1], cost[q + j + 1], closed[q + j + 1] = np.inf, v, 0
-            c_lo = min(c_lo, v)
-            if v < np.inf:
-                c_hi = max(c_hi, v)
+        state[(i + 1) * nyp], state[(i + 1) * nyp + ny + 1] = 7, 7
+    c_lo, c_hi = np.inf, 0.0
+    for k in range(3):
+        if seen & (1 << k):
+            c_lo = min(c_lo, val[k])
+            if val[k] < np.inf:
+                c_hi = max(c_hi, val[k])
     if not c_lo > 0.0:
+        for c in range(n):
+            f[c, 1] = val[state[(c // ny + 1) * nyp + c % ny + 1]]
         full = _dijkstra8(f[:, 1].copy().reshape(nx, ny), res, sources).ravel()
         for c in range(n):
             f[c, 0], f[c, 2] = full[c], -2.0
@@ -659,6 +677,15 @@ def _eager_field(sources, f, occ, p, fbuf, ubuf, ibuf):
     diag = math.sqrt(2.0) * res
     nb = int(diag * c_hi * inv) + 3  # buckets in the ring: a push lands < nb ahead
     head = np.full(nb, -1, np.int64)
+    offs = (-nyp - 1, -nyp, -nyp + 1, -1, 1, nyp - 1, nyp, nyp + 1)
+    steps = (diag, res, diag, res, res, diag, res, diag)
+    # edge weight from a cell of class a in direction k to a cell of class b:
+    # w[a * 32 + k * 4 + b] = 0.5 (c_a + c_b) step_k
+    w = np.empty(4 * 32)
+    for a in range(4):
+        for k in range(8):
+            for b in range(4):
+                w[a * 32 + k * 4 + b] = 0.5 * (val[a] + val[b]) * steps[k]
     # entries ent_c, ent_n (cell, next entry): one per improvement, at most 8 per cell plus
     # the sources; a taken entry is chained for reuse, so only the pending ones use memory
     top, spare, pending = 0, -1, 0
@@ -669,8 +696,6 @@ def _eager_field(sources, f, occ, p, fbuf, ubuf, ibuf):
             ent_c[top], ent_n[top], head[0] = q, head[0], top
             top += 1
             pending += 1
-    offs = (-nyp - 1, -nyp, -nyp + 1, -1, 1, nyp - 1, nyp, nyp + 1)
-    steps = (diag, res, diag, res, res, diag, res, diag)
     cur = 0
     while pending > 0:
         slot = cur % nb
@@ -681,13 +706,18 @@ def _eager_field(sources, f, occ, p, fbuf, ubuf, ibuf):
             ent_n[e], spare = spare, e  # the entry is free again
             e = nxt
             pending -= 1
-            if closed[u]:
+            su = state[u]
+            if su & 4:
                 continue
-            closed[u] = 1
-            d, cu = dist[u], cost[u]
-            for k in range(8):  # a closed neighbour has dist <= nd: no test needed
+            state[u] = su | 4
+            d = dist[u]
+            row = su * 32  # su: the class (a cell is taken open, the border never)
+            for k in range(8):
                 v = u + offs[k]
-                nd = d + 0.5 * (cu + cost[v]) * steps[k]
+                sv = state[v]
+                if sv & 4:  # closed (or the border): its dist <= nd already
+                    continue
+                nd = d + w[row + 4 * k + sv]
                 if nd < dist[v]:
                     dist[v] = nd
                     b = slot + int(nd * inv) - cur  # 2 to nb - 1 buckets ahead
@@ -702,5 +732,5 @@ def _eager_field(sources, f, occ, p, fbuf, ubuf, ibuf):
         cur += 1
     for i in range(nx):
         for j in range(ny):
-            c = i * ny + j
-            f[c, 0], f[c, 2] = dist[(i + 1) * nyp + j + 1], -2.0
+            c, q = i * ny + j, (i + 1) * nyp + j + 1
+            f[c, 0], f[c, 1], f[c, 2] = dist[q], val[state[q] & 3], -2.0

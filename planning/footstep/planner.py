@@ -43,6 +43,9 @@ __all__ = [
 ]
 
 BACKENDS = ("auto", "compiled", "python")
+# with corridor searches, the share of the time left after the first plan that ARA* may
+# spend on the whole map before the best plan is improved in its corridor
+ARA_SHARE = 0.25
 HEURISTICS = ("dijkstra", "euclidean", "none")
 
 
@@ -441,19 +444,16 @@ def _anytime_once(
         return run.found, run.t_last
     lattice = _finer(opts, 1, opts.time_limit) if finer_restarts else opts
     if corridor:
-        # the larger half of the later weights in the first plan's corridor, ARA* on the
-        # whole map, then the corridor of the best plan: all later weights when ARA*
-        # found it, else the smaller half
-        half = (len(later) + 1) // 2
-        run.corridor(world, start, start_foot, goal, table, lattice, later[:half], kwargs,
-                     backend, corridor)  # fmt: skip
-        if later and run.left() > 0.0:
-            before = run.best
-            for r in _ara(model, backend, later, budget - run.used, run.left()):
-                run.offer(model, r)
-            rest = later if run.best < before else later[half:]
-            run.corridor(world, start, start_foot, goal, table, lattice, rest, kwargs,
-                         backend, corridor)  # fmt: skip
+        # ARA* over all the weights on the whole map, for at most a share of the time left
+        # (its first search repeats the first plan's: the compiled ARA* cannot be resumed),
+        # then the best plan is improved in its corridor
+        if len(weights) > 1 and run.left() > 0.0:
+            t_ara = time.perf_counter()
+            for r in _ara(model, backend, weights, budget - run.used, ARA_SHARE * run.left()):
+                t_ara += r.seconds
+                run.offer(model, r, at=t_ara)
+        run.corridor(world, start, start_foot, goal, table, lattice, later, kwargs, backend,
+                     corridor)  # fmt: skip
     if not (restarts and run.left() > 0.0):
         return run.found, run.t_last
     models = [model]
@@ -504,10 +504,13 @@ class _Improving:
             return 0.0
         return self.limit - (time.perf_counter() - self.t0)
 
-    def offer(self, model: BipedStepModel, r: SearchResult, width: float = 0.0) -> None:
+    def offer(
+        self, model: BipedStepModel, r: SearchResult, width: float = 0.0, at: float = 0.0
+    ) -> None:
         """Count the search; keep a successful plan that is cheaper (not rounding).
 
         A plan as cheap is kept too when its bound on the whole map (``width`` 0) is tighter.
+        ``at``: the clock (``time.perf_counter``) when the plan was found (default: now).
         """
         self.used += r.expansions
         if r.status is not PlanStatus.SUCCESS:
@@ -517,7 +520,7 @@ class _Improving:
             self.best = min(self.best, r.cost)
             if not width:
                 self.bound = min(self.bound, r.bound)
-            now = time.perf_counter()
+            now = at or time.perf_counter()
             r.seconds = now - self.t_last  # the fruitless searches since the last plan
             self.t_last = now
             self.found.append((model, r, width))

@@ -122,3 +122,13 @@ def test_anytime_corridor_must_be_a_half_width():
     for bad in (-0.5, math.nan, math.inf):
         with pytest.raises(FootstepError, match=f"corridor must be a half-width >= 0 m, got {bad}"):
             plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0), corridor=bad)
+
+
+def test_anytime_corridor_too_narrow_for_the_feet_runs_no_corridor_search():
+    sc = random_static_scene(1, n_strips=8, n_blocks=4)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    opts = PlannerOptions(time_limit=60.0)
+    runs = plan_footsteps_anytime(*args, opts, corridor=0.02)  # narrower than a foot
+    plain = plan_footsteps_anytime(*args, opts, corridor=0.0)
+    assert all(r.corridor_m == 0.0 for r in runs)
+    assert [r.plan.cost for r in runs] == [r.plan.cost for r in plain]

@@ -538,7 +538,11 @@ class _Improving:
         backend: str,
         width: float,
     ) -> None:
-        """One weighted A* per weight in the corridor of the best plan so far."""
+        """One weighted A* per weight in the corridor of the best plan so far.
+
+        No search runs when the corridor leaves the start feet on blocked cells (a width
+        below the feet's size): the step model refuses such a start.
+        """
         from repertoire.planning.footstep.corridor import corridor_grid
 
         model, around = None, None
@@ -551,7 +555,10 @@ class _Improving:
                 feet = [m0.swing0, *((s.x, s.y) for s in best.path), m0.goal]
                 grid = corridor_grid(world, feet, width)
                 opts = dataclasses.replace(lattice, time_limit=max(self.left(), 1e-9))
-                model = BipedStepModel(grid, start, start_foot, goal, table, opts, **kwargs)
+                try:
+                    model = BipedStepModel(grid, start, start_foot, goal, table, opts, **kwargs)
+                except FootstepError:  # a corridor too narrow for the start feet: no pass
+                    return
                 around = best
             r = _search_once(model, backend, float(w), self.budget - self.used,
                              max(self.left(), 1e-9))  # fmt: skip

@@ -79,8 +79,8 @@ def test_anytime_improves_a_plan_in_its_corridor_and_keeps_the_searches_order():
     sc = random_static_scene(1, n_strips=8, n_blocks=4)
     args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
     opts = PlannerOptions(time_limit=60.0)  # every search runs to its end
-    runs = plan_footsteps_anytime(*args, opts)
-    ara = plan_footsteps_anytime(*args, opts, corridor=0.0, restarts=False)
+    runs = plan_footsteps_anytime(*args, opts, corridor=0.5)
+    ara = plan_footsteps_anytime(*args, opts, restarts=False)  # corridor=0: ARA* alone
     # the first plan, ARA* on the whole map (its plans as cheap with a tighter bound kept),
     # the corridor of its best plan at the later weights (only 1.5 gave a cheaper plan),
     # then the restarts on the finer lattice
@@ -129,6 +129,6 @@ def test_anytime_corridor_too_narrow_for_the_feet_runs_no_corridor_search():
     args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
     opts = PlannerOptions(time_limit=60.0)
     runs = plan_footsteps_anytime(*args, opts, corridor=0.02)  # narrower than a foot
-    plain = plan_footsteps_anytime(*args, opts, corridor=0.0)
+    plain = plan_footsteps_anytime(*args, opts)
     assert all(r.corridor_m == 0.0 for r in runs)
     assert [r.plan.cost for r in runs] == [r.plan.cost for r in plain]

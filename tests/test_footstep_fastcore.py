@@ -146,7 +146,6 @@ def test_ara_star_compiled_matches_python_and_bounds_hold():
             sc.goal,
             table,
             PlannerOptions(heuristic="euclidean", time_limit=60.0, refinements=0, backend=b),
-            corridor=0.0,  # ARA* and its restarts only
         )  # fmt: skip
         for b in ("python", "compiled")
     ]
@@ -426,8 +425,8 @@ def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
     sc = random_static_scene(1, n_strips=8, n_blocks=4)
     args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
     opts = PlannerOptions(time_limit=60.0, refinements=0)  # restarts on ARA*'s lattice only
-    ara = plan_footsteps_anytime(*args, opts, restarts=False, corridor=0.0)
-    runs = plan_footsteps_anytime(*args, opts, corridor=0.0)
+    ara = plan_footsteps_anytime(*args, opts, restarts=False)
+    runs = plan_footsteps_anytime(*args, opts)
     assert [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
     assert [r.weight for r in runs] == [3.0, 2.0, 1.5, 1.2, 1.0, 2.0, 1.5]
     assert {r.plan.xy_resolution for r in runs} == {0.05}
@@ -447,7 +446,7 @@ def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
     sc = random_static_scene(2, n_strips=8, n_blocks=4)
     args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
     opts = PlannerOptions(time_limit=60.0)
-    runs = plan_footsteps_anytime(*args, opts, corridor=0.0)
+    runs = plan_footsteps_anytime(*args, opts)
     ara = [r for r in runs if r.plan.xy_resolution == 0.05]
     fine = [r for r in runs if r.plan.xy_resolution == 0.025]
     assert runs == ara + fine and [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
@@ -473,7 +472,7 @@ def test_anytime_plan_times_leave_out_restarts_that_found_nothing(monkeypatch):
     opts = PlannerOptions(heuristic="euclidean", time_limit=60.0, refinements=0)
     t0 = time.perf_counter()
     runs = plan_footsteps_anytime(sc.grid, sc.start, sc.start_foot, sc.goal,
-                                  nominal_action_table(), opts, corridor=0.0)  # fmt: skip
+                                  nominal_action_table(), opts)  # fmt: skip
     wall = time.perf_counter() - t0
     assert [r.weight for r in runs] == [3.0, 2.0, 1.5, 1.0]  # 1.2 skipped, no restart cheaper
     assert runs[-1].elapsed_s + 4 * 0.3 <= wall  # the four restarts are in no plan's time

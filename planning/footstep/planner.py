@@ -311,7 +311,7 @@ def plan_footsteps_anytime(
     *,
     weights: Sequence[float] = (3.0, 2.0, 1.5, 1.2, 1.0),
     restarts: bool = True,
-    corridor: float = 0.5,
+    corridor: float = 0.0,
     **kwargs,
 ) -> list[AnytimePlan]:
     """ARA* footstep planning: a first plan fast, better ones while time remains.
@@ -324,15 +324,16 @@ def plan_footsteps_anytime(
     (``weights`` set it), the other options apply; ``time_limit`` and ``max_expansions``
     cover all searches.
 
-    On static grids with ``corridor > 0``, the first plan (the first weight) is improved
-    at once inside its corridor (:func:`~repertoire.planning.footstep.corridor.corridor_grid`:
-    the cells within ``corridor`` m of the plan's feet), on the next finer lattice (the
-    first refinement's; ARA*'s own with ``refinements=0``), by a fresh weighted A* at each
-    later weight, each around the best plan so far. A corridor holds a small part of the
-    map's lattice, so these searches take a fraction of whole-map ones, and their plans
-    are plans on the whole map at the same cost. Then ARA* runs the later weights on the
-    whole map (where another way round the obstacles may be cheaper), and a plan of it
-    cheaper than the corridor's is improved in its own corridor the same way.
+    On static grids with ``corridor > 0`` (not the default), ARA* is split: after its first
+    plan (the first weight alone), ARA* over all the weights runs on the whole map for at
+    most a quarter of the time left (``ARA_SHARE``) plus the first search's time (it repeats
+    that search: the compiled ARA* cannot be resumed); then the best plan so far is searched
+    again inside its corridor (:func:`~repertoire.planning.footstep.corridor.corridor_grid`:
+    the cells within ``corridor`` m of the plan's feet), on the next finer lattice (the first
+    refinement's; ARA*'s own with ``refinements=0``), by a fresh weighted A* at each later
+    weight, each around the best plan so far. A corridor holds a small part of the map's
+    lattice, so such a search takes a fraction of a whole-map one, and its plan is a plan
+    on the whole map at the same cost.
 
     When ARA* has run (or skipped) every weight and time remains, the weights after the
     first are searched again from scratch (restarting weighted A*, Richter et al. 2010, "The
@@ -352,8 +353,12 @@ def plan_footsteps_anytime(
         weights: non-increasing weights, each >= 1.
         restarts: search the weights again from scratch once ARA* is done, on the finer
             lattice then on ARA*'s (see above).
-        corridor: half-width (m) of the corridors the plans are improved in; 0: no
-            corridor searches (pure ARA*, then the restarts).
+        corridor: half-width (m) of the corridors the plans are improved in (0.5 is a
+            reasonable value for bipeds: about twice the longest step); 0, the default: no
+            corridor searches (ARA* alone, then the restarts). On 12 m floors with a 1 s
+            limit, corridors help where ARA*'s lower weights come late (local detours of
+            the first plan) and hurt where a different way round is cheaper (ARA* then has
+            less time): on unseen floors neither choice was better on the whole (README).
 
     Returns:
         the plans in order (costs non-increasing); the last one may be a partial plan with
@@ -445,11 +450,12 @@ def _anytime_once(
     lattice = _finer(opts, 1, opts.time_limit) if finer_restarts else opts
     if corridor:
         # ARA* over all the weights on the whole map, for at most a share of the time left
-        # (its first search repeats the first plan's: the compiled ARA* cannot be resumed),
-        # then the best plan is improved in its corridor
+        # plus the first search's time (it repeats the first plan's search: the compiled
+        # ARA* cannot be resumed), then the best plan is improved in its corridor
         if len(weights) > 1 and run.left() > 0.0:
             t_ara = time.perf_counter()
-            for r in _ara(model, backend, weights, budget - run.used, ARA_SHARE * run.left()):
+            box = min(ARA_SHARE * run.left() + results[0].seconds, run.left())
+            for r in _ara(model, backend, weights, budget - run.used, box):
                 t_ara += r.seconds
                 run.offer(model, r, at=t_ara)
         run.corridor(world, start, start_foot, goal, table, lattice, later, kwargs, backend,

@@ -342,10 +342,10 @@ def plan_footsteps_anytime(
     lattice keep the continuous pose that reached them first, so a fresh search keeps
     other poses, and a finer lattice merges fewer, and either can find a cheaper plan where
     ARA*'s reuse cannot (one 12 m floor: 118.1 by ARA* at weight 1, 110.4 by a fresh search
-    at 1.5 on the same lattice, 105.5 at 2 on the finer one). After the first plan, a
-    plan is added only when it is cheaper than every plan before it, or as cheap with a
-    tighter bound on the whole map; its weight, bound, lattice and corridor are its own
-    search's.
+    at 1.5 on the same lattice, 105.5 at 2 on the finer one). After ARA*'s plans, a plan
+    is added only when it is cheaper than every plan before it (the split ARA* of corridor
+    searches also adds a plan as cheap with a tighter bound); its weight, bound, lattice and
+    corridor are its own search's.
 
     Args:
         world, start, start_foot, goal, table, options, **kwargs: as in
@@ -457,7 +457,7 @@ def _anytime_once(
             box = min(ARA_SHARE * run.left() + results[0].seconds, run.left())
             for r in _ara(model, backend, weights, budget - run.used, box):
                 t_ara += r.seconds
-                run.offer(model, r, at=t_ara)
+                run.offer(model, r, at=t_ara, ara=True)
         run.corridor(world, start, start_foot, goal, table, lattice, later, kwargs, backend,
                      corridor)  # fmt: skip
     if not (restarts and run.left() > 0.0):
@@ -502,7 +502,7 @@ class _Improving:
         self.used = sum(r.expansions for _, r, _ in found)
         done = [r for _, r, _ in found if r.status is PlanStatus.SUCCESS]
         self.best = min((r.cost for r in done), default=math.inf)
-        self.bound = min((r.bound for r in done), default=math.inf)  # whole-map bounds
+        self.bound = min((r.bound for r in done), default=math.inf)  # ARA*'s bounds
 
     def left(self) -> float:
         """Wall time left (s); 0 once the expansion budget is spent."""
@@ -511,20 +511,22 @@ class _Improving:
         return self.limit - (time.perf_counter() - self.t0)
 
     def offer(
-        self, model: BipedStepModel, r: SearchResult, width: float = 0.0, at: float = 0.0
-    ) -> None:
+        self, model: BipedStepModel, r: SearchResult, width: float = 0.0, at: float = 0.0,
+        ara: bool = False,
+    ) -> None:  # fmt: skip
         """Count the search; keep a successful plan that is cheaper (not rounding).
 
-        A plan as cheap is kept too when its bound on the whole map (``width`` 0) is tighter.
-        ``at``: the clock (``time.perf_counter``) when the plan was found (default: now).
+        ``ara``: a result of ARA* on the first plan's lattice, kept also when as cheap with
+        a tighter bound than that ARA*'s plans so far. ``at``: the clock
+        (``time.perf_counter``) when the plan was found (default: now).
         """
         self.used += r.expansions
         if r.status is not PlanStatus.SUCCESS:
             return
-        tighter = not width and r.bound < self.bound and r.cost <= self.best * (1.0 + 1e-9)
+        tighter = ara and r.bound < self.bound and r.cost <= self.best * (1.0 + 1e-9)
         if r.cost < self.best * (1.0 - 1e-9) or tighter:
             self.best = min(self.best, r.cost)
-            if not width:
+            if ara:
                 self.bound = min(self.bound, r.bound)
             now = at or time.perf_counter()
             r.seconds = now - self.t_last  # the fruitless searches since the last plan

@@ -43,6 +43,9 @@ __all__ = [
 ]
 
 BACKENDS = ("auto", "compiled", "python")
+# with corridor searches, the share of the time left after the first plan that ARA* may
+# spend on the whole map before the best plan is improved in its corridor
+ARA_SHARE = 0.25
 HEURISTICS = ("dijkstra", "euclidean", "none")
 
 
@@ -281,15 +284,21 @@ class AnytimePlan:
     Attributes:
         plan: the footstep plan (SUCCESS, or the final search's status).
         weight: heuristic weight of the search that produced it.
-        bound: suboptimality bound: with an admissible heuristic (``"euclidean"``),
-            ``plan.cost <= bound * optimum`` over the lattice.
+        bound: suboptimality bound of that search: with an admissible heuristic
+            (``"euclidean"``), ``plan.cost <= bound * optimum``, the optimum over the
+            search's lattice (``plan.xy_resolution``, ``plan.yaw_bins``) on the whole map,
+            or, for a corridor plan (``corridor_m > 0``), only over the plans inside that
+            corridor.
         elapsed_s: wall time from the call to this plan (s).
+        corridor_m: 0 for a search of the whole map; else the half-width (m) of the
+            corridor around the previous best plan that the search was confined to.
     """
 
     plan: FootstepPlan
     weight: float
     bound: float
     elapsed_s: float
+    corridor_m: float = 0.0
 
 
 def plan_footsteps_anytime(
@@ -302,6 +311,7 @@ def plan_footsteps_anytime(
     *,
     weights: Sequence[float] = (3.0, 2.0, 1.5, 1.2, 1.0),
     restarts: bool = True,
+    corridor: float = 0.0,
     **kwargs,
 ) -> list[AnytimePlan]:
     """ARA* footstep planning: a first plan fast, better ones while time remains.
@@ -314,6 +324,17 @@ def plan_footsteps_anytime(
     (``weights`` set it), the other options apply; ``time_limit`` and ``max_expansions``
     cover all searches.
 
+    On static grids with ``corridor > 0`` (not the default), ARA* is split: after its first
+    plan (the first weight alone), ARA* over all the weights runs on the whole map for at
+    most a quarter of the time left (``ARA_SHARE``) plus the first search's time (it repeats
+    that search: the compiled ARA* cannot be resumed); then the best plan so far is searched
+    again inside its corridor (:func:`~repertoire.planning.footstep.corridor.corridor_grid`:
+    the cells within ``corridor`` m of the plan's feet), on the next finer lattice (the first
+    refinement's; ARA*'s own with ``refinements=0``), by a fresh weighted A* at each later
+    weight, each around the best plan so far. A corridor holds a small part of the map's
+    lattice, so such a search takes a fraction of a whole-map one, and its plan is a plan
+    on the whole map at the same cost.
+
     When ARA* has run (or skipped) every weight and time remains, the weights after the
     first are searched again from scratch (restarting weighted A*, Richter et al. 2010, "The
     Joy of Forgetting"), the cost-to-go field shared: first on the next finer lattice (the
@@ -321,9 +342,10 @@ def plan_footsteps_anytime(
     lattice keep the continuous pose that reached them first, so a fresh search keeps
     other poses, and a finer lattice merges fewer, and either can find a cheaper plan where
     ARA*'s reuse cannot (one 12 m floor: 118.1 by ARA* at weight 1, 110.4 by a fresh search
-    at 1.5 on the same lattice, 105.5 at 2 on the finer one). A restart's plan is added only
-    when it is cheaper than every plan before it; its weight, bound and lattice are its own
-    search's.
+    at 1.5 on the same lattice, 105.5 at 2 on the finer one). After ARA*'s plans, a plan
+    is added only when it is cheaper than every plan before it (the split ARA* of corridor
+    searches also adds a plan as cheap with a tighter bound); its weight, bound, lattice and
+    corridor are its own search's.
 
     Args:
         world, start, start_foot, goal, table, options, **kwargs: as in
@@ -331,10 +353,19 @@ def plan_footsteps_anytime(
         weights: non-increasing weights, each >= 1.
         restarts: search the weights again from scratch once ARA* is done, on the finer
             lattice then on ARA*'s (see above).
+        corridor: half-width (m) of the corridors the plans are improved in (0.5 is a
+            reasonable value for bipeds: about twice the longest step); 0, the default: no
+            corridor searches (ARA* alone, then the restarts). On 12 m floors with a 1 s
+            limit, corridors help where ARA*'s lower weights come late (local detours of
+            the first plan) and hurt where a different way round is cheaper (ARA* then has
+            less time): on unseen floors neither choice was better on the whole (README).
 
     Returns:
         the plans in order (costs non-increasing); the last one may be a partial plan with
         status TIME_LIMIT / NODE_LIMIT / UNREACHABLE.
+
+    Raises:
+        FootstepError: bad options, weights or corridor, or bad inputs (see the step model).
     """
     from repertoire.planning.footstep.fastcore import warm_up
 
@@ -342,9 +373,11 @@ def plan_footsteps_anytime(
     t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
     opts.validate()
+    if not (math.isfinite(corridor) and corridor >= 0.0):
+        raise FootstepError(f"corridor must be a half-width >= 0 m, got {corridor}")
     found, t_done = _anytime_once(
         world, start, start_foot, goal, table, opts, weights, kwargs, restarts,
-        opts.refinements > 0,
+        opts.refinements > 0, corridor,
     )  # fmt: skip
     level = 0
     while (
@@ -360,15 +393,15 @@ def plan_footsteps_anytime(
         finer = _finer(opts, level, left)
         found, t_done = _anytime_once(
             world, start, start_foot, goal, table, finer, weights, kwargs, restarts,
-            level < opts.refinements,
+            level < opts.refinements, corridor,
         )  # fmt: skip
     out = []
-    # the results' seconds are contiguous and end when the last plan was found (restarts
+    # the results' seconds are contiguous and end when the last plan was found (searches
     # that found nothing cheaper after it are not part of any plan's time)
-    elapsed = t_done - t_begin - sum(r.seconds for _, r in found)
-    for model, r in found:
+    elapsed = t_done - t_begin - sum(r.seconds for _, r, _ in found)
+    for model, r, width in found:
         elapsed += r.seconds
-        out.append(AnytimePlan(_to_plan(model, r, elapsed), r.weight, r.bound, elapsed))
+        out.append(AnytimePlan(_to_plan(model, r, elapsed), r.weight, r.bound, elapsed, width))
     return out
 
 
@@ -393,54 +426,151 @@ def _anytime_once(
     kwargs: dict,
     restarts: bool = False,
     finer_restarts: bool = False,
-) -> tuple[list[tuple[BipedStepModel, SearchResult]], float]:
-    """ARA* at the options' lattice, on the chosen backend, then restarts.
+    corridor: float = 0.0,
+) -> tuple[list[tuple[BipedStepModel, SearchResult, float]], float]:
+    """ARA* at the options' lattice, on the chosen backend, with corridor searches, restarts.
 
-    The restarts run first on the next finer lattice when ``finer_restarts``. Returns
-    each result with the model (lattice) it was found on, and the clock
-    (``time.perf_counter``) when the last result was found.
+    The restarts and corridor searches run on the next finer lattice when
+    ``finer_restarts``. Returns each result with the model (lattice) it was found on and
+    its corridor half-width (0: whole map), and the clock (``time.perf_counter``) when the
+    last result was found.
     """
     t0 = time.perf_counter()
     model = BipedStepModel(world, start, start_foot, goal, table, opts, **kwargs)
     left = max(opts.time_limit - (time.perf_counter() - t0), 1e-9)
     budget = int(opts.max_expansions) if opts.max_expansions > 0 else 2**62
     backend = _backend(opts, model)
-    if backend == "compiled":
-        from repertoire.planning.footstep.fastcore import compiled_anytime
-
-        results = compiled_anytime(model, list(weights), budget, left)
-    else:
-        results = anytime_search(
-            model, weights=weights, max_expansions=budget, time_limit=left,
-            require_successors=False,
-        )  # fmt: skip
-    found = [(model, r) for r in results]
-    t_last = time.perf_counter()
-    if not (restarts and results[-1].status is PlanStatus.SUCCESS):  # ARA* ran to its end
-        return found, t_last
-    best = min(r.cost for r in results)
-    used = sum(r.expansions for r in results)
+    if model.dynamic:
+        corridor = 0.0  # corridors are cut from a static grid
+    later = list(weights)[1:]
+    results = _ara(model, backend, list(weights)[:1] if corridor else weights, budget, left)
+    run = _Improving(t0, opts.time_limit, budget, [(model, r, 0.0) for r in results])
+    if results[-1].status is not PlanStatus.SUCCESS:
+        return run.found, run.t_last
+    lattice = _finer(opts, 1, opts.time_limit) if finer_restarts else opts
+    if corridor:
+        # ARA* over all the weights on the whole map, for at most a share of the time left
+        # plus the first search's time (it repeats the first plan's search: the compiled
+        # ARA* cannot be resumed), then the best plan is improved in its corridor
+        if len(weights) > 1 and run.left() > 0.0:
+            t_ara = time.perf_counter()
+            box = min(ARA_SHARE * run.left() + results[0].seconds, run.left())
+            for r in _ara(model, backend, weights, budget - run.used, box):
+                t_ara += r.seconds
+                run.offer(model, r, at=t_ara, ara=True)
+        run.corridor(world, start, start_foot, goal, table, lattice, later, kwargs, backend,
+                     corridor)  # fmt: skip
+    if not (restarts and run.left() > 0.0):
+        return run.found, run.t_last
     models = [model]
     if finer_restarts:  # the next finer lattice first, built when its turn comes
         models.insert(0, None)
     for k, m in enumerate(models):
-        for w in list(weights)[1:]:  # the first weight's plan is ARA*'s first plan already
-            left = opts.time_limit - (time.perf_counter() - t0)
-            if left <= 0.0 or used >= budget:
-                return found, t_last
+        for w in later:  # the first weight's plan is ARA*'s first plan already
+            if run.left() <= 0.0 or run.used >= budget:
+                return run.found, run.t_last
             if m is None:
                 m = models[k] = BipedStepModel(
-                    world, start, start_foot, goal, table, _finer(opts, 1, left), **kwargs
+                    world, start, start_foot, goal, table, _finer(opts, 1, run.left()), **kwargs
                 )
-                left = opts.time_limit - (time.perf_counter() - t0)
-            r = _search_once(m, backend, float(w), budget - used, max(left, 1e-9))
-            used += r.expansions
-            if r.status is PlanStatus.SUCCESS and r.cost < best * (1.0 - 1e-9):  # not rounding
-                best = r.cost
-                r.seconds = time.perf_counter() - t_last  # the fruitless restarts included
-                t_last = time.perf_counter()
-                found.append((m, r))
-    return found, t_last
+            run.offer(m, _search_once(m, backend, float(w), budget - run.used, run.left()))
+    return run.found, run.t_last
+
+
+def _ara(
+    model: BipedStepModel, backend: str, weights: Sequence[float], budget: int, left: float
+) -> list[SearchResult]:
+    """ARA* over the weights on the chosen core."""
+    left = max(left, 1e-9)
+    if backend == "compiled":
+        from repertoire.planning.footstep.fastcore import compiled_anytime
+
+        return compiled_anytime(model, list(weights), budget, left)
+    return anytime_search(
+        model, weights=weights, max_expansions=budget, time_limit=left,
+        require_successors=False,
+    )  # fmt: skip
+
+
+class _Improving:
+    """The plans of one anytime call so far: only cheaper successful plans join them."""
+
+    def __init__(self, t0: float, limit: float, budget: int, found: list) -> None:
+        self.t0, self.limit, self.budget = t0, limit, budget
+        self.found = found
+        self.t_last = time.perf_counter()
+        self.used = sum(r.expansions for _, r, _ in found)
+        done = [r for _, r, _ in found if r.status is PlanStatus.SUCCESS]
+        self.best = min((r.cost for r in done), default=math.inf)
+        self.bound = min((r.bound for r in done), default=math.inf)  # ARA*'s bounds
+
+    def left(self) -> float:
+        """Wall time left (s); 0 once the expansion budget is spent."""
+        if self.used >= self.budget:
+            return 0.0
+        return self.limit - (time.perf_counter() - self.t0)
+
+    def offer(
+        self, model: BipedStepModel, r: SearchResult, width: float = 0.0, at: float = 0.0,
+        ara: bool = False,
+    ) -> None:  # fmt: skip
+        """Count the search; keep a successful plan that is cheaper (not rounding).
+
+        ``ara``: a result of ARA* on the first plan's lattice, kept also when as cheap with
+        a tighter bound than that ARA*'s plans so far. ``at``: the clock
+        (``time.perf_counter``) when the plan was found (default: now).
+        """
+        self.used += r.expansions
+        if r.status is not PlanStatus.SUCCESS:
+            return
+        tighter = ara and r.bound < self.bound and r.cost <= self.best * (1.0 + 1e-9)
+        if r.cost < self.best * (1.0 - 1e-9) or tighter:
+            self.best = min(self.best, r.cost)
+            if ara:
+                self.bound = min(self.bound, r.bound)
+            now = at or time.perf_counter()
+            r.seconds = now - self.t_last  # the fruitless searches since the last plan
+            self.t_last = now
+            self.found.append((model, r, width))
+
+    def corridor(
+        self,
+        world: OccupancyGrid,
+        start: Sequence[float],
+        start_foot: "Foot | int | str",
+        goal: Sequence[float],
+        table: ActionTable,
+        lattice: PlannerOptions,
+        weights: Sequence[float],
+        kwargs: dict,
+        backend: str,
+        width: float,
+    ) -> None:
+        """One weighted A* per weight in the corridor of the best plan so far.
+
+        No search runs when the corridor leaves the start feet on blocked cells (a width
+        below the feet's size): the step model refuses such a start.
+        """
+        from repertoire.planning.footstep.corridor import corridor_grid
+
+        model, around = None, None
+        for w in weights:
+            if self.left() <= 0.0:
+                return
+            best = next(r for _, r, _ in reversed(self.found) if r.status is PlanStatus.SUCCESS)
+            if best is not around:  # a new best plan: its own corridor
+                m0 = self.found[0][0]
+                feet = [m0.swing0, *((s.x, s.y) for s in best.path), m0.goal]
+                grid = corridor_grid(world, feet, width)
+                opts = dataclasses.replace(lattice, time_limit=max(self.left(), 1e-9))
+                try:
+                    model = BipedStepModel(grid, start, start_foot, goal, table, opts, **kwargs)
+                except FootstepError:  # a corridor too narrow for the start feet: no pass
+                    return
+                around = best
+            r = _search_once(model, backend, float(w), self.budget - self.used,
+                             max(self.left(), 1e-9))  # fmt: skip
+            self.offer(model, r, width)
 
 
 def _backend(opts: PlannerOptions, model: BipedStepModel) -> str:

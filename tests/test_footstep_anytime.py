@@ -1,0 +1,134 @@
+"""The anytime footstep planner's corridor searches (planning/footstep/corridor.py, planner.py)."""
+
+import dataclasses
+import itertools
+import math
+
+import numpy as np
+import pytest
+from repertoire.planning.footstep import (
+    OccupancyGrid,
+    PlannerOptions,
+    PlanStatus,
+    nominal_action_table,
+    plan_footsteps,
+    plan_footsteps_anytime,
+)
+from repertoire.planning.footstep.biped_model import BipedStepModel
+from repertoire.planning.footstep.corridor import OUTSIDE_HEIGHT, corridor_grid
+from repertoire.planning.footstep.scenes import random_static_scene
+from repertoire.planning.footstep.types import FootstepError
+
+
+def _distance_to_polyline(points, x, y):
+    """Brute force: distance of each (x, y) to the polyline through ``points``."""
+    p = np.stack([x, y], axis=-1)
+    pts = np.asarray(points, dtype=float)
+    d = np.linalg.norm(p - pts[0], axis=-1)
+    for a, b in itertools.pairwise(pts):
+        ab = b - a
+        t = np.clip(((p - a) @ ab) / max(ab @ ab, 1e-300), 0.0, 1.0)
+        d = np.minimum(d, np.linalg.norm(p - (a + t[..., None] * ab), axis=-1))
+    return d
+
+
+def test_corridor_grid_blocks_the_cells_far_from_the_polyline_only():
+    rng = np.random.default_rng(5)
+    for trial in range(60):
+        nx, ny = (int(v) for v in rng.integers(4, 50, 2))
+        res = float(rng.choice([0.01, 0.025, 0.05]))
+        origin = (float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)))
+        heights = rng.uniform(0.0, 0.3, (nx, ny)) if trial % 2 else None
+        grid = OccupancyGrid(rng.random((nx, ny)) < 0.3, res, origin, heights)
+        k = int(rng.integers(1, 6))  # points, some a little off the map
+        points = np.stack([
+            origin[0] + rng.uniform(-0.1, nx * res + 0.1, k),
+            origin[1] + rng.uniform(-0.1, ny * res + 0.1, k),
+        ], axis=1)  # fmt: skip
+        radius = float(rng.uniform(0.02, 0.3))
+        out = corridor_grid(grid, points, radius)
+        cx = origin[0] + (np.arange(nx) + 0.5) * res
+        cy = origin[1] + (np.arange(ny) + 0.5) * res
+        d = _distance_to_polyline(points, *np.meshgrid(cx, cy, indexing="ij"))
+        blocked = out.occupied & ~grid.occupied
+        # within radius - 0.71 res of the polyline: the cell is as it was; beyond
+        # radius + 0.71 res: blocked (cell centres against the polyline's cells' centres)
+        assert not (blocked & (d <= radius - 0.71 * res - 1e-9)).any(), trial
+        assert out.occupied[d > radius + 0.71 * res + 1e-9].all(), trial
+        assert (out.occupied | ~grid.occupied).all()  # only ever adds obstacles
+        assert out.resolution == res and out.origin == grid.origin
+        if heights is None:
+            assert out.heights is None
+        else:
+            near, far = d <= radius - 0.71 * res - 1e-9, d > radius + 0.71 * res + 1e-9
+            np.testing.assert_array_equal(out.heights[near], heights[near])
+            np.testing.assert_array_equal(out.heights[far | blocked], OUTSIDE_HEIGHT)
+            changed = out.heights != heights
+            np.testing.assert_array_equal(out.heights[changed], OUTSIDE_HEIGHT)
+    grid = OccupancyGrid(np.zeros((10, 10), dtype=bool), 0.1)
+    one = corridor_grid(grid, [(0.55, 0.55)], 0.1)  # one point: its cell and 4 neighbours
+    assert np.argwhere(~one.occupied).tolist() == [[4, 5], [5, 4], [5, 5], [5, 6], [6, 5]]
+    for bad in (0.0, -0.2, math.nan, math.inf):
+        with pytest.raises(FootstepError, match="corridor radius"):
+            corridor_grid(grid, [(0.5, 0.5)], bad)
+    with pytest.raises(FootstepError, match="at least one point"):
+        corridor_grid(grid, [], 0.2)
+
+
+def test_anytime_improves_a_plan_in_its_corridor_and_keeps_the_searches_order():
+    sc = random_static_scene(1, n_strips=8, n_blocks=4)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    opts = PlannerOptions(time_limit=60.0)  # every search runs to its end
+    runs = plan_footsteps_anytime(*args, opts, corridor=0.5)
+    ara = plan_footsteps_anytime(*args, opts, restarts=False)  # corridor=0: ARA* alone
+    # the first plan, ARA* on the whole map (its plans as cheap with a tighter bound kept),
+    # the corridor of its best plan at the later weights (only 1.5 gave a cheaper plan),
+    # then the restarts on the finer lattice
+    assert [(r.weight, r.corridor_m, r.plan.xy_resolution) for r in runs] == [
+        (3.0, 0.0, 0.05), (2.0, 0.0, 0.05), (1.5, 0.0, 0.05), (1.2, 0.0, 0.05),
+        (1.0, 0.0, 0.05), (1.5, 0.5, 0.025), (2.0, 0.0, 0.025), (1.5, 0.0, 0.025),
+    ]  # fmt: skip
+    # the first plan is weighted A*'s at weight 3 (its own search: the compiled ARA* gives
+    # its first result the poses of its second, see the note); the others ARA*'s, unchanged
+    first = plan_footsteps(*args, dataclasses.replace(opts, heuristic_weight=3.0, refinements=0))
+    assert runs[0].plan.poses == first.poses and runs[0].plan.cost == first.cost
+    for a, b in zip(ara, runs[:5], strict=True):
+        assert a.plan.cost == b.plan.cost and a.bound == b.bound
+    assert all(a.plan.poses == b.plan.poses for a, b in zip(ara[1:], runs[1:5], strict=True))
+    costs = [r.plan.cost for r in runs]
+    assert all(b <= a for a, b in itertools.pairwise(costs))
+    assert costs[5] == pytest.approx(24.95) and costs[4] == pytest.approx(26.05)
+    assert costs[-1] == pytest.approx(21.8)
+    assert all(r.plan.status is PlanStatus.SUCCESS for r in runs)
+    elapsed = [r.elapsed_s for r in runs]
+    assert elapsed == sorted(elapsed) and elapsed[-1] < 60.0
+    # the corridor plan is the weighted A* on the map cut to the previous plan's corridor
+    prev, cor = runs[4].plan, runs[5]
+    feet = [prev.initial_swing_pose, *prev.poses, prev.goal]
+    cut = corridor_grid(sc.grid, feet, 0.5)
+    again = plan_footsteps(cut, *args[1:], dataclasses.replace(
+        opts, heuristic_weight=1.5, xy_resolution=0.025, yaw_bins=72, refinements=0,
+    ))  # fmt: skip
+    assert cor.plan.poses == again.poses and cor.plan.cost == again.cost
+    assert 1.0 <= cor.bound <= cor.weight
+    # and a plan on the whole map: every foot (with the margin) is on free ground there
+    model = BipedStepModel(sc.grid, *args[1:], opts)
+    assert all(model.checkers.checker(0).is_free(*pose, shortcut=False) for pose in cor.plan.poses)
+
+
+def test_anytime_corridor_must_be_a_half_width():
+    sc = random_static_scene(1, size=2.0, n_strips=3, n_blocks=2)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    for bad in (-0.5, math.nan, math.inf):
+        with pytest.raises(FootstepError, match=f"corridor must be a half-width >= 0 m, got {bad}"):
+            plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0), corridor=bad)
+
+
+def test_anytime_corridor_too_narrow_for_the_feet_runs_no_corridor_search():
+    sc = random_static_scene(1, n_strips=8, n_blocks=4)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    opts = PlannerOptions(time_limit=60.0)
+    runs = plan_footsteps_anytime(*args, opts, corridor=0.02)  # narrower than a foot
+    plain = plan_footsteps_anytime(*args, opts)
+    assert all(r.corridor_m == 0.0 for r in runs)
+    assert [r.plan.cost for r in runs] == [r.plan.cost for r in plain]

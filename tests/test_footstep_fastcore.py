@@ -169,6 +169,31 @@ def test_ara_star_compiled_matches_python_and_bounds_hold():
     assert fresh.cost == pytest.approx(optimum, rel=1e-12)
 
 
+def test_ara_star_earlier_plans_keep_their_own_paths():
+    """A later weight that reroutes through an earlier plan's goal leaves that plan alone.
+
+    On this dense map ARA*'s weight-2 search gives the goal node of the weight-3 plan a
+    cheaper parent; the weight-3 plan must still be the 29 steps it was found as (its
+    cost 31.15), as the Python core and a fresh weighted A* at weight 3 give it.
+    """
+    from repertoire.planning.footstep import plan_footsteps_anytime
+
+    sc = random_static_scene(1, n_strips=8, n_blocks=4)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    py, cc = (
+        plan_footsteps_anytime(
+            *args, PlannerOptions(time_limit=60.0, backend=b), weights=(3.0, 2.0), restarts=False
+        )
+        for b in ("python", "compiled")
+    )
+    assert [a.plan.cost for a in cc] == [a.plan.cost for a in py]
+    assert cc[0].plan.cost > cc[1].plan.cost  # the weight-2 plan is another, cheaper path
+    for a, b in zip(py, cc, strict=True):
+        assert a.plan.poses == b.plan.poses and a.plan.times == b.plan.times
+    fresh = plan_footsteps(*args, PlannerOptions(time_limit=60.0, heuristic_weight=3.0))
+    assert cc[0].plan.poses == fresh.poses and cc[0].plan.cost == fresh.cost
+
+
 def test_bad_inputs_named(monkeypatch):
     from repertoire.limits import ResourceLimitError
 

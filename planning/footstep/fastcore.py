@@ -206,6 +206,12 @@ def _arastar(
     out_f = np.zeros((nw, 4))  # cost, bound, seconds, weight
     solution = -1
     runs = 0
+    # each run's path, start first, copied when the run ends (a later weight may give a node
+    # on it a cheaper parent and the pose reached from it: an earlier plan must not change):
+    # x, y, yaw, t, swing_x, swing_y, h, foot, a2, a1; only the path nodes' t and swing are
+    # ever computed
+    paths = np.empty((256, 10))
+    pptr = np.zeros(nw + 1, np.int64)
     met = np.inf  # the bound the last plan reported: weights not below it are skipped
     for it in range(nw):
         w = weights[it]
@@ -448,31 +454,33 @@ def _arastar(
         out_i[runs, 3], out_i[runs, 4] = generated, merged
         out_f[runs, 0], out_f[runs, 1], out_f[runs, 2] = fnode[last, _G], bound, _now() - t_it
         out_f[runs, 3] = w
+        m, k = 0, last
+        while k >= 0:
+            m += 1
+            k = inode[k, _PARENT]
+        while pptr[runs] + m > paths.shape[0]:
+            paths = _grow_rows(paths)
+        pptr[runs + 1] = q = pptr[runs] + m
+        k = last
+        while k >= 0:  # the path's nodes, from the end back
+            q -= 1
+            paths[q, 0], paths[q, 1], paths[q, 2] = fnode[k, _X], fnode[k, _Y], fnode[k, _YAW]
+            paths[q, 6], paths[q, 7] = fnode[k, _H], inode[k, _FOOT]
+            paths[q, 8], paths[q, 9] = inode[k, _A2], inode[k, _A1]
+            k = inode[k, _PARENT]
+        paths[q, 3], paths[q, 4], paths[q, 5] = start[6], start[7], start[8]
+        for q in range(pptr[runs] + 1, pptr[runs + 1]):  # the parent's time plus the step's
+            a2, a1, foot = int(paths[q - 1, 8]), int(paths[q - 1, 9]), int(paths[q - 1, 7])
+            r = succ_ptr[(a2 * n + a1) * 2 + foot]  # duration (T's row for the history)
+            while succ_a[r] != int(paths[q, 9]):
+                r += 1
+            paths[q, 3] = paths[q - 1, 3] + succ_f[r, 3]
+            paths[q, 4], paths[q, 5] = paths[q - 1, 0], paths[q - 1, 1]
         runs += 1
         if status != 0:
             break
-    nodes = np.empty((count, 11))  # x, y, yaw, t, swing_x, swing_y, h, foot, a2, a1, parent
-    chain = np.empty(count, np.int64)
-    for it in range(runs):  # only the nodes on the paths are filled, from the start on
-        k, m = out_i[it, 1], 0
-        while k >= 0:
-            chain[m] = k
-            m += 1
-            k = inode[k, _PARENT]
-        for q in range(m - 1, -1, -1):
-            k = chain[q]
-            p = inode[k, _PARENT]
-            t, sw_x, sw_y = start[6], start[7], start[8]
-            if p >= 0:  # the parent's time plus the step's duration (T's row for the history)
-                r = succ_ptr[(inode[p, _A2] * n + inode[p, _A1]) * 2 + inode[p, _FOOT]]
-                while succ_a[r] != inode[k, _A1]:
-                    r += 1
-                t, sw_x, sw_y = nodes[p, 3] + succ_f[r, 3], fnode[p, _X], fnode[p, _Y]
-            nodes[k, 0], nodes[k, 1], nodes[k, 2] = fnode[k, _X], fnode[k, _Y], fnode[k, _YAW]
-            nodes[k, 3], nodes[k, 4], nodes[k, 5], nodes[k, 6] = t, sw_x, sw_y, fnode[k, _H]
-            nodes[k, 7], nodes[k, 8] = inode[k, _FOOT], inode[k, _A2]
-            nodes[k, 9], nodes[k, 10] = inode[k, _A1], p
-    return out_i[:runs], out_f[:runs], nodes, (fnode, inode, heap, ent, tb0, tb1, tn0, tn1)
+    work = (fnode, inode, heap, ent, tb0, tb1, tn0, tn1)
+    return out_i[:runs], out_f[:runs], paths[: pptr[runs]], pptr[: runs + 1], work
 
 
 def _lazy_arrays(lazy) -> dict:
@@ -605,26 +613,21 @@ def compiled_anytime(
     left = time_limit - (time.perf_counter() - t0)
     ws = np.asarray(weights, dtype=float)
     work = _WORK.pop("arrays", None) or _fresh_work()  # pop: one search per work set
-    out_i, out_f, nodes, work = _arastar(
+    out_i, out_f, paths, pptr, work = _arastar(
         start, *tab.values(), ws, int(max_expansions), float(max(left, 1e-9)), *work
     )
     if sum(a.nbytes for a in work) <= _WORK_KEEP_BYTES:
         _WORK["arrays"] = work
 
-    def state(k: int) -> BipedState:
-        x, y, yaw, t, sx, sy, h, f, a2, a1, _ = nodes[k].tolist()
+    def state(row: list) -> BipedState:
+        x, y, yaw, t, sx, sy, h, f, a2, a1 = row
         return BipedState(x, y, yaw, int(f), int(a2), int(a1), t, sx, sy, h)
 
     results = []
-    for (status, last, exp, gen, mer), (cost, bound, secs, w) in zip(
-        out_i.tolist(), out_f.tolist(), strict=True
+    for it, ((status, _, exp, gen, mer), (cost, bound, secs, w)) in enumerate(
+        zip(out_i.tolist(), out_f.tolist(), strict=True)
     ):
-        chain = []
-        k = last
-        while k >= 0:
-            chain.append(k)
-            k = int(nodes[k, 10])
-        path = [state(k) for k in reversed(chain)]
+        path = [state(row) for row in paths[pptr[it] : pptr[it + 1]].tolist()]
         results.append(
             SearchResult(
                 status=_STATUS[status],

@@ -105,44 +105,20 @@ def _foot_to_cells_distance(grid: OccupancyGrid, pose, foot_length: float, foot_
     return best
 
 
-@pytest.mark.parametrize("margin", [0.01, 0.03])
+@pytest.mark.parametrize("margin", [0.0, 0.01, 0.03])
 def test_footprint_margin_keeps_clearance_from_obstacles(margin):
     from repertoire.planning.footstep.scenes import random_static_scene
 
     sc = random_static_scene(3)
-    t = nominal_action_table()
-    plan = plan_footsteps(
-        sc.grid,
-        sc.start,
-        sc.start_foot,
-        sc.goal,
-        t,
-        PlannerOptions(footprint_margin_m=margin, time_limit=30),
-    )
+    opts = PlannerOptions(footprint_margin_m=margin, time_limit=30)
+    plan = plan_footsteps(sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table(), opts)
     assert plan.succeeded
-    for pose in plan.poses[1:]:
-        assert not foot_collides_reference(sc.grid, pose, 0.16, 0.10)
-        assert _foot_to_cells_distance(sc.grid, pose, 0.16, 0.10) >= margin - 1e-9
+    assert all(not foot_collides_reference(sc.grid, p, 0.16, 0.10) for p in plan.poses[1:])
+    closest = min(_foot_to_cells_distance(sc.grid, p, 0.16, 0.10) for p in plan.poses[1:])
+    if margin > 0.0:
+        assert closest >= margin - 1e-9
+    else:  # the exact check: a landing passes within millimetres of an obstacle (3.5 mm here)
+        assert closest < 0.01
     assert PlannerOptions().footprint_margin_m == 0.01  # the default keeps 1 cm
     with pytest.raises(FootstepError, match="footprint_margin_m must be finite and >= 0"):
         PlannerOptions(footprint_margin_m=-0.01).validate()
-
-
-def test_footprint_margin_zero_is_the_exact_check():
-    from repertoire.planning.footstep.scenes import random_static_scene
-
-    sc = random_static_scene(3)
-    t = nominal_action_table()
-    plan = plan_footsteps(
-        sc.grid,
-        sc.start,
-        sc.start_foot,
-        sc.goal,
-        t,
-        PlannerOptions(footprint_margin_m=0.0, time_limit=30),
-    )
-    assert plan.succeeded
-    assert all(not foot_collides_reference(sc.grid, p, 0.16, 0.10) for p in plan.poses[1:])
-    # without a margin a landing passes within millimetres of an obstacle (3.5 mm here)
-    closest = min(_foot_to_cells_distance(sc.grid, p, 0.16, 0.10) for p in plan.poses[1:])
-    assert closest < 0.01

@@ -103,6 +103,19 @@ def test_compiled_heap_pops_in_tuple_order():
         _heap_pop(heap, size)
 
 
+def test_heap_rows_put_child_groups_on_lines_and_growth_keeps_rows():
+    from repertoire.planning.footstep.fastkernels import _grow_heap, _heap_rows
+
+    base = np.empty((64 + 4, 4))[1:]  # numpy aligns to 16 bytes: any 32-byte offset may come
+    rows = _heap_rows(base)
+    assert base.shape[0] - 3 <= rows.shape[0] <= base.shape[0]
+    assert (rows.ctypes.data + 32) % 128 in (0, 112)  # 112: a base not on 32 bytes
+    rows[:50] = np.arange(200.0).reshape(50, 4)
+    new = _grow_heap(base, rows, 50)
+    assert new.shape == (2 * base.shape[0], 4)
+    assert (_heap_rows(new)[:50] == rows[:50]).all()
+
+
 def test_grid_dijkstra_matches_scipy():
     from repertoire.planning.footstep.heuristic import grid_dijkstra, grid_graph
     from scipy.sparse.csgraph import dijkstra

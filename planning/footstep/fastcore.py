@@ -5,8 +5,9 @@ step model (:class:`~repertoire.planning.footstep.biped_model.BipedStepModel`), 
 everything in arrays so that numba compiles it:
 
 - the open list is a 4-ary heap of ``(f, h, tie, node)`` rows ordered by ``(f, h, tie)``
-  exactly as the Python loop's ``heapq`` tuples (so both pop the same states); a row whose
-  h is a lower bound carries ``-1 - node`` and keeps its g and lazy cell per tie beside it;
+  exactly as the Python loop's ``heapq`` tuples (so both pop the same states), each node's
+  four children on two whole cache lines (``fastkernels._heap_rows``); a row whose h is a
+  lower bound carries ``-1 - node`` and keeps its g and lazy cell per tie beside it;
 - the Dijkstra cost-to-go is the model's
   :class:`~repertoire.planning.footstep.heuristic.LazyCostToGo` (values equal to the full
   field, settled on demand); a successor whose cell is not settled yet enters the open list
@@ -18,7 +19,7 @@ everything in arrays so that numba compiles it:
   here by the same formula) to its g (16-byte rows) and its node (a column beside), so
   testing a successor reads one table row and no node's row (the node's search flags are
   read only when a successor improves its g); the keys of one map cell share cache lines,
-  and the rows of a state's successors are prefetched before they are read
+  and the rows of a state's successors (and their node column) are prefetched before they are read
   (:mod:`~repertoire.planning.footstep.fastkernels`);
 - nodes are rows of named fields (40 bytes of floats, 32 of integers), pre-sized from a
   finite expansion budget so that a search neither copies them nor touches rows it does
@@ -49,9 +50,11 @@ from repertoire.planning.footstep.fastkernels import (
     _cached_mask_bits,
     _cached_masks,
     _foot_free,
+    _grow_heap,
     _grow_rows,
     _heap_pop,
     _heap_push,
+    _heap_rows,
     _height_bounds,
     _height_range,
     _now,
@@ -174,8 +177,8 @@ def _arastar(
             rows = min(1 + max_expansions * most, rows)
         if fnode.shape[0] < rows:
             fnode, inode = np.empty((rows, 5)), np.empty((rows, 8), np.int32)
-        if heap.shape[0] < rows:
-            heap = np.empty((rows, 4))
+        if heap.shape[0] < rows + 3:  # + 3: the rows _heap_rows may skip
+            heap = np.empty((rows + 3, 4))
         if use_cells and ent.shape[0] < rows:
             ent = np.empty((rows, 2))
 
@@ -219,8 +222,9 @@ def _arastar(
             continue
         t_it = _now()
         hsize = 0
-        while count > heap.shape[0]:  # room for every node (no array is reassigned inside
-            heap = _grow_rows(heap)  # a loop: numba would count references on each pass)
+        while count > _heap_rows(heap).shape[0]:  # room for every node (no array is reassigned
+            heap = _grow_rows(heap)  # inside a loop: numba would count references on each pass)
+        hv = _heap_rows(heap)  # the open list's rows (child groups on whole cache lines)
         while use_cells and count > ent.shape[0]:
             ent = _grow_rows(ent)
         for k in range(count):
@@ -228,7 +232,7 @@ def _arastar(
                 code = k
                 if inode[k, _LAZY] >= 0:
                     ent[hsize, 0], ent[hsize, 1], code = fnode[k, _G], inode[k, _LAZY], -1 - k
-                _heap_push(heap, hsize, fnode[k, _G] + w * fnode[k, _H], fnode[k, _H], hsize, code)
+                _heap_push(hv, hsize, fnode[k, _G] + w * fnode[k, _H], fnode[k, _H], hsize, code)
                 hsize += 1
                 inode[k, _LIST] = _OPEN
         tie = hsize
@@ -236,8 +240,9 @@ def _arastar(
         while True:  # make room, then search until done or a node needs more room
             while count + most > fnode.shape[0]:
                 fnode, inode = _grow_rows(fnode), _grow_rows(inode)
-            while hsize + most > heap.shape[0]:
-                heap = _grow_rows(heap)
+            while hsize + most > hv.shape[0]:
+                heap = _grow_heap(heap, hv, hsize)
+                hv = _heap_rows(heap)
             while use_cells and tie + most > ent.shape[0]:
                 ent = _grow_rows(ent)
             while 2 * (used + most) > table.shape[0]:
@@ -255,15 +260,15 @@ def _arastar(
             while hsize > 0:
                 if (
                     count + most > fnode.shape[0]
-                    or hsize + most > heap.shape[0]
+                    or hsize + most > hv.shape[0]
                     or (use_cells and tie + most > ent.shape[0])
                     or 2 * (used + most) > table.shape[0]
                 ):
                     room = False
                     break
-                h = heap[0, 1]
-                tp = heap[0, 2]
-                code = int(heap[0, 3])
+                h = hv[0, 1]
+                tp = hv[0, 2]
+                code = int(hv[0, 3])
                 node = code if code >= 0 else -1 - code
                 if (
                     code < 0 and inode[node, _EXPANDED] != it
@@ -272,18 +277,18 @@ def _arastar(
                     lazy = int(ent[e, 1])
                     h = _rra_value(lazy, hf, hi, hocc, hp, hcount) * cost_per_m
                     gp = ent[e, 0]
-                    _heap_pop(heap, hsize)
+                    _heap_pop(hv, hsize)
                     if inode[node, _LAZY] == lazy:
                         fnode[node, _H], inode[node, _LAZY] = h, -1
                     if h < np.inf:
-                        _heap_push(heap, hsize - 1, gp + w * h, h, tp, node)
+                        _heap_push(hv, hsize - 1, gp + w * h, h, tp, node)
                     else:
                         hsize -= 1
                     continue
-                _heap_pop(heap, hsize)
+                _heap_pop(hv, hsize)
                 hsize -= 1
                 if hsize > 0:  # the next candidate's node rows load while this one expands
-                    nxt = int(heap[0, 3])
+                    nxt = int(hv[0, 3])
                     nxt = nxt if nxt >= 0 else -1 - nxt
                     _prefetch_row(inode, nxt)
                     _prefetch_row(fnode, nxt)
@@ -334,7 +339,9 @@ def _arastar(
                     cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
                     local = _yaw_bin(_wrap(th + succ_f[r, 2]), yaw_scale, nyaw) * 2 + nf
                     local = local * n_hist + hist[a1, succ_a[r]]
-                    _prefetch_row(table, (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask)
+                    j = (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask
+                    _prefetch_row(table, j)
+                    _prefetch_row(tnode, j)  # read when the successor improves a state's g
                 for r in range(r0, r1):
                     dx, dy = succ_f[r, 0], succ_f[r, 1]
                     x2 = x + c * dx - s * dy
@@ -427,7 +434,7 @@ def _arastar(
                         code = idx
                         if lazy >= 0:
                             ent[tie, 0], ent[tie, 1], code = g2, lazy, -1 - idx
-                        _heap_push(heap, hsize, g2 + w * h2, h2, tie, code)
+                        _heap_push(hv, hsize, g2 + w * h2, h2, tie, code)
                         hsize += 1
                         tie += 1
             if room:

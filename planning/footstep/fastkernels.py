@@ -50,6 +50,24 @@ def _heap_push(heap, size, f, h, tie, node):
     heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
 
 
+@njit()
+def _heap_rows(heap):
+    """The rows of ``heap`` from the one that puts every 4-ary node's children on two lines.
+
+    Rows are 32 bytes and the children of row ``i`` are rows ``4 i + 1 .. 4 i + 4``: with row
+    1 on a 128-byte boundary each child group is two whole cache lines (else three).
+    """
+    return heap[((-(heap.ctypes.data + 32)) % 128) // 32 :]
+
+
+@njit()
+def _grow_heap(heap, rows, size):
+    """A heap base twice as large; its first ``size`` rows (of :func:`_heap_rows`) = ``rows``'."""
+    new = np.empty((heap.shape[0] * 2, heap.shape[1]), heap.dtype)
+    _heap_rows(new)[:size] = rows[:size]
+    return new
+
+
 @njit(inline="always")
 def _heap_pop(heap, size):
     """Remove the root of a 4-ary heap of ``size`` rows (the caller read it first)."""
@@ -114,7 +132,7 @@ def _rehash(table, tnode, new, new_node, s, inode, col):
 
 @intrinsic
 def _prefetch_row(typingctx, arr, row):
-    """Hint the CPU to load row ``row`` of the 2-D array ``arr`` into the cache.
+    """Hint the CPU to load row ``row`` of the 1-D or 2-D array ``arr`` into the cache.
 
     The search computes the lattice-table rows of all successors of a state first and
     prefetches them, so their cache misses overlap instead of stalling one after another.
@@ -127,7 +145,8 @@ def _prefetch_row(typingctx, arr, row):
         ary = context.make_array(aryty)(context, builder, args[0])
         r = context.cast(builder, args[1], signature.args[1], types.intp)
         zero = context.get_constant(types.intp, 0)
-        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [r, zero])
+        idx = [r, zero] if aryty.ndim == 2 else [r]
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, idx)
         i8p, i32 = ir.IntType(8).as_pointer(), ir.IntType(32)
         fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
         fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0")

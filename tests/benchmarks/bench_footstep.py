@@ -15,8 +15,9 @@ Sections (``--sections``, default all but ``legacy``):
   shared: CPU seconds are the one-core figure).
 - ``large``: 12 m x 12 m floors at 30 % occupancy, 6 m x 6 m mazes with 0.5 m doorways,
   stepping stones: ARA* (weights 3 .. 1, Dijkstra heuristic, 1 s): time to the first plan,
-  statuses, cost by 1 s against the admissible mode's plan (``PlannerOptions.admissible``:
-  A* with the Euclidean heuristic at weight 1 on 2.5 cm / 72 bins, the issue's reference)
+  statuses, cost by 1 s against the admissible mode's plan (``PlannerOptions.admissible`` with
+  ``refinements=0``: A* with the Euclidean heuristic at weight 1 on 2.5 cm / 72 bins, the
+  issue's reference; maps it finds UNREACHABLE or the 1 s run does not solve are left out)
   and against the cheapest plan of all the references (that A*, the same on the planner's
   lattice, ARA* 5 s, the 1 s runs themselves).
 - ``legacy``: the issue-4 figures below.

@@ -47,6 +47,64 @@ def test_footprint_checker_matches_exact_reference():
     assert not chk2.is_free(0.5, 0.5, math.pi / 2)
 
 
+def _row_bits_reference(di, dj, big_r):
+    """One mask's cells as (row offset, bits of column offset + R), one cell at a time."""
+    rows = {}
+    for i, j in zip(di.tolist(), dj.tolist(), strict=True):
+        rows[i] = rows.get(i, 0) | (1 << (j + big_r))
+    return tuple(sorted(rows.items()))
+
+
+@pytest.mark.parametrize(
+    "geometry",
+    [
+        (0.16, 0.10, 0.025, 72, 4),
+        (0.16, 0.12, 0.05, 36, 4),
+        (0.10, 0.06, 0.02, 16, 2),
+        (0.26, 0.10, 0.004, 8, 2),  # 77 cells wide: rows need more than one 62-bit chunk
+    ],
+)
+def test_footprint_masks_equal_the_per_mask_separating_axis_test(geometry):
+    """The masks, built for all sub-cell centres of a yaw at once, are exactly the ones
+    ``rect_overlaps_cells`` gives mask by mask, and their row bits and 64-bit words the
+    ones packed cell by cell."""
+    from repertoire.planning.footstep.environment import rect_overlaps_cells
+    from repertoire.planning.footstep.fastkernels import _cached_mask_bits
+
+    length, width, res, bins, sub = geometry
+    masks = footprint_masks(length, width, res, bins, sub)
+    big_r = masks.radius_cells
+    di, dj = (a.ravel() for a in np.meshgrid(*[np.arange(-big_r, big_r + 1)] * 2, indexing="ij"))
+    centers = np.stack([(di + 0.5) * res, (dj + 0.5) * res], axis=1)
+    hl, hw, e = length / 2, width / 2, masks.margin
+    for m in range(0, bins * sub * sub, 7):
+        yb, q = divmod(m, sub * sub)
+        c = ((q // sub + 0.5) / sub * res, (q % sub + 0.5) / sub * res)
+        yaw = yb * 2.0 * math.pi / bins
+        out = rect_overlaps_cells(c, (hl + e, hw + e), yaw, centers, res / 2)
+        inn = rect_overlaps_cells(c, (max(hl - e, 0), max(hw - e, 0)), yaw, centers, res / 2)
+        for got, want, rows in (
+            (masks.outer[m], out, masks.outer_rows[m]),
+            (masks.inner[m], inn, masks.inner_rows[m]),
+            (masks.ring[m], out & ~inn, masks.ring_rows[m]),
+        ):
+            np.testing.assert_array_equal(got[0], di[want])
+            np.testing.assert_array_equal(got[1], dj[want])
+            assert rows == _row_bits_reference(di[want], dj[want], big_r)
+    if 2 * big_r + 1 > 64:  # the columns past the first chunk are used, and joined right
+        assert any(b >= 1 << 62 for rows in masks.outer_rows for _, b in rows)
+    if 2 * big_r + 1 <= 64:
+        bits, spans = _cached_mask_bits(masks)
+        for m in range(0, len(masks.inner), 5):
+            for k, part in ((0, masks.inner[m]), (1, masks.ring[m])):
+                want = np.zeros(2 * big_r + 1, np.uint64)
+                for i, j in zip(part[0].tolist(), part[1].tolist(), strict=True):
+                    want[i + big_r] |= np.uint64(1) << np.uint64(j + big_r)
+                np.testing.assert_array_equal(bits[m, :, k], want)
+            used = np.flatnonzero(bits[m].any(axis=1))
+            assert tuple(spans[m]) == ((used[0], used[-1] + 1) if used.size else (0, 0))
+
+
 def test_surely_free_cells_equal_a_brute_force_window_count():
     from repertoire.planning.footstep.footprint import surely_free_words
 

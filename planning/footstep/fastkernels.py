@@ -357,19 +357,16 @@ def _cached_mask_bits(masks) -> tuple[np.ndarray, np.ndarray]:
     big_r = masks.radius_cells
     if 2 * big_r + 1 > 64:
         raise ValueError(f"footprint masks {2 * big_r + 1} cells wide exceed a 64-bit window")
-    n = len(masks.inner)
-    bits = np.zeros((n, 2 * big_r + 1, 2), np.uint64)
-    rows = np.zeros((n, 2), np.int64)
-    for m in range(n):
-        for k, part in ((0, masks.inner[m]), (1, masks.ring[m])):
-            di, dj = part
-            np.bitwise_or.at(
-                bits[m, :, k],
-                np.asarray(di, np.int64) + big_r,
-                np.left_shift(np.uint64(1), (np.asarray(dj, np.int64) + big_r).astype(np.uint64)),
-            )
-        used = np.flatnonzero(bits[m].any(axis=1))
-        rows[m] = (used[0], used[-1] + 1) if used.size else (0, 0)
+    n, width = len(masks.inner), 2 * big_r + 1
+    shifts = np.arange(width, dtype=np.uint64)
+    bits = np.zeros((n, width, 2), np.uint64)
+    for k, cells in ((0, masks.inner_cells), (1, masks.ring_cells)):
+        bits[:, :, k] = (cells.astype(np.uint64) << shifts).sum(axis=2, dtype=np.uint64)
+    used = bits.any(axis=2)  # (masks, rows)
+    any_row = used.any(axis=1)
+    first = np.where(any_row, used.argmax(axis=1), 0)
+    last = np.where(any_row, width - used[:, ::-1].argmax(axis=1), 0)
+    rows = np.stack([first, last], axis=1).astype(np.int64)
     if len(_BITS_CACHE) > 16:
         _BITS_CACHE.clear()
     _BITS_CACHE[id(masks)] = (masks, bits, rows)

@@ -51,31 +51,52 @@ class FootprintMasks:
         self.margin = resolution / sub * math.sqrt(2.0) / 2.0 + self.r_diag * dyaw / 2.0
         self.radius_cells = int(math.ceil((self.r_diag + self.margin) / resolution)) + 1
         R = self.radius_cells
+        width = 2 * R + 1
         di, dj = np.meshgrid(np.arange(-R, R + 1), np.arange(-R, R + 1), indexing="ij")
         di, dj = di.ravel(), dj.ravel()
         centers = np.stack([(di + 0.5) * resolution, (dj + 0.5) * resolution], axis=1)
         hl, hw = self.half
         e = self.margin
-        self.outer: list[tuple[np.ndarray, np.ndarray]] = []
-        self.inner: list[tuple[np.ndarray, np.ndarray]] = []
-        self.ring: list[tuple[np.ndarray, np.ndarray]] = []
+        subs = np.array(
+            [((qx + 0.5) / sub * resolution, (qy + 0.5) / sub * resolution)
+             for qx in range(sub) for qy in range(sub)]
+        )  # fmt: skip
+        # masks (yaw bin, then sub-cell x, then y) over the (2R+1)^2 cells, row-major in di:
+        # every sub-cell centre of a yaw bin at once, the separating-axis test of
+        # rect_overlaps_cells element for element (the same floats, so the same masks)
+        out_all = np.empty((yaw_bins, sub * sub, width * width), bool)
+        inn_all = np.empty_like(out_all)
+        half_cell = resolution / 2
         for yb in range(yaw_bins):
             yaw = yb * dyaw
-            for qx in range(sub):
-                for qy in range(sub):
-                    c = ((qx + 0.5) / sub * resolution, (qy + 0.5) / sub * resolution)
-                    out = rect_overlaps_cells(c, (hl + e, hw + e), yaw, centers, resolution / 2)
-                    inn = rect_overlaps_cells(
-                        c, (max(hl - e, 0.0), max(hw - e, 0.0)), yaw, centers, resolution / 2
-                    )
-                    ring = out & ~inn
-                    self.outer.append((di[out], dj[out]))
-                    self.inner.append((di[inn], dj[inn]))
-                    self.ring.append((di[ring], dj[ring]))
-        # the same masks as (row offset, bit set of column offsets + R) per grid row
-        self.outer_rows = [_row_bits(a, b, R) for a, b in self.outer]
-        self.inner_rows = [_row_bits(a, b, R) for a, b in self.inner]
-        self.ring_rows = [_row_bits(a, b, R) for a, b in self.ring]
+            out_all[yb] = _rects_overlap_cells(subs, (hl + e, hw + e), yaw, centers, half_cell)
+            inn_all[yb] = _rects_overlap_cells(
+                subs, (max(hl - e, 0.0), max(hw - e, 0.0)), yaw, centers, half_cell
+            )
+        n = yaw_bins * sub * sub
+        out_all, inn_all = out_all.reshape(n, -1), inn_all.reshape(n, -1)
+        ring_all = out_all & ~inn_all
+        #: per mask the cells as booleans, shape (masks, 2R+1, 2R+1) indexed [m, di+R, dj+R]
+        self.outer_cells = out_all.reshape(n, width, width)
+        self.inner_cells = inn_all.reshape(n, width, width)
+        self.ring_cells = ring_all.reshape(n, width, width)
+        self.outer = [(di[m], dj[m]) for m in out_all]
+        self.inner = [(di[m], dj[m]) for m in inn_all]
+        self.ring = [(di[m], dj[m]) for m in ring_all]
+
+    # the same masks as (row offset, bit set of column offsets + R) per grid row, for the
+    # Python checks; built on first use (the compiled core reads the cells as words instead)
+    @functools.cached_property
+    def outer_rows(self) -> list[tuple[tuple[int, int], ...]]:
+        return _rows_of(self.outer_cells, self.radius_cells)
+
+    @functools.cached_property
+    def inner_rows(self) -> list[tuple[tuple[int, int], ...]]:
+        return _rows_of(self.inner_cells, self.radius_cells)
+
+    @functools.cached_property
+    def ring_rows(self) -> list[tuple[tuple[int, int], ...]]:
+        return _rows_of(self.ring_cells, self.radius_cells)
 
     def index(self, yaw: float, fx: float, fy: float) -> int:
         """Mask index for a yaw and the fractional position of the centre in its cell.
@@ -91,11 +112,57 @@ class FootprintMasks:
         return (yb * self.sub + qx) * self.sub + qy
 
 
-def _row_bits(di: np.ndarray, dj: np.ndarray, R: int) -> tuple[tuple[int, int], ...]:
-    rows: dict[int, int] = {}
-    for i, j in zip(di.tolist(), dj.tolist()):
-        rows[i] = rows.get(i, 0) | (1 << (j + R))
-    return tuple(sorted(rows.items()))
+def _rows_of(cells: np.ndarray, R: int) -> list[tuple[tuple[int, int], ...]]:
+    """Every mask as ``(row offset, bits of column offset + R)`` pairs, rows ascending.
+
+    Args:
+        cells: the masks' booleans, shape (masks, 2R+1, 2R+1), indexed ``[m, di + R, dj + R]``.
+        R: the masks' radius in cells.
+
+    Columns are packed 62 at a time as int64, then joined as Python ints (wide masks of very
+    fine grids need more than 64 bits).
+    """
+    n, width = cells.shape[0], 2 * R + 1
+    chunks = []
+    for k in range(0, width, 62):
+        part = cells[:, :, k : k + 62].astype(np.int64)
+        chunks.append((part << np.arange(part.shape[2], dtype=np.int64)).sum(axis=2))
+    nonzero = np.zeros(chunks[0].shape, bool)
+    for chunk in chunks:
+        nonzero |= chunk != 0
+    m_idx, i_idx = np.nonzero(nonzero)  # row-major: by mask, then row ascending
+    vals = chunks[0][m_idx, i_idx].tolist()
+    for j, chunk in enumerate(chunks[1:], 1):
+        vals = [v | (w << (62 * j)) for v, w in zip(vals, chunk[m_idx, i_idx].tolist())]
+    pairs = list(zip((i_idx - R).tolist(), vals))
+    bounds = np.searchsorted(m_idx, np.arange(n + 1)).tolist()
+    return [tuple(pairs[bounds[k] : bounds[k + 1]]) for k in range(n)]
+
+
+def _rects_overlap_cells(
+    centers: np.ndarray,
+    half_extents: "tuple[float, float]",
+    yaw: float,
+    cell_centers: np.ndarray,
+    half_cell: float,
+) -> np.ndarray:
+    """:func:`rect_overlaps_cells` for several rectangle centres of one size and yaw.
+
+    Returns:
+        (k, m) bool array: rectangle k overlaps square m (positive area).
+    """
+    c, s = math.cos(yaw), math.sin(yaw)
+    hl, hw = float(half_extents[0]), float(half_extents[1])
+    d = cell_centers[None, :, :] - centers[:, None, :]
+    eps = 1e-12
+    ext_x = hl * abs(c) + hw * abs(s)
+    ext_y = hl * abs(s) + hw * abs(c)
+    sep = np.abs(d[..., 0]) >= ext_x + half_cell - eps
+    sep |= np.abs(d[..., 1]) >= ext_y + half_cell - eps
+    cell_u = half_cell * (abs(c) + abs(s))
+    sep |= np.abs(d[..., 0] * c + d[..., 1] * s) >= hl + cell_u - eps
+    sep |= np.abs(-d[..., 0] * s + d[..., 1] * c) >= hw + cell_u - eps
+    return ~sep
 
 
 @functools.lru_cache(maxsize=8)

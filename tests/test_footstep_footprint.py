@@ -65,8 +65,8 @@ def _row_bits_reference(di, dj, big_r):
     ],
 )
 def test_footprint_masks_equal_the_per_mask_separating_axis_test(geometry):
-    """The masks, built for all sub-cell centres of a yaw at once, are exactly the ones
-    ``rect_overlaps_cells`` gives mask by mask, and their row bits and 64-bit words the
+    """The masks, built for all sub-cell centres of a yaw in one call, are exactly the ones
+    ``rect_overlaps_cells`` gives for each centre alone, and their row bits and 64-bit words the
     ones packed cell by cell."""
     from repertoire.planning.footstep.environment import rect_overlaps_cells
     from repertoire.planning.footstep.fastkernels import _cached_mask_bits
@@ -93,7 +93,7 @@ def test_footprint_masks_equal_the_per_mask_separating_axis_test(geometry):
             assert rows == _row_bits_reference(di[want], dj[want], big_r)
     if 2 * big_r + 1 > 64:  # the columns past the first chunk are used, and joined right
         assert any(b >= 1 << 62 for rows in masks.outer_rows for _, b in rows)
-    if 2 * big_r + 1 <= 64:
+    else:
         bits, spans = _cached_mask_bits(masks)
         for m in range(0, len(masks.inner), 5):
             for k, part in ((0, masks.inner[m]), (1, masks.ring[m])):

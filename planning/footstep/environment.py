@@ -17,7 +17,7 @@ from repertoire.limits import require_memory
 
 
 def rect_overlaps_cells(
-    center: Sequence[float],
+    center: "Sequence[float] | np.ndarray",
     half_extents: Sequence[float],
     yaw: float,
     cell_centers: np.ndarray,
@@ -29,28 +29,30 @@ def rect_overlaps_cells(
     boundaries do not count as overlap.
 
     Args:
-        center: rectangle centre ``(x, y)``.
+        center: rectangle centre ``(x, y)``, or (k, 2) centres of k rectangles of the same
+            size and yaw (each answered element for element as if alone).
         half_extents: half length along the rectangle's x axis and half width.
         yaw: rectangle orientation (rad).
         cell_centers: (m, 2) centres of the squares.
         half_cell: half side of the squares.
 
     Returns:
-        (m,) bool array.
+        (m,) bool array, or (k, m) for k centres.
     """
     c, s = math.cos(yaw), math.sin(yaw)
     hl, hw = float(half_extents[0]), float(half_extents[1])
-    d = np.asarray(cell_centers, dtype=float) - np.asarray(center, dtype=float)[None, :]
+    ctr = np.asarray(center, dtype=float)
+    d = np.asarray(cell_centers, dtype=float) - ctr[..., None, :]  # (m, 2) or (k, m, 2)
     eps = 1e-12
     # grid axes
     ext_x = hl * abs(c) + hw * abs(s)
     ext_y = hl * abs(s) + hw * abs(c)
-    sep = np.abs(d[:, 0]) >= ext_x + half_cell - eps
-    sep |= np.abs(d[:, 1]) >= ext_y + half_cell - eps
+    sep = np.abs(d[..., 0]) >= ext_x + half_cell - eps
+    sep |= np.abs(d[..., 1]) >= ext_y + half_cell - eps
     # rectangle axes u = (c, s), v = (-s, c)
     cell_u = half_cell * (abs(c) + abs(s))
-    sep |= np.abs(d[:, 0] * c + d[:, 1] * s) >= hl + cell_u - eps
-    sep |= np.abs(-d[:, 0] * s + d[:, 1] * c) >= hw + cell_u - eps
+    sep |= np.abs(d[..., 0] * c + d[..., 1] * s) >= hl + cell_u - eps
+    sep |= np.abs(-d[..., 0] * s + d[..., 1] * c) >= hw + cell_u - eps
     return ~sep
 
 

@@ -62,15 +62,14 @@ class FootprintMasks:
              for qx in range(sub) for qy in range(sub)]
         )  # fmt: skip
         # masks (yaw bin, then sub-cell x, then y) over the (2R+1)^2 cells, row-major in di:
-        # every sub-cell centre of a yaw bin at once, the separating-axis test of
-        # rect_overlaps_cells element for element (the same floats, so the same masks)
+        # every sub-cell centre of a yaw bin in one call
         out_all = np.empty((yaw_bins, sub * sub, width * width), bool)
         inn_all = np.empty_like(out_all)
         half_cell = resolution / 2
         for yb in range(yaw_bins):
             yaw = yb * dyaw
-            out_all[yb] = _rects_overlap_cells(subs, (hl + e, hw + e), yaw, centers, half_cell)
-            inn_all[yb] = _rects_overlap_cells(
+            out_all[yb] = rect_overlaps_cells(subs, (hl + e, hw + e), yaw, centers, half_cell)
+            inn_all[yb] = rect_overlaps_cells(
                 subs, (max(hl - e, 0.0), max(hw - e, 0.0)), yaw, centers, half_cell
             )
         n = yaw_bins * sub * sub
@@ -137,32 +136,6 @@ def _rows_of(cells: np.ndarray, R: int) -> list[tuple[tuple[int, int], ...]]:
     pairs = list(zip((i_idx - R).tolist(), vals))
     bounds = np.searchsorted(m_idx, np.arange(n + 1)).tolist()
     return [tuple(pairs[bounds[k] : bounds[k + 1]]) for k in range(n)]
-
-
-def _rects_overlap_cells(
-    centers: np.ndarray,
-    half_extents: "tuple[float, float]",
-    yaw: float,
-    cell_centers: np.ndarray,
-    half_cell: float,
-) -> np.ndarray:
-    """:func:`rect_overlaps_cells` for several rectangle centres of one size and yaw.
-
-    Returns:
-        (k, m) bool array: rectangle k overlaps square m (positive area).
-    """
-    c, s = math.cos(yaw), math.sin(yaw)
-    hl, hw = float(half_extents[0]), float(half_extents[1])
-    d = cell_centers[None, :, :] - centers[:, None, :]
-    eps = 1e-12
-    ext_x = hl * abs(c) + hw * abs(s)
-    ext_y = hl * abs(s) + hw * abs(c)
-    sep = np.abs(d[..., 0]) >= ext_x + half_cell - eps
-    sep |= np.abs(d[..., 1]) >= ext_y + half_cell - eps
-    cell_u = half_cell * (abs(c) + abs(s))
-    sep |= np.abs(d[..., 0] * c + d[..., 1] * s) >= hl + cell_u - eps
-    sep |= np.abs(-d[..., 0] * s + d[..., 1] * c) >= hw + cell_u - eps
-    return ~sep
 
 
 @functools.lru_cache(maxsize=8)

@@ -452,7 +452,7 @@ def _bench_large(maps: int, first_seed: int = 0) -> None:
         to_admissible = []  # the 1 s cost over the admissible mode's plan (the figure)
         unsolved = []  # seeds the admissible mode solves and the 1 s run does not: misses too
         with_corridor = []  # the same with corridor searches (corridor=0.5)
-        for args in problems:
+        for seed, args in zip(seeds, problems, strict=True):
             runs = plan_footsteps_anytime(*args, table, PlannerOptions(time_limit=1.0))
             found = [r for r in runs if r.plan.succeeded]
             statuses.append(runs[-1].plan.status.value if not found else "SUCCESS")
@@ -469,7 +469,7 @@ def _bench_large(maps: int, first_seed: int = 0) -> None:
                     if found:
                         to_admissible.append(best / ref.cost)
                     else:
-                        unsolved.append(seeds[len(first) - 1])
+                        unsolved.append(seed)
             long = plan_footsteps_anytime(*args, table, PlannerOptions(time_limit=5.0))
             costs = [r.plan.cost for r in long if r.plan.succeeded]
             ref_costs["ARA* 5 s"].append(

@@ -92,10 +92,9 @@ class LittleDogTransferScenario(LibraryLoopFields):
         planner_time_limit: CPU-time limit of the search with its planner (s); a search
             cut short by it is refused (its best partial path is not executed), or, when
             the planner alone had reached the goal, returns that path. A cap, not a
-            routine cut: uncut searches of the execution study's starts take about 1.1 s
-            of CPU on the machine of session 11 and 2.0-3.8 s on session 14's (an AMD
-            EPYC VM about 2x slower), where the former 2 s cut them to the planner
-            alone, so the study's outcome depended on the machine.
+            routine cut: uncut searches of the execution study's starts take 1-4 s of
+            CPU depending on the machine, and a tighter limit makes the path (library
+            steps or the planner alone) depend on the machine's speed.
 
     The start perturbation, source library, loop gains and physics are the fields of
     :class:`~repertoire.diagrams.littledog_library.LibraryLoopFields`.

@@ -16,7 +16,11 @@ Conventions (world frame W, z up):
   of missing slab (full board width), so inside a gap and outside the board the
   height is the ground, 0: the gap depth is ``base_thickness``;
 - every other box (rock, step) stands on the ground (its bottom at z = 0), so
-  each vertical column is solid from the ground up to ``z(x, y)``.
+  each vertical column is solid from the ground up to ``z(x, y)``;
+- a board's extent is what its boxes cover (:meth:`TerrainBoard.bounds`, the
+  bounding rectangle of their footprints), not its ``params``: a moved
+  (:meth:`TerrainBoard.translated`) or joined (:func:`join_boards`) board keeps
+  the parameters it was generated from, but its boxes lie elsewhere.
 
 Kinds: ``flat`` (slab only), ``rocks`` (slab plus yawed boxes of random size
 and height), ``steps`` (bands across x at rising and falling heights),
@@ -68,6 +72,20 @@ class TerrainParams:
         gap_count: number of gaps on a ``gaps`` board.
         gap_width: [min, max] width of a gap along x (m).
         mixed_sections: number of sections along x of a ``mixed`` board.
+
+    Every combination :meth:`validate` accepts generates boxes of positive size inside
+    the board, for every seed. Two limits follow from the geometry:
+
+    - a rock whose yawed footprint would not fit its region (a ``mixed`` section along x,
+      or ``size_y`` across: a square rock of side 0.10 m yawed by 45 degrees spans 0.14 m)
+      is scaled down, keeping its proportions, to 95 % of the region; ``rock_size`` is
+      the size before that scaling, and ``validate`` only asks that its max be smaller
+      than the board (an unyawed rock fits);
+    - a gap cannot be scaled without changing what was asked, so a board on which a gap
+      could leave too little slab is refused: ``gaps`` needs
+      ``gap_count * gap_width max < 0.8 * size_x``, ``mixed`` (one gap in a gap section
+      of length ``size_x / mixed_sections``) needs
+      ``gap_width max < 0.8 * size_x / mixed_sections``.
     """
 
     kind: str = "flat"
@@ -121,9 +139,20 @@ class TerrainParams:
                 f"terrain gaps ({self.gap_count} of up to {self.gap_width[1]} m) leave too little "
                 f"board along size_x={self.size_x} m; expected gap_count*max width < 0.8*size_x"
             )
+        if self.kind == "mixed" and self.mixed_sections >= 2:
+            section = self.size_x / self.mixed_sections
+            if self.gap_width[1] >= 0.8 * section:
+                raise RepertoireError(
+                    f"terrain kind 'mixed' with mixed_sections={self.mixed_sections} on "
+                    f"size_x={self.size_x} m has sections of {section:.4g} m, too short for a gap "
+                    f"of up to gap_width max {self.gap_width[1]} m; expected gap_width max < "
+                    f"0.8*size_x/mixed_sections = {0.8 * section:.4g} m (use fewer sections, a "
+                    f"longer board or narrower gaps)"
+                )
         if self.rock_size[1] >= min(self.size_x, self.size_y):
             raise RepertoireError(
-                f"terrain rock_size max {self.rock_size[1]} m must be smaller than the board"
+                f"terrain rock_size max {self.rock_size[1]} m must be smaller than the board "
+                f"(size_x={self.size_x} m, size_y={self.size_y} m)"
             )
 
 
@@ -157,6 +186,18 @@ class TerrainBox:
         eps = 1e-12
         return (np.abs(u) <= 0.5 * self.size[0] + eps) & (np.abs(v) <= 0.5 * self.size[1] + eps)
 
+    def footprint_bounds(self) -> tuple[float, float, float, float]:
+        """``(x_min, x_max, y_min, y_max)`` of the yawed footprint in the world (m)."""
+        c, s = abs(math.cos(self.yaw)), abs(math.sin(self.yaw))
+        ex = 0.5 * (c * self.size[0] + s * self.size[1])
+        ey = 0.5 * (s * self.size[0] + c * self.size[1])
+        return (
+            self.center[0] - ex,
+            self.center[0] + ex,
+            self.center[1] - ey,
+            self.center[1] + ey,
+        )
+
 
 @dataclasses.dataclass
 class TerrainBoard:
@@ -175,6 +216,31 @@ class TerrainBoard:
     @property
     def kind(self) -> str:
         return self.params.kind
+
+    def bounds(self) -> tuple[float, float, float, float]:
+        """The board's extent ``(x_min, x_max, y_min, y_max)`` in the world (m).
+
+        The bounding rectangle of its boxes' footprints (a ``ground`` box, if one was
+        put in ``boxes``, does not count), so it follows the boxes wherever
+        :meth:`translated`, :func:`join_boards`, :func:`tile_boards` or
+        :func:`replace_with_rocks` put them; ``params.size_x`` and ``size_y`` give it
+        only for a board as generated (``[-size_x/2, size_x/2] x [-size_y/2,
+        size_y/2]``, up to the rounding of the boxes' centres and sizes, about 1e-16 m).
+        Bare ground between joined boards or in a gap lies inside the extent.
+
+        Raises:
+            RepertoireError: the board has no boxes other than ground.
+        """
+        boxes = [b.footprint_bounds() for b in self.boxes if b.label != "ground"]
+        if not boxes:
+            raise RepertoireError("terrain board has no boxes: it has no extent")
+        e = np.array(boxes)
+        return (
+            float(e[:, 0].min()),
+            float(e[:, 1].max()),
+            float(e[:, 2].min()),
+            float(e[:, 3].max()),
+        )
 
     def height(self, x, y) -> np.ndarray:
         """Exact terrain height z(x, y) in m (vectorised; broadcasts x and y).
@@ -247,7 +313,11 @@ class TerrainBoard:
         return p_W, self.height(p_W[..., 0], p_W[..., 1])
 
     def translated(self, dx: float, dy: float) -> "TerrainBoard":
-        """A copy with every box moved by ``(dx, dy)`` in the world x-y plane (m)."""
+        """A copy with every box moved by ``(dx, dy)`` in the world x-y plane (m).
+
+        The copy keeps ``params`` (what it was generated from); its extent is
+        :meth:`bounds`, moved by ``(dx, dy)``.
+        """
         if not (math.isfinite(dx) and math.isfinite(dy)):
             raise RepertoireError(f"board translation must be finite, got ({dx}, {dy})")
         boxes = [
@@ -262,6 +332,29 @@ class TerrainBoard:
         """Highest box top (m)."""
         return max((b.top for b in self.boxes), default=0.0)
 
+    def check_boxes(self) -> None:
+        """Checks that every box has a finite centre and yaw and a positive, finite size.
+
+        Drake's ``Box`` aborts the process (a ``SystemExit``, not an exception) on a
+        non-positive size; this raises first.
+
+        Raises:
+            RepertoireError: naming the first bad box, its index and its size.
+        """
+        for i, box in enumerate(self.boxes):
+            values = [*box.center, *box.size, box.yaw]
+            if (
+                len(box.center) != 3
+                or len(box.size) != 3
+                or not all(math.isfinite(v) for v in values)
+                or min(box.size) <= 0.0
+            ):
+                raise RepertoireError(
+                    f"terrain box {i} ({box.label}) needs a finite centre and yaw and a "
+                    f"positive size, got centre={list(box.center)}, size={list(box.size)}, "
+                    f"yaw={box.yaw}"
+                )
+
     def add_to_plant(self, plant, *, name: str = "terrain", friction=None, ground: bool = True):
         """Welds the boxes (collision + visual) to the plant's world body.
 
@@ -275,11 +368,15 @@ class TerrainBoard:
 
         Returns:
             The list of collision GeometryIds (ground first when added).
+
+        Raises:
+            RepertoireError: a box of non-positive or non-finite size (:meth:`check_boxes`).
         """
         from pydrake.geometry import Box
         from pydrake.math import RigidTransform, RotationMatrix
         from pydrake.multibody.plant import CoulombFriction
 
+        self.check_boxes()
         if friction is None:
             friction = CoulombFriction(1.0, 1.0)
         world = plant.world_body()
@@ -309,7 +406,11 @@ class TerrainBoard:
         Args:
             model_name: the SDF model name.
             ground: include the ground box (top face z = 0).
+
+        Raises:
+            RepertoireError: a box of non-positive or non-finite size (:meth:`check_boxes`).
         """
+        self.check_boxes()
         lines = [
             '<?xml version="1.0"?>',
             '<sdf version="1.9" xmlns:drake="http://drake.mit.edu">',
@@ -360,14 +461,24 @@ def _slab(x0: float, x1: float, p: TerrainParams) -> TerrainBox:
 
 
 def _random_rock(x0: float, x1: float, p: TerrainParams, rng) -> TerrainBox:
-    """One rock of random size, yaw and height inside ``[x0, x1]`` x the board's width."""
+    """One rock of random size, yaw and height inside ``[x0, x1]`` x the board's width.
+
+    A rock whose yawed footprint does not fit the region (along x: a short ``mixed``
+    section; along y: a narrow board, where a rock yawed by 45 degrees spans up to
+    sqrt(2) times its side) is scaled down, keeping its proportions, to 95 % of the
+    region along the axis it missed (the smaller scale when both).
+    """
     sx, sy = rng.uniform(p.rock_size[0], p.rock_size[1], size=2)
     yaw = float(rng.uniform(0.0, math.pi))
     # Half extents of the yawed footprint, so the rock stays inside its region.
     ex = 0.5 * (abs(math.cos(yaw)) * sx + abs(math.sin(yaw)) * sy)
     ey = 0.5 * (abs(math.sin(yaw)) * sx + abs(math.cos(yaw)) * sy)
+    scale = 1.0
     if 2.0 * ex >= x1 - x0:
         scale = 0.95 * (x1 - x0) / (2.0 * ex)
+    if 2.0 * ey * scale >= p.size_y:
+        scale = min(scale, 0.95 * p.size_y / (2.0 * ey))
+    if scale != 1.0:
         sx, sy, ex, ey = sx * scale, sy * scale, ex * scale, ey * scale
     half_y = 0.5 * p.size_y
     cx = float(rng.uniform(x0 + ex, x1 - ex))
@@ -491,6 +602,11 @@ def _steps(x0: float, x1: float, count: int, p: TerrainParams, rng) -> list[Terr
 
 
 def _gaps(x0: float, x1: float, count: int, p: TerrainParams, rng) -> list[TerrainBox]:
+    """Slab pieces over ``[x0, x1]`` separated by ``count`` gaps of ``p.gap_width``.
+
+    :meth:`TerrainParams.validate` keeps ``count * gap_width max`` below 80 % of the
+    length for every region this is called on, so every piece has a positive length.
+    """
     if count == 0:
         return [_slab(x0, x1, p)]
     length = x1 - x0
@@ -554,7 +670,9 @@ def join_boards(boards: list[TerrainBoard], offsets_xy) -> TerrainBoard:
     """One terrain made of several boards, board ``i`` moved by ``offsets_xy[i]``.
 
     The result's ``params`` and ``seed`` are those of the first board; its boxes are
-    every board's boxes, so ``height`` is the exact height of the whole terrain.
+    every board's boxes, so ``height`` is the exact height of the whole terrain and
+    :meth:`TerrainBoard.bounds` its extent (``params.size_x`` and ``size_y`` are only the
+    first board's).
 
     Args:
         boards: the boards (at least one).
@@ -586,13 +704,16 @@ def replace_with_rocks(
 ) -> TerrainBoard:
     """A copy of ``board`` whose part at ``x >= x_from`` is replaced by a rock field.
 
-    Boxes lying wholly before ``x_from`` are kept; boxes reaching past it are cut at
-    ``x_from`` (slabs and steps are axis-aligned bands; a yawed rock reaching past it
-    is dropped); the rest of the board becomes :func:`rock_field` of ``seed``: a slab
-    with ``coverage`` (default :data:`ROCK_FIELD_COVERAGE`, 0.8) of its area under
-    rocks of the board's ``rock_size`` and ``rock_height`` (Stolle et al., Fig. 10:
-    new rocks in place of the terrain's last part). The unchanged part keeps exactly
-    its heights.
+    The board's extent is :meth:`TerrainBoard.bounds` (its boxes, so a joined or moved
+    board is handled, not only one centred on the origin). Boxes lying wholly before
+    ``x_from`` are kept; boxes reaching past it are cut at ``x_from`` (slabs and steps
+    are axis-aligned bands; a yawed rock reaching past it is dropped); the rest of the
+    extent, ``[x_from, x_max] x [y_min, y_max]``, becomes :func:`rock_field` of
+    ``seed``: a slab with ``coverage`` (default :data:`ROCK_FIELD_COVERAGE`, 0.8) of its
+    area under rocks of the board's ``rock_size`` and ``rock_height`` (Stolle et al.,
+    Fig. 10: new rocks in place of the terrain's last part). The unchanged part keeps
+    exactly its heights, except under a yawed rock that reaches past ``x_from``: it is
+    dropped whole (a yawed box cut by a line across x is no longer a box).
 
     Args:
         board: the source board.
@@ -606,12 +727,19 @@ def replace_with_rocks(
     """
     if not isinstance(board, TerrainBoard):
         raise RepertoireError(f"replace_with_rocks needs a TerrainBoard, got {type(board)}")
-    x0, x1 = -0.5 * board.params.size_x, 0.5 * board.params.size_x
+    x0, x1, y0, y1 = board.bounds()
     if not (math.isfinite(x_from) and x0 < x_from < x1):
         raise RepertoireError(
             f"replace_with_rocks: x_from={x_from} must lie strictly inside the board ({x0}, {x1})"
         )
-    new = rock_field(float(x_from), x1, board.params, seed, coverage)
+    # rock_field builds across [-size_y/2, size_y/2]: give it the board's width, then move
+    # it to the board's centre line (for a board centred on y = 0 both are what they were).
+    field = dataclasses.replace(board.params, kind="rocks", size_y=y1 - y0)
+    cy = 0.5 * (y0 + y1)
+    new = [
+        dataclasses.replace(b, center=[b.center[0], b.center[1] + cy, b.center[2]])
+        for b in rock_field(float(x_from), x1, field, seed, coverage)
+    ]
     kept: list[TerrainBox] = []
     for box in board.boxes:
         lo = box.center[0] - 0.5 * box.size[0]

@@ -14,10 +14,14 @@ from repertoire.models.terrain import (
     TerrainBox,
     TerrainParams,
     generate_board,
+    join_boards,
+    replace_with_rocks,
     rock_coverage,
     rock_field,
+    tile_boards,
 )
 
+from repertoire.cli import main
 from repertoire.errors import RepertoireError
 
 N_PROBES = 1000
@@ -243,6 +247,18 @@ def test_yawed_box_height_closed_form():
         (TerrainParams(kind="gaps", gap_count=6, gap_width=[0.05, 0.09]), "too little board"),
         (TerrainParams(rock_size=[0.1, 0.7]), "smaller than the board"),
         (TerrainParams(mixed_sections=0), "mixed_sections must be >= 1"),
+        # 15 sections of 0.04 m on the default 0.6 m board: a gap of up to 0.07 m cannot fit.
+        (
+            TerrainParams(kind="mixed", mixed_sections=15),
+            r"mixed_sections=15 on size_x=0.6 m has sections of 0.04 m, too short for a gap of "
+            r"up to gap_width max 0.07 m; expected gap_width max < 0.8\*size_x/mixed_sections "
+            r"= 0.032 m",
+        ),
+        (TerrainParams(kind="mixed", size_x=0.2), "sections of 0.05 m, too short for a gap"),
+        (
+            TerrainParams(kind="mixed", mixed_sections=15, gap_width=[0.01, 0.032]),
+            "too short for a gap",
+        ),
     ],
 )
 def test_bad_parameters(params, match):
@@ -284,3 +300,162 @@ def test_height_grid_rotated_closed_form():
         board.height_grid([0.0, 0.0], resolution=0.0)
     with pytest.raises(RepertoireError, match="finite origin"):
         board.height_grid([0.0, np.nan])
+
+
+# Edge parameters that validate() accepts: each at or near one of its limits.
+EDGE_PARAMS = [
+    # A 0.10 m rock yawed by 45 degrees spans 0.14 m > 0.12 m: scaled across y.
+    TerrainParams(kind="rocks", size_y=0.12),
+    TerrainParams(kind="rocks", size_x=0.11, size_y=0.11, rock_count=30, gap_width=[0.0, 0.04]),
+    # 15 sections of 0.04 m with gaps just under 0.8 * 0.04 m.
+    TerrainParams(kind="mixed", mixed_sections=15, gap_width=[0.01, 0.0319]),
+    TerrainParams(kind="mixed", size_x=0.2, gap_width=[0.0, 0.0399]),
+    TerrainParams(kind="mixed", size_x=0.2, size_y=0.11, gap_width=[0.0, 0.0399]),
+    TerrainParams(
+        kind="mixed", mixed_sections=40, gap_width=[0.0, 0.0119], step_count=100, rock_count=80
+    ),
+    TerrainParams(kind="gaps", size_x=0.2, gap_count=2, gap_width=[0.07, 0.0799]),
+    TerrainParams(kind="steps", size_x=0.2, size_y=0.05, step_count=30, rock_size=[0.01, 0.04]),
+    TerrainParams(kind="flat", size_x=0.01, size_y=0.01, rock_size=[1e-3, 2e-3], gap_width=[0, 0]),
+]
+
+
+@pytest.mark.parametrize("index", range(len(EDGE_PARAMS)))
+def test_valid_params_always_generate_positive_boxes_inside_the_board(index):
+    params = EDGE_PARAMS[index]
+    params.validate()
+    hx, hy = 0.5 * params.size_x, 0.5 * params.size_y
+    for seed in range(25):
+        board = generate_board(params, seed)
+        board.check_boxes()
+        for box in board.boxes:
+            assert min(box.size) > 0.0 and all(map(math.isfinite, [*box.center, *box.size]))
+            x0, x1, y0, y1 = box.footprint_bounds()
+            assert -hx - 1e-12 <= x0 < x1 <= hx + 1e-12
+            assert -hy - 1e-12 <= y0 < y1 <= hy + 1e-12
+        # The boxes cover the board: its extent is the closed form.
+        np.testing.assert_allclose(board.bounds(), [-hx, hx, -hy, hy], rtol=0, atol=1e-12)
+    # Drake takes every box (it aborts the process on a non-positive one).
+    plant, _ = AddMultibodyPlantSceneGraph(DiagramBuilder(), 0.001)
+    assert len(board.add_to_plant(plant)) == len(board.boxes) + 1
+
+
+def test_rocks_wider_than_a_narrow_board_are_scaled_to_fit_across():
+    params = TerrainParams(kind="rocks", size_y=0.12)
+    scaled = 0
+    for seed in range(20):
+        rocks = [b for b in generate_board(params, seed).boxes if b.label == "rock"]
+        assert len(rocks) == params.rock_count
+        _assert_rocks_inside(rocks, params, -0.3, 0.3)
+        for rock in rocks:
+            _, _, y0, y1 = rock.footprint_bounds()
+            if y1 - y0 == pytest.approx(0.95 * params.size_y, abs=1e-15):
+                scaled += 1  # scaled to 95 % of the width, proportions kept
+                assert max(rock.size[:2]) <= params.rock_size[1]
+            else:  # as drawn
+                assert y1 - y0 < params.size_y
+                assert all(params.rock_size[0] <= v <= params.rock_size[1] for v in rock.size[:2])
+    assert scaled >= 7  # the seeds that used to raise numpy's 'high - low < 0'
+
+
+def test_flat_and_short_mixed_boards_accept_their_own_limits():
+    # mixed_sections only matters for a mixed board; one section has no gap section.
+    TerrainParams(kind="flat", mixed_sections=15).validate()
+    TerrainParams(kind="rocks", mixed_sections=15).validate()
+    board = generate_board(TerrainParams(kind="mixed", mixed_sections=1, size_x=0.2), seed=0)
+    assert [b.label for b in board.boxes] == ["slab"]
+
+
+def test_bad_boxes_are_refused_before_drake():
+    board = generate_board(TerrainParams(), seed=0)
+    bad = TerrainBox([0.0, 0.0, 0.02], [-0.0004, 0.6, 0.04], 0.0, "slab")
+    broken = TerrainBoard(board.params, board.seed, [*board.boxes, bad])
+    plant, _ = AddMultibodyPlantSceneGraph(DiagramBuilder(), 0.001)
+    with pytest.raises(RepertoireError, match=r"terrain box 1 \(slab\) .* positive size"):
+        broken.add_to_plant(plant)
+    with pytest.raises(RepertoireError, match="positive size"):
+        broken.sdf_text()
+    nan = TerrainBox([np.nan, 0.0, 0.02], [0.1, 0.1, 0.04], 0.0, "rock")
+    with pytest.raises(RepertoireError, match="finite centre"):
+        TerrainBoard(board.params, board.seed, [nan]).check_boxes()
+
+
+def test_cli_refuses_a_mixed_board_too_short_for_its_gaps(tmp_path, capsys):
+    scenario = tmp_path / "mixed15.yaml"
+    scenario.write_text("terrain: {kind: mixed, mixed_sections: 15}\n")
+    argv = ["simulate", "littledog_stand", "--scenario", str(scenario), "--out", str(tmp_path)]
+    assert main(argv) == 2
+    assert "mixed_sections=15" in capsys.readouterr().err
+
+
+def _kept_exactly(board: TerrainBoard, x_from: float, x, y) -> np.ndarray:
+    """Where ``replace_with_rocks(board, x_from)`` keeps the heights: before ``x_from`` and
+    outside every yawed rock that reaches past it (such a rock is dropped whole)."""
+    keep = x < x_from
+    for box in board.boxes:
+        lo, hi, _, _ = box.footprint_bounds()
+        if box.yaw != 0.0 and lo < x_from <= hi:
+            keep &= ~box.contains_xy(x, y)
+    return keep
+
+
+def _two_boards():
+    p = TerrainParams(kind="rocks", size_x=0.4, size_y=0.8, rock_count=12)
+    return generate_board(p, 11), generate_board(p, 12)
+
+
+def test_bounds_follow_the_boxes_of_moved_and_joined_boards():
+    a, b = _two_boards()
+    assert a.bounds() == (-0.2, 0.2, -0.4, 0.4)
+    np.testing.assert_allclose(
+        a.translated(0.3, -0.1).bounds(), [0.1, 0.5, -0.5, 0.3], rtol=0, atol=1e-15
+    )
+    joined = join_boards([a, b], [[-0.2, 0.0], [0.2, 0.0]])
+    assert joined.params.size_x == 0.4  # the first board's parameters ...
+    assert joined.bounds() == (-0.4, 0.4, -0.4, 0.4)  # ... but both boards' extent
+    assert tile_boards([a, b]).bounds() == joined.bounds()
+    apart = join_boards([a, b], [[0.0, 0.0], [0.5, 0.3]])
+    np.testing.assert_allclose(apart.bounds(), [-0.2, 0.7, -0.4, 0.7], rtol=0, atol=1e-15)
+    with pytest.raises(RepertoireError, match="no boxes"):
+        TerrainBoard(a.params, 0, []).bounds()
+
+
+def test_replace_with_rocks_on_a_joined_board_keeps_the_second_board():
+    a, b = _two_boards()
+    joined = join_boards([a, b], [[-0.2, 0.0], [0.2, 0.0]])
+    tiled = tile_boards([a, b])
+    modified = replace_with_rocks(joined, 0.05, seed=0)
+    # Same boxes as on the tiled board (the same terrain), so the same new rocks.
+    assert modified.boxes == replace_with_rocks(tiled, 0.05, seed=0).boxes
+    assert modified.bounds() == joined.bounds()
+    x, y = np.meshgrid(np.linspace(-0.45, 0.45, 91), np.linspace(-0.45, 0.45, 91))
+    before = x < 0.05
+    # The second board's part before x_from (0 <= x < 0.05) is kept exactly.
+    keep = _kept_exactly(joined, 0.05, x, y)
+    assert np.count_nonzero(before & ~keep) == 6  # under the one yawed rock dropped
+    np.testing.assert_array_equal(modified.height(x, y)[keep], joined.height(x, y)[keep])
+    second = keep & (x > 0.0) & (np.abs(y) <= 0.4)
+    assert np.count_nonzero(second) == np.count_nonzero(before & (x > 0) & (np.abs(y) <= 0.4)) - 6
+    assert np.all(modified.height(x, y)[second] >= a.params.base_thickness)
+    # The rest of the extent is the rock field: slab or rock everywhere on it, ground outside.
+    on = ~before & (np.abs(x) <= 0.4) & (np.abs(y) <= 0.4)
+    assert np.all(modified.height(x, y)[on] >= a.params.base_thickness)
+    np.testing.assert_array_equal(modified.height(x, y)[np.abs(x) > 0.4], 0.0)
+
+
+def test_replace_with_rocks_on_a_moved_board_covers_its_own_extent():
+    a, _ = _two_boards()
+    moved = a.translated(0.3, 0.25)  # x in [0.1, 0.5], y in [-0.15, 0.65]
+    modified = replace_with_rocks(moved, 0.3, seed=3)
+    np.testing.assert_allclose(modified.bounds(), moved.bounds(), rtol=0, atol=1e-15)
+    x, y = np.meshgrid(np.linspace(0.0, 0.6, 61), np.linspace(-0.3, 0.8, 111))
+    before = x < 0.3
+    keep = _kept_exactly(moved, 0.3, x, y)
+    np.testing.assert_array_equal(modified.height(x, y)[keep], moved.height(x, y)[keep])
+    x0, x1, y0, y1 = moved.bounds()
+    on = ~before & (x <= x1) & (y >= y0) & (y <= y1)
+    assert np.all(modified.height(x, y)[on] >= a.params.base_thickness)
+    off = (y < y0 - 1e-9) | (y > y1 + 1e-9) | (x > x1 + 1e-9)
+    np.testing.assert_array_equal(modified.height(x, y)[off], 0.0)
+    with pytest.raises(RepertoireError, match=r"x_from=0.05 must lie strictly inside"):
+        replace_with_rocks(moved, 0.05)

@@ -108,9 +108,19 @@ def stance_frame(feet) -> np.ndarray:
 
 
 def terrain_bounds(board: TerrainBoard) -> tuple[float, float, float, float]:
-    """The board's extent ``(x_min, x_max, y_min, y_max)`` (centred on the origin)."""
-    hx, hy = 0.5 * board.params.size_x, 0.5 * board.params.size_y
-    return -hx, hx, -hy, hy
+    """The board's extent ``(x_min, x_max, y_min, y_max)`` in the world (m).
+
+    :meth:`TerrainBoard.bounds`: the bounding rectangle of the board's boxes, so a
+    joined (:func:`~repertoire.models.terrain.join_boards`) or moved board gets its true
+    extent, not the one its ``params`` give a board centred on the origin.
+
+    Raises:
+        TransferError: the board has no boxes.
+    """
+    try:
+        return board.bounds()
+    except RepertoireError as e:
+        raise TransferError(str(e)) from e
 
 
 @dataclasses.dataclass

@@ -5,8 +5,10 @@ import math
 import numpy as np
 import pytest
 from repertoire.models.terrain import (
+    TerrainBoard,
     TerrainParams,
     generate_board,
+    join_boards,
     replace_with_rocks,
     tile_boards,
 )
@@ -23,6 +25,7 @@ from repertoire.planning.terrain_features import (
     stance_frame,
     stances_on_terrain,
     target_candidates,
+    terrain_bounds,
     terrain_features,
     transfer_stance,
     transfer_steps,
@@ -273,3 +276,39 @@ def test_matched_steps_figure_writes_a_png(tmp_path, rough, pca):
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     with pytest.raises(TransferError, match="TransferResult"):
         matched_steps_figure(rough, None, tmp_path / "x.png")
+
+
+def _library_like_boards():
+    p = TerrainParams(kind="rocks", size_x=0.4, size_y=0.8, rock_count=12)
+    return generate_board(p, 11), generate_board(p, 12)
+
+
+def test_joined_board_has_the_bounds_frames_and_features_of_the_tiled_one():
+    a, b = _library_like_boards()
+    tiled = tile_boards([a, b])
+    joined = join_boards([a, b], [[-0.2, 0.0], [0.2, 0.0]])  # LibraryTerrain.build()
+    assert terrain_bounds(joined) == terrain_bounds(tiled) == (-0.4, 0.4, -0.4, 0.4)
+    frames = candidate_frames(joined)
+    # 0.8 m less twice the 0.096 m margin at 0.02 m: 31 positions per axis, 13 yaws.
+    assert frames.shape == (31 * 31 * 13, 3)  # 12,493; the first board's extent gave 4,433
+    np.testing.assert_array_equal(frames, candidate_frames(tiled))
+    fj, ft = terrain_features(joined, frames), terrain_features(tiled, frames)
+    np.testing.assert_array_equal(fj.on_terrain, ft.on_terrain)
+    np.testing.assert_array_equal(fj.values, ft.values)
+
+
+def test_translated_board_bounds_and_on_terrain_follow_its_boxes():
+    a, b = _library_like_boards()
+    tiled = tile_boards([a, b])
+    moved = tiled.translated(0.3, 0.0)  # x in [-0.1, 0.7]
+    np.testing.assert_allclose(terrain_bounds(moved), [-0.1, 0.7, -0.4, 0.4], rtol=0, atol=1e-15)
+    f = terrain_features(moved, [[-0.2, 0.0, 0.0], [0.5, 0.0, 0.0]])
+    assert not f.on_terrain[0]  # the profile reaches x = -0.368: off the board
+    assert f.on_terrain[1]  # the profile spans x in [0.332, 0.668]: on it
+    frames = candidate_frames(moved)
+    np.testing.assert_allclose(frames, candidate_frames(tiled) + [0.3, 0.0, 0.0], atol=1e-15)
+    fm, ft = terrain_features(moved, frames), terrain_features(tiled, candidate_frames(tiled))
+    np.testing.assert_array_equal(fm.on_terrain, ft.on_terrain)
+    np.testing.assert_allclose(fm.mean_height, ft.mean_height, rtol=0, atol=1e-15)
+    with pytest.raises(TransferError, match="no boxes"):
+        terrain_bounds(TerrainBoard(a.params, 0, []))

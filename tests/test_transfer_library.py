@@ -21,7 +21,13 @@ from repertoire.planning.littledog_crawl import (
     plan_to_steps,
 )
 from repertoire.planning.step_library import StepLibrary
-from repertoire.planning.terrain_features import TransferConfig, TransferError, wrap_angle
+from repertoire.planning.terrain_features import (
+    TransferConfig,
+    TransferError,
+    candidate_frames,
+    terrain_bounds,
+    wrap_angle,
+)
 from repertoire.planning.transfer_library import (
     chain_frames,
     chain_successors,
@@ -363,3 +369,16 @@ def test_transfer_drops_steps_the_new_board_does_not_support(flat_library, pca):
         np.testing.assert_array_equal(s.start_feet, where[int(j)])  # kept at the same place
     with pytest.raises(TransferError, match="-1.0"):
         transfer_library(library, sources, flat, pca, TransferConfig(support_tolerance=-1.0))
+
+
+@pytest.mark.parametrize("name", ["terrain_a", "terrain_b"])
+def test_library_terrain_as_recorded_has_the_extent_of_both_boards(name):
+    # littledog_library records on LibraryTerrain.build() (join_boards); the transfer
+    # works on the same boards tiled. Same boxes, so the same extent and frames.
+    t = library_terrain(name)
+    built = t.build()
+    tiled = tile_boards([generate_board(t.board, s) for s in t.seeds])
+    assert built.boxes == tiled.boxes
+    assert terrain_bounds(built) == terrain_bounds(tiled) == (-0.4, 0.4, -0.4, 0.4)
+    assert len(candidate_frames(built)) == 31 * 31 * 13
+    assert replace_with_rocks(built, 0.1, seed=2).boxes == replace_with_rocks(tiled, 0.1, 2).boxes

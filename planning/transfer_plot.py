@@ -44,14 +44,15 @@ def matched_steps_figure(
         raise TransferError("matched_steps_figure needs a TerrainBoard and a TransferResult")
     if not resolution > 0.0:
         raise TransferError(f"resolution must be positive, got {resolution}")
-    hx, hy = 0.5 * board.params.size_x, 0.5 * board.params.size_y
-    x = np.arange(-hx, hx + 1e-9, resolution)
-    y = np.arange(-hy, hy + 1e-9, resolution)
+    x0, x1, y0, y1 = board.bounds()  # the boxes' extent (a moved or joined board too)
+    hx, hy = 0.5 * (x1 - x0), 0.5 * (y1 - y0)
+    x = np.arange(x0, x1 + 1e-9, resolution)
+    y = np.arange(y0, y1 + 1e-9, resolution)
     X, Y = np.meshgrid(x, y)
     Z = board.height(X, Y)
     fig, ax = plt.subplots(figsize=(2.0 + 6.0 * hx / max(hx, hy), 1.2 + 6.0 * hy / max(hx, hy)))
     im = ax.imshow(
-        Z * 100.0, origin="lower", extent=(-hx, hx, -hy, hy), cmap="Greys", interpolation="nearest"
+        Z * 100.0, origin="lower", extent=(x0, x1, y0, y1), cmap="Greys", interpolation="nearest"
     )
     fig.colorbar(im, ax=ax, label="terrain height (cm)", shrink=0.8)
     costs = np.array([s.match.cost for s in result.steps]) if result.steps else np.zeros(0)
@@ -126,15 +127,16 @@ def library_path_figure(
         raise TransferError("library_path_figure needs a TerrainBoard")
     if not resolution > 0.0:
         raise TransferError(f"resolution must be positive, got {resolution}")
-    hx, hy = 0.5 * board.params.size_x, 0.5 * board.params.size_y
-    x = np.arange(-hx, hx + 1e-9, resolution)
-    y = np.arange(-hy, hy + 1e-9, resolution)
+    x0, x1, y0, y1 = board.bounds()  # the boxes' extent (a moved or joined board too)
+    hx, hy = 0.5 * (x1 - x0), 0.5 * (y1 - y0)
+    x = np.arange(x0, x1 + 1e-9, resolution)
+    y = np.arange(y0, y1 + 1e-9, resolution)
     X, Y = np.meshgrid(x, y)
     fig, ax = plt.subplots(figsize=(2.0 + 6.0 * hx / max(hx, hy), 1.4 + 6.0 * hy / max(hx, hy)))
     im = ax.imshow(
         board.height(X, Y) * 100.0,
         origin="lower",
-        extent=(-hx, hx, -hy, hy),
+        extent=(x0, x1, y0, y1),
         cmap="Greys",
         interpolation="nearest",
     )

@@ -233,10 +233,12 @@ def search_transfer(
     if not callable(gap_filler):
         raise TransferSearchError("gap_filler must be callable (start, target, time_limit)")
     if terrain is not None:
-        hx, hy = 0.5 * terrain.params.size_x, 0.5 * terrain.params.size_y
-        if np.any(np.abs(goal[:, 0]) > hx) or np.any(np.abs(goal[:, 1]) > hy):
+        x0, x1, y0, y1 = terrain.bounds()  # the boxes' extent (a moved or joined board too)
+        gx, gy = goal[:, 0], goal[:, 1]
+        if np.any((gx < x0) | (gx > x1)) or np.any((gy < y0) | (gy > y1)):
             raise TransferSearchError(
-                f"goal stance lies off the terrain ([-{hx}, {hx}] x [-{hy}, {hy}] m): {goal[:, :2]}"
+                f"goal stance lies off the terrain ([{x0:.4g}, {x1:.4g}] x [{y0:.4g}, {y1:.4g}]"
+                f" m): {goal[:, :2]}"
             )
     m = s_in.shape[0]
     goal_node = m + 1

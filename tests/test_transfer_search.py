@@ -223,6 +223,13 @@ def test_bad_inputs_raise_clear_errors():
     board = generate_board(TerrainParams(kind="flat"), seed=0)
     with pytest.raises(TransferSearchError, match="off the terrain"):
         search_transfer(start, stance(2.0), empty, empty, StraightCrawl(), terrain=board)
+    # the board's extent is where its boxes are: a board moved by 1 m along x holds x = 1.1
+    # and not x = 0.1 (its params still say size_x around the origin)
+    moved = board.translated(1.0, 0.0)
+    with pytest.raises(TransferSearchError, match="off the terrain"):
+        search_transfer(start, goal, empty, empty, StraightCrawl(), terrain=moved)
+    result = search_transfer(stance(1.0), stance(1.1), empty, empty, StraightCrawl(), terrain=moved)
+    assert result.status == "reached"
     with pytest.raises(TransferSearchError, match="planned_cost"):
         search_transfer(start, goal, empty, empty, StraightCrawl(), SearchConfig(planned_cost=0.5))
     with pytest.raises(TransferSearchError, match=r"\(4, 3\)"):

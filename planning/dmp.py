@@ -28,6 +28,7 @@ from repertoire.planning.dmp_math import (
     alpha_for_final_phase,
     check_formulation,
     check_positive,
+    lift_quaternion_goal,
     quaternion_rollout,
     rollout,
 )
@@ -40,6 +41,26 @@ QUATERNION_MODES = ("component", "manifold")
 
 
 # --------------------------------------------------------------------------- artefacts
+def check_per_dof(name: str, value, n: int) -> np.ndarray:
+    """``value`` (a scalar or n entries) as shape (n,); RepertoireError naming it otherwise."""
+    v = np.asarray(value, dtype=float)
+    if v.ndim > 1 or v.size not in (1, n):
+        raise RepertoireError(
+            f"{name} must be a scalar or have one entry per DOF ({n}), got shape {v.shape}: {value}"
+        )
+    return np.broadcast_to(v.reshape(-1), (n,)).copy()
+
+
+def _check_widths(widths: np.ndarray) -> None:
+    """Basis widths h_i must be > 0 (psi_i = exp(-h_i (theta - c_i)^2) grows otherwise)."""
+    bad = np.flatnonzero(~(widths > 0))
+    if bad.size:
+        raise RepertoireError(
+            f"widths must be > 0, got widths[{bad[0]}] = {widths[bad[0]]} "
+            f"({bad.size} of {widths.size} not > 0)"
+        )
+
+
 class _FieldsRecord:
     """``to_dict``/``from_dict`` of a dataclass of arrays, numbers, strings and lists.
 
@@ -105,8 +126,8 @@ class DmpParameters(_FieldsRecord):
         n, b = self.weights.shape
         self.centres = np.asarray(self.centres, dtype=float).reshape(-1)
         self.widths = np.asarray(self.widths, dtype=float).reshape(-1)
-        self.K = np.broadcast_to(np.asarray(self.K, dtype=float), (n,)).copy()
-        self.D = np.broadcast_to(np.asarray(self.D, dtype=float), (n,)).copy()
+        self.K = check_per_dof("K", self.K, n)
+        self.D = check_per_dof("D", self.D, n)
         self.x0 = np.asarray(self.x0, dtype=float).reshape(-1)
         self.goal = np.asarray(self.goal, dtype=float).reshape(-1)
         self.alpha = float(self.alpha)
@@ -144,7 +165,8 @@ class DmpParameters(_FieldsRecord):
         check_positive("tau", self.tau)
         check_positive("alpha", self.alpha)
         if np.any(self.K <= 0) or np.any(self.D < 0):
-            raise RepertoireError("K must be > 0 and D >= 0")
+            raise RepertoireError(f"K must be > 0 and D >= 0, got K = {self.K}, D = {self.D}")
+        _check_widths(self.widths)
         check_formulation(self.formulation)
         if self.names and len(self.names) != n:
             raise RepertoireError(f"{len(self.names)} names for {n} DOF")
@@ -211,9 +233,19 @@ class QuaternionDmpParameters(_FieldsRecord):
       the interpolation is in R^4, so its angular velocity is not the demonstrated one
       when the goal changes. Both reach the goal (< 2e-3 rad at 2 tau).
     * ``"manifold"``: ``| |q| - 1 | < 1e-14`` throughout (exponential-map update), the
-      forcing term lives in rotation-vector space (world frame), the goal attractor is the
-      shortest-arc error ``2 log(g q^*)``. Reproduction error 1.7e-5 (component mode
-      1.8e-5) on 500-sample demonstrations.
+      forcing term lives in rotation-vector space (world frame), the goal attractor is
+      ``2 log(g q^*)`` on S^3 (no hemisphere flip, as Ude et al. 2014), continuous along
+      the demonstration even where the rotation left passes 180 deg. Reproduction error
+      1.7e-5 (component mode 1.8e-5) on 500-sample demonstrations.
+
+    Both modes turn the learned way round: ``goal`` and ``-goal`` are one orientation but
+    two targets (turn by phi, or by 360 deg - phi the other way), and rollouts and the
+    LeafSystems pick the sign the demonstration had (``goal`` is the demonstration's last
+    sample with signs made continuous, so ``goal . q0 < 0`` for a demonstration turning
+    more than 180 deg). A rest-to-rest 200 deg yaw is reproduced to about 2e-5 rad in both
+    modes. The manifold mode refuses to turn a full 360 deg or more (in learning, any
+    sample that far from the goal; in a rollout, a goal that far from the start); the
+    component mode has no such limit.
 
     Attributes:
         weights: ``(4, n_basis)`` for ``mode="component"`` (one transformation system per
@@ -260,11 +292,17 @@ class QuaternionDmpParameters(_FieldsRecord):
         b = self.weights.shape[1]
         if self.centres.shape != (b,) or self.widths.shape != (b,):
             raise RepertoireError("centres and widths must match the number of weights columns")
+        for name in ("weights", "centres", "widths"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise RepertoireError(f"{name} contains NaN or inf")
+        _check_widths(self.widths)
         for name in ("q0", "goal"):
             check_unit_quaternions(getattr(self, name)[None], name=name)
         check_positive("tau", self.tau)
         check_positive("alpha", self.alpha)
         check_positive("K", self.K)
+        if not np.isfinite(self.D) or self.D < 0:
+            raise RepertoireError(f"D must be a finite number >= 0, got {self.D}")
 
     @property
     def n_basis(self) -> int:
@@ -293,20 +331,30 @@ class QuaternionDmpParameters(_FieldsRecord):
         For ``"component"`` ``q`` is the post-normalised quaternion and ``raw`` the
         un-normalised component state; for ``"manifold"`` ``raw`` is the angular velocity.
 
+        ``goal`` and ``-goal`` are the same orientation; the sign used is the one that turns
+        from ``q0`` the way the DMP learned (:func:`repertoire.planning.dmp_math.
+        lift_quaternion_goal`): the learned goal for the learned start, so a demonstration
+        turning more than 180 deg is reproduced rather than turned back the short way.
+
         Args:
-            goal: Goal orientation; default the learned one.
-            q0: Start orientation; default the learned one.
-            dt: Time step [s].
-            n_steps: Number of steps; default ``round(tau/dt)``.
+            goal: Goal orientation (w, x, y, z), unit; default the learned one.
+            q0: Start orientation, unit; default the learned one.
+            dt: Time step [s], > 0.
+            n_steps: Number of steps, >= 1; default ``round(tau/dt)``.
         """
-        g = self.goal if goal is None else np.asarray(goal, float)
-        s = self.q0 if q0 is None else np.asarray(q0, float)
-        check_unit_quaternions(np.stack([g, s]), name="goal/start orientation")
+        g = self.goal if goal is None else _quaternion_argument("goal", goal)
+        s = self.q0 if q0 is None else _quaternion_argument("q0", q0)
+        check_positive("dt", dt)
         if self.mode == "component":
-            g = g if g @ s >= 0 else -g
+            # q and -q are one orientation but not one R^4 state: start on the learned start's
+            # side (the forcing term was learned there) and report the given sign.
+            sign = 1.0 if s @ self.q0 >= 0 else -1.0
+            s = sign * s
+            g = lift_quaternion_goal(g, s, self.goal, self.q0)
             r = self.component_parameters().rollout(goal=g, x0=s, dt=dt, n_steps=n_steps)
             q = r.x / np.linalg.norm(r.x, axis=1, keepdims=True)
-            return r.t, q, r.x
+            return r.t, sign * q, sign * r.x
+        g = lift_quaternion_goal(g, s, self.goal, self.q0)
         return quaternion_rollout(*self._dynamics(), s, g, dt=dt, n_steps=n_steps)
 
 
@@ -356,8 +404,9 @@ class TaskSpaceDmp:
         pos = self.position if position is None else self.position.with_goal(position)
         ori = self.orientation
         if orientation is not None:
-            check_unit_quaternions(np.asarray(orientation, float)[None], name="goal orientation")
-            ori = dataclasses.replace(ori, goal=np.asarray(orientation, float))
+            g = _quaternion_argument("goal orientation", orientation)
+            # Stored with the sign nearest the current goal, so the copy turns the same way.
+            ori = dataclasses.replace(ori, goal=lift_quaternion_goal(g, ori.q0, ori.goal, ori.q0))
         fin = self.fingers
         if fingers is not None:
             if fin is None:
@@ -467,6 +516,18 @@ def check_demonstration(t: np.ndarray, x: np.ndarray, *, name: str = "demonstrat
             f"t[{k}]={t[k]}"
         )
     return t, x
+
+
+def _quaternion_argument(name: str, value) -> np.ndarray:
+    """A unit quaternion argument as shape (4,); RepertoireError naming it otherwise."""
+    q = np.asarray(value, dtype=float)
+    if q.shape != (4,):
+        raise RepertoireError(
+            f"{name} must be a unit quaternion (w, x, y, z) of shape (4,), got shape "
+            f"{q.shape}: {value}"
+        )
+    check_unit_quaternions(q[None], name=name)
+    return q
 
 
 def check_unit_quaternions(

@@ -24,6 +24,7 @@ from repertoire.planning.dmp import (
     QuaternionDmpParameters,
     TaskSpaceDmp,
     check_demonstration,
+    check_per_dof,
     check_unit_quaternions,
 )
 from repertoire.planning.dmp_derivatives import estimate_derivatives
@@ -35,10 +36,11 @@ from repertoire.planning.dmp_math import (
     check_formulation,
     check_n_basis,
     check_positive,
+    check_turn,
     forcing_features,
     forcing_target,
     quat_conjugate,
-    quat_error,
+    quat_log_error,
     quat_multiply,
 )
 
@@ -128,10 +130,10 @@ def fit_forcing_weights(features: np.ndarray, targets: np.ndarray, ridge: float 
 
 
 def _gains(n: int, K, D) -> tuple[np.ndarray, np.ndarray]:
-    Kv = np.broadcast_to(np.asarray(DEFAULT_K if K is None else K, dtype=float), (n,)).copy()
+    Kv = check_per_dof("K", DEFAULT_K if K is None else K, n)
     if np.any(~np.isfinite(Kv)) or np.any(Kv <= 0):
         raise RepertoireError(f"K must be finite and > 0, got {K}")
-    Dv = 2.0 * np.sqrt(Kv) if D is None else np.broadcast_to(np.asarray(D, float), (n,)).copy()
+    Dv = 2.0 * np.sqrt(Kv) if D is None else check_per_dof("D", D, n)
     if np.any(~np.isfinite(Dv)) or np.any(Dv < 0):
         raise RepertoireError(f"D must be finite and >= 0, got {D}")
     return Kv, Dv
@@ -166,6 +168,18 @@ def _demo_targets(
             )
     F = forcing_target(x, xd, xdd, theta, g, x0, Kv, Dv, tau, formulation)
     return forcing_features(theta, centres, widths), F
+
+
+def _known_derivative(name: str, value, shape: tuple) -> np.ndarray:
+    """A given velocity/acceleration array of the demonstration's shape, all finite."""
+    v = np.asarray(value, dtype=float)
+    if v.shape != shape and not (v.ndim == 1 and shape[1] == 1 and v.shape == shape[:1]):
+        raise RepertoireError(f"{name} must have the demonstration's shape {shape}, got {v.shape}")
+    v = v.reshape(shape)
+    if not np.all(np.isfinite(v)):
+        k = int(np.argwhere(~np.isfinite(v))[0, 0])
+        raise RepertoireError(f"{name} contains NaN or inf (first at sample {k})")
+    return v
 
 
 def learn_dmp(
@@ -221,8 +235,8 @@ def learn_dmp(
         )
         xd = xd_e if xd is None else xd
         xdd = xdd_e if xdd is None else xdd
-    xd = np.asarray(xd, float).reshape(x.shape)
-    xdd = np.asarray(xdd, float).reshape(x.shape)
+    xd = _known_derivative("xd", xd, x.shape)
+    xdd = _known_derivative("xdd", xdd, x.shape)
     tau = float(t[-1] - t[0])
     Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h, min_displacement)
     weights = fit_forcing_weights(Phi, F, ridge)
@@ -324,7 +338,11 @@ def learn_quaternion_dmp(
     ``mode="component"`` is the paper's approach (sec. IV-B: one transformation system per
     component, post-normalised at the output). ``mode="manifold"`` learns the forcing term
     of ``tau eta' = K e(g,q) - D eta - K e(g,q0) theta + K f`` with ``e = 2 log(g q^*)``
-    and ``eta = tau omega``; its rollout keeps |q| = 1 to rounding.
+    and ``eta = tau omega``; its rollout keeps |q| = 1 to rounding. The demonstration's
+    signs are made continuous first, and ``e = 2 log(g q^*)`` is taken on S^3 without a
+    hemisphere flip (Ude et al. 2014), so it is continuous along the demonstration even
+    where the rotation left to the goal passes 180 deg (demonstrations turning more than
+    180 deg, or detours); only a sample a full 360 deg turn from the goal is refused.
 
     Args:
         t: Time stamps, shape (N,).
@@ -367,10 +385,13 @@ def learn_quaternion_dmp(
     tau = float(t[-1] - t[0])
     theta = canonical_phase(t - t[0], tau, a)
     g, q0 = q[-1], q[0]
+    turn = 2.0 * np.arccos(np.clip(q @ g, -1.0, 1.0))
+    k = int(np.argmax(turn))
+    check_turn(g, q[k], what=f"from demonstration sample {k} to the goal (last sample)")
     F = (
         (tau * tau * omegad + Dv[0] * tau * omega) / Kv[0]
-        - quat_error(g, q)
-        + quat_error(g, q0)[None] * theta[:, None]
+        - quat_log_error(g, q)
+        + quat_log_error(g, q0)[None] * theta[:, None]
     )
     weights = fit_forcing_weights(forcing_features(theta, c, h), F, ridge)
     return QuaternionDmpParameters(weights, c, h, Kv[0], Dv[0], a, tau, q0, g, mode)

@@ -372,7 +372,7 @@ def rollout(
         x0: Start position, shape (n,) (also the x0 of the equations).
         goal: Goal, shape (n,), or one goal per sample, shape (n_steps + 1, n).
         dt: Time step [s].
-        n_steps: Number of steps; default ``round(tau / dt)``.
+        n_steps: Number of steps, an integer >= 1; default ``round(tau / dt)``.
         formulation: ``"new"`` or ``"old"``.
         v0: Initial physical velocity, shape (n,); default zero.
         method: ``"exact"`` or ``"euler"``.
@@ -387,12 +387,8 @@ def rollout(
     check_positive("dt", dt)
     weights = np.atleast_2d(np.asarray(weights, dtype=float))
     n = weights.shape[0]
-    x0 = np.asarray(x0, dtype=float).reshape(-1)
-    if x0.shape != (n,):
-        raise RepertoireError(f"x0 has {x0.size} entries but weights have {n} DOF")
-    if n_steps is None:
-        n_steps = int(round(tau / dt))
-    N = n_steps + 1
+    x0 = check_finite_vector("x0", x0, n)
+    N = check_n_steps(n_steps, tau, dt) + 1
     goal = np.asarray(goal, dtype=float)
     if goal.ndim == 1:
         if goal.shape != (n,):
@@ -402,15 +398,17 @@ def rollout(
         G = goal
     else:
         raise RepertoireError(f"goal must have shape ({n},) or ({N}, {n}), got {goal.shape}")
+    if not np.all(np.isfinite(G)):
+        raise RepertoireError(f"goal contains NaN or inf: {goal}")
     Kv = np.broadcast_to(np.asarray(K, dtype=float), (n,))
     Dv = np.broadcast_to(np.asarray(D, dtype=float), (n,))
     t = np.arange(N) * dt
     theta = canonical_phase(t, tau, alpha)
     f = forcing_term(theta, weights, centres, widths)
-    v_init = np.zeros(n) if v0 is None else tau * np.asarray(v0, dtype=float).reshape(n)
+    v_init = np.zeros(n) if v0 is None else tau * check_finite_vector("v0", v0, n)
     X = np.empty((N, n))
     V = np.empty((N, n))
-    x_init = x0 if x_init is None else np.asarray(x_init, dtype=float).reshape(n)
+    x_init = x0 if x_init is None else check_finite_vector("x_init", x_init, n)
     X[0], V[0] = x_init, v_init
     if method == "exact":
         if coupling is not None:
@@ -521,6 +519,47 @@ def quat_error(goal: np.ndarray, q: np.ndarray) -> np.ndarray:
     return 2.0 * quat_log(d)
 
 
+def quat_log_error(goal: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Rotation vector ``2 log(goal * conj(q))`` on the unit sphere S^3 (no hemisphere flip).
+
+    Unlike :func:`quat_error` the sign of the quaternions counts: ``goal`` and ``-goal``
+    give the two ways round (angles ``phi`` and ``2 pi - phi`` about opposite axes), and
+    the result (angle in [0, 2 pi]) is continuous in ``q`` except at ``q = -goal`` (a full
+    turn). This is the error of Ude et al. (2014)'s quaternion DMP; along a sign-continuous
+    path it does not jump when the rotation left to the goal passes 180 deg.
+
+    Args:
+        goal: Shape (..., 4).
+        q: Shape (..., 4).
+    """
+    return 2.0 * quat_log(quat_multiply(goal, quat_conjugate(q)))
+
+
+def lift_quaternion_goal(
+    goal: np.ndarray, start: np.ndarray, learned_goal: np.ndarray, learned_start: np.ndarray
+) -> np.ndarray:
+    """``goal`` or ``-goal``: the sign that turns from ``start`` the way the DMP learned.
+
+    A quaternion DMP integrates on S^3 (the component form in R^4), where ``g`` and ``-g``
+    are different targets: one is reached by turning less than 180 deg, the other by
+    turning the other way round. The learned rotation ``learned_goal * conj(learned_start)``
+    is carried to the new start, ``ref = learned_goal * conj(learned_start) * start``, and
+    the sign of ``goal`` nearer to ``ref`` on S^3 is returned (``goal . ref >= 0``). With the
+    learned start and goal this is the learned goal itself, so a demonstration that turns
+    past 180 deg is reproduced; for a small goal change it is the sign nearest the learned
+    goal (continuous in the goal). The choice jumps only for goals 180 deg from ``ref``.
+
+    Args:
+        goal: Goal orientation (w, x, y, z), shape (4,).
+        start: Start orientation, shape (4,) (need not be unit: the component form's state).
+        learned_goal: The DMP's learned goal, shape (4,).
+        learned_start: The DMP's learned start, shape (4,).
+    """
+    goal = np.asarray(goal, dtype=float)
+    ref = quat_multiply(quat_multiply(learned_goal, quat_conjugate(learned_start)), start)
+    return goal if float(goal @ ref) >= 0.0 else -goal
+
+
 def angular_velocity(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     """World-frame angular velocity ``omega = 2 vec(qd * conj(q))``.
 
@@ -547,7 +586,9 @@ def manifold_step(
     """One step of the on-manifold quaternion DMP: velocity Verlet on the unit sphere.
 
     With ``a(q, k) = (K e(g,q) - K e0 theta_k + K f_k) / tau`` (the state-independent part
-    of eta'): half a velocity step ``eta' = eta + dt/2 (a - D eta / tau)``, the rotation
+    of eta', ``e = 2 log(g q^*)`` by :func:`quat_log_error`, so the sign of ``goal`` picks
+    which way round it is reached): half a velocity step
+    ``eta' = eta + dt/2 (a - D eta / tau)``, the rotation
     ``q+ = exp(dt eta' / (2 tau)) * q`` (a product of unit quaternions, so |q| stays 1 to
     rounding), then the second half with the damping implicit,
     ``eta+ = (eta' + dt/2 a(q+, k+1)) / (1 + dt D / (2 tau))``. Second order: about 70x
@@ -558,7 +599,7 @@ def manifold_step(
         eta: Scaled angular velocity tau omega, shape (3,).
         a: ``a(q, k)`` from the previous step (or the start), shape (3,).
         goal: Goal orientation.
-        e0: ``2 log(g q0^*)``.
+        e0: ``2 log(g q0^*)`` (:func:`quat_log_error`).
         theta_next: Phase at the end of the step.
         f_next: Forcing term at the end of the step, shape (3,).
         K: Spring constant.
@@ -571,7 +612,7 @@ def manifold_step(
     """
     half = eta + 0.5 * dt * (a - D * eta / tau)
     q_next = quat_multiply(quat_exp(0.5 * dt * half / tau), q)
-    a_next = (K * quat_error(goal, q_next) - K * e0 * theta_next + K * np.asarray(f_next)) / tau
+    a_next = (K * quat_log_error(goal, q_next) - K * e0 * theta_next + K * np.asarray(f_next)) / tau
     eta_next = (half + 0.5 * dt * a_next) / (1.0 + 0.5 * dt * D / tau)
     return eta_next, q_next, a_next
 
@@ -592,6 +633,10 @@ def quaternion_rollout(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """On-manifold rollout with :func:`manifold_step` (second order, exact unit norm).
 
+    The sign of ``goal`` counts (see :func:`quat_log_error`): from ``q0`` the DMP turns by
+    the angle ``2 arccos(goal . q0)`` in [0, 2 pi], so ``-goal`` is the same orientation
+    reached the other way round; :func:`lift_quaternion_goal` picks the learned way.
+
     Args:
         weights: Shape (3, n_basis).
         centres: Shape (n_basis,).
@@ -602,28 +647,28 @@ def quaternion_rollout(
         tau: Temporal scaling [s].
         q0: Start orientation (unit), shape (4,).
         goal: Goal orientation (unit), shape (4,).
-        dt: Time step [s].
-        n_steps: Number of steps; default ``round(tau / dt)``.
+        dt: Time step [s], > 0.
+        n_steps: Number of steps, an integer >= 1; default ``round(tau / dt)``.
 
     Returns:
         ``(t, q, omega)`` with shapes (N,), (N, 4), (N, 3).
     """
     check_positive("tau", tau)
-    if n_steps is None:
-        n_steps = int(round(tau / dt))
-    N = n_steps + 1
+    check_positive("dt", dt)
+    N = check_n_steps(n_steps, tau, dt) + 1
     t = np.arange(N) * dt
     theta = canonical_phase(t, tau, alpha)
     f = forcing_term(theta, weights, centres, widths)
     q0 = np.asarray(q0, dtype=float)
     goal = np.asarray(goal, dtype=float)
-    e0 = quat_error(goal, q0)
+    check_turn(goal, q0)
+    e0 = quat_log_error(goal, q0)
     Q = np.empty((N, 4))
     E = np.empty((N, 3))
     q = q0.copy()
     eta = np.zeros(3)
     Q[0], E[0] = q, eta
-    a = (K * quat_error(goal, q) - K * e0 * theta[0] + K * f[0]) / tau
+    a = (K * quat_log_error(goal, q) - K * e0 * theta[0] + K * f[0]) / tau
     for k in range(N - 1):
         eta, q, a = manifold_step(q, eta, a, goal, e0, theta[k + 1], f[k + 1], K, D, tau, dt)
         Q[k + 1], E[k + 1] = q, eta
@@ -770,3 +815,76 @@ def check_n_basis(n_basis: int) -> int:
     ):
         raise RepertoireError(f"need at least one basis function (n_basis >= 1), got {n_basis}")
     return int(n_basis)
+
+
+def check_n_steps(n_steps: int | None, tau: float, dt: float) -> int:
+    """The number of rollout steps: ``n_steps`` if an integer >= 1, else ``round(tau / dt)``.
+
+    Raises RepertoireError for a non-integer or ``n_steps < 1`` (or ``round(tau / dt) < 1``
+    when ``n_steps`` is None).
+
+    Args:
+        n_steps: Requested number of steps, or None.
+        tau: Temporal scaling [s] (> 0).
+        dt: Time step [s] (> 0).
+    """
+    if n_steps is None:
+        n = int(round(tau / dt))
+        if n < 1:
+            raise RepertoireError(
+                f"dt = {dt} is longer than twice tau = {tau}: round(tau / dt) = 0 steps; "
+                "pass n_steps or a smaller dt"
+            )
+        return n
+    if (
+        isinstance(n_steps, bool)
+        or not isinstance(n_steps, (int, float, np.integer, np.floating))
+        or not math.isfinite(n_steps)
+        or int(n_steps) != n_steps
+        or n_steps < 1
+    ):
+        raise RepertoireError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+    return int(n_steps)
+
+
+def check_finite_vector(name: str, value, n: int) -> np.ndarray:
+    """``value`` as a float vector of ``n`` finite entries; RepertoireError otherwise.
+
+    Args:
+        name: Argument name for the message.
+        value: Array-like.
+        n: Expected number of entries.
+    """
+    v = np.asarray(value, dtype=float).reshape(-1)
+    if v.shape != (n,):
+        raise RepertoireError(f"{name} has {v.size} entries, expected {n}: {value}")
+    if not np.all(np.isfinite(v)):
+        raise RepertoireError(f"{name} contains NaN or inf: {v}")
+    return v
+
+
+FULL_TURN_MARGIN = 1e-3  # [rad] how close to a full turn a manifold DMP may be asked to turn
+
+
+def check_turn(
+    goal: np.ndarray, q: np.ndarray, *, what: str = "from the start to the goal"
+) -> float:
+    """Angle ``2 arccos(goal . q)`` the manifold DMP turns from ``q`` to ``goal`` (on S^3).
+
+    Raises RepertoireError when it is within :data:`FULL_TURN_MARGIN` of a full turn
+    (``goal`` near ``-q``), where ``2 log(goal q^*)`` has no defined axis.
+
+    Args:
+        goal: Goal orientation, shape (4,) (the sign counts).
+        q: Orientation, shape (4,).
+        what: Which turn, for the message.
+    """
+    c = float(np.clip(np.asarray(goal, float) @ np.asarray(q, float), -1.0, 1.0))
+    angle = 2.0 * math.acos(c)
+    if angle > 2.0 * math.pi - FULL_TURN_MARGIN:
+        raise RepertoireError(
+            f"the turn {what} is {math.degrees(angle):.4f} deg (goal . q = {c:.6g}), within "
+            f"{FULL_TURN_MARGIN} rad of a full turn: the on-manifold quaternion DMP turns "
+            "less than a full 360 deg turn; use mode='component' or split the movement"
+        )
+    return angle

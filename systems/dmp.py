@@ -19,10 +19,12 @@ from pydrake.systems.framework import (
 from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters, check_unit_quaternions
 from repertoire.planning.dmp_math import (
     check_positive,
+    check_turn,
     forcing_term,
+    lift_quaternion_goal,
     manifold_step,
     obstacle_coupling,
-    quat_error,
+    quat_log_error,
     quat_multiply,
     transformation_derivatives,
 )
@@ -374,7 +376,11 @@ class ManifoldQuaternionSystem(LeafSystem):
     Discrete state ``[q (4), eta (3)]`` (eta = tau omega, world frame), updated every
     ``time_step`` by :func:`repertoire.planning.dmp_math.manifold_step` (velocity Verlet
     with the rotation applied through the exponential map) for
-    ``tau eta' = K e(g,q) - D eta - K e(g,q0) theta + K f(theta)``, ``e = 2 log(g q^*)``.
+    ``tau eta' = K e(g,q) - D eta - K e(g,q0) theta + K f(theta)``, ``e = 2 log(g q^*)``
+    on S^3 (:func:`repertoire.planning.dmp_math.quat_log_error`). The goal input's sign
+    does not matter: the sign that turns the learned way round is used
+    (:func:`repertoire.planning.dmp_math.lift_quaternion_goal`), so a demonstration turning
+    past 180 deg is reproduced; a goal a full turn from q0 that way is refused.
     The phase at the end of a step is ``theta exp(-alpha dt / tau)`` (constant tau).
     The state is held before the ``start_time`` parameter.
 
@@ -401,6 +407,9 @@ class ManifoldQuaternionSystem(LeafSystem):
         # The phase input is assumed to decay as the canonical system with this DMP's
         # tau and alpha (used for the phase at the end of each step).
         self._decay = float(np.exp(-dmp.alpha * self._dt / dmp.tau))
+        # The learned start and goal fix which sign of a goal input turns the learned way
+        # round (lift_quaternion_goal); they belong to the weights, like n_basis.
+        self._learned_goal, self._learned_q0 = dmp.goal.copy(), dmp.q0.copy()
         self._w = self.DeclareNumericParameter(BasicVector(dmp.weights.reshape(-1)))
         self._c = self.DeclareNumericParameter(BasicVector(dmp.centres))
         self._h = self.DeclareNumericParameter(BasicVector(dmp.widths))
@@ -476,8 +485,11 @@ class ManifoldQuaternionSystem(LeafSystem):
             )
         W = p(self._w).value().reshape(3, self._b)
         f = forcing_term(np.array([theta, theta_next]), W, p(self._c).value(), p(self._h).value())
-        e0 = quat_error(goal, p(self._q0).value())
-        a = (K * quat_error(goal, q) - K * e0 * theta + K * f[0]) / tau
+        q0 = p(self._q0).value()
+        goal = lift_quaternion_goal(goal, q0, self._learned_goal, self._learned_q0)
+        check_turn(goal, q0, what="from q0 to the goal orientation input")
+        e0 = quat_log_error(goal, q0)
+        a = (K * quat_log_error(goal, q) - K * e0 * theta + K * f[0]) / tau
         eta, q, _ = manifold_step(q, eta, a, goal, e0, theta_next, f[1], K, D, tau, self._dt)
         discrete_state.get_mutable_vector(self._state).SetFromVector(np.concatenate([q, eta]))
 

@@ -80,8 +80,11 @@ class DmpSystem(Diagram):
 
     Input ports:
         goal_position (3): p_WE goal [m].
-        goal_orientation (4): goal quaternion (w, x, y, z). For ``mode="component"`` it
-            should be on the start's hemisphere (q0 . g >= 0).
+        goal_orientation (4): goal quaternion (w, x, y, z). The on-manifold part takes
+            either sign and turns the learned way round; for ``mode="component"`` the
+            value is the R^4 goal used as given, so give it with the sign of the learned
+            goal (``g . dmp.orientation.goal >= 0``, which is what the learned goal
+            itself has, also for demonstrations turning past 180 deg).
         goal_fingers (k, if the DMP has fingers).
         obstacle (3, only with ``obstacle_avoidance=True``): obstacle position p_WO.
 

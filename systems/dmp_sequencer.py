@@ -6,8 +6,10 @@
 NumPy reference is :func:`repertoire.planning.dmp_chain.chain_rollout`). Every segment has
 its own goal input port, read every step while the segment is active (goals may move,
 sec. II-B). Optionally a 4-DOF block holds quaternion components (the paper's 10-D arm DMP,
-Fig. 7): the goal is put in the start's hemisphere and the output is post-normalised with
-its world angular velocity. :func:`task_space_sequencer` is that configuration for
+Fig. 7): the goal gets the sign that turns from the segment's start the way the segment
+learned (:func:`repertoire.planning.dmp_math.lift_quaternion_goal`: its learned goal for its
+learned start, also past 180 deg) and the output is post-normalised with its world angular
+velocity. :func:`task_space_sequencer` is that configuration for
 :class:`repertoire.planning.dmp.TaskSpaceDmp` segments.
 
 Two integrations of the same equations (eq. 4, 6-7, 9):
@@ -36,6 +38,7 @@ from repertoire.planning.dmp_math import (
     angular_velocity,
     check_positive,
     forcing_term,
+    lift_quaternion_goal,
     transformation_derivatives,
 )
 from repertoire.systems.dmp import check_finite_goal, check_vector
@@ -242,8 +245,13 @@ class DmpSequencer(LeafSystem):
         else:
             raise RepertoireError(f"segment {seg} has no goal: connect goal_{seg} or pass goals")
         check_finite_goal(goal)
-        if self._q is not None and goal[self._q] @ x0[self._q] < 0.0:
-            goal[self._q] = -goal[self._q]  # the start's hemisphere: the shortest rotation
+        if self._q is not None:
+            # The sign of the quaternion goal that turns from x0 the way the segment learned
+            # (its learned goal for its learned start, even past 180 deg).
+            learned = self._segments[seg]
+            goal[self._q] = lift_quaternion_goal(
+                goal[self._q], x0[self._q], learned.goal[self._q], learned.x0[self._q]
+            )
         return goal
 
     def _coupling(self, context: Context) -> np.ndarray | None:

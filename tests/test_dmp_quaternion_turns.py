@@ -1,0 +1,163 @@
+"""Quaternion DMPs that turn past 180 deg: both modes, NumPy and Drake, the learned way round."""
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource
+from repertoire.planning.dmp import TaskSpaceDmp
+from repertoire.planning.dmp_demos import slerp_minimum_jerk
+from repertoire.planning.dmp_learn import learn_dmp, learn_quaternion_dmp
+from repertoire.planning.dmp_math import (
+    lift_quaternion_goal,
+    minimum_jerk,
+    quat_error,
+    quat_exp,
+    quat_log_error,
+    quat_multiply,
+)
+from repertoire.systems.dmp_compose import add_dmp
+from repertoire.systems.dmp_sequencer import DmpSequencer
+
+from repertoire.errors import RepertoireError
+
+N, T = 1000, 1.0
+TIMES = np.linspace(0.0, T, N)
+
+
+def yaw_demo(deg: float) -> np.ndarray:
+    """Rest-to-rest (minimum-jerk) rotation about z from identity by ``deg`` degrees."""
+    s, _, _ = minimum_jerk(np.zeros(1), np.ones(1), T, TIMES)
+    return quat_exp(s * np.array([0.0, 0.0, np.deg2rad(deg) / 2.0]))
+
+
+def max_angle(q_a: np.ndarray, q_b: np.ndarray) -> float:
+    """Largest rotation angle between two quaternion sequences (sign-blind)."""
+    return float(np.linalg.norm(quat_error(q_a, q_b), axis=-1).max())
+
+
+def test_quat_log_error_is_the_unflipped_rotation_vector():
+    identity = np.array([1.0, 0.0, 0.0, 0.0])
+    for deg in (10.0, 170.0, 190.0, 270.0, 350.0):
+        g = quat_exp(np.array([0.0, 0.0, np.deg2rad(deg) / 2]))
+        np.testing.assert_allclose(
+            quat_log_error(g, identity), [0, 0, np.deg2rad(deg)], rtol=0, atol=1e-12
+        )
+        # the other sign is the same orientation reached the other way round
+        np.testing.assert_allclose(
+            quat_log_error(-g, identity), [0, 0, np.deg2rad(deg) - 2 * np.pi], atol=1e-12
+        )
+        # the shortest arc differs from it exactly past 180 deg
+        short = np.deg2rad(deg) - (2 * np.pi if deg > 180 else 0.0)
+        np.testing.assert_allclose(quat_error(g, identity), [0, 0, short], atol=1e-12)
+
+
+def test_lift_quaternion_goal_carries_the_learned_rotation_to_the_start():
+    q0 = np.array([1.0, 0.0, 0.0, 0.0])
+    g = quat_exp(np.array([0.0, 0.0, np.deg2rad(200) / 2]))  # 200 deg: g . q0 < 0
+    assert g @ q0 < 0
+    np.testing.assert_array_equal(lift_quaternion_goal(g, q0, g, q0), g)
+    np.testing.assert_array_equal(lift_quaternion_goal(-g, q0, g, q0), g)
+    np.testing.assert_array_equal(lift_quaternion_goal(g, -q0, g, q0), -g)
+    # a goal 10 deg past the learned one keeps the learned goal's sign
+    g2 = quat_exp(np.array([0.0, 0.0, np.deg2rad(210) / 2]))
+    np.testing.assert_array_equal(lift_quaternion_goal(-g2, q0, g, q0), g2)
+
+
+@pytest.mark.parametrize("mode", ["component", "manifold"])
+@pytest.mark.parametrize("deg", [170.0, 200.0, 270.0])
+def test_large_rotations_are_reproduced_in_both_modes(mode, deg):
+    q = yaw_demo(deg)
+    p = learn_quaternion_dmp(TIMES, q, mode=mode, n_basis=50)
+    assert (p.goal @ p.q0 < 0) == (deg > 180)  # learning kept the signs continuous
+    _, Q, _ = p.rollout(dt=TIMES[1], n_steps=N - 1)
+    assert max_angle(q, Q) < 5e-5  # was 3.14 rad (component) / 3e-2 rad (manifold, 270)
+    yaw = np.unwrap(2 * np.arctan2(Q[:, 3], Q[:, 0]))
+    assert abs(np.rad2deg(yaw[-1]) - deg) < 1e-3  # turned the demonstrated way round
+    # the goal's sign does not matter: the learned way round is taken
+    _, Q_neg, _ = p.rollout(goal=-p.goal, dt=TIMES[1], n_steps=N - 1)
+    np.testing.assert_allclose(Q_neg, Q, rtol=0, atol=1e-14)
+
+
+def test_component_start_of_the_other_sign_is_the_same_movement():
+    p = learn_quaternion_dmp(TIMES, yaw_demo(200.0), mode="component", n_basis=50)
+    _, Q, raw = p.rollout(dt=TIMES[1], n_steps=N - 1)
+    _, Q_neg, raw_neg = p.rollout(q0=-p.q0, dt=TIMES[1], n_steps=N - 1)
+    np.testing.assert_allclose(Q_neg, -Q, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(raw_neg, -raw, rtol=0, atol=1e-14)
+
+
+def test_manifold_detour_through_the_goal_antipode_is_reproduced():
+    # start ~180 deg from the goal with a detour: the shortest-arc error jumped here
+    rng = np.random.default_rng(26)
+    q0 = rng.normal(size=4)
+    q0 /= np.linalg.norm(q0)
+    q1 = quat_multiply(quat_exp(np.array([0, 0, 1.0]) * (np.pi / 2 - 1e-3)), q0)
+    bump = np.sin(np.pi * TIMES / T)[:, None] ** 2 * np.array([0.029, 0.081, -0.198])
+    q = quat_multiply(quat_exp(bump), slerp_minimum_jerk(q0, q1, TIMES))
+    assert np.abs(q @ q1).min() < 1e-3  # passes (within 0.1 deg) 180 deg from the goal
+    p = learn_quaternion_dmp(TIMES, q, mode="manifold", n_basis=30)
+    _, Q, _ = p.rollout(dt=TIMES[1], n_steps=N - 1)
+    assert max_angle(q, Q) < 2e-4  # was 3.14 rad
+
+
+def test_manifold_mode_refuses_a_full_turn():
+    match = r"from demonstration sample \d+ to the goal \(last sample\) is 359\.9\d+ deg"
+    with pytest.raises(RepertoireError, match=match):
+        learn_quaternion_dmp(TIMES, yaw_demo(370.0), mode="manifold", n_basis=20)
+    # the component mode has no such limit
+    p = learn_quaternion_dmp(TIMES, yaw_demo(370.0), mode="component", n_basis=50)
+    _, Q, _ = p.rollout(dt=TIMES[1], n_steps=N - 1)
+    assert max_angle(yaw_demo(370.0), Q) < 5e-5
+    # a rollout whose goal sits a full turn from the start that way is refused too
+    p = learn_quaternion_dmp(TIMES, yaw_demo(200.0), mode="manifold", n_basis=20)
+    far = quat_multiply(p.goal, quat_exp(np.array([0, 0, np.deg2rad(159.99) / 2])))
+    with pytest.raises(RepertoireError, match=r"from the start to the goal is 359\.99\d+ deg"):
+        p.rollout(goal=far)
+
+
+def _task_space(deg: float, mode: str) -> tuple[TaskSpaceDmp, np.ndarray]:
+    q = yaw_demo(deg)
+    position = np.c_[np.linspace(0.0, 0.1, N), np.zeros(N), np.zeros(N)]
+    pos = learn_dmp(TIMES, position, n_basis=20)
+    ori = learn_quaternion_dmp(TIMES, q, mode=mode, n_basis=50)
+    return TaskSpaceDmp(pos, ori), q
+
+
+@pytest.mark.parametrize("mode", ["component", "manifold"])
+def test_drake_dmp_system_turns_200_deg_the_demonstrated_way(mode):
+    dmp, q = _task_space(200.0, mode)
+    # the component system takes the R^4 goal as given (the learned sign); the manifold
+    # system takes either sign
+    goal_q = dmp.orientation.goal if mode == "component" else -dmp.orientation.goal
+    builder = DiagramBuilder()
+    sys = add_dmp(builder, dmp, name="turn")
+    for port, val in (("goal_position", dmp.position.goal), ("goal_orientation", goal_q)):
+        src = builder.AddSystem(ConstantVectorSource(np.asarray(val, float)))
+        builder.Connect(src.get_output_port(), sys.GetInputPort(port))
+    sim = Simulator(builder.Build())
+    ctx = sys.GetMyMutableContextFromRoot(sim.get_mutable_context())
+    sys.set_start(ctx, position=dmp.position.x0, orientation=dmp.orientation.q0)
+    _, Q_np, _ = dmp.orientation.rollout(dt=1e-3, n_steps=3000)
+    for k in (250, 500, 1000, 3000):
+        sim.AdvanceTo(k * 1e-3)
+        q_sys = sys.GetOutputPort("orientation").Eval(ctx)
+        assert max_angle(q_sys, Q_np[k]) < 1e-11  # the NumPy rollout, to rounding
+    # which follows the demonstration (its grid is 1/999 s, not 1 ms; wrong way: 3 rad)
+    assert max_angle(Q_np[:1000], q[:1000]) < 1e-2
+    assert max_angle(q_sys, q[-1]) < 1e-5  # settled at the demonstrated goal
+
+
+def test_sequencer_quaternion_block_turns_200_deg_the_demonstrated_way():
+    dmp, q = _task_space(200.0, "component")
+    comp = dmp.orientation.component_parameters()
+    _, Q_np, _ = dmp.orientation.rollout(dt=1e-3, n_steps=3000)
+    for goal in (comp.goal, -comp.goal):  # the start's hemisphere used to turn it back
+        seq = DmpSequencer([comp], [0.0], goals=[goal], time_step=1e-3, quaternion_at=0)
+        sim = Simulator(seq)
+        ctx = sim.get_mutable_context()
+        for k in (500, 999, 3000):
+            sim.AdvanceTo(k * 1e-3)
+            q_seq = seq.GetOutputPort("orientation").Eval(ctx)
+            assert max_angle(q_seq, Q_np[k]) < 1e-11  # the NumPy rollout, to rounding
+        assert max_angle(q_seq, q[-1]) < 1e-5

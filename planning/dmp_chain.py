@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp
-from repertoire.planning.dmp_math import forcing_features
+from repertoire.planning.dmp_math import check_positive, forcing_features
 
 from repertoire.errors import RepertoireError
 
@@ -151,12 +151,14 @@ def chain_rollout(
         goals: One goal per segment.
         switch_times: Start time of each segment (first usually 0), increasing.
         x0: Start of the first segment; default its learned start.
-        duration: Total duration; default last switch + last tau.
-        dt: Time step [s].
+        duration: Total duration [s], more than one step past the last switch time;
+            default last switch + last tau.
+        dt: Time step [s], > 0.
         handoff: ``"none"``, ``"velocity"`` or ``"acceleration"``.
     """
     check_handoff(handoff)
     check_switch_times(switch_times, len(segments))
+    check_positive("dt", dt)
     if len(goals) != len(segments):
         raise RepertoireError(f"{len(segments)} segments need as many goals, got {len(goals)}")
     steps = [int(round(s / dt)) for s in switch_times]
@@ -164,7 +166,13 @@ def chain_rollout(
         raise RepertoireError(f"switch times closer than dt = {dt}: {list(switch_times)}")
     if duration is None:
         duration = switch_times[-1] + segments[-1].tau
+    check_positive("duration", duration)
     total = int(round(duration / dt))
+    if total <= steps[-1]:
+        raise RepertoireError(
+            f"duration = {duration} must be more than one step (dt = {dt}) past the last "
+            f"switch time {switch_times[-1]}"
+        )
     n = segments[0].n_dims
     x = np.asarray(segments[0].x0 if x0 is None else x0, float)
     xd = np.zeros(n)

@@ -1,0 +1,157 @@
+"""Bad inputs to the DMP API raise RepertoireError naming the argument and its value."""
+
+import re
+
+import numpy as np
+import pytest
+from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters
+from repertoire.planning.dmp_chain import chain_rollout
+from repertoire.planning.dmp_learn import learn_dmp, learn_quaternion_dmp
+from repertoire.planning.dmp_math import minimum_jerk_via_points
+
+from repertoire.errors import RepertoireError
+
+T = np.linspace(0, 1, 200)
+_, X = minimum_jerk_via_points(np.array([[0, 0.0], [1, 2.0], [0.5, -1]]), 1.0, 200)
+A = np.linspace(0, 0.5, 200)
+QUATS = np.c_[np.cos(A), 0 * A, 0 * A, np.sin(A)]
+THREE_FOR_TWO = "must be a scalar or have one entry per DOF (2), got shape (3,): [1.0, 2.0, 3.0]"
+
+
+@pytest.fixture(scope="module")
+def p():
+    return learn_dmp(T, X, n_basis=20)
+
+
+@pytest.fixture(scope="module")
+def qp():
+    return learn_quaternion_dmp(T, QUATS, n_basis=20)
+
+
+def raises(message: str):
+    """pytest.raises(RepertoireError) matching ``message`` literally."""
+    return pytest.raises(RepertoireError, match=re.escape(message))
+
+
+@pytest.mark.parametrize("arg", ["goal", "x0", "v0"])
+def test_rollout_refuses_nan_vectors(p, arg):
+    with raises(f"{arg} contains NaN or inf: [nan  0.]"):
+        p.rollout(**{arg: np.array([np.nan, 0.0])})
+
+
+def test_rollout_refuses_nan_in_a_per_sample_goal(p):
+    goals = np.tile(p.goal, (11, 1))
+    goals[4, 1] = np.inf
+    with raises("goal contains NaN or inf"):
+        p.rollout(goal=goals, n_steps=10)
+
+
+@pytest.mark.parametrize("n_steps", [0, -5, 2.5, float("nan")])
+def test_rollout_refuses_bad_step_counts(p, qp, n_steps):
+    for dmp in (p, qp):
+        with raises(f"n_steps must be an integer >= 1, got {n_steps!r}"):
+            dmp.rollout(n_steps=n_steps)
+
+
+def test_rollout_refuses_a_dt_longer_than_twice_tau(p):
+    with raises("dt = 3.0 is longer than twice tau = 0.99"):
+        p.rollout(tau=0.99, dt=3.0)
+
+
+def test_rollout_refuses_a_velocity_of_the_wrong_length(p):
+    with raises("v0 has 3 entries, expected 2: [0. 0. 0.]"):
+        p.rollout(v0=np.zeros(3))
+
+
+@pytest.mark.parametrize("dt", [0.0, -1e-3, float("nan")])
+def test_quaternion_rollout_refuses_bad_dt(qp, dt):
+    with raises(f"dt must be a finite number > 0, got {dt}"):
+        qp.rollout(dt=dt)
+    component = learn_quaternion_dmp(T, QUATS, mode="component", n_basis=20)
+    with raises(f"dt must be a finite number > 0, got {dt}"):
+        component.rollout(dt=dt)
+
+
+@pytest.mark.parametrize("arg", ["goal", "q0"])
+def test_quaternion_rollout_refuses_a_non_quaternion(qp, arg):
+    with raises(f"{arg} must be a unit quaternion (w, x, y, z) of shape (4,), got shape (3,)"):
+        qp.rollout(**{arg: np.array([1.0, 0, 0])})
+    with raises(f"{arg} are not unit: | |q| - 1 | = 1"):
+        qp.rollout(**{arg: np.array([2.0, 0, 0, 0])})
+    with raises(f"{arg} contains NaN or inf"):
+        qp.rollout(**{arg: np.array([np.nan, 0, 0, 0])})
+
+
+def test_learn_dmp_refuses_gains_of_the_wrong_length():
+    with raises("K " + THREE_FOR_TWO):
+        learn_dmp(T, X, K=[1.0, 2.0, 3.0])
+    with raises("D " + THREE_FOR_TWO):
+        learn_dmp(T, X, D=[1.0, 2.0, 3.0])
+
+
+def test_learn_dmp_refuses_bad_known_derivatives():
+    with raises("xd must have the demonstration's shape (200, 2), got (10, 2)"):
+        learn_dmp(T, X, xd=np.zeros((10, 2)), xdd=np.zeros((200, 2)))
+    with raises("xdd must have the demonstration's shape (200, 2), got (200, 3)"):
+        learn_dmp(T, X, xd=np.zeros((200, 2)), xdd=np.zeros((200, 3)))
+    xdd = np.zeros((200, 2))
+    xdd[7, 1] = np.nan
+    with raises("xdd contains NaN or inf (first at sample 7)"):
+        learn_dmp(T, X, xd=np.zeros((200, 2)), xdd=xdd)
+
+
+def test_dmp_parameters_refuse_bad_gains_and_widths(p):
+    args = [p.weights, p.centres, p.widths, p.K, p.D, p.alpha, 1.0, p.x0, p.goal]
+    with raises("K " + THREE_FOR_TWO):
+        DmpParameters(*args[:3], [1.0, 2.0, 3.0], *args[4:])
+    with raises(f"widths must be > 0, got widths[0] = {-p.widths[0]} (20 of 20 not > 0)"):
+        DmpParameters(*args[:2], -p.widths, *args[3:])
+    widths = p.widths.copy()
+    widths[5] = 0.0
+    with raises("widths must be > 0, got widths[5] = 0.0 (1 of 20 not > 0)"):
+        DmpParameters(*args[:2], widths, *args[3:])
+
+
+def test_quaternion_dmp_parameters_refuse_bad_damping_weights_and_widths(qp):
+    def make(**kw):
+        fields = dict(
+            weights=qp.weights,
+            centres=qp.centres,
+            widths=qp.widths,
+            K=qp.K,
+            D=qp.D,
+            alpha=qp.alpha,
+            tau=qp.tau,
+            q0=qp.q0,
+            goal=qp.goal,
+        )
+        return QuaternionDmpParameters(**(fields | kw))
+
+    with raises("D must be a finite number >= 0, got nan"):
+        make(D=np.nan)
+    with raises("D must be a finite number >= 0, got -5.0"):
+        make(D=-5.0)
+    with raises("weights contains NaN or inf"):
+        make(weights=qp.weights * np.nan)
+    with raises("centres contains NaN or inf"):
+        make(centres=qp.centres + np.inf)
+    with raises(f"widths must be > 0, got widths[0] = {-qp.widths[0]} (20 of 20 not > 0)"):
+        make(widths=-qp.widths)
+    assert make(D=0.0).D == 0.0  # undamped is allowed, as for DmpParameters
+
+
+def test_chain_rollout_refuses_bad_durations_and_steps(p):
+    segs, goals, times = [p, p], [p.goal, p.goal], [0.0, 0.5]
+    for duration in (0.1, 0.5, 0.5004):
+        with raises(
+            f"duration = {duration} must be more than one step (dt = 0.001) past the last "
+            "switch time 0.5"
+        ):
+            chain_rollout(segs, goals, times, duration=duration)
+    assert chain_rollout(segs, goals, times, duration=0.502).x.shape == (503, 2)
+    for duration in (float("nan"), -1.0, float("inf")):
+        with raises(f"duration must be a finite number > 0, got {duration}"):
+            chain_rollout(segs, goals, times, duration=duration)
+    for dt in (0.0, -1e-3, float("nan")):
+        with raises(f"dt must be a finite number > 0, got {dt}"):
+            chain_rollout(segs, goals, times, dt=dt)

@@ -123,6 +123,10 @@ class DmpParameters(_FieldsRecord):
 
     def __post_init__(self) -> None:
         self.weights = np.atleast_2d(np.asarray(self.weights, dtype=float))
+        if self.weights.ndim != 2 or self.weights.shape[0] < 1:
+            raise RepertoireError(
+                f"weights must have shape (n_dims >= 1, n_basis), got {self.weights.shape}"
+            )
         n, b = self.weights.shape
         self.centres = np.asarray(self.centres, dtype=float).reshape(-1)
         self.widths = np.asarray(self.widths, dtype=float).reshape(-1)

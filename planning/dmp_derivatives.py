@@ -66,6 +66,11 @@ def estimate_derivatives(
     if method == "local_poly":
         return local_polynomial_derivatives(t, x, window)
     if method == "spline":
+        if smoothing is not None and not (np.isfinite(smoothing) and smoothing >= 0):
+            raise RepertoireError(
+                f"smoothing (the spline's lambda) must be a finite number >= 0 or None, got "
+                f"{smoothing}"
+            )
         if n < 5:
             from scipy.interpolate import make_interp_spline
 

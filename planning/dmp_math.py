@@ -433,6 +433,11 @@ def rollout(
             p = 0.0
             if coupling is not None:
                 p = np.asarray(coupling(x, v / tau), dtype=float)
+                if p.shape not in ((n,), ()):
+                    raise RepertoireError(
+                        f"coupling(x, xd) must return {n} entries (one per DOF), got shape "
+                        f"{p.shape}"
+                    )
                 P[k] = p
             _, vd = transformation_derivatives(
                 x, v, theta[k], G[k], x0, f[k], Kv, Dv, tau, formulation, p
@@ -698,9 +703,11 @@ def obstacle_coupling(
     """
     # Plain-float arithmetic: called once per control step, numpy's per-call overhead on
     # 3-vectors (np.cross, np.linalg.norm) dominates otherwise.
-    x1, x2, x3 = (float(c) for c in np.asarray(x, dtype=float).reshape(3))
-    v1, v2, v3 = (float(c) for c in np.asarray(xd, dtype=float).reshape(3))
-    o1, o2, o3 = (float(c) for c in np.asarray(obstacle, dtype=float).reshape(3))
+    x1, x2, x3 = _finite3("x", x)
+    v1, v2, v3 = _finite3("xd", xd)
+    o1, o2, o3 = _finite3("obstacle", obstacle)
+    if not (0.0 <= gamma < math.inf and 0.0 <= beta < math.inf):
+        raise RepertoireError(f"gamma and beta must be finite and >= 0, got {gamma}, {beta}")
     d1, d2, d3 = o1 - x1, o2 - x2, o3 - x3
     speed = math.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
     dist = math.sqrt(d1 * d1 + d2 * d2 + d3 * d3)
@@ -719,6 +726,17 @@ def obstacle_coupling(
     # Rotation of v by +pi/2 about the axis (v is perpendicular to it): R v = axis x v.
     Rv = np.array([a2 * v3 - a3 * v2, a3 * v1 - a1 * v3, a1 * v2 - a2 * v1])
     return gamma * phi * math.exp(-beta * phi) * Rv
+
+
+def _finite3(name: str, value) -> tuple[float, float, float]:
+    """Three finite floats from a 3-vector; RepertoireError naming it otherwise."""
+    a = np.asarray(value, dtype=float).reshape(-1)
+    if a.size != 3:
+        raise RepertoireError(f"{name} must have 3 entries (x, y, z), got {a.size}: {value}")
+    a1, a2, a3 = float(a[0]), float(a[1]), float(a[2])
+    if not (math.isfinite(a1) and math.isfinite(a2) and math.isfinite(a3)):
+        raise RepertoireError(f"{name} contains NaN or inf: {a}")
+    return a1, a2, a3
 
 
 # --------------------------------------------------------------------------- demonstrations
@@ -766,8 +784,15 @@ def minimum_jerk_via_points(
 
     points = np.atleast_2d(np.asarray(points, dtype=float))
     check_positive("duration", duration)
-    if n_samples < 3:
-        raise RepertoireError(f"need at least 3 samples, got {n_samples}")
+    if points.ndim != 2 or points.shape[0] < 2 or points.shape[1] < 1:
+        raise RepertoireError(
+            f"points must have shape (m, n) with m >= 2 (start and end), got {points.shape}"
+        )
+    if not np.all(np.isfinite(points)):
+        k = int(np.argwhere(~np.isfinite(points))[0, 0])
+        raise RepertoireError(f"points contains NaN or inf (first at point {k})")
+    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 3:
+        raise RepertoireError(f"n_samples must be an integer >= 3, got {n_samples!r}")
     t = np.linspace(0.0, duration, n_samples)
     if points.shape[0] == 2:
         x, _, _ = minimum_jerk(points[0], points[1], duration, t)
@@ -808,7 +833,8 @@ def check_n_basis(n_basis: int) -> int:
         n_basis: Number of basis functions.
     """
     if (
-        not isinstance(n_basis, (int, float, np.integer))
+        isinstance(n_basis, bool)
+        or not isinstance(n_basis, (int, float, np.integer))
         or not math.isfinite(n_basis)
         or int(n_basis) != n_basis
         or n_basis < 1

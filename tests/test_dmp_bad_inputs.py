@@ -155,3 +155,44 @@ def test_chain_rollout_refuses_bad_durations_and_steps(p):
     for dt in (0.0, -1e-3, float("nan")):
         with raises(f"dt must be a finite number > 0, got {dt}"):
             chain_rollout(segs, goals, times, dt=dt)
+
+
+def test_obstacle_coupling_refuses_bad_vectors_and_gains():
+    from repertoire.planning.dmp_math import obstacle_coupling
+
+    x, v, o = np.zeros(3), np.ones(3), np.array([1.0, 0.5, 0.0])
+    with raises("obstacle contains NaN or inf: [nan  0.  0.]"):
+        obstacle_coupling(x, v, np.array([np.nan, 0, 0]), 1.0, 1.0)
+    with raises("x must have 3 entries (x, y, z), got 2: [0. 0.]"):
+        obstacle_coupling(np.zeros(2), v, o, 1.0, 1.0)
+    with raises("gamma and beta must be finite and >= 0, got -1.0, 1.0"):
+        obstacle_coupling(x, v, o, -1.0, 1.0)
+
+
+def test_minimum_jerk_via_points_refuses_bad_points_and_sample_counts():
+    with raises("points must have shape (m, n) with m >= 2 (start and end), got (1, 2)"):
+        minimum_jerk_via_points(np.zeros((1, 2)), 1.0, 10)
+    with raises("points contains NaN or inf (first at point 1)"):
+        minimum_jerk_via_points(np.array([[0, 0], [np.nan, 1.0]]), 1.0, 10)
+    with raises("n_samples must be an integer >= 3, got 10.5"):
+        minimum_jerk_via_points(np.array([[0, 0], [1, 1.0]]), 1.0, 10.5)
+
+
+def test_learning_refuses_a_negative_smoothing_and_a_boolean_basis_count():
+    with raises("smoothing (the spline's lambda) must be a finite number >= 0 or None, got -1.0"):
+        learn_dmp(T, X, derivatives="spline", smoothing=-1.0)
+    with raises("need at least one basis function (n_basis >= 1), got True"):
+        learn_dmp(T, X, n_basis=True)
+
+
+def test_rollout_refuses_a_coupling_of_the_wrong_size(p):
+    with raises("coupling(x, xd) must return 2 entries (one per DOF), got shape (3,)"):
+        p.rollout(method="euler", coupling=lambda x, v: np.zeros(3))
+
+
+def test_dmp_parameters_refuse_weights_that_are_not_a_matrix(p):
+    rest = [p.centres, p.widths, p.K, p.D, p.alpha, 1.0, p.x0, p.goal]
+    with raises("weights must have shape (n_dims >= 1, n_basis), got (2, 20, 1)"):
+        DmpParameters(np.zeros((2, 20, 1)), *rest)
+    with raises("weights must have shape (n_dims >= 1, n_basis), got (0, 20)"):
+        DmpParameters(np.zeros((0, 20)), p.centres, p.widths, 1.0, 1.0, p.alpha, 1.0, [], [])

@@ -316,6 +316,39 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         output.SetFromVector(vd / self._tau_value(context))
 
 
+class QuaternionGoalSign(LeafSystem):
+    """The component quaternion DMP's goal with the learned sign (``g`` or ``-g``).
+
+    The component form (sec. IV-B) runs in R^4, where ``g`` and ``-g`` (one orientation)
+    are different goals: one turns the learned way round, the other back the other way. This
+    system passes the goal on with the sign nearest the learned goal (``g . g_learned >= 0``;
+    :func:`repertoire.planning.dmp_math.lift_quaternion_goal` for the learned start), so
+    the goal input takes either sign, also for demonstrations turning past 180 deg.
+
+    Input ports:
+        goal (4): goal orientation (w, x, y, z), unit.
+
+    Output ports:
+        goal (4): the same orientation with the learned goal's sign.
+    """
+
+    def __init__(self, dmp: QuaternionDmpParameters) -> None:
+        super().__init__()
+        if not isinstance(dmp, QuaternionDmpParameters):
+            raise RepertoireError(
+                f"QuaternionGoalSign needs QuaternionDmpParameters, got {type(dmp).__name__}"
+            )
+        self._learned_goal, self._learned_q0 = dmp.goal.copy(), dmp.q0.copy()
+        self._in = self.DeclareVectorInputPort("goal", 4)
+        self._out = self.DeclareVectorOutputPort("goal", 4, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        goal = check_finite_goal(self._in.Eval(context))
+        output.SetFromVector(
+            lift_quaternion_goal(goal, self._learned_q0, self._learned_goal, self._learned_q0)
+        )
+
+
 class QuaternionNormalizer(LeafSystem):
     """Post-normalisation of the paper's component quaternion DMP (sec. IV-B).
 

@@ -23,6 +23,7 @@ from repertoire.systems.dmp import (
     CanonicalSystem,
     ManifoldQuaternionSystem,
     ObstacleCoupling,
+    QuaternionGoalSign,
     QuaternionNormalizer,
     TransformationSystem,
     check_vector,
@@ -80,11 +81,11 @@ class DmpSystem(Diagram):
 
     Input ports:
         goal_position (3): p_WE goal [m].
-        goal_orientation (4): goal quaternion (w, x, y, z). The on-manifold part takes
-            either sign and turns the learned way round; for ``mode="component"`` the
-            value is the R^4 goal used as given, so give it with the sign of the learned
-            goal (``g . dmp.orientation.goal >= 0``, which is what the learned goal
-            itself has, also for demonstrations turning past 180 deg).
+        goal_orientation (4): goal quaternion (w, x, y, z), either sign: both modes turn
+            the learned way round (also past 180 deg). The on-manifold part lifts it
+            relative to the start; the component part (R^4) takes the sign nearest the
+            learned goal (:class:`repertoire.systems.dmp.QuaternionGoalSign`) and should
+            start on the learned start's side (``q0 . dmp.orientation.q0 >= 0``).
         goal_fingers (k, if the DMP has fingers).
         obstacle (3, only with ``obstacle_avoidance=True``): obstacle position p_WO.
 
@@ -199,7 +200,9 @@ class DmpSystem(Diagram):
             builder.Connect(
                 demux["velocity"].get_output_port(i), norm.get_quaternion_rate_input_port()
             )
-            builder.ExportInput(mux.get_input_port(i), "goal_orientation")
+            sign = builder.AddNamedSystem("goal_sign", QuaternionGoalSign(dmp.orientation))
+            builder.Connect(sign.GetOutputPort("goal"), mux.get_input_port(i))
+            builder.ExportInput(sign.GetInputPort("goal"), "goal_orientation")
             builder.ExportOutput(norm.get_orientation_output_port(), "orientation")
             builder.ExportOutput(norm.get_angular_velocity_output_port(), "angular_velocity")
         else:
@@ -247,7 +250,9 @@ class DmpSystem(Diagram):
             builder.Connect(
                 comp.system.get_velocity_output_port(), norm.get_quaternion_rate_input_port()
             )
-            builder.ExportInput(comp.system.get_goal_input_port(), "goal_orientation")
+            sign = builder.AddNamedSystem("goal_sign", QuaternionGoalSign(ori))
+            builder.Connect(sign.GetOutputPort("goal"), comp.system.get_goal_input_port())
+            builder.ExportInput(sign.GetInputPort("goal"), "goal_orientation")
             builder.ExportOutput(norm.get_orientation_output_port(), "orientation")
             builder.ExportOutput(norm.get_angular_velocity_output_port(), "angular_velocity")
             self._parts["orientation"] = comp

@@ -116,26 +116,28 @@ def test_manifold_mode_refuses_a_full_turn():
         p.rollout(goal=far)
 
 
-def _task_space(deg: float, mode: str) -> tuple[TaskSpaceDmp, np.ndarray]:
+def _task_space(deg: float, mode: str, position_basis: int = 20) -> tuple[TaskSpaceDmp, np.ndarray]:
     q = yaw_demo(deg)
     position = np.c_[np.linspace(0.0, 0.1, N), np.zeros(N), np.zeros(N)]
-    pos = learn_dmp(TIMES, position, n_basis=20)
+    pos = learn_dmp(TIMES, position, n_basis=position_basis)
     ori = learn_quaternion_dmp(TIMES, q, mode=mode, n_basis=50)
     return TaskSpaceDmp(pos, ori), q
 
 
+@pytest.mark.parametrize("fused", [False, True])
 @pytest.mark.parametrize("mode", ["component", "manifold"])
-def test_drake_dmp_system_turns_200_deg_the_demonstrated_way(mode):
-    dmp, q = _task_space(200.0, mode)
-    # the component system takes the R^4 goal as given (the learned sign); the manifold
-    # system takes either sign
-    goal_q = dmp.orientation.goal if mode == "component" else -dmp.orientation.goal
+def test_drake_dmp_system_turns_200_deg_the_demonstrated_way(mode, fused):
+    # with the orientation's 50 basis functions the vector parts fuse into one system
+    dmp, q = _task_space(200.0, mode, position_basis=50 if fused else 20)
+    goal_q = -dmp.orientation.goal  # either sign: the learned way round is taken
     builder = DiagramBuilder()
     sys = add_dmp(builder, dmp, name="turn")
     for port, val in (("goal_position", dmp.position.goal), ("goal_orientation", goal_q)):
         src = builder.AddSystem(ConstantVectorSource(np.asarray(val, float)))
         builder.Connect(src.get_output_port(), sys.GetInputPort(port))
     sim = Simulator(builder.Build())
+    if mode == "component":  # (a manifold orientation is its own system either way)
+        assert (sys._fused is not None) == fused
     ctx = sys.GetMyMutableContextFromRoot(sim.get_mutable_context())
     sys.set_start(ctx, position=dmp.position.x0, orientation=dmp.orientation.q0)
     _, Q_np, _ = dmp.orientation.rollout(dt=1e-3, n_steps=3000)

@@ -142,6 +142,41 @@ def test_too_few_episodes_and_nan_training():
         fit_duration_tree(X, y, ["a", "b"])
 
 
+def test_bad_fit_options_name_the_value():
+    X, y = _piecewise(100)
+    failed = y > np.median(y)
+    cases = [
+        (lambda: fit_duration_tree(X, y, ["a", "b"], ridge=-1.0), r"ridge .*>= 0, got -1\.0"),
+        (lambda: fit_duration_tree(X, y, ["a", "b"], ridge=np.nan), r"ridge .*got nan"),
+        (lambda: fit_duration_tree(X, y, ["a", "b"], min_samples_leaf=-3), "min_samples_leaf.* -3"),
+        (lambda: fit_duration_tree(X, y, ["a", "b"], min_samples_leaf=0), "min_samples_leaf.* 0"),
+        (lambda: fit_duration_tree(X, y, ["a", "b"], min_samples_leaf=2.5), "min_samples_l.* 2.5"),
+        (lambda: fit_duration_tree(X, y, ["a", "b"], candidate_leaves=(2, 0)), "candidate.* 0"),
+        (lambda: fit_duration_tree(X, y, ["a", "b"], candidate_leaves=()), "candidate_leaves"),
+        (lambda: fit_duration_tree(X, y[:, None], ["a", "b"]), r"y of shape \(n,\).*\(100, 1\)"),
+        (
+            lambda: fit_failure_tree(X, failed, ["a", "b"], min_samples_leaf=0),
+            "min_samples_leaf.* 0",
+        ),
+        (lambda: fit_failure_tree(X, failed, ["a", "b"], max_leaf_nodes=1), "max_leaf_nodes.* 1"),
+        (lambda: fit_failure_tree(X, failed[:, None], ["a", "b"]), r"\(100, 1\)"),
+    ]
+    for fit, message in cases:
+        with pytest.raises(RepertoireError, match=message):
+            fit()
+
+
+def test_ridge_zero_is_least_squares_even_with_a_constant_feature():
+    rng = np.random.default_rng(0)
+    X = np.column_stack([rng.uniform(0, 1, 100), np.ones(100)])
+    y = 1.0 + 2.0 * X[:, 0]
+    m = fit_duration_tree(X, y, ["a", "const"], ridge=0.0, candidate_leaves=(1,))
+    assert len(m.leaves) == 1
+    # minimum-norm least squares: the constant column gets no weight, the fit is exact
+    np.testing.assert_allclose(m.leaves[0].coef, [2.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(m.predict(X), y, atol=1e-12)
+
+
 class _Rec:
     def __init__(self, a, b, t, ok):
         self.a, self.b, self.t, self.ok = a, b, t, ok

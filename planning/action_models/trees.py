@@ -181,12 +181,20 @@ class TreeModel:
         return "\n".join(lines)
 
 
+def _check_whole(name: str, value, least: int) -> int:
+    """``value`` as an int >= ``least``, or a RepertoireError naming it."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
+        raise RepertoireError(f"{name} must be a whole number >= {least}, got {value!r}")
+    return int(value)
+
+
 def _check_training(X, y, feature_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
     X = np.asarray(X, dtype=float)
     y = np.asarray(y, dtype=float)
-    if X.ndim != 2 or X.shape[1] != len(feature_names) or len(y) != len(X):
+    if X.ndim != 2 or X.shape[1] != len(feature_names) or y.ndim != 1 or len(y) != len(X):
         raise RepertoireError(
-            f"need X of shape (n, {len(feature_names)}) and y of length n, got {X.shape}, {y.shape}"
+            f"need X of shape (n, {len(feature_names)}) and y of shape (n,), got {X.shape}, "
+            f"{y.shape}"
         )
     if len(X) < MIN_EPISODES:
         raise RepertoireError(
@@ -247,8 +255,11 @@ def _linear_leaves(sk_tree, X, y, ridge: float) -> dict[int, tuple[np.ndarray, f
         Xl, yl = X[m], y[m]
         mu = Xl.mean(axis=0)
         Xc = Xl - mu
-        A = Xc.T @ Xc + ridge * len(Xl) * np.eye(X.shape[1])
-        coef = np.linalg.solve(A, Xc.T @ (yl - yl.mean()))
+        if ridge > 0:
+            A = Xc.T @ Xc + ridge * len(Xl) * np.eye(X.shape[1])
+            coef = np.linalg.solve(A, Xc.T @ (yl - yl.mean()))
+        else:  # least squares; the minimum-norm fit if the leaf's design is singular
+            coef = np.linalg.lstsq(Xc, yl - yl.mean(), rcond=None)[0]
         out[int(leaf)] = (coef, float(yl.mean() - mu @ coef), int(m.sum()))
     return out
 
@@ -270,19 +281,36 @@ def fit_duration_tree(
         y: ``(n,)`` durations.
         feature_names: the ``d`` names.
         seed: seed of the validation split and the tree.
-        min_samples_leaf: episodes per leaf at least (default ``max(5, 4 d)``).
-        candidate_leaves: tree sizes tried; the one with the smallest
-            validation MAE of the linear-leaf model wins (pruning).
-        ridge: Tikhonov weight of the leaf fits (relative to the leaf size).
+        min_samples_leaf: episodes per leaf at least, a whole number >= 1 (default
+            ``max(5, 4 d)``).
+        candidate_leaves: tree sizes tried (whole numbers >= 1); the one with the
+            smallest validation MAE of the linear-leaf model wins (pruning). Sizes
+            whose leaves could not each hold ``min_samples_leaf`` episodes are skipped.
+        ridge: Tikhonov weight of the leaf fits (relative to the leaf size; finite,
+            >= 0). With 0 the leaves are plain least squares (``numpy.linalg.lstsq``):
+            where a leaf's features are collinear (a constant feature, say), the
+            minimum-norm coefficients.
 
     Returns:
         The fitted :class:`TreeModel` of kind ``"duration"``, refitted on all of ``X``.
+
+    Raises:
+        RepertoireError: bad shapes, too few episodes, NaN, or a bad option (named).
     """
     from sklearn.tree import DecisionTreeRegressor
 
+    if not (isinstance(ridge, int | float | np.number) and math.isfinite(ridge) and ridge >= 0):
+        raise RepertoireError(f"ridge must be a finite number >= 0, got {ridge!r}")
+    if min_samples_leaf is not None:
+        min_samples_leaf = _check_whole("min_samples_leaf", min_samples_leaf, 1)
+    candidate_leaves = list(candidate_leaves)
+    if not candidate_leaves:
+        raise RepertoireError("candidate_leaves is empty; expected tree sizes such as (1, 2, 4)")
+    for k in candidate_leaves:
+        _check_whole("each of candidate_leaves", k, 1)
     X, y = _check_training(X, y, feature_names)
     d = X.shape[1]
-    msl = min_samples_leaf or max(5, 4 * d)
+    msl = min_samples_leaf if min_samples_leaf is not None else max(5, 4 * d)
     rng = np.random.default_rng(seed)
     perm = rng.permutation(len(X))
     n_val = max(1, len(X) // 5)
@@ -295,7 +323,7 @@ def fit_duration_tree(
 
     best, best_err = 1, np.inf
     for k in candidate_leaves:
-        if k < 1 or k * msl > len(fit):
+        if k * msl > len(fit):
             continue
         tree = make_tree(k, len(fit)).fit(X[fit], y[fit])
         leaves = _linear_leaves(tree, X[fit], y[fit], ridge)
@@ -328,16 +356,22 @@ def fit_failure_tree(
             decides failure when its failure probability is at least
             ``1 / (1 + failure_cost)`` (minimum expected cost).
         seed: the tree's seed.
-        min_samples_leaf: episodes per leaf at least.
-        max_leaf_nodes: the largest tree.
+        min_samples_leaf: episodes per leaf at least (a whole number >= 1).
+        max_leaf_nodes: the largest tree (a whole number >= 2).
 
     Returns:
         The fitted :class:`TreeModel` of kind ``"failure"``.
+
+    Raises:
+        RepertoireError: bad shapes, too few episodes, NaN, non-boolean targets, or a
+            bad option (named).
     """
     from sklearn.tree import DecisionTreeClassifier
 
     if not (math.isfinite(failure_cost) and failure_cost > 0):
         raise RepertoireError(f"failure_cost must be finite and > 0, got {failure_cost}")
+    min_samples_leaf = _check_whole("min_samples_leaf", min_samples_leaf, 1)
+    max_leaf_nodes = _check_whole("max_leaf_nodes", max_leaf_nodes, 2)
     X, y = _check_training(X, np.asarray(failed, dtype=float), feature_names)
     if not np.all((y == 0) | (y == 1)):
         raise RepertoireError("failure targets must be booleans (True = failed)")

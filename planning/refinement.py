@@ -17,9 +17,19 @@ in feature space (``lower``/``upper``, +-inf allowed) and a hyperplane (``coef``
 - ``"ga"`` and ``"de"`` (in :mod:`repertoire.planning.black_box`) for features that are
   not affine (angles): the paper's genetic algorithm and scipy's differential evolution.
 
-Where a feature vector lies on a face shared by two leaves, a model predicts the smaller
-of their values (the lower envelope), so every minimum is attained and the exact
-back-ends return it.
+A leaf covers the half-open box ``lower < f <= upper`` (per feature), the rule of the
+fitted trees' ``predict`` (go left if ``x <= threshold``): a feature vector on a face
+shared by two leaves belongs to the lower one, for every action alike, so the leaves of
+a tree partition feature space and :meth:`PiecewiseLinearModel.predict` equals the
+tree's prediction everywhere. Where leaves overlap (models not made from a tree), the
+smallest value of the leaves that contain a vector is predicted. The exact back-ends
+return parameters and the summed prediction *at* them (a value the models attain).
+Corner enumeration, and the MILP where each feature reads one parameter, return the
+minimum over all floating-point parameter vectors: where the infimum lies on a face
+that belongs to the neighbouring leaf, the value at the first float inside the cheaper
+leaf. Where features mix parameters, the MILP's value is within about 1e-9 (relative
+to the leaves' size) of the infimum (see
+:func:`~repertoire.planning.refinement_exact.solve_milp`).
 """
 
 import json
@@ -45,9 +55,9 @@ def _json_array(a: np.ndarray) -> list:
 class DurationModel(Protocol):
     """What refinement needs from a duration model: leaves as boxes + hyperplanes.
 
-    Attributes (k leaves, d features):
-        lower: (k, d) lower corners of the leaf boxes (may be -inf).
-        upper: (k, d) upper corners (may be +inf).
+    Attributes (k leaves, d features; a leaf covers ``lower < f <= upper``):
+        lower: (k, d) lower corners of the leaf boxes, exclusive (may be -inf).
+        upper: (k, d) upper corners, inclusive (may be +inf).
         coef: (k, d) hyperplane slopes.
         intercept: (k,) hyperplane offsets.
     """
@@ -63,8 +73,8 @@ class PiecewiseLinearModel:
     """A model tree flattened to its leaves (see :class:`DurationModel`).
 
     Args:
-        lower: (k, d) lower corners of the leaf boxes (-inf allowed).
-        upper: (k, d) upper corners (+inf allowed).
+        lower: (k, d) lower corners of the leaf boxes, exclusive (-inf allowed).
+        upper: (k, d) upper corners, inclusive (+inf allowed).
         coef: (k, d) slopes of each leaf's hyperplane.
         intercept: (k,) offsets of each leaf's hyperplane.
     """
@@ -103,9 +113,9 @@ class PiecewiseLinearModel:
         """Builds a model from leaf objects with ``lower``, ``upper``, ``coef``, ``intercept``.
 
         The adapter for model trees that keep a list of leaves (one box and hyperplane
-        each). A tree whose leaves are half-open (``lower < f <= upper``) differs from
-        this model only on shared faces, where this one takes the smaller neighbour:
-        refinement then returns the infimum, approached from inside the cheaper leaf.
+        each). Leaves are half-open (``lower < f <= upper``) as the trees' own
+        (:class:`~repertoire.planning.action_models.trees.LeafBox`), so this model
+        predicts what the tree predicts at every feature vector, faces included.
 
         Args:
             leaves: a non-empty sequence of such leaf objects.
@@ -175,20 +185,24 @@ class PiecewiseLinearModel:
         return cls.from_dict(record)
 
     def predict(self, features: np.ndarray) -> np.ndarray:
-        """Predicted durations for a batch of feature vectors (lower envelope on faces).
+        """Predicted durations for a batch of feature vectors.
+
+        A vector belongs to the leaves with ``lower < f <= upper`` in every feature
+        (one leaf for a tree's partition; the smallest value where leaves overlap).
 
         Args:
             features: (n, d) feature vectors.
 
         Returns:
             (n,) predictions; +inf where a vector lies in no leaf (outside the model's
-            domain), which refinement treats as infeasible.
+            domain, a leaf's finite ``lower`` face included), which refinement treats
+            as infeasible.
         """
         return predict_leaves(self, features)
 
 
 def predict_leaves(model: DurationModel, features: np.ndarray) -> np.ndarray:
-    """Lower-envelope prediction of any :class:`DurationModel` (see ``predict``)."""
+    """Prediction of any :class:`DurationModel`, leaves half-open (see ``predict``)."""
     f = np.atleast_2d(np.asarray(features, dtype=float))
     k, d = model.lower.shape
     if f.shape[1] != d:
@@ -197,7 +211,7 @@ def predict_leaves(model: DurationModel, features: np.ndarray) -> np.ndarray:
     inside = np.ones((f.shape[0], k), dtype=bool)
     for j in range(d):  # one (n, k) test per feature: faster than an (n, k, d) reduction
         column = f[:, j : j + 1]
-        inside &= (column >= model.lower[:, j]) & (column <= model.upper[:, j])
+        inside &= (column > model.lower[:, j]) & (column <= model.upper[:, j])
     values = f @ model.coef.T + model.intercept
     return np.where(inside, values, np.inf).min(axis=1)
 

@@ -20,34 +20,53 @@ from scipy.optimize import linprog
 from repertoire.errors import RepertoireError
 
 
-def _grid_minimum(problem: RefinementProblem, step: float) -> float:
-    axes = [np.arange(lo, hi + step / 2, step) for lo, hi in zip(problem.lower, problem.upper)]
+def _grid_minimum(problem: RefinementProblem, step: float, nudge: float = 0.0) -> float:
+    """Brute force on a grid; with ``nudge``, also at +-nudge from every grid value.
+
+    Leaves are half-open, so an infimum on a face that belongs to the other leaf is only
+    approached: the nudged points see it (to nudge times the slope).
+    """
+    axes = []
+    for lo, hi in zip(problem.lower, problem.upper):
+        g = np.arange(lo, hi + step / 2, step)
+        if nudge:
+            g = np.unique(np.clip(np.concatenate([g - nudge, g, g + nudge]), lo, hi))
+        axes.append(g)
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, problem.n_params)
     return float(problem.cost(grid).min())
 
 
-def test_model_predicts_closed_form_and_lower_envelope():
-    # f <= 0: 1 - f ; f >= 0: 2 + f  -> on the face f = 0 the smaller value, 1
+def test_model_predicts_closed_form_on_half_open_leaves():
+    # f <= 0: 1 - f ; f > 0: 2 + f  -> on the face f = 0 the leaf below, 1
     model = PiecewiseLinearModel([[-np.inf], [0.0]], [[0.0], [np.inf]], [[-1.0], [1.0]], [1, 2])
     assert isinstance(model, DurationModel)
     np.testing.assert_allclose(model.predict([[-2.0], [0.0], [0.5]]), [3.0, 1.0, 2.5])
+    # f <= 0: 2 - f ; f > 0: 1 + f  -> on the face the leaf below too (2), as a tree's
+    # predict goes left at x <= threshold, although the leaf above approaches 1
+    model = PiecewiseLinearModel([[-np.inf], [0.0]], [[0.0], [np.inf]], [[-1.0], [1.0]], [2, 1])
+    np.testing.assert_array_equal(model.predict([[0.0], [np.nextafter(0.0, 1.0)]]), [2.0, 1.0])
     bounded = PiecewiseLinearModel([[0.0]], [[1.0]], [[1.0]], [0.0])
-    assert bounded.predict([[2.0]])[0] == np.inf
+    np.testing.assert_array_equal(bounded.predict([[2.0], [0.0], [1.0]]), [np.inf, np.inf, 1.0])
 
 
 @pytest.mark.parametrize("seed,fitted", [(0, False), (1, False), (2, True), (3, True)])
 def test_exact_backends_match_brute_force_grid(seed, fitted):
     # 3 actions, 2 subgoals x 1 parameter, and x 2 parameters: thresholds map to
     # multiples of 0.125 in parameter space, so a 0.125 grid visits every corner.
-    for per in (1, 2):
-        problem = chain_problem(seed, 3, per, depth=4, fitted=fitted)
-        brute = _grid_minimum(problem, 0.125)
+    # Grid values and 1e-12 either side of them see every cell's corner (the corner on
+    # an open face is approached to 1e-12 times the slope, < 1e-10 here).
+    for per, bound in ((1, 1.0), (2, 0.5)):
+        problem = chain_problem(seed, 3, per, depth=4, fitted=fitted, bound=bound)
+        brute = _grid_minimum(problem, 0.125, nudge=1e-12)
         corners = solve_corners(problem)
         milp = solve_milp(problem)
-        assert corners.cost == pytest.approx(brute, abs=1e-9)
-        assert problem.cost(corners.params)[0] == pytest.approx(corners.cost, abs=1e-9)
-        assert milp.cost == pytest.approx(brute, abs=1e-6)
-        assert np.all(milp.params >= problem.lower) and np.all(milp.params <= problem.upper)
+        for result in (corners, milp):  # a value the models attain at the parameters
+            assert result.cost == problem.cost(result.params)[0]
+            assert np.all(result.params >= problem.lower)
+            assert np.all(result.params <= problem.upper)
+        assert corners.cost <= _grid_minimum(problem, 0.125)  # grid points are attained
+        assert corners.cost == pytest.approx(brute, abs=1e-10)
+        assert milp.cost == pytest.approx(corners.cost, abs=1e-7)
 
 
 def test_milp_handles_mixing_affine_features_exactly():
@@ -78,7 +97,8 @@ def test_milp_handles_mixing_affine_features_exactly():
         if lp.status == 0:
             best = min(best, lp.fun + k)
     milp = solve_milp(problem)
-    assert milp.cost == pytest.approx(best, abs=1e-6)
+    assert milp.cost == problem.cost(milp.params)[0]
+    assert milp.cost == pytest.approx(best, abs=1e-8)  # best: the infimum over closed leaves
 
 
 def test_black_box_backends_near_exact_and_seeded():
@@ -207,3 +227,63 @@ def test_bad_input():
     )  # fmt: skip
     with pytest.raises(RepertoireError, match="no leaf of its model covers"):
         solve_corners(outside)
+
+
+def test_exact_optimum_is_attained_on_shared_faces():
+    # Fuzz reproducer: on faces several terms share, each term used to take its cheaper
+    # side independently (8.529301 at [0.125, -0.3, -0.125, 0.25]), a combination no
+    # parameter vector has. Leaves are half-open for every term alike now.
+    problem = chain_problem(109, 3, 2, 4, fitted=True, bound=0.3)
+    corners = refine_sequence(problem, 3, "corners")
+    milp = refine_sequence(problem, 3, "milp")
+    for result in (corners, milp):
+        assert result.cost == problem.cost(result.params)[0]
+        assert result.cost == pytest.approx(8.606014, abs=1e-6)
+    assert milp.cost == pytest.approx(corners.cost, abs=1e-9)
+    # every open orthant 1e-9 away: none better (to the slope), one as good
+    signs = np.array(list(itertools.product([-1.0, 1.0], repeat=problem.n_params)))
+    near = np.clip(corners.params + 1e-9 * signs, problem.lower, problem.upper)
+    assert problem.cost(near).min() == pytest.approx(corners.cost, abs=1e-8)
+    samples = np.random.default_rng(0).uniform(problem.lower, problem.upper, (20000, 4))
+    assert problem.cost(samples).min() >= corners.cost
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_exact_backends_on_random_chains(seed):
+    # fresh chains (random and fitted trees, 1-2 parameters per subgoal, bounds off the
+    # threshold grid too): corners and the MILP agree, attain their cost, and neither
+    # 4000 samples nor points 1e-9 around the optimum do better
+    rng = np.random.default_rng(1000 + seed)
+    per, depth = int(rng.integers(1, 3)), int(rng.integers(2, 5))
+    bound = float(rng.choice([0.3, 0.55, 1.0]))
+    problem = chain_problem(200 + seed, 3, per, depth, fitted=bool(seed % 2), bound=bound)
+    corners = solve_corners(problem)
+    milp = solve_milp(problem)
+    for result in (corners, milp):
+        assert result.cost == problem.cost(result.params)[0]
+    assert milp.cost == pytest.approx(corners.cost, abs=1e-7)
+    samples = rng.uniform(problem.lower, problem.upper, (4000, problem.n_params))
+    signs = np.array(list(itertools.product([-1.0, 0.0, 1.0], repeat=problem.n_params)))
+    near = np.clip(corners.params + 1e-9 * signs, problem.lower, problem.upper)
+    assert problem.cost(np.vstack([samples, near])).min() >= corners.cost - 1e-8
+
+
+def test_model_from_tree_predicts_as_the_tree_on_thresholds():
+    from repertoire.planning.action_models.trees import fit_duration_tree
+
+    rng = np.random.default_rng(3)
+    X = rng.uniform(-1, 1, (300, 2))
+    y = 2 + np.abs(X[:, 0] - 0.2) + 3 * (X[:, 1] > 0.1) + 0.1 * rng.normal(size=300)
+    tree = fit_duration_tree(X, y, ["a", "b"])
+    model = PiecewiseLinearModel.from_leaves(tree.leaves)
+    assert model.n_leaves > 2
+    thresholds = [t for t, f in zip(tree.threshold, tree.feature) if f >= 0]
+    on_faces = np.array([[t, u] for t in thresholds for u in thresholds])
+    for points in (X, on_faces):
+        np.testing.assert_allclose(model.predict(points), tree.predict(points), rtol=1e-12)
+
+
+def test_milp_bad_face_margin():
+    problem = chain_problem(0, 3, 1, depth=2)
+    with pytest.raises(RepertoireError, match="face_margin must be finite and >= 0, got -1"):
+        solve_milp(problem, face_margin=-1.0)

@@ -103,9 +103,10 @@ def _float_interval(a, b, L, U, p_lo, p_hi):
         return np.where(UP2, f > T, f <= T)
 
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        first = _first_true(
-            pred, np.concatenate([p_lo, p_lo]), np.concatenate([p_hi, p_hi]), (T - B2) / A2
-        )
+        # a * p + b rounds past T from the midpoint of T and the next float on; T - b
+        # is exact where they are close (Sterbenz), so the guess is within a few floats
+        flip = ((T - B2) + (np.nextafter(T, np.inf) - T) / 2) / A2
+        first = _first_true(pred, np.concatenate([p_lo, p_lo]), np.concatenate([p_hi, p_hi]), flip)
     n = a.size
     lo, first_out = first[:n], first[n:]
     hi = np.where(np.isnan(first_out), p_hi, np.nextafter(first_out, -np.inf))

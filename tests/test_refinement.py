@@ -287,3 +287,35 @@ def test_milp_bad_face_margin():
     problem = chain_problem(0, 3, 1, depth=2)
     with pytest.raises(RepertoireError, match="face_margin must be finite and >= 0, got -1"):
         solve_milp(problem, face_margin=-1.0)
+
+
+def test_leaf_faces_map_to_the_exact_floats_they_hold():
+    # _float_interval: the floats p in [p_lo, p_hi] with L < a p + b <= U as numpy rounds
+    # a p + b; checked at both ends and one float beyond each
+    from repertoire.planning.refinement_exact import _float_interval
+
+    rng = np.random.default_rng(0)
+    n = 4000
+    a = rng.choice([-3.0, -2.0, -0.7, 0.1, 0.5, 2.0, 3.0, 1e-3, 7e4], n)
+    b = rng.choice([0.0, 0.5, 0.1, -0.3, 1e8, 1 / 3], n)
+    L = b + a * rng.choice([-1.0, -0.5, 0.0, 0.125, 1e-17, 0.3, 0.7], n)
+    L[rng.random(n) < 0.1] = -np.inf
+    U = np.maximum(L, b + a * rng.choice([-0.2, 0.0, 0.125, 0.3, 1.0, 1e-17], n))
+    U[rng.random(n) < 0.1] = np.inf
+    L, U = np.minimum(L, U), np.maximum(L, U)
+    p_lo, p_hi = -np.ones(n), np.ones(n)
+    lo, hi = _float_interval(a, b, L, U, p_lo, p_hi)
+
+    def inside(p):
+        with np.errstate(over="ignore", invalid="ignore"):  # empty ones: p = +-inf
+            f = a * p + b
+        return (f > L) & (f <= U) & (p >= p_lo) & (p <= p_hi)
+
+    some = lo <= hi
+    assert 0.3 < some.mean() < 1.0
+    assert np.all(inside(lo)[some]) and np.all(inside(hi)[some])
+    assert not np.any(inside(np.nextafter(lo, -np.inf))[some])
+    assert not np.any(inside(np.nextafter(hi, np.inf))[some])
+    # empty intervals: no float of a fine grid (nor the ends) is inside
+    grid = np.linspace(-1, 1, 2001)[:, None]
+    assert not np.any(inside(grid)[:, ~some])

@@ -107,3 +107,67 @@ def test_landing_only_on_flat_enough_ground():
     assert plan_footsteps(occ_grid, (0.2, 0.5, 0.0), "left", (1.8, 0.5), table, flat).succeeded
     with pytest.raises(FootstepError, match="start at \\(1.000, 0.500\\) stands on ground too"):
         plan_footsteps(occ_grid, (1.0, 0.5, 0.0), "left", (1.8, 0.5), table, opts)
+
+
+def test_default_refinements_reach_the_lattice_a_stepping_stone_field_needs():
+    # 10 cm gaps between short stones: UNREACHABLE down to 1.25 cm / 144 bins (the old
+    # default, 2 refinements), a plan on 0.625 cm / 288 (the default's finest)
+    grid = stepping_stones_grid(534926, 0.10, stone_length=(0.18, 0.24))
+    table = nominal_action_table()
+    two = plan_footsteps(
+        grid, START, "left", GOAL, table, PlannerOptions(time_limit=20.0, refinements=2)
+    )
+    assert two.status is PlanStatus.UNREACHABLE
+    assert (two.xy_resolution, two.yaw_bins) == (0.0125, 144)
+    plan = plan_footsteps(grid, START, "left", GOAL, table, PlannerOptions(time_limit=20.0))
+    assert PlannerOptions().refinements == 3
+    assert plan.status is PlanStatus.SUCCESS
+    assert (plan.xy_resolution, plan.yaw_bins) == (0.00625, 288)
+
+
+def test_fine_grids_fall_back_to_the_python_core_or_name_the_mask_width():
+    # the nominal foot plus the 1 cm margin spans 65 cells of 3.7 mm: past the compiled
+    # core's 64-bit footprint rows
+    grid = OccupancyGrid(np.zeros((200, 120), dtype=bool), 0.0037)
+    table = nominal_action_table()
+    args = (grid, (0.1, 0.3, 0.0), "left", (0.5, 0.3), table)
+    auto = plan_footsteps(*args, PlannerOptions(time_limit=20.0))
+    python = plan_footsteps(*args, PlannerOptions(time_limit=20.0, backend="python"))
+    assert auto.succeeded and auto.poses == python.poses and auto.cost == python.cost
+    with pytest.raises(FootstepError, match="at most 64 cells across; .* spans 65 cells"):
+        plan_footsteps(*args, PlannerOptions(time_limit=20.0, backend="compiled"))
+    coarse = OccupancyGrid(np.zeros((80, 48), dtype=bool), 0.01)  # 1 cm: the compiled core
+    margin = PlannerOptions(time_limit=20.0, backend="compiled", footprint_margin_m=0.3)
+    with pytest.raises(FootstepError, match="footprint_margin_m=0.3 m spans"):
+        plan_footsteps(coarse, (0.1, 0.3, 0.0), "left", (0.5, 0.3), table, margin)
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_bad_weights_and_option_types_are_named_on_both_backends(backend):
+    from repertoire.planning.footstep import plan_footsteps_anytime
+
+    grid = OccupancyGrid(np.zeros((80, 40), dtype=bool), 0.025)
+    table = nominal_action_table()
+    args = (grid, (0.2, 0.5, 0.0), "left", (1.6, 0.5), table)
+    opts = PlannerOptions(time_limit=5.0, backend=backend)
+    for weights, match in (
+        ((0.5,), "numbers >= 1, got \\[0.5\\]"),
+        ((float("nan"),), "numbers >= 1, got \\[nan\\]"),
+        ((float("inf"), 1.0), "numbers >= 1, got \\[inf, 1.0\\]"),
+        ((), "numbers >= 1, got \\[\\]"),
+        (("fast",), "numbers >= 1, got \\('fast',\\)"),
+        ((1.0, 2.0), "must not increase, got \\[1.0, 2.0\\]"),
+    ):
+        with pytest.raises(FootstepError, match=match):
+            plan_footsteps_anytime(*args, opts, weights=weights)
+    for field, value, match in (
+        ("heuristic_weight", 0.5, "heuristic_weight must be finite and >= 1 .*got 0.5"),
+        ("heuristic_weight", "1", "heuristic_weight must be a number, got '1'"),
+        ("refinements", True, "refinements must be a number, got True"),
+        ("step_over_depth", float("nan"), "step_over_depth must be .* got nan"),
+    ):
+        bad = PlannerOptions(time_limit=5.0, backend=backend, **{field: value})
+        with pytest.raises(FootstepError, match=match):
+            plan_footsteps(*args, bad)
+    with pytest.raises(FootstepError, match="corridor must be a half-width >= 0 m, got 'wide'"):
+        plan_footsteps_anytime(*args, opts, corridor="wide")

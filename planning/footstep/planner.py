@@ -24,7 +24,12 @@ from repertoire.planning.footstep.biped_model import (
     history_classes,
 )
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
-from repertoire.planning.footstep.search import SearchResult, anytime_search, search
+from repertoire.planning.footstep.search import (
+    SearchResult,
+    anytime_search,
+    anytime_weights,
+    search,
+)
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -43,6 +48,8 @@ __all__ = [
 ]
 
 BACKENDS = ("auto", "compiled", "python")
+# the compiled core reads a footprint mask's rows as 64-bit words: masks up to 64 cells across
+COMPILED_MASK_CELLS = 64
 # with corridor searches, the share of the time left after the first plan that ARA* may
 # spend on the whole map before the best plan is improved in its corridor
 ARA_SHARE = 0.25
@@ -58,7 +65,8 @@ class PlannerOptions:
         heuristic: ``"dijkstra"`` (backward 2-D Dijkstra, informed, inadmissible; static
             grids only), ``"euclidean"`` (straight-line distance, admissible) or ``"none"``
             (uniform-cost search).
-        heuristic_weight: w in ``g + w h`` (>= 0).
+        heuristic_weight: w in ``g + w h`` (>= 1: with the admissible ``"euclidean"``
+            heuristic a plan costs at most w times the lattice's optimum).
         goal_tolerance: the goal is reached when the stance foot centre is within this
             distance of the goal point (m).
         obstacle_cost: Dijkstra traversal cost per metre over occupied cells (free = 1).
@@ -83,7 +91,10 @@ class PlannerOptions:
             with half the ``xy_resolution`` and twice the ``yaw_bins``, up to this many
             times within the time limit, so UNREACHABLE is reported only when the lattice
             reachable from the start is exhausted at the finest resolution tried (recorded
-            in the plan). 0 keeps one search.
+            in the plan). 0 keeps one search. The default, 3, ends at 0.625 cm / 288 bins
+            from the default lattice: a 2 m stepping-stone field with 10 cm gaps was
+            UNREACHABLE at 1.25 cm / 144 and has a plan at 0.625 cm / 288. A time limit that
+            runs out before the finest lattice is exhausted gives TIME_LIMIT.
         swing_clearance: obstacle cells taller than this (m, the grid's ``heights``) block
             the swing foot's path: a step whose straight centre line from the swing foot's
             previous position to its landing crosses such a cell is refused. ``inf`` (the
@@ -96,8 +107,10 @@ class PlannerOptions:
             ``heights``); ``inf`` (the default) or no heights: no limit.
         max_step_down: the same for lowering the foot (m).
         backend: ``"python"`` (the generic search loop), ``"compiled"`` (the numba core,
-            static grids only; the same plans) or ``"auto"`` (compiled for static grids,
-            python in dynamic worlds).
+            static grids only, footprint masks up to 64 cells across; the same plans) or
+            ``"auto"`` (compiled where it applies, else python: dynamic worlds, and grids so
+            fine, or margins so wide, that a foot's mask spans more than 64 cells, e.g.
+            cells of 3.7 mm or less for the nominal foot with the default margin).
     """
 
     time_limit: float = 1.0
@@ -112,7 +125,7 @@ class PlannerOptions:
     height_cost_weight: float = 0.0
     max_expansions: int = 0
     footprint_margin_m: float = 0.01
-    refinements: int = 2
+    refinements: int = 3
     swing_clearance: float = math.inf
     max_height_range: float = math.inf
     max_step_up: float = math.inf
@@ -142,6 +155,12 @@ class PlannerOptions:
         return cls(**{**base, **overrides})
 
     def validate(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if f.type in ("float", "int", float, int) and (
+                isinstance(v, bool) or not isinstance(v, (int, float))
+            ):
+                raise FootstepError(f"{f.name} must be a number, got {v!r}")
         if not (isinstance(self.time_limit, (int, float)) and math.isfinite(self.time_limit)):
             raise FootstepError(
                 f"time_limit must be a finite number of seconds, got {self.time_limit}"
@@ -152,8 +171,14 @@ class PlannerOptions:
             raise FootstepError(
                 f"unknown heuristic {self.heuristic!r}; expected one of {HEURISTICS}"
             )
+        if not (math.isfinite(self.heuristic_weight) and self.heuristic_weight >= 1.0):
+            raise FootstepError(
+                f"heuristic_weight must be finite and >= 1 (the plan's bound), got "
+                f"{self.heuristic_weight}"
+            )
+        if math.isnan(self.step_over_depth):
+            raise FootstepError("step_over_depth must be a depth (m), inf or negative, got nan")
         for name in (
-            "heuristic_weight",
             "obstacle_cost",
             "height_cost_weight",
             "footprint_margin_m",
@@ -376,8 +401,9 @@ def plan_footsteps_anytime(
     t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
     opts.validate()
-    if not (math.isfinite(corridor) and corridor >= 0.0):
-        raise FootstepError(f"corridor must be a half-width >= 0 m, got {corridor}")
+    weights = anytime_weights(weights)
+    if not (isinstance(corridor, (int, float)) and math.isfinite(corridor) and corridor >= 0.0):
+        raise FootstepError(f"corridor must be a half-width >= 0 m, got {corridor!r}")
     found, t_done = _anytime_once(
         world, start, start_foot, goal, table, opts, weights, kwargs, restarts,
         opts.refinements > 0, corridor,
@@ -577,12 +603,24 @@ class _Improving:
 
 
 def _backend(opts: PlannerOptions, model: BipedStepModel) -> str:
-    """The search core the options choose for the model ("auto": compiled on static grids)."""
+    """The search core the options choose for the model.
+
+    ``"auto"``: compiled on static grids whose footprint masks fit the compiled core's
+    64-bit rows, else python.
+    """
+    width = 2 * model.chk0.masks.radius_cells + 1  # cells across a footprint mask
     backend = opts.backend
     if backend == "auto":
-        backend = "python" if model.dynamic else "compiled"
+        backend = "python" if model.dynamic or width > COMPILED_MASK_CELLS else "compiled"
     if backend == "compiled" and model.dynamic:
         raise FootstepError("the compiled backend plans on static grids only; use 'python'")
+    if backend == "compiled" and width > COMPILED_MASK_CELLS:
+        raise FootstepError(
+            f"the compiled backend checks footprints at most {COMPILED_MASK_CELLS} cells "
+            f"across; this foot with footprint_margin_m={opts.footprint_margin_m} m spans "
+            f"{width} cells of {model.ref.resolution} m: use 'python' or 'auto', a coarser "
+            f"grid or a smaller margin"
+        )
     return backend
 
 

@@ -97,6 +97,25 @@ def _validate_budget(weight: float, max_expansions: int, time_limit: float) -> N
         raise FootstepError(f"time_limit must be a positive number of seconds, got {time_limit}")
 
 
+def anytime_weights(weights: Sequence[float]) -> list[float]:
+    """The weights of an anytime search as floats, checked.
+
+    At least one weight, each finite and >= 1, none above the one before.
+
+    Raises:
+        FootstepError: a weight that is not such a number, or an empty or increasing list.
+    """
+    try:
+        ws = [float(w) for w in weights]
+    except (TypeError, ValueError):
+        raise FootstepError(f"anytime weights must be numbers >= 1, got {weights!r}") from None
+    if not ws or any(not (math.isfinite(w) and w >= 1.0) for w in ws):
+        raise FootstepError(f"anytime weights must be numbers >= 1, got {list(weights)}")
+    if any(b > a for a, b in itertools.pairwise(ws)):
+        raise FootstepError(f"anytime weights must not increase, got {ws}")
+    return ws
+
+
 def search(
     model: StepModel,
     *,
@@ -234,11 +253,7 @@ def anytime_search(
     Raises:
         FootstepError: bad weights or budget, or an empty step model (see :func:`search`).
     """
-    ws = [float(w) for w in weights]
-    if not ws or any(not (math.isfinite(w) and w >= 1.0) for w in ws):
-        raise FootstepError(f"anytime weights must be numbers >= 1, got {list(weights)}")
-    if any(b > a for a, b in itertools.pairwise(ws)):
-        raise FootstepError(f"anytime weights must not increase, got {ws}")
+    ws = anytime_weights(weights)
     _validate_budget(ws[0], max_expansions, time_limit)
     t0 = time.perf_counter()
     start = model.start()

@@ -559,7 +559,7 @@ class BipedStepModel:
         ex1 = self.exact
         if self.dynamic and self.step_limits:
             ex1 = self.exact_checkers.checker(max(self.checkers.index(s.t), 0))
-        z1 = ex1.height_bounds(s.x, s.y, s.yaw)[1] if self.step_limits else 0.0
+        z1 = ex1.top_height(s.x, s.y, s.yaw) if self.step_limits else 0.0
         for m in self.successor_rows(s.a_prev2, s.a_prev1, s.foot):
             x2 = s.x + c * m.dx - sn * m.dy
             y2 = s.y + sn * m.dx + c * m.dy
@@ -586,7 +586,7 @@ class BipedStepModel:
             if self.flat_limit < math.inf and ex.height_range(x2, y2, th2) > self.flat_limit:
                 continue
             if self.step_limits:
-                dz = ex.height_bounds(x2, y2, th2)[1] - z1
+                dz = ex.top_height(x2, y2, th2) - z1  # highest ground under each sole
                 if dz > self.step_up or -dz > self.step_down:
                     continue
             if tall is not None and swing_crosses(

@@ -29,9 +29,10 @@ everything in arrays so that numba compiles it:
   inside it (numba would count references on every successor);
 - footprint checks use the model's precomputed checker: the surely-free shortcut (read
   in the loop), then an exact separating-axis test of the occupied cells of the pose's outer mask;
-  flatness, height cost and step-up/down limits read the exact checker's outer mask over
-  the height map;
-  swing lines are sampled over the cells taller than the swing clearance.
+  flatness and height cost read the exact checker's outer mask over the height map, the
+  step-up/down limits the highest ground under each sole (its exact cells:
+  ``fastkernels._top_height``);
+  swing lines are traversed exactly over the cells taller than the swing clearance.
 
 Dynamic worlds and models that are not table-driven stay on the Python loop. The functions
 are compiled with numba's cache, keyed by the contents of every compiled planner source
@@ -55,13 +56,13 @@ from repertoire.planning.footstep.fastkernels import (
     _heap_pop,
     _heap_push,
     _heap_rows,
-    _height_bounds,
     _height_range,
     _now,
     _occupancy_words,
     _prefetch_row,
     _rehash,
     _slot,
+    _top_height,
     _wrap,
     _yaw_bin,
     swing_crosses,
@@ -106,7 +107,7 @@ def _arastar(
     free,
     mbits,
     mrows,
-    ex,  # exact checker: pad, nyp, sub, yaw_bins, yaw_scale
+    ex,  # exact checker: pad, nyp, sub, yaw_bins, yaw_scale, hl, hw, R
     heights,
     ex_off,
     ex_ptr,
@@ -326,7 +327,7 @@ def _arastar(
                 row = (a2 * n + a1) * 2 + foot
                 z1 = 0.0
                 if step_limits:
-                    z1 = _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr)[1]
+                    z1 = _top_height(x, y, th, grid, ex, heights, ex_off, ex_ptr)
                 sw_x, sw_y = start[7], start[8]  # the swing starts where this foot stood before
                 if use_tall and inode[node, _PARENT] >= 0:
                     sw_x, sw_y = fnode[inode[node, _PARENT], _X], fnode[inode[node, _PARENT], _Y]
@@ -360,7 +361,7 @@ def _arastar(
                     ):
                         continue
                     if step_limits:
-                        dz = _height_bounds(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)[1] - z1
+                        dz = _top_height(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) - z1
                         if dz > step_up or -dz > step_down:
                             continue
                     if use_tall and swing_crosses(tall, sw_x, sw_y, x2, y2, ox, oy, inv_res):
@@ -556,7 +557,11 @@ def compiled_tables(model: BipedStepModel) -> dict:
         "free": np.frombuffer(chk.free_bytes, np.uint8),
         "mbits": mbits,
         "mrows": mrows,
-        "ex": np.array([exact.pad, exact.nyp, emk.sub, emk.yaw_bins, emk.yaw_scale], float),
+        "ex": np.array(
+            [exact.pad, exact.nyp, emk.sub, emk.yaw_bins, emk.yaw_scale]
+            + [*emk.half, emk.radius_cells],
+            float,
+        ),
         "heights": np.asarray(heights, float),
         "ex_off": ex_off,
         "ex_ptr": ex_ptr,

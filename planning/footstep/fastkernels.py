@@ -7,7 +7,8 @@ The parts of :mod:`repertoire.planning.footstep.fastcore` that are not the searc
 - the lattice table (open addressing, keys grouped per map cell so that the states of one
   cell share cache lines) holding each lattice state's node, g and search flags;
 - the footprint checks on the model's precomputed masks (64-bit occupancy words, exact
-  separating axes on the ring cells), the height bounds under a sole and the swing line;
+  separating axes on the ring cells), the height bounds of a sole's outer mask, the
+  highest ground under a sole (exact cells) and the swing line (exact grid traversal);
 - the arrays the checks read, built once per mask set and map.
 """
 
@@ -268,7 +269,13 @@ def _foot_free(x, y, th, grid, chk, occw, free, mbits, mrows):
 
 @njit()
 def _height_bounds(x, y, th, grid, ex, heights, ex_off, ex_ptr):
-    """Min and max height over the exact footprint's outer mask (as FootprintChecker)."""
+    """Min and max height over the exact footprint's outer mask (as FootprintChecker).
+
+    The outer mask holds every cell the sole *may* overlap (up to about a mask margin
+    beyond it): the range ``max - min`` over it is at least the range under the sole
+    (a conservative flatness test), but its max is not the highest ground under the
+    sole; the step limits use :func:`_top_height`.
+    """
     ox, oy, inv_res = grid[0], grid[1], grid[2]
     pad, nyp, sub, nb, yaw_scale = int(ex[0]), int(ex[1]), int(ex[2]), int(ex[3]), ex[4]
     fx = (x - ox) * inv_res
@@ -294,20 +301,118 @@ def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
 
 
 @njit()
-def swing_crosses(tall, x0, y0, x1, y1, ox, oy, inv):
-    """Whether the segment (x0, y0) -> (x1, y1) passes over a True cell of ``tall``.
+def _top_height(x, y, th, grid, ex, heights, ex_off, ex_ptr):
+    """Highest ground under the sole at ``(x, y, th)``: the max height over the cells it overlaps.
 
-    Both search cores call this one function (the swing line of a step).
+    The cells are those the rectangle overlaps with positive area, as the collision check
+    decides it: every cell of the pose's inner mask, and each ring cell that the exact
+    separating-axis test of :func:`_foot_free` (same formula, same tolerance) finds
+    overlapped; a ring cell is tested only when it would raise the max. The same value,
+    bit for bit, as
+    :meth:`~repertoire.planning.footstep.footprint.FootprintChecker.top_height`.
+    ``ex``: pad, nyp, sub, yaw bins, yaw scale, half length, half width, mask radius R.
     """
-    n = int(math.hypot(x1 - x0, y1 - y0) * inv * 2.0) + 2
+    ox, oy, inv_res = grid[0], grid[1], grid[2]
+    pad, nyp, sub, nb, yaw_scale = int(ex[0]), int(ex[1]), int(ex[2]), int(ex[3]), ex[4]
+    hl, hw, big_r = ex[5], ex[6], int(ex[7])
+    th = _wrap(th)  # as FootprintChecker (a no-op bit for bit except at a few ulps of +-pi)
+    fx = (x - ox) * inv_res
+    fy = (y - oy) * inv_res
+    ix = int(math.floor(fx))
+    iy = int(math.floor(fy))
+    base = (ix + pad) * nyp + iy + pad
+    fx -= ix
+    fy -= iy
+    qx = min(int(fx * sub), sub - 1)
+    qy = min(int(fy * sub), sub - 1)
+    m = (_yaw_bin(th, yaw_scale, nb) * sub + qx) * sub + qy
+    top = -np.inf
+    for k in range(ex_ptr[m, 0], ex_ptr[m, 1]):  # inner cells: overlapped for sure
+        v = heights[base + ex_off[k]]
+        if v > top:
+            top = v
+    exact = False
+    c = s = ext_x = ext_y = lim_u = lim_v = 0.0
+    eps = 1e-9
+    for k in range(ex_ptr[m, 1], ex_ptr[m, 2]):  # ring cells: only if overlapped
+        v = heights[base + ex_off[k]]
+        if not v > top:
+            continue
+        if not exact:
+            exact = True
+            c, s = math.cos(th), math.sin(th)
+            ext_x = (hl * abs(c) + hw * abs(s)) * inv_res + 0.5
+            ext_y = (hl * abs(s) + hw * abs(c)) * inv_res + 0.5
+            cell_u = 0.5 * (abs(c) + abs(s))
+            lim_u = hl * inv_res + cell_u
+            lim_v = hw * inv_res + cell_u
+        off = ex_off[k]  # di * nyp + dj with |dj| <= R < nyp / 2
+        di = (off + big_r) // nyp
+        dj = off - di * nyp
+        dx = di + 0.5 - fx
+        dy = dj + 0.5 - fy
+        if (
+            abs(dx) < ext_x - eps
+            and abs(dy) < ext_y - eps
+            and abs(dx * c + dy * s) < lim_u - eps
+            and abs(-dx * s + dy * c) < lim_v - eps
+        ):
+            top = v
+    return top
+
+
+@njit()
+def swing_crosses(tall, x0, y0, x1, y1, ox, oy, inv):
+    """Whether the segment (x0, y0) -> (x1, y1) passes through the interior of a True cell.
+
+    Both search cores call this one function (the swing line of a step). Exact grid
+    traversal (Amanatides and Woo): every cell whose open interior the closed segment
+    meets is visited, in order, with the crossing parameters ``t`` of the next x and y
+    cell boundaries recomputed from the endpoints at each step (no accumulated error).
+    Touching is not crossing: a segment through a cell's corner point only (the x and y
+    boundaries crossed at the same ``t``: it moves on diagonally), one running along a cell
+    edge, or one ending on a cell's boundary, does not enter that cell. Exact in the
+    segment's cell coordinates ``(x - ox) * inv`` up to the rounding of the ``t`` values (a
+    pass within ~1e-15 cells of a corner may count either way). Cells outside ``tall``
+    count as not tall.
+    """
     nx, ny = tall.shape
-    for k in range(n + 1):
-        u = k / n
-        i = int(((x0 + u * (x1 - x0)) - ox) * inv)
-        j = int(((y0 + u * (y1 - y0)) - oy) * inv)
+    u0 = (x0 - ox) * inv
+    v0 = (y0 - oy) * inv
+    du = (x1 - ox) * inv - u0
+    dv = (y1 - oy) * inv - v0
+    i = math.floor(u0)
+    j = math.floor(v0)
+    if i == u0:  # starts on an x boundary: the cell it moves into
+        if du < 0.0:
+            i -= 1
+        elif du == 0.0:
+            return False  # runs along a grid line (or is a point on it): no interior
+    if j == v0:
+        if dv < 0.0:
+            j -= 1
+        elif dv == 0.0:
+            return False
+    si = 1 if du > 0.0 else -1
+    sj = 1 if dv > 0.0 else -1
+    while True:
         if 0 <= i < nx and 0 <= j < ny and tall[i, j]:
             return True
-    return False
+        tx = ((i + 1 if si > 0 else i) - u0) / du if du != 0.0 else np.inf
+        ty = ((j + 1 if sj > 0 else j) - v0) / dv if dv != 0.0 else np.inf
+        if tx < ty:
+            if not tx < 1.0:
+                return False
+            i += si
+        elif ty < tx:
+            if not ty < 1.0:
+                return False
+            j += sj
+        else:  # through a corner point: the two side cells are only touched
+            if not tx < 1.0:  # (also ends a point, and a NaN input)
+                return False
+            i += si
+            j += sj
 
 
 @njit()

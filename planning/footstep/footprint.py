@@ -306,6 +306,7 @@ class FootprintChecker:
         self._rows: list[int] | None = None
         self._outer: list[np.ndarray] | None = None
         self._heights_flat: np.ndarray | None = None
+        self._exact_cells: list | None = None
 
     @property
     def heights_flat(self) -> np.ndarray | None:
@@ -444,6 +445,11 @@ class FootprintChecker:
     def height_range(self, x: float, y: float, yaw: float) -> float:
         """Max minus min height over the cells a foot may overlap (outer mask), 0 without heights.
 
+        The outer mask holds every cell the sole overlaps and may hold a few it only comes
+        within about :attr:`FootprintMasks.margin` of, so this is at least the range under
+        the sole: a flatness limit on it never accepts a sole whose exact range exceeds the
+        limit (and may refuse one at the edge of a step whose exact range is within it).
+
         Args:
             x: sole centre x (m).
             y: sole centre y (m).
@@ -454,6 +460,10 @@ class FootprintChecker:
 
     def height_bounds(self, x: float, y: float, yaw: float) -> tuple[float, float]:
         """Min and max height over the cells a foot may overlap (outer mask); 0, 0 without.
+
+        Bounds, not the exact values: the min may be lower and the max higher than under the
+        sole itself (see :meth:`height_range`). The highest ground under the sole is
+        :meth:`top_height`.
 
         Args:
             x: sole centre x (m).
@@ -469,6 +479,75 @@ class FootprintChecker:
         base = (ix + self.pad) * self.nyp + iy + self.pad
         h = self.heights_flat[base + self.outer[self.masks.index(yaw, fx - ix, fy - iy)]]
         return float(h.min()), float(h.max())
+
+    @property
+    def exact_cells(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        """Per mask: flat offsets of the inner cells; flat offsets, ``di``, ``dj`` of the ring.
+
+        Built on first use, for :meth:`top_height`.
+        """
+        if self._exact_cells is None:
+            nyp = self.nyp
+            self._exact_cells = [
+                (
+                    np.asarray(ia, np.int64) * nyp + np.asarray(ib, np.int64),
+                    np.asarray(ra, np.int64) * nyp + np.asarray(rb, np.int64),
+                    np.asarray(ra, np.int64),
+                    np.asarray(rb, np.int64),
+                )
+                for (ia, ib), (ra, rb) in zip(self.masks.inner, self.masks.ring, strict=True)
+            ]
+        return self._exact_cells
+
+    def top_height(self, x: float, y: float, yaw: float) -> float:
+        """Highest ground under the sole: max height over the cells it overlaps; 0 without.
+
+        The cells are exactly those the sole rectangle overlaps with positive area, decided
+        as the collision check decides it: the pose's inner mask, plus each ring cell the
+        exact separating-axis test finds overlapped (the same formula and tolerance as
+        :meth:`is_free`). The step limits compare this value between two soles (an upper
+        bound such as :meth:`height_bounds`' max is not sound for a difference). The
+        compiled twin is ``fastkernels._top_height`` (the same value, bit for bit).
+
+        Args:
+            x: sole centre x (m).
+            y: sole centre y (m).
+            yaw: foot yaw (rad).
+        """
+        if self.heights_flat is None:
+            return 0.0
+        yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
+        fx = (x - self.x0) * self.inv_res
+        fy = (y - self.y0) * self.inv_res
+        ix, iy = int(math.floor(fx)), int(math.floor(fy))
+        fx -= ix
+        fy -= iy
+        base = (ix + self.pad) * self.nyp + iy + self.pad
+        inner, ring, ring_di, ring_dj = self.exact_cells[self.masks.index(yaw, fx, fy)]
+        hf = self.heights_flat
+        top = float(hf[base + inner].max()) if inner.size else -math.inf
+        h_ring = hf[base + ring]
+        cand = h_ring > top  # only ring cells that would raise the max need the exact test
+        if cand.any():
+            c, s = math.cos(yaw), math.sin(yaw)
+            hl, hw = self.masks.half
+            ext_x = (hl * abs(c) + hw * abs(s)) * self.inv_res + 0.5
+            ext_y = (hl * abs(s) + hw * abs(c)) * self.inv_res + 0.5
+            cell_u = 0.5 * (abs(c) + abs(s))
+            lim_u = hl * self.inv_res + cell_u
+            lim_v = hw * self.inv_res + cell_u
+            eps = 1e-9
+            dx = ring_di[cand] + 0.5 - fx  # cell centre minus foot centre, in cells
+            dy = ring_dj[cand] + 0.5 - fy
+            hit = (
+                (np.abs(dx) < ext_x - eps)
+                & (np.abs(dy) < ext_y - eps)
+                & (np.abs(dx * c + dy * s) < lim_u - eps)
+                & (np.abs(-dx * s + dy * c) < lim_v - eps)
+            )
+            if hit.any():
+                top = max(top, float(h_ring[cand][hit].max()))
+        return top
 
 
 def foot_collides_reference(

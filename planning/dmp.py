@@ -28,9 +28,11 @@ from repertoire.planning.dmp_math import (
     alpha_for_final_phase,
     check_formulation,
     check_positive,
+    rollout,
+)
+from repertoire.planning.dmp_quaternion import (
     lift_quaternion_goal,
     quaternion_rollout,
-    rollout,
 )
 
 from repertoire.errors import RepertoireError

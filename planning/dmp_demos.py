@@ -14,6 +14,8 @@ import numpy as np
 from repertoire.planning.dmp_math import (
     minimum_jerk,
     minimum_jerk_via_points,
+)
+from repertoire.planning.dmp_quaternion import (
     quat_conjugate,
     quat_exp,
     quat_log,

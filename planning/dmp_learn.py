@@ -29,16 +29,18 @@ from repertoire.planning.dmp import (
 )
 from repertoire.planning.dmp_derivatives import estimate_derivatives
 from repertoire.planning.dmp_math import (
-    angular_velocity,
     basis_centres,
     basis_widths,
     canonical_phase,
     check_formulation,
     check_n_basis,
     check_positive,
-    check_turn,
     forcing_features,
     forcing_target,
+)
+from repertoire.planning.dmp_quaternion import (
+    angular_velocity,
+    check_turn,
     quat_conjugate,
     quat_log_error,
     quat_multiply,

@@ -22,7 +22,9 @@ from repertoire.planning.dmp import (
     check_unit_quaternions,
     dmp_from_dict,
 )
-from repertoire.planning.dmp_math import quat_multiply
+from repertoire.planning.dmp_quaternion import (
+    quat_multiply,
+)
 
 from repertoire.errors import RepertoireError, UnknownNameError
 

@@ -19,14 +19,16 @@ from pydrake.systems.framework import (
 from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters, check_unit_quaternions
 from repertoire.planning.dmp_math import (
     check_positive,
-    check_turn,
     forcing_term,
+    obstacle_coupling,
+    transformation_derivatives,
+)
+from repertoire.planning.dmp_quaternion import (
+    check_turn,
     lift_quaternion_goal,
     manifold_step,
-    obstacle_coupling,
     quat_log_error,
     quat_multiply,
-    transformation_derivatives,
 )
 
 from repertoire.errors import RepertoireError
@@ -322,7 +324,7 @@ class QuaternionGoalSign(LeafSystem):
     The component form (sec. IV-B) runs in R^4, where ``g`` and ``-g`` (one orientation)
     are different goals: one turns the learned way round, the other back the other way. This
     system passes the goal on with the sign nearest the learned goal (``g . g_learned >= 0``;
-    :func:`repertoire.planning.dmp_math.lift_quaternion_goal` for the learned start), so
+    :func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal` for the learned start), so
     the goal input takes either sign, also for demonstrations turning past 180 deg.
 
     Input ports:
@@ -407,12 +409,12 @@ class ManifoldQuaternionSystem(LeafSystem):
     """On-manifold quaternion DMP, discrete time (exact unit norm via the exponential map).
 
     Discrete state ``[q (4), eta (3)]`` (eta = tau omega, world frame), updated every
-    ``time_step`` by :func:`repertoire.planning.dmp_math.manifold_step` (velocity Verlet
+    ``time_step`` by :func:`repertoire.planning.dmp_quaternion.manifold_step` (velocity Verlet
     with the rotation applied through the exponential map) for
     ``tau eta' = K e(g,q) - D eta - K e(g,q0) theta + K f(theta)``, ``e = 2 log(g q^*)``
-    on S^3 (:func:`repertoire.planning.dmp_math.quat_log_error`). The goal input's sign
+    on S^3 (:func:`repertoire.planning.dmp_quaternion.quat_log_error`). The goal input's sign
     does not matter: the sign that turns the learned way round is used
-    (:func:`repertoire.planning.dmp_math.lift_quaternion_goal`), so a demonstration turning
+    (:func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal`), so a demonstration turning
     past 180 deg is reproduced; a goal a full turn from q0 that way is refused.
     The phase at the end of a step is ``theta exp(-alpha dt / tau)`` (constant tau).
     The state is held before the ``start_time`` parameter.

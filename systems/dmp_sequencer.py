@@ -7,7 +7,7 @@ NumPy reference is :func:`repertoire.planning.dmp_chain.chain_rollout`). Every s
 its own goal input port, read every step while the segment is active (goals may move,
 sec. II-B). Optionally a 4-DOF block holds quaternion components (the paper's 10-D arm DMP,
 Fig. 7): the goal gets the sign that turns from the segment's start the way the segment
-learned (:func:`repertoire.planning.dmp_math.lift_quaternion_goal`: its learned goal for its
+learned (:func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal`: its learned goal for its
 learned start, also past 180 deg) and the output is post-normalised with its world angular
 velocity. :func:`task_space_sequencer` is that configuration for
 :class:`repertoire.planning.dmp.TaskSpaceDmp` segments.
@@ -35,11 +35,13 @@ from repertoire.planning.dmp_chain import (
 )
 from repertoire.planning.dmp_discrete import DiscreteDmpTables
 from repertoire.planning.dmp_math import (
-    angular_velocity,
     check_positive,
     forcing_term,
-    lift_quaternion_goal,
     transformation_derivatives,
+)
+from repertoire.planning.dmp_quaternion import (
+    angular_velocity,
+    lift_quaternion_goal,
 )
 from repertoire.systems.dmp import check_finite_goal, check_vector
 

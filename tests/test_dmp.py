@@ -34,10 +34,12 @@ from repertoire.planning.dmp_math import (
     minimum_jerk,
     minimum_jerk_via_points,
     obstacle_coupling,
+    rollout,
+)
+from repertoire.planning.dmp_quaternion import (
     quat_exp,
     quat_log,
     quat_multiply,
-    rollout,
 )
 from repertoire.planning.motion_library import (
     MotionLibrary,

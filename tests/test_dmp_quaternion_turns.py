@@ -9,8 +9,10 @@ from repertoire.planning.dmp import TaskSpaceDmp
 from repertoire.planning.dmp_demos import slerp_minimum_jerk
 from repertoire.planning.dmp_learn import learn_dmp, learn_quaternion_dmp
 from repertoire.planning.dmp_math import (
-    lift_quaternion_goal,
     minimum_jerk,
+)
+from repertoire.planning.dmp_quaternion import (
+    lift_quaternion_goal,
     quat_error,
     quat_exp,
     quat_log_error,

@@ -11,10 +11,12 @@ from repertoire.planning.dmp_math import (
     forcing_term,
     minimum_jerk_via_points,
     obstacle_coupling,
+    transformation_derivatives,
+)
+from repertoire.planning.dmp_quaternion import (
     quat_exp,
     quat_multiply,
     quaternion_rollout,
-    transformation_derivatives,
 )
 from repertoire.systems.dmp import (
     CanonicalSystem,

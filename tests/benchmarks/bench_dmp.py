@@ -42,7 +42,12 @@ def main() -> int:
     from pydrake.systems.primitives import ConstantVectorSource
     from repertoire.planning.dmp_demos import slerp_minimum_jerk
     from repertoire.planning.dmp_learn import learn_dmp, learn_quaternion_dmp
-    from repertoire.planning.dmp_math import minimum_jerk, quat_exp
+    from repertoire.planning.dmp_math import (
+        minimum_jerk,
+    )
+    from repertoire.planning.dmp_quaternion import (
+        quat_exp,
+    )
     from repertoire.systems.dmp import CanonicalSystem, ManifoldQuaternionSystem
     from repertoire.systems.dmp_discrete import DiscreteDmpSystem
 

@@ -130,8 +130,8 @@ class FootstepPlanSource(LeafSystem):
             raise FootstepError(
                 f"FootstepPlanSource needs a FootstepPlan, got {type(plan).__name__}"
             )
-        times = plan.times
-        if any(b <= a for a, b in zip(times[:-1], times[1:])):
+        times = plan.times  # finite (the plan checks that)
+        if not all(b > a for a, b in zip(times[:-1], times[1:])):
             raise FootstepError(f"plan times must increase strictly, got {times}")
 
     def SetPlan(self, context: Context, plan: FootstepPlan) -> None:

@@ -96,3 +96,41 @@ def test_source_in_a_diagram_and_bad_plans():
         FootstepPlanSource({"poses": []})
     with pytest.raises(FootstepError, match="needs 3 poses"):
         FootstepPlan(**{**make_plan().__dict__, "times": [0.0, 1.0]})
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "match"),
+    [
+        ("times", [1.0, float("nan"), 2.0], r"plan times must be finite, got \[1.0, nan, 2.0\]"),
+        ("times", [1.0, 2.0, float("inf")], r"plan times must be finite"),
+        ("times", [1.0, "soon", 2.0], r"plan times must be numbers"),
+        ("poses", [[0.0, 0.1, 0.0], [0.3, float("nan"), 0.0], [0.5, 0.1, 0.2]], r"poses must be"),
+        ("poses", [[0.0, 0.1], [0.3, -0.1], [0.5, 0.1]], r"finite \[x, y, yaw\] of shape \(3, 3\)"),
+        ("initial_swing_pose", [0.0, -0.1], r"initial_swing_pose must be finite .* shape \(3,\)"),
+        ("feet", [0, 5, 0], r"plan feet must be 0 \(left\) or 1 \(right\), got 5 at 1"),
+        ("feet", [0, 0, 1], r"must alternate from step to step, got 0 then 0 at poses 0 and 1"),
+    ],
+)
+def test_bad_plans_are_refused_where_they_are_made(field, value, match):
+    with pytest.raises(FootstepError, match=match):
+        FootstepPlan(**{**make_plan().__dict__, field: value})
+
+
+def test_obstacles_refuse_sizes_and_values_that_paint_nothing_or_fail():
+    from repertoire.planning.footstep import MovingRectObstacle, OccupancyGrid, RectObstacle
+    from repertoire.planning.footstep.types import GridError
+
+    with pytest.raises(GridError, match=r"RectObstacle size must be > 0 m .* got \[-0.2, 0.2\]"):
+        RectObstacle(center=[0.5, 0.5], size=[-0.2, 0.2])
+    with pytest.raises(GridError, match=r"RectObstacle center must be 2 finite numbers"):
+        RectObstacle(center=[float("nan"), 0.5], size=[0.2, 0.2])
+    with pytest.raises(GridError, match=r"RectObstacle height must be finite and >= 0 m"):
+        RectObstacle(center=[0.5, 0.5], size=[0.2, 0.2], height=-0.1)
+    with pytest.raises(GridError, match=r"MovingRectObstacle velocity must be 2 finite"):
+        MovingRectObstacle(center=[0.5, 0.5], size=[0.2, 0.2], velocity=[float("inf"), 0.0])
+    with pytest.raises(GridError, match=r"MovingRectObstacle size must be > 0 m"):
+        MovingRectObstacle(center=[0.5, 0.5], size=[0.2, 0.0])
+    with pytest.raises(GridError, match=r"MovingRectObstacle yaw must be finite, got nan"):
+        MovingRectObstacle(center=[0.5, 0.5], size=[0.2, 0.2], yaw=float("nan"))
+    grid = OccupancyGrid.from_rectangles((1.0, 1.0), [RectObstacle([0.5, 0.5], [0.2, 0.2])], 0.025)
+    assert grid.occupied.sum() == 64  # 8 x 8 cells of 2.5 cm: a valid obstacle still paints

@@ -72,6 +72,38 @@ class RectObstacle:
     yaw: float = 0.0
     height: float = 0.02
 
+    def __post_init__(self) -> None:
+        _check_rectangle(self)
+
+
+def _check_rectangle(ob: "RectObstacle | MovingRectObstacle") -> None:
+    """Refuses a rectangle that would paint nothing or fail in numpy (naming the field).
+
+    Raises:
+        GridError: ``center`` (and ``velocity``) not 2 finite values, ``size`` not 2
+            finite values > 0, ``yaw`` not finite, ``height`` not finite and >= 0.
+    """
+    kind = type(ob).__name__
+    for name in ("center", "size", "velocity"):
+        if not hasattr(ob, name):
+            continue
+        value = getattr(ob, name)
+        try:
+            v = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise GridError(f"{kind} {name} must be 2 numbers, got {value!r}") from None
+        if v.shape != (2,) or not np.isfinite(v).all():
+            raise GridError(f"{kind} {name} must be 2 finite numbers, got {value!r}")
+        if name == "size" and not (v > 0.0).all():
+            raise GridError(f"{kind} size must be > 0 m on both axes, got {value!r}")
+    for name in ("yaw", "height"):
+        value = getattr(ob, name)
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise GridError(f"{kind} {name} must be a number, got {value!r}")
+        if not math.isfinite(value) or (name == "height" and value < 0.0):
+            what = "finite" if name == "yaw" else "finite and >= 0 m"
+            raise GridError(f"{kind} {name} must be {what}, got {value}")
+
 
 @dataclasses.dataclass
 class MovingRectObstacle:
@@ -98,6 +130,7 @@ class MovingRectObstacle:
     waypoints: list[list[float]] = dataclasses.field(default_factory=list)
 
     def __post_init__(self) -> None:
+        _check_rectangle(self)
         if self.waypoints:
             w = np.asarray(self.waypoints, dtype=float)
             if w.ndim != 2 or w.shape[1] != 3 or not np.all(np.isfinite(w)):

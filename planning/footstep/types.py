@@ -419,6 +419,13 @@ class FootstepPlan:
     yaw_bins: int = 0
 
     def __post_init__(self) -> None:
+        """Checks the plan's shape and values: a bad plan is refused where it is made.
+
+        Raises:
+            FootstepError: lengths that do not match the actions, poses that are not
+                finite ``[x, y, yaw]`` rows, times that are not finite, feet that are not
+                0 or 1 or that do not alternate from step to step.
+        """
         self.status = PlanStatus(self.status)
         n = len(self.actions)
         if len(self.poses) != n + 1 or len(self.feet) != n + 1 or len(self.times) != n + 1:
@@ -426,6 +433,33 @@ class FootstepPlan:
                 f"a plan with {n} actions needs {n + 1} poses, feet and times; got "
                 f"{len(self.poses)}, {len(self.feet)}, {len(self.times)}"
             )
+        for name in ("poses", "initial_swing_pose"):
+            try:
+                value = np.asarray(getattr(self, name), dtype=float)
+            except (TypeError, ValueError):
+                raise FootstepError(
+                    f"plan {name} must be numbers [x, y, yaw], got {getattr(self, name)!r}"
+                ) from None
+            shape = (n + 1, 3) if name == "poses" else (3,)
+            if value.shape != shape or not np.isfinite(value).all():
+                raise FootstepError(
+                    f"plan {name} must be finite [x, y, yaw] of shape {shape}, got "
+                    f"{getattr(self, name)!r}"
+                )
+        try:
+            times = np.asarray(self.times, dtype=float)
+        except (TypeError, ValueError):
+            raise FootstepError(f"plan times must be numbers, got {self.times!r}") from None
+        if not np.isfinite(times).all():
+            raise FootstepError(f"plan times must be finite, got {self.times}")
+        for k, foot in enumerate(self.feet):
+            if isinstance(foot, bool) or foot not in (0, 1):
+                raise FootstepError(f"plan feet must be 0 (left) or 1 (right), got {foot!r} at {k}")
+            if k and foot == self.feet[k - 1]:
+                raise FootstepError(
+                    f"plan feet must alternate from step to step, got {self.feet[k - 1]} then "
+                    f"{foot} at poses {k - 1} and {k}"
+                )
 
     @property
     def num_steps(self) -> int:

@@ -1,0 +1,263 @@
+"""Step-up/down limits on the exact ground under each sole; swing lines by exact traversal.
+
+Two defects a fuzz campaign found: the step limits compared the highest ground over each
+sole's *outer* mask (cells it may overlap, up to ~8 mm beyond it), so a step from a 10 cm
+terrace to a sole wholly on the floor beside it passed ``max_step_down=0.05``; and the
+swing line was sampled every half cell, so a line clipping a tall cell's corner passed.
+"""
+
+import math
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from repertoire.planning.footstep import (
+    OccupancyGrid,
+    PlannerOptions,
+    PlanStatus,
+    nominal_action_table,
+    plan_footsteps,
+)
+from repertoire.planning.footstep.biped_model import BipedStepModel
+from repertoire.planning.footstep.environment import rect_overlaps_cells
+from repertoire.planning.footstep.fastcore import compiled_tables
+from repertoire.planning.footstep.fastkernels import _top_height, swing_crosses
+from repertoire.planning.footstep.footprint import FootprintChecker, footprint_masks
+
+HL, HW = 0.08, 0.05  # the ASIMO-like sole's half length and half width
+RES = 0.025
+
+
+def _both(grid, start, foot, goal, **opts):
+    """The plan of both backends, asserted identical (poses, costs, statuses, expansions)."""
+    opts.setdefault("time_limit", 60.0)
+    table = nominal_action_table()
+    py, cc = (
+        plan_footsteps(grid, start, foot, goal, table, PlannerOptions(backend=b, **opts))
+        for b in ("python", "compiled")
+    )
+    assert py.status is cc.status
+    assert py.poses == cc.poses and py.actions == cc.actions and py.times == cc.times
+    assert py.cost == cc.cost and py.cost_to_go == cc.cost_to_go
+    assert (py.nodes_expanded, py.nodes_generated) == (cc.nodes_expanded, cc.nodes_generated)
+    return cc
+
+
+def _terrace() -> OccupancyGrid:
+    """A free 10 cm terrace for x < 1.25 m, the floor (0) beyond; 2.5 m x 1 m, all free."""
+    heights = np.zeros((100, 40))
+    heights[:50, :] = 0.10
+    return OccupancyGrid(np.zeros((100, 40), bool), RES, (0.0, 0.0), heights)
+
+
+def _top_reference(grid: OccupancyGrid, pose) -> float:
+    """Max height over the cells the sole overlaps with positive area, every cell tested."""
+    centers = grid.cell_centers().reshape(-1, 2)
+    cells = rect_overlaps_cells(pose[:2], (HL, HW), pose[2], centers, RES / 2)
+    return float(grid.heights.ravel()[cells.ravel()].max())
+
+
+def test_top_height_is_the_ground_under_the_sole_not_the_outer_mask():
+    grid = _terrace()
+    chk = FootprintChecker(grid, footprint_masks(2 * HL, 2 * HW, RES))
+    # yaw 0, wholly on the floor 4 mm from the terrace edge (x = 1.25): the outer mask
+    # reaches the terrace, the sole does not
+    on_floor = (1.25 + HL + 0.004, 0.5, 0.0)
+    assert chk.top_height(*on_floor) == 0.0
+    assert chk.height_bounds(*on_floor) == (0.0, 0.10)  # the conservative bounds
+    # 1 mm onto the terrace, and 1 mm short of it
+    assert chk.top_height(1.25 + HL - 0.001, 0.5, 0.0) == 0.10
+    assert chk.top_height(1.25 + HL + 0.001, 0.5, 0.0) == 0.0
+    # yawed by 0.35 rad: the extent along x is HL cos + HW sin = 0.0923 m
+    ext = HL * math.cos(0.35) + HW * math.sin(0.35)
+    assert chk.top_height(1.25 + ext - 0.001, 0.5, 0.35) == 0.10
+    assert chk.top_height(1.25 + ext + 0.001, 0.5, 0.35) == 0.0
+    assert chk.top_height(1.0, 0.5, 1.0) == 0.10  # wholly on the terrace
+
+
+def test_top_height_compiled_equals_python_equals_reference():
+    rng = np.random.default_rng(5)
+    heights = np.round(rng.uniform(0.0, 0.2, (48, 40)), 3)
+    grid = OccupancyGrid(np.zeros((48, 40), bool), RES, (0.1, -0.2), heights)
+    opts = PlannerOptions(max_step_up=0.05, backend="compiled")
+    model = BipedStepModel(grid, (0.5, 0.3, 0.0), "left", (0.9, 0.5), nominal_action_table(), opts)
+    tab = compiled_tables(model)
+    args = (tab["grid"], tab["ex"], tab["heights"], tab["ex_off"], tab["ex_ptr"])
+    for _ in range(3000):
+        pose = (rng.uniform(0.25, 1.05), rng.uniform(-0.05, 0.6), rng.uniform(-4.0, 4.0))
+        py = model.exact.top_height(*pose)
+        assert _top_height(*pose, *args) == py
+        assert py == _top_reference(grid, pose)
+        assert py <= model.exact.height_bounds(*pose)[1]
+
+
+@pytest.mark.parametrize("down", [0.05, 0.0])
+def test_terrace_is_unreachable_when_the_drop_exceeds_max_step_down(down):
+    # Every sole within the goal tolerance (0.15 m of (1.5, 0.595)) lies wholly on the
+    # floor (its centre x >= 1.35, its extent <= hypot(HL, HW) = 0.0943 m), so reaching it
+    # needs a step down of 0.10 m at some point. The outer-mask rule returned SUCCESS here.
+    plan = _both(
+        _terrace(), (0.335, 0.595, 0.0), "left", (1.5, 0.595),
+        max_step_down=down, max_step_up=0.05, refinements=0,
+    )  # fmt: skip
+    assert plan.status is PlanStatus.UNREACHABLE
+    grid = _terrace()
+    assert all(_top_reference(grid, p) == 0.10 for p in plan.poses)  # never left the terrace
+
+
+def test_terrace_is_reached_when_max_step_down_allows_the_drop():
+    grid = _terrace()
+    plan = _both(
+        grid, (0.335, 0.595, 0.0), "left", (1.5, 0.595),
+        max_step_down=0.10, max_step_up=0.05, refinements=0,
+    )  # fmt: skip
+    assert plan.status is PlanStatus.SUCCESS
+    tops = [_top_reference(grid, p) for p in plan.poses]
+    assert tops[0] == 0.10 and tops[-1] == 0.0
+    assert all(-0.10 <= b - a <= 0.05 for a, b in zip(tops, tops[1:]))
+
+
+# ---------------------------------------------------------------- swing line traversal
+
+
+def _sampled_old(tall, x0, y0, x1, y1, ox, oy, inv):
+    """The sampler swing_crosses replaced: points every <= res / 2 (misses corner clips)."""
+    n = int(math.hypot(x1 - x0, y1 - y0) * inv * 2.0) + 2
+    for k in range(n + 1):
+        u = k / n
+        i = int(((x0 + u * (x1 - x0)) - ox) * inv)
+        j = int(((y0 + u * (y1 - y0)) - oy) * inv)
+        if 0 <= i < tall.shape[0] and 0 <= j < tall.shape[1] and tall[i, j]:
+            return True
+    return False
+
+
+def test_swing_line_clipping_a_corner_by_1mm_is_refused_and_1mm_outside_accepted():
+    tall = np.zeros((10, 10), bool)
+    tall[4, 4] = True  # the square [0.1, 0.125]^2
+    inv = 1.0 / RES
+    d = 0.001 * math.sqrt(2.0)  # lines x + y = 0.2 +- d pass 1 mm from the corner (0.1, 0.1)
+    clip = (0.05, 0.15 + d, 0.15 + d, 0.05)  # 1 mm inside: a 2 mm chord through the cell
+    miss = (0.05, 0.15 - d, 0.15 - d, 0.05)  # 1 mm outside
+    assert swing_crosses(tall, *clip, 0.0, 0.0, inv)
+    assert not swing_crosses(tall, *miss, 0.0, 0.0, inv)
+    assert not _sampled_old(tall, *clip, 0.0, 0.0, inv)  # what the fuzz campaign found
+    # reversed, and shifted with the map origin
+    assert swing_crosses(tall, clip[2], clip[3], clip[0], clip[1], 0.0, 0.0, inv)
+    assert swing_crosses(tall, *(v + 0.3 for v in clip), 0.3, 0.3, inv)
+    assert not swing_crosses(tall, *(v + 0.3 for v in miss), 0.3, 0.3, inv)
+
+
+def _crosses_exact(cell, a, b) -> bool:
+    """Brute force in exact arithmetic: does the closed segment a-b meet the open square
+    (i, i + 1) x (j, j + 1)? (Cell coordinates, the grid's origin at 0 and side 1.)"""
+    lo, hi = Fraction(0), Fraction(1)  # the segment's parameters t, closed [0, 1]
+    strict_lo, strict_hi = False, False
+    for k in range(2):
+        p, d = Fraction(a[k]), Fraction(b[k]) - Fraction(a[k])
+        c0 = Fraction(int(cell[k]))
+        c1 = c0 + 1
+        if d == 0:
+            if not c0 < p < c1:
+                return False
+            continue
+        t0, t1 = sorted(((c0 - p) / d, (c1 - p) / d))  # open: c0 < p + t d < c1
+        if t0 >= lo:
+            lo, strict_lo = t0, True
+        if t1 <= hi:
+            hi, strict_hi = t1, True
+    return lo < hi or (lo == hi and not strict_lo and not strict_hi)
+
+
+def _segments(rng, n):
+    """Random segments in a 12 x 12 grid, a third of them on grid lines and corners."""
+    for k in range(n):
+        if k % 3 == 0:  # exact degenerate cases: integer and half-integer coordinates
+            a = rng.integers(0, 25, 2) / 2.0
+            b = rng.integers(0, 25, 2) / 2.0
+        elif k % 3 == 1:  # short swings, as in a plan (a few cells)
+            a = rng.uniform(0.0, 12.0, 2)
+            b = a + rng.uniform(-4.0, 4.0, 2)
+        else:
+            a, b = rng.uniform(-1.0, 13.0, 2), rng.uniform(-1.0, 13.0, 2)
+        yield (float(a[0]), float(a[1])), (float(b[0]), float(b[1]))
+
+
+def test_traversal_visits_exactly_the_cells_whose_interior_the_segment_meets():
+    rng = np.random.default_rng(11)
+    n = 12
+    for a, b in _segments(rng, 400):
+        for i in range(n):
+            for j in range(n):
+                tall = np.zeros((n, n), bool)
+                tall[i, j] = True
+                got = swing_crosses(tall, a[0], a[1], b[0], b[1], 0.0, 0.0, 1.0)
+                assert got == _crosses_exact((i, j), a, b), (a, b, (i, j))
+
+
+def test_traversal_against_brute_force_on_random_tall_cells():
+    rng = np.random.default_rng(12)
+    n = 12
+    hits = 0
+    for a, b in _segments(rng, 4000):
+        tall = rng.random((n, n)) < 0.08
+        want = any(_crosses_exact(c, a, b) for c in zip(*np.nonzero(tall)))
+        assert swing_crosses(tall, a[0], a[1], b[0], b[1], 0.0, 0.0, 1.0) == want, (a, b)
+        hits += want
+    assert 1000 < hits < 3000  # both answers well represented
+
+
+def test_corner_points_grid_lines_and_end_points_touch_no_interior():
+    tall = np.ones((4, 4), bool)
+    only = np.zeros((4, 4), bool)
+
+    def cells(a, b):
+        out = set()
+        for i in range(4):
+            for j in range(4):
+                only[:] = False
+                only[i, j] = True
+                if swing_crosses(only, *a, *b, 0.0, 0.0, 1.0):
+                    out.add((i, j))
+        return out
+
+    # the diagonal through the corners (1, 1) and (2, 2) enters the diagonal cells only
+    assert cells((0.5, 0.5), (2.5, 2.5)) == {(0, 0), (1, 1), (2, 2)}
+    assert cells((2.5, 2.5), (0.5, 0.5)) == {(0, 0), (1, 1), (2, 2)}
+    assert cells((0.5, 3.5), (3.5, 0.5)) == {(0, 3), (1, 2), (2, 1), (3, 0)}
+    # along a grid line: on the boundary of two columns of cells, inside none
+    assert not swing_crosses(tall, 1.0, 0.2, 1.0, 3.7, 0.0, 0.0, 1.0)
+    assert not swing_crosses(tall, 0.2, 2.0, 3.9, 2.0, 0.0, 0.0, 1.0)
+    # ending (or starting) on a boundary does not enter the cell beyond it
+    assert cells((0.5, 0.5), (1.0, 0.5)) == {(0, 0)}
+    assert cells((1.0, 0.5), (1.5, 0.5)) == {(1, 0)}
+    assert cells((1.0, 1.0), (2.0, 2.0)) == {(1, 1)}
+    # a point strictly inside a cell is in its interior; one on a corner is not
+    assert cells((1.5, 2.5), (1.5, 2.5)) == {(1, 2)}
+    assert cells((1.0, 2.0), (1.0, 2.0)) == set()
+    # outside the grid counts as not tall
+    assert not swing_crosses(tall, -3.0, -1.0, -0.5, 5.0, 0.0, 0.0, 1.0)
+
+
+def test_fuzz_scene_swing_lines_cross_no_tall_cell():
+    from repertoire.planning.footstep.scenes import random_floor_scene
+
+    sc = random_floor_scene(279829, size=8.0, occupancy=0.3)
+    g = sc.grid
+    tall = g.occupied & (g.heights > 0.1)
+    plan = _both(
+        g, sc.start, "left", sc.goal, time_limit=120.0, swing_clearance=0.1,
+        max_expansions=200000, heuristic_weight=5.0, footprint_margin_m=0.0,
+    )  # fmt: skip
+    assert plan.status is PlanStatus.SUCCESS
+    swing = [plan.initial_swing_pose] + plan.poses[:-2]
+    inv = 1.0 / g.resolution
+    ox, oy = g.origin
+    for k in range(len(plan.poses) - 1):
+        (x0, y0), (x1, y1) = swing[k][:2], plan.poses[k + 1][:2]
+        a, b = ((x0 - ox) * inv, (y0 - oy) * inv), ((x1 - ox) * inv, (y1 - oy) * inv)
+        lo_i, hi_i = int(min(a[0], b[0])) - 1, int(max(a[0], b[0])) + 2
+        lo_j, hi_j = int(min(a[1], b[1])) - 1, int(max(a[1], b[1])) + 2
+        for i in range(max(lo_i, 0), min(hi_i, tall.shape[0])):
+            for j in range(max(lo_j, 0), min(hi_j, tall.shape[1])):
+                assert not (tall[i, j] and _crosses_exact((i, j), a, b)), (k, (i, j))

@@ -171,3 +171,36 @@ def test_bad_weights_and_option_types_are_named_on_both_backends(backend):
             plan_footsteps(*args, bad)
     with pytest.raises(FootstepError, match="corridor must be a half-width >= 0 m, got 'wide'"):
         plan_footsteps_anytime(*args, opts, corridor="wide")
+
+
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+def test_footprint_masks_are_built_before_the_clock_starts(backend, monkeypatch):
+    # a resolution no other test uses: the masks of this foot and margin are built by
+    # _build_footprint_masks, outside the time limit, and the step model finds them cached
+    import repertoire.planning.footstep.planner as planner_module
+    from repertoire.planning.footstep.biped_model import BipedStepModel
+    from repertoire.planning.footstep.fastcore import warm_up
+    from repertoire.planning.footstep.footprint import footprint_masks
+
+    warm_up()  # its own tiny model, before this test's
+    res = 0.0173 if backend == "python" else 0.0171
+    grid = OccupancyGrid(np.zeros((120, 46), dtype=bool), res)
+    opts = PlannerOptions(time_limit=5.0, backend=backend)
+    order = []
+    built = planner_module._build_footprint_masks
+    monkeypatch.setattr(
+        planner_module, "_build_footprint_masks", lambda *a: (built(*a), order.append("masks"))
+    )
+    model_init = BipedStepModel.__init__
+
+    def init(self, *a, **k):
+        misses = footprint_masks.cache_info().misses
+        model_init(self, *a, **k)
+        order.append(("model", footprint_masks.cache_info().misses - misses))
+
+    monkeypatch.setattr(BipedStepModel, "__init__", init)
+    plan = plan_footsteps(grid, START, "left", GOAL, nominal_action_table(), opts)
+    assert plan.succeeded
+    assert order == ["masks", ("model", 0)]  # masks first, no mask built by the model
+    masks = footprint_masks(0.16 + 0.02, 0.1 + 0.02, res)
+    assert ("outer_rows" in masks.__dict__) is (backend == "python")  # the rows it reads

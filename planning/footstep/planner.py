@@ -17,6 +17,7 @@ import math
 import time
 from collections.abc import Sequence
 
+from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
 from repertoire.planning.footstep.biped_model import (
     ActionFilter,
     BipedState,
@@ -79,7 +80,8 @@ class PlannerOptions:
             states closer than this (same foot, yaw bin and history class) are one state.
         yaw_bins: yaw bins per turn used to merge states.
         time_resolution: time bins used to merge states in dynamic worlds (s).
-        height_cost_weight: location cost per metre of height variation under a foot.
+        height_cost_weight: location cost per metre of height variation under a foot (max
+            minus min height over the cells the sole may overlap, its outer mask).
         max_expansions: stop after this many expansions with status NODE_LIMIT (0 = no
             limit); a deterministic budget for reproducible studies.
         footprint_margin_m: clearance (m, >= 0) kept between a planned footprint and any
@@ -97,14 +99,21 @@ class PlannerOptions:
             runs out before the finest lattice is exhausted gives TIME_LIMIT.
         swing_clearance: obstacle cells taller than this (m, the grid's ``heights``) block
             the swing foot's path: a step whose straight centre line from the swing foot's
-            previous position to its landing crosses such a cell is refused. ``inf`` (the
-            default) or a grid without heights: every flat obstacle may be stepped over.
+            previous position to its landing passes through the interior of such a cell is
+            refused (exact grid traversal: a line through a cell's corner point only, or
+            along its edge, does not cross it). ``inf`` (the default) or a grid without
+            heights: every flat obstacle may be stepped over.
         max_height_range: a foot lands only where the height range under its sole (the
             grid's ``heights``) is at most this (m): flat enough ground. The start feet
-            must satisfy it too. ``inf`` (the default): no flatness limit.
+            must satisfy it too. ``inf`` (the default): no flatness limit. Measured
+            conservatively over every cell the sole may overlap (its outer mask, up to about
+            a third of a cell beyond the sole), so a sole beside a step may be refused
+            although the ground it overlaps is within the limit.
         max_step_up: a step may raise the foot by at most this (m): the highest ground
-            under the landing sole minus the highest under the stance sole (the grid's
-            ``heights``); ``inf`` (the default) or no heights: no limit.
+            under the landing sole minus the highest under the stance sole, each the max of
+            the grid's ``heights`` over the cells the sole rectangle overlaps with positive
+            area (the cells the collision check counts; touching an edge is not
+            overlapping); ``inf`` (the default) or no heights: no limit.
         max_step_down: the same for lowering the foot (m).
         backend: ``"python"`` (the generic search loop), ``"compiled"`` (the numba core,
             static grids only, footprint masks up to 64 cells across; the same plans) or
@@ -244,9 +253,10 @@ def plan_footsteps(
     from repertoire.planning.footstep.fastcore import warm_up
 
     warm_up()  # one-time compilation / cache load, outside the time limit
-    t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
     opts.validate()
+    _build_footprint_masks(world, opts, kwargs)  # one-time per resolution, outside it too
+    t_begin = time.perf_counter()
     plan, merged = _plan_once(world, start, start_foot, goal, table, opts, t_begin, kwargs)
     level = 0
     while plan.status is PlanStatus.UNREACHABLE and merged and level < opts.refinements:
@@ -398,10 +408,11 @@ def plan_footsteps_anytime(
     from repertoire.planning.footstep.fastcore import warm_up
 
     warm_up()  # one-time compilation / cache load, outside the time limit
-    t_begin = time.perf_counter()
     opts = options if options is not None else PlannerOptions()
     opts.validate()
     weights = anytime_weights(weights)
+    _build_footprint_masks(world, opts, kwargs)  # one-time per resolution, outside it too
+    t_begin = time.perf_counter()
     if not (isinstance(corridor, (int, float)) and math.isfinite(corridor) and corridor >= 0.0):
         raise FootstepError(f"corridor must be a half-width >= 0 m, got {corridor!r}")
     found, t_done = _anytime_once(
@@ -432,6 +443,36 @@ def plan_footsteps_anytime(
         elapsed += r.seconds
         out.append(AnytimePlan(_to_plan(model, r, elapsed), r.weight, r.bound, elapsed, width))
     return out
+
+
+def _build_footprint_masks(
+    world: "OccupancyGrid | DynamicEnvironment", opts: PlannerOptions, kwargs: dict
+) -> None:
+    """Build the footprint masks the search will read, before a plan's clock starts.
+
+    The masks of a grid resolution, foot and margin are cached per process; building them
+    (with the Python core's row sets or the compiled core's bit rows) takes about 0.1-0.2 s
+    at a new resolution, a one-time cost like the compilation (:func:`warm_up`), not part of
+    any plan's time limit. Bad inputs are left to the step model, which names them.
+    """
+    from repertoire.planning.footstep.fastkernels import _cached_mask_bits
+    from repertoire.planning.footstep.footprint import footprint_masks
+
+    geometry = kwargs.get("geometry", ASIMO_LIKE)
+    if not isinstance(world, (OccupancyGrid, DynamicEnvironment)) or not isinstance(
+        geometry, BipedGeometry
+    ):
+        return
+    grid = world if isinstance(world, OccupancyGrid) else world.reference
+    for margin in {opts.footprint_margin_m, 0.0}:  # the landing check's and the exact one
+        masks = footprint_masks(
+            geometry.foot_length + 2.0 * margin, geometry.foot_width + 2.0 * margin,
+            grid.resolution,
+        )  # fmt: skip
+        if opts.backend == "python" or isinstance(world, DynamicEnvironment):
+            _ = masks.outer_rows, masks.inner_rows, masks.ring_rows
+        elif 2 * masks.radius_cells + 1 <= COMPILED_MASK_CELLS:
+            _cached_mask_bits(masks)
 
 
 def _finer(opts: PlannerOptions, level: int, time_limit: float) -> PlannerOptions:

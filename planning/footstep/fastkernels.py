@@ -246,25 +246,49 @@ def _foot_free(x, y, th, grid, chk, occw, free, mbits, mrows):
         if hit:
             if not exact:
                 exact = True
-                c, s = math.cos(th), math.sin(th)
-                ext_x = (hl * abs(c) + hw * abs(s)) * inv_res + 0.5
-                ext_y = (hl * abs(s) + hw * abs(c)) * inv_res + 0.5
-                cell_u = 0.5 * (abs(c) + abs(s))
-                lim_u = hl * inv_res + cell_u
-                lim_v = hw * inv_res + cell_u
+                c, s, ext_x, ext_y, lim_u, lim_v = _sat_limits(th, hl, hw, inv_res)
             dx = r - big_r + 0.5 - fx
             for jj in range(2 * big_r + 1):
                 if (hit >> np.uint64(jj)) & one:
                     dy = jj - big_r + 0.5 - fy
-                    eps = 1e-9
-                    if (
-                        abs(dx) < ext_x - eps
-                        and abs(dy) < ext_y - eps
-                        and abs(dx * c + dy * s) < lim_u - eps
-                        and abs(-dx * s + dy * c) < lim_v - eps
-                    ):
+                    if _sat_overlaps(dx, dy, c, s, ext_x, ext_y, lim_u, lim_v):
                         return False
     return True
+
+
+@njit()
+def _sat_limits(th, hl, hw, inv_res):
+    """The separating-axis test's limits for a sole at yaw ``th``, in cells.
+
+    ``hl``, ``hw``: the sole's half sides (m). Returns ``cos th, sin th``, the rectangle's
+    half extents along the grid axes plus half a cell, and its half sides plus a cell's half
+    extent along the sole's axes.
+    """
+    c, s = math.cos(th), math.sin(th)
+    cell_u = 0.5 * (abs(c) + abs(s))
+    return (
+        c,
+        s,
+        (hl * abs(c) + hw * abs(s)) * inv_res + 0.5,
+        (hl * abs(s) + hw * abs(c)) * inv_res + 0.5,
+        hl * inv_res + cell_u,
+        hw * inv_res + cell_u,
+    )
+
+
+@njit()
+def _sat_overlaps(dx, dy, c, s, ext_x, ext_y, lim_u, lim_v):
+    """True when a cell overlaps the sole with positive area (no separating axis).
+
+    ``(dx, dy)``: the cell's centre minus the sole's, in cells; a 1e-9 cell tolerance.
+    """
+    eps = 1e-9
+    return (
+        abs(dx) < ext_x - eps
+        and abs(dy) < ext_y - eps
+        and abs(dx * c + dy * s) < lim_u - eps
+        and abs(-dx * s + dy * c) < lim_v - eps
+    )
 
 
 @njit()
@@ -333,30 +357,17 @@ def _top_height(x, y, th, grid, ex, heights, ex_off, ex_ptr):
             top = v
     exact = False
     c = s = ext_x = ext_y = lim_u = lim_v = 0.0
-    eps = 1e-9
     for k in range(ex_ptr[m, 1], ex_ptr[m, 2]):  # ring cells: only if overlapped
         v = heights[base + ex_off[k]]
         if not v > top:
             continue
         if not exact:
             exact = True
-            c, s = math.cos(th), math.sin(th)
-            ext_x = (hl * abs(c) + hw * abs(s)) * inv_res + 0.5
-            ext_y = (hl * abs(s) + hw * abs(c)) * inv_res + 0.5
-            cell_u = 0.5 * (abs(c) + abs(s))
-            lim_u = hl * inv_res + cell_u
-            lim_v = hw * inv_res + cell_u
+            c, s, ext_x, ext_y, lim_u, lim_v = _sat_limits(th, hl, hw, inv_res)
         off = ex_off[k]  # di * nyp + dj with |dj| <= R < nyp / 2
         di = (off + big_r) // nyp
         dj = off - di * nyp
-        dx = di + 0.5 - fx
-        dy = dj + 0.5 - fy
-        if (
-            abs(dx) < ext_x - eps
-            and abs(dy) < ext_y - eps
-            and abs(dx * c + dy * s) < lim_u - eps
-            and abs(-dx * s + dy * c) < lim_v - eps
-        ):
+        if _sat_overlaps(di + 0.5 - fx, dj + 0.5 - fy, c, s, ext_x, ext_y, lim_u, lim_v):
             top = v
     return top
 

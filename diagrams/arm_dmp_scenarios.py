@@ -18,6 +18,7 @@ from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
 from pydrake.systems.framework import DiagramBuilder
 from repertoire.models.arm7 import (
     ARM_JOINTS,
+    COASTER_RADIUS,
     CUP_HEIGHT,
     CUP_RADIUS,
     HAND_GRASP_7CM,
@@ -241,6 +242,19 @@ class PickPlaceScenario:
         _check_xy("cup_xy", self.cup_xy)
         _check_xy("coaster_xy", self.coaster_xy)
         _check_xy("coaster_final_xy", self.coaster_final_xy)
+        # The coaster is no ArmWorld object (it rides on its slider), so the world's
+        # pairwise overlap check never sees it: the cup must not start on or in it.
+        cup = np.asarray(self.cup_xy, float)
+        for name in ("coaster_xy", "coaster_final_xy"):
+            xy = getattr(self, name)
+            dist = float(np.hypot(*(np.asarray(xy, float) - cup)))
+            if dist < CUP_RADIUS + COASTER_RADIUS:
+                raise ScenarioError(
+                    f"cup_xy {list(map(float, cup))} and {name} {list(map(float, xy))} are "
+                    f"{dist:.3f} m apart, less than the cup's and the coaster's radii "
+                    f"({CUP_RADIUS} + {COASTER_RADIUS} = {CUP_RADIUS + COASTER_RADIUS:.3f} m): "
+                    "the cup would start on or inside the coaster; move them apart"
+                )
         o = np.asarray(self.obstacle_xyz, dtype=float).reshape(-1)
         if o.size != 3 or not np.all(np.isfinite(o)):
             raise ScenarioError(f"obstacle_xyz must be 3 finite numbers, got {self.obstacle_xyz}")

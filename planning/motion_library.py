@@ -28,6 +28,20 @@ from repertoire.planning.dmp_quaternion import (
 
 from repertoire.errors import RepertoireError, UnknownNameError
 
+
+def _as_json(value):
+    """``value`` as a JSON round trip gives it back (tuples -> lists, keys -> strings)."""
+    return json.loads(json.dumps(value))
+
+
+def _query_value(value):
+    """A ``find`` constraint normalised like stored contexts; non-JSON values as they are."""
+    try:
+        return _as_json(value)
+    except (TypeError, ValueError):
+        return value
+
+
 LABELS = ("grasp", "place", "release", "pour", "retreat")
 TASKS: dict[str, list[str]] = {
     "pick_and_place": ["grasp", "place", "release"],
@@ -44,6 +58,8 @@ class MotionPrimitive:
         label: Semantic label, one of LABELS.
         dmp: The learned DMP (TaskSpaceDmp, DmpParameters or QuaternionDmpParameters).
         context: Free-form context: strings, numbers or lists of them (object, side, ...).
+            Stored as JSON gives it back (tuples become lists), so :meth:`MotionLibrary.find`
+            matches the same before a save and after a load.
     """
 
     name: str
@@ -56,9 +72,13 @@ class MotionPrimitive:
             raise RepertoireError("a motion primitive needs a non-empty name")
         if self.label not in LABELS:
             raise RepertoireError(f"label must be one of {LABELS}, got {self.label!r}")
+        if not isinstance(self.context, dict):
+            raise RepertoireError(
+                f"context of {self.name!r} must be a dict, got {type(self.context).__name__}"
+            )
         try:
-            json.dumps(self.context)
-        except TypeError as err:
+            self.context = _as_json(self.context)
+        except (TypeError, ValueError) as err:
             raise RepertoireError(
                 f"context of {self.name!r} must hold only JSON values: {err}"
             ) from err
@@ -137,6 +157,7 @@ class MotionLibrary:
         """
         if label not in LABELS:
             raise RepertoireError(f"label must be one of {LABELS}, got {label!r}")
+        context = {k: _query_value(v) for k, v in context.items()}
         return [
             p
             for p in self._primitives.values()
@@ -198,11 +219,55 @@ class MotionLibrary:
 
         Args:
             path: JSON file.
+
+        Raises:
+            RepertoireError: the file is missing, not JSON, or not a well-formed library
+                (the message names the file and the missing key or bad type).
         """
-        d = json.loads(Path(path).read_text())
+        try:
+            d = json.loads(Path(path).read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+            raise RepertoireError(f"cannot read a motion library from {path}: {err}") from err
+        if not isinstance(d, dict):
+            raise RepertoireError(
+                f"{path} is not a MotionLibrary file: expected a JSON object, got "
+                f"{type(d).__name__}"
+            )
         if d.get("type") != "MotionLibrary":
-            raise RepertoireError(f"{path} is not a MotionLibrary file")
-        return cls([MotionPrimitive.from_dict(p) for p in d["primitives"]])
+            raise RepertoireError(
+                f"{path} is not a MotionLibrary file: 'type' is {d.get('type')!r}, "
+                "expected 'MotionLibrary'"
+            )
+        if "primitives" not in d:
+            raise RepertoireError(f"{path}: MotionLibrary file has no 'primitives' key")
+        records = d["primitives"]
+        if not isinstance(records, list):
+            raise RepertoireError(
+                f"{path}: 'primitives' must be a list, got {type(records).__name__}"
+            )
+        primitives = []
+        for k, record in enumerate(records):
+            where = f"{path}: primitives[{k}]"
+            if not isinstance(record, dict):
+                raise RepertoireError(f"{where} must be a JSON object, got {type(record).__name__}")
+            missing = [key for key in ("name", "label", "dmp") if key not in record]
+            if missing:
+                keys = "key" if len(missing) == 1 else "keys"
+                raise RepertoireError(f"{where} is missing {keys} {', '.join(map(repr, missing))}")
+            if not isinstance(record.get("context", {}), dict):
+                raise RepertoireError(
+                    f"{where}: 'context' must be a JSON object, got "
+                    f"{type(record['context']).__name__}"
+                )
+            try:
+                primitives.append(MotionPrimitive.from_dict(record))
+            except (KeyError, TypeError, ValueError, IndexError) as err:
+                what = f"missing key {err}" if isinstance(err, KeyError) else str(err)
+                raise RepertoireError(f"{where} ({record['name']!r}) is malformed: {what}") from err
+        try:
+            return cls(primitives)
+        except RepertoireError as err:
+            raise RepertoireError(f"{path}: {err}") from err
 
 
 def approach_direction(

@@ -273,3 +273,43 @@ def test_simulate_runs_extra_monitors_in_order_and_stops_on_termination():
     assert calls[:2] == ["first", "second"] and calls.count("first") == calls.count("second")
     with pytest.raises(RepertoireError, match="monitors must be callables"):
         simulate(diagram, 1.0, monitors=[3])
+
+
+def test_cup_starting_on_the_coaster_is_refused():
+    # The coaster is no ArmWorld object, so only the scenario check can see this overlap.
+    with pytest.raises(
+        ScenarioError,
+        match=r"cup_xy \[0\.54, 0\.2\] and coaster_xy \[0\.54, 0\.2\] are 0\.000 m apart, less "
+        r"than the cup's and the coaster's radii \(0\.035 \+ 0\.05 = 0\.085 m\): the cup would "
+        r"start on or inside the coaster",
+    ):
+        PickPlaceScenario(cup_xy=[0.54, 0.20]).validate()
+    # Rims 5 mm apart is refused; where the coaster moves to is checked as well.
+    with pytest.raises(ScenarioError, match=r"coaster_xy .* are 0\.080 m apart"):
+        PickPlaceScenario(cup_xy=[0.54, 0.12]).validate()
+    with pytest.raises(
+        ScenarioError, match=r"cup_xy \[0\.58, 0\.3\] and coaster_final_xy \[0\.58, 0\.22\] are "
+    ):
+        PickPlaceScenario(cup_xy=[0.58, 0.30]).validate()
+    # Just clear of both (8.6 cm from the coaster, further from where it moves): accepted.
+    PickPlaceScenario(cup_xy=[0.54, 0.114]).validate()
+
+
+def test_cli_refuses_the_cup_on_the_coaster_with_exit_code_2(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    scenario = tmp_path / "cup_on_coaster.yaml"
+    scenario.write_text("{cup_xy: [0.54, 0.20]}\n")
+    cli = Path(sys.executable).with_name("repertoire")
+    done = subprocess.run(
+        [str(cli), "simulate", "arm_pick_and_place", "--scenario", str(scenario)]
+        + ["--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 2
+    assert "the cup would start on or inside the coaster" in done.stderr
+    assert "cup_xy [0.54, 0.2] and coaster_xy [0.54, 0.2]" in done.stderr

@@ -1,0 +1,111 @@
+"""MotionLibrary.load refuses malformed files with a RepertoireError naming the file and the
+problem; tuple context values find the same primitives before a save and after a load."""
+
+import json
+import re
+
+import pytest
+from repertoire.planning.arm_library import arm_motion_library
+from repertoire.planning.motion_library import MotionLibrary, MotionPrimitive
+
+from repertoire.errors import RepertoireError
+
+
+@pytest.fixture(scope="module")
+def grasp_dmp():
+    return arm_motion_library().get("grasp_arm7").dmp
+
+
+def _load(tmp_path, text: str):
+    path = tmp_path / "bad.json"
+    path.write_text(text)
+    return path, lambda: MotionLibrary.load(path)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("[]", "{path} is not a MotionLibrary file: expected a JSON object, got list"),
+        ('{"type": "Other"}', "{path} is not a MotionLibrary file: 'type' is 'Other'"),
+        ('{"type": "MotionLibrary"}', "{path}: MotionLibrary file has no 'primitives' key"),
+        (
+            '{"type": "MotionLibrary", "primitives": {}}',
+            "{path}: 'primitives' must be a list, got dict",
+        ),
+        (
+            '{"type": "MotionLibrary", "primitives": [3]}',
+            "{path}: primitives[0] must be a JSON object, got int",
+        ),
+        (
+            '{"type": "MotionLibrary", "primitives": [{"name": "x"}]}',
+            "{path}: primitives[0] is missing keys 'label', 'dmp'",
+        ),
+        (
+            '{"type": "MotionLibrary", "primitives": [{"name": "x", "dmp": {}}]}',
+            "{path}: primitives[0] is missing key 'label'",
+        ),
+        (
+            '{"type": "MotionLibrary", "primitives": '
+            '[{"name": "x", "label": "grasp", "dmp": {}, "context": [1]}]}',
+            "{path}: primitives[0]: 'context' must be a JSON object, got list",
+        ),
+        (
+            '{"type": "MotionLibrary", "primitives": [{"name": "x", "label": "grasp", "dmp": {}}]}',
+            "{path}: primitives[0] ('x') is malformed: unknown DMP artefact type None",
+        ),
+        (
+            '{"type": "MotionLibrary", "primitives": '
+            '[{"name": "x", "label": "grasp", "dmp": {"type": "TaskSpaceDmp"}}]}',
+            "{path}: primitives[0] ('x') is malformed: missing key 'position'",
+        ),
+        ("not json", "cannot read a motion library from {path}: Expecting value"),
+    ],
+)
+def test_malformed_files_are_refused_naming_file_and_problem(tmp_path, text, message):
+    path, load = _load(tmp_path, text)
+    with pytest.raises(RepertoireError, match=re.escape(message.format(path=path))):
+        load()
+
+
+def test_bad_primitive_in_a_file_names_the_file(tmp_path, grasp_dmp):
+    record = MotionPrimitive("x", "grasp", grasp_dmp).to_dict()
+    record["label"] = "juggle"
+    path, load = _load(tmp_path, json.dumps({"type": "MotionLibrary", "primitives": [record]}))
+    with pytest.raises(RepertoireError, match=re.escape(f"{path}: primitives[0] ('x')")):
+        load()
+    path, load = _load(
+        tmp_path,
+        json.dumps({"type": "MotionLibrary", "primitives": [record | {"label": "grasp"}] * 2}),
+    )
+    with pytest.raises(
+        RepertoireError, match=re.escape(f"{path}: the library already has a primitive named 'x'")
+    ):
+        load()
+
+
+def test_missing_file_is_a_repertoire_error(tmp_path):
+    with pytest.raises(RepertoireError, match="cannot read a motion library from .*nope.json"):
+        MotionLibrary.load(tmp_path / "nope.json")
+
+
+def test_tuple_context_finds_the_same_before_save_and_after_load(tmp_path, grasp_dmp):
+    lib = MotionLibrary()
+    lib.add_dmp("a", "grasp", grasp_dmp, {"side": (1, 2), "nested": {"p": (0.5, (1, 2))}})
+    lib.add_dmp("b", "grasp", grasp_dmp, {"side": [3, 4]})
+    assert lib.get("a").context == {"side": [1, 2], "nested": {"p": [0.5, [1, 2]]}}
+    loaded = MotionLibrary.load(lib.save(tmp_path / "lib.json"))
+    for library in (lib, loaded):
+        assert [p.name for p in library.find("grasp", side=(1, 2))] == ["a"]
+        assert [p.name for p in library.find("grasp", side=[1, 2])] == ["a"]
+        assert [p.name for p in library.find("grasp", side=(3, 4))] == ["b"]
+        assert [p.name for p in library.find("grasp", nested={"p": (0.5, [1, 2])})] == ["a"]
+        assert library.find("grasp", side=(2, 1)) == []
+        assert library.select("grasp", side=(3, 4)).name == "b"
+    assert loaded.get("a").context == lib.get("a").context
+
+
+def test_non_json_context_is_refused(grasp_dmp):
+    with pytest.raises(RepertoireError, match="context of 'a' must hold only JSON values"):
+        MotionPrimitive("a", "grasp", grasp_dmp, {"side": {1, 2}})
+    with pytest.raises(RepertoireError, match="context of 'a' must be a dict, got list"):
+        MotionPrimitive("a", "grasp", grasp_dmp, [("side", 1)])

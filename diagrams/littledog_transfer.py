@@ -123,8 +123,14 @@ class LittleDogTransferScenario(LibraryLoopFields):
             raise ScenarioError(f"mode must be one of {MODES}, got {self.mode!r}")
         if not (math.isfinite(self.change_from) and -0.35 < self.change_from < 0.35):
             raise ScenarioError(f"change_from must lie in (-0.35, 0.35) m, got {self.change_from}")
-        if len(self.board_seeds) != 2 or any(int(s) != s for s in self.board_seeds):
-            raise ScenarioError(f"board_seeds must be 2 integers, got {self.board_seeds}")
+        if not _seed_ok(self.rock_seed):
+            raise ScenarioError(f"rock_seed must be an integer >= 0, got {self.rock_seed!r}")
+        if not (
+            isinstance(self.board_seeds, (list, tuple))
+            and len(self.board_seeds) == 2
+            and all(_seed_ok(s) for s in self.board_seeds)
+        ):
+            raise ScenarioError(f"board_seeds must be 2 integers >= 0, got {self.board_seeds!r}")
         if not (math.isfinite(self.threshold) and self.threshold > 0.0):
             raise ScenarioError(f"threshold must be positive, got {self.threshold}")
         if not (math.isfinite(self.planner_time_limit) and self.planner_time_limit > 0.0):
@@ -132,6 +138,16 @@ class LittleDogTransferScenario(LibraryLoopFields):
                 f"planner_time_limit must be positive, got {self.planner_time_limit}"
             )
         validate_loop_fields(self)
+
+
+def _seed_ok(value) -> bool:
+    """An integer (or integral number) >= 0: numpy's random generators refuse negative seeds."""
+    if isinstance(value, bool):
+        return False
+    try:
+        return int(value) == value and value >= 0
+    except (TypeError, ValueError, OverflowError):
+        return False
 
 
 @functools.cache
@@ -193,6 +209,24 @@ def library_transfer(scenario: LittleDogTransferScenario) -> LibraryTransfer:
     return _transfer(tuple(tuple(v) if isinstance(v, list) else v for v in key))
 
 
+def off_board(board: TerrainBoard, feet) -> str | None:
+    """None if every foot centre of ``feet`` (4, 2+) lies within ``board.bounds()``, else why not.
+
+    The crawl planner plans on a height map of the board's extent and refuses start
+    footholds off it.
+    """
+    x0, x1, y0, y1 = board.bounds()
+    xy = np.asarray(feet, dtype=float)[:, :2]
+    if np.all((xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)):
+        return None
+    fx = ", ".join(f"{v:.3f}" for v in xy[:, 0])
+    fy = ", ".join(f"{v:.3f}" for v in xy[:, 1])
+    return (
+        f"feet at x [{fx}] m, y [{fy}] m leave the board "
+        f"(bounds x [{x0:.3f}, {x1:.3f}] m, y [{y0:.3f}, {y1:.3f}] m)"
+    )
+
+
 def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) -> np.ndarray:
     """The start offset nearest ``offset`` (within 4 cm, on a 5 mm grid) with flat footholds.
 
@@ -202,6 +236,8 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
     would the robot's first steps, so a perturbed start is moved to the nearest flat one.
     (The scripted operator's stricter 2 cm rule left no flat start within 4 cm near a
     board's edge: 3 of 50 perturbed starts on the modified terrain.)
+
+    Only starts with every foot on the board (:func:`off_board`) are taken.
 
     Raises:
         ScenarioError: no flat start within 4 cm.
@@ -215,7 +251,7 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
     for dx, dy in trials:
         off = np.asarray(offset, dtype=float) + [dx, dy]
         _, feet, _ = crossing_start(board, 0.0, HALF_EXTENT, params.standing_height, off, yaw)
-        if np.all(flat_on_ground(board, feet[:, :2], rule)):
+        if off_board(board, feet) is None and np.all(flat_on_ground(board, feet[:, :2], rule)):
             return off
     x, y = (float(v) for v in offset)
     raise ScenarioError(
@@ -246,17 +282,25 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
     """Transfer, search and final library of a scenario (no physics).
 
     Raises:
-        ScenarioError: bad scenario, or the search did not reach the goal (its CPU-time
-            limit reached, or no path): the status and the best partial path are named
-            and the partial path is not executed.
+        ScenarioError: bad scenario, a start whose feet leave the board, or the search
+            did not reach the goal (its CPU-time limit reached, or no path): the status
+            and the best partial path are named and the partial path is not executed.
     """
     scenario.validate()
     board = target_board(scenario)
     params = CrawlParams()
-    offset = flat_start(board, 0.0, HALF_EXTENT, params)
-    offset = flat_offset(
-        board, offset + np.asarray(scenario.start_offset), scenario.start_yaw_offset, params
+    offset = flat_start(board, 0.0, HALF_EXTENT, params) + np.asarray(scenario.start_offset)
+    _, feet, _ = crossing_start(
+        board, 0.0, HALF_EXTENT, params.standing_height, offset, scenario.start_yaw_offset
     )
+    why = off_board(board, feet)
+    if why is not None:
+        x, y = (float(v) for v in scenario.start_offset)
+        raise ScenarioError(
+            f"start_offset [{x:.4f}, {y:.4f}] m (start_yaw_offset "
+            f"{scenario.start_yaw_offset:.3f} rad) puts the start off the board: {why}"
+        )
+    offset = flat_offset(board, offset, scenario.start_yaw_offset, params)
     pose0, feet0, q0 = crossing_start(
         board, 0.0, HALF_EXTENT, params.standing_height, offset, scenario.start_yaw_offset
     )
@@ -338,6 +382,7 @@ __all__ = [
     "TransferPlan",
     "build_littledog_transfer",
     "library_transfer",
+    "off_board",
     "plan_transfer",
     "source_board",
     "target_board",

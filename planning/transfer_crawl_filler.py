@@ -102,7 +102,11 @@ class CrawlGapFiller:
     planner_wall_limit: float = 10.0
 
     def _plan(self, start: np.ndarray, goal_xy: np.ndarray, time_limit: float):
-        """Planned steps (foot centres) from ``start`` and the planner's status."""
+        """Planned steps (foot centres) from ``start``, the planner's status and its refusal.
+
+        A start or goal the planner refuses (e.g. on a rock's edge, or off its map) gives
+        no steps, status None and the planner's message (else the message is empty).
+        """
         try:
             plan = plan_crawl(
                 self.height_map,
@@ -115,8 +119,8 @@ class CrawlGapFiller:
                 crawl=self.crawl,
                 ground=self.board,
             )
-        except FootstepError:
-            return [], None  # a start or goal the planner refuses (e.g. on a rock's edge)
+        except FootstepError as e:
+            return [], None, f"the crawl planner refused: {e}"
         steps: list[PlannedStep] = []
         cur = start.copy()
         for s in plan.steps:
@@ -124,7 +128,7 @@ class CrawlGapFiller:
             nxt = np.asarray(s.stance, dtype=float) + np.array([0.0, 0.0, FOOT_RADIUS])
             steps.append(PlannedStep(cur, nxt, int(s.foot)))
             cur = nxt
-        return steps, plan.status
+        return steps, plan.status, ""
 
     def usable_prefix(self, steps: list[PlannedStep]) -> int:
         """How many of ``steps`` the executing crawl can do (stable, flat footholds, leg IK).
@@ -163,7 +167,7 @@ class CrawlGapFiller:
             # A recorded step's start (flat footholds): the gap ends on its exact stance,
             # so the nearest-step policy picks it next; unreachable placing = gap unusable.
             place = bool(np.all(foothold_ok(self.board, target[:, :2], self.crawl)))
-        new, status = self._plan(start, goal_xy, time_limit)
+        new, status, refusal = self._plan(start, goal_xy, time_limit)
         planned = len(new)
         if status is PlanStatus.SUCCESS and place:
             from repertoire.planning.transfer_library import placing_steps
@@ -172,7 +176,7 @@ class CrawlGapFiller:
             new += placing_steps(end, target, within=self.place_within, before=before)
         usable = self.usable_prefix(new)
         if usable == len(new):
-            return GapFill(new, _status(status, bool(new)))
+            return GapFill(new, _status(status, bool(new)), refusal)
         if usable >= planned and status is PlanStatus.SUCCESS:
             # The planner's steps reach the target's centroid but the legs cannot place
             # every foot on the target stance: enough for a goal (the search joins a

@@ -68,10 +68,13 @@ class GapFill:
     Attributes:
         steps: planned steps from the start stance towards the target stance.
         status: one of :data:`GAP_STATUSES`.
+        message: why a gap was not reached, in words (e.g. the planner's refusal of a
+            start off its map); the search names the first one when it fails.
     """
 
     steps: list[PlannedStep]
     status: str
+    message: str = ""
 
 
 class GapFiller(Protocol):
@@ -270,6 +273,7 @@ def search_transfer(
     expanded = 0
     reached = False
     timed_out = False
+    refusal = ""  # the first gap filler's reason for an unusable gap
 
     def push_edges(u: int, skip_goal: bool = False) -> None:
         nonlocal counter
@@ -301,7 +305,7 @@ def search_transfer(
 
     def fill_gap(u: int, v: int) -> tuple | None:
         """Plans the gap of edge u -> v: its queue entry at the real cost, or None (unusable)."""
-        nonlocal counter, planner_calls
+        nonlocal counter, planner_calls, refusal
         b = goal if v == goal_node else s_in[v - 1]
         remaining = config.time_limit - (clock() - t0)
         planner_calls += 1
@@ -311,6 +315,8 @@ def search_transfer(
                 f"gap_filler must return GapFill with status in {GAP_STATUSES}, got {answer!r}"
             )
         if answer.status != "reached":
+            if answer.message and not refusal:
+                refusal = f"{answer.status}: {answer.message}"
             return None
         end = answer.steps[-1].end_feet if answer.steps else out_stance[u]
         if v != goal_node and float(foot_distance(end, b)) > config.join_tolerance:
@@ -327,17 +333,24 @@ def search_transfer(
     # beat. It enters the queue at its real cost, and goal entries leave the queue in
     # order of their real cost, so no path costlier than the planner alone is returned
     # (with any heuristic weight), and it is kept if the CPU-time limit cuts the search.
+    # A start already within goal_tolerance of the goal is reached with an empty path.
     fallback = None
-    if (
+    closed.add(0)
+    if config.goal_tolerance > 0.0 and h_dist(0) <= config.goal_tolerance:
+        parent[goal_node] = (0, [])
+        reached = True
+    elif (
         float(foot_distance(start, goal)) > config.join_tolerance
         and config.time_limit > clock() - t0
     ):
+        # Planned once: a failed attempt is not queued (and planned) again.
         fallback = fill_gap(0, goal_node)
-    push_edges(0, skip_goal=fallback is not None)
+        push_edges(0, skip_goal=True)
+    else:
+        push_edges(0)
     if fallback is not None:
         heapq.heappush(queue, fallback)
-    closed.add(0)
-    while queue:
+    while queue and not reached:
         if clock() - t0 > config.time_limit:
             timed_out = True
             break
@@ -402,6 +415,8 @@ def search_transfer(
         message += f"; best partial path ends {left:.3f} m from the goal"
         if timed_out:
             message += f" (CPU-time limit {config.time_limit} s reached)"
+        if refusal:
+            message += f"; gap filler: {refusal}"
     return SearchResult(
         status, path, cost, recorded, planned, planner_calls, expanded, message, clock() - t0
     )

@@ -10,6 +10,7 @@ from repertoire.diagrams.littledog_transfer import (
     LittleDogTransferScenario,
     build_littledog_transfer,
     flat_offset,
+    off_board,
     plan_transfer,
     source_board,
 )
@@ -95,6 +96,10 @@ def test_search_cut_short_by_its_cpu_limit_is_refused(library_path):
         (dict(change_from=1.0), "change_from"),
         (dict(threshold=0.0), "threshold"),
         (dict(board_seeds=[1]), "board_seeds"),
+        (dict(rock_seed=-4), r"^rock_seed must be an integer >= 0, got -4$"),
+        (dict(rock_seed=2.5), r"^rock_seed must be an integer >= 0, got 2\.5$"),
+        (dict(board_seeds=[-1, 3]), r"^board_seeds must be 2 integers >= 0, got \[-1, 3\]$"),
+        (dict(board_seeds=[31, "a"]), r"^board_seeds must be 2 integers >= 0, got \[31, 'a'\]$"),
         (dict(source="terrain_z"), "terrain_z"),
         (dict(start_offset=[0.5, 0.0]), "start_offset"),
         (dict(library="/nonexistent/lib"), "nonexistent"),
@@ -122,3 +127,41 @@ def test_perturbed_start_snaps_to_the_nearest_flat_start():
                 off = wanted + [dx, dy]
                 _, f, _ = crossing_start(board, 0.0, 0.25, params.standing_height, off, -0.16)
                 assert not np.all(flat_on_ground(board, f[:, :2], PlannerParams()))
+
+
+def test_start_off_the_board_is_refused_naming_the_offset(library_path):
+    # Rear feet 1 mm behind the board's -0.4 m edge: the crawl planner would refuse the
+    # start and the search would only say "unreachable"; refused before it instead.
+    scenario = LittleDogTransferScenario(
+        library=library_path, mode="planner", start_offset=[-0.04, 0.0]
+    )
+    with pytest.raises(ScenarioError) as info:
+        plan_transfer(scenario)
+    assert str(info.value) == (
+        "start_offset [-0.0400, 0.0000] m (start_yaw_offset 0.000 rad) puts the start off "
+        "the board: feet at x [-0.199, -0.199, -0.401, -0.401] m, y [0.070, -0.050, 0.070, "
+        "-0.050] m leave the board (bounds x [-0.400, 0.400] m, y [-0.400, 0.400] m)"
+    )
+    # The largest offset of the shipped studies along -x (3 cm) stays on the board.
+    plan = plan_transfer(dataclasses.replace(scenario, start_offset=[-0.03, 0.0]))
+    assert plan.search.status == "reached"
+    assert off_board(plan.board, plan.feet0) is None
+
+
+def test_off_board_and_flat_offset_keep_every_foot_on_the_board():
+    board = source_board("terrain_a")
+    params = CrawlParams()
+    assert off_board(board, np.array([[0.4, 0.4], [-0.4, -0.4], [0, 0], [0, 0]])) is None
+    why = off_board(
+        board, np.array([[0.1, 0.0, 0.0], [0.1, 0.0, 0.0], [-0.41, 0.0, 0.0], [0.0, 0.401, 0.0]])
+    )
+    assert why == (
+        "feet at x [0.100, 0.100, -0.410, 0.000] m, y [0.000, 0.000, 0.000, 0.401] m leave "
+        "the board (bounds x [-0.400, 0.400] m, y [-0.400, 0.400] m)"
+    )
+    # A wanted start 1 mm off the board: the nearest flat start with every foot on it.
+    wanted = flat_start(board, 0.0, 0.25, params) + [-0.04, 0.0]
+    got = flat_offset(board, wanted, 0.0, params)
+    _, feet, _ = crossing_start(board, 0.0, 0.25, params.standing_height, got, 0.0)
+    assert off_board(board, feet) is None
+    assert np.all(flat_on_ground(board, feet[:, :2], PlannerParams()))

@@ -363,3 +363,86 @@ def test_crawl_gap_filler_places_only_the_feet_the_executor_cannot_take_up():
     last = few.steps[-1]
     assert rest <= 0.04 and rest <= 0.5 * float(foot_distance(last.start_feet, last.end_feet))
     assert len(few.steps) < len(every.steps)
+
+
+class Refusing:
+    """Stand-in gap filler that never reaches, with a reason; records every gap it plans."""
+
+    def __init__(self, message: str = "no way"):
+        self.gaps: list[tuple[float, float]] = []
+        self.message = message
+
+    def __call__(self, start, target, time_limit):
+        self.gaps.append(
+            (round(float(start[:, 0].mean()), 4), round(float(target[:, 0].mean()), 4))
+        )
+        return GapFill([], "failed", self.message)
+
+
+def test_a_failed_planner_alone_is_not_planned_again():
+    none = np.zeros((0, 4, 3))
+    filler = Refusing()
+    result = search_transfer(stance(0.0), stance(0.5), none, none, filler)
+    assert result.status == "unreachable"
+    assert result.planner_calls == 1
+    assert filler.gaps == [(0.0, 0.5)]
+    assert result.path == [] and result.expanded == 0
+    assert result.message == (
+        "no transferred steps (every step discarded): planner alone; unreachable: "
+        "0 recorded and 0 planned steps; best partial path ends 0.500 m from the goal; "
+        "gap filler: failed: no way"
+    )
+
+
+def test_no_gap_is_planned_twice_when_every_gap_fails():
+    starts, ends = crawl(stance(0.0), 8)
+    starts[:, :, 0] += 0.1  # every step behind a gap from the start
+    ends[:, :, 0] += 0.1
+    filler = Refusing()
+    config = SearchConfig(neighbours=4)
+    result = search_transfer(stance(0.0), stance(0.5), starts, ends, filler, config)
+    assert result.status == "unreachable"
+    assert filler.gaps[0] == (0.0, 0.5)  # the planner alone first
+    assert len(filler.gaps) == len(set(filler.gaps)) == result.planner_calls
+    # Start -> goal and start -> its 4 nearest steps: each once; no step is ever entered.
+    assert result.planner_calls == 5 and result.expanded == 0
+    assert result.message.endswith("; gap filler: failed: no way")
+
+
+def test_a_start_within_goal_tolerance_is_at_the_goal():
+    none = np.zeros((0, 4, 3))
+    filler = Refusing()
+    config = SearchConfig(goal_tolerance=0.03)
+    result = search_transfer(stance(0.0), stance(0.02), none, none, filler, config)
+    assert result.status == "reached"
+    assert result.path == [] and result.cost == 0.0
+    assert result.planner_calls == 0 and filler.gaps == []
+    assert result.message == (
+        "no transferred steps (every step discarded): planner alone; reached: "
+        "0 recorded and 0 planned steps"
+    )
+    # Just outside the tolerance the planner alone is tried (once) and fails.
+    result = search_transfer(
+        stance(0.0), stance(0.031), none, none, filler, SearchConfig(goal_tolerance=0.03)
+    )
+    assert result.status == "unreachable" and result.planner_calls == 1
+    assert filler.gaps == [(0.0, 0.031)]
+
+
+def test_crawl_gap_filler_names_the_planners_refusal():
+    from repertoire.models.littledog import FOOT_RADIUS
+
+    filler, _ = flat_filler()
+    start = stance(-0.25)  # rear feet beyond the map's -0.3 m edge
+    start[:, 2] = filler.board.params.base_thickness + FOOT_RADIUS
+    answer = filler(start, stance(0.0), 2.0)
+    assert answer.status == "failed" and answer.steps == []
+    assert answer.message.startswith("the crawl planner refused: crawl start footholds [[")
+    assert answer.message.endswith("leave the height map")
+    none = np.zeros((0, 4, 3))
+    result = search_transfer(start, stance(0.0), none, none, filler)
+    assert result.status == "unreachable" and result.planner_calls == 1
+    assert "; gap filler: failed: the crawl planner refused: crawl start footholds" in (
+        result.message
+    )
+    assert result.message.endswith("leave the height map")

@@ -14,6 +14,8 @@ import dataclasses
 import functools
 
 import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RotationMatrix
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
 from pydrake.systems.framework import DiagramBuilder
 from repertoire.models.arm7 import (
@@ -29,6 +31,7 @@ from repertoire.models.arm7 import (
     TCP_FRAME,
     add_arm7,
     arm7_home_configuration,
+    make_arm7_control_plant,
 )
 from repertoire.planning.arm_library import (
     BOTTLE_GRASP_HEIGHT,
@@ -47,7 +50,7 @@ from repertoire.planning.arm_library import (
     rotation_from_approach,
 )
 from repertoire.systems.arm_goals import SegmentGoal
-from repertoire.systems.task_space import check_reachable, reach_bound
+from repertoire.systems.task_space import check_reachable, pose_position_residual, reach_bound
 
 from repertoire.errors import ScenarioError
 
@@ -414,6 +417,69 @@ def shoulder_and_reach() -> tuple[np.ndarray, float]:
     return shoulder, reach_bound(np.array(points))
 
 
+#: A goal pose is attainable when the tcp can come this close to its position [m] (the
+#: default world ends its place and release segments about 9 mm from their goals) ...
+GOAL_POSITION_TOLERANCE = 0.01
+#: ... with its orientation within this angle of the goal's [rad] (about 3 degrees; the
+#: controller ends the default world's segments within 0.6 degrees of the goal's approach
+#: axis, a place near the edge of the workspace within 2.8 degrees).
+GOAL_ORIENTATION_TOLERANCE = 0.05
+
+
+@functools.lru_cache(maxsize=1)
+def _goal_ik_plant():
+    """arm7's seven arm joints (fingers welded open) and the IK seeds of goal_pose_residual.
+
+    The seeds: the home configuration, then eight fixed draws within the joint limits
+    (tried only when the home seed leaves the goal farther than the tolerance).
+    """
+    plant = make_arm7_control_plant(finger_positions=HAND_OPEN)
+    lower, upper = plant.GetPositionLowerLimits(), plant.GetPositionUpperLimits()
+    rng = np.random.default_rng(0)
+    seeds = [arm7_home_configuration()] + [rng.uniform(lower, upper) for _ in range(8)]
+    return plant, plant.GetFrameByName(TCP_FRAME), seeds
+
+
+def goal_pose_residual(p_W: np.ndarray, quaternion: np.ndarray) -> float:
+    """How close arm7's tcp can come to ``p_W`` with the orientation ``quaternion`` [m].
+
+    :func:`repertoire.systems.task_space.pose_position_residual` on arm7 (joint limits,
+    orientation within GOAL_ORIENTATION_TOLERANCE), seeded from the home configuration
+    (then fixed draws when that leaves more than GOAL_POSITION_TOLERANCE).
+
+    Args:
+        p_W: the tcp goal position in W (3).
+        quaternion: the tcp goal orientation [w, x, y, z] (unit).
+    """
+    plant, frame, seeds = _goal_ik_plant()
+    q = np.asarray(quaternion, dtype=float)
+    R_WE = RotationMatrix(Quaternion(q / np.linalg.norm(q)))
+    return pose_position_residual(
+        plant,
+        frame,
+        p_W,
+        R_WE,
+        seeds,
+        orientation_tolerance=GOAL_ORIENTATION_TOLERANCE,
+        good_enough=GOAL_POSITION_TOLERANCE,
+    )
+
+
+def _check_goal_attainable(field: str, xy, what: str, p_W: np.ndarray, quaternion) -> None:
+    """ScenarioError naming ``field`` when the tcp cannot attain the goal pose ``p_W``."""
+    residual = goal_pose_residual(p_W, quaternion)
+    if residual > GOAL_POSITION_TOLERANCE:
+        closest = "no IK solution" if not np.isfinite(residual) else f"{residual:.3f} m"
+        raise ScenarioError(
+            f"{field} {[float(v) for v in xy]}: the arm cannot attain the {what} "
+            f"{np.round(p_W, 3).tolist()} with the orientation the motion needs (within "
+            f"{GOAL_ORIENTATION_TOLERANCE} rad): inverse kinematics within the joint limits "
+            f"brings the tcp no closer than {closest} (tolerance {GOAL_POSITION_TOLERANCE} m); "
+            "the goal is inside the arm's reach sphere but not attainable; move it (the default "
+            "layout's cup_xy [0.55, -0.25] and coaster_xy [0.54, 0.2] are attainable)"
+        )
+
+
 def segment_timing(labels: list[str], settle: float) -> tuple[list[float], float]:
     """Start time of each segment of a chain and the total duration [s].
 
@@ -451,6 +517,12 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
 
     Returns:
         (goals, duration of the whole sequence in s).
+
+    Raises:
+        RepertoireError: a goal outside the arm's reach sphere (:func:`check_reachable`).
+        ScenarioError: a goal pose inside it that the arm cannot attain
+            (:func:`goal_pose_residual` above GOAL_POSITION_TOLERANCE), naming the field
+            (cup_xy, coaster_xy or coaster_final_xy) and the residual.
     """
     grasp_primitive, place_primitive, release_primitive = arm_motion_library().compose(
         "pick_and_place", robot="arm7"
@@ -473,7 +545,12 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
             "coaster:coaster",
         ),
     ]
+    # The reach sphere first (cheap, and its message says by how much), then inverse
+    # kinematics of each goal pose: a pose inside the sphere may still be unattainable
+    # (joint limits, the side grasp's orientation), and the run would then end far from it.
     shoulder, reach = shoulder_and_reach()
+    check_reachable(cup, shoulder, reach, what="grasp goal")
+    _check_goal_attainable("cup_xy", s.cup_xy, "grasp goal", cup, goals[0].orientation)
     for xy_name in ("coaster_xy", "coaster_final_xy"):
         xy = getattr(s, xy_name)
         base = np.array([xy[0], xy[1], COASTER_RAIL_HEIGHT])
@@ -481,6 +558,13 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
         check_reachable(
             base + place_offset() + RELEASE_OFFSET, shoulder, reach, what=f"release ({xy_name})"
         )
+    for xy_name in ("coaster_xy", "coaster_final_xy"):
+        xy = getattr(s, xy_name)
+        base = np.array([xy[0], xy[1], COASTER_RAIL_HEIGHT])
+        for goal in goals[1:]:
+            _check_goal_attainable(
+                xy_name, xy, f"{goal.label} goal", base + goal.position, goal.orientation
+            )
     _, duration = segment_timing(PICK_PLACE_LABELS, s.settle_time)
     return goals, duration
 

@@ -11,7 +11,8 @@ controller (Drake's ``InverseDynamicsController``) then tracks the references.
 The math lives in plain functions (:func:`quaternion_error`,
 :func:`damped_pseudoinverse`, :func:`joint_limit_gradient`,
 :func:`rmrc_joint_velocity`, :func:`reach_bound`); :class:`ResolvedMotionRateIK`
-only wraps them.
+only wraps them. :func:`pose_position_residual` is the exact (IK) counterpart of the
+reach sphere: how close a frame can come to a position with a given orientation.
 
 Quaternions are ``[w, x, y, z]`` (Drake's order), angular velocities and
 Jacobians are expressed in the world frame W.
@@ -19,8 +20,11 @@ Jacobians are expressed in the world frame W.
 
 import numpy as np
 from pydrake.common.value import AbstractValue
+from pydrake.math import RotationMatrix
+from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable
+from pydrake.solvers import Solve
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
 
 from repertoire.errors import RepertoireError
@@ -164,6 +168,76 @@ def check_reachable(p_W: np.ndarray, center_W: np.ndarray, reach: float, *, what
             f"from the shoulder {np.round(center_W, 4).tolist()}, beyond the arm's reach of "
             f"{reach:.3f} m by {distance - reach:.3f} m; move the target closer"
         )
+
+
+def pose_position_residual(
+    plant: MultibodyPlant,
+    frame_E: Frame,
+    p_W: np.ndarray,
+    R_WE: RotationMatrix,
+    seeds: list[np.ndarray],
+    *,
+    orientation_tolerance: float,
+    good_enough: float = 0.0,
+) -> float:
+    """How close the origin of ``frame_E`` can come to ``p_W`` with the orientation ``R_WE``.
+
+    A Drake ``InverseKinematics`` program on ``plant``: the joints within their
+    position limits, the angle between ``R_WE`` and the orientation of ``frame_E``
+    at most ``orientation_tolerance``, and the cost ``|p_WE - p_W|^2``. It is solved
+    locally from each seed in turn, stopping at the first solution within
+    ``good_enough`` of ``p_W``; the smallest distance found is returned. Unlike
+    :func:`check_reachable` (a sphere that bounds the reach from above), a residual
+    above the caller's tolerance means the pose is not attainable, unless every
+    seed fell in a worse local minimum than the true one (give several seeds).
+
+    Args:
+        plant: finalized plant (the arm alone; every position is free within limits).
+        frame_E: the end-effector frame of ``plant``.
+        p_W: target position of the frame's origin in W (3).
+        R_WE: target orientation of the frame in W.
+        seeds: initial guesses of the plant's positions, tried in order (one or more).
+        orientation_tolerance: largest angle between the attained and the target
+            orientation [rad].
+        good_enough: stop at the first seed whose solution comes this close [m].
+
+    Returns:
+        The smallest |p_WE - p_W| over the solved seeds [m]; inf if no solve succeeded.
+
+    Raises:
+        RepertoireError: a bad target, tolerance or seed.
+    """
+    p_W = np.asarray(p_W, dtype=float)
+    if p_W.shape != (3,) or not np.all(np.isfinite(p_W)):
+        raise RepertoireError(f"the target position must be a finite 3-vector, got {p_W!r}")
+    if not (np.isfinite(orientation_tolerance) and orientation_tolerance >= 0.0):
+        raise RepertoireError(
+            f"orientation_tolerance must be finite and >= 0 rad, got {orientation_tolerance}"
+        )
+    if len(seeds) == 0:
+        raise RepertoireError("pose_position_residual needs one or more seeds")
+    ik = InverseKinematics(plant, with_joint_limits=True)
+    ik.AddOrientationConstraint(
+        frame_E, RotationMatrix(), plant.world_frame(), R_WE, orientation_tolerance
+    )
+    ik.AddPositionCost(frame_E, np.zeros(3), plant.world_frame(), p_W, np.eye(3))
+    context = plant.CreateDefaultContext()
+    best = np.inf
+    for seed in seeds:
+        seed = np.asarray(seed, dtype=float)
+        if seed.shape != (plant.num_positions(),) or not np.all(np.isfinite(seed)):
+            raise RepertoireError(
+                f"each seed must be {plant.num_positions()} finite joint positions, got {seed!r}"
+            )
+        result = Solve(ik.prog(), seed)
+        if not result.is_success():
+            continue
+        plant.SetPositions(context, result.GetSolution(ik.q()))
+        distance = float(np.linalg.norm(frame_E.CalcPoseInWorld(context).translation() - p_W))
+        best = min(best, distance)
+        if best <= good_enough:
+            break
+    return best
 
 
 class ResolvedMotionRateIK(LeafSystem):

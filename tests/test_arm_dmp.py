@@ -5,9 +5,12 @@ import pytest
 from repertoire.diagrams.arm_dmp import build_arm_world, build_pick_and_place, build_serving_water
 from repertoire.diagrams.arm_dmp_results import IkTargetError, run_arm_world
 from repertoire.diagrams.arm_dmp_scenarios import (
+    COASTER_RAIL_HEIGHT,
+    GOAL_POSITION_TOLERANCE,
     PICK_PLACE_LABELS,
     PickPlaceScenario,
     ServingScenario,
+    goal_pose_residual,
     plan_pick_and_place,
     plan_serving,
     shoulder_and_reach,
@@ -130,6 +133,44 @@ def test_goal_out_of_reach_is_refused_before_building():
     shoulder, reach = shoulder_and_reach()
     assert np.allclose(shoulder, [0, 0, 1.1])
     assert reach == pytest.approx(0.06 + 0.24 + 0.30 + 0.08 + 0.085)
+
+
+def test_goal_pose_inside_the_reach_sphere_but_unattainable_is_refused():
+    # The fuzzing reproducer: coaster on the table 0.63 m from the shoulder (sphere 0.765 m),
+    # ball moved away; the run used to end 0.13 m from the place goal with success 0.
+    away = [0.95, -0.5, 1.0]
+    bug = PickPlaceScenario(
+        coaster_xy=[0.32, 0.45], coaster_final_xy=[0.30, 0.48], obstacle_xyz=away
+    )
+    with pytest.raises(
+        ScenarioError,
+        match=r"^coaster_xy \[0.32, 0.45\]: the arm cannot attain the place goal "
+        r"\[0.32, 0.45, 0.816\] .* no closer than 0.040 m \(tolerance 0.01 m\)",
+    ):
+        plan_pick_and_place(bug)
+    with pytest.raises(ScenarioError, match=r"^coaster_final_xy \[0.3, 0.48\]: .* 0.070 m"):
+        build_pick_and_place(
+            PickPlaceScenario(
+                coaster_xy=[0.45, 0.30], coaster_final_xy=[0.30, 0.48], obstacle_xyz=away
+            )
+        )
+    with pytest.raises(ScenarioError, match=r"^cup_xy \[0.2, 0.0\]: .* grasp goal .* 0.175 m"):
+        plan_pick_and_place(PickPlaceScenario(cup_xy=[0.2, 0.0], obstacle_xyz=away))
+    # The same coaster moved to [0.45, 0.30] -> [0.43, 0.33] is attainable.
+    plan_pick_and_place(
+        PickPlaceScenario(coaster_xy=[0.45, 0.30], coaster_final_xy=[0.43, 0.33], obstacle_xyz=away)
+    )
+
+
+def test_default_goal_poses_are_attained_exactly():
+    scenario = PickPlaceScenario()
+    goals, _ = plan_pick_and_place(scenario)  # no refusal
+    assert goal_pose_residual(goals[0].position, goals[0].orientation) < 1e-4
+    for xy in (scenario.coaster_xy, scenario.coaster_final_xy):
+        base = np.array([*xy, COASTER_RAIL_HEIGHT])
+        for goal in goals[1:]:
+            residual = goal_pose_residual(base + goal.position, goal.orientation)
+            assert residual < 1e-4 < GOAL_POSITION_TOLERANCE
 
 
 def test_target_leaving_the_reach_during_a_run_stops_it():

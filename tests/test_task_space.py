@@ -22,6 +22,7 @@ from repertoire.systems.task_space import (
     check_reachable,
     damped_pseudoinverse,
     joint_limit_gradient,
+    pose_position_residual,
     quaternion_error,
     quaternion_multiply,
     reach_bound,
@@ -122,6 +123,33 @@ def test_reach_bound_and_check():
         check_reachable(np.array([0, 0, 2.5]), np.zeros(3), 2.0, what="grasp goal")
     with pytest.raises(RepertoireError, match="finite 3-vector"):
         check_reachable(np.array([0, np.nan, 1.0]), np.zeros(3), 2.0, what="goal")
+
+
+def test_pose_position_residual_is_the_exact_gap_to_an_attainable_pose():
+    plant = _make_plant()
+    ee = plant.GetFrameByName("ee")
+    X = _pose(plant, Q0)
+    # A pose of the arm, found from another seed: attained.
+    residual = pose_position_residual(
+        plant, ee, X.translation(), X.rotation(), [0.5 * Q0], orientation_tolerance=0.01
+    )
+    assert residual < 1e-5
+    # Straight up, 1.0 m high with the base orientation: the stretched arm's tip is at
+    # 0.85 m (offsets 0.1 + 0.6 + 0.05 + 0.1), the closest it can come, 0.15 m short.
+    residual = pose_position_residual(
+        plant, ee, np.array([0.0, 0.0, 1.0]), RotationMatrix(), [Q0], orientation_tolerance=0.01
+    )
+    assert residual == pytest.approx(0.15, abs=1e-5)
+    with pytest.raises(RepertoireError, match="one or more seeds"):
+        pose_position_residual(plant, ee, ZERO3, RotationMatrix(), [], orientation_tolerance=0.1)
+    with pytest.raises(RepertoireError, match="finite 3-vector"):
+        pose_position_residual(
+            plant, ee, np.array([0, np.nan, 1.0]), RotationMatrix(), [Q0], orientation_tolerance=0.1
+        )
+    with pytest.raises(RepertoireError, match="each seed must be 7 finite joint positions"):
+        pose_position_residual(
+            plant, ee, ZERO3, RotationMatrix(), [Q0[:3]], orientation_tolerance=0.1
+        )
 
 
 def test_zero_error_keeps_reference_at_measured():

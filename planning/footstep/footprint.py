@@ -111,6 +111,43 @@ class FootprintMasks:
         return (yb * self.sub + qx) * self.sub + qy
 
 
+# tolerance (cells) of the separating-axis test: a cell overlaps the sole only by more
+SAT_EPS = 1e-9
+
+
+def sat_limits(
+    yaw: float, half: "tuple[float, float]", inv_res: float
+) -> tuple[float, float, float, float, float, float]:
+    """The separating-axis test's limits for a sole at ``yaw``, in cells.
+
+    A cell whose centre lies ``(dx, dy)`` cells from the sole's centre overlaps the sole
+    (positive area) when ``|dx| < ext_x``, ``|dy| < ext_y``, ``|dx c + dy s| < lim_u`` and
+    ``|-dx s + dy c| < lim_v``, each by more than :data:`SAT_EPS`. The compiled twin is
+    ``fastkernels._sat_limits`` (the same floats).
+
+    Args:
+        yaw: sole yaw (rad).
+        half: the sole's half length and half width (m).
+        inv_res: cells per metre.
+
+    Returns:
+        ``c, s, ext_x, ext_y, lim_u, lim_v``: cos and sin of the yaw, the rectangle's half
+        extents along the grid axes plus half a cell, and its half sides plus a cell's half
+        extent along the sole's axes.
+    """
+    hl, hw = half
+    c, s = math.cos(yaw), math.sin(yaw)
+    cell_u = 0.5 * (abs(c) + abs(s))
+    return (
+        c,
+        s,
+        (hl * abs(c) + hw * abs(s)) * inv_res + 0.5,
+        (hl * abs(s) + hw * abs(c)) * inv_res + 0.5,
+        hl * inv_res + cell_u,
+        hw * inv_res + cell_u,
+    )
+
+
 def _rows_of(cells: np.ndarray, R: int) -> list[tuple[tuple[int, int], ...]]:
     """Every mask as ``(row offset, bits of column offset + R)`` pairs, rows ascending.
 
@@ -415,15 +452,8 @@ class FootprintChecker:
                 return False
         # occupied cells of the ring: exact separating-axis test for this pose
         R = masks.radius_cells
-        c, s = math.cos(yaw), math.sin(yaw)
-        hl, hw = masks.half
-        h = 0.5  # half cell, in cells
-        ext_x = (hl * abs(c) + hw * abs(s)) * self.inv_res + h
-        ext_y = (hl * abs(s) + hw * abs(c)) * self.inv_res + h
-        cell_u = h * (abs(c) + abs(s))
-        lim_u = hl * self.inv_res + cell_u
-        lim_v = hw * self.inv_res + cell_u
-        eps = 1e-9
+        c, s, ext_x, ext_y, lim_u, lim_v = sat_limits(yaw, masks.half, self.inv_res)
+        eps = SAT_EPS
         for di, bits in masks.ring_rows[m]:
             hit = (rows[px + di] >> shift) & bits
             while hit:
@@ -529,14 +559,8 @@ class FootprintChecker:
         h_ring = hf[base + ring]
         cand = h_ring > top  # only ring cells that would raise the max need the exact test
         if cand.any():
-            c, s = math.cos(yaw), math.sin(yaw)
-            hl, hw = self.masks.half
-            ext_x = (hl * abs(c) + hw * abs(s)) * self.inv_res + 0.5
-            ext_y = (hl * abs(s) + hw * abs(c)) * self.inv_res + 0.5
-            cell_u = 0.5 * (abs(c) + abs(s))
-            lim_u = hl * self.inv_res + cell_u
-            lim_v = hw * self.inv_res + cell_u
-            eps = 1e-9
+            c, s, ext_x, ext_y, lim_u, lim_v = sat_limits(yaw, self.masks.half, self.inv_res)
+            eps = SAT_EPS
             dx = ring_di[cand] + 0.5 - fx  # cell centre minus foot centre, in cells
             dy = ring_dj[cand] + 0.5 - fy
             hit = (

@@ -28,6 +28,7 @@ from repertoire.planning.footstep.environment import DynamicEnvironment, Occupan
 from repertoire.planning.footstep.fastkernels import swing_crosses
 from repertoire.planning.footstep.footprint import (
     FootprintChecker,
+    FootprintMasks,
     footprint_masks,
 )
 from repertoire.planning.footstep.heuristic import LazyCostToGo, shared_cost_to_go
@@ -176,6 +177,13 @@ def pose3(p: Sequence[float], name: str) -> tuple[float, float, float]:
     return vals[0], vals[1], wrap_angle(vals[2])
 
 
+def sole_masks(geometry: BipedGeometry, margin: float, resolution: float) -> FootprintMasks:
+    """The cached footprint masks of the sole inflated by ``margin`` (m) on every side."""
+    return footprint_masks(
+        geometry.foot_length + 2.0 * margin, geometry.foot_width + 2.0 * margin, resolution
+    )
+
+
 class Checkers:
     """Footprint checkers per time index (dynamic) or one checker (static).
 
@@ -193,11 +201,7 @@ class Checkers:
     ) -> None:
         self.world = world
         grid0 = world if isinstance(world, OccupancyGrid) else world.reference
-        self.masks = footprint_masks(
-            geometry.foot_length + 2.0 * margin,
-            geometry.foot_width + 2.0 * margin,
-            grid0.resolution,
-        )
+        self.masks = sole_masks(geometry, margin, grid0.resolution)
         self.hold = hold
         self._cache: dict[int, FootprintChecker] = {}
         self.static = isinstance(world, OccupancyGrid)

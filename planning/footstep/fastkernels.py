@@ -462,6 +462,9 @@ def _occupancy_words(chk) -> np.ndarray:
     return words
 
 
+# the compiled checks read a footprint mask's rows as 64-bit words: masks up to 64 cells
+# across (wider masks, of very fine grids or wide margins, plan on the Python core)
+MASK_WORD_CELLS = 64
 _BITS_CACHE: dict[int, tuple] = {}
 
 
@@ -471,7 +474,7 @@ def _cached_mask_bits(masks) -> tuple[np.ndarray, np.ndarray]:
     if hit is not None and hit[0] is masks:
         return hit[1], hit[2]
     big_r = masks.radius_cells
-    if 2 * big_r + 1 > 64:
+    if 2 * big_r + 1 > MASK_WORD_CELLS:
         raise ValueError(f"footprint masks {2 * big_r + 1} cells wide exceed a 64-bit window")
     n, width = len(masks.inner), 2 * big_r + 1
     shifts = np.arange(width, dtype=np.uint64)

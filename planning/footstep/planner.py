@@ -23,8 +23,10 @@ from repertoire.planning.footstep.biped_model import (
     BipedState,
     BipedStepModel,
     history_classes,
+    sole_masks,
 )
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
+from repertoire.planning.footstep.fastkernels import MASK_WORD_CELLS, _cached_mask_bits
 from repertoire.planning.footstep.search import (
     SearchResult,
     anytime_search,
@@ -49,8 +51,6 @@ __all__ = [
 ]
 
 BACKENDS = ("auto", "compiled", "python")
-# the compiled core reads a footprint mask's rows as 64-bit words: masks up to 64 cells across
-COMPILED_MASK_CELLS = 64
 # with corridor searches, the share of the time left after the first plan that ARA* may
 # spend on the whole map before the best plan is improved in its corridor
 ARA_SHARE = 0.25
@@ -455,9 +455,6 @@ def _build_footprint_masks(
     at a new resolution, a one-time cost like the compilation (:func:`warm_up`), not part of
     any plan's time limit. Bad inputs are left to the step model, which names them.
     """
-    from repertoire.planning.footstep.fastkernels import _cached_mask_bits
-    from repertoire.planning.footstep.footprint import footprint_masks
-
     geometry = kwargs.get("geometry", ASIMO_LIKE)
     if not isinstance(world, (OccupancyGrid, DynamicEnvironment)) or not isinstance(
         geometry, BipedGeometry
@@ -465,13 +462,10 @@ def _build_footprint_masks(
         return
     grid = world if isinstance(world, OccupancyGrid) else world.reference
     for margin in {opts.footprint_margin_m, 0.0}:  # the landing check's and the exact one
-        masks = footprint_masks(
-            geometry.foot_length + 2.0 * margin, geometry.foot_width + 2.0 * margin,
-            grid.resolution,
-        )  # fmt: skip
+        masks = sole_masks(geometry, margin, grid.resolution)
         if opts.backend == "python" or isinstance(world, DynamicEnvironment):
             _ = masks.outer_rows, masks.inner_rows, masks.ring_rows
-        elif 2 * masks.radius_cells + 1 <= COMPILED_MASK_CELLS:
+        elif 2 * masks.radius_cells + 1 <= MASK_WORD_CELLS:
             _cached_mask_bits(masks)
 
 
@@ -652,12 +646,12 @@ def _backend(opts: PlannerOptions, model: BipedStepModel) -> str:
     width = 2 * model.chk0.masks.radius_cells + 1  # cells across a footprint mask
     backend = opts.backend
     if backend == "auto":
-        backend = "python" if model.dynamic or width > COMPILED_MASK_CELLS else "compiled"
+        backend = "python" if model.dynamic or width > MASK_WORD_CELLS else "compiled"
     if backend == "compiled" and model.dynamic:
         raise FootstepError("the compiled backend plans on static grids only; use 'python'")
-    if backend == "compiled" and width > COMPILED_MASK_CELLS:
+    if backend == "compiled" and width > MASK_WORD_CELLS:
         raise FootstepError(
-            f"the compiled backend checks footprints at most {COMPILED_MASK_CELLS} cells "
+            f"the compiled backend checks footprints at most {MASK_WORD_CELLS} cells "
             f"across; this foot with footprint_margin_m={opts.footprint_margin_m} m spans "
             f"{width} cells of {model.ref.resolution} m: use 'python' or 'auto', a coarser "
             f"grid or a smaller margin"

@@ -338,9 +338,10 @@ class QuaternionDmpParameters(_FieldsRecord):
         un-normalised component state; for ``"manifold"`` ``raw`` is the angular velocity.
 
         ``goal`` and ``-goal`` are the same orientation; the sign used is the one that turns
-        from ``q0`` the way the DMP learned (:func:`repertoire.planning.dmp_math.
-        lift_quaternion_goal`): the learned goal for the learned start, so a demonstration
-        turning more than 180 deg is reproduced rather than turned back the short way.
+        from ``q0`` the way the DMP learned
+        (:func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal`): the learned goal
+        for the learned start, so a demonstration turning more than 180 deg is reproduced
+        rather than turned back the short way.
 
         Args:
             goal: Goal orientation (w, x, y, z), unit; default the learned one.

@@ -348,6 +348,8 @@ def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Pa
     p2 = out_dir / "dmp_goals_near_start.png"
     fig.savefig(p2, dpi=100)
 
+    p4 = orientation_figure(config, out_dir)
+
     def stats(vals):
         v = np.asarray(vals, float)
         return f"{np.median(v):.3g}", f"{np.max(v):.3g}"
@@ -371,7 +373,57 @@ def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Pa
     mn = np.mean([r.flip_mirrored_new for r in records])
     lines.append(f"| sign of g - x0 flipped | fraction mirrored | {mo:.2f} |  | {mn:.2f} |  |")
     p3 = write_table(out_dir, "dmp_goals_table.md", lines)
-    return {"fig2": p1, "near_start": p2, "table": p3}
+    return {"fig2": p1, "near_start": p2, "table": p3, "orientation": p4}
+
+
+def orientation_figure(config: DmpGoalsConfig, out_dir: Path) -> Path:
+    """Quaternion DMPs of yaw turns up to 270 deg: reproduced the learned way, and new goals.
+
+    Rest-to-rest (minimum-jerk) yaw turns of 90, 200 and 270 deg are learned in both forms
+    (per-component, sec. IV-B, and on-manifold); each is rolled out to its own goal and to
+    a goal 40 deg further. The yaw is unwrapped, so a DMP turning back the short way (what a
+    goal flipped to the start's hemisphere did past 180 deg) would show as a curve going
+    down.
+    """
+    from matplotlib.figure import Figure
+    from repertoire.planning.dmp_learn import learn_quaternion_dmp
+    from repertoire.planning.dmp_math import minimum_jerk
+    from repertoire.planning.dmp_quaternion import quat_exp
+
+    T, n = config.duration_s, config.n_samples
+    t = np.linspace(0.0, T, n)
+    s, _, _ = minimum_jerk(np.zeros(1), np.ones(1), T, t)
+    steps = int(round(1.5 * T / config.time_step_s))  # half a tau more: the DMP settles
+
+    def yaw_quat(deg):
+        return quat_exp(np.outer(np.ravel(deg), [0.0, 0.0, 0.5]) * np.pi / 180.0)
+
+    def yaw_deg(q):
+        return np.rad2deg(np.unwrap(2.0 * np.arctan2(q[:, 3], q[:, 0])))
+
+    fig = Figure(figsize=(10, 4.2), layout="constrained")
+    axes = fig.subplots(1, 2, sharey=True)
+    colours = {90: "tab:blue", 200: "tab:orange", 270: "tab:green"}
+    for ax, mode in zip(axes, ("component", "manifold"), strict=True):
+        for turn, colour in colours.items():
+            demo = yaw_quat(s[:, 0] * turn)
+            dmp = learn_quaternion_dmp(t, demo, mode=mode, n_basis=config.n_basis)
+            ax.plot(t, yaw_deg(demo), "-", c="0.6", lw=4)
+            tt, q, _ = dmp.rollout(dt=config.time_step_s, n_steps=steps)
+            ax.plot(tt, yaw_deg(q), "--", c=colour, lw=1.6, label=f"{turn} deg: own goal")
+            tt, q, _ = dmp.rollout(
+                goal=yaw_quat(turn + 40)[0], dt=config.time_step_s, n_steps=steps
+            )
+            ax.plot(tt, yaw_deg(q), ":", c=colour, lw=1.6, label=f"{turn} deg: goal + 40 deg")
+        ax.plot([], [], "-", c="0.6", lw=4, label="demonstration")
+        ax.set_title(f"{mode} quaternion DMP, yaw turns")
+        ax.set_xlabel("t (s)")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("yaw, unwrapped (deg)")
+    axes[1].legend(loc="upper left", fontsize=8)
+    path = out_dir / "dmp_goals_orientation.png"
+    fig.savefig(path, dpi=100)
+    return path
 
 
 register_dmp_study(

@@ -465,8 +465,19 @@ def goal_pose_residual(p_W: np.ndarray, quaternion: np.ndarray) -> float:
     )
 
 
-def _check_goal_attainable(field: str, xy, what: str, p_W: np.ndarray, quaternion) -> None:
-    """ScenarioError naming ``field`` when the tcp cannot attain the goal pose ``p_W``."""
+def _default_layout(scenario_type: type, fields: tuple[str, ...]) -> str:
+    """The default values of a scenario's position fields, for an error message."""
+    defaults = scenario_type()
+    return " and ".join(f"{name} {getattr(defaults, name)}" for name in fields)
+
+
+def _check_goal_attainable(
+    field: str, xy, what: str, p_W: np.ndarray, quaternion, layout: str
+) -> None:
+    """ScenarioError naming ``field`` when the tcp cannot attain the goal pose ``p_W``.
+
+    ``layout``: the default layout's fields, named in the message as attainable.
+    """
     residual = goal_pose_residual(p_W, quaternion)
     if residual > GOAL_POSITION_TOLERANCE:
         closest = "no IK solution" if not np.isfinite(residual) else f"{residual:.3f} m"
@@ -475,8 +486,8 @@ def _check_goal_attainable(field: str, xy, what: str, p_W: np.ndarray, quaternio
             f"{np.round(p_W, 3).tolist()} with the orientation the motion needs (within "
             f"{GOAL_ORIENTATION_TOLERANCE} rad): inverse kinematics within the joint limits "
             f"brings the tcp no closer than {closest} (tolerance {GOAL_POSITION_TOLERANCE} m); "
-            "the goal is inside the arm's reach sphere but not attainable; move it (the default "
-            "layout's cup_xy [0.55, -0.25] and coaster_xy [0.54, 0.2] are attainable)"
+            f"the goal is inside the arm's reach sphere but not attainable; move it (the default "
+            f"layout's {layout} are attainable)"
         )
 
 
@@ -550,7 +561,8 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
     # (joint limits, the side grasp's orientation), and the run would then end far from it.
     shoulder, reach = shoulder_and_reach()
     check_reachable(cup, shoulder, reach, what="grasp goal")
-    _check_goal_attainable("cup_xy", s.cup_xy, "grasp goal", cup, goals[0].orientation)
+    layout = _default_layout(PickPlaceScenario, ("cup_xy", "coaster_xy"))
+    _check_goal_attainable("cup_xy", s.cup_xy, "grasp goal", cup, goals[0].orientation, layout)
     for xy_name in ("coaster_xy", "coaster_final_xy"):
         xy = getattr(s, xy_name)
         base = np.array([xy[0], xy[1], COASTER_RAIL_HEIGHT])
@@ -563,7 +575,7 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
         base = np.array([xy[0], xy[1], COASTER_RAIL_HEIGHT])
         for goal in goals[1:]:
             _check_goal_attainable(
-                xy_name, xy, f"{goal.label} goal", base + goal.position, goal.orientation
+                xy_name, xy, f"{goal.label} goal", base + goal.position, goal.orientation, layout
             )
     _, duration = segment_timing(PICK_PLACE_LABELS, s.settle_time)
     return goals, duration
@@ -574,6 +586,12 @@ def plan_serving(s: ServingScenario) -> tuple[list[SegmentGoal], float]:
 
     Returns:
         (goals, duration of the whole sequence in s).
+
+    Raises:
+        RepertoireError: a goal outside the arm's reach sphere (:func:`check_reachable`).
+        ScenarioError: a goal pose inside it that the arm cannot attain
+            (:func:`goal_pose_residual` above GOAL_POSITION_TOLERANCE), naming the field
+            (bottle_xy or cup_xys[k]) and the residual.
     """
     lib = motion_library()
     home = home_tcp_pose()
@@ -587,5 +605,16 @@ def plan_serving(s: ServingScenario) -> tuple[list[SegmentGoal], float]:
         goals.append(
             SegmentGoal("retreat", pour + [0.0, 0.0, 0.06], quaternion_wxyz(R_SIDE), grasp)
         )
+    # As plan_pick_and_place: the reach sphere, then inverse kinematics of each goal pose
+    # (a pour over a cup near the torso column or the arm's side needs a wrist pose the
+    # joint limits may not allow).
+    shoulder, reach = shoulder_and_reach()
+    fields = ["bottle_xy"] + [f"cup_xys[{k}]" for k in range(len(s.cup_xys)) for _ in range(2)]
+    xys = [s.bottle_xy] + [xy for xy in s.cup_xys for _ in range(2)]
+    layout = _default_layout(ServingScenario, ("bottle_xy", "cup_xys"))
+    for field, xy, goal in zip(fields, xys, goals, strict=True):
+        what = f"{goal.label} goal"
+        check_reachable(goal.position, shoulder, reach, what=f"{what} ({field})")
+        _check_goal_attainable(field, xy, what, goal.position, goal.orientation, layout)
     _, duration = segment_timing(SERVING_LABELS, s.settle_time)
     return goals, duration

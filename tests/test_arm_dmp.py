@@ -162,6 +162,26 @@ def test_goal_pose_inside_the_reach_sphere_but_unattainable_is_refused():
     )
 
 
+def test_serving_goal_pose_unattainable_is_refused_naming_the_cup():
+    # A cup inside the reach sphere by the torso column: the pour over it needs a wrist pose
+    # the joint limits do not allow (IK comes no closer than 0.12 m).
+    cups = [[0.64, -0.10], [0.68, 0.04], [0.35, 0.45]]
+    with pytest.raises(
+        ScenarioError,
+        match=r"^cup_xys\[2\] \[0.35, 0.45\]: the arm cannot attain the pour goal "
+        r"\[0.35, 0.3, 0.962\] .* no closer than 0.1\d\d m .*\(the default layout's bottle_xy "
+        r"\[0.52, -0.28\] and cup_xys \[\[0.64, -0.1\], \[0.68, 0.04\], \[0.64, 0.18\]\]",
+    ):
+        build_serving_water(ServingScenario(cup_xys=cups))
+    with pytest.raises(RepertoireError, match=r"IK target out of reach: grasp goal \(bottle_xy\)"):
+        plan_serving(ServingScenario(bottle_xy=[0.95, -0.55]))
+    # Every goal of the default layout, and of a third cup moved to [0.55, 0.30] (a run
+    # serves all three), is attained.
+    for cups in (ServingScenario().cup_xys, [[0.64, -0.10], [0.68, 0.04], [0.55, 0.30]]):
+        for goal in plan_serving(ServingScenario(cup_xys=cups))[0]:
+            assert goal_pose_residual(goal.position, goal.orientation) < GOAL_POSITION_TOLERANCE
+
+
 def test_default_goal_poses_are_attained_exactly():
     scenario = PickPlaceScenario()
     goals, _ = plan_pick_and_place(scenario)  # no refusal

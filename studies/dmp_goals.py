@@ -297,13 +297,14 @@ def run_episode(config: DmpGoalsConfig, seed: int) -> DmpGoalsRecord:
 def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Path):
     """Fig. 2 panels for seed 0's demo, peak acceleration vs delta, and a Markdown table."""
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
     from repertoire.planning.dmp_learn import learn_dmp
 
     out_dir = Path(out_dir)
     ep = sample_episode(config, 0)
     T = config.duration_s
     t, Y, _ = demonstration(config, ep["rise"], ep["bulge"])
-    fig = Figure(figsize=(10, 7.5), layout="constrained")
+    fig = Figure(figsize=(9, 10), layout="constrained")
     axes = fig.subplots(2, 2, sharex=True, sharey=True)
     goals = [np.array([gx, gy]) for gx in (0.7, 1.0, 1.3) for gy in (-0.15, 0.05, 0.25)]
     for col, f in enumerate(("old", "new")):
@@ -322,12 +323,18 @@ def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Pa
                 ax.plot(x[:, 0], x[:, 1], "--", lw=1.2)
                 ax.plot(*g, "ko", ms=4)
             ax.set_title(
-                f"{f} formulation, goal changed {'during (t = 0.4 tau)' if during else 'before'}"
+                f"{f} formulation,\ngoal changed {'during (t = 0.4 tau)' if during else 'before'}"
             )
             ax.set_xlabel("Y1 (m)")
             ax.set_ylabel("Y2 (m)")
+            ax.set_aspect("equal")  # Y1, Y2 are both positions: keep the path's shape
             ax.grid(alpha=0.3)
-    axes[0, 0].legend(loc="upper left")
+    handles = [
+        Line2D([], [], c="k", lw=2.5, label="demonstration (to its own goal)"),
+        Line2D([], [], ls="--", c="0.4", lw=1.2, label="DMP to a new goal (one colour per goal)"),
+        Line2D([], [], ls="", marker="o", c="k", ms=4, label="new goal"),
+    ]
+    fig.legend(handles=handles, loc="outside lower center", ncols=3)
     p1 = out_dir / "dmp_goals_fig2.png"
     fig.savefig(p1, dpi=100)
 

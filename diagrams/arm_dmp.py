@@ -71,7 +71,11 @@ from pydrake.systems.primitives import (
 )
 from pydrake.trajectories import PiecewisePolynomial
 from repertoire.diagrams.arm import ArmStation, add_arm_controllers, add_meshcat
-from repertoire.diagrams.arm_dmp_results import pick_and_place_figures, serving_figures
+from repertoire.diagrams.arm_dmp_results import (
+    ik_status_figures,
+    pick_and_place_figures,
+    serving_figures,
+)
 from repertoire.diagrams.arm_dmp_scenarios import (
     COASTER_RAIL_HEIGHT,
     PICK_PLACE_LABELS,
@@ -392,7 +396,10 @@ def build_arm_world(
     description="arm7 driven by learned DMPs (RMRC IK + ID/PD): grasp a cup, place it on a "
     "coaster that moves after onset, around a ball obstacle (Pastor et al. Fig. 13)",
     duration=7.75,
-    check=lambda diagram, context: pick_and_place_figures(diagram, context),
+    check=lambda diagram, context: {
+        **pick_and_place_figures(diagram, context),
+        **ik_status_figures(diagram, context),
+    },
     criteria={"success": Bound(lo=1.0), "collision_free": Bound(lo=1.0)},
 )
 def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagram:
@@ -450,7 +457,10 @@ def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagra
     description="arm7 driven by learned DMPs: grasp a bottle and pour over three cups "
     "(Pastor et al. Fig. 12)",
     duration=14.1,
-    check=lambda diagram, context: serving_figures(diagram, context),
+    check=lambda diagram, context: {
+        **serving_figures(diagram, context),
+        **ik_status_figures(diagram, context),
+    },
     criteria={"success": Bound(lo=1.0), "cups_served": Bound(lo=3.0)},
 )
 def build_serving_water(scenario: ServingScenario, *, meshcat=None) -> Diagram:

@@ -15,7 +15,12 @@ from repertoire.diagrams.arm_dmp_scenarios import shoulder_and_reach
 from repertoire.diagrams.simulate import simulate
 from repertoire.models.arm7 import OBSTACLE_RADIUS
 from repertoire.planning.arm_library import BOTTLE_GRASP_HEIGHT, COASTER_TOP
-from repertoire.systems.task_space import STATUS_NAMES, STATUS_OK, STATUS_TARGET_OUT_OF_REACH
+from repertoire.systems.task_space import (
+    STATUS_NAMES,
+    STATUS_OK,
+    STATUS_TARGET_OUT_OF_REACH,
+    STATUS_TRACKING_LOST,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -82,6 +87,26 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
             "the simulation was stopped there"
         )
     return root, wall
+
+
+def ik_status_figures(diagram: Diagram, context: Context) -> dict[str, float]:
+    """The RMRC IK's status at the end of a run, as flags (1 = it was reported).
+
+    The status latches (:class:`~repertoire.systems.task_space.ResolvedMotionRateIK`), so a
+    flag says the IK reported it at some time of the run. :func:`run_arm_world` stops a
+    run there with the details; a run simulated to its end (``repertoire simulate``) shows
+    it with these figures, e.g. a place goal the arm approached with a joint at its limit.
+
+    Returns:
+        ``ik_target_out_of_reach`` and ``ik_tracking_lost`` (the task-space error stayed
+        above the IK's tolerance longer than its hold time), each 0 or 1.
+    """
+    rmrc = diagram.GetSubsystemByName("rmrc")
+    status = int(rmrc.GetOutputPort("status").Eval(rmrc.GetMyContextFromRoot(context))[0])
+    return {
+        "ik_target_out_of_reach": float(status == STATUS_TARGET_OUT_OF_REACH),
+        "ik_tracking_lost": float(status == STATUS_TRACKING_LOST),
+    }
 
 
 @dataclasses.dataclass

@@ -207,6 +207,22 @@ def test_target_leaving_the_reach_during_a_run_stops_it():
     )
     with pytest.raises(IkTargetError, match="target out of reach.* at t = 0.00"):
         run_arm_world(diagram, 1.0)
+    # Simulated on without the monitor (as `repertoire simulate` does), the IK's latched
+    # status shows in the figures: the desired tcp, still inside the reach sphere, falls
+    # behind (tracking lost by 1.5 s) before it leaves the sphere.
+    from repertoire.diagrams.arm_dmp_results import ik_status_figures
+    from repertoire.diagrams.simulate import simulate
+
+    simulator, context = simulate(diagram, 1.0)
+    assert ik_status_figures(diagram, context) == {
+        "ik_target_out_of_reach": 0.0,
+        "ik_tracking_lost": 0.0,
+    }
+    simulator.AdvanceTo(1.5)
+    assert ik_status_figures(diagram, context) == {
+        "ik_target_out_of_reach": 0.0,
+        "ik_tracking_lost": 1.0,
+    }
 
 
 def test_goal_of_the_wrong_size_is_refused():

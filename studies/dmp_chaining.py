@@ -263,27 +263,30 @@ def summarize(records: list[DmpChainingRecord], config: DmpChainingConfig, out_d
                 axes[2].plot(th, np.linalg.norm(ah, axis=1), ls, c=c, lw=1.2, label=f"handoff {h}")
                 axes[3].plot(th, np.linalg.norm(vh, axis=1), ls, c=c, lw=1.2, label=f"handoff {h}")
             for k in st:
-                axes[2].axvline(th[k], color="k", ls=":", lw=0.8)
-                axes[3].axvline(th[k], color="k", ls=":", lw=0.8)
+                for ax in axes[2:]:
+                    ax.axvline(
+                        th[k], color="k", ls=":", lw=0.8, label="switch" if k == st[0] else None
+                    )
     for ax in axes[:2]:
-        ax.plot(*np.array(goals).T, "ko", ms=6)
-        ax.plot(0, 0, "k^", ms=6)
+        ax.plot(*np.array(goals).T, "ko", ms=6, label="goals (in order from (1, 0))")
+        ax.plot(0, 0, "k^", ms=6, label="start")
         ax.set_aspect("equal")
         ax.set_xlabel("Y1 (m)")
         ax.set_ylabel("Y2 (m)")
         ax.grid(alpha=0.3)
-    axes[0].set_title("(a) one primitive, four goals (switch 1.0 tau)")
+    axes[0].set_title(f"(a) one primitive, four goals (switch {sw[0]:g} tau)")
     axes[0].legend(fontsize=7)
     axes[1].set_title("(b) switching times (lighter = earlier)")
     axes[1].legend(fontsize=7)
     axes[2].set_title(f"|acceleration|, switch {min(sw):g} tau")
     axes[2].set_xlabel("t (s)")
-    axes[2].set_ylabel("m/s^2")
+    axes[2].set_ylabel("|acceleration| (m/s^2)")
     axes[2].legend(fontsize=8)
     axes[3].set_title(f"|velocity|, switch {min(sw):g} tau")
     axes[3].set_xlabel("t (s)")
-    axes[3].set_ylabel("m/s")
-    axes[3].legend(fontsize=8)
+    axes[3].set_ylabel("|velocity| (m/s)")
+    axes[3].set_ylim(top=1.3 * axes[3].get_ylim()[1])  # headroom: the legend clears the dips
+    axes[3].legend(fontsize=8, loc="upper center", ncols=2)
     p1 = out_dir / "dmp_chaining_fig5.png"
     fig.savefig(p1, dpi=100)
 

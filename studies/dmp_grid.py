@@ -198,6 +198,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
         ``{"grid": png, "results": md}``.
     """
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator, MultipleLocator
     from repertoire.planning.arm_library import synthetic_demonstrations
 
     out_dir = Path(out_dir)
@@ -219,27 +220,33 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
         )
     for r in records:
         color = "tab:red" if r.reached else "0.3"
-        ax3.plot(r.path_x, r.path_y, r.path_z, color=color, lw=0.7)
-        ax.plot(r.path_y, r.path_x, color=color, lw=0.7)
+        # above the demonstrations, which a short (quick) path would hide under
+        ax3.plot(r.path_x, r.path_y, r.path_z, color=color, lw=1.2, zorder=6)
+        ax.plot(r.path_y, r.path_x, color=color, lw=1.2, zorder=6)
         for g in (r.grasp_goal, r.place_goal):
             ax3.scatter(*g, color="tab:green", s=12)
             ax.plot(g[1], g[0], "+", color="tab:green", ms=8)
     ax3.set_xlabel("x (m)")
-    ax3.set_ylabel("y (m)")
-    ax3.set_zlabel("z (m)")
+    ax3.set_ylabel("y (m)", labelpad=10)
+    ax3.set_zlabel("z (m)", labelpad=10)
+    ax3.set_aspect("equal")  # metres on all three axes
+    for axis in (ax3.xaxis, ax3.zaxis):
+        axis.set_major_locator(MaxNLocator(4))  # at equal aspect, more ticks overlap
+    ax3.yaxis.set_major_locator(MultipleLocator(0.2))
     ax3.set_title(
-        "demos (blue), physical tcp paths (red: reached, grey: missed), new goals (green)",
+        "demos (blue), physical tcp paths\n(red: reached, grey: missed), new goals (green)",
         fontsize=10,
     )
     ax.set_xlabel("y (m, left)")
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()
     ax.set_aspect("equal")
-    ax.plot([], [], color="tab:red", lw=0.7, label="physical tcp path (goal reached)")
+    ax.plot([], [], color="tab:red", lw=1.2, label="physical tcp path (goal reached)")
     if not all(r.reached for r in records):
-        ax.plot([], [], color="0.3", lw=0.7, label="physical tcp path (goal missed)")
+        ax.plot([], [], color="0.3", lw=1.2, label="physical tcp path (goal missed)")
     ax.plot([], [], "+", color="tab:green", ms=8, ls="", label="new goals")
-    ax.legend(loc="lower left", fontsize=8)
+    # below the axes: inside, it covered the place goals at the lower left
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncols=2, fontsize=8)
     ax.set_title("top view: grasp grid (right), place grid (left)")
     grid = out_dir / "dmp_grid_paths.png"
     fig.savefig(grid, dpi=110)

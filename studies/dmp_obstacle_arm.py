@@ -269,11 +269,12 @@ def summarize(
         ``{"paths": png, "gaps": png, "results": md}``.
     """
     from matplotlib.figure import Figure
-    from matplotlib.patches import Circle
+    from matplotlib.patches import Circle, Patch
+    from matplotlib.ticker import MaxNLocator
 
     out_dir = Path(out_dir)
     colors = {"coupled": "tab:green", "uncoupled": "tab:red"}
-    fig = Figure(figsize=(12, 9), layout="constrained")
+    fig = Figure(figsize=(12, 7), layout="constrained")
     axes = fig.subplots(2, 2, sharex="all", sharey="row")
     shown = records[:3]
     fig.suptitle(
@@ -304,8 +305,19 @@ def summarize(
                     ls=":",
                     label="cup bottom (tcp - 5.2 cm)" if k == 0 else None,
                 )
-            top.plot(r.cup_xy[1], r.cup_xy[0], "o", color="tab:red", mfc="none")
-            top.plot(r.coaster_xy[1], r.coaster_xy[0], "s", color="tab:green", mfc="none")
+            # black: red and green already mean the uncoupled and coupled tcp paths
+            first = k == 0
+            top.plot(
+                r.cup_xy[1], r.cup_xy[0], "o", color="k", mfc="none", label="cup" if first else None
+            )
+            top.plot(
+                r.coaster_xy[1],
+                r.coaster_xy[0],
+                "s",
+                color="k",
+                mfc="none",
+                label="coaster" if first else None,
+            )
         top.set_title(f"{arm}: top view")
         top.set_xlabel("y (m)")
         top.set_ylabel("x (m)")
@@ -317,14 +329,20 @@ def summarize(
         side.invert_xaxis()
         side.set_aspect("equal")
         side.legend(fontsize=8, loc="lower left")
+        ball = Patch(color="tab:blue", alpha=0.25, label="ball")
+        top.legend(
+            handles=[*top.get_legend_handles_labels()[0], ball], fontsize=8, loc="lower left"
+        )
     paths = out_dir / "dmp_obstacle_arm_paths.png"
     fig.savefig(paths, dpi=100)
 
     fig = Figure(figsize=(8, 4), layout="constrained")
     ax = fig.subplots()
-    for arm in ARMS:
+    for arm, dx, marker in zip(ARMS, (-0.08, 0.08), ("o", "s"), strict=True):
         g = np.array([r.min_ball_gap_m[arm] for r in records], dtype=float) * 100
-        ax.scatter(np.arange(len(g)), g, s=12, color=colors[arm], label=arm)
+        # side by side per episode: drawn on one x, equal gaps hid the coupled point
+        ax.scatter(np.arange(len(g)) + dx, g, s=14, marker=marker, color=colors[arm], label=arm)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_xlabel("episode")
     ax.set_ylabel("smallest gap ball - arm/hand/fingers/cup (cm)")

@@ -300,6 +300,9 @@ def summarize(
         if k < 25 and r.path_x:
             ax.plot(r.path_y, r.path_x, color=color, lw=0.7, alpha=0.6)
         ax.plot(r.cup_xy[1], r.cup_xy[0], "o", color="tab:purple", ms=4, mfc="none")
+        # markers (not only the arrow, which does not widen the axes: coasters fell outside)
+        ax.plot(r.coaster_xy[1], r.coaster_xy[0], "s", color="tab:brown", ms=4, mfc="none")
+        ax.plot(r.coaster_final_xy[1], r.coaster_final_xy[0], "s", color="tab:brown", ms=4)
         ax.annotate(
             "",
             xy=(r.coaster_final_xy[1], r.coaster_final_xy[0]),
@@ -326,7 +329,8 @@ def summarize(
             Line2D([], [], color="tab:green", lw=1, label="tcp path, success"),
             Line2D([], [], color="tab:red", lw=1, label="tcp path, failure"),
             Line2D([], [], ls="", marker="o", mfc="none", color="tab:purple", label="cup start"),
-            Line2D([], [], color="tab:brown", lw=1, marker=">", label="coaster move"),
+            Line2D([], [], ls="", marker="s", mfc="none", color="tab:brown", label="coaster start"),
+            Line2D([], [], ls="", marker="s", color="tab:brown", label="coaster end (arrow: move)"),
             Line2D([], [], ls="", marker="o", mfc="none", ms=10, color="tab:blue", label="ball"),
         ],
         fontsize=8,
@@ -342,7 +346,7 @@ def summarize(
     ax2.set_xlim(0.0, upper)
     ax2.axvline(2.0, color="tab:red", ls="--", label="2 cm success bound")
     clipped = f"; {over} above {upper:g} cm counted at {upper:g}" if over else ""
-    ax2.set_xlabel(f"final cup axis to coaster centre (cm{clipped})")
+    ax2.set_xlabel(f"final cup axis to coaster centre (cm)\n{clipped[2:]}".rstrip())
     ax2.set_ylabel("episodes")
     ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
     rate = np.mean([r.success for r in records]) if records else float("nan")

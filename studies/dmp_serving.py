@@ -233,9 +233,20 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
         col = d[:, j][np.isfinite(d[:, j])] * 100
         ax2.hist(np.minimum(col, upper), bins=bins, alpha=0.6, label=f"cup {j + 1}")
     ax2.set_xlim(0.0, upper)
+    ax2.set_ylim(bottom=0.0)  # counts: with no pour at all the default range went negative
+    if not cm.size:
+        ax2.set_ylim(0.0, 1.0)
+        ax2.text(
+            0.5,
+            0.5,
+            "no episode poured over a cup\n(no tip distance to show)",
+            transform=ax2.transAxes,
+            ha="center",
+            va="center",
+        )
     ax2.axvline(3.0, color="tab:red", ls="--", label="3 cm (inside the rim)")
     clipped = f"; {over} above {upper:g} cm counted at {upper:g}" if over else ""
-    ax2.set_xlabel(f"closest tip-to-cup-axis distance while pouring (cm{clipped})")
+    ax2.set_xlabel(f"closest tip-to-cup-axis distance while pouring (cm)\n{clipped[2:]}".rstrip())
     ax2.set_ylabel("cup pours (episodes)")
     ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
     rate = np.mean([r.success for r in records]) if records else float("nan")

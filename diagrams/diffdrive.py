@@ -20,13 +20,11 @@ from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
 from repertoire.diagrams.biped import add_ground, validate_plant_fields
 from repertoire.diagrams.registry import register_diagram
 from repertoire.models import ConfigureParser, package_url
+from repertoire.models.diffdrive import MAX_WHEEL_SPEED, TRACK, WHEEL_RADIUS
 
 from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
 
-WHEEL_RADIUS = 0.0975  # [m]
-TRACK = 0.33  # distance between the wheel centres [m]
-MAX_WHEEL_SPEED = 12.0  # [rad/s], the URDF velocity limit
 WORLDS = {"soccer": "diffdrive/soccer.sdf", "kitchen": "diffdrive/kitchen.sdf", "empty": None}
 ROBOT_URL_PATH = "diffdrive/diffdrive.urdf"
 

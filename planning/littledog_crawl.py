@@ -15,7 +15,7 @@ This module is the scripted stand-in for that operator, in two independent parts
   three stance feet; the foot then rises, travels with ``clearance`` above the
   highest terrain under its path, and comes down; every leg's angles come from the
   closed-form leg IK. The result, a :class:`CrawlPlan`, is fed to the plant's PD
-  (see :mod:`repertoire.systems.littledog_crawl`).
+  (see :func:`repertoire.diagrams.littledog_worlds.build_crawl_playback`).
 
 Foot positions ``p_WF`` are foot-sphere centres in the world (the sphere touches
 the terrain at ``p_WF - [0, 0, FOOT_RADIUS]``). Body poses are 6-vectors

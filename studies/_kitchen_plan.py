@@ -58,7 +58,7 @@ class KitchenPlanConfig:
     """The kitchen scenario, its free-parameter ranges and the simulation settings.
 
     Attributes:
-        scenario: 1 (one cup, 7 actions) or 2 (two cups, 15 actions).
+        scenario: 1 (one cup, 10 actions) or 2 (two cups, 21 actions: :func:`plan_steps`).
         x_range: start x range of the robot [m] (the open part of the room: GoToPose
             drives straight, without avoiding furniture).
         y_range: start y range of the robot [m].
@@ -185,7 +185,7 @@ def base_pose(point, phi, yaw, extend) -> np.ndarray:
 
 def to_chassis_z(z_world):
     """A world height in the chassis frame (origin on the wheel axle)."""
-    from repertoire.diagrams.diffdrive import WHEEL_RADIUS
+    from repertoire.models.diffdrive import WHEEL_RADIUS
 
     return np.asarray(z_world, dtype=float) - WHEEL_RADIUS
 

@@ -455,13 +455,13 @@ def add_study_arguments(parser: argparse.ArgumentParser, *, with_name: bool = Tr
         "--store",
         type=Path,
         default=None,
-        help="SQLite store (default out/studies/NAME/episodes.sqlite)",
+        help="SQLite store (default OUT_DIR/episodes.sqlite, OUT_DIR from --out-dir)",
     )
     parser.add_argument(
         "--out-dir",
         type=Path,
         default=None,
-        help="folder for tables and figures (default out/studies/NAME)",
+        help="folder for the store, tables and figures (default out/studies/NAME)",
     )
     parser.add_argument(
         "--executor",

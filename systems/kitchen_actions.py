@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from repertoire.models.diffdrive import WHEEL_RADIUS
 from repertoire.models.diffdrive.generate import (
     COLUMN_X,
     EXTEND_RANGE,
@@ -90,8 +91,6 @@ def chassis_to_world(base_state, a) -> np.ndarray:
 
     The chassis frame origin is on the wheel axle, ``WHEEL_RADIUS`` above the floor.
     """
-    from repertoire.diagrams.diffdrive import WHEEL_RADIUS
-
     x, y, phi = base_state[0], base_state[1], base_state[2]
     c, s = math.cos(phi), math.sin(phi)
     return np.array([x + c * a[0] - s * a[1], y + s * a[0] + c * a[1], WHEEL_RADIUS + a[2]])

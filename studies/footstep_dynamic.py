@@ -260,6 +260,7 @@ def summarize(
         ``{label: path}`` of the files written.
     """
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
     from repertoire.planning.footstep.plot import dynamic_plan_figure
 
     out_dir = Path(out_dir)
@@ -288,6 +289,7 @@ def summarize(
         ax.hist([r.arrival_s for r in records if r.success], bins=15, color="#1f5fd6")
         ax.set_xlabel("arrival time (s)")
         ax.set_ylabel("phase pairs")
+        ax.set_title("arrival time of each successful plan", fontsize=10)
         ax = fig.add_subplot(1, 2, 2)
         ax.hist(
             [r.waits + r.side_steps for r in records if r.success],
@@ -295,6 +297,14 @@ def summarize(
             color="#d6541f",
         )
         ax.set_xlabel("steps in place + side steps per plan")
+        ax.set_ylabel("phase pairs")
+        ax.set_title("waiting and dodging per successful plan", fontsize=10)
+        for a in fig.axes:
+            a.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts
+        n_ok = sum(r.success for r in records)
+        fig.suptitle(
+            f"successful plans: {n_ok} of {len(records)} random row-phase pairs", fontsize=10
+        )
         fig.tight_layout()
         path = out_dir / "footstep_dynamic_distributions.png"
         fig.savefig(path)

@@ -251,6 +251,8 @@ def summarize(
         ``{label: path}`` of the files written.
     """
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
     from repertoire.planning.footstep.plot import (
         action_effects_figure,
         draw_grid,
@@ -283,21 +285,24 @@ def summarize(
     if pick:
         cols = min(2, len(pick))
         rows = int(math.ceil(len(pick) / cols))
-        fig = Figure(figsize=(4.6 * cols, 4.6 * rows), dpi=110)
+        fig = Figure(figsize=(4.6 * cols, 4.6 * rows + 0.6), dpi=110)
         table = _table(config)
+        handles = plan_legend_handles()
         for p, i in enumerate(pick):
             scene = _scene(config, seeds[i])
             plan, mobile = _plan(config, scene, table)
             ax = fig.add_subplot(rows, cols, p + 1)
             draw_grid(ax, scene.grid)
             draw_plan(ax, plan)
-            handles = plan_legend_handles()
             if mobile.path:
                 mp = np.asarray(mobile.path)
-                (line,) = ax.plot(mp[:, 0], mp[:, 1], "--", color="0.25", lw=1.2)
-                line.set_label("2-D planner")
-                handles.append(line)
-            ax.legend(handles=handles, loc="lower right", fontsize=6, framealpha=0.85)
+                ax.plot(mp[:, 0], mp[:, 1], "--", color="0.25", lw=1.2)
+                if len(handles) == len(plan_legend_handles()):
+                    handles.append(
+                        Line2D([], [], ls="--", color="0.25", lw=1.2, label="2-D planner")
+                    )
+            ax.set_xlabel("x (m)", fontsize=7)
+            ax.set_ylabel("y (m)", fontsize=7)
             r = records[i]
             ax.set_title(
                 f"seed {seeds[i]}: {r.status}, {r.steps} steps, {r.steps_over} over obstacles, "
@@ -305,7 +310,9 @@ def summarize(
                 fontsize=7,
             )
             ax.tick_params(labelsize=6)
-        fig.tight_layout()
+        # one legend below the panels: inside, it covered obstacle cells
+        fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=6)
+        fig.tight_layout(rect=(0, 0.6 / (4.6 * rows + 0.6), 1, 1))
         path = out_dir / "footstep_static_examples.png"
         fig.savefig(path)
         out["examples"] = path
@@ -325,11 +332,29 @@ def summarize(
             c=["#1f5fd6" if r.success else "#d6541f" for r in records],
         )
         ax.set_yscale("log")
-        ax.set_xlabel("steps")
+        # plain numbers (the default labelled a narrow decade 1.35 x 10^0, 1.4 x 10^0, ...)
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+
+        def minor_label(v, _, ax=ax):
+            lo, hi = ax.get_ylim()  # a narrow range labels every minor tick, else 2s and 5s
+            return f"{v:g}" if hi < 3 * lo or f"{v:.0e}"[0] in "25" else ""
+
+        ax.yaxis.set_minor_formatter(FuncFormatter(minor_label))
+        ax.set_xlabel("steps of the plan")
         ax.set_ylabel("plan time (ms)")
+        ax.legend(
+            handles=[
+                Line2D([], [], ls="", marker="o", ms=4, color="#1f5fd6", label="success"),
+                Line2D([], [], ls="", marker="o", ms=4, color="#d6541f", label="failed"),
+            ],
+            fontsize=7,
+        )
         ax = fig.add_subplot(1, 3, 3)
         ax.hist([r.nodes_expanded for r in records], bins=30, color="0.4")
         ax.set_xlabel("nodes expanded")
+        ax.set_ylabel("maps")
+        for a in (fig.axes[0], ax):
+            a.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts
         fig.suptitle(
             f"{len(records)} random floors: footstep success "
             f"{100 * np.mean([r.success for r in records]):.0f} %, 2-D planner "

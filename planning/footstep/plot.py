@@ -111,6 +111,7 @@ def plan_legend_handles() -> list:
         Patch(fc=RIGHT_COLOR, ec="k", lw=0.5, label="right foot"),
         Line2D([], [], ls="", marker="o", mfc="none", mec="k", ms=8, label="start"),
         Line2D([], [], ls="", marker="o", mfc="none", mec="g", ms=8, label="goal region"),
+        Patch(fc="0.5", ec="k", lw=0.5, alpha=0.4, label="other foot at start (pale)"),
         Patch(fc="#c0392b", label="obstacle cell"),
     ]
 
@@ -168,6 +169,8 @@ def dynamic_plan_figure(
         )
         action = plan.actions[k - 1] if k > 0 else "start"
         ax.set_title(f"step {k}: {action}, t = {t:.1f} s", fontsize=8)
+        ax.set_xlabel("x (m)", fontsize=7)
+        ax.set_ylabel("y (m)", fontsize=7)
         ax.tick_params(labelsize=6)
     handles = plan_legend_handles() + [
         Patch(fill=False, ec="k", lw=1.5, label="current step"),
@@ -229,7 +232,7 @@ def height_plan_figure(
         h_cm.T, origin="lower", extent=extent, cmap="viridis", interpolation="nearest", vmin=0.0
     )
     fig.colorbar(im, ax=ax, label="obstacle height (cm)", shrink=0.8)
-    handles = plan_legend_handles()[:4]
+    handles = plan_legend_handles()[:5]
     handles.append(Patch(fc=im.cmap(0.1), label="obstacle (colour: height)"))
     if math.isfinite(swing_clearance):
         tall = grid.occupied & (grid.heights > swing_clearance)
@@ -380,8 +383,11 @@ def action_effects_figure(
         ax.set_ylim(lo, lo + 0.6)
         ax.set_aspect("equal")
         ax.set_title(f"after {h2}, {h1}", fontsize=8)
+        side = "left" if stance_foot == 0 else "right"
+        ax.set_xlabel(f"x in the {side}-sole (stance) frame (m)", fontsize=7)
+        ax.set_ylabel("y (m)", fontsize=7)
         ax.tick_params(labelsize=6)
-        ax.legend(fontsize=5, loc="upper left" if stance_foot == 0 else "lower right")
+        ax.legend(fontsize=5.5, loc="upper left" if stance_foot == 0 else "lower right")
     if title:
         fig.suptitle(title, fontsize=9)
     fig.tight_layout()

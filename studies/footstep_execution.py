@@ -263,7 +263,7 @@ def _draw_example(config: FootstepExecutionConfig, seed: int, out: Path) -> Path
     tables = [("learned T", ActionTable.load(config.table()))]
     if config.compare_nominal:
         tables.append(("nominal T", nominal_action_table()))
-    fig, axes = plt.subplots(1, len(tables), figsize=(6 * len(tables), 6))
+    fig, axes = plt.subplots(1, len(tables), figsize=(6 * len(tables), 6.8))
     axes = np.atleast_1d(axes)
     for ax, (label, table) in zip(axes, tables):
         scene, plan, result = run_scene(config, seed, table)
@@ -308,7 +308,10 @@ def _draw_example(config: FootstepExecutionConfig, seed: int, out: Path) -> Path
             Patch(color=plt.cm.Reds(0.8 / 1.5), alpha=0.8, label="obstacle cells"),
             *handles,
         ]
-        ax.legend(handles=handles, loc="lower right", fontsize=8)
+        # below the map: inside, it covered obstacle cells and footprints
+        ax.legend(
+            handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8
+        )
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)

@@ -252,7 +252,7 @@ def summarize(
     table = out_dir / "littledog_execution.md"
     table.write_text("\n".join(lines) + "\n")
 
-    fig = Figure(figsize=(9.5, 4.2), layout="constrained")
+    fig = Figure(figsize=(9.5, 4.6), layout="constrained")
     for k, (key, key_off, ylabel) in enumerate(
         [
             ("position_error_m", "position_error_ablation_m", "body position error (m)"),
@@ -275,7 +275,8 @@ def summarize(
         ax.set_xlabel("time (s)")
         ax.set_ylabel(ylabel)
         ax.set_ylim(bottom=0.0)
-        ax.legend(fontsize=7, loc="upper left")
+    # one legend under both panels: inside, it covered the ablation's median
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=4, fontsize=8)
     fig.suptitle(
         f"Body pose vs the step's recorded pose, {len(records)} perturbed starts "
         f"(each run until its front feet pass the goal)"
@@ -287,7 +288,7 @@ def summarize(
     integ = np.asarray(r0.integrators_m).reshape(-1, 12)
     if math.isfinite(r0.time_to_cross_s):
         integ = integ[: int(r0.time_to_cross_s / TRACE_PERIOD_S) + 1]
-    fig = Figure(figsize=(9.5, 6.0), layout="constrained")
+    fig = Figure(figsize=(9.5, 6.3), layout="constrained")
     t = np.arange(len(integ)) * TRACE_PERIOD_S
     for f in range(4):
         ax = fig.add_subplot(2, 2, f + 1)
@@ -296,7 +297,8 @@ def summarize(
         ax.set_title(f"{_LEG_NAMES[LEGS[f]]} foot ({LEGS[f]})")
         ax.set_xlabel("time (s)")
         ax.set_ylabel("integrator (mm, body frame)")
-        ax.legend(fontsize=7)
+    # one legend for the four panels: inside, it covered a trace in some of them
+    fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=3, fontsize=8)
     run = "one crossing" if r0.success else "one run that did not reach the goal"
     fig.suptitle(
         f"Integrator states over {run} ({r0.terrain}, start offset "

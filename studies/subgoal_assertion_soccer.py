@@ -255,6 +255,8 @@ def summarize(
         )
         ax.set_title(f"{title}: {ok.mean():.0%} succeed\n(start seen from the ball, m)")
         ax.set_rlabel_position(112)
+        # headroom: autoscaling put the farthest starts on the rim, half hidden by it
+        ax.set_rlim(0.0, 1.12 * float(radius.max()))
         ax.legend(loc="lower left", bbox_to_anchor=(-0.1, -0.12), fontsize=8)
     fig.suptitle("Ball approach outcome by start direction; approach heading points to 0°")
     polar = out_dir / "subgoal_assertion_polar.png"

@@ -335,7 +335,8 @@ def summarize(
         ax.bar(x + k * width, rates[c], width, label=f"{c}")
         for xi, ri, ni in zip(x + k * width, rates[c], n):
             if math.isfinite(ri):
-                ax.text(xi, ri + 0.02, f"n={ni}", ha="center", fontsize=6)
+                # successes / runs: a 0 % bar has no height, the label says what was run
+                ax.text(xi, ri + 0.02, f"{round(ri * ni)}/{ni} succeeded", ha="center", fontsize=7)
     ax.set_xticks(x + 0.4 - 0.5 * width, terrains)
     ax.set_ylim(0.0, 1.3)  # room above the bars for the legend
     ax.set_yticks(np.linspace(0.0, 1.0, 6))

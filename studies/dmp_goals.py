@@ -408,7 +408,7 @@ def orientation_figure(config: DmpGoalsConfig, out_dir: Path) -> Path:
     def yaw_deg(q):
         return np.rad2deg(np.unwrap(2.0 * np.arctan2(q[:, 3], q[:, 0])))
 
-    fig = Figure(figsize=(10, 4.2), layout="constrained")
+    fig = Figure(figsize=(10, 4.8), layout="constrained")
     axes = fig.subplots(1, 2, sharey=True)
     colours = {90: "tab:blue", 200: "tab:orange", 270: "tab:green"}
     for ax, mode in zip(axes, ("component", "manifold"), strict=True):
@@ -427,7 +427,10 @@ def orientation_figure(config: DmpGoalsConfig, out_dir: Path) -> Path:
         ax.set_xlabel("t (s)")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("yaw, unwrapped (deg)")
-    axes[1].legend(loc="upper left", fontsize=8)
+    # below the panels: in the upper left it covered the 270 deg + 40 deg curve
+    fig.legend(
+        *axes[1].get_legend_handles_labels(), loc="outside lower center", ncols=4, fontsize=8
+    )
     path = out_dir / "dmp_goals_orientation.png"
     fig.savefig(path, dpi=100)
     return path

@@ -189,6 +189,7 @@ def _draw_fig2(table, nominal, out: Path) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
     from matplotlib.patches import Rectangle
     from matplotlib.transforms import Affine2D
 
@@ -201,16 +202,26 @@ def _draw_fig2(table, nominal, out: Path) -> Path:
     for ax, (h2, h1, title) in zip(axes, histories):
         ax.add_patch(Rectangle((-0.08, -0.05), 0.16, 0.10, color="k"))
         for k, a in enumerate(ACTIONS):
+            (cx, cy), (lx, ly) = (t.lookup(h2, h1, "right", a)[:2] for t in (nominal, table))
+            moved = np.hypot(lx - cx, ly - cy) > 0.02
             for tab, style in (
                 (nominal, dict(fill=False, ls="--", lw=1.0)),
-                (table, dict(alpha=0.55)),
+                # a solid edge, and on top when it moved: under the other actions' fills a
+                # learned box was lost
+                (table, dict(fc=(*colors[k][:3], 0.55), ec=colors[k], lw=1.4, zorder=2 + moved)),
             ):
                 dx, dy, dyaw, _ = tab.lookup(h2, h1, "right", a)
                 tr = Affine2D().rotate_around(dx, dy, dyaw) + ax.transData
+                colour = {} if "ec" in style else {"color": colors[k]}
                 ax.add_patch(
-                    Rectangle(
-                        (dx - 0.08, dy - 0.05), 0.16, 0.10, color=colors[k], transform=tr, **style
-                    )
+                    Rectangle((dx - 0.08, dy - 0.05), 0.16, 0.10, transform=tr, **colour, **style)
+                )
+            if moved:  # where the learned landing went
+                ax.annotate(
+                    "",
+                    xy=(lx, ly),
+                    xytext=(cx, cy),
+                    arrowprops=dict(arrowstyle="->", color=colors[k], lw=1.5),
                 )
         ax.set_title(f"left-foot landings {title}\n(filled: learned, dashed: commanded)")
         ax.set_xlim(-0.25, 0.5)
@@ -223,11 +234,17 @@ def _draw_fig2(table, nominal, out: Path) -> Path:
     labels = [f"action {a}" for a in ACTIONS]
     handles += [
         Rectangle((0, 0), 1, 1, color="k"),
-        Rectangle((0, 0), 1, 1, color="0.5", alpha=0.55),
+        Rectangle((0, 0), 1, 1, fc=(0.5, 0.5, 0.5, 0.55), ec="0.5", lw=1.4),
         Rectangle((0, 0), 1, 1, fill=False, ls="--", ec="0.3"),
+        Line2D([], [], ls="", marker=r"$\longrightarrow$", ms=22, color="0.3"),
     ]
-    labels += ["right sole (stance)", "learned landing (filled)", "commanded landing (dashed)"]
-    fig.legend(handles, labels, loc="lower center", ncol=5, fontsize=8)
+    labels += [
+        "right sole (stance)",
+        "learned landing (filled)",
+        "commanded landing (dashed)",
+        "commanded -> learned (moved > 2 cm)",
+    ]
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8)
     fig.tight_layout(rect=(0, 0.12, 1, 1))
     fig.savefig(out, dpi=130)
     plt.close(fig)

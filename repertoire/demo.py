@@ -183,15 +183,30 @@ def _rel(path: Path, out: Path) -> str:
         return str(path)
 
 
-def write_index(out: Path, items: list[DemoItem], failures: list[str], total_s: float) -> Path:
-    """Writes ``out/index.md`` listing every file, figure and failure of the demo."""
+def write_index(
+    out: Path, items: list[DemoItem], failures: list[str], total_s: float, quick: bool = False
+) -> Path:
+    """Writes ``out/index.md`` listing every file, figure and failure of the demo.
+
+    ``quick``: the run was ``repertoire demo --quick``; the index says its figures show
+    truncated runs.
+    """
+    how = "`repertoire demo --quick`" if quick else "`repertoire demo`"
     lines = [
         "# repertoire demo",
         "",
-        f"Written by `repertoire demo` in {total_s:.0f} s. "
+        f"Written by {how} in {total_s:.0f} s. "
         "Paths are relative to this folder; the HTML replays open offline.",
         "",
     ]
+    if quick:
+        lines += [
+            "A quick run: simulations capped at 0.25 s and studies on their smoke configs, to "
+            "check that every part runs. Its figures show truncated runs (an arm study's "
+            "paths are a few millimetres, its success 0 %), not results: `repertoire demo` "
+            "(`make demo`) gives those.",
+            "",
+        ]
     for kind, title in (("diagram", "Worlds (diagrams)"), ("study", "Studies")):
         lines += [f"## {title}", ""]
         chosen = [i for i in items if i.kind == kind]
@@ -282,7 +297,7 @@ def run_demo(
         _collect(_demo_study(name, out, quick, printer), f"study {name}", items, failures)
 
     total = time.perf_counter() - start
-    index = write_index(out, items, failures, total)
+    index = write_index(out, items, failures, total, quick)
     printer("")
     printer(f"== repertoire demo: {len(items)} parts in {total:.0f} s; index: {index}")
     for item in items:

@@ -263,7 +263,10 @@ def test_demo_all_ok(registries, tmp_path):
     assert pendulum.figures["sim_time_s"] == pytest.approx(0.2)
     assert toy.figures["episodes"] == 2  # quick: at most 2 episodes of the smoke config
     assert [i.status for i in result.items] == ["passed", "passed"]
-    assert "## Failures\n\nnone" in result.index_path.read_text()
+    index = result.index_path.read_text()
+    assert "## Failures\n\nnone" in index
+    assert "Written by `repertoire demo --quick`" in index
+    assert "Its figures show truncated runs" in index
 
 
 def test_demo_fails_a_world_whose_figures_miss_its_criteria(registries, tmp_path, capsys):

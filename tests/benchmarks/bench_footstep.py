@@ -22,7 +22,10 @@ Sections (``--sections``, default all but ``legacy``):
   the references (that A*, the same on the planner's lattice, ARA* 5 s, the 1 s runs
   themselves). The CPU model is printed with the load: the figures differ by up to 2x
   between the machines seen (open-floor rate at 291k expansions 1.08 M/s in session 12,
-  0.61 M/s on an AMD EPYC VM in session 14, the same code).
+  0.61 M/s on an AMD EPYC VM in session 14, the same code). ``--large-budget N`` gives each
+  anytime run N expansions instead of 1 s: its plans then do not depend on the machine's
+  speed or load (the 1 s results moved by 1-3 floors of 62 between runs of the same code),
+  so an A/B of a planner change is deterministic; about 500000 stands for 1 s on that VM.
 - ``legacy``: the issue-4 figures below.
 
 Legacy (issue 4):
@@ -78,6 +81,14 @@ def main() -> int:
         help="seed of the first map of each large family (e.g. 32: maps never tuned on)",
     )
     parser.add_argument(
+        "--large-budget",
+        type=int,
+        default=0,
+        help="large maps: give each anytime run this many expansions instead of 1 s of wall "
+        "time (deterministic: the same plans whatever the machine's load; about 500000 is "
+        "1 s on a 2-core AMD EPYC under KVM); 0: the 1 s limit",
+    )
+    parser.add_argument(
         "--before", default="", help="git commit whose planner is the 'before' (backends)"
     )
     args = parser.parse_args()
@@ -92,7 +103,7 @@ def main() -> int:
     if "rate" in sections:
         _bench_rate()
     if "large" in sections:
-        _bench_large(args.large_maps, args.first_seed)
+        _bench_large(args.large_maps, args.first_seed, args.large_budget)
     if "legacy" not in sections:
         print(f"load average at end: {os.getloadavg()[0]:.1f}")
         return 0
@@ -398,9 +409,12 @@ def _cpu_model() -> str:
     return "CPU model unknown"
 
 
-def _bench_large(maps: int, first_seed: int = 0) -> None:
+def _bench_large(maps: int, first_seed: int = 0, budget: int = 0) -> None:
     """ARA* first plans and costs by 1 s on large maps (seeds ``first_seed`` on), against
-    the admissible mode's plan and the cheapest plan of several searches."""
+    the admissible mode's plan and the cheapest plan of several searches.
+
+    ``budget`` > 0: each anytime run gets that many expansions instead of 1 s (its plans
+    do not depend on the machine's speed or load; the times printed still do)."""
     from repertoire.planning.footstep import (
         PlannerOptions,
         nominal_action_table,
@@ -447,18 +461,24 @@ def _bench_large(maps: int, first_seed: int = 0) -> None:
             xy_resolution=0.025, yaw_bins=72, refinements=0,
         ),
     }  # fmt: skip
+    # "1 s": the wall-time limit, or an expansion budget standing for it (deterministic)
+    one_second = PlannerOptions(time_limit=1.0)
+    limit = "1 s"
+    if budget > 0:
+        one_second = PlannerOptions(time_limit=600.0, max_expansions=budget)
+        limit = f"{budget} expansions"
     for label, problems in families.items():
         first, statuses, ratios, ref_costs = [], [], [], {k: [] for k in (*refs, "ARA* 5 s")}
         to_admissible = []  # the 1 s cost over the admissible mode's plan (the issue's figure)
         unsolved = []  # seeds the admissible mode solves and the 1 s run does not: misses too
         with_corridor = []  # the same with corridor searches (corridor=0.5)
         for seed, args in zip(seeds, problems, strict=True):
-            runs = plan_footsteps_anytime(*args, table, PlannerOptions(time_limit=1.0))
+            runs = plan_footsteps_anytime(*args, table, one_second)
             found = [r for r in runs if r.plan.succeeded]
             statuses.append(runs[-1].plan.status.value if not found else "SUCCESS")
             first.append(found[0].elapsed_s if found else float("nan"))
             best = min((r.plan.cost for r in found), default=float("nan"))
-            cor = plan_footsteps_anytime(*args, table, PlannerOptions(time_limit=1.0), corridor=0.5)
+            cor = plan_footsteps_anytime(*args, table, one_second, corridor=0.5)
             best_cor = min((r.plan.cost for r in cor if r.plan.succeeded), default=float("nan"))
             known = [c for c in (best, best_cor) if c == c]
             for name, kw in refs.items():
@@ -481,7 +501,7 @@ def _bench_large(maps: int, first_seed: int = 0) -> None:
                 with_corridor.append(best_cor / min(known))
         done = [t for t in first if t == t]
         span = f"seeds {seeds.start}-{seeds.stop - 1}"
-        print(f"\n== {label}: {len(problems)} maps ({span}), ARA* 1 s (weights 3 .. 1)")
+        print(f"\n== {label}: {len(problems)} maps ({span}), ARA* {limit} (weights 3 .. 1)")
         print(
             f"  statuses {statuses}; first plan median "
             f"{statistics.median(done) if done else float('nan'):.3f} s (max "
@@ -497,11 +517,11 @@ def _bench_large(maps: int, first_seed: int = 0) -> None:
         for name, ref_name, rs in rows:
             over = sum(r > 1.05 for r in rs)
             print(
-                f"  cost by 1 s{name} / {ref_name}: {[round(r, 3) for r in rs]} "
+                f"  cost by {limit}{name} / {ref_name}: {[round(r, 3) for r in rs]} "
                 f"({over} of {len(rs)} above 1.05)"
             )
         print(
-            f"  maps the admissible mode solves without a plan by 1 s (misses the 5 % too): "
+            f"  maps the admissible mode solves without a plan by {limit} (misses the 5 % too): "
             f"{len(unsolved)} {unsolved}"
         )
 

@@ -260,6 +260,8 @@ def _foot_free(x, y, th, grid, chk, occw, free, mbits, mrows):
 def _sat_limits(th, hl, hw, inv_res):
     """The separating-axis test's limits for a sole at yaw ``th``, in cells.
 
+    The one definition, for both cores (the Python checks call it through
+    :func:`repertoire.planning.footstep.footprint.sat_limits`).
     ``hl``, ``hw``: the sole's half sides (m). Returns ``cos th, sin th``, the rectangle's
     half extents along the grid axes plus half a cell, and its half sides plus a cell's half
     extent along the sole's axes.
@@ -276,13 +278,17 @@ def _sat_limits(th, hl, hw, inv_res):
     )
 
 
+# tolerance (cells) of the separating-axis test: a cell overlaps the sole only by more
+SAT_EPS = 1e-9
+
+
 @njit()
 def _sat_overlaps(dx, dy, c, s, ext_x, ext_y, lim_u, lim_v):
     """True when a cell overlaps the sole with positive area (no separating axis).
 
-    ``(dx, dy)``: the cell's centre minus the sole's, in cells; a 1e-9 cell tolerance.
+    ``(dx, dy)``: the cell's centre minus the sole's, in cells; a :data:`SAT_EPS` tolerance.
     """
-    eps = 1e-9
+    eps = SAT_EPS
     return (
         abs(dx) < ext_x - eps
         and abs(dy) < ext_y - eps

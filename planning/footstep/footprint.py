@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid, rect_overlaps_cells
-from repertoire.planning.footstep.fastkernels import _occupancy_words
+from repertoire.planning.footstep.fastkernels import SAT_EPS, _occupancy_words, _sat_limits
 from repertoire.planning.footstep.jitcache import njit
 
 
@@ -111,10 +111,6 @@ class FootprintMasks:
         return (yb * self.sub + qx) * self.sub + qy
 
 
-# tolerance (cells) of the separating-axis test: a cell overlaps the sole only by more
-SAT_EPS = 1e-9
-
-
 def sat_limits(
     yaw: float, half: "tuple[float, float]", inv_res: float
 ) -> tuple[float, float, float, float, float, float]:
@@ -122,8 +118,8 @@ def sat_limits(
 
     A cell whose centre lies ``(dx, dy)`` cells from the sole's centre overlaps the sole
     (positive area) when ``|dx| < ext_x``, ``|dy| < ext_y``, ``|dx c + dy s| < lim_u`` and
-    ``|-dx s + dy c| < lim_v``, each by more than :data:`SAT_EPS`. The compiled twin is
-    ``fastkernels._sat_limits`` (the same floats).
+    ``|-dx s + dy c| < lim_v``, each by more than ``SAT_EPS``. Both cores compute them
+    with one compiled function, ``fastkernels._sat_limits``.
 
     Args:
         yaw: sole yaw (rad).
@@ -135,17 +131,7 @@ def sat_limits(
         extents along the grid axes plus half a cell, and its half sides plus a cell's half
         extent along the sole's axes.
     """
-    hl, hw = half
-    c, s = math.cos(yaw), math.sin(yaw)
-    cell_u = 0.5 * (abs(c) + abs(s))
-    return (
-        c,
-        s,
-        (hl * abs(c) + hw * abs(s)) * inv_res + 0.5,
-        (hl * abs(s) + hw * abs(c)) * inv_res + 0.5,
-        hl * inv_res + cell_u,
-        hw * inv_res + cell_u,
-    )
+    return _sat_limits(yaw, half[0], half[1], inv_res)
 
 
 def _rows_of(cells: np.ndarray, R: int) -> list[tuple[tuple[int, int], ...]]:

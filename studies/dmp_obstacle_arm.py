@@ -196,15 +196,15 @@ def _run(scenario, config: ObstacleArmConfig) -> dict:
         pick_and_place_figures,
         run_arm_world,
     )
-    from repertoire.diagrams.arm_dmp_scenarios import plan_pick_and_place
+    from repertoire.diagrams.arm_dmp_scenarios import PICK_PLACE_LABELS, segment_timing
 
     out = {"failure": "", "path": np.zeros((0, 3)), "duration": 0.0, "wall": 0.0}
     try:
-        _, duration = plan_pick_and_place(scenario)
+        diagram = build_pick_and_place(scenario)
+        _, duration = segment_timing(PICK_PLACE_LABELS, scenario.settle_time)
         if config.sim_duration_s > 0:
             duration = min(duration, config.sim_duration_s)
         out["duration"] = duration
-        diagram = build_pick_and_place(scenario)
         context, out["wall"] = run_arm_world(diagram, duration)
         out.update(pick_and_place_figures(diagram, context))
         out["path"] = tcp_path(diagram, context, config.path_every_s)

@@ -196,7 +196,7 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
         pick_and_place_figures,
         run_arm_world,
     )
-    from repertoire.diagrams.arm_dmp_scenarios import plan_pick_and_place
+    from repertoire.diagrams.arm_dmp_scenarios import PICK_PLACE_LABELS, segment_timing
 
     t0 = time.perf_counter()
     config.validate()
@@ -217,10 +217,10 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
     )
     failure, path, wall_sim, duration = "", np.zeros((0, 3)), 0.0, 0.0
     try:
-        _, duration = plan_pick_and_place(scenario)
+        diagram = build_pick_and_place(scenario)
+        _, duration = segment_timing(PICK_PLACE_LABELS, scenario.settle_time)
         if config.sim_duration_s > 0:
             duration = min(duration, config.sim_duration_s)
-        diagram = build_pick_and_place(scenario)
         context, wall_sim = run_arm_world(diagram, duration)
         figures.update(pick_and_place_figures(diagram, context))
         path = tcp_path(diagram, context, config.path_every_s)

@@ -136,7 +136,7 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
         run_arm_world,
         serving_figures,
     )
-    from repertoire.diagrams.arm_dmp_scenarios import plan_serving
+    from repertoire.diagrams.arm_dmp_scenarios import SERVING_LABELS, segment_timing
 
     t0 = time.perf_counter()
     config.validate()
@@ -155,10 +155,10 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
     failure, wall_sim, duration, served = "", 0.0, 0.0, 0
     tip_x = tip_y = tip_z = np.zeros(0)
     try:
-        _, duration = plan_serving(scenario)
+        diagram = build_serving_water(scenario)
+        _, duration = segment_timing(SERVING_LABELS, scenario.settle_time)
         if config.sim_duration_s > 0:
             duration = min(duration, config.sim_duration_s)
-        diagram = build_serving_water(scenario)
         context, wall_sim = run_arm_world(diagram, duration)
         all_figures = serving_figures(diagram, context)
         served = int(all_figures["cups_served"])

@@ -201,10 +201,10 @@ def write_index(
     ]
     if quick:
         lines += [
-            "A quick run: simulations capped at 0.25 s and studies on their smoke configs, to "
-            "check that every part runs. Its figures show truncated runs (an arm study's "
-            "paths are a few millimetres, its success 0 %), not results: `repertoire demo` "
-            "(`make demo`) gives those.",
+            f"A quick run: simulations capped at {QUICK_DURATION_S} s and studies on their smoke "
+            "configs, to check that every part runs. Its figures show truncated runs (an arm "
+            "study's paths are a few millimetres, its success 0 %), not results: "
+            "`repertoire demo` (`make demo`) gives those.",
             "",
         ]
     for kind, title in (("diagram", "Worlds (diagrams)"), ("study", "Studies")):

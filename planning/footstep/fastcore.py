@@ -172,6 +172,8 @@ def _arastar(
     tg = table.view(np.float64)
     n_local = nyaw * 2 * n_hist  # keys per map cell: key = cell * n_local + local
     most = np.max(succ_ptr[1:] - succ_ptr[:-1])  # successors of one state, at most
+    sp = np.empty((most, 3))  # one state's successors: pose; lattice key and table row
+    sk = np.empty((most, 2), np.int64)
     if max_expansions < 2**62:  # a finite budget: room for every node it can create, capped
         rows = _PRESIZE_ROWS
         if max_expansions < _PRESIZE_ROWS:
@@ -333,21 +335,23 @@ def _arastar(
                     sw_x, sw_y = fnode[inode[node, _PARENT], _X], fnode[inode[node, _PARENT], _Y]
                 r0, r1 = succ_ptr[row], succ_ptr[row + 1]
                 mask = table.shape[0] - 1
-                for r in range(r0, r1):  # prefetch the table rows
-                    dx, dy = succ_f[r, 0], succ_f[r, 1]
-                    x2 = x + c * dx - s * dy
-                    y2 = y + s * dx + c * dy
-                    cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
-                    local = _yaw_bin(_wrap(th + succ_f[r, 2]), yaw_scale, nyaw) * 2 + nf
-                    local = local * n_hist + hist[a1, succ_a[r]]
-                    j = (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask
-                    _prefetch_row(table, j)
-                    _prefetch_row(tnode, j)  # read when the successor improves a state's g
-                for r in range(r0, r1):
+                for r in range(r0, r1):  # poses and table rows, the rows prefetched
                     dx, dy = succ_f[r, 0], succ_f[r, 1]
                     x2 = x + c * dx - s * dy
                     y2 = y + s * dx + c * dy
                     th2 = _wrap(th + succ_f[r, 2])
+                    cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
+                    local = _yaw_bin(th2, yaw_scale, nyaw) * 2 + nf
+                    local = local * n_hist + hist[a1, succ_a[r]]
+                    j = (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask
+                    _prefetch_row(table, j)
+                    _prefetch_row(tnode, j)  # read when the successor improves a state's g
+                    q = r - r0
+                    sp[q, 0], sp[q, 1], sp[q, 2] = x2, y2, th2
+                    sk[q, 0], sk[q, 1] = cell2 * n_local + local, j
+                for r in range(r0, r1):
+                    q = r - r0
+                    x2, y2, th2 = sp[q, 0], sp[q, 1], sp[q, 2]
                     fx = (x2 - ox) * inv_res
                     fy = (y2 - oy) * inv_res
                     if not (0.0 <= fx < nx and 0.0 <= fy < ny):
@@ -395,12 +399,8 @@ def _arastar(
                     generated += 1
                     a = succ_a[r]
                     g2 = g + cost
-                    cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
-                    local = (_yaw_bin(th2, yaw_scale, nyaw) * 2 + nf) * n_hist + hist[a1, a]
-                    k2 = cell2 * n_local + local
+                    k2, j = sk[q, 0], sk[q, 1]
                     # _slot written out here: an inlined call costs two atomic reference counts
-                    mask = table.shape[0] - 1
-                    j = (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask
                     while table[j, 0] != -1 and table[j, 0] != k2:
                         j = (j + 1) & mask
                     idx = -1

@@ -25,7 +25,8 @@ Sections (``--sections``, default all but ``legacy``):
   0.61 M/s on an AMD EPYC VM in session 14, the same code). ``--large-budget N`` gives each
   anytime run N expansions instead of 1 s: its plans then do not depend on the machine's
   speed or load (the 1 s results moved by 1-3 floors of 62 between runs of the same code),
-  so an A/B of a planner change is deterministic; about 500000 stands for 1 s on that VM.
+  so an A/B of a planner change is deterministic; 1 s is about 550000-900000 expansions on that VM
+  (it drifts by about +-30 % within an hour: session 17).
 - ``legacy``: the issue-4 figures below.
 
 Legacy (issue 4):
@@ -85,8 +86,8 @@ def main() -> int:
         type=int,
         default=0,
         help="large maps: give each anytime run this many expansions instead of 1 s of wall "
-        "time (deterministic: the same plans whatever the machine's load; about 500000 is "
-        "1 s on a 2-core AMD EPYC under KVM); 0: the 1 s limit",
+        "time (deterministic: the same plans whatever the machine's load; 1 s is about "
+        "550000-900000 on a 2-core AMD EPYC under KVM); 0: the 1 s limit",
     )
     parser.add_argument(
         "--before", default="", help="git commit whose planner is the 'before' (backends)"

@@ -73,14 +73,15 @@ def test_identical_plans_with_heights_clearance_and_flatness():
     assert crossed.cost > plain.cost  # the height cost is paid on the ramp
 
 
-def test_unreachable_band_on_both_backends():
+def test_unreachable_band_on_both_backends(monkeypatch):
     occ = np.zeros((60, 30), dtype=bool)
     occ[25:41, :] = True  # a 40 cm band across the room: no step crosses it
     grid = OccupancyGrid(occ, 0.025)
-    plan = _both(
-        grid, (0.2, 0.3, 0.0), "left", (1.2, 0.3), nominal_action_table(),
-        time_limit=30.0, refinements=1,
-    )  # fmt: skip
+    args = (grid, (0.2, 0.3, 0.0), "left", (1.2, 0.3), nominal_action_table())
+    plan = _both(*args, time_limit=30.0, refinements=1)
+    assert plan.status is PlanStatus.UNREACHABLE and plan.xy_resolution == 0.05  # proved cut off
+    monkeypatch.setattr("repertoire.planning.footstep.planner.goal_cut_off", lambda model: False)
+    plan = _both(*args, time_limit=30.0, refinements=1)  # no proof: the next lattice is tried
     assert plan.status is PlanStatus.UNREACHABLE and plan.xy_resolution == 0.025
     assert max(p[0] for p in plan.poses) < 0.625
 

@@ -36,14 +36,24 @@ def test_no_unreachable_where_a_fine_lattice_finds_a_plan(seed, gap):
         assert plan.xy_resolution == 0.05
 
 
-def test_unreachable_reported_at_the_finest_lattice_tried():
+def test_unreachable_reported_at_the_finest_lattice_tried(monkeypatch):
     occ = np.zeros((120, 60), dtype=bool)
     occ[50:90, :] = True  # a 40 cm band across the room: no step crosses it
     grid = OccupancyGrid(occ, 0.01)
-    plan = plan_footsteps(
-        grid, (0.2, 0.3, 0.0), "left", (1.1, 0.3), nominal_action_table(),
-        PlannerOptions(time_limit=20.0, refinements=1),
-    )  # fmt: skip
+
+    def plan():
+        return plan_footsteps(
+            grid, (0.2, 0.3, 0.0), "left", (1.1, 0.3), nominal_action_table(),
+            PlannerOptions(time_limit=20.0, refinements=1),
+        )  # fmt: skip
+
+    # the relaxed flood fill proves the band uncrossable: the first lattice's answer stands
+    proved = plan()
+    assert proved.status is PlanStatus.UNREACHABLE
+    assert (proved.xy_resolution, proved.yaw_bins) == (0.05, 36)
+    # without that proof, the planner refines and reports the finest lattice it tried
+    monkeypatch.setattr("repertoire.planning.footstep.planner.goal_cut_off", lambda model: False)
+    plan = plan()
     assert plan.status is PlanStatus.UNREACHABLE
     assert (plan.xy_resolution, plan.yaw_bins) == (0.025, 72)
     assert max(p[0] for p in plan.poses) < 0.5

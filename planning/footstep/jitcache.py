@@ -18,7 +18,14 @@ from pathlib import Path
 import numba
 
 _HERE = Path(__file__).resolve().parent
-SOURCES = ("fastcore.py", "fastkernels.py", "footprint.py", "heuristic.py", "jitcache.py")
+SOURCES = (
+    "fastcore.py",
+    "fastkernels.py",
+    "footprint.py",
+    "heuristic.py",
+    "jitcache.py",
+    "reachability.py",
+)
 """The files whose compiled functions call one another (this one included)."""
 
 

@@ -27,6 +27,7 @@ from repertoire.planning.footstep.biped_model import (
 )
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
 from repertoire.planning.footstep.fastkernels import MASK_WORD_CELLS, _cached_mask_bits
+from repertoire.planning.footstep.reachability import goal_cut_off
 from repertoire.planning.footstep.search import (
     SearchResult,
     anytime_search,
@@ -257,16 +258,18 @@ def plan_footsteps(
     opts.validate()
     _build_footprint_masks(world, opts, kwargs)  # one-time per resolution, outside it too
     t_begin = time.perf_counter()
-    plan, merged = _plan_once(world, start, start_foot, goal, table, opts, t_begin, kwargs)
+    plan, merged, model = _plan_once(world, start, start_foot, goal, table, opts, t_begin, kwargs)
     level = 0
     while plan.status is PlanStatus.UNREACHABLE and merged and level < opts.refinements:
+        if level == 0 and goal_cut_off(model):  # no lattice can get through: nothing to refine
+            break
         left = opts.time_limit - (time.perf_counter() - t_begin)
         if left <= 0.0:
             plan.status = PlanStatus.TIME_LIMIT
             break
         level += 1
         finer = _finer(opts, level, left)
-        plan, merged = _plan_once(world, start, start_foot, goal, table, finer, t_begin, kwargs)
+        plan, merged, _ = _plan_once(world, start, start_foot, goal, table, finer, t_begin, kwargs)
     plan.planning_time_s = time.perf_counter() - t_begin
     return plan
 
@@ -280,15 +283,15 @@ def _plan_once(
     opts: PlannerOptions,
     t_begin: float,
     kwargs: dict,
-) -> tuple[FootstepPlan, int]:
-    """One search at the options' lattice; returns the plan and the merged-successor count."""
+) -> tuple[FootstepPlan, int, BipedStepModel]:
+    """One search at the options' lattice: the plan, the merged-successor count, the model."""
     t_once = time.perf_counter()
     model = BipedStepModel(world, start, start_foot, goal, table, opts, **kwargs)
     left = max(opts.time_limit - (time.perf_counter() - t_begin), 1e-9)
     budget = int(opts.max_expansions) if opts.max_expansions > 0 else 2**62
     result = _search_once(model, _backend(opts, model), opts.heuristic_weight, budget, left)
     plan = _to_plan(model, result, time.perf_counter() - t_once)
-    return plan, result.merged
+    return plan, result.merged, model
 
 
 def _to_plan(model: BipedStepModel, result: SearchResult, seconds: float) -> FootstepPlan:
@@ -425,6 +428,8 @@ def plan_footsteps_anytime(
         and found[-1][1].merged
         and level < opts.refinements
     ):
+        if level == 0 and goal_cut_off(found[0][0]):  # no lattice can get through
+            break
         left = opts.time_limit - (time.perf_counter() - t_begin)
         if left <= 0.0:
             found[-1][1].status = PlanStatus.TIME_LIMIT

@@ -1,0 +1,124 @@
+"""The relaxed flood fill that proves a goal cut off for every lattice (reachability.py)."""
+
+import math
+
+import numpy as np
+import pytest
+from repertoire.planning.footstep import (
+    DynamicEnvironment,
+    OccupancyGrid,
+    PlannerOptions,
+    PlanStatus,
+    nominal_action_table,
+    plan_footsteps,
+    plan_footsteps_anytime,
+)
+from repertoire.planning.footstep.biped_model import BipedStepModel
+from repertoire.planning.footstep.reachability import goal_cut_off
+
+RES = 0.025
+START, GOAL = (0.4, 1.0, 0.0), (1.9, 1.0)
+
+
+def _stairs(rise: float, treads: int = 3) -> OccupancyGrid:
+    """Free ground rising by ``rise`` every 0.3 m from x = 1 m (heights on free cells)."""
+    heights = np.zeros((88, 80))
+    for k in range(treads):
+        heights[int(round((1.0 + 0.3 * k) / RES)) :, :] = rise * (k + 1)
+    return OccupancyGrid(np.zeros(heights.shape, bool), RES, (0.0, 0.0), heights)
+
+
+def _model(grid, opts: PlannerOptions, goal=GOAL) -> BipedStepModel:
+    return BipedStepModel(grid, START, "left", goal, nominal_action_table(), opts)
+
+
+@pytest.mark.parametrize("up", [0.03, 0.035])
+def test_a_rise_above_the_step_up_limit_is_unreachable_without_refining(up):
+    grid = _stairs(0.05)
+    opts = PlannerOptions(max_step_up=up, max_height_range=0.01, time_limit=60.0)
+    assert goal_cut_off(_model(grid, opts))
+    plan = plan_footsteps(grid, START, "left", GOAL, nominal_action_table(), opts)
+    # the 5 cm lattice ran out of states and no finer one was tried: none can get through
+    assert plan.status is PlanStatus.UNREACHABLE
+    assert (plan.xy_resolution, plan.yaw_bins) == (0.05, 36)
+    assert max(p[0] for p in plan.poses) < 1.0  # the best partial plan stays below the stairs
+    runs = plan_footsteps_anytime(grid, START, "left", GOAL, nominal_action_table(), opts)
+    assert [r.plan.status for r in runs] == [PlanStatus.UNREACHABLE]
+    assert runs[0].plan.xy_resolution == 0.05
+
+
+def test_stairs_within_the_limits_are_not_cut_off_and_are_climbed():
+    grid = _stairs(0.05)
+    opts = PlannerOptions(max_step_up=0.06, max_height_range=0.01, time_limit=60.0)
+    assert not goal_cut_off(_model(grid, opts))
+    plan = plan_footsteps(grid, START, "left", GOAL, nominal_action_table(), opts)
+    assert plan.status is PlanStatus.SUCCESS
+    # sound at the boundary: lo(landing) - hi(stance) = 0.05 - 0.01 is not above 0.04
+    edge = PlannerOptions(max_step_up=0.04, max_height_range=0.01)
+    assert not goal_cut_off(_model(grid, edge))
+    # without a flatness limit a straddling stance may stand up to the stair: no proof
+    assert not goal_cut_off(_model(grid, PlannerOptions(max_step_up=0.03)))
+
+
+def test_a_band_wider_than_any_step_is_cut_off_and_a_narrow_one_is_not():
+    for width, cut in ((0.40, True), (0.12, False)):
+        occ = np.zeros((88, 80), dtype=bool)
+        occ[40 : 40 + int(round(width / RES)), :] = True
+        grid = OccupancyGrid(occ, RES)
+        assert goal_cut_off(_model(grid, PlannerOptions())) is cut
+        plan = plan_footsteps(
+            grid, START, "left", GOAL, nominal_action_table(), PlannerOptions(time_limit=60.0)
+        )
+        assert plan.status is (PlanStatus.UNREACHABLE if cut else PlanStatus.SUCCESS)
+        if cut:
+            assert plan.xy_resolution == 0.05
+
+
+def test_a_goal_within_reach_of_the_start_is_never_cut_off():
+    occ = np.ones((88, 80), dtype=bool)
+    occ[6:26, 24:56] = False  # a free pocket around the start feet only
+    grid = OccupancyGrid(occ, RES)
+    assert not goal_cut_off(_model(grid, PlannerOptions(), goal=(0.45, 1.0)))
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_never_cut_off_where_a_plan_exists(seed):
+    """Sound on random 2.5-D maps: wherever any lattice finds a plan, no proof says otherwise."""
+    rng = np.random.default_rng(seed)
+    occ = np.zeros((88, 80), dtype=bool)
+    heights = rng.uniform(0.0, 0.02, occ.shape).round(3) * (rng.random() < 0.5)
+    for _ in range(rng.integers(2, 7)):  # blocks: low ones stepped over, tall ones not
+        i, j = rng.integers(26, 70), rng.integers(0, 70)
+        w, h = rng.integers(2, 12, 2)
+        occ[i : i + w, j : j + h] = True
+    for _ in range(rng.integers(0, 4)):  # raised free platforms
+        i, j = rng.integers(26, 70), rng.integers(0, 60)
+        heights[i : i + rng.integers(4, 20), j : j + rng.integers(4, 20)] += rng.uniform(0, 0.08)
+    occ[:20, 30:50] = False  # room for the start feet
+    heights[:20, 30:50] = 0.0
+    goal = (float(rng.uniform(1.8, 2.0)), float(rng.uniform(0.3, 1.7)))
+    occ[int(goal[0] / RES), int(goal[1] / RES)] = False
+    grid = OccupancyGrid(occ, RES, (0.0, 0.0), heights)
+    limits = {
+        "max_step_up": float(rng.choice([0.02, 0.04, math.inf])),
+        "max_step_down": float(rng.choice([0.03, math.inf])),
+        "max_height_range": float(rng.choice([0.015, 0.03, math.inf])),
+    }
+    found = False
+    for xy, bins in ((0.05, 36), (0.02, 90)):  # the default lattice, then a fine one
+        opts = PlannerOptions(time_limit=30.0, xy_resolution=xy, yaw_bins=bins, **limits)
+        plan = plan_footsteps(grid, START, "left", goal, nominal_action_table(), opts)
+        found = found or plan.status is PlanStatus.SUCCESS
+    if found:
+        assert not goal_cut_off(_model(grid, PlannerOptions(**limits), goal=goal))
+
+
+def test_dynamic_worlds_are_never_claimed_cut_off():
+    occ = np.zeros((88, 80), dtype=bool)
+    occ[40:60, :] = True
+    grid = OccupancyGrid(occ, RES)
+    world = DynamicEnvironment(np.array([0.0, 1.0]), [grid, grid], max_time_gap=1.0)
+    model = BipedStepModel(
+        world, START, "left", GOAL, nominal_action_table(), PlannerOptions(heuristic="euclidean")
+    )
+    assert goal_cut_off(model) is False

@@ -40,6 +40,16 @@ class GaOptions:
     max_generations: int = 500
 
     def __post_init__(self) -> None:
+        whole = (self.population_per_parameter, self.stagnation, self.max_generations)
+        real = (self.elite_fraction, self.crossover_fraction, self.mutation_sigma)
+        rate = () if self.mutation_rate is None else (self.mutation_rate,)
+        if not (
+            all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in whole)
+            and all(_is_real(v) and np.isfinite(v) for v in real + rate)
+        ):
+            raise RepertoireError(
+                f"invalid GA options {self}: expected whole counts, finite numbers"
+            )
         ok = (
             self.population_per_parameter >= 2
             and 0 <= self.elite_fraction < 1
@@ -51,6 +61,17 @@ class GaOptions:
         )
         if not ok:
             raise RepertoireError(f"invalid GA options {self}")
+
+
+def _is_real(v) -> bool:
+    return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool)
+
+
+def check_seed(seed) -> int:
+    """``seed`` as an int in 0..2**32 - 1 (numpy's and scipy's range), or a named error."""
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed < 2**32:
+        raise RepertoireError(f"seed must be a whole number in 0..2**32 - 1, got {seed!r}")
+    return int(seed)
 
 
 def genetic_minimise(
@@ -77,6 +98,7 @@ def genetic_minimise(
     Returns:
         (best parameters, best cost, cost evaluations, generations).
     """
+    seed = check_seed(seed)
     opts = options or GaOptions()
     lower = np.asarray(lower, dtype=float)
     upper = np.asarray(upper, dtype=float)
@@ -138,10 +160,11 @@ def solve_ga(
     problem: RefinementProblem, *, seed: int = 0, options: GaOptions | None = None
 ) -> RefinementResult:
     """Refinement with the paper's genetic algorithm (see :func:`genetic_minimise`)."""
-    params, cost, evals, gens = genetic_minimise(
+    params, _, evals, gens = genetic_minimise(
         problem.cost, problem.lower, problem.upper, seed=seed, options=options
     )
-    return RefinementResult(params, cost, "ga", evals, gens)
+    # the cost at the returned parameters alone: a batch's rounding may differ in the last bit
+    return RefinementResult(params, float(problem.cost(params)[0]), "ga", evals, gens)
 
 
 def solve_de(
@@ -154,12 +177,16 @@ def solve_de(
 
     Args:
         problem: the refinement problem.
-        seed: random seed.
-        maxiter: generations.
-        popsize: population multiplier (scipy's meaning).
+        seed: random seed (a whole number in 0..2**32 - 1).
+        maxiter: generations (a whole number >= 1).
+        popsize: population multiplier (scipy's meaning; a whole number >= 1).
     """
     from scipy.optimize import differential_evolution
 
+    seed = check_seed(seed)
+    for name, value in (("maxiter", maxiter), ("popsize", popsize)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+            raise RepertoireError(f"{name} must be a whole number >= 1, got {value!r}")
     span = problem.upper - problem.lower
     free = span > 0
     if not free.any():
@@ -168,26 +195,37 @@ def solve_de(
     base = problem.lower.copy()
     worst = [0.0]
 
+    errors: list[RepertoireError] = []
+
     def batch(x: np.ndarray) -> np.ndarray:  # scipy passes (n_free, S) when vectorised
         full = np.repeat(base[None], x.shape[1], axis=0)
         full[:, free] = x.T
-        c = problem.cost(full)
+        try:
+            c = problem.cost(full)
+        except RepertoireError as e:  # scipy would hide it in a RuntimeError
+            errors.append(e)
+            raise
         ok = np.isfinite(c)
         if ok.any():
             worst[0] = max(worst[0], float(c[ok].max()))
         return np.where(ok, c, 10.0 * (abs(worst[0]) + 1.0))
 
-    result = differential_evolution(
-        batch,
-        list(zip(problem.lower[free], problem.upper[free], strict=True)),
-        seed=seed,
-        maxiter=maxiter,
-        popsize=popsize,
-        tol=1e-10,
-        polish=False,
-        vectorized=True,
-        updating="deferred",
-    )
+    try:
+        result = differential_evolution(
+            batch,
+            list(zip(problem.lower[free], problem.upper[free], strict=True)),
+            seed=seed,
+            maxiter=maxiter,
+            popsize=popsize,
+            tol=1e-10,
+            polish=False,
+            vectorized=True,
+            updating="deferred",
+        )
+    except RuntimeError:
+        if errors:
+            raise errors[0] from None
+        raise
     params = base.copy()
     params[free] = result.x
     return RefinementResult(

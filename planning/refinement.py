@@ -32,6 +32,7 @@ to the leaves' size) of the infimum (see
 :func:`~repertoire.planning.refinement_exact.solve_milp`).
 """
 
+import inspect
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -165,11 +166,16 @@ class PiecewiseLinearModel:
                 f"this repertoire reads version {MODEL_FORMAT_VERSION}: re-export the model"
             )
         try:
-            return cls(
-                *(np.array(record[k], dtype=float) for k in ("lower", "upper", "coef", "intercept"))
-            )
+            arrays = [
+                np.array(record[k], dtype=float) for k in ("lower", "upper", "coef", "intercept")
+            ]
         except KeyError as exc:
             raise RepertoireError(f"PiecewiseLinearModel record lacks {exc}") from None
+        except (TypeError, ValueError) as exc:
+            raise RepertoireError(
+                f"PiecewiseLinearModel record holds a non-number: {exc}"
+            ) from None
+        return cls(*arrays)
 
     def save(self, path: str | Path) -> None:
         """Writes the model as JSON."""
@@ -205,8 +211,8 @@ def predict_leaves(model: DurationModel, features: np.ndarray) -> np.ndarray:
     """Prediction of any :class:`DurationModel`, leaves half-open (see ``predict``)."""
     f = np.atleast_2d(np.asarray(features, dtype=float))
     k, d = model.lower.shape
-    if f.shape[1] != d:
-        raise RepertoireError(f"features have {f.shape[1]} columns, the model expects {d}")
+    if f.ndim != 2 or f.shape[1] != d:
+        raise RepertoireError(f"features must be (n, {d}) for this model, got shape {f.shape}")
     require_memory(f.shape[0] * k * (d + 2) * 8.0, f"leaf tests of {f.shape[0]} x {k} leaves")
     inside = np.ones((f.shape[0], k), dtype=bool)
     for j in range(d):  # one (n, k) test per feature: faster than an (n, k, d) reduction
@@ -278,7 +284,15 @@ class DurationTerm:
         object.__setattr__(self, "uses", tuple(int(i) for i in self.uses))
 
     def predict(self, params: np.ndarray) -> np.ndarray:
-        return predict_leaves(self.model, self.features(params))
+        n = np.atleast_2d(params).shape[0]
+        features = np.asarray(self.features(params), dtype=float)
+        d = self.model.lower.shape[1]
+        if features.shape != (n, d):
+            raise RepertoireError(
+                f"term {self.name!r}: its features of {n} parameter vectors have shape "
+                f"{features.shape}; its model expects ({n}, {d})"
+            )
+        return predict_leaves(self.model, features)
 
 
 @dataclass(frozen=True)
@@ -324,6 +338,12 @@ class RefinementProblem:
                 raise RepertoireError(
                     f"term {term.name!r}: A has {term.features.A.shape[1]} columns for "
                     f"{lo.size} parameters"
+                )
+            d = term.model.lower.shape[1]
+            if isinstance(term.features, AffineFeatures) and term.features.A.shape[0] != d:
+                raise RepertoireError(
+                    f"term {term.name!r}: A has {term.features.A.shape[0]} rows (features) "
+                    f"for a model of {d} features"
                 )
 
     @property
@@ -430,7 +450,11 @@ def refine_sequence(
         rejecting every subgoal): keep the unrefined plan then.
     """
     n = len(problem.terms)
-    if not isinstance(horizon, int | np.integer) or not 1 <= horizon <= n:
+    if (
+        isinstance(horizon, bool)
+        or not isinstance(horizon, int | np.integer)
+        or not 1 <= horizon <= n
+    ):
         raise RepertoireError(
             f"horizon {horizon} is not in 1..{n}: the plan has {n} actions, so the horizon "
             "must be a whole number between 1 and that"
@@ -473,14 +497,18 @@ def _named_solver(solver: Solver | str, options: dict) -> Solver:
         from repertoire.planning.refinement_exact import solve_corners
 
         return solve_corners
-    if solver == "milp":
-        from repertoire.planning.refinement_exact import solve_milp
+    if solver in ("milp", "ga", "de"):
+        from repertoire.planning import black_box, refinement_exact
 
-        return lambda p: solve_milp(p, **options)
-    if solver in ("ga", "de"):
-        from repertoire.planning import black_box
-
-        fn = black_box.solve_ga if solver == "ga" else black_box.solve_de
+        fn = {
+            "milp": refinement_exact.solve_milp,
+            "ga": black_box.solve_ga,
+            "de": black_box.solve_de,
+        }[solver]
+        known = [n for n, p in inspect.signature(fn).parameters.items() if p.kind == p.KEYWORD_ONLY]
+        unknown = sorted(set(options) - set(known))
+        if unknown:
+            raise RepertoireError(f"solver {solver!r} has no options {unknown}; it takes {known}")
         return lambda p: fn(p, **options)
     raise RepertoireError(
         f"unknown solver {solver!r}; expected corners, milp, ga, de or a function"

@@ -496,9 +496,11 @@ def solve_milp(
     """
     from pydrake.solvers import ClpSolver, MixedIntegerBranchAndBound, SolutionResult
 
-    if not (abs_tol > 0 and max_rounds >= 1):
+    whole = isinstance(max_rounds, int | np.integer) and not isinstance(max_rounds, bool)
+    if not (whole and max_rounds >= 1 and abs_tol > 0 and np.isfinite(abs_tol)):
         raise RepertoireError(
-            f"abs_tol must be > 0 and max_rounds >= 1, got {abs_tol}, {max_rounds}"
+            f"abs_tol must be finite and > 0 and max_rounds a whole number >= 1, got "
+            f"{abs_tol!r}, {max_rounds!r}"
         )
     if not (np.isfinite(face_margin) and face_margin >= 0):
         raise RepertoireError(f"face_margin must be finite and >= 0, got {face_margin}")
@@ -508,7 +510,14 @@ def solve_milp(
         samples = np.vstack([(problem.lower + problem.upper) / 2, samples])
         costs = problem.cost(samples)
         incumbent = samples[int(np.argmin(costs))]
-    incumbent = np.asarray(incumbent, dtype=float).reshape(-1)
+    incumbent = np.asarray(incumbent, dtype=float)
+    if incumbent.shape != (problem.n_params,) or not (
+        np.all(incumbent >= problem.lower) and np.all(incumbent <= problem.upper)
+    ):
+        raise RepertoireError(
+            f"the MILP incumbent must be ({problem.n_params},) parameters inside the box "
+            f"{problem.lower.tolist()}..{problem.upper.tolist()}, got {incumbent.tolist()}"
+        )
     j_inc = float(problem.cost(incumbent)[0])
     if not np.isfinite(j_inc):
         raise RepertoireError("the MILP incumbent lies outside the models' leaves")

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-from repertoire.planning.black_box import GaOptions, genetic_minimise
+from repertoire.planning.black_box import GaOptions, check_seed, genetic_minimise
 
 from repertoire.errors import RepertoireError
 
@@ -82,7 +82,8 @@ def assert_subgoal(
         upper: (s,) upper bounds of the subgoal (finite, >= lower).
         seed: seed of the genetic algorithm and of the fallback sample.
         options: GA settings (default: the paper's).
-        n_fallback: seeded uniform candidates checked when the GA finds no valid one.
+        n_fallback: seeded uniform candidates checked when the GA finds no valid one
+            (a whole number >= 0).
         allowed: optional (n, s) subgoals -> (n,) booleans, False for subgoals ruled out
             besides the failure model (e.g. too close to the ball, where the failure
             model was never trained); those are INVALID too.
@@ -92,15 +93,16 @@ def assert_subgoal(
         failure model rejects every candidate (``reason`` says which).
 
     Raises:
-        RepertoireError: mismatched shapes, non-finite values or empty ranges.
+        RepertoireError: mismatched shapes, non-finite values, empty ranges, a bad seed,
+            or NaN leg durations.
     """
     start = np.asarray(start, dtype=float).reshape(-1)
     goal = np.asarray(goal, dtype=float).reshape(-1)
     lower = np.asarray(lower, dtype=float).reshape(-1)
     upper = np.asarray(upper, dtype=float).reshape(-1)
-    if not (start.shape == goal.shape == lower.shape == upper.shape):
+    if not (start.shape == goal.shape == lower.shape == upper.shape) or start.size == 0:
         raise RepertoireError(
-            f"start, goal, lower, upper must have one shape, got {start.shape}, "
+            f"start, goal, lower, upper must have one shape (not empty), got {start.shape}, "
             f"{goal.shape}, {lower.shape}, {upper.shape}"
         )
     arrays = (start, goal, lower, upper)
@@ -108,12 +110,30 @@ def assert_subgoal(
         raise RepertoireError("start, goal and the subgoal bounds must be finite")
     if (lower > upper).any():
         raise RepertoireError(f"empty subgoal ranges at {np.flatnonzero(lower > upper)}")
-    if n_fallback < 0:
-        raise RepertoireError(f"n_fallback must be >= 0, got {n_fallback}")
+    seed = check_seed(seed)
+    if (
+        isinstance(n_fallback, bool)
+        or not isinstance(n_fallback, int | np.integer)
+        or n_fallback < 0
+    ):
+        raise RepertoireError(f"n_fallback must be a whole number >= 0, got {n_fallback!r}")
+    if not isinstance(classifier, FailureClassifier):
+        raise RepertoireError(
+            f"classifier {type(classifier).__name__} has no predict_success(features) method"
+        )
+
+    def durations(features: np.ndarray) -> np.ndarray:
+        t = np.asarray(leg_duration(features), dtype=float).reshape(-1)
+        if np.isnan(t).any():
+            raise RepertoireError(
+                f"leg_duration gave NaN for the leg features {features[np.isnan(t)][0].tolist()}; "
+                "expected durations (+inf where the duration model does not apply)"
+            )
+        return t
 
     direct = leg_features(start[None], goal[None])
     if bool(np.asarray(classifier.predict_success(direct)).reshape(-1)[0]):
-        t = float(np.asarray(leg_duration(direct)).reshape(-1)[0])
+        t = float(durations(direct)[0])
         return SubgoalAssertion(False, None, t, "direct leg predicted to succeed", 0)
 
     def cost(subgoals: np.ndarray) -> np.ndarray:
@@ -123,7 +143,7 @@ def assert_subgoal(
         ok = np.asarray(classifier.predict_success(last), dtype=bool).reshape(-1)
         if allowed is not None:
             ok &= np.asarray(allowed(subgoals), dtype=bool).reshape(-1)
-        t = np.asarray(leg_duration(first)) + np.asarray(leg_duration(last))
+        t = durations(first) + durations(last)
         return np.where(ok, t, np.inf)
 
     best, best_cost, evals, _ = genetic_minimise(cost, lower, upper, seed=seed, options=options)
@@ -134,7 +154,7 @@ def assert_subgoal(
         i = int(np.argmin(costs))
         best, best_cost = sample[i], float(costs[i])
     if not np.isfinite(best_cost):
-        kept = float(np.asarray(leg_duration(direct)).reshape(-1)[0])
+        kept = float(durations(direct)[0])
         return SubgoalAssertion(
             False,
             None,

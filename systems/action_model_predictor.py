@@ -48,7 +48,7 @@ class ActionModelPredictor(LeafSystem):
         Args:
             duration_model: a ``"duration"`` TreeModel.
             failure_model: a ``"failure"`` TreeModel on the same features.
-            num_parameters: size of the parameters input.
+            num_parameters: size of the parameters input (a whole number >= 1).
             features: parameters -> feature vector (default: the parameters
                 are the features).
         """
@@ -63,6 +63,15 @@ class ActionModelPredictor(LeafSystem):
                 f"the models' features differ: {duration_model.feature_names} vs "
                 f"{failure_model.feature_names}"
             )
+        if (
+            isinstance(num_parameters, bool)
+            or not isinstance(num_parameters, int | np.integer)
+            or num_parameters < 1
+        ):
+            raise RepertoireError(
+                f"num_parameters must be a whole number >= 1, got {num_parameters!r}"
+            )
+        num_parameters = int(num_parameters)
         if features is None and num_parameters != len(duration_model.feature_names):
             raise RepertoireError(
                 f"without a feature function num_parameters must equal the "

@@ -106,10 +106,14 @@ class PlanExecutor(LeafSystem):
         if not np.all(np.isfinite(T)):
             bad = sorted({int(i) for i in np.argwhere(~np.isfinite(T))[:, 0]})
             raise RepertoireError(f"targets of actions {bad} are not finite: {T[bad].tolist()}")
-        if not (isinstance(command_size, int) and command_size >= 1):
+        whole = isinstance(command_size, int | np.integer) and not isinstance(command_size, bool)
+        if not (whole and command_size >= 1):
             raise RepertoireError(f"command_size must be an int >= 1, got {command_size!r}")
-        if not (math.isfinite(period) and period > 0):
-            raise RepertoireError(f"period must be finite and > 0, got {period}")
+        command_size = int(command_size)
+        real = isinstance(period, int | float | np.number) and not isinstance(period, bool)
+        if not (real and math.isfinite(period) and period > 0):
+            raise RepertoireError(f"period must be finite and > 0, got {period!r}")
+        period = float(period)
         self.n_actions, self.target_size = T.shape
         self.command_size = command_size
         self.period = period

@@ -181,11 +181,27 @@ class TreeModel:
         return "\n".join(lines)
 
 
-def _check_whole(name: str, value, least: int) -> int:
-    """``value`` as an int >= ``least``, or a RepertoireError naming it."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
-        raise RepertoireError(f"{name} must be a whole number >= {least}, got {value!r}")
+def _check_whole(name: str, value, least: int, most: int | None = None) -> int:
+    """``value`` as an int in ``least..most``, or a RepertoireError naming it."""
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | np.integer)
+        or value < least
+        or (most is not None and value > most)
+    ):
+        span = f">= {least}" if most is None else f"in {least}..{most}"
+        raise RepertoireError(f"{name} must be a whole number {span}, got {value!r}")
     return int(value)
+
+
+MAX_SEED = 2**32 - 1  # scikit-learn's random_state range
+
+
+def _check_cost(failure_cost) -> float:
+    ok = isinstance(failure_cost, int | float | np.number) and not isinstance(failure_cost, bool)
+    if not (ok and math.isfinite(failure_cost) and failure_cost > 0):
+        raise RepertoireError(f"failure_cost must be finite and > 0, got {failure_cost!r}")
+    return float(failure_cost)
 
 
 def _check_training(X, y, feature_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -280,7 +296,7 @@ def fit_duration_tree(
         X: ``(n, d)`` features.
         y: ``(n,)`` durations.
         feature_names: the ``d`` names.
-        seed: seed of the validation split and the tree.
+        seed: seed of the validation split and the tree (a whole number in 0..2**32 - 1).
         min_samples_leaf: episodes per leaf at least, a whole number >= 1 (default
             ``max(5, 4 d)``).
         candidate_leaves: tree sizes tried (whole numbers >= 1); the one with the
@@ -301,6 +317,7 @@ def fit_duration_tree(
 
     if not (isinstance(ridge, int | float | np.number) and math.isfinite(ridge) and ridge >= 0):
         raise RepertoireError(f"ridge must be a finite number >= 0, got {ridge!r}")
+    seed = _check_whole("seed", seed, 0, MAX_SEED)
     if min_samples_leaf is not None:
         min_samples_leaf = _check_whole("min_samples_leaf", min_samples_leaf, 1)
     candidate_leaves = list(candidate_leaves)
@@ -355,7 +372,7 @@ def fit_failure_tree(
             cost of a false alarm (> 1 makes the tree pessimistic). The leaf
             decides failure when its failure probability is at least
             ``1 / (1 + failure_cost)`` (minimum expected cost).
-        seed: the tree's seed.
+        seed: the tree's seed (a whole number in 0..2**32 - 1).
         min_samples_leaf: episodes per leaf at least (a whole number >= 1).
         max_leaf_nodes: the largest tree (a whole number >= 2).
 
@@ -368,8 +385,8 @@ def fit_failure_tree(
     """
     from sklearn.tree import DecisionTreeClassifier
 
-    if not (math.isfinite(failure_cost) and failure_cost > 0):
-        raise RepertoireError(f"failure_cost must be finite and > 0, got {failure_cost}")
+    failure_cost = _check_cost(failure_cost)
+    seed = _check_whole("seed", seed, 0, MAX_SEED)
     min_samples_leaf = _check_whole("min_samples_leaf", min_samples_leaf, 1)
     max_leaf_nodes = _check_whole("max_leaf_nodes", max_leaf_nodes, 2)
     X, y = _check_training(X, np.asarray(failed, dtype=float), feature_names)
@@ -432,7 +449,41 @@ def load_model(path: str | Path) -> TreeModel:
     for k in ("threshold", "left", "right", "leaf_of_node"):
         if len(data[k]) != n:
             raise RepertoireError(f"action model '{path}': '{k}' has {len(data[k])} nodes, not {n}")
+    try:
+        _check_structure(data, path)
+    except TypeError as e:
+        raise RepertoireError(f"action model '{path}' has a field of the wrong type: {e}") from e
     return TreeModel(**data)
+
+
+def _check_structure(data: dict, path: Path) -> None:
+    """Node indices, leaf indices and per-feature lengths consistent, or a named error.
+
+    Children come after their parent (as scikit-learn numbers them), so prediction
+    cannot loop.
+    """
+    n, k, d = len(data["feature"]), len(data["leaves"]), len(data["feature_names"])
+    bad = []
+    if n == 0 or k == 0:
+        bad.append(f"{n} nodes and {k} leaves (at least one of each is needed)")
+    for name in ("train_min", "train_max"):
+        if len(data[name]) != d:
+            bad.append(f"'{name}' has {len(data[name])} values for {d} features")
+    for j, leaf in enumerate(data["leaves"]):
+        sizes = {len(leaf.lower), len(leaf.upper), len(leaf.coef)}
+        if sizes != {d}:
+            bad.append(f"leaf {j} has lower/upper/coef of lengths {sorted(sizes)}, not {d}")
+    for i in range(n):
+        f, left, right, leaf = (
+            data[key][i] for key in ("feature", "left", "right", "leaf_of_node")
+        )
+        split = f >= 0
+        if split and not (f < d and i < left < n and i < right < n and leaf == -1):
+            bad.append(f"split node {i} has feature {f}, children {left}, {right}, leaf {leaf}")
+        if not split and not (0 <= leaf < k):
+            bad.append(f"leaf node {i} points at leaf {leaf} of {k}")
+    if bad:
+        raise RepertoireError(f"action model '{path}' is inconsistent: {'; '.join(bad[:3])}")
 
 
 @dataclasses.dataclass
@@ -509,6 +560,13 @@ def fit_action_model(
     Raises:
         RepertoireError: too few records, a missing field, NaN features.
     """
+    seed = _check_whole("seed", seed, 0, MAX_SEED)
+    failure_cost = _check_cost(failure_cost)
+    if isinstance(features, str):
+        raise RepertoireError(
+            f"features must be a sequence of field names or a mapping, got the string "
+            f"{features!r}; write [{features!r}] for one feature"
+        )
     records = list(records)
     if len(records) < MIN_EPISODES:
         raise RepertoireError(
@@ -521,6 +579,16 @@ def fit_action_model(
     except AttributeError as e:
         raise RepertoireError(f"records have no target field {target!r}") from e
     is_bool = all(isinstance(v, bool | np.bool_) for v in raw)
+    for i, v in enumerate(raw):
+        if isinstance(v, bool | np.bool_):
+            continue
+        if not isinstance(v, int | float | np.number) or isinstance(
+            v, complex | np.complexfloating
+        ):
+            raise RepertoireError(
+                f"target field {target!r} of record {i} is {repr(v)[:60]}; expected a number (a "
+                "duration model) or a bool (a failure model) in every record"
+            )
     y = np.asarray(raw, dtype=float)
     perm = np.random.default_rng(seed).permutation(len(records))
     n_train = (3 * len(records)) // 4

@@ -54,6 +54,14 @@ def _ground_box() -> "TerrainBox":
     return TerrainBox([0.0, 0.0, -0.5 * GROUND_SIZE[2]], list(GROUND_SIZE), 0.0, "ground")
 
 
+def _is_count(value) -> bool:
+    """True for a non-negative integer (an int or an integral finite float)."""
+    try:
+        return math.isfinite(value) and int(value) == value and value >= 0
+    except (TypeError, ValueError):
+        return False
+
+
 @dataclasses.dataclass
 class TerrainParams:
     """Parameters of the board generator (YAML-loadable: lists, not tuples).
@@ -117,7 +125,7 @@ class TerrainParams:
                 raise RepertoireError(f"terrain {name} must be a positive length, got {value}")
         for name in ("rock_count", "step_count", "gap_count", "mixed_sections"):
             value = getattr(self, name)
-            if int(value) != value or value < 0:
+            if not _is_count(value):
                 raise RepertoireError(f"terrain {name} must be a non-negative integer, got {value}")
         if self.mixed_sections < 1:
             raise RepertoireError(f"terrain mixed_sections must be >= 1, got {self.mixed_sections}")
@@ -558,8 +566,8 @@ def rock_field(
         )
     if not (math.isfinite(x0) and math.isfinite(x1) and x0 < x1):
         raise RepertoireError(f"rock field needs x0 < x1, got [{x0}, {x1}]")
-    if int(seed) != seed:
-        raise RepertoireError(f"rock field seed must be an integer, got {seed!r}")
+    if not _is_count(seed):
+        raise RepertoireError(f"rock field seed must be an integer, got {seed!r} (expected >= 0)")
     p.validate()
     rng = np.random.default_rng(int(seed))
     x, y = _coverage_grid(x0, x1, p.size_y)
@@ -636,8 +644,8 @@ def generate_board(params: TerrainParams | None = None, seed: int = 0) -> Terrai
     if not isinstance(params, TerrainParams):
         raise RepertoireError(f"generate_board needs TerrainParams, got {type(params).__name__}")
     params.validate()
-    if int(seed) != seed:
-        raise RepertoireError(f"terrain seed must be an integer, got {seed!r}")
+    if not _is_count(seed):
+        raise RepertoireError(f"terrain seed must be an integer, got {seed!r} (expected >= 0)")
     rng = np.random.default_rng(int(seed))
     x0, x1 = -0.5 * params.size_x, 0.5 * params.size_x
     kind = params.kind
@@ -765,26 +773,27 @@ def replace_with_rocks(
 def tile_boards(boards: list[TerrainBoard]) -> TerrainBoard:
     """Boards of equal width placed one after another along +x as one board.
 
-    The result is centred on the origin like every board; board ``i`` is shifted
-    along x so the boards touch. Its ``params`` are the first board's with ``kind``
-    ``mixed`` and the summed ``size_x``.
+    The result is centred on the origin; the boards' extents (:meth:`TerrainBoard.bounds`:
+    where the boxes are, for a moved or joined board too) touch along x, centred on y = 0.
+    Its ``params`` are the first board's, ``mixed``, with the summed length and the width.
 
     Raises:
         RepertoireError: no boards, or boards of different widths.
     """
     if not boards or not all(isinstance(b, TerrainBoard) for b in boards):
         raise RepertoireError("tile_boards needs a non-empty list of TerrainBoard")
-    width = boards[0].params.size_y
-    if any(abs(b.params.size_y - width) > 1e-12 for b in boards):
-        raise RepertoireError("tile_boards needs boards of equal size_y")
-    total = sum(b.params.size_x for b in boards)
+    extents = [b.bounds() for b in boards]
+    widths = [y1 - y0 for _, _, y0, y1 in extents]
+    if any(abs(w - widths[0]) > 1e-9 for w in widths):
+        raise RepertoireError(f"tile_boards needs boards of equal size_y, got widths {widths} m")
+    total = sum(x1 - x0 for x0, x1, _, _ in extents)
     x = -0.5 * total
     boxes: list[TerrainBox] = []
-    for b in boards:
-        shift = x + 0.5 * b.params.size_x
+    for b, (x0, x1, y0, y1) in zip(boards, extents):
+        shift, shift_y = x - x0, -0.5 * (y0 + y1)
         for box in b.boxes:
-            center = [box.center[0] + shift, box.center[1], box.center[2]]
+            center = [box.center[0] + shift, box.center[1] + shift_y, box.center[2]]
             boxes.append(dataclasses.replace(box, center=center))
-        x += b.params.size_x
-    params = dataclasses.replace(boards[0].params, kind="mixed", size_x=total)
+        x += x1 - x0
+    params = dataclasses.replace(boards[0].params, kind="mixed", size_x=total, size_y=widths[0])
     return TerrainBoard(params=params, seed=boards[0].seed, boxes=boxes)

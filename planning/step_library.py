@@ -78,6 +78,11 @@ class LibraryStep:
         return float(self.times[-1])
 
 
+def _is_real(value) -> bool:
+    """True for a finite real number (not a string, None or array)."""
+    return isinstance(value, (int, float, np.integer, np.floating)) and math.isfinite(value)
+
+
 def validate_step(step: LibraryStep, where: str = "step") -> None:
     """Checks shapes, finiteness, joint limits and stance labels of one step.
 
@@ -86,7 +91,10 @@ def validate_step(step: LibraryStep, where: str = "step") -> None:
     """
 
     def arr(name, shape_tail, dtype=float):
-        a = np.asarray(getattr(step, name), dtype=dtype)
+        try:
+            a = np.asarray(getattr(step, name), dtype=dtype)
+        except (TypeError, ValueError) as e:
+            raise StepLibraryError(f"{where}: {name} must hold numbers, got {e}") from e
         if a.ndim != len(shape_tail) or any(
             s is not None and a.shape[i] != s for i, s in enumerate(shape_tail)
         ):
@@ -138,12 +146,14 @@ def validate_step(step: LibraryStep, where: str = "step") -> None:
         )
     if not stance[0].all():
         raise StepLibraryError(f"{where}: a step must start with all four feet down")
-    if int(step.foot) != step.foot or not 0 <= step.foot < 4:
+    if not (_is_real(step.foot) and int(step.foot) == step.foot and 0 <= step.foot < 4):
         raise StepLibraryError(f"{where}: foot must be 0..3 (LEGS {LEGS}), got {step.foot!r}")
     if not isinstance(step.terrain, str) or not step.terrain:
         raise StepLibraryError(f"{where}: terrain must be a non-empty name, got {step.terrain!r}")
-    if not math.isfinite(step.direction):
-        raise StepLibraryError(f"{where}: direction must be finite, got {step.direction}")
+    if not _is_real(step.direction):
+        raise StepLibraryError(
+            f"{where}: direction must be a finite number (rad), got {step.direction!r}"
+        )
     if step.kind not in STEP_KINDS:
         raise StepLibraryError(f"{where}: kind must be one of {STEP_KINDS}, got {step.kind!r}")
 
@@ -335,18 +345,35 @@ class StepLibrary:
         missing = [k for k in need if k not in a]
         if missing:
             raise StepLibraryError(f"{npz} lacks the arrays {missing}")
-        n = int(meta.get("num_steps", -1))
+        text = [
+            k for k in need if k not in ("offsets", "stance", "foot") and a[k].dtype.kind != "f"
+        ]
+        if text:
+            raise StepLibraryError(f"{npz}: the arrays {text} must hold floating-point numbers")
+        n = meta.get("num_steps")
         off = a["offsets"]
+        per_step = ("start_feet", "start_pose", "foot", "direction")
         if (
-            n < 1
+            not isinstance(n, int)
+            or n < 1
+            or off.ndim != 1
             or len(off) != n + 1
-            or len(meta.get("terrain", [])) != n
-            or len(meta.get("kind", [])) != n
+            or not np.issubdtype(off.dtype, np.integer)
+            or not np.issubdtype(a["foot"].dtype, np.integer)
+            or any(a[k].ndim < 1 or len(a[k]) != n for k in per_step)
+            or not isinstance(meta.get("terrain"), list)
+            or not isinstance(meta.get("kind"), list)
+            or len(meta["terrain"]) != n
+            or len(meta["kind"]) != n
             or off[0] != 0
             or np.any(np.diff(off) < 1)
             or off[-1] != len(a["times"])
         ):
-            raise StepLibraryError(f"{npz}/{js}: inconsistent step counts or offsets")
+            raise StepLibraryError(
+                f"{npz}/{js}: inconsistent step counts or offsets (num_steps={n!r}; expected "
+                f"one offset more than steps, one start state, integer foot, direction, terrain "
+                f"and kind per step)"
+            )
         steps = []
         for i in range(n):
             sl = slice(int(off[i]), int(off[i + 1]))

@@ -124,7 +124,13 @@ class SearchConfig:
 
     def validate(self) -> None:
         """Raises TransferSearchError naming a bad field."""
-        if int(self.neighbours) != self.neighbours or self.neighbours < 1:
+        if (
+            not (
+                isinstance(self.neighbours, (int, np.integer))
+                or (isinstance(self.neighbours, float) and self.neighbours.is_integer())
+            )
+            or self.neighbours < 1
+        ):
             raise TransferSearchError(
                 f"neighbours must be a positive integer, got {self.neighbours}"
             )
@@ -192,7 +198,12 @@ def foot_distance(a, b) -> np.ndarray:
 
 
 def _check_stances(name: str, value, batch: bool) -> np.ndarray:
-    a = np.asarray(value, dtype=float)
+    try:
+        a = np.asarray(value, dtype=float)
+        if batch and a.size % 12 == 0:
+            a = a.reshape(-1, 4, 3)
+    except (TypeError, ValueError) as e:
+        raise TransferSearchError(f"{name} must be a finite array of stances: {e}") from e
     shape_ok = (a.ndim == 3 and a.shape[1:] == (4, 3)) if batch else a.shape == (4, 3)
     if not shape_ok or not np.all(np.isfinite(a)):
         want = "(M, 4, 3)" if batch else "(4, 3)"
@@ -224,11 +235,15 @@ def search_transfer(
         TransferSearchError: malformed stances, a goal off the terrain, bad settings.
     """
     config = SearchConfig() if config is None else config
+    if not isinstance(config, SearchConfig):
+        raise TransferSearchError(f"config must be a SearchConfig, got {type(config).__name__}")
+    if terrain is not None and not isinstance(terrain, TerrainBoard):
+        raise TransferSearchError(f"terrain must be a TerrainBoard, got {type(terrain).__name__}")
     config.validate()
     start = _check_stances("start", start, False)
     goal = _check_stances("goal", goal, False)
-    s_in = _check_stances("step_start_feet", np.reshape(step_start_feet, (-1, 4, 3)), True)
-    s_out = _check_stances("step_end_feet", np.reshape(step_end_feet, (-1, 4, 3)), True)
+    s_in = _check_stances("step_start_feet", step_start_feet, True)
+    s_out = _check_stances("step_end_feet", step_end_feet, True)
     if s_in.shape != s_out.shape:
         raise TransferSearchError(
             f"step start and end stances differ in count: {s_in.shape} vs {s_out.shape}"
@@ -310,9 +325,14 @@ def search_transfer(
         remaining = config.time_limit - (clock() - t0)
         planner_calls += 1
         answer = gap_filler(out_stance[u].copy(), b.copy(), remaining)
-        if not isinstance(answer, GapFill) or answer.status not in GAP_STATUSES:
+        if (
+            not isinstance(answer, GapFill)
+            or answer.status not in GAP_STATUSES
+            or not isinstance(answer.steps, list)
+        ):
             raise TransferSearchError(
-                f"gap_filler must return GapFill with status in {GAP_STATUSES}, got {answer!r}"
+                f"gap_filler must return GapFill with a list of steps and status in "
+                f"{GAP_STATUSES}, got {answer!r}"
             )
         if answer.status != "reached":
             if answer.message and not refusal:

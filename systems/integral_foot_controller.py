@@ -26,7 +26,21 @@ from repertoire.errors import RepertoireError
 def body_feet(q_joints) -> np.ndarray:
     """Body-frame foot centres (4 x 3) from 12 joint angles."""
     q = np.asarray(q_joints, dtype=float)
+    if q.shape != (12,):
+        raise RepertoireError(
+            f"joint angles must be a 12-vector (JOINT_NAMES order), got {q.shape}"
+        )
     return np.stack([leg_fk(leg, q[3 * i : 3 * i + 3]) for i, leg in enumerate(LEGS)])
+
+
+def _check_integrators(integrators) -> np.ndarray:
+    integrators = np.asarray(integrators, dtype=float)
+    if integrators.shape != (4, 3) or not np.all(np.isfinite(integrators)):
+        raise RepertoireError(
+            f"integrators must be a finite 4 x 3 array (m), got shape {integrators.shape}: "
+            f"{integrators!r}"
+        )
+    return integrators
 
 
 def integrator_update(
@@ -52,10 +66,18 @@ def integrator_update(
         decay: factor multiplying the integrator of a foot in flight per update, in [0, 1).
         limit: each integrator's length is saturated to this (m), so the IK stays reachable.
     """
+    integrators = _check_integrators(integrators)
+    contact = np.asarray(contact, dtype=float)
+    if contact.shape != (4,) or not np.all(np.isfinite(contact)):
+        raise RepertoireError(f"contact must be 4 finite flags, got {contact!r}")
+    if not (0.0 <= gain <= 1.0 and 0.0 <= decay < 1.0):
+        raise RepertoireError(f"gain must be in [0, 1] and decay in [0, 1), got {gain}, {decay}")
+    if not (math.isfinite(limit) and limit > 0.0):
+        raise RepertoireError(f"limit must be > 0 m, got {limit}")
     x = body_feet(q_measured)
     X = body_to_world(body_pose, x)
     xd = world_to_body(ideal_pose, X)
-    down = np.asarray(contact) != 0
+    down = contact != 0
     new = np.where(down[:, None], integrators + gain * (xd - x), decay * integrators)
     norm = np.linalg.norm(new, axis=1, keepdims=True)
     return np.where(norm > limit, new * (limit / np.maximum(norm, 1e-12)), new)
@@ -70,7 +92,7 @@ def corrected_angles(q_playback, integrators) -> tuple[np.ndarray, int]:
         ``(q, fallbacks)``: the 12 desired angles and how many legs fell back.
     """
     q_playback = np.asarray(q_playback, dtype=float)
-    x = body_feet(q_playback) + integrators
+    x = body_feet(q_playback) + _check_integrators(integrators)
     q = q_playback.copy()
     fallbacks = 0
     for i, leg in enumerate(LEGS):

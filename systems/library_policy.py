@@ -89,7 +89,10 @@ class StepIndex:
             return i, float(sums[i])
         _, i0 = self._tree.query(feet)
         bound = float(foot_distance_sums(self.keys[i0 : i0 + 1], feet)[0])
-        near = np.asarray(self._tree.query_ball_point(feet, bound * (1 + 1e-12)), dtype=int)
+        # Sorted, so that ties go to the lowest index as in the brute-force search.
+        near = np.sort(
+            np.asarray(self._tree.query_ball_point(feet, bound * (1 + 1e-12)), dtype=int)
+        )
         sums = foot_distance_sums(self.keys[near], feet)
         j = int(np.argmin(sums))
         return int(near[j]), float(sums[j])

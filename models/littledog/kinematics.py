@@ -204,6 +204,11 @@ def _leg_ik_solve(g: LegGeometry, p: np.ndarray):
     knee = g.knee_sign * np.arccos(np.clip(cos_knee, -1.0, 1.0))
     alpha = np.arctan2(-vx, -vz)
     pitch = alpha - np.arctan2(L2 * np.sin(knee), L1 + L2 * np.cos(knee))
+    # The difference of two atan2 lies in (-2 pi, 2 pi): take the pitch's representative
+    # modulo 2 pi within the joint limits when there is one (the range is < 2 pi wide).
+    lo = g.lower[1] - 1e-9
+    pitch = np.where(pitch < lo, pitch + 2.0 * np.pi, pitch)
+    pitch = np.where(pitch >= lo + 2.0 * np.pi, pitch - 2.0 * np.pi, pitch)
     roll = np.arctan2(rz, ry) - np.arctan2(vz, a)
     roll = (roll + np.pi) % (2.0 * np.pi) - np.pi
     return np.stack([roll, pitch, knee], axis=-1), bad, D2

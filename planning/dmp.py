@@ -63,6 +63,14 @@ def _check_widths(widths: np.ndarray) -> None:
         )
 
 
+def _scalar(name: str, value) -> float:
+    """``value`` as a float; RepertoireError naming it if it is not one number."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise RepertoireError(f"{name} must be a number, got {value!r}") from None
+
+
 class _FieldsRecord:
     """``to_dict``/``from_dict`` of a dataclass of arrays, numbers, strings and lists.
 
@@ -90,6 +98,20 @@ class _FieldsRecord:
             d: the record.
         """
         _check_type(d, cls.__name__)
+        fields = dataclasses.fields(cls)
+        keys = set(d) - {"type"}
+        missing = [
+            f.name
+            for f in fields
+            if f.name not in keys
+            and f.default is dataclasses.MISSING
+            and f.default_factory is dataclasses.MISSING
+        ]
+        unknown = sorted(keys - {f.name for f in fields})
+        if missing or unknown:
+            problems = [f"missing keys {missing}"] * bool(missing)
+            problems += [f"unknown keys {unknown}"] * bool(unknown)
+            raise RepertoireError(f"malformed {cls.__name__} record: {', '.join(problems)}")
         return cls(**{k: v for k, v in d.items() if k != "type"})
 
 
@@ -136,8 +158,12 @@ class DmpParameters(_FieldsRecord):
         self.D = check_per_dof("D", self.D, n)
         self.x0 = np.asarray(self.x0, dtype=float).reshape(-1)
         self.goal = np.asarray(self.goal, dtype=float).reshape(-1)
-        self.alpha = float(self.alpha)
-        self.tau = float(self.tau)
+        self.alpha = _scalar("alpha", self.alpha)
+        self.tau = _scalar("tau", self.tau)
+        if isinstance(self.names, str) or not all(isinstance(m, str) for m in self.names):
+            raise RepertoireError(
+                f"names must be a list of strings (one per DOF), got {self.names!r}"
+            )
         self.names = list(self.names)
         self.validate()
 
@@ -285,8 +311,8 @@ class QuaternionDmpParameters(_FieldsRecord):
         self.widths = np.asarray(self.widths, dtype=float).reshape(-1)
         self.q0 = np.asarray(self.q0, dtype=float).reshape(-1)
         self.goal = np.asarray(self.goal, dtype=float).reshape(-1)
-        self.K, self.D = float(self.K), float(self.D)
-        self.alpha, self.tau = float(self.alpha), float(self.tau)
+        self.K, self.D = _scalar("K", self.K), _scalar("D", self.D)
+        self.alpha, self.tau = _scalar("alpha", self.alpha), _scalar("tau", self.tau)
         if self.mode not in QUATERNION_MODES:
             raise RepertoireError(f"mode must be one of {QUATERNION_MODES}, got {self.mode!r}")
         rows = 4 if self.mode == "component" else 3
@@ -435,7 +461,7 @@ class TaskSpaceDmp:
         return cls(
             DmpParameters.from_dict(d["position"]),
             QuaternionDmpParameters.from_dict(d["orientation"]),
-            None if d["fingers"] is None else DmpParameters.from_dict(d["fingers"]),
+            None if d.get("fingers") is None else DmpParameters.from_dict(d["fingers"]),
         )
 
 
@@ -447,6 +473,8 @@ ARTEFACT_TYPES = {
 
 
 def _check_type(d: dict, expected: str) -> None:
+    if not isinstance(d, dict):
+        raise RepertoireError(f"expected a {expected} record (a dict), got {type(d).__name__}")
     if d.get("type") != expected:
         raise RepertoireError(f"expected a {expected} record, got type {d.get('type')!r}")
 
@@ -484,7 +512,15 @@ def load_dmp(path: str | Path):
     Args:
         path: JSON file.
     """
-    return dmp_from_dict(json.loads(Path(path).read_text()))
+    try:
+        record = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise RepertoireError(f"cannot read a DMP artefact from {path}: {err}") from err
+    try:
+        return dmp_from_dict(record)
+    except (KeyError, TypeError, ValueError) as err:
+        what = f"missing key {err}" if isinstance(err, KeyError) else str(err)
+        raise RepertoireError(f"{path}: malformed DMP artefact: {what}") from err
 
 
 # --------------------------------------------------------------------------- validation
@@ -499,6 +535,8 @@ def check_demonstration(t: np.ndarray, x: np.ndarray, *, name: str = "demonstrat
         x: Samples, shape (N,) or (N, n).
         name: Name used in messages.
     """
+    if np.iscomplexobj(t) or np.iscomplexobj(x):
+        raise RepertoireError(f"{name} must be real numbers, got complex values")
     t = np.asarray(t, dtype=float).reshape(-1)
     x = np.asarray(x, dtype=float)
     if x.ndim == 1:
@@ -547,6 +585,8 @@ def check_unit_quaternions(
         tolerance: Allowed ``| |q| - 1 |``.
         name: Name used in messages.
     """
+    if not 0.0 <= tolerance < np.inf:
+        raise RepertoireError(f"tolerance must be a finite number >= 0, got {tolerance}")
     q = np.asarray(q, dtype=float)
     if q.ndim != 2 or q.shape[1] != 4:
         raise RepertoireError(f"{name} must have shape (N, 4) (w, x, y, z), got {q.shape}")
@@ -585,7 +625,7 @@ def directional_primitive(
     goal = np.asarray(goal, float).reshape(-1)
     if start.shape != goal.shape:
         raise RepertoireError(f"start has {start.size} entries, goal {goal.size}")
-    if not 0 <= dof < dmp.n_dims:
+    if not (isinstance(dof, (int, np.integer)) and 0 <= dof < dmp.n_dims):
         raise RepertoireError(f"dof must be in [0, {dmp.n_dims}), got {dof}")
     amplitude = dmp.goal[dof] - dmp.x0[dof]
     if abs(amplitude) < 1e-9:

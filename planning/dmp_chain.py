@@ -78,6 +78,7 @@ def handoff_state(
         (x0, v_succ): the successor's equation start and scaled velocity.
     """
     check_handoff(mode)
+    check_positive("tau_pred", tau_pred)
     x = np.asarray(x, dtype=float)
     v = np.asarray(v, dtype=float)
     if mode == "none":
@@ -158,6 +159,9 @@ def chain_rollout(
     """
     check_handoff(handoff)
     check_switch_times(switch_times, len(segments))
+    for i, s in enumerate(segments):
+        if not isinstance(s, DmpParameters):
+            raise RepertoireError(f"segment {i} is {type(s).__name__}, not DmpParameters")
     check_positive("dt", dt)
     if len(goals) != len(segments):
         raise RepertoireError(f"{len(segments)} segments need as many goals, got {len(goals)}")

@@ -50,8 +50,13 @@ def slerp_minimum_jerk(q_start: np.ndarray, q_end: np.ndarray, t: np.ndarray) ->
         q_end: End quaternion (unit).
         t: Sample times, shape (N,).
     """
-    q_start = np.asarray(q_start, float) / np.linalg.norm(q_start)
-    q_end = np.asarray(q_end, float) / np.linalg.norm(q_end)
+    q_start, q_end = np.asarray(q_start, float), np.asarray(q_end, float)
+    for name, q in (("q_start", q_start), ("q_end", q_end)):
+        if q.shape != (4,) or not np.all(np.isfinite(q)) or not np.linalg.norm(q) > 0.0:
+            raise RepertoireError(
+                f"{name} must be a non-zero finite quaternion [w, x, y, z], got {q}"
+            )
+    q_start, q_end = q_start / np.linalg.norm(q_start), q_end / np.linalg.norm(q_end)
     d = quat_multiply(q_end, quat_conjugate(q_start))
     if d[0] < 0:
         d = -d
@@ -118,7 +123,7 @@ def synthesize_demonstration(
             raise RepertoireError(f"{what} must be fractions 0 <= start < end <= 1, got {(a, b)}")
     for what, q in (("q_start", q_start), ("q_end", q_end)):
         q = np.asarray(q, float)
-        if q.shape != (4,) or abs(np.linalg.norm(q) - 1.0) > 1e-6:
+        if q.shape != (4,) or not abs(np.linalg.norm(q) - 1.0) <= 1e-6:
             raise RepertoireError(f"{what} must be a unit quaternion [w, x, y, z], got {q}")
     if not fingers:
         raise RepertoireError("fingers needs at least one (start, end, from, to) movement")
@@ -126,6 +131,11 @@ def synthesize_demonstration(
     t0, t1 = move_window[0] * duration, move_window[1] * duration
     inside = (t >= t0) & (t <= t1)
     n_in = int(inside.sum())
+    if n_in < 3:
+        raise RepertoireError(
+            f"move_window {tuple(move_window)} holds {n_in} of the {n_samples} samples; the "
+            "minimum-jerk path needs at least 3: widen it or use more samples"
+        )
     _, path = minimum_jerk_via_points(np.asarray(via_points, float), t1 - t0, n_in)
     p = np.empty((n_samples, 3))
     p[t < t0] = via_points[0]

@@ -45,6 +45,10 @@ def estimate_derivatives(
         smoothing: Smoothing-spline lambda.
     """
     t, x = check_demonstration(t, x)
+    if window is not None and (
+        isinstance(window, bool) or not isinstance(window, (int, np.integer))
+    ):
+        raise RepertoireError(f"window must be an odd integer >= 3 or None, got {window!r}")
     n = t.size
     dt = np.diff(t)
     uniform = np.ptp(dt) <= 1e-6 * dt.mean()

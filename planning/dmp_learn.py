@@ -280,6 +280,12 @@ def learn_dmp_from_demonstrations(
     """
     if not demonstrations:
         raise RepertoireError("need at least one demonstration, got an empty list")
+    for i, demo in enumerate(demonstrations):
+        if not (isinstance(demo, (tuple, list)) and len(demo) == 2):
+            raise RepertoireError(
+                f"demonstration {i} must be a (t, x) pair, got {type(demo).__name__}"
+                + (f" of length {len(demo)}" if isinstance(demo, (tuple, list)) else "")
+            )
     demos = [
         check_demonstration(t, x, name=f"demonstration {i}")
         for i, (t, x) in enumerate(demonstrations)
@@ -390,9 +396,21 @@ def learn_quaternion_dmp(
     turn = 2.0 * np.arccos(np.clip(q @ g, -1.0, 1.0))
     k = int(np.argmax(turn))
     check_turn(g, q[k], what=f"from demonstration sample {k} to the goal (last sample)")
+    e = quat_log_error(g, q)
+    # Between two samples the error can also jump across a full turn (its axis flips while
+    # its angle stays near 360 deg): the demonstration turns a full turn or more.
+    angle = np.linalg.norm(e, axis=1)
+    jump = (np.sum(e[1:] * e[:-1], axis=1) < 0.0) & (angle[1:] + angle[:-1] > 2.0 * np.pi)
+    if jump.any():
+        k = int(np.argmax(jump))
+        raise RepertoireError(
+            f"the quaternion demonstration passes a full 360 deg turn from the goal between "
+            f"samples {k} and {k + 1} (it turns 360 deg or more): the on-manifold quaternion "
+            "DMP turns less than a full turn; use mode='component' or split the movement"
+        )
     F = (
         (tau * tau * omegad + Dv[0] * tau * omega) / Kv[0]
-        - quat_log_error(g, q)
+        - e
         + quat_log_error(g, q0)[None] * theta[:, None]
     )
     weights = fit_forcing_weights(forcing_features(theta, c, h), F, ridge)

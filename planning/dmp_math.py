@@ -118,7 +118,14 @@ def basis_widths(centres: np.ndarray, alpha: float, overlap: float = 0.5) -> np.
     diff = np.diff(centres)
     if np.any(diff == 0.0):
         raise RepertoireError("basis centres must be distinct")
-    h = log_overlap / diff**2
+    with np.errstate(divide="ignore", over="ignore"):
+        h = log_overlap / diff**2
+    if not np.all(np.isfinite(h)):
+        raise RepertoireError(
+            f"the {centres.size} basis centres are too close in phase for finite widths "
+            f"(alpha = {alpha}: centres down to {centres.min():.3g}); use a smaller alpha or "
+            "fewer basis functions"
+        )
     return np.append(h, h[-1])
 
 
@@ -436,6 +443,10 @@ def rollout(
                     raise RepertoireError(
                         f"coupling(x, xd) must return {n} entries (one per DOF), got shape "
                         f"{p.shape}"
+                    )
+                if not np.all(np.isfinite(p)):
+                    raise RepertoireError(
+                        f"coupling(x, xd) returned NaN or inf at step {k} (t = {k * dt:g}): {p}"
                     )
                 P[k] = p
             _, vd = transformation_derivatives(

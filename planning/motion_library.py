@@ -68,10 +68,17 @@ class MotionPrimitive:
     context: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if not self.name:
-            raise RepertoireError("a motion primitive needs a non-empty name")
+        if not isinstance(self.name, str) or not self.name:
+            raise RepertoireError(
+                f"a motion primitive needs a non-empty string name, got {self.name!r}"
+            )
         if self.label not in LABELS:
             raise RepertoireError(f"label must be one of {LABELS}, got {self.label!r}")
+        if not isinstance(self.dmp, (TaskSpaceDmp, DmpParameters, QuaternionDmpParameters)):
+            raise RepertoireError(
+                f"primitive {self.name!r} needs a TaskSpaceDmp, DmpParameters or "
+                f"QuaternionDmpParameters, got {type(self.dmp).__name__}"
+            )
         if not isinstance(self.context, dict):
             raise RepertoireError(
                 f"context of {self.name!r} must be a dict, got {type(self.context).__name__}"

@@ -10,6 +10,8 @@ The discrete-time form (exact first-order-hold steps) is in
 :mod:`repertoire.systems.dmp_discrete`; chaining in :mod:`repertoire.systems.dmp_sequencer`.
 """
 
+import math
+
 import numpy as np
 from pydrake.systems.framework import (
     BasicVector,
@@ -43,10 +45,37 @@ def check_vector(name: str, value: np.ndarray, n: int) -> np.ndarray:
     return value
 
 
+def check_finite_input(name: str, value: np.ndarray) -> np.ndarray:
+    """``value`` of input port ``name``; RepertoireError naming it if any entry is NaN or inf."""
+    if not np.isfinite(value).all():
+        raise RepertoireError(f"{name} input contains NaN or inf: {value}")
+    return value
+
+
 def check_finite_goal(goal: np.ndarray) -> np.ndarray:
-    if not np.isfinite(goal).all():
-        raise RepertoireError(f"goal input contains NaN or inf: {goal}")
-    return goal
+    return check_finite_input("goal", goal)
+
+
+def check_start_time(start_time: float) -> float:
+    """``start_time`` [s] as a float; RepertoireError unless it is a finite number."""
+    try:
+        value = float(start_time)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value):
+        raise RepertoireError(f"start_time must be a finite number [s], got {start_time}")
+    return value
+
+
+def check_gains(gamma: float, beta: float) -> list[float]:
+    """``[gamma, beta]`` of eq. 10 as floats; RepertoireError unless both are finite and >= 0."""
+    try:
+        values = [float(gamma), float(beta)]
+    except (TypeError, ValueError):
+        values = [math.nan]
+    if not all(0.0 <= v < math.inf for v in values):
+        raise RepertoireError(f"gamma and beta must be finite and >= 0, got {gamma}, {beta}")
+    return values
 
 
 class CanonicalSystem(LeafSystem):
@@ -77,7 +106,9 @@ class CanonicalSystem(LeafSystem):
         check_positive("alpha", alpha)
         self._tau_index = self.DeclareNumericParameter(BasicVector([float(tau)]))
         self._alpha_index = self.DeclareNumericParameter(BasicVector([float(alpha)]))
-        self._start_index = self.DeclareNumericParameter(BasicVector([float(start_time)]))
+        self._start_index = self.DeclareNumericParameter(
+            BasicVector([check_start_time(start_time)])
+        )
         self.DeclareContinuousState(BasicVector([1.0]))
         self._tau_port = self.DeclareVectorInputPort("tau", 1) if time_scaling_input else None
         self._phase_port = self.DeclareVectorOutputPort(
@@ -111,7 +142,9 @@ class CanonicalSystem(LeafSystem):
             context: This system's context.
             start_time: Movement onset [s].
         """
-        context.get_mutable_numeric_parameter(self._start_index).SetAtIndex(0, float(start_time))
+        context.get_mutable_numeric_parameter(self._start_index).SetAtIndex(
+            0, check_start_time(start_time)
+        )
 
     def set_phase(self, context: Context, theta: float = 1.0) -> None:
         """Set the phase state.
@@ -172,15 +205,19 @@ class CouplingAndOnset(VectorDmpPorts):
             context: This system's context.
             start_time: Movement onset [s].
         """
-        context.get_mutable_numeric_parameter(self._start).SetAtIndex(0, float(start_time))
+        context.get_mutable_numeric_parameter(self._start).SetAtIndex(
+            0, check_start_time(start_time)
+        )
 
     def _has_coupling(self, context: Context) -> bool:
         """Whether the coupling input is declared and connected (or fixed)."""
         return self._coupling_port is not None and self._coupling_port.HasValue(context)
 
     def _coupling(self, context: Context) -> "np.ndarray | float":
-        """The coupling input if declared and connected, else 0."""
-        return self._coupling_port.Eval(context) if self._has_coupling(context) else 0.0
+        """The coupling input if declared and connected, else 0; RepertoireError if not finite."""
+        if not self._has_coupling(context):
+            return 0.0
+        return check_finite_input("coupling", self._coupling_port.Eval(context))
 
 
 class TransformationSystem(CouplingAndOnset, LeafSystem):
@@ -386,7 +423,7 @@ class QuaternionNormalizer(LeafSystem):
         return self._omega
 
     def _normalised(self, context: Context) -> tuple[np.ndarray, float]:
-        q = self._in.Eval(context)
+        q = check_finite_input("quaternion", self._in.Eval(context))
         n = float(np.linalg.norm(q))
         if not n > 0.0:
             raise RepertoireError("component quaternion DMP reached |q| = 0; cannot normalise")
@@ -501,7 +538,9 @@ class ManifoldQuaternionSystem(LeafSystem):
             context: This system's context.
             start_time: Movement onset [s].
         """
-        context.get_mutable_numeric_parameter(self._start).SetAtIndex(0, float(start_time))
+        context.get_mutable_numeric_parameter(self._start).SetAtIndex(
+            0, check_start_time(start_time)
+        )
 
     def _update(self, context: Context, discrete_state) -> None:
         s = context.get_discrete_state(self._state).CopyToVector()
@@ -556,9 +595,7 @@ class ObstacleCoupling(LeafSystem):
 
     def __init__(self, gamma: float = 1000.0, beta: float = 20.0 / np.pi) -> None:
         super().__init__()
-        if gamma < 0 or beta < 0:
-            raise RepertoireError(f"gamma and beta must be >= 0, got {gamma}, {beta}")
-        self._params = self.DeclareNumericParameter(BasicVector([float(gamma), float(beta)]))
+        self._params = self.DeclareNumericParameter(BasicVector(check_gains(gamma, beta)))
         self._x = self.DeclareVectorInputPort("position", 3)
         self._v = self.DeclareVectorInputPort("velocity", 3)
         self._o = self.DeclareVectorInputPort("obstacle", 3)
@@ -572,9 +609,7 @@ class ObstacleCoupling(LeafSystem):
             gamma: Gain >= 0.
             beta: Angular decay >= 0.
         """
-        if gamma < 0 or beta < 0:
-            raise RepertoireError(f"gamma and beta must be >= 0, got {gamma}, {beta}")
-        context.get_mutable_numeric_parameter(self._params).SetFromVector([gamma, beta])
+        context.get_mutable_numeric_parameter(self._params).SetFromVector(check_gains(gamma, beta))
 
     def _calc(self, context: Context, output: BasicVector) -> None:
         gamma, beta = context.get_numeric_parameter(self._params).value()

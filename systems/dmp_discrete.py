@@ -126,7 +126,7 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
             return
         goal = check_finite_goal(self._goal_port.Eval(context))
         x0 = context.get_numeric_parameter(self._x0).get_value()
-        p = self._coupling_port.Eval(context) if self._has_coupling(context) else None
+        p = self._coupling(context) if self._has_coupling(context) else None
         out = np.empty_like(s)
         out[0] = s[0] + 1.0
         out[1:] = self._tab.step(s[1:], int(s[0]), goal, x0, p)
@@ -152,7 +152,7 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
             s[1 : 1 + n],
             s[1 + n :],
             theta,
-            self._goal_port.Eval(context),
+            check_finite_goal(self._goal_port.Eval(context)),
             context.get_numeric_parameter(self._x0).get_value(),
             f,
             self._dmp.K,

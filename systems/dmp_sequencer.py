@@ -43,7 +43,7 @@ from repertoire.planning.dmp_quaternion import (
     angular_velocity,
     lift_quaternion_goal,
 )
-from repertoire.systems.dmp import check_finite_goal, check_vector
+from repertoire.systems.dmp import check_finite_goal, check_finite_input, check_vector
 
 from repertoire.errors import RepertoireError
 
@@ -111,9 +111,11 @@ class DmpSequencer(LeafSystem):
         self._handoff = check_handoff(handoff)
         if handoff == "acceleration" and any(s.formulation != "new" for s in segments):
             raise RepertoireError("acceleration handoff needs the new formulation (eq. 6)")
-        if quaternion_at is not None and not 0 <= quaternion_at <= n - 4:
+        if quaternion_at is not None and not (
+            isinstance(quaternion_at, (int, np.integer)) and 0 <= quaternion_at <= n - 4
+        ):
             raise RepertoireError(f"quaternion_at must be in [0, {n - 4}], got {quaternion_at}")
-        if not 0 <= coupling_dofs <= n:
+        if not (isinstance(coupling_dofs, (int, np.integer)) and 0 <= coupling_dofs <= n):
             raise RepertoireError(f"coupling_dofs must be in [0, {n}], got {coupling_dofs}")
         if goals is not None and len(goals) != len(segments):
             raise RepertoireError(f"{len(segments)} segments need as many goals, got {len(goals)}")
@@ -150,6 +152,14 @@ class DmpSequencer(LeafSystem):
             )
             self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
             state = {self.xd_ticket()}
+        for part, sl in (parts or {}).items():
+            if not (
+                isinstance(sl, slice)
+                and all(b is None or -n <= b <= n for b in (sl.start, sl.stop))
+            ):
+                raise RepertoireError(
+                    f"part {part!r} must be a slice within the {n} DOF, got {sl!r}"
+                )
         self._declare_outputs(n, state, parts or {})
 
     def _declare_outputs(self, n: int, state: set, parts: dict[str, slice]) -> None:
@@ -260,7 +270,7 @@ class DmpSequencer(LeafSystem):
         if self._coupling_port is None or not self._coupling_port.HasValue(context):
             return None
         p = np.zeros(self._n)
-        p[: self._coupling_dofs] = self._coupling_port.Eval(context)
+        p[: self._coupling_dofs] = check_finite_input("coupling", self._coupling_port.Eval(context))
         return p
 
     def _rhs(self, context: Context, seg, theta, x0, x, v, f) -> tuple[np.ndarray, np.ndarray]:

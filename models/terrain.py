@@ -36,6 +36,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from repertoire.errors import RepertoireError
+from repertoire.limits import require_memory
 
 BOARD_KINDS: list[str] = ["flat", "rocks", "steps", "gaps", "mixed"]
 
@@ -296,7 +297,7 @@ class TerrainBoard:
             the heights there, shape (n_y, n_x).
 
         Raises:
-            RepertoireError: non-finite input or a grid with fewer than one point per axis.
+            RepertoireError: non-finite input, under one point per axis, or over memory.
         """
         origin = np.asarray(origin_xy, dtype=float)
         values = [length, width, resolution, yaw]
@@ -311,8 +312,8 @@ class TerrainBoard:
                 f"height_grid needs resolution > 0 and length, width >= resolution; got "
                 f"length={length}, width={width}, resolution={resolution}"
             )
-        n_x = int(math.floor(length / resolution + 1e-9))
-        n_y = int(math.floor(width / resolution + 1e-9))
+        n_x, n_y = (int(math.floor(v / resolution + 1e-9)) for v in (length, width))
+        require_memory(8.0 * 12 * n_x * n_y, f"a height grid of {n_x} x {n_y} points")  # ~12 arrays
         u = (np.arange(n_x) - 0.5 * (n_x - 1)) * resolution
         v = (np.arange(n_y) - 0.5 * (n_y - 1)) * resolution
         U, V = np.meshgrid(u, v)

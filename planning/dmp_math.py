@@ -27,6 +27,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from repertoire.errors import RepertoireError
+from repertoire.limits import require_memory
 
 FORMULATIONS = ("new", "old")
 
@@ -395,6 +396,11 @@ def rollout(
     n = weights.shape[0]
     x0 = check_finite_vector("x0", x0, n)
     N = check_n_steps(n_steps, tau, dt) + 1
+    # the basis activations (N x basis) and about a dozen (N x n) arrays, before any is made
+    require_memory(
+        8.0 * N * (weights.shape[1] + 12 * n),
+        f"a DMP rollout of {N - 1} steps ({n} DOF, {weights.shape[1]} basis functions)",
+    )
     goal = np.asarray(goal, dtype=float)
     if goal.ndim == 1:
         if goal.shape != (n,):

@@ -253,3 +253,13 @@ def test_quaternion_normalizer_refuses_a_non_finite_quaternion():
         system.get_quaternion_input_port().FixValue(context, bad)
         with pytest.raises(RepertoireError, match="quaternion input contains NaN or inf"):
             system.get_orientation_output_port().Eval(context)
+
+
+def test_a_rollout_too_long_for_memory_is_refused_with_the_figure():
+    from repertoire.limits import ResourceLimitError
+
+    t = np.linspace(0.0, 1.0, 100)
+    p = learn_dmp(t, np.sin(t)[:, None])
+    with pytest.raises(ResourceLimitError, match=r"DMP rollout of 1000000000000 steps .* TiB"):
+        p.rollout(n_steps=10**12)
+    assert len(p.rollout(n_steps=10).t) == 11

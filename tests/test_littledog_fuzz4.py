@@ -195,3 +195,12 @@ def test_search_transfer_bad_inputs_raise_transfer_search_errors():
     # (M, 12) stacks are still accepted, and an unreachable goal is reported.
     result = search_transfer(*args, ins.reshape(3, 12), ins.reshape(3, 12), _no_gap)
     assert result.status == "unreachable"
+
+
+def test_height_grid_too_large_for_memory_is_refused_with_the_figure():
+    from repertoire.limits import ResourceLimitError
+
+    board = generate_board(TerrainParams())
+    with pytest.raises(ResourceLimitError, match=r"height grid of 35000 x 20000 points .* GiB"):
+        board.height_grid([0.0, 0.0], resolution=1e-5)
+    assert board.height_grid([0.0, 0.0])[1].shape == (16, 29)

@@ -143,7 +143,10 @@ class LibraryPolicy(LeafSystem):
         self.choice_output = self.DeclareStateOutputPort("choice", self._choice)
 
     def _update(self, context: Context, state) -> None:
-        if not np.all(self.contact_input.Eval(context) != 0):
+        contact = self.contact_input.Eval(context)
+        if not np.isfinite(contact).all():  # NaN != 0 would read as "down"
+            raise RepertoireError(f"LibraryPolicy contact flags must be finite, got {contact}")
+        if not np.all(contact != 0):
             return
         i, d = self.index.query(self.feet_input.Eval(context))
         state.get_mutable_abstract_state(int(self._choice)).set_value(

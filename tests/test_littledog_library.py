@@ -220,6 +220,9 @@ def test_library_policy_chooses_only_with_four_feet_down(library):
     simulator.AdvanceTo(0.515)  # the update at t = 0.51 chooses
     choice = policy.choice_output.Eval(context)
     assert choice.index == 3 and choice.distance == 0.0 and np.isclose(choice.time, 0.51)
+    policy.contact_input.FixValue(context, [1, 1, np.nan, 1])  # not "down": an error
+    with pytest.raises(RepertoireError, match="contact flags must be finite"):
+        simulator.AdvanceTo(0.525)
 
 
 # ---------------------------------------------------------------- executor

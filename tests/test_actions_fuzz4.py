@@ -225,3 +225,16 @@ def test_predictor_num_parameters_and_executor_sizes():
     assert (executor.command_size, executor.period) == (3, 0.05)
     with pytest.raises(RepertoireError, match="period must be finite and > 0, got 'a'"):
         PlanExecutor([[0.0]], period="a")
+
+
+def test_mixed_bool_and_number_targets_and_float32_overflowing_features_are_named():
+    recs = records()
+    recs[7] = dataclasses.replace(recs[7], failed=1)  # a stray int among bools
+    with pytest.raises(
+        RepertoireError, match=r"'failed' mixes bools and numbers \(record 7 is 1\)"
+    ):
+        fit_action_model(recs, ["a", "b"], "failed")
+    X, y = xy()
+    X[3, 1] = 1e300
+    with pytest.raises(RepertoireError, match=r"features \['b'\] exceed float32's range"):
+        fit_duration_tree(X, y, ["a", "b"])

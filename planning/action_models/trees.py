@@ -220,6 +220,10 @@ def _check_training(X, y, feature_names: Sequence[str]) -> tuple[np.ndarray, np.
     if not np.all(np.isfinite(X)):
         bad = sorted({feature_names[j] for j in np.nonzero(~np.isfinite(X))[1]})
         raise RepertoireError(f"training features {bad} hold NaN or inf")
+    big = np.abs(X) > np.finfo(np.float32).max  # scikit-learn's trees split in float32
+    if big.any():
+        bad = sorted({feature_names[j] for j in np.nonzero(big)[1]})
+        raise RepertoireError(f"training features {bad} exceed float32's range (3.4e38)")
     if not np.all(np.isfinite(y)):
         raise RepertoireError("training targets hold NaN or inf")
     return X, y
@@ -578,7 +582,14 @@ def fit_action_model(
         raw = [getattr(r, target) for r in records]
     except AttributeError as e:
         raise RepertoireError(f"records have no target field {target!r}") from e
-    is_bool = all(isinstance(v, bool | np.bool_) for v in raw)
+    flags = [isinstance(v, bool | np.bool_) for v in raw]
+    is_bool = all(flags)
+    if any(flags) and not is_bool:  # a stray 0/1 would silently make a duration model
+        i = flags.index(False)
+        raise RepertoireError(
+            f"target field {target!r} mixes bools and numbers (record {i} is {raw[i]!r}): "
+            "bools in every record for a failure model, numbers for a duration model"
+        )
     for i, v in enumerate(raw):
         if isinstance(v, bool | np.bool_):
             continue

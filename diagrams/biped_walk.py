@@ -102,6 +102,22 @@ class BipedWalkScenario:
             raise ScenarioError(
                 f"first_stance must be 'left' or 'right', got {self.first_stance!r}"
             )
+        if self.map_seed < -1:
+            raise ScenarioError(
+                f"map_seed must be >= 0 (a floor) or -1 (actions), got {self.map_seed}"
+            )
+        if self.plan_file or self.map_seed >= 0:
+            source = (
+                f"plan_file '{self.plan_file}'" if self.plan_file
+                else f"the plan on map_seed {self.map_seed}'s floor"
+            )  # fmt: skip
+            default = BipedWalkScenario()
+            for name in ("actions", "start", "first_stance"):
+                if getattr(self, name) != getattr(default, name):
+                    raise ScenarioError(
+                        f"{name} {getattr(self, name)} would be ignored: the steps come from "
+                        f"{source}; set map_seed: -1 and plan_file: '' to walk the actions"
+                    )
         if self.map_seed >= 0 and not (np.isfinite(self.map_size) and self.map_size >= 1.5):
             raise ScenarioError(f"map_size must be >= 1.5 m, got {self.map_size}")
         if self.map_seed >= 0:

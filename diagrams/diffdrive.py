@@ -63,11 +63,11 @@ def check_wheel_speeds(wheel_speeds) -> np.ndarray:
     if w.shape != (2,):
         raise RepertoireError(
             f"wheel speed command must have 2 values (left, right) in rad/s, got {w.size}: "
-            f"{list(np.asarray(wheel_speeds).reshape(-1))}"
+            f"{np.asarray(wheel_speeds).reshape(-1).tolist()}"
         )
     if not np.all(np.isfinite(w)) or np.any(np.abs(w) > MAX_WHEEL_SPEED):
         raise RepertoireError(
-            f"wheel speeds must be finite and within +-{MAX_WHEEL_SPEED} rad/s, got {list(w)}"
+            f"wheel speeds must be finite and within +-{MAX_WHEEL_SPEED} rad/s, got {w.tolist()}"
         )
     return w
 
@@ -121,7 +121,12 @@ def add_diffdrive(plant: MultibodyPlant, parser: Parser, *, wheel_kd: float) -> 
 
     Returns:
         The robot's ModelInstanceIndex.
+
+    Raises:
+        ScenarioError: ``wheel_kd`` not finite and > 0.
     """
+    if not (np.isfinite(wheel_kd) and wheel_kd > 0):
+        raise ScenarioError(f"wheel_kd must be > 0, got {wheel_kd}")
     ConfigureParser(parser)
     (instance,) = parser.AddModels(url=package_url(ROBOT_URL_PATH))
     for side in ("left", "right"):
@@ -187,6 +192,42 @@ def add_robot_in_world(
     return plant, scene_graph, robot
 
 
+def check_start_clear(diagram: Diagram, fields: dict[str, str], *, tolerance: float = 1e-3) -> None:
+    """Refuses a start where two bodies overlap (a robot inside a fixture, a cup in a table).
+
+    Args:
+        diagram: a built diagram with subsystems ``plant`` and ``scene_graph``; its
+            default context is the start checked.
+        fields: model instance name -> the scenario field (with its value) that placed it,
+            named in the error.
+        tolerance: largest overlap accepted [m] (a held cup's fingers press 0.1 mm).
+
+    Raises:
+        ScenarioError: naming the field, the two bodies and the overlap.
+    """
+    plant = diagram.GetSubsystemByName("plant")
+    scene_graph = diagram.GetSubsystemByName("scene_graph")
+    context = diagram.CreateDefaultContext()
+    query = scene_graph.get_query_output_port().Eval(scene_graph.GetMyContextFromRoot(context))
+    inspector = query.inspector()
+    for pair in query.ComputePointPairPenetration():
+        if pair.depth <= tolerance:
+            continue
+        names = []
+        for g in (pair.id_A, pair.id_B):
+            body = plant.GetBodyFromFrameId(inspector.GetFrameId(g))
+            model = plant.GetModelInstanceName(body.model_instance())
+            # the world's geometries (the ground) by their own names
+            names.append((model, inspector.GetName(g) if body.index() == 0 else body.name()))
+        if names[1][0] in fields:
+            names.reverse()  # the body the named field placed first
+        field = fields.get(names[0][0], "the start")
+        (ma, a), (mb, b) = names
+        raise ScenarioError(
+            f"{field} puts {ma}::{a} {pair.depth:.3f} m into {mb}::{b} at the start; place it clear"
+        )
+
+
 @register_diagram(
     "diffdrive_drive",
     scenario_type=DiffDriveScenario,
@@ -231,6 +272,7 @@ def build_diffdrive_drive(scenario: DiffDriveScenario, *, meshcat=None) -> Diagr
         MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
     diagram = builder.Build()
     diagram.set_name("diffdrive_drive")
+    check_start_clear(diagram, {"diffdrive": f"initial_pose {scenario.initial_pose}"})
     return diagram
 
 

@@ -29,7 +29,7 @@ from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
 from repertoire.diagrams.biped import add_ground, validate_plant_fields
-from repertoire.diagrams.diffdrive import WHEEL_RADIUS, WORLDS
+from repertoire.diagrams.diffdrive import WHEEL_RADIUS, WORLDS, check_start_clear
 from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.simulate import SimulatorCache
 from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
@@ -216,8 +216,14 @@ def desired_state_matrix() -> np.ndarray:
     check=lambda diagram, context: check_kitchen_action(diagram, context),
     criteria={"status_succeeded": Bound(1.0, 1.0)},
 )
-def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
+def build_kitchen_action(
+    scenario: KitchenScenario, *, meshcat=None, check_start: bool = True
+) -> Diagram:
     """Builds the kitchen with the robot running ``scenario.action``.
+
+    ``check_start`` refuses a start where the robot or a cup overlaps another
+    body (:func:`~repertoire.diagrams.diffdrive.check_start_clear`); a caller
+    that overwrites the whole plant state (a sequence's next step) turns it off.
 
     Returns:
         The Diagram ``kitchen_action`` with subsystems ``plant``, ``scene_graph``,
@@ -328,6 +334,10 @@ def build_kitchen_action(scenario: KitchenScenario, *, meshcat=None) -> Diagram:
         MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
     diagram = builder.Build()
     diagram.set_name("kitchen_action")
+    if check_start:
+        fields = {c: f"cup_positions[{c}] {p}" for c, p in scenario.cup_positions.items()}
+        robot = f"initial_pose {scenario.initial_pose} with initial_arm {scenario.initial_arm}"
+        check_start_clear(diagram, {"diffdrive_arm": robot, **fields})
     return diagram
 
 
@@ -519,7 +529,7 @@ def run_kitchen_sequence(
         elif action in ("reach", "put"):
             pose = robot_state(diagram, context) if x is not None else [*step.initial_pose, 0.0]
             step.arm_target = list(world_to_chassis(pose, target))
-        diagram = build_kitchen_action(step)
+        diagram = build_kitchen_action(step, check_start=x is None)  # x: the whole state
         simulator = Simulator(diagram)
         context = simulator.get_mutable_context()
         plant = diagram.GetSubsystemByName("plant")

@@ -15,7 +15,12 @@ from pydrake.math import RollPitchYaw
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
 from repertoire.diagrams.biped import validate_discrete_control_fields
-from repertoire.diagrams.diffdrive import TRACK, WHEEL_RADIUS, add_robot_in_world
+from repertoire.diagrams.diffdrive import (
+    TRACK,
+    WHEEL_RADIUS,
+    add_robot_in_world,
+    check_start_clear,
+)
 from repertoire.diagrams.registry import register_diagram
 from repertoire.systems.go_to_pose import ActionStatus, DiffDriveStateReader, GoToPose
 
@@ -91,11 +96,15 @@ def add_soccer_robot(builder: DiagramBuilder, scenario):
     return plant, scene_graph, robot, reader
 
 
-def build_driven(builder, plant, scene_graph, robot, command_port, name, meshcat) -> Diagram:
+def build_driven(
+    builder, plant, scene_graph, robot, command_port, name, meshcat, *, start_fields: dict[str, str]
+) -> Diagram:
     """Feeds ``[v, omega]`` from ``command_port`` to the wheels and builds the diagram ``name``.
 
     Adds ``wheel_desired_state`` (twist to the wheels' desired state) and, when
-    ``meshcat`` is given, a MeshcatVisualizer.
+    ``meshcat`` is given, a MeshcatVisualizer. ``start_fields`` (model instance
+    name -> scenario field and value) names what placed a body that overlaps
+    another at the start (:func:`~repertoire.diagrams.diffdrive.check_start_clear`).
     """
     to_state = builder.AddNamedSystem(
         "wheel_desired_state", MatrixGain(twist_to_wheel_state_matrix())
@@ -108,6 +117,7 @@ def build_driven(builder, plant, scene_graph, robot, command_port, name, meshcat
         MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat)
     diagram = builder.Build()
     diagram.set_name(name)
+    check_start_clear(diagram, start_fields)
     return diagram
 
 
@@ -138,6 +148,7 @@ def build_soccer_goto_pose(scenario: GoToPoseScenario, *, meshcat=None) -> Diagr
     return build_driven(
         builder, plant, scene_graph, robot, goto.get_command_output_port(),
         "soccer_goto_pose", meshcat,
+        start_fields={"diffdrive": f"initial_pose {scenario.initial_pose}"},
     )  # fmt: skip
 
 

@@ -194,7 +194,8 @@ def build_soccer_dribble(scenario: DribbleScenario, *, meshcat=None) -> Diagram:
     builder.Connect(target.get_output_port(), action.get_target_input_port())
     return build_driven(
         builder, plant, scene_graph, robot, action.get_command_output_port(), "soccer_dribble",
-        meshcat,
+        meshcat, start_fields={"diffdrive": f"initial_pose {scenario.initial_pose}",
+                               "ball": f"ball_offset {scenario.ball_offset}"},
     )  # fmt: skip
 
 

@@ -113,7 +113,7 @@ def build_soccer_plan(scenario: SoccerPlanScenario, *, meshcat=None) -> Diagram:
         builder.Connect(action.get_command_output_port(), executor.get_command_input_port(i))
     return build_driven(
         builder, plant, scene_graph, robot, executor.get_command_output_port(), "soccer_plan",
-        meshcat,
+        meshcat, start_fields={"diffdrive": f"initial_pose {scenario.initial_pose}"},
     )  # fmt: skip
 
 

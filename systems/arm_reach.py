@@ -14,7 +14,8 @@ reference velocity ``v_ref`` follows ``u`` at most ``a_max`` per second (norm);
 the reference position integrates it, ``q_ref += v_ref * period``, and the
 joints' PD tracks ``[q_ref, v_ref]``. The action succeeds when ``|e| <
 position_tolerance`` and the speed is within ``speed_tolerance`` of
-``|thetadot_g|``; a target outside the joint limits fails at once.
+``|thetadot_g|``; a target outside the joint limits (or a non-finite target or
+measured state) fails at once.
 """
 
 import math
@@ -160,6 +161,7 @@ class Reach(ActionSystem):
         lim = context.get_numeric_parameter(self._limits_index).get_value()
         if (
             not np.all(np.isfinite(target))
+            or not np.all(np.isfinite(s))
             or not lim[0] <= target[0] <= lim[1]
             or not lim[2] <= target[2] <= lim[3]
         ):

@@ -158,7 +158,7 @@ class GoToPose(DriveAction):
     Parameters (numeric parameter 0, :data:`GOTO_GAINS` order): speed and
     acceleration limits, gains, tolerances and the timeout. The workspace
     ``[x_min, x_max, y_min, y_max]`` is numeric parameter 1: a target outside
-    it makes the action fail at once (no motion).
+    it (or a non-finite target or state) makes the action fail at once (no motion).
 
     Discrete state: ``[v_cmd, omega_cmd, status]``, updated every ``period`` s.
     """
@@ -195,6 +195,7 @@ class GoToPose(DriveAction):
         ws = context.get_numeric_parameter(self._workspace_index).get_value()
         if (
             not np.all(np.isfinite(target))
+            or not np.all(np.isfinite(state))
             or not ws[0] <= target[0] <= ws[1]
             or not ws[2] <= target[1] <= ws[3]
         ):

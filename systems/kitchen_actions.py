@@ -15,7 +15,8 @@ Each action is a LeafSystem with a periodic discrete update, a command output
 failed, timed out). Motions are straight lines in joint space at limited joint
 speeds, all joints arriving together. A target whose point (in the world, given
 the chassis pose on ``base_state``) lies inside an obstacle box (a table, the
-counter) or out of the arm's reach makes the action fail at once, with no motion.
+counter) or out of the arm's reach makes the action fail at once, with no motion;
+so does a non-finite measurement (joints or ``base_state``) at any update.
 
 Grip closes the fingers and succeeds when both are blocked by an object (the
 fingers stop more than ``block_margin`` short of their closed setpoint: a grasp
@@ -167,13 +168,17 @@ class _Action(ActionSystem):
             out.SetFromVector(xd)
             return
         t = context.get_time()
+        measured = self.measured(context)
+        finite = np.all(np.isfinite(measured)) and np.all(
+            np.isfinite(self._base_port.Eval(context))
+        )
         if not started:
-            xd[:n] = self.measured(context)
+            xd[:n] = measured if finite else xd[:n]
             xd[n + 1], xd[n + 2], xd[n + 3], xd[n + 4] = 1.0, t, 0.0, t
-            if not self.target_ok(context):
-                xd[n] = ActionStatus.FAILED
-                out.SetFromVector(xd)
-                return
+        if not finite or (not started and not self.target_ok(context)):
+            xd[n] = ActionStatus.FAILED  # a non-finite measurement, or a bad target
+            out.SetFromVector(xd)
+            return
         if t - xd[n + 2] >= self.timeout:
             xd[n] = ActionStatus.TIMED_OUT
             out.SetFromVector(xd)

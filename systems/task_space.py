@@ -416,9 +416,17 @@ class ResolvedMotionRateIK(LeafSystem):
         q[self._idx] = context.get_discrete_state(self._ref_group).value()[: self._n]
         self._plant.SetPositions(plant_context, q)
 
+    @staticmethod
+    def _finite_input(port, context: Context) -> np.ndarray:
+        """The port's value, or a RepertoireError naming the port and the value."""
+        value = port.Eval(context)
+        if not np.all(np.isfinite(value)):
+            raise RepertoireError(f"{port.get_name()} must be finite, got {value}")
+        return value
+
     def _initialize(self, context: Context, discrete_state) -> None:
         n = self._n
-        q_meas = self._x_meas.Eval(context)[:n]
+        q_meas = self._finite_input(self._x_meas, context)[:n]
         x = np.zeros(3 * n)
         x[:n] = np.clip(q_meas, self._lower, self._upper)
         discrete_state.get_mutable_vector(self._ref_group).SetFromVector(x)
@@ -442,7 +450,9 @@ class ResolvedMotionRateIK(LeafSystem):
             self._plant.world_frame(),
             self._plant.world_frame(),
         )[:, self._idx]
-        p_d = self._p_d.Eval(context)
+        p_d, v_d, w_d = (
+            self._finite_input(port, context) for port in (self._p_d, self._v_d, self._w_d)
+        )
         q_d = np.asarray(self._q_d.Eval(context), dtype=float)
         norm = np.linalg.norm(q_d)
         if not (np.isfinite(norm) and abs(norm - 1.0) < 1e-3):
@@ -452,9 +462,7 @@ class ResolvedMotionRateIK(LeafSystem):
             )
         e_p = p_d - X_WE.translation()
         e_o = quaternion_error(q_d / norm, X_WE.rotation().ToQuaternion().wxyz())
-        xdot_ref = np.concatenate(
-            [self._w_d.Eval(context) + ko * e_o, self._v_d.Eval(context) + kp * e_p]
-        )
+        xdot_ref = np.concatenate([w_d + ko * e_o, v_d + kp * e_p])
         qd = rmrc_joint_velocity(J, xdot_ref, q_r, self._lower, self._upper, damping, null_gain)
         q_new = np.clip(q_r + h * qd, self._lower, self._upper)
         qd = (q_new - q_r) / h

@@ -102,6 +102,9 @@ class SteppingRule:
 
     def validate(self) -> None:
         """Raises RepertoireError when a parameter is out of range."""
+        for name, value in dataclasses.asdict(self).items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise RepertoireError(f"{name} must be a finite number, got {value!r}")
         if not self.max_speed_change >= 0:
             raise RepertoireError(f"max_speed_change must be >= 0, got {self.max_speed_change}")
         if not 0 < self.double_support < self.base_duration:
@@ -351,6 +354,12 @@ def plan_com(
     planner = ZmpPlanner()
     x0 = np.array([com0[0], com0[1], 0.0, 0.0])
     planner.Plan(zmp, x0, com_height, GRAVITY, np.eye(2), 1e-4 * np.eye(2))
+    if not all(np.all(np.isfinite(planner.get_nominal_com(t))) for t in zmp.get_segment_times()):
+        raise RepertoireError(
+            f"ZmpPlanner's CoM plan is not finite for a {seq.end_time:.1f} s footstep sequence "
+            f"({seq.num_steps} steps): the LIPM's unstable mode overflows; use a shorter "
+            "base_duration or fewer steps"
+        )
     return planner
 
 

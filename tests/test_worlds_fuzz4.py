@@ -1,0 +1,213 @@
+"""Worlds (fuzz round 4): bad scenario values named, not a Drake assertion or a silent run."""
+
+import re
+
+import numpy as np
+import pytest
+from repertoire.diagrams.biped_walk import BipedWalkScenario
+from repertoire.diagrams.diffdrive import DiffDriveScenario, build_diffdrive_drive
+from repertoire.diagrams.kitchen import KitchenScenario, build_kitchen_action
+from repertoire.diagrams.soccer import GoToPoseScenario, build_soccer_goto_pose
+from repertoire.diagrams.soccer_dribble import DribbleScenario, build_soccer_dribble
+from repertoire.diagrams.soccer_plan import SoccerPlanScenario, build_soccer_plan
+
+from repertoire.errors import RepertoireError, ScenarioError
+
+
+@pytest.mark.parametrize(
+    "build, scenario, shown",
+    [
+        (build_soccer_goto_pose, GoToPoseScenario(wheel_kd=-2.0), "-2.0"),
+        (build_soccer_dribble, DribbleScenario(wheel_kd=float("nan")), "nan"),
+        (build_soccer_plan, SoccerPlanScenario(wheel_kd=0.0), "0.0"),
+    ],
+)
+def test_soccer_worlds_name_a_bad_wheel_kd(build, scenario, shown):
+    # was RuntimeError "condition 'gains.d >= 0.0' failed" from Drake (or a robot that never moves)
+    with pytest.raises(ScenarioError, match=re.escape(f"wheel_kd must be > 0, got {shown}")):
+        build(scenario)
+
+
+@pytest.mark.parametrize(
+    "build, scenario, message",
+    [
+        (
+            build_soccer_goto_pose,
+            GoToPoseScenario(initial_pose=[3.0, 0.75, 0.0]),
+            "initial_pose [3.0, 0.75, 0.0] puts diffdrive::chassis 0.242 m into goal_blue::frame",
+        ),
+        (
+            build_soccer_plan,
+            SoccerPlanScenario(initial_pose=[1.0, 0.5, 0.0]),
+            "initial_pose [1.0, 0.5, 0.0] puts diffdrive::chassis 0.148 m into ball::ball",
+        ),
+        (
+            build_diffdrive_drive,
+            DiffDriveScenario(initial_pose=[3.0, -0.75, 0.0]),
+            "initial_pose [3.0, -0.75, 0.0] puts diffdrive::chassis 0.242 m into goal_blue::frame",
+        ),
+        (
+            build_soccer_dribble,
+            DribbleScenario(initial_pose=[2.7, 0.75, 0.0]),
+            "ball_offset [0.31, 0.0] puts ball::ball 0.150 m into goal_blue::frame",
+        ),
+        (
+            build_kitchen_action,
+            KitchenScenario(initial_pose=[-2.0, 2.6, 0.0]),
+            "initial_pose [-2.0, 2.6, 0.0] with initial_arm [0.62, 0.0, 0.25] puts "
+            "diffdrive_arm::chassis 0.243 m into counter::counter",
+        ),
+        (
+            build_kitchen_action,
+            KitchenScenario(cup_positions={"cup_0": [2.0, 1.4, -1.0]}),
+            "cup_positions[cup_0] [2.0, 1.4, -1.0] puts cup_0::cup 1.050 m into "
+            "WorldModelInstance::ground_collision",
+        ),
+        (
+            build_kitchen_action,
+            KitchenScenario(cup_positions={"cup_0": [2.0, 1.4, 0.74]}),
+            "cup_positions[cup_0] [2.0, 1.4, 0.74] puts cup_0::cup 0.341 m into table_0::table",
+        ),
+    ],
+)
+def test_a_start_inside_another_body_is_refused(build, scenario, message):
+    # was accepted: the robot started inside a goal post, the counter or the ball, a cup
+    # inside the floor or a table top, and contact threw them apart at t = 0
+    with pytest.raises(ScenarioError, match=re.escape(message)):
+        build(scenario)
+
+
+def test_a_clear_start_and_a_held_cup_are_accepted():
+    assert build_soccer_goto_pose(GoToPoseScenario(initial_pose=[2.6, 0.0, 0.0])).get_name()
+    # the fingers press a held cup by 0.1 mm: within the tolerance
+    held = KitchenScenario(action="put", cup_in_gripper=True)
+    assert build_kitchen_action(held).get_name() == "kitchen_action"
+
+
+@pytest.mark.parametrize(
+    "fields, message",
+    [
+        ({"start": [1.0, 1.0, 1.0]}, "start [1.0, 1.0, 1.0] would be ignored"),
+        ({"actions": ["stop"]}, "actions ['stop'] would be ignored"),
+        ({"first_stance": "right", "map_seed": 3}, "first_stance right would be ignored"),
+        (
+            {"start": [0.5, 0.0, 0.0], "map_seed": -1, "plan_file": __file__},
+            f"start [0.5, 0.0, 0.0] would be ignored: the steps come from plan_file '{__file__}'",
+        ),
+        ({"map_seed": -2}, "map_seed must be >= 0 (a floor) or -1 (actions), got -2"),
+    ],
+)
+def test_biped_walk_refuses_fields_its_step_source_ignores(fields, message):
+    # the default map_seed 0 plans on a random floor: start, actions and first_stance
+    # were silently ignored (a map_seed of -2 silently meant -1)
+    with pytest.raises(ScenarioError, match=re.escape(message)):
+        BipedWalkScenario(**fields).validate()
+    BipedWalkScenario(map_seed=-1, start=[1.0, 1.0, 1.0], actions=["stop"]).validate()
+
+
+def _update(system, fixed: dict[str, list[float]]):
+    context = system.CreateDefaultContext()
+    for port, value in fixed.items():
+        system.GetInputPort(port).FixValue(context, value)
+    return system.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).get_value()
+
+
+def test_go_to_pose_and_reach_fail_on_a_non_finite_state():
+    from repertoire.systems.action_status import ActionStatus
+    from repertoire.systems.arm_reach import Reach
+    from repertoire.systems.go_to_pose import GoToPose
+
+    # closed form first: one 10 ms step from rest towards a goal 1 m ahead is a_max * period
+    goto = GoToPose(period=0.01)
+    assert _update(goto, {"state": [0, 0, 0, 0], "target": [1, 0, 0, 0]}).tolist() == [
+        0.01,
+        0.0,
+        ActionStatus.RUNNING,
+    ]
+    # a NaN measured state commanded NaN while reporting RUNNING; now FAILED, no motion
+    out = _update(goto, {"state": [float("nan"), 0, 0, 0], "target": [1, 0, 0, 0]})
+    assert out.tolist() == [0.0, 0.0, ActionStatus.FAILED]
+    reach = Reach(period=0.01, initial_state=[0.45, 0.0, 1.45, 0.0])
+    out = _update(reach, {"state": [float("inf"), 0, 1.45, 0], "target": [1.2, 0, 0.6, 0]})
+    assert out.tolist() == [0.45, 1.45, 0.0, 0.0, ActionStatus.FAILED]
+
+
+def test_rmrc_ik_names_a_non_finite_desired_input():
+    from pydrake.math import RigidTransform
+    from repertoire.models.arm7 import make_arm7_control_plant
+    from repertoire.systems.task_space import ResolvedMotionRateIK
+
+    plant = make_arm7_control_plant(finger_positions=[0.0, 0.0, 0.0])
+    ee = plant.GetFrameByName("hand")
+    ik = ResolvedMotionRateIK(plant, ee, list(range(7)))
+    context = ik.CreateDefaultContext()
+    X: RigidTransform = ee.CalcPoseInWorld(plant.CreateDefaultContext())
+    fixed = {
+        "position_desired": X.translation(),
+        "velocity_desired": [0.0, float("nan"), 0.0],
+        "orientation_desired": X.rotation().ToQuaternion().wxyz(),
+        "angular_velocity_desired": np.zeros(3),
+        "arm_state_measured": np.zeros(14),
+    }
+    for port, value in fixed.items():
+        ik.GetInputPort(port).FixValue(context, value)
+    # was a NaN joint reference with status OK
+    with pytest.raises(
+        RepertoireError, match=r"velocity_desired must be finite, got \[ 0. nan  0.\]"
+    ):
+        ik.EvalUniquePeriodicDiscreteUpdate(context)
+
+
+def test_walking_refuses_non_finite_rules_and_an_overflowing_com_plan():
+    from repertoire.diagrams.biped_walk import _scenario_plan
+    from repertoire.systems.walking import (
+        SteppingRule,
+        plan_com,
+        realize_plan,
+        standing_com_height,
+    )
+
+    # base_duration inf was a traceback (PiecewisePolynomial: times must be increasing)
+    with pytest.raises(RepertoireError, match="base_duration must be a finite number, got inf"):
+        SteppingRule(base_duration=float("inf")).validate()
+    with pytest.raises(ScenarioError, match="max_speed_change must be a finite number, got inf"):
+        BipedWalkScenario(max_speed_change=float("inf")).validate()
+    # 100 s steps: ZmpPlanner's CoM was NaN everywhere, reported as "leg_ik target contains NaN"
+    scenario = BipedWalkScenario(map_seed=-1, base_duration=100.0)
+    seq = realize_plan(_scenario_plan(scenario)[0], scenario.rule())
+    with pytest.raises(RepertoireError, match=r"CoM plan is not finite for a 702.6 s footstep"):
+        plan_com(seq, standing_com_height(0.6))
+    scenario = BipedWalkScenario(map_seed=-1, base_duration=2.0)
+    seq = realize_plan(_scenario_plan(scenario)[0], scenario.rule())
+    assert plan_com(seq, standing_com_height(0.6)).get_nominal_com(seq.end_time).shape == (2,)
+
+
+def test_kitchen_actions_fail_on_a_non_finite_measurement():
+    from repertoire.systems.action_status import ActionStatus
+    from repertoire.systems.kitchen_actions import (
+        ARM_SPEEDS,
+        Grip,
+        Put,
+        Reach,
+        arm_inverse,
+        joint_step,
+    )
+
+    nan, base = float("nan"), [0.0, 0.0, 0.0, 0.0]
+    reach = {"arm_position": [0.62, 0.0, 0.25], "target": [0.85, 0.0, 0.7036], "base_state": base}
+    # closed form: one 20 ms joint_step from the measured joints towards arm_inverse(target)
+    expected = joint_step(reach["arm_position"], arm_inverse(reach["target"]), ARM_SPEEDS, 0.02)
+    np.testing.assert_allclose(_update(Reach(), reach)[:4], [*expected, ActionStatus.RUNNING])
+    # a NaN measurement was copied into the command (NaN setpoints) while RUNNING
+    assert _update(Reach(), {**reach, "arm_position": [nan, 0.0, 0.25]})[3] == ActionStatus.FAILED
+    assert _update(Grip(), {"finger_position": [0.075, nan], "base_state": base})[2] == (
+        ActionStatus.FAILED
+    )
+    put = {**reach, "finger_position": [0.05, 0.05], "base_state": [0.0, nan, 0.0, 0.0]}
+    assert _update(Put(), put)[5] == ActionStatus.FAILED
+
+
+def test_wheel_speed_errors_print_plain_numbers():
+    # the message read "got [np.float64(12.0001), np.float64(12.0)]"
+    with pytest.raises(ScenarioError, match=re.escape("rad/s, got [12.0001, 12.0]")):
+        DiffDriveScenario(wheel_speeds=[12.0001, 12.0]).validate()

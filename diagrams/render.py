@@ -19,6 +19,7 @@ import pydot
 from pydrake.systems.framework import Diagram, System
 
 from repertoire.errors import RepertoireError
+from repertoire.limits import require_writable_file
 
 _LOG = logging.getLogger(__name__)
 
@@ -112,6 +113,8 @@ def render_diagram(
             f"unknown image format(s) {unknown}; expected some of {list(IMAGE_FORMATS)}"
         )
     stem = _stem(out_path)
+    for fmt in ("dot", *formats):  # a folder in the way fails now, not after the graph
+        require_writable_file(stem.with_suffix(f".{fmt}"), "out_path")
     text = graphviz_text(diagram, max_depth)
     stem.parent.mkdir(parents=True, exist_ok=True)
     dot_path = stem.with_suffix(".dot")

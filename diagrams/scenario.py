@@ -6,6 +6,7 @@ Scenario dataclasses follow Drake's ``yaml_load_typed`` rules: plain
 """
 
 import dataclasses
+import typing
 from pathlib import Path
 from typing import TypeVar
 
@@ -46,6 +47,11 @@ def load_scenario(
         raise ScenarioError(f"{what} file '{filename}' {state}")
     if defaults is None:
         defaults = schema()
+    text = Path(filename).read_text(errors="replace") if filename is not None else data
+    where = f"{what} file '{filename}'" if filename is not None else f"{what} YAML text"
+    duplicate = _duplicate_key(text)
+    if duplicate:
+        raise ScenarioError(f"could not load {schema.__name__} from {where}: {duplicate}")
     try:
         kwargs = dict(schema=schema, defaults=defaults, allow_yaml_with_no_schema=False)
         if filename is not None:
@@ -53,9 +59,7 @@ def load_scenario(
         else:
             scenario = yaml_load_typed(data=data, **kwargs)
     except Exception as e:  # pydrake raises RuntimeError / yaml.YAMLError / TypeError
-        where = f"{what} file '{filename}'" if filename is not None else f"{what} YAML text"
-        text = Path(filename).read_text(errors="replace") if filename is not None else data
-        reason = _wrong_field(schema, text) or str(e)
+        reason = _wrong_field(schema, text) or " ".join(str(e).split())  # one line
         raise ScenarioError(
             f"could not load {schema.__name__} from {where}: {reason}. Expected keys: "
             f"{[f.name for f in dataclasses.fields(schema)]}"
@@ -78,11 +82,11 @@ def _fits(tp: type, value) -> bool:
 
 
 def _wrong_field(schema: type, text: str | None) -> str | None:
-    """Names the first top-level scalar field whose YAML value has the wrong type.
+    """Names the first field (nested ones too) whose YAML value has the wrong type.
 
-    Drake's loader says ``invalid literal for int()`` without the field; this
-    finds it. Returns None when no such field is found (the loader's message
-    then stands).
+    Drake's loader says ``invalid literal for int()`` or ``'int' object is not
+    iterable`` without the field; this finds it. Returns None when no such
+    field is found (the loader's message then stands).
     """
     try:
         import yaml
@@ -92,13 +96,72 @@ def _wrong_field(schema: type, text: str | None) -> str | None:
         return None
     if not isinstance(raw, dict):
         return None
-    for field in dataclasses.fields(schema):
-        if field.name in raw and field.type in _SCALARS and not _fits(field.type, raw[field.name]):
-            value = raw[field.name]
-            return (
-                f"field '{field.name}' expects {_SCALARS[field.type]} ({field.type.__name__}), "
-                f"got {value!r} ({type(value).__name__})"
-            )
+    return _mismatch(schema, raw, "")
+
+
+def _mismatch(tp, value, where: str) -> str | None:
+    """Says how ``value`` (plain YAML data at field path ``where``) does not fit type ``tp``."""
+    got = f"got {value!r} ({type(value).__name__})"
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if tp in _SCALARS:
+        if _fits(tp, value):
+            return None
+        return f"field '{where}' expects {_SCALARS[tp]} ({tp.__name__}), {got}"
+    if dataclasses.is_dataclass(tp):
+        if not isinstance(value, dict):
+            return f"field '{where}' expects a mapping of {tp.__name__} fields, {got}"
+        for field in dataclasses.fields(tp):
+            if field.name in value:
+                inner = f"{where}.{field.name}" if where else field.name
+                reason = _mismatch(field.type, value[field.name], inner)
+                if reason:
+                    return reason
+        return None
+    if origin is list:
+        if not isinstance(value, list):
+            return f"field '{where}' expects a list, {got}"
+        items = ((f"{where}[{i}]", v) for i, v in enumerate(value))
+    elif origin is dict:
+        if not isinstance(value, dict):
+            return f"field '{where}' expects a mapping, {got}"
+        items = ((f"{where}.{k}", v) for k, v in value.items())
+    else:
+        return None
+    item_type = args[-1] if args else None
+    for inner, v in items:
+        reason = _mismatch(item_type, v, inner)
+        if reason:
+            return reason
+    return None
+
+
+def _duplicate_key(text: str | None) -> str | None:
+    """Names the first key given twice in one YAML mapping (the loader keeps only the last).
+
+    Returns None when there is none, or when the text does not parse (the loader's
+    message then stands).
+    """
+    try:
+        import yaml
+
+        nodes = [yaml.compose(text or "", Loader=yaml.SafeLoader)]
+    except Exception:
+        return None
+    while nodes:
+        node = nodes.pop()
+        if isinstance(node, yaml.MappingNode):
+            seen = set()
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode) and key.value != "<<":
+                    if key.value in seen:
+                        return (
+                            f"key '{key.value}' is given twice (again on line "
+                            f"{key.start_mark.line + 1}); give each key once"
+                        )
+                    seen.add(key.value)
+                nodes.append(value)
+        elif isinstance(node, yaml.SequenceNode):
+            nodes.extend(node.value)
     return None
 
 

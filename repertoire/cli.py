@@ -11,6 +11,7 @@ nothing has been written.
 """
 
 import argparse
+import math
 import sys
 import textwrap
 import time
@@ -261,11 +262,13 @@ def _cmd_render(args: argparse.Namespace) -> int:
     from repertoire.diagrams.render import render_diagram
     from repertoire.diagrams.simulate import build_registered, resolve_scenario
     from repertoire.errors import RepertoireError
-    from repertoire.limits import require_writable_dir
+    from repertoire.limits import require_writable_dir, require_writable_file
 
     if args.max_depth is not None and args.max_depth < 0:
         raise RepertoireError(f"--max-depth must be >= 0, got {args.max_depth}")
     require_writable_dir(args.out, "--out")
+    for fmt in ("dot", *args.formats):
+        require_writable_file(args.out / f"{args.name}.{fmt}", "--out")
     entry = get_diagram_entry(args.name)
     scenario = resolve_scenario(entry, args.scenario)
     diagram = build_registered(args.name, scenario=scenario)
@@ -288,16 +291,21 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         simulate_registered,
     )
     from repertoire.errors import RepertoireError
-    from repertoire.limits import require_writable_dir
+    from repertoire.limits import require_writable_dir, require_writable_file
 
     entry = get_diagram_entry(args.name)
     if args.replay:
         require_writable_dir(args.out, "--out")
+        require_writable_file(args.out / f"{args.name}.html", "--out")
     duration = check_duration(entry.duration if args.duration is None else args.duration)
     if args.live_seconds is not None and not args.live:
         raise RepertoireError("--live-seconds needs --live")
-    if args.live_seconds is not None and args.live_seconds < 0:
-        raise RepertoireError(f"--live-seconds must be >= 0, got {args.live_seconds}")
+    if args.live_seconds is not None and not (
+        math.isfinite(args.live_seconds) and args.live_seconds >= 0
+    ):
+        raise RepertoireError(
+            f"--live-seconds must be a finite number >= 0, got {args.live_seconds}"
+        )
     scenario = resolve_scenario(entry, args.scenario)
     start = time.perf_counter()
     meshcat = None

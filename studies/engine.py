@@ -77,7 +77,7 @@ from repertoire.studies.store import (
 )
 
 from repertoire.errors import RepertoireError
-from repertoire.limits import require_writable_dir, require_writable_file
+from repertoire.limits import require_memory, require_writable_dir, require_writable_file
 
 __all__ = [
     "EXECUTORS",
@@ -143,6 +143,8 @@ class StudyResult:
 
 # Seeds are below this; ``load(0, STORE_SEED_LIMIT)`` is every stored seed.
 STORE_SEED_LIMIT = 2**62
+# Memory the engine keeps per requested episode (seed lists, a stored row, a record).
+EPISODE_BOOKKEEPING_BYTES = 200
 
 
 # ---------------------------------------------------------------------------
@@ -166,7 +168,7 @@ def _records_from_rows(entry: StudyEntry, rows) -> list:
                     f"{entry.record_type.__name__}(seed={row.seed})",
                 )
             )
-        except (RepertoireError, TypeError) as e:
+        except (ValueError, TypeError) as e:  # not JSON, or not the record's fields
             raise RepertoireError(
                 f"stored record for seed {row.seed} does not fit {entry.record_type.__name__}: "
                 f"{e}; pass --fresh (fresh=True) to start the store afresh"
@@ -251,6 +253,14 @@ def run_study(
     t_start = time.perf_counter()
     episodes = _check_int("--episodes (episodes)", episodes, 1)
     first_seed = _check_int("--first-seed (first_seed)", first_seed, 0)
+    if first_seed + episodes > STORE_SEED_LIMIT:
+        raise RepertoireError(
+            f"seeds must stay below 2**62 = {STORE_SEED_LIMIT}, got --first-seed (first_seed) "
+            f"{first_seed} with --episodes (episodes) {episodes}"
+        )
+    require_memory(
+        episodes * EPISODE_BOOKKEEPING_BYTES, f"the seed lists and records of episodes={episodes}"
+    )
     if executor not in EXECUTORS:
         raise RepertoireError(f"executor must be one of {list(EXECUTORS)}, got {executor!r}")
     if workers is not None:
@@ -266,7 +276,11 @@ def run_study(
     validate = getattr(config, "validate", None)
     if callable(validate):
         validate()
-    config_json = canonical_json(to_plain(config, "config"))
+    plain_config = to_plain(config, "config")
+    nan_field = _nan_field(plain_config, "config")
+    if nan_field:  # no study means anything by NaN; refused before the store is touched
+        raise RepertoireError(f"study '{name}': {nan_field} is NaN; expected a number")
+    config_json = canonical_json(plain_config)
     rebuilt = from_plain(entry.config_type, json.loads(config_json), "config")
     if canonical_json(to_plain(rebuilt, "config")) != config_json:
         raise RepertoireError(
@@ -277,6 +291,9 @@ def run_study(
     store_path = Path(store) if store is not None else out_path / "episodes.sqlite"
     require_writable_dir(out_path, "--out-dir (out_dir)")
     require_writable_file(store_path, "--store (store)")
+    if summarize:
+        for table in ("summary.csv", "summary.md", "episodes.csv"):
+            require_writable_file(out_path / table, "--out-dir (out_dir)")
 
     client = None
     if executor == "dask":  # fail fast, before touching the store
@@ -290,6 +307,11 @@ def run_study(
     if executor == "process" and (fresh or not store_path.exists()):
         # Every seed will run: start the workers now, while the store is being opened.
         pool = WorkerPool(entry.module, name, config_json, min(n_workers, episodes))
+    # A store this call creates is removed again when an episode rejects the config
+    # (RepertoireError: bad input) before anything was stored, so bad input writes nothing.
+    store_is_new = not store_path.exists()
+    new_folder = _first_missing_folder(store_path.parent)
+    discard = False
     try:
         record_fields = [f.name for f in dataclasses.fields(entry.record_type)]
         with EpisodeStore.open(
@@ -312,7 +334,11 @@ def run_study(
                 results = pool.run(missing) if missing else iter([])
             else:
                 results = iter_dask(client, entry.module, name, config_json, missing)
-            _store_results(name, db, results, len(present), episodes, progress)
+            try:
+                _store_results(name, db, results, len(present), episodes, progress)
+            except RepertoireError:
+                discard = store_is_new and db.count() == 0 and not db.crashes()
+                raise
             if pool is not None:
                 pool.close()
                 pool = None
@@ -323,6 +349,8 @@ def run_study(
             pool.close(abort=True)
         if client is not None:
             client.close()
+        if discard:
+            _remove_new_store(store_path, new_folder)
     if [r.seed for r in rows] != seeds:
         lost = sorted(set(seeds) - {r.seed for r in rows})
         raise RepertoireError(
@@ -362,6 +390,45 @@ def run_study(
         executor=executor,
         workers=n_workers,
     )
+
+
+def _nan_field(plain: Any, path: str) -> str | None:
+    """The path (``config.a.b[2]``) of the first NaN in plain data, or None."""
+    if isinstance(plain, float) and plain != plain:
+        return path
+    if isinstance(plain, dict):
+        items = ((f"{path}.{k}", v) for k, v in plain.items())
+    elif isinstance(plain, list):
+        items = ((f"{path}[{i}]", v) for i, v in enumerate(plain))
+    else:
+        return None
+    return next((p for p in (_nan_field(v, k) for k, v in items) if p), None)
+
+
+def _first_missing_folder(folder: Path) -> Path | None:
+    """The outermost missing folder on the way to ``folder`` (None if ``folder`` exists)."""
+    missing = None
+    for parent in (folder, *folder.parents):
+        if parent.exists():
+            break
+        missing = parent
+    return missing
+
+
+def _remove_new_store(store_path: Path, new_folder: Path | None) -> None:
+    """Removes a store file this run created, and the folders it created for it."""
+    for suffix in ("", "-wal", "-shm", "-journal"):
+        Path(f"{store_path}{suffix}").unlink(missing_ok=True)
+    if new_folder is not None:
+        folder = store_path.parent
+        while True:
+            try:
+                folder.rmdir()  # only empty folders go
+            except OSError:
+                return
+            if folder == new_folder:
+                return
+            folder = folder.parent
 
 
 def _all_cores() -> int:

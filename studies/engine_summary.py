@@ -193,6 +193,22 @@ def use_agg() -> None:
             pass
 
 
+def _bin_edges(values: list[float], n: int):
+    """``n`` equal histogram bins over finite ``values``; one bin when they cannot have ``n``.
+
+    A spread too small for ``n`` distinct float edges (one value of 1e18) gets a
+    single bin around the values instead of numpy's "too many bins" error.
+    """
+    import numpy as np
+
+    try:
+        return np.histogram_bin_edges(values, bins=n)
+    except ValueError:
+        lo, hi = min(values), max(values)
+        pad = max(0.5, 1e-6 * abs(lo)) if lo == hi else 0.0
+        return np.array([lo - pad, hi + pad])
+
+
 def write_histograms(record_type: type, records: list, out_dir: Path) -> dict[str, Path]:
     """One histogram PNG per numeric record field; returns ``{label: path}``."""
     from matplotlib.figure import Figure
@@ -205,7 +221,8 @@ def write_histograms(record_type: type, records: list, out_dir: Path) -> dict[st
         finite = [v for v in vals if math.isfinite(v)]
         fig = Figure(figsize=(5, 3.5), layout="constrained")
         ax = fig.add_subplot()
-        ax.hist(finite, bins=min(30, max(5, len(finite) // 3)), color="tab:blue", alpha=0.8)
+        bins = _bin_edges(finite, min(30, max(5, len(finite) // 3)))
+        ax.hist(finite, bins=bins, color="tab:blue", alpha=0.8)
         ax.set_xlabel(name)
         ax.set_ylabel("episodes")
         ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts: whole ticks

@@ -290,8 +290,14 @@ class EpisodeStore:
             "config_sha256": config_hash(config_json),
             "record_fields": json.dumps(record_fields),
         }
+        hint = "pass --fresh (fresh=True) to start the store afresh"
+        if tables and not meta and not fresh:
+            n = conn.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
+            if n:  # episodes of an unknown study and config: never wiped unasked
+                raise RepertoireError(
+                    f"store '{self.path}' holds {n} episodes but no meta (study, config); {hint}"
+                )
         if meta and not fresh:
-            hint = "pass --fresh (fresh=True) to start the store afresh"
             if meta.get("study") != study:
                 raise RepertoireError(
                     f"store '{self.path}' holds study '{meta.get('study')}', not '{study}'; "

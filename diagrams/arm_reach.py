@@ -80,6 +80,9 @@ class ReachScenario:
     duration=3.0,
     check=lambda diagram, context: check_reach(diagram, context),
     criteria={"status_succeeded": Bound(1.0, 1.0), "joint_error_rad": Bound(0.0, 0.05)},
+    initialize=lambda diagram, context, scenario: set_start_velocity(
+        diagram, context, scenario.start[1], scenario.start[3]
+    ),
 )
 def build_arm_reach(scenario: ReachScenario, *, meshcat=None) -> Diagram:
     """Builds arm7 with Reach driving shoulder_flexion and elbow.

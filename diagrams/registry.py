@@ -29,6 +29,9 @@ class DiagramEntry:
             a simulation; returns named figures (for example a height error).
         criteria: what a passing run looks like: figure name -> Bound on the
             figures ``check`` returns (see repertoire.criteria).
+        initialize: optional ``initialize(diagram, context, scenario)`` that sets the
+            scenario's start values a Diagram cannot hold as defaults (velocities) in a
+            new root context, before a simulation of the world starts.
     """
 
     name: str
@@ -38,6 +41,7 @@ class DiagramEntry:
     duration: float = 1.0
     check: Callable[..., dict] | None = None
     criteria: dict[str, Bound] = dataclasses.field(default_factory=dict)
+    initialize: Callable[..., None] | None = None
 
 
 _REGISTRY: dict[str, DiagramEntry] = {}
@@ -53,6 +57,7 @@ def register_diagram(
     duration: float = 1.0,
     check: Callable[..., dict] | None = None,
     criteria: dict[str, Bound] | None = None,
+    initialize: Callable[..., None] | None = None,
 ):
     """Decorator registering a diagram builder under ``name``.
 
@@ -65,8 +70,9 @@ def register_diagram(
 
     def decorator(build):
         entry = DiagramEntry(
-            name, description, scenario_type, build, duration, check, dict(criteria or {})
-        )
+            name, description, scenario_type, build, duration, check, dict(criteria or {}),
+            initialize,
+        )  # fmt: skip
         add_entry("diagram", _REGISTRY, name, entry, _owner)
         return build
 

@@ -26,8 +26,10 @@ from repertoire.diagrams.simulate import (
     build_registered,
     check_duration,
     leaf_systems,
+    resolve_scenario,
     run_check,
     simulate,
+    start_context,
 )
 
 from repertoire.errors import RepertoireError
@@ -233,6 +235,7 @@ def _record(
             f"{duration:g} s at real-time rate {realtime_rate:g}"
         )
     if entry is not None:
+        scenario = resolve_scenario(entry, scenario)
         diagram = build_registered(entry.name, scenario=scenario, meshcat=meshcat)
     else:
         diagram = source(meshcat=meshcat)
@@ -241,7 +244,8 @@ def _record(
                 f"the builder function returned {type(diagram).__name__}, "
                 f"expected a pydrake Diagram"
             )
-    context = diagram.CreateDefaultContext()
+    context = start_context(entry, diagram, scenario) if entry is not None else None
+    context = context if context is not None else diagram.CreateDefaultContext()
     start_points = moving_body_positions(diagram, context) if frame_camera else np.zeros((0, 3))
     written = None
     try:

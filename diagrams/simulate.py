@@ -262,6 +262,17 @@ def build_registered(name: str, *, scenario: Any = None, meshcat: Any = None) ->
     return diagram
 
 
+def start_context(entry: DiagramEntry | None, diagram: Diagram, scenario: Any) -> Context:
+    """A new root context of ``diagram`` with the entry's start values (``initialize``) set.
+
+    ``scenario``: the scenario instance the diagram was built from.
+    """
+    context = diagram.CreateDefaultContext()
+    if entry is not None and entry.initialize is not None:
+        entry.initialize(diagram, context, scenario)
+    return context
+
+
 def run_check(entry: DiagramEntry, diagram: Diagram, context: Context) -> dict[str, float]:
     """Runs the entry's ``check(diagram, context)`` (empty dict when it has none)."""
     if entry.check is None:
@@ -289,8 +300,10 @@ def simulate_registered(
     """
     entry = get_diagram_entry(name)
     duration = check_duration(entry.duration if duration is None else duration)
+    scenario = resolve_scenario(entry, scenario)
     diagram = build_registered(name, scenario=scenario, meshcat=meshcat)
-    _, context = simulate(diagram, duration, meshcat=meshcat)
+    context = start_context(entry, diagram, scenario)
+    _, context = simulate(diagram, duration, context=context, meshcat=meshcat)
     return {"sim_time_s": context.get_time(), **run_check(entry, diagram, context)}
 
 

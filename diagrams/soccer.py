@@ -128,6 +128,9 @@ def build_driven(
     duration=8.0,
     check=lambda diagram, context: check_goto_pose(diagram, context),
     criteria={"status_succeeded": Bound(1.0, 1.0), "position_error_m": Bound(0.0, 0.1)},
+    initialize=lambda diagram, context, scenario: set_initial_speed(
+        diagram, context, scenario.initial_speed
+    ),
 )
 def build_soccer_goto_pose(scenario: GoToPoseScenario, *, meshcat=None) -> Diagram:
     """Builds the soccer world with GoToPose driving the robot.

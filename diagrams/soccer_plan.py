@@ -15,7 +15,13 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from repertoire.diagrams.biped import validate_discrete_control_fields
 from repertoire.diagrams.registry import register_diagram
-from repertoire.diagrams.soccer import BALL_POSITION, add_soccer_robot, build_driven, robot_state
+from repertoire.diagrams.soccer import (
+    BALL_POSITION,
+    add_soccer_robot,
+    build_driven,
+    robot_state,
+    set_initial_speed,
+)
 from repertoire.systems.go_to_pose import GOTO_GAINS, ActionStatus, GoToPose
 from repertoire.systems.plan_executor import PlanExecutor
 
@@ -88,6 +94,9 @@ class SoccerPlanScenario:
     duration=12.0,
     check=lambda diagram, context: check_soccer_plan(diagram, context),
     criteria={"plan_succeeded": Bound(1.0, 1.0), "position_error_m": Bound(0.0, 0.1)},
+    initialize=lambda diagram, context, scenario: set_initial_speed(
+        diagram, context, scenario.initial_speed
+    ),
 )
 def build_soccer_plan(scenario: SoccerPlanScenario, *, meshcat=None) -> Diagram:
     """Builds the soccer world with a PlanExecutor running one GoToPose per target.

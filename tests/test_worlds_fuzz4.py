@@ -211,3 +211,23 @@ def test_wheel_speed_errors_print_plain_numbers():
     # the message read "got [np.float64(12.0001), np.float64(12.0)]"
     with pytest.raises(ScenarioError, match=re.escape("rad/s, got [12.0001, 12.0]")):
         DiffDriveScenario(wheel_speeds=[12.0001, 12.0]).validate()
+
+
+def test_simulate_starts_from_the_scenarios_start_velocities():
+    """Velocities are no Diagram default: the registered ``initialize`` sets them."""
+    from repertoire.diagrams.arm_reach import ReachScenario, joint_state
+    from repertoire.diagrams.registry import get_diagram_entry
+    from repertoire.diagrams.simulate import build_registered, start_context
+    from repertoire.diagrams.soccer import robot_state
+
+    for name, scenario in (
+        ("soccer_goto_pose", GoToPoseScenario(initial_speed=0.5)),
+        ("soccer_plan", SoccerPlanScenario(initial_speed=-0.25)),
+    ):
+        diagram = build_registered(name, scenario=scenario)
+        context = start_context(get_diagram_entry(name), diagram, scenario)
+        assert robot_state(diagram, context)[3] == pytest.approx(scenario.initial_speed)
+    scenario = ReachScenario(start=[0.45, 0.3, 1.45, -0.2])
+    diagram = build_registered("arm_reach", scenario=scenario)
+    context = start_context(get_diagram_entry("arm_reach"), diagram, scenario)
+    assert joint_state(diagram, context)[[1, 3]] == pytest.approx([0.3, -0.2])

@@ -69,10 +69,15 @@ class DmpChainingConfig:
             raise RepertoireError(
                 f"DmpChainingConfig.scaling must be 'directional' or 'none', got {self.scaling}"
             )
-        for name in ("duration_s", "time_step_s", "side_min_m", "settle_factor"):
+        for name in ("duration_s", "time_step_s", "side_min_m", "side_max_m", "settle_factor"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
-                raise RepertoireError(f"DmpChainingConfig.{name} must be > 0, got {v}")
+                raise RepertoireError(f"DmpChainingConfig.{name} must be finite and > 0, got {v}")
+        if self.side_max_m < self.side_min_m:
+            raise RepertoireError(
+                f"DmpChainingConfig needs side_min_m <= side_max_m, got {self.side_min_m} > "
+                f"{self.side_max_m}"
+            )
 
 
 @dataclasses.dataclass

@@ -69,6 +69,18 @@ class DmpGoalsConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise RepertoireError(f"DmpGoalsConfig.{name} must be finite and > 0, got {v}")
+        for lo, hi in (
+            ("bulge_min_m", "bulge_max_m"),
+            ("rise_min_m", "rise_max_m"),
+            ("near_start_log10_min", "near_start_log10_max"),
+        ):
+            a, b = getattr(self, lo), getattr(self, hi)
+            if not (math.isfinite(a) and math.isfinite(b) and a <= b):
+                raise RepertoireError(f"DmpGoalsConfig needs finite {lo} <= {hi}, got {a}, {b}")
+        if not math.isfinite(self.goal_shift_m):
+            raise RepertoireError(
+                f"DmpGoalsConfig.goal_shift_m must be finite, got {self.goal_shift_m}"
+            )
         if self.n_basis < 1 or self.n_samples < 3:
             raise RepertoireError("DmpGoalsConfig needs n_basis >= 1 and n_samples >= 3")
         if not 0 < self.switch_min <= self.switch_max < 1:

@@ -54,3 +54,16 @@ def test_chaining_study_smoke(tmp_path):
     assert r.acc_jump_acceleration < 1e-9 < r.acc_jump_velocity
     assert r.drake_vs_numpy < 1e-10
     assert result.figures["fig5"].exists()
+
+
+def test_study_configs_refuse_infinite_and_inverted_ranges():
+    with pytest.raises(RepertoireError, match=r"side_max_m must be finite and > 0, got inf"):
+        dmp_chaining.DmpChainingConfig(side_max_m=float("inf")).validate()
+    with pytest.raises(RepertoireError, match="needs side_min_m <= side_max_m"):
+        dmp_chaining.DmpChainingConfig(side_min_m=0.6, side_max_m=0.5).validate()
+    with pytest.raises(RepertoireError, match=r"finite bulge_min_m <= bulge_max_m, got 0.2, inf"):
+        dmp_goals.DmpGoalsConfig(bulge_max_m=float("inf")).validate()
+    with pytest.raises(RepertoireError, match="rise_min_m <= rise_max_m"):
+        dmp_goals.DmpGoalsConfig(rise_min_m=0.2, rise_max_m=0.1).validate()
+    dmp_goals.DmpGoalsConfig().validate()
+    dmp_chaining.DmpChainingConfig().validate()

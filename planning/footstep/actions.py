@@ -6,9 +6,10 @@ The robot is ASIMO-like: 1.2 m tall, feet 0.16 m x 0.10 m, nominal stance width 
 
 import dataclasses
 import math
+import numbers
 
 import numpy as np
-from repertoire.planning.footstep.types import ActionTable, Foot, wrap_angle
+from repertoire.planning.footstep.types import ActionTable, Foot, FootstepError, wrap_angle
 
 
 @dataclasses.dataclass(frozen=True)
@@ -27,6 +28,22 @@ class BipedGeometry:
     foot_width: float = 0.10
     stance_width: float = 0.19
     body_radius: float = 0.30
+
+    def __post_init__(self) -> None:
+        """Refuses sizes that are not numbers, not finite, or not positive (naming the field).
+
+        Raises:
+            FootstepError: a foot length or width not finite and > 0, a stance width or
+                body radius not finite and >= 0.
+        """
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            least = "> 0" if f.name.startswith("foot_") else ">= 0"
+            ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+            if not ok or v < 0.0 or (v == 0.0 and least == "> 0"):
+                raise FootstepError(
+                    f"BipedGeometry {f.name} must be finite and {least} m, got {v!r}"
+                )
 
 
 ASIMO_LIKE = BipedGeometry()

@@ -19,7 +19,8 @@ so the generic weighted A* runs it; for static grids it also exports its tables
 
 import dataclasses
 import math
-from collections.abc import Callable, Iterator, Sequence
+import numbers
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -297,8 +298,16 @@ class BipedStepModel:
             raise FootstepError(
                 "the 'dijkstra' heuristic needs a static grid; use 'euclidean' in dynamic worlds"
             )
-        if not math.isfinite(start_time):
-            raise FootstepError(f"start_time must be finite, got {start_time}")
+        if not isinstance(geometry, BipedGeometry):
+            raise FootstepError(f"geometry must be a BipedGeometry, got {geometry!r}")
+        if (
+            isinstance(start_time, bool)
+            or not isinstance(start_time, numbers.Real)
+            or not math.isfinite(start_time)
+        ):
+            raise FootstepError(
+                f"start_time must be a finite number of seconds, got {start_time!r}"
+            )
         self.world, self.table, self.opts, self.geometry = world, table, opts, geometry
         self.foot0 = parse_foot(start_foot)
         self.start_pose = sx, sy, sth = pose3(start, "start")
@@ -437,11 +446,17 @@ class BipedStepModel:
             for i2 in range(n):
                 for i1 in range(n):
                     for f in (0, 1):
-                        ok = set(action_filter(names[i2], names[i1], Foot(f)))
+                        got = action_filter(names[i2], names[i1], Foot(f))
+                        if isinstance(got, str) or not isinstance(got, Iterable):
+                            raise FootstepError(
+                                "action_filter must return a sequence of action names, got "
+                                f"{got!r} for ({names[i2]}, {names[i1]}, {Foot(f).name})"
+                            )
+                        ok = set(got)
                         unknown = ok - set(names)
                         if unknown:
                             raise FootstepError(
-                                f"action_filter returned unknown actions {sorted(unknown)}"
+                                f"action_filter returned unknown actions {sorted(unknown, key=str)}"
                             )
                         allowed[i2, i1, f] = False
                         allowed[i2, i1, f, [index[a] for a in ok]] = True

@@ -12,10 +12,17 @@ from collections.abc import Sequence
 import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid
 from repertoire.planning.footstep.types import FootstepError
+from scipy.spatial import cKDTree
+
+from repertoire.limits import require_memory
 
 # height given to the cells outside the corridor when the grid has heights: taller than
 # any swing clearance, so no step swings across them (m)
 OUTSIDE_HEIGHT = 1.0e3
+# discs are stamped at the polyline's cells (fast for corridors narrower than the map), this
+# many stamps at a time; a disc of more than 4 map's worth of cells is replaced by a query of
+# each map cell's nearest polyline cell (a k-d tree: time and memory bounded by the map)
+STAMP_CHUNK = 1 << 22
 
 
 def corridor_grid(
@@ -43,30 +50,67 @@ def corridor_grid(
     """
     if not (np.isfinite(radius) and radius > 0.0):
         raise FootstepError(f"corridor radius must be a positive number of metres, got {radius}")
-    xy = np.asarray([(float(p[0]), float(p[1])) for p in points], dtype=float).reshape(-1, 2)
+    try:
+        xy = np.asarray([(float(p[0]), float(p[1])) for p in points], dtype=float).reshape(-1, 2)
+    except (TypeError, ValueError, IndexError):
+        raise FootstepError(
+            f"corridor points must be (x, y, ...) numbers, got {points!r}"
+        ) from None
     if len(xy) == 0:
         raise FootstepError("a corridor needs at least one point")
+    if not np.isfinite(xy).all():
+        raise FootstepError(f"corridor points must be finite, got {xy[~np.isfinite(xy).all(1)][0]}")
     res = grid.resolution
+    steps = np.maximum(1, np.ceil(np.hypot(*np.diff(xy, axis=0).T) / (0.5 * res)))
+    require_memory(16.0 * steps.sum(), f"the samples of a {len(xy)}-point corridor polyline")
     dense = [xy[:1]]
-    for a, b in zip(xy[:-1], xy[1:], strict=True):
-        k = max(1, int(np.ceil(np.hypot(*(b - a)) / (0.5 * res))))
+    for a, b, k in zip(xy[:-1], xy[1:], steps.astype(np.int64), strict=True):
         dense.append(a + (b - a) * (np.arange(1, k + 1)[:, None] / k))
     pts = np.concatenate(dense)
     n = int(np.floor(radius / res))
     nx, ny = grid.shape
-    wy = ny + 4 * n  # padded by 2 n on every side: no clipping, no wrapping
     cells = np.floor((pts - np.asarray(grid.origin)) / res).astype(np.int64)
     cells = cells[
         (cells[:, 0] >= -n) & (cells[:, 0] < nx + n) & (cells[:, 1] >= -n) & (cells[:, 1] < ny + n)
     ]
+    cells = np.unique(cells, axis=0)
+    if not len(cells):
+        keep = np.zeros((nx, ny), dtype=bool)
+    elif (2 * n + 1) ** 2 > 4 * nx * ny:
+        keep = _keep_by_nearest(cells, nx, ny, res, radius)
+    else:
+        keep = _keep_by_discs(cells, nx, ny, n, res, radius)
+    heights = None
+    if grid.heights is not None:
+        heights = np.where(keep, grid.heights, OUTSIDE_HEIGHT)
+    return OccupancyGrid(grid.occupied | ~keep, res, grid.origin, heights)
+
+
+def _keep_by_discs(
+    cells: np.ndarray, nx: int, ny: int, n: int, res: float, radius: float
+) -> np.ndarray:
+    """The map cells within ``radius`` (m) of a polyline cell: a disc stamped at each one."""
+    wy = ny + 4 * n  # padded by 2 n on every side: no clipping, no wrapping
     flat = np.unique((cells[:, 0] + 2 * n) * wy + (cells[:, 1] + 2 * n))
     di, dj = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
     disc = (di * di + dj * dj) * (res * res) <= radius * radius
     offsets = (di[disc] * wy + dj[disc]).astype(np.int64)
     keep = np.zeros((nx + 4 * n) * wy, dtype=bool)
-    keep[(flat[:, None] + offsets[None, :]).ravel()] = True
-    keep = keep.reshape(nx + 4 * n, wy)[2 * n : 2 * n + nx, 2 * n : 2 * n + ny]
-    heights = None
-    if grid.heights is not None:
-        heights = np.where(keep, grid.heights, OUTSIDE_HEIGHT)
-    return OccupancyGrid(grid.occupied | ~keep, res, grid.origin, heights)
+    chunk = max(1, STAMP_CHUNK // len(offsets))
+    for k in range(0, len(flat), chunk):
+        keep[(flat[k : k + chunk, None] + offsets[None, :]).ravel()] = True
+    return keep.reshape(nx + 4 * n, wy)[2 * n : 2 * n + nx, 2 * n : 2 * n + ny]
+
+
+def _keep_by_nearest(cells: np.ndarray, nx: int, ny: int, res: float, radius: float) -> np.ndarray:
+    """The same cells as :func:`_keep_by_discs`, by each map cell's nearest polyline cell.
+
+    For discs wider than the map (many more disc cells than map cells): a k-d tree query
+    per map cell, the nearest polyline cell then checked exactly as the discs do.
+    """
+    ii, jj = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    query = np.stack([ii.ravel(), jj.ravel()], axis=1)
+    _, nearest = cKDTree(cells).query(query)
+    d = query - cells[nearest]
+    close = (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) * (res * res) <= radius * radius
+    return close.reshape(nx, ny)

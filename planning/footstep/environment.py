@@ -8,12 +8,18 @@ grids with times; ``E(t)`` is the grid of the nearest time.
 
 import dataclasses
 import math
+import numbers
 from collections.abc import Sequence
 
 import numpy as np
 from repertoire.planning.footstep.types import GridError
 
 from repertoire.limits import require_memory
+
+
+def _is_number(v: object) -> bool:
+    """A real number (numpy's included), not a bool."""
+    return isinstance(v, numbers.Real) and not isinstance(v, bool)
 
 
 def rect_overlaps_cells(
@@ -177,18 +183,37 @@ class OccupancyGrid:
     heights: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        self.occupied = np.asarray(self.occupied, dtype=bool)
+        occupied = np.asarray(self.occupied)
+        if occupied.dtype.kind not in "biuf" or (
+            occupied.dtype.kind == "f" and not np.isfinite(occupied).all()
+        ):
+            raise GridError(
+                f"occupied must hold booleans or finite numbers (nonzero: occupied), got dtype "
+                f"{occupied.dtype} with values such as {occupied.ravel()[:3].tolist()}"
+            )
+        self.occupied = occupied.astype(bool)
         if self.occupied.ndim != 2 or min(self.occupied.shape) == 0:
             raise GridError(f"occupied must be a non-empty 2-D array, got {self.occupied.shape}")
-        if not (math.isfinite(self.resolution) and self.resolution > 0):
+        if not (
+            _is_number(self.resolution) and math.isfinite(self.resolution) and self.resolution > 0
+        ):
             raise GridError(
-                f"resolution must be a positive number of metres, got {self.resolution}"
+                f"resolution must be a positive number of metres, got {self.resolution!r}"
             )
-        self.origin = (float(self.origin[0]), float(self.origin[1]))
-        if not all(math.isfinite(v) for v in self.origin):
-            raise GridError(f"origin must be finite, got {self.origin}")
+        try:
+            origin = np.asarray(self.origin, dtype=float)
+        except (TypeError, ValueError):
+            origin = None
+        if origin is None or origin.shape != (2,) or not np.isfinite(origin).all():
+            raise GridError(f"origin must be 2 finite numbers (x0, y0), got {self.origin!r}")
+        self.origin = (float(origin[0]), float(origin[1]))
         if self.heights is not None:
-            self.heights = np.asarray(self.heights, dtype=float)
+            try:
+                self.heights = np.asarray(self.heights, dtype=float)
+            except (TypeError, ValueError):
+                raise GridError(
+                    f"heights must be an array of numbers, got {self.heights!r}"
+                ) from None
             if self.heights.shape != self.occupied.shape:
                 raise GridError(
                     f"heights shape {self.heights.shape} differs from occupied "
@@ -267,18 +292,27 @@ class OccupancyGrid:
             GridError: a bad size or resolution.
             ResourceLimitError: a grid too large for memory (estimated before allocating).
         """
-        if not (math.isfinite(resolution) and resolution > 0):
-            raise GridError(f"resolution must be positive, got {resolution}")
-        if len(size) != 2 or not all(math.isfinite(s) and s > 0 for s in size):
-            raise GridError(f"size must be two positive lengths, got {size}")
+        if not (_is_number(resolution) and math.isfinite(resolution) and resolution > 0):
+            raise GridError(f"resolution must be positive, got {resolution!r}")
+        if not (
+            isinstance(size, Sequence | np.ndarray)
+            and len(size) == 2
+            and all(_is_number(s) and math.isfinite(s) and s > 0 for s in size)
+        ):
+            raise GridError(f"size must be two positive lengths, got {size!r}")
         nx = int(round(size[0] / resolution))
         ny = int(round(size[1] / resolution))
+        if min(nx, ny) == 0:
+            raise GridError(
+                f"size {tuple(size)} m holds no whole cell of {resolution} m on one axis: "
+                "a map needs at least one cell each way"
+            )
         # the grid, its cell centres and heights (from_rectangles): 1 + 16 + 8 bytes a cell
         require_memory(
             25.0 * nx * ny,
             f"a {nx} x {ny} occupancy grid for size {tuple(size)} m at {resolution} m",
         )
-        return cls(np.zeros((nx, ny), bool), resolution, (origin[0], origin[1]))
+        return cls(np.zeros((nx, ny), bool), resolution, origin)
 
     @classmethod
     def from_rectangles(
@@ -449,12 +483,11 @@ class DynamicEnvironment:
             size, list(static), resolution, origin, with_heights=with_heights
         )
         centers = base.cell_centers()
-        times = np.arange(0.0, t_end + 0.5 * dt, dt)
         nx, ny = base.shape
         per_grid = nx * ny * (9.0 if with_heights else 1.0)
-        require_memory(
-            per_grid * len(times), f"{len(times)} grids of {nx} x {ny} cells (dt {dt} s)"
-        )
+        count = math.floor(t_end / dt + 0.5) + 1  # the times below, counted before making them
+        require_memory(per_grid * count, f"about {count} grids of {nx} x {ny} cells (dt {dt} s)")
+        times = np.arange(0.0, t_end + 0.5 * dt, dt)
         grids = []
         for t in times:
             heights = base.heights.copy() if with_heights else None

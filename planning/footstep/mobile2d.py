@@ -8,6 +8,7 @@ obstacle, including the flat ones a biped steps over.
 
 import dataclasses
 import math
+import numbers
 import time
 
 import numpy as np
@@ -71,8 +72,18 @@ def plan_mobile2d(
         radius: bounding-circle radius (m).
     """
     t0 = time.perf_counter()
+    if not isinstance(grid, OccupancyGrid):
+        raise FootstepError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
+    if isinstance(radius, bool) or not isinstance(radius, numbers.Real):
+        raise FootstepError(f"radius must be a number >= 0 (m), got {radius!r}")
     for name, p in (("start", start), ("goal", goal)):
-        if not all(math.isfinite(v) for v in p[:2]) or not grid.contains(p[0], p[1]):
+        try:
+            xy = np.asarray(p, dtype=float)
+        except (TypeError, ValueError):
+            xy = None
+        if xy is None or xy.ndim != 1 or len(xy) < 2:
+            raise FootstepError(f"{name} must be (x, y) numbers, got {p!r}")
+        if not all(math.isfinite(v) for v in xy[:2]) or not grid.contains(xy[0], xy[1]):
             raise FootstepError(f"{name} {tuple(p[:2])} lies outside the map of size {grid.size}")
     blocked = inflate(grid, radius)
     s = grid.cell_of(*start[:2])

@@ -14,6 +14,7 @@ is returned with its status.
 
 import dataclasses
 import math
+import numbers
 import time
 from collections.abc import Sequence
 
@@ -168,10 +169,10 @@ class PlannerOptions:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             if f.type in ("float", "int", float, int) and (
-                isinstance(v, bool) or not isinstance(v, (int, float))
+                isinstance(v, bool) or not isinstance(v, numbers.Real)
             ):
                 raise FootstepError(f"{f.name} must be a number, got {v!r}")
-        if not (isinstance(self.time_limit, (int, float)) and math.isfinite(self.time_limit)):
+        if not (isinstance(self.time_limit, numbers.Real) and math.isfinite(self.time_limit)):
             raise FootstepError(
                 f"time_limit must be a finite number of seconds, got {self.time_limit}"
             )
@@ -254,8 +255,7 @@ def plan_footsteps(
     from repertoire.planning.footstep.fastcore import warm_up
 
     warm_up()  # one-time compilation / cache load, outside the time limit
-    opts = options if options is not None else PlannerOptions()
-    opts.validate()
+    opts = _options(options)
     _build_footprint_masks(world, opts, kwargs)  # one-time per resolution, outside it too
     t_begin = time.perf_counter()
     plan, merged, model = _plan_once(world, start, start_foot, goal, table, opts, t_begin, kwargs)
@@ -411,8 +411,7 @@ def plan_footsteps_anytime(
     from repertoire.planning.footstep.fastcore import warm_up
 
     warm_up()  # one-time compilation / cache load, outside the time limit
-    opts = options if options is not None else PlannerOptions()
-    opts.validate()
+    opts = _options(options)
     weights = anytime_weights(weights)
     _build_footprint_masks(world, opts, kwargs)  # one-time per resolution, outside it too
     t_begin = time.perf_counter()
@@ -448,6 +447,16 @@ def plan_footsteps_anytime(
         elapsed += r.seconds
         out.append(AnytimePlan(_to_plan(model, r, elapsed), r.weight, r.bound, elapsed, width))
     return out
+
+
+def _options(options: "PlannerOptions | None") -> PlannerOptions:
+    """The validated options (default: :class:`PlannerOptions`); errors name a wrong type."""
+    if options is None:
+        options = PlannerOptions()
+    if not isinstance(options, PlannerOptions):
+        raise FootstepError(f"options must be PlannerOptions, got {type(options).__name__}")
+    options.validate()
+    return options
 
 
 def _build_footprint_masks(

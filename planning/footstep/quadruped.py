@@ -132,6 +132,9 @@ class HeightMap:
     def roughness(self, radius: float) -> np.ndarray:
         """Height range (max - min) within ``radius`` of each cell, shape like heights."""
         r = max(int(math.ceil(radius / self.resolution - 1e-9)), 0)
+        # a disk reaching across the whole map from every cell: the map's range everywhere
+        if radius**2 >= self.resolution**2 * sum((n - 1) ** 2 for n in self.shape):
+            return np.full(self.shape, np.ptp(self.heights))
         ii, jj = np.mgrid[-r : r + 1, -r : r + 1]
         disk = (ii**2 + jj**2) * self.resolution**2 <= radius**2 + 1e-12
         hi = ndimage.maximum_filter(self.heights, footprint=disk, mode="nearest")

@@ -8,6 +8,8 @@ from there with the right stance foot, swing foot, action history and time.
 """
 
 import dataclasses
+import math
+import numbers
 from collections.abc import Sequence
 
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
@@ -67,10 +69,15 @@ def plan_receding_horizon(
         geometry: robot geometry.
         start_time: time of the start state (s).
     """
-    if int(execute_steps) != execute_steps or execute_steps < 1:
-        raise FootstepError(f"execute_steps must be an integer >= 1, got {execute_steps}")
-    if int(max_rounds) != max_rounds or max_rounds < 1:
-        raise FootstepError(f"max_rounds must be an integer >= 1, got {max_rounds}")
+    for name, value in (("execute_steps", execute_steps), ("max_rounds", max_rounds)):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, numbers.Real)
+            or not math.isfinite(value)
+            or int(value) != value
+            or value < 1
+        ):
+            raise FootstepError(f"{name} must be an integer >= 1, got {value!r}")
     plan = plan_footsteps(
         world, start, start_foot, goal, table, options, geometry=geometry, start_time=start_time
     )

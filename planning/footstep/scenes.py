@@ -9,6 +9,7 @@ disconnected for a wheeled robot, and the phases of the rows are random.
 
 import dataclasses
 import math
+import numbers
 
 import numpy as np
 from repertoire.planning.footstep.environment import (
@@ -18,7 +19,14 @@ from repertoire.planning.footstep.environment import (
     RectObstacle,
     rect_overlaps_cells,
 )
-from repertoire.planning.footstep.types import GridError
+from repertoire.planning.footstep.types import FootstepError, GridError
+
+
+def _seeded(seed: int) -> np.random.Generator:
+    """The generator of a scene's seed: an integer >= 0 (``None`` would not reproduce)."""
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise FootstepError(f"a scene seed must be an integer >= 0, got {seed!r}")
+    return np.random.default_rng(int(seed))
 
 
 @dataclasses.dataclass
@@ -101,7 +109,7 @@ def random_static_scene(
         corner_margin: distance of the start and goal from the walls (m).
         clear_radius: no obstacle comes closer than this to the start and goal (m).
     """
-    rng = np.random.default_rng(seed)
+    rng = _seeded(seed)
     start_xy = (corner_margin, corner_margin)
     goal = (size - corner_margin, size - corner_margin)
     rects: list[RectObstacle] = []
@@ -163,7 +171,7 @@ def strings_scene(
         t_end: last grid time (s).
         dt: grid time spacing (s).
     """
-    rng = np.random.default_rng(seed)
+    rng = _seeded(seed)
     moving: list[MovingRectObstacle] = []
     for y, v, sp in zip(rows_y, speeds, spacings):
         phase = float(rng.uniform(0.0, sp))
@@ -214,7 +222,7 @@ def stepping_stones_grid(
         raise GridError(f"stone_length must be [min, max] with 0 < min <= max, got {stone_length}")
     if not (math.isfinite(resolution) and 0.0 < resolution <= 0.1):
         raise GridError(f"stepping-stone resolution must be in (0, 0.1] m, got {resolution}")
-    rng = np.random.default_rng(seed)
+    rng = _seeded(seed)
     nx, ny = int(round(2.0 / resolution)), int(round(0.8 / resolution))
     occ = np.ones((nx, ny), dtype=bool)
     occ[: int(round(0.4 / resolution)), :] = False
@@ -263,7 +271,7 @@ def maze_grid(
     room = size / cells
     if door + 2.0 * wall >= room:
         raise GridError(f"maze door {door} m plus walls {wall} m do not fit a {room:.2f} m room")
-    rng = np.random.default_rng(seed)
+    rng = _seeded(seed)
     n = int(round(size / resolution))
     occ = np.zeros((n, n), dtype=bool)
 
@@ -336,7 +344,7 @@ def random_floor_scene(
         raise GridError(f"floor occupancy must be in [0, 0.6], got {occupancy}")
     if not (math.isfinite(size) and size >= 4.0 * clear_radius + 1.2):
         raise GridError(f"floor size {size} m is too small for clear_radius {clear_radius} m")
-    rng = np.random.default_rng(seed)
+    rng = _seeded(seed)
     n = int(round(size / resolution))
     occ = np.zeros((n, n), dtype=bool)
     heights = np.zeros((n, n))

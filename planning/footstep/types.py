@@ -78,6 +78,26 @@ def wrap_angle(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def _read_json(path: Path, error: type[Exception]) -> dict:
+    """The JSON object in ``path``; ``error`` names the file when it is missing or not JSON."""
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise error(f"file {path} does not exist") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise error(f"{path} is not valid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise error(f"{path} must hold a JSON object, got {type(data).__name__}")
+    return data
+
+
+def _mirror_dict(mirror: object) -> dict[str, str]:
+    """A table file's ``mirror`` as a name -> name dict; errors name the value."""
+    if not isinstance(mirror, dict):
+        raise ActionTableError(f"mirror must be a dict of name -> name, got {mirror!r}")
+    return {str(k): str(v) for k, v in mirror.items()}
+
+
 @dataclasses.dataclass
 class ActionTable:
     """The state-dependent displacement table T and the step durations.
@@ -102,9 +122,18 @@ class ActionTable:
     mirror: dict[str, str] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.displacement = np.asarray(self.displacement, dtype=float)
-        self.duration = np.asarray(self.duration, dtype=float)
-        self.step_cost = np.asarray(self.step_cost, dtype=float)
+        for name in ("displacement", "duration", "step_cost"):
+            try:
+                setattr(self, name, np.asarray(getattr(self, name), dtype=float))
+            except (TypeError, ValueError):
+                raise ActionTableError(
+                    f"{name} must be an array of numbers (ragged or non-numeric: missing "
+                    f"entries?), got {getattr(self, name)!r}"[:300]
+                ) from None
+        if isinstance(self.actions, str) or not isinstance(self.actions, Sequence):
+            raise ActionTableError(f"actions must be a list of names, got {self.actions!r}")
+        if not isinstance(self.mirror, dict):
+            raise ActionTableError(f"mirror must be a dict of name -> name, got {self.mirror!r}")
         self.validate()
 
     @property
@@ -223,17 +252,20 @@ class ActionTable:
         try:
             disp = np.array(data["displacement"], dtype=float)
             dur = np.array(data["duration"], dtype=float)
+            cost = np.array(data["step_cost"], dtype=float)
         except (TypeError, ValueError) as exc:
             raise ActionTableError(
                 f"action table arrays are ragged or non-numeric (missing entries?): {exc}"
             ) from None
+        if isinstance(data["actions"], str) or not isinstance(data["actions"], list):
+            raise ActionTableError(f"actions must be a list of names, got {data['actions']!r}")
         return cls(
             actions=[str(a) for a in data["actions"]],
             displacement=disp,
             duration=dur,
-            step_cost=np.array(data["step_cost"], dtype=float),
+            step_cost=cost,
             rest_action=str(data["rest_action"]),
-            mirror={str(k): str(v) for k, v in data.get("mirror", {}).items()},
+            mirror=_mirror_dict(data.get("mirror", {})),
         )
 
     def save(self, path: "str | Path") -> Path:
@@ -282,7 +314,7 @@ class ActionTable:
                     duration=z["duration"],
                 )
         if path.suffix == ".json":
-            return cls.from_dict(json.loads(path.read_text()))
+            return cls.from_dict(_read_json(path, ActionTableError))
         raise ActionTableError(f"unknown action table format {path.suffix!r}; use .json or .npz")
 
     @classmethod
@@ -537,6 +569,10 @@ class FootstepPlan:
         missing = fields - set(data)
         if missing:
             raise FootstepError(f"plan data lacks keys {sorted(missing)}")
+        if data["status"] not in [s.value for s in PlanStatus]:
+            raise FootstepError(
+                f"plan status {data['status']!r} is not one of {[s.value for s in PlanStatus]}"
+            )
         return cls(**{k: data[k] for k in fields})
 
     def save(self, path: "str | Path") -> Path:
@@ -556,4 +592,4 @@ class FootstepPlan:
         Args:
             path: a ``.json`` file.
         """
-        return cls.from_dict(json.loads(Path(path).read_text()))
+        return cls.from_dict(_read_json(Path(path), FootstepError))

@@ -1,5 +1,6 @@
 """The relaxed flood fill that proves a goal cut off for every lattice (reachability.py)."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -53,11 +54,14 @@ def test_stairs_within_the_limits_are_not_cut_off_and_are_climbed():
     assert not goal_cut_off(_model(grid, opts))
     plan = plan_footsteps(grid, START, "left", GOAL, nominal_action_table(), opts)
     assert plan.status is PlanStatus.SUCCESS
-    # sound at the boundary: lo(landing) - hi(stance) = 0.05 - 0.01 is not above 0.04
+    # levels are heights apart: a 5 cm rise is cut off at 4 cm, not at exactly 5 cm
     edge = PlannerOptions(max_step_up=0.04, max_height_range=0.01)
-    assert not goal_cut_off(_model(grid, edge))
-    # without a flatness limit a straddling stance may stand up to the stair: no proof
-    assert not goal_cut_off(_model(grid, PlannerOptions(max_step_up=0.03)))
+    assert goal_cut_off(_model(grid, edge))
+    assert not goal_cut_off(_model(grid, dataclasses.replace(edge, max_step_up=0.05)))
+    # without a flatness limit a stance straddling the edge stands on the stair's height,
+    # and no stance below reaches that level: cut off all the same
+    assert goal_cut_off(_model(grid, PlannerOptions(max_step_up=0.03)))
+    assert not goal_cut_off(_model(grid, PlannerOptions(max_step_up=0.05)))
 
 
 def test_a_band_wider_than_any_step_is_cut_off_and_a_narrow_one_is_not():

@@ -11,24 +11,27 @@ tells those apart with a flood fill over map cells that over-approximates every 
   ``min(length, width) / 2 - res / sqrt(2)`` of that cell's centre (the cell itself
   included), and may overlap only cells within ``half-diagonal + res sqrt(2)``; the cells
   it surely overlaps must be free;
-- the highest ground under the sole (what the step limits compare) is then at least the
-  highest of the cells surely overlapped (``lo``) and at most the highest free cell it may
-  overlap (``hi``); with a flatness limit it is also at most the lowest surely-overlapped
-  cell plus the limit, and a cell whose surely-overlapped heights already differ by more
-  is no foothold;
+- the highest ground under the sole (what the step limits compare) is then the height of
+  a free cell it may overlap, at least the highest of the cells surely overlapped (``lo``)
+  and at most the highest free cell it may overlap (``hi``); with a flatness limit also at
+  most the lowest surely-overlapped cell plus the limit (and a cell whose surely-overlapped
+  heights already differ by more is no foothold). The fill's states are (cell, level):
+  each such height apart, up to :data:`LEVELS` of them, else the interval ``[lo, hi]``, so
+  a stance below a step the limits forbid never reaches the states above it;
 - a step moves the foot centre by at most the table's reach ``R``
   (:meth:`ActionTable.max_reach`), each foot landing relative to the other, so consecutive
   cells have centres at most ``R + res sqrt(2)`` apart, and the step-up limit holds only if
-  ``lo(landing) - hi(stance) <= max_step_up`` (step-down likewise);
+  the landing's lowest level minus the stance's highest is at most ``max_step_up``
+  (step-down likewise);
 - the goal is reached when the stance foot centre is within the tolerance, so a goal
   cell's centre is within ``tol + res / sqrt(2)`` of the goal point.
 
 Swing clearance, footprint margins, headings and histories only remove steps, so they are
 left out: when the fill from the start cell meets no goal cell, no sequence of table steps
 does, whatever the lattice (sound, not complete: a goal it cannot rule out may still be
-unreachable). The fill visits each reachable cell once (compiled), about
-``pi (R / res + 2)^2`` neighbours per cell; the planner runs it only after a search ran out
-of states, before refining.
+unreachable). The fill visits each reachable state once (compiled), about
+``pi (R / res + 2)^2`` neighbouring cells per state; the planner runs it only after a search
+ran out of states, before refining.
 """
 
 import math
@@ -38,6 +41,8 @@ from repertoire.planning.footstep.jitcache import njit
 from scipy import ndimage
 
 _EPS = 1e-9  # rounding slack (m): the relaxation refuses a step only when surely refused
+LEVELS = 8
+"""Ground heights kept apart per cell (more become one interval)."""
 
 
 def goal_cut_off(model) -> bool:
@@ -71,7 +76,17 @@ def goal_cut_off(model) -> bool:
     sj = int((model.start_pose[1] - oy) / res)
     goal_r = (model.tol + res / math.sqrt(2.0)) / res
     gi, gj = (gx - ox) / res - 0.5, (gy - oy) / res - 0.5  # the goal in cell-centre units
-    return not _fill_reaches(valid, lo, hi, si, sj, gi, gj, goal_r, reach, up, down)
+    if not (0 <= si < free.shape[0] and 0 <= sj < free.shape[1]):
+        return False  # off the map: nothing to prove here (the step model refuses it)
+    valid[si, sj] = True  # the start stands, whatever the relaxation says of its cell
+    if math.isfinite(up) or math.isfinite(down):
+        ptr, zlo, zhi = _levels(valid, ground, lo, hi, np.argwhere(may) - (may.shape[0] // 2))
+    else:  # no step limits: levels do not matter, a state per foothold cell
+        flat_valid = valid.ravel()
+        ptr = np.concatenate([[0], np.cumsum(flat_valid, dtype=np.int64)])
+        zlo, zhi = lo.ravel()[flat_valid], hi.ravel()[flat_valid]
+    ny = free.shape[1]
+    return not _fill_reaches(ptr, zlo, zhi, ny, si, sj, gi, gj, goal_r, reach, up, down)
 
 
 def _disc(radius: float, strict: bool = False) -> np.ndarray:
@@ -85,42 +100,91 @@ def _disc(radius: float, strict: bool = False) -> np.ndarray:
 
 
 @njit()
-def _fill_reaches(valid, lo, hi, si, sj, gi, gj, goal_r, reach, up, down):
-    """Breadth-first fill over the cells a foot may stand in; True when a goal cell is met.
+def _levels(valid, ground, lo, hi, may):
+    """Per cell, the intervals the highest ground under a sole centred there can lie in.
 
-    ``lo`` / ``hi``: bounds of the highest ground under a sole centred in each cell.
+    That ground is the height of a free cell the sole may overlap, within ``[lo, hi]``: up to
+    :data:`LEVELS` such heights are kept apart (a state each, an exact height), more are one
+    interval ``[lo, hi]``. Returns CSR rows ``ptr`` (per flat cell) and ``zlo``, ``zhi``.
     """
     nx, ny = valid.shape
-    if not (0 <= si < nx and 0 <= sj < ny):
-        return True  # off the map: nothing to prove here (the step model refuses it)
+    ptr = np.zeros(nx * ny + 1, np.int64)
+    zlo = np.empty(16, np.float64)
+    zhi = np.empty(16, np.float64)
+    vals = np.empty(may.shape[0], np.float64)
+    n = 0
+    for c in range(nx * ny):
+        i, j = c // ny, c % ny
+        ptr[c] = n
+        if not valid[i, j]:
+            continue
+        m = 0
+        for k in range(may.shape[0]):
+            i2, j2 = i + may[k, 0], j + may[k, 1]
+            if 0 <= i2 < nx and 0 <= j2 < ny:
+                z = ground[i2, j2]
+                if lo[i, j] <= z <= hi[i, j]:
+                    vals[m] = z
+                    m += 1
+        levels = np.unique(vals[:m])
+        if n + LEVELS + 1 > zlo.shape[0]:
+            zlo = np.concatenate((zlo, np.empty_like(zlo)))
+            zhi = np.concatenate((zhi, np.empty_like(zhi)))
+        if 0 < levels.size <= LEVELS:
+            for z in levels:
+                zlo[n], zhi[n] = z, z
+                n += 1
+        else:  # many heights (or none, with rounding): the whole interval
+            zlo[n], zhi[n] = lo[i, j], max(hi[i, j], lo[i, j])
+            n += 1
+    ptr[nx * ny] = n
+    return ptr, zlo[:n], zhi[:n]
+
+
+@njit()
+def _fill_reaches(ptr, zlo, zhi, ny, si, sj, gi, gj, goal_r, reach, up, down):
+    """Breadth-first fill over (cell, ground level) states; True when a goal cell is met.
+
+    A step joins two states whose cells' centres are within ``reach`` cells and whose
+    levels may differ by at most the step-up and step-down limits.
+    """
+    nx = (ptr.shape[0] - 1) // ny
     k = int(math.floor(reach))
     offs = []
     for di in range(-k, k + 1):
         for dj in range(-k, k + 1):
             if (di != 0 or dj != 0) and di * di + dj * dj <= reach * reach:
                 offs.append((di, dj))
-    seen = np.zeros((nx, ny), np.bool_)
-    queue = np.empty(nx * ny, np.int64)
-    seen[si, sj] = True
-    queue[0] = si * ny + sj
-    head, tail = 0, 1
+    n = zlo.shape[0]
+    seen = np.zeros(n, np.bool_)
+    queue = np.empty(n, np.int64)
+    cell = np.empty(n, np.int64)
+    for c in range(nx * ny):
+        cell[ptr[c] : ptr[c + 1]] = c
+    head = tail = 0
+    for s in range(ptr[si * ny + sj], ptr[si * ny + sj + 1]):
+        seen[s] = True
+        queue[tail] = s
+        tail += 1
     g2 = goal_r * goal_r
     while head < tail:
-        c = queue[head]
+        s = queue[head]
         head += 1
-        i, j = c // ny, c % ny
+        i, j = cell[s] // ny, cell[s] % ny
         if (i - gi) ** 2 + (j - gj) ** 2 <= g2:
             return True
-        lo_a, hi_a = lo[i, j], hi[i, j]
+        lo_a, hi_a = zlo[s], zhi[s]
         for di, dj in offs:
             i2, j2 = i + di, j + dj
-            if i2 < 0 or i2 >= nx or j2 < 0 or j2 >= ny or seen[i2, j2] or not valid[i2, j2]:
+            if i2 < 0 or i2 >= nx or j2 < 0 or j2 >= ny:
                 continue
-            if lo[i2, j2] - hi_a > up + _EPS or lo_a - hi[i2, j2] > down + _EPS:
-                continue
-            seen[i2, j2] = True
-            queue[tail] = i2 * ny + j2
-            tail += 1
+            c2 = i2 * ny + j2
+            for s2 in range(ptr[c2], ptr[c2 + 1]):
+                if seen[s2] or zlo[s2] - hi_a > up + _EPS or lo_a - zhi[s2] > down + _EPS:
+                    continue
+                seen[s2] = True
+                queue[tail] = s2
+                tail += 1
     return False
 
 

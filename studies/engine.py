@@ -25,7 +25,8 @@ naming the crashed seeds; a rerun tries them again.
 At the end the engine writes ``summary.csv``, ``summary.md`` and
 ``episodes.csv`` to ``out_dir``, plus the study's own figures (its
 ``summarize``), or one histogram per numeric field when it has none
-(:mod:`repertoire.studies.engine_summary`).
+(:mod:`repertoire.studies.engine_summary`); tables and figures alike cover every
+seed stored for the config, not only this call's.
 
 This module imports neither pydrake nor dask at import time.
 """
@@ -367,14 +368,14 @@ def run_study(
         tables = write_tables(name, entry.record_type, stored_records, stored_seeds, out_path)
         use_agg()
         if entry.summarize is not None:
-            made = entry.summarize(records, rebuilt, out_path)
+            made = entry.summarize(stored_records, rebuilt, out_path)  # as summary.md: all
             if not isinstance(made, dict):
                 raise RepertoireError(
                     f"study '{name}': summarize must return a dict label -> path, got {made!r}"
                 )
             figures = {str(k): Path(v) for k, v in made.items()}
         else:
-            figures = write_histograms(entry.record_type, records, out_path)
+            figures = write_histograms(entry.record_type, stored_records, out_path)
     return StudyResult(
         name=name,
         config=rebuilt,

@@ -641,3 +641,15 @@ def test_a_wrong_type_in_yaml_names_its_field_and_a_config_is_called_a_config(tm
         load_scenario(PendulumConfig, data="duration_s: two")
     with pytest.raises(RepertoireError, match=r"^config file '.*nope.yaml' does not exist"):
         load_scenario(PendulumConfig, filename=tmp_path / "nope.yaml", what="config")
+
+
+def test_figures_cover_every_stored_seed_like_the_tables(tmp_path, toy_studies):
+    seen = []
+    registry._REGISTRY["_toy"].summarize = lambda records, config, out: (
+        seen.append([r.value for r in records]) or {}
+    )
+    run_study("_toy", episodes=3, executor="inline", **_kw(tmp_path))
+    later = run_study("_toy", episodes=2, first_seed=5, executor="inline", **_kw(tmp_path))
+    assert later.seeds == [5, 6] and len(later.records) == 2  # the result: this call's
+    assert seen == [[0.0, 2.0, 4.0], [0.0, 2.0, 4.0, 10.0, 12.0]]  # the figures: all stored
+    assert "Every one of the 5 episodes stored" in later.tables["summary.md"].read_text()

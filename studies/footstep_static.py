@@ -272,6 +272,7 @@ def summarize(
     )
 
     out["height_plan"] = _height_plan_figure(config, out_dir / "footstep_height_plan.png")
+    out["cut_off"] = _cut_off_figure(config, out_dir / "footstep_cut_off.png")
 
     # example plans: half where the 2-D planner fails and the biped steps over, half where
     # the 2-D planner has to go around what the biped steps over
@@ -389,6 +390,32 @@ def _height_plan_figure(config: FootstepStaticConfig, path: Path) -> Path:
         swing_clearance=config.swing_clearance_m,
         title=f"4 m floor, blocks 2-30 cm: {plan.status.value}, {plan.num_steps} steps "
         f"(swing clearance {100 * config.swing_clearance_m:.0f} cm)",
+    )
+
+
+def _cut_off_figure(config: FootstepStaticConfig, path: Path) -> Path:
+    """The best partial plan below a 5 cm platform that ``max_step_up`` = 4 cm forbids.
+
+    The first lattice runs out of states; the relaxed flood fill
+    (:func:`~repertoire.planning.footstep.reachability.goal_cut_off`) proves no lattice
+    gets up, so the planner answers UNREACHABLE without refining.
+    """
+    from repertoire.planning.footstep import OccupancyGrid, PlannerOptions, plan_footsteps
+    from repertoire.planning.footstep.plot import height_plan_figure
+
+    grid = OccupancyGrid.from_rectangles((3.0, 1.5), [], config.resolution_m, with_heights=True)
+    grid.heights[int(round(1.5 / config.resolution_m)) :, :] = 0.05  # the platform, x >= 1.5 m
+    opts = PlannerOptions(time_limit=max(config.time_limit_s, 5.0), max_step_up=0.04)
+    plan = plan_footsteps(grid, (0.5, 0.75, 0.0), "left", (2.5, 0.75), _table(config), opts)
+    first = plan.xy_resolution == opts.xy_resolution and plan.status.value == "UNREACHABLE"
+    how = "no lattice gets up (proved), no refinement" if first else "finest lattice tried"
+    return height_plan_figure(
+        grid,
+        plan,
+        path,
+        title=f"5 cm platform from x = 1.5 m, max_step_up 4 cm: {plan.status.value} on the "
+        f"{100 * plan.xy_resolution:g} cm lattice\nin {plan.planning_time_s:.2f} s: {how}\n"
+        "(feet: the best partial plan)",
     )
 
 

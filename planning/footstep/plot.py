@@ -223,17 +223,24 @@ def height_plan_figure(
     extent = (x0, x0 + nx * res, y0, y0 + ny * res)
     h_cm = np.where(grid.occupied, 100.0 * grid.heights, np.nan)
     ground = np.where(grid.occupied, np.nan, 100.0 * grid.heights)
-    if np.nanmax(np.abs(ground), initial=0.0) > 0:
-        ax.imshow(
+    shaded = np.nanmax(np.abs(ground), initial=0.0) > 0
+    if shaded:
+        gi = ax.imshow(
             ground.T, origin="lower", extent=extent, cmap="Greys", alpha=0.35,
-            interpolation="nearest",
+            interpolation="nearest", vmin=0.0,
         )  # fmt: skip
-    im = ax.imshow(
-        h_cm.T, origin="lower", extent=extent, cmap="viridis", interpolation="nearest", vmin=0.0
-    )
-    fig.colorbar(im, ax=ax, label="obstacle height (cm)", shrink=0.8)
     handles = plan_legend_handles()[:5]
-    handles.append(Patch(fc=im.cmap(0.1), label="obstacle (colour: height)"))
+    if grid.occupied.any():
+        im = ax.imshow(
+            h_cm.T, origin="lower", extent=extent, cmap="viridis", interpolation="nearest",
+            vmin=0.0,
+        )  # fmt: skip
+        fig.colorbar(im, ax=ax, label="obstacle height (cm)", shrink=0.8)
+        handles.append(Patch(fc=im.cmap(0.1), label="obstacle (colour: height)"))
+    elif shaded:
+        fig.colorbar(gi, ax=ax, label="ground height (cm)", shrink=0.8)
+    if shaded:
+        handles.append(Patch(fc="0.55", alpha=0.35, label="free ground (grey: higher)"))
     if math.isfinite(swing_clearance):
         tall = grid.occupied & (grid.heights > swing_clearance)
         if tall.any():

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from repertoire.planning.refinement import RefinementProblem, RefinementResult
 
+from repertoire.checks import check_seed, is_real
 from repertoire.errors import RepertoireError
 
 
@@ -45,7 +46,7 @@ class GaOptions:
         rate = () if self.mutation_rate is None else (self.mutation_rate,)
         if not (
             all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in whole)
-            and all(_is_real(v) and np.isfinite(v) for v in real + rate)
+            and all(is_real(v) and np.isfinite(v) for v in real + rate)
         ):
             raise RepertoireError(
                 f"invalid GA options {self}: expected whole counts, finite numbers"
@@ -61,17 +62,6 @@ class GaOptions:
         )
         if not ok:
             raise RepertoireError(f"invalid GA options {self}")
-
-
-def _is_real(v) -> bool:
-    return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool)
-
-
-def check_seed(seed) -> int:
-    """``seed`` as an int in 0..2**32 - 1 (numpy's and scipy's range), or a named error."""
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or not 0 <= seed < 2**32:
-        raise RepertoireError(f"seed must be a whole number in 0..2**32 - 1, got {seed!r}")
-    return int(seed)
 
 
 def genetic_minimise(

@@ -27,6 +27,7 @@ from repertoire.models.littledog import LEGS
 from repertoire.models.littledog.kinematics import LEG_GEOMETRY
 from repertoire.models.littledog.pose import rotation_from_rpy, rpy_from_rotation, wrap_angle
 
+from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 
 FORMAT_VERSION = 1
@@ -80,7 +81,7 @@ class LibraryStep:
 
 def _is_real(value) -> bool:
     """True for a finite real number (not a string, None or array)."""
-    return isinstance(value, (int, float, np.integer, np.floating)) and math.isfinite(value)
+    return is_real(value) and math.isfinite(value)
 
 
 def validate_step(step: LibraryStep, where: str = "step") -> None:

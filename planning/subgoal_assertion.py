@@ -14,8 +14,9 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-from repertoire.planning.black_box import GaOptions, check_seed, genetic_minimise
+from repertoire.planning.black_box import GaOptions, genetic_minimise
 
+from repertoire.checks import check_seed
 from repertoire.errors import RepertoireError
 
 

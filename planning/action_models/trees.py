@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from repertoire.checks import check_seed
 from repertoire.errors import RepertoireError
 
 MODEL_VERSION = 1
@@ -181,20 +182,11 @@ class TreeModel:
         return "\n".join(lines)
 
 
-def _check_whole(name: str, value, least: int, most: int | None = None) -> int:
-    """``value`` as an int in ``least..most``, or a RepertoireError naming it."""
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | np.integer)
-        or value < least
-        or (most is not None and value > most)
-    ):
-        span = f">= {least}" if most is None else f"in {least}..{most}"
-        raise RepertoireError(f"{name} must be a whole number {span}, got {value!r}")
+def _check_whole(name: str, value, least: int) -> int:
+    """``value`` as an int >= ``least``, or a RepertoireError naming it."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
+        raise RepertoireError(f"{name} must be a whole number >= {least}, got {value!r}")
     return int(value)
-
-
-MAX_SEED = 2**32 - 1  # scikit-learn's random_state range
 
 
 def _check_cost(failure_cost) -> float:
@@ -321,7 +313,7 @@ def fit_duration_tree(
 
     if not (isinstance(ridge, int | float | np.number) and math.isfinite(ridge) and ridge >= 0):
         raise RepertoireError(f"ridge must be a finite number >= 0, got {ridge!r}")
-    seed = _check_whole("seed", seed, 0, MAX_SEED)
+    seed = check_seed(seed)
     if min_samples_leaf is not None:
         min_samples_leaf = _check_whole("min_samples_leaf", min_samples_leaf, 1)
     candidate_leaves = list(candidate_leaves)
@@ -390,7 +382,7 @@ def fit_failure_tree(
     from sklearn.tree import DecisionTreeClassifier
 
     failure_cost = _check_cost(failure_cost)
-    seed = _check_whole("seed", seed, 0, MAX_SEED)
+    seed = check_seed(seed)
     min_samples_leaf = _check_whole("min_samples_leaf", min_samples_leaf, 1)
     max_leaf_nodes = _check_whole("max_leaf_nodes", max_leaf_nodes, 2)
     X, y = _check_training(X, np.asarray(failed, dtype=float), feature_names)
@@ -564,7 +556,7 @@ def fit_action_model(
     Raises:
         RepertoireError: too few records, a missing field, NaN features.
     """
-    seed = _check_whole("seed", seed, 0, MAX_SEED)
+    seed = check_seed(seed)
     failure_cost = _check_cost(failure_cost)
     if isinstance(features, str):
         raise RepertoireError(

@@ -29,6 +29,7 @@ from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder, InputPort
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
 from repertoire.diagrams.registry import register_diagram
+from repertoire.diagrams.simulate import start_overlaps
 from repertoire.models.arm7 import (
     ALL_JOINTS,
     ARM_JOINTS,
@@ -301,22 +302,11 @@ def check_initial_clearance(
     Raises:
         ScenarioError: naming the colliding bodies and the depth.
     """
-    context = diagram.CreateDefaultContext()
-    plant_context = plant.GetMyContextFromRoot(context)
-    query = plant.get_geometry_query_input_port().Eval(plant_context)
-    inspector = query.inspector()
-    arm = plant.GetModelInstanceByName("arm7")
-    for pair in query.ComputePointPairPenetration():
-        if pair.depth <= tolerance:
-            continue
-        bodies = [plant.GetBodyFromFrameId(inspector.GetFrameId(g)) for g in (pair.id_A, pair.id_B)]
-        if any(b.model_instance() == arm for b in bodies):
-            names = [
-                f"{plant.GetModelInstanceName(b.model_instance())}::{b.name()}" for b in bodies
-            ]
+    for a, b, depth in start_overlaps(diagram, plant, tolerance):
+        if "arm7" in (a[0], b[0]):
             raise ScenarioError(
-                f"initial configuration in collision: {names[0]} penetrates {names[1]} by "
-                f"{pair.depth * 1000:.1f} mm; choose initial_q / initial_fingers / base pose / "
+                f"initial configuration in collision: {a[0]}::{a[1]} penetrates {b[0]}::{b[1]} "
+                f"by {depth * 1000:.1f} mm; choose initial_q / initial_fingers / base pose / "
                 "object positions that keep the arm clear"
             )
 

@@ -19,6 +19,7 @@ from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
 from repertoire.diagrams.biped import add_ground, validate_plant_fields
 from repertoire.diagrams.registry import register_diagram
+from repertoire.diagrams.simulate import start_overlaps
 from repertoire.models import ConfigureParser, package_url
 from repertoire.models.diffdrive import MAX_WHEEL_SPEED, TRACK, WHEEL_RADIUS
 
@@ -206,25 +207,13 @@ def check_start_clear(diagram: Diagram, fields: dict[str, str], *, tolerance: fl
         ScenarioError: naming the field, the two bodies and the overlap.
     """
     plant = diagram.GetSubsystemByName("plant")
-    scene_graph = diagram.GetSubsystemByName("scene_graph")
-    context = diagram.CreateDefaultContext()
-    query = scene_graph.get_query_output_port().Eval(scene_graph.GetMyContextFromRoot(context))
-    inspector = query.inspector()
-    for pair in query.ComputePointPairPenetration():
-        if pair.depth <= tolerance:
-            continue
-        names = []
-        for g in (pair.id_A, pair.id_B):
-            body = plant.GetBodyFromFrameId(inspector.GetFrameId(g))
-            model = plant.GetModelInstanceName(body.model_instance())
-            # the world's geometries (the ground) by their own names
-            names.append((model, inspector.GetName(g) if body.index() == 0 else body.name()))
-        if names[1][0] in fields:
-            names.reverse()  # the body the named field placed first
-        field = fields.get(names[0][0], "the start")
-        (ma, a), (mb, b) = names
+    for a, b, depth in start_overlaps(diagram, plant, tolerance):
+        if b[0] in fields:
+            a, b = b, a  # the body the named field placed first
+        field = fields.get(a[0], "the start")
         raise ScenarioError(
-            f"{field} puts {ma}::{a} {pair.depth:.3f} m into {mb}::{b} at the start; place it clear"
+            f"{field} puts {a[0]}::{a[1]} {depth:.3f} m into {b[0]}::{b[1]} at the start; "
+            "place it clear"
         )
 
 

@@ -273,6 +273,29 @@ def start_context(entry: DiagramEntry | None, diagram: Diagram, scenario: Any) -
     return context
 
 
+def start_overlaps(diagram: Diagram, plant, tolerance: float) -> list[tuple]:
+    """Pairs of bodies overlapping by more than ``tolerance`` (m) in the default context.
+
+    Returns ``((model, name), (model, name), depth)`` per pair, SceneGraph's order; a body
+    is named by its model instance and its name (the world's geometries, such as the
+    ground, by their own names).
+    """
+    context = plant.GetMyContextFromRoot(diagram.CreateDefaultContext())
+    query = plant.get_geometry_query_input_port().Eval(context)
+    inspector = query.inspector()
+    out = []
+    for pair in query.ComputePointPairPenetration():
+        if pair.depth <= tolerance:
+            continue
+        names = []
+        for g in (pair.id_A, pair.id_B):
+            body = plant.GetBodyFromFrameId(inspector.GetFrameId(g))
+            model = plant.GetModelInstanceName(body.model_instance())
+            names.append((model, inspector.GetName(g) if body.index() == 0 else body.name()))
+        out.append((names[0], names[1], float(pair.depth)))
+    return out
+
+
 def run_check(entry: DiagramEntry, diagram: Diagram, context: Context) -> dict[str, float]:
     """Runs the entry's ``check(diagram, context)`` (empty dict when it has none)."""
     if entry.check is None:

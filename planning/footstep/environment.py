@@ -8,18 +8,13 @@ grids with times; ``E(t)`` is the grid of the nearest time.
 
 import dataclasses
 import math
-import numbers
 from collections.abc import Sequence
 
 import numpy as np
 from repertoire.planning.footstep.types import GridError
 
+from repertoire.checks import is_real
 from repertoire.limits import require_memory
-
-
-def _is_number(v: object) -> bool:
-    """A real number (numpy's included), not a bool."""
-    return isinstance(v, numbers.Real) and not isinstance(v, bool)
 
 
 def rect_overlaps_cells(
@@ -191,11 +186,11 @@ class OccupancyGrid:
                 f"occupied must hold booleans or finite numbers (nonzero: occupied), got dtype "
                 f"{occupied.dtype} with values such as {occupied.ravel()[:3].tolist()}"
             )
-        self.occupied = occupied.astype(bool)
+        self.occupied = occupied if occupied.dtype == bool else occupied.astype(bool)
         if self.occupied.ndim != 2 or min(self.occupied.shape) == 0:
             raise GridError(f"occupied must be a non-empty 2-D array, got {self.occupied.shape}")
         if not (
-            _is_number(self.resolution) and math.isfinite(self.resolution) and self.resolution > 0
+            is_real(self.resolution) and math.isfinite(self.resolution) and self.resolution > 0
         ):
             raise GridError(
                 f"resolution must be a positive number of metres, got {self.resolution!r}"
@@ -292,12 +287,12 @@ class OccupancyGrid:
             GridError: a bad size or resolution.
             ResourceLimitError: a grid too large for memory (estimated before allocating).
         """
-        if not (_is_number(resolution) and math.isfinite(resolution) and resolution > 0):
+        if not (is_real(resolution) and math.isfinite(resolution) and resolution > 0):
             raise GridError(f"resolution must be positive, got {resolution!r}")
         if not (
             isinstance(size, Sequence | np.ndarray)
             and len(size) == 2
-            and all(_is_number(s) and math.isfinite(s) and s > 0 for s in size)
+            and all(is_real(s) and math.isfinite(s) and s > 0 for s in size)
         ):
             raise GridError(f"size must be two positive lengths, got {size!r}")
         nx = int(round(size[0] / resolution))

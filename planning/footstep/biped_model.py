@@ -568,8 +568,16 @@ class BipedStepModel:
     def heuristic(self, s: BipedState) -> float:
         return s.h
 
-    def successors(self, s: BipedState) -> Iterator[tuple[BipedState, float]]:
-        """The landings T allows from ``s`` that are free, flat and reachable by the swing."""
+    def successors(
+        self, s: BipedState, dominated: "Callable[[int, float], bool] | None" = None
+    ) -> Iterator[tuple[BipedState, float]]:
+        """The landings T allows from ``s`` that are free, flat and reachable by the swing.
+
+        With the search's ``dominated(key, step_cost)`` test
+        (:func:`~repertoire.planning.footstep.search.successor_function`), a landing whose
+        lattice state is already reached as cheaply is skipped before its checks (when its
+        cost is the table's: no height cost), as the compiled core does.
+        """
         ox, oy = self.origin
         inv_res = self.inv_res
         nx, ny = self.ref.shape
@@ -579,6 +587,9 @@ class BipedStepModel:
         if self.dynamic and self.step_limits:
             ex1 = self.exact_checkers.checker(max(self.checkers.index(s.t), 0))
         z1 = ex1.top_height(s.x, s.y, s.yaw) if self.step_limits else 0.0
+        if self.height_w > 0.0:
+            dominated = None  # a landing's cost is known only after its height check
+        hist1 = self._hist_rows[s.a_prev1]
         for m in self.successor_rows(s.a_prev2, s.a_prev1, s.foot):
             x2 = s.x + c * m.dx - sn * m.dy
             y2 = s.y + sn * m.dx + c * m.dy
@@ -587,6 +598,10 @@ class BipedStepModel:
             fx = (x2 - ox) * inv_res
             fy = (y2 - oy) * inv_res
             if not (0.0 <= fx < nx and 0.0 <= fy < ny):
+                continue
+            if dominated is not None and dominated(
+                self.lattice_key(x2, y2, th2, nf, hist1[m.a], t2), m.cost
+            ):
                 continue
             if self.dynamic:
                 kt = self.checkers.index(t2)

@@ -54,8 +54,9 @@ def test_pruned_search_expands_the_same_states(case):
 def test_pruned_anytime_search_gives_the_same_plans(case):
     grid, start, goal = list(_scenes())[case]
     pruned, plain = _models(grid, start, goal)
-    runs_a = anytime_search(pruned, weights=[3.0, 2.0, 1.5, 1.0], max_expansions=30_000, time_limit=60.0)
-    runs_b = anytime_search(plain, weights=[3.0, 2.0, 1.5, 1.0], max_expansions=30_000, time_limit=60.0)
+    budget = {"weights": [3.0, 2.0, 1.5, 1.0], "max_expansions": 30_000, "time_limit": 60.0}
+    runs_a = anytime_search(pruned, **budget)
+    runs_b = anytime_search(plain, **budget)
     assert [(r.status, r.cost, r.bound, r.expansions) for r in runs_a] == [
         (r.status, r.cost, r.bound, r.expansions) for r in runs_b
     ]

@@ -126,3 +126,49 @@ def test_dynamic_worlds_are_never_claimed_cut_off():
         world, START, "left", GOAL, nominal_action_table(), PlannerOptions(heuristic="euclidean")
     )
     assert goal_cut_off(model) is False
+
+
+def test_a_proof_cut_short_by_the_clock_proves_nothing(monkeypatch):
+    import time
+
+    import repertoire.planning.footstep.reachability as reach
+
+    opts = PlannerOptions(max_step_up=0.03, max_height_range=0.01, time_limit=60.0)
+    model = _model(_stairs(0.05), opts)
+    assert goal_cut_off(model, time.perf_counter() + 60.0)
+    assert not goal_cut_off(model, time.perf_counter())  # no time left: nothing proved
+    # the level table or the fill interrupted: each says so, and nothing is proved
+    assert not goal_cut_off(model, -math.inf)
+    levels = reach._levels.py_func
+    fill = reach._fill_reaches.py_func
+    monkeypatch.setattr(reach, "_now", lambda: math.inf)
+    monkeypatch.setattr(reach, "_levels", levels)
+    monkeypatch.setattr(reach, "_fill_reaches", fill)
+    monkeypatch.setattr(reach.time, "perf_counter", lambda: 0.0)
+    assert not goal_cut_off(model, 1.0)  # the levels' clock reads "late": cut short
+    monkeypatch.setattr(reach, "_levels", lambda *a: levels(*a[:-1], math.inf))
+    assert not goal_cut_off(model, 1.0)  # the fill's clock reads "late": cut short
+    monkeypatch.setattr(reach, "_now", lambda: 0.0)
+    assert goal_cut_off(model, 1.0)  # both on time: the proof stands
+
+
+def test_the_planner_reports_time_limit_when_the_proof_runs_out_of_time(monkeypatch):
+    import time
+
+    grid = _stairs(0.05)
+    opts = PlannerOptions(max_step_up=0.03, max_height_range=0.01, time_limit=0.5)
+    seen = []
+
+    def out_of_time(model, deadline=math.inf):  # a fill on a map too large for the limit
+        seen.append(deadline)
+        time.sleep(max(deadline - time.perf_counter(), 0.0))
+        return False
+
+    monkeypatch.setattr("repertoire.planning.footstep.planner.goal_cut_off", out_of_time)
+    t0 = time.perf_counter()
+    plan = plan_footsteps(grid, START, "left", GOAL, nominal_action_table(), opts)
+    assert len(seen) == 1 and t0 + 0.5 <= seen[0] <= time.perf_counter()  # its own deadline
+    assert plan.status is PlanStatus.TIME_LIMIT  # not UNREACHABLE: nothing was proved
+    assert (plan.xy_resolution, plan.yaw_bins) == (0.05, 36)
+    runs = plan_footsteps_anytime(grid, START, "left", GOAL, nominal_action_table(), opts)
+    assert len(seen) == 2 and [r.plan.status for r in runs] == [PlanStatus.TIME_LIMIT]

@@ -261,8 +261,8 @@ def plan_footsteps(
     plan, merged, model = _plan_once(world, start, start_foot, goal, table, opts, t_begin, kwargs)
     level = 0
     while plan.status is PlanStatus.UNREACHABLE and merged and level < opts.refinements:
-        if level == 0 and goal_cut_off(model):  # no lattice can get through: nothing to refine
-            break
+        if level == 0 and goal_cut_off(model, t_begin + opts.time_limit):  # no lattice gets
+            break  # through: nothing to refine (a proof cut short by the limit proves nothing)
         left = opts.time_limit - (time.perf_counter() - t_begin)
         if left <= 0.0:
             plan.status = PlanStatus.TIME_LIMIT
@@ -427,8 +427,8 @@ def plan_footsteps_anytime(
         and found[-1][1].merged
         and level < opts.refinements
     ):
-        if level == 0 and goal_cut_off(found[0][0]):  # no lattice can get through
-            break
+        if level == 0 and goal_cut_off(found[0][0], t_begin + opts.time_limit):
+            break  # no lattice can get through (proved within the time limit)
         left = opts.time_limit - (time.perf_counter() - t_begin)
         if left <= 0.0:
             found[-1][1].status = PlanStatus.TIME_LIMIT

@@ -80,7 +80,7 @@ def test_unreachable_band_on_both_backends(monkeypatch):
     args = (grid, (0.2, 0.3, 0.0), "left", (1.2, 0.3), nominal_action_table())
     plan = _both(*args, time_limit=30.0, refinements=1)
     assert plan.status is PlanStatus.UNREACHABLE and plan.xy_resolution == 0.05  # proved cut off
-    monkeypatch.setattr("repertoire.planning.footstep.planner.goal_cut_off", lambda model: False)
+    monkeypatch.setattr("repertoire.planning.footstep.planner.goal_cut_off", lambda *a: False)
     plan = _both(*args, time_limit=30.0, refinements=1)  # no proof: the next lattice is tried
     assert plan.status is PlanStatus.UNREACHABLE and plan.xy_resolution == 0.025
     assert max(p[0] for p in plan.poses) < 0.625

@@ -52,7 +52,7 @@ def test_unreachable_reported_at_the_finest_lattice_tried(monkeypatch):
     assert proved.status is PlanStatus.UNREACHABLE
     assert (proved.xy_resolution, proved.yaw_bins) == (0.05, 36)
     # without that proof, the planner refines and reports the finest lattice it tried
-    monkeypatch.setattr("repertoire.planning.footstep.planner.goal_cut_off", lambda model: False)
+    monkeypatch.setattr("repertoire.planning.footstep.planner.goal_cut_off", lambda *a: False)
     plan = plan()
     assert plan.status is PlanStatus.UNREACHABLE
     assert (plan.xy_resolution, plan.yaw_bins) == (0.025, 72)

@@ -72,6 +72,7 @@ from repertoire.studies.registry import (
 from repertoire.studies.store import (
     EpisodeStore,
     canonical_json,
+    copy_store,
     from_plain,
     read_store,
     to_plain,
@@ -235,7 +236,8 @@ def run_study(
         workers: process-pool size (default: all cores); ignored by dask.
         scheduler_address: the Dask scheduler (``executor="dask"`` only).
         fresh: drop what the store holds and start afresh (needed when the
-            config changed).
+            config changed); when an episode rejects the new config before any
+            episode of it is stored, the store is put back as it was.
         progress: show a tqdm progress bar with rate and ETA.
         summarize: write tables and figures (False: only run and store).
         dask_timeout_s: how long to try to reach the Dask scheduler.
@@ -313,6 +315,13 @@ def run_study(
     store_is_new = not store_path.exists()
     new_folder = _first_missing_folder(store_path.parent)
     discard = False
+    # ``fresh`` drops the store's episodes; a copy of them is put back when an episode
+    # rejects the new config before any of its episodes was stored (bad input keeps data)
+    before_fresh = Path(f"{store_path}.before-fresh") if fresh and not store_is_new else None
+    if before_fresh is not None and not copy_store(store_path, before_fresh):
+        before_fresh.unlink(missing_ok=True)  # not a store: the open below says so
+        before_fresh = None
+    restore = False
     try:
         record_fields = [f.name for f in dataclasses.fields(entry.record_type)]
         with EpisodeStore.open(
@@ -338,7 +347,9 @@ def run_study(
             try:
                 _store_results(name, db, results, len(present), episodes, progress)
             except RepertoireError:
-                discard = store_is_new and db.count() == 0 and not db.crashes()
+                nothing_new = db.count() == 0 and not db.crashes()
+                discard = store_is_new and nothing_new
+                restore = before_fresh is not None and nothing_new
                 raise
             if pool is not None:
                 pool.close()
@@ -352,6 +363,10 @@ def run_study(
             client.close()
         if discard:
             _remove_new_store(store_path, new_folder)
+        if before_fresh is not None:
+            if restore:
+                copy_store(before_fresh, store_path)
+            before_fresh.unlink(missing_ok=True)
     if [r.seed for r in rows] != seeds:
         lost = sorted(set(seeds) - {r.seed for r in rows})
         raise RepertoireError(
@@ -548,7 +563,10 @@ def add_study_arguments(parser: argparse.ArgumentParser, *, with_name: bool = Tr
     parser.add_argument(
         "--fresh",
         action="store_true",
-        help="discard the store's episodes and start afresh (needed after changing the config)",
+        help=(
+            "discard the store's episodes and start afresh (needed after changing the config; "
+            "kept when an episode rejects the new config)"
+        ),
     )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 

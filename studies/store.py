@@ -17,6 +17,7 @@ plain data (JSON): :func:`to_plain` and :func:`from_plain` convert dataclasses
 both ways using their type hints. Nothing is pickled.
 """
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -450,3 +451,22 @@ def read_store(path: str | Path) -> tuple[dict[str, str], list[StoredEpisode]]:
     except sqlite3.DatabaseError as e:
         raise RepertoireError(f"'{path}' is not a study store (SQLite said: {e})") from e
     return meta, episodes
+
+
+def copy_store(src: str | Path, dst: str | Path) -> bool:
+    """Copies the SQLite file ``src`` over ``dst`` with SQLite's backup API.
+
+    The copy is consistent with ``src``'s write-ahead log, and ``dst`` (created or
+    replaced) stays a valid SQLite file for its open connections. Used to put a store back
+    when ``--fresh`` turns out to have nothing to replace it with.
+
+    Returns:
+        False when ``src`` is no SQLite file (nothing is copied).
+    """
+    try:
+        with contextlib.closing(sqlite3.connect(str(src))) as a:
+            with contextlib.closing(sqlite3.connect(str(dst))) as b:
+                a.backup(b)
+    except sqlite3.DatabaseError:
+        return False
+    return True

@@ -131,10 +131,28 @@ def test_an_episode_rejecting_the_config_leaves_no_store_and_no_folder(tmp_path,
 
 
 def test_an_episode_rejecting_the_config_keeps_an_existing_store(tmp_path, fuzz_study):
-    _run(tmp_path, store=tmp_path / "s.sqlite")
+    store = tmp_path / "s.sqlite"
+    _run(tmp_path, store=store)
     with pytest.raises(RepertoireError, match="scale must be > 0"):
-        _run(tmp_path, FuzzConfig(scale=-1.0), store=tmp_path / "s.sqlite", fresh=True)
-    assert (tmp_path / "s.sqlite").is_file()
+        _run(tmp_path, FuzzConfig(scale=-1.0), store=store, fresh=True)
+    # --fresh with a config no episode accepts: the store holds its episodes and config still
+    again = _run(tmp_path, store=store)
+    assert (again.n_run, again.n_reused) == (0, 2)
+    assert [r.value for r in again.records] == [0.0, 1.0]
+    assert sorted(p.name for p in tmp_path.iterdir() if "before-fresh" in p.name) == []
+    # a config that runs replaces them as asked
+    fresh = _run(tmp_path, FuzzConfig(scale=3.0), store=store, fresh=True)
+    assert (fresh.n_run, [r.value for r in fresh.records]) == (2, [0.0, 3.0])
+    assert _run(tmp_path, FuzzConfig(scale=3.0), store=store).n_reused == 2
+
+
+def test_fresh_over_a_file_that_is_no_store_is_refused_and_left_alone(tmp_path, fuzz_study):
+    junk = tmp_path / "s.sqlite"
+    junk.write_bytes(b"not a database at all" * 100)
+    with pytest.raises(RepertoireError, match="is not a study store"):
+        _run(tmp_path, store=junk, fresh=True)
+    assert junk.read_bytes() == b"not a database at all" * 100
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.sqlite"]
 
 
 def test_cli_bad_config_found_by_an_episode_exits_2_and_writes_nothing(

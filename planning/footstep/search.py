@@ -147,6 +147,21 @@ def successor_function(model: StepModel) -> Callable[[Any, Any], Iterable[tuple[
     return lambda state, dominated: model.successors(state)
 
 
+def _start_state(model: StepModel, require_successors: bool) -> Any:
+    """``model.start()``, refused when it is no goal and has no successor (if required)."""
+    start = model.start()
+    if (
+        require_successors
+        and not model.is_goal(start)
+        and not any(True for _ in model.successors(start))
+    ):
+        raise FootstepError(
+            "the step model's successors of the start state are empty: no step is possible "
+            "from the start (check the candidate set, reach and terrain around the start)"
+        )
+    return start
+
+
 def search(
     model: StepModel,
     *,
@@ -171,16 +186,7 @@ def search(
     """
     _validate_budget(weight, max_expansions, time_limit)
     t0 = time.perf_counter()
-    start = model.start()
-    if (
-        require_successors
-        and not model.is_goal(start)
-        and not any(True for _ in model.successors(start))
-    ):
-        raise FootstepError(
-            "the step model's successors of the start state are empty: no step is possible "
-            "from the start (check the candidate set, reach and terrain around the start)"
-        )
+    start = _start_state(model, require_successors)
     tie = itertools.count()
     start_key = model.key(start)
     g: dict[Hashable, float] = {start_key: 0.0}
@@ -303,16 +309,7 @@ def anytime_search(
     ws = anytime_weights(weights)
     _validate_budget(ws[0], max_expansions, time_limit)
     t0 = time.perf_counter()
-    start = model.start()
-    if (
-        require_successors
-        and not model.is_goal(start)
-        and not any(True for _ in model.successors(start))
-    ):
-        raise FootstepError(
-            "the step model's successors of the start state are empty: no step is possible "
-            "from the start (check the candidate set, reach and terrain around the start)"
-        )
+    start = _start_state(model, require_successors)
     # nodes: parallel lists; a lattice key maps to its latest node
     states, g, h, parent = [start], [0.0], [model.heuristic(start)], [-1]
     expanded_in, in_open, in_incons = [-1], [True], [False]

@@ -14,21 +14,27 @@ The scenario names the source terrain
 the crossing direction, the start offsets, the controller gains and the library
 file. With ``library: ""`` the library of all demonstrations is loaded from
 ``out/littledog/step_library.{npz,json}`` and, if that file does not exist yet,
-recorded in physics and saved there first (about a minute of wall time).
+recorded in physics and saved there first (a few minutes of wall time: each crossing is
+kept as it is recorded, so an interrupted recording resumes where it stopped).
 """
 
 import dataclasses
+import functools
 import math
+import operator
+import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import MatrixGain, VectorLogSink
 from repertoire.diagrams.littledog_demos import (
+    LIBRARY_TERRAINS,
     crossing_start,
     flat_start,
     library_terrain,
-    record_library,
+    record_crossing,
 )
 from repertoire.diagrams.littledog_worlds import (
     PlantSettings,
@@ -144,9 +150,46 @@ def load_library(path: str = "") -> StepLibrary:
         except RepertoireError as e:
             raise ScenarioError(f"library {path!r}: {e}") from e
     if not DEFAULT_LIBRARY.with_suffix(".json").is_file():
-        library, _ = record_library()
-        library.save(DEFAULT_LIBRARY)
+        _record_default_library().save(DEFAULT_LIBRARY)
+        shutil.rmtree(_CROSSINGS, ignore_errors=True)
     return StepLibrary.load(DEFAULT_LIBRARY)
+
+
+_CROSSINGS = DEFAULT_LIBRARY.parent / "step_library_crossings"
+"""Where the crossings of a default library being recorded are kept until it is saved."""
+
+
+def _record_default_library() -> StepLibrary:
+    """The library of every crossing of every library terrain, recorded in physics.
+
+    The same steps, in the same order, as
+    :func:`~repertoire.diagrams.littledog_demos.record_library`; each crossing (about half
+    a minute) is saved under :data:`_CROSSINGS` as soon as it is recorded and read back
+    from there on a later call, so an interrupted recording resumes where it stopped. A
+    line on standard error tells each crossing as it starts.
+    """
+    jobs = [
+        (name, direction)
+        for name in sorted(LIBRARY_TERRAINS)
+        for direction in library_terrain(name).directions_deg
+    ]
+    parts = []
+    for k, (name, direction) in enumerate(jobs, 1):
+        tag = f"{name}_{direction:g}deg".replace(".", "p").replace("-", "m")
+        path = _CROSSINGS / tag
+        if path.with_suffix(".json").is_file() and path.with_suffix(".npz").is_file():
+            parts.append(StepLibrary.load(path))
+            continue
+        print(
+            f"recording the default LittleDog step library: crossing {k} of {len(jobs)} "
+            f"({name}, {direction:g} deg)",
+            file=sys.stderr,
+            flush=True,
+        )
+        part = StepLibrary(record_crossing(library_terrain(name), direction).steps)
+        part.save(path)
+        parts.append(part)
+    return functools.reduce(operator.add, parts)
 
 
 def crossing_geometry(scenario: LittleDogLibraryScenario):

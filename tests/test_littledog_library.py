@@ -406,3 +406,36 @@ def test_join_boards_height_is_each_board_shifted():
     assert np.isclose(joined.height(0.1, -0.3), b.height(-0.1, -0.3))
     with pytest.raises(RepertoireError, match="one finite"):
         join_boards([a], [[0.0, 0.0], [1.0, 0.0]])
+
+
+def test_default_library_is_recorded_crossing_by_crossing_and_resumes(tmp_path, monkeypatch):
+    import types
+
+    import repertoire.diagrams.littledog_library as ll
+    from repertoire.diagrams.littledog_demos import LIBRARY_TERRAINS, library_terrain
+
+    monkeypatch.chdir(tmp_path)  # the default library lives under ./out
+    jobs = [(n, d) for n in sorted(LIBRARY_TERRAINS) for d in library_terrain(n).directions_deg]
+    rng = np.random.default_rng(3)
+    steps = {job: [make_step(rng, foot=k % 4, shift=0.01 * k)] for k, job in enumerate(jobs)}
+    recorded = []
+
+    def fake_crossing(terrain, direction):
+        job = next(j for j in jobs if library_terrain(j[0]) == terrain and j[1] == direction)
+        recorded.append(job)
+        if len(recorded) == 3:
+            raise KeyboardInterrupt  # the user stops the third crossing
+        return types.SimpleNamespace(steps=steps[job])
+
+    monkeypatch.setattr(ll, "record_crossing", fake_crossing)
+    with pytest.raises(KeyboardInterrupt):
+        ll.load_library("")
+    assert not ll.DEFAULT_LIBRARY.with_suffix(".json").exists()
+    assert len(list(ll._CROSSINGS.glob("*.json"))) == 2  # the two finished crossings kept
+    library = ll.load_library("")  # resumes: the two kept crossings are not recorded again
+    assert recorded == jobs[:3] + jobs[2:]
+    want = [s for job in jobs for s in steps[job]]
+    assert len(library) == len(want)
+    assert all(np.array_equal(a.q, b.q) for a, b in zip(library.steps, want, strict=True))
+    assert not ll._CROSSINGS.exists()  # the pieces go once the library is saved
+    assert ll.load_library("") is not None and len(recorded) == len(jobs) + 1  # cached now

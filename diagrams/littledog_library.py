@@ -22,7 +22,6 @@ import dataclasses
 import functools
 import math
 import operator
-import shutil
 import sys
 from pathlib import Path
 
@@ -151,12 +150,12 @@ def load_library(path: str = "") -> StepLibrary:
             raise ScenarioError(f"library {path!r}: {e}") from e
     if not DEFAULT_LIBRARY.with_suffix(".json").is_file():
         _record_default_library().save(DEFAULT_LIBRARY)
-        shutil.rmtree(_CROSSINGS, ignore_errors=True)
     return StepLibrary.load(DEFAULT_LIBRARY)
 
 
 _CROSSINGS = DEFAULT_LIBRARY.parent / "step_library_crossings"
-"""Where the crossings of a default library being recorded are kept until it is saved."""
+"""Where each crossing of the default library is kept as it is recorded (a library each; they
+stay: processes recording at once then never remove a file another one reads)."""
 
 
 def _record_default_library() -> StepLibrary:

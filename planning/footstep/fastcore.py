@@ -317,7 +317,11 @@ def _arastar(
                 if expansions >= max_expansions:
                     status = 2
                     break
-                if expansions and (expansions & 1023) == 0 and _now() - t0 > time_limit:
+                if (  # the clock every 64 expansions, every 1024 past the first 4096
+                    expansions
+                    and (expansions & (1023 if expansions >= 4096 else 63)) == 0
+                    and _now() - t0 > time_limit
+                ):
                     status = 3
                     break
                 inode[node, _LIST], inode[node, _EXPANDED] = 0, it

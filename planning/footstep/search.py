@@ -16,7 +16,8 @@ Statuses are honest:
   reachable from the start satisfies the goal test.
 - ``NODE_LIMIT`` / ``TIME_LIMIT``: the budget ran out first; the path is the
   best partial one (the expanded state with the lowest heuristic). The clock is read
-  every 64 expansions (1024 in the compiled core), after at least one expansion.
+  every 64 expansions (in the compiled core every 1024 past the first 4096), after at
+  least one expansion.
 
 :func:`anytime_search` is ARA*: weighted A* with decreasing weights that reuses
 the search between weights (OPEN plus the INCONS list) and reports each plan with

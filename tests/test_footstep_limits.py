@@ -261,3 +261,14 @@ def test_fuzz_scene_swing_lines_cross_no_tall_cell():
         for i in range(max(lo_i, 0), min(hi_i, tall.shape[0])):
             for j in range(max(lo_j, 0), min(hi_j, tall.shape[1])):
                 assert not (tall[i, j] and _crosses_exact((i, j), a, b)), (k, (i, j))
+
+
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+def test_a_tiny_time_limit_ends_within_64_expansions(backend):
+    from repertoire.planning.footstep.scenes import random_floor_scene
+
+    sc = random_floor_scene(3)  # a 12 m floor: thousands of expansions to a plan
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    plan = plan_footsteps(*args, PlannerOptions(time_limit=1e-6, backend=backend))
+    assert plan.status is PlanStatus.TIME_LIMIT and plan.nodes_expanded == 64
+    assert len(plan.poses) >= 1  # the best partial plan

@@ -133,11 +133,11 @@ def successor_function(model: StepModel) -> Callable[[Any, Any], Iterable[tuple[
     ``dominated(key, step_cost)`` is the search's duplicate test, asked before a
     successor's checks: true when that lattice state already has a cost no more than the
     expanded state's plus ``step_cost`` (the search counts the call as a merge). A model
-    that asks it returns the same useful successors for less work: the plans, expansions
-    and the sum ``generated + merged`` of dominated successors that pass the checks do not
-    change, but a dominated successor is counted as merged whether or not it would have
-    passed them (on 12 m floors at 30 % clutter most successors are dominated, and the
-    compiled core skips their footprint checks the same way).
+    that asks it gives the same search for less work: plans, costs and expansions do not
+    change; ``generated`` no longer counts the dominated successors, and ``merged``
+    counts each of them whether or not it would have passed the checks (on 12 m floors at
+    30 % clutter most successors are dominated; the compiled core skips their checks the
+    same way).
     """
     try:
         takes = "dominated" in inspect.signature(model.successors).parameters

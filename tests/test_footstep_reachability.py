@@ -172,3 +172,27 @@ def test_the_planner_reports_time_limit_when_the_proof_runs_out_of_time(monkeypa
     assert (plan.xy_resolution, plan.yaw_bins) == (0.05, 36)
     runs = plan_footsteps_anytime(grid, START, "left", GOAL, nominal_action_table(), opts)
     assert len(seen) == 2 and [r.plan.status for r in runs] == [PlanStatus.TIME_LIMIT]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_component_labels_agree_with_the_fill(seed, monkeypatch):
+    import repertoire.planning.footstep.reachability as reach
+
+    rng = np.random.default_rng(seed)
+    occ = rng.random((96, 96)) < 0.25 + 0.05 * seed  # 2.4 m of clutter
+    ii, jj = np.mgrid[:96, :96]
+    d = np.hypot(ii - 76, jj - 76)
+    if seed % 2:  # a ring wall around the goal, 0.2-0.45 m thick
+        occ |= (d > 10) & (d < 10 + 8 + 2 * seed)
+    occ[(d <= 4) | (np.hypot(ii - 16, jj - 16) <= 14)] = False
+    grid = OccupancyGrid(occ, RES)
+    model = BipedStepModel(
+        grid, (0.4, 0.4, 0.0), "left", (1.9, 1.9), nominal_action_table(), PlannerOptions()
+    )
+    both = goal_cut_off(model)
+    monkeypatch.setattr(reach, "_discs_connect", lambda *a: True)  # the fill alone
+    assert goal_cut_off(model) == both
+    if seed == 5:  # a wall 0.45 m thick, wider than any step: proved without the fill
+        monkeypatch.undo()
+        monkeypatch.setattr(reach, "_fill_reaches", lambda *a: pytest.fail("fill ran"))
+        assert goal_cut_off(model)

@@ -90,12 +90,40 @@ def goal_cut_off(model, deadline: float = math.inf) -> bool:
         )
         if ptr.size == 0:  # out of time
             return False
-    else:  # no step limits: levels do not matter, a state per foothold cell
+    else:  # no step limits: levels do not matter, one state per foothold cell
+        if not _discs_connect(valid, si, sj, gi, gj, goal_r, reach):
+            return True  # proved at once: no chain of footholds at all (see below for the fill)
         flat_valid = valid.ravel()
         ptr = np.concatenate([[0], np.cumsum(flat_valid, dtype=np.int64)])
         zlo, zhi = lo.ravel()[flat_valid], hi.ravel()[flat_valid]
     ny = free.shape[1]
     return _fill_reaches(ptr, zlo, zhi, ny, si, sj, gi, gj, goal_r, reach, up, down, deadline) == 0
+
+
+def _discs_connect(valid, si, sj, gi, gj, goal_r, reach) -> bool:
+    """False only when no chain of footholds joins the start cell to a goal cell.
+
+    A chain's cells are each within ``reach`` of the last (all in cells); True may be
+    either. Two cells at most ``reach`` apart have discs of radius ``reach / 2`` that meet at the
+    midpoint, and the cell holding the midpoint lies within ``reach / 2 + sqrt(1/2)`` of
+    both centres; along the segment such cells are 8-connected. So the cells within that
+    radius of a foothold centre (a distance transform), labelled 8-connected, put a chain's
+    two ends in one component: a start and goal in different components have no chain.
+    About 20 ms on a 12 m map, against ~0.6 s for the fill over a whole walled-in component;
+    the fill (exact steps between cells) still decides where this says True.
+    """
+    near = ndimage.distance_transform_edt(~valid) <= 0.5 * reach + math.sqrt(0.5)
+    labels, _ = ndimage.label(near, structure=np.ones((3, 3), bool))
+    start = labels[si, sj]
+    nx, ny = valid.shape
+    r = int(math.ceil(goal_r)) + 1
+    i0, i1 = max(int(gi) - r, 0), min(int(gi) + r + 2, nx)
+    j0, j1 = max(int(gj) - r, 0), min(int(gj) + r + 2, ny)
+    if i0 >= i1 or j0 >= j1:
+        return False
+    ii, jj = np.mgrid[i0:i1, j0:j1]
+    goal = valid[i0:i1, j0:j1] & ((ii - gi) ** 2 + (jj - gj) ** 2 <= goal_r * goal_r)
+    return bool(np.any(labels[i0:i1, j0:j1][goal] == start))
 
 
 def _disc(radius: float, strict: bool = False) -> np.ndarray:

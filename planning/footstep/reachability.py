@@ -29,7 +29,9 @@ tells those apart with a flood fill over map cells that over-approximates every 
 Swing clearance, footprint margins, headings and histories only remove steps, so they are
 left out: when the fill from the start cell meets no goal cell, no sequence of table steps
 does, whatever the lattice (sound, not complete: a goal it cannot rule out may still be
-unreachable). The fill visits each reachable state at most once (compiled, nearest the
+unreachable). Without step limits, the connected components of the footholds' reach discs
+(:func:`_discs_connect`) first settle a goal no chain of footholds reaches, in tens of
+milliseconds. The fill visits each reachable state at most once (compiled, nearest the
 goal first), about ``pi (R / res + 2)^2`` neighbouring cells per state; the planner runs it
 only after a search ran out of states, before refining, with the plan's clock: a fill the
 time limit cuts short proves nothing (the planner then reports TIME_LIMIT).

@@ -29,6 +29,7 @@ from pydrake.systems.framework import (
 )
 from repertoire.systems.go_to_pose import ActionStatus
 
+from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 
 
@@ -110,8 +111,7 @@ class PlanExecutor(LeafSystem):
         if not (whole and command_size >= 1):
             raise RepertoireError(f"command_size must be an int >= 1, got {command_size!r}")
         command_size = int(command_size)
-        real = isinstance(period, int | float | np.number) and not isinstance(period, bool)
-        if not (real and math.isfinite(period) and period > 0):
+        if not (is_real(period) and math.isfinite(period) and period > 0):
             raise RepertoireError(f"period must be finite and > 0, got {period!r}")
         period = float(period)
         self.n_actions, self.target_size = T.shape

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from repertoire.checks import check_seed
+from repertoire.checks import check_seed, is_real
 from repertoire.errors import RepertoireError
 
 MODEL_VERSION = 1
@@ -190,8 +190,7 @@ def _check_whole(name: str, value, least: int) -> int:
 
 
 def _check_cost(failure_cost) -> float:
-    ok = isinstance(failure_cost, int | float | np.number) and not isinstance(failure_cost, bool)
-    if not (ok and math.isfinite(failure_cost) and failure_cost > 0):
+    if not (is_real(failure_cost) and math.isfinite(failure_cost) and failure_cost > 0):
         raise RepertoireError(f"failure_cost must be finite and > 0, got {failure_cost!r}")
     return float(failure_cost)
 
@@ -311,7 +310,7 @@ def fit_duration_tree(
     """
     from sklearn.tree import DecisionTreeRegressor
 
-    if not (isinstance(ridge, int | float | np.number) and math.isfinite(ridge) and ridge >= 0):
+    if not (is_real(ridge) and math.isfinite(ridge) and ridge >= 0):
         raise RepertoireError(f"ridge must be a finite number >= 0, got {ridge!r}")
     seed = check_seed(seed)
     if min_samples_leaf is not None:
@@ -585,9 +584,7 @@ def fit_action_model(
     for i, v in enumerate(raw):
         if isinstance(v, bool | np.bool_):
             continue
-        if not isinstance(v, int | float | np.number) or isinstance(
-            v, complex | np.complexfloating
-        ):
+        if not is_real(v):
             raise RepertoireError(
                 f"target field {target!r} of record {i} is {repr(v)[:60]}; expected a number (a "
                 "duration model) or a bool (a failure model) in every record"

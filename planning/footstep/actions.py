@@ -6,10 +6,11 @@ The robot is ASIMO-like: 1.2 m tall, feet 0.16 m x 0.10 m, nominal stance width 
 
 import dataclasses
 import math
-import numbers
 
 import numpy as np
 from repertoire.planning.footstep.types import ActionTable, Foot, FootstepError, wrap_angle
+
+from repertoire.checks import is_real
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,7 +40,7 @@ class BipedGeometry:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             least = "> 0" if f.name.startswith("foot_") else ">= 0"
-            ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+            ok = is_real(v) and math.isfinite(v)
             if not ok or v < 0.0 or (v == 0.0 and least == "> 0"):
                 raise FootstepError(
                     f"BipedGeometry {f.name} must be finite and {least} m, got {v!r}"

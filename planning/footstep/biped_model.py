@@ -19,7 +19,6 @@ so the generic weighted A* runs it; for static grids it also exports its tables
 
 import dataclasses
 import math
-import numbers
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -41,6 +40,7 @@ from repertoire.planning.footstep.types import (
     wrap_angle,
 )
 
+from repertoire.checks import is_real
 from repertoire.limits import require_memory
 
 if TYPE_CHECKING:
@@ -300,11 +300,7 @@ class BipedStepModel:
             )
         if not isinstance(geometry, BipedGeometry):
             raise FootstepError(f"geometry must be a BipedGeometry, got {geometry!r}")
-        if (
-            isinstance(start_time, bool)
-            or not isinstance(start_time, numbers.Real)
-            or not math.isfinite(start_time)
-        ):
+        if not (is_real(start_time) and math.isfinite(start_time)):
             raise FootstepError(
                 f"start_time must be a finite number of seconds, got {start_time!r}"
             )

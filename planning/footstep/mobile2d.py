@@ -8,7 +8,6 @@ obstacle, including the flat ones a biped steps over.
 
 import dataclasses
 import math
-import numbers
 import time
 
 import numpy as np
@@ -17,6 +16,8 @@ from repertoire.planning.footstep.heuristic import grid_graph
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
 from scipy import ndimage
 from scipy.sparse.csgraph import dijkstra
+
+from repertoire.checks import is_real
 
 
 @dataclasses.dataclass
@@ -74,7 +75,7 @@ def plan_mobile2d(
     t0 = time.perf_counter()
     if not isinstance(grid, OccupancyGrid):
         raise FootstepError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
-    if isinstance(radius, bool) or not isinstance(radius, numbers.Real):
+    if not is_real(radius):
         raise FootstepError(f"radius must be a number >= 0 (m), got {radius!r}")
     for name, p in (("start", start), ("goal", goal)):
         try:

@@ -14,7 +14,6 @@ is returned with its status.
 
 import dataclasses
 import math
-import numbers
 import time
 from collections.abc import Sequence
 
@@ -42,6 +41,8 @@ from repertoire.planning.footstep.types import (
     FootstepPlan,
     PlanStatus,
 )
+
+from repertoire.checks import is_real
 
 __all__ = [
     "ActionFilter",
@@ -168,11 +169,9 @@ class PlannerOptions:
     def validate(self) -> None:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if f.type in ("float", "int", float, int) and (
-                isinstance(v, bool) or not isinstance(v, numbers.Real)
-            ):
+            if f.type in ("float", "int", float, int) and not is_real(v):
                 raise FootstepError(f"{f.name} must be a number, got {v!r}")
-        if not (isinstance(self.time_limit, numbers.Real) and math.isfinite(self.time_limit)):
+        if not (is_real(self.time_limit) and math.isfinite(self.time_limit)):
             raise FootstepError(
                 f"time_limit must be a finite number of seconds, got {self.time_limit}"
             )

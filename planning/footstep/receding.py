@@ -9,7 +9,6 @@ from there with the right stance foot, swing foot, action history and time.
 
 import dataclasses
 import math
-import numbers
 from collections.abc import Sequence
 
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
@@ -22,6 +21,8 @@ from repertoire.planning.footstep.types import (
     FootstepPlan,
     PlanStatus,
 )
+
+from repertoire.checks import is_real
 
 
 @dataclasses.dataclass
@@ -70,13 +71,7 @@ def plan_receding_horizon(
         start_time: time of the start state (s).
     """
     for name, value in (("execute_steps", execute_steps), ("max_rounds", max_rounds)):
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, numbers.Real)
-            or not math.isfinite(value)
-            or int(value) != value
-            or value < 1
-        ):
+        if not is_real(value) or not math.isfinite(value) or int(value) != value or value < 1:
             raise FootstepError(f"{name} must be an integer >= 1, got {value!r}")
     plan = plan_footsteps(
         world, start, start_foot, goal, table, options, geometry=geometry, start_time=start_time

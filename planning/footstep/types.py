@@ -15,12 +15,12 @@ import dataclasses
 import enum
 import json
 import math
-import numbers
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 
 
@@ -59,7 +59,7 @@ def parse_foot(value: "Foot | int | str") -> Foot:
         if key in ("right", "r"):
             return Foot.RIGHT
         raise FootstepError(f"unknown foot {value!r}; expected 'left' or 'right' (or 0/1)")
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or value not in (0, 1):
+    if not is_real(value) or value not in (0, 1):
         raise FootstepError(f"unknown foot {value!r}; expected 0 (left) or 1 (right)")
     return Foot(int(value))
 

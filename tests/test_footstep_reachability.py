@@ -195,4 +195,10 @@ def test_the_component_labels_agree_with_the_fill(seed, monkeypatch):
     if seed == 5:  # a wall 0.45 m thick, wider than any step: proved without the fill
         monkeypatch.undo()
         monkeypatch.setattr(reach, "_fill_reaches", lambda *a: pytest.fail("fill ran"))
+        monkeypatch.setattr(reach, "_levels", lambda *a: pytest.fail("levels built"))
         assert goal_cut_off(model)
+        limited = BipedStepModel(  # with step limits too: heights play no part in it
+            grid, (0.4, 0.4, 0.0), "left", (1.9, 1.9), nominal_action_table(),
+            PlannerOptions(max_step_up=0.04, max_step_down=0.04),
+        )  # fmt: skip
+        assert goal_cut_off(limited)

@@ -235,6 +235,15 @@ def record_crossing(
     )
 
 
+def library_crossings(names: list[str] | None = None) -> list[tuple[str, float]]:
+    """``(terrain, direction_deg)`` of every crossing of the named terrains (default all)."""
+    return [
+        (name, direction)
+        for name in names or sorted(LIBRARY_TERRAINS)
+        for direction in library_terrain(name).directions_deg
+    ]
+
+
 def record_library(names: list[str] | None = None, **kwargs) -> tuple[StepLibrary, list[dict]]:
     """Records every crossing of the named terrains (default all) into one library.
 
@@ -243,21 +252,19 @@ def record_library(names: list[str] | None = None, **kwargs) -> tuple[StepLibrar
         steps, slip, fell, wall time).
     """
     steps, summaries = [], []
-    for name in names or sorted(LIBRARY_TERRAINS):
-        terrain = library_terrain(name)
-        for direction in terrain.directions_deg:
-            rec = record_crossing(terrain, direction, **kwargs)
-            steps += rec.steps
-            summaries.append(
-                dict(
-                    terrain=name,
-                    direction_deg=direction,
-                    steps=len(rec.steps),
-                    slip_m=rec.slip_m,
-                    fell=rec.fell,
-                    wall_s=rec.wall_s,
-                )
+    for name, direction in library_crossings(names):
+        rec = record_crossing(library_terrain(name), direction, **kwargs)
+        steps += rec.steps
+        summaries.append(
+            dict(
+                terrain=name,
+                direction_deg=direction,
+                steps=len(rec.steps),
+                slip_m=rec.slip_m,
+                fell=rec.fell,
+                wall_s=rec.wall_s,
             )
+        )
     return StepLibrary(steps), summaries
 
 
@@ -266,6 +273,7 @@ __all__ = [
     "CrossingRecord",
     "LibraryTerrain",
     "crossing_start",
+    "library_crossings",
     "library_terrain",
     "record_crossing",
     "record_library",

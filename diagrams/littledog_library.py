@@ -29,9 +29,9 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import MatrixGain, VectorLogSink
 from repertoire.diagrams.littledog_demos import (
-    LIBRARY_TERRAINS,
     crossing_start,
     flat_start,
+    library_crossings,
     library_terrain,
     record_crossing,
 )
@@ -167,11 +167,7 @@ def _record_default_library() -> StepLibrary:
     recorded and read back from there on a later call, so an interrupted recording resumes
     where it stopped. A line on standard error tells each crossing as it starts.
     """
-    jobs = [
-        (name, direction)
-        for name in sorted(LIBRARY_TERRAINS)
-        for direction in library_terrain(name).directions_deg
-    ]
+    jobs = library_crossings()
     parts = []
     for k, (name, direction) in enumerate(jobs, 1):
         tag = f"{name}_{direction:g}deg".replace(".", "p").replace("-", "m")

@@ -412,10 +412,11 @@ def test_default_library_is_recorded_crossing_by_crossing_and_resumes(tmp_path, 
     import types
 
     import repertoire.diagrams.littledog_library as ll
-    from repertoire.diagrams.littledog_demos import LIBRARY_TERRAINS, library_terrain
+    from repertoire.diagrams.littledog_demos import library_crossings, library_terrain
 
     monkeypatch.chdir(tmp_path)  # the default library lives under ./out
-    jobs = [(n, d) for n in sorted(LIBRARY_TERRAINS) for d in library_terrain(n).directions_deg]
+    jobs = library_crossings()
+    assert len(jobs) == 7  # the two library terrains, 7 crossings in all
     rng = np.random.default_rng(3)
     steps = {job: [make_step(rng, foot=k % 4, shift=0.01 * k)] for k, job in enumerate(jobs)}
     recorded = []

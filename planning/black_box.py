@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from repertoire.planning.refinement import RefinementProblem, RefinementResult
 
-from repertoire.checks import check_seed, is_real
+from repertoire.checks import check_seed, is_real, is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -45,7 +45,7 @@ class GaOptions:
         real = (self.elite_fraction, self.crossover_fraction, self.mutation_sigma)
         rate = () if self.mutation_rate is None else (self.mutation_rate,)
         if not (
-            all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in whole)
+            all(is_whole(v) for v in whole)
             and all(is_real(v) and np.isfinite(v) for v in real + rate)
         ):
             raise RepertoireError(
@@ -175,7 +175,7 @@ def solve_de(
 
     seed = check_seed(seed)
     for name, value in (("maxiter", maxiter), ("popsize", popsize)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        if not is_whole(value) or value < 1:
             raise RepertoireError(f"{name} must be a whole number >= 1, got {value!r}")
     span = problem.upper - problem.lower
     free = span > 0

@@ -35,6 +35,7 @@ from repertoire.planning.dmp_quaternion import (
     quaternion_rollout,
 )
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 DEFAULT_K = 156.25  # 25 * 6.25, as in Ijspeert et al. / movement_primitives
@@ -625,7 +626,7 @@ def directional_primitive(
     goal = np.asarray(goal, float).reshape(-1)
     if start.shape != goal.shape:
         raise RepertoireError(f"start has {start.size} entries, goal {goal.size}")
-    if not (isinstance(dof, (int, np.integer)) and 0 <= dof < dmp.n_dims):
+    if not (is_whole(dof) and 0 <= dof < dmp.n_dims):
         raise RepertoireError(f"dof must be in [0, {dmp.n_dims}), got {dof}")
     amplitude = dmp.goal[dof] - dmp.x0[dof]
     if abs(amplitude) < 1e-9:

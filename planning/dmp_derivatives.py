@@ -11,6 +11,7 @@ import functools
 import numpy as np
 from repertoire.planning.dmp import check_demonstration
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -45,9 +46,7 @@ def estimate_derivatives(
         smoothing: Smoothing-spline lambda.
     """
     t, x = check_demonstration(t, x)
-    if window is not None and (
-        isinstance(window, bool) or not isinstance(window, (int, np.integer))
-    ):
+    if window is not None and not is_whole(window):
         raise RepertoireError(f"window must be an odd integer >= 3 or None, got {window!r}")
     n = t.size
     dt = np.diff(t)

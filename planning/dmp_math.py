@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import expm
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 from repertoire.limits import require_memory
 
@@ -580,7 +581,7 @@ def minimum_jerk_via_points(
     if not np.all(np.isfinite(points)):
         k = int(np.argwhere(~np.isfinite(points))[0, 0])
         raise RepertoireError(f"points contains NaN or inf (first at point {k})")
-    if isinstance(n_samples, bool) or not isinstance(n_samples, (int, np.integer)) or n_samples < 3:
+    if not is_whole(n_samples) or n_samples < 3:
         raise RepertoireError(f"n_samples must be an integer >= 3, got {n_samples!r}")
     t = np.linspace(0.0, duration, n_samples)
     if points.shape[0] == 2:

@@ -41,6 +41,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 from repertoire.limits import require_memory
 
@@ -450,11 +451,7 @@ def refine_sequence(
         rejecting every subgoal): keep the unrefined plan then.
     """
     n = len(problem.terms)
-    if (
-        isinstance(horizon, bool)
-        or not isinstance(horizon, int | np.integer)
-        or not 1 <= horizon <= n
-    ):
+    if not is_whole(horizon) or not 1 <= horizon <= n:
         raise RepertoireError(
             f"horizon {horizon} is not in 1..{n}: the plan has {n} actions, so the horizon "
             "must be a whole number between 1 and that"

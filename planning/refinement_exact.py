@@ -27,6 +27,7 @@ from repertoire.planning.refinement import (
     RefinementResult,
 )
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError, SolverError
 from repertoire.limits import require_memory
 
@@ -496,7 +497,7 @@ def solve_milp(
     """
     from pydrake.solvers import ClpSolver, MixedIntegerBranchAndBound, SolutionResult
 
-    whole = isinstance(max_rounds, int | np.integer) and not isinstance(max_rounds, bool)
+    whole = is_whole(max_rounds)
     if not (whole and max_rounds >= 1 and abs_tol > 0 and np.isfinite(abs_tol)):
         raise RepertoireError(
             f"abs_tol must be finite and > 0 and max_rounds a whole number >= 1, got "

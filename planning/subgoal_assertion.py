@@ -16,7 +16,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 from repertoire.planning.black_box import GaOptions, genetic_minimise
 
-from repertoire.checks import check_seed
+from repertoire.checks import check_seed, is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -112,11 +112,7 @@ def assert_subgoal(
     if (lower > upper).any():
         raise RepertoireError(f"empty subgoal ranges at {np.flatnonzero(lower > upper)}")
     seed = check_seed(seed)
-    if (
-        isinstance(n_fallback, bool)
-        or not isinstance(n_fallback, int | np.integer)
-        or n_fallback < 0
-    ):
+    if not is_whole(n_fallback) or n_fallback < 0:
         raise RepertoireError(f"n_fallback must be a whole number >= 0, got {n_fallback!r}")
     if not isinstance(classifier, FailureClassifier):
         raise RepertoireError(

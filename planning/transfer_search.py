@@ -36,6 +36,7 @@ from typing import Protocol
 import numpy as np
 from repertoire.models.terrain import TerrainBoard
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 GAP_STATUSES = ("reached", "partial", "failed", "time_limit")
@@ -126,7 +127,7 @@ class SearchConfig:
         """Raises TransferSearchError naming a bad field."""
         if (
             not (
-                isinstance(self.neighbours, (int, np.integer))
+                is_whole(self.neighbours)
                 or (isinstance(self.neighbours, float) and self.neighbours.is_integer())
             )
             or self.neighbours < 1

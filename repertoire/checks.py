@@ -13,15 +13,16 @@ def is_real(value) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
+def is_whole(value) -> bool:
+    """True for a whole number (a Python or numpy int), not a bool, float or array."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
 def check_seed(seed, name: str = "seed") -> int:
     """``seed`` as an int in ``0..MAX_SEED``, or a RepertoireError naming it."""
-    if (
-        isinstance(seed, bool)
-        or not isinstance(seed, numbers.Integral)
-        or not 0 <= seed <= MAX_SEED
-    ):
+    if not (is_whole(seed) and 0 <= seed <= MAX_SEED):
         raise RepertoireError(f"{name} must be a whole number in 0..2**32 - 1, got {seed!r}")
     return int(seed)
 
 
-__all__ = ["MAX_SEED", "check_seed", "is_real"]
+__all__ = ["MAX_SEED", "check_seed", "is_real", "is_whole"]

@@ -12,6 +12,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, ValueProducer
 from repertoire.planning.action_models import TreeModel, goto_pose_features
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -63,11 +64,7 @@ class ActionModelPredictor(LeafSystem):
                 f"the models' features differ: {duration_model.feature_names} vs "
                 f"{failure_model.feature_names}"
             )
-        if (
-            isinstance(num_parameters, bool)
-            or not isinstance(num_parameters, int | np.integer)
-            or num_parameters < 1
-        ):
+        if not is_whole(num_parameters) or num_parameters < 1:
             raise RepertoireError(
                 f"num_parameters must be a whole number >= 1, got {num_parameters!r}"
             )

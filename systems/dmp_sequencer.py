@@ -45,6 +45,7 @@ from repertoire.planning.dmp_quaternion import (
 )
 from repertoire.systems.dmp import check_finite_goal, check_finite_input, check_vector
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -112,10 +113,10 @@ class DmpSequencer(LeafSystem):
         if handoff == "acceleration" and any(s.formulation != "new" for s in segments):
             raise RepertoireError("acceleration handoff needs the new formulation (eq. 6)")
         if quaternion_at is not None and not (
-            isinstance(quaternion_at, (int, np.integer)) and 0 <= quaternion_at <= n - 4
+            is_whole(quaternion_at) and 0 <= quaternion_at <= n - 4
         ):
             raise RepertoireError(f"quaternion_at must be in [0, {n - 4}], got {quaternion_at}")
-        if not (isinstance(coupling_dofs, (int, np.integer)) and 0 <= coupling_dofs <= n):
+        if not (is_whole(coupling_dofs) and 0 <= coupling_dofs <= n):
             raise RepertoireError(f"coupling_dofs must be in [0, {n}], got {coupling_dofs}")
         if goals is not None and len(goals) != len(segments):
             raise RepertoireError(f"{len(segments)} segments need as many goals, got {len(goals)}")

@@ -29,7 +29,7 @@ from pydrake.systems.framework import (
 )
 from repertoire.systems.go_to_pose import ActionStatus
 
-from repertoire.checks import is_real
+from repertoire.checks import is_real, is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -107,7 +107,7 @@ class PlanExecutor(LeafSystem):
         if not np.all(np.isfinite(T)):
             bad = sorted({int(i) for i in np.argwhere(~np.isfinite(T))[:, 0]})
             raise RepertoireError(f"targets of actions {bad} are not finite: {T[bad].tolist()}")
-        whole = isinstance(command_size, int | np.integer) and not isinstance(command_size, bool)
+        whole = is_whole(command_size)
         if not (whole and command_size >= 1):
             raise RepertoireError(f"command_size must be an int >= 1, got {command_size!r}")
         command_size = int(command_size)

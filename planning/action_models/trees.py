@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from repertoire.checks import check_seed, is_real
+from repertoire.checks import check_seed, is_real, is_whole
 from repertoire.errors import RepertoireError
 
 MODEL_VERSION = 1
@@ -184,7 +184,7 @@ class TreeModel:
 
 def _check_whole(name: str, value, least: int) -> int:
     """``value`` as an int >= ``least``, or a RepertoireError naming it."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
+    if not is_whole(value) or value < least:
         raise RepertoireError(f"{name} must be a whole number >= {least}, got {value!r}")
     return int(value)
 

@@ -9,7 +9,6 @@ disconnected for a wheeled robot, and the phases of the rows are random.
 
 import dataclasses
 import math
-import numbers
 
 import numpy as np
 from repertoire.planning.footstep.environment import (
@@ -21,10 +20,12 @@ from repertoire.planning.footstep.environment import (
 )
 from repertoire.planning.footstep.types import FootstepError, GridError
 
+from repertoire.checks import is_whole
+
 
 def _seeded(seed: int) -> np.random.Generator:
     """The generator of a scene's seed: an integer >= 0 (``None`` would not reproduce)."""
-    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+    if not is_whole(seed) or seed < 0:
         raise FootstepError(f"a scene seed must be an integer >= 0, got {seed!r}")
     return np.random.default_rng(int(seed))
 

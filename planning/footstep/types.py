@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from repertoire.checks import is_real
+from repertoire.checks import is_real, is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -146,7 +146,7 @@ class ActionTable:
         Args:
             name: action name or index.
         """
-        if isinstance(name, (int, np.integer)) and not isinstance(name, bool):
+        if is_whole(name):
             if not 0 <= int(name) < self.n:
                 raise ActionTableError(f"action index {name} out of range 0..{self.n - 1}")
             return int(name)
@@ -353,7 +353,7 @@ class ActionTable:
         counts = np.zeros((n, n, 2, n), dtype=int)
 
         def idx(a: "str | int") -> int:
-            if isinstance(a, (int, np.integer)) and not isinstance(a, bool):
+            if is_whole(a):
                 if not 0 <= int(a) < n:
                     raise ActionTableError(f"sample action index {a} out of range 0..{n - 1}")
                 return int(a)

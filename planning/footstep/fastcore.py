@@ -363,10 +363,13 @@ def _arastar(
                     fy = (y2 - oy) * inv_res
                     if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                         continue
+                    # the lattice-table row of this successor (_slot written out here: an
+                    # inlined call costs two atomic reference counts); nothing is inserted
+                    # before this successor's own insert, so the row found stays valid
+                    k2, j = sk[q, 0], sk[q, 1]
+                    while table[j, 0] != -1 and table[j, 0] != k2:
+                        j = (j + 1) & mask
                     if height_w == 0.0:  # a state already reached as cheaply: no checks
-                        k2, j = sk[q, 0], sk[q, 1]  # (search.successor_function)
-                        while table[j, 0] != -1 and table[j, 0] != k2:
-                            j = (j + 1) & mask
                         if table[j, 0] == k2 and g + succ_f[r, 4] >= tg[j, 1]:
                             merged += 1
                             continue
@@ -413,10 +416,6 @@ def _arastar(
                     generated += 1
                     a = succ_a[r]
                     g2 = g + cost
-                    k2, j = sk[q, 0], sk[q, 1]
-                    # _slot written out here: an inlined call costs two atomic reference counts
-                    while table[j, 0] != -1 and table[j, 0] != k2:
-                        j = (j + 1) & mask
                     idx = -1
                     closed_now = False
                     if table[j, 0] == k2:

@@ -19,6 +19,7 @@ is kept as it is recorded, so an interrupted recording resumes where it stopped)
 """
 
 import dataclasses
+import fcntl
 import functools
 import math
 import operator
@@ -149,7 +150,13 @@ def load_library(path: str = "") -> StepLibrary:
         except RepertoireError as e:
             raise ScenarioError(f"library {path!r}: {e}") from e
     if not DEFAULT_LIBRARY.with_suffix(".json").is_file():
-        _record_default_library().save(DEFAULT_LIBRARY)
+        DEFAULT_LIBRARY.parent.mkdir(parents=True, exist_ok=True)
+        with open(DEFAULT_LIBRARY.parent / "step_library.lock", "w") as lock:
+            # one recording at a time: a process that waited here finds the library that
+            # the other one recorded (study workers on a fresh machine would each record it)
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if not DEFAULT_LIBRARY.with_suffix(".json").is_file():
+                _record_default_library().save(DEFAULT_LIBRARY)
     return StepLibrary.load(DEFAULT_LIBRARY)
 
 

@@ -440,3 +440,36 @@ def test_default_library_is_recorded_crossing_by_crossing_and_resumes(tmp_path, 
     assert all(np.array_equal(a.q, b.q) for a, b in zip(library.steps, want, strict=True))
     assert len(list(ll._CROSSINGS.glob("*.json"))) == len(jobs)  # one library per crossing
     assert ll.load_library("") is not None and len(recorded) == len(jobs) + 1  # cached now
+
+
+def test_default_library_is_recorded_once_by_processes_asking_at_once(tmp_path, monkeypatch):
+    import threading
+    import types
+
+    import repertoire.diagrams.littledog_library as ll
+
+    monkeypatch.chdir(tmp_path)  # the default library lives under ./out
+    rng = np.random.default_rng(4)
+    step = make_step(rng, foot=1)
+    calls, started, release = [], threading.Event(), threading.Event()
+
+    def slow_crossing(terrain, direction):
+        calls.append(direction)
+        started.set()
+        release.wait(10.0)  # the second caller arrives while this one is recording
+        return types.SimpleNamespace(steps=[step])
+
+    monkeypatch.setattr(ll, "record_crossing", slow_crossing)
+    libraries = []
+    first = threading.Thread(target=lambda: libraries.append(ll.load_library("")))
+    second = threading.Thread(target=lambda: libraries.append(ll.load_library("")))
+    first.start()
+    assert started.wait(10.0)
+    second.start()  # opens the lock file itself: blocked until the first has saved
+    second.join(0.3)
+    assert second.is_alive()
+    release.set()
+    first.join(10.0)
+    second.join(10.0)
+    assert len(calls) == 7  # each crossing recorded once, by the first caller
+    assert [len(lib) for lib in libraries] == [7, 7]

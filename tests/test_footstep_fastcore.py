@@ -571,3 +571,86 @@ def test_compiled_planner_caches_under_a_key_of_every_compiled_source(tmp_path):
     with open(edited / "fastkernels.py", "a") as f:
         f.write("\n# edited\n")
     assert jitcache.source_key(edited) != key
+
+
+def test_hot_and_cold_open_list_pops_in_tuple_order():
+    # the compiled core's open list: a small hot heap below a threshold, the rest unordered
+    # in a cold array (fastcore's module doc); driven here as the core drives it, with
+    # pushes between pops and sizes small enough that it spills and refills many times
+    from repertoire.planning.footstep.fastkernels import _heap_pop, _heap_push, _refill, _spill
+
+    rng = np.random.default_rng(1)
+    n, hot_rows, keep = 4000, 40, 10
+    hot, cold = np.empty((n + 4, 4)), np.empty((n + 4, 4))
+    hsize = csize = 0
+    thr, spill_at = np.inf, hot_rows
+    ref, popped, tie = [], [], 0
+    spills = refills = 0
+
+    def push(f, h):
+        nonlocal hsize, csize, tie
+        if f < thr:
+            _heap_push(hot, hsize, f, h, tie, 7 * tie + 1)
+            hsize += 1
+        else:
+            cold[csize] = f, h, tie, 7 * tie + 1
+            csize += 1
+        heapq.heappush(ref, (f, h, tie))
+        tie += 1
+
+    for _ in range(200):
+        push(float(rng.integers(0, 30)), float(rng.integers(0, 4)))  # many equal f and h
+    while hsize or csize:
+        if hsize == 0:
+            hsize, csize, thr = _refill(hot, cold, csize, max(keep, csize >> 4))
+            spill_at, refills = max(hot_rows, 2 * hsize), refills + 1
+        elif hsize > spill_at:
+            hsize, csize, thr = _spill(hot, hsize, cold, csize, keep)
+            spill_at, spills = max(hot_rows, 2 * hsize), spills + 1
+        assert (hot[:hsize, 0] < thr).all() and (cold[:csize, 0] >= thr).all()
+        want = heapq.heappop(ref)
+        assert tuple(hot[0, :3]) == want and hot[0, 3] == 7 * want[2] + 1
+        popped.append(want)
+        _heap_pop(hot, hsize)
+        hsize -= 1
+        if tie < n:  # children cost at least their parent, as in A* with a consistent h
+            burst = len(popped) % 100 == 0  # now and then many close rows: hot overflows
+            for _ in range(3 * hot_rows if burst else rng.integers(0, 4)):
+                push(want[0] + float(rng.integers(0, 2 if burst else 6)), float(rng.integers(0, 4)))
+    assert not ref and len(popped) == tie >= n
+    assert all(a[0] <= b[0] for a, b in itertools.pairwise(popped))  # f never decreases
+    assert spills >= 2 and refills > 10, (spills, refills)
+
+
+def test_tiny_hot_heap_gives_the_same_searches(monkeypatch):
+    # a hot heap of 64 rows spills and refills all the time: plans, counts and ARA*'s
+    # bounds stay those of the Python loop
+    import repertoire.planning.footstep.fastcore as fc
+
+    monkeypatch.setattr(fc, "HOT_ROWS", 64)
+    monkeypatch.setattr(fc, "HOT_KEEP", 16)
+    from repertoire.planning.footstep import plan_footsteps_anytime
+
+    table = nominal_action_table()
+    for seed in (0, 3):
+        sc = random_static_scene(seed, n_strips=8, n_blocks=4)
+        plan = _both(sc.grid, sc.start, sc.start_foot, sc.goal, table, heuristic_weight=1.2)
+        assert plan.status is PlanStatus.SUCCESS and plan.nodes_expanded > 500
+        _both(sc.grid, sc.start, sc.start_foot, sc.goal, table, heuristic="euclidean",
+              heuristic_weight=1.0)  # fmt: skip
+    sc = random_static_scene(2, size=2.0, n_strips=3, n_blocks=2)
+    py, cc = (
+        plan_footsteps_anytime(
+            sc.grid,
+            sc.start,
+            sc.start_foot,
+            sc.goal,
+            table,
+            PlannerOptions(time_limit=60.0, refinements=0, backend=b),
+        )  # fmt: skip
+        for b in ("python", "compiled")
+    )
+    assert len(py) == len(cc) > 1
+    for a, b in zip(py, cc, strict=True):
+        assert a.plan.poses == b.plan.poses and a.plan.cost == b.plan.cost
+        assert a.bound == b.bound and a.plan.nodes_expanded == b.plan.nodes_expanded

@@ -8,6 +8,17 @@ everything in arrays so that numba compiles it:
   exactly as the Python loop's ``heapq`` tuples (so both pop the same states), each node's
   four children on two whole cache lines (``fastkernels._heap_rows``); a row whose h is a
   lower bound carries ``-1 - node`` and keeps its g and lazy cell per tie beside it;
+- that heap is kept small enough for the nearer caches (a hot heap of at most about
+  :data:`HOT_ROWS` rows): the rows whose f is at or above a threshold wait unordered in a
+  cold array, appended as they come. When the hot heap grows past its size, the rows at
+  or above a new threshold (about :data:`HOT_KEEP` rows stay) move to the cold array; when
+  it runs empty, the cold rows below a higher threshold (about a sixteenth of them, at
+  least :data:`HOT_KEEP`) move back and are heapified (``fastkernels._spill``,
+  ``_refill``). Every hot row's f is below the threshold and every cold row's at or above
+  it, so the pops come in the same order as from one heap; on a 12 m open floor the pops
+  wait less on memory for the heap's lower levels (at 291k expansions, +15 % expansions
+  per second on a quiet machine, +24 % with its other core loaded; geometric means of 8
+  alternating runs each);
 - the Dijkstra cost-to-go is the model's
   :class:`~repertoire.planning.footstep.heuristic.LazyCostToGo` (values equal to the full
   field, settled on demand); a successor whose cell is not settled yet enters the open list
@@ -63,8 +74,10 @@ from repertoire.planning.footstep.fastkernels import (
     _now,
     _occupancy_words,
     _prefetch_row,
+    _refill,
     _rehash,
     _slot,
+    _spill,
     _top_height,
     _wrap,
     _yaw_bin,
@@ -89,6 +102,10 @@ _OPEN, _INCONS = 1, 2
 # Work arrays pre-sized from a finite expansion budget hold at most this many node rows
 # (np.empty: only the rows written are ever faulted in; larger searches grow them).
 _PRESIZE_ROWS = 2**21
+HOT_ROWS = 1 << 13
+"""The open list's hot heap is split when it holds more rows than this (see the module)."""
+HOT_KEEP = 1 << 11
+"""About this many rows stay in the hot heap when it is split."""
 
 
 @njit()
@@ -119,6 +136,8 @@ def _arastar(
     weights,
     max_expansions,
     time_limit,
+    hot_rows,
+    hot_keep,
     fnode,  # work arrays of any rows, contents ignored (grown as needed, returned)
     inode,
     heap,
@@ -127,6 +146,7 @@ def _arastar(
     tb1,
     tn0,
     tn1,
+    cold,
 ):
     """ARA* over the biped lattice, step for step as ``search.anytime_search``.
 
@@ -242,13 +262,16 @@ def _arastar(
                 hsize += 1
                 inode[k, _LIST] = _OPEN
         tie = hsize
+        csize, thr, spill_at = 0, np.inf, hot_rows
         status, end, exp_it = 1, -1, 0  # UNREACHABLE
         while True:  # make room, then search until done or a node needs more room
             while count + most > fnode.shape[0]:
                 fnode, inode = _grow_rows(fnode), _grow_rows(inode)
-            while hsize + most > hv.shape[0]:
+            while hsize + csize + most > hv.shape[0]:
                 heap = _grow_heap(heap, hv, hsize)
                 hv = _heap_rows(heap)
+            while csize + hsize + most > cold.shape[0]:
+                cold = _grow_rows(cold)
             while use_cells and tie + most > ent.shape[0]:
                 ent = _grow_rows(ent)
             while 2 * (used + most) > table.shape[0]:
@@ -263,15 +286,22 @@ def _arastar(
             # The search loop reassigns no array (numba would count references on each
             # pass): it leaves when the next expansion might not fit.
             room = True
-            while hsize > 0:
+            while hsize > 0 or csize > 0:
                 if (
                     count + most > fnode.shape[0]
-                    or hsize + most > hv.shape[0]
+                    or hsize + csize + most > hv.shape[0]
+                    or csize + hsize + most > cold.shape[0]
                     or (use_cells and tie + most > ent.shape[0])
                     or 2 * (used + most) > table.shape[0]
                 ):
                     room = False
                     break
+                if hsize == 0:
+                    hsize, csize, thr = _refill(hv, cold, csize, max(hot_keep, csize >> 4))
+                    spill_at = max(hot_rows, 2 * hsize)
+                elif hsize > spill_at:
+                    hsize, csize, thr = _spill(hv, hsize, cold, csize, hot_keep)
+                    spill_at = max(hot_rows, 2 * hsize)
                 h = hv[0, 1]
                 tp = hv[0, 2]
                 code = int(hv[0, 3])
@@ -284,12 +314,18 @@ def _arastar(
                     h = _rra_value(lazy, hf, hi, hocc, hp, hcount) * cost_per_m
                     gp = ent[e, 0]
                     _heap_pop(hv, hsize)
+                    hsize -= 1
                     if inode[node, _LAZY] == lazy:
                         fnode[node, _H], inode[node, _LAZY] = h, -1
                     if h < np.inf:
-                        _heap_push(hv, hsize - 1, gp + w * h, h, tp, node)
-                    else:
-                        hsize -= 1
+                        fe = gp + w * h
+                        if fe < thr:
+                            _heap_push(hv, hsize, fe, h, tp, node)
+                            hsize += 1
+                        else:
+                            cold[csize, 0], cold[csize, 1], cold[csize, 2] = fe, h, tp
+                            cold[csize, 3] = node
+                            csize += 1
                     continue
                 _heap_pop(hv, hsize)
                 hsize -= 1
@@ -448,8 +484,14 @@ def _arastar(
                         code = idx
                         if lazy >= 0:
                             ent[tie, 0], ent[tie, 1], code = g2, lazy, -1 - idx
-                        _heap_push(hv, hsize, g2 + w * h2, h2, tie, code)
-                        hsize += 1
+                        f2 = g2 + w * h2
+                        if f2 < thr:
+                            _heap_push(hv, hsize, f2, h2, tie, code)
+                            hsize += 1
+                        else:
+                            cold[csize, 0], cold[csize, 1], cold[csize, 2] = f2, h2, tie
+                            cold[csize, 3] = code
+                            csize += 1
                         tie += 1
             if room:
                 break
@@ -500,7 +542,7 @@ def _arastar(
         runs += 1
         if status != 0:
             break
-    work = (fnode, inode, heap, ent, tb0, tb1, tn0, tn1)
+    work = (fnode, inode, heap, ent, tb0, tb1, tn0, tn1, cold)
     return out_i[:runs], out_f[:runs], paths[: pptr[runs]], pptr[: runs + 1], work
 
 
@@ -601,6 +643,7 @@ def _fresh_work() -> tuple:
         np.empty((0, 2), np.int64),
         np.empty(4096, np.int32),
         np.empty(0, np.int32),
+        np.empty((1024, 4)),
     )
 
 
@@ -639,8 +682,9 @@ def compiled_anytime(
     ws = np.asarray(weights, dtype=float)
     work = _WORK.pop("arrays", None) or _fresh_work()  # pop: one search per work set
     out_i, out_f, paths, pptr, work = _arastar(
-        start, *tab.values(), ws, int(max_expansions), float(max(left, 1e-9)), *work
-    )
+        start, *tab.values(), ws, int(max_expansions), float(max(left, 1e-9)),
+        int(HOT_ROWS), int(HOT_KEEP), *work,
+    )  # fmt: skip
     if sum(a.nbytes for a in work) <= _WORK_KEEP_BYTES:
         _WORK["arrays"] = work
 

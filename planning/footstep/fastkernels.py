@@ -73,14 +73,25 @@ def _grow_heap(heap, rows, size):
 def _heap_pop(heap, size):
     """Remove the root of a 4-ary heap of ``size`` rows (the caller read it first)."""
     size -= 1
-    f, h, tie, node = heap[size, 0], heap[size, 1], heap[size, 2], heap[size, 3]
-    i = 0
+    for q in range(4):
+        heap[0, q] = heap[size, q]
+    _sift_down(heap, size, 0, True)
+
+
+@njit(inline="always")
+def _sift_down(heap, size, i, prefetch):
+    """Move row ``i`` of a 4-ary heap of ``size`` rows down to its place.
+
+    ``prefetch``: load the grandchildren's rows while a level is compared (a pop from a heap
+    too large for the caches; not while heapifying, which walks the rows in order).
+    """
+    f, h, tie, node = heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3]
     while True:
         c = 4 * i + 1
         if c >= size:
             break
         g = 4 * c + 1
-        if g < size:  # the grandchildren's rows load while this level is compared
+        if prefetch and g < size:
             for k in range(g, min(g + 16, size), 2):
                 _prefetch_row(heap, k)
         best = c
@@ -96,6 +107,77 @@ def _heap_pop(heap, size):
         else:
             break
     heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
+
+
+@njit()
+def _f_quantile(rows, size, keep):
+    """About the ``keep``-th smallest ``f`` (column 0) of ``rows[:size]``.
+
+    Read from 255 evenly spaced rows (or all of them), so it costs nothing next to a move.
+    """
+    m = min(size, 255)
+    sample = np.empty(m)
+    for k in range(m):
+        sample[k] = rows[(k * size) // m, 0]
+    sample.sort()
+    return sample[min(m - 1, (keep * m) // size)]
+
+
+@njit()
+def _spill(hot, hsize, cold, csize, keep):
+    """Move the hot heap's rows at or above a new threshold to ``cold``; about ``keep`` stay.
+
+    Returns ``(hsize, csize, threshold)``: every row left in the (re-heapified) hot heap has
+    ``f`` below the threshold and every row moved has ``f`` at or above it. The smallest
+    ``f`` always stays hot.
+    """
+    thr = _f_quantile(hot, hsize, keep)
+    if thr <= hot[0, 0]:  # the root holds the smallest f
+        thr = np.nextafter(hot[0, 0], np.inf)
+    k = 0
+    for i in range(hsize):
+        if hot[i, 0] < thr:
+            for q in range(4):
+                hot[k, q] = hot[i, q]
+            k += 1
+        else:
+            for q in range(4):
+                cold[csize, q] = hot[i, q]
+            csize += 1
+    for i in range((k - 2) // 4, -1, -1):
+        _sift_down(hot, k, i, False)
+    return k, csize, thr
+
+
+@njit()
+def _refill(hot, cold, csize, keep):
+    """Fill the empty hot heap with the rows of ``cold`` below a new threshold.
+
+    About ``keep`` rows move (every row when ``csize <= keep``), at least one. Returns
+    ``(hsize, csize, threshold)`` with the invariant of :func:`_spill`.
+    """
+    thr = np.inf if csize <= keep else _f_quantile(cold, csize, keep)
+    k = 0
+    while k == 0:
+        low = np.inf
+        left = 0
+        for i in range(csize):
+            f = cold[i, 0]
+            if f < thr:
+                for q in range(4):
+                    hot[k, q] = cold[i, q]
+                k += 1
+            else:
+                low = min(low, f)
+                for q in range(4):
+                    cold[left, q] = cold[i, q]
+                left += 1
+        csize = left
+        if k == 0:  # the sample's quantile was the smallest f: take every row that has it
+            thr = np.nextafter(low, np.inf)
+    for i in range((k - 2) // 4, -1, -1):
+        _sift_down(hot, k, i, False)
+    return k, csize, thr
 
 
 @njit(inline="always")

@@ -36,6 +36,23 @@ def _both(grid, start, foot, goal, table, **opts):
     return cc
 
 
+def _anytime_both(sc, table, **opts):
+    # ARA* on both cores, one lattice, a generous wall-time budget (as _both)
+    from repertoire.planning.footstep import plan_footsteps_anytime
+
+    return [
+        plan_footsteps_anytime(
+            sc.grid,
+            sc.start,
+            sc.start_foot,
+            sc.goal,
+            table,
+            PlannerOptions(time_limit=60.0, refinements=0, backend=b, **opts),
+        )  # fmt: skip
+        for b in ("python", "compiled")
+    ]
+
+
 @pytest.mark.parametrize("seed", [0, 3, 7])
 def test_identical_plans_on_study_maps(seed):
     sc = random_static_scene(seed, n_strips=8, n_blocks=4)
@@ -148,22 +165,9 @@ def test_backend_option_errors():
 
 
 def test_ara_star_compiled_matches_python_and_bounds_hold():
-    from repertoire.planning.footstep import plan_footsteps_anytime
-
     sc = random_static_scene(2, size=2.0, n_strips=3, n_blocks=2)
     table = nominal_action_table()
-    runs = [
-        plan_footsteps_anytime(
-            sc.grid,
-            sc.start,
-            sc.start_foot,
-            sc.goal,
-            table,
-            PlannerOptions(heuristic="euclidean", time_limit=60.0, refinements=0, backend=b),
-        )  # fmt: skip
-        for b in ("python", "compiled")
-    ]
-    py, cc = runs
+    py, cc = _anytime_both(sc, table, heuristic="euclidean")
     # 1.2 is skipped: the plan of 1.5 already reported a bound below it
     assert [a.weight for a in cc] == [3.0, 2.0, 1.5, 1.0] and cc[2].bound <= 1.2
     assert all(b.weight < a.bound for a, b in itertools.pairwise(cc))
@@ -629,8 +633,6 @@ def test_tiny_hot_heap_gives_the_same_searches(monkeypatch):
 
     monkeypatch.setattr(fc, "HOT_ROWS", 64)
     monkeypatch.setattr(fc, "HOT_KEEP", 16)
-    from repertoire.planning.footstep import plan_footsteps_anytime
-
     table = nominal_action_table()
     for seed in (0, 3):
         sc = random_static_scene(seed, n_strips=8, n_blocks=4)
@@ -638,18 +640,7 @@ def test_tiny_hot_heap_gives_the_same_searches(monkeypatch):
         assert plan.status is PlanStatus.SUCCESS and plan.nodes_expanded > 500
         _both(sc.grid, sc.start, sc.start_foot, sc.goal, table, heuristic="euclidean",
               heuristic_weight=1.0)  # fmt: skip
-    sc = random_static_scene(2, size=2.0, n_strips=3, n_blocks=2)
-    py, cc = (
-        plan_footsteps_anytime(
-            sc.grid,
-            sc.start,
-            sc.start_foot,
-            sc.goal,
-            table,
-            PlannerOptions(time_limit=60.0, refinements=0, backend=b),
-        )  # fmt: skip
-        for b in ("python", "compiled")
-    )
+    py, cc = _anytime_both(random_static_scene(2, size=2.0, n_strips=3, n_blocks=2), table)
     assert len(py) == len(cc) > 1
     for a, b in zip(py, cc, strict=True):
         assert a.plan.poses == b.plan.poses and a.plan.cost == b.plan.cost

@@ -73,6 +73,7 @@ from repertoire.planning.footstep.fastkernels import (
     _height_range,
     _now,
     _occupancy_words,
+    _open_push,
     _prefetch_row,
     _refill,
     _rehash,
@@ -318,14 +319,9 @@ def _arastar(
                     if inode[node, _LAZY] == lazy:
                         fnode[node, _H], inode[node, _LAZY] = h, -1
                     if h < np.inf:
-                        fe = gp + w * h
-                        if fe < thr:
-                            _heap_push(hv, hsize, fe, h, tp, node)
-                            hsize += 1
-                        else:
-                            cold[csize, 0], cold[csize, 1], cold[csize, 2] = fe, h, tp
-                            cold[csize, 3] = node
-                            csize += 1
+                        hsize, csize = _open_push(
+                            hv, hsize, cold, csize, thr, gp + w * h, h, tp, node
+                        )
                     continue
                 _heap_pop(hv, hsize)
                 hsize -= 1
@@ -484,14 +480,9 @@ def _arastar(
                         code = idx
                         if lazy >= 0:
                             ent[tie, 0], ent[tie, 1], code = g2, lazy, -1 - idx
-                        f2 = g2 + w * h2
-                        if f2 < thr:
-                            _heap_push(hv, hsize, f2, h2, tie, code)
-                            hsize += 1
-                        else:
-                            cold[csize, 0], cold[csize, 1], cold[csize, 2] = f2, h2, tie
-                            cold[csize, 3] = code
-                            csize += 1
+                        hsize, csize = _open_push(
+                            hv, hsize, cold, csize, thr, g2 + w * h2, h2, tie, code
+                        )
                         tie += 1
             if room:
                 break

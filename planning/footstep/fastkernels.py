@@ -109,6 +109,19 @@ def _sift_down(heap, size, i, prefetch):
     heap[i, 0], heap[i, 1], heap[i, 2], heap[i, 3] = f, h, tie, node
 
 
+@njit(inline="always")
+def _open_push(hot, hsize, cold, csize, thr, f, h, tie, node):
+    """Add a row to the open list: the hot heap when ``f`` is below ``thr``, else the cold rows.
+
+    Returns the new ``(hsize, csize)``.
+    """
+    if f < thr:
+        _heap_push(hot, hsize, f, h, tie, node)
+        return hsize + 1, csize
+    cold[csize, 0], cold[csize, 1], cold[csize, 2], cold[csize, 3] = f, h, tie, node
+    return hsize, csize + 1
+
+
 @njit()
 def _f_quantile(rows, size, keep):
     """About the ``keep``-th smallest ``f`` (column 0) of ``rows[:size]``.

@@ -8,17 +8,17 @@ everything in arrays so that numba compiles it:
   exactly as the Python loop's ``heapq`` tuples (so both pop the same states), each node's
   four children on two whole cache lines (``fastkernels._heap_rows``); a row whose h is a
   lower bound carries ``-1 - node`` and keeps its g and lazy cell per tie beside it;
-- that heap is kept small enough for the nearer caches (a hot heap of at most about
-  :data:`HOT_ROWS` rows): the rows whose f is at or above a threshold wait unordered in a
-  cold array, appended as they come. When the hot heap grows past its size, the rows at
-  or above a new threshold (about :data:`HOT_KEEP` rows stay) move to the cold array; when
-  it runs empty, the cold rows below a higher threshold (about a sixteenth of them, at
-  least :data:`HOT_KEEP`) move back and are heapified (``fastkernels._spill``,
-  ``_refill``). Every hot row's f is below the threshold and every cold row's at or above
-  it, so the pops come in the same order as from one heap; on a 12 m open floor the pops
-  wait less on memory for the heap's lower levels (at 291k expansions, +15 % expansions
-  per second on a quiet machine, +24 % with its other core loaded; geometric means of 8
-  alternating runs each);
+- that heap is kept small enough for the nearer caches: it holds only the rows whose f is
+  below a threshold (the hot heap), and the others wait unordered in a cold array, appended
+  as they come. When the hot heap grows past :data:`HOT_ROWS` rows (or twice its size after
+  its last refill), the rows at or above a new threshold move to the cold array (about
+  :data:`HOT_KEEP` stay); when it runs empty, the cold rows below a higher threshold (about
+  a sixteenth of them, at least :data:`HOT_KEEP`) move back and are heapified
+  (``fastkernels._spill``, ``_refill``; ``_open_push`` places a new row). Every hot row's f
+  is below the threshold and every cold row's at or above it, so the pops come in the same
+  order as from one heap; on a 12 m open floor the pops wait less on memory for the heap's
+  lower levels (at 291k expansions, +15 % expansions per second on a quiet machine, +24 %
+  with its other core loaded; geometric means of 8 alternating runs each);
 - the Dijkstra cost-to-go is the model's
   :class:`~repertoire.planning.footstep.heuristic.LazyCostToGo` (values equal to the full
   field, settled on demand); a successor whose cell is not settled yet enters the open list

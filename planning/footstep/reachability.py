@@ -42,7 +42,7 @@ import math
 import time
 
 import numpy as np
-from repertoire.planning.footstep.fastkernels import _now
+from repertoire.planning.footstep.fastkernels import _heap_pop, _heap_push, _now
 from repertoire.planning.footstep.jitcache import njit
 from scipy import ndimage
 
@@ -186,40 +186,6 @@ def _levels(valid, ground, lo, hi, may, deadline):
     return ptr, zlo[:n], zhi[:n]
 
 
-@njit(inline="always")
-def _push(keys, items, size, key, item):
-    """Insert ``(key, item)`` into the binary min-heap of ``size`` rows; the new size."""
-    i = size
-    while i > 0:
-        p = (i - 1) >> 1
-        if keys[p] <= key:
-            break
-        keys[i], items[i] = keys[p], items[p]
-        i = p
-    keys[i], items[i] = key, item
-    return size + 1
-
-
-@njit(inline="always")
-def _pop(keys, items, size):
-    """Remove the root of the binary min-heap of ``size`` rows (the caller read it first)."""
-    size -= 1
-    key, item = keys[size], items[size]
-    i = 0
-    while True:
-        c = 2 * i + 1
-        if c >= size:
-            break
-        if c + 1 < size and keys[c + 1] < keys[c]:
-            c += 1
-        if keys[c] >= key:
-            break
-        keys[i], items[i] = keys[c], items[c]
-        i = c
-    keys[i], items[i] = key, item
-    return size
-
-
 @njit()
 def _fill_reaches(ptr, zlo, zhi, ny, si, sj, gi, gj, goal_r, reach, up, down, deadline):
     """Best-first fill over (cell, ground level) states: 1 when a goal cell is met.
@@ -244,20 +210,22 @@ def _fill_reaches(ptr, zlo, zhi, ny, si, sj, gi, gj, goal_r, reach, up, down, de
     cell = np.empty(n, np.int64)
     for c in range(nx * ny):
         cell[ptr[c] : ptr[c + 1]] = c
-    keys = np.empty(n)  # squared cell distance to the goal
-    items = np.empty(n, np.int64)
+    # the search core's 4-ary heap: rows (squared cell distance to the goal, 0, state, state)
+    heap = np.empty((n, 4))
     size = 0
     for s in range(ptr[si * ny + sj], ptr[si * ny + sj + 1]):
         seen[s] = True
-        size = _push(keys, items, size, (si - gi) ** 2 + (sj - gj) ** 2, s)
+        _heap_push(heap, size, (si - gi) ** 2 + (sj - gj) ** 2, 0.0, s, s)
+        size += 1
     g2 = goal_r * goal_r
     done = 0
     while size > 0:
         if (done & 255) == 255 and _now() >= deadline:
             return -1
         done += 1
-        s = items[0]
-        size = _pop(keys, items, size)
+        s = int(heap[0, 3])
+        _heap_pop(heap, size)
+        size -= 1
         i, j = cell[s] // ny, cell[s] % ny
         if (i - gi) ** 2 + (j - gj) ** 2 <= g2:
             return 1
@@ -271,7 +239,8 @@ def _fill_reaches(ptr, zlo, zhi, ny, si, sj, gi, gj, goal_r, reach, up, down, de
                 if seen[s2] or zlo[s2] - hi_a > up + _EPS or lo_a - zhi[s2] > down + _EPS:
                     continue
                 seen[s2] = True
-                size = _push(keys, items, size, (i2 - gi) ** 2 + (j2 - gj) ** 2, s2)
+                _heap_push(heap, size, (i2 - gi) ** 2 + (j2 - gj) ** 2, 0.0, s2, s2)
+                size += 1
     return 0
 
 

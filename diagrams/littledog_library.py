@@ -162,7 +162,7 @@ def load_library(path: str = "") -> StepLibrary:
 
 _CROSSINGS = DEFAULT_LIBRARY.parent / "step_library_crossings"
 """Where each crossing of the default library is kept as it is recorded (a library each; they
-stay: processes recording at once then never remove a file another one reads)."""
+stay after the whole library is saved, so that removing them can never race a reader)."""
 
 
 def _record_default_library() -> StepLibrary:

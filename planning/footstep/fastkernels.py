@@ -3,7 +3,9 @@
 The parts of :mod:`repertoire.planning.footstep.fastcore` that are not the search loop:
 
 - the open list, a 4-ary heap of ``(f, h, tie)`` rows ordered exactly as Python's
-  ``heapq`` orders those tuples;
+  ``heapq`` orders those tuples, split by a threshold on f into a hot heap and unordered
+  cold rows (``_open_push``, ``_spill``, ``_refill``; the reachability proof's fill uses the
+  heap too);
 - the lattice table (open addressing, keys grouped per map cell so that the states of one
   cell share cache lines) holding each lattice state's node, g and search flags;
 - the footprint checks on the model's precomputed masks (64-bit occupancy words, exact

@@ -271,7 +271,7 @@ def _arastar(
             while hsize + csize + most > hv.shape[0]:
                 heap = _grow_heap(heap, hv, hsize)
                 hv = _heap_rows(heap)
-            while csize + hsize + most > cold.shape[0]:
+            while hsize + csize + most > cold.shape[0]:
                 cold = _grow_rows(cold)
             while use_cells and tie + most > ent.shape[0]:
                 ent = _grow_rows(ent)
@@ -291,7 +291,7 @@ def _arastar(
                 if (
                     count + most > fnode.shape[0]
                     or hsize + csize + most > hv.shape[0]
-                    or csize + hsize + most > cold.shape[0]
+                    or hsize + csize + most > cold.shape[0]
                     or (use_cells and tie + most > ent.shape[0])
                     or 2 * (used + most) > table.shape[0]
                 ):

@@ -2,6 +2,9 @@
 
 import dataclasses
 import math
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -202,3 +205,24 @@ def test_the_component_labels_agree_with_the_fill(seed, monkeypatch):
             PlannerOptions(max_step_up=0.04, max_step_down=0.04),
         )  # fmt: skip
         assert goal_cut_off(limited)
+
+
+def test_warm_up_compiles_the_proof_so_no_plan_pays_for_it_inside_its_limit():
+    # In a fresh process: the first plan that ends UNREACHABLE runs the proof inside its
+    # time limit, so warm_up (outside the limit) must have compiled or loaded its kernels;
+    # it used not to, and the first proof's ~2 s cache load overran a 1 s limit.
+    code = textwrap.dedent(
+        """
+        from repertoire.planning.footstep.fastcore import warm_up
+        from repertoire.planning.footstep import reachability
+
+        warm_up()
+        print(len(reachability._levels.signatures), len(reachability._fill_reaches.signatures))
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=600, cwd="/"
+    )
+    assert done.returncode == 0, done.stderr
+    levels, fill = map(int, done.stdout.split())
+    assert levels >= 1 and fill >= 1

@@ -713,7 +713,9 @@ def warm_up() -> None:
 
     :func:`repertoire.planning.footstep.plan_footsteps` calls it before starting its clock,
     so the one-time compilation (tens of seconds cold, about a second from the cache) never
-    eats a plan's time limit.
+    eats a plan's time limit: the search core's and the reachability proof's kernels
+    (:func:`~repertoire.planning.footstep.reachability.goal_cut_off`, which a plan runs
+    inside its limit when a search ends UNREACHABLE).
     """
     global _WARM
     if _WARM:
@@ -735,3 +737,6 @@ def warm_up() -> None:
         grid, (0.15, 0.35, 0.0), "left", (0.45, 0.45), nominal_action_table(), opts
     )
     compiled_anytime(model, [2.0, 1.0], 3, 60.0)
+    from repertoire.planning.footstep.reachability import goal_cut_off
+
+    goal_cut_off(model)  # with step limits: the levels and the fill

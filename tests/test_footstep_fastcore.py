@@ -486,17 +486,18 @@ def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
         assert r.plan.status is PlanStatus.SUCCESS and 1.0 <= r.bound <= r.weight
     elapsed = [r.elapsed_s for r in runs]
     assert elapsed == sorted(elapsed) and elapsed[-1] < 60.0
-    # with refinements, the restarts search the finer lattice (2.5 cm, 72 bins) first:
-    # there, where gaps are narrow, weight 2 alone beats ARA*'s 5 cm plans by far
+    # with refinements, the restarts search the next finer lattice first. Here the gaps are
+    # narrow: the 5 cm lattice runs out (UNREACHABLE), ARA* runs on the first refinement
+    # (2.5 cm, 72 bins), and on the next (1.25 cm, 144 bins) weight 2 alone beats its plans
     sc = random_static_scene(2, n_strips=8, n_blocks=4)
     args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
     opts = PlannerOptions(time_limit=60.0)
     runs = plan_footsteps_anytime(*args, opts)
-    ara = [r for r in runs if r.plan.xy_resolution == 0.05]
-    fine = [r for r in runs if r.plan.xy_resolution == 0.025]
+    ara = [r for r in runs if r.plan.xy_resolution == 0.025]
+    fine = [r for r in runs if r.plan.xy_resolution == 0.0125]
     assert runs == ara + fine and [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
-    assert [(r.weight, r.plan.yaw_bins) for r in fine] == [(2.0, 72)]
-    assert fine[0].plan.cost == pytest.approx(22.6) and ara[-1].plan.cost == pytest.approx(36.7)
+    assert [(r.weight, r.plan.yaw_bins) for r in fine] == [(2.0, 144)]
+    assert fine[0].plan.cost == pytest.approx(20.3) and ara[-1].plan.cost == pytest.approx(21.45)
     f = fresh(args, opts, fine[0])
     assert fine[0].plan.poses == f.poses and fine[0].plan.cost == f.cost
 

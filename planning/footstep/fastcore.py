@@ -71,6 +71,7 @@ from repertoire.planning.footstep.fastkernels import (
     _heap_push,
     _heap_rows,
     _height_range,
+    _lattice_yaw,
     _now,
     _occupancy_words,
     _open_push,
@@ -81,7 +82,6 @@ from repertoire.planning.footstep.fastkernels import (
     _spill,
     _top_height,
     _wrap,
-    _yaw_bin,
     swing_crosses,
 )
 from repertoire.planning.footstep.heuristic import _rra_h, _rra_value
@@ -116,7 +116,7 @@ def _arastar(
     succ_a,
     succ_f,  # rows: dx, dy, dyaw, duration, cost
     hist,
-    lat,  # ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist
+    lat,  # ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist, yaw_shift
     grid,  # ox, oy, inv_res, nx, ny, gx, gy, tol, cost_per_m, flat_limit, height_w, up, down
     hf,  # the LazyCostToGo's arrays (f, i, occ, p, size), or empty for Euclidean
     hi,
@@ -158,7 +158,7 @@ def _arastar(
     """
     t0 = _now()
     n = hist.shape[0]
-    ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist = (
+    ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist, yaw_shift = (
         lat[0],
         lat[1],
         lat[2],
@@ -166,6 +166,7 @@ def _arastar(
         int(lat[4]),
         lat[5],
         int(lat[6]),
+        lat[7],
     )
     inv_res, nx, ny = grid[2], int(grid[3]), int(grid[4])
     gx, gy, tol, cost_per_m, flat_limit, height_w = (
@@ -212,7 +213,7 @@ def _arastar(
     sx, sy, sth = start[0], start[1], start[2]
     f0, a20, a10 = int(start[3]), int(start[4]), int(start[5])
     cell0 = int((sx - ox) * inv_q + 0.5) * ky + int((sy - oy) * inv_q + 0.5)
-    local0 = (_yaw_bin(sth, yaw_scale, nyaw) * 2 + f0) * n_hist + hist[a20, a10]
+    local0 = (_lattice_yaw(sth, yaw_scale, yaw_shift, nyaw) * 2 + f0) * n_hist + hist[a20, a10]
     key0 = cell0 * n_local + local0
     fnode[0, _X], fnode[0, _Y], fnode[0, _YAW], fnode[0, _H], fnode[0, _G] = (
         sx,
@@ -380,7 +381,7 @@ def _arastar(
                     y2 = y + s * dx + c * dy
                     th2 = _wrap(th + succ_f[r, 2])
                     cell2 = int((x2 - ox) * inv_q + 0.5) * ky + int((y2 - oy) * inv_q + 0.5)
-                    local = _yaw_bin(th2, yaw_scale, nyaw) * 2 + nf
+                    local = _lattice_yaw(th2, yaw_scale, yaw_shift, nyaw) * 2 + nf
                     local = local * n_hist + hist[a1, succ_a[r]]
                     j = (((cell2 * 0x9E3779B97F4A7C15) >> 17) + local) & mask
                     _prefetch_row(table, j)
@@ -565,7 +566,17 @@ def compiled_tables(model: BipedStepModel) -> dict:
         "succ_f": np.ascontiguousarray(model.succ_f),
         "hist": np.asarray(model.hist, np.int64),
         "lat": np.array(
-            [ox, oy, model.inv_q, model.ky, model.nyaw, model.yaw_scale, model.n_hist], float
+            [
+                ox,
+                oy,
+                model.inv_q,
+                model.ky,
+                model.nyaw,
+                model.yaw_scale,
+                model.n_hist,
+                model.yaw_shift,
+            ],
+            float,
         ),
         "grid": np.array(
             [

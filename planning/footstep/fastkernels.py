@@ -277,7 +277,22 @@ def _wrap(t):
 @njit(inline="always")
 def _yaw_bin(th, yaw_scale, nb):
     """``int(th * yaw_scale + nb + 0.5) % nb``; one subtraction for a wrapped yaw."""
-    v = int(th * yaw_scale + nb + 0.5)
+    return _wrap_bin(int(th * yaw_scale + nb + 0.5), nb)
+
+
+@njit(inline="always")
+def _lattice_yaw(th, yaw_scale, shift, nb):
+    """The lattice's yaw bin, ``int(th * yaw_scale + shift) % nb``.
+
+    ``shift`` in [nb, nb + 1] centres the bins on the start's yaw (see
+    ``BipedStepModel.lattice_key``).
+    """
+    return _wrap_bin(int(th * yaw_scale + shift), nb)
+
+
+@njit(inline="always")
+def _wrap_bin(v, nb):
+    """``v % nb`` for ``v >= 0``; one subtraction for a wrapped yaw."""
     if 0 <= v < nb:
         return v
     if nb <= v < 2 * nb:

@@ -160,9 +160,9 @@ def plan_pddl(domain: str, problem: str) -> AbstractPlan:
         The sequential plan with its causal links.
 
     Raises:
-        PlanningError: unparsable PDDL, or no plan exists; then the message names the
-            goal atoms that are unreachable on their own (or says they are only jointly
-            unreachable).
+        PlanningError: unparsable PDDL, PDDL beyond STRIPS with typing (named), or no
+            plan exists; then the message names the goal atoms that are unreachable on
+            their own (or says they are only jointly unreachable).
         RepertoireError: unified-planning / up-pyperplan are not installed.
     """
     up_problem = _parse(domain, problem)
@@ -248,6 +248,13 @@ def _solve(up_problem) -> tuple[GroundAction, ...] | None:
     shortcuts, _ = _import_up()
     status = shortcuts.up.engines.PlanGenerationResultStatus
     with shortcuts.OneshotPlanner(name="pyperplan") as planner:
+        if not planner.supports(up_problem.kind):
+            supported = planner.supported_kind().features
+            extra = sorted(set(up_problem.kind.features) - set(supported))
+            raise PlanningError(
+                f"pyperplan plans STRIPS with typing only; this PDDL problem also uses "
+                f"{extra}: rewrite it without them"
+            )
         result = planner.solve(up_problem)
     if result.status in (status.SOLVED_SATISFICING, status.SOLVED_OPTIMALLY):
         return tuple(_ground(ai) for ai in result.plan.actions)

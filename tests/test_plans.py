@@ -121,6 +121,16 @@ def test_bad_pddl():
         plan_pddl(" ", FIG10_PROBLEM)
 
 
+def test_pddl_beyond_strips_is_named():
+    # pyperplan has no negative preconditions or equality: a PlanningError (a ValueError)
+    # naming them, not unified-planning's own exception
+    domain = SOCCER_DOMAIN.replace(":typing)", ":typing :negative-preconditions)").replace(
+        "(and (robot ?from) (ball ?to))", "(and (robot ?from) (ball ?to) (not (final ?to)))"
+    )
+    with pytest.raises(PlanningError, match=r"STRIPS with typing only.*NEGATIVE_CONDITIONS"):
+        plan_pddl(domain, FIG10_PROBLEM)
+
+
 def test_causal_links_reject_invalid_sequence():
     step = GroundAction("dribbleball", ("pos2", "pos3"), (("atball", ("pos2",)),))
     with pytest.raises(PlanningError, match=r"step 1 \(dribbleball\) needs \(atball pos2\)"):

@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import math
 
@@ -121,6 +122,30 @@ def test_json_round_trip_and_bad_files(tmp_path):
         load_model(tmp_path / "f.json")
     with pytest.raises(RepertoireError, match="cannot read"):
         load_model(tmp_path / "missing.json")
+
+
+def test_saved_model_is_standard_json_and_old_infinity_files_load(tmp_path):
+    # JSON has no infinity: the unbounded faces are "inf"/"-inf" strings, which a strict
+    # reader accepts; files written with Python's Infinity token still load
+    X, y = _piecewise(200)
+    m = fit_duration_tree(X, y, ["a", "b"])
+    assert any(math.isinf(v) for leaf in m.leaves for v in leaf.lower + leaf.upper)
+    p = save_model(m, tmp_path / "m.json")
+
+    def refuse(token):
+        raise AssertionError(f"non-standard JSON token {token}")
+
+    data = json.loads(p.read_text(), parse_constant=refuse)
+    assert "-inf" in data["leaves"][0]["lower"]
+    m2 = load_model(p)
+    assert m2 == m
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(dataclasses.asdict(m), allow_nan=True))
+    assert "Infinity" in old.read_text() and load_model(old) == m
+    data["leaves"][0]["lower"][0] = "minus infinity"
+    (tmp_path / "b.json").write_text(json.dumps(data))
+    with pytest.raises(RepertoireError, match="leaf bound 'minus infinity'"):
+        load_model(tmp_path / "b.json")
 
 
 def test_out_of_range_flag_and_nan():

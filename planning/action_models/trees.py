@@ -402,12 +402,43 @@ def fit_failure_tree(
     return _extract(tree, feature_names, X, leaves, "failure", 1.0 / (1.0 + failure_cost))
 
 
+_INF = {"inf": math.inf, "-inf": -math.inf}
+
+
 def save_model(model: TreeModel, path: str | Path) -> Path:
-    """Writes a TreeModel as JSON (no pickle)."""
+    """Writes a TreeModel as standard JSON (no pickle).
+
+    The leaves' unbounded faces are written as the strings ``"inf"``/``"-inf"`` (as
+    :class:`~repertoire.planning.refinement.PiecewiseLinearModel` does): JSON has no
+    infinity, and Python's ``Infinity`` token is refused by other readers (JavaScript,
+    jq, serde). Every other value is finite.
+    """
     path = Path(path)
     data = dataclasses.asdict(model)
-    path.write_text(json.dumps(data, allow_nan=True))
+    for leaf in data["leaves"]:
+        for key in ("lower", "upper"):
+            leaf[key] = [v if math.isfinite(v) else ("inf" if v > 0 else "-inf") for v in leaf[key]]
+    try:
+        text = json.dumps(data, allow_nan=False)
+    except ValueError as e:
+        raise RepertoireError(f"action model holds NaN or inf outside its leaf boxes: {e}") from e
+    path.write_text(text)
     return path
+
+
+def _leaf_bounds(values, path: Path) -> list[float]:
+    """A leaf's bounds read back: numbers, or "inf"/"-inf" (older files: Infinity)."""
+    out = []
+    for v in values:
+        if isinstance(v, str) and v in _INF:
+            out.append(_INF[v])
+        elif is_real(v) and not math.isnan(v):
+            out.append(float(v))
+        else:
+            raise RepertoireError(
+                f"action model '{path}' has a leaf bound {v!r}; expected a number, 'inf' or '-inf'"
+            )
+    return out
 
 
 _REQUIRED = [f.name for f in dataclasses.fields(TreeModel)]
@@ -438,6 +469,9 @@ def load_model(path: str | Path) -> TreeModel:
         raise RepertoireError(f"action model kind must be one of {KINDS}, got {data['kind']!r}")
     try:
         data["leaves"] = [LeafBox(**leaf) for leaf in data["leaves"]]
+        for leaf in data["leaves"]:
+            leaf.lower = _leaf_bounds(leaf.lower, path)
+            leaf.upper = _leaf_bounds(leaf.upper, path)
     except TypeError as e:
         raise RepertoireError(f"action model '{path}' has a malformed leaf: {e}") from e
     n = len(data["feature"])

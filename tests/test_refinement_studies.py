@@ -55,6 +55,19 @@ def test_plan_leaves_the_approach_angle_and_speed_free():
     assert plan.ranges["pos2.v"].hi == c.approach_v_max
 
 
+def test_refined_subgoal_with_the_approach_speed_bound_to_zero():
+    # approach_v_max = 0 (stop at the ball): pos2.v is bound, only pos2.phi is refined
+    from repertoire.studies.refinement_soccer import refine_subgoal
+
+    c = RefinementSoccerConfig(approach_v_max=0.0)
+    c.validate()
+    start, dest = sample_situation(c, np.random.default_rng(11))
+    assert instantiated_plan(start, dest, c).free_ids == ["pos2.phi"]
+    for horizon in (1, 2):
+        phi, v, cost = refine_subgoal(c, start, dest, horizon, seed=0)
+        assert v == 0.0 and -math.pi <= phi <= math.pi and math.isfinite(cost)
+
+
 def test_paired_improvement_closed_form():
     imp, p = paired_improvement(np.array([10.0, 10.0, 8.0]), np.array([9.0, 8.0, 8.0]))
     assert imp == pytest.approx((0.1 + 0.2 + 0.0) / 3)

@@ -79,6 +79,16 @@ def test_config_bad_input():
         SoccerPlanConfig(x_range=[-4.0, 0.0]).validate()
     with pytest.raises(RepertoireError, match="approach_distance must lie between"):
         SoccerPlanConfig(approach_distance=0.05).validate()
+    # speeds outside the belief state's [0, 1] m/s: named at validation, neither clamped
+    # (approach_v_max 1.5 refined over [0, 1]) nor refused mid-episode (a start at 1.2 m/s)
+    with pytest.raises(RepertoireError, match=r"v_range must lie in .*\[0.0, 1.0\].*-0.2"):
+        SoccerPlanConfig(v_range=[-0.2, 0.0]).validate()
+    with pytest.raises(RepertoireError, match=r"v_range must lie in .*1.2"):
+        SoccerPlanConfig(v_range=[0.0, 1.2]).validate()
+    with pytest.raises(RepertoireError, match="approach_v_max must lie in .* got 1.5"):
+        SoccerPlanConfig(approach_v_max=1.5).validate()
+    with pytest.raises(RepertoireError, match="timeout must be > 0, got 0"):
+        SoccerPlanConfig(timeout=0.0).validate()
     with pytest.raises(RepertoireError, match="solver must be 'ga' or 'de'"):
         RefinementSoccerConfig(solver="corners").validate()
     with pytest.raises(RepertoireError, match="run refinement_explore first"):

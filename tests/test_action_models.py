@@ -185,6 +185,11 @@ def test_bad_fit_options_name_the_value():
         ),
         (lambda: fit_failure_tree(X, failed, ["a", "b"], max_leaf_nodes=1), "max_leaf_nodes.* 1"),
         (lambda: fit_failure_tree(X, failed[:, None], ["a", "b"]), r"\(100, 1\)"),
+        # a string is not a list of names ("ab" once fitted features named 'a' and 'b')
+        (lambda: fit_duration_tree(X, y, "ab"), "the string 'ab'; write \\['ab'\\]"),
+        (lambda: fit_failure_tree(X, failed, ["a", "a"]), r"distinct strings.*\['a', 'a'\]"),
+        (lambda: fit_duration_tree(X, y, ["a", 3]), r"distinct strings.*\['a', 3\]"),
+        (lambda: fit_duration_tree([[1.0, 2.0], [3.0]], [1, 2], ["a", "b"]), "rows of equal"),
     ]
     for fit, message in cases:
         with pytest.raises(RepertoireError, match=message):

@@ -195,9 +195,26 @@ def _check_cost(failure_cost) -> float:
     return float(failure_cost)
 
 
+def _check_names(feature_names) -> list[str]:
+    """The feature names as a list of distinct strings, or a RepertoireError naming them."""
+    if isinstance(feature_names, str):
+        raise RepertoireError(
+            f"feature_names must be a sequence of names, got the string {feature_names!r}; "
+            f"write [{feature_names!r}] for one feature"
+        )
+    names = list(feature_names)
+    if not all(isinstance(n, str) for n in names) or len(set(names)) != len(names):
+        raise RepertoireError(f"feature_names must be distinct strings, got {names!r}")
+    return names
+
+
 def _check_training(X, y, feature_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
-    X = np.asarray(X, dtype=float)
-    y = np.asarray(y, dtype=float)
+    feature_names = _check_names(feature_names)
+    try:
+        X = np.asarray(X, dtype=float)
+        y = np.asarray(y, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise RepertoireError(f"X and y must be numeric arrays (rows of equal length): {e}") from e
     if X.ndim != 2 or X.shape[1] != len(feature_names) or y.ndim != 1 or len(y) != len(X):
         raise RepertoireError(
             f"need X of shape (n, {len(feature_names)}) and y of shape (n,), got {X.shape}, "
@@ -384,7 +401,7 @@ def fit_failure_tree(
     seed = check_seed(seed)
     min_samples_leaf = _check_whole("min_samples_leaf", min_samples_leaf, 1)
     max_leaf_nodes = _check_whole("max_leaf_nodes", max_leaf_nodes, 2)
-    X, y = _check_training(X, np.asarray(failed, dtype=float), feature_names)
+    X, y = _check_training(X, failed, feature_names)
     if not np.all((y == 0) | (y == 1)):
         raise RepertoireError("failure targets must be booleans (True = failed)")
     tree = DecisionTreeClassifier(

@@ -75,6 +75,8 @@ class GoToPoseEpisodesConfig:
             raise RepertoireError(f"x_range must lie on the field [-3, 3], got {self.x_range}")
         if not (-2 <= self.y_range[0] and self.y_range[1] <= 2):
             raise RepertoireError(f"y_range must lie on the field [-2, 2], got {self.y_range}")
+        if self.v_g_range[0] < 0:  # GoToPose arrives at >= 0 m/s: such goals only time out
+            raise RepertoireError(f"v_g_range must be >= 0 m/s, got {self.v_g_range}")
         if self.goal_distance_range[0] <= BALL_RADIUS:
             raise RepertoireError("goal_distance_range must start beyond the ball radius 0.11 m")
         if self.n_states < 0 or self.state_period <= 0 or self.min_start_clearance < 0:

@@ -626,6 +626,11 @@ def insert_subgoal(
     if any(pid.split(".", 1)[0] == label for pid in plan.ranges):
         raise RepertoireError(f"subgoal label {label!r} is already used by the plan")
     action = plan.actions[i]
+    if len(action.args) < 2:
+        raise RepertoireError(
+            f"action {i} ({action.name} {action.args}) has no symbolic 'to' argument (index 1) "
+            "for the second leg to end at"
+        )
     old = registry.template(action.name)
     new = registry.get(replacement)
     ids = {(p.index, p.quantity): action.parameter_ids[p.name] for p in old.parameters}
@@ -648,7 +653,7 @@ def insert_subgoal(
                     f"counterpart in {old.name}"
                 )
             leg_ids[par.name] = pid
-        args = (action.args[0], label) if leg == 0 else (label, action.args[-1])
+        args = (action.args[0], label) if leg == 0 else (label, action.args[1])
         legs.append(ExecutableAction(new.name, args, leg_ids))
     actions = (*plan.actions[:i], *legs, *plan.actions[i + 1 :])
     return InstantiatedPlan(actions, ranges)

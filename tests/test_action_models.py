@@ -8,6 +8,7 @@ from repertoire.planning.action_models import (
     MIN_EPISODES,
     angle_at,
     angle_to,
+    arm_reach_features,
     distance,
     fit_action_model,
     fit_duration_tree,
@@ -55,6 +56,14 @@ def test_features_batched_and_bad():
         goto_pose_features([0, 0, np.nan, 0], [1, 0, 0, 0])
     with pytest.raises(RepertoireError, match="4 values"):
         goto_pose_features([0, 0, 0], [1, 0, 0, 0])
+    # one goal for many starts broadcasts; 3 starts for 2 goals, or a 3-D batch, is named
+    np.testing.assert_array_equal(goto_pose_features(s, g[1]), goto_pose_features(s, g[[1, 1]]))
+    with pytest.raises(RepertoireError, match="3 starts and 2 goals"):
+        goto_pose_features(np.zeros((3, 4)), g)
+    with pytest.raises(RepertoireError, match=r"got shapes \(2, 2, 4\)"):
+        goto_pose_features(np.zeros((2, 2, 4)), np.ones((2, 2, 4)))
+    with pytest.raises(RepertoireError, match="3 starts and 2 goals"):
+        arm_reach_features(np.zeros((3, 4)), g)
 
 
 def _piecewise(n=800, seed=0):

@@ -134,23 +134,27 @@ def sample_situation(config: SoccerPlanConfig, rng: np.random.Generator):
     """A start ``[x, y, phi, v]`` and a destination ``[x, y, phi, 0]`` beyond the ball.
 
     The destination lies ``dribble_distance`` from the ball along a uniform direction,
-    facing away from the ball; one that leaves the field is resampled.
+    facing away from the ball; one that leaves the field is resampled, and so is a start
+    or destination where the robot would stand in a goal
+    (:func:`~repertoire.diagrams.soccer.clear_of_goals`).
     """
-    from repertoire.diagrams.soccer import BALL_POSITION
+    from repertoire.diagrams.soccer import BALL_POSITION, clear_of_goals
 
     bx, by = BALL_POSITION
     for _ in range(1000):
         x, y = rng.uniform(*config.x_range), rng.uniform(*config.y_range)
-        if math.hypot(x - bx, y - by) >= config.min_start_clearance:
+        if math.hypot(x - bx, y - by) >= config.min_start_clearance and clear_of_goals(x, y):
             break
     else:
-        raise RepertoireError("no start outside min_start_clearance in the x/y ranges")
+        raise RepertoireError(
+            "no start outside min_start_clearance and clear of the goals in the x/y ranges"
+        )
     start = [x, y, rng.uniform(-math.pi, math.pi), rng.uniform(*config.v_range)]
     for _ in range(1000):
         psi = rng.uniform(-math.pi, math.pi)
         d = rng.uniform(*config.dribble_distance_range)
         dest = [bx + d * math.cos(psi), by + d * math.sin(psi), psi, 0.0]
-        if abs(dest[0]) <= 2.7 and abs(dest[1]) <= 1.7:
+        if abs(dest[0]) <= 2.7 and abs(dest[1]) <= 1.7 and clear_of_goals(dest[0], dest[1]):
             break
     else:
         raise RepertoireError("no destination on the field in dribble_distance_range")

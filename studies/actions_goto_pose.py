@@ -124,18 +124,20 @@ def sample_parameters(config: GoToPoseEpisodesConfig, seed: int) -> tuple[list[f
     """Seeded start ``[x, y, phi, v]`` and goal ``[x_g, y_g, phi_g, v_g]``.
 
     The goal faces the ball from ``goal_distance`` behind it along a uniform
-    approach heading; starts too close to the ball are resampled.
+    approach heading; starts too close to the ball or in a goal are resampled.
     """
-    from repertoire.diagrams.soccer import BALL_POSITION
+    from repertoire.diagrams.soccer import BALL_POSITION, clear_of_goals
 
     rng = np.random.default_rng(seed)
     bx, by = BALL_POSITION
     for _ in range(1000):
         x, y = rng.uniform(*config.x_range), rng.uniform(*config.y_range)
-        if math.hypot(x - bx, y - by) >= config.min_start_clearance:
+        if math.hypot(x - bx, y - by) >= config.min_start_clearance and clear_of_goals(x, y):
             break
     else:
-        raise RepertoireError("no start outside min_start_clearance in the x/y ranges")
+        raise RepertoireError(
+            "no start outside min_start_clearance and clear of the goals in the x/y ranges"
+        )
     phi = rng.uniform(-math.pi, math.pi)
     v = rng.uniform(*config.v_range)
     phi_g = rng.uniform(-math.pi, math.pi)

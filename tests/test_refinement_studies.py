@@ -39,6 +39,29 @@ def test_situations_are_seeded_and_on_the_field():
         assert abs(dest[0]) <= 2.7 and abs(dest[1]) <= 1.7
 
 
+def test_starts_and_destinations_near_a_goal_are_resampled():
+    # x_range up to the goal line (validated as on the field) once put the robot into a
+    # goal post: every start, destination and tour point is now clear of the goals
+    from repertoire.diagrams.soccer import clear_of_goals
+    from repertoire.studies.actions_goto_pose import GoToPoseEpisodesConfig, sample_parameters
+    from repertoire.studies.refinement_horizons import RefinementHorizonsConfig, sample_tour
+
+    # closed form: 0.37 m (footprint 0.32 + post 0.05) from the post at (3, 0.75); the net
+    # at x = 3.4 (half thickness 0.015); the goal mouth between the posts is free
+    x = [3.0 - 0.37, 3.0 - 0.36, 2.9, 3.2, -3.0 + 0.36, 2.0]
+    y = [0.75, 0.75, 0.0, 0.0, -0.75, 1.9]
+    assert clear_of_goals(x, y).tolist() == [True, False, True, False, False, True]
+    c = SoccerPlanConfig(x_range=[2.5, 3.0], y_range=[0.2, 1.3], dribble_distance_range=[1.5, 2.0])
+    g = GoToPoseEpisodesConfig(x_range=[2.5, 3.0], y_range=[0.2, 1.3])
+    h = RefinementHorizonsConfig(tour_x_range=[-3.0, -1.5], tour_y_range=[-1.2, 1.2])
+    for seed in range(30):
+        start, dest = sample_situation(c, np.random.default_rng(seed))
+        assert clear_of_goals(start[0], start[1]) and clear_of_goals(dest[0], dest[1])
+        assert clear_of_goals(*sample_parameters(g, seed)[0][:2])
+        s, waypoints, _ = sample_tour(h, np.random.default_rng(seed))
+        assert clear_of_goals(s[0], s[1]) and clear_of_goals(*waypoints.T).all()
+
+
 def test_approach_target_is_behind_the_ball_facing_it():
     np.testing.assert_allclose(approach_target(0.0, 0.05, 0.35), [0.65, 0.5, 0.0, 0.05])
     np.testing.assert_allclose(

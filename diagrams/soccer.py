@@ -28,6 +28,29 @@ from repertoire.criteria import Bound
 from repertoire.errors import ScenarioError
 
 BALL_POSITION = (1.0, 0.5)  # the ball's default position in models/diffdrive/soccer.sdf
+GOAL_POSTS = ((3.0, 0.75), (3.0, -0.75), (-3.0, 0.75), (-3.0, -0.75))
+"""Centres of the goals' posts (radius ``POST_RADIUS``) in models/diffdrive/soccer.sdf [m]."""
+POST_RADIUS = 0.05
+GOAL_NETS = (3.4, 0.015, 0.75)
+"""The nets: boxes at ``x = +-3.4`` of half thickness 0.015 and half width 0.75 [m]."""
+FOOTPRINT_RADIUS = 0.32
+"""A disc holding the diffdrive base (chassis corners and wheels) [m]."""
+
+
+def clear_of_goals(x, y) -> np.ndarray:
+    """True where the robot's footprint disc at ``(x, y)`` touches no goal post or net.
+
+    The robot's start, a dribble's destination or an asserted subgoal there would
+    otherwise put it into a goal (the crossbar is above the robot).
+    """
+    x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+    ok = np.ones(x.shape, dtype=bool)
+    for px, py in GOAL_POSTS:
+        ok &= np.hypot(x - px, y - py) >= FOOTPRINT_RADIUS + POST_RADIUS
+    cx, half_x, half_y = GOAL_NETS
+    u = np.maximum(np.abs(np.abs(x) - cx) - half_x, 0.0)
+    w = np.maximum(np.abs(y) - half_y, 0.0)
+    return ok & (np.hypot(u, w) >= FOOTPRINT_RADIUS)
 
 
 @dataclasses.dataclass

@@ -160,9 +160,9 @@ def plan_pddl(domain: str, problem: str) -> AbstractPlan:
         The sequential plan with its causal links.
 
     Raises:
-        PlanningError: unparsable PDDL, or no plan exists; then the message names the
-            goal atoms that are unreachable on their own (or says they are only jointly
-            unreachable).
+        PlanningError: unparsable PDDL, PDDL beyond STRIPS with typing (named), or no
+            plan exists; then the message names the goal atoms that are unreachable on
+            their own (or says they are only jointly unreachable).
         RepertoireError: unified-planning / up-pyperplan are not installed.
     """
     up_problem = _parse(domain, problem)
@@ -248,6 +248,13 @@ def _solve(up_problem) -> tuple[GroundAction, ...] | None:
     shortcuts, _ = _import_up()
     status = shortcuts.up.engines.PlanGenerationResultStatus
     with shortcuts.OneshotPlanner(name="pyperplan") as planner:
+        if not planner.supports(up_problem.kind):
+            supported = planner.supported_kind().features
+            extra = sorted(set(up_problem.kind.features) - set(supported))
+            raise PlanningError(
+                f"pyperplan plans STRIPS with typing only; this PDDL problem also uses "
+                f"{extra}: rewrite it without them"
+            )
         result = planner.solve(up_problem)
     if result.status in (status.SOLVED_SATISFICING, status.SOLVED_OPTIMALLY):
         return tuple(_ground(ai) for ai in result.plan.actions)
@@ -619,6 +626,11 @@ def insert_subgoal(
     if any(pid.split(".", 1)[0] == label for pid in plan.ranges):
         raise RepertoireError(f"subgoal label {label!r} is already used by the plan")
     action = plan.actions[i]
+    if len(action.args) < 2:
+        raise RepertoireError(
+            f"action {i} ({action.name} {action.args}) has no symbolic 'to' argument (index 1) "
+            "for the second leg to end at"
+        )
     old = registry.template(action.name)
     new = registry.get(replacement)
     ids = {(p.index, p.quantity): action.parameter_ids[p.name] for p in old.parameters}
@@ -641,7 +653,7 @@ def insert_subgoal(
                     f"counterpart in {old.name}"
                 )
             leg_ids[par.name] = pid
-        args = (action.args[0], label) if leg == 0 else (label, action.args[-1])
+        args = (action.args[0], label) if leg == 0 else (label, action.args[1])
         legs.append(ExecutableAction(new.name, args, leg_ids))
     actions = (*plan.actions[:i], *legs, *plan.actions[i + 1 :])
     return InstantiatedPlan(actions, ranges)

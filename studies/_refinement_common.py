@@ -45,6 +45,9 @@ DRIBBLE_GAINS = {"omega_max": 1.0, "v_max": 0.5}
 turning with the ball costs time, as with the paper's dribbleBall. (0.6 rad/s at full
 speed orbits the goal: 2 of 10 trial plans timed out.)"""
 
+SPEED_RANGE = (0.0, 1.0)
+"""Speeds [m/s] the plan's belief state allows (the default range of every ``v``)."""
+
 
 @dataclasses.dataclass
 class SoccerPlanConfig:
@@ -53,11 +56,11 @@ class SoccerPlanConfig:
     Attributes:
         x_range: start x range [m].
         y_range: start y range [m].
-        v_range: start speed range [m/s].
+        v_range: start speed range [m/s], within [0, 1].
         min_start_clearance: starts closer than this to the ball are resampled [m].
         dribble_distance_range: the destination's distance from the ball [m].
         approach_distance: the approach pose's distance behind the ball centre [m].
-        approach_v_max: the approach speed is free in [0, approach_v_max] [m/s] (GoToPose
+        approach_v_max: the approach speed is free in [0, approach_v_max] [m/s], <= 1 (GoToPose
             succeeds only within 0.1 m/s of its goal speed, so faster subgoals are missed
             whenever the robot has to stop and turn at the pose).
         time_step: plant step [s].
@@ -96,8 +99,19 @@ class SoccerPlanConfig:
                 f"approach_distance must lie between the ball radius 0.11 m and "
                 f"min_start_clearance, got {self.approach_distance}"
             )
-        if not self.approach_v_max >= 0 or not self.timeout > 0:
-            raise RepertoireError("approach_v_max must be >= 0 and timeout > 0")
+        lo, hi = SPEED_RANGE
+        if not (lo <= self.v_range[0] and self.v_range[1] <= hi):
+            raise RepertoireError(
+                f"v_range must lie in the plan's speed range {list(SPEED_RANGE)} m/s, got "
+                f"{self.v_range}"
+            )
+        if not lo <= self.approach_v_max <= hi:
+            raise RepertoireError(
+                f"approach_v_max must lie in the plan's speed range {list(SPEED_RANGE)} m/s, "
+                f"got {self.approach_v_max}"
+            )
+        if not self.timeout > 0:
+            raise RepertoireError(f"timeout must be > 0, got {self.timeout}")
         if self.dribble_distance_range[0] <= self.approach_distance:
             raise RepertoireError("dribble_distance_range must start beyond approach_distance")
 
@@ -120,23 +134,27 @@ def sample_situation(config: SoccerPlanConfig, rng: np.random.Generator):
     """A start ``[x, y, phi, v]`` and a destination ``[x, y, phi, 0]`` beyond the ball.
 
     The destination lies ``dribble_distance`` from the ball along a uniform direction,
-    facing away from the ball; one that leaves the field is resampled.
+    facing away from the ball; one that leaves the field is resampled, and so is a start
+    or destination where the robot would stand in a goal
+    (:func:`~repertoire.diagrams.soccer.clear_of_goals`).
     """
-    from repertoire.diagrams.soccer import BALL_POSITION
+    from repertoire.diagrams.soccer import BALL_POSITION, clear_of_goals
 
     bx, by = BALL_POSITION
     for _ in range(1000):
         x, y = rng.uniform(*config.x_range), rng.uniform(*config.y_range)
-        if math.hypot(x - bx, y - by) >= config.min_start_clearance:
+        if math.hypot(x - bx, y - by) >= config.min_start_clearance and clear_of_goals(x, y):
             break
     else:
-        raise RepertoireError("no start outside min_start_clearance in the x/y ranges")
+        raise RepertoireError(
+            "no start outside min_start_clearance and clear of the goals in the x/y ranges"
+        )
     start = [x, y, rng.uniform(-math.pi, math.pi), rng.uniform(*config.v_range)]
     for _ in range(1000):
         psi = rng.uniform(-math.pi, math.pi)
         d = rng.uniform(*config.dribble_distance_range)
         dest = [bx + d * math.cos(psi), by + d * math.sin(psi), psi, 0.0]
-        if abs(dest[0]) <= 2.7 and abs(dest[1]) <= 1.7:
+        if abs(dest[0]) <= 2.7 and abs(dest[1]) <= 1.7 and clear_of_goals(dest[0], dest[1]):
             break
     else:
         raise RepertoireError("no destination on the field in dribble_distance_range")
@@ -201,7 +219,7 @@ def instantiated_plan(start, dest, config: SoccerPlanConfig):
     belief = BeliefState(
         values=values,
         constraints={("atball", "v"): (0.0, config.approach_v_max)},
-        defaults={"x": (-3.0, 3.0), "y": (-2.0, 2.0), "phi": (-math.pi, math.pi), "v": (0, 1)},
+        defaults={"x": (-3.0, 3.0), "y": (-2.0, 2.0), "phi": (-math.pi, math.pi), "v": SPEED_RANGE},
     )
     return instantiate_plan(abstract_soccer_plan(), registry, belief)
 

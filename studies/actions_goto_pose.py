@@ -75,6 +75,8 @@ class GoToPoseEpisodesConfig:
             raise RepertoireError(f"x_range must lie on the field [-3, 3], got {self.x_range}")
         if not (-2 <= self.y_range[0] and self.y_range[1] <= 2):
             raise RepertoireError(f"y_range must lie on the field [-2, 2], got {self.y_range}")
+        if self.v_g_range[0] < 0:  # GoToPose arrives at >= 0 m/s: such goals only time out
+            raise RepertoireError(f"v_g_range must be >= 0 m/s, got {self.v_g_range}")
         if self.goal_distance_range[0] <= BALL_RADIUS:
             raise RepertoireError("goal_distance_range must start beyond the ball radius 0.11 m")
         if self.n_states < 0 or self.state_period <= 0 or self.min_start_clearance < 0:
@@ -122,18 +124,20 @@ def sample_parameters(config: GoToPoseEpisodesConfig, seed: int) -> tuple[list[f
     """Seeded start ``[x, y, phi, v]`` and goal ``[x_g, y_g, phi_g, v_g]``.
 
     The goal faces the ball from ``goal_distance`` behind it along a uniform
-    approach heading; starts too close to the ball are resampled.
+    approach heading; starts too close to the ball or in a goal are resampled.
     """
-    from repertoire.diagrams.soccer import BALL_POSITION
+    from repertoire.diagrams.soccer import BALL_POSITION, clear_of_goals
 
     rng = np.random.default_rng(seed)
     bx, by = BALL_POSITION
     for _ in range(1000):
         x, y = rng.uniform(*config.x_range), rng.uniform(*config.y_range)
-        if math.hypot(x - bx, y - by) >= config.min_start_clearance:
+        if math.hypot(x - bx, y - by) >= config.min_start_clearance and clear_of_goals(x, y):
             break
     else:
-        raise RepertoireError("no start outside min_start_clearance in the x/y ranges")
+        raise RepertoireError(
+            "no start outside min_start_clearance and clear of the goals in the x/y ranges"
+        )
     phi = rng.uniform(-math.pi, math.pi)
     v = rng.uniform(*config.v_range)
     phi_g = rng.uniform(-math.pi, math.pi)

@@ -98,7 +98,9 @@ class RefinementHorizonsRecord:
 
 
 def sample_tour(config: RefinementHorizonsConfig, rng: np.random.Generator):
-    """A start state, four waypoints ``(4, 2)`` and the final heading."""
+    """A start state, four waypoints ``(4, 2)`` and the final heading (none in a goal)."""
+    from repertoire.diagrams.soccer import clear_of_goals
+
     xr, yr = config.tour_x_range, config.tour_y_range
     for _ in range(1000):
         p = [np.array([rng.uniform(*xr), rng.uniform(*yr)])]
@@ -106,12 +108,16 @@ def sample_tour(config: RefinementHorizonsConfig, rng: np.random.Generator):
             d, a = rng.uniform(*config.leg_range), rng.uniform(-math.pi, math.pi)
             p.append(p[-1] + d * np.array([math.cos(a), math.sin(a)]))
         pts = np.array(p)
-        if np.all((pts[:, 0] >= xr[0]) & (pts[:, 0] <= xr[1])) and np.all(
-            (pts[:, 1] >= yr[0]) & (pts[:, 1] <= yr[1])
+        if (
+            np.all((pts[:, 0] >= xr[0]) & (pts[:, 0] <= xr[1]))
+            and np.all((pts[:, 1] >= yr[0]) & (pts[:, 1] <= yr[1]))
+            and np.all(clear_of_goals(pts[:, 0], pts[:, 1]))
         ):
             break
     else:
-        raise RepertoireError("no tour inside tour_x_range x tour_y_range with these legs")
+        raise RepertoireError(
+            "no tour inside tour_x_range x tour_y_range, clear of the goals, with these legs"
+        )
     start = np.array([*pts[0], rng.uniform(-math.pi, math.pi), rng.uniform(*config.v_range)])
     return start, pts[1:], float(rng.uniform(-math.pi, math.pi))
 

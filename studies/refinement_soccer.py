@@ -144,7 +144,9 @@ def refine_subgoal(config: RefinementSoccerConfig, start, dest, horizon: int, se
     plan = instantiated_plan(start, dest, config)
     problem = refinement_problem(plan, soccer_duration_models(approach, dribble, config))
     result = refine_sequence(problem, horizon, config.solver, seed=seed)
-    values = dict(zip(problem.names, result.params, strict=True))
+    # bound identities too: with approach_v_max = 0 the approach speed is not free
+    values = {pid: r.lo for pid, r in plan.ranges.items() if r.is_bound}
+    values |= dict(zip(problem.names, result.params, strict=True))
     return values["pos2.phi"], values["pos2.v"], result.cost
 
 

@@ -7,9 +7,9 @@ with subgoal assertion: if the approach failure tree (``refinement_explore``'s, 
 ``models_dir``) predicts a collision with the ball, an intermediate GoToPose subgoal is
 inserted, chosen by the paper's GA to minimise the predicted duration of both legs over
 the subgoals from which the failure tree predicts the last leg succeeds (Algorithm 4) and
-that lie as far from the ball as the tree's training starts (``min_start_clearance``);
-the plan then runs both legs through the PlanExecutor. An approach succeeds when the
-plan succeeds without touching the ball.
+that lie as far from the ball as the tree's training starts (``min_start_clearance``)
+and clear of the goals; the plan then runs both legs through the PlanExecutor. An
+approach succeeds when the plan succeeds without touching the ball.
 
 ``summarize`` writes Fig. 16(b)'s table (predicted vs observed, with and without
 assertion) beside the paper's numbers and polar plots of the outcomes by start
@@ -114,7 +114,7 @@ def load_assertion_models(models_dir: str):
 
 def run_episode(config: SubgoalAssertionConfig, seed: int) -> SubgoalAssertionRecord:
     """Executes one ball approach directly and with subgoal assertion."""
-    from repertoire.diagrams.soccer import BALL_POSITION
+    from repertoire.diagrams.soccer import BALL_POSITION, clear_of_goals
     from repertoire.planning.action_models.features import goto_pose_features
     from repertoire.planning.subgoal_assertion import assert_subgoal
 
@@ -132,7 +132,7 @@ def run_episode(config: SubgoalAssertionConfig, seed: int) -> SubgoalAssertionRe
     def clear_of_ball(subgoals: np.ndarray) -> np.ndarray:
         # the failure tree saw starts >= min_start_clearance from the ball, no closer
         gap = np.hypot(subgoals[:, 0] - bx, subgoals[:, 1] - by)
-        return gap >= config.min_start_clearance
+        return (gap >= config.min_start_clearance) & clear_of_goals(subgoals[:, 0], subgoals[:, 1])
 
     assertion = assert_subgoal(
         start,

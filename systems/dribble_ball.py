@@ -8,10 +8,11 @@ pose controller (:func:`~repertoire.systems.go_to_pose.pose_control`) with
 slower dribbling limits applied to the held spot (``hold_distance`` ahead of
 the axle, where the ball sits) and the goal's held spot, plus a ball-centering
 term that lets the pose command act only while the ball is in front. With ``(b_x, b_y)`` the
-ball in the robot frame and ``gamma = atan2(b_y, b_x)`` its bearing:
+ball in the robot frame, ``gamma = atan2(b_y, b_x)`` its bearing and
+``a = max(0, cos(gamma))^2``:
 
-    v     = v_pose * max(0, cos(gamma))
-    omega = omega_pose + k_ball * gamma
+    v     = max(0, v_pose) * a        (never backing away from the ball)
+    omega = a * omega_pose + k_ball * gamma
 
 both clipped to the limits, the yaw rate also to
 ``max(omega_in_place, |v| / min_turn_radius)`` (turning on the spot throws the

@@ -99,7 +99,14 @@ class PlanExecutor(LeafSystem):
             RepertoireError: no action, non-finite targets, bad sizes or period.
         """
         super().__init__()
-        T = np.asarray(targets, dtype=float)
+        try:
+            T = np.asarray(targets, dtype=float)
+        except (TypeError, ValueError) as e:
+            sizes = [len(t) if hasattr(t, "__len__") else None for t in targets]
+            raise RepertoireError(
+                f"targets must be an (n, t) array: one target of t numbers per action, got "
+                f"targets of sizes {sizes}"
+            ) from e
         if T.ndim != 2 or T.shape[0] < 1 or T.shape[1] < 1:
             raise RepertoireError(
                 f"targets must be an (n, t) array with n >= 1 actions, got shape {T.shape}"

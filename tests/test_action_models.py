@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import math
 
@@ -7,6 +8,7 @@ from repertoire.planning.action_models import (
     MIN_EPISODES,
     angle_at,
     angle_to,
+    arm_reach_features,
     distance,
     fit_action_model,
     fit_duration_tree,
@@ -54,6 +56,14 @@ def test_features_batched_and_bad():
         goto_pose_features([0, 0, np.nan, 0], [1, 0, 0, 0])
     with pytest.raises(RepertoireError, match="4 values"):
         goto_pose_features([0, 0, 0], [1, 0, 0, 0])
+    # one goal for many starts broadcasts; 3 starts for 2 goals, or a 3-D batch, is named
+    np.testing.assert_array_equal(goto_pose_features(s, g[1]), goto_pose_features(s, g[[1, 1]]))
+    with pytest.raises(RepertoireError, match="3 starts and 2 goals"):
+        goto_pose_features(np.zeros((3, 4)), g)
+    with pytest.raises(RepertoireError, match=r"got shapes \(2, 2, 4\)"):
+        goto_pose_features(np.zeros((2, 2, 4)), np.ones((2, 2, 4)))
+    with pytest.raises(RepertoireError, match="3 starts and 2 goals"):
+        arm_reach_features(np.zeros((3, 4)), g)
 
 
 def _piecewise(n=800, seed=0):
@@ -123,6 +133,30 @@ def test_json_round_trip_and_bad_files(tmp_path):
         load_model(tmp_path / "missing.json")
 
 
+def test_saved_model_is_standard_json_and_old_infinity_files_load(tmp_path):
+    # JSON has no infinity: the unbounded faces are "inf"/"-inf" strings, which a strict
+    # reader accepts; files written with Python's Infinity token still load
+    X, y = _piecewise(200)
+    m = fit_duration_tree(X, y, ["a", "b"])
+    assert any(math.isinf(v) for leaf in m.leaves for v in leaf.lower + leaf.upper)
+    p = save_model(m, tmp_path / "m.json")
+
+    def refuse(token):
+        raise AssertionError(f"non-standard JSON token {token}")
+
+    data = json.loads(p.read_text(), parse_constant=refuse)
+    assert "-inf" in data["leaves"][0]["lower"]
+    m2 = load_model(p)
+    assert m2 == m
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(dataclasses.asdict(m), allow_nan=True))
+    assert "Infinity" in old.read_text() and load_model(old) == m
+    data["leaves"][0]["lower"][0] = "minus infinity"
+    (tmp_path / "b.json").write_text(json.dumps(data))
+    with pytest.raises(RepertoireError, match="leaf bound 'minus infinity'"):
+        load_model(tmp_path / "b.json")
+
+
 def test_out_of_range_flag_and_nan():
     X, y = _piecewise(200)
     m = fit_duration_tree(X, y, ["a", "b"])
@@ -160,6 +194,11 @@ def test_bad_fit_options_name_the_value():
         ),
         (lambda: fit_failure_tree(X, failed, ["a", "b"], max_leaf_nodes=1), "max_leaf_nodes.* 1"),
         (lambda: fit_failure_tree(X, failed[:, None], ["a", "b"]), r"\(100, 1\)"),
+        # a string is not a list of names ("ab" once fitted features named 'a' and 'b')
+        (lambda: fit_duration_tree(X, y, "ab"), "the string 'ab'; write \\['ab'\\]"),
+        (lambda: fit_failure_tree(X, failed, ["a", "a"]), r"distinct strings.*\['a', 'a'\]"),
+        (lambda: fit_duration_tree(X, y, ["a", 3]), r"distinct strings.*\['a', 3\]"),
+        (lambda: fit_duration_tree([[1.0, 2.0], [3.0]], [1, 2], ["a", "b"]), "rows of equal"),
     ]
     for fit, message in cases:
         with pytest.raises(RepertoireError, match=message):

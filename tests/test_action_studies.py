@@ -33,6 +33,10 @@ def test_config_rejects_off_field_ranges():
         GoToPoseEpisodesConfig(x_range=[-4.0, 0.0]).validate()
     with pytest.raises(RepertoireError, match="lo <= hi"):
         GoToPoseEpisodesConfig(v_range=[1.0, 0.0]).validate()
+    # a negative goal speed is never reached (arrival at ~0 m/s, tolerance 0.1 m/s): every
+    # such episode would time out and be stored as a failure
+    with pytest.raises(RepertoireError, match=r"v_g_range must be >= 0 m/s, got \[-0.2, 0.1\]"):
+        GoToPoseEpisodesConfig(v_g_range=[-0.2, 0.1]).validate()
 
 
 def test_study_smoke_and_load_records(tmp_path):

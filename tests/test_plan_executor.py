@@ -91,6 +91,8 @@ def test_executor_bad_input():
         PlanExecutor([])
     with pytest.raises(RepertoireError, match=r"targets of actions \[1\] are not finite"):
         PlanExecutor([[0.0, 0.0], [np.nan, 0.0]])
+    with pytest.raises(RepertoireError, match=r"one target of t numbers.*sizes \[4, 2\]"):
+        PlanExecutor([[1.0, 2.0, 3.0, 4.0], [1.0, 2.0]])
     with pytest.raises(RepertoireError, match="period must be finite and > 0, got 0"):
         PlanExecutor([[0.0]], period=0)
     with pytest.raises(RepertoireError, match="command_size must be an int >= 1, got 0"):

@@ -121,6 +121,16 @@ def test_bad_pddl():
         plan_pddl(" ", FIG10_PROBLEM)
 
 
+def test_pddl_beyond_strips_is_named():
+    # pyperplan has no negative preconditions or equality: a PlanningError (a ValueError)
+    # naming them, not unified-planning's own exception
+    domain = SOCCER_DOMAIN.replace(":typing)", ":typing :negative-preconditions)").replace(
+        "(and (robot ?from) (ball ?to))", "(and (robot ?from) (ball ?to) (not (final ?to)))"
+    )
+    with pytest.raises(PlanningError, match=r"STRIPS with typing only.*NEGATIVE_CONDITIONS"):
+        plan_pddl(domain, FIG10_PROBLEM)
+
+
 def test_causal_links_reject_invalid_sequence():
     step = GroundAction("dribbleball", ("pos2", "pos3"), (("atball", ("pos2",)),))
     with pytest.raises(PlanningError, match=r"step 1 \(dribbleball\) needs \(atball pos2\)"):
@@ -263,6 +273,25 @@ def test_figure_16_subgoal_inserted_into_the_plan_and_refined():
     bad = result.params.copy()
     bad[problem.names.index("subgoal1.x")] = 3.5
     assert problem.cost(bad)[0] == np.inf
+
+
+def test_insert_subgoal_second_leg_ends_at_the_to_argument():
+    # a three-argument action (from, to, ball): the legs are from -> subgoal -> to
+    # (index 1, as the parameters), not -> the last argument
+    registry = ActionRegistry()
+    registry.register(ActionTemplate("kick", _pose(0) + _pose(1, "_g")))
+    registry.register(ActionTemplate("goToPose", _pose(0) + _pose(1, "_g")))
+    belief = fig10_belief()
+    plan = instantiate_plan(
+        AbstractPlan((GroundAction("kick", ("pos1", "pos3", "pos2")),), ()), registry, belief
+    )
+    asserted = insert_subgoal(plan, 0, registry, belief, replacement="goToPose")
+    assert [a.args for a in asserted.actions] == [("pos1", "subgoal1"), ("subgoal1", "pos3")]
+    assert asserted.actions[1].parameter_ids["x_g"] == "pos3.x"
+    registry.register(ActionTemplate("wait", _pose(0)))
+    one = instantiate_plan(AbstractPlan((GroundAction("wait", ("pos1",)),), ()), registry, belief)
+    with pytest.raises(RepertoireError, match=r"no symbolic 'to' argument \(index 1\)"):
+        insert_subgoal(one, 0, registry, belief, replacement="goToPose")
 
 
 def test_insert_subgoal_bad_input():

@@ -39,6 +39,29 @@ def test_situations_are_seeded_and_on_the_field():
         assert abs(dest[0]) <= 2.7 and abs(dest[1]) <= 1.7
 
 
+def test_starts_and_destinations_near_a_goal_are_resampled():
+    # x_range up to the goal line (validated as on the field) once put the robot into a
+    # goal post: every start, destination and tour point is now clear of the goals
+    from repertoire.diagrams.soccer import clear_of_goals
+    from repertoire.studies.actions_goto_pose import GoToPoseEpisodesConfig, sample_parameters
+    from repertoire.studies.refinement_horizons import RefinementHorizonsConfig, sample_tour
+
+    # closed form: 0.37 m (footprint 0.32 + post 0.05) from the post at (3, 0.75); the net
+    # at x = 3.4 (half thickness 0.015); the goal mouth between the posts is free
+    x = [3.0 - 0.37, 3.0 - 0.36, 2.9, 3.2, -3.0 + 0.36, 2.0]
+    y = [0.75, 0.75, 0.0, 0.0, -0.75, 1.9]
+    assert clear_of_goals(x, y).tolist() == [True, False, True, False, False, True]
+    c = SoccerPlanConfig(x_range=[2.5, 3.0], y_range=[0.2, 1.3], dribble_distance_range=[1.5, 2.0])
+    g = GoToPoseEpisodesConfig(x_range=[2.5, 3.0], y_range=[0.2, 1.3])
+    h = RefinementHorizonsConfig(tour_x_range=[-3.0, -1.5], tour_y_range=[-1.2, 1.2])
+    for seed in range(30):
+        start, dest = sample_situation(c, np.random.default_rng(seed))
+        assert clear_of_goals(start[0], start[1]) and clear_of_goals(dest[0], dest[1])
+        assert clear_of_goals(*sample_parameters(g, seed)[0][:2])
+        s, waypoints, _ = sample_tour(h, np.random.default_rng(seed))
+        assert clear_of_goals(s[0], s[1]) and clear_of_goals(*waypoints.T).all()
+
+
 def test_approach_target_is_behind_the_ball_facing_it():
     np.testing.assert_allclose(approach_target(0.0, 0.05, 0.35), [0.65, 0.5, 0.0, 0.05])
     np.testing.assert_allclose(
@@ -55,6 +78,19 @@ def test_plan_leaves_the_approach_angle_and_speed_free():
     assert plan.ranges["pos2.v"].hi == c.approach_v_max
 
 
+def test_refined_subgoal_with_the_approach_speed_bound_to_zero():
+    # approach_v_max = 0 (stop at the ball): pos2.v is bound, only pos2.phi is refined
+    from repertoire.studies.refinement_soccer import refine_subgoal
+
+    c = RefinementSoccerConfig(approach_v_max=0.0)
+    c.validate()
+    start, dest = sample_situation(c, np.random.default_rng(11))
+    assert instantiated_plan(start, dest, c).free_ids == ["pos2.phi"]
+    for horizon in (1, 2):
+        phi, v, cost = refine_subgoal(c, start, dest, horizon, seed=0)
+        assert v == 0.0 and -math.pi <= phi <= math.pi and math.isfinite(cost)
+
+
 def test_paired_improvement_closed_form():
     imp, p = paired_improvement(np.array([10.0, 10.0, 8.0]), np.array([9.0, 8.0, 8.0]))
     assert imp == pytest.approx((0.1 + 0.2 + 0.0) / 3)
@@ -66,6 +102,16 @@ def test_config_bad_input():
         SoccerPlanConfig(x_range=[-4.0, 0.0]).validate()
     with pytest.raises(RepertoireError, match="approach_distance must lie between"):
         SoccerPlanConfig(approach_distance=0.05).validate()
+    # speeds outside the belief state's [0, 1] m/s: named at validation, neither clamped
+    # (approach_v_max 1.5 refined over [0, 1]) nor refused mid-episode (a start at 1.2 m/s)
+    with pytest.raises(RepertoireError, match=r"v_range must lie in .*\[0.0, 1.0\].*-0.2"):
+        SoccerPlanConfig(v_range=[-0.2, 0.0]).validate()
+    with pytest.raises(RepertoireError, match=r"v_range must lie in .*1.2"):
+        SoccerPlanConfig(v_range=[0.0, 1.2]).validate()
+    with pytest.raises(RepertoireError, match="approach_v_max must lie in .* got 1.5"):
+        SoccerPlanConfig(approach_v_max=1.5).validate()
+    with pytest.raises(RepertoireError, match="timeout must be > 0, got 0"):
+        SoccerPlanConfig(timeout=0.0).validate()
     with pytest.raises(RepertoireError, match="solver must be 'ga' or 'de'"):
         RefinementSoccerConfig(solver="corners").validate()
     with pytest.raises(RepertoireError, match="run refinement_explore first"):

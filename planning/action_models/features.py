@@ -30,6 +30,32 @@ def _check(name: str, values) -> np.ndarray:
     return arr
 
 
+def state_goal_pairs(name: str, start, goal, width: int, labels: str):
+    """``start`` and ``goal`` as ``(n, width)`` arrays of equal rows, and whether both were 1-D.
+
+    One pair (1-D arrays), ``n`` pairs, or one side a single row shared by the other's
+    ``n`` rows.
+
+    Raises:
+        RepertoireError: a wrong width, more than two dimensions, row counts that differ
+            (neither 1), or a NaN/inf (named with the shapes).
+    """
+    s, g = _check("start", start), _check("goal", goal)
+    if s.shape[-1:] != (width,) or g.shape[-1:] != (width,) or s.ndim > 2 or g.ndim > 2:
+        raise RepertoireError(
+            f"{name} need start and goal of {width} values each {labels} (or (n, {width}) "
+            f"arrays), got shapes {s.shape} and {g.shape}"
+        )
+    s2, g2 = np.atleast_2d(s), np.atleast_2d(g)
+    if len(s2) != len(g2) and 1 not in (len(s2), len(g2)):
+        raise RepertoireError(
+            f"{name}: {len(s2)} starts and {len(g2)} goals; expected as many of each, or one "
+            "of either"
+        )
+    s2, g2 = np.broadcast_arrays(s2, g2)
+    return s2, g2, s.ndim == 1 and g.ndim == 1
+
+
 def distance(x, y, x_g, y_g):
     """Distance from (x, y) to (x_g, y_g) [m] (broadcasts over arrays)."""
     dx = _check("x_g - x", np.asarray(x_g, float) - np.asarray(x, float))
@@ -75,13 +101,7 @@ def goto_pose_features(state, goal, *, mirrored: bool = True) -> np.ndarray:
     Returns:
         ``(n, 5)`` columns ``dist, angle_to, angle_at, v, v_g`` (``(5,)`` for one pair).
     """
-    s = _check("state", state)
-    g = _check("goal", goal)
-    if s.shape[-1:] != (4,) or g.shape[-1:] != (4,):
-        raise RepertoireError(
-            f"state and goal need 4 values each [x, y, phi, v], got shapes {s.shape}, {g.shape}"
-        )
-    s2, g2 = np.atleast_2d(s), np.atleast_2d(g)
+    s2, g2, single = state_goal_pairs("goToPose features", state, goal, 4, "[x, y, phi, v]")
     turn = angle_to(s2[:, 0], s2[:, 1], s2[:, 2], g2[:, 0], g2[:, 1])
     at = angle_at(s2[:, 0], s2[:, 1], g2[:, 0], g2[:, 1], g2[:, 2])
     if mirrored:
@@ -96,7 +116,7 @@ def goto_pose_features(state, goal, *, mirrored: bool = True) -> np.ndarray:
             g2[:, 3] + 0.0 * s2[:, 3],
         ]
     )
-    return out[0] if s.ndim == 1 and g.ndim == 1 else out
+    return out[0] if single else out
 
 
 DRIBBLE_FEATURES = GOTO_POSE_FEATURES  # Table 7: dribbleBall shares goToPose's features
@@ -124,14 +144,9 @@ def arm_reach_features(state, goal) -> np.ndarray:
     Returns:
         ``(n, 5)`` columns ``dist, angle_1, angle_2, v, v_g`` (``(5,)`` for one pair).
     """
-    s = _check("state", state)
-    g = _check("goal", goal)
-    if s.shape[-1:] != (4,) or g.shape[-1:] != (4,):
-        raise RepertoireError(
-            "state and goal need 4 values each [theta_a, thetadot_a, theta_b, thetadot_b], got "
-            f"shapes {s.shape}, {g.shape}"
-        )
-    s2, g2 = np.atleast_2d(s), np.atleast_2d(g)
+    s2, g2, single = state_goal_pairs(
+        "reach features", state, goal, 4, "[theta_a, thetadot_a, theta_b, thetadot_b]"
+    )
     da, db = g2[:, 0] - s2[:, 0], g2[:, 2] - s2[:, 2]
     direction = np.arctan2(db, da)
     out = np.column_stack(
@@ -143,4 +158,4 @@ def arm_reach_features(state, goal) -> np.ndarray:
             np.hypot(g2[:, 1], g2[:, 3]),
         ]
     )
-    return out[0] if s.ndim == 1 and g.ndim == 1 else out
+    return out[0] if single else out

@@ -36,9 +36,11 @@ raise RepertoireError on NaN/inf or a wrong width.
 """
 
 import numpy as np
-from repertoire.planning.action_models.features import goto_pose_features, wrap_angle
-
-from repertoire.errors import RepertoireError
+from repertoire.planning.action_models.features import (
+    goto_pose_features,
+    state_goal_pairs,
+    wrap_angle,
+)
 
 KITCHEN_GOTO_FEATURES = ("v_g", "dist", "angle_to", "angle_at", "delta_angle")
 KITCHEN_REACH_FEATURES = (
@@ -55,17 +57,8 @@ KITCHEN_REACH_ARM_FEATURES = ("turn", "d_radial", "d_height")
 
 
 def _pairs(name: str, start, goal, width: int) -> tuple[np.ndarray, np.ndarray, bool]:
-    s, g = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
-    if s.shape[-1:] != (width,) or g.shape[-1:] != (width,) or s.ndim > 2 or g.ndim > 2:
-        raise RepertoireError(
-            f"{name} needs start and goal of {width} values each (or (n, {width}) arrays), got "
-            f"shapes {s.shape} and {g.shape}"
-        )
-    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(g))):
-        raise RepertoireError(f"{name} start and goal must be finite, got {start!r}, {goal!r}")
-    single = s.ndim == 1 and g.ndim == 1
-    s2, g2 = np.broadcast_arrays(np.atleast_2d(s), np.atleast_2d(g))
-    return s2, g2, single
+    labels = "[x, y, phi, v]" if width == 4 else "[x, y, z]"
+    return state_goal_pairs(name, start, goal, width, labels)
 
 
 def kitchen_goto_features(state, goal) -> np.ndarray:

@@ -195,9 +195,26 @@ def _check_cost(failure_cost) -> float:
     return float(failure_cost)
 
 
+def _check_names(feature_names) -> list[str]:
+    """The feature names as a list of distinct strings, or a RepertoireError naming them."""
+    if isinstance(feature_names, str):
+        raise RepertoireError(
+            f"feature_names must be a sequence of names, got the string {feature_names!r}; "
+            f"write [{feature_names!r}] for one feature"
+        )
+    names = list(feature_names)
+    if not all(isinstance(n, str) for n in names) or len(set(names)) != len(names):
+        raise RepertoireError(f"feature_names must be distinct strings, got {names!r}")
+    return names
+
+
 def _check_training(X, y, feature_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
-    X = np.asarray(X, dtype=float)
-    y = np.asarray(y, dtype=float)
+    feature_names = _check_names(feature_names)
+    try:
+        X = np.asarray(X, dtype=float)
+        y = np.asarray(y, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise RepertoireError(f"X and y must be numeric arrays (rows of equal length): {e}") from e
     if X.ndim != 2 or X.shape[1] != len(feature_names) or y.ndim != 1 or len(y) != len(X):
         raise RepertoireError(
             f"need X of shape (n, {len(feature_names)}) and y of shape (n,), got {X.shape}, "
@@ -384,7 +401,7 @@ def fit_failure_tree(
     seed = check_seed(seed)
     min_samples_leaf = _check_whole("min_samples_leaf", min_samples_leaf, 1)
     max_leaf_nodes = _check_whole("max_leaf_nodes", max_leaf_nodes, 2)
-    X, y = _check_training(X, np.asarray(failed, dtype=float), feature_names)
+    X, y = _check_training(X, failed, feature_names)
     if not np.all((y == 0) | (y == 1)):
         raise RepertoireError("failure targets must be booleans (True = failed)")
     tree = DecisionTreeClassifier(
@@ -402,12 +419,43 @@ def fit_failure_tree(
     return _extract(tree, feature_names, X, leaves, "failure", 1.0 / (1.0 + failure_cost))
 
 
+_INF = {"inf": math.inf, "-inf": -math.inf}
+
+
 def save_model(model: TreeModel, path: str | Path) -> Path:
-    """Writes a TreeModel as JSON (no pickle)."""
+    """Writes a TreeModel as standard JSON (no pickle).
+
+    The leaves' unbounded faces are written as the strings ``"inf"``/``"-inf"`` (as
+    :class:`~repertoire.planning.refinement.PiecewiseLinearModel` does): JSON has no
+    infinity, and Python's ``Infinity`` token is refused by other readers (JavaScript,
+    jq, serde). Every other value is finite.
+    """
     path = Path(path)
     data = dataclasses.asdict(model)
-    path.write_text(json.dumps(data, allow_nan=True))
+    for leaf in data["leaves"]:
+        for key in ("lower", "upper"):
+            leaf[key] = [v if math.isfinite(v) else ("inf" if v > 0 else "-inf") for v in leaf[key]]
+    try:
+        text = json.dumps(data, allow_nan=False)
+    except ValueError as e:
+        raise RepertoireError(f"action model holds NaN or inf outside its leaf boxes: {e}") from e
+    path.write_text(text)
     return path
+
+
+def _leaf_bounds(values, path: Path) -> list[float]:
+    """A leaf's bounds read back: numbers, or "inf"/"-inf" (older files: Infinity)."""
+    out = []
+    for v in values:
+        if isinstance(v, str) and v in _INF:
+            out.append(_INF[v])
+        elif is_real(v) and not math.isnan(v):
+            out.append(float(v))
+        else:
+            raise RepertoireError(
+                f"action model '{path}' has a leaf bound {v!r}; expected a number, 'inf' or '-inf'"
+            )
+    return out
 
 
 _REQUIRED = [f.name for f in dataclasses.fields(TreeModel)]
@@ -438,6 +486,9 @@ def load_model(path: str | Path) -> TreeModel:
         raise RepertoireError(f"action model kind must be one of {KINDS}, got {data['kind']!r}")
     try:
         data["leaves"] = [LeafBox(**leaf) for leaf in data["leaves"]]
+        for leaf in data["leaves"]:
+            leaf.lower = _leaf_bounds(leaf.lower, path)
+            leaf.upper = _leaf_bounds(leaf.upper, path)
     except TypeError as e:
         raise RepertoireError(f"action model '{path}' has a malformed leaf: {e}") from e
     n = len(data["feature"])

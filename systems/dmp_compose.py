@@ -84,8 +84,10 @@ class DmpSystem(Diagram):
         goal_orientation (4): goal quaternion (w, x, y, z), either sign: both modes turn
             the learned way round (also past 180 deg). The on-manifold part lifts it
             relative to the start; the component part (R^4) takes the sign nearest the
-            learned goal (:class:`repertoire.systems.dmp.QuaternionGoalSign`) and should
-            start on the learned start's side (``q0 . dmp.orientation.q0 >= 0``).
+            learned goal (:class:`repertoire.systems.dmp.QuaternionGoalSign`) and starts on
+            the learned start's side: :meth:`set_start` negates an orientation with
+            ``q0 . dmp.orientation.q0 < 0`` (the same orientation; the output then has the
+            learned side's sign).
         goal_fingers (k, if the DMP has fingers).
         obstacle (3, only with ``obstacle_avoidance=True``): obstacle position p_WO.
 
@@ -324,6 +326,7 @@ class DmpSystem(Diagram):
                 raise RepertoireError("this DMP has no orientation part")
             q = check_vector("orientation", orientation, 4)
             if isinstance(part, _VectorDmp):
+                q = self._component_start(q)
                 part.system.set_start(self.GetMutableSubsystemContext(part.system, context), q)
             else:
                 part.set_start(self.GetMutableSubsystemContext(part, context), q)
@@ -332,6 +335,15 @@ class DmpSystem(Diagram):
             if part is None:
                 raise RepertoireError("this DMP has no finger part")
             part.system.set_start(self.GetMutableSubsystemContext(part.system, context), fingers)
+
+    def _component_start(self, q: np.ndarray) -> np.ndarray:
+        """``q`` or ``-q`` (one orientation): the sign on the learned start's side.
+
+        The component quaternion DMP runs in R^4 with the forcing term learned from the
+        learned start, so it starts from the sign with ``q . q0_learned >= 0`` (as
+        :meth:`repertoire.planning.dmp.QuaternionDmpParameters.rollout` does).
+        """
+        return q if q @ self.dmp.orientation.q0 >= 0.0 else -q
 
     def _set_start_fused(self, context, position, velocity, orientation, fingers) -> None:
         sysd = self._fused
@@ -352,6 +364,8 @@ class DmpSystem(Diagram):
                 raise RepertoireError(f"this DMP has no {name} part")
             sl = self._slices[name]
             x0[sl] = check_vector(name, value, sl.stop - sl.start)
+            if name == "orientation":
+                x0[sl] = self._component_start(x0[sl])
         if velocity is not None:
             sl = self._slices["position"]
             xd0[sl] = check_vector("velocity", velocity, sl.stop - sl.start)

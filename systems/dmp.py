@@ -131,8 +131,8 @@ class CanonicalSystem(LeafSystem):
             tau = float(self._tau_port.Eval(context)[0])
         else:
             tau = float(context.get_numeric_parameter(self._tau_index).GetAtIndex(0))
-        if not tau > 0.0:
-            raise RepertoireError(f"tau must be > 0, got {tau}")
+        if not 0.0 < tau < math.inf:
+            raise RepertoireError(f"tau must be a finite number > 0, got {tau}")
         return tau
 
     def set_start_time(self, context: Context, start_time: float) -> None:
@@ -308,8 +308,8 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
             tau = float(self._tau_port.Eval(context)[0])
         else:
             tau = float(context.get_numeric_parameter(self._tau).GetAtIndex(0))
-        if not tau > 0.0:
-            raise RepertoireError(f"tau must be > 0, got {tau}")
+        if not 0.0 < tau < math.inf:
+            raise RepertoireError(f"tau must be a finite number > 0, got {tau}")
         return tau
 
     def _derivatives(self, context: Context) -> tuple[np.ndarray, np.ndarray]:

@@ -51,7 +51,7 @@ def test_canonical_system_derivative_and_hold():
     scaled.get_tau_input_port().FixValue(c2, [0.5])
     assert scaled.EvalTimeDerivatives(c2).CopyToVector()[0] == pytest.approx(-6.0)
     scaled.get_tau_input_port().FixValue(c2, [0.0])
-    with pytest.raises(RepertoireError, match="tau must be > 0"):
+    with pytest.raises(RepertoireError, match="tau must be a finite number > 0, got 0.0"):
         scaled.EvalTimeDerivatives(c2)
     with pytest.raises(RepertoireError, match="tau must be a finite number > 0"):
         CanonicalSystem(tau=0.0)
@@ -310,6 +310,12 @@ def test_online_time_scaling_input(dmp3):
         2.0 * dmp3.tau,
     )
     np.testing.assert_allclose(ts.EvalTimeDerivatives(ctx).CopyToVector(), np.r_[exp_xd, exp_vd])
-    ts.get_tau_input_port().FixValue(ctx, [-1.0])
-    with pytest.raises(RepertoireError, match="tau must be > 0"):
-        ts.EvalTimeDerivatives(ctx)
+    for bad in (-1.0, 0.0, np.nan, np.inf):  # inf used to freeze the movement silently
+        ts.get_tau_input_port().FixValue(ctx, [bad])
+        with pytest.raises(RepertoireError, match=f"tau must be a finite number > 0, got {bad}"):
+            ts.EvalTimeDerivatives(ctx)
+    cs = CanonicalSystem(dmp3.tau, time_scaling_input=True)
+    cs_ctx = cs.CreateDefaultContext()
+    cs.get_tau_input_port().FixValue(cs_ctx, [np.inf])
+    with pytest.raises(RepertoireError, match="tau must be a finite number > 0, got inf"):
+        cs.EvalTimeDerivatives(cs_ctx)

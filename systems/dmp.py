@@ -453,7 +453,7 @@ class ManifoldQuaternionSystem(LeafSystem):
     does not matter: the sign that turns the learned way round is used
     (:func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal`), so a demonstration turning
     past 180 deg is reproduced; a goal a full turn from q0 that way is refused.
-    The phase at the end of a step is ``theta exp(-alpha dt / tau)`` (constant tau).
+    The phase at the end of a step is ``theta exp(-alpha dt / tau)`` (the tau parameter).
     The state is held before the ``start_time`` parameter.
 
     Input ports:
@@ -477,8 +477,8 @@ class ManifoldQuaternionSystem(LeafSystem):
         self._b = dmp.n_basis
         self._dt = float(time_step)
         # The phase input is assumed to decay as the canonical system with this DMP's
-        # tau and alpha (used for the phase at the end of each step).
-        self._decay = float(np.exp(-dmp.alpha * self._dt / dmp.tau))
+        # alpha and the context's tau (used for the phase at the end of each step).
+        self._alpha = float(dmp.alpha)
         # The learned start and goal fix which sign of a goal input turns the learned way
         # round (lift_quaternion_goal); they belong to the weights, like n_basis.
         self._learned_goal, self._learned_q0 = dmp.goal.copy(), dmp.q0.copy()
@@ -551,7 +551,7 @@ class ManifoldQuaternionSystem(LeafSystem):
         p = context.get_numeric_parameter
         K, D, tau = p(self._gains).value()
         theta = float(self._phase_port.Eval(context)[0])
-        theta_next = theta * self._decay
+        theta_next = theta * math.exp(-self._alpha * self._dt / tau)
         goal = check_finite_goal(self._goal_port.Eval(context))
         if abs(float(np.linalg.norm(goal)) - 1.0) > 1e-6:
             raise RepertoireError(

@@ -360,15 +360,19 @@ class QuaternionGoalSign(LeafSystem):
 
     The component form (sec. IV-B) runs in R^4, where ``g`` and ``-g`` (one orientation)
     are different goals: one turns the learned way round, the other back the other way. This
-    system passes the goal on with the sign nearest the learned goal (``g . g_learned >= 0``;
-    :func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal` for the learned start), so
-    the goal input takes either sign, also for demonstrations turning past 180 deg.
+    system passes the goal on with the sign that turns from the movement's start the way
+    the DMP learned (:func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal`, as
+    :meth:`repertoire.planning.dmp.QuaternionDmpParameters.rollout` does; for the learned
+    start, the sign nearest the learned goal), so the goal input takes either sign, also
+    for demonstrations turning past 180 deg.
 
     Input ports:
         goal (4): goal orientation (w, x, y, z), unit.
 
     Output ports:
         goal (4): the same orientation with the learned goal's sign.
+
+    Numeric parameters: start (4), the component DMP's start q0 (default the learned one).
     """
 
     def __init__(self, dmp: QuaternionDmpParameters) -> None:
@@ -378,13 +382,24 @@ class QuaternionGoalSign(LeafSystem):
                 f"QuaternionGoalSign needs QuaternionDmpParameters, got {type(dmp).__name__}"
             )
         self._learned_goal, self._learned_q0 = dmp.goal.copy(), dmp.q0.copy()
+        self._start = self.DeclareNumericParameter(BasicVector(dmp.q0))
         self._in = self.DeclareVectorInputPort("goal", 4)
         self._out = self.DeclareVectorOutputPort("goal", 4, self._calc)
 
+    def set_start(self, context: Context, q0: np.ndarray) -> None:
+        """Set the start the goal's sign is chosen from (the component DMP's q0).
+
+        Args:
+            context: This system's context.
+            q0: Start orientation (w, x, y, z), shape (4,).
+        """
+        context.get_mutable_numeric_parameter(self._start).SetFromVector(check_vector("q0", q0, 4))
+
     def _calc(self, context: Context, output: BasicVector) -> None:
         goal = check_finite_goal(self._in.Eval(context))
+        start = context.get_numeric_parameter(self._start).get_value()
         output.SetFromVector(
-            lift_quaternion_goal(goal, self._learned_q0, self._learned_goal, self._learned_q0)
+            lift_quaternion_goal(goal, start, self._learned_goal, self._learned_q0)
         )
 
 

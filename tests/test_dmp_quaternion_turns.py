@@ -230,3 +230,30 @@ def test_component_dmp_system_started_at_the_other_sign_is_the_same_movement(fus
         sim.AdvanceTo(k * 1e-3)
         q_sys = sys.GetOutputPort("orientation").Eval(ctx)
         assert max_angle(q_sys, Q_np[k]) < 1e-11  # it was up to 0.32 rad off
+
+
+@pytest.mark.parametrize("fused", [False, True])
+def test_component_dmp_system_lifts_the_goal_from_its_start(fused):
+    # Learned: a 90 deg yaw from identity. Started 120 deg about x away with the goal
+    # g = D (s - q0) (D = learned rotation), g . (D s) = 0.5 but g . g_learned = -0.5: the
+    # learned rotation carried to the start says +g; the sign nearest the learned goal (what
+    # QuaternionGoalSign took, ignoring the start) said -g, the turn the other way round.
+    dmp, _ = _task_space(90.0, "component", position_basis=50 if fused else 20)
+    ori = dmp.orientation
+    s = quat_exp(np.array([np.deg2rad(120.0) / 2, 0.0, 0.0]))
+    g = quat_multiply(ori.goal, s - ori.q0)
+    assert g @ quat_multiply(ori.goal, s) > 0.4 and g @ ori.goal < -0.4
+    _, Q_np, _ = ori.rollout(goal=g, q0=s, dt=1e-3, n_steps=2000)
+    builder = DiagramBuilder()
+    sys = add_dmp(builder, dmp, name="turn")
+    for port, val in (("goal_position", dmp.position.goal), ("goal_orientation", -g)):
+        src = builder.AddSystem(ConstantVectorSource(np.asarray(val, float)))
+        builder.Connect(src.get_output_port(), sys.GetInputPort(port))
+    sim = Simulator(builder.Build())
+    assert (sys._fused is not None) == fused
+    ctx = sys.GetMyMutableContextFromRoot(sim.get_mutable_context())
+    sys.set_start(ctx, position=dmp.position.x0, orientation=s)
+    for k in (250, 500, 1000, 2000):
+        sim.AdvanceTo(k * 1e-3)
+        q_sys = sys.GetOutputPort("orientation").Eval(ctx)
+        assert max_angle(q_sys, Q_np[k]) < 1e-11

@@ -29,9 +29,19 @@ from repertoire.planning.dmp_quaternion import (
 from repertoire.errors import RepertoireError, UnknownNameError
 
 
+def _numpy_to_json(value):
+    """``json.dumps`` default: NumPy arrays and scalars as lists and numbers (lossless)."""
+    if isinstance(value, (np.ndarray, np.generic)):
+        return value.tolist()
+    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
+
+
 def _as_json(value):
-    """``value`` as a JSON round trip gives it back (tuples -> lists, keys -> strings)."""
-    return json.loads(json.dumps(value))
+    """``value`` as a JSON round trip gives it back.
+
+    Tuples and arrays come back as lists, NumPy scalars as numbers, keys as strings.
+    """
+    return json.loads(json.dumps(value, default=_numpy_to_json))
 
 
 def _query_value(value):

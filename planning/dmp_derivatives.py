@@ -49,6 +49,11 @@ def estimate_derivatives(
     if window is not None and not is_whole(window):
         raise RepertoireError(f"window must be an odd integer >= 3 or None, got {window!r}")
     n = t.size
+    if window is not None and window > n:
+        raise RepertoireError(
+            f"window = {window} is longer than the demonstration's {n} samples; use an odd "
+            f"window <= {n if n % 2 else n - 1}"
+        )
     dt = np.diff(t)
     uniform = np.ptp(dt) <= 1e-6 * dt.mean()
     if method == "auto":

@@ -29,9 +29,19 @@ from repertoire.planning.dmp_quaternion import (
 from repertoire.errors import RepertoireError, UnknownNameError
 
 
+def _numpy_to_json(value):
+    """``json.dumps`` default: NumPy arrays and scalars as lists and numbers (lossless)."""
+    if isinstance(value, (np.ndarray, np.generic)):
+        return value.tolist()
+    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
+
+
 def _as_json(value):
-    """``value`` as a JSON round trip gives it back (tuples -> lists, keys -> strings)."""
-    return json.loads(json.dumps(value))
+    """``value`` as a JSON round trip gives it back.
+
+    Tuples and arrays come back as lists, NumPy scalars as numbers, keys as strings.
+    """
+    return json.loads(json.dumps(value, default=_numpy_to_json))
 
 
 def _query_value(value):
@@ -277,12 +287,19 @@ class MotionLibrary:
             raise RepertoireError(f"{path}: {err}") from err
 
 
+MOVING_SPEED_FRACTION = 0.05  # "still moving": speed above this fraction of the peak speed
+
+
 def approach_direction(
     dmp: DmpParameters, goal: np.ndarray, start: np.ndarray | None = None, *, fraction=0.2
 ) -> np.ndarray:
     """Unit approach direction at the end of a 3-D position DMP propagated to ``goal``.
 
     Averages the velocity vectors over the last ``fraction`` of the movement (sec. IV-C).
+    The movement is where the rollout (over tau) still moves, its speed above
+    :data:`MOVING_SPEED_FRACTION` of the peak: a demonstration that comes to rest before
+    its end (a held final pose) would otherwise average only the small settling motion at
+    the goal, whose direction is arbitrary (often backwards).
 
     Args:
         dmp: 3-D position DMP.
@@ -295,8 +312,13 @@ def approach_direction(
     if not 0.0 < fraction <= 1.0:
         raise RepertoireError(f"fraction must be in (0, 1], got {fraction}")
     r = dmp.rollout(goal=np.asarray(goal, float), x0=start, dt=dmp.tau / 500)
-    k0 = int(round((1.0 - fraction) * (len(r.t) - 1)))
-    mean_v = r.xd[k0:].mean(axis=0)
+    speed = np.linalg.norm(r.xd, axis=1)
+    if not speed.max() > 1e-9:
+        raise RepertoireError("the movement does not move; no approach direction")
+    moving = np.flatnonzero(speed > MOVING_SPEED_FRACTION * speed.max())
+    first, last = int(moving[0]), int(moving[-1])
+    k0 = last - int(round(fraction * (last - first)))
+    mean_v = r.xd[k0 : last + 1].mean(axis=0)
     n = np.linalg.norm(mean_v)
     if n < 1e-9:
         raise RepertoireError("the movement does not move at its end; no approach direction")

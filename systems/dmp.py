@@ -131,8 +131,8 @@ class CanonicalSystem(LeafSystem):
             tau = float(self._tau_port.Eval(context)[0])
         else:
             tau = float(context.get_numeric_parameter(self._tau_index).GetAtIndex(0))
-        if not tau > 0.0:
-            raise RepertoireError(f"tau must be > 0, got {tau}")
+        if not 0.0 < tau < math.inf:
+            raise RepertoireError(f"tau must be a finite number > 0, got {tau}")
         return tau
 
     def set_start_time(self, context: Context, start_time: float) -> None:
@@ -308,8 +308,8 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
             tau = float(self._tau_port.Eval(context)[0])
         else:
             tau = float(context.get_numeric_parameter(self._tau).GetAtIndex(0))
-        if not tau > 0.0:
-            raise RepertoireError(f"tau must be > 0, got {tau}")
+        if not 0.0 < tau < math.inf:
+            raise RepertoireError(f"tau must be a finite number > 0, got {tau}")
         return tau
 
     def _derivatives(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
@@ -360,15 +360,19 @@ class QuaternionGoalSign(LeafSystem):
 
     The component form (sec. IV-B) runs in R^4, where ``g`` and ``-g`` (one orientation)
     are different goals: one turns the learned way round, the other back the other way. This
-    system passes the goal on with the sign nearest the learned goal (``g . g_learned >= 0``;
-    :func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal` for the learned start), so
-    the goal input takes either sign, also for demonstrations turning past 180 deg.
+    system passes the goal on with the sign that turns from the movement's start the way
+    the DMP learned (:func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal`, as
+    :meth:`repertoire.planning.dmp.QuaternionDmpParameters.rollout` does; for the learned
+    start, the sign nearest the learned goal), so the goal input takes either sign, also
+    for demonstrations turning past 180 deg.
 
     Input ports:
         goal (4): goal orientation (w, x, y, z), unit.
 
     Output ports:
         goal (4): the same orientation with the learned goal's sign.
+
+    Numeric parameters: start (4), the component DMP's start q0 (default the learned one).
     """
 
     def __init__(self, dmp: QuaternionDmpParameters) -> None:
@@ -378,13 +382,24 @@ class QuaternionGoalSign(LeafSystem):
                 f"QuaternionGoalSign needs QuaternionDmpParameters, got {type(dmp).__name__}"
             )
         self._learned_goal, self._learned_q0 = dmp.goal.copy(), dmp.q0.copy()
+        self._start = self.DeclareNumericParameter(BasicVector(dmp.q0))
         self._in = self.DeclareVectorInputPort("goal", 4)
         self._out = self.DeclareVectorOutputPort("goal", 4, self._calc)
 
+    def set_start(self, context: Context, q0: np.ndarray) -> None:
+        """Set the start the goal's sign is chosen from (the component DMP's q0).
+
+        Args:
+            context: This system's context.
+            q0: Start orientation (w, x, y, z), shape (4,).
+        """
+        context.get_mutable_numeric_parameter(self._start).SetFromVector(check_vector("q0", q0, 4))
+
     def _calc(self, context: Context, output: BasicVector) -> None:
         goal = check_finite_goal(self._in.Eval(context))
+        start = context.get_numeric_parameter(self._start).get_value()
         output.SetFromVector(
-            lift_quaternion_goal(goal, self._learned_q0, self._learned_goal, self._learned_q0)
+            lift_quaternion_goal(goal, start, self._learned_goal, self._learned_q0)
         )
 
 
@@ -453,7 +468,7 @@ class ManifoldQuaternionSystem(LeafSystem):
     does not matter: the sign that turns the learned way round is used
     (:func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal`), so a demonstration turning
     past 180 deg is reproduced; a goal a full turn from q0 that way is refused.
-    The phase at the end of a step is ``theta exp(-alpha dt / tau)`` (constant tau).
+    The phase at the end of a step is ``theta exp(-alpha dt / tau)`` (the tau parameter).
     The state is held before the ``start_time`` parameter.
 
     Input ports:
@@ -477,8 +492,8 @@ class ManifoldQuaternionSystem(LeafSystem):
         self._b = dmp.n_basis
         self._dt = float(time_step)
         # The phase input is assumed to decay as the canonical system with this DMP's
-        # tau and alpha (used for the phase at the end of each step).
-        self._decay = float(np.exp(-dmp.alpha * self._dt / dmp.tau))
+        # alpha and the context's tau (used for the phase at the end of each step).
+        self._alpha = float(dmp.alpha)
         # The learned start and goal fix which sign of a goal input turns the learned way
         # round (lift_quaternion_goal); they belong to the weights, like n_basis.
         self._learned_goal, self._learned_q0 = dmp.goal.copy(), dmp.q0.copy()
@@ -551,7 +566,7 @@ class ManifoldQuaternionSystem(LeafSystem):
         p = context.get_numeric_parameter
         K, D, tau = p(self._gains).value()
         theta = float(self._phase_port.Eval(context)[0])
-        theta_next = theta * self._decay
+        theta_next = theta * math.exp(-self._alpha * self._dt / tau)
         goal = check_finite_goal(self._goal_port.Eval(context))
         if abs(float(np.linalg.norm(goal)) - 1.0) > 1e-6:
             raise RepertoireError(

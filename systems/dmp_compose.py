@@ -83,9 +83,11 @@ class DmpSystem(Diagram):
         goal_position (3): p_WE goal [m].
         goal_orientation (4): goal quaternion (w, x, y, z), either sign: both modes turn
             the learned way round (also past 180 deg). The on-manifold part lifts it
-            relative to the start; the component part (R^4) takes the sign nearest the
-            learned goal (:class:`repertoire.systems.dmp.QuaternionGoalSign`) and should
-            start on the learned start's side (``q0 . dmp.orientation.q0 >= 0``).
+            relative to the start; so does the component part (R^4,
+            :class:`repertoire.systems.dmp.QuaternionGoalSign`), which starts on
+            the learned start's side: :meth:`set_start` negates an orientation with
+            ``q0 . dmp.orientation.q0 < 0`` (the same orientation; the output then has the
+            learned side's sign).
         goal_fingers (k, if the DMP has fingers).
         obstacle (3, only with ``obstacle_avoidance=True``): obstacle position p_WO.
 
@@ -115,6 +117,7 @@ class DmpSystem(Diagram):
         self.dmp = dmp
         self._fused = None
         self._manifold = None
+        self._goal_sign = None
         self._slices: dict = {}
         builder = DiagramBuilder()
         if isinstance(dmp, DmpParameters):
@@ -201,6 +204,7 @@ class DmpSystem(Diagram):
                 demux["velocity"].get_output_port(i), norm.get_quaternion_rate_input_port()
             )
             sign = builder.AddNamedSystem("goal_sign", QuaternionGoalSign(dmp.orientation))
+            self._goal_sign = sign
             builder.Connect(sign.GetOutputPort("goal"), mux.get_input_port(i))
             builder.ExportInput(sign.GetInputPort("goal"), "goal_orientation")
             builder.ExportOutput(norm.get_orientation_output_port(), "orientation")
@@ -251,6 +255,7 @@ class DmpSystem(Diagram):
                 comp.system.get_velocity_output_port(), norm.get_quaternion_rate_input_port()
             )
             sign = builder.AddNamedSystem("goal_sign", QuaternionGoalSign(ori))
+            self._goal_sign = sign
             builder.Connect(sign.GetOutputPort("goal"), comp.system.get_goal_input_port())
             builder.ExportInput(sign.GetInputPort("goal"), "goal_orientation")
             builder.ExportOutput(norm.get_orientation_output_port(), "orientation")
@@ -324,6 +329,7 @@ class DmpSystem(Diagram):
                 raise RepertoireError("this DMP has no orientation part")
             q = check_vector("orientation", orientation, 4)
             if isinstance(part, _VectorDmp):
+                q = self._component_start(context, q)
                 part.system.set_start(self.GetMutableSubsystemContext(part.system, context), q)
             else:
                 part.set_start(self.GetMutableSubsystemContext(part, context), q)
@@ -332,6 +338,19 @@ class DmpSystem(Diagram):
             if part is None:
                 raise RepertoireError("this DMP has no finger part")
             part.system.set_start(self.GetMutableSubsystemContext(part.system, context), fingers)
+
+    def _component_start(self, context: Context, q: np.ndarray) -> np.ndarray:
+        """``q`` or ``-q`` (one orientation): the sign on the learned start's side.
+
+        The component quaternion DMP runs in R^4 with the forcing term learned from the
+        learned start, so it starts from the sign with ``q . q0_learned >= 0``, and its
+        goal's sign is chosen from that start (as
+        :meth:`repertoire.planning.dmp.QuaternionDmpParameters.rollout` does).
+        """
+        q = q if q @ self.dmp.orientation.q0 >= 0.0 else -q
+        sign = self._goal_sign
+        sign.set_start(self.GetMutableSubsystemContext(sign, context), q)
+        return q
 
     def _set_start_fused(self, context, position, velocity, orientation, fingers) -> None:
         sysd = self._fused
@@ -352,6 +371,8 @@ class DmpSystem(Diagram):
                 raise RepertoireError(f"this DMP has no {name} part")
             sl = self._slices[name]
             x0[sl] = check_vector(name, value, sl.stop - sl.start)
+            if name == "orientation":
+                x0[sl] = self._component_start(context, x0[sl])
         if velocity is not None:
             sl = self._slices["position"]
             xd0[sl] = check_vector("velocity", velocity, sl.stop - sl.start)

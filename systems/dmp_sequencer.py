@@ -62,7 +62,11 @@ class DmpSequencer(LeafSystem):
         position, velocity, acceleration (n): x, dx/dt and d2x/dt2 of the active segment.
         phase (1), segment (1): theta and the active segment's index.
         orientation (4), angular_velocity (3) (with ``quaternion_at``): the post-normalised
-            quaternion block [w, x, y, z] and its world-frame angular velocity.
+            quaternion block [w, x, y, z] and its world-frame angular velocity. Each
+            segment runs its block from the sign of the start on its learned start's side
+            (``q . x0_learned >= 0``; the R^4 state is negated at a start or hand-off
+            otherwise), so the output's sign may differ from ``x_start``'s: the same
+            orientation.
         NAME_position, NAME_velocity, NAME_acceleration: for every entry of ``parts``, that
             slice of the three vector outputs.
     """
@@ -128,6 +132,7 @@ class DmpSequencer(LeafSystem):
         )
         x_start = segments[0].x0 if x_start is None else check_vector("x_start", x_start, n)
         self._q = None if quaternion_at is None else slice(quaternion_at, quaternion_at + 4)
+        x_start = self._learned_side(0, x_start)[0]
         self._goal_ports = [
             self.DeclareVectorInputPort(f"goal_{i}", n) for i in range(len(segments))
         ]
@@ -208,7 +213,7 @@ class DmpSequencer(LeafSystem):
             context: This system's context.
             x_start: Start position, shape (n,).
         """
-        x = check_vector("x_start", x_start, self._n)
+        x = self._learned_side(0, check_vector("x_start", x_start, self._n))[0]
         if self._dt is None:
             context.SetContinuousState(np.concatenate([[1.0], x, np.zeros(self._n)]))
             context.SetDiscreteState(self._switch, np.concatenate([[0.0], x]))
@@ -304,12 +309,37 @@ class DmpSequencer(LeafSystem):
         """Before the first start time the state is held."""
         return context.get_time() < self._times[0] - 1e-9
 
+    def _learned_side(self, seg: int, *vectors: np.ndarray) -> list[np.ndarray]:
+        """``vectors`` with the quaternion block negated if ``vectors[0]``'s is on the far side.
+
+        The component quaternion DMP runs in R^4, where ``q`` and ``-q`` are one orientation
+        but not one state: segment ``seg``'s forcing term was learned from its learned start
+        ``x0[q]``, so it is run from the sign of the start with ``q . x0[q] >= 0`` (as
+        :meth:`repertoire.planning.dmp.QuaternionDmpParameters.rollout` does). Position,
+        velocity (and acceleration) of the block are negated together: the same motion.
+
+        Args:
+            seg: The segment that starts.
+            *vectors: Its start position, then e.g. velocity and acceleration, shape (n,).
+        """
+        out = [None if v is None else np.array(v, dtype=float) for v in vectors]
+        if self._q is not None and out[0][self._q] @ self._segments[seg].x0[self._q] < 0.0:
+            for v in out:
+                if v is not None:
+                    v[self._q] *= -1.0
+        return out
+
     def _next(self, context: Context, seg: int, x: np.ndarray, v: np.ndarray):
-        """Hand-off to segment ``seg + 1``: (x0, v) of the successor."""
+        """Hand-off to segment ``seg + 1``: (x, x0, v) of the successor.
+
+        The quaternion block is put on the successor's learned side (:meth:`_learned_side`).
+        """
         acc = self._acc(context) if self._handoff == "acceleration" else None
-        return handoff_state(
+        x, v, acc = self._learned_side(seg + 1, x, v, acc)
+        x0, v = handoff_state(
             self._segments[seg + 1], x, v, self._segments[seg].tau, self._handoff, acc
         )
+        return x, x0, v
 
     # --- continuous mode ---------------------------------------------------------------
     def DoCalcTimeDerivatives(self, context: Context, derivatives) -> None:
@@ -328,7 +358,7 @@ class DmpSequencer(LeafSystem):
         seg, _, _, x, v = self._split(context)
         if seg + 1 >= len(self._times) or context.get_time() < self._times[seg + 1] - 1e-9:
             return
-        x0, v_new = self._next(context, seg, x, v)
+        x, x0, v_new = self._next(context, seg, x, v)
         state.get_mutable_continuous_state().get_mutable_vector().SetFromVector(
             np.concatenate([[1.0], x, v_new])
         )
@@ -344,7 +374,7 @@ class DmpSequencer(LeafSystem):
             discrete_state.set_value(self._state, context.get_discrete_state(self._state).value())
             return
         if seg + 1 < len(self._segments) and step >= self._steps[seg + 1]:
-            x0, v = self._next(context, seg, x, v)
+            x, x0, v = self._next(context, seg, x, v)
             seg, k = seg + 1, 0
         p = self._coupling(context)
         z = self._tabs[seg].step(

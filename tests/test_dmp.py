@@ -357,6 +357,26 @@ def test_motion_library_compose_save_load_and_grasp_orientation(tmp_path, grasp_
     np.testing.assert_allclose(inst.orientation.goal, q_new)
 
 
+@pytest.mark.parametrize("moving_until", [2.0, 1.6, 1.2])
+def test_approach_direction_of_a_demonstration_that_ends_at_rest(moving_until):
+    # A straight minimum-jerk line A -> B that is held still from moving_until to tau = 2 s:
+    # at the learned goal and at a goal further along the line the approach is (B - A)/|B - A|
+    # (the whole rollout stays on the line). Averaging the last 20 % of tau instead took
+    # the settling motion at the goal, which pointed backwards (-u) for 1.6 and 1.2.
+    A, B = np.array([0.4, 0.1, 0.3]), np.array([0.6, -0.2, 0.2])
+    u = (B - A) / np.linalg.norm(B - A)
+    t = np.linspace(0.0, 2.0, 500)
+    x, _, _ = minimum_jerk(A, B, moving_until, t)
+    dmp = learn_dmp(t, x, n_basis=30)
+    for goal in (B, A + 2.0 * (B - A)):
+        np.testing.assert_allclose(approach_direction(dmp, goal), u, atol=1e-6)
+    # and the grasp orientation for the goal further along keeps the demonstrated one
+    q = slerp_minimum_jerk(np.array([1.0, 0, 0, 0]), quat_exp(np.array([0.0, 0.0, 0.4])), t)
+    grasp = learn_task_space_dmp(t, x, q, n_basis=30)
+    q_goal = grasp_orientation(grasp, A + 2.0 * (B - A))
+    np.testing.assert_allclose(q_goal, grasp.orientation.goal, atol=1e-6)
+
+
 # ------------------------------------------------------------------ bad input
 @pytest.mark.parametrize(
     "t, x, match",

@@ -196,3 +196,11 @@ def test_dmp_parameters_refuse_weights_that_are_not_a_matrix(p):
         DmpParameters(np.zeros((2, 20, 1)), *rest)
     with raises("weights must have shape (n_dims >= 1, n_basis), got (0, 20)"):
         DmpParameters(np.zeros((0, 20)), p.centres, p.widths, 1.0, 1.0, p.alpha, 1.0, [], [])
+
+
+@pytest.mark.parametrize("derivatives", ["savgol", "local_poly"])
+def test_a_window_longer_than_the_demonstration_is_refused(derivatives):
+    # it was cut to the 199 samples silently (one global polynomial)
+    with raises("window = 1001 is longer than the demonstration's 200 samples; use an odd "):
+        learn_dmp(T, X, n_basis=20, derivatives=derivatives, window=1001)
+    learn_dmp(T, X, n_basis=20, derivatives=derivatives, window=199)  # the longest allowed

@@ -165,3 +165,95 @@ def test_sequencer_quaternion_block_turns_200_deg_the_demonstrated_way():
             q_seq = seq.GetOutputPort("orientation").Eval(ctx)
             assert max_angle(q_seq, Q_np[k]) < 1e-11  # the NumPy rollout, to rounding
         assert max_angle(q_seq, q[-1]) < 1e-5
+
+
+def _detour_demo() -> np.ndarray:
+    """A curved rest-to-rest turn from identity: 70 deg about y (late) after 40 deg about x."""
+    s, _, _ = minimum_jerk(np.zeros(1), np.ones(1), T, TIMES)
+    about_x = quat_exp(s * np.array([np.deg2rad(40.0) / 2, 0.0, 0.0]))
+    return quat_multiply(quat_exp(s**2 * np.array([0.0, np.deg2rad(70.0) / 2, 0.0])), about_x)
+
+
+@pytest.mark.parametrize("time_step", [1e-3, None])
+def test_sequencer_start_and_hand_off_of_the_other_sign_are_the_same_movement(time_step):
+    # Segment 1 turns the demonstration; segment 2 (learned from the same movement seen from
+    # segment 1's goal, its samples stored with the other sign) takes over at 0.6 s. Starting
+    # at -q0, or handing over to a segment whose learned start is -q, must not change the
+    # orientations: the R^4 state runs on each segment's learned side (it used to leave the
+    # demonstrated path by about 1 rad).
+    q = yaw_demo(80.0) if time_step is None else _detour_demo()
+    first = learn_quaternion_dmp(TIMES, q, mode="component", n_basis=30)
+    q2 = quat_multiply(q, first.goal)  # the same turn from first.goal
+    seconds = [
+        learn_quaternion_dmp(TIMES, sign * q2, mode="component", n_basis=30).component_parameters()
+        for sign in (1.0, -1.0)
+    ]
+    comp = first.component_parameters()
+    runs = []
+    for x_start, second in ((comp.x0, seconds[0]), (-comp.x0, seconds[1])):
+        seq = DmpSequencer(
+            [comp, second], [0.0, 0.6], goals=[comp.goal, second.goal], x_start=x_start,
+            time_step=time_step, quaternion_at=0,
+        )  # fmt: skip
+        sim = Simulator(seq)
+        out = []
+        for k in (300, 600, 900, 1500, 3000):
+            sim.AdvanceTo(k * 1e-3)
+            out.append(seq.GetOutputPort("orientation").Eval(sim.get_context()).copy())
+        runs.append(np.array(out))
+    tol = 1e-11 if time_step else 1e-6  # continuous: the integrator's error control
+    assert max_angle(runs[0], runs[1]) < tol
+    # the first segment follows its NumPy rollout, the chain ends at the second's goal
+    _, Q_np, _ = first.rollout(dt=1e-3, n_steps=300)
+    assert max_angle(runs[0][0], Q_np[300]) < max(tol, 1e-11)
+    assert max_angle(runs[1][-1], seconds[1].goal) < 1e-4
+
+
+@pytest.mark.parametrize("fused", [False, True])
+def test_component_dmp_system_started_at_the_other_sign_is_the_same_movement(fused):
+    dmp, _ = _task_space(80.0, "component", position_basis=50 if fused else 20)
+    dmp.orientation = learn_quaternion_dmp(TIMES, _detour_demo(), mode="component", n_basis=50)
+    _, Q_np, _ = dmp.orientation.rollout(dt=1e-3, n_steps=1500)
+    builder = DiagramBuilder()
+    sys = add_dmp(builder, dmp, name="turn")
+    for port, val in (
+        ("goal_position", dmp.position.goal),
+        ("goal_orientation", dmp.orientation.goal),
+    ):
+        src = builder.AddSystem(ConstantVectorSource(np.asarray(val, float)))
+        builder.Connect(src.get_output_port(), sys.GetInputPort(port))
+    sim = Simulator(builder.Build())
+    assert (sys._fused is not None) == fused
+    ctx = sys.GetMyMutableContextFromRoot(sim.get_mutable_context())
+    sys.set_start(ctx, position=dmp.position.x0, orientation=-dmp.orientation.q0)
+    for k in (250, 500, 1000, 1500):
+        sim.AdvanceTo(k * 1e-3)
+        q_sys = sys.GetOutputPort("orientation").Eval(ctx)
+        assert max_angle(q_sys, Q_np[k]) < 1e-11  # it was up to 0.32 rad off
+
+
+@pytest.mark.parametrize("fused", [False, True])
+def test_component_dmp_system_lifts_the_goal_from_its_start(fused):
+    # Learned: a 90 deg yaw from identity. Started 120 deg about x away with the goal
+    # g = D (s - q0) (D = learned rotation), g . (D s) = 0.5 but g . g_learned = -0.5: the
+    # learned rotation carried to the start says +g; the sign nearest the learned goal (what
+    # QuaternionGoalSign took, ignoring the start) said -g, the turn the other way round.
+    dmp, _ = _task_space(90.0, "component", position_basis=50 if fused else 20)
+    ori = dmp.orientation
+    s = quat_exp(np.array([np.deg2rad(120.0) / 2, 0.0, 0.0]))
+    g = quat_multiply(ori.goal, s - ori.q0)
+    assert g @ quat_multiply(ori.goal, s) > 0.4 and g @ ori.goal < -0.4
+    _, Q_np, _ = ori.rollout(goal=g, q0=s, dt=1e-3, n_steps=2000)
+    builder = DiagramBuilder()
+    sys = add_dmp(builder, dmp, name="turn")
+    for port, val in (("goal_position", dmp.position.goal), ("goal_orientation", -g)):
+        src = builder.AddSystem(ConstantVectorSource(np.asarray(val, float)))
+        builder.Connect(src.get_output_port(), sys.GetInputPort(port))
+    sim = Simulator(builder.Build())
+    assert (sys._fused is not None) == fused
+    ctx = sys.GetMyMutableContextFromRoot(sim.get_mutable_context())
+    sys.set_start(ctx, position=dmp.position.x0, orientation=s)
+    for k in (250, 500, 1000, 2000):
+        sim.AdvanceTo(k * 1e-3)
+        q_sys = sys.GetOutputPort("orientation").Eval(ctx)
+        assert max_angle(q_sys, Q_np[k]) < 1e-11

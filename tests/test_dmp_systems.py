@@ -14,7 +14,9 @@ from repertoire.planning.dmp_math import (
     transformation_derivatives,
 )
 from repertoire.planning.dmp_quaternion import (
+    manifold_step,
     quat_exp,
+    quat_log_error,
     quat_multiply,
     quaternion_rollout,
 )
@@ -51,7 +53,7 @@ def test_canonical_system_derivative_and_hold():
     scaled.get_tau_input_port().FixValue(c2, [0.5])
     assert scaled.EvalTimeDerivatives(c2).CopyToVector()[0] == pytest.approx(-6.0)
     scaled.get_tau_input_port().FixValue(c2, [0.0])
-    with pytest.raises(RepertoireError, match="tau must be > 0"):
+    with pytest.raises(RepertoireError, match="tau must be a finite number > 0, got 0.0"):
         scaled.EvalTimeDerivatives(c2)
     with pytest.raises(RepertoireError, match="tau must be a finite number > 0"):
         CanonicalSystem(tau=0.0)
@@ -205,6 +207,31 @@ def test_manifold_quaternion_system_unit_norm_and_matches_numpy():
     assert np.abs(Q[-1] - Qn[-1]).max() < 1e-7
 
 
+def test_manifold_quaternion_system_step_uses_the_context_tau():
+    # One discrete update with the tau parameter doubled in the context is manifold_step
+    # with the phase at the step's end theta exp(-alpha dt / tau) of that tau (it used the
+    # constructor's tau: 9e-4 rad off the NumPy rollout after 1 s at tau = 2 s).
+    t, q = _quat_demo()
+    dmp = learn_quaternion_dmp(t, q, n_basis=15)
+    ms = ManifoldQuaternionSystem(dmp, time_step=1e-3)
+    ctx = ms.CreateDefaultContext()
+    tau, theta = 2.0 * dmp.tau, 0.6
+    ctx.get_mutable_numeric_parameter(3).SetFromVector([dmp.K, dmp.D, tau])  # [K, D, tau]
+    ms.get_phase_input_port().FixValue(ctx, [theta])
+    ms.get_goal_input_port().FixValue(ctx, dmp.goal)
+    eta = np.array([0.2, -0.1, 0.3])
+    ctx.SetDiscreteState(np.r_[dmp.q0, eta])
+    got = ms.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().CopyToVector()
+    theta_next = theta * np.exp(-dmp.alpha * 1e-3 / tau)
+    f = forcing_term(np.array([theta, theta_next]), dmp.weights, dmp.centres, dmp.widths)
+    e0 = quat_log_error(dmp.goal, dmp.q0)
+    a = dmp.K * (quat_log_error(dmp.goal, dmp.q0) - e0 * theta + f[0]) / tau
+    eta1, q1, _ = manifold_step(
+        dmp.q0, eta, a, dmp.goal, e0, theta_next, f[1], dmp.K, dmp.D, tau, 1e-3
+    )
+    np.testing.assert_allclose(got, np.r_[q1, eta1], rtol=0, atol=1e-15)
+
+
 def test_quaternion_normalizer_and_obstacle_coupling_systems():
     qn = QuaternionNormalizer()
     ctx = qn.CreateDefaultContext()
@@ -310,6 +337,12 @@ def test_online_time_scaling_input(dmp3):
         2.0 * dmp3.tau,
     )
     np.testing.assert_allclose(ts.EvalTimeDerivatives(ctx).CopyToVector(), np.r_[exp_xd, exp_vd])
-    ts.get_tau_input_port().FixValue(ctx, [-1.0])
-    with pytest.raises(RepertoireError, match="tau must be > 0"):
-        ts.EvalTimeDerivatives(ctx)
+    for bad in (-1.0, 0.0, np.nan, np.inf):  # inf used to freeze the movement silently
+        ts.get_tau_input_port().FixValue(ctx, [bad])
+        with pytest.raises(RepertoireError, match=f"tau must be a finite number > 0, got {bad}"):
+            ts.EvalTimeDerivatives(ctx)
+    cs = CanonicalSystem(dmp3.tau, time_scaling_input=True)
+    cs_ctx = cs.CreateDefaultContext()
+    cs.get_tau_input_port().FixValue(cs_ctx, [np.inf])
+    with pytest.raises(RepertoireError, match="tau must be a finite number > 0, got inf"):
+        cs.EvalTimeDerivatives(cs_ctx)

@@ -4,6 +4,7 @@ problem; tuple context values find the same primitives before a save and after a
 import json
 import re
 
+import numpy as np
 import pytest
 from repertoire.planning.arm_library import arm_motion_library
 from repertoire.planning.motion_library import MotionLibrary, MotionPrimitive
@@ -109,3 +110,19 @@ def test_non_json_context_is_refused(grasp_dmp):
         MotionPrimitive("a", "grasp", grasp_dmp, {"side": {1, 2}})
     with pytest.raises(RepertoireError, match="context of 'a' must be a dict, got list"):
         MotionPrimitive("a", "grasp", grasp_dmp, [("side", 1)])
+
+
+def test_numpy_context_values_are_stored_and_found_as_json(tmp_path, grasp_dmp):
+    # NumPy arrays and scalars (what a scenario computes) are their JSON lists and numbers;
+    # a find() with an array used to raise NumPy's "truth value of an array is ambiguous"
+    lib = MotionLibrary()
+    lib.add_dmp("a", "grasp", grasp_dmp, {"cup_xy": np.array([0.5, -0.2]), "n": np.int64(3)})
+    lib.add_dmp("b", "grasp", grasp_dmp, {"cup_xy": [0.1, 0.2], "n": 3.5})
+    assert lib.get("a").context == {"cup_xy": [0.5, -0.2], "n": 3}
+    assert type(lib.get("a").context["n"]) is int
+    loaded = MotionLibrary.load(lib.save(tmp_path / "lib.json"))
+    for library in (lib, loaded):
+        assert [p.name for p in library.find("grasp", cup_xy=np.array([0.5, -0.2]))] == ["a"]
+        assert [p.name for p in library.find("grasp", cup_xy=np.array([0.1, 0.2]))] == ["b"]
+        assert [p.name for p in library.find("grasp", n=np.float64(3.5))] == ["b"]
+        assert library.find("grasp", cup_xy=np.array([[0.5, -0.2]])) == []

@@ -157,12 +157,44 @@ def footprint_clear(xy, boxes, radius: float) -> np.ndarray:
     return ok
 
 
-def path_clear(a, b, boxes, radius: float, samples: int = 16) -> np.ndarray:
-    """True per row where the straight segment ``a -> b`` ((n, 2) each) stays clear."""
+def path_clear(a, b, boxes, radius: float) -> np.ndarray:
+    """True per row where a disc swept along the segment ``a -> b`` ((n, 2) each) is clear.
+
+    Clear: the segment's exact distance to each box is at least ``radius``.
+
+    In a box's frame the distance between a segment and the rectangle is 0 where the
+    segment enters it (slab clipping), else the least of the end points' distances to the
+    rectangle and the corners' distances to the segment (two convex sets in the plane are
+    nearest at a vertex of one of them).
+    """
     a, b = np.broadcast_arrays(np.atleast_2d(a)[:, :2], np.atleast_2d(b)[:, :2])
-    s = np.linspace(0.0, 1.0, samples)
-    points = a[:, None, :] + s[None, :, None] * (b - a)[:, None, :]
-    return footprint_clear(points.reshape(-1, 2), boxes, radius).reshape(-1, samples).all(axis=1)
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    ok = np.ones(a.shape[0], dtype=bool)
+    for cx, cy, yaw, hx, hy, _ in np.asarray(boxes, dtype=float).reshape(-1, 6):
+        c, s = math.cos(yaw), math.sin(yaw)
+        rot = np.array([[c, s], [-s, c]])  # world -> box frame
+        pa, pb = (a - (cx, cy)) @ rot.T, (b - (cx, cy)) @ rot.T
+        d = pb - pa
+        half = np.array([hx, hy])
+        t_in, t_out = np.zeros(len(a)), np.ones(len(a))
+        for k in range(2):  # the slab |p_k| <= half_k, for p = pa + t d, t in [0, 1]
+            moving = d[:, k] != 0.0
+            dk = np.where(moving, d[:, k], 1.0)
+            t1, t2 = (-half[k] - pa[:, k]) / dk, (half[k] - pa[:, k]) / dk
+            inside = np.abs(pa[:, k]) <= half[k]
+            t_in = np.maximum(
+                t_in, np.where(moving, np.minimum(t1, t2), np.where(inside, 0.0, 2.0))
+            )
+            t_out = np.minimum(t_out, np.where(moving, np.maximum(t1, t2), 1.0))
+        dist = np.where(t_in <= t_out, 0.0, np.inf)
+        for p in (pa, pb):
+            dist = np.minimum(dist, np.hypot(*np.maximum(np.abs(p) - half, 0.0).T))
+        dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+        for corner in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
+            t = np.clip(np.einsum("ij,ij->i", corner - pa, d) / dd, 0.0, 1.0)
+            dist = np.minimum(dist, np.hypot(*(pa + t[:, None] * d - corner).T))
+        ok &= dist >= radius
+    return ok
 
 
 def arm_point(yaw, extend, z_chassis) -> np.ndarray:

@@ -46,6 +46,26 @@ def test_path_clear_checks_the_whole_segment():
     np.testing.assert_array_equal(kp.path_clear(a, b, BOX, 0.3), [False, True])
 
 
+def test_path_clear_is_exact_between_any_samples():
+    # a long diagonal passing 0.36 m from a box corner: sampled at 16 points (as it was),
+    # the nearest sample is 0.76 m away; the exact distance is the corner's
+    box = np.array([[0.0, 0.0, 0.0, 0.5, 0.5, 1.0]])
+    u, n = np.array([1.0, -1.0]) / np.sqrt(2.0), np.array([1.0, 1.0]) / np.sqrt(2.0)
+    mid = np.array([0.5, 0.5]) + 0.36 * n
+    a, b = mid - 10.0 * u, mid + 10.0 * u
+    assert not kp.path_clear(a, b, box, 0.37)[0]
+    assert kp.path_clear(a, b, box, 0.359)[0]
+    # rotated boxes, a segment through the middle, one ending inside, a point segment
+    tilted = np.array([[1.0, 2.0, 0.7, 0.3, 0.1, 1.0]])
+    c, s = np.cos(0.7), np.sin(0.7)
+    along = np.array([c, s])
+    a = np.array([[1.0, 2.0] - 2.0 * along, [1.0, 2.0], [3.0, 3.0], [1.0, 2.0] + 0.5 * along])
+    b = np.array([[1.0, 2.0] + 2.0 * along, [5.0, 5.0], [3.0, 3.0], [1.0, 2.0] + 0.5 * along])
+    # (the point segment lies 0.2 m beyond the box's end along its long axis)
+    np.testing.assert_array_equal(kp.path_clear(a, b, tilted, 0.19), [False, False, True, True])
+    assert not kp.path_clear(a[3], b[3], tilted, 0.21)[0]
+
+
 def test_base_pose_puts_the_gripper_over_the_point():
     point = np.array([2.0, 1.2, 0.8])
     phi, yaw, extend = np.array([0.3, -2.0]), np.array([0.5, -1.0]), np.array([0.6, 0.4])

@@ -135,11 +135,25 @@ def sample_parameters(config: DribbleEpisodesConfig, seed: int) -> tuple[list[fl
     """Seeded start ``[x, y, phi, v]`` and goal ``[x_g, y_g, phi_g, v_g]``.
 
     The goal lies ``goal_distance`` from the start in a uniform direction and at
-    least ``margin`` inside the field; other draws are resampled.
+    least ``margin`` inside the field; other draws are resampled. So are starts where the
+    robot, or the ball held ahead of it (``DribbleScenario.ball_offset``; checked with the
+    robot's footprint disc, which also covers the dribbler's guide arms), would touch a
+    goal post or net.
     """
+    from repertoire.diagrams.soccer import clear_of_goals
+    from repertoire.diagrams.soccer_dribble import DribbleScenario
+
+    forward, left = DribbleScenario().ball_offset
     rng = np.random.default_rng(seed)
-    x, y = rng.uniform(*config.x_range), rng.uniform(*config.y_range)
-    phi = rng.uniform(-math.pi, math.pi)
+    for _ in range(1000):
+        x, y = rng.uniform(*config.x_range), rng.uniform(*config.y_range)
+        phi = rng.uniform(-math.pi, math.pi)
+        c, s = math.cos(phi), math.sin(phi)
+        ball = (x + c * forward - s * left, y + s * forward + c * left)
+        if clear_of_goals(x, y) and clear_of_goals(*ball):
+            break
+    else:
+        raise RepertoireError("no start with the robot and its ball clear of the goals")
     v = rng.uniform(*config.v_range)
     m = config.margin
     for _ in range(1000):

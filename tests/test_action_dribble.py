@@ -209,6 +209,15 @@ def test_dribble_sampling_is_seeded_and_in_range():
         assert -2.5 <= goal[0] <= 2.5 and -1.5 <= goal[1] <= 1.5
         direction = math.atan2(goal[1] - start[1], goal[0] - start[0])
         assert abs(math.remainder(goal[2] - direction, 2 * math.pi)) <= c.goal_heading_spread
+    # starts up to the field's edge: the robot and the ball ahead of it stay out of the goals
+    from repertoire.diagrams.soccer import clear_of_goals
+
+    edge = DribbleEpisodesConfig(x_range=[2.6, 3.0], y_range=[-0.9, 0.9])
+    edge.validate()
+    for seed in range(40):
+        (x, y, phi, _), _ = sample_parameters(edge, seed)
+        ball = (x + 0.31 * math.cos(phi), y + 0.31 * math.sin(phi))
+        assert clear_of_goals(x, y) and clear_of_goals(*ball)
     with pytest.raises(RepertoireError, match="x_range must lie on the field"):
         DribbleEpisodesConfig(x_range=[-4.0, 0.0]).validate()
     with pytest.raises(RepertoireError, match="goal_heading_spread"):

@@ -93,6 +93,10 @@ class LittleDogLibraryScenario(LibraryLoopFields):
     Attributes:
         terrain: name of a library terrain (``terrain_a`` or ``terrain_b``).
         direction_deg: crossing direction (degrees); the start and goal follow from it.
+            The default library holds crossings at 0, 90, 180 and 270 (terrain_a) and 0,
+            90 and 180 (terrain_b); elsewhere its nearest steps were recorded for another
+            direction (at 45 on terrain_b the robot did not cross in 34 s): new directions
+            and terrains are the littledog_transfer world's.
     """
 
     terrain: str = "terrain_a"

@@ -95,8 +95,8 @@ class LittleDogLibraryScenario(LibraryLoopFields):
         direction_deg: crossing direction (degrees); the start and goal follow from it.
             The default library holds crossings at 0, 90, 180 and 270 (terrain_a) and 0,
             90 and 180 (terrain_b); elsewhere its nearest steps were recorded for another
-            direction (at 45 on terrain_b the robot did not cross in 34 s): new directions
-            and terrains are the littledog_transfer world's.
+            direction (at 45 on terrain_b the robot did not cross in 34 s). New terrains are
+            the littledog_transfer world's (library steps transferred, gaps planned).
     """
 
     terrain: str = "terrain_a"

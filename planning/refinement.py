@@ -49,7 +49,13 @@ MODEL_FORMAT_VERSION = 1
 """Format version of saved :class:`PiecewiseLinearModel` files."""
 
 
-def _json_array(a: np.ndarray) -> list:
+def json_array(a) -> list:
+    """``a`` as nested JSON lists, infinities as the strings ``"inf"``/``"-inf"``.
+
+    JSON has no infinity, and Python's ``Infinity`` token is refused by other readers
+    (JavaScript, jq, serde); ``np.array(..., dtype=float)`` reads the strings back.
+    """
+    a = np.asarray(a, dtype=float)
     return np.where(np.isinf(a), np.where(a > 0, "inf", "-inf"), a.astype(object)).tolist()
 
 
@@ -149,7 +155,7 @@ class PiecewiseLinearModel:
         return {
             "type": "PiecewiseLinearModel",
             "version": MODEL_FORMAT_VERSION,
-            **{k: _json_array(getattr(self, k)) for k in ("lower", "upper", "coef", "intercept")},
+            **{k: json_array(getattr(self, k)) for k in ("lower", "upper", "coef", "intercept")},
         }
 
     @classmethod

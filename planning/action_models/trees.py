@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from repertoire.planning.refinement import json_array
 
 from repertoire.checks import check_seed, is_real, is_whole
 from repertoire.errors import RepertoireError
@@ -425,16 +426,16 @@ _INF = {"inf": math.inf, "-inf": -math.inf}
 def save_model(model: TreeModel, path: str | Path) -> Path:
     """Writes a TreeModel as standard JSON (no pickle).
 
-    The leaves' unbounded faces are written as the strings ``"inf"``/``"-inf"`` (as
-    :class:`~repertoire.planning.refinement.PiecewiseLinearModel` does): JSON has no
-    infinity, and Python's ``Infinity`` token is refused by other readers (JavaScript,
-    jq, serde). Every other value is finite.
+    The leaves' unbounded faces are written as the strings ``"inf"``/``"-inf"``
+    (:func:`~repertoire.planning.refinement.json_array`, as
+    :class:`~repertoire.planning.refinement.PiecewiseLinearModel` does). Every other value
+    is finite.
     """
     path = Path(path)
     data = dataclasses.asdict(model)
     for leaf in data["leaves"]:
         for key in ("lower", "upper"):
-            leaf[key] = [v if math.isfinite(v) else ("inf" if v > 0 else "-inf") for v in leaf[key]]
+            leaf[key] = json_array(leaf[key])
     try:
         text = json.dumps(data, allow_nan=False)
     except ValueError as e:

@@ -25,6 +25,7 @@ from repertoire.planning.dmp import TaskSpaceDmp
 from repertoire.planning.dmp_demos import Demonstration, synthesize_demonstration
 from repertoire.planning.dmp_learn import learn_task_space_dmp
 from repertoire.planning.motion_library import MotionLibrary
+from repertoire.planning.motion_library import approach_direction as motion_approach_direction
 
 from repertoire.errors import RepertoireError
 
@@ -203,8 +204,9 @@ def arm_motion_library() -> MotionLibrary:
 def approach_direction(dmp: TaskSpaceDmp, x_start: np.ndarray, goal: np.ndarray) -> np.ndarray:
     """Approach direction at the end of a movement (sec. IV-C).
 
-    Rolls the position DMP out from ``x_start`` to ``goal`` and averages the
-    velocity vectors over the last part of the movement where it still moves.
+    The position DMP rolled out from ``x_start`` to ``goal``, its velocity averaged over the
+    last quarter of the part where it still moves
+    (:func:`repertoire.planning.motion_library.approach_direction`).
 
     Args:
         dmp: the grasp DMP.
@@ -214,10 +216,4 @@ def approach_direction(dmp: TaskSpaceDmp, x_start: np.ndarray, goal: np.ndarray)
     Returns:
         Unit 3-vector.
     """
-    r = dmp.position.rollout(goal=goal, x0=x_start, dt=0.005)
-    speed = np.linalg.norm(r.xd, axis=1)
-    moving = np.nonzero(speed > 0.05 * speed.max())[0]
-    last = moving[-1]
-    window = r.xd[max(0, last - int(0.25 * len(moving))) : last + 1]
-    v = window.mean(axis=0)
-    return v / np.linalg.norm(v)
+    return motion_approach_direction(dmp.position, goal, x_start, fraction=0.25, dt=0.005)

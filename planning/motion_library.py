@@ -291,7 +291,12 @@ MOVING_SPEED_FRACTION = 0.05  # "still moving": speed above this fraction of the
 
 
 def approach_direction(
-    dmp: DmpParameters, goal: np.ndarray, start: np.ndarray | None = None, *, fraction=0.2
+    dmp: DmpParameters,
+    goal: np.ndarray,
+    start: np.ndarray | None = None,
+    *,
+    fraction=0.2,
+    dt: float | None = None,
 ) -> np.ndarray:
     """Unit approach direction at the end of a 3-D position DMP propagated to ``goal``.
 
@@ -305,20 +310,21 @@ def approach_direction(
         dmp: 3-D position DMP.
         goal: Goal position, shape (3,).
         start: Start position; default the learned start.
-        fraction: Final fraction of the movement to average over, in (0, 1].
+        fraction: Final fraction of the movement to average over, in (0, 1]: the last
+            ``int(fraction * m)`` samples of the ``m`` moving ones, and the last of them.
+        dt: Rollout step (s); default ``tau / 500``.
     """
     if dmp.n_dims != 3:
         raise RepertoireError(f"approach direction needs a 3-D position DMP, got {dmp.n_dims}")
     if not 0.0 < fraction <= 1.0:
         raise RepertoireError(f"fraction must be in (0, 1], got {fraction}")
-    r = dmp.rollout(goal=np.asarray(goal, float), x0=start, dt=dmp.tau / 500)
+    r = dmp.rollout(goal=np.asarray(goal, float), x0=start, dt=dmp.tau / 500 if dt is None else dt)
     speed = np.linalg.norm(r.xd, axis=1)
     if not speed.max() > 1e-9:
         raise RepertoireError("the movement does not move; no approach direction")
     moving = np.flatnonzero(speed > MOVING_SPEED_FRACTION * speed.max())
-    first, last = int(moving[0]), int(moving[-1])
-    k0 = last - int(round(fraction * (last - first)))
-    mean_v = r.xd[k0 : last + 1].mean(axis=0)
+    last = int(moving[-1])
+    mean_v = r.xd[max(0, last - int(fraction * len(moving))) : last + 1].mean(axis=0)
     n = np.linalg.norm(mean_v)
     if n < 1e-9:
         raise RepertoireError("the movement does not move at its end; no approach direction")

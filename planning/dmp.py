@@ -31,6 +31,7 @@ from repertoire.planning.dmp_math import (
     rollout,
 )
 from repertoire.planning.dmp_quaternion import (
+    learned_side,
     lift_quaternion_goal,
     quaternion_rollout,
 )
@@ -382,7 +383,7 @@ class QuaternionDmpParameters(_FieldsRecord):
         if self.mode == "component":
             # q and -q are one orientation but not one R^4 state: start on the learned start's
             # side (the forcing term was learned there) and report the given sign.
-            sign = 1.0 if s @ self.q0 >= 0 else -1.0
+            sign = learned_side(s, self.q0)
             s = sign * s
             g = lift_quaternion_goal(g, s, self.goal, self.q0)
             r = self.component_parameters().rollout(goal=g, x0=s, dt=dt, n_steps=n_steps)

@@ -130,6 +130,16 @@ def quat_log_error(goal: np.ndarray, q: np.ndarray) -> np.ndarray:
     return 2.0 * quat_log(quat_multiply(goal, quat_conjugate(q)))
 
 
+def learned_side(q: np.ndarray, learned_start: np.ndarray) -> float:
+    """+1 or -1: the sign that puts ``q`` on the learned start's side (``q . q0 >= 0``).
+
+    ``q`` and ``-q`` are one orientation but not one state of the component form (R^4),
+    whose forcing term was learned from ``learned_start``: a component quaternion DMP runs
+    from ``sign * q`` (its velocity and acceleration multiplied alike).
+    """
+    return 1.0 if float(np.asarray(q, dtype=float) @ learned_start) >= 0.0 else -1.0
+
+
 def lift_quaternion_goal(
     goal: np.ndarray, start: np.ndarray, learned_goal: np.ndarray, learned_start: np.ndarray
 ) -> np.ndarray:

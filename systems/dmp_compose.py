@@ -19,6 +19,7 @@ from pydrake.systems.primitives import (
 from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp
 from repertoire.planning.dmp_chain import stack_task_space_dmp
 from repertoire.planning.dmp_math import check_positive
+from repertoire.planning.dmp_quaternion import learned_side
 from repertoire.systems.dmp import (
     CanonicalSystem,
     ManifoldQuaternionSystem,
@@ -347,7 +348,7 @@ class DmpSystem(Diagram):
         goal's sign is chosen from that start (as
         :meth:`repertoire.planning.dmp.QuaternionDmpParameters.rollout` does).
         """
-        q = q if q @ self.dmp.orientation.q0 >= 0.0 else -q
+        q = learned_side(q, self.dmp.orientation.q0) * q
         sign = self._goal_sign
         sign.set_start(self.GetMutableSubsystemContext(sign, context), q)
         return q

@@ -41,6 +41,7 @@ from repertoire.planning.dmp_math import (
 )
 from repertoire.planning.dmp_quaternion import (
     angular_velocity,
+    learned_side,
     lift_quaternion_goal,
 )
 from repertoire.systems.dmp import check_finite_goal, check_finite_input, check_vector
@@ -323,7 +324,10 @@ class DmpSequencer(LeafSystem):
             *vectors: Its start position, then e.g. velocity and acceleration, shape (n,).
         """
         out = [None if v is None else np.array(v, dtype=float) for v in vectors]
-        if self._q is not None and out[0][self._q] @ self._segments[seg].x0[self._q] < 0.0:
+        if (
+            self._q is not None
+            and learned_side(out[0][self._q], self._segments[seg].x0[self._q]) < 0
+        ):
             for v in out:
                 if v is not None:
                     v[self._q] *= -1.0

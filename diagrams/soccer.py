@@ -9,6 +9,7 @@ target is a constant source named ``target`` (a plan executor would replace it).
 """
 
 import dataclasses
+import math
 
 import numpy as np
 from pydrake.math import RollPitchYaw
@@ -25,7 +26,7 @@ from repertoire.diagrams.registry import register_diagram
 from repertoire.systems.go_to_pose import ActionStatus, DiffDriveStateReader, GoToPose
 
 from repertoire.criteria import Bound
-from repertoire.errors import ScenarioError
+from repertoire.errors import RepertoireError, ScenarioError
 
 BALL_POSITION = (1.0, 0.5)  # the ball's default position in models/diffdrive/soccer.sdf
 GOAL_POSTS = ((3.0, 0.75), (3.0, -0.75), (-3.0, 0.75), (-3.0, -0.75))
@@ -51,6 +52,25 @@ def clear_of_goals(x, y) -> np.ndarray:
     u = np.maximum(np.abs(np.abs(x) - cx) - half_x, 0.0)
     w = np.maximum(np.abs(y) - half_y, 0.0)
     return ok & (np.hypot(u, w) >= FOOTPRINT_RADIUS)
+
+
+def draw_start_xy(rng: np.random.Generator, x_range, y_range, min_ball_clearance: float):
+    """A start ``(x, y)`` uniform in the ranges, clear of the ball and the goals.
+
+    At least ``min_ball_clearance`` from the ball (at ``BALL_POSITION``) and
+    :func:`clear_of_goals`; other draws are redrawn.
+
+    Raises:
+        RepertoireError: no such start in 1000 draws.
+    """
+    bx, by = BALL_POSITION
+    for _ in range(1000):
+        x, y = rng.uniform(*x_range), rng.uniform(*y_range)
+        if math.hypot(x - bx, y - by) >= min_ball_clearance and clear_of_goals(x, y):
+            return x, y
+    raise RepertoireError(
+        "no start outside min_start_clearance and clear of the goals in the x/y ranges"
+    )
 
 
 @dataclasses.dataclass

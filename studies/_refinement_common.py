@@ -138,17 +138,10 @@ def sample_situation(config: SoccerPlanConfig, rng: np.random.Generator):
     or destination where the robot would stand in a goal
     (:func:`~repertoire.diagrams.soccer.clear_of_goals`).
     """
-    from repertoire.diagrams.soccer import BALL_POSITION, clear_of_goals
+    from repertoire.diagrams.soccer import BALL_POSITION, clear_of_goals, draw_start_xy
 
     bx, by = BALL_POSITION
-    for _ in range(1000):
-        x, y = rng.uniform(*config.x_range), rng.uniform(*config.y_range)
-        if math.hypot(x - bx, y - by) >= config.min_start_clearance and clear_of_goals(x, y):
-            break
-    else:
-        raise RepertoireError(
-            "no start outside min_start_clearance and clear of the goals in the x/y ranges"
-        )
+    x, y = draw_start_xy(rng, config.x_range, config.y_range, config.min_start_clearance)
     start = [x, y, rng.uniform(-math.pi, math.pi), rng.uniform(*config.v_range)]
     for _ in range(1000):
         psi = rng.uniform(-math.pi, math.pi)

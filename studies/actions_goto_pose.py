@@ -126,18 +126,11 @@ def sample_parameters(config: GoToPoseEpisodesConfig, seed: int) -> tuple[list[f
     The goal faces the ball from ``goal_distance`` behind it along a uniform
     approach heading; starts too close to the ball or in a goal are resampled.
     """
-    from repertoire.diagrams.soccer import BALL_POSITION, clear_of_goals
+    from repertoire.diagrams.soccer import BALL_POSITION, draw_start_xy
 
     rng = np.random.default_rng(seed)
     bx, by = BALL_POSITION
-    for _ in range(1000):
-        x, y = rng.uniform(*config.x_range), rng.uniform(*config.y_range)
-        if math.hypot(x - bx, y - by) >= config.min_start_clearance and clear_of_goals(x, y):
-            break
-    else:
-        raise RepertoireError(
-            "no start outside min_start_clearance and clear of the goals in the x/y ranges"
-        )
+    x, y = draw_start_xy(rng, config.x_range, config.y_range, config.min_start_clearance)
     phi = rng.uniform(-math.pi, math.pi)
     v = rng.uniform(*config.v_range)
     phi_g = rng.uniform(-math.pi, math.pi)

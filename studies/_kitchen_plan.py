@@ -169,7 +169,7 @@ def path_clear(a, b, boxes, radius: float) -> np.ndarray:
     """
     a, b = np.broadcast_arrays(np.atleast_2d(a)[:, :2], np.atleast_2d(b)[:, :2])
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    ok = np.ones(a.shape[0], dtype=bool)
+    ok = footprint_clear(a, boxes, radius) & footprint_clear(b, boxes, radius)  # the ends
     for cx, cy, yaw, hx, hy, _ in np.asarray(boxes, dtype=float).reshape(-1, 6):
         c, s = math.cos(yaw), math.sin(yaw)
         rot = np.array([[c, s], [-s, c]])  # world -> box frame
@@ -187,8 +187,6 @@ def path_clear(a, b, boxes, radius: float) -> np.ndarray:
             )
             t_out = np.minimum(t_out, np.where(moving, np.maximum(t1, t2), 1.0))
         dist = np.where(t_in <= t_out, 0.0, np.inf)
-        for p in (pa, pb):
-            dist = np.minimum(dist, np.hypot(*np.maximum(np.abs(p) - half, 0.0).T))
         dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
         for corner in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
             t = np.clip(np.einsum("ij,ij->i", corner - pa, d) / dd, 0.0, 1.0)

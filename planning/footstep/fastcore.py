@@ -86,6 +86,7 @@ from repertoire.planning.footstep.fastkernels import (
 )
 from repertoire.planning.footstep.heuristic import _rra_h, _rra_value
 from repertoire.planning.footstep.jitcache import njit
+from repertoire.planning.footstep.reachability import goal_cut_off
 from repertoire.planning.footstep.search import SearchResult
 from repertoire.planning.footstep.types import PlanStatus
 
@@ -748,6 +749,4 @@ def warm_up() -> None:
         grid, (0.15, 0.35, 0.0), "left", (0.45, 0.45), nominal_action_table(), opts
     )
     compiled_anytime(model, [2.0, 1.0], 3, 60.0)
-    from repertoire.planning.footstep.reachability import goal_cut_off
-
     goal_cut_off(model)  # with step limits: the levels and the fill

@@ -224,7 +224,7 @@ def test_yaw_bins_are_centred_on_the_start_yaw(bins):
     # reaches is the start's plus k turns, and 18 turns come back 0.017 rad off. With the
     # bins centred on the start's yaw each such yaw sits within a fifth of a bin of a
     # centre, so a whole turn's remainder never splits one yaw into two states, whatever
-    # the start yaw (at 72 bins, 1 in 5 did with bins on the map's axes)
+    # the start yaw (at 72 bins, 37 % of start yaws split one with bins on the map's axes)
     from repertoire.planning.footstep.biped_model import BipedStepModel
     from repertoire.planning.footstep.types import wrap_angle
 

@@ -201,6 +201,19 @@ def test_discrete_tables_memory_does_not_grow_with_tau_over_dt(dmp3):
     assert peak < 8 * 1024**2
 
 
+def test_discrete_dmp_with_the_obstacle_on_its_goal_reaches_the_goal(dmp3):
+    # Eq. 10 has no distance term: an obstacle on the goal gives no NaN, and p _|_ v does no work.
+    builder = DiagramBuilder()
+    sys = add_dmp(builder, dmp3, time_step=1e-3, obstacle_avoidance=True)
+    for port in ("goal", "obstacle"):
+        src = builder.AddSystem(ConstantVectorSource(dmp3.goal))
+        builder.Connect(src.get_output_port(), sys.GetInputPort(port))
+    sim = Simulator(builder.Build())
+    sim.AdvanceTo(5.0)
+    x = sys.GetOutputPort("position").Eval(sys.GetMyContextFromRoot(sim.get_context()))
+    assert np.linalg.norm(x - dmp3.goal) < 1e-9
+
+
 def _quat_demo():
     t = np.linspace(0, 1, 300)
     q = slerp_minimum_jerk(

@@ -51,7 +51,8 @@ class DiscreteDmpTables:
         big[n + idx, idx] = Phi[:, 1, 0]
         big[n + idx, n + idx] = Phi[:, 1, 1]
         self.bigT = big.T.copy()
-        self._start = -1  # first step of the block held in _a, _b, _c, _theta, _F
+        # First step and length of the block held in _a, _b, _c, _theta, _F.
+        self._start, self._rows = -1, 0
         self._block(0)
 
     def _block(self, k: int) -> int:
@@ -80,7 +81,7 @@ class DiscreteDmpTables:
                 self._b = -(G0 * F0 + G1 * F1)
                 self._c = np.zeros_like(self._a)
             self._theta, self._F = theta[:-1], F[:-1]
-            self._start = start
+            self._start, self._rows = start, stop - start
         return k - start
 
     def step(self, z: np.ndarray, k: int, goal: np.ndarray, x0: np.ndarray, p=None) -> np.ndarray:
@@ -96,7 +97,9 @@ class DiscreteDmpTables:
         if k >= self.last:
             u = self._a_last * goal
         else:
-            i = self._block(int(k))
+            i = int(k) - self._start
+            if not 0 <= i < self._rows:
+                i = self._block(int(k))
             u = self._a[i] * goal + self._b[i] * x0 + self._c[i]
         if p is not None:
             u += self.d * p
@@ -110,7 +113,9 @@ class DiscreteDmpTables:
         """
         k = int(k)
         if k < self.last:
-            i = self._block(k)
+            i = k - self._start
+            if not 0 <= i < self._rows:
+                i = self._block(k)
             return float(self._theta[i]), self._F[i]
         return 0.0, np.zeros(self.n)
 

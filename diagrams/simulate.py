@@ -91,11 +91,21 @@ def nonfinite_state_systems(diagram: System, root_context: Context) -> list[str]
     return bad
 
 
+# The longest span one call simulates: one simulated hour. The registered worlds
+# run at about 0.4 s wall per simulated second (littledog_stand, biped_stand,
+# diffdrive_drive), so an hour is ~25 min of wall time and the heavier worlds
+# longer; a finite but huge duration (1e12 s) would otherwise start a run that never
+# ends. Longer runs continue in further calls: ``simulate(..., context=context)``
+# counts ``duration`` from the context's time.
+MAX_DURATION_S = 3600.0
+
+
 def check_duration(duration: float) -> float:
-    """``duration`` as a float after checking it is a finite number of seconds > 0.
+    """``duration`` as a float after checking it is a number of seconds in (0, MAX_DURATION_S].
 
     Raises:
-        RepertoireError: not a number, not finite, or <= 0.
+        RepertoireError: not a number, not finite, <= 0, or above ``MAX_DURATION_S``
+            (one simulated hour; continue a longer run with ``context=``).
     """
     try:
         value = float(duration)
@@ -103,6 +113,12 @@ def check_duration(duration: float) -> float:
         raise RepertoireError(f"duration must be a number of seconds, got {duration!r}") from e
     if not math.isfinite(value) or value <= 0.0:
         raise RepertoireError(f"duration must be a finite number of seconds > 0, got {duration!r}")
+    if value > MAX_DURATION_S:
+        raise RepertoireError(
+            f"duration must be at most {MAX_DURATION_S:g} s (one simulated hour per run), "
+            f"got {value:g}; simulate a longer span in several calls, each continuing "
+            "from the previous context"
+        )
     return value
 
 

@@ -483,6 +483,12 @@ def obstacle_coupling(
     movement_primitives). Cases: ``v = 0`` gives ``p = 0``; ``v`` parallel to ``o - x``
     (heading straight at it: ``phi = 0``; straight away: ``phi = pi``) has no unique axis, so
     any axis perpendicular to ``v`` is used (deterministically); at ``phi = 0`` the term is 0.
+    ``x = o`` (e.g. an obstacle placed on the goal, reached at the end) gives ``p = 0``:
+    ``phi`` has no limit there, but ``|p| = gamma |v| phi exp(-beta phi) <= gamma |v| /
+    (e beta)`` goes to 0 with ``v`` as the DMP settles. An obstacle on the goal leaves the
+    goal attracting: ``R v`` is perpendicular to ``v``, so ``p`` does no work on
+    ``|v|^2 / 2 + K |x - g|^2 / 2`` and the movement still converges to ``g`` (eq. 10 has
+    no distance term, so nothing is singular and nothing is refused).
 
     Args:
         x: Position, shape (3,).

@@ -159,7 +159,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S",
         type=float,
         default=None,
-        help="simulated seconds (default: the diagram's registered duration)",
+        help="simulated seconds, at most 3600 (default: the diagram's registered duration)",
     )
     _add_out(p, "out/simulate", "folder for the --replay HTML")
     p.add_argument(

@@ -16,7 +16,11 @@ import math
 import time
 
 import numpy as np
-from repertoire.planning.action_models.features import goto_pose_features
+from repertoire.planning.action_models.features import (
+    GOTO_POSE_FEATURES,
+    UNMIRRORED_GOTO_POSE_FEATURES,
+    goto_pose_features,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -163,11 +167,40 @@ def approach_target(phi, v, distance: float) -> np.ndarray:
     return np.stack([bx - distance * np.cos(phi), by - distance * np.sin(phi), phi, v], axis=-1)
 
 
+# Names of the columns of approach_features / dribble_features (un-mirrored).
+LEG_FEATURES = UNMIRRORED_GOTO_POSE_FEATURES
+
+
+def check_leg_model(model, path) -> None:
+    """Checks that ``model`` was fitted on :data:`LEG_FEATURES`; renames older files' columns.
+
+    Models saved before the un-mirrored columns had their own names carry Table 7's
+    ``GOTO_POSE_FEATURES`` names; a negative training minimum of ``angle_to`` (the
+    mirrored ``angle_to`` is ``>= 0``) proves they were fitted un-mirrored, and their
+    names are replaced in memory.
+
+    Raises:
+        RepertoireError: the model's features are not the legs' (un-mirrored) ones.
+    """
+    names = list(model.feature_names)
+    if names == list(LEG_FEATURES):
+        return
+    if names == list(GOTO_POSE_FEATURES) and model.train_min[1] < 0.0:
+        model.feature_names = list(LEG_FEATURES)
+        return
+    raise RepertoireError(
+        f"action model '{path}' was fitted on features {names}; the soccer refinement "
+        f"studies compute {list(LEG_FEATURES)} (goto_pose_features(..., mirrored=False)): "
+        "refit it with refinement_explore"
+    )
+
+
 def approach_features(start, phi, v, distance: float) -> np.ndarray:
     """Table 7 features of the approach leg(s) (start -> behind the ball).
 
-    Un-mirrored (``goto_pose_features(..., mirrored=False)``), as the shipped models
-    were fitted; the refinement studies move to the mirrored form when they are refitted.
+    Un-mirrored (``goto_pose_features(..., mirrored=False)``, columns
+    :data:`LEG_FEATURES`), as the shipped models were fitted; the refinement studies
+    move to the mirrored form when they are refitted.
     """
     target = approach_target(phi, v, distance)
     start = np.broadcast_to(np.asarray(start, dtype=float), target.shape)

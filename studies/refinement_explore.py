@@ -20,8 +20,8 @@ import math
 from pathlib import Path
 
 import numpy as np
-from repertoire.planning.action_models.features import GOTO_POSE_FEATURES
 from repertoire.studies._refinement_common import (
+    LEG_FEATURES,
     SoccerPlanConfig,
     approach_features,
     approach_target,
@@ -114,7 +114,7 @@ def approach_feature_funcs(config: SoccerPlanConfig) -> dict:
                 ]
             )
         )
-        for j, name in enumerate(GOTO_POSE_FEATURES)
+        for j, name in enumerate(LEG_FEATURES)
     }
 
 
@@ -128,7 +128,7 @@ def dribble_feature_funcs(config: SoccerPlanConfig) -> dict:
                 )[0, j]
             )
         )
-        for j, name in enumerate(GOTO_POSE_FEATURES)
+        for j, name in enumerate(LEG_FEATURES)
     }
 
 

@@ -27,6 +27,7 @@ import numpy as np
 from repertoire.studies._refinement_common import (
     SoccerPlanConfig,
     approach_target,
+    check_leg_model,
     document_shared_fields,
     instantiated_plan,
     run_plan,
@@ -126,7 +127,10 @@ def load_models(models_dir: str, names) -> tuple:
             f"no action models {missing}: run refinement_explore first (its --out-dir is "
             "the models_dir)"
         )
-    return tuple(load_model(p) for p in paths)
+    models = tuple(load_model(p) for p in paths)
+    for model, path in zip(models, paths, strict=True):
+        check_leg_model(model, path)
+    return models
 
 
 @functools.cache

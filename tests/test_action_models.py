@@ -46,6 +46,22 @@ def test_features_by_hand():
     assert wrap_angle(-math.pi) == pytest.approx(math.pi)
 
 
+def test_mirrored_and_unmirrored_columns_have_different_names():
+    from repertoire.planning.action_models import (
+        DRIBBLE_FEATURES,
+        GOTO_POSE_FEATURES,
+        UNMIRRORED_GOTO_POSE_FEATURES,
+        goto_pose_feature_names,
+    )
+
+    assert goto_pose_feature_names() == GOTO_POSE_FEATURES == DRIBBLE_FEATURES
+    assert GOTO_POSE_FEATURES == ("dist", "angle_to", "angle_at", "v", "v_g")
+    assert goto_pose_feature_names(mirrored=False) == UNMIRRORED_GOTO_POSE_FEATURES
+    assert UNMIRRORED_GOTO_POSE_FEATURES == (
+        "dist", "angle_to_unmirrored", "angle_at_unmirrored", "v", "v_g"
+    )  # fmt: skip
+
+
 def test_features_batched_and_bad():
     s = np.array([[0, 0, 0, 0], [1, 0, 0, 0.5]])
     g = np.array([[1, 0, 0, 0], [1, 2, 0, 0]])

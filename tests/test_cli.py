@@ -116,6 +116,14 @@ def test_subcommand_help(capsys, command, option):
     assert option in out and "example" in out
 
 
+def test_simulate_help_states_the_duration_limit(capsys):
+    from repertoire.diagrams.simulate import MAX_DURATION_S
+
+    with pytest.raises(SystemExit):
+        main(["simulate", "--help"])
+    assert f"at most {MAX_DURATION_S:g}" in capsys.readouterr().out
+
+
 def test_usage_errors_exit_2(capsys):
     for argv in ([], ["frobnicate"], ["render"], ["render", "x", "--max-depth", "two"]):
         with pytest.raises(SystemExit) as exit_info:
@@ -185,6 +193,11 @@ def test_simulate_prints_check_figures_and_writes_replay(registries, tmp_path, c
     "extra, message",
     [
         (["--duration", "-1"], "duration must be a finite number of seconds > 0"),
+        (
+            ["--duration", "1e12"],
+            "duration must be at most 3600 s (one simulated hour per run), got 1e+12",
+        ),
+        (["--duration", "3600.5"], "duration must be at most 3600 s"),
         (["--scenario", "{tmp}/bad.yaml"], "could not load PendulumScenario"),
         (["--scenario", "{tmp}/missing.yaml"], "does not exist"),
         (["--live-seconds", "3"], "--live-seconds needs --live"),

@@ -293,6 +293,28 @@ def test_obstacle_coupling_turns_away_and_special_cases():
     assert np.all(np.isfinite(away)) and np.linalg.norm(away) > 0  # phi = pi, any axis
 
 
+def test_obstacle_on_the_goal_is_well_defined_and_the_dmp_still_converges():
+    # x = o: p = 0; near it |p| = gamma |v| phi exp(-beta phi) <= gamma |v| / (e beta), p . v = 0.
+    o = np.array([0.3, -0.2, 0.5])
+    v = np.array([0.4, 0.1, -0.3])
+    np.testing.assert_array_equal(obstacle_coupling(o, v, o, 1000.0, 20 / np.pi), np.zeros(3))
+    for x in (o + [1e-13, 0, 0], o - v * 1e-9, o + [0, 1e-6, 1e-6]):
+        p = obstacle_coupling(x, v, o, 1000.0, 20 / np.pi)
+        assert np.linalg.norm(p) <= 1000.0 * np.linalg.norm(v) / (np.e * 20 / np.pi) + 1e-9
+        assert abs(p @ v) < 1e-9 * np.linalg.norm(p) * np.linalg.norm(v) + 1e-300
+    # A DMP whose goal is the obstacle: finite, and it still reaches the goal.
+    t, x = _demo()
+    dmp = learn_dmp(t, x, n_basis=20)
+    g = dmp.goal
+
+    def coupling(x, xd):
+        return obstacle_coupling(x, xd, g, 1000.0, 20 / np.pi)
+
+    r = dmp.rollout(goal=g, dt=1e-3, n_steps=8000, method="euler", coupling=coupling)
+    assert np.isfinite(r.x).all() and np.isfinite(r.xdd).all()
+    assert np.linalg.norm(r.x[-1] - g) < 1e-9
+
+
 # ------------------------------------------------------------------ save / load
 def test_save_load_exact(tmp_path):
     t, x = _demo()

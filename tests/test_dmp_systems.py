@@ -1,11 +1,15 @@
 """DMP LeafSystems and diagrams: FixValue expectations, Drake vs NumPy, quaternions."""
 
+import dataclasses
+import tracemalloc
+
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 from repertoire.planning.dmp_demos import slerp_minimum_jerk
+from repertoire.planning.dmp_discrete import CHUNK_ROWS, DiscreteDmpTables
 from repertoire.planning.dmp_learn import learn_dmp, learn_quaternion_dmp, learn_task_space_dmp
 from repertoire.planning.dmp_math import (
     forcing_term,
@@ -154,6 +158,60 @@ def test_drake_rollouts_match_numpy(dmp3):
     np.testing.assert_array_equal(ds.get_start(fresh), [0.1, 0.2, 0.3])
     np.testing.assert_allclose(ds.get_velocity_output_port().Eval(dctx), ref.xd[-1], atol=1e-9)
     np.testing.assert_allclose(ds.get_acceleration_output_port().Eval(dctx), ref.xdd[-1], atol=1e-8)
+
+
+@pytest.mark.parametrize("formulation", ["new", "old"])
+def test_discrete_tables_across_blocks_match_the_numpy_rollout(dmp3, formulation):
+    # 5000 steps cross two block boundaries (CHUNK_ROWS = 2048); the last block ends the table.
+    dmp = dataclasses.replace(dmp3, tau=0.5, formulation=formulation)
+    goal = np.array([0.7, -0.3, 0.5])
+    tab = DiscreteDmpTables(dmp, 1e-4)
+    assert tab.last == int(np.ceil(np.log(1e12) / (dmp.alpha * 1e-4 / 0.5))) + 1
+    n_steps = 2 * CHUNK_ROWS + 904
+    ref = dmp.rollout(goal=goal, dt=1e-4, n_steps=n_steps)
+    z = np.concatenate([dmp.x0, np.zeros(3)])
+    xs = [dmp.x0]
+    for k in range(n_steps):
+        z = tab.step(z, k, goal, dmp.x0)
+        xs.append(z[:3])
+    assert np.abs(np.array(xs) - ref.x).max() < 1e-10
+    for k in (0, CHUNK_ROWS - 1, CHUNK_ROWS, 2 * CHUNK_ROWS + 1, tab.last - 1):
+        theta, f = tab.phase_and_f(k)
+        assert theta == np.exp(-(dmp.alpha * 1e-4 / 0.5) * k)
+        np.testing.assert_allclose(
+            f, forcing_term(theta, dmp.weights, dmp.centres, dmp.widths), rtol=1e-12, atol=1e-12
+        )
+    theta, f = tab.phase_and_f(tab.last)
+    assert theta == 0.0 and not f.any()
+
+
+def test_discrete_tables_memory_does_not_grow_with_tau_over_dt(dmp3):
+    # A whole table for tau = 1000 s at dt = 1e-4 s would be 6e7 rows (~10 GiB kept).
+    dmp = dataclasses.replace(dmp3, tau=1000.0)
+    tracemalloc.start()
+    try:
+        tab = DiscreteDmpTables(dmp, 1e-4)
+        tab.phase_and_f(tab.last - 1)
+        z = tab.step(np.zeros(6), tab.last - 1, np.ones(3), np.zeros(3))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert tab.last == int(np.ceil(np.log(1e12) / (dmp.alpha * 1e-4 / 1000.0))) + 1 > 10**7
+    assert np.isfinite(z).all()
+    assert peak < 8 * 1024**2
+
+
+def test_discrete_dmp_with_the_obstacle_on_its_goal_reaches_the_goal(dmp3):
+    # Eq. 10 has no distance term: an obstacle on the goal gives no NaN, and p _|_ v does no work.
+    builder = DiagramBuilder()
+    sys = add_dmp(builder, dmp3, time_step=1e-3, obstacle_avoidance=True)
+    for port in ("goal", "obstacle"):
+        src = builder.AddSystem(ConstantVectorSource(dmp3.goal))
+        builder.Connect(src.get_output_port(), sys.GetInputPort(port))
+    sim = Simulator(builder.Build())
+    sim.AdvanceTo(5.0)
+    x = sys.GetOutputPort("position").Eval(sys.GetMyContextFromRoot(sim.get_context()))
+    assert np.linalg.norm(x - dmp3.goal) < 1e-9
 
 
 def _quat_demo():

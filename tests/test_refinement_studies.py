@@ -136,6 +136,37 @@ def test_models_of_another_version_are_refused(tmp_path):
     assert approach.kind == "duration" and len(approach.leaves) >= 1
 
 
+def test_leg_models_name_their_unmirrored_features(tmp_path):
+    import json
+    import shutil
+
+    from repertoire.planning.action_models import GOTO_POSE_FEATURES, load_model
+    from repertoire.studies._refinement_common import LEG_FEATURES
+    from repertoire.studies.refinement_soccer import load_models, models_folder
+
+    names = ["dist", "angle_to_unmirrored", "angle_at_unmirrored", "v", "v_g"]
+    assert list(LEG_FEATURES) == names
+    shipped = models_folder("")
+    for name in ("approach_duration", "dribble_duration", "approach_failure"):
+        # the files themselves, and as the studies load them
+        assert load_model(shipped / f"{name}.json").feature_names == names
+        assert load_models("", (name,))[0].feature_names == names
+    # a file saved before the names were told apart: angle_to < 0 in training proves it
+    # un-mirrored (the mirrored angle_to = |angle_to_signed| >= 0), so it is renamed
+    shutil.copy(shipped / "approach_duration.json", tmp_path / "approach_duration.json")
+    record = json.loads((tmp_path / "approach_duration.json").read_text())
+    assert record["train_min"][1] < 0
+    record["feature_names"] = list(GOTO_POSE_FEATURES)
+    (tmp_path / "approach_duration.json").write_text(json.dumps(record))
+    (old,) = load_models(str(tmp_path), ("approach_duration",))
+    assert old.feature_names == names
+    # a model fitted on the mirrored features (angle_to >= 0) does not fit the legs' columns
+    record["train_min"][1] = 0.0
+    (tmp_path / "approach_duration.json").write_text(json.dumps(record))
+    with pytest.raises(RepertoireError, match=r"fitted on features \['dist', 'angle_to',.*refit"):
+        load_models(str(tmp_path), ("approach_duration",))
+
+
 def _synthetic_records(n: int) -> list[RefinementExploreRecord]:
     """Records whose durations follow distance and turn, as executed ones roughly do."""
     rng = np.random.default_rng(0)
@@ -187,6 +218,7 @@ def test_explore_smoke_then_models_then_refined_episode(tmp_path):
     assert {"approach_duration", "dribble_duration", "approach_failure"} <= set(paths)
     approach, dribble = load_duration_models(str(models))
     assert approach.kind == dribble.kind == "duration"
+    assert approach.feature_names[1:3] == ["angle_to_unmirrored", "angle_at_unmirrored"]
     config = dataclasses.replace(
         RefinementSoccerConfig(**dataclasses.asdict(explore_smoke())), models_dir=str(models)
     )

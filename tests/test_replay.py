@@ -14,7 +14,9 @@ from pydrake.geometry import Meshcat
 from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 from repertoire.diagrams.replay import record_replay
 from repertoire.diagrams.simulate import (
+    MAX_DURATION_S,
     SimulationDivergedError,
+    check_duration,
     nonfinite_state_systems,
     simulate,
     simulate_registered,
@@ -104,6 +106,18 @@ def test_nan_state_stops_the_run_and_names_the_system_and_time():
 def test_bad_duration_is_refused(duration):
     with pytest.raises(RepertoireError, match="duration must be a"):
         simulate(build_pendulum(PendulumScenario()), duration)
+
+
+def test_duration_above_one_simulated_hour_is_refused_before_any_step():
+    assert MAX_DURATION_S == 3600.0
+    assert check_duration(MAX_DURATION_S) == 3600.0
+    assert check_duration("12.5") == 12.5
+    diagram = build_pendulum(PendulumScenario())
+    for duration in (3600.001, 1e12):
+        with pytest.raises(RepertoireError, match=r"duration must be at most 3600 s .* got "):
+            simulate(diagram, duration)
+    with pytest.raises(RepertoireError, match=r"at most 3600 s .* got 1e\+12"):
+        record_replay(build_pendulum, 1e12, None, live=True)  # refused before any Meshcat
 
 
 def test_bad_simulate_options_are_refused():

@@ -16,6 +16,15 @@ import numpy as np
 from repertoire.errors import RepertoireError
 
 GOTO_POSE_FEATURES = ("dist", "angle_to", "angle_at", "v", "v_g")
+# The un-mirrored form (``goto_pose_features(..., mirrored=False)``) under its own names:
+# ``angle_to`` and ``angle_at`` mean the mirrored columns (Table 7), so a model fitted on
+# the un-mirrored ones says so in its ``feature_names``.
+UNMIRRORED_GOTO_POSE_FEATURES = ("dist", "angle_to_unmirrored", "angle_at_unmirrored", "v", "v_g")
+
+
+def goto_pose_feature_names(*, mirrored: bool = True) -> tuple[str, ...]:
+    """The column names of :func:`goto_pose_features` with the same ``mirrored``."""
+    return GOTO_POSE_FEATURES if mirrored else UNMIRRORED_GOTO_POSE_FEATURES
 
 
 def wrap_angle(a):
@@ -96,10 +105,13 @@ def goto_pose_features(state, goal, *, mirrored: bool = True) -> np.ndarray:
         goal: ``(4,)`` or ``(n, 4)`` of ``[x_g, y_g, phi_g, v_g]``.
         mirrored: False gives the un-mirrored form (``angle_to`` signed, ``angle_at``
             without the sign), which the shipped soccer refinement models
-            (``models/diffdrive/soccer_plan_models``) were fitted with.
+            (``models/diffdrive/soccer_plan_models``) were fitted with; its columns are
+            named ``UNMIRRORED_GOTO_POSE_FEATURES`` (``angle_to_unmirrored``,
+            ``angle_at_unmirrored``).
 
     Returns:
-        ``(n, 5)`` columns ``dist, angle_to, angle_at, v, v_g`` (``(5,)`` for one pair).
+        ``(n, 5)`` columns ``goto_pose_feature_names(mirrored=mirrored)``: ``dist,
+        angle_to, angle_at, v, v_g`` (``(5,)`` for one pair).
     """
     s2, g2, single = state_goal_pairs("goToPose features", state, goal, 4, "[x, y, phi, v]")
     turn = angle_to(s2[:, 0], s2[:, 1], s2[:, 2], g2[:, 0], g2[:, 1])

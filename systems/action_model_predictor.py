@@ -10,7 +10,7 @@ from collections.abc import Callable
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, ValueProducer
-from repertoire.planning.action_models import TreeModel, goto_pose_features
+from repertoire.planning.action_models import GOTO_POSE_FEATURES, TreeModel, goto_pose_features
 
 from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
@@ -22,6 +22,9 @@ def goto_pose_parameter_features(parameters: np.ndarray) -> np.ndarray:
     if p.shape != (8,):
         raise RepertoireError(f"GoToPose parameters are 8 values, got shape {p.shape}")
     return goto_pose_features(p[:4], p[4:])
+
+
+goto_pose_parameter_features.feature_names = GOTO_POSE_FEATURES
 
 
 class ActionModelPredictor(LeafSystem):
@@ -51,7 +54,14 @@ class ActionModelPredictor(LeafSystem):
             failure_model: a ``"failure"`` TreeModel on the same features.
             num_parameters: size of the parameters input (a whole number >= 1).
             features: parameters -> feature vector (default: the parameters
-                are the features).
+                are the features). A function with a ``feature_names`` attribute (as
+                :func:`goto_pose_parameter_features` has) must name the models' features.
+
+        Raises:
+            RepertoireError: models of the wrong kinds or on different features, a bad
+                ``num_parameters``, or a feature function whose ``feature_names`` are not
+                the models' (for instance the mirrored Table 7 features with models
+                fitted on the un-mirrored ones).
         """
         super().__init__()
         if duration_model.kind != "duration" or failure_model.kind != "failure":
@@ -73,6 +83,12 @@ class ActionModelPredictor(LeafSystem):
             raise RepertoireError(
                 f"without a feature function num_parameters must equal the "
                 f"{len(duration_model.feature_names)} features, got {num_parameters}"
+            )
+        named = getattr(features, "feature_names", None)
+        if named is not None and list(named) != list(duration_model.feature_names):
+            raise RepertoireError(
+                f"the feature function computes {list(named)} but the models were fitted "
+                f"on {list(duration_model.feature_names)}"
             )
         self._duration = duration_model
         self._failure = failure_model

@@ -9,7 +9,12 @@ from repertoire.diagrams.soccer import (
     check_goto_pose,
     goto_status,
 )
-from repertoire.planning.action_models import fit_duration_tree, fit_failure_tree
+from repertoire.planning.action_models import (
+    GOTO_POSE_FEATURES,
+    UNMIRRORED_GOTO_POSE_FEATURES,
+    fit_duration_tree,
+    fit_failure_tree,
+)
 from repertoire.systems.action_model_predictor import (
     ActionModelPredictor,
     goto_pose_parameter_features,
@@ -134,3 +139,22 @@ def test_goto_parameter_features():
     assert f[0] == pytest.approx(5.0) and f[3] == 0.2 and f[4] == 0.1
     with pytest.raises(RepertoireError, match="8 values"):
         goto_pose_parameter_features(np.zeros(7))
+
+
+def test_predictor_refuses_a_feature_function_named_for_other_features():
+    """The mirrored Table 7 features fed to models fitted on the un-mirrored columns."""
+    rng = np.random.default_rng(1)
+    X = rng.uniform(-1, 1, (60, 5))
+    for names, ok in ((GOTO_POSE_FEATURES, True), (UNMIRRORED_GOTO_POSE_FEATURES, False)):
+        dur = fit_duration_tree(X, 2 + X[:, 0], list(names))
+        fail = fit_failure_tree(X, X[:, 1] > 0.5, list(names))
+        if ok:
+            p = ActionModelPredictor(dur, fail, 8, goto_pose_parameter_features)
+            ctx = p.CreateDefaultContext()
+            p.get_input_port().FixValue(ctx, [0, 0, 0, 0.2, 0.3, 0.4, 0, 0.1])
+            want = dur.predict(goto_pose_parameter_features(np.array(
+                [0, 0, 0, 0.2, 0.3, 0.4, 0, 0.1]))[None, :])[0]  # fmt: skip
+            assert p.GetOutputPort("duration").Eval(ctx)[0] == want
+        else:
+            with pytest.raises(RepertoireError, match="angle_to_unmirrored"):
+                ActionModelPredictor(dur, fail, 8, goto_pose_parameter_features)

@@ -312,6 +312,40 @@ def test_corrected_angles_move_the_feet_by_the_integrators():
         assert np.allclose(leg_fk(leg, q[3 * i : 3 * i + 3]), body_feet(Q0)[i] + offsets[i])
 
 
+def test_corrected_angles_saturate_at_the_leg_workspace():
+    # Standing at 0.17 m every foot hangs 0.1597 m below its hip pitch axis, 17.4 mm
+    # short of the straight leg (0.1771 m): a 40 mm downward correction is cut there,
+    # not dropped (it used to fall back to the played-back angles on all four legs).
+    from repertoire.models.littledog.kinematics import LOWER_LEG_LENGTH, UPPER_LEG_LENGTH
+
+    q0 = standing_configuration(0.17)
+    down = np.tile([0.0, 0.0, -0.04], (4, 1))
+    q, saturated = corrected_angles(q0, down)
+    assert saturated == 4
+    feet = body_feet(q)
+    assert np.allclose(feet[:, :2], body_feet(q0)[:, :2], atol=1e-12)
+    straight = -(UPPER_LEG_LENGTH + LOWER_LEG_LENGTH)
+    assert np.all(feet[:, 2] >= straight - 1e-12)
+    assert np.all(feet[:, 2] <= straight + 0.04 / 64**2)
+    q, saturated = corrected_angles(q0, 0.25 * down)  # 10 mm: within reach
+    assert saturated == 0 and np.allclose(body_feet(q), body_feet(q0) + 0.25 * down)
+
+
+def test_corrected_angles_keep_the_played_back_knee_branch():
+    # A front knee bent backwards (+0.3 rad, within its limits [-3.1, 1.0]) used to be
+    # flipped to the -0.3 rad branch by the IK, even with zero integrators.
+    q0 = standing_configuration(0.14)
+    q0[0:3] = [0.0, -0.3, 0.3]
+    q0[6:9] = [0.0, 0.3, -0.3]  # a hind knee bent forwards
+    q, saturated = corrected_angles(q0, np.zeros((4, 3)))
+    assert saturated == 0 and np.array_equal(q, q0)
+    offsets = np.full((4, 3), 0.001)
+    q, saturated = corrected_angles(q0, offsets)
+    assert saturated == 0
+    assert np.allclose(body_feet(q), body_feet(q0) + offsets)
+    assert q[2] > 0.0 and q[8] < 0.0  # the played-back branches (else -0.35, +0.37)
+
+
 def test_integral_controller_system_with_fixed_inputs():
     ctrl = IntegralFootController(gain=0.1, decay=0.5, limit=1.0)
     context = ctrl.CreateDefaultContext()

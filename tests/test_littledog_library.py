@@ -204,6 +204,10 @@ def test_step_index_is_exact_nearest_by_sum_of_distances(library):
         assert np.array_equal(ib, np.argmin(sums[:, :40], axis=1))
     with pytest.raises(RepertoireError, match="NaN"):
         index.query(np.full(12, np.nan))
+    with pytest.raises(RepertoireError, match=r"B foot sets .* got \(2, 2, 12\)"):
+        index.query_batch(np.zeros((2, 2, 12)))  # used to fail inside numpy broadcasting
+    ib, db = index.query_batch(feet[:3].reshape(3, 4, 3))
+    assert np.array_equal(ib, np.argmin(sums[:3, :40], axis=1))
 
 
 def test_library_policy_chooses_only_with_four_feet_down(library):

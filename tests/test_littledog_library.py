@@ -400,6 +400,26 @@ def test_crawl_on_flat_board_follows_the_gait_and_reaches_the_goal():
     assert np.allclose(plan.feet[-1][[s.foot for s in steps[-4:]]], [s.p_WF for s in steps[-4:]])
 
 
+def test_scripted_operator_chooses_only_footholds_the_crawl_can_reach():
+    # On these rocks, crossed towards -y, the nearest safe foothold of step 2 used to
+    # need hip_roll = -0.604 rad (limit 0.6) at the crawl's swing pose: plan_crawl failed
+    # after the operator had chosen it. The operator now skips footholds out of reach.
+    from repertoire.diagrams.littledog_demos import crossing_start, flat_start
+    from repertoire.models.terrain import tile_boards
+    from repertoire.planning.littledog_crawl import step_reachable
+
+    board = tile_boards(
+        [generate_board(TerrainParams(kind="rocks", size_x=0.4, size_y=0.8), s) for s in (12, 13)]
+    )
+    params, heading = CrawlParams(), -0.5 * math.pi
+    off = flat_start(board, heading, 0.25, params)
+    pose, feet, _ = crossing_start(board, heading, 0.25, params.standing_height, off)
+    steps = choose_footholds(board, feet, heading, 0.23, params)
+    plan = plan_crawl(feet, pose, steps, board, params)
+    for k, step in enumerate(steps):
+        assert step_reachable(plan.feet[k], step.foot, step.p_WF[None], params, board)[0]
+
+
 def test_plan_to_steps_gives_planned_library_steps():
     board, feet, pose = _flat_start()
     steps = choose_footholds(board, feet, 0.0, 0.13)

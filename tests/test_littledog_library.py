@@ -277,6 +277,25 @@ def test_step_executor_blends_then_plays_back(library):
     assert np.allclose(v[33:39], interpolate_step(step, 0.015)[1])
 
 
+def test_step_executor_names_bad_inputs(library):
+    # A NaN body pose used to end in "IndexError: index 5 is out of bounds" (a NaN blend
+    # time), a choice beyond the library in "list index out of range".
+    from pydrake.common.value import AbstractValue
+    from pydrake.systems.analysis import Simulator
+
+    for body, index, match in (
+        (np.full(6, np.nan), 0, "body_pose must be finite"),
+        ([0.0, 0.0, 0.14, 0.0, 0.0, np.inf], 0, "body_pose must be finite"),
+        ([0.0, 0.0, 0.14, 0.0, 0.0, 0.0], len(library), "chose step 6 of a library of 6"),
+    ):
+        executor = StepExecutor(library, Q0)
+        context = executor.CreateDefaultContext()
+        executor.body_pose_input.FixValue(context, body)
+        executor.choice_input.FixValue(context, AbstractValue.Make(StepChoice(index, 0.0, 0.0)))
+        with pytest.raises(RepertoireError, match=match):
+            Simulator(executor, context).AdvanceTo(0.05)
+
+
 def test_blend_pose_closed_form_and_shorter_way():
     a = np.array([0.0, 0.0, 0.1, 0.0, 0.0, 3.0])
     b = np.array([0.2, -0.1, 0.1, 0.0, 0.2, -3.0])  # yaw: 0.283 rad the short way round

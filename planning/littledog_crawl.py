@@ -514,8 +514,14 @@ def foothold_ok(board, xy, params: CrawlParams) -> np.ndarray:
     return (h.max(axis=1) - h.min(axis=1)) <= params.flat_tolerance
 
 
-def choose_foothold(board, nominal_xy, other_feet: np.ndarray, params: CrawlParams, leg: str):
+def choose_foothold(
+    board, nominal_xy, other_feet: np.ndarray, params: CrawlParams, leg: str, *, feet=None
+):
     """The safe foothold nearest to ``nominal_xy``: flat around it, height near the others'.
+
+    Args:
+        feet: the four foot centres before the step (4 x 3); when given, a safe foothold
+            must also be one the crawl can step to (:func:`step_reachable`).
 
     Returns:
         The foot centre ``p_WF`` (3,).
@@ -533,10 +539,15 @@ def choose_foothold(board, nominal_xy, other_feet: np.ndarray, params: CrawlPara
     z = board.height(cand[:, 0], cand[:, 1])
     ref = float(np.mean(other_feet[:, 2] - FOOT_RADIUS))
     ok &= np.abs(z - ref) <= params.max_rise
+    if feet is not None and np.any(ok):
+        rows = np.flatnonzero(ok)
+        p = np.column_stack([cand[rows], z[rows] + FOOT_RADIUS])
+        ok[rows] = step_reachable(feet, LEGS.index(leg), p, params, board)
     if not np.any(ok):
+        reach = ", out of the crawl's reach" if feet is not None else ""
         raise CrawlError(
             f"no safe foothold for foot {leg} within {r} m of ({nominal_xy[0]:.3f}, "
-            f"{nominal_xy[1]:.3f}): every spot is on an edge, steep, or more than "
+            f"{nominal_xy[1]:.3f}): every spot is on an edge, steep{reach}, or more than "
             f"{params.max_rise} m above/below the other feet; the board has no crossable path"
         )
     cost = np.linalg.norm(cand - nominal_xy, axis=1) + 0.5 * np.abs(z - ref)
@@ -560,7 +571,7 @@ def choose_footholds(
     The virtual body centre advances ``stride / 4`` per step; each foot, in
     :data:`CRAWL_ORDER`, aims ``3/8 stride`` ahead of its nominal offset from the
     centre (so feet spread evenly around their nominal positions) and takes the
-    nearest safe foothold (:func:`choose_foothold`).
+    nearest safe foothold the crawl can step to (:func:`choose_foothold`).
 
     Args:
         board: terrain with an exact ``height(x, y)``.
@@ -597,7 +608,7 @@ def choose_footholds(
         centre = centre + 0.25 * params.stride * direction
         target = centre + R @ (nominal[f] + np.array([0.375 * params.stride, 0.0]))
         others = np.delete(feet, f, axis=0)
-        p = choose_foothold(board, target, others, params, LEGS[f])
+        p = choose_foothold(board, target, others, params, LEGS[f], feet=feet)
         feet[f] = p
         steps.append(CrawlStep(f, p))
         k += 1

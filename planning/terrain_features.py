@@ -497,6 +497,8 @@ def refine_matches(
     spacing: float,
     yaw_step: float,
     levels: int = 3,
+    *,
+    yaw_range: float | None = None,
 ) -> MatchResult:
     """Refines each match below the candidate grid's resolution (exact features).
 
@@ -514,14 +516,18 @@ def refine_matches(
         spacing: the candidate grid's position spacing (m).
         yaw_step: the candidate grid's yaw step (rad).
         levels: number of halvings (>= 1).
+        yaw_range: if given, trial yaws are kept in [-yaw_range, yaw_range] (the
+            candidate grid's range), so refinement does not leave it.
 
     Raises:
-        TransferError: bad step sizes or level count.
+        TransferError: bad step sizes, level count or yaw range.
     """
     if not (spacing > 0.0 and yaw_step >= 0.0 and math.isfinite(spacing + yaw_step)):
         raise TransferError(f"refine needs spacing > 0, yaw_step >= 0; got {spacing}, {yaw_step}")
     if int(levels) != levels or levels < 1:
         raise TransferError(f"refine levels must be a positive integer, got {levels}")
+    if yaw_range is not None and not (math.isfinite(yaw_range) and yaw_range >= 0.0):
+        raise TransferError(f"refine yaw_range must be >= 0 rad, got {yaw_range}")
     if not result.matches:
         return result
     sv = pca.project(np.asarray(step_values, dtype=float))
@@ -534,6 +540,8 @@ def refine_matches(
     for _ in range(int(levels)):
         h = 0.5 * h
         trial = (best[:, None, :] + g[None] * h).reshape(-1, 3)
+        if yaw_range is not None:
+            trial[:, 2] = np.clip(trial[:, 2], -yaw_range, yaw_range)
         feats = terrain_features(board, trial)
         z = pca.project(feats.values).reshape(len(best), len(g), -1)
         c = np.linalg.norm(z - sv[steps][:, None, :], axis=2)
@@ -593,6 +601,11 @@ class TransferConfig:
     chains: bool = True
     chain_join: float = 0.04
     support_tolerance: float = 0.005
+
+    @property
+    def yaw_step(self) -> float:
+        """Spacing of the candidate yaws (rad); 0 for a single yaw (yaw 0 only)."""
+        return 2.0 * self.yaw_range / (self.yaw_count - 1) if self.yaw_count > 1 else 0.0
 
 
 @dataclasses.dataclass
@@ -711,9 +724,15 @@ def transfer_steps(
     )
     t3 = time.perf_counter()
     if config.refine_levels:
-        yaw_step = 2.0 * config.yaw_range / max(config.yaw_count - 1, 1)
         result = refine_matches(
-            target, step_values, result, pca, config.spacing, yaw_step, config.refine_levels
+            target,
+            step_values,
+            result,
+            pca,
+            config.spacing,
+            config.yaw_step,
+            config.refine_levels,
+            yaw_range=config.yaw_range,
         )
     kept = [m for m in result.matches if m.cost <= config.threshold and m.step not in off_source]
     matched = {m.step for m in kept}

@@ -483,7 +483,7 @@ def extend_chains(
     for k, t in enumerate(placed):
         by_step.setdefault(t.step, []).append(k)
     members: set[int] = set()
-    yaw_step = 2.0 * config.yaw_range / max(config.yaw_count - 1, 1)
+    yaw_step = config.yaw_step
 
     def end_stance(t: TransferredStep) -> np.ndarray:
         s = t.step

@@ -18,6 +18,7 @@ import math
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from repertoire.models.littledog import LEGS, leg_fk, leg_ik
+from repertoire.models.littledog.kinematics import leg_ik_feasible
 from repertoire.models.littledog.pose import body_to_world, world_to_body
 
 from repertoire.errors import RepertoireError
@@ -64,7 +65,8 @@ def integrator_update(
         contact: 4 contact flags (nonzero = down).
         gain: k, the fraction of the error added per update.
         decay: factor multiplying the integrator of a foot in flight per update, in [0, 1).
-        limit: each integrator's length is saturated to this (m), so the IK stays reachable.
+        limit: each integrator's length is saturated to this (m) (the commanded foot is
+            further held inside the leg's workspace by :func:`corrected_angles`).
     """
     integrators = _check_integrators(integrators)
     contact = np.asarray(contact, dtype=float)
@@ -83,24 +85,57 @@ def integrator_update(
     return np.where(norm > limit, new * (limit / np.maximum(norm, 1e-12)), new)
 
 
-def corrected_angles(q_playback, integrators) -> tuple[np.ndarray, int]:
-    """IK(FK(q_playback) + I) per leg.
+_SATURATION_SAMPLES = 64
+"""Samples per level (two levels) of the search for a leg's reachable correction."""
 
-    A leg whose corrected target is unreachable keeps its played-back angles.
+
+def _reachable_fraction(leg: str, foot, correction, knee_sign) -> float:
+    """The largest t in [0, 1] with ``foot + s * correction`` reachable for every s <= t.
+
+    Resolved to 1 / 64**2 of the correction; 0 if the played-back foot itself is not.
+    """
+    if leg_ik_feasible(leg, foot + correction, knee_sign=knee_sign):
+        return 1.0
+    lo, hi = 0.0, 1.0
+    for _ in range(2):
+        t = np.linspace(lo, hi, _SATURATION_SAMPLES + 1)
+        ok = leg_ik_feasible(leg, foot + t[:, None] * correction, knee_sign=knee_sign)
+        if not ok[0]:
+            return lo
+        k = int(np.argmin(ok)) if not ok.all() else len(t) - 1
+        lo, hi = float(t[k - 1]), float(t[k])
+    return lo
+
+
+def corrected_angles(q_playback, integrators) -> tuple[np.ndarray, int]:
+    """IK(FK(q_playback) + I) per leg, on the played-back knee branch.
+
+    A leg with a zero integrator keeps its played-back angles exactly. A leg whose
+    corrected target is out of reach (or needs a joint beyond its limits) is moved as
+    far along its correction as it can go: to ``FK + t I`` with the largest t in
+    [0, 1] such that every target on the way is reachable, so the correction
+    saturates at the leg's workspace instead of being dropped.
 
     Returns:
-        ``(q, fallbacks)``: the 12 desired angles and how many legs fell back.
+        ``(q, saturated)``: the 12 desired angles and how many legs had their
+        correction shortened.
     """
     q_playback = np.asarray(q_playback, dtype=float)
-    x = body_feet(q_playback) + _check_integrators(integrators)
+    feet = body_feet(q_playback)
+    integrators = _check_integrators(integrators)
     q = q_playback.copy()
-    fallbacks = 0
+    saturated = 0
     for i, leg in enumerate(LEGS):
-        try:
-            q[3 * i : 3 * i + 3] = leg_ik(leg, x[i])
-        except RepertoireError:
-            fallbacks += 1
-    return q, fallbacks
+        if not integrators[i].any():
+            continue
+        knee = q_playback[3 * i + 2]
+        sign = None if knee == 0.0 else float(np.sign(knee))
+        t = _reachable_fraction(leg, feet[i], integrators[i], sign)
+        if t < 1.0:
+            saturated += 1
+        if t > 0.0:
+            q[3 * i : 3 * i + 3] = leg_ik(leg, feet[i] + t * integrators[i], knee_sign=sign)
+    return q, saturated
 
 
 class IntegralFootController(LeafSystem):

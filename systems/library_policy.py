@@ -100,6 +100,10 @@ class StepIndex:
     def query_batch(self, feet) -> tuple[np.ndarray, np.ndarray]:
         """Nearest steps for B foot sets (B x 12): ``(indices, distance sums)``."""
         feet = np.atleast_2d(self._check(feet))
+        if feet.ndim != 2:
+            raise RepertoireError(
+                f"query_batch takes B foot sets (B, 12) or (B, 4, 3), got {feet.shape}"
+            )
         out_i = np.empty(len(feet), dtype=int)
         out_d = np.empty(len(feet))
         chunk = max(1, 100_000 // max(len(self.keys), 1))

@@ -176,6 +176,13 @@ class StepExecutor(LeafSystem):
         q, _, finished = self.playback(x[:21], t)
         choice = self.choice_input.Eval(context)
         body = self.body_pose_input.Eval(context)
+        if not np.all(np.isfinite(body)):
+            raise RepertoireError(f"StepExecutor body_pose must be finite, got {body}")
+        if not choice.index < len(self._library):
+            raise RepertoireError(
+                f"StepExecutor: the policy chose step {choice.index} of a library of "
+                f"{len(self._library)} steps (policy and executor need the same library)"
+            )
         if finished and choice.index >= 0 and choice.time >= t - 1.5 * self._period:
             step = self._library[choice.index]
             T = max(spline_duration(body, step.start_pose, **self._blend), 1e-3)

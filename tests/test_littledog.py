@@ -331,3 +331,16 @@ def test_scenario_round_trips_through_yaml():
     scenario = LittleDogScenario(terrain=TerrainParams(kind="steps", step_count=3), board_seed=7)
     text = dump_scenario(scenario)
     assert load_scenario(LittleDogScenario, data=text) == scenario
+
+
+def test_leg_ik_on_either_knee_branch():
+    from repertoire.models.littledog.kinematics import leg_ik_feasible
+
+    for leg, q in (("lf", [0.1, -0.3, 0.3]), ("rh", [-0.1, 0.3, -0.3])):
+        p = leg_fk(leg, q)
+        assert np.allclose(leg_ik(leg, p, knee_sign=np.sign(q[2])), q)
+        assert np.allclose(leg_fk(leg, leg_ik(leg, p)), p)  # the leg's own branch
+        assert leg_ik(leg, p)[2] * q[2] < 0.0
+        assert leg_ik_feasible(leg, p, knee_sign=np.sign(q[2]))
+    with pytest.raises(RepertoireError, match="knee_sign must be"):
+        leg_ik("lf", leg_fk("lf", [0.0, 0.0, -0.5]), knee_sign=0.0)

@@ -204,6 +204,10 @@ def test_step_index_is_exact_nearest_by_sum_of_distances(library):
         assert np.array_equal(ib, np.argmin(sums[:, :40], axis=1))
     with pytest.raises(RepertoireError, match="NaN"):
         index.query(np.full(12, np.nan))
+    with pytest.raises(RepertoireError, match=r"B foot sets .* got \(2, 2, 12\)"):
+        index.query_batch(np.zeros((2, 2, 12)))  # used to fail inside numpy broadcasting
+    ib, db = index.query_batch(feet[:3].reshape(3, 4, 3))
+    assert np.array_equal(ib, np.argmin(sums[:3, :40], axis=1))
 
 
 def test_library_policy_chooses_only_with_four_feet_down(library):
@@ -273,6 +277,25 @@ def test_step_executor_blends_then_plays_back(library):
     assert np.allclose(v[33:39], interpolate_step(step, 0.015)[1])
 
 
+def test_step_executor_names_bad_inputs(library):
+    # A NaN body pose used to end in "IndexError: index 5 is out of bounds" (a NaN blend
+    # time), a choice beyond the library in "list index out of range".
+    from pydrake.common.value import AbstractValue
+    from pydrake.systems.analysis import Simulator
+
+    for body, index, match in (
+        (np.full(6, np.nan), 0, "body_pose must be finite"),
+        ([0.0, 0.0, 0.14, 0.0, 0.0, np.inf], 0, "body_pose must be finite"),
+        ([0.0, 0.0, 0.14, 0.0, 0.0, 0.0], len(library), "chose step 6 of a library of 6"),
+    ):
+        executor = StepExecutor(library, Q0)
+        context = executor.CreateDefaultContext()
+        executor.body_pose_input.FixValue(context, body)
+        executor.choice_input.FixValue(context, AbstractValue.Make(StepChoice(index, 0.0, 0.0)))
+        with pytest.raises(RepertoireError, match=match):
+            Simulator(executor, context).AdvanceTo(0.05)
+
+
 def test_blend_pose_closed_form_and_shorter_way():
     a = np.array([0.0, 0.0, 0.1, 0.0, 0.0, 3.0])
     b = np.array([0.2, -0.1, 0.1, 0.0, 0.2, -3.0])  # yaw: 0.283 rad the short way round
@@ -310,6 +333,40 @@ def test_corrected_angles_move_the_feet_by_the_integrators():
     q, _ = corrected_angles(Q0, offsets)
     for i, leg in enumerate(LEGS):
         assert np.allclose(leg_fk(leg, q[3 * i : 3 * i + 3]), body_feet(Q0)[i] + offsets[i])
+
+
+def test_corrected_angles_saturate_at_the_leg_workspace():
+    # Standing at 0.17 m every foot hangs 0.1597 m below its hip pitch axis, 17.4 mm
+    # short of the straight leg (0.1771 m): a 40 mm downward correction is cut there,
+    # not dropped (it used to fall back to the played-back angles on all four legs).
+    from repertoire.models.littledog.kinematics import LOWER_LEG_LENGTH, UPPER_LEG_LENGTH
+
+    q0 = standing_configuration(0.17)
+    down = np.tile([0.0, 0.0, -0.04], (4, 1))
+    q, saturated = corrected_angles(q0, down)
+    assert saturated == 4
+    feet = body_feet(q)
+    assert np.allclose(feet[:, :2], body_feet(q0)[:, :2], atol=1e-12)
+    straight = -(UPPER_LEG_LENGTH + LOWER_LEG_LENGTH)
+    assert np.all(feet[:, 2] >= straight - 1e-12)
+    assert np.all(feet[:, 2] <= straight + 0.04 / 64**2)
+    q, saturated = corrected_angles(q0, 0.25 * down)  # 10 mm: within reach
+    assert saturated == 0 and np.allclose(body_feet(q), body_feet(q0) + 0.25 * down)
+
+
+def test_corrected_angles_keep_the_played_back_knee_branch():
+    # A front knee bent backwards (+0.3 rad, within its limits [-3.1, 1.0]) used to be
+    # flipped to the -0.3 rad branch by the IK, even with zero integrators.
+    q0 = standing_configuration(0.14)
+    q0[0:3] = [0.0, -0.3, 0.3]
+    q0[6:9] = [0.0, 0.3, -0.3]  # a hind knee bent forwards
+    q, saturated = corrected_angles(q0, np.zeros((4, 3)))
+    assert saturated == 0 and np.array_equal(q, q0)
+    offsets = np.full((4, 3), 0.001)
+    q, saturated = corrected_angles(q0, offsets)
+    assert saturated == 0
+    assert np.allclose(body_feet(q), body_feet(q0) + offsets)
+    assert q[2] > 0.0 and q[8] < 0.0  # the played-back branches (else -0.35, +0.37)
 
 
 def test_integral_controller_system_with_fixed_inputs():
@@ -360,6 +417,26 @@ def test_crawl_on_flat_board_follows_the_gait_and_reaches_the_goal():
         sum(s.foot == CRAWL_ORDER[0] for s in steps)
     )
     assert np.allclose(plan.feet[-1][[s.foot for s in steps[-4:]]], [s.p_WF for s in steps[-4:]])
+
+
+def test_scripted_operator_chooses_only_footholds_the_crawl_can_reach():
+    # On these rocks, crossed towards -y, the nearest safe foothold of step 2 used to
+    # need hip_roll = -0.604 rad (limit 0.6) at the crawl's swing pose: plan_crawl failed
+    # after the operator had chosen it. The operator now skips footholds out of reach.
+    from repertoire.diagrams.littledog_demos import crossing_start, flat_start
+    from repertoire.models.terrain import tile_boards
+    from repertoire.planning.littledog_crawl import step_reachable
+
+    board = tile_boards(
+        [generate_board(TerrainParams(kind="rocks", size_x=0.4, size_y=0.8), s) for s in (12, 13)]
+    )
+    params, heading = CrawlParams(), -0.5 * math.pi
+    off = flat_start(board, heading, 0.25, params)
+    pose, feet, _ = crossing_start(board, heading, 0.25, params.standing_height, off)
+    steps = choose_footholds(board, feet, heading, 0.23, params)
+    plan = plan_crawl(feet, pose, steps, board, params)
+    for k, step in enumerate(steps):
+        assert step_reachable(plan.feet[k], step.foot, step.p_WF[None], params, board)[0]
 
 
 def test_plan_to_steps_gives_planned_library_steps():

@@ -312,3 +312,26 @@ def test_translated_board_bounds_and_on_terrain_follow_its_boxes():
     np.testing.assert_allclose(fm.mean_height, ft.mean_height, rtol=0, atol=1e-15)
     with pytest.raises(TransferError, match="no boxes"):
         terrain_bounds(TerrainBoard(a.params, 0, []))
+
+
+def test_refined_matches_keep_the_candidate_yaw_range():
+    # The paper limits the placed frames to yaws in [-pi/4, pi/4]. Refinement used to
+    # step past the grid's edge yaws (0.851 rad here), and with a single candidate yaw
+    # (yaw_count=1: yaw 0) it used a yaw step of pi/2 and placed frames at 0.29 rad.
+    from repertoire.planning.transfer_library import fit_board_pca
+
+    src = generate_board(TerrainParams(kind="rocks", size_x=0.8, size_y=0.8), 3)
+    tgt = generate_board(TerrainParams(kind="rocks", size_x=0.8, size_y=0.8), 4)
+    pca = fit_board_pca([src])
+    rng = np.random.default_rng(0)
+    poses = np.column_stack([rng.uniform(-0.15, 0.15, (40, 2)), rng.uniform(-0.3, 0.3, 40)])
+    feet, body = stances_on_terrain(src, poses)
+    for count, half in ((13, math.pi / 4), (5, 0.2), (1, math.pi / 4)):
+        config = TransferConfig(yaw_count=count, yaw_range=half, threshold=0.5)
+        result = transfer_steps(src, feet, body, tgt, pca, config)
+        yaws = np.array([m.frame[2] for m in result.matches.matches])
+        assert len(yaws) == 40
+        limit = half if count > 1 else 0.0
+        assert np.all(np.abs(yaws) <= limit + 1e-12)
+    assert TransferConfig(yaw_count=1).yaw_step == 0.0
+    assert TransferConfig(yaw_count=13).yaw_step == math.pi / 24

@@ -145,17 +145,20 @@ def leg_fk(leg: str, q) -> np.ndarray:
     return p + np.asarray(g.p_BH)
 
 
-def leg_ik(leg: str, p_BF, *, check_limits: bool = True) -> np.ndarray:
+def leg_ik(leg: str, p_BF, *, check_limits: bool = True, knee_sign=None) -> np.ndarray:
     """Joint angles that put one leg's foot at p_BF (closed form).
 
     The solution is the one with the foot below the hip (roll in (-pi/2, pi/2)
     for feet under the body) and the knee bent the leg's way (front knees <= 0,
-    hind knees >= 0).
+    hind knees >= 0) unless ``knee_sign`` asks for the other branch.
 
     Args:
         leg: leg prefix (``lf``, ``rf``, ``lh``, ``rh``).
         p_BF: desired foot centre in the body frame (m), shape ``(3,)`` or ``(..., 3)``.
         check_limits: if True, raise when a solution violates the joint limits.
+        knee_sign: the knee branch, +1 or -1 (broadcast against ``p_BF``'s leading
+            shape); default the leg's own (-1 front, +1 hind). The joint limits allow
+            front knees up to +1.0 rad and hind knees down to -1.0 rad.
 
     Returns:
         Joint angles (hip roll, hip pitch, knee) in rad, same shape as ``p_BF``.
@@ -166,7 +169,7 @@ def leg_ik(leg: str, p_BF, *, check_limits: bool = True) -> np.ndarray:
             outside the joint limits.
     """
     g = leg_geometry(leg)
-    q, bad, D2 = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"))
+    q, bad, D2 = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"), knee_sign)
     if np.any(bad):
         L1, L2, a = g.upper_length, g.lower_length, g.pitch_offset_y
         reach = float(np.ravel(np.sqrt(np.maximum(D2, 0.0)))[np.argmax(np.ravel(bad))])
@@ -189,8 +192,18 @@ def leg_ik(leg: str, p_BF, *, check_limits: bool = True) -> np.ndarray:
     return q
 
 
-def _leg_ik_solve(g: LegGeometry, p: np.ndarray):
+def _check_knee_sign(g: LegGeometry, knee_sign) -> np.ndarray:
+    if knee_sign is None:
+        return np.asarray(g.knee_sign)
+    sign = np.asarray(knee_sign, dtype=float)
+    if not np.all((sign == 1.0) | (sign == -1.0)):
+        raise RepertoireError(f"knee_sign must be +1 or -1, got {knee_sign!r}")
+    return sign
+
+
+def _leg_ik_solve(g: LegGeometry, p: np.ndarray, knee_sign=None):
     """Closed-form IK of :func:`leg_ik`: angles, out-of-reach mask, squared leg-plane reach."""
+    sign = _check_knee_sign(g, knee_sign)
     r = p - np.asarray(g.p_BH)
     rx, ry, rz = r[..., 0], r[..., 1], r[..., 2]
     a = g.pitch_offset_y
@@ -201,7 +214,7 @@ def _leg_ik_solve(g: LegGeometry, p: np.ndarray):
     D2 = vx**2 + vz**2
     cos_knee = (D2 - L1**2 - L2**2) / (2.0 * L1 * L2)
     bad = (d2_yz < 0.0) | (cos_knee > 1.0 + 1e-12) | (cos_knee < -1.0 - 1e-12)
-    knee = g.knee_sign * np.arccos(np.clip(cos_knee, -1.0, 1.0))
+    knee = sign * np.arccos(np.clip(cos_knee, -1.0, 1.0))
     alpha = np.arctan2(-vx, -vz)
     pitch = alpha - np.arctan2(L2 * np.sin(knee), L1 + L2 * np.cos(knee))
     # The difference of two atan2 lies in (-2 pi, 2 pi): take the pitch's representative
@@ -214,18 +227,19 @@ def _leg_ik_solve(g: LegGeometry, p: np.ndarray):
     return np.stack([roll, pitch, knee], axis=-1), bad, D2
 
 
-def leg_ik_feasible(leg: str, p_BF) -> np.ndarray:
+def leg_ik_feasible(leg: str, p_BF, *, knee_sign=None) -> np.ndarray:
     """Where :func:`leg_ik` (joint limits checked) succeeds, without raising: a mask.
 
     Args:
         leg: leg prefix.
         p_BF: foot centres in the body frame, shape ``(..., 3)``.
+        knee_sign: the knee branch (as in :func:`leg_ik`).
 
     Returns:
         Boolean array of shape ``p_BF.shape[:-1]``: in reach and within the joint limits.
     """
     g = leg_geometry(leg)
-    q, bad, _ = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"))
+    q, bad, _ = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"), knee_sign)
     lo, hi = np.asarray(g.lower), np.asarray(g.upper)
     return ~bad & np.all((q >= lo - 1e-9) & (q <= hi + 1e-9), axis=-1)
 

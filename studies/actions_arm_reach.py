@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.planning.action_models.features import ARM_REACH_FEATURES, arm_reach_features
+from repertoire.studies._config_checks import check_range
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -53,9 +54,7 @@ class ReachEpisodesConfig:
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
         for name in ("theta_a_range", "theta_b_range", "speed_range"):
-            r = getattr(self, name)
-            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
-                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
+            check_range(name, getattr(self, name))
         for name, key in (("theta_a_range", "a"), ("theta_b_range", "b")):
             lo, hi = LIMITS[key]
             r = getattr(self, name)

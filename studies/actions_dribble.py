@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.studies._action_tables import POSE_FEATURE_FUNCS as FEATURE_FUNCS
+from repertoire.studies._config_checks import check_range
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -71,9 +72,7 @@ class DribbleEpisodesConfig:
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
         for name in ("x_range", "y_range", "v_range", "goal_distance_range", "v_g_range"):
-            r = getattr(self, name)
-            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
-                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
+            check_range(name, getattr(self, name))
         if not (FIELD[0] <= self.x_range[0] and self.x_range[1] <= FIELD[1]):
             raise RepertoireError(f"x_range must lie on the field [-3, 3], got {self.x_range}")
         if not (FIELD[2] <= self.y_range[0] and self.y_range[1] <= FIELD[3]):

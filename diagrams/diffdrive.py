@@ -159,6 +159,7 @@ def add_robot_in_world(
     contact_approximation: str,
     wheel_kd: float,
     ground_friction: float,
+    extra=None,
 ):
     """Adds a finalized discrete plant with the ground, the robot and a world to ``builder``.
 
@@ -170,6 +171,8 @@ def add_robot_in_world(
         contact_approximation: discrete contact approximation.
         wheel_kd: the wheel velocity gain.
         ground_friction: ground friction coefficient.
+        extra: optional ``extra(plant, robot_instance)`` called before ``Finalize`` (adds
+            more geometry).
 
     Returns:
         ``(plant, scene_graph, robot_instance)``.
@@ -180,6 +183,8 @@ def add_robot_in_world(
     parser = Parser(plant)
     robot = add_diffdrive(plant, parser, wheel_kd=wheel_kd)
     add_world(plant, parser, world)
+    if extra is not None:
+        extra(plant, robot)
     plant.Finalize()
     x, y, yaw = initial_pose
     plant.SetDefaultFloatingBaseBodyPose(

@@ -140,6 +140,30 @@ def add_ground(plant: MultibodyPlant, friction: float = 1.0, size: float = 12.0)
     )
 
 
+def add_plant_with_ground(
+    builder: DiagramBuilder, time_step: float, contact_approximation: str, ground_friction: float
+) -> tuple[MultibodyPlant, SceneGraph]:
+    """Adds a discrete point-contact plant and scene graph with the ground (:func:`add_ground`).
+
+    Args:
+        builder: the diagram builder.
+        time_step: discrete plant time step [s].
+        contact_approximation: discrete contact approximation.
+        ground_friction: Coulomb friction of the ground.
+
+    Returns:
+        ``(plant, scene_graph)``, the plant not finalized.
+    """
+    config = MultibodyPlantConfig(
+        time_step=time_step,
+        discrete_contact_approximation=contact_approximation,
+        contact_model="point",
+    )
+    plant, scene_graph = AddMultibodyPlant(config, builder)
+    add_ground(plant, ground_friction)
+    return plant, scene_graph
+
+
 def add_biped_world(
     builder: DiagramBuilder,
     *,
@@ -168,13 +192,9 @@ def add_biped_world(
     Returns:
         ``(plant, scene_graph, biped_instance)`` with the plant finalized.
     """
-    config = MultibodyPlantConfig(
-        time_step=time_step,
-        discrete_contact_approximation=contact_approximation,
-        contact_model="point",
+    plant, scene_graph = add_plant_with_ground(
+        builder, time_step, contact_approximation, ground_friction
     )
-    plant, scene_graph = AddMultibodyPlant(config, builder)
-    add_ground(plant, ground_friction)
     instance = add_biped(plant, Parser(plant), gains=gains)
     if extra is not None:
         extra(plant)

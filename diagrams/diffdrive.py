@@ -13,11 +13,11 @@ import dataclasses
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
-from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
+from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain
-from repertoire.diagrams.biped import add_ground, validate_plant_fields
+from repertoire.diagrams.biped import add_plant_with_ground, validate_plant_fields
 from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.simulate import start_overlaps
 from repertoire.models import ConfigureParser, package_url
@@ -159,6 +159,7 @@ def add_robot_in_world(
     contact_approximation: str,
     wheel_kd: float,
     ground_friction: float,
+    extra=None,
 ):
     """Adds a finalized discrete plant with the ground, the robot and a world to ``builder``.
 
@@ -170,20 +171,20 @@ def add_robot_in_world(
         contact_approximation: discrete contact approximation.
         wheel_kd: the wheel velocity gain.
         ground_friction: ground friction coefficient.
+        extra: optional ``extra(plant, robot_instance)`` called before ``Finalize`` (adds
+            more geometry).
 
     Returns:
         ``(plant, scene_graph, robot_instance)``.
     """
-    config = MultibodyPlantConfig(
-        time_step=time_step,
-        discrete_contact_approximation=contact_approximation,
-        contact_model="point",
+    plant, scene_graph = add_plant_with_ground(
+        builder, time_step, contact_approximation, ground_friction
     )
-    plant, scene_graph = AddMultibodyPlant(config, builder)
-    add_ground(plant, ground_friction)
     parser = Parser(plant)
     robot = add_diffdrive(plant, parser, wheel_kd=wheel_kd)
     add_world(plant, parser, world)
+    if extra is not None:
+        extra(plant, robot)
     plant.Finalize()
     x, y, yaw = initial_pose
     plant.SetDefaultFloatingBaseBodyPose(

@@ -24,11 +24,10 @@ import re
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
-from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlantConfig
 from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
-from repertoire.diagrams.biped import add_ground, validate_plant_fields
+from repertoire.diagrams.biped import add_plant_with_ground, validate_plant_fields
 from repertoire.diagrams.diffdrive import WHEEL_RADIUS, WORLDS, check_start_clear
 from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.simulate import SimulatorCache
@@ -233,13 +232,9 @@ def build_kitchen_action(
     """
     scenario.validate()
     builder = DiagramBuilder()
-    config = MultibodyPlantConfig(
-        time_step=scenario.time_step,
-        discrete_contact_approximation=scenario.contact_approximation,
-        contact_model="point",
+    plant, scene_graph = add_plant_with_ground(
+        builder, scenario.time_step, scenario.contact_approximation, scenario.ground_friction
     )
-    plant, scene_graph = AddMultibodyPlant(config, builder)
-    add_ground(plant, scenario.ground_friction)
     parser = Parser(plant)
     ConfigureParser(parser)
     (robot,) = parser.AddModels(url=package_url(ROBOT_URL_PATH))

@@ -116,11 +116,12 @@ def twist_to_wheel_state_matrix() -> np.ndarray:
     return np.vstack([np.zeros((2, 2)), [[1 / r, -b / (2 * r)], [1 / r, b / (2 * r)]]])
 
 
-def add_soccer_robot(builder: DiagramBuilder, scenario):
+def add_soccer_robot(builder: DiagramBuilder, scenario, extra=None):
     """The diffdrive robot on the soccer field with its ``state_reader`` connected.
 
     ``scenario`` gives ``initial_pose``, ``time_step``, ``contact_approximation``,
-    ``wheel_kd`` and ``ground_friction``.
+    ``wheel_kd`` and ``ground_friction``; ``extra(plant, robot)``, if given, adds more
+    geometry before the plant is finalized.
 
     Returns:
         ``(plant, scene_graph, robot, reader)``.
@@ -133,6 +134,7 @@ def add_soccer_robot(builder: DiagramBuilder, scenario):
         contact_approximation=scenario.contact_approximation,
         wheel_kd=scenario.wheel_kd,
         ground_friction=scenario.ground_friction,
+        extra=extra,
     )
     reader = builder.AddNamedSystem("state_reader", DiffDriveStateReader(plant))
     builder.Connect(plant.get_state_output_port(), reader.get_input_port())

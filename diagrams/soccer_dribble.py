@@ -14,22 +14,21 @@ import dataclasses
 import numpy as np
 from pydrake.geometry import Box
 from pydrake.math import RigidTransform, RollPitchYaw
-from pydrake.multibody.parsing import Parser
-from pydrake.multibody.plant import AddMultibodyPlant, CoulombFriction, MultibodyPlantConfig
+from pydrake.multibody.plant import CoulombFriction
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
-from repertoire.diagrams.biped import add_ground, validate_discrete_control_fields
-from repertoire.diagrams.diffdrive import WHEEL_RADIUS, add_diffdrive, add_world
+from repertoire.diagrams.biped import validate_discrete_control_fields
+from repertoire.diagrams.diffdrive import WHEEL_RADIUS
 from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.simulate import SimulatorCache
-from repertoire.diagrams.soccer import build_driven
+from repertoire.diagrams.soccer import add_soccer_robot, build_driven
 from repertoire.systems.dribble_ball import (
     DRIBBLE_GAINS,
     BodyXYReader,
     DribbleBall,
     RollingResistance,
 )
-from repertoire.systems.go_to_pose import ActionStatus, DiffDriveStateReader
+from repertoire.systems.go_to_pose import ActionStatus
 
 from repertoire.criteria import Bound
 from repertoire.errors import ScenarioError
@@ -40,27 +39,14 @@ GUIDE_SIZE = (0.14, 0.02, 0.08)  # each guide arm of the dribbler [m]
 GUIDE_Y = BALL_RADIUS + 0.025 + GUIDE_SIZE[1] / 2  # lateral centre of a guide arm [m]
 
 
-def add_robot_with_dribbler(builder: DiagramBuilder, scenario: "DribbleScenario"):
-    """Adds the finalized plant: ground, soccer field, ball and the robot with a dribbler.
+def add_dribbler_guides(plant, robot) -> None:
+    """Adds the dribbler to the robot's chassis in an unfinalized plant.
 
     The dribbler is two guide arms (boxes ``GUIDE_SIZE``) on the chassis either
     side of the ball's held spot, as on RoboCup robots: a flat bumper alone lets
     the ball slide off sideways as soon as the robot turns. They leave the ball
     2.5 cm of play each side.
-
-    Returns:
-        ``(plant, scene_graph, robot_instance)``.
     """
-    config = MultibodyPlantConfig(
-        time_step=scenario.time_step,
-        discrete_contact_approximation=scenario.contact_approximation,
-        contact_model="point",
-    )
-    plant, scene_graph = AddMultibodyPlant(config, builder)
-    add_ground(plant, scenario.ground_friction)
-    parser = Parser(plant)
-    robot = add_diffdrive(plant, parser, wheel_kd=scenario.wheel_kd)
-    add_world(plant, parser, "soccer")
     chassis = plant.GetBodyByName("chassis", robot)
     for side, y in (("left", GUIDE_Y), ("right", -GUIDE_Y)):
         X = RigidTransform([BUMPER_X + GUIDE_SIZE[0] / 2, y, 0.0])
@@ -70,9 +56,6 @@ def add_robot_with_dribbler(builder: DiagramBuilder, scenario: "DribbleScenario"
         plant.RegisterVisualGeometry(
             chassis, X, Box(*GUIDE_SIZE), f"dribbler_{side}_visual", [0.2, 0.2, 0.2, 1.0]
         )
-    plant.Finalize()
-    set_dribble_defaults(plant, scenario)
-    return plant, scene_graph, robot
 
 
 def set_dribble_defaults(plant, scenario: "DribbleScenario") -> None:
@@ -173,8 +156,10 @@ def build_soccer_dribble(scenario: DribbleScenario, *, meshcat=None) -> Diagram:
     """
     scenario.validate()
     builder = DiagramBuilder()
-    plant, scene_graph, robot = add_robot_with_dribbler(builder, scenario)
-    reader = builder.AddNamedSystem("state_reader", DiffDriveStateReader(plant))
+    plant, scene_graph, robot, reader = add_soccer_robot(
+        builder, scenario, extra=add_dribbler_guides
+    )
+    set_dribble_defaults(plant, scenario)
     ball_reader = builder.AddNamedSystem("ball_reader", BodyXYReader(plant, "ball"))
     action = builder.AddNamedSystem(
         "dribble_ball", DribbleBall(period=scenario.control_period, gains=scenario.gains)
@@ -182,7 +167,6 @@ def build_soccer_dribble(scenario: DribbleScenario, *, meshcat=None) -> Diagram:
     target = builder.AddNamedSystem(
         "target", ConstantVectorSource(np.asarray(scenario.target, dtype=float))
     )
-    builder.Connect(plant.get_state_output_port(), reader.get_input_port())
     builder.Connect(plant.get_state_output_port(), ball_reader.get_input_port())
     drag = builder.AddNamedSystem(
         "ball_rolling_resistance", RollingResistance(plant, "ball", scenario.ball_decel)

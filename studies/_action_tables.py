@@ -127,6 +127,82 @@ def table1_and_failure(
     return md, dur, fail
 
 
+def summarize_action_study(
+    name: str,
+    action: str,
+    records: Sequence[Any],
+    out_dir: Path,
+    is_done: Callable[[Any], bool],
+    features: dict[str, Callable[[Any], float]],
+    paper: dict[str, float],
+    failure_label: str,
+    curve_title: str,
+    *,
+    preamble: str | None = None,
+    polar_title: str | None = None,
+    failure_heading: str | None = None,
+    paper_accuracy: float | None = None,
+) -> dict[str, Path]:
+    """The summary of one action study: Table 1 and failure tree, learning curves, polar plot.
+
+    Writes ``{name}_tables.md`` (or, below ``min_records()`` done episodes, why nothing
+    was fitted), ``{name}_learning_curves.png`` and, with ``polar_title``,
+    ``{name}_polar.png`` (Fig. 7) into ``out_dir``.
+
+    Args:
+        name: the study's name (the files' prefix).
+        action: the action's name in Table 1.
+        records: all episodes in seed order.
+        out_dir: the output folder.
+        is_done: whether a record's duration is learned (succeeded).
+        features: feature name -> function of a record.
+        paper: the paper's Table 1 row (see :func:`table1_and_failure`).
+        failure_label: what the failure flag means, for the caption.
+        curve_title: the learning curves' title.
+        preamble: a line put before the tables.
+        polar_title: the polar plot's title; None for no polar plot.
+        failure_heading: the failure section's title (default from ``failure_label``).
+        paper_accuracy: the paper's failure-tree fraction correct, if it gives one.
+
+    Returns:
+        Paths by name: ``tables``, ``learning_curves`` and ``polar`` (only ``tables`` when
+        too few episodes succeeded).
+    """
+    out_dir = Path(out_dir)
+    tables = out_dir / f"{name}_tables.md"
+    done = [r for r in records if is_done(r)]
+    if len(done) < min_records():
+        return too_few_note(tables, len(records), len(done))
+    md, dur, _ = table1_and_failure(
+        action,
+        records,
+        done,
+        features,
+        paper,
+        failure_label,
+        failure_heading=failure_heading,
+        paper_accuracy=paper_accuracy,
+    )
+    if preamble is not None:
+        md.insert(0, preamble)
+    tables.write_text("\n".join(md) + "\n")
+    paths = {"tables": tables}
+    paths["learning_curves"] = learning_curve_figure(
+        records,
+        is_done,
+        features,
+        paper["mae"],
+        curve_title,
+        out_dir / f"{name}_learning_curves.png",
+        paper_accuracy=paper_accuracy,
+    )
+    if polar_title is not None:
+        paths["polar"] = polar_duration_figure(
+            dur.model, polar_title, out_dir / f"{name}_polar.png"
+        )
+    return paths
+
+
 def learning_curve_figure(
     records: Sequence[Any],
     is_done: Callable[[Any], bool],

@@ -99,6 +99,65 @@ def tcp_path(diagram, context, every_s: float) -> np.ndarray:
     return tcp_log(diagram, context).point[:: log_stride(every_s)]
 
 
+#: Figures of a pick-and-place run the studies keep (``pick_and_place_figures`` but its flags).
+PICK_PLACE_FIGURES = (
+    "cup_to_coaster_m",
+    "cup_height_above_coaster_m",
+    "cup_tilt_rad",
+    "min_obstacle_clearance_m",
+    "grasp_reach_error_m",
+    "place_reach_error_m",
+    "min_ball_gap_m",
+    "min_ball_gap_time_s",
+)
+
+
+def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> dict:
+    """Builds and runs one pick-and-place world; an IK or scenario error stops it.
+
+    Args:
+        scenario: a ``PickPlaceScenario``.
+        sim_duration_s: simulated time cap [s]; 0 runs the whole task.
+        path_every_s: spacing of the kept tcp positions [s].
+
+    Returns:
+        ``failure`` (the error's text, empty when it ran), ``path`` (the tcp, shape
+        (k, 3), empty when stopped), ``duration`` (simulated [s]), ``wall`` (simulation
+        wall time [s]), each of :data:`PICK_PLACE_FIGURES` (NaN when the run stopped
+        before them) and ``placed``: it ran and the cup stands on the coaster (within
+        2 cm of it horizontally and 1 cm vertically, tilted under 0.2 rad).
+    """
+    from repertoire.diagrams.arm_dmp import build_pick_and_place
+    from repertoire.diagrams.arm_dmp_results import (
+        IkTargetError,
+        pick_and_place_figures,
+        run_arm_world,
+    )
+    from repertoire.diagrams.arm_dmp_scenarios import PICK_PLACE_LABELS, segment_timing
+
+    out = {"failure": "", "path": np.zeros((0, 3)), "duration": 0.0, "wall": 0.0}
+    out.update(dict.fromkeys(PICK_PLACE_FIGURES, float("nan")))
+    try:
+        diagram = build_pick_and_place(scenario)
+        _, duration = segment_timing(PICK_PLACE_LABELS, scenario.settle_time)
+        if sim_duration_s > 0:
+            duration = min(duration, sim_duration_s)
+        out["duration"] = duration
+        context, out["wall"] = run_arm_world(diagram, duration)
+        figures = pick_and_place_figures(diagram, context)
+        out.update({k: figures[k] for k in PICK_PLACE_FIGURES})
+        out["path"] = tcp_path(diagram, context, path_every_s)
+    except (IkTargetError, RepertoireError) as e:
+        out["failure"] = str(e)
+    out["placed"] = bool(
+        not out["failure"]
+        and out["cup_to_coaster_m"] < 0.02
+        and abs(out["cup_height_above_coaster_m"]) < 0.01
+        and out["cup_tilt_rad"] < 0.2
+    )
+    return out
+
+
 def carry_control_points() -> list[list[float]]:
     """The default eq.-10 control points while carrying (``CARRY_CONTROL_POINTS``)."""
     from repertoire.diagrams.arm_dmp_scenarios import CARRY_CONTROL_POINTS

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from repertoire.planning.footstep import ActionTable
+    from repertoire.planning.footstep import ActionTable, PlannerOptions
 
 
 def load_table(table_path: str) -> "ActionTable":
@@ -23,6 +23,25 @@ def load_table(table_path: str) -> "ActionTable":
     from repertoire.planning.footstep import ActionTable, nominal_action_table
 
     return ActionTable.load(table_path) if table_path else nominal_action_table()
+
+
+def planner_options(config, **options) -> "PlannerOptions":
+    """The footstep planner's options from a study config's planner fields.
+
+    Args:
+        config: a config with ``time_limit_s``, ``heuristic_weight``, ``max_expansions``
+            and ``swing_clearance_m``.
+        **options: further ``PlannerOptions`` fields (e.g. ``heuristic``).
+    """
+    from repertoire.planning.footstep import PlannerOptions
+
+    return PlannerOptions(
+        time_limit=config.time_limit_s,
+        heuristic_weight=config.heuristic_weight,
+        max_expansions=config.max_expansions,
+        swing_clearance=config.swing_clearance_m,
+        **options,
+    )
 
 
 def percentile(values: Sequence[float], q: float) -> float:

@@ -41,6 +41,7 @@ from repertoire.planning.action_models.kitchen_features import (
     kitchen_goto_features,
     kitchen_reach_features,
 )
+from repertoire.studies._config_checks import check_range
 
 from repertoire.errors import RepertoireError
 
@@ -120,12 +121,8 @@ class KitchenPlanConfig:
             "carry_extend_range": EXTEND_RANGE,
             "carry_z_range": (0.91, 1.05),
         }
-        for name, (lo, hi) in bounds.items():
-            r = getattr(self, name)
-            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
-                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
-            if r[0] < lo - 1e-9 or r[1] > hi + 1e-9:
-                raise RepertoireError(f"{name} must lie within [{lo}, {hi}], got {r}")
+        for name, within in bounds.items():
+            check_range(name, getattr(self, name), within)
         for name in ("above_offset", "clearance", "step_limit", "deliver_tolerance"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):

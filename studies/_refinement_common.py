@@ -21,6 +21,7 @@ from repertoire.planning.action_models.features import (
     UNMIRRORED_GOTO_POSE_FEATURES,
     goto_pose_features,
 )
+from repertoire.studies._config_checks import check_range
 
 from repertoire.errors import RepertoireError
 
@@ -91,9 +92,7 @@ class SoccerPlanConfig:
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
         for name in ("x_range", "y_range", "v_range", "dribble_distance_range"):
-            r = getattr(self, name)
-            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
-                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
+            check_range(name, getattr(self, name))
         if not (-3 <= self.x_range[0] and self.x_range[1] <= 3):
             raise RepertoireError(f"x_range must lie on the field [-3, 3], got {self.x_range}")
         if not (-2 <= self.y_range[0] and self.y_range[1] <= 2):

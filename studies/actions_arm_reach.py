@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.planning.action_models.features import ARM_REACH_FEATURES, arm_reach_features
+from repertoire.studies._config_checks import check_range
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -53,9 +54,7 @@ class ReachEpisodesConfig:
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
         for name in ("theta_a_range", "theta_b_range", "speed_range"):
-            r = getattr(self, name)
-            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
-                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
+            check_range(name, getattr(self, name))
         for name, key in (("theta_a_range", "a"), ("theta_b_range", "b")):
             lo, hi = LIMITS[key]
             r = getattr(self, name)
@@ -188,32 +187,20 @@ def summarize(
     Returns:
         Paths by name (nothing is fitted below ``min_records()`` succeeded episodes).
     """
-    from repertoire.studies._action_tables import (
-        learning_curve_figure,
-        min_records,
-        table1_and_failure,
-        too_few_note,
-    )
+    from repertoire.studies._action_tables import summarize_action_study
 
-    out_dir = Path(out_dir)
-    tables = out_dir / "actions_arm_reach_tables.md"
-    done = [r for r in records if r.status == "SUCCEEDED"]
-    if len(done) < min_records():
-        return too_few_note(tables, len(records), len(done))
-    md, _, _ = table1_and_failure(
-        "reach (arm control, 2 joints)", records, done, FEATURE_FUNCS, PAPER_REACH, "not reached"
-    )
-    tables.write_text("\n".join(md) + "\n")
-    curves = learning_curve_figure(
+    return summarize_action_study(
+        "actions_arm_reach",
+        "reach (arm control, 2 joints)",
         records,
+        out_dir,
         lambda r: r.status == "SUCCEEDED",
         FEATURE_FUNCS,
-        PAPER_REACH["mae"],
+        PAPER_REACH,
+        "not reached",
         f"Reach (arm7, 2 joints): learning curves ({sum(r.failed for r in records)} failed "
         f"of {len(records)})",
-        out_dir / "actions_arm_reach_learning_curves.png",
     )
-    return {"tables": tables, "learning_curves": curves}
 
 
 def demo_config() -> ReachEpisodesConfig:

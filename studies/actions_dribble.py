@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.studies._action_tables import POSE_FEATURE_FUNCS as FEATURE_FUNCS
+from repertoire.studies._config_checks import check_range
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -71,9 +72,7 @@ class DribbleEpisodesConfig:
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
         for name in ("x_range", "y_range", "v_range", "goal_distance_range", "v_g_range"):
-            r = getattr(self, name)
-            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
-                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
+            check_range(name, getattr(self, name))
         if not (FIELD[0] <= self.x_range[0] and self.x_range[1] <= FIELD[1]):
             raise RepertoireError(f"x_range must lie on the field [-3, 3], got {self.x_range}")
         if not (FIELD[2] <= self.y_range[0] and self.y_range[1] <= FIELD[3]):
@@ -262,44 +261,26 @@ def summarize(
     Returns:
         Paths by name (nothing is fitted below ``min_records()`` succeeded episodes).
     """
-    from repertoire.studies._action_tables import (
-        learning_curve_figure,
-        min_records,
-        polar_duration_figure,
-        table1_and_failure,
-        too_few_note,
-    )
+    from repertoire.studies._action_tables import summarize_action_study
 
-    out_dir = Path(out_dir)
-    tables = out_dir / "actions_dribble_tables.md"
-    done = [r for r in records if r.status == "SUCCEEDED"]
-    if len(done) < min_records():
-        return too_few_note(tables, len(records), len(done))
-    md, dur, _ = table1_and_failure(
-        "dribbleBall (soccer, sim)", records, done, FEATURE_FUNCS, PAPER_DRIBBLE, "ball lost"
-    )
+    n_done = sum(r.status == "SUCCEEDED" for r in records)
     n_lost = sum(r.lost_ball for r in records)
     n_timeout = sum(r.status == "TIMED_OUT" for r in records)
-    md.insert(
-        0,
-        f"{len(records)} episodes: {len(done)} succeeded, {n_lost} lost the ball, "
-        f"{n_timeout} timed out.\n",
-    )
-    tables.write_text("\n".join(md) + "\n")
-    curves = learning_curve_figure(
+    return summarize_action_study(
+        "actions_dribble",
+        "dribbleBall (soccer, sim)",
         records,
+        out_dir,
         lambda r: r.status == "SUCCEEDED",
         FEATURE_FUNCS,
-        PAPER_DRIBBLE["mae"],
+        PAPER_DRIBBLE,
+        "ball lost",
         f"DribbleBall: learning curves ({sum(r.failed for r in records)} failed of {len(records)})",
-        out_dir / "actions_dribble_learning_curves.png",
+        preamble=f"{len(records)} episodes: {n_done} succeeded, {n_lost} lost the ball, "
+        f"{n_timeout} timed out.\n",
+        polar_title="DribbleBall: predicted duration (s, radial)\n"
+        "by start direction, goal facing 0°",
     )
-    polar = polar_duration_figure(
-        dur.model,
-        "DribbleBall: predicted duration (s, radial)\nby start direction, goal facing 0°",
-        out_dir / "actions_dribble_polar.png",
-    )
-    return {"tables": tables, "learning_curves": curves, "polar": polar}
 
 
 def demo_config() -> DribbleEpisodesConfig:

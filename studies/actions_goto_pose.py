@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.studies._action_tables import POSE_FEATURE_FUNCS as FEATURE_FUNCS
+from repertoire.studies._config_checks import check_range
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -68,9 +69,7 @@ class GoToPoseEpisodesConfig:
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
         for name in ("x_range", "y_range", "v_range", "goal_distance_range", "v_g_range"):
-            r = getattr(self, name)
-            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
-                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
+            check_range(name, getattr(self, name))
         if not (-3 <= self.x_range[0] and self.x_range[1] <= 3):
             raise RepertoireError(f"x_range must lie on the field [-3, 3], got {self.x_range}")
         if not (-2 <= self.y_range[0] and self.y_range[1] <= 2):
@@ -218,47 +217,24 @@ def summarize(
     Returns:
         Paths by name (nothing is fitted below ``min_records()`` successful episodes).
     """
-    from repertoire.studies._action_tables import (
-        learning_curve_figure,
-        min_records,
-        polar_duration_figure,
-        table1_and_failure,
-        too_few_note,
-    )
+    from repertoire.studies._action_tables import summarize_action_study
 
-    out_dir = Path(out_dir)
-    tables = out_dir / "actions_goto_pose_tables.md"
-    done = [r for r in records if r.status == "SUCCEEDED" and not r.touched_ball]
-    if len(done) < min_records() or len(records) < min_records():
-        return too_few_note(tables, len(records), len(done))
-    md, dur, _ = table1_and_failure(
+    n_failed = sum(r.failed for r in records)
+    return summarize_action_study(
+        "actions_goto_pose",
         "goToPose (soccer, sim)",
         records,
-        done,
+        out_dir,
+        lambda r: r.status == "SUCCEEDED" and not r.touched_ball,
         FEATURE_FUNCS,
         PAPER_GOTO,
         "ball collision",
+        f"GoToPose: learning curves ({n_failed} failed of {len(records)} episodes)",
         failure_heading="Table 2: failure (ball collision) tree, held-out quarter",
         paper_accuracy=PAPER_FAILURE_ACCURACY,
+        # Fig. 7: predicted duration around a goal at the origin facing +x
+        polar_title="Predicted duration (s, radial) by start direction\ngoal at centre facing 0°",
     )
-    tables.write_text("\n".join(md) + "\n")
-    n_failed = sum(r.failed for r in records)
-    curves = learning_curve_figure(
-        records,
-        lambda r: r.status == "SUCCEEDED" and not r.touched_ball,
-        FEATURE_FUNCS,
-        PAPER_GOTO["mae"],
-        f"GoToPose: learning curves ({n_failed} failed of {len(records)} episodes)",
-        out_dir / "actions_goto_pose_learning_curves.png",
-        paper_accuracy=PAPER_FAILURE_ACCURACY,
-    )
-    # Fig. 7: predicted duration around a goal at the origin facing +x
-    polar = polar_duration_figure(
-        dur.model,
-        "Predicted duration (s, radial) by start direction\ngoal at centre facing 0°",
-        out_dir / "actions_goto_pose_polar.png",
-    )
-    return {"tables": tables, "learning_curves": curves, "polar": polar}
 
 
 def demo_config() -> GoToPoseEpisodesConfig:

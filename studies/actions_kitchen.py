@@ -42,6 +42,7 @@ from repertoire.planning.action_models.kitchen_features import (
     kitchen_reach_arm_features,
     kitchen_reach_features,
 )
+from repertoire.studies._config_checks import check_range
 from repertoire.studies.engine import register_study
 
 from repertoire.errors import RepertoireError
@@ -113,12 +114,8 @@ class KitchenEpisodesConfig:
             "yaw_range": YAW_RANGE,
             "extend_range": EXTEND_RANGE,
         }
-        for name, (lo, hi) in bounds.items():
-            r = getattr(self, name)
-            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
-                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
-            if r[0] < lo - 1e-9 or r[1] > hi + 1e-9:
-                raise RepertoireError(f"{name} must lie within [{lo}, {hi}], got {r}")
+        for name, within in bounds.items():
+            check_range(name, getattr(self, name), within)
         if self.n_states < 0 or not (self.state_period > 0):
             raise RepertoireError("n_states must be >= 0 and state_period > 0")
         for name in ("goto_time_step", "reach_time_step"):

@@ -18,12 +18,13 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.studies._dmp_common import (
+    PICK_PLACE_FIGURES,
     carry_control_points,
     check_arm_config,
     obstacle_radius,
     register_dmp_study,
+    run_pick_and_place,
     stat_pair,
-    tcp_path,
     timing_rows,
     write_table,
 )
@@ -190,65 +191,25 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
         config: the study config.
         seed: the episode seed.
     """
-    from repertoire.diagrams.arm_dmp import build_pick_and_place
-    from repertoire.diagrams.arm_dmp_results import (
-        IkTargetError,
-        pick_and_place_figures,
-        run_arm_world,
-    )
-    from repertoire.diagrams.arm_dmp_scenarios import PICK_PLACE_LABELS, segment_timing
-
     t0 = time.perf_counter()
     config.validate()
     scenario = sample_scenario(config, seed)
-    nan = float("nan")
-    figures = dict.fromkeys(
-        (
-            "cup_to_coaster_m",
-            "cup_height_above_coaster_m",
-            "cup_tilt_rad",
-            "min_obstacle_clearance_m",
-            "grasp_reach_error_m",
-            "place_reach_error_m",
-            "min_ball_gap_m",
-            "min_ball_gap_time_s",
-        ),
-        nan,
-    )
-    failure, path, wall_sim, duration = "", np.zeros((0, 3)), 0.0, 0.0
-    try:
-        diagram = build_pick_and_place(scenario)
-        _, duration = segment_timing(PICK_PLACE_LABELS, scenario.settle_time)
-        if config.sim_duration_s > 0:
-            duration = min(duration, config.sim_duration_s)
-        context, wall_sim = run_arm_world(diagram, duration)
-        figures.update(pick_and_place_figures(diagram, context))
-        path = tcp_path(diagram, context, config.path_every_s)
-    except (IkTargetError, RepertoireError) as e:
-        failure = str(e)
-    figures.pop("success", None)
-    figures.pop("collision_free", None)
-    success = (
-        not failure
-        and figures["cup_to_coaster_m"] < 0.02
-        and abs(figures["cup_height_above_coaster_m"]) < 0.01
-        and figures["cup_tilt_rad"] < 0.2
-    )
+    run = run_pick_and_place(scenario, config.sim_duration_s, config.path_every_s)
     return PickPlaceRecord(
         cup_xy=scenario.cup_xy,
         coaster_xy=scenario.coaster_xy,
         coaster_final_xy=scenario.coaster_final_xy,
         obstacle_xyz=scenario.obstacle_xyz,
-        success=bool(success),
-        **{k: float(v) for k, v in figures.items()},
-        collision_free=bool(figures["min_ball_gap_m"] > 0.0),
-        failure=failure,
-        path_x=[round(float(v), 5) for v in path[:, 0]],
-        path_y=[round(float(v), 5) for v in path[:, 1]],
-        path_z=[round(float(v), 5) for v in path[:, 2]],
-        sim_time_s=float(duration),
+        success=run["placed"],
+        **{k: float(run[k]) for k in PICK_PLACE_FIGURES},
+        collision_free=bool(run["min_ball_gap_m"] > 0.0),
+        failure=run["failure"],
+        path_x=[round(float(v), 5) for v in run["path"][:, 0]],
+        path_y=[round(float(v), 5) for v in run["path"][:, 1]],
+        path_z=[round(float(v), 5) for v in run["path"][:, 2]],
+        sim_time_s=float(run["duration"]),
         wall_time_s=time.perf_counter() - t0,
-        wall_sim_s=float(wall_sim),
+        wall_sim_s=float(run["wall"]),
     )
 
 

@@ -20,6 +20,7 @@ from repertoire.studies._footstep_common import (
     load_table,
     markdown_table,
     percentile,
+    planner_options,
     planner_rows,
 )
 from repertoire.studies.engine import register_study
@@ -139,7 +140,7 @@ def _scene(config: FootstepDynamicConfig, seed: int):
 
 
 def _plan(config: FootstepDynamicConfig, scene):
-    from repertoire.planning.footstep import PlannerOptions, plan_footsteps
+    from repertoire.planning.footstep import plan_footsteps
 
     table = load_table(config.table_path)
     return plan_footsteps(
@@ -148,13 +149,7 @@ def _plan(config: FootstepDynamicConfig, scene):
         scene.start_foot,
         scene.goal,
         table,
-        PlannerOptions(
-            time_limit=config.time_limit_s,
-            heuristic="euclidean",
-            heuristic_weight=config.heuristic_weight,
-            max_expansions=config.max_expansions,
-            swing_clearance=config.swing_clearance_m,
-        ),
+        planner_options(config, heuristic="euclidean"),
     )
 
 

@@ -19,6 +19,7 @@ from repertoire.studies._footstep_common import (
     load_table,
     markdown_table,
     percentile,
+    planner_options,
     planner_rows,
 )
 from repertoire.studies.engine import register_study
@@ -140,7 +141,7 @@ def _scene(config: FootstepStaticConfig, seed: int):
 
 
 def _plan(config: FootstepStaticConfig, scene, table):
-    from repertoire.planning.footstep import PlannerOptions, plan_footsteps, plan_mobile2d
+    from repertoire.planning.footstep import plan_footsteps, plan_mobile2d
 
     plan = plan_footsteps(
         scene.grid,
@@ -148,13 +149,7 @@ def _plan(config: FootstepStaticConfig, scene, table):
         scene.start_foot,
         scene.goal,
         table,
-        PlannerOptions(
-            time_limit=config.time_limit_s,
-            heuristic="dijkstra",
-            heuristic_weight=config.heuristic_weight,
-            max_expansions=config.max_expansions,
-            swing_clearance=config.swing_clearance_m,
-        ),
+        planner_options(config, heuristic="dijkstra"),
     )
     mobile = plan_mobile2d(scene.grid, scene.body_start, scene.goal, config.body_radius_m)
     return plan, mobile
@@ -371,17 +366,12 @@ def summarize(
 
 def _height_plan_figure(config: FootstepStaticConfig, path: Path) -> Path:
     """A plan over a 2.5-D floor (blocks 2-30 cm high) with the study's swing clearance."""
-    from repertoire.planning.footstep import PlannerOptions, plan_footsteps
+    from repertoire.planning.footstep import plan_footsteps
     from repertoire.planning.footstep.plot import height_plan_figure
     from repertoire.planning.footstep.scenes import random_floor_scene
 
     sc = random_floor_scene(3, size=4.0, occupancy=0.15, resolution=config.resolution_m)
-    opts = PlannerOptions(
-        time_limit=config.time_limit_s,
-        heuristic_weight=config.heuristic_weight,
-        max_expansions=config.max_expansions,
-        swing_clearance=config.swing_clearance_m,
-    )
+    opts = planner_options(config)
     plan = plan_footsteps(sc.grid, sc.start, sc.start_foot, sc.goal, _table(config), opts)
     return height_plan_figure(
         sc.grid,

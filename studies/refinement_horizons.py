@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from repertoire.studies._config_checks import check_range
 from repertoire.studies._refinement_common import (
     SoccerPlanConfig,
     document_shared_fields,
@@ -61,9 +62,7 @@ class RefinementHorizonsConfig(SoccerPlanConfig):
         """Raises RepertoireError naming the first bad field."""
         super().validate()
         for name in ("leg_range", "tour_x_range", "tour_y_range"):
-            r = getattr(self, name)
-            if len(r) != 2 or not np.all(np.isfinite(r)) or r[0] > r[1]:
-                raise RepertoireError(f"{name} must be finite [lo, hi] with lo <= hi, got {r}")
+            check_range(name, getattr(self, name))
         if self.leg_range[0] <= 0.1:
             raise RepertoireError(f"leg_range must start above 0.1 m, got {self.leg_range}")
         if self.solver not in ("ga", "de"):

@@ -78,7 +78,25 @@ def check_gains(gamma: float, beta: float) -> list[float]:
     return values
 
 
-class CanonicalSystem(LeafSystem):
+class Onset:
+    """The ``start_time`` parameter (``_start``) of a DMP that holds its state until then.
+
+    Mixed in before LeafSystem.
+    """
+
+    def set_start_time(self, context: Context, start_time: float) -> None:
+        """Hold the state until ``start_time``.
+
+        Args:
+            context: This system's context.
+            start_time: Movement onset [s].
+        """
+        context.get_mutable_numeric_parameter(self._start).SetAtIndex(
+            0, check_start_time(start_time)
+        )
+
+
+class CanonicalSystem(Onset, LeafSystem):
     """Canonical system ``tau theta' = -alpha theta`` (eq. 4), ``theta(0) = 1``.
 
     Before the parameter ``start_time`` the phase is held at 1 (for a delayed start).
@@ -106,9 +124,7 @@ class CanonicalSystem(LeafSystem):
         check_positive("alpha", alpha)
         self._tau_index = self.DeclareNumericParameter(BasicVector([float(tau)]))
         self._alpha_index = self.DeclareNumericParameter(BasicVector([float(alpha)]))
-        self._start_index = self.DeclareNumericParameter(
-            BasicVector([check_start_time(start_time)])
-        )
+        self._start = self.DeclareNumericParameter(BasicVector([check_start_time(start_time)]))
         self.DeclareContinuousState(BasicVector([1.0]))
         self._tau_port = self.DeclareVectorInputPort("tau", 1) if time_scaling_input else None
         self._phase_port = self.DeclareVectorOutputPort(
@@ -135,17 +151,6 @@ class CanonicalSystem(LeafSystem):
             raise RepertoireError(f"tau must be a finite number > 0, got {tau}")
         return tau
 
-    def set_start_time(self, context: Context, start_time: float) -> None:
-        """Hold theta = 1 until ``start_time``.
-
-        Args:
-            context: This system's context.
-            start_time: Movement onset [s].
-        """
-        context.get_mutable_numeric_parameter(self._start_index).SetAtIndex(
-            0, check_start_time(start_time)
-        )
-
     def set_phase(self, context: Context, theta: float = 1.0) -> None:
         """Set the phase state.
 
@@ -156,7 +161,7 @@ class CanonicalSystem(LeafSystem):
         context.get_mutable_continuous_state_vector().SetAtIndex(0, float(theta))
 
     def DoCalcTimeDerivatives(self, context: Context, derivatives) -> None:
-        start = context.get_numeric_parameter(self._start_index).GetAtIndex(0)
+        start = context.get_numeric_parameter(self._start).GetAtIndex(0)
         if context.get_time() < start:
             derivatives.get_mutable_vector().SetAtIndex(0, 0.0)
             return
@@ -192,22 +197,11 @@ class VectorDmpPorts:
         return self._n
 
 
-class CouplingAndOnset(VectorDmpPorts):
+class CouplingAndOnset(Onset, VectorDmpPorts):
     """Optional coupling input and the ``start_time`` parameter (``_coupling_port``, ``_start``)."""
 
     def get_coupling_input_port(self):
         return self._coupling_port
-
-    def set_start_time(self, context: Context, start_time: float) -> None:
-        """Hold the state until ``start_time``.
-
-        Args:
-            context: This system's context.
-            start_time: Movement onset [s].
-        """
-        context.get_mutable_numeric_parameter(self._start).SetAtIndex(
-            0, check_start_time(start_time)
-        )
 
     def _has_coupling(self, context: Context) -> bool:
         """Whether the coupling input is declared and connected (or fixed)."""
@@ -457,7 +451,7 @@ class QuaternionNormalizer(LeafSystem):
         output.SetAtIndex(0, float(np.linalg.norm(self._in.Eval(context)) - 1.0))
 
 
-class ManifoldQuaternionSystem(LeafSystem):
+class ManifoldQuaternionSystem(Onset, LeafSystem):
     """On-manifold quaternion DMP, discrete time (exact unit norm via the exponential map).
 
     Discrete state ``[q (4), eta (3)]`` (eta = tau omega, world frame), updated every
@@ -544,17 +538,6 @@ class ManifoldQuaternionSystem(LeafSystem):
         context.get_mutable_numeric_parameter(self._q0).SetFromVector(q0)
         context.get_mutable_discrete_state(self._state).SetFromVector(
             np.concatenate([q0, tau * om])
-        )
-
-    def set_start_time(self, context: Context, start_time: float) -> None:
-        """Hold the state until ``start_time``.
-
-        Args:
-            context: This system's context.
-            start_time: Movement onset [s].
-        """
-        context.get_mutable_numeric_parameter(self._start).SetAtIndex(
-            0, check_start_time(start_time)
         )
 
     def _update(self, context: Context, discrete_state) -> None:

@@ -313,8 +313,8 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
         if transfer.library is None:
             raise ScenarioError(f"greedy mode: no step transferred ({transfer.message})")
         return TransferPlan(board, pose0, feet0, q0, goal, transfer, None, transfer.library)
-    lo = -0.5 * board.params.size_x
-    hmap = height_map_from_board(board, (lo, -lo), (lo, -lo), MAP_RESOLUTION)
+    x0, x1, y0, y1 = board.bounds()  # a tiled target is longer than it is wide
+    hmap = height_map_from_board(board, (x0, x1), (y0, y1), MAP_RESOLUTION)
     # Recorded (physics) steps end up to 2.7 cm (summed over the feet) from the next start.
     # step_reach: the crawl planner moves a foot up to 12.9 cm per step (median 10 cm over
     # 8 planner-only plans); a gap estimate at 8 cm overstated gaps by ~25 %, so the search

@@ -165,3 +165,24 @@ def test_off_board_and_flat_offset_keep_every_foot_on_the_board():
     _, feet, _ = crossing_start(board, 0.0, 0.25, params.standing_height, got, 0.0)
     assert off_board(board, feet) is None
     assert np.all(flat_on_ground(board, feet[:, :2], PlannerParams()))
+
+
+def test_gap_planner_map_covers_the_boards_extent(library_path, monkeypatch):
+    """The gap planner's height map is the target board's extent (``bounds()``), not a
+    square built from its length (a tiled or moved board need not be square or centred)."""
+    import repertoire.diagrams.littledog_transfer as lt
+
+    seen = []
+    real = lt.height_map_from_board
+
+    def record(board, x_range, y_range, resolution):
+        seen.append((board.bounds(), tuple(x_range), tuple(y_range)))
+        return real(board, x_range, y_range, resolution)
+
+    monkeypatch.setattr(lt, "height_map_from_board", record)
+    scenario = LittleDogTransferScenario(
+        library=library_path, target="generated", board_seeds=[1000, 1001]
+    )
+    assert plan_transfer(scenario).search.status == "reached"
+    (x0, x1, y0, y1), xr, yr = seen[0]
+    assert (xr, yr) == ((x0, x1), (y0, y1))

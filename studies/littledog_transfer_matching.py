@@ -31,9 +31,11 @@ centroid) plus any detour. Seed 3, one match per step: of 14 placed steps, 7 can
 joined; the cheapest path through one costs 61 (step 1, 5 cm off the line and yawed 16
 degrees: 10 + 3 planned, 1 recorded, 7 planned), the others 67 (7.5 cm off) and
 109-139 (15-20 cm off). Six, yawed 30-41 degrees, cannot be joined (the crawl filler
-keeps its heading; its best gap ends 0.26-0.37 m, summed over the feet, from their
-start stance), nor one at y = 0.17 m (0.17 m off). One pair chains (end to start 0.02
-m), at y = 0.17 m. Seed 4: all 14 lie at y = 0.15-0.18 m, 10 yawed 28-45 degrees (not
+keeps its heading, and placing the feet onto the turned stance fails the crawl's
+stability or reach checks after 1-2 of 4 moves: its best gap ends 0.26-0.37 m, summed
+over the feet, from their start stance), nor one at y = 0.17 m with a start foot off
+the crawl's flat-foothold rule (0.17 m off). One pair chains (end to start 0.02 m), at
+y = 0.17 m. Seed 4: all 14 lie at y = 0.15-0.18 m, 10 yawed 28-45 degrees (not
 joinable), the other 4 cost 136-142. Multiple matches, seed 3 (43 placed): the
 joinable steps within 8 cm of the line cost 61-91; yawed ones near the start that
 would cost 52 with a free join need three or more feet placed (>= 9 more). On the

@@ -180,6 +180,9 @@ class SearchResult:
         expanded: nodes expanded.
         message: what happened, in words (e.g. planner-only because no step matched).
         cpu_s: CPU time of the search with its planner calls (s).
+        planner_alone_cost: cost of the planner alone from the start to the goal, the
+            path every path through recorded steps must beat (NaN when it was not
+            planned or did not reach the goal).
     """
 
     status: str
@@ -191,6 +194,7 @@ class SearchResult:
     expanded: int
     message: str
     cpu_s: float = 0.0
+    planner_alone_cost: float = math.nan
 
 
 def foot_distance(a, b) -> np.ndarray:
@@ -438,6 +442,8 @@ def search_transfer(
             message += f" (CPU-time limit {config.time_limit} s reached)"
         if refusal:
             message += f"; gap filler: {refusal}"
+    alone = fallback[6] if fallback is not None else math.nan
     return SearchResult(
-        status, path, cost, recorded, planned, planner_calls, expanded, message, clock() - t0
-    )
+        status, path, cost, recorded, planned, planner_calls, expanded, message, clock() - t0,
+        alone,
+    )  # fmt: skip

@@ -171,6 +171,9 @@ class LittleDogTransferRecord:
             the new terrain does not support the placed step (``LibraryTransfer.unsupported``:
             a foot off its recorded height or on an edge, the swing foot in the ground),
             one match per step / multiple matches.
+        cost, alone_cost: the search with one match per step: its path's cost (recorded
+            steps 1, planned 3) and the planner alone's, which a path through recorded
+            steps must beat (NaN where not searched).
     """
 
     case: str
@@ -194,6 +197,8 @@ class LittleDogTransferRecord:
     chained_multiple: int = 0
     unsupported: int = 0
     unsupported_multiple: int = 0
+    cost: float = math.nan
+    alone_cost: float = math.nan
 
 
 def _match_back(config, seed: int, library, pca):
@@ -337,6 +342,8 @@ def run_episode(config: LittleDogTransferConfig, seed: int) -> LittleDogTransfer
         chained_multiple=multi.transfer.chained,
         unsupported=len(single.transfer.unsupported),
         unsupported_multiple=len(multi.transfer.unsupported),
+        cost=single.search.cost,
+        alone_cost=single.search.planner_alone_cost,
     )
 
 
@@ -364,6 +371,8 @@ def summarize(
         back = f"{r.back_within}/{r.eligible}" if r.case != "generated" else "-"
         flat = str(r.on_flat) if r.case == "match_back" else "-"
         one = f"{r.recorded} + {r.planned} ({r.status})" if r.status else "-"
+        if r.status == "reached":
+            one += f"; cost {r.cost:g}, planner alone {r.alone_cost:g}"
         many = (
             f"{r.placed_multiple} ({r.chained_multiple}); {r.recorded_multiple} + "
             f"{r.planned_multiple} "
@@ -384,6 +393,11 @@ def summarize(
             f"{sum(r.planned for r in searched)}, multiple matches "
             f"{sum(r.planned_multiple for r in searched)}; recorded steps "
             f"{sum(r.recorded for r in searched)} vs {sum(r.recorded_multiple for r in searched)}."
+        )
+        lines.append(
+            "A recorded step costs 1 and a planned one 3; the search keeps the planner alone "
+            "unless a path through recorded steps is cheaper, so a row reading 0 + N means "
+            "no transferred step was worth joining (see the module's documentation)."
         )
     table = out_dir / "littledog_transfer_matching.md"
     table.write_text("\n".join(lines) + "\n")

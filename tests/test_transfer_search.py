@@ -1,6 +1,7 @@
 """Best-first search over transferred steps with planner-filled gaps (section V)."""
 
 import dataclasses
+import math
 import time
 
 import numpy as np
@@ -446,3 +447,17 @@ def test_crawl_gap_filler_names_the_planners_refusal():
         result.message
     )
     assert result.message.endswith("leave the height map")
+
+
+def test_result_reports_the_planner_alones_cost():
+    """The cost every path through recorded steps had to beat: 16 planned steps (48) here."""
+    start = stance(0.0)
+    s_in, s_out = crawl(start, 16)
+    result = search_transfer(start, s_out[-1], s_in, s_out, StraightCrawl(), SearchConfig())
+    assert result.cost == pytest.approx(16.0)
+    assert result.planner_alone_cost == pytest.approx(16 * 3.0)
+    none = np.zeros((0, 4, 3))
+    alone = search_transfer(start, stance(0.12), none, none, StraightCrawl())
+    assert alone.planner_alone_cost == alone.cost == pytest.approx(12 * 3.0)
+    failed = search_transfer(stance(0.0), stance(0.5), none, none, Refusing())
+    assert math.isnan(failed.planner_alone_cost)

@@ -41,8 +41,8 @@ from repertoire.planning.action_models.kitchen_features import (
     kitchen_goto_features,
     kitchen_reach_features,
 )
-from repertoire.studies._config_checks import check_range
 
+from repertoire.checks import check_range
 from repertoire.errors import RepertoireError
 
 FETCHED = ("cup_0", "cup_1")

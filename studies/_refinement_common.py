@@ -21,8 +21,8 @@ from repertoire.planning.action_models.features import (
     UNMIRRORED_GOTO_POSE_FEATURES,
     goto_pose_features,
 )
-from repertoire.studies._config_checks import check_range
 
+from repertoire.checks import check_range
 from repertoire.errors import RepertoireError
 
 SOCCER_DOMAIN = """

@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.planning.action_models.features import ARM_REACH_FEATURES, arm_reach_features
-from repertoire.studies._config_checks import check_range
 from repertoire.studies.engine import register_study
 
+from repertoire.checks import check_range
 from repertoire.errors import RepertoireError
 
 PAPER_REACH = {"episodes": 1100, "mean": 2.9, "mae": 0.21}  # Table 1, arm control

@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.studies._action_tables import POSE_FEATURE_FUNCS as FEATURE_FUNCS
-from repertoire.studies._config_checks import check_range
 from repertoire.studies.engine import register_study
 
+from repertoire.checks import check_range
 from repertoire.errors import RepertoireError
 
 BALL_RADIUS = 0.11

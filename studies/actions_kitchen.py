@@ -42,9 +42,9 @@ from repertoire.planning.action_models.kitchen_features import (
     kitchen_reach_arm_features,
     kitchen_reach_features,
 )
-from repertoire.studies._config_checks import check_range
 from repertoire.studies.engine import register_study
 
+from repertoire.checks import check_range
 from repertoire.errors import RepertoireError
 
 ACTIONS = ("goto_pose", "reach")

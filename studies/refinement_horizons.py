@@ -23,7 +23,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.studies._config_checks import check_range
 from repertoire.studies._refinement_common import (
     SoccerPlanConfig,
     document_shared_fields,
@@ -31,6 +30,7 @@ from repertoire.studies._refinement_common import (
 )
 from repertoire.studies.engine import register_study
 
+from repertoire.checks import check_range
 from repertoire.errors import RepertoireError
 
 N_LEGS = 4

@@ -21,27 +21,17 @@ On the modified and generated terrains the section-V search runs from the nomina
 start to the goal, once with one match per step and once with multiple matches
 (section VII): recorded and planned steps on the path (Figs. 11-12).
 
-Why the generated rows read "0 + N": the transferred steps there are not worth
-joining; this is the method's outcome on these boards, not a failed search. With
-recorded steps costing 1 and planned ones 3, the planner alone (18 steps, cost 54,
-seeds 3 and 4) must be beaten. A recorded step moves one foot (1.1-2.3 cm of body
-progress, a planned step 2.3 cm on average), so it saves at most 2 units, while
-joining it takes 2-4 placing moves after the planner's gap (the planner aims at a
-centroid) plus any detour. Seed 3, one match per step: of 14 placed steps, 7 can be
-joined; the cheapest path through one costs 61 (step 1, 5 cm off the line and yawed 16
-degrees: 10 + 3 planned, 1 recorded, 7 planned), the others 67 (7.5 cm off) and
-109-139 (15-20 cm off). Six, yawed 30-41 degrees, cannot be joined (the crawl filler
-keeps its heading, and placing the feet onto the turned stance fails the crawl's
-stability or reach checks after 1-2 of 4 moves: its best gap ends 0.26-0.37 m, summed
-over the feet, from their start stance), nor one at y = 0.17 m with a start foot off
-the crawl's flat-foothold rule (0.17 m off). One pair chains (end to start 0.02 m), at
-y = 0.17 m. Seed 4: all 14 lie at y = 0.15-0.18 m, 10 yawed 28-45 degrees (not
-joinable), the other 4 cost 136-142. Multiple matches, seed 3 (43 placed): the
-joinable steps within 8 cm of the line cost 61-91; yawed ones near the start that
-would cost 52 with a free join need three or more feet placed (>= 9 more). On the
-modified terrain the 5 steps match back at their own places on the line (yaw within 3
-degrees) and form one chain (end to start 0.016-0.026 m): any one of them costs 64-67,
-the chain 5 + 17 (56) against the planner alone's 19 steps (57).
+Why the generated rows read "0 + N" (the table gives each search's cost and the planner
+alone's): no transferred step there is worth joining, which is the method's outcome on
+these boards, not a failed search. A recorded step costs 1 and moves one foot (1.1-2.3
+cm of body progress; a planned step, cost 3, 2.3 cm on average), so it saves at most 2,
+while joining it takes 2-4 moves placing the feet on its start stance (the gap planner
+aims at a centroid) plus any detour. Measured on seeds 3 and 4 (planner alone 54):
+the joinable placed steps cost 61-139 through them; steps yawed 28-45 degrees cannot be
+joined (the crawl gap filler keeps its heading: its best gap ends 0.26-0.43 m, summed
+over the feet, from their start stance); seed 4 places all of them 0.15-0.18 m off the
+crossing line. On the modified terrain the 5 steps match back on the line as one chain:
+5 + 17 (56) against the planner alone's 57.
 
 The summary tabulates every case and draws the modified terrain's matches and both
 searches over its height map. Run it with ``python -m repertoire.studies.littledog_transfer_matching

@@ -1,5 +1,6 @@
 """Simulation helpers and HTML replays (self-contained, loads in headless Chromium)."""
 
+import gc
 import math
 import re
 import shutil
@@ -15,9 +16,12 @@ from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 from repertoire.diagrams.replay import record_replay
 from repertoire.diagrams.simulate import (
     MAX_DURATION_S,
+    MAX_RECORDED_FRAMES,
+    RECORDING_FPS,
     SimulationDivergedError,
     check_duration,
     nonfinite_state_systems,
+    recording_fps,
     simulate,
     simulate_registered,
 )
@@ -118,6 +122,31 @@ def test_duration_above_one_simulated_hour_is_refused_before_any_step():
             simulate(diagram, duration)
     with pytest.raises(RepertoireError, match=r"at most 3600 s .* got 1e\+12"):
         record_replay(build_pendulum, 1e12, None, live=True)  # refused before any Meshcat
+
+
+def test_long_recordings_keep_a_bounded_number_of_frames(monkeypatch):
+    """Up to 2 minutes at 64 frames per second; a longer run at fewer, the same count."""
+    assert (RECORDING_FPS, MAX_RECORDED_FRAMES) == (64.0, 7680)
+    assert recording_fps(0.2) == recording_fps(120.0) == 64.0
+    assert recording_fps(240.0) == 32.0
+    assert recording_fps(3600.0) == pytest.approx(7680 / 3600)
+    # A pendulum recorded for 4 s, with room for 64 frames (16 per second) and at the full
+    # rate: the capped replay is the smaller file.
+    import repertoire.diagrams.simulate as sim
+
+    sizes = []
+    for frames in (64, MAX_RECORDED_FRAMES):
+        monkeypatch.setattr(sim, "MAX_RECORDED_FRAMES", frames)
+        meshcat = Meshcat()
+        diagram = build_pendulum(PendulumScenario(), meshcat=meshcat)
+        simulate(diagram, 4.0, meshcat=meshcat, record=True)
+        animation = meshcat.get_mutable_recording()
+        assert animation.frames_per_second() == min(64.0, frames / 4.0)
+        assert animation.frame(4.0) == min(256, frames)
+        sizes.append(len(meshcat.StaticHtml()))
+        del diagram, meshcat
+        gc.collect()  # destroy the Meshcat on this thread (see record_replay)
+    assert sizes[0] < sizes[1]
 
 
 def test_bad_simulate_options_are_refused():

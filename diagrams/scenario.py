@@ -82,10 +82,11 @@ def _fits(tp: type, value) -> bool:
 
 
 def _wrong_field(schema: type, text: str | None) -> str | None:
-    """Names the first field (nested ones too) whose YAML value has the wrong type.
+    """Names the first field (nested ones too) whose YAML value has the wrong type or keys.
 
     Drake's loader says ``invalid literal for int()`` or ``'int' object is not
-    iterable`` without the field; this finds it. Returns None when no such
+    iterable`` without the field, and names an unknown key of a nested mapping
+    without saying where it is; this finds it. Returns None when no such
     field is found (the loader's message then stands).
     """
     try:
@@ -110,6 +111,10 @@ def _mismatch(tp, value, where: str) -> str | None:
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, dict):
             return f"field '{where}' expects a mapping of {tp.__name__} fields, {got}"
+        names = [f.name for f in dataclasses.fields(tp)]
+        unknown = [k for k in value if k not in names]
+        if unknown and where:  # the loader names nested unknown keys but not where they are
+            return f"field '{where}' has unknown keys {unknown}; {tp.__name__} expects {names}"
         for field in dataclasses.fields(tp):
             if field.name in value:
                 inner = f"{where}.{field.name}" if where else field.name

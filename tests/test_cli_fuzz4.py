@@ -97,6 +97,33 @@ def test_a_wrong_type_inside_a_list_dict_or_nested_field_names_that_field(text, 
     )
 
 
+@dataclasses.dataclass
+class Holder:
+    items: list[Inner] = dataclasses.field(default_factory=list)
+    by_name: dict[str, Inner] = dataclasses.field(default_factory=dict)
+
+
+@pytest.mark.parametrize(
+    "schema, text, reason",
+    [
+        (Outer, "inner: {kk: 2.0}", "field 'inner' has unknown keys ['kk']; Inner expects ['k']"),
+        (Holder, "items: [{k: 1.0}, {k: 2.0, kk: 3.0}]", "field 'items[1]' has unknown keys"),
+        (Holder, "by_name: {a: {K: 1.0}}", "field 'by_name.a' has unknown keys ['K']"),
+    ],
+)
+def test_an_unknown_key_of_a_nested_mapping_names_where_it_is_and_what_fits(schema, text, reason):
+    # Drake's loader says only "The fields ['kk'] were unknown to the schema", and the
+    # top-level keys listed after it do not hold the nested field's name.
+    with pytest.raises(ScenarioError) as e:
+        load_scenario(schema, data=text)
+    assert reason in str(e.value)
+
+
+def test_an_unknown_top_level_key_keeps_the_loaders_message():
+    with pytest.raises(ScenarioError, match=r"The fields \['xz'\] were unknown to the schema"):
+        load_scenario(Outer, data="xz: [1.0]")
+
+
 def test_malformed_yaml_is_reported_on_one_line():
     with pytest.raises(ScenarioError) as e:
         load_scenario(PendulumScenario, data="angle: [1\n")

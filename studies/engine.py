@@ -283,9 +283,12 @@ def run_study(
     nan_field = _nan_field(plain_config, "config")
     if nan_field:  # no study means anything by NaN; refused before the store is touched
         raise RepertoireError(f"study '{name}': {nan_field} is NaN; expected a number")
-    config_json = canonical_json(plain_config)
-    rebuilt = from_plain(entry.config_type, json.loads(config_json), "config")
-    if canonical_json(to_plain(rebuilt, "config")) != config_json:
+    # The config as the workers rebuild it: typed (an int given for a float field is
+    # that float, as a YAML config would load it), so the store's config is one text.
+    rebuilt = from_plain(entry.config_type, json.loads(canonical_json(plain_config)), "config")
+    config_json = canonical_json(to_plain(rebuilt, "config"))
+    again = from_plain(entry.config_type, json.loads(config_json), "config")
+    if canonical_json(to_plain(again, "config")) != config_json:
         raise RepertoireError(
             f"study '{name}': the config does not survive the trip to plain data and back "
             "(workers could not rebuild it); use plain dataclass fields"

@@ -271,6 +271,22 @@ def test_changed_config_is_refused_unless_fresh(tmp_path, toy_studies):
         run_study("pendulum", smoke_config(), episodes=1, executor="inline", **_kw(tmp_path))
 
 
+def test_whole_numbers_given_for_float_fields_are_the_same_config_as_their_floats(
+    tmp_path, toy_studies
+):
+    # ToyConfig(scale=2) is what a YAML "scale: 2" loads as (2.0): one config, one store.
+    first = run_study(
+        "_toy", ToyConfig(scale=2, offsets=[1, -1]), episodes=2, executor="inline", **_kw(tmp_path)
+    )
+    assert first.config == ToyConfig(scale=2.0, offsets=[1.0, -1.0])
+    assert type(first.config.scale) is float and [r.value for r in first.records] == [0.0, 2.0]
+    again = run_study("_toy", ToyConfig(), episodes=3, executor="inline", **_kw(tmp_path))
+    assert (again.n_run, again.n_reused) == (1, 2)
+    with sqlite3.connect(tmp_path / "s.sqlite") as db:
+        meta = dict(db.execute("SELECT key, value FROM meta"))
+    assert meta["config_json"] == '{"offsets":[1.0,-1.0],"scale":2.0}'
+
+
 def test_store_never_duplicates_and_rejects_foreign_files(tmp_path):
     path = tmp_path / "x.sqlite"
     with EpisodeStore.open(path, study="a", config_json="{}", record_fields=["v"]) as db:

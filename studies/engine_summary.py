@@ -140,6 +140,18 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
+def seed_ranges(seeds: list[int], most: int = 6) -> str:
+    """Sorted seeds as ranges: ``[0, 1, 2, 10, 11]`` -> ``'0..2, 10..11'`` (``most`` ranges)."""
+    runs: list[list[int]] = []
+    for seed in sorted(seeds):
+        if runs and seed == runs[-1][1] + 1:
+            runs[-1][1] = seed
+        else:
+            runs.append([seed, seed])
+    text = ", ".join(f"{a}..{b}" if b > a else f"{a}" for a, b in runs[:most])
+    return text + (f", ... ({len(runs)} ranges)" if len(runs) > most else "")
+
+
 def write_tables(
     name: str, record_type: type, records: list, seeds: list[int], out_dir: Path
 ) -> dict[str, Path]:
@@ -154,7 +166,7 @@ def write_tables(
             w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in row.items()})
     md_path = out_dir / "summary.md"
     lines = [
-        f"# Study `{name}`: {len(records)} episodes (seeds {seeds[0]}..{seeds[-1]})",
+        f"# Study `{name}`: {len(records)} episodes (seeds {seed_ranges(seeds)})",
         "",
         f"Every one of the {len(records)} episodes stored for this config (the store may hold "
         "more seeds than the last run asked for). `n` counts the finite values of a field; "
@@ -167,11 +179,16 @@ def write_tables(
     md_path.write_text("\n".join(lines) + "\n")
     ep_path = out_dir / "episodes.csv"
     fields = [f.name for f in dataclasses.fields(record_type)]
+    # A record that keeps its own seed field gets no second "seed" column (a header naming
+    # a column twice reads back as seed.1 or overwrites); the store's seed is kept apart
+    # only where a record's seed field says otherwise.
+    own_seed = "seed" in fields and all(r.seed == s for s, r in zip(seeds, records))
+    seed_column = [] if own_seed else ["stored_seed" if "seed" in fields else "seed"]
     with ep_path.open("w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["seed", *fields])
+        w.writerow([*seed_column, *fields])
         for seed, rec in zip(seeds, records):
-            row = [seed]
+            row = [] if own_seed else [seed]
             for f in fields:
                 v = getattr(rec, f)
                 row.append(

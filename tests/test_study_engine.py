@@ -669,3 +669,37 @@ def test_figures_cover_every_stored_seed_like_the_tables(tmp_path, toy_studies):
     assert later.seeds == [5, 6] and len(later.records) == 2  # the result: this call's
     assert seen == [[0.0, 2.0, 4.0], [0.0, 2.0, 4.0, 10.0, 12.0]]  # the figures: all stored
     assert "Every one of the 5 episodes stored" in later.tables["summary.md"].read_text()
+    assert "5 episodes (seeds 0..2, 5..6)" in later.tables["summary.md"].read_text()
+
+
+def test_seed_ranges_name_exactly_the_stored_seeds():
+    from repertoire.studies.engine_summary import seed_ranges
+
+    assert seed_ranges([3]) == "3"
+    assert seed_ranges([2, 0, 1, 10, 11, 7]) == "0..2, 7, 10..11"
+    assert seed_ranges(list(range(0, 40, 2)), most=2) == "0, 2, ... (20 ranges)"
+
+
+@dataclasses.dataclass
+class SeededRecord:
+    seed: int
+    value: float
+
+
+def test_episodes_csv_has_one_seed_column_when_the_record_keeps_its_seed(tmp_path):
+    import csv
+
+    from repertoire.studies.engine import write_tables
+
+    rows = lambda p: list(csv.reader(p.read_text().splitlines()))  # noqa: E731
+    recs = [SeededRecord(4, 0.5), SeededRecord(9, 1.5)]
+    tables = write_tables("x", SeededRecord, recs, [4, 9], tmp_path)
+    assert rows(tables["episodes.csv"]) == [["seed", "value"], ["4", "0.5"], ["9", "1.5"]]
+    # A record whose seed field disagrees with the store keeps both, under two names.
+    tables = write_tables("x", SeededRecord, recs, [4, 8], tmp_path)
+    assert rows(tables["episodes.csv"])[0] == ["stored_seed", "seed", "value"]
+    assert rows(tables["episodes.csv"])[2] == ["8", "9", "1.5"]
+    tables = write_tables("x", ToyRecord, [toy_episode(ToyConfig(), 3)], [3], tmp_path)
+    assert rows(tables["episodes.csv"])[0] == ["seed", "value", "parity", "even", "samples"] + [
+        "wall_time_s"
+    ]

@@ -7,7 +7,8 @@ added to the package shows up here without touching this file. Heavy imports
 
 Exit codes: 0 success, 1 a run failed (diverged simulation, failed demo part),
 2 bad input (unknown name, bad scenario/config YAML, bad option); on exit code 2
-nothing has been written.
+nothing has been written; 130 interrupted (Ctrl-C); 141 the reader of its output
+went away (``repertoire list | head``), without a traceback.
 """
 
 import argparse
@@ -397,6 +398,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `repertoire list | head`: the reader has all it wanted
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error at exit
+        return 141  # as a shell reports a command ended by SIGPIPE
 
 
 if __name__ == "__main__":

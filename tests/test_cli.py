@@ -378,3 +378,17 @@ def test_a_failing_episode_is_a_failed_run_exit_1_without_an_engine_traceback(
     err = capsys.readouterr().err
     assert err.startswith("repertoire study: run failed: study 'broken_study': run_episode failed")
     assert "RuntimeError: episode 0 exploded" in err and "rerun to resume" in err
+
+
+def test_output_piped_into_a_reader_that_stops_early_ends_without_a_traceback():
+    # `repertoire list | head -1`: the reader is gone before the command prints.
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "repertoire", "list"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    proc.stdout.close()
+    err = proc.stderr.read()
+    assert proc.wait(timeout=120) == 141
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err

@@ -338,8 +338,10 @@ class WorkerPool:
             if lost_starts > MAX_LOST_STARTS:
                 raise RepertoireError(
                     f"pool workers keep dying before they run a seed ({lost_starts} in a row, "
-                    f"the last {describe_exit(worker.proc.exitcode)}); a script read from stdin "
-                    "cannot start workers; use --executor inline (executor='inline') to see why"
+                    f"the last {describe_exit(worker.proc.exitcode)}); each worker first runs "
+                    "the main script's top level, so a script must call run_study under "
+                    "`if __name__ == '__main__':`, and a script read from stdin cannot start "
+                    "workers; use --executor inline (executor='inline') to see why"
                 )
             self._replace(worker, True)
 

@@ -4,6 +4,7 @@ engine's module split (engine_* modules are not studies)."""
 import importlib
 import json
 import sqlite3
+import subprocess
 import sys
 import textwrap
 import types
@@ -227,6 +228,25 @@ def test_workers_that_die_at_start_up_blame_no_seed_and_give_a_clear_error(tmp_p
     finally:
         registry._REGISTRY.pop("_dies_study", None)
         sys.modules.pop("dies_at_import", None)
+
+
+def test_a_script_without_a_main_guard_is_told_why_its_workers_die(tmp_path):
+    # Each worker runs the main script's top level: an unguarded run_study call there
+    # starts a pool inside the worker, which multiprocessing refuses, so workers die.
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        _MODULE.replace("PoolConfig", "UnguardedConfig").replace("_pool_study", "_unguarded")
+        + "\nfrom repertoire.studies.engine import run_study\n"
+        + f"run_study('_unguarded', episodes=2, executor='process', workers=1, "
+        f"out_dir={str(tmp_path / 'out')!r}, progress=False)\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-P", str(script)], capture_output=True, text=True, timeout=240
+    )
+    assert run.returncode == 1
+    last = run.stderr.strip().splitlines()[-1]
+    assert "pool workers keep dying before they run a seed" in last
+    assert "must call run_study under `if __name__ == '__main__':`" in last
 
 
 def test_fewer_seeds_than_workers_and_every_worker_is_gone_after_close(pool_study):

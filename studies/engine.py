@@ -34,6 +34,7 @@ This module imports neither pydrake nor dask at import time.
 import argparse
 import dataclasses
 import json
+import numbers
 import os
 import sys
 import time
@@ -154,9 +155,11 @@ EPISODE_BOOKKEEPING_BYTES = 200
 
 
 def _check_int(label: str, value: Any, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+    """``value`` as an int (a Python or numpy whole number) >= ``minimum``, or an error."""
+    # numbers.Integral as repertoire.checks.is_whole, which would import numpy here
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
         raise RepertoireError(f"{label} must be an int >= {minimum}, got {value!r}")
-    return value
+    return int(value)
 
 
 def _records_from_rows(entry: StudyEntry, rows) -> list:

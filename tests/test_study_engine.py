@@ -134,6 +134,18 @@ def test_non_positive_episodes_is_refused_and_creates_nothing(tmp_path, episodes
     assert list(tmp_path.iterdir()) == []
 
 
+def test_numpy_whole_numbers_count_as_ints_and_floats_or_bools_do_not(tmp_path, toy_studies):
+    import numpy as np
+
+    kw = dict(executor="inline", **_kw(tmp_path))
+    result = run_study("_toy", episodes=np.int64(2), first_seed=np.uint8(3), **kw)
+    assert result.seeds == [3, 4] and all(type(s) is int for s in result.seeds)
+    assert [r.value for r in result.records] == [6.0, 8.0]
+    for bad in (2.0, True, np.float64(2.0)):
+        with pytest.raises(RepertoireError, match=r"--episodes \(episodes\) must be an int >= 1"):
+            run_study("_toy", episodes=bad, **kw)
+
+
 def test_other_bad_arguments(tmp_path, toy_studies):
     with pytest.raises(RepertoireError, match="executor must be one of"):
         run_study("_toy", episodes=2, executor="threads", **_kw(tmp_path))

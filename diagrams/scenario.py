@@ -74,11 +74,26 @@ _SCALARS = {int: "a whole number", float: "a number", bool: "true or false", str
 
 
 def _fits(tp: type, value) -> bool:
-    if tp is int:
-        return isinstance(value, int) and not isinstance(value, bool)
-    if tp is float:
-        return isinstance(value, (int, float)) and not isinstance(value, bool)
-    return isinstance(value, tp)
+    """Whether Drake's ``yaml_load_typed`` takes YAML scalar ``value`` for a ``tp`` field.
+
+    Its rules: the same type; an int for a float; a whole float for an int; a string
+    that ``float()`` / ``int()`` parses for a number (safe_load reads ``1e-3`` and
+    ``"0.4"`` as strings); ``"true"`` / ``"false"`` for a bool. A field it takes must
+    never be blamed for another field's error.
+    """
+    if type(value) is tp:
+        return True
+    if tp is float and type(value) is int:
+        return True
+    if tp is int and type(value) is float:
+        return value.is_integer()
+    if tp in (float, int) and type(value) is str:
+        try:
+            tp(value)
+        except ValueError:
+            return False
+        return True
+    return tp is bool and value in ("true", "false")
 
 
 def _wrong_field(schema: type, text: str | None) -> str | None:

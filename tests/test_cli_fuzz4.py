@@ -124,6 +124,34 @@ def test_an_unknown_top_level_key_keeps_the_loaders_message():
         load_scenario(Outer, data="xz: [1.0]")
 
 
+@dataclasses.dataclass
+class Scalars:
+    n: int = 0
+    enabled: bool = False
+
+
+@pytest.mark.parametrize(
+    "schema, text, reason",
+    [
+        # 1e-3 and "0.5" load as numbers (PyYAML alone reads them as strings)
+        (Outer, "xs: [1e-3, '0.5']\ninner: {k: x}", "field 'inner.k' expects a number"),
+        (Outer, "xs: [1e-3]\nxz: 1", "The fields ['xz'] were unknown to the schema"),
+        (Scalars, "n: 2.0\nenabled: 'true'\nzz: 1", "The fields ['zz'] were unknown to the schema"),
+        (Scalars, "n: 2.5", "field 'n' expects a whole number (int), got 2.5 (float)"),
+        (
+            Scalars,
+            "enabled: 'yes'",
+            "field 'enabled' expects true or false (bool), got 'yes' (str)",
+        ),
+    ],
+)
+def test_a_value_the_loader_takes_is_never_blamed_for_another_error(schema, text, reason):
+    with pytest.raises(ScenarioError) as e:
+        load_scenario(schema, data=text)
+    assert reason in str(e.value)
+    assert load_scenario(Outer, data="xs: [1e-3, '0.5']").xs == [0.001, 0.5]
+
+
 def test_malformed_yaml_is_reported_on_one_line():
     with pytest.raises(ScenarioError) as e:
         load_scenario(PendulumScenario, data="angle: [1\n")

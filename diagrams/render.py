@@ -76,6 +76,11 @@ def _stem(out_path: str | Path) -> Path:
     return path
 
 
+def _with_format(stem: Path, fmt: str) -> Path:
+    """``stem`` plus ``.fmt``, keeping any dot in the stem (``run_0.5`` -> ``run_0.5.svg``)."""
+    return stem.with_name(f"{stem.name}.{fmt}")
+
+
 def render_diagram(
     diagram: System,
     out_path: str | Path,
@@ -114,10 +119,10 @@ def render_diagram(
         )
     stem = _stem(out_path)
     for fmt in ("dot", *formats):  # a folder in the way fails now, not after the graph
-        require_writable_file(stem.with_suffix(f".{fmt}"), "out_path")
+        require_writable_file(_with_format(stem, fmt), "out_path")
     text = graphviz_text(diagram, max_depth)
     stem.parent.mkdir(parents=True, exist_ok=True)
-    dot_path = stem.with_suffix(".dot")
+    dot_path = _with_format(stem, "dot")
     dot_path.write_text(text)
     result = RenderResult(files={"dot": dot_path}, skipped=[])
     if not formats:
@@ -139,7 +144,7 @@ def render_diagram(
             raise RuntimeError("pydot could not parse the Graphviz text")
         graph = graphs[0]
         for fmt in formats:
-            path = stem.with_suffix(f".{fmt}")
+            path = _with_format(stem, fmt)
             graph.write(str(path), prog="dot", format=fmt)
             result.files[fmt] = path
     except Exception as e:  # pydot raises FileNotFoundError, AssertionError, OSError, ...

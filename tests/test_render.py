@@ -105,6 +105,16 @@ def test_only_dot_when_no_formats(tmp_path):
 
 
 @pytest.mark.parametrize(
+    "out, written",
+    [("run_0.5", "run_0.5.dot"), ("g.v2.svg", "g.v2.dot"), ("plain.dot", "plain.dot")],
+)
+def test_a_dot_in_the_output_stem_is_kept(tmp_path, out, written):
+    result = render_diagram(build_pendulum(PendulumScenario()), tmp_path / out, formats=())
+    assert result.files == {"dot": tmp_path / written}
+    assert [p.name for p in tmp_path.iterdir()] == [written]
+
+
+@pytest.mark.parametrize(
     "kwargs, match",
     [
         (dict(formats=["jpg"]), r"unknown image format\(s\) \['jpg'\]"),

@@ -527,7 +527,10 @@ def add_study_arguments(parser: argparse.ArgumentParser, *, with_name: bool = Tr
         "--config",
         type=Path,
         default=None,
-        help="YAML file of the study's config (default: its demo config)",
+        help=(
+            "YAML file of the study's config; keys it leaves out keep the demo config's "
+            "values (default: the demo config, as `repertoire show NAME` prints it)"
+        ),
     )
     parser.add_argument(
         "--smoke", action="store_true", help="use the study's tiny smoke-test config instead"
@@ -586,7 +589,14 @@ def run_study_from_args(args: argparse.Namespace, name: str | None = None) -> St
     if args.config is not None:
         from repertoire.diagrams.scenario import load_scenario
 
-        config = load_scenario(entry.config_type, filename=args.config, what="config")
+        # Keys the file leaves out keep the config the study runs without --config, the
+        # one `repertoire show NAME` prints (its demo config), not the bare dataclass's.
+        config = load_scenario(
+            entry.config_type,
+            filename=args.config,
+            defaults=entry.default_config(),
+            what="config",
+        )
     elif args.smoke:
         if entry.smoke_config is None:
             raise RepertoireError(f"study '{name}' has no smoke config")

@@ -19,6 +19,7 @@ from repertoire.studies.engine import (
     comparable,
     get_study,
     is_timing_field,
+    load_records,
     register_study,
     run_study,
     study_main,
@@ -509,6 +510,22 @@ def test_study_main_runs_and_reports_bad_input(tmp_path, capsys):
         == 2
     )
     assert "--episodes (episodes) must be an int >= 1" in capsys.readouterr().err
+
+
+def test_keys_a_config_file_leaves_out_keep_the_demo_config_show_prints(
+    tmp_path, toy_studies, capsys
+):
+    from repertoire.show import show_text
+
+    registry._REGISTRY["_toy"].demo_config = lambda: ToyConfig(scale=5.0)
+    assert "scale: 5.0" in show_text("_toy")  # "keys you leave out keep these defaults"
+    (tmp_path / "partial.yaml").write_text("offsets: [2.0]\n")
+    argv = ["--config", str(tmp_path / "partial.yaml"), "-n", "2", "--executor", "inline"]
+    argv += ["--out-dir", str(tmp_path / "o"), "--no-progress"]
+    assert study_main("_toy", argv) == 0
+    config, records = load_records(tmp_path / "o" / "episodes.sqlite")
+    assert config == ToyConfig(scale=5.0, offsets=[2.0])  # not ToyConfig()'s scale 2.0
+    assert [(r.value, r.samples) for r in records.values()] == [(0.0, [0.0]), (5.0, [2.0])]
 
 
 _CRASH_MODULE = textwrap.dedent(

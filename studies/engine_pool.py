@@ -157,6 +157,9 @@ def _worker_main(
 ) -> None:
     """A pool worker: runs the seed lists it receives, sends one result per seed, in order."""
     sys.path[:] = sys_path  # the fork server's path may predate the engine's additions
+    # Ctrl-C reaches the whole process group: the engine alone handles it and stops the
+    # workers (a KeyboardInterrupt traceback from every worker would bury its message).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True).start()
     try:
         lookup_in_module(module, name)  # import the study once, before the first seed

@@ -276,3 +276,86 @@ def test_prestart_fork_server_leaves_a_running_server_for_the_pool():
     assert pid is not None
     prestart_fork_server().join(120.0)  # idempotent: the same server
     assert forkserver._forkserver._forkserver_pid == pid
+
+
+_SIGINT_MODULE = textwrap.dedent(
+    """
+    import dataclasses
+    import signal
+
+    from repertoire.studies.engine import register_study
+
+
+    @dataclasses.dataclass
+    class SigintConfig:
+        pass
+
+
+    @dataclasses.dataclass
+    class SigintRecord:
+        sigint_ignored: bool
+
+
+    def run_episode(config, seed):
+        return SigintRecord(signal.getsignal(signal.SIGINT) is signal.SIG_IGN)
+
+
+    register_study("_sigint_study", config_type=SigintConfig, record_type=SigintRecord,
+                   run_episode=run_episode, description="test-only")
+    """
+)
+
+
+def test_pool_workers_leave_ctrl_c_to_the_engine(tmp_path, monkeypatch):
+    # Ctrl-C signals the whole process group; a worker that took it printed its own
+    # KeyboardInterrupt traceback, one per worker, around the engine's one-line message.
+    (tmp_path / "sigint_module.py").write_text(_SIGINT_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    importlib.import_module("sigint_module")
+    try:
+        with WorkerPool("sigint_module", "_sigint_study", "{}", 2) as pool:
+            results = list(pool.run([0, 1, 2]))
+    finally:
+        registry._REGISTRY.pop("_sigint_study", None)
+        sys.modules.pop("sigint_module", None)
+    assert [r["record"] for r in results] == [{"sigint_ignored": True}] * 3
+
+
+def test_ctrl_c_on_a_pool_run_prints_one_line_and_keeps_the_store_consistent(tmp_path):
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "repertoire", "study", "pendulum", "-n", "400", "-j", "2"]
+    proc = subprocess.Popen(
+        [*argv, "--out-dir", str(out), "--no-progress"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # Ctrl-C in a terminal signals the whole process group
+    )
+    store = out / "episodes.sqlite"
+    deadline = time.monotonic() + 120.0
+    while time.monotonic() < deadline:  # both workers run once an episode is stored
+        try:
+            with sqlite3.connect(f"file:{store}?mode=ro", uri=True, timeout=1.0) as db:
+                if db.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]:
+                    break
+        except sqlite3.OperationalError:
+            pass
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert err.strip() == "interrupted", err  # no KeyboardInterrupt traceback per worker
+    _, rows = read_store(store)
+    assert 0 < len(rows) < 400 and len({r.seed for r in rows}) == len(rows)
+    for _ in range(50):  # the workers and the fork server go with the engine
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.2)
+    else:
+        raise AssertionError("processes of the interrupted run are still alive")

@@ -632,7 +632,8 @@ def study_main(
     """Command-line entry point; a study module's ``main()`` calls ``study_main("its_name")``.
 
     Returns:
-        The process exit code (2 with a one-line message on bad input).
+        The process exit code: 0, 1 a failed run, 2 bad input (a one-line message),
+        130 interrupted (Ctrl-C; finished episodes stay stored).
     """
     prog = f"python -m {get_study(name).module}" if name else "python -m repertoire.studies.engine"
     parser = argparse.ArgumentParser(
@@ -661,6 +662,9 @@ def study_main(
     except EpisodeError as e:  # an episode failed or crashed: a failed run, not bad input
         print(f"run failed: {e}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # Ctrl-C: finished episodes are stored, a rerun resumes
+        print("interrupted", file=sys.stderr)
+        return 130
     return 0
 
 

@@ -528,6 +528,31 @@ def test_keys_a_config_file_leaves_out_keep_the_demo_config_show_prints(
     assert [(r.value, r.samples) for r in records.values()] == [(0.0, [0.0]), (5.0, [2.0])]
 
 
+def interrupted_episode(config: ToyConfig, seed: int) -> ToyRecord:
+    if seed == 2:
+        raise KeyboardInterrupt  # as Ctrl-C during an episode
+    return toy_episode(config, seed)
+
+
+def test_ctrl_c_in_a_study_script_is_one_line_exit_130_and_keeps_finished_episodes(
+    tmp_path, toy_studies, capsys
+):
+    register_study(
+        "_toy_interrupted",
+        config_type=ToyConfig,
+        record_type=ToyRecord,
+        run_episode=interrupted_episode,
+        description="test-only study",
+    )
+    try:
+        argv = ["-n", "4", "--executor", "inline", "--out-dir", str(tmp_path), "--no-progress"]
+        assert study_main("_toy_interrupted", argv) == 130
+        assert capsys.readouterr().err == "interrupted\n"
+        assert sorted(load_records(tmp_path / "episodes.sqlite")[1]) == [0, 1]
+    finally:
+        registry._REGISTRY.pop("_toy_interrupted", None)
+
+
 _CRASH_MODULE = textwrap.dedent(
     """
     import dataclasses

@@ -5,11 +5,14 @@ second-generation footstep planner, issue 9) to the :class:`GapFiller` protocol 
 :mod:`repertoire.planning.transfer_search`: one planner, not a second copy.
 
 The crawl planner's goal is a point for the feet's centroid (within its
-``goal_radius``), not a whole stance, so a filled gap ends with the feet's centroid
-near the target stance's centroid; the remaining foot offsets (up to the goal
-radius plus the lattice's offsets) are left to the executor that starts the next
-recorded step. Planned footholds (ground points) are raised by the foot radius to
-foot centres, like library stances. The planner's statuses map to the protocol's:
+``goal_radius``) and a heading (within its ``heading_tolerance``), not a whole
+stance: a filled gap ends with the feet's centroid near the target stance's
+centroid and their heading near the target's (:func:`heading_of`: the crawl turns
+the body, so a recorded step matched with a yaw can be joined); the remaining foot
+offsets (up to the goal radius plus the lattice's offsets) are placed
+(``place_feet``) or left to the executor that starts the next recorded step.
+Planned footholds (ground points) are raised by the foot radius to foot centres,
+like library stances. The planner's statuses map to the protocol's:
 SUCCESS -> reached, TIME_LIMIT -> time_limit, NODE_LIMIT with steps -> partial,
 anything else -> failed.
 
@@ -17,6 +20,12 @@ The search's time limit is CPU time; the crawl planner measures wall time, which
 under load runs ahead of CPU time. Its budget per gap is therefore its expansion
 count (``max_expansions``, the same on any machine) with a wall-time safety limit
 of at least ``planner_wall_limit``, and the search checks its CPU budget between gaps.
+The wall limit is kept at least ``planner_wall_limit`` rather than the search's
+remaining budget: a gap cut by wall time would depend on the machine's load. Measured
+on the matching study (seeds 2-7), every gap call succeeded within 78 expansions and
+0.6 s, so the limit never decides there; at 10-20 ms per expansion (the turning model)
+a gap needing more than about 500 (a 90 degree turn in place took 366-770) can reach it,
+and the search's CPU budget can then be overrun by up to ``planner_wall_limit``.
 """
 
 import dataclasses
@@ -31,7 +40,7 @@ from repertoire.planning.footstep.quadruped import (
     swing_support_margin,
 )
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
-from repertoire.planning.littledog_crawl import CrawlError, CrawlStep
+from repertoire.planning.littledog_crawl import CrawlError, CrawlStep, heading_of
 from repertoire.planning.littledog_crawl import CrawlParams as ExecParams
 from repertoire.planning.littledog_crawl import plan_crawl as execute_crawl
 from repertoire.planning.transfer_search import GapFill, PlannedStep, TransferSearchError
@@ -101,8 +110,10 @@ class CrawlGapFiller:
     place_within: float = 0.0
     planner_wall_limit: float = 10.0
 
-    def _plan(self, start: np.ndarray, goal_xy: np.ndarray, time_limit: float):
+    def _plan(self, start: np.ndarray, goal_xy: np.ndarray, time_limit: float, heading=None):
         """Planned steps (foot centres) from ``start``, the planner's status and its refusal.
+
+        ``heading``: the goal heading of the stance (rad), or None.
 
         A start or goal the planner refuses (e.g. on a rock's edge, or off its map) gives
         no steps, status None and the planner's message (else the message is empty).
@@ -118,6 +129,7 @@ class CrawlGapFiller:
                 weight=self.weight,
                 crawl=self.crawl,
                 ground=self.board,
+                goal_heading=heading,
             )
         except FootstepError as e:
             return [], None, f"the crawl planner refused: {e}"
@@ -152,7 +164,7 @@ class CrawlGapFiller:
         return executable_prefix(steps[:n], self.crawl, board) if n else 0
 
     def __call__(self, start: np.ndarray, target: np.ndarray, time_limit: float) -> GapFill:
-        """Plans crawl steps from ``start`` (4, 3) towards ``target``'s centroid."""
+        """Plans crawl steps from ``start`` (4, 3) towards ``target``'s centroid and heading."""
         start = np.asarray(start, dtype=float)
         target = np.asarray(target, dtype=float)
         if start.shape != (4, 3) or target.shape != (4, 3):
@@ -167,7 +179,7 @@ class CrawlGapFiller:
             # A recorded step's start (flat footholds): the gap ends on its exact stance,
             # so the nearest-step policy picks it next; unreachable placing = gap unusable.
             place = bool(np.all(foothold_ok(self.board, target[:, :2], self.crawl)))
-        new, status, refusal = self._plan(start, goal_xy, time_limit)
+        new, status, refusal = self._plan(start, goal_xy, time_limit, heading_of(target))
         planned = len(new)
         if status is PlanStatus.SUCCESS and place:
             from repertoire.planning.transfer_library import placing_steps

@@ -26,12 +26,15 @@ alone's): no transferred step there is worth joining, which is the method's outc
 these boards, not a failed search. A recorded step costs 1 and moves one foot (1.1-2.3
 cm of body progress; a planned step, cost 3, 2.3 cm on average), so it saves at most 2,
 while joining it takes 2-4 moves placing the feet on its start stance (the gap planner
-aims at a centroid) plus any detour. Measured on seeds 3 and 4 (planner alone 54):
-the joinable placed steps cost 61-139 through them; steps yawed 28-45 degrees cannot be
-joined (the crawl gap filler keeps its heading: its best gap ends 0.26-0.43 m, summed
-over the feet, from their start stance); seed 4 places all of them 0.15-0.18 m off the
-crossing line. On the modified terrain the 5 steps match back on the line as one chain:
-5 + 17 (56) against the planner alone's 57.
+aims at a centroid and a heading) plus any detour. Measured on seeds 3 and 4 (planner
+alone 54): the joinable placed steps cost 61-139 through them. Steps yawed 28-45
+degrees are joinable too since the crawl gap filler turns the body to the step's start
+heading (gaps from the start that end on the step's start stance: seed 3 10 of its 14
+placed steps, seed 4 9 of 14; 7 and 4 when the filler kept its heading and ended
+0.26-0.43 m, summed over the feet, from a yawed step's start), but a path from the start
+through one of them costs 88 (seed 3, 34 degrees) or more; seed 4 places all of them
+0.15-0.18 m off the crossing line. On the modified terrain the 5 steps match back on the
+line as one chain: 5 + 17 (56) against the planner alone's 57.
 
 The summary tabulates every case and draws the modified terrain's matches and both
 searches over its height map. Run it with ``python -m repertoire.studies.littledog_transfer_matching

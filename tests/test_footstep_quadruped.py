@@ -1,6 +1,7 @@
 """Tests of the generic search core and the LittleDog crawl step model."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -347,3 +348,77 @@ def test_swing_support_margin_closed_form_and_the_filler_holds_placing_moves_to_
     assert CrawlGapFiller(hm).usable_prefix([step]) == 1
     strict = CrawlParams(support_margin=0.02)  # more than the step's 1.71 cm
     assert CrawlGapFiller(hm, params=strict).usable_prefix([step]) == 0
+
+
+# The flat-board crawl to (0.25, 0) planned in world axes before the body could turn.
+_STRAIGHT_FOOTHOLDS = [
+    [-0.04, 0.06], [0.18, 0.06], [-0.01, -0.06], [0.22, -0.06], [0.05, 0.06],
+    [0.27, 0.06], [0.09, -0.06], [0.32, -0.06], [0.14, 0.06], [0.33, 0.06],
+]  # fmt: skip
+
+
+def test_crawl_with_heading_zero_keeps_the_world_axis_footholds():
+    hm = _board_map("flat")
+    start = nominal_foot_positions()[:, :2]
+    plans = [plan_crawl(hm, start, (0.25, 0.0), goal_heading=h) for h in (None, 0.0, 2 * math.pi)]
+    for plan in plans:
+        assert plan.status is PlanStatus.SUCCESS
+        np.testing.assert_allclose(
+            [s.p_WF[:2] for s in plan.steps], _STRAIGHT_FOOTHOLDS, atol=1e-12
+        )
+        assert heading_of(plan.steps[-1].stance) == 0.0
+
+
+@pytest.mark.parametrize("goal_deg", [30.0, -45.0])
+def test_crawl_turns_to_a_goal_heading_on_flat_ground(goal_deg):
+    from repertoire.planning.transfer_crawl_filler import executable_prefix
+    from repertoire.planning.transfer_search import PlannedStep
+
+    board = generate_board(TerrainParams(kind="flat", size_x=1.0, size_y=0.6), seed=1)
+    hm = height_map_from_board(board, (-0.3, 0.7), (-0.3, 0.3), 0.01)
+    params = CrawlParams()
+    start = nominal_foot_positions()[:, :2]
+    goal = math.radians(goal_deg)
+    plan = plan_crawl(hm, start, (0.1, 0.0), params, time_limit=30.0, goal_heading=goal)
+    assert plan.status is PlanStatus.SUCCESS
+    final = plan.steps[-1].stance
+    assert abs(heading_of(final) - goal) <= params.heading_tolerance
+    assert math.hypot(*(final[:, :2].mean(axis=0) - [0.1, 0.0])) <= params.goal_radius
+    # The body turns by at most turn_step per step: the feet cannot turn 30 degrees at once.
+    assert len(plan.steps) >= 4
+    _check_plan(plan, hm, params, board)
+    lift = np.array([0.0, 0.0, FOOT_RADIUS])
+    stances = [plan.start_stance + lift] + [s.stance + lift for s in plan.steps]
+    steps = [PlannedStep(a, b, s.foot) for a, b, s in zip(stances, stances[1:], plan.steps)]
+    assert executable_prefix(steps, ExecParams(), board) == len(steps)
+    # Without a goal heading the same crawl keeps its start heading.
+    still = plan_crawl(hm, start, (0.1, 0.0), params, time_limit=30.0)
+    assert heading_of(still.steps[-1].stance) == 0.0
+
+
+def test_crawl_from_a_yawed_stance_keeps_or_turns_its_heading():
+    hm = _board_map("flat")
+    params = CrawlParams()
+    c, s = math.cos(math.radians(40.0)), math.sin(math.radians(40.0))
+    start = nominal_foot_positions()[:, :2] @ np.array([[c, s], [-s, c]])
+    assert heading_of(np.column_stack([start, np.zeros(4)])) == pytest.approx(math.radians(40.0))
+    kept = plan_crawl(hm, start, (0.1, 0.0), params, time_limit=30.0)
+    turned = plan_crawl(hm, start, (0.1, 0.0), params, time_limit=30.0, goal_heading=0.0)
+    for plan, heading in ((kept, math.radians(40.0)), (turned, 0.0)):
+        assert plan.status is PlanStatus.SUCCESS
+        assert abs(heading_of(plan.steps[-1].stance) - heading) <= params.heading_tolerance
+        _check_plan(plan, hm, params)
+
+
+def test_crawl_goal_heading_bad_input():
+    hm = _board_map("flat")
+    start = nominal_foot_positions()[:, :2]
+    for bad in (math.nan, math.inf, "0.5", True, [0.1]):
+        with pytest.raises(
+            FootstepError, match="goal_heading must be a finite angle.*" + re.escape(repr(bad))
+        ):
+            plan_crawl(hm, start, (0.2, 0.0), goal_heading=bad)
+    with pytest.raises(FootstepError, match="crawl turn_step must be positive, got 0.0"):
+        plan_crawl(hm, start, (0.2, 0.0), CrawlParams(turn_step=0.0), goal_heading=0.5)
+    with pytest.raises(FootstepError, match="crawl heading_tolerance must be positive, got nan"):
+        plan_crawl(hm, start, (0.2, 0.0), CrawlParams(heading_tolerance=math.nan))

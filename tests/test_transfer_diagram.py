@@ -56,7 +56,9 @@ def test_search_plan_goes_from_the_start_to_the_goal(library_path):
     for a, b in zip(plan.library.steps[:-1], plan.library.steps[1:]):
         assert np.linalg.norm(step_end_feet(a) - b.start_feet, axis=1).sum() < 0.04
     end = step_end_feet(plan.library[-1])
-    assert min(end[0, 0], end[1, 0]) >= plan.goal  # the front feet pass the goal line
+    # The front feet reach the goal line (a foothold on a map cell centre on the line
+    # reads 0.23 - 3e-17: the plan through the recorded steps ends there).
+    assert min(end[0, 0], end[1, 0]) >= plan.goal - 1e-9
     # Recorded steps come only from the unchanged part (before x = change_from).
     for s in plan.library:
         if s.kind == "recorded":

@@ -366,6 +366,25 @@ def test_crawl_gap_filler_places_only_the_feet_the_executor_cannot_take_up():
     assert len(few.steps) < len(every.steps)
 
 
+@pytest.mark.parametrize("yaw_deg", [-40.0, 45.0])
+def test_crawl_gap_filler_turns_onto_a_yawed_target_stance(yaw_deg):
+    # A recorded step matched with a yaw at the edge of the candidate range: the crawl
+    # turns the body, so the gap ends on the step's start stance (before: 0.31 / 0.43 m off).
+    from repertoire.planning.littledog_crawl import heading_of
+    from repertoire.planning.transfer_crawl_filler import executable_prefix
+
+    filler, start = flat_filler()
+    c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
+    target = stance(0.0) @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    target += [0.05, 0.02, start[0, 2]]
+    answer = filler(start, target, 2.0)
+    assert answer.status == "reached"
+    end = answer.steps[-1].end_feet
+    assert np.all(np.linalg.norm(end - target, axis=1) <= 0.005 + 1e-9)
+    assert heading_of(end) == pytest.approx(math.radians(yaw_deg))
+    assert executable_prefix(answer.steps, filler.crawl, filler.board) == len(answer.steps)
+
+
 class Refusing:
     """Stand-in gap filler that never reaches, with a reason; records every gap it plans."""
 

@@ -6,7 +6,8 @@ m, on the height map's cell centres) and the index of the foot that moves
 next. A successor moves that foot to one of a discretised set of candidate
 footholds around its nominal position (the nominal stance of
 :func:`repertoire.models.littledog.kinematics.nominal_foot_positions` placed at
-the feet's centroid), and keeps a candidate only if
+the feet's centroid and turned to the body heading; the candidate offsets are in
+the body's axes too), and keeps a candidate only if
 
 - the ground there is flat: the height range within ``flat_radius`` of the
   foothold is at most ``max_roughness`` (rejects steep spots and edges);
@@ -30,12 +31,25 @@ the feet's centroid), and keeps a candidate only if
   ``body_shift`` from the four feet's centroid towards the triangle's centroid
   (the body sway of a crawl).
 
-The goal test: the feet's centroid within ``goal_radius`` of the goal point.
-Step cost: ``step_cost`` plus the foot's horizontal travel plus
-``height_cost`` times its height change; the heuristic, 4 x the centroid's
-distance beyond the goal radius plus ``step_cost`` times the least number of
-steps, is admissible (a step moves the centroid by a quarter of the foot's
-travel).
+The body heading starts at the start stance's own heading
+(:func:`~repertoire.planning.littledog_crawl.heading_of`) and is part of the state
+as a whole number of ``turn_step`` turns. Without a goal heading the crawl keeps it
+(from a stance heading 0: the footholds of a crawl in world axes). With a goal
+heading (``goal_heading``) each step may also turn the body by one ``turn_step``
+towards it first, if that brings the body nearer it (the stance follows as its
+feet move; the reach check above decides what the legs can do), and the goal
+test also needs the feet's heading within ``heading_tolerance`` of it.
+
+The goal test: the feet's centroid within ``goal_radius`` of the goal point (and
+the heading, with a goal heading). Step cost: ``step_cost`` plus the foot's
+horizontal travel plus ``height_cost`` times its height change; the heuristic, the
+larger of 4 x the centroid's distance beyond the goal radius and the feet's
+travel a heading change needs (2 L sin e: e the heading error beyond the
+tolerance, L the distance of the hind feet's midpoint to the front feet's), plus
+``step_cost`` times the least number of steps, is admissible (a step moves the
+centroid by a quarter of the foot's travel; turning the line between the two
+midpoints by e moves its ends by L sin e at least, and each end is the mean of
+two feet).
 
 Use :func:`height_map_from_board` to sample a terrain board, then
 :func:`plan_crawl`; the plan's steps are typed :class:`CrawlStep` records.
@@ -57,6 +71,7 @@ from repertoire.planning.littledog_crawl import (
 )
 from scipy import ndimage
 
+from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 from repertoire.limits import require_memory
 
@@ -191,8 +206,9 @@ class CrawlParams:
 
     Attributes:
         order: leg indices (into LEGS = lf, rf, lh, rh) in crawl order.
-        offsets_x: candidate foothold offsets along x from the nominal position (m).
-        offsets_y: candidate foothold offsets along y (m).
+        offsets_x: candidate foothold offsets from the nominal position along the body
+            heading (m; x for heading 0).
+        offsets_y: candidate foothold offsets to the body's left (m).
         flat_radius: radius of the flatness check around a foothold (m).
         max_roughness: largest height range allowed within ``flat_radius`` (m).
         max_step_height: largest height change of one foot (m).
@@ -202,6 +218,9 @@ class CrawlParams:
         goal_radius: goal region radius around the goal point (m).
         step_cost: fixed cost per step.
         height_cost: cost per metre of height change.
+        turn_step: body heading change of one turning step (rad), used with a goal
+            heading.
+        heading_tolerance: largest feet's heading error from a goal heading (rad).
     """
 
     order: list[int] = dataclasses.field(default_factory=lambda: [2, 0, 3, 1])
@@ -218,6 +237,8 @@ class CrawlParams:
     goal_radius: float = 0.03
     step_cost: float = 0.01
     height_cost: float = 1.0
+    turn_step: float = math.radians(5.0)
+    heading_tolerance: float = math.radians(5.0)
 
     def validate(self) -> None:
         """Raises FootstepError naming the first bad field."""
@@ -237,6 +258,8 @@ class CrawlParams:
             "swing_clearance",
             "goal_radius",
             "step_cost",
+            "turn_step",
+            "heading_tolerance",
         ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
@@ -251,10 +274,14 @@ class CrawlParams:
 
 @dataclasses.dataclass(frozen=True)
 class CrawlState:
-    """A search state: foothold cells (4 x (row, col)) and the next crawl phase."""
+    """A search state: foothold cells, the next crawl phase and the body's turns.
+
+    ``cells``: 4 x (row, col); ``turns``: whole ``turn_step`` from the start heading.
+    """
 
     cells: tuple[tuple[int, int], ...]
     phase: int
+    turns: int = 0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -350,6 +377,12 @@ def flat_on_ground(ground, xy, params: CrawlParams) -> np.ndarray:
     return foothold_ok(ground, np.asarray(xy, dtype=float)[:, :2], rule)
 
 
+def _rotate(v: np.ndarray, psi: float) -> np.ndarray:
+    """Planar vectors (..., 2) turned by ``psi`` (rad); exactly ``v`` for psi = 0."""
+    c, s = math.cos(psi), math.sin(psi)
+    return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], axis=-1)
+
+
 class CrawlModel:
     """The crawl step model for :func:`repertoire.planning.footstep.search.search`.
 
@@ -362,10 +395,13 @@ class CrawlModel:
         params: model parameters (validated).
         crawl: parameters of the crawl that executes the plan (its reach decides).
         ground: terrain with ``height(x, y)`` the swings clear (default: the map).
+        goal_heading: goal heading of the stance (rad, :func:`heading_of` of the
+            feet), or None: any heading, and the body keeps its start heading.
 
     Raises:
         FootstepError: bad parameters, a start foothold off the map or on ground
-            too steep, a start stance out of reach or unstable, a goal off the map.
+            too steep, a start stance out of reach or unstable, a goal off the map,
+            a goal heading not a finite number.
     """
 
     def __init__(
@@ -376,6 +412,7 @@ class CrawlModel:
         params: CrawlParams,
         crawl: ExecutionParams | None = None,
         ground=None,
+        goal_heading: float | None = None,
     ) -> None:
         params.validate()
         self.map = height_map
@@ -391,6 +428,14 @@ class CrawlModel:
         if not bool(height_map.inside(*height_map.cell(goal[0], goal[1]))):
             raise FootstepError(f"crawl goal {goal.tolist()} is outside the height map")
         self.goal = goal
+        self.goal_heading = None
+        if goal_heading is not None:
+            if not (is_real(goal_heading) and math.isfinite(goal_heading)):
+                raise FootstepError(
+                    f"crawl goal_heading must be a finite angle (rad) or None, got {goal_heading!r}"
+                )
+            value = float(goal_heading)
+            self.goal_heading = math.atan2(math.sin(value), math.cos(value))
         start = np.asarray(start_xy, dtype=float)
         if start.shape not in ((4, 2), (4, 3)) or not np.all(np.isfinite(start)):
             raise FootstepError(
@@ -420,6 +465,8 @@ class CrawlModel:
         self._start = CrawlState(
             cells=tuple((int(r), int(c)) for r, c in zip(rows, cols, strict=True)), phase=0
         )
+        # The body heading: the start stance's own, turned by whole turn steps.
+        self._heading0 = heading_of(self._start_feet)
         feet = self.footholds(self._start)
         # The crawl starts level over the four feet at its standing height.
         centres = feet + np.array([0.0, 0.0, FOOT_RADIUS])
@@ -450,6 +497,13 @@ class CrawlModel:
         # reach region of a leg lies within the leg lengths of its hip.
         return 0.0751 + 0.102 + 0.036
 
+    def _turn_error(self, turns: int) -> float:
+        """|goal heading - the body heading after ``turns`` turn steps| (0 without one)."""
+        if self.goal_heading is None:
+            return 0.0
+        e = self.goal_heading - self._heading0 - turns * self.params.turn_step
+        return abs(math.atan2(math.sin(e), math.cos(e)))
+
     def footholds(self, state: CrawlState) -> np.ndarray:
         """The four footholds (4 x 3, ground contact points) of a state.
 
@@ -470,14 +524,31 @@ class CrawlModel:
     def key(self, state: CrawlState) -> CrawlState:
         return state
 
+    def heading_error(self, feet) -> float:
+        """|goal heading - the feet's heading| (rad, wrapped to [0, pi]); 0 without one."""
+        if self.goal_heading is None:
+            return 0.0
+        e = self.goal_heading - heading_of(feet)
+        return abs(math.atan2(math.sin(e), math.cos(e)))
+
     def is_goal(self, state: CrawlState) -> bool:
         feet = self.footholds(state)
         c = feet[:, :2].mean(axis=0)
-        return bool(math.hypot(*(c - self.goal)) <= self.params.goal_radius)
+        if math.hypot(*(c - self.goal)) > self.params.goal_radius:
+            return False
+        return self.heading_error(feet) <= self.params.heading_tolerance
 
     def heuristic(self, state: CrawlState) -> float:
         feet = self.footholds(state)
         d = float(np.hypot(*(feet[:, :2].mean(axis=0) - self.goal))) - self.params.goal_radius
+        e = self.heading_error(feet) - self.params.heading_tolerance
+        turn = 0.0
+        if e > 0.0:
+            # The midpoints' line (length L) turns by e: its ends move L sin e at least.
+            mid = 0.5 * (feet[0, :2] + feet[1, :2]) - 0.5 * (feet[2, :2] + feet[3, :2])
+            turn = 2.0 * float(np.hypot(*mid)) * math.sin(min(e, 0.5 * math.pi))
+        if turn > 4.0 * max(d, 0.0):
+            return turn + self.params.step_cost * math.ceil(turn / self._max_travel - 1e-9)
         if d <= 0.0:
             return 0.0
         min_steps = math.ceil(d / (self._max_travel / 4.0) - 1e-9)
@@ -489,16 +560,25 @@ class CrawlModel:
         leg = p.order[state.phase]
         feet = self.footholds(state)
         centroid = feet[:, :2].mean(axis=0)
-        targets = centroid + self._nominal[leg] + self._offsets
-        rows, cols = m.cell(targets[:, 0], targets[:, 1])
-        ok = m.inside(rows, cols)
-        rows, cols = rows[ok], cols[ok]
-        if len(rows) == 0:
-            return []
-        # Unique cells (offsets may snap to the same cell); skip "no move".
-        cells = np.unique(np.stack([rows, cols], axis=-1), axis=0)
+        # Candidates around the nominal foothold turned to the body heading after the
+        # step's turn (none, or one turn step towards the goal heading if that brings the
+        # body nearer it); a cell reached both ways keeps the turn.
+        found: dict[tuple[int, int], int] = {}
+        error = self._turn_error(state.turns)
+        turns = [t for t in (-1, 1) if self._turn_error(state.turns + t) < error - 1e-12]
+        for dt in [*turns, 0]:
+            psi = self._heading0 + (state.turns + dt) * p.turn_step
+            targets = centroid + _rotate(self._nominal[leg], psi) + _rotate(self._offsets, psi)
+            rows, cols = m.cell(targets[:, 0], targets[:, 1])
+            ok = m.inside(rows, cols)
+            for r, col in zip(rows[ok].tolist(), cols[ok].tolist(), strict=True):
+                found.setdefault((r, col), state.turns + dt)
         old = state.cells[leg]
-        cells = cells[~((cells[:, 0] == old[0]) & (cells[:, 1] == old[1]))]
+        found.pop(tuple(old), None)  # skip "no move"
+        if not found:
+            return []
+        # Unique cells (offsets may snap to the same cell), in row, col order.
+        cells = np.array(sorted(found), dtype=int)
         rows, cols = cells[:, 0], cells[:, 1]
         z_new = m.heights[rows, cols]
         z_old = feet[leg, 2]
@@ -533,7 +613,8 @@ class CrawlModel:
             cells_new[leg] = (int(rows[idx[j]]), int(cols[idx[j]]))
             travel = math.hypot(p_new[j, 0] - feet[leg, 0], p_new[j, 1] - feet[leg, 1])
             cost = p.step_cost + travel + p.height_cost * abs(p_new[j, 2] - z_old)
-            out.append((CrawlState(cells=tuple(cells_new), phase=next_phase), cost))
+            turns = found[cells_new[leg]]
+            out.append((CrawlState(tuple(cells_new), next_phase, turns), cost))
         return out
 
 
@@ -549,6 +630,7 @@ def plan_crawl(
     weight: float = 3.0,
     crawl: ExecutionParams | None = None,
     ground=None,
+    goal_heading: float | None = None,
 ) -> CrawlPlan:
     """Plans a LittleDog crawl on a height map.
 
@@ -568,11 +650,15 @@ def plan_crawl(
             :class:`repertoire.planning.littledog_crawl.CrawlParams`).
         ground: terrain with ``height(x, y)`` for the swings' clearance in the reach
             check, e.g. the exact board the map was sampled from (default: the map).
+        goal_heading: goal heading of the stance (rad, within ``heading_tolerance``);
+            None: any heading, and the body keeps the start stance's heading.
 
     Raises:
         FootstepError: see :class:`CrawlModel` and the search's budget checks.
     """
-    model = CrawlModel(height_map, start_xy, goal_xy, params or CrawlParams(), crawl, ground)
+    model = CrawlModel(
+        height_map, start_xy, goal_xy, params or CrawlParams(), crawl, ground, goal_heading
+    )
     if anytime:
         results = anytime_search(model, max_expansions=max_expansions, time_limit=time_limit)
     else:

@@ -72,6 +72,7 @@ from repertoire.planning.footstep.fastkernels import (
     _heap_rows,
     _height_range,
     _lattice_yaw,
+    _less,
     _now,
     _occupancy_words,
     _open_push,
@@ -482,9 +483,24 @@ def _arastar(
                         code = idx
                         if lazy >= 0:
                             ent[tie, 0], ent[tie, 1], code = g2, lazy, -1 - idx
-                        hsize, csize = _open_push(
-                            hv, hsize, cold, csize, thr, g2 + w * h2, h2, tie, code
-                        )
+                        # _open_push and _heap_push written out: an inlined call with
+                        # arrays costs four atomic reference counts per push
+                        fo = g2 + w * h2
+                        if fo < thr:
+                            u = hsize
+                            while u > 0:
+                                pu = (u - 1) >> 2
+                                if not _less(fo, h2, tie, hv[pu, 0], hv[pu, 1], hv[pu, 2]):
+                                    break
+                                hv[u, 0], hv[u, 1] = hv[pu, 0], hv[pu, 1]
+                                hv[u, 2], hv[u, 3] = hv[pu, 2], hv[pu, 3]
+                                u = pu
+                            hv[u, 0], hv[u, 1], hv[u, 2], hv[u, 3] = fo, h2, tie, code
+                            hsize += 1
+                        else:
+                            cold[csize, 0], cold[csize, 1] = fo, h2
+                            cold[csize, 2], cold[csize, 3] = tie, code
+                            csize += 1
                         tie += 1
             if room:
                 break

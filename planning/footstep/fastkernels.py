@@ -168,26 +168,27 @@ def _spill(hot, hsize, cold, csize, keep):
 def _refill(hot, cold, csize, keep):
     """Fill the empty hot heap with the rows of ``cold`` below a new threshold.
 
-    About ``keep`` rows move (every row when ``csize <= keep``), at least one. Returns
+    About ``keep`` rows move (every row when ``csize <= keep``), at least one; the last cold
+    row fills each one's place, so a refill writes only the rows that move (the cold rows'
+    order is free: the threshold alone splits the open list). Returns
     ``(hsize, csize, threshold)`` with the invariant of :func:`_spill`.
     """
     thr = np.inf if csize <= keep else _f_quantile(cold, csize, keep)
     k = 0
     while k == 0:
         low = np.inf
-        left = 0
-        for i in range(csize):
+        i = 0
+        while i < csize:
             f = cold[i, 0]
             if f < thr:
+                csize -= 1
                 for q in range(4):
                     hot[k, q] = cold[i, q]
+                    cold[i, q] = cold[csize, q]
                 k += 1
             else:
                 low = min(low, f)
-                for q in range(4):
-                    cold[left, q] = cold[i, q]
-                left += 1
-        csize = left
+                i += 1
         if k == 0:  # the sample's quantile was the smallest f: take every row that has it
             thr = np.nextafter(low, np.inf)
     for i in range((k - 2) // 4, -1, -1):

@@ -274,13 +274,19 @@ def chassis_pose(diagram: Diagram, context: Context) -> RigidTransform:
     )
 
 
+MIN_RATIO_TRAVEL_M = 0.01
+"""``speed_ratio`` is reported for runs whose ideal travel is at least this (m)."""
+
+
 def check_diffdrive(diagram: Diagram, context: Context) -> dict[str, float]:
     """Figures after a drive: distance, heading change and speed against the ideal rolling model.
 
     Returns:
         ``distance_m`` (axle midpoint from its start), ``heading_change_deg``,
         ``expected_heading_change_deg`` (ideal rolling at the commanded speeds),
-        ``speed_ratio`` (mean forward speed over the ideal r (w_l + w_r) / 2),
+        ``speed_ratio`` (mean forward speed over the ideal r (w_l + w_r) / 2; NaN for a
+        run whose ideal travel is under ``MIN_RATIO_TRAVEL_M``: there the chassis settling
+        on its wheels outweighs the drive, and 1 ns gave 7904),
         ``tilt_rad`` (chassis roll/pitch magnitude).
     """
     plant = diagram.GetSubsystemByName("plant")
@@ -299,6 +305,8 @@ def check_diffdrive(diagram: Diagram, context: Context) -> dict[str, float]:
         "distance_m": distance,
         "heading_change_deg": float(np.degrees(dyaw)),
         "expected_heading_change_deg": float(np.degrees(omega * t)),
-        "speed_ratio": float(distance / (abs(v) * t)) if v != 0 and t > 0 else float("nan"),
+        "speed_ratio": float(distance / (abs(v) * t))
+        if abs(v) * t >= MIN_RATIO_TRAVEL_M
+        else float("nan"),
         "tilt_rad": float(np.hypot(rpy.roll_angle(), rpy.pitch_angle())),
     }

@@ -1,5 +1,6 @@
 """Differential-drive robot, its worlds, the drive diagram and bad input."""
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -8,6 +9,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 from repertoire.diagrams.diffdrive import (
+    MIN_RATIO_TRAVEL_M,
     TRACK,
     WHEEL_RADIUS,
     DiffDriveScenario,
@@ -67,6 +69,17 @@ def test_drives_straight_two_metres():
     assert abs(figures["heading_change_deg"]) < 1.0
     assert 0.9 < figures["speed_ratio"] <= 1.0
     assert figures["tilt_rad"] < 0.01
+
+
+def test_speed_ratio_is_not_reported_for_a_run_too_short_to_measure():
+    scenario = load_scenario(DiffDriveScenario, filename=SCENARIOS / "diffdrive_empty.yaml")
+    diagram = build_diffdrive_drive(scenario)
+    simulator = Simulator(diagram)
+    v, _ = twist_from_wheel_speeds(scenario.wheel_speeds)
+    simulator.AdvanceTo(0.5 * MIN_RATIO_TRAVEL_M / v)  # half a centimetre of ideal travel
+    figures = check_diffdrive(diagram, simulator.get_context())
+    assert math.isnan(figures["speed_ratio"])
+    assert math.isfinite(figures["distance_m"])
 
 
 @pytest.mark.parametrize("name", ["diffdrive_soccer.yaml", "diffdrive_kitchen.yaml"])

@@ -253,3 +253,17 @@ def test_bad_input():
         load_scenario(BipedWalkScenario, data="pelvis_height: 0.9\n")
     with pytest.raises(ScenarioError, match="first_stance"):
         BipedWalkScenario(first_stance="middle").validate()
+
+
+def test_start_time_must_be_finite_and_not_negative():
+    # A NaN or negative start put breaks before 0 into the ZMP reference, and Drake's
+    # PiecewisePolynomial aborted the whole process; now it is a clear error.
+    for bad in (np.nan, -1.0, np.inf):
+        with pytest.raises(RepertoireError, match=f"start_time must be finite and >= 0.*{bad}"):
+            realize_commands([0, 0.1, 0], Foot.LEFT, [0, -0.1, 0], ["stop"], RULE, start_time=bad)
+        with pytest.raises(RepertoireError, match="start_time must be finite"):
+            CommandStepper(start_time=bad)
+    seq = realize_commands([0, 0.095, 0], Foot.LEFT, [0, -0.095, 0], ["stop"], RULE, start_time=2.0)
+    assert seq.command_times == [pytest.approx(2.0 + RULE.initial_hold)]
+    zmp = zmp_reference(seq)
+    np.testing.assert_allclose(zmp.value(1.0).ravel(), [0.0, 0.0], atol=1e-12)

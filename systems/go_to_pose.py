@@ -178,7 +178,15 @@ class GoToPose(DriveAction):
         """
         super().__init__()
         check_period(period)
-        positive = ("v_max", "omega_max", "a_max", "alpha_max", "timeout", "position_tolerance")
+        positive = (
+            "v_max",
+            "omega_max",
+            "a_max",
+            "alpha_max",
+            "timeout",
+            "position_tolerance",
+            "heading_tolerance",
+        )
         merged = merge_gains(GOTO_GAINS, gains, "GoToPose", positive)
         self._declare_drive(period, GOTO_GAINS, merged, workspace, (("state", 4), ("target", 4)))
 

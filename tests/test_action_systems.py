@@ -92,6 +92,11 @@ def test_goto_pose_bad_construction():
         GoToPose(gains={"v_max": 0.0})
     with pytest.raises(RepertoireError, match="workspace"):
         GoToPose(workspace=(1, 0, 0, 1))
+    # A heading tolerance <= 0 could never be met (|error| < tol): the action ran to its
+    # timeout instead of refusing the gain, as DribbleBall already did.
+    for bad in (-0.1, 0.0):
+        with pytest.raises(RepertoireError, match=f"heading_tolerance must be > 0, got {bad}"):
+            GoToPose(gains={"heading_tolerance": bad})
 
 
 def test_chassis_state_by_hand():

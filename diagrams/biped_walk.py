@@ -124,9 +124,9 @@ class BipedWalkScenario:
             require_grid_memory(self.map_size, 0.025, f"biped_walk map_size={self.map_size}")
         if self.plan_file and not Path(self.plan_file).is_file():
             raise ScenarioError(f"plan_file '{self.plan_file}' does not exist")
-        if not 0.5 <= self.pelvis_height <= 0.64:
-            raise ScenarioError(f"pelvis_height must be in [0.5, 0.64] m, got {self.pelvis_height}")
-        validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
+        validate_walk_fields(
+            self.pelvis_height, self.time_step, self.contact_approximation, self.ground_friction
+        )
         try:
             self.rule().validate()
         except RepertoireError as e:
@@ -137,6 +137,19 @@ class BipedWalkScenario:
         return SteppingRule(
             max_speed_change=self.max_speed_change, base_duration=self.base_duration
         )
+
+
+def validate_walk_fields(
+    pelvis_height: float, time_step: float, contact_approximation: str, ground_friction: float
+) -> None:
+    """Checks the walking biped's pelvis height and plant settings.
+
+    Raises:
+        ScenarioError: naming the bad value and what is expected.
+    """
+    if not (np.isfinite(pelvis_height) and 0.5 <= pelvis_height <= 0.64):
+        raise ScenarioError(f"pelvis_height must be in [0.5, 0.64] m, got {pelvis_height}")
+    validate_plant_fields(time_step, contact_approximation, ground_friction)
 
 
 def start_feet(start: list[float], first_stance: str, stance_width: float = 0.19):
@@ -246,6 +259,7 @@ def build_walk_diagram(
         ``command_stepper``,
         ``zmp_com_planner``, ``swing_foot_planner`` and ``walking_ik``.
     """
+    validate_walk_fields(pelvis_height, time_step, contact_approximation, ground_friction)
     rule = rule or SteppingRule()
     seq = realize_plan(plan, rule)
     com_height = standing_com_height(pelvis_height)
@@ -457,6 +471,13 @@ def execute_plan(
         simulator: optionally a simulator of ``diagram``.
         max_steps: stop after measuring this many landings (default: all, then the final hold).
     """
+    if not (np.isfinite(settle) and settle >= 0.0):
+        raise RepertoireError(f"settle must be a finite delay >= 0 s, got {settle}")
+    if max_steps is not None and not (
+        isinstance(max_steps, (int, np.integer)) and not isinstance(max_steps, bool)
+        and max_steps >= 0
+    ):  # fmt: skip
+        raise RepertoireError(f"max_steps must be None or an int >= 0, got {max_steps!r}")
     rule = rule or SteppingRule()
     if diagram is None:
         diagram = build_walk_diagram(

@@ -8,6 +8,7 @@ from pydrake.systems.analysis import Simulator
 from repertoire.diagrams.biped_walk import (
     BipedWalkScenario,
     build_biped_walk,
+    build_walk_diagram,
     check_biped_walk,
     execute_plan,
     landing_errors,
@@ -253,6 +254,33 @@ def test_bad_input():
         load_scenario(BipedWalkScenario, data="pelvis_height: 0.9\n")
     with pytest.raises(ScenarioError, match="first_stance"):
         BipedWalkScenario(first_stance="middle").validate()
+
+
+def test_walk_builder_and_execute_plan_check_their_arguments():
+    # The builder and execute_plan are public entry points: a pelvis height the scenario
+    # refuses (0.9 m: legs out of reach) walked silently, a negative time_step or a NaN
+    # settle aborted the process inside Drake, max_steps=-1 measured nothing.
+    plan = _plan(["stop"])
+    cases = (
+        ({"pelvis_height": 0.9}, r"pelvis_height must be in \[0.5, 0.64\] m, got 0.9"),
+        ({"pelvis_height": math.nan}, "pelvis_height must be in .* got nan"),
+        ({"time_step": -1e-3}, r"time_step must be in \(0, 0.01\] s .* got -0.001"),
+        ({"contact_approximation": "tamsi"}, "contact_approximation .* got 'tamsi'"),
+    )
+    for kwargs, message in cases:
+        with pytest.raises(RepertoireError, match=message):
+            build_walk_diagram(plan, **kwargs)
+        with pytest.raises(RepertoireError, match=message):
+            execute_plan(plan, **kwargs)
+    with pytest.raises(RepertoireError, match="ground_friction must be > 0, got -1"):
+        build_walk_diagram(plan, ground_friction=-1.0)
+    for settle in (math.nan, -0.5):
+        with pytest.raises(
+            RepertoireError, match=f"settle must be a finite delay >= 0 s, got {settle}"
+        ):
+            execute_plan(plan, settle=settle)
+    with pytest.raises(RepertoireError, match="max_steps must be None or an int >= 0, got -1"):
+        execute_plan(plan, max_steps=-1)
 
 
 def test_start_time_must_be_finite_and_not_negative():

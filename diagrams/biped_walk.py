@@ -19,7 +19,13 @@ from repertoire.diagrams.biped import add_biped_world, validate_plant_fields
 from repertoire.diagrams.registry import register_diagram
 from repertoire.models.biped import LEARNED_TABLE_PATH, LegGains
 from repertoire.planning.footstep.actions import ACTIONS, apply_displacement
-from repertoire.planning.footstep.types import ActionTable, Foot, FootstepPlan, wrap_angle
+from repertoire.planning.footstep.types import (
+    ActionTable,
+    Foot,
+    FootstepPlan,
+    PlanStatus,
+    wrap_angle,
+)
 from repertoire.systems.footstep_source import FootstepPlanSource
 from repertoire.systems.walking import (
     CommandStepper,
@@ -552,9 +558,16 @@ def landing_errors(
 
 
 def check_biped_walk(diagram: Diagram, context: Context) -> dict[str, float]:
-    """Figures after a walk: pelvis height and tilt, distance walked, steps taken so far."""
+    """Figures after a walk: pelvis height and tilt, distance walked, steps taken so far.
+
+    ``steps_planned`` and ``plan_complete`` (1 when the plan's status is SUCCESS, 0 for
+    the best partial plan of a search that hit its time or node limit) say whether the
+    steps walked were a whole plan to the goal.
+    """
     p, tilt = pelvis_state(diagram, context)
     seq = footstep_sequence(diagram, context)
+    source = diagram.GetSubsystemByName("plan_source")
+    plan = source.get_plan(source.GetMyContextFromRoot(context))
     t = context.get_time()
     done = sum(1 for tl in seq.land_times if tl <= t)
     start = 0.5 * (np.asarray(seq.initial_left[:2]) + np.asarray(seq.initial_right[:2]))
@@ -564,6 +577,8 @@ def check_biped_walk(diagram: Diagram, context: Context) -> dict[str, float]:
         "distance_m": float(np.linalg.norm(p[:2] - start)),
         "steps_landed": float(done),
         "fell": float(p[2] < 0.4 or tilt > 0.5),
+        "steps_planned": float(plan.num_steps),
+        "plan_complete": float(plan.status == PlanStatus.SUCCESS),
     }
 
 

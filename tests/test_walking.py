@@ -256,6 +256,20 @@ def test_bad_input():
         BipedWalkScenario(first_stance="middle").validate()
 
 
+def test_check_figures_say_whether_the_plan_is_complete():
+    # map_seed 2 on a 2 m floor: the planner hits its 60000-node limit and the biped
+    # walks the best partial plan (15 steps, 1.09 m of heuristic cost left); the figures
+    # said nothing about it before.
+    figures = {}
+    for name, yaml in (("partial", "map_seed: 2\nmap_size: 2.0\n"), ("actions", "map_seed: -1\n")):
+        diagram = build_biped_walk(load_scenario(BipedWalkScenario, data=yaml))
+        figures[name] = check_biped_walk(diagram, diagram.CreateDefaultContext())
+    assert figures["partial"]["plan_complete"] == 0.0
+    assert figures["partial"]["steps_planned"] == 15.0
+    assert figures["actions"]["plan_complete"] == 1.0
+    assert figures["actions"]["steps_planned"] == len(BipedWalkScenario().actions)
+
+
 def test_walk_builder_and_execute_plan_check_their_arguments():
     # The builder and execute_plan are public entry points: a pelvis height the scenario
     # refuses (0.9 m: legs out of reach) walked silently, a negative time_step or a NaN

@@ -19,7 +19,13 @@ from repertoire.diagrams.biped import add_biped_world, validate_plant_fields
 from repertoire.diagrams.registry import register_diagram
 from repertoire.models.biped import LEARNED_TABLE_PATH, LegGains
 from repertoire.planning.footstep.actions import ACTIONS, apply_displacement
-from repertoire.planning.footstep.types import ActionTable, Foot, FootstepPlan, wrap_angle
+from repertoire.planning.footstep.types import (
+    ActionTable,
+    Foot,
+    FootstepPlan,
+    PlanStatus,
+    wrap_angle,
+)
 from repertoire.systems.footstep_source import FootstepPlanSource
 from repertoire.systems.walking import (
     CommandStepper,
@@ -124,9 +130,9 @@ class BipedWalkScenario:
             require_grid_memory(self.map_size, 0.025, f"biped_walk map_size={self.map_size}")
         if self.plan_file and not Path(self.plan_file).is_file():
             raise ScenarioError(f"plan_file '{self.plan_file}' does not exist")
-        if not 0.5 <= self.pelvis_height <= 0.64:
-            raise ScenarioError(f"pelvis_height must be in [0.5, 0.64] m, got {self.pelvis_height}")
-        validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
+        validate_walk_fields(
+            self.pelvis_height, self.time_step, self.contact_approximation, self.ground_friction
+        )
         try:
             self.rule().validate()
         except RepertoireError as e:
@@ -137,6 +143,19 @@ class BipedWalkScenario:
         return SteppingRule(
             max_speed_change=self.max_speed_change, base_duration=self.base_duration
         )
+
+
+def validate_walk_fields(
+    pelvis_height: float, time_step: float, contact_approximation: str, ground_friction: float
+) -> None:
+    """Checks the walking biped's pelvis height and plant settings.
+
+    Raises:
+        ScenarioError: naming the bad value and what is expected.
+    """
+    if not (np.isfinite(pelvis_height) and 0.5 <= pelvis_height <= 0.64):
+        raise ScenarioError(f"pelvis_height must be in [0.5, 0.64] m, got {pelvis_height}")
+    validate_plant_fields(time_step, contact_approximation, ground_friction)
 
 
 def start_feet(start: list[float], first_stance: str, stance_width: float = 0.19):
@@ -246,6 +265,7 @@ def build_walk_diagram(
         ``command_stepper``,
         ``zmp_com_planner``, ``swing_foot_planner`` and ``walking_ik``.
     """
+    validate_walk_fields(pelvis_height, time_step, contact_approximation, ground_friction)
     rule = rule or SteppingRule()
     seq = realize_plan(plan, rule)
     com_height = standing_com_height(pelvis_height)
@@ -457,6 +477,13 @@ def execute_plan(
         simulator: optionally a simulator of ``diagram``.
         max_steps: stop after measuring this many landings (default: all, then the final hold).
     """
+    if not (np.isfinite(settle) and settle >= 0.0):
+        raise RepertoireError(f"settle must be a finite delay >= 0 s, got {settle}")
+    if max_steps is not None and not (
+        isinstance(max_steps, (int, np.integer)) and not isinstance(max_steps, bool)
+        and max_steps >= 0
+    ):  # fmt: skip
+        raise RepertoireError(f"max_steps must be None or an int >= 0, got {max_steps!r}")
     rule = rule or SteppingRule()
     if diagram is None:
         diagram = build_walk_diagram(
@@ -531,9 +558,16 @@ def landing_errors(
 
 
 def check_biped_walk(diagram: Diagram, context: Context) -> dict[str, float]:
-    """Figures after a walk: pelvis height and tilt, distance walked, steps taken so far."""
+    """Figures after a walk: pelvis height and tilt, distance walked, steps taken so far.
+
+    ``steps_planned`` and ``plan_complete`` (1 when the plan's status is SUCCESS, 0 for
+    the best partial plan of a search that hit its time or node limit) say whether the
+    steps walked were a whole plan to the goal.
+    """
     p, tilt = pelvis_state(diagram, context)
     seq = footstep_sequence(diagram, context)
+    source = diagram.GetSubsystemByName("plan_source")
+    plan = source.get_plan(source.GetMyContextFromRoot(context))
     t = context.get_time()
     done = sum(1 for tl in seq.land_times if tl <= t)
     start = 0.5 * (np.asarray(seq.initial_left[:2]) + np.asarray(seq.initial_right[:2]))
@@ -543,6 +577,8 @@ def check_biped_walk(diagram: Diagram, context: Context) -> dict[str, float]:
         "distance_m": float(np.linalg.norm(p[:2] - start)),
         "steps_landed": float(done),
         "fell": float(p[2] < 0.4 or tilt > 0.5),
+        "steps_planned": float(plan.num_steps),
+        "plan_complete": float(plan.status == PlanStatus.SUCCESS),
     }
 
 

@@ -118,6 +118,7 @@ def build_soccer_plan(scenario: SoccerPlanScenario, *, meshcat=None) -> Diagram:
         action.set_name(f"action_{i}")
         builder.Connect(reader.get_output_port(), action.get_state_input_port())
         builder.Connect(executor.GetOutputPort(f"target_{i}"), action.get_target_input_port())
+        builder.Connect(executor.GetOutputPort(f"active_{i}"), action.get_active_input_port())
         builder.Connect(action.get_status_output_port(), executor.get_status_input_port(i))
         builder.Connect(action.get_command_output_port(), executor.get_command_input_port(i))
     return build_driven(

@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.diagrams.biped_walk import execute_plan, landing_errors
+from repertoire.diagrams.biped_walk import execute_plan, landing_errors, validate_walk_fields
 from repertoire.models.biped import LEARNED_TABLE_PATH
 from repertoire.planning.footstep.actions import ASIMO_LIKE, nominal_action_table
 from repertoire.planning.footstep.footprint import foot_collides_reference
@@ -75,6 +75,9 @@ class FootstepExecutionConfig:
             raise RepertoireError("n_strips, n_blocks and max_expansions must be >= 0")
         if not self.time_limit_s > 0:
             raise RepertoireError(f"time_limit_s must be > 0, got {self.time_limit_s}")
+        _options(self).validate()  # heuristic_weight and the planner's other limits
+        # the walking biped's pelvis height and plant settings (the ground keeps friction 1)
+        validate_walk_fields(self.pelvis_height, self.time_step, self.contact_approximation, 1.0)
         path = self.table()
         if not path.is_file():
             raise RepertoireError(
@@ -138,12 +141,16 @@ class FootstepExecutionRecord:
     wall_time_s: float
 
 
-def _plan(scene, table: ActionTable, config: FootstepExecutionConfig) -> FootstepPlan:
-    options = PlannerOptions(
+def _options(config: FootstepExecutionConfig) -> PlannerOptions:
+    return PlannerOptions(
         time_limit=config.time_limit_s,
         heuristic_weight=config.heuristic_weight,
         max_expansions=config.max_expansions,
     )
+
+
+def _plan(scene, table: ActionTable, config: FootstepExecutionConfig) -> FootstepPlan:
+    options = _options(config)
     return plan_footsteps(scene.grid, scene.start, scene.start_foot, scene.goal, table, options)
 
 

@@ -157,6 +157,8 @@ class DribbleBall(DriveAction):
         state: ``[x, y, phi, v]`` of the robot.
         ball: ``[x_ball, y_ball]``.
         target: ``[x_g, y_g, phi_g, v_g]``.
+        active: optional ``[1]`` (default) or ``[0]``: while 0 the action tracks its
+            command but stays RUNNING (a plan's action that has not started yet).
 
     Output ports:
         command: ``[v, omega]`` rate-limited forward speed and yaw rate.
@@ -216,17 +218,19 @@ class DribbleBall(DriveAction):
         ball = self._ball_port.Eval(context)
         target = self._target_port.Eval(context)
         ws = context.get_numeric_parameter(self._workspace_index).get_value()
+        active = self.is_active(context)
         if (
             not np.all(np.isfinite(target))
             or not np.all(np.isfinite(ball))
             or not ws[0] <= target[0] <= ws[1]
             or not ws[2] <= target[1] <= ws[3]
         ):
-            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED, mode])
+            failed = ActionStatus.FAILED if active else ActionStatus.RUNNING
+            out.SetFromVector([0.0, 0.0, failed, mode])
             return
         mode = approach_mode(int(mode), state, target, g)
         v, w, held = dribble_control(state, ball, target, g, 0.0 if mode == PIVOT else None)
-        if not held:
+        if not held and active:
             out.SetFromVector([0.0, 0.0, ActionStatus.FAILED, mode])
             return
         h = g["hold_distance"]
@@ -237,7 +241,7 @@ class DribbleBall(DriveAction):
         heading_error = math.remainder(target[2] - state[2], 2 * math.pi)
         control = (v, w, rho, heading_error)
         t = context.get_time()
-        step = drive_step(control, (v_prev, w_prev), state, target, g, t, self.period)
+        step = drive_step(control, (v_prev, w_prev), state, target, g, t, self.period, active)
         out.SetFromVector([*step, mode])
 
 

@@ -76,25 +76,28 @@ def pose_control(state, target, gains: dict[str, float]) -> tuple[float, float, 
     return v, omega, rho, heading_error
 
 
-def drive_step(control, previous, state, target, gains, time: float, period: float) -> list:
+def drive_step(
+    control, previous, state, target, gains, time: float, period: float, active: bool = True
+) -> list:
     """The next discrete state ``[v_cmd, omega_cmd, status]`` of a driving action.
 
     ``control`` is ``(v, omega, rho, heading_error)`` (as :func:`pose_control`
     returns it). SUCCEEDED (holding the ``previous`` command) within the
     position and heading tolerances at about the target speed, TIMED_OUT at the
     timeout, else RUNNING with ``(v, omega)`` rate limited by ``a_max`` and
-    ``alpha_max`` from ``previous``.
+    ``alpha_max`` from ``previous``. An action that is not ``active`` (a plan's
+    later action, not started yet) only tracks the command and stays RUNNING.
     """
     v, w, rho, heading_error = control
     v_prev, w_prev = previous
     g = gains
-    if (
+    if active and (
         rho < g["position_tolerance"]
         and abs(heading_error) < g["heading_tolerance"]
         and abs(state[3] - target[3]) < max(0.1, 0.5 * target[3])
     ):
         return [v_prev, w_prev, ActionStatus.SUCCEEDED]
-    if time >= g["timeout"]:
+    if active and time >= g["timeout"]:
         return [0.0, 0.0, ActionStatus.TIMED_OUT]
     dv = g["a_max"] * period
     dw = g["alpha_max"] * period
@@ -123,6 +126,7 @@ class DriveAction(ActionSystem):
         self._workspace_index = self.DeclareNumericParameter(BasicVector(ws))
         ports = {name: self.DeclareVectorInputPort(name, size) for name, size in inputs}
         self._state_port, self._target_port = ports["state"], ports["target"]
+        self._active_port = self.DeclareVectorInputPort("active", 1)
         self._xd = self.DeclareDiscreteState(3 + extra_slots)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self._command_port = self.DeclareVectorOutputPort(
@@ -137,6 +141,19 @@ class DriveAction(ActionSystem):
     def get_target_input_port(self):
         return self._target_port
 
+    def get_active_input_port(self):
+        return self._active_port
+
+    def is_active(self, context: Context) -> bool:
+        """False while the ``active`` input (when connected or fixed) is below 0.5.
+
+        A plan executor connects it so that a later action does not succeed, fail or
+        time out (a terminal status is kept) before it has started; unconnected, the
+        action is active.
+        """
+        port = self._active_port
+        return not port.HasValue(context) or port.Eval(context)[0] >= 0.5
+
     def get_command_output_port(self):
         return self._command_port
 
@@ -150,6 +167,8 @@ class GoToPose(DriveAction):
     Input ports:
         state: ``[x, y, phi, v]`` of the robot.
         target: ``[x_g, y_g, phi_g, v_g]`` (a plan executor changes it).
+        active: optional ``[1]`` (default) or ``[0]``: while 0 the action tracks its
+            command but stays RUNNING (a plan's action that has not started yet).
 
     Output ports:
         command: ``[v, omega]`` rate-limited forward speed and yaw rate.
@@ -178,7 +197,15 @@ class GoToPose(DriveAction):
         """
         super().__init__()
         check_period(period)
-        positive = ("v_max", "omega_max", "a_max", "alpha_max", "timeout", "position_tolerance")
+        positive = (
+            "v_max",
+            "omega_max",
+            "a_max",
+            "alpha_max",
+            "timeout",
+            "position_tolerance",
+            "heading_tolerance",
+        )
         merged = merge_gains(GOTO_GAINS, gains, "GoToPose", positive)
         self._declare_drive(period, GOTO_GAINS, merged, workspace, (("state", 4), ("target", 4)))
 
@@ -193,17 +220,19 @@ class GoToPose(DriveAction):
         state = self._state_port.Eval(context)
         target = self._target_port.Eval(context)
         ws = context.get_numeric_parameter(self._workspace_index).get_value()
+        active = self.is_active(context)
         if (
             not np.all(np.isfinite(target))
             or not np.all(np.isfinite(state))
             or not ws[0] <= target[0] <= ws[1]
             or not ws[2] <= target[1] <= ws[3]
         ):
-            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED])
+            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED if active else ActionStatus.RUNNING])
             return
         control = pose_control(state, target, g)
         t = context.get_time()
-        out.SetFromVector(drive_step(control, (v_prev, w_prev), state, target, g, t, self.period))
+        step = drive_step(control, (v_prev, w_prev), state, target, g, t, self.period, active)
+        out.SetFromVector(step)
 
 
 class DiffDriveStateReader(LeafSystem):

@@ -68,6 +68,9 @@ class PlanExecutor(LeafSystem):
 
     Output ports:
         target_i: the i-th action's refined target (``target_size`` vector).
+        active_i: ``[1]`` while the i-th action is the active one, else ``[0]``; wire it
+            to the action's ``active`` input, so that an action does not report success
+            (or failure) before its turn because the robot passed its target earlier.
         command: the active action's command; zeros once the plan has ended.
         status: the plan's :class:`ActionStatus` (abstract).
         active_action: ``[index]`` of the active action (``n`` once the plan has ended).
@@ -143,6 +146,12 @@ class PlanExecutor(LeafSystem):
                 lambda context, output, i=i: output.SetFromVector(self.target(context, i)),
                 {self.numeric_parameter_ticket(NumericParameterIndex(self._target_params[i]))},
             )
+            self.DeclareVectorOutputPort(
+                f"active_{i}",
+                1,
+                lambda context, output, i=i: output.SetFromVector([self._is_active(context, i)]),
+                {self.discrete_state_ticket(self._xd)},
+            )
         ticket = {self.discrete_state_ticket(self._xd), self.all_input_ports_ticket()}
         self._command_out = self.DeclareVectorOutputPort(
             "command", command_size, self._calc_command, ticket
@@ -198,6 +207,10 @@ class PlanExecutor(LeafSystem):
         if not 0 <= i < self.n_actions:
             raise RepertoireError(f"action index {i} is not in 0..{self.n_actions - 1}")
         context.get_mutable_numeric_parameter(self._target_params[i]).SetFromVector(t)
+
+    def _is_active(self, context: Context, i: int) -> float:
+        xd = self._xd_value(context)
+        return float(int(xd[0]) == i and int(xd[1]) == ActionStatus.RUNNING)
 
     def _xd_value(self, context: Context) -> np.ndarray:
         return context.get_discrete_state(self._xd).get_value()

@@ -126,6 +126,21 @@ def _check_action(a: str) -> str:
     return a
 
 
+def _check_start_time(start_time: float) -> float:
+    """``start_time`` as a float; RepertoireError unless finite and >= 0.
+
+    The ZMP reference starts at time 0 (the simulation's start), so a sequence that
+    starts earlier (or at NaN) has no valid reference.
+    """
+    try:
+        value = float(start_time)
+    except (TypeError, ValueError):
+        raise RepertoireError(f"start_time must be a number [s], got {start_time!r}") from None
+    if not (math.isfinite(value) and value >= 0.0):
+        raise RepertoireError(f"start_time must be finite and >= 0 [s], got {start_time!r}")
+    return value
+
+
 def realize_step(
     a_prev2: str, a_prev1: str, a: str, stance: Foot, rule: SteppingRule
 ) -> tuple[np.ndarray, float]:
@@ -220,13 +235,14 @@ def realize_commands(
         actions: the commanded actions, one per step.
         rule: the stepping rule.
         history: the two actions before the first one (``("stop", "stop")`` when standing).
-        start_time: time of the sequence's start [s]; the first command comes
-            ``rule.initial_hold`` later.
+        start_time: time of the sequence's start [s], finite and >= 0; the first command
+            comes ``rule.initial_hold`` later.
 
     Returns:
         The realized :class:`FootstepSequence`.
     """
     rule.validate()
+    start_time = _check_start_time(start_time)
     stance_pose = np.asarray(stance_pose, dtype=float)
     swing_pose = np.asarray(swing_pose, dtype=float)
     if stance_pose.shape != (3,) or swing_pose.shape != (3,):
@@ -498,7 +514,7 @@ class CommandStepper(LeafSystem):
         super().__init__()
         self._rule = rule or SteppingRule()
         self._rule.validate()
-        self._start_time = start_time
+        self._start_time = _check_start_time(start_time)
         self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(_empty_plan()))
         self.DeclareAbstractOutputPort(
             "footsteps",

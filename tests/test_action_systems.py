@@ -76,6 +76,25 @@ def test_goto_pose_rate_limits_and_status():
     np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.TIMED_OUT])
 
 
+def test_goto_pose_inactive_keeps_running_and_tracks():
+    # A plan's later action (active input 0) that is at its target, past its timeout or
+    # given an off-field target stays RUNNING; its command is still the rate-limited one.
+    cases = (
+        ([0.01, 0, 0.05, 0], 0.0, [0.0, 3.0 * 0.05 * 2.5, ActionStatus.RUNNING]),  # at the goal
+        ([1, 0, 0, 0], GOTO_GAINS["timeout"], [0.1, 0.0, ActionStatus.RUNNING]),
+        ([5.0, 0, 0, 0], 0.0, [0.0, 0.0, ActionStatus.RUNNING]),
+    )
+    for target, time, expected in cases:
+        goto, ctx = _goto_context(target, time=time)
+        goto.get_active_input_port().FixValue(ctx, [0.0])
+        assert not goto.is_active(ctx)
+        xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+        np.testing.assert_allclose(xd, expected, atol=1e-12)
+        goto.get_active_input_port().FixValue(ctx, [1.0])  # started: as when unconnected
+        xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+        assert xd[2] != ActionStatus.RUNNING
+
+
 def test_goto_pose_target_off_field_fails_without_motion():
     goto, ctx = _goto_context([5.0, 0, 0, 0])
     xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
@@ -92,6 +111,11 @@ def test_goto_pose_bad_construction():
         GoToPose(gains={"v_max": 0.0})
     with pytest.raises(RepertoireError, match="workspace"):
         GoToPose(workspace=(1, 0, 0, 1))
+    # A heading tolerance <= 0 could never be met (|error| < tol): the action ran to its
+    # timeout instead of refusing the gain, as DribbleBall already did.
+    for bad in (-0.1, 0.0):
+        with pytest.raises(RepertoireError, match=f"heading_tolerance must be > 0, got {bad}"):
+            GoToPose(gains={"heading_tolerance": bad})
 
 
 def test_chassis_state_by_hand():

@@ -53,6 +53,7 @@ def test_executor_routes_targets_and_commands_and_switches():
 
     _step(ex, context, 0.5)  # action 0 still running: nothing changes
     assert ex.get_active_action_output_port().Eval(context)[0] == 0
+    assert [ex.GetOutputPort(f"active_{i}").Eval(context)[0] for i in (0, 1)] == [1.0, 0.0]
 
     ex.get_status_input_port(0).FixValue(context, S)
     _step(ex, context, 1.25)
@@ -60,6 +61,7 @@ def test_executor_routes_targets_and_commands_and_switches():
     np.testing.assert_array_equal(ex.get_command_output_port().Eval(context), [0.7, -0.2])
     finish = ex.get_finish_times_output_port().Eval(context)
     assert finish[0] == 1.25 and np.isnan(finish[1])
+    assert [ex.GetOutputPort(f"active_{i}").Eval(context)[0] for i in (0, 1)] == [0.0, 1.0]
 
     ex.get_status_input_port(1).FixValue(context, S)
     _step(ex, context, 3.5)
@@ -67,6 +69,7 @@ def test_executor_routes_targets_and_commands_and_switches():
     assert ex.get_active_action_output_port().Eval(context)[0] == 2
     np.testing.assert_array_equal(ex.get_finish_times_output_port().Eval(context), [1.25, 3.5])
     np.testing.assert_array_equal(ex.get_command_output_port().Eval(context), [0.0, 0.0])
+    assert [ex.GetOutputPort(f"active_{i}").Eval(context)[0] for i in (0, 1)] == [0.0, 0.0]
     _step(ex, context, 4.0)  # finished: state frozen
     np.testing.assert_array_equal(ex.get_finish_times_output_port().Eval(context), [1.25, 3.5])
 
@@ -132,3 +135,21 @@ def test_soccer_plan_world_runs_the_plan_and_dribbles_the_ball():
     for name, omega in (("action_0", 2.5), ("action_1", 0.6)):
         action = slow.GetSubsystemByName(name)
         assert action.gains(action.GetMyContextFromRoot(context))["omega_max"] == omega
+
+
+def test_soccer_plan_later_leg_through_an_earlier_target_is_driven():
+    # There and back and there again: the third leg's target is reached by the first
+    # leg. The third GoToPose used to latch SUCCEEDED then, so the plan "succeeded"
+    # at the end of the second leg, 0.95 m from the last target; now each action only
+    # ends once the executor has started it (its active input).
+    from repertoire.diagrams.simulate import simulate_registered
+    from repertoire.diagrams.soccer_plan import SoccerPlanScenario
+
+    scenario = SoccerPlanScenario(
+        initial_pose=[0.0, 0.0, 0.0],
+        targets=[[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, np.pi, 0.0], [1.0, 0.0, 0.0, 0.0]],
+        gains={"timeout": 40.0},
+    )
+    figures = simulate_registered("soccer_plan", scenario=scenario, duration=20.0)
+    assert figures["plan_succeeded"] == 1.0
+    assert figures["position_error_m"] < 0.1

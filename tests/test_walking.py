@@ -8,6 +8,7 @@ from pydrake.systems.analysis import Simulator
 from repertoire.diagrams.biped_walk import (
     BipedWalkScenario,
     build_biped_walk,
+    build_walk_diagram,
     check_biped_walk,
     execute_plan,
     landing_errors,
@@ -253,3 +254,58 @@ def test_bad_input():
         load_scenario(BipedWalkScenario, data="pelvis_height: 0.9\n")
     with pytest.raises(ScenarioError, match="first_stance"):
         BipedWalkScenario(first_stance="middle").validate()
+
+
+def test_check_figures_say_whether_the_plan_is_complete():
+    # map_seed 2 on a 2 m floor: the planner hits its 60000-node limit and the biped
+    # walks the best partial plan (15 steps, 1.09 m of heuristic cost left); the figures
+    # said nothing about it before.
+    figures = {}
+    for name, yaml in (("partial", "map_seed: 2\nmap_size: 2.0\n"), ("actions", "map_seed: -1\n")):
+        diagram = build_biped_walk(load_scenario(BipedWalkScenario, data=yaml))
+        figures[name] = check_biped_walk(diagram, diagram.CreateDefaultContext())
+    assert figures["partial"]["plan_complete"] == 0.0
+    assert figures["partial"]["steps_planned"] == 15.0
+    assert figures["actions"]["plan_complete"] == 1.0
+    assert figures["actions"]["steps_planned"] == len(BipedWalkScenario().actions)
+
+
+def test_walk_builder_and_execute_plan_check_their_arguments():
+    # The builder and execute_plan are public entry points: a pelvis height the scenario
+    # refuses (0.9 m: legs out of reach) walked silently, a negative time_step or a NaN
+    # settle aborted the process inside Drake, max_steps=-1 measured nothing.
+    plan = _plan(["stop"])
+    cases = (
+        ({"pelvis_height": 0.9}, r"pelvis_height must be in \[0.5, 0.64\] m, got 0.9"),
+        ({"pelvis_height": math.nan}, "pelvis_height must be in .* got nan"),
+        ({"time_step": -1e-3}, r"time_step must be in \(0, 0.01\] s .* got -0.001"),
+        ({"contact_approximation": "tamsi"}, "contact_approximation .* got 'tamsi'"),
+    )
+    for kwargs, message in cases:
+        with pytest.raises(RepertoireError, match=message):
+            build_walk_diagram(plan, **kwargs)
+        with pytest.raises(RepertoireError, match=message):
+            execute_plan(plan, **kwargs)
+    with pytest.raises(RepertoireError, match="ground_friction must be > 0, got -1"):
+        build_walk_diagram(plan, ground_friction=-1.0)
+    for settle in (math.nan, -0.5):
+        with pytest.raises(
+            RepertoireError, match=f"settle must be a finite delay >= 0 s, got {settle}"
+        ):
+            execute_plan(plan, settle=settle)
+    with pytest.raises(RepertoireError, match="max_steps must be None or an int >= 0, got -1"):
+        execute_plan(plan, max_steps=-1)
+
+
+def test_start_time_must_be_finite_and_not_negative():
+    # A NaN or negative start put breaks before 0 into the ZMP reference, and Drake's
+    # PiecewisePolynomial aborted the whole process; now it is a clear error.
+    for bad in (np.nan, -1.0, np.inf):
+        with pytest.raises(RepertoireError, match=f"start_time must be finite and >= 0.*{bad}"):
+            realize_commands([0, 0.1, 0], Foot.LEFT, [0, -0.1, 0], ["stop"], RULE, start_time=bad)
+        with pytest.raises(RepertoireError, match="start_time must be finite"):
+            CommandStepper(start_time=bad)
+    seq = realize_commands([0, 0.095, 0], Foot.LEFT, [0, -0.095, 0], ["stop"], RULE, start_time=2.0)
+    assert seq.command_times == [pytest.approx(2.0 + RULE.initial_hold)]
+    zmp = zmp_reference(seq)
+    np.testing.assert_allclose(zmp.value(1.0).ravel(), [0.0, 0.0], atol=1e-12)

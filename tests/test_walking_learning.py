@@ -156,5 +156,15 @@ def test_execution_config_bad_input(tmp_path):
         FootstepExecutionConfig(table_path=str(tmp_path / "none.json")).validate()
     with pytest.raises(RepertoireError, match="size_m"):
         FootstepExecutionConfig(size_m=0.5).validate()
+    # the walk's settings are checked before any map is planned (a negative time_step
+    # reached Drake's MultibodyPlant, which aborted the process)
+    with pytest.raises(RepertoireError, match="time_step must be in .* got -0.002"):
+        FootstepExecutionConfig(time_step=-0.002).validate()
+    with pytest.raises(RepertoireError, match=r"pelvis_height must be in \[0.5, 0.64\] m, got 0.9"):
+        FootstepExecutionConfig(pelvis_height=0.9).validate()
+    with pytest.raises(RepertoireError, match="contact_approximation .* got 'tamsi'"):
+        FootstepExecutionConfig(contact_approximation="tamsi").validate()
+    with pytest.raises(RepertoireError, match="heuristic_weight must be finite and >= 1 .*nan"):
+        FootstepExecutionConfig(heuristic_weight=float("nan")).validate()
     with pytest.raises(RepertoireError, match="table_file"):
         FootstepTableConfig(table_file="t.txt").validate()

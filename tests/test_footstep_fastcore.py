@@ -646,3 +646,31 @@ def test_tiny_hot_heap_gives_the_same_searches(monkeypatch):
     for a, b in zip(py, cc, strict=True):
         assert a.plan.poses == b.plan.poses and a.plan.cost == b.plan.cost
         assert a.bound == b.bound and a.plan.nodes_expanded == b.plan.nodes_expanded
+
+
+def test_borrowed_array_is_the_array_without_its_reference_count():
+    # the core hands the margin check borrowed arrays (fastkernels._borrowed): the same
+    # memory, shape and strides; dropping one frees nothing (the owner's count is untouched)
+    import numba
+    from numba.core.runtime import _nrt_python, rtsys
+    from repertoire.planning.footstep.fastkernels import _borrowed
+
+    @numba.njit
+    def write_through(a):
+        b = _borrowed(a[:, 1:])
+        b[1, 2] = -5.0
+        return b.sum(), b.shape[0], b.shape[1], b.strides[0], b.strides[1]
+
+    a = np.arange(12.0).reshape(3, 4)
+    write_through(a.copy())  # compiled before counting
+    _nrt_python.memsys_enable_stats()
+    try:
+        before = rtsys.get_allocation_stats()
+        for _ in range(1000):
+            total, *layout = write_through(a)
+        after = rtsys.get_allocation_stats()
+    finally:
+        _nrt_python.memsys_disable_stats()
+    assert a[1, 3] == -5.0 and total == a[:, 1:].sum() == 42.0
+    assert layout == [3, 3, 32, 8]
+    assert after.mi_free - before.mi_free == after.mi_alloc - before.mi_alloc  # none twice

@@ -62,6 +62,7 @@ import time
 import numpy as np
 from repertoire.planning.footstep.biped_model import BipedState, BipedStepModel
 from repertoire.planning.footstep.fastkernels import (
+    _borrowed,
     _cached_mask_bits,
     _cached_masks,
     _foot_free,
@@ -187,6 +188,9 @@ def _arastar(
     h_radius = max(tol, res * 0.75) + 1e-9
     h_cmin = hp[8] / res if use_cells else 0.0  # cheapest cost per metre, shrunk by 1e-6
     tol2 = tol * tol
+    # the margin check's arrays without reference counts (see fastkernels._borrowed)
+    bgrid, bchk, boccw = _borrowed(grid), _borrowed(chk), _borrowed(occw)
+    bfree, bmbits, bmrows = _borrowed(free), _borrowed(mbits), _borrowed(mrows)
     # Lattice table rows: key, g (float bits); the successor test reads only this row (no
     # node row of another state unless it improves that state's g). The rows live in the
     # first rows of tb0, their nodes in tn0 (tb1, tn1: the spares a rehash fills).
@@ -409,7 +413,7 @@ def _arastar(
                             merged += 1
                             continue
                     if not free[(int(fx) + pad) * nyp + int(fy) + pad] and not _foot_free(
-                        x2, y2, th2, grid, chk, occw, free, mbits, mrows
+                        x2, y2, th2, bgrid, bchk, boccw, bfree, bmbits, bmrows
                     ):  # the surely-free shortcut first (inline), then the masks
                         continue
                     if flat_limit < np.inf and (

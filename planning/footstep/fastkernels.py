@@ -255,6 +255,25 @@ def _prefetch_row(typingctx, arr, row):
     return sig, codegen
 
 
+@intrinsic
+def _borrowed(typingctx, arr):
+    """``arr`` itself without its reference count (a NULL meminfo): same data, shape, strides.
+
+    numba counts references (an atomic ``lock`` add and subtract) on the arrays an inlined
+    kernel takes whenever it cannot prove them unneeded, e.g. around a loop with early
+    exits (``_foot_free``: three per call); on a borrowed array those calls do nothing.
+    The caller keeps ``arr`` alive while the borrowed one is used.
+    """
+    sig = arr(arr)
+
+    def codegen(context, builder, signature, args):
+        out = context.make_array(signature.args[0])(context, builder, value=args[0])
+        out.meminfo = cgutils.get_null_value(out.meminfo.type)
+        return out._getvalue()
+
+    return sig, codegen
+
+
 @njit(inline="always")
 def _wrap(t):
     """``(t + pi) % (2 pi) - pi`` bit for bit (Python's float modulo), without the modulo.

@@ -73,7 +73,6 @@ from repertoire.planning.footstep.fastkernels import (
     _heap_rows,
     _height_range,
     _lattice_yaw,
-    _less,
     _now,
     _occupancy_words,
     _open_push,
@@ -293,6 +292,9 @@ def _arastar(
                 tg = table.view(np.float64)
             # The search loop reassigns no array (numba would count references on each
             # pass): it leaves when the next expansion might not fit.
+            # the open list's arrays without reference counts (see fastkernels._borrowed),
+            # made anew whenever the arrays above were grown
+            ohv, ocold = _borrowed(hv), _borrowed(cold)
             room = True
             while hsize > 0 or csize > 0:
                 if (
@@ -327,7 +329,7 @@ def _arastar(
                         fnode[node, _H], inode[node, _LAZY] = h, -1
                     if h < np.inf:
                         hsize, csize = _open_push(
-                            hv, hsize, cold, csize, thr, gp + w * h, h, tp, node
+                            ohv, hsize, ocold, csize, thr, gp + w * h, h, tp, node
                         )
                     continue
                 _heap_pop(hv, hsize)
@@ -487,24 +489,9 @@ def _arastar(
                         code = idx
                         if lazy >= 0:
                             ent[tie, 0], ent[tie, 1], code = g2, lazy, -1 - idx
-                        # _open_push and _heap_push written out: an inlined call with
-                        # arrays costs four atomic reference counts per push
-                        fo = g2 + w * h2
-                        if fo < thr:
-                            u = hsize
-                            while u > 0:
-                                pu = (u - 1) >> 2
-                                if not _less(fo, h2, tie, hv[pu, 0], hv[pu, 1], hv[pu, 2]):
-                                    break
-                                hv[u, 0], hv[u, 1] = hv[pu, 0], hv[pu, 1]
-                                hv[u, 2], hv[u, 3] = hv[pu, 2], hv[pu, 3]
-                                u = pu
-                            hv[u, 0], hv[u, 1], hv[u, 2], hv[u, 3] = fo, h2, tie, code
-                            hsize += 1
-                        else:
-                            cold[csize, 0], cold[csize, 1] = fo, h2
-                            cold[csize, 2], cold[csize, 3] = tie, code
-                            csize += 1
+                        hsize, csize = _open_push(
+                            ohv, hsize, ocold, csize, thr, g2 + w * h2, h2, tie, code
+                        )
                         tie += 1
             if room:
                 break

@@ -261,7 +261,8 @@ def _borrowed(typingctx, arr):
 
     numba counts references (an atomic ``lock`` add and subtract) on the arrays an inlined
     kernel takes whenever it cannot prove them unneeded, e.g. around a loop with early
-    exits (``_foot_free``: three per call); on a borrowed array those calls do nothing.
+    exits (``_foot_free``: three per call; ``_open_push``: four per push); on a borrowed
+    array those calls do nothing.
     The caller keeps ``arr`` alive while the borrowed one is used.
     """
     sig = arr(arr)

@@ -40,6 +40,7 @@ from repertoire.systems.walking import (
     whole_body_ik,
 )
 
+from repertoire.checks import is_real, is_whole
 from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
 from repertoire.limits import require_grid_memory
@@ -477,12 +478,9 @@ def execute_plan(
         simulator: optionally a simulator of ``diagram``.
         max_steps: stop after measuring this many landings (default: all, then the final hold).
     """
-    if not (np.isfinite(settle) and settle >= 0.0):
-        raise RepertoireError(f"settle must be a finite delay >= 0 s, got {settle}")
-    if max_steps is not None and not (
-        isinstance(max_steps, (int, np.integer)) and not isinstance(max_steps, bool)
-        and max_steps >= 0
-    ):  # fmt: skip
+    if not (is_real(settle) and np.isfinite(settle) and settle >= 0.0):
+        raise RepertoireError(f"settle must be a finite delay >= 0 s, got {settle!r}")
+    if max_steps is not None and not (is_whole(max_steps) and max_steps >= 0):
         raise RepertoireError(f"max_steps must be None or an int >= 0, got {max_steps!r}")
     rule = rule or SteppingRule()
     if diagram is None:

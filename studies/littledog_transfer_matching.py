@@ -346,8 +346,9 @@ def summarize(
     """Table of every case; the modified terrain's transferred steps and searches (figures).
 
     Returns:
-        ``{"table": md, "modified": png, "modified_multiple": png}`` (figures only when a
-        modified-terrain episode ran).
+        ``{"table": md, "modified": png, "modified_multiple": png, "turn": png}`` (figures
+        only when a modified-terrain episode ran; "turn": the gap filler's crawl turning
+        the body 30 degrees there).
     """
     from repertoire.diagrams.littledog_transfer import LittleDogTransferScenario, plan_transfer
     from repertoire.planning.transfer_plot import library_path_figure
@@ -415,7 +416,43 @@ def summarize(
                 title=f"Modified terrain, {what}: {plan.search.message}",
                 links=plan.transfer.links,
             )
+        files["turn"] = _turn_figure(plan, out_dir / "littledog_transfer_turn.png")
     return files
+
+
+def _turn_figure(plan, path: Path, degrees: float = 30.0) -> Path:
+    """The gap filler's crawl turning the body on the modified terrain (a figure).
+
+    From the terrain's start stance to a goal 0.2 m ahead at a heading of ``degrees``, as
+    the gap filler does to join a step matched with a yaw.
+    """
+    import math
+
+    from repertoire.diagrams.littledog_transfer import MAP_RESOLUTION
+    from repertoire.models.littledog import FOOT_RADIUS
+    from repertoire.planning.footstep.plot import crawl_plan_figure
+    from repertoire.planning.footstep.quadruped import height_map_from_board, plan_crawl
+    from repertoire.planning.littledog_crawl import heading_of
+
+    x0, x1, y0, y1 = plan.board.bounds()
+    hmap = height_map_from_board(plan.board, (x0, x1), (y0, y1), MAP_RESOLUTION)
+    feet = np.asarray(plan.feet0, dtype=float)
+    goal = feet[:, :2].mean(axis=0) + [0.2, 0.0]
+    crawl = plan_crawl(
+        hmap,
+        feet - [0.0, 0.0, FOOT_RADIUS],  # ground contact points
+        goal,
+        time_limit=30.0,
+        goal_heading=math.radians(degrees),
+        ground=plan.board,
+    )
+    end = crawl.steps[-1].stance if crawl.steps else crawl.start_stance
+    title = (
+        f"Crawl gap filler turning the body: goal heading {degrees:g} deg (within 5), "
+        f"{crawl.status.value}, {len(crawl.steps)} steps, heading "
+        f"{math.degrees(heading_of(feet)):.1f} -> {math.degrees(heading_of(end)):.1f} deg"
+    )
+    return crawl_plan_figure(hmap, crawl, path, goal=(*goal, 0.03), title=title)
 
 
 def demo_config() -> LittleDogTransferConfig:

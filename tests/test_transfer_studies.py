@@ -58,6 +58,7 @@ def test_modified_terrain_case_searches_and_summarizes(library_path, tmp_path):
     assert r.placed_multiple >= r.placed
     files = matching.summarize([r], config, tmp_path)
     assert files["modified"].stat().st_size > 10_000
+    assert files["turn"].stat().st_size > 10_000  # the crawl turning the body, a figure
     assert f"{r.recorded} + {r.planned} (reached)" in files["table"].read_text()
     # The kinematic crossing joins exactly: its multiple matches on the unchanged part chain.
     assert 0 < r.chained_multiple <= r.placed_multiple

@@ -309,6 +309,13 @@ def crawl_plan_figure(height_map, plan, path: "str | Path", *, goal=None, title:
     handles.append(
         Line2D([], [], ls="", marker="s", mfc="none", mec="k", ms=5, label="start foothold")
     )
+    # The start and final stances as quadrilaterals (lf, rf, rh, lh): their turn shows.
+    final = plan.steps[-1].stance if plan.steps else plan.start_stance
+    stances = ((plan.start_stance, ":", "start stance"), (final, "-", "final stance"))
+    for stance, ls, label in stances:
+        quad = np.asarray(stance)[[0, 1, 3, 2, 0], :2]
+        ax.plot(quad[:, 0], quad[:, 1], ls, color="k", lw=1.0)
+        handles.append(Line2D([], [], ls=ls, color="k", lw=1.0, label=label))
     if goal is not None:
         ax.add_patch(Circle((goal[0], goal[1]), goal[2], fill=False, ec="g", lw=1.5))
         handles.append(

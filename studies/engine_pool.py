@@ -114,6 +114,13 @@ def run_task(module: str, name: str, config_json: str, seed: int) -> dict[str, A
             "message": f"{type(e).__name__}: {e}",
             "traceback": traceback.format_exc(),
         }
+    except SystemExit as e:  # sys.exit() in an episode: its error, not the engine's exit
+        return {
+            "seed": seed,
+            "error": "exception",
+            "message": f"SystemExit({e.code!r}): the episode tried to exit the process",
+            "traceback": traceback.format_exc(),
+        }
 
 
 def raise_task_error(name: str, result: dict[str, Any]) -> None:

@@ -70,12 +70,19 @@ def failing_episode(config: ToyConfig, seed: int) -> ToyRecord:
     return toy_episode(config, seed)
 
 
+def exiting_episode(config: ToyConfig, seed: int) -> ToyRecord:
+    if seed == 2:
+        sys.exit(4)
+    return toy_episode(config, seed)
+
+
 @pytest.fixture
 def toy_studies():
     names = {
         "_toy": toy_episode,
         "_toy_wrong_record": wrong_record_episode,
         "_toy_failing": failing_episode,
+        "_toy_exiting": exiting_episode,
     }
     for name, fn in names.items():
         register_study(
@@ -224,6 +231,14 @@ def test_failing_episode_raises_with_seed_and_keeps_finished_rows(tmp_path, toy_
         run_study("_toy_failing", episodes=6, executor="inline", **_kw(tmp_path))
     with sqlite3.connect(tmp_path / "s.sqlite") as db:
         assert [r[0] for r in db.execute("SELECT seed FROM episodes ORDER BY seed")] == [0, 1, 2]
+
+
+def test_episode_calling_sys_exit_is_an_episode_error_not_a_silent_exit(tmp_path, toy_studies):
+    # Inline, sys.exit() in an episode used to end the whole program without a word.
+    with pytest.raises(EpisodeError, match=r"seed 2: SystemExit\(4\): the episode tried to exit"):
+        run_study("_toy_exiting", episodes=4, executor="inline", **_kw(tmp_path))
+    with sqlite3.connect(tmp_path / "s.sqlite") as db:
+        assert [r[0] for r in db.execute("SELECT seed FROM episodes ORDER BY seed")] == [0, 1]
 
 
 # ---------------------------------------------------------------------------

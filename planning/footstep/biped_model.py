@@ -354,10 +354,15 @@ class BipedStepModel:
         else:
             swing0 = pose3(initial_swing_pose, "initial_swing_pose")
         self.swing0 = swing0
-        if not chk_start.is_free(*swing0, shortcut=False):
+        # the swing foot lifts at the start time (the first step moves it): in a dynamic
+        # world it must be free in E(start_time) only, not over the stance foot's hold window
+        # (an obstacle may pass over the spot it leaves, as in receding-horizon replanning)
+        chk_swing = FootprintChecker(world.grids[self.k0], exact.masks) if dynamic else chk_start
+        if not chk_swing.is_free(*swing0, shortcut=False):
+            when = f" at t = {self.start_time:.3f} s" if dynamic else ""
             raise FootstepError(
                 f"initial swing foot at ({swing0[0]:.3f}, {swing0[1]:.3f}) overlaps an obstacle "
-                "or the map edge"
+                f"or the map edge{when}"
             )
         self.chk0 = self.checkers.checker(self.k0)
         gcell = ref.cell_of(gx, gy)

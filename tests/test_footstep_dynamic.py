@@ -1,0 +1,77 @@
+"""Footstep planning in dynamic worlds E(t): start checks, replanning, statuses."""
+
+import math
+
+import pytest
+from repertoire.planning.footstep import (
+    DynamicEnvironment,
+    FootstepError,
+    MovingRectObstacle,
+    PlannerOptions,
+    PlanStatus,
+    nominal_action_table,
+    plan_footsteps,
+)
+from repertoire.planning.footstep.footprint import foot_collides_reference
+from repertoire.planning.footstep.receding import plan_receding_horizon
+
+FOOT = (0.16, 0.10)  # the nominal (ASIMO-like) sole
+
+
+def _stands_free(env, plan, hold=0.8):
+    """(k, t) of every grid in which pose k overlaps an obstacle while it stands."""
+    bad = []
+    n = len(plan.poses)
+    for k in range(1, n):
+        t0 = plan.times[k]
+        t1 = plan.times[k + 1] if k + 1 < n else t0 + hold
+        for grid, tg in zip(env.grids, env.times):
+            if t0 - env.max_time_gap - 1e-9 <= tg <= t1 + env.max_time_gap + 1e-9:
+                if foot_collides_reference(grid, plan.poses[k], *FOOT):
+                    bad.append((k, float(tg)))
+    return bad
+
+
+def _sweeper(t_arrive: float) -> DynamicEnvironment:
+    """A 0.2 m block moving +x at 0.5 m/s along y = 0.7 that reaches the right sole at
+    (1.595, 0.7) (x from 1.545) at ``t_arrive``."""
+    x0 = 1.545 - 0.1 - 0.5 * t_arrive
+    block = MovingRectObstacle([x0, 0.7], [0.2, 0.2], [0.5, 0.0])
+    return DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[block], t_end=40.0)
+
+
+def test_initial_swing_foot_needs_only_be_free_when_it_lifts():
+    # the swing foot lifts at the start time: a block arriving there 0.5 s later is no error
+    env = _sweeper(0.5)
+    assert not foot_collides_reference(env.at(0.0), (1.595, 0.7, math.pi / 2), *FOOT)
+    assert foot_collides_reference(env.at(0.5), (1.595, 0.7, math.pi / 2), *FOOT)
+    t = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", max_expansions=3000, time_limit=10.0)
+    plan = plan_footsteps(
+        env, (1.405, 1.0, math.pi / 2), "left", (1.5, 2.6), t, opts,
+        initial_swing_pose=(1.595, 0.7, math.pi / 2),
+    )  # fmt: skip
+    assert plan.status is PlanStatus.SUCCESS and _stands_free(env, plan) == []
+    # occupied at the start time itself: still the clear error, naming the time
+    with pytest.raises(FootstepError, match=r"initial swing foot at \(1.595, 0.700\).*t = 0.600"):
+        plan_footsteps(
+            env, (1.405, 1.0, math.pi / 2), "left", (1.5, 2.6), t, opts,
+            initial_swing_pose=(1.595, 0.7, math.pi / 2), start_time=0.6,
+        )  # fmt: skip
+
+
+def test_receding_horizon_survives_a_block_crossing_behind_the_robot():
+    # the block crosses y = 0.7 at t = 2.0 s, after the right foot that landed there at 0.8 s
+    # lifted at 1.6 s; the round that starts at 1.6 s has that foot as its swing foot
+    env = _sweeper(2.0)
+    t = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", max_expansions=3, time_limit=10.0)
+    one = plan_footsteps(env, (1.405, 0.4, math.pi / 2), "left", (1.5, 2.6), t, opts)
+    assert one.status is PlanStatus.NODE_LIMIT
+    assert [round(p[1], 3) for p in one.poses] == [0.4, 0.7, 1.0]
+    for steps in (1, 2):
+        res = plan_receding_horizon(
+            env, (1.405, 0.4, math.pi / 2), "left", (1.5, 2.6), t, opts, execute_steps=steps
+        )
+        assert res.plan.status is PlanStatus.SUCCESS and res.rounds > 1
+        assert _stands_free(env, res.plan) == []

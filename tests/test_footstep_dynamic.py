@@ -75,3 +75,27 @@ def test_receding_horizon_survives_a_block_crossing_behind_the_robot():
         )
         assert res.plan.status is PlanStatus.SUCCESS and res.rounds > 1
         assert _stands_free(env, res.plan) == []
+
+
+def test_time_bins_never_collide_with_other_states():
+    # the time bin was added as k * 1e6 + bin: with 1e-7 s bins (one history class) the
+    # other foot at t collided with this one 0.1 s later; bins now span the grids' times
+    from repertoire.planning.footstep.biped_model import BipedStepModel
+
+    block = MovingRectObstacle([0.5, 2.5], [0.2, 0.2], [0.1, 0.0])
+    env = DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[block], t_end=20.0)
+    shifted = DynamicEnvironment(env.times - 10.0, env.grids, env.max_time_gap)  # t in [-10, 10]
+    t = nominal_action_table()
+    for world, t0 in ((env, 3.0), (shifted, -7.0)):
+        for tq in (0.1, 1e-7):
+            opts = PlannerOptions(heuristic="euclidean", time_resolution=tq)
+            model = BipedStepModel(world, (1.0, 1.0, 0.0), "left", (2.0, 1.0), t, opts)
+            assert model.n_hist == 1
+
+            def key(foot, time, model=model):
+                return model.lattice_key(1.0, 1.0, 0.0, foot, 0, time)
+
+            times = [t0 + k * 0.1 for k in range(-20, 21)] + [t0 + tq / 4]
+            keys = {(f, round(x / tq)): key(f, x) for f in (0, 1) for x in times}
+            assert len(set(keys.values())) == len(keys)  # one key per state and time bin
+            assert key(0, t0 + tq / 4) == key(0, t0)  # within half a bin: the same state

@@ -500,6 +500,11 @@ class BipedStepModel:
         self.yaw_shift = self.nyaw + 0.5 - (u - round(u))
         self.ky = int(math.ceil(ref.size[1] * self.inv_q)) + 3
         self.inv_tq = 1.0 / opts.time_resolution
+        if self.dynamic:  # time bins over the grids' span: every reachable state's time
+            env = self.world
+            self.tb0 = math.floor((env.times[0] - env.max_time_gap) * self.inv_tq + 0.5) - 1
+            tb1 = math.floor((env.times[-1] + env.max_time_gap) * self.inv_tq + 0.5) + 1
+            self.n_tbins = tb1 - self.tb0 + 1
         self.inv_res = 1.0 / ref.resolution
         self.origin = ref.origin
 
@@ -521,8 +526,9 @@ class BipedStepModel:
 
         Position rounded to ``xy_resolution``, yaw (in ``[-pi, pi)``) to ``yaw_bins``, the
         foot, the history class and, in dynamic worlds, the time rounded to
-        ``time_resolution``. :mod:`~repertoire.planning.footstep.fastcore` computes the same
-        integer.
+        ``time_resolution`` (bins counted over the span of the grids' times, so any
+        resolution and any times, negative ones too, give distinct keys).
+        :mod:`~repertoire.planning.footstep.fastcore` computes the same integer (static).
 
         The yaw bins are centred on the start's yaw. The yaws a plan reaches are the start's
         plus whole turns; the nominal turn, 0.35 rad, is 2.005 bins of 36 and 4.011 of 72,
@@ -539,8 +545,8 @@ class BipedStepModel:
             yaw * self.yaw_scale + self.yaw_shift
         ) % self.nyaw
         k = (k * 2 + foot) * self.n_hist + hist
-        if self.dynamic:
-            k = k * 1_000_000 + int(t * self.inv_tq + 0.5)
+        if self.dynamic:  # one key per (state, time bin) however many bins: no collisions
+            k = k * self.n_tbins + math.floor(t * self.inv_tq + 0.5) - self.tb0
         return k
 
     def cost_to_go(self, x: float, y: float) -> float:

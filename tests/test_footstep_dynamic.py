@@ -2,13 +2,17 @@
 
 import math
 
+import numpy as np
 import pytest
 from repertoire.planning.footstep import (
     DynamicEnvironment,
     FootstepError,
+    GridError,
     MovingRectObstacle,
+    OccupancyGrid,
     PlannerOptions,
     PlanStatus,
+    RectObstacle,
     nominal_action_table,
     plan_footsteps,
 )
@@ -99,3 +103,58 @@ def test_time_bins_never_collide_with_other_states():
             keys = {(f, round(x / tq)): key(f, x) for f in (0, 1) for x in times}
             assert len(set(keys.values())) == len(keys)  # one key per state and time bin
             assert key(0, t0 + tq / 4) == key(0, t0)  # within half a bin: the same state
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda g: DynamicEnvironment([0.0, 2.0, 1.0], [g] * 3, 0.5),
+         r"strictly increasing, got 2.0 then 1.0 at indices 1, 2"),
+        (lambda g: DynamicEnvironment([0.0, math.nan], [g] * 2, 0.5),
+         r"finite, got nan at index 1"),
+        (lambda g: DynamicEnvironment([[0.0, 1.0]], [g] * 2, 0.5), r"1-D .* shape \(1, 2\)"),
+        (lambda g: DynamicEnvironment(["a", "b"], [g] * 2, 0.5), r"times must be numbers"),
+        (lambda g: DynamicEnvironment([0.0, 1.0], [g, np.zeros((8, 8))], 0.5),
+         r"grid 1 must be an OccupancyGrid, got ndarray"),
+        (lambda g: DynamicEnvironment([0.0, 1.0], iter([g, g]), 0.5), r"grids must be a list"),
+        (lambda g: DynamicEnvironment([0.0, 1.0], [g, g], "1"), r"max_time_gap .* got '1'"),
+        (lambda g: DynamicEnvironment([0.0, 1.0], [g, _with_heights(g)], 0.5),
+         r"grid 1 has heights but grid 0 has none"),
+        (lambda g: DynamicEnvironment([0.0, 1.0], [_with_heights(g), g], 0.5),
+         r"grid 1 has no heights but grid 0 has"),
+        (lambda g: DynamicEnvironment([0.0], [g], 0.5).at("0"), r"time must be .* got '0'"),
+        (lambda g: _from_moving(moving=[RectObstacle([0.5, 0.5], [0.2, 0.2])]),
+         r"moving\[0\] must be a MovingRectObstacle, got RectObstacle"),
+        (lambda g: _from_moving(static=[MovingRectObstacle([0.5, 0.5], [0.2, 0.2])]),
+         r"static\[0\] must be a RectObstacle, got MovingRectObstacle"),
+        (lambda g: _from_moving(moving=None), r"moving must be a list of MovingRectObstacle"),
+        (lambda g: _from_moving(t_end="5"), r"t_end must be .* got '5'"),
+        (lambda g: _from_moving(dt="0.1"), r"dt must be .* got '0.1'"),
+        (lambda g: MovingRectObstacle([0, 0], [0.1, 0.1], waypoints=[["a", 0, 1]]),
+         r"waypoints must be finite \[t, x, y\] rows"),
+    ],
+)  # fmt: skip
+def test_dynamic_bad_inputs_are_named(make, message):
+    with pytest.raises(GridError, match=message):
+        make(OccupancyGrid.empty((1.0, 1.0)))
+
+
+def _with_heights(g):
+    return OccupancyGrid(g.occupied, g.resolution, g.origin, np.zeros(g.shape))
+
+
+def _from_moving(**kw):
+    args = {"moving": [], "t_end": 1.0, **kw}
+    return DynamicEnvironment.from_moving_obstacles((1.0, 1.0), **args)
+
+
+def test_obstacles_accept_numpy_numbers_and_generators():
+    # numpy scalars (np.float32 too) are numbers; a generator of moving obstacles is read
+    # once, not exhausted by the first grid
+    yaw, height = np.float32(0.5), np.float32(0.1)
+    m = MovingRectObstacle([0.2, 0.5], [0.2, 0.2], [0.5, 0.0], yaw=yaw, height=height)
+    env = DynamicEnvironment.from_moving_obstacles(
+        (1.0, 1.0), moving=(x for x in [m]), t_end=1.0, dt=0.5
+    )
+    assert [g.occupied.any() for g in env.grids] == [True, True, True]
+    assert env.at(1.0).occupied[28, 20] and not env.at(0.0).occupied[28, 20]  # x 0.7 at 1 s

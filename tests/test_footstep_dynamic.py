@@ -158,3 +158,32 @@ def test_obstacles_accept_numpy_numbers_and_generators():
     )
     assert [g.occupied.any() for g in env.grids] == [True, True, True]
     assert env.at(1.0).occupied[28, 20] and not env.at(0.0).occupied[28, 20]  # x 0.7 at 1 s
+
+
+@pytest.mark.parametrize("speeds", [(0.18, 0.12), (-0.18, 0.12), (-0.4, -0.3), (0.0, 0.0)])
+def test_strings_span_the_floor_whichever_way_the_rows_move(speeds):
+    # with a row moving along -x the string covered half the floor and blocks were missing
+    from repertoire.planning.footstep.scenes import strings_scene
+
+    sc = strings_scene(11, speeds=speeds, t_end=15.0, dt=0.5)
+    for g in sc.env.grids:
+        for y in sc.rows_y:
+            assert g.occupied[:, g.cell_of(1.5, y)[1]].all()  # the string, x = 0 .. 3 m
+        # the blocks (2 cm tall, 20 cm deep) along row 1: 0.3 m of every 0.9 m, 1/3 of the row
+        blocks = g.heights[:, g.cell_of(1.5, sc.rows_y[0] + 0.08)[1]] > 0.01
+        assert 0.28 <= blocks.mean() <= 0.45
+
+
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        ({"spacings": (0.0, 1.2)}, r"spacings\[0\] must be a positive number .* got 0.0"),
+        ({"speeds": (0.18, math.nan)}, r"speeds\[1\] must be a finite number .* got nan"),
+        ({"speeds": (0.18,)}, r"one value per row, got 2, 1 and 2"),
+    ],
+)
+def test_strings_scene_bad_rows_are_named(kw, message):
+    from repertoire.planning.footstep.scenes import strings_scene
+
+    with pytest.raises(GridError, match=message):
+        strings_scene(0, t_end=2.0, **kw)

@@ -187,3 +187,32 @@ def test_strings_scene_bad_rows_are_named(kw, message):
 
     with pytest.raises(GridError, match=message):
         strings_scene(0, t_end=2.0, **kw)
+
+
+def _start_actions(env, clearance):
+    from repertoire.planning.footstep.biped_model import BipedStepModel
+
+    t = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", swing_clearance=clearance)
+    model = BipedStepModel(env, (1.405, 0.4, math.pi / 2), "left", (1.5, 2.6), t, opts)
+    return sorted(t.actions[s.a_prev1] for s, _ in model.successors(model.start()))
+
+
+@pytest.mark.parametrize(
+    ("t_cross", "refused"),
+    [(0.4, ["forward_long", "forward_medium"]), (1.2, [])],
+)
+def test_swing_line_is_checked_against_tall_cells_while_the_foot_swings(t_cross, refused):
+    # a 30 cm tall bar along y = 0.55 (between the feet) moves +x at 1 m/s and crosses the
+    # right foot's line x = 1.595 at t_cross; the first step swings that foot from y = 0.4
+    # during [0, 0.8] s (forward_long / medium land at y = 0.7 / 0.6 and cross y = 0.55).
+    # The swing was checked against the cells tall at the landing and the next 0.8 s
+    # instead: a bar crossing mid-swing (0.4 s) was missed, one crossing after the landing
+    # (1.2 s, both feet clear of it) refused the step.
+    bar = MovingRectObstacle([1.595 - t_cross, 0.55], [0.1, 0.05], [1.0, 0.0], height=0.3)
+    env = DynamicEnvironment.from_moving_obstacles(
+        (3.0, 3.0), moving=[bar], t_end=20.0, with_heights=True
+    )
+    every = _start_actions(env, math.inf)  # no swing limit: the feet's own checks only
+    assert "forward_long" in every and set(refused) <= set(every)
+    assert _start_actions(env, 0.05) == sorted(set(every) - set(refused))

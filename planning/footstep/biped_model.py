@@ -342,6 +342,7 @@ class BipedStepModel:
         )
         self.exact_checkers = exact
         self._tall_cache: dict[int, np.ndarray | None] = {}
+        self._swing_tall_cache: dict[tuple[int, int], np.ndarray | None] = {}
         self.exact = chk_start = exact.checker(self.k0)
         if not chk_start.is_free(sx, sy, sth, shortcut=False):
             raise FootstepError(
@@ -520,6 +521,29 @@ class BipedStepModel:
         self._tall_cache[k] = tall
         return tall
 
+    def tall_during(self, ka: int, kb: int) -> np.ndarray | None:
+        """Cells the swing foot cannot cross while it swings (dynamic worlds).
+
+        A step swings from its stance time to its landing time; a cell blocks the swing
+        line when it is occupied and taller than ``swing_clearance`` in any grid from
+        index ``ka`` (the swing's start) to ``kb`` (its landing), both included.
+
+        Args:
+            ka: time index of the swing's start.
+            kb: time index of the landing.
+        """
+        key = (ka, kb)
+        if key in self._swing_tall_cache:
+            return self._swing_tall_cache[key]
+        tall = None
+        if self.ref.heights is not None and math.isfinite(self.opts.swing_clearance):
+            mask = np.zeros(self.ref.shape, bool)
+            for g in self.world.grids[ka : kb + 1]:
+                mask |= g.occupied & (g.heights > self.opts.swing_clearance)
+            tall = mask if mask.any() else None
+        self._swing_tall_cache[key] = tall
+        return tall
+
     # ------------------------------------------------------------------ lattice
     def lattice_key(self, x: float, y: float, yaw: float, foot: int, hist: int, t: float) -> int:
         """The lattice cell of a state: equal keys are the same search state.
@@ -603,8 +627,9 @@ class BipedStepModel:
         c, sn = math.cos(s.yaw), math.sin(s.yaw)
         nf = 1 - s.foot
         ex1 = self.exact
+        k_swing = self.checkers.index(s.t) if self.dynamic else 0  # the swing starts at s.t
         if self.dynamic and self.step_limits:
-            ex1 = self.exact_checkers.checker(max(self.checkers.index(s.t), 0))
+            ex1 = self.exact_checkers.checker(k_swing)
         z1 = ex1.top_height(s.x, s.y, s.yaw) if self.step_limits else 0.0
         if self.height_w > 0.0:
             dominated = None  # a landing's cost is known only after its height check
@@ -628,7 +653,7 @@ class BipedStepModel:
                     continue
                 chk = self.checkers.checker(kt)
                 ex = self.exact_checkers.checker(kt) if self.uses_heights else self.exact
-                tall = self.tall_at(kt)
+                tall = self.tall_during(k_swing, kt)
             else:
                 chk, ex, tall = self.chk0, self.exact, self.tall
             ix, iy = int(fx), int(fy)

@@ -216,3 +216,15 @@ def test_swing_line_is_checked_against_tall_cells_while_the_foot_swings(t_cross,
     every = _start_actions(env, math.inf)  # no swing limit: the feet's own checks only
     assert "forward_long" in every and set(refused) <= set(every)
     assert _start_actions(env, 0.05) == sorted(set(every) - set(refused))
+
+
+def test_start_foot_hit_while_it_stands_names_the_window():
+    # free at t = 0, reached by the block at 0.5 s, before the first step can land (0.8 s)
+    env = _sweeper(0.5)
+    t = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean")
+    with pytest.raises(
+        FootstepError,
+        match=r"start foot at \(1.595, 0.700, 1.571\) .* at some t in \[0.000, 0.800\] s",
+    ):
+        plan_footsteps(env, (1.595, 0.7, math.pi / 2), "right", (1.5, 2.6), t, opts)

@@ -345,9 +345,15 @@ class BipedStepModel:
         self._swing_tall_cache: dict[tuple[int, int], np.ndarray | None] = {}
         self.exact = chk_start = exact.checker(self.k0)
         if not chk_start.is_free(sx, sy, sth, shortcut=False):
+            when = (
+                f" at some t in [{start_time:.3f}, {start_time + hold:.3f}] s (it stands "
+                "until the first step lands)"
+                if dynamic
+                else ""
+            )
             raise FootstepError(
                 f"start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) overlaps an obstacle "
-                "or the map edge"
+                f"or the map edge{when}"
             )
         if initial_swing_pose is None:
             side = 1.0 if self.foot0 == Foot.RIGHT else -1.0

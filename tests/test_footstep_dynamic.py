@@ -228,3 +228,15 @@ def test_start_foot_hit_while_it_stands_names_the_window():
         match=r"start foot at \(1.595, 0.700, 1.571\) .* at some t in \[0.000, 0.800\] s",
     ):
         plan_footsteps(env, (1.595, 0.7, math.pi / 2), "right", (1.5, 2.6), t, opts)
+
+
+def test_receding_horizon_takes_default_options_when_the_goal_is_not_reached():
+    # options=None (the defaults, as plan_footsteps takes) crashed in dataclasses.replace
+    # when the goal was not reached (the cost-to-go estimate at the last committed pose)
+    wall = OccupancyGrid.from_rectangles((3.0, 3.0), [RectObstacle([2.0, 1.5], [0.6, 3.0])])
+    t = nominal_action_table()
+    res = plan_receding_horizon(wall, (0.5, 1.5, 0.0), "left", (2.7, 1.5), t, None, max_rounds=1)
+    assert res.statuses == ["UNREACHABLE"] and res.plan.status is PlanStatus.UNREACHABLE
+    assert res.plan.cost_to_go > 0
+    with pytest.raises(FootstepError, match="options must be PlannerOptions, got dict"):
+        plan_receding_horizon(wall, (0.5, 1.5, 0.0), "left", (2.7, 1.5), t, {})

@@ -240,3 +240,20 @@ def test_receding_horizon_takes_default_options_when_the_goal_is_not_reached():
     assert res.plan.cost_to_go > 0
     with pytest.raises(FootstepError, match="options must be PlannerOptions, got dict"):
         plan_receding_horizon(wall, (0.5, 1.5, 0.0), "left", (2.7, 1.5), t, {})
+
+
+def test_mobile2d_inflation_is_exact_at_cell_corners():
+    # one occupied cell (20, 20) of 2.5 cm; a 9 cm disc centred on cell (23, 23) reaches its
+    # corner: distance 0.025 * hypot(2.5, 2.5) = 0.0884 m < 0.09. The inflation measured
+    # centre to centre minus half a cell (0.025 * (hypot(3, 3) - 0.5) = 0.0936 m) and left
+    # the cell free.
+    from repertoire.planning.footstep.mobile2d import inflate
+
+    occ = np.zeros((41, 41), bool)
+    occ[20, 20] = True
+    g = OccupancyGrid(occ, 0.025)
+    b = inflate(g, 0.09)
+    assert b[23, 23] and b[20, 24] and b[20, 16] and not b[20, 25] and not b[24, 23]
+    assert not inflate(g, 0.088)[23, 23] and inflate(g, 0.0)[20, 20]
+    assert inflate(g, 0.0).sum() == 1
+    assert b[3, 20] and not b[4, 20]  # the border: 3.5 cells from cell 3's centre to x = 0

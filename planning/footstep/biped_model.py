@@ -649,14 +649,14 @@ class BipedStepModel:
             fy = (y2 - oy) * inv_res
             if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                 continue
+            kt = self.checkers.index(t2) if self.dynamic else 0
+            if kt < 0:  # past the grids' times: no state (nor a lattice key) there
+                continue
             if dominated is not None and dominated(
                 self.lattice_key(x2, y2, th2, nf, hist1[m.a], t2), m.cost
             ):
                 continue
             if self.dynamic:
-                kt = self.checkers.index(t2)
-                if kt < 0:
-                    continue
                 chk = self.checkers.checker(kt)
                 ex = self.exact_checkers.checker(kt) if self.uses_heights else self.exact
                 tall = self.tall_during(k_swing, kt)

@@ -270,8 +270,9 @@ def test_dynamic_grids_carry_heights_and_the_swing_clearance_uses_them():
     assert model.tall_at(0) is not None and model.tall_at(0).sum() > 0  # the 2 cm blocks
     swing = [plan.initial_swing_pose[:2]] + [p[:2] for p in plan.poses[:-1]]
     res, (ox, oy) = sc.env.resolution, sc.env.reference.origin
-    for k in range(1, len(plan.poses)):
-        tall = model.tall_at(model.checkers.index(plan.times[k]))
+    for k in range(1, len(plan.poses)):  # step k swings during [times[k-1], times[k]]
+        idx = model.checkers.index
+        tall = model.tall_during(idx(plan.times[k - 1]), idx(plan.times[k]))
         if tall is not None:
             x0, y0 = swing[k - 1]
             assert not swing_crosses(tall, x0, y0, *plan.poses[k][:2], ox, oy, 1.0 / res)

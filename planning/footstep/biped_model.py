@@ -342,11 +342,18 @@ class BipedStepModel:
         )
         self.exact_checkers = exact
         self._tall_cache: dict[int, np.ndarray | None] = {}
+        self._swing_tall_cache: dict[tuple[int, int], np.ndarray | None] = {}
         self.exact = chk_start = exact.checker(self.k0)
         if not chk_start.is_free(sx, sy, sth, shortcut=False):
+            when = (
+                f" at some t in [{start_time:.3f}, {start_time + hold:.3f}] s (it stands "
+                "until the first step lands)"
+                if dynamic
+                else ""
+            )
             raise FootstepError(
                 f"start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) overlaps an obstacle "
-                "or the map edge"
+                f"or the map edge{when}"
             )
         if initial_swing_pose is None:
             side = 1.0 if self.foot0 == Foot.RIGHT else -1.0
@@ -354,10 +361,15 @@ class BipedStepModel:
         else:
             swing0 = pose3(initial_swing_pose, "initial_swing_pose")
         self.swing0 = swing0
-        if not chk_start.is_free(*swing0, shortcut=False):
+        # the swing foot lifts at the start time (the first step moves it): in a dynamic
+        # world it must be free in E(start_time) only, not over the stance foot's hold window
+        # (an obstacle may pass over the spot it leaves, as in receding-horizon replanning)
+        chk_swing = FootprintChecker(world.grids[self.k0], exact.masks) if dynamic else chk_start
+        if not chk_swing.is_free(*swing0, shortcut=False):
+            when = f" at t = {self.start_time:.3f} s" if dynamic else ""
             raise FootstepError(
                 f"initial swing foot at ({swing0[0]:.3f}, {swing0[1]:.3f}) overlaps an obstacle "
-                "or the map edge"
+                f"or the map edge{when}"
             )
         self.chk0 = self.checkers.checker(self.k0)
         gcell = ref.cell_of(gx, gy)
@@ -495,6 +507,11 @@ class BipedStepModel:
         self.yaw_shift = self.nyaw + 0.5 - (u - round(u))
         self.ky = int(math.ceil(ref.size[1] * self.inv_q)) + 3
         self.inv_tq = 1.0 / opts.time_resolution
+        if self.dynamic:  # time bins over the grids' span: every reachable state's time
+            env = self.world
+            self.tb0 = math.floor((env.times[0] - env.max_time_gap) * self.inv_tq + 0.5) - 1
+            tb1 = math.floor((env.times[-1] + env.max_time_gap) * self.inv_tq + 0.5) + 1
+            self.n_tbins = tb1 - self.tb0 + 1
         self.inv_res = 1.0 / ref.resolution
         self.origin = ref.origin
 
@@ -510,14 +527,38 @@ class BipedStepModel:
         self._tall_cache[k] = tall
         return tall
 
+    def tall_during(self, ka: int, kb: int) -> np.ndarray | None:
+        """Cells the swing foot cannot cross while it swings (dynamic worlds).
+
+        A step swings from its stance time to its landing time; a cell blocks the swing
+        line when it is occupied and taller than ``swing_clearance`` in any grid from
+        index ``ka`` (the swing's start) to ``kb`` (its landing), both included.
+
+        Args:
+            ka: time index of the swing's start.
+            kb: time index of the landing.
+        """
+        key = (ka, kb)
+        if key in self._swing_tall_cache:
+            return self._swing_tall_cache[key]
+        tall = None
+        if self.ref.heights is not None and math.isfinite(self.opts.swing_clearance):
+            mask = np.zeros(self.ref.shape, bool)
+            for g in self.world.grids[ka : kb + 1]:
+                mask |= g.occupied & (g.heights > self.opts.swing_clearance)
+            tall = mask if mask.any() else None
+        self._swing_tall_cache[key] = tall
+        return tall
+
     # ------------------------------------------------------------------ lattice
     def lattice_key(self, x: float, y: float, yaw: float, foot: int, hist: int, t: float) -> int:
         """The lattice cell of a state: equal keys are the same search state.
 
         Position rounded to ``xy_resolution``, yaw (in ``[-pi, pi)``) to ``yaw_bins``, the
         foot, the history class and, in dynamic worlds, the time rounded to
-        ``time_resolution``. :mod:`~repertoire.planning.footstep.fastcore` computes the same
-        integer.
+        ``time_resolution`` (bins counted over the span of the grids' times, so any
+        resolution and any times, negative ones too, give distinct keys).
+        :mod:`~repertoire.planning.footstep.fastcore` computes the same integer (static).
 
         The yaw bins are centred on the start's yaw. The yaws a plan reaches are the start's
         plus whole turns; the nominal turn, 0.35 rad, is 2.005 bins of 36 and 4.011 of 72,
@@ -534,8 +575,8 @@ class BipedStepModel:
             yaw * self.yaw_scale + self.yaw_shift
         ) % self.nyaw
         k = (k * 2 + foot) * self.n_hist + hist
-        if self.dynamic:
-            k = k * 1_000_000 + int(t * self.inv_tq + 0.5)
+        if self.dynamic:  # one key per (state, time bin) however many bins: no collisions
+            k = k * self.n_tbins + math.floor(t * self.inv_tq + 0.5) - self.tb0
         return k
 
     def cost_to_go(self, x: float, y: float) -> float:
@@ -592,8 +633,9 @@ class BipedStepModel:
         c, sn = math.cos(s.yaw), math.sin(s.yaw)
         nf = 1 - s.foot
         ex1 = self.exact
+        k_swing = self.checkers.index(s.t) if self.dynamic else 0  # the swing starts at s.t
         if self.dynamic and self.step_limits:
-            ex1 = self.exact_checkers.checker(max(self.checkers.index(s.t), 0))
+            ex1 = self.exact_checkers.checker(k_swing)
         z1 = ex1.top_height(s.x, s.y, s.yaw) if self.step_limits else 0.0
         if self.height_w > 0.0:
             dominated = None  # a landing's cost is known only after its height check
@@ -607,17 +649,17 @@ class BipedStepModel:
             fy = (y2 - oy) * inv_res
             if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                 continue
+            kt = self.checkers.index(t2) if self.dynamic else 0
+            if kt < 0:  # past the grids' times: no state (nor a lattice key) there
+                continue
             if dominated is not None and dominated(
                 self.lattice_key(x2, y2, th2, nf, hist1[m.a], t2), m.cost
             ):
                 continue
             if self.dynamic:
-                kt = self.checkers.index(t2)
-                if kt < 0:
-                    continue
                 chk = self.checkers.checker(kt)
                 ex = self.exact_checkers.checker(kt) if self.uses_heights else self.exact
-                tall = self.tall_at(kt)
+                tall = self.tall_during(k_swing, kt)
             else:
                 chk, ex, tall = self.chk0, self.exact, self.tall
             ix, iy = int(fx), int(fy)

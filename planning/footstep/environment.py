@@ -99,7 +99,7 @@ def _check_rectangle(ob: "RectObstacle | MovingRectObstacle") -> None:
             raise GridError(f"{kind} size must be > 0 m on both axes, got {value!r}")
     for name in ("yaw", "height"):
         value = getattr(ob, name)
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
+        if not is_real(value):  # Python or numpy ints and floats (np.float32 too)
             raise GridError(f"{kind} {name} must be a number, got {value!r}")
         if not math.isfinite(value) or (name == "height" and value < 0.0):
             what = "finite" if name == "yaw" else "finite and >= 0 m"
@@ -133,7 +133,12 @@ class MovingRectObstacle:
     def __post_init__(self) -> None:
         _check_rectangle(self)
         if self.waypoints:
-            w = np.asarray(self.waypoints, dtype=float)
+            try:
+                w = np.asarray(self.waypoints, dtype=float)
+            except (TypeError, ValueError):
+                raise GridError(
+                    f"waypoints must be finite [t, x, y] rows, got {self.waypoints!r}"
+                ) from None
             if w.ndim != 2 or w.shape[1] != 3 or not np.all(np.isfinite(w)):
                 raise GridError(f"waypoints must be finite [t, x, y] rows, got {self.waypoints}")
             if np.any(np.diff(w[:, 0]) <= 0):
@@ -355,6 +360,17 @@ class OccupancyGrid:
             block[hit] = np.maximum(block[hit], rect.height)
 
 
+def _obstacle_list(name: str, obs: object, kind: type) -> list:
+    """``obs`` as a list of ``kind`` (a generator read once), or a GridError naming it."""
+    if isinstance(obs, str) or not hasattr(obs, "__iter__"):
+        raise GridError(f"{name} must be a list of {kind.__name__}, got {obs!r}")
+    obs = list(obs)  # type: ignore[call-overload]
+    for k, ob in enumerate(obs):
+        if not isinstance(ob, kind):
+            raise GridError(f"{name}[{k}] must be a {kind.__name__}, got {type(ob).__name__}")
+    return obs
+
+
 @dataclasses.dataclass
 class DynamicEnvironment:
     """Time-indexed grids: ``E(t)`` is the grid whose time is nearest to ``t``.
@@ -370,17 +386,45 @@ class DynamicEnvironment:
     max_time_gap: float
 
     def __post_init__(self) -> None:
-        self.times = np.asarray(self.times, dtype=float)
-        if self.times.ndim != 1 or len(self.times) == 0:
+        try:
+            times = np.asarray(self.times, dtype=float)
+        except (TypeError, ValueError):
+            raise GridError(f"grid times must be numbers (s), got {self.times!r}") from None
+        if times.ndim != 1:
+            raise GridError(f"grid times must be a 1-D sequence, got shape {times.shape}")
+        self.times = times
+        if len(self.times) == 0:
             raise GridError("a dynamic environment needs at least one grid time")
+        if not isinstance(self.grids, Sequence):
+            raise GridError(f"grids must be a list of OccupancyGrid, got {type(self.grids)}")
         if len(self.grids) != len(self.times):
             raise GridError(f"{len(self.times)} times but {len(self.grids)} grids")
-        if not np.all(np.isfinite(self.times)) or np.any(np.diff(self.times) <= 0):
-            raise GridError("grid times must be finite and strictly increasing")
-        if not (math.isfinite(self.max_time_gap) and self.max_time_gap >= 0):
-            raise GridError(f"max_time_gap must be >= 0, got {self.max_time_gap}")
+        if not np.all(np.isfinite(self.times)):
+            k = int(np.argmin(np.isfinite(self.times)))
+            raise GridError(f"grid times must be finite, got {self.times[k]} at index {k}")
+        if np.any(np.diff(self.times) <= 0):
+            k = int(np.argmax(np.diff(self.times) <= 0))
+            raise GridError(
+                f"grid times must be strictly increasing, got {self.times[k]} then "
+                f"{self.times[k + 1]} at indices {k}, {k + 1}"
+            )
+        if not (
+            is_real(self.max_time_gap)
+            and math.isfinite(self.max_time_gap)
+            and self.max_time_gap >= 0
+        ):
+            raise GridError(f"max_time_gap must be a number >= 0 (s), got {self.max_time_gap!r}")
+        for k, g in enumerate(self.grids):
+            if not isinstance(g, OccupancyGrid):
+                raise GridError(f"grid {k} must be an OccupancyGrid, got {type(g).__name__}")
         g0 = self.grids[0]
         for k, g in enumerate(self.grids):
+            if (g.heights is None) != (g0.heights is None):
+                raise GridError(
+                    f"grid {k} {'has no' if g.heights is None else 'has'} heights but grid 0 "
+                    f"{'has' if g.heights is None else 'has none'}: either every grid of a "
+                    "dynamic environment carries heights or none does"
+                )
             if not g0.same_geometry(g):
                 raise GridError(
                     f"grid {k} has shape {g.shape}, resolution {g.resolution}, origin {g.origin}; "
@@ -427,8 +471,8 @@ class DynamicEnvironment:
         Args:
             t: time (s).
         """
-        if not math.isfinite(t):
-            raise GridError(f"time must be finite, got {t}")
+        if not (is_real(t) and math.isfinite(t)):
+            raise GridError(f"time must be a finite number (s), got {t!r}")
         k = self.nearest_index_unchecked(t)
         if abs(self.times[k] - t) > self.max_time_gap + 1e-9:
             raise GridError(
@@ -470,12 +514,14 @@ class DynamicEnvironment:
             origin: corner of cell (0, 0).
             with_heights: every grid also carries its obstacles' heights (a 2.5-D E(t)).
         """
-        if not (math.isfinite(dt) and dt > 0):
-            raise GridError(f"dt must be positive, got {dt}")
-        if not (math.isfinite(t_end) and t_end >= 0):
-            raise GridError(f"t_end must be >= 0, got {t_end}")
+        if not (is_real(dt) and math.isfinite(dt) and dt > 0):
+            raise GridError(f"dt must be a positive number of seconds, got {dt!r}")
+        if not (is_real(t_end) and math.isfinite(t_end) and t_end >= 0):
+            raise GridError(f"t_end must be a number of seconds >= 0, got {t_end!r}")
+        moving = _obstacle_list("moving", moving, MovingRectObstacle)  # used once per grid
+        static = _obstacle_list("static", static, RectObstacle)
         base = OccupancyGrid.from_rectangles(
-            size, list(static), resolution, origin, with_heights=with_heights
+            size, static, resolution, origin, with_heights=with_heights
         )
         centers = base.cell_centers()
         nx, ny = base.shape

@@ -1,7 +1,8 @@
 """The comparison baseline: a 2-D mobile-robot planner with the robot's bounding circle.
 
-The grid is inflated by the bounding-circle radius (a cell is blocked when its centre lies
-within the radius of an occupied cell's centre or of the map border) and an 8-connected
+The grid is inflated by the bounding-circle radius (a cell is blocked when a disc of that
+radius centred on its centre overlaps an occupied cell's square or leaves the map) and an
+8-connected
 Dijkstra finds the shortest path between cell centres. Such a robot must go around every
 obstacle, including the flat ones a biped steps over.
 """
@@ -14,7 +15,7 @@ import numpy as np
 from repertoire.planning.footstep.environment import OccupancyGrid
 from repertoire.planning.footstep.heuristic import grid_graph
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
-from scipy import ndimage
+from scipy import signal
 from scipy.sparse.csgraph import dijkstra
 
 from repertoire.checks import is_real
@@ -42,6 +43,11 @@ class Mobile2DPlan:
 def inflate(grid: OccupancyGrid, radius: float) -> np.ndarray:
     """Cells a disc of ``radius`` centred there would overlap an obstacle or leave the map.
 
+    Exact on the cell centres: the distance from a centre to the square of the cell
+    ``(di, dj)`` cells away is ``r * hypot(max(|di| - 1/2, 0), max(|dj| - 1/2, 0))``; the
+    disc overlaps that square when the distance is below ``radius`` (an occupied cell itself
+    is always blocked). Outside the map counts as occupied.
+
     Args:
         grid: the grid.
         radius: bounding-circle radius (m).
@@ -51,11 +57,14 @@ def inflate(grid: OccupancyGrid, radius: float) -> np.ndarray:
     """
     if not (math.isfinite(radius) and radius >= 0):
         raise FootstepError(f"radius must be >= 0, got {radius}")
-    occ = np.pad(grid.occupied, 1, constant_values=True)
-    dist = ndimage.distance_transform_edt(~occ) * grid.resolution
-    # distance from a centre to an occupied centre, minus half a cell: reach of that cell
-    blocked = dist - grid.resolution / 2.0 < radius
-    return blocked[1:-1, 1:-1]
+    r = grid.resolution
+    m = int(math.ceil(radius / r + 0.5))  # squares farther than m cells are out of reach
+    gap = np.maximum(np.abs(np.arange(-m, m + 1)) - 0.5, 0.0) * r
+    kernel = gap[:, None] ** 2 + gap[None, :] ** 2 < radius * radius
+    kernel[m, m] = True
+    occ = np.pad(grid.occupied, m, constant_values=True)
+    hits = signal.fftconvolve(occ.astype(float), kernel.astype(float), mode="valid")
+    return hits > 0.5  # counts of occupied squares in reach (integers up to rounding)
 
 
 def plan_mobile2d(

@@ -104,8 +104,9 @@ class PlannerOptions:
             the swing foot's path: a step whose straight centre line from the swing foot's
             previous position to its landing passes through the interior of such a cell is
             refused (exact grid traversal: a line through a cell's corner point only, or
-            along its edge, does not cross it). ``inf`` (the default) or a grid without
-            heights: every flat obstacle may be stepped over.
+            along its edge, does not cross it); in a dynamic world, a cell tall in any grid
+            of E(t) from the step's start to its landing. ``inf`` (the default) or a grid
+            without heights: every flat obstacle may be stepped over.
         max_height_range: a foot lands only where the height range under its sole (the
             grid's ``heights``) is at most this (m): flat enough ground. The start feet
             must satisfy it too. ``inf`` (the default): no flatness limit. Measured

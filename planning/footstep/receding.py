@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
-from repertoire.planning.footstep.planner import PlannerOptions, plan_footsteps
+from repertoire.planning.footstep.planner import PlannerOptions, _options, plan_footsteps
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -49,7 +49,7 @@ def plan_receding_horizon(
     start_foot: "Foot | int | str",
     goal: Sequence[float],
     table: ActionTable,
-    options: PlannerOptions,
+    options: "PlannerOptions | None",
     *,
     execute_steps: int = 4,
     max_rounds: int = 30,
@@ -64,7 +64,8 @@ def plan_receding_horizon(
         start_foot: which foot stands at ``start``.
         goal: ``(x, y)``.
         table: the action table.
-        options: planner options of every round (its time limit is the per-round budget).
+        options: planner options of every round (its time limit is the per-round budget);
+            None: the defaults, as in :func:`plan_footsteps`.
         execute_steps: steps committed per round (a successful plan is committed whole).
         max_rounds: give up after this many rounds.
         geometry: robot geometry.
@@ -73,6 +74,7 @@ def plan_receding_horizon(
     for name, value in (("execute_steps", execute_steps), ("max_rounds", max_rounds)):
         if not is_real(value) or not math.isfinite(value) or int(value) != value or value < 1:
             raise FootstepError(f"{name} must be an integer >= 1, got {value!r}")
+    options = _options(options)  # None: the defaults (validated once, named if wrong)
     plan = plan_footsteps(
         world, start, start_foot, goal, table, options, geometry=geometry, start_time=start_time
     )

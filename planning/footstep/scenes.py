@@ -20,7 +20,7 @@ from repertoire.planning.footstep.environment import (
 )
 from repertoire.planning.footstep.types import FootstepError, GridError
 
-from repertoire.checks import is_whole
+from repertoire.checks import is_real, is_whole
 
 
 def _seeded(seed: int) -> np.random.Generator:
@@ -165,23 +165,36 @@ def strings_scene(
         size: side of the square floor (m).
         resolution: cell side (m).
         rows_y: y of the two rows (m).
-        speeds: speeds of the rows along +x (m/s); the first is the paper's 0.18.
+        speeds: speeds of the rows along +x (m/s; negative: along -x); the first is the
+            paper's 0.18.
         spacings: centre distance between blocks in each row (m).
         block_size: block length (along the row) and depth (m).
         string_width: width of the strings (m); the robot may not step on them.
         t_end: last grid time (s).
         dt: grid time spacing (s).
     """
+    if not len(rows_y) == len(speeds) == len(spacings):
+        raise GridError(
+            f"rows_y, speeds and spacings need one value per row, got {len(rows_y)}, "
+            f"{len(speeds)} and {len(spacings)}"
+        )
+    for k, (v, sp) in enumerate(zip(speeds, spacings)):
+        if not (is_real(v) and math.isfinite(v)):
+            raise GridError(f"speeds[{k}] must be a finite number (m/s), got {v!r}")
+        if not (is_real(sp) and math.isfinite(sp) and sp > 0):
+            raise GridError(f"spacings[{k}] must be a positive number (m), got {sp!r}")
     rng = _seeded(seed)
     moving: list[MovingRectObstacle] = []
     for y, v, sp in zip(rows_y, speeds, spacings):
         phase = float(rng.uniform(0.0, sp))
-        x = -v * t_end - sp + phase
-        while x < size + sp:
+        # blocks from wherever one enters the floor by t_end, whichever way the row moves
+        travel = abs(v) * t_end
+        x = -(travel if v > 0 else 0.0) - sp + phase
+        while x < size + sp + (travel if v < 0 else 0.0):
             moving.append(MovingRectObstacle([x, y], list(block_size), [v, 0.0]))
             x += sp
         # the string: long enough to span the floor over the whole horizon
-        length = size + 2 * (v * t_end + 2 * sp)
+        length = size + 2 * (travel + 2 * sp)
         moving.append(
             MovingRectObstacle([size / 2.0, y], [length, string_width], [v, 0.0], height=0.005)
         )

@@ -1,0 +1,259 @@
+"""Footstep planning in dynamic worlds E(t): start checks, replanning, statuses."""
+
+import math
+
+import numpy as np
+import pytest
+from repertoire.planning.footstep import (
+    DynamicEnvironment,
+    FootstepError,
+    GridError,
+    MovingRectObstacle,
+    OccupancyGrid,
+    PlannerOptions,
+    PlanStatus,
+    RectObstacle,
+    nominal_action_table,
+    plan_footsteps,
+)
+from repertoire.planning.footstep.footprint import foot_collides_reference
+from repertoire.planning.footstep.receding import plan_receding_horizon
+
+FOOT = (0.16, 0.10)  # the nominal (ASIMO-like) sole
+
+
+def _stands_free(env, plan, hold=0.8):
+    """(k, t) of every grid in which pose k overlaps an obstacle while it stands."""
+    bad = []
+    n = len(plan.poses)
+    for k in range(1, n):
+        t0 = plan.times[k]
+        t1 = plan.times[k + 1] if k + 1 < n else t0 + hold
+        for grid, tg in zip(env.grids, env.times):
+            if t0 - env.max_time_gap - 1e-9 <= tg <= t1 + env.max_time_gap + 1e-9:
+                if foot_collides_reference(grid, plan.poses[k], *FOOT):
+                    bad.append((k, float(tg)))
+    return bad
+
+
+def _sweeper(t_arrive: float) -> DynamicEnvironment:
+    """A 0.2 m block moving +x at 0.5 m/s along y = 0.7 that reaches the right sole at
+    (1.595, 0.7) (x from 1.545) at ``t_arrive``."""
+    x0 = 1.545 - 0.1 - 0.5 * t_arrive
+    block = MovingRectObstacle([x0, 0.7], [0.2, 0.2], [0.5, 0.0])
+    return DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[block], t_end=40.0)
+
+
+def test_initial_swing_foot_needs_only_be_free_when_it_lifts():
+    # the swing foot lifts at the start time: a block arriving there 0.5 s later is no error
+    env = _sweeper(0.5)
+    assert not foot_collides_reference(env.at(0.0), (1.595, 0.7, math.pi / 2), *FOOT)
+    assert foot_collides_reference(env.at(0.5), (1.595, 0.7, math.pi / 2), *FOOT)
+    t = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", max_expansions=3000, time_limit=10.0)
+    plan = plan_footsteps(
+        env, (1.405, 1.0, math.pi / 2), "left", (1.5, 2.6), t, opts,
+        initial_swing_pose=(1.595, 0.7, math.pi / 2),
+    )  # fmt: skip
+    assert plan.status is PlanStatus.SUCCESS and _stands_free(env, plan) == []
+    # occupied at the start time itself: still the clear error, naming the time
+    with pytest.raises(FootstepError, match=r"initial swing foot at \(1.595, 0.700\).*t = 0.600"):
+        plan_footsteps(
+            env, (1.405, 1.0, math.pi / 2), "left", (1.5, 2.6), t, opts,
+            initial_swing_pose=(1.595, 0.7, math.pi / 2), start_time=0.6,
+        )  # fmt: skip
+
+
+def test_receding_horizon_survives_a_block_crossing_behind_the_robot():
+    # the block crosses y = 0.7 at t = 2.0 s, after the right foot that landed there at 0.8 s
+    # lifted at 1.6 s; the round that starts at 1.6 s has that foot as its swing foot
+    env = _sweeper(2.0)
+    t = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", max_expansions=3, time_limit=10.0)
+    one = plan_footsteps(env, (1.405, 0.4, math.pi / 2), "left", (1.5, 2.6), t, opts)
+    assert one.status is PlanStatus.NODE_LIMIT
+    assert [round(p[1], 3) for p in one.poses] == [0.4, 0.7, 1.0]
+    for steps in (1, 2):
+        res = plan_receding_horizon(
+            env, (1.405, 0.4, math.pi / 2), "left", (1.5, 2.6), t, opts, execute_steps=steps
+        )
+        assert res.plan.status is PlanStatus.SUCCESS and res.rounds > 1
+        assert _stands_free(env, res.plan) == []
+
+
+def test_time_bins_never_collide_with_other_states():
+    # the time bin was added as k * 1e6 + bin: with 1e-7 s bins (one history class) the
+    # other foot at t collided with this one 0.1 s later; bins now span the grids' times
+    from repertoire.planning.footstep.biped_model import BipedStepModel
+
+    block = MovingRectObstacle([0.5, 2.5], [0.2, 0.2], [0.1, 0.0])
+    env = DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[block], t_end=20.0)
+    shifted = DynamicEnvironment(env.times - 10.0, env.grids, env.max_time_gap)  # t in [-10, 10]
+    t = nominal_action_table()
+    for world, t0 in ((env, 3.0), (shifted, -7.0)):
+        for tq in (0.1, 1e-7):
+            opts = PlannerOptions(heuristic="euclidean", time_resolution=tq)
+            model = BipedStepModel(world, (1.0, 1.0, 0.0), "left", (2.0, 1.0), t, opts)
+            assert model.n_hist == 1
+
+            def key(foot, time, model=model):
+                return model.lattice_key(1.0, 1.0, 0.0, foot, 0, time)
+
+            times = [t0 + k * 0.1 for k in range(-20, 21)] + [t0 + tq / 4]
+            keys = {(f, round(x / tq)): key(f, x) for f in (0, 1) for x in times}
+            assert len(set(keys.values())) == len(keys)  # one key per state and time bin
+            assert key(0, t0 + tq / 4) == key(0, t0)  # within half a bin: the same state
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda g: DynamicEnvironment([0.0, 2.0, 1.0], [g] * 3, 0.5),
+         r"strictly increasing, got 2.0 then 1.0 at indices 1, 2"),
+        (lambda g: DynamicEnvironment([0.0, math.nan], [g] * 2, 0.5),
+         r"finite, got nan at index 1"),
+        (lambda g: DynamicEnvironment([[0.0, 1.0]], [g] * 2, 0.5), r"1-D .* shape \(1, 2\)"),
+        (lambda g: DynamicEnvironment(["a", "b"], [g] * 2, 0.5), r"times must be numbers"),
+        (lambda g: DynamicEnvironment([0.0, 1.0], [g, np.zeros((8, 8))], 0.5),
+         r"grid 1 must be an OccupancyGrid, got ndarray"),
+        (lambda g: DynamicEnvironment([0.0, 1.0], iter([g, g]), 0.5), r"grids must be a list"),
+        (lambda g: DynamicEnvironment([0.0, 1.0], [g, g], "1"), r"max_time_gap .* got '1'"),
+        (lambda g: DynamicEnvironment([0.0, 1.0], [g, _with_heights(g)], 0.5),
+         r"grid 1 has heights but grid 0 has none"),
+        (lambda g: DynamicEnvironment([0.0, 1.0], [_with_heights(g), g], 0.5),
+         r"grid 1 has no heights but grid 0 has"),
+        (lambda g: DynamicEnvironment([0.0], [g], 0.5).at("0"), r"time must be .* got '0'"),
+        (lambda g: _from_moving(moving=[RectObstacle([0.5, 0.5], [0.2, 0.2])]),
+         r"moving\[0\] must be a MovingRectObstacle, got RectObstacle"),
+        (lambda g: _from_moving(static=[MovingRectObstacle([0.5, 0.5], [0.2, 0.2])]),
+         r"static\[0\] must be a RectObstacle, got MovingRectObstacle"),
+        (lambda g: _from_moving(moving=None), r"moving must be a list of MovingRectObstacle"),
+        (lambda g: _from_moving(t_end="5"), r"t_end must be .* got '5'"),
+        (lambda g: _from_moving(dt="0.1"), r"dt must be .* got '0.1'"),
+        (lambda g: MovingRectObstacle([0, 0], [0.1, 0.1], waypoints=[["a", 0, 1]]),
+         r"waypoints must be finite \[t, x, y\] rows"),
+    ],
+)  # fmt: skip
+def test_dynamic_bad_inputs_are_named(make, message):
+    with pytest.raises(GridError, match=message):
+        make(OccupancyGrid.empty((1.0, 1.0)))
+
+
+def _with_heights(g):
+    return OccupancyGrid(g.occupied, g.resolution, g.origin, np.zeros(g.shape))
+
+
+def _from_moving(**kw):
+    args = {"moving": [], "t_end": 1.0, **kw}
+    return DynamicEnvironment.from_moving_obstacles((1.0, 1.0), **args)
+
+
+def test_obstacles_accept_numpy_numbers_and_generators():
+    # numpy scalars (np.float32 too) are numbers; a generator of moving obstacles is read
+    # once, not exhausted by the first grid
+    yaw, height = np.float32(0.5), np.float32(0.1)
+    m = MovingRectObstacle([0.2, 0.5], [0.2, 0.2], [0.5, 0.0], yaw=yaw, height=height)
+    env = DynamicEnvironment.from_moving_obstacles(
+        (1.0, 1.0), moving=(x for x in [m]), t_end=1.0, dt=0.5
+    )
+    assert [g.occupied.any() for g in env.grids] == [True, True, True]
+    assert env.at(1.0).occupied[28, 20] and not env.at(0.0).occupied[28, 20]  # x 0.7 at 1 s
+
+
+@pytest.mark.parametrize("speeds", [(0.18, 0.12), (-0.18, 0.12), (-0.4, -0.3), (0.0, 0.0)])
+def test_strings_span_the_floor_whichever_way_the_rows_move(speeds):
+    # with a row moving along -x the string covered half the floor and blocks were missing
+    from repertoire.planning.footstep.scenes import strings_scene
+
+    sc = strings_scene(11, speeds=speeds, t_end=15.0, dt=0.5)
+    for g in sc.env.grids:
+        for y in sc.rows_y:
+            assert g.occupied[:, g.cell_of(1.5, y)[1]].all()  # the string, x = 0 .. 3 m
+        # the blocks (2 cm tall, 20 cm deep) along row 1: 0.3 m of every 0.9 m, 1/3 of the row
+        blocks = g.heights[:, g.cell_of(1.5, sc.rows_y[0] + 0.08)[1]] > 0.01
+        assert 0.28 <= blocks.mean() <= 0.45
+
+
+@pytest.mark.parametrize(
+    ("kw", "message"),
+    [
+        ({"spacings": (0.0, 1.2)}, r"spacings\[0\] must be a positive number .* got 0.0"),
+        ({"speeds": (0.18, math.nan)}, r"speeds\[1\] must be a finite number .* got nan"),
+        ({"speeds": (0.18,)}, r"one value per row, got 2, 1 and 2"),
+    ],
+)
+def test_strings_scene_bad_rows_are_named(kw, message):
+    from repertoire.planning.footstep.scenes import strings_scene
+
+    with pytest.raises(GridError, match=message):
+        strings_scene(0, t_end=2.0, **kw)
+
+
+def _start_actions(env, clearance):
+    from repertoire.planning.footstep.biped_model import BipedStepModel
+
+    t = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", swing_clearance=clearance)
+    model = BipedStepModel(env, (1.405, 0.4, math.pi / 2), "left", (1.5, 2.6), t, opts)
+    return sorted(t.actions[s.a_prev1] for s, _ in model.successors(model.start()))
+
+
+@pytest.mark.parametrize(
+    ("t_cross", "refused"),
+    [(0.4, ["forward_long", "forward_medium"]), (1.2, [])],
+)
+def test_swing_line_is_checked_against_tall_cells_while_the_foot_swings(t_cross, refused):
+    # a 30 cm tall bar along y = 0.55 (between the feet) moves +x at 1 m/s and crosses the
+    # right foot's line x = 1.595 at t_cross; the first step swings that foot from y = 0.4
+    # during [0, 0.8] s (forward_long / medium land at y = 0.7 / 0.6 and cross y = 0.55).
+    # The swing was checked against the cells tall at the landing and the next 0.8 s
+    # instead: a bar crossing mid-swing (0.4 s) was missed, one crossing after the landing
+    # (1.2 s, both feet clear of it) refused the step.
+    bar = MovingRectObstacle([1.595 - t_cross, 0.55], [0.1, 0.05], [1.0, 0.0], height=0.3)
+    env = DynamicEnvironment.from_moving_obstacles(
+        (3.0, 3.0), moving=[bar], t_end=20.0, with_heights=True
+    )
+    every = _start_actions(env, math.inf)  # no swing limit: the feet's own checks only
+    assert "forward_long" in every and set(refused) <= set(every)
+    assert _start_actions(env, 0.05) == sorted(set(every) - set(refused))
+
+
+def test_start_foot_hit_while_it_stands_names_the_window():
+    # free at t = 0, reached by the block at 0.5 s, before the first step can land (0.8 s)
+    env = _sweeper(0.5)
+    t = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean")
+    with pytest.raises(
+        FootstepError,
+        match=r"start foot at \(1.595, 0.700, 1.571\) .* at some t in \[0.000, 0.800\] s",
+    ):
+        plan_footsteps(env, (1.595, 0.7, math.pi / 2), "right", (1.5, 2.6), t, opts)
+
+
+def test_receding_horizon_takes_default_options_when_the_goal_is_not_reached():
+    # options=None (the defaults, as plan_footsteps takes) crashed in dataclasses.replace
+    # when the goal was not reached (the cost-to-go estimate at the last committed pose)
+    wall = OccupancyGrid.from_rectangles((3.0, 3.0), [RectObstacle([2.0, 1.5], [0.6, 3.0])])
+    t = nominal_action_table()
+    res = plan_receding_horizon(wall, (0.5, 1.5, 0.0), "left", (2.7, 1.5), t, None, max_rounds=1)
+    assert res.statuses == ["UNREACHABLE"] and res.plan.status is PlanStatus.UNREACHABLE
+    assert res.plan.cost_to_go > 0
+    with pytest.raises(FootstepError, match="options must be PlannerOptions, got dict"):
+        plan_receding_horizon(wall, (0.5, 1.5, 0.0), "left", (2.7, 1.5), t, {})
+
+
+def test_mobile2d_inflation_is_exact_at_cell_corners():
+    # one occupied cell (20, 20) of 2.5 cm; a 9 cm disc centred on cell (23, 23) reaches its
+    # corner: distance 0.025 * hypot(2.5, 2.5) = 0.0884 m < 0.09. The inflation measured
+    # centre to centre minus half a cell (0.025 * (hypot(3, 3) - 0.5) = 0.0936 m) and left
+    # the cell free.
+    from repertoire.planning.footstep.mobile2d import inflate
+
+    occ = np.zeros((41, 41), bool)
+    occ[20, 20] = True
+    g = OccupancyGrid(occ, 0.025)
+    b = inflate(g, 0.09)
+    assert b[23, 23] and b[20, 24] and b[20, 16] and not b[20, 25] and not b[24, 23]
+    assert not inflate(g, 0.088)[23, 23] and inflate(g, 0.0)[20, 20]
+    assert inflate(g, 0.0).sum() == 1
+    assert b[3, 20] and not b[4, 20]  # the border: 3.5 cells from cell 3's centre to x = 0

@@ -257,3 +257,53 @@ def test_mobile2d_inflation_is_exact_at_cell_corners():
     assert not inflate(g, 0.088)[23, 23] and inflate(g, 0.0)[20, 20]
     assert inflate(g, 0.0).sum() == 1
     assert b[3, 20] and not b[4, 20]  # the border: 3.5 cells from cell 3's centre to x = 0
+
+
+def test_per_time_caches_stay_within_their_memory_bound(monkeypatch):
+    # Each time index of a dynamic world has its own footprint checker and swing masks;
+    # kept without bound they grew ~145 MB on an 8 m map with a 60 s horizon. They are
+    # least-recently-used caches of CACHE_BYTES: with a bound of three checkers the plan is
+    # the same as with every checker kept, and the caches never hold more than the bound.
+    import repertoire.planning.footstep.biped_model as bm
+
+    env = _sweeper(2.0)
+    t = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", max_expansions=3000, time_limit=30.0)
+    args = (env, (1.405, 1.0, math.pi / 2), "left", (1.5, 2.6), t, opts)
+    kept = plan_footsteps(*args, initial_swing_pose=(1.595, 1.0, math.pi / 2))
+    grid = env.reference
+    masks = bm.sole_masks(bm.ASIMO_LIKE, opts.footprint_margin_m, grid.resolution)
+    pad = masks.radius_cells + 1
+    one = (grid.shape[0] + 2 * pad) * (grid.shape[1] + 2 * pad) * 3  # no heights here
+    seen = []
+    real_put = bm._LruCache.put
+
+    def put(self, key, value, nbytes):
+        real_put(self, key, value, nbytes)
+        seen.append(self.bytes)
+        assert self.bytes <= self.max_bytes
+
+    monkeypatch.setattr(bm, "CACHE_BYTES", 3 * one)
+    monkeypatch.setattr(bm._LruCache.__init__, "__defaults__", (3 * one,))
+    monkeypatch.setattr(bm._LruCache, "put", put)
+    bounded = plan_footsteps(*args, initial_swing_pose=(1.595, 1.0, math.pi / 2))
+    assert bounded.poses == kept.poses and bounded.cost == kept.cost
+    assert bounded.status is PlanStatus.SUCCESS
+    assert len(seen) > 3 and max(seen) <= 3 * one  # more checkers were built than kept
+
+
+def test_lru_cache_evicts_the_least_recently_used_first():
+    from repertoire.planning.footstep.biped_model import _LruCache
+
+    c = _LruCache(max_bytes=30)
+    for k in range(3):
+        c.put(k, f"v{k}", 10)
+    assert c.get(0) == "v0"  # 0 is now the most recently used
+    c.put(3, "v3", 10)  # over 30 bytes: 1 goes, the least recently used
+    assert 1 not in c and [k in c for k in (0, 2, 3)] == [True, True, True]
+    assert c.bytes == 30 and len(c) == 3
+    c.put(4, None, 25)  # a stored None is a value, not a miss
+    assert 4 in c and c.get(4) is None and c.bytes <= 30
+    big = _LruCache(max_bytes=5)
+    big.put("a", 1, 100)  # a single entry over the bound is still kept (one at least)
+    assert big.get("a") == 1

@@ -17,6 +17,7 @@ so the generic weighted A* runs it; for static grids it also exports its tables
 (:mod:`repertoire.planning.footstep.fastcore`).
 """
 
+import collections
 import dataclasses
 import math
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -185,6 +186,45 @@ def sole_masks(geometry: BipedGeometry, margin: float, resolution: float) -> Foo
     )
 
 
+CACHE_BYTES = 256 * 2**20
+"""Memory (bytes, estimated) each per-time cache of a dynamic world's model may hold: the
+footprint checkers, and the swing-blocking masks; the least recently used entries go first
+(rebuilt when needed again). An 8 m map with a 60 s horizon held ~145 MB of checkers for a
+37-step plan before the bound; a 12 m map with heights ~2.6 MB per time index."""
+
+
+class _LruCache:
+    """A dict of at most ``max_bytes`` (each value's size given on insertion), LRU out."""
+
+    def __init__(self, max_bytes: int = CACHE_BYTES) -> None:
+        self.max_bytes = max_bytes
+        self.bytes = 0
+        self._items: collections.OrderedDict = collections.OrderedDict()
+
+    def __contains__(self, key) -> bool:
+        return key in self._items
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def get(self, key, default=None):
+        item = self._items.get(key)
+        if item is None:
+            return default
+        self._items.move_to_end(key)
+        return item[0]
+
+    def put(self, key, value, nbytes: int) -> None:
+        old = self._items.pop(key, None)
+        if old is not None:
+            self.bytes -= old[1]
+        self._items[key] = (value, nbytes)
+        self.bytes += nbytes
+        while self.bytes > self.max_bytes and len(self._items) > 1:
+            _, (_, n) = self._items.popitem(last=False)
+            self.bytes -= n
+
+
 class Checkers:
     """Footprint checkers per time index (dynamic) or one checker (static).
 
@@ -204,10 +244,16 @@ class Checkers:
         grid0 = world if isinstance(world, OccupancyGrid) else world.reference
         self.masks = sole_masks(geometry, margin, grid0.resolution)
         self.hold = hold
-        self._cache: dict[int, FootprintChecker] = {}
         self.static = isinstance(world, OccupancyGrid)
         if self.static:
-            self._cache[0] = FootprintChecker(world, self.masks)
+            self._static = FootprintChecker(world, self.masks)
+        else:  # per time index, bounded (CACHE_BYTES): the padded occupancy, free-cell
+            # bytes and row bits, and with heights the grid's and the padded heights
+            pad = self.masks.radius_cells + 1
+            nx, ny = grid0.shape
+            per_cell = 3 + (16 if grid0.heights is not None else 0)
+            self._bytes = (nx + 2 * pad) * (ny + 2 * pad) * per_cell
+            self._cache = _LruCache()
 
     def index(self, t: float) -> int:
         """Time index of ``t``, or -1 when no grid is near (always 0 in static worlds)."""
@@ -218,6 +264,8 @@ class Checkers:
         return k if abs(env.times[k] - t) <= env.max_time_gap + 1e-9 else -1
 
     def checker(self, k: int) -> FootprintChecker:
+        if self.static:
+            return self._static
         c = self._cache.get(k)
         if c is None:
             env = self.world
@@ -232,7 +280,7 @@ class Checkers:
             c = FootprintChecker(
                 OccupancyGrid(union, ref.resolution, ref.origin, heights), self.masks
             )
-            self._cache[k] = c
+            self._cache.put(k, c, self._bytes)
         return c
 
 
@@ -341,8 +389,8 @@ class BipedStepModel:
             Checkers(world, geometry, hold, 0.0) if opts.footprint_margin_m > 0 else self.checkers
         )
         self.exact_checkers = exact
-        self._tall_cache: dict[int, np.ndarray | None] = {}
-        self._swing_tall_cache: dict[tuple[int, int], np.ndarray | None] = {}
+        self._tall_cache = _LruCache()  # per time index: the swing-blocking cells
+        self._swing_tall_cache = _LruCache()  # per (swing start, landing) index pair
         self.exact = chk_start = exact.checker(self.k0)
         if not chk_start.is_free(sx, sy, sth, shortcut=False):
             when = (
@@ -518,13 +566,13 @@ class BipedStepModel:
     def tall_at(self, k: int) -> np.ndarray | None:
         """Cells the swing foot cannot cross at time index ``k`` (None: none or no limit)."""
         if k in self._tall_cache:
-            return self._tall_cache[k]
+            return self._tall_cache.get(k)
         tall = None
         grid = self.checkers.checker(k).grid
         if grid.heights is not None and math.isfinite(self.opts.swing_clearance):
             mask = grid.occupied & (grid.heights > self.opts.swing_clearance)
             tall = mask if mask.any() else None
-        self._tall_cache[k] = tall
+        self._tall_cache.put(k, tall, 64 if tall is None else tall.nbytes)
         return tall
 
     def tall_during(self, ka: int, kb: int) -> np.ndarray | None:
@@ -540,14 +588,14 @@ class BipedStepModel:
         """
         key = (ka, kb)
         if key in self._swing_tall_cache:
-            return self._swing_tall_cache[key]
+            return self._swing_tall_cache.get(key)
         tall = None
         if self.ref.heights is not None and math.isfinite(self.opts.swing_clearance):
             mask = np.zeros(self.ref.shape, bool)
             for g in self.world.grids[ka : kb + 1]:
                 mask |= g.occupied & (g.heights > self.opts.swing_clearance)
             tall = mask if mask.any() else None
-        self._swing_tall_cache[key] = tall
+        self._swing_tall_cache.put(key, tall, 64 if tall is None else tall.nbytes)
         return tall
 
     # ------------------------------------------------------------------ lattice

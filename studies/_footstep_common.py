@@ -54,6 +54,10 @@ def percentile(values: Sequence[float], q: float) -> float:
     return float(np.percentile(values, q)) if len(values) else float("nan")
 
 
+NONE_OK = "n/a (no successful plan)"
+"""What a table shows for the figures of successful plans when no plan succeeded."""
+
+
 def markdown_table(rows: Sequence[tuple[str, str]]) -> str:
     """A two-column ``| quantity | value |`` Markdown table.
 
@@ -94,11 +98,11 @@ def planner_rows(
         ),
         "steps": (
             steps_label,
-            f"{percentile(steps, 50):.0f} [{min(steps, default=0)}, {max(steps, default=0)}]",
+            f"{percentile(steps, 50):.0f} [{min(steps)}, {max(steps)}]" if ok else NONE_OK,
         ),
         "steps_over": (
             steps_over_label,
-            f"{np.mean([r.steps_over for r in ok]) if ok else float('nan'):.2f}",
+            f"{np.mean([r.steps_over for r in ok]):.2f}" if ok else NONE_OK,
         ),
         "plan_time": (
             "plan time median / 90th pct / max (s)",

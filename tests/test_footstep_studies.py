@@ -77,3 +77,22 @@ def test_study_configs_validate():
         footstep_dynamic.FootstepDynamicConfig(block_length_m=1.5).validate()
     with pytest.raises(RepertoireError, match="grid_dt_s must be > 0"):
         footstep_dynamic.FootstepDynamicConfig(grid_dt_s=0.0).validate()
+
+
+def test_planner_rows_say_so_when_no_plan_succeeded():
+    # with no successful plan the steps rows read "nan [0, 0]" and "nan" before
+    from types import SimpleNamespace
+
+    from repertoire.studies._footstep_common import NONE_OK, planner_rows
+
+    def rec(success, steps):
+        return SimpleNamespace(
+            success=success, steps=steps, steps_over=1, nodes_expanded=10, wall_plan_time_s=0.5
+        )
+
+    kw = dict(steps_label="steps", steps_over_label="over", time_digits=2)
+    failed = planner_rows([rec(False, 0), rec(False, 0)], **kw)
+    assert failed["success"][1] == "0/2 (0.0 %)"
+    assert failed["steps"][1] == NONE_OK and failed["steps_over"][1] == NONE_OK
+    mixed = planner_rows([rec(True, 12), rec(False, 0), rec(True, 20)], **kw)
+    assert mixed["steps"][1] == "16 [12, 20]" and mixed["steps_over"][1] == "1.00"

@@ -132,6 +132,11 @@ class LittleDogTransferConfig:
             raise RepertoireError(
                 f"change_from must lie in (-0.35, 0.35) m, got {self.change_from}"
             )
+        from repertoire.diagrams.littledog_transfer import _seed_ok
+
+        if not _seed_ok(self.rock_seed):
+            # else only the modified-terrain episode failed, recorded as an error
+            raise RepertoireError(f"rock_seed must be an integer >= 0, got {self.rock_seed!r}")
 
 
 @dataclasses.dataclass

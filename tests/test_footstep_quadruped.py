@@ -422,3 +422,10 @@ def test_crawl_goal_heading_bad_input():
         plan_crawl(hm, start, (0.2, 0.0), CrawlParams(turn_step=0.0), goal_heading=0.5)
     with pytest.raises(FootstepError, match="crawl heading_tolerance must be positive, got nan"):
         plan_crawl(hm, start, (0.2, 0.0), CrawlParams(heading_tolerance=math.nan))
+    for name, bad in (("turn_step", -0.1), ("heading_tolerance", -0.1)):
+        with pytest.raises(FootstepError, match=f"crawl {name} must be positive, got -0.1"):
+            plan_crawl(hm, start, (0.2, 0.0), CrawlParams(**{name: bad}), goal_heading=0.5)
+    for name in ("turn_step", "heading_tolerance"):
+        with pytest.raises(FootstepError, match=f"crawl {name} must be at most pi rad, got 4.0"):
+            plan_crawl(hm, start, (0.2, 0.0), CrawlParams(**{name: 4.0}), goal_heading=0.5)
+    assert CrawlParams(turn_step=math.pi, heading_tolerance=math.pi).validate() is None

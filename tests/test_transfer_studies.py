@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import re
 
 import pytest
 from repertoire.diagrams.littledog_demos import crossing_start, flat_start
@@ -72,6 +73,15 @@ def test_modified_terrain_case_searches_and_summarizes(library_path, tmp_path):
         matching.run_episode(config, -1)
     with pytest.raises(RepertoireError, match="threshold"):
         matching.run_episode(matching.LittleDogTransferConfig(threshold=-1.0), 2)
+
+
+def test_matching_config_names_a_bad_rock_seed():
+    for bad in (-1, 2.5, "5", True):
+        with pytest.raises(
+            RepertoireError, match=re.escape(f"rock_seed must be an integer >= 0, got {bad!r}")
+        ):
+            matching.LittleDogTransferConfig(rock_seed=bad).validate()
+    matching.LittleDogTransferConfig(rock_seed=0).validate()
 
 
 def test_execution_episode_records_every_condition(library_path, tmp_path):

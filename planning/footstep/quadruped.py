@@ -218,9 +218,9 @@ class CrawlParams:
         goal_radius: goal region radius around the goal point (m).
         step_cost: fixed cost per step.
         height_cost: cost per metre of height change.
-        turn_step: body heading change of one turning step (rad), used with a goal
+        turn_step: body heading change of one turning step (rad, in (0, pi]), used with a goal
             heading.
-        heading_tolerance: largest feet's heading error from a goal heading (rad).
+        heading_tolerance: largest feet's heading error from a goal heading (rad, in (0, pi]).
     """
 
     order: list[int] = dataclasses.field(default_factory=lambda: [2, 0, 3, 1])
@@ -268,6 +268,12 @@ class CrawlParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise FootstepError(f"crawl {name} must be >= 0, got {value}")
+        for name in ("turn_step", "heading_tolerance"):
+            # Angles beyond a half turn wrap: a turn of 4 rad is one of 4 - 2 pi the
+            # other way, and a tolerance over pi admits every heading.
+            value = getattr(self, name)
+            if value > math.pi:
+                raise FootstepError(f"crawl {name} must be at most pi rad, got {value}")
         if not (0.0 <= self.body_shift <= 1.0):
             raise FootstepError(f"crawl body_shift must be in [0, 1], got {self.body_shift}")
 

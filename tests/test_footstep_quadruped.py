@@ -429,3 +429,50 @@ def test_crawl_goal_heading_bad_input():
         with pytest.raises(FootstepError, match=f"crawl {name} must be at most pi rad, got 4.0"):
             plan_crawl(hm, start, (0.2, 0.0), CrawlParams(**{name: 4.0}), goal_heading=0.5)
     assert CrawlParams(turn_step=math.pi, heading_tolerance=math.pi).validate() is None
+
+
+@pytest.mark.parametrize("goal_deg", [135.0, 180.0])
+def test_crawl_turns_round_to_a_goal_heading_behind_it(goal_deg):
+    # Turns past 90 degrees used to stall: the turn term stayed flat beyond 90 degrees and
+    # the body heading ran up to 60 degrees ahead of the feet (NODE_LIMIT after 2000-4000
+    # expansions at a heading of 20-30 degrees). Now 261 and 961 expansions on this board.
+    board = generate_board(TerrainParams(kind="flat", size_x=1.0, size_y=0.6), seed=1)
+    hm = height_map_from_board(board, (-0.3, 0.7), (-0.3, 0.3), 0.01)
+    params = CrawlParams()
+    start = nominal_foot_positions()[:, :2]
+    goal = math.radians(goal_deg)
+    plan = plan_crawl(hm, start, (0.1, 0.0), params, time_limit=60.0, max_expansions=3000,
+                      goal_heading=goal)  # fmt: skip
+    assert plan.status is PlanStatus.SUCCESS
+    final = plan.steps[-1].stance
+    err = math.atan2(math.sin(heading_of(final) - goal), math.cos(heading_of(final) - goal))
+    assert abs(err) <= params.heading_tolerance
+    assert math.hypot(*(final[:, :2].mean(axis=0) - [0.1, 0.0])) <= params.goal_radius
+    _check_plan(plan, hm, params, board)
+
+
+def test_crawl_body_heading_leads_the_feet_by_at_most_turn_lead_steps():
+    import dataclasses
+
+    from repertoire.planning.footstep.quadruped import CrawlModel
+
+    hm = _board_map("flat")
+    start = nominal_foot_positions()[:, :2]  # the feet's heading: 0
+    params = CrawlParams(turn_lead=2)
+    model = CrawlModel(hm, start, (0.1, 0.0), params, goal_heading=math.radians(90.0))
+    s0 = model.start()
+    for turns, allowed in ((0, {0, 1}), (1, {1, 2}), (2, {2}), (3, {3})):
+        state = dataclasses.replace(s0, turns=turns)
+        got = {t.turns for t, _ in model.successors(state)}
+        assert got == allowed, (turns, got)
+    # towards the goal only: a body heading past it turns back, within the lead too
+    back = dataclasses.replace(s0, turns=-1)
+    assert {t.turns for t, _ in model.successors(back)} == {-1, 0}
+
+
+def test_crawl_turn_lead_bad_input():
+    for bad in (0, -1, 1.5, float("nan"), "2"):
+        with pytest.raises(FootstepError, match=r"turn_lead must be an integer >= 1, got " +
+                           re.escape(repr(bad))):  # fmt: skip
+            CrawlParams(turn_lead=bad).validate()
+    CrawlParams(turn_lead=1).validate()

@@ -462,3 +462,23 @@ def test_crawl_turn_lead_bad_input():
                            re.escape(repr(bad))):  # fmt: skip
             CrawlParams(turn_lead=bad).validate()
     CrawlParams(turn_lead=1).validate()
+
+
+def test_crawl_line_and_kept_footholds_are_exact():
+    # the swing-clearance line is np.linspace's own arithmetic without its call overhead,
+    # and a model keeps each state's footholds; footholds() still hands out a new array
+    from repertoire.planning.footstep.quadruped import CrawlModel, _line
+
+    rng = np.random.default_rng(7)
+    for _ in range(2000):
+        a, b = (int(v) for v in rng.integers(-300, 300, 2))
+        n = int(rng.integers(1, 80))
+        assert np.array_equal(_line(a, b, n), np.linspace(a, b, n + 1))
+    hm = _board_map("flat")
+    model = CrawlModel(hm, nominal_foot_positions()[:, :2], (0.1, 0.0), CrawlParams())
+    s0 = model.start()
+    first = model.footholds(s0)
+    first[:] = 99.0  # a caller's edit must not reach the model's kept copy
+    again = model.footholds(s0)
+    np.testing.assert_array_equal(again[:, :2], nominal_foot_positions()[:, :2])
+    assert again is not model.footholds(s0)

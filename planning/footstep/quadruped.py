@@ -399,6 +399,17 @@ def flat_on_ground(ground, xy, params: CrawlParams) -> np.ndarray:
     return foothold_ok(ground, np.asarray(xy, dtype=float)[:, :2], rule)
 
 
+_FEET_KEPT = 200_000
+"""Foothold arrays a :class:`CrawlModel` keeps per foothold cells (then it starts over)."""
+
+
+def _line(a: float, b: float, n: int) -> np.ndarray:
+    """``np.linspace(a, b, n + 1)`` by its own arithmetic (the same values), n >= 1."""
+    y = np.arange(n + 1) * ((b - a) / n) + a
+    y[-1] = b
+    return y
+
+
 def _rotate(v: np.ndarray, psi: float) -> np.ndarray:
     """Planar vectors (..., 2) turned by ``psi`` (rad); exactly ``v`` for psi = 0."""
     c, s = math.cos(psi), math.sin(psi)
@@ -469,6 +480,7 @@ class CrawlModel:
         # A foot keeps its exact start foothold until it moves (the crawl does not snap it).
         z0 = start[:, 2] if start.shape[1] == 3 else height_map.heights[rows, cols]
         self._start_feet = np.column_stack([start[:, :2], z0])
+        self._feet_of: dict[tuple, np.ndarray] = {}
         # An exact ground judges the exact start footholds (the map, the cells holding them).
         exact = None if self.ground is height_map else flat_on_ground(self.ground, start, params)
         for i in range(4):
@@ -532,10 +544,22 @@ class CrawlModel:
         return abs(math.atan2(math.sin(e), math.cos(e)))
 
     def footholds(self, state: CrawlState) -> np.ndarray:
-        """The four footholds (4 x 3, ground contact points) of a state.
+        """The four footholds (4 x 3, ground contact points) of a state (a new array).
 
         Cell centres, except a foot in its start cell: its exact start foothold.
         """
+        return self._feet(state).copy()
+
+    def _feet(self, state: CrawlState) -> np.ndarray:
+        """:meth:`footholds`, kept per foothold cells (read-only: the search's own use)."""
+        feet = self._feet_of.get(state.cells)
+        if feet is None:
+            if len(self._feet_of) >= _FEET_KEPT:
+                self._feet_of.clear()
+            feet = self._feet_of[state.cells] = self._compute_feet(state)
+        return feet
+
+    def _compute_feet(self, state: CrawlState) -> np.ndarray:
         rows = np.array([c[0] for c in state.cells])
         cols = np.array([c[1] for c in state.cells])
         x, y = self.map.center(rows, cols)
@@ -559,14 +583,14 @@ class CrawlModel:
         return abs(math.atan2(math.sin(e), math.cos(e)))
 
     def is_goal(self, state: CrawlState) -> bool:
-        feet = self.footholds(state)
+        feet = self._feet(state)
         c = feet[:, :2].mean(axis=0)
         if math.hypot(*(c - self.goal)) > self.params.goal_radius:
             return False
         return self.heading_error(feet) <= self.params.heading_tolerance
 
     def heuristic(self, state: CrawlState) -> float:
-        feet = self.footholds(state)
+        feet = self._feet(state)
         d = float(np.hypot(*(feet[:, :2].mean(axis=0) - self.goal))) - self.params.goal_radius
         e = self.heading_error(feet) - self.params.heading_tolerance
         turn = 0.0
@@ -586,7 +610,7 @@ class CrawlModel:
         p = self.params
         m = self.map
         leg = p.order[state.phase]
-        feet = self.footholds(state)
+        feet = self._feet(state)
         centroid = feet[:, :2].mean(axis=0)
         # Candidates around the nominal foothold turned to the body heading after the
         # step's turn (none, or one turn step towards the goal heading if that brings the
@@ -621,8 +645,8 @@ class CrawlModel:
         # Swing clearance along the straight line old -> new.
         for k in np.flatnonzero(keep):
             n = max(abs(rows[k] - old[0]), abs(cols[k] - old[1])) + 1
-            rr = np.rint(np.linspace(old[0], rows[k], n + 1)).astype(int)
-            cc = np.rint(np.linspace(old[1], cols[k], n + 1)).astype(int)
+            rr = np.rint(_line(old[0], rows[k], n)).astype(int)
+            cc = np.rint(_line(old[1], cols[k], n)).astype(int)
             if m.heights[rr, cc].max() > max(z_new[k], z_old) + p.swing_clearance:
                 keep[k] = False
         # Support triangle of the three stance feet during the swing.

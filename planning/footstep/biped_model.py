@@ -187,8 +187,8 @@ def sole_masks(geometry: BipedGeometry, margin: float, resolution: float) -> Foo
 
 
 CACHE_BYTES = 256 * 2**20
-"""Memory (bytes, estimated) each per-time cache of a dynamic world's model may hold: the
-footprint checkers, and the swing-blocking masks; the least recently used entries go first
+"""Memory (bytes, estimated) each per-time cache of a dynamic world's model may hold (the
+footprint checkers, the swing-blocking masks); the least recently used entries go first
 (rebuilt when needed again). An 8 m map with a 60 s horizon held ~145 MB of checkers for a
 37-step plan before the bound; a 12 m map with heights ~2.6 MB per time index."""
 
@@ -389,7 +389,6 @@ class BipedStepModel:
             Checkers(world, geometry, hold, 0.0) if opts.footprint_margin_m > 0 else self.checkers
         )
         self.exact_checkers = exact
-        self._tall_cache = _LruCache()  # per time index: the swing-blocking cells
         self._swing_tall_cache = _LruCache()  # per (swing start, landing) index pair
         self.exact = chk_start = exact.checker(self.k0)
         if not chk_start.is_free(sx, sy, sth, shortcut=False):
@@ -563,17 +562,18 @@ class BipedStepModel:
         self.inv_res = 1.0 / ref.resolution
         self.origin = ref.origin
 
+    def _tall_in(self, grids: Iterable[OccupancyGrid]) -> np.ndarray | None:
+        """Cells occupied and taller than ``swing_clearance`` in any grid (None: none)."""
+        if self.ref.heights is None or not math.isfinite(self.opts.swing_clearance):
+            return None
+        mask = np.zeros(self.ref.shape, bool)
+        for g in grids:
+            mask |= g.occupied & (g.heights > self.opts.swing_clearance)
+        return mask if mask.any() else None
+
     def tall_at(self, k: int) -> np.ndarray | None:
         """Cells the swing foot cannot cross at time index ``k`` (None: none or no limit)."""
-        if k in self._tall_cache:
-            return self._tall_cache.get(k)
-        tall = None
-        grid = self.checkers.checker(k).grid
-        if grid.heights is not None and math.isfinite(self.opts.swing_clearance):
-            mask = grid.occupied & (grid.heights > self.opts.swing_clearance)
-            tall = mask if mask.any() else None
-        self._tall_cache.put(k, tall, 64 if tall is None else tall.nbytes)
-        return tall
+        return self._tall_in([self.checkers.checker(k).grid])
 
     def tall_during(self, ka: int, kb: int) -> np.ndarray | None:
         """Cells the swing foot cannot cross while it swings (dynamic worlds).
@@ -589,12 +589,7 @@ class BipedStepModel:
         key = (ka, kb)
         if key in self._swing_tall_cache:
             return self._swing_tall_cache.get(key)
-        tall = None
-        if self.ref.heights is not None and math.isfinite(self.opts.swing_clearance):
-            mask = np.zeros(self.ref.shape, bool)
-            for g in self.world.grids[ka : kb + 1]:
-                mask |= g.occupied & (g.heights > self.opts.swing_clearance)
-            tall = mask if mask.any() else None
+        tall = self._tall_in(self.world.grids[ka : kb + 1])
         self._swing_tall_cache.put(key, tall, 64 if tall is None else tall.nbytes)
         return tall
 

@@ -125,18 +125,16 @@ class LittleDogTransferConfig:
     library: str = ""
 
     def validate(self) -> None:
-        """Raises RepertoireError naming a bad field."""
-        if not (math.isfinite(self.threshold) and self.threshold > 0.0):
-            raise RepertoireError(f"threshold must be positive, got {self.threshold}")
-        if not (math.isfinite(self.change_from) and -0.35 < self.change_from < 0.35):
-            raise RepertoireError(
-                f"change_from must lie in (-0.35, 0.35) m, got {self.change_from}"
-            )
-        from repertoire.diagrams.littledog_transfer import _seed_ok
+        """Raises RepertoireError naming a bad field.
 
-        if not _seed_ok(self.rock_seed):
-            # else only the modified-terrain episode failed, recorded as an error
-            raise RepertoireError(f"rock_seed must be an integer >= 0, got {self.rock_seed!r}")
+        The transfer scenario's own checks of the fields it passes on (else a bad rock seed
+        failed only the modified-terrain episode, recorded as an error row).
+        """
+        from repertoire.diagrams.littledog_transfer import LittleDogTransferScenario
+
+        LittleDogTransferScenario(
+            threshold=self.threshold, change_from=self.change_from, rock_seed=self.rock_seed
+        ).validate()
 
 
 @dataclasses.dataclass

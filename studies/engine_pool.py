@@ -107,18 +107,14 @@ def run_task(module: str, name: str, config_json: str, seed: int) -> dict[str, A
             "message": str(e),
             "traceback": traceback.format_exc(),
         }
-    except Exception as e:
+    except (Exception, SystemExit) as e:  # sys.exit() in an episode: its error, not ours
+        message = f"{type(e).__name__}: {e}"
+        if isinstance(e, SystemExit):
+            message = f"SystemExit({e.code!r}): the episode tried to exit the process"
         return {
             "seed": seed,
             "error": "exception",
-            "message": f"{type(e).__name__}: {e}",
-            "traceback": traceback.format_exc(),
-        }
-    except SystemExit as e:  # sys.exit() in an episode: its error, not the engine's exit
-        return {
-            "seed": seed,
-            "error": "exception",
-            "message": f"SystemExit({e.code!r}): the episode tried to exit the process",
+            "message": message,
             "traceback": traceback.format_exc(),
         }
 

@@ -56,7 +56,7 @@ travel farther), not in general: a stance could shrink while it turns. The prove
 bound, 2 L sin e up to 90 degrees, stays flat beyond: with it, turns of 135 and 180
 degrees on flat ground ran out of 4000 expansions at 20-30 degrees, and with the
 arc they take 260 and about 1000 (plans 1.47 and 2.2-2.4 m of travel, against the
-heuristic's 0.95 and 1.23 at their starts). With a goal heading, ``weight`` is
+heuristic's 0.96 and 1.28 at their starts). With a goal heading, ``weight`` is
 therefore no proven bound on a plan's cost.
 
 Use :func:`height_map_from_board` to sample a terrain board, then

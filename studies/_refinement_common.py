@@ -66,8 +66,8 @@ class SoccerPlanConfig:
         dribble_distance_range: the destination's distance from the ball [m].
         approach_distance: the approach pose's distance behind the ball centre [m].
         approach_v_max: the approach speed is free in [0, approach_v_max] [m/s], <= 1 (GoToPose
-            succeeds only within 0.1 m/s of its goal speed, so faster subgoals are missed
-            whenever the robot has to stop and turn at the pose).
+            succeeds only within 0.1 m/s of its goal speed, so a faster subgoal the robot
+            reaches too slowly costs a run-up; the shipped models were fitted below 0.1).
         time_step: plant step [s].
         control_period: GoToPose and executor period [s].
         timeout: the plan's time limit (every GoToPose's timeout) [s].

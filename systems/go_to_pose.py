@@ -13,6 +13,16 @@ and both commands are rate limited by ``a_max`` and ``alpha_max`` in the
 discrete update, so the command is continuous. Pure math is in
 :func:`pose_control`; the LeafSystem holds the limited command and the status
 in its discrete state.
+
+Inside the position tolerance the law stops and turns in place, so a target
+speed ``v_g`` that a stopped robot does not meet (``v_g >= 0.1`` m/s, see
+:func:`drive_step`) could never be met there: a robot that reached the target
+position too slowly, reversing, or facing the wrong way waited for its timeout.
+It then runs up instead (:func:`goto_mode`): it drives to the run-up pose, the
+target pose moved back along the target heading by :func:`run_up_distance`
+(room to reach ``v_g`` at ``a_max``), by turning, driving straight and turning
+(:func:`run_up_control`), and approaches again from there, straight and
+accelerating.
 """
 
 import math
@@ -76,25 +86,113 @@ def pose_control(state, target, gains: dict[str, float]) -> tuple[float, float, 
     return v, omega, rho, heading_error
 
 
+def speed_tolerance(v_g: float) -> float:
+    """How close (m/s) the robot's speed must be to the target speed ``v_g`` on arrival."""
+    return max(0.1, 0.5 * v_g)
+
+
+def run_up_distance(v_g: float, gains: dict[str, float]) -> float:
+    """Distance (m) of the run-up pose behind the target (see :func:`goto_mode`).
+
+    Twice the distance in which ``a_max`` brings a stopped robot to ``v_g``
+    (``v_g^2 / (2 a_max)``; twice: the chassis lags its command), plus the
+    position tolerance on either side of the target.
+    """
+    return v_g * v_g / gains["a_max"] + 2.0 * gains["position_tolerance"]
+
+
+def run_up_pose(target, gains: dict[str, float]) -> list[float]:
+    """``[x, y, phi_g, 0]``: the target moved back along its heading by the run-up distance."""
+    xg, yg, phig, vg = target
+    d = run_up_distance(vg, gains)
+    return [xg - d * math.cos(phig), yg - d * math.sin(phig), phig, 0.0]
+
+
+def run_up_control(state, pose, gains: dict[str, float]) -> tuple[float, float]:
+    """Unlimited ``(v, omega)`` to a pose by turning, driving straight, turning.
+
+    The polar law of :func:`pose_control` is singular for a pose just behind the
+    robot with about its heading (both angles near pi: it spins), which is where a
+    run-up pose lies. This law turns in place to face the pose's position (or to
+    back onto it when it lies behind: the smaller turn), drives straight at
+    ``k_rho * rho`` while steering with ``k_alpha``, and within the position
+    tolerance turns in place to the pose's heading.
+    """
+    x, y, phi, _ = state
+    xp, yp, php, _ = pose
+    g = gains
+    dx, dy = xp - x, yp - y
+    rho = math.hypot(dx, dy)
+    if rho < g["position_tolerance"]:
+        heading_error = float(wrap_angle(php - phi))
+        return 0.0, clip(g["k_alpha"] * heading_error, -g["omega_max"], g["omega_max"])
+    e = float(wrap_angle(math.atan2(dy, dx) - phi))
+    sign = 1.0
+    if abs(e) > 0.5 * math.pi:  # back onto it: the smaller turn
+        e, sign = float(wrap_angle(e + math.pi)), -1.0
+    omega = clip(g["k_alpha"] * e, -g["omega_max"], g["omega_max"])
+    if abs(e) > RUN_UP_AIM_RAD:  # face it (or its reverse) first
+        return 0.0, omega
+    v = clip(sign * g["k_rho"] * rho * math.cos(e), -g["v_max"], g["v_max"])
+    return v, omega
+
+
+RUN_UP_AIM_RAD = 0.2
+"""The run-up drives only while its heading is within this of the line to the pose (rad)."""
+
+APPROACH, RUN_UP = 0, 1
+"""GoToPose's modes: approach the target, or drive to its run-up pose first."""
+
+
+def goto_mode(mode: int, state, target, gains: dict[str, float]) -> int:
+    """GoToPose's next mode (:data:`APPROACH` or :data:`RUN_UP`).
+
+    RUN_UP when the robot is within the position tolerance of the target at a
+    speed off the target speed by :func:`speed_tolerance` or more and the target
+    speed is one a stopped robot does not meet (there the law would stop it for
+    good); back to APPROACH at the run-up pose (within the position and heading
+    tolerances), or at once when the target speed no longer needs a run-up (a
+    plan executor changed the target).
+    """
+    vg = target[3]
+    if abs(0.0 - vg) < speed_tolerance(vg):
+        return APPROACH
+    g = gains
+    if mode == RUN_UP:
+        xr, yr, phir, _ = run_up_pose(target, g)
+        there = math.hypot(xr - state[0], yr - state[1]) < g["position_tolerance"]
+        aligned = abs(float(wrap_angle(phir - state[2]))) < g["heading_tolerance"]
+        return APPROACH if there and aligned else RUN_UP
+    inside = math.hypot(target[0] - state[0], target[1] - state[1]) < g["position_tolerance"]
+    if inside and abs(state[3] - vg) >= speed_tolerance(vg):
+        return RUN_UP
+    return APPROACH
+
+
 def drive_step(
-    control, previous, state, target, gains, time: float, period: float, active: bool = True
-) -> list:
+    control, previous, state, target, gains, time: float, period: float, active: bool = True,
+    steer: "tuple[float, float] | None" = None,
+) -> list:  # fmt: skip
     """The next discrete state ``[v_cmd, omega_cmd, status]`` of a driving action.
 
     ``control`` is ``(v, omega, rho, heading_error)`` (as :func:`pose_control`
     returns it). SUCCEEDED (holding the ``previous`` command) within the
-    position and heading tolerances at about the target speed, TIMED_OUT at the
-    timeout, else RUNNING with ``(v, omega)`` rate limited by ``a_max`` and
-    ``alpha_max`` from ``previous``. An action that is not ``active`` (a plan's
-    later action, not started yet) only tracks the command and stays RUNNING.
+    position and heading tolerances at about the target speed
+    (:func:`speed_tolerance`), TIMED_OUT at the timeout, else RUNNING with
+    ``(v, omega)`` (or ``steer``: a command aimed elsewhere, GoToPose's run-up)
+    rate limited by ``a_max`` and ``alpha_max`` from ``previous``. An action that
+    is not ``active`` (a plan's later action, not started yet) only tracks the
+    command and stays RUNNING.
     """
     v, w, rho, heading_error = control
+    if steer is not None:
+        v, w = steer
     v_prev, w_prev = previous
     g = gains
     if active and (
         rho < g["position_tolerance"]
         and abs(heading_error) < g["heading_tolerance"]
-        and abs(state[3] - target[3]) < max(0.1, 0.5 * target[3])
+        and abs(state[3] - target[3]) < speed_tolerance(target[3])
     ):
         return [v_prev, w_prev, ActionStatus.SUCCEEDED]
     if active and time >= g["timeout"]:
@@ -179,7 +277,8 @@ class GoToPose(DriveAction):
     ``[x_min, x_max, y_min, y_max]`` is numeric parameter 1: a target outside
     it (or a non-finite target or state) makes the action fail at once (no motion).
 
-    Discrete state: ``[v_cmd, omega_cmd, status]``, updated every ``period`` s.
+    Discrete state: ``[v_cmd, omega_cmd, status, mode]`` (:func:`goto_mode`),
+    updated every ``period`` s.
     """
 
     def __init__(
@@ -207,14 +306,15 @@ class GoToPose(DriveAction):
             "heading_tolerance",
         )
         merged = merge_gains(GOTO_GAINS, gains, "GoToPose", positive)
-        self._declare_drive(period, GOTO_GAINS, merged, workspace, (("state", 4), ("target", 4)))
+        inputs = (("state", 4), ("target", 4))
+        self._declare_drive(period, GOTO_GAINS, merged, workspace, inputs, extra_slots=1)
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         xd = context.get_discrete_state(self._xd).get_value()
-        v_prev, w_prev, status = xd
+        v_prev, w_prev, status, mode = xd
         out = discrete_state.get_mutable_vector(self._xd)
         if status != ActionStatus.RUNNING:
-            out.SetFromVector([0.0, 0.0, status])
+            out.SetFromVector([0.0, 0.0, status, mode])
             return
         g = self.gains(context)
         state = self._state_port.Eval(context)
@@ -227,12 +327,17 @@ class GoToPose(DriveAction):
             or not ws[0] <= target[0] <= ws[1]
             or not ws[2] <= target[1] <= ws[3]
         ):
-            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED if active else ActionStatus.RUNNING])
+            failed = ActionStatus.FAILED if active else ActionStatus.RUNNING
+            out.SetFromVector([0.0, 0.0, failed, mode])
             return
+        if active:
+            mode = goto_mode(int(mode), state, target, g)
         control = pose_control(state, target, g)
+        steer = run_up_control(state, run_up_pose(target, g), g) if mode == RUN_UP else None
         t = context.get_time()
-        step = drive_step(control, (v_prev, w_prev), state, target, g, t, self.period, active)
-        out.SetFromVector(step)
+        previous = (v_prev, w_prev)
+        step = drive_step(control, previous, state, target, g, t, self.period, active, steer)
+        out.SetFromVector([*step, mode])
 
 
 class DiffDriveStateReader(LeafSystem):

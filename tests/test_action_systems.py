@@ -21,11 +21,17 @@ from repertoire.systems.action_model_predictor import (
 )
 from repertoire.systems.action_status import clip
 from repertoire.systems.go_to_pose import (
+    APPROACH,
     GOTO_GAINS,
+    RUN_UP,
     ActionStatus,
     GoToPose,
     chassis_state,
+    goto_mode,
     pose_control,
+    run_up_control,
+    run_up_distance,
+    run_up_pose,
 )
 
 from repertoire.errors import RepertoireError, ScenarioError
@@ -64,7 +70,7 @@ def test_goto_pose_rate_limits_and_status():
     goto, ctx = _goto_context([1, 0, 0, 0])
     xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
     # v wants 0.8 but a_max * period = 0.1
-    np.testing.assert_allclose(xd, [0.1, 0.0, ActionStatus.RUNNING])
+    np.testing.assert_allclose(xd, [0.1, 0.0, ActionStatus.RUNNING, APPROACH])
     assert goto.get_status_output_port().Eval(ctx) == ActionStatus.RUNNING
     # at the goal: succeeded
     goto, ctx = _goto_context([0.01, 0, 0.05, 0])
@@ -73,16 +79,16 @@ def test_goto_pose_rate_limits_and_status():
     # past the timeout: timed out, zero command
     goto, ctx = _goto_context([1, 0, 0, 0], time=GOTO_GAINS["timeout"])
     xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
-    np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.TIMED_OUT])
+    np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.TIMED_OUT, APPROACH])
 
 
 def test_goto_pose_inactive_keeps_running_and_tracks():
     # A plan's later action (active input 0) that is at its target, past its timeout or
     # given an off-field target stays RUNNING; its command is still the rate-limited one.
     cases = (
-        ([0.01, 0, 0.05, 0], 0.0, [0.0, 3.0 * 0.05 * 2.5, ActionStatus.RUNNING]),  # at the goal
-        ([1, 0, 0, 0], GOTO_GAINS["timeout"], [0.1, 0.0, ActionStatus.RUNNING]),
-        ([5.0, 0, 0, 0], 0.0, [0.0, 0.0, ActionStatus.RUNNING]),
+        ([0.01, 0, 0.05, 0], 0.0, [0.0, 3.0 * 0.05 * 2.5, ActionStatus.RUNNING, APPROACH]),
+        ([1, 0, 0, 0], GOTO_GAINS["timeout"], [0.1, 0.0, ActionStatus.RUNNING, APPROACH]),
+        ([5.0, 0, 0, 0], 0.0, [0.0, 0.0, ActionStatus.RUNNING, APPROACH]),
     )
     for target, time, expected in cases:
         goto, ctx = _goto_context(target, time=time)
@@ -95,10 +101,82 @@ def test_goto_pose_inactive_keeps_running_and_tracks():
         assert xd[2] != ActionStatus.RUNNING
 
 
+def test_run_up_geometry_by_hand():
+    g = dict(GOTO_GAINS)
+    # d = v_g^2 / a_max + 2 position_tolerance = 0.16 + 0.1
+    assert run_up_distance(0.4, g) == pytest.approx(0.26)
+    pose = run_up_pose([1.0, 2.0, math.pi / 2, 0.4], g)
+    np.testing.assert_allclose(pose, [1.0, 1.74, math.pi / 2, 0.0], atol=1e-12)
+
+
+def test_goto_mode_by_hand():
+    g = dict(GOTO_GAINS)
+    target = [0, 0, 0, 0.4]
+    # within the position tolerance at rest, a target speed a stopped robot misses: run up
+    assert goto_mode(APPROACH, [0.01, 0, 0, 0.0], target, g) == RUN_UP
+    assert goto_mode(APPROACH, [0.01, 0, 0, -0.3], target, g) == RUN_UP  # reversing in
+    # within it at about the target speed (drive_step succeeds), or outside it: approach
+    assert goto_mode(APPROACH, [0.01, 0, 0, 0.35], target, g) == APPROACH
+    assert goto_mode(APPROACH, [-0.5, 0, 0, 0.0], target, g) == APPROACH
+    # a target speed a stopped robot meets (|v_g| < 0.1 m/s) never needs a run-up
+    for mode in (APPROACH, RUN_UP):
+        assert goto_mode(mode, [0.01, 0, 0, 0.0], [0, 0, 0, 0.09], g) == APPROACH
+    # the run-up lasts until the run-up pose (0.26 m back) is reached, aligned
+    assert goto_mode(RUN_UP, [-0.1, 0, 0, 0.0], target, g) == RUN_UP
+    assert goto_mode(RUN_UP, [-0.22, 0, 0.1, 0.0], target, g) == APPROACH
+    assert goto_mode(RUN_UP, [-0.26, 0, 0.2, 0.0], target, g) == RUN_UP  # heading off > 0.15
+
+
+def test_run_up_control_by_hand():
+    g = dict(GOTO_GAINS)
+    # straight behind with the same heading (the polar law's singular case): back onto it
+    v, w = run_up_control([0, 0, 0, 0], [-0.5, 0, 0, 0], g)
+    assert v == pytest.approx(-0.8 * 0.5) and w == pytest.approx(0.0, abs=1e-12)
+    # behind, 0.1 rad off the backward line: back onto it while steering
+    v, w = run_up_control([0, 0, 0, 0], [-math.cos(0.1), -math.sin(0.1), 0, 0], g)
+    assert (v, w) == pytest.approx((-0.8 * math.cos(0.1), 0.3))
+    # ahead, 0.1 rad off: drive while steering
+    v, w = run_up_control([0, 0, 0, 0], [math.cos(0.1), math.sin(0.1), 0, 0], g)
+    assert (v, w) == pytest.approx((0.8 * math.cos(0.1), 0.3))
+    # to the left (more than RUN_UP_AIM_RAD off either way): turn in place first
+    assert run_up_control([0, 0, 0, 0], [0, 1, 0, 0], g) == (0.0, g["omega_max"])
+    # within the position tolerance: turn in place to the pose's heading
+    v, w = run_up_control([0, 0, 0, 0], [0.01, 0, 0.1, 0], g)
+    assert v == 0.0 and w == pytest.approx(0.3)
+
+
+def test_goto_pose_runs_up_when_stopped_short_of_the_target_speed():
+    # At the target position at rest, target speed 0.4 m/s: the polar law alone holds the
+    # robot there (v = 0) until its timeout. It runs up instead: backing onto the run-up
+    # pose 0.26 m behind, rate limited (a_max * period = 0.1).
+    goto, ctx = _goto_context([0.01, 0, 0, 0.4])
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    np.testing.assert_allclose(xd, [-0.1, 0.0, ActionStatus.RUNNING, RUN_UP], atol=1e-12)
+    # the same target at 0.05 m/s is met at rest: succeeded, no run-up
+    goto, ctx = _goto_context([0.01, 0, 0, 0.05])
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.SUCCEEDED, APPROACH])
+
+
+def test_soccer_goto_pose_reaches_a_target_speed_behind_it():
+    """Target 1 m behind, facing away, 0.4 m/s: it timed out at rest on the target before."""
+    scenario = GoToPoseScenario(initial_pose=[0.0, 0.0, 0.0], target=[-1.0, 0.0, 0.0, 0.4])
+    diagram = build_soccer_goto_pose(scenario)
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    t = 0.0
+    while goto_status(diagram, ctx) == ActionStatus.RUNNING and t < 12.0:
+        t += 0.05
+        sim.AdvanceTo(t)
+    assert goto_status(diagram, ctx) == ActionStatus.SUCCEEDED
+    figures = check_goto_pose(diagram, ctx)
+    assert figures["position_error_m"] < 0.1 and figures["heading_error_rad"] < 0.2
+
+
 def test_goto_pose_target_off_field_fails_without_motion():
     goto, ctx = _goto_context([5.0, 0, 0, 0])
     xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
-    np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.FAILED])
+    np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.FAILED, APPROACH])
     goto, ctx = _goto_context([np.nan, 0, 0, 0])
     xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
     assert xd[2] == ActionStatus.FAILED

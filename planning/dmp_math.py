@@ -472,11 +472,21 @@ def rollout(
 
 # --------------------------------------------------------------------------- obstacle coupling
 def obstacle_coupling(
-    x: np.ndarray, xd: np.ndarray, obstacle: np.ndarray, gamma: float, beta: float
+    x: np.ndarray,
+    xd: np.ndarray,
+    obstacle: np.ndarray,
+    gamma: float,
+    beta: float,
+    obstacle_velocity: "np.ndarray | None" = None,
 ) -> np.ndarray:
     """Obstacle coupling term ``p = gamma R v phi exp(-beta phi)`` of eq. 10 in 3-D.
 
-    ``phi`` is the angle between the direction to the obstacle ``o - x`` and the velocity.
+    ``phi`` is the angle between the direction to the obstacle ``o - x`` and the velocity
+    relative to the obstacle (the paper's words), ``v = xd - obstacle_velocity``; ``R`` and
+    the ``v`` it turns are that relative velocity too, so the term is eq. 10 in the frame
+    moving with the obstacle (Pastor et al.'s Fig. 13 avoids a moving ball). A static
+    obstacle (``obstacle_velocity`` None or zero) gives eq. 10 with the end-effector's own
+    velocity.
     ``R`` rotates by pi/2 about ``r = (o - x) x v``, which turns ``v`` away from the obstacle
     (the paper prints ``(x - o) x v``; with a right-handed +pi/2 rotation that axis would turn
     ``v`` *towards* the obstacle, so we use the sign of Hoffmann et al. 2009 and
@@ -496,12 +506,16 @@ def obstacle_coupling(
         obstacle: Obstacle position, shape (3,).
         gamma: Gain (>= 0).
         beta: Angular decay (the paper's c, >= 0).
+        obstacle_velocity: The obstacle's velocity do/dt, shape (3,) (None: static).
     """
     # Plain-float arithmetic: called once per control step, numpy's per-call overhead on
     # 3-vectors (np.cross, np.linalg.norm) dominates otherwise.
     x1, x2, x3 = _finite3("x", x)
     v1, v2, v3 = _finite3("xd", xd)
     o1, o2, o3 = _finite3("obstacle", obstacle)
+    if obstacle_velocity is not None:
+        u1, u2, u3 = _finite3("obstacle_velocity", obstacle_velocity)
+        v1, v2, v3 = v1 - u1, v2 - u2, v3 - u3
     if not (0.0 <= gamma < math.inf and 0.0 <= beta < math.inf):
         raise RepertoireError(f"gamma and beta must be finite and >= 0, got {gamma}, {beta}")
     d1, d2, d3 = o1 - x1, o2 - x2, o3 - x3

@@ -584,6 +584,8 @@ class ObstacleCoupling(LeafSystem):
         position (3): end-effector position x.
         velocity (3): end-effector velocity dx/dt.
         obstacle (3): obstacle position o.
+        obstacle_velocity (3): optional obstacle velocity do/dt (unconnected: a static
+            obstacle); eq. 10's angle is taken to the velocity relative to the obstacle.
 
     Output ports:
         coupling (3): p, to be fed to a TransformationSystem's coupling input.
@@ -597,6 +599,7 @@ class ObstacleCoupling(LeafSystem):
         self._x = self.DeclareVectorInputPort("position", 3)
         self._v = self.DeclareVectorInputPort("velocity", 3)
         self._o = self.DeclareVectorInputPort("obstacle", 3)
+        self._vo = self.DeclareVectorInputPort("obstacle_velocity", 3)
         self._out = self.DeclareVectorOutputPort("coupling", 3, self._calc)
 
     def set_gains(self, context: Context, gamma: float, beta: float) -> None:
@@ -611,8 +614,6 @@ class ObstacleCoupling(LeafSystem):
 
     def _calc(self, context: Context, output: BasicVector) -> None:
         gamma, beta = context.get_numeric_parameter(self._params).value()
-        output.SetFromVector(
-            obstacle_coupling(
-                self._x.Eval(context), self._v.Eval(context), self._o.Eval(context), gamma, beta
-            )
-        )
+        vo = self._vo.Eval(context) if self._vo.HasValue(context) else None
+        x, v, o = self._x.Eval(context), self._v.Eval(context), self._o.Eval(context)
+        output.SetFromVector(obstacle_coupling(x, v, o, gamma, beta, vo))

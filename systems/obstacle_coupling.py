@@ -27,6 +27,7 @@ def multi_point_obstacle_coupling(
     *,
     obstacle_radius: float = 0.0,
     length_scale: float = 0.0,
+    obstacle_velocity: "np.ndarray | None" = None,
 ) -> np.ndarray:
     """Eq. 10 applied at several control points of the hand and its load, summed.
 
@@ -58,6 +59,8 @@ def multi_point_obstacle_coupling(
         beta: Angular decay of eq. 10 (the paper's c, >= 0).
         obstacle_radius: Radius of the obstacle [m] (>= 0), where ``s`` is 1.
         length_scale: Decay length of ``s`` [m] (>= 0; 0 switches the factor off).
+        obstacle_velocity: The obstacle's velocity in W, shape (3,) (None: static); each
+            point's angle is taken to its velocity relative to the obstacle.
 
     Returns:
         The summed coupling term, shape (3,).
@@ -87,7 +90,7 @@ def multi_point_obstacle_coupling(
             scale = float(np.exp(-gap / length_scale))
             if scale < 1e-12:
                 continue
-        total += scale * obstacle_coupling(c, xd, o, gamma, beta)
+        total += scale * obstacle_coupling(c, xd, o, gamma, beta, obstacle_velocity)
     return total
 
 
@@ -103,6 +106,7 @@ class MultiPointObstacleCoupling(LeafSystem):
         velocity: end-effector velocity dx/dt in W (3).
         orientation: end-effector orientation [w, x, y, z] (4; normalised here).
         obstacle: obstacle centre o in W (3).
+        obstacle_velocity: optional obstacle velocity in W (3; unconnected: static).
 
     Output ports:
         coupling: the summed coupling term p (3), for the DMP chain's ``coupling`` input.
@@ -152,6 +156,7 @@ class MultiPointObstacleCoupling(LeafSystem):
         self._v = self.DeclareVectorInputPort("velocity", 3)
         self._q = self.DeclareVectorInputPort("orientation", 4)
         self._o = self.DeclareVectorInputPort("obstacle", 3)
+        self._vo = self.DeclareVectorInputPort("obstacle_velocity", 3)
         self.DeclareVectorOutputPort("coupling", 3, self._calc)
 
     def _calc(self, context: Context, output: BasicVector) -> None:
@@ -172,5 +177,6 @@ class MultiPointObstacleCoupling(LeafSystem):
                 beta,
                 obstacle_radius=radius,
                 length_scale=length,
+                obstacle_velocity=self._vo.Eval(context) if self._vo.HasValue(context) else None,
             )
         )

@@ -293,6 +293,53 @@ def test_obstacle_coupling_turns_away_and_special_cases():
     assert np.all(np.isfinite(away)) and np.linalg.norm(away) > 0  # phi = pi, any axis
 
 
+def test_obstacle_coupling_uses_the_velocity_relative_to_a_moving_obstacle():
+    """The paper's phi is the angle to the velocity relative to the obstacle."""
+    gamma, beta = 1000.0, 20 / np.pi
+    x, o = np.zeros(3), np.array([1.0, 0.0, 0.0])
+    # at rest, an obstacle at +x coming at (-1, -1, 0) / sqrt(2) m/s: relative velocity
+    # (1, 1, 0) / sqrt(2), phi = pi / 4, turned by +pi/2 about +z: along (-1, 1, 0) / sqrt(2)
+    vo = np.array([-1.0, -1.0, 0.0]) / np.sqrt(2)
+    p = obstacle_coupling(x, np.zeros(3), o, gamma, beta, vo)
+    phi = np.pi / 4
+    expected = gamma * phi * np.exp(-beta * phi) * np.array([-1.0, 1.0, 0.0]) / np.sqrt(2)
+    np.testing.assert_allclose(p, expected, rtol=1e-12, atol=1e-12)
+    # the same as a static obstacle seen with the relative velocity; zero when moving along
+    v = np.array([0.3, -0.2, 0.1])
+    np.testing.assert_array_equal(
+        obstacle_coupling(x, v, o, gamma, beta, vo), obstacle_coupling(x, v - vo, o, gamma, beta)
+    )
+    np.testing.assert_array_equal(obstacle_coupling(x, v, o, gamma, beta, v), np.zeros(3))
+    np.testing.assert_array_equal(
+        obstacle_coupling(x, v, o, gamma, beta, np.zeros(3)),
+        obstacle_coupling(x, v, o, gamma, beta),
+    )
+    with pytest.raises(RepertoireError, match="obstacle_velocity contains NaN"):
+        obstacle_coupling(x, v, o, gamma, beta, [np.nan, 0, 0])
+
+
+def test_coupling_systems_take_an_optional_obstacle_velocity():
+    from repertoire.systems.dmp import ObstacleCoupling
+    from repertoire.systems.obstacle_coupling import MultiPointObstacleCoupling
+
+    x, v, o = np.zeros(3), np.array([0.3, -0.2, 0.1]), np.array([1.0, 0.2, 0.0])
+    vo = np.array([-0.5, 0.1, 0.0])
+    for system, extra in (
+        (ObstacleCoupling(), {}),
+        (MultiPointObstacleCoupling(np.zeros((1, 3))), {"orientation": [1.0, 0, 0, 0]}),
+    ):
+        ctx = system.CreateDefaultContext()
+        for name, value in {"position": x, "velocity": v, "obstacle": o, **extra}.items():
+            system.GetInputPort(name).FixValue(ctx, value)
+        out = system.GetOutputPort("coupling")
+        static = obstacle_coupling(x, v, o, 1000.0, 20 / np.pi)
+        np.testing.assert_allclose(out.Eval(ctx), static, rtol=1e-12)  # unconnected: static
+        system.GetInputPort("obstacle_velocity").FixValue(ctx, vo)
+        moving = obstacle_coupling(x, v, o, 1000.0, 20 / np.pi, vo)
+        np.testing.assert_allclose(out.Eval(ctx), moving, rtol=1e-12)
+        assert np.linalg.norm(moving - static) > 1.0
+
+
 def test_obstacle_on_the_goal_is_well_defined_and_the_dmp_still_converges():
     # x = o: p = 0; near it |p| = gamma |v| phi exp(-beta phi) <= gamma |v| / (e beta), p . v = 0.
     o = np.array([0.3, -0.2, 0.5])

@@ -40,6 +40,10 @@ def test_config_rejects_bad_ranges():
         KitchenEpisodesConfig(x_range=[-5.0, 0.0]).validate()
     with pytest.raises(RepertoireError, match="lift_range"):
         KitchenEpisodesConfig(lift_range=[0.1, 0.5]).validate()
+    # goal speeds up to GoToPose's v_max: a goal reached too slowly costs a run-up
+    KitchenEpisodesConfig(v_g_range=[0.2, 0.6]).validate()
+    with pytest.raises(RepertoireError, match="v_g_range"):
+        KitchenEpisodesConfig(v_g_range=[0.0, 0.9]).validate()
     with pytest.raises(RepertoireError, match="actions"):
         KitchenEpisodesConfig(actions=["fly"]).validate()
     with pytest.raises(RepertoireError, match="cups must be distinct names"):

@@ -60,8 +60,9 @@ expansions at 20-30 degrees, and with the arc they took 260 and about 1000.
 The least number of steps counts the turn too: a step turns the body by at most one
 ``turn_step`` and the feet's heading follows the body's, so a heading error e beyond
 the tolerance takes at least ceil(e / turn_step) minus ``turn_lead`` more steps. This
-too is an estimate: the feet's heading was seen up to 3.3 turn steps ahead of the
-body's in searches, so it may count a step or two (0.01 each) too many. Without it
+too is an estimate: the feet's heading was seen up to 3.8 turn steps ahead of the
+body's in searches (flat, rock and mixed boards), so it may count up to two steps
+(0.01 each) too many. Without it
 the heuristic priced a 5 degree turn at 2 L e = 0.035 while the crawl pays about 0.065
 for it (plans cost 2.3 for 175 degrees), so g + 3 h fell little along a turn, and not
 at all where rocks made the feet detour: from the modified terrain's start a half

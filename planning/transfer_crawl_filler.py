@@ -171,6 +171,11 @@ class CrawlGapFiller:
             raise TransferSearchError(
                 f"crawl gap filler needs (4, 3) stances, got {start.shape} and {target.shape}"
             )
+        for name, stance in (("start", start), ("target", target)):
+            if not np.all(np.isfinite(stance)):
+                raise TransferSearchError(
+                    f"crawl gap filler needs finite stances, got {name} {stance.tolist()}"
+                )
         goal_xy = target[:, :2].mean(axis=0)
         place = False
         if self.place_feet and self.board is not None:

@@ -302,6 +302,10 @@ def test_step_reachable_agrees_with_the_crawls_execution():
             executed.append(False)
     assert 0 < mask.sum() < len(mask)  # both kinds among the candidates
     np.testing.assert_array_equal(mask, executed)
+    # no candidates: no poses and an empty mask (a reshape of the empty stack raised)
+    assert swing_pose(feet, 0, np.zeros((0, 3)), p).shape == (0, 6)
+    assert step_reachable(feet, 0, np.zeros((0, 3)), p, board).shape == (0,)
+    assert step_reachable(feet, 0, np.zeros((0, 3)), p, board).dtype == bool
 
 
 def test_crawl_model_bad_execution_params():

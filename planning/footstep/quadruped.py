@@ -245,7 +245,11 @@ class CrawlParams:
             heading (an integer >= 1): a step turns the body only while the feet keep up,
             so the legs never reach for footholds turned far beyond the stance they stand
             on (with no limit, a half turn left the body 60 degrees ahead of the feet and
-            the search stalled).
+            the search stalled). The lead angle is ``turn_lead * turn_step`` (10 degrees by
+            default): keep it when changing ``turn_step``. With ``turn_step`` 2 degrees and
+            ``turn_lead`` 2 (a 4 degree lead, less than the feet's heading varies with the
+            candidate offsets) a 90 degree turn on flat ground ran out of 3000 expansions;
+            with ``turn_lead`` 5 it took 130, and a half turn 536.
     """
 
     order: list[int] = dataclasses.field(default_factory=lambda: [2, 0, 3, 1])

@@ -243,13 +243,8 @@ class TerrainBoard:
         boxes = [b.footprint_bounds() for b in self.boxes if b.label != "ground"]
         if not boxes:
             raise RepertoireError("terrain board has no boxes: it has no extent")
-        e = np.array(boxes)
-        return (
-            float(e[:, 0].min()),
-            float(e[:, 1].max()),
-            float(e[:, 2].min()),
-            float(e[:, 3].max()),
-        )
+        lo, hi = np.min(boxes, axis=0), np.max(boxes, axis=0)
+        return (float(lo[0]), float(hi[1]), float(lo[2]), float(hi[3]))
 
     def height(self, x, y) -> np.ndarray:
         """Exact terrain height z(x, y) in m (vectorised; broadcasts x and y).
@@ -264,9 +259,13 @@ class TerrainBoard:
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
             raise RepertoireError("terrain height query needs finite x and y")
         z = np.zeros(x.shape)
+        # Boxes whose footprint's bounding rectangle misses the points' (margin 1e-9 m) add 0.
+        x0, x1 = x.min(initial=np.inf) - 1e-9, x.max(initial=-np.inf) + 1e-9
+        y0, y1 = y.min(initial=np.inf) - 1e-9, y.max(initial=-np.inf) + 1e-9
         for box in self.boxes:
-            inside = box.contains_xy(x, y)
-            z = np.where(inside, np.maximum(z, box.top), z)
+            b = box.footprint_bounds()
+            if b[0] <= x1 and b[1] >= x0 and b[2] <= y1 and b[3] >= y0:
+                z = np.where(box.contains_xy(x, y), np.maximum(z, box.top), z)
         return z
 
     def height_grid(

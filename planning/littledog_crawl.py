@@ -204,6 +204,8 @@ def swing_pose(feet, foot: int, p_new, params: CrawlParams) -> np.ndarray:
     feet = np.asarray(feet, dtype=float)
     p = np.asarray(p_new, dtype=float)
     cand = p.reshape(-1, 3)
+    if len(cand) == 0:
+        return np.zeros((0, 6))
     after = np.repeat(feet[None], len(cand), axis=0)
     after[:, foot] = cand
     stance = [i for i in range(4) if i != foot]
@@ -347,6 +349,8 @@ def step_reachable(feet, foot: int, p_new, params: CrawlParams, board) -> np.nda
     """
     feet = np.asarray(feet, dtype=float)
     cand = np.asarray(p_new, dtype=float).reshape(-1, 3)
+    if len(cand) == 0:
+        return np.zeros(0, dtype=bool)
     poses = swing_pose(feet, foot, cand, params)
     cmd = swing_commands(feet, foot, cand, params, board)
     R = rotation_from_rpy(poses[:, 3:])

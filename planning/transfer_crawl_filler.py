@@ -23,9 +23,11 @@ of at least ``planner_wall_limit``, and the search checks its CPU budget between
 The wall limit is kept at least ``planner_wall_limit`` rather than the search's
 remaining budget: a gap cut by wall time would depend on the machine's load. Measured
 on the matching study (seeds 2-7), every gap call succeeded within 78 expansions and
-0.6 s, so the limit never decides there; at 10-20 ms per expansion (the turning model)
-a gap needing more than about 500 (a 90 degree turn in place took 366-770) can reach it,
-and the search's CPU budget can then be overrun by up to ``planner_wall_limit``.
+0.6 s, so the limit never decides there; at 5-8 ms per expansion on the modified terrain
+(the turning model; 10-20 ms before the exact height skipped far boxes) a gap needing more
+than about 1500 can reach it (a 90 degree turn in place there took 94-175, a half turn 285:
+737 and TIME_LIMIT before the crawl's heuristic counted a turn's steps), and the search's
+CPU budget can then be overrun by up to ``planner_wall_limit``.
 """
 
 import dataclasses
@@ -171,6 +173,11 @@ class CrawlGapFiller:
             raise TransferSearchError(
                 f"crawl gap filler needs (4, 3) stances, got {start.shape} and {target.shape}"
             )
+        for name, stance in (("start", start), ("target", target)):
+            if not np.all(np.isfinite(stance)):
+                raise TransferSearchError(
+                    f"crawl gap filler needs finite stances, got {name} {stance.tolist()}"
+                )
         goal_xy = target[:, :2].mean(axis=0)
         place = False
         if self.place_feet and self.board is not None:

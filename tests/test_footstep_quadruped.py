@@ -302,6 +302,10 @@ def test_step_reachable_agrees_with_the_crawls_execution():
             executed.append(False)
     assert 0 < mask.sum() < len(mask)  # both kinds among the candidates
     np.testing.assert_array_equal(mask, executed)
+    # no candidates: no poses and an empty mask (a reshape of the empty stack raised)
+    assert swing_pose(feet, 0, np.zeros((0, 3)), p).shape == (0, 6)
+    assert step_reachable(feet, 0, np.zeros((0, 3)), p, board).shape == (0,)
+    assert step_reachable(feet, 0, np.zeros((0, 3)), p, board).dtype == bool
 
 
 def test_crawl_model_bad_execution_params():
@@ -373,7 +377,8 @@ def test_crawl_with_heading_zero_keeps_the_world_axis_footholds():
 def test_crawl_turns_to_a_goal_heading_on_flat_ground(goal_deg):
     # Turns past 90 degrees used to stall: the turn term stayed flat beyond 90 degrees and
     # the body heading ran up to 60 degrees ahead of the feet (NODE_LIMIT after 2000-4000
-    # expansions at a heading of 20-30 degrees); 135 and 180 degrees now take 261 and 961.
+    # expansions at a heading of 20-30 degrees); 135 and 180 degrees then took 261 and 961,
+    # and with the turn's steps in the heuristic 181 and 150.
     from repertoire.planning.transfer_crawl_filler import executable_prefix
     from repertoire.planning.transfer_search import PlannedStep
 
@@ -400,6 +405,39 @@ def test_crawl_turns_to_a_goal_heading_on_flat_ground(goal_deg):
     # Without a goal heading the same crawl keeps its start heading.
     still = plan_crawl(hm, start, (0.1, 0.0), params, time_limit=30.0)
     assert heading_of(still.steps[-1].stance) == 0.0
+
+
+@pytest.mark.parametrize("terrain", ["modified", "rocks"])
+def test_crawl_half_turn_plans_on_rough_ground(terrain):
+    # The transfer scenario's modified terrain (the start of its crossing) and a generated
+    # rock board: turning in place among rocks, goal 0.2 m ahead at 180 degrees. Without
+    # the turn's steps in the heuristic both ended in TIME_LIMIT at 93-129 degrees after
+    # 20 s (1280 and 3136 expansions); now SUCCESS after 310 and 244.
+    if terrain == "modified":
+        from repertoire.diagrams.littledog_transfer import (
+            LittleDogTransferScenario,
+            target_board,
+        )
+
+        board = target_board(LittleDogTransferScenario(target="modified"))
+    else:
+        board = generate_board(TerrainParams(kind="rocks", size_x=0.8, size_y=0.8), seed=2)
+    x0, x1, y0, y1 = board.bounds()
+    hm = height_map_from_board(board, (x0, x1), (y0, y1), 0.01)
+    start = nominal_foot_positions()[:, :2] + [-0.26, 0.01]  # the crossing's flat start
+    goal = start.mean(axis=0) + [0.2, 0.0]
+    params = CrawlParams()
+    plan = plan_crawl(
+        hm, start, goal, params, time_limit=60.0, max_expansions=600,
+        goal_heading=math.pi, ground=board,
+    )  # fmt: skip
+    assert plan.status is PlanStatus.SUCCESS
+    assert plan.expansions <= 600
+    final = plan.steps[-1].stance
+    err = heading_of(final) - math.pi
+    assert abs(math.atan2(math.sin(err), math.cos(err))) <= params.heading_tolerance
+    assert math.hypot(*(final[:, :2].mean(axis=0) - goal)) <= params.goal_radius
+    _check_plan(plan, hm, params, board)
 
 
 def test_crawl_from_a_yawed_stance_keeps_or_turns_its_heading():

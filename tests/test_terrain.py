@@ -235,6 +235,50 @@ def test_yawed_box_height_closed_form():
     assert board.height(d, -d) == 0.0  # across it
 
 
+def _height_over_all_boxes(board: TerrainBoard, x, y) -> np.ndarray:
+    """The height function's definition: the highest box holding each point, 0 outside."""
+    x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+    z = np.zeros(x.shape)
+    for box in board.boxes:
+        z = np.where(box.contains_xy(x, y), np.maximum(z, box.top), z)
+    return z
+
+
+def test_height_skips_only_boxes_away_from_the_query():
+    # height() tests only the boxes whose footprint's bounding rectangle meets the query
+    # points' (a foothold or swing test in a rock field meets a few of ~200): the same
+    # heights as testing every box, exactly, also on footprint edges and corners.
+    rng = np.random.default_rng(3)
+    yawed = TerrainBox([0.1, -0.05, 0.03], [0.06, 0.02, 0.06], yaw=0.7, label="rock")
+    boards = [
+        generate_board(TerrainParams(kind="rocks", rock_count=60), seed=2),
+        generate_board(TerrainParams(kind="mixed"), seed=4),
+        replace_with_rocks(generate_board(TerrainParams(kind="flat"), seed=0), 0.0, seed=5),
+        TerrainBoard(params=TerrainParams(), seed=0, boxes=[yawed]),
+    ]
+    for board in boards:
+        x0, x1, y0, y1 = board.bounds()
+        queries = [rng.uniform([x0 - 0.05, y0 - 0.05], [x1 + 0.05, y1 + 0.05], (500, 2))]
+        for _ in range(200):  # small windows, single points
+            c = rng.uniform([x0, y0], [x1, y1])
+            queries.append(c + rng.uniform(-0.02, 0.02, (int(rng.integers(1, 30)), 2)))
+        for box in board.boxes:  # corners and edge midpoints of each footprint
+            u = np.array([[1, 1], [1, -1], [-1, 1], [-1, -1], [1, 0], [0, 1]]) * 0.5
+            local = u * box.size[:2]
+            c, s = math.cos(box.yaw), math.sin(box.yaw)
+            corners = box.center[:2] + local @ np.array([[c, s], [-s, c]])
+            queries.extend(corners[[i]] for i in range(len(corners)))
+        for q in queries:
+            np.testing.assert_array_equal(
+                board.height(q[:, 0], q[:, 1]), _height_over_all_boxes(board, q[:, 0], q[:, 1])
+            )
+        assert board.height(np.zeros(0), np.zeros(0)).shape == (0,)
+    # a yawed box's corner is inside (closed set) though it is off its neighbours' rectangles
+    corner = yawed.center[0] + 0.03 * math.cos(0.7) - 0.01 * math.sin(0.7)
+    corner_y = yawed.center[1] + 0.03 * math.sin(0.7) + 0.01 * math.cos(0.7)
+    assert boards[-1].height(corner, corner_y) == pytest.approx(0.06)
+
+
 @pytest.mark.parametrize(
     "params, match",
     [

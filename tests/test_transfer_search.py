@@ -337,6 +337,21 @@ def flat_filler(**kwargs):
     return CrawlGapFiller(hmap, board=board, place_feet=True, **kwargs), start
 
 
+def test_crawl_gap_filler_refuses_non_finite_stances_naming_them():
+    # A NaN target stance used to reach the exact board's height test ("terrain height
+    # query needs finite x and y", naming neither stance) with place_feet, and a NaN start
+    # came back as a failed gap; both are bad input.
+    filler, start = flat_filler()
+    for name in ("start", "target"):
+        bad = {"start": start.copy(), "target": stance(0.0)}
+        bad[name][2, 1] = math.nan
+        with pytest.raises(TransferSearchError, match=f"needs finite stances, got {name} .*nan"):
+            filler(bad["start"], bad["target"], 2.0)
+        bad[name][2, 1] = math.inf
+        with pytest.raises(TransferSearchError, match=f"needs finite stances, got {name} .*inf"):
+            filler(bad["start"], bad["target"], 2.0)
+
+
 def test_crawl_gap_filler_reaches_a_centroid_when_the_feet_cannot_be_placed():
     filler, start = flat_filler()
     wide = stance(0.0)

@@ -46,18 +46,30 @@ the heading, with a goal heading). Step cost: ``step_cost`` plus the foot's
 horizontal travel plus ``height_cost`` times its height change; the heuristic is
 the larger of 4 x the centroid's distance beyond the goal radius (a lower bound: a
 step moves the centroid by a quarter of the foot's travel) and the feet's travel a
-heading change needs, plus ``step_cost`` times the least number of steps. The
-turning term is 2 L e (e the heading error beyond the tolerance, L the distance of
-the hind feet's midpoint to the front feet's): turning the line between the two
-midpoints by e at its length moves its ends along arcs of L e together, and each
-end is the mean of two feet. It is a lower bound while the stance keeps its
-length (the feet themselves lie farther from the centroid than the midpoints, and
-travel farther), not in general: a stance could shrink while it turns. The proven
-bound, 2 L sin e up to 90 degrees, stays flat beyond: with it, turns of 135 and 180
-degrees on flat ground ran out of 4000 expansions at 20-30 degrees, and with the
-arc they take 260 and about 1000 (plans 1.47 and 2.2-2.4 m of travel, against the
-heuristic's 0.96 and 1.28 at their starts). With a goal heading, ``weight`` is
-therefore no proven bound on a plan's cost.
+heading change needs, plus ``step_cost`` times the least number of steps (for the
+travel, and for the turn: see below). The turning term is 2 L e (e the heading
+error beyond the tolerance, L the distance of the hind feet's midpoint to the front
+feet's): turning the line between the two midpoints by e at its length moves its
+ends along arcs of L e together, and each end is the mean of two feet. It is a
+lower bound while the stance keeps its length (the feet themselves lie farther from
+the centroid than the midpoints, and travel farther), not in general: a stance
+could shrink while it turns. The proven bound, 2 L sin e up to 90 degrees, stays
+flat beyond: with it, turns of 135 and 180 degrees on flat ground ran out of 4000
+expansions at 20-30 degrees, and with the arc they took 260 and about 1000.
+
+The least number of steps counts the turn too: a step turns the body by at most one
+``turn_step`` and the feet's heading follows the body's, so a heading error e beyond
+the tolerance takes at least ceil(e / turn_step) minus ``turn_lead`` more steps. This
+too is an estimate: the feet's heading was seen up to 3.8 turn steps ahead of the
+body's in searches (flat, rock and mixed boards), so it may count up to two steps
+(0.01 each) too many. Without it
+the heuristic priced a 5 degree turn at 2 L e = 0.035 while the crawl pays about 0.065
+for it (plans cost 2.3 for 175 degrees), so g + 3 h fell little along a turn, and not
+at all where rocks made the feet detour: from the modified terrain's start a half
+turn ended in TIME_LIMIT at 120-129 degrees after 20-30 s, and turns of 135 and 180
+degrees on flat ground took 261 and 961 expansions; with it 310, and 181 and 150 (at
+the start of a half turn the heuristic is 1.56 against plans of 1.9-2.5). With a goal
+heading, ``weight`` is therefore no proven bound on a plan's cost.
 
 Use :func:`height_map_from_board` to sample a terrain board, then
 :func:`plan_crawl`; the plan's steps are typed :class:`CrawlStep` records.
@@ -233,7 +245,11 @@ class CrawlParams:
             heading (an integer >= 1): a step turns the body only while the feet keep up,
             so the legs never reach for footholds turned far beyond the stance they stand
             on (with no limit, a half turn left the body 60 degrees ahead of the feet and
-            the search stalled).
+            the search stalled). The lead angle is ``turn_lead * turn_step`` (10 degrees by
+            default): keep it when changing ``turn_step``. With ``turn_step`` 2 degrees and
+            ``turn_lead`` 2 (a 4 degree lead, less than the feet's heading varies with the
+            candidate offsets) a 90 degree turn on flat ground ran out of 3000 expansions;
+            with ``turn_lead`` 5 it took 130, and a half turn 536.
     """
 
     order: list[int] = dataclasses.field(default_factory=lambda: [2, 0, 3, 1])
@@ -590,21 +606,26 @@ class CrawlModel:
         return self.heading_error(feet) <= self.params.heading_tolerance
 
     def heuristic(self, state: CrawlState) -> float:
+        p = self.params
         feet = self._feet(state)
-        d = float(np.hypot(*(feet[:, :2].mean(axis=0) - self.goal))) - self.params.goal_radius
-        e = self.heading_error(feet) - self.params.heading_tolerance
-        turn = 0.0
+        d = float(np.hypot(*(feet[:, :2].mean(axis=0) - self.goal))) - p.goal_radius
+        e = self.heading_error(feet) - p.heading_tolerance
+        turn, turn_steps = 0.0, 0
         if e > 0.0:
             # The midpoints' line (length L) turns by e: at its length, its ends travel an
             # arc of L e together, each the mean of two feet (see the module docstring).
             mid = 0.5 * (feet[0, :2] + feet[1, :2]) - 0.5 * (feet[2, :2] + feet[3, :2])
             turn = 2.0 * float(np.hypot(*mid)) * e
+            # A step turns the body by one turn step at most and the feet follow it within
+            # about turn_lead turn steps (see the module docstring).
+            turn_steps = math.ceil(e / p.turn_step - 1e-9) - p.turn_lead
         if turn > 4.0 * max(d, 0.0):
-            return turn + self.params.step_cost * math.ceil(turn / self._max_travel - 1e-9)
+            steps = max(math.ceil(turn / self._max_travel - 1e-9), turn_steps)
+            return turn + p.step_cost * steps
         if d <= 0.0:
-            return 0.0
-        min_steps = math.ceil(d / (self._max_travel / 4.0) - 1e-9)
-        return 4.0 * d + self.params.step_cost * min_steps
+            return p.step_cost * max(turn_steps, 0)
+        min_steps = max(math.ceil(d / (self._max_travel / 4.0) - 1e-9), turn_steps)
+        return 4.0 * d + p.step_cost * min_steps
 
     def successors(self, state: CrawlState) -> list[tuple[CrawlState, float]]:
         p = self.params

@@ -388,7 +388,7 @@ class BipedStepModel:
         self.start_time = float(start_time)
 
         # a landed foot stands until the next step lands: at least the table's shortest step
-        self.min_hold = hold = self._table_entry["min_duration"]
+        self.min_hold = self._table_entry["min_duration"]
         self.checkers = Checkers(world, geometry, opts.footprint_margin_m)
         self.k0 = self.checkers.index(start_time)
         # the start feet already stand: checked exactly, without the margin; the height
@@ -396,16 +396,13 @@ class BipedStepModel:
         exact = Checkers(world, geometry, 0.0) if opts.footprint_margin_m > 0 else self.checkers
         self.exact_checkers = exact
         self._swing_tall_cache = _LruCache()  # per (swing start, landing) index pair
+        # occupied at the start time: a bad input. Hit later, while it stands until the first
+        # step lands: no error, the first steps that land too late are dropped (successors)
         self.exact = exact.checker(self.k0)
-        k_hold = self.checkers.end_index(start_time + hold)
-        if not exact.checker(self.k0, k_hold).is_free(sx, sy, sth, shortcut=False):
-            when = (
-                f" at some t in [{start_time:.3f}, {start_time + hold:.3f}] s (it stands "
-                "until the first step lands, at the earliest after the table's shortest "
-                "step)"
-                if dynamic
-                else ""
-            )
+        self.start_hit: float | None = None  # grid time when the start foot is first hit
+        self.start_successors = 0  # successors the start state yielded
+        if not self.exact.is_free(sx, sy, sth, shortcut=False):
+            when = f" at t = {start_time:.3f} s" if dynamic else ""
             raise FootstepError(
                 f"start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) overlaps an obstacle "
                 f"or the map edge{when}"
@@ -419,8 +416,7 @@ class BipedStepModel:
         # the swing foot lifts at the start time (the first step moves it): in a dynamic
         # world it must be free in E(start_time) only, not over the stance foot's hold window
         # (an obstacle may pass over the spot it leaves, as in receding-horizon replanning)
-        chk_swing = FootprintChecker(world.grids[self.k0], exact.masks) if dynamic else self.exact
-        if not chk_swing.is_free(*swing0, shortcut=False):
+        if not self.exact.is_free(*swing0, shortcut=False):
             when = f" at t = {self.start_time:.3f} s" if dynamic else ""
             raise FootstepError(
                 f"initial swing foot at ({swing0[0]:.3f}, {swing0[1]:.3f}) overlaps an obstacle "
@@ -685,12 +681,13 @@ class BipedStepModel:
         nf = 1 - s.foot
         ex1 = self.exact
         k_swing = self.checkers.index(s.t) if self.dynamic else 0  # the swing starts at s.t
+        is_start = s.t == self.start_time  # every other state's time is later
         if self.dynamic:  # the stance foot stands until the step lands: checked up to the
-            # table's shortest step when it landed (the start: when the model was made),
+            # table's shortest step when it landed (the start: at the start time only),
             # here up to each longer step's landing (once per landing index)
-            stance_checked = self.checkers.end_index(s.t + self.min_hold)
+            stance_checked = self.k0 if is_start else self.checkers.end_index(s.t + self.min_hold)
             stance_free: dict[int, bool] = {}
-            stance_checkers = self.exact_checkers if s.t == self.start_time else self.checkers
+            stance_checkers = self.exact_checkers if is_start else self.checkers
         if self.dynamic and self.step_limits:
             ex1 = self.exact_checkers.checker(k_swing)
         z1 = ex1.top_height(s.x, s.y, s.yaw) if self.step_limits else 0.0
@@ -721,6 +718,8 @@ class BipedStepModel:
                             s.x, s.y, s.yaw, shortcut=False
                         )
                     if not free:
+                        if is_start:
+                            self._note_start_hit(kt)
                         continue
                 k_hold = self.checkers.end_index(t2 + self.min_hold)  # it stands at least so
                 chk = self.checkers.checker(kt, k_hold)
@@ -749,4 +748,36 @@ class BipedStepModel:
             cost = m.cost
             if self.height_w > 0.0:
                 cost += self.height_w * ex.height_range(x2, y2, th2)
+            if is_start:
+                self.start_successors += 1
             yield BipedState(x2, y2, th2, nf, s.a_prev1, m.a, t2, s.x, s.y, h), cost
+
+    def _note_start_hit(self, k_end: int) -> None:
+        """Record the first grid time, up to index ``k_end``, at which the start foot is hit."""
+        if self.start_hit is not None and self.start_hit <= self.world.times[k_end]:
+            return
+        sx, sy, sth = self.start_pose
+        for k in range(self.k0 + 1, k_end + 1):
+            if not self.exact_checkers.checker(k).is_free(sx, sy, sth, shortcut=False):
+                self.start_hit = float(self.world.times[k])
+                return
+
+    def unreachable_reason(self) -> str:
+        """Why the search may have run out of states, as far as the model knows ("" if not).
+
+        In dynamic worlds: the start foot hit by an obstacle before a first step lands.
+        """
+        if not self.dynamic:
+            return ""
+        parts = []
+        if self.start_hit is not None:
+            sx, sy, sth = self.start_pose
+            gap = self.world.max_time_gap
+            parts.append(
+                f"the start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) stands until the first "
+                f"step lands and is hit by an obstacle at t = {self.start_hit:.3f} s (the grid "
+                f"standing for [{self.start_hit - gap:.3f}, {self.start_hit + gap:.3f}] s): "
+                "steps landing later were dropped"
+                + (", and no earlier one lands free" if self.start_successors == 0 else "")
+            )
+        return "; ".join(parts)

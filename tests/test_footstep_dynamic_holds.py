@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 from repertoire.planning.footstep import (
     ActionTable,
     DynamicEnvironment,
@@ -73,3 +74,29 @@ def test_a_landing_is_checked_for_as_long_as_the_foot_really_stands():
     stuck = plan_footsteps(env, START, "left", GOAL, slow, opts)
     assert stuck.status is PlanStatus.UNREACHABLE
     assert np.all(np.asarray(stuck.poses)[:, 1] < 0.5)
+
+
+def test_unreachable_past_the_grids_says_the_horizon_is_too_short():
+    # 1.8 m straight ahead by forward_long steps only: 6 steps of 0.8 s (4.8 s); the grids
+    # end at 2.0 s, so the third step (landing at 2.4 s) is dropped, the only one
+    env = DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[], t_end=2.0)
+    table = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", max_expansions=3000)
+    only_long = {"action_filter": lambda a2, a1, foot: ["forward_long"]}
+    args = (env, (0.5, 1.5, 0.0), "left", (2.3, 1.5), table, opts)
+    plan = plan_footsteps(*args, **only_long)
+    assert plan.status is PlanStatus.UNREACHABLE and plan.times == [0.0, 0.8, 1.6]
+    assert [p[0] for p in plan.poses] == pytest.approx([0.5, 0.8, 1.1])
+    assert plan.reason == (
+        "the environment's grids end at t = 2.000 s (the last standing for times up to "
+        "2.050 s): 1 landing past it was dropped; extend t_end (the planning horizon) to "
+        "plan further"
+    )
+    # every action: each of the 7 x 7 = 49 states of 1.6 s drops its 7 landings (2.4 s)
+    model = BipedStepModel(*args)
+    seconds = [s for f, _ in model.successors(model.start()) for s, _ in model.successors(f)]
+    assert len(seconds) == 49 and {s.t for s in seconds} == {1.6}
+    assert all(list(model.successors(s)) == [] for s in seconds) and model.past_grids == 343
+    longer = DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[], t_end=8.0)
+    done = plan_footsteps(longer, *args[1:], **only_long)
+    assert done.status is PlanStatus.SUCCESS and done.reason == "" and done.num_steps == 6

@@ -401,6 +401,7 @@ class BipedStepModel:
         self.exact = exact.checker(self.k0)
         self.start_hit: float | None = None  # grid time when the start foot is first hit
         self.start_successors = 0  # successors the start state yielded
+        self.past_grids = 0  # landings dropped: their time is past the last grid's
         if not self.exact.is_free(sx, sy, sth, shortcut=False):
             when = f" at t = {start_time:.3f} s" if dynamic else ""
             raise FootstepError(
@@ -705,6 +706,7 @@ class BipedStepModel:
                 continue
             kt = self.checkers.index(t2) if self.dynamic else 0
             if kt < 0:  # past the grids' times: no state (nor a lattice key) there
+                self.past_grids += 1
                 continue
             if dominated is not None and dominated(
                 self.lattice_key(x2, y2, th2, nf, hist1[m.a], t2), m.cost
@@ -765,7 +767,8 @@ class BipedStepModel:
     def unreachable_reason(self) -> str:
         """Why the search may have run out of states, as far as the model knows ("" if not).
 
-        In dynamic worlds: the start foot hit by an obstacle before a first step lands.
+        In dynamic worlds: the start foot hit by an obstacle before a first step lands,
+        landings dropped because their time is past the environment's last grid.
         """
         if not self.dynamic:
             return ""
@@ -779,5 +782,14 @@ class BipedStepModel:
                 f"standing for [{self.start_hit - gap:.3f}, {self.start_hit + gap:.3f}] s): "
                 "steps landing later were dropped"
                 + (", and no earlier one lands free" if self.start_successors == 0 else "")
+            )
+        if self.past_grids:
+            env = self.world
+            n = self.past_grids
+            parts.append(
+                f"the environment's grids end at t = {env.times[-1]:.3f} s (the last standing "
+                f"for times up to {env.times[-1] + env.max_time_gap:.3f} s): {n} "
+                f"landing{'s' if n != 1 else ''} past it {'were' if n != 1 else 'was'} "
+                "dropped; extend t_end (the planning horizon) to plan further"
             )
         return "; ".join(parts)

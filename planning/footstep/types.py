@@ -432,7 +432,8 @@ class FootstepPlan:
             from a search).
         yaw_bins: yaw bins per turn of that search (0: not from a search).
         reason: why a plan that is not SUCCESS stops short, where the planner can tell (a
-            dynamic world's start foot hit before the first step lands); "" otherwise.
+            dynamic world's start foot hit before the first step lands, landings past the
+            environment's last grid); "" otherwise.
     """
 
     poses: list[list[float]]

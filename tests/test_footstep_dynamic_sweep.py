@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from repertoire.planning.footstep import (
     DynamicEnvironment,
+    GridError,
     MovingRectObstacle,
     OccupancyGrid,
     RectObstacle,
@@ -97,3 +98,11 @@ def test_swept_overlap_is_the_hull_of_both_ends():
     assert (got == inside).mean() > 0.997 and (inside & ~got).sum() == 0
     same = swept_rect_overlaps_cells(a, a, half, yaw, pts, 0.05)
     np.testing.assert_array_equal(same, rect_overlaps_cells(a, half, yaw, pts, 0.05))
+
+
+def test_a_velocity_beside_waypoints_is_refused_not_ignored():
+    # the waypoints set the centre; a velocity given as well was silently dropped
+    with pytest.raises(GridError, match=r"velocity \[0.5, 0.0\] is not used with waypoints"):
+        MovingRectObstacle([0, 0], [0.1, 0.1], [0.5, 0.0], waypoints=[[0, 0, 0], [1, 1, 0]])
+    ok = MovingRectObstacle([0, 0], [0.1, 0.1], [0.0, 0.0], waypoints=[[0, 0, 0], [1, 1, 0]])
+    assert ok.center_at(0.5) == [0.5, 0.0]

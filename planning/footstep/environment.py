@@ -166,9 +166,9 @@ class MovingRectObstacle:
     interpolated linearly between them and held before the first and after the last.
 
     Attributes:
-        center: ``[x, y]`` at t = 0 (m).
+        center: ``[x, y]`` at t = 0 (m); unused with waypoints.
         size: ``[length, width]`` (m).
-        velocity: ``[vx, vy]`` (m/s).
+        velocity: ``[vx, vy]`` (m/s); must stay zero with waypoints.
         yaw: orientation (rad).
         height: height (m).
         waypoints: optional ``[t, x, y]`` rows of a piecewise-linear trajectory.
@@ -194,6 +194,11 @@ class MovingRectObstacle:
                 raise GridError(f"waypoints must be finite [t, x, y] rows, got {self.waypoints}")
             if np.any(np.diff(w[:, 0]) <= 0):
                 raise GridError("waypoint times must increase strictly")
+            if np.any(np.asarray(self.velocity, dtype=float) != 0.0):
+                raise GridError(
+                    f"MovingRectObstacle velocity {self.velocity} is not used with waypoints "
+                    "(the centre follows them): give a velocity or waypoints, not both"
+                )
 
     def center_at(self, t: float) -> list[float]:
         """Centre ``[x, y]`` at time ``t``.

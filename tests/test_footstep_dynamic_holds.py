@@ -88,9 +88,8 @@ def test_unreachable_past_the_grids_says_the_horizon_is_too_short():
     assert plan.status is PlanStatus.UNREACHABLE and plan.times == [0.0, 0.8, 1.6]
     assert [p[0] for p in plan.poses] == pytest.approx([0.5, 0.8, 1.1])
     assert plan.reason == (
-        "the environment's grids end at t = 2.000 s (the last standing for times up to "
-        "2.050 s): 1 landing past it was dropped; extend t_end (the planning horizon) to "
-        "plan further"
+        "1 landing past the environment's last grid (t = 2.000 s, standing for times up to "
+        "2.050 s) dropped: extend t_end (the planning horizon) to plan further"
     )
     # every action: each of the 7 x 7 = 49 states of 1.6 s drops its 7 landings (2.4 s)
     model = BipedStepModel(*args)
@@ -100,3 +99,18 @@ def test_unreachable_past_the_grids_says_the_horizon_is_too_short():
     longer = DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[], t_end=8.0)
     done = plan_footsteps(longer, *args[1:], **only_long)
     assert done.status is PlanStatus.SUCCESS and done.reason == "" and done.num_steps == 6
+
+
+def test_unreachable_between_grids_says_no_grid_stands_for_the_landing_times():
+    # grids every 0.8 s standing for 0.05 s either side: 0.4 s steps land between them
+    grid = DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[], t_end=0.0).grids[0]
+    env = DynamicEnvironment(np.arange(5) * 0.8, [grid] * 5, max_time_gap=0.05)
+    quick = nominal_action_table(step_duration=0.4)
+    opts = PlannerOptions(heuristic="euclidean", max_expansions=3000)
+    only_long = {"action_filter": lambda a2, a1, foot: ["forward_long"]}
+    plan = plan_footsteps(env, (0.5, 1.5, 0.0), "left", (2.3, 1.5), quick, opts, **only_long)
+    assert plan.status is PlanStatus.UNREACHABLE and plan.num_steps == 0
+    assert plan.reason == (
+        "1 landing between grid times, more than max_time_gap = 0.050 s from every grid, "
+        "dropped: add grids there or widen max_time_gap"
+    )

@@ -402,6 +402,7 @@ class BipedStepModel:
         self.start_hit: float | None = None  # grid time when the start foot is first hit
         self.start_successors = 0  # successors the start state yielded
         self.past_grids = 0  # landings dropped: their time is past the last grid's
+        self.between_grids = 0  # ... or between two grids, near neither (max_time_gap)
         if not self.exact.is_free(sx, sy, sth, shortcut=False):
             when = f" at t = {start_time:.3f} s" if dynamic else ""
             raise FootstepError(
@@ -705,8 +706,11 @@ class BipedStepModel:
             if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                 continue
             kt = self.checkers.index(t2) if self.dynamic else 0
-            if kt < 0:  # past the grids' times: no state (nor a lattice key) there
-                self.past_grids += 1
+            if kt < 0:  # no grid near its time: no state (nor a lattice key) there
+                if t2 > self.world.times[-1]:
+                    self.past_grids += 1
+                else:
+                    self.between_grids += 1
                 continue
             if dominated is not None and dominated(
                 self.lattice_key(x2, y2, th2, nf, hist1[m.a], t2), m.cost
@@ -755,41 +759,39 @@ class BipedStepModel:
             yield BipedState(x2, y2, th2, nf, s.a_prev1, m.a, t2, s.x, s.y, h), cost
 
     def _note_start_hit(self, k_end: int) -> None:
-        """Record the first grid time, up to index ``k_end``, at which the start foot is hit."""
-        if self.start_hit is not None and self.start_hit <= self.world.times[k_end]:
-            return
-        sx, sy, sth = self.start_pose
-        for k in range(self.k0 + 1, k_end + 1):
-            if not self.exact_checkers.checker(k).is_free(sx, sy, sth, shortcut=False):
-                self.start_hit = float(self.world.times[k])
-                return
+        """Record the first grid time (after the start's) at which the start foot is hit."""
+        if self.start_hit is None:  # else found already: every window begins at k0
+            sx, sy, sth = self.start_pose
+            for k in range(self.k0 + 1, k_end + 1):
+                if not self.exact_checkers.checker(k).is_free(sx, sy, sth, shortcut=False):
+                    self.start_hit = float(self.world.times[k])
+                    return
 
     def unreachable_reason(self) -> str:
         """Why the search may have run out of states, as far as the model knows ("" if not).
 
         In dynamic worlds: the start foot hit by an obstacle before a first step lands,
-        landings dropped because their time is past the environment's last grid.
+        landings dropped because no grid is near their time (past the environment's last
+        grid, or between two grids further apart than twice ``max_time_gap``).
         """
         if not self.dynamic:
             return ""
-        parts = []
+        env, gap, parts = self.world, self.world.max_time_gap, []
         if self.start_hit is not None:
-            sx, sy, sth = self.start_pose
-            gap = self.world.max_time_gap
+            (sx, sy, sth), hit = self.start_pose, self.start_hit
             parts.append(
                 f"the start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) stands until the first "
-                f"step lands and is hit by an obstacle at t = {self.start_hit:.3f} s (the grid "
-                f"standing for [{self.start_hit - gap:.3f}, {self.start_hit + gap:.3f}] s): "
-                "steps landing later were dropped"
+                f"step lands and is hit by an obstacle at t = {hit:.3f} s (the grid standing "
+                f"for [{hit - gap:.3f}, {hit + gap:.3f}] s): steps landing later were dropped"
                 + (", and no earlier one lands free" if self.start_successors == 0 else "")
             )
-        if self.past_grids:
-            env = self.world
-            n = self.past_grids
-            parts.append(
-                f"the environment's grids end at t = {env.times[-1]:.3f} s (the last standing "
-                f"for times up to {env.times[-1] + env.max_time_gap:.3f} s): {n} "
-                f"landing{'s' if n != 1 else ''} past it {'were' if n != 1 else 'was'} "
-                "dropped; extend t_end (the planning horizon) to plan further"
-            )
+        end = f"t = {env.times[-1]:.3f} s, standing for times up to {env.times[-1] + gap:.3f} s"
+        for n, where, fix in (
+            (self.past_grids, f"past the environment's last grid ({end})", "extend t_end (the "
+             "planning horizon) to plan further"),
+            (self.between_grids, f"between grid times, more than max_time_gap = {gap:.3f} s "
+             "from every grid,", "add grids there or widen max_time_gap"),
+        ):  # fmt: skip
+            if n:
+                parts.append(f"{n} landing{'s' * (n != 1)} {where} dropped: {fix}")
         return "; ".join(parts)

@@ -114,3 +114,16 @@ def test_unreachable_between_grids_says_no_grid_stands_for_the_landing_times():
         "1 landing between grid times, more than max_time_gap = 0.050 s from every grid, "
         "dropped: add grids there or widen max_time_gap"
     )
+
+
+def test_receding_horizon_passes_the_last_rounds_reason_on():
+    from repertoire.planning.footstep.receding import plan_receding_horizon
+
+    env = DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[], t_end=2.0)
+    table = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", max_expansions=3000, refinements=0)
+    args = (env, (0.5, 1.5, 0.0), "left", (2.3, 1.5), table, opts)
+    alone = plan_footsteps(*args)
+    assert alone.status is PlanStatus.UNREACHABLE and "past the environment's" in alone.reason
+    res = plan_receding_horizon(*args, max_rounds=1)
+    assert res.statuses == ["UNREACHABLE"] and res.plan.reason == alone.reason

@@ -265,9 +265,13 @@ def test_dynamic_environment_nearest_time_and_errors():
     env = DynamicEnvironment.from_moving_obstacles((1.0, 1.0), moving=[m], t_end=1.0, dt=0.1)
     assert len(env.times) == 11 and env.max_time_gap == pytest.approx(0.05)
     assert env.index_at(0.34) == 3 and env.index_at(0.36) == 4
-    # the block's cells move 0.05 m (two cells) per grid
-    assert env.at(0.0).occupied[2:6, 18:22].all() and env.at(0.2).occupied[6:10, 18:22].all()
-    assert not env.at(0.2).occupied[2:6, 18:22].any()
+    # the block moves 0.05 m (two cells) per grid; grid k marks what it sweeps over
+    # [0.1 k - 0.05, 0.1 k + 0.05] s: x in [0.025 + 0.05 k, 0.175 + 0.05 k], cells
+    # 1 + 2k .. 6 + 2k, rows 18 .. 21
+    for t, (i0, i1) in ((0.0, (1, 6)), (0.2, (5, 10))):
+        want = np.zeros((40, 40), bool)
+        want[i0 : i1 + 1, 18:22] = True
+        np.testing.assert_array_equal(env.at(t).occupied, want)
     with pytest.raises(GridError, match="no grid near t = 1.200"):
         env.at(1.2)
     with pytest.raises(GridError, match="no grid near"):

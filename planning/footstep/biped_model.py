@@ -6,7 +6,10 @@ come from the displacement table ``T(a_prev2, a_prev1, stance foot, a)`` for the
 filter F allows; each costs ``step_cost(a) + location_cost(landing)`` and is dropped when
 the landing foot rectangle (inflated by the margin) overlaps an occupied cell of E(t), is
 not flat enough, steps up or down more than the limits (highest ground under each sole),
-or its swing line crosses an obstacle taller than the swing clearance.
+or its swing line crosses an obstacle taller than the swing clearance. In a dynamic world
+a foot stands from its landing until the next step lands: a landing is checked over the
+table's shortest step, and a step that lasts longer is taken only if the stance foot stays
+free until that step lands.
 States are merged on a lattice of ``xy_resolution`` x ``yaw_bins`` (x time bins in dynamic
 worlds, x history classes) by :meth:`BipedStepModel.lattice_key`, the one place the key is
 written; the poses themselves stay continuous.
@@ -154,7 +157,7 @@ def _table_entry(table: ActionTable) -> dict:
         entry = _TABLE_CACHE[key] = {
             "hist": hist,
             "n_hist": int(hist.max()) + 1,
-            "hold": float(table.duration.max()),
+            "min_duration": float(table.duration.min()),
             "max_forward": float(np.max(table.displacement[..., 0])),
             "c_min": float(table.step_cost.min()),
             "max_reach": table.max_reach(),
@@ -226,24 +229,24 @@ class _LruCache:
 
 
 class Checkers:
-    """Footprint checkers per time index (dynamic) or one checker (static).
+    """Footprint checkers per window of time indices (dynamic) or one checker (static).
 
-    In a dynamic world the checker of time index k sees every cell occupied while the foot
-    stands (the hold time after k), with the tallest height over that window. The foot
-    rectangle is inflated by ``margin`` (m) on every side.
+    In a dynamic world the checker of the window ``[k, k_end]`` sees every cell occupied in
+    any of those grids, with the tallest height over them: a foot that stands from a time
+    near ``times[k]`` to one near ``times[k_end]`` (each grid standing for the times within
+    ``max_time_gap`` of its own) is free while it stands when that checker finds it free.
+    The foot rectangle is inflated by ``margin`` (m) on every side.
     """
 
     def __init__(
         self,
         world: "OccupancyGrid | DynamicEnvironment",
         geometry: BipedGeometry,
-        hold: float,
         margin: float = 0.0,
     ) -> None:
         self.world = world
         grid0 = world if isinstance(world, OccupancyGrid) else world.reference
         self.masks = sole_masks(geometry, margin, grid0.resolution)
-        self.hold = hold
         self.static = isinstance(world, OccupancyGrid)
         if self.static:
             self._static = FootprintChecker(world, self.masks)
@@ -263,15 +266,19 @@ class Checkers:
         k = env.nearest_index_unchecked(t)
         return k if abs(env.times[k] - t) <= env.max_time_gap + 1e-9 else -1
 
-    def checker(self, k: int) -> FootprintChecker:
+    def end_index(self, t: float) -> int:
+        """Time index of ``t``, the last grid's past the grids' times (0 in static worlds)."""
+        return 0 if self.static else self.world.nearest_index_unchecked(t)
+
+    def checker(self, k: int, k_end: int | None = None) -> FootprintChecker:
+        """The checker of grids ``k .. k_end`` (both included; ``k`` alone by default)."""
         if self.static:
             return self._static
-        c = self._cache.get(k)
+        key = (k, k if k_end is None else max(k, k_end))
+        c = self._cache.get(key)
         if c is None:
             env = self.world
-            t_hold = env.times[k] + self.hold
-            k2 = int(np.searchsorted(env.times, t_hold + env.max_time_gap + 1e-9))
-            window = slice(k, max(k2, k + 1))
+            window = slice(key[0], key[1] + 1)
             union = env.stack[window].any(axis=0)
             ref = env.reference
             heights = ref.heights
@@ -280,7 +287,7 @@ class Checkers:
             c = FootprintChecker(
                 OccupancyGrid(union, ref.resolution, ref.origin, heights), self.masks
             )
-            self._cache.put(k, c, self._bytes)
+            self._cache.put(key, c, self._bytes)
         return c
 
 
@@ -380,24 +387,24 @@ class BipedStepModel:
         self.history0 = (table.index(history[0]), table.index(history[1]))
         self.start_time = float(start_time)
 
-        hold = self._table_entry["hold"]
-        self.checkers = Checkers(world, geometry, hold, opts.footprint_margin_m)
+        # a landed foot stands until the next step lands: at least the table's shortest step
+        self.min_hold = self._table_entry["min_duration"]
+        self.checkers = Checkers(world, geometry, opts.footprint_margin_m)
         self.k0 = self.checkers.index(start_time)
         # the start feet already stand: checked exactly, without the margin; the height
         # cost is also measured under the exact footprint (heights are the same at all t)
-        exact = (
-            Checkers(world, geometry, hold, 0.0) if opts.footprint_margin_m > 0 else self.checkers
-        )
+        exact = Checkers(world, geometry, 0.0) if opts.footprint_margin_m > 0 else self.checkers
         self.exact_checkers = exact
         self._swing_tall_cache = _LruCache()  # per (swing start, landing) index pair
-        self.exact = chk_start = exact.checker(self.k0)
-        if not chk_start.is_free(sx, sy, sth, shortcut=False):
-            when = (
-                f" at some t in [{start_time:.3f}, {start_time + hold:.3f}] s (it stands "
-                "until the first step lands)"
-                if dynamic
-                else ""
-            )
+        # occupied at the start time: a bad input. Hit later, while it stands until the first
+        # step lands: no error, the first steps that land too late are dropped (successors)
+        self.exact = exact.checker(self.k0)
+        self.start_hit: float | None = None  # grid time when the start foot is first hit
+        self.start_successors = 0  # successors the start state yielded
+        self.past_grids = 0  # landings dropped: their time is past the last grid's
+        self.between_grids = 0  # ... or between two grids, near neither (max_time_gap)
+        if not self.exact.is_free(sx, sy, sth, shortcut=False):
+            when = f" at t = {start_time:.3f} s" if dynamic else ""
             raise FootstepError(
                 f"start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) overlaps an obstacle "
                 f"or the map edge{when}"
@@ -411,8 +418,7 @@ class BipedStepModel:
         # the swing foot lifts at the start time (the first step moves it): in a dynamic
         # world it must be free in E(start_time) only, not over the stance foot's hold window
         # (an obstacle may pass over the spot it leaves, as in receding-horizon replanning)
-        chk_swing = FootprintChecker(world.grids[self.k0], exact.masks) if dynamic else chk_start
-        if not chk_swing.is_free(*swing0, shortcut=False):
+        if not self.exact.is_free(*swing0, shortcut=False):
             when = f" at t = {self.start_time:.3f} s" if dynamic else ""
             raise FootstepError(
                 f"initial swing foot at ({swing0[0]:.3f}, {swing0[1]:.3f}) overlaps an obstacle "
@@ -677,6 +683,13 @@ class BipedStepModel:
         nf = 1 - s.foot
         ex1 = self.exact
         k_swing = self.checkers.index(s.t) if self.dynamic else 0  # the swing starts at s.t
+        is_start = s.t == self.start_time  # every other state's time is later
+        if self.dynamic:  # the stance foot stands until the step lands: checked up to the
+            # table's shortest step when it landed (the start: at the start time only),
+            # here up to each longer step's landing (once per landing index)
+            stance_checked = self.k0 if is_start else self.checkers.end_index(s.t + self.min_hold)
+            stance_free: dict[int, bool] = {}
+            stance_checkers = self.exact_checkers if is_start else self.checkers
         if self.dynamic and self.step_limits:
             ex1 = self.exact_checkers.checker(k_swing)
         z1 = ex1.top_height(s.x, s.y, s.yaw) if self.step_limits else 0.0
@@ -693,15 +706,30 @@ class BipedStepModel:
             if not (0.0 <= fx < nx and 0.0 <= fy < ny):
                 continue
             kt = self.checkers.index(t2) if self.dynamic else 0
-            if kt < 0:  # past the grids' times: no state (nor a lattice key) there
+            if kt < 0:  # no grid near its time: no state (nor a lattice key) there
+                if t2 > self.world.times[-1]:
+                    self.past_grids += 1
+                else:
+                    self.between_grids += 1
                 continue
             if dominated is not None and dominated(
                 self.lattice_key(x2, y2, th2, nf, hist1[m.a], t2), m.cost
             ):
                 continue
             if self.dynamic:
-                chk = self.checkers.checker(kt)
-                ex = self.exact_checkers.checker(kt) if self.uses_heights else self.exact
+                if kt > stance_checked:
+                    free = stance_free.get(kt)
+                    if free is None:
+                        free = stance_free[kt] = stance_checkers.checker(k_swing, kt).is_free(
+                            s.x, s.y, s.yaw, shortcut=False
+                        )
+                    if not free:
+                        if is_start:
+                            self._note_start_hit(kt)
+                        continue
+                k_hold = self.checkers.end_index(t2 + self.min_hold)  # it stands at least so
+                chk = self.checkers.checker(kt, k_hold)
+                ex = self.exact_checkers.checker(kt, k_hold) if self.uses_heights else self.exact
                 tall = self.tall_during(k_swing, kt)
             else:
                 chk, ex, tall = self.chk0, self.exact, self.tall
@@ -726,4 +754,44 @@ class BipedStepModel:
             cost = m.cost
             if self.height_w > 0.0:
                 cost += self.height_w * ex.height_range(x2, y2, th2)
+            if is_start:
+                self.start_successors += 1
             yield BipedState(x2, y2, th2, nf, s.a_prev1, m.a, t2, s.x, s.y, h), cost
+
+    def _note_start_hit(self, k_end: int) -> None:
+        """Record the first grid time (after the start's) at which the start foot is hit."""
+        if self.start_hit is None:  # else found already: every window begins at k0
+            sx, sy, sth = self.start_pose
+            for k in range(self.k0 + 1, k_end + 1):
+                if not self.exact_checkers.checker(k).is_free(sx, sy, sth, shortcut=False):
+                    self.start_hit = float(self.world.times[k])
+                    return
+
+    def unreachable_reason(self) -> str:
+        """Why the search may have run out of states, as far as the model knows ("" if not).
+
+        In dynamic worlds: the start foot hit by an obstacle before a first step lands,
+        landings dropped because no grid is near their time (past the environment's last
+        grid, or between two grids further apart than twice ``max_time_gap``).
+        """
+        if not self.dynamic:
+            return ""
+        env, gap, parts = self.world, self.world.max_time_gap, []
+        if self.start_hit is not None:
+            (sx, sy, sth), hit = self.start_pose, self.start_hit
+            parts.append(
+                f"the start foot at ({sx:.3f}, {sy:.3f}, {sth:.3f}) stands until the first "
+                f"step lands and is hit by an obstacle at t = {hit:.3f} s (the grid standing "
+                f"for [{hit - gap:.3f}, {hit + gap:.3f}] s): steps landing later were dropped"
+                + (", and no earlier one lands free" if self.start_successors == 0 else "")
+            )
+        end = f"t = {env.times[-1]:.3f} s, standing for times up to {env.times[-1] + gap:.3f} s"
+        for n, where, fix in (
+            (self.past_grids, f"past the environment's last grid ({end})", "extend t_end (the "
+             "planning horizon) to plan further"),
+            (self.between_grids, f"between grid times, more than max_time_gap = {gap:.3f} s "
+             "from every grid,", "add grids there or widen max_time_gap"),
+        ):  # fmt: skip
+            if n:
+                parts.append(f"{n} landing{'s' * (n != 1)} {where} dropped: {fix}")
+        return "; ".join(parts)

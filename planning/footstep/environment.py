@@ -3,10 +3,12 @@
 A grid has square cells of side ``resolution`` (2.5 cm in the paper); cell ``(ix, iy)``
 covers ``[x0 + ix r, x0 + (ix + 1) r) x [y0 + iy r, y0 + (iy + 1) r)``. ``occupied[ix, iy]``
 is True where the robot may not step; heights are optional. A dynamic world is a list of
-grids with times; ``E(t)`` is the grid of the nearest time.
+grids with times; ``E(t)`` is the grid of the nearest time, which stands for every time
+within ``max_time_gap`` of its own (grids of moving obstacles mark what they sweep then).
 """
 
 import dataclasses
+import itertools
 import math
 from collections.abc import Sequence
 
@@ -55,6 +57,55 @@ def rect_overlaps_cells(
     sep |= np.abs(d[..., 0] * c + d[..., 1] * s) >= hl + cell_u - eps
     sep |= np.abs(-d[..., 0] * s + d[..., 1] * c) >= hw + cell_u - eps
     return ~sep
+
+
+def swept_rect_overlaps_cells(
+    center_a: Sequence[float],
+    center_b: Sequence[float],
+    half_extents: Sequence[float],
+    yaw: float,
+    cell_centers: np.ndarray,
+    half_cell: float,
+) -> np.ndarray:
+    """Exact overlap (positive area) of the region a translating rectangle sweeps with squares.
+
+    The rectangle moves on the segment from ``center_a`` to ``center_b`` at a fixed yaw; the
+    region it covers is the convex hull of its two end placements. Separating-axis test on
+    the grid axes, the rectangle's axes and the normal of the motion (the hull's edge
+    normals); touching boundaries do not count. With ``center_a == center_b`` the answer is
+    :func:`rect_overlaps_cells`'s.
+
+    Args:
+        center_a: centre ``(x, y)`` at the start of the motion.
+        center_b: centre ``(x, y)`` at its end.
+        half_extents: half length along the rectangle's x axis and half width.
+        yaw: rectangle orientation (rad).
+        cell_centers: (m, 2) centres of the squares.
+        half_cell: half side of the squares.
+
+    Returns:
+        (m,) bool array.
+    """
+    c, s = math.cos(yaw), math.sin(yaw)
+    hl, hw = float(half_extents[0]), float(half_extents[1])
+    a = np.asarray(center_a, dtype=float)
+    b = np.asarray(center_b, dtype=float)
+    p = np.asarray(cell_centers, dtype=float)
+    axes = [(1.0, 0.0), (0.0, 1.0), (c, s), (-s, c)]
+    d = b - a
+    length = math.hypot(d[0], d[1])
+    if length > 1e-12:
+        axes.append((-d[1] / length, d[0] / length))
+    eps = 1e-12
+    hit = np.ones(len(p), dtype=bool)
+    for ax, ay in axes:
+        r_rect = hl * abs(c * ax + s * ay) + hw * abs(-s * ax + c * ay)
+        pa, pb = a[0] * ax + a[1] * ay, b[0] * ax + b[1] * ay
+        lo, hi = min(pa, pb) - r_rect, max(pa, pb) + r_rect
+        pc = p[:, 0] * ax + p[:, 1] * ay
+        r_cell = half_cell * (abs(ax) + abs(ay))
+        hit &= (pc - r_cell < hi - eps) & (pc + r_cell > lo + eps)
+    return hit
 
 
 @dataclasses.dataclass
@@ -115,9 +166,9 @@ class MovingRectObstacle:
     interpolated linearly between them and held before the first and after the last.
 
     Attributes:
-        center: ``[x, y]`` at t = 0 (m).
+        center: ``[x, y]`` at t = 0 (m); unused with waypoints.
         size: ``[length, width]`` (m).
-        velocity: ``[vx, vy]`` (m/s).
+        velocity: ``[vx, vy]`` (m/s); must stay zero with waypoints.
         yaw: orientation (rad).
         height: height (m).
         waypoints: optional ``[t, x, y]`` rows of a piecewise-linear trajectory.
@@ -143,6 +194,11 @@ class MovingRectObstacle:
                 raise GridError(f"waypoints must be finite [t, x, y] rows, got {self.waypoints}")
             if np.any(np.diff(w[:, 0]) <= 0):
                 raise GridError("waypoint times must increase strictly")
+            if np.any(np.asarray(self.velocity, dtype=float) != 0.0):
+                raise GridError(
+                    f"MovingRectObstacle velocity {self.velocity} is not used with waypoints "
+                    "(the centre follows them): give a velocity or waypoints, not both"
+                )
 
     def center_at(self, t: float) -> list[float]:
         """Centre ``[x, y]`` at time ``t``.
@@ -154,6 +210,16 @@ class MovingRectObstacle:
             w = np.asarray(self.waypoints, dtype=float)
             return [float(np.interp(t, w[:, 0], w[:, 1])), float(np.interp(t, w[:, 0], w[:, 2]))]
         return [self.center[0] + self.velocity[0] * t, self.center[1] + self.velocity[1] * t]
+
+    def path_between(self, t_a: float, t_b: float) -> list[list[float]]:
+        """The centre's polyline over ``[t_a, t_b]``: its ends and the waypoints between.
+
+        Args:
+            t_a: start time (s).
+            t_b: end time (s), >= ``t_a``.
+        """
+        inner = [w[0] for w in self.waypoints if t_a < w[0] < t_b]
+        return [self.center_at(t) for t in (t_a, *inner, t_b)]
 
     def at(self, t: float) -> RectObstacle:
         """The obstacle at time ``t``.
@@ -340,19 +406,37 @@ class OccupancyGrid:
         grid.heights = heights
         return grid
 
-    def _paint(self, rect: RectObstacle, centers: np.ndarray, heights: np.ndarray | None) -> None:
+    def _paint(
+        self,
+        rect: RectObstacle,
+        centers: np.ndarray,
+        heights: np.ndarray | None,
+        to: Sequence[float] | None = None,
+    ) -> None:
+        """Mark the cells ``rect`` overlaps, or with ``to`` those it sweeps moving there.
+
+        Only the cells within the rectangle's axis-aligned extent (and the sweep's) are
+        tested: a long thin obstacle (a string across the floor) tests a band of rows, not
+        the square of its circumradius.
+        """
         hl, hw = rect.size[0] / 2.0, rect.size[1] / 2.0
-        reach = math.hypot(hl, hw) + self.resolution
-        x0, y0 = self.origin
+        c, s = abs(math.cos(rect.yaw)), abs(math.sin(rect.yaw))
         r = self.resolution
-        i0 = max(0, int(math.floor((rect.center[0] - reach - x0) / r)))
-        i1 = min(self.shape[0], int(math.ceil((rect.center[0] + reach - x0) / r)) + 1)
-        j0 = max(0, int(math.floor((rect.center[1] - reach - y0) / r)))
-        j1 = min(self.shape[1], int(math.ceil((rect.center[1] + reach - y0) / r)) + 1)
+        ext_x, ext_y = hl * c + hw * s + r, hl * s + hw * c + r
+        x0, y0 = self.origin
+        end = rect.center if to is None else to
+        xs, ys = (rect.center[0], end[0]), (rect.center[1], end[1])
+        i0 = max(0, int(math.floor((min(xs) - ext_x - x0) / r)))
+        i1 = min(self.shape[0], int(math.ceil((max(xs) + ext_x - x0) / r)) + 1)
+        j0 = max(0, int(math.floor((min(ys) - ext_y - y0) / r)))
+        j1 = min(self.shape[1], int(math.ceil((max(ys) + ext_y - y0) / r)) + 1)
         if i0 >= i1 or j0 >= j1:
             return
         sub = centers[i0:i1, j0:j1].reshape(-1, 2)
-        hit = rect_overlaps_cells(rect.center, (hl, hw), rect.yaw, sub, r / 2.0)
+        if to is None:
+            hit = rect_overlaps_cells(rect.center, (hl, hw), rect.yaw, sub, r / 2.0)
+        else:
+            hit = swept_rect_overlaps_cells(rect.center, end, (hl, hw), rect.yaw, sub, r / 2.0)
         hit = hit.reshape(i1 - i0, j1 - j0)
         self.occupied[i0:i1, j0:j1] |= hit
         if heights is not None:
@@ -504,9 +588,16 @@ class DynamicEnvironment:
     ) -> "DynamicEnvironment":
         """Grids every ``dt`` seconds over ``[0, t_end]`` of obstacles on known trajectories.
 
+        The grid of time ``t`` stands for every time within ``max_time_gap = dt / 2`` of it,
+        so it marks every cell a moving obstacle overlaps at any time of
+        ``[t - dt/2, t + dt/2]``: the region the rectangle sweeps (the convex hull of its
+        placements at the interval's ends, per segment of a waypoint trajectory). An
+        obstacle that crosses a cell between two grid times is in one of the grids, however
+        fast it moves; a slow one grows by ``|v| dt / 2`` along its motion on either side.
+
         Args:
             size: ``(width_x, width_y)`` (m).
-            moving: obstacles moving at constant velocity.
+            moving: obstacles moving at constant velocity or along waypoints.
             static: obstacles that stay.
             t_end: last grid time (s).
             dt: spacing of the grid times (s); also ``2 max_time_gap``.
@@ -530,11 +621,15 @@ class DynamicEnvironment:
         require_memory(per_grid * count, f"about {count} grids of {nx} x {ny} cells (dt {dt} s)")
         times = np.arange(0.0, t_end + 0.5 * dt, dt)
         grids = []
+        half = dt / 2.0
         for t in times:
             heights = base.heights.copy() if with_heights else None
             g = OccupancyGrid(base.occupied.copy(), resolution, origin)
-            for m in moving:
-                g._paint(m.at(float(t)), centers, heights)
+            for m in moving:  # every place it takes over [t - dt/2, t + dt/2]
+                path = m.path_between(float(t) - half, float(t) + half)
+                for p, q in itertools.pairwise(path):
+                    rect = RectObstacle(p, list(m.size), m.yaw, m.height)
+                    g._paint(rect, centers, heights, to=q)
             g.heights = heights
             grids.append(g)
         return cls(times, grids, max_time_gap=dt / 2.0)

@@ -315,6 +315,7 @@ def _to_plan(model: BipedStepModel, result: SearchResult, seconds: float) -> Foo
         initial_history=[names[a2], names[a1]],
         xy_resolution=model.opts.xy_resolution,
         yaw_bins=int(model.opts.yaw_bins),
+        reason=model.unreachable_reason() if result.status is PlanStatus.UNREACHABLE else "",
     )
 
 

@@ -33,7 +33,7 @@ class RecedingResult:
         plan: the committed steps of every round joined into one plan (status SUCCESS
             when it reaches the goal, else the last round's status); its cost is the sum
             of the committed actions' step costs, its planning time and node counts the
-            sums over the rounds.
+            sums over the rounds; its ``reason`` the last round's.
         rounds: planner calls made.
         statuses: status of every round's plan.
     """
@@ -141,5 +141,6 @@ def plan_receding_horizon(
         goal=list(plan.goal),
         goal_tolerance=plan.goal_tolerance,
         initial_history=list(history0),
+        reason="" if plan.succeeded else plan.reason,
     )
     return RecedingResult(joined, rounds, statuses)

@@ -431,6 +431,9 @@ class FootstepPlan:
         xy_resolution: lattice spacing (m) of the search that produced the plan (0: not
             from a search).
         yaw_bins: yaw bins per turn of that search (0: not from a search).
+        reason: why a plan that is not SUCCESS stops short, where the planner can tell (a
+            dynamic world's start foot hit before the first step lands, landings past the
+            environment's last grid); "" otherwise.
     """
 
     poses: list[list[float]]
@@ -449,6 +452,7 @@ class FootstepPlan:
     initial_history: list[str]
     xy_resolution: float = 0.0
     yaw_bins: int = 0
+    reason: str = ""
 
     def __post_init__(self) -> None:
         """Checks the plan's shape and values: a bad plan is refused where it is made.
@@ -566,14 +570,15 @@ class FootstepPlan:
             data: the dictionary.
         """
         fields = {f.name for f in dataclasses.fields(cls)}
-        missing = fields - set(data)
+        optional = {"reason"}  # plans saved before it was a field
+        missing = fields - set(data) - optional
         if missing:
             raise FootstepError(f"plan data lacks keys {sorted(missing)}")
         if data["status"] not in [s.value for s in PlanStatus]:
             raise FootstepError(
                 f"plan status {data['status']!r} is not one of {[s.value for s in PlanStatus]}"
             )
-        return cls(**{k: data[k] for k in fields})
+        return cls(**{k: data[k] for k in fields if k in data})
 
     def save(self, path: "str | Path") -> Path:
         """Write the plan as JSON.

@@ -109,6 +109,8 @@ class FootstepDynamicRecord:
         nodes_expanded: A* expansions.
         mobile2d_success: the 2-D planner connects start and goal on E(0).
         wall_plan_time_s: planning wall time (timing field).
+        reason: why a plan that is not SUCCESS stops short, as the planner says
+            (``FootstepPlan.reason``: the start foot hit, landings past the grids); "".
     """
 
     seed: int
@@ -124,6 +126,7 @@ class FootstepDynamicRecord:
     nodes_expanded: int
     mobile2d_success: bool
     wall_plan_time_s: float
+    reason: str = ""
 
 
 def _scene(config: FootstepDynamicConfig, seed: int):
@@ -191,6 +194,7 @@ def run_episode(config: FootstepDynamicConfig, seed: int) -> FootstepDynamicReco
         nodes_expanded=plan.nodes_expanded,
         mobile2d_success=mobile.status == "SUCCESS",
         wall_plan_time_s=float(plan.planning_time_s),
+        reason=plan.reason,
     )
 
 

@@ -68,6 +68,15 @@ def test_dynamic_study_smoke(tmp_path):
     assert result.figures["distributions"].stat().st_size > 0
 
 
+def test_dynamic_study_records_why_a_plan_stops_short():
+    # grids ending at 4 s: too short a horizon to cross both rows, and the record says so
+    cfg = dataclasses.replace(footstep_dynamic.smoke_config(), horizon_s=4.0)
+    r = footstep_dynamic.run_episode(cfg, 0)
+    assert r.status == "UNREACHABLE" and not r.success
+    assert "past the environment's last grid" in r.reason and "extend t_end" in r.reason
+    assert footstep_dynamic.run_episode(footstep_dynamic.smoke_config(), 0).reason == ""
+
+
 def test_study_configs_validate():
     with pytest.raises(RepertoireError, match="size_m must be > 0"):
         footstep_static.FootstepStaticConfig(size_m=-1.0).validate()

@@ -155,7 +155,7 @@ def goto_mode(mode: int, state, target, gains: dict[str, float]) -> int:
     plan executor changed the target).
     """
     vg = target[3]
-    if abs(0.0 - vg) < speed_tolerance(vg):
+    if abs(vg) < speed_tolerance(vg):
         return APPROACH
     g = gains
     if mode == RUN_UP:

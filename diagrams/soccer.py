@@ -1,4 +1,7 @@
-"""The soccer world with the GoToPose action wired (registered as ``soccer_goto_pose``).
+"""The soccer world with the GoToPose action wired (``soccer_goto_pose``, ``..._run_up``).
+
+Registered twice: ``soccer_goto_pose`` goes to a pose at rest, and
+``soccer_goto_pose_run_up`` to a target speed the robot must run up to.
 
 The differential-drive robot on the soccer field (diagrams/diffdrive.py) is
 driven by :class:`~repertoire.systems.go_to_pose.GoToPose`: the plant's state
@@ -177,11 +180,13 @@ def build_driven(
         diagram, context, scenario.initial_speed
     ),
 )
-def build_soccer_goto_pose(scenario: GoToPoseScenario, *, meshcat=None) -> Diagram:
+def build_soccer_goto_pose(
+    scenario: GoToPoseScenario, *, meshcat=None, name: str = "soccer_goto_pose"
+) -> Diagram:
     """Builds the soccer world with GoToPose driving the robot.
 
     Returns:
-        The Diagram ``soccer_goto_pose`` with subsystems ``plant``, ``scene_graph``,
+        The Diagram ``name`` with subsystems ``plant``, ``scene_graph``,
         ``state_reader``, ``goto_pose``, ``target``, ``wheel_desired_state``.
     """
     scenario.validate()
@@ -195,9 +200,38 @@ def build_soccer_goto_pose(scenario: GoToPoseScenario, *, meshcat=None) -> Diagr
     builder.Connect(target.get_output_port(), goto.get_target_input_port())
     return build_driven(
         builder, plant, scene_graph, robot, goto.get_command_output_port(),
-        "soccer_goto_pose", meshcat,
+        name, meshcat,
         start_fields={"diffdrive": f"initial_pose {scenario.initial_pose}"},
     )  # fmt: skip
+
+
+@dataclasses.dataclass
+class GoToPoseRunUpScenario(GoToPoseScenario):
+    """A target behind the robot to be passed at 0.4 m/s: GoToPose's run-up shown.
+
+    The robot reaches the target position slower than ``v_g`` allows, backs to the
+    run-up pose behind it and accelerates through it (``RUN_UP`` mode of
+    :func:`~repertoire.systems.go_to_pose.goto_mode`).
+    """
+
+    initial_pose: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.0, 0.0])
+    target: list[float] = dataclasses.field(default_factory=lambda: [-1.0, 0.0, 0.0, 0.4])
+
+
+@register_diagram(
+    "soccer_goto_pose_run_up",
+    scenario_type=GoToPoseRunUpScenario,
+    description="GoToPose to a moving target (0.4 m/s) it must run up to",
+    duration=12.0,
+    check=lambda diagram, context: check_goto_pose(diagram, context),
+    criteria={"status_succeeded": Bound(1.0, 1.0), "position_error_m": Bound(0.0, 0.1)},
+    initialize=lambda diagram, context, scenario: set_initial_speed(
+        diagram, context, scenario.initial_speed
+    ),
+)
+def build_soccer_goto_pose_run_up(scenario: GoToPoseRunUpScenario, *, meshcat=None) -> Diagram:
+    """:func:`build_soccer_goto_pose` named ``soccer_goto_pose_run_up``."""
+    return build_soccer_goto_pose(scenario, meshcat=meshcat, name="soccer_goto_pose_run_up")
 
 
 def set_initial_speed(diagram: Diagram, context: Context, speed: float) -> None:

@@ -3,7 +3,9 @@ import math
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
+from repertoire.diagrams.simulate import build_registered
 from repertoire.diagrams.soccer import (
+    GoToPoseRunUpScenario,
     GoToPoseScenario,
     build_soccer_goto_pose,
     check_goto_pose,
@@ -159,9 +161,14 @@ def test_goto_pose_runs_up_when_stopped_short_of_the_target_speed():
 
 
 def test_soccer_goto_pose_reaches_a_target_speed_behind_it():
-    """Target 1 m behind, facing away, 0.4 m/s: it timed out at rest on the target before."""
-    scenario = GoToPoseScenario(initial_pose=[0.0, 0.0, 0.0], target=[-1.0, 0.0, 0.0, 0.4])
-    diagram = build_soccer_goto_pose(scenario)
+    """Target 1 m behind, facing away, 0.4 m/s: it timed out at rest on the target before.
+
+    This is the registered world ``soccer_goto_pose_run_up`` that ``make demo`` shows.
+    """
+    scenario = GoToPoseRunUpScenario()
+    assert scenario.initial_pose == [0.0, 0.0, 0.0] and scenario.target == [-1.0, 0.0, 0.0, 0.4]
+    diagram = build_registered("soccer_goto_pose_run_up", scenario=scenario)
+    assert diagram.get_name() == "soccer_goto_pose_run_up"
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
     t = 0.0

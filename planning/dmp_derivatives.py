@@ -43,7 +43,8 @@ def estimate_derivatives(
             by generalised cross-validation (see gcv_savgol_window), so noisy
             demonstrations are smoothed and clean ones keep about N/40 (>= 7);
             local_poly uses about N/40, >= 7.
-        smoothing: Smoothing-spline lambda.
+        smoothing: Smoothing-spline lambda (``"spline"`` only; given with another method it
+            is refused rather than ignored, as is a ``window`` with ``"spline"``).
     """
     t, x = check_demonstration(t, x)
     if window is not None and not is_whole(window):
@@ -53,6 +54,16 @@ def estimate_derivatives(
         raise RepertoireError(
             f"window = {window} is longer than the demonstration's {n} samples; use an odd "
             f"window <= {n if n % 2 else n - 1}"
+        )
+    if smoothing is not None and method != "spline":
+        raise RepertoireError(
+            f"smoothing = {smoothing!r} is the smoothing spline's lambda and needs "
+            f"method='spline' (derivatives='spline' when learning), got method={method!r}"
+        )
+    if window is not None and method == "spline":
+        raise RepertoireError(
+            f"window = {window!r} is the Savitzky-Golay / local-polynomial window; "
+            "method='spline' has none (its smoothing is the lambda 'smoothing')"
         )
     dt = np.diff(t)
     uniform = np.ptp(dt) <= 1e-6 * dt.mean()

@@ -204,3 +204,22 @@ def test_a_window_longer_than_the_demonstration_is_refused(derivatives):
     with raises("window = 1001 is longer than the demonstration's 200 samples; use an odd "):
         learn_dmp(T, X, n_basis=20, derivatives=derivatives, window=1001)
     learn_dmp(T, X, n_basis=20, derivatives=derivatives, window=199)  # the longest allowed
+
+
+@pytest.mark.parametrize("derivatives", ["auto", "savgol", "local_poly"])
+def test_a_smoothing_without_the_spline_is_refused_not_ignored(derivatives):
+    # it was dropped silently: learn_dmp(..., smoothing=1e-4) estimated with Savitzky-Golay
+    with raises(
+        "smoothing = 0.0001 is the smoothing spline's lambda and needs method='spline' "
+        f"(derivatives='spline' when learning), got method={derivatives!r}"
+    ):
+        learn_dmp(T, X, n_basis=20, derivatives=derivatives, smoothing=1e-4)
+    with raises("smoothing = -1.0 is the smoothing spline's lambda and needs method='spline'"):
+        learn_dmp(T, X, n_basis=20, derivatives=derivatives, smoothing=-1.0)
+
+
+def test_a_window_with_the_spline_is_refused_not_ignored():
+    with raises("window = 11 is the Savitzky-Golay / local-polynomial window; method='spline'"):
+        learn_dmp(T, X, n_basis=20, derivatives="spline", window=11)
+    p = learn_dmp(T, X, n_basis=20, derivatives="spline", smoothing=1e-6)
+    assert np.all(np.isfinite(p.weights))

@@ -223,3 +223,17 @@ def test_a_window_with_the_spline_is_refused_not_ignored():
         learn_dmp(T, X, n_basis=20, derivatives="spline", window=11)
     p = learn_dmp(T, X, n_basis=20, derivatives="spline", smoothing=1e-6)
     assert np.all(np.isfinite(p.weights))
+
+
+def test_a_chain_names_the_segment_whose_goal_is_bad():
+    p = learn_dmp(T, X, n_basis=20)
+    ok = [1.0, 0.0]
+    # it said "goal must have shape (2,) or (1001, 2), got ()" for None, naming no segment
+    with raises("segment 1: goal must be a vector of 2 numbers, got None"):
+        chain_rollout([p, p], [ok, None], [0.0, 0.5])
+    with raises("segment 1: goal must be 2 numbers, got ['a', 'b']"):
+        chain_rollout([p, p], [ok, ["a", "b"]], [0.0, 0.5])
+    with raises("segment 1: goal has 3 entries but weights have 2 DOF"):
+        chain_rollout([p, p], [ok, [1.0, 2.0, 3.0]], [0.0, 0.5])
+    with raises("segment 0: goal contains NaN or inf: [nan  1.]"):
+        chain_rollout([p, p], [[np.nan, 1.0], ok], [0.0, 0.5])

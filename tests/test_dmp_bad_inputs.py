@@ -237,3 +237,11 @@ def test_a_chain_names_the_segment_whose_goal_is_bad():
         chain_rollout([p, p], [ok, [1.0, 2.0, 3.0]], [0.0, 0.5])
     with raises("segment 0: goal contains NaN or inf: [nan  1.]"):
         chain_rollout([p, p], [[np.nan, 1.0], ok], [0.0, 0.5])
+
+
+def test_a_non_numeric_gain_is_named():
+    # it was float()'s bare "could not convert string to float: 'a'"
+    with raises("K must be a number or one number per DOF (2), got 'a'"):
+        learn_dmp(T, X, n_basis=20, K="a")
+    with raises("D must be a number or one number per DOF (2), got 'b'"):
+        learn_dmp(T, X, n_basis=20, D="b")

@@ -6,7 +6,11 @@ import numpy as np
 import pytest
 from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters
 from repertoire.planning.dmp_chain import chain_rollout
-from repertoire.planning.dmp_learn import learn_dmp, learn_quaternion_dmp
+from repertoire.planning.dmp_learn import (
+    learn_dmp,
+    learn_dmp_from_demonstrations,
+    learn_quaternion_dmp,
+)
 from repertoire.planning.dmp_math import minimum_jerk_via_points
 
 from repertoire.errors import RepertoireError
@@ -245,3 +249,15 @@ def test_a_non_numeric_gain_is_named():
         learn_dmp(T, X, n_basis=20, K="a")
     with raises("D must be a number or one number per DOF (2), got 'b'"):
         learn_dmp(T, X, n_basis=20, D="b")
+
+
+def test_joint_learning_names_the_demonstration_that_fails():
+    # it said "start equals goal in DOF [0]" without saying which demonstration
+    loop = np.stack([np.sin(np.pi * T), T], 1)  # DOF 0 returns to its start
+    with raises(
+        "demonstration 1: the old formulation (eq. 5) divides by g - x0, but start equals "
+        "goal in DOF [0]; use formulation='new'"
+    ):
+        learn_dmp_from_demonstrations([(T, X), (T, loop)], formulation="old", n_basis=20)
+    p = learn_dmp_from_demonstrations([(T, X), (T, loop)], n_basis=20)  # eq. 6-8: fine
+    assert np.all(np.isfinite(p.weights))

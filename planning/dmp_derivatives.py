@@ -209,20 +209,29 @@ def savgol_derivatives(
     return xd, xdd
 
 
-def _local_polynomial_design(t: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-sample polynomial designs (order ``min(5, w - 1)``) on ``w`` samples.
+_ROWS = 256  # samples per batch of local fits: bounds the (rows, w, order+1) designs
 
-    Returns ``(idx, V, scale)``: the (n, w) window indices, the (n, w, order + 1)
-    Vandermonde matrices in ``(t - t_i) / scale_i`` and the (n,) scales.
+
+def _local_polynomial_design(
+    t: np.ndarray, w: int, rows: slice
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Polynomial designs (order ``min(5, w - 1)``) on ``w`` samples for the samples ``rows``.
+
+    Returns ``(idx, V, scale)``: the window indices (r, w), the Vandermonde matrices
+    (r, w, order + 1) in ``(t - t_i) / scale_i`` and the scales (r,).
     """
     n = t.size
     order = min(5, w - 1)
-    half = w // 2
-    start = np.clip(np.arange(n) - half, 0, n - w)
-    idx = start[:, None] + np.arange(w)[None, :]  # (n, w) window indices
-    dt = t[idx] - t[:, None]
+    i = np.arange(n)[rows]
+    start = np.clip(i - w // 2, 0, n - w)
+    idx = start[:, None] + np.arange(w)[None, :]
+    dt = t[idx] - t[i][:, None]
     scale = np.abs(dt).max(axis=1, keepdims=True)
-    V = (dt / scale)[..., None] ** np.arange(order + 1)  # (n, w, order+1)
+    u = dt / scale
+    V = np.empty(u.shape + (order + 1,))
+    V[..., 0] = 1.0
+    for k in range(1, order + 1):
+        V[..., k] = V[..., k - 1] * u
     return idx, V, scale[:, 0]
 
 
@@ -236,24 +245,39 @@ def local_polynomial_derivatives(
     """
     n = t.size
     max_w = n if n % 2 else n - 1
+    batches = [slice(k, min(k + _ROWS, n)) for k in range(0, n, _ROWS)]
 
     def smoother(x: np.ndarray, w: int) -> tuple[np.ndarray, float]:
         # value at t_i = first row of (V^T V)^-1 V^T: only that row is needed (cheap)
-        idx, V, _ = _local_polynomial_design(t, w)
-        rows = np.arange(n)
-        e0 = np.zeros(V.shape[2])
-        e0[0] = 1.0
-        G = np.einsum("iwk,iwl->ikl", V, V)
-        a = np.linalg.solve(G, np.broadcast_to(e0[:, None], G.shape[:2] + (1,)))[..., 0]
-        row0 = np.einsum("ik,iwk->iw", a, V)  # (n, w): S's row i on window i
-        smooth = np.einsum("iw,iwd->id", row0, x[idx])
-        return smooth, float(np.sum(row0[rows, rows - idx[:, 0]]))
+        smooth, trace = np.empty_like(x), 0.0
+        for rows in batches:
+            idx, V, _ = _local_polynomial_design(t, w, rows)
+            p = V.shape[2]
+            # Gram matrices from the power sums sum_w u^m, m = 0 .. 2 order
+            u = V[..., 1] if p > 1 else np.zeros(V.shape[:2])
+            sums = [np.full(len(idx), float(w))]
+            power = V[..., -1].copy()
+            for m in range(1, 2 * p - 1):
+                sums.append((V[..., m] if m < p else (power := power * u)).sum(axis=1))
+            S = np.stack(sums, axis=1)
+            G = S[:, np.add.outer(np.arange(p), np.arange(p))]
+            e0 = np.zeros((len(idx), p, 1))
+            e0[:, 0] = 1.0
+            row0 = (V @ np.linalg.solve(G, e0))[..., 0]  # (r, w): S's rows on their windows
+            smooth[rows] = np.einsum("iw,iwd->id", row0, x[idx])
+            r = np.arange(row0.shape[0])
+            trace += float(np.sum(row0[r, np.arange(n)[rows] - idx[:, 0]]))
+        return smooth, trace
 
     w = window if window is not None else _gcv_window(x, max_w, smoother)
     w = min(w, max_w)
     if w % 2 == 0 or w < 3:
         raise RepertoireError(f"local-polynomial window must be odd and >= 3, got {w}")
-    idx, V, scale = _local_polynomial_design(t, w)
-    coef = np.linalg.pinv(V) @ x[idx]  # (n, order+1, n_dims)
-    s = scale[:, None]
-    return coef[:, 1] / s, 2.0 * coef[:, 2] / s**2
+    xd, xdd = np.empty_like(x), np.empty_like(x)
+    for rows in batches:
+        idx, V, scale = _local_polynomial_design(t, w, rows)
+        Q, R = np.linalg.qr(V)
+        coef = np.linalg.solve(R, np.swapaxes(Q, 1, 2) @ x[idx])  # (r, order+1, n_dims)
+        s = scale[:, None]
+        xd[rows], xdd[rows] = coef[:, 1] / s, 2.0 * coef[:, 2] / s**2
+    return xd, xdd

@@ -196,7 +196,7 @@ def chain_rollout(
             x_eq, v = handoff_state(dmp, x, tau_pred * xd, tau_pred, handoff, prev_acc)
             v0 = v / dmp.tau
         # name the segment: a bad goal of segment i said only "goal ..." (or float()'s error)
-        if g is None or np.ndim(g) != 1:
+        if g is None or np.ndim(g) not in (1, 2):  # a vector, or one per sample (a moving goal)
             raise RepertoireError(f"segment {i}: goal must be a vector of {n} numbers, got {g!r}")
         try:
             goal = np.asarray(g, float)

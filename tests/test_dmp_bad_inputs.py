@@ -241,6 +241,12 @@ def test_a_chain_names_the_segment_whose_goal_is_bad():
         chain_rollout([p, p], [ok, [1.0, 2.0, 3.0]], [0.0, 0.5])
     with raises("segment 0: goal contains NaN or inf: [nan  1.]"):
         chain_rollout([p, p], [[np.nan, 1.0], ok], [0.0, 0.5])
+    with raises("segment 1: goal must have shape (2,) or (1001, 2), got (5, 2)"):
+        chain_rollout([p, p], [ok, np.zeros((5, 2))], [0.0, 0.5])
+    # a goal per sample (a moving goal) is still a segment's goal: here a constant one
+    fixed = chain_rollout([p, p], [ok, [2.0, 0.5]], [0.0, 0.5])
+    moving = chain_rollout([p, p], [ok, np.tile([2.0, 0.5], (1001, 1))], [0.0, 0.5])
+    np.testing.assert_array_equal(moving.x, fixed.x)
 
 
 def test_a_non_numeric_gain_is_named():

@@ -47,7 +47,12 @@ QUATERNION_MODES = ("component", "manifold")
 # --------------------------------------------------------------------------- artefacts
 def check_per_dof(name: str, value, n: int) -> np.ndarray:
     """``value`` (a scalar or n entries) as shape (n,); RepertoireError naming it otherwise."""
-    v = np.asarray(value, dtype=float)
+    try:
+        v = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise RepertoireError(
+            f"{name} must be a number or one number per DOF ({n}), got {value!r}"
+        ) from None
     if v.ndim > 1 or v.size not in (1, n):
         raise RepertoireError(
             f"{name} must be a scalar or have one entry per DOF ({n}), got shape {v.shape}: {value}"

@@ -195,7 +195,17 @@ def chain_rollout(
             tau_pred = segments[i - 1].tau
             x_eq, v = handoff_state(dmp, x, tau_pred * xd, tau_pred, handoff, prev_acc)
             v0 = v / dmp.tau
-        r = dmp.rollout(goal=np.asarray(g, float), x0=x_eq, v0=v0, dt=dt, n_steps=m, x_init=x)
+        # name the segment: a bad goal of segment i said only "goal ..." (or float()'s error)
+        if g is None or np.ndim(g) not in (1, 2):  # a vector, or one per sample (a moving goal)
+            raise RepertoireError(f"segment {i}: goal must be a vector of {n} numbers, got {g!r}")
+        try:
+            goal = np.asarray(g, float)
+        except (TypeError, ValueError) as err:
+            raise RepertoireError(f"segment {i}: goal must be {n} numbers, got {g!r}") from err
+        try:
+            r = dmp.rollout(goal=goal, x0=x_eq, v0=v0, dt=dt, n_steps=m, x_init=x)
+        except RepertoireError as err:
+            raise type(err)(f"segment {i}: {err}") from err
         if prev_acc is not None:
             acc_jumps.append(float(np.max(np.abs(r.xdd[0] - prev_acc))))
             vel_jumps.append(float(np.max(np.abs(r.xd[0] - xd))))

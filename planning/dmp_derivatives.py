@@ -42,8 +42,9 @@ def estimate_derivatives(
         window: Savitzky-Golay / local-polynomial window (odd). Default: savgol chooses it
             by generalised cross-validation (see gcv_savgol_window), so noisy
             demonstrations are smoothed and clean ones keep about N/40 (>= 7);
-            local_poly uses about N/40, >= 7.
-        smoothing: Smoothing-spline lambda.
+            local_poly chooses it likewise.
+        smoothing: Smoothing-spline lambda (``"spline"`` only; given with another method it
+            is refused rather than ignored, as is a ``window`` with ``"spline"``).
     """
     t, x = check_demonstration(t, x)
     if window is not None and not is_whole(window):
@@ -53,6 +54,16 @@ def estimate_derivatives(
         raise RepertoireError(
             f"window = {window} is longer than the demonstration's {n} samples; use an odd "
             f"window <= {n if n % 2 else n - 1}"
+        )
+    if smoothing is not None and method != "spline":
+        raise RepertoireError(
+            f"smoothing = {smoothing!r} is the smoothing spline's lambda and needs "
+            f"method='spline' (derivatives='spline' when learning), got method={method!r}"
+        )
+    if window is not None and method == "spline":
+        raise RepertoireError(
+            f"window = {window!r} is the Savitzky-Golay / local-polynomial window; "
+            "method='spline' has none (its smoothing is the lambda 'smoothing')"
         )
     dt = np.diff(t)
     uniform = np.ptp(dt) <= 1e-6 * dt.mean()
@@ -134,14 +145,14 @@ def savgol_operators(w: int, order: int, h: float) -> tuple[np.ndarray, ...]:
     )
 
 
-def gcv_savgol_window(x: np.ndarray, h: float, max_w: int) -> int:
-    """Savitzky-Golay window (order 5) chosen by generalised cross-validation.
+def _gcv_window(x: np.ndarray, max_w: int, smoother) -> int:
+    """The window whose smoother ``smoother(x, w) -> (S_w x, tr(S_w))`` minimises GCV.
 
     Candidates grow geometrically (x1.5) from ``max(7, 2 (N // 80) + 1)`` to about N / 4.
-    For each, the smoothed positions ``S_w x`` give ``GCV(w) = RSS / (1 - tr(S_w) / N)^2``
-    (summed over DOF); the smallest window within 1e-6 of the minimum (or of a round-off
-    floor) wins, so noise-free demonstrations keep the smallest window and stay exact for
-    minimum-jerk segments, and noisy ones get the window that averages the noise out.
+    For each, ``GCV(w) = RSS / (1 - tr(S_w) / N)^2`` (summed over DOF); the smallest window
+    within 1e-6 of the minimum (or of a round-off floor) wins, so noise-free
+    demonstrations keep the smallest window and stay exact for minimum-jerk segments, and
+    noisy ones get the window that averages the noise out.
     """
     n = x.shape[0]
     # GCV's argmin does not change with the data's scale; scaling keeps huge
@@ -158,8 +169,20 @@ def gcv_savgol_window(x: np.ndarray, h: float, max_w: int) -> int:
         candidates.append(nxt)
     scores = []
     for w in candidates:
-        order = min(5, w - 1)
-        ops = savgol_operators(w, order, h)
+        smooth, trace = smoother(x, w)
+        rss = float(np.sum((smooth - x) ** 2))
+        scores.append(rss / max(1.0 - trace / n, 1e-12) ** 2)
+    floor = x.size * (1e-10 * max(1.0, float(np.max(np.abs(x))))) ** 2
+    best = max(min(scores), floor) * (1.0 + 1e-6)
+    return next(w for w, g in zip(candidates, scores, strict=True) if g <= best)
+
+
+def gcv_savgol_window(x: np.ndarray, h: float, max_w: int) -> int:
+    """Savitzky-Golay window (order 5) chosen by generalised cross-validation (_gcv_window)."""
+
+    def smoother(x: np.ndarray, w: int) -> tuple[np.ndarray, float]:
+        n = x.shape[0]
+        ops = savgol_operators(w, min(5, w - 1), h)
         c0, e0f, e0l = ops[6], ops[7], ops[8]
         half = w // 2
         smooth = np.empty_like(x)
@@ -167,11 +190,9 @@ def gcv_savgol_window(x: np.ndarray, h: float, max_w: int) -> int:
         smooth[half : n - half] = windows @ c0
         smooth[:half], smooth[n - half :] = e0f @ x[:w], e0l @ x[-w:]
         trace = c0[half] * (n - 2 * half) + np.trace(e0f[:, :half]) + np.trace(e0l[:, w - half :])
-        rss = float(np.sum((smooth - x) ** 2))
-        scores.append(rss / max(1.0 - trace / n, 1e-12) ** 2)
-    floor = x.size * (1e-10 * max(1.0, float(np.max(np.abs(x))))) ** 2
-    best = max(min(scores), floor) * (1.0 + 1e-6)
-    return next(w for w, g in zip(candidates, scores, strict=True) if g <= best)
+        return smooth, trace
+
+    return _gcv_window(x, max_w, smoother)
 
 
 def savgol_derivatives(
@@ -188,23 +209,75 @@ def savgol_derivatives(
     return xd, xdd
 
 
+_ROWS = 256  # samples per batch of local fits: bounds the (rows, w, order+1) designs
+
+
+def _local_polynomial_design(
+    t: np.ndarray, w: int, rows: slice
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Polynomial designs (order ``min(5, w - 1)``) on ``w`` samples for the samples ``rows``.
+
+    Returns ``(idx, V, scale)``: the window indices (r, w), the Vandermonde matrices
+    (r, w, order + 1) in ``(t - t_i) / scale_i`` and the scales (r,).
+    """
+    n = t.size
+    order = min(5, w - 1)
+    i = np.arange(n)[rows]
+    start = np.clip(i - w // 2, 0, n - w)
+    idx = start[:, None] + np.arange(w)[None, :]
+    dt = t[idx] - t[i][:, None]
+    scale = np.abs(dt).max(axis=1, keepdims=True)
+    u = dt / scale
+    V = np.empty(u.shape + (order + 1,))
+    V[..., 0] = 1.0
+    for k in range(1, order + 1):
+        V[..., k] = V[..., k - 1] * u
+    return idx, V, scale[:, 0]
+
+
 def local_polynomial_derivatives(
     t: np.ndarray, x: np.ndarray, window: int | None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Savitzky-Golay on non-uniform stamps: per-sample least-squares polynomial fits."""
+    """Savitzky-Golay on non-uniform stamps: per-sample least-squares polynomial fits.
+
+    Without ``window`` it is chosen by generalised cross-validation (as for savgol): a
+    clean demonstration keeps about N/40 (>= 7) samples, a noisy one a wider window.
+    """
     n = t.size
     max_w = n if n % 2 else n - 1
-    w = window if window is not None else max(7, 2 * (n // 80) + 1)
+    batches = [slice(k, min(k + _ROWS, n)) for k in range(0, n, _ROWS)]
+
+    def smoother(x: np.ndarray, w: int) -> tuple[np.ndarray, float]:
+        # value at t_i = first row of (V^T V)^-1 V^T: only that row is needed (cheap)
+        smooth, trace = np.empty_like(x), 0.0
+        for rows in batches:
+            idx, V, _ = _local_polynomial_design(t, w, rows)
+            p = V.shape[2]
+            # Gram matrices from the power sums sum_w u^m, m = 0 .. 2 order
+            u = V[..., 1] if p > 1 else np.zeros(V.shape[:2])
+            sums = [np.full(len(idx), float(w))]
+            power = V[..., -1].copy()
+            for m in range(1, 2 * p - 1):
+                sums.append((V[..., m] if m < p else (power := power * u)).sum(axis=1))
+            S = np.stack(sums, axis=1)
+            G = S[:, np.add.outer(np.arange(p), np.arange(p))]
+            e0 = np.zeros((len(idx), p, 1))
+            e0[:, 0] = 1.0
+            row0 = (V @ np.linalg.solve(G, e0))[..., 0]  # (r, w): S's rows on their windows
+            smooth[rows] = np.einsum("iw,iwd->id", row0, x[idx])
+            r = np.arange(row0.shape[0])
+            trace += float(np.sum(row0[r, np.arange(n)[rows] - idx[:, 0]]))
+        return smooth, trace
+
+    w = window if window is not None else _gcv_window(x, max_w, smoother)
     w = min(w, max_w)
     if w % 2 == 0 or w < 3:
         raise RepertoireError(f"local-polynomial window must be odd and >= 3, got {w}")
-    order = min(5, w - 1)
-    half = w // 2
-    start = np.clip(np.arange(n) - half, 0, n - w)
-    idx = start[:, None] + np.arange(w)[None, :]  # (n, w) window indices
-    dt = t[idx] - t[:, None]
-    scale = np.abs(dt).max(axis=1, keepdims=True)
-    V = (dt / scale)[..., None] ** np.arange(order + 1)  # (n, w, order+1)
-    coef = np.linalg.pinv(V) @ x[idx]  # (n, order+1, n_dims)
-    s = scale[:, :, None][:, 0]
-    return coef[:, 1] / s, 2.0 * coef[:, 2] / s**2
+    xd, xdd = np.empty_like(x), np.empty_like(x)
+    for rows in batches:
+        idx, V, scale = _local_polynomial_design(t, w, rows)
+        Q, R = np.linalg.qr(V)
+        coef = np.linalg.solve(R, np.swapaxes(Q, 1, 2) @ x[idx])  # (r, order+1, n_dims)
+        s = scale[:, None]
+        xd[rows], xdd[rows] = coef[:, 1] / s, 2.0 * coef[:, 2] / s**2
+    return xd, xdd

@@ -299,10 +299,13 @@ def learn_dmp_from_demonstrations(
     Kv, Dv = _gains(n, K, D)
     a, c, h = _basis(n_basis, alpha, overlap, sum(t.size for t, _ in demos))
     feats, targs, taus = [], [], []
-    for t, x in demos:
-        xd, xdd = estimate_derivatives(t, x, method=derivatives)
+    for i, (t, x) in enumerate(demos):
         tau = float(t[-1] - t[0])
-        Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h)
+        try:
+            xd, xdd = estimate_derivatives(t, x, method=derivatives)
+            Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h)
+        except RepertoireError as err:  # say which demonstration
+            raise type(err)(f"demonstration {i}: {err}") from err
         feats.append(Phi)
         targs.append(F)
         taus.append(tau)

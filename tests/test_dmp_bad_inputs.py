@@ -6,7 +6,11 @@ import numpy as np
 import pytest
 from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters
 from repertoire.planning.dmp_chain import chain_rollout
-from repertoire.planning.dmp_learn import learn_dmp, learn_quaternion_dmp
+from repertoire.planning.dmp_learn import (
+    learn_dmp,
+    learn_dmp_from_demonstrations,
+    learn_quaternion_dmp,
+)
 from repertoire.planning.dmp_math import minimum_jerk_via_points
 
 from repertoire.errors import RepertoireError
@@ -204,3 +208,62 @@ def test_a_window_longer_than_the_demonstration_is_refused(derivatives):
     with raises("window = 1001 is longer than the demonstration's 200 samples; use an odd "):
         learn_dmp(T, X, n_basis=20, derivatives=derivatives, window=1001)
     learn_dmp(T, X, n_basis=20, derivatives=derivatives, window=199)  # the longest allowed
+
+
+@pytest.mark.parametrize("derivatives", ["auto", "savgol", "local_poly"])
+def test_a_smoothing_without_the_spline_is_refused_not_ignored(derivatives):
+    # it was dropped silently: learn_dmp(..., smoothing=1e-4) estimated with Savitzky-Golay
+    with raises(
+        "smoothing = 0.0001 is the smoothing spline's lambda and needs method='spline' "
+        f"(derivatives='spline' when learning), got method={derivatives!r}"
+    ):
+        learn_dmp(T, X, n_basis=20, derivatives=derivatives, smoothing=1e-4)
+    with raises("smoothing = -1.0 is the smoothing spline's lambda and needs method='spline'"):
+        learn_dmp(T, X, n_basis=20, derivatives=derivatives, smoothing=-1.0)
+
+
+def test_a_window_with_the_spline_is_refused_not_ignored():
+    with raises("window = 11 is the Savitzky-Golay / local-polynomial window; method='spline'"):
+        learn_dmp(T, X, n_basis=20, derivatives="spline", window=11)
+    p = learn_dmp(T, X, n_basis=20, derivatives="spline", smoothing=1e-6)
+    assert np.all(np.isfinite(p.weights))
+
+
+def test_a_chain_names_the_segment_whose_goal_is_bad():
+    p = learn_dmp(T, X, n_basis=20)
+    ok = [1.0, 0.0]
+    # it said "goal must have shape (2,) or (1001, 2), got ()" for None, naming no segment
+    with raises("segment 1: goal must be a vector of 2 numbers, got None"):
+        chain_rollout([p, p], [ok, None], [0.0, 0.5])
+    with raises("segment 1: goal must be 2 numbers, got ['a', 'b']"):
+        chain_rollout([p, p], [ok, ["a", "b"]], [0.0, 0.5])
+    with raises("segment 1: goal has 3 entries but weights have 2 DOF"):
+        chain_rollout([p, p], [ok, [1.0, 2.0, 3.0]], [0.0, 0.5])
+    with raises("segment 0: goal contains NaN or inf: [nan  1.]"):
+        chain_rollout([p, p], [[np.nan, 1.0], ok], [0.0, 0.5])
+    with raises("segment 1: goal must have shape (2,) or (1001, 2), got (5, 2)"):
+        chain_rollout([p, p], [ok, np.zeros((5, 2))], [0.0, 0.5])
+    # a goal per sample (a moving goal) is still a segment's goal: here a constant one
+    fixed = chain_rollout([p, p], [ok, [2.0, 0.5]], [0.0, 0.5])
+    moving = chain_rollout([p, p], [ok, np.tile([2.0, 0.5], (1001, 1))], [0.0, 0.5])
+    np.testing.assert_array_equal(moving.x, fixed.x)
+
+
+def test_a_non_numeric_gain_is_named():
+    # it was float()'s bare "could not convert string to float: 'a'"
+    with raises("K must be a number or one number per DOF (2), got 'a'"):
+        learn_dmp(T, X, n_basis=20, K="a")
+    with raises("D must be a number or one number per DOF (2), got 'b'"):
+        learn_dmp(T, X, n_basis=20, D="b")
+
+
+def test_joint_learning_names_the_demonstration_that_fails():
+    # it said "start equals goal in DOF [0]" without saying which demonstration
+    loop = np.stack([np.sin(np.pi * T), T], 1)  # DOF 0 returns to its start
+    with raises(
+        "demonstration 1: the old formulation (eq. 5) divides by g - x0, but start equals "
+        "goal in DOF [0]; use formulation='new'"
+    ):
+        learn_dmp_from_demonstrations([(T, X), (T, loop)], formulation="old", n_basis=20)
+    p = learn_dmp_from_demonstrations([(T, X), (T, loop)], n_basis=20)  # eq. 6-8: fine
+    assert np.all(np.isfinite(p.weights))

@@ -35,6 +35,20 @@ position and then turns in place about it, which brings the held spot onto
 the goal's with the heading. (A loop-out to a staging pose behind the goal was
 tried first: at ``min_turn_radius`` it orbited the staging pose and timed out
 more often than the plain spot law.)
+
+Target speeds. A goal speed ``v_g`` that a stopped robot does not meet
+(:func:`needs_loop`: ``|v_g| >= speed_tolerance(v_g)``, 0.1 m/s) cannot be met by
+stopping on the goal, and a dribbling robot cannot back away from the ball for a
+run-up as GoToPose does. When the held spot reaches the goal's too slowly, or a
+pivot would be needed, the action *loops*: :func:`loop_control` drives a circle of
+radius ``LOOP_RADIUS_FACTOR * min_turn_radius`` through the goal position, tangent
+to ``phi_g``, on the side the heading error turns to, and comes back through the
+goal aligned and at speed. Unlike the loop-out to a staging pose above, the law
+follows a path, not a point: its guidance heading converges onto the circle and its
+speed never drops below ``v_g``, so there is no point to orbit. On 30 episodes of the
+dribble study's sampling (seeds 0-29) with ``v_g`` in [0.2, 0.4]: succeeded / ball
+lost / timed out 16 / 6 / 8 before, 23 / 5 / 2 with the loop (seeds 30-59: 20 / 7 / 3
+and 23 / 7 / 0); goals below 0.1 m/s run exactly as before.
 """
 
 import math
@@ -48,7 +62,7 @@ from repertoire.systems.action_status import (
     clip,
     merge_gains,
 )
-from repertoire.systems.go_to_pose import DriveAction, drive_step, pose_control
+from repertoire.systems.go_to_pose import DriveAction, drive_step, pose_control, speed_tolerance
 
 from repertoire.errors import RepertoireError
 
@@ -118,11 +132,60 @@ def dribble_control(
     return v, w, held
 
 
-APPROACH, PIVOT = 0, 1  # the final-approach modes (discrete state slot 3)
+LOOP_RADIUS_FACTOR = 1.25
+"""A loop's radius in ``min_turn_radius`` (headroom for the ball-centering term)."""
+
+
+def loop_control(
+    state, ball, target, gains: dict[str, float], side: float
+) -> tuple[float, float, bool]:
+    """Unlimited-rate ``(v, omega)`` and ``held`` on a loop through the target.
+
+    The loop is the circle of radius ``R = LOOP_RADIUS_FACTOR * min_turn_radius``
+    through the target position, tangent to the target heading ``phi_g``, with its
+    centre on the left (``side = 1``, driven anticlockwise) or right (``side = -1``,
+    clockwise): ``c = p_g + side * R * (-sin phi_g, cos phi_g)``. With ``psi`` the
+    robot's bearing from ``c`` and ``d`` its distance, the heading to hold is
+    ``chi = psi + side * (pi/2 + atan((d - R) / R))`` (the tangent, turned inwards
+    outside the circle and outwards inside it), and
+
+        omega_loop = side * v / R + k_alpha * wrap(chi - phi)
+        v          = min(v_max, max(v_g, k_rho * R * theta))
+
+    with ``theta`` the angle still to go along the circle to the target; the ball
+    terms are those of :func:`dribble_control`.
+    """
+    g = gains
+    bx, by = ball_in_robot_frame(state, ball)
+    held = math.hypot(bx - g["hold_distance"], by) <= g["lost_distance"]
+    radius = LOOP_RADIUS_FACTOR * g["min_turn_radius"]
+    cx = target[0] - side * radius * math.sin(target[2])
+    cy = target[1] + side * radius * math.cos(target[2])
+    psi = math.atan2(state[1] - cy, state[0] - cx)
+    d = math.hypot(state[0] - cx, state[1] - cy)
+    chi = psi + side * (0.5 * math.pi + math.atan((d - radius) / radius))
+    psi_goal = target[2] - side * 0.5 * math.pi
+    theta = (side * (psi_goal - psi)) % (2.0 * math.pi)
+    v = min(g["v_max"], max(target[3], g["k_rho"] * radius * theta))
+    gamma = math.atan2(by, bx)
+    align = max(0.0, math.cos(gamma)) ** 2
+    v *= align
+    w = side * v / radius + g["k_alpha"] * math.remainder(chi - state[2], 2.0 * math.pi)
+    w = align * w + g["k_ball"] * gamma
+    w_max = min(g["omega_max"], max(g["omega_in_place"], abs(v) / g["min_turn_radius"]))
+    return v, clip(w, -w_max, w_max), held
+
+
+APPROACH, PIVOT, LOOP_LEFT, LOOP_RIGHT = 0, 1, 2, 3  # the final-approach modes (state slot 3)
+
+
+def needs_loop(target) -> bool:
+    """Whether a stopped robot misses the target speed (``v_g >= 0.1``): only a loop meets it."""
+    return abs(target[3]) >= speed_tolerance(target[3])
 
 
 def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
-    """The next final-approach mode, :data:`APPROACH` or :data:`PIVOT`.
+    """The next final-approach mode: :data:`APPROACH`, :data:`PIVOT` or a loop.
 
     Args:
         mode: the current mode.
@@ -135,6 +198,13 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
     ``heading_tolerance`` would swing it by more than ``position_tolerance``
     (``2 * hold_distance * sin(turn / 2)``); PIVOT -> APPROACH when the held
     spot is farther than ``2 * min_turn_radius`` from the goal's.
+
+    With a target speed a stopped robot does not meet (:func:`needs_loop`), the
+    held spot within ``position_tolerance`` of the goal's at a speed off ``v_g`` by
+    :func:`~repertoire.systems.go_to_pose.speed_tolerance` or more, or a pivot, starts
+    a loop instead (:data:`LOOP_LEFT` for a heading error >= 0, else
+    :data:`LOOP_RIGHT`, see :func:`loop_control`); a loop goes on until the action
+    ends, or until the target speed no longer needs one (a plan executor changed it).
     """
     heading_error = math.remainder(target[2] - state[2], 2 * math.pi)
     h = gains["hold_distance"]
@@ -142,11 +212,23 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
         target[0] + h * math.cos(target[2]) - state[0] - h * math.cos(state[2]),
         target[1] + h * math.sin(target[2]) - state[1] - h * math.sin(state[2]),
     )
+    if needs_loop(target):
+        loop = LOOP_LEFT if heading_error >= 0.0 else LOOP_RIGHT
+        if mode in (LOOP_LEFT, LOOP_RIGHT):
+            return mode
+        inside = rho < gains["position_tolerance"]
+        slow = abs(state[3] - target[3]) >= speed_tolerance(target[3])
+        if (inside and slow) or mode == PIVOT:
+            return loop
+    elif mode in (LOOP_LEFT, LOOP_RIGHT):
+        return APPROACH
     if mode == APPROACH:
         turn = max(0.0, abs(heading_error) - gains["heading_tolerance"])
         swing = 2.0 * h * math.sin(min(turn, math.pi) / 2.0)
         near = rho < 2.0 * gains["position_tolerance"]
-        return PIVOT if near and swing > gains["position_tolerance"] else APPROACH
+        if near and swing > gains["position_tolerance"]:
+            return loop if needs_loop(target) else PIVOT
+        return APPROACH
     return APPROACH if rho > 2.0 * gains["min_turn_radius"] else PIVOT
 
 
@@ -169,8 +251,8 @@ class DribbleBall(DriveAction):
     numeric parameter 1 the workspace ``[x_min, x_max, y_min, y_max]``.
 
     Discrete state: ``[v_cmd, omega_cmd, status, mode]``, updated every
-    ``period`` s; ``mode`` is :data:`APPROACH` or :data:`PIVOT` (see
-    :func:`approach_mode`).
+    ``period`` s; ``mode`` is :data:`APPROACH`, :data:`PIVOT`, :data:`LOOP_LEFT` or
+    :data:`LOOP_RIGHT` (see :func:`approach_mode`).
     """
 
     def __init__(
@@ -229,7 +311,11 @@ class DribbleBall(DriveAction):
             out.SetFromVector([0.0, 0.0, failed, mode])
             return
         mode = approach_mode(int(mode), state, target, g)
-        v, w, held = dribble_control(state, ball, target, g, 0.0 if mode == PIVOT else None)
+        if mode in (LOOP_LEFT, LOOP_RIGHT):
+            side = 1.0 if mode == LOOP_LEFT else -1.0
+            v, w, held = loop_control(state, ball, target, g, side)
+        else:
+            v, w, held = dribble_control(state, ball, target, g, 0.0 if mode == PIVOT else None)
         if not held and active:
             out.SetFromVector([0.0, 0.0, ActionStatus.FAILED, mode])
             return

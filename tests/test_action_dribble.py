@@ -13,12 +13,16 @@ from repertoire.diagrams.soccer_dribble import (
 from repertoire.systems.dribble_ball import (
     APPROACH,
     DRIBBLE_GAINS,
+    LOOP_LEFT,
+    LOOP_RIGHT,
     PIVOT,
     DribbleBall,
     RollingResistance,
     approach_mode,
     ball_in_robot_frame,
     dribble_control,
+    loop_control,
+    needs_loop,
 )
 from repertoire.systems.go_to_pose import ActionStatus
 
@@ -96,6 +100,63 @@ def test_approach_mode_switching_by_hand():
     # a pivot goes on within 2 * min_turn_radius = 0.8 m, then approaches again
     assert approach_mode(PIVOT, _spot_on_goal(1.0, 0.5), goal, g) == PIVOT
     assert approach_mode(PIVOT, _spot_on_goal(0.0, 0.9), goal, g) == APPROACH
+
+
+def test_loop_modes_for_a_target_speed_by_hand():
+    g = dict(DRIBBLE_GAINS)
+    # a stopped robot meets v_g below speed_tolerance (0.1 m/s) only
+    assert not needs_loop([0, 0, 0, 0.05]) and needs_loop([0, 0, 0, 0.1])
+    assert needs_loop([0, 0, 0, 0.3]) and needs_loop([0, 0, 0, -0.3])
+    goal = [0.0, 0.0, 0.0, 0.3]
+    # spot on the goal's at rest, v_g = 0.3 (off by 0.3 >= 0.15): loop, on the side the
+    # heading error turns to (phi_g - phi = -0.2: right, +0.2: left)
+    assert approach_mode(APPROACH, _spot_on_goal(-0.2), goal, g) == LOOP_RIGHT
+    assert approach_mode(APPROACH, _spot_on_goal(0.2), goal, g) == LOOP_LEFT
+    # at the target speed already: no loop (drive_step says succeeded)
+    fast = [*_spot_on_goal(0.2)[:3], 0.3]
+    assert approach_mode(APPROACH, fast, goal, g) == APPROACH
+    # 0.15 m out, the turn small: keep approaching; a swing too large: loop, not pivot
+    assert approach_mode(APPROACH, _spot_on_goal(0.2, 0.15), goal, g) == APPROACH
+    assert approach_mode(APPROACH, _spot_on_goal(1.0, 0.15), goal, g) == LOOP_LEFT
+    # a loop goes on wherever the robot is; a pivot becomes a loop
+    assert approach_mode(LOOP_LEFT, _spot_on_goal(0.0, 2.0), goal, g) == LOOP_LEFT
+    assert approach_mode(PIVOT, _spot_on_goal(-1.0, 0.5), goal, g) == LOOP_RIGHT
+    # the target speed dropped below 0.1 m/s (a plan executor changed it): approach again
+    assert approach_mode(LOOP_LEFT, _spot_on_goal(1.0, 2.0), [0, 0, 0, 0.05], g) == APPROACH
+
+
+def test_loop_control_by_hand():
+    g = dict(DRIBBLE_GAINS)
+    goal, r = [0.0, 0.0, 0.0, 0.3], 1.25 * g["min_turn_radius"]  # R = 0.5 m
+    # on the target, heading phi_g, ball held: on the left loop (centre (0, 0.5)) at its
+    # tangent with no angle to go: v = v_g, omega = v / R = 0.6 (< the limit 0.3 / 0.4)
+    assert loop_control([0, 0, 0, 0], [0.31, 0], goal, g, 1.0) == (0.3, pytest.approx(0.6), True)
+    # half way round (top of the circle, heading pi): pi to go, v = min(v_max, k_rho R pi)
+    v, w, held = loop_control([0, 1, math.pi, 0], [-0.31, 1], goal, g, 1.0)
+    assert held and v == 0.4 and w == pytest.approx(0.4 / r)
+    # the right loop mirrors it: centre (0, -0.5), clockwise
+    v, w, held = loop_control([0, -1, math.pi, 0], [-0.31, -1], goal, g, -1.0)
+    assert held and v == 0.4 and w == pytest.approx(-0.4 / r)
+    # 2 cm outside the left loop: steer in by atan(0.02 / 0.5) on top of v / R
+    v, w, _ = loop_control([0, -0.02, 0, 0], [0.31, -0.02], goal, g, 1.0)
+    assert v == 0.3 and w == pytest.approx(0.6 + g["k_alpha"] * math.atan(0.02 / r))
+    # ball 5 cm left of centre: both terms scaled by cos^2 of its bearing, plus k_ball
+    # gamma (0.890), clipped to |v| / min_turn_radius (0.731)
+    v, w, _ = loop_control([0, 0, 0, 0], [0.31, 0.05], goal, g, 1.0)
+    gamma = math.atan2(0.05, 0.31)
+    a = math.cos(gamma) ** 2
+    assert v == pytest.approx(0.3 * a) and a * 0.3 * a / r + 2.0 * gamma > v / 0.4
+    assert w == pytest.approx(v / 0.4)
+
+
+def test_dribble_ball_loops_when_stopped_short_of_the_target_speed():
+    # on the target at rest, v_g = 0.3: the left loop's (0.3, 0.6), rate limited to
+    # a_max * period = 0.06 and alpha_max * period = 0.3; the mode is kept
+    action, ctx = _context([0, 0, 0, 0.3])
+    np.testing.assert_allclose(_update(action, ctx), [0.06, 0.3, ActionStatus.RUNNING, LOOP_LEFT])
+    # the same target at 0.05 m/s is met at rest: succeeded, no loop
+    action, ctx = _context([0, 0, 0, 0.05])
+    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.SUCCEEDED, APPROACH])
 
 
 def test_dribble_ball_pivot_mode_exact():
@@ -184,6 +245,22 @@ def test_soccer_dribble_delivers_the_ball():
         sim.AdvanceTo(0.5)
         assert dribble_status(diagram, sim.get_context()) == ActionStatus.FAILED
         assert check_dribble(diagram, sim.get_context())["status_succeeded"] == 0.0
+
+
+def test_soccer_dribble_meets_a_target_speed_through_a_loop():
+    """Target heading 1.5 rad at 0.3 m/s: it timed out pivoting at rest before."""
+    diagram = build_soccer_dribble(DribbleScenario(target=[0.6, 0.5, 1.5, 0.3]))
+    action = diagram.GetSubsystemByName("dribble_ball")
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    t, modes = 0.0, set()
+    while dribble_status(diagram, ctx) == ActionStatus.RUNNING and t < 15.0:
+        t += 0.1
+        sim.AdvanceTo(t)
+        modes.add(int(action.GetMyContextFromRoot(ctx).get_discrete_state(0).get_value()[3]))
+    assert dribble_status(diagram, ctx) == ActionStatus.SUCCEEDED
+    assert LOOP_LEFT in modes and PIVOT not in modes
+    assert check_dribble(diagram, ctx)["ball_from_held_spot_m"] < 0.1
 
 
 def test_dribble_scenario_rejects_bad_fields():

@@ -169,16 +169,22 @@ def build_driven(
     return diagram
 
 
-@register_diagram(
-    "soccer_goto_pose",
-    scenario_type=GoToPoseScenario,
-    description="diffdrive robot on the soccer field running the GoToPose action",
-    duration=8.0,
+# what both GoToPose worlds check, pass on and set up (the initial speed)
+_GOTO_WORLD = dict(
     check=lambda diagram, context: check_goto_pose(diagram, context),
     criteria={"status_succeeded": Bound(1.0, 1.0), "position_error_m": Bound(0.0, 0.1)},
     initialize=lambda diagram, context, scenario: set_initial_speed(
         diagram, context, scenario.initial_speed
     ),
+)
+
+
+@register_diagram(
+    "soccer_goto_pose",
+    scenario_type=GoToPoseScenario,
+    description="diffdrive robot on the soccer field running the GoToPose action",
+    duration=8.0,
+    **_GOTO_WORLD,
 )
 def build_soccer_goto_pose(
     scenario: GoToPoseScenario, *, meshcat=None, name: str = "soccer_goto_pose"
@@ -221,13 +227,9 @@ class GoToPoseRunUpScenario(GoToPoseScenario):
 @register_diagram(
     "soccer_goto_pose_run_up",
     scenario_type=GoToPoseRunUpScenario,
-    description="GoToPose to a moving target (0.4 m/s) it must run up to",
+    description="GoToPose to a target to be passed at 0.4 m/s: it runs up to it",
     duration=12.0,
-    check=lambda diagram, context: check_goto_pose(diagram, context),
-    criteria={"status_succeeded": Bound(1.0, 1.0), "position_error_m": Bound(0.0, 0.1)},
-    initialize=lambda diagram, context, scenario: set_initial_speed(
-        diagram, context, scenario.initial_speed
-    ),
+    **_GOTO_WORLD,
 )
 def build_soccer_goto_pose_run_up(scenario: GoToPoseRunUpScenario, *, meshcat=None) -> Diagram:
     """:func:`build_soccer_goto_pose` named ``soccer_goto_pose_run_up``."""

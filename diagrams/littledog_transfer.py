@@ -61,7 +61,7 @@ from repertoire.planning.transfer_library import (
     search_library,
     transfer_library,
 )
-from repertoire.planning.transfer_search import SearchConfig, SearchResult
+from repertoire.planning.transfer_search import GapFill, SearchConfig, SearchResult
 
 from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
@@ -72,6 +72,13 @@ HALF_EXTENT = 0.25
 MAP_RESOLUTION = 0.01
 """Cell side of the height map the gap-filling crawl planner plans on (m)."""
 """Start at -HALF_EXTENT along +x; the goal line (front feet) is at HALF_EXTENT - 0.02."""
+GOAL_MARGIN = 0.5 * MAP_RESOLUTION
+"""How far past the goal line (m) both planned front feet must end: the search's goal
+stance and tolerances aim at a centroid and do not imply the line (a plan of the default
+scenario ended with a front foot exactly on it, 0.23 - 3e-17 m), and a foot planned on the
+line crosses in physics or not by its tracking error. Half a map cell: footholds lie on
+cell centres, the line on one, so a foot on the line fails and the next cell passes
+whatever the rounding."""
 
 
 @dataclasses.dataclass
@@ -278,6 +285,47 @@ class TransferPlan:
     search_s: float = 0.0
 
 
+def past_goal(feet, goal: float) -> bool:
+    """Whether both front feet of ``feet`` (4, 3) end ``GOAL_MARGIN`` past the goal line."""
+    f = np.asarray(feet, dtype=float)
+    return bool(min(f[0, 0], f[1, 0]) >= goal + GOAL_MARGIN)
+
+
+class GoalLineFiller:
+    """A gap filler whose gaps to the goal stance go on until the front feet cross the line.
+
+    The wrapped filler aims at the goal stance's centroid; when a gap to ``goal_feet``
+    ends with a front foot short of ``goal + GOAL_MARGIN`` (the crawl's front feet stagger
+    about the centroid), it plans on from that end to the goal stance moved forward (by the
+    shortfall and twice the planner's goal radius) and appends those steps. A gap that
+    still falls short is returned as it is (the search's goal test then refuses it).
+    Other gaps are the wrapped filler's.
+    """
+
+    def __init__(self, filler, goal_feet: np.ndarray, goal: float) -> None:
+        self.filler = filler
+        self.goal_feet = np.array(goal_feet, dtype=float)
+        self.goal = float(goal)
+
+    def __call__(self, start: np.ndarray, target: np.ndarray, time_limit: float) -> GapFill:
+        """Fills the gap from ``start`` to ``target`` (4, 3) as described above."""
+        fill = self.filler(start, target, time_limit)
+        if fill.status != "reached" or not np.array_equal(target, self.goal_feet):
+            return fill
+        end = np.asarray(fill.steps[-1].end_feet if fill.steps else start, dtype=float)
+        short = self.goal + GOAL_MARGIN - min(end[0, 0], end[1, 0])
+        if short <= 0.0:
+            return fill
+        # The planner stops within its goal radius of a target centroid, which the end
+        # already is: moved by the shortfall plus two radii, the centroid must advance by
+        # at least the shortfall.
+        ahead = short + 2.0 * getattr(self.filler, "params", PlannerParams()).goal_radius
+        more = self.filler(end, target + np.array([ahead, 0.0, 0.0]), time_limit)
+        if more.status != "reached":
+            return fill
+        return GapFill(list(fill.steps) + list(more.steps), "reached")
+
+
 def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
     """Transfer, search and final library of a scenario (no physics).
 
@@ -326,10 +374,16 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
         time_limit=scenario.planner_time_limit,
     )
     # A gap enters a recorded step within the same join tolerance (the executor takes it up).
-    filler = CrawlGapFiller(hmap, board=board, place_feet=True, place_within=config.join_tolerance)
+    filler = GoalLineFiller(
+        CrawlGapFiller(hmap, board=board, place_feet=True, place_within=config.join_tolerance),
+        goal_feet,
+        goal,
+    )
     source = None if scenario.mode == "planner" else transfer.library
     try:
-        result = search_library(source, feet0, goal_feet, filler, config, board)
+        result = search_library(
+            source, feet0, goal_feet, filler, config, board, lambda f: past_goal(f, goal)
+        )
         if result.status != "reached":
             raise ScenarioError(
                 f"the search stopped with status {result.status} ({result.message}); "

@@ -584,14 +584,18 @@ def search_library(
     gap_filler: GapFiller,
     config: SearchConfig | None = None,
     terrain: TerrainBoard | None = None,
+    goal_test=None,
 ) -> SearchResult:
     """The section-V search over a transferred library (None: the planner alone).
+
+    ``goal_test``: what the final stance must also satisfy (see
+    :func:`~repertoire.planning.transfer_search.search_transfer`).
 
     Raises:
         TransferSearchError: see :func:`~repertoire.planning.transfer_search.search_transfer`.
     """
     starts, ends = library_stances(library)
-    return search_transfer(start, goal, starts, ends, gap_filler, config, terrain)
+    return search_transfer(start, goal, starts, ends, gap_filler, config, terrain, goal_test)
 
 
 def stance_pose(feet, standing_height: float) -> np.ndarray:

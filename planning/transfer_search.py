@@ -31,6 +31,7 @@ import dataclasses
 import heapq
 import math
 import time
+from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
@@ -224,6 +225,7 @@ def search_transfer(
     gap_filler: GapFiller,
     config: SearchConfig | None = None,
     terrain: TerrainBoard | None = None,
+    goal_test: Callable[[np.ndarray], bool] | None = None,
 ) -> SearchResult:
     """Best-first (lazy A*) search from ``start`` to ``goal`` over transferred steps.
 
@@ -235,6 +237,11 @@ def search_transfer(
         gap_filler: the planner filling gaps (see :class:`GapFiller`).
         config: search settings.
         terrain: if given, the goal must lie on it.
+        goal_test: if given, what a path's final stance (4, 3) must also satisfy to
+            count as at the goal (e.g. front feet past a goal line): a stance within
+            ``goal_tolerance`` of the goal, or a gap to the goal ending on a stance, that
+            fails it does not reach the goal (the goal stance and tolerances are the
+            search's target; this is the task's criterion, which they need not imply).
 
     Raises:
         TransferSearchError: malformed stances, a goal off the terrain, bad settings.
@@ -255,6 +262,12 @@ def search_transfer(
         )
     if not callable(gap_filler):
         raise TransferSearchError("gap_filler must be callable (start, target, time_limit)")
+    if goal_test is not None and not callable(goal_test):
+        raise TransferSearchError(f"goal_test must be callable (stance) or None, got {goal_test!r}")
+
+    def final_ok(stance: np.ndarray) -> bool:
+        return goal_test is None or bool(goal_test(np.array(stance, dtype=float)))
+
     if terrain is not None:
         x0, x1, y0, y1 = terrain.bounds()  # the boxes' extent (a moved or joined board too)
         gx, gy = goal[:, 0], goal[:, 1]
@@ -310,7 +323,7 @@ def search_transfer(
             b = goal if v == goal_node else s_in[v - 1]
             gap = float(foot_distance(a, b))
             step_cost = 0.0 if v == goal_node else config.recorded_cost
-            if gap <= config.join_tolerance:
+            if gap <= config.join_tolerance and (v != goal_node or final_ok(a)):
                 est, evaluated = step_cost, True
             else:
                 cu = out_c[u]
@@ -348,6 +361,10 @@ def search_transfer(
             # The planner aims at a centroid: a gap that does not end on the step's
             # start stance would leave the nearest-step policy repeating the last step.
             return None
+        if v == goal_node and not final_ok(end):
+            if not refusal:
+                refusal = f"a gap to the goal ended on a stance failing the goal test: {end[:, :2]}"
+            return None
         step_cost = 0.0 if v == goal_node else config.recorded_cost
         g = g_best[u] + step_cost + config.planned_cost * len(answer.steps)
         counter += 1
@@ -361,7 +378,7 @@ def search_transfer(
     # A start already within goal_tolerance of the goal is reached with an empty path.
     fallback = None
     closed.add(0)
-    if config.goal_tolerance > 0.0 and h_dist(0) <= config.goal_tolerance:
+    if config.goal_tolerance > 0.0 and h_dist(0) <= config.goal_tolerance and final_ok(start):
         parent[goal_node] = (0, [])
         reached = True
     elif (
@@ -398,7 +415,11 @@ def search_transfer(
         if v == goal_node:
             reached = True
             break
-        if config.goal_tolerance > 0.0 and h_dist(v) <= config.goal_tolerance:
+        if (
+            config.goal_tolerance > 0.0
+            and h_dist(v) <= config.goal_tolerance
+            and final_ok(out_stance[v])
+        ):
             # At the goal already: join it directly.
             g_best[goal_node] = g
             parent[goal_node] = (v, [])

@@ -7,6 +7,8 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from repertoire.diagrams.littledog_demos import crossing_start, flat_start
 from repertoire.diagrams.littledog_transfer import (
+    GOAL_MARGIN,
+    GoalLineFiller,
     LittleDogTransferScenario,
     build_littledog_transfer,
     flat_offset,
@@ -24,6 +26,7 @@ from repertoire.planning.littledog_crawl import (
 )
 from repertoire.planning.step_library import StepLibrary
 from repertoire.planning.transfer_library import step_end_feet
+from repertoire.planning.transfer_search import GapFill, PlannedStep
 
 from repertoire.errors import ScenarioError
 
@@ -56,9 +59,9 @@ def test_search_plan_goes_from_the_start_to_the_goal(library_path):
     for a, b in zip(plan.library.steps[:-1], plan.library.steps[1:]):
         assert np.linalg.norm(step_end_feet(a) - b.start_feet, axis=1).sum() < 0.04
     end = step_end_feet(plan.library[-1])
-    # The front feet reach the goal line (a foothold on a map cell centre on the line
-    # reads 0.23 - 3e-17: the plan through the recorded steps ends there).
-    assert min(end[0, 0], end[1, 0]) >= plan.goal - 1e-9
+    # Both front feet end past the goal line (a plan through the recorded steps used to
+    # end with one on it, 0.23 - 3e-17 m: the search's goal test now refuses that).
+    assert min(end[0, 0], end[1, 0]) >= plan.goal + GOAL_MARGIN
     # Recorded steps come only from the unchanged part (before x = change_from).
     for s in plan.library:
         if s.kind == "recorded":
@@ -188,3 +191,44 @@ def test_gap_planner_map_covers_the_boards_extent(library_path, monkeypatch):
     assert plan_transfer(scenario).search.status == "reached"
     (x0, x1, y0, y1), xr, yr = seen[0]
     assert (xr, yr) == ((x0, x1), (y0, y1))
+
+
+class _Shift:
+    """Stand-in gap filler: one step moving every foot to the target's centroid shift,
+    except front foot 0 which stays ``lag`` m behind it; records its targets."""
+
+    def __init__(self, lag: float):
+        self.lag = lag
+        self.targets: list[np.ndarray] = []
+
+    def __call__(self, start, target, time_limit):
+        self.targets.append(np.array(target))
+        end = np.array(start, dtype=float)
+        end[:, :2] += target[:, :2].mean(axis=0) - end[:, :2].mean(axis=0)
+        end[0, 0] -= self.lag
+        return GapFill([PlannedStep(np.array(start), end, 0)], "reached")
+
+
+def test_goal_line_filler_plans_on_until_the_front_feet_cross():
+    goal = 0.23
+    start = np.zeros((4, 3))
+    start[:, 0] = [0.1, 0.1, -0.1, -0.1]
+    goal_feet = start + [0.16, 0.0, 0.0]  # front feet at 0.26, centroid at 0.16
+    inner = _Shift(lag=0.04)  # ends with foot 0 at 0.22: 1 cm short of the line
+    fill = GoalLineFiller(inner, goal_feet, goal)(start, goal_feet, 1.0)
+    assert fill.status == "reached" and len(fill.steps) == 2
+    # Planned on to the goal stance moved by the shortfall (0.235 - 0.22) plus two of
+    # the crawl planner's goal radii (0.03 m).
+    assert len(inner.targets) == 2
+    ahead = 0.015 + 2.0 * PlannerParams().goal_radius
+    np.testing.assert_allclose(inner.targets[1], goal_feet + [ahead, 0.0, 0.0], atol=1e-12)
+    # The second step moves the centroid 0.15 -> 0.16 + ahead and foot 0 lags 4 cm again.
+    np.testing.assert_allclose(fill.steps[-1].end_feet[0, 0], 0.19 + ahead, atol=1e-12)
+    assert GOAL_MARGIN == 0.005
+    # A gap whose front feet cross already, or to another target, is left as it is.
+    inner = _Shift(lag=0.0)
+    assert len(GoalLineFiller(inner, goal_feet, goal)(start, goal_feet, 1.0).steps) == 1
+    inner = _Shift(lag=0.04)
+    other = goal_feet - [0.05, 0.0, 0.0]
+    assert len(GoalLineFiller(inner, goal_feet, goal)(start, other, 1.0).steps) == 1
+    assert len(inner.targets) == 1

@@ -495,3 +495,36 @@ def test_result_reports_the_planner_alones_cost():
     assert alone.planner_alone_cost == alone.cost == pytest.approx(12 * 3.0)
     failed = search_transfer(stance(0.0), stance(0.5), none, none, Refusing())
     assert math.isnan(failed.planner_alone_cost)
+
+
+def test_goal_test_is_what_the_final_stance_must_also_satisfy():
+    none = np.zeros((0, 4, 3))
+    goal = stance(0.02)
+    line = float(goal[:2, 0].min())  # the goal stance's front feet
+
+    def past(feet):
+        return bool(min(feet[0, 0], feet[1, 0]) >= line - 1e-12)
+
+    config = SearchConfig(goal_tolerance=0.03)
+    # The start is within goal_tolerance of the goal but its front feet are 2 cm short:
+    # not at the goal; the planner alone (each foot 2 cm, one step each) gets there.
+    filler = StraightCrawl()
+    result = search_transfer(stance(0.0), goal, none, none, filler, config, goal_test=past)
+    assert result.status == "reached" and filler.calls == 1
+    assert result.planned_count == 4 and result.recorded_count == 0
+    assert past(result.path[-1].planned.end_feet)
+    # Without the test the start is at the goal with an empty path.
+    assert search_transfer(stance(0.0), goal, none, none, filler, config).path == []
+    # A gap to the goal ending on a stance that fails the test does not reach it.
+    result = search_transfer(
+        stance(0.0), goal, none, none, StraightCrawl(), config, goal_test=lambda f: False
+    )
+    assert result.status == "unreachable" and result.path == []
+    assert "; gap filler: a gap to the goal ended on a stance failing the goal test: [[" in (
+        result.message
+    )
+    # A start on the goal stance (joined within join_tolerance) is tested too.
+    result = search_transfer(goal, goal, none, none, StraightCrawl(), goal_test=lambda f: False)
+    assert result.status == "unreachable"
+    with pytest.raises(TransferSearchError, match="goal_test must be callable.*got 3"):
+        search_transfer(stance(0.0), goal, none, none, filler, config, goal_test=3)

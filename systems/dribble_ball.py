@@ -37,7 +37,7 @@ tried first: at ``min_turn_radius`` it orbited the staging pose and timed out
 more often than the plain spot law.)
 
 Target speeds. A goal speed ``v_g`` that a stopped robot does not meet
-(:func:`needs_loop`: ``|v_g| >= speed_tolerance(v_g)``, 0.1 m/s) cannot be met by
+(:func:`needs_loop`: ``v_g >= speed_tolerance(v_g)``, 0.1 m/s) cannot be met by
 stopping on the goal, and a dribbling robot cannot back away from the ball for a
 run-up as GoToPose does. When the held spot reaches the goal's too slowly, or a
 pivot would be needed, the action *loops*: :func:`loop_control` drives a circle of
@@ -180,8 +180,12 @@ APPROACH, PIVOT, LOOP_LEFT, LOOP_RIGHT = 0, 1, 2, 3  # the final-approach modes 
 
 
 def needs_loop(target) -> bool:
-    """Whether a stopped robot misses the target speed (``v_g >= 0.1``): only a loop meets it."""
-    return abs(target[3]) >= speed_tolerance(target[3])
+    """Whether a stopped robot misses the target speed (``v_g >= 0.1``): only a loop meets it.
+
+    A negative ``v_g`` never needs one: the robot never backs away from its ball, so no
+    loop could meet it (the approach stops on the goal, as for ``v_g = 0``).
+    """
+    return target[3] >= speed_tolerance(target[3])
 
 
 def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:

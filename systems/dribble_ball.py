@@ -93,6 +93,20 @@ def ball_in_robot_frame(state, ball) -> tuple[float, float]:
     return c * dx + s * dy, -s * dx + c * dy
 
 
+def ball_terms(state, ball, gains: dict[str, float]) -> tuple[bool, float, float]:
+    """``(held, gamma, align)``: the ball held, its bearing and ``max(0, cos gamma)^2``."""
+    bx, by = ball_in_robot_frame(state, ball)
+    held = math.hypot(bx - gains["hold_distance"], by) <= gains["lost_distance"]
+    gamma = math.atan2(by, bx)
+    return held, gamma, max(0.0, math.cos(gamma)) ** 2
+
+
+def clip_turn(v: float, w: float, gains: dict[str, float]) -> float:
+    """``w`` within ``min(omega_max, max(omega_in_place, |v| / min_turn_radius))``."""
+    w_max = min(gains["omega_max"], max(gains["omega_in_place"], abs(v) / gains["min_turn_radius"]))
+    return clip(w, -w_max, w_max)
+
+
 def dribble_control(
     state, ball, target, gains: dict[str, float], lead: float | None = None
 ) -> tuple[float, float, bool]:
@@ -109,8 +123,7 @@ def dribble_control(
     Returns:
         ``(v_cmd, omega_cmd, held)``, commands clipped to ``v_max``/``omega_max``.
     """
-    bx, by = ball_in_robot_frame(state, ball)
-    held = math.hypot(bx - gains["hold_distance"], by) <= gains["lost_distance"]
+    held, gamma, align = ball_terms(state, ball, gains)
     # steer the point lead ahead (the held spot) to the goal's
     h = gains["hold_distance"] if lead is None else lead
     c, s = math.cos(state[2]), math.sin(state[2])
@@ -122,14 +135,10 @@ def dribble_control(
         target[3],
     ]
     v, w, _, _ = pose_control(spot, spot_goal, gains)
-    gamma = math.atan2(by, bx)
-    align = max(0.0, math.cos(gamma)) ** 2
     v = max(0.0, v) * align  # never back away from the ball
     w = w * align + gains["k_ball"] * gamma
     v = clip(v, -gains["v_max"], gains["v_max"])
-    w_max = min(gains["omega_max"], max(gains["omega_in_place"], abs(v) / gains["min_turn_radius"]))
-    w = clip(w, -w_max, w_max)
-    return v, w, held
+    return v, clip_turn(v, w, gains), held
 
 
 LOOP_RADIUS_FACTOR = 1.25
@@ -156,8 +165,7 @@ def loop_control(
     terms are those of :func:`dribble_control`.
     """
     g = gains
-    bx, by = ball_in_robot_frame(state, ball)
-    held = math.hypot(bx - g["hold_distance"], by) <= g["lost_distance"]
+    held, gamma, align = ball_terms(state, ball, g)
     radius = LOOP_RADIUS_FACTOR * g["min_turn_radius"]
     cx = target[0] - side * radius * math.sin(target[2])
     cy = target[1] + side * radius * math.cos(target[2])
@@ -166,14 +174,10 @@ def loop_control(
     chi = psi + side * (0.5 * math.pi + math.atan((d - radius) / radius))
     psi_goal = target[2] - side * 0.5 * math.pi
     theta = (side * (psi_goal - psi)) % (2.0 * math.pi)
-    v = min(g["v_max"], max(target[3], g["k_rho"] * radius * theta))
-    gamma = math.atan2(by, bx)
-    align = max(0.0, math.cos(gamma)) ** 2
-    v *= align
+    v = min(g["v_max"], max(target[3], g["k_rho"] * radius * theta)) * align
     w = side * v / radius + g["k_alpha"] * math.remainder(chi - state[2], 2.0 * math.pi)
     w = align * w + g["k_ball"] * gamma
-    w_max = min(g["omega_max"], max(g["omega_in_place"], abs(v) / g["min_turn_radius"]))
-    return v, clip(w, -w_max, w_max), held
+    return v, clip_turn(v, w, g), held
 
 
 APPROACH, PIVOT, LOOP_LEFT, LOOP_RIGHT = 0, 1, 2, 3  # the final-approach modes (state slot 3)

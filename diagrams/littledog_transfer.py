@@ -69,9 +69,9 @@ from repertoire.errors import RepertoireError, ScenarioError
 MODES = ("search", "greedy", "planner")
 TARGETS = ("modified", "generated")
 HALF_EXTENT = 0.25
+"""Start at -HALF_EXTENT along +x; the goal line (front feet) is at HALF_EXTENT - 0.02."""
 MAP_RESOLUTION = 0.01
 """Cell side of the height map the gap-filling crawl planner plans on (m)."""
-"""Start at -HALF_EXTENT along +x; the goal line (front feet) is at HALF_EXTENT - 0.02."""
 GOAL_MARGIN = 0.5 * MAP_RESOLUTION
 """How far past the goal line (m) both planned front feet must end: the search's goal
 stance and tolerances aim at a centroid and do not imply the line (a plan of the default

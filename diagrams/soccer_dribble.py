@@ -1,4 +1,7 @@
-"""The soccer world with the DribbleBall action wired (registered as ``soccer_dribble``).
+"""The soccer world with the DribbleBall action wired (``soccer_dribble``, ``..._loop``).
+
+Registered twice: ``soccer_dribble`` dribbles to a pose at rest, and
+``soccer_dribble_loop`` to a goal passed at 0.3 m/s, met through a loop.
 
 The differential-drive robot on the soccer field starts with the ball in front
 of its bumper (``ball_offset`` ahead of the axle) and dribbles it to a target
@@ -134,23 +137,32 @@ class DribbleScenario:
         )
 
 
+def _dribble_world(position_bound: float) -> dict:
+    """The check and criteria of a dribble world (the axle within ``position_bound`` m)."""
+    return dict(
+        check=lambda diagram, context: check_dribble(diagram, context),
+        criteria={
+            "status_succeeded": Bound(1.0, 1.0),
+            "position_error_m": Bound(0.0, position_bound),
+            "ball_from_held_spot_m": Bound(0.0, 0.25),
+        },
+    )
+
+
 @register_diagram(
     "soccer_dribble",
     scenario_type=DribbleScenario,
     description="diffdrive robot on the soccer field dribbling the ball with DribbleBall",
     duration=12.0,
-    check=lambda diagram, context: check_dribble(diagram, context),
-    criteria={
-        "status_succeeded": Bound(1.0, 1.0),
-        "position_error_m": Bound(0.0, 0.15),
-        "ball_from_held_spot_m": Bound(0.0, 0.25),
-    },
+    **_dribble_world(position_bound=0.15),
 )
-def build_soccer_dribble(scenario: DribbleScenario, *, meshcat=None) -> Diagram:
+def build_soccer_dribble(
+    scenario: DribbleScenario, *, meshcat=None, name: str = "soccer_dribble"
+) -> Diagram:
     """Builds the soccer world with DribbleBall pushing the ball.
 
     Returns:
-        The Diagram ``soccer_dribble`` with subsystems ``plant``, ``scene_graph``,
+        The Diagram ``name`` with subsystems ``plant``, ``scene_graph``,
         ``state_reader``, ``ball_reader``, ``dribble_ball``, ``target``,
         ``wheel_desired_state``.
     """
@@ -177,10 +189,38 @@ def build_soccer_dribble(scenario: DribbleScenario, *, meshcat=None) -> Diagram:
     builder.Connect(ball_reader.get_output_port(), action.get_ball_input_port())
     builder.Connect(target.get_output_port(), action.get_target_input_port())
     return build_driven(
-        builder, plant, scene_graph, robot, action.get_command_output_port(), "soccer_dribble",
+        builder, plant, scene_graph, robot, action.get_command_output_port(), name,
         meshcat, start_fields={"diffdrive": f"initial_pose {scenario.initial_pose}",
                                "ball": f"ball_offset {scenario.ball_offset}"},
     )  # fmt: skip
+
+
+@dataclasses.dataclass
+class DribbleLoopScenario(DribbleScenario):
+    """A goal 1.5 rad off the start heading, to be passed at 0.3 m/s: DribbleBall's loop.
+
+    The held spot reaches the goal's too slowly to meet the speed, and the robot cannot
+    back away from its ball, so it loops (``LOOP_LEFT``, see
+    :func:`~repertoire.systems.dribble_ball.approach_mode`) and passes through the goal
+    at speed.
+    """
+
+    target: list[float] = dataclasses.field(default_factory=lambda: [0.6, 0.5, 1.5, 0.3])
+
+
+@register_diagram(
+    "soccer_dribble_loop",
+    scenario_type=DribbleLoopScenario,
+    description="DribbleBall to a goal passed at 0.3 m/s, met through a loop",
+    duration=8.0,
+    # The action succeeds with the held spot within position_tolerance (0.1 m) and the
+    # heading within heading_tolerance (0.5 rad): the axle is then within
+    # 0.1 + 2 * 0.31 * sin(0.25) = 0.253 m of the goal.
+    **_dribble_world(position_bound=0.26),
+)
+def build_soccer_dribble_loop(scenario: DribbleLoopScenario, *, meshcat=None) -> Diagram:
+    """:func:`build_soccer_dribble` named ``soccer_dribble_loop``."""
+    return build_soccer_dribble(scenario, meshcat=meshcat, name="soccer_dribble_loop")
 
 
 #: ``soccer_dribble`` simulators by diagram structure (see :func:`dribble_simulator`).

@@ -3,7 +3,9 @@ import math
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
+from repertoire.diagrams.simulate import build_registered
 from repertoire.diagrams.soccer_dribble import (
+    DribbleLoopScenario,
     DribbleScenario,
     build_soccer_dribble,
     check_dribble,
@@ -248,8 +250,14 @@ def test_soccer_dribble_delivers_the_ball():
 
 
 def test_soccer_dribble_meets_a_target_speed_through_a_loop():
-    """Target heading 1.5 rad at 0.3 m/s: it timed out pivoting at rest before."""
-    diagram = build_soccer_dribble(DribbleScenario(target=[0.6, 0.5, 1.5, 0.3]))
+    """Target heading 1.5 rad at 0.3 m/s: it timed out pivoting at rest before.
+
+    This is the registered world ``soccer_dribble_loop`` that ``make demo`` shows.
+    """
+    scenario = DribbleLoopScenario()
+    assert scenario.target == [0.6, 0.5, 1.5, 0.3]
+    diagram = build_registered("soccer_dribble_loop", scenario=scenario)
+    assert diagram.get_name() == "soccer_dribble_loop"
     action = diagram.GetSubsystemByName("dribble_ball")
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()

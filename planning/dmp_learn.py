@@ -80,13 +80,17 @@ def check_ridge(ridge) -> float | str:
 
 
 def gcv_scores(features: np.ndarray, targets: np.ndarray, ridges: np.ndarray) -> np.ndarray:
-    """Generalised cross-validation of the ridge fit, per ridge weight and DOF, from one SVD.
+    """Generalised cross-validation of the ridge fit, per ridge weight and DOF.
 
     ``GCV(lambda) = N ||(I - A) f||^2 / (N - tr A)^2`` with the influence matrix
     ``A = Phi (Phi^T Phi + lambda I)^-1 Phi^T`` (Golub, Heath and Wahba 1979). With
-    ``Phi = U diag(s) V^T`` and ``z = U^T f``: ``tr A = sum s^2 / (s^2 + lambda)`` and
-    ``||(I - A) f||^2 = ||f - U z||^2 + sum (lambda z / (s^2 + lambda))^2``; every DOF
-    shares the SVD.
+    ``Phi^T Phi = V diag(s^2) V^T`` (one eigendecomposition of the small normal matrix,
+    shared by every DOF) and ``z = diag(1/s) V^T Phi^T f`` (= ``U^T f`` of Phi's SVD):
+    ``tr A = sum s^2 / (s^2 + lambda)`` and ``||(I - A) f||^2 = r_0 + sum (lambda z /
+    (s^2 + lambda))^2``, where ``r_0`` is the least-squares residual, taken as
+    ``||f - Phi Phi^+ f||^2`` (a difference of vectors, not of squared norms, so it stays
+    accurate when the fit is nearly exact). Directions with ``s^2`` at round-off of the
+    largest count as null (no fit, no degree of freedom).
 
     Args:
         features: Regressors Phi, shape (N, n_basis).
@@ -96,16 +100,19 @@ def gcv_scores(features: np.ndarray, targets: np.ndarray, ridges: np.ndarray) ->
     Returns:
         Scores, shape (m, n_dims).
     """
-    n = features.shape[0]
-    U, s, _ = np.linalg.svd(features, full_matrices=False)
-    z = U.T @ targets  # (r, n_dims)
-    outside = np.sum((targets - U @ z) ** 2, axis=0)  # residual no ridge can remove
-    s2 = (s * s)[None, :]
+    n, b = features.shape
+    e, V = np.linalg.eigh(features.T @ features)
+    keep = e > b * np.finfo(float).eps * max(float(e.max()), 0.0)
+    s2 = np.where(keep, e, 0.0)
+    h = V.T @ (features.T @ targets)  # (b, n_dims)
+    inv = np.where(keep, 1.0 / np.where(keep, e, 1.0), 0.0)[:, None]
+    z2 = h * h * inv  # z^2
+    outside = np.sum((targets - features @ (V @ (h * inv))) ** 2, axis=0)  # r_0 per DOF
     lam = np.asarray(ridges, dtype=float)[:, None]
     with np.errstate(invalid="ignore", divide="ignore"):
-        shrink = np.where(s2 + lam > 0, lam / (s2 + lam), 1.0)  # 1 - filter factor
-    rss = outside[None, :] + (shrink**2) @ (z * z)  # (m, n_dims)
-    dof = np.sum(1.0 - shrink, axis=1)  # tr A, (m,)
+        shrink = np.where(s2[None, :] + lam > 0, lam / (s2[None, :] + lam), 1.0)  # 1 - filter
+    rss = outside[None, :] + (shrink**2) @ z2  # (m, n_dims)
+    dof = np.sum(np.where(keep[None, :], 1.0 - shrink, 0.0), axis=1)  # tr A, (m,)
     return n * rss / np.maximum(n - dof, 1e-12)[:, None] ** 2
 
 

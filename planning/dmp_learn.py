@@ -1,8 +1,9 @@
 """Learning DMPs from demonstrations (Pastor et al. 2009, sec. II, eq. 5 / 8).
 
 A least-squares fit of the forcing term solved as a Drake MathematicalProgram (a convex
-quadratic cost with the precomputed normal equations, optional ridge term), for n-DOF,
-quaternion and the paper's 10-D task-space DMPs. The artefacts are in
+quadratic cost with the precomputed normal equations, optional ridge term, given or chosen
+per DOF by generalised cross-validation), for n-DOF, quaternion and the paper's 10-D
+task-space DMPs. The artefacts are in
 :mod:`repertoire.planning.dmp`; derivatives of the demonstration in
 :mod:`repertoire.planning.dmp_derivatives`.
 """
@@ -79,7 +80,12 @@ def check_ridge(ridge) -> float | str:
     return float(ridge)
 
 
-def gcv_scores(features: np.ndarray, targets: np.ndarray, ridges: np.ndarray) -> np.ndarray:
+def gcv_scores(
+    features: np.ndarray,
+    targets: np.ndarray,
+    ridges: np.ndarray,
+    gram: np.ndarray | None = None,
+) -> np.ndarray:
     """Generalised cross-validation of the ridge fit, per ridge weight and DOF.
 
     ``GCV(lambda) = N ||(I - A) f||^2 / (N - tr A)^2`` with the influence matrix
@@ -96,12 +102,13 @@ def gcv_scores(features: np.ndarray, targets: np.ndarray, ridges: np.ndarray) ->
         features: Regressors Phi, shape (N, n_basis).
         targets: Targets, shape (N, n_dims).
         ridges: Ridge weights lambda >= 0, shape (m,).
+        gram: ``Phi^T Phi`` if already computed (the fit's program holds it).
 
     Returns:
         Scores, shape (m, n_dims).
     """
     n, b = features.shape
-    e, V = np.linalg.eigh(features.T @ features)
+    e, V = np.linalg.eigh(features.T @ features if gram is None else gram)
     keep = e > b * np.finfo(float).eps * max(float(e.max()), 0.0)
     s2 = np.where(keep, e, 0.0)
     h = V.T @ (features.T @ targets)  # (b, n_dims)
@@ -116,7 +123,9 @@ def gcv_scores(features: np.ndarray, targets: np.ndarray, ridges: np.ndarray) ->
     return n * rss / np.maximum(n - dof, 1e-12)[:, None] ** 2
 
 
-def gcv_ridge(features: np.ndarray, targets: np.ndarray) -> np.ndarray:
+def gcv_ridge(
+    features: np.ndarray, targets: np.ndarray, gram: np.ndarray | None = None
+) -> np.ndarray:
     """Per-DOF ridge weights minimising :func:`gcv_scores` over :data:`GCV_GRID`.
 
     The grid is ``GCV_GRID * tr(Phi^T Phi) / n_basis``. Of the weights scoring within 1e-6
@@ -126,13 +135,14 @@ def gcv_ridge(features: np.ndarray, targets: np.ndarray) -> np.ndarray:
     Args:
         features: Regressors Phi, shape (N, n_basis).
         targets: Targets, shape (N, n_dims).
+        gram: ``Phi^T Phi`` if already computed.
 
     Returns:
         Ridge weights, shape (n_dims,).
     """
-    mean_eig = float(np.sum(features * features)) / features.shape[1]
-    ridges = GCV_GRID * mean_eig
-    scores = gcv_scores(features, targets, ridges)
+    gram = features.T @ features if gram is None else gram
+    ridges = GCV_GRID * float(np.trace(gram)) / features.shape[1]
+    scores = gcv_scores(features, targets, ridges, gram)
     floor = features.shape[0] * (1e-12 * np.max(np.abs(targets), axis=0, initial=0.0)) ** 2
     best = np.maximum(scores.min(axis=0), floor) * (1.0 + 1e-6)
     return ridges[np.argmax(scores <= best[None, :], axis=0)]
@@ -191,20 +201,26 @@ def solve_program(prog: MathematicalProgram, what: str = "program", *, solver=No
     return result
 
 
-def forcing_ridge(features: np.ndarray, targets: np.ndarray, ridge: float | str) -> np.ndarray:
+def forcing_ridge(
+    features: np.ndarray,
+    targets: np.ndarray,
+    ridge: float | str,
+    gram: np.ndarray | None = None,
+) -> np.ndarray:
     """The ridge weight each DOF's forcing fit uses: ``ridge`` itself, or the GCV choice.
 
     Args:
         features: Regressors, shape (N, n_basis).
         targets: Targets, shape (N, n_dims).
         ridge: A finite number >= 0, or ``"gcv"`` (:func:`gcv_ridge`).
+        gram: ``Phi^T Phi`` if already computed.
 
     Returns:
         Ridge weights, shape (n_dims,).
     """
     ridge = check_ridge(ridge)
     if ridge == "gcv":
-        return gcv_ridge(features, targets)
+        return gcv_ridge(features, targets, gram)
     return np.full(targets.shape[1], ridge)
 
 
@@ -256,11 +272,12 @@ def fit_forcing_weights(
             UnderdeterminedFitWarning says when a basis function rests on less than one
             sample (:func:`basis_support`).
     """
-    ridges = forcing_ridge(features, targets, ridge)
+    check_ridge(ridge)
     if ridge == 0:
         _warn_unsupported_basis(features)
     prog, w, cost = build_forcing_fit_program(features, 0.0)
     Q0 = cost.evaluator().Q()
+    ridges = forcing_ridge(features, targets, ridge, gram=0.5 * Q0)  # Q0 = 2 Phi^T Phi
     linear = -2.0 * (features.T @ targets)
     constant = np.sum(targets * targets, axis=0)
     solver = MakeSolver(ChooseBestSolver(prog))

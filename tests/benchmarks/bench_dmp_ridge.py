@@ -7,7 +7,9 @@ move| on a 1 ms grid over the amplitude. Clean cases: the change in the reproduc
 trajectories of the arm library's demonstrations (component and manifold quaternions, 30
 and 50 basis functions). Timing: median fit time of a 5001-sample 3-DOF demonstration.
 
-Run: ``.venv/bin/python tests/benchmarks/bench_dmp_ridge.py --seeds 0 40``.
+Run: ``OPENBLAS_NUM_THREADS=1 .venv/bin/python tests/benchmarks/bench_dmp_ridge.py --seeds 0 40``
+(on a shared machine multi-threaded BLAS oversubscribes the cores and the fit times mean
+nothing: 210 ms instead of 12.5 ms here).
 """
 
 import argparse

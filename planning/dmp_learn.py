@@ -270,7 +270,10 @@ def fit_forcing_weights(
         ridge: Ridge weight, a finite number >= 0, or ``"gcv"``: chosen per DOF by
             generalised cross-validation (:func:`gcv_ridge`). With ``ridge=0`` an
             UnderdeterminedFitWarning says when a basis function rests on less than one
-            sample (:func:`basis_support`).
+            sample (:func:`basis_support`). GCV counts whatever the basis functions
+            cannot fit as noise: stacked demonstrations that differ systematically are
+            shrunk towards f = 0 (three clean demos with goals 0.8-1.2: 2.8e-3 off their
+            mean with "gcv", 6e-5 with 0).
     """
     check_ridge(ridge)
     if ridge == 0:

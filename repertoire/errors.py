@@ -20,3 +20,11 @@ class UnknownNameError(RepertoireError):
 
 class SolverError(RuntimeError):
     """A MathematicalProgram did not solve; the message names the solver and why."""
+
+
+class UnderdeterminedFitWarning(UserWarning):
+    """A least-squares fit has parameters its data barely determine.
+
+    E.g. DMP basis functions over gaps between samples; the message says which and what to
+    pass instead.
+    """

@@ -49,7 +49,12 @@ from repertoire.planning.motion_library import (
 )
 from scipy.integrate import solve_ivp
 
-from repertoire.errors import RepertoireError, SolverError, UnknownNameError
+from repertoire.errors import (
+    RepertoireError,
+    SolverError,
+    UnderdeterminedFitWarning,
+    UnknownNameError,
+)
 
 
 def _demo(n_dims=3, n=400, T=1.0, seed=0):
@@ -612,7 +617,8 @@ def test_more_basis_functions_than_samples_is_a_clear_value_error():
     q = slerp_minimum_jerk(np.array([1.0, 0, 0, 0]), np.array([0.0, 1.0, 0, 0]), t)
     with pytest.raises(ValueError, match=r"n_basis = 9 basis functions is more than the 8 "):
         learn_quaternion_dmp(t, q, n_basis=9, mode="manifold")
-    assert learn_dmp(t, x, n_basis=8).n_basis == 8  # as many as samples is fine
+    with pytest.warns(UnderdeterminedFitWarning, match="rest on less than one"):
+        assert learn_dmp(t, x, n_basis=8).n_basis == 8  # as many as samples: allowed, warned
 
 
 def test_basis_functions_the_phase_never_reaches_are_a_clear_error():

@@ -513,9 +513,9 @@ def _anytime_once(
     """ARA* at the options' lattice, on the chosen backend, with corridor searches, restarts.
 
     The corridor searches, and the restarts' ARA* before its fresh searches on ``opts``'s
-    lattice, run on the next finer lattice when ``finer_restarts``. Returns each result with the model (lattice) it was found on and
-    its corridor half-width (0: whole map), and the clock (``time.perf_counter``) when the
-    last result was found.
+    lattice, run on the next finer lattice when ``finer_restarts``. Returns each result
+    with the model (lattice) it was found on and its corridor half-width (0: whole map),
+    and the clock (``time.perf_counter``) when the last result was found.
     """
     t0 = time.perf_counter()
     model = BipedStepModel(world, start, start_foot, goal, table, opts, **kwargs)

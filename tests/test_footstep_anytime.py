@@ -132,3 +132,28 @@ def test_anytime_corridor_too_narrow_for_the_feet_runs_no_corridor_search():
     plain = plan_footsteps_anytime(*args, opts)
     assert all(r.corridor_m == 0.0 for r in runs)
     assert [r.plan.cost for r in runs] == [r.plan.cost for r in plain]
+
+
+def test_anytime_restarts_run_ara_on_the_finer_lattice_then_fresh_searches():
+    # ARA* on 5 cm / 36 bins ends at 32.85; the restarts then run ARA* from scratch on
+    # 2.5 cm / 72 bins (weights 3 .. 1, its search reused): 26.9 at weight 3 and 22.1 at 2,
+    # where a fresh weighted A* at 2 on that lattice finds 33.25
+    sc = random_static_scene(7, n_strips=8, n_blocks=4)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    opts = PlannerOptions(time_limit=60.0)  # every search runs to its end
+    runs = plan_footsteps_anytime(*args, opts)
+    assert [(r.weight, r.plan.xy_resolution) for r in runs] == [
+        (3.0, 0.05), (2.0, 0.05), (1.5, 0.05), (1.2, 0.05), (1.0, 0.05),
+        (3.0, 0.025), (2.0, 0.025),
+    ]  # fmt: skip
+    assert [round(r.plan.cost, 2) for r in runs] == [33.2, 33.2, 32.9, 32.85, 32.85, 26.9, 22.1]
+    fine = dataclasses.replace(opts, xy_resolution=0.025, yaw_bins=72, refinements=0)
+    ara = plan_footsteps_anytime(*args, fine, restarts=False)  # ARA* alone on 2.5 cm
+    for r in runs[5:]:
+        (same,) = [a for a in ara if a.weight == r.weight]
+        assert r.plan.poses == same.plan.poses and r.plan.cost == same.plan.cost
+        assert r.bound == same.bound and r.plan.yaw_bins == 72
+    fresh = plan_footsteps(*args, dataclasses.replace(fine, heuristic_weight=2.0))
+    assert fresh.cost == pytest.approx(33.25)
+    elapsed = [r.elapsed_s for r in runs]
+    assert elapsed == sorted(elapsed)

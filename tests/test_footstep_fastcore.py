@@ -487,9 +487,10 @@ def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
         assert r.plan.status is PlanStatus.SUCCESS and 1.0 <= r.bound <= r.weight
     elapsed = [r.elapsed_s for r in runs]
     assert elapsed == sorted(elapsed) and elapsed[-1] < 60.0
-    # with refinements, the restarts search the next finer lattice first. Here the gaps are
-    # narrow: the 5 cm lattice runs out (UNREACHABLE), ARA* runs on the first refinement
-    # (2.5 cm, 72 bins), and on the next (1.25 cm, 144 bins) weight 2 alone beats its plans
+    # with refinements, the restarts run ARA* on the next finer lattice first (over every
+    # weight, its search reused), then the fresh searches. Here the gaps are narrow: the
+    # 5 cm lattice runs out (UNREACHABLE), ARA* runs on the first refinement (2.5 cm, 72
+    # bins), and on the next (1.25 cm, 144 bins) ARA*'s plan at weight 2 beats its plans
     sc = random_static_scene(2, n_strips=8, n_blocks=4)
     args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
     opts = PlannerOptions(time_limit=60.0)
@@ -499,8 +500,11 @@ def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
     assert runs == ara + fine and [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
     assert [(r.weight, r.plan.yaw_bins) for r in fine] == [(2.0, 144)]
     assert fine[0].plan.cost == pytest.approx(20.3) and ara[-1].plan.cost == pytest.approx(21.45)
-    f = fresh(args, opts, fine[0])
-    assert fine[0].plan.poses == f.poses and fine[0].plan.cost == f.cost
+    on_fine = dataclasses.replace(opts, xy_resolution=0.0125, yaw_bins=144, refinements=0)
+    fine_ara = plan_footsteps_anytime(*args, on_fine, restarts=False)  # ARA* alone there
+    same = [r for r in fine_ara if r.weight == 2.0]
+    assert fine[0].plan.poses == same[0].plan.poses and fine[0].plan.cost == same[0].plan.cost
+    assert fine[0].bound == same[0].bound
 
 
 def test_anytime_plan_times_leave_out_restarts_that_found_nothing(monkeypatch):

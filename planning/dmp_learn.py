@@ -8,6 +8,7 @@ task-space DMPs. The artefacts are in
 :mod:`repertoire.planning.dmp_derivatives`.
 """
 
+import sys
 import warnings
 
 import numpy as np
@@ -255,8 +256,20 @@ def _warn_unsupported_basis(features: np.ndarray) -> None:
             "ridge='gcv' (chosen by generalised cross-validation), fewer basis functions or "
             "more samples",
             UnderdeterminedFitWarning,
-            stacklevel=3,
+            stacklevel=_outside_level(),
         )
+
+
+def _outside_level() -> int:
+    """The ``stacklevel`` of the first caller outside this module, seen from its caller.
+
+    A warning raised for ``learn_dmp``, ``learn_quaternion_dmp`` (which calls it) or any
+    other learner then names the user's line, however deep in this module it was raised.
+    """
+    frame, level = sys._getframe(1), 1  # the function that warns: stacklevel 1
+    while frame.f_back is not None and frame.f_code.co_filename == __file__:
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def fit_forcing_weights(

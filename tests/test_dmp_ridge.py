@@ -100,8 +100,12 @@ def test_gcv_learns_the_sparse_noisy_demonstration():
 
 def test_ridge_zero_warns_about_basis_functions_over_sampling_gaps():
     t, x, _, _ = _sparse_demo(3000)
-    with pytest.warns(UnderdeterminedFitWarning, match=r"pass ridge='gcv'"):
+    with pytest.warns(UnderdeterminedFitWarning, match=r"pass ridge='gcv'") as caught:
         learn_dmp(t, x)
+    assert caught[0].filename == __file__  # the warning names the caller's line
+    with pytest.warns(UnderdeterminedFitWarning) as caught:
+        learn_dmp_from_demonstrations([(t, x)])  # also from another learner
+    assert caught[0].filename == __file__
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         learn_dmp(t, x, ridge="gcv")

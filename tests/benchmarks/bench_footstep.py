@@ -26,7 +26,7 @@ Sections (``--sections``, default all but ``legacy``):
   anytime run N expansions instead of 1 s: its plans then do not depend on the machine's
   speed or load (the 1 s results moved by 1-3 floors of 62 between runs of the same code),
   so an A/B of a planner change is deterministic; 1 s is about 550000-900000 expansions on that VM
-  (it drifts by about +-30 % within an hour: session 17).
+  (it drifts by about +-30 % within an hour: session 17), about 1.6 M on session 27's machine.
 - ``legacy``: the issue-4 figures below.
 
 Legacy (issue 4):
@@ -87,7 +87,7 @@ def main() -> int:
         default=0,
         help="large maps: give each anytime run this many expansions instead of 1 s of wall "
         "time (deterministic: the same plans whatever the machine's load; 1 s is about "
-        "550000-900000 on a 2-core AMD EPYC under KVM); 0: the 1 s limit",
+        "550000-900000 on one 2-core AMD EPYC VM, about 1.6 M on another); 0: the 1 s limit",
     )
     parser.add_argument(
         "--before", default="", help="git commit whose planner is the 'before' (backends)"

@@ -42,6 +42,37 @@ class Demonstration:
     fingers: np.ndarray
 
 
+def noisy_sparse_minimum_jerk(
+    seed: int, n: int = 101, duration: float = 2.0, noise: float = 2e-3
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A unit minimum-jerk move (0 to 1) sampled at random times, with Gaussian noise.
+
+    The hard case for learning a DMP: the stamps are ``0``, ``duration`` and ``n - 2``
+    sorted uniform draws between them (gaps and clusters), and the positions carry noise
+    of standard deviation ``noise``.
+
+    Args:
+        seed: Random seed (the same seed gives the same demonstration).
+        n: Number of samples, >= 3.
+        duration: Duration [s], > 0.
+        noise: Standard deviation of the position noise, >= 0.
+
+    Returns:
+        ``(t, x, xd, xdd)``: stamps (n,), noisy positions (n, 1), and the move's exact
+        velocities and accelerations at the stamps (n, 1), without noise.
+    """
+    if not (isinstance(n, (int, np.integer)) and n >= 3):
+        raise RepertoireError(f"n must be an integer >= 3, got {n!r}")
+    if not (np.isfinite(duration) and duration > 0):
+        raise RepertoireError(f"duration must be a finite number > 0 s, got {duration!r}")
+    if not (np.isfinite(noise) and noise >= 0):
+        raise RepertoireError(f"noise must be a finite number >= 0, got {noise!r}")
+    rng = np.random.default_rng(seed)
+    t = np.concatenate([[0.0], np.sort(rng.uniform(0.0, duration, n - 2)), [duration]])
+    x, xd, xdd = minimum_jerk(np.zeros(1), np.ones(1), duration, t)
+    return t, x + rng.normal(scale=noise, size=x.shape), xd, xdd
+
+
 def slerp_minimum_jerk(q_start: np.ndarray, q_end: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Shortest-arc interpolation with a minimum-jerk time law over ``[t[0], t[-1]]``.
 

@@ -6,7 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
-from repertoire.planning.dmp_demos import slerp_minimum_jerk
+from repertoire.planning.dmp_demos import noisy_sparse_minimum_jerk, slerp_minimum_jerk
 from repertoire.planning.dmp_learn import (
     GCV_GRID,
     basis_support,
@@ -30,14 +30,6 @@ def _gcv_direct(Phi: np.ndarray, f: np.ndarray, lam: float) -> float:
     A = Phi @ np.linalg.solve(Phi.T @ Phi + lam * np.eye(b), Phi.T)
     r = f - A @ f
     return float(n * (r @ r) / (n - np.trace(A)) ** 2)
-
-
-def _sparse_demo(seed: int, n: int = 101, duration: float = 2.0, noise: float = 2e-3):
-    """A unit minimum-jerk move at n random time stamps (ends kept) with Gaussian noise."""
-    rng = np.random.default_rng(seed)
-    t = np.concatenate([[0.0], np.sort(rng.uniform(0.0, duration, n - 2)), [duration]])
-    x, xd, xdd = minimum_jerk(np.zeros(1), np.ones(1), duration, t)
-    return t, x + rng.normal(scale=noise, size=x.shape), xd, xdd
 
 
 def _error(params, duration: float = 2.0) -> float:
@@ -92,14 +84,14 @@ def test_gcv_learns_the_sparse_noisy_demonstration():
     anything (on 300 other seeds GCV gave a median of 0.24 %, 2 above 3 %)."""
     errors = []
     for seed in range(3000, 3010):
-        t, x, xd, xdd = _sparse_demo(seed)
+        t, x, xd, xdd = noisy_sparse_minimum_jerk(seed)
         errors.append(_error(learn_dmp(t, x, xd=xd, xdd=xdd, ridge="gcv")))
     assert max(errors) < 0.03, errors
     assert np.median(errors) < 0.005, errors
 
 
 def test_ridge_zero_warns_about_basis_functions_over_sampling_gaps():
-    t, x, _, _ = _sparse_demo(3000)
+    t, x, _, _ = noisy_sparse_minimum_jerk(3000)
     with pytest.warns(UnderdeterminedFitWarning, match=r"pass ridge='gcv'") as caught:
         learn_dmp(t, x)
     assert caught[0].filename == __file__  # the warning names the caller's line
@@ -182,3 +174,17 @@ def test_a_bad_ridge_is_a_clear_error_in_every_learner(ridge):
 def test_the_program_builder_needs_a_number_not_gcv():
     with pytest.raises(RepertoireError, match=r"needs a numeric ridge, got 'gcv'"):
         build_forcing_fit_program(np.eye(3), "gcv")
+
+
+def test_noisy_sparse_minimum_jerk_is_seeded_and_refuses_bad_sizes():
+    t, x, xd, xdd = noisy_sparse_minimum_jerk(7, n=11, duration=1.5, noise=0.0)
+    assert t[0] == 0.0 and t[-1] == 1.5 and np.all(np.diff(t) >= 0.0) and t.size == 11
+    exact = minimum_jerk(np.zeros(1), np.ones(1), 1.5, t)
+    for got, want in zip((x, xd, xdd), exact, strict=True):  # no noise: the move itself
+        np.testing.assert_array_equal(got, want)
+    again = noisy_sparse_minimum_jerk(7, n=11, duration=1.5, noise=1e-3)
+    np.testing.assert_array_equal(again[0], t)  # the same stamps for the same seed
+    assert 0.0 < np.abs(again[1] - x).max() < 5e-3
+    for kw, name in (({"n": 2}, "n"), ({"duration": 0.0}, "duration"), ({"noise": -1.0}, "noise")):
+        with pytest.raises(RepertoireError, match=f"{name} must be"):
+            noisy_sparse_minimum_jerk(0, **kw)

@@ -20,16 +20,6 @@ import warnings
 import numpy as np
 
 
-def sparse_demo(seed: int, n: int = 101, duration: float = 2.0, noise: float = 2e-3):
-    """Unit minimum-jerk move at n random stamps with noise; returns (t, x, xd, xdd)."""
-    from repertoire.planning.dmp_math import minimum_jerk
-
-    rng = np.random.default_rng(seed)
-    t = np.concatenate([[0.0], np.sort(rng.uniform(0.0, duration, n - 2)), [duration]])
-    x, xd, xdd = minimum_jerk(np.zeros(1), np.ones(1), duration, t)
-    return t, x + rng.normal(scale=noise, size=x.shape), xd, xdd
-
-
 def error(params, duration: float = 2.0) -> float:
     from repertoire.planning.dmp_math import minimum_jerk
 
@@ -44,6 +34,7 @@ def main() -> int:
     args = parser.parse_args()
 
     from repertoire.planning.arm_library import synthetic_demonstrations
+    from repertoire.planning.dmp_demos import noisy_sparse_minimum_jerk
     from repertoire.planning.dmp_learn import learn_dmp, learn_task_space_dmp
     from repertoire.planning.dmp_math import minimum_jerk
 
@@ -53,7 +44,7 @@ def main() -> int:
         for label, exact in (("estimated derivatives", False), ("exact derivatives", True)):
             errors = {0.0: [], "gcv": []}
             for seed in seeds:
-                t, x, xd, xdd = sparse_demo(seed)
+                t, x, xd, xdd = noisy_sparse_minimum_jerk(seed)
                 known = {"xd": xd, "xdd": xdd} if exact else {}
                 for ridge, out in errors.items():
                     out.append(error(learn_dmp(t, x, n_basis=n_basis, ridge=ridge, **known)))

@@ -54,19 +54,29 @@ from repertoire.checks import is_real
 from repertoire.errors import RepertoireError, SolverError, UnderdeterminedFitWarning
 
 # --------------------------------------------------------------------------- least squares
-RIDGE_CHOICES = ("gcv",)
-"""The ridge weights chosen from the data rather than given as a number."""
+RIDGE_CHOICES = ("auto", "gcv")
+"""The ridge weights chosen from the data rather than given as a number: ``"gcv"`` by
+generalised cross-validation (:func:`gcv_ridge`); ``"auto"`` (the learners' default) 0,
+plain least squares, where the data determine the weights (every basis function rests on
+at least one sample, :func:`basis_support`, and the normal equations are regular), else
+``"gcv"``."""
 
 GCV_GRID = np.logspace(-12.0, 2.0, 57)
 """Relative ridge weights ``mu`` tried by ``ridge="gcv"``: ``ridge = mu tr(Phi^T Phi) / n_basis``
 (the mean eigenvalue of the normal equations, so ``mu`` is unit-free), 4 per decade."""
 
 
+SINGULAR_RIDGE = 1e-8
+"""The least relative ridge ``"gcv"`` takes when the normal equations are singular (a basis
+function the demonstration never excites): a smaller one leaves the QP unbounded in floating
+point (EqConstrainedQP, seen at 1e-12 with alpha = 115)."""
+
+
 def check_ridge(ridge) -> float | str:
     """``ridge`` as a finite float >= 0 or one of :data:`RIDGE_CHOICES`, else a named error.
 
     Args:
-        ridge: A Tikhonov weight (>= 0) or ``"gcv"``.
+        ridge: A Tikhonov weight (>= 0), ``"gcv"`` or ``"auto"``.
     """
     if isinstance(ridge, str):
         if ridge in RIDGE_CHOICES:
@@ -146,7 +156,11 @@ def gcv_ridge(
     scores = gcv_scores(features, targets, ridges, gram)
     floor = features.shape[0] * (1e-12 * np.max(np.abs(targets), axis=0, initial=0.0)) ** 2
     best = np.maximum(scores.min(axis=0), floor) * (1.0 + 1e-6)
-    return ridges[np.argmax(scores <= best[None, :], axis=0)]
+    chosen = ridges[np.argmax(scores <= best[None, :], axis=0)]
+    if np.linalg.matrix_rank(gram) < gram.shape[0]:  # singular: the ridge must make the
+        # Hessian positive definite in the solver's arithmetic, not only in exact terms
+        chosen = np.maximum(chosen, SINGULAR_RIDGE * float(np.trace(gram)) / gram.shape[0])
+    return chosen
 
 
 def build_forcing_fit_program(
@@ -213,13 +227,18 @@ def forcing_ridge(
     Args:
         features: Regressors, shape (N, n_basis).
         targets: Targets, shape (N, n_dims).
-        ridge: A finite number >= 0, or ``"gcv"`` (:func:`gcv_ridge`).
+        ridge: A finite number >= 0, ``"gcv"`` (:func:`gcv_ridge`) or ``"auto"`` (0 where
+            the data determine the weights, else ``"gcv"``: see :data:`RIDGE_CHOICES`).
         gram: ``Phi^T Phi`` if already computed.
 
     Returns:
         Ridge weights, shape (n_dims,).
     """
     ridge = check_ridge(ridge)
+    if ridge == "auto":  # regularise where the data do not determine the weights
+        gram = features.T @ features if gram is None else gram
+        weak = float(np.min(basis_support(features))) < 1.0
+        ridge = "gcv" if weak or np.linalg.matrix_rank(gram) < gram.shape[0] else 0.0
     if ridge == "gcv":
         return gcv_ridge(features, targets, gram)
     return np.full(targets.shape[1], ridge)
@@ -253,8 +272,8 @@ def _warn_unsupported_basis(features: np.ndarray) -> None:
             f"{weak.size} of the {m.size} forcing-term basis functions rest on less than one "
             f"demonstration sample (basis function {k}: {m[k]:.2f} samples' worth), e.g. over "
             "gaps between sparse time stamps: with ridge=0 their weights fit the noise; pass "
-            "ridge='gcv' (chosen by generalised cross-validation), fewer basis functions or "
-            "more samples",
+            "ridge='auto' (the default) or 'gcv' (chosen by generalised cross-validation), "
+            "fewer basis functions or more samples",
             UnderdeterminedFitWarning,
             stacklevel=_outside_level(),
         )
@@ -273,17 +292,20 @@ def _outside_level() -> int:
 
 
 def fit_forcing_weights(
-    features: np.ndarray, targets: np.ndarray, ridge: float | str = 0.0
+    features: np.ndarray, targets: np.ndarray, ridge: float | str = "auto"
 ) -> np.ndarray:
     """Build the forcing fit once and solve it per DOF; returns weights (n_dims, n_basis).
 
     Args:
         features: Regressors, shape (N, n_basis).
         targets: Targets, shape (N, n_dims).
-        ridge: Ridge weight, a finite number >= 0, or ``"gcv"``: chosen per DOF by
-            generalised cross-validation (:func:`gcv_ridge`). With ``ridge=0`` an
+        ridge: Ridge weight, a finite number >= 0, ``"gcv"``: chosen per DOF by
+            generalised cross-validation (:func:`gcv_ridge`), or ``"auto"`` (the default):
+            0 where every basis function rests on at least one sample
+            (:func:`basis_support`) and the normal equations are regular, else ``"gcv"``.
+            With ``ridge=0`` an
             UnderdeterminedFitWarning says when a basis function rests on less than one
-            sample (:func:`basis_support`). GCV counts whatever the basis functions
+            sample. GCV counts whatever the basis functions
             cannot fit as noise: stacked demonstrations that differ systematically are
             shrunk towards f = 0 (three clean demos with goals 0.8-1.2: 2.8e-3 off their
             mean with "gcv", 6e-5 with 0).
@@ -380,7 +402,7 @@ def learn_dmp(
     D: float | np.ndarray | None = None,
     alpha: float | None = None,
     formulation: str = "new",
-    ridge: float | str = 0.0,
+    ridge: float | str = "auto",
     overlap: float = 0.5,
     derivatives: str = "auto",
     window: int | None = None,
@@ -402,8 +424,9 @@ def learn_dmp(
         D: Damping; default critically damped ``2 sqrt(K)``.
         alpha: Canonical constant; default ``ln(100)`` (theta(tau) = 0.01).
         formulation: ``"new"`` (eq. 6-8) or ``"old"`` (eq. 1-5).
-        ridge: Ridge weight of the least squares, >= 0, or ``"gcv"`` to choose it per DOF
-            by generalised cross-validation (see :func:`fit_forcing_weights`).
+        ridge: Ridge weight of the least squares, >= 0, ``"gcv"`` to choose it per DOF
+            by generalised cross-validation, or ``"auto"`` (the default: 0 unless the data
+            leave the weights undetermined, then ``"gcv"``; see :func:`fit_forcing_weights`).
         overlap: Basis-function overlap at neighbouring centres.
         derivatives: ``"auto"``, ``"savgol"`` or ``"spline"`` (see estimate_derivatives).
         window: Savitzky-Golay window.
@@ -444,7 +467,7 @@ def learn_dmp_from_demonstrations(
     D: float | np.ndarray | None = None,
     alpha: float | None = None,
     formulation: str = "new",
-    ridge: float | str = 0.0,
+    ridge: float | str = "auto",
     overlap: float = 0.5,
     derivatives: str = "auto",
     names: list[str] | None = None,
@@ -462,7 +485,7 @@ def learn_dmp_from_demonstrations(
         D: Damping; default critically damped.
         alpha: Canonical constant.
         formulation: ``"new"`` or ``"old"``.
-        ridge: Ridge weight >= 0, or ``"gcv"`` (see :func:`fit_forcing_weights`).
+        ridge: Ridge weight >= 0, ``"gcv"`` or ``"auto"`` (see :func:`fit_forcing_weights`).
         overlap: Basis overlap.
         derivatives: Derivative method.
         names: Optional DOF names.
@@ -529,7 +552,7 @@ def learn_quaternion_dmp(
     K: float | None = None,
     D: float | None = None,
     alpha: float | None = None,
-    ridge: float | str = 0.0,
+    ridge: float | str = "auto",
     overlap: float = 0.5,
     derivatives: str = "auto",
     unit_tolerance: float = 1e-6,
@@ -553,7 +576,7 @@ def learn_quaternion_dmp(
         K: Spring constant; default 156.25.
         D: Damping; default 2 sqrt(K).
         alpha: Canonical constant.
-        ridge: Ridge weight >= 0, or ``"gcv"`` (see :func:`fit_forcing_weights`).
+        ridge: Ridge weight >= 0, ``"gcv"`` or ``"auto"`` (see :func:`fit_forcing_weights`).
         overlap: Basis overlap.
         derivatives: Derivative method.
         unit_tolerance: Allowed deviation of |q| from 1.
@@ -621,7 +644,7 @@ def learn_task_space_dmp(
     n_basis: int = 50,
     K: float | None = None,
     alpha: float | None = None,
-    ridge: float | str = 0.0,
+    ridge: float | str = "auto",
 ) -> TaskSpaceDmp:
     """Learn the paper's 10-D DMP (position + quaternion + fingers) from one demonstration.
 
@@ -634,7 +657,7 @@ def learn_task_space_dmp(
         n_basis: Number of basis functions.
         K: Spring constant; default 156.25.
         alpha: Canonical constant.
-        ridge: Ridge weight >= 0, or ``"gcv"`` (see :func:`fit_forcing_weights`).
+        ridge: Ridge weight >= 0, ``"gcv"`` or ``"auto"`` (see :func:`fit_forcing_weights`).
     """
     check_ridge(ridge)
     positions = np.asarray(positions, float)

@@ -1,6 +1,7 @@
 """DMP math and learning (planning layer): closed forms, reproduction, save/load, bad input."""
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -618,7 +619,11 @@ def test_more_basis_functions_than_samples_is_a_clear_value_error():
     with pytest.raises(ValueError, match=r"n_basis = 9 basis functions is more than the 8 "):
         learn_quaternion_dmp(t, q, n_basis=9, mode="manifold")
     with pytest.warns(UnderdeterminedFitWarning, match="rest on less than one"):
-        assert learn_dmp(t, x, n_basis=8).n_basis == 8  # as many as samples: allowed, warned
+        assert learn_dmp(t, x, n_basis=8, ridge=0.0).n_basis == 8  # allowed, warned
+    with warnings.catch_warnings():  # the default ("auto") regularises it instead
+        warnings.simplefilter("error")
+        auto = learn_dmp(t, x, n_basis=8)
+    np.testing.assert_array_equal(auto.weights, learn_dmp(t, x, n_basis=8, ridge="gcv").weights)
 
 
 def test_basis_functions_the_phase_never_reaches_are_a_clear_error():
@@ -627,8 +632,14 @@ def test_basis_functions_the_phase_never_reaches_are_a_clear_error():
     x = np.zeros((11, 2))
     x[-1, 1] = 1.0
     with pytest.raises(RepertoireError, match="basis functions are not all excited"):
-        learn_dmp(t, x, n_basis=2, alpha=115.0)
+        learn_dmp(t, x, n_basis=2, alpha=115.0, ridge=0.0)
     assert np.all(np.isfinite(learn_dmp(t, x, n_basis=2, alpha=115.0, ridge=1e-6).weights))
+    # the default ("auto") sees the singular normal equations and chooses the ridge by GCV
+    # (at least SINGULAR_RIDGE of the mean eigenvalue): a fit, not an error
+    auto = learn_dmp(t, x, n_basis=2, alpha=115.0)
+    gcv = learn_dmp(t, x, n_basis=2, alpha=115.0, ridge="gcv")
+    np.testing.assert_array_equal(auto.weights, gcv.weights)
+    assert np.all(np.isfinite(auto.weights))
 
 
 def test_local_polynomial_window_is_chosen_by_gcv_like_savgol():

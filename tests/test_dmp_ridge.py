@@ -92,18 +92,25 @@ def test_gcv_learns_the_sparse_noisy_demonstration():
 
 def test_ridge_zero_warns_about_basis_functions_over_sampling_gaps():
     t, x, _, _ = noisy_sparse_minimum_jerk(3000)
-    with pytest.warns(UnderdeterminedFitWarning, match=r"pass ridge='gcv'") as caught:
-        learn_dmp(t, x)
+    with pytest.warns(UnderdeterminedFitWarning, match=r"pass ridge='auto'") as caught:
+        learn_dmp(t, x, ridge=0.0)
     assert caught[0].filename == __file__  # the warning names the caller's line
     with pytest.warns(UnderdeterminedFitWarning) as caught:
-        learn_dmp_from_demonstrations([(t, x)])  # also from another learner
+        learn_dmp_from_demonstrations([(t, x)], ridge=0)  # also from another learner
     assert caught[0].filename == __file__
+    # the default, "auto": GCV here (a basis function rests on less than one sample) ...
+    np.testing.assert_array_equal(learn_dmp(t, x).weights, learn_dmp(t, x, ridge="gcv").weights)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         learn_dmp(t, x, ridge="gcv")
         learn_dmp(t, x, n_basis=20)  # every basis function rests on >= 2 samples here
         dense = np.linspace(0.0, 2.0, 101)
-        learn_dmp(dense, minimum_jerk(np.zeros(1), np.ones(1), 2.0, dense)[0])
+        move = minimum_jerk(np.zeros(1), np.ones(1), 2.0, dense)[0]
+        learn_dmp(dense, move, ridge=0.0)
+    # ... and plain least squares where every basis function has its sample: bit for bit
+    np.testing.assert_array_equal(
+        learn_dmp(dense, move).weights, learn_dmp(dense, move, ridge=0.0).weights
+    )
 
 
 def test_basis_support_counts_samples_per_basis_function():
@@ -149,7 +156,7 @@ def test_every_learner_takes_gcv_the_same_way():
         np.testing.assert_array_equal(part.weights, alone.weights)
 
 
-BAD_RIDGES = [-1.0, float("nan"), float("inf"), "auto", "GCV", True, None, [0.1]]
+BAD_RIDGES = [-1.0, float("nan"), float("inf"), "Auto", "GCV", True, None, [0.1]]
 
 
 @pytest.mark.parametrize("ridge", BAD_RIDGES)
@@ -157,7 +164,9 @@ def test_a_bad_ridge_is_a_clear_error_in_every_learner(ridge):
     t = np.linspace(0.0, 1.0, 50)
     x = minimum_jerk(np.zeros(1), np.ones(1), 1.0, t)[0]
     q = slerp_minimum_jerk(np.array([1.0, 0, 0, 0]), np.array([0.0, 0, 0, 1.0]), t)
-    message = re.escape(f"ridge must be a finite number >= 0 or one of ('gcv',), got {ridge!r}")
+    message = re.escape(
+        f"ridge must be a finite number >= 0 or one of ('auto', 'gcv'), got {ridge!r}"
+    )
     for learn in (
         lambda: learn_dmp(t, x, n_basis=10, ridge=ridge),
         lambda: learn_dmp_from_demonstrations([(t, x)], n_basis=10, ridge=ridge),

@@ -1,11 +1,11 @@
-"""Benchmark: the forcing fit's ridge, 0 (the default) against ``ridge="gcv"``, same run.
+"""Benchmark: the forcing fit's ridge, 0, ``"gcv"`` and ``"auto"`` (the default), same run.
 
 Sparse noisy case: a unit minimum-jerk move over 2 s at 101 random time stamps (ends kept)
 with 2 mm Gaussian noise, 50 (and 20) basis functions, default derivative estimation, and
 the move's exact derivatives given (the forcing fit judged alone). Error: max |rollout - true
 move| on a 1 ms grid over the amplitude. Clean cases: the change in the reproduced
 trajectories of the arm library's demonstrations (component and manifold quaternions, 30
-and 50 basis functions). Timing: median fit time of a 5001-sample 3-DOF demonstration.
+and 50 basis functions; ``"auto"`` must give ridge 0's bit for bit there). Timing: median fit time of a 5001-sample 3-DOF demonstration.
 
 Run: ``OPENBLAS_NUM_THREADS=1 .venv/bin/python tests/benchmarks/bench_dmp_ridge.py --seeds 0 40``
 (on a shared machine multi-threaded BLAS oversubscribes the cores and the fit times mean
@@ -42,7 +42,7 @@ def main() -> int:
     seeds = range(*args.seeds)
     for n_basis in (50, 20):
         for label, exact in (("estimated derivatives", False), ("exact derivatives", True)):
-            errors = {0.0: [], "gcv": []}
+            errors = {0.0: [], "gcv": [], "auto": []}
             for seed in seeds:
                 t, x, xd, xdd = noisy_sparse_minimum_jerk(seed)
                 known = {"xd": xd, "xdd": xdd} if exact else {}
@@ -57,6 +57,7 @@ def main() -> int:
                 )
 
     worst = {"position [m]": 0.0, "quaternion": 0.0, "fingers": 0.0}
+    same = dict.fromkeys(worst, True)
     for d in synthetic_demonstrations().values():
         for mode in ("component", "manifold"):
             for n_basis in (30, 50):
@@ -65,20 +66,23 @@ def main() -> int:
                         d.t, d.position, d.orientation, d.fingers,
                         orientation_mode=mode, n_basis=n_basis, ridge=ridge,
                     )
-                    for ridge in (0.0, "gcv")
+                    for ridge in (0.0, "gcv", "auto")
                 ]  # fmt: skip
                 parts = [
                     (r.position.rollout().x, r.orientation.rollout()[1], r.fingers.rollout().x)
                     for r in runs
                 ]
-                for key, a, b in zip(worst, *parts, strict=True):
+                for key, a, b in zip(worst, *parts[:2], strict=True):
                     worst[key] = max(worst[key], float(np.abs(a - b).max()))
+                for key, a, b in zip(same, parts[0], parts[2], strict=True):
+                    same[key] = same[key] and bool(np.array_equal(a, b))
     print("arm library demonstrations, max change 0 -> gcv:", worst)
+    print("arm library demonstrations, auto (the default) identical to 0:", same)
 
     t = np.linspace(0.0, 2.0, 5001)
     x = minimum_jerk(np.zeros(3), np.array([1.0, -0.5, 0.2]), 2.0, t)[0]
     learn_dmp(t, x)  # warm up
-    times = {0.0: [], "gcv": []}
+    times = {0.0: [], "gcv": [], "auto": []}
     for _ in range(args.repeats):  # interleaved: the machine is shared
         for ridge, out in times.items():
             t0 = time.perf_counter()

@@ -265,9 +265,9 @@ def kernel_half_widths(t: np.ndarray, bandwidth: float, order: int) -> np.ndarra
     """Per-sample half-widths: ``bandwidth``, widened to hold ``order + 2`` samples.
 
     Each sample's window reaches at least 1.2x as far as the ``order + 2`` consecutive
-    samples around it (shifted inwards at the ends), so every local fit has more distinct
-    stamps than coefficients, all with a positive tricube weight, however the stamps
-    cluster or leave gaps.
+    samples around it (shifted inwards at the ends; all N if fewer), so every local fit has
+    more distinct stamps than coefficients (as many on a demonstration of order + 1
+    samples), all with a positive tricube weight, however the stamps cluster or leave gaps.
     """
     n = t.size
     m = min(order + 2, n)
@@ -300,8 +300,8 @@ def _kernel_batches(t: np.ndarray, b: np.ndarray, centres: np.ndarray) -> list[n
 
 
 def _kernel_order(n: int, order: int) -> int:
-    """The local order: ``order``, lowered to N - 2 so a window can hold order + 2 samples."""
-    return max(1, min(order, n - 2))
+    """The local order: ``order``, lowered to N - 1 for demonstrations of N <= order samples."""
+    return max(1, min(order, n - 1))
 
 
 def kernel_polynomial_fit(
@@ -322,11 +322,15 @@ def kernel_polynomial_fit(
         x: Samples, shape (N, n).
         bandwidth: Half-width of the windows [s] (widened per sample, see above).
         ridge: Ridge weight relative to each window's kernel mass, >= 0.
-        order: Polynomial order (lowered to N - 2 for tiny demonstrations).
+        order: Polynomial order (lowered to N - 1 for tiny demonstrations).
 
     Returns:
         ``(smooth, xd, xdd)``: the fitted values and first and second derivatives.
     """
+    if not (np.isfinite(bandwidth) and bandwidth > 0.0):
+        raise RepertoireError(f"bandwidth must be a finite number > 0 [s], got {bandwidth!r}")
+    if not (np.isfinite(ridge) and ridge >= 0.0):
+        raise RepertoireError(f"ridge must be a finite number >= 0, got {ridge!r}")
     order = _kernel_order(t.size, order)
     p = order + 1
     b = kernel_half_widths(t, bandwidth, order)
@@ -446,6 +450,9 @@ def kernel_polynomial_derivatives(
     Returns:
         ``(xd, xdd)``, each of shape (N, n).
     """
+    for ridge in ridges:
+        if not (np.isfinite(ridge) and ridge > 0.0):
+            raise RepertoireError(f"ridges must be finite numbers > 0, got {ridge!r}")
     bandwidths = local_bandwidths(t)
     scale = _gcv_scale(x)
     floor = _gcv_floor(x / scale)

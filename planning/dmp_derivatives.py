@@ -338,15 +338,16 @@ def kernel_polynomial_fit(
     smooth, xd, xdd = np.empty_like(x), np.empty_like(x), np.empty_like(x)
     for rows in _kernel_batches(t, b, np.arange(t.size)):
         idx, u, K = _kernel_windows(t, b, rows)
-        S, T = _kernel_moments(u, K, x[idx], p)
+        KV = _kernel_powers(u, K, p)
+        S, KVt = KV.sum(axis=1), np.swapaxes(KV[..., :p], 1, 2)
         A = S[:, _hankel(p)] + S[:, :1, None] * np.diag(penalty)
-        coef = np.linalg.solve(A, T)  # (r, p, n_dims)
+        coef = np.linalg.solve(A, KVt @ x[idx])  # (r, p, n_dims)
         # one step of iterative refinement: the residual of the weighted fit, re-solved
         fitted = coef[:, None, p - 1]  # Horner: the fitted polynomials on the windows
         for k in range(p - 2, -1, -1):
             fitted = fitted * u[..., None] + coef[:, None, k]
         r = x[idx] - fitted
-        correction = _kernel_moments(u, K, r, p)[1] - S[:, :1, None] * penalty[:, None] * coef
+        correction = KVt @ r - S[:, :1, None] * penalty[:, None] * coef
         coef = coef + np.linalg.solve(A, correction)
         h = b[rows, None]
         smooth[rows], xd[rows], xdd[rows] = coef[:, 0], coef[:, 1] / h, 2.0 * coef[:, 2] / h**2
@@ -358,15 +359,17 @@ def _hankel(p: int) -> np.ndarray:
     return np.add.outer(np.arange(p), np.arange(p))
 
 
-def _kernel_moments(
-    u: np.ndarray, K: np.ndarray, y: np.ndarray, p: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """Kernel-weighted power sums ``S_j = sum K u^j`` (j < 2p - 1), ``T_k = sum K u^k y``."""
+def _kernel_powers(u: np.ndarray, K: np.ndarray, p: int) -> np.ndarray:
+    """Kernel-weighted powers ``K u^j``, j < 2p - 1, shape u.shape + (2p - 1,).
+
+    Summed over a window they give the Gram matrix's entries (``sum K u^(j+k)``); their
+    first p against samples ``y`` give the normal equations' right side.
+    """
     KV = np.empty(u.shape + (2 * p - 1,))
     KV[..., 0] = K
     for j in range(1, 2 * p - 1):
         KV[..., j] = KV[..., j - 1] * u
-    return KV.sum(axis=1), np.swapaxes(KV[..., :p], 1, 2) @ y
+    return KV
 
 
 def kernel_gcv_scores(
@@ -399,7 +402,8 @@ def kernel_gcv_scores(
         trace = np.zeros(len(ridges))
         for rows in _kernel_batches(t, b, centres):
             idx, u, K = _kernel_windows(t, b, rows)
-            S, T = _kernel_moments(u, K, x[idx], p)
+            KV = _kernel_powers(u, K, p)
+            S, T = KV.sum(axis=1), np.swapaxes(KV[..., :p], 1, 2) @ x[idx]
             G = S[:, _hankel(p)]
             for q, ridge in enumerate(ridges):
                 e0 = np.zeros((len(rows), p, 1))

@@ -2,7 +2,8 @@
 
 Savitzky-Golay filters of order 5 on uniform time stamps, with the window chosen by
 generalised cross-validation when the data are noisy and the exact small window when they
-are clean; a local polynomial on non-uniform stamps; a smoothing spline. Used by the
+are clean; kernel-weighted, ridged local polynomials with windows in time on non-uniform
+stamps (half-width and ridge by generalised cross-validation); a smoothing spline. Used by the
 learning in :mod:`repertoire.planning.dmp_learn`.
 """
 
@@ -28,8 +29,12 @@ def estimate_derivatives(
 
     ``"savgol"`` (uniform time stamps): Savitzky-Golay filter of polynomial order 5 (exact
     for minimum-jerk segments), edge samples from a polynomial fit of the edge window.
-    ``"local_poly"`` (any time stamps): the same idea on non-uniform stamps, a least-squares
-    polynomial of order 5 fitted to the ``window`` nearest samples around each sample.
+    ``"local_poly"`` (any time stamps): local polynomials of order 5 on non-uniform stamps;
+    by default tricube-weighted with windows in time and a small ridge on the cubic and
+    higher coefficients, the half-width and ridge chosen by generalised cross-validation
+    (kernel_polynomial_derivatives: clustered stamps and gaps cannot blow the fit up, and
+    clean data keep no ridge, exact for minimum-jerk segments); with ``window``, a plain
+    least-squares fit to the ``window`` nearest samples (local_polynomial_derivatives).
     ``"spline"`` (any time stamps): a smoothing spline (``scipy`` ``make_smoothing_spline``;
     ``smoothing`` is its lambda, None = generalised cross-validation, which can over-smooth
     noise-free data) differentiated analytically. ``"auto"`` picks savgol when the stamps
@@ -42,7 +47,7 @@ def estimate_derivatives(
         window: Savitzky-Golay / local-polynomial window (odd). Default: savgol chooses it
             by generalised cross-validation (see gcv_savgol_window), so noisy
             demonstrations are smoothed and clean ones keep about N/40 (>= 7);
-            local_poly chooses it likewise.
+            local_poly chooses a window in time instead (see above).
         smoothing: Smoothing-spline lambda (``"spline"`` only; given with another method it
             is refused rather than ignored, as is a ``window`` with ``"spline"``).
     """
@@ -83,6 +88,8 @@ def estimate_derivatives(
         order = min(5, w - 1)
         return savgol_derivatives(x, w, order, h)
     if method == "local_poly":
+        if window is None:
+            return kernel_polynomial_derivatives(t, x)
         return local_polynomial_derivatives(t, x, window)
     if method == "spline":
         if smoothing is not None and not (np.isfinite(smoothing) and smoothing >= 0):
@@ -148,18 +155,10 @@ def savgol_operators(w: int, order: int, h: float) -> tuple[np.ndarray, ...]:
 def _gcv_window(x: np.ndarray, max_w: int, smoother) -> int:
     """The window whose smoother ``smoother(x, w) -> (S_w x, tr(S_w))`` minimises GCV.
 
-    Candidates grow geometrically (x1.5) from ``max(7, 2 (N // 80) + 1)`` to about N / 4.
-    For each, ``GCV(w) = RSS / (1 - tr(S_w) / N)^2`` (summed over DOF); the smallest window
-    within 1e-6 of the minimum (or of a round-off floor) wins, so noise-free
-    demonstrations keep the smallest window and stay exact for minimum-jerk segments, and
-    noisy ones get the window that averages the noise out.
+    Candidates grow geometrically (x1.5) from ``max(7, 2 (N // 80) + 1)`` to about N / 4,
+    scored by :func:`gcv_choice`.
     """
     n = x.shape[0]
-    # GCV's argmin does not change with the data's scale; scaling keeps huge
-    # coordinates from overflowing the residual sums.
-    scale = float(np.max(np.abs(x))) if x.size else 0.0
-    if scale > 0.0 and np.isfinite(scale):
-        x = x / scale
     w = min(max(7, 2 * (n // 80) + 1), max_w)
     candidates = [w]
     while True:
@@ -167,14 +166,54 @@ def _gcv_window(x: np.ndarray, max_w: int, smoother) -> int:
         if nxt > min(max_w, n // 4):
             break
         candidates.append(nxt)
+    return gcv_choice(x, candidates, smoother)[0]
+
+
+def gcv_choice(x: np.ndarray, candidates: list, smoother) -> tuple[object, list[float]]:
+    """The candidate whose linear smoother minimises generalised cross-validation.
+
+    ``smoother(x, c) -> (S_c x, tr(S_c))``; ``GCV(c) = RSS / (1 - tr(S_c) / N)^2`` (summed
+    over DOF). The first candidate within 1e-6 of the minimum (or of a round-off floor)
+    wins, so list the smoothest-for-clean-data candidate first: noise-free demonstrations
+    keep it (exact for minimum-jerk segments) and noisy ones get the candidate that
+    averages the noise out. Scoring stops at the first candidate on the floor (no later
+    one could be chosen).
+
+    Returns:
+        The chosen candidate and the scores computed (in candidate order).
+    """
+    n = x.shape[0]
+    x = x / _gcv_scale(x)
+    floor = _gcv_floor(x)
     scores = []
-    for w in candidates:
-        smooth, trace = smoother(x, w)
+    for c in candidates:
+        smooth, trace = smoother(x, c)
         rss = float(np.sum((smooth - x) ** 2))
         scores.append(rss / max(1.0 - trace / n, 1e-12) ** 2)
-    floor = x.size * (1e-10 * max(1.0, float(np.max(np.abs(x))))) ** 2
-    best = max(min(scores), floor) * (1.0 + 1e-6)
-    return next(w for w, g in zip(candidates, scores, strict=True) if g <= best)
+        if scores[-1] <= floor:
+            break
+    return candidates[_first_near_minimum(np.array(scores), floor)], scores
+
+
+def _gcv_scale(x: np.ndarray) -> float:
+    """The largest magnitude of ``x`` (1 if none): the scale GCV divides by.
+
+    GCV's argmin does not change with the data's scale; scaling keeps huge coordinates
+    from overflowing the residual sums.
+    """
+    scale = float(np.max(np.abs(x))) if x.size else 0.0
+    return scale if scale > 0.0 and np.isfinite(scale) else 1.0
+
+
+def _gcv_floor(x: np.ndarray) -> float:
+    """Round-off floor of a GCV score of (scaled) samples ``x``, with GCV's 1e-6 slack."""
+    return x.size * (1e-10 * max(1.0, float(np.max(np.abs(x))))) ** 2 * (1.0 + 1e-6)
+
+
+def _first_near_minimum(scores: np.ndarray, floor: float) -> int:
+    """Index of the first score within 1e-6 of the minimum, or on the round-off floor."""
+    best = max(float(np.min(scores)), floor / (1.0 + 1e-6)) * (1.0 + 1e-6)
+    return int(np.flatnonzero(scores <= best)[0])
 
 
 def gcv_savgol_window(x: np.ndarray, h: float, max_w: int) -> int:
@@ -209,6 +248,226 @@ def savgol_derivatives(
     return xd, xdd
 
 
+LOCAL_RIDGES = (1e-4, 1e-3, 1e-2)
+"""Ridge weights (relative to each local fit's kernel mass) tried by local_poly's GCV on
+data that a local polynomial does not fit to round-off."""
+
+_CELLS = 1 << 17  # (samples x window) entries per batch of kernel fits: bounds memory
+_GCV_CENTRES = 1024  # samples that kernel_gcv_scores evaluates at most
+
+
+def tricube(u: np.ndarray) -> np.ndarray:
+    """Tricube kernel ``(1 - |u|^3)^3`` on ``|u| < 1``, 0 outside."""
+    return np.clip(1.0 - np.abs(u) ** 3, 0.0, None) ** 3
+
+
+def kernel_half_widths(t: np.ndarray, bandwidth: float, order: int) -> np.ndarray:
+    """Per-sample half-widths: ``bandwidth``, widened to hold ``order + 2`` samples.
+
+    Each sample's window reaches at least 1.2x as far as the ``order + 2`` consecutive
+    samples around it (shifted inwards at the ends; all N if fewer), so every local fit has
+    more distinct stamps than coefficients (as many on a demonstration of order + 1
+    samples), all with a positive tricube weight, however the stamps cluster or leave gaps.
+    """
+    n = t.size
+    m = min(order + 2, n)
+    i = np.arange(n)
+    start = np.clip(i - m // 2, 0, n - m)
+    reach = np.maximum(t - t[start], t[start + m - 1] - t)
+    return np.maximum(float(bandwidth), 1.2 * reach)
+
+
+def _kernel_windows(t: np.ndarray, b: np.ndarray, rows: np.ndarray):
+    """Index windows ``(idx, u, K)`` (r, m) of the samples ``rows``.
+
+    The window's samples, their scaled stamps ``(t_j - t_i) / b_i`` and tricube weights
+    (0 on padding).
+    """
+    lo = np.searchsorted(t, t[rows] - b[rows], side="left")
+    hi = np.searchsorted(t, t[rows] + b[rows], side="right")
+    idx = lo[:, None] + np.arange(int((hi - lo).max()))
+    inside = idx < hi[:, None]
+    idx = np.minimum(idx, t.size - 1)
+    u = (t[idx] - t[rows, None]) / b[rows, None]
+    return idx, u, np.where(inside, tricube(u), 0.0)
+
+
+def _kernel_batches(t: np.ndarray, b: np.ndarray, centres: np.ndarray) -> list[np.ndarray]:
+    """The sample indices ``centres`` in batches of about _CELLS (samples x window) entries."""
+    width = int((np.searchsorted(t, t + b, side="right") - np.searchsorted(t, t - b)).max())
+    step = max(1, _CELLS // width)
+    return [centres[s : s + step] for s in range(0, centres.size, step)]
+
+
+def _kernel_order(n: int, order: int) -> int:
+    """The local order: ``order``, lowered to N - 1 for demonstrations of N <= order samples."""
+    return max(1, min(order, n - 1))
+
+
+def kernel_polynomial_fit(
+    t: np.ndarray, x: np.ndarray, bandwidth: float, ridge: float = 0.0, *, order: int = 5
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tricube-weighted local polynomials with a window in time, ridged on high orders.
+
+    At each sample ``t_i``, with ``u = (t - t_i) / b_i`` (``b_i`` from kernel_half_widths),
+    the coefficients ``c`` minimise ``sum_j K(u_j) (sum_k c_k u_j^k - x_j)^2 + ridge *
+    sum_j K(u_j) * sum_{k >= 3} c_k^2`` (Seifert & Gasser 1996: a ridge keeps the local
+    fit's variance finite where clustered stamps or a gap leave it one-sided; it shrinks
+    towards a local quadratic, so the second derivative survives). ``ridge = 0`` is exact
+    for polynomials of degree <= ``order``. Solved by the normal equations on kernel-weighted
+    power sums (in the scaled ``u``) with one step of iterative refinement.
+
+    Args:
+        t: Time stamps, strictly increasing, shape (N,).
+        x: Samples, shape (N, n).
+        bandwidth: Half-width of the windows [s] (widened per sample, see above).
+        ridge: Ridge weight relative to each window's kernel mass, >= 0.
+        order: Polynomial order (lowered to N - 1 for tiny demonstrations).
+
+    Returns:
+        ``(smooth, xd, xdd)``: the fitted values and first and second derivatives.
+    """
+    if not (np.isfinite(bandwidth) and bandwidth > 0.0):
+        raise RepertoireError(f"bandwidth must be a finite number > 0 [s], got {bandwidth!r}")
+    if not (np.isfinite(ridge) and ridge >= 0.0):
+        raise RepertoireError(f"ridge must be a finite number >= 0, got {ridge!r}")
+    order = _kernel_order(t.size, order)
+    p = order + 1
+    b = kernel_half_widths(t, bandwidth, order)
+    penalty = ridge * (np.arange(p) >= 3)
+    smooth, xd, xdd = np.empty_like(x), np.empty_like(x), np.empty_like(x)
+    for rows in _kernel_batches(t, b, np.arange(t.size)):
+        idx, u, K = _kernel_windows(t, b, rows)
+        KV = _kernel_powers(u, K, p)
+        S, KVt = KV.sum(axis=1), np.swapaxes(KV[..., :p], 1, 2)
+        A = S[:, _hankel(p)] + S[:, :1, None] * np.diag(penalty)
+        coef = np.linalg.solve(A, KVt @ x[idx])  # (r, p, n_dims)
+        # one step of iterative refinement: the residual of the weighted fit, re-solved
+        fitted = coef[:, None, p - 1]  # Horner: the fitted polynomials on the windows
+        for k in range(p - 2, -1, -1):
+            fitted = fitted * u[..., None] + coef[:, None, k]
+        r = x[idx] - fitted
+        correction = KVt @ r - S[:, :1, None] * penalty[:, None] * coef
+        coef = coef + np.linalg.solve(A, correction)
+        h = b[rows, None]
+        smooth[rows], xd[rows], xdd[rows] = coef[:, 0], coef[:, 1] / h, 2.0 * coef[:, 2] / h**2
+    return smooth, xd, xdd
+
+
+def _hankel(p: int) -> np.ndarray:
+    """Index matrix ``j + k`` that builds a Gram matrix from power sums."""
+    return np.add.outer(np.arange(p), np.arange(p))
+
+
+def _kernel_powers(u: np.ndarray, K: np.ndarray, p: int) -> np.ndarray:
+    """Kernel-weighted powers ``K u^j``, j < 2p - 1, shape u.shape + (2p - 1,).
+
+    Summed over a window they give the Gram matrix's entries (``sum K u^(j+k)``); their
+    first p against samples ``y`` give the normal equations' right side.
+    """
+    KV = np.empty(u.shape + (2 * p - 1,))
+    KV[..., 0] = K
+    for j in range(1, 2 * p - 1):
+        KV[..., j] = KV[..., j - 1] * u
+    return KV
+
+
+def kernel_gcv_scores(
+    t: np.ndarray,
+    x: np.ndarray,
+    bandwidths: list[float],
+    ridges: tuple[float, ...] = LOCAL_RIDGES,
+    *,
+    order: int = 5,
+) -> np.ndarray:
+    """GCV scores of kernel_polynomial_fit, shape (len(ridges), len(bandwidths)).
+
+    ``GCV = RSS / (1 - tr(S) / N)^2`` summed over DOF, on ``x`` scaled by its largest
+    magnitude (as gcv_choice). The smoother's values and diagonal come from the normal
+    equations on kernel-weighted power sums, shared by all ridges of one bandwidth. Above
+    _GCV_CENTRES samples, RSS and tr(S) are estimated from that many evenly indexed samples
+    (``N / c`` times their sums; every fit still uses all samples in its window), so the
+    scan costs O(c x window) instead of O(N x window).
+    """
+    n = t.size
+    order = _kernel_order(n, order)
+    p = order + 1
+    x = x / _gcv_scale(x)
+    penalty = np.diag((np.arange(p) >= 3).astype(float))
+    scores = np.empty((len(ridges), len(bandwidths)))
+    centres = np.unique(np.round(np.linspace(0, n - 1, min(n, _GCV_CENTRES))).astype(int))
+    for k, bandwidth in enumerate(bandwidths):
+        b = kernel_half_widths(t, bandwidth, order)
+        smooth = np.zeros((len(ridges), n, x.shape[1]))
+        trace = np.zeros(len(ridges))
+        for rows in _kernel_batches(t, b, centres):
+            idx, u, K = _kernel_windows(t, b, rows)
+            KV = _kernel_powers(u, K, p)
+            S, T = KV.sum(axis=1), np.swapaxes(KV[..., :p], 1, 2) @ x[idx]
+            G = S[:, _hankel(p)]
+            for q, ridge in enumerate(ridges):
+                e0 = np.zeros((len(rows), p, 1))
+                e0[:, 0] = 1.0
+                z = np.linalg.solve(G + ridge * S[:, :1, None] * penalty, e0)[..., 0]
+                smooth[q, rows] = np.einsum("rk,rkd->rd", z, T)
+                trace[q] += float(z[:, 0].sum())  # K(0) (G^-1)_00: the sample's own weight
+        rss = np.sum((smooth[:, centres] - x[centres]) ** 2, axis=(1, 2)) * n / centres.size
+        scores[:, k] = rss / np.maximum(1.0 - trace / centres.size, 1e-12) ** 2
+    return scores
+
+
+def local_bandwidths(t: np.ndarray, order: int = 5) -> list[float]:
+    """local_poly's candidate half-widths [s], smallest first.
+
+    x1.3 steps to a quarter of the duration (windows of half the demonstration) from the
+    reach of ``order + 2`` evenly spaced samples (3.6 mean spacings for order 5) or, if
+    longer, 1/80 of the duration (as savgol's smallest window holds about N/40 samples:
+    on dense clean data a window of a few samples loses digits to round-off).
+    """
+    span = float(t[-1] - t[0])
+    b = max(1.2 * (min(order + 2, t.size) // 2) * span / (t.size - 1), span / 80.0)
+    out = [b]
+    while out[-1] * 1.3 <= span / 4.0:
+        out.append(out[-1] * 1.3)
+    return out
+
+
+def kernel_polynomial_derivatives(
+    t: np.ndarray, x: np.ndarray, *, ridges: tuple[float, ...] = LOCAL_RIDGES
+) -> tuple[np.ndarray, np.ndarray]:
+    """local_poly's default: kernel_polynomial_fit with (ridge, bandwidth) chosen by GCV.
+
+    Data that the unridged fit with the narrowest window reproduces to round-off (residual
+    sum of squares on GCV's floor, see gcv_choice) keep that fit: exact for minimum-jerk
+    segments. Otherwise every ridge in ``ridges`` with every half-width of
+    local_bandwidths is scored by kernel_gcv_scores and the first within 1e-6 of the
+    smallest score wins. Noisy data always keep a ridge: without one, the one-sided fits
+    at the ends of a demonstration whose first samples leave a gap are unbounded (101
+    random stamps, 2 mm noise: a second-derivative error of 108 at the first sample
+    against an amplitude of 1.44).
+
+    Args:
+        t: Time stamps, strictly increasing, shape (N,).
+        x: Samples, shape (N, n).
+        ridges: Ridge weights tried on noisy data (see kernel_polynomial_fit), > 0.
+
+    Returns:
+        ``(xd, xdd)``, each of shape (N, n).
+    """
+    for ridge in ridges:
+        if not (np.isfinite(ridge) and ridge > 0.0):
+            raise RepertoireError(f"ridges must be finite numbers > 0, got {ridge!r}")
+    bandwidths = local_bandwidths(t)
+    scale = _gcv_scale(x)
+    floor = _gcv_floor(x / scale)
+    smooth, xd, xdd = kernel_polynomial_fit(t, x, bandwidths[0], 0.0)
+    if np.sum(((smooth - x) / scale) ** 2) <= floor:
+        return xd, xdd
+    scores = kernel_gcv_scores(t, x, bandwidths, ridges)
+    q, k = divmod(_first_near_minimum(scores.ravel(), floor), len(bandwidths))
+    return kernel_polynomial_fit(t, x, bandwidths[k], ridges[q])[1:]
+
+
 _ROWS = 256  # samples per batch of local fits: bounds the (rows, w, order+1) designs
 
 
@@ -236,41 +495,22 @@ def _local_polynomial_design(
 
 
 def local_polynomial_derivatives(
-    t: np.ndarray, x: np.ndarray, window: int | None
+    t: np.ndarray, x: np.ndarray, window: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Savitzky-Golay on non-uniform stamps: per-sample least-squares polynomial fits.
+    """Savitzky-Golay on non-uniform stamps: least-squares polynomials on ``window`` samples.
 
-    Without ``window`` it is chosen by generalised cross-validation (as for savgol): a
-    clean demonstration keeps about N/40 (>= 7) samples, a noisy one a wider window.
+    Per sample, order ``min(5, window - 1)`` fitted to a fixed count of samples around it.
+
+    local_poly's estimator when a ``window`` is given; without one, local_poly uses
+    kernel_polynomial_derivatives (windows in time), since a window counted in samples
+    spans very different times on clustered stamps: on 101 random stamps with 2 mm noise
+    two samples 0.2 ms apart beside an 88 ms gap gave a second-derivative error of 857
+    against an amplitude of 1.44.
     """
     n = t.size
     max_w = n if n % 2 else n - 1
     batches = [slice(k, min(k + _ROWS, n)) for k in range(0, n, _ROWS)]
-
-    def smoother(x: np.ndarray, w: int) -> tuple[np.ndarray, float]:
-        # value at t_i = first row of (V^T V)^-1 V^T: only that row is needed (cheap)
-        smooth, trace = np.empty_like(x), 0.0
-        for rows in batches:
-            idx, V, _ = _local_polynomial_design(t, w, rows)
-            p = V.shape[2]
-            # Gram matrices from the power sums sum_w u^m, m = 0 .. 2 order
-            u = V[..., 1] if p > 1 else np.zeros(V.shape[:2])
-            sums = [np.full(len(idx), float(w))]
-            power = V[..., -1].copy()
-            for m in range(1, 2 * p - 1):
-                sums.append((V[..., m] if m < p else (power := power * u)).sum(axis=1))
-            S = np.stack(sums, axis=1)
-            G = S[:, np.add.outer(np.arange(p), np.arange(p))]
-            e0 = np.zeros((len(idx), p, 1))
-            e0[:, 0] = 1.0
-            row0 = (V @ np.linalg.solve(G, e0))[..., 0]  # (r, w): S's rows on their windows
-            smooth[rows] = np.einsum("iw,iwd->id", row0, x[idx])
-            r = np.arange(row0.shape[0])
-            trace += float(np.sum(row0[r, np.arange(n)[rows] - idx[:, 0]]))
-        return smooth, trace
-
-    w = window if window is not None else _gcv_window(x, max_w, smoother)
-    w = min(w, max_w)
+    w = min(window, max_w)
     if w % 2 == 0 or w < 3:
         raise RepertoireError(f"local-polynomial window must be odd and >= 3, got {w}")
     xd, xdd = np.empty_like(x), np.empty_like(x)

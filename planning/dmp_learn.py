@@ -428,8 +428,11 @@ def learn_dmp(
             by generalised cross-validation, or ``"auto"`` (the default: 0 unless the data
             leave the weights undetermined, then ``"gcv"``; see :func:`fit_forcing_weights`).
         overlap: Basis-function overlap at neighbouring centres.
-        derivatives: ``"auto"``, ``"savgol"`` or ``"spline"`` (see estimate_derivatives).
-        window: Savitzky-Golay window.
+        derivatives: ``"auto"``, ``"savgol"``, ``"local_poly"`` or ``"spline"`` (see
+            estimate_derivatives; ``"auto"`` is savgol on uniform stamps, local_poly
+            otherwise).
+        window: Savitzky-Golay / local-polynomial window in samples; None chooses it by
+            GCV (local_poly then uses kernel-weighted windows in time instead).
         smoothing: Smoothing-spline lambda.
         xd: Known velocities (skip estimation), shape (N, n).
         xdd: Known accelerations, shape (N, n).

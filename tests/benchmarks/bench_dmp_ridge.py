@@ -7,13 +7,24 @@ move| on a 1 ms grid over the amplitude. Clean cases: the change in the reproduc
 trajectories of the arm library's demonstrations (component and manifold quaternions, 30
 and 50 basis functions; ``"auto"`` must give ridge 0's bit for bit there). Timing: median fit time of a 5001-sample 3-DOF demonstration.
 
+``--part derivatives``: the default derivative estimate on non-uniform stamps before
+(``--before``: the git revision whose planning/dmp_derivatives.py is loaded, by default the
+sample-count local polynomial) and after (this tree), same run: the second derivative's
+RMS error over the peak acceleration and the reproduction error with ridge 0 and "gcv" on
+the sparse seed sets (``--derivative-seeds``), controls (clean uniform, clean random
+stamps, 1001 random stamps with 1 mm noise, the arm library's demonstrations) and the
+estimate's time on 5001 and 10001 random stamps.
+
 Run: ``OPENBLAS_NUM_THREADS=1 .venv/bin/python tests/benchmarks/bench_dmp_ridge.py --seeds 0 40``
 (on a shared machine multi-threaded BLAS oversubscribes the cores and the fit times mean
 nothing: 210 ms instead of 12.5 ms here).
 """
 
 import argparse
+import importlib.util
+import pathlib
 import statistics
+import subprocess
 import time
 import warnings
 
@@ -27,18 +38,126 @@ def error(params, duration: float = 2.0) -> float:
     return float(np.abs(r.x - minimum_jerk(np.zeros(1), np.ones(1), duration, r.t)[0]).max())
 
 
+def random_stamps(seed: int, n: int, duration: float = 2.0) -> np.ndarray:
+    """n sorted uniform random stamps over [0, duration], ends kept (as sparse_demo)."""
+    rng = np.random.default_rng(seed)
+    return np.concatenate([[0.0], np.sort(rng.uniform(0.0, duration, n - 2)), [duration]])
+
+
+def load_before(rev: str):
+    """planning/dmp_derivatives.py at git revision ``rev``, imported as a module."""
+    root = pathlib.Path(__file__).resolve().parents[2]
+    source = subprocess.run(
+        ["git", "-C", str(root), "show", f"{rev}:planning/dmp_derivatives.py"],
+        check=True, capture_output=True, text=True,
+    ).stdout  # fmt: skip
+    spec = importlib.util.spec_from_loader("dmp_derivatives_before", loader=None)
+    module = importlib.util.module_from_spec(spec)
+    exec(compile(source, f"{rev}:planning/dmp_derivatives.py", "exec"), module.__dict__)
+    return module
+
+
+def _quantiles(values) -> str:
+    q = np.percentile(100.0 * np.asarray(values), [50, 90, 100])
+    return f"median {q[0]:.3g} %, 90th {q[1]:.3g} %, max {q[2]:.4g} %"
+
+
+def derivatives_part(args) -> None:
+    """The derivative estimate before -> after (see the module docstring)."""
+    from repertoire.planning.arm_library import synthetic_demonstrations
+    from repertoire.planning.dmp_derivatives import estimate_derivatives
+    from repertoire.planning.dmp_learn import learn_dmp
+    from repertoire.planning.dmp_math import minimum_jerk
+
+    estimators = {"before": load_before(args.before).estimate_derivatives}
+    estimators["after"] = estimate_derivatives
+    seed_sets = [tuple(args.derivative_seeds[i : i + 2]) for i in range(0, 6, 2)]
+
+    def scores(cases):
+        """cases: (t, x, xd, xdd) -> per estimator lists of acc RMS, ridge-0, gcv errors."""
+        out = {k: ([], [], []) for k in estimators}
+        for t, x, _, xdd in cases:
+            for k, estimate in estimators.items():
+                d1, d2 = estimate(t, x)
+                out[k][0].append(np.sqrt(np.mean((d2 - xdd) ** 2)) / np.abs(xdd).max())
+                for ridge, errors in ((0.0, out[k][1]), ("gcv", out[k][2])):
+                    errors.append(error(learn_dmp(t, x, xd=d1, xdd=d2, ridge=ridge)))
+        return out
+
+    def report(label, out):
+        print(label)
+        for k, (acc, r0, rg) in out.items():
+            print(f"  {k:6} xdd RMS / peak: {_quantiles(acc)}")
+            print(f"  {'':6} reproduction, ridge=0:   {_quantiles(r0)}")
+            print(f"  {'':6} reproduction, ridge=gcv: {_quantiles(rg)}")
+
+    for first, end in seed_sets:
+        cases = [sparse_demo(seed) for seed in range(first, end)]
+        report(f"sparse noisy (101 random stamps, 2 mm), seeds {first}-{end - 1}:", scores(cases))
+
+    def move(t, noise=0.0, seed=0):
+        x, xd, xdd = minimum_jerk(np.zeros(1), np.ones(1), 2.0, t)
+        return t, x + np.random.default_rng(seed).normal(scale=noise, size=x.shape), xd, xdd
+
+    controls = {
+        "clean uniform, 101 and 1001 stamps": [move(np.linspace(0, 2, n)) for n in (101, 1001)],
+        "clean random stamps, 101 and 1001, seeds 0-9": [
+            move(random_stamps(seed, n)) for n in (101, 1001) for seed in range(10)
+        ],
+        "1001 random stamps, 1 mm noise, seeds 0-9": [
+            move(random_stamps(seed, 1001), 1e-3, seed) for seed in range(10)
+        ],
+    }
+    for label, cases in controls.items():
+        report(label + ":", scores(cases))
+    change = 0.0
+    for d in synthetic_demonstrations().values():
+        for part in (d.position, d.orientation, d.fingers):
+            if part.shape[1]:
+                a = estimators["before"](d.t, part)[1]
+                b = estimators["after"](d.t, part)[1]
+                change = max(change, float(np.abs(a - b).max()))
+    print(f"arm library demonstrations: max change of the second derivative {change:.3g}")
+
+    for n in (5001, 10001):
+        t = random_stamps(1, n)
+        clean = minimum_jerk(np.zeros(3), np.array([1.0, -0.5, 0.2]), 2.0, t)[0]
+        noisy = clean + np.random.default_rng(2).normal(scale=1e-3, size=clean.shape)
+        for label, x in (("clean", clean), ("1 mm noise", noisy)):
+            times = {k: [] for k in estimators}
+            for _ in range(args.derivative_repeats):  # interleaved: the machine is shared
+                for k, estimate in estimators.items():
+                    t0 = time.perf_counter()
+                    estimate(t, x)
+                    times[k].append(time.perf_counter() - t0)
+            print(
+                f"derivative estimate, {n} random stamps x 3 DOF, {label}: "
+                + ", ".join(f"{k} {1e3 * statistics.median(v):.0f} ms" for k, v in times.items())
+            )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, nargs=2, default=[0, 40], metavar=("FIRST", "END"))
     parser.add_argument("--repeats", type=int, default=9)
+    parser.add_argument("--part", choices=("ridge", "derivatives", "all"), default="all")
+    parser.add_argument("--before", default="47266c4", help="git revision (derivatives part)")
+    parser.add_argument(
+        "--derivative-seeds", type=int, nargs=6, default=[0, 40, 2000, 2100, 5000, 5050]
+    )
+    parser.add_argument("--derivative-repeats", type=int, default=3)
     args = parser.parse_args()
+    warnings.simplefilter("ignore")  # ridge=0 warns on every sparse demo here
+    if args.part in ("derivatives", "all"):
+        derivatives_part(args)
+    if args.part == "derivatives":
+        return 0
 
     from repertoire.planning.arm_library import synthetic_demonstrations
     from repertoire.planning.dmp_demos import noisy_sparse_minimum_jerk
     from repertoire.planning.dmp_learn import learn_dmp, learn_task_space_dmp
     from repertoire.planning.dmp_math import minimum_jerk
 
-    warnings.simplefilter("ignore")  # ridge=0 warns on every sparse demo here
     seeds = range(*args.seeds)
     for n_basis in (50, 20):
         for label, exact in (("estimated derivatives", False), ("exact derivatives", True)):

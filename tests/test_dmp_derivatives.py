@@ -1,0 +1,124 @@
+"""local_poly's default derivative estimator: tricube-weighted local polynomials with windows
+in time, a ridge on the cubic and higher coefficients, half-width and ridge chosen by GCV."""
+
+import numpy as np
+import pytest
+from repertoire.planning.dmp_derivatives import (
+    LOCAL_RIDGES,
+    estimate_derivatives,
+    kernel_gcv_scores,
+    kernel_polynomial_derivatives,
+    kernel_polynomial_fit,
+    local_bandwidths,
+)
+from repertoire.planning.dmp_math import minimum_jerk
+
+from repertoire.errors import RepertoireError
+
+
+def _clustered_stamps(seed: int = 11) -> np.ndarray:
+    """102 stamps over 2 s: jittered, a 97 ms gap, and a pair 0.2 ms apart beside it."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0, 105) + rng.uniform(-5e-3, 5e-3, 105)
+    t[0], t[-1] = 0.0, 2.0
+    t = t[(t < 0.9) | (t > 0.988)]  # the gap
+    t = np.sort(np.r_[t, t[t < 0.9][-1] - 2e-4])  # the pair beside it
+    return t
+
+
+def _quintic(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    c = np.array([0.3, -1.0, 2.0, -0.7, 0.25, -0.04])
+    p = np.polynomial.Polynomial(c)
+    return p(t)[:, None], p.deriv(1)(t)[:, None], p.deriv(2)(t)[:, None]
+
+
+def test_polynomials_are_recovered_exactly_on_clustered_stamps():
+    t = _clustered_stamps()
+    x, xd, xdd = _quintic(t)
+    for method in ("auto", "local_poly"):
+        d1, d2 = estimate_derivatives(t, x, method=method)
+        np.testing.assert_allclose(d1, xd, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(d2, xdd, rtol=0, atol=1e-7)
+    # any half-width: the unridged fit is exact for degree <= 5 ...
+    for bandwidth in (1e-3, 0.1, 0.5):
+        _, d1, d2 = kernel_polynomial_fit(t, x, bandwidth, 0.0)
+        np.testing.assert_allclose(d2, xdd, rtol=0, atol=1e-6)
+    # ... and the ridge (on coefficients of order >= 3 only) keeps quadratics exact
+    q = 0.5 - 2.0 * t + 3.0 * t**2
+    smooth, d1, d2 = kernel_polynomial_fit(t, q[:, None], 0.3, 1e-2)
+    np.testing.assert_allclose(smooth[:, 0], q, atol=1e-12)
+    np.testing.assert_allclose(d1[:, 0], -2.0 + 6.0 * t, atol=1e-10)
+    np.testing.assert_allclose(d2[:, 0], 6.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("n", [3, 4, 6, 7])
+def test_tiny_demonstrations_are_fitted_exactly_at_the_order_they_allow(n):
+    t = np.r_[0.0, np.cumsum(np.linspace(0.1, 0.3, n - 1))]
+    k = min(n - 1, 5)  # a polynomial of degree n - 1 (up to 5) through n samples
+    c = np.arange(1.0, k + 2.0) / 4.0
+    p = np.polynomial.Polynomial(c)
+    d1, d2 = estimate_derivatives(t, p(t), method="local_poly")
+    np.testing.assert_allclose(d1[:, 0], p.deriv(1)(t), atol=1e-9)
+    np.testing.assert_allclose(d2[:, 0], p.deriv(2)(t), atol=1e-8)
+
+
+def test_clustered_noisy_stamps_do_not_blow_the_second_derivative_up():
+    """A unit minimum-jerk move (peak acceleration 1.44) with 2 mm noise on the clustered
+    stamps: a window of 7 samples (the old default's smallest) puts the close pair's
+    noise into the derivatives, the time windows do not."""
+    t = _clustered_stamps()
+    x, _, xdd = minimum_jerk(np.zeros(1), np.ones(1), 2.0, t)
+    noisy = x + np.random.default_rng(0).normal(scale=2e-3, size=x.shape)
+    _, counted = estimate_derivatives(t, noisy, method="local_poly", window=7)
+    _, timed = estimate_derivatives(t, noisy)
+    assert np.abs(counted - xdd).max() > 30.0  # measured 42 (42-174 on noise seeds 0-4)
+    assert np.abs(timed - xdd).max() < 1.0  # measured 0.40 (0.40-0.93)
+    assert np.sqrt(np.mean((timed - xdd) ** 2)) < 0.3  # measured 0.14 (0.12-0.21)
+
+
+def _gcv_direct(t, x, bandwidth, ridge):
+    """GCV from its definition: the smoother matrix built column by column."""
+    n = t.size
+    S = np.column_stack([kernel_polynomial_fit(t, e[:, None], bandwidth, ridge)[0][:, 0]
+                         for e in np.eye(n)])  # fmt: skip
+    x = x / np.abs(x).max()
+    r = x - S @ x
+    return float(np.sum(r**2) / (1.0 - np.trace(S) / n) ** 2)
+
+
+def test_gcv_scores_match_the_definition_and_the_choice_minimises_them():
+    t = _clustered_stamps()[::2]  # 51 stamps
+    x, _, _ = minimum_jerk(np.zeros(2), np.array([1.0, -0.4]), 2.0, t)
+    x = x + np.random.default_rng(3).normal(scale=2e-3, size=x.shape)
+    bandwidths = local_bandwidths(t)
+    scores = kernel_gcv_scores(t, x, bandwidths)
+    want = [[_gcv_direct(t, x, b, r) for b in bandwidths] for r in LOCAL_RIDGES]
+    np.testing.assert_allclose(scores, want, rtol=1e-8)
+    q, k = np.unravel_index(np.argmin(scores), scores.shape)
+    chosen = kernel_polynomial_derivatives(t, x)
+    best = kernel_polynomial_fit(t, x, bandwidths[k], LOCAL_RIDGES[q])[1:]
+    for a, b in zip(chosen, best, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_the_bandwidth_grid_runs_from_a_few_samples_to_half_the_demonstration():
+    t = np.linspace(0.0, 2.0, 101)
+    b = local_bandwidths(t)
+    assert b[0] == pytest.approx(1.2 * 3 * 0.02)  # the reach of 7 evenly spaced samples
+    np.testing.assert_allclose(np.diff(b) / b[:-1], 0.3)
+    assert b[-1] <= 0.5 < 1.3 * b[-1]  # a quarter of the duration
+    assert local_bandwidths(np.linspace(0.0, 2.0, 10001))[0] == pytest.approx(2.0 / 80)
+
+
+def test_bad_bandwidths_and_ridges_are_named():
+    t = np.linspace(0.0, 1.0, 20)
+    x = np.sin(t)[:, None]
+    for bandwidth in (0.0, -0.1, np.nan, np.inf):
+        with pytest.raises(RepertoireError, match=f"bandwidth must be .* got {bandwidth!r}"):
+            kernel_polynomial_fit(t, x, bandwidth)
+    for ridge in (-1e-3, np.nan, np.inf):
+        with pytest.raises(RepertoireError, match=f"ridge must be .* got {ridge!r}"):
+            kernel_polynomial_fit(t, x, 0.1, ridge)
+    for ridge in (0.0, -1.0, np.nan):
+        with pytest.raises(RepertoireError, match=f"ridges must be .* > 0, got {ridge!r}"):
+            kernel_polynomial_derivatives(t, x + 1e-3 * np.cos(40 * t)[:, None], ridges=(ridge,))

@@ -5,7 +5,8 @@ with 2 mm Gaussian noise, 50 (and 20) basis functions, default derivative estima
 the move's exact derivatives given (the forcing fit judged alone). Error: max |rollout - true
 move| on a 1 ms grid over the amplitude. Clean cases: the change in the reproduced
 trajectories of the arm library's demonstrations (component and manifold quaternions, 30
-and 50 basis functions; ``"auto"`` must give ridge 0's bit for bit there). Timing: median fit time of a 5001-sample 3-DOF demonstration.
+and 50 basis functions; ``"auto"`` must give ridge 0's bit for bit there). Timing: median
+fit time of a 5001-sample 3-DOF demonstration.
 
 ``--part derivatives``: the default derivative estimate on non-uniform stamps before
 (``--before``: the git revision whose planning/dmp_derivatives.py is loaded, by default the
@@ -39,7 +40,7 @@ def error(params, duration: float = 2.0) -> float:
 
 
 def random_stamps(seed: int, n: int, duration: float = 2.0) -> np.ndarray:
-    """n sorted uniform random stamps over [0, duration], ends kept (as sparse_demo)."""
+    """n sorted uniform random stamps over [0, duration], ends kept (as the sparse demo's)."""
     rng = np.random.default_rng(seed)
     return np.concatenate([[0.0], np.sort(rng.uniform(0.0, duration, n - 2)), [duration]])
 
@@ -65,6 +66,7 @@ def _quantiles(values) -> str:
 def derivatives_part(args) -> None:
     """The derivative estimate before -> after (see the module docstring)."""
     from repertoire.planning.arm_library import synthetic_demonstrations
+    from repertoire.planning.dmp_demos import noisy_sparse_minimum_jerk
     from repertoire.planning.dmp_derivatives import estimate_derivatives
     from repertoire.planning.dmp_learn import learn_dmp
     from repertoire.planning.dmp_math import minimum_jerk
@@ -92,7 +94,7 @@ def derivatives_part(args) -> None:
             print(f"  {'':6} reproduction, ridge=gcv: {_quantiles(rg)}")
 
     for first, end in seed_sets:
-        cases = [sparse_demo(seed) for seed in range(first, end)]
+        cases = [noisy_sparse_minimum_jerk(seed) for seed in range(first, end)]
         report(f"sparse noisy (101 random stamps, 2 mm), seeds {first}-{end - 1}:", scores(cases))
 
     def move(t, noise=0.0, seed=0):

@@ -259,7 +259,7 @@ class TerrainBoard:
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
             raise RepertoireError("terrain height query needs finite x and y")
-        order = np.argsort(x, axis=None, kind="stable")
+        order = np.argsort(x, axis=None)  # ties in any order: each point on its own
         xs, ys, z = x.ravel()[order], y.ravel()[order], np.zeros(x.size)
         x0, x1 = (float(xs[0]) - 1e-9, float(xs[-1]) + 1e-9) if x.size else (np.inf, -np.inf)
         y0, y1 = ys.min(initial=np.inf) - 1e-9, ys.max(initial=-np.inf) + 1e-9

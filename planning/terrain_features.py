@@ -149,8 +149,8 @@ class Features:
 def terrain_features(board: TerrainBoard, frames) -> Features:
     """Profiles of all ``frames`` on ``board`` in one vectorised call.
 
-    Heights come from the board's exact height function. Frames are processed in
-    chunks; each chunk evaluates only the boxes whose footprint can reach it.
+    Heights come from the board's exact height function. Distinct frames are processed
+    once, sorted, in chunks; each chunk evaluates only the boxes whose footprint can reach it.
     Profiles that leave the board are reported in ``on_terrain`` (their rows NaN, not
     computed), not refused.
 
@@ -170,7 +170,6 @@ def terrain_features(board: TerrainBoard, frames) -> Features:
     offsets = profile_offsets()
     x0, x1, y0, y1 = terrain_bounds(board)
     eps = 1e-9
-    values = np.full((n, PROFILE_SIZE), np.nan)
     # The profile is a convex rectangle and the board a rectangle: the four corner
     # samples decide whether every sample is on the board.
     corners = offsets[[0, PROFILE_NX - 1, PROFILE_SIZE - PROFILE_NX, PROFILE_SIZE - 1]]
@@ -180,7 +179,8 @@ def terrain_features(board: TerrainBoard, frames) -> Features:
     on = np.all((cx >= x0 - eps) & (cx <= x1 + eps) & (cy >= y0 - eps) & (cy <= y1 + eps), axis=1)
     # Equal frames have equal profiles: each distinct one once, sorted by x (compact chunks).
     unique, inverse = np.unique(f[on], axis=0, return_inverse=True)
-    heights = np.empty((unique.shape[0], PROFILE_SIZE))
+    heights = np.empty((unique.shape[0] + 1, PROFILE_SIZE))
+    heights[-1] = np.nan  # the rows of frames off the board
     radii = [0.5 * math.hypot(b.size[0], b.size[1]) for b in board.boxes]
     chunk = max(1, _CHUNK_POINTS // PROFILE_SIZE)
     for a in range(0, unique.shape[0], chunk):
@@ -198,8 +198,10 @@ def terrain_features(board: TerrainBoard, frames) -> Features:
             and b.center[1] - r <= hi_y
         ]
         local = TerrainBoard(params=board.params, seed=board.seed, boxes=boxes)
-        heights[a : a + chunk] = local.height(px, py)
-    values[on] = heights[inverse.ravel()]
+        heights[a : a + len(fc)] = local.height(px, py)
+    index = np.full(n, unique.shape[0])
+    index[on] = inverse.ravel()
+    values = heights[index]
     mean = values.mean(axis=1)
     values -= mean[:, None]
     return Features(frames=f, values=values, mean_height=mean, on_terrain=on)

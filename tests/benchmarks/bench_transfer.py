@@ -157,18 +157,19 @@ SCENARIOS = {
 """``littledog_transfer`` scenarios (fields changed from the default) timed by ``--scenarios``."""
 
 BEFORE_CPU_S = {
-    "threshold 0.2, multiple": 27.9,
-    "multiple, rock seed 2": 22.1,
-    "default (one match)": 3.7,
-    "multiple, rock seed 7": 19.9,
-    "generated 41/42, multiple": 11.2,
-    "threshold 0.2, multiple, rock seed 9": 26.1,
+    "threshold 0.2, multiple": 21.5,
+    "multiple, rock seed 2": 22.5,
+    "default (one match)": 3.0,
+    "multiple, rock seed 7": 19.7,
+    "generated 41/42, multiple": 9.9,
+    "threshold 0.2, multiple, rock seed 9": 20.8,
 }
 """CPU s of each scenario's ``library_transfer`` before the exact speed-ups of session 27
-(main b902752: every box tested on every profile point, every frame's profile computed):
-mean of two ``--scenarios`` runs interleaved with two of the new code at load 2.0-3.0, which
-gave 12.6-16.8 / 6.9-7.3 / 1.6-1.9 / 6.6-7.4 / 6.7-6.9 / 10.1-15.2 s (numpy's BLAS threads
-count; on a busy machine they add CPU). The transferred libraries, searches and final
+(main b902752: every box tested on every profile point, every frame's profile computed),
+run with ``OPENBLAS_NUM_THREADS=1`` just before the new code (7.3 / 5.5 / 1.1 / 5.3 / 5.0 /
+6.9 s) at load 3.8. Run so to compare: numpy's BLAS threads spin on a busy machine and
+inflate CPU s (with them, two interleaved runs each at load 2-3 gave 27.9 -> 12.6-16.8 s and
+22.1 -> 6.9-7.3 s for the first two). The transferred libraries, searches and final
 libraries of these six scenarios were compared bit for bit before and after: equal."""
 
 
@@ -183,6 +184,8 @@ def scenario_section() -> None:
 
     load_library("")
     library_terrains_pca()
+    threads = os.environ.get("OPENBLAS_NUM_THREADS", "unset")
+    print(f"OPENBLAS_NUM_THREADS={threads} (the figures before: 1)")
     print("scenario | CPU s before (b902752) | CPU s now | placed (chained)")
     for name, fields in SCENARIOS.items():
         c = time.process_time()

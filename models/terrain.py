@@ -249,7 +249,8 @@ class TerrainBoard:
     def height(self, x, y) -> np.ndarray:
         """Exact terrain height z(x, y) in m (vectorised; broadcasts x and y).
 
-        The ground (outside the board and inside gaps) has height 0.
+        The ground (outside the board and inside gaps) has height 0. Each box is tested only
+        on the points (sorted by x) within its footprint's x range: exact, and fast on rocks.
 
         Args:
             x: world x coordinates (m), any shape.
@@ -258,15 +259,18 @@ class TerrainBoard:
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
             raise RepertoireError("terrain height query needs finite x and y")
-        z = np.zeros(x.shape)
-        # Boxes whose footprint's bounding rectangle misses the points' (margin 1e-9 m) add 0.
-        x0, x1 = x.min(initial=np.inf) - 1e-9, x.max(initial=-np.inf) + 1e-9
-        y0, y1 = y.min(initial=np.inf) - 1e-9, y.max(initial=-np.inf) + 1e-9
+        order = np.argsort(x, axis=None)  # ties in any order: each point on its own
+        xs, ys, z = x.ravel()[order], y.ravel()[order], np.zeros(x.size)
+        x0, x1 = (float(xs[0]) - 1e-9, float(xs[-1]) + 1e-9) if x.size else (np.inf, -np.inf)
+        y0, y1 = ys.min(initial=np.inf) - 1e-9, ys.max(initial=-np.inf) + 1e-9
         for box in self.boxes:
             b = box.footprint_bounds()
             if b[0] <= x1 and b[1] >= x0 and b[2] <= y1 and b[3] >= y0:
-                z = np.where(box.contains_xy(x, y), np.maximum(z, box.top), z)
-        return z
+                s = slice(*np.searchsorted(xs, (b[0] - 1e-9, b[1] + 1e-9)))
+                z[s] = np.where(box.contains_xy(xs[s], ys[s]), np.maximum(z[s], box.top), z[s])
+        out = np.empty(x.size)
+        out[order] = z
+        return out.reshape(x.shape)
 
     def height_grid(
         self,
@@ -701,9 +705,6 @@ def join_boards(boards: list[TerrainBoard], offsets_xy) -> TerrainBoard:
     return TerrainBoard(params=boards[0].params, seed=boards[0].seed, boxes=boxes)
 
 
-# --- Library transfer (issue 12): modified and tiled boards --------------------------------
-
-
 def replace_with_rocks(
     board: TerrainBoard,
     x_from: float,
@@ -762,10 +763,8 @@ def replace_with_rocks(
                     size=[x_from - lo, box.size[1], box.size[2]],
                 )
             kept.append(box)
-        else:
-            c, s = abs(math.cos(box.yaw)), abs(math.sin(box.yaw))
-            if box.center[0] + 0.5 * (c * box.size[0] + s * box.size[1]) < x_from:
-                kept.append(box)
+        elif box.footprint_bounds()[1] < x_from:
+            kept.append(box)
     params = dataclasses.replace(board.params, kind="mixed")
     return TerrainBoard(params=params, seed=board.seed, boxes=kept + new)
 

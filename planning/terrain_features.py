@@ -149,8 +149,8 @@ class Features:
 def terrain_features(board: TerrainBoard, frames) -> Features:
     """Profiles of all ``frames`` on ``board`` in one vectorised call.
 
-    Heights come from the board's exact height function. Frames are processed in
-    chunks; each chunk evaluates only the boxes whose footprint can reach it.
+    Heights come from the board's exact height function. Distinct frames are processed
+    once, sorted, in chunks; each chunk evaluates only the boxes whose footprint can reach it.
     Profiles that leave the board are reported in ``on_terrain`` (their rows NaN, not
     computed), not refused.
 
@@ -166,11 +166,10 @@ def terrain_features(board: TerrainBoard, frames) -> Features:
         raise TransferError(f"terrain_features needs a TerrainBoard, got {type(board).__name__}")
     f = _as_frames(frames)
     n = f.shape[0]
-    require_memory(3 * n * PROFILE_SIZE * 8, f"terrain features of {n} frames")
+    require_memory(4 * n * PROFILE_SIZE * 8, f"terrain features of {n} frames")
     offsets = profile_offsets()
     x0, x1, y0, y1 = terrain_bounds(board)
     eps = 1e-9
-    values = np.full((n, PROFILE_SIZE), np.nan)
     # The profile is a convex rectangle and the board a rectangle: the four corner
     # samples decide whether every sample is on the board.
     corners = offsets[[0, PROFILE_NX - 1, PROFILE_SIZE - PROFILE_NX, PROFILE_SIZE - 1]]
@@ -178,12 +177,14 @@ def terrain_features(board: TerrainBoard, frames) -> Features:
     cx = f[:, 0:1] + c * corners[:, 0] - s * corners[:, 1]
     cy = f[:, 1:2] + s * corners[:, 0] + c * corners[:, 1]
     on = np.all((cx >= x0 - eps) & (cx <= x1 + eps) & (cy >= y0 - eps) & (cy <= y1 + eps), axis=1)
-    rows = np.flatnonzero(on)
+    # Equal frames have equal profiles: each distinct one once, sorted by x (compact chunks).
+    unique, inverse = np.unique(f[on], axis=0, return_inverse=True)
+    heights = np.empty((unique.shape[0] + 1, PROFILE_SIZE))
+    heights[-1] = np.nan  # the rows of frames off the board
     radii = [0.5 * math.hypot(b.size[0], b.size[1]) for b in board.boxes]
     chunk = max(1, _CHUNK_POINTS // PROFILE_SIZE)
-    for a in range(0, rows.size, chunk):
-        idx = rows[a : a + chunk]
-        fc = f[idx]
+    for a in range(0, unique.shape[0], chunk):
+        fc = unique[a : a + chunk]
         c, s = np.cos(fc[:, 2:3]), np.sin(fc[:, 2:3])
         px = fc[:, 0:1] + c * offsets[:, 0] - s * offsets[:, 1]
         py = fc[:, 1:2] + s * offsets[:, 0] + c * offsets[:, 1]
@@ -197,7 +198,10 @@ def terrain_features(board: TerrainBoard, frames) -> Features:
             and b.center[1] - r <= hi_y
         ]
         local = TerrainBoard(params=board.params, seed=board.seed, boxes=boxes)
-        values[idx] = local.height(px, py)
+        heights[a : a + len(fc)] = local.height(px, py)
+    index = np.full(n, unique.shape[0])
+    index[on] = inverse.ravel()
+    values = heights[index]
     mean = values.mean(axis=1)
     values -= mean[:, None]
     return Features(frames=f, values=values, mean_height=mean, on_terrain=on)

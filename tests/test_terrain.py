@@ -279,6 +279,26 @@ def test_height_skips_only_boxes_away_from_the_query():
     assert boards[-1].height(corner, corner_y) == pytest.approx(0.06)
 
 
+def test_height_of_many_points_is_the_height_over_every_box():
+    # height() sorts the points by x and tests each box on its footprint's x range only:
+    # on a rock field's profile batch (2-D, ties in x, points exactly at each footprint's
+    # x bounds) the heights equal testing every box, bit for bit.
+    board = replace_with_rocks(generate_board(TerrainParams(kind="rocks"), seed=1), 0.0, seed=3)
+    rng = np.random.default_rng(7)
+    x0, x1, y0, y1 = board.bounds()
+    frames = rng.uniform([x0, y0, -1.0], [x1, y1, 1.0], (300, 3))
+    u, v = np.meshgrid(np.arange(29) * 0.012 - 0.168, np.arange(16) * 0.012 - 0.09)
+    c, s = np.cos(frames[:, 2:3]), np.sin(frames[:, 2:3])
+    x = frames[:, 0:1] + c * u.ravel() - s * v.ravel()
+    y = frames[:, 1:2] + s * u.ravel() + c * v.ravel()
+    x[:, :40] = np.round(x[:, :40], 2)  # many equal x
+    edges = np.array([[b.footprint_bounds()[k], b.center[1]] for b in board.boxes for k in (0, 1)])
+    n = min(len(edges), x.shape[1])
+    x[-1, :n], y[-1, :n] = edges[:n, 0], edges[:n, 1]
+    np.testing.assert_array_equal(board.height(x, y), _height_over_all_boxes(board, x, y))
+    np.testing.assert_array_equal(board.height(x.T, 0.1), _height_over_all_boxes(board, x.T, 0.1))
+
+
 @pytest.mark.parametrize(
     "params, match",
     [

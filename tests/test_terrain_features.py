@@ -73,6 +73,25 @@ def test_features_equal_height_grid_minus_mean(rough):
     assert f.on_terrain.all()
 
 
+def test_repeated_and_reordered_frames_give_the_same_profiles_exactly(rough):
+    # terrain_features computes each distinct frame once (in x order): a frame's row is the
+    # same, bit for bit, alone, repeated, or among others in any order; off-board rows NaN.
+    rng = np.random.default_rng(2)
+    frames = rng.uniform([-0.15, -0.1, -0.8], [0.15, 0.1, 0.8], (40, 3))
+    frames = np.vstack([frames, frames[::3], [[1.0, 1.0, 0.0]], frames[:1]])
+    f = terrain_features(rough, frames)
+    perm = rng.permutation(len(frames))
+    g = terrain_features(rough, frames[perm])
+    np.testing.assert_array_equal(g.values, f.values[perm])
+    np.testing.assert_array_equal(g.mean_height, f.mean_height[perm])
+    for i in (0, 5, 39, 40, len(frames) - 2):
+        one = terrain_features(rough, frames[i])
+        np.testing.assert_array_equal(one.values[0], f.values[i])
+        assert one.on_terrain[0] == f.on_terrain[i]
+    assert not f.on_terrain[-2] and np.isnan(f.values[-2]).all() and f.on_terrain.sum() > 30
+    assert np.isfinite(f.values[f.on_terrain]).all() and np.isnan(f.values[~f.on_terrain]).all()
+
+
 def test_flat_board_features_are_zero_and_off_board_reported():
     flat = generate_board(TerrainParams(kind="flat"), seed=0)
     f = terrain_features(flat, [[0.0, 0.0, 0.2], [0.29, 0.0, 0.0], [1.0, 1.0, 0.0]])

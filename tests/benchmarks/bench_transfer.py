@@ -10,7 +10,9 @@ on 2 cores. Then the whole recorded StepLibrary (``transfer_library``, the
 160-step library of the demonstrations, recorded on first use) onto the
 modified terrain (also with multiple matches and recorded chains), and the
 section-V search with gaps filled by the footstep planner's crawl model on it
-(target under 2 s), median of ``--repeats``.
+(target under 2 s), median of ``--repeats``. ``--scenarios``: only ``library_transfer``
+of six ``littledog_transfer`` scenarios, CPU s now beside the figures before session 27's
+exact speed-ups (:data:`BEFORE_CPU_S`).
 """
 
 import argparse
@@ -54,10 +56,18 @@ def main() -> None:
     parser.add_argument(
         "--search-only", action="store_true", help="only the search on the modified terrain"
     )
+    parser.add_argument(
+        "--scenarios",
+        action="store_true",
+        help="only library_transfer of the littledog_transfer scenarios (before/after figures)",
+    )
     args = parser.parse_args()
     print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores)")
     if args.search_only:
         search_section(args.repeats)
+        return
+    if args.scenarios:
+        scenario_section()
         return
     source, feet, body = source_library(args.steps, seed=0)
     t0 = time.perf_counter()
@@ -134,6 +144,55 @@ def library_section(repeats: int) -> None:
         f"{m.message}"
     )
     search_section(repeats)
+
+
+SCENARIOS = {
+    "threshold 0.2, multiple": {"threshold": 0.2, "multiple": True},
+    "multiple, rock seed 2": {"multiple": True, "rock_seed": 2},
+    "default (one match)": {},
+    "multiple, rock seed 7": {"multiple": True, "rock_seed": 7},
+    "generated 41/42, multiple": {"target": "generated", "board_seeds": [41, 42], "multiple": True},
+    "threshold 0.2, multiple, rock seed 9": {"threshold": 0.2, "multiple": True, "rock_seed": 9},
+}
+"""``littledog_transfer`` scenarios (fields changed from the default) timed by ``--scenarios``."""
+
+BEFORE_CPU_S = {
+    "threshold 0.2, multiple": 21.5,
+    "multiple, rock seed 2": 22.5,
+    "default (one match)": 3.0,
+    "multiple, rock seed 7": 19.7,
+    "generated 41/42, multiple": 9.9,
+    "threshold 0.2, multiple, rock seed 9": 20.8,
+}
+"""CPU s of each scenario's ``library_transfer`` before the exact speed-ups of session 27
+(main b902752: every box tested on every profile point, every frame's profile computed),
+run with ``OPENBLAS_NUM_THREADS=1`` just before the new code (7.3 / 5.5 / 1.1 / 5.3 / 5.0 /
+6.9 s) at load 3.8. Run so to compare: numpy's BLAS threads spin on a busy machine and
+inflate CPU s (with them, two interleaved runs each at load 2-3 gave 27.9 -> 12.6-16.8 s and
+22.1 -> 6.9-7.3 s for the first two). The transferred libraries, searches and final
+libraries of these six scenarios were compared bit for bit before and after: equal."""
+
+
+def scenario_section() -> None:
+    """CPU s of ``library_transfer`` for each of :data:`SCENARIOS` (library and PCA warm)."""
+    from repertoire.diagrams.littledog_library import load_library
+    from repertoire.diagrams.littledog_transfer import (
+        LittleDogTransferScenario,
+        library_terrains_pca,
+        library_transfer,
+    )
+
+    load_library("")
+    library_terrains_pca()
+    threads = os.environ.get("OPENBLAS_NUM_THREADS", "unset")
+    print(f"OPENBLAS_NUM_THREADS={threads} (the figures before: 1)")
+    print("scenario | CPU s before (b902752) | CPU s now | placed (chained)")
+    for name, fields in SCENARIOS.items():
+        c = time.process_time()
+        r = library_transfer(LittleDogTransferScenario(**fields))
+        cpu = time.process_time() - c
+        placed = 0 if r.library is None else len(r.library)
+        print(f"{name} | {BEFORE_CPU_S[name]:.1f} | {cpu:.1f} | {placed} ({r.chained})")
 
 
 def search_section(repeats: int) -> None:

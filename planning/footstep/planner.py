@@ -389,10 +389,9 @@ def plan_footsteps_anytime(
     searches there: on 92 12 m floors at 30 % with 1.0 M and 1.6 M expansions (about 1 s on
     the machines measured) 9 and 5 plans above 1.05 of the admissible mode's instead of 10
     and 6 (geometric means 1.0136 and 1.0046 instead of 1.0153 and 1.0078; single floors
-    moved both ways). After ARA*'s plans, a plan is added only when it
-    is cheaper than every plan before it (the split ARA* of corridor searches also adds a
-    plan as cheap with a tighter bound); its weight, bound, lattice and corridor are its own
-    search's.
+    moved both ways). After ARA*'s plans, a plan is added only when it is cheaper than every
+    plan before it (the split ARA* of corridor searches also adds a plan as cheap with a
+    tighter bound); its weight, bound, lattice and corridor are its own search's.
 
     Args:
         world, start, start_foot, goal, table, options, **kwargs: as in
@@ -539,9 +538,7 @@ def _anytime_once(
         if len(weights) > 1 and run.left() > 0.0:
             t_ara = time.perf_counter()
             box = min(ARA_SHARE * run.left() + results[0].seconds, run.left())
-            for r in _ara(model, backend, weights, budget - run.used, box):
-                t_ara += r.seconds
-                run.offer(model, r, at=t_ara, ara=True)
+            run.offer_ara(model, _ara(model, backend, weights, budget - run.used, box), t_ara)
         run.corridor(world, start, start_foot, goal, table, lattice, later, kwargs, backend,
                      corridor)  # fmt: skip
     if not (restarts and run.left() > 0.0):
@@ -551,9 +548,9 @@ def _anytime_once(
             world, start, start_foot, goal, table, _finer(opts, 1, run.left()), **kwargs
         )
         t_ara = time.perf_counter()
-        for r in _ara(fine, backend, weights, budget - run.used, run.left()):
-            t_ara += r.seconds
-            run.offer(fine, r, at=t_ara)
+        run.offer_ara(
+            fine, _ara(fine, backend, weights, budget - run.used, run.left()), t_ara, tighter=False
+        )
     for w in later:  # the first weight's plan is ARA*'s first plan already
         if run.left() <= 0.0 or run.used >= budget:
             break
@@ -616,6 +613,21 @@ class _Improving:
             r.seconds = now - self.t_last  # the fruitless searches since the last plan
             self.t_last = now
             self.found.append((model, r, width))
+
+    def offer_ara(
+        self, model: BipedStepModel, results: list[SearchResult], t_start: float,
+        tighter: bool = True,
+    ) -> None:  # fmt: skip
+        """Offer the results of one ARA* call that started at ``t_start``, in order.
+
+        The compiled ARA* returns all its results at its end: each plan's clock is rebuilt
+        from the seconds of the searches before it. ``tighter``: keep a plan as cheap with
+        a tighter bound too (``offer``'s ``ara``; ARA* on the first plan's lattice).
+        """
+        at = t_start
+        for r in results:
+            at += r.seconds
+            self.offer(model, r, at=at, ara=tighter)
 
     def corridor(
         self,

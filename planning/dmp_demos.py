@@ -22,6 +22,7 @@ from repertoire.planning.dmp_quaternion import (
     quat_multiply,
 )
 
+from repertoire.checks import check_seed, is_real, is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -61,13 +62,13 @@ def noisy_sparse_minimum_jerk(
         ``(t, x, xd, xdd)``: stamps (n,), noisy positions (n, 1), and the move's exact
         velocities and accelerations at the stamps (n, 1), without noise.
     """
-    if not (isinstance(n, (int, np.integer)) and n >= 3):
+    if not (is_whole(n) and n >= 3):
         raise RepertoireError(f"n must be an integer >= 3, got {n!r}")
-    if not (np.isfinite(duration) and duration > 0):
+    if not (is_real(duration) and np.isfinite(duration) and duration > 0):
         raise RepertoireError(f"duration must be a finite number > 0 s, got {duration!r}")
-    if not (np.isfinite(noise) and noise >= 0):
+    if not (is_real(noise) and np.isfinite(noise) and noise >= 0):
         raise RepertoireError(f"noise must be a finite number >= 0, got {noise!r}")
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(check_seed(seed))
     t = np.concatenate([[0.0], np.sort(rng.uniform(0.0, duration, n - 2)), [duration]])
     x, xd, xdd = minimum_jerk(np.zeros(1), np.ones(1), duration, t)
     return t, x + rng.normal(scale=noise, size=x.shape), xd, xdd

@@ -303,12 +303,11 @@ def fit_forcing_weights(
             generalised cross-validation (:func:`gcv_ridge`), or ``"auto"`` (the default):
             0 where every basis function rests on at least one sample
             (:func:`basis_support`) and the normal equations are regular, else ``"gcv"``.
-            With ``ridge=0`` an
-            UnderdeterminedFitWarning says when a basis function rests on less than one
-            sample. GCV counts whatever the basis functions
-            cannot fit as noise: stacked demonstrations that differ systematically are
-            shrunk towards f = 0 (three clean demos with goals 0.8-1.2: 2.8e-3 off their
-            mean with "gcv", 6e-5 with 0).
+            With ``ridge=0`` an UnderdeterminedFitWarning says when a basis function rests
+            on less than one sample. GCV counts whatever the basis functions cannot fit as
+            noise: stacked demonstrations that differ systematically are shrunk towards
+            f = 0 (three clean demos with goals 0.8-1.2: 2.8e-3 off their mean with "gcv",
+            6e-5 with 0), which is why ``"auto"`` uses it only where it must.
     """
     check_ridge(ridge)
     if ridge == 0:

@@ -194,6 +194,12 @@ def test_noisy_sparse_minimum_jerk_is_seeded_and_refuses_bad_sizes():
     again = noisy_sparse_minimum_jerk(7, n=11, duration=1.5, noise=1e-3)
     np.testing.assert_array_equal(again[0], t)  # the same stamps for the same seed
     assert 0.0 < np.abs(again[1] - x).max() < 5e-3
-    for kw, name in (({"n": 2}, "n"), ({"duration": 0.0}, "duration"), ({"noise": -1.0}, "noise")):
+    bad = (
+        ({"n": 2}, "n"), ({"n": 5.0}, "n"), ({"duration": 0.0}, "duration"),
+        ({"duration": "2"}, "duration"), ({"noise": -1.0}, "noise"), ({"noise": None}, "noise"),
+    )  # fmt: skip
+    for kw, name in bad:
         with pytest.raises(RepertoireError, match=f"{name} must be"):
             noisy_sparse_minimum_jerk(0, **kw)
+    with pytest.raises(RepertoireError, match="seed must be"):
+        noisy_sparse_minimum_jerk(-1)

@@ -47,7 +47,6 @@ Run: ``.venv/bin/python tests/benchmarks/bench_footstep.py``.
 import argparse
 import cProfile
 import io
-import json
 import os
 import pstats
 import resource
@@ -253,30 +252,9 @@ print(json.dumps(out))
 
 def _plan_before(commit: str, maps: int) -> list[list]:
     """Plan the study's maps with the planner of ``commit``, in a subprocess."""
-    import pathlib
-    import subprocess
-    import sys
-    import tempfile
+    from _before import run_before
 
-    root = pathlib.Path.cwd()  # run from the repository (a snapshot of it may run the bench)
-    with tempfile.TemporaryDirectory() as tmp:
-        src, pkg = pathlib.Path(tmp, "src"), pathlib.Path(tmp, "pkg", "repertoire")
-        src.mkdir()
-        archive = subprocess.run(
-            ["git", "-C", str(root), "archive", commit], capture_output=True, check=True
-        ).stdout
-        subprocess.run(["tar", "-x", "-C", str(src)], input=archive, check=True)
-        pkg.mkdir(parents=True)  # the package layout of pyproject's package-dir
-        for f in (src / "repertoire").iterdir():
-            (pkg / f.name).symlink_to(f)
-        for sub in ("systems", "planning", "diagrams", "studies", "models"):
-            (pkg / sub).symlink_to(src / sub)
-        env = {**os.environ, "PYTHONPATH": str(pkg.parent)}
-        out = subprocess.run(
-            [sys.executable, "-c", _BEFORE_CODE, str(maps)],
-            env=env, cwd=tmp, capture_output=True, text=True, check=True,
-        )  # fmt: skip
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return run_before(commit, _BEFORE_CODE, str(maps))
 
 
 def _bench_backends(maps: int, before: str = "") -> None:

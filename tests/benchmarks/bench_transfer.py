@@ -11,12 +11,15 @@ on 2 cores. Then the whole recorded StepLibrary (``transfer_library``, the
 modified terrain (also with multiple matches and recorded chains), and the
 section-V search with gaps filled by the footstep planner's crawl model on it
 (target under 2 s), median of ``--repeats``. ``--scenarios``: only ``library_transfer``
-of six ``littledog_transfer`` scenarios, CPU s now beside the figures before session 27's
-exact speed-ups (:data:`BEFORE_CPU_S`).
+of six ``littledog_transfer`` scenarios, CPU s of the committed tree (HEAD) against
+``--before`` (default b902752, before session 27's exact speed-ups), both run in the same
+run (commit changes first). Run with ``OPENBLAS_NUM_THREADS=1``.
 """
 
 import argparse
+import json
 import os
+import pathlib
 import time
 
 import numpy as np
@@ -59,7 +62,10 @@ def main() -> None:
     parser.add_argument(
         "--scenarios",
         action="store_true",
-        help="only library_transfer of the littledog_transfer scenarios (before/after figures)",
+        help="only library_transfer of the littledog_transfer scenarios, HEAD against --before",
+    )
+    parser.add_argument(
+        "--before", default="b902752", help="git revision of the peer (--scenarios)"
     )
     args = parser.parse_args()
     print(f"load average at start: {os.getloadavg()[0]:.1f} (2 cores)")
@@ -67,7 +73,7 @@ def main() -> None:
         search_section(args.repeats)
         return
     if args.scenarios:
-        scenario_section()
+        scenario_section(args.before)
         return
     source, feet, body = source_library(args.steps, seed=0)
     t0 = time.perf_counter()
@@ -156,43 +162,43 @@ SCENARIOS = {
 }
 """``littledog_transfer`` scenarios (fields changed from the default) timed by ``--scenarios``."""
 
-BEFORE_CPU_S = {
-    "threshold 0.2, multiple": 21.5,
-    "multiple, rock seed 2": 22.5,
-    "default (one match)": 3.0,
-    "multiple, rock seed 7": 19.7,
-    "generated 41/42, multiple": 9.9,
-    "threshold 0.2, multiple, rock seed 9": 20.8,
-}
-"""CPU s of each scenario's ``library_transfer`` before the exact speed-ups of session 27
-(main b902752: every box tested on every profile point, every frame's profile computed),
-run with ``OPENBLAS_NUM_THREADS=1`` just before the new code (7.3 / 5.5 / 1.1 / 5.3 / 5.0 /
-6.9 s) at load 3.8. Run so to compare: numpy's BLAS threads spin on a busy machine and
-inflate CPU s (with them, two interleaved runs each at load 2-3 gave 27.9 -> 12.6-16.8 s and
-22.1 -> 6.9-7.3 s for the first two). The transferred libraries, searches and final
-libraries of these six scenarios were compared bit for bit before and after: equal."""
+_SCENARIO_CODE = """
+import json, sys, time
+from repertoire.diagrams.littledog_library import load_library
+from repertoire.diagrams.littledog_transfer import (
+    LittleDogTransferScenario, library_terrains_pca, library_transfer,
+)
+load_library("")
+library_terrains_pca()
+out = {}
+for name, fields in json.loads(sys.argv[1]).items():
+    c = time.process_time()
+    r = library_transfer(LittleDogTransferScenario(**fields))
+    out[name] = [time.process_time() - c, 0 if r.library is None else len(r.library), r.chained]
+print(json.dumps(out))
+"""
 
 
-def scenario_section() -> None:
-    """CPU s of ``library_transfer`` for each of :data:`SCENARIOS` (library and PCA warm)."""
-    from repertoire.diagrams.littledog_library import load_library
-    from repertoire.diagrams.littledog_transfer import (
-        LittleDogTransferScenario,
-        library_terrains_pca,
-        library_transfer,
-    )
+def scenario_section(before: str) -> None:
+    """CPU s of ``library_transfer`` for each of :data:`SCENARIOS` (library and PCA warm).
 
-    load_library("")
-    library_terrains_pca()
+    The same program runs on this tree and, in a subprocess from the repository's root
+    (sharing its recorded step library), on the tree of ``before``: a same-run peer. It
+    checks that both place as many steps (and chains); session 27 compared the transferred
+    libraries, searches and final libraries of these six bit for bit: equal.
+    """
+    from _before import run_before
+
     threads = os.environ.get("OPENBLAS_NUM_THREADS", "unset")
-    print(f"OPENBLAS_NUM_THREADS={threads} (the figures before: 1)")
-    print("scenario | CPU s before (b902752) | CPU s now | placed (chained)")
-    for name, fields in SCENARIOS.items():
-        c = time.process_time()
-        r = library_transfer(LittleDogTransferScenario(**fields))
-        cpu = time.process_time() - c
-        placed = 0 if r.library is None else len(r.library)
-        print(f"{name} | {BEFORE_CPU_S[name]:.1f} | {cpu:.1f} | {placed} ({r.chained})")
+    print(f"OPENBLAS_NUM_THREADS={threads} (1 for CPU s: BLAS threads spin on a busy machine)")
+    root = str(pathlib.Path(__file__).resolve().parents[2])
+    old = run_before(before, _SCENARIO_CODE, json.dumps(SCENARIOS), cwd=root)
+    new = run_before("HEAD", _SCENARIO_CODE, json.dumps(SCENARIOS), cwd=root)
+    print(f"scenario | CPU s {before} | CPU s HEAD | ratio | placed (chained), the same both")
+    for name in SCENARIOS:
+        (c0, n0, k0), (c1, n1, k1) = old[name], new[name]
+        same = "" if (n0, k0) == (n1, k1) else f" DIFFERENT: {n0} ({k0}) before"
+        print(f"{name} | {c0:.1f} | {c1:.1f} | {c0 / c1:.2f}x | {n1} ({k1}){same}")
 
 
 def search_section(repeats: int) -> None:

@@ -268,6 +268,7 @@ def summarize(
 
     out["height_plan"] = _height_plan_figure(config, out_dir / "footstep_height_plan.png")
     out["cut_off"] = _cut_off_figure(config, out_dir / "footstep_cut_off.png")
+    out["anytime"] = _anytime_figure(config, out_dir / "footstep_anytime.png")
 
     # example plans: half where the 2-D planner fails and the biped steps over, half where
     # the 2-D planner has to go around what the biped steps over
@@ -381,6 +382,68 @@ def _height_plan_figure(config: FootstepStaticConfig, path: Path) -> Path:
         title=f"4 m floor, blocks 2-30 cm: {plan.status.value}, {plan.num_steps} steps "
         f"(swing clearance {100 * config.swing_clearance_m:.0f} cm)",
     )
+
+
+ANYTIME_FLOOR = 9
+"""The 12 m floor (``random_floor_scene`` seed, 30 % occupied) of :func:`_anytime_figure`."""
+ANYTIME_EXPANSIONS = 1_600_000
+"""Its anytime run's expansion budget (about 1 s on a fast machine; deterministic plans)."""
+
+
+def _anytime_figure(config: FootstepStaticConfig, path: Path) -> Path:
+    """ARA* with restarts on a 12 m floor: the first and best plans, and cost over time.
+
+    The anytime planner (:func:`~repertoire.planning.footstep.plan_footsteps_anytime`, the
+    study's table, default options but an expansion budget) against the admissible mode's
+    plan (A* with the Euclidean heuristic on 2.5 cm / 72 bins), with the 5 % band.
+    """
+    from matplotlib.figure import Figure
+    from repertoire.planning.footstep import (
+        PlannerOptions,
+        plan_footsteps,
+        plan_footsteps_anytime,
+    )
+    from repertoire.planning.footstep.plot import draw_grid, draw_plan, plan_legend_handles
+    from repertoire.planning.footstep.scenes import random_floor_scene
+
+    sc = random_floor_scene(ANYTIME_FLOOR)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, _table(config))
+    opts = PlannerOptions(time_limit=600.0, max_expansions=ANYTIME_EXPANSIONS)
+    runs = [r for r in plan_footsteps_anytime(*args, opts) if r.plan.succeeded]
+    ref = plan_footsteps(*args, PlannerOptions.admissible(time_limit=60.0, refinements=0))
+    fig = Figure(figsize=(12, 5.6), layout="constrained")
+    left, right = fig.subplots(1, 2, width_ratios=[1.1, 1])
+    draw_grid(left, sc.grid)
+    draw_plan(left, runs[-1].plan, alpha=0.9)
+    first = runs[0].plan.poses_array()
+    left.plot(first[:, 0], first[:, 1], "-", c="0.25", lw=1.2)
+    left.set_aspect("equal")
+    left.set_xlabel("x (m)")
+    left.set_ylabel("y (m)")
+    left.set_title(
+        f"floor {ANYTIME_FLOOR}: best plan {runs[-1].plan.cost:.1f} (feet), "
+        f"first {runs[0].plan.cost:.1f} (grey line)"
+    )
+    left.legend(handles=plan_legend_handles(), loc="upper left", fontsize=7)
+    marks = {0.05: "o", 0.025: "s"}
+    for r in runs:
+        res = r.plan.xy_resolution
+        right.plot(r.elapsed_s, r.plan.cost, marks.get(res, "^"), c="tab:blue", ms=7)
+        right.annotate(f"w {r.weight:g}", (r.elapsed_s, r.plan.cost), fontsize=7,
+                       xytext=(4, 4), textcoords="offset points")  # fmt: skip
+    right.step([r.elapsed_s for r in runs], [r.plan.cost for r in runs], where="post", c="tab:blue")
+    if ref.succeeded:
+        right.axhline(ref.cost, c="k", lw=1.2, label=f"admissible mode's plan {ref.cost:.1f}")
+        right.axhspan(ref.cost, 1.05 * ref.cost, color="tab:green", alpha=0.2, label="within 5 %")
+    for res, m in marks.items():
+        right.plot([], [], m, c="tab:blue", label=f"plan on {100 * res:g} cm lattice")
+    right.set_xlabel("wall time when found (s, this machine)")
+    right.set_ylabel("plan cost")
+    right.set_title(f"anytime plans, {ANYTIME_EXPANSIONS / 1e6:g} M expansions (w: weight)")
+    right.grid(alpha=0.3)
+    right.legend(fontsize=8)
+    fig.savefig(path, dpi=100)
+    return path
 
 
 def _cut_off_figure(config: FootstepStaticConfig, path: Path) -> Path:

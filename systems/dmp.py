@@ -56,6 +56,18 @@ def check_finite_goal(goal: np.ndarray) -> np.ndarray:
     return check_finite_input("goal", goal)
 
 
+def goal_input(port, context: Context, learned: np.ndarray) -> np.ndarray:
+    """The goal input's value if it is connected (or fixed), else the ``learned`` goal.
+
+    A DMP whose goal input is left unconnected reproduces its demonstration's goal (as
+    :class:`repertoire.systems.dmp_sequencer.DmpSequencer` falls back to its built goals).
+    RepertoireError if a connected goal holds NaN or inf.
+    """
+    if port.HasValue(context):
+        return check_finite_goal(port.Eval(context))
+    return learned
+
+
 def check_start_time(start_time: float) -> float:
     """``start_time`` [s] as a float; RepertoireError unless it is a finite number."""
     try:
@@ -176,9 +188,14 @@ class CanonicalSystem(Onset, LeafSystem):
 class VectorDmpPorts:
     """Port getters shared by the vector DMP LeafSystems (mixed in before LeafSystem).
 
-    The system sets ``_n``, ``_goal_port`` (None without a goal input) and the
-    ``_position_port``, ``_velocity_port`` and ``_acceleration_port`` outputs.
+    The system sets ``_n``, ``_goal_port`` (None without a goal input), ``_learned_goal``
+    (the goal an unconnected goal input stands for) and the ``_position_port``,
+    ``_velocity_port`` and ``_acceleration_port`` outputs.
     """
+
+    def _goal(self, context: Context) -> np.ndarray:
+        """The goal input, or the learned goal when it is not connected (:func:`goal_input`)."""
+        return goal_input(self._goal_port, context, self._learned_goal)
 
     def get_goal_input_port(self):
         return self._goal_port
@@ -222,7 +239,8 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
 
     Input ports:
         phase (1): theta from a CanonicalSystem.
-        goal (n): goal g (may change during the movement).
+        goal (n): goal g (may change during the movement); unconnected: the learned goal
+            ``dmp.goal``.
         coupling (n, optional): coupling term p added to ``tau v'`` (eq. 9).
         tau (1, optional): online temporal scaling, replaces the tau parameter.
 
@@ -250,6 +268,7 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         n, b = dmp.weights.shape
         self._n, self._b = n, b
         self._formulation = dmp.formulation
+        self._learned_goal = dmp.goal.copy()
         self._w = self.DeclareNumericParameter(BasicVector(dmp.weights.reshape(-1)))
         self._c = self.DeclareNumericParameter(BasicVector(dmp.centres))
         self._h = self.DeclareNumericParameter(BasicVector(dmp.widths))
@@ -314,7 +333,7 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         if context.get_time() < start:
             return np.zeros(n), np.zeros(n)
         theta = float(self._phase_port.Eval(context)[0])
-        goal = check_finite_goal(self._goal_port.Eval(context))
+        goal = self._goal(context)
         p = context.get_numeric_parameter
         W = p(self._w).value().reshape(n, self._b)
         f = forcing_term(theta, W, p(self._c).value(), p(self._h).value())
@@ -361,7 +380,7 @@ class QuaternionGoalSign(LeafSystem):
     for demonstrations turning past 180 deg.
 
     Input ports:
-        goal (4): goal orientation (w, x, y, z), unit.
+        goal (4): goal orientation (w, x, y, z), unit; unconnected: the learned goal.
 
     Output ports:
         goal (4): the same orientation with the learned goal's sign.
@@ -390,7 +409,7 @@ class QuaternionGoalSign(LeafSystem):
         context.get_mutable_numeric_parameter(self._start).SetFromVector(check_vector("q0", q0, 4))
 
     def _calc(self, context: Context, output: BasicVector) -> None:
-        goal = check_finite_goal(self._in.Eval(context))
+        goal = goal_input(self._in, context, self._learned_goal)
         start = context.get_numeric_parameter(self._start).get_value()
         output.SetFromVector(
             lift_quaternion_goal(goal, start, self._learned_goal, self._learned_q0)
@@ -467,7 +486,7 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
 
     Input ports:
         phase (1): theta.
-        goal (4): goal orientation (w, x, y, z), unit.
+        goal (4): goal orientation (w, x, y, z), unit; unconnected: the learned goal.
 
     Output ports:
         orientation (4): q.
@@ -550,7 +569,7 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
         K, D, tau = p(self._gains).value()
         theta = float(self._phase_port.Eval(context)[0])
         theta_next = theta * math.exp(-self._alpha * self._dt / tau)
-        goal = check_finite_goal(self._goal_port.Eval(context))
+        goal = goal_input(self._goal_port, context, self._learned_goal)
         if abs(float(np.linalg.norm(goal)) - 1.0) > 1e-6:
             raise RepertoireError(
                 f"goal orientation input is not a unit quaternion: |g| = {np.linalg.norm(goal)}"

@@ -9,7 +9,7 @@ Chaining (sec. III-C) is :class:`repertoire.systems.dmp_sequencer.DmpSequencer`.
 """
 
 import numpy as np
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     Demultiplexer,
@@ -28,10 +28,48 @@ from repertoire.systems.dmp import (
     QuaternionNormalizer,
     TransformationSystem,
     check_vector,
+    goal_input,
 )
 from repertoire.systems.dmp_discrete import DiscreteDmpSystem
 
 from repertoire.errors import RepertoireError
+
+
+class GoalMultiplexer(LeafSystem):
+    """A Multiplexer whose unconnected inputs stand for given values (the learned goals).
+
+    The fused 10-D DMP takes one stacked goal; this joins the parts' goal inputs into it, so
+    an unconnected part (say ``goal_fingers``) keeps its learned goal, as an unconnected
+    goal of a single DMP does (:func:`repertoire.systems.dmp.goal_input`).
+
+    Input ports:
+        goal_0 .. goal_{k-1} (the size of ``defaults[i]``): the parts' goals; unconnected:
+            ``defaults[i]``.
+
+    Output ports:
+        goal (the sizes summed): the parts in order.
+    """
+
+    def __init__(self, defaults: "list[np.ndarray]") -> None:
+        super().__init__()
+        self._defaults = [np.array(d, dtype=float).reshape(-1) for d in defaults]
+        if not self._defaults or any(d.size == 0 for d in self._defaults):
+            raise RepertoireError("GoalMultiplexer needs one non-empty default per input")
+        self._ports = [
+            self.DeclareVectorInputPort(f"goal_{i}", d.size) for i, d in enumerate(self._defaults)
+        ]
+        n = sum(d.size for d in self._defaults)
+        self.DeclareVectorOutputPort("goal", n, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(
+            np.concatenate(
+                [
+                    goal_input(p, context, d)
+                    for p, d in zip(self._ports, self._defaults, strict=True)
+                ]
+            )
+        )
 
 
 class _VectorDmp:
@@ -101,6 +139,9 @@ class DmpSystem(Diagram):
     Fig. 7, with multiplexed goals); with ``time_step=None`` they are continuous
     :class:`CanonicalSystem` + :class:`TransformationSystem` pairs. The on-manifold
     quaternion part is always discrete (``time_step`` or 1 ms).
+
+    Every goal input may be left unconnected: it then stands for the learned goal (the
+    demonstration's last sample), so an unwired DmpSystem reproduces its demonstration.
     """
 
     def __init__(
@@ -172,7 +213,9 @@ class DmpSystem(Diagram):
             "task_space_dmp", DiscreteDmpSystem(fused, time_step=time_step, coupling_input=obstacle)
         )
         self._fused = sysd
-        mux = builder.AddNamedSystem("goal_mux", Multiplexer(sizes))
+        mux = builder.AddNamedSystem(
+            "goal_mux", GoalMultiplexer([fused.goal[sl] for sl in stacked.slices.values()])
+        )
         builder.Connect(mux.get_output_port(0), sysd.get_goal_input_port())
         demux = {}
         for sig, port in (
@@ -425,4 +468,4 @@ def add_dmp(
     return builder.AddSystem(system)
 
 
-__all__ = ["DmpSystem", "add_dmp"]
+__all__ = ["DmpSystem", "GoalMultiplexer", "add_dmp"]

@@ -11,7 +11,7 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from repertoire.planning.dmp import DmpParameters
 from repertoire.planning.dmp_discrete import DiscreteDmpTables
 from repertoire.planning.dmp_math import check_positive, transformation_derivatives
-from repertoire.systems.dmp import CouplingAndOnset, VectorDmpPorts, check_finite_goal, check_vector
+from repertoire.systems.dmp import CouplingAndOnset, VectorDmpPorts, check_vector
 
 from repertoire.errors import RepertoireError
 
@@ -56,7 +56,8 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
     is held before the ``start_time`` parameter.
 
     Input ports:
-        goal (n): goal g (may change during the movement).
+        goal (n): goal g (may change during the movement); unconnected: the learned goal
+            ``dmp.goal``.
         coupling (n, optional): coupling term p added to ``tau v'``.
 
     Output ports:
@@ -80,6 +81,7 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
         n = dmp.n_dims
         self._n = n
         self._dmp = dmp
+        self._learned_goal = dmp.goal.copy()
         self._dt = float(time_step)
         self._formulation = dmp.formulation
         self._tau = dmp.tau
@@ -124,7 +126,7 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
         if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):
             discrete_state.set_value(self._state, s)
             return
-        goal = check_finite_goal(self._goal_port.Eval(context))
+        goal = self._goal(context)
         x0 = context.get_numeric_parameter(self._x0).get_value()
         p = self._coupling(context) if self._has_coupling(context) else None
         out = np.empty_like(s)
@@ -152,7 +154,7 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
             s[1 : 1 + n],
             s[1 + n :],
             theta,
-            check_finite_goal(self._goal_port.Eval(context)),
+            self._goal(context),
             context.get_numeric_parameter(self._x0).get_value(),
             f,
             self._dmp.K,

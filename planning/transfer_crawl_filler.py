@@ -112,10 +112,14 @@ class CrawlGapFiller:
     place_within: float = 0.0
     planner_wall_limit: float = 10.0
 
-    def _plan(self, start: np.ndarray, goal_xy: np.ndarray, time_limit: float, heading=None):
+    def _plan(
+        self, start: np.ndarray, goal_xy: np.ndarray, time_limit: float, heading=None,
+        front_line=None,
+    ):  # fmt: skip
         """Planned steps (foot centres) from ``start``, the planner's status and its refusal.
 
-        ``heading``: the goal heading of the stance (rad), or None.
+        ``heading``: the goal heading of the stance (rad), or None. ``front_line``: the
+        planner's goal line for the front feet (see ``plan_crawl``), or None.
 
         A start or goal the planner refuses (e.g. on a rock's edge, or off its map) gives
         no steps, status None and the planner's message (else the message is empty).
@@ -132,6 +136,7 @@ class CrawlGapFiller:
                 crawl=self.crawl,
                 ground=self.board,
                 goal_heading=heading,
+                front_line=front_line,
             )
         except FootstepError as e:
             return [], None, f"the crawl planner refused: {e}"
@@ -165,8 +170,14 @@ class CrawlGapFiller:
             n = min(n, int(np.argmin(flat))) if not flat.all() else n
         return executable_prefix(steps[:n], self.crawl, board) if n else 0
 
-    def __call__(self, start: np.ndarray, target: np.ndarray, time_limit: float) -> GapFill:
-        """Plans crawl steps from ``start`` (4, 3) towards ``target``'s centroid and heading."""
+    def __call__(
+        self, start: np.ndarray, target: np.ndarray, time_limit: float, front_line=None
+    ) -> GapFill:
+        """Plans crawl steps from ``start`` (4, 3) towards ``target``'s centroid and heading.
+
+        ``front_line``: ``(nx, ny, d)``, the gap must also end with both front feet at
+        ``n . p >= d`` (a task's goal line; the planner's goal test, see ``plan_crawl``).
+        """
         start = np.asarray(start, dtype=float)
         target = np.asarray(target, dtype=float)
         if start.shape != (4, 3) or target.shape != (4, 3):
@@ -186,7 +197,9 @@ class CrawlGapFiller:
             # A recorded step's start (flat footholds): the gap ends on its exact stance,
             # so the nearest-step policy picks it next; unreachable placing = gap unusable.
             place = bool(np.all(foothold_ok(self.board, target[:, :2], self.crawl)))
-        new, status, refusal = self._plan(start, goal_xy, time_limit, heading_of(target))
+        new, status, refusal = self._plan(
+            start, goal_xy, time_limit, heading_of(target), front_line
+        )
         planned = len(new)
         if status is PlanStatus.SUCCESS and place:
             from repertoire.planning.transfer_library import placing_steps

@@ -114,7 +114,9 @@ class LittleDogTransferConfig:
 
     Attributes:
         threshold: PCA match threshold.
-        change_from: x (m) where the modified terrain starts to differ.
+        change_from: x (m) where the modified terrain starts to differ (0.05 m here,
+            a larger changed part than the ``littledog_transfer`` diagram's default
+            0.15 m: more of the library's profiles meet the new rocks).
         rock_seed: seed of the modified part's rocks.
         library: step library file ("" = the cached default library).
     """

@@ -520,3 +520,33 @@ def test_crawl_line_and_kept_footholds_are_exact():
     again = model.footholds(s0)
     np.testing.assert_array_equal(again[:, :2], nominal_foot_positions()[:, :2])
     assert again is not model.footholds(s0)
+
+
+def test_crawl_front_line_is_part_of_the_goal_test():
+    from repertoire.planning.footstep.quadruped import CrawlModel
+
+    hm = _board_map("flat")
+    start = nominal_foot_positions()[:, :2]
+    front = float(start[:2, 0].min())  # the front feet's x (lf, rf)
+    centroid = tuple(start.mean(axis=0))
+    s0 = CrawlModel(hm, start, centroid, CrawlParams()).start()
+    assert CrawlModel(hm, start, centroid, CrawlParams()).is_goal(s0)
+    # (1, 0, x): both front feet at x or beyond; the normal is normalised
+    on = CrawlModel(hm, start, centroid, CrawlParams(), front_line=(2.0, 0.0, 2.0 * front))
+    assert on.is_goal(s0)
+    past = CrawlModel(hm, start, centroid, CrawlParams(), front_line=(1.0, 0.0, front + 1e-9))
+    assert not past.is_goal(s0)
+    # the heuristic: the larger of the centroid's and the front feet's travel to the line
+    far = CrawlModel(hm, start, centroid, CrawlParams(), front_line=(1.0, 0.0, front + 0.05))
+    assert far.heuristic(s0) == pytest.approx(0.1 + 2 * CrawlParams().step_cost, abs=1e-12)
+    assert on.heuristic(s0) == CrawlModel(hm, start, centroid, CrawlParams()).heuristic(s0)
+    # a plan with the centroid's goal 3 cm ahead and the line 4 cm ahead of the front feet
+    # (the centroid alone is within its goal radius at the start) ends with both past it
+    line = (1.0, 0.0, front + 0.04)
+    plan = plan_crawl(hm, start, (centroid[0] + 0.03, centroid[1]), time_limit=30.0,
+                      front_line=line)  # fmt: skip
+    assert plan.status is PlanStatus.SUCCESS
+    assert plan.steps[-1].stance[:2, 0].min() >= front + 0.04
+    for bad in ((0.0, 0.0, 1.0), (1.0, math.nan, 0.0), (1.0, 0.0), "x"):
+        with pytest.raises(FootstepError, match="front_line must be a finite.*n != 0"):
+            plan_crawl(hm, start, (0.1, 0.0), front_line=bad)

@@ -62,10 +62,14 @@ def test_search_plan_goes_from_the_start_to_the_goal(library_path):
     # Both front feet end past the goal line (a plan through the recorded steps used to
     # end with one on it, 0.23 - 3e-17 m: the search's goal test now refuses that).
     assert min(end[0, 0], end[1, 0]) >= plan.goal + GOAL_MARGIN
-    # Recorded steps come only from the unchanged part (before x = change_from).
-    for s in plan.library:
-        if s.kind == "recorded":
-            assert s.start_feet[:, 0].mean() + 0.17 < scenario.change_from
+    # Recorded steps are walked on the unchanged part: their feet, start and end, stand
+    # before x = change_from (a profile may reach a few mm past it onto bare slab, whose
+    # heights there equal the source's). With the rocks from 0.15 m the search goes
+    # through recorded steps (from 0.05 m the planner alone was cheaper).
+    recorded = [s for s in plan.library if s.kind == "recorded"]
+    assert len(recorded) >= 5
+    for s in recorded:
+        assert max(s.start_feet[:, 0].max(), step_end_feet(s)[:, 0].max()) < scenario.change_from
 
 
 def test_ablation_modes(library_path):
@@ -195,40 +199,78 @@ def test_gap_planner_map_covers_the_boards_extent(library_path, monkeypatch):
 
 class _Shift:
     """Stand-in gap filler: one step moving every foot to the target's centroid shift,
-    except front foot 0 which stays ``lag`` m behind it; records its targets."""
+    except front foot 0 which stays ``lag`` m behind it, or on a given front line if it
+    ``honours_line`` (as the crawl planner's goal test does); records its calls."""
 
-    def __init__(self, lag: float):
-        self.lag = lag
+    def __init__(self, lag: float, honours_line: bool = False):
+        self.lag, self.honours_line = lag, honours_line
         self.targets: list[np.ndarray] = []
+        self.lines: list = []
 
-    def __call__(self, start, target, time_limit):
+    def __call__(self, start, target, time_limit, front_line=None):
         self.targets.append(np.array(target))
+        self.lines.append(front_line)
         end = np.array(start, dtype=float)
         end[:, :2] += target[:, :2].mean(axis=0) - end[:, :2].mean(axis=0)
         end[0, 0] -= self.lag
+        if front_line is not None and self.honours_line:
+            end[0, 0] = max(end[0, 0], front_line[2])
         return GapFill([PlannedStep(np.array(start), end, 0)], "reached")
 
 
-def test_goal_line_filler_plans_on_until_the_front_feet_cross():
+def _goal_case():
     goal = 0.23
     start = np.zeros((4, 3))
     start[:, 0] = [0.1, 0.1, -0.1, -0.1]
     goal_feet = start + [0.16, 0.0, 0.0]  # front feet at 0.26, centroid at 0.16
-    inner = _Shift(lag=0.04)  # ends with foot 0 at 0.22: 1 cm short of the line
+    return goal, start, goal_feet
+
+
+def test_goal_line_filler_gives_the_line_to_the_planners_goal_test():
+    goal, start, goal_feet = _goal_case()
+    inner = _Shift(lag=0.04, honours_line=True)  # would end 1 cm short without the line
+    fill = GoalLineFiller(inner, goal_feet, goal)(start, goal_feet, 1.0)
+    assert fill.status == "reached" and len(fill.steps) == 1
+    assert inner.lines == [(1.0, 0.0, goal + GOAL_MARGIN)]
+    assert fill.steps[-1].end_feet[0, 0] == goal + GOAL_MARGIN
+    # a gap to another target gets no line
+    GoalLineFiller(inner, goal_feet, goal)(start, goal_feet - [0.05, 0.0, 0.0], 1.0)
+    assert inner.lines[-1] is None
+
+
+def test_goal_line_filler_plans_on_until_the_front_feet_cross():
+    goal, start, goal_feet = _goal_case()
+    inner = _Shift(lag=0.04)  # ignores the line: ends with foot 0 at 0.22, 1 cm short
     fill = GoalLineFiller(inner, goal_feet, goal)(start, goal_feet, 1.0)
     assert fill.status == "reached" and len(fill.steps) == 2
-    # Planned on to the goal stance moved by the shortfall (0.235 - 0.22) plus two of
-    # the crawl planner's goal radii (0.03 m).
-    assert len(inner.targets) == 2
+    # The gap with the line fell short: planned again without it, then on to the goal
+    # stance moved by the shortfall (0.235 - 0.22) plus two of the crawl planner's goal
+    # radii (0.03 m).
+    assert inner.lines == [(1.0, 0.0, goal + GOAL_MARGIN), None, None]
     ahead = 0.015 + 2.0 * PlannerParams().goal_radius
-    np.testing.assert_allclose(inner.targets[1], goal_feet + [ahead, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(inner.targets[2], goal_feet + [ahead, 0.0, 0.0], atol=1e-12)
     # The second step moves the centroid 0.15 -> 0.16 + ahead and foot 0 lags 4 cm again.
     np.testing.assert_allclose(fill.steps[-1].end_feet[0, 0], 0.19 + ahead, atol=1e-12)
     assert GOAL_MARGIN == 0.005
     # A gap whose front feet cross already, or to another target, is left as it is.
     inner = _Shift(lag=0.0)
     assert len(GoalLineFiller(inner, goal_feet, goal)(start, goal_feet, 1.0).steps) == 1
+    assert len(inner.targets) == 1
     inner = _Shift(lag=0.04)
     other = goal_feet - [0.05, 0.0, 0.0]
     assert len(GoalLineFiller(inner, goal_feet, goal)(start, other, 1.0).steps) == 1
     assert len(inner.targets) == 1
+
+
+def test_planner_alone_crosses_where_planning_on_from_the_end_had_no_step(library_path):
+    # A perturbed start of the execution study (seed 1) on the default rocks: the gap to
+    # the goal stance's centroid ended with a front foot on the line (0.23 m) and the crawl
+    # had no step from that stance, so planning on failed and nothing could be executed.
+    scenario = LittleDogTransferScenario(
+        library=library_path, mode="planner", start_offset=[0.00071, 0.02703],
+        start_yaw_offset=np.deg2rad(-7.1168),
+    )  # fmt: skip
+    plan = plan_transfer(scenario)
+    assert plan.search.status == "reached" and plan.search.recorded_count == 0
+    end = step_end_feet(plan.library[-1])
+    assert min(end[0, 0], end[1, 0]) >= plan.goal + GOAL_MARGIN

@@ -41,35 +41,34 @@ towards it first, if that brings the body nearer it and leaves it at most
 feet move; the reach check above decides what the legs can do), and the goal
 test also needs the feet's heading within ``heading_tolerance`` of it.
 
-The goal test: the feet's centroid within ``goal_radius`` of the goal point (and
-the heading, with a goal heading). Step cost: ``step_cost`` plus the foot's
-horizontal travel plus ``height_cost`` times its height change; the heuristic is
-the larger of 4 x the centroid's distance beyond the goal radius (a lower bound: a
-step moves the centroid by a quarter of the foot's travel) and the feet's travel a
-heading change needs, plus ``step_cost`` times the least number of steps (for the
-travel, and for the turn: see below). The turning term is 2 L e (e the heading
-error beyond the tolerance, L the distance of the hind feet's midpoint to the front
-feet's): turning the line between the two midpoints by e at its length moves its
-ends along arcs of L e together, and each end is the mean of two feet. It is a
-lower bound while the stance keeps its length (the feet themselves lie farther from
-the centroid than the midpoints, and travel farther), not in general: a stance
-could shrink while it turns. The proven bound, 2 L sin e up to 90 degrees, stays
-flat beyond: with it, turns of 135 and 180 degrees on flat ground ran out of 4000
+The goal test: the feet's centroid within ``goal_radius`` of the goal point (and the
+heading, with a goal heading; both front feet past a line, with a front line). Step
+cost: ``step_cost`` plus the foot's horizontal travel plus ``height_cost`` times its
+height change; the heuristic is the larger of 4 x the centroid's distance beyond the
+goal radius (a lower bound: a step moves the centroid by a quarter of the foot's
+travel) and the feet's travel a heading change needs, plus ``step_cost`` times the
+least number of steps (for the travel, and for the turn: see below). The turning term
+is 2 L e (e the heading error beyond the tolerance, L the distance of the hind feet's
+midpoint to the front feet's): turning the line between the two midpoints by e at its
+length moves its ends along arcs of L e together, and each end is the mean of two
+feet. It is a lower bound while the stance keeps its length (the feet lie farther from
+the centroid than the midpoints, and travel farther), not in general: a stance could
+shrink while it turns. The proven bound, 2 L sin e up to 90 degrees, stays flat
+beyond: with it, turns of 135 and 180 degrees on flat ground ran out of 4000
 expansions at 20-30 degrees, and with the arc they took 260 and about 1000.
 
 The least number of steps counts the turn too: a step turns the body by at most one
 ``turn_step`` and the feet's heading follows the body's, so a heading error e beyond
 the tolerance takes at least ceil(e / turn_step) minus ``turn_lead`` more steps. This
 too is an estimate: the feet's heading was seen up to 3.8 turn steps ahead of the
-body's in searches (flat, rock and mixed boards), so it may count up to two steps
-(0.01 each) too many. Without it
-the heuristic priced a 5 degree turn at 2 L e = 0.035 while the crawl pays about 0.065
-for it (plans cost 2.3 for 175 degrees), so g + 3 h fell little along a turn, and not
-at all where rocks made the feet detour: from the modified terrain's start a half
-turn ended in TIME_LIMIT at 120-129 degrees after 20-30 s, and turns of 135 and 180
-degrees on flat ground took 261 and 961 expansions; with it 310, and 181 and 150 (at
-the start of a half turn the heuristic is 1.56 against plans of 1.9-2.5). With a goal
-heading, ``weight`` is therefore no proven bound on a plan's cost.
+body's (flat, rock and mixed boards): it may count two steps (0.01 each) too many.
+Without it the heuristic priced a 5 degree turn at 2 L e = 0.035 while the crawl pays
+about 0.065 for it (plans cost 2.3 for 175 degrees), so g + 3 h fell little along a
+turn, and not at all where rocks made the feet detour: from the modified terrain's
+start a half turn ended in TIME_LIMIT at 120-129 degrees after 20-30 s, and turns of
+135 and 180 degrees on flat ground took 261 and 961 expansions; with it 310, and 181
+and 150 (at the start of a half turn the heuristic is 1.56 against plans of 1.9-2.5).
+With a goal heading, ``weight`` is therefore no proven bound on a plan's cost.
 
 Use :func:`height_map_from_board` to sample a terrain board, then
 :func:`plan_crawl`; the plan's steps are typed :class:`CrawlStep` records.
@@ -446,11 +445,15 @@ class CrawlModel:
         ground: terrain with ``height(x, y)`` the swings clear (default: the map).
         goal_heading: goal heading of the stance (rad, :func:`heading_of` of the
             feet), or None: any heading, and the body keeps its start heading.
+        front_line: ``(nx, ny, d)``: the goal test also needs both front feet (lf, rf)
+            on the line's far side, ``n . p >= d`` with ``n`` normalised (e.g. ``(1, 0,
+            x)``: past the line x along +x), or None. The heuristic also takes the larger
+            of its value and the front feet's travel to the line (plus a step each).
 
     Raises:
         FootstepError: bad parameters, a start foothold off the map or on ground
             too steep, a start stance out of reach or unstable, a goal off the map,
-            a goal heading not a finite number.
+            a goal heading not a finite number, a front line not finite or with n = 0.
     """
 
     def __init__(
@@ -462,6 +465,7 @@ class CrawlModel:
         crawl: ExecutionParams | None = None,
         ground=None,
         goal_heading: float | None = None,
+        front_line=None,
     ) -> None:
         params.validate()
         self.map = height_map
@@ -485,6 +489,17 @@ class CrawlModel:
                 )
             value = float(goal_heading)
             self.goal_heading = math.atan2(math.sin(value), math.cos(value))
+        self.front_line = None
+        if front_line is not None:
+            try:
+                line = np.asarray(front_line, dtype=float)
+            except (TypeError, ValueError):
+                line = np.zeros(0)  # refused below
+            if line.shape != (3,) or not np.all(np.isfinite(line)) or not np.hypot(*line[:2]) > 0:
+                raise FootstepError(
+                    f"crawl front_line must be a finite (nx, ny, d) with n != 0, got {front_line!r}"
+                )
+            self.front_line = line / np.hypot(*line[:2])
         start = np.asarray(start_xy, dtype=float)
         if start.shape not in ((4, 2), (4, 3)) or not np.all(np.isfinite(start)):
             raise FootstepError(
@@ -603,9 +618,21 @@ class CrawlModel:
         c = feet[:, :2].mean(axis=0)
         if math.hypot(*(c - self.goal)) > self.params.goal_radius:
             return False
+        line = self.front_line
+        if line is not None and min(feet[:2, :2] @ line[:2]) < line[2]:
+            return False
         return self.heading_error(feet) <= self.params.heading_tolerance
 
     def heuristic(self, state: CrawlState) -> float:
+        h = self._centroid_heuristic(state)
+        if self.front_line is None:
+            return h
+        # each front foot behind the line travels at least its distance to it, in a step
+        behind = self.front_line[2] - self._feet(state)[:2, :2] @ self.front_line[:2]
+        behind = behind[behind > 0.0]
+        return max(h, float(behind.sum()) + self.params.step_cost * behind.size)
+
+    def _centroid_heuristic(self, state: CrawlState) -> float:
         p = self.params
         feet = self._feet(state)
         d = float(np.hypot(*(feet[:, :2].mean(axis=0) - self.goal))) - p.goal_radius
@@ -709,6 +736,7 @@ def plan_crawl(
     crawl: ExecutionParams | None = None,
     ground=None,
     goal_heading: float | None = None,
+    front_line=None,
 ) -> CrawlPlan:
     """Plans a LittleDog crawl on a height map.
 
@@ -731,13 +759,15 @@ def plan_crawl(
             check, e.g. the exact board the map was sampled from (default: the map).
         goal_heading: goal heading of the stance (rad, within ``heading_tolerance``);
             None: any heading, and the body keeps the start stance's heading.
+        front_line: ``(nx, ny, d)`` or None, see :class:`CrawlModel`.
 
     Raises:
         FootstepError: see :class:`CrawlModel` and the search's budget checks.
     """
     model = CrawlModel(
-        height_map, start_xy, goal_xy, params or CrawlParams(), crawl, ground, goal_heading
-    )
+        height_map, start_xy, goal_xy, params or CrawlParams(), crawl, ground, goal_heading,
+        front_line,
+    )  # fmt: skip
     if anytime:
         results = anytime_search(model, max_expansions=max_expansions, time_limit=time_limit)
     else:

@@ -160,12 +160,12 @@ SCENARIOS = {
     "generated 41/42, multiple": {"target": "generated", "board_seeds": [41, 42], "multiple": True},
     "threshold 0.2, multiple, rock seed 9": {"threshold": 0.2, "multiple": True, "rock_seed": 9},
 }
+"""``littledog_transfer`` scenarios (fields changed from the default) timed by ``--scenarios``."""
 for _fields in SCENARIOS.values():
     if _fields.get("target", "modified") == "modified":
         # the rocks from 0.05 m, as in session 27 (the default since session 28 is 0.15 m),
         # so that HEAD and revisions before session 28 transfer onto the same terrain
         _fields["change_from"] = 0.05
-"""``littledog_transfer`` scenarios (fields changed from the default) timed by ``--scenarios``."""
 
 _SCENARIO_CODE = """
 import json, sys, time

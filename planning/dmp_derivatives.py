@@ -9,6 +9,7 @@ learning in :mod:`repertoire.planning.dmp_learn`.
 
 import functools
 
+import numba
 import numpy as np
 from repertoire.planning.dmp import check_demonstration
 
@@ -252,13 +253,7 @@ LOCAL_RIDGES = (1e-4, 1e-3, 1e-2)
 """Ridge weights (relative to each local fit's kernel mass) tried by local_poly's GCV on
 data that a local polynomial does not fit to round-off."""
 
-_CELLS = 1 << 17  # (samples x window) entries per batch of kernel fits: bounds memory
 _GCV_CENTRES = 1024  # samples that kernel_gcv_scores evaluates at most
-
-
-def tricube(u: np.ndarray) -> np.ndarray:
-    """Tricube kernel ``(1 - |u|^3)^3`` on ``|u| < 1``, 0 outside."""
-    return np.clip(1.0 - np.abs(u) ** 3, 0.0, None) ** 3
 
 
 def kernel_half_widths(t: np.ndarray, bandwidth: float, order: int) -> np.ndarray:
@@ -277,26 +272,92 @@ def kernel_half_widths(t: np.ndarray, bandwidth: float, order: int) -> np.ndarra
     return np.maximum(float(bandwidth), 1.2 * reach)
 
 
-def _kernel_windows(t: np.ndarray, b: np.ndarray, rows: np.ndarray):
-    """Index windows ``(idx, u, K)`` (r, m) of the samples ``rows``.
+@numba.njit(cache=True, fastmath=True)
+def _kernel_sums(t, x, b, centres, lo, hi, n_powers, n_squares, p):
+    """Kernel power sums over the windows ``[lo, hi)`` of the samples ``centres``.
 
-    The window's samples, their scaled stamps ``(t_j - t_i) / b_i`` and tricube weights
-    (0 on padding).
+    With ``u_j = (t_j - t_i) / b_i`` and ``K_j = tricube(u_j) = (1 - |u_j|^3)^3`` (0 for
+    ``|u_j| >= 1``): ``S[r, k] = sum_j K_j u_j^k`` (k < n_powers), ``Q[r, k] = sum_j K_j^2
+    u_j^k`` (k < n_squares) and ``T[r, k, d] = sum_j K_j u_j^k x_jd`` (k < p). Compiled:
+    one pass per window, no window arrays (numba's own cache is safe here: nothing
+    compiled is inlined from another file).
     """
-    lo = np.searchsorted(t, t[rows] - b[rows], side="left")
-    hi = np.searchsorted(t, t[rows] + b[rows], side="right")
-    idx = lo[:, None] + np.arange(int((hi - lo).max()))
-    inside = idx < hi[:, None]
-    idx = np.minimum(idx, t.size - 1)
-    u = (t[idx] - t[rows, None]) / b[rows, None]
-    return idx, u, np.where(inside, tricube(u), 0.0)
+    r_count, dims = centres.size, x.shape[1]
+    S = np.zeros((r_count, n_powers))
+    Q = np.zeros((r_count, max(n_squares, 1)))
+    T = np.zeros((r_count, p, dims))
+    s, q, tx = np.empty(n_powers), np.empty(max(n_squares, 1)), np.empty((p, dims))
+    for r in range(r_count):
+        i = centres[r]
+        s[:], q[:], tx[:] = 0.0, 0.0, 0.0
+        for j in range(lo[r], hi[r]):
+            u = (t[j] - t[i]) / b[i]
+            a = abs(u)
+            a = 1.0 - a * a * a
+            if a <= 0.0:
+                continue
+            k = a * a * a
+            w = k
+            for m in range(p):
+                s[m] += w
+                for d in range(dims):
+                    tx[m, d] += w * x[j, d]
+                w *= u
+            for m in range(p, n_powers):
+                s[m] += w
+                w *= u
+            w = k * k
+            for m in range(n_squares):
+                q[m] += w
+                w *= u
+        S[r], T[r] = s, tx
+        if n_squares:
+            Q[r] = q
+    return S, Q, T
 
 
-def _kernel_batches(t: np.ndarray, b: np.ndarray, centres: np.ndarray) -> list[np.ndarray]:
-    """The sample indices ``centres`` in batches of about _CELLS (samples x window) entries."""
-    width = int((np.searchsorted(t, t + b, side="right") - np.searchsorted(t, t - b)).max())
-    step = max(1, _CELLS // width)
-    return [centres[s : s + step] for s in range(0, centres.size, step)]
+@numba.njit(cache=True, fastmath=True)
+def _kernel_residual_sums(t, x, b, centres, lo, hi, coef):
+    """``sum_j K_j u_j^k (x_j - sum_m coef[r, m] u_j^m)``, shape (r, p, dims) (as _kernel_sums)."""
+    r_count, p, dims = coef.shape
+    R = np.zeros((r_count, p, dims))
+    res, acc = np.empty(dims), np.empty((p, dims))
+    for r in range(r_count):
+        i = centres[r]
+        acc[:] = 0.0
+        for j in range(lo[r], hi[r]):
+            u = (t[j] - t[i]) / b[i]
+            a = abs(u)
+            a = 1.0 - a * a * a
+            if a <= 0.0:
+                continue
+            for d in range(dims):  # Horner: the fitted polynomial at u
+                f = coef[r, p - 1, d]
+                for m in range(p - 2, -1, -1):
+                    f = f * u + coef[r, m, d]
+                res[d] = x[j, d] - f
+            w = a * a * a
+            for m in range(p):
+                for d in range(dims):
+                    acc[m, d] += w * res[d]
+                w *= u
+        R[r] = acc
+    return R
+
+
+def _kernel_moments(
+    t: np.ndarray, x: np.ndarray, b: np.ndarray, centres: np.ndarray, p: int, *, squares=False
+) -> tuple[np.ndarray, ...]:
+    """``(lo, hi, S, Q, T)``: the windows and _kernel_sums of order ``p - 1`` fits at ``centres``.
+
+    S holds the Gram matrix's power sums (up to ``2p - 2``); Q, with ``squares``, the
+    squared-kernel sums (up to ``2p - 2``) that give the norms of the smoother's rows.
+    """
+    lo = np.searchsorted(t, t[centres] - b[centres], side="left")
+    hi = np.searchsorted(t, t[centres] + b[centres], side="right")
+    x = np.ascontiguousarray(x, dtype=float)
+    n_squares = 2 * p - 1 if squares else 0
+    return (lo, hi, *_kernel_sums(t, x, b, centres, lo, hi, 2 * p - 1, n_squares, p))
 
 
 def _kernel_order(n: int, order: int) -> int:
@@ -315,7 +376,8 @@ def kernel_polynomial_fit(
     fit's variance finite where clustered stamps or a gap leave it one-sided; it shrinks
     towards a local quadratic, so the second derivative survives). ``ridge = 0`` is exact
     for polynomials of degree <= ``order``. Solved by the normal equations on kernel-weighted
-    power sums (in the scaled ``u``) with one step of iterative refinement.
+    power sums (in the scaled ``u``, summed by compiled loops) with one step of iterative
+    refinement.
 
     Args:
         t: Time stamps, strictly increasing, shape (N,).
@@ -335,41 +397,22 @@ def kernel_polynomial_fit(
     p = order + 1
     b = kernel_half_widths(t, bandwidth, order)
     penalty = ridge * (np.arange(p) >= 3)
-    smooth, xd, xdd = np.empty_like(x), np.empty_like(x), np.empty_like(x)
-    for rows in _kernel_batches(t, b, np.arange(t.size)):
-        idx, u, K = _kernel_windows(t, b, rows)
-        KV = _kernel_powers(u, K, p)
-        S, KVt = KV.sum(axis=1), np.swapaxes(KV[..., :p], 1, 2)
-        A = S[:, _hankel(p)] + S[:, :1, None] * np.diag(penalty)
-        coef = np.linalg.solve(A, KVt @ x[idx])  # (r, p, n_dims)
-        # one step of iterative refinement: the residual of the weighted fit, re-solved
-        fitted = coef[:, None, p - 1]  # Horner: the fitted polynomials on the windows
-        for k in range(p - 2, -1, -1):
-            fitted = fitted * u[..., None] + coef[:, None, k]
-        r = x[idx] - fitted
-        correction = KVt @ r - S[:, :1, None] * penalty[:, None] * coef
-        coef = coef + np.linalg.solve(A, correction)
-        h = b[rows, None]
-        smooth[rows], xd[rows], xdd[rows] = coef[:, 0], coef[:, 1] / h, 2.0 * coef[:, 2] / h**2
-    return smooth, xd, xdd
+    centres = np.arange(t.size)
+    lo, hi, S, _, T = _kernel_moments(t, x, b, centres, p)
+    A = S[:, _hankel(p)] + S[:, :1, None] * np.diag(penalty)
+    coef = np.linalg.solve(A, T)  # (N, p, n_dims)
+    # one step of iterative refinement: the residual of the weighted fit, re-solved
+    x = np.ascontiguousarray(x, dtype=float)
+    correction = _kernel_residual_sums(t, x, b, centres, lo, hi, coef)
+    correction -= S[:, :1, None] * penalty[:, None] * coef
+    coef = coef + np.linalg.solve(A, correction)
+    h = b[:, None]
+    return coef[:, 0], coef[:, 1] / h, 2.0 * coef[:, 2] / h**2
 
 
 def _hankel(p: int) -> np.ndarray:
     """Index matrix ``j + k`` that builds a Gram matrix from power sums."""
     return np.add.outer(np.arange(p), np.arange(p))
-
-
-def _kernel_powers(u: np.ndarray, K: np.ndarray, p: int) -> np.ndarray:
-    """Kernel-weighted powers ``K u^j``, j < 2p - 1, shape u.shape + (2p - 1,).
-
-    Summed over a window they give the Gram matrix's entries (``sum K u^(j+k)``); their
-    first p against samples ``y`` give the normal equations' right side.
-    """
-    KV = np.empty(u.shape + (2 * p - 1,))
-    KV[..., 0] = K
-    for j in range(1, 2 * p - 1):
-        KV[..., j] = KV[..., j - 1] * u
-    return KV
 
 
 def kernel_gcv_scores(
@@ -396,23 +439,17 @@ def kernel_gcv_scores(
     penalty = np.diag((np.arange(p) >= 3).astype(float))
     scores = np.empty((len(ridges), len(bandwidths)))
     centres = np.unique(np.round(np.linspace(0, n - 1, min(n, _GCV_CENTRES))).astype(int))
+    e0 = np.zeros((centres.size, p, 1))
+    e0[:, 0] = 1.0
     for k, bandwidth in enumerate(bandwidths):
         b = kernel_half_widths(t, bandwidth, order)
-        smooth = np.zeros((len(ridges), n, x.shape[1]))
-        trace = np.zeros(len(ridges))
-        for rows in _kernel_batches(t, b, centres):
-            idx, u, K = _kernel_windows(t, b, rows)
-            KV = _kernel_powers(u, K, p)
-            S, T = KV.sum(axis=1), np.swapaxes(KV[..., :p], 1, 2) @ x[idx]
-            G = S[:, _hankel(p)]
-            for q, ridge in enumerate(ridges):
-                e0 = np.zeros((len(rows), p, 1))
-                e0[:, 0] = 1.0
-                z = np.linalg.solve(G + ridge * S[:, :1, None] * penalty, e0)[..., 0]
-                smooth[q, rows] = np.einsum("rk,rkd->rd", z, T)
-                trace[q] += float(z[:, 0].sum())  # K(0) (G^-1)_00: the sample's own weight
-        rss = np.sum((smooth[:, centres] - x[centres]) ** 2, axis=(1, 2)) * n / centres.size
-        scores[:, k] = rss / np.maximum(1.0 - trace / centres.size, 1e-12) ** 2
+        _, _, S, _, T = _kernel_moments(t, x, b, centres, p)
+        G = S[:, _hankel(p)]
+        for q, ridge in enumerate(ridges):
+            z = np.linalg.solve(G + ridge * S[:, :1, None] * penalty, e0)[..., 0]
+            rss = np.sum((np.einsum("rk,rkd->rd", z, T) - x[centres]) ** 2) * n / centres.size
+            trace = float(z[:, 0].sum())  # K(0) (G^-1)_00: the sample's own weight
+            scores[q, k] = rss / max(1.0 - trace / centres.size, 1e-12) ** 2
     return scores
 
 

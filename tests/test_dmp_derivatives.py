@@ -7,6 +7,7 @@ from repertoire.planning.dmp_derivatives import (
     LOCAL_RIDGES,
     estimate_derivatives,
     kernel_gcv_scores,
+    kernel_half_widths,
     kernel_polynomial_derivatives,
     kernel_polynomial_fit,
     local_bandwidths,
@@ -74,6 +75,33 @@ def test_clustered_noisy_stamps_do_not_blow_the_second_derivative_up():
     assert np.abs(counted - xdd).max() > 30.0  # measured 42 (42-174 on noise seeds 0-4)
     assert np.abs(timed - xdd).max() < 1.0  # measured 0.40 (0.40-0.93)
     assert np.sqrt(np.mean((timed - xdd) ** 2)) < 0.3  # measured 0.14 (0.12-0.21)
+
+
+def _fit_by_definition(t, x, bandwidth, ridge):
+    """kernel_polynomial_fit sample by sample: a weighted least-squares problem per window."""
+    b = kernel_half_widths(t, bandwidth, 5)
+    out = np.empty((3,) + x.shape)
+    for i in range(t.size):
+        u = (t - t[i]) / b[i]
+        K = np.clip(1.0 - np.abs(u) ** 3, 0.0, None) ** 3
+        V = u[:, None] ** np.arange(6)
+        ridge_rows = np.sqrt(ridge * K.sum()) * np.eye(6)[3:]
+        design = np.vstack([np.sqrt(K)[:, None] * V, ridge_rows])
+        target = np.vstack([np.sqrt(K)[:, None] * x, np.zeros((3, x.shape[1]))])
+        c = np.linalg.lstsq(design, target, rcond=None)[0]
+        out[:, i] = c[0], c[1] / b[i], 2.0 * c[2] / b[i] ** 2
+    return out
+
+
+def test_the_compiled_fit_equals_weighted_least_squares_per_window():
+    rng = np.random.default_rng(7)
+    t = np.sort(np.r_[0.0, rng.uniform(0.0, 1.5, 78), 1.5])
+    x = np.column_stack([np.sin(3.0 * t), np.exp(-t)]) + rng.normal(scale=1e-3, size=(80, 2))
+    for bandwidth, ridge in ((0.05, 0.0), (0.2, 1e-3), (0.6, 1e-2)):
+        fast = kernel_polynomial_fit(t, x, bandwidth, ridge)
+        want = _fit_by_definition(t, x, bandwidth, ridge)
+        for got, ref in zip(fast, want, strict=True):
+            np.testing.assert_allclose(got, ref, rtol=0, atol=1e-10 * np.abs(ref).max())
 
 
 def _gcv_direct(t, x, bandwidth, ridge):

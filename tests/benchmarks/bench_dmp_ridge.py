@@ -23,10 +23,14 @@ nothing: 210 ms instead of 12.5 ms here).
 """
 
 import argparse
+import atexit
 import importlib.util
 import pathlib
+import shutil
 import statistics
 import subprocess
+import sys
+import tempfile
 import time
 import warnings
 
@@ -53,9 +57,15 @@ def load_before(rev: str):
         ["git", "-C", str(root), "show", f"{rev}:planning/dmp_derivatives.py"],
         check=True, capture_output=True, text=True,
     ).stdout  # fmt: skip
-    spec = importlib.util.spec_from_loader("dmp_derivatives_before", loader=None)
+    # a real file (numba's cache of compiled revisions needs one), fresh for this run
+    folder = tempfile.mkdtemp(prefix="bench_before_")
+    atexit.register(shutil.rmtree, folder, True)
+    path = pathlib.Path(folder, "dmp_derivatives_before.py")
+    path.write_text(source)
+    spec = importlib.util.spec_from_file_location("dmp_derivatives_before", path)
     module = importlib.util.module_from_spec(spec)
-    exec(compile(source, f"{rev}:planning/dmp_derivatives.py", "exec"), module.__dict__)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
     return module
 
 

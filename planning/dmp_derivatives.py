@@ -283,40 +283,49 @@ def _kernel_sums(t, x, b, centres, lo, hi, n_powers, n_squares, p):
     With ``u_j = (t_j - t_i) / b_i`` and ``K_j = tricube(u_j) = (1 - |u_j|^3)^3`` (0 for
     ``|u_j| >= 1``): ``S[r, k] = sum_j K_j u_j^k`` (k < n_powers), ``Q[r, k] = sum_j K_j^2
     u_j^k`` (k < n_squares) and ``T[r, k, d] = sum_j K_j u_j^k x_jd`` (k < p). Compiled:
-    one pass per window, no window arrays (numba's own cache is safe here: nothing
-    compiled is inlined from another file).
+    per window, the weights in a buffer and one vectorised sum per power (numba's own
+    cache is safe here: nothing compiled is inlined from another file).
     """
     r_count, dims = centres.size, x.shape[1]
     S = np.zeros((r_count, n_powers))
     Q = np.zeros((r_count, max(n_squares, 1)))
     T = np.zeros((r_count, p, dims))
-    s, q, tx = np.empty(n_powers), np.empty(max(n_squares, 1)), np.empty((p, dims))
+    width = 1
     for r in range(r_count):
-        i = centres[r]
-        s[:], q[:], tx[:] = 0.0, 0.0, 0.0
-        for j in range(lo[r], hi[r]):
-            u = (t[j] - t[i]) / b[i]
-            a = abs(u)
-            a = 1.0 - a * a * a
-            if a <= 0.0:
-                continue
-            k = a * a * a
-            w = k
-            for m in range(p):
-                s[m] += w
+        width = max(width, hi[r] - lo[r])
+    u, w, xs = np.empty(width), np.empty(width), np.empty((dims, width))
+    for r in range(r_count):
+        i, start, m = centres[r], lo[r], hi[r] - lo[r]
+        for j in range(m):
+            u[j] = (t[start + j] - t[i]) / b[i]
+            a = 1.0 - min(abs(u[j]), 1.0) ** 3
+            w[j] = a * a * a
+            for d in range(dims):
+                xs[d, j] = x[start + j, d]
+        for k in range(n_powers):
+            total = 0.0
+            for j in range(m):
+                total += w[j]
+            S[r, k] = total
+            if k < p:
                 for d in range(dims):
-                    tx[m, d] += w * x[j, d]
-                w *= u
-            for m in range(p, n_powers):
-                s[m] += w
-                w *= u
-            w = k * k
-            for m in range(n_squares):
-                q[m] += w
-                w *= u
-        S[r], T[r] = s, tx
+                    total = 0.0
+                    for j in range(m):
+                        total += w[j] * xs[d, j]
+                    T[r, k, d] = total
+            for j in range(m):
+                w[j] *= u[j]
         if n_squares:
-            Q[r] = q
+            for j in range(m):
+                a = 1.0 - min(abs(u[j]), 1.0) ** 3
+                w[j] = a**6
+            for k in range(n_squares):
+                total = 0.0
+                for j in range(m):
+                    total += w[j]
+                Q[r, k] = total
+                for j in range(m):
+                    w[j] *= u[j]
     return S, Q, T
 
 
@@ -325,27 +334,33 @@ def _kernel_residual_sums(t, x, b, centres, lo, hi, coef):
     """``sum_j K_j u_j^k (x_j - sum_m coef[r, m] u_j^m)``, shape (r, p, dims) (as _kernel_sums)."""
     r_count, p, dims = coef.shape
     R = np.zeros((r_count, p, dims))
-    res, acc = np.empty(dims), np.empty((p, dims))
+    width = 1
     for r in range(r_count):
-        i = centres[r]
-        acc[:] = 0.0
-        for j in range(lo[r], hi[r]):
-            u = (t[j] - t[i]) / b[i]
-            a = abs(u)
-            a = 1.0 - a * a * a
-            if a <= 0.0:
-                continue
-            for d in range(dims):  # Horner: the fitted polynomial at u
-                f = coef[r, p - 1, d]
-                for m in range(p - 2, -1, -1):
-                    f = f * u + coef[r, m, d]
-                res[d] = x[j, d] - f
-            w = a * a * a
-            for m in range(p):
-                for d in range(dims):
-                    acc[m, d] += w * res[d]
-                w *= u
-        R[r] = acc
+        width = max(width, hi[r] - lo[r])
+    u, w, res = np.empty(width), np.empty(width), np.empty((dims, width))
+    for r in range(r_count):
+        i, start, m = centres[r], lo[r], hi[r] - lo[r]
+        for j in range(m):
+            u[j] = (t[start + j] - t[i]) / b[i]
+            a = 1.0 - min(abs(u[j]), 1.0) ** 3
+            w[j] = a * a * a
+        for d in range(dims):  # Horner: the fitted polynomial on the window
+            for j in range(m):
+                res[d, j] = coef[r, p - 1, d]
+            for k in range(p - 2, -1, -1):
+                c = coef[r, k, d]
+                for j in range(m):
+                    res[d, j] = res[d, j] * u[j] + c
+            for j in range(m):
+                res[d, j] = x[start + j, d] - res[d, j]
+        for k in range(p):
+            for d in range(dims):
+                total = 0.0
+                for j in range(m):
+                    total += w[j] * res[d, j]
+                R[r, k, d] = total
+            for j in range(m):
+                w[j] *= u[j]
     return R
 
 

@@ -14,7 +14,9 @@ sample-count local polynomial) and after (this tree), same run: the second deriv
 RMS error over the peak acceleration and the reproduction error with ridge 0 and "gcv" on
 the sparse seed sets (``--derivative-seeds``), controls (clean uniform, clean random
 stamps, 1001 random stamps with 1 mm noise, the arm library's demonstrations) and the
-estimate's time on 5001 and 10001 random stamps.
+estimate's time on 5001 and 10001 random stamps (also alone: ``--part speed``, with the
+time to learn from the noisy 10001-sample demonstration). ``--before a8292a6`` compares
+with the kernel estimate whose half-width and ridge GCV alone chose (numpy sums).
 
 Run: ``OPENBLAS_NUM_THREADS=1 .venv/bin/python tests/benchmarks/bench_dmp_ridge.py --seeds 0 40``
 (on a shared machine multi-threaded BLAS oversubscribes the cores and the fit times mean
@@ -22,10 +24,14 @@ nothing: 210 ms instead of 12.5 ms here).
 """
 
 import argparse
+import atexit
 import importlib.util
 import pathlib
+import shutil
 import statistics
 import subprocess
+import sys
+import tempfile
 import time
 import warnings
 
@@ -52,9 +58,15 @@ def load_before(rev: str):
         ["git", "-C", str(root), "show", f"{rev}:planning/dmp_derivatives.py"],
         check=True, capture_output=True, text=True,
     ).stdout  # fmt: skip
-    spec = importlib.util.spec_from_loader("dmp_derivatives_before", loader=None)
+    # a real file (numba's cache of compiled revisions needs one), fresh for this run
+    folder = tempfile.mkdtemp(prefix="bench_before_")
+    atexit.register(shutil.rmtree, folder, True)
+    path = pathlib.Path(folder, "dmp_derivatives_before.py")
+    path.write_text(source)
+    spec = importlib.util.spec_from_file_location("dmp_derivatives_before", path)
     module = importlib.util.module_from_spec(spec)
-    exec(compile(source, f"{rev}:planning/dmp_derivatives.py", "exec"), module.__dict__)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
     return module
 
 
@@ -121,28 +133,62 @@ def derivatives_part(args) -> None:
                 change = max(change, float(np.abs(a - b).max()))
     print(f"arm library demonstrations: max change of the second derivative {change:.3g}")
 
+    speed_part(args, estimators)
+
+
+def speed_part(args, estimators=None) -> None:
+    """The derivative estimate's time before -> after on dense random stamps, same run.
+
+    5001 and 10001 random stamps over 2 s (seed 1), a 3-DOF minimum-jerk move, clean and
+    with 1 mm noise (seed 2): the median time of each estimator (interleaved repeats, after
+    one warm-up call each, so numba's compilation is not timed), the largest difference of
+    their second derivatives over its peak, and the time to learn a DMP from the noisy
+    10001-sample demonstration (each estimate, then learn_dmp given it).
+    """
+    from repertoire.planning.dmp_derivatives import estimate_derivatives
+    from repertoire.planning.dmp_learn import learn_dmp
+    from repertoire.planning.dmp_math import minimum_jerk
+
+    if estimators is None:
+        estimators = {"before": load_before(args.before).estimate_derivatives}
+        estimators["after"] = estimate_derivatives
     for n in (5001, 10001):
         t = random_stamps(1, n)
         clean = minimum_jerk(np.zeros(3), np.array([1.0, -0.5, 0.2]), 2.0, t)[0]
         noisy = clean + np.random.default_rng(2).normal(scale=1e-3, size=clean.shape)
         for label, x in (("clean", clean), ("1 mm noise", noisy)):
             times = {k: [] for k in estimators}
+            out = {k: estimate(t, x)[1] for k, estimate in estimators.items()}  # warm up
             for _ in range(args.derivative_repeats):  # interleaved: the machine is shared
                 for k, estimate in estimators.items():
                     t0 = time.perf_counter()
                     estimate(t, x)
                     times[k].append(time.perf_counter() - t0)
+            a, b = out.values()
+            change = float(np.abs(a - b).max() / np.abs(a).max())
             print(
                 f"derivative estimate, {n} random stamps x 3 DOF, {label}: "
                 + ", ".join(f"{k} {1e3 * statistics.median(v):.0f} ms" for k, v in times.items())
+                + f"; max xdd change {change:.2g} of its peak"
             )
+    times = {k: [] for k in estimators}
+    for _ in range(args.derivative_repeats):
+        for k, estimate in estimators.items():
+            t0 = time.perf_counter()
+            xd, xdd = estimate(t, noisy)  # what learn_dmp does with derivatives="auto"
+            learn_dmp(t, noisy, xd=xd, xdd=xdd)
+            times[k].append(time.perf_counter() - t0)
+    print(
+        "learning a DMP from the noisy 10001-sample demonstration: "
+        + ", ".join(f"{k} {1e3 * statistics.median(v):.0f} ms" for k, v in times.items())
+    )
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, nargs=2, default=[0, 40], metavar=("FIRST", "END"))
     parser.add_argument("--repeats", type=int, default=9)
-    parser.add_argument("--part", choices=("ridge", "derivatives", "all"), default="all")
+    parser.add_argument("--part", choices=("ridge", "derivatives", "speed", "all"), default="all")
     parser.add_argument("--before", default="47266c4", help="git revision (derivatives part)")
     parser.add_argument(
         "--derivative-seeds", type=int, nargs=6, default=[0, 40, 2000, 2100, 5000, 5050]
@@ -152,7 +198,9 @@ def main() -> int:
     warnings.simplefilter("ignore")  # ridge=0 warns on every sparse demo here
     if args.part in ("derivatives", "all"):
         derivatives_part(args)
-    if args.part == "derivatives":
+    if args.part == "speed":
+        speed_part(args)
+    if args.part in ("derivatives", "speed"):
         return 0
 
     from repertoire.planning.arm_library import synthetic_demonstrations

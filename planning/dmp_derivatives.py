@@ -277,6 +277,34 @@ def kernel_half_widths(t: np.ndarray, bandwidth: float, order: int) -> np.ndarra
 
 
 @numba.njit(cache=True, fastmath=True)
+def _window_buffers(lo, hi, dims):
+    """Work rows for the widest window ``[lo, hi)``: u, weights, and (dims, width)."""
+    width = 1
+    for r in range(lo.size):
+        width = max(width, hi[r] - lo[r])
+    return np.empty(width), np.empty(width), np.empty((dims, width))
+
+
+@numba.njit(cache=True, fastmath=True)
+def _tricube_window(t, b, i, start, m, u, w):
+    """``u[:m] = (t_j - t_i) / b_i``, ``w[:m] = tricube(u)``: the ``m`` samples from ``start``."""
+    for j in range(m):
+        u[j] = (t[start + j] - t[i]) / b[i]
+        a = 1.0 - min(abs(u[j]), 1.0) ** 3
+        w[j] = a * a * a
+
+
+@numba.njit(cache=True, fastmath=True)
+def _weighted_rows(w, rows, m, out):
+    """``out[d] = sum_j w[j] rows[d, j]`` over the first ``m`` columns."""
+    for d in range(rows.shape[0]):
+        total = 0.0
+        for j in range(m):
+            total += w[j] * rows[d, j]
+        out[d] = total
+
+
+@numba.njit(cache=True, fastmath=True)
 def _kernel_sums(t, x, b, centres, lo, hi, n_powers, n_squares, p):
     """Kernel power sums over the windows ``[lo, hi)`` of the samples ``centres``.
 
@@ -290,16 +318,11 @@ def _kernel_sums(t, x, b, centres, lo, hi, n_powers, n_squares, p):
     S = np.zeros((r_count, n_powers))
     Q = np.zeros((r_count, max(n_squares, 1)))
     T = np.zeros((r_count, p, dims))
-    width = 1
-    for r in range(r_count):
-        width = max(width, hi[r] - lo[r])
-    u, w, xs = np.empty(width), np.empty(width), np.empty((dims, width))
+    u, w, xs = _window_buffers(lo, hi, dims)
     for r in range(r_count):
         i, start, m = centres[r], lo[r], hi[r] - lo[r]
+        _tricube_window(t, b, i, start, m, u, w)
         for j in range(m):
-            u[j] = (t[start + j] - t[i]) / b[i]
-            a = 1.0 - min(abs(u[j]), 1.0) ** 3
-            w[j] = a * a * a
             for d in range(dims):
                 xs[d, j] = x[start + j, d]
         for k in range(n_powers):
@@ -308,11 +331,7 @@ def _kernel_sums(t, x, b, centres, lo, hi, n_powers, n_squares, p):
                 total += w[j]
             S[r, k] = total
             if k < p:
-                for d in range(dims):
-                    total = 0.0
-                    for j in range(m):
-                        total += w[j] * xs[d, j]
-                    T[r, k, d] = total
+                _weighted_rows(w, xs, m, T[r, k])
             for j in range(m):
                 w[j] *= u[j]
         if n_squares:
@@ -334,16 +353,10 @@ def _kernel_residual_sums(t, x, b, centres, lo, hi, coef):
     """``sum_j K_j u_j^k (x_j - sum_m coef[r, m] u_j^m)``, shape (r, p, dims) (as _kernel_sums)."""
     r_count, p, dims = coef.shape
     R = np.zeros((r_count, p, dims))
-    width = 1
-    for r in range(r_count):
-        width = max(width, hi[r] - lo[r])
-    u, w, res = np.empty(width), np.empty(width), np.empty((dims, width))
+    u, w, res = _window_buffers(lo, hi, dims)
     for r in range(r_count):
         i, start, m = centres[r], lo[r], hi[r] - lo[r]
-        for j in range(m):
-            u[j] = (t[start + j] - t[i]) / b[i]
-            a = 1.0 - min(abs(u[j]), 1.0) ** 3
-            w[j] = a * a * a
+        _tricube_window(t, b, i, start, m, u, w)
         for d in range(dims):  # Horner: the fitted polynomial on the window
             for j in range(m):
                 res[d, j] = coef[r, p - 1, d]
@@ -354,11 +367,7 @@ def _kernel_residual_sums(t, x, b, centres, lo, hi, coef):
             for j in range(m):
                 res[d, j] = x[start + j, d] - res[d, j]
         for k in range(p):
-            for d in range(dims):
-                total = 0.0
-                for j in range(m):
-                    total += w[j] * res[d, j]
-                R[r, k, d] = total
+            _weighted_rows(w, res, m, R[r, k])
             for j in range(m):
                 w[j] *= u[j]
     return R

@@ -112,6 +112,9 @@ class DmpSystem(Diagram):
     Input ports:
         goal (n).
         obstacle (3, only with ``obstacle_avoidance=True``; needs n == 3).
+        obstacle_velocity (3, only with ``obstacle_avoidance=True``, optional): the
+            obstacle's velocity; eq. 10's angle is taken to the velocity relative to it
+            (unconnected: a static obstacle).
 
     Output ports:
         position (n), velocity (n), acceleration (n), phase (1).
@@ -129,6 +132,8 @@ class DmpSystem(Diagram):
             learned side's sign).
         goal_fingers (k, if the DMP has fingers).
         obstacle (3, only with ``obstacle_avoidance=True``): obstacle position p_WO.
+        obstacle_velocity (3, only with ``obstacle_avoidance=True``, optional): its
+            velocity (unconnected: a static obstacle).
 
     Output ports:
         position (3), velocity (3), acceleration (3), orientation (4, unit),
@@ -179,6 +184,7 @@ class DmpSystem(Diagram):
         builder.Connect(vec.system.get_velocity_output_port(), obs.GetInputPort("velocity"))
         builder.Connect(obs.GetOutputPort("coupling"), vec.system.get_coupling_input_port())
         builder.ExportInput(obs.GetInputPort("obstacle"), "obstacle")
+        builder.ExportInput(obs.GetInputPort("obstacle_velocity"), "obstacle_velocity")
         self.obstacle_coupling = obs
 
     def _build_vector(self, builder, dmp, time_step, obstacle, gamma, beta) -> None:
@@ -239,6 +245,7 @@ class DmpSystem(Diagram):
             builder.Connect(zeros.get_output_port(), pad.get_input_port(1))
             builder.Connect(pad.get_output_port(0), sysd.get_coupling_input_port())
             builder.ExportInput(obs.GetInputPort("obstacle"), "obstacle")
+            builder.ExportInput(obs.GetInputPort("obstacle_velocity"), "obstacle_velocity")
             self.obstacle_coupling = obs
         if "orientation" in index:
             i = index["orientation"]

@@ -404,3 +404,44 @@ def test_online_time_scaling_input(dmp3):
     cs.get_tau_input_port().FixValue(cs_ctx, [np.inf])
     with pytest.raises(RepertoireError, match="tau must be a finite number > 0, got inf"):
         cs.EvalTimeDerivatives(cs_ctx)
+
+
+@pytest.mark.parametrize("time_step", [1e-3, None])
+def test_dmp_system_takes_the_obstacle_velocity(dmp3, time_step):
+    # eq. 10's angle is taken to the velocity relative to the obstacle: DmpSystem exports
+    # the coupling's optional obstacle_velocity input (unconnected: a static obstacle)
+    sys = DmpSystem(dmp3, time_step=time_step, obstacle_avoidance=True, gamma=300.0, beta=2.0)
+    ctx = sys.CreateDefaultContext()
+    xd0 = np.array([0.4, -0.2, 0.3])
+    sys.set_start(ctx, position=dmp3.x0, velocity=xd0)
+    o, vo = dmp3.x0 + np.array([0.1, 0.05, 0.0]), np.array([0.0, 0.5, -0.2])
+    sys.GetInputPort("obstacle").FixValue(ctx, o)
+    coupling = sys.obstacle_coupling.GetOutputPort("coupling")
+    sub = sys.obstacle_coupling.GetMyContextFromRoot(ctx)
+    x, v = sys.GetOutputPort("position").Eval(ctx), sys.GetOutputPort("velocity").Eval(ctx)
+    np.testing.assert_allclose(v, xd0, rtol=1e-12)
+    static = coupling.Eval(sub).copy()
+    np.testing.assert_array_equal(static, obstacle_coupling(x, v, o, 300.0, 2.0))
+    sys.GetInputPort("obstacle_velocity").FixValue(ctx, vo)
+    moving = coupling.Eval(sub)
+    np.testing.assert_array_equal(moving, obstacle_coupling(x, v, o, 300.0, 2.0, vo))
+    assert np.abs(moving - static).max() > 1.0  # the relative velocity changes the push
+
+
+def test_fused_task_space_dmp_system_takes_the_obstacle_velocity():
+    t = np.linspace(0.0, 1.0, 300)
+    _, pos = minimum_jerk_via_points(np.array([[0, 0, 0], [0.2, 0.1, 0.3]]), 1.0, 300)
+    q = slerp_minimum_jerk(np.array([1.0, 0, 0, 0]), quat_exp(np.array([0.0, 0.3, 0.0])), t)
+    dmp = learn_task_space_dmp(t, pos, q, orientation_mode="component", n_basis=20)
+    sys = DmpSystem(dmp, obstacle_avoidance=True)
+    assert sys._fused is not None  # the 10-D fused path (its own coupling wiring)
+    ctx = sys.CreateDefaultContext()
+    sys.set_start(ctx, position=pos[0], velocity=[0.3, 0.1, -0.2], orientation=q[0])
+    o, vo = pos[0] + np.array([0.05, 0.1, 0.0]), np.array([-0.3, 0.0, 0.4])
+    sys.GetInputPort("obstacle").FixValue(ctx, o)
+    sys.GetInputPort("obstacle_velocity").FixValue(ctx, vo)
+    x, v = sys.GetOutputPort("position").Eval(ctx), sys.GetOutputPort("velocity").Eval(ctx)
+    sub = sys.obstacle_coupling.GetMyContextFromRoot(ctx)
+    p = sys.obstacle_coupling.GetOutputPort("coupling").Eval(sub)
+    np.testing.assert_array_equal(p, obstacle_coupling(x, v, o, 1000.0, 20.0 / np.pi, vo))
+    assert np.abs(p).max() > 0.1  # a real push (0.64 here: the start velocity is not zero)

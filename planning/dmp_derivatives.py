@@ -171,10 +171,10 @@ def _gcv_window(x: np.ndarray, max_w: int, smoother) -> int:
         if nxt > min(max_w, n // 4):
             break
         candidates.append(nxt)
-    return gcv_choice(x, candidates, smoother)[0]
+    return gcv_choice(x, candidates, smoother)
 
 
-def gcv_choice(x: np.ndarray, candidates: list, smoother) -> tuple[object, list[float]]:
+def gcv_choice(x: np.ndarray, candidates: list, smoother) -> object:
     """The candidate whose linear smoother minimises generalised cross-validation.
 
     ``smoother(x, c) -> (S_c x, tr(S_c))``; ``GCV(c) = RSS / (1 - tr(S_c) / N)^2`` (summed
@@ -183,9 +183,6 @@ def gcv_choice(x: np.ndarray, candidates: list, smoother) -> tuple[object, list[
     keep it (exact for minimum-jerk segments) and noisy ones get the candidate that
     averages the noise out. Scoring stops at the first candidate on the floor (no later
     one could be chosen).
-
-    Returns:
-        The chosen candidate and the scores computed (in candidate order).
     """
     n = x.shape[0]
     x = x / _gcv_scale(x)
@@ -197,7 +194,7 @@ def gcv_choice(x: np.ndarray, candidates: list, smoother) -> tuple[object, list[
         scores.append(rss / max(1.0 - trace / n, 1e-12) ** 2)
         if scores[-1] <= floor:
             break
-    return candidates[_first_near_minimum(np.array(scores), floor)], scores
+    return candidates[_first_near_minimum(np.array(scores), floor)]
 
 
 def _gcv_scale(x: np.ndarray) -> float:
@@ -525,24 +522,12 @@ def kernel_scan(
     return out
 
 
-def kernel_gcv_scores(
-    t: np.ndarray,
-    x: np.ndarray,
-    bandwidths: list[float],
-    ridges: tuple[float, ...] = LOCAL_RIDGES,
-    *,
-    order: int = 5,
-) -> np.ndarray:
-    """GCV scores of kernel_polynomial_fit, shape (len(ridges), len(bandwidths)).
+def kernel_gcv_scores(scan: KernelScan, n: int) -> np.ndarray:
+    """GCV scores ``RSS / (1 - tr(S) / N)^2`` of a kernel_scan of N samples.
 
-    ``GCV = RSS / (1 - tr(S) / N)^2`` summed over DOF, on ``x`` scaled by its largest
-    magnitude (as gcv_choice), from kernel_scan.
+    Shape (len(ridges), len(bandwidths)), summed over DOF, on ``x`` scaled by its largest
+    magnitude (as gcv_choice).
     """
-    return _gcv_of(kernel_scan(t, x, bandwidths, ridges, order=order), t.size)
-
-
-def _gcv_of(scan: KernelScan, n: int) -> np.ndarray:
-    """GCV scores ``RSS / (1 - tr(S) / N)^2`` of a kernel_scan."""
     return scan.rss / np.maximum(1.0 - scan.trace / n, 1e-12) ** 2
 
 
@@ -566,7 +551,7 @@ def second_derivative_choice(scan: KernelScan, n: int, floor: float) -> tuple[in
         n: Number of samples N.
         floor: GCV's round-off floor (see gcv_choice).
     """
-    gcv = _gcv_of(scan, n)
+    gcv = kernel_gcv_scores(scan, n)
     best = np.unravel_index(_first_near_minimum(gcv.ravel(), floor), gcv.shape)
     terms = scan.residuals / np.maximum(1.0 - scan.trace / n, 1e-12)[..., None] ** 2
     se = np.sqrt(n) * np.std(terms - terms[best], axis=-1)

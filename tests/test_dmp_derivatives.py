@@ -94,7 +94,7 @@ def test_gcv_flat_below_its_minimum_no_longer_picks_a_noisy_second_derivative():
     peak = np.abs(xdd).max()
     bandwidths = local_bandwidths(t)
     scan = kernel_scan(t, x, bandwidths)
-    gcv = kernel_gcv_scores(t, x, bandwidths)
+    gcv = kernel_gcv_scores(scan, t.size)
     q, k = np.unravel_index(np.argmin(gcv), gcv.shape)
     assert k == 0  # GCV's choice: the narrowest half-width
     assert 2e-3 * np.sqrt(scan.variance_2[q, k] / t.size) > peak  # measured 2.5
@@ -164,7 +164,7 @@ def test_the_scan_and_the_choice_match_their_definitions():
     for f, v in want.items():
         np.testing.assert_allclose(getattr(scan, f), v, rtol=1e-7, atol=1e-12, err_msg=f)
     gcv = terms.sum(axis=-1)
-    np.testing.assert_allclose(kernel_gcv_scores(t, x, bandwidths), gcv, rtol=1e-8)
+    np.testing.assert_allclose(kernel_gcv_scores(scan, n), gcv, rtol=1e-8)
     best = np.unravel_index(np.argmin(gcv), gcv.shape)
     eligible = gcv <= gcv[best] + np.sqrt(n) * np.std(terms - terms[best], axis=-1)
     assert 1 < eligible.sum() < eligible.size  # the rule has a choice to make

@@ -289,10 +289,12 @@ def run_episode(config: TransferExecutionConfig, seed: int) -> TransferExecution
 def summarize(
     records: list[TransferExecutionRecord], config: TransferExecutionConfig, out_dir: Path
 ) -> dict[str, Path]:
-    """Success table per terrain and condition; success-rate figure.
+    """Success table per terrain and condition; success-rate figure; the path it runs.
 
     Returns:
-        ``{"table": md, "success": png}``.
+        ``{"table": md, "success": png}``, and ``"path": png`` when the modified terrain
+        ran: the search's path from the nominal start there, recorded and planned steps
+        over the height map (:func:`_path_figure`).
     """
     from matplotlib.figure import Figure
 
@@ -356,7 +358,34 @@ def summarize(
     )
     png = out_dir / "littledog_transfer_success.png"
     fig.savefig(png, dpi=110)
-    return {"table": table, "success": png}
+    files = {"table": table, "success": png}
+    if "modified" in terrains:
+        files["path"] = _path_figure(config, out_dir / "littledog_transfer_path.png")
+    return files
+
+
+def _path_figure(config: TransferExecutionConfig, path: Path) -> Path:
+    """The modified terrain's library and the search's path from the nominal start (a PNG).
+
+    The scenario every modified-terrain episode runs (the search condition, no start
+    offset): transferred steps, and the final library's recorded steps (green circles)
+    and planned ones (orange squares) over the rocks from ``change_from``.
+    """
+    from repertoire.diagrams.littledog_transfer import plan_transfer
+    from repertoire.planning.transfer_plot import library_path_figure
+
+    scenario = scenario_for(config, "modified", "search", (0.0, 0.0), 0.0)
+    plan = plan_transfer(scenario)
+    return library_path_figure(
+        plan.board,
+        plan.transfer.library,
+        plan.library,
+        path,
+        changed_from=scenario.change_from,
+        goal=plan.goal,
+        title=f"Modified terrain, nominal start: {plan.search.message}",
+        links=plan.transfer.links,
+    )
 
 
 def demo_config() -> TransferExecutionConfig:

@@ -102,6 +102,7 @@ def test_execution_episode_records_every_condition(library_path, tmp_path):
     assert r.steps_started[2] == r.steps_started[1] and r.planned[2] == r.planned[1]
     files = execution.summarize([r], config, tmp_path)
     assert "| modified | search | 1 | 0/1 |" in files["table"].read_text()
+    assert files["path"].stat().st_size > 10_000  # the path it runs, over the height map
     # The table says which condition's run another one shared.
     named = dataclasses.replace(r, conditions=["search", "planner", "multiple"])
     config.conditions = named.conditions

@@ -59,9 +59,10 @@ def check_finite_goal(goal: np.ndarray) -> np.ndarray:
 def goal_input(port, context: Context, learned: np.ndarray) -> np.ndarray:
     """The goal input's value if it is connected (or fixed), else the ``learned`` goal.
 
-    A DMP whose goal input is left unconnected reproduces its demonstration's goal (as
-    :class:`repertoire.systems.dmp_sequencer.DmpSequencer` falls back to its built goals).
-    RepertoireError if a connected goal holds NaN or inf.
+    A DMP whose goal input is left unconnected reproduces its demonstration's goal
+    (:class:`repertoire.systems.dmp_sequencer.DmpSequencer` passes its built goals).
+    RepertoireError if a connected goal holds NaN or inf; ``learned`` is returned as it is
+    (not copied, not checked: validated where it was built).
     """
     if port.HasValue(context):
         return check_finite_goal(port.Eval(context))

@@ -44,7 +44,7 @@ from repertoire.planning.dmp_quaternion import (
     learned_side,
     lift_quaternion_goal,
 )
-from repertoire.systems.dmp import check_finite_goal, check_finite_input, check_vector
+from repertoire.systems.dmp import check_finite_input, check_vector, goal_input
 
 from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
@@ -257,13 +257,9 @@ class DmpSequencer(LeafSystem):
 
     def _goal(self, context: Context, seg: int, x0: np.ndarray) -> np.ndarray:
         port = self._goal_ports[seg]
-        if port.HasValue(context):
-            goal = np.array(port.Eval(context), dtype=float)
-        elif self._goals[seg] is not None:
-            goal = self._goals[seg].copy()
-        else:
+        if self._goals[seg] is None and not port.HasValue(context):
             raise RepertoireError(f"segment {seg} has no goal: connect goal_{seg} or pass goals")
-        check_finite_goal(goal)
+        goal = np.array(goal_input(port, context, self._goals[seg]), dtype=float)  # a copy
         if self._q is not None:
             # The sign of the quaternion goal that turns from x0 the way the segment learned
             # (its learned goal for its learned start, even past 180 deg).

@@ -55,8 +55,16 @@ def estimate_derivatives(
             local_poly chooses a window in time instead (see above).
         smoothing: Smoothing-spline lambda (``"spline"`` only; given with another method it
             is refused rather than ignored, as is a ``window`` with ``"spline"``).
+
+    Derivatives do not depend on where the samples sit, only on how they move, so each DOF
+    is first centred on the middle of its range: the polynomial fits, their power sums and
+    the GCV choices then see the movement, not its offset (a 0.3 mm movement 1000 units from
+    the origin had second derivatives 6e-4 (uniform stamps) and 5 % (non-uniform) of its peak
+    off from the same movement at the origin, and GCV compared noise with a round-off floor
+    set by the offset).
     """
     t, x = check_demonstration(t, x)
+    x = x - 0.5 * (x.max(axis=0) + x.min(axis=0))
     if window is not None and not is_whole(window):
         raise RepertoireError(f"window must be an odd integer >= 3 or None, got {window!r}")
     n = t.size

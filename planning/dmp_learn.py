@@ -31,7 +31,8 @@ from repertoire.planning.dmp import (
     check_per_dof,
     check_unit_quaternions,
 )
-from repertoire.planning.dmp_derivatives import estimate_derivatives
+from repertoire.planning.dmp_derivatives import estimate_derivatives, fit_demonstration
+from repertoire.planning.dmp_gaps import gap_rows
 from repertoire.planning.dmp_math import (
     basis_centres,
     basis_widths,
@@ -364,10 +365,33 @@ def _basis(n_basis: int, alpha: float | None, overlap: float, n_samples: int) ->
 
 
 def _demo_targets(
-    t, x, xd, xdd, alpha, Kv, Dv, tau, formulation, centres, widths, min_displacement=1e-9
+    t,
+    x,
+    xd,
+    xdd,
+    smooth,
+    alpha,
+    Kv,
+    Dv,
+    tau,
+    formulation,
+    centres,
+    widths,
+    min_displacement=1e-9,
+    bridge_gaps=True,
 ):
-    s = t - t[0]
-    theta = canonical_phase(s, tau, alpha)
+    """Regressors and f_target (eq. 5 / 8) at the samples and inside their gaps.
+
+    Gaps longer than half the basis spacing in time get points on the quintic bridge
+    through ``smooth`` (the fitted positions; None: fit_demonstration's, computed only if
+    there is a gap) and the derivatives (dmp_gaps.gap_rows), so every basis function rests
+    on the demonstration rather than on its neighbours' tails. The bridge goes through
+    fitted positions, not noisy samples: given exact derivatives and samples with 2 mm
+    noise (noisy_sparse_minimum_jerk, seeds 0-39) raw ends took the reproduction error to a
+    median of 2 % (fitted ends: 0.25 %, as without bridges; max 0.5 % instead of 2.4 %).
+    """
+    if not isinstance(bridge_gaps, (bool, np.bool_)):
+        raise RepertoireError(f"bridge_gaps must be True or False, got {bridge_gaps!r}")
     x0, g = x[0], x[-1]
     if formulation == "old":
         small = np.abs(g - x0) <= min_displacement
@@ -376,6 +400,12 @@ def _demo_targets(
                 "the old formulation (eq. 5) divides by g - x0, but start equals goal in DOF "
                 f"{np.flatnonzero(small).tolist()}; use formulation='new'"
             )
+    step = 0.5 * tau / max(centres.size - 1, 1) if bridge_gaps else np.inf
+    if smooth is None and np.any(np.diff(t) > step):
+        smooth = fit_demonstration(t, x)[0]
+    tb, xb, xdb, xddb = gap_rows(t, x if smooth is None else smooth, xd, xdd, step)
+    theta = canonical_phase(np.concatenate([t, tb]) - t[0], tau, alpha)
+    x, xd, xdd = np.vstack([x, xb]), np.vstack([xd, xdb]), np.vstack([xdd, xddb])
     F = forcing_target(x, xd, xdd, theta, g, x0, Kv, Dv, tau, formulation)
     return forcing_features(theta, centres, widths), F
 
@@ -410,10 +440,14 @@ def learn_dmp(
     xdd: np.ndarray | None = None,
     names: list[str] | None = None,
     min_displacement: float = 1e-9,
+    bridge_gaps: bool = True,
 ) -> DmpParameters:
     """Learn an n-DOF DMP from one demonstration (eq. 5 or 8 + linear least squares).
 
-    ``tau`` is the demonstration's duration, ``x0``/``goal`` its first/last sample.
+    ``tau`` is the demonstration's duration, ``x0``/``goal`` its first/last sample. Steps
+    between samples longer than half the basis spacing in time (a dropout, sparse random
+    stamps) are bridged by quintic Hermite points through the fitted ends
+    (:mod:`repertoire.planning.dmp_gaps`) before the least squares.
 
     Args:
         t: Time stamps [s], strictly increasing (may be non-uniform), shape (N,), N >= 3.
@@ -438,6 +472,8 @@ def learn_dmp(
         names: Optional DOF names.
         min_displacement: Old form only: |g - x0| at or below this in any DOF is an error
             (eq. 5 divides by it); 0 allows tiny displacements (to show the blow-up).
+        bridge_gaps: Bridge steps longer than half the basis spacing (the default); False
+            fits the samples alone (to show what the bridges do).
     """
     t, x = check_demonstration(t, x)
     check_formulation(formulation)
@@ -445,8 +481,9 @@ def learn_dmp(
     n = x.shape[1]
     Kv, Dv = _gains(n, K, D)
     a, c, h = _basis(n_basis, alpha, overlap, t.size)
+    smooth = None  # fitted only where a gap needs it (_demo_targets)
     if xd is None or xdd is None:
-        xd_e, xdd_e = estimate_derivatives(
+        smooth, xd_e, xdd_e = fit_demonstration(
             t, x, method=derivatives, window=window, smoothing=smoothing
         )
         xd = xd_e if xd is None else xd
@@ -454,7 +491,9 @@ def learn_dmp(
     xd = _known_derivative("xd", xd, x.shape)
     xdd = _known_derivative("xdd", xdd, x.shape)
     tau = float(t[-1] - t[0])
-    Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h, min_displacement)
+    Phi, F = _demo_targets(
+        t, x, xd, xdd, smooth, a, Kv, Dv, tau, formulation, c, h, min_displacement, bridge_gaps
+    )
     weights = fit_forcing_weights(Phi, F, ridge)
     return DmpParameters(
         weights, c, h, Kv, Dv, a, tau, x[0], x[-1], formulation, names=list(names or [])
@@ -473,6 +512,7 @@ def learn_dmp_from_demonstrations(
     overlap: float = 0.5,
     derivatives: str = "auto",
     names: list[str] | None = None,
+    bridge_gaps: bool = True,
 ) -> DmpParameters:
     """Learn one DMP from several demonstrations (a joint least-squares fit).
 
@@ -491,6 +531,7 @@ def learn_dmp_from_demonstrations(
         overlap: Basis overlap.
         derivatives: Derivative method.
         names: Optional DOF names.
+        bridge_gaps: Bridge each demonstration's long steps (see :func:`learn_dmp`).
     """
     if not demonstrations:
         raise RepertoireError("need at least one demonstration, got an empty list")
@@ -517,8 +558,10 @@ def learn_dmp_from_demonstrations(
     for i, (t, x) in enumerate(demos):
         tau = float(t[-1] - t[0])
         try:
-            xd, xdd = estimate_derivatives(t, x, method=derivatives)
-            Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h)
+            smooth, xd, xdd = fit_demonstration(t, x, method=derivatives)
+            Phi, F = _demo_targets(
+                t, x, xd, xdd, smooth, a, Kv, Dv, tau, formulation, c, h, 1e-9, bridge_gaps
+            )
         except RepertoireError as err:  # say which demonstration
             raise type(err)(f"demonstration {i}: {err}") from err
         feats.append(Phi)

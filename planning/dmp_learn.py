@@ -31,7 +31,7 @@ from repertoire.planning.dmp import (
     check_per_dof,
     check_unit_quaternions,
 )
-from repertoire.planning.dmp_derivatives import estimate_derivatives, fit_demonstration
+from repertoire.planning.dmp_derivatives import fit_demonstration
 from repertoire.planning.dmp_gaps import gap_rows
 from repertoire.planning.dmp_math import (
     basis_centres,
@@ -364,6 +364,13 @@ def _basis(n_basis: int, alpha: float | None, overlap: float, n_samples: int) ->
     return a, c, basis_widths(c, a, overlap)
 
 
+def _bridge_step(tau: float, centres: np.ndarray, bridge_gaps) -> float:
+    """The longest step left unbridged: half the basis spacing in time (inf: no bridges)."""
+    if not isinstance(bridge_gaps, (bool, np.bool_)):
+        raise RepertoireError(f"bridge_gaps must be True or False, got {bridge_gaps!r}")
+    return 0.5 * tau / max(centres.size - 1, 1) if bridge_gaps else np.inf
+
+
 def _demo_targets(
     t,
     x,
@@ -390,8 +397,6 @@ def _demo_targets(
     noise (noisy_sparse_minimum_jerk, seeds 0-39) raw ends took the reproduction error to a
     median of 2 % (fitted ends: 0.25 %, as without bridges; max 0.5 % instead of 2.4 %).
     """
-    if not isinstance(bridge_gaps, (bool, np.bool_)):
-        raise RepertoireError(f"bridge_gaps must be True or False, got {bridge_gaps!r}")
     x0, g = x[0], x[-1]
     if formulation == "old":
         small = np.abs(g - x0) <= min_displacement
@@ -400,7 +405,7 @@ def _demo_targets(
                 "the old formulation (eq. 5) divides by g - x0, but start equals goal in DOF "
                 f"{np.flatnonzero(small).tolist()}; use formulation='new'"
             )
-    step = 0.5 * tau / max(centres.size - 1, 1) if bridge_gaps else np.inf
+    step = _bridge_step(tau, centres, bridge_gaps)
     if smooth is None and np.any(np.diff(t) > step):
         smooth = fit_demonstration(t, x)[0]
     tb, xb, xdb, xddb = gap_rows(t, x if smooth is None else smooth, xd, xdd, step)
@@ -601,6 +606,7 @@ def learn_quaternion_dmp(
     overlap: float = 0.5,
     derivatives: str = "auto",
     unit_tolerance: float = 1e-6,
+    bridge_gaps: bool = True,
 ) -> QuaternionDmpParameters:
     """Learn an orientation DMP from a unit-quaternion demonstration.
 
@@ -625,6 +631,8 @@ def learn_quaternion_dmp(
         overlap: Basis overlap.
         derivatives: Derivative method.
         unit_tolerance: Allowed deviation of |q| from 1.
+        bridge_gaps: Bridge long steps between samples (see :func:`learn_dmp`; on-manifold:
+            the bridge in R^4 projected onto the unit sphere).
     """
     t, q = check_demonstration(t, q, name="quaternion demonstration")
     check_unit_quaternions(q, tolerance=unit_tolerance, name="quaternion demonstration")
@@ -644,16 +652,15 @@ def learn_quaternion_dmp(
             ridge=ridge,
             overlap=overlap,
             derivatives=derivatives,
+            bridge_gaps=bridge_gaps,
         )
         return QuaternionDmpParameters(
             p.weights, p.centres, p.widths, Kv[0], Dv[0], p.alpha, p.tau, q[0], q[-1], mode
         )
     a, c, h = _basis(n_basis, alpha, overlap, t.size)
-    qd, qdd = estimate_derivatives(t, q, method=derivatives)
-    omega = angular_velocity(q, qd)
-    omegad = 2.0 * quat_multiply(qdd, quat_conjugate(q))[:, 1:]
     tau = float(t[-1] - t[0])
-    theta = canonical_phase(t - t[0], tau, a)
+    step = _bridge_step(tau, c, bridge_gaps)
+    smooth, qd, qdd = fit_demonstration(t, q, method=derivatives)
     g, q0 = q[-1], q[0]
     turn = 2.0 * np.arccos(np.clip(q @ g, -1.0, 1.0))
     k = int(np.argmax(turn))
@@ -670,6 +677,14 @@ def learn_quaternion_dmp(
             f"samples {k} and {k + 1} (it turns 360 deg or more): the on-manifold quaternion "
             "DMP turns less than a full turn; use mode='component' or split the movement"
         )
+    # gaps bridged as learn_dmp does, in R^4 and projected back onto S^3 (dmp_gaps)
+    tb, qb, qdb, qddb = gap_rows(t, smooth, qd, qdd, step)
+    qb = qb / np.linalg.norm(qb, axis=1, keepdims=True)
+    q, qd, qdd = np.vstack([q, qb]), np.vstack([qd, qdb]), np.vstack([qdd, qddb])
+    e = np.vstack([e, quat_log_error(g, qb)])
+    omega = angular_velocity(q, qd)
+    omegad = 2.0 * quat_multiply(qdd, quat_conjugate(q))[:, 1:]
+    theta = canonical_phase(np.concatenate([t, tb]) - t[0], tau, a)
     F = (
         (tau * tau * omegad + Dv[0] * tau * omega) / Kv[0]
         - e

@@ -1,5 +1,7 @@
 """DMP studies: smoke runs through the study engine, determinism, the headline effects."""
 
+import re
+
 import pytest
 from repertoire.studies import dmp_chaining, dmp_goals, dmp_obstacles
 from repertoire.studies.engine import comparable, run_study
@@ -67,3 +69,16 @@ def test_study_configs_refuse_infinite_and_inverted_ranges():
         dmp_goals.DmpGoalsConfig(rise_min_m=0.2, rise_max_m=0.1).validate()
     dmp_goals.DmpGoalsConfig().validate()
     dmp_chaining.DmpChainingConfig().validate()
+    obstacles = dmp_obstacles.DmpObstaclesConfig
+    for kwargs, message in (
+        ({"length_max_m": 0.1}, "finite length_min_m <= length_max_m, got 0.3, 0.1"),
+        ({"length_max_m": float("inf")}, "finite length_min_m <= length_max_m, got 0.3, inf"),
+        ({"offset_max": -1.0}, "offset_max must be finite and >= 0, got -1.0"),
+        ({"gamma": float("nan")}, "finite gamma, beta >= 0, got nan"),
+        ({"beta": float("inf")}, "finite gamma, beta >= 0, got 1000.0, inf"),
+        ({"n_samples": 2}, "n_samples >= 3 and 1 <= n_basis <= n_samples, got 2, 30"),
+        ({"n_basis": 0}, "n_samples >= 3 and 1 <= n_basis <= n_samples, got 500, 0"),
+    ):
+        with pytest.raises(RepertoireError, match=re.escape(message)):
+            obstacles(**kwargs).validate()
+    obstacles().validate()

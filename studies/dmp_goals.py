@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from repertoire.studies._dmp_common import register_dmp_study, write_table
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -80,6 +81,11 @@ class DmpGoalsConfig:
         if not math.isfinite(self.goal_shift_m):
             raise RepertoireError(
                 f"DmpGoalsConfig.goal_shift_m must be finite, got {self.goal_shift_m}"
+            )
+        if not (is_whole(self.n_basis) and is_whole(self.n_samples)):
+            raise RepertoireError(
+                "DmpGoalsConfig.n_basis and n_samples must be integers, got "
+                f"{self.n_basis}, {self.n_samples}"
             )
         if self.n_basis < 1 or self.n_samples < 3:
             raise RepertoireError("DmpGoalsConfig needs n_basis >= 1 and n_samples >= 3")

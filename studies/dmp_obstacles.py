@@ -18,6 +18,7 @@ import numpy as np
 from repertoire.studies._dmp_common import register_dmp_study, write_table
 from repertoire.studies.dmp_goals import simulate_dmp
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -76,7 +77,9 @@ class DmpObstaclesConfig:
             raise RepertoireError(
                 f"DmpObstaclesConfig needs finite gamma, beta >= 0, got {self.gamma}, {self.beta}"
             )
-        if not 3 <= self.n_samples or not 1 <= self.n_basis <= self.n_samples:
+        if not (is_whole(self.n_samples) and is_whole(self.n_basis)) or not (
+            3 <= self.n_samples and 1 <= self.n_basis <= self.n_samples
+        ):
             raise RepertoireError(
                 "DmpObstaclesConfig needs n_samples >= 3 and 1 <= n_basis <= n_samples, got "
                 f"{self.n_samples}, {self.n_basis}"

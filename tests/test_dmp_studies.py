@@ -3,7 +3,7 @@
 import re
 
 import pytest
-from repertoire.studies import dmp_chaining, dmp_goals, dmp_obstacles
+from repertoire.studies import dmp_chaining, dmp_goals, dmp_grid, dmp_obstacles
 from repertoire.studies.engine import comparable, run_study
 from repertoire.studies.registry import get_study
 
@@ -82,3 +82,17 @@ def test_study_configs_refuse_infinite_and_inverted_ranges():
         with pytest.raises(RepertoireError, match=re.escape(message)):
             obstacles(**kwargs).validate()
     obstacles().validate()
+    with pytest.raises(RepertoireError, match=re.escape("1 <= n_basis <= n_samples, got 0, 500")):
+        dmp_chaining.DmpChainingConfig(n_basis=0).validate()
+    for config in (dmp_chaining.DmpChainingConfig, dmp_goals.DmpGoalsConfig):
+        with pytest.raises(
+            RepertoireError,
+            match="n_samples and n_basis must be integers|n_basis and n_samples must be integers",
+        ):
+            config(n_basis=float("nan")).validate()
+    with pytest.raises(RepertoireError, match=r"GridConfig.n must be an integer >= 1, got inf"):
+        dmp_grid.GridConfig(n=float("inf")).validate()
+    with pytest.raises(RepertoireError, match=r"GridConfig.time_step must be finite and > 0"):
+        dmp_grid.GridConfig(time_step=float("nan")).validate()
+    with pytest.raises(RepertoireError, match=r"finite sim_duration_s >= 0 and path_every_s > 0"):
+        dmp_grid.GridConfig(sim_duration_s=float("inf")).validate()

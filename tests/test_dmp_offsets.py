@@ -4,6 +4,7 @@ out as the same movement at the origin (only the offset's own rounding may diffe
 
 import numpy as np
 import pytest
+from pydrake.systems.analysis import Simulator
 from repertoire.planning.dmp_derivatives import estimate_derivatives
 from repertoire.planning.dmp_learn import learn_dmp
 from repertoire.planning.dmp_math import (
@@ -13,6 +14,7 @@ from repertoire.planning.dmp_math import (
     minimum_jerk_via_points,
     rollout,
 )
+from repertoire.systems.dmp_discrete import DiscreteDmpSystem
 
 OFFSET = 1e3
 AMPLITUDE = 3e-4  # a 0.3 mm movement 1000 units (mm, or m) from the origin
@@ -74,3 +76,21 @@ def test_rollout_is_translation_equivariant_to_the_offset_rounding():
             # the offset's own rounding (eps 1e3 = 2e-13) is 1e-9 of the range; was 1.8e-4
             assert np.abs(b.x - OFFSET - a.x).max() < 1e-8 * AMPLITUDE
             np.testing.assert_allclose(b.xdd, a.xdd, rtol=0, atol=1e-6 * np.abs(a.xdd).max())
+
+
+@pytest.mark.parametrize(("offset", "bound"), [(1e3, 1.5e-8), (1e5, 1.5e-6)])
+def test_the_discrete_system_far_from_the_origin_follows_the_rollout(offset, bound):
+    """DiscreteDmpTables.step works in the displacement from x0, as the rollout does."""
+    t, x = minimum_jerk_via_points(
+        np.array([[0.0, 0.0], [1.0, -0.5], [-0.3, 0.8], [0.6, 0.2]]) * AMPLITUDE, 2.0, 1001
+    )
+    dmp = learn_dmp(t, x + offset)
+    system = DiscreteDmpSystem(dmp, time_step=1e-3)
+    context = system.CreateDefaultContext()
+    simulator = Simulator(system, context)
+    reference = dmp.rollout(dt=1e-3, n_steps=3000)
+    for k in (500, 1000, 2000, 3000):
+        simulator.AdvanceTo(k * 1e-3)
+        x_k = system.GetOutputPort("position").Eval(context)
+        # absolute positions: 4.4e-8 (1e3) and 4.6e-6 (1e5) of the range; now 3e-9 / 4.4e-7
+        assert np.abs(x_k - reference.x[k]).max() / AMPLITUDE < bound

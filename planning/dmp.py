@@ -544,8 +544,13 @@ def check_demonstration(t: np.ndarray, x: np.ndarray, *, name: str = "demonstrat
     """
     if np.iscomplexobj(t) or np.iscomplexobj(x):
         raise RepertoireError(f"{name} must be real numbers, got complex values")
-    t = np.asarray(t, dtype=float).reshape(-1)
-    x = np.asarray(x, dtype=float)
+    try:
+        t, x = np.asarray(t, dtype=float), np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise RepertoireError(f"{name} time stamps and samples must be numbers: {err}") from err
+    if t.ndim > 1 and t.size != max(t.shape):
+        raise RepertoireError(f"{name} time stamps must be one vector (N,), got shape {t.shape}")
+    t = t.reshape(-1)
     if x.ndim == 1:
         x = x[:, None]
     if x.ndim != 2:

@@ -28,6 +28,8 @@ class DiscreteDmpTables:
     ``z_{k+1} = z_k @ bigT + (a[k] * g + b[k] * x0 + c[k] + d * p).ravel()`` with
     ``z = [x, v]`` (v = tau dx/dt); from step ``last`` on, theta = 0 and f = 0.
     The rows ``a[k], b[k], c[k]`` are built in blocks of ``CHUNK_ROWS`` on demand.
+    :meth:`step` takes the update in the displacement from x0 (where ``b`` drops out), as
+    the NumPy rollout does, so positions far from the origin keep their digits.
     """
 
     def __init__(self, dmp: DmpParameters, dt: float) -> None:
@@ -94,16 +96,22 @@ class DiscreteDmpTables:
             x0: Start, shape (n,).
             p: Coupling term held over the step, or None.
         """
+        # in x - x0 the start is 0: U loses K x0 (the spring's pull at x0), b drops out
+        g = goal - x0
         if k >= self.last:
-            u = self._a_last * goal
+            u = self._a_last * g
         else:
             i = int(k) - self._start
             if not 0 <= i < self._rows:
                 i = self._block(int(k))
-            u = self._a[i] * goal + self._b[i] * x0 + self._c[i]
+            u = self._a[i] * g + self._c[i]
         if p is not None:
             u += self.d * p
-        return z @ self.bigT + u.ravel()
+        z = z.copy()
+        z[: self.n] -= x0
+        out = z @ self.bigT + u.ravel()
+        out[: self.n] += x0
+        return out
 
     def phase_and_f(self, k: float) -> tuple[float, np.ndarray]:
         """Phase and forcing term after k steps.

@@ -31,7 +31,8 @@ from repertoire.planning.dmp import (
     check_per_dof,
     check_unit_quaternions,
 )
-from repertoire.planning.dmp_derivatives import estimate_derivatives
+from repertoire.planning.dmp_derivatives import fit_demonstration
+from repertoire.planning.dmp_gaps import gap_rows
 from repertoire.planning.dmp_math import (
     basis_centres,
     basis_widths,
@@ -363,11 +364,39 @@ def _basis(n_basis: int, alpha: float | None, overlap: float, n_samples: int) ->
     return a, c, basis_widths(c, a, overlap)
 
 
+def _bridge_step(tau: float, centres: np.ndarray, bridge_gaps) -> float:
+    """The longest step left unbridged: half the basis spacing in time (inf: no bridges)."""
+    if not isinstance(bridge_gaps, (bool, np.bool_)):
+        raise RepertoireError(f"bridge_gaps must be True or False, got {bridge_gaps!r}")
+    return 0.5 * tau / max(centres.size - 1, 1) if bridge_gaps else np.inf
+
+
 def _demo_targets(
-    t, x, xd, xdd, alpha, Kv, Dv, tau, formulation, centres, widths, min_displacement=1e-9
+    t,
+    x,
+    xd,
+    xdd,
+    smooth,
+    alpha,
+    Kv,
+    Dv,
+    tau,
+    formulation,
+    centres,
+    widths,
+    min_displacement=1e-9,
+    bridge_gaps=True,
 ):
-    s = t - t[0]
-    theta = canonical_phase(s, tau, alpha)
+    """Regressors and f_target (eq. 5 / 8) at the samples and inside their gaps.
+
+    Gaps longer than half the basis spacing in time get points on the quintic bridge
+    through ``smooth`` (the fitted positions; None: fit_demonstration's, computed only if
+    there is a gap) and the derivatives (dmp_gaps.gap_rows), so every basis function rests
+    on the demonstration rather than on its neighbours' tails. The bridge goes through
+    fitted positions, not noisy samples: given exact derivatives and samples with 2 mm
+    noise (noisy_sparse_minimum_jerk, seeds 0-39) raw ends took the reproduction error to a
+    median of 2 % (fitted ends: 0.25 %, as without bridges; max 0.5 % instead of 2.4 %).
+    """
     x0, g = x[0], x[-1]
     if formulation == "old":
         small = np.abs(g - x0) <= min_displacement
@@ -376,6 +405,12 @@ def _demo_targets(
                 "the old formulation (eq. 5) divides by g - x0, but start equals goal in DOF "
                 f"{np.flatnonzero(small).tolist()}; use formulation='new'"
             )
+    step = _bridge_step(tau, centres, bridge_gaps)
+    if smooth is None and np.any(np.diff(t) > step):
+        smooth = fit_demonstration(t, x)[0]
+    tb, xb, xdb, xddb = gap_rows(t, x if smooth is None else smooth, xd, xdd, step)
+    theta = canonical_phase(np.concatenate([t, tb]) - t[0], tau, alpha)
+    x, xd, xdd = np.vstack([x, xb]), np.vstack([xd, xdb]), np.vstack([xdd, xddb])
     F = forcing_target(x, xd, xdd, theta, g, x0, Kv, Dv, tau, formulation)
     return forcing_features(theta, centres, widths), F
 
@@ -410,10 +445,14 @@ def learn_dmp(
     xdd: np.ndarray | None = None,
     names: list[str] | None = None,
     min_displacement: float = 1e-9,
+    bridge_gaps: bool = True,
 ) -> DmpParameters:
     """Learn an n-DOF DMP from one demonstration (eq. 5 or 8 + linear least squares).
 
-    ``tau`` is the demonstration's duration, ``x0``/``goal`` its first/last sample.
+    ``tau`` is the demonstration's duration, ``x0``/``goal`` its first/last sample. Steps
+    between samples longer than half the basis spacing in time (a dropout, sparse random
+    stamps) are bridged by quintic Hermite points through the fitted ends
+    (:mod:`repertoire.planning.dmp_gaps`) before the least squares.
 
     Args:
         t: Time stamps [s], strictly increasing (may be non-uniform), shape (N,), N >= 3.
@@ -438,6 +477,8 @@ def learn_dmp(
         names: Optional DOF names.
         min_displacement: Old form only: |g - x0| at or below this in any DOF is an error
             (eq. 5 divides by it); 0 allows tiny displacements (to show the blow-up).
+        bridge_gaps: Bridge steps longer than half the basis spacing (the default); False
+            fits the samples alone (to show what the bridges do).
     """
     t, x = check_demonstration(t, x)
     check_formulation(formulation)
@@ -445,8 +486,9 @@ def learn_dmp(
     n = x.shape[1]
     Kv, Dv = _gains(n, K, D)
     a, c, h = _basis(n_basis, alpha, overlap, t.size)
+    smooth = None  # fitted only where a gap needs it (_demo_targets)
     if xd is None or xdd is None:
-        xd_e, xdd_e = estimate_derivatives(
+        smooth, xd_e, xdd_e = fit_demonstration(
             t, x, method=derivatives, window=window, smoothing=smoothing
         )
         xd = xd_e if xd is None else xd
@@ -454,7 +496,9 @@ def learn_dmp(
     xd = _known_derivative("xd", xd, x.shape)
     xdd = _known_derivative("xdd", xdd, x.shape)
     tau = float(t[-1] - t[0])
-    Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h, min_displacement)
+    Phi, F = _demo_targets(
+        t, x, xd, xdd, smooth, a, Kv, Dv, tau, formulation, c, h, min_displacement, bridge_gaps
+    )
     weights = fit_forcing_weights(Phi, F, ridge)
     return DmpParameters(
         weights, c, h, Kv, Dv, a, tau, x[0], x[-1], formulation, names=list(names or [])
@@ -473,6 +517,7 @@ def learn_dmp_from_demonstrations(
     overlap: float = 0.5,
     derivatives: str = "auto",
     names: list[str] | None = None,
+    bridge_gaps: bool = True,
 ) -> DmpParameters:
     """Learn one DMP from several demonstrations (a joint least-squares fit).
 
@@ -491,6 +536,7 @@ def learn_dmp_from_demonstrations(
         overlap: Basis overlap.
         derivatives: Derivative method.
         names: Optional DOF names.
+        bridge_gaps: Bridge each demonstration's long steps (see :func:`learn_dmp`).
     """
     if not demonstrations:
         raise RepertoireError("need at least one demonstration, got an empty list")
@@ -517,8 +563,10 @@ def learn_dmp_from_demonstrations(
     for i, (t, x) in enumerate(demos):
         tau = float(t[-1] - t[0])
         try:
-            xd, xdd = estimate_derivatives(t, x, method=derivatives)
-            Phi, F = _demo_targets(t, x, xd, xdd, a, Kv, Dv, tau, formulation, c, h)
+            smooth, xd, xdd = fit_demonstration(t, x, method=derivatives)
+            Phi, F = _demo_targets(
+                t, x, xd, xdd, smooth, a, Kv, Dv, tau, formulation, c, h, 1e-9, bridge_gaps
+            )
         except RepertoireError as err:  # say which demonstration
             raise type(err)(f"demonstration {i}: {err}") from err
         feats.append(Phi)
@@ -558,6 +606,7 @@ def learn_quaternion_dmp(
     overlap: float = 0.5,
     derivatives: str = "auto",
     unit_tolerance: float = 1e-6,
+    bridge_gaps: bool = True,
 ) -> QuaternionDmpParameters:
     """Learn an orientation DMP from a unit-quaternion demonstration.
 
@@ -582,6 +631,8 @@ def learn_quaternion_dmp(
         overlap: Basis overlap.
         derivatives: Derivative method.
         unit_tolerance: Allowed deviation of |q| from 1.
+        bridge_gaps: Bridge long steps between samples (see :func:`learn_dmp`; on-manifold:
+            the bridge in R^4 projected onto the unit sphere).
     """
     t, q = check_demonstration(t, q, name="quaternion demonstration")
     check_unit_quaternions(q, tolerance=unit_tolerance, name="quaternion demonstration")
@@ -601,16 +652,15 @@ def learn_quaternion_dmp(
             ridge=ridge,
             overlap=overlap,
             derivatives=derivatives,
+            bridge_gaps=bridge_gaps,
         )
         return QuaternionDmpParameters(
             p.weights, p.centres, p.widths, Kv[0], Dv[0], p.alpha, p.tau, q[0], q[-1], mode
         )
     a, c, h = _basis(n_basis, alpha, overlap, t.size)
-    qd, qdd = estimate_derivatives(t, q, method=derivatives)
-    omega = angular_velocity(q, qd)
-    omegad = 2.0 * quat_multiply(qdd, quat_conjugate(q))[:, 1:]
     tau = float(t[-1] - t[0])
-    theta = canonical_phase(t - t[0], tau, a)
+    step = _bridge_step(tau, c, bridge_gaps)
+    smooth, qd, qdd = fit_demonstration(t, q, method=derivatives)
     g, q0 = q[-1], q[0]
     turn = 2.0 * np.arccos(np.clip(q @ g, -1.0, 1.0))
     k = int(np.argmax(turn))
@@ -627,6 +677,14 @@ def learn_quaternion_dmp(
             f"samples {k} and {k + 1} (it turns 360 deg or more): the on-manifold quaternion "
             "DMP turns less than a full turn; use mode='component' or split the movement"
         )
+    # gaps bridged as learn_dmp does, in R^4 and projected back onto S^3 (dmp_gaps)
+    tb, qb, qdb, qddb = gap_rows(t, smooth, qd, qdd, step)
+    qb = qb / np.linalg.norm(qb, axis=1, keepdims=True)
+    q, qd, qdd = np.vstack([q, qb]), np.vstack([qd, qdb]), np.vstack([qdd, qddb])
+    e = np.vstack([e, quat_log_error(g, qb)])
+    omega = angular_velocity(q, qd)
+    omegad = 2.0 * quat_multiply(qdd, quat_conjugate(q))[:, 1:]
+    theta = canonical_phase(np.concatenate([t, tb]) - t[0], tau, a)
     F = (
         (tau * tau * omegad + Dv[0] * tau * omega) / Kv[0]
         - e

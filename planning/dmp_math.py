@@ -422,6 +422,12 @@ def rollout(
     X = np.empty((N, n))
     V = np.empty((N, n))
     x_init = x0 if x_init is None else check_finite_vector("x_init", x_init, n)
+    # The equations see positions only through g - x, g - x0 and x - x0: integrate the
+    # displacement from x0, so a movement far from the origin keeps its digits (a 0.3 mm
+    # movement 1000 units out was off by 1.6e-4 of its range at 0.1 ms steps).
+    shift, x0 = x0, np.zeros(n)
+    G = G - shift
+    x_init = x_init - shift
     X[0], V[0] = x_init, v_init
     if method == "exact":
         if coupling is not None:
@@ -445,7 +451,7 @@ def rollout(
         for k in range(N - 1):
             p = 0.0
             if coupling is not None:
-                p = np.asarray(coupling(x, v / tau), dtype=float)
+                p = np.asarray(coupling(x + shift, v / tau), dtype=float)
                 if p.shape not in ((n,), ()):
                     raise RepertoireError(
                         f"coupling(x, xd) must return {n} entries (one per DOF), got shape "
@@ -463,11 +469,11 @@ def rollout(
             x = x + dt * v / tau
             X[k + 1], V[k + 1] = x, v
         if coupling is not None:
-            P[-1] = coupling(X[-1], V[-1] / tau)
+            P[-1] = coupling(X[-1] + shift, V[-1] / tau)
     else:
         raise RepertoireError(f"method must be 'exact' or 'euler', got {method!r}")
     _, VD = transformation_derivatives(X, V, theta, G, x0, f, Kv, Dv, tau, formulation, P)
-    return Rollout(t=t, theta=theta, x=X, xd=V / tau, xdd=VD / tau)
+    return Rollout(t=t, theta=theta, x=X + shift, xd=V / tau, xdd=VD / tau)
 
 
 # --------------------------------------------------------------------------- obstacle coupling

@@ -208,14 +208,26 @@ def check_arm_config(config, ranges: Mapping[str, Sequence[float]]) -> None:
 
     Raises:
         RepertoireError: A range that is not two finite numbers in order, a negative
-            ``sim_duration_s`` or a ``path_every_s`` that is not positive.
+            ``sim_duration_s`` or a ``path_every_s`` that is not positive, a ``time_step``
+            that is not positive, or (where the config has them) obstacle gains or length
+            scale that are negative; every number must be finite.
     """
     owner = type(config).__name__
     for name, r in ranges.items():
         if len(r) != 2 or not all(math.isfinite(v) for v in r) or r[0] > r[1]:
             raise RepertoireError(f"{owner}.{name} must be [min, max], got {r}")
-    if not (config.sim_duration_s >= 0 and config.path_every_s > 0):
-        raise RepertoireError("sim_duration_s must be >= 0 and path_every_s > 0")
+    if not (0 <= config.sim_duration_s < math.inf and 0 < config.path_every_s < math.inf):
+        raise RepertoireError(
+            f"{owner} needs finite sim_duration_s >= 0 and path_every_s > 0, got "
+            f"{config.sim_duration_s}, {config.path_every_s}"
+        )
+    if hasattr(config, "time_step") and not 0 < config.time_step < math.inf:
+        raise RepertoireError(f"{owner}.time_step must be finite and > 0, got {config.time_step}")
+    for name in ("obstacle_gamma", "obstacle_beta", "obstacle_length_scale"):
+        if hasattr(config, name) and not 0 <= getattr(config, name) < math.inf:
+            raise RepertoireError(
+                f"{owner}.{name} must be finite and >= 0, got {getattr(config, name)}"
+            )
 
 
 def timing_rows(records) -> list[str]:

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 from repertoire.studies._dmp_common import register_dmp_study, write_table
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 HANDOFF_NAMES = ("none", "velocity", "acceleration")
@@ -77,6 +78,16 @@ class DmpChainingConfig:
             raise RepertoireError(
                 f"DmpChainingConfig needs side_min_m <= side_max_m, got {self.side_min_m} > "
                 f"{self.side_max_m}"
+            )
+        if not (is_whole(self.n_samples) and is_whole(self.n_basis)):
+            raise RepertoireError(
+                "DmpChainingConfig.n_samples and n_basis must be integers, got "
+                f"{self.n_samples}, {self.n_basis}"
+            )
+        if not 1 <= self.n_basis <= self.n_samples:
+            raise RepertoireError(
+                "DmpChainingConfig needs 1 <= n_basis <= n_samples, got "
+                f"{self.n_basis}, {self.n_samples}"
             )
 
 

@@ -24,6 +24,7 @@ from repertoire.studies._dmp_common import (
     write_table,
 )
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 REACH_TOLERANCE_M = 0.005
@@ -55,7 +56,7 @@ class GridConfig:
 
     def validate(self) -> None:
         """Raises RepertoireError for a bad range or grid size."""
-        if int(self.n) != self.n or self.n < 1:
+        if not (is_whole(self.n) and self.n >= 1):
             raise RepertoireError(f"GridConfig.n must be an integer >= 1, got {self.n}")
         names = ("grasp_x", "grasp_y", "place_x", "place_y")
         check_arm_config(self, {n: getattr(self, n) for n in names})

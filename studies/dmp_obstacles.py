@@ -18,6 +18,7 @@ import numpy as np
 from repertoire.studies._dmp_common import register_dmp_study, write_table
 from repertoire.studies.dmp_goals import simulate_dmp
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 
@@ -61,10 +62,28 @@ class DmpObstaclesConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise RepertoireError(f"DmpObstaclesConfig.{name} must be > 0, got {v}")
+        if not (math.isfinite(self.length_max_m) and self.length_min_m <= self.length_max_m):
+            raise RepertoireError(
+                "DmpObstaclesConfig needs finite length_min_m <= length_max_m, got "
+                f"{self.length_min_m}, {self.length_max_m}"
+            )
         if not 0 <= self.along_min <= self.along_max <= 1:
             raise RepertoireError("DmpObstaclesConfig needs 0 <= along_min <= along_max <= 1")
-        if self.gamma < 0 or self.beta < 0:
-            raise RepertoireError("DmpObstaclesConfig needs gamma, beta >= 0")
+        if not (math.isfinite(self.offset_max) and self.offset_max >= 0):
+            raise RepertoireError(
+                f"DmpObstaclesConfig.offset_max must be finite and >= 0, got {self.offset_max}"
+            )
+        if not (0 <= self.gamma < math.inf and 0 <= self.beta < math.inf):
+            raise RepertoireError(
+                f"DmpObstaclesConfig needs finite gamma, beta >= 0, got {self.gamma}, {self.beta}"
+            )
+        if not (is_whole(self.n_samples) and is_whole(self.n_basis)) or not (
+            3 <= self.n_samples and 1 <= self.n_basis <= self.n_samples
+        ):
+            raise RepertoireError(
+                "DmpObstaclesConfig needs n_samples >= 3 and 1 <= n_basis <= n_samples, got "
+                f"{self.n_samples}, {self.n_basis}"
+            )
 
 
 @dataclasses.dataclass

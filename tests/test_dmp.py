@@ -53,7 +53,6 @@ from scipy.integrate import solve_ivp
 from repertoire.errors import (
     RepertoireError,
     SolverError,
-    UnderdeterminedFitWarning,
     UnknownNameError,
 )
 
@@ -618,12 +617,11 @@ def test_more_basis_functions_than_samples_is_a_clear_value_error():
     q = slerp_minimum_jerk(np.array([1.0, 0, 0, 0]), np.array([0.0, 1.0, 0, 0]), t)
     with pytest.raises(ValueError, match=r"n_basis = 9 basis functions is more than the 8 "):
         learn_quaternion_dmp(t, q, n_basis=9, mode="manifold")
-    with pytest.warns(UnderdeterminedFitWarning, match="rest on less than one"):
-        assert learn_dmp(t, x, n_basis=8, ridge=0.0).n_basis == 8  # allowed, warned
-    with warnings.catch_warnings():  # the default ("auto") regularises it instead
-        warnings.simplefilter("error")
+    with warnings.catch_warnings():  # as many as samples: allowed, the steps between the
+        warnings.simplefilter("error")  # samples bridged (dmp_gaps), so not underdetermined
         auto = learn_dmp(t, x, n_basis=8)
-    np.testing.assert_array_equal(auto.weights, learn_dmp(t, x, n_basis=8, ridge="gcv").weights)
+        assert auto.n_basis == 8
+    np.testing.assert_array_equal(auto.weights, learn_dmp(t, x, n_basis=8, ridge=0.0).weights)
 
 
 def test_basis_functions_the_phase_never_reaches_are_a_clear_error():

@@ -267,3 +267,12 @@ def test_joint_learning_names_the_demonstration_that_fails():
         learn_dmp_from_demonstrations([(T, X), (T, loop)], formulation="old", n_basis=20)
     p = learn_dmp_from_demonstrations([(T, X), (T, loop)], n_basis=20)  # eq. 6-8: fine
     assert np.all(np.isfinite(p.weights))
+
+
+def test_time_stamps_that_are_not_one_vector_and_samples_that_are_not_numbers_are_named():
+    with raises("demonstration time stamps must be one vector (N,), got shape (200, 2)"):
+        learn_dmp(np.c_[T, T], X)
+    with raises("demonstration time stamps and samples must be numbers"):
+        learn_dmp(T, np.array([["a", "b"]] * 200))
+    # a column of stamps is one vector
+    np.testing.assert_array_equal(learn_dmp(T[:, None], X).weights, learn_dmp(T, X).weights)

@@ -19,7 +19,13 @@ from repertoire.planning.dmp_learn import (
     learn_quaternion_dmp,
     learn_task_space_dmp,
 )
-from repertoire.planning.dmp_math import minimum_jerk
+from repertoire.planning.dmp_math import (
+    alpha_for_final_phase,
+    basis_centres,
+    basis_widths,
+    forcing_features,
+    minimum_jerk,
+)
 
 from repertoire.errors import RepertoireError, UnderdeterminedFitWarning
 
@@ -92,22 +98,27 @@ def test_gcv_learns_the_sparse_noisy_demonstration():
 
 def test_ridge_zero_warns_about_basis_functions_over_sampling_gaps():
     t, x, _, _ = noisy_sparse_minimum_jerk(3000)
+    alpha = alpha_for_final_phase()
+    centres = basis_centres(50, alpha)
+    Phi = forcing_features(np.exp(-alpha * t / 2.0), centres, basis_widths(centres, alpha))
+    assert basis_support(Phi).min() < 1.0  # the samples alone leave basis functions bare
     with pytest.warns(UnderdeterminedFitWarning, match=r"pass ridge='auto'") as caught:
-        learn_dmp(t, x, ridge=0.0)
+        fit_forcing_weights(Phi, x, ridge=0.0)
     assert caught[0].filename == __file__  # the warning names the caller's line
+    q = slerp_minimum_jerk(np.array([1.0, 0, 0, 0]), np.array([0.0, 1.0, 0, 0]), t)
     with pytest.warns(UnderdeterminedFitWarning) as caught:
-        learn_dmp_from_demonstrations([(t, x)], ridge=0)  # also from another learner
+        learn_quaternion_dmp(t, q, ridge=0, bridge_gaps=False)  # also from a learner
     assert caught[0].filename == __file__
-    # the default, "auto": GCV here (a basis function rests on less than one sample) ...
-    np.testing.assert_array_equal(learn_dmp(t, x).weights, learn_dmp(t, x, ridge="gcv").weights)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
+        # learn_dmp bridges the gaps (dmp_gaps), so every basis function rests on the
+        # demonstration: plain least squares, no warning, and "auto" is ridge 0 bit for bit
+        np.testing.assert_array_equal(learn_dmp(t, x).weights, learn_dmp(t, x, ridge=0.0).weights)
+        learn_dmp_from_demonstrations([(t, x)], ridge=0)
         learn_dmp(t, x, ridge="gcv")
-        learn_dmp(t, x, n_basis=20)  # every basis function rests on >= 2 samples here
         dense = np.linspace(0.0, 2.0, 101)
         move = minimum_jerk(np.zeros(1), np.ones(1), 2.0, dense)[0]
         learn_dmp(dense, move, ridge=0.0)
-    # ... and plain least squares where every basis function has its sample: bit for bit
     np.testing.assert_array_equal(
         learn_dmp(dense, move).weights, learn_dmp(dense, move, ridge=0.0).weights
     )

@@ -1,7 +1,9 @@
 """DMP studies: smoke runs through the study engine, determinism, the headline effects."""
 
+import re
+
 import pytest
-from repertoire.studies import dmp_chaining, dmp_goals, dmp_obstacles
+from repertoire.studies import dmp_chaining, dmp_goals, dmp_grid, dmp_obstacles
 from repertoire.studies.engine import comparable, run_study
 from repertoire.studies.registry import get_study
 
@@ -67,3 +69,30 @@ def test_study_configs_refuse_infinite_and_inverted_ranges():
         dmp_goals.DmpGoalsConfig(rise_min_m=0.2, rise_max_m=0.1).validate()
     dmp_goals.DmpGoalsConfig().validate()
     dmp_chaining.DmpChainingConfig().validate()
+    obstacles = dmp_obstacles.DmpObstaclesConfig
+    for kwargs, message in (
+        ({"length_max_m": 0.1}, "finite length_min_m <= length_max_m, got 0.3, 0.1"),
+        ({"length_max_m": float("inf")}, "finite length_min_m <= length_max_m, got 0.3, inf"),
+        ({"offset_max": -1.0}, "offset_max must be finite and >= 0, got -1.0"),
+        ({"gamma": float("nan")}, "finite gamma, beta >= 0, got nan"),
+        ({"beta": float("inf")}, "finite gamma, beta >= 0, got 1000.0, inf"),
+        ({"n_samples": 2}, "n_samples >= 3 and 1 <= n_basis <= n_samples, got 2, 30"),
+        ({"n_basis": 0}, "n_samples >= 3 and 1 <= n_basis <= n_samples, got 500, 0"),
+    ):
+        with pytest.raises(RepertoireError, match=re.escape(message)):
+            obstacles(**kwargs).validate()
+    obstacles().validate()
+    with pytest.raises(RepertoireError, match=re.escape("1 <= n_basis <= n_samples, got 0, 500")):
+        dmp_chaining.DmpChainingConfig(n_basis=0).validate()
+    for config in (dmp_chaining.DmpChainingConfig, dmp_goals.DmpGoalsConfig):
+        with pytest.raises(
+            RepertoireError,
+            match="n_samples and n_basis must be integers|n_basis and n_samples must be integers",
+        ):
+            config(n_basis=float("nan")).validate()
+    with pytest.raises(RepertoireError, match=r"GridConfig.n must be an integer >= 1, got inf"):
+        dmp_grid.GridConfig(n=float("inf")).validate()
+    with pytest.raises(RepertoireError, match=r"GridConfig.time_step must be finite and > 0"):
+        dmp_grid.GridConfig(time_step=float("nan")).validate()
+    with pytest.raises(RepertoireError, match=r"finite sim_duration_s >= 0 and path_every_s > 0"):
+        dmp_grid.GridConfig(sim_duration_s=float("inf")).validate()

@@ -25,6 +25,7 @@ nothing: 210 ms instead of 12.5 ms here).
 
 import argparse
 import atexit
+import functools
 import importlib.util
 import pathlib
 import shutil
@@ -85,6 +86,7 @@ def derivatives_part(args) -> None:
 
     estimators = {"before": load_before(args.before).estimate_derivatives}
     estimators["after"] = estimate_derivatives
+    learn = functools.partial(learn_dmp, bridge_gaps=not args.samples_alone)
     seed_sets = [tuple(args.derivative_seeds[i : i + 2]) for i in range(0, 6, 2)]
 
     def scores(cases):
@@ -95,7 +97,7 @@ def derivatives_part(args) -> None:
                 d1, d2 = estimate(t, x)
                 out[k][0].append(np.sqrt(np.mean((d2 - xdd) ** 2)) / np.abs(xdd).max())
                 for ridge, errors in ((0.0, out[k][1]), ("gcv", out[k][2])):
-                    errors.append(error(learn_dmp(t, x, xd=d1, xdd=d2, ridge=ridge)))
+                    errors.append(error(learn(t, x, xd=d1, xdd=d2, ridge=ridge)))
         return out
 
     def report(label, out):
@@ -176,7 +178,7 @@ def speed_part(args, estimators=None) -> None:
         for k, estimate in estimators.items():
             t0 = time.perf_counter()
             xd, xdd = estimate(t, noisy)  # what learn_dmp does with derivatives="auto"
-            learn_dmp(t, noisy, xd=xd, xdd=xdd)
+            learn_dmp(t, noisy, xd=xd, xdd=xdd, bridge_gaps=not args.samples_alone)
             times[k].append(time.perf_counter() - t0)
     print(
         "learning a DMP from the noisy 10001-sample demonstration: "
@@ -194,6 +196,11 @@ def main() -> int:
         "--derivative-seeds", type=int, nargs=6, default=[0, 40, 2000, 2100, 5000, 5050]
     )
     parser.add_argument("--derivative-repeats", type=int, default=3)
+    parser.add_argument(
+        "--samples-alone",
+        action="store_true",
+        help="learn without bridging gaps in the stamps (bridge_gaps=False), as before session 29",
+    )
     args = parser.parse_args()
     warnings.simplefilter("ignore")  # ridge=0 warns on every sparse demo here
     if args.part in ("derivatives", "all"):
@@ -208,6 +215,7 @@ def main() -> int:
     from repertoire.planning.dmp_learn import learn_dmp, learn_task_space_dmp
     from repertoire.planning.dmp_math import minimum_jerk
 
+    learn = functools.partial(learn_dmp, bridge_gaps=not args.samples_alone)
     seeds = range(*args.seeds)
     for n_basis in (50, 20):
         for label, exact in (("estimated derivatives", False), ("exact derivatives", True)):
@@ -216,7 +224,7 @@ def main() -> int:
                 t, x, xd, xdd = noisy_sparse_minimum_jerk(seed)
                 known = {"xd": xd, "xdd": xdd} if exact else {}
                 for ridge, out in errors.items():
-                    out.append(error(learn_dmp(t, x, n_basis=n_basis, ridge=ridge, **known)))
+                    out.append(error(learn(t, x, n_basis=n_basis, ridge=ridge, **known)))
             print(f"sparse noisy, {n_basis} basis functions, {label}, seeds {args.seeds}:")
             for ridge, e in errors.items():
                 e = 100.0 * np.array(e)

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from repertoire.planning.refinement import DurationTerm, RefinementProblem
 
+from repertoire.checks import is_real
 from repertoire.errors import RepertoireError, SolverError
 
 Atom = tuple[str, tuple[str, ...]]
@@ -388,21 +389,29 @@ class BeliefState:
         """Composes what the predicates say about ``quantity`` (intersection of ranges).
 
         Raises:
-            RepertoireError: no default for the quantity, the composed range is empty,
-                or a value held in the current state lies outside the constraints.
+            RepertoireError: no default for the quantity, a default or constraint that is
+                not a ``(lo, hi)`` pair of numbers with ``lo <= hi`` (NaN included), a
+                value that is not a finite number, the composed range is empty, or a
+                value held in the current state lies outside the constraints.
         """
         if quantity not in self.defaults:
             raise RepertoireError(
                 f"belief state has no default range for quantity {quantity!r}; "
                 f"known: {sorted(self.defaults)}"
             )
-        lo, hi = self.defaults[quantity]
+        lo, hi = _belief_range(f"default range of {quantity!r}", self.defaults[quantity])
         bound: float | None = None
         for step, predicate in predicates:
-            if step == INITIAL_STEP and (predicate, quantity) in self.values:
-                bound = float(self.values[(predicate, quantity)])
-            elif (predicate, quantity) in self.constraints:
-                c_lo, c_hi = self.constraints[(predicate, quantity)]
+            key = (predicate, quantity)
+            if step == INITIAL_STEP and key in self.values:
+                bound = self.values[key]
+                if not (is_real(bound) and math.isfinite(bound)):
+                    raise RepertoireError(
+                        f"belief state value {key} is {bound!r}; expected a finite number"
+                    )
+                bound = float(bound)
+            elif key in self.constraints:
+                c_lo, c_hi = _belief_range(f"constraint {key}", self.constraints[key])
                 lo, hi = max(lo, c_lo), min(hi, c_hi)
         if lo > hi:
             raise RepertoireError(
@@ -416,6 +425,22 @@ class BeliefState:
                 )
             return Range(bound, bound)
         return Range(lo, hi)
+
+
+def _belief_range(what: str, pair) -> tuple[float, float]:
+    """``pair`` as ``(lo, hi)`` floats (infinite allowed), or a RepertoireError naming ``what``.
+
+    A NaN bound would drop out of ``max``/``min`` silently and leave the range unconstrained.
+    """
+    try:
+        lo, hi = pair
+    except (TypeError, ValueError):
+        raise RepertoireError(f"belief state {what} is {pair!r}; expected (lo, hi)") from None
+    if not (is_real(lo) and is_real(hi)) or math.isnan(lo) or math.isnan(hi) or lo > hi:
+        raise RepertoireError(
+            f"belief state {what} is {pair!r}; expected two numbers (not NaN) with lo <= hi"
+        )
+    return float(lo), float(hi)
 
 
 @dataclass(frozen=True)

@@ -326,16 +326,27 @@ class RefinementProblem:
         object.__setattr__(self, "upper", hi)
         if not self.terms:
             raise RepertoireError("a refinement problem needs at least one action (term)")
-        if lo.shape != hi.shape or not (np.isfinite(lo).all() and np.isfinite(hi).all()):
-            raise RepertoireError("parameter bounds must be finite arrays of equal length")
+        if lo.shape != hi.shape:
+            raise RepertoireError(
+                f"parameter bounds must be arrays of equal length, got {lo.size} lower and "
+                f"{hi.size} upper bounds"
+            )
+        if self.names and len(self.names) != lo.size:
+            raise RepertoireError(f"{len(self.names)} names for {lo.size} parameters")
+        bad = np.flatnonzero(~(np.isfinite(lo) & np.isfinite(hi)))
+        if bad.size:
+            which = [self.names[i] if self.names else int(i) for i in bad]
+            raise RepertoireError(
+                f"free parameters {which} have the non-finite ranges "
+                f"{[[float(lo[i]), float(hi[i])] for i in bad]}; refinement searches a "
+                "finite box: give each a finite range (e.g. the belief state's default)"
+            )
         bad = np.flatnonzero(lo > hi)
         if bad.size:
             which = [self.names[i] if self.names else int(i) for i in bad]
             raise RepertoireError(
                 f"free parameters {which} have empty ranges (lower > upper); expected lo <= hi"
             )
-        if self.names and len(self.names) != lo.size:
-            raise RepertoireError(f"{len(self.names)} names for {lo.size} parameters")
         for term in self.terms:
             if any(i < 0 or i >= lo.size for i in term.uses):
                 raise RepertoireError(

@@ -5,6 +5,8 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from repertoire.diagrams.simulate import build_registered
 from repertoire.diagrams.soccer_dribble import (
+    GUIDE_SIZE,
+    GUIDE_Y,
     DribbleLoopScenario,
     DribbleScenario,
     build_soccer_dribble,
@@ -22,6 +24,7 @@ from repertoire.systems.dribble_ball import (
     RollingResistance,
     approach_mode,
     ball_in_robot_frame,
+    ball_terms,
     dribble_control,
     loop_control,
     loop_geometry,
@@ -77,12 +80,39 @@ def test_dribble_ball_statuses_exact():
     # the ball 0.69 m from its held spot: lost -> failed, zero command
     action, ctx = _context([1, 0, 0, 0], ball=(1.0, 0.0))
     np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.FAILED, APPROACH])
+    # the ball beside a guide arm's tip, 0.219 m from its held spot (inside lost_distance)
+    # but its centre 0.2 m to the side (beyond lost_lateral): lost -> failed
+    action, ctx = _context([-1, 0, 0, 0], ball=(0.4, -0.2))
+    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.FAILED, APPROACH])
+    # 0.15 m to the side, within both: held, still running
+    action, ctx = _context([1, 0, 0, 0], ball=(0.4, -0.15))
+    assert _update(action, ctx)[2] == ActionStatus.RUNNING
     # held spot 5 cm from the goal's: succeeded
     action, ctx = _context([0.05, 0, 0.1, 0])
     assert _update(action, ctx)[2] == ActionStatus.SUCCEEDED
     # timeout
     action, ctx = _context([1, 0, 0, 0], time=DRIBBLE_GAINS["timeout"])
     np.testing.assert_allclose(_update(action, ctx), [0.0, 0.0, ActionStatus.TIMED_OUT, APPROACH])
+
+
+def test_ball_held_by_hand():
+    g = dict(DRIBBLE_GAINS)
+    # the standstill's ball: 0.2506 m from the held spot (0.31, 0), 0.22 m to the side
+    assert ball_terms([0, 0, 0, 0], [0.43, -0.22], g)[0] is False
+    # 0.219 m from the held spot, but 0.2 m to the side: out of the dribbler
+    held, gamma, align = ball_terms([0, 0, 0, 0], [0.4, -0.2], g)
+    assert held is False
+    assert gamma == pytest.approx(math.atan2(-0.2, 0.4))
+    assert align == pytest.approx(0.4**2 / (0.4**2 + 0.2**2))
+    # on the lateral limit (robot at (1, 1) facing +y: 0.155 m to its right) is held
+    assert ball_terms([1, 1, math.pi / 2, 0], [1.155, 1.31], g)[0] is True
+    assert ball_terms([1, 1, math.pi / 2, 0], [1.1551, 1.31], g)[0] is False
+    # a narrower dribbler is a gain
+    assert ball_terms([0, 0, 0, 0], [0.31, 0.1], g | {"lost_lateral": 0.05})[0] is False
+
+
+def test_lost_lateral_default_is_the_guide_arms_outer_face():
+    assert DRIBBLE_GAINS["lost_lateral"] == pytest.approx(GUIDE_Y + GUIDE_SIZE[1] / 2, abs=1e-12)
 
 
 def _spot_on_goal(heading_error, offset=0.0):
@@ -251,6 +281,8 @@ def test_dribble_ball_bad_construction():
         DribbleBall(gains={"speed": 1.0})
     with pytest.raises(RepertoireError, match="lost_distance must be > 0"):
         DribbleBall(gains={"lost_distance": 0.0})
+    with pytest.raises(RepertoireError, match="lost_lateral must be > 0"):
+        DribbleBall(gains={"lost_lateral": -0.1})
     with pytest.raises(RepertoireError, match="period"):
         DribbleBall(period=0.0)
     with pytest.raises(RepertoireError, match="workspace"):

@@ -193,6 +193,46 @@ def _linear(coef) -> PiecewiseLinearModel:
     return PiecewiseLinearModel([[-np.inf] * d], [[np.inf] * d], [coef], [0.5])
 
 
+@pytest.mark.parametrize(
+    ("part", "key", "bad", "message"),
+    [
+        # a NaN bound used to drop out of max/min: the range was silently unconstrained
+        ("constraints", ("atball", "v"), (math.nan, 0.3), r"constraint \('atball', 'v'\) is \(nan"),
+        ("constraints", ("atball", "v"), (0.1, math.nan), r"constraint \('atball', 'v'\) is \(0.1"),
+        ("constraints", ("atball", "v"), (0.3, 0.1), r"is \(0.3, 0.1\); expected two numbers"),
+        ("constraints", ("atball", "v"), 0.3, r"is 0.3; expected \(lo, hi\)"),
+        ("defaults", "v", (math.nan, 1.0), r"default range of 'v' is \(nan, 1.0\)"),
+        ("defaults", "phi", ("-pi", "pi"), r"default range of 'phi' is \('-pi', 'pi'\)"),
+        ("values", ("final", "v"), math.nan, r"value \('final', 'v'\) is nan; expected a finite"),
+        ("values", ("robot", "x"), math.inf, r"value \('robot', 'x'\) is inf; expected a finite"),
+        ("values", ("robot", "x"), "0", r"value \('robot', 'x'\) is '0'; expected a finite"),
+    ],
+)
+def test_bad_belief_entries_are_named(part, key, bad, message):
+    belief = fig10_belief()
+    getattr(belief, part)[key] = bad
+    plan = plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM)
+    with pytest.raises(RepertoireError, match=message):
+        instantiate_plan(plan, soccer_registry(), belief)
+
+
+def test_unbounded_free_parameter_is_named_by_refinement():
+    belief = fig10_belief()
+    belief.defaults["phi"] = (-math.inf, math.inf)  # fine for a bound phi, not for a free one
+    plan = instantiate_plan(plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), soccer_registry(), belief)
+    assert plan.ranges["pos2.phi"] == Range(-math.inf, math.inf)
+    assert plan.ranges["pos1.phi"] == Range(0.0, 0.0)
+    models = {
+        n: ActionDurationModel(_linear([0.0] * 4), _leg_features)
+        for n in ("approachBall", "dribbleBall")
+    }
+    with pytest.raises(
+        RepertoireError,
+        match=r"free parameters \['pos2.phi'\] have the non-finite ranges \[\[-inf, inf\]\]",
+    ):
+        refinement_problem(plan, models)
+
+
 def test_figure_11_refinement_of_the_instantiated_plan():
     plan = instantiate_plan(
         plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), soccer_registry(), fig10_belief()

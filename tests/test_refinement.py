@@ -211,6 +211,12 @@ def test_bad_input():
         RefinementProblem(problem.terms, [0.0, 1.0], [1.0, 0.5], ("pos2.phi", "pos3.phi"))
     with pytest.raises(RepertoireError, match="at least one action"):
         RefinementProblem((), [0.0], [1.0])
+    with pytest.raises(RepertoireError, match=r"parameters \[1\] have the non-finite ranges"):
+        RefinementProblem(problem.terms, [0.0, 0.0], [1.0, np.inf])
+    with pytest.raises(RepertoireError, match=r"\['pos3.phi'\] have the non-finite ranges \[\[nan"):
+        RefinementProblem(problem.terms, [0.0, np.nan], [1.0, 1.0], ("pos2.phi", "pos3.phi"))
+    with pytest.raises(RepertoireError, match="2 lower and 3 upper bounds"):
+        RefinementProblem(problem.terms, [0.0, 0.0], [1.0, 1.0, 1.0])
     with pytest.raises(RepertoireError, match="takes no options"):
         refine_sequence(problem, 1, "corners", seed=0)
     with pytest.raises(RepertoireError, match="unknown solver"):

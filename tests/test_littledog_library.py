@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from pydrake.math import RollPitchYaw
-from repertoire.models.littledog import LEGS, leg_fk, standing_configuration
+from repertoire.models.littledog import FOOT_RADIUS, LEGS, leg_fk, standing_configuration
 from repertoire.models.littledog.pose import (
     body_to_world,
     rotation_from_rpy,
@@ -466,6 +466,23 @@ def test_crawl_bad_input():
         plan_crawl(feet, too_high, [CrawlStep(0, feet[0])], board)
     with pytest.raises(CrawlError, match="time limit"):
         choose_footholds(board, feet, 0.0, 5.0, time_limit=0.0)
+    # A foothold off the ground: a foot commanded into the terrain (a placing move onto a
+    # goal stance with the start's heights put feet 4 cm into rocks) or into the air.
+    ground = board.params.base_thickness + FOOT_RADIUS
+    steps = choose_footholds(board, feet, 0.0, 0.15)
+    assert steps[1].p_WF[2] == pytest.approx(ground)
+    for dz, side in ((-0.04, "below"), (0.0051, "above")):
+        bad = CrawlStep(steps[1].foot, steps[1].p_WF + [0.0, 0.0, dz])
+        with pytest.raises(
+            CrawlError,
+            match=rf"step 1 \(moving foot {LEGS[bad.foot]}\) foothold centre .* lies "
+            rf"{abs(dz):.4f} m {side} the ground plus the foot radius \(at most 0.005 m\)",
+        ):
+            plan_crawl(feet, pose, [steps[0], bad, *steps[2:]], board)
+    ok = CrawlStep(steps[1].foot, steps[1].p_WF + [0.0, 0.0, 0.0049])  # within the tolerance
+    plan_crawl(feet, pose, [steps[0], ok], board)
+    with pytest.raises(CrawlError, match="ground_tolerance must be in"):
+        plan_crawl(feet, pose, steps, board, CrawlParams(ground_tolerance=-0.001))
 
     class Jagged:  # every spot is an edge
         def height(self, x, y):

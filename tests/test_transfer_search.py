@@ -381,6 +381,24 @@ def test_crawl_gap_filler_places_only_the_feet_the_executor_cannot_take_up():
     assert len(few.steps) < len(every.steps)
 
 
+def test_crawl_gap_filler_places_no_feet_onto_a_goal_target():
+    # place=False (a goal reached by the planner's goal test): the planner's steps alone,
+    # the same ones that end the placed gap; a non-bool is refused, naming it.
+    filler, start = flat_filler()
+    target = stance(0.013, 0.007)  # off the planner's 2 cm lattice
+    target[:, 2] = start[0, 2]
+    placed = filler(start, target, 2.0)
+    goal = filler(start, target, 2.0, place=False)
+    assert placed.status == goal.status == "reached"
+    assert 0 < len(goal.steps) < len(placed.steps)
+    for a, b in zip(goal.steps, placed.steps):
+        assert a.foot == b.foot and np.array_equal(a.end_feet, b.end_feet)
+    end = goal.steps[-1].end_feet
+    assert np.linalg.norm(end[:, :2].mean(0) - target[:, :2].mean(0)) <= 0.03 + 1e-9
+    with pytest.raises(TransferSearchError, match="place must be a bool, got 'no'"):
+        filler(start, target, 2.0, place="no")
+
+
 @pytest.mark.parametrize("yaw_deg", [-40.0, 45.0])
 def test_crawl_gap_filler_turns_onto_a_yawed_target_stance(yaw_deg):
     # A recorded step matched with a yaw at the edge of the candidate range: the crawl

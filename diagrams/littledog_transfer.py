@@ -96,7 +96,8 @@ class LittleDogTransferScenario(LibraryLoopFields):
             (the default before session 28) the transferred steps were 5 near the start,
             and the planner alone (19 steps) was cheaper than any path through them; from
             0.15 m the search's path is 11 recorded steps and 12 planned ones on the rocks
-            (11-12 recorded on 9 of rock seeds 0-9, 5 on seed 8).
+            (11-12 recorded on each of rock seeds 0-40; seed 8 gave 5 while the goal gap
+            placed feet onto the goal stance, see :class:`GoalLineFiller`).
         rock_seed: seed of the rocks on the modified part.
         board_seeds: one seed per generated board (two boards side by side).
         mode: ``search`` | ``greedy`` (no search) | ``planner`` (no library).

@@ -208,6 +208,11 @@ def test_step_index_is_exact_nearest_by_sum_of_distances(library):
         index.query_batch(np.zeros((2, 2, 12)))  # used to fail inside numpy broadcasting
     ib, db = index.query_batch(feet[:3].reshape(3, 4, 3))
     assert np.array_equal(ib, np.argmin(sums[:3, :40], axis=1))
+    with pytest.raises(RepertoireError, match="feet must be numbers, got 'abc'"):
+        index.query("abc")  # was numpy's "could not convert string to float"
+    for bad in (-1, 2.5, True):
+        with pytest.raises(RepertoireError, match=f"brute_force_below must be .* got {bad}"):
+            StepIndex(lib, brute_force_below=bad)
 
 
 def test_library_policy_chooses_only_with_four_feet_down(library):

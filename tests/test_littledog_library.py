@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from pydrake.math import RollPitchYaw
-from repertoire.models.littledog import FOOT_RADIUS, LEGS, leg_fk, standing_configuration
+from repertoire.models.littledog import FOOT_RADIUS, LEGS, leg_fk, leg_ik, standing_configuration
 from repertoire.models.littledog.pose import (
     body_to_world,
     rotation_from_rpy,
@@ -372,6 +372,29 @@ def test_corrected_angles_keep_the_played_back_knee_branch():
     assert saturated == 0
     assert np.allclose(body_feet(q), body_feet(q0) + offsets)
     assert q[2] > 0.0 and q[8] < 0.0  # the played-back branches (else -0.35, +0.37)
+
+
+def test_corrected_angles_keep_the_played_back_roll_branch():
+    # An lf leg with its foot 7 mm above its hip pitch axis (knee bent by 2.1 rad): the
+    # same foot is also reached with the foot below it, roll +0.2959 rad, both within the
+    # limits. The IK's own choice (below) flipped the roll by 0.58 rad for a 1 mm correction.
+    from repertoire.models.littledog.kinematics import foot_above_pitch_axis
+
+    folded = np.array([-0.28, -0.34, -2.1])
+    assert foot_above_pitch_axis(folded)
+    p = leg_fk("lf", folded)
+    np.testing.assert_allclose(leg_ik("lf", p), [0.2959, -0.1839, -2.1], atol=1e-4)
+    np.testing.assert_allclose(leg_ik("lf", p, foot_above=True), folded, atol=1e-12)
+    q0 = standing_configuration(0.14)
+    q0[0:3] = folded
+    offsets = np.zeros((4, 3))
+    offsets[0] = [0.0, 0.0, 0.001]
+    q, saturated = corrected_angles(q0, offsets)
+    assert saturated == 0
+    np.testing.assert_allclose(body_feet(q), body_feet(q0) + offsets, atol=1e-12)
+    assert np.abs(q[0:3] - folded).max() < 0.05 and np.array_equal(q[3:], q0[3:])
+    with pytest.raises(RepertoireError, match="foot_above must be True, False or None, got 1"):
+        leg_ik("lf", p, foot_above=1)
 
 
 def test_integral_controller_system_with_fixed_inputs():

@@ -145,7 +145,9 @@ def leg_fk(leg: str, q) -> np.ndarray:
     return p + np.asarray(g.p_BH)
 
 
-def leg_ik(leg: str, p_BF, *, check_limits: bool = True, knee_sign=None) -> np.ndarray:
+def leg_ik(
+    leg: str, p_BF, *, check_limits: bool = True, knee_sign=None, foot_above=None
+) -> np.ndarray:
     """Joint angles that put one leg's foot at p_BF (closed form).
 
     The solution is the one with the foot below the hip (roll in (-pi/2, pi/2)
@@ -161,6 +163,9 @@ def leg_ik(leg: str, p_BF, *, check_limits: bool = True, knee_sign=None) -> np.n
         knee_sign: the knee branch, +1 or -1 (broadcast against ``p_BF``'s leading
             shape); default the leg's own (-1 front, +1 hind). The joint limits allow
             front knees up to +1.0 rad and hind knees down to -1.0 rad.
+        foot_above: the roll branch, True or False (broadcast like ``knee_sign``): the foot
+            above or below the hip pitch axis in the leg plane; default None, below unless
+            only above is within the limits (see :func:`foot_above_pitch_axis`).
 
     Returns:
         Joint angles (hip roll, hip pitch, knee) in rad, same shape as ``p_BF``.
@@ -171,7 +176,7 @@ def leg_ik(leg: str, p_BF, *, check_limits: bool = True, knee_sign=None) -> np.n
             outside the joint limits.
     """
     g = leg_geometry(leg)
-    q, bad, D2 = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"), knee_sign)
+    q, bad, D2 = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"), knee_sign, foot_above)
     if np.any(bad):
         L1, L2, a = g.upper_length, g.lower_length, g.pitch_offset_y
         reach = float(np.ravel(np.sqrt(np.maximum(D2, 0.0)))[np.argmax(np.ravel(bad))])
@@ -229,7 +234,28 @@ def _within_limits(g: LegGeometry, q: np.ndarray) -> np.ndarray:
     return np.all((q >= lo - 1e-9) & (q <= hi + 1e-9), axis=-1)
 
 
-def _leg_ik_solve(g: LegGeometry, p: np.ndarray, knee_sign=None):
+def foot_above_pitch_axis(q) -> np.ndarray:
+    """Whether joint angles ``q`` (..., 3) put the foot above the hip pitch axis (roll branch).
+
+    In the leg plane (the plane the roll turns) the foot lies ``-L1 cos(pitch) - L2
+    cos(pitch + knee)`` below the pitch axis; positive means above. Pass the result as
+    ``foot_above`` to :func:`leg_ik` to stay on a configuration's branch.
+    """
+    q = _as_angles(q, "q")
+    pitch, knee = q[..., 1], q[..., 2]
+    return -UPPER_LEG_LENGTH * np.cos(pitch) - LOWER_LEG_LENGTH * np.cos(pitch + knee) > 0.0
+
+
+def _check_foot_above(foot_above):
+    if foot_above is None:
+        return None
+    above = np.asarray(foot_above)
+    if above.dtype != bool:
+        raise RepertoireError(f"foot_above must be True, False or None, got {foot_above!r}")
+    return above
+
+
+def _leg_ik_solve(g: LegGeometry, p: np.ndarray, knee_sign=None, foot_above=None):
     """Closed-form IK of :func:`leg_ik`: angles, out-of-reach mask, squared leg-plane reach.
 
     A foot position has two roll branches for a given knee branch: in the leg plane (the
@@ -240,6 +266,7 @@ def _leg_ik_solve(g: LegGeometry, p: np.ndarray, knee_sign=None):
     uniformly within the limits, naming a roll of 1-3 rad outside them).
     """
     sign = _check_knee_sign(g, knee_sign)
+    above = _check_foot_above(foot_above)
     r = p - np.asarray(g.p_BH)
     a = g.pitch_offset_y
     d2_yz = r[..., 1] ** 2 + r[..., 2] ** 2 - a**2
@@ -248,6 +275,10 @@ def _leg_ik_solve(g: LegGeometry, p: np.ndarray, knee_sign=None):
     cos_knee = (D2 - L1**2 - L2**2) / (2.0 * L1 * L2)
     bad = (d2_yz < 0.0) | (cos_knee > 1.0 + 1e-12) | (cos_knee < -1.0 - 1e-12)
     q = _leg_ik_branch(g, r, sign, below=True)
+    if above is not None:
+        if np.any(above):
+            q = np.where(above[..., None], _leg_ik_branch(g, r, sign, below=False), q)
+        return q, bad, D2
     out = ~_within_limits(g, q)
     if np.any(out):
         above = _leg_ik_branch(g, r, sign, below=False)
@@ -256,19 +287,20 @@ def _leg_ik_solve(g: LegGeometry, p: np.ndarray, knee_sign=None):
     return q, bad, D2
 
 
-def leg_ik_feasible(leg: str, p_BF, *, knee_sign=None) -> np.ndarray:
+def leg_ik_feasible(leg: str, p_BF, *, knee_sign=None, foot_above=None) -> np.ndarray:
     """Where :func:`leg_ik` (joint limits checked) succeeds, without raising: a mask.
 
     Args:
         leg: leg prefix.
         p_BF: foot centres in the body frame, shape ``(..., 3)``.
         knee_sign: the knee branch (as in :func:`leg_ik`).
+        foot_above: the roll branch (as in :func:`leg_ik`).
 
     Returns:
         Boolean array of shape ``p_BF.shape[:-1]``: in reach and within the joint limits.
     """
     g = leg_geometry(leg)
-    q, bad, _ = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"), knee_sign)
+    q, bad, _ = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"), knee_sign, foot_above)
     return ~bad & _within_limits(g, q)
 
 

@@ -122,7 +122,8 @@ class CrawlGapFiller:
         planner's goal line for the front feet (see ``plan_crawl``), or None.
 
         A start or goal the planner refuses (e.g. on a rock's edge, or off its map) gives
-        no steps, status None and the planner's message (else the message is empty).
+        no steps, status None and the planner's message; a plan that does not reach the
+        goal names its status and work (else the message is empty).
         """
         try:
             plan = plan_crawl(
@@ -147,7 +148,13 @@ class CrawlGapFiller:
             nxt = np.asarray(s.stance, dtype=float) + np.array([0.0, 0.0, FOOT_RADIUS])
             steps.append(PlannedStep(cur, nxt, int(s.foot)))
             cur = nxt
-        return steps, plan.status, ""
+        why = ""
+        if plan.status is not PlanStatus.SUCCESS:
+            why = (
+                f"the crawl planner ended with {plan.status.value} after {plan.expansions} "
+                f"expansions ({plan.seconds:.2f} s), {len(steps)} steps towards the target"
+            )
+        return steps, plan.status, why
 
     def usable_prefix(self, steps: list[PlannedStep]) -> int:
         """How many of ``steps`` the executing crawl can do (stable, flat footholds, leg IK).
@@ -230,7 +237,11 @@ class CrawlGapFiller:
             return GapFill(new[:planned], "reached")
         # The planner checks each step with the crawl's own reach and flat-foothold rules;
         # what it does not check (the body shift between two steps' poses) ends the gap.
-        return GapFill(new[:usable], "partial" if usable else "failed")
+        return GapFill(
+            new[:usable],
+            "partial" if usable else "failed",
+            refusal or f"the crawl cannot execute planned step {usable} of {len(new)}",
+        )
 
 
 def _status(status, any_steps: bool) -> str:

@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import re
 import time
 
 import numpy as np
@@ -397,6 +398,27 @@ def test_crawl_gap_filler_places_no_feet_onto_a_goal_target():
     assert np.linalg.norm(end[:, :2].mean(0) - target[:, :2].mean(0)) <= 0.03 + 1e-9
     with pytest.raises(TransferSearchError, match="place must be a bool, got 'no'"):
         filler(start, target, 2.0, place="no")
+
+
+def test_crawl_gap_filler_says_why_a_gap_was_not_reached():
+    # A planner out of expansions (or with no way) came back as "failed" with no reason,
+    # so the search's error named none ("unreachable: 0 recorded and 0 planned steps").
+    filler, start = flat_filler(max_expansions=2)
+    target = stance(0.2)
+    target[:, 2] = start[0, 2]
+    answer = filler(start, target, 2.0)
+    assert answer.status == "partial" and len(answer.steps) == 1
+    assert re.fullmatch(
+        r"the crawl planner ended with NODE_LIMIT after 2 expansions \(\d+\.\d\d s\), "
+        r"1 steps towards the target",
+        answer.message,
+    )
+    answer = flat_filler(max_expansions=1)[0](start, target, 2.0)
+    assert answer.status == "failed" and answer.steps == []
+    assert answer.message.startswith("the crawl planner ended with NODE_LIMIT after 1 exp")
+    result = search_transfer(start, target, np.zeros((0, 4, 3)), np.zeros((0, 4, 3)), filler)
+    assert result.status == "unreachable"
+    assert "gap filler: partial: the crawl planner ended with NODE_LIMIT" in result.message
 
 
 @pytest.mark.parametrize("yaw_deg", [-40.0, 45.0])

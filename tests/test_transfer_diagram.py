@@ -258,6 +258,17 @@ def test_goal_line_filler_returns_a_gap_that_still_ends_short_as_it_is():
     assert inner.lines == [None]
 
 
+@pytest.mark.parametrize("rock_seed", [8, 31, 39])
+def test_search_uses_the_recorded_run_whatever_the_goal_stance_stands_on(library_path, rock_seed):
+    # Placing feet onto the goal stance added up to 4 planned steps to the goal gaps, so
+    # with this library the search kept 0 (seed 8) or 8 (seeds 31, 39) recorded steps
+    # (cost 54, 59, 59); rock seed 5 gave 12 + 12 then as now.
+    plan = plan_transfer(LittleDogTransferScenario(library=library_path, rock_seed=rock_seed))
+    s = plan.search
+    assert (s.status, s.recorded_count, s.planned_count, s.cost) == ("reached", 12, 12, 48.0)
+    assert s.planner_alone_cost == 54.0
+
+
 def test_planner_alone_places_no_feet_onto_the_goal_stance_on_rocks(library_path):
     # Rock seed 31: the goal stance's footholds (the start stance shifted, start heights)
     # are flat on top of rocks; the gap to the goal placed feet onto it after the planner's

@@ -96,7 +96,8 @@ class LittleDogTransferScenario(LibraryLoopFields):
             (the default before session 28) the transferred steps were 5 near the start,
             and the planner alone (19 steps) was cheaper than any path through them; from
             0.15 m the search's path is 11 recorded steps and 12 planned ones on the rocks
-            (11-12 recorded on 9 of rock seeds 0-9, 5 on seed 8).
+            (11-12 recorded on each of rock seeds 0-40; seed 8 gave 5 while the goal gap
+            placed feet onto the goal stance, see :class:`GoalLineFiller`).
         rock_seed: seed of the rocks on the modified part.
         board_seeds: one seed per generated board (two boards side by side).
         mode: ``search`` | ``greedy`` (no search) | ``planner`` (no library).
@@ -303,7 +304,9 @@ class GoalLineFiller:
     A gap to ``goal_feet`` is planned with the line as part of the planner's goal test
     (the wrapped filler's ``front_line``: both front feet at x >= ``goal + GOAL_MARGIN``),
     so the planner picks a final stance that crosses; a gap that still ends short is
-    returned as it is (the search's goal test refuses it). Other gaps are the wrapped
+    returned as it is (the search's goal test refuses it). No feet are placed onto the goal
+    stance (``place=False``): it is a made-up target whose centroid and line the planner's
+    goal test checks, not a recorded step's start to join. Other gaps are the wrapped
     filler's. (Before, the planner aimed at the goal stance's centroid and a gap that ended
     with a front foot short of the line was planned on from its end; that failed where
     the crawl had no step from that stance: one of 20 perturbed starts of the planner-only
@@ -322,7 +325,7 @@ class GoalLineFiller:
         if not np.array_equal(target, self.goal_feet):
             return self.filler(start, target, time_limit)
         return self.filler(
-            start, target, time_limit, front_line=(1.0, 0.0, self.goal + GOAL_MARGIN)
+            start, target, time_limit, front_line=(1.0, 0.0, self.goal + GOAL_MARGIN), place=False
         )
 
 

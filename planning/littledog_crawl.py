@@ -91,6 +91,11 @@ class CrawlParams:
         flat_tolerance: largest height spread within ``edge_radius`` counted as flat (m).
         max_rise: largest height difference from the other feet's mean ground (m).
         dt: sample period of the joint commands (s).
+        ground_tolerance: how far a step's foot centre may lie above or below the exact
+            ground plus the foot radius (m); :func:`plan_crawl` refuses a step whose foothold
+            is farther off (a foot commanded into a rock, or into the air where it never
+            loads). Half the foot radius, as the transfer's support tolerance: physics
+            recordings stand within 1 mm, transferred steps within that tolerance.
     """
 
     stride: float = 0.07
@@ -108,6 +113,7 @@ class CrawlParams:
     flat_tolerance: float = 0.003
     max_rise: float = 0.045
     dt: float = 0.01
+    ground_tolerance: float = 0.005
 
     def validate(self) -> None:
         """Raises CrawlError naming any field outside its range."""
@@ -127,6 +133,7 @@ class CrawlParams:
             "flat_tolerance": (0.0, 0.05),
             "max_rise": (0.0, 0.08),
             "dt": (0.001, 0.05),
+            "ground_tolerance": (0.0, 0.05),
         }
         for name, (lo, hi) in ranges.items():
             value = getattr(self, name)
@@ -386,7 +393,8 @@ def plan_crawl(
         hold_time: initial hold at the start pose (s).
 
     Raises:
-        CrawlError: bad input, or a pose the legs cannot reach (naming step and leg).
+        CrawlError: bad input, a step foothold off the ground (``ground_tolerance``), or a
+            pose the legs cannot reach (naming step and leg).
     """
     params = CrawlParams() if params is None else params
     params.validate()
@@ -423,6 +431,15 @@ def plan_crawl(
         if not isinstance(step, CrawlStep):
             raise CrawlError(f"steps[{k}] must be a CrawlStep, got {type(step).__name__}")
         f = step.foot
+        ground = np.asarray(board.height(step.p_WF[:1], step.p_WF[1:2]), dtype=float)
+        off = float(step.p_WF[2] - FOOT_RADIUS - ground.ravel()[0])
+        if abs(off) > params.ground_tolerance:
+            x, y, z = (float(v) for v in step.p_WF)
+            raise CrawlError(
+                f"step {k} (moving foot {LEGS[f]}) foothold centre [{x:.4f}, {y:.4f}, {z:.4f}] "
+                f"m lies {abs(off):.4f} m {'below' if off < 0 else 'above'} the ground plus the "
+                f"foot radius (at most {params.ground_tolerance} m): not a foothold"
+            )
         after = feet.copy()
         after[f] = step.p_WF
         target = swing_pose(feet, f, step.p_WF, params)

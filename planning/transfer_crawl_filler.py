@@ -92,8 +92,8 @@ class CrawlGapFiller:
             samples heights at cell centres and misses edges between them, and a foot
             landing on an edge slides off (seen in physics).
         place_feet: with ``board``, end a reached gap with one-foot moves onto the target
-            stance when its footholds are flat (a recorded step's start; not a goal stance
-            on rocks), checked executable like the rest.
+            stance when its footholds are flat (a recorded step's start; not a goal, see
+            ``place`` of ``__call__``), checked executable like the rest.
         place_within: summed foot offset (m) from the target stance left to the executor
             (:func:`~repertoire.planning.transfer_library.placing_steps`: the fewest feet
             are placed); 0 places every foot farther than 5 mm. Set it to the search's
@@ -122,7 +122,8 @@ class CrawlGapFiller:
         planner's goal line for the front feet (see ``plan_crawl``), or None.
 
         A start or goal the planner refuses (e.g. on a rock's edge, or off its map) gives
-        no steps, status None and the planner's message (else the message is empty).
+        no steps, status None and the planner's message; a plan that does not reach the
+        goal names its status and work (else the message is empty).
         """
         try:
             plan = plan_crawl(
@@ -147,7 +148,13 @@ class CrawlGapFiller:
             nxt = np.asarray(s.stance, dtype=float) + np.array([0.0, 0.0, FOOT_RADIUS])
             steps.append(PlannedStep(cur, nxt, int(s.foot)))
             cur = nxt
-        return steps, plan.status, ""
+        why = ""
+        if plan.status is not PlanStatus.SUCCESS:
+            why = (
+                f"the crawl planner ended with {plan.status.value} after {plan.expansions} "
+                f"expansions ({plan.seconds:.2f} s), {len(steps)} steps towards the target"
+            )
+        return steps, plan.status, why
 
     def usable_prefix(self, steps: list[PlannedStep]) -> int:
         """How many of ``steps`` the executing crawl can do (stable, flat footholds, leg IK).
@@ -171,12 +178,23 @@ class CrawlGapFiller:
         return executable_prefix(steps[:n], self.crawl, board) if n else 0
 
     def __call__(
-        self, start: np.ndarray, target: np.ndarray, time_limit: float, front_line=None
+        self,
+        start: np.ndarray,
+        target: np.ndarray,
+        time_limit: float,
+        front_line=None,
+        place: bool = True,
     ) -> GapFill:
         """Plans crawl steps from ``start`` (4, 3) towards ``target``'s centroid and heading.
 
         ``front_line``: ``(nx, ny, d)``, the gap must also end with both front feet at
         ``n . p >= d`` (a task's goal line; the planner's goal test, see ``plan_crawl``).
+        ``place``: False for a target reached by the planner's goal test alone (a goal
+        stance checked by its centroid and a line, not a recorded step's start): no feet
+        are placed onto it whatever ``place_feet`` says. Placing feet onto a made-up goal
+        stance added up to four planned steps to a gap (rock seed 8: 12 instead of 8 from
+        the recorded run's end, so the search kept 5 recorded steps instead of 11) and,
+        where its footholds lay on a rock, put feet 4 cm into it (rock seed 31).
         """
         start = np.asarray(start, dtype=float)
         target = np.asarray(target, dtype=float)
@@ -189,14 +207,17 @@ class CrawlGapFiller:
                 raise TransferSearchError(
                     f"crawl gap filler needs finite stances, got {name} {stance.tolist()}"
                 )
+        if not isinstance(place, bool | np.bool_):
+            raise TransferSearchError(f"crawl gap filler: place must be a bool, got {place!r}")
         goal_xy = target[:, :2].mean(axis=0)
-        place = False
-        if self.place_feet and self.board is not None:
+        if place and self.place_feet and self.board is not None:
             from repertoire.planning.littledog_crawl import foothold_ok
 
             # A recorded step's start (flat footholds): the gap ends on its exact stance,
             # so the nearest-step policy picks it next; unreachable placing = gap unusable.
             place = bool(np.all(foothold_ok(self.board, target[:, :2], self.crawl)))
+        else:
+            place = False
         new, status, refusal = self._plan(
             start, goal_xy, time_limit, heading_of(target), front_line
         )
@@ -216,7 +237,11 @@ class CrawlGapFiller:
             return GapFill(new[:planned], "reached")
         # The planner checks each step with the crawl's own reach and flat-foothold rules;
         # what it does not check (the body shift between two steps' poses) ends the gap.
-        return GapFill(new[:usable], "partial" if usable else "failed")
+        return GapFill(
+            new[:usable],
+            "partial" if usable else "failed",
+            refusal or f"the crawl cannot execute planned step {usable} of {len(new)}",
+        )
 
 
 def _status(status, any_steps: bool) -> str:

@@ -64,12 +64,21 @@ class StepIndex:
     def __init__(self, library: StepLibrary, brute_force_below: int = 512) -> None:
         if not isinstance(library, StepLibrary):
             raise RepertoireError(f"StepIndex needs a StepLibrary, got {type(library).__name__}")
+        if isinstance(brute_force_below, bool) or not (
+            isinstance(brute_force_below, int | np.integer) and brute_force_below >= 0
+        ):
+            raise RepertoireError(
+                f"brute_force_below must be an integer >= 0, got {brute_force_below!r}"
+            )
         self.keys = np.ascontiguousarray(library.keys)
         self._keys43 = self.keys.reshape(-1, 4, 3)
         self._tree = cKDTree(self.keys) if len(self.keys) >= brute_force_below else None
 
     def _check(self, feet) -> np.ndarray:
-        feet = np.asarray(feet, dtype=float)
+        try:
+            feet = np.asarray(feet, dtype=float)
+        except (TypeError, ValueError) as e:
+            raise RepertoireError(f"feet must be numbers, got {feet!r}: {e}") from e
         if feet.shape[-1:] != (12,) and feet.shape[-2:] != (4, 3):
             raise RepertoireError(f"feet must be (..., 12) or (..., 4, 3), got {feet.shape}")
         feet = feet.reshape(feet.shape[:-2] + (12,)) if feet.shape[-2:] == (4, 3) else feet

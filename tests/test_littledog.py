@@ -33,6 +33,7 @@ from repertoire.models.littledog import (
     leg_ik,
     standing_configuration,
 )
+from repertoire.models.littledog.kinematics import leg_ik_feasible
 from repertoire.models.littledog.make_urdf import urdf_text
 from repertoire.models.terrain import TerrainParams, generate_board
 
@@ -167,6 +168,37 @@ def test_ik_inverts_fk_on_its_branch():
         q_ik = leg_ik(leg, p)
         np.testing.assert_allclose(q_ik, q, atol=1e-9)
         np.testing.assert_allclose(leg_fk(leg, q_ik), p, atol=1e-12)
+
+
+def test_ik_inverts_fk_everywhere_within_the_joint_limits():
+    # Joint angles drawn uniformly within the limits (knee branch given by the sample's
+    # knee): IK(FK(q)) lands on FK(q) within the limits for every sample. Before, the IK
+    # took the foot below the hip pitch axis always, and refused 46-47 % of them (a folded
+    # leg, pitch beyond +-pi/2), naming a hip roll of 1-3 rad outside [-0.6, 0.6].
+    rng = np.random.default_rng(11)
+    for leg in LEGS:
+        g = leg_geometry(leg)
+        q = rng.uniform(g.lower, g.upper, size=(5000, 3))
+        sign = np.where(q[:, 2] >= 0.0, 1.0, -1.0)
+        vz = -L1 * np.cos(q[:, 1]) - L2 * np.cos(q[:, 1] + q[:, 2])
+        assert 0.3 < np.mean(vz > 0.0) < 0.6  # half of them fold the foot above the hip
+        p = leg_fk(leg, q)
+        q_ik = leg_ik(leg, p, knee_sign=sign)
+        np.testing.assert_allclose(leg_fk(leg, q_ik), p, atol=1e-12)
+        assert np.all(q_ik >= np.asarray(g.lower) - 1e-9)
+        assert np.all(q_ik <= np.asarray(g.upper) + 1e-9)
+        assert np.all(leg_ik_feasible(leg, p, knee_sign=sign))
+        # the foot below the pitch axis: the IK's usual branch, the same angles
+        below = vz < -0.01
+        np.testing.assert_allclose(q_ik[below], q[below], atol=1e-9)
+    # One folded leg: the only solution within the limits is the angles themselves.
+    q = np.array([0.219, -3.182, -2.197])
+    np.testing.assert_allclose(leg_ik("lf", leg_fk("lf", q)), q, atol=1e-9)
+    # Refusals stay: beyond the leg's length, and within it but beyond the limits.
+    with pytest.raises(RepertoireError, match=r"leg lf: foot target out of reach .* missed by"):
+        leg_ik("lf", leg_fk("lf", q) + [0.0, 0.0, -0.3])
+    with pytest.raises(RepertoireError, match=r"leg lf: IK solution hip_roll=.* outside the joint"):
+        leg_ik("lf", [0.101, 0.16, -0.05])
 
 
 def test_standing_configuration_gives_standing_height(plant_and_instance):

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from pydrake.math import RollPitchYaw
-from repertoire.models.littledog import LEGS, leg_fk, standing_configuration
+from repertoire.models.littledog import FOOT_RADIUS, LEGS, leg_fk, leg_ik, standing_configuration
 from repertoire.models.littledog.pose import (
     body_to_world,
     rotation_from_rpy,
@@ -208,6 +208,11 @@ def test_step_index_is_exact_nearest_by_sum_of_distances(library):
         index.query_batch(np.zeros((2, 2, 12)))  # used to fail inside numpy broadcasting
     ib, db = index.query_batch(feet[:3].reshape(3, 4, 3))
     assert np.array_equal(ib, np.argmin(sums[:3, :40], axis=1))
+    with pytest.raises(RepertoireError, match="feet must be numbers, got 'abc'"):
+        index.query("abc")  # was numpy's "could not convert string to float"
+    for bad in (-1, 2.5, True):
+        with pytest.raises(RepertoireError, match=f"brute_force_below must be .* got {bad}"):
+            StepIndex(lib, brute_force_below=bad)
 
 
 def test_library_policy_chooses_only_with_four_feet_down(library):
@@ -369,6 +374,29 @@ def test_corrected_angles_keep_the_played_back_knee_branch():
     assert q[2] > 0.0 and q[8] < 0.0  # the played-back branches (else -0.35, +0.37)
 
 
+def test_corrected_angles_keep_the_played_back_roll_branch():
+    # An lf leg with its foot 7 mm above its hip pitch axis (knee bent by 2.1 rad): the
+    # same foot is also reached with the foot below it, roll +0.2959 rad, both within the
+    # limits. The IK's own choice (below) flipped the roll by 0.58 rad for a 1 mm correction.
+    from repertoire.models.littledog.kinematics import foot_above_pitch_axis
+
+    folded = np.array([-0.28, -0.34, -2.1])
+    assert foot_above_pitch_axis(folded)
+    p = leg_fk("lf", folded)
+    np.testing.assert_allclose(leg_ik("lf", p), [0.2959, -0.1839, -2.1], atol=1e-4)
+    np.testing.assert_allclose(leg_ik("lf", p, foot_above=True), folded, atol=1e-12)
+    q0 = standing_configuration(0.14)
+    q0[0:3] = folded
+    offsets = np.zeros((4, 3))
+    offsets[0] = [0.0, 0.0, 0.001]
+    q, saturated = corrected_angles(q0, offsets)
+    assert saturated == 0
+    np.testing.assert_allclose(body_feet(q), body_feet(q0) + offsets, atol=1e-12)
+    assert np.abs(q[0:3] - folded).max() < 0.05 and np.array_equal(q[3:], q0[3:])
+    with pytest.raises(RepertoireError, match="foot_above must be True, False or None, got 1"):
+        leg_ik("lf", p, foot_above=1)
+
+
 def test_integral_controller_system_with_fixed_inputs():
     ctrl = IntegralFootController(gain=0.1, decay=0.5, limit=1.0)
     context = ctrl.CreateDefaultContext()
@@ -466,6 +494,23 @@ def test_crawl_bad_input():
         plan_crawl(feet, too_high, [CrawlStep(0, feet[0])], board)
     with pytest.raises(CrawlError, match="time limit"):
         choose_footholds(board, feet, 0.0, 5.0, time_limit=0.0)
+    # A foothold off the ground: a foot commanded into the terrain (a placing move onto a
+    # goal stance with the start's heights put feet 4 cm into rocks) or into the air.
+    ground = board.params.base_thickness + FOOT_RADIUS
+    steps = choose_footholds(board, feet, 0.0, 0.15)
+    assert steps[1].p_WF[2] == pytest.approx(ground)
+    for dz, side in ((-0.04, "below"), (0.0051, "above")):
+        bad = CrawlStep(steps[1].foot, steps[1].p_WF + [0.0, 0.0, dz])
+        with pytest.raises(
+            CrawlError,
+            match=rf"step 1 \(moving foot {LEGS[bad.foot]}\) foothold centre .* lies "
+            rf"{abs(dz):.4f} m {side} the ground plus the foot radius \(at most 0.005 m\)",
+        ):
+            plan_crawl(feet, pose, [steps[0], bad, *steps[2:]], board)
+    ok = CrawlStep(steps[1].foot, steps[1].p_WF + [0.0, 0.0, 0.0049])  # within the tolerance
+    plan_crawl(feet, pose, [steps[0], ok], board)
+    with pytest.raises(CrawlError, match="ground_tolerance must be in"):
+        plan_crawl(feet, pose, steps, board, CrawlParams(ground_tolerance=-0.001))
 
     class Jagged:  # every spot is an edge
         def height(self, x, y):

@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import re
 import time
 
 import numpy as np
@@ -379,6 +380,45 @@ def test_crawl_gap_filler_places_only_the_feet_the_executor_cannot_take_up():
     last = few.steps[-1]
     assert rest <= 0.04 and rest <= 0.5 * float(foot_distance(last.start_feet, last.end_feet))
     assert len(few.steps) < len(every.steps)
+
+
+def test_crawl_gap_filler_places_no_feet_onto_a_goal_target():
+    # place=False (a goal reached by the planner's goal test): the planner's steps alone,
+    # the same ones that end the placed gap; a non-bool is refused, naming it.
+    filler, start = flat_filler()
+    target = stance(0.013, 0.007)  # off the planner's 2 cm lattice
+    target[:, 2] = start[0, 2]
+    placed = filler(start, target, 2.0)
+    goal = filler(start, target, 2.0, place=False)
+    assert placed.status == goal.status == "reached"
+    assert 0 < len(goal.steps) < len(placed.steps)
+    for a, b in zip(goal.steps, placed.steps):
+        assert a.foot == b.foot and np.array_equal(a.end_feet, b.end_feet)
+    end = goal.steps[-1].end_feet
+    assert np.linalg.norm(end[:, :2].mean(0) - target[:, :2].mean(0)) <= 0.03 + 1e-9
+    with pytest.raises(TransferSearchError, match="place must be a bool, got 'no'"):
+        filler(start, target, 2.0, place="no")
+
+
+def test_crawl_gap_filler_says_why_a_gap_was_not_reached():
+    # A planner out of expansions (or with no way) came back as "failed" with no reason,
+    # so the search's error named none ("unreachable: 0 recorded and 0 planned steps").
+    filler, start = flat_filler(max_expansions=2)
+    target = stance(0.2)
+    target[:, 2] = start[0, 2]
+    answer = filler(start, target, 2.0)
+    assert answer.status == "partial" and len(answer.steps) == 1
+    assert re.fullmatch(
+        r"the crawl planner ended with NODE_LIMIT after 2 expansions \(\d+\.\d\d s\), "
+        r"1 steps towards the target",
+        answer.message,
+    )
+    answer = flat_filler(max_expansions=1)[0](start, target, 2.0)
+    assert answer.status == "failed" and answer.steps == []
+    assert answer.message.startswith("the crawl planner ended with NODE_LIMIT after 1 exp")
+    result = search_transfer(start, target, np.zeros((0, 4, 3)), np.zeros((0, 4, 3)), filler)
+    assert result.status == "unreachable"
+    assert "gap filler: partial: the crawl planner ended with NODE_LIMIT" in result.message
 
 
 @pytest.mark.parametrize("yaw_deg", [-40.0, 45.0])

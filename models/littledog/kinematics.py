@@ -145,12 +145,16 @@ def leg_fk(leg: str, q) -> np.ndarray:
     return p + np.asarray(g.p_BH)
 
 
-def leg_ik(leg: str, p_BF, *, check_limits: bool = True, knee_sign=None) -> np.ndarray:
+def leg_ik(
+    leg: str, p_BF, *, check_limits: bool = True, knee_sign=None, foot_above=None
+) -> np.ndarray:
     """Joint angles that put one leg's foot at p_BF (closed form).
 
     The solution is the one with the foot below the hip (roll in (-pi/2, pi/2)
-    for feet under the body) and the knee bent the leg's way (front knees <= 0,
-    hind knees >= 0) unless ``knee_sign`` asks for the other branch.
+    for feet under the body; the foot above it, in the leg plane, only where that
+    one leaves the joint limits and this one does not) and the knee bent the leg's
+    way (front knees <= 0, hind knees >= 0) unless ``knee_sign`` asks for the other
+    branch.
 
     Args:
         leg: leg prefix (``lf``, ``rf``, ``lh``, ``rh``).
@@ -159,6 +163,9 @@ def leg_ik(leg: str, p_BF, *, check_limits: bool = True, knee_sign=None) -> np.n
         knee_sign: the knee branch, +1 or -1 (broadcast against ``p_BF``'s leading
             shape); default the leg's own (-1 front, +1 hind). The joint limits allow
             front knees up to +1.0 rad and hind knees down to -1.0 rad.
+        foot_above: the roll branch, True or False (broadcast like ``knee_sign``): the foot
+            above or below the hip pitch axis in the leg plane; default None, below unless
+            only above is within the limits (see :func:`foot_above_pitch_axis`).
 
     Returns:
         Joint angles (hip roll, hip pitch, knee) in rad, same shape as ``p_BF``.
@@ -169,7 +176,7 @@ def leg_ik(leg: str, p_BF, *, check_limits: bool = True, knee_sign=None) -> np.n
             outside the joint limits.
     """
     g = leg_geometry(leg)
-    q, bad, D2 = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"), knee_sign)
+    q, bad, D2 = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"), knee_sign, foot_above)
     if np.any(bad):
         L1, L2, a = g.upper_length, g.lower_length, g.pitch_offset_y
         reach = float(np.ravel(np.sqrt(np.maximum(D2, 0.0)))[np.argmax(np.ravel(bad))])
@@ -201,19 +208,14 @@ def _check_knee_sign(g: LegGeometry, knee_sign) -> np.ndarray:
     return sign
 
 
-def _leg_ik_solve(g: LegGeometry, p: np.ndarray, knee_sign=None):
-    """Closed-form IK of :func:`leg_ik`: angles, out-of-reach mask, squared leg-plane reach."""
-    sign = _check_knee_sign(g, knee_sign)
-    r = p - np.asarray(g.p_BH)
+def _leg_ik_branch(g: LegGeometry, r: np.ndarray, sign, below: bool) -> np.ndarray:
+    """Angles of one roll branch: the foot below (``vz`` < 0) or above the pitch axis."""
     rx, ry, rz = r[..., 0], r[..., 1], r[..., 2]
     a = g.pitch_offset_y
-    d2_yz = ry**2 + rz**2 - a**2
     L1, L2 = g.upper_length, g.lower_length
     vx = rx
-    vz = -np.sqrt(np.maximum(d2_yz, 0.0))
-    D2 = vx**2 + vz**2
-    cos_knee = (D2 - L1**2 - L2**2) / (2.0 * L1 * L2)
-    bad = (d2_yz < 0.0) | (cos_knee > 1.0 + 1e-12) | (cos_knee < -1.0 - 1e-12)
+    vz = np.sqrt(np.maximum(ry**2 + rz**2 - a**2, 0.0)) * (-1.0 if below else 1.0)
+    cos_knee = (vx**2 + vz**2 - L1**2 - L2**2) / (2.0 * L1 * L2)
     knee = sign * np.arccos(np.clip(cos_knee, -1.0, 1.0))
     alpha = np.arctan2(-vx, -vz)
     pitch = alpha - np.arctan2(L2 * np.sin(knee), L1 + L2 * np.cos(knee))
@@ -224,24 +226,82 @@ def _leg_ik_solve(g: LegGeometry, p: np.ndarray, knee_sign=None):
     pitch = np.where(pitch >= lo + 2.0 * np.pi, pitch - 2.0 * np.pi, pitch)
     roll = np.arctan2(rz, ry) - np.arctan2(vz, a)
     roll = (roll + np.pi) % (2.0 * np.pi) - np.pi
-    return np.stack([roll, pitch, knee], axis=-1), bad, D2
+    return np.stack([roll, pitch, knee], axis=-1)
 
 
-def leg_ik_feasible(leg: str, p_BF, *, knee_sign=None) -> np.ndarray:
+def _within_limits(g: LegGeometry, q: np.ndarray) -> np.ndarray:
+    lo, hi = np.asarray(g.lower), np.asarray(g.upper)
+    return np.all((q >= lo - 1e-9) & (q <= hi + 1e-9), axis=-1)
+
+
+def foot_above_pitch_axis(q) -> np.ndarray:
+    """Whether joint angles ``q`` (..., 3) put the foot above the hip pitch axis (roll branch).
+
+    In the leg plane (the plane the roll turns) the foot lies ``-L1 cos(pitch) - L2
+    cos(pitch + knee)`` below the pitch axis; positive means above. Pass the result as
+    ``foot_above`` to :func:`leg_ik` to stay on a configuration's branch.
+    """
+    q = _as_angles(q, "q")
+    pitch, knee = q[..., 1], q[..., 2]
+    return -UPPER_LEG_LENGTH * np.cos(pitch) - LOWER_LEG_LENGTH * np.cos(pitch + knee) > 0.0
+
+
+def _check_foot_above(foot_above):
+    if foot_above is None:
+        return None
+    above = np.asarray(foot_above)
+    if above.dtype != bool:
+        raise RepertoireError(f"foot_above must be True, False or None, got {foot_above!r}")
+    return above
+
+
+def _leg_ik_solve(g: LegGeometry, p: np.ndarray, knee_sign=None, foot_above=None):
+    """Closed-form IK of :func:`leg_ik`: angles, out-of-reach mask, squared leg-plane reach.
+
+    A foot position has two roll branches for a given knee branch: in the leg plane (the
+    plane the roll turns) the foot lies below the hip pitch axis or above it. The branch
+    below is taken unless its angles leave the joint limits and the branch above's do
+    not (a leg folded with the foot above its hip: pitch beyond +-pi/2, which the limits
+    allow; before, the IK refused about 46 % of the foot positions of joint angles drawn
+    uniformly within the limits, naming a roll of 1-3 rad outside them).
+    """
+    sign = _check_knee_sign(g, knee_sign)
+    above = _check_foot_above(foot_above)
+    r = p - np.asarray(g.p_BH)
+    a = g.pitch_offset_y
+    d2_yz = r[..., 1] ** 2 + r[..., 2] ** 2 - a**2
+    L1, L2 = g.upper_length, g.lower_length
+    D2 = r[..., 0] ** 2 + np.maximum(d2_yz, 0.0)
+    cos_knee = (D2 - L1**2 - L2**2) / (2.0 * L1 * L2)
+    bad = (d2_yz < 0.0) | (cos_knee > 1.0 + 1e-12) | (cos_knee < -1.0 - 1e-12)
+    q = _leg_ik_branch(g, r, sign, below=True)
+    if above is not None:
+        if np.any(above):
+            q = np.where(above[..., None], _leg_ik_branch(g, r, sign, below=False), q)
+        return q, bad, D2
+    out = ~_within_limits(g, q)
+    if np.any(out):
+        above = _leg_ik_branch(g, r, sign, below=False)
+        use = out & _within_limits(g, above)
+        q = np.where(use[..., None], above, q)
+    return q, bad, D2
+
+
+def leg_ik_feasible(leg: str, p_BF, *, knee_sign=None, foot_above=None) -> np.ndarray:
     """Where :func:`leg_ik` (joint limits checked) succeeds, without raising: a mask.
 
     Args:
         leg: leg prefix.
         p_BF: foot centres in the body frame, shape ``(..., 3)``.
         knee_sign: the knee branch (as in :func:`leg_ik`).
+        foot_above: the roll branch (as in :func:`leg_ik`).
 
     Returns:
         Boolean array of shape ``p_BF.shape[:-1]``: in reach and within the joint limits.
     """
     g = leg_geometry(leg)
-    q, bad, _ = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"), knee_sign)
-    lo, hi = np.asarray(g.lower), np.asarray(g.upper)
-    return ~bad & np.all((q >= lo - 1e-9) & (q <= hi + 1e-9), axis=-1)
+    q, bad, _ = _leg_ik_solve(g, _as_angles(p_BF, "p_BF"), knee_sign, foot_above)
+    return ~bad & _within_limits(g, q)
 
 
 def nominal_foot_positions(

@@ -228,6 +228,7 @@ def add_library_loop(
     decay: float,
     integrator_limit: float,
     log_period: float = LOG_PERIOD,
+    goal_line: "tuple[float, float] | None" = None,
 ) -> dict[str, object]:
     """Adds the closed loop that replays a step library on a LittleDog in ``builder``.
 
@@ -247,6 +248,8 @@ def add_library_loop(
         decay: per-update decay of a flying foot's integrator.
         integrator_limit: saturation of each integrator (m).
         log_period: the loggers' period (s).
+        goal_line: ``(heading, goal)`` of the crossing: the policy stops choosing steps
+            once both front feet are past it (see :class:`LibraryPolicy`); None: never.
 
     Returns:
         The added systems by name: ``sensor``, ``contact``, ``policy``,
@@ -256,7 +259,7 @@ def add_library_loop(
     builder.Connect(plant.get_state_output_port(), sensor.state_input)
     contact = builder.AddNamedSystem("contact", FootContactSensor(plant, instance))
     builder.Connect(plant.get_contact_results_output_port(), contact.contact_results_input)
-    policy = builder.AddNamedSystem("policy", LibraryPolicy(library))
+    policy = builder.AddNamedSystem("policy", LibraryPolicy(library, goal_line=goal_line))
     builder.Connect(sensor.feet_output, policy.feet_input)
     builder.Connect(contact.contact_output, policy.contact_input)
     executor = builder.AddNamedSystem("executor", StepExecutor(library, q0, speed=blend_speed))
@@ -361,6 +364,7 @@ def build_library_crossing(
         gain=fields.gain,
         decay=fields.decay,
         integrator_limit=fields.integrator_limit,
+        goal_line=(heading, goal),
     )
     if meshcat is not None:
         from pydrake.geometry import MeshcatVisualizer

@@ -128,7 +128,13 @@ class LibraryPolicy(LeafSystem):
 
     The choice is discrete state, updated every ``period``: when all four
     contact flags are set, the step nearest to the measured foot positions is
-    chosen; otherwise the previous choice is kept.
+    chosen; otherwise the previous choice is kept. With a ``goal_line``, the
+    policy stops choosing once both front feet (``lf``, ``rf``) are past it, the
+    test :func:`~repertoire.diagrams.littledog_library.crossing_figures` counts a
+    crossing by: the step under way ends and the robot holds its last stance
+    (:class:`~repertoire.systems.step_executor.StepExecutor` starts a step only
+    on a fresh choice). Without one, a robot past the library's last step keeps
+    replaying the step nearest to where it stands, for as long as it is simulated.
 
     Input ports:
         feet: measured world foot centres (12: ``LEGS`` order, x y z each).
@@ -138,16 +144,34 @@ class LibraryPolicy(LeafSystem):
         choice: the current :class:`StepChoice` (abstract).
     """
 
-    def __init__(self, library: StepLibrary, period: float = 0.01) -> None:
+    def __init__(
+        self,
+        library: StepLibrary,
+        period: float = 0.01,
+        goal_line: "tuple[float, float] | None" = None,
+    ) -> None:
         """Creates the system.
 
         Args:
         library: the step library (at least one step).
         period: update period (s).
+        goal_line: ``(heading, goal)``: the crossing direction (rad) and the goal
+            line's distance along it from the world origin (m); None: no goal.
         """
         super().__init__()
         if not (np.isfinite(period) and period > 0.0):
             raise RepertoireError(f"period must be > 0 s, got {period}")
+        self._goal = None
+        if goal_line is not None:
+            try:
+                heading, goal = (float(v) for v in goal_line)
+            except (TypeError, ValueError):
+                raise RepertoireError(
+                    f"goal_line must be (heading rad, goal m), got {goal_line!r}"
+                ) from None
+            if not (np.isfinite(heading) and np.isfinite(goal)):
+                raise RepertoireError(f"goal_line must be finite, got {goal_line!r}")
+            self._goal = (np.array([np.cos(heading), np.sin(heading)]), goal)
         self.index = StepIndex(library)
         self.feet_input = self.DeclareVectorInputPort("feet", 12)
         self.contact_input = self.DeclareVectorInputPort("contact", 4)
@@ -161,10 +185,21 @@ class LibraryPolicy(LeafSystem):
             raise RepertoireError(f"LibraryPolicy contact flags must be finite, got {contact}")
         if not np.all(contact != 0):
             return
-        i, d = self.index.query(self.feet_input.Eval(context))
+        feet = self.feet_input.Eval(context)
+        if self.past_goal(feet):
+            return
+        i, d = self.index.query(feet)
         state.get_mutable_abstract_state(int(self._choice)).set_value(
             StepChoice(i, d, context.get_time())
         )
+
+    def past_goal(self, feet) -> bool:
+        """Whether both front feet of ``feet`` (12, ``LEGS`` order) are past the goal line."""
+        if self._goal is None:
+            return False
+        d, goal = self._goal
+        f = np.asarray(feet, dtype=float).reshape(4, 3)
+        return bool(min(f[0, :2] @ d, f[1, :2] @ d) >= goal)
 
 
 __all__ = ["LibraryPolicy", "StepChoice", "StepIndex", "foot_distance_sums"]

@@ -234,6 +234,40 @@ def test_library_policy_chooses_only_with_four_feet_down(library):
         simulator.AdvanceTo(0.525)
 
 
+def test_library_policy_stops_choosing_past_its_goal_line(library):
+    from pydrake.systems.analysis import Simulator
+
+    feet = np.asarray(library.keys[3], dtype=float)
+    front = min(feet[0], feet[3])  # x of lf and rf (heading 0: the x axis)
+    policy = LibraryPolicy(library, goal_line=(0.0, front + 1e-3))
+    context = policy.CreateDefaultContext()
+    policy.feet_input.FixValue(context, feet)
+    policy.contact_input.FixValue(context, [1, 1, 1, 1])
+    simulator = Simulator(policy, context)
+    simulator.AdvanceTo(0.005)  # before the line: the nearest step, as without a goal
+    choice = policy.choice_output.Eval(context)
+    assert choice.index == 3 and choice.distance == 0.0 and choice.time == 0.0
+    assert not policy.past_goal(feet)
+    moved = feet.copy()
+    moved[[0, 3]] += 2e-3  # both front feet past the line, the hind ones not
+    assert policy.past_goal(moved)
+    policy.feet_input.FixValue(context, moved)
+    simulator.AdvanceTo(0.505)
+    assert policy.choice_output.Eval(context) == choice  # no new choice: the robot holds
+    one = moved.copy()
+    one[3] = front  # the right front foot back before the line: choosing again
+    policy.feet_input.FixValue(context, one)
+    simulator.AdvanceTo(0.515)
+    assert np.isclose(policy.choice_output.Eval(context).time, 0.51)
+    # heading pi / 2: the line runs along x, the feet's y decide
+    turned = LibraryPolicy(library, goal_line=(np.pi / 2, min(feet[1], feet[4]) - 1e-3))
+    assert turned.past_goal(feet)
+    for bad, msg in (((0.0,), "goal_line must be"), ((np.nan, 1.0), "must be finite"),
+                     ("ab", "goal_line must be")):  # fmt: skip
+        with pytest.raises(RepertoireError, match=msg):
+            LibraryPolicy(library, goal_line=bad)
+
+
 # ---------------------------------------------------------------- executor
 
 

@@ -83,7 +83,8 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
             f"t = {problem['time']:.3f} s in segment {problem['segment']}: goal "
             f"{np.round(problem['goal'], 3).tolist()} ({distance:.3f} m from"
             f" the shoulder, reach {reach:.3f} m), desired tcp position "
-            f"{np.round(problem['target'], 3).tolist()}, tcp error {problem['error'][0]:.3f} m; "
+            f"{np.round(problem['target'], 3).tolist()}, tcp error {problem['error'][0]:.3f} m and "
+            f"{problem['error'][1]:.3f} rad; "
             "the simulation was stopped there"
         )
     return root, wall

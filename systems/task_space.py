@@ -33,8 +33,8 @@ from repertoire.errors import RepertoireError
 STATUS_OK = 0
 #: The desired position lies outside the sphere the arm can reach at all.
 STATUS_TARGET_OUT_OF_REACH = 1
-#: The task-space error stayed above tolerance longer than the hold time
-#: (target inside the sphere but not attainable: joint limits, base, singularity).
+#: The position or the orientation error stayed above its tolerance longer than the hold
+#: time (target inside the sphere but not attainable: joint limits, base, singularity).
 STATUS_TRACKING_LOST = 2
 
 STATUS_NAMES = {
@@ -259,7 +259,9 @@ class ResolvedMotionRateIK(LeafSystem):
     Target monitoring: ``status`` is :data:`STATUS_TARGET_OUT_OF_REACH` as soon as
     the desired position is farther than ``max_reach`` from ``reach_center``, and
     :data:`STATUS_TRACKING_LOST` when the position error stayed above
-    ``error_tolerance`` for longer than ``error_hold_time``. The status latches.
+    ``error_tolerance`` or the orientation error above ``orientation_tolerance`` for
+    longer than ``error_hold_time`` (an orientation the joint limits do not allow at an
+    attainable position is reported too, not followed silently). The status latches.
 
     Input ports:
         position_desired: p_d, 3.
@@ -292,6 +294,7 @@ class ResolvedMotionRateIK(LeafSystem):
         reach_center: np.ndarray | None = None,
         max_reach: float = np.inf,
         error_tolerance: float = 0.03,
+        orientation_tolerance: float = 0.3,
         error_hold_time: float = 0.5,
     ):
         """Builds the IK system for a finalized control plant.
@@ -310,10 +313,13 @@ class ResolvedMotionRateIK(LeafSystem):
             reach_center: shoulder point in W for the reach check.
             max_reach: reach radius in m (see :func:`reach_bound`); inf disables.
             error_tolerance: position error in m above which tracking counts as lost.
-            error_hold_time: seconds the error may stay above tolerance.
+            orientation_tolerance: orientation error angle in rad above which tracking
+                counts as lost.
+            error_hold_time: seconds the errors may stay above their tolerances.
 
         Raises:
-            RepertoireError: bad period, gains, indices or unfinalized plant.
+            RepertoireError: bad period, gains, tolerances, reach sphere, indices or
+                unfinalized plant.
         """
         super().__init__()
         if not plant.is_finalized():
@@ -328,6 +334,20 @@ class ResolvedMotionRateIK(LeafSystem):
         ):
             if not (np.isfinite(value) and value >= 0.0):
                 raise RepertoireError(f"{name} must be finite and >= 0, got {value}")
+        for name, value in (
+            ("error_tolerance", error_tolerance),
+            ("orientation_tolerance", orientation_tolerance),
+            ("error_hold_time", error_hold_time),
+        ):
+            if not (np.isfinite(value) and value > 0.0):
+                raise RepertoireError(f"{name} must be finite and > 0, got {value}")
+        if not max_reach > 0.0:
+            raise RepertoireError(f"max_reach must be > 0 m (inf disables it), got {max_reach}")
+        center = np.zeros(3) if reach_center is None else np.asarray(reach_center, dtype=float)
+        if center.shape != (3,) or not np.all(np.isfinite(center)):
+            raise RepertoireError(
+                f"reach_center must be a finite 3-vector, got {np.asarray(reach_center).tolist()}"
+            )
         idx = np.asarray(arm_velocity_indices, dtype=int)
         if (
             idx.ndim != 1
@@ -353,11 +373,10 @@ class ResolvedMotionRateIK(LeafSystem):
         if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
             raise RepertoireError("every arm joint needs finite position limits")
         self._lower, self._upper = lower, upper
-        self._center = (
-            np.zeros(3) if reach_center is None else np.asarray(reach_center, dtype=float)
-        )
+        self._center = center
         self._max_reach = float(max_reach)
         self._tol = float(error_tolerance)
+        self._ori_tol = float(orientation_tolerance)
         self._hold = float(error_hold_time)
 
         self._p_d = self.DeclareVectorInputPort("position_desired", 3)
@@ -474,7 +493,7 @@ class ResolvedMotionRateIK(LeafSystem):
         status, above = int(monitor[0]), monitor[1]
         pos_err = float(np.linalg.norm(e_p))
         ori_err = float(2.0 * np.arcsin(min(1.0, np.linalg.norm(e_o))))
-        above = above + h if pos_err > self._tol else 0.0
+        above = above + h if (pos_err > self._tol or ori_err > self._ori_tol) else 0.0
         if status == STATUS_OK:
             if np.linalg.norm(p_d - self._center) > self._max_reach:
                 status = STATUS_TARGET_OUT_OF_REACH

@@ -247,6 +247,41 @@ def test_tracking_lost_inside_the_sphere_is_reported():
     assert np.all(np.abs(q) <= 2.9)  # references stay inside the joint limits
 
 
+@pytest.mark.parametrize("angle, lost", [(0.5, True), (0.2, False)])
+def test_orientation_error_alone_is_reported_as_lost_tracking(angle, lost):
+    # K_o = 0 and no null-space motion: the reference stands still (qdot = J# 0 = 0), the
+    # position error is 0 and the orientation error stays the goal's angle exactly.
+    plant = _make_plant()
+    system = _system(plant, orientation_gain=0.0, null_gain=0.0, error_hold_time=0.1)
+    context = system.CreateDefaultContext()
+    X = _pose(plant, Q0)
+    R_d = RotationMatrix.MakeXRotation(angle) @ X.rotation()
+    _fix(system, context, X.translation(), R_d.ToQuaternion().wxyz())
+    simulator = Simulator(system, context)
+    simulator.AdvanceTo(0.08)
+    assert system.GetOutputPort("status").Eval(context)[0] == STATUS_OK
+    simulator.AdvanceTo(0.2)
+    assert np.allclose(system.GetOutputPort("task_error").Eval(context), [0.0, angle], atol=1e-12)
+    assert np.array_equal(system.GetOutputPort("arm_reference_state").Eval(context)[:7], Q0)
+    expected = STATUS_TRACKING_LOST if lost else STATUS_OK
+    assert system.GetOutputPort("status").Eval(context)[0] == expected
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"error_tolerance": 0.0}, "error_tolerance must be finite and > 0, got 0.0"),
+        ({"orientation_tolerance": np.nan}, "orientation_tolerance must be finite and > 0"),
+        ({"error_hold_time": -1.0}, "error_hold_time must be finite and > 0, got -1.0"),
+        ({"max_reach": 0.0}, r"max_reach must be > 0 m \(inf disables it\), got 0.0"),
+        ({"reach_center": [0.0, 1.0]}, r"reach_center must be a finite 3-vector, got \[0.0, 1.0\]"),
+    ],
+)
+def test_bad_tolerances_and_reach_sphere_are_refused(kwargs, match):
+    with pytest.raises(RepertoireError, match=match):
+        _system(_make_plant(), **kwargs)
+
+
 def test_bad_construction_and_input():
     plant = _make_plant()
     with pytest.raises(RepertoireError, match="period must be > 0"):

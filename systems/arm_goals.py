@@ -15,6 +15,36 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from repertoire.errors import RepertoireError
 
 
+def check_body_index(body, what: str, *, fixed_allowed: bool = False) -> int:
+    """``body`` as an int body index, or a RepertoireError naming ``what`` and the value.
+
+    Args:
+        body: a body index (int, numpy integer or Drake ``BodyIndex``).
+        what: what the value is, for the message.
+        fixed_allowed: also accept -1 (no body: a fixed goal).
+
+    Raises:
+        RepertoireError: a name, a float, a bool or an index below 0 (below -1 with
+            ``fixed_allowed``).
+    """
+    lowest = -1 if fixed_allowed else 0
+    if not isinstance(body, (str, bool, float, np.floating)):
+        try:
+            index = int(body)
+        except (TypeError, ValueError):
+            index = None
+        if index is not None and index >= lowest:
+            return index
+    raise RepertoireError(
+        f"{what} must be a body index >= {lowest}, got {body!r}"
+        + (
+            " (-1 for a fixed goal; resolve an 'instance:body' name to the plant's body index)"
+            if fixed_allowed
+            else ""
+        )
+    )
+
+
 @dataclasses.dataclass
 class SegmentGoal:
     """The goal of one chain segment.
@@ -56,13 +86,17 @@ class GoalSchedule(LeafSystem):
         """Builds the schedule.
 
         Args:
-            goals: one goal per chain segment.
+            goals: one goal per chain segment (one or more); a tracked goal's ``body`` is a
+                body index of the plant whose poses arrive on ``body_poses`` (a
+                ``"instance:body"`` name is resolved to one by the world builder).
 
         Raises:
-            RepertoireError: a goal of the wrong size, not finite, or a non-unit
-                orientation.
+            RepertoireError: no goals, a goal of the wrong size, not finite, a non-unit
+                orientation, or a body that is neither -1 nor a body index.
         """
         super().__init__()
+        if len(goals) == 0:
+            raise RepertoireError("GoalSchedule needs one or more segment goals, got none")
         for k, g in enumerate(goals):
             for what, value, size in (
                 ("position", g.position, 3),
@@ -82,19 +116,35 @@ class GoalSchedule(LeafSystem):
                     f"its norm is {norm:.6f} (off by {abs(norm - 1.0):.2e})"
                 )
         self._goals = goals
+        self._bodies = [
+            check_body_index(g.body, f"goal {k} ({g.label}): body", fixed_allowed=True)
+            for k, g in enumerate(goals)
+        ]
         self._poses = self.DeclareAbstractInputPort(
             "body_poses", AbstractValue.Make([RigidTransform()])
         )
         self._segment = self.DeclareVectorInputPort("segment", 1)
-        self.DeclareVectorOutputPort(
-            "goal", 10, lambda c, o: self._calc(c, o, int(self._segment.Eval(c)[0]))
-        )
+        self.DeclareVectorOutputPort("goal", 10, self._calc_active)
         for k in range(len(goals)):
             self.DeclareVectorOutputPort(f"goal_{k}", 10, lambda c, o, k=k: self._calc(c, o, k))
+
+    def _calc_active(self, context: Context, output: BasicVector) -> None:
+        segment = float(self._segment.Eval(context)[0])
+        m = len(self._goals)
+        if not (np.isfinite(segment) and segment == int(segment) and 0 <= segment < m):
+            raise RepertoireError(f"segment must be a segment index 0 ... {m - 1}, got {segment}")
+        self._calc(context, output, int(segment))
 
     def _calc(self, context: Context, output: BasicVector, k: int) -> None:
         g = self._goals[k]
         p = np.asarray(g.position, float)
-        if g.body >= 0:
-            p = self._poses.Eval(context)[g.body].translation() + p
+        body = self._bodies[k]
+        if body >= 0:
+            poses = self._poses.Eval(context)
+            if body >= len(poses):
+                raise RepertoireError(
+                    f"goal {k} ({g.label}) tracks body {body}, but body_poses holds only "
+                    f"{len(poses)} poses"
+                )
+            p = poses[body].translation() + p
         output.SetFromVector(np.concatenate([p, g.orientation, g.fingers]))

@@ -10,6 +10,9 @@ from pydrake.common.value import AbstractValue
 from pydrake.geometry import QueryObject
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
+from repertoire.systems.arm_goals import check_body_index
+
+from repertoire.errors import RepertoireError
 
 
 class BodyPointAndAxis(LeafSystem):
@@ -23,8 +26,17 @@ class BodyPointAndAxis(LeafSystem):
     """
 
     def __init__(self, body: int, X_BQ: RigidTransform):
+        """Builds the system.
+
+        Args:
+            body: index of the body in the plant's body poses (>= 0).
+            X_BQ: pose of the frame Q in the body's frame.
+
+        Raises:
+            RepertoireError: a body that is not an index >= 0.
+        """
         super().__init__()
-        self._body = int(body)
+        self._body = check_body_index(body, "body")
         self._X_BQ = X_BQ
         self._poses = self.DeclareAbstractInputPort(
             "body_poses", AbstractValue.Make([RigidTransform()])
@@ -32,7 +44,12 @@ class BodyPointAndAxis(LeafSystem):
         self.DeclareVectorOutputPort("point_and_axis", 6, self._calc)
 
     def _calc(self, context: Context, output: BasicVector) -> None:
-        X = self._poses.Eval(context)[self._body] @ self._X_BQ
+        poses = self._poses.Eval(context)
+        if self._body >= len(poses):
+            raise RepertoireError(
+                f"body {self._body} is not in body_poses, which holds {len(poses)} poses"
+            )
+        X = poses[self._body] @ self._X_BQ
         output.SetFromVector(np.concatenate([X.translation(), X.rotation().matrix()[:, 2]]))
 
 
@@ -70,9 +87,26 @@ class ObstacleClearanceMonitor(LeafSystem):
             period: update period [s].
             horizon: geometries farther than this from the centre are not reported; the
                 gap then reads ``horizon - radius``.
+
+        Raises:
+            RepertoireError: a centre that is not a finite 3-vector, a radius < 0, a
+                period <= 0 or a horizon not beyond the radius.
         """
         super().__init__()
-        self._centre = np.asarray(centre_W, dtype=float).reshape(3)
+        centre = np.asarray(centre_W, dtype=float)
+        if centre.shape != (3,) or not np.all(np.isfinite(centre)):
+            raise RepertoireError(
+                f"centre_W must be a finite 3-vector, got {np.asarray(centre_W).tolist()}"
+            )
+        if not (np.isfinite(radius) and radius >= 0.0):
+            raise RepertoireError(f"radius must be finite and >= 0 m, got {radius}")
+        if not (np.isfinite(period) and period > 0.0):
+            raise RepertoireError(f"period must be finite and > 0 s, got {period}")
+        if not (np.isfinite(horizon) and horizon > radius):
+            raise RepertoireError(
+                f"horizon must be finite and beyond the radius {radius} m, got {horizon}"
+            )
+        self._centre = centre
         self._radius = float(radius)
         self._ids = set(geometries)
         self._horizon = float(horizon)

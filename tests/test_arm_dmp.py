@@ -240,6 +240,80 @@ def test_goal_of_the_wrong_size_is_refused():
         GoalSchedule([SegmentGoal("grasp", np.zeros(3), 2 * q, fingers)])
 
 
+def test_goal_schedule_outputs_fixed_and_tracked_goals_exactly():
+    from pydrake.math import RigidTransform
+    from repertoire.systems.arm_goals import GoalSchedule
+
+    q = np.array([0.0, 0.6, 0.0, 0.8])
+    fingers = np.array([0.1, 0.2, 0.3])
+    schedule = GoalSchedule(
+        [
+            SegmentGoal("grasp", np.array([0.4, -0.2, 0.8]), q, fingers),
+            SegmentGoal("place", np.array([0.0, 0.0, 0.05]), q, fingers, body=np.int64(2)),
+        ]
+    )
+    context = schedule.CreateDefaultContext()
+    poses = [RigidTransform(), RigidTransform([9.0, 9.0, 9.0]), RigidTransform([0.5, 0.1, 0.75])]
+    schedule.GetInputPort("body_poses").FixValue(context, poses)
+    fixed = [0.4, -0.2, 0.8, 0.0, 0.6, 0.0, 0.8, 0.1, 0.2, 0.3]
+    tracked = [0.5, 0.1, 0.8, 0.0, 0.6, 0.0, 0.8, 0.1, 0.2, 0.3]
+    assert np.allclose(schedule.GetOutputPort("goal_0").Eval(context), fixed, atol=1e-15)
+    assert np.allclose(schedule.GetOutputPort("goal_1").Eval(context), tracked, atol=1e-15)
+    for segment, expected in ((0, fixed), (1, tracked)):
+        schedule.GetInputPort("segment").FixValue(context, [segment])
+        assert np.allclose(schedule.GetOutputPort("goal").Eval(context), expected, atol=1e-15)
+    for segment in (-1.0, 2.0, 0.5, np.nan):
+        schedule.GetInputPort("segment").FixValue(context, [segment])
+        with pytest.raises(RepertoireError, match=r"segment must be a segment index 0 \.\.\. 1"):
+            schedule.GetOutputPort("goal").Eval(context)
+    schedule.GetInputPort("body_poses").FixValue(context, poses[:2])
+    with pytest.raises(RepertoireError, match="tracks body 2, but body_poses holds only 2 poses"):
+        schedule.GetOutputPort("goal_1").Eval(context)
+
+
+@pytest.mark.parametrize("body", ["coaster:coaster", -2, 1.0, True])
+def test_goal_schedule_refuses_a_body_that_is_not_an_index(body):
+    from repertoire.systems.arm_goals import GoalSchedule
+
+    q = quaternion_wxyz(R_SIDE)
+    goal = SegmentGoal("place", np.zeros(3), q, np.zeros(3), body=body)
+    with pytest.raises(RepertoireError, match=r"goal 0 \(place\): body must be a body index >= -1"):
+        GoalSchedule([goal])
+    with pytest.raises(RepertoireError, match="one or more segment goals, got none"):
+        GoalSchedule([])
+
+
+def test_body_point_and_axis_is_the_frame_origin_and_z_axis_exactly():
+    from pydrake.math import RigidTransform, RotationMatrix
+    from pydrake.multibody.tree import BodyIndex
+    from repertoire.systems.arm_monitors import BodyPointAndAxis, ObstacleClearanceMonitor
+
+    # Body 1 at (1, 2, 3) turned 90 deg about z; Q 0.1 m along the body's x, turned 90 deg
+    # about the body's x: p_WQ = (1, 2.1, 3), z_Q = R_z(90) R_x(90) e_z = R_z(90) (0, -1, 0).
+    system = BodyPointAndAxis(
+        BodyIndex(1), RigidTransform(RotationMatrix.MakeXRotation(np.pi / 2), [0.1, 0, 0])
+    )
+    context = system.CreateDefaultContext()
+    X_WB = RigidTransform(RotationMatrix.MakeZRotation(np.pi / 2), [1.0, 2.0, 3.0])
+    system.GetInputPort("body_poses").FixValue(context, [RigidTransform(), X_WB])
+    out = system.GetOutputPort("point_and_axis").Eval(context)
+    assert np.allclose(out, [1.0, 2.1, 3.0, 1.0, 0.0, 0.0], atol=1e-15)
+    system.GetInputPort("body_poses").FixValue(context, [RigidTransform()])
+    with pytest.raises(RepertoireError, match="body 1 is not in body_poses, which holds 1 poses"):
+        system.GetOutputPort("point_and_axis").Eval(context)
+    with pytest.raises(RepertoireError, match="body must be a body index >= 0, got -1"):
+        BodyPointAndAxis(-1, RigidTransform())
+    for kwargs, match in (
+        ({"centre_W": [0.0, 0.0]}, r"centre_W must be a finite 3-vector, got \[0.0, 0.0\]"),
+        ({"radius": -0.1}, "radius must be finite and >= 0 m, got -0.1"),
+        ({"period": 0.0}, "period must be finite and > 0 s, got 0.0"),
+        ({"horizon": 0.05}, "horizon must be finite and beyond the radius 0.06 m, got 0.05"),
+    ):
+        args = {"centre_W": [0.6, 0.0, 1.0], "radius": 0.06, "period": 0.004} | kwargs
+        with pytest.raises(RepertoireError, match=match):
+            ObstacleClearanceMonitor(args.pop("centre_W"), args.pop("radius"), [], **args)
+
+
 def test_ball_inside_the_start_the_goal_or_the_table_is_refused():
     from repertoire.models.arm7 import CUP_RADIUS
 

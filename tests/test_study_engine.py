@@ -269,11 +269,18 @@ def test_resume_runs_only_missing_seeds_and_tables_are_exact(tmp_path, toy_studi
     assert rows["value"]["mean"] == pytest.approx(5.0)
     assert rows["value"]["std"] == pytest.approx((70.0 / 6.0) ** 0.5 * 1.0)
     assert (rows["value"]["min"], rows["value"]["max"], rows["value"]["n"]) == (0.0, 10.0, 6)
-    assert rows["even"]["success_rate"] == pytest.approx(0.5)
+    assert rows["even"]["true_rate"] == pytest.approx(0.5)
     csv_text = more.tables["summary.csv"].read_text().splitlines()
-    assert csv_text[0] == "field,n,mean,std,min,max,success_rate"
+    assert csv_text[0] == "field,n,mean,std,min,max,true_rate"
     assert csv_text[1].startswith("value,6,5.0,")
-    assert "| even | 6 |  |  |  |  | 0.5 |" in more.tables["summary.md"].read_text()
+    summary_md = more.tables["summary.md"].read_text()
+    assert "| field | n | mean | std | min | max | true_rate |" in summary_md
+    assert "| even | 6 |  |  |  |  | 0.5 |" in summary_md
+    # a bool field's rate is named for what it is, not a "success" rate (a `failed`
+    # or `fell` field's rate is a failure rate)
+    assert "`true_rate` is, for a yes/no field, the fraction of episodes in which it is true" in (
+        summary_md.replace("\n", " ")
+    )
     # No summarize(): one histogram per numeric field.
     assert set(more.figures) == {"hist_value", "hist_parity", "hist_wall_time_s"}
     assert all(p.read_bytes()[:4] == b"\x89PNG" for p in more.figures.values())
@@ -705,7 +712,7 @@ def test_summaries_skip_identifiers_and_missing_values():
     rows = summary_rows(Rec, [Rec(0, 2.0, True), Rec(1, None, False), Rec(2, 4.0, True)])
     assert [r["field"] for r in rows] == ["length_m", "ok"]
     assert rows[0]["n"] == 2 and rows[0]["mean"] == 3.0 and rows[0]["min"] == 2.0
-    assert rows[1]["n"] == 3 and rows[1]["success_rate"] == pytest.approx(2 / 3)
+    assert rows[1]["n"] == 3 and rows[1]["true_rate"] == pytest.approx(2 / 3)
 
 
 def test_the_store_lives_in_the_out_dir_and_summaries_cover_every_stored_seed(tmp_path):

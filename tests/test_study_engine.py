@@ -302,8 +302,13 @@ def test_changed_config_is_refused_unless_fresh(tmp_path, toy_studies):
         meta = dict(db.execute("SELECT key, value FROM meta"))
     assert meta["study"] == "_toy"
     assert json.loads(meta["config_json"]) == {"offsets": [1.0, -1.0], "scale": 3.0}
-    with pytest.raises(RepertoireError, match="holds study '_toy', not 'pendulum'"):
+    with pytest.raises(RepertoireError) as refused:
         run_study("pendulum", smoke_config(), episodes=1, executor="inline", **_kw(tmp_path))
+    assert str(refused.value) == (
+        f"store '{tmp_path / 's.sqlite'}' holds study '_toy', not 'pendulum' (2 episodes of it); "
+        "use another store path (--store, or --out-dir for the default one); --fresh "
+        "(fresh=True) would discard them"
+    )
 
 
 def test_whole_numbers_given_for_float_fields_are_the_same_config_as_their_floats(

@@ -17,7 +17,8 @@ rerun runs only the missing seeds. Workers receive only ``(module name, study
 name, config JSON, seed)`` and send back plain dicts: nothing from pydrake is
 pickled, every worker rebuilds the study from the config. Records are
 identical whatever the executor or worker count (fields named ``wall*_s`` are
-timing fields and excepted). An episode that kills its pool worker (a
+timing fields and excepted): every episode runs with one BLAS thread
+(:func:`repertoire.studies.engine_pool.one_blas_thread`). An episode that kills its pool worker (a
 segfault, the out-of-memory killer) is recorded in the store's ``crashes``
 table, the other seeds run on, and the call then raises :class:`EpisodeError`
 naming the crashed seeds; a rerun tries them again.

@@ -8,6 +8,7 @@ imported only when a study runs on it.
 """
 
 import re
+import threading
 from collections.abc import Iterator
 from typing import Any
 
@@ -16,6 +17,7 @@ from repertoire.studies.engine_pool import EpisodeError, run_task
 from repertoire.errors import RepertoireError
 
 DASK_CONNECT_TIMEOUT_S = 3.0
+CONNECT_GRACE_S = 2.0  # past the Client's own timeout, before a connection is given up
 WINDOW_PER_WORKER = 4  # seeds submitted ahead per worker thread
 
 
@@ -52,11 +54,12 @@ def connect_dask(scheduler_address: str, timeout_s: float = DASK_CONNECT_TIMEOUT
 
     Args:
         scheduler_address: e.g. ``tcp://10.0.0.5:8786``.
-        timeout_s: connection timeout.
+        timeout_s: how long to wait for the connection, and then for a worker.
 
     Raises:
-        RepertoireError: dask.distributed is not installed, or the scheduler is
-            not reachable within ``timeout_s`` (names the address).
+        RepertoireError: dask.distributed is not installed, the scheduler is
+            not reachable within ``timeout_s``, or no worker joined it within
+            ``timeout_s`` (names the address).
     """
     scheduler_address = parse_scheduler_address(scheduler_address)
     try:
@@ -67,13 +70,61 @@ def connect_dask(scheduler_address: str, timeout_s: float = DASK_CONNECT_TIMEOUT
             "pip install 'repertoire[dask]'"
         ) from e
     try:
-        return Client(scheduler_address, timeout=f"{timeout_s}s", set_as_default=False)
+        client = _client_within(Client, scheduler_address, timeout_s)
     except Exception as e:
         raise RepertoireError(
             f"could not connect to the Dask scheduler at '{scheduler_address}' within "
             f"{timeout_s:g} s ({type(e).__name__}: {e}); start one with `dask scheduler` "
             "and `dask worker <address>`, or use --executor process"
         ) from e
+    try:  # a scheduler without workers would take the seeds and never run one
+        client.wait_for_workers(1, timeout=timeout_s)
+    except Exception as e:  # TimeoutError (dask's own in some versions)
+        client.close()
+        raise RepertoireError(
+            f"the Dask scheduler at '{scheduler_address}' has no workers (none joined within "
+            f"{timeout_s:g} s), so no episode would run; start one with "
+            f"`dask worker {scheduler_address}`, or use --executor process"
+        ) from e
+    return client
+
+
+def _client_within(client_type: Any, address: str, timeout_s: float):
+    """``client_type(address)`` connected within ``timeout_s`` (plus a grace), or an error.
+
+    The Client's own timeout covers a port where nothing listens, but not one
+    where something else does (the scheduler's dashboard, 8787 by default, next
+    to the scheduler's 8786): its handshake then waits forever. The connection
+    is made on a helper thread and given up on after the deadline; a client that
+    connects after that is closed.
+    """
+    outcome: dict[str, Any] = {}
+    given_up = threading.Event()
+
+    def connect() -> None:
+        try:
+            client = client_type(address, timeout=f"{timeout_s}s", set_as_default=False)
+        except Exception as e:  # noqa: BLE001  (re-raised on the caller's thread)
+            outcome["error"] = e
+            return
+        if given_up.is_set():
+            client.close()
+        else:
+            outcome["client"] = client
+
+    thread = threading.Thread(target=connect, name="dask-connect", daemon=True)
+    thread.start()
+    thread.join(timeout_s + CONNECT_GRACE_S)
+    if thread.is_alive():
+        given_up.set()
+        if "client" not in outcome:
+            raise TimeoutError(
+                f"no Dask handshake in {timeout_s + CONNECT_GRACE_S:g} s: something "
+                "else listens there (a dashboard?)"
+            )
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["client"]
 
 
 def iter_dask(client, module: str, name: str, config_json: str, seeds: list[int]) -> Iterator[dict]:

@@ -80,7 +80,9 @@ def summary_rows(record_type: type, records: list) -> list[dict[str, Any]]:
     """One summary row per numeric or bool record field.
 
     Numeric fields get ``n`` (finite values), ``mean``, ``std`` (population),
-    ``min``, ``max``; bool fields get ``n`` and ``success_rate``. Missing values
+    ``min``, ``max``; yes/no (bool) fields get ``n`` and ``true_rate``, the fraction
+    of those episodes in which the field is true (a success for ``success``, a
+    failure for ``failed`` or ``fell``: the field's name says which). Missing values
     (None, NaN) and identifier fields (``seed``) are left out.
     """
     numeric, boolean = _numeric_fields(record_type, records)
@@ -99,7 +101,7 @@ def summary_rows(record_type: type, records: list) -> list[dict[str, Any]]:
                 "std": std,
                 "min": min(finite) if n else math.nan,
                 "max": max(finite) if n else math.nan,
-                "success_rate": "",
+                "true_rate": "",
             }
         )
     for name in boolean:
@@ -112,7 +114,7 @@ def summary_rows(record_type: type, records: list) -> list[dict[str, Any]]:
                 "std": "",
                 "min": "",
                 "max": "",
-                "success_rate": sum(vals) / len(vals) if vals else math.nan,
+                "true_rate": sum(vals) / len(vals) if vals else math.nan,
             }
         )
     return rows
@@ -126,8 +128,8 @@ def summary_figures(record_type: type, records: list) -> dict[str, float]:
     """
     figures: dict[str, float] = {}
     for row in summary_rows(record_type, records):
-        if row["success_rate"] != "":
-            figures[f"rate_{row['field']}"] = float(row["success_rate"])
+        if row["true_rate"] != "":
+            figures[f"rate_{row['field']}"] = float(row["true_rate"])
         else:
             for key in ("mean", "std", "min", "max"):
                 figures[f"{key}_{row['field']}"] = float(row[key])
@@ -157,7 +159,7 @@ def write_tables(
 ) -> dict[str, Path]:
     """Writes summary.csv, summary.md and episodes.csv; returns their paths."""
     rows = summary_rows(record_type, records)
-    cols = ["field", "n", "mean", "std", "min", "max", "success_rate"]
+    cols = ["field", "n", "mean", "std", "min", "max", "true_rate"]
     csv_path = out_dir / "summary.csv"
     with csv_path.open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=cols)
@@ -170,7 +172,9 @@ def write_tables(
         "",
         f"Every one of the {len(records)} episodes stored for this config (the store may hold "
         "more seeds than the last run asked for). `n` counts the finite values of a field; "
-        "missing values (no result) are left out.",
+        "missing values (no result) are left out. `true_rate` is, for a yes/no field, the "
+        "fraction of episodes in which it is true: a success rate for `success`, a failure "
+        "rate for `failed` or `fell`.",
         "",
         "| " + " | ".join(cols) + " |",
         "|" + "|".join(["---"] + ["---:"] * (len(cols) - 1)) + "|",

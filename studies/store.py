@@ -299,10 +299,13 @@ class EpisodeStore:
                     f"store '{self.path}' holds {n} episodes but no meta (study, config); {hint}"
                 )
         if meta and not fresh:
-            if meta.get("study") != study:
+            if meta.get("study") != study:  # --fresh would wipe another study's data
+                n = conn.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
                 raise RepertoireError(
-                    f"store '{self.path}' holds study '{meta.get('study')}', not '{study}'; "
-                    f"use another store path or {hint}"
+                    f"store '{self.path}' holds study '{meta.get('study')}', not '{study}' "
+                    f"({n} episode{'' if n == 1 else 's'} of it); use another store path "
+                    "(--store, or --out-dir for the default one); --fresh (fresh=True) "
+                    "would discard them"
                 )
             if meta.get("config_sha256") != wanted["config_sha256"]:
                 change = describe_config_change(meta["config_json"], config_json)

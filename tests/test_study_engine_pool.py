@@ -359,3 +359,65 @@ def test_ctrl_c_on_a_pool_run_prints_one_line_and_keeps_the_store_consistent(tmp
         time.sleep(0.2)
     else:
         raise AssertionError("processes of the interrupted run are still alive")
+
+
+_BLAS_MODULE = textwrap.dedent(
+    """
+    import dataclasses
+
+    from threadpoolctl import threadpool_info
+
+    from repertoire.studies.engine import register_study
+
+
+    @dataclasses.dataclass
+    class BlasConfig:
+        pass
+
+
+    @dataclasses.dataclass
+    class BlasRecord:
+        most_blas_threads: int
+        blas_libraries: int
+
+
+    def run_episode(config, seed):
+        blas = [lib for lib in threadpool_info() if lib["user_api"] == "blas"]
+        return BlasRecord(max(lib["num_threads"] for lib in blas), len(blas))
+
+
+    register_study("_blas_study", config_type=BlasConfig, record_type=BlasRecord,
+                   run_episode=run_episode, description="test-only")
+    """
+)
+
+
+@pytest.mark.parametrize("executor", ["inline", "process"])
+def test_every_episode_runs_with_one_blas_thread_and_inline_restores_the_limit(
+    tmp_path, monkeypatch, executor
+):
+    import scipy.linalg  # noqa: F401  (its BLAS loaded, so `before` lists it)
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    (tmp_path / "blas_study_module.py").write_text(_BLAS_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    importlib.import_module("blas_study_module")
+    try:
+        with threadpool_limits(limits=2, user_api="blas"):  # as on a two-core machine
+            before = [lib["num_threads"] for lib in threadpool_info()]
+            result = run_study(
+                "_blas_study",
+                episodes=3,
+                executor=executor,
+                workers=2,
+                out_dir=tmp_path / "out",
+                progress=False,
+                summarize=False,
+            )
+            after = [lib["num_threads"] for lib in threadpool_info()]
+    finally:
+        registry._REGISTRY.pop("_blas_study", None)
+        sys.modules.pop("blas_study_module", None)
+    # numpy's and scipy's BLAS are both loaded and both held to one thread
+    assert [(r.most_blas_threads, r.blas_libraries >= 2) for r in result.records] == [(1, True)] * 3
+    assert after == before

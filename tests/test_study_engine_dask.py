@@ -37,6 +37,19 @@ def _no_hang(seconds: int, what: str):
         signal.signal(signal.SIGALRM, previous)
 
 
+def _run_on(address: str, tmp_path, **timeout) -> None:
+    """Two pendulum episodes on the Dask scheduler at ``address`` (``dask_timeout_s=``)."""
+    run_study(
+        "pendulum",
+        smoke_config(),
+        episodes=2,
+        executor="dask",
+        scheduler_address=address,
+        **timeout,
+        **_kw(tmp_path),
+    )
+
+
 def test_unreachable_dask_scheduler_fails_fast_and_names_the_address(tmp_path):
     with socket.socket() as s:  # a port nobody listens on
         s.bind(("127.0.0.1", 0))
@@ -44,14 +57,7 @@ def test_unreachable_dask_scheduler_fails_fast_and_names_the_address(tmp_path):
     address = f"tcp://127.0.0.1:{port}"
 
     with _no_hang(30, "an unreachable scheduler"), pytest.raises(RepertoireError) as error:
-        run_study(
-            "pendulum",
-            smoke_config(),
-            episodes=2,
-            executor="dask",
-            scheduler_address=address,
-            **_kw(tmp_path),
-        )
+        _run_on(address, tmp_path)
     assert f"Dask scheduler at '{address}'" in str(error.value)
     assert not (tmp_path / "s.sqlite").exists()
 
@@ -65,15 +71,7 @@ def test_a_port_that_is_not_a_dask_scheduler_is_a_clear_error_not_a_hang(tmp_pat
             listener.listen()  # connections complete in the backlog, nothing answers
             address = f"tcp://127.0.0.1:{listener.getsockname()[1]}"
             with pytest.raises(RepertoireError) as error:
-                run_study(
-                    "pendulum",
-                    smoke_config(),
-                    episodes=2,
-                    executor="dask",
-                    scheduler_address=address,
-                    dask_timeout_s=0.5,
-                    **_kw(tmp_path),
-                )
+                _run_on(address, tmp_path, dask_timeout_s=0.5)
     assert str(error.value) == (
         f"could not connect to the Dask scheduler at '{address}' within 0.5 s (TimeoutError: "
         "no Dask handshake in 2.5 s: something else listens there (a dashboard?)); start one "
@@ -89,15 +87,7 @@ def test_a_dask_scheduler_without_workers_is_a_clear_error_not_a_hang(tmp_path):
     ) as cluster:  # a scheduler alone: it would take the seeds and never run one
         address = cluster.scheduler_address
         with _no_hang(30, "a scheduler without workers"), pytest.raises(RepertoireError) as error:
-            run_study(
-                "pendulum",
-                smoke_config(),
-                episodes=2,
-                executor="dask",
-                scheduler_address=address,
-                dask_timeout_s=0.5,
-                **_kw(tmp_path),
-            )
+            _run_on(address, tmp_path, dask_timeout_s=0.5)
     assert str(error.value) == (
         f"the Dask scheduler at '{address}' has no workers (none joined within 0.5 s), so "
         f"no episode would run; start one with `dask worker {address}`, or use --executor process"

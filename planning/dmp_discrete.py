@@ -25,11 +25,12 @@ CHUNK_ROWS = 2048
 class DiscreteDmpTables:
     """Per-step coefficients of the exact discrete DMP update (``DiscreteDmpSystem``).
 
-    ``z_{k+1} = z_k @ bigT + (a[k] * g + b[k] * x0 + c[k] + d * p).ravel()`` with
-    ``z = [x, v]`` (v = tau dx/dt); from step ``last`` on, theta = 0 and f = 0.
-    The rows ``a[k], b[k], c[k]`` are built in blocks of ``CHUNK_ROWS`` on demand.
-    :meth:`step` takes the update in the displacement from x0 (where ``b`` drops out), as
-    the NumPy rollout does, so positions far from the origin keep their digits.
+    ``y_{k+1} = y_k @ bigT + (a[k] * (g - x0) + c[k] + d * p).ravel()`` with
+    ``y = [x - x0, v]`` (v = tau dx/dt): the update in the displacement from x0, as the
+    NumPy rollout takes it, so positions far from the origin keep their digits (the
+    equations see positions only through g - x, g - x0 and x - x0); from step ``last`` on,
+    theta = 0 and f = 0. The rows ``a[k], c[k]`` are built in blocks of ``CHUNK_ROWS`` on
+    demand.
     """
 
     def __init__(self, dmp: DmpParameters, dt: float) -> None:
@@ -53,7 +54,7 @@ class DiscreteDmpTables:
         big[n + idx, idx] = Phi[:, 1, 0]
         big[n + idx, n + idx] = Phi[:, 1, 1]
         self.bigT = big.T.copy()
-        # First step and length of the block held in _a, _b, _c, _theta, _F.
+        # First step and length of the block held in _a, _c, _theta, _F.
         self._start, self._rows = -1, 0
         self._block(0)
 
@@ -73,14 +74,12 @@ class DiscreteDmpTables:
             th0, th1 = theta[:-1, None, None], theta[1:, None, None]
             F0, F1 = F[:-1, None, :], F[1:, None, :]
             if dmp.formulation == "new":
-                # U = K (1 - theta) g + K theta x0 + K f + p
+                # U = K (1 - theta) (g - x0) + K f + p in the displacement from x0
                 self._a = G0 * K * (1 - th0) + G1 * K * (1 - th1)
-                self._b = G0 * K * th0 + G1 * K * th1
                 self._c = G0 * K * F0 + G1 * K * F1
             else:
-                # U = (K + f) g - f x0 + p
+                # U = (K + f) (g - x0) + p in the displacement from x0
                 self._a = G0 * (K + F0) + G1 * (K + F1)
-                self._b = -(G0 * F0 + G1 * F1)
                 self._c = np.zeros_like(self._a)
             self._theta, self._F = theta[:-1], F[:-1]
             self._start, self._rows = start, stop - start
@@ -96,8 +95,7 @@ class DiscreteDmpTables:
             x0: Start, shape (n,).
             p: Coupling term held over the step, or None.
         """
-        # in x - x0 the start is 0: U loses K x0 (the spring's pull at x0), b drops out
-        g = goal - x0
+        g = goal - x0  # in the displacement from x0 the start is 0
         if k >= self.last:
             u = self._a_last * g
         else:

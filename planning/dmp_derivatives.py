@@ -60,9 +60,9 @@ def fit_demonstration(
     by default tricube-weighted with windows in time and a small ridge on the cubic and
     higher coefficients, the half-width and ridge chosen for the second derivative (among
     the fits generalised cross-validation cannot tell apart, the smallest estimated error;
-    kernel_polynomial_derivatives: clustered stamps and gaps cannot blow the fit up, and
+    kernel_polynomial_choice: clustered stamps and gaps cannot blow the fit up, and
     clean data keep no ridge, exact for minimum-jerk segments); with ``window``, a plain
-    least-squares fit to the ``window`` nearest samples (local_polynomial_derivatives).
+    least-squares fit to the ``window`` nearest samples (local_polynomial_fit).
     ``"spline"`` (any time stamps): a smoothing spline (``scipy`` ``make_smoothing_spline``;
     ``smoothing`` is its lambda, None = generalised cross-validation, which can over-smooth
     noise-free data) differentiated analytically. ``"auto"`` picks savgol when the stamps
@@ -621,19 +621,6 @@ def local_bandwidths(t: np.ndarray, order: int = 5) -> list[float]:
     return out
 
 
-def kernel_polynomial_derivatives(
-    t: np.ndarray, x: np.ndarray, *, ridges: tuple[float, ...] = LOCAL_RIDGES
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(xd, xdd)`` of kernel_polynomial_choice (local_poly's default).
-
-    Args:
-        t: Time stamps, strictly increasing, shape (N,).
-        x: Samples, shape (N, n).
-        ridges: Ridge weights tried on noisy data, > 0.
-    """
-    return kernel_polynomial_choice(t, x, ridges=ridges)[1:]
-
-
 def kernel_polynomial_choice(
     t: np.ndarray, x: np.ndarray, *, ridges: tuple[float, ...] = LOCAL_RIDGES
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -706,13 +693,6 @@ def _local_polynomial_design(
     return idx, V, scale[:, 0]
 
 
-def local_polynomial_derivatives(
-    t: np.ndarray, x: np.ndarray, window: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(xd, xdd)`` of local_polynomial_fit."""
-    return local_polynomial_fit(t, x, window)[1:]
-
-
 def local_polynomial_fit(
     t: np.ndarray, x: np.ndarray, window: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -723,7 +703,7 @@ def local_polynomial_fit(
     Per sample, order ``min(5, window - 1)`` fitted to a fixed count of samples around it.
 
     local_poly's estimator when a ``window`` is given; without one, local_poly uses
-    kernel_polynomial_derivatives (windows in time), since a window counted in samples
+    kernel_polynomial_choice (windows in time), since a window counted in samples
     spans very different times on clustered stamps: on 101 random stamps with 2 mm noise
     two samples 0.2 ms apart beside an 88 ms gap gave a second-derivative error of 857
     against an amplitude of 1.44.

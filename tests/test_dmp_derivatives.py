@@ -10,7 +10,7 @@ from repertoire.planning.dmp_derivatives import (
     estimate_derivatives,
     kernel_gcv_scores,
     kernel_half_widths,
-    kernel_polynomial_derivatives,
+    kernel_polynomial_choice,
     kernel_polynomial_fit,
     kernel_scan,
     local_bandwidths,
@@ -173,7 +173,7 @@ def test_the_scan_and_the_choice_match_their_definitions():
     risk = np.where(eligible, s2 * want["variance_2"] + shrinkage, np.inf)
     q, k = np.unravel_index(np.argmin(risk), risk.shape)
     assert second_derivative_choice(scan, n, 0.0) == (q, k)
-    chosen = kernel_polynomial_derivatives(t, x)
+    chosen = kernel_polynomial_choice(t, x)[1:]
     fit = kernel_polynomial_fit(t, x, bandwidths[k], LOCAL_RIDGES[q])[1:]
     for a, b in zip(chosen, fit, strict=True):
         np.testing.assert_array_equal(a, b)
@@ -199,4 +199,4 @@ def test_bad_bandwidths_and_ridges_are_named():
             kernel_polynomial_fit(t, x, 0.1, ridge)
     for ridge in (0.0, -1.0, np.nan):
         with pytest.raises(RepertoireError, match=f"ridges must be .* > 0, got {ridge!r}"):
-            kernel_polynomial_derivatives(t, x + 1e-3 * np.cos(40 * t)[:, None], ridges=(ridge,))
+            kernel_polynomial_choice(t, x + 1e-3 * np.cos(40 * t)[:, None], ridges=(ridge,))

@@ -45,7 +45,7 @@ from repertoire.diagrams.registry import register_diagram
 from repertoire.planning.littledog_crawl import CrawlParams
 from repertoire.planning.step_library import StepLibrary
 from repertoire.systems.integral_foot_controller import IntegralFootController
-from repertoire.systems.library_policy import LibraryPolicy
+from repertoire.systems.library_policy import LibraryPolicy, front_progress
 from repertoire.systems.littledog_sensors import BodyStateSensor, FootContactSensor
 from repertoire.systems.step_executor import StepExecutor
 
@@ -397,9 +397,7 @@ def crossing_figures(
         ``fell`` (1.0 on tilt > 0.5 rad or clearance < 4 cm),
         ``steps_started``.
     """
-    d = np.array([math.cos(heading), math.sin(heading)])
-    f = np.asarray(feet).reshape(-1, 4, 3)
-    front = np.minimum(f[:, 0, :2] @ d, f[:, 1, :2] @ d)
+    front = front_progress(np.asarray(feet).reshape(-1, 4, 3), heading)
     past = np.flatnonzero(front >= goal)
     end = past[0] + 1 if len(past) else len(times)  # judge the crossing up to the goal
     clearance = body_pose[:end, 2] - board.height(body_pose[:end, 0], body_pose[:end, 1])

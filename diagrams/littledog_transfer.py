@@ -62,6 +62,7 @@ from repertoire.planning.transfer_library import (
     transfer_library,
 )
 from repertoire.planning.transfer_search import GapFill, SearchConfig, SearchResult
+from repertoire.systems.library_policy import front_progress
 
 from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
@@ -294,8 +295,7 @@ class TransferPlan:
 
 def past_goal(feet, goal: float) -> bool:
     """Whether both front feet of ``feet`` (4, 3) end ``GOAL_MARGIN`` past the goal line."""
-    f = np.asarray(feet, dtype=float)
-    return bool(min(f[0, 0], f[1, 0]) >= goal + GOAL_MARGIN)
+    return bool(front_progress(feet, 0.0) >= goal + GOAL_MARGIN)
 
 
 class GoalLineFiller:

@@ -53,6 +53,29 @@ def foot_distance_sums(keys: np.ndarray, feet: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("...k,...k->...", d, d)).sum(-1)
 
 
+def front_progress(feet, heading: float) -> "np.ndarray | float":
+    """How far the hinder of the two front feet (``lf``, ``rf``) is along ``heading``.
+
+    The one test of a crossing: both front feet are past a goal line ``goal`` (m along
+    the heading from the world origin) when this is ``>= goal``.
+
+    Args:
+        feet: world foot centres, ``LEGS`` order, x y z each: (12,), (4, 3), or rows of
+            them (N, 12) / (N, 4, 3).
+        heading: the direction (rad).
+
+    Returns:
+        ``min`` over the two front feet of their position dotted with the heading's
+        unit vector, one per row (a float for one set of feet).
+    """
+    f = np.asarray(feet, dtype=float)
+    lead = f.shape[:-2] if f.shape[-2:] == (4, 3) else f.shape[:-1]
+    f = f.reshape(*lead, 4, 3)
+    d = np.array([np.cos(heading), np.sin(heading)])
+    out = np.minimum(f[..., 0, :2] @ d, f[..., 1, :2] @ d)
+    return float(out) if out.ndim == 0 else out
+
+
 class StepIndex:
     """Exact nearest-step queries on a library's start foot positions.
 
@@ -171,7 +194,7 @@ class LibraryPolicy(LeafSystem):
                 ) from None
             if not (np.isfinite(heading) and np.isfinite(goal)):
                 raise RepertoireError(f"goal_line must be finite, got {goal_line!r}")
-            self._goal = (np.array([np.cos(heading), np.sin(heading)]), goal)
+            self._goal = (heading, goal)
         self.index = StepIndex(library)
         self.feet_input = self.DeclareVectorInputPort("feet", 12)
         self.contact_input = self.DeclareVectorInputPort("contact", 4)
@@ -197,9 +220,8 @@ class LibraryPolicy(LeafSystem):
         """Whether both front feet of ``feet`` (12, ``LEGS`` order) are past the goal line."""
         if self._goal is None:
             return False
-        d, goal = self._goal
-        f = np.asarray(feet, dtype=float).reshape(4, 3)
-        return bool(min(f[0, :2] @ d, f[1, :2] @ d) >= goal)
+        heading, goal = self._goal
+        return bool(front_progress(feet, heading) >= goal)
 
 
-__all__ = ["LibraryPolicy", "StepChoice", "StepIndex", "foot_distance_sums"]
+__all__ = ["LibraryPolicy", "StepChoice", "StepIndex", "foot_distance_sums", "front_progress"]

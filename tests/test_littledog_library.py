@@ -43,6 +43,7 @@ from repertoire.systems.library_policy import (
     StepChoice,
     StepIndex,
     foot_distance_sums,
+    front_progress,
 )
 from repertoire.systems.step_executor import (
     StepExecutor,
@@ -262,6 +263,11 @@ def test_library_policy_stops_choosing_past_its_goal_line(library):
     # heading pi / 2: the line runs along x, the feet's y decide
     turned = LibraryPolicy(library, goal_line=(np.pi / 2, min(feet[1], feet[4]) - 1e-3))
     assert turned.past_goal(feet)
+    # the one crossing test, per row: the hinder front foot's progress along the heading
+    rows = np.stack([feet, moved, one])
+    assert front_progress(feet, 0.0) == front
+    assert front_progress(feet.reshape(4, 3), np.pi / 2) == pytest.approx(min(feet[1], feet[4]))
+    np.testing.assert_array_equal(front_progress(rows, 0.0), [front, front + 2e-3, front])
     for bad, msg in (((0.0,), "goal_line must be"), ((np.nan, 1.0), "must be finite"),
                      ("ab", "goal_line must be")):  # fmt: skip
         with pytest.raises(RepertoireError, match=msg):

@@ -11,6 +11,7 @@ from pydrake.geometry import QueryObject
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from repertoire.systems.arm_goals import check_body_index
+from repertoire.systems.task_space import finite_3vector
 
 from repertoire.errors import RepertoireError
 
@@ -93,11 +94,7 @@ class ObstacleClearanceMonitor(LeafSystem):
                 period <= 0 or a horizon not beyond the radius.
         """
         super().__init__()
-        centre = np.asarray(centre_W, dtype=float)
-        if centre.shape != (3,) or not np.all(np.isfinite(centre)):
-            raise RepertoireError(
-                f"centre_W must be a finite 3-vector, got {np.asarray(centre_W).tolist()}"
-            )
+        centre = finite_3vector("centre_W", centre_W)
         if not (np.isfinite(radius) and radius >= 0.0):
             raise RepertoireError(f"radius must be finite and >= 0 m, got {radius}")
         if not (np.isfinite(period) and period > 0.0):

@@ -131,6 +131,14 @@ def rmrc_joint_velocity(
     return J_pinv @ xdot_ref + (np.eye(n) - J_pinv @ J) @ qdot_null
 
 
+def finite_3vector(name: str, value) -> np.ndarray:
+    """``value`` as a float 3-vector, or a RepertoireError naming ``name`` and the value."""
+    v = np.asarray(value, dtype=float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise RepertoireError(f"{name} must be a finite 3-vector, got {v.tolist()}")
+    return v
+
+
 def reach_bound(points: np.ndarray) -> float:
     """Upper bound on the reach of a serial chain: the length of its joint polyline.
 
@@ -158,9 +166,7 @@ def check_reachable(p_W: np.ndarray, center_W: np.ndarray, reach: float, *, what
     Raises:
         RepertoireError: the target is out of reach (says by how much).
     """
-    p_W = np.asarray(p_W, dtype=float)
-    if p_W.shape != (3,) or not np.all(np.isfinite(p_W)):
-        raise RepertoireError(f"{what} must be a finite 3-vector, got {p_W!r}")
+    p_W = finite_3vector(what, p_W)
     distance = float(np.linalg.norm(p_W - center_W))
     if distance > reach:
         raise RepertoireError(
@@ -207,9 +213,7 @@ def pose_position_residual(
     Raises:
         RepertoireError: a bad target, tolerance or seed.
     """
-    p_W = np.asarray(p_W, dtype=float)
-    if p_W.shape != (3,) or not np.all(np.isfinite(p_W)):
-        raise RepertoireError(f"the target position must be a finite 3-vector, got {p_W!r}")
+    p_W = finite_3vector("the target position", p_W)
     if not (np.isfinite(orientation_tolerance) and orientation_tolerance >= 0.0):
         raise RepertoireError(
             f"orientation_tolerance must be finite and >= 0 rad, got {orientation_tolerance}"
@@ -343,11 +347,9 @@ class ResolvedMotionRateIK(LeafSystem):
                 raise RepertoireError(f"{name} must be finite and > 0, got {value}")
         if not max_reach > 0.0:
             raise RepertoireError(f"max_reach must be > 0 m (inf disables it), got {max_reach}")
-        center = np.zeros(3) if reach_center is None else np.asarray(reach_center, dtype=float)
-        if center.shape != (3,) or not np.all(np.isfinite(center)):
-            raise RepertoireError(
-                f"reach_center must be a finite 3-vector, got {np.asarray(reach_center).tolist()}"
-            )
+        center = np.zeros(3)
+        if reach_center is not None:
+            center = finite_3vector("reach_center", reach_center)
         idx = np.asarray(arm_velocity_indices, dtype=int)
         if (
             idx.ndim != 1

@@ -283,6 +283,7 @@ def stack_task_space_dmp(dmp: TaskSpaceDmp) -> StackedDmp:
         np.concatenate([p.x0 for _, p in parts]),
         np.concatenate([p.goal for _, p in parts]),
         first.formulation,
+        v0=np.concatenate([p.v0 for _, p in parts]),
     )
     return StackedDmp(stacked, slices)
 

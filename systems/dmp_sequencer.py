@@ -93,7 +93,9 @@ class DmpSequencer(LeafSystem):
             start_times: Onset of each segment [s], increasing, >= 0 (rounded to the time
                 step in discrete mode); the state is held before the first.
             goals: Default goal of every segment (used while its port is not connected).
-            x_start: Start of the first segment; default its learned x0.
+            x_start: Start of the first segment; default its learned x0. The chain starts
+                with the first segment's learned velocity ``v0`` (:meth:`set_start` to
+                change it).
             time_step: Discrete exact step [s]; None integrates continuously.
             switch_period: How often the switch times are checked [s] (continuous only).
             handoff: ``"none"``, ``"velocity"`` (the paper) or ``"acceleration"``.
@@ -134,6 +136,8 @@ class DmpSequencer(LeafSystem):
         x_start = segments[0].x0 if x_start is None else check_vector("x_start", x_start, n)
         self._q = None if quaternion_at is None else slice(quaternion_at, quaternion_at + 4)
         x_start = self._learned_side(0, x_start)[0]
+        # the first segment's demonstrated start velocity (v = tau dx/dt), as every DMP system
+        v_start = segments[0].initial_scaled_velocity()
         self._goal_ports = [
             self.DeclareVectorInputPort(f"goal_{i}", n) for i in range(len(segments))
         ]
@@ -144,7 +148,7 @@ class DmpSequencer(LeafSystem):
         if time_step is None:
             check_positive("switch_period", switch_period)
             self._dt = None
-            self.DeclareContinuousState(BasicVector(np.concatenate([[1.0], x_start, np.zeros(n)])))
+            self.DeclareContinuousState(BasicVector(np.concatenate([[1.0], x_start, v_start])))
             self._switch = self.DeclareDiscreteState(np.concatenate([[0.0], x_start]))
             self.DeclarePeriodicUnrestrictedUpdateEvent(switch_period, 0.0, self._maybe_switch)
             state = {self.xc_ticket(), self.discrete_state_ticket(self._switch)}
@@ -155,7 +159,7 @@ class DmpSequencer(LeafSystem):
                 raise RepertoireError(f"start times closer than the time step: {times.tolist()}")
             self._tabs = [DiscreteDmpTables(s, self._dt) for s in segments]
             self._state = self.DeclareDiscreteState(
-                np.concatenate([[0.0, 0.0], x_start, x_start, np.zeros(n)])
+                np.concatenate([[0.0, 0.0], x_start, x_start, v_start])
             )
             self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
             state = {self.xd_ticket()}
@@ -207,21 +211,29 @@ class DmpSequencer(LeafSystem):
                 prerequisites_of_calc=state,
             )
 
-    def set_start(self, context: Context, x_start: np.ndarray) -> None:
-        """Restart the chain at rest at ``x_start`` with the first segment.
+    def set_start(
+        self, context: Context, x_start: np.ndarray, xd_start: np.ndarray | None = None
+    ) -> None:
+        """Restart the chain at ``x_start`` with the first segment.
 
         Args:
             context: This system's context.
             x_start: Start position, shape (n,).
+            xd_start: Start velocity dx/dt, shape (n,); default the first segment's learned
+                ``v0`` (zero for a rest-to-rest demonstration).
         """
-        x = self._learned_side(0, check_vector("x_start", x_start, self._n))[0]
+        first = self._segments[0]
+        x_start = check_vector("x_start", x_start, self._n)
+        if xd_start is None:
+            x, v = self._learned_side(0, x_start)[0], first.initial_scaled_velocity()
+        else:
+            v = first.tau * check_vector("xd_start", xd_start, self._n)
+            x, v = self._learned_side(0, x_start, v)
         if self._dt is None:
-            context.SetContinuousState(np.concatenate([[1.0], x, np.zeros(self._n)]))
+            context.SetContinuousState(np.concatenate([[1.0], x, v]))
             context.SetDiscreteState(self._switch, np.concatenate([[0.0], x]))
         else:
-            context.SetDiscreteState(
-                self._state, np.concatenate([[0.0, 0.0], x, x, np.zeros(self._n)])
-            )
+            context.SetDiscreteState(self._state, np.concatenate([[0.0, 0.0], x, x, v]))
 
     # --- state access (both modes) ---------------------------------------------------
     def _split(self, context: Context) -> tuple[int, float, np.ndarray, np.ndarray, np.ndarray]:

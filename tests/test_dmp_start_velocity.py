@@ -38,6 +38,7 @@ from repertoire.systems.dmp import (
 )
 from repertoire.systems.dmp_compose import DmpSystem
 from repertoire.systems.dmp_discrete import DiscreteDmpSystem
+from repertoire.systems.dmp_sequencer import DmpSequencer
 
 from repertoire.errors import RepertoireError
 
@@ -308,3 +309,21 @@ def test_a_small_movement_far_from_the_origin_keeps_its_digits():
     far = dataclasses.replace(near, x0=near.x0 + 1000.0, goal=near.goal + 1000.0)
     gap = np.abs((_simulate_far(far, 0.3) - 1000.0) - _simulate_far(near, 0.3))
     assert gap.max() <= 2.0 * np.spacing(1000.0)
+
+
+@pytest.mark.parametrize("time_step", [1e-3, None])
+def test_a_sequencer_starts_from_its_first_segments_learned_velocity(moving3, time_step):
+    t, x, dmp = moving3
+    seq = DmpSequencer([dmp], [0.0], goals=[dmp.goal], time_step=time_step)
+    sim = Simulator(seq)
+    if time_step is None:
+        sim.get_mutable_integrator().set_target_accuracy(1e-10)
+    ctx = sim.get_mutable_context()
+    np.testing.assert_allclose(seq.GetOutputPort("velocity").Eval(ctx), dmp.v0, rtol=1e-15)
+    sim.AdvanceTo(dmp.tau)
+    out = seq.GetOutputPort("position").Eval(ctx)
+    assert np.max(np.abs(out - x[-1]) / np.ptp(x, axis=0)) < 1e-4
+    seq.set_start(ctx, dmp.x0, np.zeros(3))  # explicit overrides
+    np.testing.assert_array_equal(seq.GetOutputPort("velocity").Eval(ctx), np.zeros(3))
+    seq.set_start(ctx, dmp.x0)
+    np.testing.assert_allclose(seq.GetOutputPort("velocity").Eval(ctx), dmp.v0, rtol=1e-15)

@@ -61,6 +61,14 @@ def check_per_dof(name: str, value, n: int) -> np.ndarray:
     return np.broadcast_to(v.reshape(-1), (n,)).copy()
 
 
+def _numbers(name: str, value) -> np.ndarray:
+    """``value`` as a float array; RepertoireError naming it if it is not numbers."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise RepertoireError(f"{name} must be numbers, got {value!r}") from None
+
+
 def _check_widths(widths: np.ndarray) -> None:
     """Basis widths h_i must be > 0 (psi_i = exp(-h_i (theta - c_i)^2) grows otherwise)."""
     bad = np.flatnonzero(~(widths > 0))
@@ -161,22 +169,24 @@ class DmpParameters(_FieldsRecord):
     v0: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        self.weights = np.atleast_2d(np.asarray(self.weights, dtype=float))
+        self.weights = np.atleast_2d(_numbers("weights", self.weights))
         if self.weights.ndim != 2 or self.weights.shape[0] < 1:
             raise RepertoireError(
                 f"weights must have shape (n_dims >= 1, n_basis), got {self.weights.shape}"
             )
         n, b = self.weights.shape
-        self.centres = np.asarray(self.centres, dtype=float).reshape(-1)
-        self.widths = np.asarray(self.widths, dtype=float).reshape(-1)
+        self.centres = _numbers("centres", self.centres).reshape(-1)
+        self.widths = _numbers("widths", self.widths).reshape(-1)
         self.K = check_per_dof("K", self.K, n)
         self.D = check_per_dof("D", self.D, n)
-        self.x0 = np.asarray(self.x0, dtype=float).reshape(-1)
-        self.goal = np.asarray(self.goal, dtype=float).reshape(-1)
-        self.v0 = np.zeros(n) if self.v0 is None else np.asarray(self.v0, dtype=float).reshape(-1)
+        self.x0 = _numbers("x0", self.x0).reshape(-1)
+        self.goal = _numbers("goal", self.goal).reshape(-1)
+        self.v0 = np.zeros(n) if self.v0 is None else _numbers("v0", self.v0).reshape(-1)
         self.alpha = _scalar("alpha", self.alpha)
         self.tau = _scalar("tau", self.tau)
-        if isinstance(self.names, str) or not all(isinstance(m, str) for m in self.names):
+        if not isinstance(self.names, (list, tuple)) or not all(
+            isinstance(m, str) for m in self.names
+        ):
             raise RepertoireError(
                 f"names must be a list of strings (one per DOF), got {self.names!r}"
             )
@@ -261,10 +271,9 @@ class DmpParameters(_FieldsRecord):
                 scaled to this tau, :meth:`initial_scaled_velocity`; ``method``,
                 ``coupling``, ``x_init``).
         """
-        tau = self.tau if tau is None else tau
-        if kwargs.get("v0") is None:
-            same = tau == self.tau
-            kwargs["v0"] = self.v0 if same else self.tau * self.v0 / check_positive("tau", tau)
+        tau = self.tau if tau is None else check_positive("tau", tau)
+        if kwargs.get("v0") is None:  # the learned scaled velocity tau v0 (see above)
+            kwargs["v0"] = self.v0 if tau == self.tau else self.tau * self.v0 / tau
         return rollout(
             self.weights,
             self.centres,
@@ -342,12 +351,12 @@ class QuaternionDmpParameters(_FieldsRecord):
     omega0: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        self.weights = np.atleast_2d(np.asarray(self.weights, dtype=float))
-        self.centres = np.asarray(self.centres, dtype=float).reshape(-1)
-        self.widths = np.asarray(self.widths, dtype=float).reshape(-1)
-        self.q0 = np.asarray(self.q0, dtype=float).reshape(-1)
-        self.goal = np.asarray(self.goal, dtype=float).reshape(-1)
-        om = np.zeros(3) if self.omega0 is None else np.asarray(self.omega0, dtype=float)
+        self.weights = np.atleast_2d(_numbers("weights", self.weights))
+        self.centres = _numbers("centres", self.centres).reshape(-1)
+        self.widths = _numbers("widths", self.widths).reshape(-1)
+        self.q0 = _numbers("q0", self.q0).reshape(-1)
+        self.goal = _numbers("goal", self.goal).reshape(-1)
+        om = np.zeros(3) if self.omega0 is None else _numbers("omega0", self.omega0)
         self.omega0 = om.reshape(-1)
         if self.omega0.shape != (3,) or not np.all(np.isfinite(self.omega0)):
             raise RepertoireError(

@@ -275,8 +275,8 @@ def quaternion_rollout(
     Returns:
         ``(t, q, omega)`` with shapes (N,), (N, 4), (N, 3).
     """
-    check_positive("tau", tau)
-    check_positive("dt", dt)
+    tau = check_positive("tau", tau)
+    dt = check_positive("dt", dt)
     N = check_n_steps(n_steps, tau, dt) + 1
     t = np.arange(N) * dt
     theta = canonical_phase(t, tau, alpha)

@@ -14,6 +14,7 @@ import pytest
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
 from repertoire.planning.dmp import DmpParameters, dmp_from_dict, load_dmp, save_dmp
+from repertoire.planning.dmp_chain import chain_rollout
 from repertoire.planning.dmp_learn import (
     learn_dmp,
     learn_dmp_from_demonstrations,
@@ -327,3 +328,18 @@ def test_a_sequencer_starts_from_its_first_segments_learned_velocity(moving3, ti
     np.testing.assert_array_equal(seq.GetOutputPort("velocity").Eval(ctx), np.zeros(3))
     seq.set_start(ctx, dmp.x0)
     np.testing.assert_allclose(seq.GetOutputPort("velocity").Eval(ctx), dmp.v0, rtol=1e-15)
+
+
+def test_numpy_chaining_and_the_sequencer_start_alike_from_the_learned_velocity(moving3):
+    # a chain of two segments learned in motion, the first starting at 0.2 s (held before)
+    _, _, dmp = moving3
+    second = dmp.with_goal(dmp.goal + 0.2, x0=dmp.goal)
+    goals, times = [dmp.goal, second.goal], [0.2, 0.7]
+    ref = chain_rollout([dmp, second], goals, times, duration=1.5)
+    np.testing.assert_array_equal(ref.xd[0], dmp.v0)  # held with the learned velocity
+    seq = DmpSequencer([dmp, second], times, goals=goals, time_step=1e-3)
+    sim = Simulator(seq)
+    for k in (100, 400, 900, 1500):
+        sim.AdvanceTo(k * 1e-3)
+        out = seq.GetOutputPort("position").Eval(sim.get_context())
+        np.testing.assert_allclose(out, ref.x[k], rtol=0, atol=1e-10)

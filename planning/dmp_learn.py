@@ -342,12 +342,17 @@ def fit_forcing_weights(
 
 REST_VELOCITY = 1e-6
 """An estimated start velocity with ``|tau dx/dt|`` at or below this fraction of a DOF's
-range is taken as rest and stored as exactly 0, so rest-to-rest DMPs roll out as before.
-Such estimates are the derivative estimator's error at the end of a demonstration at rest
+range (plus the positions' round-off, :data:`POSITION_ROUNDOFF` of their magnitude) is
+taken as rest and stored as exactly 0, so rest-to-rest DMPs roll out as before. Such
+estimates are the derivative estimator's error at the end of a demonstration at rest
 (measured: 3e-13 of the range on a minimum-jerk movement, 3e-8 on a curved quaternion
-turn); a start velocity this small moves a critically damped rollout by at most
-``|tau xd(0)| / (e sqrt(K))``, under 3e-8 of the range with the default K, far below a
-fit's reproduction error (about 1e-5 on clean demonstrations)."""
+turn, 3e-13 of |x| on a DOF of the arm library that does not move); a start velocity this
+small moves a critically damped rollout by at most ``|tau xd(0)| / (e sqrt(K))``, under
+3e-8 of the range with the default K, far below a fit's reproduction error (about 1e-5 on
+clean demonstrations)."""
+
+POSITION_ROUNDOFF = 1e-12
+"""Relative round-off of demonstrated positions (some 4500 eps) in :func:`start_velocity`."""
 
 
 def start_velocity(xd0: np.ndarray, x: np.ndarray, tau: float, *, estimated: bool) -> np.ndarray:
@@ -355,7 +360,8 @@ def start_velocity(xd0: np.ndarray, x: np.ndarray, tau: float, *, estimated: boo
 
     Eq. 8's targets use the demonstration's velocities, so the learned forcing term
     reproduces the demonstration only from its own initial velocity. An estimated one at
-    round-off (:data:`REST_VELOCITY`) is 0; a given one is kept as it is.
+    the estimator's error on a demonstration at rest (:data:`REST_VELOCITY`) is 0; a given
+    one is kept as it is.
 
     Args:
         xd0: Velocity at the first sample, shape (n,).
@@ -365,7 +371,8 @@ def start_velocity(xd0: np.ndarray, x: np.ndarray, tau: float, *, estimated: boo
     """
     xd0 = np.array(xd0, dtype=float).reshape(-1)
     if estimated:
-        xd0[np.abs(tau * xd0) <= REST_VELOCITY * np.ptp(x, axis=0)] = 0.0
+        floor = REST_VELOCITY * np.ptp(x, axis=0) + POSITION_ROUNDOFF * np.abs(x).max(axis=0)
+        xd0[np.abs(tau * xd0) <= floor] = 0.0
     return xd0
 
 

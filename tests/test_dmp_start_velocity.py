@@ -343,3 +343,16 @@ def test_numpy_chaining_and_the_sequencer_start_alike_from_the_learned_velocity(
         sim.AdvanceTo(k * 1e-3)
         out = seq.GetOutputPort("position").Eval(sim.get_context())
         np.testing.assert_allclose(out, ref.x[k], rtol=0, atol=1e-10)
+
+
+def test_the_arm_librarys_rest_demonstrations_keep_zero_start_velocities():
+    # rest-to-rest demonstrations (one DOF of 'place' does not move at all): all exactly 0,
+    # so their rollouts are bit for bit those from rest
+    from repertoire.planning.arm_library import arm_motion_library
+
+    for primitive in arm_motion_library():
+        d = primitive.dmp
+        np.testing.assert_array_equal(d.position.v0, np.zeros(3), err_msg=primitive.name)
+        np.testing.assert_array_equal(d.orientation.omega0, np.zeros(3), err_msg=primitive.name)
+        if d.fingers is not None:
+            np.testing.assert_array_equal(d.fingers.v0, np.zeros(d.fingers.n_dims))

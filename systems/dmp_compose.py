@@ -428,11 +428,12 @@ class DmpSystem(Diagram):
             x0[sl] = check_vector(name, value, sl.stop - sl.start)
             if name == "orientation":
                 x0[sl] = self._component_start(context, x0[sl])
-                # the learned angular velocity at this start (dq/dt = omega0 q / 2)
-                xd0[sl] = quaternion_rate(self.dmp.orientation.omega0, x0[sl])
         if velocity is not None:
             sl = self._slices["position"]
             xd0[sl] = check_vector("velocity", velocity, sl.stop - sl.start)
+        if "orientation" in self._slices:  # the learned turn rate at the start: omega0 q / 2
+            sl = self._slices["orientation"]
+            xd0[sl] = quaternion_rate(self.dmp.orientation.omega0, x0[sl])
         sysd.set_start(sub, x0, xd0)
 
     def set_start_time(self, context: Context, start_time: float) -> None:

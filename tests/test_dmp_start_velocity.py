@@ -19,6 +19,7 @@ from repertoire.planning.dmp_learn import (
     learn_dmp,
     learn_dmp_from_demonstrations,
     learn_quaternion_dmp,
+    learn_task_space_dmp,
 )
 from repertoire.planning.dmp_math import (
     basis_centres,
@@ -356,3 +357,24 @@ def test_the_arm_librarys_rest_demonstrations_keep_zero_start_velocities():
         np.testing.assert_array_equal(d.orientation.omega0, np.zeros(3), err_msg=primitive.name)
         if d.fingers is not None:
             np.testing.assert_array_equal(d.fingers.v0, np.zeros(d.fingers.n_dims))
+
+
+@pytest.mark.parametrize("mode", ["component", "manifold"])
+def test_task_space_dmp_system_in_motion_matches_its_rollouts_from_another_start(mode):
+    t, x, _ = moving_demo(61, 3, duration=1.0, n=501)
+    _, q, _ = turning_demo(62, n=501, duration=1.0)
+    fingers = np.c_[0.2 + 0.1 * np.sin(2.0 * t), 0.3 - 0.1 * t]
+    dmp = learn_task_space_dmp(t, x, q, fingers, orientation_mode=mode, n_basis=40)
+    q_new = quat_multiply(quat_exp(np.array([0.05, -0.1, 0.02])), dmp.orientation.q0)
+    system = DmpSystem(dmp, time_step=1e-3)
+    sim = Simulator(system)
+    ctx = sim.get_mutable_context()
+    system.set_start(ctx, position=dmp.position.x0 + 0.01, orientation=q_new)
+    sim.AdvanceTo(0.5)
+    pos = dmp.position.rollout(x0=dmp.position.x0 + 0.01, dt=1e-3, n_steps=500).x[-1]
+    _, q_ref, _ = dmp.orientation.rollout(q0=q_new, dt=1e-3, n_steps=500)
+    np.testing.assert_allclose(system.GetOutputPort("position").Eval(ctx), pos, atol=1e-12)
+    angle = np.linalg.norm(quat_log_error(q_ref[-1], system.GetOutputPort("orientation").Eval(ctx)))
+    assert angle < 1e-9
+    fin = dmp.fingers.rollout(dt=1e-3, n_steps=500).x[-1]
+    np.testing.assert_allclose(system.GetOutputPort("fingers").Eval(ctx), fin, atol=1e-12)

@@ -378,3 +378,30 @@ def test_task_space_dmp_system_in_motion_matches_its_rollouts_from_another_start
     assert angle < 1e-9
     fin = dmp.fingers.rollout(dt=1e-3, n_steps=500).x[-1]
     np.testing.assert_allclose(system.GetOutputPort("fingers").Eval(ctx), fin, atol=1e-12)
+
+
+def _simulate_sequencer(segments: list[DmpParameters], duration: float) -> np.ndarray:
+    goals = [s.goal for s in segments]
+    seq = DmpSequencer(segments, [0.0, 0.3], goals=goals, time_step=None)
+    sim = Simulator(seq)
+    ResetIntegratorFromFlags(sim, "runge_kutta3", 1e-4)
+    sim.get_mutable_integrator().set_fixed_step_mode(True)
+    # the continuous state holds the displacement from the active segment's x0
+    z = sim.get_context().get_continuous_state_vector().CopyToVector()
+    np.testing.assert_array_equal(z[1:4], np.zeros(3))
+    sim.AdvanceTo(duration)
+    return seq.GetOutputPort("position").Eval(sim.get_context())
+
+
+def test_a_continuous_chain_far_from_the_origin_keeps_its_digits():
+    # two 0.3 mm segments 1000 units out, switching at 0.3 s: the far chain equals the
+    # chain at the origin shifted to the output's rounding (an absolute state was 2e-9 -
+    # 4e-9 of the range off)
+    rng = np.random.default_rng(29)
+    rel = np.cumsum(rng.uniform(-3e-4, 3e-4, (3, 3)), axis=0)
+    t, x = minimum_jerk_via_points(rel, 1.0, 400)
+    near = learn_dmp(t, x, n_basis=20)
+    near = [near, near.with_goal(near.goal + 2e-4, x0=near.goal)]
+    far = [dataclasses.replace(s, x0=s.x0 + 1000.0, goal=s.goal + 1000.0) for s in near]
+    gap = np.abs((_simulate_sequencer(far, 0.6) - 1000.0) - _simulate_sequencer(near, 0.6))
+    assert gap.max() <= 2.0 * np.spacing(1000.0)

@@ -13,7 +13,13 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
-from repertoire.planning.dmp import DmpParameters, dmp_from_dict, load_dmp, save_dmp
+from repertoire.planning.dmp import (
+    DmpParameters,
+    directional_primitive,
+    dmp_from_dict,
+    load_dmp,
+    save_dmp,
+)
 from repertoire.planning.dmp_chain import chain_rollout
 from repertoire.planning.dmp_learn import (
     learn_dmp,
@@ -405,3 +411,18 @@ def test_a_continuous_chain_far_from_the_origin_keeps_its_digits():
     far = [dataclasses.replace(s, x0=s.x0 + 1000.0, goal=s.goal + 1000.0) for s in near]
     gap = np.abs((_simulate_sequencer(far, 0.6) - 1000.0) - _simulate_sequencer(near, 0.6))
     assert gap.max() <= 2.0 * np.spacing(1000.0)
+
+
+def test_a_directional_primitive_scales_the_start_velocity_with_the_shape():
+    # the equations are linear in (x - x0, v, g - x0, f): a 1-D shape learned in motion, sent
+    # along (2, -1) from s, is s + (2, -1) * (its rollout - x0) / (g - x0), v0 scaled alike
+    t, x, _ = moving_demo(81, 1)
+    dmp = learn_dmp(t, x)
+    start = np.array([0.5, 1.0])
+    amplitude = dmp.goal[0] - dmp.x0[0]
+    goal = start + np.array([2.0, -1.0]) * amplitude
+    prim = directional_primitive(dmp, start, goal)
+    np.testing.assert_allclose(prim.v0, np.array([2.0, -1.0]) * dmp.v0[0], rtol=1e-15)
+    r1, r2 = dmp.rollout(dt=1e-3), prim.rollout(dt=1e-3)
+    expected = start + np.outer(r1.x[:, 0] - dmp.x0[0], [2.0, -1.0])
+    np.testing.assert_allclose(r2.x, expected, rtol=0, atol=1e-12 * np.abs(expected).max())

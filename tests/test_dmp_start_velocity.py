@@ -38,6 +38,7 @@ from repertoire.planning.dmp_quaternion import (
     quat_log_error,
     quat_multiply,
     quaternion_rate,
+    quaternion_rollout,
 )
 from repertoire.systems.dmp import (
     CanonicalSystem,
@@ -426,3 +427,20 @@ def test_a_directional_primitive_scales_the_start_velocity_with_the_shape():
     r1, r2 = dmp.rollout(dt=1e-3), prim.rollout(dt=1e-3)
     expected = start + np.outer(r1.x[:, 0] - dmp.x0[0], [2.0, -1.0])
     np.testing.assert_allclose(r2.x, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def test_bad_start_states_are_named(moving3):
+    _, _, dmp = moving3
+    ts = TransformationSystem(dmp)
+    ctx = ts.CreateDefaultContext()
+    with pytest.raises(RepertoireError, match="x contains NaN or inf"):
+        ts.set_state(ctx, [np.nan, 0.0, 0.0], np.zeros(3))
+    with pytest.raises(RepertoireError, match="xd must have 3 entries, got 2"):
+        ts.set_state(ctx, np.zeros(3), np.zeros(2))
+    seq = DmpSequencer([dmp], [0.0], goals=[dmp.goal])
+    with pytest.raises(RepertoireError, match="xd_start must have 3 entries, got 2"):
+        seq.set_start(seq.CreateDefaultContext(), dmp.x0, np.zeros(2))
+    t, q, _ = turning_demo(6)
+    qdmp = learn_quaternion_dmp(t, q, n_basis=20)
+    with pytest.raises(RepertoireError, match="omega0 has 2 entries, expected 3"):
+        quaternion_rollout(*qdmp._dynamics(), qdmp.q0, qdmp.goal, omega0=[0.0, 0.0])

@@ -33,6 +33,7 @@ from repertoire.planning.dmp_math import (
 from repertoire.planning.dmp_quaternion import (
     learned_side,
     lift_quaternion_goal,
+    quaternion_rate,
     quaternion_rollout,
 )
 
@@ -58,6 +59,14 @@ def check_per_dof(name: str, value, n: int) -> np.ndarray:
             f"{name} must be a scalar or have one entry per DOF ({n}), got shape {v.shape}: {value}"
         )
     return np.broadcast_to(v.reshape(-1), (n,)).copy()
+
+
+def _numbers(name: str, value) -> np.ndarray:
+    """``value`` as a float array; RepertoireError naming it if it is not numbers."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise RepertoireError(f"{name} must be numbers, got {value!r}") from None
 
 
 def _check_widths(widths: np.ndarray) -> None:
@@ -138,6 +147,12 @@ class DmpParameters(_FieldsRecord):
         goal: Goal (last demonstrated sample), shape (n_dims,).
         formulation: ``"new"`` (eq. 6-8) or ``"old"`` (eq. 1-5).
         names: Optional names of the DOF.
+        v0: Initial velocity dx/dt of the demonstration [per s] at the learned ``tau``,
+            shape (n_dims,); None (the default) is zero, a rest-to-rest movement. The
+            forcing term is learned with the demonstration's own velocities (eq. 8), so a
+            demonstration that starts in motion is reproduced only from that velocity:
+            rollouts and the DMP LeafSystems start from it unless given another
+            (:meth:`initial_scaled_velocity`).
     """
 
     weights: np.ndarray
@@ -151,23 +166,27 @@ class DmpParameters(_FieldsRecord):
     goal: np.ndarray
     formulation: str = "new"
     names: list[str] = field(default_factory=list)
+    v0: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        self.weights = np.atleast_2d(np.asarray(self.weights, dtype=float))
+        self.weights = np.atleast_2d(_numbers("weights", self.weights))
         if self.weights.ndim != 2 or self.weights.shape[0] < 1:
             raise RepertoireError(
                 f"weights must have shape (n_dims >= 1, n_basis), got {self.weights.shape}"
             )
         n, b = self.weights.shape
-        self.centres = np.asarray(self.centres, dtype=float).reshape(-1)
-        self.widths = np.asarray(self.widths, dtype=float).reshape(-1)
+        self.centres = _numbers("centres", self.centres).reshape(-1)
+        self.widths = _numbers("widths", self.widths).reshape(-1)
         self.K = check_per_dof("K", self.K, n)
         self.D = check_per_dof("D", self.D, n)
-        self.x0 = np.asarray(self.x0, dtype=float).reshape(-1)
-        self.goal = np.asarray(self.goal, dtype=float).reshape(-1)
+        self.x0 = _numbers("x0", self.x0).reshape(-1)
+        self.goal = _numbers("goal", self.goal).reshape(-1)
+        self.v0 = np.zeros(n) if self.v0 is None else _numbers("v0", self.v0).reshape(-1)
         self.alpha = _scalar("alpha", self.alpha)
         self.tau = _scalar("tau", self.tau)
-        if isinstance(self.names, str) or not all(isinstance(m, str) for m in self.names):
+        if not isinstance(self.names, (list, tuple)) or not all(
+            isinstance(m, str) for m in self.names
+        ):
             raise RepertoireError(
                 f"names must be a list of strings (one per DOF), got {self.names!r}"
             )
@@ -193,12 +212,12 @@ class DmpParameters(_FieldsRecord):
                     f"{name} has shape {getattr(self, name).shape}, weights have {b} basis "
                     "functions"
                 )
-        for name in ("x0", "goal"):
+        for name in ("x0", "goal", "v0"):
             if getattr(self, name).shape != (n,):
                 raise RepertoireError(
                     f"{name} has {getattr(self, name).size} entries but weights have {n} DOF"
                 )
-        for name in ("weights", "centres", "widths", "K", "D", "x0", "goal"):
+        for name in ("weights", "centres", "widths", "K", "D", "x0", "goal", "v0"):
             if not np.all(np.isfinite(getattr(self, name))):
                 raise RepertoireError(f"{name} contains NaN or inf")
         check_positive("tau", self.tau)
@@ -209,6 +228,15 @@ class DmpParameters(_FieldsRecord):
         check_formulation(self.formulation)
         if self.names and len(self.names) != n:
             raise RepertoireError(f"{len(self.names)} names for {n} DOF")
+
+    def initial_scaled_velocity(self) -> np.ndarray:
+        """The default initial state's scaled velocity ``v(0) = tau dx/dt``, shape (n_dims,).
+
+        ``tau * v0`` at the learned tau. The equations (eq. 6-7) see the velocity only as
+        ``v = tau dx/dt``, so a rollout with another ``tau`` starts from the same ``v`` (the
+        physical velocity ``v0 * learned tau / tau``): the time-scaled demonstration.
+        """
+        return self.tau * self.v0
 
     def with_goal(self, goal: np.ndarray, x0: np.ndarray | None = None) -> "DmpParameters":
         """Copy with a new goal (and optionally a new start).
@@ -239,8 +267,13 @@ class DmpParameters(_FieldsRecord):
             tau: Temporal scaling; default the learned tau.
             dt: Time step [s].
             n_steps: Number of steps; default ``round(tau/dt)``.
-            **kwargs: Passed on (``v0``, ``method``, ``coupling``).
+            **kwargs: Passed on (``v0``: the initial velocity dx/dt, default the learned one
+                scaled to this tau, :meth:`initial_scaled_velocity`; ``method``,
+                ``coupling``, ``x_init``).
         """
+        tau = self.tau if tau is None else check_positive("tau", tau)
+        if kwargs.get("v0") is None:  # the learned scaled velocity tau v0 (see above)
+            kwargs["v0"] = self.v0 if tau == self.tau else self.tau * self.v0 / tau
         return rollout(
             self.weights,
             self.centres,
@@ -248,7 +281,7 @@ class DmpParameters(_FieldsRecord):
             self.K,
             self.D,
             self.alpha,
-            self.tau if tau is None else tau,
+            tau,
             self.x0 if x0 is None else x0,
             self.goal if goal is None else goal,
             dt=dt,
@@ -299,6 +332,10 @@ class QuaternionDmpParameters(_FieldsRecord):
         q0: Start orientation (w, x, y, z), unit.
         goal: Goal orientation (w, x, y, z), unit.
         mode: ``"component"`` or ``"manifold"``.
+        omega0: Initial angular velocity of the demonstration (world frame) [rad/s] at the
+            learned ``tau``, shape (3,); None (the default) is zero (starting at rest).
+            Rollouts and the LeafSystems start from it unless given another, as
+            :attr:`DmpParameters.v0`.
     """
 
     weights: np.ndarray
@@ -311,13 +348,20 @@ class QuaternionDmpParameters(_FieldsRecord):
     q0: np.ndarray
     goal: np.ndarray
     mode: str = "manifold"
+    omega0: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        self.weights = np.atleast_2d(np.asarray(self.weights, dtype=float))
-        self.centres = np.asarray(self.centres, dtype=float).reshape(-1)
-        self.widths = np.asarray(self.widths, dtype=float).reshape(-1)
-        self.q0 = np.asarray(self.q0, dtype=float).reshape(-1)
-        self.goal = np.asarray(self.goal, dtype=float).reshape(-1)
+        self.weights = np.atleast_2d(_numbers("weights", self.weights))
+        self.centres = _numbers("centres", self.centres).reshape(-1)
+        self.widths = _numbers("widths", self.widths).reshape(-1)
+        self.q0 = _numbers("q0", self.q0).reshape(-1)
+        self.goal = _numbers("goal", self.goal).reshape(-1)
+        om = np.zeros(3) if self.omega0 is None else _numbers("omega0", self.omega0)
+        self.omega0 = om.reshape(-1)
+        if self.omega0.shape != (3,) or not np.all(np.isfinite(self.omega0)):
+            raise RepertoireError(
+                f"omega0 must be 3 finite numbers (an angular velocity), got {self.omega0}"
+            )
         self.K, self.D = _scalar("K", self.K), _scalar("D", self.D)
         self.alpha, self.tau = _scalar("alpha", self.alpha), _scalar("tau", self.tau)
         if self.mode not in QUATERNION_MODES:
@@ -352,10 +396,19 @@ class QuaternionDmpParameters(_FieldsRecord):
         return self.weights, self.centres, self.widths, self.K, self.D, self.alpha, self.tau
 
     def component_parameters(self) -> DmpParameters:
-        """The 4-D component DMP (``mode="component"`` only)."""
+        """The 4-D component DMP (``mode="component"`` only).
+
+        It starts at ``q0`` with ``dq/dt = omega0 q0 / 2`` (:func:`quaternion_rate`).
+        """
         if self.mode != "component":
             raise RepertoireError("component_parameters() needs mode='component'")
-        return DmpParameters(*self._dynamics(), self.q0, self.goal, names=["qw", "qx", "qy", "qz"])
+        return DmpParameters(
+            *self._dynamics(),
+            self.q0,
+            self.goal,
+            names=["qw", "qx", "qy", "qz"],
+            v0=quaternion_rate(self.omega0, self.q0),
+        )
 
     def rollout(
         self,
@@ -369,6 +422,8 @@ class QuaternionDmpParameters(_FieldsRecord):
 
         For ``"component"`` ``q`` is the post-normalised quaternion and ``raw`` the
         un-normalised component state; for ``"manifold"`` ``raw`` is the angular velocity.
+
+        Both modes start with the learned angular velocity ``omega0``.
 
         ``goal`` and ``-goal`` are the same orientation; the sign used is the one that turns
         from ``q0`` the way the DMP learned
@@ -391,11 +446,15 @@ class QuaternionDmpParameters(_FieldsRecord):
             sign = learned_side(s, self.q0)
             s = sign * s
             g = lift_quaternion_goal(g, s, self.goal, self.q0)
-            r = self.component_parameters().rollout(goal=g, x0=s, dt=dt, n_steps=n_steps)
+            r = self.component_parameters().rollout(
+                goal=g, x0=s, dt=dt, n_steps=n_steps, v0=quaternion_rate(self.omega0, s)
+            )
             q = r.x / np.linalg.norm(r.x, axis=1, keepdims=True)
             return r.t, sign * q, sign * r.x
         g = lift_quaternion_goal(g, s, self.goal, self.q0)
-        return quaternion_rollout(*self._dynamics(), s, g, dt=dt, n_steps=n_steps)
+        return quaternion_rollout(
+            *self._dynamics(), s, g, dt=dt, n_steps=n_steps, omega0=self.omega0
+        )
 
 
 @dataclass
@@ -646,7 +705,8 @@ def directional_primitive(
             "cannot scale its shape"
         )
     n = start.size
-    weights = np.outer((goal - start) / amplitude, dmp.weights[dof])
+    scale = (goal - start) / amplitude
+    weights = np.outer(scale, dmp.weights[dof])
     return DmpParameters(
         weights,
         dmp.centres,
@@ -658,4 +718,5 @@ def directional_primitive(
         start,
         goal,
         dmp.formulation,
+        v0=scale * dmp.v0[dof],  # the equations are linear: v0 scales with the shape
     )

@@ -151,7 +151,8 @@ def chain_rollout(
         segments: DMPs (same number of DOF).
         goals: One goal per segment.
         switch_times: Start time of each segment (first usually 0), increasing.
-        x0: Start of the first segment; default its learned start.
+        x0: Start of the first segment; default its learned start. The chain starts with
+            the first segment's learned velocity ``v0`` (zero for a rest demonstration).
         duration: Total duration [s], more than one step past the last switch time;
             default last switch + last tau.
         dt: Time step [s], > 0.
@@ -179,8 +180,12 @@ def chain_rollout(
         )
     n = segments[0].n_dims
     x = np.asarray(segments[0].x0 if x0 is None else x0, float)
-    xd = np.zeros(n)
-    X, XD, XDD = [np.tile(x, (steps[0], 1))], [np.zeros((steps[0], n))], [np.zeros((steps[0], n))]
+    xd = segments[0].v0.copy()  # the first segment's learned start velocity (as DmpSequencer)
+    X, XD, XDD = (
+        [np.tile(x, (steps[0], 1))],
+        [np.tile(xd, (steps[0], 1))],
+        [np.zeros((steps[0], n))],
+    )
     SEG = [np.zeros(steps[0], dtype=int)]
     acc_jumps, vel_jumps = [], []
     prev_acc = None
@@ -283,6 +288,7 @@ def stack_task_space_dmp(dmp: TaskSpaceDmp) -> StackedDmp:
         np.concatenate([p.x0 for _, p in parts]),
         np.concatenate([p.goal for _, p in parts]),
         first.formulation,
+        v0=np.concatenate([p.v0 for _, p in parts]),
     )
     return StackedDmp(stacked, slices)
 

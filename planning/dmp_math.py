@@ -391,8 +391,8 @@ def rollout(
     Returns:
         A :class:`Rollout` with ``n_steps + 1`` samples.
     """
-    check_positive("tau", tau)
-    check_positive("dt", dt)
+    tau = check_positive("tau", tau)  # a float, also from a one-entry array
+    dt = check_positive("dt", dt)
     weights = np.atleast_2d(np.asarray(weights, dtype=float))
     n = weights.shape[0]
     x0 = check_finite_vector("x0", x0, n)

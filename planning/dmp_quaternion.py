@@ -10,6 +10,7 @@ import math
 import numpy as np
 from repertoire.planning.dmp_math import (
     canonical_phase,
+    check_finite_vector,
     check_n_steps,
     check_positive,
     forcing_term,
@@ -175,6 +176,20 @@ def angular_velocity(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     return 2.0 * quat_multiply(qd, quat_conjugate(q))[..., 1:]
 
 
+def quaternion_rate(omega: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Time derivative ``qd = (0, omega) * q / 2`` of a unit quaternion turning at ``omega``.
+
+    The inverse of :func:`angular_velocity` for unit ``q`` (``qd . q = 0``).
+
+    Args:
+        omega: World-frame angular velocity, shape (..., 3).
+        q: Unit quaternions (w, x, y, z), shape (..., 4).
+    """
+    omega = np.asarray(omega, dtype=float)
+    pure = np.concatenate([np.zeros(omega.shape[:-1] + (1,)), omega], axis=-1)
+    return 0.5 * quat_multiply(pure, np.asarray(q, dtype=float))
+
+
 def manifold_step(
     q: np.ndarray,
     eta: np.ndarray,
@@ -235,6 +250,7 @@ def quaternion_rollout(
     *,
     dt: float = 1e-3,
     n_steps: int | None = None,
+    omega0: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """On-manifold rollout with :func:`manifold_step` (second order, exact unit norm).
 
@@ -254,12 +270,13 @@ def quaternion_rollout(
         goal: Goal orientation (unit), shape (4,).
         dt: Time step [s], > 0.
         n_steps: Number of steps, an integer >= 1; default ``round(tau / dt)``.
+        omega0: Initial angular velocity (world frame) [rad/s], shape (3,); default zero.
 
     Returns:
         ``(t, q, omega)`` with shapes (N,), (N, 4), (N, 3).
     """
-    check_positive("tau", tau)
-    check_positive("dt", dt)
+    tau = check_positive("tau", tau)
+    dt = check_positive("dt", dt)
     N = check_n_steps(n_steps, tau, dt) + 1
     t = np.arange(N) * dt
     theta = canonical_phase(t, tau, alpha)
@@ -271,7 +288,7 @@ def quaternion_rollout(
     Q = np.empty((N, 4))
     E = np.empty((N, 3))
     q = q0.copy()
-    eta = np.zeros(3)
+    eta = np.zeros(3) if omega0 is None else tau * check_finite_vector("omega0", omega0, 3)
     Q[0], E[0] = q, eta
     a = (K * quat_log_error(goal, q) - K * e0 * theta[0] + K * f[0]) / tau
     for k in range(N - 1):

@@ -235,8 +235,13 @@ class CouplingAndOnset(Onset, VectorDmpPorts):
 class TransformationSystem(CouplingAndOnset, LeafSystem):
     """n-DOF transformation system, the paper's new form (eq. 6, 9) or the old one (eq. 1).
 
-    Continuous state ``[x (n), v (n)]`` with ``v = tau dx/dt``; initial ``x = x0``, ``v = 0``.
-    Derivatives are zero before the ``start_time`` parameter.
+    Continuous state ``[x - x0 (n), v (n)]``: the displacement from the ``x0`` parameter
+    (the equations see positions only through ``g - x``, ``g - x0`` and ``x - x0``, so a
+    movement far from the origin keeps its digits, as the discrete step and the NumPy
+    rollout do) and ``v = tau dx/dt``; initially ``x = x0`` and ``v = tau dmp.v0`` (the
+    demonstration's initial velocity, :meth:`DmpParameters.initial_scaled_velocity`).
+    :meth:`set_start` and :meth:`set_state` take absolute positions. Derivatives are zero
+    before the ``start_time`` parameter.
 
     Input ports:
         phase (1): theta from a CanonicalSystem.
@@ -246,7 +251,7 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         tau (1, optional): online temporal scaling, replaces the tau parameter.
 
     Output ports:
-        position (n): x (state only).
+        position (n): x = x0 + state (state and the x0 parameter).
         velocity (n): dx/dt = v / tau (state and parameters only, so a coupling computed
             from it is not an algebraic loop).
         acceleration (n): d2x/dt2 = v' / tau.
@@ -270,6 +275,7 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         self._n, self._b = n, b
         self._formulation = dmp.formulation
         self._learned_goal = dmp.goal.copy()
+        self._learned_v = dmp.initial_scaled_velocity()
         self._w = self.DeclareNumericParameter(BasicVector(dmp.weights.reshape(-1)))
         self._c = self.DeclareNumericParameter(BasicVector(dmp.centres))
         self._h = self.DeclareNumericParameter(BasicVector(dmp.widths))
@@ -278,14 +284,15 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         self._tau = self.DeclareNumericParameter(BasicVector([dmp.tau]))
         self._x0 = self.DeclareNumericParameter(BasicVector(dmp.x0))
         self._start = self.DeclareNumericParameter(BasicVector([0.0]))
-        self.DeclareContinuousState(BasicVector(np.concatenate([dmp.x0, np.zeros(n)])), n, n, 0)
+        state0 = np.concatenate([np.zeros(n), self._learned_v])
+        self.DeclareContinuousState(BasicVector(state0), n, n, 0)
         self._phase_port = self.DeclareVectorInputPort("phase", 1)
         self._goal_port = self.DeclareVectorInputPort("goal", n)
         self._coupling_port = self.DeclareVectorInputPort("coupling", n) if coupling_input else None
         self._tau_port = self.DeclareVectorInputPort("tau", 1) if time_scaling_input else None
         state_and_params = {self.xc_ticket(), self.all_parameters_ticket()}
         self._position_port = self.DeclareVectorOutputPort(
-            "position", n, self._calc_position, prerequisites_of_calc={self.xc_ticket()}
+            "position", n, self._calc_position, prerequisites_of_calc=state_and_params
         )
         vel_prereq = state_and_params if self._tau_port is None else {self.all_sources_ticket()}
         self._velocity_port = self.DeclareVectorOutputPort(
@@ -309,13 +316,32 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         Args:
             context: This system's context.
             x0: Start position, shape (n,).
-            xd0: Initial velocity dx/dt, shape (n,); default zero.
+            xd0: Initial velocity dx/dt, shape (n,); default the learned ``dmp.v0`` (its
+                scaled velocity ``tau v0`` at the learned tau, whatever the context's tau).
         """
         x0 = check_vector("x0", x0, self._n)
-        xd0 = np.zeros(self._n) if xd0 is None else check_vector("xd0", xd0, self._n)
         context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
-        tau = self._tau_value(context)
-        context.get_mutable_continuous_state_vector().SetFromVector(np.concatenate([x0, tau * xd0]))
+        if xd0 is None:
+            v = self._learned_v
+        else:
+            v = self._tau_value(context) * check_vector("xd0", xd0, self._n)
+        context.get_mutable_continuous_state_vector().SetFromVector(
+            np.concatenate([np.zeros(self._n), v])
+        )
+
+    def set_state(self, context: Context, x: np.ndarray, xd: np.ndarray) -> None:
+        """Set the state to position ``x`` (absolute) and velocity ``dx/dt = xd``; x0 stays.
+
+        Args:
+            context: This system's context.
+            x: Position, shape (n,).
+            xd: Velocity dx/dt, shape (n,).
+        """
+        x = check_vector("x", x, self._n)
+        xd = check_vector("xd", xd, self._n)
+        x0 = context.get_numeric_parameter(self._x0).get_value()
+        v = self._tau_value(context) * xd
+        context.get_mutable_continuous_state_vector().SetFromVector(np.concatenate([x - x0, v]))
 
     def _tau_value(self, context: Context) -> float:
         if self._tau_port is not None and self._tau_port.HasValue(context):
@@ -329,22 +355,23 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
     def _derivatives(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
         n = self._n
         z = context.get_continuous_state_vector().CopyToVector()
-        x, v = z[:n], z[n:]
+        y, v = z[:n], z[n:]  # y = x - x0
         start = context.get_numeric_parameter(self._start).GetAtIndex(0)
         if context.get_time() < start:
             return np.zeros(n), np.zeros(n)
         theta = float(self._phase_port.Eval(context)[0])
-        goal = self._goal(context)
         p = context.get_numeric_parameter
+        x0 = p(self._x0).value()
+        goal = self._goal(context) - x0  # the equations in the displacement from x0
         W = p(self._w).value().reshape(n, self._b)
         f = forcing_term(theta, W, p(self._c).value(), p(self._h).value())
         coupling = self._coupling(context)
         return transformation_derivatives(
-            x,
+            y,
             v,
             theta,
             goal,
-            p(self._x0).value(),
+            np.zeros(n),
             f,
             p(self._K).value(),
             p(self._D).value(),
@@ -358,7 +385,8 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         derivatives.get_mutable_vector().SetFromVector(np.concatenate([xd, vd]))
 
     def _calc_position(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_continuous_state_vector().CopyToVector()[: self._n])
+        y = context.get_continuous_state_vector().CopyToVector()[: self._n]
+        output.SetFromVector(context.get_numeric_parameter(self._x0).get_value() + y)
 
     def _calc_velocity(self, context: Context, output: BasicVector) -> None:
         v = context.get_continuous_state_vector().CopyToVector()[self._n :]
@@ -474,7 +502,8 @@ class QuaternionNormalizer(LeafSystem):
 class ManifoldQuaternionSystem(Onset, LeafSystem):
     """On-manifold quaternion DMP, discrete time (exact unit norm via the exponential map).
 
-    Discrete state ``[q (4), eta (3)]`` (eta = tau omega, world frame), updated every
+    Discrete state ``[q (4), eta (3)]`` (eta = tau omega, world frame; initially ``q0`` and
+    ``tau omega0``, the demonstration's start), updated every
     ``time_step`` by :func:`repertoire.planning.dmp_quaternion.manifold_step` (velocity Verlet
     with the rotation applied through the exponential map) for
     ``tau eta' = K e(g,q) - D eta - K e(g,q0) theta + K f(theta)``, ``e = 2 log(g q^*)``
@@ -517,7 +546,8 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
         self._gains = self.DeclareNumericParameter(BasicVector([dmp.K, dmp.D, dmp.tau]))
         self._q0 = self.DeclareNumericParameter(BasicVector(dmp.q0))
         self._start = self.DeclareNumericParameter(BasicVector([0.0]))
-        self._state = self.DeclareDiscreteState(np.concatenate([dmp.q0, np.zeros(3)]))
+        self._learned_eta = dmp.tau * dmp.omega0  # the demonstration's initial eta
+        self._state = self.DeclareDiscreteState(np.concatenate([dmp.q0, self._learned_eta]))
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
         self._phase_port = self.DeclareVectorInputPort("phase", 1)
         self._goal_port = self.DeclareVectorInputPort("goal", 4)
@@ -549,16 +579,18 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
         Args:
             context: This system's context.
             q0: Unit quaternion (w, x, y, z).
-            omega0: Initial angular velocity (world), default zero.
+            omega0: Initial angular velocity (world); default the learned ``dmp.omega0``
+                (its ``eta = tau omega0`` at the learned tau).
         """
         q0 = check_vector("q0", q0, 4)
         check_unit_quaternions(q0[None], name="q0")
-        om = np.zeros(3) if omega0 is None else check_vector("omega0", omega0, 3)
-        tau = context.get_numeric_parameter(self._gains).GetAtIndex(2)
+        if omega0 is None:
+            eta = self._learned_eta
+        else:
+            tau = context.get_numeric_parameter(self._gains).GetAtIndex(2)
+            eta = tau * check_vector("omega0", omega0, 3)
         context.get_mutable_numeric_parameter(self._q0).SetFromVector(q0)
-        context.get_mutable_discrete_state(self._state).SetFromVector(
-            np.concatenate([q0, tau * om])
-        )
+        context.get_mutable_discrete_state(self._state).SetFromVector(np.concatenate([q0, eta]))
 
     def _update(self, context: Context, discrete_state) -> None:
         s = context.get_discrete_state(self._state).CopyToVector()

@@ -19,7 +19,7 @@ from pydrake.systems.primitives import (
 from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp
 from repertoire.planning.dmp_chain import stack_task_space_dmp
 from repertoire.planning.dmp_math import check_positive
-from repertoire.planning.dmp_quaternion import learned_side
+from repertoire.planning.dmp_quaternion import learned_side, quaternion_rate
 from repertoire.systems.dmp import (
     CanonicalSystem,
     ManifoldQuaternionSystem,
@@ -211,6 +211,7 @@ class DmpSystem(Diagram):
         except RepertoireError:  # parts on different bases: one system each
             return False
         fused = stacked.parameters
+        self._stacked_v0 = fused.v0
         self._slices = stacked.slices
         parts = list(stacked.slices)
         sizes = [sl.stop - sl.start for sl in stacked.slices.values()]
@@ -362,7 +363,9 @@ class DmpSystem(Diagram):
         Args:
             context: This diagram's context (``dmp_system.GetMyMutableContextFromRoot``).
             position: Start of the position part (or of the n-DOF DMP).
-            velocity: Initial velocity of that part; default zero.
+            velocity: Initial velocity of that part; default the learned one (``v0``;
+                every part starts with its demonstration's velocity, the orientation with
+                ``omega0``).
             orientation: Start quaternion (TaskSpaceDmp only).
             fingers: Start finger positions (TaskSpaceDmp only).
         """
@@ -381,7 +384,8 @@ class DmpSystem(Diagram):
             q = check_vector("orientation", orientation, 4)
             if isinstance(part, _VectorDmp):
                 q = self._component_start(context, q)
-                part.system.set_start(self.GetMutableSubsystemContext(part.system, context), q)
+                qd = quaternion_rate(self.dmp.orientation.omega0, q)  # the learned turn rate
+                part.system.set_start(self.GetMutableSubsystemContext(part.system, context), q, qd)
             else:
                 part.set_start(self.GetMutableSubsystemContext(part, context), q)
         if fingers is not None:
@@ -407,7 +411,7 @@ class DmpSystem(Diagram):
         sysd = self._fused
         sub = self.GetMutableSubsystemContext(sysd, context)
         x0 = sysd.get_start(sub)
-        xd0 = np.zeros_like(x0)
+        xd0 = self._stacked_v0.copy()  # the learned start velocities
         given = {"position": position, "orientation": orientation, "fingers": fingers}
         for name, value in given.items():
             if value is None:
@@ -427,6 +431,9 @@ class DmpSystem(Diagram):
         if velocity is not None:
             sl = self._slices["position"]
             xd0[sl] = check_vector("velocity", velocity, sl.stop - sl.start)
+        if "orientation" in self._slices:  # the learned turn rate at the start: omega0 q / 2
+            sl = self._slices["orientation"]
+            xd0[sl] = quaternion_rate(self.dmp.orientation.omega0, x0[sl])
         sysd.set_start(sub, x0, xd0)
 
     def set_start_time(self, context: Context, start_time: float) -> None:

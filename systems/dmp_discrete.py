@@ -52,8 +52,9 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
     coefficients are tabulated at construction and one step costs a few vector operations:
     a 1 kHz rollout is cheap and reproduces the NumPy rollout to rounding.
 
-    Discrete state ``[k, x (n), v (n)]`` (k = steps since onset, v = tau dx/dt); the state
-    is held before the ``start_time`` parameter.
+    Discrete state ``[k, x (n), v (n)]`` (k = steps since onset, v = tau dx/dt; initially
+    ``x0`` and ``tau dmp.v0``, the demonstration's start); the state is held before the
+    ``start_time`` parameter.
 
     Input ports:
         goal (n): goal g (may change during the movement); unconnected: the learned goal
@@ -88,7 +89,8 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
         self._tab = DiscreteDmpTables(dmp, self._dt)
         self._x0 = self.DeclareNumericParameter(BasicVector(dmp.x0))
         self._start = self.DeclareNumericParameter(BasicVector([0.0]))
-        self._state = self.DeclareDiscreteState(np.concatenate([[0.0], dmp.x0, np.zeros(n)]))
+        self._learned_v = dmp.initial_scaled_velocity()
+        self._state = self.DeclareDiscreteState(np.concatenate([[0.0], dmp.x0, self._learned_v]))
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
         self._goal_port = self.DeclareVectorInputPort("goal", n)
         self._coupling_port = self.DeclareVectorInputPort("coupling", n) if coupling_input else None
@@ -104,13 +106,13 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
         Args:
             context: This system's context.
             x0: Start position, shape (n,).
-            xd0: Initial velocity dx/dt; default zero.
+            xd0: Initial velocity dx/dt; default the learned ``dmp.v0``.
         """
         x0 = check_vector("x0", x0, self._n)
-        xd0 = np.zeros(self._n) if xd0 is None else check_vector("xd0", xd0, self._n)
+        v = self._learned_v if xd0 is None else self._tau * check_vector("xd0", xd0, self._n)
         context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
         context.get_mutable_discrete_state(self._state).SetFromVector(
-            np.concatenate([[0.0], x0, self._tau * xd0])
+            np.concatenate([[0.0], x0, v])
         )
 
     def get_start(self, context: Context) -> np.ndarray:

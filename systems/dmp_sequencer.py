@@ -17,9 +17,10 @@ Two integrations of the same equations (eq. 4, 6-7, 9):
 * ``time_step`` given: discrete state ``[segment, k, x0, x, v]`` advanced by the exact
   first-order-hold step of :class:`repertoire.planning.dmp_discrete.DiscreteDmpTables`
   (matches ``chain_rollout`` to rounding);
-* ``time_step=None``: continuous state ``[theta, x, v]`` integrated by the simulator, with
-  ``[segment, x0]`` switched by a periodic unrestricted update every ``switch_period``
-  (the arm worlds, whose plant and IK run on their own clocks).
+* ``time_step=None``: continuous state ``[theta, x - x0, v]`` (the displacement from the
+  active segment's x0, so a movement far from the origin keeps its digits) integrated by
+  the simulator, with ``[segment, x0]`` switched by a periodic unrestricted update every
+  ``switch_period`` (the arm worlds, whose plant and IK run on their own clocks).
 
 In both, v = tau dx/dt of the active segment.
 """
@@ -93,7 +94,9 @@ class DmpSequencer(LeafSystem):
             start_times: Onset of each segment [s], increasing, >= 0 (rounded to the time
                 step in discrete mode); the state is held before the first.
             goals: Default goal of every segment (used while its port is not connected).
-            x_start: Start of the first segment; default its learned x0.
+            x_start: Start of the first segment; default its learned x0. The chain starts
+                with the first segment's learned velocity ``v0`` (:meth:`set_start` to
+                change it).
             time_step: Discrete exact step [s]; None integrates continuously.
             switch_period: How often the switch times are checked [s] (continuous only).
             handoff: ``"none"``, ``"velocity"`` (the paper) or ``"acceleration"``.
@@ -134,6 +137,8 @@ class DmpSequencer(LeafSystem):
         x_start = segments[0].x0 if x_start is None else check_vector("x_start", x_start, n)
         self._q = None if quaternion_at is None else slice(quaternion_at, quaternion_at + 4)
         x_start = self._learned_side(0, x_start)[0]
+        # the first segment's demonstrated start velocity (v = tau dx/dt), as every DMP system
+        v_start = segments[0].initial_scaled_velocity()
         self._goal_ports = [
             self.DeclareVectorInputPort(f"goal_{i}", n) for i in range(len(segments))
         ]
@@ -144,7 +149,8 @@ class DmpSequencer(LeafSystem):
         if time_step is None:
             check_positive("switch_period", switch_period)
             self._dt = None
-            self.DeclareContinuousState(BasicVector(np.concatenate([[1.0], x_start, np.zeros(n)])))
+            # [theta, x - x0 (the displacement from the active segment's x0), v]
+            self.DeclareContinuousState(BasicVector(np.concatenate([[1.0], np.zeros(n), v_start])))
             self._switch = self.DeclareDiscreteState(np.concatenate([[0.0], x_start]))
             self.DeclarePeriodicUnrestrictedUpdateEvent(switch_period, 0.0, self._maybe_switch)
             state = {self.xc_ticket(), self.discrete_state_ticket(self._switch)}
@@ -155,7 +161,7 @@ class DmpSequencer(LeafSystem):
                 raise RepertoireError(f"start times closer than the time step: {times.tolist()}")
             self._tabs = [DiscreteDmpTables(s, self._dt) for s in segments]
             self._state = self.DeclareDiscreteState(
-                np.concatenate([[0.0, 0.0], x_start, x_start, np.zeros(n)])
+                np.concatenate([[0.0, 0.0], x_start, x_start, v_start])
             )
             self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
             state = {self.xd_ticket()}
@@ -207,21 +213,29 @@ class DmpSequencer(LeafSystem):
                 prerequisites_of_calc=state,
             )
 
-    def set_start(self, context: Context, x_start: np.ndarray) -> None:
-        """Restart the chain at rest at ``x_start`` with the first segment.
+    def set_start(
+        self, context: Context, x_start: np.ndarray, xd_start: np.ndarray | None = None
+    ) -> None:
+        """Restart the chain at ``x_start`` with the first segment.
 
         Args:
             context: This system's context.
             x_start: Start position, shape (n,).
+            xd_start: Start velocity dx/dt, shape (n,); default the first segment's learned
+                ``v0`` (zero for a rest-to-rest demonstration).
         """
-        x = self._learned_side(0, check_vector("x_start", x_start, self._n))[0]
+        first = self._segments[0]
+        x_start = check_vector("x_start", x_start, self._n)
+        if xd_start is None:
+            x, v = self._learned_side(0, x_start)[0], first.initial_scaled_velocity()
+        else:
+            v = first.tau * check_vector("xd_start", xd_start, self._n)
+            x, v = self._learned_side(0, x_start, v)
         if self._dt is None:
-            context.SetContinuousState(np.concatenate([[1.0], x, np.zeros(self._n)]))
+            context.SetContinuousState(np.concatenate([[1.0], np.zeros(self._n), v]))
             context.SetDiscreteState(self._switch, np.concatenate([[0.0], x]))
         else:
-            context.SetDiscreteState(
-                self._state, np.concatenate([[0.0, 0.0], x, x, np.zeros(self._n)])
-            )
+            context.SetDiscreteState(self._state, np.concatenate([[0.0, 0.0], x, x, v]))
 
     # --- state access (both modes) ---------------------------------------------------
     def _split(self, context: Context) -> tuple[int, float, np.ndarray, np.ndarray, np.ndarray]:
@@ -230,7 +244,7 @@ class DmpSequencer(LeafSystem):
         if self._dt is None:
             sw = context.get_discrete_state(self._switch).value()
             z = context.get_continuous_state_vector().CopyToVector()
-            return int(sw[0]), z[0], sw[1:], z[1 : 1 + n], z[1 + n :]
+            return int(sw[0]), z[0], sw[1:], sw[1:] + z[1 : 1 + n], z[1 + n :]
         s = context.get_discrete_state(self._state).get_value()
         return int(s[0]), s[1], s[2 : 2 + n], s[2 + n : 2 + 2 * n], s[2 + 2 * n :]
 
@@ -276,15 +290,22 @@ class DmpSequencer(LeafSystem):
         p[: self._coupling_dofs] = check_finite_input("coupling", self._coupling_port.Eval(context))
         return p
 
+    def _displacement(self, context: Context, x0: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """``x - x0``: the continuous state itself (no rounding far from the origin)."""
+        if self._dt is None:
+            return context.get_continuous_state_vector().CopyToVector()[1 : 1 + self._n]
+        return x - x0
+
     def _rhs(self, context: Context, seg, theta, x0, x, v, f) -> tuple[np.ndarray, np.ndarray]:
+        """``(x', v')`` of segment ``seg``, in the displacement from its x0 (as the steps)."""
         p = self._segments[seg]
         coupling = self._coupling(context)
         return transformation_derivatives(
-            x,
+            self._displacement(context, x0, x),
             v,
             theta,
-            self._goal(context, seg, x0),
-            x0,
+            self._goal(context, seg, x0) - x0,
+            np.zeros(self._n),
             f,
             p.K,
             p.D,
@@ -360,7 +381,7 @@ class DmpSequencer(LeafSystem):
             return
         x, x0, v_new = self._next(context, seg, x, v)
         state.get_mutable_continuous_state().get_mutable_vector().SetFromVector(
-            np.concatenate([[1.0], x, v_new])
+            np.concatenate([[1.0], x - x0, v_new])
         )
         state.get_mutable_discrete_state(self._switch).SetFromVector(
             np.concatenate([[seg + 1], x0])

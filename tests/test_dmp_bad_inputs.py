@@ -276,3 +276,36 @@ def test_time_stamps_that_are_not_one_vector_and_samples_that_are_not_numbers_ar
         learn_dmp(T, np.array([["a", "b"]] * 200))
     # a column of stamps is one vector
     np.testing.assert_array_equal(learn_dmp(T[:, None], X).weights, learn_dmp(T, X).weights)
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("weights", "x"),
+        ("x0", ["a", 0]),
+        ("goal", [[1.0], [2.0, 3.0]]),
+        ("v0", "abc"),
+        ("centres", {}),
+    ],
+)
+def test_records_with_non_numbers_name_the_field(p, field, value):
+    with raises(f"{field} must be numbers, got {value!r}"):
+        DmpParameters.from_dict({**p.to_dict(), field: value})
+
+
+def test_records_with_names_not_a_list_or_bad_omega0_are_named(p, qp):
+    with raises("names must be a list of strings (one per DOF), got None"):
+        DmpParameters.from_dict({**p.to_dict(), "names": None})
+    with raises("omega0 must be numbers, got 'fast'"):
+        QuaternionDmpParameters.from_dict({**qp.to_dict(), "omega0": "fast"})
+
+
+def test_a_one_entry_array_tau_is_a_number(p, qp):
+    # e.g. tau read from a Drake port (shape (1,)): used as a float, not refused by round()
+    a, b = p.rollout(tau=np.array([0.5])), p.rollout(tau=0.5)
+    np.testing.assert_array_equal(a.x, b.x)
+    from repertoire.planning.dmp_quaternion import quaternion_rollout
+
+    _, qa, _ = quaternion_rollout(*qp._dynamics()[:6], np.array([0.5]), qp.q0, qp.goal)
+    _, qb, _ = quaternion_rollout(*qp._dynamics()[:6], 0.5, qp.q0, qp.goal)
+    np.testing.assert_array_equal(qa, qb)

@@ -42,7 +42,7 @@ def test_transformation_system_without_a_goal_uses_the_learned_goal(dmp3):
     ts = TransformationSystem(dmp3)
     wired, unwired = ts.CreateDefaultContext(), ts.CreateDefaultContext()
     for ctx in (wired, unwired):
-        ctx.get_mutable_continuous_state_vector().SetFromVector(np.r_[0.1, 0.2, 0.3, 1.0, -1, 0])
+        ts.set_state(ctx, [0.1, 0.2, 0.3], [1.0 / dmp3.tau, -1.0 / dmp3.tau, 0.0])
         ts.get_phase_input_port().FixValue(ctx, [0.4])
     ts.get_goal_input_port().FixValue(wired, dmp3.goal)
     np.testing.assert_array_equal(

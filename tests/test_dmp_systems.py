@@ -70,21 +70,39 @@ def test_transformation_system_derivatives_equal_the_math(dmp3, formulation):
     dmp = dataclasses.replace(dmp3, formulation=formulation)
     ts = TransformationSystem(dmp, coupling_input=True)
     ctx = ts.CreateDefaultContext()
-    x = np.array([0.1, 0.2, 0.3])
+    x0 = np.array([0.25, -0.5, 2.0])  # the state is the displacement x - x0
+    x = np.array([0.125, 0.25, 0.375])
     xd = np.array([-0.5, 0.4, 1.0])
-    ts.set_start(ctx, dmp.x0, xd)
-    ctx.get_mutable_continuous_state_vector().SetFromVector(np.r_[x, dmp.tau * xd])
+    ts.set_start(ctx, x0, xd)
+    ts.set_state(ctx, x, xd)
+    np.testing.assert_array_equal(ctx.get_continuous_state_vector().CopyToVector()[:3], x - x0)
     goal, p, theta = np.array([0.9, 0.1, -0.2]), np.array([1.0, -2.0, 3.0]), 0.37
     ts.get_phase_input_port().FixValue(ctx, [theta])
     ts.get_goal_input_port().FixValue(ctx, goal)
     ts.get_coupling_input_port().FixValue(ctx, p)
     f = forcing_term(theta, dmp.weights, dmp.centres, dmp.widths)
+    # the equations in the displacement from x0, exactly as the system evaluates them
     exp_xd, exp_vd = transformation_derivatives(
-        x, dmp.tau * xd, theta, goal, dmp.x0, f, dmp.K, dmp.D, dmp.tau, formulation, p
+        x - x0,
+        dmp.tau * xd,
+        theta,
+        goal - x0,
+        np.zeros(3),
+        f,
+        dmp.K,
+        dmp.D,
+        dmp.tau,
+        formulation,
+        p,
     )
     d = ts.EvalTimeDerivatives(ctx).CopyToVector()
     np.testing.assert_array_equal(d, np.r_[exp_xd, exp_vd])
-    np.testing.assert_array_equal(ts.get_position_output_port().Eval(ctx), x)
+    # ... which are the absolute-position equations up to rounding
+    abs_xd, abs_vd = transformation_derivatives(
+        x, dmp.tau * xd, theta, goal, x0, f, dmp.K, dmp.D, dmp.tau, formulation, p
+    )
+    np.testing.assert_allclose(d, np.r_[abs_xd, abs_vd], rtol=1e-13, atol=1e-12)
+    np.testing.assert_array_equal(ts.get_position_output_port().Eval(ctx), x0 + (x - x0))
     np.testing.assert_allclose(ts.get_velocity_output_port().Eval(ctx), xd, rtol=1e-15)
     np.testing.assert_allclose(ts.get_acceleration_output_port().Eval(ctx), exp_vd / dmp.tau)
 
@@ -381,7 +399,8 @@ def test_online_time_scaling_input(dmp3):
     ts.get_phase_input_port().FixValue(ctx, [0.5])
     ts.get_goal_input_port().FixValue(ctx, dmp3.goal)
     ts.get_tau_input_port().FixValue(ctx, [2.0 * dmp3.tau])
-    ctx.get_mutable_continuous_state_vector().SetFromVector(np.r_[dmp3.x0, 0.3, -0.2, 0.1])
+    # displacement from x0 zero, v = (0.3, -0.2, 0.1)
+    ctx.get_mutable_continuous_state_vector().SetFromVector(np.r_[np.zeros(3), 0.3, -0.2, 0.1])
     f = forcing_term(0.5, dmp3.weights, dmp3.centres, dmp3.widths)
     exp_xd, exp_vd = transformation_derivatives(
         dmp3.x0,

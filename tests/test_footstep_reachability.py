@@ -267,6 +267,34 @@ def test_a_wall_too_tall_for_any_swing_is_cut_off_at_the_first_lattice(
         assert plan.status is PlanStatus.SUCCESS
 
 
+def test_the_swing_wall_is_judged_against_the_ground_near_it():
+    # a 0.5 m block to stand on, 0.9 m from a 0.55 m wall: too far for a swing over the wall
+    # to start or land on it, so the wall still blocks every swing
+    grid = _wall(0.55)
+    grid.heights[:12, :12] = 0.5
+    limits = dict(swing_clearance=0.1, max_height_range=0.02)
+    assert goal_cut_off(_model(grid, PlannerOptions(**limits)))
+    grid.heights[30:42, :12] = 0.5  # a block within a swing's reach of the wall: no proof
+    assert not goal_cut_off(_model(grid, PlannerOptions(**limits)))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_walls_with_doorways_are_never_cut_off(seed):
+    """Sound on random walls too tall to swing over, each with a 0.5 m doorway."""
+    rng = np.random.default_rng(seed)
+    occ, heights = np.zeros((88, 80), bool), np.zeros((88, 80))
+    for x in (0.8, 1.4):
+        i, door = round(x / RES) + int(rng.integers(-3, 4)), int(rng.integers(0, 60))
+        rows = slice(i, i + int(rng.integers(1, 4)))
+        occ[rows], heights[rows] = True, float(rng.uniform(0.15, 0.6))
+        occ[rows, door : door + 20], heights[rows, door : door + 20] = False, 0.0
+    grid = OccupancyGrid(occ, RES, (0.0, 0.0), heights)
+    opts = PlannerOptions(time_limit=30.0, swing_clearance=0.1)
+    plan = plan_footsteps(grid, START, "left", GOAL, nominal_action_table(), opts)
+    assert plan.status is PlanStatus.SUCCESS
+    assert not goal_cut_off(_model(grid, opts))
+
+
 def test_a_kerb_low_over_a_platform_is_not_cut_off():
     grid = _stairs(0.1)  # 0.3 m platform from x = 1.6 m, then a kerb 5 cm above it
     grid.occupied[round(1.9 / RES) : round(1.95 / RES)] = True

@@ -93,7 +93,9 @@ def goal_cut_off(model, deadline: float = math.inf) -> bool:
     feet = [
         (int((x - ox) / res), int((y - oy) / res)) for x, y, _ in (model.start_pose, model.swing0)
     ]
-    if _swing_walled(model, heights, hi, valid, feet, gi, gj, goal_r):
+    # the first swing starts at the initial swing foot, which may stand farther away
+    apart = math.dist(model.start_pose[:2], model.swing0[:2]) / res + math.sqrt(2.0)
+    if _swing_walled(model, heights, hi, valid, feet, max(reach, apart), gi, gj, goal_r):
         return True  # a wall too tall for any swing: proved at once
     if not _discs_connect(valid, si, sj, gi, gj, goal_r, reach):
         return True  # no chain of footholds at all, whatever the heights: proved at once
@@ -128,24 +130,31 @@ def _discs_connect(valid, si, sj, gi, gj, goal_r, reach) -> bool:
     return _meets_goal(labels, labels[si, sj], valid, gi, gj, goal_r)
 
 
-def _swing_walled(model, heights, hi, valid, starts, gi, gj, goal_r) -> bool:
+def _swing_walled(model, heights, hi, valid, starts, reach, gi, gj, goal_r) -> bool:
     """True when cells no swing line crosses wall both start feet off every goal cell.
 
-    A swing's highest point is ``swing_clearance`` over the higher ground of two soles,
-    each at most ``hi`` of its foothold cell (a ``valid`` one, or a start foot's): so a
-    cell higher than the highest such ground plus the clearance blocks every swing. Each
-    foot's centre moves on swing lines that enter no such cell's interior (nor run between
-    two of them), so it stays in the closure of its start cell's 8-connected component of
-    the other cells (landings keep the sole on the map, so no line runs along the map's
-    edge); a goal cell outside both feet's components is out of reach. A thin wall too tall
-    to swing over is thus settled at once.
+    A swing's highest point is ``swing_clearance`` over the higher ground of two soles, the
+    stance foot's and the landing's, each at most ``hi`` of its foothold cell (a ``valid``
+    one, or a start foot's). The swing line runs within ``reach`` (cells, a step's reach or
+    the start feet's distance, with the cells' slack) of the stance foot, and the landing
+    lies within twice that of any point of the line: so a cell higher than the highest such
+    ground within a square of half-side ``2 reach + 1`` cells around it, plus the clearance,
+    blocks every swing (one with no foothold that near: no swing passes it). Each foot's
+    centre moves on swing lines that enter no such cell's interior (nor run between two of
+    them), so it stays in the closure of its start cell's 8-connected component of the other
+    cells (landings keep the sole on the map, so no line runs along the map's edge); a goal
+    cell outside both feet's components is out of reach. A thin wall too tall to swing over
+    is thus settled at once.
     """
     nx, ny = valid.shape
     if not model.swing_limit or not all(0 <= i < nx and 0 <= j < ny for i, j in starts):
         return False  # (a start off the map: nothing to prove here)
-    grounds = np.append(hi[valid], [hi[i, j] for i, j in starts])
-    top = float(grounds.max()) + model.opts.swing_clearance + _EPS
-    crossable = heights <= top
+    grounds = np.where(valid, hi, -np.inf)
+    for i, j in starts:
+        grounds[i, j] = hi[i, j]
+    size = 2 * (int(math.ceil(2.0 * reach)) + 1) + 1
+    near = ndimage.maximum_filter(grounds, size=size, mode="constant", cval=-np.inf)
+    crossable = heights <= near + model.opts.swing_clearance + _EPS
     labels, _ = ndimage.label(crossable, structure=np.ones((3, 3), bool))
     for i, j in starts:
         if labels[i, j] == 0:

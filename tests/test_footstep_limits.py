@@ -350,3 +350,22 @@ def test_swing_clearance_is_measured_from_the_ground_the_feet_stand_on(kerb, rid
     else:  # the wall spans the map: the lattice is exhausted on the near side
         assert plan.status is PlanStatus.UNREACHABLE
         assert max(p[0] for p in plan.poses) < 2.0
+
+
+@pytest.mark.parametrize(("kerb", "crosses"), [(0.39, True), (0.41, False)])
+def test_swing_clearance_on_a_raised_level_floor(kerb, crosses):
+    # one ground level for every sole (0.3 m): both cores take it without measuring soles
+    grid = _terraces(kerb)
+    grid.heights[~grid.occupied] = 0.3
+    opts = dict(swing_clearance=0.1, refinements=0, heuristic="euclidean")
+    plan = _both(grid, (0.3, 0.5, 0.0), "left", (2.6, 0.5), **opts)
+    assert (plan.status is PlanStatus.SUCCESS) is crosses
+    model = BipedStepModel(
+        grid, (0.3, 0.5, 0.0), "left", (2.6, 0.5), nominal_action_table(), PlannerOptions(**opts)
+    )
+    assert model.ground_level == 0.3
+    grid.heights[0, 0] = 0.31  # one free cell higher: the soles' ground is measured
+    model = BipedStepModel(
+        grid, (0.3, 0.5, 0.0), "left", (2.6, 0.5), nominal_action_table(), PlannerOptions(**opts)
+    )
+    assert model.ground_level is None

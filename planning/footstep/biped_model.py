@@ -446,6 +446,8 @@ class BipedStepModel:
         self.step_down = opts.max_step_down if has_h else math.inf
         self.step_limits = math.isfinite(self.step_up) or math.isfinite(self.step_down)
         self.swing_limit = has_h and math.isfinite(opts.swing_clearance)  # see _tall_in
+        free_h = ref.heights[~ref.occupied] if self.swing_limit and not self.dynamic else []
+        self.ground_level = float(free_h[0]) if len(free_h) and np.ptp(free_h) == 0 else None
         self.uses_heights = self.step_limits or self.swing_limit or has_h and (
             math.isfinite(opts.max_height_range) or opts.height_cost_weight > 0.0)  # fmt: skip
         if math.isfinite(self.flat_limit):
@@ -689,10 +691,11 @@ class BipedStepModel:
             stance_checked = self.k0 if is_start else self.checkers.end_index(s.t + self.min_hold)
             stance_free: dict[int, bool] = {}
             stance_checkers = self.exact_checkers if is_start else self.checkers
-        z_ground = self.step_limits or self.swing_limit
+        z_ground = self.step_limits or self.swing_limit and self.ground_level is None
         if self.dynamic and z_ground:
             ex1 = self.exact_checkers.checker(k_swing)
-        z1 = ex1.top_height(s.x, s.y, s.yaw) if z_ground else 0.0
+        z0 = self.ground_level or 0.0
+        z1 = ex1.top_height(s.x, s.y, s.yaw) if z_ground else z0
         if self.height_w > 0.0:
             dominated = None  # a landing's cost is known only after its height check
         hist1 = self._hist_rows[s.a_prev1]
@@ -740,7 +743,7 @@ class BipedStepModel:
                 continue
             if self.flat_limit < math.inf and ex.height_range(x2, y2, th2) > self.flat_limit:
                 continue
-            z2 = ex.top_height(x2, y2, th2) if z_ground else 0.0  # highest ground under it
+            z2 = ex.top_height(x2, y2, th2) if z_ground else z0  # highest ground under it
             if self.step_limits and (z2 - z1 > self.step_up or z1 - z2 > self.step_down):
                 continue
             top = max(z1, z2) + self.opts.swing_clearance  # the swing foot's highest point

@@ -8,10 +8,13 @@ swings the foot that stood at ``poses[k-2]`` (``initial_swing_pose`` for k = 1) 
 
 import bisect
 import dataclasses
+import math
 
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from repertoire.planning.footstep.types import FootstepError, FootstepPlan
+
+from repertoire.checks import is_real
 
 
 @dataclasses.dataclass
@@ -46,7 +49,13 @@ def plan_phase_at(plan: FootstepPlan, t: float) -> PlanPhase:
     Args:
         plan: the footstep plan.
         t: time (s).
+
+    Raises:
+        FootstepError: ``t`` not a number (NaN has no step: it fell through to an index
+            past the plan's end).
     """
+    if not (is_real(t) and not math.isnan(t)):
+        raise FootstepError(f"plan_phase_at needs a time in seconds, got {t!r}")
     times = plan.times
     n = plan.num_steps
     other = 1 - int(plan.feet[0])

@@ -267,7 +267,7 @@ def test_dynamic_grids_carry_heights_and_the_swing_clearance_uses_them():
     assert plan.succeeded
     opts.validate()
     model = BipedStepModel(sc.env, sc.start, sc.start_foot, sc.goal, table, opts)
-    assert model.tall_at(0) is not None and model.tall_at(0).sum() > 0  # the 2 cm blocks
+    assert model.tall_at(0) is not None and (model.tall_at(0) > 0.01).sum() > 0  # 2 cm blocks
     swing = [plan.initial_swing_pose[:2]] + [p[:2] for p in plan.poses[:-1]]
     res, (ox, oy) = sc.env.resolution, sc.env.reference.origin
     for k in range(1, len(plan.poses)):  # step k swings during [times[k-1], times[k]]
@@ -275,7 +275,9 @@ def test_dynamic_grids_carry_heights_and_the_swing_clearance_uses_them():
         tall = model.tall_during(idx(plan.times[k - 1]), idx(plan.times[k]))
         if tall is not None:
             x0, y0 = swing[k - 1]
-            assert not swing_crosses(tall, x0, y0, *plan.poses[k][:2], ox, oy, 1.0 / res)
+            # the soles stand on free ground of height 0: the swing's top is the clearance
+            top = opts.swing_clearance
+            assert not swing_crosses(tall, top, x0, y0, *plan.poses[k][:2], ox, oy, 1.0 / res)
 
 
 def test_compiled_distance_transform_matches_scipy():

@@ -139,13 +139,13 @@ def test_swing_line_clipping_a_corner_by_1mm_is_refused_and_1mm_outside_accepted
     d = 0.001 * math.sqrt(2.0)  # lines x + y = 0.2 +- d pass 1 mm from the corner (0.1, 0.1)
     clip = (0.05, 0.15 + d, 0.15 + d, 0.05)  # 1 mm inside: a 2 mm chord through the cell
     miss = (0.05, 0.15 - d, 0.15 - d, 0.05)  # 1 mm outside
-    assert swing_crosses(tall, *clip, 0.0, 0.0, inv)
-    assert not swing_crosses(tall, *miss, 0.0, 0.0, inv)
+    assert swing_crosses(tall, 0.5, *clip, 0.0, 0.0, inv)
+    assert not swing_crosses(tall, 0.5, *miss, 0.0, 0.0, inv)
     assert not _sampled_old(tall, *clip, 0.0, 0.0, inv)  # what the fuzz campaign found
     # reversed, and shifted with the map origin
-    assert swing_crosses(tall, clip[2], clip[3], clip[0], clip[1], 0.0, 0.0, inv)
-    assert swing_crosses(tall, *(v + 0.3 for v in clip), 0.3, 0.3, inv)
-    assert not swing_crosses(tall, *(v + 0.3 for v in miss), 0.3, 0.3, inv)
+    assert swing_crosses(tall, 0.5, clip[2], clip[3], clip[0], clip[1], 0.0, 0.0, inv)
+    assert swing_crosses(tall, 0.5, *(v + 0.3 for v in clip), 0.3, 0.3, inv)
+    assert not swing_crosses(tall, 0.5, *(v + 0.3 for v in miss), 0.3, 0.3, inv)
 
 
 def _crosses_exact(cell, a, b) -> bool:
@@ -167,6 +167,21 @@ def _crosses_exact(cell, a, b) -> bool:
         if t1 <= hi:
             hi, strict_hi = t1, True
     return lo < hi or (lo == hi and not strict_lo and not strict_hi)
+
+
+def _along_tall_pair(tall, a, b) -> bool:
+    """Brute force: does a segment on a grid line run beside a cell tall on both sides of
+    it (inside the tall region, though in no single cell's interior)?"""
+    n0, n1 = tall.shape
+    for k in range(2):  # k: the axis whose coordinate is the same integer at both ends
+        if a[k] != b[k] or a[k] != int(a[k]):
+            continue
+        line, lo, hi = int(a[k]), min(a[1 - k], b[1 - k]), max(a[1 - k], b[1 - k])
+        for c in range(math.floor(lo), math.ceil(hi)):
+            pair = [(line - 1, c), (line, c)] if k == 0 else [(c, line - 1), (c, line)]
+            if all(0 <= p < n0 and 0 <= q < n1 and tall[p, q] for p, q in pair):
+                return True
+    return False
 
 
 def _segments(rng, n):
@@ -191,7 +206,7 @@ def test_traversal_visits_exactly_the_cells_whose_interior_the_segment_meets():
             for j in range(n):
                 tall = np.zeros((n, n), bool)
                 tall[i, j] = True
-                got = swing_crosses(tall, a[0], a[1], b[0], b[1], 0.0, 0.0, 1.0)
+                got = swing_crosses(tall, 0.5, a[0], a[1], b[0], b[1], 0.0, 0.0, 1.0)
                 assert got == _crosses_exact((i, j), a, b), (a, b, (i, j))
 
 
@@ -202,7 +217,8 @@ def test_traversal_against_brute_force_on_random_tall_cells():
     for a, b in _segments(rng, 4000):
         tall = rng.random((n, n)) < 0.08
         want = any(_crosses_exact(c, a, b) for c in zip(*np.nonzero(tall)))
-        assert swing_crosses(tall, a[0], a[1], b[0], b[1], 0.0, 0.0, 1.0) == want, (a, b)
+        want = want or _along_tall_pair(tall, a, b)
+        assert swing_crosses(tall, 0.5, a[0], a[1], b[0], b[1], 0.0, 0.0, 1.0) == want, (a, b)
         hits += want
     assert 1000 < hits < 3000  # both answers well represented
 
@@ -217,7 +233,7 @@ def test_corner_points_grid_lines_and_end_points_touch_no_interior():
             for j in range(4):
                 only[:] = False
                 only[i, j] = True
-                if swing_crosses(only, *a, *b, 0.0, 0.0, 1.0):
+                if swing_crosses(only, 0.5, *a, *b, 0.0, 0.0, 1.0):
                     out.add((i, j))
         return out
 
@@ -225,9 +241,24 @@ def test_corner_points_grid_lines_and_end_points_touch_no_interior():
     assert cells((0.5, 0.5), (2.5, 2.5)) == {(0, 0), (1, 1), (2, 2)}
     assert cells((2.5, 2.5), (0.5, 0.5)) == {(0, 0), (1, 1), (2, 2)}
     assert cells((0.5, 3.5), (3.5, 0.5)) == {(0, 3), (1, 2), (2, 1), (3, 0)}
-    # along a grid line: on the boundary of two columns of cells, inside none
-    assert not swing_crosses(tall, 1.0, 0.2, 1.0, 3.7, 0.0, 0.0, 1.0)
-    assert not swing_crosses(tall, 0.2, 2.0, 3.9, 2.0, 0.0, 0.0, 1.0)
+    # along a grid line: on the boundary of two columns of cells, inside none of them
+    assert cells((1.0, 0.2), (1.0, 3.7)) == set()
+    assert cells((0.2, 2.0), (3.9, 2.0)) == set()
+    # but inside the tall region where both columns are tall (before: a straight walk on a
+    # grid line swung through walls of any height)
+    assert swing_crosses(tall, 0.5, 1.0, 0.2, 1.0, 3.7, 0.0, 0.0, 1.0)
+    assert swing_crosses(tall, 0.5, 0.2, 2.0, 3.9, 2.0, 0.0, 0.0, 1.0)
+    wall = np.zeros((4, 4), bool)
+    wall[2, 1:3] = True  # beside a tall cell on one side only: touched, not crossed
+    assert not swing_crosses(wall, 0.5, 2.0, 0.2, 2.0, 3.7, 0.0, 0.0, 1.0)
+    wall[1, 2] = True  # cells (1, 2) and (2, 2) on both sides of x = 2 for 2 < y < 3
+    assert swing_crosses(wall, 0.5, 2.0, 0.2, 2.0, 3.7, 0.0, 0.0, 1.0)
+    assert not swing_crosses(wall, 0.5, 2.0, 0.2, 2.0, 2.0, 0.0, 0.0, 1.0)  # ends below it
+    wall[:] = False
+    wall[1:3, 1] = True  # a wall across the line y = 1 ... and its row beyond
+    wall[1:3, 0] = True
+    assert swing_crosses(wall, 0.5, 0.2, 1.0, 3.5, 1.0, 0.0, 0.0, 1.0)
+    assert not swing_crosses(wall, 0.5, 0.2, 2.0, 3.5, 2.0, 0.0, 0.0, 1.0)
     # ending (or starting) on a boundary does not enter the cell beyond it
     assert cells((0.5, 0.5), (1.0, 0.5)) == {(0, 0)}
     assert cells((1.0, 0.5), (1.5, 0.5)) == {(1, 0)}
@@ -236,7 +267,7 @@ def test_corner_points_grid_lines_and_end_points_touch_no_interior():
     assert cells((1.5, 2.5), (1.5, 2.5)) == {(1, 2)}
     assert cells((1.0, 2.0), (1.0, 2.0)) == set()
     # outside the grid counts as not tall
-    assert not swing_crosses(tall, -3.0, -1.0, -0.5, 5.0, 0.0, 0.0, 1.0)
+    assert not swing_crosses(tall, 0.5, -3.0, -1.0, -0.5, 5.0, 0.0, 0.0, 1.0)
 
 
 def test_fuzz_scene_swing_lines_cross_no_tall_cell():
@@ -272,3 +303,69 @@ def test_a_tiny_time_limit_ends_within_64_expansions(backend):
     plan = plan_footsteps(*args, PlannerOptions(time_limit=1e-6, backend=backend))
     assert plan.status is PlanStatus.TIME_LIMIT and plan.nodes_expanded == 64
     assert len(plan.poses) >= 1  # the best partial plan
+
+
+# ---------------------------------------------------------------- swing clearance on terraces
+
+
+def _terraces(kerb: float | None, ridge: float | None = None) -> OccupancyGrid:
+    """3 m x 1 m: stairs of 0.1 m at x = 0.8, 1.1, 1.4 up to a 0.3 m platform; across it at
+    x = 2.0-2.05 an occupied kerb ``kerb`` m high (above 0) or a free ridge ``ridge`` m high."""
+    occ, h = np.zeros((120, 40), bool), np.zeros((120, 40))
+    for k, x0 in enumerate((0.8, 1.1, 1.4)):
+        h[round(x0 / RES) :] = (0.1, 0.2, 0.3)[k]
+    wall = slice(round(2.0 / RES), round(2.05 / RES))
+    if kerb is not None:
+        occ[wall], h[wall] = True, kerb
+    if ridge is not None:
+        h[wall] = ridge
+    return OccupancyGrid(occ, RES, heights=h)
+
+
+@pytest.mark.parametrize(
+    ("kerb", "ridge", "crosses"),
+    [
+        (0.35, None, True),  # 5 cm above the platform: under the 10 cm clearance
+        (0.39, None, True),
+        (0.41, None, False),  # 11 cm above it
+        (0.8, None, False),
+        (None, 0.35, True),  # free ground, as a kerb of the same height
+        (None, 0.8, False),  # a 0.5 m ridge of free cells is no less in the swing's way
+    ],
+)
+def test_swing_clearance_is_measured_from_the_ground_the_feet_stand_on(kerb, ridge, crosses):
+    # before: a kerb cell taller than the clearance above level 0 (0.35 > 0.1) blocked every
+    # swing although it stands 5 cm above the platform, and free cells never blocked one
+    grid = _terraces(kerb, ridge)
+    opts = dict(
+        swing_clearance=0.1, max_step_up=0.12, max_step_down=0.12, max_height_range=0.02,
+        refinements=0, heuristic="euclidean",
+    )  # fmt: skip
+    plan = _both(grid, (0.3, 0.5, 0.0), "left", (2.6, 0.5), **opts)
+    if crosses:
+        assert plan.status is PlanStatus.SUCCESS
+        assert plan.poses[-1][0] > 2.05
+        tops = [float(grid.heights[grid.cell_of(p[0], p[1])]) for p in plan.poses]
+        assert sorted(set(tops)) == [0.0, 0.1, 0.2, 0.3]  # every tread, then the platform
+    else:  # the wall spans the map: the lattice is exhausted on the near side
+        assert plan.status is PlanStatus.UNREACHABLE
+        assert max(p[0] for p in plan.poses) < 2.0
+
+
+@pytest.mark.parametrize(("kerb", "crosses"), [(0.39, True), (0.41, False)])
+def test_swing_clearance_on_a_raised_level_floor(kerb, crosses):
+    # one ground level for every sole (0.3 m): both cores take it without measuring soles
+    grid = _terraces(kerb)
+    grid.heights[~grid.occupied] = 0.3
+    opts = dict(swing_clearance=0.1, refinements=0, heuristic="euclidean")
+    plan = _both(grid, (0.3, 0.5, 0.0), "left", (2.6, 0.5), **opts)
+    assert (plan.status is PlanStatus.SUCCESS) is crosses
+    model = BipedStepModel(
+        grid, (0.3, 0.5, 0.0), "left", (2.6, 0.5), nominal_action_table(), PlannerOptions(**opts)
+    )
+    assert model.ground_level == 0.3
+    grid.heights[0, 0] = 0.31  # one free cell higher: the soles' ground is measured
+    model = BipedStepModel(
+        grid, (0.3, 0.5, 0.0), "left", (2.6, 0.5), nominal_action_table(), PlannerOptions(**opts)
+    )
+    assert model.ground_level is None

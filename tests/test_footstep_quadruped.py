@@ -21,7 +21,7 @@ from repertoire.planning.footstep.quadruped import (
     plan_crawl,
 )
 from repertoire.planning.footstep.search import anytime_search, search
-from repertoire.planning.footstep.types import FootstepError, PlanStatus
+from repertoire.planning.footstep.types import FootstepError, GridError, PlanStatus
 from repertoire.planning.littledog_crawl import (
     MAX_LEG_EXTENSION,
     CrawlError,
@@ -131,6 +131,13 @@ def test_search_bad_input():
         search(ok, time_limit=float("nan"))
     with pytest.raises(FootstepError, match="must not increase"):
         anytime_search(ok, weights=[1.0, 2.0])
+    # not numbers: named, not a TypeError from math.isfinite
+    with pytest.raises(FootstepError, match="time_limit must be a number of seconds, got '1'"):
+        search(ok, time_limit="1")
+    with pytest.raises(FootstepError, match="search weight must be a number, got None"):
+        search(ok, weight=None)
+    with pytest.raises(FootstepError, match="search max_expansions must be a number, got '9'"):
+        search(ok, max_expansions="9")
 
 
 def _board_map(kind, seed=1):
@@ -211,6 +218,12 @@ def test_crawl_bad_input():
         plan_crawl(hm, start, (0.2, 0.0), CrawlParams(offsets_x=[]))
     with pytest.raises(FootstepError, match="outside the height map"):
         plan_crawl(hm, start, (5.0, 0.0))
+    with pytest.raises(FootstepError, match="crawl goal must be a finite \\(x, y\\), got 'ab'"):
+        plan_crawl(hm, start, "ab")
+    with pytest.raises(FootstepError, match="time_limit must be a number of seconds, got '1'"):
+        plan_crawl(hm, start, (0.2, 0.0), time_limit="1")
+    with pytest.raises(GridError, match="height map resolution must be positive, got 'x'"):
+        HeightMap(origin=(0.0, 0.0), resolution="x", heights=np.zeros((3, 3)))
     heights = np.zeros((61, 101))
     heights[:, 40:] = 0.03  # an edge at x = 0.1 m, under the left front foot (x = 0.101 m)
     steep = HeightMap(origin=(-0.3, -0.3), resolution=0.01, heights=heights)

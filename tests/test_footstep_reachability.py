@@ -226,3 +226,80 @@ def test_warm_up_compiles_the_proof_so_no_plan_pays_for_it_inside_its_limit():
     assert done.returncode == 0, done.stderr
     levels, fill = map(int, done.stdout.split())
     assert levels >= 1 and fill >= 1
+
+
+def _wall(height: float, door: tuple[float, float] | None = None, occupied: bool = True):
+    """A 5 cm wall ``height`` m high across the 2.2 m x 2 m map at x = 1.2 m (free ground of
+    that height if not ``occupied``), with an opening between ``door`` (y, m) if given."""
+    occ, heights = np.zeros((88, 80), bool), np.zeros((88, 80))
+    rows = slice(round(1.2 / RES), round(1.25 / RES))
+    cols = np.ones(80, bool)
+    if door is not None:
+        cols[round(door[0] / RES) : round(door[1] / RES)] = False
+    occ[rows, cols], heights[rows, cols] = occupied, height
+    return OccupancyGrid(occ, RES, (0.0, 0.0), heights)
+
+
+@pytest.mark.parametrize(
+    ("height", "door", "occupied", "cut_off"),
+    [
+        (0.5, None, True, True),  # too tall to swing over: proved at once
+        (0.101, None, True, True),
+        (0.5, None, False, True),  # a ridge of free ground, too steep to stand on
+        (0.09, None, True, False),  # low enough to step over
+        (0.5, (0.7, 1.3), True, False),  # a 0.6 m doorway
+    ],
+)
+def test_a_wall_too_tall_for_any_swing_is_cut_off_at_the_first_lattice(
+    height, door, occupied, cut_off
+):
+    # before: the proof left the swing clearance out, so a full wall too tall to swing over
+    # was searched on every finer lattice until the time limit (3.4-3.6 s, TIME_LIMIT)
+    grid = _wall(height, door, occupied)
+    limits = dict(swing_clearance=0.1, max_height_range=0.02)
+    assert goal_cut_off(_model(grid, PlannerOptions(**limits))) is cut_off
+    plan = plan_footsteps(
+        grid, START, "left", GOAL, nominal_action_table(), PlannerOptions(time_limit=60.0, **limits)
+    )
+    if cut_off:
+        assert plan.status is PlanStatus.UNREACHABLE and plan.xy_resolution == 0.05
+    else:
+        assert plan.status is PlanStatus.SUCCESS
+
+
+def test_the_swing_wall_is_judged_against_the_ground_near_it():
+    # a 0.5 m block to stand on, 0.9 m from a 0.55 m wall: too far for a swing over the wall
+    # to start or land on it, so the wall still blocks every swing
+    grid = _wall(0.55)
+    grid.heights[:12, :12] = 0.5
+    limits = dict(swing_clearance=0.1, max_height_range=0.02)
+    assert goal_cut_off(_model(grid, PlannerOptions(**limits)))
+    grid.heights[30:42, :12] = 0.5  # a block within a swing's reach of the wall: no proof
+    assert not goal_cut_off(_model(grid, PlannerOptions(**limits)))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_walls_with_doorways_are_never_cut_off(seed):
+    """Sound on random walls too tall to swing over, each with a 0.5 m doorway."""
+    rng = np.random.default_rng(seed)
+    occ, heights = np.zeros((88, 80), bool), np.zeros((88, 80))
+    for x in (0.8, 1.4):
+        i, door = round(x / RES) + int(rng.integers(-3, 4)), int(rng.integers(0, 60))
+        rows = slice(i, i + int(rng.integers(1, 4)))
+        occ[rows], heights[rows] = True, float(rng.uniform(0.15, 0.6))
+        occ[rows, door : door + 20], heights[rows, door : door + 20] = False, 0.0
+    grid = OccupancyGrid(occ, RES, (0.0, 0.0), heights)
+    opts = PlannerOptions(time_limit=30.0, swing_clearance=0.1)
+    plan = plan_footsteps(grid, START, "left", GOAL, nominal_action_table(), opts)
+    assert plan.status is PlanStatus.SUCCESS
+    assert not goal_cut_off(_model(grid, opts))
+
+
+def test_a_kerb_low_over_a_platform_is_not_cut_off():
+    grid = _stairs(0.1)  # 0.3 m platform from x = 1.6 m, then a kerb 5 cm above it
+    grid.occupied[round(1.9 / RES) : round(1.95 / RES)] = True
+    grid.heights[round(1.9 / RES) : round(1.95 / RES)] = 0.35
+    opts = PlannerOptions(swing_clearance=0.1, max_step_up=0.12, max_height_range=0.02)
+    assert not goal_cut_off(_model(grid, opts, goal=(2.1, 1.0)))
+    grid.heights[round(1.9 / RES) : round(1.95 / RES)] = 0.45  # 15 cm above it
+    assert goal_cut_off(_model(grid, opts, goal=(2.1, 1.0)))

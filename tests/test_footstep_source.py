@@ -47,6 +47,16 @@ def test_plan_phase_at(t, k, stance, start, target, phase, foot):
     assert p.swing_phase == pytest.approx(phase) and p.swing_foot == foot
 
 
+def test_plan_phase_at_refuses_a_time_that_is_not_a_number():
+    # before: NaN compared false with every step time and fell through to an IndexError
+    with pytest.raises(FootstepError, match="plan_phase_at needs a time in seconds, got nan"):
+        plan_phase_at(make_plan(), float("nan"))
+    with pytest.raises(FootstepError, match="got '1.0'"):
+        plan_phase_at(make_plan(), "1.0")
+    assert plan_phase_at(make_plan(), float("inf")).step_index == 2  # after the last step
+    assert plan_phase_at(make_plan(), float("-inf")).step_index == 0
+
+
 def test_source_ports_at_chosen_times():
     plan = make_plan()
     src = FootstepPlanSource(plan)

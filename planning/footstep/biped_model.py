@@ -445,9 +445,11 @@ class BipedStepModel:
         self.step_up = opts.max_step_up if has_h else math.inf
         self.step_down = opts.max_step_down if has_h else math.inf
         self.step_limits = math.isfinite(self.step_up) or math.isfinite(self.step_down)
-        self.uses_heights = (
-            self.step_limits or math.isfinite(self.flat_limit) or self.height_w > 0.0
-        )
+        self.swing_limit = has_h and math.isfinite(opts.swing_clearance)  # see _tall_in
+        free_h = ref.heights[~ref.occupied] if self.swing_limit and not self.dynamic else []
+        self.ground_level = float(free_h[0]) if len(free_h) and np.ptp(free_h) == 0 else None
+        self.uses_heights = self.step_limits or self.swing_limit or has_h and (
+            math.isfinite(opts.max_height_range) or opts.height_cost_weight > 0.0)  # fmt: skip
         if math.isfinite(self.flat_limit):
             for name, pose in (("start", self.start_pose), ("initial swing foot", self.swing0)):
                 rng_h = self.exact.height_range(*pose)
@@ -569,24 +571,23 @@ class BipedStepModel:
         self.origin = ref.origin
 
     def _tall_in(self, grids: Iterable[OccupancyGrid]) -> np.ndarray | None:
-        """Cells occupied and taller than ``swing_clearance`` in any grid (None: none)."""
-        if self.ref.heights is None or not math.isfinite(self.opts.swing_clearance):
+        """Each cell's highest height over ``grids``; None when none exceeds the clearance.
+
+        A cell, occupied or free, blocks a swing line when higher than ``swing_clearance``
+        over the higher ground of the stance and landing soles (0.35 m on a 0.3 m platform
+        is 5 cm tall); grounds are >= 0, so None: nothing blocks.
+        """
+        if not self.swing_limit:
             return None
-        mask = np.zeros(self.ref.shape, bool)
-        for g in grids:
-            mask |= g.occupied & (g.heights > self.opts.swing_clearance)
-        return mask if mask.any() else None
+        tops = np.max([g.heights for g in grids], axis=0)
+        return tops if float(tops.max()) > self.opts.swing_clearance else None
 
     def tall_at(self, k: int) -> np.ndarray | None:
-        """Cells the swing foot cannot cross at time index ``k`` (None: none or no limit)."""
+        """Cell heights the swing is checked against at time index ``k`` (None: no limit)."""
         return self._tall_in([self.checkers.checker(k).grid])
 
     def tall_during(self, ka: int, kb: int) -> np.ndarray | None:
-        """Cells the swing foot cannot cross while it swings (dynamic worlds).
-
-        A step swings from its stance time to its landing time; a cell blocks the swing
-        line when it is occupied and taller than ``swing_clearance`` in any grid from
-        index ``ka`` (the swing's start) to ``kb`` (its landing), both included.
+        """Each cell's highest height over grids ``ka`` to ``kb`` (both in; :meth:`_tall_in`).
 
         Args:
             ka: time index of the swing's start.
@@ -690,9 +691,11 @@ class BipedStepModel:
             stance_checked = self.k0 if is_start else self.checkers.end_index(s.t + self.min_hold)
             stance_free: dict[int, bool] = {}
             stance_checkers = self.exact_checkers if is_start else self.checkers
-        if self.dynamic and self.step_limits:
+        z_ground = self.step_limits or self.swing_limit and self.ground_level is None
+        if self.dynamic and z_ground:
             ex1 = self.exact_checkers.checker(k_swing)
-        z1 = ex1.top_height(s.x, s.y, s.yaw) if self.step_limits else 0.0
+        z0 = self.ground_level or 0.0
+        z1 = ex1.top_height(s.x, s.y, s.yaw) if z_ground else z0
         if self.height_w > 0.0:
             dominated = None  # a landing's cost is known only after its height check
         hist1 = self._hist_rows[s.a_prev1]
@@ -740,12 +743,12 @@ class BipedStepModel:
                 continue
             if self.flat_limit < math.inf and ex.height_range(x2, y2, th2) > self.flat_limit:
                 continue
-            if self.step_limits:
-                dz = ex.top_height(x2, y2, th2) - z1  # highest ground under each sole
-                if dz > self.step_up or -dz > self.step_down:
-                    continue
+            z2 = ex.top_height(x2, y2, th2) if z_ground else z0  # highest ground under it
+            if self.step_limits and (z2 - z1 > self.step_up or z1 - z2 > self.step_down):
+                continue
+            top = max(z1, z2) + self.opts.swing_clearance  # the swing foot's highest point
             if tall is not None and swing_crosses(
-                tall, s.swing_x, s.swing_y, x2, y2, ox, oy, inv_res
+                tall, top, s.swing_x, s.swing_y, x2, y2, ox, oy, inv_res
             ):
                 continue
             h = self.cost_to_go(x2, y2)

@@ -119,7 +119,8 @@ def _arastar(
     succ_f,  # rows: dx, dy, dyaw, duration, cost
     hist,
     lat,  # ox, oy, inv_q, ky, nyaw, yaw_scale, n_hist, yaw_shift
-    grid,  # ox, oy, inv_res, nx, ny, gx, gy, tol, cost_per_m, flat_limit, height_w, up, down
+    grid,  # ox, oy, inv_res, nx, ny, gx, gy, tol, cost_per_m, flat_limit, height_w, up, down,
+    # swing clearance, ground level (NaN: uneven)
     hf,  # the LazyCostToGo's arrays (f, i, occ, p, size), or empty for Euclidean
     hi,
     hocc,
@@ -179,8 +180,11 @@ def _arastar(
         grid[9],
         grid[10],
     )
-    step_up, step_down = grid[11], grid[12]
+    step_up, step_down, clearance, z_flat = grid[11], grid[12], grid[13], grid[14]
     step_limits = step_up < np.inf or step_down < np.inf
+    # the ground under a sole: its highest cell, or one level for all (NaN: no such level)
+    need_z = step_limits or (use_tall and np.isnan(z_flat))
+    z_level = 0.0 if np.isnan(z_flat) else z_flat
     use_cells = hp.size > 0
     pad, nyp = int(chk[0]), int(chk[1])
     res = 1.0 / inv_res
@@ -375,8 +379,8 @@ def _arastar(
                 c, s = math.cos(th), math.sin(th)
                 nf = 1 - foot
                 row = (a2 * n + a1) * 2 + foot
-                z1 = 0.0
-                if step_limits:
+                z1 = z_level
+                if need_z:
                     z1 = _top_height(x, y, th, grid, ex, heights, ex_off, ex_ptr)
                 sw_x, sw_y = start[7], start[8]  # the swing starts where this foot stood before
                 if use_tall and inode[node, _PARENT] >= 0:
@@ -422,11 +426,16 @@ def _arastar(
                         _height_range(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) > flat_limit
                     ):
                         continue
+                    z2 = z_level
+                    if need_z:
+                        z2 = _top_height(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr)
                     if step_limits:
-                        dz = _top_height(x2, y2, th2, grid, ex, heights, ex_off, ex_ptr) - z1
+                        dz = z2 - z1
                         if dz > step_up or -dz > step_down:
                             continue
-                    if use_tall and swing_crosses(tall, sw_x, sw_y, x2, y2, ox, oy, inv_res):
+                    if use_tall and swing_crosses(
+                        tall, max(z1, z2) + clearance, sw_x, sw_y, x2, y2, ox, oy, inv_res
+                    ):
                         continue
                     lazy = -1
                     if use_cells:
@@ -567,7 +576,7 @@ def compiled_tables(model: BipedStepModel) -> dict:
     # the core reads heights only for the limits or the height cost (model.uses_heights)
     heights = exact.heights_flat if model.uses_heights else None
     heights = heights if heights is not None else np.zeros(1)
-    tall = model.tall if model.tall is not None else np.zeros((1, 1), bool)
+    tall = model.tall if model.tall is not None else np.zeros((1, 1))
     return {
         "succ_ptr": model.succ_ptr,
         "succ_a": model.succ_a,
@@ -601,6 +610,8 @@ def compiled_tables(model: BipedStepModel) -> dict:
                 model.height_w,
                 model.step_up,
                 model.step_down,
+                model.opts.swing_clearance,
+                math.nan if model.ground_level is None else model.ground_level,
             ],
             float,
         ),
@@ -630,7 +641,7 @@ def compiled_tables(model: BipedStepModel) -> dict:
         "heights": np.asarray(heights, float),
         "ex_off": ex_off,
         "ex_ptr": ex_ptr,
-        "tall": np.ascontiguousarray(tall, bool),
+        "tall": np.ascontiguousarray(tall, float),
         "use_tall": model.tall is not None,
     }
 

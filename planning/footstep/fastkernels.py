@@ -512,41 +512,61 @@ def _top_height(x, y, th, grid, ex, heights, ex_off, ex_ptr):
 
 
 @njit()
-def swing_crosses(tall, x0, y0, x1, y1, ox, oy, inv):
-    """Whether the segment (x0, y0) -> (x1, y1) passes through the interior of a True cell.
+def _along_grid_line(tops, top, k, a, b, along_u):
+    """Whether a segment on a grid line runs through the interior of the tall region.
 
+    The line is ``v = k`` (``along_u``; else ``u = k``), the segment from coordinate ``a``
+    to ``b`` on it: inside where the cells on both sides of it are above ``top`` (one tall
+    side only is touched, not crossed). Cells outside ``tops`` count as not tall.
+    """
+    nx, ny = tops.shape
+    lo, hi = min(a, b), max(a, b)
+    for c in range(math.floor(lo), math.ceil(hi)):
+        if along_u:
+            if 0 <= c < nx and 1 <= k < ny and tops[c, k - 1] > top and tops[c, k] > top:
+                return True
+        elif 0 <= c < ny and 1 <= k < nx and tops[k - 1, c] > top and tops[k, c] > top:
+            return True
+    return False
+
+
+@njit()
+def swing_crosses(tops, top, x0, y0, x1, y1, ox, oy, inv):
+    """Whether the segment (x0, y0) -> (x1, y1) crosses a cell higher than ``top``.
+
+    ``tops`` holds the cells' heights, ``top`` is the swing foot's highest point.
     Both search cores call this one function (the swing line of a step). Exact grid
     traversal (Amanatides and Woo): every cell whose open interior the closed segment
     meets is visited, in order, with the crossing parameters ``t`` of the next x and y
     cell boundaries recomputed from the endpoints at each step (no accumulated error).
     Touching is not crossing: a segment through a cell's corner point only (the x and y
     boundaries crossed at the same ``t``: it moves on diagonally), one running along a cell
-    edge, or one ending on a cell's boundary, does not enter that cell. Exact in the
-    segment's cell coordinates ``(x - ox) * inv`` up to the rounding of the ``t`` values (a
-    pass within ~1e-15 cells of a corner may count either way). Cells outside ``tall``
-    count as not tall.
+    edge, or one ending on a cell's boundary, does not enter that cell; but a segment
+    running along the edge between two tall cells is inside the tall region and crosses it
+    (before, a straight walk on a grid line, e.g. at y = 0.5 m on 2.5 cm cells, swung
+    through walls of any height). Exact in the segment's cell coordinates
+    ``(x - ox) * inv`` up to the rounding of the ``t`` values (a pass within ~1e-15 cells
+    of a corner may count either way). Cells outside ``tops`` count as not tall.
     """
-    nx, ny = tall.shape
+    nx, ny = tops.shape
     u0 = (x0 - ox) * inv
     v0 = (y0 - oy) * inv
     du = (x1 - ox) * inv - u0
     dv = (y1 - oy) * inv - v0
     i = math.floor(u0)
     j = math.floor(v0)
-    if i == u0:  # starts on an x boundary: the cell it moves into
-        if du < 0.0:
-            i -= 1
-        elif du == 0.0:
-            return False  # runs along a grid line (or is a point on it): no interior
-    if j == v0:
-        if dv < 0.0:
-            j -= 1
-        elif dv == 0.0:
-            return False
+    if i == u0 and du == 0.0:  # along the grid line u = i (or a point on it)
+        return _along_grid_line(tops, top, i, v0, v0 + dv, False)
+    if j == v0 and dv == 0.0:
+        return _along_grid_line(tops, top, j, u0, u0 + du, True)
+    if i == u0 and du < 0.0:  # starts on an x boundary: the cell it moves into
+        i -= 1
+    if j == v0 and dv < 0.0:
+        j -= 1
     si = 1 if du > 0.0 else -1
     sj = 1 if dv > 0.0 else -1
     while True:
-        if 0 <= i < nx and 0 <= j < ny and tall[i, j]:
+        if 0 <= i < nx and 0 <= j < ny and tops[i, j] > top:
             return True
         tx = ((i + 1 if si > 0 else i) - u0) / du if du != 0.0 else np.inf
         ty = ((j + 1 if sj > 0 else j) - v0) / dv if dv != 0.0 else np.inf

@@ -100,13 +100,16 @@ class PlannerOptions:
             from the default lattice: a 2 m stepping-stone field with 10 cm gaps was
             UNREACHABLE at 1.25 cm / 144 and has a plan at 0.625 cm / 288. A time limit that
             runs out before the finest lattice is exhausted gives TIME_LIMIT.
-        swing_clearance: obstacle cells taller than this (m, the grid's ``heights``) block
-            the swing foot's path: a step whose straight centre line from the swing foot's
-            previous position to its landing passes through the interior of such a cell is
-            refused (exact grid traversal: a line through a cell's corner point only, or
-            along its edge, does not cross it); in a dynamic world, a cell tall in any grid
-            of E(t) from the step's start to its landing. ``inf`` (the default) or a grid
-            without heights: every flat obstacle may be stepped over.
+        swing_clearance: how high (m) the swing foot rises above the higher of the stance
+            sole's and the landing sole's ground (each the highest of the grid's
+            ``heights`` under the sole): a step whose straight centre line from the swing
+            foot's previous position to its landing passes through the interior of a cell
+            higher than that, occupied or free ground, is refused (exact grid traversal: a
+            line through a cell's corner point only, or along its edge, does not cross it);
+            on ground level 0 that is every cell taller than this; on a 0.3 m platform a
+            0.35 m kerb is 5 cm tall; in a dynamic world, a cell's highest height in any
+            grid of E(t) from the step's start to its landing. ``inf`` (the default) or a
+            grid without heights: every flat obstacle may be stepped over.
         max_height_range: a foot lands only where the height range under its sole (the
             grid's ``heights``) is at most this (m): flat enough ground. The start feet
             must satisfy it too. ``inf`` (the default): no flatness limit. Measured

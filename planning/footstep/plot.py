@@ -199,8 +199,9 @@ def height_plan_figure(
 ) -> Path:
     """Write a PNG of a biped plan over a 2.5-D map: obstacle cells coloured by height.
 
-    Obstacles the swing foot clears (height <= ``swing_clearance``) and taller ones are
-    outlined differently; free ground is white (shaded by its height when it has any).
+    Obstacles higher than ``swing_clearance`` above level 0 (no swing from the floor clears
+    them; the planner measures the clearance from the ground the feet stand on) are
+    outlined; free ground is white (shaded by its height when it has any).
 
     Args:
         grid: the grid with ``heights``.
@@ -249,8 +250,8 @@ def height_plan_figure(
                 tall.T.astype(float), levels=[0.5], colors="r", linewidths=0.8,
             )  # fmt: skip
             handles.append(
-                Line2D([], [], color="r", lw=0.8, label=f"taller than swing clearance "
-                       f"{100 * swing_clearance:.0f} cm (no step over)")
+                Line2D([], [], color="r", lw=0.8, label=f"over the swing clearance "
+                       f"{100 * swing_clearance:.0f} cm (no step over from the floor)")
             )  # fmt: skip
     draw_plan(ax, plan, geometry)
     fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=6, framealpha=0.9)

@@ -113,8 +113,8 @@ class HeightMap:
     heights: np.ndarray
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.resolution) and self.resolution > 0.0):
-            raise GridError(f"height map resolution must be positive, got {self.resolution}")
+        if not (is_real(res := self.resolution) and math.isfinite(res) and res > 0.0):
+            raise GridError(f"height map resolution must be positive, got {self.resolution!r}")
         if len(self.origin) != 2 or not all(math.isfinite(v) for v in self.origin):
             raise GridError(f"height map origin must be a finite (x, y), got {self.origin}")
         h = np.asarray(self.heights, dtype=float)
@@ -475,7 +475,10 @@ class CrawlModel:
         self.ground = height_map if ground is None else ground
         self._rough = height_map.roughness(params.flat_radius)
         self._nominal = nominal_foot_positions()[:, :2]
-        goal = np.asarray(goal_xy, dtype=float)
+        try:
+            goal = np.asarray(goal_xy, dtype=float)
+        except (TypeError, ValueError):  # a string, ragged rows: refused by the shape test
+            goal = np.zeros(0)
         if goal.shape != (2,) or not np.all(np.isfinite(goal)):
             raise FootstepError(f"crawl goal must be a finite (x, y), got {goal_xy!r}")
         if not bool(height_map.inside(*height_map.cell(goal[0], goal[1]))):
@@ -764,10 +767,8 @@ def plan_crawl(
     Raises:
         FootstepError: see :class:`CrawlModel` and the search's budget checks.
     """
-    model = CrawlModel(
-        height_map, start_xy, goal_xy, params or CrawlParams(), crawl, ground, goal_heading,
-        front_line,
-    )  # fmt: skip
+    p = params or CrawlParams()
+    model = CrawlModel(height_map, start_xy, goal_xy, p, crawl, ground, goal_heading, front_line)
     if anytime:
         results = anytime_search(model, max_expansions=max_expansions, time_limit=time_limit)
     else:

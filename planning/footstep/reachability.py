@@ -26,14 +26,15 @@ tells those apart with a flood fill over map cells that over-approximates every 
 - the goal is reached when the stance foot centre is within the tolerance, so a goal
   cell's centre is within ``tol + res / sqrt(2)`` of the goal point.
 
-Swing clearance, footprint margins, headings and histories only remove steps, so they are
-left out: when the fill from the start cell meets no goal cell, no sequence of table steps
-does, whatever the lattice (sound, not complete: a goal it cannot rule out may still be
-unreachable). The connected components of the footholds' reach discs
-(:func:`_discs_connect`, heights left out) first settle a goal no chain of footholds
-reaches, in tens of milliseconds. The fill visits each reachable state at most once
-(compiled, nearest the goal first), about ``pi (R / res + 2)^2`` neighbouring cells per
-state. The planner runs the proof only after a search ran out of states, before refining,
+Footprint margins, headings and histories only remove steps, so they are left out, and so
+is the swing clearance but for :func:`_swing_walled` (cells too tall for any swing that
+wall the start off the goal, settled first): when the fill from the start cell meets no
+goal cell, no sequence of table steps does, whatever the lattice (sound, not complete: a
+goal it cannot rule out may still be unreachable). The connected components of the
+footholds' reach discs (:func:`_discs_connect`, heights left out) then settle a goal no
+chain of footholds reaches, in tens of milliseconds. The fill visits each reachable state
+at most once (compiled, nearest the goal first), about ``pi (R / res + 2)^2`` neighbouring
+cells per state. The planner runs the proof only after a search ran out of states, before refining,
 with the plan's clock: a fill the time limit cuts short proves nothing (the planner then
 reports TIME_LIMIT).
 """
@@ -89,6 +90,13 @@ def goal_cut_off(model, deadline: float = math.inf) -> bool:
     if not (0 <= si < free.shape[0] and 0 <= sj < free.shape[1]):
         return False  # off the map: nothing to prove here (the step model refuses it)
     valid[si, sj] = True  # the start stands, whatever the relaxation says of its cell
+    feet = [
+        (int((x - ox) / res), int((y - oy) / res)) for x, y, _ in (model.start_pose, model.swing0)
+    ]
+    # the first swing starts at the initial swing foot, which may stand farther away
+    apart = math.dist(model.start_pose[:2], model.swing0[:2]) / res + math.sqrt(2.0)
+    if _swing_walled(model, heights, hi, valid, feet, max(reach, apart), gi, gj, goal_r):
+        return True  # a wall too tall for any swing: proved at once
     if not _discs_connect(valid, si, sj, gi, gj, goal_r, reach):
         return True  # no chain of footholds at all, whatever the heights: proved at once
     if math.isfinite(up) or math.isfinite(down):
@@ -119,7 +127,48 @@ def _discs_connect(valid, si, sj, gi, gj, goal_r, reach) -> bool:
     """
     near = ndimage.distance_transform_edt(~valid) <= 0.5 * reach + math.sqrt(0.5)
     labels, _ = ndimage.label(near, structure=np.ones((3, 3), bool))
-    start = labels[si, sj]
+    return _meets_goal(labels, labels[si, sj], valid, gi, gj, goal_r)
+
+
+def _swing_walled(model, heights, hi, valid, starts, reach, gi, gj, goal_r) -> bool:
+    """True when cells no swing line crosses wall both start feet off every goal cell.
+
+    A swing's highest point is ``swing_clearance`` over the higher ground of two soles, the
+    stance foot's and the landing's, each at most ``hi`` of its foothold cell (a ``valid``
+    one, or a start foot's). The swing line runs within ``reach`` (cells, a step's reach or
+    the start feet's distance, with the cells' slack) of the stance foot, and the landing
+    lies within twice that of any point of the line: so a cell higher than the highest such
+    ground within a square of half-side ``2 reach + 1`` cells around it, plus the clearance,
+    blocks every swing (one with no foothold that near: no swing passes it). Each foot's
+    centre moves on swing lines that enter no such cell's interior (nor run between two of
+    them), so it stays in the closure of its start cell's 8-connected component of the other
+    cells (landings keep the sole on the map, so no line runs along the map's edge); a goal
+    cell outside both feet's components is out of reach. A thin wall too tall to swing over
+    is thus settled at once.
+    """
+    nx, ny = valid.shape
+    if not model.swing_limit or not all(0 <= i < nx and 0 <= j < ny for i, j in starts):
+        return False  # (a start off the map: nothing to prove here)
+    grounds = np.where(valid, hi, -np.inf)
+    for i, j in starts:
+        grounds[i, j] = hi[i, j]
+    size = 2 * (int(math.ceil(2.0 * reach)) + 1) + 1
+    near = ndimage.maximum_filter(grounds, size=size, mode="constant", cval=-np.inf)
+    crossable = heights <= near + model.opts.swing_clearance + _EPS
+    labels, _ = ndimage.label(crossable, structure=np.ones((3, 3), bool))
+    for i, j in starts:
+        if labels[i, j] == 0:
+            return False
+        if _meets_goal(labels, labels[i, j], crossable, gi, gj, goal_r):
+            return False
+    return True
+
+
+def _meets_goal(labels, start, valid, gi, gj, goal_r) -> bool:
+    """Whether a ``valid`` cell labelled ``start`` lies within ``goal_r`` of the goal.
+
+    All in cells: the cell centres' distance to the goal ``(gi, gj)`` in cell-centre units.
+    """
     nx, ny = valid.shape
     r = int(math.ceil(goal_r)) + 1
     i0, i1 = max(int(gi) - r, 0), min(int(gi) + r + 2, nx)

@@ -35,6 +35,8 @@ from typing import Any, Protocol
 
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
 
+from repertoire.checks import is_real
+
 
 class StepModel(Protocol):
     """What :func:`search` needs from a robot's step model."""
@@ -100,6 +102,11 @@ class SearchResult:
 
 
 def _validate_budget(weight: float, max_expansions: int, time_limit: float) -> None:
+    for name, v in (("weight", weight), ("max_expansions", max_expansions)):
+        if not is_real(v):
+            raise FootstepError(f"search {name} must be a number, got {v!r}")
+    if not is_real(time_limit):
+        raise FootstepError(f"time_limit must be a number of seconds, got {time_limit!r}")
     if not (math.isfinite(weight) and weight >= 1.0):
         raise FootstepError(f"search weight must be a finite number >= 1, got {weight}")
     if int(max_expansions) != max_expansions or max_expansions < 1:

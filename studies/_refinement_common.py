@@ -221,6 +221,42 @@ def abstract_soccer_plan():
     return plan_pddl(SOCCER_DOMAIN, SOCCER_PROBLEM)
 
 
+def trained_range(lo: float, hi: float, uses) -> tuple[float, float]:
+    """``[lo, hi]`` narrowed to the training range of each ``(model, feature name)`` in ``uses``.
+
+    A refined parameter lies on a face of its range wherever the linear leaves fall towards
+    it. The approach speed's range is ``[0, approach_v_max]``, and the models were fitted on
+    speeds drawn uniformly from that same interval, whose ends no episode draws (the shipped
+    models saw 0.00025-0.0897 m/s): refined over the whole range, every plan's speed lay
+    just outside the models' training box and ``out_of_range`` flagged it. Searching only
+    where the models saw data keeps refined plans inside it.
+
+    Args:
+        lo: the parameter's lower bound (the belief state's).
+        hi: its upper bound.
+        uses: ``(model, name)`` pairs: a fitted ``TreeModel`` and the feature that equals
+            the parameter (the approach speed is ``v_g`` of the leg that ends there and
+            ``v`` of the leg that starts there).
+
+    Returns:
+        The intersection; ``(lo, hi)`` unchanged where it would be empty (a range the models
+        never saw, e.g. ``approach_v_max = 0``): such a plan is an extrapolation, and
+        ``out_of_range`` still says so.
+
+    Raises:
+        RepertoireError: a model has no feature of that name.
+    """
+    new_lo, new_hi = float(lo), float(hi)
+    for model, name in uses:
+        if name not in model.feature_names:
+            raise RepertoireError(
+                f"the model has no feature {name!r}; its features are {model.feature_names}"
+            )
+        j = model.feature_names.index(name)
+        new_lo, new_hi = max(new_lo, model.train_min[j]), min(new_hi, model.train_max[j])
+    return (new_lo, new_hi) if new_lo <= new_hi else (float(lo), float(hi))
+
+
 def instantiated_plan(start, dest, config: SoccerPlanConfig):
     """Algorithm 2 on the episode's belief state: ``ball.phi`` and ``ball.v`` stay free."""
     from repertoire.diagrams.soccer import BALL_POSITION

@@ -92,6 +92,8 @@ def test_trained_range_narrows_a_range_to_the_models_data():
     assert trained_range(0.0, 0.0, [(a, "v_g")]) == (0.0, 0.0)
     with pytest.raises(RepertoireError, match=r"no feature 'speed'; its features are \['v'\]"):
         trained_range(0.0, 1.0, [(b, "speed")])
+    with pytest.raises(RepertoireError, match=r"no feature 'v'; its features are \[\]"):
+        trained_range(0.0, 1.0, [(object(), "v")])  # not a fitted model
 
 
 def test_refined_plans_lie_inside_the_models_training_box():

@@ -45,8 +45,9 @@ from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 from repertoire.limits import require_memory
 
-MODEL_FORMAT_VERSION = 1
-"""Format version of saved :class:`PiecewiseLinearModel` files."""
+MODEL_FORMAT_VERSION = 2
+"""Format version of saved :class:`PiecewiseLinearModel` files (2 adds the leaves' clamps;
+version 1 files, without them, are still read)."""
 
 
 def json_array(a) -> list:
@@ -85,12 +86,19 @@ class PiecewiseLinearModel:
         upper: (k, d) upper corners, inclusive (+inf allowed).
         coef: (k, d) slopes of each leaf's hyperplane.
         intercept: (k,) offsets of each leaf's hyperplane.
+        floor: (k,) least value each leaf predicts (its hyperplane is clamped to
+            ``[floor, ceiling]``; default -inf: no clamp). Fitted duration trees clamp
+            every leaf to the durations it was fitted on, so a linear leaf extrapolating
+            into a corner of its box never predicts a negative duration.
+        ceiling: (k,) largest value each leaf predicts (default +inf).
     """
 
     lower: np.ndarray
     upper: np.ndarray
     coef: np.ndarray
     intercept: np.ndarray
+    floor: np.ndarray | None = None
+    ceiling: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         arrays = {}
@@ -98,6 +106,18 @@ class PiecewiseLinearModel:
             arrays[name] = np.array(getattr(self, name), dtype=float)
             object.__setattr__(self, name, arrays[name])
         k = arrays["intercept"].reshape(-1).shape[0]
+        for name, default in (("floor", -np.inf), ("ceiling", np.inf)):
+            value = getattr(self, name)
+            value = np.full(k, default) if value is None else np.array(value, dtype=float)
+            if value.shape != (k,) or np.isnan(value).any():
+                raise RepertoireError(
+                    f"{name} must be {k} numbers (one per leaf, +-inf allowed), got "
+                    f"{value.tolist()!r}"
+                )
+            arrays[name] = value
+            object.__setattr__(self, name, value)
+        if (arrays["floor"] > arrays["ceiling"]).any():
+            raise RepertoireError("a leaf's floor exceeds its ceiling; expected floor <= ceiling")
         if arrays["lower"].ndim != 2 or k == 0:
             raise RepertoireError(
                 f"a piecewise-linear model needs (k, d) leaf arrays with k >= 1, got lower "
@@ -120,6 +140,9 @@ class PiecewiseLinearModel:
     def from_leaves(cls, leaves) -> "PiecewiseLinearModel":
         """Builds a model from leaf objects with ``lower``, ``upper``, ``coef``, ``intercept``.
 
+        Leaves with ``target_min`` / ``target_max`` (fitted trees' leaves) give the clamps
+        ``floor`` / ``ceiling``.
+
         The adapter for model trees that keep a list of leaves (one box and hyperplane
         each). Leaves are half-open (``lower < f <= upper``) as the trees' own
         (:class:`~repertoire.planning.action_models.trees.LeafBox`), so this model
@@ -140,7 +163,14 @@ class PiecewiseLinearModel:
             raise RepertoireError(
                 f"leaves need lower, upper, coef and intercept attributes: {exc}"
             ) from None
-        return cls(*fields)
+        floor = [getattr(leaf, "target_min", -np.inf) for leaf in leaves]
+        ceiling = [getattr(leaf, "target_max", np.inf) for leaf in leaves]
+        return cls(*fields, floor=floor, ceiling=ceiling)
+
+    @property
+    def clamped(self) -> bool:
+        """True if any leaf's prediction is clamped (a finite floor or ceiling)."""
+        return bool(np.isfinite(self.floor).any() or np.isfinite(self.ceiling).any())
 
     @property
     def n_leaves(self) -> int:
@@ -155,7 +185,10 @@ class PiecewiseLinearModel:
         return {
             "type": "PiecewiseLinearModel",
             "version": MODEL_FORMAT_VERSION,
-            **{k: json_array(getattr(self, k)) for k in ("lower", "upper", "coef", "intercept")},
+            **{
+                k: json_array(getattr(self, k))
+                for k in ("lower", "upper", "coef", "intercept", "floor", "ceiling")
+            },
         }
 
     @classmethod
@@ -167,22 +200,25 @@ class PiecewiseLinearModel:
         """
         if not isinstance(record, dict) or record.get("type") != "PiecewiseLinearModel":
             raise RepertoireError("not a PiecewiseLinearModel record (missing type)")
-        if record.get("version") != MODEL_FORMAT_VERSION:
+        if record.get("version") not in (1, MODEL_FORMAT_VERSION):
             raise RepertoireError(
                 f"PiecewiseLinearModel record has format version {record.get('version')!r}; "
-                f"this repertoire reads version {MODEL_FORMAT_VERSION}: re-export the model"
+                f"this repertoire reads versions 1-{MODEL_FORMAT_VERSION}: re-export the model"
             )
         try:
             arrays = [
                 np.array(record[k], dtype=float) for k in ("lower", "upper", "coef", "intercept")
             ]
+            clamps = {  # version 1: no clamps
+                k: np.array(record[k], dtype=float) for k in ("floor", "ceiling") if k in record
+            }
         except KeyError as exc:
             raise RepertoireError(f"PiecewiseLinearModel record lacks {exc}") from None
         except (TypeError, ValueError) as exc:
             raise RepertoireError(
                 f"PiecewiseLinearModel record holds a non-number: {exc}"
             ) from None
-        return cls(*arrays)
+        return cls(*arrays, **clamps)
 
     def save(self, path: str | Path) -> None:
         """Writes the model as JSON."""
@@ -207,9 +243,9 @@ class PiecewiseLinearModel:
             features: (n, d) feature vectors.
 
         Returns:
-            (n,) predictions; +inf where a vector lies in no leaf (outside the model's
-            domain, a leaf's finite ``lower`` face included), which refinement treats
-            as infeasible.
+            (n,) predictions, each leaf's hyperplane clamped to its ``[floor, ceiling]``;
+            +inf where a vector lies in no leaf (outside the model's domain, a leaf's
+            finite ``lower`` face included), which refinement treats as infeasible.
         """
         return predict_leaves(self, features)
 
@@ -226,6 +262,9 @@ def predict_leaves(model: DurationModel, features: np.ndarray) -> np.ndarray:
         column = f[:, j : j + 1]
         inside &= (column > model.lower[:, j]) & (column <= model.upper[:, j])
     values = f @ model.coef.T + model.intercept
+    floor, ceiling = getattr(model, "floor", None), getattr(model, "ceiling", None)
+    if floor is not None and ceiling is not None:  # PiecewiseLinearModel's clamps
+        values = np.clip(values, floor, ceiling)
     return np.where(inside, values, np.inf).min(axis=1)
 
 

@@ -165,6 +165,42 @@ def _param_boxes(term: DurationTerm, lower: np.ndarray, upper: np.ndarray):
     return lo, hi, slope, offset, live
 
 
+def _require_linear_leaves(problem: RefinementProblem, boxes=None) -> None:
+    """Raises unless every leaf is linear where the parameters can reach it.
+
+    Fitted duration trees clamp each leaf to the durations it saw
+    (:class:`~repertoire.planning.refinement.PiecewiseLinearModel`'s ``floor`` / ``ceiling``).
+    The exact back-ends minimise hyperplanes, so a clamp must not bind on any live leaf's
+    parameter box (``boxes``: :func:`_param_boxes` per term); where features mix
+    parameters (no boxes) a clamped model is refused.
+    """
+    for n, term in enumerate(problem.terms):
+        m = term.model
+        floor = getattr(m, "floor", None)
+        ceiling = getattr(m, "ceiling", None)
+        if floor is None or ceiling is None or not getattr(m, "clamped", False):
+            continue
+        name = term.name or n
+        if boxes is None:
+            raise RepertoireError(
+                f"term {name}'s model clamps its leaves' predictions and its features mix "
+                "parameters: the exact back-ends need linear leaves; use method='ga' or 'de'"
+            )
+        lo, hi, slope, offset, live = boxes[n]
+        with np.errstate(invalid="ignore"):  # 0 * inf: a zero slope adds nothing
+            least = offset + np.nan_to_num(np.minimum(slope * lo, slope * hi), nan=0.0).sum(1)
+            most = offset + np.nan_to_num(np.maximum(slope * lo, slope * hi), nan=0.0).sum(1)
+        binds = live & ((least < floor) | (most > ceiling))
+        if binds.any():
+            leaf = int(np.flatnonzero(binds)[0])
+            raise RepertoireError(
+                f"term {name}: leaf {leaf}'s hyperplane spans [{least[leaf]:.4g}, "
+                f"{most[leaf]:.4g}] in the parameter box, beyond its clamp [{floor[leaf]:.4g}, "
+                f"{ceiling[leaf]:.4g}]: the exact back-ends need linear leaves; use "
+                "method='ga' or 'de'"
+            )
+
+
 def _leaf_boxes(term: DurationTerm, lower: np.ndarray, upper: np.ndarray):
     """:func:`_param_boxes` of the live leaves only: (lo, hi, slope, offset)."""
     lo, hi, slope, offset, live = _param_boxes(term, lower, upper)
@@ -190,13 +226,17 @@ def solve_corners(problem: RefinementProblem) -> RefinementResult:
         is the number of non-empty cells examined.
 
     Raises:
-        RepertoireError: non-affine or mixing features, or no cell is non-empty (the
-            parameter box lies outside some model's leaves).
+        RepertoireError: non-affine or mixing features, a leaf whose clamp binds in the
+            parameter box, or no cell is non-empty (the parameter box lies outside some
+            model's leaves).
     """
     P = problem.n_params
     cell_lo, cell_hi = problem.lower[None].copy(), problem.upper[None].copy()
     cell_slope, cell_offset = np.zeros((1, P)), np.zeros(1)
     # Lower bounds still to come: the best each remaining term can do anywhere in the box.
+    _require_linear_leaves(
+        problem, [_param_boxes(t, problem.lower, problem.upper) for t in problem.terms]
+    )
     boxes = [_leaf_boxes(t, problem.lower, problem.upper) for t in problem.terms]
     best_rest = [
         float(np.min(o + np.minimum(s * lo, s * hi).sum(axis=1))) if o.size else np.inf
@@ -359,6 +399,7 @@ def build_refinement_milp(
     boxes = None
     if _one_parameter_features(problem):
         boxes = [_param_boxes(t, problem.lower, problem.upper) for t in problem.terms]
+    _require_linear_leaves(problem, boxes)
     binaries = []
     eye = np.eye(P)
     for n, term in enumerate(problem.terms):

@@ -27,6 +27,7 @@ from repertoire.studies._refinement_common import (
     SoccerPlanConfig,
     document_shared_fields,
     run_plan,
+    trained_range,
 )
 from repertoire.studies.engine import register_study
 
@@ -136,8 +137,11 @@ def tour_states(start, waypoints, final_phi: float, params: np.ndarray) -> np.nd
     return states
 
 
-def tour_problem(model, start, waypoints, final_phi: float, v_max: float):
-    """The refinement problem of the tour: one GoToPose term per leg, six free parameters."""
+def tour_problem(model, start, waypoints, final_phi: float, v_max: float, *, v_min: float = 0.0):
+    """The refinement problem of the tour: one GoToPose term per leg, six free parameters.
+
+    Each waypoint's heading is free in ``[-pi, pi]``, its speed in ``[v_min, v_max]``.
+    """
     from repertoire.planning.action_models.features import goto_pose_features
     from repertoire.planning.refinement import (
         DurationTerm,
@@ -156,7 +160,7 @@ def tour_problem(model, start, waypoints, final_phi: float, v_max: float):
 
         uses = [i for k in (leg, leg + 1) if 1 <= k < N_LEGS for i in (2 * k - 2, 2 * k - 1)]
         terms.append(DurationTerm(pl, features, tuple(uses), f"{leg}:goToPose"))
-    lower = np.tile([-math.pi, 0.0], N_LEGS - 1)
+    lower = np.tile([-math.pi, v_min], N_LEGS - 1)
     upper = np.tile([math.pi, v_max], N_LEGS - 1)
     names = tuple(f"w{k}.{q}" for k in range(1, N_LEGS) for q in ("phi", "v"))
     return RefinementProblem(tuple(terms), lower, upper, names)
@@ -171,7 +175,9 @@ def run_episode(config: RefinementHorizonsConfig, seed: int) -> RefinementHorizo
     t0 = time.perf_counter()
     start, waypoints, final_phi = sample_tour(config, np.random.default_rng(seed))
     (model,) = load_models(config.models_dir, ("approach_duration",))
-    problem = tour_problem(model, start, waypoints, final_phi, config.approach_v_max)
+    # a waypoint's speed is one leg's v_g and the next one's v: search it where the model saw data
+    v_min, v_max = trained_range(0.0, config.approach_v_max, ((model, "v"), (model, "v_g")))
+    problem = tour_problem(model, start, waypoints, final_phi, v_max, v_min=v_min)
     results = [refine_sequence(problem, h, config.solver, seed=seed) for h in range(1, N_LEGS + 1)]
     wall_refine = time.perf_counter() - t0
     times, statuses = [], []

@@ -33,6 +33,7 @@ from repertoire.studies._refinement_common import (
     run_plan,
     sample_situation,
     soccer_duration_models,
+    trained_range,
 )
 from repertoire.studies.engine import register_study
 
@@ -140,12 +141,22 @@ def load_duration_models(models_dir: str):
 
 
 def refine_subgoal(config: RefinementSoccerConfig, start, dest, horizon: int, seed: int):
-    """The refined approach ``(phi, v)`` and the predicted plan duration for a horizon."""
-    from repertoire.planning.plans import refinement_problem
+    """The refined approach ``(phi, v)`` and the predicted plan duration for a horizon.
+
+    The approach speed is searched inside the duration models' training range
+    (:func:`~repertoire.studies._refinement_common.trained_range`).
+    """
+    from repertoire.planning.plans import Range, refinement_problem
     from repertoire.planning.refinement import refine_sequence
 
     approach, dribble = load_duration_models(config.models_dir)
     plan = instantiated_plan(start, dest, config)
+    # the speed at the ball is the approach's v_g and the dribble's v: search it where both
+    # models saw data (trained_range)
+    speed = plan.ranges["pos2.v"]
+    if not speed.is_bound:
+        narrowed = trained_range(speed.lo, speed.hi, ((approach, "v_g"), (dribble, "v")))
+        plan = dataclasses.replace(plan, ranges={**plan.ranges, "pos2.v": Range(*narrowed)})
     problem = refinement_problem(plan, soccer_duration_models(approach, dribble, config))
     result = refine_sequence(problem, horizon, config.solver, seed=seed)
     # bound identities too: with approach_v_max = 0 the approach speed is not free

@@ -32,6 +32,7 @@ from repertoire.studies._refinement_common import (
     document_shared_fields,
     run_plan,
     sample_situation,
+    trained_range,
 )
 from repertoire.studies.engine import register_study
 
@@ -134,6 +135,10 @@ def run_episode(config: SubgoalAssertionConfig, seed: int) -> SubgoalAssertionRe
         gap = np.hypot(subgoals[:, 0] - bx, subgoals[:, 1] - by)
         return (gap >= config.min_start_clearance) & clear_of_goals(subgoals[:, 0], subgoals[:, 1])
 
+    # the subgoal's speed is the first leg's v_g and the second's v: search it where both
+    # models saw data
+    uses = [(tree, f) for tree in (duration, failure) for f in ("v", "v_g")]
+    v_lo, v_hi = trained_range(0.0, config.approach_v_max, uses)
     assertion = assert_subgoal(
         start,
         target,
@@ -141,8 +146,8 @@ def run_episode(config: SubgoalAssertionConfig, seed: int) -> SubgoalAssertionRe
         # un-mirrored features, as the shipped models were fitted
         leg_features=lambda a, b: np.atleast_2d(goto_pose_features(a, b, mirrored=False)),
         leg_duration=duration.predict,
-        lower=np.array([-3.0 + m, -2.0 + m, -math.pi, 0.0]),
-        upper=np.array([3.0 - m, 2.0 - m, math.pi, config.approach_v_max]),
+        lower=np.array([-3.0 + m, -2.0 + m, -math.pi, v_lo]),
+        upper=np.array([3.0 - m, 2.0 - m, math.pi, v_hi]),
         seed=seed,
         allowed=clear_of_ball,
     )

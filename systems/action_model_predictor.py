@@ -34,7 +34,8 @@ class ActionModelPredictor(LeafSystem):
         parameters: the action's parameters (``num_parameters`` values).
 
     Output ports:
-        duration: ``[predicted duration]`` [s].
+        duration: ``[predicted duration]`` [s] (the leaf's hyperplane, clamped to the
+            durations of the leaf's training episodes).
         success: ``[1.0]`` if the failure tree predicts success, else ``[0.0]``.
         out_of_range: ``[1.0]`` if any feature lies outside either model's
             training range (the prediction is an extrapolation), else ``[0.0]``.

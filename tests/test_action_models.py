@@ -265,3 +265,68 @@ def test_prediction_throughput_is_batched():
     batch = m.predict(X)
     single = np.array([m.predict(x)[0] for x in X[:50]])
     np.testing.assert_array_equal(batch[:50], single)
+
+
+def _triangle(n: int = 200):
+    """Episodes only where a + b <= 1; y = 5 - 4a - 4b, so the linear leaf gives -3 at (1, 1)."""
+    rng = np.random.default_rng(2)
+    X = rng.uniform(0, 1, (4 * n, 2))
+    X = X[X.sum(axis=1) <= 1][:n]
+    return X, 5.0 - 4.0 * X[:, 0] - 4.0 * X[:, 1]
+
+
+def test_duration_leaves_are_clamped_to_their_episodes_durations():
+    # a linear leaf extrapolating into its box's empty corner predicted a negative duration
+    X, y = _triangle()
+    m = fit_duration_tree(X, y, ["a", "b"], candidate_leaves=(1,))
+    (leaf,) = m.leaves
+    assert (leaf.target_min, leaf.target_max) == (y.min(), y.max())
+    np.testing.assert_allclose(leaf.coef, [-4.0, -4.0], atol=1e-6)
+    corner = [m.train_max, [0.9, 0.8], [0.1, 0.1], [0.25, 0.25]]  # (0.96, 0.94) first
+    assert not m.out_of_range(corner).any()  # all inside the training box
+    linear = 5.0 - 4.0 * np.sum(corner, axis=1)  # about -2.6, -1.8, 4.2, 3
+    np.testing.assert_allclose(m.predict(corner), np.clip(linear, y.min(), y.max()), atol=1e-6)
+    assert m.predict(corner)[0] == y.min() > 0 > linear[0]
+    assert "within [" in m.rules()
+    # the refinement's view of the tree clamps the same way
+    from repertoire.planning.refinement import PiecewiseLinearModel
+
+    pl = PiecewiseLinearModel.from_leaves(m.leaves)
+    assert pl.clamped and pl.predict(np.array(corner)).tolist() == m.predict(corner).tolist()
+    back = PiecewiseLinearModel.from_dict(json.loads(json.dumps(pl.to_dict())))
+    assert back.predict(np.array(corner)).tolist() == m.predict(corner).tolist()
+
+
+def test_clamps_round_trip_and_version_1_files_get_the_zero_floor(tmp_path):
+    X, y = _triangle()
+    m = fit_duration_tree(X, y, ["a", "b"], candidate_leaves=(1,))
+    assert load_model(save_model(m, tmp_path / "m.json")) == m
+    data = dataclasses.asdict(m)
+    data["version"] = 1  # written before the clamps: no target_min / target_max
+    for leaf in data["leaves"]:
+        del leaf["target_min"], leaf["target_max"]
+        leaf["intercept"] -= 4.0  # a leaf that predicts -7 s at (1, 1)
+        leaf["lower"], leaf["upper"] = ["-inf"] * 2, ["inf"] * 2
+    (tmp_path / "v1.json").write_text(json.dumps(data))
+    old = load_model(tmp_path / "v1.json")
+    assert (old.leaves[0].target_min, old.leaves[0].target_max) == (0.0, math.inf)
+    np.testing.assert_allclose(old.predict([[1.0, 1.0], [0.0, 0.0]]), [0.0, 1.0], atol=1e-6)
+    data["version"] = 2
+    data["leaves"][0] |= {"target_min": 3.0, "target_max": 2.0}
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    with pytest.raises(RepertoireError, match="target_min 3.0 > target_max 2.0"):
+        load_model(tmp_path / "bad.json")
+
+
+def test_shipped_duration_trees_never_predict_a_negative_duration():
+    # the shipped dribble tree's leaf 7 (angle_at slope -11) went to -0.44 s inside its box
+    from importlib.resources import files
+
+    folder = files("repertoire.models.diffdrive")
+    for name in (
+        "soccer_plan_models/dribble_duration.json",
+        "kitchen_plan_models/reach_duration.json",
+    ):
+        m = load_model(str(folder / name))
+        X = np.random.default_rng(0).uniform(m.train_min, m.train_max, (200_000, len(m.train_min)))
+        assert m.predict(X).min() >= 0.0

@@ -234,7 +234,13 @@ def test_predictor_exact_outputs():
     assert p.GetOutputPort("success").Eval(ctx)[0] == 0.0
     assert p.GetOutputPort("out_of_range").Eval(ctx)[0] == 0.0
     p.get_input_port().FixValue(ctx, [1.5, -0.9])
-    assert p.GetOutputPort("duration").Eval(ctx)[0] == pytest.approx(3.5, abs=1e-5)
+    # beyond the data the leaf's hyperplane (3.5) is clamped to its episodes' longest
+    # duration, 2 + the largest a among them, and out_of_range says so
+    leaf = dur.leaves[dur.leaf_index([[1.5, -0.9]])[0]]
+    in_leaf = dur.leaf_index(X) == dur.leaf_index([[1.5, -0.9]])[0]
+    assert leaf.target_max == pytest.approx(2 + X[in_leaf, 0].max(), abs=1e-12)
+    assert leaf.target_max < 3.5
+    assert p.GetOutputPort("duration").Eval(ctx)[0] == leaf.target_max
     assert p.GetOutputPort("success").Eval(ctx)[0] == 1.0
     assert p.GetOutputPort("out_of_range").Eval(ctx)[0] == 1.0
     with pytest.raises(RepertoireError, match="duration tree and a failure tree"):

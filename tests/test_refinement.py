@@ -325,3 +325,29 @@ def test_leaf_faces_map_to_the_exact_floats_they_hold():
     # empty intervals: no float of a fine grid (nor the ends) is inside
     grid = np.linspace(-1, 1, 2001)[:, None]
     assert not np.any(inside(grid)[:, ~some])
+
+
+def test_clamped_leaves_exact_back_ends_and_black_box():
+    # one leaf, duration = 2 p on p in [0, 1], clamped to [floor, 5]
+    def problem(floor: float, A=((1.0,),), upper=(1.0,)):
+        model = PiecewiseLinearModel([[-np.inf]], [[np.inf]], [[2.0]], [0.0], [floor], [5.0])
+        features = AffineFeatures(np.array(A), np.zeros(1))
+        term = DurationTerm(model, features, uses=tuple(range(len(upper))), name="t")
+        return RefinementProblem((term,), np.zeros(len(upper)), np.array(upper))
+
+    loose = problem(-1.0)  # the clamp never binds in the box: the exact back-ends apply
+    assert loose.terms[0].model.clamped
+    assert solve_corners(loose).cost == 0.0 and solve_milp(loose).cost == pytest.approx(0.0)
+    tight = problem(0.5)  # binds below p = 0.25: a flat piece the hyperplane does not know
+    np.testing.assert_allclose(tight.cost(np.array([[0.0], [0.5], [1.0]])), [0.5, 1.0, 2.0])
+    for solve in (solve_corners, solve_milp):
+        with pytest.raises(RepertoireError, match=r"leaf 0's hyperplane spans \[0, 2\]"):
+            solve(tight)
+    mixing = problem(-1.0, A=((1.0, 1.0),), upper=(1.0, 1.0))  # f = p0 + p1
+    with pytest.raises(RepertoireError, match="mix parameters: the exact back-ends"):
+        solve_milp(mixing)
+    assert solve_ga(tight, seed=0).cost == pytest.approx(0.5)
+    with pytest.raises(RepertoireError, match=r"floor must be 1 numbers .*nan"):
+        PiecewiseLinearModel([[0.0]], [[1.0]], [[1.0]], [0.0], [np.nan])
+    with pytest.raises(RepertoireError, match="floor exceeds its ceiling"):
+        PiecewiseLinearModel([[0.0]], [[1.0]], [[1.0]], [0.0], [2.0], [1.0])

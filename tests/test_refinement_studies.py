@@ -78,6 +78,49 @@ def test_plan_leaves_the_approach_angle_and_speed_free():
     assert plan.ranges["pos2.v"].hi == c.approach_v_max
 
 
+def test_trained_range_narrows_a_range_to_the_models_data():
+    from types import SimpleNamespace
+
+    from repertoire.studies._refinement_common import trained_range
+
+    a = SimpleNamespace(feature_names=["v", "v_g"], train_min=[0.1, 0.02], train_max=[0.5, 0.08])
+    b = SimpleNamespace(feature_names=["v"], train_min=[0.01], train_max=[0.07])
+    assert trained_range(0.0, 0.09, [(a, "v_g"), (b, "v")]) == (0.02, 0.07)
+    assert trained_range(0.03, 0.09, [(a, "v_g")]) == (0.03, 0.08)
+    assert trained_range(0.0, 0.09, []) == (0.0, 0.09)
+    # no data in the range (approach_v_max = 0): unchanged, out_of_range then flags the plan
+    assert trained_range(0.0, 0.0, [(a, "v_g")]) == (0.0, 0.0)
+    with pytest.raises(RepertoireError, match=r"no feature 'speed'; its features are \['v'\]"):
+        trained_range(0.0, 1.0, [(b, "speed")])
+    with pytest.raises(RepertoireError, match=r"no feature 'v'; its features are \[\]"):
+        trained_range(0.0, 1.0, [(object(), "v")])  # not a fitted model
+
+
+def test_refined_plans_lie_inside_the_models_training_box():
+    # the refined approach speed used to land on 0 or approach_v_max (0.09), just outside
+    # the shipped models' 0.00025-0.0897 m/s: out_of_range flagged every refined plan
+    from repertoire.studies._refinement_common import approach_features, dribble_features
+    from repertoire.studies.refinement_soccer import load_models, refine_subgoal
+
+    c = RefinementSoccerConfig()
+    approach, failure, dribble = load_models(
+        "", ("approach_duration", "approach_failure", "dribble_duration")
+    )
+    d = c.approach_distance
+    for seed in (0, 1, 2):
+        start, dest = sample_situation(c, np.random.default_rng(seed))
+        for horizon in (1, 2):
+            phi, v, _ = refine_subgoal(c, start, dest, horizon, seed)
+            leg_1 = approach_features(start, phi, v, d)
+            leg_2 = dribble_features(phi, v, dest, d)
+            assert not (approach.out_of_range(leg_1) | failure.out_of_range(leg_1))[0]
+            assert not dribble.out_of_range(leg_2)[0]
+            # the speed range's own ends lie outside the data and are still flagged
+            for end in (0.0, c.approach_v_max):
+                assert approach.out_of_range(approach_features(start, phi, end, d))[0]
+                assert dribble.out_of_range(dribble_features(phi, end, dest, d))[0]
+
+
 def test_refined_subgoal_with_the_approach_speed_bound_to_zero():
     # approach_v_max = 0 (stop at the ball): pos2.v is bound, only pos2.phi is refined
     from repertoire.studies.refinement_soccer import refine_subgoal

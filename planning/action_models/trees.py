@@ -17,6 +17,13 @@ feature: ``lower < x <= upper``) and its hyperplane (``coef``, ``intercept``;
 for a failure tree ``coef = 0`` and ``intercept`` the leaf's failure
 probability). The subgoal-refinement issue enumerates these boxes. Models are
 saved as JSON with a version and printed as rules.
+
+A duration leaf's prediction is clamped to the durations of the leaf's own training
+episodes (``target_min``, ``target_max``): a linear leaf fitted on the episodes it holds
+extrapolates into the corners of its box that hold none, and there it predicted durations
+below any it saw, negative ones included (the shipped dribble duration tree at 0.01 % of
+uniform points of its training box, down to -0.44 s). Models saved by version 1, without
+these fields, are read with the physical floor of 0 s and no ceiling.
 """
 
 import dataclasses
@@ -32,7 +39,8 @@ from repertoire.planning.refinement import json_array
 from repertoire.checks import check_seed, is_real, is_whole
 from repertoire.errors import RepertoireError
 
-MODEL_VERSION = 1
+MODEL_VERSION = 2
+READ_VERSIONS = (1, 2)  # version 1: leaves without target_min / target_max
 MIN_EPISODES = 20  # fewer episodes cannot give a 3/4 training part with two leaves of 5
 KINDS = ("duration", "failure")
 
@@ -48,6 +56,9 @@ class LeafBox:
         intercept: the hyperplane's intercept (the failure probability for a
             failure tree).
         samples: training episodes in the leaf.
+        target_min: the least value the leaf predicts: the smallest target of its
+            training episodes (its hyperplane is clamped to ``[target_min, target_max]``).
+        target_max: the largest value the leaf predicts: its episodes' largest target.
     """
 
     lower: list[float]
@@ -55,6 +66,8 @@ class LeafBox:
     coef: list[float]
     intercept: float
     samples: int
+    target_min: float = -math.inf
+    target_max: float = math.inf
 
 
 @dataclasses.dataclass
@@ -116,6 +129,8 @@ class TreeModel:
                 "leaf_of_node": np.asarray(self.leaf_of_node, dtype=int),
                 "coef": np.array([leaf.coef for leaf in self.leaves], dtype=float),
                 "intercept": np.array([leaf.intercept for leaf in self.leaves], dtype=float),
+                "target_min": np.array([leaf.target_min for leaf in self.leaves], dtype=float),
+                "target_max": np.array([leaf.target_max for leaf in self.leaves], dtype=float),
                 "train_min": np.asarray(self.train_min, dtype=float),
                 "train_max": np.asarray(self.train_max, dtype=float),
             }
@@ -139,11 +154,15 @@ class TreeModel:
         return a["leaf_of_node"][node]
 
     def predict(self, X) -> np.ndarray:
-        """Duration (or failure probability) per row, from the leaf's hyperplane."""
+        """Duration (or failure probability) per row, from the leaf's hyperplane.
+
+        The hyperplane is clamped to the leaf's ``[target_min, target_max]``.
+        """
         X = self._check_x(X)
         idx = self.leaf_index(X)
         a = self._arrays()
-        return np.einsum("ij,ij->i", X, a["coef"][idx]) + a["intercept"][idx]
+        linear = np.einsum("ij,ij->i", X, a["coef"][idx]) + a["intercept"][idx]
+        return np.clip(linear, a["target_min"][idx], a["target_max"][idx])
 
     def predict_failure(self, X) -> np.ndarray:
         """True where a failure tree predicts failure."""
@@ -179,6 +198,8 @@ class TreeModel:
                     f"{c:+.3g}*{n}" for c, n in zip(leaf.coef, self.feature_names) if c != 0
                 )
                 then = f"duration = {leaf.intercept:.3g} {terms}".rstrip()
+                if math.isfinite(leaf.target_min) or math.isfinite(leaf.target_max):
+                    then += f", within [{leaf.target_min:.3g}, {leaf.target_max:.3g}]"
             lines.append(f"rule {k} [{leaf.samples} episodes]: if {cond} then {then}")
         return "\n".join(lines)
 
@@ -249,9 +270,11 @@ def _extract(sk_tree, feature_names, X, leaf_models, kind, threshold_probability
     while stack:
         node, lo, hi = stack.pop()
         if t.children_left[node] < 0:
-            coef, icpt, n = leaf_models[node]
+            coef, icpt, n, t_min, t_max = leaf_models[node]
             leaf_of_node[node] = len(leaves)
-            leaves.append(LeafBox(lo.tolist(), hi.tolist(), list(map(float, coef)), icpt, n))
+            leaves.append(
+                LeafBox(lo.tolist(), hi.tolist(), list(map(float, coef)), icpt, n, t_min, t_max)
+            )
             continue
         f, thr = int(t.feature[node]), float(t.threshold[node])
         hi_l = hi.copy()
@@ -276,7 +299,8 @@ def _extract(sk_tree, feature_names, X, leaf_models, kind, threshold_probability
     )
 
 
-def _linear_leaves(sk_tree, X, y, ridge: float) -> dict[int, tuple[np.ndarray, float, int]]:
+def _linear_leaves(sk_tree, X, y, ridge: float) -> dict[int, tuple]:
+    """Per leaf node: the hyperplane's (coef, intercept), its episodes and their target range."""
     node = sk_tree.apply(X)
     out = {}
     for leaf in np.unique(node):
@@ -289,7 +313,13 @@ def _linear_leaves(sk_tree, X, y, ridge: float) -> dict[int, tuple[np.ndarray, f
             coef = np.linalg.solve(A, Xc.T @ (yl - yl.mean()))
         else:  # least squares; the minimum-norm fit if the leaf's design is singular
             coef = np.linalg.lstsq(Xc, yl - yl.mean(), rcond=None)[0]
-        out[int(leaf)] = (coef, float(yl.mean() - mu @ coef), int(m.sum()))
+        out[int(leaf)] = (
+            coef,
+            float(yl.mean() - mu @ coef),
+            int(m.sum()),
+            float(yl.min()),
+            float(yl.max()),
+        )
     return out
 
 
@@ -416,7 +446,7 @@ def fit_failure_tree(
     d = X.shape[1]
     for leaf in np.unique(node):
         m = node == leaf
-        leaves[int(leaf)] = (np.zeros(d), float(y[m].mean()), int(m.sum()))
+        leaves[int(leaf)] = (np.zeros(d), float(y[m].mean()), int(m.sum()), 0.0, 1.0)
     return _extract(tree, feature_names, X, leaves, "failure", 1.0 / (1.0 + failure_cost))
 
 
@@ -434,7 +464,7 @@ def save_model(model: TreeModel, path: str | Path) -> Path:
     path = Path(path)
     data = dataclasses.asdict(model)
     for leaf in data["leaves"]:
-        for key in ("lower", "upper"):
+        for key in ("lower", "upper", "target_min", "target_max"):
             leaf[key] = json_array(leaf[key])
     try:
         text = json.dumps(data, allow_nan=False)
@@ -475,9 +505,10 @@ def load_model(path: str | Path) -> TreeModel:
         raise RepertoireError(f"cannot read action model '{path}': {e}") from e
     if not isinstance(data, dict):
         raise RepertoireError(f"action model '{path}' is not a JSON object")
-    if data.get("version") != MODEL_VERSION:
+    version = data.get("version")
+    if version not in READ_VERSIONS:
         raise RepertoireError(
-            f"action model '{path}' has version {data.get('version')!r}; this code reads "
+            f"action model '{path}' has version {version!r}; this code reads "
             f"version {MODEL_VERSION}: refit the model"
         )
     missing = [k for k in _REQUIRED if k not in data]
@@ -490,6 +521,15 @@ def load_model(path: str | Path) -> TreeModel:
         for leaf in data["leaves"]:
             leaf.lower = _leaf_bounds(leaf.lower, path)
             leaf.upper = _leaf_bounds(leaf.upper, path)
+            if version == 1:  # no targets saved: a duration is never negative
+                t_min, t_max = (0.0, math.inf) if data["kind"] == "duration" else (0.0, 1.0)
+            else:
+                t_min, t_max = _leaf_bounds([leaf.target_min, leaf.target_max], path)
+            if not t_min <= t_max:
+                raise RepertoireError(
+                    f"action model '{path}' has a leaf with target_min {t_min} > target_max {t_max}"
+                )
+            leaf.target_min, leaf.target_max = t_min, t_max
     except TypeError as e:
         raise RepertoireError(f"action model '{path}' has a malformed leaf: {e}") from e
     n = len(data["feature"])
@@ -500,6 +540,7 @@ def load_model(path: str | Path) -> TreeModel:
         _check_structure(data, path)
     except TypeError as e:
         raise RepertoireError(f"action model '{path}' has a field of the wrong type: {e}") from e
+    data["version"] = MODEL_VERSION  # read into this version's fields
     return TreeModel(**data)
 
 

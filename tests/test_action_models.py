@@ -180,6 +180,8 @@ def test_out_of_range_flag_and_nan():
     assert flags.tolist() == [False, True, True]
     with pytest.raises(RepertoireError, match=r"\['b'\].*NaN"):
         m.predict([[0.0, np.nan]])
+    with pytest.raises(RepertoireError, match=r"features must be numbers, rows of \['a', 'b'\]"):
+        m.predict([0.5, "x"])
 
 
 def test_too_few_episodes_and_nan_training():

@@ -104,7 +104,12 @@ class TreeModel:
     version: int = MODEL_VERSION
 
     def _check_x(self, X) -> np.ndarray:
-        X = np.asarray(X, dtype=float)
+        try:
+            X = np.asarray(X, dtype=float)
+        except (TypeError, ValueError) as e:
+            raise RepertoireError(
+                f"features must be numbers, rows of {self.feature_names}: {e}"
+            ) from e
         if X.ndim == 1:
             X = X[None, :]
         if X.ndim != 2 or X.shape[1] != len(self.feature_names):

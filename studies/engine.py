@@ -44,6 +44,8 @@ from typing import Any
 
 from repertoire.studies.engine_dask import (
     DASK_CONNECT_TIMEOUT_S,
+    DASK_WORKER_WAIT_S,
+    check_wait_s,
     connect_dask,
     iter_dask,
     parse_scheduler_address,
@@ -225,6 +227,7 @@ def run_study(
     progress: bool = True,
     summarize: bool = True,
     dask_timeout_s: float = DASK_CONNECT_TIMEOUT_S,
+    dask_worker_wait_s: float = DASK_WORKER_WAIT_S,
 ) -> StudyResult:
     """Runs the missing seeds of a study, stores every record, writes summaries.
 
@@ -245,6 +248,9 @@ def run_study(
         progress: show a tqdm progress bar with rate and ETA.
         summarize: write tables and figures (False: only run and store).
         dask_timeout_s: how long to try to reach the Dask scheduler.
+        dask_worker_wait_s: how long seeds may wait for a Dask worker when
+            every worker has left mid-run (one that joins runs them) before the
+            run stops with an EpisodeError.
 
     Returns:
         The :class:`StudyResult`.
@@ -255,7 +261,8 @@ def run_study(
             (unless ``fresh``), an unreachable Dask scheduler, a record of the
             wrong type.
         UnknownNameError: ``name`` is not a registered study.
-        EpisodeError: ``run_episode`` raised (finished episodes stay stored).
+        EpisodeError: ``run_episode`` raised, or every Dask worker left for
+            ``dask_worker_wait_s`` (finished episodes stay stored).
     """
     t_start = time.perf_counter()
     episodes = _check_int("--episodes (episodes)", episodes, 1)
@@ -272,6 +279,9 @@ def run_study(
         raise RepertoireError(f"executor must be one of {list(EXECUTORS)}, got {executor!r}")
     if workers is not None:
         workers = _check_int("--workers (workers)", workers, 1)
+    if executor == "dask":
+        dask_timeout_s = check_wait_s("dask_timeout_s", dask_timeout_s)
+        dask_worker_wait_s = check_wait_s("dask_worker_wait_s", dask_worker_wait_s)
     entry = get_study(name)
     if config is None:
         config = entry.default_config()
@@ -350,7 +360,9 @@ def run_study(
             elif executor == "process":
                 results = pool.run(missing) if missing else iter([])
             else:
-                results = iter_dask(client, entry.module, name, config_json, missing)
+                results = iter_dask(
+                    client, entry.module, name, config_json, missing, dask_worker_wait_s
+                )
             try:
                 _store_results(name, db, results, len(present), episodes, progress)
             except RepertoireError:

@@ -3,12 +3,17 @@
 The scheduler address is parsed before any connection is tried, so a typo is
 a one-line error naming the expected form rather than a timeout. Tasks are
 :func:`repertoire.studies.engine_pool.run_task` calls with plain arguments;
-a bounded window of submitted seeds keeps the scheduler's load flat. dask is
-imported only when a study runs on it.
+a bounded window of submitted seeds keeps the scheduler's load flat. When every
+worker has left mid-run the seeds wait on the scheduler for one to join (they
+resume there); after ``worker_wait_s`` without one the run stops with a one-line
+error (finished episodes stay stored). dask is imported only when a study runs on it.
 """
 
+import math
+import numbers
 import re
 import threading
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -19,6 +24,10 @@ from repertoire.errors import RepertoireError
 DASK_CONNECT_TIMEOUT_S = 3.0
 CONNECT_GRACE_S = 2.0  # past the Client's own timeout, before a connection is given up
 WINDOW_PER_WORKER = 4  # seeds submitted ahead per worker thread
+# How long seeds wait for a worker when every worker has left mid-run (one may rejoin,
+# e.g. a restarted machine), before the run stops; the poll is a quarter of it, at most 1 s.
+DASK_WORKER_WAIT_S = 60.0
+IDLE_POLL_S = 0.02  # sleep between looks at finished seeds while none is
 
 
 _ADDRESS = re.compile(r"^(tcp|tls|ws|wss|ucx)://(\[[0-9a-fA-F:]+\]|[A-Za-z0-9._-]+):(\d{1,5})$")
@@ -47,6 +56,18 @@ def parse_scheduler_address(address: Any) -> str:
     if m is None or not 1 <= int(m.group(3)) <= 65535:
         raise RepertoireError(f"--scheduler {address!r} is not a Dask address; {example}")
     return address
+
+
+def check_wait_s(label: str, value: Any) -> float:
+    """``value`` as a float number of seconds, finite and > 0, or an error naming ``label``."""
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, numbers.Real)
+        or not math.isfinite(value)
+        or value <= 0
+    ):
+        raise RepertoireError(f"{label} must be a finite number of seconds > 0, got {value!r}")
+    return float(value)
 
 
 def connect_dask(scheduler_address: str, timeout_s: float = DASK_CONNECT_TIMEOUT_S):
@@ -127,17 +148,57 @@ def _client_within(client_type: Any, address: str, timeout_s: float):
     return outcome["client"]
 
 
-def iter_dask(client, module: str, name: str, config_json: str, seeds: list[int]) -> Iterator[dict]:
+def _no_worker_reason(client) -> str | None:
+    """None when the scheduler has a worker, else why no episode can run now.
+
+    A scheduler that is gone fails within dask's connect timeout; a slow answer
+    (a busy event loop) is not taken for no worker.
+    """
+    try:
+        threads = client.nthreads()
+    except Exception as e:  # noqa: BLE001  (a lost scheduler: counted as no worker)
+        return f"the scheduler did not answer: {type(e).__name__}"
+    return None if threads else "every worker left"
+
+
+def iter_dask(
+    client,
+    module: str,
+    name: str,
+    config_json: str,
+    seeds: list[int],
+    worker_wait_s: float = DASK_WORKER_WAIT_S,
+) -> Iterator[dict]:
+    """Runs ``seeds`` on the Dask cluster of ``client``, yielding each record as it finishes.
+
+    Args:
+        client: a connected ``dask.distributed.Client``.
+        module: the study's module (imported by the workers).
+        name: the study's name.
+        config_json: the study's config as canonical JSON.
+        seeds: the seeds to run.
+        worker_wait_s: how long unfinished seeds may wait with no worker on the
+            scheduler (every worker left) before the run stops.
+
+    Raises:
+        EpisodeError: a seed's task failed on the cluster (KilledWorker, ...), or
+            no worker was there for ``worker_wait_s`` with seeds left to run
+            (names the wait, the seeds left and the scheduler).
+    """
     import uuid
 
     from distributed import as_completed
 
+    worker_wait_s = check_wait_s("worker_wait_s", worker_wait_s)
+    poll_s = min(1.0, worker_wait_s / 4)
     token = uuid.uuid4().hex[:8]
     todo = iter(seeds)
     seed_of: dict = {}
     threads = sum(client.nthreads().values()) or 1
     window = max(64, threads * WINDOW_PER_WORKER)
-    ac = as_completed(loop=client.loop)
+    # with_results: a result is gathered on dask's event loop, so one that left with its
+    # worker (the task runs again) waits there, never on this thread
+    ac = as_completed(loop=client.loop, with_results=True, raise_errors=False)
 
     def submit_next() -> None:
         seed = next(todo, None)
@@ -151,16 +212,43 @@ def iter_dask(client, module: str, name: str, config_json: str, seeds: list[int]
         # A bounded window of submitted seeds keeps the scheduler's load flat.
         for _ in range(window):
             submit_next()
-        for fut in ac:
-            try:
-                result = fut.result()
-            except Exception as e:  # KilledWorker, lost scheduler, ...
+        last_check = time.monotonic()
+        no_worker_since = None  # monotonic time the scheduler was first seen without one
+        while seed_of:
+            batch = ac.next_batch(block=False)
+            for fut, result in batch:
+                # run_task returns a dict; anything else is how dask says the task failed
+                # (KilledWorker, cancelled, lost scheduler, ...). Not fut.status: a result
+                # in hand whose worker left since is "lost" there, and runs again.
+                if not isinstance(result, dict):
+                    error = result[1] if isinstance(result, tuple) else result
+                    raise EpisodeError(
+                        f"study '{name}': the Dask cluster could not run seed {seed_of[fut]} "
+                        f"({type(error).__name__}: {error}); finished episodes are stored, "
+                        "rerun to resume"
+                    )
+                del seed_of[fut]
+                submit_next()
+                yield result
+            now = time.monotonic()
+            if batch:
+                last_check, no_worker_since = now, None
+                continue
+            time.sleep(IDLE_POLL_S)
+            if now - last_check < poll_s:
+                continue
+            last_check = now
+            why = _no_worker_reason(client)
+            if why is None:
+                no_worker_since = None
+                continue
+            no_worker_since = now if no_worker_since is None else no_worker_since
+            if now - no_worker_since >= worker_wait_s:
+                left = len(seed_of) + sum(1 for _ in todo)
                 raise EpisodeError(
-                    f"study '{name}': the Dask cluster could not run seed {seed_of[fut]} "
-                    f"({type(e).__name__}: {e}); finished episodes are stored, rerun to resume"
-                ) from e
-            del seed_of[fut]
-            submit_next()
-            yield result
+                    f"study '{name}': no Dask worker for {worker_wait_s:g} s ({why}) with "
+                    f"{left} seeds left to run; finished episodes are stored; start "
+                    f"`dask worker {client.scheduler.address}` and rerun to resume"
+                )
     finally:
         client.cancel(list(seed_of))

@@ -1,15 +1,26 @@
-"""The study engine's Dask executor: a scheduler that is not there, not a scheduler, or
-without workers is a one-line error within the timeout, not a hang, and writes no store."""
+"""The study engine's Dask executor: a scheduler that is not there, not a scheduler,
+without workers, or whose workers all leave mid-run is a one-line error within its
+timeout, not a hang (a worker that joins meanwhile runs the seeds), and writes no store."""
 
 import contextlib
+import re
 import signal
 import socket
+import time
 
 import pytest
-from repertoire.studies.engine import run_study
+from repertoire.studies.engine import run_study, study_names
 from repertoire.studies.pendulum import smoke_config
 
 from repertoire.errors import RepertoireError
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _studies_imported():
+    """Imports the study modules before any test's hang alarm: under load that takes
+    longer than the alarm, which would then interrupt an import (the registry reports
+    the module as failed and leaves it out)."""
+    study_names()
 
 
 def _kw(tmp_path):
@@ -93,3 +104,98 @@ def test_a_dask_scheduler_without_workers_is_a_clear_error_not_a_hang(tmp_path):
         f"no episode would run; start one with `dask worker {address}`, or use --executor process"
     )
     assert not (tmp_path / "s.sqlite").exists()
+
+
+def _quick_task(module: str, name: str, config_json: str, seed: int) -> dict:
+    """A stand-in for an episode's task (what ``run_task`` returns for ``seed``), instant."""
+    return {"seed": seed, "record": {}, "episode_s": 0.0, "cpu_s": 0.0, "worker": 0}
+
+
+@contextlib.contextmanager
+def _one_worker_cluster():
+    """A scheduler with one in-process worker, its cluster and a client."""
+    distributed = pytest.importorskip("distributed", reason="dask.distributed not installed")
+    with distributed.LocalCluster(
+        n_workers=1,
+        threads_per_worker=1,
+        processes=False,
+        dashboard_address=None,
+        protocol="tcp://",
+    ) as cluster:
+        with distributed.Client(cluster, set_as_default=False) as client:
+            yield cluster, client
+
+
+def _scale_to(cluster, client, n: int) -> None:
+    """Scales ``cluster`` to ``n`` workers and waits until the scheduler has ``n``."""
+    cluster.scale(n)
+    while len(client.nthreads()) != n:
+        time.sleep(0.05)
+
+
+def test_every_dask_worker_leaving_mid_run_is_a_clear_error_not_a_hang(monkeypatch):
+    from repertoire.studies import engine_dask
+    from repertoire.studies.engine_pool import EpisodeError
+
+    monkeypatch.setattr(engine_dask, "run_task", _quick_task)
+    seeds = list(range(150))  # more than the window: some are submitted after workers left
+    with _no_hang(120, "every worker leaving mid-run"), _one_worker_cluster() as (cluster, client):
+        results = engine_dask.iter_dask(client, "m", "pendulum", "{}", seeds, worker_wait_s=0.5)
+        got = [next(results)["seed"]]
+        _scale_to(cluster, client, 0)  # every worker leaves; seeds are left on the scheduler
+        with pytest.raises(EpisodeError) as error:
+            got.extend(r["seed"] for r in results)
+        address = cluster.scheduler_address
+    m = re.fullmatch(
+        r"study 'pendulum': no Dask worker for 0\.5 s \(every worker left\) with (\d+) seeds "
+        r"left to run; finished episodes are stored; start `dask worker (\S+)` and rerun to "
+        r"resume",
+        str(error.value),
+    )
+    assert m is not None, str(error.value)
+    assert m.group(2) == address
+    # every seed was either yielded (once) or is counted as left
+    assert len(set(got)) == len(got) and int(m.group(1)) == len(seeds) - len(got) > 0
+
+
+def test_seeds_resume_on_a_worker_that_joins_after_every_worker_left(monkeypatch):
+    from repertoire.studies import engine_dask
+
+    monkeypatch.setattr(engine_dask, "run_task", _quick_task)
+    seeds = list(range(150))
+    with _no_hang(120, "a worker rejoining"), _one_worker_cluster() as (cluster, client):
+        results = engine_dask.iter_dask(client, "m", "pendulum", "{}", seeds, worker_wait_s=30.0)
+        got = [next(results)["seed"]]
+        _scale_to(cluster, client, 0)
+        _scale_to(cluster, client, 1)  # a worker elsewhere takes the waiting seeds
+        got.extend(r["seed"] for r in results)
+    assert sorted(got) == seeds
+
+
+@pytest.mark.parametrize("bad", [0, -1.0, float("nan"), float("inf"), "60", True])
+def test_a_bad_dask_worker_wait_is_a_clear_error_before_any_connection(tmp_path, bad):
+    with pytest.raises(RepertoireError) as error:
+        _run_on("tcp://127.0.0.1:1", tmp_path, dask_worker_wait_s=bad)
+    assert str(error.value) == (
+        f"dask_worker_wait_s must be a finite number of seconds > 0, got {bad!r}"
+    )
+    assert not (tmp_path / "s.sqlite").exists()
+
+
+def _failing_task(module: str, name: str, config_json: str, seed: int) -> dict:
+    """A task that fails on the cluster itself (as a KilledWorker does), not in the episode."""
+    raise OSError(f"worker gone on seed {seed}")
+
+
+def test_a_task_that_fails_on_the_cluster_names_its_seed(monkeypatch):
+    from repertoire.studies import engine_dask
+    from repertoire.studies.engine_pool import EpisodeError
+
+    monkeypatch.setattr(engine_dask, "run_task", _failing_task)
+    with _no_hang(120, "a failing task"), _one_worker_cluster() as (_, client):
+        with pytest.raises(EpisodeError) as error:
+            list(engine_dask.iter_dask(client, "m", "pendulum", "{}", [7], worker_wait_s=30.0))
+    assert str(error.value) == (
+        "study 'pendulum': the Dask cluster could not run seed 7 (OSError: worker gone on "
+        "seed 7); finished episodes are stored, rerun to resume"
+    )

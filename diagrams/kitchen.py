@@ -303,7 +303,9 @@ def build_kitchen_action(
             builder.Connect(action.get_command_output_port(), mux.get_input_port(2))
             hold(1)
         else:
-            action = builder.AddSystem(Put(period, obstacles=KITCHEN_OBSTACLES))
+            put = Put(period, cup_half_height=CUP_HALF_HEIGHT, cup_radius=CUP_RADIUS,
+                      obstacles=KITCHEN_OBSTACLES)  # fmt: skip
+            action = builder.AddSystem(put)
             demux = builder.AddSystem(MatrixGain(np.eye(5)[:3]))
             demux.set_name("put_arm_command")
             demux_f = builder.AddSystem(MatrixGain(np.eye(5)[3:]))

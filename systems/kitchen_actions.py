@@ -115,6 +115,27 @@ def point_in_boxes(p, boxes, margin: float = 0.0) -> int:
     return -1
 
 
+def support_under(p, boxes, radius: float, max_drop: float) -> int:
+    """Index of the first obstacle box whose top holds a disc put down at ``p``, else -1.
+
+    The disc (a cup's bottom, centre ``p``) lies wholly within the box's top
+    rectangle and at most ``max_drop`` above the top (not below it).
+
+    Args:
+        p: ``[x, y, z]`` of the disc's centre (world).
+        boxes: ``(k, 6)`` boxes as in :func:`point_in_boxes`.
+        radius: the disc's radius [m].
+        max_drop: largest height of the disc above the top [m].
+    """
+    for i, (cx, cy, yaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = p[0] - cx, p[1] - cy
+        u, w = c * dx + s * dy, -s * dx + c * dy
+        if abs(u) <= hx - radius and abs(w) <= hy - radius and 0.0 <= p[2] - top <= max_drop:
+            return i
+    return -1
+
+
 def _check_boxes(boxes) -> np.ndarray:
     b = np.asarray(boxes if boxes is not None else np.zeros((0, 6)), dtype=float)
     if b.size % 6 or not np.all(np.isfinite(b)):
@@ -349,7 +370,12 @@ class Put(_Action):
     closed, 1 lower to the target, 2 open the fingers; succeeds when both are
     measured open. Fails at once if the target or the point above it is out of
     reach, or the cup's bottom (``cup_half_height`` below the target) would be
-    inside an obstacle box by more than ``margin``.
+    inside an obstacle box by more than ``margin``. With obstacles given, it
+    also fails at once unless the cup would stand on one of them: its bottom
+    (a disc of ``cup_radius``) wholly on a box's top and at most ``max_drop``
+    above it (:func:`support_under`); a cup let go in the air falls to the floor
+    (measured: a cup let go beside a table, or with its bottom 1.1 cm over the
+    table's edge, fell to the floor while the fingers opened as commanded).
     """
 
     def __init__(
@@ -359,6 +385,8 @@ class Put(_Action):
         speeds=ARM_SPEEDS,
         clearance: float = 0.05,
         cup_half_height: float = 0.05,
+        cup_radius: float = 0.04,
+        max_drop: float = 0.02,
         tolerance: float = 0.01,
         timeout: float = 15.0,
         obstacles=None,
@@ -366,6 +394,8 @@ class Put(_Action):
     ):
         """Creates the action (arguments as in the class docstring and :class:`Reach`)."""
         super().__init__(period, timeout, 5, obstacles, margin)
+        _check_positive(cup_radius=cup_radius, max_drop=max_drop)
+        self.cup_radius, self.max_drop = cup_radius, max_drop
         self.speeds = np.asarray(speeds, dtype=float)
         if self.speeds.shape != (3,) or not np.all(np.isfinite(self.speeds) & (self.speeds > 0)):
             raise RepertoireError(f"speeds must be 3 finite values > 0, got {speeds}")
@@ -403,7 +433,12 @@ class Put(_Action):
         if arm_inverse(above) is None or arm_inverse(target) is None:
             return False
         bottom = target - [0.0, 0.0, self.cup_half_height]
-        return self.inside_obstacle(context, bottom + [0.0, 0.0, self.margin]) < 0
+        if self.inside_obstacle(context, bottom + [0.0, 0.0, self.margin]) >= 0:
+            return False
+        if len(self._boxes) == 0:
+            return True  # no world given: nothing to stand on is known
+        p = chassis_to_world(self._base_port.Eval(context), bottom)
+        return support_under(p, self._boxes, self.cup_radius, self.max_drop) >= 0
 
     def step(self, context, command, phase, time_in_phase):
         above, target = self._waypoints(context)

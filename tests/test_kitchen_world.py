@@ -13,7 +13,7 @@ from repertoire.diagrams.kitchen import (
     world_to_chassis,
 )
 from repertoire.systems.go_to_pose import ActionStatus
-from repertoire.systems.kitchen_actions import arm_inverse, chassis_to_world
+from repertoire.systems.kitchen_actions import arm_forward, arm_inverse, chassis_to_world
 
 from repertoire.errors import RepertoireError, ScenarioError
 
@@ -71,6 +71,21 @@ def test_pose_inside_a_table_fails_at_once():
     # a reach into the table top
     diagram, context = _run(KitchenScenario(arm_target=[0.85, 0.0, 0.6]), 2.0)
     assert action_status(diagram, context) == ActionStatus.FAILED
+
+
+def test_put_in_the_air_fails_at_once_and_keeps_the_cup():
+    # the default pose faces table_0, its edge 0.35 m ahead of the axle; the held cup at
+    # 0.35 m: a put 0.05 m before the edge (it fell to the floor, SUCCEEDED) or 0.03 m
+    # behind it (its bottom 1 cm over the edge: it tipped off) is refused
+    start = [0.5436, 0.0, 0.30]
+    for x in (0.30, 0.38):
+        scenario = KitchenScenario(action="put", initial_arm=start, cup_in_gripper=True,
+                                   arm_target=[x, 0.0, 0.7036], cups=["cup_0"])  # fmt: skip
+        diagram, context = _run(scenario, 2.0)
+        assert action_status(diagram, context) == ActionStatus.FAILED
+        assert context.get_time() == pytest.approx(0.1)
+        held = chassis_to_world([2.0, 0.55, np.pi / 2], arm_forward(start))
+        np.testing.assert_allclose(cup_position(diagram, context), held, atol=0.01)
 
 
 def test_bad_scenarios_are_named():

@@ -19,6 +19,7 @@ from repertoire.diagrams.soccer import (
     BALL_POSITION,
     add_soccer_robot,
     build_driven,
+    check_target_clear,
     robot_state,
     set_initial_speed,
 )
@@ -73,6 +74,7 @@ class SoccerPlanScenario:
         for i, t in enumerate(self.targets):
             if len(t) != 4 or not np.all(np.isfinite(t)):
                 raise ScenarioError(f"targets[{i}] must be 4 finite values, got {t}")
+            check_target_clear(t, f"targets[{i}]")
         validate_discrete_control_fields(self)
         if self.action_gains and len(self.action_gains) != len(self.targets):
             raise ScenarioError(

@@ -220,6 +220,12 @@ def test_soccer_goto_pose_reaches_its_pose():
     assert figures["position_error_m"] < 0.1
     with pytest.raises(ScenarioError, match="target"):
         build_soccer_goto_pose(GoToPoseScenario(target=[0, 0, 0]))
+    # the footprint disc (0.32 m) on a post (radius 0.05 m) or a net: refused, named
+    for target in ([3.0, 0.75, 0.0, 0.0], [2.75, 0.5, 0.0, 0.0], [-3.1, 0.0, 0.0, 0.0]):
+        with pytest.raises(ScenarioError, match=r"target \[.*\] puts the robot .* goal post"):
+            build_soccer_goto_pose(GoToPoseScenario(target=target))
+    # 0.37 m from the post's centre is clear
+    build_soccer_goto_pose(GoToPoseScenario(target=[3.0, 0.75 - 0.371, 0.0, 0.0]))
 
 
 def test_predictor_exact_outputs():

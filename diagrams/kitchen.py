@@ -474,7 +474,8 @@ class StepResult:
 
     Attributes:
         action: the action name.
-        status: the final ActionStatus name.
+        status: the final ActionStatus name (``TIMED_OUT`` also when the step was
+            still running at the sequence's ``step_limit``).
         duration: simulated time the step took [s].
     """
 
@@ -503,7 +504,8 @@ def run_kitchen_sequence(
             in the *world* (converted to the chassis frame at the step's start),
             ``grip`` with ``[]``.
         scenario: the start (pose, arm, fingers) and plant settings.
-        step_limit: simulated seconds allowed per step.
+        step_limit: simulated seconds allowed per step; a step still running then
+            ends the sequence as ``TIMED_OUT``.
 
     Returns:
         ``(results, diagram, context)`` of the executed steps and the last step.
@@ -511,6 +513,8 @@ def run_kitchen_sequence(
     from pydrake.systems.analysis import Simulator
     from repertoire.diagrams.soccer import robot_state
 
+    if not (math.isfinite(step_limit) and step_limit > 0):
+        raise ScenarioError(f"step_limit must be finite and > 0 s, got {step_limit}")
     base = dataclasses.replace(scenario or KitchenScenario())
     results: list[StepResult] = []
     x = None
@@ -537,6 +541,8 @@ def run_kitchen_sequence(
             t += 0.1
             simulator.AdvanceTo(t)
         status = action_status(diagram, context)
+        if status == ActionStatus.RUNNING:  # cut off at step_limit: the sequence timed out
+            status = ActionStatus.TIMED_OUT
         results.append(StepResult(action, status.name, float(context.get_time())))
         x = plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(context)).copy()
         # the next step holds what this one commanded

@@ -167,6 +167,13 @@ def test_sequence_grips_lifts_and_puts_the_cup_elsewhere():
     assert [(r.action, r.status) for r in results] == [("reach", "FAILED")]
     with pytest.raises(ScenarioError, match="unknown action 'jump'"):
         run_kitchen_sequence([("jump", [])])
+    # a step still running at step_limit ends the sequence as timed out (was 'RUNNING')
+    steps = [("reach", [2.0, 1.2, 0.95]), ("grip", [])]
+    results, _, _ = run_kitchen_sequence(steps, KitchenScenario(cups=[]), step_limit=0.5)
+    assert [(r.action, r.status, r.duration) for r in results] == [("reach", "TIMED_OUT", 0.5)]
+    for limit in (0.0, float("nan")):
+        with pytest.raises(ScenarioError, match="step_limit must be finite and > 0 s, got"):
+            run_kitchen_sequence(steps, step_limit=limit)
 
 
 def test_simulator_cache_keeps_at_most_max_size_diagrams():

@@ -456,12 +456,43 @@ def gripper_position(diagram: Diagram, context: Context) -> np.ndarray:
     return plant.EvalBodyPoseInWorld(plant.GetMyContextFromRoot(context), body).translation()
 
 
-def check_kitchen_action(diagram: Diagram, context: Context) -> dict[str, float]:
-    """Figures: ``status_succeeded`` (1/0), ``gripper_to_cup_m`` (cup_0 from the gripper centre).
+def furniture_and_robot_bodies(plant) -> tuple[set, set]:
+    """Body indices of the kitchen's furniture (room walls, counter, tables) and of the robot."""
+    furniture = {plant.GetBodyByName(name).index() for name in ("room", "counter")}
+    furniture |= {
+        plant.GetBodyByName("table", plant.GetModelInstanceByName(t)).index()
+        for t in ("table_0", "table_1")
+    }
+    robot = set(plant.GetBodyIndices(plant.GetModelInstanceByName("diffdrive_arm")))
+    return furniture, robot
 
-    ``gripper_to_cup_m`` only if cup_0 is in the world.
+
+def touches(contact_results, bodies_a: set, bodies_b: set) -> bool:
+    """True if a point contact of ``contact_results`` joins a body of each set."""
+    for i in range(contact_results.num_point_pair_contacts()):
+        info = contact_results.point_pair_contact_info(i)
+        a, b = info.bodyA_index(), info.bodyB_index()
+        if (a in bodies_a and b in bodies_b) or (b in bodies_a and a in bodies_b):
+            return True
+    return False
+
+
+def check_kitchen_action(diagram: Diagram, context: Context) -> dict[str, float]:
+    """The world's figures at the end of a run.
+
+    ``status_succeeded`` (1/0), ``still_running`` (1/0: the action had not ended, a
+    longer run may still succeed), ``touching_furniture`` (1/0: the robot touches a
+    table, the counter or a wall, e.g. GoToPose pushing against a table leg) and
+    ``gripper_to_cup_m`` (cup_0 from the gripper centre; only if cup_0 is in the world).
     """
-    figures = {"status_succeeded": float(action_status(diagram, context) == ActionStatus.SUCCEEDED)}
+    status = action_status(diagram, context)
+    plant = diagram.GetSubsystemByName("plant")
+    contacts = plant.get_contact_results_output_port().Eval(plant.GetMyContextFromRoot(context))
+    figures = {
+        "status_succeeded": float(status == ActionStatus.SUCCEEDED),
+        "still_running": float(status == ActionStatus.RUNNING),
+        "touching_furniture": float(touches(contacts, *furniture_and_robot_bodies(plant))),
+    }
     if diagram.GetSubsystemByName("plant").HasModelInstanceNamed("cup_0"):
         gap = cup_position(diagram, context) - gripper_position(diagram, context)
         figures["gripper_to_cup_m"] = float(np.linalg.norm(gap))

@@ -286,12 +286,18 @@ def robot_state(diagram: Diagram, context: Context) -> np.ndarray:
 
 
 def check_goto_pose(diagram: Diagram, context: Context) -> dict[str, float]:
-    """Figures: ``status_succeeded`` (1/0), ``position_error_m``, ``heading_error_rad``."""
+    """The world's figures at the end of a run.
+
+    ``status_succeeded`` (1/0), ``still_running`` (1/0: the action had not ended, a
+    longer run may still succeed), ``position_error_m``, ``heading_error_rad``.
+    """
     target = diagram.GetSubsystemByName("target")
     goal = target.get_output_port().Eval(target.GetMyContextFromRoot(context))
     s = robot_state(diagram, context)
+    status = goto_status(diagram, context)
     return {
-        "status_succeeded": float(goto_status(diagram, context) == ActionStatus.SUCCEEDED),
+        "status_succeeded": float(status == ActionStatus.SUCCEEDED),
+        "still_running": float(status == ActionStatus.RUNNING),
         "position_error_m": float(np.hypot(goal[0] - s[0], goal[1] - s[1])),
         "heading_error_rad": float(abs(np.angle(np.exp(1j * (goal[2] - s[2]))))),
     }

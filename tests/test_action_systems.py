@@ -178,6 +178,10 @@ def test_soccer_goto_pose_reaches_a_target_speed_behind_it():
     assert goto_status(diagram, ctx) == ActionStatus.SUCCEEDED
     figures = check_goto_pose(diagram, ctx)
     assert figures["position_error_m"] < 0.1 and figures["heading_error_rad"] < 0.2
+    assert (figures["status_succeeded"], figures["still_running"]) == (1.0, 0.0)
+    # at the start the action has not ended: still running, not (yet) succeeded
+    figures = check_goto_pose(diagram, diagram.CreateDefaultContext())
+    assert (figures["status_succeeded"], figures["still_running"]) == (0.0, 1.0)
 
 
 def test_goto_pose_target_off_field_fails_without_motion():

@@ -109,7 +109,20 @@ def test_cups_field_loads_only_the_named_cups():
     assert plant.HasModelInstanceNamed("cup_2") and not plant.HasModelInstanceNamed("cup_0")
     assert plant.num_velocities() == 13 + 6  # the robot and one free cup
     figures = check_kitchen_action(diagram, diagram.CreateDefaultContext())
-    assert list(figures) == ["status_succeeded"]  # no cup_0: no gripper_to_cup_m
+    # no cup_0: no gripper_to_cup_m
+    assert figures == {"status_succeeded": 0.0, "still_running": 1.0, "touching_furniture": 0.0}
+
+
+def test_figures_say_still_running_and_touching_furniture():
+    # from the default pose, GoToPose to the far side of the room turns into table_0's leg
+    # and pushes against it: at 6 s it is still running (status_succeeded 0 alone read
+    # as a failure) and touches the table
+    scenario = KitchenScenario(action="goto_pose", goto_target=[-2.0, -1.0, 0.0, 0.0], cups=[])
+    diagram = build_kitchen_action(scenario)
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(6.0)
+    figures = check_kitchen_action(diagram, simulator.get_context())
+    assert figures == {"status_succeeded": 0.0, "still_running": 1.0, "touching_furniture": 1.0}
 
 
 def _contact_pairs(diagram, context):

@@ -12,6 +12,7 @@ from repertoire.diagrams.kitchen import (
     run_kitchen_sequence,
     world_to_chassis,
 )
+from repertoire.diagrams.soccer import robot_state
 from repertoire.systems.go_to_pose import ActionStatus
 from repertoire.systems.kitchen_actions import arm_forward, arm_inverse, chassis_to_world
 
@@ -71,6 +72,17 @@ def test_pose_inside_a_table_fails_at_once():
     # a reach into the table top
     diagram, context = _run(KitchenScenario(arm_target=[0.85, 0.0, 0.6]), 2.0)
     assert action_status(diagram, context) == ActionStatus.FAILED
+
+
+def test_reach_through_the_table_top_fails_at_once_and_the_robot_stays():
+    # from over table_0 to a point beside it below its top: the straight joint-space way
+    # crosses the top; the fingers caught it and dragged the robot 0.63 m under the table,
+    # and the reach reported SUCCEEDED (in the chassis frame)
+    scenario = KitchenScenario(initial_arm=[0.62, 0.0, 0.6], arm_target=[0.32, 0.0, 0.47], cups=[])
+    diagram, context = _run(scenario, 3.0)
+    assert action_status(diagram, context) == ActionStatus.FAILED
+    assert context.get_time() == pytest.approx(0.1)
+    np.testing.assert_allclose(robot_state(diagram, context)[:2], [2.0, 0.55], atol=1e-3)
 
 
 def test_put_in_the_air_fails_at_once_and_keeps_the_cup():

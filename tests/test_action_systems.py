@@ -205,6 +205,13 @@ def test_goto_pose_bad_construction():
     for bad in (-0.1, 0.0):
         with pytest.raises(RepertoireError, match=f"heading_tolerance must be > 0, got {bad}"):
             GoToPose(gains={"heading_tolerance": bad})
+    # k_rho <= 0: a robot asked to arrive at rest never moved (timed out at 20 s);
+    # k_alpha <= 0: it arrived and turned away from the goal heading until its timeout
+    for name in ("k_rho", "k_alpha"):
+        with pytest.raises(RepertoireError, match=f"GoToPose gain {name} must be > 0, got -1.0"):
+            GoToPose(gains={name: -1.0})
+    with pytest.raises(RepertoireError, match="k_rho must be > 0, got 0.0"):
+        build_soccer_goto_pose(GoToPoseScenario(gains={"k_rho": 0.0}))
 
 
 def test_chassis_state_by_hand():

@@ -147,6 +147,12 @@ class KitchenScenario:
             value = getattr(self, name)
             if len(value) != size or not np.all(np.isfinite(value)):
                 raise ScenarioError(f"{name} must be {size} finite values, got {value}")
+        x0, x1, y0, y1 = KITCHEN_WORKSPACE
+        if not (x0 <= self.initial_pose[0] <= x1 and y0 <= self.initial_pose[1] <= y1):
+            raise ScenarioError(
+                f"initial_pose {self.initial_pose} puts the robot outside the kitchen: its "
+                f"x, y must lie in [{x0}, {x1}] x [{y0}, {y1}] (the room less its radius)"
+            )
         if len(self.initial_arm) != 3 or arm_inverse(arm_forward(self.initial_arm)) is None:
             raise ScenarioError(
                 f"initial_arm must be [lift, yaw, extend] within the joint ranges, got "

@@ -113,6 +113,11 @@ def test_bad_scenarios_are_named():
         build_kitchen_action(KitchenScenario(cups=["cup_1", "cup_1"]))
     with pytest.raises(ScenarioError, match="cup_in_gripper needs cup_0"):
         build_kitchen_action(KitchenScenario(cup_in_gripper=True, cups=["cup_1"]))
+    # outside the walls nothing overlaps, so it ran: GoToPose drove into the wall
+    with pytest.raises(
+        ScenarioError, match=r"initial_pose \[5.0, 0.0, 3.1\] puts the robot outside"
+    ):
+        build_kitchen_action(KitchenScenario(initial_pose=[5.0, 0.0, 3.1]))
 
 
 def test_cups_field_loads_only_the_named_cups():

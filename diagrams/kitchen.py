@@ -147,6 +147,12 @@ class KitchenScenario:
             value = getattr(self, name)
             if len(value) != size or not np.all(np.isfinite(value)):
                 raise ScenarioError(f"{name} must be {size} finite values, got {value}")
+        x0, x1, y0, y1 = KITCHEN_WORKSPACE
+        if not (x0 <= self.initial_pose[0] <= x1 and y0 <= self.initial_pose[1] <= y1):
+            raise ScenarioError(
+                f"initial_pose {self.initial_pose} puts the robot outside the kitchen: its "
+                f"x, y must lie in [{x0}, {x1}] x [{y0}, {y1}] (the room less its radius)"
+            )
         if len(self.initial_arm) != 3 or arm_inverse(arm_forward(self.initial_arm)) is None:
             raise ScenarioError(
                 f"initial_arm must be [lift, yaw, extend] within the joint ranges, got "
@@ -303,7 +309,9 @@ def build_kitchen_action(
             builder.Connect(action.get_command_output_port(), mux.get_input_port(2))
             hold(1)
         else:
-            action = builder.AddSystem(Put(period, obstacles=KITCHEN_OBSTACLES))
+            put = Put(period, cup_half_height=CUP_HALF_HEIGHT, cup_radius=CUP_RADIUS,
+                      obstacles=KITCHEN_OBSTACLES)  # fmt: skip
+            action = builder.AddSystem(put)
             demux = builder.AddSystem(MatrixGain(np.eye(5)[:3]))
             demux.set_name("put_arm_command")
             demux_f = builder.AddSystem(MatrixGain(np.eye(5)[3:]))
@@ -454,12 +462,43 @@ def gripper_position(diagram: Diagram, context: Context) -> np.ndarray:
     return plant.EvalBodyPoseInWorld(plant.GetMyContextFromRoot(context), body).translation()
 
 
-def check_kitchen_action(diagram: Diagram, context: Context) -> dict[str, float]:
-    """Figures: ``status_succeeded`` (1/0), ``gripper_to_cup_m`` (cup_0 from the gripper centre).
+def furniture_and_robot_bodies(plant) -> tuple[set, set]:
+    """Body indices of the kitchen's furniture (room walls, counter, tables) and of the robot."""
+    furniture = {plant.GetBodyByName(name).index() for name in ("room", "counter")}
+    furniture |= {
+        plant.GetBodyByName("table", plant.GetModelInstanceByName(t)).index()
+        for t in ("table_0", "table_1")
+    }
+    robot = set(plant.GetBodyIndices(plant.GetModelInstanceByName("diffdrive_arm")))
+    return furniture, robot
 
-    ``gripper_to_cup_m`` only if cup_0 is in the world.
+
+def touches(contact_results, bodies_a: set, bodies_b: set) -> bool:
+    """True if a point contact of ``contact_results`` joins a body of each set."""
+    for i in range(contact_results.num_point_pair_contacts()):
+        info = contact_results.point_pair_contact_info(i)
+        a, b = info.bodyA_index(), info.bodyB_index()
+        if (a in bodies_a and b in bodies_b) or (b in bodies_a and a in bodies_b):
+            return True
+    return False
+
+
+def check_kitchen_action(diagram: Diagram, context: Context) -> dict[str, float]:
+    """The world's figures at the end of a run.
+
+    ``status_succeeded`` (1/0), ``still_running`` (1/0: the action had not ended, a
+    longer run may still succeed), ``touching_furniture`` (1/0: the robot touches a
+    table, the counter or a wall, e.g. GoToPose pushing against a table leg) and
+    ``gripper_to_cup_m`` (cup_0 from the gripper centre; only if cup_0 is in the world).
     """
-    figures = {"status_succeeded": float(action_status(diagram, context) == ActionStatus.SUCCEEDED)}
+    status = action_status(diagram, context)
+    plant = diagram.GetSubsystemByName("plant")
+    contacts = plant.get_contact_results_output_port().Eval(plant.GetMyContextFromRoot(context))
+    figures = {
+        "status_succeeded": float(status == ActionStatus.SUCCEEDED),
+        "still_running": float(status == ActionStatus.RUNNING),
+        "touching_furniture": float(touches(contacts, *furniture_and_robot_bodies(plant))),
+    }
     if diagram.GetSubsystemByName("plant").HasModelInstanceNamed("cup_0"):
         gap = cup_position(diagram, context) - gripper_position(diagram, context)
         figures["gripper_to_cup_m"] = float(np.linalg.norm(gap))
@@ -472,7 +511,8 @@ class StepResult:
 
     Attributes:
         action: the action name.
-        status: the final ActionStatus name.
+        status: the final ActionStatus name (``TIMED_OUT`` also when the step was
+            still running at the sequence's ``step_limit``).
         duration: simulated time the step took [s].
     """
 
@@ -501,7 +541,8 @@ def run_kitchen_sequence(
             in the *world* (converted to the chassis frame at the step's start),
             ``grip`` with ``[]``.
         scenario: the start (pose, arm, fingers) and plant settings.
-        step_limit: simulated seconds allowed per step.
+        step_limit: simulated seconds allowed per step; a step still running then
+            ends the sequence as ``TIMED_OUT``.
 
     Returns:
         ``(results, diagram, context)`` of the executed steps and the last step.
@@ -509,6 +550,8 @@ def run_kitchen_sequence(
     from pydrake.systems.analysis import Simulator
     from repertoire.diagrams.soccer import robot_state
 
+    if not (math.isfinite(step_limit) and step_limit > 0):
+        raise ScenarioError(f"step_limit must be finite and > 0 s, got {step_limit}")
     base = dataclasses.replace(scenario or KitchenScenario())
     results: list[StepResult] = []
     x = None
@@ -535,6 +578,8 @@ def run_kitchen_sequence(
             t += 0.1
             simulator.AdvanceTo(t)
         status = action_status(diagram, context)
+        if status == ActionStatus.RUNNING:  # cut off at step_limit: the sequence timed out
+            status = ActionStatus.TIMED_OUT
         results.append(StepResult(action, status.name, float(context.get_time())))
         x = plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(context)).copy()
         # the next step holds what this one commanded

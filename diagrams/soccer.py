@@ -57,6 +57,27 @@ def clear_of_goals(x, y) -> np.ndarray:
     return ok & (np.hypot(u, w) >= FOOTPRINT_RADIUS)
 
 
+def check_target_clear(target, field: str) -> None:
+    """Refuses a GoToPose target whose footprint disc touches a goal post or net.
+
+    The robot could never stand there (it would push against the goal until its
+    timeout), so such a target is bad input, like a start inside a body.
+
+    Args:
+        target: ``[x_g, y_g, ...]``.
+        field: the scenario field (e.g. ``targets[1]``), named in the error.
+
+    Raises:
+        ScenarioError: naming the field and its value.
+    """
+    if not clear_of_goals(target[0], target[1]):
+        raise ScenarioError(
+            f"{field} {list(target)} puts the robot (footprint radius {FOOTPRINT_RADIUS} m) "
+            f"into a goal post or net (posts at {GOAL_POSTS}, nets at x = +-{GOAL_NETS[0]}); "
+            "place it clear"
+        )
+
+
 def draw_start_xy(rng: np.random.Generator, x_range, y_range, min_ball_clearance: float):
     """A start ``(x, y)`` uniform in the ranges, clear of the ball and the goals.
 
@@ -110,6 +131,7 @@ class GoToPoseScenario:
             raise ScenarioError(f"target must be 4 finite values, got {self.target}")
         if not np.isfinite(self.initial_speed):
             raise ScenarioError(f"initial_speed must be finite, got {self.initial_speed}")
+        check_target_clear(self.target, "target")
         validate_discrete_control_fields(self)
 
 
@@ -264,12 +286,18 @@ def robot_state(diagram: Diagram, context: Context) -> np.ndarray:
 
 
 def check_goto_pose(diagram: Diagram, context: Context) -> dict[str, float]:
-    """Figures: ``status_succeeded`` (1/0), ``position_error_m``, ``heading_error_rad``."""
+    """The world's figures at the end of a run.
+
+    ``status_succeeded`` (1/0), ``still_running`` (1/0: the action had not ended, a
+    longer run may still succeed), ``position_error_m``, ``heading_error_rad``.
+    """
     target = diagram.GetSubsystemByName("target")
     goal = target.get_output_port().Eval(target.GetMyContextFromRoot(context))
     s = robot_state(diagram, context)
+    status = goto_status(diagram, context)
     return {
-        "status_succeeded": float(goto_status(diagram, context) == ActionStatus.SUCCEEDED),
+        "status_succeeded": float(status == ActionStatus.SUCCEEDED),
+        "still_running": float(status == ActionStatus.RUNNING),
         "position_error_m": float(np.hypot(goal[0] - s[0], goal[1] - s[1])),
         "heading_error_rad": float(abs(np.angle(np.exp(1j * (goal[2] - s[2]))))),
     }

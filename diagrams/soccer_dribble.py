@@ -270,7 +270,8 @@ def robot_and_ball(diagram: Diagram, context: Context) -> tuple[np.ndarray, np.n
 def check_dribble(diagram: Diagram, context: Context) -> dict[str, float]:
     """The world's figures.
 
-    ``status_succeeded`` (1/0), ``position_error_m``, ``heading_error_rad`` and
+    ``status_succeeded`` (1/0), ``still_running`` (1/0: the action had not ended, a
+    longer run may still succeed), ``position_error_m``, ``heading_error_rad`` and
     ``ball_from_held_spot_m`` (the ball's distance from its held spot).
     """
     from repertoire.systems.dribble_ball import ball_in_robot_frame
@@ -283,6 +284,7 @@ def check_dribble(diagram: Diagram, context: Context) -> dict[str, float]:
     bx, by = ball_in_robot_frame(s, ball)
     return {
         "status_succeeded": float(dribble_status(diagram, context) == ActionStatus.SUCCEEDED),
+        "still_running": float(dribble_status(diagram, context) == ActionStatus.RUNNING),
         "position_error_m": float(np.hypot(goal[0] - s[0], goal[1] - s[1])),
         "heading_error_rad": float(abs(np.angle(np.exp(1j * (goal[2] - s[2]))))),
         "ball_from_held_spot_m": float(np.hypot(bx - hold, by)),

@@ -19,6 +19,7 @@ from repertoire.diagrams.soccer import (
     BALL_POSITION,
     add_soccer_robot,
     build_driven,
+    check_target_clear,
     robot_state,
     set_initial_speed,
 )
@@ -73,6 +74,7 @@ class SoccerPlanScenario:
         for i, t in enumerate(self.targets):
             if len(t) != 4 or not np.all(np.isfinite(t)):
                 raise ScenarioError(f"targets[{i}] must be 4 finite values, got {t}")
+            check_target_clear(t, f"targets[{i}]")
         validate_discrete_control_fields(self)
         if self.action_gains and len(self.action_gains) != len(self.targets):
             raise ScenarioError(
@@ -142,7 +144,8 @@ def finish_times(diagram: Diagram, context: Context) -> np.ndarray:
 def check_soccer_plan(diagram: Diagram, context: Context) -> dict[str, float]:
     """Figures of a run: success, plan time, final position error and ball displacement.
 
-    Returns ``plan_succeeded`` (1/0), ``plan_time_s``, ``position_error_m`` (to the last
+    Returns ``plan_succeeded`` (1/0), ``still_running`` (1/0: the plan had not ended, a
+    longer run may still succeed), ``plan_time_s``, ``position_error_m`` (to the last
     target) and ``ball_moved_m`` (the ball's distance from its start: dribbled or bumped).
     """
     executor = diagram.GetSubsystemByName("executor")
@@ -152,6 +155,7 @@ def check_soccer_plan(diagram: Diagram, context: Context) -> dict[str, float]:
     times = finish_times(diagram, context)
     return {
         "plan_succeeded": float(plan_status(diagram, context) == ActionStatus.SUCCEEDED),
+        "still_running": float(plan_status(diagram, context) == ActionStatus.RUNNING),
         "plan_time_s": float(times[-1]),
         "position_error_m": float(np.hypot(goal[0] - s[0], goal[1] - s[1])),
         "ball_moved_m": ball_moved(diagram, context),

@@ -114,7 +114,9 @@ class KitchenPlanConfig:
             "y_range": (-2.6, 2.6),
             "cup_x_range": (1.55, 2.65),  # table_0's top less the cup radius
             "cup_y_range": (0.95, 1.65),
-            "target_side_range": (-0.3, 0.3),
+            # the drop poses stand on table_1's side towards table_0 (exit_point): from
+            # there targets beyond the axis were out of reach (every plan NO_PLAN)
+            "target_side_range": (0.0, 0.3),
             "yaw_range": YAW_RANGE,
             "extend_range": EXTEND_RANGE,
             "carry_yaw_range": YAW_RANGE,

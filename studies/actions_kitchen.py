@@ -194,8 +194,10 @@ def run_episode(config: KitchenEpisodesConfig, seed: int) -> KitchenRecord:
     from repertoire.diagrams.kitchen import (
         KitchenScenario,
         action_status,
+        furniture_and_robot_bodies,
         gripper_position,
         kitchen_simulator,
+        touches,
         world_to_chassis,
     )
     from repertoire.diagrams.soccer import robot_state, set_initial_speed
@@ -227,11 +229,7 @@ def run_episode(config: KitchenEpisodesConfig, seed: int) -> KitchenRecord:
         limit = 10.0
     diagram, simulator = kitchen_simulator(scenario, reuse=config.reuse_diagram)
     plant = diagram.GetSubsystemByName("plant")
-    furniture = {
-        plant.GetBodyByName(name).index() for name in ("room", "counter")
-    } | {plant.GetBodyByName("table", plant.GetModelInstanceByName(t)).index()
-         for t in ("table_0", "table_1")}  # fmt: skip
-    robot = set(plant.GetBodyIndices(plant.GetModelInstanceByName("diffdrive_arm")))
+    furniture, robot = furniture_and_robot_bodies(plant)
     context = simulator.get_mutable_context()
     if action == "goto_pose":
         set_initial_speed(diagram, context, start[3])
@@ -245,12 +243,8 @@ def run_episode(config: KitchenEpisodesConfig, seed: int) -> KitchenRecord:
     status_context = status_system.GetMyContextFromRoot(context)
 
     def monitor(root_context) -> EventStatus:
-        results = contact_port.Eval(plant_context)
-        for i in range(results.num_point_pair_contacts()):
-            info = results.point_pair_contact_info(i)
-            a, b = info.bodyA_index(), info.bodyB_index()
-            if (a in furniture and b in robot) or (b in furniture and a in robot):
-                touched[0] = True
+        if touches(contact_port.Eval(plant_context), furniture, robot):
+            touched[0] = True
         if len(states) < width * config.n_states and root_context.get_time() >= next_time[0]:
             if action == "goto_pose":
                 states.extend(float(s) for s in robot_state(diagram, root_context))

@@ -291,7 +291,8 @@ class GoToPose(DriveAction):
 
         Args:
             period: update period [s].
-            gains: overrides of :data:`GOTO_GAINS`.
+            gains: overrides of :data:`GOTO_GAINS` (the limits, tolerances, timeout,
+                ``k_rho`` and ``k_alpha`` must be > 0).
             workspace: the allowed target region ``[x_min, x_max, y_min, y_max]``.
         """
         super().__init__()
@@ -304,6 +305,8 @@ class GoToPose(DriveAction):
             "timeout",
             "position_tolerance",
             "heading_tolerance",
+            "k_rho",  # <= 0: a robot asked to arrive at rest never moves
+            "k_alpha",  # <= 0: it turns away from the goal heading and never aligns
         )
         merged = merge_gains(GOTO_GAINS, gains, "GoToPose", positive)
         inputs = (("state", 4), ("target", 4))

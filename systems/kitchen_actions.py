@@ -13,10 +13,13 @@ Each action is a LeafSystem with a periodic discrete update, a command output
 (joint setpoints for the plant's PD-controlled actuators) and a ``status`` output
 (:class:`~repertoire.systems.go_to_pose.ActionStatus`: running, succeeded,
 failed, timed out). Motions are straight lines in joint space at limited joint
-speeds, all joints arriving together. A target whose point (in the world, given
-the chassis pose on ``base_state``) lies inside an obstacle box (a table, the
-counter) or out of the arm's reach makes the action fail at once, with no motion;
-so does a non-finite measurement (joints or ``base_state``) at any update.
+speeds, all joints arriving together. A target out of the arm's reach, or whose
+point or straight joint-space way to it (in the world, given the chassis pose on
+``base_state``) enters an obstacle box (a table, the counter), makes the action
+fail at once, with no motion; so does a non-finite measurement (joints or
+``base_state``) at any update. (A reach whose way crossed a table top pushed its
+fingers against the table and dragged the standing robot 0.6 m under it, then
+reported success in the chassis frame.)
 
 Grip closes the fingers and succeeds when both are blocked by an object (the
 fingers stop more than ``block_margin`` short of their closed setpoint: a grasp
@@ -87,6 +90,20 @@ def joint_step(q_cmd, q_goal, speeds, dt: float) -> np.ndarray:
     return q_cmd + delta / steps
 
 
+def joint_line_points(q_from, q_to, spacing: float = 0.01) -> np.ndarray:
+    """Gripper centres (chassis frame) along the straight joint-space line ``q_from -> q_to``.
+
+    The line :func:`joint_step` drives. Consecutive points are at most ``spacing``
+    apart: the gripper's speed along the line is bounded by ``|d lift| + |d extend| +
+    max(extend) |d yaw|`` per unit of the line parameter. Both ends are included.
+    """
+    q0, q1 = np.asarray(q_from, dtype=float), np.asarray(q_to, dtype=float)
+    d = np.abs(q1 - q0)
+    length = d[0] + d[2] + max(abs(q0[2]), abs(q1[2])) * d[1]
+    s = np.linspace(0.0, 1.0, max(2, int(math.ceil(length / spacing)) + 1))
+    return np.array([arm_forward(q0 + t * (q1 - q0)) for t in s])
+
+
 def chassis_to_world(base_state, a) -> np.ndarray:
     """A chassis-frame point ``a`` in the world, for the chassis at ``[x, y, phi, v]``.
 
@@ -111,6 +128,27 @@ def point_in_boxes(p, boxes, margin: float = 0.0) -> int:
         dx, dy = p[0] - cx, p[1] - cy
         u, w = c * dx + s * dy, -s * dx + c * dy
         if abs(u) <= hx + margin and abs(w) <= hy + margin and p[2] <= top + margin:
+            return i
+    return -1
+
+
+def support_under(p, boxes, radius: float, max_drop: float) -> int:
+    """Index of the first obstacle box whose top holds a disc put down at ``p``, else -1.
+
+    The disc (a cup's bottom, centre ``p``) lies wholly within the box's top
+    rectangle and at most ``max_drop`` above the top (not below it).
+
+    Args:
+        p: ``[x, y, z]`` of the disc's centre (world).
+        boxes: ``(k, 6)`` boxes as in :func:`point_in_boxes`.
+        radius: the disc's radius [m].
+        max_drop: largest height of the disc above the top [m].
+    """
+    for i, (cx, cy, yaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = p[0] - cx, p[1] - cy
+        u, w = c * dx + s * dy, -s * dx + c * dy
+        if abs(u) <= hx - radius and abs(w) <= hy - radius and 0.0 <= p[2] - top <= max_drop:
             return i
     return -1
 
@@ -155,6 +193,23 @@ class _Action(ActionSystem):
         """Index of the obstacle box containing the chassis-frame point, else -1."""
         base = self._base_port.Eval(context)
         return point_in_boxes(chassis_to_world(base, a_chassis), self._boxes, self.margin)
+
+    def path_enters_obstacle(self, context: Context, q_from, q_to, offset=(0.0, 0.0, 0.0)) -> int:
+        """Index of the first obstacle box the straight joint-space way enters, else -1.
+
+        The way of the gripper centre moved by ``offset`` (chassis frame), e.g. a held
+        cup's bottom, from joints ``q_from`` to ``q_to`` (:func:`joint_line_points`). A
+        start inside a box (a measurement a millimetre low on a table top) is not an
+        entry while the way stays in that box: the end point is checked on its own.
+        """
+        inside = [
+            self.inside_obstacle(context, a + np.asarray(offset, dtype=float))
+            for a in joint_line_points(q_from, q_to)
+        ]
+        k = 0
+        while k < len(inside) and inside[k] >= 0 and inside[k] == inside[0]:
+            k += 1  # still in the box it starts in
+        return next((i for i in inside[k:] if i >= 0), -1)
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._xd).get_value()[: self._n])
@@ -207,8 +262,9 @@ class Reach(_Action):
         status: an :class:`ActionStatus`.
 
     Succeeds when the measured gripper centre is within ``tolerance`` of the
-    target; fails at once if the target is out of reach or inside an obstacle
-    box; times out ``timeout`` s after its first update.
+    target; fails at once if the target is out of reach or it, or the straight
+    joint-space way to it from the measured joints, is inside an obstacle box;
+    times out ``timeout`` s after its first update.
     """
 
     def __init__(
@@ -257,7 +313,10 @@ class Reach(_Action):
 
     def target_ok(self, context) -> bool:
         target = self._target_port.Eval(context)
-        return arm_inverse(target) is not None and self.inside_obstacle(context, target) < 0
+        goal = arm_inverse(target)
+        if goal is None or self.inside_obstacle(context, target) >= 0:
+            return False
+        return self.path_enters_obstacle(context, self._arm_port.Eval(context), goal) < 0
 
     def step(self, context, command, phase, time_in_phase):
         target = self._target_port.Eval(context)
@@ -348,8 +407,14 @@ class Put(_Action):
     Phases: 0 move to ``clearance`` above the target holding the fingers
     closed, 1 lower to the target, 2 open the fingers; succeeds when both are
     measured open. Fails at once if the target or the point above it is out of
-    reach, or the cup's bottom (``cup_half_height`` below the target) would be
-    inside an obstacle box by more than ``margin``.
+    reach, or the cup's bottom (``cup_half_height`` below the gripper centre) would
+    enter an obstacle box on the way (straight in joint space to the point above,
+    then down to the target; grown by ``margin`` horizontally). With obstacles given, it
+    also fails at once unless the cup would stand on one of them: its bottom
+    (a disc of ``cup_radius``) wholly on a box's top and at most ``max_drop``
+    above it (:func:`support_under`); a cup let go in the air falls to the floor
+    (measured: a cup let go beside a table, or with its bottom 1.1 cm over the
+    table's edge, fell to the floor while the fingers opened as commanded).
     """
 
     def __init__(
@@ -359,6 +424,8 @@ class Put(_Action):
         speeds=ARM_SPEEDS,
         clearance: float = 0.05,
         cup_half_height: float = 0.05,
+        cup_radius: float = 0.04,
+        max_drop: float = 0.02,
         tolerance: float = 0.01,
         timeout: float = 15.0,
         obstacles=None,
@@ -366,6 +433,8 @@ class Put(_Action):
     ):
         """Creates the action (arguments as in the class docstring and :class:`Reach`)."""
         super().__init__(period, timeout, 5, obstacles, margin)
+        _check_positive(cup_radius=cup_radius, max_drop=max_drop)
+        self.cup_radius, self.max_drop = cup_radius, max_drop
         self.speeds = np.asarray(speeds, dtype=float)
         if self.speeds.shape != (3,) or not np.all(np.isfinite(self.speeds) & (self.speeds > 0)):
             raise RepertoireError(f"speeds must be 3 finite values > 0, got {speeds}")
@@ -403,7 +472,17 @@ class Put(_Action):
         if arm_inverse(above) is None or arm_inverse(target) is None:
             return False
         bottom = target - [0.0, 0.0, self.cup_half_height]
-        return self.inside_obstacle(context, bottom + [0.0, 0.0, self.margin]) < 0
+        if self.inside_obstacle(context, bottom + [0.0, 0.0, self.margin]) >= 0:
+            return False
+        lift = [0.0, 0.0, self.margin - self.cup_half_height]  # the bottom, as checked above
+        q, q_above, q_target = self._arm_port.Eval(context), arm_inverse(above), arm_inverse(target)
+        if (self.path_enters_obstacle(context, q, q_above, lift) >= 0
+                or self.path_enters_obstacle(context, q_above, q_target, lift) >= 0):  # fmt: skip
+            return False
+        if len(self._boxes) == 0:
+            return True  # no world given: nothing to stand on is known
+        p = chassis_to_world(self._base_port.Eval(context), bottom)
+        return support_under(p, self._boxes, self.cup_radius, self.max_drop) >= 0
 
     def step(self, context, command, phase, time_in_phase):
         above, target = self._waypoints(context)

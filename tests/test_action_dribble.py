@@ -324,6 +324,7 @@ def test_soccer_dribble_delivers_the_ball():
     assert dribble_status(diagram, ctx) == ActionStatus.SUCCEEDED
     figures = check_dribble(diagram, ctx)
     assert figures["position_error_m"] < 0.15 and figures["ball_from_held_spot_m"] < 0.1
+    assert (figures["status_succeeded"], figures["still_running"]) == (1.0, 0.0)
     # a ball out of reach, or a target off the field: reported failed, nothing crashes
     for scenario in (
         DribbleScenario(ball_offset=[0.6, 0.0]),
@@ -333,7 +334,8 @@ def test_soccer_dribble_delivers_the_ball():
         sim = Simulator(diagram)
         sim.AdvanceTo(0.5)
         assert dribble_status(diagram, sim.get_context()) == ActionStatus.FAILED
-        assert check_dribble(diagram, sim.get_context())["status_succeeded"] == 0.0
+        figures = check_dribble(diagram, sim.get_context())
+        assert (figures["status_succeeded"], figures["still_running"]) == (0.0, 0.0)
 
 
 def test_soccer_dribble_meets_a_target_speed_through_a_loop():

@@ -178,6 +178,10 @@ def test_soccer_goto_pose_reaches_a_target_speed_behind_it():
     assert goto_status(diagram, ctx) == ActionStatus.SUCCEEDED
     figures = check_goto_pose(diagram, ctx)
     assert figures["position_error_m"] < 0.1 and figures["heading_error_rad"] < 0.2
+    assert (figures["status_succeeded"], figures["still_running"]) == (1.0, 0.0)
+    # at the start the action has not ended: still running, not (yet) succeeded
+    figures = check_goto_pose(diagram, diagram.CreateDefaultContext())
+    assert (figures["status_succeeded"], figures["still_running"]) == (0.0, 1.0)
 
 
 def test_goto_pose_target_off_field_fails_without_motion():
@@ -201,6 +205,13 @@ def test_goto_pose_bad_construction():
     for bad in (-0.1, 0.0):
         with pytest.raises(RepertoireError, match=f"heading_tolerance must be > 0, got {bad}"):
             GoToPose(gains={"heading_tolerance": bad})
+    # k_rho <= 0: a robot asked to arrive at rest never moved (timed out at 20 s);
+    # k_alpha <= 0: it arrived and turned away from the goal heading until its timeout
+    for name in ("k_rho", "k_alpha"):
+        with pytest.raises(RepertoireError, match=f"GoToPose gain {name} must be > 0, got -1.0"):
+            GoToPose(gains={name: -1.0})
+    with pytest.raises(RepertoireError, match="k_rho must be > 0, got 0.0"):
+        build_soccer_goto_pose(GoToPoseScenario(gains={"k_rho": 0.0}))
 
 
 def test_chassis_state_by_hand():
@@ -220,6 +231,12 @@ def test_soccer_goto_pose_reaches_its_pose():
     assert figures["position_error_m"] < 0.1
     with pytest.raises(ScenarioError, match="target"):
         build_soccer_goto_pose(GoToPoseScenario(target=[0, 0, 0]))
+    # the footprint disc (0.32 m) on a post (radius 0.05 m) or a net: refused, named
+    for target in ([3.0, 0.75, 0.0, 0.0], [2.75, 0.5, 0.0, 0.0], [-3.1, 0.0, 0.0, 0.0]):
+        with pytest.raises(ScenarioError, match=r"target \[.*\] puts the robot .* goal post"):
+            build_soccer_goto_pose(GoToPoseScenario(target=target))
+    # 0.37 m from the post's centre is clear
+    build_soccer_goto_pose(GoToPoseScenario(target=[3.0, 0.75 - 0.371, 0.0, 0.0]))
 
 
 def test_predictor_exact_outputs():

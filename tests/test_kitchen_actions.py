@@ -15,8 +15,10 @@ from repertoire.systems.kitchen_actions import (
     arm_inverse,
     chassis_to_world,
     footprint_hits,
+    joint_line_points,
     joint_step,
     point_in_boxes,
+    support_under,
 )
 
 from repertoire.errors import RepertoireError
@@ -144,6 +146,67 @@ def test_put_carries_lowers_and_releases():
     # a target that puts the cup's bottom 2 cm into the table fails at once
     ports |= dict(arm_position=q0, target=[0.65, 0.25, 0.6726])
     assert _update(put, _fixed(put, **ports))[5] == ActionStatus.FAILED
+
+
+def test_joint_line_points_spacing_and_ends():
+    q0, q1 = [0.5, -1.0, 0.3], [0.6, 1.0, 0.7]
+    pts = joint_line_points(q0, q1, spacing=0.01)
+    # bound on the way: 0.1 (lift) + 0.4 (extend) + 0.7 * 2.0 (yaw arc) = 1.9 m -> 191 points
+    assert len(pts) == 191
+    np.testing.assert_allclose(pts[0], arm_forward(q0), atol=1e-15)
+    np.testing.assert_allclose(pts[-1], arm_forward(q1), atol=1e-15)
+    assert np.max(np.linalg.norm(np.diff(pts, axis=0), axis=1)) <= 0.01
+    assert len(joint_line_points(q0, q0)) == 2  # no motion: both ends
+
+
+def test_reach_refuses_a_way_through_a_table():
+    reach = Reach(0.02, obstacles=KITCHEN_OBSTACLES)
+    # BASE faces table_0 (edge 0.35 m ahead of the axle, top 0.75 m): the target 0.32 m
+    # ahead, below the top, is clear; from over the table the straight joint-space way
+    # crosses the top (it dragged the robot under the table), from beside it it does not
+    target = [0.32, 0.0, 0.47]
+    for q0, status in (([0.62, 0.0, 0.6], ActionStatus.FAILED),
+                       ([0.62, 0.0, 0.27], ActionStatus.RUNNING)):  # fmt: skip
+        ctx = _fixed(reach, arm_position=q0, target=target, base_state=BASE)
+        assert _update(reach, ctx)[3] == status
+    # a start a millimetre inside the top (the gripper resting low) is not an entry
+    low = arm_inverse(_at_world_height([0.85, 0.0], 0.749))
+    ctx = _fixed(reach, arm_position=low, target=[0.85, 0.0, 0.80], base_state=BASE)
+    assert _update(reach, ctx)[3] == ActionStatus.RUNNING
+
+
+def _at_world_height(xy, z_world):
+    """The chassis-frame point at chassis ``xy`` whose world height is ``z_world``."""
+    return [xy[0], xy[1], z_world - chassis_to_world(BASE, [0.0, 0.0, 0.0])[2]]
+
+
+def test_support_under_by_hand():
+    boxes = [[1.0, 0.0, math.pi / 2, 0.6, 0.4, 0.75]]  # top x in [0.6, 1.4], y in [-0.6, 0.6]
+    assert support_under([1.0, 0.0, 0.751], boxes, 0.04, 0.02) == 0
+    assert support_under([1.359, 0.0, 0.751], boxes, 0.04, 0.02) == 0  # the rim 1 mm inside
+    assert support_under([1.361, 0.0, 0.751], boxes, 0.04, 0.02) == -1  # 1 mm over the edge
+    assert support_under([1.0, 0.561, 0.751], boxes, 0.04, 0.02) == -1
+    assert support_under([1.0, 0.0, 0.769], boxes, 0.04, 0.02) == 0  # 1.9 cm drop
+    assert support_under([1.0, 0.0, 0.771], boxes, 0.04, 0.02) == -1
+    assert support_under([1.0, 0.0, 0.749], boxes, 0.04, 0.02) == -1  # below the top
+    assert support_under([2.0, 0.0, 0.751], boxes, 0.04, 0.02) == -1  # over the floor
+
+
+def test_put_refuses_a_target_with_nothing_to_stand_on():
+    put = Put(0.02, obstacles=KITCHEN_OBSTACLES)
+    # BASE faces table_0 (its edge 0.35 m ahead of the axle): the cup's bottom 1.1 mm
+    # above the top, its centre 0.05 m (whole disc on the top) and 0.03 m (1 cm over
+    # the edge) inside the edge, or 0.05 m before it (in the air)
+    ports = dict(arm_position=[0.5, 0.0, 0.8], finger_position=[0.05, 0.05], base_state=BASE)
+    for x, status in ((0.40, ActionStatus.RUNNING), (0.38, ActionStatus.FAILED),
+                      (0.30, ActionStatus.FAILED)):  # fmt: skip
+        assert _update(put, _fixed(put, target=[x, 0.0, 0.7036], **ports))[5] == status
+    # 3 cm above the top: dropped from too high
+    assert _update(put, _fixed(put, target=[0.5, 0.0, 0.7336], **ports))[5] == ActionStatus.FAILED
+    # without obstacles there is no world to stand on: only reach is checked
+    free = Put(0.02)
+    xd = _update(free, _fixed(free, target=[0.30, 0.0, 0.7036], **ports))
+    assert xd[5] == ActionStatus.RUNNING
 
 
 def test_footprint_guard():

@@ -12,8 +12,9 @@ from repertoire.diagrams.kitchen import (
     run_kitchen_sequence,
     world_to_chassis,
 )
+from repertoire.diagrams.soccer import robot_state
 from repertoire.systems.go_to_pose import ActionStatus
-from repertoire.systems.kitchen_actions import arm_inverse, chassis_to_world
+from repertoire.systems.kitchen_actions import arm_forward, arm_inverse, chassis_to_world
 
 from repertoire.errors import RepertoireError, ScenarioError
 
@@ -73,6 +74,32 @@ def test_pose_inside_a_table_fails_at_once():
     assert action_status(diagram, context) == ActionStatus.FAILED
 
 
+def test_reach_through_the_table_top_fails_at_once_and_the_robot_stays():
+    # from over table_0 to a point beside it below its top: the straight joint-space way
+    # crosses the top; the fingers caught it and dragged the robot 0.63 m under the table,
+    # and the reach reported SUCCEEDED (in the chassis frame)
+    scenario = KitchenScenario(initial_arm=[0.62, 0.0, 0.6], arm_target=[0.32, 0.0, 0.47], cups=[])
+    diagram, context = _run(scenario, 3.0)
+    assert action_status(diagram, context) == ActionStatus.FAILED
+    assert context.get_time() == pytest.approx(0.1)
+    np.testing.assert_allclose(robot_state(diagram, context)[:2], [2.0, 0.55], atol=1e-3)
+
+
+def test_put_in_the_air_fails_at_once_and_keeps_the_cup():
+    # the default pose faces table_0, its edge 0.35 m ahead of the axle; the held cup at
+    # 0.35 m: a put 0.05 m before the edge (it fell to the floor, SUCCEEDED) or 0.03 m
+    # behind it (its bottom 1 cm over the edge: it tipped off) is refused
+    start = [0.5436, 0.0, 0.30]
+    for x in (0.30, 0.38):
+        scenario = KitchenScenario(action="put", initial_arm=start, cup_in_gripper=True,
+                                   arm_target=[x, 0.0, 0.7036], cups=["cup_0"])  # fmt: skip
+        diagram, context = _run(scenario, 2.0)
+        assert action_status(diagram, context) == ActionStatus.FAILED
+        assert context.get_time() == pytest.approx(0.1)
+        held = chassis_to_world([2.0, 0.55, np.pi / 2], arm_forward(start))
+        np.testing.assert_allclose(cup_position(diagram, context), held, atol=0.01)
+
+
 def test_bad_scenarios_are_named():
     with pytest.raises(ScenarioError, match="unknown action 'fly'"):
         build_kitchen_action(KitchenScenario(action="fly"))
@@ -86,6 +113,11 @@ def test_bad_scenarios_are_named():
         build_kitchen_action(KitchenScenario(cups=["cup_1", "cup_1"]))
     with pytest.raises(ScenarioError, match="cup_in_gripper needs cup_0"):
         build_kitchen_action(KitchenScenario(cup_in_gripper=True, cups=["cup_1"]))
+    # outside the walls nothing overlaps, so it ran: GoToPose drove into the wall
+    with pytest.raises(
+        ScenarioError, match=r"initial_pose \[5.0, 0.0, 3.1\] puts the robot outside"
+    ):
+        build_kitchen_action(KitchenScenario(initial_pose=[5.0, 0.0, 3.1]))
 
 
 def test_cups_field_loads_only_the_named_cups():
@@ -94,7 +126,20 @@ def test_cups_field_loads_only_the_named_cups():
     assert plant.HasModelInstanceNamed("cup_2") and not plant.HasModelInstanceNamed("cup_0")
     assert plant.num_velocities() == 13 + 6  # the robot and one free cup
     figures = check_kitchen_action(diagram, diagram.CreateDefaultContext())
-    assert list(figures) == ["status_succeeded"]  # no cup_0: no gripper_to_cup_m
+    # no cup_0: no gripper_to_cup_m
+    assert figures == {"status_succeeded": 0.0, "still_running": 1.0, "touching_furniture": 0.0}
+
+
+def test_figures_say_still_running_and_touching_furniture():
+    # from the default pose, GoToPose to the far side of the room turns into table_0's leg
+    # and pushes against it: at 6 s it is still running (status_succeeded 0 alone read
+    # as a failure) and touches the table
+    scenario = KitchenScenario(action="goto_pose", goto_target=[-2.0, -1.0, 0.0, 0.0], cups=[])
+    diagram = build_kitchen_action(scenario)
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(6.0)
+    figures = check_kitchen_action(diagram, simulator.get_context())
+    assert figures == {"status_succeeded": 0.0, "still_running": 1.0, "touching_furniture": 1.0}
 
 
 def _contact_pairs(diagram, context):
@@ -152,6 +197,13 @@ def test_sequence_grips_lifts_and_puts_the_cup_elsewhere():
     assert [(r.action, r.status) for r in results] == [("reach", "FAILED")]
     with pytest.raises(ScenarioError, match="unknown action 'jump'"):
         run_kitchen_sequence([("jump", [])])
+    # a step still running at step_limit ends the sequence as timed out (was 'RUNNING')
+    steps = [("reach", [2.0, 1.2, 0.95]), ("grip", [])]
+    results, _, _ = run_kitchen_sequence(steps, KitchenScenario(cups=[]), step_limit=0.5)
+    assert [(r.action, r.status, r.duration) for r in results] == [("reach", "TIMED_OUT", 0.5)]
+    for limit in (0.0, float("nan")):
+        with pytest.raises(ScenarioError, match="step_limit must be finite and > 0 s, got"):
+            run_kitchen_sequence(steps, step_limit=limit)
 
 
 def test_simulator_cache_keeps_at_most_max_size_diagrams():

@@ -113,7 +113,10 @@ def test_soccer_plan_world_runs_the_plan_and_dribbles_the_ball():
     from repertoire.diagrams.soccer_plan import SoccerPlanScenario, build_soccer_plan
 
     figures = simulate_registered("soccer_plan", duration=10.0)
-    assert figures["plan_succeeded"] == 1.0
+    assert figures["plan_succeeded"] == 1.0 and figures["still_running"] == 0.0
+    # cut short: the plan has not ended, it did not fail
+    short = simulate_registered("soccer_plan", duration=1.0)
+    assert (short["plan_succeeded"], short["still_running"]) == (0.0, 1.0)
     assert 0.0 < figures["plan_time_s"] < 10.0
     assert figures["position_error_m"] < 0.1
     assert figures["ball_moved_m"] > 0.3  # pushed along the second leg
@@ -124,6 +127,9 @@ def test_soccer_plan_world_runs_the_plan_and_dribbles_the_ball():
         build_soccer_plan(SoccerPlanScenario(targets=[[0, 0, 0, 0], [1, 2, 3]]))
     with pytest.raises(ScenarioError, match="at least one"):
         build_soccer_plan(SoccerPlanScenario(targets=[]))
+    # a leg ending with the robot in a goal post (it pushed the post until its timeout)
+    with pytest.raises(ScenarioError, match=r"targets\[1\] \[2.8, -0.6, 0.0, 0.0\] puts the robot"):
+        build_soccer_plan(SoccerPlanScenario(targets=[[0.65, 0.5, 0, 0.2], [2.8, -0.6, 0.0, 0.0]]))
     with pytest.raises(ScenarioError, match=r"unknown GoToPose gains \['k_x'\]"):
         build_soccer_plan(SoccerPlanScenario(gains={"k_x": 1.0}))
     with pytest.raises(ScenarioError, match=r"unknown GoToPose gains \['k_y'\]"):

@@ -151,6 +151,10 @@ def test_bad_configs_and_model_files_are_named(tmp_path):
         kp.KitchenPlanConfig(carry_z_range=[0.5, 0.6]).validate()
     with pytest.raises(RepertoireError, match="solver"):
         kp.KitchenPlanConfig(solver="corners").validate()
+    # targets beyond table_1's axis: the drop poses (on its side towards table_0) could
+    # not reach them, every situation was NO_PLAN (seeds 7300-7303)
+    with pytest.raises(RepertoireError, match=r"target_side_range must lie within \[0.0, 0.3\]"):
+        kp.KitchenPlanConfig(target_side_range=[-0.3, -0.1]).validate()
     with pytest.raises(RepertoireError, match="no kitchen action models"):
         kp.load_kitchen_models(str(tmp_path))
     for file in kp.MODEL_FILES.values():  # models of another format version

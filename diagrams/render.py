@@ -48,6 +48,14 @@ class RenderResult:
         return text
 
 
+def _check_max_depth(max_depth: int | None) -> None:
+    """Raises RepertoireError unless ``max_depth`` is None or an integer >= 0."""
+    if max_depth is not None and (
+        isinstance(max_depth, bool) or not isinstance(max_depth, int) or max_depth < 0
+    ):
+        raise RepertoireError(f"max_depth must be None or an integer >= 0, got {max_depth!r}")
+
+
 def graphviz_text(system: System, max_depth: int | None = None) -> str:
     """The Graphviz (dot language) text of ``system``.
 
@@ -59,10 +67,7 @@ def graphviz_text(system: System, max_depth: int | None = None) -> str:
     Raises:
         RepertoireError: ``max_depth`` is negative or not an integer.
     """
-    if max_depth is not None and (
-        isinstance(max_depth, bool) or not isinstance(max_depth, int) or max_depth < 0
-    ):
-        raise RepertoireError(f"max_depth must be None or an integer >= 0, got {max_depth!r}")
+    _check_max_depth(max_depth)
     return system.GetGraphvizString(max_depth=max_depth)
 
 
@@ -159,8 +164,15 @@ def diagram_system_names(diagram: Diagram, max_depth: int | None = None) -> list
 
     Args:
         diagram: the Diagram.
-        max_depth: levels expanded (None = all); nested diagrams beyond it are one name.
+        max_depth: levels expanded (None = all, 0 = none: the graph is the diagram's own
+            box); nested diagrams beyond it are one name.
+
+    Raises:
+        RepertoireError: ``max_depth`` is negative or not an integer.
     """
+    _check_max_depth(max_depth)
+    if max_depth == 0:
+        return []
     names = []
     for sub in diagram.GetSystems():
         names.append(sub.get_name())

@@ -60,7 +60,13 @@ def test_max_depth_limits_what_is_drawn(tmp_path):
     deep = svg_texts(render_diagram(diagram, tmp_path / "dall").files["svg"])
     assert "name=test_pendulum" in shallow and "name=scene_graph" not in shallow
     assert "name=test_pendulum" in deep and "name=scene_graph" in deep
+    assert diagram_system_names(diagram, max_depth=0) == []  # the graph is one box
     assert diagram_system_names(diagram, max_depth=1) == ["test_pendulum"]
+    for bad in (-1, 1.5, True):
+        with pytest.raises(
+            RepertoireError, match=f"max_depth must be None or an integer >= 0, got {bad!r}"
+        ):
+            diagram_system_names(diagram, max_depth=bad)
     assert diagram_system_names(diagram) == [
         "test_pendulum",
         "plant",

@@ -435,3 +435,33 @@ def test_initial_speed_up_to_the_wheels_limit_is_accepted():
     for speed in (-MAX_FORWARD_SPEED, 0.0, MAX_FORWARD_SPEED):
         scenario = load_scenario(GoToPoseScenario, data=f"initial_speed: {speed!r}")
         assert scenario.initial_speed == speed
+
+
+@pytest.mark.parametrize(
+    "argv, option",
+    [
+        (["study", "toy_study", "--episodes", "1", "--out-dir", ""], "--out-dir"),
+        (["study", "toy_study", "--store", " "], "--store"),
+        (["study", "toy_study", "--config", ""], "--config"),
+        (["render", "test_pendulum", "--out", ""], "--out"),
+        (["simulate", "test_pendulum", "--replay", "--out", ""], "--out"),
+        (["simulate", "test_pendulum", "--scenario", ""], "--scenario"),
+        (["demo", "--out", ""], "--out"),
+    ],
+)
+def test_an_empty_path_is_refused_not_taken_as_the_current_folder(
+    registries, tmp_path, monkeypatch, capsys, argv, option
+):
+    # Path("") is "."; `--out-dir "$OUT"` with OUT unset wrote the store, tables and
+    # figures into the folder the command ran in.
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.splitlines()[-1]
+    empty = argv[argv.index(option) + 1]
+    assert err == (
+        f"repertoire {argv[0]}: error: argument {option}: empty path {empty!r}; give a folder "
+        "or file name ('.' for the current folder)"
+    )
+    assert list(tmp_path.iterdir()) == []

@@ -68,7 +68,16 @@ def graphviz_text(system: System, max_depth: int | None = None) -> str:
         RepertoireError: ``max_depth`` is negative or not an integer.
     """
     _check_max_depth(max_depth)
+    if max_depth is not None and max_depth >= _nesting_depth(system):
+        max_depth = None  # draws the same; Drake's C++ int refuses depths from 2**31 on
     return system.GetGraphvizString(max_depth=max_depth)
+
+
+def _nesting_depth(system: System) -> int:
+    """Levels of nested diagrams in ``system`` (0 for a LeafSystem, 1 for a flat Diagram)."""
+    if not isinstance(system, Diagram):
+        return 0
+    return 1 + max((_nesting_depth(sub) for sub in system.GetSystems()), default=0)
 
 
 def _stem(out_path: str | Path) -> Path:

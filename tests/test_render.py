@@ -75,6 +75,20 @@ def test_max_depth_limits_what_is_drawn(tmp_path):
     ]
 
 
+def test_a_depth_beyond_the_nesting_draws_everything_even_past_a_cpp_int():
+    # --max-depth 99999999999 was a pybind TypeError traceback (Drake takes a C++ int)
+    from repertoire.diagrams.render import graphviz_text
+
+    diagram = nested_diagram()  # two levels: outer > test_pendulum > plant, ...
+    everything = diagram.GetGraphvizString()
+    assert graphviz_text(diagram, 1) != everything
+    for depth in (2, 3, 2**31, 10**11):
+        assert graphviz_text(diagram, depth) == everything
+    assert graphviz_text(diagram.GetSystems()[0].GetSystems()[0], 2**40) == (
+        diagram.GetSystems()[0].GetSystems()[0].GetGraphvizString()
+    )
+
+
 def test_without_dot_writes_dot_file_and_says_why(tmp_path, monkeypatch, caplog):
     empty_bin = tmp_path / "empty_bin"
     empty_bin.mkdir()

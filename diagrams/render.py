@@ -177,8 +177,13 @@ def diagram_system_names(diagram: Diagram, max_depth: int | None = None) -> list
             box); nested diagrams beyond it are one name.
 
     Raises:
-        RepertoireError: ``max_depth`` is negative or not an integer.
+        RepertoireError: ``diagram`` is not a Diagram, or ``max_depth`` is negative or not
+            an integer.
     """
+    if not isinstance(diagram, Diagram):
+        raise RepertoireError(
+            f"diagram_system_names needs a pydrake Diagram, got {type(diagram).__name__}"
+        )
     _check_max_depth(max_depth)
     if max_depth == 0:
         return []

@@ -61,6 +61,10 @@ def test_max_depth_limits_what_is_drawn(tmp_path):
     assert "name=test_pendulum" in shallow and "name=scene_graph" not in shallow
     assert "name=test_pendulum" in deep and "name=scene_graph" in deep
     assert diagram_system_names(diagram, max_depth=0) == []  # the graph is one box
+    leaf = diagram.GetSystems()[0].GetSystems()[0]
+    with pytest.raises(RepertoireError, match="needs a pydrake Diagram, got MultibodyPlant"):
+        diagram_system_names(leaf)  # was AttributeError: no attribute 'GetSystems'
+
     assert diagram_system_names(diagram, max_depth=1) == ["test_pendulum"]
     for bad in (-1, 1.5, True):
         with pytest.raises(

@@ -26,7 +26,7 @@ from repertoire.diagrams.diffdrive import (
     check_start_clear,
 )
 from repertoire.diagrams.registry import register_diagram
-from repertoire.models.diffdrive import MAX_WHEEL_SPEED
+from repertoire.models.diffdrive import MAX_FORWARD_SPEED, MAX_WHEEL_SPEED
 from repertoire.systems.go_to_pose import ActionStatus, DiffDriveStateReader, GoToPose
 
 from repertoire.criteria import Bound
@@ -111,10 +111,6 @@ class GoToPoseScenario:
             raise ScenarioError(f"target must be 4 finite values, got {self.target}")
         check_initial_speed(self.initial_speed)
         validate_discrete_control_fields(self)
-
-
-MAX_FORWARD_SPEED = MAX_WHEEL_SPEED * WHEEL_RADIUS
-"""The robot's top forward speed [m/s]: both wheels at the URDF's velocity limit."""
 
 
 def check_initial_speed(speed: float) -> None:

@@ -275,7 +275,20 @@ def chassis_pose(diagram: Diagram, context: Context) -> RigidTransform:
 
 
 MIN_RATIO_TRAVEL_M = 0.01
-"""``speed_ratio`` is reported for runs whose ideal travel is at least this (m)."""
+"""``speed_ratio`` is reported for runs whose ideal displacement is at least this (m)."""
+
+
+def ideal_displacement(v: float, omega: float, t: float) -> float:
+    """Start-to-end distance (m) of ideal rolling at forward speed ``v`` and yaw rate ``omega``.
+
+    The chord of the arc: ``|v| t |sin(omega t / 2) / (omega t / 2)|`` (``|v| t`` straight).
+    """
+    return abs(v) * t * abs(float(np.sinc(omega * t / (2.0 * np.pi))))
+
+
+def wrap_angle(angle: float) -> float:
+    """``angle`` (rad) wrapped into [-pi, pi]."""
+    return float(np.angle(np.exp(1j * angle)))
 
 
 def check_diffdrive(diagram: Diagram, context: Context) -> dict[str, float]:
@@ -283,10 +296,13 @@ def check_diffdrive(diagram: Diagram, context: Context) -> dict[str, float]:
 
     Returns:
         ``distance_m`` (axle midpoint from its start), ``heading_change_deg``,
-        ``expected_heading_change_deg`` (ideal rolling at the commanded speeds),
-        ``speed_ratio`` (mean forward speed over the ideal r (w_l + w_r) / 2; NaN for a
-        run whose ideal travel is under ``MIN_RATIO_TRAVEL_M``: there the chassis settling
-        on its wheels outweighs the drive, and 1 ns gave 7904),
+        ``expected_heading_change_deg`` (ideal rolling at the commanded speeds; both
+        wrapped into [-180, 180], as only the final pose is known),
+        ``speed_ratio`` (``distance_m`` over the ideal rolling model's displacement, the
+        chord |v| t |sin(w t / 2) / (w t / 2)| of its arc at v = r (w_l + w_r) / 2 and
+        w = r (w_r - w_l) / track: the mean forward speed over the ideal on a straight run;
+        NaN for a run whose ideal displacement is under ``MIN_RATIO_TRAVEL_M``: there the
+        chassis settling on its wheels outweighs the drive, and 1 ns gave 7904),
         ``tilt_rad`` (chassis roll/pitch magnitude).
     """
     plant = diagram.GetSubsystemByName("plant")
@@ -299,14 +315,16 @@ def check_diffdrive(diagram: Diagram, context: Context) -> dict[str, float]:
     t = context.get_time()
     yaw0 = RollPitchYaw(X0.rotation()).yaw_angle()
     rpy = RollPitchYaw(X.rotation())
-    dyaw = float(np.angle(np.exp(1j * (rpy.yaw_angle() - yaw0))))
     distance = float(np.linalg.norm(X.translation()[:2] - X0.translation()[:2]))
+    # The chord of the ideal arc (a straight run: |v| t). Against the path length, a
+    # turning run that rolled well had a ratio far under 1 (0.66 on a 169 deg arc).
+    ideal = ideal_displacement(v, omega, t)
     return {
         "distance_m": distance,
-        "heading_change_deg": float(np.degrees(dyaw)),
-        "expected_heading_change_deg": float(np.degrees(omega * t)),
-        "speed_ratio": float(distance / (abs(v) * t))
-        if abs(v) * t >= MIN_RATIO_TRAVEL_M
-        else float("nan"),
+        "heading_change_deg": float(np.degrees(wrap_angle(rpy.yaw_angle() - yaw0))),
+        # wrapped as the measured one is (was unwrapped: a -339 deg ideal turn against a
+        # measured +57 deg that was -303 deg)
+        "expected_heading_change_deg": float(np.degrees(wrap_angle(omega * t))),
+        "speed_ratio": distance / ideal if ideal >= MIN_RATIO_TRAVEL_M else float("nan"),
         "tilt_rad": float(np.hypot(rpy.roll_angle(), rpy.pitch_angle())),
     }

@@ -127,8 +127,12 @@ class LittleDogTransferScenario(LibraryLoopFields):
 
     def validate(self) -> None:
         """Raises ScenarioError naming a bad field."""
+        if self.source not in LIBRARY_TERRAINS:
+            raise ScenarioError(
+                f"source must be a library terrain, one of {sorted(LIBRARY_TERRAINS)}, "
+                f"got {self.source!r}"
+            )
         try:
-            library_terrain(self.source)
             self.plant.validate()
         except RepertoireError as e:
             raise ScenarioError(f"LittleDogTransferScenario: {e}") from e

@@ -48,6 +48,14 @@ class RenderResult:
         return text
 
 
+def _check_max_depth(max_depth: int | None) -> None:
+    """Raises RepertoireError unless ``max_depth`` is None or an integer >= 0."""
+    if max_depth is not None and (
+        isinstance(max_depth, bool) or not isinstance(max_depth, int) or max_depth < 0
+    ):
+        raise RepertoireError(f"max_depth must be None or an integer >= 0, got {max_depth!r}")
+
+
 def graphviz_text(system: System, max_depth: int | None = None) -> str:
     """The Graphviz (dot language) text of ``system``.
 
@@ -59,11 +67,17 @@ def graphviz_text(system: System, max_depth: int | None = None) -> str:
     Raises:
         RepertoireError: ``max_depth`` is negative or not an integer.
     """
-    if max_depth is not None and (
-        isinstance(max_depth, bool) or not isinstance(max_depth, int) or max_depth < 0
-    ):
-        raise RepertoireError(f"max_depth must be None or an integer >= 0, got {max_depth!r}")
+    _check_max_depth(max_depth)
+    if max_depth is not None and max_depth >= _nesting_depth(system):
+        max_depth = None  # draws the same; Drake's C++ int refuses depths from 2**31 on
     return system.GetGraphvizString(max_depth=max_depth)
+
+
+def _nesting_depth(system: System) -> int:
+    """Levels of nested diagrams in ``system`` (0 for a LeafSystem, 1 for a flat Diagram)."""
+    if not isinstance(system, Diagram):
+        return 0
+    return 1 + max((_nesting_depth(sub) for sub in system.GetSystems()), default=0)
 
 
 def _stem(out_path: str | Path) -> Path:
@@ -159,8 +173,20 @@ def diagram_system_names(diagram: Diagram, max_depth: int | None = None) -> list
 
     Args:
         diagram: the Diagram.
-        max_depth: levels expanded (None = all); nested diagrams beyond it are one name.
+        max_depth: levels expanded (None = all, 0 = none: the graph is the diagram's own
+            box); nested diagrams beyond it are one name.
+
+    Raises:
+        RepertoireError: ``diagram`` is not a Diagram, or ``max_depth`` is negative or not
+            an integer.
     """
+    if not isinstance(diagram, Diagram):
+        raise RepertoireError(
+            f"diagram_system_names needs a pydrake Diagram, got {type(diagram).__name__}"
+        )
+    _check_max_depth(max_depth)
+    if max_depth == 0:
+        return []
     names = []
     for sub in diagram.GetSystems():
         names.append(sub.get_name())

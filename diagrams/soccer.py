@@ -26,6 +26,7 @@ from repertoire.diagrams.diffdrive import (
     check_start_clear,
 )
 from repertoire.diagrams.registry import register_diagram
+from repertoire.models.diffdrive import MAX_FORWARD_SPEED, MAX_WHEEL_SPEED
 from repertoire.systems.go_to_pose import ActionStatus, DiffDriveStateReader, GoToPose
 
 from repertoire.criteria import Bound
@@ -129,10 +130,23 @@ class GoToPoseScenario:
             raise ScenarioError(f"initial_pose must be 3 finite values, got {self.initial_pose}")
         if len(self.target) != 4 or not np.all(np.isfinite(self.target)):
             raise ScenarioError(f"target must be 4 finite values, got {self.target}")
-        if not np.isfinite(self.initial_speed):
-            raise ScenarioError(f"initial_speed must be finite, got {self.initial_speed}")
+        check_initial_speed(self.initial_speed)
         check_target_clear(self.target, "target")
         validate_discrete_control_fields(self)
+
+
+def check_initial_speed(speed: float) -> None:
+    """Raises ScenarioError unless ``speed`` [m/s] is finite and within the robot's top speed.
+
+    A start faster than the wheels can turn (their URDF velocity limit) is no state the
+    robot can be in: at 1e6 m/s the contact solver failed with a bare "factorization not
+    ready", or a plan ran to a chassis 4e10 m away.
+    """
+    if not (np.isfinite(speed) and abs(speed) <= MAX_FORWARD_SPEED):
+        raise ScenarioError(
+            f"initial_speed must be finite and within +-{MAX_FORWARD_SPEED:.4g} m/s (wheel "
+            f"speed limit {MAX_WHEEL_SPEED:g} rad/s x radius {WHEEL_RADIUS:g} m), got {speed}"
+        )
 
 
 def twist_to_wheel_state_matrix() -> np.ndarray:

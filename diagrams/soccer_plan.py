@@ -19,6 +19,7 @@ from repertoire.diagrams.soccer import (
     BALL_POSITION,
     add_soccer_robot,
     build_driven,
+    check_initial_speed,
     check_target_clear,
     robot_state,
     set_initial_speed,
@@ -67,8 +68,7 @@ class SoccerPlanScenario:
         """Raises ScenarioError naming the first bad field."""
         if len(self.initial_pose) != 3 or not np.all(np.isfinite(self.initial_pose)):
             raise ScenarioError(f"initial_pose must be 3 finite values, got {self.initial_pose}")
-        if not np.isfinite(self.initial_speed):
-            raise ScenarioError(f"initial_speed must be finite, got {self.initial_speed}")
+        check_initial_speed(self.initial_speed)
         if not self.targets:
             raise ScenarioError("targets must hold at least one [x_g, y_g, phi_g, v_g]")
         for i, t in enumerate(self.targets):

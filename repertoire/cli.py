@@ -19,6 +19,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from repertoire.limits import path_argument
+
 EPILOG = """\
 examples:
   repertoire list                                   what diagrams and studies exist
@@ -48,7 +50,7 @@ def _add_scenario(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--scenario",
         metavar="YAML",
-        type=Path,
+        type=path_argument,
         help="scenario YAML file (fields of the world's Scenario dataclass; "
         "default: the built-in scenario)",
     )
@@ -58,7 +60,7 @@ def _add_out(p: argparse.ArgumentParser, default: str, what: str = "output folde
     p.add_argument(
         "--out",
         metavar="DIR",
-        type=Path,
+        type=path_argument,
         default=Path(default),
         help=f"{what} (default: {default})",
     )

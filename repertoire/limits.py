@@ -107,6 +107,25 @@ def _probe_folder(folder, shown, what: str) -> None:
     os.unlink(probe)
 
 
+def path_argument(text: str):
+    """An argparse ``type=`` for path options: the text as a Path, refusing an empty one.
+
+    ``Path("")`` is the current folder, so ``--out-dir "$OUT"`` with ``OUT`` unset would
+    scatter a study's store, tables and figures into wherever the command ran.
+
+    Raises:
+        argparse.ArgumentTypeError: ``text`` is empty or only whitespace.
+    """
+    import argparse
+    from pathlib import Path
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            f"empty path {text!r}; give a folder or file name ('.' for the current folder)"
+        )
+    return Path(text)
+
+
 def require_writable_dir(path, what: str) -> None:
     """Checks, before any work, that ``path`` is or can become a writable folder.
 

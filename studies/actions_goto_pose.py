@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from repertoire.models.diffdrive import MAX_FORWARD_SPEED
 from repertoire.studies._action_tables import POSE_FEATURE_FUNCS as FEATURE_FUNCS
 from repertoire.studies.engine import register_study
 
@@ -74,6 +75,8 @@ class GoToPoseEpisodesConfig:
             raise RepertoireError(f"x_range must lie on the field [-3, 3], got {self.x_range}")
         if not (-2 <= self.y_range[0] and self.y_range[1] <= 2):
             raise RepertoireError(f"y_range must lie on the field [-2, 2], got {self.y_range}")
+        # a start the wheels cannot reach is refused by the world: here, before any episode
+        check_range("v_range", self.v_range, (-MAX_FORWARD_SPEED, MAX_FORWARD_SPEED))
         if self.v_g_range[0] < 0:  # GoToPose arrives at >= 0 m/s: such goals only time out
             raise RepertoireError(f"v_g_range must be >= 0 m/s, got {self.v_g_range}")
         if self.goal_distance_range[0] <= BALL_RADIUS:

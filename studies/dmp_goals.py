@@ -78,9 +78,11 @@ class DmpGoalsConfig:
             a, b = getattr(self, lo), getattr(self, hi)
             if not (math.isfinite(a) and math.isfinite(b) and a <= b):
                 raise RepertoireError(f"DmpGoalsConfig needs finite {lo} <= {hi}, got {a}, {b}")
-        if not math.isfinite(self.goal_shift_m):
+        if not (math.isfinite(self.goal_shift_m) and self.goal_shift_m >= 0):
+            # the shifts are uniform in [-goal_shift_m, goal_shift_m]: a negative one was
+            # numpy's "high - low < 0" from inside every episode
             raise RepertoireError(
-                f"DmpGoalsConfig.goal_shift_m must be finite, got {self.goal_shift_m}"
+                f"DmpGoalsConfig.goal_shift_m must be finite and >= 0, got {self.goal_shift_m}"
             )
         if not (is_whole(self.n_basis) and is_whole(self.n_samples)):
             raise RepertoireError(

@@ -259,15 +259,23 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
         "approach-axis error [deg] | within 5 mm |",
         "|---|---|---|---|---|---|---|",
     ]
+
+    def mm(value: float) -> str:  # NaN: the run stopped (or ended) before that segment
+        return f"{value:.2f}" if np.isfinite(value) else "n/a"
+
     for r, ge, pe, oe in zip(records, g, p, o):
+        # a miss without a failure is an error above 5 mm (or a run too short): the
+        # error columns say by how much; "no: error" read as if the episode had raised
+        verdict = "yes" if r.reached else f"no: {r.failure[:80]}" if r.failure else "no"
         lines.append(
             f"| {r.cell} | {np.round(r.grasp_goal, 3).tolist()} | "
-            f"{np.round(r.place_goal, 3).tolist()} | {ge:.2f} | {pe:.2f} | {oe:.2f} | "
-            f"{'yes' if r.reached else 'no: ' + (r.failure[:80] or 'error')} |"
+            f"{np.round(r.place_goal, 3).tolist()} | {mm(ge)} | {mm(pe)} | {mm(oe)} | "
+            f"{verdict} |"
         )
     lines.append(
         f"\n{sum(r.reached for r in records)} of {len(records)} cells reached within 5 mm; "
-        f"max grasp error {finite_max(g):.2f} mm, max place error {finite_max(p):.2f} mm."
+        f"max grasp error {mm(finite_max(g))} mm, max place error {mm(finite_max(p))} mm "
+        "(n/a: no run got that far)."
     )
     table = write_table(out_dir, "dmp_grid_results.md", lines)
     return {"grid": grid, "results": table}

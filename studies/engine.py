@@ -83,7 +83,12 @@ from repertoire.studies.store import (
 )
 
 from repertoire.errors import RepertoireError
-from repertoire.limits import require_memory, require_writable_dir, require_writable_file
+from repertoire.limits import (
+    path_argument,
+    require_memory,
+    require_writable_dir,
+    require_writable_file,
+)
 
 __all__ = [
     "EXECUTORS",
@@ -538,7 +543,7 @@ def add_study_arguments(parser: argparse.ArgumentParser, *, with_name: bool = Tr
         parser.add_argument("name", help="registered study name (see `repertoire list`)")
     parser.add_argument(
         "--config",
-        type=Path,
+        type=path_argument,
         default=None,
         help=(
             "YAML file of the study's config; keys it leaves out keep the demo config's "
@@ -558,13 +563,13 @@ def add_study_arguments(parser: argparse.ArgumentParser, *, with_name: bool = Tr
     parser.add_argument("--first-seed", type=int, default=0, help="first seed (default 0)")
     parser.add_argument(
         "--store",
-        type=Path,
+        type=path_argument,
         default=None,
         help="SQLite store (default OUT_DIR/episodes.sqlite, OUT_DIR from --out-dir)",
     )
     parser.add_argument(
         "--out-dir",
-        type=Path,
+        type=path_argument,
         default=None,
         help="folder for the store, tables and figures (default out/studies/NAME)",
     )

@@ -33,6 +33,14 @@ def test_config_rejects_off_field_ranges():
         GoToPoseEpisodesConfig(x_range=[-4.0, 0.0]).validate()
     with pytest.raises(RepertoireError, match="lo <= hi"):
         GoToPoseEpisodesConfig(v_range=[1.0, 0.0]).validate()
+    # faster than the wheels turn (1.17 m/s): the world refuses such a start, so every
+    # episode would fail; the config says so before any runs
+    with pytest.raises(
+        RepertoireError,
+        match=r"^v_range must lie within \[-1.17\d*, 1.17\d*\], got \[0.0, 2.0\]$",
+    ):
+        GoToPoseEpisodesConfig(v_range=[0.0, 2.0]).validate()
+    GoToPoseEpisodesConfig(v_range=[0.0, 12.0 * 0.0975]).validate()  # the edge is allowed
     # a negative goal speed is never reached (arrival at ~0 m/s, tolerance 0.1 m/s): every
     # such episode would time out and be stored as a failure
     with pytest.raises(RepertoireError, match=r"v_g_range must be >= 0 m/s, got \[-0.2, 0.1\]"):

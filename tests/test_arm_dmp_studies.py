@@ -59,6 +59,14 @@ def test_smoke_episode_is_deterministic_and_summarizes(module, tmp_path):
     assert set(files) == file_keys
     for path in files.values():
         assert path.is_file() and path.stat().st_size > 0
+    if module is dmp_grid:  # 0.3 s: the grasp is 280 mm short, the place never started
+        text = files["results"].read_text()
+        assert "| 279.88 | n/a | " in text and text.count("| no |") == 1
+        assert "no: error" not in text
+        assert text.endswith(
+            "0 of 1 cells reached within 5 mm; max grasp error 279.88 mm, max place error "
+            "n/a mm (n/a: no run got that far).\n"
+        )
 
 
 def test_seeds_draw_layouts_inside_the_ranges():

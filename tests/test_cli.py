@@ -392,3 +392,76 @@ def test_output_piped_into_a_reader_that_stops_early_ends_without_a_traceback():
     err = proc.stderr.read()
     assert proc.wait(timeout=120) == 141
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
+
+
+@pytest.mark.parametrize(
+    "name, yaml_text, message",
+    [
+        # a start faster than the wheels turn: was Drake's bare "factorization not ready"
+        # (soccer_goto_pose) or a run to a chassis 4e10 m away (soccer_plan), exit 0
+        (
+            "soccer_goto_pose",
+            "initial_speed: 1.0e6\n",
+            "initial_speed must be finite and within +-1.17 m/s (wheel speed limit 12 rad/s "
+            "x radius 0.0975 m), got 1000000.0",
+        ),
+        ("soccer_plan", "initial_speed: -1.2\n", "within +-1.17 m/s"),
+        # was "LittleDogTransferScenario: unknown library terrain 'bogus'", no field named
+        (
+            "littledog_transfer",
+            "source: bogus\n",
+            "source must be a library terrain, one of ['terrain_a', 'terrain_b'], got 'bogus'",
+        ),
+    ],
+)
+def test_registered_world_bad_scenario_is_one_line_naming_the_field(
+    tmp_path, capsys, name, yaml_text, message
+):
+    (tmp_path / "s.yaml").write_text(yaml_text)
+    out = tmp_path / "sim"
+    argv = ["simulate", name, "--scenario", str(tmp_path / "s.yaml"), "--replay", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("repertoire simulate: error: ") and err.count("\n") == 1  # one line
+    assert message in err
+    assert not out.exists()
+
+
+def test_initial_speed_up_to_the_wheels_limit_is_accepted():
+    from repertoire.diagrams.scenario import load_scenario
+    from repertoire.diagrams.soccer import MAX_FORWARD_SPEED, GoToPoseScenario
+
+    assert MAX_FORWARD_SPEED == 12.0 * 0.0975
+    for speed in (-MAX_FORWARD_SPEED, 0.0, MAX_FORWARD_SPEED):
+        scenario = load_scenario(GoToPoseScenario, data=f"initial_speed: {speed!r}")
+        assert scenario.initial_speed == speed
+
+
+@pytest.mark.parametrize(
+    "argv, option",
+    [
+        (["study", "toy_study", "--episodes", "1", "--out-dir", ""], "--out-dir"),
+        (["study", "toy_study", "--store", " "], "--store"),
+        (["study", "toy_study", "--config", ""], "--config"),
+        (["render", "test_pendulum", "--out", ""], "--out"),
+        (["simulate", "test_pendulum", "--replay", "--out", ""], "--out"),
+        (["simulate", "test_pendulum", "--scenario", ""], "--scenario"),
+        (["demo", "--out", ""], "--out"),
+    ],
+)
+def test_an_empty_path_is_refused_not_taken_as_the_current_folder(
+    registries, tmp_path, monkeypatch, capsys, argv, option
+):
+    # Path("") is "."; `--out-dir "$OUT"` with OUT unset wrote the store, tables and
+    # figures into the folder the command ran in.
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.splitlines()[-1]
+    empty = argv[argv.index(option) + 1]
+    assert err == (
+        f"repertoire {argv[0]}: error: argument {option}: empty path {empty!r}; give a folder "
+        "or file name ('.' for the current folder)"
+    )
+    assert list(tmp_path.iterdir()) == []

@@ -82,6 +82,43 @@ def test_speed_ratio_is_not_reported_for_a_run_too_short_to_measure():
     assert math.isfinite(figures["distance_m"])
 
 
+def test_ideal_displacement_is_the_chord_of_the_arc():
+    from repertoire.diagrams.diffdrive import ideal_displacement, wrap_angle
+
+    assert ideal_displacement(0.5, 0.0, 2.0) == 1.0
+    assert ideal_displacement(-0.5, 0.0, 2.0) == 1.0
+    # radius v / omega = 1 m, a half turn: the chord is the diameter
+    assert ideal_displacement(1.0, 1.0, math.pi) == pytest.approx(2.0, rel=1e-15)
+    assert ideal_displacement(1.0, -1.0, math.pi / 2) == pytest.approx(math.sqrt(2.0), rel=1e-15)
+    assert ideal_displacement(1.0, 1.0, 2 * math.pi) == pytest.approx(0.0, abs=1e-15)
+    assert wrap_angle(-5.0) == pytest.approx(2 * math.pi - 5.0, rel=1e-15)
+    assert wrap_angle(0.25) == 0.25
+
+
+def test_a_turning_run_is_judged_against_the_arc_and_wrapped_headings():
+    # wheels 3 and 8 rad/s for 2 s: a 170 deg arc; against the path length |v| t a run
+    # rolling well gave speed_ratio 0.66, now 0.98 (criterion 0.9-1.1); in-place turn [5, -5] for
+    # 2 s: the ideal -339 deg was printed unwrapped beside the measured (wrapped) +57 deg
+    scenario = DiffDriveScenario(world="empty", wheel_speeds=[3.0, 8.0])
+    diagram = build_diffdrive_drive(scenario)
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(2.0)
+    figures = check_diffdrive(diagram, simulator.get_context())
+    v, omega = twist_from_wheel_speeds([3.0, 8.0])
+    assert math.degrees(omega * 2.0) == pytest.approx(169.3, abs=0.05)
+    assert figures["distance_m"] / (v * 2.0) < 0.7  # the old figure
+    assert 0.9 < figures["speed_ratio"] <= 1.0
+    diagram = build_diffdrive_drive(DiffDriveScenario(world="empty", wheel_speeds=[5.0, -5.0]))
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(2.0)
+    figures = check_diffdrive(diagram, simulator.get_context())
+    assert figures["expected_heading_change_deg"] == pytest.approx(
+        math.degrees(2 * math.pi - 2.0 * 10.0 * WHEEL_RADIUS / TRACK), rel=1e-12
+    )
+    assert -180.0 <= figures["heading_change_deg"] <= 180.0
+    assert math.isnan(figures["speed_ratio"])  # no forward speed: nothing to compare
+
+
 @pytest.mark.parametrize("name", ["diffdrive_soccer.yaml", "diffdrive_kitchen.yaml"])
 def test_worlds_simulate_one_second(name):
     scenario = load_scenario(DiffDriveScenario, filename=SCENARIOS / name)

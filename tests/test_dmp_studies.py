@@ -67,6 +67,12 @@ def test_study_configs_refuse_infinite_and_inverted_ranges():
         dmp_goals.DmpGoalsConfig(bulge_max_m=float("inf")).validate()
     with pytest.raises(RepertoireError, match="rise_min_m <= rise_max_m"):
         dmp_goals.DmpGoalsConfig(rise_min_m=0.2, rise_max_m=0.1).validate()
+    # a negative shift was numpy's "high - low < 0" inside every episode (exit 1)
+    with pytest.raises(
+        RepertoireError, match=r"^DmpGoalsConfig.goal_shift_m must be finite and >= 0, got -1.0$"
+    ):
+        dmp_goals.DmpGoalsConfig(goal_shift_m=-1.0).validate()
+    dmp_goals.DmpGoalsConfig(goal_shift_m=0.0).validate()  # no shift: the edge is allowed
     dmp_goals.DmpGoalsConfig().validate()
     dmp_chaining.DmpChainingConfig().validate()
     obstacles = dmp_obstacles.DmpObstaclesConfig

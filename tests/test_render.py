@@ -60,13 +60,37 @@ def test_max_depth_limits_what_is_drawn(tmp_path):
     deep = svg_texts(render_diagram(diagram, tmp_path / "dall").files["svg"])
     assert "name=test_pendulum" in shallow and "name=scene_graph" not in shallow
     assert "name=test_pendulum" in deep and "name=scene_graph" in deep
+    assert diagram_system_names(diagram, max_depth=0) == []  # the graph is one box
+    leaf = diagram.GetSystems()[0].GetSystems()[0]
+    with pytest.raises(RepertoireError, match="needs a pydrake Diagram, got MultibodyPlant"):
+        diagram_system_names(leaf)  # was AttributeError: no attribute 'GetSystems'
+
     assert diagram_system_names(diagram, max_depth=1) == ["test_pendulum"]
+    for bad in (-1, 1.5, True):
+        with pytest.raises(
+            RepertoireError, match=f"max_depth must be None or an integer >= 0, got {bad!r}"
+        ):
+            diagram_system_names(diagram, max_depth=bad)
     assert diagram_system_names(diagram) == [
         "test_pendulum",
         "plant",
         "scene_graph",
         "torque_source",
     ]
+
+
+def test_a_depth_beyond_the_nesting_draws_everything_even_past_a_cpp_int():
+    # --max-depth 99999999999 was a pybind TypeError traceback (Drake takes a C++ int)
+    from repertoire.diagrams.render import graphviz_text
+
+    diagram = nested_diagram()  # two levels: outer > test_pendulum > plant, ...
+    everything = diagram.GetGraphvizString()
+    assert graphviz_text(diagram, 1) != everything
+    for depth in (2, 3, 2**31, 10**11):
+        assert graphviz_text(diagram, depth) == everything
+    assert graphviz_text(diagram.GetSystems()[0].GetSystems()[0], 2**40) == (
+        diagram.GetSystems()[0].GetSystems()[0].GetGraphvizString()
+    )
 
 
 def test_without_dot_writes_dot_file_and_says_why(tmp_path, monkeypatch, caplog):

@@ -20,6 +20,7 @@ from repertoire.diagrams.simulate import (
     RECORDING_FPS,
     SimulationDivergedError,
     check_duration,
+    nonfinite_derivative_systems,
     nonfinite_state_systems,
     recording_fps,
     simulate,
@@ -104,6 +105,32 @@ def test_nan_state_stops_the_run_and_names_the_system_and_time():
         context
     ).get_mutable_discrete_state_vector().SetAtIndex(0, np.nan)
     assert nonfinite_state_systems(diagram, context) == ["::diverging::steady"]
+
+
+def test_nan_time_derivative_stops_the_run_and_names_the_system():
+    """A NaN rate with finite states: Drake's RK3 alone would shrink its step forever."""
+    from pydrake.systems.primitives import ConstantVectorSource, Integrator
+
+    inner = DiagramBuilder()
+    integrator = inner.AddSystem(Integrator(2))  # unnamed, inside an unnamed diagram
+    inner.ExportInput(integrator.get_input_port(0))
+    inner_diagram = inner.Build()
+    builder = DiagramBuilder()
+    nested = builder.AddSystem(inner_diagram)
+    source = builder.AddNamedSystem("rate", ConstantVectorSource([1.0, np.nan]))
+    builder.Connect(source.get_output_port(0), nested.get_input_port(0))
+    diagram = builder.Build()
+    diagram.set_name("nan_rate")
+    path = integrator.GetSystemPathname()
+    assert path.startswith("::nan_rate::") and path.endswith(integrator.get_name())
+    with pytest.raises(SimulationDivergedError) as error:
+        simulate(diagram, 1.0)
+    assert str(error.value) == (
+        f"diagram 'nan_rate' diverged: the time derivative of {path} became non-finite "
+        "(NaN/inf) at t = 0 s of a run to t = 1 s. Check gains, time step and initial "
+        "conditions."
+    )
+    assert nonfinite_derivative_systems(diagram, diagram.CreateDefaultContext()) == [path]
 
 
 @pytest.mark.parametrize("duration", [0.0, -1.0, math.nan, math.inf, "abc"])

@@ -123,13 +123,18 @@ def point_in_boxes(p, boxes, margin: float = 0.0) -> int:
             upright box from the floor to ``top_z`` (a table, a counter).
         margin: grows every box by this much horizontally and on top [m].
     """
-    for i, (cx, cy, yaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
-        c, s = math.cos(yaw), math.sin(yaw)
-        dx, dy = p[0] - cx, p[1] - cy
-        u, w = c * dx + s * dy, -s * dx + c * dy
+    for i, u, w, hx, hy, top in _in_box_frames(p, boxes):
         if abs(u) <= hx + margin and abs(w) <= hy + margin and p[2] <= top + margin:
             return i
     return -1
+
+
+def _in_box_frames(p, boxes):
+    """Per box ``(index, u, w, half_x, half_y, top_z)``: ``p``'s horizontal offset in its frame."""
+    for i, (cx, cy, yaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
+        c, s = math.cos(yaw), math.sin(yaw)
+        dx, dy = p[0] - cx, p[1] - cy
+        yield i, c * dx + s * dy, -s * dx + c * dy, hx, hy, top
 
 
 def support_under(p, boxes, radius: float, max_drop: float) -> int:
@@ -144,10 +149,7 @@ def support_under(p, boxes, radius: float, max_drop: float) -> int:
         radius: the disc's radius [m].
         max_drop: largest height of the disc above the top [m].
     """
-    for i, (cx, cy, yaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
-        c, s = math.cos(yaw), math.sin(yaw)
-        dx, dy = p[0] - cx, p[1] - cy
-        u, w = c * dx + s * dy, -s * dx + c * dy
+    for i, u, w, hx, hy, top in _in_box_frames(p, boxes):
         if abs(u) <= hx - radius and abs(w) <= hy - radius and 0.0 <= p[2] - top <= max_drop:
             return i
     return -1

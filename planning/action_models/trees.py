@@ -514,7 +514,7 @@ def load_model(path: str | Path) -> TreeModel:
     if version not in READ_VERSIONS:
         raise RepertoireError(
             f"action model '{path}' has version {version!r}; this code reads "
-            f"version {MODEL_VERSION}: refit the model"
+            f"versions {', '.join(map(str, READ_VERSIONS))}: refit the model"
         )
     missing = [k for k in _REQUIRED if k not in data]
     if missing:

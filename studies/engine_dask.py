@@ -10,6 +10,7 @@ error (finished episodes stay stored). dask is imported only when a study runs o
 """
 
 import math
+import numbers
 import re
 import threading
 import time
@@ -18,7 +19,6 @@ from typing import Any
 
 from repertoire.studies.engine_pool import EpisodeError, run_task
 
-from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 
 DASK_CONNECT_TIMEOUT_S = 3.0
@@ -60,7 +60,12 @@ def parse_scheduler_address(address: Any) -> str:
 
 def check_wait_s(label: str, value: Any) -> float:
     """``value`` as a float number of seconds, finite and > 0, or an error naming ``label``."""
-    if not (is_real(value) and math.isfinite(value) and value > 0):
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, numbers.Real)
+        or not math.isfinite(value)
+        or value <= 0
+    ):
         raise RepertoireError(f"{label} must be a finite number of seconds > 0, got {value!r}")
     return float(value)
 

@@ -18,7 +18,7 @@ from pydrake.systems.framework import Context, Diagram, EventStatus, System
 from repertoire.diagrams.registry import DiagramEntry, get_diagram_entry
 from repertoire.diagrams.scenario import load_scenario
 
-from repertoire.errors import RepertoireError
+from repertoire.errors import RepertoireError, ScenarioError
 
 
 class SimulationDivergedError(RepertoireError):
@@ -169,6 +169,33 @@ def check_duration(duration: float) -> float:
             "from the previous context"
         )
     return value
+
+
+def validate_control_period(
+    period: float, time_step: float, longest: float = MAX_DURATION_S
+) -> None:
+    """Checks a discrete controller's update period against the plant step and the run.
+
+    A controller updates at ``t = 0, period, 2 period, ...``: a period longer than the
+    run it controls never updates again after the start, so the run holds the first
+    command throughout. No scenario knows how long it will be simulated, but no run is
+    longer than ``MAX_DURATION_S`` (``simulate``'s limit), which bounds every scenario's
+    ``validate``; ``simulate_registered`` checks again against the run's own duration.
+
+    Args:
+        period: the ``control_period`` field [s].
+        time_step: the plant step [s] (the controller cannot update faster).
+        longest: the longest run the controller serves [s].
+
+    Raises:
+        ScenarioError: naming ``control_period``, its value and the allowed range.
+    """
+    if not (np.isfinite(period) and time_step <= period <= longest):
+        raise ScenarioError(
+            f"control_period must be in [time_step, {longest:g}] s = [{time_step:g}, "
+            f"{longest:g}] s (a longer period never updates the controller after t = 0 "
+            f"within a run of at most {longest:g} s), got {period:g}"
+        )
 
 
 _CARRY_ON = (EventStatus.Severity.kDidNothing, EventStatus.Severity.kSucceeded)
@@ -389,12 +416,15 @@ def simulate_registered(
         ``{"sim_time_s": final time, **check figures}``.
 
     Raises:
-        UnknownNameError, ScenarioError, RepertoireError: bad name, scenario or duration.
+        UnknownNameError, ScenarioError, RepertoireError: bad name, scenario or duration
+            (also a scenario's ``control_period`` longer than ``duration``).
         SimulationDivergedError: the state became non-finite.
     """
     entry = get_diagram_entry(name)
     duration = check_duration(entry.duration if duration is None else duration)
     scenario = resolve_scenario(entry, scenario)
+    if hasattr(scenario, "control_period"):
+        validate_control_period(scenario.control_period, scenario.time_step, duration)
     diagram = build_registered(name, scenario=scenario, meshcat=meshcat)
     context = start_context(entry, diagram, scenario)
     _, context = simulate(diagram, duration, context=context, meshcat=meshcat)

@@ -13,6 +13,7 @@ from repertoire.diagrams.soccer import GoToPoseScenario, build_soccer_goto_pose
 from repertoire.diagrams.soccer_dribble import DribbleScenario, build_soccer_dribble
 from repertoire.diagrams.soccer_plan import SoccerPlanScenario, build_soccer_plan
 
+from repertoire.cli import main
 from repertoire.errors import RepertoireError, ScenarioError
 
 
@@ -276,3 +277,17 @@ def test_simulate_registered_refuses_a_control_period_longer_than_the_run():
     )
     with pytest.raises(ScenarioError, match=re.escape(message)):
         simulate_registered("arm_reach", scenario=ReachScenario(control_period=2.0), duration=1.0)
+
+
+@pytest.mark.parametrize("replay", [False, True])
+def test_the_cli_refuses_a_run_shorter_than_the_control_period(tmp_path, capsys, replay):
+    # arm_reach's default period is 0.01 s; a 0.005 s run never sees a second update
+    argv = ["simulate", "arm_reach", "--duration", "0.005"]
+    argv += ["--replay", "--out", str(tmp_path / "out")] if replay else []
+    assert main(argv) == 2
+    assert capsys.readouterr().err.endswith(
+        "error: control_period must be in [time_step, 0.005] s = [0.002, 0.005] s (a longer "
+        "period never updates the controller after t = 0 within a run of at most 0.005 s), "
+        "got 0.01\n"
+    )
+    assert not (tmp_path / "out").exists()

@@ -18,6 +18,7 @@ from repertoire.studies.refinement_explore import summarize as explore_summarize
 from repertoire.studies.refinement_soccer import (
     RefinementSoccerConfig,
     load_duration_models,
+    paired_cells,
     paired_improvement,
     situation_features,
 )
@@ -138,6 +139,24 @@ def test_paired_improvement_closed_form():
     imp, p = paired_improvement(np.array([10.0, 10.0, 8.0]), np.array([9.0, 8.0, 8.0]))
     assert imp == pytest.approx((0.1 + 0.2 + 0.0) / 3)
     assert 0 < p < 1
+
+
+def test_paired_cells_say_why_a_figure_is_undefined():
+    # was "nan" in Table 3 with one paired episode (-n 1)
+    assert paired_cells(np.array([10.0, 10.0, 8.0]), np.array([9.0, 8.0, 8.0])) == [
+        "3", "9.33", "8.33", "10.0%", "0.23"
+    ]  # fmt: skip
+    assert paired_cells(np.array([6.0]), np.array([5.4])) == [
+        "1", "6.00", "5.40", "10.0%", "n/a (1 paired episode, need >= 2)"
+    ]  # fmt: skip
+    assert paired_cells(np.array([4.0, 5.0]), np.array([4.0, 5.0])) == [
+        "2", "4.50", "4.50", "0.0%", "n/a (paired times identical)"
+    ]  # fmt: skip
+    none = np.array([])
+    assert paired_cells(none, none) == [
+        "0", "n/a", "n/a", "n/a (no paired episode)", "n/a (no paired episode)"
+    ]  # fmt: skip
+    assert math.isnan(paired_improvement(np.array([4.0, 5.0]), np.array([4.0, 5.0]))[1])
 
 
 def test_config_bad_input():
@@ -282,7 +301,11 @@ def test_explore_smoke_then_models_then_refined_episode(tmp_path):
     turn_2 = abs(math.remainder(rec.phi_2 - rec.dest_phi, 2 * math.pi))
     assert turn_2 < turn_1
     assert situation_features([rec]).shape == (1, 5)
-    assert (tmp_path / "soccer" / "refinement_soccer_tables.md").is_file()
+    table = (tmp_path / "soccer" / "refinement_soccer_tables.md").read_text()
+    paired = rec.status_1 == rec.status_2 == "SUCCEEDED"
+    why = "1 paired episode, need >= 2" if paired else "no paired episode"
+    assert f"| n/a ({why}) |" in table.splitlines()[5]  # the "ours" row, one episode
+    assert "nan" not in table
 
 
 def _assertion_record(predicted_fail, asserted, ok_without, ok_with):

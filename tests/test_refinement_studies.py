@@ -394,3 +394,39 @@ def test_tour_sampling_states_and_problem():
     assert [t.uses for t in problem.terms] == [(0, 1), (0, 1, 2, 3), (2, 3, 4, 5), (4, 5)]
     lengths = np.hypot(*np.diff(np.vstack([start[:2], wps]), axis=0).T)
     assert problem.cost(params)[0] == pytest.approx(4.0 + 2.0 * lengths.sum(), rel=1e-6)
+
+
+def test_tour_out_of_range_flags_the_final_stop_the_models_never_saw():
+    # the last leg ends at rest (v_g = 0), below every shipped training approach's
+    # v_g (0.00025 m/s): a true extrapolation, reported per leg in Table 4's summary
+    from repertoire.studies.refinement_horizons import (
+        RefinementHorizonsConfig,
+        RefinementHorizonsRecord,
+        out_of_range_lines,
+        tour_out_of_range,
+    )
+    from repertoire.studies.refinement_soccer import load_models
+
+    (model,) = load_models("", ("approach_duration",))
+    start = [-2.0, 0.0, 0.0, 0.05]
+    waypoints = np.array([[-1.0, 0.0], [0.0, 0.0], [0.0, 1.0], [-1.0, 1.0]])
+    along = [0.0, 0.05, math.pi / 2, 0.05, math.pi, 0.05]  # each heading along its next leg
+    back = [math.pi, 0.05, *along[2:]]  # arrive at waypoint 1 facing back
+    flags = tour_out_of_range(model, start, waypoints, math.pi, np.array([along, back]))
+    np.testing.assert_array_equal(flags, [[False, False, False, True], [True, True, False, True]])
+    record = RefinementHorizonsRecord(
+        start, waypoints.reshape(-1).tolist(), math.pi, back + along * 3,
+        [0.0] * 4, [0.0] * 4, ["SUCCEEDED"] * 4, 0.0, 0.0,
+    )  # fmt: skip
+    lines = out_of_range_lines([record], RefinementHorizonsConfig())
+    assert lines[4:8] == [
+        "| h = 1 | 1 | 1 | 0 | 1 |",
+        "| h = 2 | 0 | 0 | 0 | 1 |",
+        "| h = 3 | 0 | 0 | 0 | 1 |",
+        "| h = 4 | 0 | 0 | 0 | 1 |",
+    ]
+    assert lines[-1] == (
+        "The last leg ends at rest (v_g = 0), a query of the model too; the approaches it was "
+        "fitted on all ended moving (v_g 0.00025-0.09 m/s): a stop is outside its data, so "
+        "every tour's last leg is flagged."
+    )

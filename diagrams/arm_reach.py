@@ -14,6 +14,7 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import Adder, ConstantVectorSource, MatrixGain
 from repertoire.diagrams.arm import ArmScenario, add_arm_controllers, add_arm_station
+from repertoire.diagrams.biped import validate_control_period
 from repertoire.diagrams.registry import register_diagram
 from repertoire.models.arm7 import ARM_JOINTS, HAND_OPEN, ArmWorld, arm7_home_configuration
 from repertoire.systems.arm_reach import REACH_GAINS, Reach
@@ -60,8 +61,7 @@ class ReachScenario:
             raise ScenarioError(f"unknown gains {sorted(unknown)}; expected {list(REACH_GAINS)}")
         if not (np.isfinite(self.time_step) and 0 < self.time_step <= 0.01):
             raise ScenarioError(f"time_step must be in (0, 0.01] s, got {self.time_step}")
-        if not (np.isfinite(self.control_period) and self.control_period >= self.time_step):
-            raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
+        validate_control_period(self.control_period, self.time_step)
 
     def arm_scenario(self) -> ArmScenario:
         """The arm station's scenario: home pose with the two joints at the start."""

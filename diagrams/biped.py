@@ -23,6 +23,7 @@ from pydrake.multibody.tree import ModelInstanceIndex
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 from repertoire.diagrams.registry import register_diagram
+from repertoire.diagrams.simulate import validate_control_period
 from repertoire.models.biped import (
     JOINT_LIMITS,
     JOINT_NAMES,
@@ -113,9 +114,7 @@ def validate_discrete_control_fields(scenario: Any) -> None:
     validate_plant_fields(
         scenario.time_step, scenario.contact_approximation, scenario.ground_friction
     )
-    period = scenario.control_period
-    if not (np.isfinite(period) and period >= scenario.time_step):
-        raise ScenarioError(f"control_period must be >= time_step, got {period}")
+    validate_control_period(scenario.control_period, scenario.time_step)
 
 
 def add_ground(plant: MultibodyPlant, friction: float = 1.0, size: float = 12.0) -> None:

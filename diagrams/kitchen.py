@@ -27,7 +27,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
-from repertoire.diagrams.biped import add_plant_with_ground, validate_plant_fields
+from repertoire.diagrams.biped import add_plant_with_ground, validate_discrete_control_fields
 from repertoire.diagrams.diffdrive import WHEEL_RADIUS, WORLDS, check_start_clear
 from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.simulate import SimulatorCache
@@ -166,9 +166,7 @@ class KitchenScenario:
             raise ScenarioError(f"cups must be distinct names of {KITCHEN_CUPS}, got {self.cups}")
         if self.cup_in_gripper and "cup_0" not in self.cups:
             raise ScenarioError("cup_in_gripper needs cup_0 in cups")
-        validate_plant_fields(self.time_step, self.contact_approximation, self.ground_friction)
-        if not (np.isfinite(self.control_period) and self.control_period >= self.time_step):
-            raise ScenarioError(f"control_period must be >= time_step, got {self.control_period}")
+        validate_discrete_control_fields(self)
         if not (np.isfinite(self.wheel_kd) and self.wheel_kd > 0):
             raise ScenarioError(f"wheel_kd must be > 0, got {self.wheel_kd}")
         for name, p in self.cup_positions.items():

@@ -235,7 +235,7 @@ def _record(
             f"{duration:g} s at real-time rate {realtime_rate:g}"
         )
     if entry is not None:
-        scenario = resolve_scenario(entry, scenario)
+        scenario = resolve_scenario(entry, scenario, duration)
         diagram = build_registered(entry.name, scenario=scenario, meshcat=meshcat)
     else:
         diagram = source(meshcat=meshcat)

@@ -18,7 +18,7 @@ from pydrake.systems.framework import Context, Diagram, EventStatus, System
 from repertoire.diagrams.registry import DiagramEntry, get_diagram_entry
 from repertoire.diagrams.scenario import load_scenario
 
-from repertoire.errors import RepertoireError
+from repertoire.errors import RepertoireError, ScenarioError
 
 
 class SimulationDivergedError(RepertoireError):
@@ -171,6 +171,34 @@ def check_duration(duration: float) -> float:
     return value
 
 
+def validate_control_period(
+    period: float, time_step: float, longest: float = MAX_DURATION_S
+) -> None:
+    """Checks a discrete controller's update period against the plant step and the run.
+
+    A controller updates at ``t = 0, period, 2 period, ...``: a period longer than the
+    run it controls never updates again after the start, so the run holds the first
+    command throughout. No scenario knows how long it will be simulated, but no run is
+    longer than ``MAX_DURATION_S`` (``simulate``'s limit), which bounds every scenario's
+    ``validate``; ``resolve_scenario`` given a run's duration (``simulate_registered``,
+    ``record_replay``, ``repertoire simulate``) checks again against that duration.
+
+    Args:
+        period: the ``control_period`` field [s].
+        time_step: the plant step [s] (the controller cannot update faster).
+        longest: the longest run the controller serves [s].
+
+    Raises:
+        ScenarioError: naming ``control_period``, its value and the allowed range.
+    """
+    if not (np.isfinite(period) and time_step <= period <= longest):
+        raise ScenarioError(
+            f"control_period must be in [time_step, {longest:g}] s = [{time_step:g}, "
+            f"{longest:g}] s (a longer period never updates the controller after t = 0 "
+            f"within a run of at most {longest:g} s), got {period:g}"
+        )
+
+
 _CARRY_ON = (EventStatus.Severity.kDidNothing, EventStatus.Severity.kSucceeded)
 
 
@@ -288,27 +316,34 @@ def simulate(
     return simulator, root_context
 
 
-def resolve_scenario(entry: DiagramEntry, scenario: Any = None) -> Any:
+def resolve_scenario(
+    entry: DiagramEntry, scenario: Any = None, duration: float | None = None
+) -> Any:
     """The scenario object for a registered diagram.
 
     Args:
         entry: the registry entry.
         scenario: None (the scenario type's defaults), a YAML file path (str or Path),
             or an instance of ``entry.scenario_type``.
+        duration: the run's length [s], if it will be simulated: a scenario's
+            ``control_period`` must not exceed it (see :func:`validate_control_period`).
 
     Raises:
-        ScenarioError: the YAML file is missing, malformed or mistyped.
+        ScenarioError: the YAML file is missing, malformed or mistyped, or its
+            ``control_period`` is longer than ``duration``.
         RepertoireError: ``scenario`` is an object of the wrong type.
     """
     if scenario is None:
-        return entry.scenario_type()
-    if isinstance(scenario, str | Path):
-        return load_scenario(entry.scenario_type, filename=scenario)
-    if not isinstance(scenario, entry.scenario_type):
+        scenario = entry.scenario_type()
+    elif isinstance(scenario, str | Path):
+        scenario = load_scenario(entry.scenario_type, filename=scenario)
+    elif not isinstance(scenario, entry.scenario_type):
         raise RepertoireError(
             f"diagram '{entry.name}' takes a {entry.scenario_type.__name__} scenario (or a YAML "
             f"file of one), got {type(scenario).__name__}"
         )
+    if duration is not None and hasattr(scenario, "control_period"):
+        validate_control_period(scenario.control_period, scenario.time_step, duration)
     return scenario
 
 
@@ -389,12 +424,13 @@ def simulate_registered(
         ``{"sim_time_s": final time, **check figures}``.
 
     Raises:
-        UnknownNameError, ScenarioError, RepertoireError: bad name, scenario or duration.
+        UnknownNameError, ScenarioError, RepertoireError: bad name, scenario or duration
+            (also a scenario's ``control_period`` longer than ``duration``).
         SimulationDivergedError: the state became non-finite.
     """
     entry = get_diagram_entry(name)
     duration = check_duration(entry.duration if duration is None else duration)
-    scenario = resolve_scenario(entry, scenario)
+    scenario = resolve_scenario(entry, scenario, duration)
     diagram = build_registered(name, scenario=scenario, meshcat=meshcat)
     context = start_context(entry, diagram, scenario)
     _, context = simulate(diagram, duration, context=context, meshcat=meshcat)

@@ -309,7 +309,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise RepertoireError(
             f"--live-seconds must be a finite number >= 0, got {args.live_seconds}"
         )
-    scenario = resolve_scenario(entry, args.scenario)
+    scenario = resolve_scenario(entry, args.scenario, duration)
     start = time.perf_counter()
     meshcat = None
     try:

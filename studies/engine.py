@@ -286,7 +286,9 @@ def run_study(
         workers = _check_int("--workers (workers)", workers, 1)
     if executor == "dask":
         dask_timeout_s = check_wait_s("dask_timeout_s", dask_timeout_s)
-        dask_worker_wait_s = check_wait_s("dask_worker_wait_s", dask_worker_wait_s)
+        dask_worker_wait_s = check_wait_s(
+            "--dask-worker-wait (dask_worker_wait_s)", dask_worker_wait_s
+        )
     entry = get_study(name)
     if config is None:
         config = entry.default_config()
@@ -588,6 +590,16 @@ def add_study_arguments(parser: argparse.ArgumentParser, *, with_name: bool = Tr
         help="Dask scheduler address, e.g. tcp://host:8786 (with --executor dask)",
     )
     parser.add_argument(
+        "--dask-worker-wait",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help=(
+            "with --executor dask: how long seeds wait on the scheduler for a worker when every "
+            f"worker has left mid-run, before the run stops (default {DASK_WORKER_WAIT_S:g} s)"
+        ),
+    )
+    parser.add_argument(
         "--fresh",
         action="store_true",
         help=(
@@ -621,6 +633,14 @@ def run_study_from_args(args: argparse.Namespace, name: str | None = None) -> St
         config = entry.smoke_config()
     else:
         config = entry.default_config()
+    wait = {}
+    if args.dask_worker_wait is not None:
+        if args.executor != "dask":
+            raise RepertoireError(
+                "--dask-worker-wait is only used with --executor dask (the other executors "
+                "run their own workers)"
+            )
+        wait["dask_worker_wait_s"] = args.dask_worker_wait
     result = run_study(
         name,
         config,
@@ -633,6 +653,7 @@ def run_study_from_args(args: argparse.Namespace, name: str | None = None) -> St
         scheduler_address=args.scheduler,
         fresh=args.fresh,
         progress=not args.no_progress,
+        **wait,
     )
     print(
         f"study {name}: {len(result.records)} episodes ({result.n_run} run, "

@@ -12,7 +12,9 @@ tour is executed in the ``soccer_plan`` world. The plan is built directly as a
 refinement problem: like the paper's arm domain, a fixed tour needs no PDDL planner.
 
 ``summarize`` writes Table 4 (mean executed tour time per horizon, the improvement over
-the previous horizon and its paired t-test) beside the paper's soccer column.
+the previous horizon and its paired t-test) beside the paper's soccer column, and per
+horizon how many tours query the model outside its training box on each leg (the last leg,
+ending at rest with ``v_g = 0``, always does: the models never saw a stop).
 
 Run it with ``python -m repertoire.studies.refinement_horizons --help``.
 """
@@ -137,12 +139,35 @@ def tour_states(start, waypoints, final_phi: float, params: np.ndarray) -> np.nd
     return states
 
 
+def leg_features(start, waypoints, final_phi: float, params: np.ndarray, leg: int) -> np.ndarray:
+    """``(n, 5)`` GoToPose features of tour leg ``leg`` (0-3) for parameter rows ``params``.
+
+    Un-mirrored, as the shipped models were fitted. The last leg's goal speed ``v_g`` is 0:
+    the tour ends at rest at its last waypoint.
+    """
+    from repertoire.planning.action_models.features import goto_pose_features
+
+    s = tour_states(start, waypoints, final_phi, params)
+    return np.atleast_2d(goto_pose_features(s[:, leg], s[:, leg + 1], mirrored=False))
+
+
+def tour_out_of_range(model, start, waypoints, final_phi: float, params) -> np.ndarray:
+    """``(n, 4)``: True where a leg's features lie outside ``model``'s training box.
+
+    Every leg is a query of the duration model (its term in :func:`tour_problem`),
+    the last one too: it is predicted with ``v_g = 0``.
+    """
+    n = np.atleast_2d(params).shape[0]
+    flags = [model.out_of_range(leg_features(start, waypoints, final_phi, params, leg))
+             for leg in range(N_LEGS)]  # fmt: skip
+    return np.column_stack(flags).reshape(n, N_LEGS)
+
+
 def tour_problem(model, start, waypoints, final_phi: float, v_max: float, *, v_min: float = 0.0):
     """The refinement problem of the tour: one GoToPose term per leg, six free parameters.
 
     Each waypoint's heading is free in ``[-pi, pi]``, its speed in ``[v_min, v_max]``.
     """
-    from repertoire.planning.action_models.features import goto_pose_features
     from repertoire.planning.refinement import (
         DurationTerm,
         PiecewiseLinearModel,
@@ -154,9 +179,7 @@ def tour_problem(model, start, waypoints, final_phi: float, v_max: float, *, v_m
     for leg in range(N_LEGS):
 
         def features(params, leg=leg):
-            s = tour_states(start, waypoints, final_phi, params)
-            # un-mirrored, as the shipped models were fitted
-            return np.atleast_2d(goto_pose_features(s[:, leg], s[:, leg + 1], mirrored=False))
+            return leg_features(start, waypoints, final_phi, params, leg)
 
         uses = [i for k in (leg, leg + 1) if 1 <= k < N_LEGS for i in (2 * k - 2, 2 * k - 1)]
         terms.append(DurationTerm(pl, features, tuple(uses), f"{leg}:goToPose"))
@@ -203,7 +226,7 @@ def summarize(
     records: list[RefinementHorizonsRecord], config: RefinementHorizonsConfig, out_dir: Path
 ) -> dict[str, Path]:
     """Writes Table 4: executed tour time per horizon beside the paper's soccer column."""
-    from repertoire.studies.refinement_soccer import paired_improvement
+    from repertoire.studies.refinement_soccer import paired_cells
 
     out_dir = Path(out_dir)
     ok = [r for r in records if all(s == "SUCCEEDED" for s in r.status_h)]
@@ -222,8 +245,8 @@ def summarize(
         if ok:
             mean = f"{np.mean(T[:, h - 1]):.2f}"
             if h > 1:
-                ours_imp, ours_p = paired_improvement(T[:, h - 2], T[:, h - 1])
-                ours = f"{mean} | {ours_imp:.1%} | {ours_p:.2g}"
+                ours_imp, ours_p = paired_cells(T[:, h - 2], T[:, h - 1])[3:]
+                ours = f"{mean} | {ours_imp} | {ours_p}"
             else:
                 ours = f"{mean} | | "
             pred = f"{np.mean(P[:, h - 1]):.2f}"
@@ -236,10 +259,52 @@ def summarize(
         f"{len(records)} tours; {len(ok)} succeeded with every horizon (the table pairs those); "
         f"failed runs per horizon: {fails}. Improvement: mean of 1 - t_h / t_(h-1) per tour; p: "
         "paired t-test against the previous horizon.",
+        "",
+        *out_of_range_lines(records, config),
     ]
     tables = out_dir / "refinement_horizons_tables.md"
     tables.write_text("\n".join(md) + "\n")
     return {"tables": tables}
+
+
+def out_of_range_lines(
+    records: list[RefinementHorizonsRecord], config: RefinementHorizonsConfig
+) -> list[str]:
+    """Markdown: per horizon, how many refined tours query the model outside its data, per leg.
+
+    Args:
+        records: the study's tours (their refined parameters; executed or not).
+        config: gives ``models_dir``, the duration model refined with.
+
+    Returns:
+        Lines of a table (horizon x leg) and a sentence on the last leg's stop.
+    """
+    from repertoire.studies.refinement_soccer import load_models
+
+    (model,) = load_models(config.models_dir, ("approach_duration",))
+    md = [
+        f"Refined tours (of {len(records)}) with a leg outside the duration model's training "
+        "box (`out_of_range`: its prediction there is an extrapolation):",
+        "",
+        "| horizon | " + " | ".join(f"leg {k + 1}" for k in range(N_LEGS)) + " |",
+        "|---|" + "---|" * N_LEGS,
+    ]
+    for h in range(1, N_LEGS + 1):
+        counts = np.zeros(N_LEGS, dtype=int)
+        for r in records:
+            n = 2 * (N_LEGS - 1)  # phi, v at waypoints 1-3
+            params = np.array(r.params_h[n * (h - 1) : n * h])
+            waypoints = np.array(r.waypoints).reshape(N_LEGS, 2)
+            counts += tour_out_of_range(model, r.start, waypoints, r.final_phi, params)[0]
+        md.append(f"| h = {h} | " + " | ".join(str(c) for c in counts) + " |")
+    j = model.feature_names.index("v_g")
+    lo, hi = model.train_min[j], model.train_max[j]
+    if lo > 0.0:
+        why = (f"the approaches it was fitted on all ended moving (v_g {lo:.2g}-{hi:.2g} m/s): "
+               "a stop is outside its data, so every tour's last leg is flagged")  # fmt: skip
+    else:
+        why = f"its data include legs ending at rest (v_g {lo:.2g}-{hi:.2g} m/s)"
+    return md + ["", f"The last leg ends at rest (v_g = 0), a query of the model too; {why}."]
 
 
 def demo_config() -> RefinementHorizonsConfig:

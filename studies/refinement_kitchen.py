@@ -120,10 +120,14 @@ def summarize(
     records: list[RefinementKitchenRecord], config: KitchenPlanConfig, out_dir: Path
 ) -> dict[str, Path]:
     """Writes the scenario's Table 3 row beside the paper's and a paired-time figure."""
-    from repertoire.studies.refinement_soccer import paired_succeeded, paired_times_figure
+    from repertoire.studies.refinement_soccer import (
+        paired_cells,
+        paired_succeeded,
+        paired_times_figure,
+    )
 
     out_dir = Path(out_dir)
-    both, t1, t2, imp, p = paired_succeeded(records)
+    both, t1, t2, _, _ = paired_succeeded(records)
     paper = PAPER_TABLE3_KITCHEN[config.scenario]
     from repertoire.studies._kitchen_plan import action_names
 
@@ -140,8 +144,7 @@ def summarize(
         "|---|---|---|---|---|---|---|",
         f"| paper | {paper['a']} | {paper['n']} | {paper['t1']} | {paper['t2']} | "
         f"{paper['improvement']:.1%} | {paper['p']:.2f} |",
-        f"| ours | {len(names)} | {len(both)} | {np.mean(t1) if both else math.nan:.2f} | "
-        f"{np.mean(t2) if both else math.nan:.2f} | {imp:.1%} | {p:.2g} |",
+        f"| ours | {len(names)} | " + " | ".join(paired_cells(t1, t2)) + " |",
         "",
         f"{len(records)} situations; plan outcomes with h = 1: {statuses[1]}, with h = 2: "
         f"{statuses[2]} (MISSED: every action succeeded but a cup ended more than "
@@ -172,7 +175,8 @@ def summarize(
     tables = out_dir / f"refinement_kitchen_{config.scenario}_tables.md"
     tables.write_text("\n".join(md) + "\n")
     figure = paired_times_figure(
-        t1, t2, f"{name}: mean improvement {imp:.1%} (paper {paper['improvement']:.1%})",
+        t1, t2,
+        f"{name}: mean improvement {paired_cells(t1, t2)[3]} (paper {paper['improvement']:.1%})",
         out_dir / f"refinement_kitchen_{config.scenario}_paired.png",
     )  # fmt: skip
     return {"tables": tables, "paired": figure}

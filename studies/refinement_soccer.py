@@ -214,12 +214,42 @@ def situation_features(records) -> np.ndarray:
 
 
 def paired_improvement(t1: np.ndarray, t2: np.ndarray) -> tuple[float, float]:
-    """The paper's mean improvement ``mean(1 - t2/t1)`` and the paired t-test p-value."""
+    """The paper's mean improvement ``mean(1 - t2/t1)`` and the paired t-test p-value.
+
+    Either is NaN where it is undefined: the improvement without pairs, p with fewer
+    than two pairs or identical paired times (no variance to test); :func:`paired_cells`
+    says which in a table.
+    """
     from scipy.stats import ttest_rel
 
-    if t1.size < 2:
-        return float(np.mean(1 - t2 / t1)) if t1.size else math.nan, math.nan
-    return float(np.mean(1 - t2 / t1)), float(ttest_rel(t1, t2).pvalue)
+    t1, t2 = np.asarray(t1, dtype=float), np.asarray(t2, dtype=float)
+    improvement = float(np.mean(1 - t2 / t1)) if t1.size else math.nan
+    if t1.size < 2 or np.array_equal(t1, t2):
+        return improvement, math.nan
+    return improvement, float(ttest_rel(t1, t2).pvalue)
+
+
+def paired_cells(t1: np.ndarray, t2: np.ndarray) -> list[str]:
+    """Table cells ``n, mean t1, mean t2, improvement, p`` of paired times, "n/a" with why.
+
+    Args:
+        t1: the first (baseline) time of each pair [s].
+        t2: the second time of each pair [s].
+
+    Returns:
+        Five strings; a figure the pairs do not define reads ``n/a (...)``, not ``nan``.
+    """
+    n = len(t1)
+    improvement, p = paired_improvement(t1, t2)
+    if n == 0:
+        return ["0", "n/a", "n/a", "n/a (no paired episode)", "n/a (no paired episode)"]
+    if n < 2:
+        p_cell = f"n/a ({n} paired episode, need >= 2)"
+    elif not math.isfinite(p):
+        p_cell = "n/a (paired times identical)"
+    else:
+        p_cell = f"{p:.2g}"
+    return [str(n), f"{np.mean(t1):.2f}", f"{np.mean(t2):.2f}", f"{improvement:.1%}", p_cell]
 
 
 def paired_succeeded(records) -> tuple[list, np.ndarray, np.ndarray, float, float]:
@@ -242,7 +272,7 @@ def summarize(
     from sklearn.tree import DecisionTreeClassifier, export_text
 
     out_dir = Path(out_dir)
-    both, t1, t2, imp, p = paired_succeeded(records)
+    both, t1, t2, _, _ = paired_succeeded(records)
     n = len(records)
     ok1 = sum(r.status_1 == "SUCCEEDED" for r in records)
     ok2 = sum(r.status_2 == "SUCCEEDED" for r in records)
@@ -254,14 +284,18 @@ def summarize(
         "|---|---|---|---|---|---|---|",
         f"| paper | 2 | {paper['n']} | {paper['t1']} | {paper['t2']} | "
         f"{paper['improvement']:.1%} | {paper['p']:.2f} |",
-        f"| ours | 2 | {len(both)} | {np.mean(t1) if both else math.nan:.2f} | "
-        f"{np.mean(t2) if both else math.nan:.2f} | {imp:.1%} | {p:.2g} |",
+        "| ours | 2 | " + " | ".join(paired_cells(t1, t2)) + " |",
         "",
         f"{n} episodes; plan succeeded with h = 1 in {ok1}, with h = 2 in {ok2}; the table "
         f"pairs the {len(both)} where both succeeded. Refinement ({config.solver}) faster in "
         f"{int(np.sum(t2 < t1))}, slower in {int(np.sum(t2 > t1))}. Predicted plan time "
-        f"(models) h = 1 / h = 2: {np.mean([r.predicted_1 for r in both]):.2f} / "
-        f"{np.mean([r.predicted_2 for r in both]):.2f} s.",
+        "(models) h = 1 / h = 2: "
+        + (
+            f"{np.mean([r.predicted_1 for r in both]):.2f} / "
+            f"{np.mean([r.predicted_2 for r in both]):.2f} s."
+            if both
+            else "-"
+        ),
         "",
     ]
     # section 6.3.2: predict from the situation whether refinement helps
@@ -277,8 +311,8 @@ def summarize(
         a1 = np.array([r.time_1 for r in test])
         a2 = np.array([r.time_2 for r in test])
         sel = np.where(pred, a2, a1)
-        always, p_always = paired_improvement(a1, a2)
-        selective, p_sel = paired_improvement(a1, sel)
+        always, p_always = paired_improvement(a1, a2)[0], paired_cells(a1, a2)[4]
+        selective, p_sel = paired_improvement(a1, sel)[0], paired_cells(a1, sel)[4]
         md += [
             "## Section 6.3.2: refine only where a decision tree predicts it helps",
             "",
@@ -289,8 +323,8 @@ def summarize(
             "|---|---|---|---|",
             f"| paper | {PAPER_SELECTIVE['tree_accuracy']:.0%} | "
             f"{PAPER_SELECTIVE['always']:.1%} | {PAPER_SELECTIVE['selective']:.1%} |",
-            f"| ours | {np.mean(pred == yt):.0%} | {always:.1%} (p {p_always:.2g}) | "
-            f"{selective:.1%} (p {p_sel:.2g}) |",
+            f"| ours | {np.mean(pred == yt):.0%} | {always:.1%} (p {p_always}) | "
+            f"{selective:.1%} (p {p_sel}) |",
             "",
             f"Refinement applied to {int(pred.sum())} of {len(test)} test episodes; it "
             f"truly helped in {int(yt.sum())} of the {len(test)}.",
@@ -302,7 +336,7 @@ def summarize(
     tables = out_dir / "refinement_soccer_tables.md"
     tables.write_text("\n".join(md) + "\n")
     figure = paired_times_figure(
-        t1, t2, f"Subgoal refinement: mean improvement {imp:.1%} (paper 6.6%)",
+        t1, t2, f"Subgoal refinement: mean improvement {paired_cells(t1, t2)[3]} (paper 6.6%)",
         out_dir / "refinement_soccer_paired.png",
     )  # fmt: skip
     out = {"tables": tables, "paired": figure}

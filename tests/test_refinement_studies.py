@@ -18,6 +18,7 @@ from repertoire.studies.refinement_explore import summarize as explore_summarize
 from repertoire.studies.refinement_soccer import (
     RefinementSoccerConfig,
     load_duration_models,
+    paired_cells,
     paired_improvement,
     situation_features,
 )
@@ -138,6 +139,24 @@ def test_paired_improvement_closed_form():
     imp, p = paired_improvement(np.array([10.0, 10.0, 8.0]), np.array([9.0, 8.0, 8.0]))
     assert imp == pytest.approx((0.1 + 0.2 + 0.0) / 3)
     assert 0 < p < 1
+
+
+def test_paired_cells_say_why_a_figure_is_undefined():
+    # was "nan" in Table 3 with one paired episode (-n 1)
+    assert paired_cells(np.array([10.0, 10.0, 8.0]), np.array([9.0, 8.0, 8.0])) == [
+        "3", "9.33", "8.33", "10.0%", "0.23"
+    ]  # fmt: skip
+    assert paired_cells(np.array([6.0]), np.array([5.4])) == [
+        "1", "6.00", "5.40", "10.0%", "n/a (1 paired episode, need >= 2)"
+    ]  # fmt: skip
+    assert paired_cells(np.array([4.0, 5.0]), np.array([4.0, 5.0])) == [
+        "2", "4.50", "4.50", "0.0%", "n/a (paired times identical)"
+    ]  # fmt: skip
+    none = np.array([])
+    assert paired_cells(none, none) == [
+        "0", "n/a", "n/a", "n/a (no paired episode)", "n/a (no paired episode)"
+    ]  # fmt: skip
+    assert math.isnan(paired_improvement(np.array([4.0, 5.0]), np.array([4.0, 5.0]))[1])
 
 
 def test_config_bad_input():
@@ -282,7 +301,11 @@ def test_explore_smoke_then_models_then_refined_episode(tmp_path):
     turn_2 = abs(math.remainder(rec.phi_2 - rec.dest_phi, 2 * math.pi))
     assert turn_2 < turn_1
     assert situation_features([rec]).shape == (1, 5)
-    assert (tmp_path / "soccer" / "refinement_soccer_tables.md").is_file()
+    table = (tmp_path / "soccer" / "refinement_soccer_tables.md").read_text()
+    paired = rec.status_1 == rec.status_2 == "SUCCEEDED"
+    why = "1 paired episode, need >= 2" if paired else "no paired episode"
+    assert f"| n/a ({why}) |" in table.splitlines()[5]  # the "ours" row, one episode
+    assert "nan" not in table
 
 
 def _assertion_record(predicted_fail, asserted, ok_without, ok_with):
@@ -371,3 +394,39 @@ def test_tour_sampling_states_and_problem():
     assert [t.uses for t in problem.terms] == [(0, 1), (0, 1, 2, 3), (2, 3, 4, 5), (4, 5)]
     lengths = np.hypot(*np.diff(np.vstack([start[:2], wps]), axis=0).T)
     assert problem.cost(params)[0] == pytest.approx(4.0 + 2.0 * lengths.sum(), rel=1e-6)
+
+
+def test_tour_out_of_range_flags_the_final_stop_the_models_never_saw():
+    # the last leg ends at rest (v_g = 0), below every shipped training approach's
+    # v_g (0.00025 m/s): a true extrapolation, reported per leg in Table 4's summary
+    from repertoire.studies.refinement_horizons import (
+        RefinementHorizonsConfig,
+        RefinementHorizonsRecord,
+        out_of_range_lines,
+        tour_out_of_range,
+    )
+    from repertoire.studies.refinement_soccer import load_models
+
+    (model,) = load_models("", ("approach_duration",))
+    start = [-2.0, 0.0, 0.0, 0.05]
+    waypoints = np.array([[-1.0, 0.0], [0.0, 0.0], [0.0, 1.0], [-1.0, 1.0]])
+    along = [0.0, 0.05, math.pi / 2, 0.05, math.pi, 0.05]  # each heading along its next leg
+    back = [math.pi, 0.05, *along[2:]]  # arrive at waypoint 1 facing back
+    flags = tour_out_of_range(model, start, waypoints, math.pi, np.array([along, back]))
+    np.testing.assert_array_equal(flags, [[False, False, False, True], [True, True, False, True]])
+    record = RefinementHorizonsRecord(
+        start, waypoints.reshape(-1).tolist(), math.pi, back + along * 3,
+        [0.0] * 4, [0.0] * 4, ["SUCCEEDED"] * 4, 0.0, 0.0,
+    )  # fmt: skip
+    lines = out_of_range_lines([record], RefinementHorizonsConfig())
+    assert lines[4:8] == [
+        "| h = 1 | 1 | 1 | 0 | 1 |",
+        "| h = 2 | 0 | 0 | 0 | 1 |",
+        "| h = 3 | 0 | 0 | 0 | 1 |",
+        "| h = 4 | 0 | 0 | 0 | 1 |",
+    ]
+    assert lines[-1] == (
+        "The last leg ends at rest (v_g = 0), a query of the model too; the approaches it was "
+        "fitted on all ended moving (v_g 0.00025-0.09 m/s): a stop is outside its data, so "
+        "every tour's last leg is flagged."
+    )

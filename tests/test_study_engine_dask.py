@@ -177,8 +177,71 @@ def test_a_bad_dask_worker_wait_is_a_clear_error_before_any_connection(tmp_path,
     with pytest.raises(RepertoireError) as error:
         _run_on("tcp://127.0.0.1:1", tmp_path, dask_worker_wait_s=bad)
     assert str(error.value) == (
-        f"dask_worker_wait_s must be a finite number of seconds > 0, got {bad!r}"
+        f"--dask-worker-wait (dask_worker_wait_s) must be a finite number of seconds > 0, "
+        f"got {bad!r}"
     )
+    assert not (tmp_path / "s.sqlite").exists()
+
+
+def _cli(tmp_path, *extra: str) -> list[str]:
+    return ["--smoke", "-n", "2", "--store", str(tmp_path / "s.sqlite"), "--no-progress", *extra]
+
+
+def test_the_command_line_sets_the_dask_worker_wait(tmp_path, monkeypatch):
+    # was a run_study argument only: `--dask-worker-wait` was an unrecognized argument
+    import argparse
+
+    from repertoire.studies import engine
+
+    class StopError(Exception):
+        """Ends the run once run_study has been called."""
+
+    calls = []
+
+    def fake_run_study(*args, **kwargs):
+        calls.append(kwargs)
+        raise StopError
+
+    monkeypatch.setattr(engine, "run_study", fake_run_study)
+    parser = argparse.ArgumentParser()
+    engine.add_study_arguments(parser, with_name=False)
+    dask = ["--executor", "dask", "--scheduler", "tcp://127.0.0.1:8786"]
+    for extra in ([*dask, "--dask-worker-wait", "300"], dask):
+        with pytest.raises(StopError):
+            engine.run_study_from_args(parser.parse_args(_cli(tmp_path, *extra)), "pendulum")
+    assert calls[0]["dask_worker_wait_s"] == 300.0
+    assert "dask_worker_wait_s" not in calls[1]  # run_study's default, DASK_WORKER_WAIT_S
+    with pytest.raises(SystemExit):  # not a number: argparse's usage error (exit 2)
+        parser.parse_args(_cli(tmp_path, *dask, "--dask-worker-wait", "5min"))
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (
+            ["--executor", "dask", "--scheduler", "tcp://127.0.0.1:1", "--dask-worker-wait", "0"],
+            "error: --dask-worker-wait (dask_worker_wait_s) must be a finite number of seconds "
+            "> 0, got 0.0",
+        ),
+        (
+            ["--executor", "dask", "--scheduler", "tcp://127.0.0.1:1", "--dask-worker-wait", "nan"],
+            "error: --dask-worker-wait (dask_worker_wait_s) must be a finite number of seconds "
+            "> 0, got nan",
+        ),
+        (
+            ["--executor", "inline", "--dask-worker-wait", "5"],
+            "error: --dask-worker-wait is only used with --executor dask (the other executors "
+            "run their own workers)",
+        ),
+    ],
+)
+def test_a_bad_dask_worker_wait_on_the_command_line_exits_2_before_any_work(
+    tmp_path, capsys, extra, message
+):
+    from repertoire.studies.engine import study_main
+
+    assert study_main("pendulum", _cli(tmp_path, *extra)) == 2
+    assert capsys.readouterr().err == message + "\n"
     assert not (tmp_path / "s.sqlite").exists()
 
 

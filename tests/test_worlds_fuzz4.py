@@ -4,13 +4,16 @@ import re
 
 import numpy as np
 import pytest
+from repertoire.diagrams.arm_reach import ReachScenario
 from repertoire.diagrams.biped_walk import BipedWalkScenario
 from repertoire.diagrams.diffdrive import DiffDriveScenario, build_diffdrive_drive
 from repertoire.diagrams.kitchen import KitchenScenario, build_kitchen_action
+from repertoire.diagrams.simulate import simulate_registered, validate_control_period
 from repertoire.diagrams.soccer import GoToPoseScenario, build_soccer_goto_pose
 from repertoire.diagrams.soccer_dribble import DribbleScenario, build_soccer_dribble
 from repertoire.diagrams.soccer_plan import SoccerPlanScenario, build_soccer_plan
 
+from repertoire.cli import main
 from repertoire.errors import RepertoireError, ScenarioError
 
 
@@ -232,3 +235,59 @@ def test_simulate_starts_from_the_scenarios_start_velocities():
     diagram = build_registered("arm_reach", scenario=scenario)
     context = start_context(get_diagram_entry("arm_reach"), diagram, scenario)
     assert joint_state(diagram, context)[[1, 3]] == pytest.approx([0.3, -0.2])
+
+
+@pytest.mark.parametrize(
+    "scenario_type",
+    [ReachScenario, KitchenScenario, GoToPoseScenario, DribbleScenario, SoccerPlanScenario],
+)
+def test_every_world_refuses_a_control_period_no_run_reaches(scenario_type):
+    # was accepted: a 1e6 s period never updates the controller after t = 0 in any run
+    # (simulate runs at most MAX_DURATION_S = 3600 s per call)
+    step = scenario_type().time_step
+    message = (
+        f"control_period must be in [time_step, 3600] s = [{step:g}, 3600] s (a longer "
+        "period never updates the controller after t = 0 within a run of at most 3600 s), "
+        "got 1e+06"
+    )
+    with pytest.raises(ScenarioError, match=re.escape(message)):
+        scenario_type(control_period=1e6).validate()
+    with pytest.raises(ScenarioError, match=re.escape(f"got {step / 2:g}")):
+        scenario_type(control_period=step / 2).validate()
+    with pytest.raises(ScenarioError, match=re.escape("got nan")):
+        scenario_type(control_period=float("nan")).validate()
+    scenario_type(control_period=3600.0).validate()  # the bound itself is allowed
+    scenario_type(control_period=step).validate()
+
+
+def test_validate_control_period_bounds():
+    validate_control_period(0.5, 0.01, 0.5)
+    validate_control_period(0.01, 0.01, 0.5)
+    with pytest.raises(ScenarioError, match=re.escape("= [0.01, 0.5] s") + ".*got 0.6"):
+        validate_control_period(0.6, 0.01, 0.5)
+    with pytest.raises(ScenarioError, match=re.escape("got inf")):
+        validate_control_period(float("inf"), 0.01, 0.5)
+
+
+def test_simulate_registered_refuses_a_control_period_longer_than_the_run():
+    # a 2 s period in a 1 s run holds the first command throughout; refused before building
+    message = (
+        "control_period must be in [time_step, 1] s = [0.002, 1] s (a longer period never "
+        "updates the controller after t = 0 within a run of at most 1 s), got 2"
+    )
+    with pytest.raises(ScenarioError, match=re.escape(message)):
+        simulate_registered("arm_reach", scenario=ReachScenario(control_period=2.0), duration=1.0)
+
+
+@pytest.mark.parametrize("replay", [False, True])
+def test_the_cli_refuses_a_run_shorter_than_the_control_period(tmp_path, capsys, replay):
+    # arm_reach's default period is 0.01 s; a 0.005 s run never sees a second update
+    argv = ["simulate", "arm_reach", "--duration", "0.005"]
+    argv += ["--replay", "--out", str(tmp_path / "out")] if replay else []
+    assert main(argv) == 2
+    assert capsys.readouterr().err.endswith(
+        "error: control_period must be in [time_step, 0.005] s = [0.002, 0.005] s (a longer "
+        "period never updates the controller after t = 0 within a run of at most 0.005 s), "
+        "got 0.01\n"
+    )
+    assert not (tmp_path / "out").exists()

@@ -16,7 +16,7 @@ from repertoire.planning.footstep import (
 )
 from repertoire.planning.footstep.biped_model import BipedStepModel
 from repertoire.planning.footstep.corridor import OUTSIDE_HEIGHT, corridor_grid
-from repertoire.planning.footstep.scenes import random_static_scene
+from repertoire.planning.footstep.scenes import maze_grid, random_static_scene
 from repertoire.planning.footstep.types import FootstepError
 
 
@@ -157,3 +157,19 @@ def test_anytime_restarts_run_ara_on_the_finer_lattice_then_fresh_searches():
     assert fresh.cost == pytest.approx(33.25)
     elapsed = [r.elapsed_s for r in runs]
     assert elapsed == sorted(elapsed)
+
+
+def test_anytime_ends_with_the_admissible_search_when_time_remains():
+    # a 6 m maze: every weight on 5 cm / 36 and 2.5 cm / 72 bins, guided by the Dijkstra
+    # cost-to-go, ends at 39.1 well within the limit; the admissible search on 2.5 cm / 72
+    # then finds 36.95, the admissible mode's own plan, with its bound 1 on that lattice
+    args = (maze_grid(512), (0.6, 0.6, 0.0), "left", (5.4, 5.4), nominal_action_table())
+    runs = plan_footsteps_anytime(*args, PlannerOptions(time_limit=60.0))
+    ref = plan_footsteps(*args, PlannerOptions.admissible(time_limit=60.0, refinements=0))
+    assert round(runs[-2].plan.cost, 2) == 39.1 and round(ref.cost, 2) == 36.95
+    last = runs[-1]
+    assert last.plan.cost == ref.cost and last.plan.poses == ref.poses
+    assert (last.weight, last.bound) == (1.0, 1.0)
+    assert (last.plan.xy_resolution, last.plan.yaw_bins) == (0.025, 72)
+    no_restarts = plan_footsteps_anytime(*args, PlannerOptions(time_limit=60.0), restarts=False)
+    assert round(no_restarts[-1].plan.cost, 2) == 39.25  # ARA* on 5 cm alone

@@ -158,6 +158,37 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
     return out
 
 
+#: Colour of an outcome in the arm studies' figures: True (success) green, False red.
+OUTCOME_COLOURS = {True: "tab:green", False: "tab:red"}
+
+
+def outcome_handles(
+    outcomes, label: str, *, words: tuple[str, str] = ("success", "failure"), lw: float = 1.0
+) -> list:
+    """Legend lines for the outcomes a figure drew, in :data:`OUTCOME_COLOURS`.
+
+    An entry is made only for an outcome present in ``outcomes``, so a legend never names a
+    colour the figure does not show (success first, then failure).
+
+    Args:
+        outcomes: The drawn episodes' outcomes (truthy: success).
+        label: What the lines are (``"tcp path"``); each entry reads ``"label, word"``.
+        words: The words for (success, failure).
+        lw: Line width of the entries.
+
+    Returns:
+        ``matplotlib.lines.Line2D`` handles, 0 to 2 of them.
+    """
+    from matplotlib.lines import Line2D
+
+    present = {bool(o) for o in outcomes}
+    return [
+        Line2D([], [], color=OUTCOME_COLOURS[ok], lw=lw, label=f"{label}, {word}")
+        for ok, word in zip((True, False), words, strict=True)
+        if ok in present
+    ]
+
+
 def carry_control_points() -> list[list[float]]:
     """The default eq.-10 control points while carrying (``CARRY_CONTROL_POINTS``)."""
     from repertoire.diagrams.arm_dmp_scenarios import CARRY_CONTROL_POINTS

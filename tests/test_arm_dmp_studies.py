@@ -127,3 +127,20 @@ def test_obstacle_study_bad_config():
         dmp_obstacle_arm.sample_scenario(
             dmp_obstacle_arm.ObstacleArmConfig(path_fraction=[0.5, 0.5], coaster_y=[0.0, 0.0]), 0
         )
+
+
+def test_outcome_handles_name_only_the_outcomes_drawn():
+    from repertoire.studies._dmp_common import OUTCOME_COLOURS, outcome_handles
+
+    def entries(handles):
+        return [(h.get_label(), h.get_color()) for h in handles]
+
+    both = [
+        (f"tcp path, {w}", OUTCOME_COLOURS[ok]) for ok, w in ((True, "success"), (False, "failure"))
+    ]
+    assert entries(outcome_handles([False, True, np.True_], "tcp path")) == both
+    assert entries(outcome_handles([1, 1], "tcp path")) == both[:1]
+    assert entries(outcome_handles([False], "tcp path")) == both[1:]
+    assert outcome_handles([], "tcp path") == []
+    (h,) = outcome_handles([0], "tip", words=("served", "spilled"), lw=1.2)
+    assert (h.get_label(), h.get_linewidth()) == ("tip, spilled", 1.2)

@@ -189,6 +189,36 @@ def outcome_handles(
     ]
 
 
+def legend_below(ax, handles: list, *, ncols: int, below_in: float = 0.5, fontsize: float = 8):
+    """A legend centred under ``ax``, ``below_in`` inches under its bottom edge.
+
+    A fixed distance in inches clears the tick labels and the x label whatever the axes'
+    height (a fraction of the axes' height reached into the x label of a flat top view).
+
+    Args:
+        ax: The axes.
+        handles: Legend handles (with labels).
+        ncols: Legend columns.
+        below_in: Gap between the axes' bottom and the legend's top [inch].
+        fontsize: Font size of the entries.
+
+    Returns:
+        The legend.
+    """
+    from matplotlib.transforms import ScaledTranslation
+
+    shift = ScaledTranslation(0.0, -below_in, ax.figure.dpi_scale_trans)
+    return ax.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        bbox_transform=ax.transAxes + shift,
+        borderaxespad=0.0,  # the gap is below_in exactly
+        ncols=ncols,
+        fontsize=fontsize,
+    )
+
+
 def carry_control_points() -> list[list[float]]:
     """The default eq.-10 control points while carrying (``CARRY_CONTROL_POINTS``)."""
     from repertoire.diagrams.arm_dmp_scenarios import CARRY_CONTROL_POINTS

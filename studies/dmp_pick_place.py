@@ -22,6 +22,7 @@ from repertoire.studies._dmp_common import (
     PICK_PLACE_FIGURES,
     carry_control_points,
     check_arm_config,
+    legend_below,
     obstacle_radius,
     outcome_handles,
     register_dmp_study,
@@ -287,19 +288,14 @@ def summarize(
     ax.invert_xaxis()
     ax.set_aspect("equal")
     ax.set_title(f"top view of {len(records)} episodes (tcp paths: first 25)")
-    ax.legend(
-        handles=[
-            *outcome_handles([r.success for r in records[:25] if r.path_x], "tcp path"),
-            Line2D([], [], ls="", marker="o", mfc="none", color="tab:purple", label="cup start"),
-            Line2D([], [], ls="", marker="s", mfc="none", color="tab:brown", label="coaster start"),
-            Line2D([], [], ls="", marker="s", color="tab:brown", label="coaster end (arrow: move)"),
-            Line2D([], [], ls="", marker="o", mfc="none", ms=10, color="tab:blue", label="ball"),
-        ],
-        fontsize=8,
-        loc="upper center",  # below the axes: inside, it covered balls and paths
-        bbox_to_anchor=(0.5, -0.12),
-        ncols=3,
-    )
+    handles = [
+        *outcome_handles([r.success for r in records[:25] if r.path_x], "tcp path"),
+        Line2D([], [], ls="", marker="o", mfc="none", color="tab:purple", label="cup start"),
+        Line2D([], [], ls="", marker="s", mfc="none", color="tab:brown", label="coaster start"),
+        Line2D([], [], ls="", marker="s", color="tab:brown", label="coaster end (arrow: move)"),
+        Line2D([], [], ls="", marker="o", mfc="none", ms=10, color="tab:blue", label="ball"),
+    ]
+    legend_below(ax, handles, ncols=3)  # below the axes: inside, it covered balls and paths
     d = np.array([r.cup_to_coaster_m for r in records], dtype=float)
     cm = d[np.isfinite(d)] * 100
     # The axis ends just past the data (at least past the 2 cm bound, at most at 10 cm);

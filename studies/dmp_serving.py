@@ -20,6 +20,7 @@ import numpy as np
 from repertoire.studies._dmp_common import (
     OUTCOME_COLOURS,
     check_arm_config,
+    legend_below,
     log_stride,
     outcome_handles,
     register_dmp_study,
@@ -226,7 +227,7 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
         Line2D([], [], ls="", marker="o", ms=10, mfc="none", color="tab:purple", label="cup rim"),
         Line2D([], [], ls="", marker="s", ms=4, mfc="none", color="tab:blue", label="bottle start"),
     ]
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.3), ncols=2, fontsize=8)
+    legend_below(ax, handles, ncols=2)
     d = np.array(
         [[r.tip_to_cup_1_m, r.tip_to_cup_2_m, r.tip_to_cup_3_m] for r in records], dtype=float
     )

@@ -268,6 +268,7 @@ def summarize(
             top.plot(r.cup_xy[1], r.cup_xy[0], "o", color="k", mfc="none")
             top.plot(r.coaster_xy[1], r.coaster_xy[0], "s", color="k", mfc="none")
         top.set_title(f"{arm}: top view")
+        top.tick_params(labelbottom=True)  # shared with the side view, but labelled here too
         top.set_xlabel("y (m)")
         top.set_ylabel("x (m)")
         top.invert_xaxis()

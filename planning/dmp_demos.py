@@ -74,6 +74,42 @@ def noisy_sparse_minimum_jerk(
     return t, x + rng.normal(scale=noise, size=x.shape), xd, xdd
 
 
+def sines_in_motion(
+    seed: int, n_dims: int = 1, duration: float = 1.5, n: int = 751
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A demonstration that starts and ends in motion: a sum of three sines per DOF.
+
+    Each DOF is ``sum_k a_k sin(w_k t + phi_k)`` with ``a_k`` uniform in [-1, 1],
+    ``w_k`` in [1, 4] rad/s and ``phi_k`` in [0, 2 pi): unlike Pastor et al.'s
+    rest-to-rest demonstrations, its velocity at ``t = 0`` is (almost surely) not zero.
+
+    Args:
+        seed: Random seed (the same seed gives the same demonstration).
+        n_dims: Number of DOF, >= 1.
+        duration: Duration [s], > 0.
+        n: Number of evenly spaced samples, >= 3.
+
+    Returns:
+        ``(t, x, xd)``: stamps (n,), positions (n, n_dims) and their exact velocities
+        (n, n_dims).
+    """
+    if not (is_whole(n_dims) and n_dims >= 1):
+        raise RepertoireError(f"n_dims must be an integer >= 1, got {n_dims!r}")
+    if not (is_whole(n) and n >= 3):
+        raise RepertoireError(f"n must be an integer >= 3, got {n!r}")
+    if not (is_real(duration) and np.isfinite(duration) and duration > 0):
+        raise RepertoireError(f"duration must be a finite number > 0 s, got {duration!r}")
+    rng = np.random.default_rng(check_seed(seed))
+    a = rng.uniform(-1.0, 1.0, (n_dims, 3))
+    w = rng.uniform(1.0, 4.0, (n_dims, 3))
+    ph = rng.uniform(0.0, 2.0 * np.pi, (n_dims, 3))
+    t = np.linspace(0.0, duration, n)
+    arg = w[None] * t[:, None, None] + ph[None]
+    x = np.sum(a[None] * np.sin(arg), axis=2)
+    xd = np.sum((a * w)[None] * np.cos(arg), axis=2)
+    return t, x, xd
+
+
 def slerp_minimum_jerk(q_start: np.ndarray, q_end: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Shortest-arc interpolation with a minimum-jerk time law over ``[t[0], t[-1]]``.
 

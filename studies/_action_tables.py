@@ -248,29 +248,30 @@ def learning_curve_figure(
         if 0 < n_fail < n and n >= min_records():
             ns_f.append(n)
             accs.append(fit_action_model(sub, features, "failed").accuracy)
-    fig = Figure(figsize=(6.5, 4.0), layout="constrained")
-    ax = fig.add_subplot()
+    # two panels, not twin axes: on twin axes an MAE and an accuracy hid each other
+    fig = Figure(figsize=(6.5, 6.0 if ns_f else 4.0), layout="constrained")
+    axes = fig.subplots(2 if ns_f else 1, 1, sharex=True, squeeze=False)[:, 0]
+    ax = axes[0]
     for (label, (ns, maes)), colour in zip(curves.items(), ("tab:blue", "tab:green")):
         ax.plot(ns, maes, "o-", color=colour, label=label)
     ax.axhline(paper_mae, color="tab:blue", ls=":", label="paper's MAE (Table 1)")
-    ax.set_xscale("log")
-    ax.set_xlabel("episodes")
-    ax.set_ylabel("MAE (s)")
+    ax.set_ylabel("duration MAE (s)")
     ax.set_ylim(bottom=0)
-    h, lab = ax.get_legend_handles_labels()
+    ax.legend(loc="lower left", fontsize=8)
     if ns_f:  # a failure tree needs both outcomes
-        ax2 = ax.twinx()
+        ax2 = axes[1]
         ax2.plot(ns_f, accs, "s-", color="tab:red", label="failure tree accuracy, held-out")
         if paper_accuracy is not None:
             ax2.axhline(paper_accuracy, color="tab:red", ls=":", label="paper's accuracy")
-        ax2.set_ylabel("fraction correct")
-        ax2.set_ylim(0, 1)
-        h2, l2 = ax2.get_legend_handles_labels()
-        h, lab = h + h2, lab + l2
-    ax.legend(h, lab, loc="lower left", fontsize=8)
-    ax.set_xticks(sizes, [str(n) for n in sizes])
-    ax.minorticks_off()
-    ax.set_title(title)
+        ax2.set_ylabel("failure tree: fraction correct")
+        ax2.set_ylim(0, 1.05)  # a fraction of 1 drawn whole, not cut by the frame
+        ax2.legend(loc="lower left", fontsize=8)
+    for a in axes:
+        a.set_xscale("log")
+        a.set_xticks(sizes, [str(n) for n in sizes])
+        a.minorticks_off()
+    axes[-1].set_xlabel("episodes (log scale)")
+    fig.suptitle(title)
     fig.savefig(path, dpi=110)
     return path
 

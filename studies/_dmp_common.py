@@ -158,6 +158,67 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
     return out
 
 
+#: Colour of an outcome in the arm studies' figures: True (success) green, False red.
+OUTCOME_COLOURS = {True: "tab:green", False: "tab:red"}
+
+
+def outcome_handles(
+    outcomes, label: str, *, words: tuple[str, str] = ("success", "failure"), lw: float = 1.0
+) -> list:
+    """Legend lines for the outcomes a figure drew, in :data:`OUTCOME_COLOURS`.
+
+    An entry is made only for an outcome present in ``outcomes``, so a legend never names a
+    colour the figure does not show (success first, then failure).
+
+    Args:
+        outcomes: The drawn episodes' outcomes (truthy: success).
+        label: What the lines are (``"tcp path"``); each entry reads ``"label, word"``.
+        words: The words for (success, failure).
+        lw: Line width of the entries.
+
+    Returns:
+        ``matplotlib.lines.Line2D`` handles, 0 to 2 of them.
+    """
+    from matplotlib.lines import Line2D
+
+    present = {bool(o) for o in outcomes}
+    return [
+        Line2D([], [], color=OUTCOME_COLOURS[ok], lw=lw, label=f"{label}, {word}")
+        for ok, word in zip((True, False), words, strict=True)
+        if ok in present
+    ]
+
+
+def legend_below(ax, handles: list, *, ncols: int, below_in: float = 0.5, fontsize: float = 8):
+    """A legend centred under ``ax``, ``below_in`` inches under its bottom edge.
+
+    A fixed distance in inches clears the tick labels and the x label whatever the axes'
+    height (a fraction of the axes' height reached into the x label of a flat top view).
+
+    Args:
+        ax: The axes.
+        handles: Legend handles (with labels).
+        ncols: Legend columns.
+        below_in: Gap between the axes' bottom and the legend's top [inch].
+        fontsize: Font size of the entries.
+
+    Returns:
+        The legend.
+    """
+    from matplotlib.transforms import ScaledTranslation
+
+    shift = ScaledTranslation(0.0, -below_in, ax.figure.dpi_scale_trans)
+    return ax.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, 0.0),
+        bbox_transform=ax.transAxes + shift,
+        borderaxespad=0.0,  # the gap is below_in exactly
+        ncols=ncols,
+        fontsize=fontsize,
+    )
+
+
 def carry_control_points() -> list[list[float]]:
     """The default eq.-10 control points while carrying (``CARRY_CONTROL_POINTS``)."""
     from repertoire.diagrams.arm_dmp_scenarios import CARRY_CONTROL_POINTS

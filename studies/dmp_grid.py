@@ -225,7 +225,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
         ax3.plot(r.path_x, r.path_y, r.path_z, color=color, lw=1.2, zorder=6)
         ax.plot(r.path_y, r.path_x, color=color, lw=1.2, zorder=6)
         for g in (r.grasp_goal, r.place_goal):
-            ax3.scatter(*g, color="tab:green", s=12)
+            ax3.scatter(*g, color="tab:green", marker="+", s=40)  # as in the top view
             ax.plot(g[1], g[0], "+", color="tab:green", ms=8)
     ax3.set_xlabel("x (m)")
     ax3.set_ylabel("y (m)", labelpad=10)
@@ -234,10 +234,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
     for axis in (ax3.xaxis, ax3.zaxis):
         axis.set_major_locator(MaxNLocator(4))  # at equal aspect, more ticks overlap
     ax3.yaxis.set_major_locator(MultipleLocator(0.2))
-    ax3.set_title(
-        "demos (blue), physical tcp paths\n(red: reached, grey: missed), new goals (green)",
-        fontsize=10,
-    )
+    ax3.set_title("3-D view")
     ax.set_xlabel("y (m, left)")
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()
@@ -246,9 +243,12 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
     if not all(r.reached for r in records):
         ax.plot([], [], color="0.3", lw=1.2, label="physical tcp path (goal missed)")
     ax.plot([], [], "+", color="tab:green", ms=8, ls="", label="new goals")
-    # below the axes: inside, it covered the place goals at the lower left
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncols=2, fontsize=8)
+    # one legend below both panels (inside, it covered the place goals at the lower left)
+    fig.legend(handles=ax.get_legend_handles_labels()[0], loc="outside lower center", ncols=5)
     ax.set_title("top view: grasp grid (right), place grid (left)")
+    fig.suptitle(
+        f"Fig. 10: learned grasp and place DMPs on arm7 sent to {len(records)} new goal pairs"
+    )
     grid = out_dir / "dmp_grid_paths.png"
     fig.savefig(grid, dpi=110)
     g = np.array([r.grasp_reach_error_m for r in records], dtype=float) * 1000

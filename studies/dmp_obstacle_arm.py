@@ -236,6 +236,7 @@ def summarize(
         ``{"paths": png, "gaps": png, "results": md}``.
     """
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
     from matplotlib.patches import Circle, Patch
     from matplotlib.ticker import MaxNLocator
 
@@ -244,13 +245,14 @@ def summarize(
     fig = Figure(figsize=(12, 7), layout="constrained")
     axes = fig.subplots(2, 2, sharex="all", sharey="row")
     shown = records[:3]
+    radius = obstacle_radius()
     fig.suptitle(
-        f"tcp paths of the first {len(shown)} episodes: home -> cup (o) -> coaster (square) -> "
-        "retreat\nblue = the ball (radius 6 cm) on its post; the same layouts in both columns"
+        f"tcp paths of the first {len(shown)} episodes (darker = later episode): home -> cup "
+        "-> coaster -> retreat,\nwith and without eq. 10 coupling; the same layouts in both "
+        "columns"
     )
     for col, arm in enumerate(ARMS):
         top, side = axes[0, col], axes[1, col]
-        radius = obstacle_radius()
         for k, r in enumerate(shown):
             shade = 0.35 + 0.65 * (k + 1) / len(shown)
             o = r.obstacle_xyz
@@ -260,32 +262,13 @@ def summarize(
             if r.path_x[arm]:
                 y, x, z = np.array(r.path_y[arm]), np.array(r.path_x[arm]), np.array(r.path_z[arm])
                 top.plot(y, x, color=colors[arm], alpha=shade, lw=1.0)
-                side.plot(
-                    y, z, color=colors[arm], alpha=shade, lw=1.0, label="tcp" if k == 0 else None
-                )
-                side.plot(
-                    y,
-                    z - 0.052,
-                    color=colors[arm],
-                    alpha=shade,
-                    lw=0.6,
-                    ls=":",
-                    label="cup bottom (tcp - 5.2 cm)" if k == 0 else None,
-                )
+                side.plot(y, z, color=colors[arm], alpha=shade, lw=1.0)
+                side.plot(y, z - 0.052, color=colors[arm], alpha=shade, lw=0.6, ls=":")
             # black: red and green already mean the uncoupled and coupled tcp paths
-            first = k == 0
-            top.plot(
-                r.cup_xy[1], r.cup_xy[0], "o", color="k", mfc="none", label="cup" if first else None
-            )
-            top.plot(
-                r.coaster_xy[1],
-                r.coaster_xy[0],
-                "s",
-                color="k",
-                mfc="none",
-                label="coaster" if first else None,
-            )
+            top.plot(r.cup_xy[1], r.cup_xy[0], "o", color="k", mfc="none")
+            top.plot(r.coaster_xy[1], r.coaster_xy[0], "s", color="k", mfc="none")
         top.set_title(f"{arm}: top view")
+        top.tick_params(labelbottom=True)  # shared with the side view, but labelled here too
         top.set_xlabel("y (m)")
         top.set_ylabel("x (m)")
         top.invert_xaxis()
@@ -295,11 +278,16 @@ def summarize(
         side.set_ylabel("z (m)")
         side.invert_xaxis()
         side.set_aspect("equal")
-        side.legend(fontsize=8, loc="lower left")
-        ball = Patch(color="tab:blue", alpha=0.25, label="ball")
-        top.legend(
-            handles=[*top.get_legend_handles_labels()[0], ball], fontsize=8, loc="lower left"
-        )
+    # one legend below the panels: inside them it covered the paths' starts
+    handles = [
+        *(Line2D([], [], color=c, lw=1.0, label=f"tcp, {arm}") for arm, c in colors.items()),
+        Line2D([], [], color="0.4", lw=0.6, ls=":", label="cup bottom (tcp - 5.2 cm)"),
+        Line2D([], [], ls="", marker="o", color="k", mfc="none", label="cup"),
+        Line2D([], [], ls="", marker="s", color="k", mfc="none", label="coaster"),
+        Patch(color="tab:blue", alpha=0.25, label=f"ball (radius {radius * 100:g} cm)"),
+        Line2D([], [], color="tab:gray", lw=1.5, label="ball's post"),
+    ]
+    fig.legend(handles=handles, loc="outside lower center", ncols=7, fontsize=8)
     paths = out_dir / "dmp_obstacle_arm_paths.png"
     fig.savefig(paths, dpi=100)
 
@@ -313,7 +301,10 @@ def summarize(
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_xlabel("episode")
     ax.set_ylabel("smallest gap ball - arm/hand/fingers/cup (cm)")
-    ax.set_title("signed distance from SceneGraph (< 0: they touched; contact pushes back)")
+    ax.set_title(
+        "smallest signed distance ball - robot per episode (SceneGraph;\n"
+        "< 0: they touched; contact pushes back)"
+    )
     ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5))
     gaps = out_dir / "dmp_obstacle_arm_gaps.png"
     fig.savefig(gaps, dpi=110)

@@ -237,28 +237,34 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
     o = P(sc["obstacle"])
     ax.add_patch(
         __import__("matplotlib.patches").patches.Circle(
-            o, config.radius_m, color="tab:gray", alpha=0.5, label="obstacle (radius r)"
+            o,
+            config.radius_m,
+            color="tab:gray",
+            alpha=0.5,
+            label=f"obstacle (radius r = {config.radius_m * 100:g} cm)",
         )
     )
     ax.set_aspect("equal")
     ax.set_xlabel("along start-goal (m)")
     ax.set_ylabel("detour direction (m)")
-    ax.set_title("seed 0 (projection)")
+    ax.set_title("seed 0, projected on the start-goal / detour plane")
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.35), ncol=2)
     bins = np.linspace(0, max(max(r.clearance_with_m for r in records), 2 * config.radius_m), 30)
-    for key, color in (("without", "tab:red"), ("with", "tab:blue")):
-        ax2.hist(
-            [getattr(r, f"clearance_{key}_m") for r in records],
-            bins=bins,
-            alpha=0.6,
-            color=color,
-            label=f"{key} coupling",
-        )
+    # side by side in each bin: overlaid translucent bars mixed into a colour of neither
+    ax2.hist(
+        [[getattr(r, f"clearance_{key}_m") for r in records] for key in ("without", "with")],
+        bins=bins,
+        color=["tab:red", "tab:blue"],
+        label=["without coupling", "with coupling"],
+    )
     ax2.axvline(config.radius_m, color="k", ls="--", label="obstacle radius")
     ax2.set_xlabel("clearance to obstacle centre (m)")
     ax2.set_ylabel("episodes")
     ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
-    ax2.set_title(f"{len(records)} random obstacle placements on the path")
+    ax2.set_title(f"closest approach, {len(records)} obstacles placed on the path")
+    fig.suptitle(
+        f"DMP obstacle avoidance (eq. 10, gamma = {config.gamma:g}, beta = {config.beta:.3g})"
+    )
     ax2.legend(fontsize=8)
     p1 = out_dir / "dmp_obstacles.png"
     fig.savefig(p1, dpi=100)

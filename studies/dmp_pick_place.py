@@ -18,10 +18,13 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.studies._dmp_common import (
+    OUTCOME_COLOURS,
     PICK_PLACE_FIGURES,
     carry_control_points,
     check_arm_config,
+    legend_below,
     obstacle_radius,
+    outcome_handles,
     register_dmp_study,
     run_pick_and_place,
     stat_pair,
@@ -257,7 +260,7 @@ def summarize(
 
     radius = obstacle_radius()
     for k, r in enumerate(records):
-        color = "tab:green" if r.success else "tab:red"
+        color = OUTCOME_COLOURS[bool(r.success)]
         if k < 25 and r.path_x:
             ax.plot(r.path_y, r.path_x, color=color, lw=0.7, alpha=0.6)
         ax.plot(r.cup_xy[1], r.cup_xy[0], "o", color="tab:purple", ms=4, mfc="none")
@@ -285,18 +288,14 @@ def summarize(
     ax.invert_xaxis()
     ax.set_aspect("equal")
     ax.set_title(f"top view of {len(records)} episodes (tcp paths: first 25)")
-    ax.legend(
-        handles=[
-            Line2D([], [], color="tab:green", lw=1, label="tcp path, success"),
-            Line2D([], [], color="tab:red", lw=1, label="tcp path, failure"),
-            Line2D([], [], ls="", marker="o", mfc="none", color="tab:purple", label="cup start"),
-            Line2D([], [], ls="", marker="s", mfc="none", color="tab:brown", label="coaster start"),
-            Line2D([], [], ls="", marker="s", color="tab:brown", label="coaster end (arrow: move)"),
-            Line2D([], [], ls="", marker="o", mfc="none", ms=10, color="tab:blue", label="ball"),
-        ],
-        fontsize=8,
-        loc="best",
-    )
+    handles = [
+        *outcome_handles([r.success for r in records[:25] if r.path_x], "tcp path"),
+        Line2D([], [], ls="", marker="o", mfc="none", color="tab:purple", label="cup start"),
+        Line2D([], [], ls="", marker="s", mfc="none", color="tab:brown", label="coaster start"),
+        Line2D([], [], ls="", marker="s", color="tab:brown", label="coaster end (arrow: move)"),
+        Line2D([], [], ls="", marker="o", mfc="none", ms=10, color="tab:blue", label="ball"),
+    ]
+    legend_below(ax, handles, ncols=3)  # below the axes: inside, it covered balls and paths
     d = np.array([r.cup_to_coaster_m for r in records], dtype=float)
     cm = d[np.isfinite(d)] * 100
     # The axis ends just past the data (at least past the 2 cm bound, at most at 10 cm);
@@ -313,6 +312,7 @@ def summarize(
     rate = np.mean([r.success for r in records]) if records else float("nan")
     ax2.set_title(f"success {rate:.0%} of {len(records)} episodes")
     ax2.legend()
+    fig.suptitle("pick a cup, place it on a moving coaster, around a ball (arm7, learned DMPs)")
     top = out_dir / "dmp_pick_place_top_view.png"
     fig.savefig(top, dpi=110)
 
@@ -324,6 +324,8 @@ def summarize(
     carry = np.array([carry_clearance(r, config) for r in records]) * 100
     episodes = np.arange(len(records))
     ax.scatter(episodes, grasp, s=10, label="end of grasp")
+    for a in (ax, ax2):
+        a.xaxis.set_major_locator(MaxNLocator(integer=True))  # episodes are whole
     ax.scatter(episodes, place, s=10, label="end of place (cup in hand)")
     ax.axhline(5.0, color="tab:red", ls="--", lw=0.8, label="5 mm")
     ax.set_xlabel("episode")
@@ -340,6 +342,7 @@ def summarize(
     ax2.set_ylabel("closest tcp approach to the ball's surface (cm)")
     ax2.legend(fontsize=8)
     ax2.set_title("obstacle clearance")
+    fig.suptitle(f"pick and place: reach errors and ball clearance of {len(records)} episodes")
     errors = out_dir / "dmp_pick_place_errors.png"
     fig.savefig(errors, dpi=110)
 

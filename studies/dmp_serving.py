@@ -18,8 +18,11 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.studies._dmp_common import (
+    OUTCOME_COLOURS,
     check_arm_config,
+    legend_below,
     log_stride,
+    outcome_handles,
     register_dmp_study,
     stat_pair,
     timing_rows,
@@ -187,12 +190,13 @@ def run_episode(config: ServingConfig, seed: int) -> ServingRecord:
 
 
 def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path) -> dict:
-    """Top view of the bottle tip over the cups and the tip distances; a Markdown table.
+    """Top view of the bottle tip over the cups and the tip distances (one PNG); a table.
 
     Returns:
-        ``{"top_view": png, "tip_distances": png, "results": md}``.
+        ``{"top_view": png, "results": md}``.
     """
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
     from matplotlib.patches import Circle
     from matplotlib.ticker import MaxNLocator
     from repertoire.models.arm7 import CUP_RADIUS
@@ -201,7 +205,7 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     fig = Figure(figsize=(11, 5), layout="constrained")
     ax, ax2 = fig.subplots(1, 2, width_ratios=[1.3, 1])
     for r in records[:12]:
-        color = "tab:green" if r.success else "tab:red"
+        color = OUTCOME_COLOURS[bool(r.success)]
         tilt = np.asarray(r.tip_tilt)
         x, y = np.asarray(r.tip_x), np.asarray(r.tip_y)
         pouring = tilt > np.pi / 3
@@ -215,11 +219,15 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     ax.set_ylabel("x (m, forward)")
     ax.invert_xaxis()
     ax.set_aspect("equal")
-    ax.set_title(
-        "bottle tip, first 12 episodes (grey; while tilted > 60 deg:\n"
-        "green in a successful episode, red in a failed one),\n"
-        "cups (purple circles), bottles (blue squares)"
-    )
+    shown = min(len(records), 12)
+    ax.set_title(f"top view: bottle tip of the first {shown} episodes")
+    handles = [
+        Line2D([], [], color="0.7", lw=0.5, label="bottle tip path"),
+        *outcome_handles([r.success for r in records[:shown]], "tip while tilted > 60 deg", lw=1.2),
+        Line2D([], [], ls="", marker="o", ms=10, mfc="none", color="tab:purple", label="cup rim"),
+        Line2D([], [], ls="", marker="s", ms=4, mfc="none", color="tab:blue", label="bottle start"),
+    ]
+    legend_below(ax, handles, ncols=2)
     d = np.array(
         [[r.tip_to_cup_1_m, r.tip_to_cup_2_m, r.tip_to_cup_3_m] for r in records], dtype=float
     )
@@ -229,9 +237,9 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     upper = float(np.clip(np.ceil(cm.max() * 2) / 2, 3.5, 6.0)) if cm.size else 3.5
     over = int(np.sum(cm > upper))
     bins = np.linspace(0.0, upper, 36)
-    for j in range(3):
-        col = d[:, j][np.isfinite(d[:, j])] * 100
-        ax2.hist(np.minimum(col, upper), bins=bins, alpha=0.6, label=f"cup {j + 1}")
+    # stacked: each pour counted once in its cup's colour (overlaid bars mixed the colours)
+    per_cup = [np.minimum(d[:, j][np.isfinite(d[:, j])] * 100, upper) for j in range(3)]
+    ax2.hist(per_cup, bins=bins, stacked=True, label=[f"cup {j + 1}" for j in range(3)])
     ax2.set_xlim(0.0, upper)
     ax2.set_ylim(bottom=0.0)  # counts: with no pour at all the default range went negative
     if not cm.size:
@@ -247,11 +255,12 @@ def summarize(records: list[ServingRecord], config: ServingConfig, out_dir: Path
     ax2.axvline(3.0, color="tab:red", ls="--", label="3 cm (inside the rim)")
     clipped = f"; {over} above {upper:g} cm counted at {upper:g}" if over else ""
     ax2.set_xlabel(f"closest tip-to-cup-axis distance while pouring (cm)\n{clipped[2:]}".rstrip())
-    ax2.set_ylabel("cup pours (episodes)")
+    ax2.set_ylabel("cup pours (stacked by cup)")
     ax2.yaxis.set_major_locator(MaxNLocator(integer=True))
     rate = np.mean([r.success for r in records]) if records else float("nan")
     ax2.set_title(f"success {rate:.0%} of {len(records)} episodes")
     ax2.legend()
+    fig.suptitle("grasp a bottle and pour over three cups (arm7, learned DMPs)")
     top = out_dir / "dmp_serving_top_view.png"
     fig.savefig(top, dpi=110)
     grasp = np.array([r.grasp_reach_error_m for r in records], dtype=float) * 1000

@@ -278,8 +278,10 @@ def summarize(
             plan,
             out_dir / "footstep_dynamic_snapshots.png",
             panels=9,
-            title=f"seed {chosen.seed}: {plan.num_steps} steps, {chosen.waits} in place, "
-            f"{chosen.side_steps} side steps; arrival {chosen.arrival_s:.1f} s",
+            title="two rows of blocks on strings moving sideways, drawn where they are at "
+            f"each step's landing time\nseed {chosen.seed}: {plan.num_steps} steps "
+            f"({chosen.waits} in place, {chosen.side_steps} side), arrival "
+            f"{chosen.arrival_s:.1f} s",
         )
         out["snapshots"] = path
     if records:

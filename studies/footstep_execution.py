@@ -316,13 +316,15 @@ def _draw_example(config: FootstepExecutionConfig, seed: int, out: Path) -> Path
         handles = [
             Patch(facecolor="white", edgecolor=FOOT_COLOURS[0], label="planned left foot"),
             Patch(facecolor="white", edgecolor=FOOT_COLOURS[1], label="planned right foot"),
-            Patch(color=plt.cm.Reds(0.8 / 1.5), alpha=0.8, label="obstacle cells"),
+            # an occupied cell is 1 on the 0..1.5 colour scale of the map above
+            Patch(color=plt.cm.Reds(1.0 / 1.5), alpha=0.8, label="obstacle cells"),
             *handles,
         ]
         # below the map: inside, it covered obstacle cells and footprints
         ax.legend(
             handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8
         )
+    fig.suptitle(f"seed {seed}: one footstep plan per action table, executed by the physics biped")
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)
@@ -388,13 +390,12 @@ def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> 
         max(100 * getattr(r, f"{w}_max_err_m") for r in records for w in rows) if records else 1
     )
     bins = np.geomspace(0.1, max(largest * 1.1, 1.0), 40)
-    for which in rows:
-        ax.hist(
-            [max(100 * getattr(r, f"{which}_max_err_m"), 0.1) for r in records],
-            bins=bins,
-            alpha=0.6,
-            label=f"{which} table",
-        )
+    # side by side in each bin: overlaid translucent bars mixed into a colour of neither
+    ax.hist(
+        [[max(100 * getattr(r, f"{which}_max_err_m"), 0.1) for r in records] for which in rows],
+        bins=bins,
+        label=[f"{which} table" for which in rows],
+    )
     ax.set_xscale("log")
     ax.axvline(100 * POSITION_TOLERANCE_M, color="k", ls="--", lw=1, label="2 cm tolerance")
     ax.set_xlabel(
@@ -402,6 +403,7 @@ def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> 
         "errors below 0.1 cm drawn at 0.1)"
     )
     ax.set_ylabel("runs")
+    ax.set_title(f"largest landing error of each of {len(records)} executed plans")
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts: whole ticks
     ax.legend()
     fig.tight_layout()

@@ -282,7 +282,8 @@ def summarize(
     if pick:
         cols = min(2, len(pick))
         rows = int(math.ceil(len(pick) / cols))
-        fig = Figure(figsize=(4.6 * cols, 4.6 * rows + 0.6), dpi=110)
+        height = 4.6 * rows + 1.0  # 0.6 in for the legend below, 0.4 in for the title above
+        fig = Figure(figsize=(4.6 * cols, height), dpi=110)
         table = _table(config)
         handles = plan_legend_handles()
         for p, i in enumerate(pick):
@@ -309,7 +310,13 @@ def summarize(
             ax.tick_params(labelsize=6)
         # one legend below the panels: inside, it covered obstacle cells
         fig.legend(handles=handles, loc="lower center", ncol=4, fontsize=6)
-        fig.tight_layout(rect=(0, 0.6 / (4.6 * rows + 0.6), 1, 1))
+        fig.tight_layout(rect=(0, 0.6 / height, 1, 1 - 0.4 / height))
+        # after the layout, in the band it left: laid out with it, rows overlapped
+        fig.suptitle(
+            "footstep plans on random floors (Fig. 3); dashed: the 2-D planner's path",
+            y=1 - 0.15 / height,
+            fontsize=9,
+        )
         path = out_dir / "footstep_static_examples.png"
         fig.savefig(path)
         out["examples"] = path
@@ -338,18 +345,23 @@ def summarize(
 
         ax.yaxis.set_minor_formatter(FuncFormatter(minor_label))
         ax.set_xlabel("steps of the plan")
-        ax.set_ylabel("plan time (ms)")
-        ax.legend(
+        ax.set_ylabel("plan time (ms, log scale)")
+        outcomes = {bool(r.success) for r in records}
+        ax.legend(  # only the outcomes drawn
             handles=[
-                Line2D([], [], ls="", marker="o", ms=4, color="#1f5fd6", label="success"),
-                Line2D([], [], ls="", marker="o", ms=4, color="#d6541f", label="failed"),
+                Line2D([], [], ls="", marker="o", ms=4, color=c, label=label)
+                for ok, c, label in ((True, "#1f5fd6", "success"), (False, "#d6541f", "failed"))
+                if ok in outcomes
             ],
             fontsize=7,
         )
+        ax.set_title("planning time", fontsize=9)
+        fig.axes[0].set_title("plan length", fontsize=9)
         ax = fig.add_subplot(1, 3, 3)
         ax.hist([r.nodes_expanded for r in records], bins=30, color="0.4")
         ax.set_xlabel("nodes expanded")
         ax.set_ylabel("maps")
+        ax.set_title("search effort", fontsize=9)
         for a in (fig.axes[0], ax):
             a.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts
         fig.suptitle(
@@ -398,6 +410,7 @@ def _anytime_figure(config: FootstepStaticConfig, path: Path) -> Path:
     plan (A* with the Euclidean heuristic on 2.5 cm / 72 bins), with the 5 % band.
     """
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
     from repertoire.planning.footstep import (
         PlannerOptions,
         plan_footsteps,
@@ -421,10 +434,19 @@ def _anytime_figure(config: FootstepStaticConfig, path: Path) -> Path:
     left.set_xlabel("x (m)")
     left.set_ylabel("y (m)")
     left.set_title(
-        f"floor {ANYTIME_FLOOR}: best plan {runs[-1].plan.cost:.1f} (feet), "
+        f"floor {ANYTIME_FLOOR}: best plan {runs[-1].plan.cost:.1f} (footprints), "
         f"first {runs[0].plan.cost:.1f} (grey line)"
     )
-    left.legend(handles=plan_legend_handles(), loc="upper left", fontsize=7)
+    handles = [
+        *plan_legend_handles(),
+        Line2D(
+            [], [], c="0.25", lw=1.2, label=f"first plan's steps (cost {runs[0].plan.cost:.1f})"
+        ),
+    ]
+    # below the map: inside, it covered obstacle cells
+    left.legend(
+        handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncols=3, fontsize=7
+    )
     marks = {0.05: "o", 0.025: "s"}
     for r in runs:
         res = r.plan.xy_resolution
@@ -438,7 +460,7 @@ def _anytime_figure(config: FootstepStaticConfig, path: Path) -> Path:
     for res, m in marks.items():
         right.plot([], [], m, c="tab:blue", label=f"plan on {100 * res:g} cm lattice")
     right.set_xlabel("wall time when found (s, this machine)")
-    right.set_ylabel("plan cost")
+    right.set_ylabel("plan cost (location + step costs)")
     right.set_title(f"anytime plans, {ANYTIME_EXPANSIONS / 1e6:g} M expansions (w: weight)")
     right.grid(alpha=0.3)
     right.legend(fontsize=8)

@@ -245,6 +245,7 @@ def _draw_fig2(table, nominal, out: Path) -> Path:
         "commanded -> learned (moved > 2 cm)",
     ]
     fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8)
+    fig.suptitle("Fig. 2: the action table learned on the physics biped vs the commanded steps")
     fig.tight_layout(rect=(0, 0.12, 1, 1))
     fig.savefig(out, dpi=130)
     plt.close(fig)

@@ -118,7 +118,8 @@ def summarize(
     from repertoire.models.littledog import LEGS
 
     names = [n for n in config.terrains if any(r.terrain == n for r in records)]
-    fig = Figure(figsize=(5.4 * max(len(names), 1), 6.0), layout="constrained")
+    # about as tall as a square map with its title and legend (6.0 floated it in white)
+    fig = Figure(figsize=(5.4 * max(len(names), 1), 5.0), layout="constrained")
     markers = ["o", "s", "^", "v"]
     colours = ["tab:red", "tab:orange", "tab:blue", "tab:cyan"]
     for k, name in enumerate(names):
@@ -152,6 +153,7 @@ def summarize(
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2, fontsize=8)
+    fig.suptitle("LittleDog demonstrations: where each foot stood when a step started")
     path = Path(out_dir) / "littledog_demo_footholds.png"
     fig.savefig(path, dpi=110)
     lines = [

@@ -127,3 +127,40 @@ def test_obstacle_study_bad_config():
         dmp_obstacle_arm.sample_scenario(
             dmp_obstacle_arm.ObstacleArmConfig(path_fraction=[0.5, 0.5], coaster_y=[0.0, 0.0]), 0
         )
+
+
+def test_outcome_handles_name_only_the_outcomes_drawn():
+    from repertoire.studies._dmp_common import OUTCOME_COLOURS, outcome_handles
+
+    def entries(handles):
+        return [(h.get_label(), h.get_color()) for h in handles]
+
+    both = [
+        (f"tcp path, {w}", OUTCOME_COLOURS[ok]) for ok, w in ((True, "success"), (False, "failure"))
+    ]
+    assert entries(outcome_handles([False, True, np.True_], "tcp path")) == both
+    assert entries(outcome_handles([1, 1], "tcp path")) == both[:1]
+    assert entries(outcome_handles([False], "tcp path")) == both[1:]
+    assert outcome_handles([], "tcp path") == []
+    (h,) = outcome_handles([0], "tip", words=("served", "spilled"), lw=1.2)
+    assert (h.get_label(), h.get_linewidth()) == ("tip, spilled", 1.2)
+
+
+@pytest.mark.parametrize("height_in", [2.0, 6.0])
+def test_legend_below_sits_a_fixed_distance_under_the_axes(height_in):
+    # the same gap in inches for a flat and a tall axes (a fraction of the height was not)
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from repertoire.studies._dmp_common import legend_below
+
+    fig = Figure(figsize=(5.0, height_in + 2.0), dpi=100)
+    ax = fig.add_axes((0.1, 1.5 / (height_in + 2.0), 0.8, height_in / (height_in + 2.0)))
+    handles = [Line2D([], [], label="a"), Line2D([], [], ls=":", label="b")]
+    legend = legend_below(ax, handles, ncols=2, below_in=0.5)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    box, frame = ax.get_window_extent(renderer), legend.get_window_extent(renderer)
+    assert frame.y1 == pytest.approx(box.y0 - 0.5 * fig.dpi, abs=1.0)
+    assert frame.x0 + frame.x1 == pytest.approx(box.x0 + box.x1, abs=1.0)  # centred
+    assert [t.get_text() for t in legend.get_texts()] == ["a", "b"]

@@ -8,6 +8,7 @@ TransformationSystem integrates the displacement from x0 (as the discrete step d
 """
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from repertoire.planning.dmp import (
     save_dmp,
 )
 from repertoire.planning.dmp_chain import chain_rollout
+from repertoire.planning.dmp_demos import sines_in_motion
 from repertoire.planning.dmp_learn import (
     learn_dmp,
     learn_dmp_from_demonstrations,
@@ -54,14 +56,26 @@ from repertoire.errors import RepertoireError
 
 def moving_demo(seed: int, n_dims: int, duration: float = 1.5, n: int = 751):
     """A sum of three sines per DOF: starts and ends in motion. Returns (t, x, xd(0))."""
-    rng = np.random.default_rng(seed)
-    a = rng.uniform(-1.0, 1.0, (n_dims, 3))
-    w = rng.uniform(1.0, 4.0, (n_dims, 3))
-    ph = rng.uniform(0.0, 2.0 * np.pi, (n_dims, 3))
-    t = np.linspace(0.0, duration, n)
-    x = np.sum(a[None] * np.sin(w[None] * t[:, None, None] + ph[None]), axis=2)
-    xd0 = np.sum(a * w * np.cos(ph), axis=1)
-    return t, x, xd0
+    t, x, xd = sines_in_motion(seed, n_dims, duration, n)
+    return t, x, xd[0]
+
+
+def test_sines_in_motion_velocities_are_the_derivative_and_bad_inputs_are_named():
+    t, x, xd = sines_in_motion(3, 2, duration=1.0, n=2001)
+    assert x.shape == xd.shape == (2001, 2)
+    h = t[1] - t[0]
+    # central differences err by at most h^2 / 6 times the third derivative's bound 3 * 4^3
+    central = (x[2:] - x[:-2]) / (2.0 * h)
+    np.testing.assert_allclose(central, xd[1:-1], rtol=0, atol=32.0 * h**2)
+    assert np.all(np.abs(xd[0]) > 0)  # in motion at t = 0
+    np.testing.assert_array_equal(sines_in_motion(3, 2, 1.0, 2001)[1], x)  # seeded
+    for kwargs, message in (
+        ({"n_dims": 0}, "n_dims must be an integer >= 1, got 0"),
+        ({"n": 2}, "n must be an integer >= 3, got 2"),
+        ({"duration": float("nan")}, "duration must be a finite number > 0 s, got nan"),
+    ):
+        with pytest.raises(RepertoireError, match=re.escape(message)):
+            sines_in_motion(0, **kwargs)
 
 
 def relative_error(x: np.ndarray, demo: np.ndarray) -> float:

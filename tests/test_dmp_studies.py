@@ -31,7 +31,14 @@ def test_goals_study_smoke_shows_old_form_failures(tmp_path):
         assert r.flip_mirrored_old and not r.flip_mirrored_new
         assert r.near_start_peak_acc_new < 5
         assert r.near_start_peak_acc_old > 10 * r.near_start_peak_acc_new
-    assert set(result.figures) >= {"fig2", "near_start", "table", "orientation", "sparse"}
+    assert set(result.figures) >= {
+        "fig2",
+        "near_start",
+        "table",
+        "orientation",
+        "sparse",
+        "start_velocity",
+    }
     assert all(p.exists() for p in result.figures.values())
 
 

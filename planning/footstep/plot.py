@@ -216,9 +216,10 @@ def height_plan_figure(
     """
     if grid.heights is None:
         raise ValueError("height_plan_figure needs a grid with heights")
-    fig = Figure(figsize=(6.4, 6.0), dpi=130)
-    ax = fig.add_subplot(1, 1, 1)
     nx, ny = grid.shape
+    # as tall as the map needs (a 3 x 1.5 m strip in a square figure floated in white)
+    fig = Figure(figsize=(6.4, float(np.clip(4.2 * ny / nx + 1.8, 3.0, 8.0))), dpi=130)
+    ax = fig.add_subplot(1, 1, 1)
     x0, y0 = grid.origin
     res = grid.resolution
     extent = (x0, x0 + nx * res, y0, y0 + ny * res)
@@ -277,7 +278,7 @@ def crawl_plan_figure(height_map, plan, path: "str | Path", *, goal=None, title:
     """
     from repertoire.models.littledog.kinematics import LEGS
 
-    fig = Figure(figsize=(7.0, 4.6), dpi=130)
+    fig = Figure(figsize=(7.0, 5.4), dpi=130)
     ax = fig.add_subplot(1, 1, 1)
     h = height_map.heights
     res = height_map.resolution
@@ -324,7 +325,8 @@ def crawl_plan_figure(height_map, plan, path: "str | Path", *, goal=None, title:
                 [], [], ls="", marker="o", mfc="none", mec="g", ms=8, label="goal (feet centroid)"
             )
         )
-    ax.legend(handles=handles, loc="upper left", fontsize=6, framealpha=0.85)
+    # below the map: in its upper left it covered terrain blocks
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncols=4, fontsize=6)
     ax.set_title(title or f"crawl plan: {plan.status.value}, {len(plan.steps)} steps", fontsize=8)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")

@@ -60,13 +60,13 @@ def test_soccer_worlds_name_a_bad_wheel_kd(build, scenario, shown):
         (
             build_kitchen_action,
             KitchenScenario(cup_positions={"cup_0": [2.0, 1.4, -1.0]}),
-            "cup_positions[cup_0] [2.0, 1.4, -1.0] puts cup_0::cup 1.050 m into "
+            "cup_positions[cup_0] [2.0, 1.4, -1.0] puts cup_0::cup 1.046 m into "
             "WorldModelInstance::ground_collision",
         ),
         (
             build_kitchen_action,
             KitchenScenario(cup_positions={"cup_0": [2.0, 1.4, 0.74]}),
-            "cup_positions[cup_0] [2.0, 1.4, 0.74] puts cup_0::cup 0.341 m into table_0::table",
+            "cup_positions[cup_0] [2.0, 1.4, 0.74] puts cup_0::cup 0.340 m into table_0::table",
         ),
     ],
 )

@@ -321,10 +321,8 @@ def build_kitchen_action(
                 target_source().get_output_port(),
                 action.get_target_input_port(),
             )
-        if scenario.action in ("grip", "put"):
-            builder.Connect(
-                finger_reader.get_output_port(), action.get_finger_position_input_port()
-            )
+        # every arm action reads the fingers (reach and put: for their obstacle check)
+        builder.Connect(finger_reader.get_output_port(), action.get_finger_position_input_port())
     action.set_name("action")
     if meshcat is not None:
         from pydrake.geometry import MeshcatVisualizer

@@ -195,12 +195,14 @@ def test_kitchen_actions_fail_on_a_non_finite_measurement():
     )
 
     nan, base = float("nan"), [0.0, 0.0, 0.0, 0.0]
-    reach = {"arm_position": [0.62, 0.0, 0.25], "target": [0.85, 0.0, 0.7036], "base_state": base}
+    reach = {"arm_position": [0.62, 0.0, 0.25], "target": [0.85, 0.0, 0.7036], "base_state": base,
+             "finger_position": [0.075, 0.075]}  # fmt: skip
     # closed form: one 20 ms joint_step from the measured joints towards arm_inverse(target)
     expected = joint_step(reach["arm_position"], arm_inverse(reach["target"]), ARM_SPEEDS, 0.02)
     np.testing.assert_allclose(_update(Reach(), reach)[:4], [*expected, ActionStatus.RUNNING])
     # a NaN measurement was copied into the command (NaN setpoints) while RUNNING
     assert _update(Reach(), {**reach, "arm_position": [nan, 0.0, 0.25]})[3] == ActionStatus.FAILED
+    assert _update(Reach(), {**reach, "finger_position": [nan, 0.075]})[3] == ActionStatus.FAILED
     assert _update(Grip(), {"finger_position": [0.075, nan], "base_state": base})[2] == (
         ActionStatus.FAILED
     )

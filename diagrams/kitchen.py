@@ -33,6 +33,8 @@ from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.simulate import SimulatorCache
 from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
 from repertoire.models import MODELS_DIR, ConfigureParser, package_url
+from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
+from repertoire.models.diffdrive.generate import KITCHEN_CUPS as _CUP_MODELS
 from repertoire.systems.go_to_pose import (
     GOTO_GAINS,
     ActionStatus,
@@ -59,7 +61,6 @@ from repertoire.errors import RepertoireError, ScenarioError
 ACTIONS = ("goto_pose", "reach", "grip", "put")
 ROBOT_URL_PATH = "diffdrive/diffdrive_arm.urdf"
 ROBOT_RADIUS = 0.32  # footprint disc of the base (chassis corners and wheels) [m]
-CUP_RADIUS, CUP_HALF_HEIGHT = 0.04, 0.05
 TABLE_TOP = 0.75
 #: Obstacle boxes of kitchen.sdf, ``[cx, cy, yaw, half_x, half_y, top_z]`` (world).
 KITCHEN_OBSTACLES = np.array(
@@ -75,17 +76,11 @@ KITCHEN_OBSTACLES = np.array(
 )
 #: The region GoToPose targets may lie in: the room less the robot's radius and the walls.
 KITCHEN_WORKSPACE = (-3.6, 3.6, -2.6, 2.6)
-CUP_0_POSITION = (2.0, 1.4, 0.8001)  # cup_0's centre in kitchen.sdf
-#: The free cups of kitchen.sdf.
-KITCHEN_CUPS = ("cup_0", "cup_1", "cup_2", "cup_3", "cup_4")
+#: The free cups of kitchen.sdf (written by models/diffdrive/generate.py).
+KITCHEN_CUPS = tuple(_CUP_MODELS)
 #: Each cup's centre (world) as placed in kitchen.sdf.
-KITCHEN_CUP_POSITIONS = {
-    "cup_0": CUP_0_POSITION,
-    "cup_1": (2.3, 1.2, 0.8001),
-    "cup_2": (1.8, -1.5, 0.8001),
-    "cup_3": (2.2, -1.7, 0.8001),
-    "cup_4": (-2.3, 2.55, 0.9501),
-}
+KITCHEN_CUP_POSITIONS = {name: xyz for name, (xyz, _) in _CUP_MODELS.items()}
+CUP_0_POSITION = KITCHEN_CUP_POSITIONS["cup_0"]
 ARM_TUCKED = (0.62, 0.0, 0.25)  # lift, yaw, extend: fingers above the tables
 #: PD gains (kp, kd) of the arm and finger actuators.
 ARM_GAINS = {
@@ -324,10 +319,8 @@ def build_kitchen_action(
                 target_source().get_output_port(),
                 action.get_target_input_port(),
             )
-        if scenario.action in ("grip", "put"):
-            builder.Connect(
-                finger_reader.get_output_port(), action.get_finger_position_input_port()
-            )
+        # every arm action reads the fingers (reach and put: for their obstacle check)
+        builder.Connect(finger_reader.get_output_port(), action.get_finger_position_input_port())
     action.set_name("action")
     if meshcat is not None:
         from pydrake.geometry import MeshcatVisualizer

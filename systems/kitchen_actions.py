@@ -16,10 +16,13 @@ failed, timed out). Motions are straight lines in joint space at limited joint
 speeds, all joints arriving together. A target out of the arm's reach, or whose
 point or straight joint-space way to it (in the world, given the chassis pose on
 ``base_state``) enters an obstacle box (a table, the counter), makes the action
-fail at once, with no motion; so does a non-finite measurement (joints or
-``base_state``) at any update. (A reach whose way crossed a table top pushed its
-fingers against the table and dragged the standing robot 0.6 m under it, then
-reported success in the chassis frame.)
+fail at once, with no motion; so does a non-finite measurement (joints, fingers or
+``base_state``) at any update. The way is checked for the gripper centre and for
+both fingers' boxes (:func:`fingers_in_boxes`: 8 cm tall, they reach 4 cm below the
+centre, and up to 9 cm to its sides), at the measured finger positions. (A reach
+whose way crossed a table top pushed its fingers against the table and dragged the
+standing robot 0.6 m under it, then reported success in the chassis frame. A check of
+the centre alone let a way 2 cm above a table's top pass with the fingers 2 cm in it.)
 
 Grip closes the fingers and succeeds when both are blocked by an object (the
 fingers stop more than ``block_margin`` short of their closed setpoint: a grasp
@@ -35,6 +38,7 @@ from repertoire.models.diffdrive.generate import (
     COLUMN_X,
     EXTEND_RANGE,
     FINGER_RANGE,
+    FINGER_SIZE,
     LIFT_BASE_Z,
     LIFT_RANGE,
     YAW_RANGE,
@@ -49,6 +53,9 @@ ARM_SPEEDS = (0.15, 0.8, 0.2)  # lift m/s, yaw rad/s, extend m/s
 FINGER_SPEED = 0.05  # m/s
 FINGER_OPEN = 0.075  # finger centre from the gripper centre when open [m]
 FINGER_CLOSED = 0.03  # closed setpoint (the joint's lower limit) [m]
+FINGER_HALF = tuple(0.5 * v for v in FINGER_SIZE)  # a finger box's half sizes (slide frame) [m]
+#: Largest horizontal distance of a finger box's point from the gripper centre [m].
+FINGER_REACH = math.hypot(FINGER_HALF[0], FINGER_RANGE[1] + FINGER_HALF[1])
 
 
 def arm_forward(q) -> np.ndarray:
@@ -90,18 +97,100 @@ def joint_step(q_cmd, q_goal, speeds, dt: float) -> np.ndarray:
     return q_cmd + delta / steps
 
 
-def joint_line_points(q_from, q_to, spacing: float = 0.01) -> np.ndarray:
-    """Gripper centres (chassis frame) along the straight joint-space line ``q_from -> q_to``.
+def joint_line(q_from, q_to, spacing: float = 0.01, reach: float = 0.0) -> np.ndarray:
+    """Joints ``(n, 3)`` along the straight joint-space line ``q_from -> q_to`` (both ends).
 
-    The line :func:`joint_step` drives. Consecutive points are at most ``spacing``
-    apart: the gripper's speed along the line is bounded by ``|d lift| + |d extend| +
-    max(extend) |d yaw|`` per unit of the line parameter. Both ends are included.
+    The line :func:`joint_step` drives. A point carried by the slide at most ``reach``
+    (horizontally) from the gripper centre moves at most ``spacing`` between consecutive
+    samples: its speed along the line is bounded by ``|d lift| + |d extend| + (max(extend)
+    + reach) |d yaw|`` per unit of the line parameter.
     """
     q0, q1 = np.asarray(q_from, dtype=float), np.asarray(q_to, dtype=float)
     d = np.abs(q1 - q0)
-    length = d[0] + d[2] + max(abs(q0[2]), abs(q1[2])) * d[1]
+    length = d[0] + d[2] + (max(abs(q0[2]), abs(q1[2])) + reach) * d[1]
     s = np.linspace(0.0, 1.0, max(2, int(math.ceil(length / spacing)) + 1))
-    return np.array([arm_forward(q0 + t * (q1 - q0)) for t in s])
+    return q0 + s[:, None] * (q1 - q0)
+
+
+def joint_line_points(q_from, q_to, spacing: float = 0.01) -> np.ndarray:
+    """Gripper centres (chassis frame) along :func:`joint_line`, at most ``spacing`` apart."""
+    return np.array([arm_forward(q) for q in joint_line(q_from, q_to, spacing)])
+
+
+def finger_boxes(base_state, q, span) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World boxes of the two fingers, each swept over a range of its positions.
+
+    The left finger slides along the slide's +y axis, the right along -y (a finger's
+    position is its centre's distance from the gripper centre); a finger moving over
+    ``[inner, outer]`` sweeps one box of the finger's x and z size, from ``inner -
+    FINGER_HALF[1]`` to ``outer + FINGER_HALF[1]`` along y.
+
+    Args:
+        base_state: ``[x, y, phi, ...]`` of the chassis.
+        q: joints ``(n, 3)`` (or one ``(3,)``) ``[lift, yaw, extend]``.
+        span: ``[[inner, outer] of the left finger, [inner, outer] of the right]`` [m].
+
+    Returns:
+        ``(centres (n, 2, 3), yaws (n,), halves (2, 3))``: world centres of the left and
+        right boxes, their yaw (world, both the slide's) and their half sizes.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    span = np.asarray(span, dtype=float).reshape(2, 2)
+    yaw = base_state[2] + q[:, 1]
+    offsets = 0.5 * (span[:, 0] + span[:, 1]) * np.array([1.0, -1.0])  # along the slide's y
+    centres = np.empty((len(q), 2, 3))
+    for k, qk in enumerate(q):
+        centres[k, :] = chassis_to_world(base_state, arm_forward(qk))
+    centres[:, :, 0] -= np.sin(yaw)[:, None] * offsets
+    centres[:, :, 1] += np.cos(yaw)[:, None] * offsets
+    halves = np.tile(FINGER_HALF, (2, 1))
+    halves[:, 1] += 0.5 * (span[:, 1] - span[:, 0])
+    return centres, yaw, halves
+
+
+def fingers_in_boxes(base_state, q, span, boxes, margin: float = 0.0) -> np.ndarray:
+    """Per joint sample, the first obstacle box a finger box enters, else -1.
+
+    Exact for the boxes: a finger box (upright, yawed with the slide; :func:`finger_boxes`)
+    meets an upright obstacle box (floor to ``top_z``, as in :func:`point_in_boxes`, grown
+    by ``margin`` horizontally and on top) when their footprint rectangles overlap
+    (separating axes: the four edge directions) and the finger's bottom is at most at the
+    top. Touching counts as entering.
+
+    Args:
+        base_state: ``[x, y, phi, ...]`` of the chassis.
+        q: joints ``(n, 3)`` or ``(3,)``.
+        span: the fingers' position ranges, as in :func:`finger_boxes`.
+        boxes: ``(k, 6)`` rows ``[cx, cy, yaw, half_x, half_y, top_z]``.
+        margin: obstacle growth [m].
+
+    Returns:
+        ``(n,)`` box indices (-1: no box).
+    """
+    centres, yaw, halves = finger_boxes(base_state, q, span)
+    hit = np.full(len(yaw), -1)
+    fa, fb = _axes(yaw[:, None])  # the finger's x and y axes, (n, 1, 2) each
+    for i, (cx, cy, byaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
+        ba, bb = _axes(np.array(byaw))
+        d = centres[:, :, :2] - [cx, cy]
+        overlap = centres[:, :, 2] - halves[:, 2] <= top + margin
+        for u in (fa, fb, ba, bb):  # separated along u if the projections do not meet
+            r_finger = halves[:, 0] * _dot_abs(u, fa) + halves[:, 1] * _dot_abs(u, fb)
+            r_box = (hx + margin) * _dot_abs(u, ba) + (hy + margin) * _dot_abs(u, bb)
+            overlap &= _dot_abs(u, d) <= r_finger + r_box
+        new = np.any(overlap, axis=1) & (hit < 0)
+        hit[new] = i
+    return hit
+
+
+def _axes(yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit x and y axes (``(..., 2)`` each) of frames turned by ``yaw`` about z."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.stack([c, s], axis=-1), np.stack([-s, c], axis=-1)
+
+
+def _dot_abs(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return np.abs(np.sum(u * v, axis=-1))
 
 
 def chassis_to_world(base_state, a) -> np.ndarray:
@@ -186,28 +275,38 @@ class _Action(ActionSystem):
         self._xd = self.DeclareDiscreteState(n_command + 5)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self._base_port = self.DeclareVectorInputPort("base_state", 4)
+        self._finger_port = self.DeclareVectorInputPort("finger_position", 2)
         self._declare_status_port(self._xd, n_command)
 
     def get_base_state_input_port(self):
         return self._base_port
+
+    def get_finger_position_input_port(self):
+        return self._finger_port
 
     def inside_obstacle(self, context: Context, a_chassis) -> int:
         """Index of the obstacle box containing the chassis-frame point, else -1."""
         base = self._base_port.Eval(context)
         return point_in_boxes(chassis_to_world(base, a_chassis), self._boxes, self.margin)
 
-    def path_enters_obstacle(self, context: Context, q_from, q_to, offset=(0.0, 0.0, 0.0)) -> int:
+    def path_enters_obstacle(
+        self, context: Context, q_from, q_to, span, offset=(0.0, 0.0, 0.0)
+    ) -> int:
         """Index of the first obstacle box the straight joint-space way enters, else -1.
 
-        The way of the gripper centre moved by ``offset`` (chassis frame), e.g. a held
-        cup's bottom, from joints ``q_from`` to ``q_to`` (:func:`joint_line_points`). A
-        start inside a box (a measurement a millimetre low on a table top) is not an
-        entry while the way stays in that box: the end point is checked on its own.
+        The way from joints ``q_from`` to ``q_to`` (:func:`joint_line`) of the gripper
+        centre moved by ``offset`` (chassis frame), e.g. a held cup's bottom, and of the
+        finger boxes swept over ``span`` (:func:`fingers_in_boxes`). A start inside a box
+        (a measurement a millimetre low on a table top) is not an entry while the way
+        stays in that box: the end point is checked on its own.
         """
-        inside = [
-            self.inside_obstacle(context, a + np.asarray(offset, dtype=float))
-            for a in joint_line_points(q_from, q_to)
-        ]
+        samples = joint_line(q_from, q_to, reach=FINGER_REACH)
+        base = self._base_port.Eval(context)
+        fingers = fingers_in_boxes(base, samples, span, self._boxes, self.margin)
+        inside = []
+        for q, finger in zip(samples, fingers):
+            point = self.inside_obstacle(context, arm_forward(q) + np.asarray(offset, float))
+            inside.append(min(point, finger) if min(point, finger) >= 0 else max(point, finger))
         k = 0
         while k < len(inside) and inside[k] >= 0 and inside[k] == inside[0]:
             k += 1  # still in the box it starts in
@@ -226,9 +325,9 @@ class _Action(ActionSystem):
             return
         t = context.get_time()
         measured = self.measured(context)
-        finite = np.all(np.isfinite(measured)) and np.all(
-            np.isfinite(self._base_port.Eval(context))
-        )
+        finite = (np.all(np.isfinite(measured))
+                  and np.all(np.isfinite(self._base_port.Eval(context)))
+                  and np.all(np.isfinite(self._finger_port.Eval(context))))  # fmt: skip
         if not started:
             xd[:n] = measured if finite else xd[:n]
             xd[n + 1], xd[n + 2], xd[n + 3], xd[n + 4] = 1.0, t, 0.0, t
@@ -258,6 +357,7 @@ class Reach(_Action):
         arm_position: measured ``[lift, yaw, extend]``.
         target: ``[ax_g, ay_g, az_g]`` gripper-centre target in the chassis frame.
         base_state: ``[x, y, phi, v]`` of the chassis (for the obstacle check).
+        finger_position: measured ``[left, right]`` (held; for the obstacle check).
 
     Output ports:
         arm_command: ``[lift, yaw, extend]`` setpoints.
@@ -265,8 +365,9 @@ class Reach(_Action):
 
     Succeeds when the measured gripper centre is within ``tolerance`` of the
     target; fails at once if the target is out of reach or it, or the straight
-    joint-space way to it from the measured joints, is inside an obstacle box;
-    times out ``timeout`` s after its first update.
+    joint-space way to it from the measured joints of the gripper centre or of a
+    finger (at its measured position), is inside an obstacle box; times out
+    ``timeout`` s after its first update.
     """
 
     def __init__(
@@ -318,7 +419,9 @@ class Reach(_Action):
         goal = arm_inverse(target)
         if goal is None or self.inside_obstacle(context, target) >= 0:
             return False
-        return self.path_enters_obstacle(context, self._arm_port.Eval(context), goal) < 0
+        fingers = self._finger_port.Eval(context)
+        span = [[fingers[0]] * 2, [fingers[1]] * 2]  # held where they are
+        return self.path_enters_obstacle(context, self._arm_port.Eval(context), goal, span) < 0
 
     def step(self, context, command, phase, time_in_phase):
         target = self._target_port.Eval(context)
@@ -364,13 +467,9 @@ class Grip(_Action):
             raise RepertoireError(f"closed must be within the finger range {FINGER_RANGE}")
         self.speed, self.closed = speed, closed
         self.block_margin, self.settle = block_margin, settle
-        self._finger_port = self.DeclareVectorInputPort("finger_position", 2)
         self._command_port = self.DeclareVectorOutputPort(
             "finger_command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
         )
-
-    def get_finger_position_input_port(self):
-        return self._finger_port
 
     def get_command_output_port(self):
         return self._command_port
@@ -409,9 +508,11 @@ class Put(_Action):
     Phases: 0 move to ``clearance`` above the target holding the fingers
     closed, 1 lower to the target, 2 open the fingers; succeeds when both are
     measured open. Fails at once if the target or the point above it is out of
-    reach, or the cup's bottom (``cup_half_height`` below the gripper centre) would
-    enter an obstacle box on the way (straight in joint space to the point above,
-    then down to the target; grown by ``margin`` horizontally). With obstacles given, it
+    reach, or the cup's bottom (``cup_half_height`` below the gripper centre) or a
+    finger (swept from its measured position to closed) would enter an obstacle box
+    on the way (straight in joint space to the point above, then down to the target;
+    grown by ``margin`` horizontally), or a finger opening at the target would. With
+    obstacles given, it
     also fails at once unless the cup would stand on one of them: its bottom
     (a disc of ``cup_radius``) wholly on a box's top and at most ``max_drop``
     above it (:func:`support_under`); a cup let go in the air falls to the floor
@@ -443,7 +544,6 @@ class Put(_Action):
         _check_positive(clearance=clearance, cup_half_height=cup_half_height, tolerance=tolerance)
         self.clearance, self.cup_half_height, self.tolerance = clearance, cup_half_height, tolerance
         self._arm_port = self.DeclareVectorInputPort("arm_position", 3)
-        self._finger_port = self.DeclareVectorInputPort("finger_position", 2)
         self._target_port = self.DeclareVectorInputPort("target", 3)
         self._command_port = self.DeclareVectorOutputPort(
             "command", 5, self._calc_command, {self.discrete_state_ticket(self._xd)}
@@ -451,9 +551,6 @@ class Put(_Action):
 
     def get_arm_position_input_port(self):
         return self._arm_port
-
-    def get_finger_position_input_port(self):
-        return self._finger_port
 
     def get_target_input_port(self):
         return self._target_port
@@ -478,8 +575,14 @@ class Put(_Action):
             return False
         lift = [0.0, 0.0, self.margin - self.cup_half_height]  # the bottom, as checked above
         q, q_above, q_target = self._arm_port.Eval(context), arm_inverse(above), arm_inverse(target)
-        if (self.path_enters_obstacle(context, q, q_above, lift) >= 0
-                or self.path_enters_obstacle(context, q_above, q_target, lift) >= 0):  # fmt: skip
+        # the fingers close from where they are (on a cup they stop at it) while carrying
+        # it, then open at the target
+        carry = [sorted([f, FINGER_CLOSED]) for f in self._finger_port.Eval(context)]
+        release = [[FINGER_CLOSED, max(f, FINGER_OPEN)] for f in self._finger_port.Eval(context)]
+        if (self.path_enters_obstacle(context, q, q_above, carry, lift) >= 0
+                or self.path_enters_obstacle(context, q_above, q_target, carry, lift) >= 0
+                or fingers_in_boxes(self._base_port.Eval(context), q_target, release,
+                                    self._boxes, self.margin)[0] >= 0):  # fmt: skip
             return False
         if len(self._boxes) == 0:
             return True  # no world given: nothing to stand on is known

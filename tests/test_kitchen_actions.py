@@ -14,6 +14,7 @@ from repertoire.systems.kitchen_actions import (
     arm_forward,
     arm_inverse,
     chassis_to_world,
+    fingers_in_boxes,
     footprint_hits,
     joint_line_points,
     joint_step,
@@ -24,6 +25,7 @@ from repertoire.systems.kitchen_actions import (
 from repertoire.errors import RepertoireError
 
 BASE = np.array([2.0, 0.55, math.pi / 2, 0.0])  # in front of table_0, facing it
+OPEN = [FINGER_OPEN] * 2
 
 
 def test_arm_kinematics_closed_form():
@@ -85,7 +87,7 @@ def test_reach_moves_succeeds_and_fails():
     reach = Reach(0.02, obstacles=KITCHEN_OBSTACLES)
     q0 = [0.62, 0.0, 0.25]
     target = arm_forward([0.62, 0.0, 0.35])
-    ctx = _fixed(reach, arm_position=q0, target=target, base_state=BASE)
+    ctx = _fixed(reach, finger_position=OPEN, arm_position=q0, target=target, base_state=BASE)
     xd = _update(reach, ctx)
     # first update: command starts at the measured joints, extend moves 0.2 m/s * 0.02 s
     np.testing.assert_allclose(xd, [0.62, 0.0, 0.254, ActionStatus.RUNNING, 1, 0, 0, 0])
@@ -93,17 +95,17 @@ def test_reach_moves_succeeds_and_fails():
     # measured at the target: succeeded, command held
     ctx = _fixed(
         reach, 1.0, [0.62, 0, 0.35, 0, 1, 0, 0, 0], arm_position=[0.62, 0, 0.345],
-        target=target, base_state=BASE,
+        finger_position=OPEN, target=target, base_state=BASE,
     )  # fmt: skip
     np.testing.assert_allclose(_update(reach, ctx)[:4], [0.62, 0, 0.35, ActionStatus.SUCCEEDED])
     # out of reach, and inside table_0 (gripper 0.1 m below its top): failed at once, no motion
     for bad in ([2.0, 0.0, 0.6], [0.85, 0.0, 0.55]):
-        ctx = _fixed(reach, arm_position=q0, target=bad, base_state=BASE)
+        ctx = _fixed(reach, finger_position=OPEN, arm_position=q0, target=bad, base_state=BASE)
         np.testing.assert_allclose(_update(reach, ctx)[:4], [*q0, ActionStatus.FAILED])
     # timeout after 10 s from the start time stored in the state
     ctx = _fixed(
         reach, 12.5, [0.6, 0, 0.3, 0, 1, 2.5, 0, 2.5], arm_position=q0, target=target,
-        base_state=BASE,
+        finger_position=OPEN, base_state=BASE,
     )  # fmt: skip
     assert _update(reach, ctx)[3] == ActionStatus.TIMED_OUT
     # a finished action stays finished
@@ -167,12 +169,90 @@ def test_reach_refuses_a_way_through_a_table():
     target = [0.32, 0.0, 0.47]
     for q0, status in (([0.62, 0.0, 0.6], ActionStatus.FAILED),
                        ([0.62, 0.0, 0.27], ActionStatus.RUNNING)):  # fmt: skip
-        ctx = _fixed(reach, arm_position=q0, target=target, base_state=BASE)
+        ctx = _fixed(reach, finger_position=OPEN, arm_position=q0, target=target, base_state=BASE)
         assert _update(reach, ctx)[3] == status
     # a start a millimetre inside the top (the gripper resting low) is not an entry
     low = arm_inverse(_at_world_height([0.85, 0.0], 0.749))
-    ctx = _fixed(reach, arm_position=low, target=[0.85, 0.0, 0.80], base_state=BASE)
+    ctx = _fixed(
+        reach, finger_position=OPEN, arm_position=low, target=[0.85, 0.0, 0.80], base_state=BASE
+    )
     assert _update(reach, ctx)[3] == ActionStatus.RUNNING
+
+
+def test_fingers_in_boxes_by_hand():
+    # chassis at the origin facing +x: the gripper centre is at world (0.05 + e, 0, 0.2575 +
+    # lift) for arm yaw 0, the fingers (3 cm along x, 2 cm along y, 8 cm tall) at y = +-f
+    box = [[1.0, 0.0, 0.0, 0.2, 0.5, 0.75]]  # x in [0.8, 1.2], y in [-0.5, 0.5], top 0.75
+    base, open_ = np.zeros(4), [[0.075, 0.075]] * 2
+
+    def hit(base, lift, e, span=open_, boxes=box, margin=0.0):
+        return int(fingers_in_boxes(base, [lift, 0.0, e], span, boxes, margin)[0])
+
+    # over the top: the fingers' bottom 4 cm below the centre (world z 0.7901 / 0.7899)
+    assert hit(base, 0.5326, 0.85) == -1 and hit(base, 0.5324, 0.85) == 0
+    assert hit(base, 0.5326, 0.85, margin=0.001) == 0  # grown on top
+    # in front of it, below the top: the fingers' front faces 1.5 cm ahead of the centre
+    assert hit(base, 0.3, 0.8 - 0.05 - 0.0151) == -1 and hit(base, 0.3, 0.8 - 0.05 - 0.0149) == 0
+    # beside it: the centre 5 cm beyond its side (world y 0.55), a finger at -f reaches over
+    side = np.array([0.0, 0.55, 0.0, 0.0])
+    closed, wide = [[0.039, 0.039]] * 2, [[0.041, 0.041]] * 2  # outer faces at 0.049, 0.051
+    assert hit(side, 0.3, 0.85, closed) == -1 and hit(side, 0.3, 0.85, wide) == 0
+    # a finger swept from 0.03 to 0.075 (closing) covers everything between
+    assert hit(side, 0.3, 0.85, [[0.03, 0.075]] * 2) == 0
+    # a box turned 45 deg (a diamond, its corner at x = 1 - 0.1 sqrt 2): exact, not its
+    # bounding box; the left finger centred 5 cm off the corner's line, from y 0.04 to 0.06,
+    # meets the diamond's edge at x = 0.8586 + 0.04
+    diamond = [[1.0, 0.0, math.pi / 4, 0.1, 0.1, 0.75]]
+    off = np.array([0.0, 0.05 - 0.075, 0.0, 0.0])
+    corner = 1.0 - 0.1 * math.sqrt(2)
+    for face, expected in ((corner + 0.04 - 1e-4, -1), (corner + 0.04 + 1e-4, 0)):
+        assert hit(off, 0.3, face - 0.015 - 0.05, boxes=diamond) == expected
+    # vectorized over samples; the first box in the list wins
+    two = box + diamond
+    q = [[0.3, 0.0, 0.5], [0.3, 0.0, 0.85]]
+    np.testing.assert_array_equal(fingers_in_boxes(base, q, open_, two), [-1, 0])
+
+
+def test_reach_checks_the_fingers_not_only_the_centre():
+    reach = Reach(0.02, obstacles=KITCHEN_OBSTACLES)
+    # BASE faces table_0 (edge 0.35 m ahead of the axle, top at world z 0.75): a reach
+    # from 5 cm before the edge to 0.25 m over the table, level. The gripper centre's way
+    # clears the top at world z 0.77, the fingers (their bottoms 4 cm lower) do not; the
+    # fingers clear it from a centre 4 cm above the top on
+    for z_world, status in ((0.77, ActionStatus.FAILED), (0.7899, ActionStatus.FAILED),
+                            (0.7901, ActionStatus.RUNNING)):  # fmt: skip
+        q0, target = (
+            arm_inverse(_at_world_height([0.30, 0.0], z_world)),
+            _at_world_height([0.60, 0.0], z_world),
+        )
+        centres = [chassis_to_world(BASE, a) for a in joint_line_points(q0, arm_inverse(target))]
+        assert all(point_in_boxes(p, KITCHEN_OBSTACLES) == -1 for p in centres)
+        ctx = _fixed(reach, finger_position=OPEN, arm_position=q0, target=target, base_state=BASE)
+        assert _update(reach, ctx)[3] == status
+
+
+def test_put_checks_the_fingers_carrying_and_opening():
+    # chassis at the origin facing +x, a table under x in [0.7, 1.3], and a tall block on it
+    # beside the target (its face 7 cm to the left of the cup's centre)
+    table = [1.0, 0.0, 0.0, 0.3, 0.3, 0.75]
+    block = [0.9, 0.17, 0.0, 0.05, 0.1, 1.2]  # y from 0.07
+    base = [0.0, 0.0, 0.0, 0.0]
+    target = [0.9, 0.0, 0.801 - 0.0975]  # the cup's bottom 1 mm above the top
+    ports = dict(arm_position=[0.6, 0.0, 0.5], target=target, base_state=base)
+    # carrying, the fingers on the cup (0.05: outer faces at 0.06) pass the block; opening
+    # at the target (to 0.075: faces at 0.085) they would hit it
+    put = Put(0.02, obstacles=[table, block])
+    assert _update(put, _fixed(put, finger_position=[0.05, 0.05], **ports))[5] == (
+        ActionStatus.FAILED
+    )
+    clear = Put(0.02, obstacles=[table, [0.9, 0.188, 0.0, 0.05, 0.1, 1.2]])  # face at 0.088
+    assert _update(clear, _fixed(clear, finger_position=[0.05, 0.05], **ports))[5] == (
+        ActionStatus.RUNNING
+    )
+    # fingers measured wide open while carrying (no cup: they sweep 0.03 .. 0.08, faces
+    # out to 0.09) hit it
+    xd = _update(clear, _fixed(clear, finger_position=[0.08, 0.08], **ports))
+    assert xd[5] == ActionStatus.FAILED
 
 
 def _at_world_height(xy, z_world):

@@ -55,3 +55,47 @@ def test_arm_robot_structure_and_gripper_kinematics():
 def test_plain_diffdrive_is_unchanged_for_soccer():
     text = (MODELS_DIR / "diffdrive" / "diffdrive.urdf").read_text()
     assert "arm_lift" not in text and 'robot name="diffdrive"' in text
+
+
+def test_kitchen_cups_stand_on_four_feet():
+    from pydrake.geometry import Cylinder, Role, Sphere
+    from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+    from pydrake.systems.framework import DiagramBuilder
+    from repertoire.diagrams.kitchen import add_kitchen_world
+    from repertoire.models.diffdrive.generate import (
+        CUP_FOOT_RADIUS,
+        CUP_HALF_HEIGHT,
+        CUP_RADIUS,
+        KITCHEN_CUPS,
+        cup_feet,
+    )
+
+    # closed form: four spheres of 4 mm, centres 3.6 cm from the axis at 90 deg, their
+    # lowest points on the cup's bottom plane; the cylinder ends at their centres
+    np.testing.assert_allclose(
+        cup_feet(),
+        [[0.036, 0, -0.046], [0, 0.036, -0.046], [-0.036, 0, -0.046], [0, -0.036, -0.046]],
+        atol=1e-15,
+    )
+    plant, scene_graph = AddMultibodyPlantSceneGraph(DiagramBuilder(), 0.0)
+    parser = Parser(plant)
+    ConfigureParser(parser)
+    add_kitchen_world(parser, list(KITCHEN_CUPS))
+    plant.Finalize()
+    inspector = scene_graph.model_inspector()
+    for name in KITCHEN_CUPS:
+        body = plant.GetBodyByName("cup", plant.GetModelInstanceByName(name))
+        ids = inspector.GetGeometries(plant.GetBodyFrameIdOrThrow(body.index()), Role.kProximity)
+        shapes = {inspector.GetName(g).split("::")[-1]: g for g in ids}
+        assert sorted(shapes) == ["cup_collision", "foot_0", "foot_1", "foot_2", "foot_3"]
+        side = shapes.pop("cup_collision")
+        cyl = inspector.GetShape(side)
+        assert isinstance(cyl, Cylinder) and cyl.radius() == CUP_RADIUS
+        z = inspector.GetPoseInFrame(side).translation()[2] - cyl.length() / 2
+        assert z == pytest.approx(CUP_FOOT_RADIUS - CUP_HALF_HEIGHT, abs=1e-15)  # cylinder bottom
+        for k, g in enumerate(sorted(shapes)):
+            sphere = inspector.GetShape(shapes[g])
+            assert isinstance(sphere, Sphere) and sphere.radius() == CUP_FOOT_RADIUS
+            p = inspector.GetPoseInFrame(shapes[g]).translation()
+            np.testing.assert_allclose(p, cup_feet()[k], atol=1e-15)
+            assert p[2] - sphere.radius() == pytest.approx(-CUP_HALF_HEIGHT, abs=1e-15)

@@ -257,3 +257,37 @@ def test_reset_simulator_puts_moved_cups_back():
     diagram, simulator = kitchen_simulator(KitchenScenario(cups=["cup_1"]))
     plant = diagram.GetSubsystemByName("plant")
     np.testing.assert_allclose(cup_1(), KITCHEN_CUP_POSITIONS["cup_1"], atol=1e-12)
+
+
+def test_a_resting_cup_stands_still_on_its_four_feet():
+    from repertoire.diagrams.kitchen import ARM_TUCKED, KITCHEN_CUP_POSITIONS
+
+    # the robot parked far away, cup_1 alone on table_0, at the studies' coarsest step
+    # (10 ms). A cylinder touched the table at one point of its rim that jumped from
+    # side to side: the cup walked 1.1 mm in 2 s (2.0 mm in 10 s) and sank 14 mm into
+    # the top; on its feet it stays put, four contacts at the feet
+    scenario = KitchenScenario(
+        initial_pose=[0.0, 0.0, 0.0], arm_target=list(arm_forward(ARM_TUCKED)),
+        cups=["cup_1"], time_step=0.01,
+    )  # fmt: skip
+    diagram = build_kitchen_action(scenario)
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(2.0)
+    context = simulator.get_context()
+    p = cup_position(diagram, context, "cup_1")
+    start = np.array(KITCHEN_CUP_POSITIONS["cup_1"])
+    assert np.linalg.norm(p[:2] - start[:2]) < 1e-9
+    assert p[2] == pytest.approx(0.8, abs=1e-5)  # let go 0.1 mm above the top, settled
+    plant = diagram.GetSubsystemByName("plant")
+    plant_context = plant.GetMyContextFromRoot(context)
+    body = plant.GetBodyByName("cup", plant.GetModelInstanceByName("cup_1"))
+    X_WC = plant.EvalBodyPoseInWorld(plant_context, body)
+    contacts = plant.get_contact_results_output_port().Eval(plant_context)
+    feet = []
+    for i in range(contacts.num_point_pair_contacts()):
+        info = contacts.point_pair_contact_info(i)
+        if body.index() in (info.bodyA_index(), info.bodyB_index()):
+            feet.append(X_WC.inverse() @ info.contact_point())
+    feet = sorted(np.round(feet, 4).tolist())
+    assert feet == [[-0.036, 0.0, -0.05], [0.0, -0.036, -0.05], [0.0, 0.036, -0.05],
+                    [0.036, 0.0, -0.05]]  # fmt: skip

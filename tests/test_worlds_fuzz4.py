@@ -63,13 +63,13 @@ def test_soccer_worlds_name_a_bad_wheel_kd(build, scenario, shown):
         (
             build_kitchen_action,
             KitchenScenario(cup_positions={"cup_0": [2.0, 1.4, -1.0]}),
-            "cup_positions[cup_0] [2.0, 1.4, -1.0] puts cup_0::cup 1.050 m into "
+            "cup_positions[cup_0] [2.0, 1.4, -1.0] puts cup_0::cup 1.046 m into "
             "WorldModelInstance::ground_collision",
         ),
         (
             build_kitchen_action,
             KitchenScenario(cup_positions={"cup_0": [2.0, 1.4, 0.74]}),
-            "cup_positions[cup_0] [2.0, 1.4, 0.74] puts cup_0::cup 0.341 m into table_0::table",
+            "cup_positions[cup_0] [2.0, 1.4, 0.74] puts cup_0::cup 0.340 m into table_0::table",
         ),
     ],
 )
@@ -198,12 +198,14 @@ def test_kitchen_actions_fail_on_a_non_finite_measurement():
     )
 
     nan, base = float("nan"), [0.0, 0.0, 0.0, 0.0]
-    reach = {"arm_position": [0.62, 0.0, 0.25], "target": [0.85, 0.0, 0.7036], "base_state": base}
+    reach = {"arm_position": [0.62, 0.0, 0.25], "target": [0.85, 0.0, 0.7036], "base_state": base,
+             "finger_position": [0.075, 0.075]}  # fmt: skip
     # closed form: one 20 ms joint_step from the measured joints towards arm_inverse(target)
     expected = joint_step(reach["arm_position"], arm_inverse(reach["target"]), ARM_SPEEDS, 0.02)
     np.testing.assert_allclose(_update(Reach(), reach)[:4], [*expected, ActionStatus.RUNNING])
     # a NaN measurement was copied into the command (NaN setpoints) while RUNNING
     assert _update(Reach(), {**reach, "arm_position": [nan, 0.0, 0.25]})[3] == ActionStatus.FAILED
+    assert _update(Reach(), {**reach, "finger_position": [nan, 0.075]})[3] == ActionStatus.FAILED
     assert _update(Grip(), {"finger_position": [0.075, nan], "base_state": base})[2] == (
         ActionStatus.FAILED
     )

@@ -112,7 +112,9 @@ def main() -> None:
     base = [2.0, 0.55, np.pi / 2, 0.0]
     arm = dict(arm_position=[0.62, 0.0, 0.25], target=[0.85, 0.0, 0.7036], base_state=base)
     costs = {
-        "Reach": update_cost_us(Reach(obstacles=KITCHEN_OBSTACLES), arm),
+        "Reach": update_cost_us(
+            Reach(obstacles=KITCHEN_OBSTACLES), arm | dict(finger_position=[0.075] * 2)
+        ),
         "Grip": update_cost_us(Grip(), dict(finger_position=[0.075] * 2, base_state=base)),
         "Put": update_cost_us(
             Put(obstacles=KITCHEN_OBSTACLES), arm | dict(finger_position=[0.05, 0.05])

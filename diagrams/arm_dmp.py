@@ -162,6 +162,13 @@ def _coaster_on_slider(plant: MultibodyPlant, xy: np.ndarray):
 FINGER_KP = (2.0, 2.0, 2.0)
 FINGER_KD = (0.02, 0.02, 0.02)
 IK_PERIOD = 0.004
+#: The IK's joint-limit barrier (``ResolvedMotionRateIK`` ``limit_gain``, ``limit_band``):
+#: within a quarter of its range from a limit a joint is pushed back through the task's
+#: null space, at most half its velocity limit. arm7's wrist reaches its limit lifting a cup
+#: over the ball left of the torso; the swivel that relieves it barely moves the wrist
+#: (about 0.1 of the null direction), so it must start early.
+IK_LIMIT_GAIN = 3.0
+IK_LIMIT_BAND = 0.25
 LOG_PERIOD = 0.02
 TABLE_CENTER = [0.65, 0.0]
 
@@ -278,6 +285,8 @@ def build_arm_world(
             ctrl.GetFrameByName(TCP_FRAME),
             arm_v,
             period=IK_PERIOD,
+            limit_gain=IK_LIMIT_GAIN,
+            limit_band=IK_LIMIT_BAND,
             reach_center=shoulder,
             max_reach=reach,
         ),

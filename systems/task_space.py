@@ -10,7 +10,9 @@ controller (Drake's ``InverseDynamicsController``) then tracks the references.
 
 The math lives in plain functions (:func:`quaternion_error`,
 :func:`damped_pseudoinverse`, :func:`joint_limit_gradient`,
-:func:`rmrc_joint_velocity`, :func:`reach_bound`); :class:`ResolvedMotionRateIK`
+:func:`joint_limit_barrier_gradient`, :func:`null_space_projector`,
+:func:`speed_bounded_scale`, :func:`rmrc_joint_velocity`, :func:`reach_bound`);
+:class:`ResolvedMotionRateIK`
 only wraps them. :func:`pose_position_residual` is the exact (IK) counterpart of the
 reach sphere: how close a frame can come to a position with a given orientation.
 
@@ -102,6 +104,81 @@ def joint_limit_gradient(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) ->
     return 2.0 * (q - 0.5 * (lower + upper)) / span**2
 
 
+def joint_limit_barrier_gradient(
+    q: np.ndarray, lower: np.ndarray, upper: np.ndarray, band: float
+) -> np.ndarray:
+    """Gradient of a joint-limit barrier that is zero away from the limits.
+
+    ``B(q) = sum_i b_i(q_i)`` with ``d_i = band * (upper_i - lower_i)`` and
+
+    ``b_i = ((q_i - upper_i + d_i) / d_i)^2`` above ``upper_i - d_i``,
+    ``b_i = ((lower_i + d_i - q_i) / d_i)^2`` below ``lower_i + d_i``, 0 between:
+
+    each term rises from 0 at the band's inner edge to 1 at the limit (C^1 there), so
+    ``-grad B`` pushes only the joints inside a band of their limits back toward the
+    middle, by ``2 / d_i`` per unit gain at the limit itself.
+
+    Args:
+        q: joint positions (n).
+        lower: lower joint limits (n, finite).
+        upper: upper joint limits (n, finite, above ``lower``).
+        band: width of the active band as a fraction of each joint's range, in (0, 0.5].
+
+    Raises:
+        RepertoireError: a band outside (0, 0.5].
+    """
+    if not (np.isfinite(band) and 0.0 < band <= 0.5):
+        raise RepertoireError(f"the joint-limit band must be in (0, 0.5] of the range, got {band}")
+    q = np.asarray(q, dtype=float)
+    d = band * (upper - lower)
+    above = np.maximum(q - (upper - d), 0.0)
+    below = np.maximum((lower + d) - q, 0.0)
+    return 2.0 * (above - below) / d**2
+
+
+def null_space_projector(J: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
+    """Orthogonal projector ``N = I - J^+ J`` onto the null space of ``J``.
+
+    From the SVD ``J = U S V^T``: ``N = I - V_r V_r^T`` over the singular values above
+    ``rcond * s_max`` (all of them when ``J`` is zero: ``N = I``). ``J N x`` is at most
+    ``rcond * s_max * |x|`` for any ``x``: motion along ``N x`` changes no task velocity
+    (the undamped projector; ``I - J# J`` with a damped ``J#`` leaks
+    ``damping^2 (J J^T + damping^2 I)^-1 J x`` into the task).
+
+    Args:
+        J: an ``m x n`` Jacobian.
+        rcond: relative singular-value cut-off of the task's range.
+    """
+    n = J.shape[1]
+    _, s, Vt = np.linalg.svd(J)
+    rank = int(np.sum(s > rcond * s[0])) if s.size and s[0] > 0.0 else 0
+    V = Vt[:rank]
+    return np.eye(n) - V.T @ V
+
+
+def speed_bounded_scale(
+    qdot_task: np.ndarray, qdot_null: np.ndarray, velocity_limits: np.ndarray
+) -> float:
+    """Largest ``a`` in [0, 1] with ``|qdot_task + a qdot_null| <= max(v_max, |qdot_task|)``.
+
+    Per joint, the null-space motion may use the speed the task leaves below the
+    velocity limit (and never adds speed to a joint the task already drives past it):
+    ``a <= (c_i - t_i) / n_i`` for ``n_i > 0`` and ``a <= (c_i + t_i) / -n_i`` for
+    ``n_i < 0``, with ``c_i = max(v_max_i, |t_i|)``.
+
+    Args:
+        qdot_task: the task's joint velocity ``t`` (n).
+        qdot_null: the null-space joint velocity ``n`` (n).
+        velocity_limits: ``v_max`` (n, > 0; inf for no limit).
+    """
+    t = np.asarray(qdot_task, dtype=float)
+    v = np.asarray(qdot_null, dtype=float)
+    c = np.maximum(velocity_limits, np.abs(t))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        room = np.where(v > 0.0, (c - t) / v, np.where(v < 0.0, (c + t) / -v, np.inf))
+    return float(min(1.0, np.min(room))) if room.size else 1.0
+
+
 def rmrc_joint_velocity(
     J: np.ndarray,
     xdot_ref: np.ndarray,
@@ -110,11 +187,20 @@ def rmrc_joint_velocity(
     upper: np.ndarray,
     damping: float,
     null_gain: float,
+    *,
+    limit_gain: float = 0.0,
+    limit_band: float = 0.1,
+    velocity_limits: np.ndarray | None = None,
 ) -> np.ndarray:
     """Resolved-motion-rate joint velocity with joint-limit avoidance in the null space.
 
-    ``qdot = J# xdot_ref + (I - J# J) (-null_gain * grad H(q))`` with the damped
-    least-squares inverse ``J#``.
+    ``qdot_0 = J# xdot_ref + (I - J# J) (-null_gain * grad H(q))`` with the damped
+    least-squares inverse ``J#`` and ``H`` of :func:`joint_limit_gradient`; then, when
+    ``limit_gain > 0``, ``qdot = qdot_0 + a N (-limit_gain * grad B(q))`` with the exact
+    null-space projector ``N`` (:func:`null_space_projector`), the barrier ``B`` of
+    :func:`joint_limit_barrier_gradient` and ``a`` from :func:`speed_bounded_scale`
+    against ``velocity_limits``. With no joint inside its band ``grad B = 0`` and
+    ``qdot = qdot_0`` exactly.
 
     Args:
         J: ``6 x n`` spatial-velocity Jacobian ``[angular; translational]``.
@@ -124,11 +210,23 @@ def rmrc_joint_velocity(
         upper: upper joint limits (n).
         damping: damped least-squares factor.
         null_gain: gain of the joint-limit avoidance in the null space.
+        limit_gain: gain of the barrier near the limits [rad^2/s] (0: off).
+        limit_band: the barrier's band as a fraction of each joint's range.
+        velocity_limits: joint speed bounds for the barrier's motion (n; None: none).
     """
     J_pinv = damped_pseudoinverse(J, damping)
     n = J.shape[1]
     qdot_null = -null_gain * joint_limit_gradient(q, lower, upper)
-    return J_pinv @ xdot_ref + (np.eye(n) - J_pinv @ J) @ qdot_null
+    qdot = J_pinv @ xdot_ref + (np.eye(n) - J_pinv @ J) @ qdot_null
+    if limit_gain == 0.0:
+        return qdot
+    grad = joint_limit_barrier_gradient(q, lower, upper, limit_band)
+    if not np.any(grad):
+        return qdot
+    qdot_limit = null_space_projector(J) @ (-limit_gain * grad)
+    if velocity_limits is not None:
+        qdot_limit = speed_bounded_scale(qdot, qdot_limit, velocity_limits) * qdot_limit
+    return qdot + qdot_limit
 
 
 def finite_3vector(name: str, value) -> np.ndarray:
@@ -250,11 +348,15 @@ class ResolvedMotionRateIK(LeafSystem):
     Every ``period`` seconds the reference joint positions ``q_r`` (discrete
     state) are advanced by ``period * qdot_r`` with
 
-    ``qdot_r = J# [w_d + K_o e_o; v_d + K_p (p_d - p(q_r))] + (I - J# J)(-k_n grad H)``
+    ``qdot_r = J# [w_d + K_o e_o; v_d + K_p (p_d - p(q_r))] + (I - J# J)(-k_n grad H)
+    + a N (-k_b grad B)``
 
     where ``J`` is the end-effector Jacobian at ``q_r`` (evaluated in a plant
     Context held in a cache entry), ``J#`` its damped least-squares inverse and
-    ``e_o`` the quaternion error. ``qdd_r`` is the backward difference of
+    ``e_o`` the quaternion error; the last term (``limit_gain`` k_b > 0) is the barrier
+    ``B`` active within ``limit_band`` of a limit, projected with the exact null-space
+    projector ``N`` and scaled by ``a`` in [0, 1] to stay within the velocity limits
+    (:func:`rmrc_joint_velocity`). ``qdd_r`` is the backward difference of
     ``qdot_r``. ``q_r`` starts at the measured joint positions (initialisation
     event) and is kept inside the joint limits. The kinematic loop is closed on
     ``q_r`` (as in the paper's Fig. 11); the torque controller closes the loop on
@@ -281,7 +383,7 @@ class ResolvedMotionRateIK(LeafSystem):
         task_error: [|p_d - p(q_r)| in m, orientation error angle in rad], 2.
 
     Numeric parameter (index ``gains_parameter_index``): ``[K_p, K_o, damping,
-    null_gain]``.
+    null_gain, limit_gain]``.
     """
 
     def __init__(
@@ -295,6 +397,9 @@ class ResolvedMotionRateIK(LeafSystem):
         orientation_gain: float = 20.0,
         damping: float = 0.02,
         null_gain: float = 0.5,
+        limit_gain: float = 0.0,
+        limit_band: float = 0.1,
+        limit_speed_fraction: float = 0.5,
         reach_center: np.ndarray | None = None,
         max_reach: float = np.inf,
         error_tolerance: float = 0.03,
@@ -313,7 +418,13 @@ class ResolvedMotionRateIK(LeafSystem):
             position_gain: K_p in 1/s.
             orientation_gain: K_o in 1/s.
             damping: damped least-squares factor.
-            null_gain: joint-limit avoidance gain.
+            null_gain: joint-limit avoidance gain (the quadratic cost, always on).
+            limit_gain: gain of the barrier that acts only within ``limit_band`` of a
+                joint limit, through the exact null-space projector [rad^2/s] (0: off;
+                see :func:`rmrc_joint_velocity`).
+            limit_band: the barrier's band as a fraction of each joint's range.
+            limit_speed_fraction: the barrier's motion keeps every joint within this
+                fraction of its velocity limit (or the task's own speed, if higher).
             reach_center: shoulder point in W for the reach check.
             max_reach: reach radius in m (see :func:`reach_bound`); inf disables.
             error_tolerance: position error in m above which tracking counts as lost.
@@ -335,6 +446,7 @@ class ResolvedMotionRateIK(LeafSystem):
             ("orientation_gain", orientation_gain),
             ("damping", damping),
             ("null_gain", null_gain),
+            ("limit_gain", limit_gain),
         ):
             if not (np.isfinite(value) and value >= 0.0):
                 raise RepertoireError(f"{name} must be finite and >= 0, got {value}")
@@ -345,6 +457,12 @@ class ResolvedMotionRateIK(LeafSystem):
         ):
             if not (np.isfinite(value) and value > 0.0):
                 raise RepertoireError(f"{name} must be finite and > 0, got {value}")
+        if not (np.isfinite(limit_band) and 0.0 < limit_band <= 0.5):
+            raise RepertoireError(f"limit_band must be in (0, 0.5], got {limit_band}")
+        if not (np.isfinite(limit_speed_fraction) and limit_speed_fraction > 0.0):
+            raise RepertoireError(
+                f"limit_speed_fraction must be finite and > 0, got {limit_speed_fraction}"
+            )
         if not max_reach > 0.0:
             raise RepertoireError(f"max_reach must be > 0 m (inf disables it), got {max_reach}")
         center = np.zeros(3)
@@ -375,6 +493,11 @@ class ResolvedMotionRateIK(LeafSystem):
         if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper))):
             raise RepertoireError("every arm joint needs finite position limits")
         self._lower, self._upper = lower, upper
+        v_max = plant.GetVelocityUpperLimits()[idx]
+        if not np.all(v_max > 0.0):
+            raise RepertoireError(f"every arm joint needs a velocity limit > 0, got {v_max}")
+        self._limit_band = float(limit_band)
+        self._limit_speeds = float(limit_speed_fraction) * v_max
         self._center = center
         self._max_reach = float(max_reach)
         self._tol = float(error_tolerance)
@@ -388,7 +511,7 @@ class ResolvedMotionRateIK(LeafSystem):
         self._x_meas = self.DeclareVectorInputPort("arm_state_measured", 2 * n)
 
         self.gains_parameter_index = self.DeclareNumericParameter(
-            BasicVector([position_gain, orientation_gain, damping, null_gain])
+            BasicVector([position_gain, orientation_gain, damping, null_gain, limit_gain])
         )
         # Group 0: [q_r, qdot_r, qdd_r]; group 1: [status, seconds above tolerance,
         # position error, orientation error].
@@ -456,7 +579,7 @@ class ResolvedMotionRateIK(LeafSystem):
     def _update(self, context: Context, discrete_state) -> None:
         n = self._n
         h = self._period
-        kp, ko, damping, null_gain = context.get_numeric_parameter(
+        kp, ko, damping, null_gain, limit_gain = context.get_numeric_parameter(
             self.gains_parameter_index
         ).value()
         ref = context.get_discrete_state(self._ref_group).value()
@@ -484,7 +607,18 @@ class ResolvedMotionRateIK(LeafSystem):
         e_p = p_d - X_WE.translation()
         e_o = quaternion_error(q_d / norm, X_WE.rotation().ToQuaternion().wxyz())
         xdot_ref = np.concatenate([w_d + ko * e_o, v_d + kp * e_p])
-        qd = rmrc_joint_velocity(J, xdot_ref, q_r, self._lower, self._upper, damping, null_gain)
+        qd = rmrc_joint_velocity(
+            J,
+            xdot_ref,
+            q_r,
+            self._lower,
+            self._upper,
+            damping,
+            null_gain,
+            limit_gain=limit_gain,
+            limit_band=self._limit_band,
+            velocity_limits=self._limit_speeds,
+        )
         q_new = np.clip(q_r + h * qd, self._lower, self._upper)
         qd = (q_new - q_r) / h
         discrete_state.get_mutable_vector(self._ref_group).SetFromVector(

@@ -6,7 +6,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import BodyIndex
+from pydrake.multibody.tree import BodyIndex, JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
 from repertoire.planning.dmp_math import obstacle_coupling
 from repertoire.systems.grasp import GraspWrench, grip_wrench
@@ -21,12 +21,15 @@ from repertoire.systems.task_space import (
     ResolvedMotionRateIK,
     check_reachable,
     damped_pseudoinverse,
+    joint_limit_barrier_gradient,
     joint_limit_gradient,
+    null_space_projector,
     pose_position_residual,
     quaternion_error,
     quaternion_multiply,
     reach_bound,
     rmrc_joint_velocity,
+    speed_bounded_scale,
 )
 
 from repertoire.errors import RepertoireError
@@ -116,6 +119,93 @@ def test_damped_pseudoinverse_and_null_space():
     assert np.allclose(J @ qd, [1.0, -1.0], atol=1e-14)  # the null-space motion adds no task motion
 
 
+def _barrier(q, lower, upper, band):
+    """B(q) of joint_limit_barrier_gradient, written out per joint."""
+    total = 0.0
+    for qi, lo, up in zip(q, lower, upper, strict=True):
+        d = band * (up - lo)
+        if qi > up - d:
+            total += ((qi - up + d) / d) ** 2
+        elif qi < lo + d:
+            total += ((lo + d - qi) / d) ** 2
+    return total
+
+
+def test_joint_limit_barrier_gradient_closed_form():
+    lower, upper = -np.ones(4), 3 * np.ones(4)  # range 4; band 0.25: d = 1, active outside [0, 2]
+    q = np.array([1.0, 2.0, 2.5, -0.5])
+    # middle and band edge: 0; 0.5 into the upper band: 2 * 0.5 / 1; 0.5 into the lower: -1.
+    assert np.array_equal(joint_limit_barrier_gradient(q, lower, upper, 0.25), [0, 0, 1.0, -1.0])
+    at_limits = joint_limit_barrier_gradient(np.array([3.0, -1, 1, 1]), lower, upper, 0.25)
+    assert np.array_equal(at_limits, [2.0, -2.0, 0, 0])  # 2 / d at the limit itself
+    rng = np.random.default_rng(3)
+    lower, upper = np.array([-0.9, -0.4, -1.6, 0.0]), np.array([2.8, 2.4, 1.6, 2.6])
+    for _ in range(20):
+        x = rng.uniform(lower, upper)
+        grad = joint_limit_barrier_gradient(x, lower, upper, 0.15)
+        eps = 1e-6
+        fd = [
+            (_barrier(x + eps * e, lower, upper, 0.15) - _barrier(x - eps * e, lower, upper, 0.15))
+            / (2 * eps)
+            for e in np.eye(4)
+        ]
+        np.testing.assert_allclose(grad, fd, atol=1e-6)
+    for band in (0.0, 0.6, np.nan):
+        with pytest.raises(RepertoireError, match=r"band must be in \(0, 0.5\]"):
+            joint_limit_barrier_gradient(q, lower, upper, band)
+
+
+def test_null_space_projector_is_the_exact_null_space():
+    rng = np.random.default_rng(11)
+    J = rng.normal(size=(6, 7))
+    N = null_space_projector(J)
+    np.testing.assert_allclose(N, np.eye(7) - np.linalg.pinv(J) @ J, atol=1e-12)
+    np.testing.assert_allclose(N, N.T, atol=1e-14)
+    np.testing.assert_allclose(N @ N, N, atol=1e-13)
+    assert np.trace(N) == pytest.approx(1.0)  # rank 6 task, 7 joints: one redundant direction
+    x = rng.normal(size=7)
+    assert np.linalg.norm(J @ N @ x) < 1e-12 * np.linalg.norm(x)
+    # A repeated task row: rank 5, two redundant directions.
+    J2 = np.vstack([J[:5], J[4]])
+    assert np.trace(null_space_projector(J2)) == pytest.approx(2.0)
+    assert np.allclose(J2 @ null_space_projector(J2), 0.0, atol=1e-12)
+    assert np.array_equal(null_space_projector(np.zeros((6, 7))), np.eye(7))
+
+
+def test_speed_bounded_scale_closed_form():
+    v = np.array([2.0, 2.0, 2.0])
+    # Room per joint: (2 - 1) / 2 = 0.5, (2 + 1) / 2 = 1.5, (2 + 0) / 4 = 0.5.
+    assert speed_bounded_scale([1.0, -1.0, 0.0], [2.0, 2.0, -4.0], v) == 0.5
+    assert speed_bounded_scale([1.0, -1.0, 0.0], [0.5, 0.5, -0.5], v) == 1.0
+    # The task alone past the limit: no more speed that way, any amount the other way.
+    assert speed_bounded_scale([3.0], [1.0], [2.0]) == 0.0
+    assert speed_bounded_scale([3.0], [-1.0], [2.0]) == 1.0
+    assert speed_bounded_scale([0.0, 0.0], [0.0, 0.0], [1.0, 1.0]) == 1.0
+
+
+def test_barrier_motion_adds_no_task_velocity_and_keeps_the_speed_bound():
+    rng = np.random.default_rng(5)
+    lower, upper = -2.9 * np.ones(7), 2.9 * np.ones(7)
+    v_max = 1.5 * np.ones(7)
+    for _ in range(10):
+        J = rng.normal(size=(6, 7))
+        xdot = 0.05 * rng.normal(size=6)  # task speeds well below v_max
+        q = rng.uniform(-1.0, 1.0, size=7)
+        args = (J, xdot, q, lower, upper, 0.02, 0.5)
+        base = rmrc_joint_velocity(*args)
+        # No joint within the band: the result is the one without the barrier, bit for bit.
+        assert np.array_equal(rmrc_joint_velocity(*args, limit_gain=3.0), base)
+        q[rng.integers(7)] = rng.choice([-2.8, 2.8])  # one joint 0.1 rad from a limit
+        args = (J, xdot, q, lower, upper, 0.02, 0.5)
+        base = rmrc_joint_velocity(*args)
+        qd = rmrc_joint_velocity(*args, limit_gain=3.0, limit_band=0.1, velocity_limits=v_max)
+        assert np.linalg.norm(qd - base) > 1e-3  # it moved
+        assert np.linalg.norm(J @ (qd - base)) < 1e-12  # ... in the task's null space
+        assert np.all(np.abs(qd) <= np.maximum(v_max, np.abs(base)) + 1e-12)
+        # The barrier's motion lowers B to first order: grad B . (qd - base) < 0.
+        assert joint_limit_barrier_gradient(q, lower, upper, 0.1) @ (qd - base) < 0.0
+
+
 def test_reach_bound_and_check():
     assert reach_bound(np.array([[0, 0, 0], [0, 0, 1], [0, 1, 1]])) == pytest.approx(2.0)
     check_reachable(np.array([0, 0, 1.9]), np.zeros(3), 2.0, what="goal")
@@ -185,6 +275,75 @@ def test_null_space_motion_keeps_the_pose():
     q1 = system.GetOutputPort("arm_reference_state").Eval(context)[:7]
     assert np.linalg.norm(q1 - Q0) > 5e-6  # it moved toward the middle of the ranges
     assert np.linalg.norm(_pose(plant, q1).translation() - X.translation()) < 1e-9
+
+
+def _jacobian(plant, q):
+    ctx = plant.CreateDefaultContext()
+    plant.SetPositions(ctx, q)
+    return plant.CalcJacobianSpatialVelocity(
+        ctx,
+        JacobianWrtVariable.kV,
+        plant.GetFrameByName("ee"),
+        ZERO3,
+        plant.world_frame(),
+        plant.world_frame(),
+    )
+
+
+def test_barrier_step_of_the_system_is_the_projected_speed_bounded_gradient():
+    plant = _make_plant()
+    period, gain = 1e-3, 2.0
+    # Only the barrier moves: no task feedback, no quadratic cost, no damping.
+    system = _system(
+        plant,
+        period=period,
+        position_gain=0.0,
+        orientation_gain=0.0,
+        damping=0.0,
+        null_gain=0.0,
+        limit_gain=gain,
+        limit_band=0.1,
+        limit_speed_fraction=0.5,
+    )
+    q0 = Q0.copy()
+    # Band 0.1 of 5.8 rad: active above 2.32, 0.28 rad into it. (Not the elbow: with a
+    # spherical shoulder and wrist the self-motion never changes the elbow angle.)
+    q0[4] = 2.6
+    context = system.CreateDefaultContext()
+    X = _pose(plant, q0)
+    _fix(system, context, X.translation(), X.rotation().ToQuaternion().wxyz(), q_meas=q0)
+    Simulator(system, context).AdvanceTo(period)
+    state = system.GetOutputPort("arm_reference_state").Eval(context)
+    lower, upper = -2.9 * np.ones(7), 2.9 * np.ones(7)
+    grad = joint_limit_barrier_gradient(q0, lower, upper, 0.1)
+    assert np.array_equal(grad != 0.0, np.arange(7) == 4)
+    assert grad[4] == pytest.approx(2.0 * 0.28 / 0.58**2)
+    step = null_space_projector(_jacobian(plant, q0)) @ (-gain * grad)
+    step *= speed_bounded_scale(np.zeros(7), step, 0.5 * 3.0 * np.ones(7))
+    np.testing.assert_allclose(state[7:], step, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(state[:7], q0 + period * step, rtol=0, atol=1e-15)
+    assert state[7 + 4] < 0.0  # the wrist joint turns away from its upper limit
+    assert state[7 + 3] == pytest.approx(0.0, abs=1e-12)  # the elbow does not move
+    assert np.max(np.abs(state[7:])) <= 1.5 + 1e-12
+    # The pose moves only to second order in the step (an arm under 1 m long).
+    dq = np.linalg.norm(state[:7] - q0)
+    assert dq > 1e-3
+    assert np.linalg.norm(_pose(plant, state[:7]).translation() - X.translation()) < dq**2
+
+
+def test_barrier_off_the_band_leaves_the_system_unchanged():
+    plant = _make_plant()
+    X = _pose(plant, Q0)
+    target = X.translation() + np.array([0.05, -0.03, 0.04])
+    states = []
+    for limit_gain in (0.0, 5.0):
+        system = _system(plant, limit_gain=limit_gain)
+        context = system.CreateDefaultContext()
+        _fix(system, context, target, X.rotation().ToQuaternion().wxyz())
+        Simulator(system, context).AdvanceTo(0.1)
+        states.append(system.GetOutputPort("arm_reference_state").Eval(context).copy())
+    assert np.max(np.abs(states[0][:7])) < 2.32  # no joint came into the band
+    assert np.array_equal(states[0], states[1])
 
 
 def test_velocity_step_matches_finite_difference():
@@ -275,6 +434,9 @@ def test_orientation_error_alone_is_reported_as_lost_tracking(angle, lost):
         ({"error_hold_time": -1.0}, "error_hold_time must be finite and > 0, got -1.0"),
         ({"max_reach": 0.0}, r"max_reach must be > 0 m \(inf disables it\), got 0.0"),
         ({"reach_center": [0.0, 1.0]}, r"reach_center must be a finite 3-vector, got \[0.0, 1.0\]"),
+        ({"limit_gain": -1.0}, "limit_gain must be finite and >= 0, got -1.0"),
+        ({"limit_band": 0.6}, r"limit_band must be in \(0, 0.5\], got 0.6"),
+        ({"limit_speed_fraction": 0.0}, "limit_speed_fraction must be finite and > 0, got 0.0"),
     ],
 )
 def test_bad_tolerances_and_reach_sphere_are_refused(kwargs, match):

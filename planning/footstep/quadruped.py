@@ -25,7 +25,9 @@ the body's axes too), and keeps a candidate only if
   for the planner and the crawl). The swing's ground is ``ground`` (the exact
   board when given, else the map's cell heights);
 - with an exact ``ground``, the foot's landing spot is flat on it too
-  (:func:`flat_on_ground`: the map's cell centres miss edges between them);
+  (:func:`flat_on_ground`: the map's cell centres miss edges between them), and
+  no ground rises above it within ``face_radius`` (:func:`clear_of_faces`: a
+  foot that slides against a face jams, and drags the robot down as it lifts);
 - during the swing the body projection lies inside the support triangle of the
   three stance feet with ``support_margin``; the body is taken as shifted by
   ``body_shift`` from the four feet's centroid towards the triangle's centroid
@@ -108,6 +110,11 @@ class CrawlParams:
         max_step_height: largest height change of one foot (m).
         swing_clearance: highest ground along a swing above the higher foothold (m).
         support_margin: distance the body projection keeps inside the support triangle (m).
+        face_radius: with an exact ground, no ground within this distance of a landing
+            spot's centre rises more than ``max_roughness`` above it (m;
+            :func:`clear_of_faces`). The foot's radius plus 1 cm: in physics the stance
+            feet stand up to about 1 cm from their planned footholds (median 4 mm); the
+            scripted operator's footholds keep the same 2 cm (its ``edge_radius``).
         body_shift: fraction of the way the body sways towards the triangle's centroid.
         goal_radius: goal region radius around the goal point (m).
         step_cost: fixed cost per step.
@@ -136,6 +143,7 @@ class CrawlParams:
     max_step_height: float = 0.05
     swing_clearance: float = 0.05
     support_margin: float = 0.005
+    face_radius: float = 0.02
     body_shift: float = 0.5
     goal_radius: float = 0.03
     step_cost: float = 0.01
@@ -168,7 +176,7 @@ class CrawlParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise FootstepError(f"crawl {name} must be positive, got {value}")
-        for name in ("max_roughness", "support_margin", "height_cost"):
+        for name in ("max_roughness", "support_margin", "face_radius", "height_cost"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise FootstepError(f"crawl {name} must be >= 0, got {value}")
@@ -287,6 +295,41 @@ def flat_on_ground(ground, xy, params: CrawlParams) -> np.ndarray:
     """
     rule = ExecutionParams(edge_radius=FOOT_RADIUS, flat_tolerance=params.max_roughness)
     return foothold_ok(ground, np.asarray(xy, dtype=float)[:, :2], rule)
+
+
+def clear_of_faces(ground, xy, params: CrawlParams) -> np.ndarray:
+    """True where no ground within ``face_radius`` of each point of ``xy`` rises above it.
+
+    A foot standing at a point is clear when the exact ``ground`` on rings of radius
+    ``FOOT_RADIUS``, halfway and ``face_radius`` around it (24 points each, at most
+    5.3 mm apart on the outer ring for the default 2 cm) lies at most
+    ``max_roughness`` above the ground at the point. Ground that falls away is not
+    checked here (the foot's own footprint is :func:`flat_on_ground`'s).
+
+    Why: a standing foot slides up to about 1 cm from its planned foothold as the body
+    shifts over it; a face rising to the foot sphere's centre pushes back on it
+    horizontally, and when the foot lifts, its friction drags that corner of the robot
+    down. Planned footholds 1.1 and 1.5 cm from a 1.4 and a 2.5 cm face made the
+    robot tip over that way in physics (the diagonally opposite front foot unloaded).
+
+    Args:
+        ground: terrain with an exact ``height(x, y)``.
+        xy: foot centres' (x, y), (M, 2) or more columns.
+        params: model parameters (``face_radius``, ``max_roughness``).
+
+    Returns:
+        Boolean mask (M,).
+    """
+    xy = np.asarray(xy, dtype=float)[:, :2]
+    if params.face_radius <= FOOT_RADIUS or len(xy) == 0:
+        return np.ones(len(xy), dtype=bool)
+    angles = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+    radii = [FOOT_RADIUS, 0.5 * (FOOT_RADIUS + params.face_radius), params.face_radius]
+    ring = np.concatenate([r * np.column_stack([np.cos(angles), np.sin(angles)]) for r in radii])
+    pts = xy[:, None, :] + ring[None]
+    around = np.asarray(ground.height(pts[..., 0], pts[..., 1]), dtype=float)
+    here = np.asarray(ground.height(xy[:, 0], xy[:, 1]), dtype=float)
+    return around.max(axis=1) - here <= params.max_roughness
 
 
 _FEET_KEPT = 200_000
@@ -581,7 +624,8 @@ class CrawlModel:
         idx = np.flatnonzero(keep)
         if len(idx) and self.ground is not self.map:
             x_new, y_new = m.center(rows[idx], cols[idx])
-            idx = idx[flat_on_ground(self.ground, np.column_stack([x_new, y_new]), p)]
+            spots = np.column_stack([x_new, y_new])
+            idx = idx[flat_on_ground(self.ground, spots, p) & clear_of_faces(self.ground, spots, p)]
         if len(idx) == 0:
             return []
         x_new, y_new = m.center(rows[idx], cols[idx])

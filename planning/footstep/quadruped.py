@@ -302,7 +302,7 @@ def clear_of_faces(ground, xy, params: CrawlParams) -> np.ndarray:
 
     A foot standing at a point is clear when the exact ``ground`` on rings of radius
     ``FOOT_RADIUS``, halfway and ``face_radius`` around it (24 points each, at most
-    5.3 mm apart on the outer ring for the default 2 cm) lies at most
+    5.2 mm apart on the outer ring for the default 2 cm) lies at most
     ``max_roughness`` above the ground at the point. Ground that falls away is not
     checked here (the foot's own footprint is :func:`flat_on_ground`'s).
 

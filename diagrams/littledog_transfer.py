@@ -48,8 +48,9 @@ from repertoire.models.terrain import (
     replace_with_rocks,
     tile_boards,
 )
+from repertoire.planning.footstep.height_map import height_map_from_board
 from repertoire.planning.footstep.quadruped import CrawlParams as PlannerParams
-from repertoire.planning.footstep.quadruped import flat_on_ground, height_map_from_board
+from repertoire.planning.footstep.quadruped import flat_on_ground
 from repertoire.planning.littledog_crawl import CrawlParams
 from repertoire.planning.step_library import StepLibrary
 from repertoire.planning.terrain_features import TransferConfig

@@ -37,6 +37,7 @@ from repertoire.models.littledog import FOOT_RADIUS
 from repertoire.planning.footstep.quadruped import (
     CrawlParams,
     HeightMap,
+    clear_of_faces,
     flat_on_ground,
     plan_crawl,
     swing_support_margin,
@@ -88,7 +89,8 @@ class CrawlGapFiller:
         board: the terrain's exact height function (default: the map's cell heights; the
             executing crawl reads the board, so pass it when known). With a board the
             planner's swings clear it and every planned foot lands on flat exact ground
-            (:func:`~repertoire.planning.footstep.quadruped.flat_on_ground`): the map
+            clear of faces (:func:`~repertoire.planning.footstep.quadruped.flat_on_ground`,
+            :func:`~repertoire.planning.footstep.quadruped.clear_of_faces`): the map
             samples heights at cell centres and misses edges between them, and a foot
             landing on an edge slides off (seen in physics).
         place_feet: with ``board``, end a reached gap with one-foot moves onto the target
@@ -163,7 +165,9 @@ class CrawlGapFiller:
         the feet on a recorded step's start) are held to the same ones: static stability
         (:func:`~repertoire.planning.footstep.quadruped.swing_support_margin`, a
         placing move off the support triangle tipped the robot over in physics), flat
-        footholds and the crawl's leg IK.
+        footholds clear of faces
+        (:func:`~repertoire.planning.footstep.quadruped.clear_of_faces`) and the crawl's
+        leg IK.
         """
         board = self.height_map if self.board is None else self.board
         stable = [
@@ -174,6 +178,7 @@ class CrawlGapFiller:
         if self.board is not None and steps:
             landing = np.array([p.end_feet[p.foot, :2] for p in steps])
             flat = flat_on_ground(self.board, landing, self.params)
+            flat &= clear_of_faces(self.board, landing, self.params)
             n = min(n, int(np.argmin(flat))) if not flat.all() else n
         return executable_prefix(steps[:n], self.crawl, board) if n else 0
 

@@ -437,8 +437,9 @@ def _turn_figure(plan, path: Path, degrees: float = 30.0) -> Path:
 
     from repertoire.diagrams.littledog_transfer import MAP_RESOLUTION
     from repertoire.models.littledog import FOOT_RADIUS
+    from repertoire.planning.footstep.height_map import height_map_from_board
     from repertoire.planning.footstep.plot import crawl_plan_figure
-    from repertoire.planning.footstep.quadruped import height_map_from_board, plan_crawl
+    from repertoire.planning.footstep.quadruped import plan_crawl
     from repertoire.planning.littledog_crawl import heading_of
 
     x0, x1, y0, y1 = plan.board.bounds()

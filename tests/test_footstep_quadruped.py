@@ -13,11 +13,10 @@ from repertoire.models.littledog.kinematics import (
     nominal_foot_positions,
 )
 from repertoire.models.terrain import TerrainParams, generate_board
+from repertoire.planning.footstep.height_map import HeightMap, height_map_from_board
 from repertoire.planning.footstep.quadruped import (
     CrawlParams,
-    HeightMap,
     _point_in_triangle_margin,
-    height_map_from_board,
     plan_crawl,
 )
 from repertoire.planning.footstep.search import anytime_search, search

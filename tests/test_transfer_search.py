@@ -250,7 +250,7 @@ def test_crawl_gap_filler_plans_a_gap_on_a_flat_board():
         "repertoire.planning.footstep.quadruped",
         reason="repertoire.planning.footstep.quadruped (issue 9) is not on this branch",
     )
-    from repertoire.planning.footstep.quadruped import height_map_from_board
+    from repertoire.planning.footstep.height_map import height_map_from_board
     from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
 
     board = generate_board(TerrainParams(kind="flat"), seed=0)
@@ -286,7 +286,7 @@ def test_a_gap_that_misses_the_step_start_does_not_join_it():
 def test_crawl_gap_filler_refuses_footholds_at_edges_its_map_misses():
     pytest.importorskip("repertoire.planning.footstep.quadruped")
     from repertoire.models.littledog import FOOT_RADIUS
-    from repertoire.planning.footstep.quadruped import height_map_from_board
+    from repertoire.planning.footstep.height_map import height_map_from_board
     from repertoire.planning.littledog_crawl import foothold_ok
     from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
 
@@ -328,7 +328,7 @@ def flat_filler(**kwargs):
     """A crawl gap filler on a flat board (exact ground) and a start stance on it."""
     pytest.importorskip("repertoire.planning.footstep.quadruped")
     from repertoire.models.littledog import FOOT_RADIUS
-    from repertoire.planning.footstep.quadruped import height_map_from_board
+    from repertoire.planning.footstep.height_map import height_map_from_board
     from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
 
     board = generate_board(TerrainParams(kind="flat"), seed=0)

@@ -270,7 +270,7 @@ def crawl_plan_figure(height_map, plan, path: "str | Path", *, goal=None, title:
     """Write a PNG of a crawl plan over the height map (heights as a colour bar).
 
     Args:
-        height_map: a :class:`repertoire.planning.footstep.quadruped.HeightMap`.
+        height_map: a :class:`repertoire.planning.footstep.height_map.HeightMap`.
         plan: a :class:`repertoire.planning.footstep.quadruped.CrawlPlan`.
         path: output PNG.
         goal: the goal point and radius ``(x, y, r)`` to draw, if given.

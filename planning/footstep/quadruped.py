@@ -25,7 +25,9 @@ the body's axes too), and keeps a candidate only if
   for the planner and the crawl). The swing's ground is ``ground`` (the exact
   board when given, else the map's cell heights);
 - with an exact ``ground``, the foot's landing spot is flat on it too
-  (:func:`flat_on_ground`: the map's cell centres miss edges between them);
+  (:func:`flat_on_ground`: the map's cell centres miss edges between them), and
+  no ground rises above it within ``face_radius`` (:func:`clear_of_faces`: a
+  foot that slides against a face jams, and drags the robot down as it lifts);
 - during the swing the body projection lies inside the support triangle of the
   three stance feet with ``support_margin``; the body is taken as shifted by
   ``body_shift`` from the four feet's centroid towards the triangle's centroid
@@ -70,8 +72,8 @@ start a half turn ended in TIME_LIMIT at 120-129 degrees after 20-30 s, and turn
 and 150 (at the start of a half turn the heuristic is 1.56 against plans of 1.9-2.5).
 With a goal heading, ``weight`` is therefore no proven bound on a plan's cost.
 
-Use :func:`height_map_from_board` to sample a terrain board, then
-:func:`plan_crawl`; the plan's steps are typed :class:`CrawlStep` records.
+Use :func:`~repertoire.planning.footstep.height_map.height_map_from_board` to sample a
+terrain board, then :func:`plan_crawl`; the plan's steps are typed :class:`CrawlStep` records.
 """
 
 import dataclasses
@@ -79,8 +81,9 @@ import math
 
 import numpy as np
 from repertoire.models.littledog.kinematics import FOOT_RADIUS, LEGS, nominal_foot_positions
+from repertoire.planning.footstep.height_map import HeightMap
 from repertoire.planning.footstep.search import SearchResult, anytime_search, search
-from repertoire.planning.footstep.types import FootstepError, GridError, PlanStatus
+from repertoire.planning.footstep.types import FootstepError, PlanStatus
 from repertoire.planning.littledog_crawl import CrawlParams as ExecutionParams
 from repertoire.planning.littledog_crawl import (
     foothold_ok,
@@ -88,135 +91,9 @@ from repertoire.planning.littledog_crawl import (
     joint_angles,
     step_reachable,
 )
-from scipy import ndimage
 
 from repertoire.checks import is_real, is_whole
 from repertoire.errors import RepertoireError
-from repertoire.limits import require_memory
-
-# Bytes per height-map cell: the heights and the roughness array (float64 each).
-_BYTES_PER_CELL = 16
-
-
-@dataclasses.dataclass(frozen=True)
-class HeightMap:
-    """A 2.5-D map: ground height per square cell.
-
-    Attributes:
-        origin: world (x, y) of cell (0, 0)'s centre (m).
-        resolution: cell side (m).
-        heights: ground heights (m), shape (n_y, n_x), finite and >= 0.
-    """
-
-    origin: tuple[float, float]
-    resolution: float
-    heights: np.ndarray
-
-    def __post_init__(self) -> None:
-        if not (is_real(res := self.resolution) and math.isfinite(res) and res > 0.0):
-            raise GridError(f"height map resolution must be positive, got {self.resolution!r}")
-        if len(self.origin) != 2 or not all(math.isfinite(v) for v in self.origin):
-            raise GridError(f"height map origin must be a finite (x, y), got {self.origin}")
-        h = np.asarray(self.heights, dtype=float)
-        if h.ndim != 2 or min(h.shape) < 1:
-            raise GridError(f"height map heights must be a 2-D array, got shape {h.shape}")
-        if not np.all(np.isfinite(h)):
-            bad = np.argwhere(~np.isfinite(h))[0]
-            raise GridError(
-                f"height map height at cell (row {bad[0]}, col {bad[1]}) is "
-                f"{h[tuple(bad)]}; heights must be finite"
-            )
-        if np.any(h < 0.0):
-            bad = np.argwhere(h < 0.0)[0]
-            raise GridError(
-                f"height map height at cell (row {bad[0]}, col {bad[1]}) is "
-                f"{h[tuple(bad)]} m; heights must be >= 0 (ground level 0)"
-            )
-        object.__setattr__(self, "heights", h)
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        return self.heights.shape
-
-    def cell(self, x, y) -> tuple[np.ndarray, np.ndarray]:
-        """(row, col) indices of the cells holding world points (x, y)."""
-        col = np.rint((np.asarray(x, dtype=float) - self.origin[0]) / self.resolution)
-        row = np.rint((np.asarray(y, dtype=float) - self.origin[1]) / self.resolution)
-        return row.astype(int), col.astype(int)
-
-    def inside(self, row, col) -> np.ndarray:
-        """True where (row, col) is a cell of the map."""
-        row, col = np.asarray(row), np.asarray(col)
-        return (row >= 0) & (row < self.shape[0]) & (col >= 0) & (col < self.shape[1])
-
-    def center(self, row, col) -> tuple[np.ndarray, np.ndarray]:
-        """World (x, y) of cell centres."""
-        return (
-            self.origin[0] + np.asarray(col) * self.resolution,
-            self.origin[1] + np.asarray(row) * self.resolution,
-        )
-
-    def height(self, x, y) -> np.ndarray:
-        """Heights of the cells holding world points (x, y); 0 off the map (like a board)."""
-        row, col = self.cell(*np.broadcast_arrays(x, y))
-        r = np.clip(row, 0, self.shape[0] - 1)
-        c = np.clip(col, 0, self.shape[1] - 1)
-        return np.where(self.inside(row, col), self.heights[r, c], 0.0)
-
-    def roughness(self, radius: float) -> np.ndarray:
-        """Height range (max - min) within ``radius`` of each cell, shape like heights."""
-        r = max(int(math.ceil(radius / self.resolution - 1e-9)), 0)
-        # a disk reaching across the whole map from every cell: the map's range everywhere
-        if radius**2 >= self.resolution**2 * sum((n - 1) ** 2 for n in self.shape):
-            return np.full(self.shape, np.ptp(self.heights))
-        ii, jj = np.mgrid[-r : r + 1, -r : r + 1]
-        disk = (ii**2 + jj**2) * self.resolution**2 <= radius**2 + 1e-12
-        hi = ndimage.maximum_filter(self.heights, footprint=disk, mode="nearest")
-        lo = ndimage.minimum_filter(self.heights, footprint=disk, mode="nearest")
-        return hi - lo
-
-
-def height_map_from_board(
-    board,
-    x_range: tuple[float, float],
-    y_range: tuple[float, float],
-    resolution: float = 0.01,
-) -> HeightMap:
-    """Samples a terrain board's exact height at cell centres.
-
-    Args:
-        board: a :class:`repertoire.models.terrain.TerrainBoard` (anything with a
-            vectorised ``height(x, y)``).
-        x_range: [x_min, x_max] of the map (m).
-        y_range: [y_min, y_max] of the map (m).
-        resolution: cell side (m).
-
-    Raises:
-        GridError: empty or non-finite ranges, bad resolution.
-        ResourceLimitError: the map would need more memory than allowed (the figure
-            is in the message), checked before allocating.
-    """
-    values = [*x_range, *y_range, resolution]
-    if len(values) != 5 or not all(math.isfinite(v) for v in values):
-        raise GridError(f"height map ranges and resolution must be finite, got {values}")
-    if resolution <= 0.0:
-        raise GridError(f"height map resolution must be positive, got {resolution}")
-    if x_range[1] <= x_range[0] or y_range[1] <= y_range[0]:
-        raise GridError(f"height map ranges must be [min, max] with min < max: {x_range} {y_range}")
-    n_x = int(math.floor((x_range[1] - x_range[0]) / resolution + 1e-9)) + 1
-    n_y = int(math.floor((y_range[1] - y_range[0]) / resolution + 1e-9)) + 1
-    require_memory(
-        float(n_x) * n_y * _BYTES_PER_CELL,
-        f"a {n_x} x {n_y} height map at {resolution} m",
-    )
-    xs = x_range[0] + np.arange(n_x) * resolution
-    ys = y_range[0] + np.arange(n_y) * resolution
-    X, Y = np.meshgrid(xs, ys)
-    return HeightMap(
-        origin=(float(x_range[0]), float(y_range[0])),
-        resolution=float(resolution),
-        heights=np.asarray(board.height(X, Y), dtype=float),
-    )
 
 
 @dataclasses.dataclass
@@ -233,6 +110,11 @@ class CrawlParams:
         max_step_height: largest height change of one foot (m).
         swing_clearance: highest ground along a swing above the higher foothold (m).
         support_margin: distance the body projection keeps inside the support triangle (m).
+        face_radius: with an exact ground, no ground within this distance of a landing
+            spot's centre rises more than ``max_roughness`` above it (m;
+            :func:`clear_of_faces`). The foot's radius plus 1 cm: in physics the stance
+            feet stand up to about 1 cm from their planned footholds (median 4 mm); the
+            scripted operator's footholds keep the same 2 cm (its ``edge_radius``).
         body_shift: fraction of the way the body sways towards the triangle's centroid.
         goal_radius: goal region radius around the goal point (m).
         step_cost: fixed cost per step.
@@ -261,6 +143,7 @@ class CrawlParams:
     max_step_height: float = 0.05
     swing_clearance: float = 0.05
     support_margin: float = 0.005
+    face_radius: float = 0.02
     body_shift: float = 0.5
     goal_radius: float = 0.03
     step_cost: float = 0.01
@@ -293,7 +176,7 @@ class CrawlParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise FootstepError(f"crawl {name} must be positive, got {value}")
-        for name in ("max_roughness", "support_margin", "height_cost"):
+        for name in ("max_roughness", "support_margin", "face_radius", "height_cost"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise FootstepError(f"crawl {name} must be >= 0, got {value}")
@@ -412,6 +295,41 @@ def flat_on_ground(ground, xy, params: CrawlParams) -> np.ndarray:
     """
     rule = ExecutionParams(edge_radius=FOOT_RADIUS, flat_tolerance=params.max_roughness)
     return foothold_ok(ground, np.asarray(xy, dtype=float)[:, :2], rule)
+
+
+def clear_of_faces(ground, xy, params: CrawlParams) -> np.ndarray:
+    """True where no ground within ``face_radius`` of each point of ``xy`` rises above it.
+
+    A foot standing at a point is clear when the exact ``ground`` on rings of radius
+    ``FOOT_RADIUS``, halfway and ``face_radius`` around it (24 points each, at most
+    5.2 mm apart on the outer ring for the default 2 cm) lies at most
+    ``max_roughness`` above the ground at the point. Ground that falls away is not
+    checked here (the foot's own footprint is :func:`flat_on_ground`'s).
+
+    Why: a standing foot slides up to about 1 cm from its planned foothold as the body
+    shifts over it; a face rising to the foot sphere's centre pushes back on it
+    horizontally, and when the foot lifts, its friction drags that corner of the robot
+    down. Planned footholds 1.1 and 1.5 cm from a 1.4 and a 2.5 cm face made the
+    robot tip over that way in physics (the diagonally opposite front foot unloaded).
+
+    Args:
+        ground: terrain with an exact ``height(x, y)``.
+        xy: foot centres' (x, y), (M, 2) or more columns.
+        params: model parameters (``face_radius``, ``max_roughness``).
+
+    Returns:
+        Boolean mask (M,).
+    """
+    xy = np.asarray(xy, dtype=float)[:, :2]
+    if params.face_radius <= FOOT_RADIUS or len(xy) == 0:
+        return np.ones(len(xy), dtype=bool)
+    angles = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+    radii = [FOOT_RADIUS, 0.5 * (FOOT_RADIUS + params.face_radius), params.face_radius]
+    ring = np.concatenate([r * np.column_stack([np.cos(angles), np.sin(angles)]) for r in radii])
+    pts = xy[:, None, :] + ring[None]
+    around = np.asarray(ground.height(pts[..., 0], pts[..., 1]), dtype=float)
+    here = np.asarray(ground.height(xy[:, 0], xy[:, 1]), dtype=float)
+    return around.max(axis=1) - here <= params.max_roughness
 
 
 _FEET_KEPT = 200_000
@@ -706,7 +624,8 @@ class CrawlModel:
         idx = np.flatnonzero(keep)
         if len(idx) and self.ground is not self.map:
             x_new, y_new = m.center(rows[idx], cols[idx])
-            idx = idx[flat_on_ground(self.ground, np.column_stack([x_new, y_new]), p)]
+            spots = np.column_stack([x_new, y_new])
+            idx = idx[flat_on_ground(self.ground, spots, p) & clear_of_faces(self.ground, spots, p)]
         if len(idx) == 0:
             return []
         x_new, y_new = m.center(rows[idx], cols[idx])
@@ -744,7 +663,8 @@ def plan_crawl(
     """Plans a LittleDog crawl on a height map.
 
     Args:
-        height_map: the terrain (e.g. from :func:`height_map_from_board`).
+        height_map: the terrain (e.g. from
+            :func:`~repertoire.planning.footstep.height_map.height_map_from_board`).
         start_xy: the four start footholds' (x, y), shape (4, 2), LEGS order (lf, rf, lh, rh),
             or their ground contact points (4, 3) (see :class:`CrawlModel`).
         goal_xy: goal point for the feet's centroid.

@@ -551,7 +551,8 @@ def _bench_crawl() -> None:
     """The LittleDog crawl step model on generated terrain boards (generic Python core)."""
     from repertoire.models.littledog.kinematics import nominal_foot_positions
     from repertoire.models.terrain import TerrainParams, generate_board
-    from repertoire.planning.footstep.quadruped import height_map_from_board, plan_crawl
+    from repertoire.planning.footstep.height_map import height_map_from_board
+    from repertoire.planning.footstep.quadruped import plan_crawl
 
     print("\n== LittleDog crawl, 1 m x 0.6 m boards, 1 cm map, x -0.25 -> 0.05 m, 5 seeds")
     start = nominal_foot_positions()[:, :2] + [-0.25, 0.0]

@@ -173,3 +173,47 @@ def test_anytime_ends_with_the_admissible_search_when_time_remains():
     assert (last.plan.xy_resolution, last.plan.yaw_bins) == (0.025, 72)
     no_restarts = plan_footsteps_anytime(*args, PlannerOptions(time_limit=60.0), restarts=False)
     assert round(no_restarts[-1].plan.cost, 2) == 39.25  # ARA* on 5 cm alone
+
+
+def _searches_run(monkeypatch, *args, **kwargs):
+    """The (heuristic, weight, lattice) of each single search an anytime call ran, in order."""
+    from repertoire.planning.footstep import planner
+
+    calls = []
+    inner = planner._search_once
+
+    def spy(model, backend, weight, budget, left):
+        calls.append((model.opts.heuristic, weight, model.opts.xy_resolution))
+        return inner(model, backend, weight, budget, left)
+
+    monkeypatch.setattr(planner, "_search_once", spy)
+    return plan_footsteps_anytime(*args, **kwargs), calls
+
+
+def test_anytime_runs_each_distinct_search_once(monkeypatch):
+    # after ARA* (5 cm) and the restarts' ARA* (2.5 cm): fresh weighted A* at the weights
+    # after the first on 5 cm, then, with the Dijkstra field only, the admissible search on
+    # 2.5 cm. The Euclidean heuristic's weight-1 search on 2.5 cm was ARA*'s own; without a
+    # heuristic every weight orders the queue alike, so no search is repeated
+    sc = random_static_scene(12)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    fresh = [(2.0, 0.05), (1.5, 0.05), (1.2, 0.05), (1.0, 0.05)]
+    for heuristic, expected in (
+        ("dijkstra", [("dijkstra", w, r) for w, r in fresh] + [("euclidean", 1.0, 0.025)]),
+        ("euclidean", [("euclidean", w, r) for w, r in fresh]),
+        ("none", []),
+    ):
+        opts = PlannerOptions(time_limit=60.0, heuristic=heuristic)
+        runs, calls = _searches_run(monkeypatch, *args, opts)
+        assert calls == expected
+        assert runs[-1].plan.status is PlanStatus.SUCCESS
+    # uniform-cost search: the first plan is the lattice's optimum, and the only one
+    assert [(r.weight, r.bound, round(r.plan.cost, 2)) for r in runs] == [(3.0, 1.0, 11.0)]
+
+
+def test_anytime_restarts_must_be_a_bool():
+    sc = random_static_scene(1, size=2.0, n_strips=3, n_blocks=2)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    for bad in ("yes", 1, None):
+        with pytest.raises(FootstepError, match=f"restarts must be True or False, got {bad!r}"):
+            plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0), restarts=bad)

@@ -379,7 +379,7 @@ class BipedStepModel:
                 w, h = ref.size
                 raise FootstepError(
                     f"{name} ({px:.3f}, {py:.3f}) lies outside the map "
-                    f"[{x0}, {x0 + w}] x [{y0}, {y0 + h}]"
+                    f"[{x0}, {x0 + w}) x [{y0}, {y0 + h}) (its far edges are outside)"
                 )
         history = list(initial_history) if initial_history is not None else [table.rest_action] * 2
         if len(history) != 2:

@@ -119,9 +119,11 @@ def test_anytime_improves_a_plan_in_its_corridor_and_keeps_the_searches_order():
 def test_anytime_corridor_must_be_a_half_width():
     sc = random_static_scene(1, size=2.0, n_strips=3, n_blocks=2)
     args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
-    for bad in (-0.5, math.nan, math.inf):
+    for bad in (-0.5, math.nan, math.inf, True):
         with pytest.raises(FootstepError, match=f"corridor must be a half-width >= 0 m, got {bad}"):
             plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0), corridor=bad)
+    with pytest.raises(FootstepError, match="anytime weights must be numbers >= 1, got '3'"):
+        plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0), weights="3")
 
 
 def test_anytime_corridor_too_narrow_for_the_feet_runs_no_corridor_search():
@@ -217,3 +219,16 @@ def test_anytime_restarts_must_be_a_bool():
     for bad in ("yes", 1, None):
         with pytest.raises(FootstepError, match=f"restarts must be True or False, got {bad!r}"):
             plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0), restarts=bad)
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_anytime_start_meeting_the_goal_is_one_optimal_plan(backend):
+    # the goal point within the tolerance of the start foot: ARA*'s first plan costs 0 and
+    # is optimal (bound 1), so no later weight runs (before, each weight repeated it with
+    # its own weight as bound: five plans of no step)
+    grid = OccupancyGrid(np.zeros((40, 40), dtype=bool), 0.025)
+    args = (grid, (0.5, 0.6, 0.0), "left", (0.55, 0.6), nominal_action_table())
+    runs = plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0, backend=backend))
+    got = [(r.weight, r.bound, r.plan.cost, r.plan.num_steps) for r in runs]
+    assert got == [(3.0, 1.0, 0.0, 0)]
+    assert runs[0].plan.status is PlanStatus.SUCCESS

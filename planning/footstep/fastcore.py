@@ -519,7 +519,11 @@ def _arastar(
                         low = fnode[k, _G] + fnode[k, _H]
             if low == np.inf:
                 low = fnode[end, _G]
-            bound = min(w, fnode[end, _G] / low) if low > 0 else w
+            # a plan of cost 0 (the start meets the goal) is optimal: bound 1
+            if low > 0:
+                bound = min(w, fnode[end, _G] / low)
+            elif fnode[end, _G] == 0.0:
+                bound = 1.0
             met = bound
         last = end if end >= 0 else (solution if solution >= 0 else best)
         out_i[runs, 0], out_i[runs, 1], out_i[runs, 2] = status, last, exp_it

@@ -101,9 +101,10 @@ class PlannerOptions:
             from the default lattice: a 2 m stepping-stone field with 10 cm gaps was
             UNREACHABLE at 1.25 cm / 144 and has a plan at 0.625 cm / 288. A time limit that
             runs out before the finest lattice is exhausted gives TIME_LIMIT.
-        swing_clearance: how high (m) the swing foot rises above the higher of the stance
+        swing_clearance: how high (m) the swing foot rises above the highest of the stance
             sole's and the landing sole's ground (each the highest of the grid's
-            ``heights`` under the sole): a step whose straight centre line from the swing
+            ``heights`` under the sole) and the ground of the cell it lifts from (down a
+            stair, the trailing foot's tread): a step whose straight centre line from the swing
             foot's previous position to its landing passes through the interior of a cell
             higher than that, occupied or free ground, is refused (exact grid traversal: a
             line through a cell's corner point only, or along its edge, does not cross it);

@@ -232,3 +232,32 @@ def test_anytime_start_meeting_the_goal_is_one_optimal_plan(backend):
     got = [(r.weight, r.bound, r.plan.cost, r.plan.num_steps) for r in runs]
     assert got == [(3.0, 1.0, 0.0, 0)]
     assert runs[0].plan.status is PlanStatus.SUCCESS
+
+
+def test_anytime_budget_ending_inside_the_admissible_search_keeps_the_plans_before(monkeypatch):
+    # the 6 m maze of the test above: an expansion budget that runs out halfway through the
+    # admissible search leaves the plans found before it, the last one a SUCCESS (the
+    # unfinished search adds no partial plan after a complete one)
+    args = (maze_grid(512), (0.6, 0.6, 0.0), "left", (5.4, 5.4), nominal_action_table())
+    from repertoire.planning.footstep import planner
+
+    seen = []
+    inner = planner._search_once
+
+    def spy(model, backend, weight, budget, left):
+        r = inner(model, backend, weight, budget, left)
+        seen.append((model.opts.heuristic, budget, r.expansions))
+        return r
+
+    monkeypatch.setattr(planner, "_search_once", spy)
+    full = plan_footsteps_anytime(*args, PlannerOptions(time_limit=60.0, max_expansions=10**8))
+    heuristic, left, used = seen[-1]
+    assert heuristic == "euclidean" and used < left  # the admissible search, run to its end
+    budget = 10**8 - left + used // 2
+    runs = plan_footsteps_anytime(*args, PlannerOptions(time_limit=60.0, max_expansions=budget))
+    assert seen[-1][:2] == ("euclidean", used - used // 2) and seen[-1][2] == seen[-1][1]
+    assert [r.plan.cost for r in runs] == [r.plan.cost for r in full[:-1]]
+    assert round(runs[-1].plan.cost, 2) == 39.1 and round(full[-1].plan.cost, 2) == 36.95
+    assert runs[-1].plan.status is PlanStatus.SUCCESS
+    elapsed = [r.elapsed_s for r in runs]
+    assert elapsed == sorted(elapsed)

@@ -696,9 +696,7 @@ class BipedStepModel:
             ex1 = self.exact_checkers.checker(k_swing)
         z0 = self.ground_level or 0.0
         z1 = ex1.top_height(s.x, s.y, s.yaw) if z_ground else z0
-        # the swing foot rises above the ground it lifts from too (down a stair, the trailing
-        # foot's own tread is higher than the stance's and the landing's)
-        z1s = max(z1, ex1.cell_height(s.swing_x, s.swing_y)) if z_ground else z0
+        z1s = max(z1, ex1.cell_height(s.swing_x, s.swing_y)) if z_ground else z0  # + lift-off
         if self.height_w > 0.0:
             dominated = None  # a landing's cost is known only after its height check
         hist1 = self._hist_rows[s.a_prev1]
@@ -749,7 +747,7 @@ class BipedStepModel:
             z2 = ex.top_height(x2, y2, th2) if z_ground else z0  # highest ground under it
             if self.step_limits and (z2 - z1 > self.step_up or z1 - z2 > self.step_down):
                 continue
-            top = max(z1s, z2) + self.opts.swing_clearance  # the swing foot's highest point
+            top = max(z1s, z2) + self.opts.swing_clearance  # over stance, lift-off, landing
             if tall is not None and swing_crosses(
                 tall, top, s.swing_x, s.swing_y, x2, y2, ox, oy, inv_res
             ):

@@ -677,9 +677,7 @@ class BipedStepModel:
         lattice state is already reached as cheaply is skipped before its checks (when its
         cost is the table's: no height cost), as the compiled core does.
         """
-        ox, oy = self.origin
-        inv_res = self.inv_res
-        nx, ny = self.ref.shape
+        (ox, oy), inv_res, (nx, ny) = self.origin, self.inv_res, self.ref.shape
         c, sn = math.cos(s.yaw), math.sin(s.yaw)
         nf = 1 - s.foot
         ex1 = self.exact

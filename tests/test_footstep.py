@@ -558,6 +558,12 @@ def test_bad_inputs_raise_clear_errors():
         call(start=(2.5, 0.3, 0.0))
     with pytest.raises(FootstepError, match="goal .* lies outside the map"):
         call(goal=(1.0, -0.2))
+    # the map is [x0, x0 + width) x [y0, y0 + height): a goal on its far edge is outside
+    with pytest.raises(
+        FootstepError,
+        match=r"goal \(2.000, 1.000\) lies outside the map \[0.0, 2.0\) x \[0.0, 2.0\) \(its far",
+    ):
+        call(goal=(2.0, 1.0))
     with pytest.raises(FootstepError, match="start foot .* overlaps an obstacle"):
         call(start=(1.0, 1.0, 0.0))
     with pytest.raises(FootstepError, match="start foot .* overlaps an obstacle or the map edge"):

@@ -119,9 +119,11 @@ def test_anytime_improves_a_plan_in_its_corridor_and_keeps_the_searches_order():
 def test_anytime_corridor_must_be_a_half_width():
     sc = random_static_scene(1, size=2.0, n_strips=3, n_blocks=2)
     args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
-    for bad in (-0.5, math.nan, math.inf):
+    for bad in (-0.5, math.nan, math.inf, True):
         with pytest.raises(FootstepError, match=f"corridor must be a half-width >= 0 m, got {bad}"):
             plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0), corridor=bad)
+    with pytest.raises(FootstepError, match="anytime weights must be numbers >= 1, got '3'"):
+        plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0), weights="3")
 
 
 def test_anytime_corridor_too_narrow_for_the_feet_runs_no_corridor_search():
@@ -173,3 +175,89 @@ def test_anytime_ends_with_the_admissible_search_when_time_remains():
     assert (last.plan.xy_resolution, last.plan.yaw_bins) == (0.025, 72)
     no_restarts = plan_footsteps_anytime(*args, PlannerOptions(time_limit=60.0), restarts=False)
     assert round(no_restarts[-1].plan.cost, 2) == 39.25  # ARA* on 5 cm alone
+
+
+def _searches_run(monkeypatch, *args, **kwargs):
+    """The (heuristic, weight, lattice) of each single search an anytime call ran, in order."""
+    from repertoire.planning.footstep import planner
+
+    calls = []
+    inner = planner._search_once
+
+    def spy(model, backend, weight, budget, left):
+        calls.append((model.opts.heuristic, weight, model.opts.xy_resolution))
+        return inner(model, backend, weight, budget, left)
+
+    monkeypatch.setattr(planner, "_search_once", spy)
+    return plan_footsteps_anytime(*args, **kwargs), calls
+
+
+def test_anytime_runs_each_distinct_search_once(monkeypatch):
+    # after ARA* (5 cm) and the restarts' ARA* (2.5 cm): fresh weighted A* at the weights
+    # after the first on 5 cm, then, with the Dijkstra field only, the admissible search on
+    # 2.5 cm. The Euclidean heuristic's weight-1 search on 2.5 cm was ARA*'s own; without a
+    # heuristic every weight orders the queue alike, so no search is repeated
+    sc = random_static_scene(12)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    fresh = [(2.0, 0.05), (1.5, 0.05), (1.2, 0.05), (1.0, 0.05)]
+    for heuristic, expected in (
+        ("dijkstra", [("dijkstra", w, r) for w, r in fresh] + [("euclidean", 1.0, 0.025)]),
+        ("euclidean", [("euclidean", w, r) for w, r in fresh]),
+        ("none", []),
+    ):
+        opts = PlannerOptions(time_limit=60.0, heuristic=heuristic)
+        runs, calls = _searches_run(monkeypatch, *args, opts)
+        assert calls == expected
+        assert runs[-1].plan.status is PlanStatus.SUCCESS
+    # uniform-cost search: the first plan is the lattice's optimum, and the only one
+    assert [(r.weight, r.bound, round(r.plan.cost, 2)) for r in runs] == [(3.0, 1.0, 11.0)]
+
+
+def test_anytime_restarts_must_be_a_bool():
+    sc = random_static_scene(1, size=2.0, n_strips=3, n_blocks=2)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    for bad in ("yes", 1, None):
+        with pytest.raises(FootstepError, match=f"restarts must be True or False, got {bad!r}"):
+            plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0), restarts=bad)
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_anytime_start_meeting_the_goal_is_one_optimal_plan(backend):
+    # the goal point within the tolerance of the start foot: ARA*'s first plan costs 0 and
+    # is optimal (bound 1), so no later weight runs (before, each weight repeated it with
+    # its own weight as bound: five plans of no step)
+    grid = OccupancyGrid(np.zeros((40, 40), dtype=bool), 0.025)
+    args = (grid, (0.5, 0.6, 0.0), "left", (0.55, 0.6), nominal_action_table())
+    runs = plan_footsteps_anytime(*args, PlannerOptions(time_limit=5.0, backend=backend))
+    got = [(r.weight, r.bound, r.plan.cost, r.plan.num_steps) for r in runs]
+    assert got == [(3.0, 1.0, 0.0, 0)]
+    assert runs[0].plan.status is PlanStatus.SUCCESS
+
+
+def test_anytime_budget_ending_inside_the_admissible_search_keeps_the_plans_before(monkeypatch):
+    # the 6 m maze of the test above: an expansion budget that runs out halfway through the
+    # admissible search leaves the plans found before it, the last one a SUCCESS (the
+    # unfinished search adds no partial plan after a complete one)
+    args = (maze_grid(512), (0.6, 0.6, 0.0), "left", (5.4, 5.4), nominal_action_table())
+    from repertoire.planning.footstep import planner
+
+    seen = []
+    inner = planner._search_once
+
+    def spy(model, backend, weight, budget, left):
+        r = inner(model, backend, weight, budget, left)
+        seen.append((model.opts.heuristic, budget, r.expansions))
+        return r
+
+    monkeypatch.setattr(planner, "_search_once", spy)
+    full = plan_footsteps_anytime(*args, PlannerOptions(time_limit=60.0, max_expansions=10**8))
+    heuristic, left, used = seen[-1]
+    assert heuristic == "euclidean" and used < left  # the admissible search, run to its end
+    budget = 10**8 - left + used // 2
+    runs = plan_footsteps_anytime(*args, PlannerOptions(time_limit=60.0, max_expansions=budget))
+    assert seen[-1][:2] == ("euclidean", used - used // 2) and seen[-1][2] == seen[-1][1]
+    assert [r.plan.cost for r in runs] == [r.plan.cost for r in full[:-1]]
+    assert round(runs[-1].plan.cost, 2) == 39.1 and round(full[-1].plan.cost, 2) == 36.95
+    assert runs[-1].plan.status is PlanStatus.SUCCESS
+    elapsed = [r.elapsed_s for r in runs]
+    assert elapsed == sorted(elapsed)

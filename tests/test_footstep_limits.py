@@ -6,6 +6,7 @@ terrace to a sole wholly on the floor beside it passed ``max_step_down=0.05``; a
 swing line was sampled every half cell, so a line clipping a tall cell's corner passed.
 """
 
+import itertools
 import math
 from fractions import Fraction
 
@@ -21,7 +22,7 @@ from repertoire.planning.footstep import (
 from repertoire.planning.footstep.biped_model import BipedStepModel
 from repertoire.planning.footstep.environment import rect_overlaps_cells
 from repertoire.planning.footstep.fastcore import compiled_tables
-from repertoire.planning.footstep.fastkernels import _top_height, swing_crosses
+from repertoire.planning.footstep.fastkernels import _cell_height, _top_height, swing_crosses
 from repertoire.planning.footstep.footprint import FootprintChecker, footprint_masks
 
 HL, HW = 0.08, 0.05  # the ASIMO-like sole's half length and half width
@@ -369,3 +370,45 @@ def test_swing_clearance_on_a_raised_level_floor(kerb, crosses):
         grid, (0.3, 0.5, 0.0), "left", (2.6, 0.5), nominal_action_table(), PlannerOptions(**opts)
     )
     assert model.ground_level is None
+
+
+@pytest.mark.parametrize("direction", ["down", "up"])
+def test_swing_clearance_counts_the_ground_the_swing_foot_lifts_from(direction):
+    # stairs of 0.1 m treads 0.3 m deep with a 5 cm swing clearance: going down, the
+    # trailing foot stands a tread above the stance and landing soles; its swing line leaves
+    # through its own tread's cells, which stand 10 cm above them. Before, the clearance
+    # was counted from the stance's and landing's ground only, so those cells blocked every
+    # descent (UNREACHABLE on every lattice) while the ascent was planned
+    grid = _terraces(None)
+    opts = dict(
+        swing_clearance=0.05, max_step_up=0.12, max_step_down=0.12, max_height_range=0.02,
+        refinements=0, heuristic="euclidean",
+    )  # fmt: skip
+    start, goal = (
+        ((2.6, 0.5, math.pi), (0.3, 0.5)) if direction == "down" else ((0.3, 0.5, 0.0), (2.6, 0.5))
+    )
+    plan = _both(grid, start, "left", goal, **opts)
+    assert plan.status is PlanStatus.SUCCESS
+    tops = [float(grid.heights[grid.cell_of(p[0], p[1])]) for p in plan.poses]
+    assert sorted(set(tops)) == [0.0, 0.1, 0.2, 0.3]  # every tread
+    steps = list(itertools.pairwise(tops))
+    assert max(abs(b - a) for a, b in steps) == pytest.approx(0.1)  # one tread a step
+    # a 0.3 m wall on the floor is still refused: every ground there is 0
+    grid.occupied[round(0.55 / RES) : round(0.6 / RES)] = True
+    grid.heights[round(0.55 / RES) : round(0.6 / RES)] = 0.3
+    assert _both(grid, start, "left", goal, **opts).status is PlanStatus.UNREACHABLE
+
+
+def test_cell_height_compiled_equals_python_equals_the_grid():
+    rng = np.random.default_rng(6)
+    heights = np.round(rng.uniform(0.0, 0.2, (48, 40)), 3)
+    grid = OccupancyGrid(np.zeros((48, 40), bool), RES, (0.1, -0.2), heights)
+    opts = PlannerOptions(max_step_up=0.05, backend="compiled")
+    model = BipedStepModel(grid, (0.5, 0.3, 0.0), "left", (0.9, 0.5), nominal_action_table(), opts)
+    tab = compiled_tables(model)
+    for _ in range(2000):
+        x, y = rng.uniform(0.1, 1.3), rng.uniform(-0.2, 0.8)
+        i, j = grid.cell_of(x, y)
+        got = model.exact.cell_height(x, y)
+        assert got == heights[min(i, 47), min(j, 39)]
+        assert _cell_height(x, y, tab["grid"], tab["ex"], tab["heights"]) == got

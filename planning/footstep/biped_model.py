@@ -379,7 +379,7 @@ class BipedStepModel:
                 w, h = ref.size
                 raise FootstepError(
                     f"{name} ({px:.3f}, {py:.3f}) lies outside the map "
-                    f"[{x0}, {x0 + w}] x [{y0}, {y0 + h}]"
+                    f"[{x0}, {x0 + w}) x [{y0}, {y0 + h}) (its far edges are outside)"
                 )
         history = list(initial_history) if initial_history is not None else [table.rest_action] * 2
         if len(history) != 2:
@@ -677,9 +677,7 @@ class BipedStepModel:
         lattice state is already reached as cheaply is skipped before its checks (when its
         cost is the table's: no height cost), as the compiled core does.
         """
-        ox, oy = self.origin
-        inv_res = self.inv_res
-        nx, ny = self.ref.shape
+        (ox, oy), inv_res, (nx, ny) = self.origin, self.inv_res, self.ref.shape
         c, sn = math.cos(s.yaw), math.sin(s.yaw)
         nf = 1 - s.foot
         ex1 = self.exact
@@ -696,6 +694,7 @@ class BipedStepModel:
             ex1 = self.exact_checkers.checker(k_swing)
         z0 = self.ground_level or 0.0
         z1 = ex1.top_height(s.x, s.y, s.yaw) if z_ground else z0
+        z1s = max(z1, ex1.cell_height(s.swing_x, s.swing_y)) if z_ground else z0  # + lift-off
         if self.height_w > 0.0:
             dominated = None  # a landing's cost is known only after its height check
         hist1 = self._hist_rows[s.a_prev1]
@@ -746,7 +745,7 @@ class BipedStepModel:
             z2 = ex.top_height(x2, y2, th2) if z_ground else z0  # highest ground under it
             if self.step_limits and (z2 - z1 > self.step_up or z1 - z2 > self.step_down):
                 continue
-            top = max(z1, z2) + self.opts.swing_clearance  # the swing foot's highest point
+            top = max(z1s, z2) + self.opts.swing_clearance  # over stance, lift-off, landing
             if tall is not None and swing_crosses(
                 tall, top, s.swing_x, s.swing_y, x2, y2, ox, oy, inv_res
             ):

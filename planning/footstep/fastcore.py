@@ -65,6 +65,7 @@ from repertoire.planning.footstep.fastkernels import (
     _borrowed,
     _cached_mask_bits,
     _cached_masks,
+    _cell_height,
     _foot_free,
     _grow_heap,
     _grow_rows,
@@ -385,6 +386,9 @@ def _arastar(
                 sw_x, sw_y = start[7], start[8]  # the swing starts where this foot stood before
                 if use_tall and inode[node, _PARENT] >= 0:
                     sw_x, sw_y = fnode[inode[node, _PARENT], _X], fnode[inode[node, _PARENT], _Y]
+                z1s = z1  # the higher of the stance's and the swing start's ground
+                if use_tall and np.isnan(z_flat):
+                    z1s = max(z1, _cell_height(sw_x, sw_y, grid, ex, heights))
                 r0, r1 = succ_ptr[row], succ_ptr[row + 1]
                 mask = table.shape[0] - 1
                 for r in range(r0, r1):  # poses and table rows, the rows prefetched
@@ -434,7 +438,7 @@ def _arastar(
                         if dz > step_up or -dz > step_down:
                             continue
                     if use_tall and swing_crosses(
-                        tall, max(z1, z2) + clearance, sw_x, sw_y, x2, y2, ox, oy, inv_res
+                        tall, max(z1s, z2) + clearance, sw_x, sw_y, x2, y2, ox, oy, inv_res
                     ):
                         continue
                     lazy = -1
@@ -519,7 +523,11 @@ def _arastar(
                         low = fnode[k, _G] + fnode[k, _H]
             if low == np.inf:
                 low = fnode[end, _G]
-            bound = min(w, fnode[end, _G] / low) if low > 0 else w
+            # a plan of cost 0 (the start meets the goal) is optimal: bound 1
+            if low > 0:
+                bound = min(w, fnode[end, _G] / low)
+            elif fnode[end, _G] == 0.0:
+                bound = 1.0
             met = bound
         last = end if end >= 0 else (solution if solution >= 0 else best)
         out_i[runs, 0], out_i[runs, 1], out_i[runs, 2] = status, last, exp_it

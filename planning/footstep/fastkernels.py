@@ -464,6 +464,18 @@ def _height_range(x, y, th, grid, ex, heights, ex_off, ex_ptr):
 
 
 @njit()
+def _cell_height(x, y, grid, ex, heights):
+    """The height of the cell holding ``(x, y)`` (padded ``heights``, 0 off the grid).
+
+    ``FootprintChecker.cell_height``'s twin: the ground a swing foot lifts from.
+    """
+    pad, nyp = int(ex[0]), int(ex[1])
+    ix = int(math.floor((x - grid[0]) * grid[2]))
+    iy = int(math.floor((y - grid[1]) * grid[2]))
+    return heights[(ix + pad) * nyp + iy + pad]
+
+
+@njit()
 def _top_height(x, y, th, grid, ex, heights, ex_off, ex_ptr):
     """Highest ground under the sole at ``(x, y, th)``: the max height over the cells it overlaps.
 

@@ -515,6 +515,22 @@ class FootprintChecker:
             ]
         return self._exact_cells
 
+    def cell_height(self, x: float, y: float) -> float:
+        """The height of the grid cell holding the point; 0 without heights (or off the grid).
+
+        The swing line's clearance counts the ground the swing foot lifts from by this value
+        at its sole's centre (the compiled twin is ``fastkernels._cell_height``).
+
+        Args:
+            x: world x (m).
+            y: world y (m).
+        """
+        if self.heights_flat is None:
+            return 0.0
+        ix = int(math.floor((x - self.x0) * self.inv_res))
+        iy = int(math.floor((y - self.y0) * self.inv_res))
+        return float(self.heights_flat[(ix + self.pad) * self.nyp + iy + self.pad])
+
     def top_height(self, x: float, y: float, yaw: float) -> float:
         """Highest ground under the sole: max height over the cells it overlaps; 0 without.
 

@@ -17,6 +17,7 @@ import math
 import time
 from collections.abc import Sequence
 
+import numpy as np
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
 from repertoire.planning.footstep.biped_model import (
     ActionFilter,
@@ -100,9 +101,10 @@ class PlannerOptions:
             from the default lattice: a 2 m stepping-stone field with 10 cm gaps was
             UNREACHABLE at 1.25 cm / 144 and has a plan at 0.625 cm / 288. A time limit that
             runs out before the finest lattice is exhausted gives TIME_LIMIT.
-        swing_clearance: how high (m) the swing foot rises above the higher of the stance
+        swing_clearance: how high (m) the swing foot rises above the highest of the stance
             sole's and the landing sole's ground (each the highest of the grid's
-            ``heights`` under the sole): a step whose straight centre line from the swing
+            ``heights`` under the sole) and the ground of the cell it lifts from (down a
+            stair, the trailing foot's tread): a step whose straight centre line from the swing
             foot's previous position to its landing passes through the interior of a cell
             higher than that, occupied or free ground, is refused (exact grid traversal: a
             line through a cell's corner point only, or along its edge, does not cross it);
@@ -392,9 +394,12 @@ def plan_footsteps_anytime(
     searches there: on 92 12 m floors at 30 % with 1.0 M and 1.6 M expansions (about 1 s on
     the machines measured) 9 and 5 plans above 1.05 of the admissible mode's instead of 10
     and 6 (geometric means 1.0136 and 1.0046 instead of 1.0153 and 1.0078; single floors
-    moved both ways). Whatever time and budget the restarts leave go to the admissible
-    search (the Euclidean heuristic at weight 1, :meth:`PlannerOptions.admissible`'s) on the
-    restarts' finest lattice; when it ends in time, its plan is that lattice's optimum
+    moved both ways). With the default ``heuristic="dijkstra"``, whatever time and budget the
+    restarts leave go to the admissible search (the Euclidean heuristic at weight 1,
+    :meth:`PlannerOptions.admissible`'s) on the restarts' finest lattice (with
+    ``"euclidean"`` ARA*'s weights are that search's; with ``"none"`` every weight orders the
+    queue alike, so no fresh search or corridor search repeats ARA*'s uniform-cost search,
+    which is optimal on its lattice); when it ends in time, its plan is that lattice's optimum
     (bound 1 on it; by default the admissible mode's own plan). It finds plans the searches
     guided by the Dijkstra cost-to-go miss even when they end early (a 6 m maze: 39.1 after
     every weight on both lattices in 0.28 s, 36.95 from the admissible search at 0.55 s).
@@ -429,8 +434,15 @@ def plan_footsteps_anytime(
     weights = anytime_weights(weights)
     _build_footprint_masks(world, opts, kwargs)  # one-time per resolution, outside it too
     t_begin = time.perf_counter()
-    if not (isinstance(corridor, (int, float)) and math.isfinite(corridor) and corridor >= 0.0):
+    if not (
+        isinstance(corridor, (int, float))
+        and not isinstance(corridor, bool)
+        and math.isfinite(corridor)
+        and corridor >= 0.0
+    ):
         raise FootstepError(f"corridor must be a half-width >= 0 m, got {corridor!r}")
+    if not isinstance(restarts, (bool, np.bool_)):
+        raise FootstepError(f"restarts must be True or False, got {restarts!r}")
     found, t_done = _anytime_once(
         world, start, start_foot, goal, table, opts, weights, kwargs, restarts,
         opts.refinements > 0, corridor,
@@ -534,7 +546,8 @@ def _anytime_once(
     backend = _backend(opts, model)
     if model.dynamic:
         corridor = 0.0  # corridors are cut from a static grid
-    later = list(weights)[1:]
+    # without a heuristic every weight orders the queue alike: one search is all of them
+    later = list(weights)[1:] if opts.heuristic != "none" else []
     results = _ara(model, backend, list(weights)[:1] if corridor else weights, budget, left)
     run = _Improving(t0, opts.time_limit, budget, [(model, r, 0.0) for r in results])
     if results[-1].status is not PlanStatus.SUCCESS:
@@ -564,9 +577,11 @@ def _anytime_once(
         if run.left() <= 0.0 or run.used >= budget:
             break
         run.offer(model, _search_once(model, backend, float(w), budget - run.used, run.left()))
-    if opts.heuristic != "euclidean" and run.left() > 0.0:
+    if opts.heuristic == "dijkstra" and run.left() > 0.0:
         # what is left goes to the admissible search (Euclidean, weight 1) on the restarts'
-        # finest lattice: if it ends, its plan is that lattice's optimum (bound 1)
+        # finest lattice: if it ends, its plan is that lattice's optimum (bound 1); with the
+        # Euclidean heuristic, ARA*'s weights are that search's own (weight 1 by default),
+        # and without one, every search already was the uniform-cost search it refines
         exact = _finer(opts, 1, run.left()) if finer_restarts else opts
         exact = dataclasses.replace(exact, heuristic="euclidean", heuristic_weight=1.0)
         adm = BipedStepModel(world, start, start_foot, goal, table, exact, **kwargs)

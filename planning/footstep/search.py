@@ -124,6 +124,8 @@ def anytime_weights(weights: Sequence[float]) -> list[float]:
         FootstepError: a weight that is not such a number, or an empty or increasing list.
     """
     try:
+        if isinstance(weights, (str, bytes)):  # its characters are no weights
+            raise TypeError
         ws = [float(w) for w in weights]
     except (TypeError, ValueError):
         raise FootstepError(f"anytime weights must be numbers >= 1, got {weights!r}") from None
@@ -406,7 +408,8 @@ def anytime_search(
                 (g[k] + h[k] for k in range(len(states)) if in_open[k] or in_incons[k]),
                 default=g[end],
             )
-            bound = min(w, g[end] / low) if low > 0 else w
+            # a plan of cost 0 (the start meets the goal) is optimal: bound 1
+            bound = min(w, g[end] / low) if low > 0 else (1.0 if g[end] == 0.0 else w)
             met = bound
         last = end if end >= 0 else (solution if solution >= 0 else best)
         path = []

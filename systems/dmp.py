@@ -116,7 +116,8 @@ class CanonicalSystem(Onset, LeafSystem):
 
     Input ports:
         tau (1, optional, ``time_scaling_input=True``): online temporal scaling [s],
-            replaces the ``tau`` parameter.
+            replaces the ``tau`` parameter; unconnected: the parameter (as in
+            :class:`TransformationSystem`).
 
     Output ports:
         phase (1): theta (depends on the state only).
@@ -151,12 +152,12 @@ class CanonicalSystem(Onset, LeafSystem):
         return self._phase_port
 
     def tau(self, context: Context) -> float:
-        """Effective tau (input if declared, else parameter); raises if <= 0.
+        """Effective tau (input if declared and connected, else parameter); raises if <= 0.
 
         Args:
             context: This system's context.
         """
-        if self._tau_port is not None:
+        if self._tau_port is not None and self._tau_port.HasValue(context):
             tau = float(self._tau_port.Eval(context)[0])
         else:
             tau = float(context.get_numeric_parameter(self._tau_index).GetAtIndex(0))

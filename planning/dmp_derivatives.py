@@ -305,13 +305,37 @@ def gcv_savgol_window(x: np.ndarray, h: float, max_w: int) -> int:
     return _gcv_window(x, max_w, smoother)
 
 
+DIRECT_WINDOW = 64
+"""Windows up to this many samples are applied as dot products, longer ones by FFT."""
+
+
+def window_dot(x: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``y[k] = c @ x[k : k + w]`` for every full window of ``x`` along axis 0.
+
+    Short windows as direct dot products; longer ones by overlap-add FFT convolution,
+    O(N log w) instead of O(N w) (a 60 s demonstration at 10 kHz has windows of 15001
+    samples; same values to about 1e-14 of their magnitude).
+
+    Args:
+        x: Samples, shape (N, dims).
+        c: Coefficients, shape (w,), w <= N.
+
+    Returns:
+        Shape (N - w + 1, dims).
+    """
+    if c.size <= DIRECT_WINDOW:
+        return np.lib.stride_tricks.sliding_window_view(x, c.size, axis=0) @ c
+    from scipy.signal import oaconvolve
+
+    return oaconvolve(x, c[::-1, None], mode="valid", axes=0)
+
+
 def savgol_smooth(x: np.ndarray, w: int, order: int, h: float) -> np.ndarray:
     """``savgol_filter(x, w, order, deriv=0, axis=0, mode="interp")``: the fitted values."""
     ops = savgol_operators(w, order, h)
     half = w // 2
     smooth = np.empty_like(x)
-    windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)
-    smooth[half : x.shape[0] - half] = windows @ ops.interior[0]
+    smooth[half : x.shape[0] - half] = window_dot(x, ops.interior[0])
     smooth[:half], smooth[x.shape[0] - half :] = ops.edges(x, 0)
     return smooth
 
@@ -322,10 +346,9 @@ def savgol_derivatives(
     """``savgol_filter(x, w, order, deriv=1|2, delta=h, axis=0, mode="interp")``, both at once."""
     ops = savgol_operators(w, order, h)
     half = w // 2
-    windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)  # (n - w + 1, dims, w)
     xd, xdd = np.empty_like(x), np.empty_like(x)
-    xd[half : x.shape[0] - half] = windows @ ops.interior[1]
-    xdd[half : x.shape[0] - half] = windows @ ops.interior[2]
+    xd[half : x.shape[0] - half] = window_dot(x, ops.interior[1])
+    xdd[half : x.shape[0] - half] = window_dot(x, ops.interior[2])
     xd[:half], xd[x.shape[0] - half :] = ops.edges(x, 1)
     xdd[:half], xdd[x.shape[0] - half :] = ops.edges(x, 2)
     return xd, xdd

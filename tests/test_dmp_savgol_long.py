@@ -9,7 +9,12 @@ range off; 60 s at 10 kHz did not fit in memory.
 
 import numpy as np
 import pytest
-from repertoire.planning.dmp_derivatives import fit_demonstration, savgol_operators
+from repertoire.planning.dmp_derivatives import (
+    DIRECT_WINDOW,
+    fit_demonstration,
+    savgol_operators,
+    window_dot,
+)
 from repertoire.planning.dmp_learn import learn_dmp
 from repertoire.planning.dmp_math import minimum_jerk
 
@@ -51,3 +56,13 @@ def test_a_long_clean_minimum_jerk_demo_gets_exact_derivatives_and_is_reproduced
     assert (
         np.abs(r.x - ref).max() <= 1e-4 * np.ptp(x, axis=0).max()
     )  # with a sine added: 0.21 before
+
+
+@pytest.mark.parametrize("w", [DIRECT_WINDOW, DIRECT_WINDOW + 1, 1501])
+def test_window_dot_is_the_sliding_dot_product(w):
+    x = np.random.default_rng(w).standard_normal((5000, 2)).cumsum(axis=0)
+    c = np.random.default_rng(w + 1).standard_normal(w)
+    ref = np.array([[c @ x[k : k + w, d] for d in range(2)] for k in range(5000 - w + 1)])
+    got = window_dot(x, c)
+    assert got.shape == ref.shape
+    assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()

@@ -153,45 +153,84 @@ def _fit_centred(t, x, method, window, smoothing) -> tuple[np.ndarray, np.ndarra
     )
 
 
-@functools.lru_cache(maxsize=16)
-def savgol_operators(w: int, order: int, h: float) -> tuple[np.ndarray, ...]:
-    """Savitzky-Golay first/second-derivative operators for uniform samples, cached.
+class SavgolOperators(NamedTuple):
+    """Savitzky-Golay operators of one window, order and step (:func:`savgol_operators`).
 
-    Returns ``(c1, c2, E1_first, E2_first, E1_last, E2_last, c0, E0_first, E0_last)``:
-    interior dot-product coefficients, and for the ``w // 2`` samples at each edge the
-    derivative of the polynomial fitted to the edge window (scipy's ``mode="interp"``) as a
-    matrix on it; the ``0`` entries are the smoothing (zeroth-derivative) operators.
+    The edge operators stay factored (samples -> polynomial coefficients -> values at the
+    edge samples), O(w) numbers instead of the (w/2, w) matrices of their product: with a
+    window of about N / 4 those were 1.4 GB for N = 30001 and did not fit in memory for a
+    60 s demonstration at 10 kHz.
+
+    Attributes:
+        interior: Dot-product coefficients of the smoothed value and the first and second
+            derivative at a window's centre, shape (3, w).
+        fit: Least-squares fit of an edge window's samples to polynomial coefficients,
+            shape (order + 1, w).
+        first: Value, first and second derivative of those polynomials at the first
+            ``w // 2`` samples, shape (3, w // 2, order + 1).
+        last: The same at the last ``w // 2`` samples.
     """
-    from scipy.signal import savgol_coeffs
 
+    interior: np.ndarray
+    fit: np.ndarray
+    first: np.ndarray
+    last: np.ndarray
+
+    def edges(self, x: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The k-th derivative (0: smoothed value) at the first and last ``w // 2`` samples.
+
+        Args:
+            x: Samples, shape (N, dims), N >= w.
+            k: 0, 1 or 2.
+        """
+        w = self.fit.shape[1]
+        return self.first[k] @ (self.fit @ x[:w]), self.last[k] @ (self.fit @ x[-w:])
+
+    def smoother_trace(self, n: int) -> float:
+        """Trace of the smoothing (k = 0) operator on N = n samples."""
+        half = self.first.shape[1]
+        w = self.fit.shape[1]
+        edge_first = np.einsum("ij,ji->", self.first[0], self.fit[:, :half])
+        edge_last = np.einsum("ij,ji->", self.last[0], self.fit[:, w - half :])
+        return float(self.interior[0, half] * (n - 2 * half) + edge_first + edge_last)
+
+
+@functools.lru_cache(maxsize=16)
+def savgol_operators(w: int, order: int, h: float) -> SavgolOperators:
+    """Savitzky-Golay smoothing and derivative operators for uniform samples, cached.
+
+    Every sample gets the value and derivatives of the order-``order`` polynomial fitted
+    by least squares to a window of ``w`` samples: interior samples to the window centred
+    on them (scipy's ``savgol_coeffs``), the ``w // 2`` samples at each edge to the edge
+    window (scipy's ``mode="interp"``). The fit is on offsets scaled to [-1, 1], so long
+    windows keep their digits.
+
+    Args:
+        w: Window length (odd).
+        order: Polynomial order, < w.
+        h: Sample spacing [s].
+    """
     half = w // 2
-    c0 = savgol_coeffs(w, order, deriv=0, use="dot")
-    c1 = savgol_coeffs(w, order, deriv=1, delta=h, use="dot")
-    c2 = savgol_coeffs(w, order, deriv=2, delta=h, use="dot")
     s = np.arange(w, dtype=float)
     u = (s - half) / half  # window positions scaled to [-1, 1]: a well-conditioned fit
     fit = np.linalg.pinv(np.vander(u, order + 1, increasing=True))  # samples -> coefficients
     j = np.arange(order + 1)
 
-    def evaluate(points: np.ndarray, k: int) -> np.ndarray:
+    def evaluate(points: np.ndarray) -> np.ndarray:
+        out = np.empty((3, points.size, order + 1))
         falling = np.ones(order + 1)
-        for m in range(k):
-            falling = falling * (j - m)
-        powers = np.where(j >= k, points[:, None] ** np.maximum(j - k, 0), 0.0)
-        return (falling * powers) @ fit / (half * h) ** k
+        for k in range(3):
+            powers = np.where(j >= k, points[:, None] ** np.maximum(j - k, 0), 0.0)
+            out[k] = falling * powers / (half * h) ** k
+            falling = falling * (j - k)
+        return out
 
-    first, last = u[:half], u[w - half :]
-    return (
-        c1,
-        c2,
-        evaluate(first, 1),
-        evaluate(first, 2),
-        evaluate(last, 1),
-        evaluate(last, 2),
-        c0,
-        evaluate(first, 0),
-        evaluate(last, 0),
-    )
+    # The interior coefficients are the same fit evaluated at the window's centre (u = 0).
+    # scipy's savgol_coeffs fits powers of the unscaled offsets (up to (w/2)^order) and
+    # loses every digit for long windows (order 5: 7.7e-9 of the value at w = 201, all of it
+    # from w ~ 1000, which GCV picks for demonstrations of 40000 samples and more).
+    interior = evaluate(np.zeros(1))[:, 0, :] @ fit
+    return SavgolOperators(interior, fit, evaluate(u[:half]), evaluate(u[w - half :]))
 
 
 def _gcv_window(x: np.ndarray, max_w: int, smoother) -> int:
@@ -260,22 +299,44 @@ def gcv_savgol_window(x: np.ndarray, h: float, max_w: int) -> int:
 
     def smoother(x: np.ndarray, w: int) -> tuple[np.ndarray, float]:
         n = x.shape[0]
-        c0, e0f, e0l = savgol_operators(w, min(5, w - 1), h)[6:9]
-        half = w // 2
-        trace = c0[half] * (n - 2 * half) + np.trace(e0f[:, :half]) + np.trace(e0l[:, w - half :])
+        trace = savgol_operators(w, min(5, w - 1), h).smoother_trace(n)
         return savgol_smooth(x, w, min(5, w - 1), h), trace
 
     return _gcv_window(x, max_w, smoother)
 
 
+DIRECT_WINDOW = 64
+"""Windows up to this many samples are applied as dot products, longer ones by FFT."""
+
+
+def window_dot(x: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``y[k] = c @ x[k : k + w]`` for every full window of ``x`` along axis 0.
+
+    Short windows as direct dot products; longer ones by overlap-add FFT convolution,
+    O(N log w) instead of O(N w) (a 60 s demonstration at 10 kHz has windows of 15001
+    samples; same values to about 1e-14 of their magnitude).
+
+    Args:
+        x: Samples, shape (N, dims).
+        c: Coefficients, shape (w,), w <= N.
+
+    Returns:
+        Shape (N - w + 1, dims).
+    """
+    if c.size <= DIRECT_WINDOW:
+        return np.lib.stride_tricks.sliding_window_view(x, c.size, axis=0) @ c
+    from scipy.signal import oaconvolve
+
+    return oaconvolve(x, c[::-1, None], mode="valid", axes=0)
+
+
 def savgol_smooth(x: np.ndarray, w: int, order: int, h: float) -> np.ndarray:
     """``savgol_filter(x, w, order, deriv=0, axis=0, mode="interp")``: the fitted values."""
-    c0, e0f, e0l = savgol_operators(w, order, h)[6:9]
+    ops = savgol_operators(w, order, h)
     half = w // 2
     smooth = np.empty_like(x)
-    windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)
-    smooth[half : x.shape[0] - half] = windows @ c0
-    smooth[:half], smooth[x.shape[0] - half :] = e0f @ x[:w], e0l @ x[-w:]
+    smooth[half : x.shape[0] - half] = window_dot(x, ops.interior[0])
+    smooth[:half], smooth[x.shape[0] - half :] = ops.edges(x, 0)
     return smooth
 
 
@@ -283,13 +344,13 @@ def savgol_derivatives(
     x: np.ndarray, w: int, order: int, h: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """``savgol_filter(x, w, order, deriv=1|2, delta=h, axis=0, mode="interp")``, both at once."""
-    c1, c2, e1f, e2f, e1l, e2l = savgol_operators(w, order, h)[:6]
+    ops = savgol_operators(w, order, h)
     half = w // 2
-    windows = np.lib.stride_tricks.sliding_window_view(x, w, axis=0)  # (n - w + 1, dims, w)
     xd, xdd = np.empty_like(x), np.empty_like(x)
-    xd[half : x.shape[0] - half], xdd[half : x.shape[0] - half] = windows @ c1, windows @ c2
-    xd[:half], xdd[:half] = e1f @ x[:w], e2f @ x[:w]
-    xd[x.shape[0] - half :], xdd[x.shape[0] - half :] = e1l @ x[-w:], e2l @ x[-w:]
+    xd[half : x.shape[0] - half] = window_dot(x, ops.interior[1])
+    xdd[half : x.shape[0] - half] = window_dot(x, ops.interior[2])
+    xd[:half], xd[x.shape[0] - half :] = ops.edges(x, 1)
+    xdd[:half], xdd[x.shape[0] - half :] = ops.edges(x, 2)
     return xd, xdd
 
 

@@ -560,8 +560,10 @@ def learn_dmp_from_demonstrations(
     """Learn one DMP from several demonstrations (a joint least-squares fit).
 
     Each demonstration keeps its own duration (tau), start and goal when its f_target is
-    computed; the weights minimise the summed squared error over all of them. The result's
-    tau, x0 and goal are the means over the demonstrations.
+    computed; the weights minimise the summed squared error over all of them, each
+    demonstration's mean squared error weighing the same (a densely sampled demonstration
+    does not outweigh a sparse one; with equal sample counts this is the plain sum). The
+    result's tau, x0 and goal are the means over the demonstrations.
 
     Args:
         demonstrations: List of ``(t, x)`` pairs with the same number of DOF.
@@ -611,7 +613,13 @@ def learn_dmp_from_demonstrations(
         targs.append(F)
         taus.append(tau)
         v_starts.append(tau * start_velocity(xd[0], x, tau, estimated=True))
-    weights = fit_forcing_weights(np.vstack(feats), np.vstack(targs), ridge)
+    # Each demonstration weighs the same, whatever its sampling rate: rows scaled by
+    # sqrt(most rows / its rows), 1 when all have as many (a 10 kHz demonstration outweighed
+    # a 100 Hz one 100 to 1: opposite bumps of 0.3 were learned as -0.293, not their mean).
+    most = max(F.shape[0] for F in targs)
+    scale = [np.sqrt(most / F.shape[0]) for F in targs]
+    Phi = np.vstack([s * P for s, P in zip(scale, feats)])
+    weights = fit_forcing_weights(Phi, np.vstack([s * F for s, F in zip(scale, targs)]), ridge)
     x0 = np.mean([x[0] for _, x in demos], axis=0)
     g = np.mean([x[-1] for _, x in demos], axis=0)
     tau = float(np.mean(taus))

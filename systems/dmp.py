@@ -56,6 +56,18 @@ def check_finite_goal(goal: np.ndarray) -> np.ndarray:
     return check_finite_input("goal", goal)
 
 
+def check_unit_goal(goal: np.ndarray) -> np.ndarray:
+    """A goal orientation input (w, x, y, z) within 1e-6 of unit norm; RepertoireError if not.
+
+    Args:
+        goal: The goal input's value, shape (4,).
+    """
+    norm = float(np.linalg.norm(goal))
+    if not abs(norm - 1.0) <= 1e-6:
+        raise RepertoireError(f"goal orientation input is not a unit quaternion: |g| = {norm}")
+    return goal
+
+
 def goal_input(port, context: Context, learned: np.ndarray) -> np.ndarray:
     """The goal input's value if it is connected (or fixed), else the ``learned`` goal.
 
@@ -116,7 +128,8 @@ class CanonicalSystem(Onset, LeafSystem):
 
     Input ports:
         tau (1, optional, ``time_scaling_input=True``): online temporal scaling [s],
-            replaces the ``tau`` parameter.
+            replaces the ``tau`` parameter; unconnected: the parameter (as in
+            :class:`TransformationSystem`).
 
     Output ports:
         phase (1): theta (depends on the state only).
@@ -151,12 +164,12 @@ class CanonicalSystem(Onset, LeafSystem):
         return self._phase_port
 
     def tau(self, context: Context) -> float:
-        """Effective tau (input if declared, else parameter); raises if <= 0.
+        """Effective tau (input if declared and connected, else parameter); raises if <= 0.
 
         Args:
             context: This system's context.
         """
-        if self._tau_port is not None:
+        if self._tau_port is not None and self._tau_port.HasValue(context):
             tau = float(self._tau_port.Eval(context)[0])
         else:
             tau = float(context.get_numeric_parameter(self._tau_index).GetAtIndex(0))
@@ -409,7 +422,8 @@ class QuaternionGoalSign(LeafSystem):
     for demonstrations turning past 180 deg.
 
     Input ports:
-        goal (4): goal orientation (w, x, y, z), unit; unconnected: the learned goal.
+        goal (4): goal orientation (w, x, y, z), unit (RepertoireError otherwise, as in
+            :class:`ManifoldQuaternionSystem`); unconnected: the learned goal.
 
     Output ports:
         goal (4): the same orientation with the learned goal's sign.
@@ -438,7 +452,7 @@ class QuaternionGoalSign(LeafSystem):
         context.get_mutable_numeric_parameter(self._start).SetFromVector(check_vector("q0", q0, 4))
 
     def _calc(self, context: Context, output: BasicVector) -> None:
-        goal = goal_input(self._in, context, self._learned_goal)
+        goal = check_unit_goal(goal_input(self._in, context, self._learned_goal))
         start = context.get_numeric_parameter(self._start).get_value()
         output.SetFromVector(
             lift_quaternion_goal(goal, start, self._learned_goal, self._learned_q0)
@@ -602,11 +616,7 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
         K, D, tau = p(self._gains).value()
         theta = float(self._phase_port.Eval(context)[0])
         theta_next = theta * math.exp(-self._alpha * self._dt / tau)
-        goal = goal_input(self._goal_port, context, self._learned_goal)
-        if abs(float(np.linalg.norm(goal)) - 1.0) > 1e-6:
-            raise RepertoireError(
-                f"goal orientation input is not a unit quaternion: |g| = {np.linalg.norm(goal)}"
-            )
+        goal = check_unit_goal(goal_input(self._goal_port, context, self._learned_goal))
         W = p(self._w).value().reshape(3, self._b)
         f = forcing_term(np.array([theta, theta_next]), W, p(self._c).value(), p(self._h).value())
         q0 = p(self._q0).value()

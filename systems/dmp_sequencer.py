@@ -45,7 +45,7 @@ from repertoire.planning.dmp_quaternion import (
     learned_side,
     lift_quaternion_goal,
 )
-from repertoire.systems.dmp import check_finite_input, check_vector, goal_input
+from repertoire.systems.dmp import check_finite_input, check_unit_goal, check_vector, goal_input
 
 from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
@@ -279,7 +279,10 @@ class DmpSequencer(LeafSystem):
             # (its learned goal for its learned start, even past 180 deg).
             learned = self._segments[seg]
             goal[self._q] = lift_quaternion_goal(
-                goal[self._q], x0[self._q], learned.goal[self._q], learned.x0[self._q]
+                check_unit_goal(goal[self._q]),
+                x0[self._q],
+                learned.goal[self._q],
+                learned.x0[self._q],
             )
         return goal
 

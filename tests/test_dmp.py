@@ -664,3 +664,46 @@ def test_local_polynomial_with_a_window_is_savgol_on_uniform_stamps():
         r = p.rollout(dt=1e-3)
         ref = np.stack([np.interp(r.t, tn, demo[:, j]) for j in range(2)], 1)
         assert np.abs(r.x - ref).max() < 0.02
+
+
+def test_several_demonstrations_weigh_the_same_whatever_their_sampling_rate():
+    # Two 1 s moves 0 -> 1 with opposite bumps +-0.3 sin(pi t): their mean is the plain
+    # minimum-jerk move, whatever each was sampled at (100 Hz and 10 kHz). Summed over the
+    # samples, the 10 kHz one outweighed the other 100 to 1 (bump learned as -0.293).
+    def demo(n: int, bump: float):
+        t = np.linspace(0.0, 1.0, n)
+        x = minimum_jerk(np.zeros(1), np.ones(1), 1.0, t)[0] + bump * np.sin(np.pi * t)[:, None]
+        return t, x
+
+    def bump_learned(n_up: int, n_down: int) -> float:
+        dmp = learn_dmp_from_demonstrations([demo(n_up, 0.3), demo(n_down, -0.3)])
+        r = dmp.rollout(n_steps=1000)
+        return float(r.x[500, 0] - minimum_jerk(np.zeros(1), np.ones(1), 1.0, r.t)[0][500, 0])
+
+    same = bump_learned(101, 101)
+    assert abs(same) <= 1e-5
+    dense_down, dense_up = bump_learned(101, 10001), bump_learned(10001, 101)
+    assert abs(dense_down) <= 5e-3 and abs(dense_up) <= 5e-3  # each 1.4e-3 (Riemann sums)
+    assert dense_down == pytest.approx(-dense_up, abs=1e-5)  # mirror images
+
+
+def test_goal_change_new_form_adds_a_goal_response_old_form_scales_the_shape():
+    # Eq. 6 is linear in g and f enters without (g - x0): moving the goal from g to g'
+    # adds the forcing-free response to a goal step g' - g (the shape is kept, also for g'
+    # on the other side of x0). Eq. 1 multiplies f by (g - x0): from rest at x0 the whole
+    # movement x - x0 scales by (g' - x0) / (g - x0), a mirror image when that is negative.
+    import dataclasses
+
+    t = np.linspace(0.0, 1.0, 500)
+    x, _, _ = minimum_jerk(np.zeros(2), np.array([1.0, 0.05]), 1.0, t)
+    x[:, 1] += 0.4 * 16 * t**2 * (1 - t) ** 2
+    moved = np.array([-0.7, -0.05])
+    new = learn_dmp(t, x, n_basis=30)
+    free = dataclasses.replace(new, weights=np.zeros_like(new.weights), x0=np.zeros(2))
+    step = free.rollout(goal=moved - new.goal, n_steps=1500).x
+    gap = new.rollout(goal=moved, n_steps=1500).x - new.rollout(n_steps=1500).x
+    assert np.abs(gap - step).max() <= 1e-12
+    old = learn_dmp(t, x, n_basis=30, formulation="old")
+    ratio = (moved - old.x0) / (old.goal - old.x0)
+    scaled = old.x0 + ratio * (old.rollout(n_steps=1500).x - old.x0)
+    assert np.abs(old.rollout(goal=moved, n_steps=1500).x - scaled).max() <= 1e-12

@@ -75,6 +75,7 @@ def test_quaternion_systems_without_a_goal_use_the_learned_goal():
     man = ManifoldQuaternionSystem(dmp, time_step=1e-3)
     wired, unwired = man.CreateDefaultContext(), man.CreateDefaultContext()
     man.get_goal_input_port().FixValue(wired, dmp.goal)
+    wired_man = wired
     for ctx in (wired, unwired):
         man.get_phase_input_port().FixValue(ctx, [0.7])
     np.testing.assert_array_equal(
@@ -88,6 +89,14 @@ def test_quaternion_systems_without_a_goal_use_the_learned_goal():
     out = sign.GetOutputPort("goal").Eval(unwired)
     np.testing.assert_array_equal(out, sign.GetOutputPort("goal").Eval(wired))
     np.testing.assert_array_equal(out, comp.goal)
+    # A non-unit goal is refused by both forms (the component form passed 2 g and 0 on).
+    for bad, norm in ((2.0 * comp.goal, "2.0"), (np.zeros(4), "0.0")):
+        sign.GetInputPort("goal").FixValue(wired, bad)
+        with pytest.raises(RepertoireError, match=f"not a unit quaternion: \\|g\\| = {norm}"):
+            sign.GetOutputPort("goal").Eval(wired)
+        man.get_goal_input_port().FixValue(wired_man, bad)
+        with pytest.raises(RepertoireError, match=f"not a unit quaternion: \\|g\\| = {norm}"):
+            man.EvalUniquePeriodicDiscreteUpdate(wired_man)
 
 
 def test_goal_multiplexer_joins_connected_inputs_and_defaults():

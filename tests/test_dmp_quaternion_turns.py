@@ -257,3 +257,16 @@ def test_component_dmp_system_lifts_the_goal_from_its_start(fused):
         sim.AdvanceTo(k * 1e-3)
         q_sys = sys.GetOutputPort("orientation").Eval(ctx)
         assert max_angle(q_sys, Q_np[k]) < 1e-11
+
+
+def test_sequencer_refuses_a_non_unit_quaternion_goal_input():
+    dmp, _ = _task_space(200.0, "component")
+    comp = dmp.orientation.component_parameters()
+    seq = DmpSequencer([comp], [0.0], goals=[comp.goal], time_step=1e-3, quaternion_at=0)
+    ctx = seq.CreateDefaultContext()
+    seq.GetInputPort("goal_0").FixValue(ctx, -comp.goal)  # either sign is fine
+    seq.GetOutputPort("acceleration").Eval(ctx)
+    for bad, norm in ((0.5 * comp.goal, "0.5"), (np.zeros(4), "0.0")):  # ran before
+        seq.GetInputPort("goal_0").FixValue(ctx, bad)
+        with pytest.raises(RepertoireError, match=f"not a unit quaternion: \\|g\\| = {norm}"):
+            seq.GetOutputPort("acceleration").Eval(ctx)

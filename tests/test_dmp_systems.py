@@ -54,6 +54,8 @@ def test_canonical_system_derivative_and_hold():
     assert cs.EvalTimeDerivatives(ctx).CopyToVector()[0] == 0.0
     scaled = CanonicalSystem(tau=2.0, alpha=3.0, time_scaling_input=True)
     c2 = scaled.CreateDefaultContext()
+    # Unconnected: the tau parameter, as in TransformationSystem (was Drake's "not connected").
+    assert scaled.EvalTimeDerivatives(c2).CopyToVector()[0] == -3.0 * 1.0 / 2.0
     scaled.get_tau_input_port().FixValue(c2, [0.5])
     assert scaled.EvalTimeDerivatives(c2).CopyToVector()[0] == pytest.approx(-6.0)
     scaled.get_tau_input_port().FixValue(c2, [0.0])
@@ -61,6 +63,22 @@ def test_canonical_system_derivative_and_hold():
         scaled.EvalTimeDerivatives(c2)
     with pytest.raises(RepertoireError, match="tau must be a finite number > 0"):
         CanonicalSystem(tau=0.0)
+
+
+def test_canonical_phase_follows_a_tau_changed_during_the_run():
+    from pydrake.systems.analysis import Simulator
+
+    # theta(T) = exp(-alpha (t1 / tau1 + (T - t1) / tau2)) when tau jumps from tau1 to tau2
+    cs = CanonicalSystem(tau=1.0, alpha=2.0, time_scaling_input=True)
+    sim = Simulator(cs)
+    ctx = sim.get_mutable_context()
+    sim.get_mutable_integrator().set_target_accuracy(1e-12)
+    cs.get_tau_input_port().FixValue(ctx, [0.8])
+    sim.AdvanceTo(0.3)
+    cs.get_tau_input_port().FixValue(ctx, [2.5])
+    sim.AdvanceTo(1.7)
+    theta = cs.get_phase_output_port().Eval(ctx)[0]
+    assert theta == pytest.approx(np.exp(-2.0 * (0.3 / 0.8 + 1.4 / 2.5)), rel=1e-9)
 
 
 @pytest.mark.parametrize("formulation", ["new", "old"])

@@ -124,6 +124,7 @@ def summarize(
         paired_cells,
         paired_succeeded,
         paired_times_figure,
+        refinement_sentence,
     )
 
     out_dir = Path(out_dir)
@@ -150,15 +151,8 @@ def summarize(
         f"{statuses[2]} (MISSED: every action succeeded but a cup ended more than "
         f"{config.deliver_tolerance} m from its target; NO_PLAN: no valid parameters, not "
         f"executed). The table pairs the {len(both)} "
-        f"situations where both plans delivered. Refinement ({config.solver}) faster in "
-        f"{int(np.sum(t2 < t1))}, slower in {int(np.sum(t2 > t1))}. Predicted plan time "
-        "(models) h = 1 / h = 2: "
-        + (
-            f"{np.mean([r.predicted_1 for r in both]):.2f} / "
-            f"{np.mean([r.predicted_2 for r in both]):.2f} s."
-            if both
-            else "-"
-        ),
+        "situations where both plans delivered. "
+        + refinement_sentence(config.solver, t1, t2, both),
     ]
     if both:
         d1 = np.array([r.durations_1 for r in both])

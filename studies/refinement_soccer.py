@@ -252,6 +252,27 @@ def paired_cells(t1: np.ndarray, t2: np.ndarray) -> list[str]:
     return [str(n), f"{np.mean(t1):.2f}", f"{np.mean(t2):.2f}", f"{improvement:.1%}", p_cell]
 
 
+def refinement_sentence(solver: str, t1: np.ndarray, t2: np.ndarray, both: list) -> str:
+    """The sentence comparing paired h = 1 and h = 2 runs: faster / slower counts, predictions.
+
+    Args:
+        solver: the refinement's solver name.
+        t1: h = 1 time of each pair [s].
+        t2: h = 2 time of each pair [s].
+        both: the paired records (``predicted_1``/``predicted_2`` fields).
+    """
+    predicted = (
+        f"{np.mean([r.predicted_1 for r in both]):.2f} / "
+        f"{np.mean([r.predicted_2 for r in both]):.2f} s."
+        if both
+        else "-"
+    )
+    return (
+        f"Refinement ({solver}) faster in {int(np.sum(t2 < t1))}, slower in "
+        f"{int(np.sum(t2 > t1))}. Predicted plan time (models) h = 1 / h = 2: {predicted}"
+    )
+
+
 def paired_succeeded(records) -> tuple[list, np.ndarray, np.ndarray, float, float]:
     """The records whose h = 1 and h = 2 plans both succeeded, their times, improvement and p.
 
@@ -287,15 +308,8 @@ def summarize(
         "| ours | 2 | " + " | ".join(paired_cells(t1, t2)) + " |",
         "",
         f"{n} episodes; plan succeeded with h = 1 in {ok1}, with h = 2 in {ok2}; the table "
-        f"pairs the {len(both)} where both succeeded. Refinement ({config.solver}) faster in "
-        f"{int(np.sum(t2 < t1))}, slower in {int(np.sum(t2 > t1))}. Predicted plan time "
-        "(models) h = 1 / h = 2: "
-        + (
-            f"{np.mean([r.predicted_1 for r in both]):.2f} / "
-            f"{np.mean([r.predicted_2 for r in both]):.2f} s."
-            if both
-            else "-"
-        ),
+        f"pairs the {len(both)} where both succeeded. "
+        + refinement_sentence(config.solver, t1, t2, both),
         "",
     ]
     # section 6.3.2: predict from the situation whether refinement helps

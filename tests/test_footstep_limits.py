@@ -76,13 +76,18 @@ def test_top_height_is_the_ground_under_the_sole_not_the_outer_mask():
     assert chk.top_height(1.0, 0.5, 1.0) == 0.10  # wholly on the terrace
 
 
-def test_top_height_compiled_equals_python_equals_reference():
-    rng = np.random.default_rng(5)
+def _random_heights_model(seed: int):
+    """A free 48 x 40 grid of random heights, a compiled-backend model on it, its tables."""
+    rng = np.random.default_rng(seed)
     heights = np.round(rng.uniform(0.0, 0.2, (48, 40)), 3)
     grid = OccupancyGrid(np.zeros((48, 40), bool), RES, (0.1, -0.2), heights)
     opts = PlannerOptions(max_step_up=0.05, backend="compiled")
     model = BipedStepModel(grid, (0.5, 0.3, 0.0), "left", (0.9, 0.5), nominal_action_table(), opts)
-    tab = compiled_tables(model)
+    return rng, grid, model, compiled_tables(model)
+
+
+def test_top_height_compiled_equals_python_equals_reference():
+    rng, grid, model, tab = _random_heights_model(5)
     args = (tab["grid"], tab["ex"], tab["heights"], tab["ex_off"], tab["ex_ptr"])
     for _ in range(3000):
         pose = (rng.uniform(0.25, 1.05), rng.uniform(-0.05, 0.6), rng.uniform(-4.0, 4.0))
@@ -400,15 +405,10 @@ def test_swing_clearance_counts_the_ground_the_swing_foot_lifts_from(direction):
 
 
 def test_cell_height_compiled_equals_python_equals_the_grid():
-    rng = np.random.default_rng(6)
-    heights = np.round(rng.uniform(0.0, 0.2, (48, 40)), 3)
-    grid = OccupancyGrid(np.zeros((48, 40), bool), RES, (0.1, -0.2), heights)
-    opts = PlannerOptions(max_step_up=0.05, backend="compiled")
-    model = BipedStepModel(grid, (0.5, 0.3, 0.0), "left", (0.9, 0.5), nominal_action_table(), opts)
-    tab = compiled_tables(model)
+    rng, grid, model, tab = _random_heights_model(6)
     for _ in range(2000):
         x, y = rng.uniform(0.1, 1.3), rng.uniform(-0.2, 0.8)
         i, j = grid.cell_of(x, y)
         got = model.exact.cell_height(x, y)
-        assert got == heights[min(i, 47), min(j, 39)]
+        assert got == grid.heights[min(i, 47), min(j, 39)]
         assert _cell_height(x, y, tab["grid"], tab["ex"], tab["heights"]) == got

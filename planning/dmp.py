@@ -37,7 +37,7 @@ from repertoire.planning.dmp_quaternion import (
     quaternion_rollout,
 )
 
-from repertoire.checks import is_whole
+from repertoire.checks import is_real, is_whole
 from repertoire.errors import RepertoireError
 
 DEFAULT_K = 156.25  # 25 * 6.25, as in Ijspeert et al. / movement_primitives
@@ -48,12 +48,9 @@ QUATERNION_MODES = ("component", "manifold")
 # --------------------------------------------------------------------------- artefacts
 def check_per_dof(name: str, value, n: int) -> np.ndarray:
     """``value`` (a scalar or n entries) as shape (n,); RepertoireError naming it otherwise."""
-    try:
-        v = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise RepertoireError(
-            f"{name} must be a number or one number per DOF ({n}), got {value!r}"
-        ) from None
+    v = _real_array(value)
+    if v is None:
+        raise RepertoireError(f"{name} must be a number or one number per DOF ({n}), got {value!r}")
     if v.ndim > 1 or v.size not in (1, n):
         raise RepertoireError(
             f"{name} must be a scalar or have one entry per DOF ({n}), got shape {v.shape}: {value}"
@@ -61,12 +58,27 @@ def check_per_dof(name: str, value, n: int) -> np.ndarray:
     return np.broadcast_to(v.reshape(-1), (n,)).copy()
 
 
+def _real_array(value) -> np.ndarray | None:
+    """``value`` as a float array if it holds only real numbers, else None.
+
+    Strings (``"1.0"``), bools, None and other objects are not numbers, though
+    ``np.asarray(value, dtype=float)`` would convert some of them.
+    """
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError):
+        return None
+    if a.dtype.kind in "iuf" or (a.dtype.kind == "O" and all(is_real(v) for v in a.flat)):
+        return a.astype(float)
+    return None
+
+
 def _numbers(name: str, value) -> np.ndarray:
     """``value`` as a float array; RepertoireError naming it if it is not numbers."""
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise RepertoireError(f"{name} must be numbers, got {value!r}") from None
+    a = _real_array(value)
+    if a is None:
+        raise RepertoireError(f"{name} must be numbers, got {value!r}")
+    return a
 
 
 def _check_widths(widths: np.ndarray) -> None:
@@ -80,11 +92,17 @@ def _check_widths(widths: np.ndarray) -> None:
 
 
 def _scalar(name: str, value) -> float:
-    """``value`` as a float; RepertoireError naming it if it is not one number."""
-    try:
+    """``value`` as a float; RepertoireError naming it if it is not one number.
+
+    A real number or a one-element numeric array; a string such as ``"1.0"`` or a bool is
+    refused (``float`` would take them).
+    """
+    if is_real(value):
         return float(value)
-    except (TypeError, ValueError):
-        raise RepertoireError(f"{name} must be a number, got {value!r}") from None
+    a = _real_array(value) if isinstance(value, np.ndarray) else None
+    if a is None or a.size != 1:
+        raise RepertoireError(f"{name} must be a number, got {value!r}")
+    return float(a.reshape(-1)[0])
 
 
 class _FieldsRecord:

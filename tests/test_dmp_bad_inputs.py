@@ -293,6 +293,15 @@ def test_records_with_non_numbers_name_the_field(p, field, value):
         DmpParameters.from_dict({**p.to_dict(), field: value})
 
 
+@pytest.mark.parametrize("field, value", [("tau", "1.0"), ("alpha", "4"), ("tau", True)])
+def test_records_with_non_number_scalars_name_the_field(p, qp, field, value):
+    # float() would take "1.0" and True; a record's scalar must be a number
+    with raises(f"{field} must be a number, got {value!r}"):
+        DmpParameters.from_dict({**p.to_dict(), field: value})
+    with raises(f"{field} must be a number, got {value!r}"):
+        QuaternionDmpParameters.from_dict({**qp.to_dict(), field: value})
+
+
 def test_records_with_names_not_a_list_or_bad_omega0_are_named(p, qp):
     with raises("names must be a list of strings (one per DOF), got None"):
         DmpParameters.from_dict({**p.to_dict(), "names": None})

@@ -7,7 +7,7 @@ composes a task by recalling one primitive per label. Section IV-C's automatic f
 orientation propagates the DMP to the new goal, averages the velocity over the end of the
 movement to get the approach direction, and turns the demonstrated final orientation by
 the rotation that takes the demonstrated approach direction to the new one.
-Libraries save to / load from one JSON file exactly.
+Libraries save to / load from one ``.json`` file exactly, with a ``format_version``.
 """
 
 import json
@@ -26,7 +26,13 @@ from repertoire.planning.dmp_quaternion import (
     quat_multiply,
 )
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError, UnknownNameError
+
+FORMAT_VERSION = 1
+"""Format version :meth:`MotionLibrary.save` writes (1: the layout of the first files)."""
+READ_VERSIONS = (1,)
+"""Format versions :meth:`MotionLibrary.load` reads; a file without the field is version 1."""
 
 
 def _numpy_to_json(value):
@@ -216,16 +222,26 @@ class MotionLibrary:
     def to_dict(self) -> dict:
         return {
             "type": "MotionLibrary",
+            "format_version": FORMAT_VERSION,
             "primitives": [p.to_dict() for p in self._primitives.values()],
         }
 
     def save(self, path: str | Path) -> Path:
-        """Write the library as JSON (exact).
+        """Write the library as JSON (exact), with its ``format_version``.
 
         Args:
-            path: Output file.
+            path: Output file; its suffix must be ``.json`` (the file is JSON, so another
+                suffix such as ``.npz`` would misname it).
+
+        Raises:
+            RepertoireError: the suffix is not ``.json`` (the message names the path).
         """
         path = Path(path)
+        if path.suffix != ".json":
+            raise RepertoireError(
+                f"a motion library is saved as JSON: {path} must end in '.json', "
+                f"not {path.suffix or 'no suffix'!r}"
+            )
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(self.to_dict(), indent=1))
         return path
@@ -234,12 +250,17 @@ class MotionLibrary:
     def load(cls, path: str | Path) -> "MotionLibrary":
         """Read a library saved by :meth:`save`.
 
+        The file's JSON content is read whatever its name, so files written before
+        :meth:`save` refused suffixes other than ``.json`` still load. A file without
+        ``format_version`` is version 1 (files saved before the field existed).
+
         Args:
             path: JSON file.
 
         Raises:
-            RepertoireError: the file is missing, not JSON, or not a well-formed library
-                (the message names the file and the missing key or bad type).
+            RepertoireError: the file is missing, not JSON, of a format version not in
+                :data:`READ_VERSIONS`, or not a well-formed library (the message names the
+                file and the version, missing key, bad type or non-numeric field).
         """
         try:
             d = json.loads(Path(path).read_text())
@@ -254,6 +275,12 @@ class MotionLibrary:
             raise RepertoireError(
                 f"{path} is not a MotionLibrary file: 'type' is {d.get('type')!r}, "
                 "expected 'MotionLibrary'"
+            )
+        version = d.get("format_version", 1)
+        if not (is_whole(version) and version in READ_VERSIONS):
+            raise RepertoireError(
+                f"{path} has motion library format version {version!r}; this code reads "
+                f"versions {', '.join(map(str, READ_VERSIONS))}"
             )
         if "primitives" not in d:
             raise RepertoireError(f"{path}: MotionLibrary file has no 'primitives' key")

@@ -126,3 +126,87 @@ def test_numpy_context_values_are_stored_and_found_as_json(tmp_path, grasp_dmp):
         assert [p.name for p in library.find("grasp", cup_xy=np.array([0.1, 0.2]))] == ["b"]
         assert [p.name for p in library.find("grasp", n=np.float64(3.5))] == ["b"]
         assert library.find("grasp", cup_xy=np.array([[0.5, -0.2]])) == []
+
+
+@pytest.fixture
+def two_primitive_library(grasp_dmp):
+    lib = MotionLibrary()
+    lib.add_dmp("a", "grasp", grasp_dmp, {"object": "cup"})
+    lib.add_dmp("b", "place", grasp_dmp.position)
+    return lib
+
+
+def test_save_writes_format_version_1_and_round_trips(tmp_path, two_primitive_library):
+    lib = two_primitive_library
+    path = lib.save(tmp_path / "lib.json")
+    written = json.loads(path.read_text())
+    assert list(written) == ["type", "format_version", "primitives"]
+    assert written["format_version"] == 1
+    loaded = MotionLibrary.load(path)
+    assert json.dumps(loaded.to_dict()) == json.dumps(lib.to_dict())
+    np.testing.assert_array_equal(loaded.get("b").dmp.weights, lib.get("b").dmp.weights)
+
+
+def test_a_file_without_format_version_is_read_as_version_1(tmp_path, two_primitive_library):
+    lib = two_primitive_library
+    old = lib.to_dict()
+    del old["format_version"]  # the layout files had before the field
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(old, indent=1))
+    loaded = MotionLibrary.load(path)
+    assert json.dumps(loaded.to_dict()) == json.dumps(lib.to_dict())
+    assert [p.name for p in loaded] == ["a", "b"]
+    assert loaded.get("a").context == {"object": "cup"}
+    assert loaded.get("b").dmp.tau == lib.get("b").dmp.tau
+
+
+@pytest.mark.parametrize("version", [2, 0, "1", 1.0, True, None])
+def test_an_unknown_format_version_is_refused_naming_it(tmp_path, version):
+    text = json.dumps({"type": "MotionLibrary", "format_version": version, "primitives": []})
+    path, load = _load(tmp_path, text)
+    message = f"{path} has motion library format version {version!r}; this code reads versions 1"
+    with pytest.raises(RepertoireError, match=re.escape(message)):
+        load()
+
+
+@pytest.mark.parametrize("name", ["lib.npz", "lib", "lib.JSON", "lib.json.txt"])
+def test_save_refuses_a_suffix_other_than_json(tmp_path, two_primitive_library, name):
+    path = tmp_path / name
+    suffix = repr(path.suffix) if path.suffix else "'no suffix'"
+    message = f"a motion library is saved as JSON: {path} must end in '.json', not {suffix}"
+    with pytest.raises(RepertoireError, match=re.escape(message)):
+        two_primitive_library.save(path)
+    assert not path.exists()
+
+
+def test_load_reads_json_content_under_another_name(tmp_path, two_primitive_library):
+    # files the old save wrote under e.g. ".npz" (JSON inside) still load as before
+    path = tmp_path / "old.npz"
+    path.write_text(json.dumps(two_primitive_library.to_dict()))
+    loaded = MotionLibrary.load(path)
+    assert json.dumps(loaded.to_dict()) == json.dumps(two_primitive_library.to_dict())
+
+
+@pytest.mark.parametrize(
+    ("part", "field", "value", "problem"),
+    [
+        ("position", "tau", "1.0", "tau must be a number, got '1.0'"),
+        ("position", "alpha", True, "alpha must be a number, got True"),
+        ("orientation", "tau", "1.0", "tau must be a number, got '1.0'"),
+        ("orientation", "K", "150", "K must be a number, got '150'"),
+        ("position", "K", ["1", "2", "3"], "K must be a number or one number per DOF (3), got"),
+        ("position", "goal", [0.1, "0.2", 0.3], "goal must be numbers, got [0.1, '0.2', 0.3]"),
+        ("position", "x0", [0.1, None, 0.3], "x0 must be numbers, got [0.1, None, 0.3]"),
+    ],
+)
+def test_non_numeric_dmp_fields_are_refused_naming_the_field(
+    tmp_path, grasp_dmp, part, field, value, problem
+):
+    record = MotionPrimitive("x", "grasp", grasp_dmp).to_dict()
+    record["dmp"][part][field] = value
+    text = json.dumps({"type": "MotionLibrary", "format_version": 1, "primitives": [record]})
+    path, load = _load(tmp_path, text)
+    with pytest.raises(
+        RepertoireError, match=re.escape(f"{path}: primitives[0] ('x') is malformed: {problem}")
+    ):
+        load()

@@ -402,8 +402,8 @@ class Reach(_Action):
     (:func:`holds_object`: a grip blocked on a cup), the way of the cup's bottom
     (``cup_half_height`` below the gripper centre, as :class:`Put` checks it) must
     stay out of the boxes too (a reach carrying a cup level 4.5 cm over table_0's
-    top, its fingers clear, caught the cup on the table, dragged the robot 0.57 m
-    sideways and reported SUCCEEDED in the chassis frame).
+    top, its fingers clear, caught the cup on the table's side, turned the robot
+    0.66 rad and reported SUCCEEDED in the chassis frame).
     """
 
     def __init__(

@@ -294,7 +294,8 @@ def build_kitchen_action(
     else:
         hold(0)
         if scenario.action == "reach":
-            action = builder.AddSystem(Reach(period, obstacles=KITCHEN_OBSTACLES))
+            reach = Reach(period, obstacles=KITCHEN_OBSTACLES, cup_half_height=CUP_HALF_HEIGHT)
+            action = builder.AddSystem(reach)
             builder.Connect(action.get_command_output_port(), mux.get_input_port(1))
             hold(2)
         elif scenario.action == "grip":

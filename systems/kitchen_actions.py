@@ -53,6 +53,8 @@ ARM_SPEEDS = (0.15, 0.8, 0.2)  # lift m/s, yaw rad/s, extend m/s
 FINGER_SPEED = 0.05  # m/s
 FINGER_OPEN = 0.075  # finger centre from the gripper centre when open [m]
 FINGER_CLOSED = 0.03  # closed setpoint (the joint's lower limit) [m]
+OPEN_TOLERANCE = 0.005  # a finger this close to FINGER_OPEN is measured open [m]
+BLOCK_MARGIN = 0.01  # a finger this far short of closed is blocked by an object [m]
 FINGER_HALF = tuple(0.5 * v for v in FINGER_SIZE)  # a finger box's half sizes (slide frame) [m]
 #: Largest horizontal distance of a finger box's point from the gripper centre [m].
 FINGER_REACH = math.hypot(FINGER_HALF[0], FINGER_RANGE[1] + FINGER_HALF[1])
@@ -115,6 +117,27 @@ def joint_line(q_from, q_to, spacing: float = 0.01, reach: float = 0.0) -> np.nd
 def joint_line_points(q_from, q_to, spacing: float = 0.01) -> np.ndarray:
     """Gripper centres (chassis frame) along :func:`joint_line`, at most ``spacing`` apart."""
     return np.array([arm_forward(q) for q in joint_line(q_from, q_to, spacing)])
+
+
+def fingers_blocked(
+    fingers, closed: float = FINGER_CLOSED, block_margin: float = BLOCK_MARGIN
+) -> bool:
+    """Whether both measured fingers stopped at least ``block_margin`` short of ``closed``."""
+    return bool(np.all(np.asarray(fingers, dtype=float) >= closed + block_margin))
+
+
+def fingers_open(fingers) -> bool:
+    """Whether both measured fingers are open (within ``OPEN_TOLERANCE`` of ``FINGER_OPEN``)."""
+    return bool(np.all(np.asarray(fingers, dtype=float) >= FINGER_OPEN - OPEN_TOLERANCE))
+
+
+def holds_object(fingers) -> bool:
+    """Whether the measured fingers hold an object (a gripped cup).
+
+    Both are blocked short of closed (:class:`Grip`'s success test,
+    :func:`fingers_blocked`) and neither is open (:func:`fingers_open`).
+    """
+    return fingers_blocked(fingers) and not any(fingers_open([f]) for f in fingers)
 
 
 def finger_boxes(base_state, q, span) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -312,6 +335,14 @@ class _Action(ActionSystem):
             k += 1  # still in the box it starts in
         return next((i for i in inside[k:] if i >= 0), -1)
 
+    def cup_bottom(self, cup_half_height: float) -> np.ndarray:
+        """A held cup's bottom as an ``offset`` of the gripper centre (chassis frame).
+
+        ``cup_half_height`` below the centre (the fingers hold the cup at its middle),
+        raised by ``margin``: the check grows the boxes by ``margin`` horizontally only.
+        """
+        return np.array([0.0, 0.0, self.margin - cup_half_height])
+
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._xd).get_value()[: self._n])
 
@@ -367,7 +398,12 @@ class Reach(_Action):
     target; fails at once if the target is out of reach or it, or the straight
     joint-space way to it from the measured joints of the gripper centre or of a
     finger (at its measured position), is inside an obstacle box; times out
-    ``timeout`` s after its first update.
+    ``timeout`` s after its first update. When the measured fingers hold an object
+    (:func:`holds_object`: a grip blocked on a cup), the way of the cup's bottom
+    (``cup_half_height`` below the gripper centre, as :class:`Put` checks it) must
+    stay out of the boxes too (a reach carrying a cup level 4.5 cm over table_0's
+    top, its fingers clear, caught the cup on the table's side, turned the robot
+    0.66 rad and reported SUCCEEDED in the chassis frame).
     """
 
     def __init__(
@@ -379,6 +415,7 @@ class Reach(_Action):
         timeout: float = 10.0,
         obstacles=None,
         margin: float = 0.0,
+        cup_half_height: float = 0.05,
     ):
         """Creates the action.
 
@@ -389,8 +426,11 @@ class Reach(_Action):
             timeout: time limit from the first update [s].
             obstacles: ``(k, 6)`` boxes ``[cx, cy, yaw, half_x, half_y, top_z]`` (world).
             margin: obstacle growth [m].
+            cup_half_height: a held cup's bottom lies this far below the gripper centre [m].
         """
         super().__init__(period, timeout, 3, obstacles, margin)
+        _check_positive(cup_half_height=cup_half_height)
+        self.cup_half_height = cup_half_height
         self.speeds = np.asarray(speeds, dtype=float)
         if self.speeds.shape != (3,) or not np.all(np.isfinite(self.speeds) & (self.speeds > 0)):
             raise RepertoireError(f"speeds must be 3 finite values > 0, got {speeds}")
@@ -421,7 +461,15 @@ class Reach(_Action):
             return False
         fingers = self._finger_port.Eval(context)
         span = [[fingers[0]] * 2, [fingers[1]] * 2]  # held where they are
-        return self.path_enters_obstacle(context, self._arm_port.Eval(context), goal, span) < 0
+        q = self._arm_port.Eval(context)
+        if self.path_enters_obstacle(context, q, goal, span) >= 0:
+            return False
+        # a held cup hangs below the fingers: its bottom's way too
+        bottom = self.cup_bottom(self.cup_half_height)
+        return (
+            not holds_object(fingers)
+            or self.path_enters_obstacle(context, q, goal, span, bottom) < 0
+        )
 
     def step(self, context, command, phase, time_in_phase):
         target = self._target_port.Eval(context)
@@ -456,7 +504,7 @@ class Grip(_Action):
         *,
         speed: float = FINGER_SPEED,
         closed: float = FINGER_CLOSED,
-        block_margin: float = 0.01,
+        block_margin: float = BLOCK_MARGIN,
         settle: float = 0.2,
         timeout: float = 5.0,
     ):
@@ -487,7 +535,7 @@ class Grip(_Action):
             return command, ActionStatus.RUNNING, int(np.allclose(command, goal))
         if time_in_phase < self.settle:
             return command, ActionStatus.RUNNING, 1
-        blocked = np.all(self._finger_port.Eval(context) >= self.closed + self.block_margin)
+        blocked = fingers_blocked(self._finger_port.Eval(context), self.closed, self.block_margin)
         return command, ActionStatus.SUCCEEDED if blocked else ActionStatus.FAILED, 1
 
 
@@ -571,9 +619,9 @@ class Put(_Action):
         if arm_inverse(above) is None or arm_inverse(target) is None:
             return False
         bottom = target - [0.0, 0.0, self.cup_half_height]
-        if self.inside_obstacle(context, bottom + [0.0, 0.0, self.margin]) >= 0:
+        lift = self.cup_bottom(self.cup_half_height)
+        if self.inside_obstacle(context, target + lift) >= 0:
             return False
-        lift = [0.0, 0.0, self.margin - self.cup_half_height]  # the bottom, as checked above
         q, q_above, q_target = self._arm_port.Eval(context), arm_inverse(above), arm_inverse(target)
         # the fingers close from where they are (on a cup they stop at it) while carrying
         # it, then open at the target
@@ -602,7 +650,7 @@ class Put(_Action):
             done = np.linalg.norm(measured - point) < self.tolerance
             return np.concatenate([arm, fingers]), ActionStatus.RUNNING, phase + int(done)
         fingers = joint_step(fingers, [FINGER_OPEN] * 2, (FINGER_SPEED,) * 2, self.period)
-        opened = np.all(self._finger_port.Eval(context) >= FINGER_OPEN - 0.005)
+        opened = fingers_open(self._finger_port.Eval(context))
         status = ActionStatus.SUCCEEDED if opened else ActionStatus.RUNNING
         return np.concatenate([arm, fingers]), status, 2
 

@@ -14,8 +14,11 @@ from repertoire.systems.kitchen_actions import (
     arm_forward,
     arm_inverse,
     chassis_to_world,
+    fingers_blocked,
     fingers_in_boxes,
+    fingers_open,
     footprint_hits,
+    holds_object,
     joint_line_points,
     joint_step,
     point_in_boxes,
@@ -231,6 +234,40 @@ def test_reach_checks_the_fingers_not_only_the_centre():
         assert _update(reach, ctx)[3] == status
 
 
+def test_holds_object_by_hand():
+    # blocked: at least 1 cm short of closed (0.03); open: within 5 mm of 0.075
+    assert fingers_blocked([0.04, 0.05]) and not fingers_blocked([0.0399, 0.05])
+    assert fingers_open([0.0701, 0.08]) and not fingers_open([0.0699, 0.08])
+    assert holds_object([0.05, 0.05])  # on a cup (radius 4 cm, fingers 1 cm half thick)
+    assert holds_object([0.04, 0.0699])
+    assert not holds_object([0.0399, 0.05])  # closed on nothing
+    assert not holds_object(OPEN) and not holds_object([0.05, 0.0701])  # one open
+    assert not holds_object([np.nan, 0.05])
+
+
+def test_reach_with_a_held_cup_checks_its_bottom():
+    # the level way of test_reach_checks_the_fingers_not_only_the_centre over table_0's
+    # top (world z 0.75): the fingers (4 cm below the centre) clear it from a centre at
+    # 0.79 on; a held cup's bottom (5 cm below, or cup_half_height) from 0.80 on
+    cases = (
+        (0.7901, OPEN, 0.05, ActionStatus.RUNNING),  # no cup: as before
+        (0.7901, [0.05, 0.05], 0.05, ActionStatus.FAILED),
+        (0.7999, [0.05, 0.05], 0.05, ActionStatus.FAILED),
+        (0.8001, [0.05, 0.05], 0.05, ActionStatus.RUNNING),
+        (0.7901, [0.05, 0.05], 0.04, ActionStatus.RUNNING),  # a cup 8 cm tall clears it
+        (0.7901, [0.0399, 0.0399], 0.05, ActionStatus.RUNNING),  # closed on nothing
+    )
+    for z_world, fingers, half_height, status in cases:
+        reach = Reach(0.02, obstacles=KITCHEN_OBSTACLES, cup_half_height=half_height)
+        q0 = arm_inverse(_at_world_height([0.30, 0.0], z_world))
+        target = _at_world_height([0.60, 0.0], z_world)
+        ports = dict(arm_position=q0, target=target, base_state=BASE)
+        xd = _update(reach, _fixed(reach, finger_position=fingers, **ports))
+        assert xd[3] == status, (z_world, fingers, half_height)
+        if status == ActionStatus.FAILED:  # at once, the command where the arm is
+            np.testing.assert_allclose(xd[:3], q0)
+
+
 def test_put_checks_the_fingers_carrying_and_opening():
     # chassis at the origin facing +x, a table under x in [0.7, 1.3], and a tall block on it
     # beside the target (its face 7 cm to the left of the cup's centre)
@@ -310,6 +347,8 @@ def test_bad_construction_names_the_value():
         Reach(speeds=(0.1, -1.0, 0.2))
     with pytest.raises(RepertoireError, match="rows of 6"):
         Reach(obstacles=[1.0, 2.0])
+    with pytest.raises(RepertoireError, match="cup_half_height must be finite and > 0, got 0.0"):
+        Reach(cup_half_height=0.0)
     with pytest.raises(RepertoireError, match="closed"):
         Grip(closed=0.2)
     with pytest.raises(RepertoireError, match="radius"):

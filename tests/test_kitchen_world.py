@@ -8,6 +8,7 @@ from repertoire.diagrams.kitchen import (
     build_kitchen_action,
     check_kitchen_action,
     cup_position,
+    gripper_position,
     kitchen_simulator,
     run_kitchen_sequence,
     world_to_chassis,
@@ -204,6 +205,25 @@ def test_sequence_grips_lifts_and_puts_the_cup_elsewhere():
     for limit in (0.0, float("nan")):
         with pytest.raises(ScenarioError, match="step_limit must be finite and > 0 s, got"):
             run_kitchen_sequence(steps, step_limit=limit)
+
+
+def test_reach_carrying_a_cup_into_the_table_fails_at_once_and_keeps_it():
+    # gripped cup_0, lifted, brought beside table_0 (its edge at world x 1.5) with the
+    # gripper centre at world z 0.795, then a reach over the top (0.75): the centre and
+    # the fingers' bottoms (4 cm lower) clear it, the cup's bottom (5 cm lower) does not.
+    # Unchecked the cup caught the table's side, the robot turned 0.66 rad (the gripper
+    # 0.56 m from its world target) and the reach reported SUCCEEDED.
+    at_cup = list(arm_inverse(CUP_IN_CHASSIS))
+    steps = [("grip", []), ("reach", [2.0, 1.4, 0.90]), ("reach", [1.4, 1.1, 0.90]),
+             ("reach", [1.4, 1.1, 0.795]), ("reach", [2.0, 1.4, 0.795])]  # fmt: skip
+    results, diagram, context = run_kitchen_sequence(steps, KitchenScenario(initial_arm=at_cup))
+    assert [r.status for r in results] == ["SUCCEEDED"] * 4 + ["FAILED"]
+    assert results[-1].duration == pytest.approx(0.1)
+    gripper, cup = gripper_position(diagram, context), cup_position(diagram, context)
+    np.testing.assert_allclose(gripper[:2], [1.4, 1.1], atol=0.01)  # the robot stayed
+    np.testing.assert_allclose(robot_state(diagram, context)[:3], [2.0, 0.55, np.pi / 2], atol=0.01)
+    np.testing.assert_allclose(cup[:2], gripper[:2], atol=0.005)  # still between the fingers
+    assert cup[2] > 0.75  # held in the air beside the table, not fallen
 
 
 def test_simulator_cache_keeps_at_most_max_size_diagrams():

@@ -51,7 +51,7 @@ class ObstacleArmConfig:
         coaster_y: range of the coaster's y [m].
         path_fraction: range of where along the uncoupled carry path (fraction of its
             arc length) the ball's centre sits (drawn again while the ball would be
-            within HOME_CLEARANCE of the hand at home).
+            within HOME_CLEARANCE of the hand at home, or touch the arm there).
         offset_x: range of the ball's shift along world x (across the carry) [m].
         offset_z: range of the ball's shift along world z [m] (negative: below the tcp
             path, into the carried cup).
@@ -151,6 +151,7 @@ def sample_scenario(config: ObstacleArmConfig, seed: int, *, coupling: bool = Tr
     """
     from repertoire.diagrams.arm_dmp_scenarios import (
         PickPlaceScenario,
+        ball_gap_at_home,
         carry_path,
         carry_path_point,
     )
@@ -164,12 +165,14 @@ def sample_scenario(config: ObstacleArmConfig, seed: int, *, coupling: bool = Tr
         fraction = rng.uniform(*config.path_fraction)
         offset = np.array([rng.uniform(*config.offset_x), 0.0, rng.uniform(*config.offset_z)])
         centre = carry_path_point(cup, coaster, fraction) + offset
-        if np.linalg.norm(centre - home) >= HOME_CLEARANCE:
+        # clear of the hand, and of the whole arm (the scenario refuses a ball that
+        # overlaps the arm where it starts: an elbow or forearm, not only the hand)
+        if np.linalg.norm(centre - home) >= HOME_CLEARANCE and ball_gap_at_home(centre) > 0.0:
             break
     else:
         raise RepertoireError(
-            f"no ball placement {HOME_CLEARANCE} m away from the tcp at home in 100 draws; "
-            "move path_fraction away from the middle of the carry path"
+            f"no ball placement {HOME_CLEARANCE} m away from the tcp at home and clear of the "
+            "arm in 100 draws; move path_fraction away from the middle of the carry path"
         )
     gap = float(
         np.min(np.linalg.norm(carry_path(cup, coaster) - centre, axis=1)) - obstacle_radius()

@@ -115,6 +115,18 @@ def test_obstacle_study_puts_the_ball_on_the_carry_path():
         assert np.linalg.norm(o - home) >= dmp_obstacle_arm.HOME_CLEARANCE
 
 
+def test_obstacle_study_draws_again_a_ball_that_touches_the_arm_at_home():
+    # seed 1118's first draw clears the hand by HOME_CLEARANCE but overlaps the arm at home
+    # by 0.5 cm (the scenario refused it in both arms); the sampler now draws again
+    from repertoire.diagrams.arm_dmp_scenarios import ball_gap_at_home
+
+    config = dmp_obstacle_arm.ObstacleArmConfig()
+    scenario, gap = dmp_obstacle_arm.sample_scenario(config, 1118)
+    assert ball_gap_at_home(np.asarray(scenario.obstacle_xyz)) > 0.0
+    scenario.validate()
+    assert gap < 0.0  # still on the uncoupled carry path
+
+
 def test_obstacle_study_bad_config():
     with pytest.raises(RepertoireError, match="path_fraction must be \\[min, max\\]"):
         dmp_obstacle_arm.run_episode(

@@ -434,12 +434,7 @@ def plan_footsteps_anytime(
     weights = anytime_weights(weights)
     _build_footprint_masks(world, opts, kwargs)  # one-time per resolution, outside it too
     t_begin = time.perf_counter()
-    if not (
-        isinstance(corridor, (int, float))
-        and not isinstance(corridor, bool)
-        and math.isfinite(corridor)
-        and corridor >= 0.0
-    ):
+    if not (is_real(corridor) and math.isfinite(corridor) and corridor >= 0.0):
         raise FootstepError(f"corridor must be a half-width >= 0 m, got {corridor!r}")
     if not isinstance(restarts, (bool, np.bool_)):
         raise FootstepError(f"restarts must be True or False, got {restarts!r}")

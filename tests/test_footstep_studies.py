@@ -44,6 +44,7 @@ def test_static_study_smoke(tmp_path):
     assert result.figures["action_effects"].stat().st_size > 0
     assert result.figures["cut_off"].read_bytes()[:4] == b"\x89PNG"
     assert result.figures["anytime"].read_bytes()[:4] == b"\x89PNG"
+    assert result.figures["anytime_maze"].read_bytes()[:4] == b"\x89PNG"
 
 
 def test_static_paper_setting_episode():

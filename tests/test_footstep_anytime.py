@@ -83,11 +83,14 @@ def test_anytime_improves_a_plan_in_its_corridor_and_keeps_the_searches_order():
     ara = plan_footsteps_anytime(*args, opts, restarts=False)  # corridor=0: ARA* alone
     # the first plan, ARA* on the whole map (its plans as cheap with a tighter bound kept),
     # the corridor of its best plan at the later weights (only 1.5 gave a cheaper plan),
-    # then the restarts on the finer lattice
+    # then the restarts on the finer lattice, and the admissible search there, as cheap
+    # (bound 1: the proof)
     assert [(r.weight, r.corridor_m, r.plan.xy_resolution) for r in runs] == [
         (3.0, 0.0, 0.05), (2.0, 0.0, 0.05), (1.5, 0.0, 0.05), (1.2, 0.0, 0.05),
         (1.0, 0.0, 0.05), (1.5, 0.5, 0.025), (2.0, 0.0, 0.025), (1.5, 0.0, 0.025),
+        (1.0, 0.0, 0.025),
     ]  # fmt: skip
+    assert runs[-1].bound == 1.0 and runs[-1].plan.cost == runs[-2].plan.cost
     # the first plan is weighted A*'s at weight 3 (its own search: the compiled ARA* gives
     # its first result the poses of its second, see the note); the others ARA*'s, unchanged
     first = plan_footsteps(*args, dataclasses.replace(opts, heuristic_weight=3.0, refinements=0))
@@ -175,6 +178,24 @@ def test_anytime_ends_with_the_admissible_search_when_time_remains():
     assert (last.plan.xy_resolution, last.plan.yaw_bins) == (0.025, 72)
     no_restarts = plan_footsteps_anytime(*args, PlannerOptions(time_limit=60.0), restarts=False)
     assert round(no_restarts[-1].plan.cost, 2) == 39.25  # ARA* on 5 cm alone
+
+
+def test_anytime_reports_the_admissible_search_at_equal_cost_with_bound_one():
+    # ARA* on 5 cm already finds 11.0; the admissible search on 2.5 cm / 72 ends at the
+    # same cost, and its plan is added with bound 1: the proof that 11.0 is that
+    # lattice's optimum (the admissible mode's own cost)
+    sc = random_static_scene(12)
+    args = (sc.grid, sc.start, sc.start_foot, sc.goal, nominal_action_table())
+    runs = plan_footsteps_anytime(*args, PlannerOptions(time_limit=60.0))
+    ref = plan_footsteps(*args, PlannerOptions.admissible(time_limit=60.0, refinements=0))
+    assert [(r.plan.xy_resolution, round(r.plan.cost, 2)) for r in runs[-2:]] == [
+        (0.05, 11.0),
+        (0.025, 11.0),
+    ]
+    last = runs[-1]
+    assert (last.weight, last.bound, last.corridor_m) == (1.0, 1.0, 0.0)
+    assert last.plan.cost == ref.cost and last.plan.status is PlanStatus.SUCCESS
+    assert last.elapsed_s >= runs[-2].elapsed_s
 
 
 def _searches_run(monkeypatch, *args, **kwargs):

@@ -303,8 +303,12 @@ def test_anytime_refines_before_unreachable():
     coarse = plan_footsteps_anytime(*args, PlannerOptions(time_limit=30.0, refinements=0))
     assert coarse[-1].plan.status is PlanStatus.UNREACHABLE
     runs = plan_footsteps_anytime(*args, PlannerOptions(time_limit=30.0), weights=(2.0, 1.0))
-    assert [r.plan.status for r in runs] == [PlanStatus.SUCCESS] * 2
-    assert runs[-1].plan.xy_resolution == 0.025 and runs[-1].bound == 1.0
+    # ARA* on 2.5 cm at weights 2 and 1, then the admissible search on 1.25 cm / 144 bins
+    # proves the cost that lattice's optimum too (bound 1, as cheap)
+    assert [r.plan.status for r in runs] == [PlanStatus.SUCCESS] * 3
+    assert [r.plan.xy_resolution for r in runs] == [0.025, 0.025, 0.0125]
+    assert [r.bound for r in runs[1:]] == [1.0, 1.0]
+    assert runs[-1].plan.cost == runs[-2].plan.cost
 
 
 def test_lazy_cost_to_go_equals_the_full_dijkstra_bit_for_bit():
@@ -500,7 +504,9 @@ def test_anytime_restarts_add_only_cheaper_plans_of_fresh_searches():
     ara = [r for r in runs if r.plan.xy_resolution == 0.025]
     fine = [r for r in runs if r.plan.xy_resolution == 0.0125]
     assert runs == ara + fine and [r.weight for r in ara] == [3.0, 2.0, 1.5, 1.2, 1.0]
-    assert [(r.weight, r.plan.yaw_bins) for r in fine] == [(2.0, 144)]
+    # then the admissible search on 1.25 cm ends at 20.3 too: its proof (bound 1) is added
+    assert [(r.weight, r.plan.yaw_bins, r.bound) for r in fine[1:]] == [(1.0, 144, 1.0)]
+    assert fine[0].weight == 2.0 and fine[1].plan.cost == fine[0].plan.cost
     assert fine[0].plan.cost == pytest.approx(20.3) and ara[-1].plan.cost == pytest.approx(21.45)
     on_fine = dataclasses.replace(opts, xy_resolution=0.0125, yaw_bins=144, refinements=0)
     fine_ara = plan_footsteps_anytime(*args, on_fine, restarts=False)  # ARA* alone there

@@ -405,7 +405,9 @@ def plan_footsteps_anytime(
     every weight on both lattices in 0.28 s, 36.95 from the admissible search at 0.55 s).
     After ARA*'s plans, a plan is added only when it is cheaper than every
     plan before it (the split ARA* of corridor searches also adds a plan as cheap with a
-    tighter bound); its weight, bound, lattice and corridor are its own search's.
+    tighter bound, and so does the admissible search when it ends: bound 1 on its lattice
+    says the cost found is that lattice's optimum); its weight, bound, lattice and
+    corridor are its own search's.
 
     Args:
         world, start, start_foot, goal, table, options, **kwargs: as in
@@ -545,8 +547,8 @@ def _anytime_once(
     later = list(weights)[1:] if opts.heuristic != "none" else []
     results = _ara(model, backend, list(weights)[:1] if corridor else weights, budget, left)
     run = _Improving(t0, opts.time_limit, budget, [(model, r, 0.0) for r in results])
-    if results[-1].status is not PlanStatus.SUCCESS:
-        return run.found, run.t_last
+    if results[-1].status is not PlanStatus.SUCCESS or run.best <= 0.0:
+        return run.found, run.t_last  # no plan, or one of no step: optimal, nothing to do
     lattice = _finer(opts, 1, opts.time_limit) if finer_restarts else opts
     if corridor:
         # ARA* over all the weights on the whole map, for at most a share of the time left
@@ -580,7 +582,7 @@ def _anytime_once(
         exact = _finer(opts, 1, run.left()) if finer_restarts else opts
         exact = dataclasses.replace(exact, heuristic="euclidean", heuristic_weight=1.0)
         adm = BipedStepModel(world, start, start_foot, goal, table, exact, **kwargs)
-        run.offer(adm, _search_once(adm, backend, 1.0, budget - run.used, run.left()))
+        run.offer(adm, _search_once(adm, backend, 1.0, budget - run.used, run.left()), proof=True)
     return run.found, run.t_last
 
 
@@ -619,18 +621,21 @@ class _Improving:
 
     def offer(
         self, model: BipedStepModel, r: SearchResult, width: float = 0.0, at: float = 0.0,
-        ara: bool = False,
+        ara: bool = False, proof: bool = False,
     ) -> None:  # fmt: skip
         """Count the search; keep a successful plan that is cheaper (not rounding).
 
         ``ara``: a result of ARA* on the first plan's lattice, kept also when as cheap with
-        a tighter bound than that ARA*'s plans so far. ``at``: the clock
-        (``time.perf_counter``) when the plan was found (default: now).
+        a tighter bound than that ARA*'s plans so far. ``proof``: the admissible search's
+        result, kept also when as cheap: its bound 1 shows the best plan so far optimal on
+        its lattice. ``at``: the clock (``time.perf_counter``) when the plan was found
+        (default: now).
         """
         self.used += r.expansions
         if r.status is not PlanStatus.SUCCESS:
             return
-        tighter = ara and r.bound < self.bound and r.cost <= self.best * (1.0 + 1e-9)
+        as_cheap = r.cost <= self.best * (1.0 + 1e-9)
+        tighter = (ara and r.bound < self.bound or proof) and as_cheap
         if r.cost < self.best * (1.0 - 1e-9) or tighter:
             self.best = min(self.best, r.cost)
             if ara:

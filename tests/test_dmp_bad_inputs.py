@@ -167,8 +167,10 @@ def test_obstacle_coupling_refuses_bad_vectors_and_gains():
     x, v, o = np.zeros(3), np.ones(3), np.array([1.0, 0.5, 0.0])
     with raises("obstacle contains NaN or inf: [nan  0.  0.]"):
         obstacle_coupling(x, v, np.array([np.nan, 0, 0]), 1.0, 1.0)
-    with raises("x must have 3 entries (x, y, z), got 2: [0. 0.]"):
-        obstacle_coupling(np.zeros(2), v, o, 1.0, 1.0)
+    with raises("xd must have 2 entries (x, y), got 3: [1. 1. 1.]"):
+        obstacle_coupling(np.zeros(2), v, o, 1.0, 1.0)  # a 2-D position, 3-D velocity
+    with raises("x must have 2 or 3 entries (x, y[, z]), got 4: [0. 0. 0. 0.]"):
+        obstacle_coupling(np.zeros(4), v, o, 1.0, 1.0)
     with raises("gamma and beta must be finite and >= 0, got -1.0, 1.0"):
         obstacle_coupling(x, v, o, -1.0, 1.0)
 

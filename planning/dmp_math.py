@@ -558,9 +558,12 @@ def check_positive(name: str, value: float) -> float:
         name: Parameter name for the message.
         value: Value to check.
     """
-    v = float(np.asarray(value).reshape(-1)[0]) if np.size(value) == 1 else None
+    a = np.asarray(value)
+    # a number or a one-entry array of numbers; not a bool or a string ("1" is not a tau)
+    v = float(a.reshape(-1)[0]) if a.size == 1 and a.dtype.kind in "iuf" else None
     if v is None or not np.isfinite(v) or v <= 0.0:
-        raise RepertoireError(f"{name} must be a finite number > 0, got {value}")
+        shown = repr(value) if isinstance(value, (str, bool, np.bool_)) else value
+        raise RepertoireError(f"{name} must be a finite number > 0, got {shown}")
     return v
 
 

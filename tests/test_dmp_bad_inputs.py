@@ -320,3 +320,14 @@ def test_a_one_entry_array_tau_is_a_number(p, qp):
     _, qa, _ = quaternion_rollout(*qp._dynamics()[:6], np.array([0.5]), qp.q0, qp.goal)
     _, qb, _ = quaternion_rollout(*qp._dynamics()[:6], 0.5, qp.q0, qp.goal)
     np.testing.assert_array_equal(qa, qb)
+
+
+@pytest.mark.parametrize(
+    ("tau", "shown"),
+    [("1", "'1'"), (True, "True"), (np.bool_(True), "np.True_"), ([1.0, 2.0], "[1.0, 2.0]")],
+)
+def test_rollout_refuses_a_tau_that_is_not_a_number(p, tau, shown):
+    # a string or a bool was read as a number (tau='1' and tau=True ran a 1 s rollout)
+    with raises(f"tau must be a finite number > 0, got {shown}"):
+        p.rollout(tau=tau)
+    np.testing.assert_array_equal(p.rollout(tau=np.array([p.tau])).x, p.rollout().x)

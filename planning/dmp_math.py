@@ -580,7 +580,9 @@ def check_n_basis(n_basis: int) -> int:
         or int(n_basis) != n_basis
         or n_basis < 1
     ):
-        raise RepertoireError(f"need at least one basis function (n_basis >= 1), got {n_basis}")
+        raise RepertoireError(
+            f"need at least one basis function (n_basis a whole number >= 1), got {n_basis!r}"
+        )
     return int(n_basis)
 
 

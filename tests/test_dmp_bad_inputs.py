@@ -187,8 +187,11 @@ def test_minimum_jerk_via_points_refuses_bad_points_and_sample_counts():
 def test_learning_refuses_a_negative_smoothing_and_a_boolean_basis_count():
     with raises("smoothing (the spline's lambda) must be a finite number >= 0 or None, got -1.0"):
         learn_dmp(T, X, derivatives="spline", smoothing=-1.0)
-    with raises("need at least one basis function (n_basis >= 1), got True"):
+    with raises("need at least one basis function (n_basis a whole number >= 1), got True"):
         learn_dmp(T, X, n_basis=True)
+    # 2.5 is >= 1: the message said only "n_basis >= 1"
+    with raises("need at least one basis function (n_basis a whole number >= 1), got 2.5"):
+        learn_dmp(T, X, n_basis=2.5)
 
 
 def test_rollout_refuses_a_coupling_of_the_wrong_size(p):

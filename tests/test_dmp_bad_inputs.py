@@ -4,7 +4,7 @@ import re
 
 import numpy as np
 import pytest
-from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters
+from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters, save_dmp
 from repertoire.planning.dmp_chain import chain_rollout
 from repertoire.planning.dmp_learn import (
     learn_dmp,
@@ -334,3 +334,34 @@ def test_rollout_refuses_a_tau_that_is_not_a_number(p, tau, shown):
     with raises(f"tau must be a finite number > 0, got {shown}"):
         p.rollout(tau=tau)
     np.testing.assert_array_equal(p.rollout(tau=np.array([p.tau])).x, p.rollout().x)
+
+
+def test_time_stamps_with_nan_are_named_as_time_stamps():
+    t = T.copy()
+    t[4] = np.inf
+    with raises("demonstration time stamps contain NaN or inf (first at t[4] = inf)"):
+        learn_dmp(t, X)
+    x = X.copy()
+    x[9, 1] = np.nan
+    with raises("demonstration contains NaN or inf (first at sample 9)"):
+        learn_dmp(T, x)
+
+
+def test_save_dmp_refuses_a_suffix_other_than_json(p, tmp_path):
+    # it wrote JSON into d.npz (MotionLibrary.save already refused that)
+    with raises(f"a DMP artefact is saved as JSON: {tmp_path / 'd.npz'} must end in '.json'"):
+        save_dmp(p, tmp_path / "d.npz")
+    assert not (tmp_path / "d.npz").exists()
+
+
+@pytest.mark.parametrize("mode", ["component", "manifold"])
+def test_quaternion_rollout_takes_tau_like_the_vector_rollout(mode):
+    q = learn_quaternion_dmp(T, QUATS, mode=mode, n_basis=20)
+    # Time scaling: tau' = 2 tau with dt' = 2 dt passes the same states (exactly scaled steps).
+    _, Q1, _ = q.rollout(dt=2e-3, n_steps=400)
+    _, Q2, _ = q.rollout(tau=2 * q.tau, dt=4e-3, n_steps=400)
+    np.testing.assert_allclose(Q2, Q1, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(q.rollout(tau=q.tau)[1], q.rollout()[1])
+    for tau, shown in ((0.0, "0.0"), (-1.0, "-1.0"), ("1", "'1'")):
+        with raises(f"tau must be a finite number > 0, got {shown}"):
+            q.rollout(tau=tau)

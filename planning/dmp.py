@@ -433,6 +433,7 @@ class QuaternionDmpParameters(_FieldsRecord):
         *,
         goal: np.ndarray | None = None,
         q0: np.ndarray | None = None,
+        tau: float | None = None,
         dt: float = 1e-3,
         n_steps: int | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -441,7 +442,8 @@ class QuaternionDmpParameters(_FieldsRecord):
         For ``"component"`` ``q`` is the post-normalised quaternion and ``raw`` the
         un-normalised component state; for ``"manifold"`` ``raw`` is the angular velocity.
 
-        Both modes start with the learned angular velocity ``omega0``.
+        Both modes start with the learned angular velocity ``omega0`` (scaled by
+        ``self.tau / tau`` for another ``tau``, as the vector DMP's ``v0``).
 
         ``goal`` and ``-goal`` are the same orientation; the sign used is the one that turns
         from ``q0`` the way the DMP learned
@@ -452,11 +454,14 @@ class QuaternionDmpParameters(_FieldsRecord):
         Args:
             goal: Goal orientation (w, x, y, z), unit; default the learned one.
             q0: Start orientation, unit; default the learned one.
+            tau: Temporal scaling [s], > 0; default the learned one.
             dt: Time step [s], > 0.
             n_steps: Number of steps, >= 1; default ``round(tau/dt)``.
         """
         g = self.goal if goal is None else _quaternion_argument("goal", goal)
         s = self.q0 if q0 is None else _quaternion_argument("q0", q0)
+        tau = self.tau if tau is None else check_positive("tau", tau)
+        omega0 = self.omega0 if tau == self.tau else self.omega0 * (self.tau / tau)
         check_positive("dt", dt)
         if self.mode == "component":
             # q and -q are one orientation but not one R^4 state: start on the learned start's
@@ -465,13 +470,14 @@ class QuaternionDmpParameters(_FieldsRecord):
             s = sign * s
             g = lift_quaternion_goal(g, s, self.goal, self.q0)
             r = self.component_parameters().rollout(
-                goal=g, x0=s, dt=dt, n_steps=n_steps, v0=quaternion_rate(self.omega0, s)
+                goal=g, x0=s, tau=tau, dt=dt, n_steps=n_steps, v0=quaternion_rate(omega0, s)
             )
             q = r.x / np.linalg.norm(r.x, axis=1, keepdims=True)
             return r.t, sign * q, sign * r.x
         g = lift_quaternion_goal(g, s, self.goal, self.q0)
+        w, c, h, K, D, alpha, _ = self._dynamics()
         return quaternion_rollout(
-            *self._dynamics(), s, g, dt=dt, n_steps=n_steps, omega0=self.omega0
+            w, c, h, K, D, alpha, tau, s, g, dt=dt, n_steps=n_steps, omega0=omega0
         )
 
 
@@ -568,9 +574,17 @@ def save_dmp(dmp, path: str | Path) -> Path:
 
     Args:
         dmp: DmpParameters, QuaternionDmpParameters or TaskSpaceDmp.
-        path: Output file (``.json``).
+        path: Output file; its suffix must be ``.json`` (as :meth:`MotionLibrary.save`).
+
+    Raises:
+        RepertoireError: another suffix (``d.npz`` got JSON inside before).
     """
     path = Path(path)
+    if path.suffix != ".json":
+        raise RepertoireError(
+            f"a DMP artefact is saved as JSON: {path} must end in '.json', "
+            f"not {path.suffix or 'no suffix'!r}"
+        )
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(dmp.to_dict(), indent=1))
     return path
@@ -638,10 +652,14 @@ def check_demonstration(t: np.ndarray, x: np.ndarray, *, name: str = "demonstrat
         raise RepertoireError(f"{name} needs at least 3 samples, got {t.size}")
     if x.shape[1] < 1:
         raise RepertoireError(f"{name} has no DOF")
+    if not np.all(np.isfinite(t)):
+        k = int(np.argwhere(~np.isfinite(t))[0, 0])
+        raise RepertoireError(f"{name} time stamps contain NaN or inf (first at t[{k}] = {t[k]})")
     bad = ~np.isfinite(x)
-    if bad.any() or not np.all(np.isfinite(t)):
-        k = int(np.argwhere(bad)[0, 0]) if bad.any() else int(np.argwhere(~np.isfinite(t))[0, 0])
-        raise RepertoireError(f"{name} contains NaN or inf (first at sample {k})")
+    if bad.any():
+        raise RepertoireError(
+            f"{name} contains NaN or inf (first at sample {int(np.argwhere(bad)[0, 0])})"
+        )
     dt = np.diff(t)
     if np.any(dt <= 0):
         k = int(np.argmax(dt <= 0))

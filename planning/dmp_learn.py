@@ -45,6 +45,7 @@ from repertoire.planning.dmp_math import (
 )
 from repertoire.planning.dmp_quaternion import (
     angular_velocity,
+    check_manifold_growth,
     check_turn,
     quat_conjugate,
     quat_log_error,
@@ -737,6 +738,7 @@ def learn_quaternion_dmp(
             f"samples {k} and {k + 1} (it turns 360 deg or more): the on-manifold quaternion "
             "DMP turns less than a full turn; use mode='component' or split the movement"
         )
+    check_manifold_growth(t, q, g, Kv[0], Dv[0])
     # gaps bridged as learn_dmp does, in R^4 and projected back onto S^3 (dmp_gaps)
     tb, qb, qdb, qddb = gap_rows(t, smooth, qd, qdd, step)
     qb = qb / np.linalg.norm(qb, axis=1, keepdims=True)

@@ -24,6 +24,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from repertoire.planning.dmp_obstacle import obstacle_coupling  # noqa: F401 (re-exported)
 from scipy.linalg import expm
 
 from repertoire.checks import is_whole
@@ -476,85 +477,6 @@ def rollout(
     return Rollout(t=t, theta=theta, x=X + shift, xd=V / tau, xdd=VD / tau)
 
 
-# --------------------------------------------------------------------------- obstacle coupling
-def obstacle_coupling(
-    x: np.ndarray,
-    xd: np.ndarray,
-    obstacle: np.ndarray,
-    gamma: float,
-    beta: float,
-    obstacle_velocity: "np.ndarray | None" = None,
-) -> np.ndarray:
-    """Obstacle coupling term ``p = gamma R v phi exp(-beta phi)`` of eq. 10 in 3-D.
-
-    ``phi`` is the angle between the direction to the obstacle ``o - x`` and the velocity
-    relative to the obstacle (the paper's words), ``v = xd - obstacle_velocity``; ``R`` and
-    the ``v`` it turns are that relative velocity too, so the term is eq. 10 in the frame
-    moving with the obstacle (Pastor et al.'s Fig. 13 avoids a moving ball). A static
-    obstacle (``obstacle_velocity`` None or zero) gives eq. 10 with the end-effector's own
-    velocity.
-    ``R`` rotates by pi/2 about ``r = (o - x) x v``, which turns ``v`` away from the obstacle
-    (the paper prints ``(x - o) x v``; with a right-handed +pi/2 rotation that axis would turn
-    ``v`` *towards* the obstacle, so we use the sign of Hoffmann et al. 2009 and
-    movement_primitives). Cases: ``v = 0`` gives ``p = 0``; ``v`` parallel to ``o - x``
-    (heading straight at it: ``phi = 0``; straight away: ``phi = pi``) has no unique axis, so
-    any axis perpendicular to ``v`` is used (deterministically); at ``phi = 0`` the term is 0.
-    ``x = o`` (e.g. an obstacle placed on the goal, reached at the end) gives ``p = 0``:
-    ``phi`` has no limit there, but ``|p| = gamma |v| phi exp(-beta phi) <= gamma |v| /
-    (e beta)`` goes to 0 with ``v`` as the DMP settles. An obstacle on the goal leaves the
-    goal attracting: ``R v`` is perpendicular to ``v``, so ``p`` does no work on
-    ``|v|^2 / 2 + K |x - g|^2 / 2`` and the movement still converges to ``g`` (eq. 10 has
-    no distance term, so nothing is singular and nothing is refused).
-
-    Args:
-        x: Position, shape (3,).
-        xd: Velocity, shape (3,).
-        obstacle: Obstacle position, shape (3,).
-        gamma: Gain (>= 0).
-        beta: Angular decay (the paper's c, >= 0).
-        obstacle_velocity: The obstacle's velocity do/dt, shape (3,) (None: static).
-    """
-    # Plain-float arithmetic: called once per control step, numpy's per-call overhead on
-    # 3-vectors (np.cross, np.linalg.norm) dominates otherwise.
-    x1, x2, x3 = _finite3("x", x)
-    v1, v2, v3 = _finite3("xd", xd)
-    o1, o2, o3 = _finite3("obstacle", obstacle)
-    if obstacle_velocity is not None:
-        u1, u2, u3 = _finite3("obstacle_velocity", obstacle_velocity)
-        v1, v2, v3 = v1 - u1, v2 - u2, v3 - u3
-    if not (0.0 <= gamma < math.inf and 0.0 <= beta < math.inf):
-        raise RepertoireError(f"gamma and beta must be finite and >= 0, got {gamma}, {beta}")
-    d1, d2, d3 = o1 - x1, o2 - x2, o3 - x3
-    speed = math.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
-    dist = math.sqrt(d1 * d1 + d2 * d2 + d3 * d3)
-    if speed < 1e-12 or dist < 1e-12:
-        return np.zeros(3)
-    cos_phi = min(1.0, max(-1.0, (d1 * v1 + d2 * v2 + d3 * v3) / (dist * speed)))
-    phi = math.acos(cos_phi)
-    r1, r2, r3 = d2 * v3 - d3 * v2, d3 * v1 - d1 * v3, d1 * v2 - d2 * v1
-    rn = math.sqrt(r1 * r1 + r2 * r2 + r3 * r3)
-    if rn < 1e-12 * dist * speed:
-        # Parallel: the axis perpendicular to v closest to world z x v (x x v if v ~ z).
-        h1, h2, h3 = (0.0, 0.0, 1.0) if abs(v3) <= 0.9 * speed else (1.0, 0.0, 0.0)
-        r1, r2, r3 = h2 * v3 - h3 * v2, h3 * v1 - h1 * v3, h1 * v2 - h2 * v1
-        rn = math.sqrt(r1 * r1 + r2 * r2 + r3 * r3)
-    a1, a2, a3 = r1 / rn, r2 / rn, r3 / rn
-    # Rotation of v by +pi/2 about the axis (v is perpendicular to it): R v = axis x v.
-    Rv = np.array([a2 * v3 - a3 * v2, a3 * v1 - a1 * v3, a1 * v2 - a2 * v1])
-    return gamma * phi * math.exp(-beta * phi) * Rv
-
-
-def _finite3(name: str, value) -> tuple[float, float, float]:
-    """Three finite floats from a 3-vector; RepertoireError naming it otherwise."""
-    a = np.asarray(value, dtype=float).reshape(-1)
-    if a.size != 3:
-        raise RepertoireError(f"{name} must have 3 entries (x, y, z), got {a.size}: {value}")
-    a1, a2, a3 = float(a[0]), float(a[1]), float(a[2])
-    if not (math.isfinite(a1) and math.isfinite(a2) and math.isfinite(a3)):
-        raise RepertoireError(f"{name} contains NaN or inf: {a}")
-    return a1, a2, a3
-
-
 # --------------------------------------------------------------------------- demonstrations
 def minimum_jerk(
     x_start: np.ndarray, x_end: np.ndarray, duration: float, t: np.ndarray
@@ -636,9 +558,12 @@ def check_positive(name: str, value: float) -> float:
         name: Parameter name for the message.
         value: Value to check.
     """
-    v = float(np.asarray(value).reshape(-1)[0]) if np.size(value) == 1 else None
+    a = np.asarray(value)
+    # a number or a one-entry array of numbers; not a bool or a string ("1" is not a tau)
+    v = float(a.reshape(-1)[0]) if a.size == 1 and a.dtype.kind in "iuf" else None
     if v is None or not np.isfinite(v) or v <= 0.0:
-        raise RepertoireError(f"{name} must be a finite number > 0, got {value}")
+        shown = repr(value) if isinstance(value, (str, bool, np.bool_)) else value
+        raise RepertoireError(f"{name} must be a finite number > 0, got {shown}")
     return v
 
 
@@ -655,7 +580,9 @@ def check_n_basis(n_basis: int) -> int:
         or int(n_basis) != n_basis
         or n_basis < 1
     ):
-        raise RepertoireError(f"need at least one basis function (n_basis >= 1), got {n_basis}")
+        raise RepertoireError(
+            f"need at least one basis function (n_basis a whole number >= 1), got {n_basis!r}"
+        )
     return int(n_basis)
 
 

@@ -164,6 +164,44 @@ def _clearance(x: np.ndarray, o: np.ndarray) -> float:
     return float(np.min(np.linalg.norm(x - o, axis=1)))
 
 
+def straight_case(config: DmpObstaclesConfig, start: np.ndarray, goal: np.ndarray) -> dict:
+    """Eq. 10's degenerate case: an obstacle exactly on a straight demonstration.
+
+    The velocity points straight at the obstacle (``phi = 0``) all along, where eq. 10 is
+    0; :func:`repertoire.planning.dmp_obstacle.obstacle_coupling` breaks the symmetry
+    (before, the path went through the obstacle's centre).
+
+    Args:
+        config: Study config (duration, samples, basis, gains, time step).
+        start: Start of the straight demonstration.
+        goal: Its goal.
+
+    Returns:
+        dict with Y (demo), obstacle (the midpoint), x_without, x_with (DmpSystem paths).
+    """
+    from repertoire.planning.dmp_learn import learn_dmp
+    from repertoire.planning.dmp_math import minimum_jerk_via_points
+
+    t, Y = minimum_jerk_via_points(np.stack([start, goal]), config.duration_s, config.n_samples)
+    dmp = learn_dmp(t, Y, n_basis=config.n_basis)
+    o = 0.5 * (np.asarray(start, float) + np.asarray(goal, float))
+    dur = config.sim_factor * config.duration_s
+    runs = [
+        simulate_dmp(
+            dmp,
+            [0.0],
+            [dmp.goal],
+            dur,
+            time_step=config.time_step_s,
+            obstacle=obstacle,
+            gamma=config.gamma,
+            beta=config.beta,
+        )[1]
+        for obstacle in (None, o)
+    ]
+    return {"Y": Y, "obstacle": o, "x_without": runs[0], "x_with": runs[1]}
+
+
 def run_episode(config: DmpObstaclesConfig, seed: int) -> DmpObstaclesRecord:
     """Learns the seeded demonstration and runs it with and without coupling."""
     from repertoire.planning.dmp_learn import learn_dmp
@@ -228,8 +266,8 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
     k = np.argmax(np.linalg.norm(dev, axis=1))
     e2 = dev[k] - (dev[k] @ e1) * e1
     e2 = e2 / np.linalg.norm(e2) if np.linalg.norm(e2) > 1e-9 else np.cross(e1, [0, 0, 1])
-    fig = Figure(figsize=(11, 4.2), layout="constrained")
-    ax, ax2 = fig.subplots(1, 2)
+    fig = Figure(figsize=(16, 4.6), layout="constrained")
+    ax, ax3, ax2 = fig.subplots(1, 3)
     P = lambda p: ((p - dmp.x0) @ e1, (p - dmp.x0) @ e2)  # noqa: E731
     ax.plot(*P(sc["Y"]), "k-", lw=2.5, label="demonstration")
     ax.plot(*P(x0), "--", c="tab:red", label="DMP without coupling")
@@ -249,6 +287,43 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
     ax.set_ylabel("detour direction (m)")
     ax.set_title("seed 0, projected on the start-goal / detour plane")
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.35), ncol=2)
+    # the straight-line case: the same start and goal, no via point, obstacle on the line
+    st = straight_case(config, dmp.x0, dmp.goal)
+    e2s = st["x_with"] - st["obstacle"]
+    e2s = e2s[np.argmin(np.linalg.norm(e2s, axis=1))]
+    e2s = e2s - (e2s @ e1) * e1
+    e2s = e2s / np.linalg.norm(e2s) if np.linalg.norm(e2s) > 1e-12 else e2
+    Ps = lambda p: ((p - dmp.x0) @ e1, (p - dmp.x0) @ e2s)  # noqa: E731
+    c_without = _clearance(st["x_without"], st["obstacle"])
+    c_with = _clearance(st["x_with"], st["obstacle"])
+    ax3.plot(*Ps(st["Y"]), "k-", lw=2.5, label="straight demonstration")
+    ax3.plot(
+        *Ps(st["x_without"]),
+        "--",
+        c="tab:red",
+        label=f"DMP without coupling (clearance {c_without * 1e3:.2f} mm)",
+    )
+    ax3.plot(
+        *Ps(st["x_with"]),
+        "-",
+        c="tab:blue",
+        label=f"DMP with eq. 10 coupling (clearance {c_with * 1e3:.1f} mm)",
+    )
+    ax3.add_patch(
+        __import__("matplotlib.patches").patches.Circle(
+            Ps(st["obstacle"]),
+            config.radius_m,
+            color="tab:gray",
+            alpha=0.5,
+            label="obstacle centred on the line (phi = 0)",
+        )
+    )
+    ax3.plot(*Ps(st["obstacle"]), "x", c="k", label="obstacle centre")
+    ax3.set_aspect("equal")
+    ax3.set_xlabel("along start-goal (m)")
+    ax3.set_ylabel("detour direction (m)")
+    ax3.set_title("seed 0's ends, straight: heading at the obstacle (phi = 0)")
+    ax3.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.42), ncol=1)
     bins = np.linspace(0, max(max(r.clearance_with_m for r in records), 2 * config.radius_m), 30)
     # side by side in each bin: overlaid translucent bars mixed into a colour of neither
     ax2.hist(
@@ -286,6 +361,8 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
         f"{np.median([r.peak_acc_with for r in records]):.2f} |",
         f"| max goal error at {config.sim_factor:g} tau (m) | | "
         f"{max(r.goal_error_with_m for r in records):.2e} |",
+        f"| straight path, obstacle centred on it (seed 0's ends): clearance (m) | "
+        f"{c_without:.4f} | {c_with:.4f} |",
     ]
     p2 = write_table(out_dir, "dmp_obstacles_table.md", lines)
     return {"paths_and_clearance": p1, "table": p2}

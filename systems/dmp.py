@@ -22,9 +22,9 @@ from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters, chec
 from repertoire.planning.dmp_math import (
     check_positive,
     forcing_term,
-    obstacle_coupling,
     transformation_derivatives,
 )
+from repertoire.planning.dmp_obstacle import obstacle_coupling
 from repertoire.planning.dmp_quaternion import (
     check_turn,
     lift_quaternion_goal,
@@ -636,33 +636,48 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
 
 
 class ObstacleCoupling(LeafSystem):
-    """Obstacle-avoidance coupling term of eq. 10 in 3-D.
+    """Obstacle-avoidance coupling term of eq. 10 in 3-D (or in the plane, ``n_dims=2``).
 
     ``p = gamma R v phi exp(-beta phi)``; see
-    :func:`repertoire.planning.dmp_math.obstacle_coupling` for the axis sign and the
-    v = 0 / parallel cases.
+    :func:`repertoire.planning.dmp_obstacle.obstacle_coupling` for the axis sign and the
+    v = 0 / parallel cases (heading straight at the obstacle included).
 
-    Input ports:
-        position (3): end-effector position x.
-        velocity (3): end-effector velocity dx/dt.
-        obstacle (3): obstacle position o.
-        obstacle_velocity (3): optional obstacle velocity do/dt (unconnected: a static
+    Input ports (n = ``n_dims``, 3 by default):
+        position (n): end-effector position x.
+        velocity (n): end-effector velocity dx/dt.
+        obstacle (n): obstacle position o.
+        obstacle_velocity (n): optional obstacle velocity do/dt (unconnected: a static
             obstacle); eq. 10's angle is taken to the velocity relative to the obstacle.
 
     Output ports:
-        coupling (3): p, to be fed to a TransformationSystem's coupling input.
+        coupling (n): p, to be fed to a TransformationSystem's coupling input.
 
     Numeric parameters: gamma, beta.
     """
 
-    def __init__(self, gamma: float = 1000.0, beta: float = 20.0 / np.pi) -> None:
+    def __init__(
+        self, gamma: float = 1000.0, beta: float = 20.0 / np.pi, *, n_dims: int = 3
+    ) -> None:
+        """Builds the system.
+
+        Args:
+            gamma: Gain of eq. 10 (>= 0).
+            beta: Angular decay of eq. 10 (>= 0).
+            n_dims: 3, or 2 for a movement in the plane (eq. 10 in its z = 0 plane).
+
+        Raises:
+            RepertoireError: negative or non-finite gains, or ``n_dims`` not 2 or 3.
+        """
         super().__init__()
+        if isinstance(n_dims, bool) or n_dims not in (2, 3):
+            raise RepertoireError(f"ObstacleCoupling needs n_dims 2 or 3, got {n_dims!r}")
+        n = int(n_dims)
         self._params = self.DeclareNumericParameter(BasicVector(check_gains(gamma, beta)))
-        self._x = self.DeclareVectorInputPort("position", 3)
-        self._v = self.DeclareVectorInputPort("velocity", 3)
-        self._o = self.DeclareVectorInputPort("obstacle", 3)
-        self._vo = self.DeclareVectorInputPort("obstacle_velocity", 3)
-        self._out = self.DeclareVectorOutputPort("coupling", 3, self._calc)
+        self._x = self.DeclareVectorInputPort("position", n)
+        self._v = self.DeclareVectorInputPort("velocity", n)
+        self._o = self.DeclareVectorInputPort("obstacle", n)
+        self._vo = self.DeclareVectorInputPort("obstacle_velocity", n)
+        self._out = self.DeclareVectorOutputPort("coupling", n, self._calc)
 
     def set_gains(self, context: Context, gamma: float, beta: float) -> None:
         """Set gamma and beta.

@@ -111,8 +111,8 @@ class DmpSystem(Diagram):
 
     Input ports:
         goal (n).
-        obstacle (3, only with ``obstacle_avoidance=True``; needs n == 3).
-        obstacle_velocity (3, only with ``obstacle_avoidance=True``, optional): the
+        obstacle (n, only with ``obstacle_avoidance=True``; needs n == 2 or 3).
+        obstacle_velocity (n, only with ``obstacle_avoidance=True``, optional): the
             obstacle's velocity; eq. 10's angle is taken to the velocity relative to it
             (unconnected: a static obstacle).
 
@@ -179,7 +179,8 @@ class DmpSystem(Diagram):
 
     # ------------------------------------------------------------------ building
     def _coupling(self, builder, vec: _VectorDmp, gamma: float, beta: float) -> None:
-        obs = builder.AddNamedSystem("obstacle_coupling", ObstacleCoupling(gamma, beta))
+        n = vec.system.get_position_output_port().size()
+        obs = builder.AddNamedSystem("obstacle_coupling", ObstacleCoupling(gamma, beta, n_dims=n))
         builder.Connect(vec.system.get_position_output_port(), obs.GetInputPort("position"))
         builder.Connect(vec.system.get_velocity_output_port(), obs.GetInputPort("velocity"))
         builder.Connect(obs.GetOutputPort("coupling"), vec.system.get_coupling_input_port())
@@ -188,8 +189,8 @@ class DmpSystem(Diagram):
         self.obstacle_coupling = obs
 
     def _build_vector(self, builder, dmp, time_step, obstacle, gamma, beta) -> None:
-        if obstacle and dmp.n_dims != 3:
-            raise RepertoireError(f"obstacle avoidance needs a 3-D DMP, got {dmp.n_dims}-D")
+        if obstacle and dmp.n_dims not in (2, 3):
+            raise RepertoireError(f"obstacle avoidance needs a 2-D or 3-D DMP, got {dmp.n_dims}-D")
         vec = _VectorDmp(builder, dmp, time_step, obstacle, "dmp")
         self._parts = {"position": vec}
         self._export_position(builder, vec, "goal", obstacle, gamma, beta)

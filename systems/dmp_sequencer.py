@@ -123,7 +123,13 @@ class DmpSequencer(LeafSystem):
         if quaternion_at is not None and not (
             is_whole(quaternion_at) and 0 <= quaternion_at <= n - 4
         ):
-            raise RepertoireError(f"quaternion_at must be in [0, {n - 4}], got {quaternion_at}")
+            raise RepertoireError(
+                f"quaternion_at must be in [0, {n - 4}] (the 4 quaternion DOF inside the {n}), "
+                f"got {quaternion_at!r}"
+                if n >= 4
+                else f"quaternion_at = {quaternion_at!r} needs segments with at least 4 DOF (a "
+                f"quaternion block), but they have {n}"
+            )
         if not (is_whole(coupling_dofs) and 0 <= coupling_dofs <= n):
             raise RepertoireError(f"coupling_dofs must be in [0, {n}], got {coupling_dofs}")
         if goals is not None and len(goals) != len(segments):

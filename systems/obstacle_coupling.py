@@ -8,9 +8,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RotationMatrix
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
-from repertoire.planning.dmp_math import (
-    obstacle_coupling,
-)
+from repertoire.planning.dmp_obstacle import obstacle_coupling
 
 from repertoire.errors import RepertoireError
 
@@ -36,7 +34,7 @@ def multi_point_obstacle_coupling(
     end-effector's linear velocity ``xd`` (the rotation's contribution is left out:
     the orientation DMPs turn slowly while carrying). Each point gets the paper's
     term ``p_i = gamma R_i v phi_i exp(-beta phi_i)``
-    (:func:`repertoire.planning.dmp_math.obstacle_coupling`, same axis sign) and
+    (:func:`repertoire.planning.dmp_obstacle.obstacle_coupling`, same axis sign) and
     the sum drives the end-effector's position DMP::
 
         p = sum_i s(d_i) p_i,   s(d) = exp(-max(d - obstacle_radius, 0) / length_scale)

@@ -4,7 +4,7 @@ import re
 
 import numpy as np
 import pytest
-from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters
+from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters, save_dmp
 from repertoire.planning.dmp_chain import chain_rollout
 from repertoire.planning.dmp_learn import (
     learn_dmp,
@@ -167,8 +167,10 @@ def test_obstacle_coupling_refuses_bad_vectors_and_gains():
     x, v, o = np.zeros(3), np.ones(3), np.array([1.0, 0.5, 0.0])
     with raises("obstacle contains NaN or inf: [nan  0.  0.]"):
         obstacle_coupling(x, v, np.array([np.nan, 0, 0]), 1.0, 1.0)
-    with raises("x must have 3 entries (x, y, z), got 2: [0. 0.]"):
-        obstacle_coupling(np.zeros(2), v, o, 1.0, 1.0)
+    with raises("xd must have 2 entries (x, y), got 3: [1. 1. 1.]"):
+        obstacle_coupling(np.zeros(2), v, o, 1.0, 1.0)  # a 2-D position, 3-D velocity
+    with raises("x must have 2 or 3 entries (x, y[, z]), got 4: [0. 0. 0. 0.]"):
+        obstacle_coupling(np.zeros(4), v, o, 1.0, 1.0)
     with raises("gamma and beta must be finite and >= 0, got -1.0, 1.0"):
         obstacle_coupling(x, v, o, -1.0, 1.0)
 
@@ -185,8 +187,11 @@ def test_minimum_jerk_via_points_refuses_bad_points_and_sample_counts():
 def test_learning_refuses_a_negative_smoothing_and_a_boolean_basis_count():
     with raises("smoothing (the spline's lambda) must be a finite number >= 0 or None, got -1.0"):
         learn_dmp(T, X, derivatives="spline", smoothing=-1.0)
-    with raises("need at least one basis function (n_basis >= 1), got True"):
+    with raises("need at least one basis function (n_basis a whole number >= 1), got True"):
         learn_dmp(T, X, n_basis=True)
+    # 2.5 is >= 1: the message said only "n_basis >= 1"
+    with raises("need at least one basis function (n_basis a whole number >= 1), got 2.5"):
+        learn_dmp(T, X, n_basis=2.5)
 
 
 def test_rollout_refuses_a_coupling_of_the_wrong_size(p):
@@ -318,3 +323,45 @@ def test_a_one_entry_array_tau_is_a_number(p, qp):
     _, qa, _ = quaternion_rollout(*qp._dynamics()[:6], np.array([0.5]), qp.q0, qp.goal)
     _, qb, _ = quaternion_rollout(*qp._dynamics()[:6], 0.5, qp.q0, qp.goal)
     np.testing.assert_array_equal(qa, qb)
+
+
+@pytest.mark.parametrize(
+    ("tau", "shown"),
+    [("1", "'1'"), (True, "True"), (np.bool_(True), "np.True_"), ([1.0, 2.0], "[1.0, 2.0]")],
+)
+def test_rollout_refuses_a_tau_that_is_not_a_number(p, tau, shown):
+    # a string or a bool was read as a number (tau='1' and tau=True ran a 1 s rollout)
+    with raises(f"tau must be a finite number > 0, got {shown}"):
+        p.rollout(tau=tau)
+    np.testing.assert_array_equal(p.rollout(tau=np.array([p.tau])).x, p.rollout().x)
+
+
+def test_time_stamps_with_nan_are_named_as_time_stamps():
+    t = T.copy()
+    t[4] = np.inf
+    with raises("demonstration time stamps contain NaN or inf (first at t[4] = inf)"):
+        learn_dmp(t, X)
+    x = X.copy()
+    x[9, 1] = np.nan
+    with raises("demonstration contains NaN or inf (first at sample 9)"):
+        learn_dmp(T, x)
+
+
+def test_save_dmp_refuses_a_suffix_other_than_json(p, tmp_path):
+    # it wrote JSON into d.npz (MotionLibrary.save already refused that)
+    with raises(f"a DMP artefact is saved as JSON: {tmp_path / 'd.npz'} must end in '.json'"):
+        save_dmp(p, tmp_path / "d.npz")
+    assert not (tmp_path / "d.npz").exists()
+
+
+@pytest.mark.parametrize("mode", ["component", "manifold"])
+def test_quaternion_rollout_takes_tau_like_the_vector_rollout(mode):
+    q = learn_quaternion_dmp(T, QUATS, mode=mode, n_basis=20)
+    # Time scaling: tau' = 2 tau with dt' = 2 dt passes the same states (exactly scaled steps).
+    _, Q1, _ = q.rollout(dt=2e-3, n_steps=400)
+    _, Q2, _ = q.rollout(tau=2 * q.tau, dt=4e-3, n_steps=400)
+    np.testing.assert_allclose(Q2, Q1, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(q.rollout(tau=q.tau)[1], q.rollout()[1])
+    for tau, shown in ((0.0, "0.0"), (-1.0, "-1.0"), ("1", "'1'")):
+        with raises(f"tau must be a finite number > 0, got {shown}"):
+            q.rollout(tau=tau)

@@ -200,8 +200,13 @@ def test_sequencer_bad_input(segment):
         DmpSequencer([segment], [0.0], handoff="jerk")
     with pytest.raises(RepertoireError, match="segment 1 has 3 DOF, segment 0 has 2"):
         DmpSequencer([segment, _flat_dmp(3)], [0.0, 1.0])
-    with pytest.raises(RepertoireError, match="quaternion_at must be in"):
+    # segment is 2-D: no room for a quaternion block (the message said "in [0, -2]")
+    with pytest.raises(
+        RepertoireError, match=r"quaternion_at = 0 needs segments with at least 4 DOF .* have 2"
+    ):
         DmpSequencer([segment], [0.0], quaternion_at=0)
+    with pytest.raises(RepertoireError, match=r"quaternion_at must be in \[0, 1\] .* got 2"):
+        DmpSequencer([_flat_dmp(5)], [0.0], quaternion_at=2)
     with pytest.raises(RepertoireError, match="coupling_dofs must be in"):
         DmpSequencer([segment], [0.0], coupling_dofs=3)
     with pytest.raises(RepertoireError, match="closer than the time step"):

@@ -13,6 +13,7 @@ from repertoire.planning.dmp_math import (
 )
 from repertoire.planning.dmp_quaternion import (
     lift_quaternion_goal,
+    manifold_growth_exponent,
     quat_error,
     quat_exp,
     quat_log_error,
@@ -270,3 +271,44 @@ def test_sequencer_refuses_a_non_unit_quaternion_goal_input():
         seq.GetInputPort("goal_0").FixValue(ctx, bad)
         with pytest.raises(RepertoireError, match=f"not a unit quaternion: \\|g\\| = {norm}"):
             seq.GetOutputPort("acceleration").Eval(ctx)
+
+
+def test_manifold_growth_exponent_closed_form():
+    # A demonstration held at a constant turn psi from the goal for tau: E = lambda tau with
+    # lambda tau = (-D + sqrt(D^2 + 4 K kappa)) / 2, kappa = -(psi/2) cot(psi/2); at 270 deg
+    # cot(135 deg) = -1, so kappa = 3 pi / 4; below 180 deg kappa = 0 and E = 0.
+    K, D = 156.25, 25.0
+    goal = np.array([1.0, 0.0, 0.0, 0.0])
+    times = np.linspace(0.0, 2.0, 7)
+    for psi, kappa in ((1.5 * np.pi, 0.75 * np.pi), (np.deg2rad(350.0), None), (np.pi / 2, 0.0)):
+        q = np.tile([np.cos(psi / 2), 0.0, 0.0, np.sin(psi / 2)], (7, 1))
+        if kappa is None:
+            kappa = -(psi / 2) / np.tan(psi / 2)
+        expected = (-D + np.sqrt(D * D + 4 * K * kappa)) / 2
+        assert manifold_growth_exponent(times, q, goal, K, D) == pytest.approx(expected, rel=1e-12)
+    assert manifold_growth_exponent(times, np.tile(goal, (7, 1)), goal, K, D) == 0.0
+
+
+@pytest.mark.parametrize("seed", [101, 202, 303])
+def test_manifold_learning_refuses_a_near_full_turn_whose_detours_it_would_amplify(seed):
+    """Before: learned, and reproduced up to 180 deg off (max 3.1 rad at 355 deg)."""
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    s = 10 * (TIMES / T) ** 3 - 15 * (TIMES / T) ** 4 + 6 * (TIMES / T) ** 5
+    q0 = quat_exp(rng.normal(size=3) * 0.5)
+    bump = np.sin(np.pi * s)[:, None] ** 2 * rng.normal(size=3) * 0.1
+
+    def demo(deg: float) -> np.ndarray:
+        turn = quat_exp(axis[None] * np.deg2rad(deg) / 2 * s[:, None])
+        return quat_multiply(quat_exp(bump), quat_multiply(turn, q0))
+
+    with pytest.raises(RepertoireError, match="unstable along this demonstration"):
+        learn_quaternion_dmp(TIMES, demo(355.0), mode="manifold", n_basis=30)
+    # the component form reproduces it; a 290 deg turn with the same detour is accepted
+    p = learn_quaternion_dmp(TIMES, demo(355.0), mode="component", n_basis=30)
+    _, Q, _ = p.rollout(dt=TIMES[1], n_steps=N - 1)
+    assert max_angle(demo(355.0), Q) < 2e-3
+    p = learn_quaternion_dmp(TIMES, demo(290.0), mode="manifold", n_basis=30)
+    _, Q, _ = p.rollout(dt=TIMES[1], n_steps=N - 1)
+    assert max_angle(demo(290.0), Q) < 2e-3

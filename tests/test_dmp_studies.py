@@ -54,6 +54,10 @@ def test_obstacles_study_smoke_and_determinism(tmp_path):
     assert set(figures) == {"paths_and_clearance", "table"}
     assert all(p.exists() for p in figures.values())
     assert "| fraction with clearance > r | 0.00 | 1.00 |" in figures["table"].read_text()
+    # the straight case (phi = 0 all along): through the centre without coupling, around it with
+    (row,) = [r for r in figures["table"].read_text().splitlines() if "straight path" in r]
+    without, with_ = (float(c) for c in row.strip("|").split("|")[1:])
+    assert without < 1e-3 < 0.03 < with_
 
 
 def test_chaining_study_smoke(tmp_path):

@@ -402,10 +402,10 @@ def test_continuous_dmp_system_with_obstacle_input_matches_euler_reference(dmp3)
     plain = dmp3.rollout(dt=1e-3, n_steps=1000)
     assert np.abs(x - ref.x[-1]).max() < 2e-3  # Euler at 0.1 ms vs error-controlled RK3
     assert np.abs(x - plain.x[-1]).max() > 1e-2  # the coupling changed the path
-    with pytest.raises(RepertoireError, match="obstacle avoidance needs a 3-D DMP"):
+    with pytest.raises(RepertoireError, match="obstacle avoidance needs a 2-D or 3-D DMP, got 4-D"):
         DmpSystem(
             learn_dmp(
-                np.linspace(0, 1, 50), np.zeros((50, 2)) + np.linspace(0, 1, 50)[:, None], n_basis=5
+                np.linspace(0, 1, 50), np.zeros((50, 4)) + np.linspace(0, 1, 50)[:, None], n_basis=5
             ),
             obstacle_avoidance=True,
         )

@@ -273,7 +273,7 @@ def plan_footsteps(
             plan.status = PlanStatus.TIME_LIMIT
             break
         level += 1
-        finer = _finer(opts, level, left)
+        finer = _finer(opts, level, opts.time_limit)  # _plan_once counts from t_begin
         plan, merged, _ = _plan_once(world, start, start_foot, goal, table, finer, t_begin, kwargs)
     plan.planning_time_s = time.perf_counter() - t_begin
     return plan

@@ -36,6 +36,7 @@ from repertoire.planning.footstep.footprint import (
     footprint_masks,
 )
 from repertoire.planning.footstep.heuristic import LazyCostToGo, shared_cost_to_go
+from repertoire.planning.footstep.reachability import goal_foothold_error
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -190,10 +191,9 @@ def sole_masks(geometry: BipedGeometry, margin: float, resolution: float) -> Foo
 
 
 CACHE_BYTES = 256 * 2**20
-"""Memory (bytes, estimated) each per-time cache of a dynamic world's model may hold (the
-footprint checkers, the swing-blocking masks); the least recently used entries go first
-(rebuilt when needed again). An 8 m map with a 60 s horizon held ~145 MB of checkers for a
-37-step plan before the bound; a 12 m map with heights ~2.6 MB per time index."""
+"""Memory (bytes, estimated) each per-time cache of a dynamic world's model may hold (footprint
+checkers, swing-blocking masks), least recently used out first (rebuilt when needed): an 8 m
+map with a 60 s horizon held ~145 MB for a 37-step plan before; 12 m with heights ~2.6 MB/index."""
 
 
 class _LruCache:
@@ -322,7 +322,8 @@ class BipedStepModel:
     Raises:
         FootstepError: a bad world, table, pose, history or filter (also one that allows no
             action at all); a start or goal off the map, a start foot on an obstacle or on
-            ground too steep, a goal in an obstacle.
+            ground too steep, a goal in an obstacle or where no sole fits or stands flat
+            enough within the goal tolerance.
         ResourceLimitError: a map whose planning fields would not fit in memory.
     """
 
@@ -426,12 +427,11 @@ class BipedStepModel:
             )
         self.chk0 = self.checkers.checker(self.k0)
         gcell = ref.cell_of(gx, gy)
-        goal_blocked = (
-            world.stack[:, gcell[0], gcell[1]].all() if dynamic else bool(ref.occupied[gcell])
-        )
-        if goal_blocked:
+        if (world.stack if dynamic else ref.occupied[None])[:, gcell[0], gcell[1]].all():
             raise FootstepError(f"goal ({gx:.3f}, {gy:.3f}) lies inside an obstacle")
         self._setup_terrain_limits()
+        if why := goal_foothold_error(self):  # no sole fits near the goal, or too steep there
+            raise FootstepError(why)
         self._setup_heuristic()
         self._setup_successors(action_filter)
         self._setup_lattice()

@@ -378,3 +378,19 @@ def test_no_goal_is_refused_where_a_plan_reaches_it(seed, monkeypatch):
             assert said[0] == ""
     assert any(why for why, _ in verdicts)  # the check refuses some goals on these maps
     assert any(status is PlanStatus.SUCCESS for _, status in verdicts)
+
+
+def test_a_level_table_that_might_not_fit_in_memory_proves_nothing(monkeypatch):
+    # the step model's memory check counts its own fields (150 B a cell); the proof's level
+    # table may need up to LEVELS states of 73 B per foothold cell, allocated in the plan's
+    # time limit: past the memory limit the proof is skipped (the planner carries on and
+    # reports TIME_LIMIT or a finer lattice's status), never allocated
+    import repertoire.planning.footstep.reachability as reach
+
+    opts = PlannerOptions(max_step_up=0.03, max_height_range=0.01, time_limit=60.0)
+    model = _model(_stairs(0.05), opts)  # 88 x 80 cells: fields ~1 MB, levels up to ~4 MB
+    assert goal_cut_off(model)
+    monkeypatch.setenv("REPERTOIRE_MAX_MEMORY_BYTES", str(2 * 2**20))
+    monkeypatch.setattr(reach, "_levels", lambda *a: pytest.fail("levels built"))
+    assert not goal_cut_off(model)
+    assert not goal_cut_off(_model(_stairs(0.05), opts))  # the model itself still fits

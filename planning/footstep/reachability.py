@@ -47,9 +47,15 @@ from repertoire.planning.footstep.fastkernels import _heap_pop, _heap_push, _now
 from repertoire.planning.footstep.jitcache import njit
 from scipy import ndimage
 
+from repertoire.limits import memory_limit_bytes
+
 _EPS = 1e-9  # rounding slack (m): the relaxation refuses a step only when surely refused
 LEVELS = 8
 """Ground heights kept apart per cell (more become one interval)."""
+STATE_BYTES = 73
+"""Memory per (cell, level) state of the fill: its interval (with the table's growth slack),
+cell index, seen flag and heap row; a map whose level table might need more than
+:func:`~repertoire.limits.memory_limit_bytes` gets no proof (the planner carries on)."""
 
 
 def goal_cut_off(model, deadline: float = math.inf) -> bool:
@@ -95,6 +101,8 @@ def goal_cut_off(model, deadline: float = math.inf) -> bool:
     if not _discs_connect(valid, si, sj, gi, gj, goal_r, reach):
         return True  # no chain of footholds at all, whatever the heights: proved at once
     if math.isfinite(up) or math.isfinite(down):
+        if (LEVELS * STATE_BYTES * int(valid.sum()) + 8 * valid.size) > memory_limit_bytes():
+            return False  # a level table that might not fit in memory: no proof (not a crash)
         ptr, zlo, zhi = _levels(
             valid, ground, lo, hi, np.argwhere(may) - (may.shape[0] // 2), deadline
         )

@@ -394,3 +394,22 @@ def test_a_level_table_that_might_not_fit_in_memory_proves_nothing(monkeypatch):
     monkeypatch.setattr(reach, "_levels", lambda *a: pytest.fail("levels built"))
     assert not goal_cut_off(model)
     assert not goal_cut_off(_model(_stairs(0.05), opts))  # the model itself still fits
+
+
+@pytest.mark.parametrize("flat", [0.015, math.inf])
+def test_the_one_cell_foothold_test_agrees_with_the_map_filters(flat):
+    import repertoire.planning.footstep.reachability as reach
+    from repertoire.planning.footstep.actions import ASIMO_LIKE
+
+    rng = np.random.default_rng(7200)
+    occ = rng.random((30, 26)) < 0.08
+    heights = rng.choice([0.0, 0.01, 0.03], size=occ.shape)
+    occ[:12, :12], heights[:12, :12] = False, 0.0  # a flat free corner: some footholds
+    for res in (0.025, 0.01):
+        grid = OccupancyGrid(occ, res, (0.0, 0.0), heights)
+        _, valid, _, _ = reach._footholds(~occ, heights, ASIMO_LIKE, res, flat)
+        one = [
+            [reach._foothold_at(grid, ASIMO_LIKE, i, j, flat) for j in range(26)] for i in range(30)
+        ]
+        np.testing.assert_array_equal(np.array(one), valid)  # edges included (off the map: free)
+        assert 0 < valid.sum() < valid.size

@@ -39,6 +39,7 @@ with the plan's clock: a fill the time limit cuts short proves nothing (the plan
 reports TIME_LIMIT).
 """
 
+import functools
 import math
 import time
 
@@ -129,13 +130,28 @@ def _footholds(free, heights, geo, res: float, flat: float):
         flat enough, the highest and (with a finite ``flat``, else None) the lowest height
         over each cell's ``sure`` disc.
     """
-    sure = _disc(0.5 * min(geo.foot_length, geo.foot_width) / res - math.sqrt(0.5), strict=True)
+    sure = _sure_disc(min(geo.foot_length, geo.foot_width), res)
     fits = free & ndimage.minimum_filter(free, footprint=sure, mode="constant", cval=True)
     lo = ndimage.maximum_filter(heights, footprint=sure, mode="constant", cval=-np.inf)
     if not math.isfinite(flat):
         return fits, fits, lo, None
     bottom = ndimage.minimum_filter(heights, footprint=sure, mode="constant", cval=np.inf)
     return fits, fits & (lo - bottom <= flat + _EPS), lo, bottom
+
+
+def _foothold_at(grid, geo, i: int, j: int, flat: float) -> bool:
+    """:func:`_footholds`' verdict on the one cell ``(i, j)`` (tens of microseconds)."""
+    k = _sure_disc(min(geo.foot_length, geo.foot_width), grid.resolution)
+    r = k.shape[0] // 2
+    nx, ny = grid.shape
+    i0, i1, j0, j1 = max(i - r, 0), min(i + r + 1, nx), max(j - r, 0), min(j + r + 1, ny)
+    sure = k[i0 - i + r : i1 - i + r, j0 - j + r : j1 - j + r]  # cells off the map: left out
+    if grid.occupied[i0:i1, j0:j1][sure].any():
+        return False
+    if grid.heights is None or not math.isfinite(flat):
+        return True
+    z = grid.heights[i0:i1, j0:j1][sure]
+    return float(z.max() - z.min()) <= flat + _EPS
 
 
 def goal_foothold_error(model) -> str:
@@ -157,6 +173,8 @@ def goal_foothold_error(model) -> str:
     res, geo, (nx, ny) = grid.resolution, model.geometry, grid.shape
     goal_r = (tol + res / math.sqrt(2.0)) / res
     gi, gj = (gx - ox) / res - 0.5, (gy - oy) / res - 0.5  # the goal in cell-centre units
+    if _foothold_at(grid, geo, int(gi + 0.5), int(gj + 0.5), float(model.flat_limit)):
+        return ""  # the goal's own cell (its centre within goal_r) holds a sole: the usual case
     r = int(math.ceil(goal_r + 0.5 * min(geo.foot_length, geo.foot_width) / res)) + 2
     i0, i1 = max(int(gi) - r, 0), min(int(gi) + r + 2, nx)
     j0, j1 = max(int(gj) - r, 0), min(int(gj) + r + 2, ny)
@@ -246,6 +264,17 @@ def _meets_goal(labels, start, valid, gi, gj, goal_r) -> bool:
     ii, jj = np.mgrid[i0:i1, j0:j1]
     goal = valid[i0:i1, j0:j1] & ((ii - gi) ** 2 + (jj - gj) ** 2 <= goal_r * goal_r)
     return bool(np.any(labels[i0:i1, j0:j1][goal] == start))
+
+
+@functools.lru_cache(maxsize=16)
+def _sure_disc(breadth: float, res: float) -> np.ndarray:
+    """The cells a sole ``breadth`` m across at its narrowest surely overlaps (read only).
+
+    Centred anywhere in the middle cell, at any yaw: the cells of its inscribed disc.
+    """
+    disc = _disc(0.5 * breadth / res - math.sqrt(0.5), strict=True)
+    disc.flags.writeable = False
+    return disc
 
 
 def _disc(radius: float, strict: bool = False) -> np.ndarray:

@@ -479,12 +479,12 @@ class BipedStepModel:
             if action_filter is None:
                 entry["succ"] = (self.succ_ptr, self.succ_a, self.succ_f)
         self._succ_rows: list[tuple[Successor, ...]] | None = None
-        self.hist = entry["hist"]
+        self.hist, self.n_hist = entry["hist"], entry["n_hist"]
         grids = self.world.grids if self.dynamic else [self.ref]
         if swing_starts and self._tall_in(grids) is not None:  # swings checked: a state's too
             self.hist = swing_start_classes(self.table, self.hist)
+            self.n_hist = int(self.hist.max()) + 1
         self._hist_rows = self.hist.tolist()
-        self.n_hist = int(self.hist.max()) + 1
 
     def _build_successors(self, action_filter: ActionFilter | None) -> None:
         table = self.table

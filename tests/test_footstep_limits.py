@@ -24,6 +24,7 @@ from repertoire.planning.footstep.environment import rect_overlaps_cells
 from repertoire.planning.footstep.fastcore import compiled_tables
 from repertoire.planning.footstep.fastkernels import _cell_height, _top_height, swing_crosses
 from repertoire.planning.footstep.footprint import FootprintChecker, footprint_masks
+from repertoire.planning.footstep.types import FootstepError
 
 HL, HW = 0.08, 0.05  # the ASIMO-like sole's half length and half width
 RES = 0.025
@@ -412,3 +413,95 @@ def test_cell_height_compiled_equals_python_equals_the_grid():
         got = model.exact.cell_height(x, y)
         assert got == grid.heights[min(i, 47), min(j, 39)]
         assert _cell_height(x, y, tab["grid"], tab["ex"], tab["heights"]) == got
+
+
+def _posts(heights: float, seed: int = 7, pieces: tuple[int, int] = (6, 16)):
+    """A 1.4 m x 1 m floor of thin posts and wall pieces of ``heights`` m (seeded)."""
+    rng = np.random.default_rng(seed)
+    occ = np.zeros((56, 40), bool)
+    for _ in range(int(rng.integers(*pieces))):
+        i, j = rng.integers(12, 46), rng.integers(0, 40)
+        if rng.random() < 0.5:
+            occ[i, j : j + rng.integers(1, 6)] = True
+        else:
+            occ[i : i + rng.integers(1, 6), j] = True
+    occ[:10, 12:28] = False
+    goal = (1.25, float(rng.uniform(0.3, 0.7)))
+    gi, gj = int(goal[0] / RES), int(goal[1] / RES)
+    occ[gi - 3 : gi + 4, gj - 3 : gj + 4] = False
+    return OccupancyGrid(occ, RES, (0.0, 0.0), heights * occ), goal
+
+
+def test_states_whose_swing_feet_stand_apart_are_not_merged_where_swings_are_checked():
+    # The swing line starts where the swing foot stood before the last step; the lattice
+    # keys the stance pose and one history class (the nominal table's), so the cheaper
+    # arrival's swing foot decides the landings of every state on that cell. Here the
+    # admissible mode finds 9.0 on that lattice; a tree search over the same steps, nothing
+    # merged, finds 8.95, and so does the search with swing_start_states
+    table = nominal_action_table()
+    start = (0.15, 0.5, 0.0)
+    opts = PlannerOptions.admissible(time_limit=30.0, refinements=0, swing_clearance=0.1)
+    grid, goal = _posts(0.3)
+    merged = plan_footsteps(grid, start, "left", goal, table, opts)
+    plan = plan_footsteps(grid, start, "left", goal, table, opts, swing_start_states=True)
+    model = BipedStepModel(grid, start, "left", goal, table, opts)
+    per_m = float(table.step_cost.min()) / table.max_reach()
+    best = [merged.cost + 1e-6]  # the tree search looks only below the merged lattice's plan
+
+    def tree(s, g):
+        if model.is_goal(s):
+            best[0] = min(best[0], g)
+            return
+        for s2, c in model.successors(s):
+            h = max(0.0, math.dist((s2.x, s2.y), goal) - opts.goal_tolerance) * per_m
+            if g + c + h < best[0] - 1e-9:
+                tree(s2, g + c)
+
+    tree(model.start(), 0.0)
+    assert merged.cost == pytest.approx(9.0, abs=1e-9)
+    assert plan.succeeded and plan.cost == pytest.approx(best[0], abs=1e-9)
+    assert plan.cost == pytest.approx(8.95, abs=1e-9)
+    # the key: one pose, the swing foot beside it (after "stop") or 0.3 m behind (after
+    # "forward_long"); apart where some cell blocks a swing, one state where none does
+    split = BipedStepModel(grid, start, "left", goal, table, opts, swing_start_states=True)
+    s0 = split.start()
+    behind = s0._replace(a_prev1=table.index("forward_long"), swing_x=s0.x - 0.3)
+    assert split.key(behind) != split.key(s0) and split.n_hist == table.n
+    assert model.key(behind) == model.key(s0)  # the default lattice merges them
+    low = BipedStepModel(_posts(0.05)[0], start, "left", goal, table, opts, swing_start_states=True)
+    assert low.key(behind) == low.key(s0) and low.n_hist == 1
+    with pytest.raises(FootstepError, match="swing_start_states must be True or False, got 1"):
+        BipedStepModel(grid, start, "left", goal, table, opts, swing_start_states=1)
+    # a map where the merge hides every plan: UNREACHABLE on the merged lattice, a plan on
+    # the same lattice with swing starts; plan_footsteps' first refinement (keyed, 2.5 cm)
+    # finds one (merged, the refinements found one only at 0.625 cm / 288)
+    grid, goal = _posts(0.3, seed=182, pieces=(12, 30))
+    lost = plan_footsteps(grid, start, "left", goal, table, opts)
+    kept = plan_footsteps(grid, start, "left", goal, table, opts, swing_start_states=True)
+    assert lost.status is PlanStatus.UNREACHABLE and kept.succeeded
+    default = PlannerOptions(time_limit=60.0, swing_clearance=0.1)
+    refined = plan_footsteps(grid, start, "left", goal, table, default)
+    assert refined.succeeded and (refined.xy_resolution, refined.yaw_bins) == (0.025, 72)
+
+
+def test_the_refinements_key_swing_starts(monkeypatch):
+    # the first lattice merges swing starts (fast first plans); a refinement, run when it
+    # ran out of states, keys them: UNREACHABLE is said only when that lattice is exhausted
+    import repertoire.planning.footstep.planner as planner_module
+
+    seen = []
+    model_init = BipedStepModel.__init__
+
+    def init(self, *a, **k):
+        model_init(self, *a, **k)
+        seen.append((self.opts.xy_resolution, self.n_hist))
+
+    monkeypatch.setattr(BipedStepModel, "__init__", init)
+    monkeypatch.setattr(planner_module, "goal_cut_off", lambda *a: False)
+    occ = np.zeros((88, 40), bool)
+    occ[40:42, :] = True  # a full wall 0.3 m tall: no swing crosses it
+    grid = OccupancyGrid(occ, RES, (0.0, 0.0), 0.3 * occ)
+    opts = PlannerOptions(time_limit=60.0, swing_clearance=0.1, refinements=1)
+    plan = plan_footsteps(grid, (0.3, 0.5, 0.0), "left", (1.8, 0.5), nominal_action_table(), opts)
+    assert plan.status is PlanStatus.UNREACHABLE
+    assert seen == [(0.05, 1), (0.025, 7)]

@@ -303,3 +303,113 @@ def test_a_kerb_low_over_a_platform_is_not_cut_off():
     assert not goal_cut_off(_model(grid, opts, goal=(2.1, 1.0)))
     grid.heights[round(1.9 / RES) : round(1.95 / RES)] = 0.45  # 15 cm above it
     assert goal_cut_off(_model(grid, opts, goal=(2.1, 1.0)))
+
+
+def _ramp_under_goal() -> OccupancyGrid:
+    """A ramp rising 0.5 m over x in [1.25, 2.0) m (1.7 cm per cell), flat ground before it."""
+    heights = np.zeros((88, 80))
+    heights[50:80, :] = np.linspace(0.0, 0.5, 30)[:, None]
+    return OccupancyGrid(np.zeros(heights.shape, bool), RES, (0.0, 0.0), heights)
+
+
+def test_a_goal_on_ground_too_steep_or_too_cramped_for_a_sole_is_named():
+    from repertoire.planning.footstep.types import FootstepError
+
+    # before: UNREACHABLE after a search (and the proof), with no word on why
+    table, flat = nominal_action_table(), PlannerOptions(max_height_range=0.01)
+    with pytest.raises(FootstepError, match=r"goal \(1.700, 1.000\) lies on ground too steep: .* "
+                       r"at least 0.034 m > max_height_range 0.01 m"):  # fmt: skip
+        plan_footsteps(_ramp_under_goal(), START, "left", (1.7, 1.0), table, flat)
+    # 2 cells of the ramp under the inscribed disc (1.7 cm each): not refused at 4 cm (the
+    # check is a relaxation: a sole's outer mask spans more of the ramp, so it may be refused
+    # by the search), and a plan stands there at 20 cm
+    _model(_ramp_under_goal(), PlannerOptions(max_height_range=0.04), goal=(1.7, 1.0))
+    loose = PlannerOptions(max_height_range=0.2, time_limit=20.0)
+    assert plan_footsteps(_ramp_under_goal(), START, "left", (1.7, 1.0), table, loose).succeeded
+    # a foothold on the flat ground before the ramp is within the tolerance: no error
+    near = plan_footsteps(_ramp_under_goal(), START, "left", (1.3, 1.0), table, flat)
+    assert near.succeeded
+    occ = np.ones((88, 80), bool)
+    occ[:30, 20:60] = False  # the start's room
+    occ[60:62, 39:41] = False  # a 5 cm free pocket round the goal: no sole fits
+    with pytest.raises(FootstepError, match=r"goal \(1.520, 1.000\): no foot fits within "
+                       r"goal_tolerance 0.15 m of it"):  # fmt: skip
+        plan_footsteps(OccupancyGrid(occ, RES), START, "left", (1.52, 1.0), table)
+    # the start already meets the goal: nothing to judge (a plan of no step)
+    steep = _ramp_under_goal()
+    assert plan_footsteps(steep, (0.4, 1.0, 0.0), "left", (0.45, 1.0), table, flat).succeeded
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_no_goal_is_refused_where_a_plan_reaches_it(seed, monkeypatch):
+    """Sound: bumpy ground with blocks; a goal a fine-lattice plan reaches is never refused."""
+    import repertoire.planning.footstep.biped_model as biped_model
+    from repertoire.planning.footstep.reachability import goal_foothold_error
+
+    said = []  # the check's verdict per model, the refusal itself switched off
+    monkeypatch.setattr(
+        biped_model, "goal_foothold_error", lambda m: said.append(goal_foothold_error(m)) or ""
+    )
+    rng = np.random.default_rng(7100 + seed)
+    ii, jj = np.mgrid[:88, :80]
+    heights = 0.04 * ((ii + jj) % 2) * (ii >= 40)  # a 4 cm checkerboard past x = 1 m ...
+    for i in range(44, 84, 12):  # ... with flat stones of 20 cm, half of them 30 cm apart
+        for j in range(2, 76, 12):
+            if rng.random() < 0.5:
+                heights[i : i + 8, j : j + 8] = 0.02
+    occ = np.zeros(heights.shape, bool)
+    for _ in range(12):
+        i, j = rng.integers(30, 85), rng.integers(0, 76)
+        occ[i : i + rng.integers(1, 5), j : j + rng.integers(1, 5)] = True
+    occ[:20, 30:50] = False
+    grid = OccupancyGrid(occ, RES, (0.0, 0.0), heights)
+    opts = PlannerOptions(
+        max_height_range=0.015, time_limit=10.0, xy_resolution=0.0125, yaw_bins=144,
+        refinements=0, heuristic="euclidean", heuristic_weight=2.0,
+    )  # fmt: skip
+    verdicts = []
+    for goal in rng.uniform((0.7, 0.2), (2.1, 1.8), (16, 2)):
+        if occ[int(goal[0] / RES), int(goal[1] / RES)]:
+            continue  # a goal in an obstacle: refused before the check
+        said.clear()
+        plan = plan_footsteps(grid, START, "left", goal, nominal_action_table(), opts)
+        verdicts.append((said[0], plan.status))
+        if plan.succeeded:
+            assert said[0] == ""
+    assert any(why for why, _ in verdicts)  # the check refuses some goals on these maps
+    assert any(status is PlanStatus.SUCCESS for _, status in verdicts)
+
+
+def test_a_level_table_that_might_not_fit_in_memory_proves_nothing(monkeypatch):
+    # the step model's memory check counts its own fields (150 B a cell); the proof's level
+    # table may need up to LEVELS states of 73 B per foothold cell, allocated in the plan's
+    # time limit: past the memory limit the proof is skipped (the planner carries on and
+    # reports TIME_LIMIT or a finer lattice's status), never allocated
+    import repertoire.planning.footstep.reachability as reach
+
+    opts = PlannerOptions(max_step_up=0.03, max_height_range=0.01, time_limit=60.0)
+    model = _model(_stairs(0.05), opts)  # 88 x 80 cells: fields ~1 MB, levels up to ~4 MB
+    assert goal_cut_off(model)
+    monkeypatch.setenv("REPERTOIRE_MAX_MEMORY_BYTES", str(2 * 2**20))
+    monkeypatch.setattr(reach, "_levels", lambda *a: pytest.fail("levels built"))
+    assert not goal_cut_off(model)
+    assert not goal_cut_off(_model(_stairs(0.05), opts))  # the model itself still fits
+
+
+@pytest.mark.parametrize("flat", [0.015, math.inf])
+def test_the_one_cell_foothold_test_agrees_with_the_map_filters(flat):
+    import repertoire.planning.footstep.reachability as reach
+    from repertoire.planning.footstep.actions import ASIMO_LIKE
+
+    rng = np.random.default_rng(7200)
+    occ = rng.random((30, 26)) < 0.08
+    heights = rng.choice([0.0, 0.01, 0.03], size=occ.shape)
+    occ[:12, :12], heights[:12, :12] = False, 0.0  # a flat free corner: some footholds
+    for res in (0.025, 0.01):
+        grid = OccupancyGrid(occ, res, (0.0, 0.0), heights)
+        _, valid, _, _ = reach._footholds(~occ, heights, ASIMO_LIKE, res, flat)
+        one = [
+            [reach._foothold_at(grid, ASIMO_LIKE, i, j, flat) for j in range(26)] for i in range(30)
+        ]
+        np.testing.assert_array_equal(np.array(one), valid)  # edges included (off the map: free)
+        assert 0 < valid.sum() < valid.size

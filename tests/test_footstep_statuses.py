@@ -244,3 +244,40 @@ def test_yaw_bins_are_centred_on_the_start_yaw(bins):
         bin_of_start = (key(yaw0) // model.n_hist // 2) % bins
         u = yaw0 * bins / (2 * np.pi)
         assert bin_of_start == round(u) % bins  # the bin whose centre is the start's yaw
+
+
+def test_each_refinement_gets_the_time_left_of_the_plans_limit(monkeypatch):
+    # a fake clock: every search takes 1 s and ends UNREACHABLE after merging states. The
+    # refinements searched with time_limit - 2 x elapsed before (the time left was passed as
+    # the finer lattice's limit and the elapsed time taken off it again), so a 5 s plan
+    # stopped its last lattice with TIME_LIMIT after 3.8 s
+    import types
+
+    import repertoire.planning.footstep.planner as planner_module
+    from repertoire.planning.footstep.search import SearchResult
+
+    clock = [0.0]
+    monkeypatch.setattr(
+        planner_module, "time", types.SimpleNamespace(perf_counter=lambda: clock[0])
+    )
+    monkeypatch.setattr(planner_module, "goal_cut_off", lambda *a: False)
+    given = []
+
+    def one_second(model, backend, weight, budget, left):
+        given.append((model.opts.xy_resolution, left))
+        clock[0] += 1.0
+        return SearchResult(PlanStatus.UNREACHABLE, [model.start()], 0.0, weight, 1, 1.0, merged=1)
+
+    monkeypatch.setattr(planner_module, "_search_once", one_second)
+    grid = OccupancyGrid(np.zeros((80, 40), dtype=bool), 0.025)
+    opts = PlannerOptions(time_limit=10.0)
+    plan = plan_footsteps(grid, START, "left", GOAL, nominal_action_table(), opts)
+    assert given == [(0.05, 10.0), (0.025, 9.0), (0.0125, 8.0), (0.00625, 7.0)]
+    assert plan.status is PlanStatus.UNREACHABLE and plan.xy_resolution == 0.00625
+    given.clear()
+    clock[0] = 0.0
+    short = plan_footsteps(
+        grid, START, "left", GOAL, nominal_action_table(), PlannerOptions(time_limit=2.0)
+    )
+    assert given == [(0.05, 2.0), (0.025, 1.0)]  # then no time is left: TIME_LIMIT
+    assert short.status is PlanStatus.TIME_LIMIT and short.xy_resolution == 0.025

@@ -27,7 +27,13 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry, apply_displacement
+from repertoire.planning.footstep.actions import (
+    ASIMO_LIKE,
+    BipedGeometry,
+    apply_displacement,
+    history_classes,
+    swing_start_classes,
+)
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
 from repertoire.planning.footstep.fastkernels import swing_crosses
 from repertoire.planning.footstep.footprint import (
@@ -36,6 +42,7 @@ from repertoire.planning.footstep.footprint import (
     footprint_masks,
 )
 from repertoire.planning.footstep.heuristic import LazyCostToGo, shared_cost_to_go
+from repertoire.planning.footstep.reachability import goal_foothold_error
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -87,39 +94,6 @@ class BipedState(NamedTuple):
     swing_x: float
     swing_y: float
     h: float
-
-
-def history_classes(table: ActionTable) -> np.ndarray:
-    """Merge histories ``(a_prev2, a_prev1)`` whose futures are identical under T.
-
-    Two histories are equivalent when they give the same displacements and durations for
-    every foot and action, and the histories they lead to after any action are equivalent
-    again (partition refinement, as in DFA minimisation). States that differ only by
-    equivalent histories are merged by the search without changing any plan's cost.
-
-    Args:
-        table: the action table.
-
-    Returns:
-        (n, n) int array: class id of each history.
-    """
-    n = table.n
-    sig: dict[bytes, int] = {}
-    cls = np.zeros((n, n), dtype=int)
-    for i2 in range(n):
-        for i1 in range(n):
-            b = table.displacement[i2, i1].tobytes() + table.duration[i2, i1].tobytes()
-            cls[i2, i1] = sig.setdefault(b, len(sig))
-    while True:
-        sig2: dict[tuple, int] = {}
-        new = np.zeros_like(cls)
-        for i2 in range(n):
-            for i1 in range(n):
-                key = (int(cls[i2, i1]), *(int(cls[i1, a]) for a in range(n)))
-                new[i2, i1] = sig2.setdefault(key, len(sig2))
-        if len(sig2) == len(np.unique(cls)):
-            return new
-        cls = new
 
 
 _TABLE_CACHE: dict[bytes, dict] = {}
@@ -190,10 +164,9 @@ def sole_masks(geometry: BipedGeometry, margin: float, resolution: float) -> Foo
 
 
 CACHE_BYTES = 256 * 2**20
-"""Memory (bytes, estimated) each per-time cache of a dynamic world's model may hold (the
-footprint checkers, the swing-blocking masks); the least recently used entries go first
-(rebuilt when needed again). An 8 m map with a 60 s horizon held ~145 MB of checkers for a
-37-step plan before the bound; a 12 m map with heights ~2.6 MB per time index."""
+"""Memory (bytes, estimated) each per-time cache of a dynamic world's model may hold (footprint
+checkers, swing-blocking masks), least recently used out first (rebuilt when needed): an 8 m
+map with a 60 s horizon held ~145 MB for a 37-step plan before; 12 m with heights ~2.6 MB/index."""
 
 
 class _LruCache:
@@ -318,11 +291,17 @@ class BipedStepModel:
         start_time: time of the start state (s).
         initial_history: ``(a_prev2, a_prev1)`` before the first action; default rest twice.
         action_filter: F: ``(a_prev2, a_prev1, stance_foot) -> allowed action names``.
+        swing_start_states: where some cell is taller than the swing clearance, key the
+            lattice on where the swing foot lifts from too (:func:`~repertoire.planning.
+            footstep.actions.swing_start_classes`), so no state's swings are judged from
+            another's swing start: no plan lost by that merge, up to 7x the states for the
+            nominal table. ``plan_footsteps`` turns it on for its refinements.
 
     Raises:
         FootstepError: a bad world, table, pose, history or filter (also one that allows no
             action at all); a start or goal off the map, a start foot on an obstacle or on
-            ground too steep, a goal in an obstacle.
+            ground too steep, a goal in an obstacle or where no sole fits or stands flat
+            enough within the goal tolerance.
         ResourceLimitError: a map whose planning fields would not fit in memory.
     """
 
@@ -340,6 +319,7 @@ class BipedStepModel:
         start_time: float = 0.0,
         initial_history: Sequence[str] | None = None,
         action_filter: ActionFilter | None = None,
+        swing_start_states: bool = False,
     ) -> None:
         if not isinstance(table, ActionTable):
             raise FootstepError(f"table must be an ActionTable, got {type(table).__name__}")
@@ -426,14 +406,17 @@ class BipedStepModel:
             )
         self.chk0 = self.checkers.checker(self.k0)
         gcell = ref.cell_of(gx, gy)
-        goal_blocked = (
-            world.stack[:, gcell[0], gcell[1]].all() if dynamic else bool(ref.occupied[gcell])
-        )
-        if goal_blocked:
+        if (world.stack if dynamic else ref.occupied[None])[:, gcell[0], gcell[1]].all():
             raise FootstepError(f"goal ({gx:.3f}, {gy:.3f}) lies inside an obstacle")
         self._setup_terrain_limits()
+        if why := goal_foothold_error(self):  # no sole fits near the goal, or too steep there
+            raise FootstepError(why)
         self._setup_heuristic()
-        self._setup_successors(action_filter)
+        if not isinstance(swing_start_states, (bool, np.bool_)):
+            raise FootstepError(
+                f"swing_start_states must be True or False, got {swing_start_states!r}"
+            )
+        self._setup_successors(action_filter, bool(swing_start_states))
         self._setup_lattice()
 
     # ------------------------------------------------------------------ setup
@@ -487,7 +470,7 @@ class BipedStepModel:
         else:
             self.cost_per_m = 0.0
 
-    def _setup_successors(self, action_filter: ActionFilter | None) -> None:
+    def _setup_successors(self, action_filter: ActionFilter | None, swing_starts: bool) -> None:
         entry = self._table_entry
         if action_filter is None and "succ" in entry:
             self.succ_ptr, self.succ_a, self.succ_f = entry["succ"]
@@ -496,9 +479,12 @@ class BipedStepModel:
             if action_filter is None:
                 entry["succ"] = (self.succ_ptr, self.succ_a, self.succ_f)
         self._succ_rows: list[tuple[Successor, ...]] | None = None
-        self.hist = entry["hist"]
+        self.hist, self.n_hist = entry["hist"], entry["n_hist"]
+        grids = self.world.grids if self.dynamic else [self.ref]
+        if swing_starts and self._tall_in(grids) is not None:  # swings checked: a state's too
+            self.hist = swing_start_classes(self.table, self.hist)
+            self.n_hist = int(self.hist.max()) + 1
         self._hist_rows = self.hist.tolist()
-        self.n_hist = entry["n_hist"]
 
     def _build_successors(self, action_filter: ActionFilter | None) -> None:
         table = self.table

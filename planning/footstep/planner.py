@@ -94,7 +94,9 @@ class PlannerOptions:
             exactly (they already stand there).
         refinements: when the open list runs empty after states were merged (a successor
             dropped because its lattice cell was already reached), the search is repeated
-            with half the ``xy_resolution`` and twice the ``yaw_bins``, up to this many
+            with half the ``xy_resolution`` and twice the ``yaw_bins`` (and, where a cell is
+            taller than the swing clearance, keyed on the swing foot's start too: the step
+            model's ``swing_start_states``), up to this many
             times within the time limit, so UNREACHABLE is reported only when the lattice
             reachable from the start is exhausted at the finest resolution tried (recorded
             in the plan). 0 keeps one search. The default, 3, ends at 0.625 cm / 288 bins
@@ -273,8 +275,9 @@ def plan_footsteps(
             plan.status = PlanStatus.TIME_LIMIT
             break
         level += 1
-        finer = _finer(opts, level, left)
-        plan, merged, _ = _plan_once(world, start, start_foot, goal, table, finer, t_begin, kwargs)
+        finer = _finer(opts, level, opts.time_limit)  # _plan_once counts from t_begin
+        split = {**kwargs, "swing_start_states": True}  # the finer lattice keys swing starts
+        plan, merged, _ = _plan_once(world, start, start_foot, goal, table, finer, t_begin, split)
     plan.planning_time_s = time.perf_counter() - t_begin
     return plan
 

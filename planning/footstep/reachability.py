@@ -39,6 +39,7 @@ with the plan's clock: a fill the time limit cuts short proves nothing (the plan
 reports TIME_LIMIT).
 """
 
+import functools
 import math
 import time
 
@@ -47,9 +48,15 @@ from repertoire.planning.footstep.fastkernels import _heap_pop, _heap_push, _now
 from repertoire.planning.footstep.jitcache import njit
 from scipy import ndimage
 
+from repertoire.limits import memory_limit_bytes
+
 _EPS = 1e-9  # rounding slack (m): the relaxation refuses a step only when surely refused
 LEVELS = 8
 """Ground heights kept apart per cell (more become one interval)."""
+STATE_BYTES = 73
+"""Memory per (cell, level) state of the fill: its interval (with the table's growth slack),
+cell index, seen flag and heap row; a map whose level table might need more than
+:func:`~repertoire.limits.memory_limit_bytes` gets no proof (the planner carries on)."""
 
 
 def goal_cut_off(model, deadline: float = math.inf) -> bool:
@@ -69,17 +76,12 @@ def goal_cut_off(model, deadline: float = math.inf) -> bool:
     heights = np.zeros(free.shape) if grid.heights is None else np.asarray(grid.heights, float)
     up, down, flat = float(model.step_up), float(model.step_down), float(model.flat_limit)
     geo = model.geometry
-    # cells every sole centred in a cell overlaps (its inscribed disc's), and may overlap
-    sure = _disc(0.5 * min(geo.foot_length, geo.foot_width) / res - math.sqrt(0.5), strict=True)
+    _, valid, lo, bottom = _footholds(free, heights, geo, res, flat)
+    # cells a sole centred in a cell may overlap
     may = _disc(0.5 * math.hypot(geo.foot_length, geo.foot_width) / res + math.sqrt(2.0))
-    valid = free & ndimage.minimum_filter(free, footprint=sure, mode="constant", cval=True)
-    # (cells off the map count neither way)
-    lo = ndimage.maximum_filter(heights, footprint=sure, mode="constant", cval=-np.inf)
     ground = np.where(free, heights, -np.inf)  # a sole overlaps free cells only
     hi = ndimage.maximum_filter(ground, footprint=may, mode="constant", cval=-np.inf)  # >= top
-    if math.isfinite(flat):  # the top is within ``flat`` of the lowest ground under the sole
-        bottom = ndimage.minimum_filter(heights, footprint=sure, mode="constant", cval=np.inf)
-        valid &= lo - bottom <= flat + _EPS
+    if bottom is not None:  # the top is within ``flat`` of the lowest ground under the sole
         hi = np.minimum(hi, bottom + flat)
     reach = (model._table_entry["max_reach"] + res * math.sqrt(2.0)) / res
     (ox, oy), (gx, gy) = grid.origin, model.goal
@@ -100,6 +102,8 @@ def goal_cut_off(model, deadline: float = math.inf) -> bool:
     if not _discs_connect(valid, si, sj, gi, gj, goal_r, reach):
         return True  # no chain of footholds at all, whatever the heights: proved at once
     if math.isfinite(up) or math.isfinite(down):
+        if (LEVELS * STATE_BYTES * int(valid.sum()) + 8 * valid.size) > memory_limit_bytes():
+            return False  # a level table that might not fit in memory: no proof (not a crash)
         ptr, zlo, zhi = _levels(
             valid, ground, lo, hi, np.argwhere(may) - (may.shape[0] // 2), deadline
         )
@@ -111,6 +115,88 @@ def goal_cut_off(model, deadline: float = math.inf) -> bool:
         zlo, zhi = lo.ravel()[flat_valid], hi.ravel()[flat_valid]
     ny = free.shape[1]
     return _fill_reaches(ptr, zlo, zhi, ny, si, sj, gi, gj, goal_r, reach, up, down, deadline) == 0
+
+
+def _footholds(free, heights, geo, res: float, flat: float):
+    """The relaxation's footholds: cells where a sole centred in the cell may stand.
+
+    A sole centred anywhere in a cell overlaps, whatever its yaw, every cell within its
+    inscribed disc (``sure``, in cells); those must be free (cells off the array count as
+    free), and with a flatness limit their heights may differ by at most ``flat`` (the
+    range under the sole is at least theirs). Every real foothold's cell is one.
+
+    Returns:
+        ``(fits, valid, lo, bottom)``: the cells whose ``sure`` disc is free, those also
+        flat enough, the highest and (with a finite ``flat``, else None) the lowest height
+        over each cell's ``sure`` disc.
+    """
+    sure = _sure_disc(min(geo.foot_length, geo.foot_width), res)
+    fits = free & ndimage.minimum_filter(free, footprint=sure, mode="constant", cval=True)
+    lo = ndimage.maximum_filter(heights, footprint=sure, mode="constant", cval=-np.inf)
+    if not math.isfinite(flat):
+        return fits, fits, lo, None
+    bottom = ndimage.minimum_filter(heights, footprint=sure, mode="constant", cval=np.inf)
+    return fits, fits & (lo - bottom <= flat + _EPS), lo, bottom
+
+
+def _foothold_at(grid, geo, i: int, j: int, flat: float) -> bool:
+    """:func:`_footholds`' verdict on the one cell ``(i, j)`` (tens of microseconds)."""
+    k = _sure_disc(min(geo.foot_length, geo.foot_width), grid.resolution)
+    r = k.shape[0] // 2
+    nx, ny = grid.shape
+    i0, i1, j0, j1 = max(i - r, 0), min(i + r + 1, nx), max(j - r, 0), min(j + r + 1, ny)
+    sure = k[i0 - i + r : i1 - i + r, j0 - j + r : j1 - j + r]  # cells off the map: left out
+    if grid.occupied[i0:i1, j0:j1][sure].any():
+        return False
+    if grid.heights is None or not math.isfinite(flat):
+        return True
+    z = grid.heights[i0:i1, j0:j1][sure]
+    return float(z.max() - z.min()) <= flat + _EPS
+
+
+def goal_foothold_error(model) -> str:
+    """Why no sole can stand within the goal tolerance of a static grid's goal ("" if one may).
+
+    Judged by :func:`_footholds` on the cells around the goal (a few hundred, so every step
+    model pays it): a goal cell's centre lies within ``tol + res / sqrt(2)`` of the goal
+    point, and every sole that meets the goal test stands on one that is a foothold there.
+    So a message here means no plan can end at the goal, on any lattice: a goal in a pocket
+    too small for a sole, or on ground too steep for ``max_height_range``. "" in dynamic
+    worlds and when the start already meets the goal.
+    """
+    if model.dynamic:
+        return ""
+    grid, tol = model.ref, model.opts.goal_tolerance  # (before the heuristic's set-up)
+    (ox, oy), (gx, gy), (sx, sy, _) = grid.origin, model.goal, model.start_pose
+    if (sx - gx) ** 2 + (sy - gy) ** 2 <= tol * tol:
+        return ""
+    res, geo, (nx, ny) = grid.resolution, model.geometry, grid.shape
+    goal_r = (tol + res / math.sqrt(2.0)) / res
+    gi, gj = (gx - ox) / res - 0.5, (gy - oy) / res - 0.5  # the goal in cell-centre units
+    if _foothold_at(grid, geo, int(gi + 0.5), int(gj + 0.5), float(model.flat_limit)):
+        return ""  # the goal's own cell (its centre within goal_r) holds a sole: the usual case
+    r = int(math.ceil(goal_r + 0.5 * min(geo.foot_length, geo.foot_width) / res)) + 2
+    i0, i1 = max(int(gi) - r, 0), min(int(gi) + r + 2, nx)
+    j0, j1 = max(int(gj) - r, 0), min(int(gj) + r + 2, ny)
+    free = ~np.asarray(grid.occupied[i0:i1, j0:j1], bool)
+    heights = np.zeros(free.shape) if grid.heights is None else grid.heights[i0:i1, j0:j1]
+    fits, valid, lo, bottom = _footholds(free, heights, geo, res, float(model.flat_limit))
+    ii, jj = np.mgrid[i0:i1, j0:j1]
+    near = (ii - gi) ** 2 + (jj - gj) ** 2 <= goal_r * goal_r
+    where = f"goal ({gx:.3f}, {gy:.3f})"
+    if not np.any(fits & near):
+        return (
+            f"{where}: no foot fits within goal_tolerance {tol} m of it (every sole "
+            f"{geo.foot_length} x {geo.foot_width} m centred there overlaps an obstacle)"
+        )
+    if not np.any(valid & near):
+        steep = float(np.min((lo - bottom)[fits & near]))
+        return (
+            f"{where} lies on ground too steep: every sole within goal_tolerance {tol} m of "
+            f"it stands on a height range of at least {steep:.3f} m > max_height_range "
+            f"{model.flat_limit} m"
+        )
+    return ""
 
 
 def _discs_connect(valid, si, sj, gi, gj, goal_r, reach) -> bool:
@@ -178,6 +264,17 @@ def _meets_goal(labels, start, valid, gi, gj, goal_r) -> bool:
     ii, jj = np.mgrid[i0:i1, j0:j1]
     goal = valid[i0:i1, j0:j1] & ((ii - gi) ** 2 + (jj - gj) ** 2 <= goal_r * goal_r)
     return bool(np.any(labels[i0:i1, j0:j1][goal] == start))
+
+
+@functools.lru_cache(maxsize=16)
+def _sure_disc(breadth: float, res: float) -> np.ndarray:
+    """The cells a sole ``breadth`` m across at its narrowest surely overlaps (read only).
+
+    Centred anywhere in the middle cell, at any yaw: the cells of its inscribed disc.
+    """
+    disc = _disc(0.5 * breadth / res - math.sqrt(0.5), strict=True)
+    disc.flags.writeable = False
+    return disc
 
 
 def _disc(radius: float, strict: bool = False) -> np.ndarray:
@@ -293,4 +390,4 @@ def _fill_reaches(ptr, zlo, zhi, ny, si, sj, gi, gj, goal_r, reach, up, down, de
     return 0
 
 
-__all__ = ["goal_cut_off"]
+__all__ = ["goal_cut_off", "goal_foothold_error"]

@@ -18,6 +18,7 @@ from repertoire.planning.footstep import (
     PlanStatus,
     nominal_action_table,
     plan_footsteps,
+    plan_footsteps_anytime,
 )
 from repertoire.planning.footstep.biped_model import BipedStepModel
 from repertoire.planning.footstep.environment import rect_overlaps_cells
@@ -505,3 +506,23 @@ def test_the_refinements_key_swing_starts(monkeypatch):
     plan = plan_footsteps(grid, (0.3, 0.5, 0.0), "left", (1.8, 0.5), nominal_action_table(), opts)
     assert plan.status is PlanStatus.UNREACHABLE
     assert seen == [(0.05, 1), (0.025, 7)]
+    seen.clear()  # the anytime planner's refinements likewise
+    runs = plan_footsteps_anytime(
+        grid, (0.3, 0.5, 0.0), "left", (1.8, 0.5), nominal_action_table(), opts
+    )
+    assert runs[-1].plan.status is PlanStatus.UNREACHABLE
+    assert set(seen) == {(0.05, 1), (0.025, 7)} and seen[-1] == (0.025, 7)
+
+
+def test_the_anytime_refinements_find_the_plans_merged_swing_starts_hide():
+    # posts map 182 (the test above): the admissible mode's 2.5 cm lattice, merged, is
+    # exhausted; its first refinement (1.25 cm) keys swing starts and finds a plan, as
+    # plan_footsteps' does (before, the anytime planner's refinement merged them too and
+    # said UNREACHABLE)
+    grid, goal = _posts(0.3, seed=182, pieces=(12, 30))
+    opts = PlannerOptions.admissible(time_limit=60.0, refinements=1, swing_clearance=0.1)
+    args = (grid, (0.15, 0.5, 0.0), "left", goal, nominal_action_table(), opts)
+    runs = plan_footsteps_anytime(*args)
+    one = plan_footsteps(*args)
+    assert one.succeeded and one.xy_resolution == 0.0125
+    assert runs[-1].plan.succeeded and runs[-1].plan.xy_resolution == 0.0125

@@ -461,8 +461,9 @@ def plan_footsteps_anytime(
             break
         level += 1
         finer = _finer(opts, level, left)
+        split = {**kwargs, "swing_start_states": True}  # as plan_footsteps' refinements
         found, t_done = _anytime_once(
-            world, start, start_foot, goal, table, finer, weights, kwargs, restarts,
+            world, start, start_foot, goal, table, finer, weights, split, restarts,
             level < opts.refinements, corridor,
         )  # fmt: skip
     out = []

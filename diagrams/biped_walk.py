@@ -34,6 +34,7 @@ from repertoire.systems.walking import (
     SwingFootPlanner,
     WalkingIK,
     ZmpComPlanner,
+    check_start_stance,
     plan_com,
     realize_plan,
     standing_com_height,
@@ -274,6 +275,7 @@ def build_walk_diagram(
     from repertoire.systems.walking import foot_poses_at
 
     left, right, _ = foot_poses_at(seq, 0.0)
+    check_start_stance(left, right, planner.get_nominal_com(0.0).ravel(), pelvis_height)
     q0, pelvis0 = whole_body_ik(planner.get_nominal_com(0.0).ravel(), left, right, pelvis_height)
     builder = DiagramBuilder()
     X_WP = RigidTransform(RollPitchYaw(0.0, 0.0, pelvis0[3]), pelvis0[:3])
@@ -397,6 +399,11 @@ def sole_poses(diagram: Diagram, context: Context) -> dict[int, np.ndarray]:
 
 
 TOUCHDOWN_DT = 0.004  # [s]
+#: How far a sole may stand from the plan's start pose when execute_plan starts (the
+#: builder places the robot there by IK to about 1e-6 m; a diagram whose plan was swapped
+#: for one that starts elsewhere is off by the distance between the starts).
+START_TOLERANCE_M = 0.01
+START_TOLERANCE_RAD = 0.02
 
 
 def foot_in_contact(diagram: Diagram, context: Context, foot: int) -> bool:
@@ -477,6 +484,14 @@ def execute_plan(
         diagram: optionally a diagram already built by :func:`build_walk_diagram` for ``plan``.
         simulator: optionally a simulator of ``diagram``.
         max_steps: stop after measuring this many landings (default: all, then the final hold).
+
+    Raises:
+        RepertoireError: bad ``settle`` or ``max_steps``, or a ``diagram`` (or its context)
+            walking another plan than ``plan`` (:func:`same_commands`): the landings were
+            measured against ``plan`` while the robot walked the other one; or a robot
+            that does not stand on the plan's start soles (within ``START_TOLERANCE_M``
+            and ``START_TOLERANCE_RAD``): a plan set into a diagram built for a plan that
+            starts elsewhere.
     """
     if not (is_real(settle) and np.isfinite(settle) and settle >= 0.0):
         raise RepertoireError(f"settle must be a finite delay >= 0 s, got {settle!r}")
@@ -494,8 +509,30 @@ def execute_plan(
     if simulator is None:
         simulator = Simulator(diagram)
     context = simulator.get_context()
+    source = diagram.GetSubsystemByName("plan_source")
+    walked = source.get_plan(source.GetMyContextFromRoot(context))
+    if not same_commands(walked, plan):
+        raise RepertoireError(
+            f"execute_plan's plan ({plan.num_steps} steps from {plan.poses[0]}) is not the "
+            f"one the diagram walks ({walked.num_steps} steps from {walked.poses[0]}): the "
+            "landings would be measured against the wrong plan; build the diagram for this "
+            "plan or SetPlan it in the simulator's context"
+        )
     simulator.Initialize()
     seq = footstep_sequence(diagram, context)
+    soles = sole_poses(diagram, context)
+    for foot, want in ((0, seq.initial_left), (1, seq.initial_right)):
+        off = float(np.linalg.norm(soles[foot][:2] - np.asarray(want[:2])))
+        turn = abs(wrap_angle(soles[foot][2] - want[2]))
+        if not (off <= START_TOLERANCE_M and turn <= START_TOLERANCE_RAD):
+            raise RepertoireError(
+                f"the robot's {('left', 'right')[foot]} sole stands at "
+                f"{(np.round(soles[foot], 4) + 0.0).tolist()} but the plan starts it at "
+                f"{(np.round(want, 4) + 0.0).tolist()} ([x, y, yaw]; {off:.4f} m, {turn:.4f} rad "
+                f"apart, tolerance {START_TOLERANCE_M} m, {START_TOLERANCE_RAD} rad): the "
+                "steps would be taken from where the robot stands; build the diagram for "
+                "this plan"
+            )
     landed, stance, max_tilt, fell = [], [], 0.0, False
     n_steps = seq.num_steps if max_steps is None else min(max_steps, seq.num_steps)
     touchdowns = []
@@ -538,6 +575,22 @@ def execute_plan(
         fell=fell,
         final_time=context.get_time(),
         max_tilt=max_tilt,
+    )
+
+
+def same_commands(a: FootstepPlan, b: FootstepPlan) -> bool:
+    """Whether two plans make the walker take the same steps and predict the same landings.
+
+    Compares the start soles, the feet, the actions, the history, the planned poses and
+    the times (the search figures, cost and status may differ).
+    """
+    return (
+        list(a.feet) == list(b.feet)
+        and list(a.actions) == list(b.actions)
+        and list(a.initial_history) == list(b.initial_history)
+        and np.array_equal(a.poses_array(), b.poses_array())
+        and np.array_equal(np.asarray(a.initial_swing_pose, float), b.initial_swing_pose)
+        and np.array_equal(np.asarray(a.times, float), b.times)
     )
 
 
@@ -589,6 +642,7 @@ __all__ = [
     "execute_plan",
     "landing_errors",
     "plan_from_actions",
+    "same_commands",
     "sole_poses",
     "start_feet",
 ]

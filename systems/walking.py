@@ -54,6 +54,7 @@ from pydrake.systems.framework import (
 from pydrake.trajectories import PiecewisePolynomial
 from repertoire.models.biped import (
     ANKLE_HEIGHT,
+    FOOT_WIDTH,
     JOINT_LIMITS,
     LEG_JOINTS,
     com_in_pelvis,
@@ -476,6 +477,55 @@ def whole_body_ik(
     return q, np.array([p[0], p[1], p[2], yaw])
 
 
+def _xy_yaw(pose: np.ndarray) -> list[float]:
+    return [round(float(pose[0]), 4), round(float(pose[1]), 4), round(float(pose[3]), 4)]
+
+
+def check_start_stance(
+    left: np.ndarray, right: np.ndarray, com: np.ndarray, pelvis_height: float
+) -> None:
+    """Checks that the biped can stand on the start soles (a plan's first two poses).
+
+    The robot is placed on the plan's start soles, and the walking IK bends joints
+    past their limits or stretches a knee rather than stop, so a start it cannot stand
+    on used to be simulated anyway. The left sole must stand at least a sole's width
+    (``FOOT_WIDTH``) to the left of the right one across the soles' mean heading (the
+    soles would otherwise overlap or the legs cross), and both legs must reach their
+    soles within the joint limits with the pelvis over ``com`` at ``pelvis_height``.
+
+    Args:
+        left: left sole ``[x, y, yaw]`` (or ``[x, y, z, yaw]``).
+        right: right sole, the same form.
+        com: desired CoM ``(x, y)`` at the start.
+        pelvis_height: pelvis height [m].
+
+    Raises:
+        RepertoireError: naming both soles (rounded to 0.1 mm / 0.1 mrad) and what is
+            wrong.
+    """
+    left = np.asarray(left, dtype=float)
+    right = np.asarray(right, dtype=float)
+    lp, rp = np.array([*left[:2], 0.0, left[-1]]), np.array([*right[:2], 0.0, right[-1]])
+    yaw = math.atan2(math.sin(lp[3]) + math.sin(rp[3]), math.cos(lp[3]) + math.cos(rp[3]))
+    gap = float(np.dot(lp[:2] - rp[:2], [-math.sin(yaw), math.cos(yaw)]))
+    soles = f"left sole {_xy_yaw(lp)}, right sole {_xy_yaw(rp)} as [x, y, yaw]"
+    if not gap >= FOOT_WIDTH - 1e-9:
+        raise RepertoireError(
+            f"the biped cannot stand on the start soles ({soles}): the left sole is "
+            f"{gap:.3f} m left of the right one across their heading, needs >= "
+            f"{FOOT_WIDTH} m (a sole's width)"
+        )
+    _, pelvis = whole_body_ik(com, lp, rp, pelvis_height, iterations=6)
+    R_WP = rotation_rpy(0.0, 0.0, pelvis[3])
+    for foot, side in ((lp, "left"), (rp, "right")):
+        try:
+            leg_ik(R_WP.T @ (foot[:3] - pelvis[:3]), R_WP.T @ rotation_rpy(0.0, 0.0, foot[3]), side)
+        except RepertoireError as e:
+            raise RepertoireError(
+                f"the biped cannot stand on the start soles ({soles}): {e}"
+            ) from e
+
+
 def clip_to_limits(q: np.ndarray) -> np.ndarray:
     """Clips (12,) leg joint angles to the URDF limits."""
     lo = np.array([JOINT_LIMITS[j][0] for j in LEG_JOINTS] * 2)
@@ -702,6 +752,7 @@ __all__ = [
     "SwingFootPlanner",
     "WalkingIK",
     "ZmpComPlanner",
+    "check_start_stance",
     "clip_to_limits",
     "compose",
     "foot_poses_at",

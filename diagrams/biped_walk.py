@@ -8,6 +8,7 @@ leg IK) -> the plant's ``desired_state`` input (joint PD in the discrete solver)
 """
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from repertoire.diagrams.biped import add_biped_world, validate_plant_fields
 from repertoire.diagrams.registry import register_diagram
-from repertoire.models.biped import LEARNED_TABLE_PATH, LegGains
+from repertoire.models.biped import FOOT_WIDTH, LEARNED_TABLE_PATH, LegGains, leg_ik, rotation_rpy
 from repertoire.planning.footstep.actions import ACTIONS, apply_displacement
 from repertoire.planning.footstep.types import (
     ActionTable,
@@ -34,9 +35,9 @@ from repertoire.systems.walking import (
     SwingFootPlanner,
     WalkingIK,
     ZmpComPlanner,
-    check_start_stance,
     plan_com,
     realize_plan,
+    same_commands,
     standing_com_height,
     whole_body_ik,
 )
@@ -234,6 +235,55 @@ def _scenario_plan(scenario: BipedWalkScenario) -> tuple[FootstepPlan, list[list
         scenario.actions, stance, scenario.first_stance, swing, nominal_action_table()
     )
     return plan, []
+
+
+def _xy_yaw(pose: np.ndarray) -> list[float]:
+    return [round(float(pose[0]), 4), round(float(pose[1]), 4), round(float(pose[3]), 4)]
+
+
+def check_start_stance(
+    left: np.ndarray, right: np.ndarray, com: np.ndarray, pelvis_height: float
+) -> None:
+    """Checks that the biped can stand on the start soles (a plan's first two poses).
+
+    The robot is placed on the plan's start soles, and the walking IK bends joints
+    past their limits or stretches a knee rather than stop, so a start it cannot stand
+    on used to be simulated anyway. The left sole must stand at least a sole's width
+    (``FOOT_WIDTH``) to the left of the right one across the soles' mean heading (the
+    soles would otherwise overlap or the legs cross), and both legs must reach their
+    soles within the joint limits with the pelvis over ``com`` at ``pelvis_height``.
+
+    Args:
+        left: left sole ``[x, y, yaw]`` (or ``[x, y, z, yaw]``).
+        right: right sole, the same form.
+        com: desired CoM ``(x, y)`` at the start.
+        pelvis_height: pelvis height [m].
+
+    Raises:
+        RepertoireError: naming both soles (rounded to 0.1 mm / 0.1 mrad) and what is
+            wrong.
+    """
+    left = np.asarray(left, dtype=float)
+    right = np.asarray(right, dtype=float)
+    lp, rp = np.array([*left[:2], 0.0, left[-1]]), np.array([*right[:2], 0.0, right[-1]])
+    yaw = math.atan2(math.sin(lp[3]) + math.sin(rp[3]), math.cos(lp[3]) + math.cos(rp[3]))
+    gap = float(np.dot(lp[:2] - rp[:2], [-math.sin(yaw), math.cos(yaw)]))
+    soles = f"left sole {_xy_yaw(lp)}, right sole {_xy_yaw(rp)} as [x, y, yaw]"
+    if not gap >= FOOT_WIDTH - 1e-9:
+        raise RepertoireError(
+            f"the biped cannot stand on the start soles ({soles}): the left sole is "
+            f"{gap:.3f} m left of the right one across their heading, needs >= "
+            f"{FOOT_WIDTH} m (a sole's width)"
+        )
+    _, pelvis = whole_body_ik(com, lp, rp, pelvis_height, iterations=6)
+    R_WP = rotation_rpy(0.0, 0.0, pelvis[3])
+    for foot, side in ((lp, "left"), (rp, "right")):
+        try:
+            leg_ik(R_WP.T @ (foot[:3] - pelvis[:3]), R_WP.T @ rotation_rpy(0.0, 0.0, foot[3]), side)
+        except RepertoireError as e:
+            raise RepertoireError(
+                f"the biped cannot stand on the start soles ({soles}): {e}"
+            ) from e
 
 
 def build_walk_diagram(
@@ -444,6 +494,9 @@ class WalkResult:
         fell: the pelvis dropped below 0.4 m or tilted more than 0.5 rad.
         final_time: simulated time reached [s].
         max_tilt: largest pelvis tilt seen at the sampled instants [rad].
+        final_soles: measured ``[x, y, yaw]`` of the left and the right sole at
+            ``final_time`` (where the robot stands at the end, also after a plan of no
+            steps).
     """
 
     landed: list[list[float]]
@@ -455,6 +508,7 @@ class WalkResult:
     fell: bool
     final_time: float
     max_tilt: float
+    final_soles: list[list[float]] = dataclasses.field(default_factory=list)
 
 
 def execute_plan(
@@ -575,22 +629,7 @@ def execute_plan(
         fell=fell,
         final_time=context.get_time(),
         max_tilt=max_tilt,
-    )
-
-
-def same_commands(a: FootstepPlan, b: FootstepPlan) -> bool:
-    """Whether two plans make the walker take the same steps and predict the same landings.
-
-    Compares the start soles, the feet, the actions, the history, the planned poses and
-    the times (the search figures, cost and status may differ).
-    """
-    return (
-        list(a.feet) == list(b.feet)
-        and list(a.actions) == list(b.actions)
-        and list(a.initial_history) == list(b.initial_history)
-        and np.array_equal(a.poses_array(), b.poses_array())
-        and np.array_equal(np.asarray(a.initial_swing_pose, float), b.initial_swing_pose)
-        and np.array_equal(np.asarray(a.times, float), b.times)
+        final_soles=[v.tolist() for _, v in sorted(sole_poses(diagram, context).items())],
     )
 
 
@@ -639,6 +678,7 @@ __all__ = [
     "build_biped_walk",
     "build_walk_diagram",
     "check_biped_walk",
+    "check_start_stance",
     "execute_plan",
     "landing_errors",
     "plan_from_actions",

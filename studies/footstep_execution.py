@@ -111,7 +111,7 @@ class FootstepExecutionRecord:
         learned_step_err_m: mean error of each step relative to the *measured* stance
             sole (the table's own accuracy, without accumulated drift) [m].
         learned_fell: the biped fell.
-        learned_reached: no fall and a final sole within the plan's goal tolerance.
+        learned_reached: no fall and a sole within the plan's goal tolerance at the end.
         learned_on_obstacle: measured footprints touching an obstacle cell.
         nominal_*: the same with the nominal table (zeros when not compared).
         wall_time_s: wall time of the episode.
@@ -181,9 +181,11 @@ def evaluate_execution(plan: FootstepPlan, result, grid) -> dict:
         d_meas = np.array([c * d[0] + sn * d[1], -sn * d[0] + c * d[1]])
         step_err.append(float(np.linalg.norm(d_meas - d_plan)))
     goal = np.asarray(plan.goal[:2], float)
-    final = [result.landed[-1]] if result.landed else []
-    if len(result.stance):
-        final.append(result.stance[-1])
+    # where the soles stand at the end (a plan of no steps ends where it starts; before,
+    # only landings counted, so a 0-step plan from inside the goal was never reached)
+    final = list(result.final_soles)
+    if not final:  # a WalkResult made without them: the last landing and its stance
+        final = [result.landed[-1], result.stance[-1]] if result.landed else []
     reached = (not result.fell) and any(
         np.linalg.norm(np.asarray(f[:2]) - goal) <= plan.goal_tolerance for f in final
     )

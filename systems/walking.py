@@ -54,7 +54,6 @@ from pydrake.systems.framework import (
 from pydrake.trajectories import PiecewisePolynomial
 from repertoire.models.biped import (
     ANKLE_HEIGHT,
-    FOOT_WIDTH,
     JOINT_LIMITS,
     LEG_JOINTS,
     com_in_pelvis,
@@ -309,6 +308,22 @@ def realize_plan(
     )
 
 
+def same_commands(a: FootstepPlan, b: FootstepPlan) -> bool:
+    """Whether two plans make the walker take the same steps and predict the same landings.
+
+    Compares the start soles, the feet, the actions, the history, the planned poses and
+    the times (the search figures, cost and status may differ).
+    """
+    return (
+        list(a.feet) == list(b.feet)
+        and list(a.actions) == list(b.actions)
+        and list(a.initial_history) == list(b.initial_history)
+        and np.array_equal(a.poses_array(), b.poses_array())
+        and np.array_equal(np.asarray(a.initial_swing_pose, float), b.initial_swing_pose)
+        and np.array_equal(np.asarray(a.times, float), b.times)
+    )
+
+
 def feet_at_step(seq: FootstepSequence, k: int) -> dict[int, np.ndarray]:
     """Both sole poses before step ``k`` (k = 0: the start; k = N: after the last step)."""
     feet = {0: np.asarray(seq.initial_left, float), 1: np.asarray(seq.initial_right, float)}
@@ -477,55 +492,6 @@ def whole_body_ik(
     return q, np.array([p[0], p[1], p[2], yaw])
 
 
-def _xy_yaw(pose: np.ndarray) -> list[float]:
-    return [round(float(pose[0]), 4), round(float(pose[1]), 4), round(float(pose[3]), 4)]
-
-
-def check_start_stance(
-    left: np.ndarray, right: np.ndarray, com: np.ndarray, pelvis_height: float
-) -> None:
-    """Checks that the biped can stand on the start soles (a plan's first two poses).
-
-    The robot is placed on the plan's start soles, and the walking IK bends joints
-    past their limits or stretches a knee rather than stop, so a start it cannot stand
-    on used to be simulated anyway. The left sole must stand at least a sole's width
-    (``FOOT_WIDTH``) to the left of the right one across the soles' mean heading (the
-    soles would otherwise overlap or the legs cross), and both legs must reach their
-    soles within the joint limits with the pelvis over ``com`` at ``pelvis_height``.
-
-    Args:
-        left: left sole ``[x, y, yaw]`` (or ``[x, y, z, yaw]``).
-        right: right sole, the same form.
-        com: desired CoM ``(x, y)`` at the start.
-        pelvis_height: pelvis height [m].
-
-    Raises:
-        RepertoireError: naming both soles (rounded to 0.1 mm / 0.1 mrad) and what is
-            wrong.
-    """
-    left = np.asarray(left, dtype=float)
-    right = np.asarray(right, dtype=float)
-    lp, rp = np.array([*left[:2], 0.0, left[-1]]), np.array([*right[:2], 0.0, right[-1]])
-    yaw = math.atan2(math.sin(lp[3]) + math.sin(rp[3]), math.cos(lp[3]) + math.cos(rp[3]))
-    gap = float(np.dot(lp[:2] - rp[:2], [-math.sin(yaw), math.cos(yaw)]))
-    soles = f"left sole {_xy_yaw(lp)}, right sole {_xy_yaw(rp)} as [x, y, yaw]"
-    if not gap >= FOOT_WIDTH - 1e-9:
-        raise RepertoireError(
-            f"the biped cannot stand on the start soles ({soles}): the left sole is "
-            f"{gap:.3f} m left of the right one across their heading, needs >= "
-            f"{FOOT_WIDTH} m (a sole's width)"
-        )
-    _, pelvis = whole_body_ik(com, lp, rp, pelvis_height, iterations=6)
-    R_WP = rotation_rpy(0.0, 0.0, pelvis[3])
-    for foot, side in ((lp, "left"), (rp, "right")):
-        try:
-            leg_ik(R_WP.T @ (foot[:3] - pelvis[:3]), R_WP.T @ rotation_rpy(0.0, 0.0, foot[3]), side)
-        except RepertoireError as e:
-            raise RepertoireError(
-                f"the biped cannot stand on the start soles ({soles}): {e}"
-            ) from e
-
-
 def clip_to_limits(q: np.ndarray) -> np.ndarray:
     """Clips (12,) leg joint angles to the URDF limits."""
     lo = np.array([JOINT_LIMITS[j][0] for j in LEG_JOINTS] * 2)
@@ -553,11 +519,20 @@ class CommandStepper(LeafSystem):
     on its input (typically ``FootstepPlanSource``'s ``plan`` port, which is cached on
     its parameters, so the footsteps are computed once per plan).
 
+    The footsteps are realized from the plan's start at ``start_time``, so the plan cannot
+    change once the walk is under way: a plan that differs (:func:`same_commands`) from
+    the one held at initialization, arriving after the first command, raises instead of
+    making the feet jump to where the new plan would have them at that time (session 32:
+    a switch at 3 s moved a sole target by 0.35 m and 0.7 rad and the biped fell 1.2 s
+    later). Setting another plan before the first command is allowed.
+
     Input ports:
         plan: abstract ``FootstepPlan`` (the commands to execute).
 
     Output ports:
         footsteps: abstract :class:`FootstepSequence`.
+
+    State: abstract, the plan seen at initialization (None before it).
     """
 
     def __init__(self, rule: SteppingRule | None = None, *, start_time: float = 0.0):
@@ -566,12 +541,20 @@ class CommandStepper(LeafSystem):
         self._rule.validate()
         self._start_time = _check_start_time(start_time)
         self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(_empty_plan()))
+        self._started = self.DeclareAbstractState(AbstractValue.Make(_NoPlan()))
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._initialize)
         self.DeclareAbstractOutputPort(
             "footsteps",
             lambda: AbstractValue.Make(realize_plan(_empty_plan(), self._rule)),
             self._calc_footsteps,
-            prerequisites_of_calc={self.input_port_ticket(self._plan.get_index())},
+            prerequisites_of_calc={
+                self.input_port_ticket(self._plan.get_index()),
+                self.abstract_state_ticket(self._started),
+            },
         )
+
+    def _initialize(self, context: Context, state) -> None:
+        state.get_mutable_abstract_state(self._started).set_value(self._plan.Eval(context))
 
     @property
     def rule(self) -> SteppingRule:
@@ -583,7 +566,29 @@ class CommandStepper(LeafSystem):
             raise RepertoireError(
                 f"CommandStepper's plan input needs a FootstepPlan, got {type(plan).__name__}"
             )
+        started = context.get_abstract_state(self._started).get_value()
+        first_command = self._start_time + self._rule.initial_hold
+        t = context.get_time()
+        if isinstance(started, FootstepPlan) and t > first_command:
+            if not same_commands(started, plan):
+                raise RepertoireError(
+                    f"CommandStepper got a new plan ({plan.num_steps} steps from "
+                    f"{_rounded(plan.poses[0])}) at t = {t:.3f} s, after its first step was "
+                    f"commanded at {first_command:.3f} s; it walks the plan it started with "
+                    f"({started.num_steps} steps from {_rounded(started.poses[0])}) and "
+                    "cannot switch "
+                    "plans mid-walk (the feet would jump to the new plan's steps at that "
+                    "time); build a new diagram that starts where the robot stands"
+                )
         output.set_value(realize_plan(plan, self._rule, start_time=self._start_time))
+
+
+def _rounded(pose) -> list[float]:
+    return [round(float(v), 4) + 0.0 for v in pose]
+
+
+class _NoPlan:
+    """The CommandStepper's state before initialization (no plan seen yet)."""
 
 
 def _empty_plan() -> FootstepPlan:
@@ -752,7 +757,6 @@ __all__ = [
     "SwingFootPlanner",
     "WalkingIK",
     "ZmpComPlanner",
-    "check_start_stance",
     "clip_to_limits",
     "compose",
     "foot_poses_at",
@@ -761,6 +765,7 @@ __all__ = [
     "realize_plan",
     "realize_step",
     "relative",
+    "same_commands",
     "standing_com_height",
     "swing_pose",
     "whole_body_ik",

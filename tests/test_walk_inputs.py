@@ -12,6 +12,7 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from repertoire.diagrams.biped_walk import (
     build_walk_diagram,
+    check_start_stance,
     execute_plan,
     plan_from_actions,
     same_commands,
@@ -19,7 +20,6 @@ from repertoire.diagrams.biped_walk import (
 )
 from repertoire.planning.footstep.actions import nominal_action_table
 from repertoire.planning.footstep.types import FootstepPlan
-from repertoire.systems.walking import check_start_stance
 
 from repertoire.errors import RepertoireError
 
@@ -94,3 +94,73 @@ def test_execute_plan_refuses_a_plan_set_where_the_robot_does_not_stand():
     near = _plan(["stop"], start=(0.003, 0.0, 0.0))  # within the 1 cm tolerance
     source.SetPlan(source.GetMyContextFromRoot(simulator.get_context()), near)
     assert execute_plan(near, diagram=diagram, simulator=simulator, max_steps=0).landed == []
+
+
+def test_a_plan_switched_mid_walk_is_refused_and_one_switched_before_the_start_is_walked():
+    first = _plan(["forward_long", "forward_long", "stop"])
+    diagram = build_walk_diagram(first)
+    simulator = Simulator(diagram)
+    context = simulator.get_context()
+    source = diagram.GetSubsystemByName("plan_source")
+    stepper = diagram.GetSubsystemByName("command_stepper")
+    shorter = _plan(["forward_short", "stop"])  # the same start soles
+    source.SetPlan(source.GetMyContextFromRoot(context), shorter)  # before the start: allowed
+    simulator.Initialize()
+    assert stepper.GetOutputPort("footsteps").Eval(
+        stepper.GetMyContextFromRoot(context)
+    ).actions == ["forward_short", "stop"]
+    simulator.AdvanceTo(1.5)  # the first command was at 0.4 s
+    source.SetPlan(source.GetMyContextFromRoot(context), shorter)  # the same plan again
+    simulator.AdvanceTo(1.6)
+    # before: the feet targets jumped to the new plan's steps at that time and the biped
+    # fell (a switch at 3 s: 0.35 m and 0.7 rad, fell 1.2 s later)
+    source.SetPlan(source.GetMyContextFromRoot(context), first)
+    with pytest.raises(
+        RepertoireError,
+        match=r"CommandStepper got a new plan \(3 steps from .*\) at t = 1.600 s, after its "
+        r"first step was commanded at 0.400 s; it walks the plan it started with \(2 steps",
+    ):
+        simulator.AdvanceTo(1.7)
+
+
+def test_a_plan_of_no_steps_stands_and_counts_as_reached_from_inside_the_goal():
+    from repertoire.planning.footstep.environment import OccupancyGrid
+    from repertoire.studies.footstep_execution import evaluate_execution
+
+    plan = _plan([])
+    result = execute_plan(plan)
+    assert result.landed == [] and not result.fell
+    assert result.final_time == pytest.approx(0.4 + 0.4 + 1.2)  # holds and double support
+    np.testing.assert_allclose(result.final_soles, [[0, 0.095, 0], [0, -0.095, 0]], atol=2e-3)
+    grid = OccupancyGrid(np.zeros((40, 40), bool), 0.05, (-1.0, -1.0))
+    stats = evaluate_execution(plan, result, grid)
+    # before: only landings counted, so standing on the goal was "not reached"
+    assert stats["reached"] and stats["steps"] == 0 and stats["within_frac"] == 0.0
+    away = FootstepPlan(**{**plan.__dict__, "goal": [1.0, 0.0]})
+    assert not evaluate_execution(away, result, grid)["reached"]
+
+
+def test_command_stepper_guard_with_fixed_inputs():
+    from repertoire.systems.walking import CommandStepper, SteppingRule, realize_plan
+
+    rule = SteppingRule(initial_hold=0.5)
+    stepper = CommandStepper(rule, start_time=1.0)  # first command at 1.5 s
+    ctx = stepper.CreateDefaultContext()
+    first, other = _plan(["forward_long"]), _plan(["stop"])
+    port = stepper.GetInputPort("plan")
+    out = stepper.GetOutputPort("footsteps")
+    ctx.SetTime(9.0)
+    port.FixValue(ctx, other)  # no plan seen at initialization: nothing to compare with
+    assert out.Eval(ctx).poses == realize_plan(other, rule, start_time=1.0).poses
+    ctx.get_mutable_abstract_state(0).set_value(first)
+    for t in (0.0, 1.5):  # up to the first command a new plan is taken
+        ctx.SetTime(t)
+        port.FixValue(ctx, other)
+        assert out.Eval(ctx).actions == ["stop"]
+        assert out.Eval(ctx).command_times == [1.5]
+    ctx.SetTime(1.5 + 1e-6)
+    port.FixValue(ctx, first)  # the plan it started with
+    assert out.Eval(ctx).actions == ["forward_long"]
+    port.FixValue(ctx, other)
+    with pytest.raises(RepertoireError, match=r"got a new plan \(1 steps from \[0.0, 0.095, 0.0\]"):
+        out.Eval(ctx)

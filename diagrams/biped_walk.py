@@ -8,6 +8,7 @@ leg IK) -> the plant's ``desired_state`` input (joint PD in the discrete solver)
 """
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from repertoire.diagrams.biped import add_biped_world, validate_plant_fields
 from repertoire.diagrams.registry import register_diagram
-from repertoire.models.biped import LEARNED_TABLE_PATH, LegGains
+from repertoire.models.biped import FOOT_WIDTH, LEARNED_TABLE_PATH, LegGains, leg_ik, rotation_rpy
 from repertoire.planning.footstep.actions import ACTIONS, apply_displacement
 from repertoire.planning.footstep.types import (
     ActionTable,
@@ -36,6 +37,7 @@ from repertoire.systems.walking import (
     ZmpComPlanner,
     plan_com,
     realize_plan,
+    same_commands,
     standing_com_height,
     whole_body_ik,
 )
@@ -235,6 +237,55 @@ def _scenario_plan(scenario: BipedWalkScenario) -> tuple[FootstepPlan, list[list
     return plan, []
 
 
+def _xy_yaw(pose: np.ndarray) -> list[float]:
+    return [round(float(pose[0]), 4), round(float(pose[1]), 4), round(float(pose[3]), 4)]
+
+
+def check_start_stance(
+    left: np.ndarray, right: np.ndarray, com: np.ndarray, pelvis_height: float
+) -> None:
+    """Checks that the biped can stand on the start soles (a plan's first two poses).
+
+    The robot is placed on the plan's start soles, and the walking IK bends joints
+    past their limits or stretches a knee rather than stop, so a start it cannot stand
+    on used to be simulated anyway. The left sole must stand at least a sole's width
+    (``FOOT_WIDTH``) to the left of the right one across the soles' mean heading (the
+    soles would otherwise overlap or the legs cross), and both legs must reach their
+    soles within the joint limits with the pelvis over ``com`` at ``pelvis_height``.
+
+    Args:
+        left: left sole ``[x, y, yaw]`` (or ``[x, y, z, yaw]``).
+        right: right sole, the same form.
+        com: desired CoM ``(x, y)`` at the start.
+        pelvis_height: pelvis height [m].
+
+    Raises:
+        RepertoireError: naming both soles (rounded to 0.1 mm / 0.1 mrad) and what is
+            wrong.
+    """
+    left = np.asarray(left, dtype=float)
+    right = np.asarray(right, dtype=float)
+    lp, rp = np.array([*left[:2], 0.0, left[-1]]), np.array([*right[:2], 0.0, right[-1]])
+    yaw = math.atan2(math.sin(lp[3]) + math.sin(rp[3]), math.cos(lp[3]) + math.cos(rp[3]))
+    gap = float(np.dot(lp[:2] - rp[:2], [-math.sin(yaw), math.cos(yaw)]))
+    soles = f"left sole {_xy_yaw(lp)}, right sole {_xy_yaw(rp)} as [x, y, yaw]"
+    if not gap >= FOOT_WIDTH - 1e-9:
+        raise RepertoireError(
+            f"the biped cannot stand on the start soles ({soles}): the left sole is "
+            f"{gap:.3f} m left of the right one across their heading, needs >= "
+            f"{FOOT_WIDTH} m (a sole's width)"
+        )
+    _, pelvis = whole_body_ik(com, lp, rp, pelvis_height, iterations=6)
+    R_WP = rotation_rpy(0.0, 0.0, pelvis[3])
+    for foot, side in ((lp, "left"), (rp, "right")):
+        try:
+            leg_ik(R_WP.T @ (foot[:3] - pelvis[:3]), R_WP.T @ rotation_rpy(0.0, 0.0, foot[3]), side)
+        except RepertoireError as e:
+            raise RepertoireError(
+                f"the biped cannot stand on the start soles ({soles}): {e}"
+            ) from e
+
+
 def build_walk_diagram(
     plan: FootstepPlan,
     *,
@@ -274,6 +325,7 @@ def build_walk_diagram(
     from repertoire.systems.walking import foot_poses_at
 
     left, right, _ = foot_poses_at(seq, 0.0)
+    check_start_stance(left, right, planner.get_nominal_com(0.0).ravel(), pelvis_height)
     q0, pelvis0 = whole_body_ik(planner.get_nominal_com(0.0).ravel(), left, right, pelvis_height)
     builder = DiagramBuilder()
     X_WP = RigidTransform(RollPitchYaw(0.0, 0.0, pelvis0[3]), pelvis0[:3])
@@ -397,6 +449,11 @@ def sole_poses(diagram: Diagram, context: Context) -> dict[int, np.ndarray]:
 
 
 TOUCHDOWN_DT = 0.004  # [s]
+#: How far a sole may stand from the plan's start pose when execute_plan starts (the
+#: builder places the robot there by IK to about 1e-6 m; a diagram whose plan was swapped
+#: for one that starts elsewhere is off by the distance between the starts).
+START_TOLERANCE_M = 0.01
+START_TOLERANCE_RAD = 0.02
 
 
 def foot_in_contact(diagram: Diagram, context: Context, foot: int) -> bool:
@@ -437,6 +494,9 @@ class WalkResult:
         fell: the pelvis dropped below 0.4 m or tilted more than 0.5 rad.
         final_time: simulated time reached [s].
         max_tilt: largest pelvis tilt seen at the sampled instants [rad].
+        final_soles: measured ``[x, y, yaw]`` of the left and the right sole at
+            ``final_time`` (where the robot stands at the end, also after a plan of no
+            steps).
     """
 
     landed: list[list[float]]
@@ -448,6 +508,7 @@ class WalkResult:
     fell: bool
     final_time: float
     max_tilt: float
+    final_soles: list[list[float]] = dataclasses.field(default_factory=list)
 
 
 def execute_plan(
@@ -477,6 +538,14 @@ def execute_plan(
         diagram: optionally a diagram already built by :func:`build_walk_diagram` for ``plan``.
         simulator: optionally a simulator of ``diagram``.
         max_steps: stop after measuring this many landings (default: all, then the final hold).
+
+    Raises:
+        RepertoireError: bad ``settle`` or ``max_steps``, or a ``diagram`` (or its context)
+            walking another plan than ``plan`` (:func:`same_commands`): the landings were
+            measured against ``plan`` while the robot walked the other one; or a robot
+            that does not stand on the plan's start soles (within ``START_TOLERANCE_M``
+            and ``START_TOLERANCE_RAD``): a plan set into a diagram built for a plan that
+            starts elsewhere.
     """
     if not (is_real(settle) and np.isfinite(settle) and settle >= 0.0):
         raise RepertoireError(f"settle must be a finite delay >= 0 s, got {settle!r}")
@@ -494,8 +563,30 @@ def execute_plan(
     if simulator is None:
         simulator = Simulator(diagram)
     context = simulator.get_context()
+    source = diagram.GetSubsystemByName("plan_source")
+    walked = source.get_plan(source.GetMyContextFromRoot(context))
+    if not same_commands(walked, plan):
+        raise RepertoireError(
+            f"execute_plan's plan ({plan.num_steps} steps from {plan.poses[0]}) is not the "
+            f"one the diagram walks ({walked.num_steps} steps from {walked.poses[0]}): the "
+            "landings would be measured against the wrong plan; build the diagram for this "
+            "plan or SetPlan it in the simulator's context"
+        )
     simulator.Initialize()
     seq = footstep_sequence(diagram, context)
+    soles = sole_poses(diagram, context)
+    for foot, want in ((0, seq.initial_left), (1, seq.initial_right)):
+        off = float(np.linalg.norm(soles[foot][:2] - np.asarray(want[:2])))
+        turn = abs(wrap_angle(soles[foot][2] - want[2]))
+        if not (off <= START_TOLERANCE_M and turn <= START_TOLERANCE_RAD):
+            raise RepertoireError(
+                f"the robot's {('left', 'right')[foot]} sole stands at "
+                f"{(np.round(soles[foot], 4) + 0.0).tolist()} but the plan starts it at "
+                f"{(np.round(want, 4) + 0.0).tolist()} ([x, y, yaw]; {off:.4f} m, {turn:.4f} rad "
+                f"apart, tolerance {START_TOLERANCE_M} m, {START_TOLERANCE_RAD} rad): the "
+                "steps would be taken from where the robot stands; build the diagram for "
+                "this plan"
+            )
     landed, stance, max_tilt, fell = [], [], 0.0, False
     n_steps = seq.num_steps if max_steps is None else min(max_steps, seq.num_steps)
     touchdowns = []
@@ -538,6 +629,7 @@ def execute_plan(
         fell=fell,
         final_time=context.get_time(),
         max_tilt=max_tilt,
+        final_soles=[v.tolist() for _, v in sorted(sole_poses(diagram, context).items())],
     )
 
 
@@ -586,9 +678,11 @@ __all__ = [
     "build_biped_walk",
     "build_walk_diagram",
     "check_biped_walk",
+    "check_start_stance",
     "execute_plan",
     "landing_errors",
     "plan_from_actions",
+    "same_commands",
     "sole_poses",
     "start_feet",
 ]

@@ -13,6 +13,7 @@ Run it with ``python -m repertoire.studies.footstep_execution --help``.
 """
 
 import dataclasses
+import functools
 import json
 import math
 import time
@@ -111,7 +112,7 @@ class FootstepExecutionRecord:
         learned_step_err_m: mean error of each step relative to the *measured* stance
             sole (the table's own accuracy, without accumulated drift) [m].
         learned_fell: the biped fell.
-        learned_reached: no fall and a final sole within the plan's goal tolerance.
+        learned_reached: no fall and a sole within the plan's goal tolerance at the end.
         learned_on_obstacle: measured footprints touching an obstacle cell.
         nominal_*: the same with the nominal table (zeros when not compared).
         wall_time_s: wall time of the episode.
@@ -181,9 +182,11 @@ def evaluate_execution(plan: FootstepPlan, result, grid) -> dict:
         d_meas = np.array([c * d[0] + sn * d[1], -sn * d[0] + c * d[1]])
         step_err.append(float(np.linalg.norm(d_meas - d_plan)))
     goal = np.asarray(plan.goal[:2], float)
-    final = [result.landed[-1]] if result.landed else []
-    if len(result.stance):
-        final.append(result.stance[-1])
+    # where the soles stand at the end (a plan of no steps ends where it starts; before,
+    # only landings counted, so a 0-step plan from inside the goal was never reached)
+    final = list(result.final_soles)
+    if not final:  # a WalkResult made without them: the last landing and its stance
+        final = [result.landed[-1], result.stance[-1]] if result.landed else []
     reached = (not result.fell) and any(
         np.linalg.norm(np.asarray(f[:2]) - goal) <= plan.goal_tolerance for f in final
     )
@@ -331,6 +334,56 @@ def _draw_example(config: FootstepExecutionConfig, seed: int, out: Path) -> Path
     return out
 
 
+def execution_rows(records: list, tables: tuple[str, ...]) -> dict[str, dict]:
+    """The summary row of each table over the episodes.
+
+    Landing errors are averaged over the runs that landed a step: a run that fell before
+    its first landing (or a plan of no steps) has no error to measure, and before session
+    32 it entered the means and medians as a perfect 0 m.
+
+    Args:
+        records: the episodes (:class:`FootstepExecutionRecord`).
+        tables: ``learned`` and/or ``nominal``.
+
+    Returns:
+        ``{table: {figure: value}}``; the landing-error figures are None when no run
+        landed a step.
+    """
+    rows = {}
+    for which in tables:
+        values = functools.partial(_values, which)
+        landed = [r for r in records if getattr(r, f"{which}_executed") > 0]
+        steps = sum(values("steps", records))
+        within = sum(values("within", records))
+        rows[which] = {
+            "runs": len(records),
+            "steps": steps,
+            "steps_within_2cm_5deg": within / steps if steps else 0.0,
+            "runs_reached_goal_without_fall": float(np.mean(values("reached", records)))
+            if records
+            else 0.0,
+            "runs_fell": int(sum(values("fell", records))),
+            "runs_without_landings": len(records) - len(landed),
+            "mean_landing_error_m": _mean(values("mean_err_m", landed)),
+            "median_max_landing_error_m": float(np.median(values("max_err_m", landed)))
+            if landed
+            else None,
+            "mean_step_error_m": _mean(values("step_err_m", landed)),
+            "landings_on_obstacles": int(sum(values("on_obstacle", records))),
+            "plans_success": int(sum(v == "SUCCESS" for v in values("status", records))),
+        }
+    return rows
+
+
+def _values(which: str, field: str, records: list) -> list:
+    return [getattr(r, f"{which}_{field}") for r in records]
+
+
+def _mean(values: list[float]) -> float | None:
+    """Mean, None (null in the JSON) for no values: no landing was measured."""
+    return float(np.mean(values)) if values else None
+
+
 def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> dict:
     """Writes the execution table (Markdown + JSON), a histogram and an example figure.
 
@@ -347,30 +400,9 @@ def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> 
 
     out_dir = Path(out_dir)
     out = {}
-    rows = {}
-    for which in ("learned", "nominal") if config.compare_nominal else ("learned",):
-        steps = sum(getattr(r, f"{which}_steps") for r in records)
-        within = sum(getattr(r, f"{which}_within") for r in records)
-        rows[which] = {
-            "runs": len(records),
-            "steps": steps,
-            "steps_within_2cm_5deg": within / steps if steps else 0.0,
-            "runs_reached_goal_without_fall": float(
-                np.mean([getattr(r, f"{which}_reached") for r in records])
-            ),
-            "runs_fell": int(sum(getattr(r, f"{which}_fell") for r in records)),
-            "mean_landing_error_m": float(
-                np.mean([getattr(r, f"{which}_mean_err_m") for r in records])
-            ),
-            "median_max_landing_error_m": float(
-                np.median([getattr(r, f"{which}_max_err_m") for r in records])
-            ),
-            "mean_step_error_m": float(
-                np.mean([getattr(r, f"{which}_step_err_m") for r in records])
-            ),
-            "landings_on_obstacles": int(sum(getattr(r, f"{which}_on_obstacle") for r in records)),
-            "plans_success": int(sum(getattr(r, f"{which}_status") == "SUCCESS" for r in records)),
-        }
+    rows = execution_rows(
+        records, ("learned", "nominal") if config.compare_nominal else ("learned",)
+    )
     path = out_dir / "execution_summary.json"
     path.write_text(json.dumps(rows, indent=1))
     out["execution_summary"] = path
@@ -386,13 +418,14 @@ def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> 
     md.write_text("\n".join(lines) + "\n")
     out["execution_table"] = md
     fig, ax = plt.subplots(figsize=(6, 4))
-    largest = (
-        max(100 * getattr(r, f"{w}_max_err_m") for r in records for w in rows) if records else 1
+    measured = {w: [r for r in records if getattr(r, f"{w}_executed") > 0] for w in rows}
+    largest = max(
+        [100 * getattr(r, f"{w}_max_err_m") for w in rows for r in measured[w]], default=1.0
     )
     bins = np.geomspace(0.1, max(largest * 1.1, 1.0), 40)
     # side by side in each bin: overlaid translucent bars mixed into a colour of neither
     ax.hist(
-        [[max(100 * getattr(r, f"{which}_max_err_m"), 0.1) for r in records] for which in rows],
+        [[max(100 * getattr(r, f"{w}_max_err_m"), 0.1) for r in measured[w]] for w in rows],
         bins=bins,
         label=[f"{which} table" for which in rows],
     )
@@ -403,7 +436,8 @@ def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> 
         "errors below 0.1 cm drawn at 0.1)"
     )
     ax.set_ylabel("runs")
-    ax.set_title(f"largest landing error of each of {len(records)} executed plans")
+    n_measured = max(len(v) for v in measured.values()) if measured else 0
+    ax.set_title(f"largest landing error of each of {n_measured} executed plans with landings")
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts: whole ticks
     ax.legend()
     fig.tight_layout()

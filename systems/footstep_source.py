@@ -88,7 +88,11 @@ class FootstepPlanSource(LeafSystem):
     """Outputs a footstep plan and, over time, the step under way.
 
     The plan is an abstract parameter (``SetPlan`` replaces it in a context), so a
-    Monte-Carlo run can vary it without rebuilding the diagram.
+    Monte-Carlo run can vary it without rebuilding the diagram. The outputs follow the
+    plan's own ``times``. In the walking biped (``biped_walk``) the robot is placed on
+    the start soles of the plan it was built with, and its ``CommandStepper`` refuses a
+    different plan once the first step is commanded: set a plan there before the walk
+    starts, with the same start soles (``execute_plan`` checks both).
 
     Output ports:
         plan: abstract :class:`FootstepPlan`.

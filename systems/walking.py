@@ -308,6 +308,22 @@ def realize_plan(
     )
 
 
+def same_commands(a: FootstepPlan, b: FootstepPlan) -> bool:
+    """Whether two plans make the walker take the same steps and predict the same landings.
+
+    Compares the start soles, the feet, the actions, the history, the planned poses and
+    the times (the search figures, cost and status may differ).
+    """
+    return (
+        list(a.feet) == list(b.feet)
+        and list(a.actions) == list(b.actions)
+        and list(a.initial_history) == list(b.initial_history)
+        and np.array_equal(a.poses_array(), b.poses_array())
+        and np.array_equal(np.asarray(a.initial_swing_pose, float), b.initial_swing_pose)
+        and np.array_equal(np.asarray(a.times, float), b.times)
+    )
+
+
 def feet_at_step(seq: FootstepSequence, k: int) -> dict[int, np.ndarray]:
     """Both sole poses before step ``k`` (k = 0: the start; k = N: after the last step)."""
     feet = {0: np.asarray(seq.initial_left, float), 1: np.asarray(seq.initial_right, float)}
@@ -503,11 +519,20 @@ class CommandStepper(LeafSystem):
     on its input (typically ``FootstepPlanSource``'s ``plan`` port, which is cached on
     its parameters, so the footsteps are computed once per plan).
 
+    The footsteps are realized from the plan's start at ``start_time``, so the plan cannot
+    change once the walk is under way: a plan that differs (:func:`same_commands`) from
+    the one held at initialization, arriving after the first command, raises instead of
+    making the feet jump to where the new plan would have them at that time (session 32:
+    a switch at 3 s moved a sole target by 0.35 m and 0.7 rad and the biped fell 1.2 s
+    later). Setting another plan before the first command is allowed.
+
     Input ports:
         plan: abstract ``FootstepPlan`` (the commands to execute).
 
     Output ports:
         footsteps: abstract :class:`FootstepSequence`.
+
+    State: abstract, the plan seen at initialization (None before it).
     """
 
     def __init__(self, rule: SteppingRule | None = None, *, start_time: float = 0.0):
@@ -516,12 +541,20 @@ class CommandStepper(LeafSystem):
         self._rule.validate()
         self._start_time = _check_start_time(start_time)
         self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(_empty_plan()))
+        self._started = self.DeclareAbstractState(AbstractValue.Make(_NoPlan()))
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._initialize)
         self.DeclareAbstractOutputPort(
             "footsteps",
             lambda: AbstractValue.Make(realize_plan(_empty_plan(), self._rule)),
             self._calc_footsteps,
-            prerequisites_of_calc={self.input_port_ticket(self._plan.get_index())},
+            prerequisites_of_calc={
+                self.input_port_ticket(self._plan.get_index()),
+                self.abstract_state_ticket(self._started),
+            },
         )
+
+    def _initialize(self, context: Context, state) -> None:
+        state.get_mutable_abstract_state(self._started).set_value(self._plan.Eval(context))
 
     @property
     def rule(self) -> SteppingRule:
@@ -533,7 +566,29 @@ class CommandStepper(LeafSystem):
             raise RepertoireError(
                 f"CommandStepper's plan input needs a FootstepPlan, got {type(plan).__name__}"
             )
+        started = context.get_abstract_state(self._started).get_value()
+        first_command = self._start_time + self._rule.initial_hold
+        t = context.get_time()
+        if isinstance(started, FootstepPlan) and t > first_command:
+            if not same_commands(started, plan):
+                raise RepertoireError(
+                    f"CommandStepper got a new plan ({plan.num_steps} steps from "
+                    f"{_rounded(plan.poses[0])}) at t = {t:.3f} s, after its first step was "
+                    f"commanded at {first_command:.3f} s; it walks the plan it started with "
+                    f"({started.num_steps} steps from {_rounded(started.poses[0])}) and "
+                    "cannot switch "
+                    "plans mid-walk (the feet would jump to the new plan's steps at that "
+                    "time); build a new diagram that starts where the robot stands"
+                )
         output.set_value(realize_plan(plan, self._rule, start_time=self._start_time))
+
+
+def _rounded(pose) -> list[float]:
+    return [round(float(v), 4) + 0.0 for v in pose]
+
+
+class _NoPlan:
+    """The CommandStepper's state before initialization (no plan seen yet)."""
 
 
 def _empty_plan() -> FootstepPlan:
@@ -710,6 +765,7 @@ __all__ = [
     "realize_plan",
     "realize_step",
     "relative",
+    "same_commands",
     "standing_com_height",
     "swing_pose",
     "whole_body_ik",

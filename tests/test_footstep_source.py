@@ -144,3 +144,33 @@ def test_obstacles_refuse_sizes_and_values_that_paint_nothing_or_fail():
         MovingRectObstacle(center=[0.5, 0.5], size=[0.2, 0.2], yaw=float("nan"))
     grid = OccupancyGrid.from_rectangles((1.0, 1.0), [RectObstacle([0.5, 0.5], [0.2, 0.2])], 0.025)
     assert grid.occupied.sum() == 64  # 8 x 8 cells of 2.5 cm: a valid obstacle still paints
+
+
+def test_source_keeps_the_plan_it_was_given_and_a_plan_of_no_steps():
+    # A plan edited after it was handed over does not reach the outputs: the source and
+    # its contexts hold their own copies (checked in session 32, pinned here).
+    plan = make_plan()
+    src = FootstepPlanSource(plan)
+    ctx = src.CreateDefaultContext()
+    plan.poses[2][0] = float("nan")
+    plan.times[2] = 1.0
+    ctx.SetTime(2.55)
+    np.testing.assert_array_equal(src.GetOutputPort("swing_target_pose").Eval(ctx), [0.5, 0.1, 0.2])
+    assert src.GetOutputPort("swing_phase").Eval(ctx)[0] == pytest.approx(0.75)
+    # no steps: at every time the robot stands, the first swing foot's pose as target
+    still = FootstepPlan(
+        **{**make_plan().__dict__, "poses": [[0.0, 0.1, 0.0]], "feet": [0], "actions": [],
+           "times": [1.0]}
+    )  # fmt: skip
+    src.SetPlan(ctx, still)
+    for t in (0.0, 1.0, 50.0):
+        ctx.SetTime(t)
+        assert src.GetOutputPort("step_index").Eval(ctx)[0] == 0
+        assert src.GetOutputPort("swing_phase").Eval(ctx)[0] == 0.0
+        assert src.GetOutputPort("swing_foot").Eval(ctx)[0] == 1
+        np.testing.assert_array_equal(
+            src.GetOutputPort("stance_foot_pose").Eval(ctx), [0.0, 0.1, 0.0]
+        )
+        np.testing.assert_array_equal(
+            src.GetOutputPort("swing_target_pose").Eval(ctx), [0.0, -0.1, 0.0]
+        )

@@ -137,7 +137,7 @@ def _param_boxes(term: DurationTerm, lower: np.ndarray, upper: np.ndarray):
             "most one free parameter (boxes stay boxes); use method='milp' for general "
             "affine features"
         )
-    model = term.model
+    model = term.searched_model
     k, P = model.lower.shape[0], A.shape[1]
     lo = np.broadcast_to(lower, (k, P)).copy()
     hi = np.broadcast_to(upper, (k, P)).copy()
@@ -175,7 +175,7 @@ def _require_linear_leaves(problem: RefinementProblem, boxes=None) -> None:
     parameters (no boxes) a clamped model is refused.
     """
     for n, term in enumerate(problem.terms):
-        m = term.model
+        m = term.searched_model
         floor = getattr(m, "floor", None)
         ceiling = getattr(m, "ceiling", None)
         if floor is None or ceiling is None or not getattr(m, "clamped", False):
@@ -404,7 +404,7 @@ def build_refinement_milp(
     eye = np.eye(P)
     for n, term in enumerate(problem.terms):
         A, b = term.features.A, term.features.b
-        m = term.model
+        m = term.searched_model
         k, d = m.lower.shape
         z = prog.NewBinaryVariables(k, f"z{n}")
         y = prog.NewContinuousVariables(k, P, f"y{n}")
@@ -655,7 +655,7 @@ def _in_leaves(problem: RefinementProblem, params: np.ndarray, leaves: list[int]
     """The summed duration at ``params`` with each term in the given leaf."""
     total = 0.0
     for term, leaf in zip(problem.terms, leaves, strict=True):
-        m = term.model
+        m = term.searched_model
         total += float(m.coef[leaf] @ term.features(params)[0] + m.intercept[leaf])
     return total
 
@@ -669,7 +669,7 @@ def _leaves_lp(problem: RefinementProblem, leaves: list[int]) -> np.ndarray | No
     prog.AddBoundingBoxConstraint(problem.lower, problem.upper, p)
     slope = np.zeros(problem.n_params)
     for term, leaf in zip(problem.terms, leaves, strict=True):
-        A, b, m = term.features.A, term.features.b, term.model
+        A, b, m = term.features.A, term.features.b, term.searched_model
         lo, hi = m.lower[leaf], m.upper[leaf]
         rows = np.flatnonzero(A.any(axis=1))  # constant features: the MILP decided them
         prog.AddLinearConstraint(A[rows], (lo - b)[rows], (hi - b)[rows], p)
@@ -699,7 +699,7 @@ def _leaves_centre(problem: RefinementProblem, leaves: list[int]) -> np.ndarray 
     prog.AddLinearConstraint(np.hstack([eye, np.ones((P, 1))]), -inf, problem.upper, x)
     prog.AddBoundingBoxConstraint(0.0, 1.0, r)
     for term, leaf in zip(problem.terms, leaves, strict=True):
-        A, b, m = term.features.A, term.features.b, term.model
+        A, b, m = term.features.A, term.features.b, term.searched_model
         for j in np.flatnonzero(A.any(axis=1)):
             norm = float(np.linalg.norm(A[j]))
             if np.isfinite(m.lower[leaf, j]):  # A p + b - r |A| >= lower

@@ -392,8 +392,39 @@ def test_tour_sampling_states_and_problem():
     )
     problem = tour_problem(tree, start, wps, final_phi, 0.09)
     assert [t.uses for t in problem.terms] == [(0, 1), (0, 1, 2, 3), (2, 3, 4, 5), (4, 5)]
+    # dist, angle_to, angle_at, v, v_g: which waypoint heading / speed each reads
+    assert problem.terms[0].feature_uses == ((), (), (0,), (), (1,))
+    assert problem.terms[1].feature_uses == ((), (0,), (2,), (1,), (3,))
+    assert problem.terms[3].feature_uses == ((), (4,), (), (5,), ())
     lengths = np.hypot(*np.diff(np.vstack([start[:2], wps]), axis=0).T)
-    assert problem.cost(params)[0] == pytest.approx(4.0 + 2.0 * lengths.sum(), rel=1e-6)
+    predicted = problem.cost(params, within_domain=False)[0]
+    assert predicted == pytest.approx(4.0 + 2.0 * lengths.sum(), rel=1e-6)
+    # the tree saw angles and speeds of 0 only: these parameters leave its data
+    assert problem.cost(params)[0] == np.inf
+
+
+def test_tour_refined_greedily_stays_inside_the_shipped_model_data():
+    # greedy (h = 1) used to put waypoint headings where angle_at was outside the data
+    # (-2.99..3.07 rad); now only the last leg's stop, which no parameter sets, is outside
+    from repertoire.planning.refinement import refine_sequence
+    from repertoire.studies._refinement_common import trained_range
+    from repertoire.studies.refinement_horizons import (
+        RefinementHorizonsConfig,
+        sample_tour,
+        tour_out_of_range,
+        tour_problem,
+    )
+    from repertoire.studies.refinement_soccer import load_models
+
+    (model,) = load_models("", ("approach_duration",))
+    c = RefinementHorizonsConfig()
+    start, wps, final_phi = sample_tour(c, np.random.default_rng(7001))
+    v_min, v_max = trained_range(0.0, c.approach_v_max, ((model, "v"), (model, "v_g")))
+    problem = tour_problem(model, start, wps, final_phi, v_max, v_min=v_min)
+    for h in (1, 2):
+        result = refine_sequence(problem, h, "ga", seed=3)
+        flags = tour_out_of_range(model, start, wps, final_phi, result.params)[0]
+        np.testing.assert_array_equal(flags, [False, False, False, True])
 
 
 def test_tour_out_of_range_flags_the_final_stop_the_models_never_saw():

@@ -347,7 +347,13 @@ class DurationTerm:
             object.__setattr__(self, "uses", self.features.uses())
         object.__setattr__(self, "uses", tuple(int(i) for i in self.uses))
         d = self.model.lower.shape[1]
-        if affine and self.feature_uses is None:
+        rows_ok = not affine or self.features.A.shape[0] == d  # else RefinementProblem says so
+        if not rows_ok and self.domain is not None:
+            raise RepertoireError(
+                f"term {self.name!r}: A has {self.features.A.shape[0]} rows (features) for a "
+                f"model of {d} features"
+            )
+        if affine and rows_ok and self.feature_uses is None:
             nz = self.features.A != 0.0
             object.__setattr__(
                 self, "feature_uses", tuple(tuple(np.flatnonzero(row).tolist()) for row in nz)

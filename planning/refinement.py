@@ -643,9 +643,10 @@ def refine_sequence(
         All parameters, the *whole* sequence's predicted duration at them, and one
         result per step in ``steps``. The cost is +inf when the back-end found no
         parameters every model accepts (all candidates INVALID, e.g. a failure model
-        rejecting every subgoal): keep the unrefined plan then. It is the models'
-        prediction without domains (``cost(params, within_domain=False)``): where a fixed
-        feature lies outside a domain, the models' extrapolation.
+        rejecting every subgoal, or no parameters inside the terms' domains): keep the
+        unrefined plan then. Otherwise it is the models' prediction without domains
+        (``cost(params, within_domain=False)``): where a fixed feature lies outside a
+        domain, the models' extrapolation.
     """
     n = len(problem.terms)
     if not is_whole(horizon) or not 1 <= horizon <= n:
@@ -670,9 +671,10 @@ def refine_sequence(
     for idx, v in fixed.items():
         params[idx] = v
     name = steps[0].method if steps else "none"
+    found = all(np.isfinite(s.cost) for s in steps)
     return RefinementResult(
         params,
-        float(problem.cost(params, within_domain=False)[0]),
+        float(problem.cost(params, within_domain=False)[0]) if found else np.inf,
         name,
         sum(s.evaluations for s in steps),
         len(steps),

@@ -263,8 +263,8 @@ def solve_corners(problem: RefinementProblem) -> RefinementResult:
         if cell_lo.shape[0] == 0:
             raise RepertoireError(
                 f"term {problem.terms[n].name or n}: no leaf of its model covers the "
-                "parameter box together with the earlier terms; expected models whose "
-                "leaves cover the ranges"
+                "parameter box together with the earlier terms (inside the terms' "
+                "domains, where given); expected models whose leaves cover the ranges"
             )
         # Eliminate parameters no later term reads (dynamic programming along the
         # sequence): fix them at their best corner, then of the cells that agree on
@@ -562,7 +562,9 @@ def solve_milp(
         )
     j_inc = float(problem.cost(incumbent)[0])
     if not np.isfinite(j_inc):
-        raise RepertoireError("the MILP incumbent lies outside the models' leaves")
+        raise RepertoireError(
+            "the MILP incumbent lies outside the models' leaves (or the terms' domains)"
+        )
     scale = 1e-2 / abs_tol
     exclude: list[list[int]] = []
     one_each = _one_parameter_features(problem)

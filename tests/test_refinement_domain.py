@@ -96,6 +96,21 @@ def test_a_feature_fixed_by_an_earlier_step_no_longer_constrains():
     assert refined.cost == pytest.approx(5.0 + 2.0)
 
 
+def test_a_domain_no_parameter_reaches_gives_infinite_cost():
+    # f = p + 5 with p in [0, 1]: the data's f in [0, 2] is out of reach; like an all-INVALID
+    # plan, the result says so (+inf) instead of returning arbitrary parameters' extrapolation
+    term = DurationTerm(FALLING, AffineFeatures([[1.0]], [5.0]), domain=([0.0], [2.0]))
+    problem = RefinementProblem((term,), [0], [1])
+    for solver in ("ga", "de"):
+        assert refine_sequence(problem, 1, solver, seed=0).cost == np.inf
+    with pytest.raises(RepertoireError, match="no leaf of its model covers .* domains"):
+        refine_sequence(problem, 1, "corners")
+    with pytest.raises(
+        RepertoireError, match=r"outside the models' leaves \(or the terms' domains"
+    ):
+        refine_sequence(problem, 1, "milp")
+
+
 def test_fitted_tree_optimum_stays_in_its_training_range():
     # a tree fitted on y = 3 - 2 x, x in [0.2, 0.9]; searched over [0, 2] the optimum is the
     # largest x it saw (its linear leaf extrapolates below every duration it saw beyond)

@@ -11,10 +11,12 @@ relative, so it predicts any GoToPose leg within its training ranges) and every 
 tour is executed in the ``soccer_plan`` world. The plan is built directly as a
 refinement problem: like the paper's arm domain, a fixed tour needs no PDDL planner.
 
-``summarize`` writes Table 4 (mean executed tour time per horizon, the improvement over
-the previous horizon and its paired t-test) beside the paper's soccer column, and per
-horizon how many tours query the model outside its training box on each leg (the last leg,
-ending at rest with ``v_g = 0``, always does: the models never saw a stop).
+Every leg is refined inside the model's training box on the features its free headings
+and speeds drive (:func:`tour_problem`). ``summarize`` writes Table 4 (mean executed tour
+time per horizon, the improvement over the previous horizon and its paired t-test) beside
+the paper's soccer column, and per horizon how many tours query the model outside its
+training box on each leg (the last leg, ending at rest with ``v_g = 0``, always does: the
+models never saw a stop).
 
 Run it with ``python -m repertoire.studies.refinement_horizons --help``.
 """
@@ -64,8 +66,11 @@ class RefinementHorizonsConfig(SoccerPlanConfig):
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
         super().validate()
-        for name in ("leg_range", "tour_x_range", "tour_y_range"):
-            check_range(name, getattr(self, name))
+        from repertoire.diagrams.soccer import FIELD
+
+        check_range("leg_range", self.leg_range)
+        check_range("tour_x_range", self.tour_x_range, FIELD[:2])
+        check_range("tour_y_range", self.tour_y_range, FIELD[2:])
         if self.leg_range[0] <= 0.1:
             raise RepertoireError(f"leg_range must start above 0.1 m, got {self.leg_range}")
         if self.solver not in ("ga", "de"):
@@ -182,6 +187,11 @@ def tour_problem(model, start, waypoints, final_phi: float, v_max: float, *, v_m
         RefinementProblem,
     )
 
+    waypoints = np.asarray(waypoints, dtype=float)
+    if waypoints.shape != (N_LEGS, 2) or not np.isfinite(waypoints).all():
+        raise RepertoireError(
+            f"waypoints must be {N_LEGS} finite [x, y] rows, got {waypoints.tolist()!r}"
+        )
     pl = PiecewiseLinearModel.from_leaves(model.leaves)
     box = (model.train_min, model.train_max)
     terms = []

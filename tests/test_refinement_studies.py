@@ -461,3 +461,43 @@ def test_tour_out_of_range_flags_the_final_stop_the_models_never_saw():
         "fitted on all ended moving (v_g 0.00025-0.09 m/s): a stop is outside its data, so "
         "every tour's last leg is flagged."
     )
+
+
+def test_refinement_study_helpers_name_bad_inputs():
+    from repertoire.studies._refinement_common import approach_target, trained_range
+    from repertoire.studies.refinement_horizons import RefinementHorizonsConfig, tour_problem
+    from repertoire.studies.refinement_soccer import load_models
+
+    with pytest.raises(RepertoireError, match=r"no action models named \['approach_speed'\]"):
+        load_models("", ("approach_speed",))  # was a bare KeyError
+    (model,) = load_models("", ("approach_duration",))
+    with pytest.raises(RepertoireError, match=r"\[lo, hi\] must be finite .* got \[nan, 0.09\]"):
+        trained_range(math.nan, 0.09, ((model, "v"),))  # returned (nan, 0.09)
+    with pytest.raises(RepertoireError, match=r"got \[0.09, 0.0\]"):
+        trained_range(0.09, 0.0, ((model, "v"),))  # returned the empty (0.09, 0.0)
+    with pytest.raises(RepertoireError, match="approach phi and v must be finite"):
+        approach_target(math.nan, 0.05, 0.35)  # returned a NaN target
+    with pytest.raises(RepertoireError, match=r"waypoints must be 4 finite \[x, y\] rows"):
+        tour_problem(model, [0.0, 0.0, 0.0, 0.0], np.zeros((3, 2)), 0.0, 0.09)
+    with pytest.raises(RepertoireError, match=r"tour_x_range must lie within \[-3.0, 3.0\]"):
+        RefinementHorizonsConfig(tour_x_range=[-10.0, 0.2]).validate()
+
+
+@pytest.mark.parametrize("seed", [7, 16])
+def test_refined_soccer_subgoal_stays_inside_both_models_data(seed):
+    # situations whose h = 2 subgoal used to lie outside the approach or dribble tree's data
+    from repertoire.studies._refinement_common import approach_features, dribble_features
+    from repertoire.studies.refinement_soccer import (
+        RefinementSoccerConfig,
+        load_duration_models,
+        refine_subgoal,
+    )
+
+    config = RefinementSoccerConfig()
+    approach, dribble = load_duration_models(config.models_dir)
+    start, dest = sample_situation(config, np.random.default_rng(seed))
+    phi, v, predicted = refine_subgoal(config, start, dest, 2, seed)
+    d = config.approach_distance
+    assert not approach.out_of_range(approach_features(start, phi, v, d))[0]
+    assert not dribble.out_of_range(dribble_features(phi, v, dest, d))[0]
+    assert np.isfinite(predicted)

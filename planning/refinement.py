@@ -324,8 +324,8 @@ class DurationTerm:
         domain: optional ``(lower, upper)``, d numbers each (+-inf allowed, lower <=
             upper): the closed box of features where the model is trusted.
         feature_uses: per feature, the indices of the free parameters it reads (a subset
-            of ``uses``); derived from ``A`` for affine features, required for other
-            feature maps when ``domain`` is given. A feature reading none is not
+            of ``uses``); derived from ``A`` for affine features (a given one must
+            agree), required for other feature maps when ``domain`` is given. A feature reading none is not
             constrained by ``domain``.
     """
 
@@ -353,11 +353,15 @@ class DurationTerm:
                 f"term {self.name!r}: A has {self.features.A.shape[0]} rows (features) for a "
                 f"model of {d} features"
             )
-        if affine and rows_ok and self.feature_uses is None:
-            nz = self.features.A != 0.0
-            object.__setattr__(
-                self, "feature_uses", tuple(tuple(np.flatnonzero(row).tolist()) for row in nz)
-            )
+        if affine and rows_ok:
+            derived = tuple(tuple(np.flatnonzero(row).tolist()) for row in self.features.A != 0)
+            given = self.feature_uses
+            if given is not None and tuple(tuple(int(i) for i in r) for r in given) != derived:
+                raise RepertoireError(
+                    f"term {self.name!r}: feature_uses {given!r} differs from what A reads, "
+                    f"{derived!r}; leave it out for affine features"
+                )
+            object.__setattr__(self, "feature_uses", derived)
         if self.feature_uses is not None:
             object.__setattr__(self, "feature_uses", self._checked_feature_uses(d))
         if self.domain is not None:

@@ -325,8 +325,8 @@ class DurationTerm:
             upper): the closed box of features where the model is trusted.
         feature_uses: per feature, the indices of the free parameters it reads (a subset
             of ``uses``); derived from ``A`` for affine features (a given one must
-            agree), required for other feature maps when ``domain`` is given. A feature reading none is not
-            constrained by ``domain``.
+            agree), required for other feature maps when ``domain`` is given. A feature
+            reading none is not constrained by ``domain``.
     """
 
     model: DurationModel
@@ -543,6 +543,10 @@ class RefinementProblem:
                 feature leaves its ``domain``; False: the models' extrapolation there.
         """
         p = np.atleast_2d(np.asarray(params, dtype=float))
+        if p.ndim != 2 or p.shape[1] != self.n_params:
+            raise RepertoireError(
+                f"parameters must be (n, {self.n_params}) for this problem, got shape {p.shape}"
+            )
         return np.sum([t.predict(p, within_domain=within_domain) for t in self.terms], axis=0)
 
 

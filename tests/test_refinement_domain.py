@@ -145,6 +145,9 @@ def test_bad_domains_are_named():
         DurationTerm(FALLING, np.cos, (0,), domain=([0.0], [1.0]), feature_uses=((0,), ()))
     with pytest.raises(RepertoireError, match=r"feature_uses \(\(\),\) differs from what A"):
         DurationTerm(FALLING, affine, domain=([0.0], [1.0]), feature_uses=((),))
+    problem = RefinementProblem((DurationTerm(FALLING, affine),), [0.0], [1.0])
+    with pytest.raises(RepertoireError, match=r"must be \(n, 1\) for this problem, got shape"):
+        problem.cost([[0.1, 0.2]])  # was a bare matmul error
     bounded = PiecewiseLinearModel([[5.0]], [[6.0]], [[0.0]], [1.0])
     with pytest.raises(RepertoireError, match="no leaf of its model meets the domain"):
         DurationTerm(bounded, affine, domain=([0.0], [2.0]))

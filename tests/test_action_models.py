@@ -212,6 +212,12 @@ def test_out_of_range_flag_and_nan():
     m = fit_duration_tree(X, y, ["a", "b"])
     flags = m.out_of_range([[0.0, 0.0], [2.0, 0.0], [0.0, -1.5]])
     assert flags.tolist() == [False, True, True]
+    # only the named features (those a refinement's free parameters drive)
+    assert m.out_of_range([[0.0, 0.0], [2.0, 0.0], [0.0, -1.5]], ["b"]).tolist() == [0, 0, 1]
+    assert m.out_of_range([[2.0, 0.0]], "a").tolist() == [True]
+    assert m.out_of_range([[2.0, 0.0]], []).tolist() == [False]
+    with pytest.raises(RepertoireError, match=r"features \['c'\] are not the model's"):
+        m.out_of_range([[0.0, 0.0]], ["a", "c"])
     with pytest.raises(RepertoireError, match=r"\['b'\].*NaN"):
         m.predict([[0.0, np.nan]])
     with pytest.raises(RepertoireError, match=r"features must be numbers, rows of \['a', 'b'\]"):

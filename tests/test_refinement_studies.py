@@ -501,3 +501,30 @@ def test_refined_soccer_subgoal_stays_inside_both_models_data(seed):
     assert not approach.out_of_range(approach_features(start, phi, v, d))[0]
     assert not dribble.out_of_range(dribble_features(phi, v, dest, d))[0]
     assert np.isfinite(predicted)
+
+
+@pytest.mark.parametrize("seed", [15, 20])
+def test_asserted_subgoal_keeps_both_legs_inside_the_models_data(seed):
+    # seeds whose asserted subgoal used to put the first leg's dist or angle_at outside the
+    # duration tree's data; the features the subgoal sets now stay inside both trees' data
+    from repertoire.planning.action_models.features import goto_pose_features
+    from repertoire.studies.subgoal_assertion_soccer import (
+        SubgoalAssertionConfig,
+        approach_subgoal,
+        load_assertion_models,
+    )
+
+    config = SubgoalAssertionConfig()
+    rng = np.random.default_rng(seed)  # run_episode's draws
+    start, _ = sample_situation(config, rng)
+    phi_a, v_a = rng.uniform(-math.pi, math.pi), rng.uniform(0.0, config.approach_v_max)
+    target = approach_target(phi_a, v_a, config.approach_distance)
+    result = approach_subgoal(config, start, target, seed)
+    assert result.asserted
+    duration, failure = load_assertion_models(config.models_dir)
+    first = goto_pose_features(start, result.subgoal, mirrored=False)[None]
+    last = goto_pose_features(result.subgoal, target, mirrored=False)[None]
+    names = duration.feature_names
+    assert not duration.out_of_range(first, [names[0], names[1], names[2], names[4]])[0]
+    for tree in (duration, failure):
+        assert not tree.out_of_range(last, names[:4])[0]

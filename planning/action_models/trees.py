@@ -175,11 +175,26 @@ class TreeModel:
             raise RepertoireError("predict_failure needs a failure tree, this is a duration tree")
         return self.predict(X) >= self.threshold_probability
 
-    def out_of_range(self, X) -> np.ndarray:
-        """True per row where any feature lies outside the training range."""
+    def out_of_range(self, X, features: Sequence[str] | None = None) -> np.ndarray:
+        """True per row where any feature lies outside the training range.
+
+        Args:
+            X: ``(n, d)`` feature rows.
+            features: names of the features to check (default: all), e.g. only those a
+                refinement's free parameters drive.
+        """
         X = self._check_x(X)
         a = self._arrays()
-        return np.any((X < a["train_min"]) | (X > a["train_max"]), axis=1)
+        out = (X < a["train_min"]) | (X > a["train_max"])
+        if features is not None:
+            names = [features] if isinstance(features, str) else list(features)
+            unknown = sorted(set(names) - set(self.feature_names))
+            if unknown:
+                raise RepertoireError(
+                    f"features {unknown} are not the model's; its features are {self.feature_names}"
+                )
+            out = out[:, [self.feature_names.index(n) for n in names]]
+        return np.any(out, axis=1)
 
     def rules(self) -> str:
         """The tree as readable if-then rules, one per leaf."""

@@ -225,6 +225,11 @@ def test_out_of_range_flag_and_nan():
 
 
 def test_too_few_episodes_and_nan_training():
+    for empty in ([], np.zeros((0, 2))):  # [] was "need X of shape (n, 2)... got (0,)"
+        with pytest.raises(RepertoireError, match=r"no training episodes \(X of shape \(0"):
+            fit_duration_tree(empty, [], ["a", "b"])
+        with pytest.raises(RepertoireError, match="no training episodes"):
+            fit_failure_tree(empty, [], ["a", "b"])
     X, y = _piecewise(MIN_EPISODES - 1)
     with pytest.raises(RepertoireError, match=f"at least {MIN_EPISODES}"):
         fit_duration_tree(X, y, ["a", "b"])

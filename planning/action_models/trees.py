@@ -257,6 +257,11 @@ def _check_training(X, y, feature_names: Sequence[str]) -> tuple[np.ndarray, np.
         y = np.asarray(y, dtype=float)
     except (TypeError, ValueError) as e:
         raise RepertoireError(f"X and y must be numeric arrays (rows of equal length): {e}") from e
+    if X.size == 0 or y.size == 0:
+        raise RepertoireError(
+            f"no training episodes (X of shape {X.shape}, y of shape {y.shape}); at least "
+            f"{MIN_EPISODES} are needed"
+        )
     if X.ndim != 2 or X.shape[1] != len(feature_names) or y.ndim != 1 or len(y) != len(X):
         raise RepertoireError(
             f"need X of shape (n, {len(feature_names)}) and y of shape (n,), got {X.shape}, "

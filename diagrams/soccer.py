@@ -40,6 +40,26 @@ GOAL_NETS = (3.4, 0.015, 0.75)
 """The nets: boxes at ``x = +-3.4`` of half thickness 0.015 and half width 0.75 [m]."""
 FOOTPRINT_RADIUS = 0.32
 """A disc holding the diffdrive base (chassis corners and wheels) [m]."""
+FIELD = (-3.0, 3.0, -2.0, 2.0)
+"""The field inside its lines, ``(x_min, x_max, y_min, y_max)`` [m] (DribbleBall's workspace)."""
+
+
+def check_on_field(pose, field: str) -> None:
+    """Refuses a pose (a GoToPose target, a start, a refined subgoal) off the field.
+
+    Args:
+        pose: ``[x, y, ...]``.
+        field: the scenario field (e.g. ``targets[1]``), named in the error.
+
+    Raises:
+        ScenarioError: naming the field and its value.
+    """
+    x_min, x_max, y_min, y_max = FIELD
+    if not (x_min <= pose[0] <= x_max and y_min <= pose[1] <= y_max):
+        raise ScenarioError(
+            f"{field} {list(pose)} lies off the field: x must be in [{x_min}, {x_max}] and "
+            f"y in [{y_min}, {y_max}] m"
+        )
 
 
 def clear_of_goals(x, y) -> np.ndarray:
@@ -131,7 +151,9 @@ class GoToPoseScenario:
         if len(self.target) != 4 or not np.all(np.isfinite(self.target)):
             raise ScenarioError(f"target must be 4 finite values, got {self.target}")
         check_initial_speed(self.initial_speed)
+        check_on_field(self.initial_pose, "initial_pose")
         check_target_clear(self.target, "target")
+        check_on_field(self.target, "target")
         validate_discrete_control_fields(self)
 
 

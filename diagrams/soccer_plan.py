@@ -20,6 +20,7 @@ from repertoire.diagrams.soccer import (
     add_soccer_robot,
     build_driven,
     check_initial_speed,
+    check_on_field,
     check_target_clear,
     robot_state,
     set_initial_speed,
@@ -69,12 +70,14 @@ class SoccerPlanScenario:
         if len(self.initial_pose) != 3 or not np.all(np.isfinite(self.initial_pose)):
             raise ScenarioError(f"initial_pose must be 3 finite values, got {self.initial_pose}")
         check_initial_speed(self.initial_speed)
+        check_on_field(self.initial_pose, "initial_pose")
         if not self.targets:
             raise ScenarioError("targets must hold at least one [x_g, y_g, phi_g, v_g]")
         for i, t in enumerate(self.targets):
             if len(t) != 4 or not np.all(np.isfinite(t)):
                 raise ScenarioError(f"targets[{i}] must be 4 finite values, got {t}")
             check_target_clear(t, f"targets[{i}]")
+            check_on_field(t, f"targets[{i}]")
         validate_discrete_control_fields(self)
         if self.action_gains and len(self.action_gains) != len(self.targets):
             raise ScenarioError(

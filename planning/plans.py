@@ -533,10 +533,17 @@ class ActionDurationModel:
         model: the learned duration model (leaves as boxes + hyperplanes).
         features: action parameters (name -> (n,) values) -> (n, d) features, e.g. the
             paper's Table 7 features (distance, angle_to, angle_at, v) of a goToPose.
+        domain: optional ``(lower, upper)`` feature box where the model is trusted (its
+            training range): refinement then searches only where the features the free
+            parameters drive lie inside it (:class:`DurationTerm`'s ``domain``).
+        reads: with ``domain``, per feature the names of the action parameters it reads
+            (e.g. ``("x", "y", "x_g", "y_g", "phi_g")`` for a goToPose's ``angle_at``).
     """
 
     model: object
     features: Callable[[dict[str, np.ndarray]], np.ndarray]
+    domain: tuple | None = None
+    reads: tuple[tuple[str, ...], ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -606,14 +613,32 @@ def refinement_problem(
         }
         free = {n: index[pid] for n, pid in action.parameter_ids.items() if pid in index}
         feats = _PlanActionFeatures(entry.features, bound, free, succeeds.get(i))
-        terms.append(
-            DurationTerm(
-                entry.model, feats, tuple(sorted(set(free.values()))), f"{i}:{action.name}"
-            )
-        )
+        name = f"{i}:{action.name}"
+        feature_uses = None
+        if entry.domain is not None:
+            feature_uses = _feature_uses(entry.reads, action.parameter_ids, free, name)
+        uses = tuple(sorted(set(free.values())))
+        terms.append(DurationTerm(entry.model, feats, uses, name, entry.domain, feature_uses))
     lower = np.array([plan.ranges[pid].lo for pid in free_ids])
     upper = np.array([plan.ranges[pid].hi for pid in free_ids])
     return RefinementProblem(tuple(terms), lower, upper, tuple(free_ids))
+
+
+def _feature_uses(reads, parameters, free: dict[str, int], name: str):
+    """Per feature, the free-parameter indices of the action parameters it ``reads``."""
+    if reads is None or isinstance(reads, str):
+        raise RepertoireError(
+            f"action {name}: a duration model with a domain needs `reads`, per feature the "
+            f"names of the action parameters it reads (of {sorted(parameters)})"
+        )
+    rows = [(r,) if isinstance(r, str) else tuple(r) for r in reads]
+    unknown = sorted({n for r in rows for n in r} - set(parameters))
+    if unknown:
+        raise RepertoireError(
+            f"action {name}: `reads` names {unknown}, not parameters of the action "
+            f"({sorted(parameters)})"
+        )
+    return tuple(tuple(sorted({free[n] for n in r if n in free})) for r in rows)
 
 
 def insert_subgoal(

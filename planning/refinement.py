@@ -306,30 +306,136 @@ FeatureMap = AffineFeatures | Callable[[np.ndarray], np.ndarray]
 class DurationTerm:
     """One action of the sequence: its duration model and its features.
 
+    A learned model is only evidence inside the data it was fitted on; beyond, its linear
+    leaves extrapolate, and a search that minimises them is drawn to exactly such places
+    (a leaf falling towards a face of its box puts the optimum there). With ``domain``
+    (e.g. a fitted tree's ``train_min`` / ``train_max``) the term predicts +inf, like an
+    INVALID subgoal, wherever a feature that the free parameters *drive* lies outside
+    it; features fixed by bound parameters (a start outside the data, a plan that ends at
+    rest) cannot be chosen and are not constrained. The searches (all back-ends) thus
+    keep refined parameters inside the data wherever that is possible.
+
     Args:
         model: the action's duration model.
         features: parameters (n, P) -> features (n, d).
         uses: indices of the free parameters the action depends on; derived from
             ``A`` for affine features, required for other feature maps.
         name: label for messages and reports.
+        domain: optional ``(lower, upper)``, d numbers each (+-inf allowed, lower <=
+            upper): the closed box of features where the model is trusted.
+        feature_uses: per feature, the indices of the free parameters it reads (a subset
+            of ``uses``); derived from ``A`` for affine features (a given one must
+            agree), required for other feature maps when ``domain`` is given. A feature
+            reading none is not constrained by ``domain``.
     """
 
     model: DurationModel
     features: FeatureMap
     uses: tuple[int, ...] | None = None
     name: str = ""
+    domain: tuple[np.ndarray, np.ndarray] | None = None
+    feature_uses: tuple[tuple[int, ...], ...] | None = None
 
     def __post_init__(self) -> None:
+        affine = isinstance(self.features, AffineFeatures)
         if self.uses is None:
-            if not isinstance(self.features, AffineFeatures):
+            if not affine:
                 raise RepertoireError(
                     f"term {self.name!r}: non-affine features need `uses`, the indices of "
                     "the free parameters they read"
                 )
             object.__setattr__(self, "uses", self.features.uses())
         object.__setattr__(self, "uses", tuple(int(i) for i in self.uses))
+        d = self.model.lower.shape[1]
+        rows_ok = not affine or self.features.A.shape[0] == d  # else RefinementProblem says so
+        if not rows_ok and self.domain is not None:
+            raise RepertoireError(
+                f"term {self.name!r}: A has {self.features.A.shape[0]} rows (features) for a "
+                f"model of {d} features"
+            )
+        if affine and rows_ok:
+            derived = tuple(tuple(np.flatnonzero(row).tolist()) for row in self.features.A != 0)
+            given = self.feature_uses
+            if given is not None and tuple(tuple(int(i) for i in r) for r in given) != derived:
+                raise RepertoireError(
+                    f"term {self.name!r}: feature_uses {given!r} differs from what A reads, "
+                    f"{derived!r}; leave it out for affine features"
+                )
+            object.__setattr__(self, "feature_uses", derived)
+        if self.feature_uses is not None:
+            object.__setattr__(self, "feature_uses", self._checked_feature_uses(d))
+        if self.domain is not None:
+            if self.feature_uses is None:
+                raise RepertoireError(
+                    f"term {self.name!r}: a domain needs `feature_uses` (per feature, the "
+                    "free parameters it reads) for non-affine features, so that features "
+                    "the parameters cannot change are not constrained"
+                )
+            object.__setattr__(self, "domain", _checked_domain(self.domain, d, self.name))
+        object.__setattr__(self, "_searched", self._cut_to_domain())
 
-    def predict(self, params: np.ndarray) -> np.ndarray:
+    def _checked_feature_uses(self, d: int) -> tuple[tuple[int, ...], ...]:
+        try:
+            rows = tuple(tuple(int(i) for i in row) for row in self.feature_uses)
+        except (TypeError, ValueError):
+            raise RepertoireError(
+                f"term {self.name!r}: feature_uses must hold one sequence of parameter "
+                f"indices per feature, got {self.feature_uses!r}"
+            ) from None
+        if len(rows) != d:
+            raise RepertoireError(
+                f"term {self.name!r}: feature_uses has {len(rows)} entries for a model of "
+                f"{d} features"
+            )
+        stray = sorted({i for row in rows for i in row} - set(self.uses))
+        if stray:
+            raise RepertoireError(
+                f"term {self.name!r}: feature_uses reads parameters {stray}, which are not "
+                f"in its uses {self.uses}"
+            )
+        return rows
+
+    def _cut_to_domain(self) -> DurationModel:
+        """The model with its leaves cut to ``domain`` on the driven features."""
+        if self.domain is None:
+            return self.model
+        driven = np.array([bool(row) for row in self.feature_uses])
+        lo_d, hi_d = self.domain
+        m = self.model
+        # leaves are half-open (lower < f <= upper): f >= lo  <=>  f > nextafter(lo, -inf)
+        lower = np.where(driven, np.maximum(m.lower, np.nextafter(lo_d, -np.inf)), m.lower)
+        upper = np.where(driven, np.minimum(m.upper, hi_d), m.upper)
+        keep = np.all(lower < upper, axis=1)
+        if not keep.any():
+            raise RepertoireError(
+                f"term {self.name!r}: no leaf of its model meets the domain "
+                f"[{lo_d.tolist()}, {hi_d.tolist()}] on the features the parameters drive"
+            )
+        k = m.intercept.shape[0]
+        floor = getattr(m, "floor", None)
+        ceiling = getattr(m, "ceiling", None)
+        floor = np.full(k, -np.inf) if floor is None else np.asarray(floor, dtype=float)
+        ceiling = np.full(k, np.inf) if ceiling is None else np.asarray(ceiling, dtype=float)
+        return PiecewiseLinearModel(
+            lower[keep], upper[keep], m.coef[keep], m.intercept[keep], floor[keep], ceiling[keep]
+        )
+
+    @property
+    def searched_model(self) -> DurationModel:
+        """What the searches minimise: ``model`` cut to ``domain`` on driven features.
+
+        ``model`` itself without a domain.
+        """
+        return self._searched
+
+    def predict(self, params: np.ndarray, *, within_domain: bool = True) -> np.ndarray:
+        """Predicted durations of a batch (n, P) of parameter vectors.
+
+        Args:
+            params: the parameter vectors.
+            within_domain: True: +inf where a driven feature leaves ``domain`` (what the
+                searches see); False: ``model``'s prediction there (an extrapolation).
+        """
         n = np.atleast_2d(params).shape[0]
         features = np.asarray(self.features(params), dtype=float)
         d = self.model.lower.shape[1]
@@ -338,7 +444,28 @@ class DurationTerm:
                 f"term {self.name!r}: its features of {n} parameter vectors have shape "
                 f"{features.shape}; its model expects ({n}, {d})"
             )
-        return predict_leaves(self.model, features)
+        return predict_leaves(self.searched_model if within_domain else self.model, features)
+
+
+def _checked_domain(domain, d: int, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """``domain`` as two (d,) float arrays with lower <= upper, or a RepertoireError."""
+    try:
+        lo, hi = (np.array(side, dtype=float).reshape(-1) for side in domain)
+    except (TypeError, ValueError):
+        raise RepertoireError(
+            f"term {name!r}: domain must be (lower, upper), {d} numbers each, got {domain!r}"
+        ) from None
+    if lo.shape != (d,) or hi.shape != (d,):
+        raise RepertoireError(
+            f"term {name!r}: domain must be (lower, upper), {d} numbers each (one per "
+            f"feature), got {lo.size} and {hi.size}"
+        )
+    if np.isnan(lo).any() or np.isnan(hi).any() or (lo > hi).any():
+        raise RepertoireError(
+            f"term {name!r}: domain needs lower <= upper without NaN (+-inf allowed), got "
+            f"lower {lo.tolist()} and upper {hi.tolist()}"
+        )
+    return lo, hi
 
 
 @dataclass(frozen=True)
@@ -407,10 +534,20 @@ class RefinementProblem:
     def n_params(self) -> int:
         return int(self.lower.size)
 
-    def cost(self, params: np.ndarray) -> np.ndarray:
-        """Summed predicted duration of a batch (n, P) of parameter vectors (+inf outside)."""
+    def cost(self, params: np.ndarray, *, within_domain: bool = True) -> np.ndarray:
+        """Summed predicted duration of a batch (n, P) of parameter vectors (+inf outside).
+
+        Args:
+            params: the parameter vectors.
+            within_domain: True (what the searches minimise): +inf where a term's driven
+                feature leaves its ``domain``; False: the models' extrapolation there.
+        """
         p = np.atleast_2d(np.asarray(params, dtype=float))
-        return np.sum([term.predict(p) for term in self.terms], axis=0)
+        if p.ndim != 2 or p.shape[1] != self.n_params:
+            raise RepertoireError(
+                f"parameters must be (n, {self.n_params}) for this problem, got shape {p.shape}"
+            )
+        return np.sum([t.predict(p, within_domain=within_domain) for t in self.terms], axis=0)
 
 
 @dataclass(frozen=True)
@@ -452,11 +589,17 @@ def _restrict(problem: RefinementProblem, terms: Sequence[int], fixed: dict[int,
         if isinstance(term.features, AffineFeatures):
             A = term.features.A
             feats = AffineFeatures(A[:, used], term.features.b + A @ _masked(full, used))
-            sub_terms.append(DurationTerm(term.model, feats, name=term.name))
+            sub_terms.append(DurationTerm(term.model, feats, name=term.name, domain=term.domain))
         else:
             feats = _Embedded(term.features, full, np.asarray(used, dtype=int))
             local = tuple(used.index(i) for i in term.uses if i in used)
-            sub_terms.append(DurationTerm(term.model, feats, local, term.name))
+            # a feature whose parameters are all fixed now is no longer constrained
+            reads = None
+            if term.feature_uses is not None:
+                reads = tuple(
+                    tuple(used.index(i) for i in r if i in used) for r in term.feature_uses
+                )
+            sub_terms.append(DurationTerm(term.model, feats, local, term.name, term.domain, reads))
     names = tuple(problem.names[i] for i in used) if problem.names else ()
     sub = RefinementProblem(tuple(sub_terms), problem.lower[used], problem.upper[used], names)
     return sub, used
@@ -500,11 +643,18 @@ def refine_sequence(
         solver: ``"corners"``, ``"milp"``, ``"ga"``, ``"de"`` or a function of a problem.
         **options: passed to the named back-end (``seed=`` for ``"ga"`` and ``"de"``).
 
+    Terms with a ``domain`` constrain, at each step, the features that the step's still
+    free parameters drive; a feature an earlier step fixed outside the domain (a greedy
+    step choosing a heading for its own action alone) no longer constrains later steps.
+
     Returns:
         All parameters, the *whole* sequence's predicted duration at them, and one
         result per step in ``steps``. The cost is +inf when the back-end found no
         parameters every model accepts (all candidates INVALID, e.g. a failure model
-        rejecting every subgoal): keep the unrefined plan then.
+        rejecting every subgoal, or no parameters inside the terms' domains): keep the
+        unrefined plan then. Otherwise it is the models' prediction without domains
+        (``cost(params, within_domain=False)``): where a fixed feature lies outside a
+        domain, the models' extrapolation.
     """
     n = len(problem.terms)
     if not is_whole(horizon) or not 1 <= horizon <= n:
@@ -529,9 +679,10 @@ def refine_sequence(
     for idx, v in fixed.items():
         params[idx] = v
     name = steps[0].method if steps else "none"
+    found = all(np.isfinite(s.cost) for s in steps)
     return RefinementResult(
         params,
-        float(problem.cost(params)[0]),
+        float(problem.cost(params, within_domain=False)[0]) if found else np.inf,
         name,
         sum(s.evaluations for s in steps),
         len(steps),

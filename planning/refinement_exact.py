@@ -137,7 +137,7 @@ def _param_boxes(term: DurationTerm, lower: np.ndarray, upper: np.ndarray):
             "most one free parameter (boxes stay boxes); use method='milp' for general "
             "affine features"
         )
-    model = term.model
+    model = term.searched_model
     k, P = model.lower.shape[0], A.shape[1]
     lo = np.broadcast_to(lower, (k, P)).copy()
     hi = np.broadcast_to(upper, (k, P)).copy()
@@ -175,7 +175,7 @@ def _require_linear_leaves(problem: RefinementProblem, boxes=None) -> None:
     parameters (no boxes) a clamped model is refused.
     """
     for n, term in enumerate(problem.terms):
-        m = term.model
+        m = term.searched_model
         floor = getattr(m, "floor", None)
         ceiling = getattr(m, "ceiling", None)
         if floor is None or ceiling is None or not getattr(m, "clamped", False):
@@ -263,8 +263,8 @@ def solve_corners(problem: RefinementProblem) -> RefinementResult:
         if cell_lo.shape[0] == 0:
             raise RepertoireError(
                 f"term {problem.terms[n].name or n}: no leaf of its model covers the "
-                "parameter box together with the earlier terms; expected models whose "
-                "leaves cover the ranges"
+                "parameter box together with the earlier terms (inside the terms' "
+                "domains, where given); expected models whose leaves cover the ranges"
             )
         # Eliminate parameters no later term reads (dynamic programming along the
         # sequence): fix them at their best corner, then of the cells that agree on
@@ -404,7 +404,7 @@ def build_refinement_milp(
     eye = np.eye(P)
     for n, term in enumerate(problem.terms):
         A, b = term.features.A, term.features.b
-        m = term.model
+        m = term.searched_model
         k, d = m.lower.shape
         z = prog.NewBinaryVariables(k, f"z{n}")
         y = prog.NewContinuousVariables(k, P, f"y{n}")
@@ -562,7 +562,9 @@ def solve_milp(
         )
     j_inc = float(problem.cost(incumbent)[0])
     if not np.isfinite(j_inc):
-        raise RepertoireError("the MILP incumbent lies outside the models' leaves")
+        raise RepertoireError(
+            "the MILP incumbent lies outside the models' leaves (or the terms' domains)"
+        )
     scale = 1e-2 / abs_tol
     exclude: list[list[int]] = []
     one_each = _one_parameter_features(problem)
@@ -655,7 +657,7 @@ def _in_leaves(problem: RefinementProblem, params: np.ndarray, leaves: list[int]
     """The summed duration at ``params`` with each term in the given leaf."""
     total = 0.0
     for term, leaf in zip(problem.terms, leaves, strict=True):
-        m = term.model
+        m = term.searched_model
         total += float(m.coef[leaf] @ term.features(params)[0] + m.intercept[leaf])
     return total
 
@@ -669,7 +671,7 @@ def _leaves_lp(problem: RefinementProblem, leaves: list[int]) -> np.ndarray | No
     prog.AddBoundingBoxConstraint(problem.lower, problem.upper, p)
     slope = np.zeros(problem.n_params)
     for term, leaf in zip(problem.terms, leaves, strict=True):
-        A, b, m = term.features.A, term.features.b, term.model
+        A, b, m = term.features.A, term.features.b, term.searched_model
         lo, hi = m.lower[leaf], m.upper[leaf]
         rows = np.flatnonzero(A.any(axis=1))  # constant features: the MILP decided them
         prog.AddLinearConstraint(A[rows], (lo - b)[rows], (hi - b)[rows], p)
@@ -699,7 +701,7 @@ def _leaves_centre(problem: RefinementProblem, leaves: list[int]) -> np.ndarray 
     prog.AddLinearConstraint(np.hstack([eye, np.ones((P, 1))]), -inf, problem.upper, x)
     prog.AddBoundingBoxConstraint(0.0, 1.0, r)
     for term, leaf in zip(problem.terms, leaves, strict=True):
-        A, b, m = term.features.A, term.features.b, term.model
+        A, b, m = term.features.A, term.features.b, term.searched_model
         for j in np.flatnonzero(A.any(axis=1)):
             norm = float(np.linalg.norm(A[j]))
             if np.isfinite(m.lower[leaf, j]):  # A p + b - r |A| >= lower

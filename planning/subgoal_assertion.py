@@ -95,7 +95,8 @@ def assert_subgoal(
 
     Raises:
         RepertoireError: mismatched shapes, non-finite values, empty ranges, a bad seed,
-            or NaN leg durations.
+            NaN leg durations, or leg features, a classifier or ``allowed`` giving other
+            than one row / one boolean per leg.
     """
     start = np.asarray(start, dtype=float).reshape(-1)
     goal = np.asarray(goal, dtype=float).reshape(-1)
@@ -119,6 +120,24 @@ def assert_subgoal(
             f"classifier {type(classifier).__name__} has no predict_success(features) method"
         )
 
+    def features_of(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        f = np.asarray(leg_features(a, b), dtype=float)
+        if f.ndim != 2 or f.shape[0] != a.shape[0]:
+            raise RepertoireError(
+                f"leg_features gave shape {f.shape} for {a.shape[0]} legs; expected "
+                f"({a.shape[0]}, d), one row of features per leg"
+            )
+        return f
+
+    def verdicts(name: str, fn, values: np.ndarray) -> np.ndarray:
+        ok = np.asarray(fn(values)).reshape(-1)
+        if ok.shape != (values.shape[0],) or not np.isin(ok, (0, 1)).all():
+            raise RepertoireError(
+                f"{name} gave {ok.tolist()[:6]!r} (shape {ok.shape}) for {values.shape[0]} "
+                f"rows; expected {values.shape[0]} booleans"
+            )
+        return ok.astype(bool)
+
     def durations(features: np.ndarray) -> np.ndarray:
         t = np.asarray(leg_duration(features), dtype=float).reshape(-1)
         if np.isnan(t).any():
@@ -128,18 +147,18 @@ def assert_subgoal(
             )
         return t
 
-    direct = leg_features(start[None], goal[None])
-    if bool(np.asarray(classifier.predict_success(direct)).reshape(-1)[0]):
+    direct = features_of(start[None], goal[None])
+    if verdicts("classifier.predict_success", classifier.predict_success, direct)[0]:
         t = float(durations(direct)[0])
         return SubgoalAssertion(False, None, t, "direct leg predicted to succeed", 0)
 
     def cost(subgoals: np.ndarray) -> np.ndarray:
         n = subgoals.shape[0]
-        first = leg_features(np.repeat(start[None], n, axis=0), subgoals)
-        last = leg_features(subgoals, np.repeat(goal[None], n, axis=0))
-        ok = np.asarray(classifier.predict_success(last), dtype=bool).reshape(-1)
+        first = features_of(np.repeat(start[None], n, axis=0), subgoals)
+        last = features_of(subgoals, np.repeat(goal[None], n, axis=0))
+        ok = verdicts("classifier.predict_success", classifier.predict_success, last)
         if allowed is not None:
-            ok &= np.asarray(allowed(subgoals), dtype=bool).reshape(-1)
+            ok &= verdicts("allowed", allowed, subgoals)
         t = durations(first) + durations(last)
         return np.where(ok, t, np.inf)
 

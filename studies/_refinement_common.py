@@ -164,6 +164,8 @@ def approach_target(phi, v, distance: float) -> np.ndarray:
     from repertoire.diagrams.soccer import BALL_POSITION
 
     phi, v = np.broadcast_arrays(np.asarray(phi, dtype=float), np.asarray(v, dtype=float))
+    if not (np.isfinite(phi).all() and np.isfinite(v).all()):
+        raise RepertoireError(f"approach phi and v must be finite, got {phi!r} and {v!r}")
     bx, by = BALL_POSITION
     return np.stack([bx - distance * np.cos(phi), by - distance * np.sin(phi), phi, v], axis=-1)
 
@@ -246,8 +248,10 @@ def trained_range(lo: float, hi: float, uses) -> tuple[float, float]:
         ``out_of_range`` still says so.
 
     Raises:
-        RepertoireError: a model has no feature of that name.
+        RepertoireError: ``[lo, hi]`` is not a finite range, or a model has no feature of
+            that name.
     """
+    check_range("trained_range's [lo, hi]", [lo, hi])
     new_lo, new_hi = float(lo), float(hi)
     for model, name in uses:
         names = list(getattr(model, "feature_names", None) or [])
@@ -286,8 +290,15 @@ def instantiated_plan(start, dest, config: SoccerPlanConfig):
     return instantiate_plan(abstract_soccer_plan(), registry, belief)
 
 
-def soccer_duration_models(approach_model, dribble_model, config: SoccerPlanConfig) -> dict:
-    """``refinement_problem`` models of the two actions from fitted duration trees."""
+def soccer_duration_models(
+    approach_model, dribble_model, config: SoccerPlanConfig, *, within_data: bool = True
+) -> dict:
+    """``refinement_problem`` models of the two actions from fitted duration trees.
+
+    With ``within_data`` each carries its tree's training box as its ``domain``: the
+    refinement chooses the approach angle and speed only where the features they drive
+    lie inside the data (the start's own features do not constrain).
+    """
     from repertoire.planning.plans import ActionDurationModel
     from repertoire.planning.refinement import PiecewiseLinearModel
 
@@ -301,14 +312,36 @@ def soccer_duration_models(approach_model, dribble_model, config: SoccerPlanConf
         dest = np.column_stack([p["x_g"], p["y_g"], p["phi_g"], p["v_g"]])
         return dribble_features(p["phi"], p["v"], dest, d)
 
+    def entry(tree, features, reads):
+        model = PiecewiseLinearModel.from_leaves(tree.leaves)
+        if not within_data:
+            return ActionDurationModel(model, features)
+        return ActionDurationModel(model, features, (tree.train_min, tree.train_max), reads)
+
+    # per LEG_FEATURES column (dist, angle_to, angle_at, v, v_g) the parameters it reads:
+    # the approach ends behind the ball along phi_g, the dribble starts there along phi
     return {
-        "approachBall": ActionDurationModel(
-            PiecewiseLinearModel.from_leaves(approach_model.leaves), approach
-        ),
-        "dribbleBall": ActionDurationModel(
-            PiecewiseLinearModel.from_leaves(dribble_model.leaves), dribble
-        ),
+        "approachBall": entry(approach_model, approach, APPROACH_READS),
+        "dribbleBall": entry(dribble_model, dribble, DRIBBLE_READS),
     }
+
+
+APPROACH_READS = (
+    ("x", "y", "phi_g"),
+    ("x", "y", "phi", "phi_g"),
+    ("x", "y", "phi_g"),
+    ("v",),
+    ("v_g",),
+)
+"""The approach's parameters each of its :data:`LEG_FEATURES` reads."""
+DRIBBLE_READS = (
+    ("phi", "x_g", "y_g"),
+    ("phi", "x_g", "y_g"),
+    ("phi", "x_g", "y_g", "phi_g"),
+    ("v",),
+    ("v_g",),
+)
+"""The dribble's parameters each of its :data:`LEG_FEATURES` reads."""
 
 
 @dataclasses.dataclass

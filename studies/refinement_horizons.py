@@ -11,10 +11,12 @@ relative, so it predicts any GoToPose leg within its training ranges) and every 
 tour is executed in the ``soccer_plan`` world. The plan is built directly as a
 refinement problem: like the paper's arm domain, a fixed tour needs no PDDL planner.
 
-``summarize`` writes Table 4 (mean executed tour time per horizon, the improvement over
-the previous horizon and its paired t-test) beside the paper's soccer column, and per
-horizon how many tours query the model outside its training box on each leg (the last leg,
-ending at rest with ``v_g = 0``, always does: the models never saw a stop).
+Every leg is refined inside the model's training box on the features its free headings
+and speeds drive (:func:`tour_problem`). ``summarize`` writes Table 4 (mean executed tour
+time per horizon, the improvement over the previous horizon and its paired t-test) beside
+the paper's soccer column, and per horizon how many tours query the model outside its
+training box on each leg (the last leg, ending at rest with ``v_g = 0``, always does: the
+models never saw a stop).
 
 Run it with ``python -m repertoire.studies.refinement_horizons --help``.
 """
@@ -64,8 +66,11 @@ class RefinementHorizonsConfig(SoccerPlanConfig):
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
         super().validate()
-        for name in ("leg_range", "tour_x_range", "tour_y_range"):
-            check_range(name, getattr(self, name))
+        from repertoire.diagrams.soccer import FIELD
+
+        check_range("leg_range", self.leg_range)
+        check_range("tour_x_range", self.tour_x_range, FIELD[:2])
+        check_range("tour_y_range", self.tour_y_range, FIELD[2:])
         if self.leg_range[0] <= 0.1:
             raise RepertoireError(f"leg_range must start above 0.1 m, got {self.leg_range}")
         if self.solver not in ("ga", "de"):
@@ -167,6 +172,14 @@ def tour_problem(model, start, waypoints, final_phi: float, v_max: float, *, v_m
     """The refinement problem of the tour: one GoToPose term per leg, six free parameters.
 
     Each waypoint's heading is free in ``[-pi, pi]``, its speed in ``[v_min, v_max]``.
+    Every leg's term searches only inside ``model``'s training box (``train_min`` /
+    ``train_max``) on the features the free parameters drive (:class:`DurationTerm`'s
+    ``domain``): a heading is ``angle_at`` of the leg that ends there and ``angle_to`` of
+    the next one, a speed their ``v_g`` and ``v``. A heading range cannot express this:
+    ``angle_at`` wraps, and the headings outside its data (seen: -2.99 to 3.07 rad) are
+    an arc of 0.22 rad at the leg's direction + pi, anywhere in ``[-pi, pi]``. Features
+    the parameters cannot change (the legs' lengths, the start's speed, the last leg's
+    stop) are not constrained.
     """
     from repertoire.planning.refinement import (
         DurationTerm,
@@ -174,15 +187,26 @@ def tour_problem(model, start, waypoints, final_phi: float, v_max: float, *, v_m
         RefinementProblem,
     )
 
+    waypoints = np.asarray(waypoints, dtype=float)
+    if waypoints.shape != (N_LEGS, 2) or not np.isfinite(waypoints).all():
+        raise RepertoireError(
+            f"waypoints must be {N_LEGS} finite [x, y] rows, got {waypoints.tolist()!r}"
+        )
     pl = PiecewiseLinearModel.from_leaves(model.leaves)
+    box = (model.train_min, model.train_max)
     terms = []
     for leg in range(N_LEGS):
 
         def features(params, leg=leg):
             return leg_features(start, waypoints, final_phi, params, leg)
 
-        uses = [i for k in (leg, leg + 1) if 1 <= k < N_LEGS for i in (2 * k - 2, 2 * k - 1)]
-        terms.append(DurationTerm(pl, features, tuple(uses), f"{leg}:goToPose"))
+        def at(k: int, q: int) -> tuple[int, ...]:  # waypoint k's heading (q 0) or speed (1)
+            return (2 * k - 2 + q,) if 1 <= k < N_LEGS else ()
+
+        # dist, angle_to, angle_at, v, v_g: the start's heading, the goal's heading, ...
+        reads = ((), at(leg, 0), at(leg + 1, 0), at(leg, 1), at(leg + 1, 1))
+        uses = tuple(sorted({i for r in reads for i in r}))
+        terms.append(DurationTerm(pl, features, uses, f"{leg}:goToPose", box, reads))
     lower = np.tile([-math.pi, v_min], N_LEGS - 1)
     upper = np.tile([math.pi, v_max], N_LEGS - 1)
     names = tuple(f"w{k}.{q}" for k in range(1, N_LEGS) for q in ("phi", "v"))

@@ -120,6 +120,9 @@ def load_models(models_dir: str, names) -> tuple:
     from repertoire.planning.action_models import load_model
     from repertoire.studies.refinement_explore import MODEL_FILES
 
+    unknown = [k for k in names if k not in MODEL_FILES]
+    if unknown:
+        raise RepertoireError(f"no action models named {unknown}; expected {list(MODEL_FILES)}")
     folder = models_folder(models_dir)
     paths = [folder / MODEL_FILES[k] for k in names]
     missing = [str(p) for p in paths if not p.is_file()]
@@ -144,7 +147,10 @@ def refine_subgoal(config: RefinementSoccerConfig, start, dest, horizon: int, se
     """The refined approach ``(phi, v)`` and the predicted plan duration for a horizon.
 
     The approach speed is searched inside the duration models' training range
-    (:func:`~repertoire.studies._refinement_common.trained_range`).
+    (:func:`~repertoire.studies._refinement_common.trained_range`), and the angle where
+    every feature it drives lies inside the models' training boxes
+    (:func:`~repertoire.studies._refinement_common.soccer_duration_models`); where no
+    angle does, over all angles (the models extrapolate; ``out_of_range`` flags it).
     """
     from repertoire.planning.plans import Range, refinement_problem
     from repertoire.planning.refinement import refine_sequence
@@ -159,6 +165,10 @@ def refine_subgoal(config: RefinementSoccerConfig, start, dest, horizon: int, se
         plan = dataclasses.replace(plan, ranges={**plan.ranges, "pos2.v": Range(*narrowed)})
     problem = refinement_problem(plan, soccer_duration_models(approach, dribble, config))
     result = refine_sequence(problem, horizon, config.solver, seed=seed)
+    if not np.isfinite(result.cost):  # no subgoal inside the data: the models extrapolate
+        models = soccer_duration_models(approach, dribble, config, within_data=False)
+        problem = refinement_problem(plan, models)
+        result = refine_sequence(problem, horizon, config.solver, seed=seed)
     # bound identities too: with approach_v_max = 0 the approach speed is not free
     values = {pid: r.lo for pid, r in plan.ranges.items() if r.is_bound}
     values |= dict(zip(problem.names, result.params, strict=True))

@@ -7,8 +7,10 @@ with subgoal assertion: if the approach failure tree (``refinement_explore``'s, 
 ``models_dir``) predicts a collision with the ball, an intermediate GoToPose subgoal is
 inserted, chosen by the paper's GA to minimise the predicted duration of both legs over
 the subgoals from which the failure tree predicts the last leg succeeds (Algorithm 4) and
-that lie as far from the ball as the tree's training starts (``min_start_clearance``)
-and clear of the goals; the plan then runs both legs through the PlanExecutor. An
+that lie as far from the ball as the tree's training starts (``min_start_clearance``),
+clear of the goals, and where the legs' features the subgoal sets lie inside the models'
+training ranges (:func:`approach_subgoal`); the plan then runs both legs through the
+PlanExecutor. An
 approach succeeds when the plan succeeds without touching the ball.
 
 ``summarize`` writes Fig. 16(b)'s table (predicted vs observed, with and without
@@ -113,11 +115,62 @@ def load_assertion_models(models_dir: str):
     return load_models(models_dir, ("approach_duration", "approach_failure"))
 
 
-def run_episode(config: SubgoalAssertionConfig, seed: int) -> SubgoalAssertionRecord:
-    """Executes one ball approach directly and with subgoal assertion."""
+def approach_subgoal(config: SubgoalAssertionConfig, start, target, seed: int):
+    """Subgoal assertion (Algorithms 3-4) for the approach ``start -> target``.
+
+    A subgoal is allowed where the failure tree saw starts (``min_start_clearance`` from
+    the ball, clear of the goals) and where both legs' features that the subgoal sets lie
+    inside the models' training ranges (all but the first leg's start speed and the last
+    leg's goal speed): the search does not optimise the models' extrapolation.
+
+    Returns:
+        The :class:`~repertoire.planning.subgoal_assertion.SubgoalAssertion`.
+    """
     from repertoire.diagrams.soccer import BALL_POSITION, clear_of_goals
     from repertoire.planning.action_models.features import goto_pose_features
     from repertoire.planning.subgoal_assertion import assert_subgoal
+
+    start, target = np.asarray(start, dtype=float), np.asarray(target, dtype=float)
+    duration, failure = load_assertion_models(config.models_dir)
+    m = config.subgoal_margin
+    bx, by = BALL_POSITION
+
+    def features(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # un-mirrored, as fitted
+        return np.atleast_2d(goto_pose_features(a, b, mirrored=False))
+
+    names = duration.feature_names  # dist, angle_to, angle_at, v, v_g
+    first_driven, last_driven = [n for n in names if n != names[3]], names[:4]
+
+    def allowed(subgoals: np.ndarray) -> np.ndarray:
+        gap = np.hypot(subgoals[:, 0] - bx, subgoals[:, 1] - by)
+        ok = (gap >= config.min_start_clearance) & clear_of_goals(subgoals[:, 0], subgoals[:, 1])
+        first = features(np.repeat(start[None], len(subgoals), axis=0), subgoals)
+        last = features(subgoals, np.repeat(target[None], len(subgoals), axis=0))
+        ok &= ~duration.out_of_range(first, first_driven)
+        for tree in (duration, failure):
+            ok &= ~tree.out_of_range(last, last_driven)
+        return ok
+
+    # the subgoal's speed is the first leg's v_g and the second's v: search it where both
+    # models saw data
+    uses = [(tree, f) for tree in (duration, failure) for f in ("v", "v_g")]
+    v_lo, v_hi = trained_range(0.0, config.approach_v_max, uses)
+    return assert_subgoal(
+        start,
+        target,
+        classifier=_FailureTreeClassifier(failure),
+        leg_features=features,
+        leg_duration=duration.predict,
+        lower=np.array([-3.0 + m, -2.0 + m, -math.pi, v_lo]),
+        upper=np.array([3.0 - m, 2.0 - m, math.pi, v_hi]),
+        seed=seed,
+        allowed=allowed,
+    )
+
+
+def run_episode(config: SubgoalAssertionConfig, seed: int) -> SubgoalAssertionRecord:
+    """Executes one ball approach directly and with subgoal assertion."""
+    from repertoire.planning.action_models.features import goto_pose_features
 
     config.validate()
     t0 = time.perf_counter()
@@ -126,31 +179,8 @@ def run_episode(config: SubgoalAssertionConfig, seed: int) -> SubgoalAssertionRe
     phi_a = float(rng.uniform(-math.pi, math.pi))
     v_a = float(rng.uniform(0.0, config.approach_v_max))
     target = approach_target(phi_a, v_a, config.approach_distance)
-    duration, failure = load_assertion_models(config.models_dir)
-    m = config.subgoal_margin
-    bx, by = BALL_POSITION
-
-    def clear_of_ball(subgoals: np.ndarray) -> np.ndarray:
-        # the failure tree saw starts >= min_start_clearance from the ball, no closer
-        gap = np.hypot(subgoals[:, 0] - bx, subgoals[:, 1] - by)
-        return (gap >= config.min_start_clearance) & clear_of_goals(subgoals[:, 0], subgoals[:, 1])
-
-    # the subgoal's speed is the first leg's v_g and the second's v: search it where both
-    # models saw data
-    uses = [(tree, f) for tree in (duration, failure) for f in ("v", "v_g")]
-    v_lo, v_hi = trained_range(0.0, config.approach_v_max, uses)
-    assertion = assert_subgoal(
-        start,
-        target,
-        classifier=_FailureTreeClassifier(failure),
-        # un-mirrored features, as the shipped models were fitted
-        leg_features=lambda a, b: np.atleast_2d(goto_pose_features(a, b, mirrored=False)),
-        leg_duration=duration.predict,
-        lower=np.array([-3.0 + m, -2.0 + m, -math.pi, v_lo]),
-        upper=np.array([3.0 - m, 2.0 - m, math.pi, v_hi]),
-        seed=seed,
-        allowed=clear_of_ball,
-    )
+    _, failure = load_assertion_models(config.models_dir)
+    assertion = approach_subgoal(config, start, target, seed)
     leg = goto_pose_features(start, target, mirrored=False)[None]
     predicted_fail = bool(failure.predict_failure(leg)[0])
     direct = run_plan(config, start, [target])

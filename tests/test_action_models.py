@@ -149,6 +149,40 @@ def test_json_round_trip_and_bad_files(tmp_path):
         load_model(tmp_path / "missing.json")
 
 
+@pytest.mark.parametrize(
+    "change,message",
+    [
+        (lambda d: d.__setitem__("feature_names", 5), "'feature_names' is 5; expected a list"),
+        (lambda d: d.__setitem__("feature_names", ["a", "a"]), "expected distinct names"),
+        (lambda d: d.__setitem__("train_min", ["x", 0.0]), r"'train_min'\[0\] is 'x'"),
+        (lambda d: d.__setitem__("train_max", [math.nan, 1.0]), r"'train_max'\[0\] is nan"),
+        (
+            lambda d: d.__setitem__("train_min", [9.0, 0.0]),
+            "empty training range: feature 'a' is \\[9.0",
+        ),
+        (lambda d: d.__setitem__("threshold", [math.nan] * 3), r"'threshold'\[0\] is nan"),
+        (lambda d: d.__setitem__("left", [None] * 3), r"'left'\[0\] is None"),
+        (lambda d: d.__setitem__("feature", [0.5] * 3), r"'feature'\[0\] is 0.5"),
+        (lambda d: d.__setitem__("threshold_probability", "x"), "'threshold_probability' is"),
+        (lambda d: d["leaves"][1].__setitem__("coef", [math.nan, 0]), r"leaf 1's 'coef'\[0\]"),
+        (lambda d: d["leaves"][0].__setitem__("intercept", None), "leaf 0's 'intercept' is None"),
+        (lambda d: d["leaves"][0].__setitem__("samples", "x"), "leaf 0's 'samples' is 'x'"),
+        (lambda d: d.__setitem__("leaves", 3), "'leaves' is 3; expected a list"),
+    ],
+)
+def test_model_file_with_wrong_fields_is_refused_naming_field_and_value(tmp_path, change, message):
+    # each of these used to load (NaN thresholds, coefficients, training ranges: silent
+    # wrong predictions) or fail with a bare conversion error naming neither
+    X = np.column_stack([np.linspace(0, 1, 40), np.tile([0.0, 1.0], 20)])
+    m = fit_duration_tree(X, np.where(X[:, 0] > 0.5, 2.0, 1.0), ["a", "b"], candidate_leaves=(2,))
+    assert len(m.feature) == 3
+    data = json.loads(save_model(m, tmp_path / "m.json").read_text())
+    change(data)
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    with pytest.raises(RepertoireError, match=f"bad.json'.*{message}"):
+        load_model(tmp_path / "bad.json")
+
+
 def test_saved_model_is_standard_json_and_old_infinity_files_load(tmp_path):
     # JSON has no infinity: the unbounded faces are "inf"/"-inf" strings, which a strict
     # reader accepts; files written with Python's Infinity token still load
@@ -178,6 +212,12 @@ def test_out_of_range_flag_and_nan():
     m = fit_duration_tree(X, y, ["a", "b"])
     flags = m.out_of_range([[0.0, 0.0], [2.0, 0.0], [0.0, -1.5]])
     assert flags.tolist() == [False, True, True]
+    # only the named features (those a refinement's free parameters drive)
+    assert m.out_of_range([[0.0, 0.0], [2.0, 0.0], [0.0, -1.5]], ["b"]).tolist() == [0, 0, 1]
+    assert m.out_of_range([[2.0, 0.0]], "a").tolist() == [True]
+    assert m.out_of_range([[2.0, 0.0]], []).tolist() == [False]
+    with pytest.raises(RepertoireError, match=r"features \['c'\] are not the model's"):
+        m.out_of_range([[0.0, 0.0]], ["a", "c"])
     with pytest.raises(RepertoireError, match=r"\['b'\].*NaN"):
         m.predict([[0.0, np.nan]])
     with pytest.raises(RepertoireError, match=r"features must be numbers, rows of \['a', 'b'\]"):
@@ -185,6 +225,11 @@ def test_out_of_range_flag_and_nan():
 
 
 def test_too_few_episodes_and_nan_training():
+    for empty in ([], np.zeros((0, 2))):  # [] was "need X of shape (n, 2)... got (0,)"
+        with pytest.raises(RepertoireError, match=r"no training episodes \(X of shape \(0"):
+            fit_duration_tree(empty, [], ["a", "b"])
+        with pytest.raises(RepertoireError, match="no training episodes"):
+            fit_failure_tree(empty, [], ["a", "b"])
     X, y = _piecewise(MIN_EPISODES - 1)
     with pytest.raises(RepertoireError, match=f"at least {MIN_EPISODES}"):
         fit_duration_tree(X, y, ["a", "b"])

@@ -237,6 +237,8 @@ def test_soccer_goto_pose_reaches_its_pose():
             build_soccer_goto_pose(GoToPoseScenario(target=target))
     # 0.37 m from the post's centre is clear
     build_soccer_goto_pose(GoToPoseScenario(target=[3.0, 0.75 - 0.371, 0.0, 0.0]))
+    with pytest.raises(ScenarioError, match=r"target \[0.0, 2.2, 0.0, 0.0\] lies off the field"):
+        build_soccer_goto_pose(GoToPoseScenario(target=[0.0, 2.2, 0.0, 0.0]))
 
 
 def test_predictor_exact_outputs():

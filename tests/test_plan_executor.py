@@ -130,6 +130,11 @@ def test_soccer_plan_world_runs_the_plan_and_dribbles_the_ball():
     # a leg ending with the robot in a goal post (it pushed the post until its timeout)
     with pytest.raises(ScenarioError, match=r"targets\[1\] \[2.8, -0.6, 0.0, 0.0\] puts the robot"):
         build_soccer_plan(SoccerPlanScenario(targets=[[0.65, 0.5, 0, 0.2], [2.8, -0.6, 0.0, 0.0]]))
+    # a subgoal or start off the field (the robot drove off it and on, unchecked)
+    with pytest.raises(ScenarioError, match=r"targets\[1\] \[1.0, -2.5, 0.0, 0.0\] lies off the"):
+        build_soccer_plan(SoccerPlanScenario(targets=[[0.65, 0.5, 0, 0.2], [1.0, -2.5, 0.0, 0.0]]))
+    with pytest.raises(ScenarioError, match=r"initial_pose \[-3.5, 0.0, 0.0\] lies off the field"):
+        build_soccer_plan(SoccerPlanScenario(initial_pose=[-3.5, 0.0, 0.0]))
     with pytest.raises(ScenarioError, match=r"unknown GoToPose gains \['k_x'\]"):
         build_soccer_plan(SoccerPlanScenario(gains={"k_x": 1.0}))
     with pytest.raises(ScenarioError, match=r"unknown GoToPose gains \['k_y'\]"):

@@ -257,6 +257,31 @@ def test_figure_11_refinement_of_the_instantiated_plan():
     assert ga.cost == pytest.approx(refined.cost, abs=0.05)
 
 
+LEG_READS = (("x", "y", "x_g", "y_g"), ("x", "y", "phi", "x_g", "y_g"),
+             ("x", "y", "x_g", "y_g", "phi_g"), ("v_g",))  # fmt: skip
+
+
+def test_refinement_of_the_plan_stays_inside_the_approach_models_data():
+    # Figure 11's plan with an approach model that saw |angle_at| <= 1 rad only: the
+    # refined approach angle 3 pi / 4 (|angle_at| 2.36) is an extrapolation; inside the
+    # data the dribble's 2 s/rad beat the approach's 0.8 s/rad up to the edge, phi = 1
+    plan = _fig10_plan()
+    domain = ([0.0, 0.0, 0.0, 0.0], [10.0, np.pi, 1.0, 0.3])
+    approach = ActionDurationModel(_linear([1.0, 0.3, 0.8, -1.0]), _leg_features, domain, LEG_READS)
+    dribble = ActionDurationModel(_linear([2.0, 2.0, 0.1, 2.0]), _start_speed)
+    models = {"approachBall": approach, "dribbleBall": dribble}
+    problem = refinement_problem(plan, models)
+    assert problem.terms[0].feature_uses == ((), (), (0,), (1,))
+    refined = refine_sequence(problem, 2, "de", seed=0)
+    np.testing.assert_allclose(refined.params, [1.0, 0.0], atol=1e-3)
+    with pytest.raises(RepertoireError, match="a duration model with a domain needs `reads`"):
+        refinement_problem(plan, {**models, "approachBall": ActionDurationModel(
+            approach.model, _leg_features, domain)})  # fmt: skip
+    with pytest.raises(RepertoireError, match=r"`reads` names \['heading'\], not parameters"):
+        refinement_problem(plan, {**models, "approachBall": ActionDurationModel(
+            approach.model, _leg_features, domain, (("heading",),) * 4)})  # fmt: skip
+
+
 def _start_speed(p: dict) -> np.ndarray:
     features = _leg_features(p)
     features[:, 3] = p["v"]

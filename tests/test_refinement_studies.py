@@ -392,8 +392,39 @@ def test_tour_sampling_states_and_problem():
     )
     problem = tour_problem(tree, start, wps, final_phi, 0.09)
     assert [t.uses for t in problem.terms] == [(0, 1), (0, 1, 2, 3), (2, 3, 4, 5), (4, 5)]
+    # dist, angle_to, angle_at, v, v_g: which waypoint heading / speed each reads
+    assert problem.terms[0].feature_uses == ((), (), (0,), (), (1,))
+    assert problem.terms[1].feature_uses == ((), (0,), (2,), (1,), (3,))
+    assert problem.terms[3].feature_uses == ((), (4,), (), (5,), ())
     lengths = np.hypot(*np.diff(np.vstack([start[:2], wps]), axis=0).T)
-    assert problem.cost(params)[0] == pytest.approx(4.0 + 2.0 * lengths.sum(), rel=1e-6)
+    predicted = problem.cost(params, within_domain=False)[0]
+    assert predicted == pytest.approx(4.0 + 2.0 * lengths.sum(), rel=1e-6)
+    # the tree saw angles and speeds of 0 only: these parameters leave its data
+    assert problem.cost(params)[0] == np.inf
+
+
+def test_tour_refined_greedily_stays_inside_the_shipped_model_data():
+    # greedy (h = 1) used to put waypoint headings where angle_at was outside the data
+    # (-2.99..3.07 rad); now only the last leg's stop, which no parameter sets, is outside
+    from repertoire.planning.refinement import refine_sequence
+    from repertoire.studies._refinement_common import trained_range
+    from repertoire.studies.refinement_horizons import (
+        RefinementHorizonsConfig,
+        sample_tour,
+        tour_out_of_range,
+        tour_problem,
+    )
+    from repertoire.studies.refinement_soccer import load_models
+
+    (model,) = load_models("", ("approach_duration",))
+    c = RefinementHorizonsConfig()
+    start, wps, final_phi = sample_tour(c, np.random.default_rng(7001))
+    v_min, v_max = trained_range(0.0, c.approach_v_max, ((model, "v"), (model, "v_g")))
+    problem = tour_problem(model, start, wps, final_phi, v_max, v_min=v_min)
+    for h in (1, 2):
+        result = refine_sequence(problem, h, "ga", seed=3)
+        flags = tour_out_of_range(model, start, wps, final_phi, result.params)[0]
+        np.testing.assert_array_equal(flags, [False, False, False, True])
 
 
 def test_tour_out_of_range_flags_the_final_stop_the_models_never_saw():
@@ -430,3 +461,70 @@ def test_tour_out_of_range_flags_the_final_stop_the_models_never_saw():
         "fitted on all ended moving (v_g 0.00025-0.09 m/s): a stop is outside its data, so "
         "every tour's last leg is flagged."
     )
+
+
+def test_refinement_study_helpers_name_bad_inputs():
+    from repertoire.studies._refinement_common import approach_target, trained_range
+    from repertoire.studies.refinement_horizons import RefinementHorizonsConfig, tour_problem
+    from repertoire.studies.refinement_soccer import load_models
+
+    with pytest.raises(RepertoireError, match=r"no action models named \['approach_speed'\]"):
+        load_models("", ("approach_speed",))  # was a bare KeyError
+    (model,) = load_models("", ("approach_duration",))
+    with pytest.raises(RepertoireError, match=r"\[lo, hi\] must be finite .* got \[nan, 0.09\]"):
+        trained_range(math.nan, 0.09, ((model, "v"),))  # returned (nan, 0.09)
+    with pytest.raises(RepertoireError, match=r"got \[0.09, 0.0\]"):
+        trained_range(0.09, 0.0, ((model, "v"),))  # returned the empty (0.09, 0.0)
+    with pytest.raises(RepertoireError, match="approach phi and v must be finite"):
+        approach_target(math.nan, 0.05, 0.35)  # returned a NaN target
+    with pytest.raises(RepertoireError, match=r"waypoints must be 4 finite \[x, y\] rows"):
+        tour_problem(model, [0.0, 0.0, 0.0, 0.0], np.zeros((3, 2)), 0.0, 0.09)
+    with pytest.raises(RepertoireError, match=r"tour_x_range must lie within \[-3.0, 3.0\]"):
+        RefinementHorizonsConfig(tour_x_range=[-10.0, 0.2]).validate()
+
+
+@pytest.mark.parametrize("seed", [7, 16])
+def test_refined_soccer_subgoal_stays_inside_both_models_data(seed):
+    # situations whose h = 2 subgoal used to lie outside the approach or dribble tree's data
+    from repertoire.studies._refinement_common import approach_features, dribble_features
+    from repertoire.studies.refinement_soccer import (
+        RefinementSoccerConfig,
+        load_duration_models,
+        refine_subgoal,
+    )
+
+    config = RefinementSoccerConfig()
+    approach, dribble = load_duration_models(config.models_dir)
+    start, dest = sample_situation(config, np.random.default_rng(seed))
+    phi, v, predicted = refine_subgoal(config, start, dest, 2, seed)
+    d = config.approach_distance
+    assert not approach.out_of_range(approach_features(start, phi, v, d))[0]
+    assert not dribble.out_of_range(dribble_features(phi, v, dest, d))[0]
+    assert np.isfinite(predicted)
+
+
+@pytest.mark.parametrize("seed", [15, 20])
+def test_asserted_subgoal_keeps_both_legs_inside_the_models_data(seed):
+    # seeds whose asserted subgoal used to put the first leg's dist or angle_at outside the
+    # duration tree's data; the features the subgoal sets now stay inside both trees' data
+    from repertoire.planning.action_models.features import goto_pose_features
+    from repertoire.studies.subgoal_assertion_soccer import (
+        SubgoalAssertionConfig,
+        approach_subgoal,
+        load_assertion_models,
+    )
+
+    config = SubgoalAssertionConfig()
+    rng = np.random.default_rng(seed)  # run_episode's draws
+    start, _ = sample_situation(config, rng)
+    phi_a, v_a = rng.uniform(-math.pi, math.pi), rng.uniform(0.0, config.approach_v_max)
+    target = approach_target(phi_a, v_a, config.approach_distance)
+    result = approach_subgoal(config, start, target, seed)
+    assert result.asserted
+    duration, failure = load_assertion_models(config.models_dir)
+    first = goto_pose_features(start, result.subgoal, mirrored=False)[None]
+    last = goto_pose_features(result.subgoal, target, mirrored=False)[None]
+    names = duration.feature_names
+    assert not duration.out_of_range(first, [names[0], names[1], names[2], names[4]])[0]
+    for tree in (duration, failure):
+        assert not tree.out_of_range(last, names[:4])[0]

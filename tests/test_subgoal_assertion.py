@@ -103,3 +103,37 @@ def test_bad_input():
         assert_subgoal(np.ones(2), np.zeros(2), seed=0, lower=np.ones(2), upper=np.zeros(2), **kw)
     with pytest.raises(RepertoireError, match="finite"):
         assert_subgoal(np.array([np.nan, 0.0]), np.zeros(2), seed=0, **kw, **BOUNDS)
+
+
+class Answers:
+    """A classifier answering with a fixed function of the features (bad on purpose)."""
+
+    def __init__(self, answer) -> None:
+        self.answer = answer
+
+    def predict_success(self, features: np.ndarray) -> np.ndarray:
+        return self.answer(features)
+
+
+def test_callbacks_giving_other_than_one_answer_per_leg_are_named():
+    # a NaN verdict read as success, a short one raised a bare numpy broadcast error, and a
+    # single `allowed` verdict was broadcast over every candidate
+    start, goal = np.array([1.0, 0.0]), np.zeros(2)
+    kw = dict(leg_features=leg_features, leg_duration=leg_duration, seed=0, **BOUNDS)
+    nan = Answers(lambda f: np.full(f.shape[0], np.nan))
+    with pytest.raises(
+        RepertoireError, match=r"predict_success gave \[nan\] .* expected 1 booleans"
+    ):
+        assert_subgoal(start, goal, classifier=nan, **kw)
+    short = Answers(lambda f: np.zeros(3, dtype=bool))
+    with pytest.raises(
+        RepertoireError, match=r"gave \[False, False, False\] \(shape \(3,\)\) for 1"
+    ):
+        assert_subgoal(start, goal, classifier=short, **kw)
+    with pytest.raises(
+        RepertoireError, match=r"allowed gave \[True\] \(shape \(1,\)\) for 50 rows"
+    ):
+        assert_subgoal(start, goal, classifier=ApproachFromLeft(), allowed=lambda s: [True], **kw)
+    with pytest.raises(RepertoireError, match=r"leg_features gave shape \(1, 2\) for 50 legs"):
+        assert_subgoal(start, goal, classifier=ApproachFromLeft(), **{
+            **kw, "leg_features": lambda a, b: leg_features(a[:1], b[:1])})  # fmt: skip

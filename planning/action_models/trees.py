@@ -175,11 +175,26 @@ class TreeModel:
             raise RepertoireError("predict_failure needs a failure tree, this is a duration tree")
         return self.predict(X) >= self.threshold_probability
 
-    def out_of_range(self, X) -> np.ndarray:
-        """True per row where any feature lies outside the training range."""
+    def out_of_range(self, X, features: Sequence[str] | None = None) -> np.ndarray:
+        """True per row where any feature lies outside the training range.
+
+        Args:
+            X: ``(n, d)`` feature rows.
+            features: names of the features to check (default: all), e.g. only those a
+                refinement's free parameters drive.
+        """
         X = self._check_x(X)
         a = self._arrays()
-        return np.any((X < a["train_min"]) | (X > a["train_max"]), axis=1)
+        out = (X < a["train_min"]) | (X > a["train_max"])
+        if features is not None:
+            names = [features] if isinstance(features, str) else list(features)
+            unknown = sorted(set(names) - set(self.feature_names))
+            if unknown:
+                raise RepertoireError(
+                    f"features {unknown} are not the model's; its features are {self.feature_names}"
+                )
+            out = out[:, [self.feature_names.index(n) for n in names]]
+        return np.any(out, axis=1)
 
     def rules(self) -> str:
         """The tree as readable if-then rules, one per leaf."""
@@ -242,6 +257,11 @@ def _check_training(X, y, feature_names: Sequence[str]) -> tuple[np.ndarray, np.
         y = np.asarray(y, dtype=float)
     except (TypeError, ValueError) as e:
         raise RepertoireError(f"X and y must be numeric arrays (rows of equal length): {e}") from e
+    if X.size == 0 or y.size == 0:
+        raise RepertoireError(
+            f"no training episodes (X of shape {X.shape}, y of shape {y.shape}); at least "
+            f"{MIN_EPISODES} are needed"
+        )
     if X.ndim != 2 or X.shape[1] != len(feature_names) or y.ndim != 1 or len(y) != len(X):
         raise RepertoireError(
             f"need X of shape (n, {len(feature_names)}) and y of shape (n,), got {X.shape}, "
@@ -521,6 +541,7 @@ def load_model(path: str | Path) -> TreeModel:
         raise RepertoireError(f"action model '{path}' lacks fields {missing}")
     if data["kind"] not in KINDS:
         raise RepertoireError(f"action model kind must be one of {KINDS}, got {data['kind']!r}")
+    _check_field_types(data, path)
     try:
         data["leaves"] = [LeafBox(**leaf) for leaf in data["leaves"]]
         for leaf in data["leaves"]:
@@ -547,6 +568,60 @@ def load_model(path: str | Path) -> TreeModel:
         raise RepertoireError(f"action model '{path}' has a field of the wrong type: {e}") from e
     data["version"] = MODEL_VERSION  # read into this version's fields
     return TreeModel(**data)
+
+
+def _check_field_types(data: dict, path: Path) -> None:
+    """Every field of a model file holds values of its type, or an error naming field and value.
+
+    Only the leaves' box bounds may be infinite (read by :func:`_leaf_bounds`): a NaN
+    threshold sends every vector right, a NaN coefficient predicts NaN, a NaN training
+    range flags nothing as out of range; none of these may load silently.
+    """
+
+    def fail(field: str, value, expected: str, problem: str = "a field of the wrong type"):
+        raise RepertoireError(
+            f"action model '{path}' has {problem}: {field} is {repr(value)[:80]}; "
+            f"expected {expected}"
+        )
+
+    def numbers(field: str, values, whole: bool = False) -> None:  # lengths: _check_structure
+        ok = is_whole if whole else (lambda v: is_real(v) and math.isfinite(v))
+        kind = "whole numbers" if whole else "finite numbers"
+        if not isinstance(values, list):
+            fail(field, values, f"a list of {kind}")
+        for i, v in enumerate(values):
+            if not ok(v):
+                fail(f"{field}[{i}]", v, f"a {kind[:-1]}")
+
+    names = data["feature_names"]
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        fail("'feature_names'", names, "a list of feature names (strings)")
+    if len(set(names)) != len(names):
+        fail("'feature_names'", names, "distinct names")
+    for field in ("feature", "left", "right", "leaf_of_node"):
+        numbers(f"'{field}'", data[field], whole=True)
+    for field in ("threshold", "train_min", "train_max"):
+        numbers(f"'{field}'", data[field])
+    for j, seen in enumerate(zip(data["train_min"], data["train_max"])):
+        if seen[0] > seen[1]:
+            name = repr(names[j]) if j < len(names) else j
+            fail(f"feature {name}", list(seen), "train_min <= train_max", "an empty training range")
+    p = data["threshold_probability"]
+    if not (is_real(p) and 0.0 <= p <= 1.0):
+        fail("'threshold_probability'", p, "a number in [0, 1]")
+    if not isinstance(data["leaves"], list):
+        fail("'leaves'", data["leaves"], "a list of leaf records")
+    for j, leaf in enumerate(data["leaves"]):
+        if not isinstance(leaf, dict):
+            fail(f"leaf {j}", leaf, "a record of lower, upper, coef, intercept, samples")
+        if "coef" in leaf:
+            numbers(f"leaf {j}'s 'coef'", leaf["coef"])
+        if "intercept" in leaf and not (
+            is_real(leaf["intercept"]) and math.isfinite(leaf["intercept"])
+        ):
+            fail(f"leaf {j}'s 'intercept'", leaf["intercept"], "a finite number")
+        if "samples" in leaf and not is_whole(leaf["samples"]):
+            fail(f"leaf {j}'s 'samples'", leaf["samples"], "a whole number")
 
 
 def _check_structure(data: dict, path: Path) -> None:

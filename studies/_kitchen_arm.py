@@ -143,30 +143,43 @@ def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool) -> np.ndarray
     z_world = arm[:, 2] - to_chassis_z(0.0)
     lowest = z_world - max(FINGER_HALF[2], CUP_HALF_HEIGHT if held else 0.0)
     hit = np.full(len(arm), -1)
+    a, b = (np.broadcast_to(np.atleast_2d(p)[:, :2], (len(arm), 2)) for p in (a, b))
+    d = b - a
+    t = np.zeros(len(arm))
     for i, box in enumerate(np.asarray(boxes, dtype=float).reshape(-1, 6)):
-        bad = ~path_clear(a, b, box, radius) & (lowest <= box[5]) & (hit < 0)
-        hit[bad] = i
+        # candidates: rows whose arm is low enough and whose path passes the box's
+        # circumscribed circle within the arm's reach (the exact test is the costly part)
+        moving = np.einsum("ij,ij->i", d, d) > 0
+        t[moving] = np.clip(np.einsum("ij,ij->i", box[:2] - a, d)[moving]
+                            / np.einsum("ij,ij->i", d, d)[moving], 0.0, 1.0)  # fmt: skip
+        near = np.hypot(*(a + t[:, None] * d - box[:2]).T) <= radius + np.hypot(*box[3:5])
+        rows = np.flatnonzero(near & (lowest <= box[5]) & (hit < 0))
+        if rows.size:
+            hit[rows[~path_clear(a[rows], b[rows], box, radius[rows])]] = i
     return hit
 
 
-def drive_hits(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig) -> dict:
-    """:func:`arm_drive_hits` of fetch ``k``'s drives to its stand and to its drop pose.
+def drive_hits(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, role: str):
+    """:func:`arm_drive_hits` of fetch ``k``'s drive ``role``: ``drive_stand`` or ``drive_drop``.
+
+    ``drive_stand``: from the start or the last drop pose to the stand, the arm tucked or
+    where the last retract left it, cup ``k`` standing on its place; ``drive_drop``: from
+    the stand to the drop pose with the cup held at the carry point.
 
     Returns:
-        ``{"drive_stand": (hits, names), "drive_drop": (hits, names)}``: per row the index
-        of the first obstacle (:func:`fetch_obstacles`; cup ``k`` stands on its place on
-        the way to it, and is held on the way to the drop pose), -1 where clear.
+        ``(hits, names)``: per row the index of the first obstacle in ``names``
+        (:func:`fetch_obstacles`), -1 where clear.
     """
-    ways, c = arm_ways(g, k, config.above_offset), config.arm_clearance
-    prev = g.drop[:, k - 1] if k else np.broadcast_to(start, g.stand[:, k].shape)
-    to_cup = fetch_obstacles(cups, g.target, k, 0.0, own=True)
-    carrying = fetch_obstacles(cups, g.target, k, 0.0)
-    return {
-        "drive_stand": (arm_drive_hits(prev, g.stand[:, k], ways["above"][1], to_cup[0], c,
-                                       False), to_cup[1]),
-        "drive_drop": (arm_drive_hits(g.stand[:, k], g.drop[:, k], g.carry[:, k],
-                                      carrying[0], c, True), carrying[1]),
-    }  # fmt: skip
+    if role == "drive_stand":
+        prev = g.drop[:, k - 1] if k else np.broadcast_to(start, g.stand[:, k].shape)
+        boxes, names = fetch_obstacles(cups, g.target, k, 0.0, own=True)
+        arm, held, a, b = arm_ways(g, k, config.above_offset)["above"][1], False, prev, g.stand
+    elif role == "drive_drop":
+        boxes, names = fetch_obstacles(cups, g.target, k, 0.0)
+        arm, held, a, b = g.carry[:, k], True, g.stand[:, k], g.drop
+    else:
+        raise RepertoireError(f"role must be 'drive_stand' or 'drive_drop', got {role!r}")
+    return arm_drive_hits(a, b[:, k], arm, boxes, config.arm_clearance, held), names
 
 
 def arm_collisions(params, start, cups, targets, config: KitchenPlanConfig) -> list[tuple]:
@@ -183,7 +196,8 @@ def arm_collisions(params, start, cups, targets, config: KitchenPlanConfig) -> l
             names = fetch_obstacles(cups, targets, k - (role == "retract"), 0.0)[1]
             if hit >= 0:
                 found.append((k, role, (names + ["out of reach"])[hit]))
-        for role, (hit, names) in drive_hits(g, cups, k, start, config).items():
+        for role in ("drive_stand", "drive_drop"):
+            hit, names = drive_hits(g, cups, k, start, config, role)
             if hit[0] >= 0:
                 found.append((k, role, names[hit[0]]))
     return found

@@ -29,7 +29,11 @@ are constants in closed form from the actions' speeds. A stand or drop pose whos
 footprint overlaps furniture, or whose straight path from the previous pose does
 (GoToPose drives without obstacle avoidance), is INVALID (predicted +inf), and so is a
 stand with no straight free path to :func:`exit_point` (so a drop pose stays reachable
-whatever later steps choose): geometric preconditions, not learned failure models.
+whatever later steps choose): geometric preconditions, not learned failure models. So is
+a plan whose arm, fingers or held cup would pass through a table, the counter, a wall or
+a standing cup on a reach, the carry or the put, or while the base drives with the arm
+held out (:mod:`repertoire.studies._kitchen_arm`): a clear base path alone let the arm
+swing through the cup waiting beside the fetched one.
 """
 
 import dataclasses
@@ -485,7 +489,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
             f = kitchen_goto_features(prev_pose(g), g.stand[:, k])
             ok = path_clear(prev_pose(g), g.stand[:, k], KITCHEN_OBSTACLES, radius)
             ok &= path_clear(g.stand[:, k], exits[k], KITCHEN_OBSTACLES, radius)
-            ok &= drive_hits(g, cups, k, start, config)["drive_stand"][0] < 0  # the arm too
+            ok &= drive_hits(g, cups, k, start, config, "drive_stand")[0] < 0  # the arm too
             return np.where(ok[:, None], f, np.nan)
 
         add("goto_pose", goto, goto_stand, prev_ids + stand_ids)
@@ -530,7 +534,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
             g = geometry(params)
             f = kitchen_goto_features(g.stand[:, k], g.drop[:, k])
             ok = path_clear(g.stand[:, k], g.drop[:, k], KITCHEN_OBSTACLES, radius)
-            ok &= drive_hits(g, cups, k, start, config)["drive_drop"][0] < 0  # arm and cup
+            ok &= drive_hits(g, cups, k, start, config, "drive_drop")[0] < 0  # arm and cup
             return np.where(ok[:, None], f, np.nan)
 
         add("goto_pose", goto, goto_drop, stand_ids + drop_ids)

@@ -128,6 +128,7 @@ def joint_lines(q_from, q_to, spacing: float = 0.01, reach: float = 0.0) -> np.n
 
     Every row gets the sample count of the longest (its points at most ``spacing`` apart).
     """
+    _check_positive(spacing=spacing)
     q0, q1 = np.atleast_2d(np.asarray(q_from, dtype=float)), np.atleast_2d(q_to).astype(float)
     d = np.abs(q1 - q0)
     length = d[:, 0] + d[:, 2] + (np.maximum(np.abs(q0[:, 2]), np.abs(q1[:, 2])) + reach) * d[:, 1]
@@ -252,32 +253,33 @@ def arm_way_hits(
     Returns:
         ``(n,)`` box indices (-1: the way is clear).
     """
-    q = joint_lines(q_from, q_to, spacing, FINGER_REACH)
-    n, s = q.shape[:2]
+    q, boxes = joint_lines(q_from, q_to, spacing, FINGER_REACH), _check_boxes(boxes)
+    (n, s), (drop, radius) = q.shape[:2], cup if cup is not None else (0.0, 0.0)
     base = np.broadcast_to(np.atleast_2d(np.asarray(base_state, dtype=float))[:, :3], (n, 3))
-    flat = q.reshape(-1, 3)
-    centre = chassis_points_to_world(np.repeat(base, s, axis=0), arm_forward(flat))
-    fingers = finger_boxes(np.repeat(base, s, axis=0), flat, span)
-    drop, radius = cup if cup is not None else (0.0, 0.0)
     # rows whose lowest point is above a box or whose farthest is short of it skip it
     ends = q[:, [0, -1]]
     low = WHEEL_RADIUS + LIFT_BASE_Z + ends[:, :, 0].min(axis=1) - max(FINGER_HALF[2], drop)
     far = COLUMN_X + ends[:, :, 2].max(axis=1) + max(FINGER_REACH, radius) + margin
-    inside = np.full((n, s), -1)
-    for i, box in enumerate(np.asarray(boxes, dtype=float).reshape(-1, 6)):
-        _, u, w, hx, hy, top = next(_in_box_frames(base.T, box))
+    near = np.zeros((len(boxes), n), dtype=bool)
+    for i, (_, u, w, hx, hy, top) in enumerate(_in_box_frames(base.T, boxes)):
         gap = np.hypot(np.maximum(np.abs(u) - hx, 0.0), np.maximum(np.abs(w) - hy, 0.0))
-        rows = np.flatnonzero((low <= top + margin) & (gap <= far))
-        if rows.size == 0:
+        near[i] = (low <= top + margin) & (gap <= far)
+    rows = np.flatnonzero(near.any(axis=0))  # the ways near any box, sampled
+    inside, flat, at_base = np.full((n, s), -1), q[rows].reshape(-1, 3), np.repeat(base[rows], s, 0)
+    centre = chassis_points_to_world(at_base, arm_forward(flat))
+    fingers = finger_boxes(at_base, flat, span)
+    for i, box in enumerate(boxes):
+        at = np.flatnonzero(near[i, rows])  # positions in rows
+        if at.size == 0:
             continue
-        k = (rows[:, None] * s + np.arange(s)).ravel()  # their samples
+        k = (at[:, None] * s + np.arange(s)).ravel()  # their samples
         hit = points_in_boxes(centre[k], box, margin) >= 0
         hit |= _finger_hits(fingers[0][k], fingers[1][k], fingers[2], box, margin) >= 0
         if cup is not None:
             hit |= discs_in_boxes(centre[k] - [0.0, 0.0, drop], radius, box, margin) >= 0
-        sub = inside[rows]
+        sub = inside[rows[at]]
         sub[hit.reshape(-1, s) & (sub < 0)] = i  # the first box in order, as one by one
-        inside[rows] = sub
+        inside[rows[at]] = sub
     staying = (inside == inside[:, :1]) & (inside[:, :1] >= 0)  # still in its start box
     left = np.where(staying.all(axis=1), s, np.argmin(staying, axis=1))
     entered = (np.arange(s)[None, :] >= left[:, None]) & (inside >= 0)

@@ -317,6 +317,10 @@ def test_arm_way_hits_agree_with_a_sample_by_sample_check():
                 k += 1  # a way starting in a box: entries after it leaves
             assert got[r] == next((i for i in per_sample[k:] if i >= 0), -1), (r, cup)
         assert np.any(got >= 0) and np.any(got < 0)  # both kinds among the ways
+    with pytest.raises(RepertoireError, match="spacing must be finite and > 0, got 0.0"):
+        arm_way_hits(base, q0, q1, span, boxes, spacing=0.0)
+    with pytest.raises(RepertoireError, match="obstacle boxes must be finite rows of 6"):
+        arm_way_hits(base, q0, q1, span, [[1.0, 2.0, 3.0]])
     # the rows of arm_inverse: out of reach (or not finite) where arm_inverse says None
     a = [[0.9, 0.0, 0.7], [0.05, 0.0, 0.7], [0.9, 0.0, 1.5], [np.nan, 0.0, 0.7]]
     q, ok = arm_inverse_rows(a)

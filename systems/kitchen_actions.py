@@ -138,7 +138,7 @@ def joint_lines(q_from, q_to, spacing: float = 0.01, reach: float = 0.0) -> np.n
 
 def joint_line_points(q_from, q_to, spacing: float = 0.01) -> np.ndarray:
     """Gripper centres (chassis frame) along :func:`joint_line`, at most ``spacing`` apart."""
-    return np.array([arm_forward(q) for q in joint_line(q_from, q_to, spacing)])
+    return arm_forward(joint_line(q_from, q_to, spacing))
 
 
 def fingers_blocked(
@@ -216,8 +216,7 @@ def fingers_in_boxes(base_state, q, span, boxes, margin: float = 0.0) -> np.ndar
 
 def _finger_hits(centres, yaw, halves, boxes, margin: float) -> np.ndarray:
     """:func:`fingers_in_boxes` for finger boxes given as :func:`finger_boxes` returns them."""
-    hit = np.full(len(yaw), -1)
-    fa, fb = _axes(yaw[:, None])  # the finger's x and y axes, (n, 1, 2) each
+    hit, (fa, fb) = np.full(len(yaw), -1), _axes(yaw[:, None])  # the finger's axes (n, 1, 2)
     for i, (cx, cy, byaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
         ba, bb = _axes(np.array(byaw))
         d = centres[:, :, :2] - [cx, cy]

@@ -186,6 +186,39 @@ def test_an_arm_way_through_a_standing_cup_is_invalid_though_the_base_path_is_cl
     assert np.isfinite(problem.cost(params[None])[0])
 
 
+def test_arm_ways_end_where_the_executed_steps_aim():
+    # the checked ways are the plan's: each way's end (chassis frame, at its pose) is
+    # the world target plan_steps gives its reach or put, and each starts where the
+    # previous one ended (the first from the tucked arm; the joints, so the chassis-frame
+    # point, stay while the base drives)
+    from repertoire.diagrams.kitchen import ARM_TUCKED
+    from repertoire.systems.kitchen_actions import arm_forward
+
+    config = kp.KitchenPlanConfig(scenario=2)
+    start, cups, targets = kp.sample_situation(config, np.random.default_rng(1))
+    lo, hi, _ = kp.parameter_bounds(config)
+    params = np.random.default_rng(2).uniform(lo, hi)
+    g = kp.plan_geometry(params, cups, targets)
+    steps = kp.plan_steps(g, 0, config)
+    order = {0: [("above", 1), ("down", 3), ("lift_up", 5), ("lift", 6), ("put_over", 8),
+                 ("put", 9)],
+             1: [("retract", 10), ("above", 12), ("down", 14), ("lift_up", 16), ("lift", 17),
+                 ("put_over", 19), ("put", 20)]}  # fmt: skip
+    previous = arm_forward(ARM_TUCKED)
+    for k, roles in order.items():
+        ways = ka.arm_ways(g, k, config.above_offset)
+        assert sorted(ways) == sorted(r for r, _ in roles)
+        for role, step in roles:
+            pose, a_from, a_to, _, held = ways[role]
+            np.testing.assert_allclose(a_from[0], previous, atol=1e-12)
+            np.testing.assert_allclose(chassis_to_world(pose[0], a_to[0]), steps[step][1],
+                                       atol=1e-12)  # fmt: skip
+            assert held == (role in ("lift_up", "lift", "put_over", "put"))
+            previous = a_to[0]
+        # the put's end: the cup at its target, the retract goes up from there
+        np.testing.assert_allclose(steps[9 + 11 * k][1], targets[k])
+
+
 def test_arm_drive_hits_by_hand():
     # a base driving along y = 0 past a tall block whose near face is at y = 0.5: the
     # base's disc (0.32 m) clears it, the arm held out 0.85 m ahead of the axle (0.9 from

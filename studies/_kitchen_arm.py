@@ -35,6 +35,16 @@ def fetch_obstacles(cups, targets, k: int, growth: float, own: bool = False):
     fetched before ``k`` on their targets, those after it on their places (both
     ``FETCHED`` cups are in the world in both scenarios) and, with ``own``, cup ``k`` on
     its place (the drive to it; its own reaches and the carry hold or straddle it).
+
+    Args:
+        cups: (2, 3) centres of ``cup_0`` and ``cup_1`` on their places.
+        targets: (m, 3) put targets.
+        k: the fetch (0 or 1).
+        growth: horizontal growth of every box [m].
+        own: include cup ``k`` on its place.
+
+    Returns:
+        ``(boxes (b, 6), names)``: rows ``[cx, cy, yaw, half_x, half_y, top_z]``.
     """
     from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
@@ -61,6 +71,11 @@ def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
     ``above`` (from the tucked arm or the last retract), ``down`` to the cup, ``lift_up``,
     ``lift`` to the carry point, ``put_over`` its target, ``put`` (lowering; the fingers
     then open) and, for ``k`` > 0, ``retract`` out of the cup put before.
+
+    Args:
+        g: the plan's geometry (n parameter rows).
+        k: the fetch.
+        up: the plan's ``above_offset`` [m].
     """
     from repertoire.diagrams.kitchen import ARM_TUCKED
     from repertoire.models.diffdrive.generate import CUP_RADIUS, FINGER_SIZE
@@ -99,6 +114,13 @@ def arm_hits(g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig
     ``arm_clearance``, sampled every ``ARM_SPACING``; a ``put`` also opens the fingers
     at its target.
 
+    Args:
+        g: the plan's geometry (n parameter rows).
+        cups: (2, 3) centres of both cups on their places.
+        k: the fetch.
+        role: a role of :func:`arm_ways`.
+        config: ``above_offset`` and ``arm_clearance``.
+
     Returns:
         ``(n,)`` indices into :func:`fetch_obstacles`' names; -1 where the way is clear,
         the number of names where an end lies out of the arm's reach.
@@ -112,7 +134,10 @@ def arm_hits(g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig
         fingers_in_boxes,
     )
 
-    pose, a_from, a_to, span, held = arm_ways(g, k, config.above_offset)[role]
+    ways = arm_ways(g, k, config.above_offset)
+    if role not in ways:
+        raise RepertoireError(f"role must be one of {sorted(ways)} for fetch {k}, got {role!r}")
+    pose, a_from, a_to, span, held = ways[role]
     k_world = k - 1 if role == "retract" else k
     boxes, names = fetch_obstacles(cups, g.target, k_world, config.arm_clearance)
     (q0, ok0), (q1, ok1) = arm_inverse_rows(a_from), arm_inverse_rows(a_to)
@@ -131,6 +156,13 @@ def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool) -> np.ndarray
     the base's centre plus ``FINGER_REACH`` and ``clearance`` (every heading: GoToPose
     turns) along the path (:func:`path_clear`), against the boxes whose top is above the
     fingers' bottom (or, ``held``, the cup's bottom).
+
+    Args:
+        a: (n, >= 2) start poses of the base. b: (n, >= 2) end poses.
+        arm: (n, 3) the gripper centre in the chassis frame.
+        boxes: (k, 6) obstacle boxes (not grown).
+        clearance: added to the arm's reach [m].
+        held: a cup hangs from the fingers.
 
     Returns:
         ``(n,)`` box indices, -1 where clear.
@@ -166,6 +198,11 @@ def drive_hits(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, 
     where the last retract left it, cup ``k`` standing on its place; ``drive_drop``: from
     the stand to the drop pose with the cup held at the carry point.
 
+    Args:
+        g: the plan's geometry. cups: (2, 3) both cups on their places.
+        k: the fetch. start: the robot's start ``[x, y, phi, v]``.
+        config: ``above_offset`` and ``arm_clearance``. role: the drive.
+
     Returns:
         ``(hits, names)``: per row the index of the first obstacle in ``names``
         (:func:`fetch_obstacles`), -1 where clear.
@@ -184,6 +221,12 @@ def drive_hits(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, 
 
 def arm_collisions(params, start, cups, targets, config: KitchenPlanConfig) -> list[tuple]:
     """What the arm's ways and drives of one parameter vector enter (a diagnosis).
+
+    Args:
+        params: one parameter vector (9 per fetched cup).
+        start: the robot's start ``[x, y, phi, v]``.
+        cups: (2, 3) both cups on their places. targets: (m, 3) put targets.
+        config: the plan's config.
 
     Returns:
         ``(fetch k, role, obstacle name)`` per way (roles of :func:`arm_ways`) or drive

@@ -217,6 +217,10 @@ def test_arm_ways_end_where_the_executed_steps_aim():
             previous = a_to[0]
         # the put's end: the cup at its target, the retract goes up from there
         np.testing.assert_allclose(steps[9 + 11 * k][1], targets[k])
+    with pytest.raises(RepertoireError, match=r"role must be one of .* for fetch 0, got 'retract'"):
+        ka.arm_hits(g, cups, 0, "retract", config)
+    with pytest.raises(RepertoireError, match="role must be 'drive_stand' or 'drive_drop'"):
+        ka.drive_hits(g, cups, 0, start, config, "drive_home")
 
 
 def test_arm_drive_hits_by_hand():

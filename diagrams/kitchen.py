@@ -294,7 +294,8 @@ def build_kitchen_action(
     else:
         hold(0)
         if scenario.action == "reach":
-            reach = Reach(period, obstacles=KITCHEN_OBSTACLES, cup_half_height=CUP_HALF_HEIGHT)
+            reach = Reach(period, obstacles=KITCHEN_OBSTACLES, cup_half_height=CUP_HALF_HEIGHT,
+                          cup_radius=CUP_RADIUS)  # fmt: skip
             action = builder.AddSystem(reach)
             builder.Connect(action.get_command_output_port(), mux.get_input_port(1))
             hold(2)

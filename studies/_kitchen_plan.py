@@ -29,7 +29,11 @@ are constants in closed form from the actions' speeds. A stand or drop pose whos
 footprint overlaps furniture, or whose straight path from the previous pose does
 (GoToPose drives without obstacle avoidance), is INVALID (predicted +inf), and so is a
 stand with no straight free path to :func:`exit_point` (so a drop pose stays reachable
-whatever later steps choose): geometric preconditions, not learned failure models.
+whatever later steps choose): geometric preconditions, not learned failure models. So is
+a plan whose arm, fingers or held cup would pass through a table, the counter, a wall or
+a standing cup on a reach, the carry or the put, or while the base drives with the arm
+held out (:mod:`repertoire.studies._kitchen_arm`): a clear base path alone let the arm
+swing through the cup waiting beside the fetched one.
 """
 
 import dataclasses
@@ -49,6 +53,9 @@ FETCHED = ("cup_0", "cup_1")
 PER_CUP = 9  # free parameters per fetch
 PUT_CLEARANCE = 0.05  # Put's default clearance: the cup is carried this far above its target
 MODEL_FILES = {"goto_pose": "goto_duration.json", "reach": "reach_duration.json"}
+#: Sample spacing of the arm's ways in :func:`arm_hits` [m] (coarser than the actions'
+#: 1 cm: the boxes grow by ``arm_clearance`` >= half of it, so no way slips between).
+ARM_SPACING = 0.02
 SHIPPED_MODELS = "kitchen_plan_models"
 """Folder in ``repertoire/models/diffdrive`` with the goToPose and reach trees fitted on
 600 + 600 ``actions_kitchen`` episodes (see the README)."""
@@ -75,6 +82,9 @@ class KitchenPlanConfig:
             0.9 m counter).
         above_offset: the first reach ends this far above the cup [m].
         clearance: footprint margin of stand/drop poses and their straight paths [m].
+        arm_clearance: horizontal margin of the arm's, the fingers' and a held cup's
+            ways around the furniture and the standing cups (:func:`arm_hits`) [m], at
+            least half of ``ARM_SPACING``.
         time_step: plant step [s] (the contact grasp holds the cup while driving at
             2 ms, not at 5 ms).
         step_limit: simulated seconds allowed per action [s].
@@ -97,6 +107,7 @@ class KitchenPlanConfig:
     carry_z_range: list[float] = dataclasses.field(default_factory=lambda: [0.96, 1.0])
     above_offset: float = 0.1
     clearance: float = 0.05
+    arm_clearance: float = 0.02
     time_step: float = 2e-3
     step_limit: float = 25.0
     deliver_tolerance: float = 0.1
@@ -129,6 +140,10 @@ class KitchenPlanConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise RepertoireError(f"{name} must be finite and > 0, got {value}")
+        if not (math.isfinite(self.arm_clearance) and self.arm_clearance >= ARM_SPACING / 2):
+            raise RepertoireError(f"arm_clearance must be at least ARM_SPACING / 2 = "
+                                  f"{ARM_SPACING / 2} m (the way's samples), got "
+                                  f"{self.arm_clearance}")  # fmt: skip
         if not 0 < self.time_step <= 0.01:
             raise RepertoireError(f"time_step must be in (0, 0.01] s, got {self.time_step}")
         if self.solver not in ("ga", "de"):
@@ -427,10 +442,6 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
     start = np.asarray(start, dtype=float)
     m = len(targets)
     radius = ROBOT_RADIUS + config.clearance
-    tall = KITCHEN_OBSTACLES[KITCHEN_OBSTACLES[:, 5] > config.carry_z_range[0] - 0.06]
-    from repertoire.models.diffdrive.generate import COLUMN_X
-
-    carry_radius = COLUMN_X + config.carry_extend_range[1] + 0.04 + config.clearance
     up = np.array([0.0, 0.0, config.above_offset])
     exits = [exit_point(t) for t in np.asarray(targets, dtype=float)]
     terms: list = []
@@ -442,6 +453,11 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
     def add(name, model, features, uses):
         terms.append(DurationTerm(model, features, tuple(uses), f"{len(terms)}:{name}"))
         actions.append(name)
+
+    from repertoire.studies._kitchen_arm import arm_hits, drive_hits
+
+    def arm_clear(f, g, k, role):  # the features where the arm's way is clear, else NaN
+        return np.where((arm_hits(g, cups, k, role, config) < 0)[:, None], f, np.nan)
 
     for k in range(m):
         base = PER_CUP * k
@@ -464,7 +480,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
             def retract(params, k=k):  # straight up out of the placed cup: fixed
                 g = geometry(params)
                 a = _world_in_chassis(g.drop[:, k - 1], g.target[k - 1])
-                return kitchen_reach_features(a, a + up)
+                return arm_clear(kitchen_reach_features(a, a + up), g, k, "retract")
 
             add("reach", reach, retract, prev_ids)
 
@@ -473,6 +489,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
             f = kitchen_goto_features(prev_pose(g), g.stand[:, k])
             ok = path_clear(prev_pose(g), g.stand[:, k], KITCHEN_OBSTACLES, radius)
             ok &= path_clear(g.stand[:, k], exits[k], KITCHEN_OBSTACLES, radius)
+            ok &= drive_hits(g, cups, k, start, config, "drive_stand")[0] < 0  # the arm too
             return np.where(ok[:, None], f, np.nan)
 
         add("goto_pose", goto, goto_stand, prev_ids + stand_ids)
@@ -480,7 +497,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         def reach_above(params, k=k, arm_start=arm_start):
             g = geometry(params)
             above = _world_in_chassis(g.stand[:, k], g.cup[k] + up)
-            return kitchen_reach_features(arm_start(g), above)
+            return arm_clear(kitchen_reach_features(arm_start(g), above), g, k, "above")
 
         add("reach", reach, reach_above, prev_ids + stand_ids)
 
@@ -494,7 +511,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         def reach_down(params, k=k):
             g = geometry(params)
             a = _world_in_chassis(g.stand[:, k], g.cup[k])
-            return kitchen_reach_features(a + up, a)
+            return arm_clear(kitchen_reach_features(a + up, a), g, k, "down")
 
         add("reach", reach, reach_down, stand_ids)
         add("grip", grip, lambda params: np.zeros((np.atleast_2d(params).shape[0], 1)), [])
@@ -502,14 +519,14 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         def lift_up(params, k=k):  # straight up with the cup, clear of its neighbour
             g = geometry(params)
             a = _world_in_chassis(g.stand[:, k], g.cup[k])
-            return kitchen_reach_features(a, a + up)
+            return arm_clear(kitchen_reach_features(a, a + up), g, k, "lift_up")
 
         add("reach", reach, lift_up, stand_ids)
 
         def lift(params, k=k):
             g = geometry(params)
             a = _world_in_chassis(g.stand[:, k], g.cup[k] + up)
-            return kitchen_reach_features(a, g.carry[:, k])
+            return arm_clear(kitchen_reach_features(a, g.carry[:, k]), g, k, "lift")
 
         add("reach", reach, lift, stand_ids + carry_ids)
 
@@ -517,7 +534,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
             g = geometry(params)
             f = kitchen_goto_features(g.stand[:, k], g.drop[:, k])
             ok = path_clear(g.stand[:, k], g.drop[:, k], KITCHEN_OBSTACLES, radius)
-            ok &= path_clear(g.stand[:, k], g.drop[:, k], tall, carry_radius)
+            ok &= drive_hits(g, cups, k, start, config, "drive_drop")[0] < 0  # arm and cup
             return np.where(ok[:, None], f, np.nan)
 
         add("goto_pose", goto, goto_drop, stand_ids + drop_ids)
@@ -525,10 +542,15 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         def reach_put(params, k=k):  # carry the cup over its target (Put then aims again)
             g = geometry(params)
             above = _world_in_chassis(g.drop[:, k], g.target[k] + put_up)
-            return kitchen_reach_features(g.carry[:, k], above)
+            return arm_clear(kitchen_reach_features(g.carry[:, k], above), g, k, "put_over")
 
         add("reach", reach, reach_put, carry_ids + drop_ids)
-        add("put", put, lambda params: np.zeros((np.atleast_2d(params).shape[0], 1)), [])
+
+        def put_down(params, k=k):  # lower the cup, open the fingers
+            g = geometry(params)
+            return arm_clear(np.zeros((g.stand.shape[0], 1)), g, k, "put")
+
+        add("put", put, put_down, drop_ids)
     if actions != action_names(m):
         raise RepertoireError(f"internal: plan actions {actions} differ from action_names")
     return RefinementProblem(tuple(terms), lower, upper, names), actions

@@ -19,7 +19,8 @@ point or straight joint-space way to it (in the world, given the chassis pose on
 fail at once, with no motion; so does a non-finite measurement (joints, fingers or
 ``base_state``) at any update. The way is checked for the gripper centre and for
 both fingers' boxes (:func:`fingers_in_boxes`: 8 cm tall, they reach 4 cm below the
-centre, and up to 9 cm to its sides), at the measured finger positions. (A reach
+centre, and up to 9 cm to its sides), at the measured finger positions, and for a
+held cup's whole bottom disc (:func:`arm_way_hits`, :func:`discs_in_boxes`). (A reach
 whose way crossed a table top pushed its fingers against the table and dragged the
 standing robot 0.6 m under it, then reported success in the chassis frame. A check of
 the centre alone let a way 2 cm above a table's top pass with the fingers 2 cm in it.)
@@ -61,9 +62,14 @@ FINGER_REACH = math.hypot(FINGER_HALF[0], FINGER_RANGE[1] + FINGER_HALF[1])
 
 
 def arm_forward(q) -> np.ndarray:
-    """Gripper centre ``[ax, ay, az]`` in the chassis frame for joints ``[lift, yaw, extend]``."""
-    lift, yaw, extend = np.asarray(q, dtype=float)
-    return np.array([COLUMN_X + extend * math.cos(yaw), extend * math.sin(yaw), LIFT_BASE_Z + lift])
+    """Gripper centre ``[ax, ay, az]`` in the chassis frame for joints ``[lift, yaw, extend]``.
+
+    ``q`` may be ``(..., 3)``: one centre per row.
+    """
+    lift, yaw, extend = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    return np.stack(
+        [COLUMN_X + extend * np.cos(yaw), extend * np.sin(yaw), LIFT_BASE_Z + lift], axis=-1
+    )
 
 
 def arm_inverse(a) -> np.ndarray | None:
@@ -74,14 +80,21 @@ def arm_inverse(a) -> np.ndarray | None:
         (joint ranges of ``models/diffdrive/generate.py``).
     """
     a = np.asarray(a, dtype=float)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
+    if a.shape != (3,):
         return None
-    dx, dy = a[0] - COLUMN_X, a[1]
-    q = np.array([a[2] - LIFT_BASE_Z, math.atan2(dy, dx), math.hypot(dx, dy)])
-    for value, (lo, hi) in zip(q, (LIFT_RANGE, YAW_RANGE, EXTEND_RANGE)):
-        if not lo - 1e-9 <= value <= hi + 1e-9:
-            return None
-    return q
+    q, ok = arm_inverse_rows(a)
+    return q[0] if ok[0] else None
+
+
+def arm_inverse_rows(a) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`arm_inverse` per row of ``a`` ``(n, 3)``: joints ``(n, 3)`` and ``(n,)`` in reach."""
+    a = np.atleast_2d(np.asarray(a, dtype=float))
+    dx, dy = a[:, 0] - COLUMN_X, a[:, 1]
+    q = np.stack([a[:, 2] - LIFT_BASE_Z, np.arctan2(dy, dx), np.hypot(dx, dy)], axis=-1)
+    ok = np.all(np.isfinite(a), axis=1)
+    for j, (lo, hi) in enumerate((LIFT_RANGE, YAW_RANGE, EXTEND_RANGE)):
+        ok &= (q[:, j] >= lo - 1e-9) & (q[:, j] <= hi + 1e-9)
+    return q, ok
 
 
 def joint_step(q_cmd, q_goal, speeds, dt: float) -> np.ndarray:
@@ -107,16 +120,25 @@ def joint_line(q_from, q_to, spacing: float = 0.01, reach: float = 0.0) -> np.nd
     samples: its speed along the line is bounded by ``|d lift| + |d extend| + (max(extend)
     + reach) |d yaw|`` per unit of the line parameter.
     """
-    q0, q1 = np.asarray(q_from, dtype=float), np.asarray(q_to, dtype=float)
+    return joint_lines(q_from, q_to, spacing, reach)[0]
+
+
+def joint_lines(q_from, q_to, spacing: float = 0.01, reach: float = 0.0) -> np.ndarray:
+    """:func:`joint_line` per row of ``q_from``, ``q_to`` (``(n, 3)``): ``(n, s, 3)`` joints.
+
+    Every row gets the sample count of the longest (its points at most ``spacing`` apart).
+    """
+    _check_positive(spacing=spacing)
+    q0, q1 = np.atleast_2d(np.asarray(q_from, dtype=float)), np.atleast_2d(q_to).astype(float)
     d = np.abs(q1 - q0)
-    length = d[0] + d[2] + (max(abs(q0[2]), abs(q1[2])) + reach) * d[1]
-    s = np.linspace(0.0, 1.0, max(2, int(math.ceil(length / spacing)) + 1))
-    return q0 + s[:, None] * (q1 - q0)
+    length = d[:, 0] + d[:, 2] + (np.maximum(np.abs(q0[:, 2]), np.abs(q1[:, 2])) + reach) * d[:, 1]
+    s = np.linspace(0.0, 1.0, max(2, int(math.ceil(np.max(length, initial=0.0) / spacing)) + 1))
+    return q0[:, None, :] + s[None, :, None] * (q1 - q0)[:, None, :]
 
 
 def joint_line_points(q_from, q_to, spacing: float = 0.01) -> np.ndarray:
     """Gripper centres (chassis frame) along :func:`joint_line`, at most ``spacing`` apart."""
-    return np.array([arm_forward(q) for q in joint_line(q_from, q_to, spacing)])
+    return arm_forward(joint_line(q_from, q_to, spacing))
 
 
 def fingers_blocked(
@@ -149,7 +171,7 @@ def finger_boxes(base_state, q, span) -> tuple[np.ndarray, np.ndarray, np.ndarra
     FINGER_HALF[1]`` to ``outer + FINGER_HALF[1]`` along y.
 
     Args:
-        base_state: ``[x, y, phi, ...]`` of the chassis.
+        base_state: ``[x, y, phi, ...]`` of the chassis, or one row per joint row.
         q: joints ``(n, 3)`` (or one ``(3,)``) ``[lift, yaw, extend]``.
         span: ``[[inner, outer] of the left finger, [inner, outer] of the right]`` [m].
 
@@ -158,12 +180,11 @@ def finger_boxes(base_state, q, span) -> tuple[np.ndarray, np.ndarray, np.ndarra
         right boxes, their yaw (world, both the slide's) and their half sizes.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
+    base = np.atleast_2d(np.asarray(base_state, dtype=float))
     span = np.asarray(span, dtype=float).reshape(2, 2)
-    yaw = base_state[2] + q[:, 1]
+    yaw = base[:, 2] + q[:, 1]
     offsets = 0.5 * (span[:, 0] + span[:, 1]) * np.array([1.0, -1.0])  # along the slide's y
-    centres = np.empty((len(q), 2, 3))
-    for k, qk in enumerate(q):
-        centres[k, :] = chassis_to_world(base_state, arm_forward(qk))
+    centres = np.repeat(chassis_points_to_world(base, arm_forward(q))[:, None, :], 2, axis=1)
     centres[:, :, 0] -= np.sin(yaw)[:, None] * offsets
     centres[:, :, 1] += np.cos(yaw)[:, None] * offsets
     halves = np.tile(FINGER_HALF, (2, 1))
@@ -181,7 +202,7 @@ def fingers_in_boxes(base_state, q, span, boxes, margin: float = 0.0) -> np.ndar
     top. Touching counts as entering.
 
     Args:
-        base_state: ``[x, y, phi, ...]`` of the chassis.
+        base_state: ``[x, y, phi, ...]`` of the chassis, or one row per joint row.
         q: joints ``(n, 3)`` or ``(3,)``.
         span: the fingers' position ranges, as in :func:`finger_boxes`.
         boxes: ``(k, 6)`` rows ``[cx, cy, yaw, half_x, half_y, top_z]``.
@@ -190,9 +211,12 @@ def fingers_in_boxes(base_state, q, span, boxes, margin: float = 0.0) -> np.ndar
     Returns:
         ``(n,)`` box indices (-1: no box).
     """
-    centres, yaw, halves = finger_boxes(base_state, q, span)
-    hit = np.full(len(yaw), -1)
-    fa, fb = _axes(yaw[:, None])  # the finger's x and y axes, (n, 1, 2) each
+    return _finger_hits(*finger_boxes(base_state, q, span), boxes, margin)
+
+
+def _finger_hits(centres, yaw, halves, boxes, margin: float) -> np.ndarray:
+    """:func:`fingers_in_boxes` for finger boxes given as :func:`finger_boxes` returns them."""
+    hit, (fa, fb) = np.full(len(yaw), -1), _axes(yaw[:, None])  # the finger's axes (n, 1, 2)
     for i, (cx, cy, byaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
         ba, bb = _axes(np.array(byaw))
         d = centres[:, :, :2] - [cx, cy]
@@ -204,6 +228,62 @@ def fingers_in_boxes(base_state, q, span, boxes, margin: float = 0.0) -> np.ndar
         new = np.any(overlap, axis=1) & (hit < 0)
         hit[new] = i
     return hit
+
+
+def arm_way_hits(
+    base_state, q_from, q_to, span, boxes, margin: float = 0.0, cup=None, spacing: float = 0.01
+) -> np.ndarray:
+    """Per row, the first obstacle box the arm's straight joint-space way enters, else -1.
+
+    The way from joints ``q_from`` to ``q_to`` (:func:`joint_lines`, any finger point at
+    most ``spacing`` between samples) of the gripper centre (:func:`points_in_boxes`),
+    of the finger boxes swept over ``span`` (:func:`fingers_in_boxes`) and of a held
+    cup's bottom disc (:func:`discs_in_boxes`). A way starting inside a box (a
+    measurement a millimetre low on a table top) is not an entry while it stays in that
+    box: the rest of it is checked on its own.
+
+    Args:
+        base_state: ``[x, y, phi, ...]`` of the chassis, or ``(n, >= 3)``: one per way.
+        q_from, q_to: ``(n, 3)`` (or ``(3,)``) start and end joints ``[lift, yaw, extend]``.
+        span, boxes, margin: as in :func:`fingers_in_boxes` (the cup's margin: horizontal).
+        cup: ``(drop, radius)``: a held cup's bottom disc lies ``drop`` below the centre.
+        spacing: sample spacing [m].
+
+    Returns:
+        ``(n,)`` box indices (-1: the way is clear).
+    """
+    q, boxes = joint_lines(q_from, q_to, spacing, FINGER_REACH), _check_boxes(boxes)
+    (n, s), (drop, radius) = q.shape[:2], cup if cup is not None else (0.0, 0.0)
+    base = np.broadcast_to(np.atleast_2d(np.asarray(base_state, dtype=float))[:, :3], (n, 3))
+    # rows whose lowest point is above a box or whose farthest is short of it skip it
+    ends = q[:, [0, -1]]
+    low = WHEEL_RADIUS + LIFT_BASE_Z + ends[:, :, 0].min(axis=1) - max(FINGER_HALF[2], drop)
+    far = COLUMN_X + ends[:, :, 2].max(axis=1) + max(FINGER_REACH, radius) + margin
+    near = np.zeros((len(boxes), n), dtype=bool)
+    for i, (_, u, w, hx, hy, top) in enumerate(_in_box_frames(base.T, boxes)):
+        gap = np.hypot(np.maximum(np.abs(u) - hx, 0.0), np.maximum(np.abs(w) - hy, 0.0))
+        near[i] = (low <= top + margin) & (gap <= far)
+    rows = np.flatnonzero(near.any(axis=0))  # the ways near any box, sampled
+    inside, flat, at_base = np.full((n, s), -1), q[rows].reshape(-1, 3), np.repeat(base[rows], s, 0)
+    centre = chassis_points_to_world(at_base, arm_forward(flat))
+    fingers = finger_boxes(at_base, flat, span)
+    for i, box in enumerate(boxes):
+        at = np.flatnonzero(near[i, rows])  # positions in rows
+        if at.size == 0:
+            continue
+        k = (at[:, None] * s + np.arange(s)).ravel()  # their samples
+        hit = points_in_boxes(centre[k], box, margin) >= 0
+        hit |= _finger_hits(fingers[0][k], fingers[1][k], fingers[2], box, margin) >= 0
+        if cup is not None:
+            hit |= discs_in_boxes(centre[k] - [0.0, 0.0, drop], radius, box, margin) >= 0
+        sub = inside[rows[at]]
+        sub[hit.reshape(-1, s) & (sub < 0)] = i  # the first box in order, as one by one
+        inside[rows[at]] = sub
+    staying = (inside == inside[:, :1]) & (inside[:, :1] >= 0)  # still in its start box
+    left = np.where(staying.all(axis=1), s, np.argmin(staying, axis=1))
+    entered = (np.arange(s)[None, :] >= left[:, None]) & (inside >= 0)
+    first = np.argmax(entered, axis=1)
+    return np.where(entered.any(axis=1), inside[np.arange(n), first], -1)
 
 
 def _axes(yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -221,9 +301,16 @@ def chassis_to_world(base_state, a) -> np.ndarray:
 
     The chassis frame origin is on the wheel axle, ``WHEEL_RADIUS`` above the floor.
     """
-    x, y, phi = base_state[0], base_state[1], base_state[2]
-    c, s = math.cos(phi), math.sin(phi)
-    return np.array([x + c * a[0] - s * a[1], y + s * a[0] + c * a[1], WHEEL_RADIUS + a[2]])
+    return chassis_points_to_world(np.atleast_2d(base_state), np.atleast_2d(a))[0]
+
+
+def chassis_points_to_world(base_states, a) -> np.ndarray:
+    """World points ``(n, 3)`` of chassis points ``a`` (n, 3) for rows ``[x, y, phi, ...]``."""
+    base, a = np.atleast_2d(base_states), np.atleast_2d(a)
+    c, s = np.cos(base[:, 2]), np.sin(base[:, 2])
+    return np.stack([base[:, 0] + c * a[:, 0] - s * a[:, 1],
+                     base[:, 1] + s * a[:, 0] + c * a[:, 1],
+                     WHEEL_RADIUS + a[:, 2]], axis=-1)  # fmt: skip
 
 
 def point_in_boxes(p, boxes, margin: float = 0.0) -> int:
@@ -231,18 +318,44 @@ def point_in_boxes(p, boxes, margin: float = 0.0) -> int:
 
     Args:
         p: ``[x, y, z]``.
-        boxes: ``(k, 6)`` rows ``[cx, cy, yaw, half_x, half_y, top_z]``: an
-            upright box from the floor to ``top_z`` (a table, a counter).
-        margin: grows every box by this much horizontally and on top [m].
+        boxes: ``(k, 6)`` rows ``[cx, cy, yaw, half_x, half_y, top_z]``: upright boxes
+            from the floor to ``top_z`` (a table, a counter), grown by ``margin`` [m]
+            horizontally and on top.
     """
-    for i, u, w, hx, hy, top in _in_box_frames(p, boxes):
-        if abs(u) <= hx + margin and abs(w) <= hy + margin and p[2] <= top + margin:
-            return i
-    return -1
+    return int(points_in_boxes(np.atleast_2d(p), boxes, margin)[0])
+
+
+def points_in_boxes(p, boxes, margin: float = 0.0) -> np.ndarray:
+    """Per world point of ``p`` ``(n, 3)`` the first box containing it, else -1.
+
+    Vectorised :func:`point_in_boxes` (the same boxes and ``margin``).
+    """
+    p = np.atleast_2d(np.asarray(p, dtype=float))
+    hit = np.full(len(p), -1)
+    for i, u, w, hx, hy, top in _in_box_frames(p.T, boxes):
+        new = (np.abs(u) <= hx + margin) & (np.abs(w) <= hy + margin) & (p[:, 2] <= top + margin)
+        hit[new & (hit < 0)] = i
+    return hit
+
+
+def discs_in_boxes(p, radius: float, boxes, margin: float = 0.0) -> np.ndarray:
+    """Per disc the first box it enters, else -1: a held cup's whole bottom, not its centre.
+
+    A disc of ``radius`` centred at a row of ``p`` ``(n, 3)`` enters an upright box (as in
+    :func:`point_in_boxes`) when its centre is at most ``radius + margin`` from the box's
+    footprint and at most at its top (``margin``: horizontal only; touching enters).
+    """
+    p = np.atleast_2d(np.asarray(p, dtype=float))
+    hit = np.full(len(p), -1)
+    for i, u, w, hx, hy, top in _in_box_frames(p.T, boxes):
+        gap = np.hypot(np.maximum(np.abs(u) - hx, 0.0), np.maximum(np.abs(w) - hy, 0.0))
+        new = (gap <= radius + margin) & (p[:, 2] <= top)
+        hit[new & (hit < 0)] = i
+    return hit
 
 
 def _in_box_frames(p, boxes):
-    """Per box ``(index, u, w, half_x, half_y, top_z)``: ``p``'s horizontal offset in its frame."""
+    """Per box ``(index, u, w, half_x, half_y, top_z)``: ``p`` (or ``(3, n)`` columns) in it."""
     for i, (cx, cy, yaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
         c, s = math.cos(yaw), math.sin(yaw)
         dx, dy = p[0] - cx, p[1] - cy
@@ -312,36 +425,15 @@ class _Action(ActionSystem):
         base = self._base_port.Eval(context)
         return point_in_boxes(chassis_to_world(base, a_chassis), self._boxes, self.margin)
 
-    def path_enters_obstacle(
-        self, context: Context, q_from, q_to, span, offset=(0.0, 0.0, 0.0)
-    ) -> int:
+    def path_enters_obstacle(self, context: Context, q_from, q_to, span, cup=None) -> int:
         """Index of the first obstacle box the straight joint-space way enters, else -1.
 
-        The way from joints ``q_from`` to ``q_to`` (:func:`joint_line`) of the gripper
-        centre moved by ``offset`` (chassis frame), e.g. a held cup's bottom, and of the
-        finger boxes swept over ``span`` (:func:`fingers_in_boxes`). A start inside a box
-        (a measurement a millimetre low on a table top) is not an entry while the way
-        stays in that box: the end point is checked on its own.
+        :func:`arm_way_hits` for the chassis on ``base_state``: the gripper centre, the
+        finger boxes swept over ``span`` and, with ``cup = (drop, radius)``, a held cup's
+        bottom disc.
         """
-        samples = joint_line(q_from, q_to, reach=FINGER_REACH)
         base = self._base_port.Eval(context)
-        fingers = fingers_in_boxes(base, samples, span, self._boxes, self.margin)
-        inside = []
-        for q, finger in zip(samples, fingers):
-            point = self.inside_obstacle(context, arm_forward(q) + np.asarray(offset, float))
-            inside.append(min(point, finger) if min(point, finger) >= 0 else max(point, finger))
-        k = 0
-        while k < len(inside) and inside[k] >= 0 and inside[k] == inside[0]:
-            k += 1  # still in the box it starts in
-        return next((i for i in inside[k:] if i >= 0), -1)
-
-    def cup_bottom(self, cup_half_height: float) -> np.ndarray:
-        """A held cup's bottom as an ``offset`` of the gripper centre (chassis frame).
-
-        ``cup_half_height`` below the centre (the fingers hold the cup at its middle),
-        raised by ``margin``: the check grows the boxes by ``margin`` horizontally only.
-        """
-        return np.array([0.0, 0.0, self.margin - cup_half_height])
+        return int(arm_way_hits(base, q_from, q_to, span, self._boxes, self.margin, cup)[0])
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._xd).get_value()[: self._n])
@@ -399,11 +491,12 @@ class Reach(_Action):
     joint-space way to it from the measured joints of the gripper centre or of a
     finger (at its measured position), is inside an obstacle box; times out
     ``timeout`` s after its first update. When the measured fingers hold an object
-    (:func:`holds_object`: a grip blocked on a cup), the way of the cup's bottom
-    (``cup_half_height`` below the gripper centre, as :class:`Put` checks it) must
-    stay out of the boxes too (a reach carrying a cup level 4.5 cm over table_0's
-    top, its fingers clear, caught the cup on the table's side, turned the robot
-    0.66 rad and reported SUCCEEDED in the chassis frame).
+    (:func:`holds_object`: a grip blocked on a cup), the way of the cup's bottom disc
+    (``cup_half_height`` below the gripper centre, of ``cup_radius``, as :class:`Put`
+    checks it: :func:`discs_in_boxes`) must stay out of the boxes too (a reach carrying
+    a cup level 4.5 cm over table_0's top, its fingers clear, caught the cup on the
+    table's side, turned the robot 0.66 rad and reported SUCCEEDED in the chassis
+    frame; the point under its centre alone missed a rim over the table's edge).
     """
 
     def __init__(
@@ -416,6 +509,7 @@ class Reach(_Action):
         obstacles=None,
         margin: float = 0.0,
         cup_half_height: float = 0.05,
+        cup_radius: float = 0.04,
     ):
         """Creates the action.
 
@@ -427,10 +521,11 @@ class Reach(_Action):
             obstacles: ``(k, 6)`` boxes ``[cx, cy, yaw, half_x, half_y, top_z]`` (world).
             margin: obstacle growth [m].
             cup_half_height: a held cup's bottom lies this far below the gripper centre [m].
+            cup_radius: a held cup's radius: its whole bottom disc is checked [m].
         """
         super().__init__(period, timeout, 3, obstacles, margin)
-        _check_positive(cup_half_height=cup_half_height)
-        self.cup_half_height = cup_half_height
+        _check_positive(cup_half_height=cup_half_height, cup_radius=cup_radius)
+        self.cup_half_height, self.cup_radius = cup_half_height, cup_radius
         self.speeds = np.asarray(speeds, dtype=float)
         if self.speeds.shape != (3,) or not np.all(np.isfinite(self.speeds) & (self.speeds > 0)):
             raise RepertoireError(f"speeds must be 3 finite values > 0, got {speeds}")
@@ -462,14 +557,9 @@ class Reach(_Action):
         fingers = self._finger_port.Eval(context)
         span = [[fingers[0]] * 2, [fingers[1]] * 2]  # held where they are
         q = self._arm_port.Eval(context)
-        if self.path_enters_obstacle(context, q, goal, span) >= 0:
-            return False
         # a held cup hangs below the fingers: its bottom's way too
-        bottom = self.cup_bottom(self.cup_half_height)
-        return (
-            not holds_object(fingers)
-            or self.path_enters_obstacle(context, q, goal, span, bottom) < 0
-        )
+        cup = (self.cup_half_height, self.cup_radius) if holds_object(fingers) else None
+        return self.path_enters_obstacle(context, q, goal, span, cup) < 0
 
     def step(self, context, command, phase, time_in_phase):
         target = self._target_port.Eval(context)
@@ -556,9 +646,9 @@ class Put(_Action):
     Phases: 0 move to ``clearance`` above the target holding the fingers
     closed, 1 lower to the target, 2 open the fingers; succeeds when both are
     measured open. Fails at once if the target or the point above it is out of
-    reach, or the cup's bottom (``cup_half_height`` below the gripper centre) or a
-    finger (swept from its measured position to closed) would enter an obstacle box
-    on the way (straight in joint space to the point above, then down to the target;
+    reach, or the cup's bottom disc (``cup_half_height`` below the gripper centre, of
+    ``cup_radius``) or a finger (swept from its measured position to closed) would enter
+    an obstacle box on the way (straight in joint space to the point above, then down to the target;
     grown by ``margin`` horizontally), or a finger opening at the target would. With
     obstacles given, it
     also fails at once unless the cup would stand on one of them: its bottom
@@ -619,22 +709,24 @@ class Put(_Action):
         if arm_inverse(above) is None or arm_inverse(target) is None:
             return False
         bottom = target - [0.0, 0.0, self.cup_half_height]
-        lift = self.cup_bottom(self.cup_half_height)
-        if self.inside_obstacle(context, target + lift) >= 0:
+        base = self._base_port.Eval(context)
+        cup = (self.cup_half_height, self.cup_radius)
+        if discs_in_boxes(chassis_to_world(base, bottom), self.cup_radius, self._boxes,
+                          self.margin)[0] >= 0:  # fmt: skip
             return False
         q, q_above, q_target = self._arm_port.Eval(context), arm_inverse(above), arm_inverse(target)
         # the fingers close from where they are (on a cup they stop at it) while carrying
         # it, then open at the target
         carry = [sorted([f, FINGER_CLOSED]) for f in self._finger_port.Eval(context)]
         release = [[FINGER_CLOSED, max(f, FINGER_OPEN)] for f in self._finger_port.Eval(context)]
-        if (self.path_enters_obstacle(context, q, q_above, carry, lift) >= 0
-                or self.path_enters_obstacle(context, q_above, q_target, carry, lift) >= 0
-                or fingers_in_boxes(self._base_port.Eval(context), q_target, release,
-                                    self._boxes, self.margin)[0] >= 0):  # fmt: skip
+        opened = fingers_in_boxes(base, q_target, release, self._boxes, self.margin)[0]
+        if (self.path_enters_obstacle(context, q, q_above, carry, cup) >= 0
+                or self.path_enters_obstacle(context, q_above, q_target, carry, cup) >= 0
+                or opened >= 0):  # fmt: skip
             return False
         if len(self._boxes) == 0:
             return True  # no world given: nothing to stand on is known
-        p = chassis_to_world(self._base_port.Eval(context), bottom)
+        p = chassis_to_world(base, bottom)
         return support_under(p, self._boxes, self.cup_radius, self.max_drop) >= 0
 
     def step(self, context, command, phase, time_in_phase):
@@ -663,11 +755,7 @@ def footprint_hits(xy, boxes, radius: float) -> int:
         boxes: ``(k, 6)`` boxes as in :func:`point_in_boxes`.
         radius: the robot's footprint radius [m].
     """
-    for i, (cx, cy, yaw, hx, hy, _) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
-        c, s = math.cos(yaw), math.sin(yaw)
-        dx, dy = xy[0] - cx, xy[1] - cy
-        u, w = c * dx + s * dy, -s * dx + c * dy
-        # distance from the disc centre to the box rectangle
+    for i, u, w, hx, hy, _ in _in_box_frames(xy, boxes):  # the disc centre's distance:
         if math.hypot(max(abs(u) - hx, 0.0), max(abs(w) - hy, 0.0)) < radius:
             return i
     return -1

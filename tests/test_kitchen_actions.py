@@ -13,15 +13,20 @@ from repertoire.systems.kitchen_actions import (
     Reach,
     arm_forward,
     arm_inverse,
+    arm_inverse_rows,
+    arm_way_hits,
     chassis_to_world,
+    discs_in_boxes,
     fingers_blocked,
     fingers_in_boxes,
     fingers_open,
     footprint_hits,
     holds_object,
     joint_line_points,
+    joint_lines,
     joint_step,
     point_in_boxes,
+    points_in_boxes,
     support_under,
 )
 
@@ -266,6 +271,77 @@ def test_reach_with_a_held_cup_checks_its_bottom():
         assert xd[3] == status, (z_world, fingers, half_height)
         if status == ActionStatus.FAILED:  # at once, the command where the arm is
             np.testing.assert_allclose(xd[:3], q0)
+
+
+def test_discs_in_boxes_by_hand():
+    box = [[0.0, 0.0, 0.0, 1.0, 0.5, 0.75]]  # x in [-1, 1], y in [-0.5, 0.5], top 0.75
+    # a cup bottom (radius 4 cm) 3 cm beyond the edge: its rim is over the top, its centre
+    # not; above the top, 5 cm beyond the edge, at a corner (4.2 cm away) it is clear
+    p = [[1.03, 0.0, 0.74], [1.03, 0.0, 0.76], [1.05, 0.0, 0.74], [1.03, 0.53, 0.74]]
+    np.testing.assert_array_equal(discs_in_boxes(p, 0.04, box), [0, -1, -1, -1])
+    assert point_in_boxes(p[0], box) == -1  # the point under the centre misses it
+    np.testing.assert_array_equal(discs_in_boxes(p, 0.04, box, margin=0.0025), [0, -1, -1, 0])
+    assert discs_in_boxes([0.0, 0.0, 0.75], 0.04, box)[0] == 0  # touching counts
+    # radius 0 and no margin: the point test; vectorised as point_in_boxes
+    pts = np.random.default_rng(4).uniform([-3, -2.5, 0.5], [3, 2.5, 1.3], (300, 3))
+    expected = [point_in_boxes(q, KITCHEN_OBSTACLES) for q in pts]
+    np.testing.assert_array_equal(points_in_boxes(pts, KITCHEN_OBSTACLES), expected)
+    np.testing.assert_array_equal(discs_in_boxes(pts, 0.0, KITCHEN_OBSTACLES), expected)
+
+
+def test_arm_way_hits_agree_with_a_sample_by_sample_check():
+    # random ways of the arm before table_0 (batched, bases per row, pruned by height and
+    # reach) against each sample checked on its own, first box in the boxes' order
+    rng = np.random.default_rng(11)
+    n = 8
+    base = np.column_stack([rng.uniform(1.5, 2.5, n), rng.uniform(0.2, 0.6, n),
+                            rng.uniform(0.8, 2.3, n), np.zeros(n)])  # fmt: skip
+    lo, hi = [0.5, -1.2, 0.25], [0.8, 1.2, 0.85]
+    q0, q1 = rng.uniform(lo, hi, (n, 3)), rng.uniform(lo, hi, (n, 3))
+    boxes = np.vstack([KITCHEN_OBSTACLES, [[2.2, 1.1, 0.0, 0.04, 0.04, 0.85]]])  # a cup
+    span = [[0.05, 0.05]] * 2
+    for cup in (None, (0.05, 0.04)):
+        got = arm_way_hits(base, q0, q1, span, boxes, 0.01, cup)
+        samples = joint_lines(q0, q1, 0.01, 0.0912)
+        for r in range(n):
+            per_sample = []
+            for q in samples[r]:
+                centre = chassis_to_world(base[r], arm_forward(q))
+                found = [point_in_boxes(centre, boxes, 0.01),
+                         fingers_in_boxes(base[r], q, span, boxes, 0.01)[0]]  # fmt: skip
+                if cup is not None:
+                    found.append(discs_in_boxes(centre - [0, 0, 0.05], 0.04, boxes, 0.01)[0])
+                per_sample.append(min([f for f in found if f >= 0], default=-1))
+            k = 0
+            while k < len(per_sample) and per_sample[k] >= 0 and per_sample[k] == per_sample[0]:
+                k += 1  # a way starting in a box: entries after it leaves
+            assert got[r] == next((i for i in per_sample[k:] if i >= 0), -1), (r, cup)
+        assert np.any(got >= 0) and np.any(got < 0)  # both kinds among the ways
+    with pytest.raises(RepertoireError, match="spacing must be finite and > 0, got 0.0"):
+        arm_way_hits(base, q0, q1, span, boxes, spacing=0.0)
+    with pytest.raises(RepertoireError, match="obstacle boxes must be finite rows of 6"):
+        arm_way_hits(base, q0, q1, span, [[1.0, 2.0, 3.0]])
+    # the rows of arm_inverse: out of reach (or not finite) where arm_inverse says None
+    a = [[0.9, 0.0, 0.7], [0.05, 0.0, 0.7], [0.9, 0.0, 1.5], [np.nan, 0.0, 0.7]]
+    q, ok = arm_inverse_rows(a)
+    np.testing.assert_array_equal(ok, [arm_inverse(p) is not None for p in a])
+    np.testing.assert_allclose(q[0], arm_inverse(a[0]))
+
+
+def test_reach_with_a_held_cup_checks_its_whole_bottom():
+    # straight down beside table_0's edge (world y 0.9; BASE faces it, the slide along
+    # +y): the gripper centre at world y 0.88, the fingers' front faces at 0.895 and the
+    # point under the centre clear the table; the held cup's rim (4 cm radius) reaches
+    # 2 cm over the top and its bottom ends 2 cm below it
+    start, target = _at_world_height([0.33, 0.0], 0.85), _at_world_height([0.33, 0.0], 0.78)
+    ports = dict(arm_position=arm_inverse(start), target=target, base_state=BASE)
+    for radius, fingers, status in ((0.04, [0.05, 0.05], ActionStatus.FAILED),
+                                    (0.015, [0.05, 0.05], ActionStatus.RUNNING),
+                                    (0.04, OPEN, ActionStatus.RUNNING)):  # fmt: skip
+        reach = Reach(0.02, obstacles=KITCHEN_OBSTACLES, cup_radius=radius)
+        assert _update(reach, _fixed(reach, finger_position=fingers, **ports))[3] == status
+    with pytest.raises(RepertoireError, match="cup_radius must be finite and > 0, got 0.0"):
+        Reach(0.02, cup_radius=0.0)
 
 
 def test_put_checks_the_fingers_carrying_and_opening():

@@ -99,3 +99,47 @@ def test_kitchen_cups_stand_on_four_feet():
             p = inspector.GetPoseInFrame(shapes[g]).translation()
             np.testing.assert_allclose(p, cup_feet()[k], atol=1e-15)
             assert p[2] - sphere.radius() == pytest.approx(-CUP_HALF_HEIGHT, abs=1e-15)
+
+
+def test_fingers_touch_with_two_sphere_pads_on_their_inner_faces():
+    from pydrake.geometry import Box, Role, Sphere
+    from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+    from pydrake.systems.framework import DiagramBuilder
+    from repertoire.models.diffdrive.generate import (
+        FINGER_PAD_RADIUS,
+        FINGER_PAD_RECESS,
+        FINGER_SIZE,
+        finger_pads,
+    )
+
+    # closed form: 5 mm spheres 2.5 cm above and below the finger's centre, their tips on
+    # the inner face of the 3 x 2 x 8 cm finger (y = -+1 cm: left, right); the collision
+    # box ends 2 mm behind them, so only the pads touch a cup between the fingers
+    np.testing.assert_allclose(finger_pads(-1.0), [[0, -0.005, 0.025], [0, -0.005, -0.025]])
+    np.testing.assert_allclose(finger_pads(1.0), [[0, 0.005, 0.025], [0, 0.005, -0.025]])
+    plant, scene_graph = AddMultibodyPlantSceneGraph(DiagramBuilder(), 0.0)
+    parser = Parser(plant)
+    ConfigureParser(parser)
+    parser.AddModels(url=package_url("diffdrive/diffdrive_arm.urdf"))
+    plant.Finalize()
+    inspector = scene_graph.model_inspector()
+    for side, inward in (("left", -1.0), ("right", 1.0)):
+        frame = plant.GetBodyFrameIdOrThrow(plant.GetBodyByName(f"{side}_finger").index())
+        shapes = {inspector.GetName(g).split("::")[-1]: g
+                  for g in inspector.GetGeometries(frame, Role.kProximity)}  # fmt: skip
+        assert sorted(shapes) == [f"{side}_finger_collision", f"{side}_finger_pad_0",
+                                  f"{side}_finger_pad_1"]  # fmt: skip
+        box = shapes[f"{side}_finger_collision"]
+        size = [inspector.GetShape(box).width(), inspector.GetShape(box).depth(),
+                inspector.GetShape(box).height()]  # fmt: skip
+        assert isinstance(inspector.GetShape(box), Box)
+        np.testing.assert_allclose(size, [0.03, 0.018, 0.08], atol=1e-15)
+        inner = inspector.GetPoseInFrame(box).translation()[1] + inward * size[1] / 2
+        assert inner == pytest.approx(inward * (FINGER_SIZE[1] / 2 - FINGER_PAD_RECESS))
+        for k in range(2):
+            pad = shapes[f"{side}_finger_pad_{k}"]
+            assert isinstance(inspector.GetShape(pad), Sphere)
+            assert inspector.GetShape(pad).radius() == FINGER_PAD_RADIUS
+            p = inspector.GetPoseInFrame(pad).translation()
+            np.testing.assert_allclose(p, finger_pads(inward)[k], atol=1e-15)
+            assert p[1] + inward * FINGER_PAD_RADIUS == pytest.approx(inward * 0.01)  # the face

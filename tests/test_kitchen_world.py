@@ -311,3 +311,23 @@ def test_a_resting_cup_stands_still_on_its_four_feet():
     feet = sorted(np.round(feet, 4).tolist())
     assert feet == [[-0.036, 0.0, -0.05], [0.0, -0.036, -0.05], [0.0, 0.036, -0.05],
                     [0.036, 0.0, -0.05]]  # fmt: skip
+
+
+def test_a_gripped_cup_does_not_slide_down_the_fingers():
+    # grip cup_0, lift it 0.2 m, swing the arm 1 rad out and back. With box fingers (one
+    # point contact each, found at a finger's edge with a tilted normal) the cup slid
+    # 12 mm/s down the grip until its rim caught the fingers' tops (44 mm in a carry;
+    # 19.6 mm here from the lift's end to the last swing's); on the fingers' sphere pads
+    # its height in the grip changes by under 1 mm (0.8: the arm still moving at a step's
+    # end)
+    at_cup = list(arm_inverse(CUP_IN_CHASSIS))
+    scenario = KitchenScenario(initial_arm=at_cup, cups=["cup_0"])
+    steps = [("grip", []), ("reach", [2.0, 1.4, 1.0]), ("reach", [1.6, 1.1, 1.0]),
+             ("reach", [2.0, 1.4, 1.0])]  # fmt: skip
+    heights = []
+    for n in (2, 4):
+        results, diagram, context = run_kitchen_sequence(steps[:n], scenario)
+        assert [r.status for r in results] == ["SUCCEEDED"] * n
+        heights.append((cup_position(diagram, context) - gripper_position(diagram, context))[2])
+    assert sum(r.duration for r in results[2:]) > 2.0  # the swings
+    assert abs(heights[1] - heights[0]) < 2e-3

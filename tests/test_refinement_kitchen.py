@@ -11,6 +11,7 @@ from repertoire.diagrams.kitchen import (
     ROBOT_RADIUS,
     KitchenScenario,
 )
+from repertoire.studies import _kitchen_arm as ka
 from repertoire.studies import _kitchen_plan as kp
 from repertoire.systems.kitchen_actions import (
     FINGER_CLOSED,
@@ -114,11 +115,13 @@ def test_problem_terms_costs_and_invalid_stands():
     assert problem.names[:3] == ("stand0.phi", "stand0.yaw", "stand0.extend")
     assert problem.terms[0].uses == (0, 1, 2) and problem.terms[4].uses == ()
     assert problem.terms[8].uses == (3, 4, 5, 6, 7, 8)  # over the target: carry and drop
-    assert problem.terms[9].predict(np.zeros((1, 9)))[0] == pytest.approx(kp.put_tail_duration())
     # the grip term is the closed-form constant
     assert problem.terms[4].predict(np.zeros((1, 9)))[0] == pytest.approx(kp.grip_duration())
     # facing the table with the cup straight ahead at full extension: a valid stand
     good = np.array([math.pi / 2, 0.0, 0.8, 0.0, 0.4, 0.98, -math.pi / 2, 0.0, 0.8])
+    # put: a closed-form constant where its arm way (lower, open) is clear (drop pose)
+    assert problem.terms[9].uses == (6, 7, 8)
+    assert problem.terms[9].predict(good[None])[0] == pytest.approx(kp.put_tail_duration())
     g = kp.plan_geometry(good, cups, targets)
     assert kp.footprint_clear(g.stand[:, 0, :2], KITCHEN_OBSTACLES, ROBOT_RADIUS)[0]
     # a stand at short extension from the table's edge lies inside table_0: INVALID
@@ -131,6 +134,109 @@ def test_problem_terms_costs_and_invalid_stands():
         kp.load_kitchen_models(""),
     )  # fmt: skip
     assert names2 == kp.action_names(2) and len(names2) == 21 and two.n_params == 18
+
+
+def _on_table_1(u, w):
+    cx, cy, yaw = KITCHEN_OBSTACLES[2, :3]
+    c, s = math.cos(yaw), math.sin(yaw)
+    return [cx + c * u - s * w, cy + s * u + c * w, KITCHEN_CUP_POSITIONS["cup_0"][2] + 0.001]
+
+
+def test_fetch_obstacles_are_the_furniture_and_the_standing_cups():
+    cups = np.array([[2.0, 1.0, 0.8001], [2.4, 1.1, 0.8001]])
+    targets = np.array([_on_table_1(0.0, 0.25), _on_table_1(0.0, 0.1)])
+    furniture = ["counter", "table_0", "table_1", "wall", "wall", "wall", "wall"]
+    boxes, names = ka.fetch_obstacles(cups, targets, 0, 0.02)
+    assert names == furniture + ["cup_1"]  # fetching cup_0: cup_1 waits on its place
+    np.testing.assert_allclose(boxes[:7, [0, 1, 2, 5]], KITCHEN_OBSTACLES[:, [0, 1, 2, 5]])
+    np.testing.assert_allclose(boxes[:7, 3:5], KITCHEN_OBSTACLES[:, 3:5] + 0.02)
+    np.testing.assert_allclose(boxes[7], [2.4, 1.1, 0.0, 0.06, 0.06, 0.8501])
+    boxes, names = ka.fetch_obstacles(cups, targets, 1, 0.0)  # cup_0 put on its target
+    assert names == furniture + ["cup_0"]
+    np.testing.assert_allclose(boxes[7], [*targets[0][:2], 0.0, 0.04, 0.04, 0.8511])
+    assert ka.fetch_obstacles(cups, targets, 1, 0.0, own=True)[1] == furniture + ["cup_0", "cup_1"]
+
+
+def test_an_arm_way_through_a_standing_cup_is_invalid_though_the_base_path_is_clear():
+    # two cups: cup_0 put at target_0, then cup_1 carried at extension 0.3 to target_1,
+    # 0.15 m further along the arm's line from the same drop pose: on the way down over
+    # target_1 the held cup (bottom from 0.91 to 0.80 m) and the fingers pass through
+    # cup_0 (rim at 0.85 m). Stand, drop pose and the base's paths are clear.
+    config = kp.KitchenPlanConfig(scenario=2)
+    cups = np.array([[2.0, 1.0, 0.8001], [2.4, 1.1, 0.8001]])
+    targets = np.array([_on_table_1(0.0, 0.25), _on_table_1(0.0, 0.1)])
+    face = KITCHEN_OBSTACLES[2, 2] - math.pi / 2  # facing table_1 from its side
+    params = np.array([math.pi / 2, 0.0, 0.8, 0.0, 0.4, 0.98, face, 0.0, 0.8,
+                       math.pi / 2, 0.0, 0.8, 0.0, 0.3, 0.96, face, 0.0, 0.8])  # fmt: skip
+    start = np.array([0.5, 0.0, 0.0, 0.0])
+    g = kp.plan_geometry(params, cups, targets)
+    radius = ROBOT_RADIUS + config.clearance
+    assert kp.footprint_clear(g.drop[:, 1, :2], KITCHEN_OBSTACLES, radius)[0]
+    assert kp.path_clear(g.stand[:, 1], g.drop[:, 1], KITCHEN_OBSTACLES, radius)[0]
+    assert ka.arm_collisions(params, start, cups, targets, config) == [(1, "put_over", "cup_0")]
+    models = kp.load_kitchen_models("")
+    problem, actions = kp.kitchen_problem(start, cups, targets, config, models)
+    valid = [bool(np.isfinite(t.features(params[None])).all()) for t in problem.terms]
+    assert actions[19] == "reach" and valid == [True] * 19 + [False, True]
+    assert problem.cost(params[None])[0] == np.inf
+    # target_0 0.3 m aside along table_1: every way clear, the plan valid
+    aside = np.array([_on_table_1(0.3, 0.25), targets[1]])
+    assert ka.arm_collisions(params, start, cups, aside, config) == []
+    problem, _ = kp.kitchen_problem(start, cups, aside, config, models)
+    assert np.isfinite(problem.cost(params[None])[0])
+
+
+def test_arm_ways_end_where_the_executed_steps_aim():
+    # the checked ways are the plan's: each way's end (chassis frame, at its pose) is
+    # the world target plan_steps gives its reach or put, and each starts where the
+    # previous one ended (the first from the tucked arm; the joints, so the chassis-frame
+    # point, stay while the base drives)
+    from repertoire.diagrams.kitchen import ARM_TUCKED
+    from repertoire.systems.kitchen_actions import arm_forward
+
+    config = kp.KitchenPlanConfig(scenario=2)
+    start, cups, targets = kp.sample_situation(config, np.random.default_rng(1))
+    lo, hi, _ = kp.parameter_bounds(config)
+    params = np.random.default_rng(2).uniform(lo, hi)
+    g = kp.plan_geometry(params, cups, targets)
+    steps = kp.plan_steps(g, 0, config)
+    order = {0: [("above", 1), ("down", 3), ("lift_up", 5), ("lift", 6), ("put_over", 8),
+                 ("put", 9)],
+             1: [("retract", 10), ("above", 12), ("down", 14), ("lift_up", 16), ("lift", 17),
+                 ("put_over", 19), ("put", 20)]}  # fmt: skip
+    previous = arm_forward(ARM_TUCKED)
+    for k, roles in order.items():
+        ways = ka.arm_ways(g, k, config.above_offset)
+        assert sorted(ways) == sorted(r for r, _ in roles)
+        for role, step in roles:
+            pose, a_from, a_to, _, held = ways[role]
+            np.testing.assert_allclose(a_from[0], previous, atol=1e-12)
+            np.testing.assert_allclose(chassis_to_world(pose[0], a_to[0]), steps[step][1],
+                                       atol=1e-12)  # fmt: skip
+            assert held == (role in ("lift_up", "lift", "put_over", "put"))
+            previous = a_to[0]
+        # the put's end: the cup at its target, the retract goes up from there
+        np.testing.assert_allclose(steps[9 + 11 * k][1], targets[k])
+    with pytest.raises(RepertoireError, match=r"role must be one of .* for fetch 0, got 'retract'"):
+        ka.arm_hits(g, cups, 0, "retract", config)
+    with pytest.raises(RepertoireError, match="role must be 'drive_stand' or 'drive_drop'"):
+        ka.drive_hits(g, cups, 0, start, config, "drive_home")
+
+
+def test_arm_drive_hits_by_hand():
+    # a base driving along y = 0 past a tall block whose near face is at y = 0.5: the
+    # base's disc (0.32 m) clears it, the arm held out 0.85 m ahead of the axle (0.9 from
+    # the base's centre, + fingers 9.1 cm + 2 cm) does not; a low block under the fingers
+    # (their bottom at the gripper's height less 4 cm) is passed over
+    tall, low = [0.0, 1.0, 0.0, 0.5, 0.5, 1.2], [0.0, 1.0, 0.0, 0.5, 0.5, 0.8]
+    a, b = np.array([[-2.0, 0.0]]), np.array([[2.0, 0.0]])
+    arm = np.array([[0.9, 0.0, kp.to_chassis_z(0.8405)]])
+    assert kp.path_clear(a, b, [tall], 0.32)[0]
+    assert ka.arm_drive_hits(a, b, arm, [tall], 0.02, False)[0] == 0
+    assert ka.arm_drive_hits(a, b, arm, [low], 0.02, False)[0] == -1
+    assert ka.arm_drive_hits(a, b, arm, [low], 0.02, True)[0] == 0  # a held cup hangs lower
+    tucked = np.array([[0.3, 0.0, kp.to_chassis_z(0.8405)]])  # 0.3 + 0.111 < 0.5
+    assert ka.arm_drive_hits(a, b, tucked, [low, tall], 0.02, True)[0] == -1
 
 
 def test_plan_steps_follow_the_actions():
@@ -151,6 +257,8 @@ def test_bad_configs_and_model_files_are_named(tmp_path):
         kp.KitchenPlanConfig(carry_z_range=[0.5, 0.6]).validate()
     with pytest.raises(RepertoireError, match="solver"):
         kp.KitchenPlanConfig(solver="corners").validate()
+    with pytest.raises(RepertoireError, match="arm_clearance must be at least .* got 0.005"):
+        kp.KitchenPlanConfig(arm_clearance=0.005).validate()
     # targets beyond table_1's axis: the drop poses (on its side towards table_0) could
     # not reach them, every situation was NO_PLAN (seeds 7300-7303)
     with pytest.raises(RepertoireError, match=r"target_side_range must lie within \[0.0, 0.3\]"):

@@ -57,6 +57,12 @@ EXTEND_RANGE = (0.25, 0.85)  # gripper centre from the column axis [m]
 FINGER_RANGE = (0.03, 0.08)  # finger centre from the gripper centre [m]
 FINGER_SIZE = (0.03, 0.02, 0.08)  # finger box (x, y, z) [m]
 FINGER_FRICTION = 1.0
+#: Spheres on each finger's inner face that touch a gripped cup: two, one above the
+#: other, their tips on the face of the ``FINGER_SIZE`` box (whose collision box is
+#: recessed by ``FINGER_PAD_RECESS`` there). See :func:`finger_pads`.
+FINGER_PAD_RADIUS = 0.005  # [m]
+FINGER_PAD_Z = 0.025  # pads this far above and below the finger's centre [m]
+FINGER_PAD_RECESS = 0.002  # the collision box's inner face behind the pads' tips [m]
 FRONT_CASTER_X = 0.17  # [m]
 CASTER_RADIUS = 0.038  # as the rear caster of diffdrive.urdf [m]
 CASTER_Z = -0.0595  # as the rear caster of diffdrive.urdf [m]
@@ -119,6 +125,25 @@ def _collision(name: str, geometry: str, xyz, mu: float) -> str:
 
 def _box(size) -> str:
     return f'<box size="{_v(size)}"/>'
+
+
+def _sphere(radius: float) -> str:
+    return f'<sphere radius="{_f(radius)}"/>'
+
+
+def finger_pads(inward: float) -> list[tuple[float, float, float]]:
+    """Centres (finger frame) of a finger's two pads, for its inner face on side ``inward``.
+
+    ``inward`` is -1 for the left finger (its inner face towards the slide's -y), +1 for
+    the right. The pads' tips lie on the face of the ``FINGER_SIZE`` box, so the finger's
+    envelope is that box. Why spheres: a box's face on the cup's cylinder is a line
+    contact, which point contact reduced to one point found by GJK/EPA, often at an
+    edge of the finger with a normal tilted 40 degrees from horizontal: the two fingers'
+    forces on the cup then nearly cancelled vertically and a carried cup slid 44 mm down
+    the grip in 5 s. A sphere on a cylinder has an exact point and normal.
+    """
+    y = inward * (FINGER_SIZE[1] / 2 - FINGER_PAD_RADIUS)
+    return [(0.0, y, FINGER_PAD_Z), (0.0, y, -FINGER_PAD_Z)]
 
 
 def _cylinder(radius: float, length: float) -> str:
@@ -195,12 +220,20 @@ def arm_parts() -> str:
     )
     fingers = ""
     for side in ("left", "right"):
+        inward = -1.0 if side == "left" else 1.0  # the inner face's side along the slide's y
+        recessed = (FINGER_SIZE[0], FINGER_SIZE[1] - FINGER_PAD_RECESS, FINGER_SIZE[2])
+        pads = "".join(
+            _collision(f"{side}_finger_pad_{k}", _sphere(FINGER_PAD_RADIUS), xyz, FINGER_FRICTION)
+            for k, xyz in enumerate(finger_pads(inward))
+        )
         fingers += _link(
             f"{side}_finger",
             _inertial(MASS["finger"], (0, 0, 0), box_inertia(MASS["finger"], FINGER_SIZE))
             + _visual(f"{side}_finger", _box(FINGER_SIZE), (0, 0, 0), blue)
-            + _collision(f"{side}_finger_collision", _box(FINGER_SIZE), (0, 0, 0), FINGER_FRICTION),
-        )
+            + _collision(f"{side}_finger_collision", _box(recessed),
+                         (0, -inward * FINGER_PAD_RECESS / 2, 0), FINGER_FRICTION)
+            + pads,
+        )  # fmt: skip
     joints = (
         _joint(
             "arm_column_weld",
@@ -278,7 +311,7 @@ def arm_parts() -> str:
 
 def front_caster() -> str:
     """The front caster's visual and collision (inside the chassis link)."""
-    sphere = f'<sphere radius="{_f(CASTER_RADIUS)}"/>'
+    sphere = _sphere(CASTER_RADIUS)
     xyz = (FRONT_CASTER_X, 0, CASTER_Z)
     return _visual("front_caster_visual", sphere, xyz, (0.2, 0.2, 0.2, 1)) + _collision(
         "front_caster_collision", sphere, xyz, 0.0

@@ -1,0 +1,246 @@
+"""The arm's ways in the kitchen plans: what the arm, its fingers and a held cup sweep.
+
+Preconditions of :func:`~repertoire.studies._kitchen_plan.kitchen_problem` beside the
+base's paths: a stand or drop pose whose base path is clear can still make the arm's
+straight joint-space reach (to the cup, lifting it, carrying it over its target, putting
+it down) pass through a table or a standing cup, or swing the held-out arm through the
+counter while the base drives. Each way is checked with the actions' own geometry
+(:func:`~repertoire.systems.kitchen_actions.arm_way_hits`: the gripper centre, the finger
+boxes, a held cup's bottom disc) against the furniture and the cups standing at that
+point of the plan (:func:`fetch_obstacles`); :func:`arm_collisions` names what a
+parameter vector's ways enter.
+"""
+
+import numpy as np
+from repertoire.studies._kitchen_plan import (
+    ARM_SPACING,
+    FETCHED,
+    PUT_CLEARANCE,
+    KitchenPlanConfig,
+    PlanGeometry,
+    _world_in_chassis,
+    path_clear,
+    plan_geometry,
+    to_chassis_z,
+)
+
+from repertoire.errors import RepertoireError
+
+
+def fetch_obstacles(cups, targets, k: int, growth: float, own: bool = False):
+    """Boxes the arm keeps off during fetch ``k`` (grown by ``growth`` horizontally), and names.
+
+    The kitchen's furniture and the standing cups, each an upright square of the cup's
+    radius up to its rim (conservative by up to 1.7 cm at the square's corners): the cups
+    fetched before ``k`` on their targets, those after it on their places (both
+    ``FETCHED`` cups are in the world in both scenarios) and, with ``own``, cup ``k`` on
+    its place (the drive to it; its own reaches and the carry hold or straddle it).
+
+    Args:
+        cups: (2, 3) centres of ``cup_0`` and ``cup_1`` on their places.
+        targets: (m, 3) put targets.
+        k: the fetch (0 or 1).
+        growth: horizontal growth of every box [m].
+        own: include cup ``k`` on its place.
+
+    Returns:
+        ``(boxes (b, 6), names)``: rows ``[cx, cy, yaw, half_x, half_y, top_z]``.
+    """
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
+    from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
+
+    names = ["counter", "table_0", "table_1", "wall", "wall", "wall", "wall"]
+    rows = [list(b) for b in KITCHEN_OBSTACLES]
+    if len(rows) != len(names):
+        raise RepertoireError("internal: KITCHEN_OBSTACLES changed: name its boxes here")
+    for j, name in enumerate(FETCHED):
+        if j != k or own:
+            p = np.asarray(targets if j < k else cups, dtype=float)[j]
+            rows.append([p[0], p[1], 0.0, CUP_RADIUS, CUP_RADIUS, p[2] + CUP_HALF_HEIGHT])
+            names.append(name)
+    boxes = np.array(rows)
+    boxes[:, 3:5] += growth
+    return boxes, names
+
+
+def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
+    """The straight joint-space arm ways of fetch ``k`` by role (as :func:`plan_steps` runs them).
+
+    Each is ``(poses (n, 4), from (n, 3), to (n, 3), finger span, holds the cup)``, the
+    points in the chassis frame (a pose's arm joints do not change while the base drives):
+    ``above`` (from the tucked arm or the last retract), ``down`` to the cup, ``lift_up``,
+    ``lift`` to the carry point, ``put_over`` its target, ``put`` (lowering; the fingers
+    then open) and, for ``k`` > 0, ``retract`` out of the cup put before.
+
+    Args:
+        g: the plan's geometry (n parameter rows).
+        k: the fetch.
+        up: the plan's ``above_offset`` [m].
+    """
+    from repertoire.diagrams.kitchen import ARM_TUCKED
+    from repertoire.models.diffdrive.generate import CUP_RADIUS, FINGER_SIZE
+    from repertoire.systems.kitchen_actions import FINGER_CLOSED, FINGER_OPEN, arm_forward
+
+    rise, put_rise = np.array([0.0, 0.0, up]), np.array([0.0, 0.0, PUT_CLEARANCE])
+    stand, drop = g.stand[:, k], g.drop[:, k]
+    held = CUP_RADIUS + FINGER_SIZE[1] / 2  # a finger's inner face on the cup
+    opened, holding = [[FINGER_OPEN] * 2] * 2, [[held] * 2] * 2
+    closing = [[FINGER_CLOSED, held]] * 2  # Put closes the fingers from where they are
+    if k == 0:
+        start = np.broadcast_to(arm_forward(ARM_TUCKED), stand[:, :3].shape)
+    else:
+        start = _world_in_chassis(g.drop[:, k - 1], g.target[k - 1] + rise)
+    above, at_cup = _world_in_chassis(stand, g.cup[k] + rise), _world_in_chassis(stand, g.cup[k])
+    over = _world_in_chassis(drop, g.target[k] + put_rise)
+    ways = {
+        "above": (stand, start, above, opened, False),
+        "down": (stand, above, at_cup, opened, False),
+        "lift_up": (stand, at_cup, above, holding, True),
+        "lift": (stand, above, g.carry[:, k], holding, True),
+        "put_over": (drop, g.carry[:, k], over, holding, True),
+        "put": (drop, over, _world_in_chassis(drop, g.target[k]), closing, True),
+    }
+    if k:
+        put = _world_in_chassis(g.drop[:, k - 1], g.target[k - 1])
+        ways["retract"] = (g.drop[:, k - 1], put, put + rise, opened, False)
+    return ways
+
+
+def arm_hits(g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig) -> np.ndarray:
+    """Per parameter row, what the arm way ``role`` of fetch ``k`` enters (:func:`arm_ways`).
+
+    :func:`~repertoire.systems.kitchen_actions.arm_way_hits` (the gripper centre, the
+    finger boxes and a held cup's bottom disc) against :func:`fetch_obstacles` grown by
+    ``arm_clearance``, sampled every ``ARM_SPACING``; a ``put`` also opens the fingers
+    at its target.
+
+    Args:
+        g: the plan's geometry (n parameter rows).
+        cups: (2, 3) centres of both cups on their places.
+        k: the fetch.
+        role: a role of :func:`arm_ways`.
+        config: ``above_offset`` and ``arm_clearance``.
+
+    Returns:
+        ``(n,)`` indices into :func:`fetch_obstacles`' names; -1 where the way is clear,
+        the number of names where an end lies out of the arm's reach.
+    """
+    from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
+    from repertoire.systems.kitchen_actions import (
+        FINGER_CLOSED,
+        FINGER_OPEN,
+        arm_inverse_rows,
+        arm_way_hits,
+        fingers_in_boxes,
+    )
+
+    ways = arm_ways(g, k, config.above_offset)
+    if role not in ways:
+        raise RepertoireError(f"role must be one of {sorted(ways)} for fetch {k}, got {role!r}")
+    pose, a_from, a_to, span, held = ways[role]
+    k_world = k - 1 if role == "retract" else k
+    boxes, names = fetch_obstacles(cups, g.target, k_world, config.arm_clearance)
+    (q0, ok0), (q1, ok1) = arm_inverse_rows(a_from), arm_inverse_rows(a_to)
+    cup = (CUP_HALF_HEIGHT, CUP_RADIUS) if held else None
+    hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING)
+    if role == "put":
+        release = fingers_in_boxes(pose, q1, [[FINGER_CLOSED, FINGER_OPEN]] * 2, boxes)
+        hit = np.where(hit < 0, release, hit)
+    return np.where(ok0 & ok1, hit, len(names))
+
+
+def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool) -> np.ndarray:
+    """Per row, the first box the still arm enters while the base drives straight ``a -> b``.
+
+    The arm at chassis point ``arm`` (n, 3) sweeps a disc of its horizontal distance from
+    the base's centre plus ``FINGER_REACH`` and ``clearance`` (every heading: GoToPose
+    turns) along the path (:func:`path_clear`), against the boxes whose top is above the
+    fingers' bottom (or, ``held``, the cup's bottom).
+
+    Args:
+        a: (n, >= 2) start poses of the base. b: (n, >= 2) end poses.
+        arm: (n, 3) the gripper centre in the chassis frame.
+        boxes: (k, 6) obstacle boxes (not grown).
+        clearance: added to the arm's reach [m].
+        held: a cup hangs from the fingers.
+
+    Returns:
+        ``(n,)`` box indices, -1 where clear.
+    """
+    from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT
+    from repertoire.systems.kitchen_actions import FINGER_HALF, FINGER_REACH
+
+    arm = np.atleast_2d(arm)
+    radius = np.hypot(arm[:, 0], arm[:, 1]) + FINGER_REACH + clearance
+    z_world = arm[:, 2] - to_chassis_z(0.0)
+    lowest = z_world - max(FINGER_HALF[2], CUP_HALF_HEIGHT if held else 0.0)
+    hit = np.full(len(arm), -1)
+    a, b = (np.broadcast_to(np.atleast_2d(p)[:, :2], (len(arm), 2)) for p in (a, b))
+    d = b - a
+    t = np.zeros(len(arm))
+    for i, box in enumerate(np.asarray(boxes, dtype=float).reshape(-1, 6)):
+        # candidates: rows whose arm is low enough and whose path passes the box's
+        # circumscribed circle within the arm's reach (the exact test is the costly part)
+        moving = np.einsum("ij,ij->i", d, d) > 0
+        t[moving] = np.clip(np.einsum("ij,ij->i", box[:2] - a, d)[moving]
+                            / np.einsum("ij,ij->i", d, d)[moving], 0.0, 1.0)  # fmt: skip
+        near = np.hypot(*(a + t[:, None] * d - box[:2]).T) <= radius + np.hypot(*box[3:5])
+        rows = np.flatnonzero(near & (lowest <= box[5]) & (hit < 0))
+        if rows.size:
+            hit[rows[~path_clear(a[rows], b[rows], box, radius[rows])]] = i
+    return hit
+
+
+def drive_hits(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, role: str):
+    """:func:`arm_drive_hits` of fetch ``k``'s drive ``role``: ``drive_stand`` or ``drive_drop``.
+
+    ``drive_stand``: from the start or the last drop pose to the stand, the arm tucked or
+    where the last retract left it, cup ``k`` standing on its place; ``drive_drop``: from
+    the stand to the drop pose with the cup held at the carry point.
+
+    Args:
+        g: the plan's geometry. cups: (2, 3) both cups on their places.
+        k: the fetch. start: the robot's start ``[x, y, phi, v]``.
+        config: ``above_offset`` and ``arm_clearance``. role: the drive.
+
+    Returns:
+        ``(hits, names)``: per row the index of the first obstacle in ``names``
+        (:func:`fetch_obstacles`), -1 where clear.
+    """
+    if role == "drive_stand":
+        prev = g.drop[:, k - 1] if k else np.broadcast_to(start, g.stand[:, k].shape)
+        boxes, names = fetch_obstacles(cups, g.target, k, 0.0, own=True)
+        arm, held, a, b = arm_ways(g, k, config.above_offset)["above"][1], False, prev, g.stand
+    elif role == "drive_drop":
+        boxes, names = fetch_obstacles(cups, g.target, k, 0.0)
+        arm, held, a, b = g.carry[:, k], True, g.stand[:, k], g.drop
+    else:
+        raise RepertoireError(f"role must be 'drive_stand' or 'drive_drop', got {role!r}")
+    return arm_drive_hits(a, b[:, k], arm, boxes, config.arm_clearance, held), names
+
+
+def arm_collisions(params, start, cups, targets, config: KitchenPlanConfig) -> list[tuple]:
+    """What the arm's ways and drives of one parameter vector enter (a diagnosis).
+
+    Args:
+        params: one parameter vector (9 per fetched cup).
+        start: the robot's start ``[x, y, phi, v]``.
+        cups: (2, 3) both cups on their places. targets: (m, 3) put targets.
+        config: the plan's config.
+
+    Returns:
+        ``(fetch k, role, obstacle name)`` per way (roles of :func:`arm_ways`) or drive
+        (:func:`drive_hits`) that enters an obstacle; empty when all are clear.
+    """
+    g, found = plan_geometry(params, cups, targets), []
+    for k in range(len(targets)):
+        for role in arm_ways(g, k, config.above_offset):
+            hit = arm_hits(g, cups, k, role, config)[0]
+            names = fetch_obstacles(cups, targets, k - (role == "retract"), 0.0)[1]
+            if hit >= 0:
+                found.append((k, role, (names + ["out of reach"])[hit]))
+        for role in ("drive_stand", "drive_drop"):
+            hit, names = drive_hits(g, cups, k, start, config, role)
+            if hit[0] >= 0:
+                found.append((k, role, names[hit[0]]))
+    return found

@@ -340,3 +340,28 @@ def test_gap_planner_prices_a_step_as_planner_step_cost_of_travel(library_path, 
     # measured: 20 steps against 28 at the model's 1 cm (two of them moved a foot 1 cm)
     assert len(plan.library) == 20 and len(before.library) == 28
     assert min(travel) > 0.02
+
+
+def test_board_without_the_operators_flat_start_still_plans(library_path):
+    """Generated boards 74/75 have no start flat by the scripted operator's 2 cm rule
+    (``flat_start`` raises); the start is then the nominal one moved by ``flat_offset``
+    (the planner's rule) and the transfer plans, where it raised a bare RepertoireError."""
+    from repertoire.diagrams.littledog_transfer import nominal_start, target_board
+
+    from repertoire.errors import RepertoireError
+
+    scenario = LittleDogTransferScenario(
+        library=library_path, target="generated", board_seeds=[74, 75], mode="planner"
+    )
+    board = target_board(scenario)
+    with pytest.raises(RepertoireError, match="no flat start within 6 cm"):
+        flat_start(board, 0.0, 0.25, CrawlParams())
+    np.testing.assert_array_equal(nominal_start(board, CrawlParams()), [0.0, 0.0])
+    plan = plan_transfer(scenario)
+    assert plan.search.status == "reached"
+    assert np.all(flat_on_ground(board, plan.feet0[:, :2], PlannerParams()))
+    # where the operator's start exists it is kept (the library's crossings start there)
+    source = source_board("terrain_a")
+    np.testing.assert_array_equal(
+        nominal_start(source, CrawlParams()), flat_start(source, 0.0, 0.25, CrawlParams())
+    )

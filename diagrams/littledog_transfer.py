@@ -81,12 +81,14 @@ scenario ended with a front foot exactly on it, 0.23 - 3e-17 m), and a foot plan
 line crosses in physics or not by its tracking error. Half a map cell: footholds lie on
 cell centres, the line on one, so a foot on the line fails and the next cell passes
 whatever the rounding."""
-PLANNER_STEP_COST = 0.03
+PLANNER_STEP_COST = 0.02
 """The gap-filling crawl planner's cost per step (its ``step_cost``; a step's cost is this
 plus the foot's travel in m). Executing a crawl step takes the same time (1.25 s and the
-executor's blend) however far its foot moves, up to about 12 cm, so a step is priced as 3 cm
-of travel: at the model's 1 cm the planner took 1-3 cm steps where the face rule leaves few
-footholds (planner-only start 0 of the execution study: 28 steps, 38.9 s to cross)."""
+executor's blend) however far its foot moves, up to about 12 cm, so a step is priced as 2 cm
+of travel: at the model's 1 cm the planner crept in 1-3 cm steps where the face rule leaves
+few footholds (planner-only start 0 of the execution study: 28 steps, 38.9 s to cross; 20
+steps now). 3 cm gave the same step counts on the 15 starts compared (one fewer on one) but
+heavier gap searches (generated start 1002: 3.2 -> 9.0 s of the search's 10 s CPU budget)."""
 
 
 @dataclasses.dataclass

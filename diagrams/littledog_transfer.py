@@ -295,7 +295,10 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
     )
     for dx, dy in trials:
         off = np.asarray(offset, dtype=float) + [dx, dy]
-        _, feet, _ = crossing_start(board, 0.0, HALF_EXTENT, params.standing_height, off, yaw)
+        try:
+            _, feet, _ = crossing_start(board, 0.0, HALF_EXTENT, params.standing_height, off, yaw)
+        except RepertoireError:  # the legs cannot reach the ground there: not a start
+            continue
         if off_board(board, feet) is None and np.all(flat_on_ground(board, feet[:, :2], rule)):
             return off
     x, y = (float(v) for v in offset)
@@ -363,17 +366,25 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
     """Transfer, search and final library of a scenario (no physics).
 
     Raises:
-        ScenarioError: bad scenario, a start whose feet leave the board, or the search
-            did not reach the goal (its CPU-time limit reached, or no path): the status
-            and the best partial path are named and the partial path is not executed.
+        ScenarioError: bad scenario, a start whose feet leave the board or where the robot
+            cannot stand, or the search did not reach the goal (its CPU-time limit reached,
+            or no path): the status and the best partial path are named and the partial
+            path is not executed.
     """
     scenario.validate()
     board = target_board(scenario)
     params = CrawlParams()
     offset = nominal_start(board, params) + np.asarray(scenario.start_offset)
-    _, feet, _ = crossing_start(
-        board, 0.0, HALF_EXTENT, params.standing_height, offset, scenario.start_yaw_offset
-    )
+    try:
+        _, feet, _ = crossing_start(
+            board, 0.0, HALF_EXTENT, params.standing_height, offset, scenario.start_yaw_offset
+        )
+    except RepertoireError as e:  # e.g. the start straddles steps higher than the legs reach
+        x, y = (float(v) for v in offset)
+        raise ScenarioError(
+            f"littledog_transfer: the robot cannot stand at the start (offset [{x:.4f}, "
+            f"{y:.4f}] m, yaw offset {scenario.start_yaw_offset:.3f} rad): {e}"
+        ) from e
     why = off_board(board, feet)
     if why is not None:
         x, y = (float(v) for v in scenario.start_offset)

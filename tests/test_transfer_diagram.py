@@ -365,3 +365,23 @@ def test_board_without_the_operators_flat_start_still_plans(library_path):
     np.testing.assert_array_equal(
         nominal_start(source, CrawlParams()), flat_start(source, 0.0, 0.25, CrawlParams())
     )
+
+
+def test_start_where_the_robot_cannot_stand_is_a_scenario_error(library_path, monkeypatch):
+    """A start straddling stacked steps (front feet 13 cm above the hind ones, beyond the
+    legs' reach) is refused as a ScenarioError naming the start, as the execution study
+    expects; it was a bare RepertoireError from the standing pose."""
+    import repertoire.diagrams.littledog_transfer as lt
+    from repertoire.models.terrain import TerrainParams, generate_board, tile_boards
+
+    steps = TerrainParams(kind="steps", size_x=0.4, size_y=0.8, step_rise=[0.025, 0.045])
+    monkeypatch.setattr(
+        lt,
+        "target_board",
+        lambda s: tile_boards([generate_board(steps, 82), generate_board(steps, 83)]),
+    )
+    scenario = LittleDogTransferScenario(library=library_path, target="generated", mode="planner")
+    with pytest.raises(
+        ScenarioError, match=r"cannot stand at the start \(offset \[0.0000, 0.0000\]"
+    ):
+        plan_transfer(scenario)

@@ -308,3 +308,80 @@ def test_planner_alone_crosses_where_planning_on_from_the_end_had_no_step(librar
     assert plan.search.status == "reached" and plan.search.recorded_count == 0
     end = step_end_feet(plan.library[-1])
     assert min(end[0, 0], end[1, 0]) >= plan.goal + GOAL_MARGIN
+
+
+def test_gap_planner_prices_a_step_as_planner_step_cost_of_travel(library_path, monkeypatch):
+    """A crawl step takes the same time however far its foot moves: the gap planner's
+    ``step_cost`` is PLANNER_STEP_COST, and with it the execution study's planner-only
+    start 0 (where the face rule leaves few footholds) no longer creeps in 1 cm steps."""
+    import repertoire.diagrams.littledog_transfer as lt
+    import repertoire.planning.transfer_crawl_filler as tcf
+
+    costs = []
+    real = tcf.plan_crawl
+
+    def record(height_map, start, goal, params, **kw):
+        costs.append(params.step_cost)
+        return real(height_map, start, goal, params, **kw)
+
+    monkeypatch.setattr(tcf, "plan_crawl", record)
+    scenario = LittleDogTransferScenario(
+        library=library_path, mode="planner", start_offset=[0.0082177, -0.0138128],
+        start_yaw_offset=np.deg2rad(-9.1805),
+    )  # fmt: skip
+    plan = plan_transfer(scenario)
+    assert costs and set(costs) == {lt.PLANNER_STEP_COST}
+    monkeypatch.setattr(lt, "PLANNER_STEP_COST", PlannerParams().step_cost)
+    before = plan_transfer(scenario)
+    for p in (plan, before):
+        assert p.search.status == "reached" and p.search.recorded_count == 0
+    travel = [np.linalg.norm(b.start_feet - a.start_feet, axis=1).max() for a, b in
+              zip(plan.library.steps[:-1], plan.library.steps[1:])]  # fmt: skip
+    # measured: 20 steps against 28 at the model's 1 cm (two of them moved a foot 1 cm)
+    assert len(plan.library) == 20 and len(before.library) == 28
+    assert min(travel) > 0.02
+
+
+def test_board_without_the_operators_flat_start_still_plans(library_path):
+    """Generated boards 74/75 have no start flat by the scripted operator's 2 cm rule
+    (``flat_start`` raises); the start is then the nominal one moved by ``flat_offset``
+    (the planner's rule) and the transfer plans, where it raised a bare RepertoireError."""
+    from repertoire.diagrams.littledog_transfer import nominal_start, target_board
+
+    from repertoire.errors import RepertoireError
+
+    scenario = LittleDogTransferScenario(
+        library=library_path, target="generated", board_seeds=[74, 75], mode="planner"
+    )
+    board = target_board(scenario)
+    with pytest.raises(RepertoireError, match="no flat start within 6 cm"):
+        flat_start(board, 0.0, 0.25, CrawlParams())
+    np.testing.assert_array_equal(nominal_start(board, CrawlParams()), [0.0, 0.0])
+    plan = plan_transfer(scenario)
+    assert plan.search.status == "reached"
+    assert np.all(flat_on_ground(board, plan.feet0[:, :2], PlannerParams()))
+    # where the operator's start exists it is kept (the library's crossings start there)
+    source = source_board("terrain_a")
+    np.testing.assert_array_equal(
+        nominal_start(source, CrawlParams()), flat_start(source, 0.0, 0.25, CrawlParams())
+    )
+
+
+def test_start_where_the_robot_cannot_stand_is_a_scenario_error(library_path, monkeypatch):
+    """A start straddling stacked steps (front feet 13 cm above the hind ones, beyond the
+    legs' reach) is refused as a ScenarioError naming the start, as the execution study
+    expects; it was a bare RepertoireError from the standing pose."""
+    import repertoire.diagrams.littledog_transfer as lt
+    from repertoire.models.terrain import TerrainParams, generate_board, tile_boards
+
+    steps = TerrainParams(kind="steps", size_x=0.4, size_y=0.8, step_rise=[0.025, 0.045])
+    monkeypatch.setattr(
+        lt,
+        "target_board",
+        lambda s: tile_boards([generate_board(steps, 82), generate_board(steps, 83)]),
+    )
+    scenario = LittleDogTransferScenario(library=library_path, target="generated", mode="planner")
+    with pytest.raises(
+        ScenarioError, match=r"cannot stand at the start \(offset \[0.0000, 0.0000\]"
+    ):
+        plan_transfer(scenario)

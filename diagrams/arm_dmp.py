@@ -4,8 +4,8 @@ Pipeline (Pastor et al. 2009, sec. IV, Fig. 7 and 11)::
 
     DmpSequencer (10-D DMPs: position, quaternion, 3 fingers; grasp -> place -> ...;
       segments run one after another, each started from its predecessor's x and v)
-      -> ResolvedMotionRateIK (quaternion feedback, damped least squares, null-space
-         joint-limit avoidance; reports targets out of reach)
+      -> ResolvedMotionRateIK (quaternion feedback, damped least squares within the
+         joint limits, null-space joint-limit avoidance; reports targets out of reach)
       -> inverse-dynamics feed-forward + joint PD (diagrams/arm.py controllers)
       -> arm7 MultibodyPlant with the hand, a table and the objects.
 

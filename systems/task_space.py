@@ -81,13 +81,15 @@ def quaternion_error(q_desired: np.ndarray, q: np.ndarray) -> np.ndarray:
 def damped_pseudoinverse(J: np.ndarray, damping: float) -> np.ndarray:
     """Damped least-squares inverse ``J^T (J J^T + damping^2 I)^-1``.
 
+    Computed from the SVD ``J = U S V^T`` as ``V diag(s / (s^2 + damping^2)) U^T`` over
+    the singular values above ``1e-10 s_max`` (so 0 gives the pseudo-inverse ``J^+``,
+    also of a rank-deficient ``J``).
+
     Args:
         J: an ``m x n`` Jacobian.
-        damping: the damping factor lambda (0 gives the right pseudo-inverse of a
-            full-row-rank ``J``).
+        damping: the damping factor lambda.
     """
-    m = J.shape[0]
-    return J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(m), np.eye(m))
+    return _svd_inverse_and_projector(J, damping)[0]
 
 
 def joint_limit_gradient(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:

@@ -112,6 +112,10 @@ def test_damped_pseudoinverse_and_null_space():
     J = np.array([[1.0, 0.0, 2.0], [0.0, 1.0, 1.0]])
     assert np.allclose(J @ damped_pseudoinverse(J, 0.0), np.eye(2), atol=1e-14)
     assert np.allclose(damped_pseudoinverse(J, 0.0), np.linalg.pinv(J), atol=1e-14)
+    closed_form = J.T @ np.linalg.inv(J @ J.T + 0.3**2 * np.eye(2))
+    np.testing.assert_allclose(damped_pseudoinverse(J, 0.3), closed_form, rtol=1e-13)
+    rank_one = np.array([[1.0, 2.0], [2.0, 4.0]])  # singular J J^T: still the pseudo-inverse
+    np.testing.assert_allclose(damped_pseudoinverse(rank_one, 0.0), np.linalg.pinv(rank_one))
     lower, upper = -np.ones(3), 3 * np.ones(3)
     assert np.allclose(joint_limit_gradient(np.ones(3), lower, upper), 0.0)
     assert np.allclose(joint_limit_gradient(np.array([3.0, 1, 1]), lower, upper), [0.25, 0, 0])

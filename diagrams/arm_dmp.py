@@ -4,8 +4,8 @@ Pipeline (Pastor et al. 2009, sec. IV, Fig. 7 and 11)::
 
     DmpSequencer (10-D DMPs: position, quaternion, 3 fingers; grasp -> place -> ...;
       segments run one after another, each started from its predecessor's x and v)
-      -> ResolvedMotionRateIK (quaternion feedback, damped least squares, null-space
-         joint-limit avoidance; reports targets out of reach)
+      -> ResolvedMotionRateIK (quaternion feedback, damped least squares within the
+         joint limits, null-space joint-limit avoidance; reports targets out of reach)
       -> inverse-dynamics feed-forward + joint PD (diagrams/arm.py controllers)
       -> arm7 MultibodyPlant with the hand, a table and the objects.
 
@@ -162,11 +162,13 @@ def _coaster_on_slider(plant: MultibodyPlant, xy: np.ndarray):
 FINGER_KP = (2.0, 2.0, 2.0)
 FINGER_KD = (0.02, 0.02, 0.02)
 IK_PERIOD = 0.004
-#: The IK's joint-limit barrier (``ResolvedMotionRateIK`` ``limit_gain``, ``limit_band``):
-#: within a quarter of its range from a limit a joint is pushed back through the task's
-#: null space, at most half its velocity limit. arm7's wrist reaches its limit lifting a cup
-#: over the ball left of the torso; the swivel that relieves it barely moves the wrist
-#: (about 0.1 of the null direction), so it must start early.
+#: The barrier part of the IK's secondary objective (``ResolvedMotionRateIK`` ``limit_gain``,
+#: ``limit_band``): within a quarter of its range from a limit a joint is pushed back
+#: through the task's null space, at most half its velocity limit. arm7's wrist reaches its
+#: limit lifting a cup over the ball left of the torso; the swivel that relieves it barely
+#: moves the wrist (about 0.1 of the null direction), so it starts early. (The limits
+#: themselves are constraints of the IK's solve: a saturated joint's share goes to the
+#: others.)
 IK_LIMIT_GAIN = 3.0
 IK_LIMIT_BAND = 0.25
 LOG_PERIOD = 0.02

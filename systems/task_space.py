@@ -9,9 +9,10 @@ feedback (Yuan 1988). An inverse-dynamics feed-forward plus PD torque
 controller (Drake's ``InverseDynamicsController``) then tracks the references.
 
 The math lives in plain functions (:func:`quaternion_error`,
-:func:`damped_pseudoinverse`, :func:`joint_limit_gradient`,
-:func:`joint_limit_barrier_gradient`, :func:`null_space_projector`,
-:func:`speed_bounded_scale`, :func:`rmrc_joint_velocity`, :func:`reach_bound`);
+:func:`damped_pseudoinverse`, :func:`joint_limit_potential_gradient` with its parts
+:func:`joint_limit_gradient` and :func:`joint_limit_barrier_gradient`,
+:func:`null_space_projector`, :func:`speed_bounded_scale`, :func:`joint_velocity_bounds`,
+:func:`rmrc_joint_velocity`, :func:`reach_bound`);
 :class:`ResolvedMotionRateIK`
 only wraps them. :func:`pose_position_residual` is the exact (IK) counterpart of the
 reach sphere: how close a frame can come to a position with a given orientation.
@@ -80,20 +81,22 @@ def quaternion_error(q_desired: np.ndarray, q: np.ndarray) -> np.ndarray:
 def damped_pseudoinverse(J: np.ndarray, damping: float) -> np.ndarray:
     """Damped least-squares inverse ``J^T (J J^T + damping^2 I)^-1``.
 
+    Computed from the SVD ``J = U S V^T`` as ``V diag(s / (s^2 + damping^2)) U^T`` over
+    the singular values above ``1e-10 s_max`` (so 0 gives the pseudo-inverse ``J^+``,
+    also of a rank-deficient ``J``).
+
     Args:
         J: an ``m x n`` Jacobian.
-        damping: the damping factor lambda (0 gives the right pseudo-inverse of a
-            full-row-rank ``J``).
+        damping: the damping factor lambda.
     """
-    m = J.shape[0]
-    return J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(m), np.eye(m))
+    return _svd_inverse_and_projector(J, damping)[0]
 
 
 def joint_limit_gradient(q: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """Gradient of ``H(q) = sum(((q - q_mid) / (upper - lower))^2)``.
 
-    ``H`` grows toward the joint limits; following ``-grad H`` in the null space
-    of the task keeps the joints near the middle of their ranges.
+    ``H`` grows toward the joint limits; it is the mid-range part of
+    :func:`joint_limit_potential_gradient`.
 
     Args:
         q: joint positions.
@@ -136,6 +139,56 @@ def joint_limit_barrier_gradient(
     return 2.0 * (above - below) / d**2
 
 
+def joint_limit_potential_gradient(
+    q: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    *,
+    mid_gain: float,
+    barrier_gain: float,
+    band: float,
+) -> np.ndarray:
+    """Gradient of the IK's secondary objective ``P = mid_gain H + barrier_gain B``.
+
+    ``H`` prefers the middle of each joint's range everywhere
+    (:func:`joint_limit_gradient`), ``B`` acts only within ``band`` of a limit
+    (:func:`joint_limit_barrier_gradient`). ``-grad P`` is the joint velocity the task's
+    null space follows in :func:`rmrc_joint_velocity`.
+
+    Args:
+        q: joint positions (n).
+        lower: lower joint limits (n, finite).
+        upper: upper joint limits (n, finite).
+        mid_gain: weight of ``H`` [rad^2/s] (>= 0).
+        barrier_gain: weight of ``B`` [rad^2/s] (>= 0).
+        band: the barrier's band as a fraction of each joint's range, in (0, 0.5].
+
+    Raises:
+        RepertoireError: a negative or non-finite gain, or a bad band.
+    """
+    for name, gain in (("mid_gain", mid_gain), ("barrier_gain", barrier_gain)):
+        if not (np.isfinite(gain) and gain >= 0.0):
+            raise RepertoireError(f"{name} must be finite and >= 0, got {gain}")
+    grad = mid_gain * joint_limit_gradient(np.asarray(q, dtype=float), lower, upper)
+    if barrier_gain > 0.0:
+        grad = grad + barrier_gain * joint_limit_barrier_gradient(q, lower, upper, band)
+    return grad
+
+
+def _svd_inverse_and_projector(
+    J: np.ndarray, damping: float, rcond: float = 1e-10
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """``(J#, N, rank)`` from one SVD: damped inverse, exact null-space projector, rank."""
+    m, n = J.shape
+    U, s, Vt = np.linalg.svd(J)
+    rank = int(np.sum(s > rcond * s[0])) if s.size and s[0] > 0.0 else 0
+    k = np.arange(s.size) < rank
+    gain = np.where(k, s / np.where(k, s**2 + damping**2, 1.0), 0.0)
+    J_pinv = (Vt[: s.size].T * gain) @ U[:, : s.size].T
+    V = Vt[:rank]
+    return J_pinv, np.eye(n) - V.T @ V, rank
+
+
 def null_space_projector(J: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
     """Orthogonal projector ``N = I - J^+ J`` onto the null space of ``J``.
 
@@ -149,11 +202,7 @@ def null_space_projector(J: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
         J: an ``m x n`` Jacobian.
         rcond: relative singular-value cut-off of the task's range.
     """
-    n = J.shape[1]
-    _, s, Vt = np.linalg.svd(J)
-    rank = int(np.sum(s > rcond * s[0])) if s.size and s[0] > 0.0 else 0
-    V = Vt[:rank]
-    return np.eye(n) - V.T @ V
+    return _svd_inverse_and_projector(J, 0.0, rcond)[1]
 
 
 def speed_bounded_scale(
@@ -179,6 +228,39 @@ def speed_bounded_scale(
     return float(min(1.0, np.min(room))) if room.size else 1.0
 
 
+def joint_velocity_bounds(
+    q: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    velocity_limits: np.ndarray,
+    period: float,
+    deceleration: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The joint-velocity box ``[lo, hi]`` of one step (as in Flacco et al. 2015).
+
+    ``hi = min(v_max, (upper - q) / period, sqrt(2 a_max (upper - q)))`` and
+    ``lo = -min(v_max, (q - lower) / period, sqrt(2 a_max (q - lower)))``: a joint that
+    keeps within the box stays inside its position limits, at most ``v_max`` fast, and
+    can always brake to rest at a limit with deceleration ``a_max``.
+
+    Args:
+        q: joint positions (n, within the limits).
+        lower: lower joint limits (n).
+        upper: upper joint limits (n).
+        velocity_limits: ``v_max`` (n, > 0).
+        period: the step [s] (> 0).
+        deceleration: ``a_max`` [rad/s^2] (> 0; inf: no braking term).
+
+    Returns:
+        ``(lo, hi)``, ``lo <= 0 <= hi`` per joint.
+    """
+    up = np.maximum(upper - q, 0.0)
+    down = np.maximum(q - lower, 0.0)
+    hi = np.minimum(np.minimum(velocity_limits, up / period), np.sqrt(2.0 * deceleration * up))
+    lo = np.minimum(np.minimum(velocity_limits, down / period), np.sqrt(2.0 * deceleration * down))
+    return -lo, hi
+
+
 def rmrc_joint_velocity(
     J: np.ndarray,
     xdot_ref: np.ndarray,
@@ -191,42 +273,70 @@ def rmrc_joint_velocity(
     limit_gain: float = 0.0,
     limit_band: float = 0.1,
     velocity_limits: np.ndarray | None = None,
+    velocity_bounds: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
-    """Resolved-motion-rate joint velocity with joint-limit avoidance in the null space.
+    """Resolved-motion-rate joint velocity: the task within the joint bounds, then ``-grad P``.
 
-    ``qdot_0 = J# xdot_ref + (I - J# J) (-null_gain * grad H(q))`` with the damped
-    least-squares inverse ``J#`` and ``H`` of :func:`joint_limit_gradient`; then, when
-    ``limit_gain > 0``, ``qdot = qdot_0 + a N (-limit_gain * grad B(q))`` with the exact
-    null-space projector ``N`` (:func:`null_space_projector`), the barrier ``B`` of
-    :func:`joint_limit_barrier_gradient` and ``a`` from :func:`speed_bounded_scale`
-    against ``velocity_limits``. With no joint inside its band ``grad B = 0`` and
-    ``qdot = qdot_0`` exactly.
+    Without ``velocity_bounds``:
+    ``qdot = J# xdot_ref + a N (-grad P(q))`` with the damped least-squares inverse ``J#``,
+    the exact null-space projector ``N`` of ``J`` (:func:`null_space_projector`), the
+    secondary objective ``P`` of :func:`joint_limit_potential_gradient` (``mid_gain =
+    null_gain``, ``barrier_gain = limit_gain``, ``band = limit_band``) and ``a`` in [0, 1]
+    from :func:`speed_bounded_scale` against ``velocity_limits`` (1 when None). ``J qdot =
+    J J# xdot_ref``: the secondary motion changes no task velocity.
+
+    With ``velocity_bounds = (lo, hi)`` (:func:`joint_velocity_bounds`) the joint limits
+    are constraints of the solve (saturation in the null space, as in Flacco, De Luca and
+    Khatib, IEEE T-RO 2015, without their task scaling): while the solution leaves the
+    box, the joint farthest outside it is fixed at the bound it crossed (``z_j``), its
+    column dropped from ``J`` (``J_W = J W``) and the law re-solved over the other joints,
+    ``qdot = z + J_W# (xdot_ref - J z) + a N_W W (-grad P)``, with ``N_W`` the exact
+    projector of ``J_W``. The free joints thus take the saturated joints' share of the task
+    (exactly while ``J_W`` keeps the task's rank and ``damping`` is 0); when too few are
+    left, ``J_W#`` gives the least-squares compromise (scale the rows of ``J`` and
+    ``xdot_ref`` to weigh the task's components). At most n joints are saturated; the
+    result lies in the box up to round-off (clipped to it if every joint saturated).
 
     Args:
-        J: ``6 x n`` spatial-velocity Jacobian ``[angular; translational]``.
+        J: ``6 x n`` spatial-velocity Jacobian ``[angular; translational]`` (rows may be
+            weighted, with ``xdot_ref`` weighted alike).
         xdot_ref: reference spatial velocity ``[w_ref; v_ref]`` (6).
         q: joint positions (n).
         lower: lower joint limits (n).
         upper: upper joint limits (n).
         damping: damped least-squares factor.
-        null_gain: gain of the joint-limit avoidance in the null space.
-        limit_gain: gain of the barrier near the limits [rad^2/s] (0: off).
+        null_gain: weight of the mid-range preference ``H`` in ``P`` [rad^2/s].
+        limit_gain: weight of the barrier ``B`` near the limits in ``P`` [rad^2/s].
         limit_band: the barrier's band as a fraction of each joint's range.
-        velocity_limits: joint speed bounds for the barrier's motion (n; None: none).
+        velocity_limits: speed bounds of the secondary motion (n; None: none).
+        velocity_bounds: the hard joint-velocity box ``(lo, hi)``, ``lo <= 0 <= hi``
+            (None: unbounded).
     """
-    J_pinv = damped_pseudoinverse(J, damping)
     n = J.shape[1]
-    qdot_null = -null_gain * joint_limit_gradient(q, lower, upper)
-    qdot = J_pinv @ xdot_ref + (np.eye(n) - J_pinv @ J) @ qdot_null
-    if limit_gain == 0.0:
-        return qdot
-    grad = joint_limit_barrier_gradient(q, lower, upper, limit_band)
-    if not np.any(grad):
-        return qdot
-    qdot_limit = null_space_projector(J) @ (-limit_gain * grad)
-    if velocity_limits is not None:
-        qdot_limit = speed_bounded_scale(qdot, qdot_limit, velocity_limits) * qdot_limit
-    return qdot + qdot_limit
+    qdot_0 = -joint_limit_potential_gradient(
+        q, lower, upper, mid_gain=null_gain, barrier_gain=limit_gain, band=limit_band
+    )
+    free = np.ones(n, dtype=bool)
+    z = np.zeros(n)
+    for _ in range(n):
+        J_pinv, N, _ = _svd_inverse_and_projector(J * free, damping)
+        # (the saturated joints' rows of J_W# and N_W are zero up to round-off: made exact)
+        qdot = z + free * (J_pinv @ (xdot_ref - J @ z))
+        qdot_null = free * (N @ (free * qdot_0))
+        if np.any(qdot_null):
+            if velocity_limits is not None:
+                qdot_null *= speed_bounded_scale(qdot, qdot_null, velocity_limits)
+            qdot = qdot + qdot_null
+        if velocity_bounds is None:
+            return qdot
+        lo, hi = velocity_bounds
+        excess = np.maximum(qdot - hi, lo - qdot)
+        j = int(np.argmax(excess))
+        if excess[j] <= 1e-12 * (1.0 + abs(qdot[j])):
+            return qdot
+        free[j] = False
+        z[j] = hi[j] if qdot[j] > hi[j] else lo[j]
+    return np.clip(z, *velocity_bounds)
 
 
 def finite_3vector(name: str, value) -> np.ndarray:
@@ -348,17 +458,26 @@ class ResolvedMotionRateIK(LeafSystem):
     Every ``period`` seconds the reference joint positions ``q_r`` (discrete
     state) are advanced by ``period * qdot_r`` with
 
-    ``qdot_r = J# [w_d + K_o e_o; v_d + K_p (p_d - p(q_r))] + (I - J# J)(-k_n grad H)
-    + a N (-k_b grad B)``
+    ``qdot_r = J# xdot_ref + a N (-grad P(q_r))``,
+    ``xdot_ref = [w_d + K_o e_o; v_d + K_p (p_d - p(q_r))]``
 
     where ``J`` is the end-effector Jacobian at ``q_r`` (evaluated in a plant
-    Context held in a cache entry), ``J#`` its damped least-squares inverse and
-    ``e_o`` the quaternion error; the last term (``limit_gain`` k_b > 0) is the barrier
-    ``B`` active within ``limit_band`` of a limit, projected with the exact null-space
-    projector ``N`` and scaled by ``a`` in [0, 1] to stay within the velocity limits
-    (:func:`rmrc_joint_velocity`). ``qdd_r`` is the backward difference of
-    ``qdot_r``. ``q_r`` starts at the measured joint positions (initialisation
-    event) and is kept inside the joint limits. The kinematic loop is closed on
+    Context held in a cache entry), ``J#`` its damped least-squares inverse, ``e_o``
+    the quaternion error, ``N`` the exact null-space projector of ``J`` and ``P =
+    null_gain H + limit_gain B`` one secondary objective (:func:`joint_limit_potential_gradient`:
+    mid-range preference everywhere plus a barrier within ``limit_band`` of a limit),
+    its motion scaled by ``a`` in [0, 1] to keep within ``limit_speed_fraction`` of the
+    velocity limits. The joint limits are constraints of this solve, not only of the
+    secondary objective: ``qdot_r`` must lie in the box of :func:`joint_velocity_bounds`
+    (velocity limits, position limits one period ahead, braking to a limit at
+    ``limit_deceleration``), and a joint that would leave it is saturated and the task
+    re-solved over the others (saturation in the null space, :func:`rmrc_joint_velocity`);
+    the rows of ``J`` and ``xdot_ref`` are weighted by the monitor's tolerances
+    (``orientation_tolerance / error_tolerance`` on the position rows, 1 on the
+    orientation rows), so when the joints left cannot do the whole task, position and
+    orientation give way in proportion to what the monitor allows (least squares).
+    ``qdd_r`` is the backward difference of ``qdot_r``. ``q_r`` starts at the
+    measured joint positions (initialisation event). The kinematic loop is closed on
     ``q_r`` (as in the paper's Fig. 11); the torque controller closes the loop on
     the measured state.
 
@@ -400,6 +519,7 @@ class ResolvedMotionRateIK(LeafSystem):
         limit_gain: float = 0.0,
         limit_band: float = 0.1,
         limit_speed_fraction: float = 0.5,
+        limit_deceleration: float = 10.0,
         reach_center: np.ndarray | None = None,
         max_reach: float = np.inf,
         error_tolerance: float = 0.03,
@@ -418,13 +538,16 @@ class ResolvedMotionRateIK(LeafSystem):
             position_gain: K_p in 1/s.
             orientation_gain: K_o in 1/s.
             damping: damped least-squares factor.
-            null_gain: joint-limit avoidance gain (the quadratic cost, always on).
-            limit_gain: gain of the barrier that acts only within ``limit_band`` of a
-                joint limit, through the exact null-space projector [rad^2/s] (0: off;
-                see :func:`rmrc_joint_velocity`).
+            null_gain: weight of the mid-range preference in the secondary objective
+                [rad^2/s] (see :func:`joint_limit_potential_gradient`).
+            limit_gain: weight of the barrier that acts only within ``limit_band`` of a
+                joint limit in the secondary objective [rad^2/s] (0: off).
             limit_band: the barrier's band as a fraction of each joint's range.
-            limit_speed_fraction: the barrier's motion keeps every joint within this
-                fraction of its velocity limit (or the task's own speed, if higher).
+            limit_speed_fraction: the secondary objective's motion keeps every joint
+                within this fraction of its velocity limit (or the task's own speed, if
+                higher).
+            limit_deceleration: the deceleration at which a joint can always brake to
+                rest at its position limit [rad/s^2] (:func:`joint_velocity_bounds`).
             reach_center: shoulder point in W for the reach check.
             max_reach: reach radius in m (see :func:`reach_bound`); inf disables.
             error_tolerance: position error in m above which tracking counts as lost.
@@ -459,6 +582,11 @@ class ResolvedMotionRateIK(LeafSystem):
                 raise RepertoireError(f"{name} must be finite and > 0, got {value}")
         if not (np.isfinite(limit_band) and 0.0 < limit_band <= 0.5):
             raise RepertoireError(f"limit_band must be in (0, 0.5], got {limit_band}")
+        if not limit_deceleration > 0.0:
+            raise RepertoireError(
+                f"limit_deceleration must be > 0 rad/s^2 (inf: no braking bound), "
+                f"got {limit_deceleration}"
+            )
         if not (np.isfinite(limit_speed_fraction) and limit_speed_fraction > 0.0):
             raise RepertoireError(
                 f"limit_speed_fraction must be finite and > 0, got {limit_speed_fraction}"
@@ -498,10 +626,15 @@ class ResolvedMotionRateIK(LeafSystem):
             raise RepertoireError(f"every arm joint needs a velocity limit > 0, got {v_max}")
         self._limit_band = float(limit_band)
         self._limit_speeds = float(limit_speed_fraction) * v_max
+        self._v_max = v_max
+        self._deceleration = float(limit_deceleration)
         self._center = center
         self._max_reach = float(max_reach)
         self._tol = float(error_tolerance)
         self._ori_tol = float(orientation_tolerance)
+        # Task rows normalised by their tolerances (1 rad of orientation error weighs as
+        # much as orientation_tolerance / error_tolerance m of position error).
+        self._task_weights = np.repeat([1.0, self._ori_tol / self._tol], 3)
         self._hold = float(error_hold_time)
 
         self._p_d = self.DeclareVectorInputPort("position_desired", 3)
@@ -608,8 +741,8 @@ class ResolvedMotionRateIK(LeafSystem):
         e_o = quaternion_error(q_d / norm, X_WE.rotation().ToQuaternion().wxyz())
         xdot_ref = np.concatenate([w_d + ko * e_o, v_d + kp * e_p])
         qd = rmrc_joint_velocity(
-            J,
-            xdot_ref,
+            self._task_weights[:, None] * J,
+            self._task_weights * xdot_ref,
             q_r,
             self._lower,
             self._upper,
@@ -618,6 +751,9 @@ class ResolvedMotionRateIK(LeafSystem):
             limit_gain=limit_gain,
             limit_band=self._limit_band,
             velocity_limits=self._limit_speeds,
+            velocity_bounds=joint_velocity_bounds(
+                q_r, self._lower, self._upper, self._v_max, h, self._deceleration
+            ),
         )
         q_new = np.clip(q_r + h * qd, self._lower, self._upper)
         qd = (q_new - q_r) / h

@@ -208,8 +208,9 @@ def test_target_leaving_the_reach_during_a_run_stops_it():
     with pytest.raises(IkTargetError, match="target out of reach.* at t = 0.00"):
         run_arm_world(diagram, 1.0)
     # Simulated on without the monitor (as `repertoire simulate` does), the IK's latched
-    # status shows in the figures: the desired tcp, still inside the reach sphere, falls
-    # behind (tracking lost by 1.5 s) before it leaves the sphere.
+    # status shows in the figures: the tcp follows the rising target (the joints at their
+    # limits leave their share to the others; the orientation gives way, within its
+    # tolerance) until the desired tcp leaves the reach sphere, at about 1.9 s.
     from repertoire.diagrams.arm_dmp_results import ik_status_figures
     from repertoire.diagrams.simulate import simulate
 
@@ -218,10 +219,10 @@ def test_target_leaving_the_reach_during_a_run_stops_it():
         "ik_target_out_of_reach": 0.0,
         "ik_tracking_lost": 0.0,
     }
-    simulator.AdvanceTo(1.5)
+    simulator.AdvanceTo(2.0)
     assert ik_status_figures(diagram, context) == {
-        "ik_target_out_of_reach": 0.0,
-        "ik_tracking_lost": 1.0,
+        "ik_target_out_of_reach": 1.0,
+        "ik_tracking_lost": 0.0,
     }
 
 

@@ -23,6 +23,8 @@ from repertoire.systems.task_space import (
     damped_pseudoinverse,
     joint_limit_barrier_gradient,
     joint_limit_gradient,
+    joint_limit_potential_gradient,
+    joint_velocity_bounds,
     null_space_projector,
     pose_position_residual,
     quaternion_error,
@@ -110,6 +112,10 @@ def test_damped_pseudoinverse_and_null_space():
     J = np.array([[1.0, 0.0, 2.0], [0.0, 1.0, 1.0]])
     assert np.allclose(J @ damped_pseudoinverse(J, 0.0), np.eye(2), atol=1e-14)
     assert np.allclose(damped_pseudoinverse(J, 0.0), np.linalg.pinv(J), atol=1e-14)
+    closed_form = J.T @ np.linalg.inv(J @ J.T + 0.3**2 * np.eye(2))
+    np.testing.assert_allclose(damped_pseudoinverse(J, 0.3), closed_form, rtol=1e-13)
+    rank_one = np.array([[1.0, 2.0], [2.0, 4.0]])  # singular J J^T: still the pseudo-inverse
+    np.testing.assert_allclose(damped_pseudoinverse(rank_one, 0.0), np.linalg.pinv(rank_one))
     lower, upper = -np.ones(3), 3 * np.ones(3)
     assert np.allclose(joint_limit_gradient(np.ones(3), lower, upper), 0.0)
     assert np.allclose(joint_limit_gradient(np.array([3.0, 1, 1]), lower, upper), [0.25, 0, 0])
@@ -204,6 +210,92 @@ def test_barrier_motion_adds_no_task_velocity_and_keeps_the_speed_bound():
         assert np.all(np.abs(qd) <= np.maximum(v_max, np.abs(base)) + 1e-12)
         # The barrier's motion lowers B to first order: grad B . (qd - base) < 0.
         assert joint_limit_barrier_gradient(q, lower, upper, 0.1) @ (qd - base) < 0.0
+
+
+def test_joint_limit_potential_gradient_is_the_weighted_sum():
+    lower, upper = -np.ones(4), 3 * np.ones(4)  # mid 1, range 4; band 0.25: active outside [0, 2]
+    q = np.array([1.0, 2.0, 2.5, -0.5])
+    # H' = 2 (q - 1) / 16 = [0, 1/8, 3/16, -3/16]; B' = [0, 0, 1, -1] (closed forms above)
+    grad = joint_limit_potential_gradient(
+        q, lower, upper, mid_gain=0.5, barrier_gain=3.0, band=0.25
+    )
+    np.testing.assert_allclose(grad, [0.0, 0.0625, 0.09375 + 3.0, -0.09375 - 3.0], rtol=1e-15)
+    # Only the barrier: zero for every joint outside its band.
+    only_barrier = joint_limit_potential_gradient(
+        np.array([0.0, 1.0, 2.0, 1.7]), lower, upper, mid_gain=0.0, barrier_gain=3.0, band=0.25
+    )
+    assert np.array_equal(only_barrier, np.zeros(4))
+    for kwargs, match in (
+        ({"mid_gain": -1.0, "barrier_gain": 1.0}, "mid_gain must be finite and >= 0, got -1.0"),
+        ({"mid_gain": 1.0, "barrier_gain": np.nan}, "barrier_gain must be finite and >= 0"),
+    ):
+        with pytest.raises(RepertoireError, match=match):
+            joint_limit_potential_gradient(q, lower, upper, band=0.25, **kwargs)
+
+
+def test_joint_velocity_bounds_closed_form():
+    lower, upper = np.array([-1.0, -1.0, -1.0]), np.array([1.0, 1.0, 1.0])
+    v_max = np.array([2.0, 2.0, 2.0])
+    q = np.array([0.0, 0.99, -1.0])
+    lo, hi = joint_velocity_bounds(q, lower, upper, v_max, 0.004, 8.0)
+    # joint 0: 1 rad from both limits: the speed limit (sqrt(16) = 4 > 2, 1 / 0.004 > 2);
+    # joint 1: 0.01 rad below the upper limit: sqrt(2 * 8 * 0.01) = 0.4 (0.01 / 0.004 = 2.5);
+    # joint 2: at its lower limit: nothing below; 2 rad above: the speed limit.
+    np.testing.assert_allclose(hi, [2.0, 0.4, 2.0], rtol=1e-15)
+    np.testing.assert_allclose(lo, [-2.0, -2.0, 0.0], rtol=1e-15)
+    # One period ahead bounds it when the period is long: 0.01 / 0.1 = 0.1.
+    _, hi = joint_velocity_bounds(q, lower, upper, v_max, 0.1, 8.0)
+    assert hi[1] == pytest.approx(0.1, rel=1e-15)
+
+
+def test_saturated_joint_leaves_its_share_to_the_others():
+    rng = np.random.default_rng(8)
+    lower, upper = -2.9 * np.ones(7), 2.9 * np.ones(7)
+    for _ in range(10):
+        J = rng.normal(size=(6, 7))
+        xdot = rng.normal(size=6)
+        q = rng.uniform(-1.0, 1.0, size=7)
+        free = rmrc_joint_velocity(J, xdot, q, lower, upper, 0.0, 0.0)
+        j = int(np.argmax(np.abs(free)))
+        # A box the free solution fits in: the same solution, bit for bit.
+        wide = (-np.abs(free) - 1.0, np.abs(free) + 1.0)
+        qd = rmrc_joint_velocity(J, xdot, q, lower, upper, 0.0, 0.0, velocity_bounds=wide)
+        assert np.array_equal(qd, free)
+        # Joint j may move only half as fast as it would: it is saturated at that bound and
+        # the other six joints do the whole task, exactly (closed form over their columns).
+        lo, hi = -np.inf * np.ones(7), np.inf * np.ones(7)
+        bound = 0.5 * free[j]
+        (hi if bound > 0 else lo)[j] = bound
+        (lo if bound > 0 else hi)[j] = 0.0
+        qd = rmrc_joint_velocity(J, xdot, q, lower, upper, 0.0, 0.0, velocity_bounds=(lo, hi))
+        others = np.arange(7) != j
+        expected = np.linalg.solve(J[:, others], xdot - J[:, j] * bound)
+        assert qd[j] == bound
+        np.testing.assert_allclose(qd[others], expected, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(J @ qd, xdot, atol=1e-10)
+        # The secondary objective then moves in the null space of the six free columns:
+        # that is only the zero vector (rank 6), so it adds nothing.
+        with_null = rmrc_joint_velocity(
+            J, xdot, q + 1.5, lower, upper, 0.0, 1.0, limit_gain=2.0, velocity_bounds=(lo, hi)
+        )
+        np.testing.assert_allclose(J @ with_null, xdot, atol=1e-10)
+
+
+def test_too_few_joints_give_the_least_squares_compromise():
+    # A planar 3-joint task (2 rows) with joint 0 locked at 0: the two others cannot do
+    # a 2-d task whose columns they lack; the result is the least-squares solution.
+    J = np.array([[1.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    xdot = np.array([1.0, 0.0])
+    lower, upper = -np.ones(3), np.ones(3)
+    box = (np.array([0.0, -5.0, -5.0]), np.array([0.0, 5.0, 5.0]))
+    qd = rmrc_joint_velocity(J, xdot, np.zeros(3), lower, upper, 0.0, 0.0, velocity_bounds=box)
+    # min |J qd - xdot| with qd_0 = 0: row 0 cannot be helped; row 1 is met with the
+    # minimum-norm split qd_1 = qd_2 = 0.
+    np.testing.assert_allclose(qd, [0.0, 0.0, 0.0], atol=1e-15)
+    # All joints outside a box that is empty of motion: every one saturated at 0.
+    zero = (np.zeros(3), np.zeros(3))
+    qd = rmrc_joint_velocity(J, xdot, np.zeros(3), lower, upper, 0.0, 0.0, velocity_bounds=zero)
+    assert np.array_equal(qd, np.zeros(3))
 
 
 def test_reach_bound_and_check():
@@ -331,6 +423,60 @@ def test_barrier_step_of_the_system_is_the_projected_speed_bounded_gradient():
     assert np.linalg.norm(_pose(plant, state[:7]).translation() - X.translation()) < dq**2
 
 
+def test_joint_at_its_limit_stays_there_and_the_others_do_the_task():
+    plant = _make_plant()
+    period = 1e-3
+    # No feedback, no secondary objective, no damping: xdot_ref = [w_d; v_d] exactly.
+    system = _system(
+        plant,
+        period=period,
+        position_gain=0.0,
+        orientation_gain=0.0,
+        damping=0.0,
+        null_gain=0.0,
+    )
+    q0 = Q0.copy()
+    q0[4] = 2.9  # the wrist's z joint at its upper limit
+    J = _jacobian(plant, q0)
+    xdot = J @ np.array([0.1, -0.2, 0.1, 0.2, 0.5, 0.1, -0.1])  # joint 4 would go up
+    context = system.CreateDefaultContext()
+    X = _pose(plant, q0)
+    _fix(
+        system,
+        context,
+        X.translation(),
+        X.rotation().ToQuaternion().wxyz(),
+        xdot[3:],
+        xdot[:3],
+        q_meas=q0,
+    )
+    Simulator(system, context).AdvanceTo(period)
+    state = system.GetOutputPort("arm_reference_state").Eval(context)
+    lower, upper = -2.9 * np.ones(7), 2.9 * np.ones(7)
+    weights = np.repeat([1.0, 0.3 / 0.03], 3)  # orientation rows, position rows
+    bounds = joint_velocity_bounds(q0, lower, upper, 3.0 * np.ones(7), period, 10.0)
+    assert bounds[1][4] == 0.0
+    expected = rmrc_joint_velocity(
+        weights[:, None] * J,
+        weights * xdot,
+        q0,
+        lower,
+        upper,
+        0.0,
+        0.0,
+        velocity_limits=0.5 * 3.0 * np.ones(7),
+        velocity_bounds=bounds,
+    )
+    np.testing.assert_allclose(state[7:], expected, rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(state[:7], q0 + period * expected, rtol=0, atol=1e-15)
+    assert state[7 + 4] == 0.0 and state[4] == 2.9  # the saturated joint stays at its limit
+    np.testing.assert_allclose(J @ state[7:], xdot, atol=1e-9)  # the others do the whole task
+    others = np.arange(7) != 4
+    np.testing.assert_allclose(
+        state[7:][others], np.linalg.solve(J[:, others], xdot), rtol=1e-8, atol=1e-10
+    )
+
+
 def test_barrier_off_the_band_leaves_the_system_unchanged():
     plant = _make_plant()
     X = _pose(plant, Q0)
@@ -437,6 +583,8 @@ def test_orientation_error_alone_is_reported_as_lost_tracking(angle, lost):
         ({"limit_gain": -1.0}, "limit_gain must be finite and >= 0, got -1.0"),
         ({"limit_band": 0.6}, r"limit_band must be in \(0, 0.5\], got 0.6"),
         ({"limit_speed_fraction": 0.0}, "limit_speed_fraction must be finite and > 0, got 0.0"),
+        ({"limit_deceleration": 0.0}, r"limit_deceleration must be > 0 rad/s\^2 .*got 0.0"),
+        ({"limit_deceleration": np.nan}, r"limit_deceleration must be > 0 rad/s\^2 .*got nan"),
     ],
 )
 def test_bad_tolerances_and_reach_sphere_are_refused(kwargs, match):

@@ -39,6 +39,7 @@ from repertoire.studies.registry import lookup_in_module
 from repertoire.studies.store import from_plain, to_plain
 
 from repertoire.errors import RepertoireError
+from repertoire.interrupts import check_interrupted, sigint_blocked
 
 # Imported once by the fork server, before it forks any worker.
 PRELOAD = (
@@ -174,6 +175,7 @@ def iter_inline(module: str, name: str, config_json: str, seeds: list[int]) -> I
     """Runs the seeds one after the other in this process (one BLAS thread for all)."""
     with one_blas_thread():
         for seed in seeds:
+            check_interrupted()
             yield run_task(module, name, config_json, seed)
 
 
@@ -260,7 +262,11 @@ def prestart_fork_server() -> threading.Thread | None:
         return None
     from multiprocessing import forkserver
 
-    thread = threading.Thread(target=forkserver.ensure_running, daemon=True)
+    def start() -> None:
+        with sigint_blocked():
+            forkserver.ensure_running()
+
+    thread = threading.Thread(target=start, daemon=True)
     thread.start()
     return thread
 
@@ -320,7 +326,8 @@ class WorkerPool:
             args=(child_conn, os.getpid(), list(sys.path), *self._args),
             daemon=True,
         )
-        proc.start()
+        with sigint_blocked():  # only the engine takes Ctrl-C (see _worker_main)
+            proc.start()
         child_conn.close()  # only the worker holds its end: its death is EOF here
         return _Worker(proc, parent_conn)
 
@@ -396,6 +403,7 @@ class WorkerPool:
             self._replace(worker, True)
 
         while True:
+            check_interrupted()
             for worker in list(self._workers):
                 feed(worker)
             by_handle = {}

@@ -247,6 +247,21 @@ def pool_context():
     return multiprocessing.get_context("spawn")
 
 
+@contextlib.contextmanager
+def _children_without_sigint() -> Iterator[None]:
+    """A context in which the processes this thread starts block SIGINT for life.
+
+    Only the engine takes Ctrl-C: see :func:`repertoire.interrupts.sigint_blocked`.
+    The resource tracker is started first, outside: starting it unblocks SIGINT
+    in the calling thread (it ignores SIGINT itself).
+    """
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    with sigint_blocked():
+        yield
+
+
 def prestart_fork_server() -> threading.Thread | None:
     """Starts the fork server (and its pydrake import) in the background, if there is one.
 
@@ -263,7 +278,7 @@ def prestart_fork_server() -> threading.Thread | None:
     from multiprocessing import forkserver
 
     def start() -> None:
-        with sigint_blocked():
+        with _children_without_sigint():
             forkserver.ensure_running()
 
     thread = threading.Thread(target=start, daemon=True)
@@ -326,7 +341,7 @@ class WorkerPool:
             args=(child_conn, os.getpid(), list(sys.path), *self._args),
             daemon=True,
         )
-        with sigint_blocked():  # only the engine takes Ctrl-C (see _worker_main)
+        with _children_without_sigint():  # the fork server too, if this starts it
             proc.start()
         child_conn.close()  # only the worker holds its end: its death is EOF here
         return _Worker(proc, parent_conn)

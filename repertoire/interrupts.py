@@ -39,8 +39,8 @@ def interruptible(command: Callable[[], int]) -> int:
 
     In the main thread SIGINT is recorded (see :func:`check_interrupted`) as
     well as raised for as long as the command runs, so an interrupt that some
-    library turned into another exception, or swallowed, still ends the
-    command as an interrupt.
+    library turned into another exception still ends the command as an
+    interrupt, and one it swallowed stops the run at the next seed.
 
     Args:
         command: the command; returns its exit code.
@@ -63,12 +63,9 @@ def interruptible(command: Callable[[], int]) -> int:
         except BaseException as e:
             if not isinstance(e, KeyboardInterrupt) and not _INTERRUPTED.is_set():
                 raise
-            code = 130
-        if _INTERRUPTED.is_set():
-            code = 130
-        if code == 130:
             print("interrupted", file=sys.stderr)
-        return code
+            return 130
+        return code  # a command that handles Ctrl-C itself (the live view) says how it ended
     finally:
         if install:
             signal.signal(signal.SIGINT, previous)

@@ -8,6 +8,7 @@ command line's entry point uses it before anything else is imported.
 """
 
 import contextlib
+import logging
 import os
 import signal
 import sys
@@ -34,6 +35,10 @@ def check_interrupted() -> None:
         raise KeyboardInterrupt
 
 
+def _not_after_ctrl_c(record: logging.LogRecord) -> bool:
+    return not _INTERRUPTED.is_set()
+
+
 def interruptible(command: Callable[[], int]) -> int:
     """Runs a command-line command; Ctrl-C anywhere in it prints ``interrupted``, returns 130.
 
@@ -57,6 +62,10 @@ def interruptible(command: Callable[[], int]) -> int:
     _INTERRUPTED.clear()
     if install:
         signal.signal(signal.SIGINT, _on_sigint)
+    # pydrake logs "Could not initialize pydrake: KeyboardInterrupt" with a stack when
+    # Ctrl-C lands in its initialisation: after a Ctrl-C, "interrupted" says it all
+    drake_log = logging.getLogger("drake")
+    drake_log.addFilter(_not_after_ctrl_c)
     try:
         try:
             code = command()
@@ -69,6 +78,7 @@ def interruptible(command: Callable[[], int]) -> int:
     finally:
         if install:
             signal.signal(signal.SIGINT, previous)
+        drake_log.removeFilter(_not_after_ctrl_c)
         _INTERRUPTED.clear()
 
 

@@ -7,6 +7,7 @@ group, so the interrupt lands in that phase every time, whatever the machine's
 load. (A fixed delay lands in a different phase on a loaded machine.)
 """
 
+import logging
 import os
 import signal
 import sqlite3
@@ -136,16 +137,20 @@ def _swallowing_command(convert: bool):
             os.kill(os.getpid(), signal.SIGINT)  # delivered here, in the main thread
             time.sleep(5.0)  # the handler interrupts this at once
         except KeyboardInterrupt:
-            if convert:  # as pydrake's module initialisation does
+            if convert:  # as pydrake's module initialisation does, logging it first
+                logging.getLogger("drake").critical("Could not initialize pydrake: ...")
                 raise ImportError("cannot import name 'MultibodyPlant'") from None
         return 0
 
     return command
 
 
-def test_an_interrupt_turned_into_another_error_still_ends_the_command(capsys):
+def test_an_interrupt_turned_into_another_error_still_ends_the_command(capsys, caplog):
     assert interruptible(_swallowing_command(convert=True)) == 130
     assert capsys.readouterr().err == "interrupted\n"
+    assert caplog.records == []  # pydrake's log line about it is dropped
+    logging.getLogger("drake").critical("no Ctrl-C: kept")
+    assert [r.getMessage() for r in caplog.records] == ["no Ctrl-C: kept"]
     # the command's handler is gone, and with it the record of that Ctrl-C
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     check_interrupted()

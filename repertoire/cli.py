@@ -391,15 +391,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     from repertoire.errors import RepertoireError
+    from repertoire.interrupts import interruptible
 
-    try:
-        return _COMMANDS[args.command](args)
+    try:  # Ctrl-C: "interrupted", 130 (finished episodes of a study stay stored)
+        return interruptible(lambda: _COMMANDS[args.command](args))
     except RepertoireError as e:
         print(f"repertoire {args.command}: error: {e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:  # `repertoire list | head`: the reader has all it wanted
         import os
 

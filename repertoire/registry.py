@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterable, MutableMapping
 from typing import Any
 
 from repertoire.errors import RepertoireError, UnknownNameError
+from repertoire.interrupts import check_interrupted
 
 # A module run as a script (``python -m``) registers again under these names.
 MAIN_MODULES = frozenset({"__main__", "__mp_main__"})
@@ -78,6 +79,7 @@ def discover(package: str, skip: Iterable[str], failures: MutableMapping[str, st
         try:
             importlib.import_module(qualified)
         except Exception as e:  # one broken module must not hide the others
+            check_interrupted()  # not broken: Ctrl-C landed in its import (pydrake's)
             failures[qualified] = f"{type(e).__name__}: {e}"
 
 

@@ -83,6 +83,7 @@ from repertoire.studies.store import (
 )
 
 from repertoire.errors import RepertoireError
+from repertoire.interrupts import exit_process, interruptible
 from repertoire.limits import (
     path_argument,
     require_memory,
@@ -691,21 +692,22 @@ def study_main(
     )
     add_study_arguments(parser, with_name=name is None)
     args = parser.parse_args(argv)
-    if args.executor == "process":
-        prestart_fork_server()  # its pydrake import overlaps config loading here
-    try:
+
+    def command() -> int:
+        if args.executor == "process":
+            prestart_fork_server()  # its pydrake import overlaps config loading here
         run_study_from_args(args, name)
+        return 0
+
+    try:  # Ctrl-C: "interrupted", 130; finished episodes are stored, a rerun resumes
+        return interruptible(command)
     except RepertoireError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     except EpisodeError as e:  # an episode failed or crashed: a failed run, not bad input
         print(f"run failed: {e}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:  # Ctrl-C: finished episodes are stored, a rerun resumes
-        print("interrupted", file=sys.stderr)
-        return 130
-    return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(study_main())
+    exit_process(study_main())

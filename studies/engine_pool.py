@@ -39,6 +39,7 @@ from repertoire.studies.registry import lookup_in_module
 from repertoire.studies.store import from_plain, to_plain
 
 from repertoire.errors import RepertoireError
+from repertoire.interrupts import check_interrupted, sigint_blocked
 
 # Imported once by the fork server, before it forks any worker.
 PRELOAD = (
@@ -174,6 +175,7 @@ def iter_inline(module: str, name: str, config_json: str, seeds: list[int]) -> I
     """Runs the seeds one after the other in this process (one BLAS thread for all)."""
     with one_blas_thread():
         for seed in seeds:
+            check_interrupted()
             yield run_task(module, name, config_json, seed)
 
 
@@ -245,6 +247,21 @@ def pool_context():
     return multiprocessing.get_context("spawn")
 
 
+@contextlib.contextmanager
+def _children_without_sigint() -> Iterator[None]:
+    """A context in which the processes this thread starts block SIGINT for life.
+
+    Only the engine takes Ctrl-C: see :func:`repertoire.interrupts.sigint_blocked`.
+    The resource tracker is started first, outside: starting it unblocks SIGINT
+    in the calling thread (it ignores SIGINT itself).
+    """
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    with sigint_blocked():
+        yield
+
+
 def prestart_fork_server() -> threading.Thread | None:
     """Starts the fork server (and its pydrake import) in the background, if there is one.
 
@@ -260,7 +277,11 @@ def prestart_fork_server() -> threading.Thread | None:
         return None
     from multiprocessing import forkserver
 
-    thread = threading.Thread(target=forkserver.ensure_running, daemon=True)
+    def start() -> None:
+        with _children_without_sigint():
+            forkserver.ensure_running()
+
+    thread = threading.Thread(target=start, daemon=True)
     thread.start()
     return thread
 
@@ -320,7 +341,8 @@ class WorkerPool:
             args=(child_conn, os.getpid(), list(sys.path), *self._args),
             daemon=True,
         )
-        proc.start()
+        with _children_without_sigint():  # the fork server too, if this starts it
+            proc.start()
         child_conn.close()  # only the worker holds its end: its death is EOF here
         return _Worker(proc, parent_conn)
 
@@ -396,6 +418,7 @@ class WorkerPool:
             self._replace(worker, True)
 
         while True:
+            check_interrupted()
             for worker in list(self._workers):
                 feed(worker)
             by_handle = {}

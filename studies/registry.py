@@ -91,7 +91,9 @@ class StudyEntry:
             This entry (when the module was imported, not run).
         """
         if module_name == "__main__":
-            raise SystemExit(self.main())
+            from repertoire.interrupts import exit_process
+
+            exit_process(self.main())
         return self
 
 

@@ -335,6 +335,7 @@ def test_ctrl_c_on_a_pool_run_prints_one_line_and_keeps_the_store_consistent(tmp
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        cwd=tmp_path,  # not a source tree: the package comes from where this test's does
         start_new_session=True,  # Ctrl-C in a terminal signals the whole process group
     )
     store = out / "episodes.sqlite"

@@ -98,6 +98,9 @@ def test_ctrl_c_at_each_start_up_phase_ends_the_run_with_one_line(tmp_path, wher
         env=env,
         cwd=tmp_path,  # not a source tree: the package comes from where this test's does
         start_new_session=True,  # Ctrl-C in a terminal signals the whole process group
+        # a terminal's Ctrl-C, even when the tests run where SIGINT is ignored (nohup, a
+        # background job): the child starts with SIGINT's default action
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         deadline = time.monotonic() + 120.0
@@ -127,6 +130,14 @@ def test_ctrl_c_at_each_start_up_phase_ends_the_run_with_one_line(tmp_path, wher
         except sqlite3.OperationalError:  # created but not yet given its tables
             rows = []
         assert len({r.seed for r in rows}) == len(rows) < 400
+
+
+@pytest.fixture(autouse=True)
+def _terminal_sigint():
+    """SIGINT's handler as in a terminal, also when the tests run with it ignored (nohup)."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
 
 
 def _swallowing_command(convert: bool):

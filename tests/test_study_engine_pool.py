@@ -337,6 +337,9 @@ def test_ctrl_c_on_a_pool_run_prints_one_line_and_keeps_the_store_consistent(tmp
         text=True,
         cwd=tmp_path,  # not a source tree: the package comes from where this test's does
         start_new_session=True,  # Ctrl-C in a terminal signals the whole process group
+        # a terminal's Ctrl-C, even when the tests run where SIGINT is ignored (nohup, a
+        # background job): the child starts with SIGINT's default action
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     store = out / "episodes.sqlite"
     deadline = time.monotonic() + 120.0

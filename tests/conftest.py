@@ -1,6 +1,7 @@
 """Shared test fixtures: a small pendulum world and an isolated diagram registry."""
 
 import dataclasses
+import os
 
 import numpy as np
 import pytest
@@ -86,3 +87,12 @@ def grasp_demo():
         1.0,
         n_samples=300,
     )
+
+
+def group_alive(pgid: int) -> bool:
+    """Whether any process of process group ``pgid`` is still alive."""
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True

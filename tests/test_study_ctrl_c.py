@@ -17,6 +17,7 @@ import textwrap
 import time
 
 import pytest
+from conftest import group_alive
 from repertoire.studies.engine_pool import iter_inline
 from repertoire.studies.store import read_store
 
@@ -63,14 +64,6 @@ _PAUSE_HOOK = textwrap.dedent(
 )
 
 
-def _group_alive(pgid: int) -> bool:
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    return True
-
-
 @pytest.mark.parametrize(
     ("where", "module"),
     [
@@ -114,13 +107,13 @@ def test_ctrl_c_at_each_start_up_phase_ends_the_run_with_one_line(tmp_path, wher
         assert proc.returncode == 130, err
         assert err.strip() == "interrupted", err
         for _ in range(50):  # the workers, fork server and resource tracker go too
-            if not _group_alive(proc.pid):
+            if not group_alive(proc.pid):
                 break
             time.sleep(0.2)
         else:
             raise AssertionError("processes of the interrupted run are still alive")
     finally:
-        if _group_alive(proc.pid):
+        if group_alive(proc.pid):
             os.killpg(proc.pid, signal.SIGKILL)
             proc.communicate()
     store = out / "episodes.sqlite"

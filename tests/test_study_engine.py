@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import group_alive
 from repertoire.studies import registry
 from repertoire.studies.engine import (
     EpisodeError,
@@ -411,14 +412,6 @@ def _count_rows(path: Path) -> int:
         return 0
 
 
-def _group_alive(pgid: int) -> bool:
-    try:
-        os.killpg(pgid, 0)
-    except ProcessLookupError:
-        return False
-    return True
-
-
 def test_resume_after_sigkill_loses_nothing_and_duplicates_nothing(tmp_path):
     n = 16
     store = tmp_path / "killed.sqlite"
@@ -438,11 +431,11 @@ def test_resume_after_sigkill_loses_nothing_and_duplicates_nothing(tmp_path):
         proc.wait(timeout=10.0)
         # The orphaned pool workers notice their parent is gone and exit by themselves.
         deadline = time.monotonic() + 15.0
-        while _group_alive(proc.pid) and time.monotonic() < deadline:
+        while group_alive(proc.pid) and time.monotonic() < deadline:
             time.sleep(0.1)
-        assert not _group_alive(proc.pid), "pool workers outlived the killed engine"
+        assert not group_alive(proc.pid), "pool workers outlived the killed engine"
     finally:
-        if _group_alive(proc.pid):
+        if group_alive(proc.pid):
             os.killpg(proc.pid, signal.SIGKILL)
         proc.stderr.close()
 

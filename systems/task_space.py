@@ -256,8 +256,11 @@ def joint_velocity_bounds(
     """
     up = np.maximum(upper - q, 0.0)
     down = np.maximum(q - lower, 0.0)
-    hi = np.minimum(np.minimum(velocity_limits, up / period), np.sqrt(2.0 * deceleration * up))
-    lo = np.minimum(np.minimum(velocity_limits, down / period), np.sqrt(2.0 * deceleration * down))
+    hi = np.minimum(velocity_limits, up / period)
+    lo = np.minimum(velocity_limits, down / period)
+    if np.isfinite(deceleration):  # (inf * 0 at a joint on its limit would be NaN)
+        hi = np.minimum(hi, np.sqrt(2.0 * deceleration * up))
+        lo = np.minimum(lo, np.sqrt(2.0 * deceleration * down))
     return -lo, hi
 
 

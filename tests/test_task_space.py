@@ -246,6 +246,11 @@ def test_joint_velocity_bounds_closed_form():
     # One period ahead bounds it when the period is long: 0.01 / 0.1 = 0.1.
     _, hi = joint_velocity_bounds(q, lower, upper, v_max, 0.1, 8.0)
     assert hi[1] == pytest.approx(0.1, rel=1e-15)
+    # No braking term (deceleration inf): the speed and one-period bounds alone, also for
+    # a joint on its limit (inf * 0 there must not make the box NaN)
+    lo, hi = joint_velocity_bounds(q, lower, upper, v_max, 0.004, np.inf)
+    np.testing.assert_array_equal(hi, [2.0, 2.0, 2.0])
+    np.testing.assert_array_equal(lo, [-2.0, -2.0, 0.0])
 
 
 def test_saturated_joint_leaves_its_share_to_the_others():

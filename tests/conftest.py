@@ -96,3 +96,28 @@ def group_alive(pgid: int) -> bool:
     except ProcessLookupError:
         return False
     return True
+
+
+def start_pool_study(seeds: int, out, cwd, env=None):
+    """``repertoire study pendulum -n seeds -j 2`` started as a terminal would start it.
+
+    In its own process group (Ctrl-C in a terminal signals the whole group) and with
+    SIGINT's default action, also when the tests run where SIGINT is ignored (nohup, a
+    background job); ``cwd`` should not be a source tree, so the package comes from where
+    the tests' does. Pipes for stdout and stderr (text).
+    """
+    import signal
+    import subprocess
+    import sys
+
+    argv = [sys.executable, "-m", "repertoire", "study", "pendulum", "-n", str(seeds), "-j", "2"]
+    return subprocess.Popen(
+        [*argv, "--out-dir", str(out), "--no-progress"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=cwd,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )

@@ -11,13 +11,11 @@ import logging
 import os
 import signal
 import sqlite3
-import subprocess
-import sys
 import textwrap
 import time
 
 import pytest
-from conftest import group_alive
+from conftest import group_alive, start_pool_study
 from repertoire.studies.engine_pool import iter_inline
 from repertoire.studies.store import read_store
 
@@ -82,19 +80,7 @@ def test_ctrl_c_at_each_start_up_phase_ends_the_run_with_one_line(tmp_path, wher
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(hook), env.get("PYTHONPATH", "")) if p)
     env.update(PAUSE_WHERE=where, PAUSE_MODULE=module, PAUSE_DIR=str(pause))
     out = tmp_path / "out"
-    argv = [sys.executable, "-m", "repertoire", "study", "pendulum", "-n", "400", "-j", "2"]
-    proc = subprocess.Popen(
-        [*argv, "--out-dir", str(out), "--no-progress"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=env,
-        cwd=tmp_path,  # not a source tree: the package comes from where this test's does
-        start_new_session=True,  # Ctrl-C in a terminal signals the whole process group
-        # a terminal's Ctrl-C, even when the tests run where SIGINT is ignored (nohup, a
-        # background job): the child starts with SIGINT's default action
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
+    proc = start_pool_study(400, out, tmp_path, env)
     try:
         deadline = time.monotonic() + 120.0
         while not any(pause.iterdir()):

@@ -10,6 +10,7 @@ import textwrap
 import types
 
 import pytest
+from conftest import start_pool_study
 from repertoire.studies import registry
 from repertoire.studies.engine import EpisodeError, run_study
 from repertoire.studies.engine_pool import WorkerPool, describe_exit, run_task
@@ -329,18 +330,7 @@ def test_ctrl_c_on_a_pool_run_prints_one_line_and_keeps_the_store_consistent(tmp
     out = tmp_path / "out"
     # far more seeds than run before the interrupt (~85 ms each), so the run is still going
     # when Ctrl-C comes even if a loaded machine delays this test's first read of the store
-    argv = [sys.executable, "-m", "repertoire", "study", "pendulum", "-n", "4000", "-j", "2"]
-    proc = subprocess.Popen(
-        [*argv, "--out-dir", str(out), "--no-progress"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        cwd=tmp_path,  # not a source tree: the package comes from where this test's does
-        start_new_session=True,  # Ctrl-C in a terminal signals the whole process group
-        # a terminal's Ctrl-C, even when the tests run where SIGINT is ignored (nohup, a
-        # background job): the child starts with SIGINT's default action
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
+    proc = start_pool_study(4000, out, tmp_path)
     store = out / "episodes.sqlite"
     deadline = time.monotonic() + 120.0
     while time.monotonic() < deadline:  # both workers run once an episode is stored

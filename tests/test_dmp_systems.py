@@ -482,3 +482,32 @@ def test_fused_task_space_dmp_system_takes_the_obstacle_velocity():
     p = sys.obstacle_coupling.GetOutputPort("coupling").Eval(sub)
     np.testing.assert_array_equal(p, obstacle_coupling(x, v, o, 1000.0, 20.0 / np.pi, vo))
     assert np.abs(p).max() > 0.1  # a real push (0.64 here: the start velocity is not zero)
+
+
+def test_every_vector_dmp_variant_reports_zero_acceleration_while_held():
+    """Before its start time the state is held, so the acceleration output is 0 in all four.
+
+    The discrete systems reported the equations' acceleration at the held start instead
+    (K f(1) / tau^2: the demonstration's initial acceleration), the continuous ones 0. At
+    the onset every variant gives the NumPy rollout's first acceleration.
+    """
+    from repertoire.systems.dmp_sequencer import DmpSequencer
+
+    t = np.linspace(0, 1, 201)
+    dmp = learn_dmp(t, np.c_[t**2, np.sin(2 * t)], n_basis=20)  # starts accelerating
+    onset = dmp.rollout(dt=1e-3).xdd[0]
+    assert np.abs(onset).max() > 0.1
+    for time_step in (1e-3, None):
+        system = DmpSystem(dmp, time_step=time_step)
+        sequencer = DmpSequencer([dmp], [0.5], goals=[dmp.goal], time_step=time_step)
+        ctx, seq_ctx = system.CreateDefaultContext(), sequencer.CreateDefaultContext()
+        system.GetInputPort("goal").FixValue(ctx, dmp.goal)
+        system.set_start_time(ctx, 0.5)
+        for held, expected in ((0.0, 0.0), (0.3, 0.0), (0.5, onset)):
+            ctx.SetTime(held)
+            seq_ctx.SetTime(held)
+            for out in (
+                system.GetOutputPort("acceleration").Eval(ctx),
+                sequencer.GetOutputPort("acceleration").Eval(seq_ctx),
+            ):
+                np.testing.assert_allclose(out, expected, rtol=1e-9, atol=1e-12)

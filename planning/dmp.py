@@ -548,6 +548,9 @@ class TaskSpaceDmp:
     @classmethod
     def from_dict(cls, d: dict) -> "TaskSpaceDmp":
         _check_type(d, "TaskSpaceDmp")
+        unknown = sorted(set(d) - {"type", "position", "orientation", "fingers"})
+        if unknown:  # a misspelt "fingers" would load a DMP without its fingers
+            raise RepertoireError(f"malformed TaskSpaceDmp record: unknown keys {unknown}")
         return cls(
             DmpParameters.from_dict(d["position"]),
             QuaternionDmpParameters.from_dict(d["orientation"]),

@@ -58,6 +58,23 @@ def _query_value(value):
         return value
 
 
+LIBRARY_KEYS = ("type", "format_version", "primitives")
+"""The keys of a library file (:meth:`MotionLibrary.to_dict`)."""
+PRIMITIVE_KEYS = ("name", "label", "dmp", "context")
+"""The keys of a primitive's record (:meth:`MotionPrimitive.to_dict`)."""
+
+
+def _refuse_unknown_keys(record: dict, known: tuple, where: str) -> None:
+    """RepertoireError naming the keys of ``record`` not in ``known`` (a misspelt key).
+
+    A misspelt optional key (``"contxt"``) would otherwise be dropped without a word: the
+    primitive loads with an empty context, and ``find`` no longer finds it.
+    """
+    unknown = sorted(set(record) - set(known))
+    if unknown:
+        raise RepertoireError(f"{where} has unknown keys {unknown}; expected only {list(known)}")
+
+
 LABELS = ("grasp", "place", "release", "pour", "retreat")
 TASKS: dict[str, list[str]] = {
     "pick_and_place": ["grasp", "place", "release"],
@@ -284,6 +301,7 @@ class MotionLibrary:
             )
         if "primitives" not in d:
             raise RepertoireError(f"{path}: MotionLibrary file has no 'primitives' key")
+        _refuse_unknown_keys(d, LIBRARY_KEYS, f"{path}: MotionLibrary file")
         records = d["primitives"]
         if not isinstance(records, list):
             raise RepertoireError(
@@ -298,6 +316,7 @@ class MotionLibrary:
             if missing:
                 keys = "key" if len(missing) == 1 else "keys"
                 raise RepertoireError(f"{where} is missing {keys} {', '.join(map(repr, missing))}")
+            _refuse_unknown_keys(record, PRIMITIVE_KEYS, where)
             if not isinstance(record.get("context", {}), dict):
                 raise RepertoireError(
                     f"{where}: 'context' must be a JSON object, got "

@@ -210,3 +210,37 @@ def test_non_numeric_dmp_fields_are_refused_naming_the_field(
         RepertoireError, match=re.escape(f"{path}: primitives[0] ('x') is malformed: {problem}")
     ):
         load()
+
+
+def test_misspelt_keys_are_refused_naming_them(tmp_path, grasp_dmp):
+    """A misspelt optional key was dropped without a word (the context, the fingers, the
+    format version), so the file loaded as another library."""
+    record = MotionPrimitive("x", "grasp", grasp_dmp, {"object": "cup"}).to_dict()
+    record["contxt"] = record.pop("context")
+    path, load = _load(tmp_path, json.dumps({"type": "MotionLibrary", "primitives": [record]}))
+    with pytest.raises(
+        RepertoireError,
+        match=re.escape(
+            f"{path}: primitives[0] has unknown keys ['contxt']; expected only ['name', "
+            "'label', 'dmp', 'context']"
+        ),
+    ):
+        load()
+    record["context"] = record.pop("contxt")
+    text = json.dumps({"type": "MotionLibrary", "format_versoin": 2, "primitives": [record]})
+    path, load = _load(tmp_path, text)
+    with pytest.raises(
+        RepertoireError,
+        match=re.escape(f"{path}: MotionLibrary file has unknown keys ['format_versoin']"),
+    ):
+        load()
+    record["dmp"]["finger"] = record["dmp"].pop("fingers")
+    path, load = _load(tmp_path, json.dumps({"type": "MotionLibrary", "primitives": [record]}))
+    with pytest.raises(
+        RepertoireError,
+        match=re.escape(
+            f"{path}: primitives[0] ('x') is malformed: malformed TaskSpaceDmp record: unknown "
+            "keys ['finger']"
+        ),
+    ):
+        load()

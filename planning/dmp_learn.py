@@ -540,7 +540,7 @@ def learn_dmp(
     weights = fit_forcing_weights(Phi, F, ridge)
     v0 = start_velocity(xd[0], x, tau, estimated=estimated)
     return DmpParameters(
-        weights, c, h, Kv, Dv, a, tau, x[0], x[-1], formulation, names=list(names or []), v0=v0
+        weights, c, h, Kv, Dv, a, tau, x[0], x[-1], formulation, names=names or [], v0=v0
     )
 
 
@@ -627,7 +627,7 @@ def learn_dmp_from_demonstrations(
     # the mean scaled start velocity tau xd(0) (what each demonstration's eq. 8 saw)
     v0 = np.mean(v_starts, axis=0) / tau
     return DmpParameters(
-        weights, c, h, Kv, Dv, a, tau, x0, g, formulation, names=list(names or []), v0=v0
+        weights, c, h, Kv, Dv, a, tau, x0, g, formulation, names=names or [], v0=v0
     )
 
 

@@ -365,3 +365,25 @@ def test_quaternion_rollout_takes_tau_like_the_vector_rollout(mode):
     for tau, shown in ((0.0, "0.0"), (-1.0, "-1.0"), ("1", "'1'")):
         with raises(f"tau must be a finite number > 0, got {shown}"):
             q.rollout(tau=tau)
+
+
+def test_a_string_of_names_is_refused_not_split_into_letters():
+    """``names="xy"`` was learned as the names ['x', 'y'] (and "pos" for 3 DOF as p, o, s)."""
+    message = "names must be a list of strings (one per DOF), got 'xy'"
+    with raises(message):
+        learn_dmp(T, X, n_basis=5, names="xy")
+    with raises(message):
+        learn_dmp_from_demonstrations([(T, X)], n_basis=5, names="xy")
+    assert learn_dmp(T, X, n_basis=5, names=("x", "y")).names == ["x", "y"]
+
+
+def test_handoff_state_checks_the_vectors_against_the_successor(p):
+    """A 3-vector x for a 2-DOF successor came back as a 3-entry equation start."""
+    from repertoire.planning.dmp_chain import handoff_state
+
+    with raises("x has 3 entries, expected 2: [0, 0, 0]"):
+        handoff_state(p, [0, 0, 0], [0, 0], 1.0)
+    with raises("v contains NaN or inf"):
+        handoff_state(p, [0, 0], [np.nan, 0], 1.0)
+    with raises("acceleration has 1 entries, expected 2"):
+        handoff_state(p, [0, 0], [0, 0], 1.0, "acceleration", [1.0])

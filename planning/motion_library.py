@@ -45,9 +45,11 @@ def _numpy_to_json(value):
 def _as_json(value):
     """``value`` as a JSON round trip gives it back.
 
-    Tuples and arrays come back as lists, NumPy scalars as numbers, keys as strings.
+    Tuples and arrays come back as lists, NumPy scalars as numbers, keys as strings. NaN
+    and infinities are refused (ValueError): JSON has no such numbers (Python would write
+    ``NaN``, which other JSON readers reject), and a NaN would never match in ``find``.
     """
-    return json.loads(json.dumps(value, default=_numpy_to_json))
+    return json.loads(json.dumps(value, default=_numpy_to_json, allow_nan=False))
 
 
 def _query_value(value):

@@ -112,6 +112,17 @@ def test_non_json_context_is_refused(grasp_dmp):
         MotionPrimitive("a", "grasp", grasp_dmp, [("side", 1)])
 
 
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), np.float64("-inf"), [1.0, np.nan]])
+def test_non_finite_context_numbers_are_refused(tmp_path, grasp_dmp, value):
+    """JSON has no NaN or infinity: a library saved with one was written with a bare ``NaN``
+    (which other JSON readers reject), and ``find`` never matched it."""
+    with pytest.raises(
+        RepertoireError,
+        match=re.escape("context of 'a' must hold only JSON values: Out of range float values"),
+    ):
+        MotionPrimitive("a", "grasp", grasp_dmp, {"width": value})
+
+
 def test_numpy_context_values_are_stored_and_found_as_json(tmp_path, grasp_dmp):
     # NumPy arrays and scalars (what a scenario computes) are their JSON lists and numbers;
     # a find() with an array used to raise NumPy's "truth value of an array is ambiguous"

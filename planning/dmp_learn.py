@@ -681,7 +681,7 @@ def learn_quaternion_dmp(
         ridge: Ridge weight >= 0, ``"gcv"`` or ``"auto"`` (see :func:`fit_forcing_weights`).
         overlap: Basis overlap.
         derivatives: Derivative method.
-        unit_tolerance: Allowed deviation of |q| from 1.
+        unit_tolerance: Allowed deviation of |q| from 1 (the samples are normalised).
         bridge_gaps: Bridge long steps between samples (see :func:`learn_dmp`; on-manifold:
             the bridge in R^4 projected onto the unit sphere).
     """
@@ -690,7 +690,7 @@ def learn_quaternion_dmp(
     if mode not in QUATERNION_MODES:
         raise RepertoireError(f"mode must be one of {QUATERNION_MODES}, got {mode!r}")
     check_ridge(ridge)
-    q = make_quaternions_continuous(q)
+    q = make_quaternions_continuous(q / np.linalg.norm(q, axis=1, keepdims=True))
     Kv, Dv = _gains(1, K, D)
     if mode == "component":
         p = learn_dmp(

@@ -387,3 +387,17 @@ def test_handoff_state_checks_the_vectors_against_the_successor(p):
         handoff_state(p, [0, 0], [np.nan, 0], 1.0)
     with raises("acceleration has 1 entries, expected 2"):
         handoff_state(p, [0, 0], [0, 0], 1.0, "acceleration", [1.0])
+
+
+@pytest.mark.parametrize("mode", ["component", "manifold"])
+def test_quaternions_within_unit_tolerance_are_learned_as_unit_quaternions(mode):
+    """unit_tolerance=1e-3 accepted norms 1 +- 5e-4, and then the artefact refused its own
+    q0 (tolerance 1e-6): the parameter did nothing above 1e-6. Now the samples are normalised."""
+    norms = 1 + np.random.default_rng(3600).uniform(-5e-4, 5e-4, (T.size, 1))
+    dmp = learn_quaternion_dmp(T, QUATS * norms, mode=mode, n_basis=20, unit_tolerance=1e-3)
+    exact = learn_quaternion_dmp(T, QUATS, mode=mode, n_basis=20)
+    np.testing.assert_allclose(dmp.q0, QUATS[0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(dmp.goal, QUATS[-1], rtol=0, atol=1e-15)
+    assert np.abs(dmp.weights - exact.weights).max() < 1e-9 * np.abs(exact.weights).max()
+    with raises("quaternion demonstration are not unit: | |q| - 1 | = 0.0005"):
+        learn_quaternion_dmp(T, QUATS * norms, mode=mode, n_basis=20)

@@ -336,7 +336,9 @@ class DmpSequencer(LeafSystem):
         return self._rhs(context, seg, theta, x0, x, v, f)[1] / p.tau
 
     def _held(self, context: Context) -> bool:
-        """Before the first start time the state is held."""
+        """Before the first start time the state is held (discrete: its rounded step)."""
+        if self._dt is not None:  # as _update: the step count against the rounded onset
+            return int(round(context.get_time() / self._dt)) < self._steps[0]
         return context.get_time() < self._times[0] - 1e-9
 
     def _learned_side(self, seg: int, *vectors: np.ndarray) -> list[np.ndarray]:

@@ -511,6 +511,13 @@ def test_every_vector_dmp_variant_reports_zero_acceleration_while_held():
                 sequencer.GetOutputPort("acceleration").Eval(seq_ctx),
             ):
                 np.testing.assert_allclose(out, expected, rtol=1e-9, atol=1e-12)
+    # discrete: the onset is the start time's rounded step (the update's rule), 0.5 here
+    sequencer = DmpSequencer([dmp], [0.5004], goals=[dmp.goal], time_step=1e-3)
+    seq_ctx = sequencer.CreateDefaultContext()
+    for time, expected in ((0.499, 0.0), (0.5, onset)):
+        seq_ctx.SetTime(time)
+        out = sequencer.GetOutputPort("acceleration").Eval(seq_ctx)
+        np.testing.assert_allclose(out, expected, rtol=1e-12, atol=1e-12)
 
 
 def _all_state(context) -> np.ndarray:

@@ -548,6 +548,9 @@ class TaskSpaceDmp:
     @classmethod
     def from_dict(cls, d: dict) -> "TaskSpaceDmp":
         _check_type(d, "TaskSpaceDmp")
+        unknown = sorted(set(d) - {"type", "position", "orientation", "fingers"})
+        if unknown:  # a misspelt "fingers" would load a DMP without its fingers
+            raise RepertoireError(f"malformed TaskSpaceDmp record: unknown keys {unknown}")
         return cls(
             DmpParameters.from_dict(d["position"]),
             QuaternionDmpParameters.from_dict(d["orientation"]),
@@ -720,7 +723,10 @@ def directional_primitive(
     This helper generalises a 1-D shape to any direction: DOF ``dof`` of ``dmp`` (learned
     displacement ``A = goal_dof - x0_dof``, nonzero) drives every output DOF d with weights
     ``w * (goal_d - start_d) / A`` - linear amplitude scaling chosen by the user, as for a
-    Fig. 5 square made of one minimum-jerk primitive.
+    Fig. 5 square made of one minimum-jerk primitive. The old formulation (eq. 1) already
+    multiplies the forcing term by ``goal_d - start_d`` (its weights were learned divided by
+    ``A``, eq. 5), so there every DOF takes the weights ``w`` unchanged: scaling them too
+    would apply the amplitude twice.
 
     Args:
         dmp: A learned DMP (any number of DOF).
@@ -742,7 +748,9 @@ def directional_primitive(
         )
     n = start.size
     scale = (goal - start) / amplitude
-    weights = np.outer(scale, dmp.weights[dof])
+    # the old form's forcing term is (g - x0) f: the amplitude is in the equation already
+    weight_scale = scale if dmp.formulation == "new" else np.ones(n)
+    weights = np.outer(weight_scale, dmp.weights[dof])
     return DmpParameters(
         weights,
         dmp.centres,

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp
-from repertoire.planning.dmp_math import check_positive, forcing_features
+from repertoire.planning.dmp_math import check_finite_vector, check_positive, forcing_features
 
 from repertoire.errors import RepertoireError
 
@@ -79,8 +79,11 @@ def handoff_state(
     """
     check_handoff(mode)
     check_positive("tau_pred", tau_pred)
-    x = np.asarray(x, dtype=float)
-    v = np.asarray(v, dtype=float)
+    n = successor.n_dims
+    x = check_finite_vector("x", x, n)
+    v = check_finite_vector("v", v, n)
+    if acceleration is not None:
+        acceleration = check_finite_vector("acceleration", acceleration, n)
     if mode == "none":
         return x.copy(), np.zeros_like(v)
     v_succ = v * successor.tau / tau_pred

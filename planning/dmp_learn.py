@@ -540,7 +540,7 @@ def learn_dmp(
     weights = fit_forcing_weights(Phi, F, ridge)
     v0 = start_velocity(xd[0], x, tau, estimated=estimated)
     return DmpParameters(
-        weights, c, h, Kv, Dv, a, tau, x[0], x[-1], formulation, names=list(names or []), v0=v0
+        weights, c, h, Kv, Dv, a, tau, x[0], x[-1], formulation, names=names or [], v0=v0
     )
 
 
@@ -627,7 +627,7 @@ def learn_dmp_from_demonstrations(
     # the mean scaled start velocity tau xd(0) (what each demonstration's eq. 8 saw)
     v0 = np.mean(v_starts, axis=0) / tau
     return DmpParameters(
-        weights, c, h, Kv, Dv, a, tau, x0, g, formulation, names=list(names or []), v0=v0
+        weights, c, h, Kv, Dv, a, tau, x0, g, formulation, names=names or [], v0=v0
     )
 
 
@@ -681,7 +681,7 @@ def learn_quaternion_dmp(
         ridge: Ridge weight >= 0, ``"gcv"`` or ``"auto"`` (see :func:`fit_forcing_weights`).
         overlap: Basis overlap.
         derivatives: Derivative method.
-        unit_tolerance: Allowed deviation of |q| from 1.
+        unit_tolerance: Allowed deviation of |q| from 1 (the samples are normalised).
         bridge_gaps: Bridge long steps between samples (see :func:`learn_dmp`; on-manifold:
             the bridge in R^4 projected onto the unit sphere).
     """
@@ -690,7 +690,7 @@ def learn_quaternion_dmp(
     if mode not in QUATERNION_MODES:
         raise RepertoireError(f"mode must be one of {QUATERNION_MODES}, got {mode!r}")
     check_ridge(ridge)
-    q = make_quaternions_continuous(q)
+    q = make_quaternions_continuous(q / np.linalg.norm(q, axis=1, keepdims=True))
     Kv, Dv = _gains(1, K, D)
     if mode == "component":
         p = learn_dmp(

@@ -45,9 +45,11 @@ def _numpy_to_json(value):
 def _as_json(value):
     """``value`` as a JSON round trip gives it back.
 
-    Tuples and arrays come back as lists, NumPy scalars as numbers, keys as strings.
+    Tuples and arrays come back as lists, NumPy scalars as numbers, keys as strings. NaN
+    and infinities are refused (ValueError): JSON has no such numbers (Python would write
+    ``NaN``, which other JSON readers reject), and a NaN would never match in ``find``.
     """
-    return json.loads(json.dumps(value, default=_numpy_to_json))
+    return json.loads(json.dumps(value, default=_numpy_to_json, allow_nan=False))
 
 
 def _query_value(value):
@@ -56,6 +58,23 @@ def _query_value(value):
         return _as_json(value)
     except (TypeError, ValueError):
         return value
+
+
+LIBRARY_KEYS = ("type", "format_version", "primitives")
+"""The keys of a library file (:meth:`MotionLibrary.to_dict`)."""
+PRIMITIVE_KEYS = ("name", "label", "dmp", "context")
+"""The keys of a primitive's record (:meth:`MotionPrimitive.to_dict`)."""
+
+
+def _refuse_unknown_keys(record: dict, known: tuple, where: str) -> None:
+    """RepertoireError naming the keys of ``record`` not in ``known`` (a misspelt key).
+
+    A misspelt optional key (``"contxt"``) would otherwise be dropped without a word: the
+    primitive loads with an empty context, and ``find`` no longer finds it.
+    """
+    unknown = sorted(set(record) - set(known))
+    if unknown:
+        raise RepertoireError(f"{where} has unknown keys {unknown}; expected only {list(known)}")
 
 
 LABELS = ("grasp", "place", "release", "pour", "retreat")
@@ -284,6 +303,7 @@ class MotionLibrary:
             )
         if "primitives" not in d:
             raise RepertoireError(f"{path}: MotionLibrary file has no 'primitives' key")
+        _refuse_unknown_keys(d, LIBRARY_KEYS, f"{path}: MotionLibrary file")
         records = d["primitives"]
         if not isinstance(records, list):
             raise RepertoireError(
@@ -298,6 +318,7 @@ class MotionLibrary:
             if missing:
                 keys = "key" if len(missing) == 1 else "keys"
                 raise RepertoireError(f"{where} is missing {keys} {', '.join(map(repr, missing))}")
+            _refuse_unknown_keys(record, PRIMITIVE_KEYS, where)
             if not isinstance(record.get("context", {}), dict):
                 raise RepertoireError(
                     f"{where}: 'context' must be a JSON object, got "

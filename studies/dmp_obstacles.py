@@ -324,9 +324,11 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
     ax3.set_ylabel("detour direction (m)")
     ax3.set_title("seed 0's ends, straight: heading at the obstacle (phi = 0)")
     ax3.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.42), ncol=1)
-    bins = np.linspace(0, max(max(r.clearance_with_m for r in records), 2 * config.radius_m), 30)
+    # every episode in a bin: the clearances without coupling too (the coupling may lower one)
+    largest = max(max(r.clearance_with_m, r.clearance_without_m) for r in records)
+    bins = np.linspace(0, max(largest, 2 * config.radius_m), 30)
     # side by side in each bin: overlaid translucent bars mixed into a colour of neither
-    ax2.hist(
+    counts, _, _ = ax2.hist(
         [[getattr(r, f"clearance_{key}_m") for r in records] for key in ("without", "with")],
         bins=bins,
         color=["tab:red", "tab:blue"],
@@ -340,7 +342,8 @@ def summarize(records: list[DmpObstaclesRecord], config: DmpObstaclesConfig, out
     fig.suptitle(
         f"DMP obstacle avoidance (eq. 10, gamma = {config.gamma:g}, beta = {config.beta:.3g})"
     )
-    ax2.legend(fontsize=8)
+    ax2.set_ylim(top=1.35 * np.max(counts))  # headroom: the legend clears the tallest bar
+    ax2.legend(fontsize=8, loc="upper right")
     p1 = out_dir / "dmp_obstacles.png"
     fig.savefig(p1, dpi=100)
     sw = np.mean([r.success_with for r in records])

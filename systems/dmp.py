@@ -342,6 +342,14 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
             np.concatenate([np.zeros(self._n), v])
         )
 
+    def get_start(self, context: Context) -> np.ndarray:
+        """A copy of the start x0 (numeric parameter).
+
+        Args:
+            context: This system's context.
+        """
+        return context.get_numeric_parameter(self._x0).get_value().copy()
+
     def set_state(self, context: Context, x: np.ndarray, xd: np.ndarray) -> None:
         """Set the state to position ``x`` (absolute) and velocity ``dx/dt = xd``; x0 stays.
 
@@ -605,6 +613,14 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
             eta = tau * check_vector("omega0", omega0, 3)
         context.get_mutable_numeric_parameter(self._q0).SetFromVector(q0)
         context.get_mutable_discrete_state(self._state).SetFromVector(np.concatenate([q0, eta]))
+
+    def get_start(self, context: Context) -> np.ndarray:
+        """A copy of the start orientation q0 (numeric parameter).
+
+        Args:
+            context: This system's context.
+        """
+        return context.get_numeric_parameter(self._q0).get_value().copy()
 
     def _update(self, context: Context, discrete_state) -> None:
         s = context.get_discrete_state(self._state).CopyToVector()

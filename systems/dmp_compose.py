@@ -359,7 +359,12 @@ class DmpSystem(Diagram):
         orientation: np.ndarray | None = None,
         fingers: np.ndarray | None = None,
     ) -> None:
-        """Set start states (and the equations' x0) in this DmpSystem's context.
+        """Restart the whole DMP: phase 1, every part at its start (the equations' x0).
+
+        A part given here starts there; a part not given restarts from the start it had
+        (the learned one in a fresh context). Every part starts with its learned velocity
+        unless ``velocity`` is given. So the discrete and continuous variants restart alike
+        (before, the continuous ones kept the decayed phase, and parts not given ran on).
 
         Args:
             context: This diagram's context (``dmp_system.GetMyMutableContextFromRoot``).
@@ -373,27 +378,27 @@ class DmpSystem(Diagram):
         if self._fused is not None:
             self._set_start_fused(context, position, velocity, orientation, fingers)
             return
-        if position is not None:
-            part = self._parts["position"]
-            part.system.set_start(
-                self.GetMutableSubsystemContext(part.system, context), position, velocity
-            )
-        if orientation is not None:
-            part = self._parts.get("orientation")
-            if part is None:
-                raise RepertoireError("this DMP has no orientation part")
-            q = check_vector("orientation", orientation, 4)
-            if isinstance(part, _VectorDmp):
-                q = self._component_start(context, q)
-                qd = quaternion_rate(self.dmp.orientation.omega0, q)  # the learned turn rate
-                part.system.set_start(self.GetMutableSubsystemContext(part.system, context), q, qd)
+        given = {"position": position, "orientation": orientation, "fingers": fingers}
+        for name, value in given.items():
+            if value is not None and name not in self._parts:
+                raise RepertoireError(f"this DMP has no {name} part")
+        for name, part in self._parts.items():
+            system = part.system if isinstance(part, _VectorDmp) else part
+            sub = self.GetMutableSubsystemContext(system, context)
+            start = given[name]
+            if start is None:
+                start = system.get_start(sub)
+            if name == "position":
+                system.set_start(sub, start, velocity)
+            elif name == "fingers":
+                system.set_start(sub, start)
+            elif isinstance(part, _VectorDmp):  # component orientation
+                q = self._component_start(context, check_vector("orientation", start, 4))
+                system.set_start(sub, q, quaternion_rate(self.dmp.orientation.omega0, q))
             else:
-                part.set_start(self.GetMutableSubsystemContext(part, context), q)
-        if fingers is not None:
-            part = self._parts.get("fingers")
-            if part is None:
-                raise RepertoireError("this DMP has no finger part")
-            part.system.set_start(self.GetMutableSubsystemContext(part.system, context), fingers)
+                system.set_start(sub, start)
+            if isinstance(part, _VectorDmp) and part.canonical is not None:
+                part.canonical.set_phase(self.GetMutableSubsystemContext(part.canonical, context))
 
     def _component_start(self, context: Context, q: np.ndarray) -> np.ndarray:
         """``q`` or ``-q`` (one orientation): the sign on the learned start's side.
@@ -414,14 +419,12 @@ class DmpSystem(Diagram):
         x0 = sysd.get_start(sub)
         xd0 = self._stacked_v0.copy()  # the learned start velocities
         given = {"position": position, "orientation": orientation, "fingers": fingers}
+        if self._manifold is not None:  # restarted too, from its start if none is given
+            sub_m = self.GetMutableSubsystemContext(self._manifold, context)
+            q = self._manifold.get_start(sub_m) if orientation is None else orientation
+            self._manifold.set_start(sub_m, check_vector("orientation", q, 4))
         for name, value in given.items():
-            if value is None:
-                continue
-            if name == "orientation" and self._manifold is not None:
-                q = check_vector("orientation", value, 4)
-                self._manifold.set_start(
-                    self.GetMutableSubsystemContext(self._manifold, context), q
-                )
+            if value is None or (name == "orientation" and self._manifold is not None):
                 continue
             if name not in self._slices:
                 raise RepertoireError(f"this DMP has no {name} part")

@@ -63,7 +63,8 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
 
     Output ports:
         position (n), velocity (n) (dx/dt), acceleration (n) (d2x/dt2 at the current
-        state and inputs), phase (1).
+        state and inputs; 0 while the state is held before ``start_time``, as in
+        :class:`TransformationSystem`), phase (1).
 
     Numeric parameters: x0 (n), start_time (1). Weights, basis, K, D, tau, alpha and the
     time step are construction arguments (the discretisation is precomputed from them); use
@@ -150,6 +151,9 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
     def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
         s = context.get_discrete_state(self._state).get_value()
         n = self._n
+        if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):
+            output.SetFromVector(np.zeros(n))  # held: the state does not move (as continuous)
+            return
         theta, f = self._tab.phase_and_f(s[0])
         coupling = self._coupling(context)
         _, vd = transformation_derivatives(

@@ -61,7 +61,8 @@ class DmpSequencer(LeafSystem):
             ``coupling_dofs`` DOF (e.g. the position under obstacle coupling, eq. 10).
 
     Output ports:
-        position, velocity, acceleration (n): x, dx/dt and d2x/dt2 of the active segment.
+        position, velocity, acceleration (n): x, dx/dt and d2x/dt2 of the active segment
+            (the acceleration is 0 while the state is held before the first start time).
         phase (1), segment (1): theta and the active segment's index.
         orientation (4), angular_velocity (3) (with ``quaternion_at``): the post-normalised
             quaternion block [w, x, y, z] and its world-frame angular velocity. Each
@@ -324,6 +325,8 @@ class DmpSequencer(LeafSystem):
         )
 
     def _acc(self, context: Context) -> np.ndarray:
+        if self._held(context):  # the state does not move before the first start time
+            return np.zeros(self._n)
         seg, k, x0, x, v = self._split(context)
         p = self._segments[seg]
         if self._dt is None:
@@ -333,7 +336,9 @@ class DmpSequencer(LeafSystem):
         return self._rhs(context, seg, theta, x0, x, v, f)[1] / p.tau
 
     def _held(self, context: Context) -> bool:
-        """Before the first start time the state is held."""
+        """Before the first start time the state is held (discrete: its rounded step)."""
+        if self._dt is not None:  # as _update: the step count against the rounded onset
+            return int(round(context.get_time() / self._dt)) < self._steps[0]
         return context.get_time() < self._times[0] - 1e-9
 
     def _learned_side(self, seg: int, *vectors: np.ndarray) -> list[np.ndarray]:

@@ -509,6 +509,27 @@ def test_directional_primitive_moves_straight_along_any_direction():
         directional_primitive(p, np.zeros(2), np.ones(2), dof=1)
 
 
+@pytest.mark.parametrize("formulation", ["new", "old"])
+def test_a_directional_primitive_is_the_learned_shape_scaled_in_both_formulations(formulation):
+    """The equations are linear: start + (goal - start) (x_learned - x0) / A, to rounding.
+
+    The old form's forcing term is (g - x0) f, so its weights must not be scaled again (they
+    were, and a 2 m leg of a 1 m shape overshot by 1.1 m).
+    """
+    from repertoire.planning.dmp import directional_primitive
+
+    t = np.linspace(0, 1, 301)
+    s = 10 * t**3 - 15 * t**4 + 6 * t**5
+    shape = s + 0.3 * np.sin(np.pi * t) ** 2 * np.sin(2 * np.pi * t)  # not minimum jerk
+    p = learn_dmp(t, 0.5 + shape, n_basis=25, formulation=formulation)
+    learned = p.rollout(dt=1e-3).x[:, 0] - p.x0[0]
+    for start, goal in (([0.0, 0.0], [2.0, 0.0]), ([1.0, 1.0], [1.0, 3.0]), ([0, 0], [0.5, -0.5])):
+        start, goal = np.array(start, float), np.array(goal, float)
+        r = directional_primitive(p, start, goal).rollout(dt=1e-3)
+        expected = start + np.outer(learned / (p.goal[0] - p.x0[0]), goal - start)
+        assert np.abs(r.x - expected).max() < 1e-12
+
+
 @pytest.mark.parametrize(("n", "w"), [(1000, 25), (200, 9), (50, 7), (7, 7)])
 def test_cached_savgol_operators_equal_scipy_interp_mode(n, w):
     from repertoire.planning.dmp_derivatives import savgol_derivatives

@@ -365,3 +365,39 @@ def test_quaternion_rollout_takes_tau_like_the_vector_rollout(mode):
     for tau, shown in ((0.0, "0.0"), (-1.0, "-1.0"), ("1", "'1'")):
         with raises(f"tau must be a finite number > 0, got {shown}"):
             q.rollout(tau=tau)
+
+
+def test_a_string_of_names_is_refused_not_split_into_letters():
+    """``names="xy"`` was learned as the names ['x', 'y'] (and "pos" for 3 DOF as p, o, s)."""
+    message = "names must be a list of strings (one per DOF), got 'xy'"
+    with raises(message):
+        learn_dmp(T, X, n_basis=5, names="xy")
+    with raises(message):
+        learn_dmp_from_demonstrations([(T, X)], n_basis=5, names="xy")
+    assert learn_dmp(T, X, n_basis=5, names=("x", "y")).names == ["x", "y"]
+
+
+def test_handoff_state_checks_the_vectors_against_the_successor(p):
+    """A 3-vector x for a 2-DOF successor came back as a 3-entry equation start."""
+    from repertoire.planning.dmp_chain import handoff_state
+
+    with raises("x has 3 entries, expected 2: [0, 0, 0]"):
+        handoff_state(p, [0, 0, 0], [0, 0], 1.0)
+    with raises("v contains NaN or inf"):
+        handoff_state(p, [0, 0], [np.nan, 0], 1.0)
+    with raises("acceleration has 1 entries, expected 2"):
+        handoff_state(p, [0, 0], [0, 0], 1.0, "acceleration", [1.0])
+
+
+@pytest.mark.parametrize("mode", ["component", "manifold"])
+def test_quaternions_within_unit_tolerance_are_learned_as_unit_quaternions(mode):
+    """unit_tolerance=1e-3 accepted norms 1 +- 5e-4, and then the artefact refused its own
+    q0 (tolerance 1e-6): the parameter did nothing above 1e-6. Now the samples are normalised."""
+    norms = 1 + np.random.default_rng(3600).uniform(-5e-4, 5e-4, (T.size, 1))
+    dmp = learn_quaternion_dmp(T, QUATS * norms, mode=mode, n_basis=20, unit_tolerance=1e-3)
+    exact = learn_quaternion_dmp(T, QUATS, mode=mode, n_basis=20)
+    np.testing.assert_allclose(dmp.q0, QUATS[0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(dmp.goal, QUATS[-1], rtol=0, atol=1e-15)
+    assert np.abs(dmp.weights - exact.weights).max() < 1e-9 * np.abs(exact.weights).max()
+    with raises("quaternion demonstration are not unit: | |q| - 1 | = 0.0005"):
+        learn_quaternion_dmp(T, QUATS * norms, mode=mode, n_basis=20)

@@ -482,3 +482,80 @@ def test_fused_task_space_dmp_system_takes_the_obstacle_velocity():
     p = sys.obstacle_coupling.GetOutputPort("coupling").Eval(sub)
     np.testing.assert_array_equal(p, obstacle_coupling(x, v, o, 1000.0, 20.0 / np.pi, vo))
     assert np.abs(p).max() > 0.1  # a real push (0.64 here: the start velocity is not zero)
+
+
+def test_every_vector_dmp_variant_reports_zero_acceleration_while_held():
+    """Before its start time the state is held, so the acceleration output is 0 in all four.
+
+    The discrete systems reported the equations' acceleration at the held start instead
+    (K f(1) / tau^2: the demonstration's initial acceleration), the continuous ones 0. At
+    the onset every variant gives the NumPy rollout's first acceleration.
+    """
+    from repertoire.systems.dmp_sequencer import DmpSequencer
+
+    t = np.linspace(0, 1, 201)
+    dmp = learn_dmp(t, np.c_[t**2, np.sin(2 * t)], n_basis=20)  # starts accelerating
+    onset = dmp.rollout(dt=1e-3).xdd[0]
+    assert np.abs(onset).max() > 0.1
+    for time_step in (1e-3, None):
+        system = DmpSystem(dmp, time_step=time_step)
+        sequencer = DmpSequencer([dmp], [0.5], goals=[dmp.goal], time_step=time_step)
+        ctx, seq_ctx = system.CreateDefaultContext(), sequencer.CreateDefaultContext()
+        system.GetInputPort("goal").FixValue(ctx, dmp.goal)
+        system.set_start_time(ctx, 0.5)
+        for held, expected in ((0.0, 0.0), (0.3, 0.0), (0.5, onset)):
+            ctx.SetTime(held)
+            seq_ctx.SetTime(held)
+            for out in (
+                system.GetOutputPort("acceleration").Eval(ctx),
+                sequencer.GetOutputPort("acceleration").Eval(seq_ctx),
+            ):
+                np.testing.assert_allclose(out, expected, rtol=1e-9, atol=1e-12)
+    # discrete: the onset is the start time's rounded step (the update's rule), 0.5 here
+    sequencer = DmpSequencer([dmp], [0.5004], goals=[dmp.goal], time_step=1e-3)
+    seq_ctx = sequencer.CreateDefaultContext()
+    for time, expected in ((0.499, 0.0), (0.5, onset)):
+        seq_ctx.SetTime(time)
+        out = sequencer.GetOutputPort("acceleration").Eval(seq_ctx)
+        np.testing.assert_allclose(out, expected, rtol=1e-12, atol=1e-12)
+
+
+def _all_state(context) -> np.ndarray:
+    """Continuous and discrete state of a diagram context, one vector."""
+    parts = [context.get_continuous_state_vector().CopyToVector()]
+    parts += [
+        context.get_discrete_state(i).CopyToVector()
+        for i in range(context.num_discrete_state_groups())
+    ]
+    return np.concatenate(parts)
+
+
+@pytest.mark.parametrize("time_step", [1e-3, None])
+@pytest.mark.parametrize("kind", ["vector", "component", "manifold"])
+def test_set_start_after_a_run_restarts_every_variant_as_a_fresh_context(kind, time_step):
+    """DmpSystem.set_start restarts the whole DMP: phase 1, every part at its start.
+
+    After 0.6 s of a 1 s movement the continuous variants kept the decayed phase (0.063:
+    the restarted movement ran with its forcing term nearly off), and parts not given ran
+    on; the discrete fused variant restarted. Now the state equals a fresh context's.
+    """
+    t = np.linspace(0, 1, 201)
+    s = 10 * t**3 - 15 * t**4 + 6 * t**5
+    if kind == "vector":
+        dmp = learn_dmp(t, np.c_[s, 0.3 * np.sin(np.pi * t)], n_basis=15)
+        start = {"position": np.array([0.1, 0.0])}
+    else:
+        q = np.c_[np.cos(0.6 * s), 0 * s, 0 * s, np.sin(0.6 * s)]
+        dmp = learn_task_space_dmp(
+            t, np.c_[s, 0.5 * s, 0 * s], q, np.c_[s], orientation_mode=kind, n_basis=15
+        )
+        start = {"position": np.array([0.1, 0.0, 0.2])}
+    system = DmpSystem(dmp, time_step=time_step)
+    sim = Simulator(system)
+    sim.AdvanceTo(0.6)
+    used = sim.get_mutable_context()
+    fresh = system.CreateDefaultContext()
+    for context in (used, fresh):
+        system.set_start(context, **start)
+    assert system.GetOutputPort("phase").Eval(used)[0] == 1.0
+    np.testing.assert_array_equal(_all_state(used), _all_state(fresh))

@@ -112,6 +112,17 @@ def test_non_json_context_is_refused(grasp_dmp):
         MotionPrimitive("a", "grasp", grasp_dmp, [("side", 1)])
 
 
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), np.float64("-inf"), [1.0, np.nan]])
+def test_non_finite_context_numbers_are_refused(tmp_path, grasp_dmp, value):
+    """JSON has no NaN or infinity: a library saved with one was written with a bare ``NaN``
+    (which other JSON readers reject), and ``find`` never matched it."""
+    with pytest.raises(
+        RepertoireError,
+        match=re.escape("context of 'a' must hold only JSON values: Out of range float values"),
+    ):
+        MotionPrimitive("a", "grasp", grasp_dmp, {"width": value})
+
+
 def test_numpy_context_values_are_stored_and_found_as_json(tmp_path, grasp_dmp):
     # NumPy arrays and scalars (what a scenario computes) are their JSON lists and numbers;
     # a find() with an array used to raise NumPy's "truth value of an array is ambiguous"
@@ -208,5 +219,39 @@ def test_non_numeric_dmp_fields_are_refused_naming_the_field(
     path, load = _load(tmp_path, text)
     with pytest.raises(
         RepertoireError, match=re.escape(f"{path}: primitives[0] ('x') is malformed: {problem}")
+    ):
+        load()
+
+
+def test_misspelt_keys_are_refused_naming_them(tmp_path, grasp_dmp):
+    """A misspelt optional key was dropped without a word (the context, the fingers, the
+    format version), so the file loaded as another library."""
+    record = MotionPrimitive("x", "grasp", grasp_dmp, {"object": "cup"}).to_dict()
+    record["contxt"] = record.pop("context")
+    path, load = _load(tmp_path, json.dumps({"type": "MotionLibrary", "primitives": [record]}))
+    with pytest.raises(
+        RepertoireError,
+        match=re.escape(
+            f"{path}: primitives[0] has unknown keys ['contxt']; expected only ['name', "
+            "'label', 'dmp', 'context']"
+        ),
+    ):
+        load()
+    record["context"] = record.pop("contxt")
+    text = json.dumps({"type": "MotionLibrary", "format_versoin": 2, "primitives": [record]})
+    path, load = _load(tmp_path, text)
+    with pytest.raises(
+        RepertoireError,
+        match=re.escape(f"{path}: MotionLibrary file has unknown keys ['format_versoin']"),
+    ):
+        load()
+    record["dmp"]["finger"] = record["dmp"].pop("fingers")
+    path, load = _load(tmp_path, json.dumps({"type": "MotionLibrary", "primitives": [record]}))
+    with pytest.raises(
+        RepertoireError,
+        match=re.escape(
+            f"{path}: primitives[0] ('x') is malformed: malformed TaskSpaceDmp record: unknown "
+            "keys ['finger']"
+        ),
     ):
         load()

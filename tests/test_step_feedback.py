@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import Simulator
 from repertoire.diagrams.biped_walk import (
     BipedWalkScenario,
@@ -190,3 +191,21 @@ def test_physics_feedback_lands_on_the_plan_where_open_loop_drifts():
     assert pos.max() < 0.003  # measured 1.1 mm at most over 102 steps
     yaw = np.abs(np.asarray(closed.landed)[:, 2] - plan.poses_array()[1:, 2])
     assert yaw.max() < math.radians(0.5)
+
+
+def test_sole_pose_sensor_reads_the_sole_frames():
+    diagram = build_walk_diagram(_rule_plan(["stop"]), feedback=True)
+    plant = diagram.GetSubsystemByName("plant")
+    sensor = diagram.GetSubsystemByName("sole_sensor")
+    poses = plant.get_body_poses_output_port().Allocate()
+    X = [RigidTransform()] * plant.num_bodies()
+    left = plant.GetBodyByName("left_foot").index()
+    right = plant.GetBodyByName("right_foot").index()
+    # the sole frames are 0.07 m below the foot bodies' origins
+    X[int(left)] = RigidTransform(RotationMatrix.MakeZRotation(0.3), [1.0, 2.0, 0.07])
+    X[int(right)] = RigidTransform(RotationMatrix.MakeZRotation(-2.0), [-1.0, 0.5, 0.17])
+    poses.set_value(X)
+    context = sensor.CreateDefaultContext()
+    sensor.GetInputPort("body_poses").FixValue(context, poses)
+    got = sensor.GetOutputPort("soles").Eval(context)
+    np.testing.assert_allclose(got, [1.0, 2.0, 0.3, -1.0, 0.5, -2.0], atol=1e-15)

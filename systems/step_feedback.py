@@ -265,7 +265,9 @@ class FootstepFeedback(LeafSystem):
     Output ports:
         footsteps: abstract :class:`FootstepSequence`, retargeted (controller frame).
 
-    Discrete state: the next step to retarget and every step's landing (controller frame).
+    Discrete state: the next step to retarget and every step's landing (controller frame),
+    sized for the plan it is built for: a plan of another length raises; one of the same
+    length set before the first lift-off is walked as set.
     """
 
     def __init__(
@@ -328,6 +330,8 @@ class FootstepFeedback(LeafSystem):
 
     def _walked(self, context: Context, x: np.ndarray) -> FootstepSequence:
         seq, _ = self._inputs(context)
+        if x[0] == 0:  # nothing retargeted yet: the input's steps (a plan set before the
+            return seq  # first command, which the CommandStepper allows, is walked as set)
         return dataclasses.replace(seq, poses=x[1:].reshape(-1, 3).tolist())
 
     def _initialize(self, context: Context, discrete_state: DiscreteValues) -> None:

@@ -214,3 +214,23 @@ def test_sole_pose_sensor_reads_the_sole_frames():
     sensor.GetInputPort("body_poses").FixValue(context, poses)
     got = sensor.GetOutputPort("soles").Eval(context)
     np.testing.assert_allclose(got, [1.0, 2.0, 0.3, -1.0, 0.5, -2.0], atol=1e-15)
+
+
+def test_a_plan_set_before_the_start_is_walked_with_feedback():
+    first = _rule_plan(["forward_long", "forward_long", "stop"])
+    diagram = build_walk_diagram(first, feedback=True)
+    simulator = Simulator(diagram)
+    context = simulator.get_context()
+    source = diagram.GetSubsystemByName("plan_source")
+    feedback = diagram.GetSubsystemByName("step_feedback")
+    other = _rule_plan(["forward_short", "forward_medium", "stop"])  # the same start soles
+    simulator.Initialize()
+    simulator.AdvanceTo(0.2)  # the first command is at 0.4 s: the CommandStepper allows it
+    source.SetPlan(source.GetMyContextFromRoot(context), other)
+    # before: the feedback kept the first plan's steps until the first lift-off
+    walked = feedback.GetOutputPort("footsteps").Eval(feedback.GetMyContextFromRoot(context))
+    assert walked.poses == realize_plan(other, SteppingRule()).poses
+    shorter = _rule_plan(["forward_short", "stop"])
+    source.SetPlan(source.GetMyContextFromRoot(context), shorter)
+    with pytest.raises(RepertoireError, match=r"built for 3 steps; its plan has 2 steps"):
+        simulator.Initialize()

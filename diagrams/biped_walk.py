@@ -582,7 +582,7 @@ def execute_plan(
     diagram: Diagram | None = None,
     simulator: Simulator | None = None,
     max_steps: int | None = None,
-    feedback: bool = False,
+    feedback: bool | None = None,
     reach: StepReach | None = None,
 ) -> WalkResult:
     """Simulates the biped executing ``plan`` and measures every landing.
@@ -600,9 +600,9 @@ def execute_plan(
         diagram: optionally a diagram already built by :func:`build_walk_diagram` for ``plan``.
         simulator: optionally a simulator of ``diagram``.
         max_steps: stop after measuring this many landings (default: all, then the final hold).
-        feedback: build the diagram with world-frame step feedback (see
-            :func:`build_walk_diagram`; a given ``diagram`` walks as it was built).
-        reach: with ``feedback``, the correction bounds.
+        feedback: walk with world-frame step feedback (see :func:`build_walk_diagram`);
+            None: as the given ``diagram`` was built, else open loop.
+        reach: with ``feedback``, the correction bounds (for a diagram built here).
 
     Raises:
         RepertoireError: bad ``settle`` or ``max_steps``, or a ``diagram`` (or its context)
@@ -610,7 +610,8 @@ def execute_plan(
             measured against ``plan`` while the robot walked the other one; or a robot
             that does not stand on the plan's start soles (within ``START_TOLERANCE_M``
             and ``START_TOLERANCE_RAD``): a plan set into a diagram built for a plan that
-            starts elsewhere.
+            starts elsewhere; or ``feedback`` True or False for a ``diagram`` built the
+            other way.
     """
     if not (is_real(settle) and np.isfinite(settle) and settle >= 0.0):
         raise RepertoireError(f"settle must be a finite delay >= 0 s, got {settle!r}")
@@ -624,8 +625,16 @@ def execute_plan(
             pelvis_height=pelvis_height,
             time_step=time_step,
             contact_approximation=contact_approximation,
-            feedback=feedback,
+            feedback=bool(feedback),
             reach=reach,
+        )
+    built = diagram.HasSubsystemNamed("step_feedback")
+    if feedback is not None and bool(feedback) != built:
+        raise RepertoireError(
+            f"execute_plan(feedback={feedback}) got a diagram built "
+            f"{'with' if built else 'without'} step feedback: it would walk "
+            f"{'with' if built else 'without'} it; build the diagram with "
+            f"feedback={feedback} or leave feedback None"
         )
     if simulator is None:
         simulator = Simulator(diagram)

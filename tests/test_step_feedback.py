@@ -115,7 +115,11 @@ def test_plan_reach_refuses_plans_of_another_table():
         check_plan_reach(nominal, SteppingRule(), StepReach(), 0.6)
     with pytest.raises(RepertoireError, match=r"step 0 \(forward_long.* 0.1800 m"):
         build_walk_diagram(nominal, feedback=True)
-    build_walk_diagram(nominal)  # open loop it walks the commands as before
+    diagram = build_walk_diagram(nominal)  # open loop it walks the commands as before
+    # a diagram walks as it was built: asking for the other way is refused
+    with pytest.raises(RepertoireError, match=r"feedback=True\) got a diagram built without"):
+        execute_plan(nominal, diagram=diagram, feedback=True, max_steps=0)
+    assert execute_plan(nominal, diagram=diagram, max_steps=0).landed == []
 
 
 def test_plan_from_rule_holds_the_rule_steps():

@@ -238,3 +238,25 @@ def test_a_plan_set_before_the_start_is_walked_with_feedback():
     source.SetPlan(source.GetMyContextFromRoot(context), shorter)
     with pytest.raises(RepertoireError, match=r"built for 3 steps; its plan has 2 steps"):
         simulator.Initialize()
+
+
+def test_feedback_refuses_a_target_out_of_reach_of_the_measured_stance():
+    plan = _rule_plan(["forward_long", "forward_long", "stop"])
+    seq = realize_plan(plan, SteppingRule())
+    system = FootstepFeedback(plan.num_steps, 0.6)
+    context = system.CreateDefaultContext()
+    system.GetInputPort("footsteps").FixValue(context, seq)
+    system.GetInputPort("plan").FixValue(context, plan)
+    # the stance (left) sole measured 5 cm behind where it stood: the first step would be
+    # 0.17 m where the command makes 0.12 m
+    left_w = np.asarray(seq.initial_left) - [0.05, 0.0, 0.0]
+    system.GetInputPort("soles").FixValue(context, [*left_w, *seq.initial_right])
+    simulator = Simulator(system, context)
+    simulator.AdvanceTo(0.79)
+    with pytest.raises(
+        RepertoireError,
+        match=r"step 0 \(forward_long, right foot\) to world target \[0.12, -0.095, 0.0\] from "
+        r"the stance sole at \[-0.05, 0.095, 0.0\] is out of the step model's reach: .* "
+        r"0.0500 m and 0.0000 rad from the step the command realizes",
+    ):
+        simulator.AdvanceTo(0.81)

@@ -8,7 +8,6 @@ leg IK) -> the plant's ``desired_state`` input (joint PD in the discrete solver)
 """
 
 import dataclasses
-import math
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +17,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from repertoire.diagrams.biped import add_biped_world, validate_plant_fields
 from repertoire.diagrams.registry import register_diagram
-from repertoire.models.biped import FOOT_WIDTH, LEARNED_TABLE_PATH, LegGains, leg_ik, rotation_rpy
+from repertoire.models.biped import LEARNED_TABLE_PATH, LegGains
 from repertoire.planning.footstep.actions import ACTIONS, apply_displacement
 from repertoire.planning.footstep.types import (
     ActionTable,
@@ -28,6 +27,13 @@ from repertoire.planning.footstep.types import (
     wrap_angle,
 )
 from repertoire.systems.footstep_source import FootstepPlanSource
+from repertoire.systems.step_feedback import (
+    FootstepFeedback,
+    SolePoseSensor,
+    StepReach,
+    check_plan_reach,
+    check_stance,
+)
 from repertoire.systems.walking import (
     CommandStepper,
     FootstepSequence,
@@ -36,6 +42,7 @@ from repertoire.systems.walking import (
     WalkingIK,
     ZmpComPlanner,
     plan_com,
+    realize_commands,
     realize_plan,
     same_commands,
     standing_com_height,
@@ -75,6 +82,10 @@ class BipedWalkScenario:
         ground_friction: Coulomb friction of the ground.
         max_speed_change: stepping rule: largest change of the forward step [m].
         base_duration: stepping rule: seconds per step at constant speed.
+        feedback: place each step on the plan's world pose from the measured stance
+            sole (:class:`FootstepFeedback`); the ``actions`` are then planned with the
+            controller's own stepping rule (:func:`plan_from_rule`), not the nominal
+            table. ``false``: the commands open loop (landings drift on long walks).
     """
 
     map_seed: int = 0
@@ -99,6 +110,7 @@ class BipedWalkScenario:
     ground_friction: float = 1.0
     max_speed_change: float = 0.12
     base_duration: float = 1.0
+    feedback: bool = True
 
     def validate(self) -> None:
         """Raises ScenarioError naming the first bad field."""
@@ -231,14 +243,50 @@ def _scenario_plan(scenario: BipedWalkScenario) -> tuple[FootstepPlan, list[list
     from repertoire.planning.footstep.actions import nominal_action_table
 
     stance, swing = start_feet(scenario.start, scenario.first_stance)
-    plan = plan_from_actions(
-        scenario.actions, stance, scenario.first_stance, swing, nominal_action_table()
-    )
+    if scenario.feedback:
+        plan = plan_from_rule(
+            scenario.actions, stance, scenario.first_stance, swing, scenario.rule()
+        )
+    else:
+        plan = plan_from_actions(
+            scenario.actions, stance, scenario.first_stance, swing, nominal_action_table()
+        )
     return plan, []
 
 
-def _xy_yaw(pose: np.ndarray) -> list[float]:
-    return [round(float(pose[0]), 4), round(float(pose[1]), 4), round(float(pose[3]), 4)]
+def plan_from_rule(
+    actions: list[str],
+    stance_pose: list[float],
+    stance_foot: str,
+    swing_pose: list[float],
+    rule: SteppingRule,
+) -> FootstepPlan:
+    """The plan of ``actions`` whose poses are the steps the controller's rule makes of them.
+
+    With feedback the walker places each step on the plan's pose, so a plan of commands
+    to walk must hold the steps this controller takes for them (the nominal table's
+    commanded displacements differ by up to 0.18 m from standing).
+
+    Args:
+        actions: commanded actions.
+        stance_pose: ``[x, y, yaw]`` of the first stance sole.
+        stance_foot: ``left`` or ``right``.
+        swing_pose: the other sole.
+        rule: the stepping rule.
+    """
+    foot = Foot.LEFT if stance_foot == "left" else Foot.RIGHT
+    seq = realize_commands(np.asarray(stance_pose, float), foot, np.asarray(swing_pose, float),
+                           list(actions), rule)  # fmt: skip
+    feet = [int(foot)] + list(seq.swing_feet)
+    times = [0.0] + [t - seq.command_times[0] for t in seq.land_times] if actions else [0.0]
+    return FootstepPlan.from_commands(
+        [list(stance_pose)] + [list(p) for p in seq.poses],
+        feet,
+        list(actions),
+        times,
+        list(swing_pose),
+        ["stop", "stop"],
+    )
 
 
 def check_start_stance(
@@ -263,27 +311,7 @@ def check_start_stance(
         RepertoireError: naming both soles (rounded to 0.1 mm / 0.1 mrad) and what is
             wrong.
     """
-    left = np.asarray(left, dtype=float)
-    right = np.asarray(right, dtype=float)
-    lp, rp = np.array([*left[:2], 0.0, left[-1]]), np.array([*right[:2], 0.0, right[-1]])
-    yaw = math.atan2(math.sin(lp[3]) + math.sin(rp[3]), math.cos(lp[3]) + math.cos(rp[3]))
-    gap = float(np.dot(lp[:2] - rp[:2], [-math.sin(yaw), math.cos(yaw)]))
-    soles = f"left sole {_xy_yaw(lp)}, right sole {_xy_yaw(rp)} as [x, y, yaw]"
-    if not gap >= FOOT_WIDTH - 1e-9:
-        raise RepertoireError(
-            f"the biped cannot stand on the start soles ({soles}): the left sole is "
-            f"{gap:.3f} m left of the right one across their heading, needs >= "
-            f"{FOOT_WIDTH} m (a sole's width)"
-        )
-    _, pelvis = whole_body_ik(com, lp, rp, pelvis_height, iterations=6)
-    R_WP = rotation_rpy(0.0, 0.0, pelvis[3])
-    for foot, side in ((lp, "left"), (rp, "right")):
-        try:
-            leg_ik(R_WP.T @ (foot[:3] - pelvis[:3]), R_WP.T @ rotation_rpy(0.0, 0.0, foot[3]), side)
-        except RepertoireError as e:
-            raise RepertoireError(
-                f"the biped cannot stand on the start soles ({soles}): {e}"
-            ) from e
+    check_stance(left, right, com, pelvis_height, what="start soles")
 
 
 def build_walk_diagram(
@@ -297,8 +325,18 @@ def build_walk_diagram(
     obstacles: list[list[float]] | None = None,
     meshcat=None,
     name: str = "biped_walk",
+    feedback: bool = False,
+    reach: StepReach | None = None,
 ) -> Diagram:
     """Builds the biped executing ``plan``'s commands.
+
+    Open loop (``feedback=False``) the controller takes the steps the stepping rule makes
+    of the commands from the plan's start, however the robot has moved (how the footstep
+    table was measured); the landings drift in the world over long plans. With
+    ``feedback=True`` a :class:`FootstepFeedback` retargets each step at its lift-off
+    from the measured stance sole to the plan's world pose (see
+    :mod:`repertoire.systems.step_feedback`); every step of the plan is checked to be
+    within ``reach`` of its command first.
 
     Args:
         plan: the footstep plan (its start poses place the robot; its actions are the commands).
@@ -311,10 +349,16 @@ def build_walk_diagram(
             thin visual-only tiles (the robot steps over them; they have no collision).
         meshcat: optional Meshcat instance for a visualizer.
         name: the Diagram's name.
+        feedback: place each step on the plan's world pose from the measured stance sole.
+        reach: with ``feedback``, how far a step may differ from its command's.
+
+    Raises:
+        RepertoireError: bad settings, start soles the biped cannot stand on, or with
+            ``feedback`` a plan step out of ``reach`` (:func:`check_plan_reach`).
 
     Returns:
         The Diagram with subsystems ``plant``, ``plan_source`` (``FootstepPlanSource``),
-        ``command_stepper``,
+        ``command_stepper`` (and with ``feedback`` ``sole_sensor`` and ``step_feedback``),
         ``zmp_com_planner``, ``swing_foot_planner`` and ``walking_ik``.
     """
     validate_walk_fields(pelvis_height, time_step, contact_approximation, ground_friction)
@@ -326,6 +370,8 @@ def build_walk_diagram(
 
     left, right, _ = foot_poses_at(seq, 0.0)
     check_start_stance(left, right, planner.get_nominal_com(0.0).ravel(), pelvis_height)
+    if feedback:
+        check_plan_reach(plan, rule, reach or StepReach(), pelvis_height)
     q0, pelvis0 = whole_body_ik(planner.get_nominal_com(0.0).ravel(), left, right, pelvis_height)
     builder = DiagramBuilder()
     X_WP = RigidTransform(RollPitchYaw(0.0, 0.0, pelvis0[3]), pelvis0[:3])
@@ -351,8 +397,19 @@ def build_walk_diagram(
     ik = builder.AddSystem(WalkingIK(pelvis_height))
     ik.set_name("walking_ik")
     builder.Connect(source.GetOutputPort("plan"), stepper.GetInputPort("plan"))
-    builder.Connect(stepper.GetOutputPort("footsteps"), zmp.GetInputPort("footsteps"))
-    builder.Connect(stepper.GetOutputPort("footsteps"), swing.GetInputPort("footsteps"))
+    footsteps = stepper.GetOutputPort("footsteps")
+    if feedback:
+        sensor = builder.AddSystem(SolePoseSensor(plant, instance))
+        sensor.set_name("sole_sensor")
+        corrector = builder.AddSystem(FootstepFeedback(plan.num_steps, pelvis_height, reach=reach))
+        corrector.set_name("step_feedback")
+        builder.Connect(plant.get_body_poses_output_port(), sensor.GetInputPort("body_poses"))
+        builder.Connect(sensor.GetOutputPort("soles"), corrector.GetInputPort("soles"))
+        builder.Connect(source.GetOutputPort("plan"), corrector.GetInputPort("plan"))
+        builder.Connect(footsteps, corrector.GetInputPort("footsteps"))
+        footsteps = corrector.GetOutputPort("footsteps")
+    builder.Connect(footsteps, zmp.GetInputPort("footsteps"))
+    builder.Connect(footsteps, swing.GetInputPort("footsteps"))
     builder.Connect(zmp.GetOutputPort("com"), ik.GetInputPort("com"))
     builder.Connect(swing.GetOutputPort("left_foot"), ik.GetInputPort("left_foot"))
     builder.Connect(swing.GetOutputPort("right_foot"), ik.GetInputPort("right_foot"))
@@ -427,6 +484,7 @@ def build_biped_walk(scenario: BipedWalkScenario, *, meshcat=None) -> Diagram:
         contact_approximation=scenario.contact_approximation,
         ground_friction=scenario.ground_friction,
         meshcat=meshcat,
+        feedback=scenario.feedback,
     )
 
 
@@ -485,7 +543,9 @@ class WalkResult:
     Attributes:
         landed: measured (x, y, yaw) of each step's swing sole after landing.
         stance: measured (x, y, yaw) of the stance sole at the same instants.
-        expected: the controller's own target of each step (stepping rule).
+        expected: the controller's own target of each step (the stepping rule's, open
+            loop, in the world frame it starts in; with feedback the steps aim at
+            ``planned`` instead).
         planned: the plan's pose of each step (what the planner predicted).
         durations: measured time of each step from its command to the swing foot's
             touch-down (first contact of the foot; 4 ms resolution; NaN if it had no
@@ -522,6 +582,8 @@ def execute_plan(
     diagram: Diagram | None = None,
     simulator: Simulator | None = None,
     max_steps: int | None = None,
+    feedback: bool | None = None,
+    reach: StepReach | None = None,
 ) -> WalkResult:
     """Simulates the biped executing ``plan`` and measures every landing.
 
@@ -538,6 +600,9 @@ def execute_plan(
         diagram: optionally a diagram already built by :func:`build_walk_diagram` for ``plan``.
         simulator: optionally a simulator of ``diagram``.
         max_steps: stop after measuring this many landings (default: all, then the final hold).
+        feedback: walk with world-frame step feedback (see :func:`build_walk_diagram`);
+            None: as the given ``diagram`` was built, else open loop.
+        reach: with ``feedback``, the correction bounds (for a diagram built here).
 
     Raises:
         RepertoireError: bad ``settle`` or ``max_steps``, or a ``diagram`` (or its context)
@@ -545,7 +610,8 @@ def execute_plan(
             measured against ``plan`` while the robot walked the other one; or a robot
             that does not stand on the plan's start soles (within ``START_TOLERANCE_M``
             and ``START_TOLERANCE_RAD``): a plan set into a diagram built for a plan that
-            starts elsewhere.
+            starts elsewhere; or ``feedback`` True or False for a ``diagram`` built the
+            other way.
     """
     if not (is_real(settle) and np.isfinite(settle) and settle >= 0.0):
         raise RepertoireError(f"settle must be a finite delay >= 0 s, got {settle!r}")
@@ -559,6 +625,16 @@ def execute_plan(
             pelvis_height=pelvis_height,
             time_step=time_step,
             contact_approximation=contact_approximation,
+            feedback=bool(feedback),
+            reach=reach,
+        )
+    built = diagram.HasSubsystemNamed("step_feedback")
+    if feedback is not None and bool(feedback) != built:
+        raise RepertoireError(
+            f"execute_plan(feedback={feedback}) got a diagram built "
+            f"{'with' if built else 'without'} step feedback: it would walk "
+            f"{'with' if built else 'without'} it; build the diagram with "
+            f"feedback={feedback} or leave feedback None"
         )
     if simulator is None:
         simulator = Simulator(diagram)
@@ -682,6 +758,7 @@ __all__ = [
     "execute_plan",
     "landing_errors",
     "plan_from_actions",
+    "plan_from_rule",
     "same_commands",
     "sole_poses",
     "start_feet",

@@ -58,6 +58,11 @@ class FootstepExecutionConfig:
         time_step: plant time step [s].
         contact_approximation: ``sap`` (default), ``lagged`` or ``similar``.
         pelvis_height: pelvis height while walking [m].
+        feedback: walk each plan with world-frame step feedback (each step placed on
+            the plan's pose from the measured stance sole) instead of its commands open
+            loop (the paper's setting, which the learned-vs-nominal comparison is about).
+            Needs ``compare_nominal: false``: the nominal table's steps are not the ones
+            this controller's commands make, so they are out of the feedback's reach.
     """
 
     size_m: float = 3.0
@@ -71,9 +76,15 @@ class FootstepExecutionConfig:
     time_step: float = 2e-3
     contact_approximation: str = "sap"
     pelvis_height: float = 0.60
+    feedback: bool = False
 
     def validate(self) -> None:
         """Raise RepertoireError if a field is out of range."""
+        if self.feedback and self.compare_nominal:
+            raise RepertoireError(
+                "feedback: true needs compare_nominal: false (the nominal table's plans "
+                "hold steps up to 0.18 m from the ones the commands make: out of reach)"
+            )
         if not (math.isfinite(self.size_m) and self.size_m >= 1.5):
             raise RepertoireError(f"size_m must be >= 1.5, got {self.size_m}")
         if self.n_strips < 0 or self.n_blocks < 0 or self.max_expansions < 0:
@@ -239,6 +250,7 @@ def run_scene(config: FootstepExecutionConfig, seed: int, table: ActionTable):
         pelvis_height=config.pelvis_height,
         time_step=config.time_step,
         contact_approximation=config.contact_approximation,
+        feedback=config.feedback,
     )
     return scene, plan, result
 

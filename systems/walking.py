@@ -597,6 +597,14 @@ def _empty_plan() -> FootstepPlan:
     )
 
 
+@dataclasses.dataclass
+class _ComPlan:
+    """ZmpComPlanner's cached CoM plan and the footsteps it was made for."""
+
+    footsteps: FootstepSequence | None = None
+    planner: ZmpPlanner = dataclasses.field(default_factory=ZmpPlanner)
+
+
 class ZmpComPlanner(LeafSystem):
     """Desired ZMP and the LIPM-optimal CoM trajectory (Drake ``ZmpPlanner``) for footsteps.
 
@@ -619,7 +627,7 @@ class ZmpComPlanner(LeafSystem):
         ticket = {self.input_port_ticket(self._footsteps.get_index())}
         self._planner = self.DeclareAbstractOutputPort(
             "zmp_planner",
-            lambda: AbstractValue.Make(ZmpPlanner()),
+            lambda: AbstractValue.Make(_ComPlan()),
             self._calc_planner,
             prerequisites_of_calc=ticket,
         )
@@ -634,10 +642,13 @@ class ZmpComPlanner(LeafSystem):
                 "ZmpComPlanner's footsteps input needs a FootstepSequence, "
                 f"got {type(footsteps).__name__}"
             )
-        output.set_value(plan_com(footsteps, self._com_height))
+        # An upstream state update (e.g. FootstepFeedback's) invalidates this entry every
+        # period; the same footsteps keep the plan they have (one Plan per change).
+        if output.get_value().footsteps != footsteps:
+            output.set_value(_ComPlan(footsteps, plan_com(footsteps, self._com_height)))
 
     def _calc_com(self, context: Context, output: BasicVector) -> None:
-        planner = self._planner.Eval(context)
+        planner = self._planner.Eval(context).planner
         t = context.get_time()
         output.SetFromVector(
             np.concatenate(
@@ -647,7 +658,7 @@ class ZmpComPlanner(LeafSystem):
 
     def _calc_zmp(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(
-            self._planner.Eval(context).get_desired_zmp(context.get_time()).ravel()
+            self._planner.Eval(context).planner.get_desired_zmp(context.get_time()).ravel()
         )
 
 

@@ -21,36 +21,18 @@ from repertoire.planning.dmp import (
     check_unit_quaternions,
 )
 from repertoire.planning.dmp_derivatives import fit_demonstration
-from repertoire.planning.dmp_fit import (  # the least squares; "as" names re-exported
-    GCV_GRID as GCV_GRID,
-)
 from repertoire.planning.dmp_fit import (
-    RIDGE_CHOICES as RIDGE_CHOICES,
-)
-from repertoire.planning.dmp_fit import (
-    SINGULAR_RIDGE as SINGULAR_RIDGE,
-)
-from repertoire.planning.dmp_fit import (
-    basis_support as basis_support,
-)
-from repertoire.planning.dmp_fit import (
-    build_forcing_fit_program as build_forcing_fit_program,
-)
-from repertoire.planning.dmp_fit import (
+    GCV_GRID,
+    RIDGE_CHOICES,
+    SINGULAR_RIDGE,
+    basis_support,
+    build_forcing_fit_program,
     check_ridge,
     fit_forcing_weights,
-)
-from repertoire.planning.dmp_fit import (
-    forcing_ridge as forcing_ridge,
-)
-from repertoire.planning.dmp_fit import (
-    gcv_ridge as gcv_ridge,
-)
-from repertoire.planning.dmp_fit import (
-    gcv_scores as gcv_scores,
-)
-from repertoire.planning.dmp_fit import (
-    solve_program as solve_program,
+    forcing_ridge,
+    gcv_ridge,
+    gcv_scores,
+    solve_program,
 )
 from repertoire.planning.dmp_gaps import gap_rows
 from repertoire.planning.dmp_math import (
@@ -74,6 +56,30 @@ from repertoire.planning.dmp_quaternion import (
 
 from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
+
+__all__ = [
+    # the learners
+    "POSITION_ROUNDOFF",
+    "REST_VELOCITY",
+    "learn_dmp",
+    "learn_dmp_from_demonstrations",
+    "learn_quaternion_dmp",
+    "learn_task_space_dmp",
+    "make_quaternions_continuous",
+    "start_velocity",
+    # their least squares (repertoire.planning.dmp_fit), importable from here as before
+    "GCV_GRID",
+    "RIDGE_CHOICES",
+    "SINGULAR_RIDGE",
+    "basis_support",
+    "build_forcing_fit_program",
+    "check_ridge",
+    "fit_forcing_weights",
+    "forcing_ridge",
+    "gcv_ridge",
+    "gcv_scores",
+    "solve_program",
+]
 
 REST_VELOCITY = 1e-6
 """An estimated start velocity with ``|tau dx/dt|`` at or below this fraction of a DOF's

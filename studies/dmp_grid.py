@@ -192,6 +192,49 @@ def run_episode(config: GridConfig, seed: int) -> GridRecord:
     )
 
 
+def results_lines(records: list[GridRecord]) -> list[str]:
+    """The results table (one row per cell) and its summary line, in Markdown.
+
+    An error is ``n/a`` where the run stopped (or its simulated time ended) before that
+    segment; the summary explains ``n/a`` only when the table shows one.
+
+    Args:
+        records: The grid episodes.
+    """
+    g = np.array([r.grasp_reach_error_m for r in records], dtype=float) * 1000
+    p = np.array([r.place_reach_error_m for r in records], dtype=float) * 1000
+    o = np.degrees(np.array([r.grasp_orientation_error_rad for r in records], dtype=float))
+    lines = [
+        "| cell | grasp goal [m] | place goal [m] | grasp error [mm] | place error [mm] | "
+        "approach-axis error [deg] | within 5 mm |",
+        "|---|---|---|---|---|---|---|",
+    ]
+
+    def mm(value: float) -> str:  # NaN: the run stopped (or ended) before that segment
+        return f"{value:.2f}" if np.isfinite(value) else "n/a"
+
+    for r, ge, pe, oe in zip(records, g, p, o):
+        # a miss without a failure is an error above 5 mm (or a run too short): the
+        # error columns say by how much; "no: error" read as if the episode had raised
+        verdict = "yes" if r.reached else f"no: {r.failure[:80]}" if r.failure else "no"
+        lines.append(
+            f"| {r.cell} | {np.round(r.grasp_goal, 3).tolist()} | "
+            f"{np.round(r.place_goal, 3).tolist()} | {mm(ge)} | {mm(pe)} | {mm(oe)} | "
+            f"{verdict} |"
+        )
+    legend = ""
+    if not np.all(np.isfinite(np.concatenate([g, p, o]))):
+        legend = (
+            " n/a: the run stopped (or its simulated time ended) before that segment; "
+            "a max is n/a when no run got that far."
+        )
+    lines.append(
+        f"\n{sum(r.reached for r in records)} of {len(records)} cells reached within 5 mm; "
+        f"max grasp error {mm(finite_max(g))} mm, max place error {mm(finite_max(p))} mm." + legend
+    )
+    return lines
+
+
 def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> dict:
     """Fig. 10: demonstrated paths (blue) and the adapted physical tcp paths (red).
 
@@ -251,33 +294,7 @@ def summarize(records: list[GridRecord], config: GridConfig, out_dir: Path) -> d
     )
     grid = out_dir / "dmp_grid_paths.png"
     fig.savefig(grid, dpi=110)
-    g = np.array([r.grasp_reach_error_m for r in records], dtype=float) * 1000
-    p = np.array([r.place_reach_error_m for r in records], dtype=float) * 1000
-    o = np.degrees(np.array([r.grasp_orientation_error_rad for r in records], dtype=float))
-    lines = [
-        "| cell | grasp goal [m] | place goal [m] | grasp error [mm] | place error [mm] | "
-        "approach-axis error [deg] | within 5 mm |",
-        "|---|---|---|---|---|---|---|",
-    ]
-
-    def mm(value: float) -> str:  # NaN: the run stopped (or ended) before that segment
-        return f"{value:.2f}" if np.isfinite(value) else "n/a"
-
-    for r, ge, pe, oe in zip(records, g, p, o):
-        # a miss without a failure is an error above 5 mm (or a run too short): the
-        # error columns say by how much; "no: error" read as if the episode had raised
-        verdict = "yes" if r.reached else f"no: {r.failure[:80]}" if r.failure else "no"
-        lines.append(
-            f"| {r.cell} | {np.round(r.grasp_goal, 3).tolist()} | "
-            f"{np.round(r.place_goal, 3).tolist()} | {mm(ge)} | {mm(pe)} | {mm(oe)} | "
-            f"{verdict} |"
-        )
-    lines.append(
-        f"\n{sum(r.reached for r in records)} of {len(records)} cells reached within 5 mm; "
-        f"max grasp error {mm(finite_max(g))} mm, max place error {mm(finite_max(p))} mm "
-        "(n/a: no run got that far)."
-    )
-    table = write_table(out_dir, "dmp_grid_results.md", lines)
+    table = write_table(out_dir, "dmp_grid_results.md", results_lines(records))
     return {"grid": grid, "results": table}
 
 

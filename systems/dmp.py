@@ -106,8 +106,18 @@ def check_gains(gamma: float, beta: float) -> list[float]:
 class Onset:
     """The ``start_time`` parameter (``_start``) of a DMP that holds its state until then.
 
-    Mixed in before LeafSystem.
+    While held the position does not move, so the velocity (and acceleration) outputs are
+    0; the state keeps the start velocity (``tau v0``, the demonstration's), which the
+    movement starts with at the onset. Mixed in before LeafSystem.
     """
+
+    def held(self, context: Context) -> bool:
+        """Whether ``context``'s time is before the ``start_time`` parameter.
+
+        Args:
+            context: This system's context.
+        """
+        return context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0)
 
     def set_start_time(self, context: Context, start_time: float) -> None:
         """Hold the state until ``start_time``.
@@ -187,8 +197,7 @@ class CanonicalSystem(Onset, LeafSystem):
         context.get_mutable_continuous_state_vector().SetAtIndex(0, float(theta))
 
     def DoCalcTimeDerivatives(self, context: Context, derivatives) -> None:
-        start = context.get_numeric_parameter(self._start).GetAtIndex(0)
-        if context.get_time() < start:
+        if self.held(context):
             derivatives.get_mutable_vector().SetAtIndex(0, 0.0)
             return
         alpha = context.get_numeric_parameter(self._alpha_index).GetAtIndex(0)
@@ -253,8 +262,10 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
     movement far from the origin keeps its digits, as the discrete step and the NumPy
     rollout do) and ``v = tau dx/dt``; initially ``x = x0`` and ``v = tau dmp.v0`` (the
     demonstration's initial velocity, :meth:`DmpParameters.initial_scaled_velocity`).
-    :meth:`set_start` and :meth:`set_state` take absolute positions. Derivatives are zero
-    before the ``start_time`` parameter.
+    :meth:`set_start` and :meth:`set_state` take absolute positions. Before the
+    ``start_time`` parameter the state is held: derivatives and the velocity and
+    acceleration outputs are 0 (the state keeps ``v``, the velocity the movement starts
+    with at the onset).
 
     Input ports:
         phase (1): theta from a CanonicalSystem.
@@ -265,8 +276,8 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
 
     Output ports:
         position (n): x = x0 + state (state and the x0 parameter).
-        velocity (n): dx/dt = v / tau (state and parameters only, so a coupling computed
-            from it is not an algebraic loop).
+        velocity (n): dx/dt = v / tau, 0 while held (state, parameters and time only, so
+            a coupling computed from it is not an algebraic loop).
         acceleration (n): d2x/dt2 = v' / tau.
 
     Numeric parameters: weights (n * n_basis, row-major (n, n_basis)), centres, widths,
@@ -307,7 +318,12 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         self._position_port = self.DeclareVectorOutputPort(
             "position", n, self._calc_position, prerequisites_of_calc=state_and_params
         )
-        vel_prereq = state_and_params if self._tau_port is None else {self.all_sources_ticket()}
+        # the time too: the velocity is 0 while held before start_time
+        vel_prereq = (
+            state_and_params | {self.time_ticket()}
+            if self._tau_port is None
+            else {self.all_sources_ticket()}
+        )
         self._velocity_port = self.DeclareVectorOutputPort(
             "velocity", n, self._calc_velocity, prerequisites_of_calc=vel_prereq
         )
@@ -377,8 +393,7 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         n = self._n
         z = context.get_continuous_state_vector().CopyToVector()
         y, v = z[:n], z[n:]  # y = x - x0
-        start = context.get_numeric_parameter(self._start).GetAtIndex(0)
-        if context.get_time() < start:
+        if self.held(context):
             return np.zeros(n), np.zeros(n)
         theta = float(self._phase_port.Eval(context)[0])
         p = context.get_numeric_parameter
@@ -410,6 +425,9 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         output.SetFromVector(context.get_numeric_parameter(self._x0).get_value() + y)
 
     def _calc_velocity(self, context: Context, output: BasicVector) -> None:
+        if self.held(context):  # the position does not move (the state keeps tau v0)
+            output.SetFromVector(np.zeros(self._n))
+            return
         v = context.get_continuous_state_vector().CopyToVector()[self._n :]
         output.SetFromVector(v / self._tau_value(context))
 
@@ -534,7 +552,8 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
     (:func:`repertoire.planning.dmp_quaternion.lift_quaternion_goal`), so a demonstration turning
     past 180 deg is reproduced; a goal a full turn from q0 that way is refused.
     The phase at the end of a step is ``theta exp(-alpha dt / tau)`` (the tau parameter).
-    The state is held before the ``start_time`` parameter.
+    The state is held before the ``start_time`` parameter (the angular velocity output is
+    then 0; the state keeps ``tau omega0``, which the turn starts with at the onset).
 
     Input ports:
         phase (1): theta.
@@ -580,7 +599,12 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
             "angular_velocity",
             3,
             self._calc_omega,
-            prerequisites_of_calc={self.xd_ticket(), self.all_parameters_ticket()},
+            # the time too: 0 while held before start_time
+            prerequisites_of_calc={
+                self.xd_ticket(),
+                self.all_parameters_ticket(),
+                self.time_ticket(),
+            },
         )
 
     def get_phase_input_port(self):
@@ -624,7 +648,7 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
 
     def _update(self, context: Context, discrete_state) -> None:
         s = context.get_discrete_state(self._state).CopyToVector()
-        if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):
+        if self.held(context):
             discrete_state.get_mutable_vector(self._state).SetFromVector(s)
             return
         q, eta = s[:4], s[4:]
@@ -647,6 +671,9 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
         output.SetFromVector(context.get_discrete_state(self._state).CopyToVector()[:4])
 
     def _calc_omega(self, context: Context, output: BasicVector) -> None:
+        if self.held(context):  # the orientation does not move (the state keeps tau omega0)
+            output.SetFromVector(np.zeros(3))
+            return
         tau = context.get_numeric_parameter(self._gains).GetAtIndex(2)
         output.SetFromVector(context.get_discrete_state(self._state).CopyToVector()[4:] / tau)
 

@@ -28,8 +28,10 @@ class _DiscreteDmpOutputs(VectorDmpPorts):
         self._position_port = self.DeclareVectorOutputPort(
             "position", n, self._calc_position, prerequisites_of_calc=only_state
         )
+        # the time and start_time too: the velocity is 0 while held
+        held = {self.xd_ticket(), self.time_ticket(), self.all_parameters_ticket()}
         self._velocity_port = self.DeclareVectorOutputPort(
-            "velocity", n, self._calc_velocity, prerequisites_of_calc=only_state
+            "velocity", n, self._calc_velocity, prerequisites_of_calc=held
         )
         self._acceleration_port = self.DeclareVectorOutputPort(
             "acceleration", n, self._calc_acceleration
@@ -54,7 +56,8 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
 
     Discrete state ``[k, x (n), v (n)]`` (k = steps since onset, v = tau dx/dt; initially
     ``x0`` and ``tau dmp.v0``, the demonstration's start); the state is held before the
-    ``start_time`` parameter.
+    ``start_time`` parameter (velocity and acceleration outputs 0 then, as in
+    :class:`TransformationSystem`).
 
     Input ports:
         goal (n): goal g (may change during the movement); unconnected: the learned goal
@@ -63,8 +66,8 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
 
     Output ports:
         position (n), velocity (n) (dx/dt), acceleration (n) (d2x/dt2 at the current
-        state and inputs; 0 while the state is held before ``start_time``, as in
-        :class:`TransformationSystem`), phase (1).
+        state and inputs), phase (1); velocity and acceleration are 0 while the state is
+        held before ``start_time``, as in :class:`TransformationSystem`.
 
     Numeric parameters: x0 (n), start_time (1). Weights, basis, K, D, tau, alpha and the
     time step are construction arguments (the discretisation is precomputed from them); use
@@ -126,7 +129,7 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
 
     def _update(self, context: Context, discrete_state) -> None:
         s = context.get_discrete_state(self._state).get_value()
-        if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):
+        if self.held(context):
             discrete_state.set_value(self._state, s)
             return
         goal = self._goal(context)
@@ -141,6 +144,9 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
         output.SetFromVector(context.get_discrete_state(self._state).get_value()[1 : 1 + self._n])
 
     def _calc_velocity(self, context: Context, output: BasicVector) -> None:
+        if self.held(context):  # the state does not move (it keeps tau v0, as continuous)
+            output.SetFromVector(np.zeros(self._n))
+            return
         s = context.get_discrete_state(self._state).get_value()
         output.SetFromVector(s[1 + self._n :] / self._tau)
 
@@ -151,7 +157,7 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
     def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
         s = context.get_discrete_state(self._state).get_value()
         n = self._n
-        if context.get_time() < context.get_numeric_parameter(self._start).GetAtIndex(0):
+        if self.held(context):
             output.SetFromVector(np.zeros(n))  # held: the state does not move (as continuous)
             return
         theta, f = self._tab.phase_and_f(s[0])

@@ -62,7 +62,8 @@ class DmpSequencer(LeafSystem):
 
     Output ports:
         position, velocity, acceleration (n): x, dx/dt and d2x/dt2 of the active segment
-            (the acceleration is 0 while the state is held before the first start time).
+            (velocity and acceleration are 0 while the state is held before the first start
+            time; the state keeps the start velocity the first segment starts with).
         phase (1), segment (1): theta and the active segment's index.
         orientation (4), angular_velocity (3) (with ``quaternion_at``): the post-normalised
             quaternion block [w, x, y, z] and its world-frame angular velocity. Each
@@ -184,8 +185,9 @@ class DmpSequencer(LeafSystem):
 
     def _declare_outputs(self, n: int, state: set, parts: dict[str, slice]) -> None:
         getters = {"position": self._x, "velocity": self._xd, "acceleration": self._acc}
+        held = state | {self.time_ticket()}  # velocities are 0 while held (_held: the time)
         for name, get in getters.items():
-            pre = state if name != "acceleration" else {self.all_sources_ticket()}
+            pre = {"position": state, "velocity": held}.get(name, {self.all_sources_ticket()})
             self.DeclareVectorOutputPort(
                 name, n, lambda c, o, g=get: o.SetFromVector(g(c)), prerequisites_of_calc=pre
             )
@@ -217,7 +219,7 @@ class DmpSequencer(LeafSystem):
                 "angular_velocity",
                 3,
                 lambda c, o: o.SetFromVector(angular_velocity(*self._quaternion(c))),
-                prerequisites_of_calc=state,
+                prerequisites_of_calc=held,
             )
 
     def set_start(
@@ -266,6 +268,8 @@ class DmpSequencer(LeafSystem):
         return self._split(context)[3]
 
     def _xd(self, context: Context) -> np.ndarray:
+        if self._held(context):  # the position does not move (the state keeps tau v0)
+            return np.zeros(self._n)
         seg, _, _, _, v = self._split(context)
         return v / self._segments[seg].tau
 

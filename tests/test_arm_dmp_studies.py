@@ -66,8 +66,46 @@ def test_smoke_episode_is_deterministic_and_summarizes(module, tmp_path):
         assert "no: error" not in text
         assert text.endswith(
             "0 of 1 cells reached within 5 mm; max grasp error 279.88 mm, max place error "
-            "n/a mm (n/a: no run got that far).\n"
+            "n/a mm. n/a: the run stopped (or its simulated time ended) before that segment; "
+            "a max is n/a when no run got that far.\n"
         )
+
+
+def _grid_record(cell: int, grasp_mm: float, place_mm: float, reached: bool):
+    return dmp_grid.GridRecord(
+        cell=cell,
+        grasp_goal=[0.5, -0.2, 0.1],
+        place_goal=[0.5, 0.2, 0.1],
+        grasp_reach_error_m=grasp_mm / 1000,
+        place_reach_error_m=place_mm / 1000,
+        grasp_orientation_error_rad=np.radians(1.5),
+        reached=reached,
+        failure="",
+        path_x=[],
+        path_y=[],
+        path_z=[],
+        wall_time_s=0.0,
+        wall_sim_s=0.0,
+    )
+
+
+def test_grid_table_explains_n_a_only_when_a_cell_is_n_a():
+    done = [_grid_record(0, 1.25, 2.5, True), _grid_record(1, 3.0, 7.75, False)]
+    lines = dmp_grid.results_lines(done)
+    assert lines[2:] == [
+        "| 0 | [0.5, -0.2, 0.1] | [0.5, 0.2, 0.1] | 1.25 | 2.50 | 1.50 | yes |",
+        "| 1 | [0.5, -0.2, 0.1] | [0.5, 0.2, 0.1] | 3.00 | 7.75 | 1.50 | no |",
+        "\n1 of 2 cells reached within 5 mm; max grasp error 3.00 mm, max place error 7.75 mm.",
+    ]
+    assert not any("n/a" in line for line in lines)  # nothing to explain
+    short = [done[0], _grid_record(1, 3.0, np.nan, False)]  # cell 1 never placed
+    lines = dmp_grid.results_lines(short)
+    assert lines[3] == "| 1 | [0.5, -0.2, 0.1] | [0.5, 0.2, 0.1] | 3.00 | n/a | 1.50 | no |"
+    assert lines[4] == (
+        "\n1 of 2 cells reached within 5 mm; max grasp error 3.00 mm, max place error "
+        "2.50 mm. n/a: the run stopped (or its simulated time ended) before that segment; "
+        "a max is n/a when no run got that far."
+    )
 
 
 def test_seeds_draw_layouts_inside_the_ranges():

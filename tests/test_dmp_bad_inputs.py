@@ -401,3 +401,28 @@ def test_quaternions_within_unit_tolerance_are_learned_as_unit_quaternions(mode)
     assert np.abs(dmp.weights - exact.weights).max() < 1e-9 * np.abs(exact.weights).max()
     with raises("quaternion demonstration are not unit: | |q| - 1 | = 0.0005"):
         learn_quaternion_dmp(T, QUATS * norms, mode=mode, n_basis=20)
+
+
+@pytest.mark.parametrize(
+    "value, shown",
+    [
+        (-1e-9, "-1e-09"),
+        (-1.0, "-1.0"),
+        (np.nan, "nan"),
+        (np.inf, "inf"),
+        ("0", "'0'"),
+        (True, "True"),
+        (None, "None"),
+    ],
+)
+def test_learn_dmp_refuses_a_min_displacement_that_is_not_a_number_at_least_0(value, shown):
+    # a negative bound let eq. 5 divide by g - x0 = 0: start equal to goal in a DOF ended
+    # in "weights contains NaN or inf" instead of a named error
+    x = X.copy()
+    x[-1, 1] = x[0, 1]  # start equals goal in DOF 1
+    with raises(f"min_displacement must be a finite number >= 0, got {shown}"):
+        learn_dmp(T, x, n_basis=20, formulation="old", min_displacement=value)
+    with raises(f"min_displacement must be a finite number >= 0, got {shown}"):
+        learn_dmp(T, X, n_basis=20, min_displacement=value)  # whatever the formulation
+    with raises("start equals goal in DOF [1]"):  # 0 still refuses exactly 0
+        learn_dmp(T, x, n_basis=20, formulation="old", min_displacement=0.0)

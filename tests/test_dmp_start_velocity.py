@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import VectorLogSink
 from repertoire.planning.dmp import (
     DmpParameters,
     directional_primitive,
@@ -458,3 +459,68 @@ def test_bad_start_states_are_named(moving3):
     qdmp = learn_quaternion_dmp(t, q, n_basis=20)
     with pytest.raises(RepertoireError, match="omega0 has 2 entries, expected 3"):
         quaternion_rollout(*qdmp._dynamics(), qdmp.q0, qdmp.goal, omega0=[0.0, 0.0])
+
+
+@pytest.mark.parametrize("time_step", [1e-3, None])
+def test_every_variant_outputs_zero_velocity_while_held_and_the_learned_one_at_onset(time_step):
+    """Before its start time a DMP holds its position, so every velocity output is 0.
+
+    The state keeps the demonstration's start velocity (tau v0, tau omega0), which the
+    movement starts with at the onset; the outputs reported it while the position stood
+    still (up to 2.9 m/s and 1.1 rad/s on sines_in_motion seeds 900-904).
+    """
+    t, x, _ = moving_demo(71, 3, duration=1.0, n=501)
+    _, q, _ = turning_demo(72, n=501, duration=1.0)
+    fingers = np.c_[0.2 + 0.1 * np.sin(2.0 * t), 0.3 - 0.1 * t]
+    vector = learn_dmp(t, x, n_basis=30)
+    assert np.abs(vector.v0).min() > 0.1
+    for dmp in (
+        vector,
+        learn_task_space_dmp(t, x, q, fingers, orientation_mode="component", n_basis=30),
+        learn_task_space_dmp(t, x, q, fingers, orientation_mode="manifold", n_basis=30),
+    ):
+        system = DmpSystem(dmp, time_step=time_step)
+        ctx = system.CreateDefaultContext()
+        system.set_start_time(ctx, 0.5)
+        if dmp is vector:
+            system.GetInputPort("goal").FixValue(ctx, dmp.goal)
+            onset = {"velocity": dmp.v0}
+        else:
+            onset = {
+                "velocity": dmp.position.v0,
+                "angular_velocity": dmp.orientation.omega0,
+                "finger_velocity": dmp.fingers.v0,
+            }
+        for name, learned in onset.items():
+            assert np.abs(learned).max() > 0.05, name
+            for time in (0.0, 0.3, 0.4999):
+                ctx.SetTime(time)
+                out = system.GetOutputPort(name).Eval(ctx)
+                np.testing.assert_array_equal(out, np.zeros(len(learned)), err_msg=name)
+            ctx.SetTime(0.5)  # the onset: the state's start velocity, the demonstration's
+            out = system.GetOutputPort(name).Eval(ctx)
+            np.testing.assert_allclose(out, learned, rtol=1e-12, atol=1e-14, err_msg=name)
+    sequencer = DmpSequencer([vector], [0.5], goals=[vector.goal], time_step=time_step)
+    seq_ctx = sequencer.CreateDefaultContext()
+    for time, expected in ((0.0, np.zeros(3)), (0.3, np.zeros(3)), (0.5, vector.v0)):
+        seq_ctx.SetTime(time)
+        out = sequencer.GetOutputPort("velocity").Eval(seq_ctx)
+        np.testing.assert_allclose(out, expected, rtol=1e-15, atol=0)
+
+
+def test_a_held_dmp_starts_with_its_learned_velocity_in_simulation(moving3):
+    # held 0.2 s, then the rollout from the learned velocity, shifted by the start time
+    _, _, dmp = moving3
+    system = DmpSystem(dmp, time_step=1e-3)
+    builder = DiagramBuilder()
+    builder.AddSystem(system)
+    log = builder.AddSystem(VectorLogSink(3, publish_period=1e-3))
+    builder.Connect(system.GetOutputPort("velocity"), log.get_input_port())
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    system.set_start_time(system.GetMyMutableContextFromRoot(sim.get_mutable_context()), 0.2)
+    sim.AdvanceTo(0.5)
+    v = log.FindLog(sim.get_context()).data().T
+    np.testing.assert_array_equal(v[:200], np.zeros((200, 3)))  # 0 .. 0.199 s: held
+    ref = dmp.rollout(dt=1e-3, n_steps=300).xd
+    np.testing.assert_allclose(v[200:], ref[: len(v) - 200], rtol=0, atol=1e-12)

@@ -2,6 +2,7 @@
 
 import re
 
+import numpy as np
 import pytest
 from repertoire.studies import dmp_chaining, dmp_goals, dmp_grid, dmp_obstacles
 from repertoire.studies.engine import comparable, run_study
@@ -67,6 +68,53 @@ def test_chaining_study_smoke(tmp_path):
     assert r.acc_jump_acceleration < 1e-9 < r.acc_jump_velocity
     assert r.drake_vs_numpy < 1e-10
     assert result.figures["fig5"].exists()
+    # the record keeps what ran: its square, switches and traces (within trace_tolerance)
+    config = get_study("dmp_chaining").smoke_config()
+    switch, side, goals = dmp_chaining.square(config, 0)
+    assert (r.seed, r.switch, r.side_m) == (0, switch, side)
+    assert r.goals_m == [g.tolist() for g in goals]
+    t_kept = np.array(r.trace_t_s)
+    for h in dmp_chaining.HANDOFF_NAMES:
+        t, x, xd, xdd, steps, _, times = dmp_chaining.run_chain(config, switch, goals, h)
+        assert r.switch_times_s == pytest.approx(times[1:], abs=1e-12)
+        for kept, full in ((r.speed[h], xd), (r.acc_norm[h], xdd)):
+            full = np.linalg.norm(full, axis=1)
+            gap = np.abs(np.interp(t, t_kept, kept) - full).max()
+            assert gap <= config.trace_tolerance * full.max() + 1e-6
+        if h == "velocity":
+            path = np.array(r.path_velocity_m)
+            for i in (0, 1):
+                gap = np.abs(np.interp(t, t_kept, path[:, i]) - x[:, i]).max()
+                assert gap <= config.trace_tolerance * np.abs(x[:, i]).max() + 1e-6
+            assert np.allclose(r.switch_points_m, x[steps], atol=1e-6, rtol=0)
+    # and the figure draws them: (a) the path leg by leg, (b) in the square's frame
+    fig = dmp_chaining.fig5(result.records)
+    a, b, c, d = fig.axes[:4]
+    legs = [line.get_xydata() for line in a.lines[:4]]
+    assert np.array_equal(np.vstack([leg[:-1] for leg in legs[:3]] + [legs[3]]), path)
+    assert np.array_equal(b.lines[0].get_xydata(), dmp_chaining.square_frame(goals, path))
+    assert np.array_equal(c.lines[1].get_ydata(), r.acc_norm["velocity"])
+    assert np.array_equal(d.lines[0].get_xdata(), t_kept)
+
+
+def test_chaining_square_frame_maps_every_square_onto_the_unit_square():
+    config = dmp_chaining.DmpChainingConfig()
+    unit = [[1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 0.0]]
+    for seed in range(50, 60):
+        _, _, goals = dmp_chaining.square(config, seed)
+        assert dmp_chaining.square_frame(goals, np.array(goals)) == pytest.approx(
+            np.array(unit), abs=1e-12
+        )
+
+
+def test_chaining_traces_keep_the_breakpoints_and_both_sides_of_each_switch():
+    t = np.arange(11.0)
+    corner = np.abs(t - 4.0)  # piecewise linear: its chords are exact through 0, 4, 10
+    assert dmp_chaining.trace_indices(t, [corner], [], 1e-3).tolist() == [0, 4, 10]
+    assert dmp_chaining.trace_indices(t, [corner], [7], 1e-3).tolist() == [0, 4, 6, 7, 10]
+    bump = np.where(t == 8.0, 0.05, 0.0) + corner  # 0.05 off the chord: 0.5 % of the peak
+    assert dmp_chaining.trace_indices(t, [bump], [], 1e-2).tolist() == [0, 4, 10]
+    assert dmp_chaining.trace_indices(t, [bump], [], 1e-3).tolist() == [0, 4, 7, 8, 9, 10]
 
 
 def test_study_configs_refuse_infinite_and_inverted_ranges():

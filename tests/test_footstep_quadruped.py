@@ -230,6 +230,45 @@ def test_crawl_bad_input():
         plan_crawl(steep, start, (0.2, 0.0))
 
 
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), CrawlParams(order=[0, 1, 2, 3.0])),
+         r"crawl order must be a permutation of 0..3, got \[0, 1, 2, 3.0\]"),
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), CrawlParams(offsets_x=["a"])),
+         r"crawl offsets_x must be finite numbers, got \['a'\]"),
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), CrawlParams(flat_radius="a")),
+         "crawl flat_radius must be a number, got 'a'"),
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), ground=object()),
+         r"crawl ground must have a height\(x, y\) method"),
+        (lambda hm, s: plan_crawl(hm.heights, s, (0.2, 0.0)),
+         "crawl height_map must be a HeightMap, got array"),
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), {"step_cost": 1.0}),
+         "crawl params must be a CrawlParams, got {'step_cost': 1.0}"),
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), anytime="yes"),
+         "plan_crawl anytime must be True or False, got 'yes'"),
+        (lambda hm, s: plan_crawl(hm, {"lf": 1}, (0.2, 0.0)),
+         r"crawl start footholds must be finite, shape \(4, 2\) or \(4, 3\); got {'lf': 1}"),
+        (lambda hm, s: height_map_from_board(hm, 5, (0.0, 1.0), 0.01),
+         "height map ranges must be finite .* got x_range=5"),
+        (lambda hm, s: height_map_from_board(hm, (0.0, 1.0), (0.0, 1.0), None),
+         "height map ranges must be finite .* resolution=None"),
+        (lambda hm, s: height_map_from_board(None, (0.0, 1.0), (0.0, 1.0), 0.01),
+         r"height map board must have a height\(x, y\) method, got None"),
+        (lambda hm, s: HeightMap(("a", 0.0), 0.01, np.zeros((3, 3))),
+         r"height map origin must be a finite \(x, y\), got \('a', 0.0\)"),
+        (lambda hm, s: HeightMap((0.0, 0.0), 0.01, np.full((3, 3), 0.1 + 1j)),
+         "height map heights must be real numbers \\(m\\), got dtype complex128"),
+    ],
+)  # fmt: skip
+def test_crawl_and_height_map_refuse_wrong_types_by_name(call, message):
+    # before, each of these raised a bare TypeError, AttributeError or IndexError (or, for
+    # complex heights, dropped the imaginary part with a warning)
+    hm = _board_map("flat")
+    with pytest.raises(RepertoireError, match=message):
+        call(hm, nominal_foot_positions()[:, :2])
+
+
 def test_crawl_plan_figure_has_height_colour_bar_and_legend(tmp_path):
     from repertoire.planning.footstep.plot import crawl_plan_figure
 

@@ -154,16 +154,21 @@ class CrawlParams:
 
     def validate(self) -> None:
         """Raises FootstepError naming the first bad field."""
-        if sorted(self.order) != [0, 1, 2, 3]:
-            raise FootstepError(f"crawl order must be a permutation of 0..3, got {self.order}")
+        if not (_numbers(self.order, is_whole) and sorted(self.order) == [0, 1, 2, 3]):
+            raise FootstepError(f"crawl order must be a permutation of 0..3, got {self.order!r}")
         if not self.offsets_x or not self.offsets_y:
             raise FootstepError(
                 f"crawl candidate offsets are empty (offsets_x={self.offsets_x}, "
                 f"offsets_y={self.offsets_y}): the step model would have no successors"
             )
         for name in ("offsets_x", "offsets_y"):
-            if not all(math.isfinite(v) for v in getattr(self, name)):
-                raise FootstepError(f"crawl {name} must be finite, got {getattr(self, name)}")
+            values = getattr(self, name)
+            if not _numbers(values, lambda v: is_real(v) and math.isfinite(v)):
+                raise FootstepError(f"crawl {name} must be finite numbers, got {values!r}")
+        for f in dataclasses.fields(self):
+            if f.name not in ("order", "offsets_x", "offsets_y", "turn_lead"):
+                if not is_real(value := getattr(self, f.name)):
+                    raise FootstepError(f"crawl {f.name} must be a number, got {value!r}")
         for name in (
             "flat_radius",
             "max_step_height",
@@ -190,6 +195,13 @@ class CrawlParams:
             raise FootstepError(f"crawl turn_lead must be an integer >= 1, got {self.turn_lead!r}")
         if not (0.0 <= self.body_shift <= 1.0):
             raise FootstepError(f"crawl body_shift must be in [0, 1], got {self.body_shift}")
+
+
+def _numbers(values, ok) -> bool:
+    """True when ``values`` is a list (or tuple, array) whose every element passes ``ok``."""
+    if isinstance(values, np.ndarray):
+        values = values.tolist() if values.ndim == 1 else None
+    return isinstance(values, (list, tuple)) and all(ok(v) for v in values)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -385,12 +397,25 @@ class CrawlModel:
         goal_heading: float | None = None,
         front_line=None,
     ) -> None:
+        crawl = ExecutionParams() if crawl is None else crawl
+        for name, value, kind in (
+            ("height_map", height_map, HeightMap),
+            ("params", params, CrawlParams),
+            ("crawl", crawl, ExecutionParams),
+        ):
+            if not isinstance(value, kind):
+                raise FootstepError(f"crawl {name} must be a {kind.__name__}, got {value!r:.80}")
         params.validate()
         self.map = height_map
         self.params = params
-        self.crawl = ExecutionParams() if crawl is None else crawl
+        self.crawl = crawl
         self.crawl.validate()
         self.ground = height_map if ground is None else ground
+        if not callable(getattr(self.ground, "height", None)):
+            raise FootstepError(
+                f"crawl ground must have a height(x, y) method (e.g. a TerrainBoard), got "
+                f"{ground!r:.80}"
+            )
         self._rough = height_map.roughness(params.flat_radius)
         self._nominal = nominal_foot_positions()[:, :2]
         try:
@@ -421,10 +446,14 @@ class CrawlModel:
                     f"crawl front_line must be a finite (nx, ny, d) with n != 0, got {front_line!r}"
                 )
             self.front_line = line / np.hypot(*line[:2])
-        start = np.asarray(start_xy, dtype=float)
+        try:
+            start = np.asarray(start_xy, dtype=float)
+        except (TypeError, ValueError):  # a string, a dict, ragged rows: refused below
+            start = np.zeros(0)
         if start.shape not in ((4, 2), (4, 3)) or not np.all(np.isfinite(start)):
             raise FootstepError(
-                f"crawl start footholds must be finite, shape (4, 2) or (4, 3); got {start}"
+                f"crawl start footholds must be finite, shape (4, 2) or (4, 3); "
+                f"got {start_xy!r:.200}"
             )
         rows, cols = height_map.cell(start[:, 0], start[:, 1])
         if not np.all(height_map.inside(rows, cols)):
@@ -687,7 +716,9 @@ def plan_crawl(
     Raises:
         FootstepError: see :class:`CrawlModel` and the search's budget checks.
     """
-    p = params or CrawlParams()
+    p = CrawlParams() if params is None else params
+    if not isinstance(anytime, (bool, np.bool_)):
+        raise FootstepError(f"plan_crawl anytime must be True or False, got {anytime!r}")
     model = CrawlModel(height_map, start_xy, goal_xy, p, crawl, ground, goal_heading, front_line)
     if anytime:
         results = anytime_search(model, max_expansions=max_expansions, time_limit=time_limit)

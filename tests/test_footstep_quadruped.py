@@ -601,3 +601,42 @@ def test_crawl_front_line_is_part_of_the_goal_test():
     for bad in ((0.0, 0.0, 1.0), (1.0, math.nan, 0.0), (1.0, 0.0), "x"):
         with pytest.raises(FootstepError, match="front_line must be a finite.*n != 0"):
             plan_crawl(hm, start, (0.1, 0.0), front_line=bad)
+
+
+def test_shift_poses_are_the_crawls_commanded_shift_and_end_at_the_target():
+    from repertoire.planning.littledog_crawl import shift_poses
+
+    params = ExecParams()
+    pose = np.array([0.0, 0.0, 0.2, 0.0, 0.0, 3.1])
+    target = np.array([0.02, 0.01, 0.18, 0.0, 0.0, -3.1])  # yaw the short way: +0.083 rad
+    poses = shift_poses(pose, target, params)
+    assert poses.shape == (round(params.shift_time / params.dt), 6)
+    np.testing.assert_allclose(poses[-1, :5], target[:5], atol=1e-15)
+    assert poses[-1, 5] == pytest.approx(3.1 + (2 * math.pi - 6.2))
+    assert np.all(np.diff(poses[:, 5]) >= 0.0)  # never the long way round
+    both = shift_poses(pose, np.stack([target, pose]), params)
+    np.testing.assert_array_equal(both[0], poses)
+    np.testing.assert_array_equal(both[1], np.repeat(pose[None], len(poses), 0))
+    # the executor commands exactly these poses between the hold and the first lift
+    board = generate_board(TerrainParams(kind="flat"), seed=0)  # its top at 0.04 m
+    feet = np.column_stack([nominal_foot_positions()[:, :2], np.full(4, 0.04 + FOOT_RADIUS)])
+    pose0 = np.r_[feet[:, :2].mean(axis=0), 0.18, 0.0, 0.0, 0.0]
+    p_new = feet[2] + [0.03, 0.0, 0.0]
+    executed = execute(feet, pose0, [ExecStep(2, p_new)], board, params, hold_time=0.0)
+    shift = shift_poses(pose0, swing_pose(feet, 2, p_new, params), params)
+    np.testing.assert_array_equal(executed.body_pose[1 : 1 + len(shift)], shift)
+
+
+def test_planned_crawls_execute_through_every_shift():
+    # A steps board (rises 2-4.5 cm) the planner was never tuned on: step 14 (rh) drops the
+    # body 5.4 cm while turning; both ends of the shift are reachable, but halfway lf's hip
+    # pitch reached 2.504 rad (limit 2.4) and the crawl refused the plan (CrawlError). The
+    # states now keep the cell the last foot left, so the shift from that step's pose is
+    # checked at every commanded sample.
+    board = generate_board(TerrainParams(kind="steps", size_x=1.0, size_y=0.6,
+                                         step_rise=[0.02, 0.045]), seed=9609)  # fmt: skip
+    hm = height_map_from_board(board, (-0.55, 0.55), (-0.3, 0.3), 0.01)
+    start = nominal_foot_positions()[:, :2] + [-0.25, 0.0]
+    plan = plan_crawl(hm, start, (0.2, 0.0), time_limit=30.0, ground=board)
+    assert plan.status is PlanStatus.SUCCESS
+    _check_plan(plan, hm, CrawlParams(), board)  # the crawl's IK at every sample, shifts too

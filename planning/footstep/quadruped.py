@@ -24,6 +24,11 @@ the body's axes too), and keeps a candidate only if
   :func:`~repertoire.planning.littledog_crawl.step_reachable` (one definition
   for the planner and the crawl). The swing's ground is ``ground`` (the exact
   board when given, else the map's cell heights);
+- the body's shift to that pose, from the pose the crawl held through the last step
+  (the state keeps the cell the last moved foot left, so that pose is known), keeps
+  every leg within reach at every commanded sample
+  (:func:`~repertoire.planning.littledog_crawl.shift_reachable`; before, only its ends
+  were checked, and a step down with a turn took a hip past its limit halfway);
 - with an exact ``ground``, the foot's landing spot is flat on it too
   (:func:`flat_on_ground`: the map's cell centres miss edges between them), and
   no ground rises above it within ``face_radius`` (:func:`clear_of_faces`: a
@@ -89,7 +94,9 @@ from repertoire.planning.littledog_crawl import (
     foothold_ok,
     heading_of,
     joint_angles,
+    shift_reachable,
     step_reachable,
+    swing_pose,
 )
 
 from repertoire.checks import is_real, is_whole
@@ -208,12 +215,16 @@ def _numbers(values, ok) -> bool:
 class CrawlState:
     """A search state: foothold cells, the next crawl phase and the body's turns.
 
-    ``cells``: 4 x (row, col); ``turns``: whole ``turn_step`` from the start heading.
+    ``cells``: 4 x (row, col); ``turns``: whole ``turn_step`` from the start heading;
+    ``left``: the cell the last moved foot left (None at the start). The body's pose
+    during the last step depends on it, and the next step's shift starts from that pose,
+    so arrivals from different cells are different states.
     """
 
     cells: tuple[tuple[int, int], ...]
     phase: int
     turns: int = 0
+    left: tuple[int, int] | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -487,9 +498,10 @@ class CrawlModel:
         centres = feet + np.array([0.0, 0.0, FOOT_RADIUS])
         c = centres.mean(axis=0)
         level = [c[0], c[1], feet[:, 2].mean() + self.crawl.standing_height]
+        self._pose0 = np.array([*level, 0.0, 0.0, heading_of(centres)])
         try:
             joint_angles(
-                np.array([*level, 0.0, 0.0, heading_of(centres)]),
+                self._pose0,
                 centres - np.array([0.0, 0.0, self.crawl.press]),
                 "crawl start stance",
             )
@@ -662,16 +674,36 @@ class CrawlModel:
         # The crawl's leg IK for the whole step at its own body pose (foot centres).
         lift = np.array([0.0, 0.0, FOOT_RADIUS])
         reach = step_reachable(feet + lift, leg, p_new + lift, self.crawl, self.ground)
+        # ... and the body's shift there from where the last step held it
+        ok = np.flatnonzero(reach)
+        targets = swing_pose(feet + lift, leg, p_new[ok] + lift, self.crawl)
+        ok = ok[shift_reachable(feet + lift, self._held_pose(state, feet), targets, self.crawl)]
         out = []
         next_phase = (state.phase + 1) % 4
-        for j in np.flatnonzero(reach):
+        for j in ok:
             cells_new = list(state.cells)
             cells_new[leg] = (int(rows[idx[j]]), int(cols[idx[j]]))
             travel = math.hypot(p_new[j, 0] - feet[leg, 0], p_new[j, 1] - feet[leg, 1])
             cost = p.step_cost + travel + p.height_cost * abs(p_new[j, 2] - z_old)
             turns = found[cells_new[leg]]
-            out.append((CrawlState(tuple(cells_new), next_phase, turns), cost))
+            out.append((CrawlState(tuple(cells_new), next_phase, turns, old), cost))
         return out
+
+    def _held_pose(self, state: CrawlState, feet: np.ndarray) -> np.ndarray:
+        """The body pose the crawl holds as ``state`` is reached (the next shift's start).
+
+        The start: level over the feet at the standing height (as the start check);
+        else the last step's :func:`~repertoire.planning.littledog_crawl.swing_pose`, from
+        the feet before it (its foot in ``state.left``).
+        """
+        if state.left is None:
+            return self._pose0
+        last = self.params.order[(state.phase - 1) % 4]
+        before = list(state.cells)
+        before[last] = state.left
+        lift = np.array([0.0, 0.0, FOOT_RADIUS])
+        prior = self._feet(CrawlState(tuple(before), 0)) + lift
+        return swing_pose(prior, last, feet[last] + lift, self.crawl)
 
 
 def plan_crawl(

@@ -640,3 +640,15 @@ def test_planned_crawls_execute_through_every_shift():
     plan = plan_crawl(hm, start, (0.2, 0.0), time_limit=30.0, ground=board)
     assert plan.status is PlanStatus.SUCCESS
     _check_plan(plan, hm, CrawlParams(), board)  # the crawl's IK at every sample, shifts too
+
+
+def test_crawl_refuses_a_map_too_large_for_its_planning_arrays_before_allocating(monkeypatch):
+    # A 300 x 200 map holds 0.48 MB of heights; the roughness filter needs 24 bytes a cell
+    # more (1.44 MB). Before, the crawl model allocated them unchecked.
+    hm = HeightMap(origin=(-1.5, -1.0), resolution=0.01, heights=np.zeros((200, 300)))
+    monkeypatch.setenv("REPERTOIRE_MAX_MEMORY_BYTES", str(10**6))
+    with pytest.raises(ResourceLimitError, match=r"crawl planning \(roughness\) of a 300 x 200 "
+                       r"height map at 0.01 m would need about 1.4 MiB"):  # fmt: skip
+        plan_crawl(hm, nominal_foot_positions()[:, :2], (0.2, 0.0))
+    monkeypatch.setenv("REPERTOIRE_MAX_MEMORY_BYTES", str(2 * 10**6))
+    assert plan_crawl(hm, nominal_foot_positions()[:, :2], (0.2, 0.0)).status is PlanStatus.SUCCESS

@@ -101,6 +101,7 @@ from repertoire.planning.littledog_crawl import (
 
 from repertoire.checks import is_real, is_whole
 from repertoire.errors import RepertoireError
+from repertoire.limits import require_memory
 
 
 @dataclasses.dataclass
@@ -395,6 +396,8 @@ class CrawlModel:
         FootstepError: bad parameters, a start foothold off the map or on ground
             too steep, a start stance out of reach or unstable, a goal off the map,
             a goal heading not a finite number, a front line not finite or with n = 0.
+        ResourceLimitError: a map whose planning arrays would not fit in memory (the
+            figure in the message), checked before allocating them.
     """
 
     def __init__(
@@ -427,6 +430,12 @@ class CrawlModel:
                 f"crawl ground must have a height(x, y) method (e.g. a TerrainBoard), got "
                 f"{ground!r:.80}"
             )
+        n_y, n_x = height_map.shape
+        require_memory(  # the roughness filter's arrays (max, min, range), before allocating
+            24.0 * n_x * n_y,
+            f"crawl planning (roughness) of a {n_x} x {n_y} height map at "
+            f"{height_map.resolution} m",
+        )
         self._rough = height_map.roughness(params.flat_radius)
         self._nominal = nominal_foot_positions()[:, :2]
         try:
@@ -747,6 +756,7 @@ def plan_crawl(
 
     Raises:
         FootstepError: see :class:`CrawlModel` and the search's budget checks.
+        ResourceLimitError: see :class:`CrawlModel`.
     """
     p = CrawlParams() if params is None else params
     if not isinstance(anytime, (bool, np.bool_)):

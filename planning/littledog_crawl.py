@@ -556,6 +556,14 @@ def plan_to_steps(plan: CrawlPlan, *, terrain: str, direction: float, kind: str 
 
 def foothold_ok(board, xy, params: CrawlParams) -> np.ndarray:
     """True where the terrain within ``edge_radius`` of each point of ``xy`` (M x 2) is flat."""
+    return foothold_range(board, xy, params) <= params.flat_tolerance
+
+
+def foothold_range(board, xy, params: CrawlParams) -> np.ndarray:
+    """The terrain's height range (m) within ``edge_radius`` of each point of ``xy`` (M x 2).
+
+    Sampled at the centre and on rings at the radius and half of it (8 points each).
+    """
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     r = params.edge_radius
     angles = np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)
@@ -568,7 +576,7 @@ def foothold_ok(board, xy, params: CrawlParams) -> np.ndarray:
     )
     pts = xy[:, None, :] + ring[None]
     h = board.height(pts[..., 0], pts[..., 1])
-    return (h.max(axis=1) - h.min(axis=1)) <= params.flat_tolerance
+    return h.max(axis=1) - h.min(axis=1)
 
 
 def choose_foothold(
@@ -681,6 +689,7 @@ __all__ = [
     "choose_foothold",
     "choose_footholds",
     "foothold_ok",
+    "foothold_range",
     "heading_of",
     "joint_angles",
     "plan_crawl",

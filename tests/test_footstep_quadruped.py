@@ -230,6 +230,18 @@ def test_crawl_bad_input():
         plan_crawl(steep, start, (0.2, 0.0))
 
 
+def test_a_start_on_steep_exact_ground_names_its_height_range():
+    # lf stands on a rock's edge; before, the message gave no range
+    board = generate_board(TerrainParams(kind="rocks", size_x=1.0, size_y=0.6,
+                                         rock_height=[0.02, 0.06]), seed=9300)  # fmt: skip
+    hm = height_map_from_board(board, (-0.55, 0.55), (-0.3, 0.3), 0.01)
+    start = nominal_foot_positions()[:, :2] + [-0.25, 0.0]
+    with pytest.raises(FootstepError, match=r"crawl start foothold of lf at \[-0.149, 0.06\] is "
+                       r"on ground too steep: height range 0.0589 m within 0.0103 m on the exact "
+                       r"ground > max_roughness 0.006 m"):  # fmt: skip
+        plan_crawl(hm, start, (0.25, 0.0), ground=board)
+
+
 @pytest.mark.parametrize(
     "call, message",
     [

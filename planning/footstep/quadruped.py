@@ -91,7 +91,7 @@ from repertoire.planning.footstep.search import SearchResult, anytime_search, se
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
 from repertoire.planning.littledog_crawl import CrawlParams as ExecutionParams
 from repertoire.planning.littledog_crawl import (
-    foothold_ok,
+    foothold_range,
     heading_of,
     joint_angles,
     shift_reachable,
@@ -313,12 +313,12 @@ def flat_on_ground(ground, xy, params: CrawlParams) -> np.ndarray:
 
     The height spread of ``ground`` (an exact height function, e.g. the board the map
     was sampled from) under the foot, within its radius ``FOOT_RADIUS`` (centre and
-    two rings, :func:`~repertoire.planning.littledog_crawl.foothold_ok`), at most
+    two rings, :func:`~repertoire.planning.littledog_crawl.foothold_range`), at most
     ``max_roughness``: the map's cell centres miss edges between them, and a foot
     landing on an edge slides off.
     """
-    rule = ExecutionParams(edge_radius=FOOT_RADIUS, flat_tolerance=params.max_roughness)
-    return foothold_ok(ground, np.asarray(xy, dtype=float)[:, :2], rule)
+    rule = ExecutionParams(edge_radius=FOOT_RADIUS)
+    return foothold_range(ground, np.asarray(xy, dtype=float)[:, :2], rule) <= params.max_roughness
 
 
 def clear_of_faces(ground, xy, params: CrawlParams) -> np.ndarray:
@@ -486,10 +486,12 @@ class CrawlModel:
         exact = None if self.ground is height_map else flat_on_ground(self.ground, start, params)
         for i in range(4):
             if exact is not None and not exact[i]:
+                rule = ExecutionParams(edge_radius=FOOT_RADIUS)
+                spread = float(foothold_range(self.ground, start[i : i + 1, :2], rule)[0])
                 raise FootstepError(
                     f"crawl start foothold of {LEGS[i]} at {start[i].tolist()} is on ground too "
-                    f"steep: height range within {FOOT_RADIUS} m on the exact ground > "
-                    f"max_roughness {params.max_roughness} m"
+                    f"steep: height range {spread:.4f} m within {FOOT_RADIUS} m on the exact "
+                    f"ground > max_roughness {params.max_roughness} m"
                 )
             if exact is None and self._rough[rows[i], cols[i]] > params.max_roughness:
                 raise FootstepError(

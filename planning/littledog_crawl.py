@@ -342,7 +342,7 @@ def step_reachable(feet, foot: int, p_new, params: CrawlParams, board) -> np.nda
     :func:`swing_commands` with the body at the step's :func:`swing_pose`, and the feet
     before the step there (the end of the body shift). The shift's intermediate poses
     (between the previous step's pose and this one) are not checked here: they depend
-    on the previous step.
+    on the previous step: :func:`shift_reachable` checks them.
 
     Args:
         feet: foot centres before the step (4 x 3).
@@ -371,6 +371,44 @@ def step_reachable(feet, foot: int, p_new, params: CrawlParams, board) -> np.nda
     for i, leg in enumerate(LEGS):
         ok &= leg_ik_feasible(leg, held_B[:, i])
     return ok
+
+
+def shift_poses(pose, target, params: CrawlParams) -> np.ndarray:
+    """The body poses of the shift before a step, from ``pose`` to ``target`` (its last).
+
+    ``round(shift_time / dt)`` samples (at least one) of a smooth blend, the yaw the short
+    way round, as :func:`plan_crawl` commands them; ``target`` may be (K, 6) for K
+    shifts from the same pose, giving (K, n, 6).
+    """
+    pose, target = np.asarray(pose, dtype=float), np.asarray(target, dtype=float)
+    n = max(1, round(params.shift_time / params.dt))
+    s = _smooth(np.arange(1, n + 1) / n)[:, None]
+    d = target - pose
+    d[..., 5] = (d[..., 5] + math.pi) % (2.0 * math.pi) - math.pi
+    return pose + s * d[..., None, :]
+
+
+def shift_reachable(feet, pose, targets, params: CrawlParams) -> np.ndarray:
+    """Which shifts from ``pose`` to each of ``targets`` (K, 6) every leg can follow.
+
+    The four feet stay at ``feet`` (foot centres, 4 x 3, pressed ``press`` into the
+    ground as commanded) while the body moves through :func:`shift_poses`; the ends are
+    the previous step's swing pose and this step's (:func:`step_reachable` checks the
+    latter). Both ends reachable does not make the blend reachable: the joint limits
+    bound a non-convex set (a 5 cm drop with a turn took a hip pitch past its limit
+    halfway). Returns a boolean mask (K,).
+    """
+    targets = np.asarray(targets, dtype=float).reshape(-1, 6)
+    if len(targets) == 0:
+        return np.zeros(0, dtype=bool)
+    poses = shift_poses(pose, targets, params).reshape(-1, 6)  # (K n, 6)
+    R = rotation_from_rpy(poses[:, 3:])
+    held = np.asarray(feet, dtype=float) - np.array([0.0, 0.0, params.press])
+    held_B = (held[None] - poses[:, None, :3]) @ R  # the feet in the body frame, per pose
+    ok = np.ones(len(poses), dtype=bool)
+    for i, leg in enumerate(LEGS):
+        ok &= leg_ik_feasible(leg, held_B[:, i])
+    return ok.reshape(len(targets), -1).all(axis=1)
 
 
 def plan_crawl(
@@ -444,11 +482,9 @@ def plan_crawl(
         after[f] = step.p_WF
         target = swing_pose(feet, f, step.p_WF, params)
         # Shift: body moves, all four feet stay.
-        n = max(1, round(params.shift_time / dt))
-        s = _smooth((np.arange(1, n + 1)) / n)[:, None]
-        d = target - pose
-        d[5] = (d[5] + math.pi) % (2.0 * math.pi) - math.pi
-        emit(n, pose + s * d, np.repeat((feet - down)[None], n, 0), np.ones(4, bool), k)
+        shift = shift_poses(pose, target, params)
+        n = len(shift)
+        emit(n, shift, np.repeat((feet - down)[None], n, 0), np.ones(4, bool), k)
         pose = target
         # Lift delay, swing of foot f, settle: body still (the commands the planner checks).
         cmd = swing_commands(feet, f, step.p_WF, params, board)
@@ -520,6 +556,14 @@ def plan_to_steps(plan: CrawlPlan, *, terrain: str, direction: float, kind: str 
 
 def foothold_ok(board, xy, params: CrawlParams) -> np.ndarray:
     """True where the terrain within ``edge_radius`` of each point of ``xy`` (M x 2) is flat."""
+    return foothold_range(board, xy, params) <= params.flat_tolerance
+
+
+def foothold_range(board, xy, params: CrawlParams) -> np.ndarray:
+    """The terrain's height range (m) within ``edge_radius`` of each point of ``xy`` (M x 2).
+
+    Sampled at the centre and on rings at the radius and half of it (8 points each).
+    """
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     r = params.edge_radius
     angles = np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)
@@ -532,7 +576,7 @@ def foothold_ok(board, xy, params: CrawlParams) -> np.ndarray:
     )
     pts = xy[:, None, :] + ring[None]
     h = board.height(pts[..., 0], pts[..., 1])
-    return (h.max(axis=1) - h.min(axis=1)) <= params.flat_tolerance
+    return h.max(axis=1) - h.min(axis=1)
 
 
 def choose_foothold(
@@ -645,11 +689,14 @@ __all__ = [
     "choose_foothold",
     "choose_footholds",
     "foothold_ok",
+    "foothold_range",
     "heading_of",
     "joint_angles",
     "plan_crawl",
     "plan_to_steps",
     "reachable_height",
+    "shift_poses",
+    "shift_reachable",
     "step_reachable",
     "swing_commands",
     "swing_pose",

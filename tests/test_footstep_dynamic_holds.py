@@ -15,6 +15,7 @@ from repertoire.planning.footstep import (
 )
 from repertoire.planning.footstep.biped_model import BipedStepModel
 from repertoire.planning.footstep.footprint import foot_collides_reference
+from repertoire.planning.footstep.types import FootstepError
 
 FOOT = (0.16, 0.10)  # the nominal (ASIMO-like) sole
 START = (1.405, 0.4, math.pi / 2)  # left foot, facing +y; the right one beside it at x 1.595
@@ -127,3 +128,51 @@ def test_receding_horizon_passes_the_last_rounds_reason_on():
     assert alone.status is PlanStatus.UNREACHABLE and "past the environment's" in alone.reason
     res = plan_receding_horizon(*args, max_rounds=1)
     assert res.statuses == ["UNREACHABLE"] and res.plan.reason == alone.reason
+
+
+def _parked_on_the_goal(t_park: float) -> DynamicEnvironment:
+    """A 0.4 m block that slides onto (3.0, 1.5) by ``t_park`` and stays there."""
+    block = MovingRectObstacle([0, 0], [0.4, 0.4], waypoints=[[0, 3.0, -1.0], [t_park, 3.0, 1.5]])
+    return DynamicEnvironment.from_moving_obstacles((4.0, 3.0), moving=[block], t_end=20.0)
+
+
+def test_a_goal_covered_before_the_robot_can_get_there_is_unreachable_at_once():
+    # From (0.5, 1.405) the goal is 2.5018 m away: the stance foot moves at most 0.3551 m a
+    # step (the nominal table's reach) and comes within 0.15 m after ceil(6.62) = 7 steps of
+    # 0.8 s, at 5.6 s; the block covers every sole within 0.15 m of the goal from 3 s on.
+    # Before: no plan and no proof, TIME_LIMIT after the whole limit (331k expansions in 60 s).
+    table = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", time_limit=2.0)
+    args = ((0.5, 1.405, 0.0), "right", (3.0, 1.5), table, opts)
+    plan = plan_footsteps(_parked_on_the_goal(3.0), *args)
+    assert plan.status is PlanStatus.UNREACHABLE
+    assert plan.nodes_expanded == 1 and plan.num_steps == 0
+    assert plan.reason == (
+        "goal (3.000, 1.500): the stance foot cannot come within goal_tolerance 0.15 m of it "
+        "before t = 5.600 s (7 steps of at least 0.8 s, each at most 0.355 m), and no foot fits "
+        "there in any grid of E(t) from then on (up to 20.000 s): an obstacle covers it"
+    )
+    # parked later than the robot can arrive: planned, landing on the goal before the block
+    late = plan_footsteps(_parked_on_the_goal(12.0), *args)
+    assert late.status is PlanStatus.SUCCESS and late.reason == "" and late.times[-1] < 11.0
+    # the receding planner stops at once too
+    from repertoire.planning.footstep.receding import plan_receding_horizon
+
+    res = plan_receding_horizon(_parked_on_the_goal(3.0), *args)
+    assert res.statuses == ["UNREACHABLE"] and res.plan.reason == plan.reason
+
+
+def test_a_goal_no_sole_fits_at_any_time_is_refused_by_name():
+    # the goal's cell is a free slit one cell (2.5 cm) wide between two blocks that stay;
+    # before, dynamic worlds skipped this test of the goal and the search ran to its limit
+    walls = [
+        MovingRectObstacle([2.9, 1.5], [0.2, 0.6]),
+        MovingRectObstacle([3.125, 1.5], [0.2, 0.6]),
+    ]
+    env = DynamicEnvironment.from_moving_obstacles((4.0, 3.0), moving=walls, t_end=20.0)
+    opts = PlannerOptions(heuristic="euclidean", time_limit=2.0, goal_tolerance=0.05)
+    table = nominal_action_table()
+    assert not env.grids[0].occupied[env.reference.cell_of(3.0125, 1.5)]
+    with pytest.raises(FootstepError, match=r"goal \(3.013, 1.500\): no foot fits within "
+                       r"goal_tolerance 0.05 m of it in any grid of E\(t\)"):  # fmt: skip
+        plan_footsteps(env, (0.5, 1.405, 0.0), "right", (3.0125, 1.5), table, opts)

@@ -230,6 +230,57 @@ def test_crawl_bad_input():
         plan_crawl(steep, start, (0.2, 0.0))
 
 
+def test_a_start_on_steep_exact_ground_names_its_height_range():
+    # lf stands on a rock's edge; before, the message gave no range
+    board = generate_board(TerrainParams(kind="rocks", size_x=1.0, size_y=0.6,
+                                         rock_height=[0.02, 0.06]), seed=9300)  # fmt: skip
+    hm = height_map_from_board(board, (-0.55, 0.55), (-0.3, 0.3), 0.01)
+    start = nominal_foot_positions()[:, :2] + [-0.25, 0.0]
+    with pytest.raises(FootstepError, match=r"crawl start foothold of lf at \[-0.149, 0.06\] is "
+                       r"on ground too steep: height range 0.0589 m within 0.0103 m on the exact "
+                       r"ground > max_roughness 0.006 m"):  # fmt: skip
+        plan_crawl(hm, start, (0.25, 0.0), ground=board)
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), CrawlParams(order=[0, 1, 2, 3.0])),
+         r"crawl order must be a permutation of 0..3, got \[0, 1, 2, 3.0\]"),
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), CrawlParams(offsets_x=["a"])),
+         r"crawl offsets_x must be finite numbers, got \['a'\]"),
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), CrawlParams(flat_radius="a")),
+         "crawl flat_radius must be a number, got 'a'"),
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), ground=object()),
+         r"crawl ground must have a height\(x, y\) method"),
+        (lambda hm, s: plan_crawl(hm.heights, s, (0.2, 0.0)),
+         "crawl height_map must be a HeightMap, got array"),
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), {"step_cost": 1.0}),
+         "crawl params must be a CrawlParams, got {'step_cost': 1.0}"),
+        (lambda hm, s: plan_crawl(hm, s, (0.2, 0.0), anytime="yes"),
+         "plan_crawl anytime must be True or False, got 'yes'"),
+        (lambda hm, s: plan_crawl(hm, {"lf": 1}, (0.2, 0.0)),
+         r"crawl start footholds must be finite, shape \(4, 2\) or \(4, 3\); got {'lf': 1}"),
+        (lambda hm, s: height_map_from_board(hm, 5, (0.0, 1.0), 0.01),
+         "height map ranges must be finite .* got x_range=5"),
+        (lambda hm, s: height_map_from_board(hm, (0.0, 1.0), (0.0, 1.0), None),
+         "height map ranges must be finite .* resolution=None"),
+        (lambda hm, s: height_map_from_board(None, (0.0, 1.0), (0.0, 1.0), 0.01),
+         r"height map board must have a height\(x, y\) method, got None"),
+        (lambda hm, s: HeightMap(("a", 0.0), 0.01, np.zeros((3, 3))),
+         r"height map origin must be a finite \(x, y\), got \('a', 0.0\)"),
+        (lambda hm, s: HeightMap((0.0, 0.0), 0.01, np.full((3, 3), 0.1 + 1j)),
+         "height map heights must be real numbers \\(m\\), got dtype complex128"),
+    ],
+)  # fmt: skip
+def test_crawl_and_height_map_refuse_wrong_types_by_name(call, message):
+    # before, each of these raised a bare TypeError, AttributeError or IndexError (or, for
+    # complex heights, dropped the imaginary part with a warning)
+    hm = _board_map("flat")
+    with pytest.raises(RepertoireError, match=message):
+        call(hm, nominal_foot_positions()[:, :2])
+
+
 def test_crawl_plan_figure_has_height_colour_bar_and_legend(tmp_path):
     from repertoire.planning.footstep.plot import crawl_plan_figure
 
@@ -562,3 +613,54 @@ def test_crawl_front_line_is_part_of_the_goal_test():
     for bad in ((0.0, 0.0, 1.0), (1.0, math.nan, 0.0), (1.0, 0.0), "x"):
         with pytest.raises(FootstepError, match="front_line must be a finite.*n != 0"):
             plan_crawl(hm, start, (0.1, 0.0), front_line=bad)
+
+
+def test_shift_poses_are_the_crawls_commanded_shift_and_end_at_the_target():
+    from repertoire.planning.littledog_crawl import shift_poses
+
+    params = ExecParams()
+    pose = np.array([0.0, 0.0, 0.2, 0.0, 0.0, 3.1])
+    target = np.array([0.02, 0.01, 0.18, 0.0, 0.0, -3.1])  # yaw the short way: +0.083 rad
+    poses = shift_poses(pose, target, params)
+    assert poses.shape == (round(params.shift_time / params.dt), 6)
+    np.testing.assert_allclose(poses[-1, :5], target[:5], atol=1e-15)
+    assert poses[-1, 5] == pytest.approx(3.1 + (2 * math.pi - 6.2))
+    assert np.all(np.diff(poses[:, 5]) >= 0.0)  # never the long way round
+    both = shift_poses(pose, np.stack([target, pose]), params)
+    np.testing.assert_array_equal(both[0], poses)
+    np.testing.assert_array_equal(both[1], np.repeat(pose[None], len(poses), 0))
+    # the executor commands exactly these poses between the hold and the first lift
+    board = generate_board(TerrainParams(kind="flat"), seed=0)  # its top at 0.04 m
+    feet = np.column_stack([nominal_foot_positions()[:, :2], np.full(4, 0.04 + FOOT_RADIUS)])
+    pose0 = np.r_[feet[:, :2].mean(axis=0), 0.18, 0.0, 0.0, 0.0]
+    p_new = feet[2] + [0.03, 0.0, 0.0]
+    executed = execute(feet, pose0, [ExecStep(2, p_new)], board, params, hold_time=0.0)
+    shift = shift_poses(pose0, swing_pose(feet, 2, p_new, params), params)
+    np.testing.assert_array_equal(executed.body_pose[1 : 1 + len(shift)], shift)
+
+
+def test_planned_crawls_execute_through_every_shift():
+    # A steps board (rises 2-4.5 cm) the planner was never tuned on: step 14 (rh) drops the
+    # body 5.4 cm while turning; both ends of the shift are reachable, but halfway lf's hip
+    # pitch reached 2.504 rad (limit 2.4) and the crawl refused the plan (CrawlError). The
+    # states now keep the cell the last foot left, so the shift from that step's pose is
+    # checked at every commanded sample.
+    board = generate_board(TerrainParams(kind="steps", size_x=1.0, size_y=0.6,
+                                         step_rise=[0.02, 0.045]), seed=9609)  # fmt: skip
+    hm = height_map_from_board(board, (-0.55, 0.55), (-0.3, 0.3), 0.01)
+    start = nominal_foot_positions()[:, :2] + [-0.25, 0.0]
+    plan = plan_crawl(hm, start, (0.2, 0.0), time_limit=30.0, ground=board)
+    assert plan.status is PlanStatus.SUCCESS
+    _check_plan(plan, hm, CrawlParams(), board)  # the crawl's IK at every sample, shifts too
+
+
+def test_crawl_refuses_a_map_too_large_for_its_planning_arrays_before_allocating(monkeypatch):
+    # A 300 x 200 map holds 0.48 MB of heights; the roughness filter needs 24 bytes a cell
+    # more (1.44 MB). Before, the crawl model allocated them unchecked.
+    hm = HeightMap(origin=(-1.5, -1.0), resolution=0.01, heights=np.zeros((200, 300)))
+    monkeypatch.setenv("REPERTOIRE_MAX_MEMORY_BYTES", str(10**6))
+    with pytest.raises(ResourceLimitError, match=r"crawl planning \(roughness\) of a 300 x 200 "
+                       r"height map at 0.01 m would need about 1.4 MiB"):  # fmt: skip
+        plan_crawl(hm, nominal_foot_positions()[:, :2], (0.2, 0.0))
+    monkeypatch.setenv("REPERTOIRE_MAX_MEMORY_BYTES", str(2 * 10**6))
+    assert plan_crawl(hm, nominal_foot_positions()[:, :2], (0.2, 0.0)).status is PlanStatus.SUCCESS

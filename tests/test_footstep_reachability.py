@@ -406,10 +406,23 @@ def test_the_one_cell_foothold_test_agrees_with_the_map_filters(flat):
     heights = rng.choice([0.0, 0.01, 0.03], size=occ.shape)
     occ[:12, :12], heights[:12, :12] = False, 0.0  # a flat free corner: some footholds
     for res in (0.025, 0.01):
-        grid = OccupancyGrid(occ, res, (0.0, 0.0), heights)
         _, valid, _, _ = reach._footholds(~occ, heights, ASIMO_LIKE, res, flat)
         one = [
-            [reach._foothold_at(grid, ASIMO_LIKE, i, j, flat) for j in range(26)] for i in range(30)
-        ]
+            [reach._foothold_at(occ[None], heights[None], ASIMO_LIKE, res, i, j, flat)[0]
+             for j in range(26)]
+            for i in range(30)
+        ]  # fmt: skip
         np.testing.assert_array_equal(np.array(one), valid)  # edges included (off the map: free)
         assert 0 < valid.sum() < valid.size
+        # a stack of grids: each judged alone (the second without obstacles)
+        pair = reach._foothold_at(
+            np.stack([occ, np.zeros_like(occ)]),
+            np.stack([heights] * 2),
+            ASIMO_LIKE,
+            res,
+            20,
+            20,
+            flat,
+        )
+        assert pair.tolist() == [valid[20, 20], bool(reach._footholds(
+            np.ones_like(occ), heights, ASIMO_LIKE, res, flat)[1][20, 20])]  # fmt: skip

@@ -23,6 +23,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from repertoire.diagrams.registry import diagram_names, get_diagram_entry
 from repertoire.diagrams.scenario import load_scenario
+from repertoire.models.littledog.kinematics import nominal_foot_positions
+from repertoire.models.terrain import TerrainParams, generate_board
 from repertoire.planning.dmp_learn import learn_dmp
 from repertoire.planning.footstep import (
     OccupancyGrid,
@@ -30,6 +32,8 @@ from repertoire.planning.footstep import (
     nominal_action_table,
     plan_footsteps,
 )
+from repertoire.planning.footstep.height_map import height_map_from_board
+from repertoire.planning.footstep.quadruped import CrawlParams, plan_crawl
 from repertoire.studies.registry import get_study, study_names
 
 from repertoire.cli import build_parser, main
@@ -268,3 +272,50 @@ def test_plan_footsteps_rejects_bad_requests_clearly(
     result = _call("plan_footsteps", plan)
     if result is not None:
         assert isinstance(result.succeeded, bool)
+
+
+# ---------------------------------------------------------------------------
+# The LittleDog crawl planner and its height map (small boards, a time limit and a budget).
+
+_CRAWL_FIELDS = sorted(f.name for f in dataclasses.fields(CrawlParams))
+_BOARD = generate_board(TerrainParams(kind="rocks", size_x=0.8, size_y=0.5), seed=3)
+
+
+@FUZZ
+@given(
+    x_range=st.tuples(coords, coords) | values,
+    y_range=st.tuples(coords, coords) | values,
+    resolution=st.sampled_from([0.02, 0.0, -0.01, math.nan, "0.01", None, True, [0.01]]),
+    board=st.sampled_from(["board", None, "text"]),
+)
+def test_height_map_from_board_rejects_bad_requests_clearly(x_range, y_range, resolution, board):
+    terrain = {"board": _BOARD, None: None, "text": "text"}[board]
+    result = _call("height_map_from_board", height_map_from_board, terrain, x_range, y_range,
+                   resolution)  # fmt: skip
+    if result is not None:
+        assert np.all(np.isfinite(result.heights)) and result.resolution > 0
+
+
+@FUZZ
+@given(
+    overrides=st.dictionaries(st.sampled_from(_CRAWL_FIELDS), values, max_size=2),
+    resolution=st.sampled_from([0.01, 0.02]),
+    shift=st.tuples(st.floats(-0.5, 0.5), st.floats(-0.2, 0.2)),
+    start=st.none() | values,
+    goal=st.tuples(coords, coords) | values,
+    ground=st.sampled_from(["board", "map", "text"]),
+)
+def test_plan_crawl_rejects_bad_requests_clearly(overrides, resolution, shift, start, goal, ground):
+    hm = height_map_from_board(_BOARD, (-0.45, 0.45), (-0.3, 0.3), resolution)
+    if start is None:  # usually a stance (shifted), else generated garbage
+        start = nominal_foot_positions()[:, :2] + np.asarray(shift)
+
+    def plan():
+        params = dataclasses.replace(CrawlParams(), **overrides)
+        exact = {"board": _BOARD, "map": None, "text": "text"}[ground]
+        return plan_crawl(hm, start, goal, params, time_limit=0.05, max_expansions=30, ground=exact)
+
+    result = _call("plan_crawl", plan)
+    if result is not None:
+        assert result.status.name in ("SUCCESS", "UNREACHABLE", "NODE_LIMIT", "TIME_LIMIT")
+        assert all(np.all(np.isfinite(s.p_WF)) for s in result.steps)

@@ -42,7 +42,7 @@ from repertoire.planning.footstep.footprint import (
     footprint_masks,
 )
 from repertoire.planning.footstep.heuristic import LazyCostToGo, shared_cost_to_go
-from repertoire.planning.footstep.reachability import goal_foothold_error
+from repertoire.planning.footstep.reachability import goal_closed_reason, goal_foothold_error
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -411,6 +411,7 @@ class BipedStepModel:
         self._setup_terrain_limits()
         if why := goal_foothold_error(self):  # no sole fits near the goal, or too steep there
             raise FootstepError(why)
+        self.goal_closed = goal_closed_reason(self)  # covered before the robot can get there
         self._setup_heuristic()
         if not isinstance(swing_start_states, (bool, np.bool_)):
             raise FootstepError(
@@ -663,6 +664,8 @@ class BipedStepModel:
         lattice state is already reached as cheaply is skipped before its checks (when its
         cost is the table's: no height cost), as the compiled core does.
         """
+        if self.goal_closed:  # no plan (the start's successors: the search ends at once)
+            return
         (ox, oy), inv_res, (nx, ny) = self.origin, self.inv_res, self.ref.shape
         c, sn = math.cos(s.yaw), math.sin(s.yaw)
         nf = 1 - s.foot
@@ -758,13 +761,15 @@ class BipedStepModel:
     def unreachable_reason(self) -> str:
         """Why the search may have run out of states, as far as the model knows ("" if not).
 
-        In dynamic worlds: the start foot hit by an obstacle before a first step lands,
+        In dynamic worlds: the goal covered from before the robot can get there on
+        (:func:`goal_closed_reason`), the start foot hit by an obstacle before a first step lands,
         landings dropped because no grid is near their time (past the environment's last
         grid, or between two grids further apart than twice ``max_time_gap``).
         """
         if not self.dynamic:
             return ""
-        env, gap, parts = self.world, self.world.max_time_gap, []
+        env, gap = self.world, self.world.max_time_gap
+        parts = [self.goal_closed] if self.goal_closed else []
         if self.start_hit is not None:
             (sx, sy, sth), hit = self.start_pose, self.start_hit
             parts.append(

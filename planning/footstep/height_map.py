@@ -36,9 +36,15 @@ class HeightMap:
     def __post_init__(self) -> None:
         if not (is_real(res := self.resolution) and math.isfinite(res) and res > 0.0):
             raise GridError(f"height map resolution must be positive, got {self.resolution!r}")
-        if len(self.origin) != 2 or not all(math.isfinite(v) for v in self.origin):
-            raise GridError(f"height map origin must be a finite (x, y), got {self.origin}")
-        h = np.asarray(self.heights, dtype=float)
+        if not _numbers(self.origin, 2):
+            raise GridError(f"height map origin must be a finite (x, y), got {self.origin!r}")
+        raw = np.asarray(self.heights)
+        if raw.dtype.kind not in "biuf":  # complex (its imaginary part dropped), strings, objects
+            raise GridError(
+                f"height map heights must be real numbers (m), got dtype {raw.dtype} with values "
+                f"such as {raw.ravel()[:3].tolist()}"
+            )
+        h = np.asarray(raw, dtype=float)
         if h.ndim != 2 or min(h.shape) < 1:
             raise GridError(f"height map heights must be a 2-D array, got shape {h.shape}")
         if not np.all(np.isfinite(h)):
@@ -60,10 +66,15 @@ class HeightMap:
         return self.heights.shape
 
     def cell(self, x, y) -> tuple[np.ndarray, np.ndarray]:
-        """(row, col) indices of the cells holding world points (x, y)."""
+        """(row, col) indices of the cells holding world points (x, y).
+
+        A point off the map gets an index off it (-1 or the map's size at the farthest, so
+        far points do not overflow the integers).
+        """
         col = np.rint((np.asarray(x, dtype=float) - self.origin[0]) / self.resolution)
         row = np.rint((np.asarray(y, dtype=float) - self.origin[1]) / self.resolution)
-        return row.astype(int), col.astype(int)
+        n_y, n_x = self.shape
+        return np.clip(row, -1, n_y).astype(int), np.clip(col, -1, n_x).astype(int)
 
     def inside(self, row, col) -> np.ndarray:
         """True where (row, col) is a cell of the map."""
@@ -97,6 +108,14 @@ class HeightMap:
         return hi - lo
 
 
+def _numbers(values, n: int) -> bool:
+    """True when ``values`` holds exactly ``n`` finite real numbers."""
+    try:
+        return len(values) == n and all(is_real(v) and math.isfinite(v) for v in values)
+    except TypeError:  # no length: a single number, None
+        return False
+
+
 def height_map_from_board(
     board,
     x_range: tuple[float, float],
@@ -117,9 +136,13 @@ def height_map_from_board(
         ResourceLimitError: the map would need more memory than allowed (the figure
             is in the message), checked before allocating.
     """
-    values = [*x_range, *y_range, resolution]
-    if len(values) != 5 or not all(math.isfinite(v) for v in values):
-        raise GridError(f"height map ranges and resolution must be finite, got {values}")
+    if not (_numbers(x_range, 2) and _numbers(y_range, 2) and _numbers([resolution], 1)):
+        raise GridError(
+            f"height map ranges must be finite [min, max] and the resolution a finite number, "
+            f"got x_range={x_range!r}, y_range={y_range!r}, resolution={resolution!r}"
+        )
+    if not callable(getattr(board, "height", None)):
+        raise GridError(f"height map board must have a height(x, y) method, got {board!r:.80}")
     if resolution <= 0.0:
         raise GridError(f"height map resolution must be positive, got {resolution}")
     if x_range[1] <= x_range[0] or y_range[1] <= y_range[0]:

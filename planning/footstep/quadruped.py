@@ -24,6 +24,11 @@ the body's axes too), and keeps a candidate only if
   :func:`~repertoire.planning.littledog_crawl.step_reachable` (one definition
   for the planner and the crawl). The swing's ground is ``ground`` (the exact
   board when given, else the map's cell heights);
+- the body's shift to that pose, from the pose the crawl held through the last step
+  (the state keeps the cell the last moved foot left, so that pose is known), keeps
+  every leg within reach at every commanded sample
+  (:func:`~repertoire.planning.littledog_crawl.shift_reachable`; before, only its ends
+  were checked, and a step down with a turn took a hip past its limit halfway);
 - with an exact ``ground``, the foot's landing spot is flat on it too
   (:func:`flat_on_ground`: the map's cell centres miss edges between them), and
   no ground rises above it within ``face_radius`` (:func:`clear_of_faces`: a
@@ -86,14 +91,17 @@ from repertoire.planning.footstep.search import SearchResult, anytime_search, se
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
 from repertoire.planning.littledog_crawl import CrawlParams as ExecutionParams
 from repertoire.planning.littledog_crawl import (
-    foothold_ok,
+    foothold_range,
     heading_of,
     joint_angles,
+    shift_reachable,
     step_reachable,
+    swing_pose,
 )
 
 from repertoire.checks import is_real, is_whole
 from repertoire.errors import RepertoireError
+from repertoire.limits import require_memory
 
 
 @dataclasses.dataclass
@@ -154,16 +162,21 @@ class CrawlParams:
 
     def validate(self) -> None:
         """Raises FootstepError naming the first bad field."""
-        if sorted(self.order) != [0, 1, 2, 3]:
-            raise FootstepError(f"crawl order must be a permutation of 0..3, got {self.order}")
+        if not (_numbers(self.order, is_whole) and sorted(self.order) == [0, 1, 2, 3]):
+            raise FootstepError(f"crawl order must be a permutation of 0..3, got {self.order!r}")
         if not self.offsets_x or not self.offsets_y:
             raise FootstepError(
                 f"crawl candidate offsets are empty (offsets_x={self.offsets_x}, "
                 f"offsets_y={self.offsets_y}): the step model would have no successors"
             )
         for name in ("offsets_x", "offsets_y"):
-            if not all(math.isfinite(v) for v in getattr(self, name)):
-                raise FootstepError(f"crawl {name} must be finite, got {getattr(self, name)}")
+            values = getattr(self, name)
+            if not _numbers(values, lambda v: is_real(v) and math.isfinite(v)):
+                raise FootstepError(f"crawl {name} must be finite numbers, got {values!r}")
+        for f in dataclasses.fields(self):
+            if f.name not in ("order", "offsets_x", "offsets_y", "turn_lead"):
+                if not is_real(value := getattr(self, f.name)):
+                    raise FootstepError(f"crawl {f.name} must be a number, got {value!r}")
         for name in (
             "flat_radius",
             "max_step_height",
@@ -192,16 +205,27 @@ class CrawlParams:
             raise FootstepError(f"crawl body_shift must be in [0, 1], got {self.body_shift}")
 
 
+def _numbers(values, ok) -> bool:
+    """True when ``values`` is a list (or tuple, array) whose every element passes ``ok``."""
+    if isinstance(values, np.ndarray):
+        values = values.tolist() if values.ndim == 1 else None
+    return isinstance(values, (list, tuple)) and all(ok(v) for v in values)
+
+
 @dataclasses.dataclass(frozen=True)
 class CrawlState:
     """A search state: foothold cells, the next crawl phase and the body's turns.
 
-    ``cells``: 4 x (row, col); ``turns``: whole ``turn_step`` from the start heading.
+    ``cells``: 4 x (row, col); ``turns``: whole ``turn_step`` from the start heading;
+    ``left``: the cell the last moved foot left (None at the start). The body's pose
+    during the last step depends on it, and the next step's shift starts from that pose,
+    so arrivals from different cells are different states.
     """
 
     cells: tuple[tuple[int, int], ...]
     phase: int
     turns: int = 0
+    left: tuple[int, int] | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -289,12 +313,12 @@ def flat_on_ground(ground, xy, params: CrawlParams) -> np.ndarray:
 
     The height spread of ``ground`` (an exact height function, e.g. the board the map
     was sampled from) under the foot, within its radius ``FOOT_RADIUS`` (centre and
-    two rings, :func:`~repertoire.planning.littledog_crawl.foothold_ok`), at most
+    two rings, :func:`~repertoire.planning.littledog_crawl.foothold_range`), at most
     ``max_roughness``: the map's cell centres miss edges between them, and a foot
     landing on an edge slides off.
     """
-    rule = ExecutionParams(edge_radius=FOOT_RADIUS, flat_tolerance=params.max_roughness)
-    return foothold_ok(ground, np.asarray(xy, dtype=float)[:, :2], rule)
+    rule = ExecutionParams(edge_radius=FOOT_RADIUS)
+    return foothold_range(ground, np.asarray(xy, dtype=float)[:, :2], rule) <= params.max_roughness
 
 
 def clear_of_faces(ground, xy, params: CrawlParams) -> np.ndarray:
@@ -372,6 +396,8 @@ class CrawlModel:
         FootstepError: bad parameters, a start foothold off the map or on ground
             too steep, a start stance out of reach or unstable, a goal off the map,
             a goal heading not a finite number, a front line not finite or with n = 0.
+        ResourceLimitError: a map whose planning arrays would not fit in memory (the
+            figure in the message), checked before allocating them.
     """
 
     def __init__(
@@ -385,12 +411,31 @@ class CrawlModel:
         goal_heading: float | None = None,
         front_line=None,
     ) -> None:
+        crawl = ExecutionParams() if crawl is None else crawl
+        for name, value, kind in (
+            ("height_map", height_map, HeightMap),
+            ("params", params, CrawlParams),
+            ("crawl", crawl, ExecutionParams),
+        ):
+            if not isinstance(value, kind):
+                raise FootstepError(f"crawl {name} must be a {kind.__name__}, got {value!r:.80}")
         params.validate()
         self.map = height_map
         self.params = params
-        self.crawl = ExecutionParams() if crawl is None else crawl
+        self.crawl = crawl
         self.crawl.validate()
         self.ground = height_map if ground is None else ground
+        if not callable(getattr(self.ground, "height", None)):
+            raise FootstepError(
+                f"crawl ground must have a height(x, y) method (e.g. a TerrainBoard), got "
+                f"{ground!r:.80}"
+            )
+        n_y, n_x = height_map.shape
+        require_memory(  # the roughness filter's arrays (max, min, range), before allocating
+            24.0 * n_x * n_y,
+            f"crawl planning (roughness) of a {n_x} x {n_y} height map at "
+            f"{height_map.resolution} m",
+        )
         self._rough = height_map.roughness(params.flat_radius)
         self._nominal = nominal_foot_positions()[:, :2]
         try:
@@ -421,10 +466,14 @@ class CrawlModel:
                     f"crawl front_line must be a finite (nx, ny, d) with n != 0, got {front_line!r}"
                 )
             self.front_line = line / np.hypot(*line[:2])
-        start = np.asarray(start_xy, dtype=float)
+        try:
+            start = np.asarray(start_xy, dtype=float)
+        except (TypeError, ValueError):  # a string, a dict, ragged rows: refused below
+            start = np.zeros(0)
         if start.shape not in ((4, 2), (4, 3)) or not np.all(np.isfinite(start)):
             raise FootstepError(
-                f"crawl start footholds must be finite, shape (4, 2) or (4, 3); got {start}"
+                f"crawl start footholds must be finite, shape (4, 2) or (4, 3); "
+                f"got {start_xy!r:.200}"
             )
         rows, cols = height_map.cell(start[:, 0], start[:, 1])
         if not np.all(height_map.inside(rows, cols)):
@@ -437,10 +486,12 @@ class CrawlModel:
         exact = None if self.ground is height_map else flat_on_ground(self.ground, start, params)
         for i in range(4):
             if exact is not None and not exact[i]:
+                rule = ExecutionParams(edge_radius=FOOT_RADIUS)
+                spread = float(foothold_range(self.ground, start[i : i + 1, :2], rule)[0])
                 raise FootstepError(
                     f"crawl start foothold of {LEGS[i]} at {start[i].tolist()} is on ground too "
-                    f"steep: height range within {FOOT_RADIUS} m on the exact ground > "
-                    f"max_roughness {params.max_roughness} m"
+                    f"steep: height range {spread:.4f} m within {FOOT_RADIUS} m on the exact "
+                    f"ground > max_roughness {params.max_roughness} m"
                 )
             if exact is None and self._rough[rows[i], cols[i]] > params.max_roughness:
                 raise FootstepError(
@@ -458,9 +509,10 @@ class CrawlModel:
         centres = feet + np.array([0.0, 0.0, FOOT_RADIUS])
         c = centres.mean(axis=0)
         level = [c[0], c[1], feet[:, 2].mean() + self.crawl.standing_height]
+        self._pose0 = np.array([*level, 0.0, 0.0, heading_of(centres)])
         try:
             joint_angles(
-                np.array([*level, 0.0, 0.0, heading_of(centres)]),
+                self._pose0,
                 centres - np.array([0.0, 0.0, self.crawl.press]),
                 "crawl start stance",
             )
@@ -633,16 +685,36 @@ class CrawlModel:
         # The crawl's leg IK for the whole step at its own body pose (foot centres).
         lift = np.array([0.0, 0.0, FOOT_RADIUS])
         reach = step_reachable(feet + lift, leg, p_new + lift, self.crawl, self.ground)
+        # ... and the body's shift there from where the last step held it
+        ok = np.flatnonzero(reach)
+        targets = swing_pose(feet + lift, leg, p_new[ok] + lift, self.crawl)
+        ok = ok[shift_reachable(feet + lift, self._held_pose(state, feet), targets, self.crawl)]
         out = []
         next_phase = (state.phase + 1) % 4
-        for j in np.flatnonzero(reach):
+        for j in ok:
             cells_new = list(state.cells)
             cells_new[leg] = (int(rows[idx[j]]), int(cols[idx[j]]))
             travel = math.hypot(p_new[j, 0] - feet[leg, 0], p_new[j, 1] - feet[leg, 1])
             cost = p.step_cost + travel + p.height_cost * abs(p_new[j, 2] - z_old)
             turns = found[cells_new[leg]]
-            out.append((CrawlState(tuple(cells_new), next_phase, turns), cost))
+            out.append((CrawlState(tuple(cells_new), next_phase, turns, old), cost))
         return out
+
+    def _held_pose(self, state: CrawlState, feet: np.ndarray) -> np.ndarray:
+        """The body pose the crawl holds as ``state`` is reached (the next shift's start).
+
+        The start: level over the feet at the standing height (as the start check);
+        else the last step's :func:`~repertoire.planning.littledog_crawl.swing_pose`, from
+        the feet before it (its foot in ``state.left``).
+        """
+        if state.left is None:
+            return self._pose0
+        last = self.params.order[(state.phase - 1) % 4]
+        before = list(state.cells)
+        before[last] = state.left
+        lift = np.array([0.0, 0.0, FOOT_RADIUS])
+        prior = self._feet(CrawlState(tuple(before), 0)) + lift
+        return swing_pose(prior, last, feet[last] + lift, self.crawl)
 
 
 def plan_crawl(
@@ -686,8 +758,11 @@ def plan_crawl(
 
     Raises:
         FootstepError: see :class:`CrawlModel` and the search's budget checks.
+        ResourceLimitError: see :class:`CrawlModel`.
     """
-    p = params or CrawlParams()
+    p = CrawlParams() if params is None else params
+    if not isinstance(anytime, (bool, np.bool_)):
+        raise FootstepError(f"plan_crawl anytime must be True or False, got {anytime!r}")
     model = CrawlModel(height_map, start_xy, goal_xy, p, crawl, ground, goal_heading, front_line)
     if anytime:
         results = anytime_search(model, max_expansions=max_expansions, time_limit=time_limit)

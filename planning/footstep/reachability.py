@@ -120,6 +120,8 @@ def goal_cut_off(model, deadline: float = math.inf) -> bool:
 def _footholds(free, heights, geo, res: float, flat: float):
     """The relaxation's footholds: cells where a sole centred in the cell may stand.
 
+    ``free`` and ``heights`` are (nx, ny) arrays, or (K, nx, ny) stacks judged grid by grid.
+
     A sole centred anywhere in a cell overlaps, whatever its yaw, every cell within its
     inscribed disc (``sure``, in cells); those must be free (cells off the array count as
     free), and with a flatness limit their heights may differ by at most ``flat`` (the
@@ -131,6 +133,7 @@ def _footholds(free, heights, geo, res: float, flat: float):
         over each cell's ``sure`` disc.
     """
     sure = _sure_disc(min(geo.foot_length, geo.foot_width), res)
+    sure = sure.reshape((1,) * (free.ndim - 2) + sure.shape)  # (K, nx, ny): K grids at once
     fits = free & ndimage.minimum_filter(free, footprint=sure, mode="constant", cval=True)
     lo = ndimage.maximum_filter(heights, footprint=sure, mode="constant", cval=-np.inf)
     if not math.isfinite(flat):
@@ -139,64 +142,135 @@ def _footholds(free, heights, geo, res: float, flat: float):
     return fits, fits & (lo - bottom <= flat + _EPS), lo, bottom
 
 
-def _foothold_at(grid, geo, i: int, j: int, flat: float) -> bool:
-    """:func:`_footholds`' verdict on the one cell ``(i, j)`` (tens of microseconds)."""
-    k = _sure_disc(min(geo.foot_length, geo.foot_width), grid.resolution)
+def _foothold_at(occupied, heights, geo, res: float, i: int, j: int, flat: float) -> np.ndarray:
+    """:func:`_footholds`' verdict on the one cell ``(i, j)`` of each of K grids (microseconds).
+
+    ``occupied`` (K, nx, ny), ``heights`` likewise or None; returns (K,) bools.
+    """
+    k = _sure_disc(min(geo.foot_length, geo.foot_width), res)
     r = k.shape[0] // 2
-    nx, ny = grid.shape
+    nx, ny = occupied.shape[1:]
     i0, i1, j0, j1 = max(i - r, 0), min(i + r + 1, nx), max(j - r, 0), min(j + r + 1, ny)
     sure = k[i0 - i + r : i1 - i + r, j0 - j + r : j1 - j + r]  # cells off the map: left out
-    if grid.occupied[i0:i1, j0:j1][sure].any():
-        return False
-    if grid.heights is None or not math.isfinite(flat):
-        return True
-    z = grid.heights[i0:i1, j0:j1][sure]
-    return float(z.max() - z.min()) <= flat + _EPS
+    ok = ~occupied[:, i0:i1, j0:j1][:, sure].any(axis=1)
+    if heights is None or not math.isfinite(flat):
+        return ok
+    z = heights[:, i0:i1, j0:j1][:, sure]
+    return ok & (z.max(axis=1) - z.min(axis=1) <= flat + _EPS)
 
 
 def goal_foothold_error(model) -> str:
-    """Why no sole can stand within the goal tolerance of a static grid's goal ("" if one may).
+    """Why no sole can stand within the goal tolerance of the goal ("" if one may).
 
     Judged by :func:`_footholds` on the cells around the goal (a few hundred, so every step
     model pays it): a goal cell's centre lies within ``tol + res / sqrt(2)`` of the goal
     point, and every sole that meets the goal test stands on one that is a foothold there.
     So a message here means no plan can end at the goal, on any lattice: a goal in a pocket
-    too small for a sole, or on ground too steep for ``max_height_range``. "" in dynamic
-    worlds and when the start already meets the goal.
+    too small for a sole, or on ground too steep for ``max_height_range``; in a dynamic
+    world, so in every grid of E(t). "" when the start already meets the goal.
     """
-    if model.dynamic:
+    fits, valid, steep = _goal_footholds(model, None)
+    if valid is None or valid.any():
         return ""
+    geo, tol, (gx, gy) = model.geometry, model.opts.goal_tolerance, model.goal
+    where = f"goal ({gx:.3f}, {gy:.3f})"
+    when = " in any grid of E(t)" if model.dynamic else ""
+    if not fits.any():
+        return (
+            f"{where}: no foot fits within goal_tolerance {tol} m of it{when} (every sole "
+            f"{geo.foot_length} x {geo.foot_width} m centred there overlaps an obstacle)"
+        )
+    return (
+        f"{where} lies on ground too steep{when}: every sole within goal_tolerance {tol} m of "
+        f"it stands on a height range of at least {float(np.min(steep)):.3f} m > "
+        f"max_height_range {model.flat_limit} m"
+    )
+
+
+def goal_closed_reason(model) -> str:
+    """Why no plan of a dynamic world's model can arrive at its goal in time ("" if one may).
+
+    Each step moves the stance foot by at most the table's reach ``R``
+    (:meth:`ActionTable.max_reach`) and lasts at least its shortest duration, so the stance
+    foot comes within the goal tolerance after ``n >= (distance - tol) / R`` steps, not
+    before ``start_time + n`` shortest steps; a landing then is checked in a grid whose time
+    is within ``max_time_gap`` of it. When no sole fits within the tolerance of the goal
+    (:func:`goal_foothold_error`'s test) in any of those grids, e.g. an obstacle that moves
+    onto the goal before the robot can get there, no plan exists. "" in static worlds,
+    when the start meets the goal, when some such grid holds a sole, and when there is no
+    such grid (an arrival past the last grid: the search's reason says so).
+    """
+    if not model.dynamic:
+        return ""
+    entry, tol = model._table_entry, model.opts.goal_tolerance
+    reach, shortest = entry["max_reach"], entry["min_duration"]
+    env, (gx, gy) = model.world, model.goal
+    n = math.ceil((math.dist(model.start_pose[:2], model.goal) - tol) / reach - _EPS)
+    if reach <= 0.0 or n <= 0:
+        return ""
+    arrive = model.start_time + n * shortest
+    late = env.times >= arrive - env.max_time_gap - _EPS
+    if not late.any():  # an arrival past the last grid: the search's reason says so
+        return ""
+    _, valid, _ = _goal_footholds(model, late)
+    if valid.any():
+        return ""
+    last = f"{env.times[-1]:.3f} s"
+    return (
+        f"goal ({gx:.3f}, {gy:.3f}): the stance foot cannot come within goal_tolerance {tol} m "
+        f"of it before t = {arrive:.3f} s ({n} steps of at least {shortest} s, each at most "
+        f"{reach:.3f} m), and no foot fits there in any grid of E(t) from then on (up to "
+        f"{last}): an obstacle covers it"
+    )
+
+
+def _goal_footholds(model, which):
+    """Per grid (one in a static world), whether a sole fits near the goal, and flat enough.
+
+    Args:
+        model: the biped step model (its grids, goal, tolerance, geometry, flatness limit).
+        which: (K,) bools, the grids of a dynamic world to judge; None: all.
+
+    Returns:
+        ``(fits, valid, steep)``: bools per judged grid and the least height range under
+        the fitting soles (for the message; inf without one); all None when the start meets
+        the goal. When the goal's own cell holds a sole in a judged grid (the usual case,
+        microseconds), ``fits`` and ``valid`` are that cell's verdicts alone.
+    """
     grid, tol = model.ref, model.opts.goal_tolerance  # (before the heuristic's set-up)
     (ox, oy), (gx, gy), (sx, sy, _) = grid.origin, model.goal, model.start_pose
     if (sx - gx) ** 2 + (sy - gy) ** 2 <= tol * tol:
-        return ""
+        return None, None, None
     res, geo, (nx, ny) = grid.resolution, model.geometry, grid.shape
     goal_r = (tol + res / math.sqrt(2.0)) / res
     gi, gj = (gx - ox) / res - 0.5, (gy - oy) / res - 0.5  # the goal in cell-centre units
-    if _foothold_at(grid, geo, int(gi + 0.5), int(gj + 0.5), float(model.flat_limit)):
-        return ""  # the goal's own cell (its centre within goal_r) holds a sole: the usual case
+    flat = float(model.flat_limit)
     r = int(math.ceil(goal_r + 0.5 * min(geo.foot_length, geo.foot_width) / res)) + 2
     i0, i1 = max(int(gi) - r, 0), min(int(gi) + r + 2, nx)
     j0, j1 = max(int(gj) - r, 0), min(int(gj) + r + 2, ny)
-    free = ~np.asarray(grid.occupied[i0:i1, j0:j1], bool)
-    heights = np.zeros(free.shape) if grid.heights is None else grid.heights[i0:i1, j0:j1]
-    fits, valid, lo, bottom = _footholds(free, heights, geo, res, float(model.flat_limit))
+    window = np.s_[i0:i1, j0:j1]
+    if model.dynamic:  # the window of every judged grid
+        ks = range(len(model.world.grids)) if which is None else np.flatnonzero(which)
+        occupied = model.world.stack[(slice(None), *window)][list(ks)]
+        grids = [model.world.grids[k] for k in ks]
+    else:
+        occupied, grids = grid.occupied[window][None], [grid]
+    if grid.heights is None or not math.isfinite(flat):  # heights matter to flatness only
+        heights = None
+    else:
+        heights = np.stack([g.heights[window] for g in grids])
+    ci, cj = int(gi + 0.5) - i0, int(gj + 0.5) - j0  # the goal's own cell in the window
+    own = _foothold_at(occupied, heights, geo, res, ci, cj, flat)
+    if own.any():
+        return own, own, np.zeros(1)
     ii, jj = np.mgrid[i0:i1, j0:j1]
     near = (ii - gi) ** 2 + (jj - gj) ** 2 <= goal_r * goal_r
-    where = f"goal ({gx:.3f}, {gy:.3f})"
-    if not np.any(fits & near):
-        return (
-            f"{where}: no foot fits within goal_tolerance {tol} m of it (every sole "
-            f"{geo.foot_length} x {geo.foot_width} m centred there overlaps an obstacle)"
-        )
-    if not np.any(valid & near):
-        steep = float(np.min((lo - bottom)[fits & near]))
-        return (
-            f"{where} lies on ground too steep: every sole within goal_tolerance {tol} m of "
-            f"it stands on a height range of at least {steep:.3f} m > max_height_range "
-            f"{model.flat_limit} m"
-        )
-    return ""
+    free = ~np.asarray(occupied, bool)
+    z = np.zeros(free.shape) if heights is None else heights
+    f, v, lo, bottom = _footholds(free, z, geo, res, flat)
+    f, v = f & near, v & near
+    steep = np.array([math.inf]) if bottom is None or not f.any() else (lo - bottom)[f]
+    return f.any(axis=(1, 2)), v.any(axis=(1, 2)), steep
 
 
 def _discs_connect(valid, si, sj, gi, gj, goal_r, reach) -> bool:
@@ -390,4 +464,4 @@ def _fill_reaches(ptr, zlo, zhi, ny, si, sj, gi, gj, goal_r, reach, up, down, de
     return 0
 
 
-__all__ = ["goal_cut_off", "goal_foothold_error"]
+__all__ = ["goal_closed_reason", "goal_cut_off", "goal_foothold_error"]

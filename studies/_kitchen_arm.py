@@ -19,8 +19,8 @@ from repertoire.studies._kitchen_plan import (
     KitchenPlanConfig,
     PlanGeometry,
     _world_in_chassis,
-    path_clear,
     plan_geometry,
+    segment_gaps,
     to_chassis_z,
 )
 
@@ -106,7 +106,9 @@ def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
     return ways
 
 
-def arm_hits(g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig) -> np.ndarray:
+def arm_hits(
+    g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig, ways: dict | None = None
+) -> np.ndarray:
     """Per parameter row, what the arm way ``role`` of fetch ``k`` enters (:func:`arm_ways`).
 
     :func:`~repertoire.systems.kitchen_actions.arm_way_hits` (the gripper centre, the
@@ -120,6 +122,7 @@ def arm_hits(g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig
         k: the fetch.
         role: a role of :func:`arm_ways`.
         config: ``above_offset`` and ``arm_clearance``.
+        ways: ``arm_ways(g, k, config.above_offset)`` if already at hand.
 
     Returns:
         ``(n,)`` indices into :func:`fetch_obstacles`' names; -1 where the way is clear,
@@ -134,7 +137,7 @@ def arm_hits(g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig
         fingers_in_boxes,
     )
 
-    ways = arm_ways(g, k, config.above_offset)
+    ways = arm_ways(g, k, config.above_offset) if ways is None else ways
     if role not in ways:
         raise RepertoireError(f"role must be one of {sorted(ways)} for fetch {k}, got {role!r}")
     pose, a_from, a_to, span, held = ways[role]
@@ -154,8 +157,9 @@ def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool) -> np.ndarray
 
     The arm at chassis point ``arm`` (n, 3) sweeps a disc of its horizontal distance from
     the base's centre plus ``FINGER_REACH`` and ``clearance`` (every heading: GoToPose
-    turns) along the path (:func:`path_clear`), against the boxes whose top is above the
-    fingers' bottom (or, ``held``, the cup's bottom).
+    turns) along the path (exact: :func:`~repertoire.studies._kitchen_plan.segment_gaps`),
+    against the boxes whose top is above the fingers' bottom (or, ``held``, the cup's
+    bottom).
 
     Args:
         a: (n, >= 2) start poses of the base. b: (n, >= 2) end poses.
@@ -174,21 +178,12 @@ def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool) -> np.ndarray
     radius = np.hypot(arm[:, 0], arm[:, 1]) + FINGER_REACH + clearance
     z_world = arm[:, 2] - to_chassis_z(0.0)
     lowest = z_world - max(FINGER_HALF[2], CUP_HALF_HEIGHT if held else 0.0)
-    hit = np.full(len(arm), -1)
+    boxes = np.asarray(boxes, dtype=float).reshape(-1, 6)
     a, b = (np.broadcast_to(np.atleast_2d(p)[:, :2], (len(arm), 2)) for p in (a, b))
-    d = b - a
-    t = np.zeros(len(arm))
-    for i, box in enumerate(np.asarray(boxes, dtype=float).reshape(-1, 6)):
-        # candidates: rows whose arm is low enough and whose path passes the box's
-        # circumscribed circle within the arm's reach (the exact test is the costly part)
-        moving = np.einsum("ij,ij->i", d, d) > 0
-        t[moving] = np.clip(np.einsum("ij,ij->i", box[:2] - a, d)[moving]
-                            / np.einsum("ij,ij->i", d, d)[moving], 0.0, 1.0)  # fmt: skip
-        near = np.hypot(*(a + t[:, None] * d - box[:2]).T) <= radius + np.hypot(*box[3:5])
-        rows = np.flatnonzero(near & (lowest <= box[5]) & (hit < 0))
-        if rows.size:
-            hit[rows[~path_clear(a[rows], b[rows], box, radius[rows])]] = i
-    return hit
+    # every path against every box at once (exact: segment_gaps); a box counts where its
+    # top is above the arm's lowest point
+    blocked = (segment_gaps(a, b, boxes) < radius[:, None]) & (lowest[:, None] <= boxes[:, 5])
+    return np.where(blocked.any(axis=1), np.argmax(blocked, axis=1), -1)
 
 
 def drive_hits(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, role: str):

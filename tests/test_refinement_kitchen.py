@@ -182,15 +182,16 @@ def test_fetch_obstacles_are_the_furniture_and_the_standing_cups():
     cups = np.array([[2.0, 1.0, 0.8001], [2.4, 1.1, 0.8001]])
     targets = np.array([_on_table_1(0.0, 0.25), _on_table_1(0.0, 0.1)])
     furniture = ["counter", "table_0", "table_1", "wall", "wall", "wall", "wall"]
-    boxes, names = ka.fetch_obstacles(cups, targets, 0, 0.02)
+    boxes, discs, names = ka.fetch_obstacles(cups, targets, 0, 0.02)
     assert names == furniture + ["cup_1"]  # fetching cup_0: cup_1 waits on its place
-    np.testing.assert_allclose(boxes[:7, [0, 1, 2, 5]], KITCHEN_OBSTACLES[:, [0, 1, 2, 5]])
-    np.testing.assert_allclose(boxes[:7, 3:5], KITCHEN_OBSTACLES[:, 3:5] + 0.02)
-    np.testing.assert_allclose(boxes[7], [2.4, 1.1, 0.0, 0.06, 0.06, 0.8501])
-    boxes, names = ka.fetch_obstacles(cups, targets, 1, 0.0)  # cup_0 put on its target
+    np.testing.assert_allclose(boxes[:, [0, 1, 2, 5]], KITCHEN_OBSTACLES[:, [0, 1, 2, 5]])
+    np.testing.assert_allclose(boxes[:, 3:5], KITCHEN_OBSTACLES[:, 3:5] + 0.02)
+    # the cups are upright discs of their radius (grown) up to their rim, as Reach sees them
+    np.testing.assert_allclose(discs, [[2.4, 1.1, 0.06, 0.8501]])
+    boxes, discs, names = ka.fetch_obstacles(cups, targets, 1, 0.0)  # cup_0 on its target
     assert names == furniture + ["cup_0"]
-    np.testing.assert_allclose(boxes[7], [*targets[0][:2], 0.0, 0.04, 0.04, 0.8511])
-    assert ka.fetch_obstacles(cups, targets, 1, 0.0, own=True)[1] == furniture + ["cup_0", "cup_1"]
+    np.testing.assert_allclose(discs, [[*targets[0][:2], 0.04, 0.8511]])
+    assert ka.fetch_obstacles(cups, targets, 1, 0.0, own=True)[2] == furniture + ["cup_0", "cup_1"]
 
 
 def test_an_arm_way_through_a_standing_cup_is_invalid_though_the_base_path_is_clear():

@@ -159,15 +159,19 @@ def fingers_in_boxes(base_state, q, span, boxes, margin: float = 0.0, discs=None
 
 def _finger_hits(centres, yaw, halves, boxes, margin: float) -> np.ndarray:
     """:func:`fingers_in_boxes` for finger boxes given as :func:`finger_boxes` returns them."""
-    hit, (fa, fb) = np.full(len(yaw), -1), _axes(yaw[:, None])  # the finger's axes (n, 1, 2)
+    hit, fa, fb = np.full(len(yaw), -1), *_axes(yaw[:, None])  # the finger's axes, (n, 1)
+    dx, dy = centres[:, :, 0], centres[:, :, 1]
+    bottom = centres[:, :, 2] - halves[:, 2]
+    own = {(u, v): _dot_abs(*a, *b) for u, a in enumerate((fa, fb)) for v, b in enumerate((fa, fb))}
     for i, (cx, cy, byaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
         ba, bb = _axes(np.array(byaw))
-        d = centres[:, :, :2] - [cx, cy]
-        overlap = centres[:, :, 2] - halves[:, 2] <= top + margin
-        for u in (fa, fb, ba, bb):  # separated along u if the projections do not meet
-            r_finger = halves[:, 0] * _dot_abs(u, fa) + halves[:, 1] * _dot_abs(u, fb)
-            r_box = (hx + margin) * _dot_abs(u, ba) + (hy + margin) * _dot_abs(u, bb)
-            overlap &= _dot_abs(u, d) <= r_finger + r_box
+        d = (dx - cx, dy - cy)
+        overlap = bottom <= top + margin
+        for k, u in enumerate((fa, fb, ba, bb)):  # separated along u if the projections miss
+            on_finger = (own[k, 0], own[k, 1]) if k < 2 else (_dot_abs(*u, *fa), _dot_abs(*u, *fb))
+            r_finger = halves[:, 0] * on_finger[0] + halves[:, 1] * on_finger[1]
+            r_box = (hx + margin) * _dot_abs(*u, *ba) + (hy + margin) * _dot_abs(*u, *bb)
+            overlap &= _dot_abs(*u, *d) <= r_finger + r_box
         new = np.any(overlap, axis=1) & (hit < 0)
         hit[new] = i
     return hit
@@ -175,11 +179,11 @@ def _finger_hits(centres, yaw, halves, boxes, margin: float) -> np.ndarray:
 
 def _finger_disc_hits(centres, yaw, halves, discs, margin: float) -> np.ndarray:
     """:func:`fingers_in_boxes`' test against discs, finger boxes as :func:`finger_boxes` gives."""
-    hit, (fa, fb) = np.full(len(yaw), -1), _axes(yaw[:, None])  # the finger's axes (n, 1, 2)
+    hit, fa, fb = np.full(len(yaw), -1), *_axes(yaw[:, None])  # the finger's axes, (n, 1)
     for i, (cx, cy, radius, top) in enumerate(discs):
-        d = centres[:, :, :2] - [cx, cy]  # (n, 2 fingers, 2)
-        u = np.maximum(_dot_abs(d, fa) - halves[:, 0], 0.0)
-        w = np.maximum(_dot_abs(d, fb) - halves[:, 1], 0.0)
+        d = (centres[:, :, 0] - cx, centres[:, :, 1] - cy)  # (n, 2 fingers) each
+        u = np.maximum(_dot_abs(*d, *fa) - halves[:, 0], 0.0)
+        w = np.maximum(_dot_abs(*d, *fb) - halves[:, 1], 0.0)
         overlap = (np.hypot(u, w) <= radius + margin) & (
             centres[:, :, 2] - halves[:, 2] <= top + margin
         )
@@ -269,14 +273,15 @@ def arm_way_hits(
     return np.where(entered.any(axis=1), inside[np.arange(n), first], -1)
 
 
-def _axes(yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit x and y axes (``(..., 2)`` each) of frames turned by ``yaw`` about z."""
+def _axes(yaw: np.ndarray) -> tuple[tuple, tuple]:
+    """Unit x and y axes ``((x, y), (x, y))`` of frames turned by ``yaw`` about z."""
     c, s = np.cos(yaw), np.sin(yaw)
-    return np.stack([c, s], axis=-1), np.stack([-s, c], axis=-1)
+    return (c, s), (-s, c)
 
 
-def _dot_abs(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return np.abs(np.sum(u * v, axis=-1))
+def _dot_abs(ux, uy, vx, vy) -> np.ndarray:
+    """``|u . v|`` of plane vectors given by their components (arrays broadcast)."""
+    return np.abs(ux * vx + uy * vy)
 
 
 def chassis_to_world(base_state, a) -> np.ndarray:

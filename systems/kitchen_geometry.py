@@ -98,7 +98,7 @@ def joint_line_points(q_from, q_to, spacing: float = 0.01) -> np.ndarray:
     return arm_forward(joint_line(q_from, q_to, spacing))
 
 
-def finger_boxes(base_state, q, span) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def finger_boxes(base_state, q, span, centre=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """World boxes of the two fingers, each swept over a range of its positions.
 
     The left finger slides along the slide's +y axis, the right along -y (a finger's
@@ -110,6 +110,7 @@ def finger_boxes(base_state, q, span) -> tuple[np.ndarray, np.ndarray, np.ndarra
         base_state: ``[x, y, phi, ...]`` of the chassis, or one row per joint row.
         q: joints ``(n, 3)`` (or one ``(3,)``) ``[lift, yaw, extend]``.
         span: ``[[inner, outer] of the left finger, [inner, outer] of the right]`` [m].
+        centre: the gripper centres (world, ``(n, 3)``) if already at hand.
 
     Returns:
         ``(centres (n, 2, 3), yaws (n,), halves (2, 3))``: world centres of the left and
@@ -120,7 +121,9 @@ def finger_boxes(base_state, q, span) -> tuple[np.ndarray, np.ndarray, np.ndarra
     span = np.asarray(span, dtype=float).reshape(2, 2)
     yaw = base[:, 2] + q[:, 1]
     offsets = 0.5 * (span[:, 0] + span[:, 1]) * np.array([1.0, -1.0])  # along the slide's y
-    centres = np.repeat(chassis_points_to_world(base, arm_forward(q))[:, None, :], 2, axis=1)
+    if centre is None:
+        centre = chassis_points_to_world(base, arm_forward(q))
+    centres = np.repeat(np.asarray(centre, dtype=float)[:, None, :], 2, axis=1)
     centres[:, :, 0] -= np.sin(yaw)[:, None] * offsets
     centres[:, :, 1] += np.cos(yaw)[:, None] * offsets
     halves = np.tile(FINGER_HALF, (2, 1))
@@ -245,7 +248,7 @@ def arm_way_hits(
     rows = np.flatnonzero(near.any(axis=0))  # the ways near any obstacle, sampled
     inside, flat, at_base = np.full((n, s), -1), q[rows].reshape(-1, 3), np.repeat(base[rows], s, 0)
     centre = chassis_points_to_world(at_base, arm_forward(flat))
-    fingers = finger_boxes(at_base, flat, span)
+    fingers = finger_boxes(at_base, flat, span, centre)
     for i in range(len(near)):
         at = np.flatnonzero(near[i, rows])  # positions in rows
         if at.size == 0:

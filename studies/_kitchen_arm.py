@@ -117,8 +117,10 @@ def arm_hits(
 
     :func:`~repertoire.systems.kitchen_actions.arm_way_hits` (the gripper centre, the
     finger boxes and a held cup's bottom disc) against :func:`fetch_obstacles` grown by
-    ``arm_clearance`` (cup ``k`` too on the way ``above`` it, as the executed reach sees
-    it), sampled every ``ARM_SPACING``; a ``put`` also opens the fingers at its target.
+    ``arm_clearance`` (cup ``k`` too on the way ``above`` it, and the fingers alone
+    against the cup the way ``down`` ends in or the ``retract`` starts in, as the
+    executed reach sees them), sampled every ``ARM_SPACING``; a ``put`` also opens the
+    fingers at its target.
 
     Args:
         g: the plan's geometry (n parameter rows).
@@ -129,8 +131,9 @@ def arm_hits(
         ways: ``arm_ways(g, k, config.above_offset)`` if already at hand.
 
     Returns:
-        ``(n,)`` indices into :func:`fetch_obstacles`' names; -1 where the way is clear,
-        the number of names where an end lies out of the arm's reach.
+        ``(n,)`` indices into :func:`fetch_obstacles`' names (the names' length for the
+        fingers against the cup of ``down`` or ``retract``); -1 where the way is clear,
+        the names' length + 1 where an end lies out of the arm's reach.
     """
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
     from repertoire.systems.kitchen_actions import (
@@ -149,11 +152,19 @@ def arm_hits(
     boxes, discs, names = fetch_obstacles(cups, g.target, k_world, config.arm_clearance, own)
     (q0, ok0), (q1, ok1) = arm_inverse_rows(a_from), arm_inverse_rows(a_to)
     cup = (CUP_HALF_HEIGHT, CUP_RADIUS) if held else None
-    hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING, discs)
+    # the cup the open fingers go down to (or up from, the retract): the fingers only,
+    # as the executed reach sees it (Reach.standing_cups)
+    fingers_only = np.zeros((0, 4))
+    if role in ("down", "retract"):
+        j = k_world if role == "down" else k - 1
+        p = np.asarray(cups if role == "down" else g.target, dtype=float)[j]
+        fingers_only = np.array([[p[0], p[1], CUP_RADIUS + config.arm_clearance,
+                                  p[2] + CUP_HALF_HEIGHT]])  # fmt: skip
+    hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING, discs, fingers_only)
     if role == "put":
         release = fingers_in_boxes(pose, q1, [[FINGER_CLOSED, FINGER_OPEN]] * 2, boxes, 0.0, discs)
         hit = np.where(hit < 0, release, hit)
-    return np.where(ok0 & ok1, hit, len(names))
+    return np.where(ok0 & ok1, hit, len(names) + 1)
 
 
 def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool, discs=None) -> np.ndarray:
@@ -247,7 +258,8 @@ def arm_collisions(params, start, cups, targets, config: KitchenPlanConfig) -> l
             own = role == "above"
             names = fetch_obstacles(cups, targets, k - (role == "retract"), 0.0, own)[2]
             if hit >= 0:
-                found.append((k, role, (names + ["out of reach"])[hit]))
+                own = FETCHED[k - (role == "retract")]  # the fingers against its cup
+                found.append((k, role, (names + [own, "out of reach"])[hit]))
         for role in ("drive_stand", "drive_drop"):
             hit, names = drive_hits(g, cups, k, start, config, role)
             if hit[0] >= 0:

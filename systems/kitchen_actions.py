@@ -156,6 +156,11 @@ def holds_object(fingers) -> bool:
     return fingers_blocked(fingers) and not any(fingers_open([f]) for f in fingers)
 
 
+def _check_margin(cup_margin: float) -> None:
+    if not (math.isfinite(cup_margin) and cup_margin >= 0):
+        raise RepertoireError(f"cup_margin must be finite and >= 0, got {cup_margin}")
+
+
 class _Action(ActionSystem):
     """Shared ports and state of the kitchen actions (not registered on its own)."""
 
@@ -188,23 +193,40 @@ class _Action(ActionSystem):
             raise RepertoireError("this action was built with cups=0: no cup_positions port")
         return self._cups_port
 
-    def standing_cups(self, context: Context, points, radius: float, half_height: float):
-        """The cups on ``cup_positions`` as obstacle discs, but those holding a way's end.
+    def standing_cups(
+        self,
+        context: Context,
+        points,
+        radius: float,
+        half_height: float,
+        held=(0, 1),
+        grow: float = 0.0,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The cups on ``cup_positions`` as obstacle discs, for a way between ``points``.
 
-        A cup whose cylinder (``radius``, ``half_height`` about its centre) contains one of
-        the world ``points`` (the gripper centre where the way starts or ends) is the cup
-        gripped, held or just let go: not an obstacle of this way. Every other cup is an
-        upright disc ``[x, y, radius, z + half_height]`` (:func:`arm_way_hits`).
+        A cup whose cylinder (``radius``, ``half_height`` about its centre) contains none
+        of the world ``points`` (the gripper centre where the way starts and ends) is an
+        obstacle of the whole arm: an upright disc ``[x, y, radius, z + half_height]``
+        (:func:`arm_way_hits`). One containing a point whose index is in ``held`` is the
+        cup held (or let go with it): none. One containing another point (a cup the
+        reach ends in to grip it, or starts in with the fingers open) is an obstacle of
+        the fingers only: approached from above the open fingers straddle it, from the
+        side they push it. The discs' radius is grown by ``grow``.
+
+        Returns:
+            ``(discs, finger_discs)``.
         """
         if self._cups_port is None:
-            return np.zeros((0, 4))
+            return np.zeros((0, 4)), np.zeros((0, 4))
         c = np.asarray(self._cups_port.Eval(context), dtype=float).reshape(-1, 3)
         p = np.atleast_2d(np.asarray(points, dtype=float))
-        holds = (np.hypot(*(p[None, :, :2] - c[:, None, :2]).transpose(2, 0, 1)) <= radius) & (
+        inside = (np.hypot(*(p[None, :, :2] - c[:, None, :2]).transpose(2, 0, 1)) <= radius) & (
             np.abs(p[None, :, 2] - c[:, None, 2]) <= half_height
         )
-        c = c[~holds.any(axis=1)]
-        return np.column_stack([c[:, :2], np.full(len(c), radius), c[:, 2] + half_height])
+        holding = inside[:, [i for i in range(len(p)) if i in held]].any(axis=1)
+        fingers_only = inside.any(axis=1) & ~holding
+        discs = np.column_stack([c[:, :2], np.full(len(c), radius + grow), c[:, 2] + half_height])
+        return discs[~inside.any(axis=1)], discs[fingers_only]
 
     def get_finger_position_input_port(self):
         return self._finger_port
@@ -215,16 +237,18 @@ class _Action(ActionSystem):
         return point_in_boxes(chassis_to_world(base, a_chassis), self._boxes, self.margin)
 
     def path_enters_obstacle(
-        self, context: Context, q_from, q_to, span, cup=None, discs=None
+        self, context: Context, q_from, q_to, span, cup=None, discs=None, finger_discs=None
     ) -> int:
         """Index of the first obstacle the straight joint-space way enters, else -1.
 
         :func:`arm_way_hits` for the chassis on ``base_state``: the gripper centre, the
         finger boxes swept over ``span`` and, with ``cup = (drop, radius)``, a held cup's
-        bottom disc, against the boxes and ``discs`` (standing cups).
+        bottom disc, against the boxes and ``discs`` (standing cups), and the fingers
+        against ``finger_discs``.
         """
         base = self._base_port.Eval(context)
-        hit = arm_way_hits(base, q_from, q_to, span, self._boxes, self.margin, cup, discs=discs)
+        hit = arm_way_hits(base, q_from, q_to, span, self._boxes, self.margin, cup, discs=discs,
+                           finger_discs=finger_discs)  # fmt: skip
         return int(hit[0])
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
@@ -305,6 +329,7 @@ class Reach(_Action):
         cup_half_height: float = 0.05,
         cup_radius: float = 0.04,
         cups: int = 0,
+        cup_margin: float = 0.005,
     ):
         """Creates the action.
 
@@ -318,8 +343,12 @@ class Reach(_Action):
             cup_half_height: a held cup's bottom lies this far below the gripper centre [m].
             cup_radius: a held cup's radius: its whole bottom disc is checked [m].
             cups: how many cups' centres the ``cup_positions`` input carries (0: no port).
+            cup_margin: the standing cups' growth [m]: half the way's 1 cm samples, so no
+                finger passes a cup's edge between two samples.
         """
         super().__init__(period, timeout, 3, obstacles, margin, cups)
+        _check_margin(cup_margin)
+        self.cup_margin = cup_margin
         _check_positive(cup_half_height=cup_half_height, cup_radius=cup_radius)
         self.cup_half_height, self.cup_radius = cup_half_height, cup_radius
         self.speeds = np.asarray(speeds, dtype=float)
@@ -357,8 +386,11 @@ class Reach(_Action):
         cup = (self.cup_half_height, self.cup_radius) if holds_object(fingers) else None
         base = self._base_port.Eval(context)
         ends = chassis_points_to_world(np.vstack([base, base]), arm_forward([q, goal]))
-        discs = self.standing_cups(context, ends, self.cup_radius, self.cup_half_height)
-        return self.path_enters_obstacle(context, q, goal, span, cup, discs) < 0
+        held = (0,) if cup is not None else ()  # a held cup starts at the gripper
+        discs, fingers_only = self.standing_cups(
+            context, ends, self.cup_radius, self.cup_half_height, held, self.cup_margin
+        )
+        return self.path_enters_obstacle(context, q, goal, span, cup, discs, fingers_only) < 0
 
     def step(self, context, command, phase, time_in_phase):
         target = self._target_port.Eval(context)
@@ -472,9 +504,12 @@ class Put(_Action):
         obstacles=None,
         margin: float = 0.0,
         cups: int = 0,
+        cup_margin: float = 0.005,
     ):
         """Creates the action (arguments as in the class docstring and :class:`Reach`)."""
         super().__init__(period, timeout, 5, obstacles, margin, cups)
+        _check_margin(cup_margin)
+        self.cup_margin = cup_margin
         _check_positive(cup_radius=cup_radius, max_drop=max_drop)
         self.cup_radius, self.max_drop = cup_radius, max_drop
         self.speeds = np.asarray(speeds, dtype=float)
@@ -522,7 +557,9 @@ class Put(_Action):
         release = [[FINGER_CLOSED, max(f, FINGER_OPEN)] for f in self._finger_port.Eval(context)]
         # the held cup (at the gripper) and the cup let go at the target are not obstacles
         ends = chassis_points_to_world(np.vstack([base, base]), [arm_forward(q), target])
-        discs = self.standing_cups(context, ends, self.cup_radius, self.cup_half_height)
+        discs = self.standing_cups(
+            context, ends, self.cup_radius, self.cup_half_height, grow=self.cup_margin
+        )[0]
         opened = fingers_in_boxes(base, q_target, release, self._boxes, self.margin, discs)[0]
         if (self.path_enters_obstacle(context, q, q_above, carry, cup, discs) >= 0
                 or self.path_enters_obstacle(context, q_above, q_target, carry, cup, discs) >= 0

@@ -205,6 +205,7 @@ def arm_way_hits(
     cup=None,
     spacing: float = 0.01,
     discs=None,
+    finger_discs=None,
 ) -> np.ndarray:
     """Per row, the first obstacle the arm's straight joint-space way enters, else -1.
 
@@ -212,9 +213,9 @@ def arm_way_hits(
     most ``spacing`` between samples) of the gripper centre (:func:`points_in_boxes`,
     :func:`points_in_discs`), of the finger boxes swept over ``span``
     (:func:`fingers_in_boxes`) and of a held cup's bottom disc (:func:`discs_in_boxes`,
-    :func:`discs_in_discs`). A way starting inside an obstacle (a measurement a
-    millimetre low on a table top) is not an entry while it stays in it: the rest of it
-    is checked on its own.
+    :func:`discs_in_discs`). A way starting inside a box (a measurement a millimetre low
+    on a table top) is not an entry while it stays in it: the rest of it is checked on
+    its own (not so for a disc: that way enters it).
 
     Args:
         base_state: ``[x, y, phi, ...]`` of the chassis, or ``(n, >= 3)``: one per way.
@@ -223,15 +224,18 @@ def arm_way_hits(
         cup: ``(drop, radius)``: a held cup's bottom disc lies ``drop`` below the centre.
         spacing: sample spacing [m].
         discs: ``(j, 4)`` upright discs ``[cx, cy, radius, top_z]`` (standing cups).
+        finger_discs: ``(f, 4)`` discs only the finger boxes must keep off (a cup the
+            way ends in to grip it: the gripper centre ends inside it).
 
     Returns:
-        ``(n,)`` obstacle indices (boxes, then discs; -1: the way is clear).
+        ``(n,)`` obstacle indices (boxes, then discs, then finger discs; -1: clear).
     """
     q, boxes, discs = (
         joint_lines(q_from, q_to, spacing, FINGER_REACH),
         _check_boxes(boxes),
         _check_discs(discs),
     )
+    n_full, discs = len(discs), np.vstack([discs, _check_discs(finger_discs)])
     (n, s), (drop, radius) = q.shape[:2], cup if cup is not None else (0.0, 0.0)
     base = np.broadcast_to(np.atleast_2d(np.asarray(base_state, dtype=float))[:, :3], (n, 3))
     # rows whose lowest point is above an obstacle or whose farthest is short of it skip it
@@ -262,14 +266,18 @@ def arm_way_hits(
                 hit |= discs_in_boxes(centre[k] - [0.0, 0.0, drop], radius, box, margin) >= 0
         else:
             disc = discs[i - len(boxes)][None]
-            hit = points_in_discs(centre[k], disc, margin) >= 0
-            hit |= _finger_disc_hits(fingers[0][k], fingers[1][k], fingers[2], disc, margin) >= 0
-            if cup is not None:
-                hit |= discs_in_discs(centre[k] - [0.0, 0.0, drop], radius, disc, margin) >= 0
+            hit = _finger_disc_hits(fingers[0][k], fingers[1][k], fingers[2], disc, margin) >= 0
+            if i - len(boxes) < n_full:  # (a finger disc: the fingers only)
+                hit |= points_in_discs(centre[k], disc, margin) >= 0
+                if cup is not None:
+                    hit |= discs_in_discs(centre[k] - [0.0, 0.0, drop], radius, disc, margin) >= 0
         sub = inside[rows[at]]
         sub[hit.reshape(-1, s) & (sub < 0)] = i  # the first obstacle in order, as one by one
         inside[rows[at]] = sub
-    staying = (inside == inside[:, :1]) & (inside[:, :1] >= 0)  # still in its start obstacle
+    # still in the box it starts in (a disc's start is no excuse: a way starting at a
+    # standing cup's edge went on through it)
+    start = inside[:, :1]
+    staying = (inside == start) & (start >= 0) & (start < len(boxes))
     left = np.where(staying.all(axis=1), s, np.argmin(staying, axis=1))
     entered = (np.arange(s)[None, :] >= left[:, None]) & (inside >= 0)
     first = np.argmax(entered, axis=1)

@@ -74,8 +74,8 @@ def test_disc_obstacles_by_hand():
 
 def test_arm_way_hits_with_discs_agree_with_a_sample_by_sample_check():
     # random ways before table_0 among three standing cups, batched, against every
-    # sample checked on its own (boxes first, then discs; a way starting in an obstacle
-    # counts only what it enters after leaving it)
+    # sample checked on its own (boxes first, then discs; a way starting in a box counts
+    # only what it enters after leaving it, one starting in a disc enters it)
     rng = np.random.default_rng(12)
     n = 10
     base = np.column_stack([rng.uniform(1.8, 2.2, n), rng.uniform(0.4, 0.6, n),
@@ -100,8 +100,8 @@ def test_arm_way_hits_with_discs_agree_with_a_sample_by_sample_check():
                 found = [f for f in found if f >= 0 and f != b - 1]  # (b - 1: no disc)
                 per_sample.append(min(found, default=-1))
             k = 0
-            while k < len(per_sample) and per_sample[k] >= 0 and per_sample[k] == per_sample[0]:
-                k += 1
+            while 0 <= per_sample[0] < b and k < len(per_sample) and per_sample[k] == per_sample[0]:
+                k += 1  # a way starting in a box (not a disc): what it enters after it
             assert got[r] == next((i for i in per_sample[k:] if i >= 0), -1), (r, cup)
         assert np.any(got >= b) and np.any(got < 0)  # ways into cups and clear ways
 
@@ -149,22 +149,38 @@ def test_reach_keeps_off_the_standing_cups():
     up = dict(down, arm_position=arm_inverse(_chassis(CUP)), target=_chassis([2.0, 1.1, 0.93]))
     up["finger_position"] = [0.05, 0.05]  # holding it
     assert _first_status(reach, cup_positions=[*CUP, *aside], **up) == running
+    # but the fingers still keep off it: into it from the side (the fingers spread along
+    # world x) or out of it sideways with the fingers open, they push it
+    side = dict(down, arm_position=arm_inverse(_chassis([2.2, 1.1, 0.8001])))
+    assert _first_status(reach, cup_positions=[*CUP, *aside], **side) == failed
+    out = dict(down, arm_position=arm_inverse(_chassis(CUP)), target=_chassis([2.2, 1.1, 0.8001]))
+    assert _first_status(reach, cup_positions=[*CUP, *aside], **out) == failed
+    out["finger_position"] = [0.05, 0.05]  # holding it: it goes along
+    assert _first_status(reach, cup_positions=[*CUP, *aside], **out) == running
     across = [2.0 + 0.085 + 0.04 - 0.001, 1.1, 0.8001]  # 1 mm under a finger's way down
     assert _first_status(reach, cup_positions=[*CUP, *across], **down) == failed
-    np.testing.assert_allclose(
-        reach.standing_cups(_fixed(reach, cup_positions=[*CUP, *aside]), [CUP], 0.04, 0.05),
-        [[2.6, 1.6, 0.04, 0.8501]],
+    discs, fingers_only = reach.standing_cups(
+        _fixed(reach, cup_positions=[*CUP, *aside]), [CUP], 0.04, 0.05
     )
+    np.testing.assert_allclose(discs, [[2.6, 1.6, 0.04, 0.8501]])
+    assert fingers_only.shape == (0, 4)
+    fingers_only = reach.standing_cups(
+        _fixed(reach, cup_positions=[*CUP, *aside]), [[0, 0, 0], CUP], 0.04, 0.05, held=(0,)
+    )[1]
+    np.testing.assert_allclose(fingers_only, [[2.0, 1.1, 0.04, 0.8501]])
     with pytest.raises(RepertoireError, match="cups=0: no cup_positions port"):
         Reach(0.02).get_cup_positions_input_port()
     with pytest.raises(RepertoireError, match="cups must be a whole number >= 0, got -1"):
         Reach(0.02, cups=-1)
+    with pytest.raises(RepertoireError, match="cup_margin must be finite and >= 0, got -0.01"):
+        Put(0.02, cup_margin=-0.01)
 
 
 def test_put_keeps_off_the_standing_cups():
     # carry the held cup (gripper at world z 0.93) from +x to put it down 12 cm from a
-    # standing cup: fine; 7.9 cm (the bottoms' discs overlap 1 mm) or 1 mm under a
-    # finger opening at the target (on the -x side, which the way does not pass): refused
+    # standing cup: fine; 7.9 cm (the bottoms' discs overlap 1 mm) or a finger opening at
+    # the target (on the -x side, which the way does not pass) 1 mm into it or within
+    # cup_margin (5 mm, half the way's samples) of it: refused
     held = [2.3, 1.3, 0.93]
     put = Put(0.02, obstacles=KITCHEN_OBSTACLES, cups=2)
     target = [2.0, 1.3, 0.8011]
@@ -173,7 +189,8 @@ def test_put_keeps_off_the_standing_cups():
     failed, running = ActionStatus.FAILED, ActionStatus.RUNNING
     cases = (([2.0, 1.42, 0.8001], running), ([2.0, 1.379, 0.8001], failed),
              ([2.0 - 0.085 - 0.04 + 0.001, 1.3, 0.8001], failed),
-             ([2.0 - 0.085 - 0.04 - 0.002, 1.3, 0.8001], running))  # fmt: skip
+             ([2.0 - 0.085 - 0.04 - 0.0049, 1.3, 0.8001], failed),  # inside cup_margin
+             ([2.0 - 0.085 - 0.04 - 0.0051, 1.3, 0.8001], running))  # fmt: skip
     for other, status in cases:
         assert _first_status(put, cup_positions=[*held[:2], 0.93, *other], **base) == status, other
 

@@ -193,6 +193,20 @@ def joint_state_selector(plant, joints) -> np.ndarray:
     return S
 
 
+def cup_position_selector(plant, cups) -> np.ndarray:
+    """``(3 len(cups), nq + nv)`` matrix picking each named cup's centre ``[x, y, z]``.
+
+    The cups are free bodies: their positions are a quaternion, then the translation.
+    """
+    n = plant.num_positions() + plant.num_velocities()
+    S = np.zeros((3 * len(cups), n))
+    for i, name in enumerate(cups):
+        body = plant.GetBodyByName("cup", plant.GetModelInstanceByName(name))
+        start = body.floating_positions_start() + 4
+        S[3 * i : 3 * i + 3, start : start + 3] = np.eye(3)
+    return S
+
+
 def desired_state_matrix() -> np.ndarray:
     """``(14, 7)`` map from ``[v, omega, lift, yaw, extend, left, right]`` to the desired state.
 
@@ -226,8 +240,9 @@ def build_kitchen_action(
     Returns:
         The Diagram ``kitchen_action`` with subsystems ``plant``, ``scene_graph``,
         ``state_reader``, ``arm_reader``, ``finger_reader``, ``action`` (the
-        running action), ``target`` (its target source, absent for ``grip``) and
-        ``desired_state``.
+        running action), ``target`` (its target source, absent for ``grip``),
+        ``cup_reader`` (the cups' centres for reach and put, which keep off the standing
+        cups; absent without cups) and ``desired_state``.
     """
     scenario.validate()
     builder = DiagramBuilder()
@@ -293,9 +308,10 @@ def build_kitchen_action(
         hold(2)
     else:
         hold(0)
+        cups = len(scenario.cups)  # reach and put keep off the standing cups
         if scenario.action == "reach":
             reach = Reach(period, obstacles=KITCHEN_OBSTACLES, cup_half_height=CUP_HALF_HEIGHT,
-                          cup_radius=CUP_RADIUS)  # fmt: skip
+                          cup_radius=CUP_RADIUS, cups=cups)  # fmt: skip
             action = builder.AddSystem(reach)
             builder.Connect(action.get_command_output_port(), mux.get_input_port(1))
             hold(2)
@@ -305,7 +321,7 @@ def build_kitchen_action(
             hold(1)
         else:
             put = Put(period, cup_half_height=CUP_HALF_HEIGHT, cup_radius=CUP_RADIUS,
-                      obstacles=KITCHEN_OBSTACLES)  # fmt: skip
+                      obstacles=KITCHEN_OBSTACLES, cups=cups)  # fmt: skip
             action = builder.AddSystem(put)
             demux = builder.AddSystem(MatrixGain(np.eye(5)[:3]))
             demux.set_name("put_arm_command")
@@ -317,6 +333,13 @@ def build_kitchen_action(
         builder.Connect(reader.get_output_port(), action.get_base_state_input_port())
         if scenario.action in ("reach", "put"):
             builder.Connect(arm_reader.get_output_port(), action.get_arm_position_input_port())
+            if cups:
+                cup_reader = builder.AddSystem(
+                    MatrixGain(cup_position_selector(plant, scenario.cups))
+                )
+                cup_reader.set_name("cup_reader")
+                builder.Connect(plant.get_state_output_port(), cup_reader.get_input_port())
+                builder.Connect(cup_reader.get_output_port(), action.get_cup_positions_input_port())
             builder.Connect(
                 target_source().get_output_port(),
                 action.get_target_input_port(),

@@ -19,8 +19,8 @@ from repertoire.studies._kitchen_plan import (
     KitchenPlanConfig,
     PlanGeometry,
     _world_in_chassis,
-    path_clear,
     plan_geometry,
+    segment_gaps,
     to_chassis_z,
 )
 
@@ -28,39 +28,43 @@ from repertoire.errors import RepertoireError
 
 
 def fetch_obstacles(cups, targets, k: int, growth: float, own: bool = False):
-    """Boxes the arm keeps off during fetch ``k`` (grown by ``growth`` horizontally), and names.
+    """What the arm keeps off during fetch ``k`` (grown by ``growth`` horizontally), and names.
 
-    The kitchen's furniture and the standing cups, each an upright square of the cup's
-    radius up to its rim (conservative by up to 1.7 cm at the square's corners): the cups
-    fetched before ``k`` on their targets, those after it on their places (both
-    ``FETCHED`` cups are in the world in both scenarios) and, with ``own``, cup ``k`` on
-    its place (the drive to it; its own reaches and the carry hold or straddle it).
+    The kitchen's furniture (boxes) and the standing cups, each an upright disc of the
+    cup's radius up to its rim (exactly as the executed actions see them:
+    :meth:`~repertoire.systems.kitchen_actions.Reach.standing_cups`): the cups fetched
+    before ``k`` on their targets, those after it on their places (both ``FETCHED`` cups
+    are in the world in both scenarios) and, with ``own``, cup ``k`` on its place (the
+    drive to it and the reach above it; the reach down, the lift, the carry and the put
+    start or end inside it, so the actions leave it out there).
 
     Args:
         cups: (2, 3) centres of ``cup_0`` and ``cup_1`` on their places.
         targets: (m, 3) put targets.
         k: the fetch (0 or 1).
-        growth: horizontal growth of every box [m].
+        growth: horizontal growth of every obstacle [m].
         own: include cup ``k`` on its place.
 
     Returns:
-        ``(boxes (b, 6), names)``: rows ``[cx, cy, yaw, half_x, half_y, top_z]``.
+        ``(boxes (b, 6), discs (d, 4), names)``: box rows ``[cx, cy, yaw, half_x, half_y,
+        top_z]``, disc rows ``[cx, cy, radius, top_z]``; ``names`` of the boxes, then the
+        discs (the obstacle indices of :func:`arm_hits` and :func:`arm_drive_hits`).
     """
     from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
 
     names = ["counter", "table_0", "table_1", "wall", "wall", "wall", "wall"]
-    rows = [list(b) for b in KITCHEN_OBSTACLES]
-    if len(rows) != len(names):
+    if len(KITCHEN_OBSTACLES) != len(names):
         raise RepertoireError("internal: KITCHEN_OBSTACLES changed: name its boxes here")
+    boxes = np.array(KITCHEN_OBSTACLES, dtype=float)
+    boxes[:, 3:5] += growth
+    discs = []
     for j, name in enumerate(FETCHED):
         if j != k or own:
             p = np.asarray(targets if j < k else cups, dtype=float)[j]
-            rows.append([p[0], p[1], 0.0, CUP_RADIUS, CUP_RADIUS, p[2] + CUP_HALF_HEIGHT])
+            discs.append([p[0], p[1], CUP_RADIUS + growth, p[2] + CUP_HALF_HEIGHT])
             names.append(name)
-    boxes = np.array(rows)
-    boxes[:, 3:5] += growth
-    return boxes, names
+    return boxes, np.array(discs).reshape(-1, 4), names
 
 
 def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
@@ -106,13 +110,17 @@ def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
     return ways
 
 
-def arm_hits(g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig) -> np.ndarray:
+def arm_hits(
+    g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig, ways: dict | None = None
+) -> np.ndarray:
     """Per parameter row, what the arm way ``role`` of fetch ``k`` enters (:func:`arm_ways`).
 
     :func:`~repertoire.systems.kitchen_actions.arm_way_hits` (the gripper centre, the
     finger boxes and a held cup's bottom disc) against :func:`fetch_obstacles` grown by
-    ``arm_clearance``, sampled every ``ARM_SPACING``; a ``put`` also opens the fingers
-    at its target.
+    ``arm_clearance`` (cup ``k`` too on the way ``above`` it, and the fingers alone
+    against the cup the way ``down`` ends in or the ``retract`` starts in, as the
+    executed reach sees them), sampled every ``ARM_SPACING``; a ``put`` also opens the
+    fingers at its target.
 
     Args:
         g: the plan's geometry (n parameter rows).
@@ -120,10 +128,12 @@ def arm_hits(g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig
         k: the fetch.
         role: a role of :func:`arm_ways`.
         config: ``above_offset`` and ``arm_clearance``.
+        ways: ``arm_ways(g, k, config.above_offset)`` if already at hand.
 
     Returns:
-        ``(n,)`` indices into :func:`fetch_obstacles`' names; -1 where the way is clear,
-        the number of names where an end lies out of the arm's reach.
+        ``(n,)`` indices into :func:`fetch_obstacles`' names (the names' length for the
+        fingers against the cup of ``down`` or ``retract``); -1 where the way is clear,
+        the names' length + 1 where an end lies out of the arm's reach.
     """
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
     from repertoire.systems.kitchen_actions import (
@@ -134,28 +144,38 @@ def arm_hits(g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig
         fingers_in_boxes,
     )
 
-    ways = arm_ways(g, k, config.above_offset)
+    ways = arm_ways(g, k, config.above_offset) if ways is None else ways
     if role not in ways:
         raise RepertoireError(f"role must be one of {sorted(ways)} for fetch {k}, got {role!r}")
     pose, a_from, a_to, span, held = ways[role]
-    k_world = k - 1 if role == "retract" else k
-    boxes, names = fetch_obstacles(cups, g.target, k_world, config.arm_clearance)
+    k_world, own = (k - 1, False) if role == "retract" else (k, role == "above")
+    boxes, discs, names = fetch_obstacles(cups, g.target, k_world, config.arm_clearance, own)
     (q0, ok0), (q1, ok1) = arm_inverse_rows(a_from), arm_inverse_rows(a_to)
     cup = (CUP_HALF_HEIGHT, CUP_RADIUS) if held else None
-    hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING)
+    # the cup the open fingers go down to (or up from, the retract): the fingers only,
+    # as the executed reach sees it (Reach.standing_cups)
+    fingers_only = np.zeros((0, 4))
+    if role in ("down", "retract"):
+        j = k_world if role == "down" else k - 1
+        p = np.asarray(cups if role == "down" else g.target, dtype=float)[j]
+        fingers_only = np.array([[p[0], p[1], CUP_RADIUS + config.arm_clearance,
+                                  p[2] + CUP_HALF_HEIGHT]])  # fmt: skip
+    hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING, discs, fingers_only)
     if role == "put":
-        release = fingers_in_boxes(pose, q1, [[FINGER_CLOSED, FINGER_OPEN]] * 2, boxes)
+        release = fingers_in_boxes(pose, q1, [[FINGER_CLOSED, FINGER_OPEN]] * 2, boxes, 0.0, discs)
         hit = np.where(hit < 0, release, hit)
-    return np.where(ok0 & ok1, hit, len(names))
+    return np.where(ok0 & ok1, hit, len(names) + 1)
 
 
-def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool) -> np.ndarray:
-    """Per row, the first box the still arm enters while the base drives straight ``a -> b``.
+def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool, discs=None) -> np.ndarray:
+    """Per row, the first obstacle the still arm enters while the base drives straight ``a -> b``.
 
     The arm at chassis point ``arm`` (n, 3) sweeps a disc of its horizontal distance from
     the base's centre plus ``FINGER_REACH`` and ``clearance`` (every heading: GoToPose
-    turns) along the path (:func:`path_clear`), against the boxes whose top is above the
-    fingers' bottom (or, ``held``, the cup's bottom).
+    turns) along the path (exact: :func:`~repertoire.studies._kitchen_plan.segment_gaps`
+    for the boxes, the segment's distance from a disc's centre less its radius for the
+    discs), against the obstacles whose top is above the fingers' bottom (or, ``held``,
+    the cup's bottom).
 
     Args:
         a: (n, >= 2) start poses of the base. b: (n, >= 2) end poses.
@@ -163,9 +183,10 @@ def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool) -> np.ndarray
         boxes: (k, 6) obstacle boxes (not grown).
         clearance: added to the arm's reach [m].
         held: a cup hangs from the fingers.
+        discs: (j, 4) upright discs ``[cx, cy, radius, top_z]`` (standing cups).
 
     Returns:
-        ``(n,)`` box indices, -1 where clear.
+        ``(n,)`` obstacle indices (boxes, then discs), -1 where clear.
     """
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT
     from repertoire.systems.kitchen_actions import FINGER_HALF, FINGER_REACH
@@ -174,21 +195,19 @@ def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool) -> np.ndarray
     radius = np.hypot(arm[:, 0], arm[:, 1]) + FINGER_REACH + clearance
     z_world = arm[:, 2] - to_chassis_z(0.0)
     lowest = z_world - max(FINGER_HALF[2], CUP_HALF_HEIGHT if held else 0.0)
-    hit = np.full(len(arm), -1)
+    boxes = np.asarray(boxes, dtype=float).reshape(-1, 6)
+    discs = np.asarray(discs if discs is not None else [], dtype=float).reshape(-1, 4)
     a, b = (np.broadcast_to(np.atleast_2d(p)[:, :2], (len(arm), 2)) for p in (a, b))
+    # every path against every obstacle at once; one counts where its top is above the
+    # arm's lowest point
     d = b - a
-    t = np.zeros(len(arm))
-    for i, box in enumerate(np.asarray(boxes, dtype=float).reshape(-1, 6)):
-        # candidates: rows whose arm is low enough and whose path passes the box's
-        # circumscribed circle within the arm's reach (the exact test is the costly part)
-        moving = np.einsum("ij,ij->i", d, d) > 0
-        t[moving] = np.clip(np.einsum("ij,ij->i", box[:2] - a, d)[moving]
-                            / np.einsum("ij,ij->i", d, d)[moving], 0.0, 1.0)  # fmt: skip
-        near = np.hypot(*(a + t[:, None] * d - box[:2]).T) <= radius + np.hypot(*box[3:5])
-        rows = np.flatnonzero(near & (lowest <= box[5]) & (hit < 0))
-        if rows.size:
-            hit[rows[~path_clear(a[rows], b[rows], box, radius[rows])]] = i
-    return hit
+    t = np.clip(((discs[:, 0] - a[:, :1]) * d[:, :1] + (discs[:, 1] - a[:, 1:]) * d[:, 1:])
+                / np.maximum(d[:, :1] ** 2 + d[:, 1:] ** 2, 1e-300), 0.0, 1.0)  # fmt: skip
+    to_disc = np.hypot(a[:, :1] + t * d[:, :1] - discs[:, 0], a[:, 1:] + t * d[:, 1:] - discs[:, 1])
+    gaps = np.hstack([segment_gaps(a, b, boxes), to_disc - discs[:, 2]])
+    tops = np.concatenate([boxes[:, 5], discs[:, 3]])
+    blocked = (gaps < radius[:, None]) & (lowest[:, None] <= tops)
+    return np.where(blocked.any(axis=1), np.argmax(blocked, axis=1), -1)
 
 
 def drive_hits(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, role: str):
@@ -209,14 +228,14 @@ def drive_hits(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, 
     """
     if role == "drive_stand":
         prev = g.drop[:, k - 1] if k else np.broadcast_to(start, g.stand[:, k].shape)
-        boxes, names = fetch_obstacles(cups, g.target, k, 0.0, own=True)
+        boxes, discs, names = fetch_obstacles(cups, g.target, k, 0.0, own=True)
         arm, held, a, b = arm_ways(g, k, config.above_offset)["above"][1], False, prev, g.stand
     elif role == "drive_drop":
-        boxes, names = fetch_obstacles(cups, g.target, k, 0.0)
+        boxes, discs, names = fetch_obstacles(cups, g.target, k, 0.0)
         arm, held, a, b = g.carry[:, k], True, g.stand[:, k], g.drop
     else:
         raise RepertoireError(f"role must be 'drive_stand' or 'drive_drop', got {role!r}")
-    return arm_drive_hits(a, b[:, k], arm, boxes, config.arm_clearance, held), names
+    return arm_drive_hits(a, b[:, k], arm, boxes, config.arm_clearance, held, discs), names
 
 
 def arm_collisions(params, start, cups, targets, config: KitchenPlanConfig) -> list[tuple]:
@@ -236,9 +255,11 @@ def arm_collisions(params, start, cups, targets, config: KitchenPlanConfig) -> l
     for k in range(len(targets)):
         for role in arm_ways(g, k, config.above_offset):
             hit = arm_hits(g, cups, k, role, config)[0]
-            names = fetch_obstacles(cups, targets, k - (role == "retract"), 0.0)[1]
+            own = role == "above"
+            names = fetch_obstacles(cups, targets, k - (role == "retract"), 0.0, own)[2]
             if hit >= 0:
-                found.append((k, role, (names + ["out of reach"])[hit]))
+                own = FETCHED[k - (role == "retract")]  # the fingers against its cup
+                found.append((k, role, (names + [own, "out of reach"])[hit]))
         for role in ("drive_stand", "drive_drop"):
             hit, names = drive_hits(g, cups, k, start, config, role)
             if hit[0] >= 0:

@@ -154,59 +154,86 @@ class KitchenPlanConfig:
 # Geometry
 
 
+def _box_frames(boxes) -> tuple[np.ndarray, ...]:
+    """Per box row ``[cx, cy, yaw, half_x, half_y, top_z]``: ``(cx, cy, cos, sin, hx, hy)``."""
+    b = np.asarray(boxes, dtype=float).reshape(-1, 6)
+    c = np.array([math.cos(yaw) for yaw in b[:, 2]])
+    s = np.array([math.sin(yaw) for yaw in b[:, 2]])
+    return b[:, 0], b[:, 1], c, s, b[:, 3], b[:, 4]
+
+
+def _in_frames(p: np.ndarray, frames) -> tuple[np.ndarray, np.ndarray]:
+    """Points ``p`` (n, >= 2) in every box's frame: ``(u, w)``, (n, b) each."""
+    cx, cy, c, s, _, _ = frames
+    dx, dy = p[:, :1] - cx, p[:, 1:2] - cy
+    return c * dx + s * dy, -s * dx + c * dy
+
+
+def _rectangle_gaps(u: np.ndarray, w: np.ndarray, frames) -> np.ndarray:
+    """Distances (n, b) of box-frame points from the boxes' rectangles (0 inside)."""
+    hx, hy = frames[4], frames[5]
+    return np.hypot(np.maximum(np.abs(u) - hx, 0.0), np.maximum(np.abs(w) - hy, 0.0))
+
+
+def box_gaps(xy, boxes) -> np.ndarray:
+    """Distances ``(n, b)`` of the points ``xy`` (n, >= 2) from the boxes' footprints (0 inside).
+
+    ``boxes`` are rows ``[cx, cy, yaw, half_x, half_y, top_z]`` as in
+    :func:`~repertoire.systems.kitchen_actions.footprint_hits`.
+    """
+    p = np.atleast_2d(np.asarray(xy, dtype=float))
+    frames = _box_frames(boxes)
+    return _rectangle_gaps(*_in_frames(p, frames), frames)
+
+
 def footprint_clear(xy, boxes, radius: float) -> np.ndarray:
     """True per point where a robot disc at ``xy`` (n, 2) overlaps no box (vectorised).
 
     ``boxes`` are rows ``[cx, cy, yaw, half_x, half_y, top_z]`` as in
     :func:`~repertoire.systems.kitchen_actions.footprint_hits`.
     """
-    p = np.atleast_2d(np.asarray(xy, dtype=float))
-    ok = np.ones(p.shape[0], dtype=bool)
-    for cx, cy, yaw, hx, hy, _ in np.asarray(boxes, dtype=float).reshape(-1, 6):
-        c, s = math.cos(yaw), math.sin(yaw)
-        dx, dy = p[:, 0] - cx, p[:, 1] - cy
-        u = np.maximum(np.abs(c * dx + s * dy) - hx, 0.0)
-        w = np.maximum(np.abs(-s * dx + c * dy) - hy, 0.0)
-        ok &= np.hypot(u, w) >= radius
-    return ok
+    return np.all(box_gaps(xy, boxes) >= radius, axis=1)
 
 
-def path_clear(a, b, boxes, radius: float) -> np.ndarray:
-    """True per row where a disc swept along the segment ``a -> b`` ((n, 2) each) is clear.
-
-    Clear: the segment's exact distance to each box is at least ``radius``.
+def segment_gaps(a, b, boxes) -> np.ndarray:
+    """Exact distances ``(n, k)`` of the segments ``a -> b`` ((n, >= 2) each) from the boxes.
 
     In a box's frame the distance between a segment and the rectangle is 0 where the
     segment enters it (slab clipping), else the least of the end points' distances to the
     rectangle and the corners' distances to the segment (two convex sets in the plane are
-    nearest at a vertex of one of them).
+    nearest at a vertex of one of them). All segments against all boxes at once.
     """
     a, b = np.broadcast_arrays(np.atleast_2d(a)[:, :2], np.atleast_2d(b)[:, :2])
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    ok = footprint_clear(a, boxes, radius) & footprint_clear(b, boxes, radius)  # the ends
-    for cx, cy, yaw, hx, hy, _ in np.asarray(boxes, dtype=float).reshape(-1, 6):
-        c, s = math.cos(yaw), math.sin(yaw)
-        rot = np.array([[c, s], [-s, c]])  # world -> box frame
-        pa, pb = (a - (cx, cy)) @ rot.T, (b - (cx, cy)) @ rot.T
-        d = pb - pa
-        half = np.array([hx, hy])
-        t_in, t_out = np.zeros(len(a)), np.ones(len(a))
-        for k in range(2):  # the slab |p_k| <= half_k, for p = pa + t d, t in [0, 1]
-            moving = d[:, k] != 0.0
-            dk = np.where(moving, d[:, k], 1.0)
-            t1, t2 = (-half[k] - pa[:, k]) / dk, (half[k] - pa[:, k]) / dk
-            inside = np.abs(pa[:, k]) <= half[k]
-            t_in = np.maximum(
-                t_in, np.where(moving, np.minimum(t1, t2), np.where(inside, 0.0, 2.0))
-            )
-            t_out = np.minimum(t_out, np.where(moving, np.maximum(t1, t2), 1.0))
-        dist = np.where(t_in <= t_out, 0.0, np.inf)
-        dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
-        for corner in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
-            t = np.clip(np.einsum("ij,ij->i", corner - pa, d) / dd, 0.0, 1.0)
-            dist = np.minimum(dist, np.hypot(*(pa + t[:, None] * d - corner).T))
-        ok &= dist >= radius
-    return ok
+    frames = _box_frames(boxes)
+    (ua, wa), (ub, wb) = _in_frames(a, frames), _in_frames(b, frames)
+    gap = np.minimum(_rectangle_gaps(ua, wa, frames), _rectangle_gaps(ub, wb, frames))
+    hx, hy = frames[4], frames[5]
+    du, dw = ub - ua, wb - wa
+    t_in, t_out = np.zeros(gap.shape), np.ones(gap.shape)
+    for pk, dk, half in ((ua, du, hx), (wa, dw, hy)):  # the slab |p_k| <= half, p = pa + t d
+        moving = dk != 0.0
+        step = np.where(moving, dk, 1.0)
+        t1, t2 = (-half - pk) / step, (half - pk) / step
+        inside = np.abs(pk) <= half
+        t_in = np.maximum(t_in, np.where(moving, np.minimum(t1, t2), np.where(inside, 0.0, 2.0)))
+        t_out = np.minimum(t_out, np.where(moving, np.maximum(t1, t2), 1.0))
+    gap = np.where(t_in <= t_out, 0.0, gap)
+    dd = np.maximum(du * du + dw * dw, 1e-300)
+    for cu, cw in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
+        t = np.clip(((cu - ua) * du + (cw - wa) * dw) / dd, 0.0, 1.0)
+        gap = np.minimum(gap, np.hypot(ua + t * du - cu, wa + t * dw - cw))
+    return gap
+
+
+def path_clear(a, b, boxes, radius) -> np.ndarray:
+    """True per row where a disc swept along the segment ``a -> b`` ((n, 2) each) is clear.
+
+    Clear: the segment's exact distance to each box (:func:`segment_gaps`) is at least
+    ``radius`` (a number or one per row).
+    """
+    radius = np.asarray(radius, dtype=float)
+    return np.all(segment_gaps(a, b, boxes) >= radius.reshape(-1, 1), axis=1)
 
 
 def arm_point(yaw, extend, z_chassis) -> np.ndarray:
@@ -315,6 +342,11 @@ class PlanGeometry:
     carry: np.ndarray
     cup: np.ndarray
     target: np.ndarray
+
+    def rows(self, index) -> "PlanGeometry":
+        """The geometry of the parameter vectors ``index`` (an index array or a mask)."""
+        return PlanGeometry(self.stand[index], self.drop[index], self.carry[index], self.cup,
+                            self.target)  # fmt: skip
 
 
 def plan_geometry(params, cups, targets) -> PlanGeometry:
@@ -447,17 +479,40 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
     terms: list = []
     actions: list[str] = []
 
+    last: dict = {}  # the geometry of the last parameter batch (every term of a cost
+    # evaluation gets the same batch) and its arm ways per fetch
+
     def geometry(params):
-        return plan_geometry(params, cups, targets)
+        p = np.atleast_2d(np.asarray(params, dtype=float))
+        key = (p.shape, p.tobytes())
+        if last.get("key") != key:
+            last.update(key=key, g=plan_geometry(p, cups, targets), ways={})
+        return last["g"]
+
+    def ways(g, k):  # arm_ways of fetch k of the geometry geometry() returned last
+        if g is not last.get("g"):
+            return arm_ways(g, k, config.above_offset)
+        if k not in last["ways"]:
+            last["ways"][k] = arm_ways(g, k, config.above_offset)
+        return last["ways"][k]
 
     def add(name, model, features, uses):
         terms.append(DurationTerm(model, features, tuple(uses), f"{len(terms)}:{name}"))
         actions.append(name)
 
-    from repertoire.studies._kitchen_arm import arm_hits, drive_hits
+    from repertoire.studies._kitchen_arm import arm_hits, arm_ways, drive_hits
 
     def arm_clear(f, g, k, role):  # the features where the arm's way is clear, else NaN
-        return np.where((arm_hits(g, cups, k, role, config) < 0)[:, None], f, np.nan)
+        hits = arm_hits(g, cups, k, role, config, ways(g, k))
+        return np.where((hits < 0)[:, None], f, np.nan)
+
+    def drive_clear(ok, g, k, role):  # ok, and the held-out arm clear while driving
+        rows = np.flatnonzero(ok)  # (only where the base's paths are clear)
+        if rows.size == 0:
+            return ok
+        ok = ok.copy()
+        ok[rows] = drive_hits(g.rows(rows), cups, k, start, config, role)[0] < 0
+        return ok
 
     for k in range(m):
         base = PER_CUP * k
@@ -489,7 +544,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
             f = kitchen_goto_features(prev_pose(g), g.stand[:, k])
             ok = path_clear(prev_pose(g), g.stand[:, k], KITCHEN_OBSTACLES, radius)
             ok &= path_clear(g.stand[:, k], exits[k], KITCHEN_OBSTACLES, radius)
-            ok &= drive_hits(g, cups, k, start, config, "drive_stand")[0] < 0  # the arm too
+            ok = drive_clear(ok, g, k, "drive_stand")  # the arm too
             return np.where(ok[:, None], f, np.nan)
 
         add("goto_pose", goto, goto_stand, prev_ids + stand_ids)
@@ -534,7 +589,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
             g = geometry(params)
             f = kitchen_goto_features(g.stand[:, k], g.drop[:, k])
             ok = path_clear(g.stand[:, k], g.drop[:, k], KITCHEN_OBSTACLES, radius)
-            ok &= drive_hits(g, cups, k, start, config, "drive_drop")[0] < 0  # arm and cup
+            ok = drive_clear(ok, g, k, "drive_drop")  # arm and cup
             return np.where(ok[:, None], f, np.nan)
 
         add("goto_pose", goto, goto_drop, stand_ids + drop_ids)

@@ -24,6 +24,12 @@ held cup's whole bottom disc (:func:`arm_way_hits`, :func:`discs_in_boxes`). (A 
 whose way crossed a table top pushed its fingers against the table and dragged the
 standing robot 0.6 m under it, then reported success in the chassis frame. A check of
 the centre alone let a way 2 cm above a table's top pass with the fingers 2 cm in it.)
+Built with ``cups`` > 0, Reach and Put read the cups' centres (``cup_positions``) and
+keep off the standing ones the same way, each an upright disc of the cup's radius up
+to its rim (:meth:`_Action.standing_cups`: all but a cup the way starts or ends in, the
+one gripped, held or let go); unchecked, a level swing across a standing cup pushed it
+168 mm and reported SUCCEEDED. The geometry lives in
+:mod:`repertoire.systems.kitchen_geometry` (re-exported here).
 
 Grip closes the fingers and succeeds when both are blocked by an object (the
 fingers stop more than ``block_margin`` short of their closed setpoint: a grasp
@@ -34,19 +40,75 @@ import math
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
-from repertoire.models.diffdrive import WHEEL_RADIUS
-from repertoire.models.diffdrive.generate import (
-    COLUMN_X,
-    EXTEND_RANGE,
-    FINGER_RANGE,
-    FINGER_SIZE,
-    LIFT_BASE_Z,
-    LIFT_RANGE,
-    YAW_RANGE,
-)
+from repertoire.models.diffdrive.generate import FINGER_RANGE
 from repertoire.systems.action_status import ActionStatus, ActionSystem
+from repertoire.systems.kitchen_geometry import (
+    FINGER_HALF,
+    FINGER_REACH,
+    _check_boxes,
+    _check_positive,
+    _in_box_frames,
+    arm_forward,
+    arm_inverse,
+    arm_inverse_rows,
+    arm_way_hits,
+    chassis_points_to_world,
+    chassis_to_world,
+    discs_in_boxes,
+    discs_in_discs,
+    finger_boxes,
+    fingers_in_boxes,
+    joint_line,
+    joint_line_points,
+    joint_lines,
+    point_in_boxes,
+    points_in_boxes,
+    points_in_discs,
+    support_under,
+)
 
 from repertoire.errors import RepertoireError
+
+#: The actions and their constants, and the geometry of systems/kitchen_geometry.py
+#: (re-exported: the actions' callers import it from here).
+__all__ = [
+    "ARM_JOINTS",
+    "ARM_SPEEDS",
+    "BLOCK_MARGIN",
+    "FINGER_CLOSED",
+    "FINGER_HALF",
+    "FINGER_JOINTS",
+    "FINGER_OPEN",
+    "FINGER_REACH",
+    "FINGER_SPEED",
+    "OPEN_TOLERANCE",
+    "arm_forward",
+    "arm_inverse",
+    "arm_inverse_rows",
+    "arm_way_hits",
+    "chassis_points_to_world",
+    "chassis_to_world",
+    "discs_in_boxes",
+    "discs_in_discs",
+    "finger_boxes",
+    "fingers_blocked",
+    "fingers_in_boxes",
+    "fingers_open",
+    "footprint_hits",
+    "FootprintGuard",
+    "Grip",
+    "holds_object",
+    "joint_line",
+    "joint_line_points",
+    "joint_lines",
+    "joint_step",
+    "point_in_boxes",
+    "points_in_boxes",
+    "points_in_discs",
+    "Put",
+    "Reach",
+    "support_under",
+]
 
 ARM_JOINTS = ("arm_lift", "arm_yaw", "arm_extend")
 FINGER_JOINTS = ("left_finger", "right_finger")
@@ -56,45 +118,6 @@ FINGER_OPEN = 0.075  # finger centre from the gripper centre when open [m]
 FINGER_CLOSED = 0.03  # closed setpoint (the joint's lower limit) [m]
 OPEN_TOLERANCE = 0.005  # a finger this close to FINGER_OPEN is measured open [m]
 BLOCK_MARGIN = 0.01  # a finger this far short of closed is blocked by an object [m]
-FINGER_HALF = tuple(0.5 * v for v in FINGER_SIZE)  # a finger box's half sizes (slide frame) [m]
-#: Largest horizontal distance of a finger box's point from the gripper centre [m].
-FINGER_REACH = math.hypot(FINGER_HALF[0], FINGER_RANGE[1] + FINGER_HALF[1])
-
-
-def arm_forward(q) -> np.ndarray:
-    """Gripper centre ``[ax, ay, az]`` in the chassis frame for joints ``[lift, yaw, extend]``.
-
-    ``q`` may be ``(..., 3)``: one centre per row.
-    """
-    lift, yaw, extend = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
-    return np.stack(
-        [COLUMN_X + extend * np.cos(yaw), extend * np.sin(yaw), LIFT_BASE_Z + lift], axis=-1
-    )
-
-
-def arm_inverse(a) -> np.ndarray | None:
-    """Joints ``[lift, yaw, extend]`` putting the gripper centre at ``a`` (chassis frame).
-
-    Returns:
-        The joints, or None if ``a`` is not finite or out of the arm's reach
-        (joint ranges of ``models/diffdrive/generate.py``).
-    """
-    a = np.asarray(a, dtype=float)
-    if a.shape != (3,):
-        return None
-    q, ok = arm_inverse_rows(a)
-    return q[0] if ok[0] else None
-
-
-def arm_inverse_rows(a) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`arm_inverse` per row of ``a`` ``(n, 3)``: joints ``(n, 3)`` and ``(n,)`` in reach."""
-    a = np.atleast_2d(np.asarray(a, dtype=float))
-    dx, dy = a[:, 0] - COLUMN_X, a[:, 1]
-    q = np.stack([a[:, 2] - LIFT_BASE_Z, np.arctan2(dy, dx), np.hypot(dx, dy)], axis=-1)
-    ok = np.all(np.isfinite(a), axis=1)
-    for j, (lo, hi) in enumerate((LIFT_RANGE, YAW_RANGE, EXTEND_RANGE)):
-        ok &= (q[:, j] >= lo - 1e-9) & (q[:, j] <= hi + 1e-9)
-    return q, ok
 
 
 def joint_step(q_cmd, q_goal, speeds, dt: float) -> np.ndarray:
@@ -110,35 +133,6 @@ def joint_step(q_cmd, q_goal, speeds, dt: float) -> np.ndarray:
     if steps <= 1.0:
         return q_goal.copy()
     return q_cmd + delta / steps
-
-
-def joint_line(q_from, q_to, spacing: float = 0.01, reach: float = 0.0) -> np.ndarray:
-    """Joints ``(n, 3)`` along the straight joint-space line ``q_from -> q_to`` (both ends).
-
-    The line :func:`joint_step` drives. A point carried by the slide at most ``reach``
-    (horizontally) from the gripper centre moves at most ``spacing`` between consecutive
-    samples: its speed along the line is bounded by ``|d lift| + |d extend| + (max(extend)
-    + reach) |d yaw|`` per unit of the line parameter.
-    """
-    return joint_lines(q_from, q_to, spacing, reach)[0]
-
-
-def joint_lines(q_from, q_to, spacing: float = 0.01, reach: float = 0.0) -> np.ndarray:
-    """:func:`joint_line` per row of ``q_from``, ``q_to`` (``(n, 3)``): ``(n, s, 3)`` joints.
-
-    Every row gets the sample count of the longest (its points at most ``spacing`` apart).
-    """
-    _check_positive(spacing=spacing)
-    q0, q1 = np.atleast_2d(np.asarray(q_from, dtype=float)), np.atleast_2d(q_to).astype(float)
-    d = np.abs(q1 - q0)
-    length = d[:, 0] + d[:, 2] + (np.maximum(np.abs(q0[:, 2]), np.abs(q1[:, 2])) + reach) * d[:, 1]
-    s = np.linspace(0.0, 1.0, max(2, int(math.ceil(np.max(length, initial=0.0) / spacing)) + 1))
-    return q0[:, None, :] + s[None, :, None] * (q1 - q0)[:, None, :]
-
-
-def joint_line_points(q_from, q_to, spacing: float = 0.01) -> np.ndarray:
-    """Gripper centres (chassis frame) along :func:`joint_line`, at most ``spacing`` apart."""
-    return arm_forward(joint_line(q_from, q_to, spacing))
 
 
 def fingers_blocked(
@@ -162,250 +156,25 @@ def holds_object(fingers) -> bool:
     return fingers_blocked(fingers) and not any(fingers_open([f]) for f in fingers)
 
 
-def finger_boxes(base_state, q, span) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """World boxes of the two fingers, each swept over a range of its positions.
-
-    The left finger slides along the slide's +y axis, the right along -y (a finger's
-    position is its centre's distance from the gripper centre); a finger moving over
-    ``[inner, outer]`` sweeps one box of the finger's x and z size, from ``inner -
-    FINGER_HALF[1]`` to ``outer + FINGER_HALF[1]`` along y.
-
-    Args:
-        base_state: ``[x, y, phi, ...]`` of the chassis, or one row per joint row.
-        q: joints ``(n, 3)`` (or one ``(3,)``) ``[lift, yaw, extend]``.
-        span: ``[[inner, outer] of the left finger, [inner, outer] of the right]`` [m].
-
-    Returns:
-        ``(centres (n, 2, 3), yaws (n,), halves (2, 3))``: world centres of the left and
-        right boxes, their yaw (world, both the slide's) and their half sizes.
-    """
-    q = np.atleast_2d(np.asarray(q, dtype=float))
-    base = np.atleast_2d(np.asarray(base_state, dtype=float))
-    span = np.asarray(span, dtype=float).reshape(2, 2)
-    yaw = base[:, 2] + q[:, 1]
-    offsets = 0.5 * (span[:, 0] + span[:, 1]) * np.array([1.0, -1.0])  # along the slide's y
-    centres = np.repeat(chassis_points_to_world(base, arm_forward(q))[:, None, :], 2, axis=1)
-    centres[:, :, 0] -= np.sin(yaw)[:, None] * offsets
-    centres[:, :, 1] += np.cos(yaw)[:, None] * offsets
-    halves = np.tile(FINGER_HALF, (2, 1))
-    halves[:, 1] += 0.5 * (span[:, 1] - span[:, 0])
-    return centres, yaw, halves
-
-
-def fingers_in_boxes(base_state, q, span, boxes, margin: float = 0.0) -> np.ndarray:
-    """Per joint sample, the first obstacle box a finger box enters, else -1.
-
-    Exact for the boxes: a finger box (upright, yawed with the slide; :func:`finger_boxes`)
-    meets an upright obstacle box (floor to ``top_z``, as in :func:`point_in_boxes`, grown
-    by ``margin`` horizontally and on top) when their footprint rectangles overlap
-    (separating axes: the four edge directions) and the finger's bottom is at most at the
-    top. Touching counts as entering.
-
-    Args:
-        base_state: ``[x, y, phi, ...]`` of the chassis, or one row per joint row.
-        q: joints ``(n, 3)`` or ``(3,)``.
-        span: the fingers' position ranges, as in :func:`finger_boxes`.
-        boxes: ``(k, 6)`` rows ``[cx, cy, yaw, half_x, half_y, top_z]``.
-        margin: obstacle growth [m].
-
-    Returns:
-        ``(n,)`` box indices (-1: no box).
-    """
-    return _finger_hits(*finger_boxes(base_state, q, span), boxes, margin)
-
-
-def _finger_hits(centres, yaw, halves, boxes, margin: float) -> np.ndarray:
-    """:func:`fingers_in_boxes` for finger boxes given as :func:`finger_boxes` returns them."""
-    hit, (fa, fb) = np.full(len(yaw), -1), _axes(yaw[:, None])  # the finger's axes (n, 1, 2)
-    for i, (cx, cy, byaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
-        ba, bb = _axes(np.array(byaw))
-        d = centres[:, :, :2] - [cx, cy]
-        overlap = centres[:, :, 2] - halves[:, 2] <= top + margin
-        for u in (fa, fb, ba, bb):  # separated along u if the projections do not meet
-            r_finger = halves[:, 0] * _dot_abs(u, fa) + halves[:, 1] * _dot_abs(u, fb)
-            r_box = (hx + margin) * _dot_abs(u, ba) + (hy + margin) * _dot_abs(u, bb)
-            overlap &= _dot_abs(u, d) <= r_finger + r_box
-        new = np.any(overlap, axis=1) & (hit < 0)
-        hit[new] = i
-    return hit
-
-
-def arm_way_hits(
-    base_state, q_from, q_to, span, boxes, margin: float = 0.0, cup=None, spacing: float = 0.01
-) -> np.ndarray:
-    """Per row, the first obstacle box the arm's straight joint-space way enters, else -1.
-
-    The way from joints ``q_from`` to ``q_to`` (:func:`joint_lines`, any finger point at
-    most ``spacing`` between samples) of the gripper centre (:func:`points_in_boxes`),
-    of the finger boxes swept over ``span`` (:func:`fingers_in_boxes`) and of a held
-    cup's bottom disc (:func:`discs_in_boxes`). A way starting inside a box (a
-    measurement a millimetre low on a table top) is not an entry while it stays in that
-    box: the rest of it is checked on its own.
-
-    Args:
-        base_state: ``[x, y, phi, ...]`` of the chassis, or ``(n, >= 3)``: one per way.
-        q_from, q_to: ``(n, 3)`` (or ``(3,)``) start and end joints ``[lift, yaw, extend]``.
-        span, boxes, margin: as in :func:`fingers_in_boxes` (the cup's margin: horizontal).
-        cup: ``(drop, radius)``: a held cup's bottom disc lies ``drop`` below the centre.
-        spacing: sample spacing [m].
-
-    Returns:
-        ``(n,)`` box indices (-1: the way is clear).
-    """
-    q, boxes = joint_lines(q_from, q_to, spacing, FINGER_REACH), _check_boxes(boxes)
-    (n, s), (drop, radius) = q.shape[:2], cup if cup is not None else (0.0, 0.0)
-    base = np.broadcast_to(np.atleast_2d(np.asarray(base_state, dtype=float))[:, :3], (n, 3))
-    # rows whose lowest point is above a box or whose farthest is short of it skip it
-    ends = q[:, [0, -1]]
-    low = WHEEL_RADIUS + LIFT_BASE_Z + ends[:, :, 0].min(axis=1) - max(FINGER_HALF[2], drop)
-    far = COLUMN_X + ends[:, :, 2].max(axis=1) + max(FINGER_REACH, radius) + margin
-    near = np.zeros((len(boxes), n), dtype=bool)
-    for i, (_, u, w, hx, hy, top) in enumerate(_in_box_frames(base.T, boxes)):
-        gap = np.hypot(np.maximum(np.abs(u) - hx, 0.0), np.maximum(np.abs(w) - hy, 0.0))
-        near[i] = (low <= top + margin) & (gap <= far)
-    rows = np.flatnonzero(near.any(axis=0))  # the ways near any box, sampled
-    inside, flat, at_base = np.full((n, s), -1), q[rows].reshape(-1, 3), np.repeat(base[rows], s, 0)
-    centre = chassis_points_to_world(at_base, arm_forward(flat))
-    fingers = finger_boxes(at_base, flat, span)
-    for i, box in enumerate(boxes):
-        at = np.flatnonzero(near[i, rows])  # positions in rows
-        if at.size == 0:
-            continue
-        k = (at[:, None] * s + np.arange(s)).ravel()  # their samples
-        hit = points_in_boxes(centre[k], box, margin) >= 0
-        hit |= _finger_hits(fingers[0][k], fingers[1][k], fingers[2], box, margin) >= 0
-        if cup is not None:
-            hit |= discs_in_boxes(centre[k] - [0.0, 0.0, drop], radius, box, margin) >= 0
-        sub = inside[rows[at]]
-        sub[hit.reshape(-1, s) & (sub < 0)] = i  # the first box in order, as one by one
-        inside[rows[at]] = sub
-    staying = (inside == inside[:, :1]) & (inside[:, :1] >= 0)  # still in its start box
-    left = np.where(staying.all(axis=1), s, np.argmin(staying, axis=1))
-    entered = (np.arange(s)[None, :] >= left[:, None]) & (inside >= 0)
-    first = np.argmax(entered, axis=1)
-    return np.where(entered.any(axis=1), inside[np.arange(n), first], -1)
-
-
-def _axes(yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit x and y axes (``(..., 2)`` each) of frames turned by ``yaw`` about z."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.stack([c, s], axis=-1), np.stack([-s, c], axis=-1)
-
-
-def _dot_abs(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return np.abs(np.sum(u * v, axis=-1))
-
-
-def chassis_to_world(base_state, a) -> np.ndarray:
-    """A chassis-frame point ``a`` in the world, for the chassis at ``[x, y, phi, v]``.
-
-    The chassis frame origin is on the wheel axle, ``WHEEL_RADIUS`` above the floor.
-    """
-    return chassis_points_to_world(np.atleast_2d(base_state), np.atleast_2d(a))[0]
-
-
-def chassis_points_to_world(base_states, a) -> np.ndarray:
-    """World points ``(n, 3)`` of chassis points ``a`` (n, 3) for rows ``[x, y, phi, ...]``."""
-    base, a = np.atleast_2d(base_states), np.atleast_2d(a)
-    c, s = np.cos(base[:, 2]), np.sin(base[:, 2])
-    return np.stack([base[:, 0] + c * a[:, 0] - s * a[:, 1],
-                     base[:, 1] + s * a[:, 0] + c * a[:, 1],
-                     WHEEL_RADIUS + a[:, 2]], axis=-1)  # fmt: skip
-
-
-def point_in_boxes(p, boxes, margin: float = 0.0) -> int:
-    """Index of the first obstacle box containing the world point ``p``, else -1.
-
-    Args:
-        p: ``[x, y, z]``.
-        boxes: ``(k, 6)`` rows ``[cx, cy, yaw, half_x, half_y, top_z]``: upright boxes
-            from the floor to ``top_z`` (a table, a counter), grown by ``margin`` [m]
-            horizontally and on top.
-    """
-    return int(points_in_boxes(np.atleast_2d(p), boxes, margin)[0])
-
-
-def points_in_boxes(p, boxes, margin: float = 0.0) -> np.ndarray:
-    """Per world point of ``p`` ``(n, 3)`` the first box containing it, else -1.
-
-    Vectorised :func:`point_in_boxes` (the same boxes and ``margin``).
-    """
-    p = np.atleast_2d(np.asarray(p, dtype=float))
-    hit = np.full(len(p), -1)
-    for i, u, w, hx, hy, top in _in_box_frames(p.T, boxes):
-        new = (np.abs(u) <= hx + margin) & (np.abs(w) <= hy + margin) & (p[:, 2] <= top + margin)
-        hit[new & (hit < 0)] = i
-    return hit
-
-
-def discs_in_boxes(p, radius: float, boxes, margin: float = 0.0) -> np.ndarray:
-    """Per disc the first box it enters, else -1: a held cup's whole bottom, not its centre.
-
-    A disc of ``radius`` centred at a row of ``p`` ``(n, 3)`` enters an upright box (as in
-    :func:`point_in_boxes`) when its centre is at most ``radius + margin`` from the box's
-    footprint and at most at its top (``margin``: horizontal only; touching enters).
-    """
-    p = np.atleast_2d(np.asarray(p, dtype=float))
-    hit = np.full(len(p), -1)
-    for i, u, w, hx, hy, top in _in_box_frames(p.T, boxes):
-        gap = np.hypot(np.maximum(np.abs(u) - hx, 0.0), np.maximum(np.abs(w) - hy, 0.0))
-        new = (gap <= radius + margin) & (p[:, 2] <= top)
-        hit[new & (hit < 0)] = i
-    return hit
-
-
-def _in_box_frames(p, boxes):
-    """Per box ``(index, u, w, half_x, half_y, top_z)``: ``p`` (or ``(3, n)`` columns) in it."""
-    for i, (cx, cy, yaw, hx, hy, top) in enumerate(np.asarray(boxes, float).reshape(-1, 6)):
-        c, s = math.cos(yaw), math.sin(yaw)
-        dx, dy = p[0] - cx, p[1] - cy
-        yield i, c * dx + s * dy, -s * dx + c * dy, hx, hy, top
-
-
-def support_under(p, boxes, radius: float, max_drop: float) -> int:
-    """Index of the first obstacle box whose top holds a disc put down at ``p``, else -1.
-
-    The disc (a cup's bottom, centre ``p``) lies wholly within the box's top
-    rectangle and at most ``max_drop`` above the top (not below it).
-
-    Args:
-        p: ``[x, y, z]`` of the disc's centre (world).
-        boxes: ``(k, 6)`` boxes as in :func:`point_in_boxes`.
-        radius: the disc's radius [m].
-        max_drop: largest height of the disc above the top [m].
-    """
-    for i, u, w, hx, hy, top in _in_box_frames(p, boxes):
-        if abs(u) <= hx - radius and abs(w) <= hy - radius and 0.0 <= p[2] - top <= max_drop:
-            return i
-    return -1
-
-
-def _check_boxes(boxes) -> np.ndarray:
-    b = np.asarray(boxes if boxes is not None else np.zeros((0, 6)), dtype=float)
-    if b.size % 6 or not np.all(np.isfinite(b)):
-        raise RepertoireError(f"obstacle boxes must be finite rows of 6 values, got {boxes!r}")
-    b = b.reshape(-1, 6)
-    if np.any(b[:, 3:5] <= 0):
-        raise RepertoireError(f"obstacle box half sizes must be > 0, got {b[:, 3:5].tolist()}")
-    return b
-
-
-def _check_positive(**values) -> None:
-    for name, v in values.items():
-        if not (math.isfinite(v) and v > 0):
-            raise RepertoireError(f"{name} must be finite and > 0, got {v}")
+def _check_margin(cup_margin: float) -> None:
+    if not (math.isfinite(cup_margin) and cup_margin >= 0):
+        raise RepertoireError(f"cup_margin must be finite and >= 0, got {cup_margin}")
 
 
 class _Action(ActionSystem):
     """Shared ports and state of the kitchen actions (not registered on its own)."""
 
-    def __init__(self, period: float, timeout: float, n_command: int, boxes, margin: float):
+    def __init__(
+        self, period: float, timeout: float, n_command: int, boxes, margin: float, cups: int = 0
+    ):
         super().__init__()
         _check_positive(period=period, timeout=timeout)
         if not (math.isfinite(margin) and margin >= 0):
             raise RepertoireError(f"margin must be finite and >= 0, got {margin}")
+        if not (isinstance(cups, int) and not isinstance(cups, bool) and cups >= 0):
+            raise RepertoireError(f"cups must be a whole number >= 0, got {cups!r}")
         self.period, self.timeout, self.margin = period, timeout, margin
-        self._n = n_command
+        self._n, self.cups = n_command, cups
         self._boxes = _check_boxes(boxes)
         # state: [command (n), status, started, t0, phase, t_phase]
         self._xd = self.DeclareDiscreteState(n_command + 5)
@@ -413,9 +182,51 @@ class _Action(ActionSystem):
         self._base_port = self.DeclareVectorInputPort("base_state", 4)
         self._finger_port = self.DeclareVectorInputPort("finger_position", 2)
         self._declare_status_port(self._xd, n_command)
+        self._cups_port = self.DeclareVectorInputPort("cup_positions", 3 * cups) if cups else None
 
     def get_base_state_input_port(self):
         return self._base_port
+
+    def get_cup_positions_input_port(self):
+        """The cups' centres ``[x, y, z] * cups`` (world; only with ``cups`` > 0)."""
+        if self._cups_port is None:
+            raise RepertoireError("this action was built with cups=0: no cup_positions port")
+        return self._cups_port
+
+    def standing_cups(
+        self,
+        context: Context,
+        points,
+        radius: float,
+        half_height: float,
+        held=(0, 1),
+        grow: float = 0.0,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The cups on ``cup_positions`` as obstacle discs, for a way between ``points``.
+
+        A cup whose cylinder (``radius``, ``half_height`` about its centre) contains none
+        of the world ``points`` (the gripper centre where the way starts and ends) is an
+        obstacle of the whole arm: an upright disc ``[x, y, radius, z + half_height]``
+        (:func:`arm_way_hits`). One containing a point whose index is in ``held`` is the
+        cup held (or let go with it): none. One containing another point (a cup the
+        reach ends in to grip it, or starts in with the fingers open) is an obstacle of
+        the fingers only: approached from above the open fingers straddle it, from the
+        side they push it. The discs' radius is grown by ``grow``.
+
+        Returns:
+            ``(discs, finger_discs)``.
+        """
+        if self._cups_port is None:
+            return np.zeros((0, 4)), np.zeros((0, 4))
+        c = np.asarray(self._cups_port.Eval(context), dtype=float).reshape(-1, 3)
+        p = np.atleast_2d(np.asarray(points, dtype=float))
+        inside = (np.hypot(*(p[None, :, :2] - c[:, None, :2]).transpose(2, 0, 1)) <= radius) & (
+            np.abs(p[None, :, 2] - c[:, None, 2]) <= half_height
+        )
+        holding = inside[:, [i for i in range(len(p)) if i in held]].any(axis=1)
+        fingers_only = inside.any(axis=1) & ~holding
+        discs = np.column_stack([c[:, :2], np.full(len(c), radius + grow), c[:, 2] + half_height])
+        return discs[~inside.any(axis=1)], discs[fingers_only]
 
     def get_finger_position_input_port(self):
         return self._finger_port
@@ -425,15 +236,20 @@ class _Action(ActionSystem):
         base = self._base_port.Eval(context)
         return point_in_boxes(chassis_to_world(base, a_chassis), self._boxes, self.margin)
 
-    def path_enters_obstacle(self, context: Context, q_from, q_to, span, cup=None) -> int:
-        """Index of the first obstacle box the straight joint-space way enters, else -1.
+    def path_enters_obstacle(
+        self, context: Context, q_from, q_to, span, cup=None, discs=None, finger_discs=None
+    ) -> int:
+        """Index of the first obstacle the straight joint-space way enters, else -1.
 
         :func:`arm_way_hits` for the chassis on ``base_state``: the gripper centre, the
         finger boxes swept over ``span`` and, with ``cup = (drop, radius)``, a held cup's
-        bottom disc.
+        bottom disc, against the boxes and ``discs`` (standing cups), and the fingers
+        against ``finger_discs``.
         """
         base = self._base_port.Eval(context)
-        return int(arm_way_hits(base, q_from, q_to, span, self._boxes, self.margin, cup)[0])
+        hit = arm_way_hits(base, q_from, q_to, span, self._boxes, self.margin, cup, discs=discs,
+                           finger_discs=finger_discs)  # fmt: skip
+        return int(hit[0])
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._xd).get_value()[: self._n])
@@ -481,6 +297,8 @@ class Reach(_Action):
         target: ``[ax_g, ay_g, az_g]`` gripper-centre target in the chassis frame.
         base_state: ``[x, y, phi, v]`` of the chassis (for the obstacle check).
         finger_position: measured ``[left, right]`` (held; for the obstacle check).
+        cup_positions: the cups' centres ``[x, y, z] * cups`` (world; only with ``cups``
+            > 0): the standing cups are obstacles too (:meth:`_Action.standing_cups`).
 
     Output ports:
         arm_command: ``[lift, yaw, extend]`` setpoints.
@@ -510,6 +328,8 @@ class Reach(_Action):
         margin: float = 0.0,
         cup_half_height: float = 0.05,
         cup_radius: float = 0.04,
+        cups: int = 0,
+        cup_margin: float = 0.005,
     ):
         """Creates the action.
 
@@ -522,8 +342,13 @@ class Reach(_Action):
             margin: obstacle growth [m].
             cup_half_height: a held cup's bottom lies this far below the gripper centre [m].
             cup_radius: a held cup's radius: its whole bottom disc is checked [m].
+            cups: how many cups' centres the ``cup_positions`` input carries (0: no port).
+            cup_margin: the standing cups' growth [m]: half the way's 1 cm samples, so no
+                finger passes a cup's edge between two samples.
         """
-        super().__init__(period, timeout, 3, obstacles, margin)
+        super().__init__(period, timeout, 3, obstacles, margin, cups)
+        _check_margin(cup_margin)
+        self.cup_margin = cup_margin
         _check_positive(cup_half_height=cup_half_height, cup_radius=cup_radius)
         self.cup_half_height, self.cup_radius = cup_half_height, cup_radius
         self.speeds = np.asarray(speeds, dtype=float)
@@ -559,7 +384,13 @@ class Reach(_Action):
         q = self._arm_port.Eval(context)
         # a held cup hangs below the fingers: its bottom's way too
         cup = (self.cup_half_height, self.cup_radius) if holds_object(fingers) else None
-        return self.path_enters_obstacle(context, q, goal, span, cup) < 0
+        base = self._base_port.Eval(context)
+        ends = chassis_points_to_world(np.vstack([base, base]), arm_forward([q, goal]))
+        held = (0,) if cup is not None else ()  # a held cup starts at the gripper
+        discs, fingers_only = self.standing_cups(
+            context, ends, self.cup_radius, self.cup_half_height, held, self.cup_margin
+        )
+        return self.path_enters_obstacle(context, q, goal, span, cup, discs, fingers_only) < 0
 
     def step(self, context, command, phase, time_in_phase):
         target = self._target_port.Eval(context)
@@ -638,6 +469,7 @@ class Put(_Action):
         target: ``[ax_g, ay_g, az_g]``: where the gripper centre (the cup's
             centre) ends, chassis frame.
         base_state: ``[x, y, phi, v]`` of the chassis (for the obstacle check).
+        cup_positions: as in :class:`Reach` (only with ``cups`` > 0).
 
     Output ports:
         command: ``[lift, yaw, extend, left, right]`` setpoints.
@@ -671,9 +503,13 @@ class Put(_Action):
         timeout: float = 15.0,
         obstacles=None,
         margin: float = 0.0,
+        cups: int = 0,
+        cup_margin: float = 0.005,
     ):
         """Creates the action (arguments as in the class docstring and :class:`Reach`)."""
-        super().__init__(period, timeout, 5, obstacles, margin)
+        super().__init__(period, timeout, 5, obstacles, margin, cups)
+        _check_margin(cup_margin)
+        self.cup_margin = cup_margin
         _check_positive(cup_radius=cup_radius, max_drop=max_drop)
         self.cup_radius, self.max_drop = cup_radius, max_drop
         self.speeds = np.asarray(speeds, dtype=float)
@@ -719,9 +555,14 @@ class Put(_Action):
         # it, then open at the target
         carry = [sorted([f, FINGER_CLOSED]) for f in self._finger_port.Eval(context)]
         release = [[FINGER_CLOSED, max(f, FINGER_OPEN)] for f in self._finger_port.Eval(context)]
-        opened = fingers_in_boxes(base, q_target, release, self._boxes, self.margin)[0]
-        if (self.path_enters_obstacle(context, q, q_above, carry, cup) >= 0
-                or self.path_enters_obstacle(context, q_above, q_target, carry, cup) >= 0
+        # the held cup (at the gripper) and the cup let go at the target are not obstacles
+        ends = chassis_points_to_world(np.vstack([base, base]), [arm_forward(q), target])
+        discs = self.standing_cups(
+            context, ends, self.cup_radius, self.cup_half_height, grow=self.cup_margin
+        )[0]
+        opened = fingers_in_boxes(base, q_target, release, self._boxes, self.margin, discs)[0]
+        if (self.path_enters_obstacle(context, q, q_above, carry, cup, discs) >= 0
+                or self.path_enters_obstacle(context, q_above, q_target, carry, cup, discs) >= 0
                 or opened >= 0):  # fmt: skip
             return False
         if len(self._boxes) == 0:

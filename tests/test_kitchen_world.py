@@ -226,6 +226,26 @@ def test_reach_carrying_a_cup_into_the_table_fails_at_once_and_keeps_it():
     assert cup[2] > 0.75  # held in the air beside the table, not fallen
 
 
+def test_reach_through_a_standing_cup_fails_at_once_and_the_cup_stays():
+    # a level swing at world z 0.83 (the fingers' bottom 4 cm over table_0's top) across
+    # cup_1 standing where the way's middle passes: unchecked, the gripper pushed cup_1
+    # 168 mm across the table and the reach reported SUCCEEDED
+    base, z = [2.0, 0.55, np.pi / 2, 0.0], 0.83
+    q0, q1 = (arm_inverse(world_to_chassis(base, [x, 1.2, z])) for x in (2.5, 2.1))
+    middle = chassis_to_world(base, arm_forward(0.5 * (q0 + q1)))
+    cup_1 = [float(middle[0]), float(middle[1]), 0.8001]
+    scenario = KitchenScenario(initial_arm=[float(q) for q in q0], cups=["cup_0", "cup_1"],
+                               cup_positions={"cup_1": cup_1})  # fmt: skip
+    results, diagram, context = run_kitchen_sequence([("reach", [2.1, 1.2, z])], scenario)
+    assert [(r.status, r.duration) for r in results] == [("FAILED", pytest.approx(0.1))]
+    np.testing.assert_allclose(cup_position(diagram, context, "cup_1"), cup_1, atol=1e-3)
+    # the same swing 7 cm higher passes over the cup's rim (the fingers' bottom 1 cm over it)
+    scenario.initial_arm = [float(q) for q in arm_inverse(world_to_chassis(base, [2.5, 1.2, 0.9]))]
+    results, diagram, context = run_kitchen_sequence([("reach", [2.1, 1.2, 0.9])], scenario)
+    assert [r.status for r in results] == ["SUCCEEDED"]
+    np.testing.assert_allclose(cup_position(diagram, context, "cup_1"), cup_1, atol=1e-3)
+
+
 def test_simulator_cache_keeps_at_most_max_size_diagrams():
     from repertoire.diagrams.simulate import SimulatorCache
 

@@ -67,6 +67,42 @@ def test_path_clear_is_exact_between_any_samples():
     assert not kp.path_clear(a[3], b[3], tilted, 0.21)[0]
 
 
+def test_segment_gaps_closed_forms_all_boxes_at_once():
+    boxes = np.vstack([BOX, [[3.0, 0.0, math.pi / 2, 0.5, 0.25, 1.0]]])  # the 2nd turned
+    a = np.array([[-2.0, 0.8], [-2.0, 0.0], [2.0, 2.0], [3.0, 2.0], [4.0, 4.0]])
+    b = np.array([[2.0, 0.8], [0.0, 0.0], [2.0, 2.0], [3.0, -2.0], [4.0, 4.0]])
+    gaps = kp.segment_gaps(a, b, boxes)
+    expected = [
+        [0.3, math.hypot(0.75, 0.3)],  # parallel 0.3 m above BOX's top edge; 2nd: a corner
+        [0.0, 2.75],  # ends inside BOX
+        [math.hypot(1.0, 1.5), math.hypot(0.75, 1.5)],  # a point: its corner distances
+        [2.0, 0.0],  # crosses the 2nd (its long side along y)
+        [math.hypot(3.0, 3.5), math.hypot(0.75, 3.5)],
+    ]
+    np.testing.assert_allclose(gaps, expected, rtol=0, atol=1e-12)
+    # path_clear is every gap at least the radius, per row if the radius is per row
+    radius = np.array([0.31, 0.1, 0.5, 0.5, 0.5])
+    np.testing.assert_array_equal(kp.path_clear(a, b, boxes, radius), [0, 0, 1, 0, 1])
+
+
+def test_the_problem_costs_a_batch_as_its_rows_one_by_one():
+    # the geometry of a batch is cached and the arm's drives are checked only where the
+    # base's paths are clear: neither may change a row's cost
+    config = kp.KitchenPlanConfig(scenario=2)
+    start, cups, targets = kp.sample_situation(config, np.random.default_rng(31102))
+    problem, _ = kp.kitchen_problem(start, cups, targets, config, kp.load_kitchen_models(""))
+    rng = np.random.default_rng(5)
+    batch = rng.uniform(problem.lower, problem.upper, (300, problem.n_params))
+    for term in problem.terms:
+        together = term.predict(batch)
+        if term.name.endswith("goto_pose"):  # both kinds of rows were costed
+            assert 0 < np.isfinite(together).sum() < len(batch)
+        alone = np.concatenate([term.predict(row[None]) for row in batch[::7]])
+        # (a reach model's batch and one-row products may differ in the last bit)
+        np.testing.assert_array_equal(np.isinf(together[::7]), np.isinf(alone))
+        np.testing.assert_allclose(together[::7], alone, rtol=1e-13)
+
+
 def test_base_pose_puts_the_gripper_over_the_point():
     point = np.array([2.0, 1.2, 0.8])
     phi, yaw, extend = np.array([0.3, -2.0]), np.array([0.5, -1.0]), np.array([0.6, 0.4])
@@ -146,15 +182,16 @@ def test_fetch_obstacles_are_the_furniture_and_the_standing_cups():
     cups = np.array([[2.0, 1.0, 0.8001], [2.4, 1.1, 0.8001]])
     targets = np.array([_on_table_1(0.0, 0.25), _on_table_1(0.0, 0.1)])
     furniture = ["counter", "table_0", "table_1", "wall", "wall", "wall", "wall"]
-    boxes, names = ka.fetch_obstacles(cups, targets, 0, 0.02)
+    boxes, discs, names = ka.fetch_obstacles(cups, targets, 0, 0.02)
     assert names == furniture + ["cup_1"]  # fetching cup_0: cup_1 waits on its place
-    np.testing.assert_allclose(boxes[:7, [0, 1, 2, 5]], KITCHEN_OBSTACLES[:, [0, 1, 2, 5]])
-    np.testing.assert_allclose(boxes[:7, 3:5], KITCHEN_OBSTACLES[:, 3:5] + 0.02)
-    np.testing.assert_allclose(boxes[7], [2.4, 1.1, 0.0, 0.06, 0.06, 0.8501])
-    boxes, names = ka.fetch_obstacles(cups, targets, 1, 0.0)  # cup_0 put on its target
+    np.testing.assert_allclose(boxes[:, [0, 1, 2, 5]], KITCHEN_OBSTACLES[:, [0, 1, 2, 5]])
+    np.testing.assert_allclose(boxes[:, 3:5], KITCHEN_OBSTACLES[:, 3:5] + 0.02)
+    # the cups are upright discs of their radius (grown) up to their rim, as Reach sees them
+    np.testing.assert_allclose(discs, [[2.4, 1.1, 0.06, 0.8501]])
+    boxes, discs, names = ka.fetch_obstacles(cups, targets, 1, 0.0)  # cup_0 on its target
     assert names == furniture + ["cup_0"]
-    np.testing.assert_allclose(boxes[7], [*targets[0][:2], 0.0, 0.04, 0.04, 0.8511])
-    assert ka.fetch_obstacles(cups, targets, 1, 0.0, own=True)[1] == furniture + ["cup_0", "cup_1"]
+    np.testing.assert_allclose(discs, [[*targets[0][:2], 0.04, 0.8511]])
+    assert ka.fetch_obstacles(cups, targets, 1, 0.0, own=True)[2] == furniture + ["cup_0", "cup_1"]
 
 
 def test_an_arm_way_through_a_standing_cup_is_invalid_though_the_base_path_is_clear():

@@ -84,7 +84,7 @@ class RefinementSoccerRecord:
         wall_refine_s: wall time of both refinements (timing field).
         wall_time_s: wall time of the episode (timing field).
         ball_moved_1, ball_moved_2: how far each plan moved the ball from its start [m]
-            (NaN in stores written before session 33).
+            (NaN if not recorded; the engine refuses older stores without these fields).
     """
 
     x: float
@@ -225,7 +225,7 @@ def unmoved_ball_sentence(records) -> str:
         ]
         known = [m for m in ok if math.isfinite(m)]
         if len(known) < len(ok):
-            return "Whether the plans moved the ball was not recorded (an older store)."
+            return "Whether the plans moved the ball was not recorded."
         counts.append(f"h = {h} {sum(m < UNMOVED_BALL for m in known)} of {len(known)}")
     return (
         f"Succeeded plans that never moved the ball (< {UNMOVED_BALL:g} m; the dribble is a "

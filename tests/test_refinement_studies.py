@@ -564,7 +564,5 @@ def test_a_plan_whose_dribble_leaves_the_ball_succeeds_and_table_3_counts_it():
         "Succeeded plans that never moved the ball (< 0.05 m; the dribble is a GoToPose "
         "through the ball, which also succeeds without it): h = 1 1 of 2, h = 2 1 of 3."
     )
-    old = [record("SUCCEEDED", None, None)]  # a store written before the fields existed
-    assert unmoved_ball_sentence(old) == (
-        "Whether the plans moved the ball was not recorded (an older store)."
-    )
+    old = [record("SUCCEEDED", None, None)]  # records built without the fields
+    assert unmoved_ball_sentence(old) == "Whether the plans moved the ball was not recorded."

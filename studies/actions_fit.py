@@ -2,7 +2,8 @@
 
 Reads a study store with the engine's ``load_records``, builds the features
 from record fields (``name`` or ``name.i`` for element ``i`` of a list field),
-fits a duration model tree (numeric target) or a pessimistic failure tree
+fits a duration model tree (numeric target; a negative one is refused unless
+``--signed-target``, for a target such as a clearance) or a pessimistic failure tree
 (boolean target) on 3/4 of the episodes and reports the held-out quarter:
 MAE, or the confusion matrix and accuracy. Writes the report (Markdown) and
 the model (JSON).
@@ -69,11 +70,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--target", required=True, help="record field to predict")
     parser.add_argument("--out-dir", default="out/action_models", help="report and model folder")
     parser.add_argument("--seed", type=int, default=0, help="shuffle seed")
+    parser.add_argument(
+        "--signed-target",
+        action="store_true",
+        help="a numeric target may be negative (a clearance; a duration never is)",
+    )
     args = parser.parse_args(argv)
     try:
         _, records = load_records(args.store)
         recs = [records[s] for s in sorted(records)]
-        fitted = fit_action_model(recs, field_getters(args.features), args.target, seed=args.seed)
+        getters = field_getters(args.features)
+        fitted = fit_action_model(
+            recs, getters, args.target, seed=args.seed, nonnegative=not args.signed_target
+        )
     except RepertoireError as e:
         print(f"error: {e}")
         return 2

@@ -83,6 +83,8 @@ class RefinementSoccerRecord:
         phi_2, v_2, predicted_2, time_2, status_2: the same with h = 2.
         wall_refine_s: wall time of both refinements (timing field).
         wall_time_s: wall time of the episode (timing field).
+        ball_moved_1, ball_moved_2: how far each plan moved the ball from its start [m]
+            (NaN if not recorded; the engine refuses older stores without these fields).
     """
 
     x: float
@@ -104,6 +106,13 @@ class RefinementSoccerRecord:
     status_2: str
     wall_refine_s: float
     wall_time_s: float
+    ball_moved_1: float = math.nan
+    ball_moved_2: float = math.nan
+
+
+UNMOVED_BALL = 0.05
+"""A plan that moved the ball less than this [m] never dribbled it (a dribbled ball travels
+about the 0.8-1.3 m to the destination, an untouched one 0)."""
 
 
 def models_folder(models_dir: str, shipped: str = SHIPPED_MODELS) -> Path:
@@ -182,18 +191,45 @@ def run_episode(config: RefinementSoccerConfig, seed: int) -> RefinementSoccerRe
     start, dest = sample_situation(config, np.random.default_rng(seed))
     subgoals = [refine_subgoal(config, start, dest, h, seed) for h in (1, 2)]
     wall_refine = time.perf_counter() - t0
-    out = []
+    out, moved = [], []
     for phi_a, v_a, predicted in subgoals:
         targets = [approach_target(phi_a, v_a, config.approach_distance), dest]
         run = run_plan(config, start, targets, dribble=True)
         t = run.finish_times[-1] if run.status == "SUCCEEDED" else math.nan
         out += [float(phi_a), float(v_a), float(predicted), float(t), run.status]
+        moved.append(float(run.ball_moved_m))
     return RefinementSoccerRecord(
         *map(float, start),
         *map(float, dest[:3]),
         *out,
         wall_refine_s=wall_refine,
         wall_time_s=time.perf_counter() - t0,
+        ball_moved_1=moved[0],
+        ball_moved_2=moved[1],
+    )
+
+
+def unmoved_ball_sentence(records) -> str:
+    """How many succeeded plans per horizon never moved the ball (:data:`UNMOVED_BALL`).
+
+    The dribble leg is a GoToPose through the ball; it succeeds when the robot reaches the
+    destination, with the ball or without it (a robot at the ball facing away turns and
+    leaves it), and such plans count in Table 3 like the others.
+    """
+    counts = []
+    for h in (1, 2):
+        ok = [
+            getattr(r, f"ball_moved_{h}")
+            for r in records
+            if getattr(r, f"status_{h}") == "SUCCEEDED"
+        ]
+        known = [m for m in ok if math.isfinite(m)]
+        if len(known) < len(ok):
+            return "Whether the plans moved the ball was not recorded."
+        counts.append(f"h = {h} {sum(m < UNMOVED_BALL for m in known)} of {len(known)}")
+    return (
+        f"Succeeded plans that never moved the ball (< {UNMOVED_BALL:g} m; the dribble is a "
+        f"GoToPose through the ball, which also succeeds without it): {', '.join(counts)}."
     )
 
 
@@ -319,7 +355,9 @@ def summarize(
         "",
         f"{n} episodes; plan succeeded with h = 1 in {ok1}, with h = 2 in {ok2}; the table "
         f"pairs the {len(both)} where both succeeded. "
-        + refinement_sentence(config.solver, t1, t2, both),
+        + refinement_sentence(config.solver, t1, t2, both)
+        + " "
+        + unmoved_ball_sentence(records),
         "",
     ]
     # section 6.3.2: predict from the situation whether refinement helps

@@ -85,7 +85,7 @@ def test_features_batched_and_bad():
 def _piecewise(n=800, seed=0):
     rng = np.random.default_rng(seed)
     X = rng.uniform(-1, 1, (n, 2))
-    y = np.where(X[:, 0] > 0, 2 + 3 * X[:, 1], 1 - X[:, 1])
+    y = np.where(X[:, 0] > 0, 4 + 3 * X[:, 1], 1 - X[:, 1])  # durations: 0 to 7 s
     return X, y
 
 
@@ -108,7 +108,7 @@ def test_duration_tree_recovers_linear_pieces_and_boxes():
 def test_single_linear_target_gives_one_exact_leaf():
     rng = np.random.default_rng(1)
     X = rng.uniform(0, 1, (100, 3))
-    y = 0.5 + X @ [1.0, -2.0, 0.25]
+    y = 2.5 + X @ [1.0, -2.0, 0.25]
     m = fit_duration_tree(X, y, ["a", "b", "c"])
     np.testing.assert_allclose(m.predict(X), y, atol=1e-5)
     np.testing.assert_allclose(m.leaves[0].coef, [1.0, -2.0, 0.25], atol=1e-4)
@@ -224,6 +224,40 @@ def test_out_of_range_flag_and_nan():
         m.predict([0.5, "x"])
 
 
+def test_a_negative_or_nan_duration_is_refused_naming_its_row():
+    # durations are never negative: a negative one was fitted, the leaf's clamp took it as
+    # its floor, and the tree predicted negative durations (down to the least one seen)
+    X, y = _piecewise(100)
+    y[[7, 40]] = [-0.25, -1.5]
+    with pytest.raises(
+        RepertoireError, match=r"2 of 100 durations are negative \(the least: row 40, -1\.5 s\)"
+    ):
+        fit_duration_tree(X, y, ["a", "b"])
+    signed = fit_duration_tree(X, y, ["a", "b"], nonnegative=False)  # a signed target
+    assert min(leaf.target_min for leaf in signed.leaves) == -1.5
+    y[[7, 40]] = [np.nan, np.inf]
+    with pytest.raises(
+        RepertoireError, match=r"2 of 100 targets are NaN or inf \(the first: row 7, nan"
+    ):
+        fit_duration_tree(X, y, ["a", "b"], nonnegative=False)
+    with pytest.raises(RepertoireError, match="nonnegative must be True or False, got 'no'"):
+        fit_duration_tree(X, np.abs(y), ["a", "b"], nonnegative="no")
+    # fit_action_model names the record and the field, before the shuffled split
+    recs = [_Rec(a, b, 1.0 + a, False) for a, b in X]
+    recs[12].t = -0.5
+    with pytest.raises(
+        RepertoireError, match=r"1 of 100 durations are negative \(the least: 't' of record 12"
+    ):
+        fit_action_model(recs, ["a", "b"], "t")
+    fitted = fit_action_model(recs, ["a", "b"], "t", nonnegative=False)
+    assert fitted.model.kind == "duration" and (fitted.n_train, fitted.n_test) == (75, 25)
+    # with non-negative durations every leaf's floor, and so every prediction, is >= 0
+    m = fit_duration_tree(X, np.abs(np.nan_to_num(y)), ["a", "b"])
+    assert min(leaf.target_min for leaf in m.leaves) >= 0.0
+    far = np.random.default_rng(1).uniform(-50, 50, (20_000, 2))
+    assert m.predict(far).min() >= 0.0
+
+
 def test_too_few_episodes_and_nan_training():
     for empty in ([], np.zeros((0, 2))):  # [] was "need X of shape (n, 2)... got (0,)"
         with pytest.raises(RepertoireError, match=r"no training episodes \(X of shape \(0"):
@@ -289,7 +323,7 @@ def test_fit_action_model_generic():
     recs = []
     for _ in range(400):
         a, b = rng.uniform(-1, 1, 2)
-        recs.append(_Rec(a, b, 1 + 2 * a + 0.5 * b, bool(a > 0.6)))
+        recs.append(_Rec(a, b, 3 + 2 * a + 0.5 * b, bool(a > 0.6)))
     dur = fit_action_model(recs, ["a", "b"], "t")
     assert dur.n_train == 300 and dur.n_test == 100
     assert dur.mae < 1e-4

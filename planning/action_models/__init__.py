@@ -13,6 +13,7 @@ from repertoire.planning.action_models.features import (
     goto_pose_features,
     wrap_angle,
 )
+from repertoire.planning.action_models.model_files import load_model, save_model
 from repertoire.planning.action_models.trees import (
     MIN_EPISODES,
     MODEL_VERSION,
@@ -22,8 +23,6 @@ from repertoire.planning.action_models.trees import (
     fit_action_model,
     fit_duration_tree,
     fit_failure_tree,
-    load_model,
-    save_model,
 )
 
 __all__ = [

@@ -16,7 +16,8 @@ children) and one :class:`LeafBox` per leaf with its box (lower, upper per
 feature: ``lower < x <= upper``) and its hyperplane (``coef``, ``intercept``;
 for a failure tree ``coef = 0`` and ``intercept`` the leaf's failure
 probability). The subgoal-refinement issue enumerates these boxes. Models are
-saved as JSON with a version and printed as rules.
+printed as rules and saved as JSON with a version
+(:mod:`~repertoire.planning.action_models.model_files`).
 
 A duration leaf's prediction is clamped to the durations of the leaf's own training
 episodes (``target_min``, ``target_max``): a linear leaf fitted on the episodes it holds
@@ -27,14 +28,11 @@ these fields, are read with the physical floor of 0 s and no ceiling.
 """
 
 import dataclasses
-import json
 import math
 from collections.abc import Callable, Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-from repertoire.planning.refinement import json_array
 
 from repertoire.checks import check_seed, is_real, is_whole
 from repertoire.errors import RepertoireError
@@ -279,9 +277,31 @@ def _check_training(X, y, feature_names: Sequence[str]) -> tuple[np.ndarray, np.
     if big.any():
         bad = sorted({feature_names[j] for j in np.nonzero(big)[1]})
         raise RepertoireError(f"training features {bad} exceed float32's range (3.4e38)")
-    if not np.all(np.isfinite(y)):
-        raise RepertoireError("training targets hold NaN or inf")
+    _check_targets(y, "row")
     return X, y
+
+
+def _check_targets(y: np.ndarray, row: str, nonnegative: bool = False) -> None:
+    """Finite targets (and >= 0 if ``nonnegative``), or a RepertoireError naming a bad one.
+
+    Args:
+        y: the targets.
+        row: what an index of ``y`` names in the message (``"record"``, ...).
+        nonnegative: True for durations, which are never negative.
+    """
+    bad = np.flatnonzero(~np.isfinite(y))
+    if bad.size:
+        raise RepertoireError(
+            f"{bad.size} of {y.size} targets are NaN or inf (the first: {row} {bad[0]}, "
+            f"{y[bad[0]]}); every target must be finite"
+        )
+    if nonnegative and (y < 0).any():
+        least = int(np.argmin(y))
+        raise RepertoireError(
+            f"{int(np.sum(y < 0))} of {y.size} durations are negative (the least: {row} {least}, "
+            f"{y[least]:.6g} s); a duration is never negative (for a signed target such as a "
+            "clearance pass nonnegative=False)"
+        )
 
 
 def _extract(sk_tree, feature_names, X, leaf_models, kind, threshold_probability) -> TreeModel:
@@ -357,6 +377,7 @@ def fit_duration_tree(
     min_samples_leaf: int | None = None,
     candidate_leaves: Sequence[int] = (1, 2, 4, 8, 16, 32),
     ridge: float = 1e-10,
+    nonnegative: bool = True,
 ) -> TreeModel:
     """Fits an M5-like model tree (linear leaves, size chosen by linear-leaf error).
 
@@ -374,12 +395,16 @@ def fit_duration_tree(
             >= 0). With 0 the leaves are plain least squares (``numpy.linalg.lstsq``):
             where a leaf's features are collinear (a constant feature, say), the
             minimum-norm coefficients.
+        nonnegative: True (durations): a negative target is refused, so every leaf's
+            clamp, and with it every prediction, is >= 0. False for a signed target
+            (a clearance, say).
 
     Returns:
         The fitted :class:`TreeModel` of kind ``"duration"``, refitted on all of ``X``.
 
     Raises:
-        RepertoireError: bad shapes, too few episodes, NaN, or a bad option (named).
+        RepertoireError: bad shapes, too few episodes, NaN, a negative duration, or a
+            bad option (named).
     """
     from sklearn.tree import DecisionTreeRegressor
 
@@ -393,7 +418,10 @@ def fit_duration_tree(
         raise RepertoireError("candidate_leaves is empty; expected tree sizes such as (1, 2, 4)")
     for k in candidate_leaves:
         _check_whole("each of candidate_leaves", k, 1)
+    if not isinstance(nonnegative, bool | np.bool_):
+        raise RepertoireError(f"nonnegative must be True or False, got {nonnegative!r}")
     X, y = _check_training(X, y, feature_names)
+    _check_targets(y, "row", nonnegative)
     d = X.shape[1]
     msl = min_samples_leaf if min_samples_leaf is not None else max(5, 4 * d)
     rng = np.random.default_rng(seed)
@@ -475,185 +503,6 @@ def fit_failure_tree(
     return _extract(tree, feature_names, X, leaves, "failure", 1.0 / (1.0 + failure_cost))
 
 
-_INF = {"inf": math.inf, "-inf": -math.inf}
-
-
-def save_model(model: TreeModel, path: str | Path) -> Path:
-    """Writes a TreeModel as standard JSON (no pickle).
-
-    The leaves' unbounded faces are written as the strings ``"inf"``/``"-inf"``
-    (:func:`~repertoire.planning.refinement.json_array`, as
-    :class:`~repertoire.planning.refinement.PiecewiseLinearModel` does). Every other value
-    is finite.
-    """
-    path = Path(path)
-    data = dataclasses.asdict(model)
-    for leaf in data["leaves"]:
-        for key in ("lower", "upper", "target_min", "target_max"):
-            leaf[key] = json_array(leaf[key])
-    try:
-        text = json.dumps(data, allow_nan=False)
-    except ValueError as e:
-        raise RepertoireError(f"action model holds NaN or inf outside its leaf boxes: {e}") from e
-    path.write_text(text)
-    return path
-
-
-def _leaf_bounds(values, path: Path) -> list[float]:
-    """A leaf's bounds read back: numbers, or "inf"/"-inf" (older files: Infinity)."""
-    out = []
-    for v in values:
-        if isinstance(v, str) and v in _INF:
-            out.append(_INF[v])
-        elif is_real(v) and not math.isnan(v):
-            out.append(float(v))
-        else:
-            raise RepertoireError(
-                f"action model '{path}' has a leaf bound {v!r}; expected a number, 'inf' or '-inf'"
-            )
-    return out
-
-
-_REQUIRED = [f.name for f in dataclasses.fields(TreeModel)]
-
-
-def load_model(path: str | Path) -> TreeModel:
-    """Reads a TreeModel written by :func:`save_model`, checking version and fields.
-
-    Raises:
-        RepertoireError: missing file, not JSON, another version, missing fields.
-    """
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as e:
-        raise RepertoireError(f"cannot read action model '{path}': {e}") from e
-    if not isinstance(data, dict):
-        raise RepertoireError(f"action model '{path}' is not a JSON object")
-    version = data.get("version")
-    if version not in READ_VERSIONS:
-        raise RepertoireError(
-            f"action model '{path}' has version {version!r}; this code reads "
-            f"versions {', '.join(map(str, READ_VERSIONS))}: refit the model"
-        )
-    missing = [k for k in _REQUIRED if k not in data]
-    if missing:
-        raise RepertoireError(f"action model '{path}' lacks fields {missing}")
-    if data["kind"] not in KINDS:
-        raise RepertoireError(f"action model kind must be one of {KINDS}, got {data['kind']!r}")
-    _check_field_types(data, path)
-    try:
-        data["leaves"] = [LeafBox(**leaf) for leaf in data["leaves"]]
-        for leaf in data["leaves"]:
-            leaf.lower = _leaf_bounds(leaf.lower, path)
-            leaf.upper = _leaf_bounds(leaf.upper, path)
-            if version == 1:  # no targets saved: a duration is never negative
-                t_min, t_max = (0.0, math.inf) if data["kind"] == "duration" else (0.0, 1.0)
-            else:
-                t_min, t_max = _leaf_bounds([leaf.target_min, leaf.target_max], path)
-            if not t_min <= t_max:
-                raise RepertoireError(
-                    f"action model '{path}' has a leaf with target_min {t_min} > target_max {t_max}"
-                )
-            leaf.target_min, leaf.target_max = t_min, t_max
-    except TypeError as e:
-        raise RepertoireError(f"action model '{path}' has a malformed leaf: {e}") from e
-    n = len(data["feature"])
-    for k in ("threshold", "left", "right", "leaf_of_node"):
-        if len(data[k]) != n:
-            raise RepertoireError(f"action model '{path}': '{k}' has {len(data[k])} nodes, not {n}")
-    try:
-        _check_structure(data, path)
-    except TypeError as e:
-        raise RepertoireError(f"action model '{path}' has a field of the wrong type: {e}") from e
-    data["version"] = MODEL_VERSION  # read into this version's fields
-    return TreeModel(**data)
-
-
-def _check_field_types(data: dict, path: Path) -> None:
-    """Every field of a model file holds values of its type, or an error naming field and value.
-
-    Only the leaves' box bounds may be infinite (read by :func:`_leaf_bounds`): a NaN
-    threshold sends every vector right, a NaN coefficient predicts NaN, a NaN training
-    range flags nothing as out of range; none of these may load silently.
-    """
-
-    def fail(field: str, value, expected: str, problem: str = "a field of the wrong type"):
-        raise RepertoireError(
-            f"action model '{path}' has {problem}: {field} is {repr(value)[:80]}; "
-            f"expected {expected}"
-        )
-
-    def numbers(field: str, values, whole: bool = False) -> None:  # lengths: _check_structure
-        ok = is_whole if whole else (lambda v: is_real(v) and math.isfinite(v))
-        kind = "whole numbers" if whole else "finite numbers"
-        if not isinstance(values, list):
-            fail(field, values, f"a list of {kind}")
-        for i, v in enumerate(values):
-            if not ok(v):
-                fail(f"{field}[{i}]", v, f"a {kind[:-1]}")
-
-    names = data["feature_names"]
-    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
-        fail("'feature_names'", names, "a list of feature names (strings)")
-    if len(set(names)) != len(names):
-        fail("'feature_names'", names, "distinct names")
-    for field in ("feature", "left", "right", "leaf_of_node"):
-        numbers(f"'{field}'", data[field], whole=True)
-    for field in ("threshold", "train_min", "train_max"):
-        numbers(f"'{field}'", data[field])
-    for j, seen in enumerate(zip(data["train_min"], data["train_max"])):
-        if seen[0] > seen[1]:
-            name = repr(names[j]) if j < len(names) else j
-            fail(f"feature {name}", list(seen), "train_min <= train_max", "an empty training range")
-    p = data["threshold_probability"]
-    if not (is_real(p) and 0.0 <= p <= 1.0):
-        fail("'threshold_probability'", p, "a number in [0, 1]")
-    if not isinstance(data["leaves"], list):
-        fail("'leaves'", data["leaves"], "a list of leaf records")
-    for j, leaf in enumerate(data["leaves"]):
-        if not isinstance(leaf, dict):
-            fail(f"leaf {j}", leaf, "a record of lower, upper, coef, intercept, samples")
-        if "coef" in leaf:
-            numbers(f"leaf {j}'s 'coef'", leaf["coef"])
-        if "intercept" in leaf and not (
-            is_real(leaf["intercept"]) and math.isfinite(leaf["intercept"])
-        ):
-            fail(f"leaf {j}'s 'intercept'", leaf["intercept"], "a finite number")
-        if "samples" in leaf and not is_whole(leaf["samples"]):
-            fail(f"leaf {j}'s 'samples'", leaf["samples"], "a whole number")
-
-
-def _check_structure(data: dict, path: Path) -> None:
-    """Node indices, leaf indices and per-feature lengths consistent, or a named error.
-
-    Children come after their parent (as scikit-learn numbers them), so prediction
-    cannot loop.
-    """
-    n, k, d = len(data["feature"]), len(data["leaves"]), len(data["feature_names"])
-    bad = []
-    if n == 0 or k == 0:
-        bad.append(f"{n} nodes and {k} leaves (at least one of each is needed)")
-    for name in ("train_min", "train_max"):
-        if len(data[name]) != d:
-            bad.append(f"'{name}' has {len(data[name])} values for {d} features")
-    for j, leaf in enumerate(data["leaves"]):
-        sizes = {len(leaf.lower), len(leaf.upper), len(leaf.coef)}
-        if sizes != {d}:
-            bad.append(f"leaf {j} has lower/upper/coef of lengths {sorted(sizes)}, not {d}")
-    for i in range(n):
-        f, left, right, leaf = (
-            data[key][i] for key in ("feature", "left", "right", "leaf_of_node")
-        )
-        split = f >= 0
-        if split and not (f < d and i < left < n and i < right < n and leaf == -1):
-            bad.append(f"split node {i} has feature {f}, children {left}, {right}, leaf {leaf}")
-        if not split and not (0 <= leaf < k):
-            bad.append(f"leaf node {i} points at leaf {leaf} of {k}")
-    if bad:
-        raise RepertoireError(f"action model '{path}' is inconsistent: {'; '.join(bad[:3])}")
-
-
 @dataclasses.dataclass
 class FittedModel:
     """A model fitted by :func:`fit_action_model` with its held-out evaluation.
@@ -708,6 +557,7 @@ def fit_action_model(
     *,
     seed: int = 0,
     failure_cost: float = 3.0,
+    nonnegative: bool = True,
 ) -> FittedModel:
     """Fits a duration model tree or a pessimistic failure tree on any study's records.
 
@@ -721,12 +571,15 @@ def fit_action_model(
         target: the record field to predict.
         seed: the shuffle and tree seed.
         failure_cost: cost ratio for failure trees (see :func:`fit_failure_tree`).
+        nonnegative: a numeric target is a duration, never negative (a negative one is
+            refused, naming its record); False for a signed target (a clearance).
 
     Returns:
         A :class:`FittedModel`.
 
     Raises:
-        RepertoireError: too few records, a missing field, NaN features.
+        RepertoireError: too few records, a missing field, NaN features or targets, a
+            negative duration.
     """
     seed = check_seed(seed)
     failure_cost = _check_cost(failure_cost)
@@ -763,6 +616,8 @@ def fit_action_model(
                 "duration model) or a bool (a failure model) in every record"
             )
     y = np.asarray(raw, dtype=float)
+    if not is_bool:
+        _check_targets(y, f"{target!r} of record", nonnegative)
     perm = np.random.default_rng(seed).permutation(len(records))
     n_train = (3 * len(records)) // 4
     tr, te = perm[:n_train], perm[n_train:]
@@ -781,6 +636,6 @@ def fit_action_model(
         ]
         acc = float(np.mean(pred == truth))
         return FittedModel(model, len(tr), len(te), math.nan, float(y.mean()), conf, acc)
-    model = fit_duration_tree(X[tr], y[tr], names, seed=seed)
+    model = fit_duration_tree(X[tr], y[tr], names, seed=seed, nonnegative=nonnegative)
     mae = float(np.mean(np.abs(model.predict(X[te]) - y[te])))
     return FittedModel(model, len(tr), len(te), mae, float(y.mean()), [], math.nan)

@@ -208,22 +208,32 @@ def null_space_projector(J: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
 
 
 def speed_bounded_scale(
-    qdot_task: np.ndarray, qdot_null: np.ndarray, velocity_limits: np.ndarray
+    qdot_task: np.ndarray,
+    qdot_null: np.ndarray,
+    velocity_limits: np.ndarray,
+    *,
+    negligible: float = 0.0,
 ) -> float:
     """Largest ``a`` in [0, 1] with ``|qdot_task + a qdot_null| <= max(v_max, |qdot_task|)``.
 
     Per joint, the null-space motion may use the speed the task leaves below the
     velocity limit (and never adds speed to a joint the task already drives past it):
     ``a <= (c_i - t_i) / n_i`` for ``n_i > 0`` and ``a <= (c_i + t_i) / -n_i`` for
-    ``n_i < 0``, with ``c_i = max(v_max_i, |t_i|)``.
+    ``n_i < 0``, with ``c_i = max(v_max_i, |t_i|)``. A joint with ``|n_i| <= negligible``
+    bounds nothing (it gains at most ``negligible`` of speed): a projection's round-off
+    (``n_i = +-1e-17`` at a joint the null space cannot move) must not decide ``a``.
 
     Args:
         qdot_task: the task's joint velocity ``t`` (n).
         qdot_null: the null-space joint velocity ``n`` (n).
         velocity_limits: ``v_max`` (n, > 0; inf for no limit).
+        negligible: null-space speeds up to this are round-off [rad/s] (>= 0).
     """
+    if not negligible >= 0.0:
+        raise RepertoireError(f"negligible must be >= 0 rad/s, got {negligible}")
     t = np.asarray(qdot_task, dtype=float)
     v = np.asarray(qdot_null, dtype=float)
+    v = np.where(np.abs(v) > negligible, v, 0.0)
     c = np.maximum(velocity_limits, np.abs(t))
     with np.errstate(divide="ignore", invalid="ignore"):
         room = np.where(v > 0.0, (c - t) / v, np.where(v < 0.0, (c + t) / -v, np.inf))
@@ -330,7 +340,11 @@ def rmrc_joint_velocity(
         qdot_null = free * (N @ (free * qdot_0))
         if np.any(qdot_null):
             if velocity_limits is not None:
-                qdot_null *= speed_bounded_scale(qdot, qdot_null, velocity_limits)
+                # (N x is exact to about 1e-16 |x|: smaller components are round-off)
+                negligible = 1e-12 * np.max(np.abs(qdot_0[free]))
+                qdot_null *= speed_bounded_scale(
+                    qdot, qdot_null, velocity_limits, negligible=negligible
+                )
             qdot = qdot + qdot_null
         if velocity_bounds is None:
             return qdot

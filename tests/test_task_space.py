@@ -187,6 +187,41 @@ def test_speed_bounded_scale_closed_form():
     assert speed_bounded_scale([3.0], [1.0], [2.0]) == 0.0
     assert speed_bounded_scale([3.0], [-1.0], [2.0]) == 1.0
     assert speed_bounded_scale([0.0, 0.0], [0.0, 0.0], [1.0, 1.0]) == 1.0
+    # A round-off component (-1e-17) at a joint the task drives past its bound decided
+    # a = 0; below `negligible` it bounds nothing (the other joint: (2 - 0) / 1 > 1).
+    assert speed_bounded_scale([-1.6, 0.0], [-1e-17, 1.0], [1.5, 2.0]) == 0.0
+    assert speed_bounded_scale([-1.6, 0.0], [-1e-17, 1.0], [1.5, 2.0], negligible=1e-12) == 1.0
+    assert speed_bounded_scale([-1.6, 0.0], [-0.1, 1.0], [1.5, 2.0], negligible=1e-12) == 0.0
+    with pytest.raises(RepertoireError, match="negligible must be >= 0 rad/s, got nan"):
+        speed_bounded_scale([0.0], [1.0], [1.0], negligible=np.nan)
+
+
+def test_round_off_at_a_joint_the_self_motion_cannot_move_does_not_stop_the_barrier():
+    # The test arm's self-motion never changes the elbow (spherical shoulder and wrist),
+    # so N's elbow entries are round-off of either sign. With the task driving the elbow
+    # past its speed bound, a negative round-off entry set the barrier's motion to 0 on
+    # some steps and not on others (arm7, seed 2000 of dmp_obstacle_arm: the reference
+    # accelerations alternated +-280 rad/s^2 for 0.2 s). The secondary motion must be
+    # the one the other joints' speed room allows, whatever the round-off's sign.
+    rng = np.random.default_rng(21)
+    plant = _make_plant()
+    lower, upper = -2.9 * np.ones(7), 2.9 * np.ones(7)
+    v_lim = 1.5 * np.ones(7)
+    for _ in range(20):
+        q = Q0 + rng.uniform(-0.2, 0.2, size=7)
+        q[4] = 2.7  # in the barrier's band (0.1 of the range: above 2.32)
+        J = _jacobian(plant, q)
+        qd_task = np.zeros(7)
+        qd_task[3] = rng.choice([-1.6, 1.6])  # the elbow past its bound of 1.5 rad/s
+        args = (J, J @ qd_task, q, lower, upper, 0.0, 0.0)
+        task_only = rmrc_joint_velocity(*args)
+        qd = rmrc_joint_velocity(*args, limit_gain=3.0, limit_band=0.1, velocity_limits=v_lim)
+        null = null_space_projector(J) @ (-3.0 * joint_limit_barrier_gradient(q, lower, upper, 0.1))
+        assert abs(null[3]) < 1e-12 * np.max(np.abs(null))  # the elbow: round-off only
+        others = np.arange(7) != 3
+        a = speed_bounded_scale(task_only[others], null[others], v_lim[others])
+        assert a > 0.05
+        np.testing.assert_allclose(qd, task_only + a * null, rtol=1e-9, atol=1e-12)
 
 
 def test_barrier_motion_adds_no_task_velocity_and_keeps_the_speed_bound():

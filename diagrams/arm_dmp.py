@@ -116,10 +116,8 @@ from repertoire.systems.arm_monitors import BodyPointAndAxis, ObstacleClearanceM
 from repertoire.systems.dmp_sequencer import task_space_sequencer
 from repertoire.systems.grasp import GraspWrench
 from repertoire.systems.obstacle_coupling import MultiPointObstacleCoupling
-from repertoire.systems.task_space import (
-    ResolvedMotionRateIK,
-    check_reachable,
-)
+from repertoire.systems.task_space import ResolvedMotionRateIK
+from repertoire.systems.task_space_reach import check_reachable
 
 from repertoire.criteria import Bound
 

@@ -13,9 +13,10 @@ import numpy as np
 from pydrake.systems.framework import Context, Diagram, EventStatus
 from repertoire.diagrams.arm_dmp_scenarios import shoulder_and_reach
 from repertoire.diagrams.simulate import simulate
-from repertoire.models.arm7 import OBSTACLE_RADIUS
+from repertoire.models.arm7 import ARM_JOINTS, OBSTACLE_RADIUS, arm7_joint_limits
 from repertoire.planning.arm_library import BOTTLE_GRASP_HEIGHT, COASTER_TOP
 from repertoire.systems.task_space import (
+    STATUS_JOINT_LIMITS,
     STATUS_NAMES,
     STATUS_OK,
     STATUS_TARGET_OUT_OF_REACH,
@@ -70,6 +71,7 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
             target=chain.GetOutputPort("tcp_position").Eval(chain_context).copy(),
             goal=goal.copy(),
             error=rmrc.GetOutputPort("task_error").Eval(rmrc_context).copy(),
+            held=rmrc.GetOutputPort("joints_at_limits").Eval(rmrc_context).copy(),
         )
         return EventStatus.ReachedTermination(rmrc, STATUS_NAMES[status])
 
@@ -84,10 +86,33 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
             f"{np.round(problem['goal'], 3).tolist()} ({distance:.3f} m from"
             f" the shoulder, reach {reach:.3f} m), desired tcp position "
             f"{np.round(problem['target'], 3).tolist()}, tcp error {problem['error'][0]:.3f} m and "
-            f"{problem['error'][1]:.3f} rad; "
+            f"{problem['error'][1]:.3f} rad{joints_at_limits_text(problem['held'])}; "
             "the simulation was stopped there"
         )
     return root, wall
+
+
+def joints_at_limits_text(held: np.ndarray) -> str:
+    """``", joints held at a limit: wrist_abduction (upper, 0.6 rad)"`` for the IK's report.
+
+    Args:
+        held: the IK's ``joints_at_limits`` output over arm7's joints (+1 upper, -1 lower).
+
+    Returns:
+        The clause naming each held joint and its limit, or ``""`` when none is held.
+    """
+    lower, upper = arm7_joint_limits()
+    names = [
+        f"{joint} ({'upper' if h > 0 else 'lower'}, {(upper if h > 0 else lower)[k]:g} rad)"
+        for k, (joint, h) in enumerate(zip(ARM_JOINTS, held, strict=True))
+        if h != 0
+    ]
+    if not names:
+        return ""
+    return (
+        f", joints held at a limit: {', '.join(names)} (the desired pose lies beyond what "
+        "the IK attains within arm7's joint limits there)"
+    )
 
 
 def ik_status_figures(diagram: Diagram, context: Context) -> dict[str, float]:
@@ -99,14 +124,16 @@ def ik_status_figures(diagram: Diagram, context: Context) -> dict[str, float]:
     it with these figures, e.g. a place goal the arm approached with a joint at its limit.
 
     Returns:
-        ``ik_target_out_of_reach`` and ``ik_tracking_lost`` (the task-space error stayed
-        above the IK's tolerance longer than its hold time), each 0 or 1.
+        ``ik_target_out_of_reach``, ``ik_tracking_lost`` (the task-space error stayed
+        above the IK's tolerance longer than its hold time) and ``ik_joint_limits`` (the
+        same, with joints held at a position limit then), each 0 or 1.
     """
     rmrc = diagram.GetSubsystemByName("rmrc")
     status = int(rmrc.GetOutputPort("status").Eval(rmrc.GetMyContextFromRoot(context))[0])
     return {
         "ik_target_out_of_reach": float(status == STATUS_TARGET_OUT_OF_REACH),
         "ik_tracking_lost": float(status == STATUS_TRACKING_LOST),
+        "ik_joint_limits": float(status == STATUS_JOINT_LIMITS),
     }
 
 

@@ -50,7 +50,11 @@ from repertoire.planning.arm_library import (
     rotation_from_approach,
 )
 from repertoire.systems.arm_goals import SegmentGoal
-from repertoire.systems.task_space import check_reachable, pose_position_residual, reach_bound
+from repertoire.systems.task_space_reach import (
+    check_reachable,
+    pose_position_residual,
+    reach_bound,
+)
 
 from repertoire.errors import ScenarioError
 
@@ -443,7 +447,7 @@ def _goal_ik_plant():
 def goal_pose_residual(p_W: np.ndarray, quaternion: np.ndarray) -> float:
     """How close arm7's tcp can come to ``p_W`` with the orientation ``quaternion`` [m].
 
-    :func:`repertoire.systems.task_space.pose_position_residual` on arm7 (joint limits,
+    :func:`repertoire.systems.task_space_reach.pose_position_residual` on arm7 (joint limits,
     orientation within GOAL_ORIENTATION_TOLERANCE), seeded from the home configuration
     (then fixed draws when that leaves more than GOAL_POSITION_TOLERANCE).
 

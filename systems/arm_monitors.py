@@ -11,7 +11,7 @@ from pydrake.geometry import QueryObject
 from pydrake.math import RigidTransform
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from repertoire.systems.arm_goals import check_body_index
-from repertoire.systems.task_space import finite_3vector
+from repertoire.systems.task_space_reach import finite_3vector
 
 from repertoire.errors import RepertoireError
 

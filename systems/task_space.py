@@ -12,10 +12,9 @@ The math lives in plain functions (:func:`quaternion_error`,
 :func:`damped_pseudoinverse`, :func:`joint_limit_potential_gradient` with its parts
 :func:`joint_limit_gradient` and :func:`joint_limit_barrier_gradient`,
 :func:`null_space_projector`, :func:`speed_bounded_scale`, :func:`joint_velocity_bounds`,
-:func:`rmrc_joint_velocity`, :func:`reach_bound`);
-:class:`ResolvedMotionRateIK`
-only wraps them. :func:`pose_position_residual` is the exact (IK) counterpart of the
-reach sphere: how close a frame can come to a position with a given orientation.
+:func:`rmrc_joint_velocity`, :func:`joints_held_at_limits`); :class:`ResolvedMotionRateIK`
+only wraps them. The reach sphere and exact pose attainability are in
+:mod:`repertoire.systems.task_space_reach`.
 
 Quaternions are ``[w, x, y, z]`` (Drake's order), angular velocities and
 Jacobians are expressed in the world frame W.
@@ -23,12 +22,10 @@ Jacobians are expressed in the world frame W.
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.math import RotationMatrix
-from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import Frame, JacobianWrtVariable
-from pydrake.solvers import Solve
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, ValueProducer
+from repertoire.systems.task_space_reach import finite_3vector
 
 from repertoire.errors import RepertoireError
 
@@ -39,11 +36,16 @@ STATUS_TARGET_OUT_OF_REACH = 1
 #: The position or the orientation error stayed above its tolerance longer than the hold
 #: time (target inside the sphere but not attainable: joint limits, base, singularity).
 STATUS_TRACKING_LOST = 2
+#: Tracking was lost while the solve held one or more joints at a position limit: the
+#: desired pose lies where the joint limits do not let this IK follow it (the output port
+#: ``joints_at_limits`` says which joints, and at which limit).
+STATUS_JOINT_LIMITS = 3
 
 STATUS_NAMES = {
     STATUS_OK: "ok",
     STATUS_TARGET_OUT_OF_REACH: "target out of reach",
     STATUS_TRACKING_LOST: "task-space tracking lost",
+    STATUS_JOINT_LIMITS: "task-space tracking lost at the joint limits",
 }
 
 
@@ -206,22 +208,32 @@ def null_space_projector(J: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
 
 
 def speed_bounded_scale(
-    qdot_task: np.ndarray, qdot_null: np.ndarray, velocity_limits: np.ndarray
+    qdot_task: np.ndarray,
+    qdot_null: np.ndarray,
+    velocity_limits: np.ndarray,
+    *,
+    negligible: float = 0.0,
 ) -> float:
     """Largest ``a`` in [0, 1] with ``|qdot_task + a qdot_null| <= max(v_max, |qdot_task|)``.
 
     Per joint, the null-space motion may use the speed the task leaves below the
     velocity limit (and never adds speed to a joint the task already drives past it):
     ``a <= (c_i - t_i) / n_i`` for ``n_i > 0`` and ``a <= (c_i + t_i) / -n_i`` for
-    ``n_i < 0``, with ``c_i = max(v_max_i, |t_i|)``.
+    ``n_i < 0``, with ``c_i = max(v_max_i, |t_i|)``. A joint with ``|n_i| <= negligible``
+    bounds nothing (it gains at most ``negligible`` of speed): a projection's round-off
+    (``n_i = +-1e-17`` at a joint the null space cannot move) must not decide ``a``.
 
     Args:
         qdot_task: the task's joint velocity ``t`` (n).
         qdot_null: the null-space joint velocity ``n`` (n).
         velocity_limits: ``v_max`` (n, > 0; inf for no limit).
+        negligible: null-space speeds up to this are round-off [rad/s] (>= 0).
     """
+    if not negligible >= 0.0:
+        raise RepertoireError(f"negligible must be >= 0 rad/s, got {negligible}")
     t = np.asarray(qdot_task, dtype=float)
     v = np.asarray(qdot_null, dtype=float)
+    v = np.where(np.abs(v) > negligible, v, 0.0)
     c = np.maximum(velocity_limits, np.abs(t))
     with np.errstate(divide="ignore", invalid="ignore"):
         room = np.where(v > 0.0, (c - t) / v, np.where(v < 0.0, (c + t) / -v, np.inf))
@@ -328,7 +340,11 @@ def rmrc_joint_velocity(
         qdot_null = free * (N @ (free * qdot_0))
         if np.any(qdot_null):
             if velocity_limits is not None:
-                qdot_null *= speed_bounded_scale(qdot, qdot_null, velocity_limits)
+                # (N x is exact to about 1e-16 |x|: smaller components are round-off)
+                negligible = 1e-12 * np.max(np.abs(qdot_0[free]))
+                qdot_null *= speed_bounded_scale(
+                    qdot, qdot_null, velocity_limits, negligible=negligible
+                )
             qdot = qdot + qdot_null
         if velocity_bounds is None:
             return qdot
@@ -342,117 +358,31 @@ def rmrc_joint_velocity(
     return np.clip(z, *velocity_bounds)
 
 
-def finite_3vector(name: str, value) -> np.ndarray:
-    """``value`` as a float 3-vector, or a RepertoireError naming ``name`` and the value."""
-    v = np.asarray(value, dtype=float)
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise RepertoireError(f"{name} must be a finite 3-vector, got {v.tolist()}")
-    return v
+def joints_held_at_limits(
+    qdot: np.ndarray,
+    velocity_bounds: tuple[np.ndarray, np.ndarray],
+    velocity_limits: np.ndarray,
+) -> np.ndarray:
+    """Which joints a step of :func:`rmrc_joint_velocity` holds at a position limit.
 
-
-def reach_bound(points: np.ndarray) -> float:
-    """Upper bound on the reach of a serial chain: the length of its joint polyline.
+    A joint is held at its upper limit (+1) when ``qdot`` is at the box's upper bound
+    ``hi`` and that bound is below ``v_max``, i.e. it comes from the position limit (one
+    period ahead or braking to rest there, :func:`joint_velocity_bounds`), not from the
+    speed limit; likewise at its lower limit (-1). A saturated joint is set exactly at its
+    bound by the solve, so the test is exact.
 
     Args:
-        points: ``k x 3`` world positions of the shoulder (first row), every joint
-            origin down the chain, and the end-effector point (last row).
+        qdot: the step's joint velocity (n).
+        velocity_bounds: the box ``(lo, hi)`` it was solved in.
+        velocity_limits: ``v_max`` (n).
 
     Returns:
-        The summed segment lengths; no configuration puts the end-effector
-        farther than this from the first point (triangle inequality).
+        Per joint +1 (held at the upper limit), -1 (at the lower) or 0, as floats (n).
     """
-    points = np.asarray(points, dtype=float)
-    return float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
-
-
-def check_reachable(p_W: np.ndarray, center_W: np.ndarray, reach: float, *, what: str) -> None:
-    """Raises a clear error if ``p_W`` is outside the sphere ``center_W``, ``reach``.
-
-    Args:
-        p_W: target point in the world frame.
-        center_W: shoulder point in the world frame.
-        reach: reach radius (see :func:`reach_bound`).
-        what: what the target is, for the message (e.g. ``"grasp goal"``).
-
-    Raises:
-        RepertoireError: the target is out of reach (says by how much).
-    """
-    p_W = finite_3vector(what, p_W)
-    distance = float(np.linalg.norm(p_W - center_W))
-    if distance > reach:
-        raise RepertoireError(
-            f"IK target out of reach: {what} {np.round(p_W, 4).tolist()} is {distance:.3f} m "
-            f"from the shoulder {np.round(center_W, 4).tolist()}, beyond the arm's reach of "
-            f"{reach:.3f} m by {distance - reach:.3f} m; move the target closer"
-        )
-
-
-def pose_position_residual(
-    plant: MultibodyPlant,
-    frame_E: Frame,
-    p_W: np.ndarray,
-    R_WE: RotationMatrix,
-    seeds: list[np.ndarray],
-    *,
-    orientation_tolerance: float,
-    good_enough: float = 0.0,
-) -> float:
-    """How close the origin of ``frame_E`` can come to ``p_W`` with the orientation ``R_WE``.
-
-    A Drake ``InverseKinematics`` program on ``plant``: the joints within their
-    position limits, the angle between ``R_WE`` and the orientation of ``frame_E``
-    at most ``orientation_tolerance``, and the cost ``|p_WE - p_W|^2``. It is solved
-    locally from each seed in turn, stopping at the first solution within
-    ``good_enough`` of ``p_W``; the smallest distance found is returned. Unlike
-    :func:`check_reachable` (a sphere that bounds the reach from above), a residual
-    above the caller's tolerance means the pose is not attainable, unless every
-    seed fell in a worse local minimum than the true one (give several seeds).
-
-    Args:
-        plant: finalized plant (the arm alone; every position is free within limits).
-        frame_E: the end-effector frame of ``plant``.
-        p_W: target position of the frame's origin in W (3).
-        R_WE: target orientation of the frame in W.
-        seeds: initial guesses of the plant's positions, tried in order (one or more).
-        orientation_tolerance: largest angle between the attained and the target
-            orientation [rad].
-        good_enough: stop at the first seed whose solution comes this close [m].
-
-    Returns:
-        The smallest |p_WE - p_W| over the solved seeds [m]; inf if no solve succeeded.
-
-    Raises:
-        RepertoireError: a bad target, tolerance or seed.
-    """
-    p_W = finite_3vector("the target position", p_W)
-    if not (np.isfinite(orientation_tolerance) and orientation_tolerance >= 0.0):
-        raise RepertoireError(
-            f"orientation_tolerance must be finite and >= 0 rad, got {orientation_tolerance}"
-        )
-    if len(seeds) == 0:
-        raise RepertoireError("pose_position_residual needs one or more seeds")
-    ik = InverseKinematics(plant, with_joint_limits=True)
-    ik.AddOrientationConstraint(
-        frame_E, RotationMatrix(), plant.world_frame(), R_WE, orientation_tolerance
-    )
-    ik.AddPositionCost(frame_E, np.zeros(3), plant.world_frame(), p_W, np.eye(3))
-    context = plant.CreateDefaultContext()
-    best = np.inf
-    for seed in seeds:
-        seed = np.asarray(seed, dtype=float)
-        if seed.shape != (plant.num_positions(),) or not np.all(np.isfinite(seed)):
-            raise RepertoireError(
-                f"each seed must be {plant.num_positions()} finite joint positions, got {seed!r}"
-            )
-        result = Solve(ik.prog(), seed)
-        if not result.is_success():
-            continue
-        plant.SetPositions(context, result.GetSolution(ik.q()))
-        distance = float(np.linalg.norm(frame_E.CalcPoseInWorld(context).translation() - p_W))
-        best = min(best, distance)
-        if best <= good_enough:
-            break
-    return best
+    lo, hi = velocity_bounds
+    upper = (qdot >= hi) & (hi < velocity_limits)
+    lower = (qdot <= lo) & (-lo < velocity_limits)
+    return upper.astype(float) - lower.astype(float)
 
 
 class ResolvedMotionRateIK(LeafSystem):
@@ -489,7 +419,11 @@ class ResolvedMotionRateIK(LeafSystem):
     :data:`STATUS_TRACKING_LOST` when the position error stayed above
     ``error_tolerance`` or the orientation error above ``orientation_tolerance`` for
     longer than ``error_hold_time`` (an orientation the joint limits do not allow at an
-    attainable position is reported too, not followed silently). The status latches.
+    attainable position is reported too, not followed silently);
+    :data:`STATUS_JOINT_LIMITS` instead when, at that moment, the solve held one or more
+    joints at a position limit (:func:`joints_held_at_limits`; the desired pose lies
+    where the joint limits stop this IK, e.g. the hand's orientation beyond the wrist's
+    range). The status latches.
 
     Input ports:
         position_desired: p_d, 3.
@@ -503,6 +437,8 @@ class ResolvedMotionRateIK(LeafSystem):
         arm_reference_acceleration: qdd_r, n.
         status: [status code], 1 (see ``STATUS_NAMES``).
         task_error: [|p_d - p(q_r)| in m, orientation error angle in rad], 2.
+        joints_at_limits: per joint +1 / -1 when the latest step held it at its upper /
+            lower position limit, else 0, n (:func:`joints_held_at_limits`).
 
     Numeric parameter (index ``gains_parameter_index``): ``[K_p, K_o, damping,
     null_gain, limit_gain]``.
@@ -650,9 +586,9 @@ class ResolvedMotionRateIK(LeafSystem):
             BasicVector([position_gain, orientation_gain, damping, null_gain, limit_gain])
         )
         # Group 0: [q_r, qdot_r, qdd_r]; group 1: [status, seconds above tolerance,
-        # position error, orientation error].
+        # position error, orientation error, joints held at a limit (n)].
         self._ref_group = self.DeclareDiscreteState(3 * n)
-        self._monitor_group = self.DeclareDiscreteState(4)
+        self._monitor_group = self.DeclareDiscreteState(4 + n)
         self.DeclarePeriodicDiscreteUpdateEvent(self._period, 0.0, self._update)
         self.DeclareInitializationDiscreteUpdateEvent(self._initialize)
 
@@ -686,7 +622,13 @@ class ResolvedMotionRateIK(LeafSystem):
         self.DeclareVectorOutputPort(
             "task_error",
             2,
-            lambda c, o: o.SetFromVector(c.get_discrete_state(self._monitor_group).value()[2:]),
+            lambda c, o: o.SetFromVector(c.get_discrete_state(self._monitor_group).value()[2:4]),
+            prerequisites_of_calc={self.discrete_state_ticket(self._monitor_group)},
+        )
+        self.DeclareVectorOutputPort(
+            "joints_at_limits",
+            n,
+            lambda c, o: o.SetFromVector(c.get_discrete_state(self._monitor_group).value()[4:]),
             prerequisites_of_calc={self.discrete_state_ticket(self._monitor_group)},
         )
 
@@ -710,7 +652,7 @@ class ResolvedMotionRateIK(LeafSystem):
         x = np.zeros(3 * n)
         x[:n] = np.clip(q_meas, self._lower, self._upper)
         discrete_state.get_mutable_vector(self._ref_group).SetFromVector(x)
-        discrete_state.get_mutable_vector(self._monitor_group).SetFromVector(np.zeros(4))
+        discrete_state.get_mutable_vector(self._monitor_group).SetFromVector(np.zeros(4 + n))
 
     def _update(self, context: Context, discrete_state) -> None:
         n = self._n
@@ -743,6 +685,9 @@ class ResolvedMotionRateIK(LeafSystem):
         e_p = p_d - X_WE.translation()
         e_o = quaternion_error(q_d / norm, X_WE.rotation().ToQuaternion().wxyz())
         xdot_ref = np.concatenate([w_d + ko * e_o, v_d + kp * e_p])
+        bounds = joint_velocity_bounds(
+            q_r, self._lower, self._upper, self._v_max, h, self._deceleration
+        )
         qd = rmrc_joint_velocity(
             self._task_weights[:, None] * J,
             self._task_weights * xdot_ref,
@@ -754,10 +699,9 @@ class ResolvedMotionRateIK(LeafSystem):
             limit_gain=limit_gain,
             limit_band=self._limit_band,
             velocity_limits=self._limit_speeds,
-            velocity_bounds=joint_velocity_bounds(
-                q_r, self._lower, self._upper, self._v_max, h, self._deceleration
-            ),
+            velocity_bounds=bounds,
         )
+        held = joints_held_at_limits(qd, bounds, self._v_max)
         q_new = np.clip(q_r + h * qd, self._lower, self._upper)
         qd = (q_new - q_r) / h
         discrete_state.get_mutable_vector(self._ref_group).SetFromVector(
@@ -773,7 +717,7 @@ class ResolvedMotionRateIK(LeafSystem):
             if np.linalg.norm(p_d - self._center) > self._max_reach:
                 status = STATUS_TARGET_OUT_OF_REACH
             elif above > self._hold:
-                status = STATUS_TRACKING_LOST
+                status = STATUS_JOINT_LIMITS if np.any(held) else STATUS_TRACKING_LOST
         discrete_state.get_mutable_vector(self._monitor_group).SetFromVector(
-            [status, above, pos_err, ori_err]
+            np.concatenate([[status, above, pos_err, ori_err], held])
         )

@@ -218,12 +218,50 @@ def test_target_leaving_the_reach_during_a_run_stops_it():
     assert ik_status_figures(diagram, context) == {
         "ik_target_out_of_reach": 0.0,
         "ik_tracking_lost": 0.0,
+        "ik_joint_limits": 0.0,
     }
     simulator.AdvanceTo(2.0)
     assert ik_status_figures(diagram, context) == {
         "ik_target_out_of_reach": 1.0,
         "ik_tracking_lost": 0.0,
+        "ik_joint_limits": 0.0,
     }
+
+
+def test_an_orientation_beyond_the_wrist_stops_the_run_naming_the_joints_at_their_limits():
+    from pydrake.math import RotationMatrix
+    from repertoire.models.arm7 import HAND_OPEN
+
+    # The hand at home, turned 2 rad about its finger-spread axis: the tcp position is
+    # attainable, the orientation is not within the wrist's limits. Until session 33 the
+    # report said only "task-space tracking lost".
+    home = home_tcp_pose()
+    R = home.rotation() @ RotationMatrix.MakeXRotation(2.0)
+    goals = [SegmentGoal("grasp", home.translation(), quaternion_wxyz(R), np.array(HAND_OPEN))]
+    diagram = build_arm_world(
+        "turned_hand",
+        PickPlaceScenario(),
+        [ArmObject(name="cup", kind="cup", xy=[0.55, -0.25])],
+        goals,
+        graspable=["cup:cup"],
+    )
+    with pytest.raises(
+        IkTargetError,
+        match=r"'task-space tracking lost at the joint limits' at t = 1\.9.* joints held at a "
+        r"limit: wrist_flexion \(upper, 1\.2 rad\), wrist_abduction \(lower, -0\.6 rad\)",
+    ):
+        run_arm_world(diagram, 3.0)
+
+
+def test_joints_at_limits_text_names_each_held_joint_and_its_limit():
+    from repertoire.diagrams.arm_dmp_results import joints_at_limits_text
+
+    assert joints_at_limits_text(np.zeros(7)) == ""
+    assert joints_at_limits_text(np.array([0, -1.0, 0, 0, 0, 0, 1.0])) == (
+        ", joints held at a limit: shoulder_abduction (lower, -0.4 rad), wrist_abduction "
+        "(upper, 0.6 rad) (the desired pose lies beyond what the IK attains within arm7's "
+        "joint limits there)"
+    )
 
 
 def test_goal_of_the_wrong_size_is_refused():

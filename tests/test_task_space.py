@@ -2,36 +2,33 @@
 
 import numpy as np
 import pytest
-from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
-from pydrake.multibody.math import SpatialVelocity
+from pydrake.math import RollPitchYaw, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import BodyIndex, JacobianWrtVariable
+from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.systems.analysis import Simulator
-from repertoire.planning.dmp_math import obstacle_coupling
-from repertoire.systems.grasp import GraspWrench, grip_wrench
-from repertoire.systems.obstacle_coupling import (
-    MultiPointObstacleCoupling,
-    multi_point_obstacle_coupling,
-)
 from repertoire.systems.task_space import (
+    STATUS_JOINT_LIMITS,
     STATUS_OK,
     STATUS_TARGET_OUT_OF_REACH,
     STATUS_TRACKING_LOST,
     ResolvedMotionRateIK,
-    check_reachable,
     damped_pseudoinverse,
     joint_limit_barrier_gradient,
     joint_limit_gradient,
     joint_limit_potential_gradient,
     joint_velocity_bounds,
+    joints_held_at_limits,
     null_space_projector,
-    pose_position_residual,
     quaternion_error,
     quaternion_multiply,
-    reach_bound,
     rmrc_joint_velocity,
     speed_bounded_scale,
+)
+from repertoire.systems.task_space_reach import (
+    check_reachable,
+    pose_position_residual,
+    reach_bound,
 )
 
 from repertoire.errors import RepertoireError
@@ -42,7 +39,9 @@ AXES = ["0 0 1", "0 1 0", "0 0 1", "0 1 0", "0 0 1", "0 1 0", "0 0 1"]
 OFFSETS = [0.1, 0.0, 0.15, 0.15, 0.15, 0.15, 0.05]
 
 
-def _arm_urdf() -> str:
+def _arm_urdf(limits: dict[int, tuple[float, float]] | None = None) -> str:
+    """The test arm; ``limits`` replaces the +-2.9 rad limits of the joints it names (0-6)."""
+    limits = limits or {}
     links = ['<link name="base"/>']
     joints = []
     for i in range(7):
@@ -51,10 +50,11 @@ def _arm_urdf() -> str:
             f'<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>'
         )
         parent = "base" if i == 0 else f"l{i}"
+        low, up = limits.get(i, (-2.9, 2.9))
         joints.append(
             f'<joint name="j{i + 1}" type="revolute"><parent link="{parent}"/>'
             f'<child link="l{i + 1}"/><origin xyz="0 0 {OFFSETS[i]}"/><axis xyz="{AXES[i]}"/>'
-            f'<limit lower="-2.9" upper="2.9" effort="100" velocity="3"/></joint>'
+            f'<limit lower="{low}" upper="{up}" effort="100" velocity="3"/></joint>'
         )
     links.append('<link name="ee"/>')
     joints.append(
@@ -64,9 +64,9 @@ def _arm_urdf() -> str:
     return '<robot name="arm">' + "".join(links + joints) + "</robot>"
 
 
-def _make_plant() -> MultibodyPlant:
+def _make_plant(limits: dict[int, tuple[float, float]] | None = None) -> MultibodyPlant:
     plant = MultibodyPlant(0.0)
-    Parser(plant).AddModelsFromString(_arm_urdf(), "urdf")
+    Parser(plant).AddModelsFromString(_arm_urdf(limits), "urdf")
     plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base"))
     plant.Finalize()
     return plant
@@ -187,6 +187,41 @@ def test_speed_bounded_scale_closed_form():
     assert speed_bounded_scale([3.0], [1.0], [2.0]) == 0.0
     assert speed_bounded_scale([3.0], [-1.0], [2.0]) == 1.0
     assert speed_bounded_scale([0.0, 0.0], [0.0, 0.0], [1.0, 1.0]) == 1.0
+    # A round-off component (-1e-17) at a joint the task drives past its bound decided
+    # a = 0; below `negligible` it bounds nothing (the other joint: (2 - 0) / 1 > 1).
+    assert speed_bounded_scale([-1.6, 0.0], [-1e-17, 1.0], [1.5, 2.0]) == 0.0
+    assert speed_bounded_scale([-1.6, 0.0], [-1e-17, 1.0], [1.5, 2.0], negligible=1e-12) == 1.0
+    assert speed_bounded_scale([-1.6, 0.0], [-0.1, 1.0], [1.5, 2.0], negligible=1e-12) == 0.0
+    with pytest.raises(RepertoireError, match="negligible must be >= 0 rad/s, got nan"):
+        speed_bounded_scale([0.0], [1.0], [1.0], negligible=np.nan)
+
+
+def test_round_off_at_a_joint_the_self_motion_cannot_move_does_not_stop_the_barrier():
+    # The test arm's self-motion never changes the elbow (spherical shoulder and wrist),
+    # so N's elbow entries are round-off of either sign. With the task driving the elbow
+    # past its speed bound, a negative round-off entry set the barrier's motion to 0 on
+    # some steps and not on others (arm7, seed 2000 of dmp_obstacle_arm: the reference
+    # accelerations alternated +-280 rad/s^2 for 0.2 s). The secondary motion must be
+    # the one the other joints' speed room allows, whatever the round-off's sign.
+    rng = np.random.default_rng(21)
+    plant = _make_plant()
+    lower, upper = -2.9 * np.ones(7), 2.9 * np.ones(7)
+    v_lim = 1.5 * np.ones(7)
+    for _ in range(20):
+        q = Q0 + rng.uniform(-0.2, 0.2, size=7)
+        q[4] = 2.7  # in the barrier's band (0.1 of the range: above 2.32)
+        J = _jacobian(plant, q)
+        qd_task = np.zeros(7)
+        qd_task[3] = rng.choice([-1.6, 1.6])  # the elbow past its bound of 1.5 rad/s
+        args = (J, J @ qd_task, q, lower, upper, 0.0, 0.0)
+        task_only = rmrc_joint_velocity(*args)
+        qd = rmrc_joint_velocity(*args, limit_gain=3.0, limit_band=0.1, velocity_limits=v_lim)
+        null = null_space_projector(J) @ (-3.0 * joint_limit_barrier_gradient(q, lower, upper, 0.1))
+        assert abs(null[3]) < 1e-12 * np.max(np.abs(null))  # the elbow: round-off only
+        others = np.arange(7) != 3
+        a = speed_bounded_scale(task_only[others], null[others], v_lim[others])
+        assert a > 0.05
+        np.testing.assert_allclose(qd, task_only + a * null, rtol=1e-9, atol=1e-12)
 
 
 def test_barrier_motion_adds_no_task_velocity_and_keeps_the_speed_bound():
@@ -555,6 +590,109 @@ def test_tracking_lost_inside_the_sphere_is_reported():
     assert system.GetOutputPort("status").Eval(context)[0] == STATUS_TRACKING_LOST
     q = system.GetOutputPort("arm_reference_state").Eval(context)[:7]
     assert np.all(np.abs(q) <= 2.9)  # references stay inside the joint limits
+    # The stretched arm is short of the target, not stopped by a limit: no joint held.
+    assert np.array_equal(system.GetOutputPort("joints_at_limits").Eval(context), np.zeros(7))
+
+
+def test_joints_held_at_limits_closed_form():
+    v_max = np.array([2.0, 2.0, 2.0, 2.0, 2.0])
+    # joint 0: hi from the position limit (0.4 < 2), qdot at it: held at the upper limit;
+    # joint 1: lo from the position limit, qdot at it: held at the lower limit;
+    # joint 2: at the speed limit 2.0: a speed bound, not a limit; joint 3: inside the box;
+    # joint 4: on its upper limit (hi = 0) and held there.
+    lo = np.array([-2.0, -0.3, -2.0, -2.0, -2.0])
+    hi = np.array([0.4, 2.0, 2.0, 1.0, 0.0])
+    qdot = np.array([0.4, -0.3, 2.0, 0.5, 0.0])
+    held = joints_held_at_limits(qdot, (lo, hi), v_max)
+    assert np.array_equal(held, [1.0, -1.0, 0.0, 0.0, 1.0])
+    # The same box from joint_velocity_bounds: a joint 0.008 rad below its upper limit
+    # (braking: sqrt(2 * 10 * 0.008) = 0.4) that the solve saturates is held there.
+    lower, upper = -np.ones(3), np.ones(3)
+    box = joint_velocity_bounds(np.array([0.992, 0.0, 0.0]), lower, upper, v_max[:3], 0.004, 10.0)
+    assert box[1][0] == pytest.approx(0.4, rel=1e-12)
+    qdot = rmrc_joint_velocity(
+        np.array([[1.0, 0.0, 0.0]]),
+        np.array([1.0]),
+        np.zeros(3),
+        lower,
+        upper,
+        0.0,
+        0.0,
+        velocity_bounds=box,
+    )
+    assert np.array_equal(joints_held_at_limits(qdot, box, v_max[:3]), [1.0, 0.0, 0.0])
+
+
+def test_a_joint_driven_into_its_limit_brakes_at_the_set_deceleration_and_stops_on_it():
+    # The task (feed-forward only) moves the tcp toward the shoulder at 0.3 m/s with the
+    # orientation kept: only the elbow can do that (see the test below), at about 1.6 rad/s,
+    # toward a lower limit 0.3 rad away. The box of joint_velocity_bounds must brake it at
+    # a_max = 10 rad/s^2: while it is held at the braking bound, v_k = -sqrt(2 a d_k), so
+    # the step's deceleration (|v_k| - |v_k+1|) / h = (v - sqrt(v^2 - 2 a h v)) / h lies
+    # in [a, 2 a] (2 a on the last step, when v = 2 a h); then it rests on the limit.
+    a_max, period = 10.0, 0.004
+    lower = Q0[3] - 0.3
+    plant = _make_plant({3: (lower, 0.0)})
+    system = _system(
+        plant,
+        period=period,
+        position_gain=0.0,
+        orientation_gain=0.0,
+        null_gain=0.0,
+        limit_deceleration=a_max,
+        error_hold_time=10.0,
+    )
+    context = system.CreateDefaultContext()
+    X = _pose(plant, Q0)
+    wrist, shoulder = X.translation() - 0.15 * X.rotation().col(2), np.array([0.0, 0.0, 0.1])
+    toward = (shoulder - wrist) / np.linalg.norm(shoulder - wrist)
+    _fix(system, context, X.translation(), X.rotation().ToQuaternion().wxyz(), 0.3 * toward)
+    simulator = Simulator(system, context)
+    q, v, held = [], [], []
+    for k in range(1, 121):
+        simulator.AdvanceTo(k * period)
+        state = system.GetOutputPort("arm_reference_state").Eval(context)
+        q.append(state[3])
+        v.append(state[7 + 3])
+        held.append(system.GetOutputPort("joints_at_limits").Eval(context)[3])
+    q, v, held = np.array(q), np.array(v), np.array(held)
+    assert v[0] < -1.5  # it starts fast (braking distance v^2 / (2 a) > 0.11 rad) ...
+    assert np.all(q >= lower)  # ... never passes the limit ...
+    assert q[-1] == lower and v[-1] == 0.0  # ... and ends on it, at rest
+    assert held[-1] == -1.0
+    d = q - lower
+    assert np.all(np.abs(v[1:]) <= np.sqrt(2.0 * a_max * d[:-1]) + 1e-12)
+    braking = (held[:-1] == -1.0) & (held[1:] == -1.0) & (v[1:] < 0.0)
+    assert np.sum(braking) >= 20
+    decel = (np.abs(v[:-1]) - np.abs(v[1:]))[braking] / period
+    assert np.all(decel >= a_max * (1 - 1e-9)) and np.all(decel <= 2 * a_max * (1 + 1e-9))
+
+
+def test_tracking_lost_at_a_joint_limit_is_reported_as_such():
+    # The elbow (j4) may move only 0.01 rad. With the hand's orientation kept, the
+    # shoulder-to-wrist distance depends on the elbow alone (spherical shoulder, the
+    # wrist centre 0.15 m behind the tcp along its axis), so a tcp 5 cm nearer the
+    # shoulder along that line needs the elbow bent further than its lower limit.
+    elbow = (Q0[3] - 0.01, Q0[3] + 0.01)
+    plant = _make_plant({3: elbow})
+    system = _system(plant, error_hold_time=0.1)
+    context = system.CreateDefaultContext()
+    X = _pose(plant, Q0)
+    shoulder = np.array([0.0, 0.0, 0.1])
+    wrist = X.translation() - 0.15 * X.rotation().col(2)
+    toward = (shoulder - wrist) / np.linalg.norm(shoulder - wrist)
+    _fix(system, context, X.translation() + 0.05 * toward, X.rotation().ToQuaternion().wxyz())
+    simulator = Simulator(system, context)
+    simulator.AdvanceTo(0.05)
+    assert system.GetOutputPort("status").Eval(context)[0] == STATUS_OK
+    q = system.GetOutputPort("arm_reference_state").Eval(context)[:7]
+    assert q[3] == elbow[0]  # bent to its lower limit and held there
+    assert np.array_equal(
+        system.GetOutputPort("joints_at_limits").Eval(context), [0, 0, 0, -1.0, 0, 0, 0]
+    )
+    simulator.AdvanceTo(0.2)
+    assert system.GetOutputPort("status").Eval(context)[0] == STATUS_JOINT_LIMITS
+    assert system.GetOutputPort("task_error").Eval(context)[0] > 0.03
 
 
 @pytest.mark.parametrize("angle, lost", [(0.5, True), (0.2, False)])
@@ -615,164 +753,3 @@ def test_bad_construction_and_input():
     simulator = Simulator(system, context)
     with pytest.raises(RepertoireError, match="unit quaternion"):
         simulator.AdvanceTo(0.01)
-
-
-def test_grip_wrench_closed_form():
-    X_WH = RigidTransform(RollPitchYaw(0.0, 0.0, 0.5), [0.1, 0.2, 0.3])
-    X_HO = RigidTransform([0.0, 0.0, 0.1])
-    zero = SpatialVelocity(np.zeros(3), np.zeros(3))
-    # Object exactly at the held pose and at rest: no wrench.
-    torque, force = grip_wrench(
-        X_WH, X_WH @ X_HO, X_HO, zero, zero, np.zeros(3), 1000.0, 10.0, 5.0, 0.1
-    )
-    assert np.allclose(torque, 0.0) and np.allclose(force, 0.0)
-    # Displaced by 2 mm along -z and turned by 0.1 rad about x: F = k d, tau = k_r * 0.1 x.
-    X_WO = RigidTransform(RotationMatrix.MakeXRotation(-0.1), [0, 0, -0.002]) @ (X_WH @ X_HO)
-    X_WO = RigidTransform(X_WO.rotation(), (X_WH @ X_HO).translation() - [0, 0, 0.002])
-    torque, force = grip_wrench(X_WH, X_WO, X_HO, zero, zero, np.zeros(3), 1000.0, 10.0, 5.0, 0.1)
-    assert np.allclose(force, [0, 0, 2.0])
-    assert np.allclose(torque, [0.5, 0, 0])
-    # The hand translating at 1 m/s drags the object with c * 1 m/s.
-    moving = SpatialVelocity(np.zeros(3), np.array([1.0, 0, 0]))
-    torque, force = grip_wrench(
-        X_WH, X_WH @ X_HO, X_HO, moving, zero, np.zeros(3), 1000.0, 10.0, 5.0, 0.1
-    )
-    assert np.allclose(force, [10.0, 0, 0]) and np.allclose(torque, 0.0)
-
-
-def test_grasp_wrench_latches_and_releases():
-    grip = GraspWrench(
-        BodyIndex(1),
-        [BodyIndex(2), BodyIndex(3)],
-        num_fingers=3,
-        closure_weights=np.array([1.0, 0.0, 0.0]),
-        close_threshold=0.8,
-        open_threshold=0.2,
-        palm_point_H=np.array([0.0, 0.0, 0.1]),
-        capture_radius=0.03,
-        period=0.01,
-    )
-    context = grip.CreateDefaultContext()
-    X_WH = RigidTransform([0.5, 0.0, 0.4])
-    poses = [RigidTransform(), X_WH, RigidTransform([0.5, 0.01, 0.5]), RigidTransform([0, 0, 1])]
-    zero = SpatialVelocity(np.zeros(3), np.zeros(3))
-    grip.GetInputPort("body_poses").FixValue(context, poses)
-    grip.GetInputPort("body_spatial_velocities").FixValue(context, [zero] * 4)
-    fingers = grip.GetInputPort("finger_command").FixValue(context, np.array([0.5, 0, 0]))
-    simulator = Simulator(grip, context)
-    simulator.AdvanceTo(0.02)
-    assert grip.GetOutputPort("held_object").Eval(context)[0] == -1  # not closed yet
-    assert grip.GetOutputPort("spatial_forces").Eval(context) == []
-    fingers.GetMutableData().set_value(np.array([0.9, 0, 0]))
-    simulator.AdvanceTo(0.04)
-    assert grip.GetOutputPort("held_object").Eval(context)[0] == 0  # body 2: 1 cm from palm point
-    forces = grip.GetOutputPort("spatial_forces").Eval(context)
-    assert [int(f.body_index) for f in forces] == [2, 1]
-    assert np.allclose(forces[0].F_Bq_W.get_coeffs(), 0.0)  # held where it was caught
-    fingers.GetMutableData().set_value(np.array([0.1, 0, 0]))
-    simulator.AdvanceTo(0.06)
-    assert grip.GetOutputPort("held_object").Eval(context)[0] == -1
-    with pytest.raises(RepertoireError, match="open_threshold"):
-        GraspWrench(
-            BodyIndex(1),
-            [BodyIndex(2)],
-            num_fingers=1,
-            closure_weights=np.ones(1),
-            close_threshold=0.2,
-            open_threshold=0.5,
-            palm_point_H=np.zeros(3),
-            capture_radius=0.03,
-            period=0.01,
-        )
-
-
-# ----------------------------------------------------------------------------- obstacle coupling
-def _eq10_closed_form(gamma: float, beta: float, phi: float, speed: float) -> float:
-    return gamma * speed * phi * np.exp(-beta * phi)
-
-
-def test_coupling_at_a_control_point_turns_it_away_from_the_ball():
-    # The control point sits 0.1 m along y_E of a hand turned 90 deg about z (R_WE maps y_E
-    # to -x_W), so 0.1 m behind the tcp along x. Moving along +y_W at 0.5 m/s with the ball
-    # 1 m ahead and 0.05 m to the +x side: phi = atan(0.05 / 1), p points along -x (away).
-    R_WE = RotationMatrix.MakeZRotation(np.pi / 2).matrix()
-    x = np.array([0.3, 0.0, 0.9])
-    c = x + R_WE @ [0.0, 0.1, 0.0]
-    assert c == pytest.approx([0.2, 0.0, 0.9])
-    v = np.array([0.0, 0.5, 0.0])
-    ball = c + [0.05, 1.0, 0.0]
-    p = multi_point_obstacle_coupling(x, v, R_WE, [[0.0, 0.1, 0.0]], ball, 1000.0, 20 / np.pi)
-    phi = np.arctan2(0.05, 1.0)
-    expected = _eq10_closed_form(1000.0, 20 / np.pi, phi, 0.5)
-    np.testing.assert_allclose(p, [-expected, 0.0, 0.0], rtol=1e-12, atol=1e-15)
-    # The ball on the other side: pushed the other way.
-    mirrored = c + [-0.05, 1.0, 0.0]
-    p2 = multi_point_obstacle_coupling(x, v, R_WE, [[0.0, 0.1, 0.0]], mirrored, 1000.0, 20 / np.pi)
-    np.testing.assert_allclose(p2, [expected, 0.0, 0.0], rtol=1e-12, atol=1e-15)
-
-
-def test_single_tcp_point_without_fade_is_eq10():
-    rng = np.random.default_rng(4)
-    for _ in range(5):
-        x, v, o = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
-        R = RotationMatrix(RollPitchYaw(rng.normal(size=3))).matrix()
-        p = multi_point_obstacle_coupling(x, v, R, [[0.0, 0.0, 0.0]], o, 700.0, 3.0)
-        np.testing.assert_array_equal(p, obstacle_coupling(x, v, o, 700.0, 3.0))
-
-
-def test_multi_point_sum_with_distance_fade():
-    x = np.array([0.5, 0.0, 1.0])
-    v = np.array([0.0, 0.3, 0.0])
-    o = np.array([0.52, 0.2, 0.95])
-    points = np.array([[0.0, 0.0, 0.0], [-0.045, 0.0, 0.0], [0.0, 0.06, 0.0]])
-    R = RotationMatrix(RollPitchYaw(0.1, -0.2, 0.3)).matrix()
-    total = multi_point_obstacle_coupling(
-        x, v, R, points, o, 5000.0, 4.0, obstacle_radius=0.06, length_scale=0.03
-    )
-    expected = np.zeros(3)
-    for r in points:
-        c = x + R @ r
-        fade = np.exp(-max(np.linalg.norm(c - o) - 0.06, 0.0) / 0.03)
-        expected += fade * obstacle_coupling(c, v, o, 5000.0, 4.0)
-    np.testing.assert_allclose(total, expected, rtol=1e-12)
-    # Inside the ball's radius the fade is 1: the plain term.
-    near = o + [0.0, -0.05, 0.0]
-    p = multi_point_obstacle_coupling(
-        near, v, np.eye(3), [[0, 0, 0]], o, 5000.0, 4.0, obstacle_radius=0.06, length_scale=0.03
-    )
-    np.testing.assert_allclose(p, obstacle_coupling(near, v, o, 5000.0, 4.0), rtol=1e-12)
-
-
-def test_multi_point_coupling_system_wraps_the_function():
-    points = [[0.0, 0.0, 0.0], [0.0, 0.0, -0.085]]
-    system = MultiPointObstacleCoupling(
-        points, gamma=2000.0, beta=4.0, obstacle_radius=0.06, length_scale=0.03
-    )
-    context = system.CreateDefaultContext()
-    q = RollPitchYaw(0.0, np.pi / 2, 0.0).ToQuaternion()
-    x, v, o = np.array([0.5, 0.0, 0.9]), np.array([0.0, 0.4, 0.05]), np.array([0.45, 0.1, 0.9])
-    system.GetInputPort("position").FixValue(context, x)
-    system.GetInputPort("velocity").FixValue(context, v)
-    system.GetInputPort("orientation").FixValue(context, 2.0 * q.wxyz())  # normalised inside
-    system.GetInputPort("obstacle").FixValue(context, o)
-    out = system.GetOutputPort("coupling").Eval(context)
-    R = RotationMatrix(q).matrix()
-    expected = multi_point_obstacle_coupling(
-        x, v, R, points, o, 2000.0, 4.0, obstacle_radius=0.06, length_scale=0.03
-    )
-    np.testing.assert_allclose(out, expected, rtol=1e-12)
-    assert np.linalg.norm(out) > 0.0
-    system.GetInputPort("orientation").FixValue(context, np.zeros(4))
-    with pytest.raises(RepertoireError, match="non-zero quaternion"):
-        system.GetOutputPort("coupling").Eval(context)
-
-
-def test_multi_point_coupling_bad_input():
-    with pytest.raises(RepertoireError, match="must be >= 0"):
-        multi_point_obstacle_coupling(
-            np.zeros(3), np.ones(3), np.eye(3), [[0, 0, 0]], np.ones(3), -1.0, 1.0
-        )
-    with pytest.raises(RepertoireError, match="non-empty k x 3 array"):
-        MultiPointObstacleCoupling([[0.0, 0.0]])
-    with pytest.raises(RepertoireError, match="non-empty k x 3 array"):
-        MultiPointObstacleCoupling(np.zeros((0, 3)))

@@ -172,8 +172,9 @@ class SearchResult:
     """Outcome of :func:`search_transfer`.
 
     Attributes:
-        status: ``reached``, ``time_limit`` (best partial path) or ``unreachable``
-            (best partial path).
+        status: ``reached``, ``time_limit`` (best partial path; the search's CPU-time
+            limit, or a gap filler's own time limit cut a gap it needed) or ``unreachable``
+            (best partial path; no gap was cut by a time limit).
         path: the sequence of recorded and planned steps from the start.
         cost: total cost of ``path``.
         recorded_count: recorded steps on the path.
@@ -329,6 +330,7 @@ def search_transfer(
     reached = False
     timed_out = False
     refusal = ""  # the first gap filler's reason for an unusable gap
+    gap_cut = False  # a gap filler stopped by its own time limit: unreachability not shown
 
     def push_edges(u: int, skip_goal: bool = False) -> None:
         nonlocal counter
@@ -360,7 +362,7 @@ def search_transfer(
 
     def fill_gap(u: int, v: int) -> tuple | None:
         """Plans the gap of edge u -> v: its queue entry at the real cost, or None (unusable)."""
-        nonlocal counter, planner_calls, refusal
+        nonlocal counter, planner_calls, refusal, gap_cut
         b = goal if v == goal_node else s_in[v - 1]
         remaining = config.time_limit - (clock() - t0)
         planner_calls += 1
@@ -375,6 +377,7 @@ def search_transfer(
                 f"{GAP_STATUSES}, got {answer!r}"
             )
         if answer.status != "reached":
+            gap_cut = gap_cut or answer.status == "time_limit"
             if answer.message and not refusal:
                 refusal = f"{answer.status}: {answer.message}"
             return None
@@ -458,7 +461,11 @@ def search_transfer(
         status = "reached"
     else:
         end = min((n for n in closed if n != goal_node), key=h)
-        status = "time_limit" if timed_out else "unreachable"
+        # A gap its planner's time limit cut leaves the goal's reachability open: the
+        # search ran out of time there too (a steps board's one gap, the planner alone,
+        # ended TIME_LIMIT after 10 s of wall time at 5.7 s of the search's CPU, and the
+        # search said "unreachable").
+        status = "time_limit" if timed_out or gap_cut else "unreachable"
     path: list[PathItem] = []
     node = end
     while node != 0:
@@ -483,6 +490,8 @@ def search_transfer(
         message += f"; best partial path ends {left:.3f} m from the goal"
         if timed_out:
             message += f" (CPU-time limit {config.time_limit} s reached)"
+        elif gap_cut:
+            message += " (a gap filler's time limit reached)"
         if refusal:
             message += f"; gap filler: {refusal}"
     alone = fallback[6] if fallback is not None else math.nan

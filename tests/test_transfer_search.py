@@ -667,3 +667,24 @@ def test_placing_moves_keep_the_planners_height_rules():
     assert filler.within_step_rules(move(0.04, 0.08))  # beside it
     assert not filler.within_step_rules(move(0.05, 0.12, 0.051))  # a 5.1 cm rise
     assert filler.within_step_rules(move(0.12, 0.15, 0.051, 0.051))  # on the plateau
+
+
+def test_a_gap_cut_by_its_planners_time_limit_is_not_called_unreachable():
+    # The planner alone on a steps board (3.5 cm rises) ended TIME_LIMIT after 10 s of wall
+    # time at 5.7 s of the search's 10 s CPU, and the search said "unreachable": nothing had
+    # shown the goal unreachable. Failed gaps (no way) still give "unreachable".
+    start, goal = stance(0.0), stance(0.3)
+    none = np.zeros((0, 4, 3))
+    result = search_transfer(start, goal, none, none, StraightCrawl(status="time_limit"))
+    assert result.status == "time_limit" and result.path == []
+    assert result.message == (
+        "no transferred steps (every step discarded): planner alone; time_limit: 0 recorded "
+        "and 0 planned steps; best partial path ends 0.300 m from the goal (a gap filler's "
+        "time limit reached)"
+    )
+    a_in, a_out = crawl(start, 8)
+    result = search_transfer(start, goal, a_in, a_out, StraightCrawl(status="time_limit"))
+    assert result.status == "time_limit"
+    assert [p.step for p in result.path] == list(range(8))
+    result = search_transfer(start, goal, none, none, StraightCrawl(status="failed"))
+    assert result.status == "unreachable"

@@ -220,7 +220,14 @@ def gap_steps(a, b, reach: float, tolerance: float) -> int:
         b: the target stance (4, 3).
         reach: farthest one foot moves in one step (m, > 0).
         tolerance: summed foot offset left over (m, >= 0).
+
+    Raises:
+        TransferSearchError: a reach that is not positive, a negative tolerance.
     """
+    if not (math.isfinite(reach) and reach > 0.0):
+        raise TransferSearchError(f"gap_steps: reach must be a positive length, got {reach}")
+    if not (math.isfinite(tolerance) and tolerance >= 0.0):
+        raise TransferSearchError(f"gap_steps: tolerance must be >= 0, got {tolerance}")
     d = np.sort(np.linalg.norm(np.asarray(a, float) - np.asarray(b, float), axis=-1))
     moved = len(d)
     while moved and d[: len(d) - moved + 1].sum() <= tolerance:

@@ -603,6 +603,10 @@ def test_gap_steps_leave_out_the_feet_the_join_tolerance_takes_up():
     assert gap_steps(a, b, 0.13, 0.08) == 3  # 8 cm left over: only the 30 cm foot
     assert gap_steps(a, b, 0.13, 0.38) == 0
     assert gap_steps(a, a, 0.13, 0.0) == 0
+    with pytest.raises(TransferSearchError, match="reach must be a positive length, got 0.0"):
+        gap_steps(a, b, 0.0, 0.04)
+    with pytest.raises(TransferSearchError, match="tolerance must be >= 0, got nan"):
+        gap_steps(a, b, 0.13, math.nan)
 
 
 def test_a_gap_estimate_counting_joined_feet_does_not_hide_the_cheaper_path():

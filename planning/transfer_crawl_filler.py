@@ -95,7 +95,9 @@ class CrawlGapFiller:
             landing on an edge slides off (seen in physics).
         place_feet: with ``board``, end a reached gap with one-foot moves onto the target
             stance when its footholds are flat (a recorded step's start; not a goal, see
-            ``place`` of ``__call__``), checked executable like the rest.
+            ``place`` of ``__call__``), checked executable like the rest; the planner's
+            steps are cut where fewer steps in all reach the stance
+            (:meth:`shortest_placed`).
         place_within: summed foot offset (m) from the target stance left to the executor
             (:func:`~repertoire.planning.transfer_library.placing_steps`: the fewest feet
             are placed); 0 places every foot farther than 5 mm. Set it to the search's
@@ -158,13 +160,36 @@ class CrawlGapFiller:
             )
         return steps, plan.status, why
 
+    def within_step_rules(self, step: PlannedStep) -> bool:
+        """Whether ``step`` keeps the planner's height rules on its height map.
+
+        The foot's height change at most ``max_step_height``, and no cell along the straight
+        swing line higher than ``swing_clearance`` above the higher foothold: the checks
+        the planner makes of its own steps (so they hold for them by construction), made of
+        the placing moves too.
+        """
+        m, p = self.height_map, self.params
+        f = int(step.foot)
+        a = np.asarray(step.start_feet, dtype=float)[f] - np.array([0.0, 0.0, FOOT_RADIUS])
+        b = np.asarray(step.end_feet, dtype=float)[f] - np.array([0.0, 0.0, FOOT_RADIUS])
+        if abs(b[2] - a[2]) > p.max_step_height + 1e-12:
+            return False
+        (r0, r1), (c0, c1) = m.cell([a[0], b[0]], [a[1], b[1]])
+        n = max(abs(int(r1) - int(r0)), abs(int(c1) - int(c0))) + 1
+        rows = np.rint(np.linspace(r0, r1, n + 1)).astype(int)
+        cols = np.rint(np.linspace(c0, c1, n + 1)).astype(int)
+        ok = m.inside(rows, cols)
+        line = m.heights[rows[ok], cols[ok]]
+        return bool(ok.all() and line.max() <= max(a[2], b[2]) + p.swing_clearance + 1e-12)
+
     def usable_prefix(self, steps: list[PlannedStep]) -> int:
         """How many of ``steps`` the executing crawl can do (stable, flat footholds, leg IK).
 
         The planner's steps meet its rules by construction; moves added after it (placing
         the feet on a recorded step's start) are held to the same ones: static stability
         (:func:`~repertoire.planning.footstep.quadruped.swing_support_margin`, a
-        placing move off the support triangle tipped the robot over in physics), flat
+        placing move off the support triangle tipped the robot over in physics), its
+        height rules (:meth:`within_step_rules`), flat
         footholds clear of faces
         (:func:`~repertoire.planning.footstep.quadruped.clear_of_faces`) and the crawl's
         leg IK.
@@ -172,6 +197,7 @@ class CrawlGapFiller:
         board = self.height_map if self.board is None else self.board
         stable = [
             swing_support_margin(p.start_feet, p.foot, self.params) >= self.params.support_margin
+            and self.within_step_rules(p)
             for p in steps
         ]
         n = stable.index(False) if not all(stable) else len(steps)
@@ -181,6 +207,35 @@ class CrawlGapFiller:
             flat &= clear_of_faces(self.board, landing, self.params)
             n = min(n, int(np.argmin(flat))) if not flat.all() else n
         return executable_prefix(steps[:n], self.crawl, board) if n else 0
+
+    def shortest_placed(
+        self, start: np.ndarray, steps: list[PlannedStep], target: np.ndarray
+    ) -> list[PlannedStep] | None:
+        """The fewest steps onto ``target``: a prefix of ``steps`` and placing moves, or None.
+
+        The planner aims at the target's centroid and knows nothing of its footholds, so
+        its last steps may move feet to places the placing moves then move them away from
+        (execution study start 1007: 6 planned steps to the centroid, the feet still 20.8
+        cm in sum from the recorded step's start, 3 placing moves after them, 9 steps for
+        10 cm of body travel). Each prefix ``steps[:k]`` (k = 0 .. len) followed by
+        :func:`~repertoire.planning.transfer_library.placing_steps` onto ``target`` is a
+        candidate; the shortest one the crawl can execute (:meth:`usable_prefix`: the
+        placing moves held to the planner's rules) is returned, the longer prefix on a tie
+        (the whole plan and its placing moves unless fewer steps do). Every step costs the
+        robot one crawl cycle whatever its length, so fewer steps is what the search's
+        cost of a gap should count. None when no candidate is executable.
+        """
+        from repertoire.planning.transfer_library import placing_steps
+
+        candidates = []
+        for k in range(len(steps) + 1):
+            end, before = (steps[k - 1].end_feet, steps[k - 1].start_feet) if k else (start, None)
+            moves = placing_steps(end, target, within=self.place_within, before=before)
+            candidates.append((k + len(moves), -k, steps[:k] + moves))
+        for _, _, candidate in sorted(candidates, key=lambda c: c[:2]):
+            if self.usable_prefix(candidate) == len(candidate):
+                return candidate
+        return None
 
     def __call__(
         self,
@@ -226,6 +281,10 @@ class CrawlGapFiller:
         new, status, refusal = self._plan(
             start, goal_xy, time_limit, heading_of(target), front_line
         )
+        if status is PlanStatus.SUCCESS and place:
+            shortest = self.shortest_placed(start, new, target)
+            if shortest is not None:
+                return GapFill(shortest, "reached", refusal)
         planned = len(new)
         if status is PlanStatus.SUCCESS and place:
             from repertoire.planning.transfer_library import placing_steps

@@ -192,3 +192,28 @@ def test_a_command_without_ctrl_c_keeps_its_code_and_its_errors():
 
 def _raise_import_error() -> int:
     raise ImportError("plain")
+
+
+def test_ctrl_c_during_pydrakes_package_initialisation_waits_until_it_has_finished(
+    tmp_path, capsys
+):
+    init = tmp_path / "pydrake" / "__init__.py"  # run as pydrake's top level would be
+    code = compile(
+        "import os, signal, time\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(0.3)  # not cut short: a held-back Ctrl-C\n"
+        "steps.append('initialised')\n",
+        str(init),
+        "exec",
+    )
+    steps = []
+
+    def command() -> int:
+        exec(code, {"steps": steps})
+        time.sleep(5.0)  # the held-back Ctrl-C interrupts this
+        steps.append("not reached")
+        return 0
+
+    assert interruptible(command) == 130
+    assert steps == ["initialised"]
+    assert capsys.readouterr().err == "interrupted\n"

@@ -7,6 +7,7 @@ blocked SIGINT (:func:`sigint_blocked`). This module imports nothing heavy: the
 command line's entry point uses it before anything else is imported.
 """
 
+import _thread
 import contextlib
 import logging
 import os
@@ -17,10 +18,38 @@ from collections.abc import Callable, Iterator
 from typing import Any, NoReturn
 
 _INTERRUPTED = threading.Event()  # Ctrl-C came while interruptible() ran a command
+_ACTIVE = threading.Event()  # interruptible() has its handler installed
+_ACTIVE_LOCK = threading.Lock()
+# Ctrl-C is held back while this module runs its top level: pydrake's core (C++) module
+# sets up pydrake's log sink there, and an interrupt in that set-up makes it print a
+# critical error with a Python stack straight to the terminal, where no filter reaches
+_UNINTERRUPTIBLE = os.path.join("pydrake", "__init__.py")
+DEFERRED_RETRY_S = 0.05  # how often a held-back Ctrl-C tries again
+
+
+def _in_uninterruptible_import(frame: Any) -> bool:
+    """Whether ``frame`` runs inside pydrake's package initialisation (its top level)."""
+    while frame is not None:
+        code = frame.f_code
+        if code.co_name == "<module>" and code.co_filename.endswith(_UNINTERRUPTIBLE):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _interrupt_again() -> None:
+    with _ACTIVE_LOCK:
+        if _ACTIVE.is_set():
+            _thread.interrupt_main(signal.SIGINT)
 
 
 def _on_sigint(signum: int, frame: Any) -> None:
     _INTERRUPTED.set()
+    if _in_uninterruptible_import(frame):  # taken once that import has finished
+        retry = threading.Timer(DEFERRED_RETRY_S, _interrupt_again)
+        retry.daemon = True
+        retry.start()
+        return
     raise KeyboardInterrupt
 
 
@@ -45,7 +74,9 @@ def interruptible(command: Callable[[], int]) -> int:
     In the main thread SIGINT is recorded (see :func:`check_interrupted`) as
     well as raised for as long as the command runs, so an interrupt that some
     library turned into another exception still ends the command as an
-    interrupt, and one it swallowed stops the run at the next seed.
+    interrupt, and one it swallowed stops the run at the next seed. One that
+    comes while pydrake's package initialises is raised as soon as that has
+    finished (an interrupt inside it prints pydrake's critical error and stack).
 
     Args:
         command: the command; returns its exit code.
@@ -62,6 +93,7 @@ def interruptible(command: Callable[[], int]) -> int:
     _INTERRUPTED.clear()
     if install:
         signal.signal(signal.SIGINT, _on_sigint)
+        _ACTIVE.set()
     # pydrake logs "Could not initialize pydrake: KeyboardInterrupt" with a stack when
     # Ctrl-C lands in its initialisation: after a Ctrl-C, "interrupted" says it all
     drake_log = logging.getLogger("drake")
@@ -77,6 +109,8 @@ def interruptible(command: Callable[[], int]) -> int:
         return code  # a command that handles Ctrl-C itself (the live view) says how it ended
     finally:
         if install:
+            with _ACTIVE_LOCK:  # no held-back Ctrl-C comes back after this
+                _ACTIVE.clear()
             signal.signal(signal.SIGINT, previous)
         drake_log.removeFilter(_not_after_ctrl_c)
         _INTERRUPTED.clear()

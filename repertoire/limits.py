@@ -151,8 +151,14 @@ def require_writable_dir(path, what: str) -> None:
             return
 
 
-def require_writable_file(path, what: str) -> None:
+def require_writable_file(path, what: str, *, folder_too: bool = False) -> None:
     """Checks, before any work, that ``path`` can be written as a file.
+
+    Args:
+        path: the file (may not exist yet).
+        what: the option that named it, for example ``"--store"``.
+        folder_too: an existing file's folder must be writable as well (an
+            SQLite file in WAL mode: its ``-wal`` and ``-shm`` files go there).
 
     Raises:
         RepertoireError: ``path`` is a folder, an existing file that cannot be
@@ -171,5 +177,7 @@ def require_writable_file(path, what: str) -> None:
             raise RepertoireError(
                 f"{what} '{p}' is not writable ({e.strerror or type(e).__name__})"
             ) from None
+        if folder_too:
+            _probe_folder(p.parent, p, what)
         return
     require_writable_dir(p.parent, what)

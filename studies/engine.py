@@ -318,7 +318,7 @@ def run_study(
     out_path = Path(out_dir) if out_dir is not None else Path("out") / "studies" / name
     store_path = Path(store) if store is not None else out_path / "episodes.sqlite"
     require_writable_dir(out_path, "--out-dir (out_dir)")
-    require_writable_file(store_path, "--store (store)")
+    require_writable_file(store_path, "--store (store)", folder_too=True)  # -wal, -shm
     if summarize:
         for table in ("summary.csv", "summary.md", "episodes.csv"):
             require_writable_file(out_path / table, "--out-dir (out_dir)")

@@ -21,10 +21,12 @@ import contextlib
 import dataclasses
 import hashlib
 import json
+import os
 import sqlite3
 import time
 import types
 import typing
+import urllib.parse
 from pathlib import Path
 from typing import Any
 
@@ -432,6 +434,51 @@ class EpisodeStore:
         self.close()
 
 
+def _read_only_uri(path: Path, immutable: bool = False) -> str:
+    """An SQLite URI that opens ``path`` read-only.
+
+    The path is percent-encoded: in a bare ``file:`` URI a ``#`` or ``?`` in a folder
+    name would end the path, and SQLite would open (and create) another file.
+    """
+    uri = "file:" + urllib.parse.quote(str(path.resolve()), safe="/") + "?mode=ro"
+    return uri + "&immutable=1" if immutable else uri
+
+
+def _connect_read_only(path: Path) -> sqlite3.Connection:
+    """A read-only connection to the store at ``path``, also in a folder it cannot write.
+
+    A store is in WAL mode, and reading one needs its ``-shm`` file next to it: in a
+    folder that cannot be written (an archive, another user's results) without one,
+    SQLite cannot open it. With no write-ahead log there (or an empty one) the file
+    holds every committed row and nobody can be writing it, so it is read as immutable.
+
+    Raises:
+        sqlite3.DatabaseError: as SQLite raised it.
+        RepertoireError: the folder is read-only and a write-ahead log holds rows
+            not yet in the file.
+    """
+    try:
+        conn = sqlite3.connect(_read_only_uri(path), uri=True, timeout=30.0)
+        try:
+            conn.execute("SELECT COUNT(*) FROM sqlite_master").fetchone()
+        except BaseException:
+            conn.close()
+            raise
+        return conn
+    except sqlite3.OperationalError:
+        wal = Path(f"{path}-wal")
+        shm = Path(f"{path}-shm")
+        if shm.exists() or os.access(path.parent, os.W_OK):  # not the read-only folder
+            raise
+        if wal.exists() and wal.stat().st_size > 0:
+            raise RepertoireError(
+                f"study store '{path}' cannot be read in place: its folder is read-only and "
+                f"its write-ahead log '{wal.name}' holds rows not yet in the file; copy the "
+                "store with its -wal file to a writable folder and read the copy"
+            ) from None
+    return sqlite3.connect(_read_only_uri(path, immutable=True), uri=True, timeout=30.0)
+
+
 def read_store(path: str | Path) -> tuple[dict[str, str], list[StoredEpisode]]:
     """Reads a store without checking its config: (meta table, every row sorted by seed).
 
@@ -442,7 +489,7 @@ def read_store(path: str | Path) -> tuple[dict[str, str], list[StoredEpisode]]:
     if not path.is_file():
         raise RepertoireError(f"study store '{path}' does not exist")
     try:
-        with sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=30.0) as conn:
+        with contextlib.closing(_connect_read_only(path)) as conn:
             meta = dict(conn.execute("SELECT key, value FROM meta"))
             columns = {r[1] for r in conn.execute("PRAGMA table_info(episodes)")}
             cpu = "cpu_s" if "cpu_s" in columns else "NULL"  # older stores: not measured

@@ -2,7 +2,8 @@
 
 Each case runs ``python -m repertoire study pendulum`` with a ``sitecustomize``
 that pauses one kind of process (the engine, the fork server) inside
-the import of one module until the test has sent SIGINT to the whole process
+the import of one module (or, for ``logging.getLogger``, in the call pydrake's core
+module makes while it initialises) until the test has sent SIGINT to the whole process
 group, so the interrupt lands in that phase every time, whatever the machine's
 load. (A fixed delay lands in a different phase on a loaded machine.)
 """
@@ -36,6 +37,14 @@ _PAUSE_HOOK = textwrap.dedent(
         return "forkserver" if sys.argv and sys.argv[0] == "-c" else "engine"
 
 
+    def _pause():
+        open(os.path.join(_DIR, f"paused-{os.getpid()}"), "w").close()
+        go = os.path.join(_DIR, "go")
+        deadline = time.monotonic() + 60.0
+        while not os.path.exists(go) and time.monotonic() < deadline:
+            time.sleep(0.02)
+
+
     class _Pause:
         busy = False
 
@@ -44,19 +53,29 @@ _PAUSE_HOOK = textwrap.dedent(
                 return None
             _Pause.busy = True
             try:
-                if _role() != _WHERE:
-                    return None
-                open(os.path.join(_DIR, f"paused-{os.getpid()}"), "w").close()
-                go = os.path.join(_DIR, "go")
-                deadline = time.monotonic() + 60.0
-                while not os.path.exists(go) and time.monotonic() < deadline:
-                    time.sleep(0.02)
+                if _role() == _WHERE:
+                    _pause()
                 return None
             finally:
                 _Pause.busy = False
 
 
-    if _WHERE and _MODULE and _DIR:
+    def _pausing_get_logger(get_logger):
+        def wrapper(name=None):  # pauses once: in the call an extension module's init makes
+            if sys._getframe(1).f_code.co_name == "_call_with_frames_removed":
+                logging.getLogger = get_logger
+                if _role() == _WHERE:
+                    _pause()
+            return get_logger(name)
+
+        return wrapper
+
+
+    if _WHERE and _MODULE == "logging.getLogger" and _DIR:
+        import logging
+
+        logging.getLogger = _pausing_get_logger(logging.getLogger)
+    elif _WHERE and _MODULE and _DIR:
         sys.meta_path.insert(0, _Pause())
     """
 )
@@ -67,6 +86,7 @@ _PAUSE_HOOK = textwrap.dedent(
     [
         ("engine", "repertoire.cli"),  # the command line's own start-up imports
         ("engine", "repertoire.studies.pendulum"),  # study discovery: pydrake in the engine
+        ("engine", "logging.getLogger"),  # pydrake's core (C++) initialisation, its log sink
         ("forkserver", "pydrake.multibody.plant"),  # the fork server's preload imports
     ],
 )
@@ -172,3 +192,28 @@ def test_a_command_without_ctrl_c_keeps_its_code_and_its_errors():
 
 def _raise_import_error() -> int:
     raise ImportError("plain")
+
+
+def test_ctrl_c_during_pydrakes_package_initialisation_waits_until_it_has_finished(
+    tmp_path, capsys
+):
+    init = tmp_path / "pydrake" / "__init__.py"  # run as pydrake's top level would be
+    code = compile(
+        "import os, signal, time\n"
+        "os.kill(os.getpid(), signal.SIGINT)\n"
+        "time.sleep(0.3)  # not cut short: a held-back Ctrl-C\n"
+        "steps.append('initialised')\n",
+        str(init),
+        "exec",
+    )
+    steps = []
+
+    def command() -> int:
+        exec(code, {"steps": steps})
+        time.sleep(5.0)  # the held-back Ctrl-C interrupts this
+        steps.append("not reached")
+        return 0
+
+    assert interruptible(command) == 130
+    assert steps == ["initialised"]
+    assert capsys.readouterr().err == "interrupted\n"

@@ -26,6 +26,15 @@ OPEN = [FINGER_OPEN] * 2
 CUP = [2.0, 1.1, 0.8001]  # a cup on table_0, 0.55 m ahead of the axle
 
 
+def _random_ways(seed, n):
+    """n random arm ways before table_0: base poses (x, y, yaw, 0) and joint starts and ends."""
+    rng = np.random.default_rng(seed)
+    base = np.column_stack([rng.uniform(1.8, 2.2, n), rng.uniform(0.4, 0.6, n),
+                            rng.uniform(1.3, 1.8, n), np.zeros(n)])  # fmt: skip
+    lo, hi = [0.45, -1.2, 0.3], [0.65, 1.2, 0.8]
+    return base, rng.uniform(lo, hi, (n, 3)), rng.uniform(lo, hi, (n, 3))
+
+
 def _chassis(world):
     """World point -> chassis frame of BASE (facing +y: chassis x is world y)."""
     x, y, z = world
@@ -76,12 +85,8 @@ def test_arm_way_hits_with_discs_agree_with_a_sample_by_sample_check():
     # random ways before table_0 among three standing cups, batched, against every
     # sample checked on its own (boxes first, then discs; a way starting in a box counts
     # only what it enters after leaving it, one starting in a disc enters it)
-    rng = np.random.default_rng(12)
     n = 10
-    base = np.column_stack([rng.uniform(1.8, 2.2, n), rng.uniform(0.4, 0.6, n),
-                            rng.uniform(1.3, 1.8, n), np.zeros(n)])  # fmt: skip
-    lo, hi = [0.45, -1.2, 0.3], [0.65, 1.2, 0.8]
-    q0, q1 = rng.uniform(lo, hi, (n, 3)), rng.uniform(lo, hi, (n, 3))
+    base, q0, q1 = _random_ways(12, n)
     discs = np.array([_disc([2.0, 1.1, 0.8001]), _disc([2.3, 1.2, 0.8001]),
                       _disc([1.7, 1.0, 0.8001])])  # fmt: skip
     span = [[0.05, 0.05]] * 2
@@ -199,12 +204,8 @@ def test_a_ways_samples_do_not_depend_on_the_other_rows():
     # rows are sampled as alone and padded with their end: the hits of a batch are the
     # hits of its rows one by one (a batch used to sample every row as finely as its
     # longest, so a row's verdict near an obstacle depended on its neighbours)
-    rng = np.random.default_rng(4)
     n = 40
-    base = np.column_stack([rng.uniform(1.8, 2.2, n), rng.uniform(0.4, 0.6, n),
-                            rng.uniform(1.3, 1.8, n), np.zeros(n)])  # fmt: skip
-    lo, hi = [0.45, -1.2, 0.3], [0.65, 1.2, 0.8]
-    q0, q1 = rng.uniform(lo, hi, (n, 3)), rng.uniform(lo, hi, (n, 3))
+    base, q0, q1 = _random_ways(4, n)
     q1[::2] = q0[::2] + 0.01  # short ways beside long ones
     lines = joint_lines(q0, q1, 0.02, 0.0912)
     for r in (0, 1):

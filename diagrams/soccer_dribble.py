@@ -91,6 +91,7 @@ class DribbleScenario:
         gains: overrides of DribbleBall's gains (``DRIBBLE_GAINS`` keys).
         ball_decel: rolling resistance of the ball on grass as the deceleration of
             a freely rolling ball [m/s^2] (point contact has no rolling friction).
+        collect: DribbleBall's collect mode (fetch a ball not held first).
     """
 
     initial_pose: list[float] = dataclasses.field(default_factory=lambda: [-1.0, 0.0, 0.0])
@@ -103,6 +104,7 @@ class DribbleScenario:
     ground_friction: float = 1.0
     gains: dict[str, float] = dataclasses.field(default_factory=dict)
     ball_decel: float = 0.8
+    collect: bool = False
 
     def validate(self) -> None:
         """Raises ScenarioError naming the first bad field."""
@@ -126,6 +128,8 @@ class DribbleScenario:
             raise ScenarioError(f"unknown gains {sorted(unknown)}; expected {list(DRIBBLE_GAINS)}")
         if not (np.isfinite(self.ball_decel) and self.ball_decel >= 0):
             raise ScenarioError(f"ball_decel must be finite and >= 0, got {self.ball_decel}")
+        if not isinstance(self.collect, bool):
+            raise ScenarioError(f"collect must be a bool, got {self.collect!r}")
         validate_discrete_control_fields(self)
 
     def ball_xy(self) -> np.ndarray:
@@ -174,7 +178,8 @@ def build_soccer_dribble(
     set_dribble_defaults(plant, scenario)
     ball_reader = builder.AddNamedSystem("ball_reader", BodyXYReader(plant, "ball"))
     action = builder.AddNamedSystem(
-        "dribble_ball", DribbleBall(period=scenario.control_period, gains=scenario.gains)
+        "dribble_ball",
+        DribbleBall(period=scenario.control_period, gains=scenario.gains, collect=scenario.collect),
     )
     target = builder.AddNamedSystem(
         "target", ConstantVectorSource(np.asarray(scenario.target, dtype=float))
@@ -241,7 +246,7 @@ def dribble_simulator(scenario: DribbleScenario, *, reuse: bool = True):
     scenario.validate()
     s = scenario
     key = (s.time_step, s.control_period, s.contact_approximation, s.wheel_kd,
-           s.ground_friction, tuple(sorted(s.gains.items())), s.ball_decel)  # fmt: skip
+           s.ground_friction, tuple(sorted(s.gains.items())), s.ball_decel, s.collect)  # fmt: skip
     return DRIBBLE_SIMULATORS.get(
         key,
         scenario,

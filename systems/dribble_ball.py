@@ -112,6 +112,8 @@ DRIBBLE_GAINS = {
     "position_tolerance": 0.1,  # m
     "heading_tolerance": 0.5,  # rad
     "timeout": 15.0,  # s
+    "collect_distance": 0.5,  # collect mode: axle behind the ball / circling radius [m]
+    "collect_angle": 1.0,  # collect mode: target direction off the heading to dribble [rad]
 }
 
 
@@ -301,6 +303,101 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
     return APPROACH if rho > 2.0 * gains["min_turn_radius"] else PIVOT
 
 
+COLLECTING, DRIBBLING = 0, 1  # collect mode's phases (state slot 4)
+NO_REASON, BALL_LOST, BAD_INPUT = 0, 1, 2  # why the action failed (state slot 5, collect mode)
+FAILURE_REASONS = {NO_REASON: "", BALL_LOST: "ball lost", BAD_INPUT: "bad target or ball"}
+CLEAR_FRACTION = 0.9
+"""A straight drive to the collect point is clear while it passes the ball at this
+fraction of ``collect_distance`` or more (see :func:`collect_control`)."""
+
+
+def behind_point(ball, target, distance: float) -> list[float]:
+    """``[x, y, phi]``: ``distance`` behind the ball on the ball -> target line, facing the target.
+
+    ``phi = atan2(y_g - y_ball, x_g - x_ball)`` and the point is
+    ``ball - distance * (cos phi, sin phi)``.
+    """
+    phi = math.atan2(target[1] - ball[1], target[0] - ball[0])
+    return [ball[0] - distance * math.cos(phi), ball[1] - distance * math.sin(phi), phi]
+
+
+def segment_distance(p, a, b) -> float:
+    """The distance of point ``p`` from the segment ``a``-``b`` (all ``[x, y]``)."""
+    ax, ay = b[0] - a[0], b[1] - a[1]
+    n2 = ax * ax + ay * ay
+    t = 0.0 if n2 == 0.0 else clip(((p[0] - a[0]) * ax + (p[1] - a[1]) * ay) / n2, 0.0, 1.0)
+    return math.hypot(p[0] - a[0] - t * ax, p[1] - a[1] - t * ay)
+
+
+def collect_control(state, ball, target, gains: dict[str, float]) -> tuple[float, float, bool]:
+    """Unlimited-rate ``(v, omega)`` towards the collect point, and whether the drive is direct.
+
+    The collect point is :func:`behind_point` at ``c = collect_distance`` (a pose facing
+    the target). While the straight segment from the axle to it passes the ball at
+    ``CLEAR_FRACTION * c`` or more, the command is GoToPose's
+    :func:`~repertoire.systems.go_to_pose.pose_control` to that pose at rest (direct);
+    once lined up behind the ball (axle at least ``hold_distance`` behind it along the
+    ball -> target line, within ``position_tolerance`` of the line and the heading within
+    ``heading_tolerance`` of ``phi_c``) the same law to the held pose, ``hold_distance``
+    behind the ball, which drives the ball onto the held spot (also direct).
+    Otherwise the robot circles the ball at radius ``c`` the shorter way round: with
+    ``psi`` its bearing from the ball, ``d`` its distance and ``theta = wrap(psi - phi_c -
+    pi)`` its angle round the ball from the collect point (``phi_c`` its heading), the side
+    is ``s = -1`` for ``theta >= 0`` (clockwise) and ``+1`` otherwise, and as in
+    :func:`loop_control`
+
+        chi   = psi + s * (pi/2 + atan((d - c) / c))
+        v     = v_max * max(0, cos(chi - phi))
+        omega = k_alpha * wrap(chi - phi)
+
+    (``chi`` points at the ball from far away, along the circle on it and outwards
+    inside it). Both clipped to ``v_max`` and ``omega_max``.
+    """
+    g = gains
+    c = g["collect_distance"]
+    px, py, phi_c = behind_point(ball, target, c)
+    cos_c, sin_c = math.cos(phi_c), math.sin(phi_c)
+    along = (state[0] - ball[0]) * cos_c + (state[1] - ball[1]) * sin_c
+    lateral = -(state[0] - ball[0]) * sin_c + (state[1] - ball[1]) * cos_c
+    heading_error = math.remainder(phi_c - state[2], 2.0 * math.pi)
+    lined_up = (
+        along <= -g["hold_distance"]
+        and abs(lateral) < g["position_tolerance"]
+        and abs(heading_error) < g["heading_tolerance"]
+    )
+    if lined_up:
+        # behind the ball facing the target: drive the ball onto the held spot
+        h = g["hold_distance"]
+        v, w, _, _ = pose_control(state, [ball[0] - h * cos_c, ball[1] - h * sin_c, phi_c, 0.0], g)
+        direct = True
+    elif segment_distance(ball, state, (px, py)) >= CLEAR_FRACTION * c:
+        v, w, _, _ = pose_control(state, [px, py, phi_c, 0.0], g)
+        direct = True
+    else:
+        psi = math.atan2(state[1] - ball[1], state[0] - ball[0])
+        d = math.hypot(state[0] - ball[0], state[1] - ball[1])
+        side = -1.0 if math.remainder(psi - phi_c - math.pi, 2.0 * math.pi) >= 0.0 else 1.0
+        chi = psi + side * (0.5 * math.pi + math.atan((d - c) / c))
+        err = math.remainder(chi - state[2], 2.0 * math.pi)
+        v, w = g["v_max"] * max(0.0, math.cos(err)), g["k_alpha"] * err
+        direct = False
+    return clip(v, -g["v_max"], g["v_max"]), clip(w, -g["omega_max"], g["omega_max"]), direct
+
+
+def collect_phase(phase: int, held: bool, state, ball, target, gains: dict[str, float]) -> int:
+    """The next collect-mode phase: :data:`COLLECTING` until the ball is controlled.
+
+    COLLECTING -> DRIBBLING (for good) when the ball is held (:func:`ball_terms`) and
+    the direction from the ball to the target is within ``collect_angle`` of the
+    robot's heading.
+    """
+    if phase == DRIBBLING:
+        return DRIBBLING
+    phi_d = math.atan2(target[1] - ball[1], target[0] - ball[0])
+    aligned = abs(math.remainder(phi_d - state[2], 2.0 * math.pi)) <= gains["collect_angle"]
+    return DRIBBLING if held and aligned else COLLECTING
+
+
 class DribbleBall(DriveAction):
     """Dribbles the ball in front of a differential-drive robot to a target pose.
 
@@ -322,6 +419,16 @@ class DribbleBall(DriveAction):
     Discrete state: ``[v_cmd, omega_cmd, status, mode]``, updated every
     ``period`` s; ``mode`` is :data:`APPROACH`, :data:`PIVOT`, :data:`LOOP_LEFT` or
     :data:`LOOP_RIGHT` (see :func:`approach_mode`).
+
+    Collect mode (``collect=True``; off by default, which is the behaviour above):
+    the action starts with a ball that need not be held. While :func:`collect_phase`
+    says :data:`COLLECTING` (the ball not held, or the target more than
+    ``collect_angle`` off the heading), the command is :func:`collect_control`'s, to
+    :func:`behind_point` facing the target round the ball, rate limited and timed out
+    like the dribble (it never succeeds while collecting); from :data:`DRIBBLING` on
+    (for good) the action dribbles as above, and a ball no longer held is FAILED with
+    reason :data:`BALL_LOST`. The discrete state gains ``[phase, reason]`` (slots 4
+    and 5); :meth:`failure_reason` reads the reason.
     """
 
     def __init__(
@@ -329,6 +436,7 @@ class DribbleBall(DriveAction):
         period: float = 0.02,
         gains: dict[str, float] | None = None,
         workspace: tuple[float, float, float, float] = (-3.0, 3.0, -2.0, 2.0),
+        collect: bool = False,
     ):
         """Creates the action.
 
@@ -336,6 +444,7 @@ class DribbleBall(DriveAction):
             period: update period [s].
             gains: overrides of :data:`DRIBBLE_GAINS`.
             workspace: the allowed target region ``[x_min, x_max, y_min, y_max]``.
+            collect: collect mode: fetch a ball not held first (see the class).
         """
         super().__init__()
         check_period(period)
@@ -350,20 +459,33 @@ class DribbleBall(DriveAction):
             "position_tolerance",
         )
         positive = (*positive, "hold_distance", "lost_distance", "lost_lateral")
-        positive = (*positive, "heading_tolerance")
+        positive = (*positive, "heading_tolerance", "collect_distance", "collect_angle")
         merged = merge_gains(DRIBBLE_GAINS, gains, "DribbleBall", positive)
+        if not isinstance(collect, bool):
+            raise RepertoireError(f"collect must be a bool, got {collect!r}")
+        self.collect = collect
         inputs = (("state", 4), ("ball", 2), ("target", 4))
-        ports = self._declare_drive(period, DRIBBLE_GAINS, merged, workspace, inputs, 1)
+        slots = 3 if collect else 1
+        ports = self._declare_drive(period, DRIBBLE_GAINS, merged, workspace, inputs, slots)
         self._ball_port = ports["ball"]
+
+    def failure_reason(self, context: Context) -> str:
+        """Why a collect-mode action failed (``"ball lost"``, ...), ``""`` otherwise."""
+        if not self.collect:
+            raise RepertoireError("failure_reason needs collect mode (DribbleBall(collect=True))")
+        xd = context.get_discrete_state(self._xd).get_value()
+        return FAILURE_REASONS[int(xd[5])]
 
     def get_ball_input_port(self):
         return self._ball_port
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        v_prev, w_prev, status, mode = context.get_discrete_state(self._xd).get_value()
+        xd = context.get_discrete_state(self._xd).get_value()
+        v_prev, w_prev, status, mode = xd[:4]
+        extra = list(xd[4:])  # collect mode's [phase, reason]
         out = discrete_state.get_mutable_vector(self._xd)
         if status != ActionStatus.RUNNING:
-            out.SetFromVector([0.0, 0.0, status, mode])
+            out.SetFromVector([0.0, 0.0, status, mode, *extra])
             return
         g = self.gains(context)
         state = self._state_port.Eval(context)
@@ -378,8 +500,23 @@ class DribbleBall(DriveAction):
             or not ws[2] <= target[1] <= ws[3]
         ):
             failed = ActionStatus.FAILED if active else ActionStatus.RUNNING
-            out.SetFromVector([0.0, 0.0, failed, mode])
+            if self.collect and active:
+                extra[1] = BAD_INPUT
+            out.SetFromVector([0.0, 0.0, failed, mode, *extra])
             return
+        if self.collect and extra[0] == COLLECTING:
+            held = ball_terms(state, ball, g)[0]
+            phase = collect_phase(COLLECTING, held, state, ball, target, g) if active else 0
+            if phase == COLLECTING:
+                v, w, _ = collect_control(state, ball, target, g)
+                control = (v, w, math.inf, math.pi)  # never succeeds while collecting
+                t = context.get_time()
+                step = drive_step(
+                    control, (v_prev, w_prev), state, target, g, t, self.period, active
+                )
+                out.SetFromVector([*step, mode, COLLECTING, NO_REASON])
+                return
+            extra[0] = DRIBBLING
         mode = approach_mode(int(mode), state, target, g)
         if mode in (LOOP_LEFT, LOOP_RIGHT):
             side = 1.0 if mode == LOOP_LEFT else -1.0
@@ -387,7 +524,9 @@ class DribbleBall(DriveAction):
         else:
             v, w, held = dribble_control(state, ball, target, g, 0.0 if mode == PIVOT else None)
         if not held and active:
-            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED, mode])
+            if self.collect:
+                extra[1] = BALL_LOST
+            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED, mode, *extra])
             return
         h = g["hold_distance"]
         rho = math.hypot(
@@ -398,7 +537,7 @@ class DribbleBall(DriveAction):
         control = (v, w, rho, heading_error)
         t = context.get_time()
         step = drive_step(control, (v_prev, w_prev), state, target, g, t, self.period, active)
-        out.SetFromVector([*step, mode])
+        out.SetFromVector([*step, mode, *extra])
 
 
 class BodyXYReader(LeafSystem):

@@ -114,6 +114,7 @@ DRIBBLE_GAINS = {
     "timeout": 15.0,  # s
     "collect_distance": 0.5,  # collect mode: axle behind the ball / circling radius [m]
     "collect_angle": 1.0,  # collect mode: target direction off the heading to dribble [rad]
+    "control_distance": 0.05,  # collect mode: ball this near its held spot is controlled [m]
 }
 
 
@@ -385,17 +386,22 @@ def collect_control(state, ball, target, gains: dict[str, float]) -> tuple[float
 
 
 def collect_phase(phase: int, held: bool, state, ball, target, gains: dict[str, float]) -> int:
-    """The next collect-mode phase: :data:`COLLECTING` until the ball is controlled.
+    """The next collect-mode phase: :data:`COLLECTING` until the ball is held and controlled.
 
     COLLECTING -> DRIBBLING (for good) when the ball is held (:func:`ball_terms`) and
-    the direction from the ball to the target is within ``collect_angle`` of the
-    robot's heading.
+    either the direction from the ball to the target is within ``collect_angle`` of the
+    robot's heading or the ball is *controlled*: within ``control_distance`` of its held
+    spot, against the bumper between the guide arms (the default 0.05 m: the
+    ``soccer_dribble`` arms' tips are 0.0275 m ahead of the held spot), where the robot
+    can turn with it as the plain dribble does.
     """
     if phase == DRIBBLING:
         return DRIBBLING
     phi_d = math.atan2(target[1] - ball[1], target[0] - ball[0])
     aligned = abs(math.remainder(phi_d - state[2], 2.0 * math.pi)) <= gains["collect_angle"]
-    return DRIBBLING if held and aligned else COLLECTING
+    bx, by = ball_in_robot_frame(state, ball)
+    controlled = math.hypot(bx - gains["hold_distance"], by) <= gains["control_distance"]
+    return DRIBBLING if held and (aligned or controlled) else COLLECTING
 
 
 class DribbleBall(DriveAction):
@@ -423,8 +429,9 @@ class DribbleBall(DriveAction):
     Collect mode (``collect=True``; off by default, which is the behaviour above):
     the action starts with a ball that need not be held. While :func:`collect_phase`
     says :data:`COLLECTING` (the ball not held, or the target more than
-    ``collect_angle`` off the heading), the command is :func:`collect_control`'s, to
-    :func:`behind_point` facing the target round the ball, rate limited and timed out
+    ``collect_angle`` off the heading with the ball not controlled), the command is
+    :func:`collect_control`'s, to :func:`behind_point` facing the target round the
+    ball, rate limited and timed out
     like the dribble (it never succeeds while collecting); from :data:`DRIBBLING` on
     (for good) the action dribbles as above, and a ball no longer held is FAILED with
     reason :data:`BALL_LOST`. The discrete state gains ``[phase, reason]`` (slots 4
@@ -460,6 +467,7 @@ class DribbleBall(DriveAction):
         )
         positive = (*positive, "hold_distance", "lost_distance", "lost_lateral")
         positive = (*positive, "heading_tolerance", "collect_distance", "collect_angle")
+        positive = (*positive, "control_distance")
         merged = merge_gains(DRIBBLE_GAINS, gains, "DribbleBall", positive)
         if not isinstance(collect, bool):
             raise RepertoireError(f"collect must be a bool, got {collect!r}")

@@ -93,11 +93,19 @@ def test_collect_phase_by_hand():
     s = [0.0, 0.0, 0.0, 0.0]
     ball = [0.31, 0.0]
     assert collect_phase(COLLECTING, True, s, ball, [2, 0.5, 0, 0], G) == DRIBBLING
-    # the target 1.2 rad off the heading (seen from the ball): keep collecting
+    # the target 1.2 rad off the heading (seen from the ball): the ball at its held spot
+    # is controlled (the robot turns with it); 0.09 m beyond it held but not controlled
     far = [0.31 + math.cos(1.2), math.sin(1.2), 0, 0]
-    assert collect_phase(COLLECTING, True, s, ball, far, G) == COLLECTING
+    assert collect_phase(COLLECTING, True, s, ball, far, G) == DRIBBLING
+    far = [0.4 + math.cos(1.2), math.sin(1.2), 0, 0]
+    assert collect_phase(COLLECTING, True, s, [0.4, 0.0], far, G) == COLLECTING
     assert collect_phase(COLLECTING, False, s, ball, [2, 0, 0, 0], G) == COLLECTING
     assert collect_phase(DRIBBLING, False, s, ball, far, G) == DRIBBLING
+    # control_distance (0.05 m) ahead of the held spot: controlled; 0.06 m: not
+    far = [0.36 + math.cos(1.2), math.sin(1.2), 0, 0]
+    assert collect_phase(COLLECTING, True, s, [0.36, 0.0], far, G) == DRIBBLING
+    far = [0.37 + math.cos(1.2), math.sin(1.2), 0, 0]
+    assert collect_phase(COLLECTING, True, s, [0.37, 0.0], far, G) == COLLECTING
 
 
 def _context(target, ball, state=(0, 0, 0, 0), time=0.0, phase=COLLECTING):
@@ -121,14 +129,23 @@ def test_collect_mode_leaf_system_exact():
     # lined up, the held-pose law wants 0.4, rate limited to a_max * period = 0.06
     action, ctx = _context([2, 0, 0, 0], ball=(1.0, 0.0))
     np.testing.assert_allclose(_update(action, ctx), [0.06, 0, running, APPROACH, COLLECTING, 0])
-    # held, target behind: circle round (omega wants -1.2, rate limited to 0.3), no speed
-    action, ctx = _context([-1, 0, math.pi, 0], ball=(0.31, 0.0))
+    # held 0.09 m beyond its spot (not controlled), target behind: circle round (omega
+    # wants -1.2, rate limited to 0.3), no speed
+    action, ctx = _context([-1, 0, math.pi, 0], ball=(0.4, 0.0))
     np.testing.assert_allclose(
         _update(action, ctx), [0.0, -0.3, running, APPROACH, COLLECTING, 0], atol=1e-12
     )
-    # held and the target ahead: dribbling at once, as without collect mode
-    action, ctx = _context([1, 0, 0, 0], ball=(0.31, 0.0))
-    np.testing.assert_allclose(_update(action, ctx), [0.06, 0, running, APPROACH, DRIBBLING, 0])
+    # held and the target ahead, or controlled and the target behind: dribbling at once,
+    # the same command as without collect mode
+    for target in ([1, 0, 0, 0], [-1, 0, math.pi, 0]):
+        action, ctx = _context(target, ball=(0.31, 0.0))
+        plain = DribbleBall(period=0.1)
+        plain_ctx = plain.CreateDefaultContext()
+        for port, value in (("state", [0, 0, 0, 0]), ("ball", [0.31, 0]), ("target", target)):
+            plain.GetInputPort(port).FixValue(plain_ctx, np.array(value, dtype=float))
+        expected = [*_update(plain, plain_ctx), DRIBBLING, NO_REASON]
+        np.testing.assert_allclose(_update(action, ctx), expected)
+    np.testing.assert_allclose(expected[:4], [0.0, 0.3, running, APPROACH], atol=1e-12)
     # at the target pose without the ball: collecting never succeeds
     action, ctx = _context([0.05, 0, 0.1, 0], ball=(0.0, 1.0))
     assert _update(action, ctx)[2] == running

@@ -4,8 +4,10 @@ import math
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from repertoire.diagrams.soccer_dribble import (
+    BALL_RADIUS,
     DribbleScenario,
     build_soccer_dribble,
     check_dribble,
@@ -207,3 +209,26 @@ def test_soccer_dribble_collects_a_ball_beside_the_robot_and_delivers_it():
     # the ball held in front of the goal pose's held spot
     spot = np.array([-1.0 + 0.31 * math.cos(3.0), 0.8 + 0.31 * math.sin(3.0)])
     assert np.hypot(*(ball - spot)) < 0.2
+
+
+def test_soccer_dribble_collects_a_ball_behind_the_robot_and_delivers_it():
+    # the robot faces away from the ball (0.7 m behind it; set in the context: a
+    # scenario's ball_offset is ahead of the bumper) and the target lies beyond the ball
+    target = [-1.8, 0.6, 2.5, 0.0]
+    statuses = []
+    for collect in (False, True):
+        scenario = DribbleScenario(collect=collect, initial_pose=[0.0, 0.0, 0.0], target=target)
+        diagram = build_soccer_dribble(scenario)
+        sim = Simulator(diagram)
+        ctx = sim.get_mutable_context()
+        plant = diagram.GetSubsystemByName("plant")
+        ball_pose = RigidTransform([-0.7, 0.1, BALL_RADIUS])
+        plant.SetFreeBodyPose(
+            plant.GetMyMutableContextFromRoot(ctx), plant.GetBodyByName("ball"), ball_pose
+        )
+        sim.Initialize()
+        sim.AdvanceTo(15.0)
+        statuses.append(dribble_status(diagram, ctx))
+    assert statuses == [ActionStatus.FAILED, ActionStatus.SUCCEEDED]
+    figures = check_dribble(diagram, ctx)
+    assert figures["position_error_m"] < 0.15 and figures["ball_from_held_spot_m"] < 0.1

@@ -179,16 +179,16 @@ def joint_limit_potential_gradient(
 
 def _svd_inverse_and_projector(
     J: np.ndarray, damping: float, rcond: float = 1e-10
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """``(J#, N, rank)`` from one SVD: damped inverse, exact null-space projector, rank."""
-    m, n = J.shape
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(J#, N)`` from one SVD: damped inverse and exact null-space projector."""
+    n = J.shape[1]
     U, s, Vt = np.linalg.svd(J)
     rank = int(np.sum(s > rcond * s[0])) if s.size and s[0] > 0.0 else 0
     k = np.arange(s.size) < rank
     gain = np.where(k, s / np.where(k, s**2 + damping**2, 1.0), 0.0)
     J_pinv = (Vt[: s.size].T * gain) @ U[:, : s.size].T
     V = Vt[:rank]
-    return J_pinv, np.eye(n) - V.T @ V, rank
+    return J_pinv, np.eye(n) - V.T @ V
 
 
 def null_space_projector(J: np.ndarray, rcond: float = 1e-10) -> np.ndarray:
@@ -334,7 +334,7 @@ def rmrc_joint_velocity(
     free = np.ones(n, dtype=bool)
     z = np.zeros(n)
     for _ in range(n):
-        J_pinv, N, _ = _svd_inverse_and_projector(J * free, damping)
+        J_pinv, N = _svd_inverse_and_projector(J * free, damping)
         # (the saturated joints' rows of J_W# and N_W are zero up to round-off: made exact)
         qdot = z + free * (J_pinv @ (xdot_ref - J @ z))
         qdot_null = free * (N @ (free * qdot_0))

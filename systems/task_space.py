@@ -488,7 +488,8 @@ class ResolvedMotionRateIK(LeafSystem):
             limit_deceleration: the deceleration at which a joint can always brake to
                 rest at its position limit [rad/s^2] (:func:`joint_velocity_bounds`).
             reach_center: shoulder point in W for the reach check.
-            max_reach: reach radius in m (see :func:`reach_bound`); inf disables.
+            max_reach: reach radius in m (see
+                :func:`repertoire.systems.task_space_reach.reach_bound`); inf disables.
             error_tolerance: position error in m above which tracking counts as lost.
             orientation_tolerance: orientation error angle in rad above which tracking
                 counts as lost.

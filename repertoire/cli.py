@@ -406,4 +406,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from repertoire.interrupts import exit_process
+
+    exit_process(main())

@@ -2,6 +2,9 @@
 
 import dataclasses
 import os
+import signal
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -106,10 +109,6 @@ def start_pool_study(seeds: int, out, cwd, env=None):
     background job); ``cwd`` should not be a source tree, so the package comes from where
     the tests' does. Pipes for stdout and stderr (text).
     """
-    import signal
-    import subprocess
-    import sys
-
     argv = [sys.executable, "-m", "repertoire", "study", "pendulum", "-n", str(seeds), "-j", "2"]
     return subprocess.Popen(
         [*argv, "--out-dir", str(out), "--no-progress"],

@@ -350,17 +350,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
-    from repertoire.studies.engine import EpisodeError, run_study_from_args
-    from repertoire.studies.engine_pool import prestart_fork_server
+    from repertoire.studies.engine import run_study_command
 
-    if args.executor == "process":
-        prestart_fork_server()  # its pydrake import overlaps study discovery here
-    try:
-        run_study_from_args(args)
-    except EpisodeError as e:  # an episode failed or crashed: a failed run, not bad input
-        print(f"repertoire study: run failed: {e}", file=sys.stderr)
-        return 1
-    return 0
+    return run_study_command(args, prog="repertoire study")
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:

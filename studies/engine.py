@@ -106,6 +106,7 @@ __all__ = [
     "parse_scheduler_address",
     "register_study",
     "run_study",
+    "run_study_command",
     "run_study_from_args",
     "study_main",
     "study_names",
@@ -611,6 +612,26 @@ def add_study_arguments(parser: argparse.ArgumentParser, *, with_name: bool = Tr
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 
+def run_study_command(args: argparse.Namespace, name: str | None = None, prog: str = "") -> int:
+    """The study command of both command lines: run it, 0; an episode that failed, 1.
+
+    With the process executor the fork server starts first, so its pydrake import overlaps
+    the config loading and study discovery. Bad input raises :class:`RepertoireError`.
+
+    Args:
+        args, name: as :func:`run_study_from_args`.
+        prog: the program's name before the "run failed" message ("" or "repertoire study").
+    """
+    if args.executor == "process":
+        prestart_fork_server()
+    try:
+        run_study_from_args(args, name)
+    except EpisodeError as e:  # an episode failed or crashed: a failed run, not bad input
+        print(f"{prog + ': ' if prog else ''}run failed: {e}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def run_study_from_args(args: argparse.Namespace, name: str | None = None) -> StudyResult:
     """Runs a study from parsed :func:`add_study_arguments` options; prints where outputs went."""
     name = name or args.name
@@ -693,20 +714,11 @@ def study_main(
     add_study_arguments(parser, with_name=name is None)
     args = parser.parse_args(argv)
 
-    def command() -> int:
-        if args.executor == "process":
-            prestart_fork_server()  # its pydrake import overlaps config loading here
-        run_study_from_args(args, name)
-        return 0
-
     try:  # Ctrl-C: "interrupted", 130; finished episodes are stored, a rerun resumes
-        return interruptible(command)
+        return interruptible(lambda: run_study_command(args, name))
     except RepertoireError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    except EpisodeError as e:  # an episode failed or crashed: a failed run, not bad input
-        print(f"run failed: {e}", file=sys.stderr)
-        return 1
 
 
 if __name__ == "__main__":

@@ -47,11 +47,11 @@ from repertoire.systems.kitchen_geometry import (
     FINGER_REACH,
     _check_boxes,
     _check_positive,
-    _in_box_frames,
     arm_forward,
     arm_inverse,
     arm_inverse_rows,
     arm_way_hits,
+    box_gaps,
     chassis_points_to_world,
     chassis_to_world,
     discs_in_boxes,
@@ -597,10 +597,8 @@ def footprint_hits(xy, boxes, radius: float) -> int:
         boxes: ``(k, 6)`` boxes as in :func:`point_in_boxes`.
         radius: the robot's footprint radius [m].
     """
-    for i, u, w, hx, hy, _ in _in_box_frames(xy, boxes):  # the disc centre's distance:
-        if math.hypot(max(abs(u) - hx, 0.0), max(abs(w) - hy, 0.0)) < radius:
-            return i
-    return -1
+    hits = np.flatnonzero(box_gaps(np.asarray(xy, dtype=float)[:2], boxes)[0] < radius)
+    return int(hits[0]) if hits.size else -1
 
 
 class FootprintGuard(LeafSystem):

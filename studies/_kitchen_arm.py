@@ -20,9 +20,9 @@ from repertoire.studies._kitchen_plan import (
     PlanGeometry,
     _world_in_chassis,
     plan_geometry,
-    segment_gaps,
     to_chassis_z,
 )
+from repertoire.systems.kitchen_geometry import segment_gaps
 
 from repertoire.errors import RepertoireError
 
@@ -172,7 +172,7 @@ def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool, discs=None) -
 
     The arm at chassis point ``arm`` (n, 3) sweeps a disc of its horizontal distance from
     the base's centre plus ``FINGER_REACH`` and ``clearance`` (every heading: GoToPose
-    turns) along the path (exact: :func:`~repertoire.studies._kitchen_plan.segment_gaps`
+    turns) along the path (exact: :func:`~repertoire.systems.kitchen_geometry.segment_gaps`
     for the boxes, the segment's distance from a disc's centre less its radius for the
     discs), against the obstacles whose top is above the fingers' bottom (or, ``held``,
     the cup's bottom).

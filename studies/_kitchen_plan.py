@@ -45,6 +45,7 @@ from repertoire.planning.action_models.kitchen_features import (
     kitchen_goto_features,
     kitchen_reach_features,
 )
+from repertoire.systems.kitchen_geometry import box_gaps, segment_gaps
 
 from repertoire.checks import check_range
 from repertoire.errors import RepertoireError
@@ -154,38 +155,6 @@ class KitchenPlanConfig:
 # Geometry
 
 
-def _box_frames(boxes) -> tuple[np.ndarray, ...]:
-    """Per box row ``[cx, cy, yaw, half_x, half_y, top_z]``: ``(cx, cy, cos, sin, hx, hy)``."""
-    b = np.asarray(boxes, dtype=float).reshape(-1, 6)
-    c = np.array([math.cos(yaw) for yaw in b[:, 2]])
-    s = np.array([math.sin(yaw) for yaw in b[:, 2]])
-    return b[:, 0], b[:, 1], c, s, b[:, 3], b[:, 4]
-
-
-def _in_frames(p: np.ndarray, frames) -> tuple[np.ndarray, np.ndarray]:
-    """Points ``p`` (n, >= 2) in every box's frame: ``(u, w)``, (n, b) each."""
-    cx, cy, c, s, _, _ = frames
-    dx, dy = p[:, :1] - cx, p[:, 1:2] - cy
-    return c * dx + s * dy, -s * dx + c * dy
-
-
-def _rectangle_gaps(u: np.ndarray, w: np.ndarray, frames) -> np.ndarray:
-    """Distances (n, b) of box-frame points from the boxes' rectangles (0 inside)."""
-    hx, hy = frames[4], frames[5]
-    return np.hypot(np.maximum(np.abs(u) - hx, 0.0), np.maximum(np.abs(w) - hy, 0.0))
-
-
-def box_gaps(xy, boxes) -> np.ndarray:
-    """Distances ``(n, b)`` of the points ``xy`` (n, >= 2) from the boxes' footprints (0 inside).
-
-    ``boxes`` are rows ``[cx, cy, yaw, half_x, half_y, top_z]`` as in
-    :func:`~repertoire.systems.kitchen_actions.footprint_hits`.
-    """
-    p = np.atleast_2d(np.asarray(xy, dtype=float))
-    frames = _box_frames(boxes)
-    return _rectangle_gaps(*_in_frames(p, frames), frames)
-
-
 def footprint_clear(xy, boxes, radius: float) -> np.ndarray:
     """True per point where a robot disc at ``xy`` (n, 2) overlaps no box (vectorised).
 
@@ -193,37 +162,6 @@ def footprint_clear(xy, boxes, radius: float) -> np.ndarray:
     :func:`~repertoire.systems.kitchen_actions.footprint_hits`.
     """
     return np.all(box_gaps(xy, boxes) >= radius, axis=1)
-
-
-def segment_gaps(a, b, boxes) -> np.ndarray:
-    """Exact distances ``(n, k)`` of the segments ``a -> b`` ((n, >= 2) each) from the boxes.
-
-    In a box's frame the distance between a segment and the rectangle is 0 where the
-    segment enters it (slab clipping), else the least of the end points' distances to the
-    rectangle and the corners' distances to the segment (two convex sets in the plane are
-    nearest at a vertex of one of them). All segments against all boxes at once.
-    """
-    a, b = np.broadcast_arrays(np.atleast_2d(a)[:, :2], np.atleast_2d(b)[:, :2])
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    frames = _box_frames(boxes)
-    (ua, wa), (ub, wb) = _in_frames(a, frames), _in_frames(b, frames)
-    gap = np.minimum(_rectangle_gaps(ua, wa, frames), _rectangle_gaps(ub, wb, frames))
-    hx, hy = frames[4], frames[5]
-    du, dw = ub - ua, wb - wa
-    t_in, t_out = np.zeros(gap.shape), np.ones(gap.shape)
-    for pk, dk, half in ((ua, du, hx), (wa, dw, hy)):  # the slab |p_k| <= half, p = pa + t d
-        moving = dk != 0.0
-        step = np.where(moving, dk, 1.0)
-        t1, t2 = (-half - pk) / step, (half - pk) / step
-        inside = np.abs(pk) <= half
-        t_in = np.maximum(t_in, np.where(moving, np.minimum(t1, t2), np.where(inside, 0.0, 2.0)))
-        t_out = np.minimum(t_out, np.where(moving, np.maximum(t1, t2), 1.0))
-    gap = np.where(t_in <= t_out, 0.0, gap)
-    dd = np.maximum(du * du + dw * dw, 1e-300)
-    for cu, cw in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
-        t = np.clip(((cu - ua) * du + (cw - wa) * dw) / dd, 0.0, 1.0)
-        gap = np.minimum(gap, np.hypot(ua + t * du - cu, wa + t * dw - cw))
-    return gap
 
 
 def path_clear(a, b, boxes, radius) -> np.ndarray:

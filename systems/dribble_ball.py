@@ -368,8 +368,7 @@ def collect_control(state, ball, target, gains: dict[str, float]) -> tuple[float
     )
     if lined_up:
         # behind the ball facing the target: drive the ball onto the held spot
-        h = g["hold_distance"]
-        v, w, _, _ = pose_control(state, [ball[0] - h * cos_c, ball[1] - h * sin_c, phi_c, 0.0], g)
+        v, w, _, _ = pose_control(state, [*behind_point(ball, target, g["hold_distance"]), 0.0], g)
         direct = True
     elif segment_distance(ball, state, (px, py)) >= CLEAR_FRACTION * c:
         v, w, _, _ = pose_control(state, [px, py, phi_c, 0.0], g)

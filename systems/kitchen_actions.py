@@ -47,11 +47,11 @@ from repertoire.systems.kitchen_geometry import (
     FINGER_REACH,
     _check_boxes,
     _check_positive,
-    _in_box_frames,
     arm_forward,
     arm_inverse,
     arm_inverse_rows,
     arm_way_hits,
+    box_gaps,
     chassis_points_to_world,
     chassis_to_world,
     discs_in_boxes,
@@ -156,9 +156,11 @@ def holds_object(fingers) -> bool:
     return fingers_blocked(fingers) and not any(fingers_open([f]) for f in fingers)
 
 
-def _check_margin(cup_margin: float) -> None:
-    if not (math.isfinite(cup_margin) and cup_margin >= 0):
-        raise RepertoireError(f"cup_margin must be finite and >= 0, got {cup_margin}")
+def _check_nonnegative(**values) -> None:
+    """Each value finite and >= 0 (as :func:`_check_positive`), or an error naming it."""
+    for name, v in values.items():
+        if not (math.isfinite(v) and v >= 0):
+            raise RepertoireError(f"{name} must be finite and >= 0, got {v}")
 
 
 class _Action(ActionSystem):
@@ -169,8 +171,7 @@ class _Action(ActionSystem):
     ):
         super().__init__()
         _check_positive(period=period, timeout=timeout)
-        if not (math.isfinite(margin) and margin >= 0):
-            raise RepertoireError(f"margin must be finite and >= 0, got {margin}")
+        _check_nonnegative(margin=margin)
         if not (isinstance(cups, int) and not isinstance(cups, bool) and cups >= 0):
             raise RepertoireError(f"cups must be a whole number >= 0, got {cups!r}")
         self.period, self.timeout, self.margin = period, timeout, margin
@@ -347,7 +348,7 @@ class Reach(_Action):
                 finger passes a cup's edge between two samples.
         """
         super().__init__(period, timeout, 3, obstacles, margin, cups)
-        _check_margin(cup_margin)
+        _check_nonnegative(cup_margin=cup_margin)
         self.cup_margin = cup_margin
         _check_positive(cup_half_height=cup_half_height, cup_radius=cup_radius)
         self.cup_half_height, self.cup_radius = cup_half_height, cup_radius
@@ -508,7 +509,7 @@ class Put(_Action):
     ):
         """Creates the action (arguments as in the class docstring and :class:`Reach`)."""
         super().__init__(period, timeout, 5, obstacles, margin, cups)
-        _check_margin(cup_margin)
+        _check_nonnegative(cup_margin=cup_margin)
         self.cup_margin = cup_margin
         _check_positive(cup_radius=cup_radius, max_drop=max_drop)
         self.cup_radius, self.max_drop = cup_radius, max_drop
@@ -596,10 +597,8 @@ def footprint_hits(xy, boxes, radius: float) -> int:
         boxes: ``(k, 6)`` boxes as in :func:`point_in_boxes`.
         radius: the robot's footprint radius [m].
     """
-    for i, u, w, hx, hy, _ in _in_box_frames(xy, boxes):  # the disc centre's distance:
-        if math.hypot(max(abs(u) - hx, 0.0), max(abs(w) - hy, 0.0)) < radius:
-            return i
-    return -1
+    hits = np.flatnonzero(box_gaps(np.asarray(xy, dtype=float)[:2], boxes)[0] < radius)
+    return int(hits[0]) if hits.size else -1
 
 
 class FootprintGuard(LeafSystem):

@@ -202,6 +202,16 @@ def loop_geometry(
     return radius, psi, d, (side * (psi_goal - psi)) % (2.0 * math.pi)
 
 
+def circle_heading(psi: float, d: float, radius: float, side: float) -> float:
+    """Heading [rad] that follows a circle of ``radius`` about a centre, ``side`` +1 / -1.
+
+    ``psi`` is the bearing from the centre to the robot and ``d`` its distance: the
+    tangent ``psi + side pi/2``, turned inwards outside the circle and outwards inside it
+    by ``atan((d - radius) / radius)``.
+    """
+    return psi + side * (0.5 * math.pi + math.atan((d - radius) / radius))
+
+
 def loop_control(
     state, ball, target, gains: dict[str, float], side: float
 ) -> tuple[float, float, bool]:
@@ -224,7 +234,7 @@ def loop_control(
     g = gains
     held, gamma, align = ball_terms(state, ball, g)
     radius, psi, d, theta = loop_geometry(state, target, g, side)
-    chi = psi + side * (0.5 * math.pi + math.atan((d - radius) / radius))
+    chi = circle_heading(psi, d, radius, side)
     v = min(g["v_max"], max(target[3], g["k_rho"] * radius * theta)) * align
     w = side * v / radius + g["k_alpha"] * math.remainder(chi - state[2], 2.0 * math.pi)
     w = align * w + g["k_ball"] * gamma
@@ -377,7 +387,7 @@ def collect_control(state, ball, target, gains: dict[str, float]) -> tuple[float
         psi = math.atan2(state[1] - ball[1], state[0] - ball[0])
         d = math.hypot(state[0] - ball[0], state[1] - ball[1])
         side = -1.0 if math.remainder(psi - phi_c - math.pi, 2.0 * math.pi) >= 0.0 else 1.0
-        chi = psi + side * (0.5 * math.pi + math.atan((d - c) / c))
+        chi = circle_heading(psi, d, c, side)
         err = math.remainder(chi - state[2], 2.0 * math.pi)
         v, w = g["v_max"] * max(0.0, math.cos(err)), g["k_alpha"] * err
         direct = False

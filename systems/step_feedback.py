@@ -214,10 +214,11 @@ def check_step_reach(
 
 def open_loop_steps(seq: FootstepSequence) -> list[np.ndarray]:
     """Each step's landing relative to its stance sole, as the stepping rule realizes it."""
-    out = []
-    for k in range(seq.num_steps):
-        stance = feet_at_step(seq, k)[1 - seq.swing_feet[k]]
-        out.append(relative(stance, np.asarray(seq.poses[k], float)))
+    feet, out = feet_at_step(seq, 0), []
+    for k in range(seq.num_steps):  # one pass (feet_at_step per step made it quadratic)
+        pose = np.asarray(seq.poses[k], float)
+        out.append(relative(feet[1 - seq.swing_feet[k]], pose))
+        feet[seq.swing_feet[k]] = pose
     return out
 
 

@@ -292,14 +292,10 @@ def plan_from_rule(
 def check_start_stance(
     left: np.ndarray, right: np.ndarray, com: np.ndarray, pelvis_height: float
 ) -> None:
-    """Checks that the biped can stand on the start soles (a plan's first two poses).
+    """:func:`~repertoire.systems.step_feedback.check_stance` of the start soles.
 
-    The robot is placed on the plan's start soles, and the walking IK bends joints
-    past their limits or stretches a knee rather than stop, so a start it cannot stand
-    on used to be simulated anyway. The left sole must stand at least a sole's width
-    (``FOOT_WIDTH``) to the left of the right one across the soles' mean heading (the
-    soles would otherwise overlap or the legs cross), and both legs must reach their
-    soles within the joint limits with the pelvis over ``com`` at ``pelvis_height``.
+    The robot is placed on the plan's start soles (its first two poses); a start it
+    cannot stand on would otherwise be simulated anyway (the walking IK does not stop).
 
     Args:
         left: left sole ``[x, y, yaw]`` (or ``[x, y, z, yaw]``).

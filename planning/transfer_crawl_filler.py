@@ -40,6 +40,7 @@ from repertoire.planning.footstep.quadruped import (
     clear_of_faces,
     flat_on_ground,
     plan_crawl,
+    swing_line_cells,
     swing_support_margin,
 )
 from repertoire.planning.footstep.types import FootstepError, PlanStatus
@@ -175,9 +176,7 @@ class CrawlGapFiller:
         if abs(b[2] - a[2]) > p.max_step_height + 1e-12:
             return False
         (r0, r1), (c0, c1) = m.cell([a[0], b[0]], [a[1], b[1]])
-        n = max(abs(int(r1) - int(r0)), abs(int(c1) - int(c0))) + 1
-        rows = np.rint(np.linspace(r0, r1, n + 1)).astype(int)
-        cols = np.rint(np.linspace(c0, c1, n + 1)).astype(int)
+        rows, cols = swing_line_cells(int(r0), int(c0), int(r1), int(c1))
         ok = m.inside(rows, cols)
         line = m.heights[rows[ok], cols[ok]]
         return bool(ok.all() and line.max() <= max(a[2], b[2]) + p.swing_clearance + 1e-12)

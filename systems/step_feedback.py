@@ -42,6 +42,7 @@ from repertoire.planning.footstep.types import FootstepPlan, wrap_angle
 from repertoire.systems.walking import (
     FootstepSequence,
     SteppingRule,
+    _empty_plan,
     compose,
     feet_at_step,
     realize_plan,
@@ -213,10 +214,11 @@ def check_step_reach(
 
 def open_loop_steps(seq: FootstepSequence) -> list[np.ndarray]:
     """Each step's landing relative to its stance sole, as the stepping rule realizes it."""
-    out = []
-    for k in range(seq.num_steps):
-        stance = feet_at_step(seq, k)[1 - seq.swing_feet[k]]
-        out.append(relative(stance, np.asarray(seq.poses[k], float)))
+    feet, out = feet_at_step(seq, 0), []
+    for k in range(seq.num_steps):  # one pass (feet_at_step per step made it quadratic)
+        pose = np.asarray(seq.poses[k], float)
+        out.append(relative(feet[1 - seq.swing_feet[k]], pose))
+        feet[seq.swing_feet[k]] = pose
     return out
 
 
@@ -295,9 +297,9 @@ class FootstepFeedback(LeafSystem):
         self._reach = reach or StepReach()
         self._reach.validate()
         self._pelvis_height = float(pelvis_height)
-        empty = realize_plan(_placeholder_plan(), SteppingRule())
+        empty = realize_plan(_empty_plan(), SteppingRule())
         self._footsteps = self.DeclareAbstractInputPort("footsteps", AbstractValue.Make(empty))
-        self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(_placeholder_plan()))
+        self._plan = self.DeclareAbstractInputPort("plan", AbstractValue.Make(_empty_plan()))
         self._soles = self.DeclareVectorInputPort("soles", 6)
         # [next step to retarget, landing (x, y, yaw) of each step in the controller frame]
         self._state = self.DeclareDiscreteState(1 + 3 * num_steps)
@@ -410,12 +412,6 @@ class SolePoseSensor(LeafSystem):
             R = X.rotation().matrix()
             out += [X.translation()[0], X.translation()[1], math.atan2(R[1, 0], R[0, 0])]
         output.SetFromVector(out)
-
-
-def _placeholder_plan() -> FootstepPlan:
-    return FootstepPlan.from_commands(
-        [[0.0, 0.095, 0.0]], [0], [], [0.0], [0.0, -0.095, 0.0], ["stop", "stop"], goal=[0.0, 0.0]
-    )
 
 
 __all__ = [

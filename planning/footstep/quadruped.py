@@ -367,6 +367,12 @@ def _line(a: float, b: float, n: int) -> np.ndarray:
     return y
 
 
+def swing_line_cells(r0: int, c0: int, r1: int, c1: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the cells on the straight swing line from one cell to another."""
+    n = max(abs(r1 - r0), abs(c1 - c0)) + 1
+    return np.rint(_line(r0, r1, n)).astype(int), np.rint(_line(c0, c1, n)).astype(int)
+
+
 def _rotate(v: np.ndarray, psi: float) -> np.ndarray:
     """Planar vectors (..., 2) turned by ``psi`` (rad); exactly ``v`` for psi = 0."""
     c, s = math.cos(psi), math.sin(psi)
@@ -665,9 +671,7 @@ class CrawlModel:
         )
         # Swing clearance along the straight line old -> new.
         for k in np.flatnonzero(keep):
-            n = max(abs(rows[k] - old[0]), abs(cols[k] - old[1])) + 1
-            rr = np.rint(_line(old[0], rows[k], n)).astype(int)
-            cc = np.rint(_line(old[1], cols[k], n)).astype(int)
+            rr, cc = swing_line_cells(old[0], old[1], rows[k], cols[k])
             if m.heights[rr, cc].max() > max(z_new[k], z_old) + p.swing_clearance:
                 keep[k] = False
         # Support triangle of the three stance feet during the swing.

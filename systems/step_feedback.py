@@ -43,6 +43,7 @@ from repertoire.systems.walking import (
     FootstepSequence,
     SteppingRule,
     _empty_plan,
+    _rounded,
     compose,
     feet_at_step,
     realize_plan,
@@ -119,7 +120,7 @@ def retarget_sequence(
 
 
 def _xy_yaw(pose) -> list[float]:
-    return [round(float(v), 4) + 0.0 for v in (pose[0], pose[1], pose[-1])]
+    return _rounded((pose[0], pose[1], pose[-1]))
 
 
 def check_stance(left, right, com, pelvis_height: float, *, what: str = "start soles") -> None:

@@ -37,7 +37,7 @@ from repertoire.planning.dmp_quaternion import (
     quaternion_rollout,
 )
 
-from repertoire.checks import is_real, is_whole
+from repertoire.checks import is_real, is_whole, refuse_unknown_keys
 from repertoire.errors import RepertoireError
 
 DEFAULT_K = 156.25  # 25 * 6.25, as in Ijspeert et al. / movement_primitives
@@ -548,9 +548,10 @@ class TaskSpaceDmp:
     @classmethod
     def from_dict(cls, d: dict) -> "TaskSpaceDmp":
         _check_type(d, "TaskSpaceDmp")
-        unknown = sorted(set(d) - {"type", "position", "orientation", "fingers"})
-        if unknown:  # a misspelt "fingers" would load a DMP without its fingers
-            raise RepertoireError(f"malformed TaskSpaceDmp record: unknown keys {unknown}")
+        # a misspelt "fingers" would load a DMP without its fingers
+        refuse_unknown_keys(
+            d, ("type", "position", "orientation", "fingers"), "TaskSpaceDmp record"
+        )
         return cls(
             DmpParameters.from_dict(d["position"]),
             QuaternionDmpParameters.from_dict(d["orientation"]),

@@ -26,7 +26,7 @@ from repertoire.planning.dmp_quaternion import (
     quat_multiply,
 )
 
-from repertoire.checks import is_whole
+from repertoire.checks import is_whole, refuse_unknown_keys
 from repertoire.errors import RepertoireError, UnknownNameError
 
 FORMAT_VERSION = 1
@@ -64,17 +64,6 @@ LIBRARY_KEYS = ("type", "format_version", "primitives")
 """The keys of a library file (:meth:`MotionLibrary.to_dict`)."""
 PRIMITIVE_KEYS = ("name", "label", "dmp", "context")
 """The keys of a primitive's record (:meth:`MotionPrimitive.to_dict`)."""
-
-
-def _refuse_unknown_keys(record: dict, known: tuple, where: str) -> None:
-    """RepertoireError naming the keys of ``record`` not in ``known`` (a misspelt key).
-
-    A misspelt optional key (``"contxt"``) would otherwise be dropped without a word: the
-    primitive loads with an empty context, and ``find`` no longer finds it.
-    """
-    unknown = sorted(set(record) - set(known))
-    if unknown:
-        raise RepertoireError(f"{where} has unknown keys {unknown}; expected only {list(known)}")
 
 
 LABELS = ("grasp", "place", "release", "pour", "retreat")
@@ -303,7 +292,7 @@ class MotionLibrary:
             )
         if "primitives" not in d:
             raise RepertoireError(f"{path}: MotionLibrary file has no 'primitives' key")
-        _refuse_unknown_keys(d, LIBRARY_KEYS, f"{path}: MotionLibrary file")
+        refuse_unknown_keys(d, LIBRARY_KEYS, f"{path}: MotionLibrary file")
         records = d["primitives"]
         if not isinstance(records, list):
             raise RepertoireError(
@@ -318,7 +307,7 @@ class MotionLibrary:
             if missing:
                 keys = "key" if len(missing) == 1 else "keys"
                 raise RepertoireError(f"{where} is missing {keys} {', '.join(map(repr, missing))}")
-            _refuse_unknown_keys(record, PRIMITIVE_KEYS, where)
+            refuse_unknown_keys(record, PRIMITIVE_KEYS, where)
             if not isinstance(record.get("context", {}), dict):
                 raise RepertoireError(
                     f"{where}: 'context' must be a JSON object, got "

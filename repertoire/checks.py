@@ -28,6 +28,22 @@ def check_seed(seed, name: str = "seed") -> int:
     return int(seed)
 
 
+def refuse_unknown_keys(record: dict, known: Sequence[str], where: str) -> None:
+    """Raises RepertoireError naming the keys of ``record`` not in ``known`` (a misspelt key).
+
+    A misspelt optional key (``"contxt"``, ``"fingrs"``) would otherwise be dropped without
+    a word, and the record would load without it.
+
+    Args:
+        record: the mapping read from a file.
+        known: the keys it may have.
+        where: what the record is, for the message (``"primitives[0]"``).
+    """
+    unknown = sorted(set(record) - set(known))
+    if unknown:
+        raise RepertoireError(f"{where} has unknown keys {unknown}; expected only {list(known)}")
+
+
 def check_range(name: str, r: Sequence[float], within: tuple[float, float] | None = None) -> None:
     """Raises RepertoireError unless ``r`` is a finite ``[lo, hi]`` with ``lo <= hi``.
 

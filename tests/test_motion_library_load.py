@@ -250,8 +250,8 @@ def test_misspelt_keys_are_refused_naming_them(tmp_path, grasp_dmp):
     with pytest.raises(
         RepertoireError,
         match=re.escape(
-            f"{path}: primitives[0] ('x') is malformed: malformed TaskSpaceDmp record: unknown "
-            "keys ['finger']"
+            f"{path}: primitives[0] ('x') is malformed: TaskSpaceDmp record has unknown keys "
+            "['finger']; expected only ['type', 'position', 'orientation', 'fingers']"
         ),
     ):
         load()

@@ -1,5 +1,6 @@
 """Walking controller: stepping rule, ZMP/CoM, swing, whole-body IK, LeafSystems, physics walk."""
 
+import copy
 import math
 
 import numpy as np
@@ -173,6 +174,23 @@ def test_leaf_systems_match_pure_functions():
     )
     np.testing.assert_allclose(
         zmp.GetOutputPort("zmp_reference").Eval(zctx), zmp_reference(seq).value(1.0).ravel()
+    )
+
+    # The same footsteps again (an equal copy, as an upstream update re-sends them) keep the
+    # plan already made; changed footsteps make a new one.
+    made = zmp.GetOutputPort("zmp_planner").Eval(zctx).planner
+    zmp.GetInputPort("footsteps").FixValue(zctx, copy.deepcopy(seq))
+    assert zmp.GetOutputPort("zmp_planner").Eval(zctx).planner is made
+    moved = copy.deepcopy(seq)
+    moved.poses[0] = [moved.poses[0][0] + 0.02, *moved.poses[0][1:]]
+    zmp.GetInputPort("footsteps").FixValue(zctx, moved)
+    assert zmp.GetOutputPort("zmp_planner").Eval(zctx).planner is not made
+    zctx.SetTime(t := seq.land_times[0] + 0.2)  # the moved foot carries the ZMP then
+    np.testing.assert_allclose(
+        zmp.GetOutputPort("zmp_reference").Eval(zctx), zmp_reference(moved).value(t).ravel()
+    )
+    assert not np.allclose(
+        zmp.GetOutputPort("zmp_reference").Eval(zctx), zmp_reference(seq).value(t).ravel()
     )
 
     ik = WalkingIK(0.6)

@@ -22,24 +22,9 @@ from repertoire.planning.plans import (
     refinement_problem,
 )
 from repertoire.planning.refinement import PiecewiseLinearModel, refine_sequence
+from repertoire.studies._refinement_common import SOCCER_DOMAIN, SOCCER_PROBLEM
 
 from repertoire.errors import RepertoireError
-
-SOCCER_DOMAIN = """
-(define (domain soccer) (:requirements :strips :typing) (:types pos)
- (:predicates (robot ?p - pos) (ball ?p - pos) (atball ?p - pos) (final ?p - pos))
- (:action approachball :parameters (?from ?to - pos)
-   :precondition (and (robot ?from) (ball ?to))
-   :effect (and (atball ?to) (not (robot ?from))))
- (:action dribbleball :parameters (?from ?to - pos)
-   :precondition (and (atball ?from) (final ?to))
-   :effect (and (atball ?to) (not (atball ?from)))))
-"""
-FIG10_PROBLEM = """
-(define (problem fig10) (:domain soccer) (:objects pos1 pos2 pos3 - pos)
- (:init (robot pos1) (ball pos2) (final pos3))
- (:goal (and (final pos3) (atball pos3))))
-"""
 
 
 def _pose(index: int, suffix: str = "") -> tuple[ParameterTemplate, ...]:
@@ -66,7 +51,7 @@ def fig10_belief() -> BeliefState:
 
 
 def test_fig10_plan_links_and_instantiation():
-    plan = plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM)
+    plan = plan_pddl(SOCCER_DOMAIN, SOCCER_PROBLEM)
     assert [(a.name, a.args) for a in plan.actions] == [
         ("approachball", ("pos1", "pos2")),
         ("dribbleball", ("pos2", "pos3")),
@@ -103,13 +88,13 @@ def test_fig10_plan_links_and_instantiation():
 
 
 def test_unreachable_goal_is_named():
-    problem = FIG10_PROBLEM.replace("(atball pos3))", "(atball pos3) (robot pos3))")
+    problem = SOCCER_PROBLEM.replace("(atball pos3))", "(atball pos3) (robot pos3))")
     with pytest.raises(PlanningError, match=r"goal \(robot pos3\) is unreachable"):
         plan_pddl(SOCCER_DOMAIN, problem)
 
 
 def test_jointly_unreachable_goals_are_said_so():
-    problem = FIG10_PROBLEM.replace("(atball pos3))", "(atball pos3) (robot pos1))")
+    problem = SOCCER_PROBLEM.replace("(atball pos3))", "(atball pos3) (robot pos1))")
     with pytest.raises(PlanningError, match="each reachable but not together"):
         plan_pddl(SOCCER_DOMAIN, problem)
 
@@ -118,7 +103,7 @@ def test_bad_pddl():
     with pytest.raises(PlanningError, match="could not parse"):
         plan_pddl(SOCCER_DOMAIN, "(define (problem")
     with pytest.raises(PlanningError, match="non-empty"):
-        plan_pddl(" ", FIG10_PROBLEM)
+        plan_pddl(" ", SOCCER_PROBLEM)
 
 
 def test_pddl_beyond_strips_is_named():
@@ -128,7 +113,7 @@ def test_pddl_beyond_strips_is_named():
         "(and (robot ?from) (ball ?to))", "(and (robot ?from) (ball ?to) (not (final ?to)))"
     )
     with pytest.raises(PlanningError, match=r"STRIPS with typing only.*NEGATIVE_CONDITIONS"):
-        plan_pddl(domain, FIG10_PROBLEM)
+        plan_pddl(domain, SOCCER_PROBLEM)
 
 
 def test_causal_links_reject_invalid_sequence():
@@ -155,7 +140,7 @@ def test_empty_ranges_are_refused():
         Range(1.0, 0.0)
     belief = fig10_belief()
     belief.constraints[("atball", "v")] = (2.0, 3.0)  # outside the default [0, 1]
-    plan = plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM)
+    plan = plan_pddl(SOCCER_DOMAIN, SOCCER_PROBLEM)
     with pytest.raises(RepertoireError, match="empty range"):
         instantiate_plan(plan, soccer_registry(), belief)
 
@@ -184,7 +169,7 @@ def _leg_features(p: dict) -> np.ndarray:
 
 def _fig10_plan():
     return instantiate_plan(
-        plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), soccer_registry(), fig10_belief()
+        plan_pddl(SOCCER_DOMAIN, SOCCER_PROBLEM), soccer_registry(), fig10_belief()
     )
 
 
@@ -211,7 +196,7 @@ def _linear(coef) -> PiecewiseLinearModel:
 def test_bad_belief_entries_are_named(part, key, bad, message):
     belief = fig10_belief()
     getattr(belief, part)[key] = bad
-    plan = plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM)
+    plan = plan_pddl(SOCCER_DOMAIN, SOCCER_PROBLEM)
     with pytest.raises(RepertoireError, match=message):
         instantiate_plan(plan, soccer_registry(), belief)
 
@@ -219,7 +204,7 @@ def test_bad_belief_entries_are_named(part, key, bad, message):
 def test_unbounded_free_parameter_is_named_by_refinement():
     belief = fig10_belief()
     belief.defaults["phi"] = (-math.inf, math.inf)  # fine for a bound phi, not for a free one
-    plan = instantiate_plan(plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), soccer_registry(), belief)
+    plan = instantiate_plan(plan_pddl(SOCCER_DOMAIN, SOCCER_PROBLEM), soccer_registry(), belief)
     assert plan.ranges["pos2.phi"] == Range(-math.inf, math.inf)
     assert plan.ranges["pos1.phi"] == Range(0.0, 0.0)
     models = {
@@ -235,7 +220,7 @@ def test_unbounded_free_parameter_is_named_by_refinement():
 
 def test_figure_11_refinement_of_the_instantiated_plan():
     plan = instantiate_plan(
-        plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), soccer_registry(), fig10_belief()
+        plan_pddl(SOCCER_DOMAIN, SOCCER_PROBLEM), soccer_registry(), fig10_belief()
     )
     models = {
         # approaching: turning at the goal costs 0.8 s/rad, arriving faster saves time
@@ -290,7 +275,7 @@ def _start_speed(p: dict) -> np.ndarray:
 
 def test_refinement_problem_bad_input():
     plan = instantiate_plan(
-        plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), soccer_registry(), fig10_belief()
+        plan_pddl(SOCCER_DOMAIN, SOCCER_PROBLEM), soccer_registry(), fig10_belief()
     )
     with pytest.raises(RepertoireError, match="no duration model for action 'dribbleBall'"):
         refinement_problem(
@@ -309,7 +294,7 @@ def test_figure_16_subgoal_inserted_into_the_plan_and_refined():
     registry.register(ActionTemplate("goToPose", _pose(0) + _pose(1, "_g")))
     belief = fig10_belief()
     belief.values[("robot", "x")] = 4.0  # right of the ball at x = 3: direct approach fails
-    plan = instantiate_plan(plan_pddl(SOCCER_DOMAIN, FIG10_PROBLEM), registry, belief)
+    plan = instantiate_plan(plan_pddl(SOCCER_DOMAIN, SOCCER_PROBLEM), registry, belief)
     asserted = insert_subgoal(plan, 0, registry, belief, replacement="goToPose")
     assert [(a.name, a.args) for a in asserted.actions] == [
         ("goToPose", ("pos1", "subgoal1")),

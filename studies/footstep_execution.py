@@ -476,7 +476,7 @@ def draw_feedback_walk(plan: FootstepPlan, results: dict, out: Path) -> Path:
     ax.set_ylabel(f"landing error vs the plan, world frame [mm]\n(log; below {floor} mm "
                   f"drawn at {floor})")  # fmt: skip
     ax.set_title("where each foot landed, against the plan's pose of that step", fontsize=9)
-    ax.legend(fontsize=8, loc="center right")
+    ax.legend(fontsize=8, loc="lower right")  # below the open-loop curve, above feedback
     fig.suptitle("one long footstep plan (learned table) walked by the physics biped: open loop "
                  "vs world-frame step feedback")  # fmt: skip
     fig.savefig(out, dpi=110)

@@ -364,7 +364,7 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
         color="k",
         ls="--",
         lw=0.8,
-        label=f"{1000 * CUP_MARGIN:g} mm: inside the margin Reach and Put keep",
+        label=f"{1000 * CUP_MARGIN:g} mm: below, inside the cup grown by Reach's and Put's margin",
     )
     ax.set_yscale("symlog", linthresh=10.0)
     lowest = np.nanmin(np.where(standing, 1000 * clearance, np.nan))

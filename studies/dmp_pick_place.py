@@ -406,8 +406,13 @@ def joint_limits_figure(records: list[PickPlaceRecord], out: Path) -> Path:
         -1, len(ARM_JOINTS)
     )
     held = np.array([r.joint_held_steps for r in records], dtype=int).reshape(-1, len(ARM_JOINTS))
+    placed = np.array([bool(r.success) for r in records], dtype=bool)
     for j in range(len(ARM_JOINTS)):
-        ax.plot(np.full(len(margins), j), margins[:, j], "o", mfc="none", color=colours[j])
+        for mask, fill in ((placed, colours[j]), (~placed, "none")):
+            ax.plot(np.full(mask.sum(), j), margins[mask, j], "o", mfc=fill, color=colours[j])
+        ax.annotate(f"held\n{held[:, j].sum()}", (j, 1.0), xycoords=("data", "axes fraction"),
+                    xytext=(0, -2), textcoords="offset points", ha="center", va="top",
+                    fontsize=7)  # fmt: skip
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_xticks(range(len(ARM_JOINTS)))
     ax.set_xticklabels(
@@ -417,13 +422,16 @@ def joint_limits_figure(records: list[PickPlaceRecord], out: Path) -> Path:
         fontsize=8,
     )
     ax.set_ylim(bottom=-0.05)
-    ax.set_ylabel("least distance of the IK reference from a limit over the run [rad]")
+    ax.set_ylabel("the IK reference's least distance\nfrom a limit over the run [rad]")
     runs_held = int(np.sum(held.sum(axis=1) > 0))
+    unrun = int(np.sum(~np.isfinite(margins).all(axis=1)))
     ax.set_title(
-        f"{len(records)} episodes: one circle per episode and joint\n{runs_held} episodes with "
-        f"a joint held by a limit ({int(held.sum())} IK steps)",
+        f"{len(records)} episodes ({unrun} refused before running), a circle each;\n"
+        f"filled: cup placed; {runs_held} with a joint held by a limit\n"
+        f"(top: IK steps held, per joint)",
         fontsize=9,
     )
+    ax.set_ylim(top=max(1.25, float(np.nanmax(margins, initial=0.0)) * 1.2))
     recorder, report = joint_limit_probe()
     t, scaled = recorder.times, (recorder.q - lower) / (upper - lower)
     for j, name in enumerate(ARM_JOINTS):

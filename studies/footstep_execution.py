@@ -599,8 +599,14 @@ def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> 
             config, int(records[0].seed), out_dir / "example_execution.png"
         )
     if config.feedback_walk_steps:
-        plan, results = feedback_walk(config, config.feedback_walk_steps)
-        out["feedback_walk"] = draw_feedback_walk(plan, results, out_dir / "feedback_walk.png")
+        try:
+            plan, results = feedback_walk(config, config.feedback_walk_steps)
+        except RepertoireError as e:  # e.g. a table whose steps the feedback cannot reach
+            note = out_dir / "feedback_walk_refused.txt"
+            note.write_text(f"the long walk was not drawn: {e}\n")
+            out["feedback_walk_refused"] = note
+        else:
+            out["feedback_walk"] = draw_feedback_walk(plan, results, out_dir / "feedback_walk.png")
     return out
 
 

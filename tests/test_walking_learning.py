@@ -207,3 +207,16 @@ def test_feedback_walk_figure_is_written(tmp_path):
         assert not result.fell and len(result.landed) == 4
     out = draw_feedback_walk(plan, results, tmp_path / "walk.png")
     assert out.is_file() and out.stat().st_size > 10_000
+
+
+def test_a_long_walk_the_feedback_refuses_is_noted_not_drawn(tmp_path):
+    # the nominal table's first long step is 0.18 m from the controller's: out of reach
+    table = tmp_path / "nominal.json"
+    nominal_action_table().save(table)
+    config = FootstepExecutionConfig(
+        **{**smoke_config().__dict__, "table_path": str(table), "feedback_walk_steps": 3}
+    )
+    record = run_execution_episode(config, 0)
+    out = execution_summarize([record], config, tmp_path)
+    assert "feedback_walk" not in out
+    assert out["feedback_walk_refused"].read_text().startswith("the long walk was not drawn: ")

@@ -224,8 +224,9 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
     finger boxes where they came nearest to each standing cup, and where each cup ended.
     Right: over time, the finger boxes' clearance from each standing cup: the larger of
     their horizontal gap from its disc and their bottom's height above its rim, so the
-    fingers are inside the cup grown by ``CUP_MARGIN`` (what Reach and Put keep out of)
-    exactly when it is at most ``CUP_MARGIN``, and touch the cup at 0.
+    fingers touch the cup where it is at most 0; samples where they are inside the cup's
+    disc grown by ``CUP_MARGIN`` and below its rim (the region Reach and Put keep their
+    planned ways out of: the margin widens a cup, it does not raise it) are marked.
 
     Args:
         config: the study config.
@@ -258,13 +259,16 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
     t, base, q, fingers = rows[:, 0], rows[:, 1:4], rows[:, 4:7], rows[:, 7:9]
     cup_at = rows[:, 9:15].reshape(-1, 2, 3)
     clearance = np.full((len(rows), 2), np.nan)
+    grown = np.zeros((len(rows), 2), dtype=bool)  # inside the disc + CUP_MARGIN, below the rim
     for i in range(len(rows)):
         span = [[fingers[i, 0]] * 2, [fingers[i, 1]] * 2]
         rims = cup_at[i, :, 2] + CUP_HALF_HEIGHT
         discs = np.column_stack([cup_at[i, :, :2], np.full(2, CUP_RADIUS), rims])
         centres, _, halves = finger_boxes(base[i], q[i], span)
         above = float(np.min(centres[0, :, 2] - halves[:, 2])) - rims  # bottom over the rim
-        clearance[i] = np.maximum(finger_disc_gaps(base[i], q[i], span, discs)[0], above)
+        gaps = finger_disc_gaps(base[i], q[i], span, discs)[0]
+        clearance[i] = np.maximum(gaps, above)
+        grown[i] = (gaps <= CUP_MARGIN) & (above <= 0.0)
     standing = np.column_stack(
         [~np.isin(steps, list(engaged_steps(config.scenario, k))) for k in range(2)]
     )
@@ -296,7 +300,7 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
             color="k",
             ls="--",
             lw=0.8,
-            label=f"cup disc + {1000 * CUP_MARGIN:g} mm margin (Reach, Put)",
+            label=f"cup disc + {1000 * CUP_MARGIN:g} mm margin up to the rim (Reach, Put)",
         ),
     ]
     for k, name in enumerate(FETCHED):
@@ -359,13 +363,10 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
         handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncols=2
     )
     ax.axhline(0.0, color="k", lw=0.8, label="touching the cup")
-    ax.axhline(
-        1000 * CUP_MARGIN,
-        color="k",
-        ls="--",
-        lw=0.8,
-        label=f"{1000 * CUP_MARGIN:g} mm: below, inside the cup grown by Reach's and Put's margin",
-    )
+    inside = standing & grown
+    ax.plot(np.broadcast_to(t[:, None], inside.shape)[inside], 1000 * clearance[inside], "x",
+            color="tab:red", label=f"inside a cup's disc + {1000 * CUP_MARGIN:g} mm, below its "
+            f"rim: {int(inside.sum())} samples")  # fmt: skip
     ax.set_yscale("symlog", linthresh=10.0)
     lowest = np.nanmin(np.where(standing, 1000 * clearance, np.nan))
     ax.set_ylim(bottom=min(-2.0, 1.5 * lowest))

@@ -186,9 +186,9 @@ def finger_disc_gaps(base_state, q, span, discs) -> np.ndarray:
     The horizontal distance between the disc (a standing cup's cross-section) and the
     nearer of the two finger footprint rectangles (:func:`finger_boxes`), less the disc's
     radius: ``<= 0`` where a footprint overlaps the disc. Heights are not compared (see
-    :func:`fingers_in_boxes` for the test with them); a finger box meets a disc grown by
-    ``margin`` exactly when this gap is at most ``margin`` and its bottom is at most at
-    the top.
+    :func:`fingers_in_boxes` for the test with them, where a finger box meets a disc
+    grown by ``margin`` exactly when this gap is at most ``margin`` and its bottom is at
+    most ``margin`` above the top).
 
     Args:
         base_state: ``[x, y, phi, ...]`` of the chassis, or one row per joint row.

@@ -8,6 +8,7 @@ the registry's checks of the two worlds).
 
 import dataclasses
 import time
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from pydrake.systems.framework import Context, Diagram, EventStatus
@@ -30,7 +31,9 @@ class IkTargetError(RepertoireError):
     """The task-space IK reported a target out of reach or lost tracking during a run."""
 
 
-def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
+def run_arm_world(
+    diagram: Diagram, duration: float, *, monitors: Sequence[Callable] = ()
+) -> tuple[Context, float]:
     """Simulates an arm DMP world, stopping with a clear error if the IK reports a problem.
 
     Runs through :func:`repertoire.diagrams.simulate.simulate` (its non-finite-state check)
@@ -39,6 +42,9 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
     Args:
         diagram: a diagram built by this module.
         duration: simulated seconds.
+        monitors: more per-step monitors ``f(root_context) -> EventStatus``, called before
+            the IK-status one (so they also see the step where the IK reports), e.g. a
+            :class:`JointLimitRecorder`.
 
     Returns:
         (final root context, wall-clock seconds of the simulation).
@@ -76,7 +82,7 @@ def run_arm_world(diagram: Diagram, duration: float) -> tuple[Context, float]:
         return EventStatus.ReachedTermination(rmrc, STATUS_NAMES[status])
 
     start = time.perf_counter()
-    _, root = simulate(diagram, duration, monitors=[ik_monitor])
+    _, root = simulate(diagram, duration, monitors=[*monitors, ik_monitor])
     wall = time.perf_counter() - start
     if problem:
         distance = float(np.linalg.norm(problem["goal"] - shoulder))
@@ -113,6 +119,74 @@ def joints_at_limits_text(held: np.ndarray) -> str:
         f", joints held at a limit: {', '.join(names)} (the desired pose lies beyond what "
         "the IK attains within arm7's joint limits there)"
     )
+
+
+class JointLimitRecorder:
+    """A per-step monitor recording the IK's joint references and the joints it holds.
+
+    Pass it to :func:`run_arm_world`'s ``monitors``; after the run, :attr:`times`,
+    :attr:`q` and :attr:`held` hold, for every simulator step, the time, the RMRC IK's
+    reference positions ``q_r`` of arm7's joints and its ``joints_at_limits`` output (+1
+    upper, -1 lower, 0 free).
+    """
+
+    def __init__(self, diagram: Diagram):
+        """Records the ``rmrc`` IK of ``diagram`` (an arm world)."""
+        self._rmrc = diagram.GetSubsystemByName("rmrc")
+        self._reference = self._rmrc.GetOutputPort("arm_reference_state")
+        self._held = self._rmrc.GetOutputPort("joints_at_limits")
+        self._rows: list[np.ndarray] = []
+
+    def __call__(self, context: Context) -> EventStatus:
+        """Records the step; never stops the run."""
+        rmrc_context = self._rmrc.GetMyContextFromRoot(context)
+        held = self._held.Eval(rmrc_context)
+        q = self._reference.Eval(rmrc_context)[: len(held)]
+        self._rows.append(np.concatenate([[context.get_time()], q, held]))
+        return EventStatus.Succeeded()
+
+    def _table(self) -> np.ndarray:
+        n = self._held.size()
+        return np.array(self._rows).reshape(-1, 1 + 2 * n)
+
+    @property
+    def times(self) -> np.ndarray:
+        """Times of the recorded steps, (k,) [s]."""
+        return self._table()[:, 0]
+
+    @property
+    def q(self) -> np.ndarray:
+        """The IK's reference joint positions, (k, n) [rad]."""
+        return self._table()[:, 1 : 1 + self._held.size()]
+
+    @property
+    def held(self) -> np.ndarray:
+        """The IK's ``joints_at_limits`` at each step, (k, n)."""
+        return self._table()[:, 1 + self._held.size() :]
+
+
+def limit_margins(q, lower, upper) -> np.ndarray:
+    """Per joint, the least distance of its positions from either of its limits.
+
+    Args:
+        q: joint positions, (k, n) [rad] (k >= 1).
+        lower: the joints' lower limits, (n,).
+        upper: the joints' upper limits, (n,).
+
+    Returns:
+        (n,) ``min over rows of min(q - lower, upper - q)`` (0 on a limit, negative past it).
+
+    Raises:
+        RepertoireError: no rows, or shapes that do not match.
+    """
+    q = np.asarray(q, dtype=float)
+    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    if q.ndim != 2 or len(q) == 0 or q.shape[1] != lower.size or lower.shape != upper.shape:
+        raise RepertoireError(
+            f"limit_margins needs q of shape (k >= 1, n) and n lower and upper limits, got "
+            f"{q.shape}, {lower.shape} and {upper.shape}"
+        )
+    return np.minimum(q - lower, upper - q).min(axis=0)
 
 
 def ik_status_figures(diagram: Diagram, context: Context) -> dict[str, float]:

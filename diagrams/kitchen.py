@@ -18,14 +18,16 @@ With ``cup_in_gripper`` the cup ``cup_0`` starts between the closed fingers
 """
 
 import dataclasses
+import functools
 import math
 import re
+from collections.abc import Callable
 
 import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.tree import PdControllerGains
-from pydrake.systems.framework import Context, Diagram, DiagramBuilder
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, EventStatus
 from pydrake.systems.primitives import ConstantVectorSource, MatrixGain, Multiplexer
 from repertoire.diagrams.biped import add_plant_with_ground, validate_discrete_control_fields
 from repertoire.diagrams.diffdrive import WHEEL_RADIUS, WORLDS, check_start_clear
@@ -537,11 +539,18 @@ class StepResult:
     duration: float
 
 
+def _sample(on_sample, diagram: Diagram, step: int, context: Context) -> EventStatus:
+    """A simulator monitor handing the state to ``on_sample``; it never stops the run."""
+    on_sample(diagram, context, step)
+    return EventStatus.Succeeded()
+
+
 def run_kitchen_sequence(
     steps: list[tuple[str, list[float]]],
     scenario: KitchenScenario | None = None,
     *,
     step_limit: float = 30.0,
+    on_sample: Callable[[Diagram, Context, int], None] | None = None,
 ) -> tuple[list[StepResult], Diagram, Context]:
     """Runs kitchen actions one after the other in physics, carrying the plant state over.
 
@@ -559,6 +568,9 @@ def run_kitchen_sequence(
         scenario: the start (pose, arm, fingers) and plant settings.
         step_limit: simulated seconds allowed per step; a step still running then
             ends the sequence as ``TIMED_OUT``.
+        on_sample: optional ``f(diagram, context, step)`` called after every simulator
+            step (a monitor: it sees the state and changes nothing) with the running
+            step's diagram, its context (time from the step's start) and its index.
 
     Returns:
         ``(results, diagram, context)`` of the executed steps and the last step.
@@ -589,6 +601,8 @@ def run_kitchen_sequence(
         plant = diagram.GetSubsystemByName("plant")
         if x is not None:
             plant.SetPositionsAndVelocities(plant.GetMyMutableContextFromRoot(context), x)
+        if on_sample is not None:
+            simulator.set_monitor(functools.partial(_sample, on_sample, diagram, len(results)))
         t = 0.0
         while t < step_limit and action_status(diagram, context) == ActionStatus.RUNNING:
             t += 0.1

@@ -125,11 +125,15 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
         (k, 3), empty when stopped), ``duration`` (simulated [s]), ``wall`` (simulation
         wall time [s]), each of :data:`PICK_PLACE_FIGURES` (NaN when the run stopped
         before them) and ``placed``: it ran and the cup stands on the coaster (within
-        2 cm of it horizontally and 1 cm vertically, tilted under 0.2 rad).
+        2 cm of it horizontally and 1 cm vertically, tilted under 0.2 rad);
+        ``joint_margins`` (per arm joint, the IK reference's least distance from its
+        limits over the run [rad]; NaN when nothing ran) and ``joint_held_steps`` (per
+        joint, the IK steps that held it at a limit: ``joints_at_limits``).
     """
     from repertoire.diagrams.arm_dmp import build_pick_and_place
     from repertoire.diagrams.arm_dmp_results import (
         IkTargetError,
+        JointLimitRecorder,
         pick_and_place_figures,
         run_arm_world,
     )
@@ -137,18 +141,21 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
 
     out = {"failure": "", "path": np.zeros((0, 3)), "duration": 0.0, "wall": 0.0}
     out.update(dict.fromkeys(PICK_PLACE_FIGURES, float("nan")))
+    recorder = None
     try:
         diagram = build_pick_and_place(scenario)
+        recorder = JointLimitRecorder(diagram)
         _, duration = segment_timing(PICK_PLACE_LABELS, scenario.settle_time)
         if sim_duration_s > 0:
             duration = min(duration, sim_duration_s)
         out["duration"] = duration
-        context, out["wall"] = run_arm_world(diagram, duration)
+        context, out["wall"] = run_arm_world(diagram, duration, monitors=[recorder])
         figures = pick_and_place_figures(diagram, context)
         out.update({k: figures[k] for k in PICK_PLACE_FIGURES})
         out["path"] = tcp_path(diagram, context, path_every_s)
     except (IkTargetError, RepertoireError) as e:
         out["failure"] = str(e)
+    out.update(joint_limit_figures(recorder))
     out["placed"] = bool(
         not out["failure"]
         and out["cup_to_coaster_m"] < 0.02
@@ -156,6 +163,70 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
         and out["cup_tilt_rad"] < 0.2
     )
     return out
+
+
+def joint_limit_figures(recorder) -> dict[str, np.ndarray]:
+    """``joint_margins`` and ``joint_held_steps`` of a run (see :func:`run_pick_and_place`).
+
+    Args:
+        recorder: the run's :class:`~repertoire.diagrams.arm_dmp_results.JointLimitRecorder`,
+            or None when the world was not built (NaN margins, no held steps).
+    """
+    from repertoire.diagrams.arm_dmp_results import limit_margins
+    from repertoire.models.arm7 import ARM_JOINTS, arm7_joint_limits
+
+    if recorder is None or len(recorder.times) == 0:
+        n = len(ARM_JOINTS)
+        return {"joint_margins": np.full(n, np.nan), "joint_held_steps": np.zeros(n, int)}
+    return {
+        "joint_margins": limit_margins(recorder.q, *arm7_joint_limits()),
+        "joint_held_steps": np.count_nonzero(recorder.held, axis=0),
+    }
+
+
+#: The goal of :func:`joint_limit_probe`: the hand at home turned this far about its x axis.
+PROBE_TURN_RAD = 2.0
+
+
+def joint_limit_probe(duration: float = 3.0):
+    """The hand at home asked to turn :data:`PROBE_TURN_RAD` about its x axis (a grasp goal).
+
+    The wrist's limits do not allow that orientation, so the IK holds wrist joints at their
+    limits and reports ``STATUS_JOINT_LIMITS`` (the README's example: stopped at 1.92 s).
+
+    Args:
+        duration: simulated seconds at most [s].
+
+    Returns:
+        ``(recorder, report)``: the run's
+        :class:`~repertoire.diagrams.arm_dmp_results.JointLimitRecorder` and the IK's
+        stop message (empty if it did not stop).
+    """
+    from pydrake.math import RotationMatrix
+    from repertoire.diagrams.arm_dmp import build_arm_world
+    from repertoire.diagrams.arm_dmp_results import (
+        IkTargetError,
+        JointLimitRecorder,
+        run_arm_world,
+    )
+    from repertoire.diagrams.arm_dmp_scenarios import PickPlaceScenario
+    from repertoire.models.arm7 import HAND_OPEN, ArmObject
+    from repertoire.planning.arm_library import home_tcp_pose, quaternion_wxyz
+    from repertoire.systems.arm_goals import SegmentGoal
+
+    home = home_tcp_pose()
+    turned = home.rotation() @ RotationMatrix.MakeXRotation(PROBE_TURN_RAD)
+    goal = SegmentGoal("grasp", home.translation(), quaternion_wxyz(turned), np.array(HAND_OPEN))
+    cup = ArmObject(name="cup", kind="cup", xy=[0.55, -0.25])
+    diagram = build_arm_world(
+        "joint_limit_probe", PickPlaceScenario(), [cup], [goal], graspable=["cup:cup"]
+    )
+    recorder = JointLimitRecorder(diagram)
+    try:
+        run_arm_world(diagram, duration, monitors=[recorder])
+    except IkTargetError as e:
+        return recorder, str(e)
+    return recorder, ""
 
 
 #: Colour of an outcome in the arm studies' figures: True (success) green, False red.

@@ -624,8 +624,13 @@ class KitchenRun:
     cup_errors: list[float]
 
 
-def run_kitchen_plan(config: KitchenPlanConfig, start, cups, targets, params) -> KitchenRun:
-    """Executes the plan of ``params`` with ``run_kitchen_sequence`` (no second executor)."""
+def run_kitchen_plan(
+    config: KitchenPlanConfig, start, cups, targets, params, *, on_sample=None
+) -> KitchenRun:
+    """Executes the plan of ``params`` with ``run_kitchen_sequence`` (no second executor).
+
+    ``on_sample`` is passed on to it (e.g. a :class:`KitchenTracer`).
+    """
     from repertoire.diagrams.kitchen import KitchenScenario, cup_position, run_kitchen_sequence
 
     steps = plan_steps(plan_geometry(params, cups, targets), 0, config)
@@ -635,7 +640,9 @@ def run_kitchen_plan(config: KitchenPlanConfig, start, cups, targets, params) ->
         cups=list(FETCHED),  # the cups this plan touches: a plant half as costly per step
         cup_positions={name: [float(v) for v in c] for name, c in zip(FETCHED, cups, strict=True)},
     )
-    results, diagram, context = run_kitchen_sequence(steps, scenario, step_limit=config.step_limit)
+    results, diagram, context = run_kitchen_sequence(
+        steps, scenario, step_limit=config.step_limit, on_sample=on_sample
+    )
     errors = [
         float(np.linalg.norm(cup_position(diagram, context, name) - targets[k]))
         for k, name in enumerate(FETCHED[: len(targets)])
@@ -648,3 +655,51 @@ def run_kitchen_plan(config: KitchenPlanConfig, start, cups, targets, params) ->
         status = "MISSED"
     durations = [float(r.duration) for r in results]
     return KitchenRun(status, durations, float(sum(durations)), errors)
+
+
+class KitchenTracer:
+    """``on_sample`` of ``run_kitchen_sequence``: the robot and the cups as a plan runs.
+
+    Keeps every ``every``-th simulator step. After the run, :attr:`rows` holds one row
+    per kept step: the time from the plan's start [s], the chassis ``[x, y, phi]``, the
+    arm joints ``[lift, yaw, extend]``, the fingers ``[left, right]`` and the centres of
+    ``cup_0`` and ``cup_1`` (world); :attr:`steps` the plan step each row belongs to.
+    """
+
+    def __init__(self, every: int = 5):
+        """Keeps one simulator step in ``every`` (5: every 10 ms at the 2 ms plant step)."""
+        self.every = every
+        self._rows: list[list[float]] = []
+        self._steps: list[int] = []
+        self._step, self._offset, self._last, self._calls = 0, 0.0, 0.0, 0
+
+    def __call__(self, diagram, context, step: int) -> None:
+        """Records the state of ``context`` (the running step's diagram), every ``every`` calls."""
+        from repertoire.diagrams.kitchen import cup_position
+        from repertoire.diagrams.soccer import robot_state
+        from repertoire.systems.kitchen_actions import ARM_JOINTS, FINGER_JOINTS
+
+        if step != self._step:  # a new step: its clock starts at 0
+            self._step, self._offset, self._calls = step, self._offset + self._last, 0
+        self._last = context.get_time()
+        self._calls += 1
+        if (self._calls - 1) % self.every:
+            return
+        plant = diagram.GetSubsystemByName("plant")
+        plant_context = plant.GetMyContextFromRoot(context)
+        joints = [plant.GetJointByName(n).GetOnePosition(plant_context)
+                  for n in (*ARM_JOINTS, *FINGER_JOINTS)]  # fmt: skip
+        cups = [cup_position(diagram, context, name) for name in FETCHED]
+        self._rows.append([self._offset + self._last, *robot_state(diagram, context)[:3], *joints,
+                           *np.concatenate(cups)])  # fmt: skip
+        self._steps.append(step)
+
+    @property
+    def rows(self) -> np.ndarray:
+        """``(k, 15)`` kept states (see the class docstring)."""
+        return np.array(self._rows, dtype=float).reshape(-1, 15)
+
+    @property
+    def steps(self) -> np.ndarray:
+        """``(k,)`` the plan step of each row."""
+        return np.array(self._steps, dtype=int)

@@ -116,6 +116,10 @@ class PickPlaceRecord:
         min_ball_gap_time_s: when it occurred.
         collision_free: ``min_ball_gap_m > 0``.
         failure: empty, or why the run stopped (IK report).
+        joint_margins_rad: per arm7 joint, the least distance of the IK's reference from
+            the joint's limits over the run [rad] (NaN: nothing ran).
+        joint_held_steps: per joint, the IK steps that held it at a limit
+            (``joints_at_limits``).
         path_x: tcp x every ``path_every_s`` [m].
         path_y: tcp y.
         path_z: tcp z.
@@ -139,6 +143,8 @@ class PickPlaceRecord:
     min_ball_gap_time_s: float
     collision_free: bool
     failure: str
+    joint_margins_rad: list[float]
+    joint_held_steps: list[int]
     path_x: list[float]
     path_y: list[float]
     path_z: list[float]
@@ -207,6 +213,8 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
         **{k: float(run[k]) for k in PICK_PLACE_FIGURES},
         collision_free=bool(run["min_ball_gap_m"] > 0.0),
         failure=run["failure"],
+        joint_margins_rad=[round(float(v), 6) for v in run["joint_margins"]],
+        joint_held_steps=[int(v) for v in run["joint_held_steps"]],
         path_x=[round(float(v), 5) for v in run["path"][:, 0]],
         path_y=[round(float(v), 5) for v in run["path"][:, 1]],
         path_z=[round(float(v), 5) for v in run["path"][:, 2]],
@@ -367,7 +375,97 @@ def summarize(
         *timing_rows(records),
     ]
     table = write_table(out_dir, "dmp_pick_place_results.md", lines)
-    return {"top_view": top, "errors": errors, "results": table}
+    limits = joint_limits_figure(records, out_dir / "dmp_pick_place_joint_limits.png")
+    return {"top_view": top, "errors": errors, "results": table, "joint_limits": limits}
+
+
+def joint_limits_figure(records: list[PickPlaceRecord], out: Path) -> Path:
+    """The episodes' joint-limit margins and a probe run that the limits stop.
+
+    Left: per arm7 joint, each episode's least distance of the IK reference from the
+    joint's limits, and how many IK steps held it at one. Right:
+    :func:`~repertoire.studies._dmp_common.joint_limit_probe`'s joints over time, each
+    scaled to its range (0 lower limit, 1 upper), the steps where the IK held one by a
+    limit marked (``joints_at_limits``: its velocity bound came from the limit, braking
+    toward it or resting on it), and where the IK stopped the run.
+
+    Args:
+        records: the episodes.
+        out: the PNG to write.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from repertoire.models.arm7 import ARM_JOINTS, arm7_joint_limits
+    from repertoire.studies._dmp_common import PROBE_TURN_RAD, joint_limit_probe
+
+    lower, upper = arm7_joint_limits()
+    colours = [f"C{j}" for j in range(len(ARM_JOINTS))]
+    fig = Figure(figsize=(13, 5.4), layout="constrained")
+    ax, ax2 = fig.subplots(1, 2, width_ratios=[1, 1.3])
+    margins = np.array([r.joint_margins_rad for r in records], dtype=float).reshape(
+        -1, len(ARM_JOINTS)
+    )
+    held = np.array([r.joint_held_steps for r in records], dtype=int).reshape(-1, len(ARM_JOINTS))
+    placed = np.array([bool(r.success) for r in records], dtype=bool)
+    for j in range(len(ARM_JOINTS)):
+        for mask, fill in ((placed, colours[j]), (~placed, "none")):
+            ax.plot(np.full(mask.sum(), j), margins[mask, j], "o", mfc=fill, color=colours[j])
+        ax.annotate(f"held\n{held[:, j].sum()}", (j, 1.0), xycoords=("data", "axes fraction"),
+                    xytext=(0, -2), textcoords="offset points", ha="center", va="top",
+                    fontsize=7)  # fmt: skip
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_xticks(range(len(ARM_JOINTS)))
+    ax.set_xticklabels(
+        [f"{n}\n[{lo:g}, {hi:g}]" for n, lo, hi in zip(ARM_JOINTS, lower, upper, strict=True)],
+        rotation=30,
+        ha="right",
+        fontsize=8,
+    )
+    ax.set_ylim(bottom=-0.05)
+    ax.set_ylabel("the IK reference's least distance\nfrom a limit over the run [rad]")
+    runs_held = int(np.sum(held.sum(axis=1) > 0))
+    unrun = int(np.sum(~np.isfinite(margins).all(axis=1)))
+    ax.set_title(
+        f"{len(records)} episodes ({unrun} refused before running), a circle each;\n"
+        f"filled: cup placed; {runs_held} with a joint held by a limit\n"
+        f"(top: IK steps held, per joint)",
+        fontsize=9,
+    )
+    ax.set_ylim(top=max(1.25, float(np.nanmax(margins, initial=0.0)) * 1.2))
+    recorder, report = joint_limit_probe()
+    t, scaled = recorder.times, (recorder.q - lower) / (upper - lower)
+    for j, name in enumerate(ARM_JOINTS):
+        ax2.plot(t, scaled[:, j], color=colours[j], lw=1.2, label=name)
+        for sign, marker in ((1.0, "^"), (-1.0, "v")):
+            at = recorder.held[:, j] == sign
+            ax2.plot(t[at], scaled[at, j], marker, ms=4, color=colours[j], ls="")
+    ax2.axhline(0.0, color="k", lw=0.6)
+    ax2.axhline(1.0, color="k", lw=0.6)
+    handles, _ = ax2.get_legend_handles_labels()
+    handles += [
+        # joints_at_limits: the step's velocity bound came from the limit (braking or on it)
+        Line2D([], [], ls="", marker="^", color="k", label="IK step held by the upper limit"),
+        Line2D([], [], ls="", marker="v", color="k", label="IK step held by the lower limit"),
+    ]
+    if report:
+        ax2.axvline(t[-1], color="tab:red", ls="--", lw=1)
+        handles.append(
+            Line2D([], [], color="tab:red", ls="--", label=f"IK stops the run ({t[-1]:.2f} s)")
+        )
+    ax2.legend(handles=handles, fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    ax2.set_xlabel("time [s]")
+    ax2.set_ylabel("IK reference joint position, scaled to its limits (0 lower, 1 upper)")
+    stop = report.split("IK reported ", 1)[-1].split(" in segment")[0] if report else "no stop"
+    clause = "joints held at a limit: "
+    held_text = report.split(clause, 1)[1].split(" (the desired")[0] if clause in report else ""
+    ax2.set_title(
+        f"probe: the hand at home asked to turn {PROBE_TURN_RAD:g} rad about its x axis\n"
+        f"{stop}" + (f"\nheld: {held_text}" if held_text else ""),
+        fontsize=9,
+    )
+    fig.suptitle("arm7's joint limits: the pick-and-place episodes, and a goal beyond them")
+    fig.savefig(out, dpi=110)
+    return out
 
 
 register_dmp_study(

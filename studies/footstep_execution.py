@@ -9,6 +9,12 @@ It measures where each foot really landed: the fraction of steps within 2 cm and
 5 degrees of the plan (world frame), per-step errors, whether the run reached the
 goal without falling, and how many real footprints touch an obstacle.
 
+The episodes walk open loop, as the paper does. The summary also walks one long plan
+(``feedback_walk_steps`` steps of a fixed forward/turn command cycle, predicted with the
+learned table) open loop and with world-frame step feedback
+(:mod:`repertoire.systems.step_feedback`) and draws each step's landing error
+(``feedback_walk.png``): open loop the stance soles' small yaw slips add up to drift.
+
 Run it with ``python -m repertoire.studies.footstep_execution --help``.
 """
 
@@ -30,6 +36,7 @@ from repertoire.planning.footstep.types import ActionTable, FootstepPlan
 from repertoire.studies.engine import register_study
 from repertoire.systems.walking import SteppingRule
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 #: The table learned by the footstep_table study on the physics biped (343 sequences).
@@ -58,6 +65,9 @@ class FootstepExecutionConfig:
         time_step: plant time step [s].
         contact_approximation: ``sap`` (default), ``lagged`` or ``similar``.
         pelvis_height: pelvis height while walking [m].
+        feedback_walk_steps: steps of the long plan the summary walks open loop and
+            with step feedback (:func:`long_walk_actions`; 0: no such figure). 102 is
+            the README's plan (226 mm open loop, 0.8 mm with feedback).
         feedback: walk each plan with world-frame step feedback (each step placed on
             the plan's pose from the measured stance sole) instead of its commands open
             loop (the paper's setting, which the learned-vs-nominal comparison is about).
@@ -77,9 +87,16 @@ class FootstepExecutionConfig:
     contact_approximation: str = "sap"
     pelvis_height: float = 0.60
     feedback: bool = False
+    feedback_walk_steps: int = 102
 
     def validate(self) -> None:
         """Raise RepertoireError if a field is out of range."""
+        steps = self.feedback_walk_steps
+        if not (is_whole(steps) and (steps == 0 or steps >= 3)):
+            raise RepertoireError(
+                f"feedback_walk_steps must be 0 (no long walk) or a whole number >= 3, got "
+                f"{steps!r}"
+            )
         if self.feedback and self.compare_nominal:
             raise RepertoireError(
                 "feedback: true needs compare_nominal: false (the nominal table's plans "
@@ -346,6 +363,126 @@ def _draw_example(config: FootstepExecutionConfig, seed: int, out: Path) -> Path
     return out
 
 
+#: The long walk's command cycle (the README's 102-step plan of session 33).
+LONG_WALK_CYCLE = ("forward_long", "turn_left", "forward_medium", "turn_right")
+#: Where the long walk starts: the soles' midpoint ``[x, y, yaw]``; the right foot stands.
+LONG_WALK_START = (0.3, -0.2, 0.4)
+#: Colours of the open-loop and the feedback walk in the feedback figure.
+WALK_COLOURS = {False: "tab:red", True: "tab:blue"}
+WALK_LABELS = {False: "open loop (commands)", True: "with step feedback"}
+
+
+def long_walk_actions(steps: int) -> list[str]:
+    """The long walk's ``steps`` commands: :data:`LONG_WALK_CYCLE` repeated, then two stops.
+
+    Args:
+        steps: the plan's steps (>= 3).
+
+    Raises:
+        RepertoireError: ``steps`` not a whole number >= 3.
+    """
+    if not (is_whole(steps) and steps >= 3):
+        raise RepertoireError(f"a long walk needs a whole number >= 3 of steps, got {steps!r}")
+    moving = [LONG_WALK_CYCLE[k % len(LONG_WALK_CYCLE)] for k in range(steps - 2)]
+    return moving + ["stop", "stop"]
+
+
+def feedback_walk(config: FootstepExecutionConfig, steps: int):
+    """Walks the long plan of ``steps`` steps open loop and with step feedback.
+
+    The plan is the learned table's prediction of :func:`long_walk_actions` from
+    :data:`LONG_WALK_START` (what a footstep planner outputs for these commands).
+
+    Args:
+        config: the study config (table, plant and walking settings).
+        steps: the plan's steps.
+
+    Returns:
+        ``(plan, {False: open-loop WalkResult, True: feedback WalkResult})``.
+    """
+    from repertoire.diagrams.biped_walk import plan_from_actions, start_feet
+
+    stance, swing = start_feet(list(LONG_WALK_START), "right")
+    table = ActionTable.load(config.table())
+    plan = plan_from_actions(long_walk_actions(steps), stance, "right", swing, table)
+    results = {
+        fb: execute_plan(
+            plan,
+            rule=SteppingRule(),
+            pelvis_height=config.pelvis_height,
+            time_step=config.time_step,
+            contact_approximation=config.contact_approximation,
+            feedback=fb,
+        )
+        for fb in (False, True)
+    }
+    return plan, results
+
+
+def draw_feedback_walk(plan: FootstepPlan, results: dict, out: Path) -> Path:
+    """Top view of the long plan and each step's landing error, open loop vs feedback.
+
+    Args:
+        plan: the walked plan.
+        results: ``{False: open-loop WalkResult, True: feedback WalkResult}``.
+        out: the PNG to write.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Rectangle
+    from matplotlib.transforms import Affine2D
+
+    fig = Figure(figsize=(13, 5.6), layout="constrained")
+    top, ax = fig.subplots(1, 2, width_ratios=[1, 1.25])
+    for k, p in enumerate(plan.poses):
+        tr = Affine2D().rotate_around(p[0], p[1], p[2]) + top.transData
+        top.add_patch(Rectangle((p[0] - 0.08, p[1] - 0.05), 0.16, 0.10, fill=False, lw=0.5,
+                                ec=FOOT_COLOURS[plan.feet[k]], transform=tr))  # fmt: skip
+    handles = [
+        Line2D([], [], color=FOOT_COLOURS[0], lw=1, label="planned left sole"),
+        Line2D([], [], color=FOOT_COLOURS[1], lw=1, label="planned right sole"),
+    ]
+    floor = 0.1  # [mm]: the log axis' floor
+    for fb, result in results.items():
+        pos, yaw = landing_errors(result.landed, plan.poses[1:])
+        landed = np.asarray(result.landed, float).reshape(-1, 3)
+        colour, name = WALK_COLOURS[fb], WALK_LABELS[fb]
+        marker = ".x"[not fb]  # open loop on top, as crosses: the drift shows beside the dots
+        top.plot(landed[:, 0], landed[:, 1], marker, ms=4, color=colour, zorder=3 - fb)
+        fell = f", fell after {len(landed)}" if result.fell else ""
+        within = int(np.sum(pos <= POSITION_TOLERANCE_M))
+        label = (
+            f"{name}: largest {1000 * pos.max(initial=0.0):.1f} mm, "
+            f"{np.degrees(yaw.max(initial=0.0)):.2f} deg; {within}/{plan.num_steps} "
+            f"within 2 cm{fell}"
+        )
+        handles.append(
+            Line2D([], [], ls="", marker=marker, color=colour, label=f"{name}: landings")
+        )
+        steps = np.arange(1, len(pos) + 1)
+        ax.plot(steps, np.maximum(1000 * pos, floor), ".-", ms=3, lw=0.8, color=colour,
+                label=label)  # fmt: skip
+    top.set_aspect("equal")
+    top.autoscale_view()
+    top.set_xlabel("x [m]")
+    top.set_ylabel("y [m]")
+    top.set_title(f"the plan ({plan.num_steps} steps of {', '.join(LONG_WALK_CYCLE)})",
+                  fontsize=9)  # fmt: skip
+    top.legend(handles=handles, fontsize=8, loc="best")
+    ax.axhline(1000 * POSITION_TOLERANCE_M, color="k", ls="--", lw=0.8, label="2 cm tolerance")
+    ax.set_yscale("log")
+    ax.set_ylim(bottom=floor * 0.8)
+    ax.set_xlabel("step of the plan")
+    ax.set_ylabel(f"landing error vs the plan, world frame [mm]\n(log; below {floor} mm "
+                  f"drawn at {floor})")  # fmt: skip
+    ax.set_title("where each foot landed, against the plan's pose of that step", fontsize=9)
+    ax.legend(fontsize=8, loc="lower right")  # below the open-loop curve, above feedback
+    fig.suptitle("one long footstep plan (learned table) walked by the physics biped: open loop "
+                 "vs world-frame step feedback")  # fmt: skip
+    fig.savefig(out, dpi=110)
+    return out
+
+
 def execution_rows(records: list, tables: tuple[str, ...]) -> dict[str, dict]:
     """The summary row of each table over the episodes.
 
@@ -461,21 +598,37 @@ def summarize(records: list, config: FootstepExecutionConfig, out_dir: Path) -> 
         out["example"] = _draw_example(
             config, int(records[0].seed), out_dir / "example_execution.png"
         )
+    if config.feedback_walk_steps:
+        try:
+            plan, results = feedback_walk(config, config.feedback_walk_steps)
+        except RepertoireError as e:  # e.g. a table whose steps the feedback cannot reach
+            note = out_dir / "feedback_walk_refused.txt"
+            note.write_text(f"the long walk was not drawn: {e}\n")
+            out["feedback_walk_refused"] = note
+        else:
+            out["feedback_walk"] = draw_feedback_walk(plan, results, out_dir / "feedback_walk.png")
     return out
 
 
 def demo_config() -> FootstepExecutionConfig:
     """The demo config: a 2 m floor so that the demo's two episodes take about a minute.
 
-    The real run uses the default config (the paper's 3 m floor) with 50+ seeds.
+    Its long walk has 40 steps (about 8 s each way; open loop about 30 mm off by its
+    end); the real run uses the default config (the paper's 3 m floor, the README's
+    102-step walk) with 50+ seeds.
     """
-    return FootstepExecutionConfig(size_m=2.0, n_strips=2, n_blocks=1)
+    return FootstepExecutionConfig(size_m=2.0, n_strips=2, n_blocks=1, feedback_walk_steps=40)
 
 
 def smoke_config() -> FootstepExecutionConfig:
     """A tiny config for tests: a 1.5 m floor with one strip, learned table only."""
     return FootstepExecutionConfig(
-        size_m=1.5, n_strips=1, n_blocks=0, max_expansions=5000, compare_nominal=False
+        size_m=1.5,
+        n_strips=1,
+        n_blocks=0,
+        max_expansions=5000,
+        compare_nominal=False,
+        feedback_walk_steps=0,
     )
 
 

@@ -11,7 +11,11 @@ physics with :func:`~repertoire.diagrams.kitchen.run_kitchen_sequence`. Every ti
 the table is an executed time (the sum of the actions' durations).
 
 ``summarize`` writes the Table 3 row (mean times, mean per-episode improvement ``1 -
-t2/t1``, paired t-test) beside the paper's and a paired-time figure.
+t2/t1``, paired t-test) beside the paper's and a paired-time figure, and runs one
+executed plan again (of the situation whose cups stand nearest each other) while tracing
+it to draw how its fingers kept off the standing cups
+(Reach and Put refuse a way whose fingers would enter a cup's disc grown by
+``CUP_MARGIN``).
 
 Run it with ``python -m repertoire.studies.refinement_kitchen --help`` (``scenario: 2``
 in a config file for two cups).
@@ -25,6 +29,7 @@ from pathlib import Path
 import numpy as np
 from repertoire.studies._kitchen_plan import (
     KitchenPlanConfig,
+    action_names,
     kitchen_problem,
     load_kitchen_models,
     run_kitchen_plan,
@@ -130,8 +135,6 @@ def summarize(
     out_dir = Path(out_dir)
     both, t1, t2, _, _ = paired_succeeded(records)
     paper = PAPER_TABLE3_KITCHEN[config.scenario]
-    from repertoire.studies._kitchen_plan import action_names
-
     names = action_names(config.scenario)
     statuses = {h: {} for h in (1, 2)}
     for r in records:
@@ -173,7 +176,214 @@ def summarize(
         f"{name}: mean improvement {paired_cells(t1, t2)[3]} (paper {paper['improvement']:.1%})",
         out_dir / f"refinement_kitchen_{config.scenario}_paired.png",
     )  # fmt: skip
-    return {"tables": tables, "paired": figure}
+    out = {"tables": tables, "paired": figure}
+    executed = [(r, h) for r in records for h in (2, 1) if getattr(r, f"status_{h}") != "NO_PLAN"]
+    if executed:  # the situation whose two cups stand nearest each other (h = 2 first)
+        record, h = min(executed, key=lambda e: cups_apart(e[0]))
+        out["cups"] = standing_cups_figure(
+            config, record, h, out_dir / f"refinement_kitchen_{config.scenario}_cups.png"
+        )
+    return out
+
+
+def cups_apart(record) -> float:
+    """Horizontal distance between the centres of ``cup_0`` and ``cup_1`` of a record [m]."""
+    cups = np.reshape(record.cups, (-1, 3))
+    return float(np.hypot(*(cups[1, :2] - cups[0, :2])))
+
+
+#: Clearance [m] below which the figure marks the gripper's path and draws the fingers.
+CLOSE_M = 0.02
+
+
+def engaged_steps(scenario: int, cup: int) -> range:
+    """The plan steps in which ``cup`` does not stand (it is gripped, carried or let go).
+
+    From the reach down into it to the reach up out of it once put (steps of
+    :func:`~repertoire.studies._kitchen_plan.plan_steps`).
+
+    Args:
+        scenario: 1 or 2.
+        cup: the cup's index (``cup_0``, ``cup_1``); a cup the scenario does not fetch
+            stands throughout (an empty range).
+    """
+    if cup >= scenario:
+        return range(0)
+    fetch = len(action_names(1))
+    first = cup * (fetch + 1)  # each earlier fetch and the reach up out of its cup
+    return range(first + 3, min(first + fetch + 1, len(action_names(scenario))))
+
+
+def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -> Path:
+    """Top view and clearance of the fingers around the standing cups in one executed plan.
+
+    Runs the plan of ``record``'s horizon ``h`` again with a
+    :class:`~repertoire.studies._kitchen_plan.KitchenTracer`. Left: ``table_0`` from
+    above, the cups' discs and the actions' ``CUP_MARGIN`` around them, the gripper
+    centre's path (bold where the fingers come within ``CLOSE_M`` of a standing cup), the
+    finger boxes where they came nearest to each standing cup, and where each cup ended.
+    Right: over time, the finger boxes' clearance from each standing cup: the larger of
+    their horizontal gap from its disc and their bottom's height above its rim, so the
+    fingers touch the cup where it is at most 0; samples where they are inside the cup's
+    disc grown by ``CUP_MARGIN`` and below its rim (the region Reach and Put keep their
+    planned ways out of: the margin widens a cup, it does not raise it) are marked.
+
+    Args:
+        config: the study config.
+        record: the episode.
+        h: the horizon whose plan to run (1 or 2).
+        out: the PNG to write.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Circle, Patch, Rectangle
+    from matplotlib.transforms import Affine2D
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
+    from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
+    from repertoire.studies._kitchen_plan import FETCHED, KitchenTracer, run_kitchen_plan
+    from repertoire.systems.kitchen_actions import CUP_MARGIN
+    from repertoire.systems.kitchen_geometry import (
+        arm_forward,
+        chassis_points_to_world,
+        finger_boxes,
+        finger_disc_gaps,
+    )
+
+    tracer = KitchenTracer()
+    cups = np.reshape(record.cups, (-1, 3))
+    targets = np.reshape(record.targets, (-1, 3))
+    params = getattr(record, f"params_{h}")
+    run = run_kitchen_plan(config, record.start, cups, targets, params, on_sample=tracer)
+    rows, steps = tracer.rows, tracer.steps
+    every_s = tracer.every * config.time_step  # the rows' spacing [s]
+    t, base, q, fingers = rows[:, 0], rows[:, 1:4], rows[:, 4:7], rows[:, 7:9]
+    cup_at = rows[:, 9:15].reshape(-1, 2, 3)
+    clearance = np.full((len(rows), 2), np.nan)
+    grown = np.zeros((len(rows), 2), dtype=bool)  # inside the disc + CUP_MARGIN, below the rim
+    for i in range(len(rows)):
+        span = [[fingers[i, 0]] * 2, [fingers[i, 1]] * 2]
+        rims = cup_at[i, :, 2] + CUP_HALF_HEIGHT
+        discs = np.column_stack([cup_at[i, :, :2], np.full(2, CUP_RADIUS), rims])
+        centres, _, halves = finger_boxes(base[i], q[i], span)
+        above = float(np.min(centres[0, :, 2] - halves[:, 2])) - rims  # bottom over the rim
+        gaps = finger_disc_gaps(base[i], q[i], span, discs)[0]
+        clearance[i] = np.maximum(gaps, above)
+        grown[i] = (gaps <= CUP_MARGIN) & (above <= 0.0)
+    standing = np.column_stack(
+        [~np.isin(steps, list(engaged_steps(config.scenario, k))) for k in range(2)]
+    )
+    fig = Figure(figsize=(13, 7.4), layout="constrained")
+    top, ax = fig.subplots(1, 2, width_ratios=[1, 1.15])
+    cx, cy, yaw, hx, hy, _ = KITCHEN_OBSTACLES[1]  # table_0
+    turn = Affine2D().rotate_around(cx, cy, yaw) + top.transData
+    top.add_patch(
+        Rectangle((cx - hx, cy - hy), 2 * hx, 2 * hy, fc="0.92", ec="0.5", transform=turn)
+    )
+    gripper = chassis_points_to_world(base, arm_forward(q))
+    top.plot(gripper[:, 0], gripper[:, 1], color="0.6", lw=0.7)
+    close = np.where(np.any(standing & (clearance <= CLOSE_M), axis=1), 1.0, np.nan)
+    top.plot(gripper[:, 0] * close, gripper[:, 1] * close, color="tab:blue", lw=2.5)
+    colours = ("tab:orange", "tab:green")
+    handles = [
+        Patch(fc="0.92", ec="0.5", label="table_0"),
+        Line2D([], [], color="0.6", lw=0.7, label="gripper centre's path"),
+        Line2D(
+            [],
+            [],
+            color="tab:blue",
+            lw=2.5,
+            label=f"... where the fingers are within {100 * CLOSE_M:g} cm of a standing cup",
+        ),
+        Line2D(
+            [],
+            [],
+            color="k",
+            ls="--",
+            lw=0.8,
+            label=f"cup disc + {1000 * CUP_MARGIN:g} mm margin up to the rim (Reach, Put)",
+        ),
+    ]
+    for k, name in enumerate(FETCHED):
+        start, colour = cup_at[0, k], colours[k]
+        top.add_patch(Circle(start[:2], CUP_RADIUS, fc=colour, alpha=0.5, ec=colour))
+        top.add_patch(Circle(start[:2], CUP_RADIUS + CUP_MARGIN, fill=False, ec="k", ls="--"))
+        top.plot(*cup_at[-1, k, :2], "x", color="k", ms=6)
+        gripped = np.flatnonzero(~standing[:, k])
+        until = gripped[0] if gripped.size else len(rows)  # it stands until gripped
+        moved = 1000 * np.max(np.linalg.norm(cup_at[:until, k] - start, axis=1), initial=0.0)
+        role = "fetched" if k < config.scenario else "never fetched"
+        when = " before it was gripped" if k < config.scenario else ""
+        handles.append(
+            Patch(fc=colour, alpha=0.5, label=f"{name} ({role}): moved {moved:.1f} mm{when}")
+        )
+        watched = np.flatnonzero(standing[:, k])
+        i = watched[np.argmin(clearance[watched, k])]
+        if clearance[i, k] <= CLOSE_M:  # the finger boxes where they came nearest
+            centres, yaws, halves = finger_boxes(
+                base[i], q[i], [[fingers[i, 0]] * 2, [fingers[i, 1]] * 2]
+            )
+            for c, half in zip(centres[0], halves, strict=True):
+                tr = Affine2D().rotate_around(c[0], c[1], yaws[0]) + top.transData
+                top.add_patch(
+                    Rectangle(
+                        c[:2] - half[:2],
+                        2 * half[0],
+                        2 * half[1],
+                        fc="none",
+                        ec=colour,
+                        lw=1.2,
+                        transform=tr,
+                    )
+                )
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color=colour,
+                lw=1.2,
+                label=f"finger boxes nearest "
+                f"{name}: {1000 * clearance[i, k]:.1f} mm at {t[i]:.2f} s",
+            )
+        )
+        ax.plot(
+            t,
+            np.where(standing[:, k], 1000 * clearance[:, k], np.nan),
+            color=colour,
+            lw=1.2,
+            label=f"{name}, while it stands",
+        )
+    handles.append(Line2D([], [], ls="", marker="x", color="k", label="where the cups ended"))
+    top.set_xlim(cx - hx - 0.4, cx + hx + 0.4)
+    top.set_ylim(cy - hy - 0.6, cy + hy + 0.2)
+    top.set_aspect("equal")
+    top.set_xlabel("x [m]")
+    top.set_ylabel("y [m]")
+    top.set_title("table_0 from above", fontsize=9)
+    top.legend(
+        handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncols=2
+    )
+    ax.axhline(0.0, color="k", lw=0.8, label="touching the cup")
+    inside = standing & grown
+    ax.plot(np.broadcast_to(t[:, None], inside.shape)[inside], 1000 * clearance[inside], "x",
+            color="tab:red", label=f"inside a cup's disc + {1000 * CUP_MARGIN:g} mm, below its "
+            f"rim: {int(inside.sum())} samples")  # fmt: skip
+    ax.set_yscale("symlog", linthresh=10.0)
+    lowest = np.nanmin(np.where(standing, 1000 * clearance, np.nan))
+    ax.set_ylim(bottom=min(-2.0, 1.5 * lowest))
+    ax.set_xlabel("time from the plan's start [s]")
+    ax.set_ylabel(
+        "clearance of the finger boxes from a cup [mm]: the larger of the\n"
+        "horizontal gap and the height above its rim (symlog: linear below 10)"
+    )
+    ax.set_title(f"the fingers around the standing cups (every {1000 * every_s:g} ms)", fontsize=9)
+    ax.legend(fontsize=8, loc="upper right")
+    fig.suptitle(
+        f"Kitchen scenario {config.scenario}, the situation whose cups stand nearest "
+        f"({cups_apart(record):.2f} m apart): the h = {h} "
+        f"plan executed again ({run.status}, {run.total:.1f} s)"
+    )
+    fig.savefig(out, dpi=110)
+    return out
 
 
 def demo_config() -> KitchenPlanConfig:

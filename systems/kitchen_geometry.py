@@ -180,14 +180,46 @@ def _finger_hits(centres, yaw, halves, boxes, margin: float) -> np.ndarray:
     return hit
 
 
+def finger_disc_gaps(base_state, q, span, discs) -> np.ndarray:
+    """Per joint sample and disc, how far the finger boxes' footprints stay from the disc.
+
+    The horizontal distance between the disc (a standing cup's cross-section) and the
+    nearer of the two finger footprint rectangles (:func:`finger_boxes`), less the disc's
+    radius: ``<= 0`` where a footprint overlaps the disc. Heights are not compared (see
+    :func:`fingers_in_boxes` for the test with them, where a finger box meets a disc
+    grown by ``margin`` exactly when this gap is at most ``margin`` and its bottom is at
+    most ``margin`` above the top).
+
+    Args:
+        base_state: ``[x, y, phi, ...]`` of the chassis, or one row per joint row.
+        q: joints ``(n, 3)`` or ``(3,)``.
+        span: the fingers' position ranges, as in :func:`finger_boxes`.
+        discs: ``(j, 4)`` rows ``[cx, cy, radius, top_z]``.
+
+    Returns:
+        ``(n, j)`` gaps [m].
+    """
+    centres, yaw, halves = finger_boxes(base_state, q, span)
+    discs = _check_discs(discs)
+    gaps = [_disc_distances(centres, yaw, halves, cx, cy).min(axis=1) - r
+            for cx, cy, r, _ in discs]  # fmt: skip
+    return np.column_stack(gaps) if gaps else np.zeros((len(yaw), 0))
+
+
+def _disc_distances(centres, yaw, halves, cx: float, cy: float) -> np.ndarray:
+    """``(n, 2)`` distances of the point ``(cx, cy)`` from each finger's footprint rectangle."""
+    fa, fb = _axes(yaw[:, None])  # the finger's axes, (n, 1)
+    d = (centres[:, :, 0] - cx, centres[:, :, 1] - cy)  # (n, 2 fingers) each
+    u = np.maximum(_dot_abs(*d, *fa) - halves[:, 0], 0.0)
+    w = np.maximum(_dot_abs(*d, *fb) - halves[:, 1], 0.0)
+    return np.hypot(u, w)
+
+
 def _finger_disc_hits(centres, yaw, halves, discs, margin: float) -> np.ndarray:
     """:func:`fingers_in_boxes`' test against discs, finger boxes as :func:`finger_boxes` gives."""
-    hit, fa, fb = np.full(len(yaw), -1), *_axes(yaw[:, None])  # the finger's axes, (n, 1)
+    hit = np.full(len(yaw), -1)
     for i, (cx, cy, radius, top) in enumerate(discs):
-        d = (centres[:, :, 0] - cx, centres[:, :, 1] - cy)  # (n, 2 fingers) each
-        u = np.maximum(_dot_abs(*d, *fa) - halves[:, 0], 0.0)
-        w = np.maximum(_dot_abs(*d, *fb) - halves[:, 1], 0.0)
-        overlap = (np.hypot(u, w) <= radius + margin) & (
+        overlap = (_disc_distances(centres, yaw, halves, cx, cy) <= radius + margin) & (
             centres[:, :, 2] - halves[:, 2] <= top + margin
         )
         new = np.any(overlap, axis=1) & (hit < 0)

@@ -25,7 +25,7 @@ SMOKE_EXPECTED = {
             "min_ball_gap_m": 0.023225676323690422,
             "cup_to_coaster_m": 0.35630108377405284,
         },
-        {"errors", "results", "top_view"},
+        {"errors", "results", "top_view", "joint_limits"},
     ),
     "dmp_serving": (
         {"success": False, "cups_served": 0, "bottle_in_hand_m": 0.25104634490828476},
@@ -55,6 +55,9 @@ def test_smoke_episode_is_deterministic_and_summarizes(module, tmp_path):
         if not key.startswith("wall"):
             assert a[key] == b[key] or (a[key] != a[key] and b[key] != b[key]), key
     assert first.failure in ("", {"coupled": "", "uncoupled": ""})
+    if module is dmp_pick_place:  # 0.3 s from home: every joint far from its limits
+        assert len(first.joint_margins_rad) == 7 and min(first.joint_margins_rad) > 0.1
+        assert first.joint_held_steps == [0] * 7
     assert first.wall_sim_s > 0.0
     files = module.summarize([first], config, tmp_path)
     assert set(files) == file_keys
@@ -215,3 +218,30 @@ def test_legend_below_sits_a_fixed_distance_under_the_axes(height_in):
     assert frame.y1 == pytest.approx(box.y0 - 0.5 * fig.dpi, abs=1.0)
     assert frame.x0 + frame.x1 == pytest.approx(box.x0 + box.x1, abs=1.0)  # centred
     assert [t.get_text() for t in legend.get_texts()] == ["a", "b"]
+
+
+def test_limit_margins_closed_form():
+    from repertoire.diagrams.arm_dmp_results import limit_margins
+
+    q = np.array([[0.0, 1.0], [0.5, -0.25], [0.9, 0.0]])
+    # joint 0 in [-1, 1]: margins 1, 0.5, 0.1 -> 0.1; joint 1 in [-0.5, 2]: 1, 0.25, 0.5
+    assert np.allclose(limit_margins(q, [-1.0, -0.5], [1.0, 2.0]), [0.1, 0.25], atol=1e-15)
+    assert limit_margins([[1.5]], [-1.0], [1.0])[0] == -0.5  # past the upper limit
+    with pytest.raises(RepertoireError, match=r"limit_margins needs .* got \(0, 2\)"):
+        limit_margins(np.zeros((0, 2)), [0, 0], [1, 1])
+    with pytest.raises(RepertoireError, match=r"got \(1, 2\), \(3,\) and \(3,\)"):
+        limit_margins([[0.0, 0.0]], [0, 0, 0], [1, 1, 1])
+
+
+def test_joint_limit_probe_stops_at_the_wrist_limits_and_is_drawn(tmp_path):
+    from repertoire.studies._dmp_common import joint_limit_probe
+
+    recorder, report = joint_limit_probe()
+    assert recorder.times[-1] == pytest.approx(1.92)
+    assert "tracking lost at the joint limits" in report
+    assert "wrist_flexion (upper, 1.2 rad), wrist_abduction (lower, -0.6 rad)" in report
+    assert recorder.held[-1].tolist() == [0, 0, 0, 0, 0, 1.0, -1.0]
+    assert recorder.q.shape == (len(recorder.times), 7)
+    record = dmp_pick_place.run_episode(dmp_pick_place.PickPlaceConfig(sim_duration_s=0.2), 5)
+    out = dmp_pick_place.joint_limits_figure([record], tmp_path / "limits.png")
+    assert out.is_file() and out.stat().st_size > 10_000

@@ -222,3 +222,30 @@ def test_a_ways_samples_do_not_depend_on_the_other_rows():
              for r in range(n)]  # fmt: skip
     np.testing.assert_array_equal(got, alone)
     assert np.any(got >= 0) and np.any(got < 0)
+
+
+def test_finger_disc_gaps_by_hand():
+    from repertoire.models.diffdrive.generate import COLUMN_X, FINGER_SIZE
+    from repertoire.systems.kitchen_geometry import finger_disc_gaps, fingers_in_boxes
+
+    # chassis at the origin facing +x, arm straight ahead: the gripper centre at
+    # (COLUMN_X + 0.5, 0); the left finger's footprint is x in gx -+ 0.015, y in f -+ 0.01
+    q, f, r = [0.3, 0.0, 0.5], 0.05, 0.035
+    gx, span = COLUMN_X + 0.5, [[f, f], [f, f]]
+    half_x, half_y = FINGER_SIZE[0] / 2, FINGER_SIZE[1] / 2
+    discs = np.array(
+        [
+            [gx + half_x + 0.1 + r, f, r, 2.0],  # 0.1 m ahead of the left finger's face
+            [gx, f, r, 2.0],  # right over the left finger's centre: overlapping by r
+            [gx + half_x + 0.03, -f - half_y - 0.04, 0.01, 2.0],  # off the right one's corner
+        ]
+    )
+    gaps = finger_disc_gaps([0.0, 0.0, 0.0], q, span, discs)
+    assert gaps.shape == (1, 3)
+    assert gaps[0] == pytest.approx([0.1, -r, math.hypot(0.03, 0.04) - 0.01], abs=1e-12)
+    assert finger_disc_gaps([0.0, 0.0, 0.0], q, span, np.zeros((0, 4))).shape == (1, 0)
+    # a disc is entered (the fingers low beside it) exactly when its gap <= the margin
+    for gap, margin, hit in ((0.004, 0.005, 0), (0.006, 0.005, -1)):
+        disc = [[gx + half_x + gap + r, f, r, 2.0]]
+        assert finger_disc_gaps([0.0, 0.0, 0.0], q, span, disc)[0, 0] == pytest.approx(gap)
+        assert fingers_in_boxes([0.0, 0.0, 0.0], q, span, [], margin, disc)[0] == hit

@@ -326,5 +326,43 @@ def test_one_episode_executes_both_plans(tmp_path):
     assert record.time_2 == pytest.approx(sum(record.durations_2))
     assert record.cup_errors_2[0] <= config.deliver_tolerance
     paths = summarize([record], config, tmp_path)
+    assert paths["cups"].is_file() and paths["cups"].stat().st_size > 10_000
     text = paths["tables"].read_text()
     assert "Kitchen (scenario 1)" in text and "| paper | 4 | 100 | 46.5 | 41.5 | 10.0% |" in text
+
+
+def test_engaged_steps_and_cups_apart():
+    from types import SimpleNamespace
+
+    from repertoire.studies.refinement_kitchen import cups_apart, engaged_steps
+
+    # scenario 1: cup_0 from the reach down (step 3) to the put (step 9); cup_1 stands
+    assert engaged_steps(1, 0) == range(3, 10) and engaged_steps(1, 1) == range(0)
+    # scenario 2: then the reach up out of cup_0 (step 10); cup_1's fetch starts at 11
+    assert engaged_steps(2, 0) == range(3, 11) and engaged_steps(2, 1) == range(14, 21)
+    assert cups_apart(SimpleNamespace(cups=[1.0, 2.0, 0.8, 1.3, 2.4, 0.8])) == pytest.approx(0.5)
+
+
+def test_tracing_a_kitchen_sequence_changes_nothing():
+    from repertoire.diagrams.kitchen import KitchenScenario, run_kitchen_sequence
+    from repertoire.studies._kitchen_plan import KitchenTracer
+
+    scenario = KitchenScenario(time_step=2e-3, cups=["cup_0", "cup_1"])  # the robot faces table_0
+    steps = [("reach", [2.0, 1.0, 1.0]), ("reach", [2.1, 0.95, 1.05])]
+    plain, diagram, context = run_kitchen_sequence(steps, scenario, step_limit=5.0)
+    tracer = KitchenTracer(every=10)
+    traced, traced_diagram, traced_context = run_kitchen_sequence(
+        steps, scenario, step_limit=5.0, on_sample=tracer
+    )
+    assert traced == plain and all(r.status == "SUCCEEDED" for r in plain)
+    states = [
+        d.GetSubsystemByName("plant").GetPositionsAndVelocities(
+            d.GetSubsystemByName("plant").GetMyContextFromRoot(c)
+        )
+        for d, c in ((diagram, context), (traced_diagram, traced_context))
+    ]
+    assert np.array_equal(*states)
+    rows, kept = tracer.rows, tracer.steps
+    assert rows.shape[1] == 15 and set(kept) == {0, 1}
+    assert np.all(np.diff(rows[:, 0]) > 0)  # one clock over both steps
+    assert rows[-1, 0] == pytest.approx(sum(r.duration for r in plain), abs=0.03)

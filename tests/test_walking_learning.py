@@ -168,3 +168,55 @@ def test_execution_config_bad_input(tmp_path):
         FootstepExecutionConfig(heuristic_weight=float("nan")).validate()
     with pytest.raises(RepertoireError, match="table_file"):
         FootstepTableConfig(table_file="t.txt").validate()
+
+
+def test_long_walk_actions_repeat_the_cycle_then_stop():
+    from repertoire.studies.footstep_execution import long_walk_actions
+
+    assert long_walk_actions(3) == ["forward_long", "stop", "stop"]
+    assert long_walk_actions(7) == [
+        "forward_long",
+        "turn_left",
+        "forward_medium",
+        "turn_right",
+        "forward_long",
+        "stop",
+        "stop",
+    ]
+    # the README's 102-step plan: the cycle 25 times, then two stops
+    cycle = ["forward_long", "turn_left", "forward_medium", "turn_right"]
+    assert long_walk_actions(102) == cycle * 25 + ["stop", "stop"]
+    for bad in (2, 0, -1, 4.5, True):
+        with pytest.raises(RepertoireError, match="whole number >= 3 of steps, got"):
+            long_walk_actions(bad)
+
+
+def test_feedback_walk_steps_is_checked():
+    for bad in (1, 2, -3, 7.5):
+        with pytest.raises(RepertoireError, match=f"feedback_walk_steps must be 0 .* got {bad}"):
+            FootstepExecutionConfig(feedback_walk_steps=bad).validate()
+    FootstepExecutionConfig(feedback_walk_steps=0).validate()
+
+
+def test_feedback_walk_figure_is_written(tmp_path):
+    from repertoire.studies.footstep_execution import draw_feedback_walk, feedback_walk
+
+    plan, results = feedback_walk(smoke_config(), 4)
+    assert plan.num_steps == 4 and set(results) == {False, True}
+    for result in results.values():
+        assert not result.fell and len(result.landed) == 4
+    out = draw_feedback_walk(plan, results, tmp_path / "walk.png")
+    assert out.is_file() and out.stat().st_size > 10_000
+
+
+def test_a_long_walk_the_feedback_refuses_is_noted_not_drawn(tmp_path):
+    # the nominal table's first long step is 0.18 m from the controller's: out of reach
+    table = tmp_path / "nominal.json"
+    nominal_action_table().save(table)
+    config = FootstepExecutionConfig(
+        **{**smoke_config().__dict__, "table_path": str(table), "feedback_walk_steps": 3}
+    )
+    record = run_execution_episode(config, 0)
+    out = execution_summarize([record], config, tmp_path)
+    assert "feedback_walk" not in out
+    assert out["feedback_walk_refused"].read_text().startswith("the long walk was not drawn: ")

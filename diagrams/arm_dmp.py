@@ -84,6 +84,7 @@ from repertoire.diagrams.arm_dmp_scenarios import (
     CoasterMotion,
     PickPlaceScenario,
     ServingScenario,
+    held_segments,
     plan_pick_and_place,
     plan_serving,
     segment_timing,
@@ -112,7 +113,11 @@ from repertoire.planning.arm_library import (
     quaternion_wxyz,
 )
 from repertoire.systems.arm_goals import GoalSchedule, SegmentGoal
-from repertoire.systems.arm_monitors import BodyPointAndAxis, ObstacleClearanceMonitor
+from repertoire.systems.arm_monitors import (
+    BodyPointAndAxis,
+    GraspSlipMonitor,
+    ObstacleClearanceMonitor,
+)
 from repertoire.systems.dmp_sequencer import task_space_sequencer
 from repertoire.systems.grasp import GraspWrench
 from repertoire.systems.obstacle_coupling import MultiPointObstacleCoupling
@@ -193,7 +198,9 @@ def build_arm_world(
             grasp_mode, settle_time).
         objects: the table's objects (table and arm are always added).
         goals: one goal per chain segment, in order (labels from the motion library).
-        graspable: "instance:body" of the objects the grip may hold (grip mode).
+        graspable: "instance:body" of the objects the grip may hold (grip mode); a
+            :class:`GraspSlipMonitor` (``grasp_slip``) watches the first in the hand
+            during the segments that hold it (:func:`held_segments`).
         coaster: optional moving coaster.
         obstacle: optional ball: MultiPointObstacleCoupling (if ``coupling``) and a
             clearance monitor between the ball and the arm and the graspable objects.
@@ -360,6 +367,22 @@ def build_arm_world(
             source.get_output_port(), plant.get_desired_state_input_port(coaster_instance)
         )
 
+    held = held_segments(labels)
+    if held and graspable:
+        instance_name, body_name = graspable[0].split(":")
+        slip = builder.AddNamedSystem(
+            "grasp_slip",
+            GraspSlipMonitor(
+                hand_body.index(),
+                plant.GetBodyByName(body_name, instances[instance_name]).index(),
+                X_HTcp,
+                held,
+                period=IK_PERIOD,
+            ),
+        )
+        builder.Connect(plant.get_body_poses_output_port(), slip.GetInputPort("body_poses"))
+        builder.Connect(chain.GetOutputPort("segment"), slip.GetInputPort("segment"))
+
     tcp_point = builder.AddNamedSystem("tcp_point", BodyPointAndAxis(hand_body.index(), X_HTcp))
     builder.Connect(plant.get_body_poses_output_port(), tcp_point.GetInputPort("body_poses"))
     log_mux = builder.AddNamedSystem("log_mux", Multiplexer([6, 10, 1]))
@@ -409,7 +432,11 @@ def build_arm_world(
         **pick_and_place_figures(diagram, context),
         **ik_status_figures(diagram, context),
     },
-    criteria={"success": Bound(lo=1.0), "collision_free": Bound(lo=1.0)},
+    criteria={
+        "success": Bound(lo=1.0),
+        "collision_free": Bound(lo=1.0),
+        "grasp_slipped": Bound(hi=0.0),
+    },
 )
 def build_pick_and_place(scenario: PickPlaceScenario, *, meshcat=None) -> Diagram:
     """Builds the pick-and-place world.

@@ -282,6 +282,37 @@ def segment_reach_errors(diagram: Diagram, context: Context) -> list[float]:
     return errors
 
 
+#: A held object that moved more than this in the hand is a grasp slip [m]: half the 2 cm
+#: within which a placed cup must stand on the coaster's centre.
+GRASP_SLIP_TOLERANCE = 0.01
+
+
+def grasp_slip_figures(diagram: Diagram, context: Context) -> dict[str, float]:
+    """How far the held object moved in the hand over a run (:class:`GraspSlipMonitor`).
+
+    Returns:
+        ``grasp_slip_m`` (the largest distance of the object's origin, in the tcp frame,
+        from where it sat when the hold began) and ``grasp_slip_time_s`` (when).
+    """
+    monitor = diagram.GetSubsystemByName("grasp_slip")
+    slip, when = monitor.get_output_port().Eval(monitor.GetMyContextFromRoot(context))
+    return {"grasp_slip_m": float(slip), "grasp_slip_time_s": float(when)}
+
+
+def grasp_slip_text(slip_m: float, time_s: float, what: str) -> str:
+    """The report of a grasp slip, e.g. ``"grasp slip: the cup moved 31.1 mm in the hand ..."``.
+
+    Args:
+        slip_m: the largest distance the object moved in the hand [m].
+        time_s: when [s].
+        what: the held object's name.
+    """
+    return (
+        f"grasp slip: the {what} moved {slip_m * 1000:.1f} mm in the hand (largest at "
+        f"t = {time_s:.2f} s; tolerance {GRASP_SLIP_TOLERANCE * 1000:g} mm)"
+    )
+
+
 def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, float]:
     """Figures of a pick-and-place run (also the registry's check).
 
@@ -293,7 +324,9 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
         ``min_ball_gap_m`` (smallest signed distance between the ball and any collision
         geometry of the arm, the hand, the fingers or the cup over the run, from
         SceneGraph every 4 ms; negative = they touched), ``min_ball_gap_time_s``
-        (when) and ``collision_free`` (1 if ``min_ball_gap_m > 0``).
+        (when), ``collision_free`` (1 if ``min_ball_gap_m > 0``), the cup's
+        :func:`grasp_slip_figures` while it is carried and ``grasp_slipped`` (1 if it
+        moved more than :data:`GRASP_SLIP_TOLERANCE` in the hand).
     """
     plant = diagram.GetSubsystemByName("plant")
     pc = plant.GetMyContextFromRoot(context)
@@ -315,6 +348,7 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
     gap, gap_time = monitor.get_output_port().Eval(monitor.GetMyContextFromRoot(context))
     errors = segment_reach_errors(diagram, context) + [np.nan] * 3
     success = d_xy < 0.02 and abs(height) < 0.01 and tilt < 0.2
+    slip = grasp_slip_figures(diagram, context)
     return {
         "cup_to_coaster_m": d_xy,
         "cup_height_above_coaster_m": height,
@@ -326,6 +360,8 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
         "min_ball_gap_m": float(gap),
         "min_ball_gap_time_s": float(gap_time),
         "collision_free": float(gap > 0.0),
+        **slip,
+        "grasp_slipped": float(slip["grasp_slip_m"] > GRASP_SLIP_TOLERANCE),
     }
 
 
@@ -345,7 +381,8 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
         the bottle or the hand pushed a cup), ``bottle_in_hand_m`` (bottle grasp
         point to tcp at the end), ``grasp_reach_error_m``, ``pour_reach_error_m``
         (largest over the pours), ``success`` (1 if all three cups were served and
-        none was pushed by more than 1 cm).
+        none was pushed by more than 1 cm) and the bottle's :func:`grasp_slip_figures`
+        from the grasp to the end.
     """
     plant = diagram.GetSubsystemByName("plant")
     pc = plant.GetMyContextFromRoot(context)
@@ -376,5 +413,6 @@ def serving_figures(diagram: Diagram, context: Context) -> dict[str, float]:
         grasp_reach_error_m=errors[0],
         pour_reach_error_m=float(max(errors[1::2][:3])) if len(errors) > 1 else np.nan,
         success=float(served == 3 and knocked < 0.01),
+        **grasp_slip_figures(diagram, context),
     )
     return figures

@@ -109,7 +109,15 @@ PICK_PLACE_FIGURES = (
     "place_reach_error_m",
     "min_ball_gap_m",
     "min_ball_gap_time_s",
+    "grasp_slip_m",
+    "grasp_slip_time_s",
 )
+
+#: How a pick-and-place run ended (``run_pick_and_place``'s ``outcome``), in the order of
+#: precedence: the IK stopped it, the cup moved more than ``GRASP_SLIP_TOLERANCE`` in the
+#: hand while carried (whether or not it still landed within 2 cm), it was placed, or it
+#: ran to the end and missed.
+OUTCOMES = ("stopped", "grasp_slip", "placed", "missed")
 
 
 def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> dict:
@@ -124,16 +132,20 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
         ``failure`` (the error's text, empty when it ran), ``path`` (the tcp, shape
         (k, 3), empty when stopped), ``duration`` (simulated [s]), ``wall`` (simulation
         wall time [s]), each of :data:`PICK_PLACE_FIGURES` (NaN when the run stopped
-        before them) and ``placed``: it ran and the cup stands on the coaster (within
-        2 cm of it horizontally and 1 cm vertically, tilted under 0.2 rad);
-        ``joint_margins`` (per arm joint, the IK reference's least distance from its
-        limits over the run [rad]; NaN when nothing ran) and ``joint_held_steps`` (per
-        joint, the IK steps that held it at a limit: ``joints_at_limits``).
+        before them), ``placed``: it ran and the cup stands on the coaster (within
+        2 cm of it horizontally and 1 cm vertically, tilted under 0.2 rad), ``outcome``
+        (one of :data:`OUTCOMES`), ``report``: the IK's stop message, else the grasp
+        slip's (``grasp_slip_text``), else empty; ``joint_margins`` (per arm joint, the IK
+        reference's least distance from its limits over the run [rad]; NaN when nothing
+        ran) and ``joint_held_steps`` (per joint, the IK steps that held it at a limit:
+        ``joints_at_limits``).
     """
     from repertoire.diagrams.arm_dmp import build_pick_and_place
     from repertoire.diagrams.arm_dmp_results import (
+        GRASP_SLIP_TOLERANCE,
         IkTargetError,
         JointLimitRecorder,
+        grasp_slip_text,
         pick_and_place_figures,
         run_arm_world,
     )
@@ -162,6 +174,14 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
         and abs(out["cup_height_above_coaster_m"]) < 0.01
         and out["cup_tilt_rad"] < 0.2
     )
+    slipped = bool(out["grasp_slip_m"] > GRASP_SLIP_TOLERANCE)
+    if out["failure"]:
+        out["outcome"], out["report"] = "stopped", out["failure"]
+    elif slipped:
+        out["outcome"] = "grasp_slip"
+        out["report"] = grasp_slip_text(out["grasp_slip_m"], out["grasp_slip_time_s"], "cup")
+    else:
+        out["outcome"], out["report"] = ("placed" if out["placed"] else "missed"), ""
     return out
 
 

@@ -111,6 +111,10 @@ class ObstacleArmRecord:
         min_ball_gap_m: per arm: smallest signed distance ball - arm/hand/fingers/cup [m].
         min_ball_gap_time_s: per arm: when it occurred.
         cup_to_coaster_m: per arm: final horizontal distance cup axis - coaster centre.
+        grasp_slip_m: per arm: the largest distance the cup moved in the hand while
+            carried [m].
+        outcome: per arm: ``stopped``, ``grasp_slip`` (the cup moved more than 1 cm in
+            the hand), ``placed`` or ``missed`` (``_dmp_common.OUTCOMES``).
         failure: per arm: empty, or why the run stopped.
         path_x: per arm: tcp x every ``path_every_s``.
         path_y: per arm: tcp y.
@@ -129,6 +133,8 @@ class ObstacleArmRecord:
     min_ball_gap_m: dict[str, float]
     min_ball_gap_time_s: dict[str, float]
     cup_to_coaster_m: dict[str, float]
+    grasp_slip_m: dict[str, float]
+    outcome: dict[str, str]
     failure: dict[str, str]
     path_x: dict[str, list[float]]
     path_y: dict[str, list[float]]
@@ -216,6 +222,8 @@ def run_episode(config: ObstacleArmConfig, seed: int) -> ObstacleArmRecord:
         min_ball_gap_m={a: float(r["min_ball_gap_m"]) for a, r in runs.items()},
         min_ball_gap_time_s={a: float(r["min_ball_gap_time_s"]) for a, r in runs.items()},
         cup_to_coaster_m={a: float(r["cup_to_coaster_m"]) for a, r in runs.items()},
+        grasp_slip_m={a: float(r["grasp_slip_m"]) for a, r in runs.items()},
+        outcome={a: r["outcome"] for a, r in runs.items()},
         failure={a: r["failure"] for a, r in runs.items()},
         path_x={a: [round(float(v), 5) for v in r["path"][:, 0]] for a, r in runs.items()},
         path_y={a: [round(float(v), 5) for v in r["path"][:, 1]] for a, r in runs.items()},
@@ -334,6 +342,8 @@ def summarize(
         lines.append(f"| {label} | {vals[0]} | {vals[1]} |")
     stops = [sum(bool(r.failure[a]) for r in records) for a in ARMS]
     lines.append(f"| stopped runs (IK report) | {stops[0]} | {stops[1]} |")
+    slips = [sum(r.outcome[a] == "grasp_slip" for r in records) for a in ARMS]
+    lines.append(f"| grasp slips (the cup moved > 1 cm in the hand) | {slips[0]} | {slips[1]} |")
     gap0 = np.array([r.uncoupled_path_gap_m for r in records], dtype=float) * 100
     if gap0.size:
         lines.append(

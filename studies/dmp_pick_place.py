@@ -115,11 +115,16 @@ class PickPlaceRecord:
             geometry of the arm, hand, fingers or cup (SceneGraph, every 4 ms).
         min_ball_gap_time_s: when it occurred.
         collision_free: ``min_ball_gap_m > 0``.
+        grasp_slip_m: the largest distance the cup moved in the hand while carried [m].
+        grasp_slip_time_s: when it occurred.
         failure: empty, or why the run stopped (IK report).
         joint_margins_rad: per arm7 joint, the least distance of the IK's reference from
             the joint's limits over the run [rad] (NaN: nothing ran).
         joint_held_steps: per joint, the IK steps that held it at a limit
             (``joints_at_limits``).
+        outcome: ``stopped``, ``grasp_slip`` (the cup moved more than 1 cm in the
+            hand), ``placed`` or ``missed`` (``_dmp_common.OUTCOMES``).
+        report: the IK's stop message or the grasp slip's, else empty.
         path_x: tcp x every ``path_every_s`` [m].
         path_y: tcp y.
         path_z: tcp z.
@@ -142,9 +147,13 @@ class PickPlaceRecord:
     min_ball_gap_m: float
     min_ball_gap_time_s: float
     collision_free: bool
+    grasp_slip_m: float
+    grasp_slip_time_s: float
     failure: str
     joint_margins_rad: list[float]
     joint_held_steps: list[int]
+    outcome: str
+    report: str
     path_x: list[float]
     path_y: list[float]
     path_z: list[float]
@@ -215,6 +224,8 @@ def run_episode(config: PickPlaceConfig, seed: int) -> PickPlaceRecord:
         failure=run["failure"],
         joint_margins_rad=[round(float(v), 6) for v in run["joint_margins"]],
         joint_held_steps=[int(v) for v in run["joint_held_steps"]],
+        outcome=run["outcome"],
+        report=run["report"],
         path_x=[round(float(v), 5) for v in run["path"][:, 0]],
         path_y=[round(float(v), 5) for v in run["path"][:, 1]],
         path_z=[round(float(v), 5) for v in run["path"][:, 2]],
@@ -355,12 +366,17 @@ def summarize(
     fig.savefig(errors, dpi=110)
 
     ball_gap = np.array([r.min_ball_gap_m for r in records], dtype=float)
+    slip_mm = np.array([r.grasp_slip_m for r in records], dtype=float) * 1000
     lines = [
         "| figure | value |",
         "|---|---|",
         f"| episodes | {len(records)} |",
         f"| success (cup on coaster within 2 cm) | {rate:.1%} |",
         f"| IK reports (stopped runs) | {sum(bool(r.failure) for r in records)} |",
+        "| grasp slips (the cup moved > 1 cm in the hand) | "
+        f"{sum(r.outcome == 'grasp_slip' for r in records)} |",
+        "| cup's slip in the hand, median / max [mm] | "
+        f"{stat_pair(slip_mm, np.median, np.max, 1)} |",
         "| collision-free (ball vs arm/hand/fingers/cup gap > 0) | "
         f"{np.mean([r.collision_free for r in records]) if records else float('nan'):.1%} |",
         "| smallest ball gap (SceneGraph), min / median [cm] | "

@@ -1,9 +1,12 @@
-"""Monitors of the arm worlds: logged body points and the ball-clearance running minimum.
+"""Monitors of the arm worlds: logged body points, the ball clearance and the grasp slip.
 
 :class:`BodyPointAndAxis` gives a body-fixed point and axis in the world (for named loggers);
 :class:`ObstacleClearanceMonitor` keeps the smallest gap between the ball obstacle and the
-arm or its load, from SceneGraph signed distances.
+arm or its load, from SceneGraph signed distances; :class:`GraspSlipMonitor` keeps the
+largest distance a held object moved in the hand.
 """
+
+from collections.abc import Sequence
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -129,3 +132,98 @@ class ObstacleClearanceMonitor(LeafSystem):
         best = context.get_discrete_state(self._state).value()
         if gap < best[0]:
             state.get_mutable_vector(self._state).SetFromVector([gap, context.get_time()])
+
+
+class GraspSlipMonitor(LeafSystem):
+    """Running maximum of how far a held object moved in the hand (grasp slip).
+
+    Every ``period``, while the active segment is one of ``held_segments``, it reads the
+    object's origin O in the tcp frame T, ``p_TO = X_WT^-1 p_WO`` with ``X_WT = X_WH X_HT``.
+    The first reading of a hold is the hold's reference; the slip is ``|p_TO - reference|``.
+    Leaving the held segments ends the hold (the maximum is kept; a later hold takes a new
+    reference). A firm grasp keeps ``p_TO`` fixed whatever the hand does, so the slip
+    measures the object sliding or rolling between the fingers, which the tcp's tracking
+    cannot show.
+
+    Input ports:
+        body_poses: the plant's body poses (abstract).
+        segment: the active segment's index (1).
+
+    Output ports:
+        slip: [running maximum slip (m), time of the maximum (s)] (2).
+    """
+
+    def __init__(
+        self,
+        hand: int,
+        held_object: int,
+        X_HT: RigidTransform,
+        held_segments: Sequence[int],
+        *,
+        period: float,
+    ) -> None:
+        """Builds the monitor.
+
+        Args:
+            hand: index of the hand body in the body poses.
+            held_object: index of the held object's body.
+            X_HT: pose of the tcp frame in the hand's frame.
+            held_segments: indices of the segments during which the object is held.
+            period: update period [s].
+
+        Raises:
+            RepertoireError: a body that is not an index >= 0, the same body twice, no
+                held segment or one that is not a whole number >= 0, or a period <= 0.
+        """
+        super().__init__()
+        self._hand = check_body_index(hand, "hand")
+        self._object = check_body_index(held_object, "held_object")
+        if self._hand == self._object:
+            raise RepertoireError(f"hand and held_object must differ, both are {self._hand}")
+        held = list(held_segments)
+        if not held or not all(
+            isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 0 for k in held
+        ):
+            raise RepertoireError(
+                f"held_segments must list one or more segment indices >= 0, got {held_segments}"
+            )
+        if not (np.isfinite(period) and period > 0.0):
+            raise RepertoireError(f"period must be finite and > 0 s, got {period}")
+        self._held = {int(k) for k in held}
+        self._X_HT = X_HT
+        self._poses = self.DeclareAbstractInputPort(
+            "body_poses", AbstractValue.Make([RigidTransform()])
+        )
+        self._segment = self.DeclareVectorInputPort("segment", 1)
+        # [max slip, its time, holding (0/1), reference p_TO (3)]
+        self._state = self.DeclareDiscreteState(6)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclareVectorOutputPort(
+            "slip",
+            2,
+            lambda c, o: o.SetFromVector(c.get_discrete_state(self._state).value()[:2]),
+            prerequisites_of_calc={self.discrete_state_ticket(self._state)},
+        )
+
+    def object_in_tcp(self, context: Context) -> np.ndarray:
+        """The held object's origin in the tcp frame, p_TO [m] (3)."""
+        poses = self._poses.Eval(context)
+        top = max(self._hand, self._object)
+        if top >= len(poses):
+            raise RepertoireError(
+                f"body {top} is not in body_poses, which holds {len(poses)} poses"
+            )
+        X_WT = poses[self._hand] @ self._X_HT
+        return X_WT.inverse() @ poses[self._object].translation()
+
+    def _update(self, context: Context, state) -> None:
+        x = context.get_discrete_state(self._state).value().copy()
+        if int(round(self._segment.Eval(context)[0])) not in self._held:
+            x[2] = 0.0
+        elif x[2] == 0.0:
+            x[2], x[3:] = 1.0, self.object_in_tcp(context)
+        else:
+            slip = float(np.linalg.norm(self.object_in_tcp(context) - x[3:]))
+            if slip > x[0]:
+                x[0], x[1] = slip, context.get_time()
+        state.get_mutable_vector(self._state).SetFromVector(x)

@@ -14,8 +14,11 @@ reference velocity ``v_ref`` follows ``u`` at most ``a_max`` per second (norm);
 the reference position integrates it, ``q_ref += v_ref * period``, and the
 joints' PD tracks ``[q_ref, v_ref]``. The action succeeds when ``|e| <
 position_tolerance`` and the speed is within ``speed_tolerance`` of
-``|thetadot_g|``; a target outside the joint limits (or a non-finite target or
-measured state) fails at once.
+``|thetadot_g|``; a target outside the joint limits, one whose speed
+``|thetadot_g|`` exceeds ``v_max + speed_tolerance`` (the reference never moves
+faster than ``v_max``, so such a goal could only be met by chance while a faster
+start slows down; it timed out after 10 s), or a non-finite target or measured
+state fails at once.
 """
 
 import math
@@ -164,6 +167,7 @@ class Reach(ActionSystem):
             or not np.all(np.isfinite(s))
             or not lim[0] <= target[0] <= lim[1]
             or not lim[2] <= target[2] <= lim[3]
+            or math.hypot(target[1], target[3]) > g["v_max"] + g["speed_tolerance"]
         ):
             out.SetFromVector([*q_ref, 0.0, 0.0, ActionStatus.FAILED])
             return

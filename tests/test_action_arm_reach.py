@@ -89,6 +89,15 @@ def test_reach_target_outside_joint_limits_fails_without_motion():
         np.testing.assert_allclose(_update(reach, ctx), [0.5, 1.0, 0, 0, ActionStatus.FAILED])
 
 
+def test_reach_target_faster_than_it_can_move_fails_without_motion():
+    # v_max 1.0 + speed_tolerance 0.15: |thetadot_g| = hypot(0.9, 0.7) = 1.140 runs,
+    # hypot(0.9, 0.72) = 1.1526 fails at once (it timed out after 10 s before).
+    reach, ctx = _context([1.5, 0.9, 1.0, 0.7], state=(0.5, 0, 1.0, 0))
+    assert _update(reach, ctx)[4] == ActionStatus.RUNNING
+    reach, ctx = _context([1.5, 0.9, 1.0, 0.72], state=(0.5, 0, 1.0, 0))
+    np.testing.assert_allclose(_update(reach, ctx), [0.5, 1.0, 0, 0, ActionStatus.FAILED])
+
+
 def test_reach_bad_construction():
     with pytest.raises(RepertoireError, match="unknown Reach gain 'speed'"):
         Reach(gains={"speed": 1.0})

@@ -67,6 +67,25 @@ def fetch_obstacles(cups, targets, k: int, growth: float, own: bool = False):
     return boxes, np.array(discs).reshape(-1, 4), names
 
 
+def arm_start(g: PlanGeometry, k: int, up: float) -> np.ndarray:
+    """Where fetch ``k``'s arm starts (chassis frame, (n, 3)): tucked, or out of the last cup.
+
+    Fetch 0 starts with the arm tucked (``ARM_TUCKED``); a later fetch where the retract
+    left it, ``up`` above the cup put before, at that drop pose.
+
+    Args:
+        g: the plan's geometry (n parameter rows).
+        k: the fetch.
+        up: the plan's ``above_offset`` [m].
+    """
+    from repertoire.diagrams.kitchen import ARM_TUCKED
+    from repertoire.systems.kitchen_actions import arm_forward
+
+    if k == 0:
+        return np.broadcast_to(arm_forward(ARM_TUCKED), g.stand[:, 0, :3].shape)
+    return _world_in_chassis(g.drop[:, k - 1], g.target[k - 1] + np.array([0.0, 0.0, up]))
+
+
 def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
     """The straight joint-space arm ways of fetch ``k`` by role (as :func:`plan_steps` runs them).
 
@@ -81,19 +100,15 @@ def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
         k: the fetch.
         up: the plan's ``above_offset`` [m].
     """
-    from repertoire.diagrams.kitchen import ARM_TUCKED
     from repertoire.models.diffdrive.generate import CUP_RADIUS, FINGER_SIZE
-    from repertoire.systems.kitchen_actions import FINGER_CLOSED, FINGER_OPEN, arm_forward
+    from repertoire.systems.kitchen_actions import FINGER_CLOSED, FINGER_OPEN
 
     rise, put_rise = np.array([0.0, 0.0, up]), np.array([0.0, 0.0, PUT_CLEARANCE])
     stand, drop = g.stand[:, k], g.drop[:, k]
     held = CUP_RADIUS + FINGER_SIZE[1] / 2  # a finger's inner face on the cup
     opened, holding = [[FINGER_OPEN] * 2] * 2, [[held] * 2] * 2
     closing = [[FINGER_CLOSED, held]] * 2  # Put closes the fingers from where they are
-    if k == 0:
-        start = np.broadcast_to(arm_forward(ARM_TUCKED), stand[:, :3].shape)
-    else:
-        start = _world_in_chassis(g.drop[:, k - 1], g.target[k - 1] + rise)
+    start = arm_start(g, k, up)
     above, at_cup = _world_in_chassis(stand, g.cup[k] + rise), _world_in_chassis(stand, g.cup[k])
     over = _world_in_chassis(drop, g.target[k] + put_rise)
     ways = {
@@ -229,7 +244,7 @@ def drive_hits(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, 
     if role == "drive_stand":
         prev = g.drop[:, k - 1] if k else np.broadcast_to(start, g.stand[:, k].shape)
         boxes, discs, names = fetch_obstacles(cups, g.target, k, 0.0, own=True)
-        arm, held, a, b = arm_ways(g, k, config.above_offset)["above"][1], False, prev, g.stand
+        arm, held, a, b = arm_start(g, k, config.above_offset), False, prev, g.stand
     elif role == "drive_drop":
         boxes, discs, names = fetch_obstacles(cups, g.target, k, 0.0)
         arm, held, a, b = g.carry[:, k], True, g.stand[:, k], g.drop

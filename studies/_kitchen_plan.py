@@ -395,13 +395,12 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
     Returns:
         ``(problem, action_names)``.
     """
-    from repertoire.diagrams.kitchen import ARM_TUCKED, KITCHEN_OBSTACLES, ROBOT_RADIUS
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, ROBOT_RADIUS
     from repertoire.planning.refinement import (
         DurationTerm,
         PiecewiseLinearModel,
         RefinementProblem,
     )
-    from repertoire.systems.kitchen_actions import arm_forward
 
     goto = PiecewiseLinearModel.from_leaves(models["goto_pose"].leaves)
     reach = PiecewiseLinearModel.from_leaves(models["reach"].leaves)
@@ -438,7 +437,7 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         terms.append(DurationTerm(model, features, tuple(uses), f"{len(terms)}:{name}"))
         actions.append(name)
 
-    from repertoire.studies._kitchen_arm import arm_hits, arm_ways, drive_hits
+    from repertoire.studies._kitchen_arm import arm_hits, arm_start, arm_ways, drive_hits
 
     def arm_clear(f, g, k, role):  # the features where the arm's way is clear, else NaN
         hits = arm_hits(g, cups, k, role, config, ways(g, k))
@@ -463,11 +462,6 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
                 return np.broadcast_to(start, g.stand[:, 0].shape)
             return g.drop[:, k - 1]
 
-        def arm_start(g, k=k):  # the gripper where the previous action left it
-            if k == 0:
-                return np.broadcast_to(arm_forward(ARM_TUCKED), g.stand[:, 0, :3].shape)
-            return _world_in_chassis(g.drop[:, k - 1], g.target[k - 1] + up)
-
         if k:
 
             def retract(params, k=k):  # straight up out of the placed cup: fixed
@@ -487,10 +481,11 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
         add("goto_pose", goto, goto_stand, prev_ids + stand_ids)
 
-        def reach_above(params, k=k, arm_start=arm_start):
+        def reach_above(params, k=k):
             g = geometry(params)
             above = _world_in_chassis(g.stand[:, k], g.cup[k] + up)
-            return arm_clear(kitchen_reach_features(arm_start(g), above), g, k, "above")
+            start_arm = arm_start(g, k, config.above_offset)  # where the last action left it
+            return arm_clear(kitchen_reach_features(start_arm, above), g, k, "above")
 
         add("reach", reach, reach_above, prev_ids + stand_ids)
 

@@ -245,6 +245,8 @@ def test_arm_ways_end_where_the_executed_steps_aim():
     for k, roles in order.items():
         ways = ka.arm_ways(g, k, config.above_offset)
         assert sorted(ways) == sorted(r for r, _ in roles)
+        # the drives' arm (drive_hits) is the first way's start, without building the ways
+        np.testing.assert_array_equal(ka.arm_start(g, k, config.above_offset), ways["above"][1])
         for role, step in roles:
             pose, a_from, a_to, _, held = ways[role]
             np.testing.assert_allclose(a_from[0], previous, atol=1e-12)

@@ -54,6 +54,7 @@ from repertoire.systems.kitchen_geometry import (
     box_gaps,
     chassis_points_to_world,
     chassis_to_world,
+    cup_discs,
     discs_in_boxes,
     discs_in_discs,
     finger_boxes,
@@ -88,6 +89,7 @@ __all__ = [
     "arm_way_hits",
     "chassis_points_to_world",
     "chassis_to_world",
+    "cup_discs",
     "discs_in_boxes",
     "discs_in_discs",
     "finger_boxes",
@@ -205,29 +207,15 @@ class _Action(ActionSystem):
     ) -> tuple[np.ndarray, np.ndarray]:
         """The cups on ``cup_positions`` as obstacle discs, for a way between ``points``.
 
-        A cup whose cylinder (``radius``, ``half_height`` about its centre) contains none
-        of the world ``points`` (the gripper centre where the way starts and ends) is an
-        obstacle of the whole arm: an upright disc ``[x, y, radius, z + half_height]``
-        (:func:`arm_way_hits`). One containing a point whose index is in ``held`` is the
-        cup held (or let go with it): none. One containing another point (a cup the
-        reach ends in to grip it, or starts in with the fingers open) is an obstacle of
-        the fingers only: approached from above the open fingers straddle it, from the
-        side they push it. The discs' radius is grown by ``grow``.
+        :func:`cup_discs` of the cups' centres (none without the port).
 
         Returns:
             ``(discs, finger_discs)``.
         """
         if self._cups_port is None:
             return np.zeros((0, 4)), np.zeros((0, 4))
-        c = np.asarray(self._cups_port.Eval(context), dtype=float).reshape(-1, 3)
-        p = np.atleast_2d(np.asarray(points, dtype=float))
-        inside = (np.hypot(*(p[None, :, :2] - c[:, None, :2]).transpose(2, 0, 1)) <= radius) & (
-            np.abs(p[None, :, 2] - c[:, None, 2]) <= half_height
-        )
-        holding = inside[:, [i for i in range(len(p)) if i in held]].any(axis=1)
-        fingers_only = inside.any(axis=1) & ~holding
-        discs = np.column_stack([c[:, :2], np.full(len(c), radius + grow), c[:, 2] + half_height])
-        return discs[~inside.any(axis=1)], discs[fingers_only]
+        cups = self._cups_port.Eval(context)
+        return cup_discs(cups, points, radius, half_height, held, grow)
 
     def get_finger_position_input_port(self):
         return self._finger_port

@@ -258,30 +258,136 @@ def arm_way_hits(
         if at.size == 0:
             continue
         k = (at[:, None] * s + np.arange(s)).ravel()  # their samples
-        if i < len(boxes):
-            box = boxes[i]
-            hit = points_in_boxes(centre[k], box, margin) >= 0
-            hit |= _finger_hits(fingers[0][k], fingers[1][k], fingers[2], box, margin) >= 0
-            if cup is not None:
-                hit |= discs_in_boxes(centre[k] - [0.0, 0.0, drop], radius, box, margin) >= 0
-        else:
-            disc = discs[i - len(boxes)][None]
-            hit = _finger_disc_hits(fingers[0][k], fingers[1][k], fingers[2], disc, margin) >= 0
-            if i - len(boxes) < n_full:  # (a finger disc: the fingers only)
-                hit |= points_in_discs(centre[k], disc, margin) >= 0
-                if cup is not None:
-                    hit |= discs_in_discs(centre[k] - [0.0, 0.0, drop], radius, disc, margin) >= 0
+        hit = _arm_samples_in(i, centre[k], (fingers[0][k], fingers[1][k], fingers[2]), boxes,
+                              discs, n_full, margin, cup)  # fmt: skip
         sub = inside[rows[at]]
         sub[hit.reshape(-1, s) & (sub < 0)] = i  # the first obstacle in order, as one by one
         inside[rows[at]] = sub
-    # still in the box it starts in (a disc's start is no excuse: a way starting at a
-    # standing cup's edge went on through it)
+    return first_entry(inside, len(boxes))
+
+
+def first_entry(inside: np.ndarray, n_boxes: int) -> np.ndarray:
+    """Per row of samples along a way, the first obstacle it enters, else -1.
+
+    A way starting inside a box (a measurement a millimetre low on a table top) is not an
+    entry while it stays in it; the rest of it counts (a disc's start is no excuse: a way
+    starting at a standing cup's edge went on through it).
+
+    Args:
+        inside: ``(n, s)`` per way and sample the obstacle the sample is in (-1: none);
+            boxes are the indices below ``n_boxes``.
+        n_boxes: how many of the obstacles are boxes.
+    """
+    n, s = inside.shape
     start = inside[:, :1]
-    staying = (inside == start) & (start >= 0) & (start < len(boxes))
+    staying = (inside == start) & (start >= 0) & (start < n_boxes)
     left = np.where(staying.all(axis=1), s, np.argmin(staying, axis=1))
     entered = (np.arange(s)[None, :] >= left[:, None]) & (inside >= 0)
     first = np.argmax(entered, axis=1)
     return np.where(entered.any(axis=1), inside[np.arange(n), first], -1)
+
+
+def _arm_samples_in(i: int, centre, fingers, boxes, discs, n_full: int, margin: float, cup):
+    """Per arm sample, whether it is in obstacle ``i`` (boxes, then discs, then finger discs).
+
+    The gripper centres ``centre`` (m, 3) and the finger boxes ``fingers`` (as
+    :func:`finger_boxes` returns them) for every obstacle; a held cup's bottom disc
+    (``cup = (drop, radius)``) for all but the finger discs (index ``n_full`` on among
+    the discs), which only the fingers must keep off.
+    """
+    drop, radius = cup if cup is not None else (0.0, 0.0)
+    if i < len(boxes):
+        box = boxes[i]
+        hit = points_in_boxes(centre, box, margin) >= 0
+        hit |= _finger_hits(*fingers, box, margin) >= 0
+        if cup is not None:
+            hit |= discs_in_boxes(centre - [0.0, 0.0, drop], radius, box, margin) >= 0
+        return hit
+    disc = discs[i - len(boxes)][None]
+    hit = _finger_disc_hits(*fingers, disc, margin) >= 0
+    if i - len(boxes) < n_full:  # (a finger disc: the fingers only)
+        hit |= points_in_discs(centre, disc, margin) >= 0
+        if cup is not None:
+            hit |= discs_in_discs(centre - [0.0, 0.0, drop], radius, disc, margin) >= 0
+    return hit
+
+
+def arm_pose_hits(
+    base_states, q, span, boxes, margin: float = 0.0, cup=None, discs=None, finger_discs=None
+) -> np.ndarray:
+    """Per chassis pose, the obstacle the still arm (joints ``q``) is in, else -1.
+
+    The same tests as :func:`arm_way_hits` (gripper centre, finger boxes over ``span``, a
+    held cup's bottom disc; the fingers alone against ``finger_discs``), with the joints
+    fixed and the base at each row of ``base_states`` (a base that drives or turns with
+    the arm held out). Only the obstacles within the arm's reach of some pose and above
+    its lowest point are tested.
+
+    Args:
+        base_states: ``(n, >= 3)`` chassis poses ``[x, y, phi, ...]``.
+        q: the arm's joints ``[lift, yaw, extend]``.
+        span, boxes, margin, cup, discs, finger_discs: as in :func:`arm_way_hits`.
+
+    Returns:
+        ``(n,)`` obstacle indices (boxes, then discs, then finger discs; -1: clear).
+    """
+    base = np.atleast_2d(np.asarray(base_states, dtype=float))[:, :3]
+    boxes, discs = _check_boxes(boxes), _check_discs(discs)
+    n_full, discs = len(discs), np.vstack([discs, _check_discs(finger_discs)])
+    (drop, radius), q = cup if cup is not None else (0.0, 0.0), np.asarray(q, dtype=float)
+    low = WHEEL_RADIUS + LIFT_BASE_Z + q[0] - max(FINGER_HALF[2], drop)
+    far = COLUMN_X + q[2] + max(FINGER_REACH, radius) + margin  # the arm's reach
+    lo, hi = base[:, :2].min(axis=0) - far, base[:, :2].max(axis=0) + far  # the poses' box
+    hit = np.full(len(base), -1)
+    size = np.concatenate([np.hypot(boxes[:, 3], boxes[:, 4]), discs[:, 2]])
+    centres = np.vstack([boxes[:, :2], discs[:, :2]])
+    tops = np.concatenate([boxes[:, 5], discs[:, 3]])
+    # above an obstacle, or out of every pose's reach: not tested
+    near = (low <= tops + margin) & np.all((centres + size[:, None] >= lo)
+                                           & (centres - size[:, None] <= hi), axis=1)  # fmt: skip
+    if not near.any():
+        return hit
+    centre = chassis_points_to_world(base, np.broadcast_to(arm_forward(q), base.shape))
+    fingers = finger_boxes(base, np.broadcast_to(q, base.shape), span, centre)
+    for i in np.flatnonzero(near):
+        inside = _arm_samples_in(i, centre, fingers, boxes, discs, n_full, margin, cup)
+        hit[inside & (hit < 0)] = i
+    return hit
+
+
+def cup_discs(
+    cups, points, radius: float, half_height: float, held=(0, 1), grow: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Standing cups as obstacle discs for an arm way (or a drive) between ``points``.
+
+    A cup whose cylinder (``radius``, ``half_height`` about its centre) contains none of
+    the world ``points`` (the gripper centre where the way starts and ends) is an obstacle
+    of the whole arm: an upright disc ``[x, y, radius, z + half_height]``
+    (:func:`arm_way_hits`). One containing a point whose index is in ``held`` is the cup
+    held (or let go with it): none. One containing another point (a cup the reach ends in
+    to grip it, or starts in with the fingers open) is an obstacle of the fingers only:
+    approached from above the open fingers straddle it, from the side they push it. The
+    discs' radius is grown by ``grow``.
+
+    Args:
+        cups: the cups' centres ``[x, y, z] * m`` (world).
+        points: ``(p, 3)`` world points (or one).
+        radius, half_height: a cup's radius and half height [m].
+        held: indices of ``points`` where the gripper holds its cup.
+        grow: growth of the discs' radius [m].
+
+    Returns:
+        ``(discs, finger_discs)``: rows ``[x, y, radius + grow, top_z]``.
+    """
+    c = np.asarray(cups, dtype=float).reshape(-1, 3)
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    inside = (np.hypot(*(p[None, :, :2] - c[:, None, :2]).transpose(2, 0, 1)) <= radius) & (
+        np.abs(p[None, :, 2] - c[:, None, 2]) <= half_height
+    )
+    holding = inside[:, [i for i in range(len(p)) if i in held]].any(axis=1)
+    fingers_only = inside.any(axis=1) & ~holding
+    discs = np.column_stack([c[:, :2], np.full(len(c), radius + grow), c[:, 2] + half_height])
+    return discs[~inside.any(axis=1)], discs[fingers_only]
 
 
 def _axes(yaw: np.ndarray) -> tuple[tuple, tuple]:

@@ -132,15 +132,28 @@ def test_cups_field_loads_only_the_named_cups():
 
 
 def test_figures_say_still_running_and_touching_furniture():
-    # from the default pose, GoToPose to the far side of the room turns into table_0's leg
-    # and pushes against it: at 6 s it is still running (status_succeeded 0 alone read
-    # as a failure) and touches the table
-    scenario = KitchenScenario(action="goto_pose", goto_target=[-2.0, -1.0, 0.0, 0.0], cups=[])
+    # from the default pose, the bare GoToPose to the far side of the room turns into
+    # table_0's leg and pushes against it: at 6 s it is still running (status_succeeded 0
+    # alone read as a failure) and touches the table
+    scenario = KitchenScenario(action="goto_pose", goto_target=[-2.0, -1.0, 0.0, 0.0], cups=[],
+                               drive_check=False)  # fmt: skip
     diagram = build_kitchen_action(scenario)
     simulator = Simulator(diagram)
     simulator.AdvanceTo(6.0)
     figures = check_kitchen_action(diagram, simulator.get_context())
     assert figures == {"status_succeeded": 0.0, "still_running": 1.0, "touching_furniture": 1.0}
+    # the kitchen's drive (the default) stops before the leg and fails, touching nothing
+    scenario.drive_check = True
+    diagram = build_kitchen_action(scenario)
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(6.0)
+    figures = check_kitchen_action(diagram, simulator.get_context())
+    assert figures == {"status_succeeded": 0.0, "still_running": 0.0, "touching_furniture": 0.0}
+    action = diagram.GetSubsystemByName("action")
+    assert action.failure(action.GetMyContextFromRoot(simulator.get_context())) == (
+        "stopped at [x, y, phi] = [1.947, 0.513, 2.518]: the footprint would enter table_0 at "
+        "[1.85, 0.583, 2.526]"
+    )
 
 
 def _contact_pairs(diagram, context):
@@ -157,6 +170,7 @@ def test_reused_kitchen_simulator_runs_as_a_new_one():
         initial_pose=[2.65, 0.3, np.pi / 2],
         goto_target=[2.65, 2.2, np.pi / 2, 0],
         cups=[],
+        drive_check=False,  # the bare GoToPose: the kitchen's drive stops before the leg
     )
     diagram, simulator = kitchen_simulator(into_table)
     simulator.Initialize()
@@ -165,9 +179,8 @@ def test_reused_kitchen_simulator_runs_as_a_new_one():
     table = plant.GetBodyByName("table", plant.GetModelInstanceByName("table_0")).index()
     assert any(table in pair for pair in _contact_pairs(diagram, simulator.get_context()))
     # then another start of the same structure: exactly as a newly built diagram
-    other = KitchenScenario(
-        action="goto_pose", initial_pose=[0, 0, 0], goto_target=[1.0, 0.5, 0, 0], cups=[]
-    )
+    other = KitchenScenario(action="goto_pose", initial_pose=[0, 0, 0],
+                            goto_target=[1.0, 0.5, 0, 0], cups=[], drive_check=False)  # fmt: skip
     reused, simulator = kitchen_simulator(other)
     assert reused is diagram
     fresh = Simulator(build_kitchen_action(other))

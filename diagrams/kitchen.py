@@ -34,7 +34,7 @@ from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.simulate import SimulatorCache
 from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
 from repertoire.models import MODELS_DIR, ConfigureParser, package_url
-from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
+from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_MASS, CUP_RADIUS, MASS
 from repertoire.models.diffdrive.generate import KITCHEN_CUPS as _CUP_MODELS
 from repertoire.systems.go_to_pose import (
     GOTO_GAINS,
@@ -44,9 +44,11 @@ from repertoire.systems.go_to_pose import (
 )
 from repertoire.systems.kitchen_actions import (
     ARM_JOINTS,
+    ARM_SPEEDS,
     FINGER_CLOSED,
     FINGER_JOINTS,
     FINGER_OPEN,
+    ArmTracking,
     FootprintGuard,
     Grip,
     Put,
@@ -94,6 +96,25 @@ ARM_GAINS = {
     "left_finger": (400.0, 10.0),
     "right_finger": (400.0, 10.0),
 }
+#: How the robot stops when GoToPose's command drops to 0 (the check of KitchenGoToPose):
+#: measured 4.5 m/s^2 from 0.8 m/s (8.6 cm) and 41 rad/s^2 from 2.4 rad/s (0.12 rad) on
+#: the kitchen floor at the 2 ms step; taken at two thirds and half (a stop still predicted
+#: 12 cm and 0.21 rad: a_max and alpha_max, GoToPose's command limits, gave 33 cm, 0.62 rad).
+KITCHEN_BRAKING = (3.0, 20.0)
+GRAVITY = 9.81  # the plant's (Drake's default) [m/s^2]
+#: How the arm's PD joints follow the actions' setpoints (checked ways: ArmTracking):
+#: lags kd/kp, and the lift's sag under the lifted links (carriage, turret, slide, two
+#: fingers) and under a held cup.
+ARM_TRACKING = ArmTracking(
+    lags=tuple(ARM_GAINS[j][1] / ARM_GAINS[j][0] for j in ARM_JOINTS),
+    speeds=ARM_SPEEDS,
+    sag=sum(
+        MASS[k] * (2 if k == "finger" else 1) for k in ("carriage", "turret", "slide", "finger")
+    )
+    * GRAVITY
+    / ARM_GAINS["arm_lift"][0],
+    cup_sag=CUP_MASS * GRAVITY / ARM_GAINS["arm_lift"][0],
+)
 
 
 @dataclasses.dataclass
@@ -309,7 +330,8 @@ def build_kitchen_action(
                 goto = KitchenGoToPose(period, scenario.gains, KITCHEN_WORKSPACE,
                                        obstacles=KITCHEN_OBSTACLES, radius=ROBOT_RADIUS,
                                        names=names, cups=cups, cup_radius=CUP_RADIUS,
-                                       cup_half_height=CUP_HALF_HEIGHT)  # fmt: skip
+                                       cup_half_height=CUP_HALF_HEIGHT,
+                                       braking=KITCHEN_BRAKING)  # fmt: skip
             else:
                 goto = GoToPose(period, scenario.gains, KITCHEN_WORKSPACE)
         except RepertoireError as e:
@@ -328,7 +350,7 @@ def build_kitchen_action(
         hold(0)
         if scenario.action == "reach":
             reach = Reach(period, obstacles=KITCHEN_OBSTACLES, cup_half_height=CUP_HALF_HEIGHT,
-                          cup_radius=CUP_RADIUS, cups=cups)  # fmt: skip
+                          cup_radius=CUP_RADIUS, cups=cups, tracking=ARM_TRACKING)  # fmt: skip
             action = builder.AddSystem(reach)
             builder.Connect(action.get_command_output_port(), mux.get_input_port(1))
             hold(2)
@@ -338,7 +360,7 @@ def build_kitchen_action(
             hold(1)
         else:
             put = Put(period, cup_half_height=CUP_HALF_HEIGHT, cup_radius=CUP_RADIUS,
-                      obstacles=KITCHEN_OBSTACLES, cups=cups)  # fmt: skip
+                      obstacles=KITCHEN_OBSTACLES, cups=cups, tracking=ARM_TRACKING)  # fmt: skip
             action = builder.AddSystem(put)
             demux = builder.AddSystem(MatrixGain(np.eye(5)[:3]))
             demux.set_name("put_arm_command")

@@ -148,6 +148,7 @@ def arm_hits(
         fingers against the cup of ``down`` or ``retract``); -1 where the way is clear,
         the names' length + 1 where an end lies out of the arm's reach.
     """
+    from repertoire.diagrams.kitchen import ARM_TRACKING
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
     from repertoire.systems.kitchen_actions import (
         FINGER_CLOSED,
@@ -173,7 +174,9 @@ def arm_hits(
         p = np.asarray(cups if role == "down" else g.target, dtype=float)[j]
         fingers_only = np.array([[p[0], p[1], CUP_RADIUS + config.arm_clearance,
                                   p[2] + CUP_HALF_HEIGHT]])  # fmt: skip
-    hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING, discs, fingers_only)
+    # the way the servoed joints take (ARM_TRACKING), as the executed actions check it
+    hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING, discs, fingers_only,
+                       ARM_TRACKING)  # fmt: skip
     if role == "put":
         release = fingers_in_boxes(pose, q1, [[FINGER_CLOSED, FINGER_OPEN]] * 2, boxes, 0.0, discs)
         hit = np.where(hit < 0, release, hit)

@@ -45,6 +45,7 @@ from repertoire.systems.action_status import ActionStatus, ActionSystem
 from repertoire.systems.kitchen_geometry import (
     FINGER_HALF,
     FINGER_REACH,
+    ArmTracking,
     _check_boxes,
     _check_positive,
     arm_forward,
@@ -75,6 +76,7 @@ from repertoire.errors import RepertoireError
 __all__ = [
     "ARM_JOINTS",
     "ARM_SPEEDS",
+    "ArmTracking",
     "BLOCK_MARGIN",
     "FINGER_CLOSED",
     "FINGER_HALF",
@@ -169,9 +171,19 @@ class _Action(ActionSystem):
     """Shared ports and state of the kitchen actions (not registered on its own)."""
 
     def __init__(
-        self, period: float, timeout: float, n_command: int, boxes, margin: float, cups: int = 0
+        self,
+        period: float,
+        timeout: float,
+        n_command: int,
+        boxes,
+        margin: float,
+        cups: int = 0,
+        tracking: ArmTracking | None = None,
     ):
         super().__init__()
+        if tracking is not None and not isinstance(tracking, ArmTracking):
+            raise RepertoireError(f"tracking must be an ArmTracking or None, got {tracking!r}")
+        self.tracking = tracking
         _check_positive(period=period, timeout=timeout)
         _check_nonnegative(margin=margin)
         if not (isinstance(cups, int) and not isinstance(cups, bool) and cups >= 0):
@@ -226,18 +238,26 @@ class _Action(ActionSystem):
         return point_in_boxes(chassis_to_world(base, a_chassis), self._boxes, self.margin)
 
     def path_enters_obstacle(
-        self, context: Context, q_from, q_to, span, cup=None, discs=None, finger_discs=None
+        self,
+        context: Context,
+        q_from,
+        q_to,
+        span,
+        cup=None,
+        discs=None,
+        finger_discs=None,
     ) -> int:
         """Index of the first obstacle the straight joint-space way enters, else -1.
 
         :func:`arm_way_hits` for the chassis on ``base_state``: the gripper centre, the
         finger boxes swept over ``span`` and, with ``cup = (drop, radius)``, a held cup's
         bottom disc, against the boxes and ``discs`` (standing cups), and the fingers
-        against ``finger_discs``.
+        against ``finger_discs``; with the action's ``tracking``, along the way the
+        servoed joints take (:class:`ArmTracking`), else the straight line.
         """
         base = self._base_port.Eval(context)
         hit = arm_way_hits(base, q_from, q_to, span, self._boxes, self.margin, cup, discs=discs,
-                           finger_discs=finger_discs)  # fmt: skip
+                           finger_discs=finger_discs, tracking=self.tracking)  # fmt: skip
         return int(hit[0])
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
@@ -319,6 +339,7 @@ class Reach(_Action):
         cup_radius: float = 0.04,
         cups: int = 0,
         cup_margin: float = 0.005,
+        tracking: ArmTracking | None = None,
     ):
         """Creates the action.
 
@@ -334,8 +355,11 @@ class Reach(_Action):
             cups: how many cups' centres the ``cup_positions`` input carries (0: no port).
             cup_margin: the standing cups' growth [m]: half the way's 1 cm samples, so no
                 finger passes a cup's edge between two samples.
+            tracking: how the plant's servoed joints follow the setpoints
+                (:class:`ArmTracking`): the way checked is the one they take; None: the
+                straight joint-space line.
         """
-        super().__init__(period, timeout, 3, obstacles, margin, cups)
+        super().__init__(period, timeout, 3, obstacles, margin, cups, tracking)
         _check_nonnegative(cup_margin=cup_margin)
         self.cup_margin = cup_margin
         _check_positive(cup_half_height=cup_half_height, cup_radius=cup_radius)
@@ -494,9 +518,10 @@ class Put(_Action):
         margin: float = 0.0,
         cups: int = 0,
         cup_margin: float = 0.005,
+        tracking: ArmTracking | None = None,
     ):
         """Creates the action (arguments as in the class docstring and :class:`Reach`)."""
-        super().__init__(period, timeout, 5, obstacles, margin, cups)
+        super().__init__(period, timeout, 5, obstacles, margin, cups, tracking)
         _check_nonnegative(cup_margin=cup_margin)
         self.cup_margin = cup_margin
         _check_positive(cup_radius=cup_radius, max_drop=max_drop)

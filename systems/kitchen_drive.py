@@ -7,8 +7,8 @@ held-out arm through a standing cup, went on until it pushed the furniture or th
 most where the start heading is far from the way to the target.)
 :class:`KitchenGoToPose` checks, at every update before its command, the
 motion the base can still make (:func:`stopping_poses`: at the measured speed for the
-period the command is held, then braking at ``a_max``, and turning likewise at the
-commanded yaw rate, ``alpha_max``): the base's footprint disc against the obstacle
+period the command is held, then braking, and turning likewise at the commanded yaw
+rate): the base's footprint disc against the obstacle
 boxes (:func:`~repertoire.systems.kitchen_geometry.segment_gaps`, exact) and the arm as
 it is held (gripper centre, finger boxes at the measured fingers, a held cup's bottom)
 against the boxes and the standing cups
@@ -88,7 +88,7 @@ class KitchenGoToPose(GoToPose):
     Output ports: GoToPose's ``command`` and ``status``.
 
     At each update while running and active, :func:`stopping_poses` (the command held for
-    one period, then braking at the gains' ``a_max`` / ``alpha_max``) are checked: the
+    one period, then braking at ``braking``) are checked: the
     footprint disc of ``radius`` along them against ``obstacles`` (a base already
     overlapping a box may move away from it, not further in), and the still arm with
     :func:`~repertoire.systems.kitchen_geometry.arm_pose_hits` against the boxes and the
@@ -111,6 +111,7 @@ class KitchenGoToPose(GoToPose):
         cup_radius: float = 0.04,
         cup_half_height: float = 0.05,
         cup_margin: float = 0.005,
+        braking: tuple[float, float] | None = None,
     ):
         """Creates the action.
 
@@ -124,6 +125,10 @@ class KitchenGoToPose(GoToPose):
             cup_radius, cup_half_height: a cup's size (a held cup's bottom hangs
                 ``cup_half_height`` below the gripper centre) [m].
             cup_margin: the standing cups' growth [m] (as :class:`Reach`'s).
+            braking: ``(deceleration [m/s^2], angular deceleration [rad/s^2])`` of the
+                base when its command drops to 0 (a property of the plant's wheels);
+                None: the gains' ``a_max`` and ``alpha_max`` (the command's own limits,
+                far gentler than a stop: the predicted stops reach farther).
         """
         super().__init__(period, gains, workspace)
         _check_positive(radius=radius, cup_radius=cup_radius, cup_half_height=cup_half_height)
@@ -134,6 +139,11 @@ class KitchenGoToPose(GoToPose):
         self._boxes, self.radius, self.cups = _check_boxes(obstacles), radius, cups
         self.cup_radius, self.cup_half_height = cup_radius, cup_half_height
         self.cup_margin = cup_margin
+        if braking is not None:
+            b = np.asarray(braking, dtype=float)
+            if b.shape != (2,) or not np.all(np.isfinite(b) & (b > 0)):
+                raise RepertoireError(f"braking must be 2 finite values > 0, got {braking}")
+        self.braking = None if braking is None else (float(braking[0]), float(braking[1]))
         n = len(self._boxes) + cups
         self.names = list(names) or [f"box {i}" for i in range(len(self._boxes))]
         self.names += [f"cup {j}" for j in range(n - len(self.names))]
@@ -175,7 +185,8 @@ class KitchenGoToPose(GoToPose):
         omega = float(context.get_discrete_state(self._xd).get_value()[1])
         a = arm_forward(q)
         reach = max(self.radius, math.hypot(a[0], a[1]) + FINGER_REACH)
-        poses = stopping_poses(state, omega, g["a_max"], g["alpha_max"], self.period, reach)
+        brake = self.braking or (g["a_max"], g["alpha_max"])
+        poses = stopping_poses(state, omega, *brake, self.period, reach)
         # the footprint: the stopping segment (exact), a base already too close may leave
         gaps = segment_gaps(poses[:1], poses[-1:], self._boxes)[0]
         start = box_gaps(poses[:1], self._boxes)[0]

@@ -63,12 +63,12 @@ def test_arm_pose_hits_by_hand():
     )
 
 
-def _drive(state, omega=0.0, arm=TUCKED, fingers=OPEN, cups=None):
+def _drive(state, omega=0.0, arm=TUCKED, fingers=OPEN, cups=None, braking=None):
     """One update of a KitchenGoToPose at ``state`` (target far ahead): status, failure."""
     n = 0 if cups is None else len(cups)
     names = ["table"] + [f"cup_{j}" for j in range(n)]
     drive = KitchenGoToPose(0.02, obstacles=TABLE, radius=0.32, names=names, cups=n,
-                            workspace=(-5.0, 5.0, -5.0, 5.0))  # fmt: skip
+                            workspace=(-5.0, 5.0, -5.0, 5.0), braking=braking)  # fmt: skip
     context = drive.CreateDefaultContext()
     drive.get_state_input_port().FixValue(context, state)
     drive.get_target_input_port().FixValue(context, [4.0, state[1], state[2], 0.0])
@@ -93,6 +93,10 @@ def test_kitchen_goto_pose_stops_before_the_footprint_enters_a_box():
                    "table at [1.186, 0.0, 0.0]")  # fmt: skip
     status, command, why = _drive([0.84, 0.0, 0.0, 0.8])
     assert status == ActionStatus.RUNNING and why == ""
+    # braking at 3 m/s^2 (the plant's wheels stop harder than the command's a_max): it
+    # stops within 0.016 + 0.8^2 / 6 = 0.123 m, so it fails from 1.5 - 0.32 - 0.123 m
+    assert _drive([1.05, 0.0, 0.0, 0.8], braking=(3.0, 20.0))[0] == ActionStatus.RUNNING
+    assert _drive([1.06, 0.0, 0.0, 0.8], braking=(3.0, 20.0))[0] == ActionStatus.FAILED
     # slow, or driving away, or past it sideways: running
     assert _drive([1.1, 0.0, 0.0, 0.1])[0] == ActionStatus.RUNNING
     assert _drive([1.1, 0.0, math.pi, 0.8])[0] == ActionStatus.RUNNING
@@ -133,6 +137,10 @@ def test_kitchen_goto_pose_bad_arguments_are_named():
         KitchenGoToPose(obstacles=TABLE, radius=0.3, cups=-1)
     with pytest.raises(RepertoireError, match=r"names must name the 1 boxes, then the 0 cups"):
         KitchenGoToPose(obstacles=TABLE, radius=0.3, names=["a", "b"])
+    with pytest.raises(
+        RepertoireError, match=r"braking must be 2 finite values > 0, got \(3.0, 0.0\)"
+    ):
+        KitchenGoToPose(obstacles=TABLE, radius=0.3, braking=(3.0, 0.0))
     with pytest.raises(RepertoireError, match="no cup_positions port"):
         KitchenGoToPose(obstacles=TABLE, radius=0.3).get_cup_positions_input_port()
 
@@ -145,8 +153,8 @@ def test_a_drive_across_table_0_stops_short_and_names_it():
                                cup_positions=cups)  # fmt: skip
     results = run_kitchen_sequence([("goto_pose", scenario.goto_target)], scenario)[0]
     assert [(r.action, r.status) for r in results] == [("goto_pose", "FAILED")]
-    assert results[0].reason == ("stopped at [x, y, phi] = [0.889, 1.3, 0.0]: the footprint "
-                                 "would enter table_0 at [1.189, 1.3, 0.0]")  # fmt: skip
+    assert results[0].reason == ("stopped at [x, y, phi] = [1.063, 1.3, 0.0]: the footprint "
+                                 "would enter table_0 at [1.184, 1.3, 0.0]")  # fmt: skip
     # run on: the base stops short of the table, touching nothing
     diagram, simulator = kitchen_simulator(scenario)
     simulator.Initialize()

@@ -22,9 +22,11 @@ import math
 
 import numpy as np
 from pydrake.systems.framework import Context, DiscreteValues
+from repertoire.models.diffdrive import WHEEL_RADIUS
 from repertoire.systems.action_status import ActionStatus
 from repertoire.systems.go_to_pose import GoToPose
 from repertoire.systems.kitchen_geometry import (
+    FINGER_HALF,
     FINGER_REACH,
     _check_boxes,
     _check_positive,
@@ -187,15 +189,19 @@ class KitchenGoToPose(GoToPose):
         reach = max(self.radius, math.hypot(a[0], a[1]) + FINGER_REACH)
         brake = self.braking or (g["a_max"], g["alpha_max"])
         poses = stopping_poses(state, omega, *brake, self.period, reach)
-        # the footprint: the stopping segment (exact), a base already too close may leave
-        gaps = segment_gaps(poses[:1], poses[-1:], self._boxes)[0]
+        # boxes farther than the base can move (plus the footprint, or the arm's reach
+        # where the arm is not above them) are not tested
         start = box_gaps(poses[:1], self._boxes)[0]
-        end = box_gaps(poses[-1:], self._boxes)[0]
-        into = (gaps < self.radius) & ((start >= self.radius) | (end < start))
-        if into.any():
-            i = int(np.argmax(into))
-            on_way = np.flatnonzero(box_gaps(poses, self._boxes)[:, i] < self.radius)
-            return 1, i, poses[on_way[0] if on_way.size else -1]
+        clear = start - math.hypot(*(poses[-1, :2] - poses[0, :2]))
+        # the footprint: the stopping segment (exact), a base already too close may leave
+        if np.any(clear < self.radius):
+            gaps = segment_gaps(poses[:1], poses[-1:], self._boxes)[0]
+            end = box_gaps(poses[-1:], self._boxes)[0]
+            into = (gaps < self.radius) & ((start >= self.radius) | (end < start))
+            if into.any():
+                i = int(np.argmax(into))
+                on_way = np.flatnonzero(box_gaps(poses, self._boxes)[:, i] < self.radius)
+                return 1, i, poses[on_way[0] if on_way.size else -1]
         # fingers not open hold the cup they are around (a squeezed cup sways in the
         # grip while the base turns: a finger then reads below holds_object's 1 cm)
         held = not any(fingers_open([f]) for f in fingers)
@@ -206,6 +212,14 @@ class KitchenGoToPose(GoToPose):
                                             self.cup_radius, self.cup_half_height,
                                             (0,) if held else (), self.cup_margin)  # fmt: skip
         cup = (self.cup_half_height, self.cup_radius) if held else None
+        low = WHEEL_RADIUS + a[2] - max(FINGER_HALF[2], self.cup_half_height if held else 0.0)
+        arm_reach = math.hypot(a[0], a[1]) + max(FINGER_REACH, self.cup_radius) + self.cup_margin
+        both = np.vstack([discs, finger_discs])
+        to_cups = np.hypot(both[:, 0] - state[0], both[:, 1] - state[1]) - both[:, 2]
+        moved = math.hypot(*(poses[-1, :2] - poses[0, :2]))
+        if not (np.any((clear <= arm_reach) & (low <= self._boxes[:, 5]))
+                or np.any((to_cups - moved <= arm_reach) & (low <= both[:, 3]))):  # fmt: skip
+            return None  # nothing within the arm's reach below it
         span = [[f, f] for f in fingers]
         inside = arm_pose_hits(poses, q, span, self._boxes, 0.0, cup, discs, finger_discs)
         hit = int(first_entry(inside[None, :], len(self._boxes))[0])

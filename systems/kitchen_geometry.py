@@ -416,14 +416,13 @@ def arm_pose_hits(
     (drop, radius), q = cup if cup is not None else (0.0, 0.0), np.asarray(q, dtype=float)
     low = WHEEL_RADIUS + LIFT_BASE_Z + q[0] - max(FINGER_HALF[2], drop)
     far = COLUMN_X + q[2] + max(FINGER_REACH, radius) + margin  # the arm's reach
-    lo, hi = base[:, :2].min(axis=0) - far, base[:, :2].max(axis=0) + far  # the poses' box
     hit = np.full(len(base), -1)
-    size = np.concatenate([np.hypot(boxes[:, 3], boxes[:, 4]), discs[:, 2]])
-    centres = np.vstack([boxes[:, :2], discs[:, :2]])
-    tops = np.concatenate([boxes[:, 5], discs[:, 3]])
     # above an obstacle, or out of every pose's reach: not tested
-    near = (low <= tops + margin) & np.all((centres + size[:, None] >= lo)
-                                           & (centres - size[:, None] <= hi), axis=1)  # fmt: skip
+    to_disc = np.hypot(base[:, :1] - discs[:, 0], base[:, 1:2] - discs[:, 1]) - discs[:, 2]
+    gaps = np.concatenate([box_gaps(base, boxes).min(axis=0, initial=np.inf),
+                           to_disc.min(axis=0, initial=np.inf)])  # fmt: skip
+    tops = np.concatenate([boxes[:, 5], discs[:, 3]])
+    near = (low <= tops + margin) & (gaps <= far)
     if not near.any():
         return hit
     centre = chassis_points_to_world(base, np.broadcast_to(arm_forward(q), base.shape))

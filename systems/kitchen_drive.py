@@ -52,10 +52,10 @@ def stopping_poses(state, omega: float, a_max: float, alpha_max: float, delay: f
     The command is held for ``delay``, then the speed ``v`` (``state[3]``) and the yaw
     rate ``omega`` fall at ``a_max`` and ``alpha_max``: the base runs ``v delay + v |v| /
     (2 a_max)`` along its heading and turns ``omega delay + omega |omega| / (2
-    alpha_max)``. The poses interpolate both (a straight line and a turn: the arc's chord,
-    its deviation is below a millimetre at these speeds) so that a point ``reach`` from
-    the base's centre moves at most ``spacing`` between two poses; the first is the
-    base's pose.
+    alpha_max)``. The poses interpolate both (a straight line and a turn: the arc's
+    chord, off the arc by run x turn / 8, 3 mm at the kitchen's braking from full speed)
+    so that a point ``reach`` from the base's centre moves at most ``spacing`` between
+    two poses; the first is the base's pose.
 
     Args:
         state: ``[x, y, phi, v]``.

@@ -3,11 +3,12 @@
 The robot of ``models/diffdrive/diffdrive_arm.urdf`` (the diffdrive base with a
 lift / yaw / extend arm and two fingers) stands in the kitchen world of
 ``models/diffdrive/kitchen.sdf`` and runs one of the kitchen actions of Stulp &
-Beetz: ``goto_pose`` (:class:`~repertoire.systems.go_to_pose.GoToPose`, its
-target passed through a :class:`FootprintGuard` so a pose inside a table fails
-at once), ``reach``, ``grip`` or ``put`` (:mod:`repertoire.systems.kitchen_actions`).
-The channels the action does not drive hold their start values (wheels still,
-arm and fingers at their initial setpoints).
+Beetz: ``goto_pose`` (:class:`~repertoire.systems.kitchen_drive.KitchenGoToPose`:
+GoToPose that stops and fails when its motion would take the base or the held arm into
+furniture or a standing cup; its target passed through a :class:`FootprintGuard` so a
+pose inside a table fails at once), ``reach``, ``grip`` or ``put``
+(:mod:`repertoire.systems.kitchen_actions`). The channels the action does not drive
+hold their start values (wheels still, arm and fingers at their initial setpoints).
 
 All actuators are the plant's PD-controlled actuators: the wheels velocity-only
 (as in diagrams/diffdrive.py), the arm joints and fingers position-controlled.
@@ -35,7 +36,7 @@ from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.simulate import SimulatorCache
 from repertoire.diagrams.soccer import twist_to_wheel_state_matrix
 from repertoire.models import MODELS_DIR, ConfigureParser, package_url
-from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
+from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_MASS, CUP_RADIUS, MASS
 from repertoire.models.diffdrive.generate import KITCHEN_CUPS as _CUP_MODELS
 from repertoire.systems.go_to_pose import (
     GOTO_GAINS,
@@ -45,9 +46,11 @@ from repertoire.systems.go_to_pose import (
 )
 from repertoire.systems.kitchen_actions import (
     ARM_JOINTS,
+    ARM_SPEEDS,
     FINGER_CLOSED,
     FINGER_JOINTS,
     FINGER_OPEN,
+    ArmTracking,
     FootprintGuard,
     Grip,
     Put,
@@ -56,6 +59,7 @@ from repertoire.systems.kitchen_actions import (
     arm_inverse,
     chassis_to_world,
 )
+from repertoire.systems.kitchen_drive import KitchenGoToPose
 
 from repertoire.criteria import Bound
 from repertoire.errors import RepertoireError, ScenarioError
@@ -76,6 +80,8 @@ KITCHEN_OBSTACLES = np.array(
         [-4.0, 0.0, 0.0, 0.05, 3.0, 1.2],
     ]
 )
+#: The names of ``KITCHEN_OBSTACLES``' boxes (in failure messages).
+KITCHEN_OBSTACLE_NAMES = ("counter", "table_0", "table_1", "wall", "wall", "wall", "wall")
 #: The region GoToPose targets may lie in: the room less the robot's radius and the walls.
 KITCHEN_WORKSPACE = (-3.6, 3.6, -2.6, 2.6)
 #: The free cups of kitchen.sdf (written by models/diffdrive/generate.py).
@@ -92,6 +98,25 @@ ARM_GAINS = {
     "left_finger": (400.0, 10.0),
     "right_finger": (400.0, 10.0),
 }
+#: How the robot stops when GoToPose's command drops to 0 (the check of KitchenGoToPose):
+#: measured 4.5 m/s^2 from 0.8 m/s (8.6 cm) and 41 rad/s^2 from 2.4 rad/s (0.12 rad) on
+#: the kitchen floor at the 2 ms step; taken at two thirds and half (a stop still predicted
+#: 12 cm and 0.21 rad: a_max and alpha_max, GoToPose's command limits, gave 33 cm, 0.62 rad).
+KITCHEN_BRAKING = (3.0, 20.0)
+GRAVITY = 9.81  # the plant's (Drake's default) [m/s^2]
+#: How the arm's PD joints follow the actions' setpoints (checked ways: ArmTracking):
+#: lags kd/kp, and the lift's sag under the lifted links (carriage, turret, slide, two
+#: fingers) and under a held cup.
+ARM_TRACKING = ArmTracking(
+    lags=tuple(ARM_GAINS[j][1] / ARM_GAINS[j][0] for j in ARM_JOINTS),
+    speeds=ARM_SPEEDS,
+    sag=sum(
+        MASS[k] * (2 if k == "finger" else 1) for k in ("carriage", "turret", "slide", "finger")
+    )
+    * GRAVITY
+    / ARM_GAINS["arm_lift"][0],
+    cup_sag=CUP_MASS * GRAVITY / ARM_GAINS["arm_lift"][0],
+)
 
 
 @dataclasses.dataclass
@@ -118,6 +143,9 @@ class KitchenScenario:
         gains: overrides of GoToPose's gains (``GOTO_GAINS`` keys), e.g. its timeout.
         cup_positions: world centres ``[x, y, z]`` of cups moved from their
             ``kitchen.sdf`` places (keys: names in ``cups``), e.g. cups displaced on a table.
+        drive_check: ``goto_pose`` stops and fails before the base or the held arm would
+            enter furniture or a standing cup (:class:`KitchenGoToPose`); False runs the
+            bare GoToPose (to see where its law alone goes: into a table's leg).
     """
 
     action: str = "reach"
@@ -135,6 +163,7 @@ class KitchenScenario:
     ground_friction: float = 1.0
     gains: dict[str, float] = dataclasses.field(default_factory=dict)
     cup_positions: dict[str, list[float]] = dataclasses.field(default_factory=dict)
+    drive_check: bool = True
 
     def validate(self) -> None:
         """Raises ScenarioError naming the first bad field."""
@@ -295,9 +324,18 @@ def build_kitchen_action(
         return source
 
     period = scenario.control_period
+    cups = len(scenario.cups)  # goto_pose, reach and put keep off the standing cups
     if scenario.action == "goto_pose":
         try:
-            goto = GoToPose(period=period, gains=scenario.gains, workspace=KITCHEN_WORKSPACE)
+            names = [*KITCHEN_OBSTACLE_NAMES, *scenario.cups]
+            if scenario.drive_check:
+                goto = KitchenGoToPose(period, scenario.gains, KITCHEN_WORKSPACE,
+                                       obstacles=KITCHEN_OBSTACLES, radius=ROBOT_RADIUS,
+                                       names=names, cups=cups, cup_radius=CUP_RADIUS,
+                                       cup_half_height=CUP_HALF_HEIGHT,
+                                       braking=KITCHEN_BRAKING)  # fmt: skip
+            else:
+                goto = GoToPose(period, scenario.gains, KITCHEN_WORKSPACE)
         except RepertoireError as e:
             raise ScenarioError(f"gains: {e}") from e
         action = builder.AddSystem(goto)
@@ -306,14 +344,15 @@ def build_kitchen_action(
         builder.Connect(guard.get_output_port(), action.get_target_input_port())
         builder.Connect(reader.get_output_port(), action.get_state_input_port())
         builder.Connect(action.get_command_output_port(), mux.get_input_port(0))
+        if scenario.drive_check:  # the arm's measured joints and fingers, the cups
+            builder.Connect(arm_reader.get_output_port(), action.get_arm_position_input_port())
         hold(1)
         hold(2)
     else:
         hold(0)
-        cups = len(scenario.cups)  # reach and put keep off the standing cups
         if scenario.action == "reach":
             reach = Reach(period, obstacles=KITCHEN_OBSTACLES, cup_half_height=CUP_HALF_HEIGHT,
-                          cup_radius=CUP_RADIUS, cups=cups)  # fmt: skip
+                          cup_radius=CUP_RADIUS, cups=cups, tracking=ARM_TRACKING)  # fmt: skip
             action = builder.AddSystem(reach)
             builder.Connect(action.get_command_output_port(), mux.get_input_port(1))
             hold(2)
@@ -323,7 +362,7 @@ def build_kitchen_action(
             hold(1)
         else:
             put = Put(period, cup_half_height=CUP_HALF_HEIGHT, cup_radius=CUP_RADIUS,
-                      obstacles=KITCHEN_OBSTACLES, cups=cups)  # fmt: skip
+                      obstacles=KITCHEN_OBSTACLES, cups=cups, tracking=ARM_TRACKING)  # fmt: skip
             action = builder.AddSystem(put)
             demux = builder.AddSystem(MatrixGain(np.eye(5)[:3]))
             demux.set_name("put_arm_command")
@@ -335,18 +374,17 @@ def build_kitchen_action(
         builder.Connect(reader.get_output_port(), action.get_base_state_input_port())
         if scenario.action in ("reach", "put"):
             builder.Connect(arm_reader.get_output_port(), action.get_arm_position_input_port())
-            if cups:
-                cup_reader = builder.AddSystem(
-                    MatrixGain(cup_position_selector(plant, scenario.cups))
-                )
-                cup_reader.set_name("cup_reader")
-                builder.Connect(plant.get_state_output_port(), cup_reader.get_input_port())
-                builder.Connect(cup_reader.get_output_port(), action.get_cup_positions_input_port())
             builder.Connect(
                 target_source().get_output_port(),
                 action.get_target_input_port(),
             )
-        # every arm action reads the fingers (reach and put: for their obstacle check)
+    checked = scenario.action != "grip" and (scenario.action != "goto_pose" or scenario.drive_check)
+    if cups and checked:
+        cup_reader = builder.AddSystem(MatrixGain(cup_position_selector(plant, scenario.cups)))
+        cup_reader.set_name("cup_reader")
+        builder.Connect(plant.get_state_output_port(), cup_reader.get_input_port())
+        builder.Connect(cup_reader.get_output_port(), action.get_cup_positions_input_port())
+    if scenario.action != "goto_pose" or scenario.drive_check:  # (for the obstacle checks)
         builder.Connect(finger_reader.get_output_port(), action.get_finger_position_input_port())
     action.set_name("action")
     if meshcat is not None:
@@ -393,7 +431,7 @@ def _structure(scenario: KitchenScenario) -> tuple:
     s = scenario
     return (s.action, s.cup_in_gripper, tuple(s.cups), s.time_step, s.control_period,
             s.contact_approximation, s.wheel_kd, s.ground_friction,
-            tuple(sorted(s.gains.items())))  # fmt: skip
+            tuple(sorted(s.gains.items())), s.drive_check)  # fmt: skip
 
 
 #: ``kitchen_action`` simulators by diagram structure (see :func:`kitchen_simulator`).
@@ -532,11 +570,15 @@ class StepResult:
         status: the final ActionStatus name (``TIMED_OUT`` also when the step was
             still running at the sequence's ``step_limit``).
         duration: simulated time the step took [s].
+        reason: why the step failed, where its action says (``goto_pose``'s run-time
+            check: :meth:`~repertoire.systems.kitchen_drive.KitchenGoToPose.failure`),
+            else ``""``.
     """
 
     action: str
     status: str
     duration: float
+    reason: str = ""
 
 
 def _sample(on_sample, diagram: Diagram, step: int, context: Context) -> EventStatus:
@@ -610,7 +652,11 @@ def run_kitchen_sequence(
         status = action_status(diagram, context)
         if status == ActionStatus.RUNNING:  # cut off at step_limit: the sequence timed out
             status = ActionStatus.TIMED_OUT
-        results.append(StepResult(action, status.name, float(context.get_time())))
+        system = diagram.GetSubsystemByName("action")
+        reason = ""
+        if status == ActionStatus.FAILED and hasattr(system, "failure"):
+            reason = system.failure(system.GetMyContextFromRoot(context))
+        results.append(StepResult(action, status.name, float(context.get_time()), reason))
         x = plant.GetPositionsAndVelocities(plant.GetMyContextFromRoot(context)).copy()
         # the next step holds what this one commanded
         command = diagram.GetSubsystemByName("command_mux").get_output_port()

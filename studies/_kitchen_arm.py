@@ -50,12 +50,10 @@ def fetch_obstacles(cups, targets, k: int, growth: float, own: bool = False):
         top_z]``, disc rows ``[cx, cy, radius, top_z]``; ``names`` of the boxes, then the
         discs (the obstacle indices of :func:`arm_hits` and :func:`arm_drive_hits`).
     """
-    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLE_NAMES, KITCHEN_OBSTACLES
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
 
-    names = ["counter", "table_0", "table_1", "wall", "wall", "wall", "wall"]
-    if len(KITCHEN_OBSTACLES) != len(names):
-        raise RepertoireError("internal: KITCHEN_OBSTACLES changed: name its boxes here")
+    names = list(KITCHEN_OBSTACLE_NAMES)
     boxes = np.array(KITCHEN_OBSTACLES, dtype=float)
     boxes[:, 3:5] += growth
     discs = []
@@ -65,6 +63,25 @@ def fetch_obstacles(cups, targets, k: int, growth: float, own: bool = False):
             discs.append([p[0], p[1], CUP_RADIUS + growth, p[2] + CUP_HALF_HEIGHT])
             names.append(name)
     return boxes, np.array(discs).reshape(-1, 4), names
+
+
+def arm_start(g: PlanGeometry, k: int, up: float) -> np.ndarray:
+    """Where fetch ``k``'s arm starts (chassis frame, (n, 3)): tucked, or out of the last cup.
+
+    Fetch 0 starts with the arm tucked (``ARM_TUCKED``); a later fetch where the retract
+    left it, ``up`` above the cup put before, at that drop pose.
+
+    Args:
+        g: the plan's geometry (n parameter rows).
+        k: the fetch.
+        up: the plan's ``above_offset`` [m].
+    """
+    from repertoire.diagrams.kitchen import ARM_TUCKED
+    from repertoire.systems.kitchen_actions import arm_forward
+
+    if k == 0:
+        return np.broadcast_to(arm_forward(ARM_TUCKED), g.stand[:, 0, :3].shape)
+    return _world_in_chassis(g.drop[:, k - 1], g.target[k - 1] + np.array([0.0, 0.0, up]))
 
 
 def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
@@ -81,19 +98,15 @@ def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
         k: the fetch.
         up: the plan's ``above_offset`` [m].
     """
-    from repertoire.diagrams.kitchen import ARM_TUCKED
     from repertoire.models.diffdrive.generate import CUP_RADIUS, FINGER_SIZE
-    from repertoire.systems.kitchen_actions import FINGER_CLOSED, FINGER_OPEN, arm_forward
+    from repertoire.systems.kitchen_actions import FINGER_CLOSED, FINGER_OPEN
 
     rise, put_rise = np.array([0.0, 0.0, up]), np.array([0.0, 0.0, PUT_CLEARANCE])
     stand, drop = g.stand[:, k], g.drop[:, k]
     held = CUP_RADIUS + FINGER_SIZE[1] / 2  # a finger's inner face on the cup
     opened, holding = [[FINGER_OPEN] * 2] * 2, [[held] * 2] * 2
     closing = [[FINGER_CLOSED, held]] * 2  # Put closes the fingers from where they are
-    if k == 0:
-        start = np.broadcast_to(arm_forward(ARM_TUCKED), stand[:, :3].shape)
-    else:
-        start = _world_in_chassis(g.drop[:, k - 1], g.target[k - 1] + rise)
+    start = arm_start(g, k, up)
     above, at_cup = _world_in_chassis(stand, g.cup[k] + rise), _world_in_chassis(stand, g.cup[k])
     over = _world_in_chassis(drop, g.target[k] + put_rise)
     ways = {
@@ -135,6 +148,7 @@ def arm_hits(
         fingers against the cup of ``down`` or ``retract``); -1 where the way is clear,
         the names' length + 1 where an end lies out of the arm's reach.
     """
+    from repertoire.diagrams.kitchen import ARM_TRACKING
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
     from repertoire.systems.kitchen_actions import (
         FINGER_CLOSED,
@@ -160,7 +174,9 @@ def arm_hits(
         p = np.asarray(cups if role == "down" else g.target, dtype=float)[j]
         fingers_only = np.array([[p[0], p[1], CUP_RADIUS + config.arm_clearance,
                                   p[2] + CUP_HALF_HEIGHT]])  # fmt: skip
-    hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING, discs, fingers_only)
+    # the way the servoed joints take (ARM_TRACKING), as the executed actions check it
+    hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING, discs, fingers_only,
+                       ARM_TRACKING)  # fmt: skip
     if role == "put":
         release = fingers_in_boxes(pose, q1, [[FINGER_CLOSED, FINGER_OPEN]] * 2, boxes, 0.0, discs)
         hit = np.where(hit < 0, release, hit)
@@ -210,32 +226,143 @@ def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool, discs=None) -
     return np.where(blocked.any(axis=1), np.argmax(blocked, axis=1), -1)
 
 
-def drive_hits(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, role: str):
+def drive_ends(g: PlanGeometry, k: int, start, role: str) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end poses ``(n, 4)`` of fetch ``k``'s drive ``role`` (see :func:`drive_hits`)."""
+    if role == "drive_stand":
+        prev = g.drop[:, k - 1] if k else np.broadcast_to(start, g.stand[:, k].shape)
+        return prev, g.stand[:, k]
+    if role == "drive_drop":
+        return g.stand[:, k], g.drop[:, k]
+    raise RepertoireError(f"role must be 'drive_stand' or 'drive_drop', got {role!r}")
+
+
+def _drive_arm(g: PlanGeometry, cups, k: int, config: KitchenPlanConfig, role: str):
+    """``(arm (n, 3), held, boxes, discs, names)`` of fetch ``k``'s drive ``role``."""
+    drive_ends(g, k, np.zeros(4), role)  # the role's name checked
+    if role == "drive_stand":
+        boxes, discs, names = fetch_obstacles(cups, g.target, k, 0.0, own=True)
+        return arm_start(g, k, config.above_offset), False, boxes, discs, names
+    boxes, discs, names = fetch_obstacles(cups, g.target, k, 0.0)
+    return g.carry[:, k], True, boxes, discs, names
+
+
+def drive_hits(
+    g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, role: str, via=None
+):
     """:func:`arm_drive_hits` of fetch ``k``'s drive ``role``: ``drive_stand`` or ``drive_drop``.
 
     ``drive_stand``: from the start or the last drop pose to the stand, the arm tucked or
     where the last retract left it, cup ``k`` standing on its place; ``drive_drop``: from
-    the stand to the drop pose with the cup held at the carry point.
+    the stand to the drop pose with the cup held at the carry point. With ``via``, the
+    rows with a via point (not NaN) drive two legs, to it and on.
 
     Args:
         g: the plan's geometry. cups: (2, 3) both cups on their places.
         k: the fetch. start: the robot's start ``[x, y, phi, v]``.
         config: ``above_offset`` and ``arm_clearance``. role: the drive.
+        via: ``(n, >= 2)`` via points (NaN rows: straight), as :func:`drive_route` gives.
 
     Returns:
         ``(hits, names)``: per row the index of the first obstacle in ``names``
         (:func:`fetch_obstacles`), -1 where clear.
     """
-    if role == "drive_stand":
-        prev = g.drop[:, k - 1] if k else np.broadcast_to(start, g.stand[:, k].shape)
-        boxes, discs, names = fetch_obstacles(cups, g.target, k, 0.0, own=True)
-        arm, held, a, b = arm_ways(g, k, config.above_offset)["above"][1], False, prev, g.stand
-    elif role == "drive_drop":
-        boxes, discs, names = fetch_obstacles(cups, g.target, k, 0.0)
-        arm, held, a, b = g.carry[:, k], True, g.stand[:, k], g.drop
-    else:
-        raise RepertoireError(f"role must be 'drive_stand' or 'drive_drop', got {role!r}")
-    return arm_drive_hits(a, b[:, k], arm, boxes, config.arm_clearance, held, discs), names
+    a, b = drive_ends(g, k, start, role)
+    arm, held, boxes, discs, names = _drive_arm(g, cups, k, config, role)
+    if via is None:
+        return arm_drive_hits(a, b, arm, boxes, config.arm_clearance, held, discs), names
+    via = np.atleast_2d(np.asarray(via, dtype=float))[:, :2]
+    legs = ~np.isnan(via[:, 0])
+    first = np.where(legs[:, None], via, b[:, :2])
+    hits = arm_drive_hits(a, first, arm, boxes, config.arm_clearance, held, discs)
+    if legs.any():
+        rows = np.flatnonzero(legs)
+        on = arm_drive_hits(via[rows], b[rows], arm[rows], boxes, config.arm_clearance, held,
+                            discs)  # fmt: skip
+        hits[rows] = np.where(hits[rows] >= 0, hits[rows], on)
+    return hits, names
+
+
+def via_points(clearance: float) -> np.ndarray:
+    """Candidate via points ``(m, 2)`` of two-leg drives around the furniture.
+
+    The corners of the counter's and the tables' footprints grown by the robot's radius,
+    ``clearance`` and 1 cm (there a robot clears its own box), those whose footprint
+    (``ROBOT_RADIUS + clearance``) clears every box and lies in the kitchen's workspace.
+    """
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, KITCHEN_WORKSPACE, ROBOT_RADIUS
+    from repertoire.studies._kitchen_plan import footprint_clear
+
+    grow = ROBOT_RADIUS + clearance + 0.01
+    points = []
+    for cx, cy, yaw, hx, hy, _ in KITCHEN_OBSTACLES[:3]:  # counter, table_0, table_1
+        c, s = np.cos(yaw), np.sin(yaw)
+        for u, w in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+            du, dw = u * (hx + grow), w * (hy + grow)
+            points.append([cx + c * du - s * dw, cy + s * du + c * dw])
+    points = np.array(points)
+    x0, x1, y0, y1 = KITCHEN_WORKSPACE
+    inside = (
+        (points[:, 0] >= x0) & (points[:, 0] <= x1) & (points[:, 1] >= y0) & (points[:, 1] <= y1)
+    )
+    ok = inside & footprint_clear(points, KITCHEN_OBSTACLES, ROBOT_RADIUS + clearance)
+    return points[ok]
+
+
+def drive_route(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, role: str,
+                rows=None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Fetch ``k``'s drive ``role``: straight where clear, else the shortest clear two legs.
+
+    GoToPose drives without avoiding anything, so a plan's drive must be clear: the
+    base's footprint (``ROBOT_RADIUS + clearance``) along the straight path
+    (:func:`~repertoire.studies._kitchen_plan.path_clear`) and the held-out arm
+    (:func:`drive_hits`). Where the straight drive is not, the drive goes via one of
+    :func:`via_points` (facing the drive's end, at rest), the one with the shortest clear
+    pair of legs.
+
+    Args:
+        g, cups, k, start, config, role: as for :func:`drive_hits`.
+        rows: the parameter rows to route (default all); the others are not clear.
+
+    Returns:
+        ``(via (n, 4), ok (n,))``: the via pose ``[x, y, phi, 0]`` (NaN where straight or
+        not clear) and whether the drive is clear, straight or via.
+    """
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, ROBOT_RADIUS
+    from repertoire.studies._kitchen_plan import path_clear
+
+    a, b = drive_ends(g, k, start, role)
+    n = len(b)
+    rows = np.arange(n) if rows is None else np.flatnonzero(np.isin(np.arange(n), rows))
+    via, ok = np.full((n, 4), np.nan), np.zeros(n, dtype=bool)
+    radius = ROBOT_RADIUS + config.clearance
+    straight = rows[path_clear(a[rows], b[rows], KITCHEN_OBSTACLES, radius)]
+    ok[straight] = drive_hits(g.rows(straight), cups, k, start, config, role)[0] < 0
+    need = rows[~ok[rows]]
+    points = via_points(config.clearance)
+    if need.size == 0 or len(points) == 0:
+        return via, ok
+    m = len(points)
+    A, B = np.repeat(a[need], m, axis=0), np.repeat(b[need], m, axis=0)
+    V = np.tile(points, (need.size, 1))
+    clear = path_clear(A, V, KITCHEN_OBSTACLES, radius) & path_clear(
+        V, B, KITCHEN_OBSTACLES, radius
+    )
+    cand = np.flatnonzero(clear)
+    if cand.size:
+        sub = g.rows(np.repeat(need, m)[cand])
+        vias = np.full((len(V), 2), np.nan)
+        vias[cand] = V[cand]
+        clear[cand] = drive_hits(sub, cups, k, start, config, role, vias[cand])[0] < 0
+    length = np.where(clear, np.hypot(*(V - A[:, :2]).T) + np.hypot(*(B[:, :2] - V).T), np.inf)
+    length = length.reshape(need.size, m)
+    best = np.argmin(length, axis=1)
+    found = np.isfinite(length[np.arange(need.size), best])
+    chosen = points[best[found]]
+    to_end = b[need[found], :2] - chosen
+    via[need[found]] = np.column_stack([chosen, np.arctan2(to_end[:, 1], to_end[:, 0]),
+                                        np.zeros(found.sum())])  # fmt: skip
+    ok[need[found]] = True
+    return via, ok
 
 
 def arm_collisions(params, start, cups, targets, config: KitchenPlanConfig) -> list[tuple]:

@@ -325,6 +325,37 @@ def plan_steps(geometry: PlanGeometry, row: int, config: KitchenPlanConfig) -> l
     return steps
 
 
+def executed_steps(geometry: PlanGeometry, row: int, start, cups, config: KitchenPlanConfig):
+    """:func:`plan_steps` with each drive's via leg before it, where it has one.
+
+    A drive whose straight path is not clear goes via a point around the furniture
+    (:func:`~repertoire.studies._kitchen_arm.drive_route`, as the refinement predicted
+    it): a ``goto_pose`` to the via pose, then the drive's own.
+
+    Returns:
+        ``(steps, owner)``: the ``run_kitchen_sequence`` steps and, per step, the index
+        of the plan action (:func:`action_names`) it belongs to.
+    """
+    from repertoire.studies._kitchen_arm import drive_route
+
+    g = geometry.rows([row])
+    vias = []  # per drive in plan order: its via pose, or None
+    for k in range(g.cup.shape[0]):
+        for role in ("drive_stand", "drive_drop"):
+            via, ok = drive_route(g, cups, k, start, config, role)
+            vias.append(via[0] if ok[0] and not np.isnan(via[0, 0]) else None)
+    steps, owner, drives = [], [], iter(vias)
+    for i, step in enumerate(plan_steps(geometry, row, config)):
+        if step[0] == "goto_pose":
+            via = next(drives)
+            if via is not None:
+                steps.append(("goto_pose", [float(v) for v in via]))
+                owner.append(i)
+        steps.append(step)
+        owner.append(i)
+    return steps, owner
+
+
 def exit_point(target) -> np.ndarray:
     """Where a robot stands in front of a put target: 0.9 m from it, off ``table_1``'s side.
 
@@ -395,15 +426,17 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
     Returns:
         ``(problem, action_names)``.
     """
-    from repertoire.diagrams.kitchen import ARM_TUCKED, KITCHEN_OBSTACLES, ROBOT_RADIUS
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, ROBOT_RADIUS
     from repertoire.planning.refinement import (
         DurationTerm,
         PiecewiseLinearModel,
         RefinementProblem,
     )
-    from repertoire.systems.kitchen_actions import arm_forward
 
     goto = PiecewiseLinearModel.from_leaves(models["goto_pose"].leaves)
+    # a drive's term: its predicted duration (the goto tree on each of its one or two
+    # legs, summed: drive_time) passed through one linear leaf
+    summed = PiecewiseLinearModel([[-np.inf]], [[np.inf]], [[1.0]], [0.0])
     reach = PiecewiseLinearModel.from_leaves(models["reach"].leaves)
     put = _constant_model(put_tail_duration())
     put_up = np.array([0.0, 0.0, PUT_CLEARANCE])
@@ -438,35 +471,35 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         terms.append(DurationTerm(model, features, tuple(uses), f"{len(terms)}:{name}"))
         actions.append(name)
 
-    from repertoire.studies._kitchen_arm import arm_hits, arm_ways, drive_hits
+    from repertoire.studies._kitchen_arm import (
+        arm_hits,
+        arm_start,
+        arm_ways,
+        drive_ends,
+        drive_route,
+    )
 
     def arm_clear(f, g, k, role):  # the features where the arm's way is clear, else NaN
         hits = arm_hits(g, cups, k, role, config, ways(g, k))
         return np.where((hits < 0)[:, None], f, np.nan)
 
-    def drive_clear(ok, g, k, role):  # ok, and the held-out arm clear while driving
-        rows = np.flatnonzero(ok)  # (only where the base's paths are clear)
-        if rows.size == 0:
-            return ok
-        ok = ok.copy()
-        ok[rows] = drive_hits(g.rows(rows), cups, k, start, config, role)[0] < 0
-        return ok
+    def drive_time(g, k, role, ok):  # (n, 1) predicted drive durations, NaN: no clear route
+        a, b = drive_ends(g, k, start, role)  # (only where ok: the stand's exit path)
+        via, clear = drive_route(g, cups, k, start, config, role, np.flatnonzero(ok))
+        straight = clear & np.isnan(via[:, 0])
+        t = goto.predict(np.where(straight[:, None], kitchen_goto_features(a, b), np.nan))
+        legs = np.flatnonzero(clear & ~straight)  # two legs, to the via point and on
+        if legs.size:
+            t[legs] = goto.predict(kitchen_goto_features(a[legs], via[legs])) + goto.predict(
+                kitchen_goto_features(via[legs], b[legs])
+            )
+        return np.where(clear, t, np.nan)[:, None]
 
     for k in range(m):
         base = PER_CUP * k
         stand_ids, carry_ids = [base, base + 1, base + 2], [base + 3, base + 4, base + 5]
         drop_ids = [base + 6, base + 7, base + 8]
         prev_ids = [] if k == 0 else [base - 3, base - 2, base - 1]
-
-        def prev_pose(g, k=k):
-            if k == 0:
-                return np.broadcast_to(start, g.stand[:, 0].shape)
-            return g.drop[:, k - 1]
-
-        def arm_start(g, k=k):  # the gripper where the previous action left it
-            if k == 0:
-                return np.broadcast_to(arm_forward(ARM_TUCKED), g.stand[:, 0, :3].shape)
-            return _world_in_chassis(g.drop[:, k - 1], g.target[k - 1] + up)
 
         if k:
 
@@ -477,20 +510,18 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
             add("reach", reach, retract, prev_ids)
 
-        def goto_stand(params, k=k, prev_pose=prev_pose):
+        def goto_stand(params, k=k):  # straight, or via a point around the furniture
             g = geometry(params)
-            f = kitchen_goto_features(prev_pose(g), g.stand[:, k])
-            ok = path_clear(prev_pose(g), g.stand[:, k], KITCHEN_OBSTACLES, radius)
-            ok &= path_clear(g.stand[:, k], exits[k], KITCHEN_OBSTACLES, radius)
-            ok = drive_clear(ok, g, k, "drive_stand")  # the arm too
-            return np.where(ok[:, None], f, np.nan)
+            ok = path_clear(g.stand[:, k], exits[k], KITCHEN_OBSTACLES, radius)
+            return drive_time(g, k, "drive_stand", ok)
 
-        add("goto_pose", goto, goto_stand, prev_ids + stand_ids)
+        add("goto_pose", summed, goto_stand, prev_ids + stand_ids)
 
-        def reach_above(params, k=k, arm_start=arm_start):
+        def reach_above(params, k=k):
             g = geometry(params)
             above = _world_in_chassis(g.stand[:, k], g.cup[k] + up)
-            return arm_clear(kitchen_reach_features(arm_start(g), above), g, k, "above")
+            start_arm = arm_start(g, k, config.above_offset)  # where the last action left it
+            return arm_clear(kitchen_reach_features(start_arm, above), g, k, "above")
 
         add("reach", reach, reach_above, prev_ids + stand_ids)
 
@@ -523,14 +554,11 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
         add("reach", reach, lift, stand_ids + carry_ids)
 
-        def goto_drop(params, k=k):
+        def goto_drop(params, k=k):  # arm and cup held out: straight, or via a point
             g = geometry(params)
-            f = kitchen_goto_features(g.stand[:, k], g.drop[:, k])
-            ok = path_clear(g.stand[:, k], g.drop[:, k], KITCHEN_OBSTACLES, radius)
-            ok = drive_clear(ok, g, k, "drive_drop")  # arm and cup
-            return np.where(ok[:, None], f, np.nan)
+            return drive_time(g, k, "drive_drop", np.ones(g.stand.shape[0], dtype=bool))
 
-        add("goto_pose", goto, goto_drop, stand_ids + drop_ids)
+        add("goto_pose", summed, goto_drop, stand_ids + drop_ids)
 
         def reach_put(params, k=k):  # carry the cup over its target (Put then aims again)
             g = geometry(params)
@@ -613,15 +641,19 @@ class KitchenRun:
         status: ``SUCCEEDED`` if every action succeeded and every cup ended within
             ``deliver_tolerance`` of its target, else the failed action's status name
             (``MISSED`` when the actions succeeded but a cup is not at its target).
-        durations: each executed action's duration [s].
+        durations: each executed plan action's duration [s] (a drive with a via point:
+            both its legs).
         total: their sum [s].
         cup_errors: each fetched cup's final distance from its target [m].
+        reason: why the failed action failed, where it says (a drive's run-time check),
+            else ``""``.
     """
 
     status: str
     durations: list[float]
     total: float
     cup_errors: list[float]
+    reason: str = ""
 
 
 def run_kitchen_plan(
@@ -633,7 +665,7 @@ def run_kitchen_plan(
     """
     from repertoire.diagrams.kitchen import KitchenScenario, cup_position, run_kitchen_sequence
 
-    steps = plan_steps(plan_geometry(params, cups, targets), 0, config)
+    steps, owner = executed_steps(plan_geometry(params, cups, targets), 0, start, cups, config)
     scenario = KitchenScenario(
         initial_pose=[float(v) for v in start[:3]],
         time_step=config.time_step,
@@ -653,8 +685,11 @@ def run_kitchen_plan(
         status = failed[0] if failed else "INCOMPLETE"
     elif max(errors) > config.deliver_tolerance:
         status = "MISSED"
-    durations = [float(r.duration) for r in results]
-    return KitchenRun(status, durations, float(sum(durations)), errors)
+    durations = [0.0] * (owner[len(results) - 1] + 1 if results else 0)
+    for i, r in zip(owner, results):  # a drive's via leg and the drive: one plan action
+        durations[i] += float(r.duration)
+    reason = next((r.reason for r in results if r.reason), "")
+    return KitchenRun(status, durations, float(sum(durations)), errors, reason)
 
 
 class KitchenTracer:

@@ -45,6 +45,7 @@ from repertoire.systems.action_status import ActionStatus, ActionSystem
 from repertoire.systems.kitchen_geometry import (
     FINGER_HALF,
     FINGER_REACH,
+    ArmTracking,
     _check_boxes,
     _check_positive,
     arm_forward,
@@ -54,6 +55,7 @@ from repertoire.systems.kitchen_geometry import (
     box_gaps,
     chassis_points_to_world,
     chassis_to_world,
+    cup_discs,
     discs_in_boxes,
     discs_in_discs,
     finger_boxes,
@@ -74,6 +76,7 @@ from repertoire.errors import RepertoireError
 __all__ = [
     "ARM_JOINTS",
     "ARM_SPEEDS",
+    "ArmTracking",
     "BLOCK_MARGIN",
     "FINGER_CLOSED",
     "FINGER_HALF",
@@ -89,6 +92,7 @@ __all__ = [
     "arm_way_hits",
     "chassis_points_to_world",
     "chassis_to_world",
+    "cup_discs",
     "discs_in_boxes",
     "discs_in_discs",
     "finger_boxes",
@@ -170,9 +174,19 @@ class _Action(ActionSystem):
     """Shared ports and state of the kitchen actions (not registered on its own)."""
 
     def __init__(
-        self, period: float, timeout: float, n_command: int, boxes, margin: float, cups: int = 0
+        self,
+        period: float,
+        timeout: float,
+        n_command: int,
+        boxes,
+        margin: float,
+        cups: int = 0,
+        tracking: ArmTracking | None = None,
     ):
         super().__init__()
+        if tracking is not None and not isinstance(tracking, ArmTracking):
+            raise RepertoireError(f"tracking must be an ArmTracking or None, got {tracking!r}")
+        self.tracking = tracking
         _check_positive(period=period, timeout=timeout)
         _check_nonnegative(margin=margin)
         if not (isinstance(cups, int) and not isinstance(cups, bool) and cups >= 0):
@@ -208,29 +222,15 @@ class _Action(ActionSystem):
     ) -> tuple[np.ndarray, np.ndarray]:
         """The cups on ``cup_positions`` as obstacle discs, for a way between ``points``.
 
-        A cup whose cylinder (``radius``, ``half_height`` about its centre) contains none
-        of the world ``points`` (the gripper centre where the way starts and ends) is an
-        obstacle of the whole arm: an upright disc ``[x, y, radius, z + half_height]``
-        (:func:`arm_way_hits`). One containing a point whose index is in ``held`` is the
-        cup held (or let go with it): none. One containing another point (a cup the
-        reach ends in to grip it, or starts in with the fingers open) is an obstacle of
-        the fingers only: approached from above the open fingers straddle it, from the
-        side they push it. The discs' radius is grown by ``grow``.
+        :func:`cup_discs` of the cups' centres (none without the port).
 
         Returns:
             ``(discs, finger_discs)``.
         """
         if self._cups_port is None:
             return np.zeros((0, 4)), np.zeros((0, 4))
-        c = np.asarray(self._cups_port.Eval(context), dtype=float).reshape(-1, 3)
-        p = np.atleast_2d(np.asarray(points, dtype=float))
-        inside = (np.hypot(*(p[None, :, :2] - c[:, None, :2]).transpose(2, 0, 1)) <= radius) & (
-            np.abs(p[None, :, 2] - c[:, None, 2]) <= half_height
-        )
-        holding = inside[:, [i for i in range(len(p)) if i in held]].any(axis=1)
-        fingers_only = inside.any(axis=1) & ~holding
-        discs = np.column_stack([c[:, :2], np.full(len(c), radius + grow), c[:, 2] + half_height])
-        return discs[~inside.any(axis=1)], discs[fingers_only]
+        cups = self._cups_port.Eval(context)
+        return cup_discs(cups, points, radius, half_height, held, grow)
 
     def get_finger_position_input_port(self):
         return self._finger_port
@@ -241,18 +241,26 @@ class _Action(ActionSystem):
         return point_in_boxes(chassis_to_world(base, a_chassis), self._boxes, self.margin)
 
     def path_enters_obstacle(
-        self, context: Context, q_from, q_to, span, cup=None, discs=None, finger_discs=None
+        self,
+        context: Context,
+        q_from,
+        q_to,
+        span,
+        cup=None,
+        discs=None,
+        finger_discs=None,
     ) -> int:
         """Index of the first obstacle the straight joint-space way enters, else -1.
 
         :func:`arm_way_hits` for the chassis on ``base_state``: the gripper centre, the
         finger boxes swept over ``span`` and, with ``cup = (drop, radius)``, a held cup's
         bottom disc, against the boxes and ``discs`` (standing cups), and the fingers
-        against ``finger_discs``.
+        against ``finger_discs``; with the action's ``tracking``, along the way the
+        servoed joints take (:class:`ArmTracking`), else the straight line.
         """
         base = self._base_port.Eval(context)
         hit = arm_way_hits(base, q_from, q_to, span, self._boxes, self.margin, cup, discs=discs,
-                           finger_discs=finger_discs)  # fmt: skip
+                           finger_discs=finger_discs, tracking=self.tracking)  # fmt: skip
         return int(hit[0])
 
     def _calc_command(self, context: Context, output: BasicVector) -> None:
@@ -334,6 +342,7 @@ class Reach(_Action):
         cup_radius: float = 0.04,
         cups: int = 0,
         cup_margin: float = CUP_MARGIN,
+        tracking: ArmTracking | None = None,
     ):
         """Creates the action.
 
@@ -349,8 +358,11 @@ class Reach(_Action):
             cups: how many cups' centres the ``cup_positions`` input carries (0: no port).
             cup_margin: the standing cups' growth [m]: half the way's 1 cm samples, so no
                 finger passes a cup's edge between two samples.
+            tracking: how the plant's servoed joints follow the setpoints
+                (:class:`ArmTracking`): the way checked is the one they take; None: the
+                straight joint-space line.
         """
-        super().__init__(period, timeout, 3, obstacles, margin, cups)
+        super().__init__(period, timeout, 3, obstacles, margin, cups, tracking)
         _check_nonnegative(cup_margin=cup_margin)
         self.cup_margin = cup_margin
         _check_positive(cup_half_height=cup_half_height, cup_radius=cup_radius)
@@ -509,9 +521,10 @@ class Put(_Action):
         margin: float = 0.0,
         cups: int = 0,
         cup_margin: float = CUP_MARGIN,
+        tracking: ArmTracking | None = None,
     ):
         """Creates the action (arguments as in the class docstring and :class:`Reach`)."""
-        super().__init__(period, timeout, 5, obstacles, margin, cups)
+        super().__init__(period, timeout, 5, obstacles, margin, cups, tracking)
         _check_nonnegative(cup_margin=cup_margin)
         self.cup_margin = cup_margin
         _check_positive(cup_radius=cup_radius, max_drop=max_drop)

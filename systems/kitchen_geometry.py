@@ -9,6 +9,7 @@ top_z]`` (a standing cup: whatever lies below its top under it is a table). An
 obstacle index counts the boxes first, then the discs.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -77,20 +78,95 @@ def joint_line(q_from, q_to, spacing: float = 0.01, reach: float = 0.0) -> np.nd
     return joint_lines(q_from, q_to, spacing, reach)[0]
 
 
-def joint_lines(q_from, q_to, spacing: float = 0.01, reach: float = 0.0) -> np.ndarray:
+@dataclasses.dataclass(frozen=True)
+class ArmTracking:
+    """How the arm's joints follow the straight setpoint line :func:`joint_step` drives.
+
+    Each joint is a PD servo with a zero desired velocity: following a setpoint that
+    ramps at a constant rate it lags by ``kd / kp`` (a first-order lag of that time
+    constant), so the joints with different lags leave the straight joint-space line
+    (the lift runs ahead of a slower yaw); and the lift, not compensated for gravity,
+    hangs ``sag`` below its setpoint (``cup_sag`` more with a cup held). A reach among
+    two cups whose checked line passed over a cup's rim with the 5 mm margin pushed the
+    cup 49 mm: its fingers ran 4.8 mm below the line (:func:`joint_lines`).
+
+    Attributes:
+        lags: ``kd / kp`` of lift, yaw and extend [s] (>= 0).
+        speeds: the setpoint's joint speed limits (lift m/s, yaw rad/s, extend m/s).
+        sag: the lift's offset below its setpoint under the arm's weight [m] (>= 0).
+        cup_sag: the offset a held cup adds [m] (>= 0).
+    """
+
+    lags: tuple[float, float, float]
+    speeds: tuple[float, float, float]
+    sag: float = 0.0
+    cup_sag: float = 0.0
+
+    def __post_init__(self) -> None:
+        lags, speeds = np.asarray(self.lags, float), np.asarray(self.speeds, float)
+        if lags.shape != (3,) or not np.all(np.isfinite(lags) & (lags >= 0)):
+            raise RepertoireError(f"lags must be 3 finite values >= 0 s, got {self.lags}")
+        if speeds.shape != (3,) or not np.all(np.isfinite(speeds) & (speeds > 0)):
+            raise RepertoireError(f"speeds must be 3 finite values > 0, got {self.speeds}")
+        for name in ("sag", "cup_sag"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise RepertoireError(f"{name} must be finite and >= 0 m, got {value}")
+
+
+def joint_lines(
+    q_from, q_to, spacing: float = 0.01, reach: float = 0.0, tracking=None, held: bool = False
+) -> np.ndarray:
     """:func:`joint_line` per row of ``q_from``, ``q_to`` (``(n, 3)``): ``(n, s, 3)`` joints.
 
     Each row is sampled as :func:`joint_line` samples it alone (so a row's samples do not
     depend on the other rows); rows with fewer samples than the longest repeat their end.
+
+    With ``tracking`` (:class:`ArmTracking`), the joints the arm reaches instead of the
+    setpoints: the setpoint ramps from ``q_from`` to ``q_to`` in ``T = max_j |d_j| /
+    speed_j``; a joint lagging by ``tau`` is at the share ``t/T - tau/T (1 - e^(-t/tau))``
+    of its way at ``t <= T`` and closes the rest as ``e^(-(t-T)/tau)`` after it; the lift
+    sinks by the sag (with ``held``, the cup's too) as ``1 - e^(-t/tau)``, but not below
+    the lower of the way's ends (an arm at rest is measured where it rests; a cup lifted
+    off a table or put down on it is held up by it there). Sampled on ``[0, T + 4
+    max(tau)]`` (no joint moves faster than its setpoint, so a carried point still moves
+    at most ``spacing`` between samples), ending at ``q_to``.
     """
     _check_positive(spacing=spacing)
     q0, q1 = np.atleast_2d(np.asarray(q_from, dtype=float)), np.atleast_2d(q_to).astype(float)
     d = np.abs(q1 - q0)
     length = d[:, 0] + d[:, 2] + (np.maximum(np.abs(q0[:, 2]), np.abs(q1[:, 2])) + reach) * d[:, 1]
-    count = np.maximum(2, np.ceil(length / spacing).astype(int) + 1)  # per row, as linspace
+    if tracking is None:
+        count = np.maximum(2, np.ceil(length / spacing).astype(int) + 1)  # per row, as linspace
+        j = np.arange(np.max(count, initial=2))[None, :]
+        s = np.where(j < count[:, None] - 1, j * (1.0 / (count[:, None] - 1)), 1.0)
+        return q0[:, None, :] + s[:, :, None] * (q1 - q0)[:, None, :]
+    tau = np.asarray(tracking.lags, dtype=float)
+    ramp = np.max(d / np.asarray(tracking.speeds, dtype=float), axis=1)  # T per row
+    horizon = ramp + 4.0 * tau.max()
+    # the lagged way takes this much longer than the setpoint's (at most its speeds)
+    stretch = np.where(ramp > 0, horizon / np.maximum(ramp, 1e-300), 1.0)
+    count = np.maximum(2, np.ceil(length * stretch / spacing).astype(int) + 1)
     j = np.arange(np.max(count, initial=2))[None, :]
     s = np.where(j < count[:, None] - 1, j * (1.0 / (count[:, None] - 1)), 1.0)
-    return q0[:, None, :] + s[:, :, None] * (q1 - q0)[:, None, :]
+    t = (s * horizon[:, None])[:, :, None]  # (n, s, 1)
+    T = ramp[:, None, None]
+    lag = np.where(tau > 0, tau, 1.0)  # (3,); a joint without lag follows its setpoint
+    # the share of its way each joint has made at t (n, s, 3)
+    within = t / np.maximum(T, 1e-300) - lag / np.maximum(T, 1e-300) * -np.expm1(-t / lag)
+    at_ramp = 1.0 - lag / np.maximum(T, 1e-300) * -np.expm1(-T / lag)
+    after = 1.0 - (1.0 - at_ramp) * np.exp(-(t - T) / lag)
+    share = np.where(t <= T, within, after)
+    share = np.where(tau > 0, share, np.minimum(t / np.maximum(T, 1e-300), 1.0))
+    share = np.where(T > 0, share, 1.0)  # no way: at its end
+    sag = tracking.sag + (tracking.cup_sag if held else 0.0)
+    sink = sag * -np.expm1(-t[..., 0] / (tau[0] if tau[0] > 0 else 1e-300))  # (n, s)
+    q = q0[:, None, :] + share * (q1 - q0)[:, None, :]
+    # the lift sinks while the arm moves, not below the way's lower end: an arm at rest is
+    # measured where it rests, a cup lifted off or put down on a table stands on it there
+    q[:, :, 0] = np.maximum(q[:, :, 0] - sink, np.minimum(q0[:, 0], q1[:, 0])[:, None])
+    q[:, -1] = q1  # settled (on its support, or the sag left to the end's own checks)
+    return q
 
 
 def joint_line_points(q_from, q_to, spacing: float = 0.01) -> np.ndarray:
@@ -238,6 +314,7 @@ def arm_way_hits(
     spacing: float = 0.01,
     discs=None,
     finger_discs=None,
+    tracking=None,
 ) -> np.ndarray:
     """Per row, the first obstacle the arm's straight joint-space way enters, else -1.
 
@@ -258,12 +335,14 @@ def arm_way_hits(
         discs: ``(j, 4)`` upright discs ``[cx, cy, radius, top_z]`` (standing cups).
         finger_discs: ``(f, 4)`` discs only the finger boxes must keep off (a cup the
             way ends in to grip it: the gripper centre ends inside it).
+        tracking: an :class:`ArmTracking`: check the way the servoed joints take off the
+            straight line (:func:`joint_lines`; a held ``cup`` sags the lift more).
 
     Returns:
         ``(n,)`` obstacle indices (boxes, then discs, then finger discs; -1: clear).
     """
     q, boxes, discs = (
-        joint_lines(q_from, q_to, spacing, FINGER_REACH),
+        joint_lines(q_from, q_to, spacing, FINGER_REACH, tracking, cup is not None),
         _check_boxes(boxes),
         _check_discs(discs),
     )
@@ -271,8 +350,8 @@ def arm_way_hits(
     (n, s), (drop, radius) = q.shape[:2], cup if cup is not None else (0.0, 0.0)
     base = np.broadcast_to(np.atleast_2d(np.asarray(base_state, dtype=float))[:, :3], (n, 3))
     # rows whose lowest point is above an obstacle or whose farthest is short of it skip it
-    ends = q[:, [0, -1]]
-    low = WHEEL_RADIUS + LIFT_BASE_Z + ends[:, :, 0].min(axis=1) - max(FINGER_HALF[2], drop)
+    ends = q[:, [0, -1]]  # (the extension moves between them; the lift may dip: its sag)
+    low = WHEEL_RADIUS + LIFT_BASE_Z + q[:, :, 0].min(axis=1) - max(FINGER_HALF[2], drop)
     far = COLUMN_X + ends[:, :, 2].max(axis=1) + max(FINGER_REACH, radius) + margin
     near = np.zeros((len(boxes) + len(discs), n), dtype=bool)
     for i, (_, u, w, hx, hy, top) in enumerate(_in_box_frames(base.T, boxes)):
@@ -290,30 +369,135 @@ def arm_way_hits(
         if at.size == 0:
             continue
         k = (at[:, None] * s + np.arange(s)).ravel()  # their samples
-        if i < len(boxes):
-            box = boxes[i]
-            hit = points_in_boxes(centre[k], box, margin) >= 0
-            hit |= _finger_hits(fingers[0][k], fingers[1][k], fingers[2], box, margin) >= 0
-            if cup is not None:
-                hit |= discs_in_boxes(centre[k] - [0.0, 0.0, drop], radius, box, margin) >= 0
-        else:
-            disc = discs[i - len(boxes)][None]
-            hit = _finger_disc_hits(fingers[0][k], fingers[1][k], fingers[2], disc, margin) >= 0
-            if i - len(boxes) < n_full:  # (a finger disc: the fingers only)
-                hit |= points_in_discs(centre[k], disc, margin) >= 0
-                if cup is not None:
-                    hit |= discs_in_discs(centre[k] - [0.0, 0.0, drop], radius, disc, margin) >= 0
+        hit = _arm_samples_in(i, centre[k], (fingers[0][k], fingers[1][k], fingers[2]), boxes,
+                              discs, n_full, margin, cup)  # fmt: skip
         sub = inside[rows[at]]
         sub[hit.reshape(-1, s) & (sub < 0)] = i  # the first obstacle in order, as one by one
         inside[rows[at]] = sub
-    # still in the box it starts in (a disc's start is no excuse: a way starting at a
-    # standing cup's edge went on through it)
+    return first_entry(inside, len(boxes))
+
+
+def first_entry(inside: np.ndarray, n_boxes: int) -> np.ndarray:
+    """Per row of samples along a way, the first obstacle it enters, else -1.
+
+    A way starting inside a box (a measurement a millimetre low on a table top) is not an
+    entry while it stays in it; the rest of it counts (a disc's start is no excuse: a way
+    starting at a standing cup's edge went on through it).
+
+    Args:
+        inside: ``(n, s)`` per way and sample the obstacle the sample is in (-1: none);
+            boxes are the indices below ``n_boxes``.
+        n_boxes: how many of the obstacles are boxes.
+    """
+    n, s = inside.shape
     start = inside[:, :1]
-    staying = (inside == start) & (start >= 0) & (start < len(boxes))
+    staying = (inside == start) & (start >= 0) & (start < n_boxes)
     left = np.where(staying.all(axis=1), s, np.argmin(staying, axis=1))
     entered = (np.arange(s)[None, :] >= left[:, None]) & (inside >= 0)
     first = np.argmax(entered, axis=1)
     return np.where(entered.any(axis=1), inside[np.arange(n), first], -1)
+
+
+def _arm_samples_in(i: int, centre, fingers, boxes, discs, n_full: int, margin: float, cup):
+    """Per arm sample, whether it is in obstacle ``i`` (boxes, then discs, then finger discs).
+
+    The gripper centres ``centre`` (m, 3) and the finger boxes ``fingers`` (as
+    :func:`finger_boxes` returns them) for every obstacle; a held cup's bottom disc
+    (``cup = (drop, radius)``) for all but the finger discs (index ``n_full`` on among
+    the discs), which only the fingers must keep off.
+    """
+    drop, radius = cup if cup is not None else (0.0, 0.0)
+    if i < len(boxes):
+        box = boxes[i]
+        hit = points_in_boxes(centre, box, margin) >= 0
+        hit |= _finger_hits(*fingers, box, margin) >= 0
+        if cup is not None:
+            hit |= discs_in_boxes(centre - [0.0, 0.0, drop], radius, box, margin) >= 0
+        return hit
+    disc = discs[i - len(boxes)][None]
+    hit = _finger_disc_hits(*fingers, disc, margin) >= 0
+    if i - len(boxes) < n_full:  # (a finger disc: the fingers only)
+        hit |= points_in_discs(centre, disc, margin) >= 0
+        if cup is not None:
+            hit |= discs_in_discs(centre - [0.0, 0.0, drop], radius, disc, margin) >= 0
+    return hit
+
+
+def arm_pose_hits(
+    base_states, q, span, boxes, margin: float = 0.0, cup=None, discs=None, finger_discs=None
+) -> np.ndarray:
+    """Per chassis pose, the obstacle the still arm (joints ``q``) is in, else -1.
+
+    The same tests as :func:`arm_way_hits` (gripper centre, finger boxes over ``span``, a
+    held cup's bottom disc; the fingers alone against ``finger_discs``), with the joints
+    fixed and the base at each row of ``base_states`` (a base that drives or turns with
+    the arm held out). Only the obstacles within the arm's reach of some pose and above
+    its lowest point are tested.
+
+    Args:
+        base_states: ``(n, >= 3)`` chassis poses ``[x, y, phi, ...]``.
+        q: the arm's joints ``[lift, yaw, extend]``.
+        span, boxes, margin, cup, discs, finger_discs: as in :func:`arm_way_hits`.
+
+    Returns:
+        ``(n,)`` obstacle indices (boxes, then discs, then finger discs; -1: clear).
+    """
+    base = np.atleast_2d(np.asarray(base_states, dtype=float))[:, :3]
+    boxes, discs = _check_boxes(boxes), _check_discs(discs)
+    n_full, discs = len(discs), np.vstack([discs, _check_discs(finger_discs)])
+    (drop, radius), q = cup if cup is not None else (0.0, 0.0), np.asarray(q, dtype=float)
+    low = WHEEL_RADIUS + LIFT_BASE_Z + q[0] - max(FINGER_HALF[2], drop)
+    far = COLUMN_X + q[2] + max(FINGER_REACH, radius) + margin  # the arm's reach
+    hit = np.full(len(base), -1)
+    # above an obstacle, or out of every pose's reach: not tested
+    to_disc = np.hypot(base[:, :1] - discs[:, 0], base[:, 1:2] - discs[:, 1]) - discs[:, 2]
+    gaps = np.concatenate([box_gaps(base, boxes).min(axis=0, initial=np.inf),
+                           to_disc.min(axis=0, initial=np.inf)])  # fmt: skip
+    tops = np.concatenate([boxes[:, 5], discs[:, 3]])
+    near = (low <= tops + margin) & (gaps <= far)
+    if not near.any():
+        return hit
+    centre = chassis_points_to_world(base, np.broadcast_to(arm_forward(q), base.shape))
+    fingers = finger_boxes(base, np.broadcast_to(q, base.shape), span, centre)
+    for i in np.flatnonzero(near):
+        inside = _arm_samples_in(i, centre, fingers, boxes, discs, n_full, margin, cup)
+        hit[inside & (hit < 0)] = i
+    return hit
+
+
+def cup_discs(
+    cups, points, radius: float, half_height: float, held=(0, 1), grow: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Standing cups as obstacle discs for an arm way (or a drive) between ``points``.
+
+    A cup whose cylinder (``radius``, ``half_height`` about its centre) contains none of
+    the world ``points`` (the gripper centre where the way starts and ends) is an obstacle
+    of the whole arm: an upright disc ``[x, y, radius, z + half_height]``
+    (:func:`arm_way_hits`). One containing a point whose index is in ``held`` is the cup
+    held (or let go with it): none. One containing another point (a cup the reach ends in
+    to grip it, or starts in with the fingers open) is an obstacle of the fingers only:
+    approached from above the open fingers straddle it, from the side they push it. The
+    discs' radius is grown by ``grow``.
+
+    Args:
+        cups: the cups' centres ``[x, y, z] * m`` (world).
+        points: ``(p, 3)`` world points (or one).
+        radius, half_height: a cup's radius and half height [m].
+        held: indices of ``points`` where the gripper holds its cup.
+        grow: growth of the discs' radius [m].
+
+    Returns:
+        ``(discs, finger_discs)``: rows ``[x, y, radius + grow, top_z]``.
+    """
+    c = np.asarray(cups, dtype=float).reshape(-1, 3)
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    inside = (np.hypot(*(p[None, :, :2] - c[:, None, :2]).transpose(2, 0, 1)) <= radius) & (
+        np.abs(p[None, :, 2] - c[:, None, 2]) <= half_height
+    )
+    holding = inside[:, [i for i in range(len(p)) if i in held]].any(axis=1)
+    fingers_only = inside.any(axis=1) & ~holding
+    discs = np.column_stack([c[:, :2], np.full(len(c), radius + grow), c[:, 2] + half_height])
+    return discs[~inside.any(axis=1)], discs[fingers_only]
 
 
 def _axes(yaw: np.ndarray) -> tuple[tuple, tuple]:

@@ -249,3 +249,64 @@ def test_finger_disc_gaps_by_hand():
         disc = [[gx + half_x + gap + r, f, r, 2.0]]
         assert finger_disc_gaps([0.0, 0.0, 0.0], q, span, disc)[0, 0] == pytest.approx(gap)
         assert fingers_in_boxes([0.0, 0.0, 0.0], q, span, [], margin, disc)[0] == hit
+
+
+def test_tracked_joint_lines_closed_forms():
+    from repertoire.systems.kitchen_geometry import ArmTracking
+
+    # only the extension moves, 0.2 m at 0.2 m/s (T = 1 s), lagging 0.05 s; the yaw's
+    # 0.1 s lag sets the horizon T + 0.4 s; 1 cm samples, 5 cm of time apart
+    tracking = ArmTracking((0.05, 0.1, 0.05), (0.15, 0.8, 0.2))
+    q = joint_lines([0.5, 0.0, 0.4], [0.5, 0.0, 0.6], 0.01, 0.0, tracking)[0]
+    assert q.shape == (29, 3)
+    for k, t in ((10, 0.5), (20, 1.0)):
+        share = t - 0.05 * -math.expm1(-t / 0.05)  # t / T - tau / T (1 - e^(-t/tau))
+        np.testing.assert_allclose(q[k], [0.5, 0.0, 0.4 + 0.2 * share], atol=1e-15)
+    at_ramp = 1.0 - 0.05 * -math.expm1(-1.0 / 0.05)
+    np.testing.assert_allclose(q[24, 2], 0.6 - 0.2 * (1 - at_ramp) * math.exp(-0.2 / 0.05))
+    np.testing.assert_array_equal(q[-1], [0.5, 0.0, 0.6])  # settled
+    # equal lags: the joints keep together, on the straight line; the lift sags as a lag
+    same = ArmTracking((0.05, 0.05, 0.05), (0.15, 0.8, 0.2), sag=0.003, cup_sag=0.001)
+    q0, q1 = np.array([0.6, -0.4, 0.6]), np.array([0.55, 0.2, 0.4])
+    q = joint_lines(q0, q1, 0.01, 0.09, same)[0]
+    sink = 0.003 * -np.expm1(-np.linspace(0.0, 1.2, len(q)) / 0.05)  # T + 4 tau = 1.2 s
+    share = (q[:, 1:] - q0[1:]) / (q1 - q0)[1:]
+    np.testing.assert_allclose(share[:, 0], share[:, 1], atol=1e-12)
+    free = np.maximum((q0 + share[:, :1] * (q1 - q0))[:, 0] - sink, q1[0])  # not below 0.55
+    np.testing.assert_allclose(q[:-1, 0], free[:-1], atol=1e-12)
+    assert q[5, 0] < free[5] + 1e-12 < q0[0] - share[5, 0] * 0.05 + 1e-12  # sunk mid-way
+    np.testing.assert_array_equal(q[-1], q1)  # settled at its end
+    held = joint_lines(q0, q1, 0.01, 0.09, same, held=True)[0]
+    sink = 0.004 * -np.expm1(-np.linspace(0.0, 1.2, len(q)) / 0.05)  # with the cup's 1 mm
+    np.testing.assert_allclose(held[5, 0], q0[0] - share[5, 0] * 0.05 - sink[5], atol=1e-12)
+    # a way up from a table (a cup lifted off it) does not dip below its start
+    up = joint_lines(q1, q1 + [0.1, 0.0, 0.0], 0.01, 0.09, same, held=True)[0]
+    assert up[:, 0].min() == q1[0]
+    # no tracking: the straight line, as before
+    np.testing.assert_allclose(joint_lines(q0, q1, 0.01, 0.09)[0, -1], q1, atol=1e-15)
+    with pytest.raises(RepertoireError, match=r"lags must be 3 finite values >= 0 s"):
+        ArmTracking((0.05, -0.1, 0.05), (0.15, 0.8, 0.2))
+    with pytest.raises(RepertoireError, match=r"sag must be finite and >= 0 m, got nan"):
+        ArmTracking((0.05, 0.1, 0.05), (0.15, 0.8, 0.2), sag=float("nan"))
+    with pytest.raises(RepertoireError, match="tracking must be an ArmTracking or None"):
+        Reach(tracking=(0.05, 0.1, 0.05))
+
+
+def test_a_reach_whose_lift_runs_ahead_of_its_yaw_over_a_cup_is_refused():
+    # random reach 5003 among two cups: its straight joint line passed over cup_1's rim
+    # just outside the 5 mm margin, so it ran, the lift 2.5 mm below its setpoint under
+    # the arm's weight and ahead of the lagging yaw; the fingers ran 4.8 mm below the
+    # line, pushed cup_1 49 mm and the reach reported SUCCEEDED
+    from repertoire.diagrams.kitchen import ARM_TRACKING, world_to_chassis
+    from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
+
+    base = [2.0, 0.55, math.pi / 2, 0.0]
+    start = [2.2912269761617843, 1.1927369840817812, 0.9023119978507526]
+    end = [2.0527464308837216, 0.997442053548847, 0.8533288910361991]
+    q0, q1 = (arm_inverse(world_to_chassis(base, p)) for p in (start, end))
+    cup_1 = [2.22177375170813, 1.1860967627621235, 0.8001]
+    discs = [[cup_1[0], cup_1[1], CUP_RADIUS + 0.005, cup_1[2] + CUP_HALF_HEIGHT]]
+    span = [OPEN, OPEN]
+    assert arm_way_hits(base, q0, q1, span, KITCHEN_OBSTACLES, discs=discs)[0] == -1
+    hit = arm_way_hits(base, q0, q1, span, KITCHEN_OBSTACLES, discs=discs, tracking=ARM_TRACKING)
+    assert hit[0] == len(KITCHEN_OBSTACLES)  # cup_1

@@ -132,15 +132,28 @@ def test_cups_field_loads_only_the_named_cups():
 
 
 def test_figures_say_still_running_and_touching_furniture():
-    # from the default pose, GoToPose to the far side of the room turns into table_0's leg
-    # and pushes against it: at 6 s it is still running (status_succeeded 0 alone read
-    # as a failure) and touches the table
-    scenario = KitchenScenario(action="goto_pose", goto_target=[-2.0, -1.0, 0.0, 0.0], cups=[])
+    # from the default pose, the bare GoToPose to the far side of the room turns into
+    # table_0's leg and pushes against it: at 6 s it is still running (status_succeeded 0
+    # alone read as a failure) and touches the table
+    scenario = KitchenScenario(action="goto_pose", goto_target=[-2.0, -1.0, 0.0, 0.0], cups=[],
+                               drive_check=False)  # fmt: skip
     diagram = build_kitchen_action(scenario)
     simulator = Simulator(diagram)
     simulator.AdvanceTo(6.0)
     figures = check_kitchen_action(diagram, simulator.get_context())
     assert figures == {"status_succeeded": 0.0, "still_running": 1.0, "touching_furniture": 1.0}
+    # the kitchen's drive (the default) stops before the leg and fails, touching nothing
+    scenario.drive_check = True
+    diagram = build_kitchen_action(scenario)
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(6.0)
+    figures = check_kitchen_action(diagram, simulator.get_context())
+    assert figures == {"status_succeeded": 0.0, "still_running": 0.0, "touching_furniture": 0.0}
+    action = diagram.GetSubsystemByName("action")
+    assert action.failure(action.GetMyContextFromRoot(simulator.get_context())) == (
+        "stopped at [x, y, phi] = [1.895, 0.55, 2.541]: the footprint would enter table_0 at "
+        "[1.845, 0.584, 2.544]"
+    )
 
 
 def _contact_pairs(diagram, context):
@@ -157,6 +170,7 @@ def test_reused_kitchen_simulator_runs_as_a_new_one():
         initial_pose=[2.65, 0.3, np.pi / 2],
         goto_target=[2.65, 2.2, np.pi / 2, 0],
         cups=[],
+        drive_check=False,  # the bare GoToPose: the kitchen's drive stops before the leg
     )
     diagram, simulator = kitchen_simulator(into_table)
     simulator.Initialize()
@@ -165,9 +179,8 @@ def test_reused_kitchen_simulator_runs_as_a_new_one():
     table = plant.GetBodyByName("table", plant.GetModelInstanceByName("table_0")).index()
     assert any(table in pair for pair in _contact_pairs(diagram, simulator.get_context()))
     # then another start of the same structure: exactly as a newly built diagram
-    other = KitchenScenario(
-        action="goto_pose", initial_pose=[0, 0, 0], goto_target=[1.0, 0.5, 0, 0], cups=[]
-    )
+    other = KitchenScenario(action="goto_pose", initial_pose=[0, 0, 0],
+                            goto_target=[1.0, 0.5, 0, 0], cups=[], drive_check=False)  # fmt: skip
     reused, simulator = kitchen_simulator(other)
     assert reused is diagram
     fresh = Simulator(build_kitchen_action(other))
@@ -351,3 +364,21 @@ def test_a_gripped_cup_does_not_slide_down_the_fingers():
         heights.append((cup_position(diagram, context) - gripper_position(diagram, context))[2])
     assert sum(r.duration for r in results[2:]) > 2.0  # the swings
     assert abs(heights[1] - heights[0]) < 2e-3
+
+
+def test_a_reach_the_servoed_arm_would_take_through_a_cups_rim_fails_at_once():
+    # random reach 5003 among two cups: its straight joint line cleared cup_1's rim by the
+    # 5 mm margin, but the lift (sagging 2.5 mm, running ahead of the lagging yaw) took
+    # the fingers 4.8 mm lower: cup_1 pushed 49 mm, SUCCEEDED; checked along the way the
+    # servoed joints take (ARM_TRACKING) it fails at once, cup_1 unmoved
+    base = [2.0, 0.55, np.pi / 2, 0.0]
+    start = [2.2912269761617843, 1.1927369840817812, 0.9023119978507526]
+    cups = {"cup_0": [1.986784938495508, 1.1849984986288844, 0.8001],
+            "cup_1": [2.22177375170813, 1.1860967627621235, 0.8001]}  # fmt: skip
+    q0 = [float(q) for q in arm_inverse(world_to_chassis(base, start))]
+    scenario = KitchenScenario(initial_arm=q0, cups=list(cups), cup_positions=cups)
+    end = [2.0527464308837216, 0.997442053548847, 0.8533288910361991]
+    results, diagram, context = run_kitchen_sequence([("reach", end)], scenario)
+    assert [(r.status, r.duration) for r in results] == [("FAILED", pytest.approx(0.1))]
+    for name, p in cups.items():
+        np.testing.assert_allclose(cup_position(diagram, context, name), p, atol=1e-3)

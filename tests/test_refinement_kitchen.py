@@ -245,6 +245,8 @@ def test_arm_ways_end_where_the_executed_steps_aim():
     for k, roles in order.items():
         ways = ka.arm_ways(g, k, config.above_offset)
         assert sorted(ways) == sorted(r for r, _ in roles)
+        # the drives' arm (drive_hits) is the first way's start, without building the ways
+        np.testing.assert_array_equal(ka.arm_start(g, k, config.above_offset), ways["above"][1])
         for role, step in roles:
             pose, a_from, a_to, _, held = ways[role]
             np.testing.assert_allclose(a_from[0], previous, atol=1e-12)
@@ -366,3 +368,47 @@ def test_tracing_a_kitchen_sequence_changes_nothing():
     assert rows.shape[1] == 15 and set(kept) == {0, 1}
     assert np.all(np.diff(rows[:, 0]) > 0)  # one clock over both steps
     assert rows[-1, 0] == pytest.approx(sum(r.duration for r in plain), abs=0.03)
+
+
+def test_a_drive_the_table_blocks_goes_via_a_corner_and_is_predicted_leg_by_leg():
+    # seed 32101: the robot starts between table_0 and the counter; a stand below cup_0
+    # has no clear straight drive (its footprint path grazes table_0's corner), so the
+    # refinement found no plan at all; the drive now goes via the corner point in front
+    # of table_0's lower left corner, the shortest clear pair of legs
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, ROBOT_RADIUS
+    from repertoire.planning.action_models.kitchen_features import kitchen_goto_features
+
+    config = kp.KitchenPlanConfig(scenario=2)
+    start, cups, targets = kp.sample_situation(config, np.random.default_rng(32101))
+    lo, hi, _ = kp.parameter_bounds(config)
+    params = (lo + hi) / 2
+    params[:3] = [np.pi / 2, 0.0, 0.6]  # the stand 0.65 m below cup_0, facing it
+    g = kp.plan_geometry(params, cups, targets)
+    stand = g.stand[0, 0]
+    np.testing.assert_allclose(stand[:2], cups[0, :2] - [0.0, 0.65], atol=1e-12)
+    radius = ROBOT_RADIUS + config.clearance
+    assert not kp.path_clear(start, stand, KITCHEN_OBSTACLES, radius)[0]
+    np.testing.assert_allclose(ka.via_points(config.clearance)[4], [1.12, 0.52])  # the corner
+    via, ok = ka.drive_route(g, cups, 0, start, config, "drive_stand")
+    heading = np.arctan2(stand[1] - 0.52, stand[0] - 1.12)  # facing the stand
+    np.testing.assert_allclose(via, [[1.12, 0.52, heading, 0.0]], atol=1e-12)
+    assert ok.tolist() == [True]
+    # a straight clear drive has no via; a drive the route leaves out is not clear
+    ahead = np.array([2.0, 0.0, 0.0, 0.0])
+    via, ok = ka.drive_route(g, cups, 0, ahead, config, "drive_stand")
+    assert np.isnan(via).all() and ok.tolist() == [True]
+    assert ka.drive_route(g, cups, 0, ahead, config, "drive_stand", rows=[])[1].tolist() == [False]
+    # the drive's term predicts both legs with the goto tree; the plan drives both
+    models = kp.load_kitchen_models("")
+    problem, actions = kp.kitchen_problem(start, cups, targets, config, models)
+    assert actions[0] == "goto_pose" and len(actions) == 21
+    goto = models["goto_pose"]
+    v = np.array([1.12, 0.52, heading, 0.0])
+    legs = goto.predict(kitchen_goto_features(start, v)) + goto.predict(
+        kitchen_goto_features(v, stand)
+    )
+    assert problem.terms[0].predict(params[None])[0] == legs
+    steps, owner = kp.executed_steps(g, 0, start, cups, config)
+    assert steps[:2] == [("goto_pose", v.tolist()), ("goto_pose", stand.tolist())]
+    assert owner[:3] == [0, 0, 1] and len(steps) == len(owner)
+    assert sorted(set(owner)) == list(range(21))

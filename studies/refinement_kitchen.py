@@ -240,7 +240,13 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
     from matplotlib.transforms import Affine2D
     from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
-    from repertoire.studies._kitchen_plan import FETCHED, KitchenTracer, run_kitchen_plan
+    from repertoire.studies._kitchen_plan import (
+        FETCHED,
+        KitchenTracer,
+        executed_steps,
+        plan_geometry,
+        run_kitchen_plan,
+    )
     from repertoire.systems.kitchen_actions import CUP_MARGIN
     from repertoire.systems.kitchen_geometry import (
         arm_forward,
@@ -254,7 +260,9 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
     targets = np.reshape(record.targets, (-1, 3))
     params = getattr(record, f"params_{h}")
     run = run_kitchen_plan(config, record.start, cups, targets, params, on_sample=tracer)
-    rows, steps = tracer.rows, tracer.steps
+    # the tracer counts executed steps; a drive via a corner runs two for one plan action
+    _, owner = executed_steps(plan_geometry(params, cups, targets), 0, record.start, cups, config)
+    rows, steps = tracer.rows, np.asarray(owner, dtype=int)[tracer.steps]
     every_s = tracer.every * config.time_step  # the rows' spacing [s]
     t, base, q, fingers = rows[:, 0], rows[:, 1:4], rows[:, 4:7], rows[:, 7:9]
     cup_at = rows[:, 9:15].reshape(-1, 2, 3)

@@ -550,6 +550,21 @@ def test_asserted_subgoal_keeps_both_legs_inside_the_models_data(seed):
         assert not tree.out_of_range(last, names[:4])[0]
 
 
+def test_a_touch_on_a_later_goto_leg_is_counted():
+    # subgoal assertion counts a touch on either leg: a touch on the approach after an
+    # asserted subgoal used to go uncounted (only the first action's contacts were read)
+    from repertoire.studies._refinement_common import run_plan
+
+    config = SoccerPlanConfig()
+    start = [-0.5, 0.5, 0.0, 0.0]
+    clear, through = [-0.2, 0.5, 0.0, 0.0], [1.6, 0.5, 0.0, 0.0]  # the ball at (1, 0.5)
+    run = run_plan(config, start, [clear, through])
+    assert not run.touched_ball_first and run.touched_ball_goto
+    assert run.ball_moved_m > 0.1
+    quiet = run_plan(config, start, [clear])
+    assert not quiet.touched_ball_first and not quiet.touched_ball_goto
+
+
 def test_a_plan_whose_dribble_leaves_the_ball_is_not_a_success():
     # The dribble leg was a GoToPose through the ball: at the ball facing away from the
     # destination it turned and drove there without the ball, and the plan succeeded

@@ -225,19 +225,27 @@ def check_soccer_plan(diagram: Diagram, context: Context) -> dict[str, float]:
     goal = executor.target(ec, executor.n_actions - 1)
     s = robot_state(diagram, context)
     times = finish_times(diagram, context)
-    held = ball_held(diagram, context)
-    dribbles = isinstance(
-        diagram.GetSubsystemByName(f"action_{executor.n_actions - 1}"), DribbleBall
-    )
-    done = plan_status(diagram, context) == ActionStatus.SUCCEEDED and (held or not dribbles)
     return {
-        "plan_succeeded": float(done),
+        "plan_succeeded": float(plan_succeeded(diagram, context)),
         "still_running": float(plan_status(diagram, context) == ActionStatus.RUNNING),
         "plan_time_s": float(times[-1]),
         "position_error_m": float(np.hypot(goal[0] - s[0], goal[1] - s[1])),
         "ball_moved_m": ball_moved(diagram, context),
-        "ball_held": float(held),
+        "ball_held": float(ball_held(diagram, context)),
     }
+
+
+def plan_succeeded(diagram: Diagram, context: Context) -> bool:
+    """Every action succeeded and, when the last one is a DribbleBall, the ball ends held.
+
+    A DribbleBall succeeds only with the ball held; checked again here because a plan's
+    success means the ball was delivered (:func:`ball_held`).
+    """
+    executor = diagram.GetSubsystemByName("executor")
+    last = diagram.GetSubsystemByName(f"action_{executor.n_actions - 1}")
+    if plan_status(diagram, context) != ActionStatus.SUCCEEDED:
+        return False
+    return ball_held(diagram, context) or not isinstance(last, DribbleBall)
 
 
 def ball_xy(diagram: Diagram, context: Context) -> np.ndarray:

@@ -405,6 +405,7 @@ def run_plan(
         build_soccer_plan,
         finish_times,
         plan_status,
+        plan_succeeded,
     )
     from repertoire.systems.dribble_ball import DRIBBLE_GAINS
     from repertoire.systems.go_to_pose import ActionStatus
@@ -454,10 +455,9 @@ def run_plan(
 
     simulator.set_monitor(monitor)
     simulator.AdvanceTo(scenario.n_goto() * config.timeout + dribble_timeout + 1.0)
-    held = ball_held(diagram, context)
     status = plan_status(diagram, context).name
-    if dribble and status == "SUCCEEDED" and not held:
-        status = "FAILED"
+    if status == "SUCCEEDED" and not plan_succeeded(diagram, context):
+        status = "FAILED"  # a dribble that ends without the ball
     return PlanRun(
         status=status,
         active=int(executor.get_active_action_output_port().Eval(executor_context)[0]),
@@ -465,6 +465,6 @@ def run_plan(
         touched_ball_first=bool(touched[0]),
         touched_ball_goto=any(touched),
         ball_moved_m=ball_moved(diagram, context),
-        ball_held=bool(held),
+        ball_held=bool(ball_held(diagram, context)),
         wall_time_s=time.perf_counter() - t0,
     )

@@ -181,3 +181,31 @@ def test_soccer_plan_later_leg_through_an_earlier_target_is_driven():
     figures = simulate_registered("soccer_plan", scenario=scenario, duration=20.0)
     assert figures["plan_succeeded"] == 1.0
     assert figures["position_error_m"] < 0.1
+
+
+def test_soccer_plan_success_needs_the_ball_held_at_the_end():
+    # a plan whose actions all succeeded counts as succeeded only with the ball held when
+    # its last action is a DribbleBall (the GoToPose "dribble" once succeeded without it)
+    from pydrake.math import RigidTransform
+    from repertoire.diagrams.soccer_plan import (
+        SoccerPlanScenario,
+        ball_held,
+        build_soccer_plan,
+        plan_succeeded,
+    )
+
+    for dribble in (True, False):
+        diagram = build_soccer_plan(SoccerPlanScenario(dribble=dribble))
+        context = diagram.CreateDefaultContext()
+        executor = diagram.GetSubsystemByName("executor")
+        executor.GetMyMutableContextFromRoot(context).SetDiscreteState(
+            [2.0, float(ActionStatus.SUCCEEDED), 3.0, 9.0]
+        )
+        plant = diagram.GetSubsystemByName("plant")
+        pc = plant.GetMyMutableContextFromRoot(context)
+        chassis, ball = plant.GetBodyByName("chassis"), plant.GetBodyByName("ball")
+        plant.SetFreeBodyPose(pc, chassis, RigidTransform([0.0, 0.0, 0.05]))
+        for ball_x, held in ((0.31, True), (0.7, False)):  # on the held spot / 0.39 m beyond
+            plant.SetFreeBodyPose(pc, ball, RigidTransform([ball_x, 0.0, 0.11]))
+            assert ball_held(diagram, context) == held
+            assert plan_succeeded(diagram, context) == (held or not dribble)

@@ -6,8 +6,9 @@ PDDL planner (``approachball``, ``dribbleball``; Figure 10), is instantiated by
 Algorithm 2 (the approach angle and speed at the ball, ``pos2.phi`` and ``pos2.v``, stay
 free) and refined with the learned duration models. Executed in the ``soccer_plan``
 world: ``approachBall`` is a GoToPose to ``approach_distance`` behind the ball, facing
-``phi`` at speed ``v``; ``dribbleBall`` a GoToPose from there through the ball to the
-destination (pushing the ball).
+``phi`` at speed ``v``; ``dribbleBall`` a DribbleBall in collect mode that fetches the
+ball from there and dribbles it to the destination (the plan succeeds only with the ball
+held there).
 """
 
 import dataclasses
@@ -45,10 +46,16 @@ STUDY_GAINS = {"k_beta": -0.3, "k_rho": 2.0}
 approaches, which can bump the ball) and a faster pose convergence (k_rho 2 instead of 0.8:
 with 0.8 the exponential slow-down near every goal, ~4 s per leg, hides what the approach
 angle costs)."""
-DRIBBLE_GAINS = {"omega_max": 1.0, "v_max": 0.5}
-"""The dribble leg: a GoToPose at most 0.5 m/s and 1 rad/s (0.8 and 2.5 for GoToPose), so
-turning with the ball costs time, as with the paper's dribbleBall. (0.6 rad/s at full
-speed orbits the goal: 2 of 10 trial plans timed out.)"""
+DRIBBLER_REACH = 0.3375
+"""How far the ``soccer_dribble`` guide arms reach ahead of the axle [m] (``BUMPER_X +
+GUIDE_SIZE[0]``; tested equal to the world's geometry)."""
+APPROACH_DISTANCE = 0.5
+"""The approach pose's default distance behind the ball centre [m]. The guide arms' tips
+touch a ball centred ahead at ``DRIBBLER_REACH + BALL_RADIUS`` = 0.4475 m, and GoToPose
+ends within its ``position_tolerance`` (0.05 m) of the pose, so the approach must stop at
+least 0.4975 m behind the ball not to bump it; 0.5 m is also DribbleBall's
+``collect_distance``, the distance it fetches a ball from. (0.35 m, the old default made
+for a dribbler-less robot, put the tips into the ball.)"""
 
 SPEED_RANGE = (0.0, 1.0)
 """Speeds [m/s] the plan's belief state allows (the default range of every ``v``)."""
@@ -72,10 +79,11 @@ class SoccerPlanConfig:
             (:func:`trained_range`: 0.00025-0.0897 m/s for the shipped models).
         time_step: plant step [s].
         control_period: GoToPose and executor period [s].
-        timeout: the plan's time limit (every GoToPose's timeout) [s].
+        timeout: every GoToPose's time limit, from its own start [s].
         gains: GoToPose gain overrides.
-        dribble_gains: further overrides of the dribble leg (the last of a two-action
-            plan): it turns slowly, as a robot keeping the ball in front must.
+        dribble_gains: DribbleBall gain overrides of the dribble leg (the last of a
+            two-action plan; its ``timeout``, from the leg's start, defaults to
+            DribbleBall's 15 s).
     """
 
     x_range: list[float] = dataclasses.field(default_factory=lambda: [-1.5, 2.5])
@@ -83,13 +91,13 @@ class SoccerPlanConfig:
     v_range: list[float] = dataclasses.field(default_factory=lambda: [0.0, 0.5])
     min_start_clearance: float = 0.6
     dribble_distance_range: list[float] = dataclasses.field(default_factory=lambda: [0.8, 1.3])
-    approach_distance: float = 0.35
+    approach_distance: float = APPROACH_DISTANCE
     approach_v_max: float = 0.09
     time_step: float = 1e-2
     control_period: float = 0.02
     timeout: float = 12.0
     gains: dict[str, float] = dataclasses.field(default_factory=lambda: dict(STUDY_GAINS))
-    dribble_gains: dict[str, float] = dataclasses.field(default_factory=lambda: dict(DRIBBLE_GAINS))
+    dribble_gains: dict[str, float] = dataclasses.field(default_factory=dict)
 
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
@@ -119,6 +127,14 @@ class SoccerPlanConfig:
             raise RepertoireError(f"timeout must be > 0, got {self.timeout}")
         if self.dribble_distance_range[0] <= self.approach_distance:
             raise RepertoireError("dribble_distance_range must start beyond approach_distance")
+        from repertoire.systems.dribble_ball import DRIBBLE_GAINS
+
+        unknown = sorted(set(self.dribble_gains) - set(DRIBBLE_GAINS))
+        if unknown:
+            raise RepertoireError(
+                f"unknown DribbleBall gains {unknown} in dribble_gains; expected "
+                f"{list(DRIBBLE_GAINS)}"
+            )
 
 
 def document_shared_fields(cls: type) -> type:
@@ -356,43 +372,58 @@ class PlanRun:
     active: int
     finish_times: list[float]
     touched_ball_first: bool
+    touched_ball_goto: bool
     ball_moved_m: float
+    ball_held: bool
     wall_time_s: float
 
 
-def run_plan(config: SoccerPlanConfig, start, targets, *, dribble: bool = False) -> PlanRun:
-    """Runs ``targets`` (one GoToPose each) from ``start`` in the ``soccer_plan`` world.
+def run_plan(
+    config: SoccerPlanConfig, start, targets, *, dribble: bool = False, dribbler: bool = False
+) -> PlanRun:
+    """Runs ``targets`` from ``start`` in the ``soccer_plan`` world.
 
-    Stops when the plan ends or at ``timeout + 1`` s. ``touched_ball_first`` is True if
-    the robot touched the ball while the first action was active (a bumped approach).
-    With ``dribble`` the last action gets ``config.dribble_gains`` on top of ``gains``.
+    One GoToPose per target; with ``dribble`` the last target is DribbleBall's (collect
+    mode, ``config.dribble_gains``, in the dribbler world); with ``dribbler`` only
+    GoToPose actions, by the robot with the dribbler (a ball approach by the dribbling
+    robot). Stops when the plan ends or one second after every action could have timed
+    out (the timeouts count from each action's start). ``touched_ball_first`` is True if
+    the robot touched the ball while the first action was active (a bumped approach),
+    ``touched_ball_goto`` while any GoToPose action was (the dribble is meant to touch
+    it); ``ball_held`` whether the robot ends holding the ball
+    (:func:`~repertoire.diagrams.soccer_plan.ball_held`). A dribbling plan's status is
+    ``SUCCEEDED`` only with the ball held at its end (a DribbleBall that succeeds holds
+    it; checked again here, it is what success means).
     """
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import EventStatus
     from repertoire.diagrams.soccer import set_initial_speed
     from repertoire.diagrams.soccer_plan import (
         SoccerPlanScenario,
+        ball_held,
         ball_moved,
         build_soccer_plan,
         finish_times,
         plan_status,
+        plan_succeeded,
     )
+    from repertoire.systems.dribble_ball import DRIBBLE_GAINS
     from repertoire.systems.go_to_pose import ActionStatus
 
     t0 = time.perf_counter()
-    diagram = build_soccer_plan(
-        SoccerPlanScenario(
-            initial_pose=[float(s) for s in start[:3]],
-            initial_speed=float(start[3]),
-            targets=[[float(x) for x in t] for t in targets],
-            time_step=config.time_step,
-            control_period=config.control_period,
-            gains={**config.gains, "timeout": config.timeout},
-            action_gains=[{}] * (len(targets) - 1) + [dict(config.dribble_gains)]
-            if dribble
-            else [],
-        )
+    scenario = SoccerPlanScenario(
+        initial_pose=[float(s) for s in start[:3]],
+        initial_speed=float(start[3]),
+        targets=[[float(x) for x in t] for t in targets],
+        time_step=config.time_step,
+        control_period=config.control_period,
+        gains={**config.gains, "timeout": config.timeout},
+        dribble=dribble,
+        dribbler=dribbler,
+        dribble_gains=dict(config.dribble_gains),
     )
+    diagram = build_soccer_plan(scenario)
+    dribble_timeout = {**DRIBBLE_GAINS, **config.dribble_gains}["timeout"] if dribble else 0.0
     plant = diagram.GetSubsystemByName("plant")
     executor = diagram.GetSubsystemByName("executor")
     ball = plant.GetBodyByName("ball").index()
@@ -407,27 +438,33 @@ def run_plan(config: SoccerPlanConfig, start, targets, *, dribble: bool = False)
     set_initial_speed(diagram, context, float(start[3]))
     plant_context = plant.GetMyContextFromRoot(context)
     executor_context = executor.GetMyContextFromRoot(context)
-    touched = [False]
+    touched = [False] * len(targets)
 
     def monitor(root_context) -> EventStatus:
-        if executor.get_active_action_output_port().Eval(executor_context)[0] == 0:
+        active = int(executor.get_active_action_output_port().Eval(executor_context)[0])
+        if active < scenario.n_goto() and not touched[active]:
             results = plant.get_contact_results_output_port().Eval(plant_context)
             for i in range(results.num_point_pair_contacts()):
                 info = results.point_pair_contact_info(i)
                 pair = {info.bodyA_index(), info.bodyB_index()}
                 if ball in pair and pair & robot_bodies:
-                    touched[0] = True
+                    touched[active] = True
         if plan_status(diagram, root_context) != ActionStatus.RUNNING:
             return EventStatus.ReachedTermination(None, "plan ended")
         return EventStatus.Succeeded()
 
     simulator.set_monitor(monitor)
-    simulator.AdvanceTo(config.timeout + 1.0)
+    simulator.AdvanceTo(scenario.n_goto() * config.timeout + dribble_timeout + 1.0)
+    status = plan_status(diagram, context).name
+    if status == "SUCCEEDED" and not plan_succeeded(diagram, context):
+        status = "FAILED"  # a dribble that ends without the ball
     return PlanRun(
-        status=plan_status(diagram, context).name,
+        status=status,
         active=int(executor.get_active_action_output_port().Eval(executor_context)[0]),
         finish_times=[float(t) for t in finish_times(diagram, context)],
         touched_ball_first=bool(touched[0]),
+        touched_ball_goto=any(touched),
         ball_moved_m=ball_moved(diagram, context),
+        ball_held=bool(ball_held(diagram, context)),
         wall_time_s=time.perf_counter() - t0,
     )

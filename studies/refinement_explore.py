@@ -2,9 +2,10 @@
 
 Each episode (Stulp & Beetz, sections 5.1 and 6.3.1) samples a start and a destination
 beyond the ball, then a random approach subgoal (angle uniform on the circle, speed
-uniform in ``[0, approach_v_max]``) and executes the two-action plan (approachBall,
-dribbleBall) in the ``soccer_plan`` world. The record holds both actions' durations and
-whether the approach touched the ball.
+uniform in ``[0, approach_v_max]``) and executes the two-action plan (approachBall, a
+GoToPose; dribbleBall, a DribbleBall that fetches the ball and must deliver it) in the
+``soccer_plan`` world. The record holds both actions' durations, whether the approach
+touched the ball and whether the ball ended held.
 
 ``summarize`` fits, on 3/4 of the episodes (``fit_action_model``), the approach's and the
 dribble's duration model trees (Table 7 features of each leg, successful legs only) and
@@ -51,10 +52,12 @@ class RefinementExploreRecord:
         status: the plan's final ActionStatus name.
         failed_action: the index of the action that failed (-1 if none).
         t_approach: the approach's duration [s] (NaN if it did not succeed).
-        t_dribble: the dribble's duration [s] (NaN if it did not succeed).
+        t_dribble: the dribble's duration [s] (NaN unless it delivered the ball: succeeded
+            with the ball held at the destination).
         touched_ball: the robot touched the ball during the approach.
         approach_failed: touched the ball or the approach did not succeed.
         ball_moved_m: the ball's final distance from its start [m].
+        ball_held: the plan ended with the robot holding the ball (DribbleBall's test).
         wall_time_s: wall time of the episode (timing field).
     """
 
@@ -74,6 +77,7 @@ class RefinementExploreRecord:
     touched_ball: bool
     approach_failed: bool
     ball_moved_m: float
+    ball_held: bool
     wall_time_s: float
 
 
@@ -100,6 +104,7 @@ def run_episode(config: SoccerPlanConfig, seed: int) -> RefinementExploreRecord:
         touched_ball=run.touched_ball_first,
         approach_failed=bool(run.touched_ball_first or failed_action == 0),
         ball_moved_m=run.ball_moved_m,
+        ball_held=run.ball_held,
         wall_time_s=run.wall_time_s,
     )
 
@@ -165,9 +170,9 @@ def summarize(
     md = [
         "## Refinement models (fitted on 3/4 of the episodes, measured on the rest)",
         "",
-        f"{len(records)} episodes with random approach subgoals; plan succeeded in "
-        f"{sum(r.status == 'SUCCEEDED' for r in records)}, approach touched the ball in "
-        f"{sum(r.touched_ball for r in records)}.",
+        f"{len(records)} episodes with random approach subgoals; plan succeeded (ball "
+        f"delivered) in {sum(r.status == 'SUCCEEDED' for r in records)}, approach touched "
+        f"the ball in {sum(r.touched_ball for r in records)}.",
         "",
         "| model | episodes | leaves | mean (s) | held-out MAE (s) / accuracy |",
         "|---|---|---|---|---|",
@@ -193,9 +198,13 @@ def demo_config() -> SoccerPlanConfig:
 
 
 def smoke_config() -> SoccerPlanConfig:
-    """A tiny config for tests: starts near the ball, short dribbles, a short timeout."""
+    """A tiny config for tests: starts near the ball, short dribbles, short timeouts."""
     return SoccerPlanConfig(
-        x_range=[-0.2, 0.2], y_range=[0.0, 0.6], dribble_distance_range=[0.5, 0.6], timeout=8.0
+        x_range=[-0.2, 0.2],
+        y_range=[0.0, 0.6],
+        dribble_distance_range=[0.6, 0.7],
+        timeout=8.0,
+        dribble_gains={"timeout": 10.0},
     )
 
 

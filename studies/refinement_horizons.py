@@ -61,7 +61,6 @@ class RefinementHorizonsConfig(SoccerPlanConfig):
     tour_y_range: list[float] = dataclasses.field(default_factory=lambda: [-1.6, 1.6])
     models_dir: str = ""
     solver: str = "ga"
-    timeout: float = 30.0  # four legs take longer than the shared default of 12 s
 
     def validate(self) -> None:
         """Raises RepertoireError naming the first bad field."""
@@ -338,7 +337,7 @@ def demo_config() -> RefinementHorizonsConfig:
 
 def smoke_config() -> RefinementHorizonsConfig:
     """A tiny config for tests: short legs, a short timeout."""
-    return RefinementHorizonsConfig(leg_range=[0.5, 0.6], timeout=15.0)
+    return RefinementHorizonsConfig(leg_range=[0.5, 0.6], timeout=8.0)
 
 
 register_study(

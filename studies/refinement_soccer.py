@@ -85,6 +85,8 @@ class RefinementSoccerRecord:
         wall_time_s: wall time of the episode (timing field).
         ball_moved_1, ball_moved_2: how far each plan moved the ball from its start [m]
             (NaN if not recorded; the engine refuses older stores without these fields).
+        ball_held_1, ball_held_2: each plan ended with the ball held (DribbleBall's test;
+            a plan succeeded only so).
     """
 
     x: float
@@ -108,11 +110,8 @@ class RefinementSoccerRecord:
     wall_time_s: float
     ball_moved_1: float = math.nan
     ball_moved_2: float = math.nan
-
-
-UNMOVED_BALL = 0.05
-"""A plan that moved the ball less than this [m] never dribbled it (a dribbled ball travels
-about the 0.8-1.3 m to the destination, an untouched one 0)."""
+    ball_held_1: bool = False
+    ball_held_2: bool = False
 
 
 def models_folder(models_dir: str, shipped: str = SHIPPED_MODELS) -> Path:
@@ -191,13 +190,14 @@ def run_episode(config: RefinementSoccerConfig, seed: int) -> RefinementSoccerRe
     start, dest = sample_situation(config, np.random.default_rng(seed))
     subgoals = [refine_subgoal(config, start, dest, h, seed) for h in (1, 2)]
     wall_refine = time.perf_counter() - t0
-    out, moved = [], []
+    out, moved, held = [], [], []
     for phi_a, v_a, predicted in subgoals:
         targets = [approach_target(phi_a, v_a, config.approach_distance), dest]
         run = run_plan(config, start, targets, dribble=True)
         t = run.finish_times[-1] if run.status == "SUCCEEDED" else math.nan
         out += [float(phi_a), float(v_a), float(predicted), float(t), run.status]
         moved.append(float(run.ball_moved_m))
+        held.append(run.ball_held)
     return RefinementSoccerRecord(
         *map(float, start),
         *map(float, dest[:3]),
@@ -206,30 +206,32 @@ def run_episode(config: RefinementSoccerConfig, seed: int) -> RefinementSoccerRe
         wall_time_s=time.perf_counter() - t0,
         ball_moved_1=moved[0],
         ball_moved_2=moved[1],
+        ball_held_1=held[0],
+        ball_held_2=held[1],
     )
 
 
-def unmoved_ball_sentence(records) -> str:
-    """How many succeeded plans per horizon never moved the ball (:data:`UNMOVED_BALL`).
+def outcome_sentence(records) -> str:
+    """Per horizon how the plans that did not succeed ended (statuses, balls held).
 
-    The dribble leg is a GoToPose through the ball; it succeeds when the robot reaches the
-    destination, with the ball or without it (a robot at the ball facing away turns and
-    leaves it), and such plans count in Table 3 like the others.
+    A plan succeeds only when its DribbleBall delivers the ball (held at the destination);
+    a plan that failed or timed out may still hold the ball (a dribble that ran out of
+    time on the way).
     """
-    counts = []
+    parts = []
     for h in (1, 2):
-        ok = [
-            getattr(r, f"ball_moved_{h}")
-            for r in records
-            if getattr(r, f"status_{h}") == "SUCCEEDED"
-        ]
-        known = [m for m in ok if math.isfinite(m)]
-        if len(known) < len(ok):
-            return "Whether the plans moved the ball was not recorded."
-        counts.append(f"h = {h} {sum(m < UNMOVED_BALL for m in known)} of {len(known)}")
+        failed = [r for r in records if getattr(r, f"status_{h}") != "SUCCEEDED"]
+        kinds = sorted({getattr(r, f"status_{h}") for r in failed})
+        counts = ", ".join(
+            f"{sum(getattr(r, f'status_{h}') == k for r in failed)} {k}" for k in kinds
+        )
+        held = sum(bool(getattr(r, f"ball_held_{h}")) for r in failed)
+        parts.append(
+            f"h = {h} {len(failed)}" + (f" ({counts}; {held} holding the ball)" if failed else "")
+        )
     return (
-        f"Succeeded plans that never moved the ball (< {UNMOVED_BALL:g} m; the dribble is a "
-        f"GoToPose through the ball, which also succeeds without it): {', '.join(counts)}."
+        "A plan succeeds only when it delivers the ball (DribbleBall succeeds with it held at "
+        f"the destination); plans that did not: {', '.join(parts)}."
     )
 
 
@@ -357,7 +359,7 @@ def summarize(
         f"pairs the {len(both)} where both succeeded. "
         + refinement_sentence(config.solver, t1, t2, both)
         + " "
-        + unmoved_ball_sentence(records),
+        + outcome_sentence(records),
         "",
     ]
     # section 6.3.2: predict from the situation whether refinement helps
@@ -475,7 +477,11 @@ def demo_config() -> RefinementSoccerConfig:
 def smoke_config() -> RefinementSoccerConfig:
     """A tiny config for tests: starts near the ball, short dribbles, shipped models."""
     return RefinementSoccerConfig(
-        x_range=[-0.2, 0.2], y_range=[0.0, 0.6], dribble_distance_range=[0.5, 0.6], timeout=8.0
+        x_range=[-0.2, 0.2],
+        y_range=[0.0, 0.6],
+        dribble_distance_range=[0.6, 0.7],
+        timeout=8.0,
+        dribble_gains={"timeout": 10.0},
     )
 
 

@@ -11,7 +11,9 @@ that lie as far from the ball as the tree's training starts (``min_start_clearan
 clear of the goals, and where the legs' features the subgoal sets lie inside the models'
 training ranges (:func:`approach_subgoal`); the plan then runs both legs through the
 PlanExecutor. An
-approach succeeds when the plan succeeds without touching the ball.
+approach succeeds when the plan succeeds without touching the ball on either leg; the
+robot carries its dribbler (the ``soccer_dribble`` guide arms), as in the
+``refinement_explore`` episodes the failure tree was fitted on.
 
 ``summarize`` writes Fig. 16(b)'s table (predicted vs observed, with and without
 assertion) beside the paper's numbers and polar plots of the outcomes by start
@@ -68,9 +70,11 @@ class SubgoalAssertionRecord:
         asserted: a subgoal was inserted (False also when every candidate was rejected).
         sub_x, sub_y, sub_phi, sub_v: the subgoal (NaN when none).
         success_without: the direct approach succeeded without touching the ball.
-        touched_without: the direct approach touched the ball.
+        touched_without: the direct approach touched the ball (the robot with its
+            dribbler, whose guide arms reach 0.14 m ahead of the bumper).
         time_without: its duration [s] (NaN unless it succeeded).
-        success_with, touched_with, time_with: the same with assertion.
+        success_with, touched_with, time_with: the same with assertion (a touch on either
+            leg).
         reason: the assertion's reason.
         wall_time_s: wall time of the episode (timing field).
     """
@@ -183,16 +187,18 @@ def run_episode(config: SubgoalAssertionConfig, seed: int) -> SubgoalAssertionRe
     assertion = approach_subgoal(config, start, target, seed)
     leg = goto_pose_features(start, target, mirrored=False)[None]
     predicted_fail = bool(failure.predict_failure(leg)[0])
-    direct = run_plan(config, start, [target])
+    # by the dribbling robot (its guide arms on), as in the failure tree's episodes
+    direct = run_plan(config, start, [target], dribbler=True)
     if assertion.asserted:
-        with_run = run_plan(config, start, [assertion.subgoal, target])
+        with_run = run_plan(config, start, [assertion.subgoal, target], dribbler=True)
         sub = [float(s) for s in assertion.subgoal]
     else:  # the same plan: a deterministic simulation gives the same run
         with_run, sub = direct, [math.nan] * 4
 
     def outcome(run):
-        ok = run.status == "SUCCEEDED" and not run.touched_ball_first
-        return ok, run.touched_ball_first, run.finish_times[-1] if ok else math.nan
+        # a touch on either leg (before, one on the approach after a subgoal went uncounted)
+        ok = run.status == "SUCCEEDED" and not run.touched_ball_goto
+        return ok, run.touched_ball_goto, run.finish_times[-1] if ok else math.nan
 
     return SubgoalAssertionRecord(
         *map(float, start),

@@ -83,7 +83,7 @@ import math
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from repertoire.systems.action_status import (
     ActionStatus,
     check_period,
@@ -111,7 +111,7 @@ DRIBBLE_GAINS = {
     "lost_lateral": 0.155,  # ball centre farther to the side is lost (guide arms' faces) [m]
     "position_tolerance": 0.1,  # m
     "heading_tolerance": 0.5,  # rad
-    "timeout": 15.0,  # s
+    "timeout": 15.0,  # s, from the action's start (DriveAction)
     "collect_distance": 0.5,  # collect mode: axle behind the ball / circling radius [m]
     "collect_angle": 1.0,  # collect mode: target direction off the heading to dribble [rad]
     "control_distance": 0.05,  # collect mode: ball this near its held spot is controlled [m]
@@ -431,8 +431,9 @@ class DribbleBall(DriveAction):
     Parameters: numeric parameter 0 holds :data:`DRIBBLE_GAINS` (in order),
     numeric parameter 1 the workspace ``[x_min, x_max, y_min, y_max]``.
 
-    Discrete state: ``[v_cmd, omega_cmd, status, mode]``, updated every
-    ``period`` s; ``mode`` is :data:`APPROACH`, :data:`PIVOT`, :data:`LOOP_LEFT` or
+    Discrete state: ``[v_cmd, omega_cmd, status, mode]`` (then collect mode's slots,
+    then the timeout's start, :class:`~repertoire.systems.go_to_pose.DriveAction`),
+    updated every ``period`` s; ``mode`` is :data:`APPROACH`, :data:`PIVOT`, :data:`LOOP_LEFT` or
     :data:`LOOP_RIGHT` (see :func:`approach_mode`).
 
     Collect mode (``collect=True``; off by default, which is the behaviour above):
@@ -496,14 +497,11 @@ class DribbleBall(DriveAction):
     def get_ball_input_port(self):
         return self._ball_port
 
-    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        xd = context.get_discrete_state(self._xd).get_value()
+    def _next(self, context: Context, xd: np.ndarray, elapsed: float) -> list:
         v_prev, w_prev, status, mode = xd[:4]
         extra = list(xd[4:])  # collect mode's [phase, reason]
-        out = discrete_state.get_mutable_vector(self._xd)
         if status != ActionStatus.RUNNING:
-            out.SetFromVector([0.0, 0.0, status, mode, *extra])
-            return
+            return [0.0, 0.0, status, mode, *extra]
         g = self.gains(context)
         state = self._state_port.Eval(context)
         ball = self._ball_port.Eval(context)
@@ -519,20 +517,17 @@ class DribbleBall(DriveAction):
             failed = ActionStatus.FAILED if active else ActionStatus.RUNNING
             if self.collect and active:
                 extra[1] = BAD_INPUT
-            out.SetFromVector([0.0, 0.0, failed, mode, *extra])
-            return
+            return [0.0, 0.0, failed, mode, *extra]
         if self.collect and extra[0] == COLLECTING:
             held = ball_terms(state, ball, g)[0]
             phase = collect_phase(COLLECTING, held, state, ball, target, g) if active else 0
             if phase == COLLECTING:
                 v, w, _ = collect_control(state, ball, target, g)
                 control = (v, w, math.inf, math.pi)  # never succeeds while collecting
-                t = context.get_time()
                 step = drive_step(
-                    control, (v_prev, w_prev), state, target, g, t, self.period, active
+                    control, (v_prev, w_prev), state, target, g, elapsed, self.period, active
                 )
-                out.SetFromVector([*step, mode, COLLECTING, NO_REASON])
-                return
+                return [*step, mode, COLLECTING, NO_REASON]
             extra[0] = DRIBBLING
         mode = approach_mode(int(mode), state, target, g)
         if mode in (LOOP_LEFT, LOOP_RIGHT):
@@ -543,8 +538,7 @@ class DribbleBall(DriveAction):
         if not held and active:
             if self.collect:
                 extra[1] = BALL_LOST
-            out.SetFromVector([0.0, 0.0, ActionStatus.FAILED, mode, *extra])
-            return
+            return [0.0, 0.0, ActionStatus.FAILED, mode, *extra]
         h = g["hold_distance"]
         rho = math.hypot(
             target[0] + h * math.cos(target[2]) - state[0] - h * math.cos(state[2]),
@@ -552,9 +546,8 @@ class DribbleBall(DriveAction):
         )
         heading_error = math.remainder(target[2] - state[2], 2 * math.pi)
         control = (v, w, rho, heading_error)
-        t = context.get_time()
-        step = drive_step(control, (v_prev, w_prev), state, target, g, t, self.period, active)
-        out.SetFromVector([*step, mode, *extra])
+        step = drive_step(control, (v_prev, w_prev), state, target, g, elapsed, self.period, active)
+        return [*step, mode, *extra]
 
 
 class BodyXYReader(LeafSystem):

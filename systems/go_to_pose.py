@@ -52,7 +52,7 @@ GOTO_GAINS = {
     "k_beta": -1.0,
     "position_tolerance": 0.05,  # m
     "heading_tolerance": 0.15,  # rad
-    "timeout": 20.0,  # s
+    "timeout": 20.0,  # s, from the action's start (DriveAction)
 }
 
 
@@ -178,7 +178,8 @@ def drive_step(
     ``control`` is ``(v, omega, rho, heading_error)`` (as :func:`pose_control`
     returns it). SUCCEEDED (holding the ``previous`` command) within the
     position and heading tolerances at about the target speed
-    (:func:`speed_tolerance`), TIMED_OUT at the timeout, else RUNNING with
+    (:func:`speed_tolerance`), TIMED_OUT once ``time`` (the time since the action
+    started, :class:`DriveAction`) reaches the timeout, else RUNNING with
     ``(v, omega)`` (or ``steer``: a command aimed elsewhere, GoToPose's run-up)
     rate limited by ``a_max`` and ``alpha_max`` from ``previous``. An action that
     is not ``active`` (a plan's later action, not started yet) only tracks the
@@ -207,7 +208,15 @@ def drive_step(
 
 
 class DriveAction(ActionSystem):
-    """What GoToPose and DribbleBall share: gains, workspace, ports and ``[v, omega, status]``."""
+    """What GoToPose and DribbleBall share: gains, workspace, ports and ``[v, omega, status]``.
+
+    The timeout counts from the action's start: the last slot of the discrete state holds
+    the time of the action's last update with its ``active`` input 0 (0 if it was active
+    from the first update, as a lone action is), and :func:`drive_step` gets the time
+    since then. In a plan the executor starts each action after the previous one ended,
+    so each leg has its whole timeout (as the kitchen actions count theirs from their
+    first update); a lone action's timeout still counts from the simulation's start.
+    """
 
     def _declare_drive(
         self, period: float, names, merged, workspace, inputs, extra_slots: int = 0
@@ -215,8 +224,9 @@ class DriveAction(ActionSystem):
         """Declares gains, workspace, the ``inputs`` (name, size), state, command and status.
 
         The discrete state is ``[v_cmd, omega_cmd, status]`` followed by
-        ``extra_slots`` zeros the subclass uses (DribbleBall's approach mode).
-        Returns the input ports by name; the subclass defines ``_update``.
+        ``extra_slots`` zeros the subclass uses (DribbleBall's approach mode) and the
+        start time (see the class). Returns the input ports by name; the subclass
+        defines ``_next``.
         """
         ws = check_workspace(workspace)
         self.period = period
@@ -225,13 +235,30 @@ class DriveAction(ActionSystem):
         ports = {name: self.DeclareVectorInputPort(name, size) for name, size in inputs}
         self._state_port, self._target_port = ports["state"], ports["target"]
         self._active_port = self.DeclareVectorInputPort("active", 1)
-        self._xd = self.DeclareDiscreteState(3 + extra_slots)
+        self._xd = self.DeclareDiscreteState(3 + extra_slots + 1)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self._command_port = self.DeclareVectorOutputPort(
             "command", 2, self._calc_command, {self.discrete_state_ticket(self._xd)}
         )
         self._declare_status_port(self._xd, 2)
         return ports
+
+    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
+        xd = context.get_discrete_state(self._xd).get_value()
+        t = context.get_time()
+        started = float(xd[-1]) if self.is_active(context) else t
+        values = self._next(context, xd[:-1], t - started)
+        discrete_state.get_mutable_vector(self._xd).SetFromVector([*values, started])
+
+    def _next(self, context: Context, xd: np.ndarray, elapsed: float) -> list:
+        """The next discrete state without the start time.
+
+        Args:
+            context: the action's context.
+            xd: the discrete state without its last slot (the start time).
+            elapsed: the time since the action started [s] (its timeout's clock).
+        """
+        raise NotImplementedError
 
     def get_state_input_port(self):
         return self._state_port
@@ -277,7 +304,8 @@ class GoToPose(DriveAction):
     ``[x_min, x_max, y_min, y_max]`` is numeric parameter 1: a target outside
     it (or a non-finite target or state) makes the action fail at once (no motion).
 
-    Discrete state: ``[v_cmd, omega_cmd, status, mode]`` (:func:`goto_mode`),
+    Discrete state: ``[v_cmd, omega_cmd, status, mode, started]`` (:func:`goto_mode`;
+    ``started`` the timeout's start, :class:`DriveAction`),
     updated every ``period`` s.
     """
 
@@ -312,13 +340,10 @@ class GoToPose(DriveAction):
         inputs = (("state", 4), ("target", 4))
         self._declare_drive(period, GOTO_GAINS, merged, workspace, inputs, extra_slots=1)
 
-    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
-        xd = context.get_discrete_state(self._xd).get_value()
+    def _next(self, context: Context, xd: np.ndarray, elapsed: float) -> list:
         v_prev, w_prev, status, mode = xd
-        out = discrete_state.get_mutable_vector(self._xd)
         if status != ActionStatus.RUNNING:
-            out.SetFromVector([0.0, 0.0, status, mode])
-            return
+            return [0.0, 0.0, status, mode]
         g = self.gains(context)
         state = self._state_port.Eval(context)
         target = self._target_port.Eval(context)
@@ -331,16 +356,14 @@ class GoToPose(DriveAction):
             or not ws[2] <= target[1] <= ws[3]
         ):
             failed = ActionStatus.FAILED if active else ActionStatus.RUNNING
-            out.SetFromVector([0.0, 0.0, failed, mode])
-            return
+            return [0.0, 0.0, failed, mode]
         if active:
             mode = goto_mode(int(mode), state, target, g)
         control = pose_control(state, target, g)
         steer = run_up_control(state, run_up_pose(target, g), g) if mode == RUN_UP else None
-        t = context.get_time()
         previous = (v_prev, w_prev)
-        step = drive_step(control, previous, state, target, g, t, self.period, active, steer)
-        out.SetFromVector([*step, mode])
+        step = drive_step(control, previous, state, target, g, elapsed, self.period, active, steer)
+        return [*step, mode]
 
 
 class DiffDriveStateReader(LeafSystem):

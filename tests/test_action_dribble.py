@@ -69,7 +69,8 @@ def _context(target, ball=(0.31, 0.0), state=(0, 0, 0, 0), time=0.0):
 
 
 def _update(action, ctx):
-    return action.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    # without the last slot, the timeout's start (tested in test_action_systems)
+    return action.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
 
 
 def test_dribble_ball_statuses_exact():
@@ -264,7 +265,7 @@ def test_dribble_ball_pivot_mode_exact():
         state = _spot_on_goal(0.0, offset)
         spot = [state[0] + 0.31, state[1]]
         action, ctx = _context([0, 0, 0, 0], ball=spot, state=state)
-        ctx.SetDiscreteState(0, [0.0, 0.0, ActionStatus.RUNNING, PIVOT])
+        ctx.SetDiscreteState(0, [0.0, 0.0, ActionStatus.RUNNING, PIVOT, 0.0])
         assert _update(action, ctx)[3] == mode
 
 

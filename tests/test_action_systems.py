@@ -70,17 +70,17 @@ def _goto_context(target, state=(0, 0, 0, 0), time=0.0):
 
 def test_goto_pose_rate_limits_and_status():
     goto, ctx = _goto_context([1, 0, 0, 0])
-    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
     # v wants 0.8 but a_max * period = 0.1
     np.testing.assert_allclose(xd, [0.1, 0.0, ActionStatus.RUNNING, APPROACH])
     assert goto.get_status_output_port().Eval(ctx) == ActionStatus.RUNNING
     # at the goal: succeeded
     goto, ctx = _goto_context([0.01, 0, 0.05, 0])
-    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
     assert xd[2] == ActionStatus.SUCCEEDED
     # past the timeout: timed out, zero command
     goto, ctx = _goto_context([1, 0, 0, 0], time=GOTO_GAINS["timeout"])
-    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
     np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.TIMED_OUT, APPROACH])
 
 
@@ -96,11 +96,45 @@ def test_goto_pose_inactive_keeps_running_and_tracks():
         goto, ctx = _goto_context(target, time=time)
         goto.get_active_input_port().FixValue(ctx, [0.0])
         assert not goto.is_active(ctx)
-        xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+        xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
         np.testing.assert_allclose(xd, expected, atol=1e-12)
         goto.get_active_input_port().FixValue(ctx, [1.0])  # started: as when unconnected
-        xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+        xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
         assert xd[2] != ActionStatus.RUNNING
+
+
+def test_drive_actions_time_out_from_their_start():
+    # A plan's later leg times out its own timeout after it started, not after the
+    # simulation's start: the last state slot is the time of its last inactive update (0
+    # for a lone action, which is active from the first update). Before, DribbleBall as a
+    # plan's second leg had only what the first leg left of its timeout.
+    from repertoire.systems.dribble_ball import DRIBBLE_GAINS, DribbleBall
+
+    for action, timeout in ((GoToPose(period=0.1), GOTO_GAINS["timeout"]),
+                            (DribbleBall(period=0.1), DRIBBLE_GAINS["timeout"])):  # fmt: skip
+        ctx = action.CreateDefaultContext()
+        for name, value in (("state", [0, 0, 0, 0]), ("target", [2, 0, 0, 0])):
+            action.GetInputPort(name).FixValue(ctx, np.array(value, dtype=float))
+        if isinstance(action, DribbleBall):
+            action.get_ball_input_port().FixValue(ctx, [0.31, 0.0])
+
+        def update(time, active, started, ctx=ctx, action=action):
+            action.get_active_input_port().FixValue(ctx, [float(active)])
+            ctx.SetTime(time)
+            xd = ctx.get_mutable_discrete_state(0)
+            xd.SetAtIndex(xd.size() - 1, started)
+            out = action.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+            return out[2], out[-1]
+
+        assert action.CreateDefaultContext().get_discrete_state(0).get_value()[-1] == 0.0
+        # not started: the slot follows the time
+        assert update(7.0, 0, 0.0) == (ActionStatus.RUNNING, 7.0)
+        # started at 7 s: the slot stays, the timeout falls at 7 s + timeout
+        assert update(7.0 + timeout - 0.1, 1, 7.0) == (ActionStatus.RUNNING, 7.0)
+        assert update(7.0 + timeout, 1, 7.0) == (ActionStatus.TIMED_OUT, 7.0)
+        # a lone action (started at 0): at its timeout after the simulation's start
+        assert update(timeout - 0.1, 1, 0.0) == (ActionStatus.RUNNING, 0.0)
+        assert update(timeout, 1, 0.0) == (ActionStatus.TIMED_OUT, 0.0)
 
 
 def test_run_up_geometry_by_hand():
@@ -152,11 +186,11 @@ def test_goto_pose_runs_up_when_stopped_short_of_the_target_speed():
     # robot there (v = 0) until its timeout. It runs up instead: backing onto the run-up
     # pose 0.26 m behind, rate limited (a_max * period = 0.1).
     goto, ctx = _goto_context([0.01, 0, 0, 0.4])
-    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
     np.testing.assert_allclose(xd, [-0.1, 0.0, ActionStatus.RUNNING, RUN_UP], atol=1e-12)
     # the same target at 0.05 m/s is met at rest: succeeded, no run-up
     goto, ctx = _goto_context([0.01, 0, 0, 0.05])
-    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
     np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.SUCCEEDED, APPROACH])
 
 
@@ -186,10 +220,10 @@ def test_soccer_goto_pose_reaches_a_target_speed_behind_it():
 
 def test_goto_pose_target_off_field_fails_without_motion():
     goto, ctx = _goto_context([5.0, 0, 0, 0])
-    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
     np.testing.assert_allclose(xd, [0.0, 0.0, ActionStatus.FAILED, APPROACH])
     goto, ctx = _goto_context([np.nan, 0, 0, 0])
-    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    xd = goto.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
     assert xd[2] == ActionStatus.FAILED
 
 

@@ -116,13 +116,14 @@ def _context(target, ball, state=(0, 0, 0, 0), time=0.0, phase=COLLECTING):
     action.get_state_input_port().FixValue(ctx, np.array(state, dtype=float))
     action.get_ball_input_port().FixValue(ctx, np.array(ball, dtype=float))
     action.get_target_input_port().FixValue(ctx, np.array(target, dtype=float))
-    ctx.get_mutable_discrete_state(0).SetFromVector([0, 0, 0, APPROACH, phase, NO_REASON])
+    ctx.get_mutable_discrete_state(0).SetFromVector([0, 0, 0, APPROACH, phase, NO_REASON, 0])
     ctx.SetTime(time)
     return action, ctx
 
 
 def _update(action, ctx):
-    return action.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()
+    # without the last slot, the timeout's start (tested in test_action_systems)
+    return action.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
 
 
 def test_collect_mode_leaf_system_exact():
@@ -155,14 +156,14 @@ def test_collect_mode_leaf_system_exact():
     action, ctx = _context([1, 0, 0, 0], ball=(1.0, 0.0), phase=DRIBBLING)
     xd = _update(action, ctx)
     np.testing.assert_allclose(xd, [0, 0, failed, APPROACH, DRIBBLING, BALL_LOST])
-    ctx.get_mutable_discrete_state(0).SetFromVector(xd)
+    ctx.get_mutable_discrete_state(0).SetFromVector([*xd, 0.0])
     assert action.failure_reason(ctx) == "ball lost"
     assert action.get_status_output_port().Eval(ctx) == failed
     # a bad target: FAILED, its reason
     action, ctx = _context([np.nan, 0, 0, 0], ball=(1.0, 0.0))
     xd = _update(action, ctx)
     np.testing.assert_allclose(xd, [0, 0, failed, APPROACH, COLLECTING, BAD_INPUT])
-    ctx.get_mutable_discrete_state(0).SetFromVector(xd)
+    ctx.get_mutable_discrete_state(0).SetFromVector([*xd, 0.0])
     assert action.failure_reason(ctx) == "bad target or ball"
     # the timeout while collecting
     action, ctx = _context([2, 0, 0, 0], ball=(1.0, 0.0), time=DRIBBLE_GAINS["timeout"])
@@ -178,7 +179,7 @@ def test_collect_mode_leaf_system_exact():
 def test_collect_mode_off_by_default_and_bad_values():
     action = DribbleBall()
     assert not action.collect
-    assert action.CreateDefaultContext().get_discrete_state(0).size() == 4
+    assert action.CreateDefaultContext().get_discrete_state(0).size() == 5
     with pytest.raises(RepertoireError, match="collect mode"):
         action.failure_reason(action.CreateDefaultContext())
     with pytest.raises(RepertoireError, match="collect must be a bool, got 'yes'"):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from pydrake.systems.framework import DiscreteValues
-from repertoire.systems.go_to_pose import ActionStatus
+from repertoire.systems.go_to_pose import ActionStatus, GoToPose
 from repertoire.systems.plan_executor import PlanExecutor, next_plan_state
 
 from repertoire.errors import RepertoireError, ScenarioError
@@ -111,18 +111,26 @@ def test_executor_bad_input():
 def test_soccer_plan_world_runs_the_plan_and_dribbles_the_ball():
     from repertoire.diagrams.simulate import simulate_registered
     from repertoire.diagrams.soccer_plan import SoccerPlanScenario, build_soccer_plan
+    from repertoire.systems.dribble_ball import DribbleBall
 
-    figures = simulate_registered("soccer_plan", duration=10.0)
+    figures = simulate_registered("soccer_plan", duration=12.0)
     assert figures["plan_succeeded"] == 1.0 and figures["still_running"] == 0.0
+    assert figures["ball_held"] == 1.0  # delivered: the plan succeeds only so
     # cut short: the plan has not ended, it did not fail
     short = simulate_registered("soccer_plan", duration=1.0)
     assert (short["plan_succeeded"], short["still_running"]) == (0.0, 1.0)
-    assert 0.0 < figures["plan_time_s"] < 10.0
+    assert 0.0 < figures["plan_time_s"] < 12.0
     assert figures["position_error_m"] < 0.1
-    assert figures["ball_moved_m"] > 0.3  # pushed along the second leg
+    assert figures["ball_moved_m"] > 0.3  # dribbled along the second leg
     diagram = build_soccer_plan(SoccerPlanScenario())
     names = {diagram.GetSubsystemByName(n).get_name() for n in ("action_0", "action_1")}
     assert names == {"action_0", "action_1"}
+    assert isinstance(diagram.GetSubsystemByName("action_1"), DribbleBall)
+    assert diagram.GetSubsystemByName("action_1").collect
+    assert diagram.HasSubsystemNamed("ball_rolling_resistance")
+    goto_only = build_soccer_plan(SoccerPlanScenario(dribble=False))
+    assert isinstance(goto_only.GetSubsystemByName("action_1"), GoToPose)
+    assert not goto_only.HasSubsystemNamed("ball_reader")
     with pytest.raises(ScenarioError, match=r"targets\[1\] must be 4 finite values"):
         build_soccer_plan(SoccerPlanScenario(targets=[[0, 0, 0, 0], [1, 2, 3]]))
     with pytest.raises(ScenarioError, match="at least one"):
@@ -138,10 +146,18 @@ def test_soccer_plan_world_runs_the_plan_and_dribbles_the_ball():
     with pytest.raises(ScenarioError, match=r"unknown GoToPose gains \['k_x'\]"):
         build_soccer_plan(SoccerPlanScenario(gains={"k_x": 1.0}))
     with pytest.raises(ScenarioError, match=r"unknown GoToPose gains \['k_y'\]"):
-        build_soccer_plan(SoccerPlanScenario(action_gains=[{}, {"k_y": 1.0}]))
-    with pytest.raises(ScenarioError, match="one dict per target: got 1 for 2 targets"):
-        build_soccer_plan(SoccerPlanScenario(action_gains=[{}]))
-    slow = build_soccer_plan(SoccerPlanScenario(action_gains=[{}, {"omega_max": 0.6}]))
+        build_soccer_plan(SoccerPlanScenario(action_gains=[{"k_y": 1.0}]))
+    with pytest.raises(ScenarioError, match=r"unknown DribbleBall gains \['k_y'\]"):
+        build_soccer_plan(SoccerPlanScenario(dribble_gains={"k_y": 1.0}))
+    with pytest.raises(ScenarioError, match=r"one dict per GoToPose action: got 2 for 1 \("):
+        build_soccer_plan(SoccerPlanScenario(action_gains=[{}, {}]))
+    with pytest.raises(ScenarioError, match="dribble must be a bool, got 1"):
+        build_soccer_plan(SoccerPlanScenario(dribble=1))
+    with pytest.raises(ScenarioError, match="ball_decel must be finite and >= 0, got -1.0"):
+        build_soccer_plan(SoccerPlanScenario(ball_decel=-1.0))
+    slow = build_soccer_plan(
+        SoccerPlanScenario(action_gains=[{}, {"omega_max": 0.6}], dribble=False)
+    )
     context = slow.CreateDefaultContext()
     for name, omega in (("action_0", 2.5), ("action_1", 0.6)):
         action = slow.GetSubsystemByName(name)
@@ -160,7 +176,36 @@ def test_soccer_plan_later_leg_through_an_earlier_target_is_driven():
         initial_pose=[0.0, 0.0, 0.0],
         targets=[[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, np.pi, 0.0], [1.0, 0.0, 0.0, 0.0]],
         gains={"timeout": 40.0},
+        dribble=False,
     )
     figures = simulate_registered("soccer_plan", scenario=scenario, duration=20.0)
     assert figures["plan_succeeded"] == 1.0
     assert figures["position_error_m"] < 0.1
+
+
+def test_soccer_plan_success_needs_the_ball_held_at_the_end():
+    # a plan whose actions all succeeded counts as succeeded only with the ball held when
+    # its last action is a DribbleBall (the GoToPose "dribble" once succeeded without it)
+    from pydrake.math import RigidTransform
+    from repertoire.diagrams.soccer_plan import (
+        SoccerPlanScenario,
+        ball_held,
+        build_soccer_plan,
+        plan_succeeded,
+    )
+
+    for dribble in (True, False):
+        diagram = build_soccer_plan(SoccerPlanScenario(dribble=dribble))
+        context = diagram.CreateDefaultContext()
+        executor = diagram.GetSubsystemByName("executor")
+        executor.GetMyMutableContextFromRoot(context).SetDiscreteState(
+            [2.0, float(ActionStatus.SUCCEEDED), 3.0, 9.0]
+        )
+        plant = diagram.GetSubsystemByName("plant")
+        pc = plant.GetMyMutableContextFromRoot(context)
+        chassis, ball = plant.GetBodyByName("chassis"), plant.GetBodyByName("ball")
+        plant.SetFreeBodyPose(pc, chassis, RigidTransform([0.0, 0.0, 0.05]))
+        for ball_x, held in ((0.31, True), (0.7, False)):  # on the held spot / 0.39 m beyond
+            plant.SetFreeBodyPose(pc, ball, RigidTransform([ball_x, 0.0, 0.11]))
+            assert ball_held(diagram, context) == held
+            assert plan_succeeded(diagram, context) == (held or not dribble)

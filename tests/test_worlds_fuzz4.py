@@ -127,10 +127,11 @@ def test_go_to_pose_and_reach_fail_on_a_non_finite_state():
         0.0,
         ActionStatus.RUNNING,
         0.0,  # mode: approach
+        0.0,  # the timeout's start
     ]
     # a NaN measured state commanded NaN while reporting RUNNING; now FAILED, no motion
     out = _update(goto, {"state": [float("nan"), 0, 0, 0], "target": [1, 0, 0, 0]})
-    assert out.tolist() == [0.0, 0.0, ActionStatus.FAILED, 0.0]
+    assert out.tolist() == [0.0, 0.0, ActionStatus.FAILED, 0.0, 0.0]
     reach = Reach(period=0.01, initial_state=[0.45, 0.0, 1.45, 0.0])
     out = _update(reach, {"state": [float("inf"), 0, 1.45, 0], "target": [1.2, 0, 0.6, 0]})
     assert out.tolist() == [0.45, 1.45, 0.0, 0.0, ActionStatus.FAILED]

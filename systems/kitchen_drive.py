@@ -256,7 +256,7 @@ class KitchenGoToPose(GoToPose):
                 state = self._state_port.Eval(context)
                 failure.SetFromVector([part, index, *state[:3], *pose])
                 discrete_state.get_mutable_vector(self._xd).SetFromVector(
-                    [0.0, 0.0, ActionStatus.FAILED, xd[3]]
+                    [0.0, 0.0, ActionStatus.FAILED, *xd[3:]]  # the mode, the start
                 )
                 return
         super()._update(context, discrete_state)

@@ -77,7 +77,7 @@ def _drive(state, omega=0.0, arm=TUCKED, fingers=OPEN, cups=None, braking=None):
     if n:
         drive.get_cup_positions_input_port().FixValue(context, np.ravel(cups))
     xd = context.get_mutable_discrete_state(0)
-    xd.SetFromVector([state[3], omega, ActionStatus.RUNNING, 0.0])
+    xd.SetFromVector([state[3], omega, ActionStatus.RUNNING, *np.zeros(xd.size() - 3)])
     values = drive.EvalUniquePeriodicDiscreteUpdate(context)
     status = ActionStatus(int(values.get_vector(0).get_value()[2]))
     context.SetDiscreteState(values)

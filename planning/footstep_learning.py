@@ -4,9 +4,10 @@ The robot (here: the simulated biped, run by ``studies/footstep_table.py``) perf
 every sequence of three commanded actions from standing (7^3 = 343 sequences).
 Each measured step becomes a sample ``(a_prev2, a_prev1, stance_foot, a, dx, dy,
 dyaw, duration)``: the landed swing sole expressed in the frame of the *measured*
-stance sole, and the step time. :func:`learn_action_table` builds the
-``ActionTable`` from them (``ActionTable.from_samples``; keys measured with one
-stance foot are mirrored to the other). Everything here is pure: no simulation.
+stance sole, and the step time (touch-down to touch-down, :func:`step_periods`).
+:func:`learn_action_table` builds the ``ActionTable`` from them
+(``ActionTable.from_samples``; keys measured with one stance foot are mirrored to the
+other). Everything here is pure: no simulation.
 """
 
 import itertools
@@ -61,6 +62,34 @@ def sequence_for_index(
         digits.append(index % n)
         index //= n
     return tuple(actions[d] for d in reversed(digits))
+
+
+def step_periods(command_times: Sequence[float], durations: Sequence[float]) -> list[float]:
+    """Step times on a plan's time axis from each step's command-to-touch-down time.
+
+    A plan's ``times[k]`` is when step k's swing foot lands (it becomes the stance foot),
+    so the table's step time must add up to the touch-downs: the first step's time from
+    its command to its touch-down, each later one's from the previous touch-down to its
+    own. The walker commands each step at the previous step's *scheduled* landing, not
+    its touch-down, so the command-to-touch-down times (0.1-0.2 s longer than the
+    schedule) would drift a plan's clock by that much per step.
+
+    Args:
+        command_times: when each step was commanded [s].
+        durations: each step's time from its command to its touch-down [s] (NaN: none).
+
+    Returns:
+        ``[d0, (c1 + d1) - (c0 + d0), (c2 + d2) - (c1 + d1), ...]``.
+
+    Raises:
+        RepertoireError: fewer command times than durations.
+    """
+    if len(command_times) < len(durations):
+        raise RepertoireError(
+            f"step_periods: {len(durations)} durations but only {len(command_times)} command times"
+        )
+    touch = [float(c) + float(d) for c, d in zip(command_times, durations)]
+    return [float(d) for d in durations[:1]] + [b - a for a, b in zip(touch, touch[1:])]
 
 
 def step_samples(

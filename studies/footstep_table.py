@@ -26,11 +26,12 @@ from repertoire.planning.footstep_learning import (
     covered_keys,
     learn_action_table,
     sequence_for_index,
+    step_periods,
     step_samples,
     table_differences,
 )
 from repertoire.studies.engine import register_study
-from repertoire.systems.walking import SteppingRule, realize_step
+from repertoire.systems.walking import SteppingRule, realize_plan, realize_step
 
 from repertoire.errors import RepertoireError
 
@@ -85,7 +86,8 @@ class FootstepTableRecord:
         dx: landed swing sole in the stance sole frame, x [m], per step.
         dy: same, y [m].
         dyaw: same, yaw [rad].
-        duration: step time (command to touch-down) [s].
+        duration: step time on a plan's time axis [s]: from the previous step's touch-down
+            (the first step: from its command) to this step's (:func:`step_periods`).
         rule_error_m: per step, distance between the measured landing and the
             controller's own target (what the physics added) [m].
         max_tilt_rad: largest pelvis tilt at the measured instants.
@@ -125,9 +127,9 @@ def run_episode(config: FootstepTableConfig, seed: int) -> FootstepTableRecord:
         contact_approximation=config.contact_approximation,
         max_steps=3,
     )
-    samples = step_samples(
-        actions, config.first_stance, result.stance, result.landed, result.durations
-    )
+    seq = realize_plan(plan, config.rule())
+    periods = step_periods(seq.command_times, result.durations)
+    samples = step_samples(actions, config.first_stance, result.stance, result.landed, periods)
     rule_err = [
         float(np.hypot(p[0] - e[0], p[1] - e[1])) for p, e in zip(result.landed, result.expected)
     ]

@@ -328,3 +328,58 @@ def test_lru_cache_evicts_the_least_recently_used_first():
     big = _LruCache(max_bytes=5)
     big.put("a", 1, 100)  # a single entry over the bound is still kept (one at least)
     assert big.get("a") == 1
+
+
+def _trap_after_two_steps() -> tuple:
+    """A 3 m floor where a 300-expansion plan walks 2 steps into a trap (seed-202 scene).
+
+    The partial plan ends at (1.405, 0.9) at t = 1.6 s; a block on waypoints sweeps across
+    there at 3.2-4.3 s, and from that state no step sequence escapes it.
+    """
+    moving = [
+        MovingRectObstacle([0.978, 1.668], [0.572, 0.383], [0.181, -0.127], yaw=-0.983),
+        MovingRectObstacle(
+            [0.0, 0.0], [0.415, 0.137], yaw=-0.954,
+            waypoints=[[0.0, 0.892, 2.375], [3.211, 0.404, 0.802], [4.29, 1.508, 0.943],
+                       [5.43, 0.532, 1.639], [8.961, 0.817, 2.264]],
+        ),
+    ]  # fmt: skip
+    env = DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=moving, t_end=30.0)
+    opts = PlannerOptions(heuristic="euclidean", max_expansions=300, time_limit=5.0)
+    return env, (1.405, 0.3, math.pi / 2), "left", (1.5, 2.7), nominal_action_table(), opts
+
+
+def test_receding_horizon_does_not_commit_a_partial_plan_into_a_trap():
+    # Before: both steps of the first round's partial plan were committed, the next round
+    # found no step from there (UNREACHABLE, no reason), and the joined plan said
+    # UNREACHABLE although the goal is reachable from the start (12 steps with a larger
+    # budget). Now the proved trap is not committed: the robot takes one step, waits in
+    # place (stop) while the block passes, and walks on.
+    args = _trap_after_two_steps()
+    first = plan_footsteps(*args)
+    assert first.status is PlanStatus.NODE_LIMIT and first.actions == ["forward_long"] * 2
+    assert [round(p[1], 3) for p in first.poses] == [0.3, 0.6, 0.9]
+    res = plan_receding_horizon(*args, execute_steps=3)
+    assert res.statuses == ["NODE_LIMIT", "UNREACHABLE", "SUCCESS"] and res.rounds == 3
+    plan = res.plan
+    assert plan.status is PlanStatus.SUCCESS and plan.reason == ""
+    assert plan.num_steps == 13 and plan.actions[:6] == ["forward_long"] + ["stop"] * 4 + [
+        "forward_medium"
+    ]
+    assert _stands_free(args[0], plan) == []
+    # the cost is that of the committed actions, the counts every round's (the trap's too)
+    table = args[4]
+    assert plan.cost == pytest.approx(sum(table.step_cost[table.index(a)] for a in plan.actions))
+
+
+def test_receding_horizon_says_when_its_own_steps_led_into_a_trap():
+    # with no round left to try a shorter prefix the trap is committed; the joined plan's
+    # UNREACHABLE then names where the rounds led, not the start (before: reason "")
+    res = plan_receding_horizon(*_trap_after_two_steps(), execute_steps=3, max_rounds=2)
+    assert res.statuses == ["NODE_LIMIT", "UNREACHABLE"]
+    assert res.plan.status is PlanStatus.UNREACHABLE and res.plan.num_steps == 2
+    assert res.plan.reason == (
+        "from the state the committed steps reached at (1.405, 0.900, 1.571) t = 1.600 s "
+        "(round 2) no step sequence reaches the goal; the earlier rounds ended at their "
+        "limits with partial plans, so the start was not proved cut off"
+    )

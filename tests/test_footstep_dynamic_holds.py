@@ -176,3 +176,30 @@ def test_a_goal_no_sole_fits_at_any_time_is_refused_by_name():
     with pytest.raises(FootstepError, match=r"goal \(3.013, 1.500\): no foot fits within "
                        r"goal_tolerance 0.05 m of it in any grid of E\(t\)"):  # fmt: skip
         plan_footsteps(env, (0.5, 1.405, 0.0), "right", (3.0125, 1.5), table, opts)
+
+
+def test_the_robot_stands_free_on_both_feet_after_the_last_step():
+    # Without obstacles the plan is 4 long steps, the last at 3.2 s onto (1.405, 1.6); the
+    # right foot stays at (1.595, 1.3). A 0.2 m block moving +x along y = 1.3 reaches it at
+    # 3.5 s. Before, only the landing foot was checked after the last step (the trailing
+    # one until that landing): the plan ended there and the block ran into the standing
+    # robot 0.3 s after it arrived. Now both feet stand free as long as any landing is held
+    # (the table's shortest step, 0.8 s): one more step lifts the right foot clear.
+    table = nominal_action_table()
+    opts = PlannerOptions(heuristic="euclidean", max_expansions=20000, time_limit=10.0)
+    args = ((1.405, 0.4, math.pi / 2), "left", (1.5, 1.6), table, opts)
+    free = DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[], t_end=20.0)
+    alone = plan_footsteps(free, *args)
+    assert alone.actions == ["forward_long"] * 4 and alone.times[-1] == pytest.approx(3.2)
+    block = MovingRectObstacle([1.595 - 0.18 - 0.5 * 3.5, 1.3], [0.2, 0.2], [0.5, 0.0])
+    env = DynamicEnvironment.from_moving_obstacles((3.0, 3.0), moving=[block], t_end=20.0)
+    assert foot_collides_reference(env.at(3.5), (1.595, 1.3, math.pi / 2), *FOOT)
+    plan = plan_footsteps(env, *args)
+    assert plan.status is PlanStatus.SUCCESS
+    assert plan.actions == ["forward_long"] * 4 + ["forward_short"]
+    assert [round(v, 3) for v in plan.poses[-1][:2]] == [1.595, 1.7]
+    assert plan.times[-1] == pytest.approx(4.0)
+    for pose in plan.poses[-2:]:  # both feet free while the robot stands after arriving
+        for grid, tg in zip(env.grids, env.times):
+            if plan.times[-1] - 0.05 <= tg <= plan.times[-1] + 0.8 + 0.05:
+                assert not foot_collides_reference(grid, pose, *FOOT), (pose, tg)

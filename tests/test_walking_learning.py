@@ -13,6 +13,7 @@ from repertoire.planning.footstep_learning import (
     covered_keys,
     learn_action_table,
     sequence_for_index,
+    step_periods,
     step_samples,
     table_differences,
 )
@@ -64,6 +65,18 @@ def test_step_samples_closed_form():
         step_samples(["stop"], "left", stance, landed, [1.0])
     with pytest.raises(RepertoireError, match="non-finite"):
         step_samples(["stop"], "left", [[np.nan, 0, 0]], [[0, 0, 0]], [1.0])
+
+
+def test_step_periods_closed_form():
+    # touch-downs at 0.4 + 1.104, 1.52 + 1.284, 2.64 + 1.232: 1.504, 2.804, 3.872
+    periods = step_periods([0.4, 1.52, 2.64], [1.104, 1.284, 1.232])
+    np.testing.assert_allclose(periods, [1.104, 1.3, 1.068], atol=1e-12)
+    # a plan's times (their sums) are the touch-downs counted from the first command
+    np.testing.assert_allclose(np.cumsum(periods), [1.104, 2.404, 3.472], atol=1e-12)
+    assert step_periods([0.0], []) == []
+    assert np.isnan(step_periods([0.0, 1.0], [1.0, np.nan])[1])  # no touch-down: NaN
+    with pytest.raises(RepertoireError, match="2 durations but only 1 command times"):
+        step_periods([0.0], [1.0, 1.0])
 
 
 def _rule_samples(rule: SteppingRule) -> list:
@@ -137,6 +150,28 @@ def test_shipped_learned_table():
     )
     rule = rule_table_displacement(SteppingRule())
     assert np.abs(table.displacement[..., :2] - rule[..., :2]).max() < 0.01
+
+
+def test_shipped_table_times_are_the_walkers_touch_downs():
+    # A plan's times say when each foot lands (what dynamic obstacles are checked
+    # against). The table held command-to-touch-down times, but the walker commands each
+    # step at the previous one's scheduled landing, 0.1-0.2 s before its touch-down: the
+    # plan's clock ran 0.12 s a step slow (8 steps: the last touch-down at 8.78 s where
+    # the plan said 9.75 s). Now the times are touch-down to touch-down. What is left
+    # (0.06 s here) does not grow: a step's time depends on the step before its key's
+    # history (that step's own lag), which the table T(a-2, a-1, l, a) cannot hold.
+    from repertoire.diagrams.biped_walk import execute_plan, plan_from_actions, start_feet
+    from repertoire.systems.walking import realize_plan
+
+    actions = ["forward_long", "forward_long", "turn_left", "forward_medium", "side_step"]
+    actions += ["forward_short", "stop"]
+    stance, swing = start_feet([0.0, 0.0, 0.0], "left")
+    plan = plan_from_actions(actions, stance, "left", swing, ActionTable.load(LEARNED_TABLE_PATH))
+    seq = realize_plan(plan, SteppingRule())
+    result = execute_plan(plan)
+    assert not result.fell and len(result.landed) == len(actions)
+    touch = np.array(seq.command_times) + np.array(result.durations) - seq.command_times[0]
+    np.testing.assert_allclose(touch, plan.times[1:], atol=0.1)  # before: 0.76 s at step 7
 
 
 def test_execution_smoke_with_learned_table(tmp_path):

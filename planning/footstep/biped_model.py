@@ -383,6 +383,9 @@ class BipedStepModel:
         self.start_successors = 0  # successors the start state yielded
         self.past_grids = 0  # landings dropped: their time is past the last grid's
         self.between_grids = 0  # ... or between two grids, near neither (max_time_gap)
+        # dynamic: goal landings whose trailing foot is hit while the robot stands after them
+        # (for the table's shortest step, as every landing foot): not goals
+        self.rest_blocked: set[BipedState] = set()
         if not self.exact.is_free(sx, sy, sth, shortcut=False):
             when = f" at t = {start_time:.3f} s" if dynamic else ""
             raise FootstepError(
@@ -648,8 +651,9 @@ class BipedStepModel:
         return self.lattice_key(s.x, s.y, s.yaw, s.foot, self._hist_rows[s.a_prev2][s.a_prev1], s.t)
 
     def is_goal(self, s: BipedState) -> bool:
-        gx, gy = self.goal
-        return (s.x - gx) ** 2 + (s.y - gy) ** 2 <= self.tol * self.tol
+        """Within the goal tolerance, and (dynamic) both feet free to stand after it."""
+        dx, dy = s.x - self.goal[0], s.y - self.goal[1]
+        return dx * dx + dy * dy <= self.tol * self.tol and s not in self.rest_blocked
 
     def heuristic(self, s: BipedState) -> float:
         return s.h
@@ -687,6 +691,7 @@ class BipedStepModel:
         if self.height_w > 0.0:
             dominated = None  # a landing's cost is known only after its height check
         hist1 = self._hist_rows[s.a_prev1]
+        (gx, gy), tol2 = self.goal, self.tol * self.tol
         for m in self.successor_rows(s.a_prev2, s.a_prev1, s.foot):
             x2 = s.x + c * m.dx - sn * m.dy
             y2 = s.y + sn * m.dx + c * m.dy
@@ -747,7 +752,11 @@ class BipedStepModel:
                 cost += self.height_w * ex.height_range(x2, y2, th2)
             if is_start:
                 self.start_successors += 1
-            yield BipedState(x2, y2, th2, nf, s.a_prev1, m.a, t2, s.x, s.y, h), cost
+            nxt = BipedState(x2, y2, th2, nf, s.a_prev1, m.a, t2, s.x, s.y, h)
+            if self.dynamic and (x2 - gx) ** 2 + (y2 - gy) ** 2 <= tol2:  # a last step
+                if not stance_checkers.checker(kt, k_hold).is_free(s.x, s.y, s.yaw, shortcut=False):
+                    self.rest_blocked.add(nxt)
+            yield nxt, cost
 
     def _note_start_hit(self, k_end: int) -> None:
         """Record the first grid time (after the start's) at which the start foot is hit."""

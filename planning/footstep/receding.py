@@ -4,7 +4,10 @@ This is how a time-limited planner is used on a robot (the paper's "limited-hori
 that computes the best partial footstep path it can find in the time allowed"): each
 round plans from the current state with the given options (time limit or node budget),
 commits the first ``execute_steps`` steps of the (possibly partial) plan, and continues
-from there with the right stance foot, swing foot, action history and time.
+from there with the right stance foot, swing foot, action history and time. A partial
+plan may end where no step is possible any more (in a dynamic world, an obstacle about to
+cover the feet); when the next round proves the end of the committed steps such a trap
+(UNREACHABLE from there), a shorter prefix is committed instead.
 """
 
 import dataclasses
@@ -33,8 +36,10 @@ class RecedingResult:
         plan: the committed steps of every round joined into one plan (status SUCCESS
             when it reaches the goal, else the last round's status); its cost is the sum
             of the committed actions' step costs, its planning time and node counts the
-            sums over the rounds; its ``reason`` the last round's.
-        rounds: planner calls made.
+            sums over the rounds; its ``reason`` the last round's (an UNREACHABLE of a
+            later round says from which committed state: the start itself was not proved
+            cut off).
+        rounds: planner calls made (also those of prefixes found to end in a trap).
         statuses: status of every round's plan.
     """
 
@@ -66,7 +71,8 @@ def plan_receding_horizon(
         table: the action table.
         options: planner options of every round (its time limit is the per-round budget);
             None: the defaults, as in :func:`plan_footsteps`.
-        execute_steps: steps committed per round (a successful plan is committed whole).
+        execute_steps: steps committed per round (a successful plan is committed whole;
+            fewer when the next round proves their end a trap, down to one step).
         max_rounds: give up after this many rounds.
         geometry: robot geometry.
         start_time: time of the start state (s).
@@ -84,33 +90,44 @@ def plan_receding_horizon(
     swing0, history0 = plan.initial_swing_pose, plan.initial_history
     expanded, generated, wall = 0, 0, 0.0
     rounds = 1
+    first = True  # the plan in hand is the first round's (from the caller's start)
     while True:
         expanded += plan.nodes_expanded
         generated += plan.nodes_generated
         wall += plan.planning_time_s
         k = plan.num_steps if plan.succeeded else min(execute_steps, plan.num_steps)
+        nxt = None
+        if not (plan.succeeded or k == 0 or rounds >= max_rounds):
+            # commit the longest prefix (up to k steps) whose end the next round does not
+            # prove a trap: a partial plan may end where no step is possible any more (an
+            # obstacle about to cover the feet), and committing it walks the robot in there
+            for j in range(k, 0, -1):
+                nxt = _next_round(plan, j, world, goal, table, options, geometry)
+                statuses.append(nxt.status.value)
+                rounds += 1
+                if nxt.status is not PlanStatus.UNREACHABLE or j == 1 or rounds >= max_rounds:
+                    break
+                expanded += nxt.nodes_expanded  # a round spent on a prefix not committed
+                generated += nxt.nodes_generated
+                wall += nxt.planning_time_s
+            k = j
         poses += plan.poses[1 : k + 1]
         feet += plan.feet[1 : k + 1]
         times += plan.times[1 : k + 1]
         actions += plan.actions[:k]
-        if plan.succeeded or k == 0 or rounds >= max_rounds:
+        if nxt is None:
             break
-        hist = (list(plan.initial_history) + plan.actions)[k : k + 2]
-        other = plan.poses[k - 1] if k >= 1 else plan.initial_swing_pose
-        plan = plan_footsteps(
-            world,
-            plan.poses[k],
-            plan.feet[k],
-            goal,
-            table,
-            options,
-            geometry=geometry,
-            initial_swing_pose=other,
-            start_time=plan.times[k],
-            initial_history=hist,
+        plan, first = nxt, False
+    if plan.status is PlanStatus.UNREACHABLE and not first:
+        # the last round's start is where earlier rounds' partial plans led, not the
+        # caller's start: say so (the caller's start was not proved cut off)
+        at = plan.poses[0]
+        plan.reason = (
+            f"from the state the committed steps reached at ({at[0]:.3f}, {at[1]:.3f}, "
+            f"{at[2]:.3f}) t = {plan.times[0]:.3f} s (round {rounds}) no step sequence reaches "
+            "the goal; the earlier rounds ended at their limits with partial plans, so the "
+            "start was not proved cut off" + (f": {plan.reason}" if plan.reason else "")
         )
-        statuses.append(plan.status.value)
-        rounds += 1
     if plan.succeeded:
         ctg = 0.0
     else:  # the estimate at the last committed pose: a planner call that expands only it
@@ -144,3 +161,27 @@ def plan_receding_horizon(
         reason="" if plan.succeeded else plan.reason,
     )
     return RecedingResult(joined, rounds, statuses)
+
+
+def _next_round(
+    plan: FootstepPlan,
+    k: int,
+    world: "OccupancyGrid | DynamicEnvironment",
+    goal: Sequence[float],
+    table: ActionTable,
+    options: PlannerOptions,
+    geometry: BipedGeometry,
+) -> FootstepPlan:
+    """The round that starts after committing ``plan``'s first ``k`` (>= 1) steps."""
+    return plan_footsteps(
+        world,
+        plan.poses[k],
+        plan.feet[k],
+        goal,
+        table,
+        options,
+        geometry=geometry,
+        initial_swing_pose=plan.poses[k - 1],
+        start_time=plan.times[k],
+        initial_history=(list(plan.initial_history) + plan.actions)[k : k + 2],
+    )

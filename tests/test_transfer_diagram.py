@@ -12,12 +12,14 @@ from repertoire.diagrams.littledog_transfer import (
     LittleDogTransferScenario,
     build_littledog_transfer,
     flat_offset,
+    nominal_start,
     off_board,
     plan_transfer,
     source_board,
+    target_board,
 )
 from repertoire.planning.footstep.quadruped import CrawlParams as PlannerParams
-from repertoire.planning.footstep.quadruped import flat_on_ground
+from repertoire.planning.footstep.quadruped import clear_of_faces, flat_on_ground
 from repertoire.planning.littledog_crawl import (
     CrawlParams,
     choose_footholds,
@@ -387,3 +389,51 @@ def test_start_where_the_robot_cannot_stand_is_a_scenario_error(library_path, mo
         ScenarioError, match=r"cannot stand at the start \(offset \[0.0000, 0.0000\]"
     ):
         plan_transfer(scenario)
+
+
+def test_a_library_of_steps_from_no_library_terrain_is_a_scenario_error(library_path, tmp_path):
+    """The final library of a transfer (steps on "new_terrain") given as the library to
+    transfer: a bare RepertoireError from the source-terrain lookup before, which the
+    execution study does not catch (a crash, not a start with nothing to execute)."""
+    plan = plan_transfer(LittleDogTransferScenario(library=library_path, mode="planner"))
+    plan.library.save(tmp_path / "final")
+    scenario = LittleDogTransferScenario(library=str(tmp_path / "final"), mode="planner")
+    with pytest.raises(
+        ScenarioError,
+        match=r"holds steps recorded on \['new_terrain'\], not on a library terrain "
+        r"\['terrain_a', 'terrain_b'\]",
+    ):
+        plan_transfer(scenario)
+
+
+def test_a_perturbed_start_keeps_its_feet_clear_of_faces_where_it_can():
+    """The start is moved to the nearest one whose feet meet the planner's foothold rules,
+    the face rule too. Before, only flatness: on generated 31/32 (execution study start 3103
+    of +-4 cm, +-20 deg) rh stood 1.5 cm from a 2.9 cm rock face, climbed it during the 12 cm
+    body shift before its first swing, and the robot fell (crosses in 28.1 s now)."""
+    params, rule = CrawlParams(), PlannerParams()
+    board = target_board(LittleDogTransferScenario(target="generated"))
+    offset = nominal_start(board, params) + [-0.020171007895455232, 0.014750780014962439]
+    yaw = -0.3397045058668001
+
+    def feet(off):
+        return crossing_start(board, 0.0, 0.25, params.standing_height, off, yaw)[1][:, :2]
+
+    got = flat_offset(board, offset, yaw, params)
+    np.testing.assert_allclose(got, offset + [-0.01, 0.015], rtol=0, atol=1e-12)
+    assert (
+        flat_on_ground(board, feet(got), rule).all()
+        and clear_of_faces(board, feet(got), rule).all()
+    )
+    old = offset + [-0.005, 0.005]  # the nearest flat start, taken before
+    assert flat_on_ground(board, feet(old), rule).all()
+    assert clear_of_faces(board, feet(old), rule).tolist() == [True, True, True, False]
+    # No start within 4 cm clear of faces (modified terrain, study start 3045): the nearest
+    # flat one, as before.
+    board = target_board(LittleDogTransferScenario())
+    offset = nominal_start(board, params) + [0.0343940275982156, 0.03283480254724442]
+    yaw = -0.24794105150539994
+    got = flat_offset(board, offset, yaw, params)
+    np.testing.assert_allclose(got, offset + [-0.01, -0.005], rtol=0, atol=1e-12)
+    assert flat_on_ground(board, feet(got), rule).all()
+    assert not clear_of_faces(board, feet(got), rule).all()

@@ -5,7 +5,8 @@ The closed loop of Stolle et al. (sections III-IV) in physics::
     plant state -> BodyStateSensor -> body_pose, joint_angles, feet
     contact results -> FootContactSensor -> contact
     feet, contact -> LibraryPolicy -> choice (nearest step when all four feet are down)
-    choice, body_pose -> StepExecutor -> q_playback, ideal_pose (blend, then playback)
+    choice, body_pose, contact -> StepExecutor -> q_playback, ideal_pose (blend, then
+        playback; a foot left unloaded after a step is lowered until it touches down)
     q_playback, ideal_pose, body_pose, joint_angles, contact -> IntegralFootController
         -> q_desired -> desired_state (actuator order, zero velocities) -> plant PD
 
@@ -265,6 +266,7 @@ def add_library_loop(
     executor = builder.AddNamedSystem("executor", StepExecutor(library, q0, speed=blend_speed))
     builder.Connect(policy.choice_output, executor.choice_input)
     builder.Connect(sensor.body_pose_output, executor.body_pose_input)
+    builder.Connect(contact.contact_output, executor.contact_input)
     integral = builder.AddNamedSystem(
         "integral",
         IntegralFootController(gain=gain, decay=decay, limit=integrator_limit),

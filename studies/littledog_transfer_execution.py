@@ -301,7 +301,7 @@ def summarize(
     out_dir = Path(out_dir)
     lines = [
         "| terrain | condition | episodes | success | fell | nothing to execute | median time "
-        "to cross (s) | median recorded + planned steps | run shared with |",
+        "to cross (s) | median recorded + planned steps (of the runs) | run shared with |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
     rates: dict[str, list[float]] = {c: [] for c in config.conditions}
@@ -316,14 +316,20 @@ def summarize(
             ok = [r.success[i] for r, i in rows]
             times = [r.time_to_cross_s[i] for r, i in rows if r.success[i]]
             med = f"{np.median(times):.1f}" if times else "-"
-            rec = np.median([r.recorded[i] for r, i in rows])
-            pla = np.median([r.planned[i] for r, i in rows])
+            # steps of the libraries that ran: a start with nothing to execute has none
+            ran = [(r, i) for r, i in rows if not r.error[i]]
+            steps = (
+                f"{np.median([r.recorded[i] for r, i in ran]):.0f} + "
+                f"{np.median([r.planned[i] for r, i in ran]):.0f}"
+                if ran
+                else "-"
+            )
             same = [r.same_run_as[i] for r, i in rows if i < len(r.same_run_as)]
             shared = ", ".join(f"{o} {same.count(o)}" for o in sorted(set(same) - {""})) or "-"
             lines.append(
                 f"| {name} | {c} | {len(rows)} | {sum(ok)}/{len(rows)} "
                 f"| {sum(r.fell[i] for r, i in rows)} | {sum(bool(r.error[i]) for r, i in rows)} "
-                f"| {med} | {rec:.0f} + {pla:.0f} | {shared} |"
+                f"| {med} | {steps} | {shared} |"
             )
             rates[c].append(sum(ok) / len(rows))
     table = out_dir / "littledog_transfer_execution.md"

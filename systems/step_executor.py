@@ -14,6 +14,15 @@ was chosen to the step's recorded start pose, then it is the recorded pose.
 Reporting the start pose for the whole blend would make the controller read
 the distance still to be blended (up to ~9 cm after a skipped placing move) as
 foot error and wind its integrators up to their limit within 0.1 s.
+
+A step ends when all four feet are down (the policy then chooses the next one). A
+foot that the played-back angles put on the ground without loading it (the PD legs
+press a foot with about 3 N per mm it is commanded into the ground, so a foot
+commanded within 0.2 mm of the surface stays under the contact sensor's 0.5 N) would
+keep the robot waiting for ever: once a step's playback has been over for
+``touchdown_delay`` with no new step chosen, every foot without contact is lowered
+along the body's -z at ``touchdown_speed`` (:func:`lowered_angles`) until it touches
+down, at most ``touchdown_limit``.
 """
 
 import math
@@ -23,6 +32,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from repertoire.models.littledog.pose import wrap_angle
 from repertoire.planning.step_library import LibraryStep, StepLibrary
+from repertoire.systems.integral_foot_controller import corrected_angles
 from repertoire.systems.library_policy import StepChoice
 
 from repertoire.errors import RepertoireError
@@ -77,21 +87,43 @@ def interpolate_step(step: LibraryStep, tau: float) -> tuple[np.ndarray, np.ndar
     return q, step.body_pose[k] + a * d
 
 
+def lowered_angles(q, reach) -> np.ndarray:
+    """Joint angles ``q`` (12) with each foot moved ``reach[f]`` (m) along the body's -z.
+
+    The legs' own knee and roll branches, and as far as each leg reaches
+    (:func:`~repertoire.systems.integral_foot_controller.corrected_angles` with the
+    offset ``[0, 0, -reach[f]]`` as its correction); a leg with ``reach`` 0 keeps its
+    angles exactly.
+    """
+    reach = np.asarray(reach, dtype=float)
+    if reach.shape != (4,) or not np.all(np.isfinite(reach)) or np.any(reach < 0.0):
+        raise RepertoireError(f"reach must be 4 finite lengths >= 0 (m), got {reach!r}")
+    offsets = np.zeros((4, 3))
+    offsets[:, 2] = -reach
+    return corrected_angles(q, offsets)[0]
+
+
 class StepExecutor(LeafSystem):
     """Plays back the steps the policy chooses.
 
     Discrete state ``[step index, start time, blend duration, q_from (12), pose_from (6),
-    q (12), ideal pose (6), ideal pose set]``, updated every ``period`` (the commands are
-    held between updates, as a 100 Hz controller's would be): when the current step's
-    playback is over and the policy's choice is fresh (made at most ``1.5 period`` ago,
-    i.e. with all four feet down after the step), the chosen step starts: a cubic blend
-    of :func:`spline_duration` from the last played angles to its first angles, the
-    ideal pose blended alike from the measured body pose (``pose_from``) to the step's
-    start pose, then its recorded angles and poses.
+    q (12), ideal pose (6), ideal pose set, reach (4)]``, updated every ``period`` (the
+    commands are held between updates, as a 100 Hz controller's would be): when the
+    current step's playback is over and the policy's choice is fresh (made at most
+    ``1.5 period`` ago, i.e. with all four feet down after the step), the chosen step
+    starts: a cubic blend of :func:`spline_duration` from the last played angles to its
+    first angles, the ideal pose blended alike from the measured body pose
+    (``pose_from``) to the step's start pose, then its recorded angles and poses. When
+    the playback has been over for ``touchdown_delay`` and no step is chosen, each foot
+    whose ``contact`` flag is 0 has its ``reach`` grown by ``touchdown_speed * period``
+    (up to ``touchdown_limit``) and the held angles are :func:`lowered_angles` by it
+    (see the module doc); a new step blends from those angles and resets the reach.
 
     Input ports:
         choice: the policy's :class:`StepChoice` (abstract).
         body_pose: measured body pose [x, y, z, roll, pitch, yaw].
+        contact: 4 foot contact flags (nonzero = down), read only while waiting for a
+            touchdown.
 
     Output ports:
         q_playback: the played-back joint angles (12, ``JOINT_NAMES`` order).
@@ -109,6 +141,9 @@ class StepExecutor(LeafSystem):
         min_time: float = 0.15,
         speed: float = 0.1,
         turn_rate: float = 1.0,
+        touchdown_delay: float = 0.1,
+        touchdown_speed: float = 0.01,
+        touchdown_limit: float = 0.03,
     ) -> None:
         """Creates the system.
 
@@ -119,6 +154,10 @@ class StepExecutor(LeafSystem):
         min_time: shortest blend (s).
         speed: body distance per blend second (m/s), > 0.
         turn_rate: body rotation per blend second (rad/s), > 0.
+        touchdown_delay: how long after a playback ends, with no step chosen, the feet
+            without contact start to be lowered (s), >= 0.
+        touchdown_speed: how fast they are lowered (m/s), > 0.
+        touchdown_limit: how far at most (m), >= 0 (0: never).
         """
         super().__init__()
         if not isinstance(library, StepLibrary):
@@ -129,17 +168,26 @@ class StepExecutor(LeafSystem):
         for name, v in (("period", period), ("speed", speed), ("turn_rate", turn_rate)):
             if not (math.isfinite(v) and v > 0.0):
                 raise RepertoireError(f"{name} must be > 0, got {v}")
-        if not (math.isfinite(min_time) and min_time >= 0.0):
-            raise RepertoireError(f"min_time must be >= 0 s, got {min_time}")
+        for name, v in (
+            ("min_time", min_time),
+            ("touchdown_delay", touchdown_delay),
+            ("touchdown_limit", touchdown_limit),
+        ):
+            if not (math.isfinite(v) and v >= 0.0):
+                raise RepertoireError(f"{name} must be >= 0, got {v}")
+        if not (math.isfinite(touchdown_speed) and touchdown_speed > 0.0):
+            raise RepertoireError(f"touchdown_speed must be > 0 m/s, got {touchdown_speed}")
         self._library = library
         self._period = float(period)
         self._blend = dict(min_time=min_time, speed=speed, turn_rate=turn_rate)
+        self._touchdown = (float(touchdown_delay), float(touchdown_speed), float(touchdown_limit))
         self.choice_input = self.DeclareAbstractInputPort(
             "choice", AbstractValue.Make(StepChoice())
         )
         self.body_pose_input = self.DeclareVectorInputPort("body_pose", 6)
+        self.contact_input = self.DeclareVectorInputPort("contact", 4)
         self._state = self.DeclareDiscreteState(
-            np.concatenate([[-1.0, 0.0, 0.0], q0, np.zeros(6), q0, np.zeros(6), [0.0]])
+            np.concatenate([[-1.0, 0.0, 0.0], q0, np.zeros(6), q0, np.zeros(6), [0.0], np.zeros(4)])
         )
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         ticket = {self.xd_ticket()}
@@ -154,10 +202,16 @@ class StepExecutor(LeafSystem):
         )
 
     def playback(self, x: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray | None, bool]:
-        """``(q, ideal pose or None, finished)`` for discrete state ``x`` at time ``t``."""
+        """``(q, ideal pose or None, finished)`` for discrete state ``x`` at time ``t``.
+
+        ``x`` is the whole state; once the playback is over the angles held are
+        :func:`lowered_angles` by the state's reach.
+        """
         i = int(x[0])
+        reach = x[40:44]
         if i < 0:
-            return x[3:15].copy(), None, True
+            q = x[3:15].copy()
+            return (lowered_angles(q, reach) if reach.any() else q), None, True
         step = self._library[i]
         tau = t - x[1]
         if tau < x[2]:
@@ -168,12 +222,32 @@ class StepExecutor(LeafSystem):
                 False,
             )
         q, pose = interpolate_step(step, tau - x[2])
-        return q, pose, tau - x[2] >= step.duration
+        finished = tau - x[2] >= step.duration
+        if finished and reach.any():
+            q = lowered_angles(q, reach)
+        return q, pose, finished
+
+    def playback_end(self, x: np.ndarray) -> float:
+        """When the playback of state ``x`` is (or was) over (s); 0 before the first step."""
+        i = int(x[0])
+        return 0.0 if i < 0 else float(x[1] + x[2] + self._library[i].duration)
+
+    def _grow_reach(self, context: Context, x: np.ndarray, t: float) -> None:
+        """Lowers the feet without contact once the playback has waited ``touchdown_delay``."""
+        delay, speed, limit = self._touchdown
+        if limit == 0.0 or t < self.playback_end(x) + delay - 1e-9:
+            return
+        contact = self.contact_input.Eval(context)
+        if not np.all(np.isfinite(contact)):
+            raise RepertoireError(f"StepExecutor contact flags must be finite, got {contact}")
+        reach = x[40:44]
+        up = (contact == 0) & (reach < limit)
+        x[40:44] = np.where(up, np.minimum(reach + speed * self._period, limit), reach)
 
     def _update(self, context: Context, discrete_state) -> None:
         x = context.get_discrete_state(self._state).value().copy()
         t = context.get_time()
-        q, _, finished = self.playback(x[:21], t)
+        q, _, finished = self.playback(x, t)
         choice = self.choice_input.Eval(context)
         body = self.body_pose_input.Eval(context)
         if not np.all(np.isfinite(body)):
@@ -187,7 +261,10 @@ class StepExecutor(LeafSystem):
             step = self._library[choice.index]
             T = max(spline_duration(body, step.start_pose, **self._blend), 1e-3)
             x[:21] = np.concatenate([[choice.index, t, T], q, body])
-        q, pose, _ = self.playback(x[:21], t)
+            x[40:44] = 0.0
+        elif finished:
+            self._grow_reach(context, x, t)
+        q, pose, _ = self.playback(x, t)
         x[21:33] = q
         x[33:39] = body if pose is None else pose
         x[39] = 1.0
@@ -205,4 +282,11 @@ class StepExecutor(LeafSystem):
         output.SetAtIndex(0, context.get_discrete_state(self._state).value()[0])
 
 
-__all__ = ["StepExecutor", "blend_pose", "cubic_blend", "interpolate_step", "spline_duration"]
+__all__ = [
+    "StepExecutor",
+    "blend_pose",
+    "cubic_blend",
+    "interpolate_step",
+    "lowered_angles",
+    "spline_duration",
+]

@@ -12,12 +12,14 @@ from repertoire.diagrams.littledog_transfer import (
     LittleDogTransferScenario,
     build_littledog_transfer,
     flat_offset,
+    nominal_start,
     off_board,
     plan_transfer,
     source_board,
+    target_board,
 )
 from repertoire.planning.footstep.quadruped import CrawlParams as PlannerParams
-from repertoire.planning.footstep.quadruped import flat_on_ground
+from repertoire.planning.footstep.quadruped import clear_of_faces, flat_on_ground
 from repertoire.planning.littledog_crawl import (
     CrawlParams,
     choose_footholds,
@@ -127,15 +129,20 @@ def test_perturbed_start_snaps_to_the_nearest_flat_start():
     got = flat_offset(board, wanted, -0.16, params)
     assert np.max(np.abs(got - wanted)) <= 0.04 + 1e-12
     _, feet, _ = crossing_start(board, 0.0, 0.25, params.standing_height, got, -0.16)
-    assert np.all(flat_on_ground(board, feet[:, :2], PlannerParams()))
-    # Nearest first: every grid offset closer to the wanted one has a foot off flat ground.
+    rule = PlannerParams()
+    assert np.all(
+        flat_on_ground(board, feet[:, :2], rule) & clear_of_faces(board, feet[:, :2], rule)
+    )
+    # Nearest first: every grid offset closer to the wanted one has a foot off flat ground
+    # or by a face.
     g = np.arange(-8, 9) * 0.005
     for dx in g:
         for dy in g:
             if dx * dx + dy * dy < float(np.sum((got - wanted) ** 2)) - 1e-12:
                 off = wanted + [dx, dy]
                 _, f, _ = crossing_start(board, 0.0, 0.25, params.standing_height, off, -0.16)
-                assert not np.all(flat_on_ground(board, f[:, :2], PlannerParams()))
+                ok = flat_on_ground(board, f[:, :2], rule) & clear_of_faces(board, f[:, :2], rule)
+                assert not np.all(ok)
 
 
 def test_start_off_the_board_is_refused_naming_the_offset(library_path):
@@ -327,6 +334,10 @@ def test_gap_planner_prices_a_step_as_planner_step_cost_of_travel(library_path, 
         return real(height_map, start, goal, params, **kw)
 
     monkeypatch.setattr(tcf, "plan_crawl", record)
+    # The start flat_offset took before it kept start feet clear of faces too (its lh foot
+    # stands by one): the start where the planner crept. (From the start it takes now, 21
+    # steps at either step cost.)
+    monkeypatch.setattr(lt, "clear_of_faces", lambda board, xy, rule: np.ones(len(xy), bool))
     scenario = LittleDogTransferScenario(
         library=library_path, mode="planner", start_offset=[0.0082177, -0.0138128],
         start_yaw_offset=np.deg2rad(-9.1805),
@@ -387,3 +398,51 @@ def test_start_where_the_robot_cannot_stand_is_a_scenario_error(library_path, mo
         ScenarioError, match=r"cannot stand at the start \(offset \[0.0000, 0.0000\]"
     ):
         plan_transfer(scenario)
+
+
+def test_a_library_of_steps_from_no_library_terrain_is_a_scenario_error(library_path, tmp_path):
+    """The final library of a transfer (steps on "new_terrain") given as the library to
+    transfer: a bare RepertoireError from the source-terrain lookup before, which the
+    execution study does not catch (a crash, not a start with nothing to execute)."""
+    plan = plan_transfer(LittleDogTransferScenario(library=library_path, mode="planner"))
+    plan.library.save(tmp_path / "final")
+    scenario = LittleDogTransferScenario(library=str(tmp_path / "final"), mode="planner")
+    with pytest.raises(
+        ScenarioError,
+        match=r"holds steps recorded on \['new_terrain'\], not on a library terrain "
+        r"\['terrain_a', 'terrain_b'\]",
+    ):
+        plan_transfer(scenario)
+
+
+def test_a_perturbed_start_keeps_its_feet_clear_of_faces_where_it_can():
+    """The start is moved to the nearest one whose feet meet the planner's foothold rules,
+    the face rule too. Before, only flatness: on generated 31/32 (execution study start 3103
+    of +-4 cm, +-20 deg) rh stood 1.5 cm from a 2.9 cm rock face, climbed it during the 12 cm
+    body shift before its first swing, and the robot fell (crosses in 28.1 s now)."""
+    params, rule = CrawlParams(), PlannerParams()
+    board = target_board(LittleDogTransferScenario(target="generated"))
+    offset = nominal_start(board, params) + [-0.020171007895455232, 0.014750780014962439]
+    yaw = -0.3397045058668001
+
+    def feet(off):
+        return crossing_start(board, 0.0, 0.25, params.standing_height, off, yaw)[1][:, :2]
+
+    got = flat_offset(board, offset, yaw, params)
+    np.testing.assert_allclose(got, offset + [-0.01, 0.015], rtol=0, atol=1e-12)
+    assert (
+        flat_on_ground(board, feet(got), rule).all()
+        and clear_of_faces(board, feet(got), rule).all()
+    )
+    old = offset + [-0.005, 0.005]  # the nearest flat start, taken before
+    assert flat_on_ground(board, feet(old), rule).all()
+    assert clear_of_faces(board, feet(old), rule).tolist() == [True, True, True, False]
+    # No start within 4 cm clear of faces (modified terrain, study start 3045): the nearest
+    # flat one, as before.
+    board = target_board(LittleDogTransferScenario())
+    offset = nominal_start(board, params) + [0.0343940275982156, 0.03283480254724442]
+    yaw = -0.24794105150539994
+    got = flat_offset(board, offset, yaw, params)
+    np.testing.assert_allclose(got, offset + [-0.01, -0.005], rtol=0, atol=1e-12)
+    assert flat_on_ground(board, feet(got), rule).all()
+    assert not clear_of_faces(board, feet(got), rule).all()

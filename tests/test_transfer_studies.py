@@ -158,3 +158,26 @@ def test_run_key_follows_library_start_and_gains(library_path):
     assert execution.run_key(scenario, shorter) != key
     moved = dataclasses.replace(plan, pose0=np.asarray(plan.pose0) + 1e-9)
     assert execution.run_key(scenario, moved) != key
+
+
+def test_table_steps_are_those_of_the_runs_not_of_starts_with_nothing_to_execute(tmp_path):
+    """A start whose plan was refused (off the board) has no steps; the median of the
+    steps column counted it as 0 + 0 (one run of 11 + 12 and two refused starts: 0 + 0)."""
+
+    def record(recorded, planned, error, success):
+        return execution.TransferExecutionRecord(
+            terrain="generated_31_32", offset_x_m=0.0, offset_y_m=0.0, offset_yaw_deg=0.0,
+            conditions=["search"], success=[success], fell=[False],
+            time_to_cross_s=[32.5 if success else math.nan], steps_started=[23 if success else 0],
+            recorded=[recorded], planned=[planned], error=[error], wall_time_s=1.0,
+            same_run_as=[""], run_keys=["k" if success else ""],
+        )  # fmt: skip
+
+    config = execution.TransferExecutionConfig(terrains=["generated_31_32"], conditions=["search"])
+    records = [record(11, 12, "", True), record(0, 0, "off the board", False)]
+    records.append(record(0, 0, "off the board", False))
+    table = execution.summarize(records, config, tmp_path)["table"].read_text()
+    assert "| generated_31_32 | search | 3 | 1/3 | 0 | 2 | 32.5 | 11 + 12 | - |" in table
+    records = [record(0, 0, "off the board", False)]
+    table = execution.summarize(records, config, tmp_path)["table"].read_text()
+    assert "| generated_31_32 | search | 1 | 0/1 | 0 | 1 | - | - | - |" in table

@@ -95,15 +95,19 @@ def _drive(s, t, g, period, last, poses, omega):
         vc, wc = rate_limit(vl, wl, vc, wc, g[A_MAX], g[ALPHA_MAX], period)
         if fill:
             omega[i] = wc
-        turn = wc * period
-        half = 0.5 * turn
-        chord = vc * period * (math.sin(half) / half if half != 0.0 else 1.0)
-        heading = phi + half
-        x += chord * math.cos(heading)
-        y += chord * math.sin(heading)
-        phi += turn
+        x, y, phi = unicycle(x, y, phi, vc, wc, period)
         v = vc
     return -1, last
+
+
+@numba.njit(cache=True)
+def unicycle(x, y, phi, v, omega, period):
+    """The pose after driving ``period`` on the arc of speed ``v`` and yaw rate ``omega``."""
+    turn = omega * period
+    half = 0.5 * turn
+    chord = v * period * (math.sin(half) / half if half != 0.0 else 1.0)
+    heading = phi + half
+    return x + chord * math.cos(heading), y + chord * math.sin(heading), phi + turn
 
 
 @numba.njit(cache=True)
@@ -253,12 +257,6 @@ def rollout_hits(start, target, g, period, last, braking, boxes, discs, limits, 
             if arrived(rho, err, v, t[3], g[POS_TOL], g[HEAD_TOL]) or i == last:
                 break
             vc, wc = rate_limit(vl, wl, vc, wc, g[A_MAX], g[ALPHA_MAX], period)
-            turn = wc * period
-            half = 0.5 * turn
-            chord = vc * period * (math.sin(half) / half if half != 0.0 else 1.0)
-            heading = phi + half
-            x += chord * math.cos(heading)
-            y += chord * math.sin(heading)
-            phi += turn
+            x, y, phi = unicycle(x, y, phi, vc, wc, period)
             v = vc
     return hits

@@ -204,26 +204,100 @@ def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool, discs=None) -
     Returns:
         ``(n,)`` obstacle indices (boxes, then discs), -1 where clear.
     """
+    radius, lowest = arm_reach(arm, clearance, held)
+    boxes = np.asarray(boxes, dtype=float).reshape(-1, 6)
+    discs = np.asarray(discs if discs is not None else [], dtype=float).reshape(-1, 4)
+    a, b = (np.broadcast_to(np.atleast_2d(p)[:, :2], (len(radius), 2)) for p in (a, b))
+    # every path against every obstacle at once; one counts where its top is above the
+    # arm's lowest point
+    gaps = np.hstack([segment_gaps(a, b, boxes), segment_disc_gaps(a, b, discs)])
+    tops = np.concatenate([boxes[:, 5], discs[:, 3]])
+    blocked = (gaps < radius[:, None]) & (lowest[:, None] <= tops)
+    return np.where(blocked.any(axis=1), np.argmax(blocked, axis=1), -1)
+
+
+def arm_reach(arm, clearance: float, held: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``(reach, lowest)`` of the still arm per row of chassis arm points ``arm`` (n, 3).
+
+    The horizontal reach of the fingers (or a held cup) from the base's centre plus
+    ``clearance``, and the world height of their lowest point (see :func:`arm_drive_hits`).
+    """
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT
     from repertoire.systems.kitchen_actions import FINGER_HALF, FINGER_REACH
 
     arm = np.atleast_2d(arm)
-    radius = np.hypot(arm[:, 0], arm[:, 1]) + FINGER_REACH + clearance
+    reach = np.hypot(arm[:, 0], arm[:, 1]) + FINGER_REACH + clearance
     z_world = arm[:, 2] - to_chassis_z(0.0)
-    lowest = z_world - max(FINGER_HALF[2], CUP_HALF_HEIGHT if held else 0.0)
-    boxes = np.asarray(boxes, dtype=float).reshape(-1, 6)
-    discs = np.asarray(discs if discs is not None else [], dtype=float).reshape(-1, 4)
-    a, b = (np.broadcast_to(np.atleast_2d(p)[:, :2], (len(arm), 2)) for p in (a, b))
-    # every path against every obstacle at once; one counts where its top is above the
-    # arm's lowest point
+    return reach, z_world - max(FINGER_HALF[2], CUP_HALF_HEIGHT if held else 0.0)
+
+
+def segment_disc_gaps(a, b, discs) -> np.ndarray:
+    """Distances ``(n, j)`` of the segments ``a -> b`` ((n, 2)) from upright discs' edges.
+
+    Disc rows are ``[cx, cy, radius, ...]``; negative inside.
+    """
     d = b - a
     t = np.clip(((discs[:, 0] - a[:, :1]) * d[:, :1] + (discs[:, 1] - a[:, 1:]) * d[:, 1:])
                 / np.maximum(d[:, :1] ** 2 + d[:, 1:] ** 2, 1e-300), 0.0, 1.0)  # fmt: skip
     to_disc = np.hypot(a[:, :1] + t * d[:, :1] - discs[:, 0], a[:, 1:] + t * d[:, 1:] - discs[:, 1])
-    gaps = np.hstack([segment_gaps(a, b, boxes), to_disc - discs[:, 2]])
+    return to_disc - discs[:, 2]
+
+
+def law_drive_hits(a, b, arm, boxes, radius: float, clearance: float, held: bool, discs=None):
+    """Per row, the first obstacle GoToPose's drive ``a -> b`` brings the base or the arm into.
+
+    GoToPose's law arcs off the straight path (it turns while it drives), so the drive is
+    predicted by the law itself (:func:`~repertoire.systems.goto_law.rollout_hits`: the
+    compiled law of the LeafSystem, at the kitchen's control period and GoToPose's
+    gains, on a kinematic unicycle) and checked as the run-time check
+    (:class:`~repertoire.systems.kitchen_drive.KitchenGoToPose`) checks it: at each
+    update the base's stopping run (at ``KITCHEN_BRAKING``), the footprint (``radius``)
+    against the boxes first, then the still arm (:func:`arm_drive_hits`' test: its reach
+    plus ``clearance`` at every heading, against the obstacles whose top is above its
+    lowest point). The first update that enters one names it (boxes, then ``discs``);
+    -1 where clear. ``a`` (n, 4) start states, ``b`` (n, 4) targets at rest, ``arm``
+    (n, 3) chassis arm points.
+    """
+    boxes = np.asarray(boxes, dtype=float).reshape(-1, 6)
+    discs = np.asarray(discs if discs is not None else [], dtype=float).reshape(-1, 4)
+    a = np.atleast_2d(np.asarray(a, dtype=float))
+    n = len(a)
+    b = np.broadcast_to(np.atleast_2d(np.asarray(b, dtype=float)), a.shape)
+    arm = np.broadcast_to(np.atleast_2d(np.asarray(arm, dtype=float)), (n, 3))
+    # a refinement asks again for many drives (a GA's children keep most of a parent's
+    # genes): the results of the drives met before are looked up
+    world = (boxes.tobytes(), discs.tobytes(), float(radius), float(clearance), bool(held))
+    rows = np.ascontiguousarray(np.hstack([a[:, :4], b[:, :4], arm]))
+    keys = [(world, r.tobytes()) for r in rows]
+    out = np.array([_LAW_MEMO.get(key, -2) for key in keys], dtype=int)
+    new = np.flatnonzero(out == -2)
+    if new.size:
+        out[new] = _law_drive_hits(a[new], b[new], arm[new], boxes, radius, clearance, held, discs)
+        if len(_LAW_MEMO) + new.size > LAW_MEMO_SIZE:
+            _LAW_MEMO.clear()
+        _LAW_MEMO.update((keys[i], int(out[i])) for i in new)
+    return out
+
+
+#: How many drives :func:`law_drive_hits` remembers (all are forgotten when full).
+LAW_MEMO_SIZE = 200_000
+_LAW_MEMO: dict = {}
+
+
+def _law_drive_hits(a, b, arm, boxes, radius, clearance, held, discs) -> np.ndarray:
+    """:func:`law_drive_hits` computed (the arrays checked and shaped)."""
+    from repertoire.diagrams.kitchen import KITCHEN_BRAKING, KitchenScenario
+    from repertoire.systems.go_to_pose import GOTO_GAINS, gains_vector
+    from repertoire.systems.goto_law import rollout_hits
+
+    period = KitchenScenario.control_period
+    reach, lowest = arm_reach(arm, clearance, held)
     tops = np.concatenate([boxes[:, 5], discs[:, 3]])
-    blocked = (gaps < radius[:, None]) & (lowest[:, None] <= tops)
-    return np.where(blocked.any(axis=1), np.argmax(blocked, axis=1), -1)
+    limits = np.where(lowest[:, None] <= tops, reach[:, None], -np.inf)
+    last = int(np.floor(GOTO_GAINS["timeout"] / period + 1e-9))
+    g, brake = gains_vector(GOTO_GAINS), np.array(KITCHEN_BRAKING, dtype=float)
+    return rollout_hits(np.ascontiguousarray(a), np.ascontiguousarray(b), g, period, last,
+                        brake, boxes, discs, limits, float(radius))  # fmt: skip
 
 
 def drive_ends(g: PlanGeometry, k: int, start, role: str) -> tuple[np.ndarray, np.ndarray]:
@@ -266,20 +340,29 @@ def drive_hits(
         ``(hits, names)``: per row the index of the first obstacle in ``names``
         (:func:`fetch_obstacles`), -1 where clear.
     """
+    from repertoire.diagrams.kitchen import ROBOT_RADIUS
+
     a, b = drive_ends(g, k, start, role)
     arm, held, boxes, discs, names = _drive_arm(g, cups, k, config, role)
+    radius, c = ROBOT_RADIUS + config.clearance, config.arm_clearance
     if via is None:
-        return arm_drive_hits(a, b, arm, boxes, config.arm_clearance, held, discs), names
-    via = np.atleast_2d(np.asarray(via, dtype=float))[:, :2]
+        return law_drive_hits(a, b, arm, boxes, radius, c, held, discs), names
+    via = np.atleast_2d(np.asarray(via, dtype=float))
     legs = ~np.isnan(via[:, 0])
-    first = np.where(legs[:, None], via, b[:, :2])
-    hits = arm_drive_hits(a, first, arm, boxes, config.arm_clearance, held, discs)
+    first = np.where(legs[:, None], via_pose(via, b), b)
+    hits = law_drive_hits(a, first, arm, boxes, radius, c, held, discs)
     if legs.any():
         rows = np.flatnonzero(legs)
-        on = arm_drive_hits(via[rows], b[rows], arm[rows], boxes, config.arm_clearance, held,
-                            discs)  # fmt: skip
+        on = law_drive_hits(first[rows], b[rows], arm[rows], boxes, radius, c, held, discs)
         hits[rows] = np.where(hits[rows] >= 0, hits[rows], on)
     return hits, names
+
+
+def via_pose(via, b) -> np.ndarray:
+    """Via poses ``[x, y, phi, 0]`` at points ``via`` ``(n, >= 2)`` facing the ends ``b``."""
+    via = np.atleast_2d(via)[:, :2]
+    to_end = np.atleast_2d(b)[:, :2] - via
+    return np.column_stack([via, np.arctan2(to_end[:, 1], to_end[:, 0]), np.zeros(len(via))])
 
 
 def via_points(clearance: float) -> np.ndarray:
@@ -314,10 +397,11 @@ def drive_route(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig,
 
     GoToPose drives without avoiding anything, so a plan's drive must be clear: the
     base's footprint (``ROBOT_RADIUS + clearance``) along the straight path
-    (:func:`~repertoire.studies._kitchen_plan.path_clear`) and the held-out arm
-    (:func:`drive_hits`). Where the straight drive is not, the drive goes via one of
-    :func:`via_points` (facing the drive's end, at rest), the one with the shortest clear
-    pair of legs.
+    (:func:`~repertoire.studies._kitchen_plan.path_clear`), and the footprint and the
+    held-out arm along the path GoToPose's law drives (:func:`drive_hits`). Where the
+    straight drive is not, the drive goes via one of :func:`via_points` (facing the
+    drive's end, at rest), the one with the shortest clear pair of legs (the candidates
+    are tested shortest first, each row until one is clear).
 
     Args:
         g, cups, k, start, config, role: as for :func:`drive_hits`.
@@ -347,20 +431,22 @@ def drive_route(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig,
     clear = path_clear(A, V, KITCHEN_OBSTACLES, radius) & path_clear(
         V, B, KITCHEN_OBSTACLES, radius
     )
-    cand = np.flatnonzero(clear)
-    if cand.size:
-        sub = g.rows(np.repeat(need, m)[cand])
-        vias = np.full((len(V), 2), np.nan)
-        vias[cand] = V[cand]
-        clear[cand] = drive_hits(sub, cups, k, start, config, role, vias[cand])[0] < 0
+    # the candidates by their legs' length, tested in that order: per row the first whose
+    # drive is clear (as testing all and taking the shortest clear, for fewer rollouts)
     length = np.where(clear, np.hypot(*(V - A[:, :2]).T) + np.hypot(*(B[:, :2] - V).T), np.inf)
     length = length.reshape(need.size, m)
-    best = np.argmin(length, axis=1)
-    found = np.isfinite(length[np.arange(need.size), best])
+    order = np.argsort(length, axis=1, kind="stable")
+    best = np.full(need.size, -1)
+    for r in range(m):
+        cand = np.flatnonzero((best < 0) & np.isfinite(length[np.arange(need.size), order[:, r]]))
+        if cand.size == 0:
+            break
+        sub = g.rows(need[cand])
+        hits = drive_hits(sub, cups, k, start, config, role, points[order[cand, r]])[0]
+        best[cand[hits < 0]] = order[cand[hits < 0], r]
+    found = best >= 0
     chosen = points[best[found]]
-    to_end = b[need[found], :2] - chosen
-    via[need[found]] = np.column_stack([chosen, np.arctan2(to_end[:, 1], to_end[:, 0]),
-                                        np.zeros(found.sum())])  # fmt: skip
+    via[need[found]] = via_pose(chosen, b[need[found]])
     ok[need[found]] = True
     return via, ok
 

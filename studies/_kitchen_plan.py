@@ -457,8 +457,13 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         p = np.atleast_2d(np.asarray(params, dtype=float))
         key = (p.shape, p.tobytes())
         if last.get("key") != key:
-            last.update(key=key, g=plan_geometry(p, cups, targets), ways={})
+            last.update(key=key, g=plan_geometry(p, cups, targets), ways={},
+                        invalid=np.zeros(len(p), dtype=bool))  # fmt: skip
         return last["g"]
+
+    def mark(g, valid):  # rows a term of this batch found invalid: the whole cost is +inf,
+        if g is last.get("g"):  # so the drives (rolled out, the costliest) skip them
+            last["invalid"] |= ~valid
 
     def ways(g, k):  # arm_ways of fetch k of the geometry geometry() returned last
         if g is not last.get("g"):
@@ -481,11 +486,15 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
     def arm_clear(f, g, k, role):  # the features where the arm's way is clear, else NaN
         hits = arm_hits(g, cups, k, role, config, ways(g, k))
+        mark(g, hits < 0)
         return np.where((hits < 0)[:, None], f, np.nan)
 
     def drive_time(g, k, role, ok):  # (n, 1) predicted drive durations, NaN: no clear route
         a, b = drive_ends(g, k, start, role)  # (only where ok: the stand's exit path)
+        if g is last.get("g"):
+            ok = ok & ~last["invalid"]
         via, clear = drive_route(g, cups, k, start, config, role, np.flatnonzero(ok))
+        mark(g, clear)
         straight = clear & np.isnan(via[:, 0])
         t = goto.predict(np.where(straight[:, None], kitchen_goto_features(a, b), np.nan))
         legs = np.flatnonzero(clear & ~straight)  # two legs, to the via point and on

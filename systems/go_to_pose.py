@@ -25,11 +25,13 @@ target pose moved back along the target heading by :func:`run_up_distance`
 accelerating.
 """
 
+import dataclasses
 import math
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 from repertoire.planning.action_models.features import wrap_angle
+from repertoire.systems import goto_law
 from repertoire.systems.action_status import (
     ActionStatus,
     ActionSystem,
@@ -59,6 +61,9 @@ GOTO_GAINS = {
 def pose_control(state, target, gains: dict[str, float]) -> tuple[float, float, float, float]:
     """Unlimited (v, omega) commands and the remaining (distance, heading error).
 
+    The compiled :func:`~repertoire.systems.goto_law.law` (one math for the LeafSystem
+    and the planners' rollouts, :func:`goto_rollout`).
+
     Args:
         state: ``[x, y, phi, v]``.
         target: ``[x_g, y_g, phi_g, v_g]``.
@@ -67,28 +72,19 @@ def pose_control(state, target, gains: dict[str, float]) -> tuple[float, float, 
     Returns:
         ``(v_cmd, omega_cmd, rho, heading_error)``.
     """
-    x, y, phi, _ = state
-    xg, yg, phig, vg = target
-    dx, dy = xg - x, yg - y
-    rho = math.hypot(dx, dy)
-    heading_error = float(wrap_angle(phig - phi))
-    if rho < gains["position_tolerance"]:
-        # close enough: turn in place to the goal heading.
-        omega = clip(gains["k_alpha"] * heading_error, -1.0, 1.0) * gains["omega_max"]
-        return 0.0, omega, rho, heading_error
-    direction = math.atan2(dy, dx)
-    alpha = float(wrap_angle(direction - phi))
-    beta = float(wrap_angle(phig - direction))
-    v = max(vg, gains["k_rho"] * rho) * math.cos(alpha)
-    omega = gains["k_alpha"] * alpha + gains["k_beta"] * beta
-    v = clip(v, -gains["v_max"], gains["v_max"])
-    omega = clip(omega, -gains["omega_max"], gains["omega_max"])
-    return v, omega, rho, heading_error
+    x, y, phi = (float(v) for v in state[:3])
+    xg, yg, phig, vg = (float(v) for v in target)
+    return goto_law.law(x, y, phi, xg, yg, phig, vg, gains_vector(gains))
+
+
+def gains_vector(gains: dict[str, float]) -> np.ndarray:
+    """The gains as a vector in :data:`GOTO_GAINS` order (the compiled law's)."""
+    return np.array([float(gains[name]) for name in GOTO_GAINS])
 
 
 def speed_tolerance(v_g: float) -> float:
     """How close (m/s) the robot's speed must be to the target speed ``v_g`` on arrival."""
-    return max(0.1, 0.5 * v_g)
+    return goto_law.speed_tolerance(float(v_g))
 
 
 def run_up_distance(v_g: float, gains: dict[str, float]) -> float:
@@ -188,23 +184,69 @@ def drive_step(
     v, w, rho, heading_error = control
     if steer is not None:
         v, w = steer
-    v_prev, w_prev = previous
     g = gains
-    if active and (
-        rho < g["position_tolerance"]
-        and abs(heading_error) < g["heading_tolerance"]
-        and abs(state[3] - target[3]) < speed_tolerance(target[3])
-    ):
-        return [v_prev, w_prev, ActionStatus.SUCCEEDED]
+    speed, vg = float(state[3]), float(target[3])
+    tolerances = (g["position_tolerance"], g["heading_tolerance"])
+    if active and goto_law.arrived(rho, heading_error, speed, vg, *tolerances):
+        return [previous[0], previous[1], ActionStatus.SUCCEEDED]
     if active and time >= g["timeout"]:
         return [0.0, 0.0, ActionStatus.TIMED_OUT]
-    dv = g["a_max"] * period
-    dw = g["alpha_max"] * period
-    return [
-        clip(v, v_prev - dv, v_prev + dv),
-        clip(w, w_prev - dw, w_prev + dw),
-        ActionStatus.RUNNING,
-    ]
+    limits = (g["a_max"], g["alpha_max"], period)
+    v, w = goto_law.rate_limit(v, w, float(previous[0]), float(previous[1]), *limits)
+    return [v, w, ActionStatus.RUNNING]
+
+
+@dataclasses.dataclass
+class GotoRollout:
+    """What :func:`goto_rollout` predicts, per row.
+
+    Attributes:
+        poses: ``(n, T + 1, 4)`` states ``[x, y, phi, v]`` at every update (a row that
+            ended keeps its last state).
+        omega: ``(n, T + 1)`` the yaw rate commanded from each state on (0 after the end).
+        steps: ``(n,)`` the update at which the row succeeded (its last pose), or -1 (it
+            timed out at T).
+    """
+
+    poses: np.ndarray
+    omega: np.ndarray
+    steps: np.ndarray
+
+
+def goto_rollout(start, target, gains: dict[str, float], period: float) -> GotoRollout:
+    """GoToPose's drives predicted on a kinematic unicycle, for many rows at once.
+
+    The compiled law (:func:`~repertoire.systems.goto_law.rollout`: the LeafSystem's own
+    functions) closed around the unicycle.
+
+    The update at ``t = i period`` computes the command from the state (as the
+    LeafSystem's periodic update, starting from a zero command); the unicycle then moves
+    exactly on the arc of that command (speed and yaw rate) for one period and its speed
+    is the command's. A real chassis lags its command: a plan checks the rollout with a
+    margin. Targets must not need GoToPose's run-up (``|v_g|`` below
+    :func:`speed_tolerance`: a drive to a pose at rest, as the kitchen's).
+
+    Args:
+        start: ``(n, 4)`` start states ``[x, y, phi, v]`` (``v`` is the measured speed).
+        target: ``(n, 4)`` targets ``[x_g, y_g, phi_g, v_g]``.
+        gains: all :data:`GOTO_GAINS` keys.
+        period: GoToPose's update period [s].
+
+    Returns:
+        The rollout (:class:`GotoRollout`), up to the last row's end or the timeout.
+    """
+    check_period(period)
+    s = np.array(np.atleast_2d(start), dtype=float)
+    t = np.broadcast_to(np.atleast_2d(np.asarray(target, dtype=float)), s.shape).copy()
+    if s.shape[-1] != 4 or not (np.all(np.isfinite(s)) and np.all(np.isfinite(t))):
+        raise RepertoireError(f"start and target must be finite rows of 4, got shapes "
+                              f"{np.shape(start)}, {np.shape(target)}")  # fmt: skip
+    if np.any(np.abs(t[:, 3]) >= np.maximum(0.1, 0.5 * t[:, 3])):
+        raise RepertoireError(f"goto_rollout does not model the run-up: target speeds must be "
+                              f"below 0.1 m/s, got {t[:, 3].tolist()}")  # fmt: skip
+    last = int(math.floor(gains["timeout"] / period + 1e-9))
+    poses, omega, steps = goto_law.rollout(s, t, gains_vector(gains), float(period), last)
+    return GotoRollout(poses, omega, steps)
 
 
 class DriveAction(ActionSystem):

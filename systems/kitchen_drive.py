@@ -3,8 +3,8 @@
 :class:`~repertoire.systems.go_to_pose.GoToPose` drives by its pose law and knows
 nothing of the world: in the kitchen a drive across a table, or one that swept the
 held-out arm through a standing cup, went on until it pushed the furniture or the cup.
-(The refinement checks its plans' drives as straight paths; the law arcs off them,
-most where the start heading is far from the way to the target.)
+(The refinement checks its plans' drives along the path the law drives, with the
+same stopping runs: :func:`~repertoire.studies._kitchen_arm.law_drive_hits`.)
 :class:`KitchenGoToPose` checks, at every update before its command, the
 motion the base can still make (:func:`stopping_poses`: at the measured speed for the
 period the command is held, then braking, and turning likewise at the commanded yaw
@@ -45,6 +45,18 @@ from repertoire.errors import RepertoireError
 FAILURE_PARTS = ("", "footprint", "arm")
 
 
+def stopping_run(v, omega, a_max: float, alpha_max: float, delay: float):
+    """``(run, turn)``: how far a base moves and turns if it brakes after ``delay``.
+
+    At speed ``v`` and yaw rate ``omega`` (numbers or arrays), the command held for
+    ``delay``, then braking at ``a_max`` and ``alpha_max``: ``v delay + v |v| / (2
+    a_max)``, ``omega delay + omega |omega| / (2 alpha_max)``.
+    """
+    v, omega = np.asarray(v, dtype=float), np.asarray(omega, dtype=float)
+    run = v * delay + v * np.abs(v) / (2.0 * a_max)
+    return run, omega * delay + omega * np.abs(omega) / (2.0 * alpha_max)
+
+
 def stopping_poses(state, omega: float, a_max: float, alpha_max: float, delay: float,
                    reach: float, spacing: float = 0.01) -> np.ndarray:  # fmt: skip
     """Poses ``(n, 3)`` from the base's pose to where it stops if it brakes now.
@@ -66,8 +78,7 @@ def stopping_poses(state, omega: float, a_max: float, alpha_max: float, delay: f
         spacing: largest motion of that point between poses [m].
     """
     x, y, phi, v = (float(s) for s in state[:4])
-    run = v * delay + v * abs(v) / (2.0 * a_max)
-    turn = omega * delay + omega * abs(omega) / (2.0 * alpha_max)
+    run, turn = (float(r) for r in stopping_run(v, omega, a_max, alpha_max, delay))
     n = max(2, math.ceil((abs(run) + reach * abs(turn)) / spacing) + 1)
     s = np.linspace(0.0, 1.0, n)
     return np.column_stack(

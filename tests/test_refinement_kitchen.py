@@ -412,3 +412,41 @@ def test_a_drive_the_table_blocks_goes_via_a_corner_and_is_predicted_leg_by_leg(
     assert steps[:2] == [("goto_pose", v.tolist()), ("goto_pose", stand.tolist())]
     assert owner[:3] == [0, 0, 1] and len(steps) == len(owner)
     assert sorted(set(owner)) == list(range(21))
+
+
+PLAN_34007 = [-0.503976, 0.68544, 0.797989, 0.631022, 0.45, 0.96, -1.572682, 0.624412, 0.623467]
+PLAN_32100 = [0.18373, -0.362201, 0.520502, -0.304262, 0.45, 0.96, -0.737914, -0.48316,
+              0.606805, 1.611103, -0.47643, 0.602238, -0.433525, 0.45, 0.96, -0.351016,
+              -0.739281, 0.8]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("seed", "scenario", "params", "via"),
+    # the h = 2 plans both delivered before the run-time check and then stopped by it
+    [
+        (34007, 1, PLAN_34007, [1.12, 0.52]),
+        (32100, 2, PLAN_32100, [0.833, -1.144]),
+    ],
+)
+def test_a_drive_is_checked_along_the_path_the_law_drives(seed, scenario, params, via):
+    # the drive to the drop pose leaves a stand at table_0's left side: its straight path
+    # and the arm along it are clear, but GoToPose's law arcs to within the footprint's
+    # reach of table_0's corner (where the run-time check stopped both plans); the drive
+    # check follows the law's path, so the drive now goes via a corner point
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, ROBOT_RADIUS
+
+    config = kp.KitchenPlanConfig(scenario=scenario)
+    start, cups, targets = kp.sample_situation(config, np.random.default_rng(seed))
+    g = kp.plan_geometry(params, cups, targets)
+    a, b = ka.drive_ends(g, 0, start, "drive_drop")
+    arm, held, boxes, discs, names = ka._drive_arm(g, cups, 0, config, "drive_drop")
+    assert kp.path_clear(a, b, KITCHEN_OBSTACLES, ROBOT_RADIUS + config.clearance)[0]
+    assert ka.arm_drive_hits(a, b, arm, boxes, config.arm_clearance, held, discs)[0] == -1
+    hits, names = ka.drive_hits(g, cups, 0, start, config, "drive_drop")
+    assert names[hits[0]] == "table_0"
+    route, ok = ka.drive_route(g, cups, 0, start, config, "drive_drop")
+    assert ok.tolist() == [True]
+    np.testing.assert_allclose(route[0, :2], via, atol=5e-4)
+    assert ka.drive_hits(g, cups, 0, start, config, "drive_drop", route)[0].tolist() == [-1]
+    # the drive to the stand (the start heading away from it) is clear along the law too
+    assert ka.drive_hits(g, cups, 0, start, config, "drive_stand")[0].tolist() == [-1]

@@ -113,7 +113,7 @@ DRIBBLE_GAINS = {
     "heading_tolerance": 0.5,  # rad
     "timeout": 15.0,  # s, from the action's start (DriveAction)
     "collect_distance": 0.5,  # collect mode: axle behind the ball / circling radius [m]
-    "collect_angle": 1.0,  # collect mode: target direction off the heading to dribble [rad]
+    "collect_angle": 1.0,  # collect mode: target off the heading to drive onto the ball [rad]
     "control_distance": 0.05,  # collect mode: ball this near its held spot is controlled [m]
 }
 
@@ -314,7 +314,7 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
     return APPROACH if rho > 2.0 * gains["min_turn_radius"] else PIVOT
 
 
-COLLECTING, DRIBBLING = 0, 1  # collect mode's phases (state slot 4)
+COLLECTING, DRIBBLING, CLOSING = 0, 1, 2  # collect mode's phases (state slot 4)
 NO_REASON, BALL_LOST, BAD_INPUT = 0, 1, 2  # why the action failed (state slot 5, collect mode)
 FAILURE_REASONS = {NO_REASON: "", BALL_LOST: "ball lost", BAD_INPUT: "bad target or ball"}
 CLEAR_FRACTION = 0.9
@@ -338,6 +338,34 @@ def segment_distance(p, a, b) -> float:
     n2 = ax * ax + ay * ay
     t = 0.0 if n2 == 0.0 else clip(((p[0] - a[0]) * ax + (p[1] - a[1]) * ay) / n2, 0.0, 1.0)
     return math.hypot(p[0] - a[0] - t * ax, p[1] - a[1] - t * ay)
+
+
+def target_aligned(state, ball, target, gains: dict[str, float]) -> bool:
+    """Whether the ball -> target direction is within ``collect_angle`` of the heading."""
+    phi_d = math.atan2(target[1] - ball[1], target[0] - ball[0])
+    return abs(math.remainder(phi_d - state[2], 2.0 * math.pi)) <= gains["collect_angle"]
+
+
+def close_control(state, ball, gains: dict[str, float]) -> tuple[float, float]:
+    """Unlimited-rate ``(v, omega)`` that drive straight onto a ball ahead, up to the bumper.
+
+    With ``(b_x, b_y)`` the ball in the robot frame, ``gamma`` its bearing and
+    ``d = max(0, b_x - hold_distance)`` the way left until it lies on the held spot:
+
+        v     = min(v_max, sqrt(2 a_max d)) * max(0, cos gamma)^2
+        omega = k_ball * gamma
+
+    (the speed from which ``a_max`` stops the robot with the ball at the bumper; the
+    yaw rate only centres the ball, as in :func:`dribble_control`, never turning towards
+    the target while the ball is not against the bumper). Both clipped to ``v_max`` and
+    ``omega_max``.
+    """
+    g = gains
+    bx, by = ball_in_robot_frame(state, ball)
+    gamma = math.atan2(by, bx)
+    d = max(0.0, bx - g["hold_distance"])
+    v = min(g["v_max"], math.sqrt(2.0 * g["a_max"] * d)) * max(0.0, math.cos(gamma)) ** 2
+    return v, clip(g["k_ball"] * gamma, -g["omega_max"], g["omega_max"])
 
 
 def collect_control(state, ball, target, gains: dict[str, float]) -> tuple[float, float, bool]:
@@ -395,22 +423,38 @@ def collect_control(state, ball, target, gains: dict[str, float]) -> tuple[float
 
 
 def collect_phase(phase: int, held: bool, state, ball, target, gains: dict[str, float]) -> int:
-    """The next collect-mode phase: :data:`COLLECTING` until the ball is held and controlled.
+    """The next collect-mode phase: :data:`COLLECTING`, :data:`CLOSING` or :data:`DRIBBLING`.
 
-    COLLECTING -> DRIBBLING (for good) when the ball is held (:func:`ball_terms`) and
-    either the direction from the ball to the target is within ``collect_angle`` of the
-    robot's heading or the ball is *controlled*: within ``control_distance`` of its held
-    spot, against the bumper between the guide arms (the default 0.05 m: the
-    ``soccer_dribble`` arms' tips are 0.0275 m ahead of the held spot), where the robot
-    can turn with it as the plain dribble does.
+    -> DRIBBLING (for good) when the ball is held (:func:`ball_terms`) and *controlled*:
+    within ``control_distance`` of its held spot, against the bumper between the guide
+    arms (the default 0.05 m: the ``soccer_dribble`` arms' tips are 0.0275 m ahead of the
+    held spot), where the robot can turn with it as the plain dribble does. Otherwise
+    COLLECTING -> CLOSING when the ball is held and the direction from the ball to the
+    target is within ``collect_angle`` of the heading (:func:`target_aligned`); CLOSING
+    stays while the ball is held (whatever the alignment: closing turns only to centre the
+    ball, :func:`close_control`) and falls back to COLLECTING when it is not.
+
+    A ball held but not controlled is not yet in the dribbler: lying 0.5 m ahead of the
+    axle (where the soccer plan's approach stops, ``collect_distance``) it is 0.19 m
+    beyond the held spot and 0.05 m beyond the arms' tips, and a turn of ``phi`` moves it
+    ``0.5 sin(phi)`` to the side (past ``lost_lateral``, 0.155 m, at 0.31 rad) without
+    touching it. Session 34 started the dribble at once on a held ball with the target
+    within ``collect_angle``: its first turn swept the ball out, which is how each of the
+    35 greedy and 32 refined plans of 1000 that failed in Table 3 failed.
     """
     if phase == DRIBBLING:
         return DRIBBLING
-    phi_d = math.atan2(target[1] - ball[1], target[0] - ball[0])
-    aligned = abs(math.remainder(phi_d - state[2], 2.0 * math.pi)) <= gains["collect_angle"]
+    if held and ball_controlled(state, ball, gains):
+        return DRIBBLING
+    if held and (phase == CLOSING or target_aligned(state, ball, target, gains)):
+        return CLOSING
+    return COLLECTING
+
+
+def ball_controlled(state, ball, gains: dict[str, float]) -> bool:
+    """Whether the ball lies within ``control_distance`` of its held spot."""
     bx, by = ball_in_robot_frame(state, ball)
-    controlled = math.hypot(bx - gains["hold_distance"], by) <= gains["control_distance"]
-    return DRIBBLING if held and (aligned or controlled) else COLLECTING
+    return math.hypot(bx - gains["hold_distance"], by) <= gains["control_distance"]
 
 
 class DribbleBall(DriveAction):
@@ -438,10 +482,10 @@ class DribbleBall(DriveAction):
 
     Collect mode (``collect=True``; off by default, which is the behaviour above):
     the action starts with a ball that need not be held. While :func:`collect_phase`
-    says :data:`COLLECTING` (the ball not held, or the target more than
-    ``collect_angle`` off the heading with the ball not controlled), the command is
-    :func:`collect_control`'s, to :func:`behind_point` facing the target round the
-    ball, rate limited and timed out
+    says :data:`COLLECTING`, the command is :func:`collect_control`'s, to
+    :func:`behind_point` facing the target round the ball; while it says :data:`CLOSING`
+    (a held ball with the target ahead, not yet against the bumper),
+    :func:`close_control`'s, straight onto the ball; both rate limited and timed out
     like the dribble (it never succeeds while collecting); from :data:`DRIBBLING` on
     (for good) the action dribbles as above, and a ball no longer held is FAILED with
     reason :data:`BALL_LOST`. The discrete state gains ``[phase, reason]`` (slots 4
@@ -518,16 +562,19 @@ class DribbleBall(DriveAction):
             if self.collect and active:
                 extra[1] = BAD_INPUT
             return [0.0, 0.0, failed, mode, *extra]
-        if self.collect and extra[0] == COLLECTING:
+        if self.collect and extra[0] != DRIBBLING:
             held = ball_terms(state, ball, g)[0]
-            phase = collect_phase(COLLECTING, held, state, ball, target, g) if active else 0
-            if phase == COLLECTING:
-                v, w, _ = collect_control(state, ball, target, g)
+            phase = collect_phase(int(extra[0]), held, state, ball, target, g) if active else 0
+            if phase != DRIBBLING:
+                if phase == CLOSING:
+                    v, w = close_control(state, ball, g)
+                else:
+                    v, w, _ = collect_control(state, ball, target, g)
                 control = (v, w, math.inf, math.pi)  # never succeeds while collecting
                 step = drive_step(
                     control, (v_prev, w_prev), state, target, g, elapsed, self.period, active
                 )
-                return [*step, mode, COLLECTING, NO_REASON]
+                return [*step, mode, phase, NO_REASON]
             extra[0] = DRIBBLING
         mode = approach_mode(int(mode), state, target, g)
         if mode in (LOOP_LEFT, LOOP_RIGHT):

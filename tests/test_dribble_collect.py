@@ -18,15 +18,18 @@ from repertoire.systems.dribble_ball import (
     APPROACH,
     BAD_INPUT,
     BALL_LOST,
+    CLOSING,
     COLLECTING,
     DRIBBLE_GAINS,
     DRIBBLING,
     NO_REASON,
     DribbleBall,
     behind_point,
+    close_control,
     collect_control,
     collect_phase,
     segment_distance,
+    target_aligned,
 )
 from repertoire.systems.go_to_pose import ActionStatus, pose_control
 
@@ -91,23 +94,53 @@ def test_collect_control_drives_directly_when_clear_and_onto_the_ball_when_lined
     assert direct and (v, w) == (v0, w0) and v > 0
 
 
+def test_target_aligned_and_close_control_closed_forms():
+    s = [0.0, 0.0, 0.0, 0.0]
+    # the ball -> target direction 0.99 / 1.01 rad off the heading (collect_angle 1)
+    assert target_aligned(s, [0.5, 0], [0.5 + math.cos(0.99), math.sin(0.99), 0, 0], G)
+    assert not target_aligned(s, [0.5, 0], [0.5 + math.cos(1.01), -math.sin(1.01), 0, 0], G)
+    # a ball lying 0.5 m ahead: 0.19 m to go, sqrt(2 * 0.6 * 0.19) = 0.477 > v_max 0.4
+    assert close_control(s, [0.5, 0.0], G) == (0.4, 0.0)
+    # 0.09 m to go, 0.03 m to the left: sqrt(2 a_max 0.09) cos^2(gamma), k_ball gamma
+    gamma = math.atan2(0.03, 0.4)
+    v, w = close_control(s, [0.4, 0.03], G)
+    assert v == pytest.approx(math.sqrt(1.2 * 0.09) * math.cos(gamma) ** 2, abs=1e-12)
+    assert w == pytest.approx(2.0 * gamma, abs=1e-12)
+    # at (or inside) the held spot: stop; a heading rotated with the frame gives the same
+    assert close_control(s, [0.3, 0.0], G) == (0.0, 0.0)
+    v2, w2 = close_control(
+        [1.0, 2.0, 0.5, 0.0],
+        [
+            1 + 0.4 * math.cos(0.5) - 0.03 * math.sin(0.5),
+            2 + 0.4 * math.sin(0.5) + 0.03 * math.cos(0.5),
+        ],
+        G,
+    )
+    assert (v2, w2) == pytest.approx((v, w), abs=1e-12)
+
+
 def test_collect_phase_by_hand():
     s = [0.0, 0.0, 0.0, 0.0]
-    ball = [0.31, 0.0]
-    assert collect_phase(COLLECTING, True, s, ball, [2, 0.5, 0, 0], G) == DRIBBLING
-    # the target 1.2 rad off the heading (seen from the ball): the ball at its held spot
-    # is controlled (the robot turns with it); 0.09 m beyond it held but not controlled
+    ahead = [2, 0.5, 0, 0]
+    # the ball at its held spot is controlled: dribbling (the robot turns with it), with
+    # the target ahead or 1.2 rad off (seen from the ball)
     far = [0.31 + math.cos(1.2), math.sin(1.2), 0, 0]
-    assert collect_phase(COLLECTING, True, s, ball, far, G) == DRIBBLING
+    for target in (ahead, far):
+        assert collect_phase(COLLECTING, True, s, [0.31, 0.0], target, G) == DRIBBLING
+    # 0.09 m beyond it held, not controlled: closing with the target 0.8 rad off (was:
+    # dribbling at once), collecting 1.2 rad off; closing goes on whatever the alignment
+    near = [0.4 + math.cos(0.8), math.sin(0.8), 0, 0]
     far = [0.4 + math.cos(1.2), math.sin(1.2), 0, 0]
+    assert collect_phase(COLLECTING, True, s, [0.4, 0.0], near, G) == CLOSING
     assert collect_phase(COLLECTING, True, s, [0.4, 0.0], far, G) == COLLECTING
-    assert collect_phase(COLLECTING, False, s, ball, [2, 0, 0, 0], G) == COLLECTING
-    assert collect_phase(DRIBBLING, False, s, ball, far, G) == DRIBBLING
+    assert collect_phase(CLOSING, True, s, [0.4, 0.0], far, G) == CLOSING
+    # not held: collecting (also from closing); dribbling is for good
+    assert collect_phase(COLLECTING, False, s, [0.31, 0.0], ahead, G) == COLLECTING
+    assert collect_phase(CLOSING, False, s, [0.4, 0.0], near, G) == COLLECTING
+    assert collect_phase(DRIBBLING, False, s, [0.4, 0.0], far, G) == DRIBBLING
     # control_distance (0.05 m) ahead of the held spot: controlled; 0.06 m: not
-    far = [0.36 + math.cos(1.2), math.sin(1.2), 0, 0]
-    assert collect_phase(COLLECTING, True, s, [0.36, 0.0], far, G) == DRIBBLING
-    far = [0.37 + math.cos(1.2), math.sin(1.2), 0, 0]
-    assert collect_phase(COLLECTING, True, s, [0.37, 0.0], far, G) == COLLECTING
+    assert collect_phase(CLOSING, True, s, [0.36, 0.0], far, G) == DRIBBLING
+    assert collect_phase(CLOSING, True, s, [0.37, 0.0], far, G) == CLOSING
 
 
 def _context(target, ball, state=(0, 0, 0, 0), time=0.0, phase=COLLECTING):
@@ -138,7 +171,14 @@ def test_collect_mode_leaf_system_exact():
     np.testing.assert_allclose(
         _update(action, ctx), [0.0, -0.3, running, APPROACH, COLLECTING, 0], atol=1e-12
     )
-    # held and the target ahead, or controlled and the target behind: dribbling at once,
+    # held 0.19 m beyond its spot, the target 0.8 rad off: closing, straight onto the ball
+    # (wants v_max, rate limited to 0.06), no turn (was: dribbling at once); from CLOSING
+    # with the target 1.2 rad off: the same
+    for phi, phase in ((0.8, COLLECTING), (1.2, CLOSING)):
+        target = [0.5 + math.cos(phi), math.sin(phi), phi, 0]
+        action, ctx = _context(target, ball=(0.5, 0.0), phase=phase)
+        np.testing.assert_allclose(_update(action, ctx), [0.06, 0, running, APPROACH, CLOSING, 0])
+    # controlled and the target ahead or behind: dribbling at once,
     # the same command as without collect mode
     for target in ([1, 0, 0, 0], [-1, 0, math.pi, 0]):
         action, ctx = _context(target, ball=(0.31, 0.0))
@@ -210,6 +250,24 @@ def test_soccer_dribble_collects_a_ball_beside_the_robot_and_delivers_it():
     # the ball held in front of the goal pose's held spot
     spot = np.array([-1.0 + 0.31 * math.cos(3.0), 0.8 + 0.31 * math.sin(3.0)])
     assert np.hypot(*(ball - spot)) < 0.2
+
+
+def test_soccer_dribble_drives_onto_a_ball_ahead_before_turning():
+    # the ball lying 0.5 m ahead of the axle (where soccer_plan's approach stops, not yet
+    # touching the guide arms), the target 1.5 m beyond it 0.95 rad to the left: the
+    # robot used to dribble at once, and its first turn swept the ball out past the right
+    # arm (ball lost after 1.25 s); now it drives onto the ball first and delivers it
+    target = [0.5 + 1.5 * math.cos(0.95), 1.5 * math.sin(0.95), 0.95, 0.0]
+    scenario = DribbleScenario(
+        collect=True, initial_pose=[0.0, 0.0, 0.0], ball_offset=[0.5, 0.0], target=target
+    )
+    diagram = build_soccer_dribble(scenario)
+    sim = Simulator(diagram)
+    sim.AdvanceTo(10.0)
+    ctx = sim.get_context()
+    assert dribble_status(diagram, ctx) == ActionStatus.SUCCEEDED
+    figures = check_dribble(diagram, ctx)
+    assert figures["position_error_m"] < 0.15 and figures["ball_from_held_spot_m"] < 0.1
 
 
 def test_soccer_dribble_collects_a_ball_behind_the_robot_and_delivers_it():

@@ -528,7 +528,9 @@ class DribbleBall(DriveAction):
         self.collect = collect
         inputs = (("state", 4), ("ball", 2), ("target", 4))
         slots = 3 if collect else 1
-        ports = self._declare_drive(period, DRIBBLE_GAINS, merged, workspace, inputs, slots)
+        ports = self._declare_drive(
+            period, DRIBBLE_GAINS, merged, workspace, inputs, self._next, slots
+        )
         self._ball_port = ports["ball"]
 
     def failure_reason(self, context: Context) -> str:

@@ -261,15 +261,20 @@ class DriveAction(ActionSystem):
     """
 
     def _declare_drive(
-        self, period: float, names, merged, workspace, inputs, extra_slots: int = 0
+        self, period: float, names, merged, workspace, inputs, next_state, extra_slots: int = 0
     ) -> dict:
         """Declares gains, workspace, the ``inputs`` (name, size), state, command and status.
 
         The discrete state is ``[v_cmd, omega_cmd, status]`` followed by
         ``extra_slots`` zeros the subclass uses (DribbleBall's approach mode) and the
-        start time (see the class). Returns the input ports by name; the subclass
-        defines ``_next``.
+        start time (see the class). Returns the input ports by name.
+
+        Args:
+            next_state: ``(context, xd, elapsed) -> list``, the subclass's law: the next
+                discrete state without the start time, given the state without its last
+                slot and the time since the action started [s] (its timeout's clock).
         """
+        self._next_state = next_state
         ws = check_workspace(workspace)
         self.period = period
         self._declare_gains(names, merged)
@@ -289,18 +294,8 @@ class DriveAction(ActionSystem):
         xd = context.get_discrete_state(self._xd).get_value()
         t = context.get_time()
         started = float(xd[-1]) if self.is_active(context) else t
-        values = self._next(context, xd[:-1], t - started)
+        values = self._next_state(context, xd[:-1], t - started)
         discrete_state.get_mutable_vector(self._xd).SetFromVector([*values, started])
-
-    def _next(self, context: Context, xd: np.ndarray, elapsed: float) -> list:
-        """The next discrete state without the start time.
-
-        Args:
-            context: the action's context.
-            xd: the discrete state without its last slot (the start time).
-            elapsed: the time since the action started [s] (its timeout's clock).
-        """
-        raise NotImplementedError
 
     def get_state_input_port(self):
         return self._state_port
@@ -380,7 +375,9 @@ class GoToPose(DriveAction):
         )
         merged = merge_gains(GOTO_GAINS, gains, "GoToPose", positive)
         inputs = (("state", 4), ("target", 4))
-        self._declare_drive(period, GOTO_GAINS, merged, workspace, inputs, extra_slots=1)
+        self._declare_drive(
+            period, GOTO_GAINS, merged, workspace, inputs, self._next, extra_slots=1
+        )
 
     def _next(self, context: Context, xd: np.ndarray, elapsed: float) -> list:
         v_prev, w_prev, status, mode = xd

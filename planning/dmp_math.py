@@ -385,7 +385,10 @@ def rollout(
         formulation: ``"new"`` or ``"old"``.
         v0: Initial physical velocity, shape (n,); default zero.
         method: ``"exact"`` or ``"euler"``.
-        coupling: Optional callable ``(x, xd) -> p`` (shape (n,)), euler only.
+        coupling: Optional callable ``(x, xd) -> p`` (shape (n,)), euler only; ``p`` is added
+            to ``tau v'`` (eq. 9). For eq. 10 pass this rollout's tau,
+            ``obstacle_coupling(x, xd, o, gamma, beta, tau=tau)`` (the paper's ``v`` is
+            ``tau xd``; the path is then the same at any tau).
         x_init: Initial position if it differs from the equations' x0 (chaining with
             acceleration handoff); default x0.
 

@@ -4,6 +4,14 @@
 obstacle ``o - x`` and the velocity ``v`` relative to the obstacle, ``R`` rotates by
 ``pi / 2`` about ``r = (o - x) x v``.
 
+``v`` is the transformation system's state of eq. 7, the scaled velocity ``tau dx/dt``
+(eq. 9 adds ``p(x, v)`` to ``tau v'``), so :func:`obstacle_coupling` takes the physical
+velocity and the DMP's ``tau``. With ``v`` the coupled DMP keeps the paper's temporal
+invariance: in the phase time ``t / tau`` eq. 9 does not contain ``tau``, so the same DMP
+run slower or faster takes the same path around the obstacle. Fed ``dx/dt`` instead (before
+session 35) the term was ``1 / tau`` of the paper's, and a DMP slowed from tau = 1 s to 2 s
+passed an obstacle 22 mm closer (110 -> 88 mm; 135 mm at 0.5 s).
+
 Heading straight at the obstacle (``phi = 0``) is the term's degenerate case: ``r``
 vanishes, so the axis is undefined, and ``phi exp(-beta phi)`` is 0, so the term is 0
 whatever axis one picks. A movement that heads straight at the obstacle stays on that
@@ -38,6 +46,7 @@ import math
 
 import numpy as np
 
+from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 
 #: ``sin(phi)`` at or below which the velocity counts as parallel to ``o - x`` (round-off
@@ -86,15 +95,19 @@ def obstacle_coupling(
     gamma: float,
     beta: float,
     obstacle_velocity: "np.ndarray | None" = None,
+    *,
+    tau: float = 1.0,
 ) -> np.ndarray:
     """Obstacle coupling term ``p = gamma R v phi exp(-beta phi)`` of eq. 10 (2-D or 3-D).
 
     ``phi`` is the angle between the direction to the obstacle ``o - x`` and the velocity
-    relative to the obstacle (the paper's words), ``v = xd - obstacle_velocity``; ``R`` and
+    relative to the obstacle (the paper's words), ``v = tau (xd - obstacle_velocity)``: the
+    scaled velocity of eq. 7 (the module docstring says why ``tau`` matters); ``R`` and
     the ``v`` it turns are that relative velocity too, so the term is eq. 10 in the frame
     moving with the obstacle (Pastor et al.'s Fig. 13 avoids a moving ball). A static
     obstacle (``obstacle_velocity`` None or zero) gives eq. 10 with the end-effector's own
-    velocity.
+    velocity. The angle does not depend on ``tau``; the term is ``tau`` times the term for
+    ``tau = 1``.
     ``R`` rotates by pi/2 about ``r = (o - x) x v``, which turns ``v`` away from the obstacle
     (the paper prints ``(x - o) x v``; with a right-handed +pi/2 rotation that axis would turn
     ``v`` *towards* the obstacle, so we use the sign of Hoffmann et al. 2009 and
@@ -118,12 +131,15 @@ def obstacle_coupling(
         gamma: Gain (>= 0).
         beta: Angular decay (the paper's c, >= 0).
         obstacle_velocity: The obstacle's velocity do/dt, the same shape (None: static).
+        tau: The DMP's temporal scaling [s] (> 0): eq. 10's ``v`` is ``tau`` times the
+            velocity relative to the obstacle. 1 gives the term of the physical velocity.
 
     Returns:
         ``p``, the shape of ``x``.
 
     Raises:
-        RepertoireError: vectors of other sizes or with NaN/inf, or a negative gain.
+        RepertoireError: vectors of other sizes or with NaN/inf, a negative or non-numeric
+            gain, or a tau that is not a finite number > 0.
     """
     # Plain-float arithmetic: called once per control step, numpy's per-call overhead on
     # 3-vectors (np.cross, np.linalg.norm) dominates otherwise.
@@ -137,8 +153,12 @@ def obstacle_coupling(
     if obstacle_velocity is not None:
         u1, u2, u3 = _finite(n, "obstacle_velocity", obstacle_velocity)
         v1, v2, v3 = v1 - u1, v2 - u2, v3 - u3
-    if not (0.0 <= gamma < math.inf and 0.0 <= beta < math.inf):
-        raise RepertoireError(f"gamma and beta must be finite and >= 0, got {gamma}, {beta}")
+    if not all(is_real(g) and 0.0 <= g < math.inf for g in (gamma, beta)):
+        raise RepertoireError(
+            f"gamma and beta must be finite and >= 0, got {_shown(gamma)}, {_shown(beta)}"
+        )
+    if not (is_real(tau) and 0.0 < tau < math.inf):
+        raise RepertoireError(f"tau must be a finite number > 0 [s], got {_shown(tau)}")
     d1, d2, d3 = o1 - x1, o2 - x2, o3 - x3
     speed = math.sqrt(v1 * v1 + v2 * v2 + v3 * v3)
     dist = math.sqrt(d1 * d1 + d2 * d2 + d3 * d3)
@@ -160,9 +180,14 @@ def obstacle_coupling(
         a1, a2, a3 = r1 / rn, r2 / rn, r3 / rn
         phi = math.atan2(rn, dot)
     # Rotation of v by +pi/2 about the axis (v is perpendicular to it): R v = axis x v.
-    s = gamma * phi * math.exp(-beta * phi)
+    s = tau * gamma * phi * math.exp(-beta * phi)  # R (tau v) = tau R v
     p = (s * (a2 * v3 - a3 * v2), s * (a3 * v1 - a1 * v3), s * (a1 * v2 - a2 * v1))
     return np.array(p[:n])
+
+
+def _shown(value) -> str:
+    """A number as printed; anything else (a string such as ``"1"``) by its repr."""
+    return str(value) if is_real(value) else repr(value)
 
 
 def _finite(n: int, name: str, value) -> tuple[float, float, float]:

@@ -681,9 +681,11 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
 class ObstacleCoupling(LeafSystem):
     """Obstacle-avoidance coupling term of eq. 10 in 3-D (or in the plane, ``n_dims=2``).
 
-    ``p = gamma R v phi exp(-beta phi)``; see
+    ``p = gamma R v phi exp(-beta phi)`` with the paper's scaled velocity ``v = tau dx/dt``
+    (eq. 7), so the coupled DMP takes the same path at any tau; see
     :func:`repertoire.planning.dmp_obstacle.obstacle_coupling` for the axis sign and the
     v = 0 / parallel cases (heading straight at the obstacle included).
+    :class:`repertoire.systems.dmp_compose.DmpSystem` sets ``tau`` to its DMP's.
 
     Input ports (n = ``n_dims``, 3 by default):
         position (n): end-effector position x.
@@ -695,11 +697,16 @@ class ObstacleCoupling(LeafSystem):
     Output ports:
         coupling (n): p, to be fed to a TransformationSystem's coupling input.
 
-    Numeric parameters: gamma, beta.
+    Numeric parameters: gamma, beta; tau (the DMP's, :meth:`set_tau`).
     """
 
     def __init__(
-        self, gamma: float = 1000.0, beta: float = 20.0 / np.pi, *, n_dims: int = 3
+        self,
+        gamma: float = 1000.0,
+        beta: float = 20.0 / np.pi,
+        *,
+        n_dims: int = 3,
+        tau: float = 1.0,
     ) -> None:
         """Builds the system.
 
@@ -707,15 +714,19 @@ class ObstacleCoupling(LeafSystem):
             gamma: Gain of eq. 10 (>= 0).
             beta: Angular decay of eq. 10 (>= 0).
             n_dims: 3, or 2 for a movement in the plane (eq. 10 in its z = 0 plane).
+            tau: The coupled DMP's temporal scaling [s] (> 0): eq. 10 turns ``tau`` times
+                the velocity input (the paper's ``v``).
 
         Raises:
-            RepertoireError: negative or non-finite gains, or ``n_dims`` not 2 or 3.
+            RepertoireError: negative or non-finite gains, ``n_dims`` not 2 or 3, or a tau
+                that is not a finite number > 0.
         """
         super().__init__()
         if isinstance(n_dims, bool) or n_dims not in (2, 3):
             raise RepertoireError(f"ObstacleCoupling needs n_dims 2 or 3, got {n_dims!r}")
         n = int(n_dims)
         self._params = self.DeclareNumericParameter(BasicVector(check_gains(gamma, beta)))
+        self._tau = self.DeclareNumericParameter(BasicVector([check_positive("tau", tau)]))
         self._x = self.DeclareVectorInputPort("position", n)
         self._v = self.DeclareVectorInputPort("velocity", n)
         self._o = self.DeclareVectorInputPort("obstacle", n)
@@ -732,8 +743,18 @@ class ObstacleCoupling(LeafSystem):
         """
         context.get_mutable_numeric_parameter(self._params).SetFromVector(check_gains(gamma, beta))
 
+    def set_tau(self, context: Context, tau: float) -> None:
+        """Set the coupled DMP's tau (eq. 10's ``v`` is ``tau`` times the velocity input).
+
+        Args:
+            context: This system's context.
+            tau: Temporal scaling [s], > 0.
+        """
+        context.get_mutable_numeric_parameter(self._tau).SetAtIndex(0, check_positive("tau", tau))
+
     def _calc(self, context: Context, output: BasicVector) -> None:
         gamma, beta = context.get_numeric_parameter(self._params).value()
+        tau = float(context.get_numeric_parameter(self._tau).GetAtIndex(0))
         vo = self._vo.Eval(context) if self._vo.HasValue(context) else None
         x, v, o = self._x.Eval(context), self._v.Eval(context), self._o.Eval(context)
-        output.SetFromVector(obstacle_coupling(x, v, o, gamma, beta, vo))
+        output.SetFromVector(obstacle_coupling(x, v, o, gamma, beta, vo, tau=tau))

@@ -85,6 +85,7 @@ class _VectorDmp:
         canonical: CanonicalSystem | None = None,
     ) -> None:
         self.time_step = time_step
+        self.tau = dmp.tau
         if time_step is not None:
             self.system = builder.AddNamedSystem(
                 name, DiscreteDmpSystem(dmp, time_step=time_step, coupling_input=coupling)
@@ -180,7 +181,9 @@ class DmpSystem(Diagram):
     # ------------------------------------------------------------------ building
     def _coupling(self, builder, vec: _VectorDmp, gamma: float, beta: float) -> None:
         n = vec.system.get_position_output_port().size()
-        obs = builder.AddNamedSystem("obstacle_coupling", ObstacleCoupling(gamma, beta, n_dims=n))
+        obs = builder.AddNamedSystem(
+            "obstacle_coupling", ObstacleCoupling(gamma, beta, n_dims=n, tau=vec.tau)
+        )
         builder.Connect(vec.system.get_position_output_port(), obs.GetInputPort("position"))
         builder.Connect(vec.system.get_velocity_output_port(), obs.GetInputPort("velocity"))
         builder.Connect(obs.GetOutputPort("coupling"), vec.system.get_coupling_input_port())
@@ -238,7 +241,9 @@ class DmpSystem(Diagram):
         for sig in ("position", "velocity", "acceleration"):
             builder.ExportOutput(demux[sig].get_output_port(index["position"]), sig)
         if obstacle:
-            obs = builder.AddNamedSystem("obstacle_coupling", ObstacleCoupling(gamma, beta))
+            obs = builder.AddNamedSystem(
+                "obstacle_coupling", ObstacleCoupling(gamma, beta, tau=fused.tau)
+            )
             builder.Connect(demux["position"].get_output_port(0), obs.GetInputPort("position"))
             builder.Connect(demux["velocity"].get_output_port(0), obs.GetInputPort("velocity"))
             pad = builder.AddNamedSystem("coupling_mux", Multiplexer([3, n - 3]))

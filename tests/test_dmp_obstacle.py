@@ -172,3 +172,58 @@ def test_two_d_dmp_system_avoids_an_obstacle_on_its_line():
     _, xs, _, _ = simulate_dmp(dmp, [0.0], [dmp.goal], 1.5, obstacle=o)
     assert np.linalg.norm(xs - o, axis=1).min() > 0.045
     assert np.linalg.norm(xs[-1] - dmp.goal) < 1e-3
+
+
+def test_term_turns_the_papers_scaled_velocity():
+    """Eq. 9 adds p(x, v) with v = tau dx/dt (eq. 7): the term is tau times that of dx/dt."""
+    from repertoire.systems.dmp import ObstacleCoupling
+
+    x, xd, o, vo = np.array([0.1, 0.0, 0.2]), np.array([1.0, 0.5, -0.2]), np.ones(3), [0, 0.3, 0]
+    once = obstacle_coupling(x, xd, o, GAMMA, BETA, vo)
+    np.testing.assert_array_equal(obstacle_coupling(x, xd, o, GAMMA, BETA, vo, tau=2.0), 2 * once)
+    np.testing.assert_array_equal(obstacle_coupling(x, xd, o, GAMMA, BETA, vo, tau=1.0), once)
+    for bad in (0.0, -1.0, np.inf, np.nan, "2"):
+        with pytest.raises(RepertoireError, match="tau must be a finite number > 0"):
+            obstacle_coupling(x, xd, o, GAMMA, BETA, tau=bad)
+    with pytest.raises(RepertoireError, match="gamma and beta must be finite and >= 0, got '1'"):
+        obstacle_coupling(x, xd, o, "1", BETA)  # was a TypeError from the comparison
+    oc = ObstacleCoupling(GAMMA, BETA, tau=2.5)
+    ctx = oc.CreateDefaultContext()
+    for name, value in (("position", x), ("velocity", xd), ("obstacle", o)):
+        oc.GetInputPort(name).FixValue(ctx, value)
+    np.testing.assert_array_equal(
+        oc.GetOutputPort("coupling").Eval(ctx), obstacle_coupling(x, xd, o, GAMMA, BETA, tau=2.5)
+    )
+    oc.set_tau(ctx, 0.5)
+    np.testing.assert_array_equal(
+        oc.GetOutputPort("coupling").Eval(ctx), obstacle_coupling(x, xd, o, GAMMA, BETA, tau=0.5)
+    )
+    with pytest.raises(RepertoireError, match="tau must be a finite number > 0, got -1"):
+        ObstacleCoupling(tau=-1.0)
+
+
+@pytest.mark.parametrize("tau", [0.5, 2.0, 4.0])
+def test_a_coupled_dmp_takes_the_same_path_at_any_tau(tau):
+    """The paper's temporal invariance holds with the coupling term too.
+
+    The same demonstration recorded over ``tau`` seconds instead of 1 s, run in a DmpSystem
+    stepped at 1 ms per second of tau (the same steps in phase), goes round the obstacle on
+    the same path, bit for bit. Before (eq. 10 turned dx/dt), tau 0.5 / 2 / 4 passed this
+    obstacle 76.3 / 55.7 / 47.9 mm from its centre instead of 65.0 mm.
+    """
+    from repertoire.studies.dmp_goals import simulate_dmp
+
+    t = np.linspace(0.0, 1.0, 501)
+    Y, _, _ = minimum_jerk(np.zeros(3), np.array([0.5, 0.2, 0.1]), 1.0, t)
+    Y[:, 2] += 0.1 * np.sin(np.pi * t)  # a curved path
+    o = Y[250] + np.array([0.0, 0.03, 0.0])
+    paths, clearance = [], []
+    for scale in (1.0, tau):
+        dmp = learn_dmp(scale * t, Y, n_basis=30)
+        dt = 1e-3 * scale
+        _, x, _, _ = simulate_dmp(dmp, [0.0], [dmp.goal], 1.5 * scale, time_step=dt, obstacle=o)
+        paths.append(x)
+        clearance.append(np.linalg.norm(x - o, axis=1).min())
+    assert clearance[0] == pytest.approx(0.0650, abs=1e-4)
+    assert len(paths[0]) == len(paths[1]) == 1501
+    np.testing.assert_array_equal(paths[1], paths[0])

@@ -155,7 +155,8 @@ def chain_rollout(
         goals: One goal per segment.
         switch_times: Start time of each segment (first usually 0), increasing.
         x0: Start of the first segment; default its learned start. The chain starts with
-            the first segment's learned velocity ``v0`` (zero for a rest demonstration).
+            the first segment's learned velocity ``v0`` (zero for a rest demonstration) at
+            ``switch_times[0]``; before it the position is held and ``xd`` and ``xdd`` are 0.
         duration: Total duration [s], more than one step past the last switch time;
             default last switch + last tau.
         dt: Time step [s], > 0.
@@ -184,9 +185,11 @@ def chain_rollout(
     n = segments[0].n_dims
     x = np.asarray(segments[0].x0 if x0 is None else x0, float)
     xd = segments[0].v0.copy()  # the first segment's learned start velocity (as DmpSequencer)
+    # held before the first switch: the position stands still, so velocity and acceleration
+    # are 0 (as every DMP system's outputs); the movement starts with xd at the onset
     X, XD, XDD = (
         [np.tile(x, (steps[0], 1))],
-        [np.tile(xd, (steps[0], 1))],
+        [np.zeros((steps[0], n))],
         [np.zeros((steps[0], n))],
     )
     SEG = [np.zeros(steps[0], dtype=int)]

@@ -26,6 +26,7 @@ from typing import Self
 import numpy as np
 from repertoire.planning.dmp_math import (
     alpha_for_final_phase,
+    check_finite_vector,
     check_formulation,
     check_positive,
     rollout,
@@ -79,6 +80,17 @@ def _numbers(name: str, value) -> np.ndarray:
     if a is None:
         raise RepertoireError(f"{name} must be numbers, got {value!r}")
     return a
+
+
+def _check_finite(name: str, a: np.ndarray) -> None:
+    """RepertoireError naming ``name``'s first NaN or inf entry, its index and its count."""
+    bad = ~np.isfinite(a)
+    if bad.any():
+        k = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise RepertoireError(
+            f"{name} contains NaN or inf: {name}[{', '.join(map(str, k))}] = {a[k]} "
+            f"({int(bad.sum())} of {a.size} not finite)"
+        )
 
 
 def _check_widths(widths: np.ndarray) -> None:
@@ -236,8 +248,7 @@ class DmpParameters(_FieldsRecord):
                     f"{name} has {getattr(self, name).size} entries but weights have {n} DOF"
                 )
         for name in ("weights", "centres", "widths", "K", "D", "x0", "goal", "v0"):
-            if not np.all(np.isfinite(getattr(self, name))):
-                raise RepertoireError(f"{name} contains NaN or inf")
+            _check_finite(name, getattr(self, name))
         check_positive("tau", self.tau)
         check_positive("alpha", self.alpha)
         if np.any(self.K <= 0) or np.any(self.D < 0):
@@ -263,9 +274,9 @@ class DmpParameters(_FieldsRecord):
             goal: New goal, shape (n_dims,).
             x0: New start, shape (n_dims,); default unchanged.
         """
-        return dataclasses.replace(
-            self, goal=np.asarray(goal, float), x0=self.x0 if x0 is None else x0
-        )
+        goal = check_finite_vector("goal", goal, self.n_dims)
+        x0 = self.x0 if x0 is None else check_finite_vector("x0", x0, self.n_dims)
+        return dataclasses.replace(self, goal=goal, x0=x0)
 
     def rollout(
         self,
@@ -394,8 +405,7 @@ class QuaternionDmpParameters(_FieldsRecord):
         if self.centres.shape != (b,) or self.widths.shape != (b,):
             raise RepertoireError("centres and widths must match the number of weights columns")
         for name in ("weights", "centres", "widths"):
-            if not np.all(np.isfinite(getattr(self, name))):
-                raise RepertoireError(f"{name} contains NaN or inf")
+            _check_finite(name, getattr(self, name))
         _check_widths(self.widths)
         for name in ("q0", "goal"):
             check_unit_quaternions(getattr(self, name)[None], name=name)
@@ -702,7 +712,8 @@ def check_unit_quaternions(
     if q.ndim != 2 or q.shape[1] != 4:
         raise RepertoireError(f"{name} must have shape (N, 4) (w, x, y, z), got {q.shape}")
     if not np.all(np.isfinite(q)):
-        raise RepertoireError(f"{name} contains NaN or inf")
+        k = int(np.argwhere(~np.isfinite(q))[0, 0])
+        raise RepertoireError(f"{name} contains NaN or inf (first at sample {k}: {q[k]})")
     dev = np.abs(np.linalg.norm(q, axis=1) - 1.0)
     k = int(np.argmax(dev))
     if dev[k] > tolerance:
@@ -735,10 +746,9 @@ def directional_primitive(
         goal: Goal of the new movement, shape (n,).
         dof: Which learned DOF gives the shape.
     """
-    start = np.asarray(start, float).reshape(-1)
-    goal = np.asarray(goal, float).reshape(-1)
-    if start.shape != goal.shape:
-        raise RepertoireError(f"start has {start.size} entries, goal {goal.size}")
+    # any number of entries (the new DMP's DOF), finite, and as many in goal as in start
+    start = check_finite_vector("start", start, np.size(start))
+    goal = check_finite_vector("goal", goal, start.size)
     if not (is_whole(dof) and 0 <= dof < dmp.n_dims):
         raise RepertoireError(f"dof must be in [0, {dmp.n_dims}), got {dof}")
     amplitude = dmp.goal[dof] - dmp.x0[dof]

@@ -620,16 +620,21 @@ def check_n_steps(n_steps: int | None, tau: float, dt: float) -> int:
 
 
 def check_finite_vector(name: str, value, n: int) -> np.ndarray:
-    """``value`` as a float vector of ``n`` finite entries; RepertoireError otherwise.
+    """``value`` as a float vector of ``n`` finite entries; RepertoireError naming it otherwise.
+
+    The one check of vector arguments in the DMP code (the LeafSystems' too).
 
     Args:
         name: Argument name for the message.
         value: Array-like.
         n: Expected number of entries.
     """
-    v = np.asarray(value, dtype=float).reshape(-1)
+    try:
+        v = np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as err:
+        raise RepertoireError(f"{name} must be {n} numbers, got {value!r}") from err
     if v.shape != (n,):
-        raise RepertoireError(f"{name} has {v.size} entries, expected {n}: {value}")
+        raise RepertoireError(f"{name} must have {n} entries, got {v.size}: {value}")
     if not np.all(np.isfinite(v)):
         raise RepertoireError(f"{name} contains NaN or inf: {v}")
     return v

@@ -20,6 +20,7 @@ from pydrake.systems.framework import (
 )
 from repertoire.planning.dmp import DmpParameters, QuaternionDmpParameters, check_unit_quaternions
 from repertoire.planning.dmp_math import (
+    check_finite_vector,
     check_positive,
     forcing_term,
     transformation_derivatives,
@@ -34,15 +35,6 @@ from repertoire.planning.dmp_quaternion import (
 )
 
 from repertoire.errors import RepertoireError
-
-
-def check_vector(name: str, value: np.ndarray, n: int) -> np.ndarray:
-    value = np.asarray(value, dtype=float).reshape(-1)
-    if value.size != n:
-        raise RepertoireError(f"{name} must have {n} entries, got {value.size}")
-    if not np.all(np.isfinite(value)):
-        raise RepertoireError(f"{name} contains NaN or inf")
-    return value
 
 
 def check_finite_input(name: str, value: np.ndarray) -> np.ndarray:
@@ -348,12 +340,12 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
             xd0: Initial velocity dx/dt, shape (n,); default the learned ``dmp.v0`` (its
                 scaled velocity ``tau v0`` at the learned tau, whatever the context's tau).
         """
-        x0 = check_vector("x0", x0, self._n)
+        x0 = check_finite_vector("x0", x0, self._n)
         context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
         if xd0 is None:
             v = self._learned_v
         else:
-            v = self._tau_value(context) * check_vector("xd0", xd0, self._n)
+            v = self._tau_value(context) * check_finite_vector("xd0", xd0, self._n)
         context.get_mutable_continuous_state_vector().SetFromVector(
             np.concatenate([np.zeros(self._n), v])
         )
@@ -374,8 +366,8 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
             x: Position, shape (n,).
             xd: Velocity dx/dt, shape (n,).
         """
-        x = check_vector("x", x, self._n)
-        xd = check_vector("xd", xd, self._n)
+        x = check_finite_vector("x", x, self._n)
+        xd = check_finite_vector("xd", xd, self._n)
         x0 = context.get_numeric_parameter(self._x0).get_value()
         v = self._tau_value(context) * xd
         context.get_mutable_continuous_state_vector().SetFromVector(np.concatenate([x - x0, v]))
@@ -475,7 +467,9 @@ class QuaternionGoalSign(LeafSystem):
             context: This system's context.
             q0: Start orientation (w, x, y, z), shape (4,).
         """
-        context.get_mutable_numeric_parameter(self._start).SetFromVector(check_vector("q0", q0, 4))
+        context.get_mutable_numeric_parameter(self._start).SetFromVector(
+            check_finite_vector("q0", q0, 4)
+        )
 
     def _calc(self, context: Context, output: BasicVector) -> None:
         goal = check_unit_goal(goal_input(self._in, context, self._learned_goal))
@@ -628,13 +622,13 @@ class ManifoldQuaternionSystem(Onset, LeafSystem):
             omega0: Initial angular velocity (world); default the learned ``dmp.omega0``
                 (its ``eta = tau omega0`` at the learned tau).
         """
-        q0 = check_vector("q0", q0, 4)
+        q0 = check_finite_vector("q0", q0, 4)
         check_unit_quaternions(q0[None], name="q0")
         if omega0 is None:
             eta = self._learned_eta
         else:
             tau = context.get_numeric_parameter(self._gains).GetAtIndex(2)
-            eta = tau * check_vector("omega0", omega0, 3)
+            eta = tau * check_finite_vector("omega0", omega0, 3)
         context.get_mutable_numeric_parameter(self._q0).SetFromVector(q0)
         context.get_mutable_discrete_state(self._state).SetFromVector(np.concatenate([q0, eta]))
 

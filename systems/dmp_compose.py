@@ -18,7 +18,7 @@ from pydrake.systems.primitives import (
 )
 from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp
 from repertoire.planning.dmp_chain import stack_task_space_dmp
-from repertoire.planning.dmp_math import check_positive
+from repertoire.planning.dmp_math import check_finite_vector, check_positive
 from repertoire.planning.dmp_quaternion import learned_side, quaternion_rate
 from repertoire.systems.dmp import (
     CanonicalSystem,
@@ -27,7 +27,6 @@ from repertoire.systems.dmp import (
     QuaternionGoalSign,
     QuaternionNormalizer,
     TransformationSystem,
-    check_vector,
     goal_input,
 )
 from repertoire.systems.dmp_discrete import DiscreteDmpSystem
@@ -398,7 +397,7 @@ class DmpSystem(Diagram):
             elif name == "fingers":
                 system.set_start(sub, start)
             elif isinstance(part, _VectorDmp):  # component orientation
-                q = self._component_start(context, check_vector("orientation", start, 4))
+                q = self._component_start(context, check_finite_vector("orientation", start, 4))
                 system.set_start(sub, q, quaternion_rate(self.dmp.orientation.omega0, q))
             else:
                 system.set_start(sub, start)
@@ -427,19 +426,19 @@ class DmpSystem(Diagram):
         if self._manifold is not None:  # restarted too, from its start if none is given
             sub_m = self.GetMutableSubsystemContext(self._manifold, context)
             q = self._manifold.get_start(sub_m) if orientation is None else orientation
-            self._manifold.set_start(sub_m, check_vector("orientation", q, 4))
+            self._manifold.set_start(sub_m, check_finite_vector("orientation", q, 4))
         for name, value in given.items():
             if value is None or (name == "orientation" and self._manifold is not None):
                 continue
             if name not in self._slices:
                 raise RepertoireError(f"this DMP has no {name} part")
             sl = self._slices[name]
-            x0[sl] = check_vector(name, value, sl.stop - sl.start)
+            x0[sl] = check_finite_vector(name, value, sl.stop - sl.start)
             if name == "orientation":
                 x0[sl] = self._component_start(context, x0[sl])
         if velocity is not None:
             sl = self._slices["position"]
-            xd0[sl] = check_vector("velocity", velocity, sl.stop - sl.start)
+            xd0[sl] = check_finite_vector("velocity", velocity, sl.stop - sl.start)
         if "orientation" in self._slices:  # the learned turn rate at the start: omega0 q / 2
             sl = self._slices["orientation"]
             xd0[sl] = quaternion_rate(self.dmp.orientation.omega0, x0[sl])

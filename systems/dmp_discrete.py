@@ -10,8 +10,12 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from repertoire.planning.dmp import DmpParameters
 from repertoire.planning.dmp_discrete import DiscreteDmpTables
-from repertoire.planning.dmp_math import check_positive, transformation_derivatives
-from repertoire.systems.dmp import CouplingAndOnset, VectorDmpPorts, check_vector
+from repertoire.planning.dmp_math import (
+    check_finite_vector,
+    check_positive,
+    transformation_derivatives,
+)
+from repertoire.systems.dmp import CouplingAndOnset, VectorDmpPorts
 
 from repertoire.errors import RepertoireError
 
@@ -112,8 +116,8 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
             x0: Start position, shape (n,).
             xd0: Initial velocity dx/dt; default the learned ``dmp.v0``.
         """
-        x0 = check_vector("x0", x0, self._n)
-        v = self._learned_v if xd0 is None else self._tau * check_vector("xd0", xd0, self._n)
+        x0 = check_finite_vector("x0", x0, self._n)
+        v = self._learned_v if xd0 is None else self._tau * check_finite_vector("xd0", xd0, self._n)
         context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
         context.get_mutable_discrete_state(self._state).SetFromVector(
             np.concatenate([[0.0], x0, v])

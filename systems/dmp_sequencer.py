@@ -36,6 +36,7 @@ from repertoire.planning.dmp_chain import (
 )
 from repertoire.planning.dmp_discrete import DiscreteDmpTables
 from repertoire.planning.dmp_math import (
+    check_finite_vector,
     check_positive,
     forcing_term,
     transformation_derivatives,
@@ -45,7 +46,7 @@ from repertoire.planning.dmp_quaternion import (
     learned_side,
     lift_quaternion_goal,
 )
-from repertoire.systems.dmp import check_finite_input, check_unit_goal, check_vector, goal_input
+from repertoire.systems.dmp import check_finite_input, check_unit_goal, goal_input
 
 from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
@@ -140,9 +141,9 @@ class DmpSequencer(LeafSystem):
         self._goals = (
             [None] * len(segments)
             if goals is None
-            else [check_vector(f"goal {i}", g, n) for i, g in enumerate(goals)]
+            else [check_finite_vector(f"goal {i}", g, n) for i, g in enumerate(goals)]
         )
-        x_start = segments[0].x0 if x_start is None else check_vector("x_start", x_start, n)
+        x_start = segments[0].x0 if x_start is None else check_finite_vector("x_start", x_start, n)
         self._q = None if quaternion_at is None else slice(quaternion_at, quaternion_at + 4)
         x_start = self._learned_side(0, x_start)[0]
         # the first segment's demonstrated start velocity (v = tau dx/dt), as every DMP system
@@ -234,11 +235,11 @@ class DmpSequencer(LeafSystem):
                 ``v0`` (zero for a rest-to-rest demonstration).
         """
         first = self._segments[0]
-        x_start = check_vector("x_start", x_start, self._n)
+        x_start = check_finite_vector("x_start", x_start, self._n)
         if xd_start is None:
             x, v = self._learned_side(0, x_start)[0], first.initial_scaled_velocity()
         else:
-            v = first.tau * check_vector("xd_start", xd_start, self._n)
+            v = first.tau * check_finite_vector("xd_start", xd_start, self._n)
             x, v = self._learned_side(0, x_start, v)
         if self._dt is None:
             context.SetContinuousState(np.concatenate([[1.0], np.zeros(self._n), v]))

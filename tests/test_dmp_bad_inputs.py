@@ -63,7 +63,7 @@ def test_rollout_refuses_a_dt_longer_than_twice_tau(p):
 
 
 def test_rollout_refuses_a_velocity_of_the_wrong_length(p):
-    with raises("v0 has 3 entries, expected 2: [0. 0. 0.]"):
+    with raises("v0 must have 2 entries, got 3: [0. 0. 0.]"):
         p.rollout(v0=np.zeros(3))
 
 
@@ -381,11 +381,11 @@ def test_handoff_state_checks_the_vectors_against_the_successor(p):
     """A 3-vector x for a 2-DOF successor came back as a 3-entry equation start."""
     from repertoire.planning.dmp_chain import handoff_state
 
-    with raises("x has 3 entries, expected 2: [0, 0, 0]"):
+    with raises("x must have 2 entries, got 3: [0, 0, 0]"):
         handoff_state(p, [0, 0, 0], [0, 0], 1.0)
     with raises("v contains NaN or inf"):
         handoff_state(p, [0, 0], [np.nan, 0], 1.0)
-    with raises("acceleration has 1 entries, expected 2"):
+    with raises("acceleration must have 2 entries, got 1"):
         handoff_state(p, [0, 0], [0, 0], 1.0, "acceleration", [1.0])
 
 
@@ -426,3 +426,31 @@ def test_learn_dmp_refuses_a_min_displacement_that_is_not_a_number_at_least_0(va
         learn_dmp(T, X, n_basis=20, min_displacement=value)  # whatever the formulation
     with raises("start equals goal in DOF [1]"):  # 0 still refuses exactly 0
         learn_dmp(T, x, n_basis=20, formulation="old", min_displacement=0.0)
+
+
+def test_new_goals_starts_and_artefact_numbers_are_named_with_their_value(p, qp):
+    """Session 35: these said "weights contains NaN or inf", float()'s own error or nothing."""
+    from repertoire.planning.dmp import directional_primitive
+    from repertoire.systems.dmp import TransformationSystem
+
+    with raises("goal contains NaN or inf: [ 1. nan]"):
+        p.with_goal([1.0, np.nan])
+    with raises("goal must be 2 numbers, got 'ab'"):  # was float()'s ValueError
+        p.with_goal("ab")
+    with raises("x0 must have 2 entries, got 3: [0, 0, 0]"):  # was accepted, failed later
+        p.with_goal(p.goal, x0=[0, 0, 0])
+    with raises("start contains NaN or inf: [ 0. nan]"):  # was "weights contains NaN or inf"
+        directional_primitive(p, [0.0, np.nan], [1.0, 1.0])
+    with raises("goal must have 2 entries, got 3: [1, 1, 1]"):
+        directional_primitive(p, [0.0, 0.0], [1, 1, 1])
+    weights = p.weights.copy()
+    weights[1, 3] = np.nan
+    with raises(f"weights contains NaN or inf: weights[1, 3] = nan (1 of {weights.size} not"):
+        DmpParameters(weights, p.centres, p.widths, p.K, p.D, p.alpha, p.tau, p.x0, p.goal)
+    with raises("goal contains NaN or inf (first at sample 0: [ 1. nan  0.  0.])"):
+        qp.rollout(goal=[1.0, np.nan, 0.0, 0.0])
+    ts = TransformationSystem(p)
+    with raises("x0 contains NaN or inf: [nan  0.]"):  # the systems named no value
+        ts.set_start(ts.CreateDefaultContext(), [np.nan, 0.0])
+    with raises("x0 must have 2 entries, got 3: [0, 0, 0]"):
+        ts.set_start(ts.CreateDefaultContext(), [0, 0, 0])

@@ -464,7 +464,7 @@ def test_bad_start_states_are_named(moving3):
         seq.set_start(seq.CreateDefaultContext(), dmp.x0, np.zeros(2))
     t, q, _ = turning_demo(6)
     qdmp = learn_quaternion_dmp(t, q, n_basis=20)
-    with pytest.raises(RepertoireError, match="omega0 has 2 entries, expected 3"):
+    with pytest.raises(RepertoireError, match="omega0 must have 3 entries, got 2"):
         quaternion_rollout(*qdmp._dynamics(), qdmp.q0, qdmp.goal, omega0=[0.0, 0.0])
 
 

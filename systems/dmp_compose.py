@@ -9,7 +9,14 @@ Chaining (sec. III-C) is :class:`repertoire.systems.dmp_sequencer.DmpSequencer`.
 """
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    Diagram,
+    DiagramBuilder,
+    LeafSystem,
+    OutputPort,
+)
 from pydrake.systems.primitives import (
     ConstantVectorSource,
     Demultiplexer,
@@ -178,17 +185,31 @@ class DmpSystem(Diagram):
         builder.BuildInto(self)
 
     # ------------------------------------------------------------------ building
-    def _coupling(self, builder, vec: _VectorDmp, gamma: float, beta: float) -> None:
-        n = vec.system.get_position_output_port().size()
+    def _coupling(
+        self, builder, position, velocity, tau: float, gamma: float, beta: float
+    ) -> OutputPort:
+        """Adds eq. 10 on a DMP's position and velocity outputs; returns its coupling port.
+
+        Exports the ``obstacle`` and ``obstacle_velocity`` inputs (the one place both the
+        vector and the fused task-space DmpSystem wire the coupling).
+
+        Args:
+            builder: The DmpSystem's builder.
+            position: The position output port (2-D or 3-D).
+            velocity: The matching velocity output port.
+            tau: The DMP's temporal scaling [s] (eq. 10 turns ``tau`` times the velocity).
+            gamma: Gain of eq. 10.
+            beta: Angular decay of eq. 10.
+        """
         obs = builder.AddNamedSystem(
-            "obstacle_coupling", ObstacleCoupling(gamma, beta, n_dims=n, tau=vec.tau)
+            "obstacle_coupling", ObstacleCoupling(gamma, beta, n_dims=position.size(), tau=tau)
         )
-        builder.Connect(vec.system.get_position_output_port(), obs.GetInputPort("position"))
-        builder.Connect(vec.system.get_velocity_output_port(), obs.GetInputPort("velocity"))
-        builder.Connect(obs.GetOutputPort("coupling"), vec.system.get_coupling_input_port())
+        builder.Connect(position, obs.GetInputPort("position"))
+        builder.Connect(velocity, obs.GetInputPort("velocity"))
         builder.ExportInput(obs.GetInputPort("obstacle"), "obstacle")
         builder.ExportInput(obs.GetInputPort("obstacle_velocity"), "obstacle_velocity")
         self.obstacle_coupling = obs
+        return obs.GetOutputPort("coupling")
 
     def _build_vector(self, builder, dmp, time_step, obstacle, gamma, beta) -> None:
         if obstacle and dmp.n_dims not in (2, 3):
@@ -202,7 +223,16 @@ class DmpSystem(Diagram):
         """Exports the goal input and the three vector outputs (with coupling if asked)."""
         builder.ExportInput(vec.system.get_goal_input_port(), goal)
         if obstacle:
-            self._coupling(builder, vec, gamma, beta)
+            sys = vec.system
+            coupling = self._coupling(
+                builder,
+                sys.get_position_output_port(),
+                sys.get_velocity_output_port(),
+                vec.tau,
+                gamma,
+                beta,
+            )
+            builder.Connect(coupling, sys.get_coupling_input_port())
         builder.ExportOutput(vec.system.get_position_output_port(), "position")
         builder.ExportOutput(vec.system.get_velocity_output_port(), "velocity")
         builder.ExportOutput(vec.system.get_acceleration_output_port(), "acceleration")
@@ -239,20 +269,20 @@ class DmpSystem(Diagram):
         builder.ExportInput(mux.get_input_port(index["position"]), "goal_position")
         for sig in ("position", "velocity", "acceleration"):
             builder.ExportOutput(demux[sig].get_output_port(index["position"]), sig)
-        if obstacle:
-            obs = builder.AddNamedSystem(
-                "obstacle_coupling", ObstacleCoupling(gamma, beta, tau=fused.tau)
+        if obstacle:  # on the position block; 0 on the others
+            coupling = self._coupling(
+                builder,
+                demux["position"].get_output_port(index["position"]),
+                demux["velocity"].get_output_port(index["position"]),
+                fused.tau,
+                gamma,
+                beta,
             )
-            builder.Connect(demux["position"].get_output_port(0), obs.GetInputPort("position"))
-            builder.Connect(demux["velocity"].get_output_port(0), obs.GetInputPort("velocity"))
             pad = builder.AddNamedSystem("coupling_mux", Multiplexer([3, n - 3]))
             zeros = builder.AddNamedSystem("coupling_zeros", ConstantVectorSource(np.zeros(n - 3)))
-            builder.Connect(obs.GetOutputPort("coupling"), pad.get_input_port(0))
+            builder.Connect(coupling, pad.get_input_port(0))
             builder.Connect(zeros.get_output_port(), pad.get_input_port(1))
             builder.Connect(pad.get_output_port(0), sysd.get_coupling_input_port())
-            builder.ExportInput(obs.GetInputPort("obstacle"), "obstacle")
-            builder.ExportInput(obs.GetInputPort("obstacle_velocity"), "obstacle_velocity")
-            self.obstacle_coupling = obs
         if "orientation" in index:
             i = index["orientation"]
             norm = builder.AddNamedSystem("quaternion_normalizer", QuaternionNormalizer())

@@ -510,8 +510,10 @@ def minimum_jerk_via_points(
     """Minimum-jerk movement through via points (rest-to-rest, smooth through the via points).
 
     The path is the minimum-jerk polynomial spline through the points: a quintic spline
-    (``scipy`` ``make_interp_spline`` with k=5 on chord-length-proportional knots) with zero
-    velocity and acceleration at both ends, which is the jerk-optimal interpolant.
+    (``scipy`` ``make_interp_spline`` with k=5) with zero velocity and acceleration at both
+    ends, which is the jerk-optimal interpolant for its knot times. The via points are
+    passed at times proportional to the cumulative square root of the distances between
+    them (centripetal parametrisation), not to the distances themselves.
 
     Args:
         points: Via points including start and end, shape (m, n), m >= 2.

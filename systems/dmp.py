@@ -34,6 +34,7 @@ from repertoire.planning.dmp_quaternion import (
     quat_multiply,
 )
 
+from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 
 
@@ -85,14 +86,14 @@ def check_start_time(start_time: float) -> float:
 
 
 def check_gains(gamma: float, beta: float) -> list[float]:
-    """``[gamma, beta]`` of eq. 10 as floats; RepertoireError unless both are finite and >= 0."""
-    try:
-        values = [float(gamma), float(beta)]
-    except (TypeError, ValueError):
-        values = [math.nan]
-    if not all(0.0 <= v < math.inf for v in values):
-        raise RepertoireError(f"gamma and beta must be finite and >= 0, got {gamma}, {beta}")
-    return values
+    """``[gamma, beta]`` of eq. 10 as floats; RepertoireError unless both are finite and >= 0.
+
+    Numbers only: a string such as ``"1"`` or a bool is refused (``float`` would take it).
+    """
+    if not all(is_real(v) and 0.0 <= v < math.inf for v in (gamma, beta)):
+        shown = [repr(v) if not is_real(v) else v for v in (gamma, beta)]
+        raise RepertoireError(f"gamma and beta must be finite and >= 0, got {shown[0]}, {shown[1]}")
+    return [float(gamma), float(beta)]
 
 
 class Onset:

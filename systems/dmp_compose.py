@@ -168,6 +168,10 @@ class DmpSystem(Diagram):
         super().__init__()
         if time_step is not None:
             check_positive("time_step", time_step)
+        if not isinstance(obstacle_avoidance, (bool, np.bool_)):
+            raise RepertoireError(
+                f"obstacle_avoidance must be True or False, got {obstacle_avoidance!r}"
+            )
         self.dmp = dmp
         self._fused = None
         self._manifold = None
@@ -509,6 +513,8 @@ def add_dmp(
     Returns:
         The added DmpSystem; its ports are named as in its docstring.
     """
+    if not (isinstance(name, str) and name):
+        raise RepertoireError(f"name must be a non-empty string, got {name!r}")
     system = DmpSystem(
         dmp,
         time_step=time_step,

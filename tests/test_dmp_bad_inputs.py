@@ -454,3 +454,21 @@ def test_new_goals_starts_and_artefact_numbers_are_named_with_their_value(p, qp)
         ts.set_start(ts.CreateDefaultContext(), [np.nan, 0.0])
     with raises("x0 must have 2 entries, got 3: [0, 0, 0]"):
         ts.set_start(ts.CreateDefaultContext(), [0, 0, 0])
+
+
+def test_dmp_system_options_are_checked_and_named(p):
+    """Session 35: gamma "1" was taken as 1.0 (float() of a string), a name 3 was Drake's
+    TypeError, and obstacle_avoidance="no" switched the coupling on."""
+    from pydrake.systems.framework import DiagramBuilder
+    from repertoire.systems.dmp import ObstacleCoupling, check_gains
+    from repertoire.systems.dmp_compose import DmpSystem, add_dmp
+
+    with raises("gamma and beta must be finite and >= 0, got '1', 2.0"):
+        DmpSystem(p, obstacle_avoidance=True, gamma="1", beta=2.0)
+    with raises("gamma and beta must be finite and >= 0, got True, 1.0"):
+        ObstacleCoupling(True, 1.0, n_dims=2)
+    assert check_gains(500, np.float64(2.0)) == [500.0, 2.0]
+    with raises("name must be a non-empty string, got 3"):
+        add_dmp(DiagramBuilder(), p, name=3)
+    with raises("obstacle_avoidance must be True or False, got 'no'"):
+        DmpSystem(p, obstacle_avoidance="no")

@@ -88,6 +88,22 @@ def _fallback_axis(v1: float, v2: float, v3: float, speed: float) -> tuple[float
     return a1 / an, a2 / an, a3 / an
 
 
+def check_gains(gamma: float, beta: float) -> list[float]:
+    """``[gamma, beta]`` of eq. 10 as floats; RepertoireError unless both are finite and >= 0.
+
+    Numbers only: a string such as ``"1"`` or a bool is refused (``float`` would take it).
+
+    Args:
+        gamma: Gain of eq. 10.
+        beta: Angular decay of eq. 10 (the paper's c).
+    """
+    if not all(is_real(g) and 0.0 <= g < math.inf for g in (gamma, beta)):
+        raise RepertoireError(
+            f"gamma and beta must be finite and >= 0, got {_shown(gamma)}, {_shown(beta)}"
+        )
+    return [float(gamma), float(beta)]
+
+
 def obstacle_coupling(
     x: np.ndarray,
     xd: np.ndarray,
@@ -153,10 +169,7 @@ def obstacle_coupling(
     if obstacle_velocity is not None:
         u1, u2, u3 = _finite(n, "obstacle_velocity", obstacle_velocity)
         v1, v2, v3 = v1 - u1, v2 - u2, v3 - u3
-    if not all(is_real(g) and 0.0 <= g < math.inf for g in (gamma, beta)):
-        raise RepertoireError(
-            f"gamma and beta must be finite and >= 0, got {_shown(gamma)}, {_shown(beta)}"
-        )
+    check_gains(gamma, beta)
     if not (is_real(tau) and 0.0 < tau < math.inf):
         raise RepertoireError(f"tau must be a finite number > 0 [s], got {_shown(tau)}")
     d1, d2, d3 = o1 - x1, o2 - x2, o3 - x3

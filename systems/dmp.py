@@ -25,7 +25,7 @@ from repertoire.planning.dmp_math import (
     forcing_term,
     transformation_derivatives,
 )
-from repertoire.planning.dmp_obstacle import obstacle_coupling
+from repertoire.planning.dmp_obstacle import check_gains, obstacle_coupling
 from repertoire.planning.dmp_quaternion import (
     check_turn,
     lift_quaternion_goal,
@@ -34,7 +34,6 @@ from repertoire.planning.dmp_quaternion import (
     quat_multiply,
 )
 
-from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 
 
@@ -83,17 +82,6 @@ def check_start_time(start_time: float) -> float:
     if not math.isfinite(value):
         raise RepertoireError(f"start_time must be a finite number [s], got {start_time}")
     return value
-
-
-def check_gains(gamma: float, beta: float) -> list[float]:
-    """``[gamma, beta]`` of eq. 10 as floats; RepertoireError unless both are finite and >= 0.
-
-    Numbers only: a string such as ``"1"`` or a bool is refused (``float`` would take it).
-    """
-    if not all(is_real(v) and 0.0 <= v < math.inf for v in (gamma, beta)):
-        shown = [repr(v) if not is_real(v) else v for v in (gamma, beta)]
-        raise RepertoireError(f"gamma and beta must be finite and >= 0, got {shown[0]}, {shown[1]}")
-    return [float(gamma), float(beta)]
 
 
 class Onset:

@@ -460,7 +460,8 @@ def test_dmp_system_options_are_checked_and_named(p):
     """Session 35: gamma "1" was taken as 1.0 (float() of a string), a name 3 was Drake's
     TypeError, and obstacle_avoidance="no" switched the coupling on."""
     from pydrake.systems.framework import DiagramBuilder
-    from repertoire.systems.dmp import ObstacleCoupling, check_gains
+    from repertoire.planning.dmp_obstacle import check_gains
+    from repertoire.systems.dmp import ObstacleCoupling
     from repertoire.systems.dmp_compose import DmpSystem, add_dmp
 
     with raises("gamma and beta must be finite and >= 0, got '1', 2.0"):

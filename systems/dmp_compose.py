@@ -23,7 +23,7 @@ from pydrake.systems.primitives import (
     Multiplexer,
     PassThrough,
 )
-from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp
+from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp, check_unit_quaternions
 from repertoire.planning.dmp_chain import stack_task_space_dmp
 from repertoire.planning.dmp_math import check_finite_vector, check_positive
 from repertoire.planning.dmp_quaternion import learned_side, quaternion_rate
@@ -446,6 +446,8 @@ class DmpSystem(Diagram):
         goal's sign is chosen from that start (as
         :meth:`repertoire.planning.dmp.QuaternionDmpParameters.rollout` does).
         """
+        # unit, as the on-manifold part's start (an R^4 start off the sphere ran silently)
+        check_unit_quaternions(q[None], name="start orientation")
         q = learned_side(q, self.dmp.orientation.q0) * q
         sign = self._goal_sign
         sign.set_start(self.GetMutableSubsystemContext(sign, context), q)

@@ -473,3 +473,21 @@ def test_dmp_system_options_are_checked_and_named(p):
         add_dmp(DiagramBuilder(), p, name=3)
     with raises("obstacle_avoidance must be True or False, got 'no'"):
         DmpSystem(p, obstacle_avoidance="no")
+
+
+@pytest.mark.parametrize("time_step", [1e-3, None])
+def test_a_component_orientation_start_must_be_unit(grasp_demo, time_step):
+    """Session 35: the component (R^4) part took any 4 numbers as its start and ran off the
+    sphere; the on-manifold part refused them."""
+    from repertoire.planning.dmp_learn import learn_task_space_dmp
+    from repertoire.systems.dmp_compose import DmpSystem
+
+    d = grasp_demo
+    dmp = learn_task_space_dmp(
+        d.t, d.position, d.orientation, d.fingers, orientation_mode="component", n_basis=10
+    )
+    system = DmpSystem(dmp, time_step=time_step)
+    ctx = system.CreateDefaultContext()
+    with raises("start orientation are not unit: | |q| - 1 | = 0.118 at sample 0 (norm 1.11803"):
+        system.set_start(ctx, orientation=[1.0, 0.0, 0.0, 0.5])
+    system.set_start(ctx, orientation=-d.orientation[0])  # either sign of a unit quaternion

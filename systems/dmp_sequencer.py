@@ -27,7 +27,7 @@ In both, v = tau dx/dt of the active segment.
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
-from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp
+from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp, check_unit_quaternions
 from repertoire.planning.dmp_chain import (
     check_handoff,
     check_switch_times,
@@ -143,8 +143,8 @@ class DmpSequencer(LeafSystem):
             if goals is None
             else [check_finite_vector(f"goal {i}", g, n) for i, g in enumerate(goals)]
         )
-        x_start = segments[0].x0 if x_start is None else check_finite_vector("x_start", x_start, n)
         self._q = None if quaternion_at is None else slice(quaternion_at, quaternion_at + 4)
+        x_start = segments[0].x0 if x_start is None else self._check_start(x_start)
         x_start = self._learned_side(0, x_start)[0]
         # the first segment's demonstrated start velocity (v = tau dx/dt), as every DMP system
         v_start = segments[0].initial_scaled_velocity()
@@ -235,7 +235,7 @@ class DmpSequencer(LeafSystem):
                 ``v0`` (zero for a rest-to-rest demonstration).
         """
         first = self._segments[0]
-        x_start = check_finite_vector("x_start", x_start, self._n)
+        x_start = self._check_start(x_start)
         if xd_start is None:
             x, v = self._learned_side(0, x_start)[0], first.initial_scaled_velocity()
         else:
@@ -345,6 +345,17 @@ class DmpSequencer(LeafSystem):
         if self._dt is not None:  # as _update: the step count against the rounded onset
             return int(round(context.get_time() / self._dt)) < self._steps[0]
         return context.get_time() < self._times[0] - 1e-9
+
+    def _check_start(self, x_start: np.ndarray) -> np.ndarray:
+        """``x_start`` as n finite numbers with a unit quaternion block; RepertoireError if not.
+
+        (A chain started off the unit sphere ran silently; the state may leave it later,
+        the component DMP runs in R^4, but the start is an orientation.)
+        """
+        x = check_finite_vector("x_start", x_start, self._n)
+        if self._q is not None:
+            check_unit_quaternions(x[self._q][None], name="x_start's quaternion block")
+        return x
 
     def _learned_side(self, seg: int, *vectors: np.ndarray) -> list[np.ndarray]:
         """``vectors`` with the quaternion block negated if ``vectors[0]``'s is on the far side.

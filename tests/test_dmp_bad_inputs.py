@@ -491,3 +491,22 @@ def test_a_component_orientation_start_must_be_unit(grasp_demo, time_step):
     with raises("start orientation are not unit: | |q| - 1 | = 0.118 at sample 0 (norm 1.11803"):
         system.set_start(ctx, orientation=[1.0, 0.0, 0.0, 0.5])
     system.set_start(ctx, orientation=-d.orientation[0])  # either sign of a unit quaternion
+
+
+def test_a_sequencer_start_needs_a_unit_quaternion_block(p):
+    """Session 35: x_start's quaternion block was any 4 numbers (the chain ran off S^3)."""
+    from repertoire.systems.dmp_sequencer import DmpSequencer
+
+    q = learn_quaternion_dmp(T, QUATS, mode="component", n_basis=20).component_parameters()
+    seg = DmpParameters(
+        np.vstack([p.weights, q.weights]), p.centres, p.widths, 156.25, 25.0, p.alpha, p.tau,
+        np.r_[p.x0, q.x0], np.r_[p.goal, q.goal],
+    )  # fmt: skip
+    bad = np.r_[p.x0, 2.0 * q.x0]
+    message = "x_start's quaternion block are not unit: | |q| - 1 | = 1 at sample 0 (norm 2)"
+    with raises(message):
+        DmpSequencer([seg], [0.0], x_start=bad, quaternion_at=2)
+    seq = DmpSequencer([seg], [0.0], x_start=np.r_[p.x0, -q.x0], quaternion_at=2)
+    with raises(message):
+        seq.set_start(seq.CreateDefaultContext(), bad)
+    DmpSequencer([seg], [0.0], x_start=bad)  # no quaternion block: any numbers

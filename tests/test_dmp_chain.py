@@ -324,6 +324,9 @@ def test_sequencer_quaternion_block_is_post_normalised():
     dmp = _flat_dmp(n=5)
     seq = DmpSequencer([dmp], [0.0], time_step=None, quaternion_at=1, goals=[np.ones(5)])
     ctx = seq.CreateDefaultContext()
-    seq.set_start(ctx, [7.0, 2.0, 0.0, 0.0, 0.0])  # the raw block has norm 2
+    seq.set_start(ctx, [7.0, 1.0, 0.0, 0.0, 0.0])  # a start must be unit (session 35)
+    z = ctx.get_continuous_state_vector().CopyToVector()  # [theta, x - x0, v]
+    z[2] = 1.0  # so the raw block [2, 0, 0, 0] has norm 2
+    ctx.SetContinuousState(z)
     np.testing.assert_array_equal(seq.GetOutputPort("orientation").Eval(ctx), [1, 0, 0, 0])
     np.testing.assert_array_equal(seq.GetOutputPort("angular_velocity").Eval(ctx), [0, 0, 0])

@@ -118,7 +118,9 @@ class DmpSystem(Diagram):
 
     Input ports:
         goal (n).
-        obstacle (n, only with ``obstacle_avoidance=True``; needs n == 2 or 3).
+        obstacle (n, only with ``obstacle_avoidance=True``; needs n == 2 or 3): eq. 10 on
+            the position with the paper's ``v = tau dx/dt`` (the DMP's tau), so the path
+            around the obstacle is the same at any tau.
         obstacle_velocity (n, only with ``obstacle_avoidance=True``, optional): the
             obstacle's velocity; eq. 10's angle is taken to the velocity relative to it
             (unconnected: a static obstacle).

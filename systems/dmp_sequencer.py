@@ -59,7 +59,8 @@ class DmpSequencer(LeafSystem):
         goal_0 ... goal_{m-1} (n each): goal of segment i, read while it is active; when not
             connected, the goal given at construction.
         coupling (``coupling_dofs``, only if > 0): coupling term p (eq. 9) on the first
-            ``coupling_dofs`` DOF (e.g. the position under obstacle coupling, eq. 10).
+            ``coupling_dofs`` DOF (e.g. the position under obstacle coupling, eq. 10, whose
+            ``v`` is the active segment's ``tau dx/dt``).
 
     Output ports:
         position, velocity, acceleration (n): x, dx/dt and d2x/dt2 of the active segment

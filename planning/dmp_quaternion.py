@@ -243,6 +243,29 @@ def angular_velocity(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
     return 2.0 * quat_multiply(qd, quat_conjugate(q))[..., 1:]
 
 
+def post_normalised(raw: np.ndarray, raw_dot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The paper's post-normalisation of a component quaternion DMP (sec. IV-B).
+
+    ``n = q / |q|`` and its time derivative ``n' = (q' - n (n . q')) / |q|`` of the R^4
+    state ``q`` and its rate ``q'``; the angular velocity is then
+    ``angular_velocity(n, n')``. (Written once for every system that normalises.)
+
+    Args:
+        raw: The un-normalised state, shape (4,).
+        raw_dot: Its time derivative, shape (4,).
+
+    Raises:
+        RepertoireError: ``|q| = 0`` (no orientation) or a NaN or inf state.
+    """
+    norm = float(np.linalg.norm(raw))
+    if not 0.0 < norm < math.inf:
+        raise RepertoireError(
+            f"the component quaternion DMP's state {raw} has |q| = {norm}: cannot normalise"
+        )
+    q = raw / norm
+    return q, (raw_dot - q * (q @ raw_dot)) / norm
+
+
 def quaternion_rate(omega: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Time derivative ``qd = (0, omega) * q / 2`` of a unit quaternion turning at ``omega``.
 

@@ -27,11 +27,12 @@ from repertoire.planning.dmp_math import (
 )
 from repertoire.planning.dmp_obstacle import check_gains, obstacle_coupling
 from repertoire.planning.dmp_quaternion import (
+    angular_velocity,
     check_turn,
     lift_quaternion_goal,
     manifold_step,
+    post_normalised,
     quat_log_error,
-    quat_multiply,
 )
 
 from repertoire.errors import RepertoireError
@@ -502,21 +503,16 @@ class QuaternionNormalizer(LeafSystem):
     def get_angular_velocity_output_port(self):
         return self._omega
 
-    def _normalised(self, context: Context) -> tuple[np.ndarray, float]:
+    def _normalised(self, context: Context, rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         q = check_finite_input("quaternion", self._in.Eval(context))
-        n = float(np.linalg.norm(q))
-        if not n > 0.0:
-            raise RepertoireError("component quaternion DMP reached |q| = 0; cannot normalise")
-        return q / n, n
+        return post_normalised(q, rate)
 
     def _calc(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._normalised(context)[0])
+        output.SetFromVector(self._normalised(context, np.zeros(4))[0])
 
     def _calc_omega(self, context: Context, output: BasicVector) -> None:
-        u, n = self._normalised(context)
-        qd = self._rate.Eval(context)
-        ud = (qd - u * (u @ qd)) / n
-        output.SetFromVector(2.0 * quat_multiply(ud, np.array([u[0], -u[1], -u[2], -u[3]]))[1:])
+        u, ud = self._normalised(context, self._rate.Eval(context))
+        output.SetFromVector(angular_velocity(u, ud))
 
     def _calc_err(self, context: Context, output: BasicVector) -> None:
         output.SetAtIndex(0, float(np.linalg.norm(self._in.Eval(context)) - 1.0))

@@ -45,6 +45,7 @@ from repertoire.planning.dmp_quaternion import (
     angular_velocity,
     learned_side,
     lift_quaternion_goal,
+    post_normalised,
 )
 from repertoire.systems.dmp import check_finite_input, check_unit_goal, goal_input
 
@@ -277,10 +278,7 @@ class DmpSequencer(LeafSystem):
 
     def _quaternion(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
         """Post-normalised quaternion and its time derivative."""
-        raw, raw_dot = self._x(context)[self._q], self._xd(context)[self._q]
-        norm = np.linalg.norm(raw)
-        q = raw / norm
-        return q, (raw_dot - q * (q @ raw_dot)) / norm
+        return post_normalised(self._x(context)[self._q], self._xd(context)[self._q])
 
     def _goal(self, context: Context, seg: int, x0: np.ndarray) -> np.ndarray:
         port = self._goal_ports[seg]

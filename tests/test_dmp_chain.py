@@ -330,3 +330,35 @@ def test_sequencer_quaternion_block_is_post_normalised():
     ctx.SetContinuousState(z)
     np.testing.assert_array_equal(seq.GetOutputPort("orientation").Eval(ctx), [1, 0, 0, 0])
     np.testing.assert_array_equal(seq.GetOutputPort("angular_velocity").Eval(ctx), [0, 0, 0])
+
+
+def test_post_normalisation_is_written_once_and_refuses_a_zero_state():
+    """The sequencer's quaternion block and QuaternionNormalizer share post_normalised.
+
+    Closed form: q = (2, 0, 0, 0) turning about z at 3 rad/s in R^4 (q' = (0, 0, 0, 3)):
+    n = (1, 0, 0, 0), n' = (0, 0, 0, 1.5), omega = (0, 0, 3). A zero block (no orientation)
+    gave the sequencer NaN outputs; both now refuse it.
+    """
+    from repertoire.planning.dmp_quaternion import angular_velocity, post_normalised
+    from repertoire.systems.dmp import QuaternionNormalizer
+
+    q, qd = post_normalised(np.array([2.0, 0, 0, 0]), np.array([0.0, 0, 0, 3.0]))
+    np.testing.assert_array_equal(q, [1, 0, 0, 0])
+    np.testing.assert_array_equal(qd, [0, 0, 0, 1.5])
+    np.testing.assert_array_equal(angular_velocity(q, qd), [0, 0, 3])
+    qn = QuaternionNormalizer()
+    ctx = qn.CreateDefaultContext()
+    qn.get_quaternion_input_port().FixValue(ctx, [2.0, 0, 0, 0])
+    qn.get_quaternion_rate_input_port().FixValue(ctx, [0.0, 0, 0, 3.0])
+    np.testing.assert_array_equal(qn.get_angular_velocity_output_port().Eval(ctx), [0, 0, 3])
+    qn.get_quaternion_input_port().FixValue(ctx, np.zeros(4))
+    with pytest.raises(RepertoireError, match=r"state \[0. 0. 0. 0.\] has \|q\| = 0.0"):
+        qn.get_orientation_output_port().Eval(ctx)
+    seq = DmpSequencer([_flat_dmp(n=5)], [0.0], time_step=None, quaternion_at=1)
+    ctx = seq.CreateDefaultContext()
+    seq.set_start(ctx, [7.0, 1.0, 0.0, 0.0, 0.0])
+    z = ctx.get_continuous_state_vector().CopyToVector()  # [theta, x - x0, v]
+    z[2] = -1.0  # the raw block is 0
+    ctx.SetContinuousState(z)
+    with pytest.raises(RepertoireError, match=r"has \|q\| = 0.0: cannot normalise"):
+        seq.GetOutputPort("orientation").Eval(ctx)

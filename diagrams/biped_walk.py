@@ -61,6 +61,14 @@ WALK_GAINS = LegGains(
 )
 
 
+#: The planner's deterministic node budget on a ``map_seed`` floor (and the
+#: ``footstep_execution`` study's): the learned table's 49 history classes multiply the
+#: lattice's states, and 60k (before session 35) left 16 of 60 unseen 2 m floors and 1 of
+#: 60 3 m floors partial, 11 and 1 of them planned whole within 0.15-1.8 s (a million
+#: expansions take about 2-4 s of the 10 s time limit).
+PLAN_EXPANSIONS = 1_000_000
+
+
 @dataclasses.dataclass
 class BipedWalkScenario:
     """The biped executing footstep commands on flat ground.
@@ -72,6 +80,8 @@ class BipedWalkScenario:
     Attributes:
         map_seed: seed of the random static floor to plan on (-1: use ``actions``).
         map_size: side of that floor [m].
+        plan_expansions: the planner's node budget there (a partial plan when it runs
+            out: ``plan_complete`` 0); the time limit is 10 s.
         actions: commanded actions, one per step (names from the footstep ACTIONS).
         start: ``[x, y, yaw]`` of the midpoint between the soles at the start.
         first_stance: ``left`` or ``right``: the foot that stands during the first step.
@@ -90,6 +100,7 @@ class BipedWalkScenario:
 
     map_seed: int = 0
     map_size: float = 3.0
+    plan_expansions: int = PLAN_EXPANSIONS
     actions: list[str] = dataclasses.field(
         default_factory=lambda: [
             "forward_long",
@@ -139,6 +150,10 @@ class BipedWalkScenario:
                         f"{name} {getattr(self, name)} would be ignored: the steps come from "
                         f"{source}; set map_seed: -1 and plan_file: '' to walk the actions"
                     )
+        if not (is_whole(self.plan_expansions) and self.plan_expansions >= 1):
+            raise ScenarioError(
+                f"plan_expansions must be an integer >= 1, got {self.plan_expansions!r}"
+            )
         if self.map_seed >= 0 and not (np.isfinite(self.map_size) and self.map_size >= 1.5):
             raise ScenarioError(f"map_size must be >= 1.5 m, got {self.map_size}")
         if self.map_seed >= 0:
@@ -237,7 +252,7 @@ def _scenario_plan(scenario: BipedWalkScenario) -> tuple[FootstepPlan, list[list
             scene.start_foot,
             scene.goal,
             ActionTable.load(LEARNED_TABLE_PATH),
-            PlannerOptions(time_limit=10.0, max_expansions=60000),
+            PlannerOptions(time_limit=10.0, max_expansions=int(scenario.plan_expansions)),
         )
         return plan, [obstacle_cells(scene.grid)]
     from repertoire.planning.footstep.actions import nominal_action_table

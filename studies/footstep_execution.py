@@ -26,7 +26,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-from repertoire.diagrams.biped_walk import execute_plan, landing_errors, validate_walk_fields
+from repertoire.diagrams.biped_walk import (
+    PLAN_EXPANSIONS,
+    execute_plan,
+    landing_errors,
+    validate_walk_fields,
+)
 from repertoire.models.biped import LEARNED_TABLE_PATH
 from repertoire.planning.footstep.actions import ASIMO_LIKE, nominal_action_table
 from repertoire.planning.footstep.footprint import foot_collides_reference
@@ -80,7 +85,7 @@ class FootstepExecutionConfig:
     n_blocks: int = 2
     table_path: str = ""
     compare_nominal: bool = True
-    max_expansions: int = 1_000_000
+    max_expansions: int = PLAN_EXPANSIONS
     time_limit_s: float = 30.0
     heuristic_weight: float = 1.5
     time_step: float = 2e-3

@@ -270,20 +270,34 @@ def test_bad_input():
         load_scenario(BipedWalkScenario, data="plan_file: /nonexistent/plan.json\n")
     with pytest.raises(ScenarioError, match="pelvis_height"):
         load_scenario(BipedWalkScenario, data="pelvis_height: 0.9\n")
+    for bad in (0, -3):
+        with pytest.raises(
+            ScenarioError, match=f"plan_expansions must be an integer >= 1, got {bad}"
+        ):
+            load_scenario(BipedWalkScenario, data=f"plan_expansions: {bad}\n")
+    with pytest.raises(ScenarioError, match="'plan_expansions' expects a whole number"):
+        load_scenario(BipedWalkScenario, data="plan_expansions: 1.5\n")
     with pytest.raises(ScenarioError, match="first_stance"):
         BipedWalkScenario(first_stance="middle").validate()
 
 
 def test_check_figures_say_whether_the_plan_is_complete():
-    # map_seed 2 on a 2 m floor: the planner hits its 60000-node limit and the biped
+    # map_seed 2 on a 2 m floor with a 60000-node budget: the planner hits it and the biped
     # walks the best partial plan (15 steps, 1.09 m of heuristic cost left); the figures
-    # said nothing about it before.
+    # said nothing about it before. That was the scenario's budget before session 35: the
+    # default one (a million) plans it whole (17 steps, 67412 expansions).
     figures = {}
-    for name, yaml in (("partial", "map_seed: 2\nmap_size: 2.0\n"), ("actions", "map_seed: -1\n")):
+    for name, yaml in (
+        ("partial", "map_seed: 2\nmap_size: 2.0\nplan_expansions: 60000\n"),
+        ("whole", "map_seed: 2\nmap_size: 2.0\n"),
+        ("actions", "map_seed: -1\n"),
+    ):
         diagram = build_biped_walk(load_scenario(BipedWalkScenario, data=yaml))
         figures[name] = check_biped_walk(diagram, diagram.CreateDefaultContext())
     assert figures["partial"]["plan_complete"] == 0.0
     assert figures["partial"]["steps_planned"] == 15.0
+    assert figures["whole"]["plan_complete"] == 1.0
+    assert figures["whole"]["steps_planned"] == 17.0
     assert figures["actions"]["plan_complete"] == 1.0
     assert figures["actions"]["steps_planned"] == len(BipedWalkScenario().actions)
 

@@ -15,7 +15,7 @@ is returned with its status.
 import dataclasses
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Collection, Iterator, Sequence
 
 import numpy as np
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
@@ -52,6 +52,7 @@ __all__ = [
     "history_classes",
     "plan_footsteps",
     "plan_footsteps_anytime",
+    "plan_state",
 ]
 
 BACKENDS = ("auto", "compiled", "python")
@@ -235,6 +236,8 @@ def plan_footsteps(
     goal: Sequence[float],
     table: ActionTable,
     options: PlannerOptions | None = None,
+    *,
+    dead_ends: Collection[tuple] = (),
     **kwargs,
 ) -> FootstepPlan:
     """Plan footsteps from a stance pose to a goal point (Algorithm 1 with a time limit).
@@ -251,6 +254,9 @@ def plan_footsteps(
         goal: ``(x, y)`` of the goal point (a third value, yaw, is ignored).
         table: the displacement table T (with durations and step costs).
         options: planner options (defaults: :class:`PlannerOptions`).
+        dead_ends: search states (:func:`plan_state`) known to have no plan to the goal: the
+            search never enters them (a receding-horizon planner's proved traps). Not empty:
+            the python core (the compiled one cannot skip states).
         **kwargs: keyword-only arguments of
             :class:`~repertoire.planning.footstep.biped_model.BipedStepModel`
             (``geometry``, ``initial_swing_pose``, ``start_time``, ``initial_history``,
@@ -263,8 +269,12 @@ def plan_footsteps(
 
     warm_up()  # one-time compilation / cache load, outside the time limit
     opts = _options(options)
+    dead = _dead_ends(dead_ends)
+    if dead:
+        opts = dataclasses.replace(opts, backend="python")
     _build_footprint_masks(world, opts, kwargs)  # one-time per resolution, outside it too
     t_begin = time.perf_counter()
+    kwargs = {**kwargs, "dead_ends": dead}
     plan, merged, model = _plan_once(world, start, start_foot, goal, table, opts, t_begin, kwargs)
     level = 0
     while plan.status is PlanStatus.UNREACHABLE and merged and level < opts.refinements:
@@ -294,12 +304,62 @@ def _plan_once(
 ) -> tuple[FootstepPlan, int, BipedStepModel]:
     """One search at the options' lattice: the plan, the merged-successor count, the model."""
     t_once = time.perf_counter()
+    dead = kwargs.get("dead_ends", frozenset())
+    kwargs = {k: v for k, v in kwargs.items() if k != "dead_ends"}
     model = BipedStepModel(world, start, start_foot, goal, table, opts, **kwargs)
     left = max(opts.time_limit - (time.perf_counter() - t_begin), 1e-9)
     budget = int(opts.max_expansions) if opts.max_expansions > 0 else 2**62
-    result = _search_once(model, _backend(opts, model), opts.heuristic_weight, budget, left)
+    searched = _Avoiding(model, dead) if dead else model
+    result = _search_once(searched, _backend(opts, model), opts.heuristic_weight, budget, left)
     plan = _to_plan(model, result, time.perf_counter() - t_once)
     return plan, result.merged, model
+
+
+def plan_state(plan: FootstepPlan, i: int, table: ActionTable) -> tuple:
+    """The search state ``plan`` stands in after its first ``i`` steps, as ``dead_ends`` names it.
+
+    Every field of the step model's state but its estimate: stance pose, foot, the two last
+    actions (table indices), time and where the swing foot stands.
+
+    Args:
+        plan: a plan.
+        i: steps taken, 0..``plan.num_steps``.
+        table: the table the plan was made with.
+    """
+    if not (is_real(i) and int(i) == i and 0 <= i <= plan.num_steps):
+        raise FootstepError(f"step index must be an integer in [0, {plan.num_steps}], got {i!r}")
+    i = int(i)
+    names = list(plan.initial_history) + list(plan.actions)
+    x, y, yaw = plan.poses[i]
+    swing = plan.poses[i - 1] if i else plan.initial_swing_pose
+    a2, a1 = (table.index(a) for a in names[i : i + 2])
+    return (x, y, yaw, int(plan.feet[i]), a2, a1, plan.times[i], swing[0], swing[1])
+
+
+def _dead_ends(dead_ends: Collection[tuple]) -> frozenset:
+    """``dead_ends`` as a set, each a state of :func:`plan_state`'s form (checked)."""
+    if isinstance(dead_ends, (str, bytes)) or not isinstance(dead_ends, Collection):
+        raise FootstepError(f"dead_ends must be a collection of states, got {dead_ends!r}")
+    for d in dead_ends:
+        if not (isinstance(d, tuple) and len(d) == len(BipedState._fields) - 1):
+            raise FootstepError(
+                f"a dead end must be a state of plan_state's form (9 values), got {d!r}"
+            )
+    return frozenset(dead_ends)
+
+
+class _Avoiding:
+    """The step model whose successors skip known dead ends (its search never enters them)."""
+
+    def __init__(self, model: BipedStepModel, dead: frozenset) -> None:
+        self.model, self.dead, self.start, self.key = model, dead, model.start, model.key
+        self.is_goal, self.heuristic = model.is_goal, model.heuristic
+
+    def successors(self, s: BipedState, dominated=None) -> Iterator[tuple[BipedState, float]]:
+        """The model's successors of ``s`` but the dead ends (``dominated`` passed on)."""
+        for nxt, cost in self.model.successors(s, dominated):
+            if nxt[:-1] not in self.dead:  # every field but the estimate h
+                yield nxt, cost
 
 
 def _to_plan(model: BipedStepModel, result: SearchResult, seconds: float) -> FootstepPlan:

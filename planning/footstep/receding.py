@@ -7,7 +7,12 @@ commits the first ``execute_steps`` steps of the (possibly partial) plan, and co
 from there with the right stance foot, swing foot, action history and time. A partial
 plan may end where no step is possible any more (in a dynamic world, an obstacle about to
 cover the feet); when the next round proves the end of the committed steps such a trap
-(UNREACHABLE from there), a shorter prefix is committed instead.
+(UNREACHABLE from there), a shorter prefix is committed instead, and the trap is a dead end
+that no later round's search enters (:func:`~repertoire.planning.footstep.planner.plan_state`,
+``dead_ends``). When even the first step ends in a proved trap, nothing is committed and the
+round is planned again from the same state around the traps. A trap whose proof needs more
+than a round's budget can still be committed: a round that then proves the state it starts
+from cut off ends the plan UNREACHABLE, naming that state.
 """
 
 import dataclasses
@@ -16,7 +21,12 @@ from collections.abc import Sequence
 
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
-from repertoire.planning.footstep.planner import PlannerOptions, _options, plan_footsteps
+from repertoire.planning.footstep.planner import (
+    PlannerOptions,
+    _options,
+    plan_footsteps,
+    plan_state,
+)
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -39,8 +49,9 @@ class RecedingResult:
             sums over the rounds; its ``reason`` the last round's (an UNREACHABLE of a
             later round says from which committed state: the start itself was not proved
             cut off).
-        rounds: planner calls made (also those of prefixes found to end in a trap).
-        statuses: status of every round's plan.
+        rounds: planner calls made (also those of prefixes found to end in a trap and
+            those planned again around a trap).
+        statuses: status of every planner call, in order.
     """
 
     plan: FootstepPlan
@@ -72,7 +83,8 @@ def plan_receding_horizon(
         options: planner options of every round (its time limit is the per-round budget);
             None: the defaults, as in :func:`plan_footsteps`.
         execute_steps: steps committed per round (a successful plan is committed whole;
-            fewer when the next round proves their end a trap, down to one step).
+            fewer when the next round proves their end a trap, down to none: then the
+            round is planned again around the proved traps).
         max_rounds: give up after this many rounds.
         geometry: robot geometry.
         start_time: time of the start state (s).
@@ -84,32 +96,34 @@ def plan_receding_horizon(
     plan = plan_footsteps(
         world, start, start_foot, goal, table, options, geometry=geometry, start_time=start_time
     )
-    statuses = [plan.status.value]
+    calls = [plan]  # every planner call (its nodes and time count, committed or not)
     poses, feet, times = [plan.poses[0]], [plan.feet[0]], [plan.times[0]]
     actions: list[str] = []
     swing0, history0 = plan.initial_swing_pose, plan.initial_history
-    expanded, generated, wall = 0, 0, 0.0
-    rounds = 1
-    first = True  # the plan in hand is the first round's (from the caller's start)
+    first = True  # the plan in hand is from the caller's start
+    dead: set[tuple] = set()  # states proved to have no plan: no round's search enters them
+
+    def again(j: int) -> FootstepPlan:  # the round after the first j steps of ``plan``
+        calls.append(_next_round(plan, j, world, goal, table, options, geometry, dead))
+        return calls[-1]
+
     while True:
-        expanded += plan.nodes_expanded
-        generated += plan.nodes_generated
-        wall += plan.planning_time_s
         k = plan.num_steps if plan.succeeded else min(execute_steps, plan.num_steps)
+        if plan.status is PlanStatus.UNREACHABLE:
+            k = 0  # no step from here reaches the goal: nothing more is committed
         nxt = None
-        if not (plan.succeeded or k == 0 or rounds >= max_rounds):
+        if not (plan.succeeded or k == 0 or len(calls) >= max_rounds):
             # commit the longest prefix (up to k steps) whose end the next round does not
             # prove a trap: a partial plan may end where no step is possible any more (an
-            # obstacle about to cover the feet), and committing it walks the robot in there
+            # obstacle about to cover the feet), and committing it walks the robot in there.
+            # A proved trap is never entered again (every later round plans around it)
             for j in range(k, 0, -1):
-                nxt = _next_round(plan, j, world, goal, table, options, geometry)
-                statuses.append(nxt.status.value)
-                rounds += 1
-                if nxt.status is not PlanStatus.UNREACHABLE or j == 1 or rounds >= max_rounds:
+                nxt = again(j)
+                if nxt.status is not PlanStatus.UNREACHABLE or len(calls) >= max_rounds:
                     break
-                expanded += nxt.nodes_expanded  # a round spent on a prefix not committed
-                generated += nxt.nodes_generated
-                wall += nxt.planning_time_s
+                dead.add(plan_state(plan, j, table))
+            else:  # even the first step ends in a proved trap: this round again, from the
+                j, nxt = 0, again(0)  # same state, around the traps (nothing committed)
             k = j
         poses += plan.poses[1 : k + 1]
         feet += plan.feet[1 : k + 1]
@@ -117,7 +131,8 @@ def plan_receding_horizon(
         actions += plan.actions[:k]
         if nxt is None:
             break
-        plan, first = nxt, False
+        plan, first = nxt, first and k == 0
+    rounds, statuses = len(calls), [c.status.value for c in calls]
     if plan.status is PlanStatus.UNREACHABLE and not first:
         # the last round's start is where earlier rounds' partial plans led, not the
         # caller's start: say so (the caller's start was not proved cut off)
@@ -151,9 +166,9 @@ def plan_receding_horizon(
         status=PlanStatus.SUCCESS if plan.succeeded else plan.status,
         cost=float(sum(table.step_cost[table.index(a)] for a in actions)),
         cost_to_go=ctg,
-        nodes_expanded=expanded,
-        nodes_generated=generated,
-        planning_time_s=wall,
+        nodes_expanded=sum(c.nodes_expanded for c in calls),
+        nodes_generated=sum(c.nodes_generated for c in calls),
+        planning_time_s=sum(c.planning_time_s for c in calls),
         initial_swing_pose=list(swing0),
         goal=list(plan.goal),
         goal_tolerance=plan.goal_tolerance,
@@ -171,8 +186,9 @@ def _next_round(
     table: ActionTable,
     options: PlannerOptions,
     geometry: BipedGeometry,
+    dead: set[tuple],
 ) -> FootstepPlan:
-    """The round that starts after committing ``plan``'s first ``k`` (>= 1) steps."""
+    """The round that starts after committing ``plan``'s first ``k`` steps, around ``dead``."""
     return plan_footsteps(
         world,
         plan.poses[k],
@@ -180,8 +196,9 @@ def _next_round(
         goal,
         table,
         options,
+        dead_ends=dead,
         geometry=geometry,
-        initial_swing_pose=plan.poses[k - 1],
+        initial_swing_pose=plan.poses[k - 1] if k else plan.initial_swing_pose,
         start_time=plan.times[k],
         initial_history=(list(plan.initial_history) + plan.actions)[k : k + 2],
     )

@@ -22,7 +22,7 @@ from repertoire.studies._kitchen_plan import (
     plan_geometry,
     to_chassis_z,
 )
-from repertoire.systems.kitchen_geometry import segment_gaps
+from repertoire.systems.kitchen_geometry import segment_disc_gaps, segment_gaps
 
 from repertoire.errors import RepertoireError
 
@@ -229,18 +229,6 @@ def arm_reach(arm, clearance: float, held: bool) -> tuple[np.ndarray, np.ndarray
     reach = np.hypot(arm[:, 0], arm[:, 1]) + FINGER_REACH + clearance
     z_world = arm[:, 2] - to_chassis_z(0.0)
     return reach, z_world - max(FINGER_HALF[2], CUP_HALF_HEIGHT if held else 0.0)
-
-
-def segment_disc_gaps(a, b, discs) -> np.ndarray:
-    """Distances ``(n, j)`` of the segments ``a -> b`` ((n, 2)) from upright discs' edges.
-
-    Disc rows are ``[cx, cy, radius, ...]``; negative inside.
-    """
-    d = b - a
-    t = np.clip(((discs[:, 0] - a[:, :1]) * d[:, :1] + (discs[:, 1] - a[:, 1:]) * d[:, 1:])
-                / np.maximum(d[:, :1] ** 2 + d[:, 1:] ** 2, 1e-300), 0.0, 1.0)  # fmt: skip
-    to_disc = np.hypot(a[:, :1] + t * d[:, :1] - discs[:, 0], a[:, 1:] + t * d[:, 1:] - discs[:, 1])
-    return to_disc - discs[:, 2]
 
 
 def law_drive_hits(a, b, arm, boxes, radius: float, clearance: float, held: bool, discs=None):

@@ -86,6 +86,9 @@ class KitchenPlanConfig:
         arm_clearance: horizontal margin of the arm's, the fingers' and a held cup's
             ways around the furniture and the standing cups (:func:`arm_hits`) [m], at
             least half of ``ARM_SPACING``.
+        arrival_check: check each arm way also from the corners of GoToPose's arrival
+            tolerances around its stand or drop pose (:func:`arm_hits`): the drive stops
+            anywhere within 5 cm and 0.15 rad, and the reach is aimed from there.
         time_step: plant step [s] (the contact grasp holds the cup while driving at
             2 ms, not at 5 ms).
         step_limit: simulated seconds allowed per action [s].
@@ -109,6 +112,7 @@ class KitchenPlanConfig:
     above_offset: float = 0.1
     clearance: float = 0.05
     arm_clearance: float = 0.02
+    arrival_check: bool = True
     time_step: float = 2e-3
     step_limit: float = 25.0
     deliver_tolerance: float = 0.1

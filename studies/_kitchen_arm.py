@@ -156,6 +156,28 @@ def offset_poses(pose, offsets) -> np.ndarray:
     return out
 
 
+def reachable_on_arrival(pose, points) -> np.ndarray:
+    """``(n,)`` True where the arm reaches each world point from every arrival corner.
+
+    ``pose`` (n, 4) stand or drop poses, ``points`` world points ((3,) or (n, 3) each) a
+    reach there aims at; the corners are :func:`arrival_offsets` of GoToPose's
+    tolerances (a reach from where the drive stopped fails at once when its target is out
+    of the joints' ranges).
+    """
+    from repertoire.systems.go_to_pose import GOTO_GAINS
+    from repertoire.systems.kitchen_actions import arm_inverse_rows
+
+    pose = np.atleast_2d(pose)
+    offsets = arrival_offsets(GOTO_GAINS["position_tolerance"], GOTO_GAINS["heading_tolerance"])
+    at = offset_poses(pose, offsets).reshape(-1, 4)
+    ok = np.ones(len(pose), dtype=bool)
+    for point in points:
+        world = np.broadcast_to(np.asarray(point, dtype=float), (len(pose), 3))
+        inside = arm_inverse_rows(_world_in_chassis(at, np.tile(world, (len(offsets), 1))))[1]
+        ok &= inside.reshape(len(offsets), len(pose)).all(axis=0)
+    return ok
+
+
 def arm_hits(
     g: PlanGeometry, cups, k: int, role: str, config: KitchenPlanConfig, ways: dict | None = None
 ) -> np.ndarray:

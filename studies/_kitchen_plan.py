@@ -417,7 +417,9 @@ def _constant_model(value: float):
     return PiecewiseLinearModel([[-np.inf]], [[np.inf]], [[0.0]], [value])
 
 
-def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dict):
+def kitchen_problem(
+    start, cups, targets, config: KitchenPlanConfig, models: dict, *, sweeps: dict | None = None
+):
     """The refinement problem of a kitchen plan: one term per action, in execution order.
 
     Args:
@@ -426,6 +428,11 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         targets: (m, 3) put targets, one per fetched cup.
         config: ranges and settings.
         models: ``{"goto_pose": TreeModel, "reach": TreeModel}`` duration trees.
+        sweeps: a switch ``{"arrival": bool}`` the caller may flip between cost
+            evaluations: whether the arm ways are also checked from the corners of the
+            drive's arrival tolerances (:func:`~repertoire.studies._kitchen_arm.arm_hits`;
+            only with ``config.arrival_check``, which it defaults to). That the arm
+            reaches its targets from every corner is checked either way.
 
     Returns:
         ``(problem, action_names)``.
@@ -456,10 +463,12 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
     last: dict = {}  # the geometry of the last parameter batch (every term of a cost
     # evaluation gets the same batch) and its arm ways per fetch
+    sweeps = {"arrival": config.arrival_check} if sweeps is None else sweeps
+    unswept = dataclasses.replace(config, arrival_check=False)
 
     def geometry(params):
         p = np.atleast_2d(np.asarray(params, dtype=float))
-        key = (p.shape, p.tobytes())
+        key = (p.shape, p.tobytes(), bool(sweeps["arrival"]))
         if last.get("key") != key:
             last.update(key=key, g=plan_geometry(p, cups, targets), ways={},
                         invalid=np.zeros(len(p), dtype=bool))  # fmt: skip
@@ -486,10 +495,11 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         arm_ways,
         drive_ends,
         drive_route,
+        reachable_on_arrival,
     )
 
     def arm_clear(f, g, k, role):  # the features where the arm's way is clear, else NaN
-        hits = arm_hits(g, cups, k, role, config, ways(g, k))
+        hits = arm_hits(g, cups, k, role, config if sweeps["arrival"] else unswept, ways(g, k))
         mark(g, hits < 0)
         return np.where((hits < 0)[:, None], f, np.nan)
 
@@ -526,6 +536,8 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         def goto_stand(params, k=k):  # straight, or via a point around the furniture
             g = geometry(params)
             ok = path_clear(g.stand[:, k], exits[k], KITCHEN_OBSTACLES, radius)
+            if config.arrival_check:  # the cup in reach wherever the drive stops
+                ok &= reachable_on_arrival(g.stand[:, k], (g.cup[k] + up, g.cup[k]))
             return drive_time(g, k, "drive_stand", ok)
 
         add("goto_pose", summed, goto_stand, prev_ids + stand_ids)
@@ -569,7 +581,10 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
         def goto_drop(params, k=k):  # arm and cup held out: straight, or via a point
             g = geometry(params)
-            return drive_time(g, k, "drive_drop", np.ones(g.stand.shape[0], dtype=bool))
+            ok = np.ones(g.stand.shape[0], dtype=bool)
+            if config.arrival_check:  # the target in reach wherever the drive stops
+                ok &= reachable_on_arrival(g.drop[:, k], (g.target[k] + put_up, g.target[k]))
+            return drive_time(g, k, "drive_drop", ok)
 
         add("goto_pose", summed, goto_drop, stand_ids + drop_ids)
 

@@ -17,6 +17,7 @@ from repertoire.systems.kitchen_actions import (
     FINGER_CLOSED,
     FINGER_OPEN,
     Put,
+    arm_inverse_rows,
     chassis_to_world,
     footprint_hits,
 )
@@ -502,3 +503,16 @@ def test_a_reach_is_checked_from_wherever_the_drive_may_stop():
                                                   for n, c in zip(kp.FETCHED, cups)})  # fmt: skip
         results = run_kitchen_sequence([("reach", above)], scenario)[0]
         assert [r.status for r in results] == [status]
+
+
+def test_a_stand_at_the_arms_reach_is_refused_where_a_drive_may_stop_farther():
+    # the demo situation's greedy stand of session 34: the cup 0.80 m out at yaw -1.2;
+    # from the corner 3.5 cm back and 0.15 rad turned it lies 0.853 m out, beyond the
+    # extension's 0.85 m (the reach fails at once there); 0.75 m out it stays in reach
+    config = kp.KitchenPlanConfig()
+    _, cups, _ = kp.sample_situation(config, np.random.default_rng(0))
+    stands = kp.base_pose(cups[0], [2.02, 2.02], [-1.2, -1.2], [0.8, 0.75])
+    up = cups[0] + [0.0, 0.0, config.above_offset]
+    assert ka.reachable_on_arrival(stands, (up, cups[0])).tolist() == [False, True]
+    at = kp._world_in_chassis(stands, cups[0])
+    assert arm_inverse_rows(at)[1].tolist() == [True, True]  # both in reach from the stand

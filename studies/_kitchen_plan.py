@@ -141,6 +141,10 @@ class KitchenPlanConfig:
         }
         for name, within in bounds.items():
             check_range(name, getattr(self, name), within)
+        diagonal = math.hypot(np.diff(self.cup_x_range)[0], np.diff(self.cup_y_range)[0])
+        if diagonal < 0.25:
+            raise RepertoireError(f"cup_x_range x cup_y_range must hold two cups 0.25 m apart; "
+                                  f"its diagonal is {diagonal:.3f} m")  # fmt: skip
         for name in ("above_offset", "clearance", "step_limit", "deliver_tolerance"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -225,15 +229,18 @@ def sample_situation(config: KitchenPlanConfig, rng: np.random.Generator):
     else:
         raise RepertoireError("no free start in x_range x y_range: widen them")
     start = np.array([*xy, rng.uniform(-math.pi, math.pi), 0.0])
-    cups = []
-    for _ in range(2):
+    for _ in range(1000):  # a first cup that leaves the second no room is drawn again
+        first = np.array([rng.uniform(*config.cup_x_range), rng.uniform(*config.cup_y_range)])
         for _ in range(1000):
             p = np.array([rng.uniform(*config.cup_x_range), rng.uniform(*config.cup_y_range)])
-            if all(np.linalg.norm(p - q[:2]) >= 0.25 for q in cups):
+            if np.linalg.norm(p - first) >= 0.25:
                 break
         else:
-            raise RepertoireError("no two cups 0.25 m apart in cup_x_range x cup_y_range")
-        cups.append(np.array([*p, KITCHEN_CUP_POSITIONS["cup_0"][2]]))
+            continue
+        break
+    else:
+        raise RepertoireError("no two cups 0.25 m apart in cup_x_range x cup_y_range")
+    cups = [np.array([*q, KITCHEN_CUP_POSITIONS["cup_0"][2]]) for q in (first, p)]
     cx, cy, yaw, hx, hy, top = KITCHEN_OBSTACLES[2]  # table_1
     taken = [np.array(KITCHEN_CUP_POSITIONS[c][:2]) for c in ("cup_2", "cup_3")]
     targets = []

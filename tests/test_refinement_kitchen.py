@@ -516,3 +516,17 @@ def test_a_stand_at_the_arms_reach_is_refused_where_a_drive_may_stop_farther():
     assert ka.reachable_on_arrival(stands, (up, cups[0])).tolist() == [False, True]
     at = kp._world_in_chassis(stands, cups[0])
     assert arm_inverse_rows(at)[1].tolist() == [True, True]  # both in reach from the stand
+
+
+def test_narrow_cup_ranges_give_every_seed_a_situation():
+    # two cups fit in 0.2 x 0.2 m (diagonal 0.283 m), but a first cup drawn near the middle
+    # left the second no room: 181 of seeds 0-199 raised; now the first is drawn again
+    config = kp.KitchenPlanConfig(cup_x_range=[1.6, 1.8], cup_y_range=[1.0, 1.2])
+    config.validate()
+    for seed in range(20):
+        _, cups, _ = kp.sample_situation(config, np.random.default_rng(seed))
+        assert np.linalg.norm(cups[0, :2] - cups[1, :2]) >= 0.25
+        assert np.all((cups[:, 0] >= 1.6) & (cups[:, 0] <= 1.8))
+        assert np.all((cups[:, 1] >= 1.0) & (cups[:, 1] <= 1.2))
+    with pytest.raises(RepertoireError, match="two cups 0.25 m apart; its diagonal is 0.224 m"):
+        kp.KitchenPlanConfig(cup_x_range=[1.6, 1.7], cup_y_range=[1.0, 1.2]).validate()

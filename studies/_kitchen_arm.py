@@ -22,7 +22,7 @@ from repertoire.studies._kitchen_plan import (
     plan_geometry,
     to_chassis_z,
 )
-from repertoire.systems.kitchen_geometry import segment_gaps
+from repertoire.systems.kitchen_geometry import segment_disc_gaps, segment_gaps
 
 from repertoire.errors import RepertoireError
 
@@ -87,11 +87,14 @@ def arm_start(g: PlanGeometry, k: int, up: float) -> np.ndarray:
 def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
     """The straight joint-space arm ways of fetch ``k`` by role (as :func:`plan_steps` runs them).
 
-    Each is ``(poses (n, 4), from (n, 3), to (n, 3), finger span, holds the cup)``, the
-    points in the chassis frame (a pose's arm joints do not change while the base drives):
-    ``above`` (from the tucked arm or the last retract), ``down`` to the cup, ``lift_up``,
-    ``lift`` to the carry point, ``put_over`` its target, ``put`` (lowering; the fingers
-    then open) and, for ``k`` > 0, ``retract`` out of the cup put before.
+    Each is ``(poses (n, 4), from (n, 3), to (n, 3), finger span, holds the cup, from_world,
+    to_world)``, the points in the chassis frame (a pose's arm joints do not change while
+    the base drives), ``from_world`` / ``to_world`` the world points (n, 3) the executed
+    reach aims an end at (its joints follow the base's actual pose), None for an end the
+    arm keeps in the chassis frame (the tucked arm, the last retract's end, the carry
+    point): ``above`` (from the tucked arm or the last retract), ``down`` to the cup,
+    ``lift_up``, ``lift`` to the carry point, ``put_over`` its target, ``put`` (lowering;
+    the fingers then open) and, for ``k`` > 0, ``retract`` out of the cup put before.
 
     Args:
         g: the plan's geometry (n parameter rows).
@@ -100,6 +103,7 @@ def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
     """
     from repertoire.models.diffdrive.generate import CUP_RADIUS, FINGER_SIZE
     from repertoire.systems.kitchen_actions import FINGER_CLOSED, FINGER_OPEN
+    from repertoire.systems.kitchen_geometry import chassis_points_to_world
 
     rise, put_rise = np.array([0.0, 0.0, up]), np.array([0.0, 0.0, PUT_CLEARANCE])
     stand, drop = g.stand[:, k], g.drop[:, k]
@@ -107,20 +111,71 @@ def arm_ways(g: PlanGeometry, k: int, up: float) -> dict[str, tuple]:
     opened, holding = [[FINGER_OPEN] * 2] * 2, [[held] * 2] * 2
     closing = [[FINGER_CLOSED, held]] * 2  # Put closes the fingers from where they are
     start = arm_start(g, k, up)
-    above, at_cup = _world_in_chassis(stand, g.cup[k] + rise), _world_in_chassis(stand, g.cup[k])
-    over = _world_in_chassis(drop, g.target[k] + put_rise)
+    n = len(stand)
+    cup_w, above_w = (np.broadcast_to(p, (n, 3)) for p in (g.cup[k], g.cup[k] + rise))
+    over_w, target_w = (np.broadcast_to(p, (n, 3)) for p in (g.target[k] + put_rise, g.target[k]))
+    carry_w = chassis_points_to_world(stand, g.carry[:, k])  # the lift's reach aims there
+    above, at_cup = _world_in_chassis(stand, above_w), _world_in_chassis(stand, cup_w)
+    over = _world_in_chassis(drop, over_w)
     ways = {
-        "above": (stand, start, above, opened, False),
-        "down": (stand, above, at_cup, opened, False),
-        "lift_up": (stand, at_cup, above, holding, True),
-        "lift": (stand, above, g.carry[:, k], holding, True),
-        "put_over": (drop, g.carry[:, k], over, holding, True),
-        "put": (drop, over, _world_in_chassis(drop, g.target[k]), closing, True),
+        "above": (stand, start, above, opened, False, None, above_w),
+        "down": (stand, above, at_cup, opened, False, above_w, cup_w),
+        "lift_up": (stand, at_cup, above, holding, True, cup_w, above_w),
+        "lift": (stand, above, g.carry[:, k], holding, True, above_w, carry_w),
+        "put_over": (drop, g.carry[:, k], over, holding, True, None, over_w),
+        "put": (drop, over, _world_in_chassis(drop, target_w), closing, True, over_w, target_w),
     }
     if k:
-        put = _world_in_chassis(g.drop[:, k - 1], g.target[k - 1])
-        ways["retract"] = (g.drop[:, k - 1], put, put + rise, opened, False)
+        put_w = np.broadcast_to(g.target[k - 1], (n, 3))
+        put = _world_in_chassis(g.drop[:, k - 1], put_w)
+        ways["retract"] = (g.drop[:, k - 1], put, put + rise, opened, False, put_w, put_w + rise)
     return ways
+
+
+def arrival_offsets(position_tolerance: float, heading_tolerance: float) -> np.ndarray:
+    """``(8, 3)`` offsets ``[dx, dy, dphi]`` (chassis frame) where GoToPose may stop.
+
+    The corners of the largest box inscribed in its arrival set (within
+    ``position_tolerance`` of the goal, ``heading_tolerance`` of its heading): ``dx, dy =
+    +-position_tolerance / sqrt(2)``, ``dphi = +-heading_tolerance``.
+    """
+    a = position_tolerance / np.sqrt(2.0)
+    signs = [(sx, sy, sp) for sx in (1.0, -1.0) for sy in (1.0, -1.0) for sp in (1.0, -1.0)]
+    return np.array(signs) * [a, a, heading_tolerance]
+
+
+def offset_poses(pose, offsets) -> np.ndarray:
+    """``(m, n, 4)``: the poses ``pose`` (n, 4) moved by each chassis-frame offset (m, 3)."""
+    pose, offsets = np.atleast_2d(pose), np.atleast_2d(offsets)
+    c, s = np.cos(pose[:, 2]), np.sin(pose[:, 2])
+    dx, dy, dphi = (offsets[:, i : i + 1] for i in range(3))
+    out = np.repeat(pose[None], len(offsets), axis=0)
+    out[..., 0] += c * dx - s * dy
+    out[..., 1] += s * dx + c * dy
+    out[..., 2] += dphi
+    return out
+
+
+def reachable_on_arrival(pose, points) -> np.ndarray:
+    """``(n,)`` True where the arm reaches each world point from every arrival corner.
+
+    ``pose`` (n, 4) stand or drop poses, ``points`` world points ((3,) or (n, 3) each) a
+    reach there aims at; the corners are :func:`arrival_offsets` of GoToPose's
+    tolerances (a reach from where the drive stopped fails at once when its target is out
+    of the joints' ranges).
+    """
+    from repertoire.systems.go_to_pose import GOTO_GAINS
+    from repertoire.systems.kitchen_actions import arm_inverse_rows
+
+    pose = np.atleast_2d(pose)
+    offsets = arrival_offsets(GOTO_GAINS["position_tolerance"], GOTO_GAINS["heading_tolerance"])
+    at = offset_poses(pose, offsets).reshape(-1, 4)
+    ok = np.ones(len(pose), dtype=bool)
+    for point in points:
+        world = np.broadcast_to(np.asarray(point, dtype=float), (len(pose), 3))
+        inside = arm_inverse_rows(_world_in_chassis(at, np.tile(world, (len(offsets), 1))))[1]
+        ok &= inside.reshape(len(offsets), len(pose)).all(axis=0)
+    return ok
 
 
 def arm_hits(
@@ -133,14 +188,17 @@ def arm_hits(
     ``arm_clearance`` (cup ``k`` too on the way ``above`` it, and the fingers alone
     against the cup the way ``down`` ends in or the ``retract`` starts in, as the
     executed reach sees them), sampled every ``ARM_SPACING``; a ``put`` also opens the
-    fingers at its target.
+    fingers at its target. With ``config.arrival_check`` a way clear from its stand or
+    drop pose is checked again from each of :func:`arrival_offsets` (GoToPose stops
+    anywhere within its tolerances; the executed reach aims its world ends from there:
+    ``from_world``, ``to_world`` of :func:`arm_ways`), and counts only if clear from all.
 
     Args:
         g: the plan's geometry (n parameter rows).
         cups: (2, 3) centres of both cups on their places.
         k: the fetch.
         role: a role of :func:`arm_ways`.
-        config: ``above_offset`` and ``arm_clearance``.
+        config: ``above_offset``, ``arm_clearance`` and ``arrival_check``.
         ways: ``arm_ways(g, k, config.above_offset)`` if already at hand.
 
     Returns:
@@ -150,6 +208,7 @@ def arm_hits(
     """
     from repertoire.diagrams.kitchen import ARM_TRACKING
     from repertoire.models.diffdrive.generate import CUP_HALF_HEIGHT, CUP_RADIUS
+    from repertoire.systems.go_to_pose import GOTO_GAINS
     from repertoire.systems.kitchen_actions import (
         FINGER_CLOSED,
         FINGER_OPEN,
@@ -161,10 +220,9 @@ def arm_hits(
     ways = arm_ways(g, k, config.above_offset) if ways is None else ways
     if role not in ways:
         raise RepertoireError(f"role must be one of {sorted(ways)} for fetch {k}, got {role!r}")
-    pose, a_from, a_to, span, held = ways[role]
+    pose, a_from, a_to, span, held, from_world, to_world = ways[role]
     k_world, own = (k - 1, False) if role == "retract" else (k, role == "above")
     boxes, discs, names = fetch_obstacles(cups, g.target, k_world, config.arm_clearance, own)
-    (q0, ok0), (q1, ok1) = arm_inverse_rows(a_from), arm_inverse_rows(a_to)
     cup = (CUP_HALF_HEIGHT, CUP_RADIUS) if held else None
     # the cup the open fingers go down to (or up from, the retract): the fingers only,
     # as the executed reach sees it (Reach.standing_cups)
@@ -174,13 +232,36 @@ def arm_hits(
         p = np.asarray(cups if role == "down" else g.target, dtype=float)[j]
         fingers_only = np.array([[p[0], p[1], CUP_RADIUS + config.arm_clearance,
                                   p[2] + CUP_HALF_HEIGHT]])  # fmt: skip
-    # the way the servoed joints take (ARM_TRACKING), as the executed actions check it
-    hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING, discs, fingers_only,
-                       ARM_TRACKING)  # fmt: skip
-    if role == "put":
-        release = fingers_in_boxes(pose, q1, [[FINGER_CLOSED, FINGER_OPEN]] * 2, boxes, 0.0, discs)
-        hit = np.where(hit < 0, release, hit)
-    return np.where(ok0 & ok1, hit, len(names) + 1)
+
+    def check(pose, a_from, a_to):
+        (q0, ok0), (q1, ok1) = arm_inverse_rows(a_from), arm_inverse_rows(a_to)
+        # the way the servoed joints take (ARM_TRACKING), as the executed actions check it
+        hit = arm_way_hits(pose, q0, q1, span, boxes, 0.0, cup, ARM_SPACING, discs,
+                           fingers_only, ARM_TRACKING)  # fmt: skip
+        if role == "put":
+            opening = [[FINGER_CLOSED, FINGER_OPEN]] * 2
+            release = fingers_in_boxes(pose, q1, opening, boxes, 0.0, discs)
+            hit = np.where(hit < 0, release, hit)
+        return np.where(ok0 & ok1, hit, len(names) + 1)
+
+    hit = check(pose, a_from, a_to)
+    rows = np.flatnonzero(hit < 0)
+    if not config.arrival_check or rows.size == 0:
+        return hit
+    offsets = arrival_offsets(GOTO_GAINS["position_tolerance"], GOTO_GAINS["heading_tolerance"])
+    m = len(offsets)
+    at = offset_poses(pose[rows], offsets).reshape(-1, 4)  # (m * rows, 4), offset-major
+    ends = []
+    for chassis, world in ((a_from, from_world), (a_to, to_world)):
+        if world is None:  # kept in the chassis frame
+            ends.append(np.tile(chassis[rows], (m, 1)))
+        else:
+            ends.append(_world_in_chassis(at, np.tile(world[rows], (m, 1))))
+    moved = check(at, *ends).reshape(m, rows.size)
+    entered = moved >= 0
+    first = moved[np.argmax(entered, axis=0), np.arange(rows.size)]  # the first offset's
+    hit[rows] = np.where(entered.any(axis=0), first, -1)
+    return hit
 
 
 def arm_drive_hits(a, b, arm, boxes, clearance: float, held: bool, discs=None) -> np.ndarray:
@@ -229,18 +310,6 @@ def arm_reach(arm, clearance: float, held: bool) -> tuple[np.ndarray, np.ndarray
     reach = np.hypot(arm[:, 0], arm[:, 1]) + FINGER_REACH + clearance
     z_world = arm[:, 2] - to_chassis_z(0.0)
     return reach, z_world - max(FINGER_HALF[2], CUP_HALF_HEIGHT if held else 0.0)
-
-
-def segment_disc_gaps(a, b, discs) -> np.ndarray:
-    """Distances ``(n, j)`` of the segments ``a -> b`` ((n, 2)) from upright discs' edges.
-
-    Disc rows are ``[cx, cy, radius, ...]``; negative inside.
-    """
-    d = b - a
-    t = np.clip(((discs[:, 0] - a[:, :1]) * d[:, :1] + (discs[:, 1] - a[:, 1:]) * d[:, 1:])
-                / np.maximum(d[:, :1] ** 2 + d[:, 1:] ** 2, 1e-300), 0.0, 1.0)  # fmt: skip
-    to_disc = np.hypot(a[:, :1] + t * d[:, :1] - discs[:, 0], a[:, 1:] + t * d[:, 1:] - discs[:, 1])
-    return to_disc - discs[:, 2]
 
 
 def law_drive_hits(a, b, arm, boxes, radius: float, clearance: float, held: bool, discs=None):

@@ -86,6 +86,9 @@ class KitchenPlanConfig:
         arm_clearance: horizontal margin of the arm's, the fingers' and a held cup's
             ways around the furniture and the standing cups (:func:`arm_hits`) [m], at
             least half of ``ARM_SPACING``.
+        arrival_check: check each arm way also from the corners of GoToPose's arrival
+            tolerances around its stand or drop pose (:func:`arm_hits`): the drive stops
+            anywhere within 5 cm and 0.15 rad, and the reach is aimed from there.
         time_step: plant step [s] (the contact grasp holds the cup while driving at
             2 ms, not at 5 ms).
         step_limit: simulated seconds allowed per action [s].
@@ -109,6 +112,7 @@ class KitchenPlanConfig:
     above_offset: float = 0.1
     clearance: float = 0.05
     arm_clearance: float = 0.02
+    arrival_check: bool = True
     time_step: float = 2e-3
     step_limit: float = 25.0
     deliver_tolerance: float = 0.1
@@ -137,6 +141,10 @@ class KitchenPlanConfig:
         }
         for name, within in bounds.items():
             check_range(name, getattr(self, name), within)
+        diagonal = math.hypot(np.diff(self.cup_x_range)[0], np.diff(self.cup_y_range)[0])
+        if diagonal < 0.25:
+            raise RepertoireError(f"cup_x_range x cup_y_range must hold two cups 0.25 m apart; "
+                                  f"its diagonal is {diagonal:.3f} m")  # fmt: skip
         for name in ("above_offset", "clearance", "step_limit", "deliver_tolerance"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
@@ -221,15 +229,18 @@ def sample_situation(config: KitchenPlanConfig, rng: np.random.Generator):
     else:
         raise RepertoireError("no free start in x_range x y_range: widen them")
     start = np.array([*xy, rng.uniform(-math.pi, math.pi), 0.0])
-    cups = []
-    for _ in range(2):
+    for _ in range(1000):  # a first cup that leaves the second no room is drawn again
+        first = np.array([rng.uniform(*config.cup_x_range), rng.uniform(*config.cup_y_range)])
         for _ in range(1000):
             p = np.array([rng.uniform(*config.cup_x_range), rng.uniform(*config.cup_y_range)])
-            if all(np.linalg.norm(p - q[:2]) >= 0.25 for q in cups):
+            if np.linalg.norm(p - first) >= 0.25:
                 break
         else:
-            raise RepertoireError("no two cups 0.25 m apart in cup_x_range x cup_y_range")
-        cups.append(np.array([*p, KITCHEN_CUP_POSITIONS["cup_0"][2]]))
+            continue
+        break
+    else:
+        raise RepertoireError("no two cups 0.25 m apart in cup_x_range x cup_y_range")
+    cups = [np.array([*q, KITCHEN_CUP_POSITIONS["cup_0"][2]]) for q in (first, p)]
     cx, cy, yaw, hx, hy, top = KITCHEN_OBSTACLES[2]  # table_1
     taken = [np.array(KITCHEN_CUP_POSITIONS[c][:2]) for c in ("cup_2", "cup_3")]
     targets = []
@@ -413,7 +424,9 @@ def _constant_model(value: float):
     return PiecewiseLinearModel([[-np.inf]], [[np.inf]], [[0.0]], [value])
 
 
-def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dict):
+def kitchen_problem(
+    start, cups, targets, config: KitchenPlanConfig, models: dict, *, sweeps: dict | None = None
+):
     """The refinement problem of a kitchen plan: one term per action, in execution order.
 
     Args:
@@ -422,6 +435,11 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         targets: (m, 3) put targets, one per fetched cup.
         config: ranges and settings.
         models: ``{"goto_pose": TreeModel, "reach": TreeModel}`` duration trees.
+        sweeps: a switch ``{"arrival": bool}`` the caller may flip between cost
+            evaluations: whether the arm ways are also checked from the corners of the
+            drive's arrival tolerances (:func:`~repertoire.studies._kitchen_arm.arm_hits`;
+            only with ``config.arrival_check``, which it defaults to). That the arm
+            reaches its targets from every corner is checked either way.
 
     Returns:
         ``(problem, action_names)``.
@@ -452,10 +470,12 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
     last: dict = {}  # the geometry of the last parameter batch (every term of a cost
     # evaluation gets the same batch) and its arm ways per fetch
+    sweeps = {"arrival": config.arrival_check} if sweeps is None else sweeps
+    unswept = dataclasses.replace(config, arrival_check=False)
 
     def geometry(params):
         p = np.atleast_2d(np.asarray(params, dtype=float))
-        key = (p.shape, p.tobytes())
+        key = (p.shape, p.tobytes(), bool(sweeps["arrival"]))
         if last.get("key") != key:
             last.update(key=key, g=plan_geometry(p, cups, targets), ways={},
                         invalid=np.zeros(len(p), dtype=bool))  # fmt: skip
@@ -482,10 +502,11 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         arm_ways,
         drive_ends,
         drive_route,
+        reachable_on_arrival,
     )
 
     def arm_clear(f, g, k, role):  # the features where the arm's way is clear, else NaN
-        hits = arm_hits(g, cups, k, role, config, ways(g, k))
+        hits = arm_hits(g, cups, k, role, config if sweeps["arrival"] else unswept, ways(g, k))
         mark(g, hits < 0)
         return np.where((hits < 0)[:, None], f, np.nan)
 
@@ -522,6 +543,8 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
         def goto_stand(params, k=k):  # straight, or via a point around the furniture
             g = geometry(params)
             ok = path_clear(g.stand[:, k], exits[k], KITCHEN_OBSTACLES, radius)
+            if config.arrival_check:  # the cup in reach wherever the drive stops
+                ok &= reachable_on_arrival(g.stand[:, k], (g.cup[k] + up, g.cup[k]))
             return drive_time(g, k, "drive_stand", ok)
 
         add("goto_pose", summed, goto_stand, prev_ids + stand_ids)
@@ -565,7 +588,10 @@ def kitchen_problem(start, cups, targets, config: KitchenPlanConfig, models: dic
 
         def goto_drop(params, k=k):  # arm and cup held out: straight, or via a point
             g = geometry(params)
-            return drive_time(g, k, "drive_drop", np.ones(g.stand.shape[0], dtype=bool))
+            ok = np.ones(g.stand.shape[0], dtype=bool)
+            if config.arrival_check:  # the target in reach wherever the drive stops
+                ok &= reachable_on_arrival(g.drop[:, k], (g.target[k] + put_up, g.target[k]))
+            return drive_time(g, k, "drive_drop", ok)
 
         add("goto_pose", summed, goto_drop, stand_ids + drop_ids)
 

@@ -86,12 +86,36 @@ class RefinementKitchenRecord:
 
 
 def refine_kitchen(config: KitchenPlanConfig, start, cups, targets, horizon: int, seed: int):
-    """The refined free parameters and the predicted plan duration for a horizon."""
+    """The refined free parameters and the predicted plan duration for a horizon.
+
+    With ``config.arrival_check`` each window is searched first without checking the arm
+    ways from the arrival tolerances' corners (8 more sweeps per way), then checked
+    there: if its best plan is clear from them too it is kept (the sweeps only reject
+    plans, so it is also the best of the checked ones the search found), else the window
+    is searched again with them (a lazy constraint). The plan is checked with them at the
+    end in any case (a window without free parameters is not searched).
+    """
+    from repertoire.planning.black_box import solve_de, solve_ga
     from repertoire.planning.refinement import refine_sequence
 
     models = load_kitchen_models(config.models_dir)
-    problem, _ = kitchen_problem(start, cups, targets, config, models)
-    result = refine_sequence(problem, horizon, config.solver, seed=seed)
+    sweeps = {"arrival": config.arrival_check}
+    problem, _ = kitchen_problem(start, cups, targets, config, models, sweeps=sweeps)
+    search = {"ga": solve_ga, "de": solve_de}[config.solver]
+
+    def solve(sub):
+        if not config.arrival_check:
+            return search(sub, seed=seed)
+        sweeps["arrival"] = False
+        try:
+            unswept = search(sub, seed=seed)
+        finally:
+            sweeps["arrival"] = True
+        if not np.isfinite(unswept.cost) or np.isfinite(sub.cost(unswept.params)[0]):
+            return unswept
+        return search(sub, seed=seed)
+
+    result = refine_sequence(problem, horizon, solve)
     return result.params, float(result.cost)
 
 

@@ -23,8 +23,15 @@ V_MAX, OMEGA_MAX, A_MAX, ALPHA_MAX, K_RHO, K_ALPHA, K_BETA, POS_TOL, HEAD_TOL, T
 
 @numba.njit(cache=True)
 def wrap(a: float) -> float:
-    """An angle wrapped to (-pi, pi] (as ``features.wrap_angle``)."""
-    return math.pi - (math.pi - a) % (2.0 * math.pi)
+    """An angle wrapped to (-pi, pi] (as ``features.wrap_angle``).
+
+    ``pi - (pi - a) % 2 pi``; the modulo is skipped where ``pi - a`` already lies in
+    ``[0, 2 pi)`` (there it returns its argument exactly: the same bits, without the call).
+    """
+    t = math.pi - a
+    if 0.0 <= t < 2.0 * math.pi:
+        return math.pi - t
+    return math.pi - t % (2.0 * math.pi)
 
 
 @numba.njit(cache=True)
@@ -187,6 +194,26 @@ def segment_disc_gap(ax, ay, bx, by, disc):
 
 
 @numba.njit(cache=True)
+def segment_box_gaps(a, b, boxes):
+    """:func:`segment_box_gap` of every segment ``a[i] -> b[i]`` ((n, >= 2)) and box: (n, k)."""
+    out = np.empty((a.shape[0], boxes.shape[0]))
+    for i in range(a.shape[0]):
+        for j in range(boxes.shape[0]):
+            out[i, j] = segment_box_gap(a[i, 0], a[i, 1], b[i, 0], b[i, 1], boxes[j])
+    return out
+
+
+@numba.njit(cache=True)
+def segment_disc_gaps(a, b, discs):
+    """:func:`segment_disc_gap` of every segment ``a[i] -> b[i]`` ((n, >= 2)) and disc: (n, j)."""
+    out = np.empty((a.shape[0], discs.shape[0]))
+    for i in range(a.shape[0]):
+        for j in range(discs.shape[0]):
+            out[i, j] = segment_disc_gap(a[i, 0], a[i, 1], b[i, 0], b[i, 1], discs[j])
+    return out
+
+
+@numba.njit(cache=True)
 def _segment_hit(ax, ay, bx, by, run, boxes, cos, sin, discs, limits, radius):
     """The obstacle the segment enters (a box by the footprint first), or -1."""
     first = -1
@@ -218,6 +245,30 @@ def _rect_gap_squared(x, y, box, c, s):
 
 
 @numba.njit(cache=True)
+def _clear_margin(x, y, boxes, cos, sin, discs, limits, radius):
+    """How far the point ``(x, y)`` is from entering any obstacle's limit (or ``radius``).
+
+    The least over the boxes of the distance from the footprint less ``max(radius,
+    limits[j])``, and over the discs (``limits`` not ``-inf``) of the distance from the
+    edge less the limit: a segment from within this distance of the point enters nothing.
+    """
+    margin = np.inf
+    for j in range(boxes.shape[0]):
+        need = max(limits[j], radius)
+        margin = min(margin, math.sqrt(_rect_gap_squared(x, y, boxes[j], cos[j], sin[j])) - need)
+    for j in range(discs.shape[0]):
+        lim = limits[boxes.shape[0] + j]
+        if lim != -np.inf:
+            d = discs[j]
+            margin = min(margin, math.hypot(x - d[0], y - d[1]) - d[2] - lim)
+    return margin
+
+
+#: Rounding allowance [m] of :func:`rollout_hits`' skipped checks.
+SKIP_SLACK = 1e-9
+
+
+@numba.njit(cache=True)
 def rollout_hits(start, target, g, period, last, braking, boxes, discs, limits, radius):
     """Per drive, the first obstacle its stopping runs enter along :func:`rollout`'s path.
 
@@ -227,6 +278,12 @@ def rollout_hits(start, target, g, period, last, braking, boxes, discs, limits, 
     it enters box ``j`` where its distance from the footprint is below ``radius`` (the
     base, tested first) or below ``limits[r, j]`` (e.g. the held arm's reach; ``-inf``:
     never), disc ``j`` below ``limits[r, boxes + j]``.
+
+    The updates that cannot enter anything are not tested (the same result): the base
+    moves at most ``speed period`` an update (``speed`` the larger of ``v_max`` and the
+    start's), and a stopping run is at most ``speed period + speed^2 / (2 a)`` long, so
+    after an update whose position lies ``m`` clear of every obstacle's limit
+    (:func:`_clear_margin`) the next ``(m - run) / (speed period)`` updates are clear.
 
     Args:
         start, target: ``(n, 4)`` as for :func:`rollout`. g, period, last: likewise.
@@ -245,14 +302,25 @@ def rollout_hits(start, target, g, period, last, braking, boxes, discs, limits, 
     for r in range(n):
         s, t = start[r], target[r]
         x, y, phi, v = s[0], s[1], s[2], s[3]
+        speed = max(g[V_MAX], abs(v))
+        step = speed * period  # the most the base moves in an update
+        longest = step + speed * speed / (2.0 * braking[0])  # the longest stopping run
         vc, wc = 0.0, 0.0
+        skip = 0  # updates still known to be clear
         for i in range(last + 1):
-            run = v * period + v * abs(v) / (2.0 * braking[0])
-            hit = _segment_hit(x, y, x + run * math.cos(phi), y + run * math.sin(phi), abs(run),
-                               boxes, cos, sin, discs, limits[r], radius)  # fmt: skip
-            if hit >= 0:
-                hits[r] = hit
-                break
+            if skip > 0:
+                skip -= 1
+            else:
+                run = v * period + v * abs(v) / (2.0 * braking[0])
+                hit = _segment_hit(x, y, x + run * math.cos(phi), y + run * math.sin(phi),
+                                   abs(run), boxes, cos, sin, discs, limits[r], radius)  # fmt: skip
+                if hit >= 0:
+                    hits[r] = hit
+                    break
+                free = _clear_margin(x, y, boxes, cos, sin, discs, limits[r], radius)
+                free -= longest + SKIP_SLACK
+                if free > step:  # (NaN: no skip; no obstacle: +inf)
+                    skip = int(min(free / step, last + 1.0))
             vl, wl, rho, err = law(x, y, phi, t[0], t[1], t[2], t[3], g)
             if arrived(rho, err, v, t[3], g[POS_TOL], g[HEAD_TOL]) or i == last:
                 break

@@ -643,29 +643,31 @@ def segment_gaps(a, b, boxes) -> np.ndarray:
     In a box's frame the distance between a segment and the rectangle is 0 where the
     segment enters it (slab clipping), else the least of the end points' distances to the
     rectangle and the corners' distances to the segment (two convex sets in the plane are
-    nearest at a vertex of one of them). All segments against all boxes at once.
+    nearest at a vertex of one of them). One compiled kernel
+    (:func:`~repertoire.systems.goto_law.segment_box_gap`) serves this and the planner's
+    rollouts of GoToPose's drives.
     """
+    from repertoire.systems.goto_law import segment_box_gaps
+
     a, b = np.broadcast_arrays(np.atleast_2d(a)[:, :2], np.atleast_2d(b)[:, :2])
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    frames = _box_frames(boxes)
-    (ua, wa), (ub, wb) = _in_frames(a, frames), _in_frames(b, frames)
-    gap = np.minimum(_rectangle_gaps(ua, wa, frames), _rectangle_gaps(ub, wb, frames))
-    hx, hy = frames[4], frames[5]
-    du, dw = ub - ua, wb - wa
-    t_in, t_out = np.zeros(gap.shape), np.ones(gap.shape)
-    for pk, dk, half in ((ua, du, hx), (wa, dw, hy)):  # the slab |p_k| <= half, p = pa + t d
-        moving = dk != 0.0
-        step = np.where(moving, dk, 1.0)
-        t1, t2 = (-half - pk) / step, (half - pk) / step
-        inside = np.abs(pk) <= half
-        t_in = np.maximum(t_in, np.where(moving, np.minimum(t1, t2), np.where(inside, 0.0, 2.0)))
-        t_out = np.minimum(t_out, np.where(moving, np.maximum(t1, t2), 1.0))
-    gap = np.where(t_in <= t_out, 0.0, gap)
-    dd = np.maximum(du * du + dw * dw, 1e-300)
-    for cu, cw in ((hx, hy), (hx, -hy), (-hx, hy), (-hx, -hy)):
-        t = np.clip(((cu - ua) * du + (cw - wa) * dw) / dd, 0.0, 1.0)
-        gap = np.minimum(gap, np.hypot(ua + t * du - cu, wa + t * dw - cw))
-    return gap
+    a, b = (np.ascontiguousarray(p, dtype=float) for p in (a, b))
+    boxes = np.ascontiguousarray(np.asarray(boxes, dtype=float).reshape(-1, 6))
+    return segment_box_gaps(a, b, boxes)
+
+
+def segment_disc_gaps(a, b, discs) -> np.ndarray:
+    """Distances ``(n, j)`` of the segments ``a -> b`` ((n, >= 2)) from upright discs' edges.
+
+    Disc rows are ``[cx, cy, radius, ...]``; negative inside (the compiled
+    :func:`~repertoire.systems.goto_law.segment_disc_gap`).
+    """
+    from repertoire.systems.goto_law import segment_disc_gaps as gaps
+
+    a, b = np.broadcast_arrays(np.atleast_2d(a)[:, :2], np.atleast_2d(b)[:, :2])
+    a, b = (np.ascontiguousarray(p, dtype=float) for p in (a, b))
+    d = np.asarray(discs, dtype=float)
+    d = d.reshape(-1, d.shape[-1] if d.ndim == 2 else 4)  # (no discs: (0, 4))
+    return gaps(a, b, np.ascontiguousarray(d))
 
 
 def support_under(p, boxes, radius: float, max_drop: float) -> int:

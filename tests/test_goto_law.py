@@ -5,9 +5,14 @@ import pytest
 from repertoire.diagrams.kitchen import KITCHEN_BRAKING, KITCHEN_OBSTACLES
 from repertoire.systems.action_status import ActionStatus
 from repertoire.systems.go_to_pose import GOTO_GAINS, GoToPose, gains_vector, goto_rollout
-from repertoire.systems.goto_law import rollout_hits, segment_box_gap, segment_disc_gap
+from repertoire.systems.goto_law import (
+    rollout_hits,
+    segment_box_gap,
+    segment_disc_gap,
+    wrap,
+)
 from repertoire.systems.kitchen_drive import stopping_run
-from repertoire.systems.kitchen_geometry import segment_gaps
+from repertoire.systems.kitchen_geometry import box_gaps, segment_disc_gaps, segment_gaps
 
 from repertoire.errors import RepertoireError
 
@@ -82,18 +87,30 @@ def test_rollout_times_out_and_bad_inputs():
         goto_rollout([[0.0, 0.0, 0.0, 0.0]], [[1.0, 0.0, 0.0, 0.0]], GOTO_GAINS, -0.1)
 
 
-def test_segment_gaps_compiled_as_numpy():
+def test_segment_gaps_against_dense_samples():
+    # one compiled kernel serves kitchen_geometry.segment_gaps and the rollouts: checked
+    # against numpy's point-to-rectangle distances (box_gaps) of 4001 points per segment
     rng = np.random.default_rng(3)
     a, b = rng.uniform(-4, 4, (400, 2)), rng.uniform(-4, 4, (400, 2))
     b[:50] = a[:50]  # points
     b[50:80, 1] = a[50:80, 1]  # along the box axes
-    want = segment_gaps(a, b, KITCHEN_OBSTACLES)
-    got = [[segment_box_gap(*p, *q, box) for box in KITCHEN_OBSTACLES] for p, q in zip(a, b)]
-    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
-    assert (want == 0).sum() > 20
+    got = segment_gaps(a, b, KITCHEN_OBSTACLES)
+    s = np.linspace(0.0, 1.0, 4001)
+    for i in range(len(a)):
+        points = a[i] + s[:, None] * (b[i] - a[i])
+        sampled = box_gaps(points, KITCHEN_OBSTACLES).min(axis=0)
+        half_step = 0.5 * np.linalg.norm(b[i] - a[i]) / 4000
+        assert np.all(got[i] <= sampled + 1e-12)  # no sample is nearer than the exact gap
+        assert np.all(got[i] >= sampled - half_step - 1e-12)  # nor farther by more than that
+    assert (got == 0).sum() > 20
+    pair = [[segment_box_gap(*p, *q, box) for box in KITCHEN_OBSTACLES] for p, q in zip(a, b)]
+    np.testing.assert_array_equal(pair, got)
     disc = np.array([0.5, -0.2, 0.04])
     assert segment_disc_gap(0.0, 0.0, 1.0, 0.0, disc) == pytest.approx(0.16, abs=1e-15)
     assert segment_disc_gap(-1.0, -0.2, -0.5, -0.2, disc) == pytest.approx(0.96, abs=1e-15)
+    gaps = segment_disc_gaps([[0.0, 0.0], [-1.0, -0.2]], [[1.0, 0.0], [-0.5, -0.2]], [disc])
+    np.testing.assert_allclose(gaps, [[0.16], [0.96]], rtol=0, atol=1e-15)
+    assert segment_disc_gaps([[0.0, 0.0]], [[1.0, 0.0]], np.zeros((0, 4))).shape == (1, 0)
 
 
 def test_rollout_hits_is_the_rollouts_stopping_runs_against_the_boxes():
@@ -138,3 +155,13 @@ def test_rollout_hits_is_the_rollouts_stopping_runs_against_the_boxes():
                        KITCHEN_OBSTACLES, discs, limits, radius)  # fmt: skip
     assert got.tolist() == want
     assert {-1, 1, 7} <= set(want)  # clear rows, table_0 and the disc
+
+
+def test_wrap_is_the_modulo_bit_for_bit():
+    # the modulo is skipped inside [0, 2 pi): the same bits as pi - (pi - a) % 2 pi
+    rng = np.random.default_rng(11)
+    near_pi = [np.nextafter(np.pi, 0), np.nextafter(-np.pi, 0), np.nextafter(-np.pi, -4)]
+    edges = [0.0, -0.0, np.pi, -np.pi, 2 * np.pi, -2 * np.pi, 3 * np.pi, *near_pi, 1e-300, 40.0]
+    for a in [*edges, *rng.uniform(-10, 10, 2000), *rng.normal(0, 1e-3, 200)]:
+        want = np.pi - (np.pi - a) % (2.0 * np.pi)
+        assert np.float64(wrap(a)).tobytes() == np.float64(want).tobytes(), a

@@ -17,6 +17,7 @@ from repertoire.systems.kitchen_actions import (
     FINGER_CLOSED,
     FINGER_OPEN,
     Put,
+    arm_inverse_rows,
     chassis_to_world,
     footprint_hits,
 )
@@ -248,8 +249,14 @@ def test_arm_ways_end_where_the_executed_steps_aim():
         # the drives' arm (drive_hits) is the first way's start, without building the ways
         np.testing.assert_array_equal(ka.arm_start(g, k, config.above_offset), ways["above"][1])
         for role, step in roles:
-            pose, a_from, a_to, _, held = ways[role]
+            pose, a_from, a_to, _, held, from_world, to_world = ways[role]
             np.testing.assert_allclose(a_from[0], previous, atol=1e-12)
+            # the ends a reach aims in the world are these points at the planned pose
+            for chassis, world in ((a_from, from_world), (a_to, to_world)):
+                if world is not None:
+                    np.testing.assert_allclose(chassis_to_world(pose[0], chassis[0]), world[0],
+                                               atol=1e-12)  # fmt: skip
+            assert (from_world is None) == (role in ("above", "put_over"))
             np.testing.assert_allclose(chassis_to_world(pose[0], a_to[0]), steps[step][1],
                                        atol=1e-12)  # fmt: skip
             assert held == (role in ("lift_up", "lift", "put_over", "put"))
@@ -450,3 +457,76 @@ def test_a_drive_is_checked_along_the_path_the_law_drives(seed, scenario, params
     assert ka.drive_hits(g, cups, 0, start, config, "drive_drop", route)[0].tolist() == [-1]
     # the drive to the stand (the start heading away from it) is clear along the law too
     assert ka.drive_hits(g, cups, 0, start, config, "drive_stand")[0].tolist() == [-1]
+
+
+def test_arrival_offsets_are_the_corners_within_the_drives_tolerances():
+    offsets = ka.arrival_offsets(0.05, 0.15)
+    assert offsets.shape == (8, 3) and len({tuple(np.sign(o)) for o in offsets}) == 8
+    np.testing.assert_allclose(np.hypot(offsets[:, 0], offsets[:, 1]), 0.05, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(np.abs(offsets[:, 2]), 0.15)
+    # a chassis-frame offset: ahead of a robot facing +y is +y in the world
+    moved = ka.offset_poses([[1.0, 2.0, math.pi / 2, 0.0]], [[0.1, 0.0, 0.2], [0.0, 0.1, -0.2]])
+    want = [[1.0, 2.1, math.pi / 2 + 0.2, 0.0], [0.9, 2.0, math.pi / 2 - 0.2, 0.0]]
+    np.testing.assert_allclose(moved[:, 0], want, atol=1e-15)
+
+
+def test_a_reach_is_checked_from_wherever_the_drive_may_stop():
+    # seed 34102's h = 2 plan (two cups, session 34): from its stand pose the reach above
+    # cup_0 clears cup_1, but GoToPose stops anywhere within 5 cm and 0.15 rad of it, and
+    # from there the executed reach refused that way (it would enter cup_1): the plan
+    # failed at its third action. The arm check now tries the tolerances' corners.
+    import dataclasses
+
+    from repertoire.diagrams.kitchen import run_kitchen_sequence
+    from repertoire.systems.go_to_pose import GOTO_GAINS
+
+    config = kp.KitchenPlanConfig(scenario=2)
+    start, cups, targets = kp.sample_situation(config, np.random.default_rng(34102))
+    params = [1.2771, -0.3955, 0.7393, -0.3262, 0.45, 0.96, -1.0814, -0.4747, 0.6155,
+              1.79, -0.4753, 0.6134, -0.4255, 0.45, 0.96, -0.7469, -0.5584, 0.6199]  # fmt: skip
+    g = kp.plan_geometry(params, cups, targets)
+    names = ka.fetch_obstacles(cups, targets, 0, 0.0, own=True)[2]
+    blind = dataclasses.replace(config, arrival_check=False)
+    assert ka.arm_hits(g, cups, 0, "above", blind).tolist() == [-1]
+    assert names[ka.arm_hits(g, cups, 0, "above", config)[0]] == "cup_1"
+    assert ka.arm_collisions(params, start, cups, targets, blind) == []
+    assert ka.arm_collisions(params, start, cups, targets, config) == [(0, "above", "cup_1")]
+    # executed: from the stand pose the reach succeeds; from the corner 3.5 cm ahead and
+    # left, turned 0.15 rad left (the drive accepts it as arrived) it fails at once
+    tol = ka.arrival_offsets(GOTO_GAINS["position_tolerance"], GOTO_GAINS["heading_tolerance"])
+    corner = ka.offset_poses(g.stand[:, 0], tol[:1])[0, 0]
+    above = [float(v) for v in cups[0] + [0.0, 0.0, config.above_offset]]
+    for pose, status in ((g.stand[0, 0], "SUCCEEDED"), (corner, "FAILED")):
+        scenario = KitchenScenario(initial_pose=[float(v) for v in pose[:3]],
+                                   time_step=config.time_step, cups=list(kp.FETCHED),
+                                   cup_positions={n: [float(v) for v in c]
+                                                  for n, c in zip(kp.FETCHED, cups)})  # fmt: skip
+        results = run_kitchen_sequence([("reach", above)], scenario)[0]
+        assert [r.status for r in results] == [status]
+
+
+def test_a_stand_at_the_arms_reach_is_refused_where_a_drive_may_stop_farther():
+    # the demo situation's greedy stand of session 34: the cup 0.80 m out at yaw -1.2;
+    # from the corner 3.5 cm back and 0.15 rad turned it lies 0.853 m out, beyond the
+    # extension's 0.85 m (the reach fails at once there); 0.75 m out it stays in reach
+    config = kp.KitchenPlanConfig()
+    _, cups, _ = kp.sample_situation(config, np.random.default_rng(0))
+    stands = kp.base_pose(cups[0], [2.02, 2.02], [-1.2, -1.2], [0.8, 0.75])
+    up = cups[0] + [0.0, 0.0, config.above_offset]
+    assert ka.reachable_on_arrival(stands, (up, cups[0])).tolist() == [False, True]
+    at = kp._world_in_chassis(stands, cups[0])
+    assert arm_inverse_rows(at)[1].tolist() == [True, True]  # both in reach from the stand
+
+
+def test_narrow_cup_ranges_give_every_seed_a_situation():
+    # two cups fit in 0.2 x 0.2 m (diagonal 0.283 m), but a first cup drawn near the middle
+    # left the second no room: 181 of seeds 0-199 raised; now the first is drawn again
+    config = kp.KitchenPlanConfig(cup_x_range=[1.6, 1.8], cup_y_range=[1.0, 1.2])
+    config.validate()
+    for seed in range(20):
+        _, cups, _ = kp.sample_situation(config, np.random.default_rng(seed))
+        assert np.linalg.norm(cups[0, :2] - cups[1, :2]) >= 0.25
+        assert np.all((cups[:, 0] >= 1.6) & (cups[:, 0] <= 1.8))
+        assert np.all((cups[:, 1] >= 1.0) & (cups[:, 1] <= 1.2))
+    with pytest.raises(RepertoireError, match="two cups 0.25 m apart; its diagonal is 0.224 m"):
+        kp.KitchenPlanConfig(cup_x_range=[1.6, 1.7], cup_y_range=[1.0, 1.2]).validate()

@@ -202,6 +202,7 @@ class DmpSequencer(LeafSystem):
         )
         if time_step is None:
             check_positive("switch_period", switch_period)
+            self._switch_period = float(switch_period)
             self._dt = None
             # [theta, x - x0 (the displacement from the active segment's x0), v]
             self.DeclareContinuousState(BasicVector(np.concatenate([[1.0], np.zeros(n), v_start])))
@@ -465,7 +466,8 @@ class DmpSequencer(LeafSystem):
             gap = self._goal(context, seg, x0_active)[self._wait_dofs] - x[self._wait_dofs]
             if np.linalg.norm(gap) > tol:
                 return
-        state.get_mutable_discrete_state(self._delay).SetFromVector([t - self._times[seg + 1]])
+        if t - due >= self._switch_period - 1e-9:  # it waited (the first check after due failed)
+            state.get_mutable_discrete_state(self._delay).SetFromVector([t - self._times[seg + 1]])
         x, x0, v_new = self._next(context, seg, x, v)
         state.get_mutable_continuous_state().get_mutable_vector().SetFromVector(
             np.concatenate([[1.0], x - x0, v_new])

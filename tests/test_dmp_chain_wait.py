@@ -23,9 +23,9 @@ def _flat_dmp() -> DmpParameters:
     )  # fmt: skip
 
 
-def _sequencer(coupling: float, **waits) -> tuple[DmpSequencer, Simulator]:
+def _sequencer(coupling: float, times=TIMES, **waits) -> tuple[DmpSequencer, Simulator]:
     seq = DmpSequencer(
-        [_flat_dmp()] * 3, TIMES, goals=GOALS, time_step=None, coupling_dofs=1, **waits
+        [_flat_dmp()] * 3, times, goals=GOALS, time_step=None, coupling_dofs=1, **waits
     )
     context = seq.CreateDefaultContext()
     seq.GetInputPort("coupling").FixValue(context, [coupling])
@@ -78,6 +78,19 @@ def test_a_converged_predecessor_starts_its_successor_on_time_as_without_waits()
         assert seq.GetOutputPort("start_delay").Eval(context)[0] == 0.0
         outputs.append(seq.GetOutputPort("position").Eval(context).copy())
     np.testing.assert_array_equal(outputs[0], outputs[1])
+
+
+def test_a_start_time_between_two_checks_is_no_wait():
+    """Segment 1 is due at 0.6005 s, between the 1 ms checks: it starts at 0.601 s, as without
+    waits, and segment 2 still starts at 1.2 s (the half step was counted as a delay once)."""
+    seq, simulator = _sequencer(
+        0.0, times=[0.0, 0.6005, 1.2], wait_tolerances=[None, 0.5, None], max_wait=1.0
+    )
+    assert _segment_at(seq, simulator, 0.6005) == 0
+    assert _segment_at(seq, simulator, 0.6015) == 1
+    assert seq.GetOutputPort("start_delay").Eval(simulator.get_context())[0] == 0.0
+    assert _segment_at(seq, simulator, 1.1995) == 1
+    assert _segment_at(seq, simulator, 1.2005) == 2
 
 
 def test_bad_waits_are_refused_naming_them():

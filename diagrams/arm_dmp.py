@@ -78,7 +78,9 @@ from repertoire.diagrams.arm_dmp_results import (
 )
 from repertoire.diagrams.arm_dmp_scenarios import (
     COASTER_RAIL_HEIGHT,
+    MAX_SEGMENT_WAIT,
     PICK_PLACE_LABELS,
+    WAIT_DOFS,
     BallObstacle,
     BodyPointLog,
     CoasterMotion,
@@ -88,6 +90,7 @@ from repertoire.diagrams.arm_dmp_scenarios import (
     plan_pick_and_place,
     plan_serving,
     segment_timing,
+    segment_waits,
     shoulder_and_reach,
 )
 from repertoire.diagrams.registry import register_diagram
@@ -160,10 +163,16 @@ def _coaster_on_slider(plant: MultibodyPlant, xy: np.ndarray):
     return instance, coaster
 
 
-#: Finger PD gains of the DMP worlds (the arm's are ``models.arm7.ARM_KP``/``ARM_KD``): softer
-#: than ``ArmScenario.finger_kp`` and equal for the thumb, as the grasps were tuned with.
-FINGER_KP = (2.0, 2.0, 2.0)
-FINGER_KD = (0.02, 0.02, 0.02)
+#: Finger PD gains of the DMP worlds (the arm's are ``models.arm7.ARM_KP``/``ARM_KD``), softer
+#: than ``ArmScenario.finger_kp``: [thumb, finger_1, finger_2]. The thumb closes alone against
+#: the two fingers (``HAND_GRASP_7CM`` commands all three 0.49 rad past contact), so it gets
+#: twice their gains: the squeeze balances with equal deflections, the object on the tcp's
+#: axis. With equal gains (2, 2, 2) the thumb had to deflect twice as far as each finger,
+#: which put the object L e / 3 = 14 mm towards the thumb (L = 0.085 m, e = 0.49 rad;
+#: measured 13.3 mm) and the placed cup that far off the coaster's centre. The fingers' gain
+#: 4/3 keeps the squeeze of before (thumb 2 x 4e/3 = 8/3 x e, each finger 2 x 2e/3 = 4/3 x e).
+FINGER_KP = (8.0 / 3.0, 4.0 / 3.0, 4.0 / 3.0)
+FINGER_KD = (0.08 / 3.0, 0.04 / 3.0, 0.04 / 3.0)
 IK_PERIOD = 0.004
 #: The barrier part of the IK's secondary objective (``ResolvedMotionRateIK`` ``limit_gain``,
 #: ``limit_band``): within a quarter of its range from a limit a joint is pushed back
@@ -254,6 +263,9 @@ def build_arm_world(
             starts,
             np.concatenate([home.translation(), quaternion_wxyz(home.rotation()), HAND_OPEN]),
             switch_period=IK_PERIOD,
+            wait_tolerances=segment_waits(labels),
+            wait_dofs=WAIT_DOFS,
+            max_wait=MAX_SEGMENT_WAIT,
         ),
     )
     schedule = builder.AddNamedSystem("goal_schedule", GoalSchedule(resolved))
@@ -427,7 +439,7 @@ def build_arm_world(
     scenario_type=PickPlaceScenario,
     description="arm7 driven by learned DMPs (RMRC IK + ID/PD): grasp a cup, place it on a "
     "coaster that moves after onset, around a ball obstacle (Pastor et al. Fig. 13)",
-    duration=7.75,
+    duration=8.75,
     check=lambda diagram, context: {
         **pick_and_place_figures(diagram, context),
         **ik_status_figures(diagram, context),

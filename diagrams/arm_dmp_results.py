@@ -292,11 +292,19 @@ def grasp_slip_figures(diagram: Diagram, context: Context) -> dict[str, float]:
 
     Returns:
         ``grasp_slip_m`` (the largest distance of the object's origin, in the tcp frame,
-        from where it sat when the hold began) and ``grasp_slip_time_s`` (when).
+        from where it sat when the hold began), ``grasp_slip_time_s`` (when) and
+        ``held_offset_m``: how far the object's axis (its origin and the tcp's x axis,
+        which is upright in a side grasp) was from the tcp's x axis when the hold began.
     """
     monitor = diagram.GetSubsystemByName("grasp_slip")
-    slip, when = monitor.get_output_port().Eval(monitor.GetMyContextFromRoot(context))
-    return {"grasp_slip_m": float(slip), "grasp_slip_time_s": float(when)}
+    monitor_context = monitor.GetMyContextFromRoot(context)
+    slip, when = monitor.GetOutputPort("slip").Eval(monitor_context)
+    p_TO = monitor.GetOutputPort("hold_reference").Eval(monitor_context)
+    return {
+        "grasp_slip_m": float(slip),
+        "grasp_slip_time_s": float(when),
+        "held_offset_m": float(np.hypot(p_TO[1], p_TO[2])),
+    }
 
 
 def grasp_slip_text(slip_m: float, time_s: float, what: str) -> str:
@@ -326,7 +334,9 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
         SceneGraph every 4 ms; negative = they touched), ``min_ball_gap_time_s``
         (when), ``collision_free`` (1 if ``min_ball_gap_m > 0``), the cup's
         :func:`grasp_slip_figures` while it is carried and ``grasp_slipped`` (1 if it
-        moved more than :data:`GRASP_SLIP_TOLERANCE` in the hand).
+        moved more than :data:`GRASP_SLIP_TOLERANCE` in the hand) and ``start_delay_s``
+        (how long the release waited for the place DMP to reach its goal,
+        ``SEGMENT_WAITS``).
     """
     plant = diagram.GetSubsystemByName("plant")
     pc = plant.GetMyContextFromRoot(context)
@@ -349,6 +359,8 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
     errors = segment_reach_errors(diagram, context) + [np.nan] * 3
     success = d_xy < 0.02 and abs(height) < 0.01 and tilt < 0.2
     slip = grasp_slip_figures(diagram, context)
+    chain = diagram.GetSubsystemByName("dmp_chain")
+    delay = chain.GetOutputPort("start_delay").Eval(chain.GetMyContextFromRoot(context))[0]
     return {
         "cup_to_coaster_m": d_xy,
         "cup_height_above_coaster_m": height,
@@ -362,6 +374,7 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
         "collision_free": float(gap > 0.0),
         **slip,
         "grasp_slipped": float(slip["grasp_slip_m"] > GRASP_SLIP_TOLERANCE),
+        "start_delay_s": float(delay),
     }
 
 

@@ -111,6 +111,8 @@ PICK_PLACE_FIGURES = (
     "min_ball_gap_time_s",
     "grasp_slip_m",
     "grasp_slip_time_s",
+    "held_offset_m",
+    "start_delay_s",
 )
 
 #: How a pick-and-place run ended (``run_pick_and_place``'s ``outcome``), in the order of

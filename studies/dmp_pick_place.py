@@ -117,6 +117,8 @@ class PickPlaceRecord:
         collision_free: ``min_ball_gap_m > 0``.
         grasp_slip_m: the largest distance the cup moved in the hand while carried [m].
         grasp_slip_time_s: when it occurred.
+        held_offset_m: how far the cup's axis was from the tcp's when the carry began [m].
+        start_delay_s: how long the release waited for the place DMP to converge [s].
         failure: empty, or why the run stopped (IK report).
         joint_margins_rad: per arm7 joint, the least distance of the IK's reference from
             the joint's limits over the run [rad] (NaN: nothing ran).
@@ -149,6 +151,8 @@ class PickPlaceRecord:
     collision_free: bool
     grasp_slip_m: float
     grasp_slip_time_s: float
+    held_offset_m: float
+    start_delay_s: float
     failure: str
     joint_margins_rad: list[float]
     joint_held_steps: list[int]

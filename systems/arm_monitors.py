@@ -151,6 +151,8 @@ class GraspSlipMonitor(LeafSystem):
 
     Output ports:
         slip: [running maximum slip (m), time of the maximum (s)] (2).
+        hold_reference: p_TO at the start of the latest hold [m] (3; zeros before any):
+            where the grasp put the object in the hand.
     """
 
     def __init__(
@@ -202,6 +204,12 @@ class GraspSlipMonitor(LeafSystem):
             "slip",
             2,
             lambda c, o: o.SetFromVector(c.get_discrete_state(self._state).value()[:2]),
+            prerequisites_of_calc={self.discrete_state_ticket(self._state)},
+        )
+        self.DeclareVectorOutputPort(
+            "hold_reference",
+            3,
+            lambda c, o: o.SetFromVector(c.get_discrete_state(self._state).value()[3:]),
             prerequisites_of_calc={self.discrete_state_ticket(self._state)},
         )
 

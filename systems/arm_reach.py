@@ -9,7 +9,14 @@ joint-space controller with velocity and acceleration limits. With
 
     u = e / |e| * min(v_max, max(|thetadot_g|, k * |e|))
 
-(towards the goal at a speed falling linearly to the goal speed), and the
+(towards the goal at a speed falling linearly to the goal speed), except while the
+reference moves away from the goal too close to it to come back at the goal speed: with
+``s = min(|thetadot_g|, v_max)``, braking now would turn it ``|e| + |v_ref|^2 / (2
+a_max)`` from the goal, and the run back from there reaches ``s`` only if that is at
+least ``s^2 / (2 a_max)``; until it is, ``u = v_ref`` (it coasts on). Without that run-up
+a goal passed too slowly was passed again and again at the same speed (the braking and
+the run back at ``a_max`` are symmetric), a cycle through the goal that timed out after
+10 s (seed 9106 of ``speed_range`` -1.5 to 1.5, and goal speeds down to 0.8 rad/s). The
 reference velocity ``v_ref`` follows ``u`` at most ``a_max`` per second (norm);
 the reference position integrates it, ``q_ref += v_ref * period``, and the
 joints' PD tracks ``[q_ref, v_ref]``. The action succeeds when ``|e| <
@@ -40,19 +47,30 @@ REACH_GAINS = {
 }
 
 
-def reach_velocity(theta, goal, gains: dict[str, float]) -> np.ndarray:
+def reach_velocity(theta, goal, gains: dict[str, float], v_ref=None) -> np.ndarray:
     """The commanded joint velocity ``u`` (before the acceleration limit).
 
     Args:
         theta: ``(2,)`` measured angles of joints a and b.
         goal: ``[theta_g^a, thetadot_g^a, theta_g^b, thetadot_g^b]``.
         gains: the :data:`REACH_GAINS` keys.
+        v_ref: ``(2,)`` the reference's velocity; while it moves away from the goal with
+            too little room to come back at the goal speed, ``u = v_ref`` (module doc).
+            None: towards the goal always.
     """
     e = np.array([goal[0] - theta[0], goal[2] - theta[1]], dtype=float)
     dist = float(np.hypot(*e))
+    goal_speed = math.hypot(goal[1], goal[3])
+    if v_ref is not None:
+        v = np.asarray(v_ref, dtype=float)
+        s = min(goal_speed, gains["v_max"])
+        if float(v @ e) < 0.0 and dist + float(v @ v) / (2 * gains["a_max"]) < s * s / (
+            2 * gains["a_max"]
+        ):
+            return v.copy()
     if dist < 1e-12:
         return np.zeros(2)
-    speed = min(gains["v_max"], max(math.hypot(goal[1], goal[3]), gains["k"] * dist))
+    speed = min(gains["v_max"], max(goal_speed, gains["k"] * dist))
     return e / dist * speed
 
 
@@ -181,7 +199,7 @@ class Reach(ActionSystem):
             out.SetFromVector([*q_ref, 0.0, 0.0, ActionStatus.TIMED_OUT])
             return
         v_new = limit_acceleration(
-            v_ref, reach_velocity(theta, target, g), g["a_max"] * self.period
+            v_ref, reach_velocity(theta, target, g, v_ref), g["a_max"] * self.period
         )
         out.SetFromVector([*(q_ref + v_new * self.period), *v_new, ActionStatus.RUNNING])
 

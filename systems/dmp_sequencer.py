@@ -53,6 +53,35 @@ from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 
+def check_waits(
+    wait_tolerances, n_segments: int, wait_dofs: slice, n: int, max_wait: float, time_step
+) -> tuple[list[float | None], slice, float]:
+    """Validated ``(wait_tolerances, wait_dofs, max_wait)`` of a :class:`DmpSequencer`.
+
+    Raises:
+        RepertoireError: a list of the wrong length, a tolerance that is not a number > 0,
+            a DOF slice outside the n, a negative or non-finite ``max_wait``, or waits in
+            discrete mode.
+    """
+    waits = [None] * n_segments if wait_tolerances is None else list(wait_tolerances)
+    if len(waits) != n_segments:
+        raise RepertoireError(
+            f"wait_tolerances needs one entry per segment ({n_segments}), got {len(waits)}"
+        )
+    for i, w in enumerate(waits):
+        if w is not None and not (isinstance(w, int | float) and np.isfinite(w) and w > 0):
+            raise RepertoireError(f"wait_tolerances[{i}] must be None or a number > 0, got {w!r}")
+    if not (isinstance(wait_dofs, slice) and len(range(n)[wait_dofs]) > 0):
+        raise RepertoireError(
+            f"wait_dofs must be a slice of some of the {n} DOF, got {wait_dofs!r}"
+        )
+    if not (np.isfinite(max_wait) and max_wait >= 0):
+        raise RepertoireError(f"max_wait must be finite and >= 0 [s], got {max_wait}")
+    if any(w is not None for w in waits) and time_step is not None:
+        raise RepertoireError("wait_tolerances need the continuous mode (time_step=None)")
+    return waits, wait_dofs, float(max_wait)
+
+
 class DmpSequencer(LeafSystem):
     """Chained n-D DMPs with per-segment goal inputs (sec. III-C).
 
@@ -68,6 +97,8 @@ class DmpSequencer(LeafSystem):
             (velocity and acceleration are 0 while the state is held before the first start
             time; the state keeps the start velocity the first segment starts with).
         phase (1), segment (1): theta and the active segment's index.
+        start_delay (1): how much later than their start times the segments start, the
+            waits of ``wait_tolerances`` summed [s] (0 in discrete mode).
         orientation (4), angular_velocity (3) (with ``quaternion_at``): the post-normalised
             quaternion block [w, x, y, z] and its world-frame angular velocity. Each
             segment runs its block from the sign of the start on its learned start's side
@@ -91,6 +122,9 @@ class DmpSequencer(LeafSystem):
         quaternion_at: int | None = None,
         coupling_dofs: int = 0,
         parts: dict[str, slice] | None = None,
+        wait_tolerances: list[float | None] | None = None,
+        wait_dofs: slice = slice(None),
+        max_wait: float = 0.0,
     ) -> None:
         """Builds the sequencer.
 
@@ -108,10 +142,19 @@ class DmpSequencer(LeafSystem):
             quaternion_at: Index of a 4-DOF quaternion block, or None.
             coupling_dofs: Size of the coupling input (0 = no input).
             parts: Named slices with their own output ports.
+            wait_tolerances: Per segment, None (start on time) or a distance: segment i
+                (i >= 1) starts at its start time only once segment i - 1 has come within
+                this distance of its goal on ``wait_dofs`` (sec. III-C: a DMP started
+                "after the preceding DMP has been executed completely"; a coupling term
+                that delayed the predecessor delays the successor, not its start point),
+                and at most ``max_wait`` later; the delay shifts every later start time.
+                Continuous mode only.
+            wait_dofs: The DOF ``wait_tolerances`` measure (e.g. the position block).
+            max_wait: Longest wait for one segment [s] (then it starts anyway).
 
         Raises:
             RepertoireError: an empty chain, bad times, mismatched segments or goals, a bad
-                handoff, quaternion block or coupling size.
+                handoff, quaternion block or coupling size, bad wait tolerances.
         """
         super().__init__()
         times = check_switch_times(start_times, len(segments), "start times")
@@ -140,6 +183,9 @@ class DmpSequencer(LeafSystem):
         if goals is not None and len(goals) != len(segments):
             raise RepertoireError(f"{len(segments)} segments need as many goals, got {len(goals)}")
         self._n, self._segments, self._times = n, list(segments), times
+        self._waits, self._wait_dofs, self._max_wait = check_waits(
+            wait_tolerances, len(segments), wait_dofs, n, max_wait, time_step
+        )
         self._goals = (
             [None] * len(segments)
             if goals is None
@@ -159,10 +205,13 @@ class DmpSequencer(LeafSystem):
         )
         if time_step is None:
             check_positive("switch_period", switch_period)
+            self._switch_period = float(switch_period)
             self._dt = None
             # [theta, x - x0 (the displacement from the active segment's x0), v]
             self.DeclareContinuousState(BasicVector(np.concatenate([[1.0], np.zeros(n), v_start])))
             self._switch = self.DeclareDiscreteState(np.concatenate([[0.0], x_start]))
+            # the accumulated delay of the start times (segments that waited, see _maybe_switch)
+            self._delay = self.DeclareDiscreteState(np.zeros(1))
             self.DeclarePeriodicUnrestrictedUpdateEvent(switch_period, 0.0, self._maybe_switch)
             state = {self.xc_ticket(), self.discrete_state_ticket(self._switch)}
         else:
@@ -211,6 +260,12 @@ class DmpSequencer(LeafSystem):
             lambda c, o: o.SetFromVector([self._segment(c)]),
             prerequisites_of_calc=state,
         )
+        self.DeclareVectorOutputPort(
+            "start_delay",
+            1,
+            lambda c, o: o.SetFromVector([self.start_delay(c)]),
+            prerequisites_of_calc={self.all_state_ticket()},
+        )
         if self._q is not None:
             self.DeclareVectorOutputPort(
                 "orientation",
@@ -246,6 +301,7 @@ class DmpSequencer(LeafSystem):
         if self._dt is None:
             context.SetContinuousState(np.concatenate([[1.0], np.zeros(self._n), v]))
             context.SetDiscreteState(self._switch, np.concatenate([[0.0], x]))
+            context.SetDiscreteState(self._delay, np.zeros(1))
         else:
             context.SetDiscreteState(self._state, np.concatenate([[0.0, 0.0], x, x, v]))
 
@@ -404,10 +460,25 @@ class DmpSequencer(LeafSystem):
             np.concatenate([[-p.alpha * theta / p.tau], xd, p.tau * (vd / p.tau)])
         )
 
+    def start_delay(self, context: Context) -> float:
+        """How much later than their start times the segments now start [s] (waits summed)."""
+        return (
+            float(context.get_discrete_state(self._delay).value()[0]) if self._dt is None else 0.0
+        )
+
     def _maybe_switch(self, context: Context, state) -> None:
-        seg, _, _, x, v = self._split(context)
-        if seg + 1 >= len(self._times) or context.get_time() < self._times[seg + 1] - 1e-9:
+        seg, _, x0_active, x, v = self._split(context)
+        t, delay = context.get_time(), self.start_delay(context)
+        due = self._times[seg + 1] + delay if seg + 1 < len(self._times) else np.inf
+        if t < due - 1e-9:
             return
+        tol = self._waits[seg + 1]
+        if tol is not None and t < due + self._max_wait - 1e-9:
+            gap = self._goal(context, seg, x0_active)[self._wait_dofs] - x[self._wait_dofs]
+            if np.linalg.norm(gap) > tol:
+                return
+        if t - due >= self._switch_period - 1e-9:  # it waited (the first check after due failed)
+            state.get_mutable_discrete_state(self._delay).SetFromVector([t - self._times[seg + 1]])
         x, x0, v_new = self._next(context, seg, x, v)
         state.get_mutable_continuous_state().get_mutable_vector().SetFromVector(
             np.concatenate([[1.0], x - x0, v_new])
@@ -439,6 +510,9 @@ def task_space_sequencer(
     x_start: np.ndarray,
     *,
     switch_period: float = 0.004,
+    wait_tolerances: list[float | None] | None = None,
+    wait_dofs: slice = slice(0, 3),
+    max_wait: float = 0.0,
 ) -> DmpSequencer:
     """The arm's chain of 10-D DMPs (Fig. 7): position, quaternion components, fingers.
 
@@ -453,10 +527,15 @@ def task_space_sequencer(
         start_times: Onset of each segment [s]; the first is 0, increasing.
         x_start: The chain's start [p, q, fingers] (the robot's current state).
         switch_period: How often the switch times are checked [s].
+        wait_tolerances: Per segment, None or the distance [m] the tcp position of the
+            segment before must have come to its goal before this one starts
+            (:class:`DmpSequencer`).
+        wait_dofs: The position DOF that distance is measured on (default all three).
+        max_wait: Longest wait of one segment [s].
 
     Raises:
-        RepertoireError: empty chain, bad times, a manifold orientation, no fingers, or
-            segments with different finger DOF.
+        RepertoireError: empty chain, bad times, a manifold orientation, no fingers,
+            segments with different finger DOF, or ``wait_dofs`` beyond the position.
     """
     if len(start_times) and float(start_times[0]) != 0.0:
         raise RepertoireError(f"start_times must start at 0, got {list(start_times)}")
@@ -470,6 +549,8 @@ def task_space_sequencer(
         stacked.append(stack_task_space_dmp(dmp))
     if not stacked:
         raise RepertoireError("a DMP chain needs at least one segment")
+    if not (isinstance(wait_dofs, slice) and set(range(10)[wait_dofs]) <= {0, 1, 2}):
+        raise RepertoireError(f"wait_dofs must be a slice of the position (0-2), got {wait_dofs!r}")
     n = stacked[0].parameters.n_dims
     if any(s.parameters.n_dims != n for s in stacked):
         raise RepertoireError("every segment must have the same number of finger DOF")
@@ -482,6 +563,9 @@ def task_space_sequencer(
         quaternion_at=3,
         coupling_dofs=3,
         parts={"tcp": slice(0, 3), "finger": slice(7, n)},
+        wait_tolerances=wait_tolerances,
+        wait_dofs=wait_dofs,
+        max_wait=max_wait,
     )
 
 

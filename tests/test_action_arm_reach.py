@@ -52,6 +52,37 @@ def test_reach_velocity_and_limit_by_hand():
     np.testing.assert_allclose(limit_acceleration([0, 0], [0.3, 0.4], 0.5), [0.3, 0.4])
 
 
+def test_reach_velocity_coasts_away_until_there_is_room_to_run_up_to_the_goal_speed():
+    g = dict(REACH_GAINS)  # a_max 2: a run-up to s = 1 needs s^2 / (2 a_max) = 0.25 rad
+    goal = [1.0, 0.6, 1.0, 0.8]  # goal speed 1.0
+    # 0.05 rad past the goal along a, moving away at 0.5: braking now turns it
+    # 0.05 + 0.25 / 4 = 0.1125 rad out, too close: it keeps its velocity exactly
+    away = np.array([0.5, 0.0])
+    np.testing.assert_array_equal(reach_velocity([1.05, 1.0], goal, g, away), away)
+    # 0.2 rad past at 0.5: 0.2625 rad >= 0.25, so back towards the goal at v_max
+    np.testing.assert_allclose(reach_velocity([1.2, 1.0], goal, g, away), [-1.0, 0.0])
+    # moving towards the goal: the old law, whatever the room
+    np.testing.assert_allclose(reach_velocity([1.05, 1.0], goal, g, -away), [-1.0, 0.0])
+    # a goal faster than v_max runs up to v_max only: 0.2 + 0.0625 >= 1 / 4
+    fast = [1.0, 0.9, 1.0, 0.7]
+    np.testing.assert_allclose(reach_velocity([1.2, 1.0], fast, g, away), [-1.0, 0.0])
+    # a slow goal (0.3 rad/s: 0.0225 rad of run-up) never coasts past 0.05 rad
+    slow = [1.0, 0.3, 1.0, 0.0]
+    np.testing.assert_allclose(reach_velocity([1.05, 1.0], slow, g, away), [-0.3, 0.0])
+
+
+def test_reach_episode_that_cycled_through_its_goal_succeeds():
+    """Seed 9106 of speed_range -1.5 to 1.5 (goal speed 1.067 rad/s): it passed its goal
+    at 0.6-0.7 rad/s again and again, braking and running back at a_max, and timed out
+    after 10 s; with a run-up it succeeds."""
+    from repertoire.studies.actions_arm_reach import ReachEpisodesConfig, run_episode
+
+    record = run_episode(ReachEpisodesConfig(speed_range=[-1.5, 1.5]), 9106)
+    assert np.hypot(record.thetadot_g_a, record.thetadot_g_b) == pytest.approx(1.067, abs=1e-3)
+    assert record.status == "SUCCEEDED" and not record.failed
+    assert record.duration < 4.0
+
+
 def _context(target, state=(0, 0, 0, 0), time=0.0):
     reach = Reach(period=0.1, initial_state=state)
     ctx = reach.CreateDefaultContext()

@@ -7,12 +7,15 @@ from repertoire.diagrams.arm_dmp_results import IkTargetError, run_arm_world
 from repertoire.diagrams.arm_dmp_scenarios import (
     COASTER_RAIL_HEIGHT,
     GOAL_POSITION_TOLERANCE,
+    MAX_SEGMENT_WAIT,
     PICK_PLACE_LABELS,
+    SERVING_LABELS,
     PickPlaceScenario,
     ServingScenario,
     goal_pose_residual,
     plan_pick_and_place,
     plan_serving,
+    segment_waits,
     shoulder_and_reach,
 )
 from repertoire.diagrams.registry import get_diagram_entry
@@ -88,7 +91,8 @@ def test_registered_worlds():
     # Each world's registered duration is its plan's length (all segments and settling).
     pick = get_diagram_entry("arm_pick_and_place")
     assert pick.build is build_pick_and_place
-    assert pick.duration == plan_pick_and_place(PickPlaceScenario())[1] == 7.75
+    # 7.75 s of segments and settling, and up to 1 s the release may wait for the place DMP
+    assert pick.duration == plan_pick_and_place(PickPlaceScenario())[1] == 8.75
     serving = get_diagram_entry("arm_serving_water")
     assert serving.build is build_serving_water
     assert serving.duration == pytest.approx(plan_serving(ServingScenario())[1], abs=1e-12)
@@ -108,7 +112,11 @@ def test_plan_goals_and_timing():
     assert [g.label for g in goals] == PICK_PLACE_LABELS
     assert goals[1].body == "coaster:coaster"  # the placing goal follows the coaster
     lib = motion_library()
-    assert duration == pytest.approx(sum(lib[k].tau for k in PICK_PLACE_LABELS) + 3 * 0.25)
+    assert duration == pytest.approx(
+        sum(lib[k].tau for k in PICK_PLACE_LABELS) + 3 * 0.25 + MAX_SEGMENT_WAIT
+    )
+    assert segment_waits(PICK_PLACE_LABELS) == [None, None, 0.002]  # the release waits
+    assert segment_waits(SERVING_LABELS) == [None] * len(SERVING_LABELS)
 
 
 def test_bad_scenarios():
@@ -432,6 +440,12 @@ def test_default_world_avoids_the_ball_on_the_carry_path_only_with_coupling():
         figures[coupling] = pick_and_place_figures(diagram, context)
     assert figures[True]["success"] == 1.0 and figures[True]["collision_free"] == 1.0
     assert figures[True]["min_ball_gap_m"] > 0.005
+    # The thumb's double gain holds the cup on the tcp's axis (13 mm towards the thumb with
+    # equal gains; measured 0.4 mm). The release waited for the coupled place DMP (0.44 s
+    # here; it used to start with the DMP short of its goal) and not for the longest wait.
+    assert figures[True]["held_offset_m"] < 0.002
+    assert 0.0 < figures[True]["start_delay_s"] < MAX_SEGMENT_WAIT
+    assert figures[True]["cup_to_coaster_m"] < 0.005
     assert figures[False]["collision_free"] == 0.0 and figures[False]["min_ball_gap_m"] < 0.0
     assert figures[False]["success"] == 0.0  # the cup is knocked off its path
 

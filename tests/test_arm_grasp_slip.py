@@ -41,8 +41,11 @@ def test_grasp_slip_is_the_largest_move_of_the_object_in_the_tcp_frame_exactly()
     at = X_WT @ RigidTransform([0.0, 0.01, -0.05])  # the object 1 cm along y_T, 5 cm below
     # Not held (segment 0): nothing is recorded, however far the object is.
     assert _step(system, context, 0.1, 0, RigidTransform([9.0, 9.0, 9.0])).tolist() == [0.0, 0.0]
+    assert system.GetOutputPort("hold_reference").Eval(context).tolist() == [0.0, 0.0, 0.0]
     # The hold's first reading is its reference.
     assert _step(system, context, 0.2, 1, at).tolist() == [0.0, 0.0]
+    reference = system.GetOutputPort("hold_reference").Eval(context)
+    np.testing.assert_allclose(reference, [0.0, 0.01, -0.05], atol=1e-15)
     # The object 3 cm along the tcp's z and 4 cm along its x: 5 cm.
     moved = X_WT @ RigidTransform([0.04, 0.01, -0.02])
     assert _step(system, context, 0.3, 1, moved) == pytest.approx([0.05, 0.3], abs=1e-15)
@@ -99,7 +102,9 @@ def test_the_cup_slipping_in_the_grasp_is_reported_and_the_default_contact_model
     """Seed 3106's layout with the coaster far left (obstacle study, coaster_y 0.24-0.30).
 
     Under ``lagged`` the cup rolled about 6 cm into the hand while lifted past the ball and
-    missed the coaster with nothing reported; SAP holds it. Two whole runs (about 20 s).
+    missed the coaster with nothing reported; SAP holds it. Since the grasp holds the cup on
+    the tcp's axis (the thumb's double gain) ``lagged`` still lets it slip, 18 mm, and it
+    lands within the 2 cm: reported as a slip all the same. Two whole runs (about 20 s).
     """
     assert DMP_CONTACT_APPROXIMATION == "sap"
     assert PickPlaceScenario().contact_approximation == "sap"
@@ -116,9 +121,9 @@ def test_the_cup_slipping_in_the_grasp_is_reported_and_the_default_contact_model
         runs[approximation] = run_pick_and_place(scenario, 0.0, 0.1)
     slipped, held = runs["lagged"], runs["sap"]
     assert slipped["failure"] == ""  # the IK saw nothing: the hand tracked its path
-    assert slipped["outcome"] == "grasp_slip" and not slipped["placed"]
-    assert slipped["grasp_slip_m"] > 0.04 and 4.0 < slipped["grasp_slip_time_s"] < 4.5
-    assert slipped["cup_to_coaster_m"] > 0.04
+    assert slipped["outcome"] == "grasp_slip"  # placed or not, a slip is the outcome
+    assert slipped["grasp_slip_m"] > 0.015 and 4.0 < slipped["grasp_slip_time_s"] < 4.5
+    assert slipped["cup_to_coaster_m"] > 0.015
     assert slipped["report"] == grasp_slip_text(
         slipped["grasp_slip_m"], slipped["grasp_slip_time_s"], "cup"
     )

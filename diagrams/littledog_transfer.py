@@ -329,6 +329,32 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
     )
 
 
+def perturbed_start(
+    scenario: LittleDogTransferScenario, board: TerrainBoard, params: CrawlParams
+) -> tuple[np.ndarray, np.ndarray]:
+    """The scenario's start offset (nominal plus ``start_offset``) and its feet (4, 3).
+
+    The start as the scenario asks for it, before :func:`flat_offset` moves it to flat
+    footholds; its feet may leave the board (:func:`off_board` says).
+
+    Raises:
+        ScenarioError: the robot cannot stand there (e.g. a start straddling steps higher
+            than the legs reach).
+    """
+    offset = nominal_start(board, params) + np.asarray(scenario.start_offset, dtype=float)
+    try:
+        _, feet, _ = crossing_start(
+            board, 0.0, HALF_EXTENT, params.standing_height, offset, scenario.start_yaw_offset
+        )
+    except RepertoireError as e:
+        x, y = (float(v) for v in offset)
+        raise ScenarioError(
+            f"littledog_transfer: the robot cannot stand at the start (offset [{x:.4f}, "
+            f"{y:.4f}] m, yaw offset {scenario.start_yaw_offset:.3f} rad): {e}"
+        ) from e
+    return offset, feet
+
+
 @dataclasses.dataclass
 class TransferPlan:
     """What the builder runs: terrain, start, goal, the search and the final library.
@@ -346,6 +372,14 @@ class TransferPlan:
     search: SearchResult | None
     library: StepLibrary
     search_s: float = 0.0
+
+
+def goal_stance(feet0: np.ndarray, goal: float) -> np.ndarray:
+    """The search's goal stance from the start stance ``feet0`` (4, 3) and the goal line."""
+    shift = goal + 0.06 - min(feet0[0, 0], feet0[1, 0])  # the centroid stops within 3 cm
+    goal_feet = feet0 + np.array([shift, 0.0, 0.0])
+    goal_feet[:, 1] -= feet0[:, 1].mean()  # centred across the board
+    return goal_feet
 
 
 def past_goal(feet, goal: float) -> bool:
@@ -396,17 +430,7 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
     scenario.validate()
     board = target_board(scenario)
     params = CrawlParams()
-    offset = nominal_start(board, params) + np.asarray(scenario.start_offset)
-    try:
-        _, feet, _ = crossing_start(
-            board, 0.0, HALF_EXTENT, params.standing_height, offset, scenario.start_yaw_offset
-        )
-    except RepertoireError as e:  # e.g. the start straddles steps higher than the legs reach
-        x, y = (float(v) for v in offset)
-        raise ScenarioError(
-            f"littledog_transfer: the robot cannot stand at the start (offset [{x:.4f}, "
-            f"{y:.4f}] m, yaw offset {scenario.start_yaw_offset:.3f} rad): {e}"
-        ) from e
+    offset, feet = perturbed_start(scenario, board, params)
     why = off_board(board, feet)
     if why is not None:
         x, y = (float(v) for v in scenario.start_offset)
@@ -420,9 +444,7 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
     )
     goal = HALF_EXTENT - 0.02
     transfer = library_transfer(scenario)
-    shift = goal + 0.06 - min(feet0[0, 0], feet0[1, 0])  # the centroid stops within 3 cm
-    goal_feet = feet0 + np.array([shift, 0.0, 0.0])
-    goal_feet[:, 1] -= feet0[:, 1].mean()  # centred across the board
+    goal_feet = goal_stance(feet0, goal)
     if scenario.mode == "greedy":
         if transfer.library is None:
             raise ScenarioError(f"greedy mode: no step transferred ({transfer.message})")
@@ -509,6 +531,7 @@ __all__ = [
     "build_littledog_transfer",
     "library_transfer",
     "off_board",
+    "perturbed_start",
     "plan_transfer",
     "source_board",
     "target_board",

@@ -52,7 +52,7 @@ from repertoire.models.terrain import (
 from repertoire.planning.footstep.height_map import height_map_from_board
 from repertoire.planning.footstep.quadruped import CrawlParams as PlannerParams
 from repertoire.planning.footstep.quadruped import clear_of_faces, flat_on_ground
-from repertoire.planning.littledog_crawl import CrawlParams
+from repertoire.planning.littledog_crawl import CrawlParams, heading_of
 from repertoire.planning.step_library import StepLibrary
 from repertoire.planning.terrain_features import TransferConfig
 from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
@@ -375,10 +375,32 @@ class TransferPlan:
 
 
 def goal_stance(feet0: np.ndarray, goal: float) -> np.ndarray:
-    """The search's goal stance from the start stance ``feet0`` (4, 3) and the goal line."""
-    shift = goal + 0.06 - min(feet0[0, 0], feet0[1, 0])  # the centroid stops within 3 cm
-    goal_feet = feet0 + np.array([shift, 0.0, 0.0])
-    goal_feet[:, 1] -= feet0[:, 1].mean()  # centred across the board
+    """The search's goal stance: the start stance ``feet0`` (4, 3) facing the goal line.
+
+    ``feet0`` turned about its centroid to the crossing's heading (+x, :func:`heading_of`
+    0), moved along +x until its front feet stand 6 cm past the line ``x = goal`` (so
+    the centroid stops within the search's 3 cm of it), and centred across the board.
+    The planner's gap to it ends facing +x (its goal heading is this stance's, within 5
+    degrees) with both front feet past the line (:class:`GoalLineFiller`).
+
+    The start's yaw offset is a perturbation of the start, not of the task. Before, the
+    goal stance kept it (``feet0`` moved, not turned): from the scenario's edge (offset
+    [0, -0.1] m, yaw offset -0.5 rad, rock seed 502) the planner alone had to cross
+    crabbing at -29 degrees and centre itself after the line at that heading (39 steps,
+    24 before both front feet crossed), and the search's path turned to 0 degrees for
+    three recorded steps and back to -22 degrees for the goal (30 steps, 28 before
+    crossing; 42.85 s in physics, past the run's 40 s). Facing +x it is the planner
+    alone, 21 steps, 20 before crossing.
+    """
+    feet0 = np.asarray(feet0, dtype=float)
+    yaw = -heading_of(feet0)
+    centre = feet0[:, :2].mean(axis=0)
+    turn = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+    goal_feet = feet0.copy()
+    goal_feet[:, :2] = (feet0[:, :2] - centre) @ turn.T + centre
+    shift = goal + 0.06 - min(goal_feet[0, 0], goal_feet[1, 0])
+    goal_feet[:, 0] += shift
+    goal_feet[:, 1] -= centre[1]  # centred across the board
     return goal_feet
 
 

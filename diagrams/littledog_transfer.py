@@ -329,6 +329,20 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
     )
 
 
+def start_level(board: TerrainBoard, feet, rule: PlannerParams) -> bool:
+    """Whether the ground under ``feet`` (4, 2+) differs by at most ``rule.max_step_height``.
+
+    A foot standing higher above the others than the crawl planner steps up or down
+    (on a rock top above the slab the other feet stand on) can step only onto ground of
+    its own height: on boards of rocks taller than that it stays on its rock, shuffling
+    on the rock's top until the planner's limit (boards of 5-6 cm rocks: 4 of the pairs
+    610/611 ... 624/625 and 7 of 630/631 ... 658/659 start so; :func:`plan_transfer`
+    names it when the search does not reach the goal).
+    """
+    xy = np.asarray(feet, dtype=float)[:, :2]
+    return bool(np.ptp(board.height(xy[:, 0], xy[:, 1])) <= rule.max_step_height + 1e-12)
+
+
 def perturbed_start(
     scenario: LittleDogTransferScenario, board: TerrainBoard, params: CrawlParams
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -501,9 +515,19 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
             source, feet0, goal_feet, filler, config, board, lambda f: past_goal(f, goal)
         )
         if result.status != "reached":
+            why = ""
+            if not start_level(board, feet0, PlannerParams()):
+                z = board.height(feet0[:, 0], feet0[:, 1])
+                why = (
+                    f"; the start's feet stand on ground {100 * np.ptp(z):.1f} cm apart in "
+                    f"height, more than the planner's max_step_height "
+                    f"{100 * PlannerParams().max_step_height:.1f} cm: the higher feet can step "
+                    "only onto ground near their own height (on rocks taller than that step "
+                    "they stay on their rocks)"
+                )
             raise ScenarioError(
                 f"the search stopped with status {result.status} ({result.message}); "
-                "its best partial path is not executed"
+                f"its best partial path is not executed{why}"
             )
         final = final_library(result, source, board, "new_terrain")
     except RepertoireError as e:
@@ -555,6 +579,7 @@ __all__ = [
     "off_board",
     "perturbed_start",
     "plan_transfer",
+    "start_level",
     "source_board",
     "target_board",
 ]

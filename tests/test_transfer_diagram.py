@@ -492,3 +492,30 @@ def test_planner_alone_from_the_scenarios_edge_crosses_facing_the_line(library_p
     across = np.flatnonzero(np.minimum(starts[:, 0, 0], starts[:, 1, 0]) >= plan.goal)
     assert (len(plan.library), int(across[0])) == (21, 20)
     assert abs(heading_of(starts[-1])) <= np.radians(5.0)
+
+
+def _tall_rocks(seed: int):
+    """Two generated boards (seeds ``seed``, ``seed + 1``) of rocks 5-6 cm high."""
+    from repertoire.models.terrain import TerrainParams, generate_board, tile_boards
+
+    params = TerrainParams(kind="rocks", size_x=0.4, size_y=0.8, rock_count=12)
+    params.rock_height = [0.05, 0.06]
+    return tile_boards([generate_board(params, seed), generate_board(params, seed + 1)])
+
+
+def test_a_failed_search_from_a_start_not_level_says_so(library_path, monkeypatch):
+    """Pair 610/611 of 5-6 cm rocks: the start stands rf and rh on rock tops 5.9 and 5.1 cm
+    above the slab, which the planner may not step down from; a search that does not
+    reach the goal names that."""
+    import repertoire.diagrams.littledog_transfer as lt
+    from repertoire.planning.transfer_search import SearchResult
+
+    board = _tall_rocks(610)
+    monkeypatch.setattr(lt, "target_board", lambda scenario: board)
+    cut = SearchResult("time_limit", [], 0.0, 0, 0, 1, 0, "a gap filler's time limit", 10.0)
+    monkeypatch.setattr(lt, "search_library", lambda *args: cut)
+    scenario = LittleDogTransferScenario(library=library_path, mode="planner", target="generated")
+    with pytest.raises(ScenarioError) as e:
+        plan_transfer(scenario)
+    assert "status time_limit" in str(e.value)
+    assert "feet stand on ground 5.9 cm apart in height, more than the planner's" in str(e.value)

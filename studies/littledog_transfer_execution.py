@@ -104,7 +104,7 @@ class TransferExecutionRecord:
             code version whose plan has the same key (and the same closed loop) would
             simulate the same run.
         start_draws: how many starts :func:`draw_start` drew until one stood on the board
-            (1: the first; records stored before it have 1).
+            (1: the first).
     """
 
     terrain: str

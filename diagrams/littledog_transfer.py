@@ -52,7 +52,7 @@ from repertoire.models.terrain import (
 from repertoire.planning.footstep.height_map import height_map_from_board
 from repertoire.planning.footstep.quadruped import CrawlParams as PlannerParams
 from repertoire.planning.footstep.quadruped import clear_of_faces, flat_on_ground
-from repertoire.planning.littledog_crawl import CrawlParams
+from repertoire.planning.littledog_crawl import CrawlParams, heading_of
 from repertoire.planning.step_library import StepLibrary
 from repertoire.planning.terrain_features import TransferConfig
 from repertoire.planning.transfer_crawl_filler import CrawlGapFiller
@@ -329,6 +329,46 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
     )
 
 
+def start_level(board: TerrainBoard, feet, rule: PlannerParams) -> bool:
+    """Whether the ground under ``feet`` (4, 2+) differs by at most ``rule.max_step_height``.
+
+    A foot standing higher above the others than the crawl planner steps up or down
+    (on a rock top above the slab the other feet stand on) can step only onto ground of
+    its own height: on boards of rocks taller than that it stays on its rock, shuffling
+    on the rock's top until the planner's limit (boards of 5-6 cm rocks: 4 of the pairs
+    610/611 ... 624/625 and 7 of 630/631 ... 658/659 start so; :func:`plan_transfer`
+    names it when the search does not reach the goal).
+    """
+    xy = np.asarray(feet, dtype=float)[:, :2]
+    return bool(np.ptp(board.height(xy[:, 0], xy[:, 1])) <= rule.max_step_height + 1e-12)
+
+
+def perturbed_start(
+    scenario: LittleDogTransferScenario, board: TerrainBoard, params: CrawlParams
+) -> tuple[np.ndarray, np.ndarray]:
+    """The scenario's start offset (nominal plus ``start_offset``) and its feet (4, 3).
+
+    The start as the scenario asks for it, before :func:`flat_offset` moves it to flat
+    footholds; its feet may leave the board (:func:`off_board` says).
+
+    Raises:
+        ScenarioError: the robot cannot stand there (e.g. a start straddling steps higher
+            than the legs reach).
+    """
+    offset = nominal_start(board, params) + np.asarray(scenario.start_offset, dtype=float)
+    try:
+        _, feet, _ = crossing_start(
+            board, 0.0, HALF_EXTENT, params.standing_height, offset, scenario.start_yaw_offset
+        )
+    except RepertoireError as e:
+        x, y = (float(v) for v in offset)
+        raise ScenarioError(
+            f"littledog_transfer: the robot cannot stand at the start (offset [{x:.4f}, "
+            f"{y:.4f}] m, yaw offset {scenario.start_yaw_offset:.3f} rad): {e}"
+        ) from e
+    return offset, feet
+
+
 @dataclasses.dataclass
 class TransferPlan:
     """What the builder runs: terrain, start, goal, the search and the final library.
@@ -346,6 +386,36 @@ class TransferPlan:
     search: SearchResult | None
     library: StepLibrary
     search_s: float = 0.0
+
+
+def goal_stance(feet0: np.ndarray, goal: float) -> np.ndarray:
+    """The search's goal stance: the start stance ``feet0`` (4, 3) facing the goal line.
+
+    ``feet0`` turned about its centroid to the crossing's heading (+x, :func:`heading_of`
+    0), moved along +x until its front feet stand 6 cm past the line ``x = goal`` (so
+    the centroid stops within the search's 3 cm of it), and centred across the board.
+    The planner's gap to it ends facing +x (its goal heading is this stance's, within 5
+    degrees) with both front feet past the line (:class:`GoalLineFiller`).
+
+    The start's yaw offset is a perturbation of the start, not of the task. Before, the
+    goal stance kept it (``feet0`` moved, not turned): from the scenario's edge (offset
+    [0, -0.1] m, yaw offset -0.5 rad, rock seed 502) the planner alone had to cross
+    crabbing at -29 degrees and centre itself after the line at that heading (39 steps,
+    24 before both front feet crossed), and the search's path turned to 0 degrees for
+    three recorded steps and back to -22 degrees for the goal (30 steps, 28 before
+    crossing; 37.68 s in physics, and 42.85 s with session 34's plan, past the run's 40
+    s). Facing +x it is the planner alone, 21 steps, 20 before crossing: 26.15 s.
+    """
+    feet0 = np.asarray(feet0, dtype=float)
+    yaw = -heading_of(feet0)
+    centre = feet0[:, :2].mean(axis=0)
+    turn = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+    goal_feet = feet0.copy()
+    goal_feet[:, :2] = (feet0[:, :2] - centre) @ turn.T + centre
+    shift = goal + 0.06 - min(goal_feet[0, 0], goal_feet[1, 0])
+    goal_feet[:, 0] += shift
+    goal_feet[:, 1] -= centre[1]  # centred across the board
+    return goal_feet
 
 
 def past_goal(feet, goal: float) -> bool:
@@ -396,17 +466,7 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
     scenario.validate()
     board = target_board(scenario)
     params = CrawlParams()
-    offset = nominal_start(board, params) + np.asarray(scenario.start_offset)
-    try:
-        _, feet, _ = crossing_start(
-            board, 0.0, HALF_EXTENT, params.standing_height, offset, scenario.start_yaw_offset
-        )
-    except RepertoireError as e:  # e.g. the start straddles steps higher than the legs reach
-        x, y = (float(v) for v in offset)
-        raise ScenarioError(
-            f"littledog_transfer: the robot cannot stand at the start (offset [{x:.4f}, "
-            f"{y:.4f}] m, yaw offset {scenario.start_yaw_offset:.3f} rad): {e}"
-        ) from e
+    offset, feet = perturbed_start(scenario, board, params)
     why = off_board(board, feet)
     if why is not None:
         x, y = (float(v) for v in scenario.start_offset)
@@ -420,9 +480,7 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
     )
     goal = HALF_EXTENT - 0.02
     transfer = library_transfer(scenario)
-    shift = goal + 0.06 - min(feet0[0, 0], feet0[1, 0])  # the centroid stops within 3 cm
-    goal_feet = feet0 + np.array([shift, 0.0, 0.0])
-    goal_feet[:, 1] -= feet0[:, 1].mean()  # centred across the board
+    goal_feet = goal_stance(feet0, goal)
     if scenario.mode == "greedy":
         if transfer.library is None:
             raise ScenarioError(f"greedy mode: no step transferred ({transfer.message})")
@@ -457,9 +515,19 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
             source, feet0, goal_feet, filler, config, board, lambda f: past_goal(f, goal)
         )
         if result.status != "reached":
+            why = ""
+            if not start_level(board, feet0, PlannerParams()):
+                z = board.height(feet0[:, 0], feet0[:, 1])
+                why = (
+                    f"; the start's feet stand on ground {100 * np.ptp(z):.1f} cm apart in "
+                    f"height, more than the planner's max_step_height "
+                    f"{100 * PlannerParams().max_step_height:.1f} cm: the higher feet can step "
+                    "only onto ground near their own height (on rocks taller than that step "
+                    "they stay on their rocks)"
+                )
             raise ScenarioError(
                 f"the search stopped with status {result.status} ({result.message}); "
-                "its best partial path is not executed"
+                f"its best partial path is not executed{why}"
             )
         final = final_library(result, source, board, "new_terrain")
     except RepertoireError as e:
@@ -509,7 +577,9 @@ __all__ = [
     "build_littledog_transfer",
     "library_transfer",
     "off_board",
+    "perturbed_start",
     "plan_transfer",
+    "start_level",
     "source_board",
     "target_board",
 ]

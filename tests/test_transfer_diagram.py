@@ -12,6 +12,7 @@ from repertoire.diagrams.littledog_transfer import (
     LittleDogTransferScenario,
     build_littledog_transfer,
     flat_offset,
+    goal_stance,
     nominal_start,
     off_board,
     plan_transfer,
@@ -338,6 +339,13 @@ def test_gap_planner_prices_a_step_as_planner_step_cost_of_travel(library_path, 
     # stands by one): the start where the planner crept. (From the start it takes now, 21
     # steps at either step cost.)
     monkeypatch.setattr(lt, "clear_of_faces", lambda board, xy, rule: np.ones(len(xy), bool))
+
+    # And the goal stance before it faced +x (it kept the start's -9.2 degrees; facing +x
+    # the plan has 19 steps at either step cost).
+    def start_heading_goal(feet0, goal):
+        return feet0 + [goal + 0.06 - min(feet0[0, 0], feet0[1, 0]), -feet0[:, 1].mean(), 0.0]
+
+    monkeypatch.setattr(lt, "goal_stance", start_heading_goal)
     scenario = LittleDogTransferScenario(
         library=library_path, mode="planner", start_offset=[0.0082177, -0.0138128],
         start_yaw_offset=np.deg2rad(-9.1805),
@@ -446,3 +454,68 @@ def test_a_perturbed_start_keeps_its_feet_clear_of_faces_where_it_can():
     np.testing.assert_allclose(got, offset + [-0.01, -0.005], rtol=0, atol=1e-12)
     assert flat_on_ground(board, feet(got), rule).all()
     assert not clear_of_faces(board, feet(got), rule).all()
+
+
+def test_goal_stance_faces_the_crossing_whatever_the_start_heading():
+    """The goal stance is the start stance turned to +x (a rigid move), its front feet 6 cm
+    past the line, centred across the board; before, it kept the start's yaw offset."""
+    from repertoire.planning.littledog_crawl import heading_of
+
+    board = source_board("terrain_a")
+    params = CrawlParams()
+    _, feet0, _ = crossing_start(board, 0.0, 0.25, params.standing_height, [0.0, -0.1], -0.5)
+    assert heading_of(feet0) == pytest.approx(-0.5, abs=0.05)
+    goal = goal_stance(feet0, 0.23)
+    assert heading_of(goal) == pytest.approx(0.0, abs=1e-12)
+    assert min(goal[0, 0], goal[1, 0]) == pytest.approx(0.29, abs=1e-12)
+    assert goal[:, 1].mean() == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_array_equal(goal[:, 2], feet0[:, 2])
+
+    def spans(f):
+        return np.linalg.norm(f[:, None, :2] - f[None, :, :2], axis=-1)
+
+    np.testing.assert_allclose(spans(goal), spans(feet0), atol=1e-12)
+
+
+def test_planner_alone_from_the_scenarios_edge_crosses_facing_the_line(library_path):
+    """Offset [0, -0.1] m, yaw offset -0.5 rad (rock seed 502): with a goal stance at the
+    start's heading the planner crossed crabbing at -29 degrees and centred itself after
+    the line (39 steps, the front feet across after 24); facing +x, 21 steps, 20."""
+    from repertoire.planning.littledog_crawl import heading_of
+
+    scenario = LittleDogTransferScenario(
+        library=library_path, mode="planner", rock_seed=502, start_offset=[0.0, -0.1],
+        start_yaw_offset=-0.5,
+    )  # fmt: skip
+    plan = plan_transfer(scenario)
+    starts = np.array([s.start_feet for s in plan.library] + [step_end_feet(plan.library[-1])])
+    across = np.flatnonzero(np.minimum(starts[:, 0, 0], starts[:, 1, 0]) >= plan.goal)
+    assert (len(plan.library), int(across[0])) == (21, 20)
+    assert abs(heading_of(starts[-1])) <= np.radians(5.0)
+
+
+def _tall_rocks(seed: int):
+    """Two generated boards (seeds ``seed``, ``seed + 1``) of rocks 5-6 cm high."""
+    from repertoire.models.terrain import TerrainParams, generate_board, tile_boards
+
+    params = TerrainParams(kind="rocks", size_x=0.4, size_y=0.8, rock_count=12)
+    params.rock_height = [0.05, 0.06]
+    return tile_boards([generate_board(params, seed), generate_board(params, seed + 1)])
+
+
+def test_a_failed_search_from_a_start_not_level_says_so(library_path, monkeypatch):
+    """Pair 610/611 of 5-6 cm rocks: the start stands rf and rh on rock tops 5.9 and 5.1 cm
+    above the slab, which the planner may not step down from; a search that does not
+    reach the goal names that."""
+    import repertoire.diagrams.littledog_transfer as lt
+    from repertoire.planning.transfer_search import SearchResult
+
+    board = _tall_rocks(610)
+    monkeypatch.setattr(lt, "target_board", lambda scenario: board)
+    cut = SearchResult("time_limit", [], 0.0, 0, 0, 1, 0, "a gap filler's time limit", 10.0)
+    monkeypatch.setattr(lt, "search_library", lambda *args: cut)
+    scenario = LittleDogTransferScenario(library=library_path, mode="planner", target="generated")
+    with pytest.raises(ScenarioError) as e:
+        plan_transfer(scenario)
+    assert "status time_limit" in str(e.value)
+    assert "feet stand on ground 5.9 cm apart in height, more than the planner's" in str(e.value)

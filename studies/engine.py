@@ -76,6 +76,8 @@ from repertoire.studies.registry import (
 from repertoire.studies.store import (
     EpisodeStore,
     canonical_json,
+    config_from_json,
+    config_to_json,
     copy_store,
     from_plain,
     read_store,
@@ -214,7 +216,7 @@ def load_records(store: str | Path, name: str | None = None) -> tuple[Any, dict[
     if name is not None and stored != name:
         raise RepertoireError(f"store '{store}' holds study '{stored}', not '{name}'")
     entry = get_study(stored)
-    config = from_plain(entry.config_type, json.loads(meta["config_json"]), "config")
+    config = config_from_json(entry.config_type, meta["config_json"])
     records = _records_from_rows(entry, rows)
     return config, {row.seed: rec for row, rec in zip(rows, records)}
 
@@ -308,10 +310,9 @@ def run_study(
         raise RepertoireError(f"study '{name}': {nan_field} is NaN; expected a number")
     # The config as the workers rebuild it: typed (an int given for a float field is
     # that float, as a YAML config would load it), so the store's config is one text.
-    rebuilt = from_plain(entry.config_type, json.loads(canonical_json(plain_config)), "config")
-    config_json = canonical_json(to_plain(rebuilt, "config"))
-    again = from_plain(entry.config_type, json.loads(config_json), "config")
-    if canonical_json(to_plain(again, "config")) != config_json:
+    rebuilt = config_from_json(entry.config_type, canonical_json(plain_config))
+    config_json = config_to_json(rebuilt)
+    if config_to_json(config_from_json(entry.config_type, config_json)) != config_json:
         raise RepertoireError(
             f"study '{name}': the config does not survive the trip to plain data and back "
             "(workers could not rebuild it); use plain dataclass fields"

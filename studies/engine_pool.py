@@ -22,7 +22,6 @@ This module imports neither pydrake nor dask at import time.
 
 import collections
 import contextlib
-import json
 import multiprocessing
 import os
 import signal
@@ -36,7 +35,7 @@ from multiprocessing.connection import wait as wait_for
 from typing import Any
 
 from repertoire.studies.registry import lookup_in_module
-from repertoire.studies.store import from_plain, to_plain
+from repertoire.studies.store import config_from_json, to_plain
 
 from repertoire.errors import RepertoireError
 from repertoire.interrupts import check_interrupted, sigint_blocked
@@ -112,7 +111,7 @@ def run_task(module: str, name: str, config_json: str, seed: int) -> dict[str, A
         key = (name, config_json)
         config = _CONFIG_CACHE.get(key)
         if config is None:
-            config = from_plain(entry.config_type, json.loads(config_json), "config")
+            config = config_from_json(entry.config_type, config_json)
             _CONFIG_CACHE.clear()
             _CONFIG_CACHE[key] = config
         with one_blas_thread():

@@ -1,5 +1,8 @@
 """``repertoire show``: every registered world and study prints commented YAML that loads back."""
 
+import re
+from pathlib import Path
+
 import pytest
 from repertoire.diagrams.registry import diagram_names, get_diagram_entry
 from repertoire.diagrams.scenario import load_scenario
@@ -49,6 +52,22 @@ def test_a_config_path_that_is_no_regular_file_is_named_as_such():
     entry = get_study("pendulum")
     with pytest.raises(ScenarioError, match=r"^config file '/dev/null' is not a regular file$"):
         load_scenario(entry.config_type, filename="/dev/null", what="config")
+
+
+SHIPPED_CONFIGS = sorted((Path(__file__).parents[1] / "studies" / "configs").glob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", SHIPPED_CONFIGS, ids=[p.name for p in SHIPPED_CONFIGS])
+def test_every_shipped_study_config_loads_for_the_study_its_comment_runs(path):
+    # A field renamed in a study's config dataclass would otherwise break the file only
+    # when someone runs the command in its comment.
+    text = path.read_text()
+    (name,) = set(re.findall(r"python -m repertoire\.studies\.(\w+)", text))
+    entry = get_study(name)
+    config = load_scenario(
+        entry.config_type, filename=path, defaults=entry.default_config(), what="config"
+    )
+    assert isinstance(config, entry.config_type) and config != entry.default_config()
 
 
 def test_attribute_docs_join_continuation_lines_and_stop_at_the_next_section():

@@ -249,7 +249,7 @@ def run_study(
         store: the SQLite file (default ``<out_dir>/episodes.sqlite``).
         out_dir: folder for the store, tables and figures (default ``out/studies/<name>``).
         executor: ``"inline"``, ``"process"`` or ``"dask"``.
-        workers: process-pool size (default: all cores); ignored by dask.
+        workers: process-pool size (default: all cores); only with ``executor="process"``.
         scheduler_address: the Dask scheduler (``executor="dask"`` only).
         fresh: drop what the store holds and start afresh (needed when the
             config changed); when an episode rejects the new config before any
@@ -288,6 +288,12 @@ def run_study(
         raise RepertoireError(f"executor must be one of {list(EXECUTORS)}, got {executor!r}")
     if workers is not None:
         workers = _check_int("--workers (workers)", workers, 1)
+        if executor != "process":  # as --scheduler without dask: not silently ignored
+            where = "in this process" if executor == "inline" else "on the cluster's workers"
+            raise RepertoireError(
+                f"--workers (workers) is only used with --executor process (executor="
+                f"'process'); --executor {executor} runs its episodes {where}"
+            )
     if executor == "dask":
         dask_timeout_s = check_wait_s("dask_timeout_s", dask_timeout_s)
         dask_worker_wait_s = check_wait_s(
@@ -585,7 +591,11 @@ def add_study_arguments(parser: argparse.ArgumentParser, *, with_name: bool = Tr
         help="where episodes run (default: local process pool)",
     )
     parser.add_argument(
-        "--workers", "-j", type=int, default=None, help="process-pool size (default: all cores)"
+        "--workers",
+        "-j",
+        type=int,
+        default=None,
+        help="process-pool size, with --executor process (default: all cores)",
     )
     parser.add_argument(
         "--scheduler",

@@ -213,10 +213,22 @@ def load_records(store: str | Path, name: str | None = None) -> tuple[Any, dict[
     """
     meta, rows = read_store(store)
     stored = meta.get("study")
+    missing = [key for key in ("study", "config_json") if key not in meta]
+    if missing:  # a damaged store: not "unknown study 'None'" nor a bare KeyError
+        raise RepertoireError(
+            f"store '{store}' has no {' and no '.join(missing)} in its meta table, so its "
+            f"{len(rows)} episodes cannot be read as a study's records"
+        )
     if name is not None and stored != name:
         raise RepertoireError(f"store '{store}' holds study '{stored}', not '{name}'")
     entry = get_study(stored)
-    config = config_from_json(entry.config_type, meta["config_json"])
+    try:
+        config = config_from_json(entry.config_type, meta["config_json"])
+    except (RepertoireError, ValueError) as e:  # a field renamed or dropped since
+        raise RepertoireError(
+            f"store '{store}': its config no longer fits study '{stored}' "
+            f"({entry.config_type.__name__}): {e}"
+        ) from e
     records = _records_from_rows(entry, rows)
     return config, {row.seed: rec for row, rec in zip(rows, records)}
 

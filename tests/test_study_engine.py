@@ -154,29 +154,6 @@ def test_numpy_whole_numbers_count_as_ints_and_floats_or_bools_do_not(tmp_path, 
             run_study("_toy", episodes=bad, **kw)
 
 
-@pytest.mark.parametrize(
-    ("executor", "where"),
-    [("inline", "in this process"), ("dask", "on the cluster's workers")],
-)
-def test_workers_with_another_executor_than_the_pool_is_refused_not_ignored(
-    tmp_path, toy_studies, capsys, executor, where
-):
-    # `-j 2 --executor dask` ran as if -j were not given, as --scheduler without dask is not.
-    message = (
-        "--workers (workers) is only used with --executor process (executor='process'); "
-        f"--executor {executor} runs its episodes {where}"
-    )
-    extra = {"scheduler_address": "tcp://127.0.0.1:1"} if executor == "dask" else {}
-    with pytest.raises(RepertoireError) as error:
-        run_study("_toy", episodes=2, executor=executor, workers=2, **extra, **_kw(tmp_path))
-    assert str(error.value) == message
-    argv = ["_toy", "-n", "2", "--executor", executor, "-j", "1", "--no-progress"]
-    argv += ["--scheduler", "tcp://127.0.0.1:1"] if executor == "dask" else []
-    assert study_main(None, [*argv, "--out-dir", str(tmp_path / "o")]) == 2
-    assert capsys.readouterr().err == f"error: {message}\n"
-    assert list(tmp_path.iterdir()) == []
-
-
 def test_other_bad_arguments(tmp_path, toy_studies):
     with pytest.raises(RepertoireError, match="executor must be one of"):
         run_study("_toy", episodes=2, executor="threads", **_kw(tmp_path))

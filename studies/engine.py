@@ -261,7 +261,8 @@ def run_study(
         store: the SQLite file (default ``<out_dir>/episodes.sqlite``).
         out_dir: folder for the store, tables and figures (default ``out/studies/<name>``).
         executor: ``"inline"``, ``"process"`` or ``"dask"``.
-        workers: process-pool size (default: all cores); only with ``executor="process"``.
+        workers: process-pool size (default: all cores); only with ``executor="process"``
+            (``"inline"`` takes 1).
         scheduler_address: the Dask scheduler (``executor="dask"`` only).
         fresh: drop what the store holds and start afresh (needed when the
             config changed); when an episode rejects the new config before any
@@ -300,8 +301,9 @@ def run_study(
         raise RepertoireError(f"executor must be one of {list(EXECUTORS)}, got {executor!r}")
     if workers is not None:
         workers = _check_int("--workers (workers)", workers, 1)
-        if executor != "process":  # as --scheduler without dask: not silently ignored
-            where = "in this process" if executor == "inline" else "on the cluster's workers"
+        # as --scheduler without dask: not silently ignored (inline is one worker)
+        if executor == "dask" or (executor == "inline" and workers > 1):
+            where = "one at a time in this process" if executor == "inline" else "on the cluster"
             raise RepertoireError(
                 f"--workers (workers) is only used with --executor process (executor="
                 f"'process'); --executor {executor} runs its episodes {where}"

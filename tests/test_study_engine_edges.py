@@ -14,7 +14,7 @@ pytestmark = pytest.mark.usefixtures("toy_studies")  # the test-only studies of 
 
 @pytest.mark.parametrize(
     ("executor", "where"),
-    [("inline", "in this process"), ("dask", "on the cluster's workers")],
+    [("inline", "one at a time in this process"), ("dask", "on the cluster")],
 )
 def test_workers_with_another_executor_than_the_pool_is_refused_not_ignored(
     tmp_path, capsys, executor, where
@@ -28,11 +28,14 @@ def test_workers_with_another_executor_than_the_pool_is_refused_not_ignored(
     with pytest.raises(RepertoireError) as error:
         run_study("_toy", episodes=2, executor=executor, workers=2, **extra, **_kw(tmp_path))
     assert str(error.value) == message
-    argv = ["_toy", "-n", "2", "--executor", executor, "-j", "1", "--no-progress"]
+    argv = ["_toy", "-n", "2", "--executor", executor, "-j", "2", "--no-progress"]
     argv += ["--scheduler", "tcp://127.0.0.1:1"] if executor == "dask" else []
     assert study_main(None, [*argv, "--out-dir", str(tmp_path / "o")]) == 2
     assert capsys.readouterr().err == f"error: {message}\n"
     assert list(tmp_path.iterdir()) == []
+    if executor == "inline":  # one worker is what inline is
+        result = run_study("_toy", episodes=2, executor="inline", workers=1, **_kw(tmp_path))
+        assert (result.workers, result.n_run) == (1, 2)
 
 
 def test_load_records_names_the_store_when_its_meta_is_damaged_or_its_config_drifted(tmp_path):

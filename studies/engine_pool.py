@@ -156,6 +156,33 @@ def run_task(module: str, name: str, config_json: str, seed: int) -> dict[str, A
         }
 
 
+_BLAS_PINNED = False  # this process's BLAS is held to one thread for good (a Dask worker)
+_BLAS_PIN_LOCK = threading.Lock()
+
+
+def run_task_pinned(module: str, name: str, config_json: str, seed: int) -> dict[str, Any]:
+    """:func:`run_task` in a process whose BLAS is held to one thread for the rest of its life.
+
+    The task Dask runs. A Dask worker runs as many episodes at once as it has threads,
+    and :func:`one_blas_thread` cannot hold them there: the limits are per process, one
+    episode's context puts them back when it ends while another runs, and threadpoolctl
+    lets only one thread set OpenBLAS's limit (the others' calls do nothing). A Dask
+    nanny starts its workers with ``OMP_NUM_THREADS=1``; a worker started without one
+    (``dask worker --no-nanny --nthreads 2``) ran some episodes with two BLAS threads.
+    The first task in a worker now sets one thread for good, as the nanny would.
+    """
+    global _BLAS_PINNED
+    with _BLAS_PIN_LOCK:
+        if not _BLAS_PINNED:
+            import numpy  # noqa: F401  (loads numpy's BLAS)
+            import scipy.linalg  # noqa: F401  (loads scipy's BLAS)
+            from threadpoolctl import threadpool_limits
+
+            threadpool_limits(limits=1)  # never put back: the worker only runs episodes
+            _BLAS_PINNED = True
+    return run_task(module, name, config_json, seed)
+
+
 def raise_task_error(name: str, result: dict[str, Any]) -> None:
     """Raises the error a failed :func:`run_task` result stands for."""
     seed = result["seed"]

@@ -43,7 +43,11 @@ def load_scenario(
     if not dataclasses.is_dataclass(schema):
         raise ScenarioError(f"scenario schema must be a dataclass type, got {schema!r}")
     if filename is not None and not Path(filename).is_file():
-        state = "is a folder, not a file" if Path(filename).is_dir() else "does not exist"
+        path = Path(filename)
+        if path.is_dir():
+            state = "is a folder, not a file"
+        else:  # /dev/null, a pipe: not "does not exist"
+            state = "is not a regular file" if path.exists() else "does not exist"
         raise ScenarioError(f"{what} file '{filename}' {state}")
     if defaults is None:
         defaults = schema()
@@ -52,6 +56,11 @@ def load_scenario(
     duplicate = _duplicate_key(text)
     if duplicate:
         raise ScenarioError(f"could not load {schema.__name__} from {where}: {duplicate}")
+    if _is_empty_document(text):
+        # Blank or only comments (every line of `repertoire show` commented out): every key
+        # is left out, so every value is the default. The loader refused such a file
+        # ("YAML root was a <class 'NoneType'>").
+        filename, data = None, "{}"
     try:
         kwargs = dict(schema=schema, defaults=defaults, allow_yaml_with_no_schema=False)
         if filename is not None:
@@ -153,6 +162,16 @@ def _mismatch(tp, value, where: str) -> str | None:
         if reason:
             return reason
     return None
+
+
+def _is_empty_document(text: str | None) -> bool:
+    """True for YAML text that holds no value at all (blank, or only comments)."""
+    try:
+        import yaml
+
+        return yaml.compose(text or "", Loader=yaml.SafeLoader) is None
+    except Exception:  # malformed: the loader's message stands
+        return False
 
 
 def _duplicate_key(text: str | None) -> str | None:

@@ -76,6 +76,8 @@ from repertoire.studies.registry import (
 from repertoire.studies.store import (
     EpisodeStore,
     canonical_json,
+    config_from_json,
+    config_to_json,
     copy_store,
     from_plain,
     read_store,
@@ -211,10 +213,22 @@ def load_records(store: str | Path, name: str | None = None) -> tuple[Any, dict[
     """
     meta, rows = read_store(store)
     stored = meta.get("study")
+    missing = [key for key in ("study", "config_json") if key not in meta]
+    if missing:  # a damaged store: not "unknown study 'None'" nor a bare KeyError
+        raise RepertoireError(
+            f"store '{store}' has no {' and no '.join(missing)} in its meta table, so its "
+            f"{len(rows)} episodes cannot be read as a study's records"
+        )
     if name is not None and stored != name:
         raise RepertoireError(f"store '{store}' holds study '{stored}', not '{name}'")
     entry = get_study(stored)
-    config = from_plain(entry.config_type, json.loads(meta["config_json"]), "config")
+    try:
+        config = config_from_json(entry.config_type, meta["config_json"])
+    except (RepertoireError, ValueError) as e:  # a field renamed or dropped since
+        raise RepertoireError(
+            f"store '{store}': its config no longer fits study '{stored}' "
+            f"({entry.config_type.__name__}): {e}"
+        ) from e
     records = _records_from_rows(entry, rows)
     return config, {row.seed: rec for row, rec in zip(rows, records)}
 
@@ -247,7 +261,8 @@ def run_study(
         store: the SQLite file (default ``<out_dir>/episodes.sqlite``).
         out_dir: folder for the store, tables and figures (default ``out/studies/<name>``).
         executor: ``"inline"``, ``"process"`` or ``"dask"``.
-        workers: process-pool size (default: all cores); ignored by dask.
+        workers: process-pool size (default: all cores); only with ``executor="process"``
+            (``"inline"`` takes 1).
         scheduler_address: the Dask scheduler (``executor="dask"`` only).
         fresh: drop what the store holds and start afresh (needed when the
             config changed); when an episode rejects the new config before any
@@ -286,6 +301,13 @@ def run_study(
         raise RepertoireError(f"executor must be one of {list(EXECUTORS)}, got {executor!r}")
     if workers is not None:
         workers = _check_int("--workers (workers)", workers, 1)
+        # as --scheduler without dask: not silently ignored (inline is one worker)
+        if executor == "dask" or (executor == "inline" and workers > 1):
+            where = "one at a time in this process" if executor == "inline" else "on the cluster"
+            raise RepertoireError(
+                f"--workers (workers) is only used with --executor process (executor="
+                f"'process'); --executor {executor} runs its episodes {where}"
+            )
     if executor == "dask":
         dask_timeout_s = check_wait_s("dask_timeout_s", dask_timeout_s)
         dask_worker_wait_s = check_wait_s(
@@ -308,10 +330,9 @@ def run_study(
         raise RepertoireError(f"study '{name}': {nan_field} is NaN; expected a number")
     # The config as the workers rebuild it: typed (an int given for a float field is
     # that float, as a YAML config would load it), so the store's config is one text.
-    rebuilt = from_plain(entry.config_type, json.loads(canonical_json(plain_config)), "config")
-    config_json = canonical_json(to_plain(rebuilt, "config"))
-    again = from_plain(entry.config_type, json.loads(config_json), "config")
-    if canonical_json(to_plain(again, "config")) != config_json:
+    rebuilt = config_from_json(entry.config_type, canonical_json(plain_config))
+    config_json = config_to_json(rebuilt)
+    if config_to_json(config_from_json(entry.config_type, config_json)) != config_json:
         raise RepertoireError(
             f"study '{name}': the config does not survive the trip to plain data and back "
             "(workers could not rebuild it); use plain dataclass fields"
@@ -584,7 +605,11 @@ def add_study_arguments(parser: argparse.ArgumentParser, *, with_name: bool = Tr
         help="where episodes run (default: local process pool)",
     )
     parser.add_argument(
-        "--workers", "-j", type=int, default=None, help="process-pool size (default: all cores)"
+        "--workers",
+        "-j",
+        type=int,
+        default=None,
+        help="process-pool size, with --executor process (default: all cores)",
     )
     parser.add_argument(
         "--scheduler",

@@ -2,7 +2,7 @@
 
 The scheduler address is parsed before any connection is tried, so a typo is
 a one-line error naming the expected form rather than a timeout. Tasks are
-:func:`repertoire.studies.engine_pool.run_task` calls with plain arguments;
+:func:`repertoire.studies.engine_pool.run_task_pinned` calls with plain arguments;
 a bounded window of submitted seeds keeps the scheduler's load flat. When every
 worker has left mid-run the seeds wait on the scheduler for one to join (they
 resume there); after ``worker_wait_s`` without one the run stops with a one-line
@@ -17,7 +17,7 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
-from repertoire.studies.engine_pool import EpisodeError, run_task
+from repertoire.studies.engine_pool import EpisodeError, run_task_pinned
 
 from repertoire.errors import RepertoireError
 
@@ -204,7 +204,9 @@ def iter_dask(
         seed = next(todo, None)
         if seed is not None:
             key = f"{name}-{token}-{seed}"
-            fut = client.submit(run_task, module, name, config_json, seed, key=key, pure=False)
+            fut = client.submit(
+                run_task_pinned, module, name, config_json, seed, key=key, pure=False
+            )
             seed_of[fut] = seed
             ac.add(fut)
 

@@ -22,7 +22,6 @@ This module imports neither pydrake nor dask at import time.
 
 import collections
 import contextlib
-import json
 import multiprocessing
 import os
 import signal
@@ -36,7 +35,7 @@ from multiprocessing.connection import wait as wait_for
 from typing import Any
 
 from repertoire.studies.registry import lookup_in_module
-from repertoire.studies.store import from_plain, to_plain
+from repertoire.studies.store import config_from_json, to_plain
 
 from repertoire.errors import RepertoireError
 from repertoire.interrupts import check_interrupted, sigint_blocked
@@ -112,7 +111,7 @@ def run_task(module: str, name: str, config_json: str, seed: int) -> dict[str, A
         key = (name, config_json)
         config = _CONFIG_CACHE.get(key)
         if config is None:
-            config = from_plain(entry.config_type, json.loads(config_json), "config")
+            config = config_from_json(entry.config_type, config_json)
             _CONFIG_CACHE.clear()
             _CONFIG_CACHE[key] = config
         with one_blas_thread():
@@ -155,6 +154,33 @@ def run_task(module: str, name: str, config_json: str, seed: int) -> dict[str, A
             "message": message,
             "traceback": traceback.format_exc(),
         }
+
+
+_BLAS_PINNED = False  # this process's BLAS is held to one thread for good (a Dask worker)
+_BLAS_PIN_LOCK = threading.Lock()
+
+
+def run_task_pinned(module: str, name: str, config_json: str, seed: int) -> dict[str, Any]:
+    """:func:`run_task` in a process whose BLAS is held to one thread for the rest of its life.
+
+    The task Dask runs. A Dask worker runs as many episodes at once as it has threads,
+    and :func:`one_blas_thread` cannot hold them there: the limits are per process, one
+    episode's context puts them back when it ends while another runs, and threadpoolctl
+    lets only one thread set OpenBLAS's limit (the others' calls do nothing). A Dask
+    nanny starts its workers with ``OMP_NUM_THREADS=1``; a worker started without one
+    (``dask worker --no-nanny --nthreads 2``) ran some episodes with two BLAS threads.
+    The first task in a worker now sets one thread for good, as the nanny would.
+    """
+    global _BLAS_PINNED
+    with _BLAS_PIN_LOCK:
+        if not _BLAS_PINNED:
+            import numpy  # noqa: F401  (loads numpy's BLAS)
+            import scipy.linalg  # noqa: F401  (loads scipy's BLAS)
+            from threadpoolctl import threadpool_limits
+
+            threadpool_limits(limits=1)  # never put back: the worker only runs episodes
+            _BLAS_PINNED = True
+    return run_task(module, name, config_json, seed)
 
 
 def raise_task_error(name: str, result: dict[str, Any]) -> None:

@@ -230,26 +230,44 @@ def _bin_edges(values: list[float], n: int):
         return np.array([lo - pad, hi + pad])
 
 
-def write_histograms(record_type: type, records: list, out_dir: Path) -> dict[str, Path]:
-    """One histogram PNG per numeric record field; returns ``{label: path}``."""
+def histogram_figure(name: str, values: list, n_records: int):
+    """The histogram of a numeric field's finite ``values`` over ``n_records`` episodes.
+
+    A field with no finite value gets a note in an empty frame instead of bars (its
+    empty histogram had a count axis from -0.05 to 0.05).
+
+    Returns:
+        The matplotlib ``Figure`` (not saved).
+    """
     from matplotlib.figure import Figure
     from matplotlib.ticker import MaxNLocator
 
+    finite = [float(v) for v in values if _present(v) and math.isfinite(v)]
+    fig = Figure(figsize=(5, 3.5), layout="constrained")
+    ax = fig.add_subplot()
+    ax.set_xlabel(name)
+    ax.set_ylabel("episodes")
+    missing = n_records - len(finite)
+    left_out = f" ({missing} missing or non-finite left out)" if missing else ""
+    ax.set_title(f"{name} over {len(finite)} episodes{left_out}", fontsize=9)
+    if not finite:
+        ax.set_ylim(0.0, 1.0)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.text(0.5, 0.5, "no finite value", ha="center", va="center", transform=ax.transAxes)
+        return fig
+    bins = _bin_edges(finite, min(30, max(5, len(finite) // 3)))
+    ax.hist(finite, bins=bins, color="tab:blue", alpha=0.8)
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts: whole ticks
+    return fig
+
+
+def write_histograms(record_type: type, records: list, out_dir: Path) -> dict[str, Path]:
+    """One histogram PNG per numeric record field; returns ``{label: path}``."""
     numeric, _ = _numeric_fields(record_type, records)
     figures = {}
     for name in numeric:
-        vals = [float(v) for r in records if _present(v := getattr(r, name))]
-        finite = [v for v in vals if math.isfinite(v)]
-        fig = Figure(figsize=(5, 3.5), layout="constrained")
-        ax = fig.add_subplot()
-        bins = _bin_edges(finite, min(30, max(5, len(finite) // 3)))
-        ax.hist(finite, bins=bins, color="tab:blue", alpha=0.8)
-        ax.set_xlabel(name)
-        ax.set_ylabel("episodes")
-        ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts: whole ticks
-        missing = len(records) - len(finite)
-        left_out = f" ({missing} missing or non-finite left out)" if missing else ""
-        ax.set_title(f"{name} over {len(finite)} episodes{left_out}", fontsize=9)
+        fig = histogram_figure(name, [getattr(r, name) for r in records], len(records))
         path = out_dir / f"hist_{name}.png"
         fig.savefig(path, dpi=100)
         figures[f"hist_{name}"] = path

@@ -59,9 +59,11 @@ class PendulumConfig:
                 f"PendulumConfig.max_initial_angle_rad must be in (0, pi], "
                 f"got {self.max_initial_angle_rad}"
             )
-        if not 0 <= self.damping_min <= self.damping_max:
+        # Finite too: an infinite damping_max passed and every episode then died in the
+        # damping draw (numpy's OverflowError), after its store was made.
+        if not 0 <= self.damping_min <= self.damping_max < math.inf:
             raise RepertoireError(
-                f"PendulumConfig needs 0 <= damping_min <= damping_max, got "
+                f"PendulumConfig needs 0 <= damping_min <= damping_max < inf, got "
                 f"{self.damping_min}, {self.damping_max}"
             )
         if not (0 <= self.time_step_s < self.duration_s):

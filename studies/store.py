@@ -156,6 +156,16 @@ def canonical_json(plain: Any) -> str:
     return json.dumps(plain, sort_keys=True, separators=(",", ":"))
 
 
+def config_to_json(config: Any) -> str:
+    """A study config (a dataclass) as the canonical JSON text stores and workers get."""
+    return canonical_json(to_plain(config, "config"))
+
+
+def config_from_json(config_type: type, config_json: str) -> Any:
+    """The ``config_type`` instance that :func:`config_to_json` text stands for."""
+    return from_plain(config_type, json.loads(config_json), "config")
+
+
 def config_hash(config_json: str) -> str:
     """SHA-256 hex digest of a canonical config JSON text."""
     return hashlib.sha256(config_json.encode()).hexdigest()
@@ -285,7 +295,7 @@ class EpisodeStore:
             raise RepertoireError(
                 f"'{self.path}' is an SQLite file but not a study store (tables {sorted(tables)})"
             )
-        meta = dict(conn.execute("SELECT key, value FROM meta")) if tables else {}
+        meta = self.meta() if tables else {}
         wanted = {
             "schema_version": SCHEMA_VERSION,
             "study": study,
@@ -295,14 +305,14 @@ class EpisodeStore:
         }
         hint = "pass --fresh (fresh=True) to start the store afresh"
         if tables and not meta and not fresh:
-            n = conn.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
+            n = self.count()
             if n:  # episodes of an unknown study and config: never wiped unasked
                 raise RepertoireError(
                     f"store '{self.path}' holds {n} episodes but no meta (study, config); {hint}"
                 )
         if meta and not fresh:
             if meta.get("study") != study:  # --fresh would wipe another study's data
-                n = conn.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
+                n = self.count()
                 raise RepertoireError(
                     f"store '{self.path}' holds study '{meta.get('study')}', not '{study}' "
                     f"({n} episode{'' if n == 1 else 's'} of it); use another store path "

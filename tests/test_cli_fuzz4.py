@@ -1,6 +1,7 @@
 """Round 4 of unusual and bad input to the command line, scenario loading and the study engine."""
 
 import dataclasses
+import math
 import sqlite3
 
 import pytest
@@ -285,6 +286,23 @@ def test_histograms_of_huge_nearly_equal_values_are_written(tmp_path, values):
     figures = write_histograms(FuzzRecord, [FuzzRecord(value=v) for v in values], tmp_path)
     assert figures == {"hist_value": tmp_path / "hist_value.png"}
     assert (tmp_path / "hist_value.png").stat().st_size > 0
+
+
+def test_a_histogram_of_a_field_with_no_finite_value_says_so_on_a_count_axis_from_zero():
+    # It was an empty frame whose count axis ran from -0.05 to 0.05.
+    from repertoire.studies.engine_summary import histogram_figure
+
+    fig = histogram_figure("gap_m", [math.nan, None, math.inf], 3)
+    (ax,) = fig.axes
+    assert ax.get_ylim() == (0.0, 1.0)
+    assert [t.get_text() for t in ax.texts] == ["no finite value"]
+    assert ax.get_title() == "gap_m over 0 episodes (3 missing or non-finite left out)"
+    assert list(ax.get_yticks()) == []
+    fig = histogram_figure("gap_m", [1.0, 2.0, math.nan], 3)
+    (ax,) = fig.axes
+    assert ax.get_ylim()[0] == 0.0 and len(ax.texts) == 0
+    assert sum(p.get_height() for p in ax.patches) == 2
+    assert ax.get_title() == "gap_m over 2 episodes (1 missing or non-finite left out)"
 
 
 @dataclasses.dataclass

@@ -1,11 +1,15 @@
 """``repertoire show``: every registered world and study prints commented YAML that loads back."""
 
+import re
+from pathlib import Path
+
 import pytest
 from repertoire.diagrams.registry import diagram_names, get_diagram_entry
 from repertoire.diagrams.scenario import load_scenario
 from repertoire.studies.registry import get_study, study_names
 
 from repertoire.cli import main
+from repertoire.errors import ScenarioError
 from repertoire.show import attribute_docs, show_text, undocumented_fields
 
 
@@ -25,6 +29,45 @@ def test_show_prints_commented_yaml_that_loads_back_unchanged(name):
     assert undocumented_fields(schema) == []  # every field has a comment
     for field, doc in attribute_docs(schema).items():
         assert f"# {field}: {doc}\n{field}:" in text
+
+
+def test_a_config_file_with_every_line_commented_out_loads_the_defaults(tmp_path):
+    # Every key is left out, so every key keeps its default; the loader used to refuse
+    # such a file ("YAML root was a <class 'NoneType'> but should have been a dict").
+    entry = get_study("pendulum")
+    commented = "".join(
+        line if line.startswith("#") else f"# {line}"
+        for line in show_text("pendulum").splitlines(keepends=True)
+    )
+    for text in (commented, "", "\n  \n", "# nothing\n"):
+        path = tmp_path / "c.yaml"
+        path.write_text(text)
+        default = entry.default_config()
+        loaded = load_scenario(entry.config_type, filename=path, defaults=default, what="config")
+        assert loaded == default and loaded is not default
+        assert load_scenario(entry.config_type, data=text) == entry.config_type()
+
+
+def test_a_config_path_that_is_no_regular_file_is_named_as_such():
+    entry = get_study("pendulum")
+    with pytest.raises(ScenarioError, match=r"^config file '/dev/null' is not a regular file$"):
+        load_scenario(entry.config_type, filename="/dev/null", what="config")
+
+
+SHIPPED_CONFIGS = sorted((Path(__file__).parents[1] / "studies" / "configs").glob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", SHIPPED_CONFIGS, ids=[p.name for p in SHIPPED_CONFIGS])
+def test_every_shipped_study_config_loads_for_the_study_its_comment_runs(path):
+    # A field renamed in a study's config dataclass would otherwise break the file only
+    # when someone runs the command in its comment.
+    text = path.read_text()
+    (name,) = set(re.findall(r"python -m repertoire\.studies\.(\w+)", text))
+    entry = get_study(name)
+    config = load_scenario(
+        entry.config_type, filename=path, defaults=entry.default_config(), what="config"
+    )
+    assert isinstance(config, entry.config_type) and config != entry.default_config()
 
 
 def test_attribute_docs_join_continuation_lines_and_stop_at_the_next_section():

@@ -137,7 +137,7 @@ def test_every_dask_worker_leaving_mid_run_is_a_clear_error_not_a_hang(monkeypat
     from repertoire.studies import engine_dask
     from repertoire.studies.engine_pool import EpisodeError
 
-    monkeypatch.setattr(engine_dask, "run_task", _quick_task)
+    monkeypatch.setattr(engine_dask, "run_task_pinned", _quick_task)
     seeds = list(range(150))  # more than the window: some are submitted after workers left
     with _no_hang(120, "every worker leaving mid-run"), _one_worker_cluster() as (cluster, client):
         results = engine_dask.iter_dask(client, "m", "pendulum", "{}", seeds, worker_wait_s=0.5)
@@ -161,7 +161,7 @@ def test_every_dask_worker_leaving_mid_run_is_a_clear_error_not_a_hang(monkeypat
 def test_seeds_resume_on_a_worker_that_joins_after_every_worker_left(monkeypatch):
     from repertoire.studies import engine_dask
 
-    monkeypatch.setattr(engine_dask, "run_task", _quick_task)
+    monkeypatch.setattr(engine_dask, "run_task_pinned", _quick_task)
     seeds = list(range(150))
     with _no_hang(120, "a worker rejoining"), _one_worker_cluster() as (cluster, client):
         results = engine_dask.iter_dask(client, "m", "pendulum", "{}", seeds, worker_wait_s=30.0)
@@ -254,7 +254,7 @@ def test_a_task_that_fails_on_the_cluster_names_its_seed(monkeypatch):
     from repertoire.studies import engine_dask
     from repertoire.studies.engine_pool import EpisodeError
 
-    monkeypatch.setattr(engine_dask, "run_task", _failing_task)
+    monkeypatch.setattr(engine_dask, "run_task_pinned", _failing_task)
     with _no_hang(120, "a failing task"), _one_worker_cluster() as (_, client):
         with pytest.raises(EpisodeError) as error:
             list(engine_dask.iter_dask(client, "m", "pendulum", "{}", [7], worker_wait_s=30.0))
@@ -262,3 +262,82 @@ def test_a_task_that_fails_on_the_cluster_names_its_seed(monkeypatch):
         "study 'pendulum': the Dask cluster could not run seed 7 (OSError: worker gone on "
         "seed 7); finished episodes are stored, rerun to resume"
     )
+
+
+_THREADED_BLAS_STUDY = """
+import dataclasses
+import threading
+
+from threadpoolctl import threadpool_info
+
+from repertoire.studies.engine import register_study
+
+A_IN, B_IN = threading.Event(), threading.Event()
+
+
+@dataclasses.dataclass
+class Config:
+    pass
+
+
+@dataclasses.dataclass
+class Record:
+    most_blas_threads: int
+
+
+def run_episode(config, seed):
+    if seed == 0:  # the first episode: in, then out while the second is still running
+        A_IN.set()
+        B_IN.wait(10)
+    else:
+        B_IN.set()
+        A_OUT.wait(10)
+    blas = [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+    return Record(max(blas))
+
+
+A_OUT = threading.Event()
+register_study("_threaded_blas", config_type=Config, record_type=Record,
+               run_episode=run_episode, description="test-only")
+"""
+
+_TWO_THREADS = """
+import threading, sys
+import threaded_blas_study as s
+from repertoire.studies.engine_pool import run_task_pinned
+
+out = {}
+def first():
+    out[0] = run_task_pinned("threaded_blas_study", "_threaded_blas", "{}", 0)
+    s.A_OUT.set()
+def second():
+    s.A_IN.wait(10)
+    out[1] = run_task_pinned("threaded_blas_study", "_threaded_blas", "{}", 1)
+threads = [threading.Thread(target=first), threading.Thread(target=second)]
+for t in threads: t.start()
+for t in threads: t.join(20)
+print([out[i]["record"]["most_blas_threads"] for i in (0, 1)])
+"""
+
+
+def test_episodes_in_two_threads_of_one_dask_worker_both_run_with_one_blas_thread(tmp_path):
+    # A worker with two threads and no nanny (whose OMP_NUM_THREADS=1 hid it): the first
+    # episode's one_blas_thread put the BLAS's two threads back when it ended, under the
+    # second, still running (measured: 1 of 12 and 3 of 8 episodes ran with two).
+    import os
+    import subprocess
+    import sys
+
+    (tmp_path / "threaded_blas_study.py").write_text(_THREADED_BLAS_STUDY)
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "2"}
+    env["PYTHONPATH"] = os.pathsep.join([str(tmp_path), *sys.path])
+    out = subprocess.run(
+        [sys.executable, "-P", "-c", _TWO_THREADS],
+        env=env,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout == "[1, 1]\n"

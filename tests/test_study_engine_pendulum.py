@@ -68,12 +68,29 @@ def test_episodes_are_deterministic_per_seed():
         ({"duration_s": float("nan")}, r"duration_s must be finite and > 0"),
         ({"max_initial_angle_rad": 4.0}, r"max_initial_angle_rad must be in \(0, pi\]"),
         ({"damping_min": -0.1}, r"0 <= damping_min <= damping_max"),
+        ({"damping_max": math.inf}, r"damping_max < inf, got 0\.0, inf$"),
         ({"time_step_s": 5.0}, r"time_step_s must be in \[0, duration_s\)"),
     ],
 )
 def test_config_validation(changes, message):
     with pytest.raises(RepertoireError, match=message):
         PendulumConfig(**changes).validate()
+
+
+def test_an_infinite_damping_in_a_config_file_is_bad_input_and_writes_nothing(tmp_path, capsys):
+    # It used to pass validation; every episode then died in the damping draw
+    # (OverflowError: a failed run, exit 1) and left a store behind.
+    from repertoire.studies.engine import study_main
+
+    config = tmp_path / "c.yaml"
+    config.write_text("damping_max: .inf\n")
+    out = tmp_path / "out"
+    argv = ["pendulum", "--config", str(config), "-n", "1", "--executor", "inline"]
+    assert study_main(None, [*argv, "--out-dir", str(out), "--no-progress"]) == 2
+    assert capsys.readouterr().err == (
+        "error: PendulumConfig needs 0 <= damping_min <= damping_max < inf, got 0.0, inf\n"
+    )
+    assert not out.exists()
 
 
 def test_summarize_writes_the_scatter_png(tmp_path):

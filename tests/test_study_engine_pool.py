@@ -405,7 +405,7 @@ def test_every_episode_runs_with_one_blas_thread_and_inline_restores_the_limit(
                 "_blas_study",
                 episodes=3,
                 executor=executor,
-                workers=2,
+                workers=2 if executor == "process" else None,
                 out_dir=tmp_path / "out",
                 progress=False,
                 summarize=False,

@@ -230,7 +230,7 @@ def test_a_negative_or_nan_duration_is_refused_naming_its_row():
     X, y = _piecewise(100)
     y[[7, 40]] = [-0.25, -1.5]
     with pytest.raises(
-        RepertoireError, match=r"2 of 100 durations are negative \(the least: row 40, -1\.5 s\)"
+        RepertoireError, match=r"2 of 100 durations are negative \(the least: row 40, -1\.5\); a"
     ):
         fit_duration_tree(X, y, ["a", "b"])
     signed = fit_duration_tree(X, y, ["a", "b"], nonnegative=False)  # a signed target

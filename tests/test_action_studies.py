@@ -115,9 +115,9 @@ def test_generic_fit_on_an_existing_study(tmp_path, capsys):
     # a signed target (numerical noise makes one pendulum's fraction -0.001) is refused as a
     # duration, and fitted with --signed-target
     assert main([*args, "--target", "energy_lost_fraction"]) == 2
-    assert "durations are negative (the least: 'energy_lost_fraction' of record" in (
-        capsys.readouterr().out
-    )
+    out = capsys.readouterr().out
+    assert "durations are negative (the least: 'energy_lost_fraction' of record" in out
+    assert "--signed-target" in out
     assert main([*args, "--target", "energy_lost_fraction", "--signed-target"]) == 0
     out = capsys.readouterr().out
     assert "held-out MAE" in out and "train 21, held out 7" in out

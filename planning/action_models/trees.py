@@ -299,8 +299,9 @@ def _check_targets(y: np.ndarray, row: str, nonnegative: bool = False) -> None:
         least = int(np.argmin(y))
         raise RepertoireError(
             f"{int(np.sum(y < 0))} of {y.size} durations are negative (the least: {row} {least}, "
-            f"{y[least]:.6g} s); a duration is never negative (for a signed target such as a "
-            "clearance pass nonnegative=False)"
+            f"{y[least]:.6g}); a duration is never negative (a signed target such as a "
+            "clearance: fit with nonnegative=False, on the actions_fit command line "
+            "--signed-target)"
         )
 
 

@@ -39,10 +39,15 @@ def multi_point_obstacle_coupling(
 
         p = sum_i s(d_i) p_i,   s(d) = exp(-max(d - obstacle_radius, 0) / length_scale)
 
-    with ``d_i = |c_i - o|``. ``length_scale = 0`` gives ``s = 1``: the paper's
-    eq. 10 exactly, summed over the points (with the single point ``[0, 0, 0]`` it
-    *is* eq. 10 on the end-effector). ``length_scale > 0`` is our extension: eq. 10
-    depends on the angle only, so a gain strong enough to clear a cup-sized load
+    with ``d_i = |c_i - o|``. The velocity here is ``dx/dt``, not the paper's scaled
+    ``v = tau dx/dt`` (eq. 7) that :class:`repertoire.systems.dmp.ObstacleCoupling` uses:
+    the hand's DMPs run in a :class:`~repertoire.systems.dmp_sequencer.DmpSequencer` whose
+    segments have different ``tau``, and one gain ``gamma`` (tuned in the arm worlds) acts
+    on every segment alike; ``gamma`` here is the paper's gain times the active ``tau``,
+    so a segment's path does depend on its ``tau``. ``length_scale = 0`` gives ``s = 1``:
+    the paper's eq. 10 exactly (at ``tau = 1``), summed over the points (with the single
+    point ``[0, 0, 0]`` it *is* eq. 10 on the end-effector). ``length_scale > 0`` is our
+    extension: eq. 10 depends on the angle only, so a gain strong enough to clear a cup-sized load
     (which needs a smaller ``beta``, acting over a wider angle) would also bend the
     movement far from the obstacle and keep it from its goal; the distance factor
     fades the term out beyond a few ``length_scale`` from the ball's surface.
@@ -97,7 +102,7 @@ class MultiPointObstacleCoupling(LeafSystem):
 
     Wraps :func:`multi_point_obstacle_coupling`; with the single control point
     ``[0, 0, 0]`` and ``length_scale = 0`` it outputs the paper's eq. 10 on the
-    end-effector (as ``repertoire.systems.dmp.ObstacleCoupling``).
+    end-effector (as ``repertoire.systems.dmp.ObstacleCoupling`` at ``tau = 1``).
 
     Input ports:
         position: end-effector position x in W (3).

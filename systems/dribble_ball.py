@@ -14,7 +14,10 @@ ball in the robot frame, ``gamma = atan2(b_y, b_x)`` its bearing and
     v     = max(0, v_pose) * a        (never backing away from the ball)
     omega = a * omega_pose + k_ball * gamma
 
-both clipped to the limits, the yaw rate also to
+while that ``v`` is positive; at rest (``v = 0``: turning in place, or the goal behind)
+the robot turns by ``a * omega_pose`` alone while the ball is *controlled* (within
+``control_distance`` of its held spot, between the guide arms) and otherwise closes on
+the ball first (:func:`close_control`), both clipped to the limits, the yaw rate also to
 ``max(omega_in_place, |v| / min_turn_radius)`` (turning on the spot throws the
 ball off), and rate limited like GoToPose. The ball is *lost*
 (status FAILED) when it is farther than ``lost_distance`` from its held spot
@@ -35,6 +38,19 @@ every lost ball and every such standstill had passed 0.155 m (4 + 1 of the 6 tim
 the other one turned in place within the position tolerance too slowly). Seeds 0-999:
 succeeded / lost / timed out 786 / 199 / 15 -> 786 / 208 / 6, every succeeded episode
 unchanged; the 9 standstills are lost after 1.5-3.8 s instead of timing out at 15 s.
+
+Rest states (session 35). A law whose forward speed is 0 (turning in place, or the goal
+behind) moves the ball only through the guide arms, so ``v = 0, omega = 0`` must mean
+arrival. With ``omega = a * omega_pose + k_ball * gamma`` at rest it did not: wherever the
+pose law's turn and the ball-centering term cancel, the robot stood still with the ball off
+its bumper. The dribble study's seeds 92, 536 and 608 stood so in PIVOT until the timeout
+(the axle on the goal's, the heading 0.23-0.27 rad off, the ball flung onto a guide arm's
+front end by the in-place turn, at (0.447, +-0.12-0.14) m: 536's terms -0.600 and +0.600
+rad/s). At rest the law now closes on a ball off the bumper first (whose only rest is the
+ball on the held spot) and turns with a controlled ball by the pose term alone (whose only
+rest is ``omega_pose = 0``: the heading reached with the steered point within the
+tolerance, which is arrival; ``gamma`` is then bounded by ``control_distance``, and the
+arms carry the ball).
 
 Final approach. The paper's dribble goal has a heading (Algorithm 2's example
 instantiates ``dribbleBall(..., xg=1, yg=3, phi=2.6, vg=0)``), so arriving at the
@@ -175,7 +191,12 @@ def dribble_control(
     ]
     v, w, _, _ = pose_control(spot, spot_goal, gains)
     v = max(0.0, v) * align  # never back away from the ball
-    w = w * align + gains["k_ball"] * gamma
+    if v > 0.0:
+        w = w * align + gains["k_ball"] * gamma
+    elif ball_controlled(state, ball, gains):
+        w = w * align  # at rest: the arms carry the ball; centring it would cancel the turn
+    else:
+        v, w = close_control(state, ball, gains)  # at rest: the ball first, the pose after
     v = clip(v, -gains["v_max"], gains["v_max"])
     return v, clip_turn(v, w, gains), held
 

@@ -326,3 +326,45 @@ def test_predictor_refuses_a_feature_function_named_for_other_features():
         else:
             with pytest.raises(RepertoireError, match="angle_to_unmirrored"):
                 ActionModelPredictor(dur, fail, 8, goto_pose_parameter_features)
+
+
+def test_drive_actions_take_over_the_applied_command():
+    # A plan's later action holds the command the robot gets (its applied_command input)
+    # while it waits, and its first active update is rate limited from it. Before, it
+    # rate limited from what its own law had tracked: DribbleBall's collect-mode circling
+    # turn (up to 1.2 rad/s), handed to a robot at rest behind its ball.
+    from repertoire.systems.dribble_ball import (
+        CLOSING,
+        COLLECTING,
+        DRIBBLE_GAINS,
+        NO_REASON,
+        DribbleBall,
+    )
+
+    dribble = DribbleBall(period=0.1, collect=True)
+    goto = GoToPose(period=0.1)
+    ball = [0.54, -0.04]  # held (0.233 m from the held spot), not yet against the bumper
+    for action in (dribble, goto):
+        ctx = action.CreateDefaultContext()
+        action.get_state_input_port().FixValue(ctx, np.zeros(4))
+        action.get_target_input_port().FixValue(ctx, np.array([2.0, 0.0, 0.0, 0.0]))
+        if action is dribble:
+            action.get_ball_input_port().FixValue(ctx, np.array(ball))
+        action.get_active_input_port().FixValue(ctx, [0.0])
+        action.get_applied_command_input_port().FixValue(ctx, [0.05, -0.1])
+        xd = action.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
+        tail = [APPROACH, COLLECTING, NO_REASON] if action is dribble else [APPROACH]
+        np.testing.assert_allclose(xd, [0.05, -0.1, ActionStatus.RUNNING, *tail])
+        ctx.SetDiscreteState(0, [*xd, 0.0])
+        action.get_active_input_port().FixValue(ctx, [1.0])
+        xd = action.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector().get_value()[:-1]
+        if action is dribble:
+            # closing: v wants 0.4 cos^2(gamma), rate limited to 0.05 + 0.6 * 0.1; the
+            # yaw rate k_ball * gamma is within alpha_max * 0.1 of -0.1
+            gamma = math.atan2(ball[1], ball[0])
+            assert DRIBBLE_GAINS["k_ball"] * gamma == pytest.approx(-0.14788, abs=1e-5)
+            expected = [0.11, DRIBBLE_GAINS["k_ball"] * gamma, ActionStatus.RUNNING, APPROACH]
+            np.testing.assert_allclose(xd, [*expected, CLOSING, NO_REASON], atol=1e-12)
+        else:
+            # the pose law wants (0.4, 0): 0.05 + a_max * 0.1, -0.1 + alpha_max * 0.1 (0.4)
+            np.testing.assert_allclose(xd, [0.15, 0.0, ActionStatus.RUNNING, APPROACH], atol=1e-12)

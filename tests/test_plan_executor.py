@@ -209,3 +209,61 @@ def test_soccer_plan_success_needs_the_ball_held_at_the_end():
             plant.SetFreeBodyPose(pc, ball, RigidTransform([ball_x, 0.0, 0.11]))
             assert ball_held(diagram, context) == held
             assert plan_succeeded(diagram, context) == (held or not dribble)
+
+
+def test_soccer_plan_hands_the_robot_s_command_to_the_dribble():
+    # refinement_explore's seed 113: the approach stops 0.54 m behind the ball. The
+    # dribble used to take over with the circling turn its collect law had tracked while
+    # waiting (1.14 rad/s, against a robot at rest): it turned away from the ball, lost
+    # it beside a guide arm, circled it and delivered it after 8.68 s. Now the robot's
+    # command never changes by more than a leg's rate limits in one period, and the
+    # dribble closes on the ball and dribbles it (no collecting) in 5.92 s.
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import EventStatus
+    from repertoire.diagrams.soccer_plan import SoccerPlanScenario, build_soccer_plan, plan_status
+    from repertoire.studies._refinement_common import approach_target, sample_situation
+    from repertoire.studies.refinement_explore import demo_config
+    from repertoire.systems.dribble_ball import CLOSING, COLLECTING, DRIBBLE_GAINS, DRIBBLING
+    from repertoire.systems.go_to_pose import GOTO_GAINS
+
+    config = demo_config()
+    rng = np.random.default_rng(113)
+    start, dest = sample_situation(config, rng)
+    phi_a, v_a = rng.uniform(-np.pi, np.pi), rng.uniform(0.0, config.approach_v_max)
+    scenario = SoccerPlanScenario(
+        initial_pose=[float(s) for s in start[:3]],
+        initial_speed=float(start[3]),
+        targets=[[float(x) for x in approach_target(phi_a, v_a, 0.5)], [float(x) for x in dest]],
+        gains={**config.gains, "timeout": config.timeout},
+        dribble=True,
+    )
+    diagram = build_soccer_plan(scenario)
+    dribble = diagram.GetSubsystemByName("action_1")
+    executor = diagram.GetSubsystemByName("executor")
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    commands, phases = [], []
+
+    def monitor(root):
+        ex = executor.GetMyContextFromRoot(root)
+        if plan_status(diagram, root) == ActionStatus.RUNNING:  # zeros once it has ended
+            commands.append(executor.get_command_output_port().Eval(ex).copy())
+        if executor.get_active_action_output_port().Eval(ex)[0] == 1:
+            xd = dribble.GetMyContextFromRoot(root).get_discrete_state(0).get_value()
+            phase = int(xd[4])
+            if not phases or phases[-1] != phase:
+                phases.append(phase)
+        if plan_status(diagram, root) != ActionStatus.RUNNING:
+            return EventStatus.ReachedTermination(None, "plan ended")
+        return EventStatus.Succeeded()
+
+    simulator.set_monitor(monitor)
+    simulator.AdvanceTo(30.0)
+    assert plan_status(diagram, context) == ActionStatus.SUCCEEDED
+    steps = np.abs(np.diff(np.array(commands), axis=0)).max(axis=0)
+    period = scenario.control_period
+    assert steps[0] <= max(GOTO_GAINS["a_max"], DRIBBLE_GAINS["a_max"]) * period + 1e-12
+    assert steps[1] <= max(GOTO_GAINS["alpha_max"], DRIBBLE_GAINS["alpha_max"]) * period + 1e-12
+    assert phases[:2] == [COLLECTING, CLOSING] or phases[:2] == [CLOSING, DRIBBLING]
+    assert COLLECTING not in phases[phases.index(CLOSING) :]
+    assert phases[-1] == DRIBBLING

@@ -487,8 +487,6 @@ class DribbleBall(DriveAction):
         target: ``[x_g, y_g, phi_g, v_g]``.
         active: optional ``[1]`` (default) or ``[0]``: while 0 the action tracks its
             command but stays RUNNING (a plan's action that has not started yet).
-        applied_command: optional ``[v, omega]`` the robot receives; while ``active`` is
-            0 the action holds it as its command (see ``DriveAction``).
 
     Output ports:
         command: ``[v, omega]`` rate-limited forward speed and yaw rate.

@@ -193,8 +193,6 @@ def build_soccer_plan(scenario: SoccerPlanScenario, *, meshcat=None) -> Diagram:
         builder.Connect(executor.GetOutputPort(f"active_{i}"), action.get_active_input_port())
         builder.Connect(action.get_status_output_port(), executor.get_status_input_port(i))
         builder.Connect(action.get_command_output_port(), executor.get_command_input_port(i))
-        # a later action starts from the command the robot gets (DriveAction)
-        builder.Connect(executor.get_command_output_port(), action.get_applied_command_input_port())
     return build_driven(
         builder, plant, scene_graph, robot, executor.get_command_output_port(), "soccer_plan",
         meshcat, start_fields={"diffdrive": f"initial_pose {scenario.initial_pose}"},

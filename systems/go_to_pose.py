@@ -258,13 +258,6 @@ class DriveAction(ActionSystem):
     since then. In a plan the executor starts each action after the previous one ended,
     so each leg has its whole timeout (as the kitchen actions count theirs from their
     first update); a lone action's timeout still counts from the simulation's start.
-
-    The optional ``applied_command`` input is the command the robot receives (a plan
-    executor's output). Connected, an action that is not active holds it as its own
-    command, so the first active update is rate limited from what the robot was doing.
-    Unconnected, a later action rate limits from the command its own law tracked while
-    it waited (session 34's plans: DribbleBall tracked collect mode's circling turn, up to
-    1.2 rad/s, and handed it to a robot at rest, turning it away from the ball).
     """
 
     def _declare_drive(
@@ -289,7 +282,6 @@ class DriveAction(ActionSystem):
         ports = {name: self.DeclareVectorInputPort(name, size) for name, size in inputs}
         self._state_port, self._target_port = ports["state"], ports["target"]
         self._active_port = self.DeclareVectorInputPort("active", 1)
-        self._applied_port = self.DeclareVectorInputPort("applied_command", 2)
         self._xd = self.DeclareDiscreteState(3 + extra_slots + 1)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self._command_port = self.DeclareVectorOutputPort(
@@ -301,11 +293,8 @@ class DriveAction(ActionSystem):
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         xd = context.get_discrete_state(self._xd).get_value()
         t = context.get_time()
-        active = self.is_active(context)
-        started = float(xd[-1]) if active else t
+        started = float(xd[-1]) if self.is_active(context) else t
         values = self._next_state(context, xd[:-1], t - started)
-        if not active and self._applied_port.HasValue(context):
-            values[:2] = self._applied_port.Eval(context)  # hand-over from the robot's command
         discrete_state.get_mutable_vector(self._xd).SetFromVector([*values, started])
 
     def get_state_input_port(self):
@@ -316,9 +305,6 @@ class DriveAction(ActionSystem):
 
     def get_active_input_port(self):
         return self._active_port
-
-    def get_applied_command_input_port(self):
-        return self._applied_port
 
     def is_active(self, context: Context) -> bool:
         """False while the ``active`` input (when connected or fixed) is below 0.5.

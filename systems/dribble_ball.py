@@ -565,7 +565,7 @@ class DribbleBall(DriveAction):
         return self._ball_port
 
     def _next(self, context: Context, xd: np.ndarray, elapsed: float) -> list:
-        v_prev, w_prev, status, mode = xd[:4]
+        status, mode = xd[2], xd[3]
         extra = list(xd[4:])  # collect mode's [phase, reason]
         if status != ActionStatus.RUNNING:
             return [0.0, 0.0, status, mode, *extra]
@@ -587,19 +587,29 @@ class DribbleBall(DriveAction):
             return [0.0, 0.0, failed, mode, *extra]
         if self.collect and extra[0] != DRIBBLING:
             held = ball_terms(state, ball, g)[0]
-            phase = collect_phase(int(extra[0]), held, state, ball, target, g) if active else 0
+            phase = collect_phase(int(extra[0]), held, state, ball, target, g)
+            # waiting (not active): the command of the phase it would start in, none kept
+            kept = phase if active else COLLECTING
+            if phase == DRIBBLING and not active:
+                waiting = approach_mode(APPROACH, state, target, g)
+                step = self._dribble_step(
+                    waiting, extra, state, ball, target, g, xd, elapsed, active
+                )
+                return [*step[:3], mode, kept, NO_REASON]
             if phase != DRIBBLING:
                 if phase == CLOSING:
                     v, w = close_control(state, ball, g)
                 else:
                     v, w, _ = collect_control(state, ball, target, g)
                 control = (v, w, math.inf, math.pi)  # never succeeds while collecting
-                step = drive_step(
-                    control, (v_prev, w_prev), state, target, g, elapsed, self.period, active
-                )
-                return [*step, mode, phase, NO_REASON]
+                step = drive_step(control, xd[:2], state, target, g, elapsed, self.period, active)
+                return [*step, mode, kept, NO_REASON]
             extra[0] = DRIBBLING
         mode = approach_mode(int(mode), state, target, g)
+        return self._dribble_step(mode, extra, state, ball, target, g, xd, elapsed, active)
+
+    def _dribble_step(self, mode, extra, state, ball, target, g, xd, elapsed, active) -> list:
+        """The next state while dribbling in approach ``mode``."""
         if mode in (LOOP_LEFT, LOOP_RIGHT):
             side = 1.0 if mode == LOOP_LEFT else -1.0
             v, w, held = loop_control(state, ball, target, g, side)
@@ -616,7 +626,7 @@ class DribbleBall(DriveAction):
         )
         heading_error = math.remainder(target[2] - state[2], 2 * math.pi)
         control = (v, w, rho, heading_error)
-        step = drive_step(control, (v_prev, w_prev), state, target, g, elapsed, self.period, active)
+        step = drive_step(control, xd[:2], state, target, g, elapsed, self.period, active)
         return [*step, mode, *extra]
 
 

@@ -510,7 +510,9 @@ class DribbleBall(DriveAction):
     like the dribble (it never succeeds while collecting); from :data:`DRIBBLING` on
     (for good) the action dribbles as above, and a ball no longer held is FAILED with
     reason :data:`BALL_LOST`. The discrete state gains ``[phase, reason]`` (slots 4
-    and 5); :meth:`failure_reason` reads the reason.
+    and 5); :meth:`failure_reason` reads the reason. While not ``active`` (a plan's dribble
+    waiting for the approach) it tracks the command of the phase it would start in and
+    keeps none (it used to track COLLECTING's, and handed its circling turn to the robot).
     """
 
     def __init__(

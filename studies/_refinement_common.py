@@ -233,6 +233,40 @@ def dribble_features(phi, v, dest, distance: float) -> np.ndarray:
     return np.atleast_2d(goto_pose_features(start, dest, mirrored=False))
 
 
+def mode_settled_headings(dest, config: SoccerPlanConfig) -> list[tuple[float, float]]:
+    """Approach headings ``phi`` at which the plan settles the dribble's collect mode.
+
+    DribbleBall in collect mode drives onto the ball when the ball -> destination
+    direction ``psi`` lies within ``collect_angle`` of its heading once the ball is held,
+    and circles the ball otherwise (about 4 s more). The approach leaves the robot within
+    GoToPose's ``heading_tolerance`` of the planned ``phi``, so the executed mode follows
+    from the plan only where the planned turn ``|wrap(psi - phi)|`` is at most
+    ``collect_angle - heading_tolerance`` (drives on) or at least ``collect_angle +
+    heading_tolerance`` (circles). Between, it depends on where the approach stopped, which
+    no model feature sees, and a duration tree fitted across that step is optimistic just
+    inside it, where refinement aimed (session 34: refined plans 1.6 s slower than
+    predicted).
+
+    Args:
+        dest: the destination ``[x, y, ...]``.
+        config: the plan settings (their GoToPose and DribbleBall gains).
+
+    Returns:
+        ``(lo, hi)`` intervals of ``phi`` (not wrapped: ``psi`` plus an offset): the
+        drive-on one, then the circling one; an empty one is left out.
+    """
+    from repertoire.diagrams.soccer import BALL_POSITION
+    from repertoire.systems.dribble_ball import DRIBBLE_GAINS
+    from repertoire.systems.go_to_pose import GOTO_GAINS
+
+    collect = {**DRIBBLE_GAINS, **config.dribble_gains}["collect_angle"]
+    margin = {**GOTO_GAINS, **config.gains}["heading_tolerance"]
+    psi = math.atan2(dest[1] - BALL_POSITION[1], dest[0] - BALL_POSITION[0])
+    inner, outer = min(collect - margin, math.pi), max(collect + margin, 0.0)
+    out = [(psi - inner, psi + inner)] if inner > 0.0 else []
+    return out + ([(psi + outer, psi + 2.0 * math.pi - outer)] if outer < math.pi else [])
+
+
 @functools.cache
 def abstract_soccer_plan():
     """The PDDL plan (approachball, dribbleball), planned once per process."""

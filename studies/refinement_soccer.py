@@ -30,6 +30,7 @@ from repertoire.studies._refinement_common import (
     check_leg_model,
     document_shared_fields,
     instantiated_plan,
+    mode_settled_headings,
     run_plan,
     sample_situation,
     soccer_duration_models,
@@ -158,7 +159,11 @@ def refine_subgoal(config: RefinementSoccerConfig, start, dest, horizon: int, se
     (:func:`~repertoire.studies._refinement_common.trained_range`), and the angle where
     every feature it drives lies inside the models' training boxes
     (:func:`~repertoire.studies._refinement_common.soccer_duration_models`); where no
-    angle does, over all angles (the models extrapolate; ``out_of_range`` flags it).
+    angle does, over all angles (the models extrapolate; ``out_of_range`` flags it). With
+    the dribble in the horizon (h >= 2) the angle is searched only where the plan settles
+    the dribble's collect mode (``_refinement_common.mode_settled_headings``), each such
+    interval on its own; the cheaper wins. Returns the
+    angle wrapped to ``[-pi, pi]``.
     """
     from repertoire.planning.plans import Range, refinement_problem
     from repertoire.planning.refinement import refine_sequence
@@ -171,16 +176,29 @@ def refine_subgoal(config: RefinementSoccerConfig, start, dest, horizon: int, se
     if not speed.is_bound:
         narrowed = trained_range(speed.lo, speed.hi, ((approach, "v_g"), (dribble, "v")))
         plan = dataclasses.replace(plan, ranges={**plan.ranges, "pos2.v": Range(*narrowed)})
-    problem = refinement_problem(plan, soccer_duration_models(approach, dribble, config))
-    result = refine_sequence(problem, horizon, config.solver, seed=seed)
-    if not np.isfinite(result.cost):  # no subgoal inside the data: the models extrapolate
-        models = soccer_duration_models(approach, dribble, config, within_data=False)
-        problem = refinement_problem(plan, models)
-        result = refine_sequence(problem, horizon, config.solver, seed=seed)
+    plans = [plan]
+    if horizon >= 2 and not plan.ranges["pos2.phi"].is_bound:
+        # the dribble in view: only headings whose collect mode the plan settles
+        plans = [
+            dataclasses.replace(plan, ranges={**plan.ranges, "pos2.phi": Range(lo, hi)})
+            for lo, hi in mode_settled_headings(dest, config)
+        ]
+    best = None
+    for within_data in (True, False):  # no subgoal inside the data: the models extrapolate
+        models = soccer_duration_models(approach, dribble, config, within_data=within_data)
+        for candidate in plans:
+            problem = refinement_problem(candidate, models)
+            result = refine_sequence(problem, horizon, config.solver, seed=seed)
+            if best is None or result.cost < best[2].cost:
+                best = (candidate, problem, result)
+        if np.isfinite(best[2].cost):
+            break
+    plan, problem, result = best
     # bound identities too: with approach_v_max = 0 the approach speed is not free
     values = {pid: r.lo for pid, r in plan.ranges.items() if r.is_bound}
     values |= dict(zip(problem.names, result.params, strict=True))
-    return values["pos2.phi"], values["pos2.v"], result.cost
+    phi = math.remainder(float(values["pos2.phi"]), 2.0 * math.pi)
+    return phi, values["pos2.v"], result.cost
 
 
 def run_episode(config: RefinementSoccerConfig, seed: int) -> RefinementSoccerRecord:

@@ -14,7 +14,10 @@ ball in the robot frame, ``gamma = atan2(b_y, b_x)`` its bearing and
     v     = max(0, v_pose) * a        (never backing away from the ball)
     omega = a * omega_pose + k_ball * gamma
 
-both clipped to the limits, the yaw rate also to
+while that ``v`` is positive; at rest (``v = 0``: turning in place, or the goal behind)
+the robot turns by ``a * omega_pose`` alone while the ball is *controlled* (within
+``control_distance`` of its held spot, between the guide arms) and otherwise closes on
+the ball first (:func:`close_control`), both clipped to the limits, the yaw rate also to
 ``max(omega_in_place, |v| / min_turn_radius)`` (turning on the spot throws the
 ball off), and rate limited like GoToPose. The ball is *lost*
 (status FAILED) when it is farther than ``lost_distance`` from its held spot
@@ -35,6 +38,19 @@ every lost ball and every such standstill had passed 0.155 m (4 + 1 of the 6 tim
 the other one turned in place within the position tolerance too slowly). Seeds 0-999:
 succeeded / lost / timed out 786 / 199 / 15 -> 786 / 208 / 6, every succeeded episode
 unchanged; the 9 standstills are lost after 1.5-3.8 s instead of timing out at 15 s.
+
+Rest states (session 35). A law whose forward speed is 0 (turning in place, or the goal
+behind) moves the ball only through the guide arms, so ``v = 0, omega = 0`` must mean
+arrival. With ``omega = a * omega_pose + k_ball * gamma`` at rest it did not: wherever the
+pose law's turn and the ball-centering term cancel, the robot stood still with the ball off
+its bumper. The dribble study's seeds 92, 536 and 608 stood so in PIVOT until the timeout
+(the axle on the goal's, the heading 0.23-0.27 rad off, the ball flung onto a guide arm's
+front end by the in-place turn, at (0.447, +-0.12-0.14) m: 536's terms -0.600 and +0.600
+rad/s). At rest the law now closes on a ball off the bumper first (whose only rest is the
+ball on the held spot) and turns with a controlled ball by the pose term alone (whose only
+rest is ``omega_pose = 0``: the heading reached with the steered point within the
+tolerance, which is arrival; ``gamma`` is then bounded by ``control_distance``, and the
+arms carry the ball).
 
 Final approach. The paper's dribble goal has a heading (Algorithm 2's example
 instantiates ``dribbleBall(..., xg=1, yg=3, phi=2.6, vg=0)``), so arriving at the
@@ -175,7 +191,12 @@ def dribble_control(
     ]
     v, w, _, _ = pose_control(spot, spot_goal, gains)
     v = max(0.0, v) * align  # never back away from the ball
-    w = w * align + gains["k_ball"] * gamma
+    if v > 0.0:
+        w = w * align + gains["k_ball"] * gamma
+    elif ball_controlled(state, ball, gains):
+        w = w * align  # at rest: the arms carry the ball; centring it would cancel the turn
+    else:
+        v, w = close_control(state, ball, gains)  # at rest: the ball first, the pose after
     v = clip(v, -gains["v_max"], gains["v_max"])
     return v, clip_turn(v, w, gains), held
 
@@ -489,7 +510,9 @@ class DribbleBall(DriveAction):
     like the dribble (it never succeeds while collecting); from :data:`DRIBBLING` on
     (for good) the action dribbles as above, and a ball no longer held is FAILED with
     reason :data:`BALL_LOST`. The discrete state gains ``[phase, reason]`` (slots 4
-    and 5); :meth:`failure_reason` reads the reason.
+    and 5); :meth:`failure_reason` reads the reason. While not ``active`` (a plan's dribble
+    waiting for the approach) it tracks the command of the phase it would start in and
+    keeps none (it used to track COLLECTING's, and handed its circling turn to the robot).
     """
 
     def __init__(
@@ -544,7 +567,7 @@ class DribbleBall(DriveAction):
         return self._ball_port
 
     def _next(self, context: Context, xd: np.ndarray, elapsed: float) -> list:
-        v_prev, w_prev, status, mode = xd[:4]
+        status, mode = xd[2], xd[3]
         extra = list(xd[4:])  # collect mode's [phase, reason]
         if status != ActionStatus.RUNNING:
             return [0.0, 0.0, status, mode, *extra]
@@ -566,19 +589,29 @@ class DribbleBall(DriveAction):
             return [0.0, 0.0, failed, mode, *extra]
         if self.collect and extra[0] != DRIBBLING:
             held = ball_terms(state, ball, g)[0]
-            phase = collect_phase(int(extra[0]), held, state, ball, target, g) if active else 0
+            phase = collect_phase(int(extra[0]), held, state, ball, target, g)
+            # waiting (not active): the command of the phase it would start in, none kept
+            kept = phase if active else COLLECTING
+            if phase == DRIBBLING and not active:
+                waiting = approach_mode(APPROACH, state, target, g)
+                step = self._dribble_step(
+                    waiting, extra, state, ball, target, g, xd, elapsed, active
+                )
+                return [*step[:3], mode, kept, NO_REASON]
             if phase != DRIBBLING:
                 if phase == CLOSING:
                     v, w = close_control(state, ball, g)
                 else:
                     v, w, _ = collect_control(state, ball, target, g)
                 control = (v, w, math.inf, math.pi)  # never succeeds while collecting
-                step = drive_step(
-                    control, (v_prev, w_prev), state, target, g, elapsed, self.period, active
-                )
-                return [*step, mode, phase, NO_REASON]
+                step = drive_step(control, xd[:2], state, target, g, elapsed, self.period, active)
+                return [*step, mode, kept, NO_REASON]
             extra[0] = DRIBBLING
         mode = approach_mode(int(mode), state, target, g)
+        return self._dribble_step(mode, extra, state, ball, target, g, xd, elapsed, active)
+
+    def _dribble_step(self, mode, extra, state, ball, target, g, xd, elapsed, active) -> list:
+        """The next state while dribbling in approach ``mode``."""
         if mode in (LOOP_LEFT, LOOP_RIGHT):
             side = 1.0 if mode == LOOP_LEFT else -1.0
             v, w, held = loop_control(state, ball, target, g, side)
@@ -595,7 +628,7 @@ class DribbleBall(DriveAction):
         )
         heading_error = math.remainder(target[2] - state[2], 2 * math.pi)
         control = (v, w, rho, heading_error)
-        step = drive_step(control, (v_prev, w_prev), state, target, g, elapsed, self.period, active)
+        step = drive_step(control, xd[:2], state, target, g, elapsed, self.period, active)
         return [*step, mode, *extra]
 
 

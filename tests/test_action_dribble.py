@@ -1,3 +1,4 @@
+import itertools
 import math
 
 import numpy as np
@@ -481,3 +482,103 @@ def test_reused_dribble_simulator_runs_as_a_new_one():
         target.get_output_port().Eval(target.GetMyContextFromRoot(simulator.get_context())),
         second.target,
     )
+
+
+# Where the dribble study's seeds 92, 536 and 608 stood still until their timeout
+# (session 33): PIVOT, the axle within position_tolerance of the goal's, the ball on
+# a guide arm's front end ((0.447, +-0.12-0.14) m in the robot frame, held but off the
+# bumper). The old law's in-place turn a * omega_pose and k_ball * gamma cancelled.
+STALLS = {
+    92: ([0.1293, -0.6584, 1.3596, 0.0], [0.1079, -0.196], [0.0838, -0.7381, 1.1301, 0.0003]),
+    536: ([-0.7196, -1.5887, -1.3065, 0.0], [-0.4694, -1.9838], [-0.7088, -1.4982, -1.5807, 0.085]),
+    608: ([-0.2641, 1.3789, 2.8974, 0.0], [-0.6679, 1.6051], [-0.1735, 1.3935, 3.1361, 0.0612]),
+}
+
+
+@pytest.mark.parametrize("seed", sorted(STALLS))
+def test_dribble_control_closes_on_a_ball_off_the_bumper_at_rest(seed):
+    g = dict(DRIBBLE_GAINS)
+    state, ball, goal = STALLS[seed]
+    assert approach_mode(PIVOT, state, goal, g) == PIVOT
+    bx, by = ball_in_robot_frame(state, ball)
+    gamma = math.atan2(by, bx)
+    # the old law: (0, a * omega_pose + k_ball * gamma) with the two terms cancelling
+    h = g["hold_distance"]
+    assert 0.44 < bx < 0.45 and 0.11 < abs(by) < 0.14 and math.hypot(bx - h, by) > 0.05
+    # now: at rest with the ball off the bumper the robot closes on it (close_control)
+    v, w, held = dribble_control(state, ball, goal, g, 0.0)
+    v_close = min(g["v_max"], math.sqrt(2.0 * g["a_max"] * (bx - h))) * math.cos(gamma) ** 2
+    assert held
+    assert v == pytest.approx(v_close, rel=1e-12) and v > 0.3
+    w_max = min(g["omega_max"], max(g["omega_in_place"], v / g["min_turn_radius"]))
+    assert w == pytest.approx(min(w_max, max(-w_max, g["k_ball"] * gamma)), rel=1e-12)
+    assert abs(w) > 0.2
+
+
+def test_dribble_control_turns_in_place_with_a_controlled_ball():
+    # the axle on the goal's (PIVOT), heading e off, the ball 2 cm left of the held spot,
+    # controlled: the turn is a * omega_pose alone. The old law's k_ball * gamma cancelled
+    # it at e* = -k_ball gamma / (a k_alpha omega_max), where the held spot is not the goal's
+    g = dict(DRIBBLE_GAINS)
+    ball_rf = (g["hold_distance"] + 0.02, 0.02)
+    gamma = math.atan2(ball_rf[1], ball_rf[0])
+    a = math.cos(gamma) ** 2
+    e_star = -g["k_ball"] * gamma / (a * g["k_alpha"] * g["omega_max"])
+    phi = -e_star
+    state = [0.0, 0.0, phi, 0.0]
+    c, s = math.cos(phi), math.sin(phi)
+    ball = [c * ball_rf[0] - s * ball_rf[1], s * ball_rf[0] + c * ball_rf[1]]
+    v, w, held = dribble_control(state, ball, [0.0, 0.0, 0.0, 0.0], g, 0.0)
+    assert held and v == 0.0
+    assert w == pytest.approx(a * g["k_alpha"] * e_star * g["omega_max"], rel=1e-12)
+    assert w == pytest.approx(-g["k_ball"] * gamma, rel=1e-12)
+
+
+def _rest_roots(lead, dx, ball_rf, g):
+    """Heading errors e in [-1, 1] where the law's yaw rate crosses 0 at rest (bisected)."""
+
+    def law(e):
+        c, s = math.cos(-e), math.sin(-e)
+        state = [dx, 0.02, -e, 0.0]
+        ball = [dx + c * ball_rf[0] - s * ball_rf[1], 0.02 + s * ball_rf[0] + c * ball_rf[1]]
+        return dribble_control(state, ball, [0.0, 0.0, 0.0, 0.0], g, lead)
+
+    grid = np.linspace(-1.0, 1.0, 81)
+    for lo, hi in zip(grid[:-1], grid[1:]):
+        (v_lo, w_lo, _), (v_hi, w_hi, _) = law(lo), law(hi)
+        if v_lo != 0.0 or v_hi != 0.0 or w_lo * w_hi > 0.0:
+            continue
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if law(mid)[1] * w_lo > 0.0 else (lo, mid)
+        v, w, held = law(0.5 * (lo + hi))
+        if held and v == 0.0 and abs(w) < 1e-6:  # a rest, not a jump of the law
+            yield 0.5 * (lo + hi)
+
+
+def test_dribble_control_rests_only_where_the_action_has_arrived():
+    # every rest of the law (v = 0 and the yaw rate crossing 0 as the heading error e
+    # varies) with a held ball ahead of the bumper (b_x >= 0.3075: bumper 0.1975 m + ball
+    # radius), the axle near the goal's, for the spot law (APPROACH) and the axle law
+    # (PIVOT), is an arrival: e = 0 with the held spot within position_tolerance. The
+    # old law rested wherever a * omega_pose = -k_ball * gamma (e.g. seed 536's standstill)
+    g = dict(DRIBBLE_GAINS)
+    h, tol = g["hold_distance"], g["position_tolerance"]
+    rests = 0
+    for lead in (None, 0.0):
+        for dx in np.linspace(-0.15, 0.15, 7):
+            for ball_rf in itertools.product((0.3075, 0.33, 0.38, 0.447), (-0.13, -0.02, 0.03)):
+                for e in _rest_roots(lead, dx, ball_rf, g):
+                    rests += 1
+                    spot = math.hypot(dx + h * math.cos(e) - h, 0.02 - h * math.sin(e))
+                    assert abs(e) < 1e-9 and spot < tol, (lead, dx, ball_rf, e)
+    assert rests > 0
+
+
+def test_dribble_ball_leaves_the_standstill_exact():
+    # the LeafSystem in PIVOT at seed 536's standstill: forward, rate limited to
+    # a_max * 0.1 = 0.06 m/s, turning towards the ball at alpha_max * 0.1 = 0.3 rad/s
+    state, ball, goal = STALLS[536]
+    action, ctx = _context(goal, ball=ball, state=state)
+    ctx.SetDiscreteState(0, [0.0, 0.0, ActionStatus.RUNNING, PIVOT, 0.0])
+    np.testing.assert_allclose(_update(action, ctx), [0.06, 0.3, ActionStatus.RUNNING, PIVOT])

@@ -291,3 +291,25 @@ def test_soccer_dribble_collects_a_ball_behind_the_robot_and_delivers_it():
     assert statuses == [ActionStatus.FAILED, ActionStatus.SUCCEEDED]
     figures = check_dribble(diagram, ctx)
     assert figures["position_error_m"] < 0.15 and figures["ball_from_held_spot_m"] < 0.1
+
+
+def test_collect_mode_waiting_tracks_the_phase_it_would_start_in():
+    # A plan's dribble (active input 0) tracks the command it would give: with the ball
+    # held 0.54 m ahead and the target 0.4 rad off, that is closing's (straight onto the
+    # ball: v_max wanted, rate limited to 0.06; omega = k_ball * gamma = -0.148), and no phase is
+    # kept while it waits. It used to track COLLECTING's law, whose circling turn it then
+    # handed to the robot (explore seed 113: a robot at rest turned away from its ball).
+    running = ActionStatus.RUNNING
+    ball = (0.54, -0.04)
+    gamma = math.atan2(ball[1], ball[0])
+    target = [0.54 + 2.0 * math.cos(0.4), 2.0 * math.sin(0.4), 0.4, 0.0]
+    for active in (0.0, 1.0):
+        action, ctx = _context(target, ball=ball)
+        action.get_active_input_port().FixValue(ctx, [active])
+        kept = CLOSING if active else COLLECTING
+        expected = [0.06, G["k_ball"] * gamma, running, APPROACH, kept, 0]
+        np.testing.assert_allclose(_update(action, ctx), expected, atol=1e-12)
+    # a controlled ball while waiting: the dribble's command, still no phase kept
+    action, ctx = _context([1.0, 0.0, 0.0, 0.0], ball=(0.31, 0.0))
+    action.get_active_input_port().FixValue(ctx, [0.0])
+    np.testing.assert_allclose(_update(action, ctx), [0.06, 0.0, running, APPROACH, COLLECTING, 0])

@@ -209,3 +209,58 @@ def test_soccer_plan_success_needs_the_ball_held_at_the_end():
             plant.SetFreeBodyPose(pc, ball, RigidTransform([ball_x, 0.0, 0.11]))
             assert ball_held(diagram, context) == held
             assert plan_succeeded(diagram, context) == (held or not dribble)
+
+
+def test_soccer_plan_dribble_starts_closing_on_the_ball():
+    # refinement_explore's seed 113: the approach stops 0.54 m behind the ball, the
+    # destination 0.23 rad off. The waiting dribble used to track collect mode's circling
+    # turn and hand it to the robot: it turned away from the ball, lost it beside a guide
+    # arm, circled it and delivered it after 8.68 s. Now it tracks closing's command: it
+    # closes on the ball and dribbles it (no collecting), in 5.78 s.
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import EventStatus
+    from repertoire.diagrams.soccer_plan import (
+        SoccerPlanScenario,
+        build_soccer_plan,
+        finish_times,
+        plan_status,
+    )
+    from repertoire.studies._refinement_common import approach_target, sample_situation
+    from repertoire.studies.refinement_explore import demo_config
+    from repertoire.systems.dribble_ball import CLOSING, COLLECTING, DRIBBLING
+
+    config = demo_config()
+    rng = np.random.default_rng(113)
+    start, dest = sample_situation(config, rng)
+    phi_a, v_a = rng.uniform(-np.pi, np.pi), rng.uniform(0.0, config.approach_v_max)
+    scenario = SoccerPlanScenario(
+        initial_pose=[float(s) for s in start[:3]],
+        initial_speed=float(start[3]),
+        targets=[[float(x) for x in approach_target(phi_a, v_a, 0.5)], [float(x) for x in dest]],
+        gains={**config.gains, "timeout": config.timeout},
+        dribble=True,
+    )
+    diagram = build_soccer_plan(scenario)
+    dribble = diagram.GetSubsystemByName("action_1")
+    executor = diagram.GetSubsystemByName("executor")
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    phases = []
+
+    def monitor(root):
+        ex = executor.GetMyContextFromRoot(root)
+        if executor.get_active_action_output_port().Eval(ex)[0] == 1:
+            phase = int(dribble.GetMyContextFromRoot(root).get_discrete_state(0).get_value()[4])
+            if not phases or phases[-1] != phase:
+                phases.append(phase)
+        if plan_status(diagram, root) != ActionStatus.RUNNING:
+            return EventStatus.ReachedTermination(None, "plan ended")
+        return EventStatus.Succeeded()
+
+    simulator.set_monitor(monitor)
+    simulator.AdvanceTo(30.0)
+    assert plan_status(diagram, context) == ActionStatus.SUCCEEDED
+    # the first entry is the slot it waited with (none kept), then its own phases
+    assert phases == [COLLECTING, CLOSING, DRIBBLING]
+    t_approach, t_end = finish_times(diagram, context)
+    assert t_end - t_approach < 6.0

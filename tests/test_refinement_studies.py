@@ -615,3 +615,43 @@ def test_a_plan_whose_dribble_leaves_the_ball_is_not_a_success():
     assert outcome_sentence(records[2:]).endswith(
         "h = 1 1 (1 TIMED_OUT; 0 holding the ball), h = 2 0."
     )
+
+
+def test_mode_settled_headings_closed_form():
+    # destination straight along +x from the ball (psi = 0): collect mode drives onto the
+    # ball within 1 rad of the heading; GoToPose arrives within 0.15 rad of phi
+    from repertoire.diagrams.soccer import BALL_POSITION
+    from repertoire.studies._refinement_common import mode_settled_headings
+
+    c = SoccerPlanConfig()
+    dest = [BALL_POSITION[0] + 2.0, BALL_POSITION[1], 0.0, 0.0]
+    (lo, hi), (lo2, hi2) = mode_settled_headings(dest, c)
+    assert (lo, hi) == pytest.approx((-0.85, 0.85), abs=1e-12)
+    assert (lo2, hi2) == pytest.approx((1.15, 2.0 * math.pi - 1.15), abs=1e-12)
+    # destination along +y (psi = pi/2), a wider approach tolerance
+    dest = [BALL_POSITION[0], BALL_POSITION[1] + 1.0, 0.0, 0.0]
+    wide = dataclasses.replace(c, gains={**c.gains, "heading_tolerance": 0.3})
+    (lo, hi), (lo2, hi2) = mode_settled_headings(dest, wide)
+    assert (lo, hi) == pytest.approx((math.pi / 2 - 0.7, math.pi / 2 + 0.7), abs=1e-12)
+    assert (lo2, hi2) == pytest.approx((math.pi / 2 + 1.3, 2.5 * math.pi - 1.3), abs=1e-12)
+    # a collect angle beyond pi - tolerance leaves no circling interval
+    never = dataclasses.replace(c, dribble_gains={"collect_angle": 3.1})
+    assert mode_settled_headings(dest, never) == [(math.pi / 2 - 2.95, math.pi / 2 + 2.95)]
+
+
+@pytest.mark.parametrize("seed", [3, 4, 6, 8])
+def test_refined_soccer_turn_at_the_ball_settles_collect_mode(seed):
+    # Table 3 situations whose h = 2 subgoal turned 0.96-1.01 rad at the ball (session 34):
+    # whether collect mode drove onto the ball or circled it depended on where the approach
+    # stopped, and they ran 2.8-3.3 s slower than predicted. The turn now lies outside
+    # collect_angle -+ heading_tolerance (1 -+ 0.15 rad); greedy (h = 1) is not restricted
+    from repertoire.diagrams.soccer import BALL_POSITION
+    from repertoire.studies.refinement_soccer import refine_subgoal
+
+    config = RefinementSoccerConfig()
+    start, dest = sample_situation(config, np.random.default_rng(seed))
+    psi = math.atan2(dest[1] - BALL_POSITION[1], dest[0] - BALL_POSITION[0])
+    phi, _, predicted = refine_subgoal(config, start, dest, 2, seed)
+    turn = abs(math.remainder(psi - phi, 2.0 * math.pi))
+    assert -math.pi <= phi <= math.pi and np.isfinite(predicted)
+    assert turn <= 0.85 + 1e-9 or turn >= 1.15 - 1e-9

@@ -504,13 +504,25 @@ def reaches(a, point, clearance: float) -> np.ndarray:
     Straight, or through any number of :func:`via_points`: every leg's footprint
     (``ROBOT_RADIUS + clearance``) clear of the furniture
     (:func:`~repertoire.studies._kitchen_plan.path_clear`; no drive law).
+
+    Raises:
+        RepertoireError: ``point`` is not finite or its footprint enters a piece of
+            furniture (no start reaches it), naming it.
     """
-    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, ROBOT_RADIUS
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLE_NAMES, KITCHEN_OBSTACLES, ROBOT_RADIUS
     from repertoire.studies._kitchen_plan import path_clear
+    from repertoire.systems.kitchen_geometry import box_gaps
 
     a = np.atleast_2d(np.asarray(a, dtype=float))[:, :2]
     point = np.asarray(point, dtype=float)[:2]
     radius = ROBOT_RADIUS + clearance
+    if not np.all(np.isfinite(point)):
+        raise RepertoireError(f"point must be finite, got {point.tolist()}")
+    gaps = box_gaps(point[None], KITCHEN_OBSTACLES)[0]
+    if np.any(gaps < radius):
+        inside = KITCHEN_OBSTACLE_NAMES[int(np.argmin(gaps - radius))]
+        raise RepertoireError(f"point {point.tolist()} lies inside {inside} grown by the "
+                              f"footprint radius {radius}: nothing reaches it")  # fmt: skip
     points = via_points(clearance)
     m = len(points)
     seen = corners_seen(points, radius)

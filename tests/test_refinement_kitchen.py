@@ -610,6 +610,11 @@ def test_a_far_side_cup_is_carried_around_table_0_via_two_corners_the_shortest_r
     exit_ = kp.exit_point(targets[0])
     assert not kp.path_clear(a, exit_, KITCHEN_OBSTACLES, radius)[0]
     assert ka.reaches(a, exit_, config.clearance).tolist() == [True]
+    # a point no footprint can stand on (beside table_0's edge, within the radius) is named
+    with pytest.raises(RepertoireError, match=r"inside table_0 grown by the footprint"):
+        ka.reaches(a, [2.1, 1.7 + radius - 0.01], config.clearance)
+    with pytest.raises(RepertoireError, match="point must be finite"):
+        ka.reaches(a, [np.nan, 0.0], config.clearance)
     # no straight drop drive and no one-corner route is clear (the old route's candidates)
     points = ka.via_points(config.clearance)
     m = len(points)

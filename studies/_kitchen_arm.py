@@ -685,16 +685,16 @@ def drive_route(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig,
                       KITCHEN_OBSTACLES, radius).reshape(-1, m)  # fmt: skip
     direct = np.zeros(len(rows), dtype=bool)  # not clear, or not clear along the law
 
-    def at(r, node, ahead):  # the pose a leg starts or ends at: a via point faces ahead
-        if node == START:
-            return ar[r]
-        if node == GOAL:
-            return br[r]
-        return via_pose(points[node], br[r] if ahead == GOAL else points[ahead])[0]
+    def xy(nodes, sub):  # the nodes' points, vectorised
+        out = np.where((nodes == GOAL)[:, None], br[sub, :2], ar[sub, :2])
+        corner = nodes >= 0
+        out[corner] = points[nodes[corner]]
+        return out
 
-    def legs_clear(sub, legs):
-        frm = np.array([at(r, u, v) for r, (u, v, _) in zip(sub, legs, strict=True)])
-        to = np.array([at(r, v, w) for r, (_, v, w) in zip(sub, legs, strict=True)])
+    def legs_clear(sub, legs):  # legs (u, v, w): from u facing v to v facing w, at rest
+        u, v, w = (np.array([GOAL if x is None else x for x in c], dtype=int) for c in zip(*legs))
+        frm = np.where((u == START)[:, None], ar[sub], via_pose(xy(u, sub), xy(v, sub)))
+        to = np.where((v == GOAL)[:, None], br[sub], via_pose(xy(v, sub), xy(w, sub)))
         arms = arm[rows[sub]]
         return law_drive_hits(frm, to, arms, boxes, radius, config.arm_clearance, held, discs) < 0
 

@@ -396,18 +396,20 @@ def drive_hits(
 
     ``drive_stand``: from the start or the last drop pose to the stand, the arm tucked or
     where the last retract left it, cup ``k`` standing on its place; ``drive_drop``: from
-    the stand to the drop pose with the cup held at the carry point. With ``via``, the
-    rows with a via point (not NaN) drive two legs, to it and on.
+    the stand to the drop pose with the cup held at the carry point. With ``via``, each
+    row drives through its via points (not NaN) in order, one leg to each and on
+    (:func:`route_poses`: at rest, facing the next point).
 
     Args:
         g: the plan's geometry. cups: (2, 3) both cups on their places.
         k: the fetch. start: the robot's start ``[x, y, phi, v]``.
         config: ``above_offset`` and ``arm_clearance``. role: the drive.
-        via: ``(n, >= 2)`` via points (NaN rows: straight), as :func:`drive_route` gives.
+        via: ``(n, >= 2)`` one via point per row or ``(n, l, >= 2)`` up to ``l`` (NaN:
+            none; a row's via points first, then its NaNs), as :func:`drive_route` gives.
 
     Returns:
         ``(hits, names)``: per row the index of the first obstacle in ``names``
-        (:func:`fetch_obstacles`), -1 where clear.
+        (:func:`fetch_obstacles`) the first leg that enters one enters, -1 where clear.
     """
     from repertoire.diagrams.kitchen import ROBOT_RADIUS
 
@@ -416,14 +418,19 @@ def drive_hits(
     radius, c = ROBOT_RADIUS + config.clearance, config.arm_clearance
     if via is None:
         return law_drive_hits(a, b, arm, boxes, radius, c, held, discs), names
-    via = np.atleast_2d(np.asarray(via, dtype=float))
-    legs = ~np.isnan(via[:, 0])
-    first = np.where(legs[:, None], via_pose(via, b), b)
-    hits = law_drive_hits(a, first, arm, boxes, radius, c, held, discs)
-    if legs.any():
-        rows = np.flatnonzero(legs)
-        on = law_drive_hits(first[rows], b[rows], arm[rows], boxes, radius, c, held, discs)
-        hits[rows] = np.where(hits[rows] >= 0, hits[rows], on)
+    via = np.asarray(via, dtype=float)
+    via = via[:, None, :] if via.ndim == 2 else via
+    poses = route_poses(via, b)
+    count = (~np.isnan(via[:, :, 0])).sum(axis=1)
+    hits = np.full(len(b), -1)
+    for leg in range(via.shape[1] + 1):  # leg l: from via l - 1 (or a) to via l (or b)
+        rows = np.flatnonzero((count >= leg) & (hits < 0))
+        if rows.size == 0:
+            break
+        frm = a[rows] if leg == 0 else poses[rows, leg - 1]
+        to = np.where((count[rows] > leg)[:, None], poses[rows, min(leg, via.shape[1] - 1)],
+                      b[rows])  # fmt: skip
+        hits[rows] = law_drive_hits(frm, to, arm[rows], boxes, radius, c, held, discs)
     return hits, names
 
 
@@ -434,8 +441,24 @@ def via_pose(via, b) -> np.ndarray:
     return np.column_stack([via, np.arctan2(to_end[:, 1], to_end[:, 0]), np.zeros(len(via))])
 
 
+def route_poses(via, b) -> np.ndarray:
+    """``(n, l, 4)`` poses at via points ``via`` ``(n, l, >= 2)``, each facing the next point.
+
+    A via point faces the row's next via point, the last one (before the NaN rows) the
+    drive's end ``b`` (n, >= 2) (:func:`via_pose`, at rest); NaN via points stay NaN.
+    """
+    via = np.asarray(via, dtype=float)[:, :, :2]
+    out = np.full(via.shape[:2] + (4,), np.nan)
+    for leg in range(via.shape[1]):
+        ahead = via[:, leg + 1] if leg + 1 < via.shape[1] else np.full_like(via[:, leg], np.nan)
+        ahead = np.where(np.isnan(ahead[:, :1]), np.atleast_2d(b)[:, :2], ahead)
+        out[:, leg] = via_pose(via[:, leg], ahead)
+    out[np.isnan(via[:, :, 0])] = np.nan
+    return out
+
+
 def via_points(clearance: float) -> np.ndarray:
-    """Candidate via points ``(m, 2)`` of two-leg drives around the furniture.
+    """Candidate via points ``(m, 2)`` of drives around the furniture.
 
     The corners of the counter's and the tables' footprints grown by the robot's radius,
     ``clearance`` and 1 cm (there a robot clears its own box), those whose footprint
@@ -460,25 +483,184 @@ def via_points(clearance: float) -> np.ndarray:
     return points[ok]
 
 
+def corners_seen(points, radius: float) -> np.ndarray:
+    """``(m, m)``: True where the footprint (``radius``) drives straight from point i to j.
+
+    Along :func:`~repertoire.studies._kitchen_plan.path_clear` against the furniture
+    (``KITCHEN_OBSTACLES``); False on the diagonal.
+    """
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
+    from repertoire.studies._kitchen_plan import path_clear
+
+    m = len(points)
+    clear = path_clear(np.repeat(points, m, axis=0), np.tile(points, (m, 1)), KITCHEN_OBSTACLES,
+                       radius).reshape(m, m)  # fmt: skip
+    return clear & ~np.eye(m, dtype=bool)
+
+
+def reaches(a, point, clearance: float) -> np.ndarray:
+    """``(n,)`` True where a footprint at ``a`` (n, >= 2) reaches ``point`` by straight legs.
+
+    Straight, or through any number of :func:`via_points`: every leg's footprint
+    (``ROBOT_RADIUS + clearance``) clear of the furniture
+    (:func:`~repertoire.studies._kitchen_plan.path_clear`; no drive law).
+
+    Raises:
+        RepertoireError: ``point`` is not finite or its footprint enters a piece of
+            furniture (no start reaches it), naming it.
+    """
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLE_NAMES, KITCHEN_OBSTACLES, ROBOT_RADIUS
+    from repertoire.studies._kitchen_plan import path_clear
+    from repertoire.systems.kitchen_geometry import box_gaps
+
+    a = np.atleast_2d(np.asarray(a, dtype=float))[:, :2]
+    point = np.asarray(point, dtype=float)[:2]
+    radius = ROBOT_RADIUS + clearance
+    if not np.all(np.isfinite(point)):
+        raise RepertoireError(f"point must be finite, got {point.tolist()}")
+    gaps = box_gaps(point[None], KITCHEN_OBSTACLES)[0]
+    if np.any(gaps < radius):
+        inside = KITCHEN_OBSTACLE_NAMES[int(np.argmin(gaps - radius))]
+        raise RepertoireError(f"point {point.tolist()} lies inside {inside} grown by the "
+                              f"footprint radius {radius}: nothing reaches it")  # fmt: skip
+    points = via_points(clearance)
+    m = len(points)
+    seen = corners_seen(points, radius)
+    on = path_clear(points, np.broadcast_to(point, points.shape), KITCHEN_OBSTACLES, radius)
+    for _ in range(m):  # the via points the point is reached from, leg by leg
+        on = on | (seen & on[None, :]).any(axis=1)
+    ok = path_clear(a, np.broadcast_to(point, a.shape), KITCHEN_OBSTACLES, radius)
+    rest = np.flatnonzero(~ok)
+    if rest.size and m:
+        first = path_clear(np.repeat(a[rest], m, axis=0), np.tile(points, (rest.size, 1)),
+                           KITCHEN_OBSTACLES, radius).reshape(-1, m)  # fmt: skip
+        ok[rest] = (first & on[None, :]).any(axis=1)
+    return ok
+
+
+#: Node numbers of :func:`shortest_routes` for a route's start and end (via points: 0..m-1).
+START, GOAL = -1, -2
+
+
+def shortest_routes(a, b, points, seen, from_a, to_b, direct, legs_clear) -> list:
+    """Per row the shortest route ``a`` -> via points -> ``b`` whose every leg is clear.
+
+    Dijkstra over a visibility graph: the nodes are the start, the via points and the
+    end; ``seen``, ``from_a``, ``to_b`` and ``direct`` say which straight legs may be
+    driven at all. A leg's drive also depends on the heading its end takes (a via point
+    faces the next point of the route), so a search state is a node with the node it
+    goes on to, and a leg ``u -> v`` (v going on to ``w``) is checked with
+    ``legs_clear`` when the search first takes it (lazily, shortest routes first; all
+    rows' pending legs in one call). Lengths are the straight legs' sums.
+
+    Args:
+        a: (n, >= 2) starts. b: (n, >= 2) ends. points: (m, 2) via points.
+        seen: (m, m) True where the leg from via point i to j may be driven.
+        from_a: (n, m) the same from each start, to_b: (n, m) to each end.
+        direct: (n,) the same from the start to the end.
+        legs_clear: ``legs_clear(rows, legs) -> (len(rows),) bool`` for legs
+            ``(u, v, w)`` (node numbers; ``w`` the node ``v`` faces, ``GOAL`` for a via
+            point facing the end, None for ``v == GOAL``) of rows ``rows``.
+
+    Returns:
+        Per row the tuple of via point indices in driving order (empty: straight), or
+        None where no route is clear.
+    """
+    import heapq
+
+    a, b = np.atleast_2d(a)[:, :2], np.atleast_2d(b)[:, :2]
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    n = len(a)
+    between = np.hypot(*(points[:, None] - points[None]).transpose(2, 0, 1))
+    to_end = np.hypot(*(points[None] - b[:, None]).transpose(2, 0, 1))  # (n, m)
+    seen, from_a, to_b = (np.asarray(x, dtype=bool) for x in (seen, from_a, to_b))
+    on = to_b.copy()  # (n, m): the via points the end is reached from (legs alone)
+    for _ in range(len(points)):
+        on = on | (seen[None] & on[:, None, :]).any(axis=2)
+    heaps: list[list] = [[] for _ in range(n)]
+    closed: list[set] = [set() for _ in range(n)]
+    tie = 0
+
+    def push(r, length, path):
+        nonlocal tie
+        heapq.heappush(heaps[r], (length, tie, path))
+        tie += 1
+
+    def extend(r, length, path):  # the legs on from the path's last node
+        w = path[-1]
+        for x in np.flatnonzero(seen[w] & on[r]):  # on towards the end only
+            if x not in path:
+                push(r, length + between[w, x], path + (int(x),))
+        if to_b[r, w]:
+            push(r, length + to_end[r, w], path + (GOAL,))
+
+    for r in range(n):
+        if direct[r]:
+            push(r, float(np.hypot(*(b[r] - a[r]))), (START, GOAL))
+        for p in np.flatnonzero(from_a[r] & on[r]):
+            push(r, float(np.hypot(*(points[p] - a[r]))), (START, int(p)))
+    routes: list = [None] * n
+    known: list[dict] = [{} for _ in range(n)]  # per row the legs checked: clear or not
+
+    def settle(r, length, path):  # a path whose legs are clear: a route, or on from it
+        if path[-1] == GOAL:
+            routes[r] = path[1:-1]
+        else:
+            closed[r].add(path[-2:])
+            extend(r, length, path)
+
+    active = list(range(n))
+    while active:
+        pending = {}  # row -> (length, path, legs to check)
+        for r in active:
+            while heaps[r] and routes[r] is None:
+                length, _, path = heapq.heappop(heaps[r])
+                if path[-2:] in closed[r]:
+                    continue
+                legs = [(path[-3], path[-2], path[-1])] if len(path) > 2 else []
+                if path[-1] == GOAL:
+                    legs.append((path[-2], GOAL, None))
+                if not all(known[r].get(leg, True) for leg in legs):
+                    continue
+                unknown = [leg for leg in legs if leg not in known[r]]
+                if unknown:
+                    pending[r] = (length, path, unknown)
+                    break
+                settle(r, length, path)
+        if not pending:
+            break
+        rows = [r for r, (_, _, legs) in pending.items() for _ in legs]
+        clear = legs_clear(np.array(rows), [leg for _, _, legs in pending.values() for leg in legs])
+        at = 0
+        for r, (length, path, legs) in pending.items():
+            known[r].update(zip(legs, (bool(c) for c in clear[at : at + len(legs)])))
+            at += len(legs)
+            if all(known[r][leg] for leg in legs):
+                settle(r, length, path)
+        active = [r for r in active if routes[r] is None and heaps[r]]
+    return routes
+
+
 def drive_route(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, role: str,
                 rows=None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """Fetch ``k``'s drive ``role``: straight where clear, else the shortest clear two legs.
+    """Fetch ``k``'s drive ``role``: straight where clear, else the shortest clear route.
 
     GoToPose drives without avoiding anything, so a plan's drive must be clear: the
-    base's footprint (``ROBOT_RADIUS + clearance``) along the straight path
+    base's footprint (``ROBOT_RADIUS + clearance``) along each straight leg
     (:func:`~repertoire.studies._kitchen_plan.path_clear`), and the footprint and the
-    held-out arm along the path GoToPose's law drives (:func:`drive_hits`). Where the
-    straight drive is not, the drive goes via one of :func:`via_points` (facing the
-    drive's end, at rest), the one with the shortest clear pair of legs (the candidates
-    are tested shortest first, each row until one is clear).
+    held-out arm along the path GoToPose's law drives (:func:`drive_hits`). The route is
+    the shortest (the legs' straight lengths summed) through any number of
+    :func:`via_points` (each at rest, facing the next point) whose legs are all clear
+    (:func:`shortest_routes`; the straight drive where it is clear).
 
     Args:
         g, cups, k, start, config, role: as for :func:`drive_hits`.
         rows: the parameter rows to route (default all); the others are not clear.
 
     Returns:
-        ``(via (n, 4), ok (n,))``: the via pose ``[x, y, phi, 0]`` (NaN where straight or
-        not clear) and whether the drive is clear, straight or via.
+        ``(via (n, l, 4), ok (n,))``: each row's via poses ``[x, y, phi, 0]`` in driving
+        order, NaN after them (``l`` >= 1 the most any row has; all NaN where straight or
+        not clear), and whether the drive is clear.
     """
     from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, ROBOT_RADIUS
     from repertoire.studies._kitchen_plan import path_clear
@@ -486,38 +668,44 @@ def drive_route(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig,
     a, b = drive_ends(g, k, start, role)
     n = len(b)
     rows = np.arange(n) if rows is None else np.flatnonzero(np.isin(np.arange(n), rows))
-    via, ok = np.full((n, 4), np.nan), np.zeros(n, dtype=bool)
     radius = ROBOT_RADIUS + config.clearance
+    points = via_points(config.clearance)
+    m = len(points)
+    arm, held, boxes, discs, _ = _drive_arm(g, cups, k, config, role)
+    ok = np.zeros(n, dtype=bool)
+    # the straight drive first where its footprint path is clear (no route is shorter)
     straight = rows[path_clear(a[rows], b[rows], KITCHEN_OBSTACLES, radius)]
     ok[straight] = drive_hits(g.rows(straight), cups, k, start, config, role)[0] < 0
-    need = rows[~ok[rows]]
-    points = via_points(config.clearance)
-    if need.size == 0 or len(points) == 0:
-        return via, ok
-    m = len(points)
-    A, B = np.repeat(a[need], m, axis=0), np.repeat(b[need], m, axis=0)
-    V = np.tile(points, (need.size, 1))
-    clear = path_clear(A, V, KITCHEN_OBSTACLES, radius) & path_clear(
-        V, B, KITCHEN_OBSTACLES, radius
-    )
-    # the candidates by their legs' length, tested in that order: per row the first whose
-    # drive is clear (as testing all and taking the shortest clear, for fewer rollouts)
-    length = np.where(clear, np.hypot(*(V - A[:, :2]).T) + np.hypot(*(B[:, :2] - V).T), np.inf)
-    length = length.reshape(need.size, m)
-    order = np.argsort(length, axis=1, kind="stable")
-    best = np.full(need.size, -1)
-    for r in range(m):
-        cand = np.flatnonzero((best < 0) & np.isfinite(length[np.arange(need.size), order[:, r]]))
-        if cand.size == 0:
-            break
-        sub = g.rows(need[cand])
-        hits = drive_hits(sub, cups, k, start, config, role, points[order[cand, r]])[0]
-        best[cand[hits < 0]] = order[cand[hits < 0], r]
-    found = best >= 0
-    chosen = points[best[found]]
-    via[need[found]] = via_pose(chosen, b[need[found]])
-    ok[need[found]] = True
-    return via, ok
+    rows = rows[~ok[rows]]
+    ar, br = a[rows], b[rows]
+    seen = corners_seen(points, radius)
+    from_a = path_clear(np.repeat(ar, m, axis=0), np.tile(points, (len(rows), 1)),
+                        KITCHEN_OBSTACLES, radius).reshape(-1, m)  # fmt: skip
+    to_b = path_clear(np.tile(points, (len(rows), 1)), np.repeat(br, m, axis=0),
+                      KITCHEN_OBSTACLES, radius).reshape(-1, m)  # fmt: skip
+    direct = np.zeros(len(rows), dtype=bool)  # not clear, or not clear along the law
+
+    def xy(nodes, sub):  # the nodes' points, vectorised
+        out = np.where((nodes == GOAL)[:, None], br[sub, :2], ar[sub, :2])
+        corner = nodes >= 0
+        out[corner] = points[nodes[corner]]
+        return out
+
+    def legs_clear(sub, legs):  # legs (u, v, w): from u facing v to v facing w, at rest
+        u, v, w = (np.array([GOAL if x is None else x for x in c], dtype=int) for c in zip(*legs))
+        frm = np.where((u == START)[:, None], ar[sub], via_pose(xy(u, sub), xy(v, sub)))
+        to = np.where((v == GOAL)[:, None], br[sub], via_pose(xy(v, sub), xy(w, sub)))
+        arms = arm[rows[sub]]
+        return law_drive_hits(frm, to, arms, boxes, radius, config.arm_clearance, held, discs) < 0
+
+    routes = shortest_routes(ar, br, points, seen, from_a, to_b, direct, legs_clear)
+    ok[rows] = [route is not None for route in routes]
+    most = max([1] + [len(route) for route in routes if route is not None])
+    via = np.full((n, most, 2), np.nan)
+    for r, route in zip(rows, routes, strict=True):
+        if route:
+            via[r, : len(route)] = points[list(route)]
+    return route_poses(via, b), ok
 
 
 def arm_collisions(params, start, cups, targets, config: KitchenPlanConfig) -> list[tuple]:

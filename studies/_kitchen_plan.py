@@ -339,9 +339,9 @@ def plan_steps(geometry: PlanGeometry, row: int, config: KitchenPlanConfig) -> l
 def executed_steps(geometry: PlanGeometry, row: int, start, cups, config: KitchenPlanConfig):
     """:func:`plan_steps` with each drive's via leg before it, where it has one.
 
-    A drive whose straight path is not clear goes via a point around the furniture
+    A drive whose straight path is not clear goes via points around the furniture
     (:func:`~repertoire.studies._kitchen_arm.drive_route`, as the refinement predicted
-    it): a ``goto_pose`` to the via pose, then the drive's own.
+    it): a ``goto_pose`` to each via pose, then the drive's own.
 
     Returns:
         ``(steps, owner)``: the ``run_kitchen_sequence`` steps and, per step, the index
@@ -350,16 +350,15 @@ def executed_steps(geometry: PlanGeometry, row: int, start, cups, config: Kitche
     from repertoire.studies._kitchen_arm import drive_route
 
     g = geometry.rows([row])
-    vias = []  # per drive in plan order: its via pose, or None
+    vias = []  # per drive in plan order: its via poses (none where straight or not clear)
     for k in range(g.cup.shape[0]):
         for role in ("drive_stand", "drive_drop"):
             via, ok = drive_route(g, cups, k, start, config, role)
-            vias.append(via[0] if ok[0] and not np.isnan(via[0, 0]) else None)
+            vias.append([v for v in via[0] if ok[0] and not np.isnan(v[0])])
     steps, owner, drives = [], [], iter(vias)
     for i, step in enumerate(plan_steps(geometry, row, config)):
         if step[0] == "goto_pose":
-            via = next(drives)
-            if via is not None:
+            for via in next(drives):
                 steps.append(("goto_pose", [float(v) for v in via]))
                 owner.append(i)
         steps.append(step)
@@ -370,8 +369,9 @@ def executed_steps(geometry: PlanGeometry, row: int, start, cups, config: Kitche
 def exit_point(target) -> np.ndarray:
     """Where a robot stands in front of a put target: 0.9 m from it, off ``table_1``'s side.
 
-    A stand pose must see this point along a straight, free path (so a drop pose stays
-    reachable whatever the later refinement steps choose).
+    A stand pose must reach this point along straight, free legs, straight or around the
+    furniture (:func:`~repertoire.studies._kitchen_arm.reaches`), so a drop pose stays
+    reachable whatever the later refinement steps choose.
     """
     from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
 
@@ -444,7 +444,6 @@ def kitchen_problem(
     Returns:
         ``(problem, action_names)``.
     """
-    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, ROBOT_RADIUS
     from repertoire.planning.refinement import (
         DurationTerm,
         PiecewiseLinearModel,
@@ -462,7 +461,6 @@ def kitchen_problem(
     lower, upper, names = parameter_bounds(config)
     start = np.asarray(start, dtype=float)
     m = len(targets)
-    radius = ROBOT_RADIUS + config.clearance
     up = np.array([0.0, 0.0, config.above_offset])
     exits = [exit_point(t) for t in np.asarray(targets, dtype=float)]
     terms: list = []
@@ -503,6 +501,7 @@ def kitchen_problem(
         drive_ends,
         drive_route,
         reachable_on_arrival,
+        reaches,
     )
 
     def arm_clear(f, g, k, role):  # the features where the arm's way is clear, else NaN
@@ -516,13 +515,17 @@ def kitchen_problem(
             ok = ok & ~last["invalid"]
         via, clear = drive_route(g, cups, k, start, config, role, np.flatnonzero(ok))
         mark(g, clear)
-        straight = clear & np.isnan(via[:, 0])
+        count = (~np.isnan(via[:, :, 0])).sum(axis=1)
+        straight = clear & (count == 0)
         t = goto.predict(np.where(straight[:, None], kitchen_goto_features(a, b), np.nan))
-        legs = np.flatnonzero(clear & ~straight)  # two legs, to the via point and on
-        if legs.size:
-            t[legs] = goto.predict(kitchen_goto_features(a[legs], via[legs])) + goto.predict(
-                kitchen_goto_features(via[legs], b[legs])
-            )
+        legs = np.flatnonzero(clear & ~straight)  # a leg to each via point and one on
+        if legs.size:  # summed leg by leg
+            n_via, ends = count[legs], np.concatenate([via[legs], b[legs, None]], axis=1)
+            ends[np.arange(legs.size), n_via] = b[legs]
+            t[legs] = goto.predict(kitchen_goto_features(a[legs], ends[:, 0]))
+            for leg in range(1, int(n_via.max()) + 1):
+                on = np.flatnonzero(n_via >= leg)
+                t[legs[on]] += goto.predict(kitchen_goto_features(ends[on, leg - 1], ends[on, leg]))
         return np.where(clear, t, np.nan)[:, None]
 
     for k in range(m):
@@ -542,7 +545,7 @@ def kitchen_problem(
 
         def goto_stand(params, k=k):  # straight, or via a point around the furniture
             g = geometry(params)
-            ok = path_clear(g.stand[:, k], exits[k], KITCHEN_OBSTACLES, radius)
+            ok = reaches(g.stand[:, k], exits[k], config.clearance)
             if config.arrival_check:  # the cup in reach wherever the drive stops
                 ok &= reachable_on_arrival(g.stand[:, k], (g.cup[k] + up, g.cup[k]))
             return drive_time(g, k, "drive_stand", ok)

@@ -1,5 +1,6 @@
 """Kitchen refinement plans (studies/_kitchen_plan.py, studies/refinement_kitchen.py)."""
 
+import itertools
 import json
 import math
 
@@ -398,7 +399,7 @@ def test_a_drive_the_table_blocks_goes_via_a_corner_and_is_predicted_leg_by_leg(
     np.testing.assert_allclose(ka.via_points(config.clearance)[4], [1.12, 0.52])  # the corner
     via, ok = ka.drive_route(g, cups, 0, start, config, "drive_stand")
     heading = np.arctan2(stand[1] - 0.52, stand[0] - 1.12)  # facing the stand
-    np.testing.assert_allclose(via, [[1.12, 0.52, heading, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(via, [[[1.12, 0.52, heading, 0.0]]], atol=1e-12)
     assert ok.tolist() == [True]
     # a straight clear drive has no via; a drive the route leaves out is not clear
     ahead = np.array([2.0, 0.0, 0.0, 0.0])
@@ -453,7 +454,7 @@ def test_a_drive_is_checked_along_the_path_the_law_drives(seed, scenario, params
     assert names[hits[0]] == "table_0"
     route, ok = ka.drive_route(g, cups, 0, start, config, "drive_drop")
     assert ok.tolist() == [True]
-    np.testing.assert_allclose(route[0, :2], via, atol=5e-4)
+    np.testing.assert_allclose(route[0, :, :2], [via], atol=5e-4)  # one via point
     assert ka.drive_hits(g, cups, 0, start, config, "drive_drop", route)[0].tolist() == [-1]
     # the drive to the stand (the start heading away from it) is clear along the law too
     assert ka.drive_hits(g, cups, 0, start, config, "drive_stand")[0].tolist() == [-1]
@@ -530,3 +531,129 @@ def test_narrow_cup_ranges_give_every_seed_a_situation():
         assert np.all((cups[:, 1] >= 1.0) & (cups[:, 1] <= 1.2))
     with pytest.raises(RepertoireError, match="two cups 0.25 m apart; its diagonal is 0.224 m"):
         kp.KitchenPlanConfig(cup_x_range=[1.6, 1.7], cup_y_range=[1.0, 1.2]).validate()
+
+
+def _brute_force_route(a, b, points, seen, from_a, to_b, direct, clear):
+    """The shortest clear route over every ordered choice of distinct via points."""
+    where = {ka.START: a, ka.GOAL: b, **{i: p for i, p in enumerate(points)}}
+
+    def may(u, v):
+        if u == ka.START:
+            return direct if v == ka.GOAL else from_a[v]
+        return to_b[u] if v == ka.GOAL else seen[u, v]
+
+    best, found = np.inf, None
+    for size in range(len(points) + 1):
+        for vias in itertools.permutations(range(len(points)), size):
+            path = (ka.START, *vias, ka.GOAL)
+            if not all(may(u, v) for u, v in itertools.pairwise(path)):
+                continue
+            legs = [(u, v, path[i + 2] if v != ka.GOAL else None)
+                    for i, (u, v) in enumerate(itertools.pairwise(path))]  # fmt: skip
+            if not all(clear(leg) for leg in legs):
+                continue
+            length = sum(np.hypot(*(where[v] - where[u])) for u, v in itertools.pairwise(path))
+            if length < best:
+                best, found = length, vias
+    return found, best
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_shortest_routes_is_the_brute_force_shortest_clear_route(seed):
+    # a random visibility graph of 6 via points whose legs (u, v, w) are clear or not at
+    # random (a leg's clearance depends on the heading its end takes: w); the search
+    # finds exactly the shortest route over every ordering of distinct via points
+    rng = np.random.default_rng(seed)
+    points = rng.uniform(-1, 1, (6, 2))
+    a, b = np.array([[-1.5, 0.0]]), np.array([[1.5, 0.0]])
+    seen = rng.random((6, 6)) < 0.6
+    np.fill_diagonal(seen, False)
+    from_a, to_b = rng.random((1, 6)) < 0.5, rng.random((1, 6)) < 0.5
+    verdict = rng.random((8, 8, 8)) < 0.7  # per leg (u, v, w); START: 7, GOAL (or None): 6
+
+    def clear(leg):
+        return bool(verdict[tuple(7 if x == ka.START else 6 if x in (ka.GOAL, None) else x
+                                  for x in leg)])  # fmt: skip
+
+    checked = []
+
+    def legs_clear(rows, legs):
+        assert rows.tolist() == [0] * len(legs)
+        checked.extend(legs)
+        return np.array([clear(leg) for leg in legs])
+
+    route = ka.shortest_routes(a, b, points, seen, from_a, to_b, [False], legs_clear)[0]
+    expected, best = _brute_force_route(a[0], b[0], points, seen, from_a[0], to_b[0], False, clear)
+    assert route == expected
+    if route is not None:
+        path = np.vstack([a, points[list(route)], b])
+        assert np.sum(np.hypot(*np.diff(path, axis=0).T)) == pytest.approx(best, abs=1e-12)
+    assert len(checked) == len(set(checked))  # no leg checked twice
+
+
+# seed 38003 with the cups on table_0's far half: its greedy (h = 1) plan stands behind
+# table_0 and drops from table_1's front (before: NO_PLAN with both horizons)
+PLAN_38003 = [-0.467124, -0.146182, 0.8, -0.03453, 0.45, 0.96, -1.013966, 0.071528, 0.8]
+
+
+def test_a_far_side_cup_is_carried_around_table_0_via_two_corners_the_shortest_route():
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, ROBOT_RADIUS
+    from repertoire.planning.action_models.kitchen_features import kitchen_goto_features
+
+    config = kp.KitchenPlanConfig(cup_y_range=[1.4, 1.65])
+    start, cups, targets = kp.sample_situation(config, np.random.default_rng(38003))
+    g = kp.plan_geometry(PLAN_38003, cups, targets)
+    a, b = ka.drive_ends(g, 0, start, "drive_drop")
+    radius = ROBOT_RADIUS + config.clearance
+    assert a[0, 1] > 1.7  # the stand behind table_0 (its far side at y = 1.7)
+    # the stand reaches the exit point in front of the target only around the table
+    exit_ = kp.exit_point(targets[0])
+    assert not kp.path_clear(a, exit_, KITCHEN_OBSTACLES, radius)[0]
+    assert ka.reaches(a, exit_, config.clearance).tolist() == [True]
+    # a point no footprint can stand on (beside table_0's edge, within the radius) is named
+    with pytest.raises(RepertoireError, match=r"inside table_0 grown by the footprint"):
+        ka.reaches(a, [2.1, 1.7 + radius - 0.01], config.clearance)
+    with pytest.raises(RepertoireError, match="point must be finite"):
+        ka.reaches(a, [np.nan, 0.0], config.clearance)
+    # no straight drop drive and no one-corner route is clear (the old route's candidates)
+    points = ka.via_points(config.clearance)
+    m = len(points)
+    assert not kp.path_clear(a, b, KITCHEN_OBSTACLES, radius)[0]
+    many = g.rows(np.zeros(m, dtype=int))
+    hits = ka.drive_hits(many, cups, 0, start, config, "drive_drop", points)[0]
+    legs = kp.path_clear(np.repeat(a, m, 0), points, KITCHEN_OBSTACLES, radius) & kp.path_clear(
+        points, np.repeat(b, m, 0), KITCHEN_OBSTACLES, radius
+    )
+    assert not np.any(legs & (hits < 0))
+    # the route: via table_0's two left corners, each leg clear along the law
+    via, ok = ka.drive_route(g, cups, 0, start, config, "drive_drop")
+    assert ok.tolist() == [True] and via.shape == (1, 2, 4)
+    np.testing.assert_allclose(via[0, :, :2], [[1.12, 2.08], [1.12, 0.52]], atol=1e-12)
+    np.testing.assert_allclose(via[0, 0, 2], -np.pi / 2, atol=1e-12)  # facing the next corner
+    heading = np.arctan2(b[0, 1] - 0.52, b[0, 0] - 1.12)  # the last faces the drop pose
+    np.testing.assert_allclose(via[0, 1, 2:], [heading, 0.0], atol=1e-12)
+    assert ka.drive_hits(g, cups, 0, start, config, "drive_drop", via)[0].tolist() == [-1]
+    # the shortest of every clear ordered pair of corners (brute force)
+    best, pair = np.inf, None
+    for i, j in itertools.permutations(range(m), 2):
+        path = np.vstack([a[:, :2], points[[i, j]], b[:, :2]])
+        if not kp.path_clear(path[:-1], path[1:], KITCHEN_OBSTACLES, radius).all():
+            continue
+        if ka.drive_hits(g, cups, 0, start, config, "drive_drop", points[None, [i, j]])[0][0] >= 0:
+            continue
+        length = np.sum(np.hypot(*np.diff(path, axis=0).T))
+        if length < best:
+            best, pair = length, (i, j)
+    np.testing.assert_allclose(points[list(pair)], via[0, :, :2], atol=1e-12)
+    # the drive's term predicts its three legs; the plan drives them
+    models = kp.load_kitchen_models("")
+    problem, actions = kp.kitchen_problem(start, cups, targets, config, models)
+    goto = models["goto_pose"]
+    ends = [a[0], via[0, 0], via[0, 1], b[0]]
+    legs_t = sum(goto.predict(kitchen_goto_features(p, q))[0] for p, q in itertools.pairwise(ends))
+    assert actions[7] == "goto_pose"
+    assert problem.terms[7].predict(np.array(PLAN_38003)[None])[0] == pytest.approx(legs_t, 1e-12)
+    steps, owner = kp.executed_steps(g, 0, start, cups, config)
+    drops = [s for s, o in zip(steps, owner, strict=True) if o == 7]
+    assert drops == [("goto_pose", via[0, 0].tolist()), ("goto_pose", via[0, 1].tolist()),
+                     ("goto_pose", b[0].tolist())]  # fmt: skip

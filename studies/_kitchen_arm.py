@@ -498,6 +498,36 @@ def corners_seen(points, radius: float) -> np.ndarray:
     return clear & ~np.eye(m, dtype=bool)
 
 
+def clear_to_points(ends, points, radius: float, *, towards: bool = True) -> np.ndarray:
+    """``(n, m)``: True where the footprint drives straight from ``ends[i]`` to ``points[j]``.
+
+    With ``towards=False`` the legs run the other way, from each point to each end.
+    Along :func:`~repertoire.studies._kitchen_plan.path_clear` against the furniture.
+    """
+    from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES
+    from repertoire.studies._kitchen_plan import path_clear
+
+    ends = np.atleast_2d(ends)[:, :2]
+    n, m = len(ends), len(points)
+    e, p = np.repeat(ends, m, axis=0), np.tile(points, (n, 1))
+    frm, to = (e, p) if towards else (p, e)
+    return path_clear(frm, to, KITCHEN_OBSTACLES, radius).reshape(n, m)
+
+
+def reached_through(seen, on) -> np.ndarray:
+    """The via points (``on``'s last axis) from which one of ``on`` is reached by legs of ``seen``.
+
+    The transitive closure of ``on`` over the visibility graph ``seen`` ((m, m)), for ``on``
+    of shape (m,) or (n, m).
+    """
+    on = np.asarray(on, dtype=bool)
+    while True:
+        more = on | (seen & on[..., None, :]).any(axis=-1)
+        if np.array_equal(more, on):
+            return on
+        on = more
+
+
 def reaches(a, point, clearance: float) -> np.ndarray:
     """``(n,)`` True where a footprint at ``a`` (n, >= 2) reaches ``point`` by straight legs.
 
@@ -526,15 +556,11 @@ def reaches(a, point, clearance: float) -> np.ndarray:
     points = via_points(clearance)
     m = len(points)
     seen = corners_seen(points, radius)
-    on = path_clear(points, np.broadcast_to(point, points.shape), KITCHEN_OBSTACLES, radius)
-    for _ in range(m):  # the via points the point is reached from, leg by leg
-        on = on | (seen & on[None, :]).any(axis=1)
+    on = reached_through(seen, clear_to_points(point, points, radius, towards=False)[0])
     ok = path_clear(a, np.broadcast_to(point, a.shape), KITCHEN_OBSTACLES, radius)
     rest = np.flatnonzero(~ok)
     if rest.size and m:
-        first = path_clear(np.repeat(a[rest], m, axis=0), np.tile(points, (rest.size, 1)),
-                           KITCHEN_OBSTACLES, radius).reshape(-1, m)  # fmt: skip
-        ok[rest] = (first & on[None, :]).any(axis=1)
+        ok[rest] = (clear_to_points(a[rest], points, radius) & on[None, :]).any(axis=1)
     return ok
 
 
@@ -574,9 +600,7 @@ def shortest_routes(a, b, points, seen, from_a, to_b, direct, legs_clear) -> lis
     between = np.hypot(*(points[:, None] - points[None]).transpose(2, 0, 1))
     to_end = np.hypot(*(points[None] - b[:, None]).transpose(2, 0, 1))  # (n, m)
     seen, from_a, to_b = (np.asarray(x, dtype=bool) for x in (seen, from_a, to_b))
-    on = to_b.copy()  # (n, m): the via points the end is reached from (legs alone)
-    for _ in range(len(points)):
-        on = on | (seen[None] & on[:, None, :]).any(axis=2)
+    on = reached_through(seen, to_b)  # (n, m): the via points the end is reached from
     heaps: list[list] = [[] for _ in range(n)]
     closed: list[set] = [set() for _ in range(n)]
     tie = 0
@@ -679,10 +703,8 @@ def drive_route(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig,
     rows = rows[~ok[rows]]
     ar, br = a[rows], b[rows]
     seen = corners_seen(points, radius)
-    from_a = path_clear(np.repeat(ar, m, axis=0), np.tile(points, (len(rows), 1)),
-                        KITCHEN_OBSTACLES, radius).reshape(-1, m)  # fmt: skip
-    to_b = path_clear(np.tile(points, (len(rows), 1)), np.repeat(br, m, axis=0),
-                      KITCHEN_OBSTACLES, radius).reshape(-1, m)  # fmt: skip
+    from_a = clear_to_points(ar, points, radius).reshape(-1, m)
+    to_b = clear_to_points(br, points, radius, towards=False).reshape(-1, m)
     direct = np.zeros(len(rows), dtype=bool)  # not clear, or not clear along the law
 
     def xy(nodes, sub):  # the nodes' points, vectorised

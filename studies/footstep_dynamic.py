@@ -6,7 +6,11 @@ disconnected for a 2-D mobile-robot planner; a biped can step over the strings b
 blocks if it times its steps. Each episode draws random phases of the two rows, plans
 with time in the state (time-indexed grids E(t), Euclidean cost-to-go) and records
 success, steps, arrival time and how often the plan waits (steps in place) or
-side-steps.
+side-steps. Beside that one plan, each episode walks the same scene by receding-horizon
+replanning (the paper's limited-horizon search: every round plans within a small node
+budget from where the committed steps ended, commits a few steps of the best partial plan,
+and plans again; a round that proves the end of a partial plan a trap commits a shorter
+prefix, and the trap is avoided from then on) and records how it fared.
 
 Run it with ``python -m repertoire.studies.footstep_dynamic --help``.
 """
@@ -17,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 from repertoire.studies._footstep_common import (
+    NONE_OK,
     load_table,
     markdown_table,
     percentile,
@@ -48,6 +53,13 @@ class FootstepDynamicConfig:
         table_path: action table file; empty for the nominal table.
         swing_clearance_m: the swing foot clears obstacles up to this height (the blocks
             are 2 cm and the strings 5 mm high, every grid of E(t) carries them).
+        receding_round_expansions: node budget of each round of the receding-horizon run
+            (:func:`~repertoire.planning.footstep.receding.plan_receding_horizon`); 0: no
+            receding-horizon run.
+        receding_execute_steps: steps committed per round (fewer where the next round
+            proves their end a trap).
+        receding_max_rounds: the receding-horizon run gives up after this many planner
+            calls.
     """
 
     row1_speed_m_s: float = 0.18
@@ -64,6 +76,9 @@ class FootstepDynamicConfig:
     body_radius_m: float = 0.30
     table_path: str = ""
     swing_clearance_m: float = 0.10
+    receding_round_expansions: int = 100
+    receding_execute_steps: int = 4
+    receding_max_rounds: int = 60
 
     def validate(self) -> None:
         """Raise RepertoireError if a field is out of range."""
@@ -86,8 +101,16 @@ class FootstepDynamicConfig:
                 raise RepertoireError(f"FootstepDynamicConfig.{name} must be finite")
         if self.block_length_m >= min(self.row1_spacing_m, self.row2_spacing_m):
             raise RepertoireError("blocks longer than their spacing leave no gap in a row")
-        if self.max_expansions < 0:
-            raise RepertoireError("FootstepDynamicConfig.max_expansions must be >= 0")
+        for name in ("max_expansions", "receding_round_expansions"):
+            if getattr(self, name) < 0:
+                raise RepertoireError(
+                    f"FootstepDynamicConfig.{name} must be >= 0, got {getattr(self, name)}"
+                )
+        for name in ("receding_execute_steps", "receding_max_rounds"):
+            if getattr(self, name) < 1:
+                raise RepertoireError(
+                    f"FootstepDynamicConfig.{name} must be >= 1, got {getattr(self, name)}"
+                )
 
 
 @dataclasses.dataclass
@@ -111,6 +134,14 @@ class FootstepDynamicRecord:
         wall_plan_time_s: planning wall time (timing field).
         reason: why a plan that is not SUCCESS stops short, as the planner says
             (``FootstepPlan.reason``: the start foot hit, landings past the grids); "".
+        receding_status: the receding-horizon run's status ("" when it is off).
+        receding_success: the receding-horizon run reaches the goal.
+        receding_steps: steps it committed.
+        receding_arrival_s: time at which its last committed step lands.
+        receding_rounds: planner calls it made.
+        receding_dead_end_rounds: of those, the calls that proved their start a trap
+            (UNREACHABLE), so that a shorter prefix was committed or the round planned
+            again around it.
     """
 
     seed: int
@@ -127,6 +158,12 @@ class FootstepDynamicRecord:
     mobile2d_success: bool
     wall_plan_time_s: float
     reason: str = ""
+    receding_status: str = ""
+    receding_success: bool = False
+    receding_steps: int = 0
+    receding_arrival_s: float = 0.0
+    receding_rounds: int = 0
+    receding_dead_end_rounds: int = 0
 
 
 def _scene(config: FootstepDynamicConfig, seed: int):
@@ -156,6 +193,26 @@ def _plan(config: FootstepDynamicConfig, scene):
     )
 
 
+def _plan_receding(config: FootstepDynamicConfig, scene):
+    """The receding-horizon run: rounds of ``receding_round_expansions`` expansions each."""
+    from repertoire.planning.footstep.receding import plan_receding_horizon
+
+    options = planner_options(
+        dataclasses.replace(config, max_expansions=config.receding_round_expansions),
+        heuristic="euclidean",
+    )
+    return plan_receding_horizon(
+        scene.env,
+        scene.start,
+        scene.start_foot,
+        scene.goal,
+        load_table(config.table_path),
+        options,
+        execute_steps=config.receding_execute_steps,
+        max_rounds=config.receding_max_rounds,
+    )
+
+
 def run_episode(config: FootstepDynamicConfig, seed: int) -> FootstepDynamicRecord:
     """Plan through the moving rows with the seeded phases.
 
@@ -175,6 +232,17 @@ def run_episode(config: FootstepDynamicConfig, seed: int) -> FootstepDynamicReco
     counts = action_counts(plan)
     mobile = plan_mobile2d(scene.env.at(0.0), scene.body_start, scene.goal, config.body_radius_m)
     waits, side = counts.get("stop", 0), counts.get("side_step", 0)
+    receding = {}
+    if config.receding_round_expansions > 0:
+        run = _plan_receding(config, scene)
+        receding = dict(
+            receding_status=run.plan.status.value,
+            receding_success=run.plan.succeeded,
+            receding_steps=run.plan.num_steps,
+            receding_arrival_s=float(run.plan.times[-1]),
+            receding_rounds=run.rounds,
+            receding_dead_end_rounds=run.statuses.count("UNREACHABLE"),
+        )
     return FootstepDynamicRecord(
         seed=int(seed),
         status=plan.status.value,
@@ -195,14 +263,19 @@ def run_episode(config: FootstepDynamicConfig, seed: int) -> FootstepDynamicReco
         mobile2d_success=mobile.status == "SUCCESS",
         wall_plan_time_s=float(plan.planning_time_s),
         reason=plan.reason,
+        **receding,
     )
 
 
-def summary_table(records: list[FootstepDynamicRecord]) -> str:
+def summary_table(
+    records: list[FootstepDynamicRecord], config: "FootstepDynamicConfig | None" = None
+) -> str:
     """Markdown table of the headline figures.
 
     Args:
         records: the episodes.
+        config: the study config (names the receding-horizon run's budget); None: the
+            receding-horizon rows are left out.
     """
     n = len(records)
     ok = [r for r in records if r.success]
@@ -242,7 +315,43 @@ def summary_table(records: list[FootstepDynamicRecord]) -> str:
         common["plan_time"],
         common["nodes"],
     ]
+    if config is not None and config.receding_round_expansions > 0:
+        rows += _receding_rows(records, config)
     return markdown_table(rows)
+
+
+def _receding_rows(
+    records: list[FootstepDynamicRecord], config: FootstepDynamicConfig
+) -> list[tuple[str, str]]:
+    """The receding-horizon run's rows of the summary table."""
+    n = len(records)
+    ok = [r for r in records if r.receding_success]
+    both = [r for r in ok if r.success]
+    rounds = [r.receding_rounds for r in records]
+    label = (
+        f"receding horizon ({config.receding_round_expansions} expansions per round, "
+        f"{config.receding_execute_steps} steps committed)"
+    )
+    later = [r.receding_arrival_s - r.arrival_s for r in both]
+    return [
+        (f"{label}: success", f"{len(ok)}/{n}"),
+        (
+            f"{label}: arrival later than the single plan's, median [min, max] (s)",
+            f"{percentile(later, 50):.1f} [{min(later, default=0):.1f}, "
+            f"{max(later, default=0):.1f}]"
+            if both
+            else NONE_OK,
+        ),
+        (
+            f"{label}: planner calls median [min, max]",
+            f"{percentile(rounds, 50):.0f} [{min(rounds, default=0)}, {max(rounds, default=0)}]",
+        ),
+        (
+            f"{label}: calls that proved a dead end (total; episodes with one)",
+            f"{sum(r.receding_dead_end_rounds for r in records)}; "
+            f"{sum(r.receding_dead_end_rounds > 0 for r in records)}/{n}",
+        ),
+    ]
 
 
 def summarize(
@@ -265,7 +374,7 @@ def summarize(
     out_dir = Path(out_dir)
     out: dict[str, Path] = {}
     md = out_dir / "footstep_dynamic.md"
-    md.write_text("# Footstep planning, moving obstacles\n\n" + summary_table(records))
+    md.write_text("# Footstep planning, moving obstacles\n\n" + summary_table(records, config))
     out["table"] = md
     # snapshot figure of a plan that waits or side-steps (else the first success)
     chosen = next((r for r in records if r.success and r.waited_or_side_stepped), None)
@@ -287,10 +396,27 @@ def summarize(
     if records:
         fig = Figure(figsize=(8, 3.2), dpi=110)
         ax = fig.add_subplot(1, 2, 1)
-        ax.hist([r.arrival_s for r in records if r.success], bins=15, color="#1f5fd6")
+        series = [([r.arrival_s for r in records if r.success], "#1f5fd6", "one plan")]
+        if config.receding_round_expansions > 0:
+            series.append(
+                (
+                    [r.receding_arrival_s for r in records if r.receding_success],
+                    "#7a7a7a",
+                    f"receding horizon ({config.receding_round_expansions} expansions / round)",
+                )
+            )
+        arrivals = [a for values, _, _ in series for a in values]
+        bins = np.linspace(min(arrivals, default=0), max(arrivals, default=1) + 1e-9, 16)
+        ax.hist(  # bars side by side, one colour per run
+            [values for values, _, _ in series],
+            bins=bins,
+            color=[color for _, color, _ in series],
+            label=[f"{label}: {len(values)}" for values, _, label in series],
+        )
+        ax.legend(loc="upper right", fontsize=7, title="successful runs", title_fontsize=7)
         ax.set_xlabel("arrival time (s)")
         ax.set_ylabel("phase pairs")
-        ax.set_title("arrival time of each successful plan", fontsize=10)
+        ax.set_title("arrival time of each successful run", fontsize=10)
         ax = fig.add_subplot(1, 2, 2)
         ax.hist(
             [r.waits + r.side_steps for r in records if r.success],
@@ -299,12 +425,15 @@ def summarize(
         )
         ax.set_xlabel("steps in place + side steps per plan")
         ax.set_ylabel("phase pairs")
-        ax.set_title("waiting and dodging per successful plan", fontsize=10)
+        ax.set_title("waiting and dodging per successful plan (one plan)", fontsize=10)
         for a in fig.axes:
             a.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts
         n_ok = sum(r.success for r in records)
+        n_rh = sum(r.receding_success for r in records)
         fig.suptitle(
-            f"successful plans: {n_ok} of {len(records)} random row-phase pairs", fontsize=10
+            f"one plan reaches the goal on {n_ok} of {len(records)} random row-phase pairs"
+            + (f", the receding horizon on {n_rh}" if config.receding_round_expansions else ""),
+            fontsize=10,
         )
         fig.tight_layout()
         path = out_dir / "footstep_dynamic_distributions.png"

@@ -114,3 +114,33 @@ def test_receding_horizon_plans_around_a_first_step_that_ends_in_a_trap():
     assert plan.cost == pytest.approx(sum(table.step_cost[table.index(a)] for a in plan.actions))
     # every round's nodes count, those of the prefixes found to end in traps too
     assert plan.nodes_expanded > 50 * res.statuses.count("NODE_LIMIT")
+
+
+def test_a_round_that_finds_no_step_thinks_longer():
+    # the dynamic study's scene 5 at 100 expansions a round: from the fourth step's end the
+    # second round's budget reaches no state nearer the goal (a row of blocks in front), so
+    # its best partial plan is its own start; the run committed nothing more and ended
+    # there (NODE_LIMIT after 2 calls, 4 steps). That round is now planned again with 200,
+    # 400, ... expansions until it has a step, and the run reaches the goal.
+    from repertoire.planning.footstep.scenes import strings_scene
+
+    scene = strings_scene(
+        5, speeds=(0.18, 0.12), spacings=(0.9, 1.0), block_size=(0.5, 0.2), t_end=40.0, dt=0.1
+    )
+    opts = PlannerOptions(heuristic="euclidean", heuristic_weight=1.5, max_expansions=100,
+                          time_limit=60.0, swing_clearance=0.10)  # fmt: skip
+    args = (scene.env, scene.start, scene.start_foot, scene.goal, nominal_action_table(), opts)
+    stuck = plan_receding_horizon(*args, max_rounds=2)
+    assert stuck.statuses == ["NODE_LIMIT", "NODE_LIMIT"] and stuck.plan.num_steps == 4
+    res = plan_receding_horizon(*args, max_rounds=60)
+    assert res.plan.status is PlanStatus.SUCCESS and res.plan.num_steps == 22
+    assert res.statuses == ["NODE_LIMIT"] * 5 + ["SUCCESS"]
+    # the second call found no step; the third (200 expansions) found ten, four committed
+    second = plan_footsteps(
+        scene.env, res.plan.poses[4], res.plan.feet[4], scene.goal, nominal_action_table(),
+        opts, initial_swing_pose=res.plan.poses[3], start_time=res.plan.times[4],
+        initial_history=res.plan.actions[2:4],
+    )  # fmt: skip
+    assert second.status is PlanStatus.NODE_LIMIT and second.num_steps == 0
+    assert res.plan.actions[4:8] == ["side_step", "turn_left", "side_step", "turn_left"]
+    assert _hits(scene.env, res.plan) == []

@@ -66,8 +66,24 @@ def test_dynamic_study_smoke(tmp_path):
         assert r.success == (r.status == "SUCCESS")
         if r.success:
             assert r.steps_over >= 2 and r.arrival_s > 0
-    assert "| phase pairs | 2 |" in (tmp_path / "footstep_dynamic.md").read_text()
+    table = (tmp_path / "footstep_dynamic.md").read_text()
+    assert "| phase pairs | 2 |" in table
+    assert "| receding horizon (100 expansions per round, 4 steps committed): success |" in table
     assert result.figures["distributions"].stat().st_size > 0
+
+
+def test_dynamic_study_walks_the_scene_by_receding_horizon_too():
+    # seed 4: one plan of 13 steps arrives at 10.4 s; rounds of 100 expansions committing
+    # 4 steps each take 12 planner calls, 3 of which prove the end of a partial plan a trap
+    # (a shorter prefix is committed), and arrive after 33 steps at 26.4 s
+    r = footstep_dynamic.run_episode(footstep_dynamic.FootstepDynamicConfig(), 4)
+    assert (r.status, r.steps, round(r.arrival_s, 6)) == ("SUCCESS", 13, 10.4)
+    assert (r.receding_status, r.receding_success, r.receding_steps) == ("SUCCESS", True, 33)
+    assert round(r.receding_arrival_s, 6) == 26.4
+    assert (r.receding_rounds, r.receding_dead_end_rounds) == (12, 3)
+    off = dataclasses.replace(footstep_dynamic.smoke_config(), receding_round_expansions=0)
+    none = footstep_dynamic.run_episode(off, 0)
+    assert (none.receding_status, none.receding_rounds) == ("", 0)
 
 
 def test_dynamic_study_records_why_a_plan_stops_short():
@@ -88,6 +104,10 @@ def test_study_configs_validate():
         footstep_dynamic.FootstepDynamicConfig(block_length_m=1.5).validate()
     with pytest.raises(RepertoireError, match="grid_dt_s must be > 0"):
         footstep_dynamic.FootstepDynamicConfig(grid_dt_s=0.0).validate()
+    with pytest.raises(RepertoireError, match="receding_round_expansions must be >= 0, got -1"):
+        footstep_dynamic.FootstepDynamicConfig(receding_round_expansions=-1).validate()
+    with pytest.raises(RepertoireError, match="receding_execute_steps must be >= 1, got 0"):
+        footstep_dynamic.FootstepDynamicConfig(receding_execute_steps=0).validate()
 
 
 def test_planner_rows_say_so_when_no_plan_succeeded():

@@ -37,6 +37,10 @@ from repertoire.planning.footstep.types import (
 
 from repertoire.checks import is_real
 
+THINK_LONGER_DOUBLINGS = 6
+"""How often a round that found no step is planned again with twice the budget (at most
+64 times the round's budget in all)."""
+
 
 @dataclasses.dataclass
 class RecedingResult:
@@ -84,7 +88,10 @@ def plan_receding_horizon(
             None: the defaults, as in :func:`plan_footsteps`.
         execute_steps: steps committed per round (a successful plan is committed whole;
             fewer when the next round proves their end a trap, down to none: then the
-            round is planned again around the proved traps).
+            round is planned again around the proved traps). A round whose budget found
+            no step at all (its best partial plan is its start) is planned again with
+            twice the budget and time limit, doubling until it finds one (at most
+            ``THINK_LONGER_DOUBLINGS`` times).
         max_rounds: give up after this many rounds.
         geometry: robot geometry.
         start_time: time of the start state (s).
@@ -108,6 +115,7 @@ def plan_receding_horizon(
         return calls[-1]
 
     while True:
+        plan = _think_longer(plan, calls, max_rounds, world, goal, table, options, geometry, dead)
         k = plan.num_steps if plan.succeeded else min(execute_steps, plan.num_steps)
         if plan.status is PlanStatus.UNREACHABLE:
             k = 0  # no step from here reaches the goal: nothing more is committed
@@ -176,6 +184,46 @@ def plan_receding_horizon(
         reason="" if plan.succeeded else plan.reason,
     )
     return RecedingResult(joined, rounds, statuses)
+
+
+def _think_longer(
+    plan: FootstepPlan,
+    calls: list[FootstepPlan],
+    max_rounds: int,
+    world: "OccupancyGrid | DynamicEnvironment",
+    goal: Sequence[float],
+    table: ActionTable,
+    options: PlannerOptions,
+    geometry: BipedGeometry,
+    dead: set[tuple],
+) -> FootstepPlan:
+    """A round that found no step, planned again from its start with twice the budget.
+
+    Node budget and time limit double until the round finds a step, ends otherwise, the
+    rounds run out or the budget has doubled ``THINK_LONGER_DOUBLINGS`` times; each call is
+    appended to ``calls``.
+
+    Without this a round whose best partial plan is its own start (every state its budget
+    reached lies farther from the goal: a row of blocks in front) committed nothing and
+    ended the whole run, although a little more search finds a way on (waiting, a side
+    step). The next round starts from the base budget again.
+    """
+    grown = options
+    for _ in range(THINK_LONGER_DOUBLINGS):
+        if not (
+            plan.num_steps == 0
+            and plan.status in (PlanStatus.NODE_LIMIT, PlanStatus.TIME_LIMIT)
+            and len(calls) < max_rounds
+        ):
+            break
+        grown = dataclasses.replace(
+            grown,
+            time_limit=2.0 * grown.time_limit,
+            max_expansions=2 * grown.max_expansions,  # 0 (no node budget) stays 0
+        )
+        calls.append(_next_round(plan, 0, world, goal, table, grown, geometry, dead))
+        plan = calls[-1]
+    return plan
 
 
 def _next_round(

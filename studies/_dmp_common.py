@@ -214,7 +214,7 @@ def joint_limit_probe(duration: float = 3.0):
     """The hand at home asked to turn :data:`PROBE_TURN_RAD` about its x axis (a grasp goal).
 
     The wrist's limits do not allow that orientation, so the IK holds wrist joints at their
-    limits and reports ``STATUS_JOINT_LIMITS`` (the README's example: stopped at 1.92 s).
+    limits and reports ``STATUS_JOINT_LIMITS`` (docs/results/arm.md's example: stopped at 1.92 s).
 
     Args:
         duration: simulated seconds at most [s].

@@ -59,7 +59,7 @@ MODEL_FILES = {"goto_pose": "goto_duration.json", "reach": "reach_duration.json"
 ARM_SPACING = 0.02
 SHIPPED_MODELS = "kitchen_plan_models"
 """Folder in ``repertoire/models/diffdrive`` with the goToPose and reach trees fitted on
-600 + 600 ``actions_kitchen`` episodes (see the README)."""
+600 + 600 ``actions_kitchen`` episodes (see docs/results/kitchen.md)."""
 
 
 @dataclasses.dataclass

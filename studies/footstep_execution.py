@@ -72,7 +72,7 @@ class FootstepExecutionConfig:
         pelvis_height: pelvis height while walking [m].
         feedback_walk_steps: steps of the long plan the summary walks open loop and
             with step feedback (:func:`long_walk_actions`; 0: no such figure). 102 is
-            the README's plan (226 mm open loop, 0.8 mm with feedback).
+            the 102-step plan of docs/results/footstep.md (226 mm open loop, 0.8 mm with feedback).
         feedback: walk each plan with world-frame step feedback (each step placed on
             the plan's pose from the measured stance sole) instead of its commands open
             loop (the paper's setting, which the learned-vs-nominal comparison is about).
@@ -368,7 +368,7 @@ def _draw_example(config: FootstepExecutionConfig, seed: int, out: Path) -> Path
     return out
 
 
-#: The long walk's command cycle (the README's 102-step plan of session 33).
+#: The long walk's command cycle (the 102-step plan of session 33, docs/results/footstep.md).
 LONG_WALK_CYCLE = ("forward_long", "turn_left", "forward_medium", "turn_right")
 #: Where the long walk starts: the soles' midpoint ``[x, y, yaw]``; the right foot stands.
 LONG_WALK_START = (0.3, -0.2, 0.4)
@@ -619,8 +619,8 @@ def demo_config() -> FootstepExecutionConfig:
     """The demo config: a 2 m floor so that the demo's two episodes take about a minute.
 
     Its long walk has 40 steps (about 8 s each way; open loop about 30 mm off by its
-    end); the real run uses the default config (the paper's 3 m floor, the README's
-    102-step walk) with 50+ seeds.
+    end); the real run uses the default config (the paper's 3 m floor, the 102-step walk
+    of docs/results/footstep.md) with 50+ seeds.
     """
     return FootstepExecutionConfig(size_m=2.0, n_strips=2, n_blocks=1, feedback_walk_steps=40)
 

@@ -218,7 +218,7 @@ def test_long_walk_actions_repeat_the_cycle_then_stop():
         "stop",
         "stop",
     ]
-    # the README's 102-step plan: the cycle 25 times, then two stops
+    # the 102-step plan of docs/results/footstep.md: the cycle 25 times, then two stops
     cycle = ["forward_long", "turn_left", "forward_medium", "turn_right"]
     assert long_walk_actions(102) == cycle * 25 + ["stop", "stop"]
     for bad in (2, 0, -1, 4.5, True):

@@ -483,7 +483,8 @@ def plan_footsteps_anytime(
             corridor searches (ARA* alone, then the restarts). On 12 m floors with a 1 s
             limit, corridors help where ARA*'s lower weights come late (local detours of
             the first plan) and hurt where a different way round is cheaper (ARA* then has
-            less time): on unseen floors neither choice was better on the whole (README).
+            less time): on unseen floors neither choice was better on the whole
+            (docs/results/footstep.md).
 
     Returns:
         the plans in order (costs non-increasing); the last one may be a partial plan with

@@ -17,7 +17,7 @@ from cut off ends the plan UNREACHABLE, naming that state.
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from repertoire.planning.footstep.actions import ASIMO_LIKE, BipedGeometry
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
@@ -114,8 +114,11 @@ def plan_receding_horizon(
         calls.append(_next_round(plan, j, world, goal, table, options, geometry, dead))
         return calls[-1]
 
+    def think_longer(p: FootstepPlan, grown: PlannerOptions) -> FootstepPlan:  # p's round
+        return _next_round(p, 0, world, goal, table, grown, geometry, dead)
+
     while True:
-        plan = _think_longer(plan, calls, max_rounds, world, goal, table, options, geometry, dead)
+        plan = _think_longer(plan, options, think_longer, calls, max_rounds)
         k = plan.num_steps if plan.succeeded else min(execute_steps, plan.num_steps)
         if plan.status is PlanStatus.UNREACHABLE:
             k = 0  # no step from here reaches the goal: nothing more is committed
@@ -188,18 +191,15 @@ def plan_receding_horizon(
 
 def _think_longer(
     plan: FootstepPlan,
+    options: PlannerOptions,
+    replan: "Callable[[FootstepPlan, PlannerOptions], FootstepPlan]",
     calls: list[FootstepPlan],
     max_rounds: int,
-    world: "OccupancyGrid | DynamicEnvironment",
-    goal: Sequence[float],
-    table: ActionTable,
-    options: PlannerOptions,
-    geometry: BipedGeometry,
-    dead: set[tuple],
 ) -> FootstepPlan:
     """A round that found no step, planned again from its start with twice the budget.
 
-    Node budget and time limit double until the round finds a step, ends otherwise, the
+    ``replan(plan, options)`` plans ``plan``'s round again from its start. Node budget and
+    time limit double until the round finds a step, ends otherwise, the
     rounds run out or the budget has doubled ``THINK_LONGER_DOUBLINGS`` times; each call is
     appended to ``calls``.
 
@@ -221,7 +221,7 @@ def _think_longer(
             time_limit=2.0 * grown.time_limit,
             max_expansions=2 * grown.max_expansions,  # 0 (no node budget) stays 0
         )
-        calls.append(_next_round(plan, 0, world, goal, table, grown, geometry, dead))
+        calls.append(replan(plan, grown))
         plan = calls[-1]
     return plan
 

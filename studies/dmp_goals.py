@@ -703,7 +703,7 @@ def tau_invariance_figure(config: DmpGoalsConfig, seed: int, out_dir: Path) -> P
     fig = Figure(figsize=(11, 4.6), layout="constrained")
     space, time_ax = fig.subplots(1, 2)
     space.plot(*d["demo"].T, c="0.7", lw=5, label="demonstration")
-    space.add_patch(Circle(d["obstacle"], 0.01, color="tab:gray"))
+    space.add_patch(Circle(d["obstacle"], 0.01, color="tab:gray", label="obstacle o of eq. 10"))
     colours = dict(zip(TAU_FACTORS, ("tab:blue", "tab:orange", "tab:green"), strict=True))
     widths = dict(zip(TAU_FACTORS, (3.0, 2.0, 1.0), strict=True))
     T = config.duration_s

@@ -290,6 +290,7 @@ def build_arm_world(
         builder.Connect(chain.GetOutputPort("tcp_position"), coupling.GetInputPort("position"))
         builder.Connect(chain.GetOutputPort("tcp_velocity"), coupling.GetInputPort("velocity"))
         builder.Connect(chain.GetOutputPort("orientation"), coupling.GetInputPort("orientation"))
+        builder.Connect(chain.GetOutputPort("tau"), coupling.GetInputPort("tau"))
         builder.Connect(o_src.get_output_port(), coupling.GetInputPort("obstacle"))
         builder.Connect(coupling.GetOutputPort("coupling"), chain.GetInputPort("coupling"))
     else:

@@ -73,6 +73,16 @@ CARRY_CONTROL_POINTS = (
     (0.0, 0.065, -0.085),
     (0.0, -0.065, -0.085),
 )
+#: Gain of eq. 10 on the arm (the paper's gamma: the term turns the scaled velocity ``v = tau
+#: dx/dt``, :class:`MultiPointObstacleCoupling` fed the active segment's tau). The ball sits
+#: on the carry, the place DMP's path (tau :data:`CARRY_TAU`, the place demonstration's
+#: duration); the gain was tuned by hand there (commit fa602e2: 3000 -> 50000) while the term
+#: still turned ``dx/dt``, i.e. as the paper's gain times the active tau. The same term on
+#: the carry in the paper's units is that gain over the carry's tau, 50000 / 3: the carry
+#: is driven exactly as it was tuned, and every segment now gets one gain in phase time
+#: (the grasp's term, tau 2.5 s, is 5/6 of what it was, the release's, 1.5 s, half).
+CARRY_TAU = 3.0
+OBSTACLE_GAMMA = 50000.0 / CARRY_TAU
 #: The default ball: 1 cm below the uncoupled carry path of the default layout, 62 % of the
 #: way along it (``carry_path_point([0.55, -0.25], [0.54, 0.20], 0.62) - [0, 0, 0.01]``,
 #: rounded to mm; nearer the middle it would touch the open hand at home).
@@ -246,7 +256,7 @@ class PickPlaceScenario:
         default_factory=lambda: list(DEFAULT_OBSTACLE_XYZ)
     )
     obstacle_coupling: bool = True
-    obstacle_gamma: float = 50000.0
+    obstacle_gamma: float = OBSTACLE_GAMMA
     obstacle_beta: float = 4.0
     obstacle_points: list[list[float]] = dataclasses.field(
         default_factory=lambda: [list(p) for p in CARRY_CONTROL_POINTS]
@@ -515,7 +525,7 @@ def _check_goal_attainable(
 #: completely"). 2 mm is a tenth of the 2 cm a placed cup may stand off the coaster's
 #: centre. Only the horizontal error counts: it is what puts the cup off the centre, while
 #: the height is the place goal's 4 mm clearance (eq. 10's term, proportional to the speed
-#: with gamma 50000, is as large as the damping near the goal and turns the last
+#: with gamma 50000 / 3, is as large as the damping near the goal and turns the last
 #: millimetres into a slow spiral that may leave the DMP 2 mm low for a second).
 SEGMENT_WAITS = {"release": 0.002}
 #: The DOF of the tcp position the waits measure (world x and y).

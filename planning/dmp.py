@@ -38,7 +38,7 @@ from repertoire.planning.dmp_quaternion import (
     quaternion_rollout,
 )
 
-from repertoire.checks import is_real, is_whole, refuse_unknown_keys
+from repertoire.checks import is_real, refuse_unknown_keys
 from repertoire.errors import RepertoireError
 
 DEFAULT_K = 156.25  # 25 * 6.25, as in Ijspeert et al. / movement_primitives
@@ -267,6 +267,40 @@ class DmpParameters(_FieldsRecord):
         """
         return self.tau * self.v0
 
+    def start_velocity(self, goal: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """The initial velocity dx/dt [per s] (at the learned tau) of a run from x0 to goal.
+
+        The new formulation (eq. 6) adds ``K f`` unscaled, so a run to any goal starts with
+        the learned ``v0``. The old one (eq. 1) multiplies f by ``g - x0``: its run is the
+        demonstration scaled per DOF by ``s = (g - x0) / (learned g - learned x0)``, so its
+        start velocity is ``s v0`` (``v0`` where the learned displacement is 0).
+
+        Args:
+            goal: The run's goal (at its start), shape (n_dims,).
+            x0: The run's start, shape (n_dims,).
+        """
+        if self.formulation == "new" or not np.any(self.v0):
+            return self.v0
+        learned = self.goal - self.x0
+        moved = learned != 0.0
+        scale = np.ones(self.n_dims)
+        goal = check_finite_vector("goal", goal, self.n_dims)
+        x0 = check_finite_vector("x0", x0, self.n_dims)
+        scale[moved] = (goal - x0)[moved] / learned[moved]
+        return scale * self.v0
+
+    def with_tau(self, tau: float) -> "DmpParameters":
+        """Copy re-timed: ``x(t)`` becomes ``x(t self.tau / tau)``, the same path in space.
+
+        Eq. 4, 6-7 have no tau in the phase time ``t / tau``; ``v0`` becomes ``self.tau v0 /
+        tau`` (the same scaled velocity), as ``rollout(tau=tau)`` does.
+
+        Args:
+            tau: The new duration [s], > 0.
+        """
+        tau = check_positive("tau", tau)
+        return dataclasses.replace(self, tau=tau, v0=self.initial_scaled_velocity() / tau)
+
     def with_goal(self, goal: np.ndarray, x0: np.ndarray | None = None) -> "DmpParameters":
         """Copy with a new goal (and optionally a new start).
 
@@ -276,7 +310,7 @@ class DmpParameters(_FieldsRecord):
         """
         goal = check_finite_vector("goal", goal, self.n_dims)
         x0 = self.x0 if x0 is None else check_finite_vector("x0", x0, self.n_dims)
-        return dataclasses.replace(self, goal=goal, x0=x0)
+        return dataclasses.replace(self, goal=goal, x0=x0, v0=self.start_velocity(goal, x0))
 
     def rollout(
         self,
@@ -301,8 +335,12 @@ class DmpParameters(_FieldsRecord):
                 ``coupling``, ``x_init``).
         """
         tau = self.tau if tau is None else check_positive("tau", tau)
+        x0 = self.x0 if x0 is None else check_finite_vector("x0", x0, self.n_dims)
+        goal = self.goal if goal is None else goal
         if kwargs.get("v0") is None:  # the learned scaled velocity tau v0 (see above)
-            kwargs["v0"] = self.v0 if tau == self.tau else self.tau * self.v0 / tau
+            g0 = np.asarray(goal, dtype=float)
+            v0 = self.start_velocity(g0[0] if g0.ndim == 2 else g0, x0)
+            kwargs["v0"] = v0 if tau == self.tau else self.tau * v0 / tau
         return rollout(
             self.weights,
             self.centres,
@@ -311,8 +349,8 @@ class DmpParameters(_FieldsRecord):
             self.D,
             self.alpha,
             tau,
-            self.x0 if x0 is None else x0,
-            self.goal if goal is None else goal,
+            x0,
+            goal,
             dt=dt,
             n_steps=n_steps,
             formulation=self.formulation,
@@ -423,6 +461,15 @@ class QuaternionDmpParameters(_FieldsRecord):
         """``(weights, centres, widths, K, D, alpha, tau)``: what both modes' dynamics take."""
         return self.weights, self.centres, self.widths, self.K, self.D, self.alpha, self.tau
 
+    def with_tau(self, tau: float) -> "QuaternionDmpParameters":
+        """Copy re-timed (the same turn; ``omega0`` times ``self.tau / tau``).
+
+        Args:
+            tau: The new duration [s], > 0 (as :meth:`DmpParameters.with_tau`).
+        """
+        tau = check_positive("tau", tau)
+        return dataclasses.replace(self, tau=tau, omega0=self.omega0 * (self.tau / tau))
+
     def component_parameters(self) -> DmpParameters:
         """The 4-D component DMP (``mode="component"`` only).
 
@@ -520,6 +567,15 @@ class TaskSpaceDmp:
     @property
     def alpha(self) -> float:
         return self.position.alpha
+
+    def with_tau(self, tau: float) -> "TaskSpaceDmp":
+        """Copy with every part re-timed (:meth:`DmpParameters.with_tau`).
+
+        Args:
+            tau: The new duration [s], > 0.
+        """
+        fingers = None if self.fingers is None else self.fingers.with_tau(tau)
+        return TaskSpaceDmp(self.position.with_tau(tau), self.orientation.with_tau(tau), fingers)
 
     def with_goal(
         self,
@@ -722,56 +778,3 @@ def check_unit_quaternions(
             f"{np.linalg.norm(q[k]):.6g}), tolerance {tolerance:g}; normalise them first"
         )
     return q
-
-
-def directional_primitive(
-    dmp: DmpParameters, start: np.ndarray, goal: np.ndarray, *, dof: int = 0
-) -> DmpParameters:
-    """An n-D DMP that moves along ``goal - start`` with the shape of one learned DOF.
-
-    The new formulation does not scale the forcing term with ``g - x0`` (that is what cures
-    the old form's blow-up and mirroring), so a primitive learned along one axis, sent to
-    a goal along another axis, still pushes along the first one (it moves out and back).
-    This helper generalises a 1-D shape to any direction: DOF ``dof`` of ``dmp`` (learned
-    displacement ``A = goal_dof - x0_dof``, nonzero) drives every output DOF d with weights
-    ``w * (goal_d - start_d) / A`` - linear amplitude scaling chosen by the user, as for a
-    Fig. 5 square made of one minimum-jerk primitive. The old formulation (eq. 1) already
-    multiplies the forcing term by ``goal_d - start_d`` (its weights were learned divided by
-    ``A``, eq. 5), so there every DOF takes the weights ``w`` unchanged: scaling them too
-    would apply the amplitude twice.
-
-    Args:
-        dmp: A learned DMP (any number of DOF).
-        start: Start of the new movement, shape (n,).
-        goal: Goal of the new movement, shape (n,).
-        dof: Which learned DOF gives the shape.
-    """
-    # any number of entries (the new DMP's DOF), finite, and as many in goal as in start
-    start = check_finite_vector("start", start, np.size(start))
-    goal = check_finite_vector("goal", goal, start.size)
-    if not (is_whole(dof) and 0 <= dof < dmp.n_dims):
-        raise RepertoireError(f"dof must be in [0, {dmp.n_dims}), got {dof}")
-    amplitude = dmp.goal[dof] - dmp.x0[dof]
-    if abs(amplitude) < 1e-9:
-        raise RepertoireError(
-            f"DOF {dof} of the primitive does not move (g - x0 = {amplitude:.3g}); "
-            "cannot scale its shape"
-        )
-    n = start.size
-    scale = (goal - start) / amplitude
-    # the old form's forcing term is (g - x0) f: the amplitude is in the equation already
-    weight_scale = scale if dmp.formulation == "new" else np.ones(n)
-    weights = np.outer(weight_scale, dmp.weights[dof])
-    return DmpParameters(
-        weights,
-        dmp.centres,
-        dmp.widths,
-        np.full(n, dmp.K[dof]),
-        np.full(n, dmp.D[dof]),
-        dmp.alpha,
-        dmp.tau,
-        start,
-        goal,
-        dmp.formulation,
-        v0=scale * dmp.v0[dof],  # the equations are linear: v0 scales with the shape
-    )

@@ -7,7 +7,9 @@ The one place the hand-off math lives:
 * :func:`chain_rollout` - NumPy chaining built on it (the reference the sequencer
   LeafSystem, :class:`repertoire.systems.dmp_sequencer.DmpSequencer`, is tested against);
 * :func:`stack_task_space_dmp` - a :class:`TaskSpaceDmp` (position 3, quaternion
-  components 4, fingers) as one n-D :class:`DmpParameters`, with the slice of every part.
+  components 4, fingers) as one n-D :class:`DmpParameters`, with the slice of every part;
+* :func:`directional_primitive` - one learned DOF's shape sent along any direction (the
+  Fig. 5 square from one minimum-jerk primitive).
 """
 
 from dataclasses import dataclass
@@ -16,6 +18,7 @@ import numpy as np
 from repertoire.planning.dmp import DmpParameters, TaskSpaceDmp
 from repertoire.planning.dmp_math import check_finite_vector, check_positive, forcing_features
 
+from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
 
 HANDOFFS = ("none", "velocity", "acceleration")
@@ -307,6 +310,60 @@ __all__ = [
     "chain_rollout",
     "check_handoff",
     "check_switch_times",
+    "directional_primitive",
     "handoff_state",
     "stack_task_space_dmp",
 ]
+
+
+def directional_primitive(
+    dmp: DmpParameters, start: np.ndarray, goal: np.ndarray, *, dof: int = 0
+) -> DmpParameters:
+    """An n-D DMP that moves along ``goal - start`` with the shape of one learned DOF.
+
+    The new formulation does not scale the forcing term with ``g - x0`` (that is what cures
+    the old form's blow-up and mirroring), so a primitive learned along one axis, sent to
+    a goal along another axis, still pushes along the first one (it moves out and back).
+    This helper generalises a 1-D shape to any direction: DOF ``dof`` of ``dmp`` (learned
+    displacement ``A = goal_dof - x0_dof``, nonzero) drives every output DOF d with weights
+    ``w * (goal_d - start_d) / A`` - linear amplitude scaling chosen by the user, as for a
+    Fig. 5 square made of one minimum-jerk primitive. The old formulation (eq. 1) already
+    multiplies the forcing term by ``goal_d - start_d`` (its weights were learned divided by
+    ``A``, eq. 5), so there every DOF takes the weights ``w`` unchanged: scaling them too
+    would apply the amplitude twice.
+
+    Args:
+        dmp: A learned DMP (any number of DOF).
+        start: Start of the new movement, shape (n,).
+        goal: Goal of the new movement, shape (n,).
+        dof: Which learned DOF gives the shape.
+    """
+    # any number of entries (the new DMP's DOF), finite, and as many in goal as in start
+    start = check_finite_vector("start", start, np.size(start))
+    goal = check_finite_vector("goal", goal, start.size)
+    if not (is_whole(dof) and 0 <= dof < dmp.n_dims):
+        raise RepertoireError(f"dof must be in [0, {dmp.n_dims}), got {dof}")
+    amplitude = dmp.goal[dof] - dmp.x0[dof]
+    if abs(amplitude) < 1e-9:
+        raise RepertoireError(
+            f"DOF {dof} of the primitive does not move (g - x0 = {amplitude:.3g}); "
+            "cannot scale its shape"
+        )
+    n = start.size
+    scale = (goal - start) / amplitude
+    # the old form's forcing term is (g - x0) f: the amplitude is in the equation already
+    weight_scale = scale if dmp.formulation == "new" else np.ones(n)
+    weights = np.outer(weight_scale, dmp.weights[dof])
+    return DmpParameters(
+        weights,
+        dmp.centres,
+        dmp.widths,
+        np.full(n, dmp.K[dof]),
+        np.full(n, dmp.D[dof]),
+        dmp.alpha,
+        dmp.tau,
+        start,
+        goal,
+        dmp.formulation,
+        v0=scale * dmp.v0[dof],  # the equations are linear: v0 scales with the shape
+    )

@@ -319,6 +319,13 @@ def carry_control_points() -> list[list[float]]:
     return [list(p) for p in CARRY_CONTROL_POINTS]
 
 
+def default_obstacle_gamma() -> float:
+    """The arm's default gain of eq. 10 (``arm_dmp_scenarios.OBSTACLE_GAMMA``, in the paper's v)."""
+    from repertoire.diagrams.arm_dmp_scenarios import OBSTACLE_GAMMA
+
+    return float(OBSTACLE_GAMMA)
+
+
 def obstacle_radius() -> float:
     """Radius of the ball obstacle [m] (``models.arm7.OBSTACLE_RADIUS``)."""
     from repertoire.models.arm7 import OBSTACLE_RADIUS

@@ -4,7 +4,7 @@ One minimum-jerk primitive (learned from a straight movement (0,0) -> (1,0) m) i
 generalised to the four corners of a square and chained with a DmpSequencer (Drake,
 1 kHz): each DMP starts before its predecessor has finished, at a switching interval of
 ``switch`` x tau. With ``scaling="directional"`` (default) each leg uses the learned Y1
-shape along the leg's direction (:func:`repertoire.planning.dmp.directional_primitive`);
+shape along the leg's direction (:func:`repertoire.planning.dmp_chain.directional_primitive`);
 with ``"none"`` the 2-D primitive is sent to each corner as it is (the new form then
 pushes along Y1 on the vertical legs too, since its forcing term is not scaled by g - x0).
 
@@ -196,7 +196,7 @@ def leg_primitives(config: DmpChainingConfig, goals: list[np.ndarray]) -> list:
         config: Study config.
         goals: The four corners.
     """
-    from repertoire.planning.dmp import directional_primitive
+    from repertoire.planning.dmp_chain import directional_primitive
 
     p = primitive(config)
     if config.scaling == "none":

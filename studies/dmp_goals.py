@@ -118,6 +118,7 @@ class DmpGoalsRecord:
         near_start_peak_acc_new: same, new.
         near_start_final_err_old: final error, old (inf/NaN shown as 1e300).
         near_start_final_err_new: final error, new.
+        seed: the episode's seed (the Fig. 2 panels redraw the first stored episode's demo).
         wall_time_s: episode wall time.
     """
 
@@ -139,6 +140,7 @@ class DmpGoalsRecord:
     near_start_peak_acc_new: float
     near_start_final_err_old: float
     near_start_final_err_new: float
+    seed: int
     wall_time_s: float
 
 
@@ -311,17 +313,24 @@ def run_episode(config: DmpGoalsConfig, seed: int) -> DmpGoalsRecord:
         out[f"near_start_peak_acc_{f}"] = _peak(a) / demo_peak
         out[f"near_start_final_err_{f}"] = _final_err(x, gn)
     out["near_start_log10_delta"] = ep["log10_delta"]
-    return DmpGoalsRecord(**out, wall_time_s=time.perf_counter() - t0)
+    return DmpGoalsRecord(**out, seed=int(seed), wall_time_s=time.perf_counter() - t0)
 
 
 def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Path):
-    """Fig. 2 panels for seed 0's demo, peak acceleration vs delta, and a Markdown table."""
+    """Fig. 2 panels for the first episode's demo, peak acceleration vs delta, and a table.
+
+    Raises:
+        RepertoireError: no records (Fig. 2 draws the first record's seeded demonstration).
+    """
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from repertoire.planning.dmp_learn import learn_dmp
 
     out_dir = Path(out_dir)
-    ep = sample_episode(config, 0)
+    if not records:
+        raise RepertoireError("dmp_goals: no episodes to summarise (Fig. 2 draws the first)")
+    seed = records[0].seed
+    ep = sample_episode(config, seed)
     T = config.duration_s
     t, Y, _ = demonstration(config, ep["rise"], ep["bulge"])
     fig = Figure(figsize=(9, 10), layout="constrained")
@@ -356,7 +365,8 @@ def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Pa
     ]
     fig.legend(handles=handles, loc="outside lower center", ncols=3)
     fig.suptitle(
-        "Fig. 2: seed 0's demonstration sent to 9 new goals, old (eq. 1-5) vs new (eq. 6-8) DMP"
+        f"Fig. 2: seed {seed}'s demonstration sent to 9 new goals, old (eq. 1-5) vs new "
+        "(eq. 6-8) DMP"
     )
     p1 = out_dir / "dmp_goals_fig2.png"
     fig.savefig(p1, dpi=100)
@@ -381,6 +391,7 @@ def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Pa
     p4 = orientation_figure(config, out_dir)
     p5 = sparse_demo_figure(out_dir)
     p6 = start_velocity_figure(out_dir)
+    p7 = tau_invariance_figure(config, seed, out_dir)
 
     def stats(vals):
         v = np.asarray(vals, float)
@@ -412,6 +423,7 @@ def summarize(records: list[DmpGoalsRecord], config: DmpGoalsConfig, out_dir: Pa
         "orientation": p4,
         "sparse": p5,
         "start_velocity": p6,
+        "tau_invariance": p7,
     }
 
 
@@ -618,6 +630,108 @@ def start_velocity_figure(out_dir: Path, seed: int = START_VELOCITY_SEED) -> Pat
     handles = pos.get_legend_handles_labels()[0] + vel.get_legend_handles_labels()[0]
     fig.legend(handles=handles, loc="outside lower center", ncols=2, fontsize=8)
     path = Path(out_dir) / "dmp_goals_start_velocity.png"
+    fig.savefig(path, dpi=100)
+    return path
+
+
+#: Durations of :func:`tau_invariance_figure`, as multiples of the demonstration's.
+TAU_FACTORS = (0.5, 1.0, 2.0)
+
+
+def tau_invariance_runs(config: DmpGoalsConfig, seed: int) -> dict:
+    """The episode's demonstration (new formulation) re-timed to :data:`TAU_FACTORS` durations.
+
+    Each re-timed DMP (:meth:`~repertoire.planning.dmp.DmpParameters.with_tau`) runs in the
+    study's Drake diagram (:func:`simulate_dmp`, the config's time step) to the learned
+    goal for ``sim_factor`` of its duration, once free and once around a ball
+    (eq. 10, ``v = tau dx/dt``) put 3 cm above the demonstration's midpoint.
+
+    Args:
+        config: Study config.
+        seed: Episode seed (its demonstration).
+
+    Returns:
+        ``demo`` (samples, 2), ``obstacle`` (2) and ``runs``: ``(factor, coupled)`` ->
+        ``(t, x, gap)``, with ``gap`` the largest distance [m] from the duration-1 run of
+        the same kind at the same phase ``t / tau`` (linear interpolation between samples).
+    """
+    from repertoire.planning.dmp_learn import learn_dmp
+
+    ep = sample_episode(config, seed)
+    t, Y, _ = demonstration(config, ep["rise"], ep["bulge"])
+    dmp = learn_dmp(t, Y, n_basis=config.n_basis, formulation="new")
+    obstacle = Y[len(Y) // 2] + np.array([0.0, 0.03])
+    runs = {}
+    for coupled in (False, True):
+        for factor in TAU_FACTORS:
+            tau = factor * dmp.tau
+            ts, x, _, _ = simulate_dmp(
+                dmp.with_tau(tau),
+                [0.0],
+                [dmp.goal],
+                config.sim_factor * tau,
+                time_step=config.time_step_s,
+                obstacle=obstacle if coupled else None,
+            )
+            runs[factor, coupled] = (ts, x)
+    out = {}
+    for (factor, coupled), (ts, x) in runs.items():
+        t1, x1 = runs[1.0, coupled]
+        phase = t1[t1 <= ts[-1] / factor]  # the reference's samples this run reaches
+        xi = np.column_stack([np.interp(factor * phase, ts, x[:, d]) for d in range(2)])
+        gap = float(np.max(np.linalg.norm(xi - x1[: len(phase)], axis=1)))
+        out[factor, coupled] = (ts, x, gap)
+    return {"demo": Y, "obstacle": obstacle, "runs": out}
+
+
+def tau_invariance_figure(config: DmpGoalsConfig, seed: int, out_dir: Path) -> Path:
+    """One demonstration at three durations: the same path in space (eq. 4, 6-7, 9-10).
+
+    Left: the paths of :func:`tau_invariance_runs` overlaid (free and around the ball);
+    right: Y1 against time, the durations told apart. The legend gives each run's largest
+    distance from the demonstration-duration run at the same phase.
+
+    Args:
+        config: Study config.
+        seed: Episode seed (its demonstration).
+        out_dir: Output folder.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Circle
+
+    d = tau_invariance_runs(config, seed)
+    fig = Figure(figsize=(11, 4.6), layout="constrained")
+    space, time_ax = fig.subplots(1, 2)
+    space.plot(*d["demo"].T, c="0.7", lw=5, label="demonstration")
+    space.add_patch(Circle(d["obstacle"], 0.01, color="tab:gray", label="obstacle o of eq. 10"))
+    colours = dict(zip(TAU_FACTORS, ("tab:blue", "tab:orange", "tab:green"), strict=True))
+    widths = dict(zip(TAU_FACTORS, (3.0, 2.0, 1.0), strict=True))
+    T = config.duration_s
+    for (factor, coupled), (ts, x, gap) in d["runs"].items():
+        kind = "around the ball (eq. 10)" if coupled else "free"
+        label = f"tau = {factor * T:g} s, {kind}: " + (
+            "the reference" if factor == 1.0 else f"{gap * 1e3:.2g} mm off the {T:g} s path"
+        )
+        ls = "--" if coupled else "-"
+        space.plot(*x.T, ls, c=colours[factor], lw=widths[factor], label=label)
+        if not coupled:
+            time_ax.plot(ts, x[:, 0], c=colours[factor], lw=2, label=f"tau = {factor * T:g} s")
+    space.set_xlabel("Y1 (m)")
+    space.set_ylabel("Y2 (m)")
+    space.set_aspect("equal")
+    space.set_title("path in space: the same at every duration")
+    space.grid(alpha=0.3)
+    time_ax.set_xlabel("t (s)")
+    time_ax.set_ylabel("Y1 (m)")
+    time_ax.set_title("Y1 over time: the durations differ")
+    time_ax.grid(alpha=0.3)
+    time_ax.legend(fontsize=8)
+    fig.legend(*space.get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=8)
+    fig.suptitle(
+        f"Seed {seed}'s demonstration re-timed (DmpParameters.with_tau), run in the DmpSystem "
+        f"at {config.time_step_s * 1e3:g} ms steps"
+    )
+    path = Path(out_dir) / "dmp_goals_tau_invariance.png"
     fig.savefig(path, dpi=100)
     return path
 

@@ -25,6 +25,7 @@ import numpy as np
 from repertoire.studies._dmp_common import (
     carry_control_points,
     check_arm_config,
+    default_obstacle_gamma,
     obstacle_radius,
     register_dmp_study,
     run_pick_and_place,
@@ -55,7 +56,7 @@ class ObstacleArmConfig:
         offset_x: range of the ball's shift along world x (across the carry) [m].
         offset_z: range of the ball's shift along world z [m] (negative: below the tcp
             path, into the carried cup).
-        obstacle_gamma: gamma of eq. 10.
+        obstacle_gamma: gamma of eq. 10 (on the scaled velocity v = tau dx/dt).
         obstacle_beta: the angular decay c of eq. 10.
         obstacle_length_scale: decay length of the distance factor [m] (0 = eq. 10).
         obstacle_points: control points in the tcp frame ([[0, 0, 0]] = tcp only).
@@ -71,7 +72,7 @@ class ObstacleArmConfig:
     path_fraction: list[float] = dataclasses.field(default_factory=lambda: [0.60, 0.68])
     offset_x: list[float] = dataclasses.field(default_factory=lambda: [-0.02, 0.02])
     offset_z: list[float] = dataclasses.field(default_factory=lambda: [-0.01, 0.0])
-    obstacle_gamma: float = 50000.0
+    obstacle_gamma: float = dataclasses.field(default_factory=default_obstacle_gamma)
     obstacle_beta: float = 4.0
     obstacle_length_scale: float = 0.03
     obstacle_points: list[list[float]] = dataclasses.field(default_factory=carry_control_points)

@@ -22,6 +22,7 @@ from repertoire.studies._dmp_common import (
     PICK_PLACE_FIGURES,
     carry_control_points,
     check_arm_config,
+    default_obstacle_gamma,
     legend_below,
     obstacle_radius,
     outcome_handles,
@@ -51,7 +52,7 @@ class PickPlaceConfig:
             overlap the open hand at home).
         obstacle_z: range of the ball centre's height [m].
         obstacle_coupling: feed the obstacle into the DMP coupling term (eq. 10).
-        obstacle_gamma: gamma of eq. 10.
+        obstacle_gamma: gamma of eq. 10 (on the scaled velocity v = tau dx/dt).
         obstacle_beta: the angular decay c of eq. 10.
         obstacle_length_scale: decay length of the distance factor [m] (0 = the paper's
             eq. 10 exactly).
@@ -72,7 +73,7 @@ class PickPlaceConfig:
     obstacle_beyond: list[float] = dataclasses.field(default_factory=lambda: [0.10, 0.13])
     obstacle_z: list[float] = dataclasses.field(default_factory=lambda: [0.96, 1.00])
     obstacle_coupling: bool = True
-    obstacle_gamma: float = 50000.0
+    obstacle_gamma: float = dataclasses.field(default_factory=default_obstacle_gamma)
     obstacle_beta: float = 4.0
     obstacle_length_scale: float = 0.03
     obstacle_points: list[list[float]] = dataclasses.field(default_factory=carry_control_points)

@@ -87,7 +87,8 @@ class DmpSequencer(LeafSystem):
 
     Input ports:
         goal_0 ... goal_{m-1} (n each): goal of segment i, read while it is active; when not
-            connected, the goal given at construction.
+            connected, the goal given at construction (default the segment's learned goal,
+            as every DMP system's unconnected goal input).
         coupling (``coupling_dofs``, only if > 0): coupling term p (eq. 9) on the first
             ``coupling_dofs`` DOF (e.g. the position under obstacle coupling, eq. 10, whose
             ``v`` is the active segment's ``tau dx/dt``).
@@ -97,6 +98,9 @@ class DmpSequencer(LeafSystem):
             (velocity and acceleration are 0 while the state is held before the first start
             time; the state keeps the start velocity the first segment starts with).
         phase (1), segment (1): theta and the active segment's index.
+        tau (1): the active segment's temporal scaling [s] (for a coupling term that needs
+            the scaled velocity ``v = tau dx/dt`` of eq. 10, e.g.
+            :class:`repertoire.systems.obstacle_coupling.MultiPointObstacleCoupling`).
         start_delay (1): how much later than their start times the segments start, the
             waits of ``wait_tolerances`` summed [s] (0 in discrete mode).
         orientation (4), angular_velocity (3) (with ``quaternion_at``): the post-normalised
@@ -132,7 +136,8 @@ class DmpSequencer(LeafSystem):
             segments: The DMPs in execution order, all with the same number of DOF n.
             start_times: Onset of each segment [s], increasing, >= 0 (rounded to the time
                 step in discrete mode); the state is held before the first.
-            goals: Default goal of every segment (used while its port is not connected).
+            goals: Default goal of every segment (used while its port is not connected);
+                None: each segment's learned goal.
             x_start: Start of the first segment; default its learned x0. The chain starts
                 with the first segment's learned velocity ``v0`` (:meth:`set_start` to
                 change it).
@@ -186,8 +191,8 @@ class DmpSequencer(LeafSystem):
         self._waits, self._wait_dofs, self._max_wait = check_waits(
             wait_tolerances, len(segments), wait_dofs, n, max_wait, time_step
         )
-        self._goals = (
-            [None] * len(segments)
+        self._goals = (  # unconnected goal ports stand for these (default: the learned goals)
+            [sg.goal for sg in segments]
             if goals is None
             else [check_finite_vector(f"goal {i}", g, n) for i, g in enumerate(goals)]
         )
@@ -258,6 +263,12 @@ class DmpSequencer(LeafSystem):
             "segment",
             1,
             lambda c, o: o.SetFromVector([self._segment(c)]),
+            prerequisites_of_calc=state,
+        )
+        self.DeclareVectorOutputPort(
+            "tau",
+            1,
+            lambda c, o: o.SetFromVector([self._segments[self._segment(c)].tau]),
             prerequisites_of_calc=state,
         )
         self.DeclareVectorOutputPort(
@@ -338,8 +349,6 @@ class DmpSequencer(LeafSystem):
 
     def _goal(self, context: Context, seg: int, x0: np.ndarray) -> np.ndarray:
         port = self._goal_ports[seg]
-        if self._goals[seg] is None and not port.HasValue(context):
-            raise RepertoireError(f"segment {seg} has no goal: connect goal_{seg} or pass goals")
         goal = np.array(goal_input(port, context, self._goals[seg]), dtype=float)  # a copy
         if self._q is not None:
             # The sign of the quaternion goal that turns from x0 the way the segment learned

@@ -4,12 +4,15 @@
 the LeafSystem. Split out of systems/task_space.py (one concept per module).
 """
 
+import math
+
 import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RotationMatrix
 from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from repertoire.planning.dmp_obstacle import obstacle_coupling
 
+from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 
 
@@ -26,6 +29,7 @@ def multi_point_obstacle_coupling(
     obstacle_radius: float = 0.0,
     length_scale: float = 0.0,
     obstacle_velocity: "np.ndarray | None" = None,
+    tau: float = 1.0,
 ) -> np.ndarray:
     """Eq. 10 applied at several control points of the hand and its load, summed.
 
@@ -39,14 +43,16 @@ def multi_point_obstacle_coupling(
 
         p = sum_i s(d_i) p_i,   s(d) = exp(-max(d - obstacle_radius, 0) / length_scale)
 
-    with ``d_i = |c_i - o|``. The velocity here is ``dx/dt``, not the paper's scaled
-    ``v = tau dx/dt`` (eq. 7) that :class:`repertoire.systems.dmp.ObstacleCoupling` uses:
-    the hand's DMPs run in a :class:`~repertoire.systems.dmp_sequencer.DmpSequencer` whose
-    segments have different ``tau``, and one gain ``gamma`` (tuned in the arm worlds) acts
-    on every segment alike; ``gamma`` here is the paper's gain times the active ``tau``,
-    so a segment's path does depend on its ``tau``. ``length_scale = 0`` gives ``s = 1``:
-    the paper's eq. 10 exactly (at ``tau = 1``), summed over the points (with the single
-    point ``[0, 0, 0]`` it *is* eq. 10 on the end-effector). ``length_scale > 0`` is our
+    with ``d_i = |c_i - o|``. Eq. 10's velocity is the paper's scaled ``v = tau dx/dt``
+    (eq. 7) of the DMP the term drives, as in
+    :func:`repertoire.planning.dmp_obstacle.obstacle_coupling`: ``gamma`` is in the units of
+    the phase time ``t / tau``, so a DMP re-timed to another ``tau`` takes the same path
+    around the ball. In a :class:`~repertoire.systems.dmp_sequencer.DmpSequencer` pass the
+    active segment's ``tau`` (its ``tau`` output): each segment then sees eq. 10 with one
+    gain, whatever its duration. (Until session 36 this term took ``dx/dt``: the gain acted
+    as ``gamma / tau`` of the paper's on each segment.) ``length_scale = 0`` gives ``s = 1``:
+    the paper's eq. 10 exactly, summed over the points (with the single point ``[0, 0, 0]``
+    it *is* eq. 10 on the end-effector). ``length_scale > 0`` is our
     extension: eq. 10 depends on the angle only, so a gain strong enough to clear a cup-sized load
     (which needs a smaller ``beta``, acting over a wider angle) would also bend the
     movement far from the obstacle and keep it from its goal; the distance factor
@@ -64,12 +70,15 @@ def multi_point_obstacle_coupling(
         length_scale: Decay length of ``s`` [m] (>= 0; 0 switches the factor off).
         obstacle_velocity: The obstacle's velocity in W, shape (3,) (None: static); each
             point's angle is taken to its velocity relative to the obstacle.
+        tau: The driven DMP's temporal scaling [s] (> 0): eq. 10's ``v`` is ``tau`` times
+            the velocity relative to the obstacle.
 
     Returns:
         The summed coupling term, shape (3,).
 
     Raises:
-        RepertoireError: a negative gain, radius or length, or badly shaped points.
+        RepertoireError: a negative gain, radius or length, badly shaped points, or a tau
+            that is not a finite number > 0.
     """
     if gamma < 0 or beta < 0 or obstacle_radius < 0 or length_scale < 0:
         raise RepertoireError(
@@ -85,6 +94,8 @@ def multi_point_obstacle_coupling(
     x = np.asarray(x, dtype=float).reshape(3)
     o = np.asarray(obstacle, dtype=float).reshape(3)
     R = np.asarray(R_WE, dtype=float).reshape(3, 3)
+    if not (is_real(tau) and 0.0 < tau < math.inf):
+        raise RepertoireError(f"tau must be a finite number > 0 [s], got {tau!r}")
     total = np.zeros(3)
     for c in x + pts @ R.T:
         scale = 1.0
@@ -93,7 +104,7 @@ def multi_point_obstacle_coupling(
             scale = float(np.exp(-gap / length_scale))
             if scale < 1e-12:
                 continue
-        total += scale * obstacle_coupling(c, xd, o, gamma, beta, obstacle_velocity)
+        total += scale * obstacle_coupling(c, xd, o, gamma, beta, obstacle_velocity, tau=tau)
     return total
 
 
@@ -102,7 +113,10 @@ class MultiPointObstacleCoupling(LeafSystem):
 
     Wraps :func:`multi_point_obstacle_coupling`; with the single control point
     ``[0, 0, 0]`` and ``length_scale = 0`` it outputs the paper's eq. 10 on the
-    end-effector (as ``repertoire.systems.dmp.ObstacleCoupling`` at ``tau = 1``).
+    end-effector (as :class:`repertoire.systems.dmp.ObstacleCoupling`), with ``v = tau
+    dx/dt``: ``tau`` from the ``tau`` input when connected (a
+    :class:`~repertoire.systems.dmp_sequencer.DmpSequencer`'s ``tau`` output, the active
+    segment's), else the ``tau`` parameter.
 
     Input ports:
         position: end-effector position x in W (3).
@@ -110,11 +124,13 @@ class MultiPointObstacleCoupling(LeafSystem):
         orientation: end-effector orientation [w, x, y, z] (4; normalised here).
         obstacle: obstacle centre o in W (3).
         obstacle_velocity: optional obstacle velocity in W (3; unconnected: static).
+        tau: optional temporal scaling of the driven DMP [s] (1; unconnected: the ``tau``
+            parameter).
 
     Output ports:
         coupling: the summed coupling term p (3), for the DMP chain's ``coupling`` input.
 
-    Numeric parameters: [gamma, beta, obstacle_radius, length_scale].
+    Numeric parameters: [gamma, beta, obstacle_radius, length_scale], [tau].
     """
 
     def __init__(
@@ -125,6 +141,7 @@ class MultiPointObstacleCoupling(LeafSystem):
         beta: float = 20.0 / np.pi,
         obstacle_radius: float = 0.0,
         length_scale: float = 0.0,
+        tau: float = 1.0,
     ) -> None:
         """Builds the coupling.
 
@@ -134,9 +151,12 @@ class MultiPointObstacleCoupling(LeafSystem):
             beta: angular decay of eq. 10.
             obstacle_radius: obstacle radius [m] for the distance factor.
             length_scale: decay length of the distance factor [m] (0: off, exact eq. 10).
+            tau: the driven DMP's temporal scaling [s] while the ``tau`` input is not
+                connected.
 
         Raises:
-            RepertoireError: negative gains or badly shaped control points.
+            RepertoireError: negative gains, badly shaped control points or a tau that is
+                not a finite number > 0.
         """
         super().__init__()
         # Validates everything once (a zero velocity gives a zero term).
@@ -150,6 +170,7 @@ class MultiPointObstacleCoupling(LeafSystem):
             beta,
             obstacle_radius=obstacle_radius,
             length_scale=length_scale,
+            tau=tau,
         )
         self._points = np.array(points_E, dtype=float)
         self._params = self.DeclareNumericParameter(
@@ -160,6 +181,8 @@ class MultiPointObstacleCoupling(LeafSystem):
         self._q = self.DeclareVectorInputPort("orientation", 4)
         self._o = self.DeclareVectorInputPort("obstacle", 3)
         self._vo = self.DeclareVectorInputPort("obstacle_velocity", 3)
+        self._tau = self.DeclareNumericParameter(BasicVector([float(tau)]))
+        self._tau_port = self.DeclareVectorInputPort("tau", 1)
         self.DeclareVectorOutputPort("coupling", 3, self._calc)
 
     def _calc(self, context: Context, output: BasicVector) -> None:
@@ -169,6 +192,10 @@ class MultiPointObstacleCoupling(LeafSystem):
         if not np.isfinite(norm) or norm < 1e-9:
             raise RepertoireError(f"orientation must be a non-zero quaternion, got {q}")
         R = RotationMatrix(Quaternion(q / norm)).matrix()
+        if self._tau_port.HasValue(context):
+            tau = float(self._tau_port.Eval(context)[0])
+        else:
+            tau = float(context.get_numeric_parameter(self._tau).GetAtIndex(0))
         output.SetFromVector(
             multi_point_obstacle_coupling(
                 self._x.Eval(context),
@@ -181,5 +208,6 @@ class MultiPointObstacleCoupling(LeafSystem):
                 obstacle_radius=radius,
                 length_scale=length,
                 obstacle_velocity=self._vo.Eval(context) if self._vo.HasValue(context) else None,
+                tau=tau,
             )
         )

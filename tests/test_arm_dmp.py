@@ -74,8 +74,10 @@ def test_pick_and_place_simulates_briefly_and_tracks_the_dmp():
     p_tcp, p_dmp = _tcp_and_dmp(diagram, context)
     assert np.linalg.norm(p_tcp - p_dmp) < 0.01
     assert context.get_time() == 0.6
-    # The DMP chain's position at 0.6 s (deterministic: measured once, 8.7 cm from home).
-    assert p_dmp == pytest.approx([0.52764646, -0.12793492, 0.90584354], abs=1e-6)
+    # The DMP chain's position at 0.6 s (deterministic: measured once, 8.7 cm from home;
+    # [0.52764646, -0.12793492, 0.90584354] before session 36, when the grasp's eq. 10 term
+    # turned dx/dt: 6/5 of the paper's term with the carry's gain).
+    assert p_dmp == pytest.approx([0.52744808, -0.12785068, 0.90595394], abs=1e-6)
     assert np.isfinite(wall)
 
 
@@ -425,6 +427,32 @@ def test_clearance_monitor_reads_the_ball_gap_from_scene_graph():
     watched = [v for k, v in pairs if k.startswith(("arm7::", "cup_red::"))]
     assert gap == pytest.approx(min(watched) - OBSTACLE_RADIUS, abs=1e-12)
     assert 0.0 < gap < 0.02
+
+
+def test_coupling_turns_the_active_segments_scaled_velocity_with_the_carry_tuned_gain():
+    """Eq. 10 on the arm takes v = tau dx/dt of the active segment (the sequencer's tau)."""
+    from repertoire.diagrams.arm_dmp_scenarios import CARRY_TAU, OBSTACLE_GAMMA
+    from repertoire.planning.dmp_obstacle import obstacle_coupling
+
+    # the gain tuned on dx/dt during the carry (50000), in the paper's units on the carry
+    assert motion_library()["place"].tau == CARRY_TAU
+    assert OBSTACLE_GAMMA * CARRY_TAU == pytest.approx(50000.0, rel=1e-15)
+    assert PickPlaceScenario().obstacle_gamma == OBSTACLE_GAMMA
+    scenario = PickPlaceScenario(obstacle_points=[[0.0, 0.0, 0.0]], obstacle_length_scale=0.0)
+    diagram = build_pick_and_place(scenario)
+    context = diagram.CreateDefaultContext()
+    coupling = diagram.GetSubsystemByName("obstacle_coupling")
+    sub = coupling.GetMyContextFromRoot(context)
+    tau = coupling.GetInputPort("tau").Eval(sub)
+    assert tau.tolist() == [motion_library()["grasp"].tau]  # segment 0 at t = 0
+    x, xd = (coupling.GetInputPort(n).Eval(sub) for n in ("position", "velocity"))
+    xd = np.array([0.1, 0.2, -0.05])  # a velocity, so the term is not zero
+    coupling.GetInputPort("velocity").FixValue(sub, xd)
+    expected = obstacle_coupling(
+        x, xd, np.asarray(scenario.obstacle_xyz), OBSTACLE_GAMMA, scenario.obstacle_beta,
+        tau=tau[0],
+    )  # fmt: skip
+    np.testing.assert_array_equal(coupling.GetOutputPort("coupling").Eval(sub), expected)
 
 
 def test_default_world_avoids_the_ball_on_the_carry_path_only_with_coupling():

@@ -494,7 +494,7 @@ def test_bad_parameters(grasp_dmp):
 
 
 def test_directional_primitive_moves_straight_along_any_direction():
-    from repertoire.planning.dmp import directional_primitive
+    from repertoire.planning.dmp_chain import directional_primitive
 
     t = np.linspace(0, 1, 300)
     p = learn_dmp(t, minimum_jerk(np.zeros(2), np.array([1.0, 0.0]), 1.0, t)[0], n_basis=20)
@@ -516,7 +516,7 @@ def test_a_directional_primitive_is_the_learned_shape_scaled_in_both_formulation
     The old form's forcing term is (g - x0) f, so its weights must not be scaled again (they
     were, and a 2 m leg of a 1 m shape overshot by 1.1 m).
     """
-    from repertoire.planning.dmp import directional_primitive
+    from repertoire.planning.dmp_chain import directional_primitive
 
     t = np.linspace(0, 1, 301)
     s = 10 * t**3 - 15 * t**4 + 6 * t**5

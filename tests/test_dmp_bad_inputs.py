@@ -430,7 +430,7 @@ def test_learn_dmp_refuses_a_min_displacement_that_is_not_a_number_at_least_0(va
 
 def test_new_goals_starts_and_artefact_numbers_are_named_with_their_value(p, qp):
     """Session 35: these said "weights contains NaN or inf", float()'s own error or nothing."""
-    from repertoire.planning.dmp import directional_primitive
+    from repertoire.planning.dmp_chain import directional_primitive
     from repertoire.systems.dmp import TransformationSystem
 
     with raises("goal contains NaN or inf: [ 1. nan]"):

@@ -13,11 +13,10 @@ from pydrake.systems.analysis import Simulator
 from repertoire.planning.dmp import (
     DmpParameters,
     check_unit_quaternions,
-    directional_primitive,
     load_dmp,
     save_dmp,
 )
-from repertoire.planning.dmp_chain import chain_rollout, handoff_state
+from repertoire.planning.dmp_chain import chain_rollout, directional_primitive, handoff_state
 from repertoire.planning.dmp_demos import slerp_minimum_jerk, synthesize_demonstration
 from repertoire.planning.dmp_derivatives import estimate_derivatives
 from repertoire.planning.dmp_learn import (

@@ -39,8 +39,42 @@ def test_goals_study_smoke_shows_old_form_failures(tmp_path):
         "orientation",
         "sparse",
         "start_velocity",
+        "tau_invariance",
     }
     assert all(p.exists() for p in result.figures.values())
+
+
+def test_goals_fig2_draws_the_first_episodes_seed(tmp_path, monkeypatch):
+    """Fig. 2 (and the re-timing figure) redraw the first stored episode, not seed 0."""
+    config = get_study("dmp_goals").smoke_config()
+    records = [dmp_goals.run_episode(config, s) for s in (41, 43)]
+    assert [r.seed for r in records] == [41, 43]
+    drawn, retimed = [], []
+    sample = dmp_goals.sample_episode
+    monkeypatch.setattr(
+        dmp_goals, "sample_episode", lambda c, seed: drawn.append(seed) or sample(c, seed)
+    )
+    for name in ("orientation_figure", "sparse_demo_figure", "start_velocity_figure"):
+        monkeypatch.setattr(dmp_goals, name, lambda *a: tmp_path / "skipped.png")
+    monkeypatch.setattr(
+        dmp_goals, "tau_invariance_figure", lambda c, seed, d: retimed.append(seed) or d
+    )
+    figures = dmp_goals.summarize(records, config, tmp_path)
+    assert drawn == [41] and retimed == [41]
+    assert figures["fig2"].exists()
+    with pytest.raises(RepertoireError, match="no episodes to summarise"):
+        dmp_goals.summarize([], config, tmp_path)
+
+
+def test_goals_retimed_demonstration_takes_the_same_path():
+    config = get_study("dmp_goals").smoke_config()
+    runs = dmp_goals.tau_invariance_runs(config, 5)["runs"]
+    assert set(runs) == {(f, c) for f in dmp_goals.TAU_FACTORS for c in (False, True)}
+    for (factor, coupled), (t, _x, gap) in runs.items():
+        assert t[-1] == pytest.approx(config.sim_factor * factor * config.duration_s)
+        # the same path at the same phase t / tau, to the fixed step's discretisation
+        # (default config, seed 5: free 6.5e-6 / 5.5e-7 m, around the ball 0.37 / 0.19 mm)
+        assert gap == 0.0 if factor == 1.0 else gap < (2e-3 if coupled else 1e-4)
 
 
 def test_obstacles_study_smoke_and_determinism(tmp_path):

@@ -143,3 +143,8 @@ def test_fingers_touch_with_two_sphere_pads_on_their_inner_faces():
             p = inspector.GetPoseInFrame(pad).translation()
             np.testing.assert_allclose(p, finger_pads(inward)[k], atol=1e-15)
             assert p[1] + inward * FINGER_PAD_RADIUS == pytest.approx(inward * 0.01)  # the face
+            # soft pads: the grip's 4 N a pad compresses one 1 mm; the box keeps the default
+            props = inspector.GetProximityProperties(pad)
+            assert props.GetProperty("material", "point_contact_stiffness") == 4000.0
+        props = inspector.GetProximityProperties(box)
+        assert not props.HasProperty("material", "point_contact_stiffness")

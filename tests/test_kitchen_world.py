@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.analysis import Simulator
 from repertoire.diagrams.kitchen import (
     CUP_0_POSITION,
@@ -364,6 +365,51 @@ def test_a_gripped_cup_does_not_slide_down_the_fingers():
         heights.append((cup_position(diagram, context) - gripper_position(diagram, context))[2])
     assert sum(r.duration for r in results[2:]) > 2.0  # the swings
     assert abs(heights[1] - heights[0]) < 2e-3
+
+
+def _pad_loads(diagram, context) -> dict[str, float]:
+    """The normal force [N] on each finger pad in contact, by the pad's geometry name."""
+    plant = diagram.GetSubsystemByName("plant")
+    plant_context = plant.GetMyContextFromRoot(context)
+    inspector = plant.get_geometry_query_input_port().Eval(plant_context).inspector()
+    contacts = plant.get_contact_results_output_port().Eval(plant_context)
+    loads = {}
+    for i in range(contacts.num_point_pair_contacts()):
+        info = contacts.point_pair_contact_info(i)
+        pair = info.point_pair()
+        for geometry in (pair.id_A, pair.id_B):
+            name = inspector.GetName(geometry).split("::")[-1]
+            if "_pad_" in name:
+                loads[name] = abs(float(np.dot(info.contact_force(), pair.nhat_BA_W)))
+    return loads
+
+
+def test_a_cup_held_off_centre_and_pitched_keeps_both_pads_of_each_finger_loaded():
+    # The far-side carry of seed 38000 (h = 1): the cup crept 7 mm off the pads' line
+    # and pitched 2 mrad in the grip. With near-rigid pads (about 10 um deep) those um of
+    # geometry put the whole squeeze on the lower pads (7.6 N, the upper ones 0), a
+    # hinge: the cup pitched 1.3 rad out of the grip within 0.4 s. The soft pads
+    # (1 mm under the grip) keep the split within 2 % and the cup where it was.
+    arm = list(arm_inverse([0.85, 0.0, 0.9]))
+    scenario = KitchenScenario(action="reach", initial_arm=arm, arm_target=list(arm_forward(arm)),
+                               cups=["cup_0"], cup_in_gripper=True)  # fmt: skip
+    diagram = build_kitchen_action(scenario, check_start=False)
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    plant = diagram.GetSubsystemByName("plant")
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    cup = plant.GetBodyByName("cup", plant.GetModelInstanceByName("cup_0"))
+    X_WS = plant.EvalBodyPoseInWorld(plant_context, plant.GetBodyByName("arm_slide"))
+    X_SC = RigidTransform(RollPitchYaw(0.0, 2e-3, 0.0), [7e-3, 0.0, 0.0])
+    plant.SetFreeBodyPose(plant_context, cup, X_WS @ X_SC)
+    simulator.AdvanceTo(0.4)
+    assert action_status(diagram, context) == ActionStatus.SUCCEEDED
+    loads = _pad_loads(diagram, context)
+    assert sorted(loads) == [f"{side}_finger_pad_{k}" for side in ("left", "right") for k in (0, 1)]
+    assert all(3.5 < f < 3.8 for f in loads.values())  # 8 N a finger (3.6 on 3.7)
+    X_SC = X_WS.inverse() @ plant.EvalBodyPoseInWorld(plant.GetMyContextFromRoot(context), cup)
+    assert abs(RollPitchYaw(X_SC.rotation()).pitch_angle()) < 3e-3
+    assert abs(X_SC.translation()[0] - 7e-3) < 1e-3
 
 
 def test_a_reach_the_servoed_arm_would_take_through_a_cups_rim_fails_at_once():

@@ -591,6 +591,26 @@ def test_shortest_routes_is_the_brute_force_shortest_clear_route(seed):
     assert len(checked) == len(set(checked))  # no leg checked twice
 
 
+def test_shortest_routes_checks_no_leg_of_a_path_that_leads_away_from_the_end():
+    # every leg clear, the straight drive not: the route is via p0 in front (3.16 m).
+    # Dijkstra took the 1.1 m path START -> p1 -> p2 behind the start first and checked
+    # its leg; A* orders paths by their length plus the straight rest to the end (p2:
+    # 1.1 + 3.56 m) and checks only the route's own two legs
+    points = np.array([[0.0, 0.5], [-1.5, -0.6], [-2.0, -0.6]])
+    a, b = np.array([[-1.5, 0.0]]), np.array([[1.5, 0.0]])
+    seen = ~np.eye(3, dtype=bool)
+    checked = []
+
+    def legs_clear(rows, legs):
+        checked.extend(legs)
+        return np.ones(len(legs), dtype=bool)
+
+    route = ka.shortest_routes(a, b, points, seen, np.ones((1, 3), dtype=bool),
+                               np.ones((1, 3), dtype=bool), [False], legs_clear)  # fmt: skip
+    assert route == [(0,)]
+    assert checked == [(ka.START, 0, ka.GOAL), (0, ka.GOAL, None)]
+
+
 # seed 38003 with the cups on table_0's far half: its greedy (h = 1) plan stands behind
 # table_0 and drops from table_1's front (before: NO_PLAN with both horizons)
 PLAN_38003 = [-0.467124, -0.146182, 0.8, -0.03453, 0.45, 0.96, -1.013966, 0.071528, 0.8]

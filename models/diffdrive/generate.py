@@ -63,6 +63,9 @@ FINGER_FRICTION = 1.0
 FINGER_PAD_RADIUS = 0.005  # [m]
 FINGER_PAD_Z = 0.025  # pads this far above and below the finger's centre [m]
 FINGER_PAD_RECESS = 0.002  # the collision box's inner face behind the pads' tips [m]
+#: Point-contact stiffness of each pad [N/m]: a rubber pad that the grip's 4 N per pad
+#: (the fingers' 8 N squeeze on two pads) compresses 1 mm. See :func:`finger_pads`.
+FINGER_PAD_STIFFNESS = 4000.0
 FRONT_CASTER_X = 0.17  # [m]
 CASTER_RADIUS = 0.038  # as the rear caster of diffdrive.urdf [m]
 CASTER_Z = -0.0595  # as the rear caster of diffdrive.urdf [m]
@@ -113,12 +116,15 @@ def _visual(name: str, geometry: str, xyz, rgba, rpy=(0, 0, 0)) -> str:
     )
 
 
-def _collision(name: str, geometry: str, xyz, mu: float) -> str:
+def _collision(name: str, geometry: str, xyz, mu: float, stiffness: float | None = None) -> str:
+    soft = "" if stiffness is None else (
+        f'        <drake:point_contact_stiffness value="{_f(stiffness)}"/>\n'
+    )  # fmt: skip
     return (
         f'    <collision name="{name}">\n      <origin xyz="{_v(xyz)}"/>\n'
         f"      <geometry>{geometry}</geometry>\n      <drake:proximity_properties>\n"
         f'        <drake:mu_dynamic value="{_f(mu)}"/>\n'
-        f'        <drake:mu_static value="{_f(mu)}"/>\n'
+        f'        <drake:mu_static value="{_f(mu)}"/>\n{soft}'
         "      </drake:proximity_properties>\n    </collision>\n"
     )
 
@@ -141,6 +147,15 @@ def finger_pads(inward: float) -> list[tuple[float, float, float]]:
     edge of the finger with a normal tilted 40 degrees from horizontal: the two fingers'
     forces on the cup then nearly cancelled vertically and a carried cup slid 44 mm down
     the grip in 5 s. A sphere on a cylinder has an exact point and normal.
+
+    The pads are soft (``FINGER_PAD_STIFFNESS``: 1 mm under the grip). With the
+    plant's default, near-rigid point stiffness a pad sank about 10 um into the cup, so
+    a few um of geometry moved a finger's whole squeeze between its two pads: a cup 7 mm
+    off the pads' line and pitched 2 mrad in the grip (where a long carry's creep had
+    brought it) left all of it on the lower pads. One point per finger is a hinge (point
+    contacts carry no torque about their line), and the cup, its centre above it,
+    pitched out of the grip. At 1 mm of compression such offsets move the split by
+    about 1 %.
     """
     y = inward * (FINGER_SIZE[1] / 2 - FINGER_PAD_RADIUS)
     return [(0.0, y, FINGER_PAD_Z), (0.0, y, -FINGER_PAD_Z)]
@@ -222,8 +237,9 @@ def arm_parts() -> str:
     for side in ("left", "right"):
         inward = -1.0 if side == "left" else 1.0  # the inner face's side along the slide's y
         recessed = (FINGER_SIZE[0], FINGER_SIZE[1] - FINGER_PAD_RECESS, FINGER_SIZE[2])
+        pad = _sphere(FINGER_PAD_RADIUS)
         pads = "".join(
-            _collision(f"{side}_finger_pad_{k}", _sphere(FINGER_PAD_RADIUS), xyz, FINGER_FRICTION)
+            _collision(f"{side}_finger_pad_{k}", pad, xyz, FINGER_FRICTION, FINGER_PAD_STIFFNESS)
             for k, xyz in enumerate(finger_pads(inward))
         )
         fingers += _link(

@@ -15,6 +15,7 @@ from repertoire.diagrams.soccer_dribble import (
     dribble_simulator,
     dribble_status,
 )
+from repertoire.systems.ball import RollingResistance
 from repertoire.systems.dribble_ball import (
     APPROACH,
     DRIBBLE_GAINS,
@@ -22,7 +23,6 @@ from repertoire.systems.dribble_ball import (
     LOOP_RIGHT,
     PIVOT,
     DribbleBall,
-    RollingResistance,
     approach_mode,
     ball_in_robot_frame,
     ball_terms,

@@ -21,6 +21,7 @@ from repertoire.systems.dribble_ball import (
     LOOP_LEFT,
     LOOP_RIGHT,
     PIVOT,
+    PIVOT_TURN,
     DribbleBall,
     approach_mode,
     ball_in_robot_frame,
@@ -28,6 +29,7 @@ from repertoire.systems.dribble_ball import (
     dribble_control,
     loop_control,
     loop_geometry,
+    mode_control,
     needs_loop,
 )
 from repertoire.systems.go_to_pose import ActionStatus
@@ -514,9 +516,10 @@ def test_dribble_control_closes_on_a_ball_off_the_bumper_at_rest(seed):
 
 
 def test_dribble_control_turns_in_place_with_a_controlled_ball():
-    # the axle on the goal's (PIVOT), heading e off, the ball 2 cm left of the held spot,
-    # controlled: the turn is a * omega_pose alone. The old law's k_ball * gamma cancelled
-    # it at e* = -k_ball gamma / (a k_alpha omega_max), where the held spot is not the goal's
+    # the axle on the goal's (a pivot turning in place, PIVOT_TURN), heading e off, the ball
+    # 2 cm left of the held spot, controlled: the turn is a * omega_pose alone. The old
+    # law's k_ball * gamma cancelled it at e* = -k_ball gamma / (a k_alpha omega_max), where
+    # the held spot is not the goal's
     g = dict(DRIBBLE_GAINS)
     ball_rf = (g["hold_distance"] + 0.02, 0.02)
     gamma = math.atan2(ball_rf[1], ball_rf[0])
@@ -526,7 +529,9 @@ def test_dribble_control_turns_in_place_with_a_controlled_ball():
     state = [0.0, 0.0, phi, 0.0]
     c, s = math.cos(phi), math.sin(phi)
     ball = [c * ball_rf[0] - s * ball_rf[1], s * ball_rf[0] + c * ball_rf[1]]
-    v, w, held = dribble_control(state, ball, [0.0, 0.0, 0.0, 0.0], g, 0.0)
+    goal = [0.0, 0.0, 0.0, 0.0]
+    assert approach_mode(PIVOT, state, goal, g) == PIVOT_TURN
+    v, w, held = mode_control(PIVOT_TURN, state, ball, goal, g)
     assert held and v == 0.0
     assert w == pytest.approx(a * g["k_alpha"] * e_star * g["omega_max"], rel=1e-12)
     assert w == pytest.approx(-g["k_ball"] * gamma, rel=1e-12)

@@ -7,7 +7,7 @@ The differential-drive robot on the soccer field starts with the ball in front
 of its bumper (``ball_offset`` ahead of the axle) and dribbles it to a target
 pose with :class:`~repertoire.systems.dribble_ball.DribbleBall`. The plant's
 state feeds a :class:`~repertoire.systems.go_to_pose.DiffDriveStateReader`
-(robot ``[x, y, phi, v]``) and a :class:`~repertoire.systems.dribble_ball.BodyXYReader`
+(robot ``[x, y, phi, v]``) and a :class:`~repertoire.systems.ball.BodyXYReader`
 (ball ``[x, y]``); the action's ``[v, omega]`` becomes the wheels' desired state
 as in ``soccer_goto_pose``. The target is a constant source named ``target``.
 """
@@ -25,11 +25,10 @@ from repertoire.diagrams.diffdrive import WHEEL_RADIUS
 from repertoire.diagrams.registry import register_diagram
 from repertoire.diagrams.simulate import SimulatorCache
 from repertoire.diagrams.soccer import add_soccer_robot, build_driven
+from repertoire.systems.ball import BodyXYReader, RollingResistance
 from repertoire.systems.dribble_ball import (
     DRIBBLE_GAINS,
-    BodyXYReader,
     DribbleBall,
-    RollingResistance,
 )
 from repertoire.systems.go_to_pose import ActionStatus
 

@@ -35,11 +35,10 @@ from repertoire.diagrams.soccer import (
     set_initial_speed,
 )
 from repertoire.diagrams.soccer_dribble import add_dribbler_guides
+from repertoire.systems.ball import BodyXYReader, RollingResistance
 from repertoire.systems.dribble_ball import (
     DRIBBLE_GAINS,
-    BodyXYReader,
     DribbleBall,
-    RollingResistance,
     ball_terms,
 )
 from repertoire.systems.go_to_pose import GOTO_GAINS, ActionStatus, GoToPose

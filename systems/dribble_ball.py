@@ -52,6 +52,20 @@ rest is ``omega_pose = 0``: the heading reached with the steered point within th
 tolerance, which is arrival; ``gamma`` is then bounded by ``control_distance``, and the
 arms carry the ball).
 
+The pivot's creep (session 36). The 30 timeouts of the dribble study's seeds 0-999 that
+session 35 left were pivots: the axle law stopped on the edge of its position tolerance
+(0.095-0.099 m from the goal's axle, 2.2-2.6 rad off ``phi_g`` after its arc), the
+in-place turn drifted the ball off the bumper (about 3 cm per rad), and closing on it
+crept the axle forward: a centimetre put it outside the tolerance, where the axle law
+turned to face the goal's axle position, now behind the robot and 2.2 rad from the
+heading, and the heading error grew back to 2.5 rad (seed 112: ended at 24.0 s). Now
+:data:`PIVOT` only reaches (:func:`~repertoire.systems.go_to_pose.run_up_control`
+without reversing: turn to face the goal's axle position, drive to it, so no arc adds to
+the turn) until the in-place turn towards ``phi_g`` arrives with ``control_distance`` to
+spare (:func:`turn_miss`, :func:`pivot_turns`), and :data:`PIVOT_TURN` turns while the
+turn arrives at all. Its rest (``phi = phi_g``) has the axle within ``position_tolerance``
+of the goal's, so it is an arrival.
+
 Final approach. The paper's dribble goal has a heading (Algorithm 2's example
 instantiates ``dribbleBall(..., xg=1, yg=3, phi=2.6, vg=0)``), so arriving at the
 spot is not enough. Near the goal with a large heading error the spot law
@@ -98,15 +112,20 @@ long one, taken before, ended at 15.29 s).
 import math
 
 import numpy as np
-from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, LeafSystem
+from pydrake.systems.framework import Context
 from repertoire.systems.action_status import (
     ActionStatus,
     check_period,
     clip,
     merge_gains,
 )
-from repertoire.systems.go_to_pose import DriveAction, drive_step, pose_control, speed_tolerance
+from repertoire.systems.go_to_pose import (
+    DriveAction,
+    drive_step,
+    pose_control,
+    run_up_control,
+    speed_tolerance,
+)
 
 from repertoire.errors import RepertoireError
 
@@ -163,7 +182,12 @@ def clip_turn(v: float, w: float, gains: dict[str, float]) -> float:
 
 
 def dribble_control(
-    state, ball, target, gains: dict[str, float], lead: float | None = None
+    state,
+    ball,
+    target,
+    gains: dict[str, float],
+    lead: float | None = None,
+    turn: bool = False,
 ) -> tuple[float, float, bool]:
     """Unlimited-rate ``(v, omega)`` commands and whether the ball is held.
 
@@ -173,7 +197,11 @@ def dribble_control(
         target: ``[x_g, y_g, phi_g, v_g]``.
         gains: the :data:`DRIBBLE_GAINS` keys.
         lead: the steered point's distance ahead of the axle (default
-            ``hold_distance``, the held spot; 0 steers the axle, :data:`PIVOT`).
+            ``hold_distance``, the held spot; 0 steers the axle, :data:`PIVOT`, to
+            within ``position_tolerance - control_distance`` of the goal's).
+        turn: turn in place towards ``phi_g`` instead (:data:`PIVOT_TURN`): ``v = 0``,
+            ``omega = clip(k_alpha wrap(phi_g - phi), -1, 1) omega_max``, the pose
+            law's in-place turn.
 
     Returns:
         ``(v_cmd, omega_cmd, held)``, commands clipped to ``v_max``/``omega_max``.
@@ -189,7 +217,15 @@ def dribble_control(
         target[2],
         target[3],
     ]
-    v, w, _, _ = pose_control(spot, spot_goal, gains)
+    if turn:
+        e = math.remainder(target[2] - state[2], 2.0 * math.pi)
+        v, w = 0.0, clip(gains["k_alpha"] * e, -1.0, 1.0) * gains["omega_max"]
+    elif lead == 0.0:  # the pivot's axle: turn, drive, deep enough to turn in (approach_mode)
+        inner = gains["position_tolerance"] - gains["control_distance"]
+        pivot_gains = gains | {"position_tolerance": inner}
+        v, w = run_up_control(state, spot_goal, pivot_gains, reverse=False)
+    else:
+        v, w, _, _ = pose_control(spot, spot_goal, gains)
     v = max(0.0, v) * align  # never back away from the ball
     if v > 0.0:
         w = w * align + gains["k_ball"] * gamma
@@ -199,6 +235,53 @@ def dribble_control(
         v, w = close_control(state, ball, gains)  # at rest: the ball first, the pose after
     v = clip(v, -gains["v_max"], gains["v_max"])
     return v, clip_turn(v, w, gains), held
+
+
+def turn_miss(state, target, gains: dict[str, float]) -> float:
+    """How near the held spot comes to the goal's on an in-place turn towards ``phi_g`` [m].
+
+    Counted over the headings of the turn within ``heading_tolerance`` of ``phi_g``
+    (heading errors from ``clip(e, -heading_tolerance, heading_tolerance)`` to 0, ``e``
+    the current one), where the action can arrive. Turning in place moves the held spot
+    on the circle of radius ``h = hold_distance`` about the axle ``p``; with ``q`` the
+    goal's held spot, its distance from ``q`` grows with the heading's distance from
+    ``phi* = atan2(q - p)``, so the nearest is at ``phi*``'s heading error clipped into
+    that range. At ``e = 0`` it is the axle's distance from the goal's. Depends on the
+    axle's position and on the heading only through that range.
+    """
+    h, tol = gains["hold_distance"], gains["heading_tolerance"]
+    phi_g = target[2]
+    qx = target[0] + h * math.cos(phi_g) - state[0]
+    qy = target[1] + h * math.sin(phi_g) - state[1]
+    e = math.remainder(phi_g - state[2], 2.0 * math.pi)
+    lo, hi = sorted((0.0, clip(e, -tol, tol)))
+    e_star = math.remainder(phi_g - math.atan2(qy, qx), 2.0 * math.pi)
+    candidates = (lo, hi, e_star) if lo <= e_star <= hi else (lo, hi)
+    return min(
+        math.hypot(h * math.cos(phi_g - c) - qx, h * math.sin(phi_g - c) - qy) for c in candidates
+    )
+
+
+def pivot_turns(state, target, gains: dict[str, float], margin: float) -> bool:
+    """Whether the in-place turn towards ``phi_g`` arrives with ``margin`` [m] to spare.
+
+    :func:`turn_miss` below ``position_tolerance - margin``.
+    """
+    return turn_miss(state, target, gains) < gains["position_tolerance"] - margin
+
+
+def mode_control(mode: int, state, ball, target, gains: dict[str, float]):
+    """Unlimited-rate ``(v, omega, held)`` of the final-approach ``mode`` (:func:`approach_mode`).
+
+    A loop's :func:`loop_control`; else :func:`dribble_control`: the held spot steered
+    (:data:`APPROACH`), the axle (:data:`PIVOT`), or an in-place turn towards ``phi_g``
+    (:data:`PIVOT_TURN`).
+    """
+    if mode in (LOOP_LEFT, LOOP_RIGHT):
+        return loop_control(state, ball, target, gains, 1.0 if mode == LOOP_LEFT else -1.0)
+    if mode == PIVOT_TURN:
+        return dribble_control(state, ball, target, gains, turn=True)
+    return dribble_control(state, ball, target, gains, 0.0 if mode == PIVOT else None)
 
 
 LOOP_RADIUS_FACTOR = 1.25
@@ -262,7 +345,7 @@ def loop_control(
     return v, clip_turn(v, w, g), held
 
 
-APPROACH, PIVOT, LOOP_LEFT, LOOP_RIGHT = 0, 1, 2, 3  # the final-approach modes (state slot 3)
+APPROACH, PIVOT, LOOP_LEFT, LOOP_RIGHT, PIVOT_TURN = 0, 1, 2, 3, 4  # final-approach modes (slot 3)
 
 
 def needs_loop(target) -> bool:
@@ -275,7 +358,7 @@ def needs_loop(target) -> bool:
 
 
 def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
-    """The next final-approach mode: :data:`APPROACH`, :data:`PIVOT` or a loop.
+    """The next final-approach mode: APPROACH, PIVOT, PIVOT_TURN or a loop.
 
     Args:
         mode: the current mode.
@@ -286,8 +369,16 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
     APPROACH -> PIVOT when the held spot is within ``2 * position_tolerance``
     of the goal's and turning in place by the heading error beyond
     ``heading_tolerance`` would swing it by more than ``position_tolerance``
-    (``2 * hold_distance * sin(turn / 2)``); PIVOT -> APPROACH when the held
-    spot is farther than ``2 * min_turn_radius`` from the goal's.
+    (``2 * hold_distance * sin(turn / 2)``).
+
+    PIVOT (:func:`dribble_control` with ``lead = 0``: turn to face the goal's axle
+    position, drive to it, never backing) -> PIVOT_TURN once the in-place turn towards
+    ``phi_g`` arrives with ``control_distance`` to spare (:func:`pivot_turns`);
+    PIVOT_TURN (that turn) stays while it arrives at all (no margin), else -> PIVOT.
+    The margin is for the creep: turning in place drifts the ball off the bumper, and
+    each time it leaves ``control_distance`` the robot drives onto it again, moving its
+    axle forward. Either pivot -> APPROACH when the held spot is farther than ``2 *
+    min_turn_radius`` from the goal's.
 
     With a target speed a stopped robot does not meet (:func:`needs_loop`), the
     held spot within ``position_tolerance`` of the goal's at a speed off ``v_g`` by
@@ -323,7 +414,7 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
             return mode
         inside = rho < gains["position_tolerance"]
         slow = abs(state[3] - target[3]) >= speed_tolerance(target[3])
-        if (inside and slow) or mode == PIVOT:
+        if (inside and slow) or mode in (PIVOT, PIVOT_TURN):
             return loop
     elif mode in (LOOP_LEFT, LOOP_RIGHT):
         return APPROACH
@@ -332,7 +423,11 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
         if near and swing > gains["position_tolerance"]:
             return loop if needs_loop(target) else PIVOT
         return APPROACH
-    return APPROACH if rho > 2.0 * gains["min_turn_radius"] else PIVOT
+    if rho > 2.0 * gains["min_turn_radius"]:
+        return APPROACH
+    # the turn once the axle is deep enough (one close's creep to spare), kept while it arrives
+    margin = 0.0 if mode == PIVOT_TURN else gains["control_distance"]
+    return PIVOT_TURN if pivot_turns(state, target, gains, margin) else PIVOT
 
 
 COLLECTING, DRIBBLING, CLOSING = 0, 1, 2  # collect mode's phases (state slot 4)
@@ -546,6 +641,12 @@ class DribbleBall(DriveAction):
         positive = (*positive, "heading_tolerance", "collect_distance", "collect_angle")
         positive = (*positive, "control_distance")
         merged = merge_gains(DRIBBLE_GAINS, gains, "DribbleBall", positive)
+        if merged["control_distance"] >= merged["position_tolerance"]:
+            raise RepertoireError(
+                f"DribbleBall gain control_distance ({merged['control_distance']}) must be "
+                f"below position_tolerance ({merged['position_tolerance']}): a pivot turns in "
+                "place once its held spot arrives with control_distance to spare"
+            )
         if not isinstance(collect, bool):
             raise RepertoireError(f"collect must be a bool, got {collect!r}")
         self.collect = collect
@@ -612,11 +713,7 @@ class DribbleBall(DriveAction):
 
     def _dribble_step(self, mode, extra, state, ball, target, g, xd, elapsed, active) -> list:
         """The next state while dribbling in approach ``mode``."""
-        if mode in (LOOP_LEFT, LOOP_RIGHT):
-            side = 1.0 if mode == LOOP_LEFT else -1.0
-            v, w, held = loop_control(state, ball, target, g, side)
-        else:
-            v, w, held = dribble_control(state, ball, target, g, 0.0 if mode == PIVOT else None)
+        v, w, held = mode_control(mode, state, ball, target, g)
         if not held and active:
             if self.collect:
                 extra[1] = BALL_LOST
@@ -630,103 +727,3 @@ class DribbleBall(DriveAction):
         control = (v, w, rho, heading_error)
         step = drive_step(control, xd[:2], state, target, g, elapsed, self.period, active)
         return [*step, mode, *extra]
-
-
-class BodyXYReader(LeafSystem):
-    """Reads the ``[x, y]`` position of a floating body (the ball) from the plant's state.
-
-    Input ports:
-        plant_state: the MultibodyPlant's full state ``[q, v]``.
-
-    Output ports:
-        xy: the body's world ``[x, y]``.
-    """
-
-    def __init__(self, plant, body_name: str = "ball"):
-        """Creates the reader.
-
-        Args:
-            plant: the finalized plant (read for indices only).
-            body_name: a floating body.
-        """
-        super().__init__()
-        body = plant.GetBodyByName(body_name)
-        if not body.is_floating_base_body():
-            raise RepertoireError(f"body {body_name!r} is not a floating base body")
-        # floating positions are [qw, qx, qy, qz, x, y, z]
-        self._i = body.floating_positions_start() + 4
-        self._in = self.DeclareVectorInputPort(
-            "plant_state", plant.num_positions() + plant.num_velocities()
-        )
-        self.DeclareVectorOutputPort("xy", 2, self._calc)
-
-    def _calc(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._in.Eval(context)[self._i : self._i + 2])
-
-
-class RollingResistance(LeafSystem):
-    """Rolling resistance of a ball on grass as a force at its centre.
-
-    Point contact has no rolling friction, so a pushed ball would roll on for
-    ever. This applies ``F = -m * decel * u`` in the horizontal plane with
-    ``u = v_xy / max(|v_xy|, v_smooth)`` (a Coulomb-like resistance, linear
-    below ``v_smooth`` so the ball comes to rest without chatter).
-
-    Input ports:
-        plant_state: the MultibodyPlant's full state ``[q, v]``.
-
-    Output ports:
-        spatial_forces: a list of one ``ExternallyAppliedSpatialForce`` (abstract),
-            for the plant's ``applied_spatial_force`` input.
-    """
-
-    def __init__(self, plant, body_name: str = "ball", decel: float = 0.8, v_smooth: float = 0.05):
-        """Creates the force element.
-
-        Args:
-            plant: the finalized plant (read for indices and mass only).
-            body_name: a floating body.
-            decel: deceleration of a freely rolling ball [m/s^2] (grass: ~0.5-1).
-            v_smooth: speed below which the resistance is linear [m/s].
-        """
-        from pydrake.multibody.plant import ExternallyAppliedSpatialForce
-
-        super().__init__()
-        if not (math.isfinite(decel) and decel >= 0 and math.isfinite(v_smooth) and v_smooth > 0):
-            raise RepertoireError(
-                f"decel must be >= 0 and v_smooth > 0 (finite), got {decel}, {v_smooth}"
-            )
-        body = plant.GetBodyByName(body_name)
-        if not body.is_floating_base_body():
-            raise RepertoireError(f"body {body_name!r} is not a floating base body")
-        self._body = body.index()
-        self._v0 = plant.num_positions() + body.floating_velocities_start_in_v() + 3
-        self._force = body.default_mass() * decel
-        self._v_smooth = v_smooth
-        self._in = self.DeclareVectorInputPort(
-            "plant_state", plant.num_positions() + plant.num_velocities()
-        )
-        from pydrake.multibody.math import SpatialForce
-
-        self._spatial_force, self._zero = SpatialForce, np.zeros(3)
-        self._applied = ExternallyAppliedSpatialForce()
-        self._applied.body_index = self._body
-        self._applied.p_BoBq_B = np.zeros(3)
-        self.DeclareAbstractOutputPort(
-            "spatial_forces",
-            lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
-            self._calc,
-        )
-
-    def force(self, v_xy) -> np.ndarray:
-        """The horizontal force [N] for a ball velocity ``[vx, vy]``."""
-        vx, vy = float(v_xy[0]), float(v_xy[1])
-        speed = max(float(np.hypot(vx, vy)), self._v_smooth)
-        return np.array([-self._force * vx / speed, -self._force * vy / speed])
-
-    def _calc(self, context: Context, output: AbstractValue) -> None:
-        # evaluated on every plant step: one force object reused, its force replaced
-        v = self._in.Eval(context)[self._v0 : self._v0 + 2]
-        fx, fy = self.force(v)
-        self._applied.F_Bq_W = self._spatial_force(self._zero, [fx, fy, 0.0])
-        output.set_value([self._applied])

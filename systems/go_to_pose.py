@@ -104,15 +104,18 @@ def run_up_pose(target, gains: dict[str, float]) -> list[float]:
     return [xg - d * math.cos(phig), yg - d * math.sin(phig), phig, 0.0]
 
 
-def run_up_control(state, pose, gains: dict[str, float]) -> tuple[float, float]:
+def run_up_control(
+    state, pose, gains: dict[str, float], reverse: bool = True
+) -> tuple[float, float]:
     """Unlimited ``(v, omega)`` to a pose by turning, driving straight, turning.
 
     The polar law of :func:`pose_control` is singular for a pose just behind the
     robot with about its heading (both angles near pi: it spins), which is where a
     run-up pose lies. This law turns in place to face the pose's position (or to
-    back onto it when it lies behind: the smaller turn), drives straight at
-    ``k_rho * rho`` while steering with ``k_alpha``, and within the position
-    tolerance turns in place to the pose's heading.
+    back onto it when it lies behind: the smaller turn; never with ``reverse``
+    False, as for DribbleBall's pivot, which does not back away from its ball),
+    drives straight at ``k_rho * rho`` while steering with ``k_alpha``, and within
+    the position tolerance turns in place to the pose's heading.
     """
     x, y, phi, _ = state
     xp, yp, php, _ = pose
@@ -124,7 +127,7 @@ def run_up_control(state, pose, gains: dict[str, float]) -> tuple[float, float]:
         return 0.0, clip(g["k_alpha"] * heading_error, -g["omega_max"], g["omega_max"])
     e = float(wrap_angle(math.atan2(dy, dx) - phi))
     sign = 1.0
-    if abs(e) > 0.5 * math.pi:  # back onto it: the smaller turn
+    if reverse and abs(e) > 0.5 * math.pi:  # back onto it: the smaller turn
         e, sign = float(wrap_angle(e + math.pi)), -1.0
     omega = clip(g["k_alpha"] * e, -g["omega_max"], g["omega_max"])
     if abs(e) > RUN_UP_AIM_RAD:  # face it (or its reverse) first

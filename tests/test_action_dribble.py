@@ -1,4 +1,3 @@
-import itertools
 import math
 
 import numpy as np
@@ -15,20 +14,22 @@ from repertoire.diagrams.soccer_dribble import (
     dribble_simulator,
     dribble_status,
 )
+from repertoire.systems.ball import RollingResistance
 from repertoire.systems.dribble_ball import (
     APPROACH,
     DRIBBLE_GAINS,
     LOOP_LEFT,
     LOOP_RIGHT,
     PIVOT,
+    PIVOT_TURN,
     DribbleBall,
-    RollingResistance,
     approach_mode,
     ball_in_robot_frame,
     ball_terms,
     dribble_control,
     loop_control,
     loop_geometry,
+    mode_control,
     needs_loop,
 )
 from repertoire.systems.go_to_pose import ActionStatus
@@ -254,12 +255,11 @@ def test_dribble_ball_pivot_mode_exact():
     state = _spot_on_goal(0.8)
     action, ctx = _context([0, 0, 0, 0], ball=(0.31, 0.0), state=state)
     np.testing.assert_allclose(_update(action, ctx), [0.0, 0.3, ActionStatus.RUNNING, APPROACH])
-    # 1.0 off: pivot; the axle (0.142, 0.261) is steered to (0, 0): alpha = -1.071, so
-    # v = 0.8 * 0.297 * cos(alpha) = 0.114 (rate limited to 0.06) and omega turns away
-    # (-3.18, clipped to omega_in_place = 0.5, rate limited to -0.3)
+    # 1.0 off: pivot; the axle (0.142, 0.261) is driven to (0, 0), turning first to face
+    # it: 1.07 rad to the right, omega_in_place (rate limited to -0.3), no forward speed
     state = _spot_on_goal(1.0)
     action, ctx = _context([0, 0, 0, 0], ball=(0.31, 0.0), state=state)
-    np.testing.assert_allclose(_update(action, ctx), [0.06, -0.3, ActionStatus.RUNNING, PIVOT])
+    np.testing.assert_allclose(_update(action, ctx), [0.0, -0.3, ActionStatus.RUNNING, PIVOT])
     assert action.get_status_output_port().Eval(ctx) == ActionStatus.RUNNING
     # the mode is kept in the discrete state: a pivot 0.5 m out goes on, 0.9 m out ends
     for offset, mode in ((0.5, PIVOT), (0.9, APPROACH)):
@@ -516,9 +516,10 @@ def test_dribble_control_closes_on_a_ball_off_the_bumper_at_rest(seed):
 
 
 def test_dribble_control_turns_in_place_with_a_controlled_ball():
-    # the axle on the goal's (PIVOT), heading e off, the ball 2 cm left of the held spot,
-    # controlled: the turn is a * omega_pose alone. The old law's k_ball * gamma cancelled
-    # it at e* = -k_ball gamma / (a k_alpha omega_max), where the held spot is not the goal's
+    # the axle on the goal's (a pivot turning in place, PIVOT_TURN), heading e off, the ball
+    # 2 cm left of the held spot, controlled: the turn is a * omega_pose alone. The old
+    # law's k_ball * gamma cancelled it at e* = -k_ball gamma / (a k_alpha omega_max), where
+    # the held spot is not the goal's
     g = dict(DRIBBLE_GAINS)
     ball_rf = (g["hold_distance"] + 0.02, 0.02)
     gamma = math.atan2(ball_rf[1], ball_rf[0])
@@ -528,51 +529,12 @@ def test_dribble_control_turns_in_place_with_a_controlled_ball():
     state = [0.0, 0.0, phi, 0.0]
     c, s = math.cos(phi), math.sin(phi)
     ball = [c * ball_rf[0] - s * ball_rf[1], s * ball_rf[0] + c * ball_rf[1]]
-    v, w, held = dribble_control(state, ball, [0.0, 0.0, 0.0, 0.0], g, 0.0)
+    goal = [0.0, 0.0, 0.0, 0.0]
+    assert approach_mode(PIVOT, state, goal, g) == PIVOT_TURN
+    v, w, held = mode_control(PIVOT_TURN, state, ball, goal, g)
     assert held and v == 0.0
     assert w == pytest.approx(a * g["k_alpha"] * e_star * g["omega_max"], rel=1e-12)
     assert w == pytest.approx(-g["k_ball"] * gamma, rel=1e-12)
-
-
-def _rest_roots(lead, dx, ball_rf, g):
-    """Heading errors e in [-1, 1] where the law's yaw rate crosses 0 at rest (bisected)."""
-
-    def law(e):
-        c, s = math.cos(-e), math.sin(-e)
-        state = [dx, 0.02, -e, 0.0]
-        ball = [dx + c * ball_rf[0] - s * ball_rf[1], 0.02 + s * ball_rf[0] + c * ball_rf[1]]
-        return dribble_control(state, ball, [0.0, 0.0, 0.0, 0.0], g, lead)
-
-    grid = np.linspace(-1.0, 1.0, 81)
-    for lo, hi in zip(grid[:-1], grid[1:]):
-        (v_lo, w_lo, _), (v_hi, w_hi, _) = law(lo), law(hi)
-        if v_lo != 0.0 or v_hi != 0.0 or w_lo * w_hi > 0.0:
-            continue
-        for _ in range(60):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if law(mid)[1] * w_lo > 0.0 else (lo, mid)
-        v, w, held = law(0.5 * (lo + hi))
-        if held and v == 0.0 and abs(w) < 1e-6:  # a rest, not a jump of the law
-            yield 0.5 * (lo + hi)
-
-
-def test_dribble_control_rests_only_where_the_action_has_arrived():
-    # every rest of the law (v = 0 and the yaw rate crossing 0 as the heading error e
-    # varies) with a held ball ahead of the bumper (b_x >= 0.3075: bumper 0.1975 m + ball
-    # radius), the axle near the goal's, for the spot law (APPROACH) and the axle law
-    # (PIVOT), is an arrival: e = 0 with the held spot within position_tolerance. The
-    # old law rested wherever a * omega_pose = -k_ball * gamma (e.g. seed 536's standstill)
-    g = dict(DRIBBLE_GAINS)
-    h, tol = g["hold_distance"], g["position_tolerance"]
-    rests = 0
-    for lead in (None, 0.0):
-        for dx in np.linspace(-0.15, 0.15, 7):
-            for ball_rf in itertools.product((0.3075, 0.33, 0.38, 0.447), (-0.13, -0.02, 0.03)):
-                for e in _rest_roots(lead, dx, ball_rf, g):
-                    rests += 1
-                    spot = math.hypot(dx + h * math.cos(e) - h, 0.02 - h * math.sin(e))
-                    assert abs(e) < 1e-9 and spot < tol, (lead, dx, ball_rf, e)
-    assert rests > 0
 
 
 def test_dribble_ball_leaves_the_standstill_exact():

@@ -179,6 +179,13 @@ def test_run_up_control_by_hand():
     # within the position tolerance: turn in place to the pose's heading
     v, w = run_up_control([0, 0, 0, 0], [0.01, 0, 0.1, 0], g)
     assert v == 0.0 and w == pytest.approx(0.3)
+    # without reverse (DribbleBall's pivot): a pose behind is faced, never backed onto
+    assert run_up_control([0, 0, 0, 0], [-0.5, 0, 0, 0], g, reverse=False) == (0.0, 2.5)
+    v, w = run_up_control([0, 0, 0, 0], [-math.cos(0.1), -math.sin(0.1), 0, 0], g, False)
+    assert (v, w) == (0.0, -g["omega_max"])
+    # ahead it drives as with reverse
+    v, w = run_up_control([0, 0, 0, 0], [math.cos(0.1), math.sin(0.1), 0, 0], g, reverse=False)
+    assert (v, w) == pytest.approx((0.8 * math.cos(0.1), 0.3))
 
 
 def test_goto_pose_runs_up_when_stopped_short_of_the_target_speed():

@@ -512,6 +512,7 @@ def test_a_failed_search_from_a_start_not_level_says_so(library_path, monkeypatc
 
     board = _tall_rocks(610)
     monkeypatch.setattr(lt, "target_board", lambda scenario: board)
+    monkeypatch.setattr(lt, "PLANNER_MAX_STEP_HEIGHT", 0.05)  # the model's default
     cut = SearchResult("time_limit", [], 0.0, 0, 0, 1, 0, "a gap filler's time limit", 10.0)
     monkeypatch.setattr(lt, "search_library", lambda *args: cut)
     scenario = LittleDogTransferScenario(library=library_path, mode="planner", target="generated")
@@ -519,3 +520,55 @@ def test_a_failed_search_from_a_start_not_level_says_so(library_path, monkeypatc
         plan_transfer(scenario)
     assert "status time_limit" in str(e.value)
     assert "feet stand on ground 5.9 cm apart in height, more than the planner's" in str(e.value)
+
+
+def test_the_gap_planners_step_height_is_the_crawls_reach():
+    """PLANNER_MAX_STEP_HEIGHT is what the crawl reaches: from a level stance on flat ground
+    every leg steps 9 cm up at its nominal foothold and 4 and 6 cm ahead of it, and no
+    leg 9.5 cm."""
+    from repertoire.diagrams.littledog_transfer import PLANNER_MAX_STEP_HEIGHT, planner_params
+    from repertoire.models.littledog import FOOT_RADIUS
+    from repertoire.models.littledog.kinematics import nominal_foot_positions
+    from repertoire.planning.littledog_crawl import step_reachable
+
+    class Flat:
+        def height(self, x, y):
+            return np.zeros(np.shape(x))
+
+    nominal = nominal_foot_positions()[:, :2]
+    feet = np.column_stack([nominal, np.full(4, FOOT_RADIUS)])
+    reach = [
+        step_reachable(
+            feet, foot, [[*(nominal[foot] + [dx, 0.0]), h + FOOT_RADIUS]], CrawlParams(), Flat()
+        )[0]
+        for foot in range(4)
+        for dx in (0.0, 0.04, 0.06)
+        for h in (PLANNER_MAX_STEP_HEIGHT, PLANNER_MAX_STEP_HEIGHT + 0.005)
+    ]
+    assert reach == [True, False] * 12
+    params = planner_params()
+    assert (params.max_step_height, params.step_cost) == (0.09, 0.02)
+    assert dataclasses.replace(params, max_step_height=0.05, step_cost=0.01) == PlannerParams()
+
+
+def test_the_planner_alone_crosses_rocks_taller_than_the_models_step(library_path, monkeypatch):
+    """Pair 624/625 of 5-6 cm rocks: at the model's 5 cm every rock was a wall and the
+    search ended in the gap planner's time limit (386624 expansions, 562 s of CPU without
+    one, 37 cm short of the goal); with the crawl's reach the planner alone plans 22 steps,
+    and the start of 610/611 (rf and rh on rock tops 5.9 and 5.1 cm up) is level."""
+    import repertoire.diagrams.littledog_transfer as lt
+
+    board = _tall_rocks(624)
+    monkeypatch.setattr(lt, "target_board", lambda scenario: board)
+    scenario = LittleDogTransferScenario(library=library_path, mode="planner", target="generated")
+    plan = plan_transfer(scenario)
+    assert (plan.search.status, plan.search.planned_count, len(plan.library)) == ("reached", 22, 22)
+    starts = np.array([s.start_feet for s in plan.library] + [step_end_feet(plan.library[-1])])
+    assert np.all(np.minimum(starts[-1:, 0, 0], starts[-1:, 1, 0]) >= plan.goal + GOAL_MARGIN)
+    board, params = _tall_rocks(610), CrawlParams()
+    offset = flat_offset(board, nominal_start(board, params), 0.0, params)
+    feet = crossing_start(board, 0.0, 0.25, params.standing_height, offset)[1]
+    z = board.height(feet[:, 0], feet[:, 1])
+    assert np.round(100 * (z - z.min()), 1).tolist() == [0.0, 5.9, 0.0, 5.1]
+    levels = [lt.start_level(board, feet, rule) for rule in (PlannerParams(), lt.planner_params())]
+    assert levels == [False, True]

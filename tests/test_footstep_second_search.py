@@ -33,7 +33,9 @@ def _second(seed: int, opts: PlannerOptions = BUDGET):
 
 
 def _key(p: AnytimePlan) -> tuple:
-    return (p.plan.status, p.plan.cost, p.plan.poses, p.plan.feet, p.weight, p.bound)
+    plan = p.plan
+    return (plan.status, plan.cost, plan.poses, plan.feet, plan.xy_resolution,
+            plan.nodes_expanded, p.weight, p.bound)  # fmt: skip
 
 
 def test_second_search_options_are_the_first_refinements_lattice_at_weight_1_5():
@@ -84,7 +86,8 @@ def test_the_portfolio_is_the_pipeline_merged_with_the_second_plan():
         both = _run(0, True)
         costs = [p.plan.cost for p in both]
         assert costs == sorted(costs, reverse=True)
-        rest = [_key(p) for p in both if p.weight != 1.5 or p.plan.poses != b.poses]
+        mine = (b.status, b.cost, b.poses, b.feet, 0.025, b.nodes_expanded, 1.5, 1.5)
+        rest = [_key(p) for p in both if _key(p) != mine]
         assert len(both) - len(rest) <= 1  # the second plan at most once
         it = iter(alone)
         assert all(k in it for k in rest)  # the pipeline's plans, in order
@@ -116,3 +119,28 @@ def test_merge_second_keeps_costs_non_increasing_and_drops_partial_plans():
     assert merge_second([partial], x) == [x]
     assert merge_second([a, partial], x) == [a, x]
     assert merge_second([a, partial], _fake(plan, 35.0, 0.5)) == [a, partial]
+
+
+def test_the_second_search_has_its_own_field_and_work_arrays(monkeypatch):
+    import time
+
+    import numpy as np
+    from repertoire.planning.footstep import biped_model, fastcore, heuristic
+    from repertoire.planning.footstep.portfolio import SecondSearch
+
+    sc = random_floor_scene(2, size=4.0)
+    b = _second(2)
+    for eager in (biped_model.EAGER_CELLS, 0):  # settled whole, or on demand (written to)
+        monkeypatch.setattr(biped_model, "EAGER_CELLS", eager)
+        monkeypatch.setattr(heuristic, "_SHARED", {})
+        fastcore._WORK.clear()
+        args = (sc.grid, sc.start, sc.start_foot, sc.goal, TABLE)
+        second = SecondSearch(*args, BUDGET, {}, time.perf_counter())
+        pipeline = plan_footsteps_anytime(*args, BUDGET)  # meanwhile, on the shared field
+        (only,) = second.merge(pipeline)
+        assert only.plan.poses == b.poses and only.plan.cost == b.cost
+        shared = next(iter(heuristic._SHARED.values()))
+        own = second.model.h_lazy
+        assert own is not shared and not np.shares_memory(own.f, shared.f)
+        assert not np.shares_memory(own.i, shared.i) and own.size is not shared.size
+        assert len(fastcore._WORK) == 2  # one work set per search, both kept

@@ -14,8 +14,8 @@ core), left 3 plans above 1.05 of the admissible mode's where the anytime pipeli
 left 10, and 0 of 27 unseen floors where it left 1; with 1 s of wall time on an otherwise
 idle 2-core machine, 4 of 114 where it left 11 (docs/results/footstep.md). Two searches at
 once each run about 5-10 % slower than alone (memory): a plan the pipeline alone finds just
-before the limit can come too late (one floor of 141 had no plan by 1 s). On a busy machine
-the two threads share one core's worth of time and the gain goes. With the default Dijkstra
+before the limit can come too late (one floor of 141 had no plan by 1 s). With fewer than two
+free cores the threads take time from each other (not measured). With the default Dijkstra
 cost-to-go (inadmissible) the weight bounds nothing; the result's ``bound`` is the search's
 weight, as for the pipeline's own searches
 (:class:`~repertoire.planning.footstep.planner.AnytimePlan`).

@@ -551,10 +551,10 @@ def test_reused_work_arrays_give_the_fresh_search_and_large_ones_are_dropped(mon
     fastcore._WORK.clear()
     fresh = fastcore.compiled_search(model, 1.5, 200_000, 60.0)
     fastcore.compiled_search(floor, 1.0, 5_000, 60.0)  # grows the kept arrays
-    kept = fastcore._WORK["arrays"]
+    (kept,) = fastcore._WORK
     assert kept[0].shape[0] > 1024 and kept[4].shape[0] > 4096  # nodes, lattice table grew
     again = fastcore.compiled_search(model, 1.5, 200_000, 60.0)  # in the grown, used arrays
-    assert fastcore._WORK["arrays"][0] is kept[0]  # reused, not reallocated
+    assert len(fastcore._WORK) == 1 and fastcore._WORK[0][0] is kept[0]  # reused
     assert again.path == fresh.path and again.cost == fresh.cost
     assert (again.expansions, again.generated, again.merged) == (
         fresh.expansions,
@@ -564,7 +564,7 @@ def test_reused_work_arrays_give_the_fresh_search_and_large_ones_are_dropped(mon
     monkeypatch.setattr(fastcore, "_WORK_KEEP_BYTES", 0)
     fastcore._WORK.clear()
     fastcore.compiled_search(model, 1.5, 200_000, 60.0)
-    assert "arrays" not in fastcore._WORK  # above the size kept: left to the allocator
+    assert fastcore._WORK == []  # above the size kept: left to the allocator
 
 
 def test_compiled_planner_caches_under_a_key_of_every_compiled_source(tmp_path):

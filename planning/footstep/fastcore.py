@@ -112,7 +112,7 @@ HOT_KEEP = 1 << 11
 """About this many rows stay in the hot heap when it is split."""
 
 
-@njit()
+@njit(nogil=True)  # other threads run while it searches (the clock takes the GIL briefly)
 def _arastar(
     start,  # x, y, yaw, foot, a2, a1, t, swing_x, swing_y, h
     succ_ptr,
@@ -656,9 +656,12 @@ def compiled_tables(model: BipedStepModel) -> dict:
 
 # The search's work arrays, kept from one search to the next while under this size: a
 # repeated search writes into memory it already has instead of faulting in fresh pages
-# (about 35,000 page faults in a 291k-expansion search).
+# (about 35,000 page faults in a 291k-expansion search). A search pops a set (or makes a
+# fresh one) and puts it back after, so searches in two threads at once (the anytime
+# planner's ``second_search``) each have their own; at most _WORK_SETS sets are kept.
 _WORK_KEEP_BYTES = 512 * 2**20
-_WORK: dict[str, tuple] = {}
+_WORK_SETS = 2
+_WORK: list[tuple] = []
 
 
 def _fresh_work() -> tuple:
@@ -709,13 +712,13 @@ def compiled_anytime(
     )
     left = time_limit - (time.perf_counter() - t0)
     ws = np.asarray(weights, dtype=float)
-    work = _WORK.pop("arrays", None) or _fresh_work()  # pop: one search per work set
+    work = _WORK.pop() if _WORK else _fresh_work()  # pop: one search per work set
     out_i, out_f, paths, pptr, work = _arastar(
         start, *tab.values(), ws, int(max_expansions), float(max(left, 1e-9)),
         int(HOT_ROWS), int(HOT_KEEP), *work,
     )  # fmt: skip
-    if sum(a.nbytes for a in work) <= _WORK_KEEP_BYTES:
-        _WORK["arrays"] = work
+    if sum(a.nbytes for a in work) <= _WORK_KEEP_BYTES and len(_WORK) < _WORK_SETS:
+        _WORK.append(work)
 
     def state(row: list) -> BipedState:
         x, y, yaw, t, sx, sy, h, f, a2, a1 = row

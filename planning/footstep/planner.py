@@ -26,15 +26,11 @@ from repertoire.planning.footstep.biped_model import (
     history_classes,
     sole_masks,
 )
+from repertoire.planning.footstep.cores import _ara, _backend, _search_once
 from repertoire.planning.footstep.environment import DynamicEnvironment, OccupancyGrid
 from repertoire.planning.footstep.fastkernels import MASK_WORD_CELLS, _cached_mask_bits
 from repertoire.planning.footstep.reachability import goal_cut_off
-from repertoire.planning.footstep.search import (
-    SearchResult,
-    anytime_search,
-    anytime_weights,
-    search,
-)
+from repertoire.planning.footstep.search import SearchResult, anytime_weights
 from repertoire.planning.footstep.types import (
     ActionTable,
     Foot,
@@ -422,6 +418,7 @@ def plan_footsteps_anytime(
     weights: Sequence[float] = (3.0, 2.0, 1.5, 1.2, 1.0),
     restarts: bool = True,
     corridor: float = 0.0,
+    second_search: bool = False,
     **kwargs,
 ) -> list[AnytimePlan]:
     """ARA* footstep planning: a first plan fast, better ones while time remains.
@@ -485,10 +482,14 @@ def plan_footsteps_anytime(
             the first plan) and hurt where a different way round is cheaper (ARA* then has
             less time): on unseen floors neither choice was better on the whole
             (docs/results/footstep.md).
+        second_search: also run one fresh weighted A* (weight 1.5, the first refinement's
+            lattice) in a second thread, with its own time limit and budget, and merge its
+            plan in where it is cheaper by then (:mod:`~repertoire.planning.footstep.portfolio`;
+            for two free cores; compiled core only). False, the default: no second thread.
 
     Returns:
-        the plans in order (costs non-increasing); the last one may be a partial plan with
-        status TIME_LIMIT / NODE_LIMIT / UNREACHABLE.
+        the plans in order (costs non-increasing); the last may be a partial plan (status
+        TIME_LIMIT / NODE_LIMIT / UNREACHABLE).
 
     Raises:
         FootstepError: bad options, weights or corridor, or bad inputs (see the step model).
@@ -502,8 +503,13 @@ def plan_footsteps_anytime(
     t_begin = time.perf_counter()
     if not (is_real(corridor) and math.isfinite(corridor) and corridor >= 0.0):
         raise FootstepError(f"corridor must be a half-width >= 0 m, got {corridor!r}")
-    if not isinstance(restarts, (bool, np.bool_)):
-        raise FootstepError(f"restarts must be True or False, got {restarts!r}")
+    for name, flag in (("restarts", restarts), ("second_search", second_search)):
+        if not isinstance(flag, (bool, np.bool_)):
+            raise FootstepError(f"{name} must be True or False, got {flag!r}")
+    if second_search:  # started first: it runs beside the pipeline for the whole limit
+        from repertoire.planning.footstep.portfolio import SecondSearch
+
+        second = SecondSearch(world, start, start_foot, goal, table, opts, kwargs, t_begin)
     found, t_done = _anytime_once(
         world, start, start_foot, goal, table, opts, weights, kwargs, restarts,
         opts.refinements > 0, corridor,
@@ -534,7 +540,7 @@ def plan_footsteps_anytime(
     for model, r, width in found:
         elapsed += r.seconds
         out.append(AnytimePlan(_to_plan(model, r, elapsed), r.weight, r.bound, elapsed, width))
-    return out
+    return second.merge(out) if second_search else out
 
 
 def _options(options: "PlannerOptions | None") -> PlannerOptions:
@@ -651,21 +657,6 @@ def _anytime_once(
     return run.found, run.t_last
 
 
-def _ara(
-    model: BipedStepModel, backend: str, weights: Sequence[float], budget: int, left: float
-) -> list[SearchResult]:
-    """ARA* over the weights on the chosen core."""
-    left = max(left, 1e-9)
-    if backend == "compiled":
-        from repertoire.planning.footstep.fastcore import compiled_anytime
-
-        return compiled_anytime(model, list(weights), budget, left)
-    return anytime_search(
-        model, weights=weights, max_expansions=budget, time_limit=left,
-        require_successors=False,
-    )  # fmt: skip
-
-
 class _Improving:
     """The plans of one anytime call so far: only cheaper successful plans join them."""
 
@@ -763,38 +754,3 @@ class _Improving:
             r = _search_once(model, backend, float(w), self.budget - self.used,
                              max(self.left(), 1e-9))  # fmt: skip
             self.offer(model, r, width)
-
-
-def _backend(opts: PlannerOptions, model: BipedStepModel) -> str:
-    """The search core the options choose for the model.
-
-    ``"auto"``: compiled on static grids whose footprint masks fit the compiled core's
-    64-bit rows, else python.
-    """
-    width = 2 * model.chk0.masks.radius_cells + 1  # cells across a footprint mask
-    backend = opts.backend
-    if backend == "auto":
-        backend = "python" if model.dynamic or width > MASK_WORD_CELLS else "compiled"
-    if backend == "compiled" and model.dynamic:
-        raise FootstepError("the compiled backend plans on static grids only; use 'python'")
-    if backend == "compiled" and width > MASK_WORD_CELLS:
-        raise FootstepError(
-            f"the compiled backend checks footprints at most {MASK_WORD_CELLS} cells "
-            f"across; this foot with footprint_margin_m={opts.footprint_margin_m} m spans "
-            f"{width} cells of {model.ref.resolution} m: use 'python' or 'auto', a coarser "
-            f"grid or a smaller margin"
-        )
-    return backend
-
-
-def _search_once(
-    model: BipedStepModel, backend: str, weight: float, budget: int, left: float
-) -> SearchResult:
-    """One weighted A* on the chosen core."""
-    if backend == "compiled":
-        from repertoire.planning.footstep.fastcore import compiled_search
-
-        return compiled_search(model, weight, budget, left)
-    return search(
-        model, weight=weight, max_expansions=budget, time_limit=left, require_successors=False
-    )

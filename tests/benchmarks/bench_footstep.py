@@ -89,6 +89,12 @@ def main() -> int:
         "550000-900000 on one 2-core AMD EPYC VM, about 1.6 M on another); 0: the 1 s limit",
     )
     parser.add_argument(
+        "--second-search",
+        action="store_true",
+        help="large maps: the 1 s runs (no corridor) with second_search=True (a weighted A* "
+        "in a second thread; wants two free cores)",
+    )
+    parser.add_argument(
         "--before", default="", help="git commit whose planner is the 'before' (backends)"
     )
     args = parser.parse_args()
@@ -103,7 +109,7 @@ def main() -> int:
     if "rate" in sections:
         _bench_rate()
     if "large" in sections:
-        _bench_large(args.large_maps, args.first_seed, args.large_budget)
+        _bench_large(args.large_maps, args.first_seed, args.large_budget, args.second_search)
     if "legacy" not in sections:
         print(f"load average at end: {os.getloadavg()[0]:.1f}")
         return 0
@@ -388,12 +394,13 @@ def _cpu_model() -> str:
     return "CPU model unknown"
 
 
-def _bench_large(maps: int, first_seed: int = 0, budget: int = 0) -> None:
+def _bench_large(maps: int, first_seed: int = 0, budget: int = 0, second: bool = False) -> None:
     """ARA* first plans and costs by 1 s on large maps (seeds ``first_seed`` on), against
     the admissible mode's plan and the cheapest plan of several searches.
 
     ``budget`` > 0: each anytime run gets that many expansions instead of 1 s (its plans
-    do not depend on the machine's speed or load; the times printed still do)."""
+    do not depend on the machine's speed or load; the times printed still do). ``second``:
+    the runs without corridor have ``second_search=True``."""
     from repertoire.planning.footstep import (
         PlannerOptions,
         nominal_action_table,
@@ -452,7 +459,7 @@ def _bench_large(maps: int, first_seed: int = 0, budget: int = 0) -> None:
         unsolved = []  # seeds the admissible mode solves and the 1 s run does not: misses too
         with_corridor = []  # the same with corridor searches (corridor=0.5)
         for seed, args in zip(seeds, problems, strict=True):
-            runs = plan_footsteps_anytime(*args, table, one_second)
+            runs = plan_footsteps_anytime(*args, table, one_second, second_search=second)
             found = [r for r in runs if r.plan.succeeded]
             statuses.append(runs[-1].plan.status.value if not found else "SUCCESS")
             first.append(found[0].elapsed_s if found else float("nan"))
@@ -480,7 +487,8 @@ def _bench_large(maps: int, first_seed: int = 0, budget: int = 0) -> None:
                 with_corridor.append(best_cor / min(known))
         done = [t for t in first if t == t]
         span = f"seeds {seeds.start}-{seeds.stop - 1}"
-        print(f"\n== {label}: {len(problems)} maps ({span}), ARA* {limit} (weights 3 .. 1)")
+        extra = ", with the second search" if second else ""
+        print(f"\n== {label}: {len(problems)} maps ({span}), ARA* {limit} (weights 3 .. 1){extra}")
         print(
             f"  statuses {statuses}; first plan median "
             f"{statistics.median(done) if done else float('nan'):.3f} s (max "

@@ -143,4 +143,5 @@ def test_the_second_search_has_its_own_field_and_work_arrays(monkeypatch):
         own = second.model.h_lazy
         assert own is not shared and not np.shares_memory(own.f, shared.f)
         assert not np.shares_memory(own.i, shared.i) and own.size is not shared.size
+        assert not np.shares_memory(own.p, shared.p)  # a retarget writes p[6], p[7]
         assert len(fastcore._WORK) == 2  # one work set per search, both kept

@@ -83,7 +83,10 @@ class SecondSearch:
             )
         if self.model.h_lazy is not None:
             field = copy.copy(self.model.h_lazy)
+            # every array the resumable search writes: values, heap, sizes, and the
+            # parameters (a retarget rewrites the target cell p[6], p[7])
             field.f, field.i, field.size = field.f.copy(), field.i.copy(), field.size.copy()
+            field.p = field.p.copy()
             self.model.h_lazy = field
         self.result: SearchResult | None = None
         self.t_found = t_begin

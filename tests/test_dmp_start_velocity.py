@@ -83,15 +83,20 @@ def relative_error(x: np.ndarray, demo: np.ndarray) -> float:
 
 
 # --------------------------------------------------------------------------- closed forms
+def _unforced_old_dmp() -> DmpParameters:
+    """A 2-D old-formulation DMP with f = 0 (K 64, tau 0.8 s) and a stored v0."""
+    c = basis_centres(5, 3.0)
+    x0, g, v0 = np.array([0.5, -1.0]), np.array([2.0, 1.0]), np.array([3.0, -4.0])
+    return DmpParameters(
+        np.zeros((2, 5)), c, basis_widths(c, 3.0), 64.0, 16.0, 3.0, 0.8, x0, g, "old", v0=v0
+    )
+
+
 def test_the_stored_v0_is_the_default_initial_velocity_closed_form():
     # Old formulation with f = 0: tau v' = K (g - x) - D v, critically damped, so
     # x - g = (A + B t) exp(-w t) with w = sqrt(K) / tau, A = x0 - g, B = xd0 + w A.
-    K, tau = 64.0, 0.8
-    c = basis_centres(5, 3.0)
-    x0, g, v0 = np.array([0.5, -1.0]), np.array([2.0, 1.0]), np.array([3.0, -4.0])
-    dmp = DmpParameters(
-        np.zeros((2, 5)), c, basis_widths(c, 3.0), K, 2 * np.sqrt(K), 3.0, tau, x0, g, "old", v0=v0
-    )
+    dmp = _unforced_old_dmp()
+    K, tau, x0, g, v0 = dmp.K, dmp.tau, dmp.x0, dmp.goal, dmp.v0
     for tau_r in (tau, 2.0 * tau):  # another tau keeps v = tau dx/dt: xd0 = v0 tau / tau_r
         r = dmp.rollout(tau=tau_r, dt=1e-3, n_steps=2000)
         w, A = np.sqrt(K) / tau_r, x0 - g
@@ -110,12 +115,8 @@ def test_old_formulation_scales_v0_to_a_new_goal_closed_form():
     # Eq. 1 scales f by g - x0: a run to another goal is the demonstration scaled per DOF by
     # s = (g - x0) / (g_learned - x0_learned), its start velocity s v0 too. With f = 0 the
     # closed form of the test above with xd0 = s v0 (per-sample goals: their first row).
-    K, tau = 64.0, 0.8
-    c = basis_centres(5, 3.0)
-    x0, g, v0 = np.array([0.5, -1.0]), np.array([2.0, 1.0]), np.array([3.0, -4.0])
-    dmp = DmpParameters(
-        np.zeros((2, 5)), c, basis_widths(c, 3.0), K, 2 * np.sqrt(K), 3.0, tau, x0, g, "old", v0=v0
-    )
+    dmp = _unforced_old_dmp()
+    K, tau, x0, g, v0 = dmp.K, dmp.tau, dmp.x0, dmp.goal, dmp.v0
     new_x0, new_g = np.array([0.0, -2.0]), np.array([-1.0, 2.0])
     s = (new_g - new_x0) / (g - x0)  # [-2/3, 2]
     np.testing.assert_allclose(dmp.start_velocity(new_g, new_x0), s * v0, rtol=1e-15)

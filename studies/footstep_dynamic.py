@@ -413,6 +413,7 @@ def summarize(
             color=[color for _, color, _ in series],
             label=[f"{label}: {len(values)}" for values, _, label in series],
         )
+        ax.set_ylim(0, ax.get_ylim()[1] * 1.6)  # headroom: the legend above the bars
         ax.legend(loc="upper right", fontsize=7, title="successful runs", title_fontsize=7)
         ax.set_xlabel("arrival time (s)")
         ax.set_ylabel("phase pairs")

@@ -712,7 +712,10 @@ def compiled_anytime(
     )
     left = time_limit - (time.perf_counter() - t0)
     ws = np.asarray(weights, dtype=float)
-    work = _WORK.pop() if _WORK else _fresh_work()  # pop: one search per work set
+    try:  # pop: one search per work set (a test-then-pop could race another thread)
+        work = _WORK.pop()
+    except IndexError:
+        work = _fresh_work()
     out_i, out_f, paths, pptr, work = _arastar(
         start, *tab.values(), ws, int(max_expansions), float(max(left, 1e-9)),
         int(HOT_ROWS), int(HOT_KEEP), *work,

@@ -179,10 +179,10 @@ def _scene(config: FootstepDynamicConfig, seed: int):
     )
 
 
-def _plan(config: FootstepDynamicConfig, scene):
+def _plan(config: FootstepDynamicConfig, scene, table):
+    """The single plan through the scene (``table``: the config's action table, loaded)."""
     from repertoire.planning.footstep import plan_footsteps
 
-    table = load_table(config.table_path)
     return plan_footsteps(
         scene.env,
         scene.start,
@@ -193,7 +193,7 @@ def _plan(config: FootstepDynamicConfig, scene):
     )
 
 
-def _plan_receding(config: FootstepDynamicConfig, scene):
+def _plan_receding(config: FootstepDynamicConfig, scene, table):
     """The receding-horizon run: rounds of ``receding_round_expansions`` expansions each."""
     from repertoire.planning.footstep.receding import plan_receding_horizon
 
@@ -206,7 +206,7 @@ def _plan_receding(config: FootstepDynamicConfig, scene):
         scene.start,
         scene.start_foot,
         scene.goal,
-        load_table(config.table_path),
+        table,
         options,
         execute_steps=config.receding_execute_steps,
         max_rounds=config.receding_max_rounds,
@@ -228,13 +228,14 @@ def run_episode(config: FootstepDynamicConfig, seed: int) -> FootstepDynamicReco
 
     config.validate()
     scene = _scene(config, seed)
-    plan = _plan(config, scene)
+    table = load_table(config.table_path)  # once for both runs (a file when table_path is set)
+    plan = _plan(config, scene, table)
     counts = action_counts(plan)
     mobile = plan_mobile2d(scene.env.at(0.0), scene.body_start, scene.goal, config.body_radius_m)
     waits, side = counts.get("stop", 0), counts.get("side_step", 0)
     receding = {}
     if config.receding_round_expansions > 0:
-        run = _plan_receding(config, scene)
+        run = _plan_receding(config, scene, table)
         receding = dict(
             receding_status=run.plan.status.value,
             receding_success=run.plan.succeeded,
@@ -381,7 +382,7 @@ def summarize(
     chosen = chosen or next((r for r in records if r.success), None)
     if chosen is not None:
         scene = _scene(config, chosen.seed)
-        plan = _plan(config, scene)
+        plan = _plan(config, scene, load_table(config.table_path))
         path = dynamic_plan_figure(
             scene.env,
             plan,

@@ -45,27 +45,30 @@ def test_load_records_names_the_store_when_its_meta_is_damaged_or_its_config_dri
     path = tmp_path / "s.sqlite"
     with sqlite3.connect(path) as db:
         old = dict(db.execute("SELECT key, value FROM meta"))["config_json"]
-        drifted = json.dumps({**json.loads(old), "gain": 1.0})
-        db.execute("UPDATE meta SET value = ? WHERE key = 'config_json'", (drifted,))
-    with pytest.raises(RepertoireError) as error:
-        load_records(path)
-    assert str(error.value) == (
-        f"store '{path}': its config no longer fits study '_toy' (ToyConfig): config: unknown "
-        "keys ['gain'] for ToyConfig; expected ['offsets', 'scale']"
-    )
-    with sqlite3.connect(path) as db:
-        db.execute("DELETE FROM meta WHERE key = 'config_json'")
-    with pytest.raises(RepertoireError) as error:
-        load_records(path)
-    assert str(error.value) == (
-        f"store '{path}' has no config_json in its meta table, so its 2 episodes cannot be "
-        "read as a study's records"
-    )
-    with sqlite3.connect(path) as db:
-        db.execute("DELETE FROM meta")
-    with pytest.raises(RepertoireError) as error:
-        load_records(path)
-    assert str(error.value) == (
-        f"store '{path}' has no study and no config_json in its meta table, so its 2 episodes "
-        "cannot be read as a study's records"
-    )
+    drifted = json.dumps({**json.loads(old), "gain": 1.0})
+    damages = [  # applied in turn, each on top of the last: (SQL, parameters, the error)
+        (
+            "UPDATE meta SET value = ? WHERE key = 'config_json'",
+            (drifted,),
+            f"store '{path}': its config no longer fits study '_toy' (ToyConfig): config: "
+            "unknown keys ['gain'] for ToyConfig; expected ['offsets', 'scale']",
+        ),
+        (
+            "DELETE FROM meta WHERE key = 'config_json'",
+            (),
+            f"store '{path}' has no config_json in its meta table, so its 2 episodes cannot "
+            "be read as a study's records",
+        ),
+        (
+            "DELETE FROM meta",
+            (),
+            f"store '{path}' has no study and no config_json in its meta table, so its 2 "
+            "episodes cannot be read as a study's records",
+        ),
+    ]
+    for sql, params, message in damages:
+        with sqlite3.connect(path) as db:
+            db.execute(sql, params)
+        with pytest.raises(RepertoireError) as error:
+            load_records(path)
+        assert str(error.value) == message

@@ -45,6 +45,7 @@ def test_static_study_smoke(tmp_path):
     assert result.figures["cut_off"].read_bytes()[:4] == b"\x89PNG"
     assert result.figures["anytime"].read_bytes()[:4] == b"\x89PNG"
     assert result.figures["anytime_maze"].read_bytes()[:4] == b"\x89PNG"
+    assert result.figures["anytime_two_cores"].read_bytes()[:4] == b"\x89PNG"
 
 
 def test_static_paper_setting_episode():

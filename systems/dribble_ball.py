@@ -126,6 +126,7 @@ from repertoire.systems.go_to_pose import (
     run_up_control,
     speed_tolerance,
 )
+from repertoire.systems.goto_law import turn_in_place
 
 from repertoire.errors import RepertoireError
 
@@ -219,7 +220,7 @@ def dribble_control(
     ]
     if turn:
         e = math.remainder(target[2] - state[2], 2.0 * math.pi)
-        v, w = 0.0, clip(gains["k_alpha"] * e, -1.0, 1.0) * gains["omega_max"]
+        v, w = 0.0, turn_in_place(e, gains["k_alpha"], gains["omega_max"])
     elif lead == 0.0:  # the pivot's axle: turn, drive, deep enough to turn in (approach_mode)
         inner = gains["position_tolerance"] - gains["control_distance"]
         pivot_gains = gains | {"position_tolerance": inner}

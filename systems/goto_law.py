@@ -35,6 +35,12 @@ def wrap(a: float) -> float:
 
 
 @numba.njit(cache=True)
+def turn_in_place(heading_error: float, k_alpha: float, omega_max: float) -> float:
+    """The pose law's in-place turn: ``clip(k_alpha heading_error, -1, 1) omega_max``."""
+    return min(max(k_alpha * heading_error, -1.0), 1.0) * omega_max
+
+
+@numba.njit(cache=True)
 def law(x, y, phi, xg, yg, phig, vg, g):
     """Unlimited ``(v, omega)`` of the polar pose law and ``(rho, heading_error)``.
 
@@ -47,8 +53,7 @@ def law(x, y, phi, xg, yg, phig, vg, g):
     rho = math.hypot(dx, dy)
     heading_error = wrap(phig - phi)
     if rho < g[POS_TOL]:
-        turn = min(max(g[K_ALPHA] * heading_error, -1.0), 1.0) * g[OMEGA_MAX]
-        return 0.0, turn, rho, heading_error
+        return 0.0, turn_in_place(heading_error, g[K_ALPHA], g[OMEGA_MAX]), rho, heading_error
     direction = math.atan2(dy, dx)
     alpha = wrap(direction - phi)
     beta = wrap(phig - direction)

@@ -199,8 +199,9 @@ class DmpSequencer(LeafSystem):
         self._q = None if quaternion_at is None else slice(quaternion_at, quaternion_at + 4)
         x_start = segments[0].x0 if x_start is None else self._check_start(x_start)
         x_start = self._learned_side(0, x_start)[0]
-        # the first segment's demonstrated start velocity (v = tau dx/dt), as every DMP system
-        v_start = segments[0].initial_scaled_velocity()
+        # the first segment's demonstrated start velocity (v = tau dx/dt), as every DMP system;
+        # in the old formulation scaled to goal_0 at the onset (repertoire.systems.dmp_start)
+        v_start = self._learned_v = segments[0].initial_scaled_velocity()
         self._goal_ports = [
             self.DeclareVectorInputPort(f"goal_{i}", n) for i in range(len(segments))
         ]
@@ -230,6 +231,15 @@ class DmpSequencer(LeafSystem):
             )
             self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
             state = {self.xd_ticket()}
+        # the flag "the start velocity is the learned one, to be scaled to goal_0 at the onset"
+        self._pending = (
+            self.DeclareDiscreteState(np.ones(n)) if segments[0].scales_start_velocity() else None
+        )
+        if self._pending is not None:  # the velocity depends on goal_0 until the onset
+            state = state | {
+                self.discrete_state_ticket(self._pending),
+                self.input_port_ticket(self._goal_ports[0].get_index()),
+            }
         for part, sl in (parts or {}).items():
             if not (
                 isinstance(sl, slice)
@@ -315,27 +325,58 @@ class DmpSequencer(LeafSystem):
             context.SetDiscreteState(self._delay, np.zeros(1))
         else:
             context.SetDiscreteState(self._state, np.concatenate([[0.0, 0.0], x, x, v]))
+        if self._pending is not None:
+            context.SetDiscreteState(self._pending, np.full(self._n, float(xd_start is None)))
 
     # --- state access (both modes) ---------------------------------------------------
-    def _split(self, context: Context) -> tuple[int, float, np.ndarray, np.ndarray, np.ndarray]:
-        """(segment, theta or step count, x0, x, v) of the active segment."""
+    def _split(
+        self, context: Context, onset: bool = True
+    ) -> tuple[int, float, np.ndarray, np.ndarray, np.ndarray]:
+        """(segment, theta or step count, x0, x, v) of the active segment.
+
+        ``v`` with the flagged learned start velocity scaled to goal_0 (``onset``;
+        :meth:`_onset_velocity`), else the state's.
+        """
         n = self._n
         if self._dt is None:
             sw = context.get_discrete_state(self._switch).value()
             z = context.get_continuous_state_vector().CopyToVector()
-            return int(sw[0]), z[0], sw[1:], sw[1:] + z[1 : 1 + n], z[1 + n :]
-        s = context.get_discrete_state(self._state).get_value()
-        return int(s[0]), s[1], s[2 : 2 + n], s[2 + n : 2 + 2 * n], s[2 + 2 * n :]
+            out = int(sw[0]), z[0], sw[1:], sw[1:] + z[1 : 1 + n], z[1 + n :]
+        else:
+            s = context.get_discrete_state(self._state).get_value()
+            out = int(s[0]), s[1], s[2 : 2 + n], s[2 + n : 2 + 2 * n], s[2 + 2 * n :]
+        return (*out[:4], self._onset_velocity(context, out[2], out[4])) if onset else out
+
+    def _pending_flag(self, context: Context) -> np.ndarray | None:
+        """The flag of the first segment's learned start velocity while it is unscaled."""
+        if self._pending is None:
+            return None
+        flag = context.get_discrete_state(self._pending).value()
+        return flag if flag.any() else None
+
+    def _onset_velocity(self, context: Context, x0: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``v`` with the flagged learned start scaled to goal_0 (old formulation, eq. 1).
+
+        As :class:`repertoire.systems.dmp_start.OnsetStartVelocity`: the state keeps the
+        learned ``tau v0`` until the onset, where goal_0 scales it once (the first step, or
+        the first switch check from the first start time on, continuous).
+        """
+        flag = self._pending_flag(context)
+        if flag is None:
+            return v
+        first = self._segments[0]
+        s = first.start_scale(self._goal(context, 0, x0), x0)
+        return v + flag * (s - 1.0) * self._learned_v
 
     def _segment(self, context: Context) -> int:
-        return self._split(context)[0]
+        return self._split(context, onset=False)[0]
 
     def _theta(self, context: Context) -> float:
-        seg, k, *_ = self._split(context)
+        seg, k, *_ = self._split(context, onset=False)
         return k if self._dt is None else self._tabs[seg].phase_and_f(k)[0]
 
     def _x(self, context: Context) -> np.ndarray:
-        return self._split(context)[3]
+        return self._split(context, onset=False)[3]
 
     def _xd(self, context: Context) -> np.ndarray:
         if self._held(context):  # the position does not move (the state keeps tau v0)
@@ -477,6 +518,11 @@ class DmpSequencer(LeafSystem):
 
     def _maybe_switch(self, context: Context, state) -> None:
         seg, _, x0_active, x, v = self._split(context)
+        if self._pending_flag(context) is not None and not self._held(context):
+            z = context.get_continuous_state_vector().CopyToVector()  # the onset: scale once
+            z[1 + self._n :] = v
+            state.get_mutable_continuous_state().get_mutable_vector().SetFromVector(z)
+            state.get_mutable_discrete_state(self._pending).SetFromVector(np.zeros(self._n))
         t, delay = context.get_time(), self.start_delay(context)
         due = self._times[seg + 1] + delay if seg + 1 < len(self._times) else np.inf
         if t < due - 1e-9:
@@ -503,6 +549,8 @@ class DmpSequencer(LeafSystem):
         if step < self._steps[0]:
             discrete_state.set_value(self._state, context.get_discrete_state(self._state).value())
             return
+        if self._pending_flag(context) is not None:  # the onset: v above is scaled, once
+            discrete_state.set_value(self._pending, np.zeros(self._n))
         if seg + 1 < len(self._segments) and step >= self._steps[seg + 1]:
             x, x0, v = self._next(context, seg, x, v)
             seg, k = seg + 1, 0

@@ -14,6 +14,8 @@ import numpy as np
 from pydrake.systems.framework import Context
 from repertoire.planning.dmp import DmpParameters
 
+from repertoire.errors import RepertoireError
+
 
 class OnsetStartVelocity:
     """Mixed in (before LeafSystem) by the vector DMP systems; see the module docstring.
@@ -43,9 +45,13 @@ class OnsetStartVelocity:
 
     def _set_learned_start(self, context: Context, learned) -> None:
         """Flag the DOF whose start velocity is the learned one (``learned``: bool or (n,))."""
+        flag = np.asarray(learned, dtype=bool).astype(float)
+        if flag.shape not in ((), (self._n,)):
+            raise RepertoireError(
+                f"learned must be one bool or one per DOF ({self._n}), got shape {flag.shape}"
+            )
         if self._pending is not None:
-            flag = np.broadcast_to(np.asarray(learned, dtype=float), (self._n,))
-            context.SetDiscreteState(self._pending, flag.copy())
+            context.SetDiscreteState(self._pending, np.broadcast_to(flag, (self._n,)).copy())
 
     def _pending_flag(self, context: Context) -> np.ndarray | None:
         """The flag if any DOF still waits for its onset scaling, else None."""

@@ -200,3 +200,44 @@ def test_an_old_form_task_space_dmp_is_not_stacked_with_a_component_orientation(
     ref = old.position.rollout(goal=goal, dt=1e-3, n_steps=500).x[-1]
     out = system.GetOutputPort("position").Eval(sim.get_context())
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12)
+
+
+def test_a_learned_mask_of_the_wrong_size_is_named(old3):
+    system = DmpSystem(old3["old"], time_step=1e-3)
+    ctx = system.CreateDefaultContext()
+    discrete = system.GetSubsystemByName("dmp")
+    sub = system.GetMutableSubsystemContext(discrete, ctx)
+    with pytest.raises(RepertoireError, match=r"learned must be one bool or one per DOF \(3\)"):
+        discrete.set_start(sub, np.zeros(3), np.zeros(3), learned=[True, False])
+    discrete.set_start(sub, np.zeros(3), old3["old"].v0, learned=[True, False, True])
+    goal = np.array([2.0, -1.0, 0.5])
+    system.GetInputPort("goal").FixValue(ctx, goal)
+    scale = old3["old"].start_scale(goal, np.zeros(3))
+    expected = old3["old"].v0 * np.array([scale[0], 1.0, scale[2]])
+    np.testing.assert_allclose(system.GetOutputPort("velocity").Eval(ctx), expected, rtol=1e-14)
+
+
+def test_start_scale_closed_form():
+    # s = (g - x0) / (learned g - learned x0) per DOF in the old form; 1 where the learned
+    # displacement is 0 (eq. 1 cannot scale it) and everywhere in the new form
+    dmp = learn_dmp(np.linspace(0, 1, 5), np.zeros((5, 1)), n_basis=2)  # shapes only
+    old = dataclasses.replace(
+        dmp,
+        weights=np.zeros((3, 2)),
+        K=np.full(3, 100.0),
+        D=np.full(3, 20.0),
+        x0=np.array([1.0, 0.0, 2.0]),
+        goal=np.array([3.0, 0.0, 1.0]),
+        v0=np.array([0.5, 1.0, 0.0]),
+        formulation="old",
+    )
+    goal, x0 = np.array([-3.0, 5.0, 7.0]), np.array([1.0, 1.0, 1.0])
+    np.testing.assert_array_equal(old.start_scale(goal, x0), [-2.0, 1.0, -6.0])
+    np.testing.assert_array_equal(old.start_velocity(goal, x0), [-1.0, 1.0, 0.0])
+    assert old.scales_start_velocity()  # v0 = 0.5 in the moved DOF 0
+    assert not dataclasses.replace(old, v0=np.array([0.0, 1.0, 0.0])).scales_start_velocity()
+    new = dataclasses.replace(old, formulation="new")
+    np.testing.assert_array_equal(new.start_scale(goal, x0), np.ones(3))
+    assert not new.scales_start_velocity()
+    with pytest.raises(RepertoireError, match="goal must have 3 entries"):
+        old.start_scale(np.zeros(2), x0)

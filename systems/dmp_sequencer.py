@@ -46,6 +46,7 @@ from repertoire.planning.dmp_quaternion import (
     learned_side,
     lift_quaternion_goal,
     post_normalised,
+    quaternion_rate,
 )
 from repertoire.systems.dmp import check_finite_input, check_unit_goal, goal_input
 
@@ -201,7 +202,8 @@ class DmpSequencer(LeafSystem):
         x_start = self._learned_side(0, x_start)[0]
         # the first segment's demonstrated start velocity (v = tau dx/dt), as every DMP system;
         # in the old formulation scaled to goal_0 at the onset (repertoire.systems.dmp_start)
-        v_start = self._learned_v = segments[0].initial_scaled_velocity()
+        self._learned_v = segments[0].initial_scaled_velocity()
+        v_start = self._start_velocity(x_start)
         self._goal_ports = [
             self.DeclareVectorInputPort(f"goal_{i}", n) for i in range(len(segments))
         ]
@@ -233,7 +235,9 @@ class DmpSequencer(LeafSystem):
             state = {self.xd_ticket()}
         # the flag "the start velocity is the learned one, to be scaled to goal_0 at the onset"
         self._pending = (
-            self.DeclareDiscreteState(np.ones(n)) if segments[0].scales_start_velocity() else None
+            self.DeclareDiscreteState(self._scaled_dofs())
+            if segments[0].scales_start_velocity()
+            else None
         )
         if self._pending is not None:  # the velocity depends on goal_0 until the onset
             state = state | {
@@ -315,7 +319,8 @@ class DmpSequencer(LeafSystem):
         first = self._segments[0]
         x_start = self._check_start(x_start)
         if xd_start is None:
-            x, v = self._learned_side(0, x_start)[0], first.initial_scaled_velocity()
+            x = self._learned_side(0, x_start)[0]
+            v = self._start_velocity(x)
         else:
             v = first.tau * check_finite_vector("xd_start", xd_start, self._n)
             x, v = self._learned_side(0, x_start, v)
@@ -326,7 +331,32 @@ class DmpSequencer(LeafSystem):
         else:
             context.SetDiscreteState(self._state, np.concatenate([[0.0, 0.0], x, x, v]))
         if self._pending is not None:
-            context.SetDiscreteState(self._pending, np.full(self._n, float(xd_start is None)))
+            context.SetDiscreteState(self._pending, self._scaled_dofs() * (xd_start is None))
+
+    def _start_velocity(self, x: np.ndarray) -> np.ndarray:
+        """The first segment's learned scaled start velocity for a chain starting at ``x``.
+
+        ``tau v0``, but the quaternion block turns at the learned angular velocity from
+        ``x``'s orientation (``omega0 q / 2``, as DmpSystem and
+        :meth:`repertoire.planning.dmp.QuaternionDmpParameters.rollout` start), not with
+        the learned start's R^4 rate (off by 6e-4 rad at 0.5 s from a start turned 0.54 rad).
+
+        Args:
+            x: The chain's start, its quaternion block on the learned side.
+        """
+        v = self._learned_v.copy()
+        if self._q is not None:
+            first = self._segments[0]
+            omega0 = angular_velocity(first.x0[self._q], first.v0[self._q])
+            v[self._q] = first.tau * quaternion_rate(omega0, x[self._q])
+        return v
+
+    def _scaled_dofs(self) -> np.ndarray:
+        """1 per DOF whose learned start velocity scales with goal_0 (not the quaternion)."""
+        flag = np.ones(self._n)
+        if self._q is not None:
+            flag[self._q] = 0.0  # the learned turn rate at the start (_start_velocity)
+        return flag
 
     # --- state access (both modes) ---------------------------------------------------
     def _split(

@@ -18,7 +18,11 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import VectorLogSink
 from repertoire.planning.dmp_chain import chain_rollout, stack_task_space_dmp
 from repertoire.planning.dmp_demos import sines_in_motion
-from repertoire.planning.dmp_learn import learn_dmp, learn_task_space_dmp
+from repertoire.planning.dmp_learn import (
+    learn_dmp,
+    learn_dmp_from_demonstrations,
+    learn_task_space_dmp,
+)
 from repertoire.systems.dmp_compose import DmpSystem
 from repertoire.systems.dmp_sequencer import DmpSequencer, task_space_sequencer
 
@@ -241,3 +245,25 @@ def test_start_scale_closed_form():
     assert not new.scales_start_velocity()
     with pytest.raises(RepertoireError, match="goal must have 3 entries"):
         old.start_scale(np.zeros(2), x0)
+
+
+def test_old_form_learning_from_several_demonstrations_ignores_their_amplitudes():
+    # Eq. 5 learns each demonstration divided by its g - x0, so two demonstrations and their
+    # copies rescaled (about their starts) to the mean displacement learn one DMP. The start
+    # velocity was the mean of the raw ones: v0 (0.72, -0.51) against (1.94, 0.73), rollouts
+    # 2.5 % of the range apart. It is now averaged divided by g - x0 too.
+    tA, xA, _ = sines_in_motion(995, 2, 1.0, 501)
+    tB, xB, _ = sines_in_motion(996, 2, 1.0, 501)
+    target = 0.5 * ((xA[-1] - xA[0]) + (xB[-1] - xB[0]))
+    rescaled = [xA[0] + (xA - xA[0]) * target / (xA[-1] - xA[0])]
+    rescaled.append(xB[0] + (xB - xB[0]) * target / (xB[-1] - xB[0]))
+    one = learn_dmp_from_demonstrations([(tA, xA), (tB, xB)], n_basis=30, formulation="old")
+    two = learn_dmp_from_demonstrations(
+        [(tA, rescaled[0]), (tB, rescaled[1])], n_basis=30, formulation="old"
+    )
+    np.testing.assert_allclose(one.v0, two.v0, rtol=1e-12)
+    r1, r2 = one.rollout(dt=1e-3), two.rollout(dt=1e-3)
+    np.testing.assert_allclose(r1.x, r2.x, rtol=0, atol=1e-10 * np.ptp(r1.x, axis=0).max())
+    # one demonstration: the same v0 as learn_dmp (v0 / (g - x0) (g - x0))
+    single = learn_dmp_from_demonstrations([(tA, xA)], n_basis=30, formulation="old")
+    np.testing.assert_allclose(single.v0, learn_dmp(tA, xA, n_basis=30, formulation="old").v0)

@@ -49,6 +49,7 @@ from repertoire.planning.dmp_quaternion import (
     quaternion_rate,
 )
 from repertoire.systems.dmp import check_finite_input, check_unit_goal, goal_input
+from repertoire.systems.dmp_start import OnsetStartVelocity
 
 from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
@@ -83,7 +84,7 @@ def check_waits(
     return waits, wait_dofs, float(max_wait)
 
 
-class DmpSequencer(LeafSystem):
+class DmpSequencer(OnsetStartVelocity, LeafSystem):
     """Chained n-D DMPs with per-segment goal inputs (sec. III-C).
 
     Input ports:
@@ -202,7 +203,7 @@ class DmpSequencer(LeafSystem):
         x_start = self._learned_side(0, x_start)[0]
         # the first segment's demonstrated start velocity (v = tau dx/dt), as every DMP system;
         # in the old formulation scaled to goal_0 at the onset (repertoire.systems.dmp_start)
-        self._learned_v = segments[0].initial_scaled_velocity()
+        self._start_dmp, self._learned_v = segments[0], segments[0].initial_scaled_velocity()
         v_start = self._start_velocity(x_start)
         self._goal_ports = [
             self.DeclareVectorInputPort(f"goal_{i}", n) for i in range(len(segments))
@@ -375,28 +376,16 @@ class DmpSequencer(LeafSystem):
         else:
             s = context.get_discrete_state(self._state).get_value()
             out = int(s[0]), s[1], s[2 : 2 + n], s[2 + n : 2 + 2 * n], s[2 + 2 * n :]
-        return (*out[:4], self._onset_velocity(context, out[2], out[4])) if onset else out
+        return (*out[:4], self._first_velocity(context, out[2], out[4])) if onset else out
 
-    def _pending_flag(self, context: Context) -> np.ndarray | None:
-        """The flag of the first segment's learned start velocity while it is unscaled."""
-        if self._pending is None:
-            return None
-        flag = context.get_discrete_state(self._pending).value()
-        return flag if flag.any() else None
-
-    def _onset_velocity(self, context: Context, x0: np.ndarray, v: np.ndarray) -> np.ndarray:
+    def _first_velocity(self, context: Context, x0: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``v`` with the flagged learned start scaled to goal_0 (old formulation, eq. 1).
 
-        As :class:`repertoire.systems.dmp_start.OnsetStartVelocity`: the state keeps the
-        learned ``tau v0`` until the onset, where goal_0 scales it once (the first step, or
-        the first switch check from the first start time on, continuous).
+        :class:`repertoire.systems.dmp_start.OnsetStartVelocity`: the state keeps the learned
+        ``tau v0`` until the onset, where goal_0 scales it once (the first step, or the first
+        switch check from the first start time on, continuous).
         """
-        flag = self._pending_flag(context)
-        if flag is None:
-            return v
-        first = self._segments[0]
-        s = first.start_scale(self._goal(context, 0, x0), x0)
-        return v + flag * (s - 1.0) * self._learned_v
+        return self._onset_velocity(context, v, x0, lambda: self._goal(context, 0, x0))
 
     def _segment(self, context: Context) -> int:
         return self._split(context, onset=False)[0]

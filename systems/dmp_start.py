@@ -10,6 +10,8 @@ onset: there the goal input scales it, once. A goal that changes later acts thro
 goal per sample (it scales ``v0`` by the first) and ``with_goal`` (a new goal is a new run).
 """
 
+from collections.abc import Callable
+
 import numpy as np
 from pydrake.systems.framework import Context
 from repertoire.planning.dmp import DmpParameters
@@ -21,9 +23,10 @@ class OnsetStartVelocity:
     """Mixed in (before LeafSystem) by the vector DMP systems; see the module docstring.
 
     The system sets ``_n``, ``_goal_port`` and ``_goal(context)`` (the goal input or the
-    learned goal). The flag is a discrete state group, declared only for a DMP whose start
-    velocity can scale (:meth:`DmpParameters.scales_start_velocity`); every other DMP has
-    the state it had.
+    learned goal); :class:`repertoire.systems.dmp_sequencer.DmpSequencer` sets
+    ``_start_dmp``, ``_learned_v`` and ``_pending`` itself and passes its goal_0. The flag
+    is a discrete state group, declared only for a DMP whose start velocity can scale
+    (:meth:`DmpParameters.scales_start_velocity`); every other DMP has the state it had.
     """
 
     def _declare_start_velocity(self, dmp: DmpParameters) -> None:
@@ -60,19 +63,27 @@ class OnsetStartVelocity:
         flag = context.get_discrete_state(self._pending).value()
         return flag if flag.any() else None
 
-    def _onset_velocity(self, context: Context, v: np.ndarray, x0: np.ndarray) -> np.ndarray:
+    def _onset_velocity(
+        self,
+        context: Context,
+        v: np.ndarray,
+        x0: np.ndarray,
+        goal: "Callable[[], np.ndarray] | None" = None,
+    ) -> np.ndarray:
         """The scaled velocity ``v`` with the flagged learned start scaled to the goal input.
 
         Args:
             context: This system's context.
             v: The state's scaled velocity (the learned ``tau v0`` while held).
             x0: The equations' start (absolute).
+            goal: Returns the goal (absolute), called only while a DOF waits; default
+                ``self._goal(context)``.
         """
         flag = self._pending_flag(context)
         if flag is None:
             return v
-        s = self._start_dmp.start_scale(self._goal(context), x0)
-        return v + flag * (s - 1.0) * self._learned_v
+        g = self._goal(context) if goal is None else goal()
+        return v + flag * (self._start_dmp.start_scale(g, x0) - 1.0) * self._learned_v
 
 
 __all__ = ["OnsetStartVelocity"]

@@ -267,13 +267,30 @@ class DmpParameters(_FieldsRecord):
         """
         return self.tau * self.v0
 
-    def start_velocity(self, goal: np.ndarray, x0: np.ndarray) -> np.ndarray:
-        """The initial velocity dx/dt [per s] (at the learned tau) of a run from x0 to goal.
+    def start_scale(self, goal: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """Per DOF, how a run from x0 to goal scales the learned start velocity, shape (n_dims,).
 
-        The new formulation (eq. 6) adds ``K f`` unscaled, so a run to any goal starts with
-        the learned ``v0``. The old one (eq. 1) multiplies f by ``g - x0``: its run is the
-        demonstration scaled per DOF by ``s = (g - x0) / (learned g - learned x0)``, so its
-        start velocity is ``s v0`` (``v0`` where the learned displacement is 0).
+        The new formulation (eq. 6) adds ``K f`` unscaled: 1. The old one (eq. 1) multiplies
+        f by ``g - x0``: its run is the demonstration scaled per DOF by ``s = (g - x0) /
+        (learned g - learned x0)`` (1 where the learned displacement is 0, which eq. 1
+        cannot scale).
+
+        Args:
+            goal: The run's goal (at its start), shape (n_dims,).
+            x0: The run's start, shape (n_dims,).
+        """
+        scale = np.ones(self.n_dims)
+        if self.formulation == "new":
+            return scale
+        goal = check_finite_vector("goal", goal, self.n_dims)
+        x0 = check_finite_vector("x0", x0, self.n_dims)
+        learned = self.goal - self.x0
+        moved = learned != 0.0
+        scale[moved] = (goal - x0)[moved] / learned[moved]
+        return scale
+
+    def start_velocity(self, goal: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """The start velocity dx/dt [per s] (learned tau) of a run: ``start_scale(goal, x0) v0``.
 
         Args:
             goal: The run's goal (at its start), shape (n_dims,).
@@ -281,13 +298,11 @@ class DmpParameters(_FieldsRecord):
         """
         if self.formulation == "new" or not np.any(self.v0):
             return self.v0
-        learned = self.goal - self.x0
-        moved = learned != 0.0
-        scale = np.ones(self.n_dims)
-        goal = check_finite_vector("goal", goal, self.n_dims)
-        x0 = check_finite_vector("x0", x0, self.n_dims)
-        scale[moved] = (goal - x0)[moved] / learned[moved]
-        return scale * self.v0
+        return self.start_scale(goal, x0) * self.v0
+
+    def scales_start_velocity(self) -> bool:
+        """Whether :meth:`start_scale` can change ``v0`` (old form, ``v0`` in a moved DOF)."""
+        return self.formulation == "old" and bool(np.any(self.v0[self.goal != self.x0]))
 
     def with_tau(self, tau: float) -> "DmpParameters":
         """Copy re-timed: ``x(t)`` becomes ``x(t self.tau / tau)``, the same path in space.

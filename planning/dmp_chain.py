@@ -158,8 +158,9 @@ def chain_rollout(
         goals: One goal per segment.
         switch_times: Start time of each segment (first usually 0), increasing.
         x0: Start of the first segment; default its learned start. The chain starts with
-            the first segment's learned velocity ``v0`` (zero for a rest demonstration) at
-            ``switch_times[0]``; before it the position is held and ``xd`` and ``xdd`` are 0.
+            the first segment's learned velocity ``v0`` (zero for a rest demonstration; in
+            the old formulation scaled to its goal, as its rollout) at ``switch_times[0]``;
+            before it the position is held and ``xd`` and ``xdd`` are 0.
         duration: Total duration [s], more than one step past the last switch time;
             default last switch + last tau.
         dt: Time step [s], > 0.
@@ -217,6 +218,8 @@ def chain_rollout(
         except (TypeError, ValueError) as err:
             raise RepertoireError(f"segment {i}: goal must be {n} numbers, got {g!r}") from err
         try:
+            if prev_acc is None:  # old formulation: v0 scaled to the goal (as its rollout)
+                v0 = dmp.start_velocity(goal[0] if goal.ndim == 2 else goal, x_eq)
             r = dmp.rollout(goal=goal, x0=x_eq, v0=v0, dt=dt, n_steps=m, x_init=x)
         except RepertoireError as err:
             raise type(err)(f"segment {i}: {err}") from err
@@ -269,7 +272,8 @@ def stack_task_space_dmp(dmp: TaskSpaceDmp) -> StackedDmp:
         dmp: The task-space DMP.
 
     Raises:
-        RepertoireError: the parts do not share their basis (centres and widths).
+        RepertoireError: the parts do not share their basis (centres and widths) or their
+            formulation (a component orientation is always ``"new"``).
     """
     parts = [("position", dmp.position)]
     if dmp.orientation.mode == "component":
@@ -278,6 +282,11 @@ def stack_task_space_dmp(dmp: TaskSpaceDmp) -> StackedDmp:
         parts.append(("fingers", dmp.fingers))
     first = dmp.position
     for name, p in parts[1:]:
+        if p.formulation != first.formulation:  # one stacked DMP runs one equation
+            raise RepertoireError(
+                f"the {name} DMP is in the {p.formulation!r} formulation, the position DMP in "
+                f"{first.formulation!r}: they cannot be stacked into one DMP"
+            )
         if not (
             np.array_equal(p.centres, first.centres) and np.array_equal(p.widths, first.widths)
         ):

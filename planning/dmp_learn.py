@@ -344,7 +344,7 @@ def learn_dmp_from_demonstrations(
             )
     Kv, Dv = _gains(n, K, D)
     a, c, h = _basis(n_basis, alpha, overlap, sum(t.size for t, _ in demos))
-    feats, targs, taus, v_starts = [], [], [], []
+    feats, targs, taus, v_starts, moves = [], [], [], [], []
     for i, (t, x) in enumerate(demos):
         tau = float(t[-1] - t[0])
         try:
@@ -358,6 +358,7 @@ def learn_dmp_from_demonstrations(
         targs.append(F)
         taus.append(tau)
         v_starts.append(tau * start_velocity(xd[0], x, tau, estimated=True))
+        moves.append(x[-1] - x[0])
     # Each demonstration weighs the same, whatever its sampling rate: rows scaled by
     # sqrt(most rows / its rows), 1 when all have as many (a 10 kHz demonstration outweighed
     # a 100 Hz one 100 to 1: opposite bumps of 0.3 were learned as -0.293, not their mean).
@@ -368,8 +369,13 @@ def learn_dmp_from_demonstrations(
     x0 = np.mean([x[0] for _, x in demos], axis=0)
     g = np.mean([x[-1] for _, x in demos], axis=0)
     tau = float(np.mean(taus))
-    # the mean scaled start velocity tau xd(0) (what each demonstration's eq. 8 saw)
-    v0 = np.mean(v_starts, axis=0) / tau
+    # the mean scaled start velocity tau xd(0) (what each demonstration's eq. 8 saw); the
+    # old form (eq. 5) learns each demonstration divided by its g - x0 (nonzero, checked
+    # above), so its start velocity is averaged so too and scaled to the mean g - x0
+    if formulation == "old":
+        v0 = np.mean([v / m for v, m in zip(v_starts, moves)], axis=0) * (g - x0) / tau
+    else:
+        v0 = np.mean(v_starts, axis=0) / tau
     return DmpParameters(
         weights, c, h, Kv, Dv, a, tau, x0, g, formulation, names=names or [], v0=v0
     )

@@ -34,6 +34,7 @@ from repertoire.planning.dmp_quaternion import (
     post_normalised,
     quat_log_error,
 )
+from repertoire.systems.dmp_start import OnsetStartVelocity
 
 from repertoire.errors import RepertoireError
 
@@ -236,14 +237,17 @@ class CouplingAndOnset(Onset, VectorDmpPorts):
         return check_finite_input("coupling", self._coupling_port.Eval(context))
 
 
-class TransformationSystem(CouplingAndOnset, LeafSystem):
+class TransformationSystem(OnsetStartVelocity, CouplingAndOnset, LeafSystem):
     """n-DOF transformation system, the paper's new form (eq. 6, 9) or the old one (eq. 1).
 
     Continuous state ``[x - x0 (n), v (n)]``: the displacement from the ``x0`` parameter
     (the equations see positions only through ``g - x``, ``g - x0`` and ``x - x0``, so a
     movement far from the origin keeps its digits, as the discrete step and the NumPy
     rollout do) and ``v = tau dx/dt``; initially ``x = x0`` and ``v = tau dmp.v0`` (the
-    demonstration's initial velocity, :meth:`DmpParameters.initial_scaled_velocity`).
+    demonstration's initial velocity, :meth:`DmpParameters.initial_scaled_velocity`). In
+    the old formulation that learned velocity is scaled to the goal input at the onset, as
+    ``rollout`` scales it to its goal (:mod:`repertoire.systems.dmp_start`: a discrete flag
+    and, at the first simulator step from the onset, a per-step update).
     :meth:`set_start` and :meth:`set_state` take absolute positions. Before the
     ``start_time`` parameter the state is held: derivatives and the velocity and
     acceleration outputs are 0 (the state keeps ``v``, the velocity the movement starts
@@ -281,7 +285,6 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         self._n, self._b = n, b
         self._formulation = dmp.formulation
         self._learned_goal = dmp.goal.copy()
-        self._learned_v = dmp.initial_scaled_velocity()
         self._w = self.DeclareNumericParameter(BasicVector(dmp.weights.reshape(-1)))
         self._c = self.DeclareNumericParameter(BasicVector(dmp.centres))
         self._h = self.DeclareNumericParameter(BasicVector(dmp.widths))
@@ -290,10 +293,13 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         self._tau = self.DeclareNumericParameter(BasicVector([dmp.tau]))
         self._x0 = self.DeclareNumericParameter(BasicVector(dmp.x0))
         self._start = self.DeclareNumericParameter(BasicVector([0.0]))
+        self._declare_start_velocity(dmp)
         state0 = np.concatenate([np.zeros(n), self._learned_v])
         self.DeclareContinuousState(BasicVector(state0), n, n, 0)
         self._phase_port = self.DeclareVectorInputPort("phase", 1)
         self._goal_port = self.DeclareVectorInputPort("goal", n)
+        if self._pending is not None:
+            self.DeclarePerStepUnrestrictedUpdateEvent(self._scale_start)
         self._coupling_port = self.DeclareVectorInputPort("coupling", n) if coupling_input else None
         self._tau_port = self.DeclareVectorInputPort("tau", 1) if time_scaling_input else None
         state_and_params = {self.xc_ticket(), self.all_parameters_ticket()}
@@ -302,7 +308,7 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         )
         # the time too: the velocity is 0 while held before start_time
         vel_prereq = (
-            state_and_params | {self.time_ticket()}
+            state_and_params | {self.time_ticket()} | self._start_tickets()
             if self._tau_port is None
             else {self.all_sources_ticket()}
         )
@@ -328,14 +334,16 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
             context: This system's context.
             x0: Start position, shape (n,).
             xd0: Initial velocity dx/dt, shape (n,); default the learned ``dmp.v0`` (its
-                scaled velocity ``tau v0`` at the learned tau, whatever the context's tau).
+                scaled velocity ``tau v0`` at the learned tau, whatever the context's tau;
+                in the old formulation scaled to the goal input at the onset).
         """
         x0 = check_finite_vector("x0", x0, self._n)
-        context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
         if xd0 is None:
             v = self._learned_v
         else:
             v = self._tau_value(context) * check_finite_vector("xd0", xd0, self._n)
+        context.get_mutable_numeric_parameter(self._x0).SetFromVector(x0)
+        self._set_learned_start(context, xd0 is None)
         context.get_mutable_continuous_state_vector().SetFromVector(
             np.concatenate([np.zeros(self._n), v])
         )
@@ -361,6 +369,7 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         x0 = context.get_numeric_parameter(self._x0).get_value()
         v = self._tau_value(context) * xd
         context.get_mutable_continuous_state_vector().SetFromVector(np.concatenate([x - x0, v]))
+        self._set_learned_start(context, False)
 
     def _tau_value(self, context: Context) -> float:
         if self._tau_port is not None and self._tau_port.HasValue(context):
@@ -380,6 +389,7 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
         theta = float(self._phase_port.Eval(context)[0])
         p = context.get_numeric_parameter
         x0 = p(self._x0).value()
+        v = self._onset_velocity(context, v, x0)
         goal = self._goal(context) - x0  # the equations in the displacement from x0
         W = p(self._w).value().reshape(n, self._b)
         f = forcing_term(theta, W, p(self._c).value(), p(self._h).value())
@@ -411,7 +421,18 @@ class TransformationSystem(CouplingAndOnset, LeafSystem):
             output.SetFromVector(np.zeros(self._n))
             return
         v = context.get_continuous_state_vector().CopyToVector()[self._n :]
+        v = self._onset_velocity(context, v, context.get_numeric_parameter(self._x0).value())
         output.SetFromVector(v / self._tau_value(context))
+
+    def _scale_start(self, context: Context, state) -> None:
+        """From the onset on, the flagged start velocity scaled to the goal input, once."""
+        if self.held(context) or self._pending_flag(context) is None:
+            return
+        z = context.get_continuous_state_vector().CopyToVector()
+        x0 = context.get_numeric_parameter(self._x0).value()
+        z[self._n :] = self._onset_velocity(context, z[self._n :], x0)
+        state.get_mutable_continuous_state().get_mutable_vector().SetFromVector(z)
+        state.get_mutable_discrete_state(self._pending).SetFromVector(np.zeros(self._n))
 
     def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
         _, vd = self._derivatives(context)

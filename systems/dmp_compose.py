@@ -247,7 +247,7 @@ class DmpSystem(Diagram):
         """All vector parts in one DiscreteDmpSystem (one Python call per step)."""
         try:
             stacked = stack_task_space_dmp(dmp)
-        except RepertoireError:  # parts on different bases: one system each
+        except RepertoireError:  # parts on different bases or formulations: one system each
             return False
         fused = stacked.parameters
         self._stacked_v0 = fused.v0
@@ -474,13 +474,16 @@ class DmpSystem(Diagram):
             x0[sl] = check_finite_vector(name, value, sl.stop - sl.start)
             if name == "orientation":
                 x0[sl] = self._component_start(context, x0[sl])
+        learned = np.ones(xd0.size, dtype=bool)  # scaled to the goal at the onset (old form)
         if velocity is not None:
             sl = self._slices["position"]
             xd0[sl] = check_finite_vector("velocity", velocity, sl.stop - sl.start)
+            learned[sl] = False
         if "orientation" in self._slices:  # the learned turn rate at the start: omega0 q / 2
             sl = self._slices["orientation"]
             xd0[sl] = quaternion_rate(self.dmp.orientation.omega0, x0[sl])
-        sysd.set_start(sub, x0, xd0)
+            learned[sl] = False
+        sysd.set_start(sub, x0, xd0, learned=learned)
 
     def set_start_time(self, context: Context, start_time: float) -> None:
         """Hold the whole DMP (phase 1, start state) until ``start_time``.

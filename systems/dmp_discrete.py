@@ -16,6 +16,7 @@ from repertoire.planning.dmp_math import (
     transformation_derivatives,
 )
 from repertoire.systems.dmp import CouplingAndOnset, VectorDmpPorts
+from repertoire.systems.dmp_start import OnsetStartVelocity
 
 from repertoire.errors import RepertoireError
 
@@ -27,13 +28,14 @@ class _DiscreteDmpOutputs(VectorDmpPorts):
     ``_calc_position``, ``_calc_velocity``, ``_calc_acceleration`` and ``_calc_phase``.
     """
 
-    def _declare_discrete_outputs(self, n: int) -> None:
+    def _declare_discrete_outputs(self, n: int, start: set = frozenset()) -> None:
         only_state = {self.xd_ticket()}
         self._position_port = self.DeclareVectorOutputPort(
             "position", n, self._calc_position, prerequisites_of_calc=only_state
         )
-        # the time and start_time too: the velocity is 0 while held
-        held = {self.xd_ticket(), self.time_ticket(), self.all_parameters_ticket()}
+        # the time and start_time too: the velocity is 0 while held; ``start``: what an
+        # old-formulation start velocity depends on (the goal input, OnsetStartVelocity)
+        held = {self.xd_ticket(), self.time_ticket(), self.all_parameters_ticket()} | start
         self._velocity_port = self.DeclareVectorOutputPort(
             "velocity", n, self._calc_velocity, prerequisites_of_calc=held
         )
@@ -48,7 +50,7 @@ class _DiscreteDmpOutputs(VectorDmpPorts):
         return self._phase_port
 
 
-class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
+class DiscreteDmpSystem(OnsetStartVelocity, CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
     """Canonical + transformation system in one discrete-time LeafSystem (fast, exact).
 
     Every ``time_step`` the spring-damper state is advanced by the exact first-order-hold
@@ -59,8 +61,10 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
     a 1 kHz rollout is cheap and reproduces the NumPy rollout to rounding.
 
     Discrete state ``[k, x (n), v (n)]`` (k = steps since onset, v = tau dx/dt; initially
-    ``x0`` and ``tau dmp.v0``, the demonstration's start); the state is held before the
-    ``start_time`` parameter (velocity and acceleration outputs 0 then, as in
+    ``x0`` and ``tau dmp.v0``, the demonstration's start; in the old formulation scaled to
+    the goal input at the onset step, as ``rollout`` scales it to its goal,
+    :mod:`repertoire.systems.dmp_start`); the state is held before the ``start_time``
+    parameter (velocity and acceleration outputs 0 then, as in
     :class:`TransformationSystem`).
 
     Input ports:
@@ -97,24 +101,36 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
         self._tab = DiscreteDmpTables(dmp, self._dt)
         self._x0 = self.DeclareNumericParameter(BasicVector(dmp.x0))
         self._start = self.DeclareNumericParameter(BasicVector([0.0]))
-        self._learned_v = dmp.initial_scaled_velocity()
-        self._state = self.DeclareDiscreteState(np.concatenate([[0.0], dmp.x0, self._learned_v]))
+        self._state = self.DeclareDiscreteState(
+            np.concatenate([[0.0], dmp.x0, dmp.initial_scaled_velocity()])
+        )
+        self._declare_start_velocity(dmp)  # after _state: the state is discrete group 0
         self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
         self._goal_port = self.DeclareVectorInputPort("goal", n)
         self._coupling_port = self.DeclareVectorInputPort("coupling", n) if coupling_input else None
-        self._declare_discrete_outputs(n)
+        self._declare_discrete_outputs(n, self._start_tickets())
 
     @property
     def time_step(self) -> float:
         return self._dt
 
-    def set_start(self, context: Context, x0: np.ndarray, xd0: np.ndarray | None = None) -> None:
+    def set_start(
+        self,
+        context: Context,
+        x0: np.ndarray,
+        xd0: np.ndarray | None = None,
+        *,
+        learned: np.ndarray | None = None,
+    ) -> None:
         """Set the start x0 (parameter and state) and initial velocity; phase back to 1.
 
         Args:
             context: This system's context.
             x0: Start position, shape (n,).
-            xd0: Initial velocity dx/dt; default the learned ``dmp.v0``.
+            xd0: Initial velocity dx/dt; default the learned ``dmp.v0`` (in the old
+                formulation scaled to the goal input at the onset).
+            learned: With ``xd0``, per DOF whether its entry is the learned ``dmp.v0``
+                (then scaled as the default is); default none.
         """
         x0 = check_finite_vector("x0", x0, self._n)
         v = self._learned_v if xd0 is None else self._tau * check_finite_vector("xd0", xd0, self._n)
@@ -122,6 +138,7 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
         context.get_mutable_discrete_state(self._state).SetFromVector(
             np.concatenate([[0.0], x0, v])
         )
+        self._set_learned_start(context, xd0 is None if learned is None else learned)
 
     def get_start(self, context: Context) -> np.ndarray:
         """A copy of the start x0 (numeric parameter).
@@ -139,9 +156,13 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
         goal = self._goal(context)
         x0 = context.get_numeric_parameter(self._x0).get_value()
         p = self._coupling(context) if self._has_coupling(context) else None
+        z = s[1:].copy()
+        if self._pending_flag(context) is not None:  # the onset: scale the learned start once
+            z[self._n :] = self._onset_velocity(context, z[self._n :], x0)
+            discrete_state.set_value(self._pending, np.zeros(self._n))
         out = np.empty_like(s)
         out[0] = s[0] + 1.0
-        out[1:] = self._tab.step(s[1:], int(s[0]), goal, x0, p)
+        out[1:] = self._tab.step(z, int(s[0]), goal, x0, p)
         discrete_state.set_value(self._state, out)
 
     def _calc_position(self, context: Context, output: BasicVector) -> None:
@@ -152,7 +173,8 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
             output.SetFromVector(np.zeros(self._n))
             return
         s = context.get_discrete_state(self._state).get_value()
-        output.SetFromVector(s[1 + self._n :] / self._tau)
+        x0 = context.get_numeric_parameter(self._x0).get_value()
+        output.SetFromVector(self._onset_velocity(context, s[1 + self._n :], x0) / self._tau)
 
     def _calc_phase(self, context: Context, output: BasicVector) -> None:
         k = context.get_discrete_state(self._state).GetAtIndex(0)
@@ -166,12 +188,13 @@ class DiscreteDmpSystem(CouplingAndOnset, _DiscreteDmpOutputs, LeafSystem):
             return
         theta, f = self._tab.phase_and_f(s[0])
         coupling = self._coupling(context)
+        x0 = context.get_numeric_parameter(self._x0).get_value()
         _, vd = transformation_derivatives(
             s[1 : 1 + n],
-            s[1 + n :],
+            self._onset_velocity(context, s[1 + n :], x0),
             theta,
             self._goal(context),
-            context.get_numeric_parameter(self._x0).get_value(),
+            x0,
             f,
             self._dmp.K,
             self._dmp.D,

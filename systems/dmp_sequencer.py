@@ -46,8 +46,10 @@ from repertoire.planning.dmp_quaternion import (
     learned_side,
     lift_quaternion_goal,
     post_normalised,
+    quaternion_rate,
 )
 from repertoire.systems.dmp import check_finite_input, check_unit_goal, goal_input
+from repertoire.systems.dmp_start import OnsetStartVelocity
 
 from repertoire.checks import is_whole
 from repertoire.errors import RepertoireError
@@ -82,7 +84,7 @@ def check_waits(
     return waits, wait_dofs, float(max_wait)
 
 
-class DmpSequencer(LeafSystem):
+class DmpSequencer(OnsetStartVelocity, LeafSystem):
     """Chained n-D DMPs with per-segment goal inputs (sec. III-C).
 
     Input ports:
@@ -199,8 +201,10 @@ class DmpSequencer(LeafSystem):
         self._q = None if quaternion_at is None else slice(quaternion_at, quaternion_at + 4)
         x_start = segments[0].x0 if x_start is None else self._check_start(x_start)
         x_start = self._learned_side(0, x_start)[0]
-        # the first segment's demonstrated start velocity (v = tau dx/dt), as every DMP system
-        v_start = segments[0].initial_scaled_velocity()
+        # the first segment's demonstrated start velocity (v = tau dx/dt), as every DMP system;
+        # in the old formulation scaled to goal_0 at the onset (repertoire.systems.dmp_start)
+        self._start_dmp, self._learned_v = segments[0], segments[0].initial_scaled_velocity()
+        v_start = self._start_velocity(x_start)
         self._goal_ports = [
             self.DeclareVectorInputPort(f"goal_{i}", n) for i in range(len(segments))
         ]
@@ -230,6 +234,17 @@ class DmpSequencer(LeafSystem):
             )
             self.DeclarePeriodicDiscreteUpdateEvent(self._dt, 0.0, self._update)
             state = {self.xd_ticket()}
+        # the flag "the start velocity is the learned one, to be scaled to goal_0 at the onset"
+        self._pending = (
+            self.DeclareDiscreteState(self._scaled_dofs())
+            if segments[0].scales_start_velocity()
+            else None
+        )
+        if self._pending is not None:  # the velocity depends on goal_0 until the onset
+            state = state | {
+                self.discrete_state_ticket(self._pending),
+                self.input_port_ticket(self._goal_ports[0].get_index()),
+            }
         for part, sl in (parts or {}).items():
             if not (
                 isinstance(sl, slice)
@@ -305,7 +320,8 @@ class DmpSequencer(LeafSystem):
         first = self._segments[0]
         x_start = self._check_start(x_start)
         if xd_start is None:
-            x, v = self._learned_side(0, x_start)[0], first.initial_scaled_velocity()
+            x = self._learned_side(0, x_start)[0]
+            v = self._start_velocity(x)
         else:
             v = first.tau * check_finite_vector("xd_start", xd_start, self._n)
             x, v = self._learned_side(0, x_start, v)
@@ -315,27 +331,71 @@ class DmpSequencer(LeafSystem):
             context.SetDiscreteState(self._delay, np.zeros(1))
         else:
             context.SetDiscreteState(self._state, np.concatenate([[0.0, 0.0], x, x, v]))
+        if self._pending is not None:
+            context.SetDiscreteState(self._pending, self._scaled_dofs() * (xd_start is None))
+
+    def _start_velocity(self, x: np.ndarray) -> np.ndarray:
+        """The first segment's learned scaled start velocity for a chain starting at ``x``.
+
+        ``tau v0``, but the quaternion block turns at the learned angular velocity from
+        ``x``'s orientation (``omega0 q / 2``, as DmpSystem and
+        :meth:`repertoire.planning.dmp.QuaternionDmpParameters.rollout` start), not with
+        the learned start's R^4 rate (off by 6e-4 rad at 0.5 s from a start turned 0.54 rad).
+
+        Args:
+            x: The chain's start, its quaternion block on the learned side.
+        """
+        v = self._learned_v.copy()
+        if self._q is not None:
+            first = self._segments[0]
+            omega0 = angular_velocity(first.x0[self._q], first.v0[self._q])
+            v[self._q] = first.tau * quaternion_rate(omega0, x[self._q])
+        return v
+
+    def _scaled_dofs(self) -> np.ndarray:
+        """1 per DOF whose learned start velocity scales with goal_0 (not the quaternion)."""
+        flag = np.ones(self._n)
+        if self._q is not None:
+            flag[self._q] = 0.0  # the learned turn rate at the start (_start_velocity)
+        return flag
 
     # --- state access (both modes) ---------------------------------------------------
-    def _split(self, context: Context) -> tuple[int, float, np.ndarray, np.ndarray, np.ndarray]:
-        """(segment, theta or step count, x0, x, v) of the active segment."""
+    def _split(
+        self, context: Context, onset: bool = True
+    ) -> tuple[int, float, np.ndarray, np.ndarray, np.ndarray]:
+        """(segment, theta or step count, x0, x, v) of the active segment.
+
+        ``v`` with the flagged learned start velocity scaled to goal_0 (``onset``;
+        :meth:`_onset_velocity`), else the state's.
+        """
         n = self._n
         if self._dt is None:
             sw = context.get_discrete_state(self._switch).value()
             z = context.get_continuous_state_vector().CopyToVector()
-            return int(sw[0]), z[0], sw[1:], sw[1:] + z[1 : 1 + n], z[1 + n :]
-        s = context.get_discrete_state(self._state).get_value()
-        return int(s[0]), s[1], s[2 : 2 + n], s[2 + n : 2 + 2 * n], s[2 + 2 * n :]
+            out = int(sw[0]), z[0], sw[1:], sw[1:] + z[1 : 1 + n], z[1 + n :]
+        else:
+            s = context.get_discrete_state(self._state).get_value()
+            out = int(s[0]), s[1], s[2 : 2 + n], s[2 + n : 2 + 2 * n], s[2 + 2 * n :]
+        return (*out[:4], self._first_velocity(context, out[2], out[4])) if onset else out
+
+    def _first_velocity(self, context: Context, x0: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``v`` with the flagged learned start scaled to goal_0 (old formulation, eq. 1).
+
+        :class:`repertoire.systems.dmp_start.OnsetStartVelocity`: the state keeps the learned
+        ``tau v0`` until the onset, where goal_0 scales it once (the first step, or the first
+        switch check from the first start time on, continuous).
+        """
+        return self._onset_velocity(context, v, x0, lambda: self._goal(context, 0, x0))
 
     def _segment(self, context: Context) -> int:
-        return self._split(context)[0]
+        return self._split(context, onset=False)[0]
 
     def _theta(self, context: Context) -> float:
-        seg, k, *_ = self._split(context)
+        seg, k, *_ = self._split(context, onset=False)
         return k if self._dt is None else self._tabs[seg].phase_and_f(k)[0]
 
     def _x(self, context: Context) -> np.ndarray:
-        return self._split(context)[3]
+        return self._split(context, onset=False)[3]
 
     def _xd(self, context: Context) -> np.ndarray:
         if self._held(context):  # the position does not move (the state keeps tau v0)
@@ -477,6 +537,11 @@ class DmpSequencer(LeafSystem):
 
     def _maybe_switch(self, context: Context, state) -> None:
         seg, _, x0_active, x, v = self._split(context)
+        if self._pending_flag(context) is not None and not self._held(context):
+            z = context.get_continuous_state_vector().CopyToVector()  # the onset: scale once
+            z[1 + self._n :] = v
+            state.get_mutable_continuous_state().get_mutable_vector().SetFromVector(z)
+            state.get_mutable_discrete_state(self._pending).SetFromVector(np.zeros(self._n))
         t, delay = context.get_time(), self.start_delay(context)
         due = self._times[seg + 1] + delay if seg + 1 < len(self._times) else np.inf
         if t < due - 1e-9:
@@ -503,6 +568,8 @@ class DmpSequencer(LeafSystem):
         if step < self._steps[0]:
             discrete_state.set_value(self._state, context.get_discrete_state(self._state).value())
             return
+        if self._pending_flag(context) is not None:  # the onset: v above is scaled, once
+            discrete_state.set_value(self._pending, np.zeros(self._n))
         if seg + 1 < len(self._segments) and step >= self._steps[seg + 1]:
             x, x0, v = self._next(context, seg, x, v)
             seg, k = seg + 1, 0

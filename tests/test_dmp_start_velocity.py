@@ -21,7 +21,11 @@ from repertoire.planning.dmp import (
     load_dmp,
     save_dmp,
 )
-from repertoire.planning.dmp_chain import chain_rollout, directional_primitive
+from repertoire.planning.dmp_chain import (
+    chain_rollout,
+    directional_primitive,
+    stack_task_space_dmp,
+)
 from repertoire.planning.dmp_demos import sines_in_motion
 from repertoire.planning.dmp_learn import (
     learn_dmp,
@@ -49,7 +53,7 @@ from repertoire.systems.dmp import (
 )
 from repertoire.systems.dmp_compose import DmpSystem
 from repertoire.systems.dmp_discrete import DiscreteDmpSystem
-from repertoire.systems.dmp_sequencer import DmpSequencer
+from repertoire.systems.dmp_sequencer import DmpSequencer, task_space_sequencer
 
 from repertoire.errors import RepertoireError
 
@@ -574,3 +578,35 @@ def test_a_held_dmp_starts_with_its_learned_velocity_in_simulation(moving3):
     np.testing.assert_array_equal(v[:200], np.zeros((200, 3)))  # 0 .. 0.199 s: held
     ref = dmp.rollout(dt=1e-3, n_steps=300).xd
     np.testing.assert_allclose(v[200:], ref[: len(v) - 200], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("time_step", [1e-3, None])
+def test_a_sequencer_started_at_another_orientation_turns_at_the_learned_rate(time_step):
+    # The chain's quaternion block started with the learned start's R^4 rate omega0 q0 / 2
+    # whatever its start q: at a start turned 0.54 rad the angular velocity output was
+    # (0.39, 0.37, -1.12) for omega0 (0.14, -0.06, -1.31), and the orientation 6e-4 rad off
+    # the quaternion rollout at 0.5 s. Now it starts at omega0 q / 2, as DmpSystem does.
+    t, x, _ = moving_demo(971, 3, duration=1.0, n=501)
+    _, q, _ = turning_demo(972, n=501, duration=1.0)
+    fingers = np.c_[0.2 + 0.1 * t, 0.3 - 0.1 * t]
+    dmp = learn_task_space_dmp(t, x, q, fingers, orientation_mode="component", n_basis=30)
+    q_new = quat_multiply(quat_exp(np.array([0.3, -0.2, 0.4])), dmp.orientation.q0)
+    x_start = np.r_[dmp.position.x0, q_new, dmp.fingers.x0]
+    if time_step is None:
+        seq = task_space_sequencer([dmp], [0.0], x_start)
+    else:
+        stacked = stack_task_space_dmp(dmp).parameters
+        seq = DmpSequencer([stacked], [0.0], x_start=x_start, quaternion_at=3)
+    sim = Simulator(seq)
+    if time_step is None:
+        sim.get_mutable_integrator().set_target_accuracy(1e-10)
+    ctx = sim.get_mutable_context()
+    omega = seq.GetOutputPort("angular_velocity")
+    np.testing.assert_allclose(omega.Eval(ctx), dmp.orientation.omega0, rtol=0, atol=1e-14)
+    sim.AdvanceTo(0.5)
+    _, q_ref, _ = dmp.orientation.rollout(q0=q_new, dt=1e-3, n_steps=500)
+    angle = np.linalg.norm(quat_log_error(q_ref[-1], seq.GetOutputPort("orientation").Eval(ctx)))
+    assert angle < (1e-11 if time_step else 5e-6), angle
+    seq.set_start(ctx, x_start)  # set_start starts at the same rate
+    ctx.SetTime(0.0)
+    np.testing.assert_allclose(omega.Eval(ctx), dmp.orientation.omega0, rtol=0, atol=1e-14)

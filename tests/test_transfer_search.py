@@ -646,7 +646,7 @@ def test_a_gap_estimate_counting_joined_feet_does_not_hide_the_cheaper_path():
 
 
 def test_placing_moves_keep_the_planners_height_rules():
-    # within_step_rules: a foot's height change at most max_step_height (5 cm), no cell of
+    # within_step_rules: a foot's height change at most max_step_height (9 cm), no cell of
     # the straight swing line more than swing_clearance (5 cm) above the higher foothold,
     # the rules the planner keeps for its own steps; placing moves are held to them too.
     pytest.importorskip("repertoire.planning.footstep.quadruped")
@@ -656,7 +656,7 @@ def test_placing_moves_keep_the_planners_height_rules():
 
     heights = np.zeros((60, 60))  # 1 cm cells, x and y in [-0.3, 0.29]
     heights[:, 30] = 0.06  # a 6 cm wall at x = 0
-    heights[:, 40:] = 0.051  # a 5.1 cm plateau from x = 0.1
+    heights[:, 40:] = 0.091  # a 9.1 cm plateau from x = 0.1
     filler = CrawlGapFiller(HeightMap((-0.3, -0.3), 0.01, heights))
 
     def move(x0, x1, z1=0.0, z0=0.0):
@@ -669,8 +669,9 @@ def test_placing_moves_keep_the_planners_height_rules():
     assert filler.within_step_rules(move(-0.2, -0.1))
     assert not filler.within_step_rules(move(-0.05, 0.05))  # over the 6 cm wall
     assert filler.within_step_rules(move(0.04, 0.08))  # beside it
-    assert not filler.within_step_rules(move(0.05, 0.12, 0.051))  # a 5.1 cm rise
-    assert filler.within_step_rules(move(0.12, 0.15, 0.051, 0.051))  # on the plateau
+    assert not filler.within_step_rules(move(0.05, 0.12, 0.091))  # a 9.1 cm rise
+    assert filler.within_step_rules(move(0.05, 0.12, 0.089, 0.0))  # an 8.9 cm one
+    assert filler.within_step_rules(move(0.12, 0.15, 0.091, 0.091))  # on the plateau
 
 
 def test_a_gap_cut_by_its_planners_time_limit_is_not_called_unreachable():

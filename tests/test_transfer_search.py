@@ -426,22 +426,44 @@ def test_crawl_gap_filler_places_no_feet_onto_a_goal_target():
 def test_crawl_gap_filler_says_why_a_gap_was_not_reached():
     # A planner out of expansions (or with no way) came back as "failed" with no reason,
     # so the search's error named none ("unreachable: 0 recorded and 0 planned steps").
+    # Its expansions are its budget (session 37: they bind, not the wall time), and a gap
+    # they cut leaves the target's reachability open: "time_limit", as a gap cut by wall
+    # time (before: "partial" or "failed", and the search said "unreachable").
     filler, start = flat_filler(max_expansions=2)
     target = stance(0.2)
     target[:, 2] = start[0, 2]
     answer = filler(start, target, 2.0)
-    assert answer.status == "partial" and len(answer.steps) == 1
+    assert answer.status == "time_limit" and len(answer.steps) == 1
     assert re.fullmatch(
         r"the crawl planner ended with NODE_LIMIT after 2 expansions \(\d+\.\d\d s\), "
         r"1 steps towards the target",
         answer.message,
     )
     answer = flat_filler(max_expansions=1)[0](start, target, 2.0)
-    assert answer.status == "failed" and answer.steps == []
+    assert answer.status == "time_limit" and answer.steps == []
     assert answer.message.startswith("the crawl planner ended with NODE_LIMIT after 1 exp")
     result = search_transfer(start, target, np.zeros((0, 4, 3)), np.zeros((0, 4, 3)), filler)
-    assert result.status == "unreachable"
-    assert "gap filler: partial: the crawl planner ended with NODE_LIMIT" in result.message
+    assert result.status == "time_limit"
+    assert "gap filler: time_limit: the crawl planner ended with NODE_LIMIT" in result.message
+    assert "(a gap filler's time limit reached)" in result.message
+
+
+def test_crawl_gap_fillers_budget_is_its_expansions_under_a_longer_wall_limit(monkeypatch):
+    # 50000 expansions under a 10 s wall limit: at 1.3-2.3 ms of CPU per expansion on
+    # tall rocks the wall limit bound, so a gap's outcome depended on the machine's load.
+    # The planner now gets 5000 expansions and a wall limit of at least 60 s.
+    import repertoire.planning.transfer_crawl_filler as tcf
+
+    calls = []
+    real = tcf.plan_crawl
+    monkeypatch.setattr(tcf, "plan_crawl", lambda *a, **k: calls.append(k) or real(*a, **k))
+    filler, start = flat_filler()
+    target = stance(0.1)
+    target[:, 2] = start[0, 2]
+    for remaining in (2.0, 75.0):
+        assert filler(start, target, remaining).status == "reached"
+    budgets = [(k["max_expansions"], k["time_limit"]) for k in calls]
+    assert budgets == [(5000, 60.0), (5000, 75.0)]
 
 
 @pytest.mark.parametrize("yaw_deg", [-40.0, 45.0])

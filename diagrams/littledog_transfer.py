@@ -90,17 +90,6 @@ of travel: at the model's 1 cm the planner crept in 1-3 cm steps where the face 
 few footholds (planner-only start 0 of the execution study: 28 steps, 38.9 s to cross; 20
 steps now). 3 cm gave the same step counts on the 15 starts compared (one fewer on one) but
 heavier gap searches (generated start 1002: 3.2 -> 9.0 s of the search's 10 s CPU budget)."""
-PLANNER_MAX_STEP_HEIGHT = 0.09
-"""The gap-filling crawl planner's largest height change of one foot (its ``max_step_height``,
-m): the crawl's own reach, so the planner's reach check (the executing crawl's leg IK over
-the whole step and the body shift before it) decides which steps exist. From a level stance
-on flat ground every leg reaches 9 cm up at its nominal foothold and up to 6 cm ahead of it
-(``step_reachable``). At the model's 5 cm every rock of a board of 5-6 cm rocks was a wall
-the feet could neither step onto nor (``swing_clearance``) swing over, and the search,
-whose centroid heuristic does not see walls, filled the basin in front of them: pair
-624/625 ended at 386624 expansions and 562 s of CPU, its best partial plan 37 cm short. On
-the execution study's boards the ground spans at most 4 cm (1-4 cm rocks), so no step there
-changes height by more than 5 cm and their plans are unchanged."""
 
 
 @dataclasses.dataclass
@@ -341,8 +330,13 @@ def flat_offset(board: TerrainBoard, offset, yaw: float, params: CrawlParams) ->
 
 
 def planner_params() -> PlannerParams:
-    """The gap-filling crawl planner's parameters (its defaults but step cost and height)."""
-    return PlannerParams(step_cost=PLANNER_STEP_COST, max_step_height=PLANNER_MAX_STEP_HEIGHT)
+    """The gap-filling crawl planner's parameters (its defaults but the step cost).
+
+    Its ``max_step_height`` is the model's default, the crawl's reach (9 cm). Session 36
+    set it here alone: at the model's 5 cm then, every rock of a board of 5-6 cm rocks was
+    a wall, and pair 624/625 ended at 386624 expansions and 562 s of CPU, 37 cm short.
+    """
+    return PlannerParams(step_cost=PLANNER_STEP_COST)
 
 
 def start_level(board: TerrainBoard, feet, rule: PlannerParams) -> bool:
@@ -351,10 +345,10 @@ def start_level(board: TerrainBoard, feet, rule: PlannerParams) -> bool:
     A foot standing higher above the others than the crawl planner steps up or down
     (on a rock top above the slab the other feet stand on) can step only onto ground of
     its own height: on boards of rocks taller than that it stays on its rock, shuffling
-    on the rock's top until the planner's limit (boards of 5-6 cm rocks at the model's 5 cm:
-    4 of the pairs 610/611 ... 624/625 and 7 of 630/631 ... 658/659 started so; none at
-    :data:`PLANNER_MAX_STEP_HEIGHT`, 9 cm; :func:`plan_transfer` names it when the search
-    does not reach the goal).
+    on the rock's top until the planner's limit (boards of 5-6 cm rocks at the 5 cm of
+    sessions before 36: 4 of the pairs 610/611 ... 624/625 and 7 of 630/631 ... 658/659
+    started so; none at the crawl's reach, 9 cm; :func:`plan_transfer` names it when the
+    search does not reach the goal).
     """
     xy = np.asarray(feet, dtype=float)[:, :2]
     return bool(np.ptp(board.height(xy[:, 0], xy[:, 1])) <= rule.max_step_height + 1e-12)
@@ -533,12 +527,13 @@ def plan_transfer(scenario: LittleDogTransferScenario) -> TransferPlan:
         )
         if result.status != "reached":
             why = ""
-            if not start_level(board, feet0, planner_params()):
+            rule = planner_params()
+            if not start_level(board, feet0, rule):
                 z = board.height(feet0[:, 0], feet0[:, 1])
                 why = (
                     f"; the start's feet stand on ground {100 * np.ptp(z):.1f} cm apart in "
                     f"height, more than the planner's max_step_height "
-                    f"{100 * PLANNER_MAX_STEP_HEIGHT:.1f} cm: the higher feet can step "
+                    f"{100 * rule.max_step_height:.1f} cm: the higher feet can step "
                     "only onto ground near their own height (on rocks taller than that step "
                     "they stay on their rocks)"
                 )

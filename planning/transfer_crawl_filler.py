@@ -13,21 +13,24 @@ offsets (up to the goal radius plus the lattice's offsets) are placed
 (``place_feet``) or left to the executor that starts the next recorded step.
 Planned footholds (ground points) are raised by the foot radius to foot centres,
 like library stances. The planner's statuses map to the protocol's:
-SUCCESS -> reached, TIME_LIMIT -> time_limit, NODE_LIMIT with steps -> partial,
-anything else -> failed.
+SUCCESS -> reached, TIME_LIMIT and NODE_LIMIT -> time_limit (its budget ran out:
+whether the target can be reached is open), anything else -> failed.
 
 The search's time limit is CPU time; the crawl planner measures wall time, which
-under load runs ahead of CPU time. Its budget per gap is therefore its expansion
-count (``max_expansions``, the same on any machine) with a wall-time safety limit
-of at least ``planner_wall_limit``, and the search checks its CPU budget between gaps.
-The wall limit is kept at least ``planner_wall_limit`` rather than the search's
-remaining budget: a gap cut by wall time would depend on the machine's load. Measured
-on the matching study (seeds 2-7), every gap call succeeded within 78 expansions and
-0.6 s, so the limit never decides there; at 5-8 ms per expansion on the modified terrain
-(the turning model; 10-20 ms before the exact height skipped far boxes) a gap needing more
-than about 1500 can reach it (a 90 degree turn in place there took 94-175, a half turn 285:
-737 and TIME_LIMIT before the crawl's heuristic counted a turn's steps), and the search's
-CPU budget can then be overrun by up to ``planner_wall_limit``.
+under load runs ahead of CPU time. Its budget per gap is therefore its expansion count
+(``max_expansions``, the same on any machine) with a wall-time safety limit of at least
+``planner_wall_limit``, and the search checks its CPU budget between gaps. The expansion
+budget must be the one that binds: a gap cut by wall time depends on the machine's load.
+Until session 37 it was 50000 expansions under a 10 s wall limit, at 1.3-2.3 ms of CPU
+per expansion on boards of 5-6 cm rocks (65-115 s of CPU), so the wall limit decided
+every long gap: under load such gaps got 1.6-6.5 s of CPU and ended TIME_LIMIT
+(the planner alone on pair 946/947: 2752 expansions in 10.2 s of wall time at 3.5 s of
+CPU; alone it plans in 4896 expansions, 6.8 s of CPU). Now 5000 expansions, about the
+search's default 10 s of CPU at 2 ms each, under a 60 s wall limit (a load of 6 still
+leaves the expansions to bind). On the matching study (seeds 2-7) every gap call
+succeeded within 78 expansions, and a half turn on the modified terrain takes 285, so
+the budget decides only on hard terrain; the search's CPU budget can be overrun by one
+gap's budget.
 """
 
 import dataclasses
@@ -82,7 +85,8 @@ class CrawlGapFiller:
         height_map: the terrain (``height_map_from_board`` of the new terrain).
         params: crawl model parameters.
         weight: heuristic weight of the planner's search.
-        max_expansions: expansion budget per planner call.
+        max_expansions: expansion budget per planner call (the budget that binds; see
+            the module docstring).
         crawl: parameters of the crawl that executes planned steps: the planner checks
             every step with its reach (:func:`~repertoire.planning.littledog_crawl.step_reachable`
             at the crawl's own body pose), and the whole gap is executed by it once more
@@ -104,18 +108,19 @@ class CrawlGapFiller:
             are placed); 0 places every foot farther than 5 mm. Set it to the search's
             ``join_tolerance``, the offset it accepts between recorded steps.
         planner_wall_limit: the planner's wall-time limit per call is the larger of this
-            and the search's remaining CPU budget (s): a safety limit, not the budget.
+            and the search's remaining CPU budget (s): a safety limit, not the budget
+            (long enough that ``max_expansions`` binds first even under load).
     """
 
     height_map: HeightMap
     params: CrawlParams = dataclasses.field(default_factory=CrawlParams)
     weight: float = 3.0
-    max_expansions: int = 50_000
+    max_expansions: int = 5_000
     crawl: ExecParams = dataclasses.field(default_factory=ExecParams)
     board: object = None
     place_feet: bool = False
     place_within: float = 0.0
-    planner_wall_limit: float = 10.0
+    planner_wall_limit: float = 60.0
 
     def _plan(
         self, start: np.ndarray, goal_xy: np.ndarray, time_limit: float, heading=None,
@@ -292,7 +297,7 @@ class CrawlGapFiller:
             new += placing_steps(end, target, within=self.place_within, before=before)
         usable = self.usable_prefix(new)
         if usable == len(new):
-            return GapFill(new, _status(status, bool(new)), refusal)
+            return GapFill(new, _status(status), refusal)
         if usable >= planned and status is PlanStatus.SUCCESS:
             # The planner's steps reach the target's centroid but the legs cannot place
             # every foot on the target stance: enough for a goal (the search joins a
@@ -307,11 +312,9 @@ class CrawlGapFiller:
         )
 
 
-def _status(status, any_steps: bool) -> str:
+def _status(status) -> str:
     if status is PlanStatus.SUCCESS:
         return "reached"
-    if status is PlanStatus.TIME_LIMIT:
+    if status in (PlanStatus.TIME_LIMIT, PlanStatus.NODE_LIMIT):
         return "time_limit"
-    if status is PlanStatus.NODE_LIMIT and any_steps:
-        return "partial"
     return "failed"

@@ -664,3 +664,26 @@ def test_crawl_refuses_a_map_too_large_for_its_planning_arrays_before_allocating
         plan_crawl(hm, nominal_foot_positions()[:, :2], (0.2, 0.0))
     monkeypatch.setenv("REPERTOIRE_MAX_MEMORY_BYTES", str(2 * 10**6))
     assert plan_crawl(hm, nominal_foot_positions()[:, :2], (0.2, 0.0)).status is PlanStatus.SUCCESS
+
+
+def test_the_default_step_height_is_the_crawls_reach():
+    # From a level stance on flat ground every leg of the executing crawl steps 9 cm up
+    # at its nominal foothold and 4 and 6 cm ahead of it (the leg IK over the whole step),
+    # and none 9.5 cm: the model's max_step_height (5 cm before session 37) is that reach.
+    class Flat:
+        def height(self, x, y):
+            return np.zeros(np.shape(x))
+
+    nominal = nominal_foot_positions()[:, :2]
+    feet = np.column_stack([nominal, np.full(4, FOOT_RADIUS)])
+    h = CrawlParams().max_step_height
+    reach = [
+        step_reachable(
+            feet, foot, [[*(nominal[foot] + [dx, 0.0]), z + FOOT_RADIUS]], ExecParams(), Flat()
+        )[0]
+        for foot in range(4)
+        for dx in (0.0, 0.04, 0.06)
+        for z in (h, h + 0.005)
+    ]
+    assert h == 0.09
+    assert reach == [True, False] * 12

@@ -512,7 +512,8 @@ def test_a_failed_search_from_a_start_not_level_says_so(library_path, monkeypatc
 
     board = _tall_rocks(610)
     monkeypatch.setattr(lt, "target_board", lambda scenario: board)
-    monkeypatch.setattr(lt, "PLANNER_MAX_STEP_HEIGHT", 0.05)  # the model's default
+    five = dataclasses.replace(lt.planner_params(), max_step_height=0.05)  # before session 36
+    monkeypatch.setattr(lt, "planner_params", lambda: five)
     cut = SearchResult("time_limit", [], 0.0, 0, 0, 1, 0, "a gap filler's time limit", 10.0)
     monkeypatch.setattr(lt, "search_library", lambda *args: cut)
     scenario = LittleDogTransferScenario(library=library_path, mode="planner", target="generated")
@@ -522,33 +523,14 @@ def test_a_failed_search_from_a_start_not_level_says_so(library_path, monkeypatc
     assert "feet stand on ground 5.9 cm apart in height, more than the planner's" in str(e.value)
 
 
-def test_the_gap_planners_step_height_is_the_crawls_reach():
-    """PLANNER_MAX_STEP_HEIGHT is what the crawl reaches: from a level stance on flat ground
-    every leg steps 9 cm up at its nominal foothold and 4 and 6 cm ahead of it, and no
-    leg 9.5 cm."""
-    from repertoire.diagrams.littledog_transfer import PLANNER_MAX_STEP_HEIGHT, planner_params
-    from repertoire.models.littledog import FOOT_RADIUS
-    from repertoire.models.littledog.kinematics import nominal_foot_positions
-    from repertoire.planning.littledog_crawl import step_reachable
+def test_the_gap_planner_keeps_the_models_step_height_and_its_own_step_cost():
+    """The gap planner is the crawl model with its own step cost; its step height is the
+    model's default, the crawl's reach (test_footstep_quadruped checks that reach)."""
+    from repertoire.diagrams.littledog_transfer import planner_params
 
-    class Flat:
-        def height(self, x, y):
-            return np.zeros(np.shape(x))
-
-    nominal = nominal_foot_positions()[:, :2]
-    feet = np.column_stack([nominal, np.full(4, FOOT_RADIUS)])
-    reach = [
-        step_reachable(
-            feet, foot, [[*(nominal[foot] + [dx, 0.0]), h + FOOT_RADIUS]], CrawlParams(), Flat()
-        )[0]
-        for foot in range(4)
-        for dx in (0.0, 0.04, 0.06)
-        for h in (PLANNER_MAX_STEP_HEIGHT, PLANNER_MAX_STEP_HEIGHT + 0.005)
-    ]
-    assert reach == [True, False] * 12
     params = planner_params()
     assert (params.max_step_height, params.step_cost) == (0.09, 0.02)
-    assert dataclasses.replace(params, max_step_height=0.05, step_cost=0.01) == PlannerParams()
+    assert dataclasses.replace(params, step_cost=0.01) == PlannerParams()
 
 
 def test_the_planner_alone_crosses_rocks_taller_than_the_models_step(library_path, monkeypatch):
@@ -570,5 +552,5 @@ def test_the_planner_alone_crosses_rocks_taller_than_the_models_step(library_pat
     feet = crossing_start(board, 0.0, 0.25, params.standing_height, offset)[1]
     z = board.height(feet[:, 0], feet[:, 1])
     assert np.round(100 * (z - z.min()), 1).tolist() == [0.0, 5.9, 0.0, 5.1]
-    levels = [lt.start_level(board, feet, rule) for rule in (PlannerParams(), lt.planner_params())]
-    assert levels == [False, True]
+    rules = [PlannerParams(max_step_height=0.05), lt.planner_params()]
+    assert [lt.start_level(board, feet, rule) for rule in rules] == [False, True]

@@ -426,22 +426,44 @@ def test_crawl_gap_filler_places_no_feet_onto_a_goal_target():
 def test_crawl_gap_filler_says_why_a_gap_was_not_reached():
     # A planner out of expansions (or with no way) came back as "failed" with no reason,
     # so the search's error named none ("unreachable: 0 recorded and 0 planned steps").
+    # Its expansions are its budget (session 37: they bind, not the wall time), and a gap
+    # they cut leaves the target's reachability open: "time_limit", as a gap cut by wall
+    # time (before: "partial" or "failed", and the search said "unreachable").
     filler, start = flat_filler(max_expansions=2)
     target = stance(0.2)
     target[:, 2] = start[0, 2]
     answer = filler(start, target, 2.0)
-    assert answer.status == "partial" and len(answer.steps) == 1
+    assert answer.status == "time_limit" and len(answer.steps) == 1
     assert re.fullmatch(
         r"the crawl planner ended with NODE_LIMIT after 2 expansions \(\d+\.\d\d s\), "
         r"1 steps towards the target",
         answer.message,
     )
     answer = flat_filler(max_expansions=1)[0](start, target, 2.0)
-    assert answer.status == "failed" and answer.steps == []
+    assert answer.status == "time_limit" and answer.steps == []
     assert answer.message.startswith("the crawl planner ended with NODE_LIMIT after 1 exp")
     result = search_transfer(start, target, np.zeros((0, 4, 3)), np.zeros((0, 4, 3)), filler)
-    assert result.status == "unreachable"
-    assert "gap filler: partial: the crawl planner ended with NODE_LIMIT" in result.message
+    assert result.status == "time_limit"
+    assert "gap filler: time_limit: the crawl planner ended with NODE_LIMIT" in result.message
+    assert "(a gap filler's time limit reached)" in result.message
+
+
+def test_crawl_gap_fillers_budget_is_its_expansions_under_a_longer_wall_limit(monkeypatch):
+    # 50000 expansions under a 10 s wall limit: at 1.3-2.3 ms of CPU per expansion on
+    # tall rocks the wall limit bound, so a gap's outcome depended on the machine's load.
+    # The planner now gets 5000 expansions and a wall limit of at least 60 s.
+    import repertoire.planning.transfer_crawl_filler as tcf
+
+    calls = []
+    real = tcf.plan_crawl
+    monkeypatch.setattr(tcf, "plan_crawl", lambda *a, **k: calls.append(k) or real(*a, **k))
+    filler, start = flat_filler()
+    target = stance(0.1)
+    target[:, 2] = start[0, 2]
+    for remaining in (2.0, 75.0):
+        assert filler(start, target, remaining).status == "reached"
+    budgets = [(k["max_expansions"], k["time_limit"]) for k in calls]
+    assert budgets == [(5000, 60.0), (5000, 75.0)]
 
 
 @pytest.mark.parametrize("yaw_deg", [-40.0, 45.0])
@@ -646,7 +668,7 @@ def test_a_gap_estimate_counting_joined_feet_does_not_hide_the_cheaper_path():
 
 
 def test_placing_moves_keep_the_planners_height_rules():
-    # within_step_rules: a foot's height change at most max_step_height (5 cm), no cell of
+    # within_step_rules: a foot's height change at most max_step_height (9 cm), no cell of
     # the straight swing line more than swing_clearance (5 cm) above the higher foothold,
     # the rules the planner keeps for its own steps; placing moves are held to them too.
     pytest.importorskip("repertoire.planning.footstep.quadruped")
@@ -656,7 +678,7 @@ def test_placing_moves_keep_the_planners_height_rules():
 
     heights = np.zeros((60, 60))  # 1 cm cells, x and y in [-0.3, 0.29]
     heights[:, 30] = 0.06  # a 6 cm wall at x = 0
-    heights[:, 40:] = 0.051  # a 5.1 cm plateau from x = 0.1
+    heights[:, 40:] = 0.091  # a 9.1 cm plateau from x = 0.1
     filler = CrawlGapFiller(HeightMap((-0.3, -0.3), 0.01, heights))
 
     def move(x0, x1, z1=0.0, z0=0.0):
@@ -669,8 +691,9 @@ def test_placing_moves_keep_the_planners_height_rules():
     assert filler.within_step_rules(move(-0.2, -0.1))
     assert not filler.within_step_rules(move(-0.05, 0.05))  # over the 6 cm wall
     assert filler.within_step_rules(move(0.04, 0.08))  # beside it
-    assert not filler.within_step_rules(move(0.05, 0.12, 0.051))  # a 5.1 cm rise
-    assert filler.within_step_rules(move(0.12, 0.15, 0.051, 0.051))  # on the plateau
+    assert not filler.within_step_rules(move(0.05, 0.12, 0.091))  # a 9.1 cm rise
+    assert filler.within_step_rules(move(0.05, 0.12, 0.089, 0.0))  # an 8.9 cm one
+    assert filler.within_step_rules(move(0.12, 0.15, 0.091, 0.091))  # on the plateau
 
 
 def test_a_gap_cut_by_its_planners_time_limit_is_not_called_unreachable():

@@ -115,7 +115,8 @@ class CrawlParams:
         offsets_y: candidate foothold offsets to the body's left (m).
         flat_radius: radius of the flatness check around a foothold (m).
         max_roughness: largest height range allowed within ``flat_radius`` (m).
-        max_step_height: largest height change of one foot (m).
+        max_step_height: largest height change of one foot (m); by default the crawl's
+            reach: every leg reaches 9 cm up from a level stance, none 9.5 cm.
         swing_clearance: highest ground along a swing above the higher foothold (m).
         support_margin: distance the body projection keeps inside the support triangle (m).
         face_radius: with an exact ground, no ground within this distance of a landing
@@ -148,7 +149,7 @@ class CrawlParams:
     offsets_y: list[float] = dataclasses.field(default_factory=lambda: [-0.02, 0.0, 0.02])
     flat_radius: float = 0.012
     max_roughness: float = 0.006
-    max_step_height: float = 0.05
+    max_step_height: float = 0.09
     swing_clearance: float = 0.05
     support_margin: float = 0.005
     face_radius: float = 0.02

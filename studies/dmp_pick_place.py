@@ -379,6 +379,8 @@ def summarize(
 
     ball_gap = np.array([r.min_ball_gap_m for r in records], dtype=float)
     slip_mm = np.array([r.grasp_slip_m for r in records], dtype=float) * 1000
+    release_mm = np.array([r.release_object_error_m for r in records], dtype=float) * 1000
+    wait_s = np.array([r.start_delay_s for r in records], dtype=float)
     lines = [
         "| figure | value |",
         "|---|---|",
@@ -394,6 +396,12 @@ def summarize(
         "| smallest ball gap (SceneGraph), min / median [cm] | "
         f"{stat_pair(ball_gap * 100, np.min, np.median)} |",
         f"| cup to coaster, median / max [cm] | {stat_pair(d * 100, np.median, np.max)} |",
+        "| release found the cup settled (within 1 mm of the centre, at rest) | "
+        f"{sum(r.release_settled == 1.0 for r in records)} of {len(records)} |",
+        "| cup to coaster when the release began, median / max [mm] | "
+        f"{stat_pair(release_mm, np.median, np.max)} |",
+        "| release waited past its due time, median / max [s] | "
+        f"{stat_pair(wait_s, np.median, np.max)} |",
         f"| grasp reach error, median / max [mm] | {stat_pair(grasp, np.median, np.max)} |",
         f"| place reach error, median / max [mm] | {stat_pair(place, np.median, np.max)} |",
         "| tcp clearance to the ball over the run, min / median [cm] | "

@@ -106,7 +106,7 @@ def test_the_cup_slipping_in_the_grasp_is_reported_and_the_default_contact_model
     the tcp's axis (the thumb's double gain) ``lagged`` still lets it slip, 18 mm: reported
     as a slip all the same. It landed 18 mm off the centre; since the place goal subtracts
     the cup's offset from the commanded tcp (measured in the hand while it is carried, slip
-    included) it lands within a few mm. Two whole runs (about 20 s).
+    included, at most 1 cm) it lands within about 1 cm. Two whole runs (about 20 s).
     """
     from repertoire.diagrams.arm_dmp_scenarios import PLACE_TOLERANCE
 
@@ -127,7 +127,8 @@ def test_the_cup_slipping_in_the_grasp_is_reported_and_the_default_contact_model
     assert slipped["failure"] == ""  # the IK saw nothing: the hand tracked its path
     assert slipped["outcome"] == "grasp_slip"  # placed or not, a slip is the outcome
     assert slipped["grasp_slip_m"] > 0.015 and 4.0 < slipped["grasp_slip_time_s"] < 4.5
-    assert slipped["cup_to_coaster_m"] < 0.005  # the goal followed the cup in the hand
+    # 9.5 mm: the goal followed the cup in the hand, up to HeldObjectOffset's 1 cm
+    assert 0.005 < slipped["cup_to_coaster_m"] < 0.012
     assert slipped["report"] == grasp_slip_text(
         slipped["grasp_slip_m"], slipped["grasp_slip_time_s"], "cup"
     )

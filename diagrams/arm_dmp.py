@@ -72,6 +72,7 @@ from pydrake.systems.primitives import (
 from pydrake.trajectories import PiecewisePolynomial
 from repertoire.diagrams.arm import ArmStation, add_arm_controllers, add_meshcat
 from repertoire.diagrams.arm_dmp_results import (
+    GRASP_SLIP_TOLERANCE,
     ik_status_figures,
     pick_and_place_figures,
     serving_figures,
@@ -80,7 +81,8 @@ from repertoire.diagrams.arm_dmp_scenarios import (
     COASTER_RAIL_HEIGHT,
     MAX_SEGMENT_WAIT,
     PICK_PLACE_LABELS,
-    WAIT_DOFS,
+    PLACE_REST_SPEED,
+    PLACE_TOLERANCE,
     BallObstacle,
     BodyPointLog,
     CoasterMotion,
@@ -89,8 +91,8 @@ from repertoire.diagrams.arm_dmp_scenarios import (
     held_segments,
     plan_pick_and_place,
     plan_serving,
+    segment_gates,
     segment_timing,
-    segment_waits,
     shoulder_and_reach,
 )
 from repertoire.diagrams.registry import register_diagram
@@ -115,11 +117,12 @@ from repertoire.planning.arm_library import (
     home_tcp_pose,
     quaternion_wxyz,
 )
-from repertoire.systems.arm_goals import GoalSchedule, SegmentGoal
+from repertoire.systems.arm_goals import GoalSchedule, HeldObjectOffset, SegmentGoal
 from repertoire.systems.arm_monitors import (
     BodyPointAndAxis,
     GraspSlipMonitor,
     ObstacleClearanceMonitor,
+    PlacementMonitor,
 )
 from repertoire.systems.dmp_sequencer import task_space_sequencer
 from repertoire.systems.grasp import GraspWrench
@@ -128,6 +131,7 @@ from repertoire.systems.task_space import ResolvedMotionRateIK
 from repertoire.systems.task_space_reach import check_reachable
 
 from repertoire.criteria import Bound
+from repertoire.errors import RepertoireError
 
 
 # ----------------------------------------------------------------------------- building
@@ -263,9 +267,8 @@ def build_arm_world(
             starts,
             np.concatenate([home.translation(), quaternion_wxyz(home.rotation()), HAND_OPEN]),
             switch_period=IK_PERIOD,
-            wait_tolerances=segment_waits(labels),
-            wait_dofs=WAIT_DOFS,
             max_wait=MAX_SEGMENT_WAIT,
+            start_gates=segment_gates(labels),
         ),
     )
     schedule = builder.AddNamedSystem("goal_schedule", GoalSchedule(resolved))
@@ -395,6 +398,13 @@ def build_arm_world(
         )
         builder.Connect(plant.get_body_poses_output_port(), slip.GetInputPort("body_poses"))
         builder.Connect(chain.GetOutputPort("segment"), slip.GetInputPort("segment"))
+        object_index = plant.GetBodyByName(body_name, instances[instance_name]).index()
+        _add_placement(builder, plant, chain, schedule, resolved, int(object_index))
+    elif any(g.places_held for g in goals) or any(segment_gates(labels)):
+        raise RepertoireError(
+            f"{name}: a goal that places the held object needs a grasp before it and a "
+            "graspable object (its place in the hand is measured during the hold)"
+        )
 
     tcp_point = builder.AddNamedSystem("tcp_point", BodyPointAndAxis(hand_body.index(), X_HTcp))
     builder.Connect(plant.get_body_poses_output_port(), tcp_point.GetInputPort("body_poses"))
@@ -432,6 +442,73 @@ def build_arm_world(
     diagram = builder.Build()
     diagram.set_name(name)
     return diagram
+
+
+def _add_placement(
+    builder: DiagramBuilder,
+    plant: MultibodyPlant,
+    chain,
+    schedule: GoalSchedule,
+    goals: list[SegmentGoal],
+    held_object: int,
+) -> None:
+    """Places the held object: the goal shift and the release's start gate.
+
+    The goals that place the held object subtract its horizontal offset from the commanded
+    tcp (:class:`HeldObjectOffset`, ``held_object_offset``, sampled while it is held: the
+    cup slides up to a few mm in the hand while carried, more than the grasp put it off the
+    tcp's axis at the lift, and the tcp sits about 0.5 mm off the command; at most
+    ``GRASP_SLIP_TOLERANCE``: farther is a grasp slip, reported as such); the segment
+    after the placing one (:func:`segment_gates`) starts once a :class:`PlacementMonitor`
+    (``placement``) finds the object within :data:`PLACE_TOLERANCE` of the placing goal's
+    target, moving slower than :data:`PLACE_REST_SPEED` (at most :data:`MAX_SEGMENT_WAIT`
+    late).
+
+    Raises:
+        RepertoireError: more than one placing segment (one start gate per chain).
+    """
+    if any(g.places_held for g in goals):
+        offset = builder.AddNamedSystem(
+            "held_object_offset",
+            HeldObjectOffset(
+                held_object,
+                held_segments([g.label for g in goals]),
+                period=IK_PERIOD,
+                max_offset=GRASP_SLIP_TOLERANCE,
+            ),
+        )
+        builder.Connect(plant.get_body_poses_output_port(), offset.GetInputPort("body_poses"))
+        builder.Connect(chain.GetOutputPort("tcp_position"), offset.GetInputPort("tcp_desired"))
+        builder.Connect(chain.GetOutputPort("segment"), offset.GetInputPort("segment"))
+        builder.Connect(offset.GetOutputPort("offset"), schedule.GetInputPort("held_object_offset"))
+    gated = [k for k, gate in enumerate(segment_gates([g.label for g in goals])) if gate]
+    if not gated:
+        return
+    if len(gated) > 1:
+        raise RepertoireError(
+            f"one placing segment per chain is supported, segments {[k - 1 for k in gated]} "
+            "place the held object"
+        )
+    target = goals[gated[0] - 1]
+    placement = builder.AddNamedSystem(
+        "placement",
+        PlacementMonitor(
+            held_object,
+            target.body,
+            np.asarray(target.position, float),
+            tolerance=PLACE_TOLERANCE,
+            speed_tolerance=PLACE_REST_SPEED,
+            release_segment=gated[0],
+            period=IK_PERIOD,
+        ),
+    )
+    builder.Connect(plant.get_body_poses_output_port(), placement.GetInputPort("body_poses"))
+    builder.Connect(
+        plant.get_body_spatial_velocities_output_port(),
+        placement.GetInputPort("body_spatial_velocities"),
+    )
+    builder.Connect(chain.GetOutputPort("segment"), placement.GetInputPort("segment"))
+    builder.Connect(placement.GetOutputPort("settled"), chain.GetInputPort("start_gate"))
 
 
 # ----------------------------------------------------------------------------- the two worlds

@@ -334,9 +334,10 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
         SceneGraph every 4 ms; negative = they touched), ``min_ball_gap_time_s``
         (when), ``collision_free`` (1 if ``min_ball_gap_m > 0``), the cup's
         :func:`grasp_slip_figures` while it is carried and ``grasp_slipped`` (1 if it
-        moved more than :data:`GRASP_SLIP_TOLERANCE` in the hand) and ``start_delay_s``
-        (how long the release waited for the place DMP to reach its goal,
-        ``SEGMENT_WAITS``).
+        moved more than :data:`GRASP_SLIP_TOLERANCE` in the hand), ``start_delay_s``
+        (how long after its due time the release began: it waits, at most
+        ``MAX_SEGMENT_WAIT``, for the placed cup to settle) and the
+        :func:`placement_figures` at the release.
     """
     plant = diagram.GetSubsystemByName("plant")
     pc = plant.GetMyContextFromRoot(context)
@@ -375,7 +376,45 @@ def pick_and_place_figures(diagram: Diagram, context: Context) -> dict[str, floa
         **slip,
         "grasp_slipped": float(slip["grasp_slip_m"] > GRASP_SLIP_TOLERANCE),
         "start_delay_s": float(delay),
+        **placement_figures(diagram, context),
     }
+
+
+def placement_figures(diagram: Diagram, context: Context) -> dict[str, float]:
+    """Where the placed object stood when the release began (:class:`PlacementMonitor`).
+
+    Returns:
+        ``release_object_error_m`` (the object's horizontal distance from its target),
+        ``release_object_speed_mps`` (its horizontal speed relative to the target) and
+        ``release_settled`` (1 if it was within both of the monitor's tolerances: the
+        release found it settled; 0 if the release began because the wait ran out), NaN
+        when the release never began.
+    """
+    monitor = diagram.GetSubsystemByName("placement")
+    at = monitor.GetOutputPort("at_release").Eval(monitor.GetMyContextFromRoot(context))
+    return {
+        "release_object_error_m": float(at[0]),
+        "release_object_speed_mps": float(at[1]),
+        "release_settled": float(at[2]),
+    }
+
+
+def placement_text(error_m: float, speed_mps: float, wait_s: float, what: str) -> str:
+    """The report of a release that began before the placed object settled.
+
+    Args:
+        error_m: the object's horizontal distance from its target at the release [m].
+        speed_mps: its horizontal speed relative to the target then [m/s].
+        wait_s: how long the release had waited [s].
+        what: the placed object's name.
+    """
+    from repertoire.diagrams.arm_dmp_scenarios import PLACE_REST_SPEED, PLACE_TOLERANCE
+
+    return (
+        f"not settled: the release began after waiting {wait_s:.2f} s with the {what} "
+        f"{error_m * 1000:.2f} mm from its target, moving {speed_mps * 1000:.1f} mm/s "
+        f"(settled: within {PLACE_TOLERANCE * 1000:g} mm and {PLACE_REST_SPEED * 1000:g} mm/s)"
+    )
 
 
 #: The tip must come within this horizontal distance of a cup's axis (inside the rim).

@@ -517,38 +517,46 @@ def _check_goal_attainable(
         )
 
 
-#: Segments that start only once the tcp of the segment before has come this close to its
-#: goal horizontally [m] (``DmpSequencer`` ``wait_tolerances`` on world x and y): the
-#: release lets go of the object where the place DMP has brought it. With a fixed start
-#: the release began while the obstacle coupling had left the place DMP 13-15 mm short
-#: (Pastor et al. sec. III-C: a DMP starts "after the preceding DMP has been executed
-#: completely"). 2 mm is a tenth of the 2 cm a placed cup may stand off the coaster's
-#: centre. Only the horizontal error counts: it is what puts the cup off the centre, while
-#: the height is the place goal's 4 mm clearance (eq. 10's term, proportional to the speed
-#: with gamma 50000 / 3, is as large as the damping near the goal and turns the last
-#: millimetres into a slow spiral that may leave the DMP 2 mm low for a second).
-SEGMENT_WAITS = {"release": 0.002}
-#: The DOF of the tcp position the waits measure (world x and y).
-WAIT_DOFS = slice(0, 2)
-#: The longest a segment waits for its predecessor [s] (then it starts anyway); the
-#: duration of a world includes it, so the last segment still runs to its end.
+#: Segments that set the held object down (their goal places the held object,
+#: ``SegmentGoal.places_held``: shifted by where the object sits in the hand) ...
+PLACING_LABELS = ("place",)
+#: ... and the segment after one waits (``DmpSequencer`` ``start_gates``) until the object
+#: stands within this distance of its target horizontally (the coaster's centre) ...
+#: Pastor et al. start a DMP "after the preceding DMP has been executed completely" (sec.
+#: III-C); what has to be complete here is the object's placing, not the DMP's state: at its
+#: due time the place DMP is still 1.5-1.9 mm from its goal (eq. 2's ``-K (g - x0) s`` with
+#: ``s`` 0.7 % of its start, decaying at ``alpha / tau`` = 1.5 /s: within 1 mm about 0.4 s
+#: later), and a goal for the tcp alone put the cup's offset in the hand (up to a few mm:
+#: it slides while carried) on the coaster. 1 mm is a twentieth of the 2 cm a placed cup
+#: may stand off the coaster's centre.
+PLACE_TOLERANCE = 0.001
+#: ... and moves slower than this relative to it [m/s] (nearly at rest). The release hands
+#: its start velocity on from the place DMP (sec. III-C), so the hand carries the cup on at
+#: about that speed until the opening fingers let go of it, about
+#: :data:`PLACE_LET_GO_TIME` later; at this speed that carries it half the tolerance.
+PLACE_LET_GO_TIME = 0.3
+PLACE_REST_SPEED = 0.5 * PLACE_TOLERANCE / PLACE_LET_GO_TIME
+#: The longest a segment waits (then it starts anyway and the world reports the object as
+#: not settled); the duration of a world includes it, so the last segment still runs to its
+#: end.
 MAX_SEGMENT_WAIT = 1.0
 
 
-def segment_waits(labels: list[str]) -> list[float | None]:
-    """Per segment, its :data:`SEGMENT_WAITS` tolerance or None (the first never waits).
+def segment_gates(labels: list[str]) -> list[bool]:
+    """Per segment, whether it waits for the object its predecessor placed to settle.
 
     Args:
         labels: Motion-library labels of the segments, in order.
     """
-    return [None] + [SEGMENT_WAITS.get(label) for label in labels[1:]]
+    return [False] + [labels[k - 1] in PLACING_LABELS for k in range(1, len(labels))]
 
 
 def segment_timing(labels: list[str], settle: float) -> tuple[list[float], float]:
     """Earliest start time of each segment of a chain and the total duration [s].
 
-    A segment of :data:`SEGMENT_WAITS` may start up to :data:`MAX_SEGMENT_WAIT` later (and
-    so every segment after it); the duration includes those waits.
+    A segment that waits for a placed object (:func:`segment_gates`) may start up to
+    :data:`MAX_SEGMENT_WAIT` later (and so every segment after it); the duration includes
+    those waits.
 
     Args:
         labels: Motion-library labels of the segments, in order.
@@ -559,7 +567,7 @@ def segment_timing(labels: list[str], settle: float) -> tuple[list[float], float
     for label in labels:
         starts.append(t)
         t += lib[label].tau + settle
-    waits = sum(w is not None for w in segment_waits(labels))
+    waits = sum(segment_gates(labels))
     return starts, t + waits * MAX_SEGMENT_WAIT
 
 
@@ -598,7 +606,9 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
 
     The grasp goal is the cup's grasp point, its orientation computed from the
     approach direction of the grasp DMP rolled out to that goal; the place and
-    release goals follow the coaster (their orientations are the demonstration's).
+    release goals follow the coaster (their orientations are the demonstration's); the
+    place goal places the held cup (``places_held``: shifted by the cup's offset from the
+    tcp's axis in the hand, so the cup, not the tcp, lands on the coaster's centre).
 
     Returns:
         (goals, duration of the whole sequence in s).
@@ -621,7 +631,14 @@ def plan_pick_and_place(s: PickPlaceScenario) -> tuple[list[SegmentGoal], float]
     q_side = quaternion_wxyz(R_SIDE)
     goals = [
         SegmentGoal(grasp_primitive.label, cup, quaternion_wxyz(R_grasp), grasp),
-        SegmentGoal(place_primitive.label, place_offset(), q_side, grasp, "coaster:coaster"),
+        SegmentGoal(
+            place_primitive.label,
+            place_offset(),
+            q_side,
+            grasp,
+            "coaster:coaster",
+            places_held=place_primitive.label in PLACING_LABELS,
+        ),
         SegmentGoal(
             release_primitive.label,
             place_offset() + RELEASE_OFFSET,

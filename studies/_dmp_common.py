@@ -113,6 +113,8 @@ PICK_PLACE_FIGURES = (
     "grasp_slip_time_s",
     "held_offset_m",
     "start_delay_s",
+    "release_object_error_m",
+    "release_settled",
 )
 
 #: How a pick-and-place run ended (``run_pick_and_place``'s ``outcome``), in the order of
@@ -137,10 +139,11 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
         before them), ``placed``: it ran and the cup stands on the coaster (within
         2 cm of it horizontally and 1 cm vertically, tilted under 0.2 rad), ``outcome``
         (one of :data:`OUTCOMES`), ``report``: the IK's stop message, else the grasp
-        slip's (``grasp_slip_text``), else empty; ``joint_margins`` (per arm joint, the IK
-        reference's least distance from its limits over the run [rad]; NaN when nothing
-        ran) and ``joint_held_steps`` (per joint, the IK steps that held it at a limit:
-        ``joints_at_limits``).
+        slip's (``grasp_slip_text``), else, when the release began before the cup had
+        settled on the coaster, the placing's (``placement_text``), else empty;
+        ``joint_margins`` (per arm joint, the IK reference's least distance from its limits
+        over the run [rad]; NaN when nothing ran) and ``joint_held_steps`` (per joint, the
+        IK steps that held it at a limit: ``joints_at_limits``).
     """
     from repertoire.diagrams.arm_dmp import build_pick_and_place
     from repertoire.diagrams.arm_dmp_results import (
@@ -149,11 +152,13 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
         JointLimitRecorder,
         grasp_slip_text,
         pick_and_place_figures,
+        placement_text,
         run_arm_world,
     )
     from repertoire.diagrams.arm_dmp_scenarios import PICK_PLACE_LABELS, segment_timing
 
     out = {"failure": "", "path": np.zeros((0, 3)), "duration": 0.0, "wall": 0.0}
+    settle_report = ""
     out.update(dict.fromkeys(PICK_PLACE_FIGURES, float("nan")))
     recorder = None
     try:
@@ -167,6 +172,13 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
         figures = pick_and_place_figures(diagram, context)
         out.update({k: figures[k] for k in PICK_PLACE_FIGURES})
         out["path"] = tcp_path(diagram, context, path_every_s)
+        if figures["release_settled"] == 0.0:  # the release's wait ran out
+            settle_report = placement_text(
+                figures["release_object_error_m"],
+                figures["release_object_speed_mps"],
+                figures["start_delay_s"],
+                "cup",
+            )
     except (IkTargetError, RepertoireError) as e:
         out["failure"] = str(e)
     out.update(joint_limit_figures(recorder))
@@ -183,7 +195,8 @@ def run_pick_and_place(scenario, sim_duration_s: float, path_every_s: float) -> 
         out["outcome"] = "grasp_slip"
         out["report"] = grasp_slip_text(out["grasp_slip_m"], out["grasp_slip_time_s"], "cup")
     else:
-        out["outcome"], out["report"] = ("placed" if out["placed"] else "missed"), ""
+        out["outcome"] = "placed" if out["placed"] else "missed"
+        out["report"] = settle_report
     return out
 
 

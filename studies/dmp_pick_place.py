@@ -119,7 +119,11 @@ class PickPlaceRecord:
         grasp_slip_m: the largest distance the cup moved in the hand while carried [m].
         grasp_slip_time_s: when it occurred.
         held_offset_m: how far the cup's axis was from the tcp's when the carry began [m].
-        start_delay_s: how long the release waited for the place DMP to converge [s].
+        start_delay_s: how long the release waited for the cup to settle on the coaster [s].
+        release_object_error_m: the cup's horizontal distance from the coaster's centre
+            when the release began [m].
+        release_settled: the release found the cup settled (within 1 mm of the centre,
+            at rest), not the wait run out.
         failure: empty, or why the run stopped (IK report).
         joint_margins_rad: per arm7 joint, the least distance of the IK's reference from
             the joint's limits over the run [rad] (NaN: nothing ran).
@@ -127,7 +131,8 @@ class PickPlaceRecord:
             (``joints_at_limits``).
         outcome: ``stopped``, ``grasp_slip`` (the cup moved more than 1 cm in the
             hand), ``placed`` or ``missed`` (``_dmp_common.OUTCOMES``).
-        report: the IK's stop message or the grasp slip's, else empty.
+        report: the IK's stop message or the grasp slip's, else the placing's when the
+            release began before the cup settled, else empty.
         path_x: tcp x every ``path_every_s`` [m].
         path_y: tcp y.
         path_z: tcp z.
@@ -154,6 +159,8 @@ class PickPlaceRecord:
     grasp_slip_time_s: float
     held_offset_m: float
     start_delay_s: float
+    release_object_error_m: float
+    release_settled: float
     failure: str
     joint_margins_rad: list[float]
     joint_held_steps: list[int]
@@ -372,6 +379,8 @@ def summarize(
 
     ball_gap = np.array([r.min_ball_gap_m for r in records], dtype=float)
     slip_mm = np.array([r.grasp_slip_m for r in records], dtype=float) * 1000
+    release_mm = np.array([r.release_object_error_m for r in records], dtype=float) * 1000
+    wait_s = np.array([r.start_delay_s for r in records], dtype=float)
     lines = [
         "| figure | value |",
         "|---|---|",
@@ -387,6 +396,12 @@ def summarize(
         "| smallest ball gap (SceneGraph), min / median [cm] | "
         f"{stat_pair(ball_gap * 100, np.min, np.median)} |",
         f"| cup to coaster, median / max [cm] | {stat_pair(d * 100, np.median, np.max)} |",
+        "| release found the cup settled (within 1 mm of the centre, at rest) | "
+        f"{sum(r.release_settled == 1.0 for r in records)} of {len(records)} |",
+        "| cup to coaster when the release began, median / max [mm] | "
+        f"{stat_pair(release_mm, np.median, np.max)} |",
+        "| release waited past its due time, median / max [s] | "
+        f"{stat_pair(wait_s, np.median, np.max)} |",
         f"| grasp reach error, median / max [mm] | {stat_pair(grasp, np.median, np.max)} |",
         f"| place reach error, median / max [mm] | {stat_pair(place, np.median, np.max)} |",
         "| tcp clearance to the ball over the run, min / median [cm] | "

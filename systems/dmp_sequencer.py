@@ -84,6 +84,29 @@ def check_waits(
     return waits, wait_dofs, float(max_wait)
 
 
+def check_gates(start_gates, n_segments: int, time_step) -> list[bool]:
+    """Validated ``start_gates`` of a :class:`DmpSequencer` (one bool per segment).
+
+    Raises:
+        RepertoireError: a list of the wrong length, an entry that is not a bool, a gate on
+            the first segment (it starts the chain, there is nothing to wait for) or gates
+            in discrete mode.
+    """
+    gates = [False] * n_segments if start_gates is None else list(start_gates)
+    if len(gates) != n_segments:
+        raise RepertoireError(
+            f"start_gates needs one entry per segment ({n_segments}), got {len(gates)}"
+        )
+    for i, g in enumerate(gates):
+        if not isinstance(g, bool | np.bool_):
+            raise RepertoireError(f"start_gates[{i}] must be True or False, got {g!r}")
+    if gates and gates[0]:
+        raise RepertoireError("start_gates[0] must be False: the first segment starts the chain")
+    if any(gates) and time_step is not None:
+        raise RepertoireError("start_gates need the continuous mode (time_step=None)")
+    return [bool(g) for g in gates]
+
+
 class DmpSequencer(OnsetStartVelocity, LeafSystem):
     """Chained n-D DMPs with per-segment goal inputs (sec. III-C).
 
@@ -94,6 +117,9 @@ class DmpSequencer(OnsetStartVelocity, LeafSystem):
         coupling (``coupling_dofs``, only if > 0): coupling term p (eq. 9) on the first
             ``coupling_dofs`` DOF (e.g. the position under obstacle coupling, eq. 10, whose
             ``v`` is the active segment's ``tau dx/dt``).
+        start_gate (1, only with ``start_gates``): a segment with a gate starts only while
+            this reads 1 (> 0.5), e.g. a monitor that says the object the predecessor placed
+            has settled on its target.
 
     Output ports:
         position, velocity, acceleration (n): x, dx/dt and d2x/dt2 of the active segment
@@ -131,6 +157,7 @@ class DmpSequencer(OnsetStartVelocity, LeafSystem):
         wait_tolerances: list[float | None] | None = None,
         wait_dofs: slice = slice(None),
         max_wait: float = 0.0,
+        start_gates: list[bool] | None = None,
     ) -> None:
         """Builds the sequencer.
 
@@ -158,10 +185,14 @@ class DmpSequencer(OnsetStartVelocity, LeafSystem):
                 Continuous mode only.
             wait_dofs: The DOF ``wait_tolerances`` measure (e.g. the position block).
             max_wait: Longest wait for one segment [s] (then it starts anyway).
+            start_gates: Per segment, whether it also waits (like ``wait_tolerances``, at
+                most ``max_wait``, the delay shifting later starts) until the ``start_gate``
+                input reads 1: readiness the world measures rather than the DMP's state
+                (the placed object at rest on its target). Continuous mode only.
 
         Raises:
             RepertoireError: an empty chain, bad times, mismatched segments or goals, a bad
-                handoff, quaternion block or coupling size, bad wait tolerances.
+                handoff, quaternion block or coupling size, bad wait tolerances or gates.
         """
         super().__init__()
         times = check_switch_times(start_times, len(segments), "start times")
@@ -193,6 +224,7 @@ class DmpSequencer(OnsetStartVelocity, LeafSystem):
         self._waits, self._wait_dofs, self._max_wait = check_waits(
             wait_tolerances, len(segments), wait_dofs, n, max_wait, time_step
         )
+        self._gates = check_gates(start_gates, len(segments), time_step)
         self._goals = (  # unconnected goal ports stand for these (default: the learned goals)
             [sg.goal for sg in segments]
             if goals is None
@@ -212,6 +244,7 @@ class DmpSequencer(OnsetStartVelocity, LeafSystem):
         self._coupling_port = (
             self.DeclareVectorInputPort("coupling", coupling_dofs) if coupling_dofs else None
         )
+        self._gate_port = self.DeclareVectorInputPort("start_gate", 1) if any(self._gates) else None
         if time_step is None:
             check_positive("switch_period", switch_period)
             self._switch_period = float(switch_period)
@@ -547,9 +580,12 @@ class DmpSequencer(OnsetStartVelocity, LeafSystem):
         if t < due - 1e-9:
             return
         tol = self._waits[seg + 1]
-        if tol is not None and t < due + self._max_wait - 1e-9:
-            gap = self._goal(context, seg, x0_active)[self._wait_dofs] - x[self._wait_dofs]
-            if np.linalg.norm(gap) > tol:
+        if t < due + self._max_wait - 1e-9:
+            if tol is not None:
+                gap = self._goal(context, seg, x0_active)[self._wait_dofs] - x[self._wait_dofs]
+                if np.linalg.norm(gap) > tol:
+                    return
+            if self._gates[seg + 1] and not self._gate_open(context):
                 return
         if t - due >= self._switch_period - 1e-9:  # it waited (the first check after due failed)
             state.get_mutable_discrete_state(self._delay).SetFromVector([t - self._times[seg + 1]])
@@ -560,6 +596,15 @@ class DmpSequencer(OnsetStartVelocity, LeafSystem):
         state.get_mutable_discrete_state(self._switch).SetFromVector(
             np.concatenate([[seg + 1], x0])
         )
+
+    def _gate_open(self, context: Context) -> bool:
+        """Whether the ``start_gate`` input reads 1 (> 0.5); RepertoireError if unconnected."""
+        if not self._gate_port.HasValue(context):
+            raise RepertoireError(
+                "DmpSequencer's start_gate input is not connected, but start_gates "
+                f"{self._gates} make segments wait for it"
+            )
+        return bool(check_finite_input("start_gate", self._gate_port.Eval(context))[0] > 0.5)
 
     # --- discrete mode -----------------------------------------------------------------
     def _update(self, context: Context, discrete_state) -> None:
@@ -589,6 +634,7 @@ def task_space_sequencer(
     wait_tolerances: list[float | None] | None = None,
     wait_dofs: slice = slice(0, 3),
     max_wait: float = 0.0,
+    start_gates: list[bool] | None = None,
 ) -> DmpSequencer:
     """The arm's chain of 10-D DMPs (Fig. 7): position, quaternion components, fingers.
 
@@ -608,6 +654,8 @@ def task_space_sequencer(
             (:class:`DmpSequencer`).
         wait_dofs: The position DOF that distance is measured on (default all three).
         max_wait: Longest wait of one segment [s].
+        start_gates: Per segment, whether it waits for the ``start_gate`` input
+            (:class:`DmpSequencer`).
 
     Raises:
         RepertoireError: empty chain, bad times, a manifold orientation, no fingers,
@@ -642,6 +690,7 @@ def task_space_sequencer(
         wait_tolerances=wait_tolerances,
         wait_dofs=wait_dofs,
         max_wait=max_wait,
+        start_gates=start_gates,
     )
 
 

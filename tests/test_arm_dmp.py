@@ -15,7 +15,7 @@ from repertoire.diagrams.arm_dmp_scenarios import (
     goal_pose_residual,
     plan_pick_and_place,
     plan_serving,
-    segment_waits,
+    segment_gates,
     shoulder_and_reach,
 )
 from repertoire.diagrams.registry import get_diagram_entry
@@ -113,12 +113,13 @@ def test_plan_goals_and_timing():
     goals, duration = plan_pick_and_place(PickPlaceScenario())
     assert [g.label for g in goals] == PICK_PLACE_LABELS
     assert goals[1].body == "coaster:coaster"  # the placing goal follows the coaster
+    assert [g.places_held for g in goals] == [False, True, False]  # and places the cup
     lib = motion_library()
     assert duration == pytest.approx(
         sum(lib[k].tau for k in PICK_PLACE_LABELS) + 3 * 0.25 + MAX_SEGMENT_WAIT
     )
-    assert segment_waits(PICK_PLACE_LABELS) == [None, None, 0.002]  # the release waits
-    assert segment_waits(SERVING_LABELS) == [None] * len(SERVING_LABELS)
+    assert segment_gates(PICK_PLACE_LABELS) == [False, False, True]  # the release waits
+    assert segment_gates(SERVING_LABELS) == [False] * len(SERVING_LABELS)
 
 
 def test_bad_scenarios():
@@ -458,22 +459,40 @@ def test_coupling_turns_the_active_segments_scaled_velocity_with_the_carry_tuned
 def test_default_world_avoids_the_ball_on_the_carry_path_only_with_coupling():
     """The whole default pick-and-place, with and without the coupling term (about 6 s)."""
     from repertoire.diagrams.arm_dmp_results import pick_and_place_figures
+    from repertoire.diagrams.arm_dmp_scenarios import PLACE_TOLERANCE, place_offset
 
-    figures = {}
+    figures, worlds = {}, {}
     for coupling in (True, False):
         scenario = PickPlaceScenario(obstacle_coupling=coupling)
         _, duration = plan_pick_and_place(scenario)
         diagram = build_pick_and_place(scenario)
         context, _ = run_arm_world(diagram, duration)
         figures[coupling] = pick_and_place_figures(diagram, context)
+        worlds[coupling] = diagram, context
     assert figures[True]["success"] == 1.0 and figures[True]["collision_free"] == 1.0
     assert figures[True]["min_ball_gap_m"] > 0.005
     # The thumb's double gain holds the cup on the tcp's axis (13 mm towards the thumb with
-    # equal gains; measured 0.4 mm). The release waited for the coupled place DMP (0.44 s
-    # here; it used to start with the DMP short of its goal) and not for the longest wait.
+    # equal gains; measured 0.4 mm) when it is lifted ...
     assert figures[True]["held_offset_m"] < 0.002
-    assert 0.0 < figures[True]["start_delay_s"] < MAX_SEGMENT_WAIT
-    assert figures[True]["cup_to_coaster_m"] < 0.005
+    # ... but it slides 2.5 mm in the hand while carried (and the tcp sits 0.5 mm off the
+    # command): the place goal is the coaster's minus the cup's horizontal offset from the
+    # commanded tcp as last measured (1.6 mm here).
+    diagram, context = worlds[True]
+    schedule = diagram.GetSubsystemByName("goal_schedule")
+    held = diagram.GetSubsystemByName("held_object_offset")
+    plant = diagram.GetSubsystemByName("plant")
+    offset = held.GetOutputPort("offset").Eval(held.GetMyContextFromRoot(context))
+    coaster = plant.GetBodyByName("coaster", plant.GetModelInstanceByName("coaster"))
+    p_coaster = coaster.EvalPoseInWorld(plant.GetMyContextFromRoot(context)).translation()
+    goal = schedule.GetOutputPort("goal_1").Eval(schedule.GetMyContextFromRoot(context))
+    assert offset[2] == 0.0 and np.linalg.norm(offset) > 0.001
+    np.testing.assert_allclose(goal[:3], p_coaster + place_offset() - offset, atol=1e-15)
+    # The release waited past the place DMP's due time for the cup to settle within 1 mm of
+    # the coaster's centre (it used to wait for the DMP within 2 mm, the tcp's goal, and the
+    # cup ended 1.1 mm off); the opening hand carries it on towards the centre.
+    assert 0.0 < figures[True]["start_delay_s"] <= MAX_SEGMENT_WAIT
+    assert figures[True]["release_object_error_m"] < 1.1 * PLACE_TOLERANCE
+    assert figures[True]["cup_to_coaster_m"] < 0.5 * PLACE_TOLERANCE
     assert figures[False]["collision_free"] == 0.0 and figures[False]["min_ball_gap_m"] < 0.0
     assert figures[False]["success"] == 0.0  # the cup is knocked off its path
 

@@ -103,9 +103,13 @@ def test_the_cup_slipping_in_the_grasp_is_reported_and_the_default_contact_model
 
     Under ``lagged`` the cup rolled about 6 cm into the hand while lifted past the ball and
     missed the coaster with nothing reported; SAP holds it. Since the grasp holds the cup on
-    the tcp's axis (the thumb's double gain) ``lagged`` still lets it slip, 18 mm, and it
-    lands within the 2 cm: reported as a slip all the same. Two whole runs (about 20 s).
+    the tcp's axis (the thumb's double gain) ``lagged`` still lets it slip, 18 mm: reported
+    as a slip all the same. It landed 18 mm off the centre; since the place goal subtracts
+    the cup's offset from the commanded tcp (measured in the hand while it is carried, slip
+    included, at most 1 cm) it lands within about 1 cm. Two whole runs (about 20 s).
     """
+    from repertoire.diagrams.arm_dmp_scenarios import PLACE_TOLERANCE
+
     assert DMP_CONTACT_APPROXIMATION == "sap"
     assert PickPlaceScenario().contact_approximation == "sap"
     assert get_diagram_entry("arm_pick_and_place").criteria["grasp_slipped"].hi == 0.0
@@ -123,7 +127,8 @@ def test_the_cup_slipping_in_the_grasp_is_reported_and_the_default_contact_model
     assert slipped["failure"] == ""  # the IK saw nothing: the hand tracked its path
     assert slipped["outcome"] == "grasp_slip"  # placed or not, a slip is the outcome
     assert slipped["grasp_slip_m"] > 0.015 and 4.0 < slipped["grasp_slip_time_s"] < 4.5
-    assert slipped["cup_to_coaster_m"] > 0.015
+    # 9.5 mm: the goal followed the cup in the hand, up to HeldObjectOffset's 1 cm
+    assert 0.005 < slipped["cup_to_coaster_m"] < 0.012
     assert slipped["report"] == grasp_slip_text(
         slipped["grasp_slip_m"], slipped["grasp_slip_time_s"], "cup"
     )
@@ -131,4 +136,5 @@ def test_the_cup_slipping_in_the_grasp_is_reported_and_the_default_contact_model
     # measured once: 3.8 mm, settling as the cup is set down on the coaster at the end
     assert held["grasp_slip_m"] == pytest.approx(0.0038, abs=1e-3)
     assert held["grasp_slip_time_s"] > 5.0
-    assert held["cup_to_coaster_m"] < 0.005
+    assert held["release_settled"] == 1.0
+    assert held["cup_to_coaster_m"] < PLACE_TOLERANCE

@@ -105,3 +105,63 @@ def test_bad_waits_are_refused_naming_them():
         DmpSequencer(segments, TIMES, time_step=None, wait_dofs=slice(3, 5))
     with pytest.raises(RepertoireError, match="need the continuous mode"):
         DmpSequencer(segments, TIMES, time_step=1e-3, wait_tolerances=[None, 0.1, None])
+
+
+def _gated(gate: float, max_wait: float = 0.3) -> tuple[DmpSequencer, Simulator]:
+    seq, simulator = _sequencer(0.0, start_gates=[False, True, False], max_wait=max_wait)
+    seq.GetInputPort("start_gate").FixValue(simulator.get_mutable_context(), [gate])
+    return seq, simulator
+
+
+def test_a_gated_segment_starts_when_its_gate_opens_and_shifts_the_rest():
+    """Segment 1 (due at 0.6 s) waits for the start_gate input, whatever its predecessor's
+    state (converged here); opened at 0.75 s it starts at that check, segment 2 0.15 s late."""
+    seq, simulator = _gated(0.0)
+    assert _segment_at(seq, simulator, 0.7495) == 0
+    seq.GetInputPort("start_gate").FixValue(simulator.get_mutable_context(), [1.0])
+    assert _segment_at(seq, simulator, 0.7505) == 1
+    delay = seq.GetOutputPort("start_delay").Eval(simulator.get_context())[0]
+    assert delay == pytest.approx(0.15, abs=1e-9)
+    assert _segment_at(seq, simulator, 1.3495) == 1
+    assert _segment_at(seq, simulator, 1.3505) == 2
+
+
+def test_a_gate_that_never_opens_starts_its_segment_after_max_wait():
+    seq, simulator = _gated(0.0, max_wait=0.3)
+    assert _segment_at(seq, simulator, 0.8995) == 0
+    assert _segment_at(seq, simulator, 0.9005) == 1
+    assert seq.GetOutputPort("start_delay").Eval(simulator.get_context())[0] == pytest.approx(
+        0.3, abs=1e-9
+    )
+
+
+def test_an_open_gate_starts_on_time_as_without_gates():
+    outputs = []
+    for gated in (False, True):
+        seq, simulator = _gated(1.0) if gated else _sequencer(0.0)
+        simulator.AdvanceTo(1.7)
+        context = simulator.get_context()
+        assert seq.GetOutputPort("start_delay").Eval(context)[0] == 0.0
+        outputs.append(seq.GetOutputPort("position").Eval(context).copy())
+    np.testing.assert_array_equal(outputs[0], outputs[1])
+
+
+def test_bad_gates_are_refused_naming_them():
+    segments = [_flat_dmp()] * 3
+    with pytest.raises(RepertoireError, match=r"start_gates needs one entry per segment \(3\)"):
+        DmpSequencer(segments, TIMES, time_step=None, start_gates=[False, True])
+    with pytest.raises(RepertoireError, match=r"start_gates\[1\] must be True or False, got 1"):
+        DmpSequencer(segments, TIMES, time_step=None, start_gates=[False, 1, False])
+    with pytest.raises(RepertoireError, match=r"start_gates\[0\] must be False"):
+        DmpSequencer(segments, TIMES, time_step=None, start_gates=[True, False, False])
+    with pytest.raises(RepertoireError, match="start_gates need the continuous mode"):
+        DmpSequencer(segments, TIMES, time_step=1e-3, start_gates=[False, True, False])
+    seq = DmpSequencer(
+        segments, TIMES, time_step=None, start_gates=[False, True, False], max_wait=1.0
+    )
+    simulator = Simulator(seq)
+    with pytest.raises(RepertoireError, match="start_gate input is not connected"):
+        simulator.AdvanceTo(0.65)
+    seq, simulator = _gated(float("nan"))
+    with pytest.raises(RepertoireError, match="start_gate input contains NaN"):
+        simulator.AdvanceTo(0.65)

@@ -63,6 +63,7 @@ from repertoire.models.biped import (
 from repertoire.planning.footstep.actions import ACTIONS, commanded_displacement
 from repertoire.planning.footstep.types import Foot, FootstepPlan, wrap_angle
 
+from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 
 #: Forward command per action [m] (the body's desired forward displacement per step).
@@ -715,8 +716,8 @@ class WalkingIK(LeafSystem):
         super().__init__()
         if not period > 0:
             raise RepertoireError(f"period must be > 0, got {period}")
-        if not (math.isfinite(com_gain) and com_gain >= 0.0):
-            raise RepertoireError(f"com_gain must be finite and >= 0, got {com_gain}")
+        if not (is_real(com_gain) and math.isfinite(com_gain) and com_gain >= 0.0):
+            raise RepertoireError(f"com_gain must be a finite number >= 0, got {com_gain!r}")
         self._period, self._com_gain = period, float(com_gain)
         self._com = self.DeclareVectorInputPort("com", 4)
         self._left = self.DeclareVectorInputPort("left_foot", 4)

@@ -358,7 +358,7 @@ def test_walking_ik_com_feedback_aims_past_the_plan_by_the_measured_error():
     q, pelvis = whole_body_ik(np.array([0.016, -0.008]), left, right, 0.6, iterations=6)
     np.testing.assert_allclose(ik.GetOutputPort("desired_state").Eval(ictx)[:12], q, atol=1e-9)
     np.testing.assert_allclose(ik.GetOutputPort("pelvis_reference").Eval(ictx), pelvis, atol=1e-9)
-    for bad in (-0.5, math.nan, math.inf):
+    for bad in (-0.5, math.nan, math.inf, "1", None):
         with pytest.raises(RepertoireError, match="com_gain"):
             WalkingIK(0.6, com_gain=bad)
 

@@ -415,7 +415,37 @@ class SolePoseSensor(LeafSystem):
         output.SetFromVector(out)
 
 
+class ComSensor(LeafSystem):
+    """The biped's whole-body centre of mass from the plant's state.
+
+    Input ports:
+        state: the plant's ``state`` output.
+
+    Output ports:
+        com: (3,) CoM of the model instance in the world [m].
+    """
+
+    def __init__(self, plant, instance):
+        """Creates the sensor.
+
+        Args:
+            plant: the finalized MultibodyPlant with the biped.
+            instance: the biped's model instance.
+        """
+        super().__init__()
+        self._plant, self._instances = plant, [instance]
+        self._plant_context = plant.CreateDefaultContext()  # scratch: positions set per call
+        self._state = self.DeclareVectorInputPort("state", plant.num_multibody_states())
+        self.DeclareVectorOutputPort("com", 3, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        self._plant.SetPositionsAndVelocities(self._plant_context, self._state.Eval(context))
+        com = self._plant.CalcCenterOfMassPositionInWorld(self._plant_context, self._instances)
+        output.SetFromVector(com)
+
+
 __all__ = [
+    "ComSensor",
     "FootstepFeedback",
     "SolePoseSensor",
     "StepReach",

@@ -63,6 +63,7 @@ from repertoire.models.biped import (
 from repertoire.planning.footstep.actions import ACTIONS, commanded_displacement
 from repertoire.planning.footstep.types import Foot, FootstepPlan, wrap_angle
 
+from repertoire.checks import is_real
 from repertoire.errors import RepertoireError
 
 #: Forward command per action [m] (the body's desired forward displacement per step).
@@ -701,6 +702,8 @@ class WalkingIK(LeafSystem):
         com: (4,) desired CoM [x, y, xdot, ydot] (only x, y are used).
         left_foot: (4,) left sole [x, y, z, yaw].
         right_foot: (4,) right sole [x, y, z, yaw].
+        measured_com: with ``com_gain`` > 0, (3,) the robot's CoM; the IK then aims the CoM
+            at ``com + com_gain (com - measured_com)`` (x, y), a proportional CoM feedback.
 
     Output ports:
         desired_state: (24,) [q (12), v (12)] in ``JOINT_NAMES`` order.
@@ -709,14 +712,18 @@ class WalkingIK(LeafSystem):
     Parameters: pelvis height (numeric parameter, index 0).
     """
 
-    def __init__(self, pelvis_height: float, *, period: float = 0.005):
+    def __init__(self, pelvis_height: float, *, period: float = 0.005, com_gain: float = 0.0):
         super().__init__()
         if not period > 0:
             raise RepertoireError(f"period must be > 0, got {period}")
-        self._period = period
+        if not (is_real(com_gain) and math.isfinite(com_gain) and com_gain >= 0.0):
+            raise RepertoireError(f"com_gain must be a finite number >= 0, got {com_gain!r}")
+        self._period, self._com_gain = period, float(com_gain)
         self._com = self.DeclareVectorInputPort("com", 4)
         self._left = self.DeclareVectorInputPort("left_foot", 4)
         self._right = self.DeclareVectorInputPort("right_foot", 4)
+        if com_gain > 0.0:
+            self._measured = self.DeclareVectorInputPort("measured_com", 3)
         self._height_index = self.DeclareNumericParameter(BasicVector([pelvis_height]))
         # [q (12), v (12), pelvis x, y, z, yaw, pelvis-minus-CoM offset x, y]
         self._state = self.DeclareDiscreteState(24 + 4 + 2)
@@ -733,15 +740,20 @@ class WalkingIK(LeafSystem):
         self, context: Context, offset: np.ndarray | None, iterations: int
     ) -> tuple[np.ndarray, np.ndarray]:
         height = context.get_numeric_parameter(self._height_index).GetAtIndex(0)
-        com = self._com.Eval(context)
         left, right = self._left.Eval(context), self._right.Eval(context)
-        return whole_body_ik(
-            com[:2], left, right, height, iterations=iterations, offset_guess=offset
-        )
+        com = self._aim(context)
+        return whole_body_ik(com, left, right, height, iterations=iterations, offset_guess=offset)
+
+    def _aim(self, context: Context) -> np.ndarray:
+        """The (x, y) the IK puts the CoM at (the planned CoM, with the CoM feedback)."""
+        com = np.array(self._com.Eval(context)[:2])
+        if self._com_gain > 0.0:
+            com += self._com_gain * (com - self._measured.Eval(context)[:2])
+        return com
 
     def _initialize(self, context: Context, discrete_state: DiscreteValues) -> None:
         q, pelvis = self._solve(context, None, 6)
-        offset = pelvis[:2] - self._com.Eval(context)[:2]
+        offset = pelvis[:2] - self._aim(context)
         discrete_state.set_value(self._state, np.concatenate([q, np.zeros(12), pelvis, offset]))
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
@@ -749,7 +761,7 @@ class WalkingIK(LeafSystem):
         # Warm start from the previous pelvis-minus-CoM offset: two iterations suffice.
         q, pelvis = self._solve(context, old[28:30], 2)
         v = (q - old[:12]) / self._period
-        offset = pelvis[:2] - self._com.Eval(context)[:2]
+        offset = pelvis[:2] - self._aim(context)
         discrete_state.set_value(self._state, np.concatenate([q, v, pelvis, offset]))
 
     def _calc_desired(self, context: Context, output: BasicVector) -> None:

@@ -341,3 +341,52 @@ def test_start_time_must_be_finite_and_not_negative():
     assert seq.command_times == [pytest.approx(2.0 + RULE.initial_hold)]
     zmp = zmp_reference(seq)
     np.testing.assert_allclose(zmp.value(1.0).ravel(), [0.0, 0.0], atol=1e-12)
+
+
+def test_walking_ik_com_feedback_aims_past_the_plan_by_the_measured_error():
+    # com_gain K: the IK puts the CoM at c + K (c - measured), exactly whole_body_ik's there.
+    assert WalkingIK(0.6).num_input_ports() == 3  # no measured_com port without feedback
+    ik = WalkingIK(0.6, com_gain=1.0)
+    ictx = ik.CreateDefaultContext()
+    left, right = [0.0, 0.095, 0.0, 0.0], [0.0, -0.095, 0.0, 0.0]
+    ik.GetInputPort("com").FixValue(ictx, [0.01, 0.002, 0.0, 0.0])
+    ik.GetInputPort("left_foot").FixValue(ictx, left)
+    ik.GetInputPort("right_foot").FixValue(ictx, right)
+    ik.GetInputPort("measured_com").FixValue(ictx, [0.004, 0.012, 0.7])
+    simulator = Simulator(ik, ictx)
+    simulator.Initialize()
+    q, pelvis = whole_body_ik(np.array([0.016, -0.008]), left, right, 0.6, iterations=6)
+    np.testing.assert_allclose(ik.GetOutputPort("desired_state").Eval(ictx)[:12], q, atol=1e-9)
+    np.testing.assert_allclose(ik.GetOutputPort("pelvis_reference").Eval(ictx), pelvis, atol=1e-9)
+    for bad in (-0.5, math.nan, math.inf, "1", None):
+        with pytest.raises(RepertoireError, match="com_gain"):
+            WalkingIK(0.6, com_gain=bad)
+
+
+def test_com_sensor_is_the_plants_com():
+    plan = _plan(["stop"])
+    diagram = build_walk_diagram(plan, com_gain=1.0)
+    context = diagram.CreateDefaultContext()
+    plant = diagram.GetSubsystemByName("plant")
+    sensor = diagram.GetSubsystemByName("com_sensor")
+    pc = plant.GetMyContextFromRoot(context)
+    plant.SetPositions(pc, plant.GetPositions(pc) + 0.01)  # away from the default pose
+    want = plant.CalcCenterOfMassPositionInWorld(pc)
+    got = sensor.GetOutputPort("com").Eval(sensor.GetMyContextFromRoot(context))
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    assert not build_walk_diagram(plan).HasSubsystemNamed("com_sensor")
+
+
+def test_com_feedback_lands_the_feet_closer_to_their_schedule():
+    # Five long steps from standing (session 35's walk): without CoM feedback the stance
+    # soles roll up to 1.97 deg and the feet touch down 0.16-0.22 s after their scheduled
+    # landings; with com_gain 1 the roll halves and so does the lateness. No fall either way.
+    plan = _plan(["forward_long"] * 5 + ["stop", "stop"])
+    late = {}
+    for gain in (0.0, 1.0):
+        result = execute_plan(plan, diagram=build_walk_diagram(plan, com_gain=gain))
+        assert not result.fell
+        late[gain] = np.subtract(result.durations, result.scheduled_durations)
+    assert late[0.0].max() > 0.2
+    assert late[1.0].max() < 0.15
+    assert np.all(late[1.0] <= late[0.0] + 1e-9)

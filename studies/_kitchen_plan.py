@@ -29,7 +29,8 @@ are constants in closed form from the actions' speeds. A stand or drop pose whos
 footprint overlaps furniture, or whose straight path from the previous pose does
 (GoToPose drives without obstacle avoidance), is INVALID (predicted +inf), and so is a
 stand from which no drop drive, held arm and all, reaches :func:`exit_point` (so a drop
-pose stays reachable whatever later steps choose: ``_kitchen_arm.exit_clear``): geometric preconditions, not learned failure models. So is
+pose stays reachable whatever later steps choose: ``_kitchen_arm.exit_clear``): geometric
+preconditions, not learned failure models. So is
 a plan whose arm, fingers or held cup would pass through a table, the counter, a wall or
 a standing cup on a reach, the carry or the put, or while the base drives with the arm
 held out (:mod:`repertoire.studies._kitchen_arm`): a clear base path alone let the arm

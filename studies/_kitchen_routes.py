@@ -1,8 +1,8 @@
 """The shortest route through via points whose legs are checked lazily (the kitchen drives).
 
 :func:`~repertoire.studies._kitchen_arm.route` searches the drives of the kitchen plans
-around the furniture with it; the search knows nothing of the kitchen: which legs may be
-driven at all and a function that checks a leg.
+around the furniture with it. The search knows nothing of the kitchen: it is given which
+legs may be driven at all and a function that checks a leg.
 """
 
 import numpy as np

@@ -22,6 +22,7 @@ from repertoire.studies._kitchen_plan import (
     plan_geometry,
     to_chassis_z,
 )
+from repertoire.studies._kitchen_routes import GOAL, START, reached_through, shortest_routes
 from repertoire.systems.kitchen_geometry import segment_disc_gaps, segment_gaps
 
 from repertoire.errors import RepertoireError
@@ -514,20 +515,6 @@ def clear_to_points(ends, points, radius: float, *, towards: bool = True) -> np.
     return path_clear(frm, to, KITCHEN_OBSTACLES, radius).reshape(n, m)
 
 
-def reached_through(seen, on) -> np.ndarray:
-    """The via points (``on``'s last axis) from which one of ``on`` is reached by legs of ``seen``.
-
-    The transitive closure of ``on`` over the visibility graph ``seen`` ((m, m)), for ``on``
-    of shape (m,) or (n, m).
-    """
-    on = np.asarray(on, dtype=bool)
-    while True:
-        more = on | (seen & on[..., None, :]).any(axis=-1)
-        if np.array_equal(more, on):
-            return on
-        on = more
-
-
 def reaches(a, point, clearance: float) -> np.ndarray:
     """``(n,)`` True where a footprint at ``a`` (n, >= 2) reaches ``point`` by straight legs.
 
@@ -564,110 +551,46 @@ def reaches(a, point, clearance: float) -> np.ndarray:
     return ok
 
 
-#: Node numbers of :func:`shortest_routes` for a route's start and end (via points: 0..m-1).
-START, GOAL = -1, -2
+def least_carry(config: KitchenPlanConfig) -> np.ndarray:
+    """The carry point (chassis frame) whose held arm blocks the fewest drives.
 
-
-def shortest_routes(a, b, points, seen, from_a, to_b, direct, legs_clear) -> list:
-    """Per row the shortest route ``a`` -> via points -> ``b`` whose every leg is clear.
-
-    Dijkstra over a visibility graph: the nodes are the start, the via points and the
-    end; ``seen``, ``from_a``, ``to_b`` and ``direct`` say which straight legs may be
-    driven at all. A leg's drive also depends on the heading its end takes (a via point
-    faces the next point of the route), so a search state is a node with the node it
-    goes on to, and a leg ``u -> v`` (v going on to ``w``) is checked with
-    ``legs_clear`` when the search first takes it (lazily, shortest routes first; all
-    rows' pending legs in one call). Lengths are the straight legs' sums. The search is
-    A*: a path is taken in the order of its length plus the straight distance from its
-    last node to the end (a consistent bound, as the legs are straight), so it settles
-    every state at its shortest length as Dijkstra does and finds the same shortest
-    route, while checking the legs of far fewer paths that lead away from the end.
-
-    Args:
-        a: (n, >= 2) starts. b: (n, >= 2) ends. points: (m, 2) via points.
-        seen: (m, m) True where the leg from via point i to j may be driven.
-        from_a: (n, m) the same from each start, to_b: (n, m) to each end.
-        direct: (n,) the same from the start to the end.
-        legs_clear: ``legs_clear(rows, legs) -> (len(rows),) bool`` for legs
-            ``(u, v, w)`` (node numbers; ``w`` the node ``v`` faces, ``GOAL`` for a via
-            point facing the end, None for ``v == GOAL``) of rows ``rows``.
-
-    Returns:
-        Per row the tuple of via point indices in driving order (empty: straight), or
-        None where no route is clear.
+    Of the carry ranges: the least horizontal reach (the extension's lower end, at the yaw
+    end farthest from straight ahead: the reach grows with ``cos(yaw)`` and the extension)
+    and the highest cup, so its lowest point is above the most obstacles
+    (:func:`arm_reach`). A drive this arm cannot make, no carry point makes.
     """
-    import heapq
+    from repertoire.studies._kitchen_plan import arm_point
 
-    a, b = np.atleast_2d(a)[:, :2], np.atleast_2d(b)[:, :2]
-    points = np.asarray(points, dtype=float).reshape(-1, 2)
-    n = len(a)
-    between = np.hypot(*(points[:, None] - points[None]).transpose(2, 0, 1))
-    to_end = np.hypot(*(points[None] - b[:, None]).transpose(2, 0, 1))  # (n, m)
-    seen, from_a, to_b = (np.asarray(x, dtype=bool) for x in (seen, from_a, to_b))
-    on = reached_through(seen, to_b)  # (n, m): the via points the end is reached from
-    heaps: list[list] = [[] for _ in range(n)]
-    closed: list[set] = [set() for _ in range(n)]
-    tie = 0
+    yaws = np.array(config.carry_yaw_range, dtype=float)
+    yaw = yaws[np.argmin(np.cos(yaws))]
+    z = to_chassis_z(config.carry_z_range[1])
+    return arm_point(yaw, config.carry_extend_range[0], z)
 
-    def push(r, length, path):  # in the order of length + the straight rest to the end
-        nonlocal tie
-        rest = 0.0 if path[-1] == GOAL else to_end[r, path[-1]]
-        heapq.heappush(heaps[r], (length + rest, tie, length, path))
-        tie += 1
 
-    def extend(r, length, path):  # the legs on from the path's last node
-        w = path[-1]
-        for x in np.flatnonzero(seen[w] & on[r]):  # on towards the end only
-            if x not in path:
-                push(r, length + between[w, x], path + (int(x),))
-        if to_b[r, w]:
-            push(r, length + to_end[r, w], path + (GOAL,))
+def exit_clear(stand, cups, targets, k: int, config: KitchenPlanConfig, rows=None):
+    """``(n,)`` True where fetch ``k``'s drop drive can leave the stand for its exit point.
 
-    for r in range(n):
-        if direct[r]:
-            push(r, float(np.hypot(*(b[r] - a[r]))), (START, GOAL))
-        for p in np.flatnonzero(from_a[r] & on[r]):
-            push(r, float(np.hypot(*(points[p] - a[r]))), (START, int(p)))
-    routes: list = [None] * n
-    known: list[dict] = [{} for _ in range(n)]  # per row the legs checked: clear or not
+    The drive from each stand pose (n, 4) to :func:`~repertoire.studies._kitchen_plan.exit_point`
+    (at rest, facing target ``k``) must be clear as a drop drive is checked
+    (:func:`route`: the law's path, the footprint and the held arm, through any number of
+    corners) with the held arm at :func:`least_carry`; straight footprint legs
+    (:func:`reaches`) alone let a stand behind ``table_0`` pass from which the law, turning
+    as it drives, brings the footprint into the table whatever carry and drop follow.
+    Rows not in ``rows`` (default all) are not clear.
+    """
+    from repertoire.studies._kitchen_plan import exit_point
 
-    def settle(r, length, path):  # a path whose legs are clear: a route, or on from it
-        if path[-1] == GOAL:
-            routes[r] = path[1:-1]
-        else:
-            closed[r].add(path[-2:])
-            extend(r, length, path)
-
-    active = list(range(n))
-    while active:
-        pending = {}  # row -> (length, path, legs to check)
-        for r in active:
-            while heaps[r] and routes[r] is None:
-                _, _, length, path = heapq.heappop(heaps[r])
-                if path[-2:] in closed[r]:
-                    continue
-                legs = [(path[-3], path[-2], path[-1])] if len(path) > 2 else []
-                if path[-1] == GOAL:
-                    legs.append((path[-2], GOAL, None))
-                if not all(known[r].get(leg, True) for leg in legs):
-                    continue
-                unknown = [leg for leg in legs if leg not in known[r]]
-                if unknown:
-                    pending[r] = (length, path, unknown)
-                    break
-                settle(r, length, path)
-        if not pending:
-            break
-        rows = [r for r, (_, _, legs) in pending.items() for _ in legs]
-        clear = legs_clear(np.array(rows), [leg for _, _, legs in pending.values() for leg in legs])
-        at = 0
-        for r, (length, path, legs) in pending.items():
-            known[r].update(zip(legs, (bool(c) for c in clear[at : at + len(legs)])))
-            at += len(legs)
-            if all(known[r][leg] for leg in legs):
-                settle(r, length, path)
-        active = [r for r in active if routes[r] is None and heaps[r]]
-    return routes
+    stand = np.atleast_2d(np.asarray(stand, dtype=float))
+    target = np.asarray(targets, dtype=float)[k]
+    exit_ = exit_point(target)
+    n = len(stand)
+    rows = np.arange(n) if rows is None else np.flatnonzero(np.isin(np.arange(n), rows))
+    rows = rows[reaches(stand[rows], exit_, config.clearance)]
+    phi = np.arctan2(target[1] - exit_[1], target[0] - exit_[0])
+    end = np.broadcast_to([exit_[0], exit_[1], phi, 0.0], (n, 4))
+    arm = np.broadcast_to(least_carry(config), (n, 3))
+    boxes, discs, _ = fetch_obstacles(cups, targets, k, 0.0)
+    return route(stand, end, arm, True, boxes, discs, config, rows)[1]
 
 
 def drive_route(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig, role: str,
@@ -691,20 +614,30 @@ def drive_route(g: PlanGeometry, cups, k: int, start, config: KitchenPlanConfig,
         order, NaN after them (``l`` >= 1 the most any row has; all NaN where straight or
         not clear), and whether the drive is clear.
     """
+    a, b = drive_ends(g, k, start, role)
+    arm, held, boxes, discs, _ = _drive_arm(g, cups, k, config, role)
+    return route(a, b, arm, held, boxes, discs, config, rows)
+
+
+def route(a, b, arm, held: bool, boxes, discs, config: KitchenPlanConfig, rows=None):
+    """:func:`drive_route` of drives ``a -> b`` ((n, 4) each) with the arm at ``arm`` (n, 3).
+
+    ``held``, ``boxes`` and ``discs`` as for :func:`law_drive_hits`; ``config`` gives the
+    clearances; ``rows`` as for :func:`drive_route`, whose ``(via, ok)`` it returns.
+    """
     from repertoire.diagrams.kitchen import KITCHEN_OBSTACLES, ROBOT_RADIUS
     from repertoire.studies._kitchen_plan import path_clear
 
-    a, b = drive_ends(g, k, start, role)
     n = len(b)
     rows = np.arange(n) if rows is None else np.flatnonzero(np.isin(np.arange(n), rows))
-    radius = ROBOT_RADIUS + config.clearance
+    radius, c = ROBOT_RADIUS + config.clearance, config.arm_clearance
     points = via_points(config.clearance)
     m = len(points)
-    arm, held, boxes, discs, _ = _drive_arm(g, cups, k, config, role)
     ok = np.zeros(n, dtype=bool)
     # the straight drive first where its footprint path is clear (no route is shorter)
     straight = rows[path_clear(a[rows], b[rows], KITCHEN_OBSTACLES, radius)]
-    ok[straight] = drive_hits(g.rows(straight), cups, k, start, config, role)[0] < 0
+    ok[straight] = law_drive_hits(a[straight], b[straight], arm[straight], boxes, radius, c, held,
+                                  discs) < 0  # fmt: skip
     rows = rows[~ok[rows]]
     ar, br = a[rows], b[rows]
     seen = corners_seen(points, radius)

@@ -28,8 +28,9 @@ Models: the kitchen goToPose and reach duration trees (Table 7 features) fitted 
 are constants in closed form from the actions' speeds. A stand or drop pose whose
 footprint overlaps furniture, or whose straight path from the previous pose does
 (GoToPose drives without obstacle avoidance), is INVALID (predicted +inf), and so is a
-stand with no straight free path to :func:`exit_point` (so a drop pose stays reachable
-whatever later steps choose): geometric preconditions, not learned failure models. So is
+stand from which no drop drive, held arm and all, reaches :func:`exit_point` (so a drop
+pose stays reachable whatever later steps choose: ``_kitchen_arm.exit_clear``): geometric
+preconditions, not learned failure models. So is
 a plan whose arm, fingers or held cup would pass through a table, the counter, a wall or
 a standing cup on a reach, the carry or the put, or while the base drives with the arm
 held out (:mod:`repertoire.studies._kitchen_arm`): a clear base path alone let the arm
@@ -462,7 +463,6 @@ def kitchen_problem(
     start = np.asarray(start, dtype=float)
     m = len(targets)
     up = np.array([0.0, 0.0, config.above_offset])
-    exits = [exit_point(t) for t in np.asarray(targets, dtype=float)]
     terms: list = []
     actions: list[str] = []
 
@@ -500,8 +500,8 @@ def kitchen_problem(
         arm_ways,
         drive_ends,
         drive_route,
+        exit_clear,
         reachable_on_arrival,
-        reaches,
     )
 
     def arm_clear(f, g, k, role):  # the features where the arm's way is clear, else NaN
@@ -545,9 +545,13 @@ def kitchen_problem(
 
         def goto_stand(params, k=k):  # straight, or via a point around the furniture
             g = geometry(params)
-            ok = reaches(g.stand[:, k], exits[k], config.clearance)
+            ok = np.ones(g.stand.shape[0], dtype=bool)
             if config.arrival_check:  # the cup in reach wherever the drive stops
                 ok &= reachable_on_arrival(g.stand[:, k], (g.cup[k] + up, g.cup[k]))
+            if g is last.get("g"):
+                ok &= ~last["invalid"]
+            # a drop drive can leave the stand (the law, the held arm: exit_clear)
+            ok = exit_clear(g.stand[:, k], cups, targets, k, config, np.flatnonzero(ok))
             return drive_time(g, k, "drive_stand", ok)
 
         add("goto_pose", summed, goto_stand, prev_ids + stand_ids)

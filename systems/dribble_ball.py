@@ -66,18 +66,6 @@ spare (:func:`turn_miss`, :func:`pivot_turns`), and :data:`PIVOT_TURN` turns whi
 turn arrives at all. Its rest (``phi = phi_g``) has the axle within ``position_tolerance``
 of the goal's, so it is an arrival.
 
-The spot law's cycle (session 37). Within ``position_tolerance`` of the goal's held spot
-the spot law turns in place about the axle, which moves the held spot on a circle of
-radius ``hold_distance``. Where no heading of that turn within ``heading_tolerance``
-has the spot inside the tolerance (:func:`turn_miss` at least ``position_tolerance``),
-the turn swings the spot out, and outside the polar law turns to face the goal's spot,
-which undoes the turn, and drives back in: the dribble study's seeds 526 and 727 (the
-spot stopped 0.09-0.10 m from the goal's, the heading 0.58-0.80 rad off ``phi_g``; the
-turn's nearest spot 0.11-0.13 m away) cycled so until the timeout. The swing rule below
-missed them because it measures the swing from the goal's spot itself. The in-place
-turn is therefore taken only as :data:`PIVOT_TURN`, held while it arrives, and where it
-cannot arrive the robot pivots (moves its axle to the goal's) instead.
-
 Final approach. The paper's dribble goal has a heading (Algorithm 2's example
 instantiates ``dribbleBall(..., xg=1, yg=3, phi=2.6, vg=0)``), so arriving at the
 spot is not enough. Near the goal with a large heading error the spot law
@@ -382,12 +370,7 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
     APPROACH -> PIVOT when the held spot is within ``2 * position_tolerance``
     of the goal's and turning in place by the heading error beyond
     ``heading_tolerance`` would swing it by more than ``position_tolerance``
-    (``2 * hold_distance * sin(turn / 2)``). Once the held spot is within
-    ``position_tolerance`` with the heading beyond ``heading_tolerance`` (where the spot
-    law turns in place), APPROACH -> PIVOT_TURN if that turn arrives
-    (:func:`pivot_turns` without a margin), else -> PIVOT (not for a target that needs a
-    loop): the swing rule measures the swing from the goal's held spot, but the spot law
-    stops anywhere within the tolerance.
+    (``2 * hold_distance * sin(turn / 2)``).
 
     PIVOT (:func:`dribble_control` with ``lead = 0``: turn to face the goal's axle
     position, drive to it, never backing) -> PIVOT_TURN once the in-place turn towards
@@ -440,9 +423,6 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
         near = rho < 2.0 * gains["position_tolerance"]
         if near and swing > gains["position_tolerance"]:
             return loop if needs_loop(target) else PIVOT
-        if rho < gains["position_tolerance"] and turn > 0.0 and not needs_loop(target):
-            # the spot law turns in place here: held as PIVOT_TURN if that turn arrives
-            return PIVOT_TURN if pivot_turns(state, target, gains, 0.0) else PIVOT
         return APPROACH
     if rho > 2.0 * gains["min_turn_radius"]:
         return APPROACH

@@ -79,8 +79,11 @@ goal's spot itself, but the law stops anywhere within the tolerance, mostly on i
 edge. The spot law now steers the held spot to ``position_tolerance - control_distance``
 (driving on along the heading brings the turn's nearest spot closer: for 526 from 0.135
 to 0.077 m at 0.1 m deeper), and the in-place turn is taken only as :data:`PIVOT_TURN`,
-where it arrives, and held while it does. Handing every such turn straight to the pivot
-instead (tried first) fixed 526 and 727 but made 104 of 1000 dribbles 3.4 s slower.
+where it arrives, and held while it does; one that stops arriving with the spot near
+goes back to the spot law, not to the pivot, whose reach turns away to face the goal's
+axle (unseen seed 5129 began the turn with its miss 2 mm inside the tolerance, lost it,
+and timed out in the pivot). Handing every such turn straight to the pivot instead (tried first) fixed
+526 and 727 but made 104 of 1000 dribbles 3.4 s slower.
 
 Final approach. The paper's dribble goal has a heading (Algorithm 2's example
 instantiates ``dribbleBall(..., xg=1, yg=3, phi=2.6, vg=0)``), so arriving at the
@@ -394,8 +397,9 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
     the held spot deeper (:func:`dribble_control` steers it to ``position_tolerance -
     control_distance``), which brings the turn's nearest spot closer, and -> PIVOT once
     the spot is that deep and the turn still does not arrive. A PIVOT_TURN that no longer
-    arrives -> APPROACH while the held spot is inside ``position_tolerance`` (deeper
-    first), else -> PIVOT.
+    arrives -> APPROACH where APPROACH would not pivot (the held spot within ``2 *
+    position_tolerance`` and the swing at most ``position_tolerance``: deeper first),
+    else -> PIVOT.
 
     PIVOT (:func:`dribble_control` with ``lead = 0``: turn to face the goal's axle
     position, drive to it, never backing) -> PIVOT_TURN once the in-place turn towards
@@ -461,8 +465,9 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
     margin = 0.0 if mode == PIVOT_TURN else gains["control_distance"]
     if pivot_turns(state, target, gains, margin):
         return PIVOT_TURN
-    if mode == PIVOT_TURN and rho < gains["position_tolerance"] and not needs_loop(target):
-        return APPROACH  # the held spot inside: deeper first (above)
+    keeps_in = rho < 2.0 * gains["position_tolerance"] and swing <= gains["position_tolerance"]
+    if mode == PIVOT_TURN and keeps_in and not needs_loop(target):
+        return APPROACH  # the held spot near, a turn that keeps it in: deeper first (above)
     return PIVOT
 
 

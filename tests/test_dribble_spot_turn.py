@@ -101,8 +101,15 @@ def test_driving_deeper_brings_the_turn_within_reach():
     assert turn_miss(deep, goal, G) == pytest.approx(0.0918, abs=1e-4)
     assert approach_mode(APPROACH, deep, goal, G) == PIVOT_TURN
     assert mode_control(PIVOT_TURN, deep, _spot(deep), goal, G) == (0.0, 0.5, True)
-    # a turn that stops arriving (the ball's creep) with the spot inside: deeper first
+    # a turn that stops arriving (the ball's creep, an overshoot) with the spot near and
+    # a swing that keeps it in: deeper first, also just outside the tolerance (0.03 m
+    # back: the spot 0.128 m out; was PIVOT, whose reach turned away: unseen seed 5129)
     assert approach_mode(PIVOT_TURN, deeper, goal, G) == APPROACH
+    back = _ahead(state, -0.03)
+    assert G["position_tolerance"] < _spot_distance(back, goal) < 2 * G["position_tolerance"]
+    assert approach_mode(PIVOT_TURN, back, goal, G) == APPROACH
+    # far out the pivot goes on
+    assert approach_mode(PIVOT_TURN, _ahead(state, -0.15), goal, G) == PIVOT
     # a target that needs a loop keeps the loop logic: stopped inside, it loops
     assert approach_mode(APPROACH, deep, [*goal[:3], 0.3], G) == LOOP_LEFT
 

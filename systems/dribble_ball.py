@@ -82,8 +82,8 @@ to 0.077 m at 0.1 m deeper), and the in-place turn is taken only as :data:`PIVOT
 where it arrives, and held while it does; one that stops arriving with the spot near
 goes back to the spot law, not to the pivot, whose reach turns away to face the goal's
 axle (unseen seed 5129 began the turn with its miss 2 mm inside the tolerance, lost it,
-and timed out in the pivot). Handing every such turn straight to the pivot instead (tried first) fixed
-526 and 727 but made 104 of 1000 dribbles 3.4 s slower.
+and timed out in the pivot). Handing every such turn straight to the pivot instead
+(tried first) fixed 526 and 727 but made 104 of 1000 dribbles 3.4 s slower.
 
 Final approach. The paper's dribble goal has a heading (Algorithm 2's example
 instantiates ``dribbleBall(..., xg=1, yg=3, phi=2.6, vg=0)``), so arriving at the

@@ -376,6 +376,30 @@ def soccer_duration_models(
     }
 
 
+def approach_succeeds(failure_tree, config: SoccerPlanConfig):
+    """``refinement_problem``'s ``succeeds`` for the approach: not a predicted collision.
+
+    Section 7.2's Algorithm 4: the approach's model returns INVALID (+inf) where the
+    failure tree (``refinement_explore``'s ``approach_failure``: the approach touches the
+    ball) predicts failure, so the refinement chooses only subgoals it predicts succeed.
+
+    Args:
+        failure_tree: the approach failure tree (fitted on :data:`LEG_FEATURES`).
+        config: gives ``approach_distance``.
+
+    Returns:
+        Approach parameters (name -> (n,) values) -> (n,) booleans, True where the tree
+        predicts success.
+    """
+    d = config.approach_distance
+
+    def succeeds(p) -> np.ndarray:
+        start = np.column_stack([p["x"], p["y"], p["phi"], p["v"]])
+        return ~failure_tree.predict_failure(approach_features(start, p["phi_g"], p["v_g"], d))
+
+    return succeeds
+
+
 APPROACH_READS = (
     ("x", "y", "phi_g"),
     ("x", "y", "phi", "phi_g"),

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from repertoire.studies._refinement_common import (
     SoccerPlanConfig,
+    approach_succeeds,
     approach_target,
     check_leg_model,
     document_shared_fields,
@@ -54,9 +55,9 @@ class RefinementSoccerConfig(SoccerPlanConfig):
     """The shared soccer plan settings plus where the models are and the search.
 
     Attributes:
-        models_dir: folder with ``approach_duration.json`` and ``dribble_duration.json``
-            (``refinement_explore``'s output folder; empty: the models shipped in
-            ``repertoire/models/diffdrive/soccer_plan_models``).
+        models_dir: folder with ``approach_duration.json``, ``dribble_duration.json`` and
+            ``approach_failure.json`` (``refinement_explore``'s output folder; empty: the
+            models shipped in ``repertoire/models/diffdrive/soccer_plan_models``).
         solver: refinement back-end for these non-affine features, ``"ga"`` or ``"de"``.
     """
 
@@ -152,6 +153,12 @@ def load_duration_models(models_dir: str):
     return load_models(models_dir, ("approach_duration", "dribble_duration"))
 
 
+@functools.cache
+def load_failure_model(models_dir: str):
+    """The approach failure tree (read once per process)."""
+    return load_models(models_dir, ("approach_failure",))[0]
+
+
 def refine_subgoal(config: RefinementSoccerConfig, start, dest, horizon: int, seed: int):
     """The refined approach ``(phi, v)`` and the predicted plan duration for a horizon.
 
@@ -162,8 +169,11 @@ def refine_subgoal(config: RefinementSoccerConfig, start, dest, horizon: int, se
     angle does, over all angles (the models extrapolate; ``out_of_range`` flags it). With
     the dribble in the horizon (h >= 2) the angle is searched only where the plan settles
     the dribble's collect mode (``_refinement_common.mode_settled_headings``), each such
-    interval on its own; the cheaper wins. Returns the
-    angle wrapped to ``[-pi, pi]``.
+    interval on its own; the cheaper wins. Subgoals from which the approach failure tree
+    predicts the approach touches the ball are INVALID (section 7.2's Algorithm 4,
+    :func:`~repertoire.studies._refinement_common.approach_succeeds`); only where it
+    predicts failure for every subgoal found is the plan refined without it. Returns
+    the angle wrapped to ``[-pi, pi]``.
     """
     from repertoire.planning.plans import Range, refinement_problem
     from repertoire.planning.refinement import refine_sequence
@@ -183,11 +193,14 @@ def refine_subgoal(config: RefinementSoccerConfig, start, dest, horizon: int, se
             dataclasses.replace(plan, ranges={**plan.ranges, "pos2.phi": Range(lo, hi)})
             for lo, hi in mode_settled_headings(dest, config)
         ]
+    succeeds = {0: approach_succeeds(load_failure_model(config.models_dir), config)}
     best = None
-    for within_data in (True, False):  # no subgoal inside the data: the models extrapolate
+    # no valid subgoal inside the data: the models extrapolate; none predicted to succeed
+    # at all: the failure tree is set aside (the plan kept, as subgoal assertion does)
+    for checked, within_data in ((True, True), (True, False), (False, True), (False, False)):
         models = soccer_duration_models(approach, dribble, config, within_data=within_data)
         for candidate in plans:
-            problem = refinement_problem(candidate, models)
+            problem = refinement_problem(candidate, models, succeeds=succeeds if checked else None)
             result = refine_sequence(problem, horizon, config.solver, seed=seed)
             if best is None or result.cost < best[2].cost:
                 best = (candidate, problem, result)

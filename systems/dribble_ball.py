@@ -66,6 +66,25 @@ spare (:func:`turn_miss`, :func:`pivot_turns`), and :data:`PIVOT_TURN` turns whi
 turn arrives at all. Its rest (``phi = phi_g``) has the axle within ``position_tolerance``
 of the goal's, so it is an arrival.
 
+The spot law's cycle (session 37). Within ``position_tolerance`` of the goal's held spot
+the spot law turned in place about the axle, which moves the held spot on a circle of
+radius ``hold_distance``. Where no heading of that turn within ``heading_tolerance``
+has the spot inside the tolerance (:func:`turn_miss` at least ``position_tolerance``),
+the turn swung the spot out, and outside the polar law turned to face the goal's spot,
+undoing the turn, and drove back in to the tolerance's edge: the dribble study's seeds
+526 and 727 (the spot stopped 0.098 m from the goal's, the heading 0.80 rad off
+``phi_g``; the turn's nearest spot 0.135 m away) cycled so until the timeout, and others
+for 2-4 s (98: 3.7 s). The swing rule below missed them: it measures the swing from the
+goal's spot itself, but the law stops anywhere within the tolerance, mostly on its
+edge. The spot law now steers the held spot to ``position_tolerance - control_distance``
+(driving on along the heading brings the turn's nearest spot closer: for 526 from 0.135
+to 0.077 m at 0.1 m deeper), and the in-place turn is taken only as :data:`PIVOT_TURN`,
+where it arrives, and held while it does; one that stops arriving with the spot near
+goes back to the spot law, not to the pivot, whose reach turns away to face the goal's
+axle (unseen seed 5129 began the turn with its miss 2 mm inside the tolerance, lost it,
+and timed out in the pivot). Handing every such turn straight to the pivot instead
+(tried first) fixed 526 and 727 but made 104 of 1000 dribbles 3.4 s slower.
+
 Final approach. The paper's dribble goal has a heading (Algorithm 2's example
 instantiates ``dribbleBall(..., xg=1, yg=3, phi=2.6, vg=0)``), so arriving at the
 spot is not enough. Near the goal with a large heading error the spot law
@@ -198,8 +217,9 @@ def dribble_control(
         target: ``[x_g, y_g, phi_g, v_g]``.
         gains: the :data:`DRIBBLE_GAINS` keys.
         lead: the steered point's distance ahead of the axle (default
-            ``hold_distance``, the held spot; 0 steers the axle, :data:`PIVOT`, to
-            within ``position_tolerance - control_distance`` of the goal's).
+            ``hold_distance``, the held spot; 0 steers the axle, :data:`PIVOT`), to
+            within ``position_tolerance - control_distance`` of the goal's (the held
+            spot of a target that needs a loop: to ``position_tolerance``).
         turn: turn in place towards ``phi_g`` instead (:data:`PIVOT_TURN`): ``v = 0``,
             ``omega = clip(k_alpha wrap(phi_g - phi), -1, 1) omega_max``, the pose
             law's in-place turn.
@@ -218,15 +238,15 @@ def dribble_control(
         target[2],
         target[3],
     ]
+    # deep enough to turn in (approach_mode): one close's creep inside the tolerance
+    inner = gains | {"position_tolerance": gains["position_tolerance"] - gains["control_distance"]}
     if turn:
         e = math.remainder(target[2] - state[2], 2.0 * math.pi)
         v, w = 0.0, turn_in_place(e, gains["k_alpha"], gains["omega_max"])
-    elif lead == 0.0:  # the pivot's axle: turn, drive, deep enough to turn in (approach_mode)
-        inner = gains["position_tolerance"] - gains["control_distance"]
-        pivot_gains = gains | {"position_tolerance": inner}
-        v, w = run_up_control(state, spot_goal, pivot_gains, reverse=False)
-    else:
-        v, w, _, _ = pose_control(spot, spot_goal, gains)
+    elif lead == 0.0:  # the pivot's axle: turn, drive
+        v, w = run_up_control(state, spot_goal, inner, reverse=False)
+    else:  # the held spot (a loop's target: to the tolerance, approach_mode loops there)
+        v, w, _, _ = pose_control(spot, spot_goal, gains if needs_loop(target) else inner)
     v = max(0.0, v) * align  # never back away from the ball
     if v > 0.0:
         w = w * align + gains["k_ball"] * gamma
@@ -370,7 +390,16 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
     APPROACH -> PIVOT when the held spot is within ``2 * position_tolerance``
     of the goal's and turning in place by the heading error beyond
     ``heading_tolerance`` would swing it by more than ``position_tolerance``
-    (``2 * hold_distance * sin(turn / 2)``).
+    (``2 * hold_distance * sin(turn / 2)``). With the held spot within
+    ``position_tolerance`` and the heading beyond ``heading_tolerance`` (not for a target
+    that needs a loop): APPROACH -> PIVOT_TURN where that in-place turn arrives
+    (:func:`pivot_turns` without a margin); where it does not, APPROACH goes on driving
+    the held spot deeper (:func:`dribble_control` steers it to ``position_tolerance -
+    control_distance``), which brings the turn's nearest spot closer, and -> PIVOT once
+    the spot is that deep and the turn still does not arrive. A PIVOT_TURN that no longer
+    arrives -> APPROACH where APPROACH would not pivot (the held spot within ``2 *
+    position_tolerance`` and the swing at most ``position_tolerance``: deeper first),
+    else -> PIVOT.
 
     PIVOT (:func:`dribble_control` with ``lead = 0``: turn to face the goal's axle
     position, drive to it, never backing) -> PIVOT_TURN once the in-place turn towards
@@ -423,12 +452,23 @@ def approach_mode(mode: int, state, target, gains: dict[str, float]) -> int:
         near = rho < 2.0 * gains["position_tolerance"]
         if near and swing > gains["position_tolerance"]:
             return loop if needs_loop(target) else PIVOT
+        if rho < gains["position_tolerance"] and turn > 0.0 and not needs_loop(target):
+            # the in-place turn where it arrives, else deeper; at the inner tolerance: pivot
+            if pivot_turns(state, target, gains, 0.0):
+                return PIVOT_TURN
+            if rho < gains["position_tolerance"] - gains["control_distance"]:
+                return PIVOT
         return APPROACH
     if rho > 2.0 * gains["min_turn_radius"]:
         return APPROACH
     # the turn once the axle is deep enough (one close's creep to spare), kept while it arrives
     margin = 0.0 if mode == PIVOT_TURN else gains["control_distance"]
-    return PIVOT_TURN if pivot_turns(state, target, gains, margin) else PIVOT
+    if pivot_turns(state, target, gains, margin):
+        return PIVOT_TURN
+    keeps_in = rho < 2.0 * gains["position_tolerance"] and swing <= gains["position_tolerance"]
+    if mode == PIVOT_TURN and keeps_in and not needs_loop(target):
+        return APPROACH  # the held spot near, a turn that keeps it in: deeper first (above)
+    return PIVOT
 
 
 COLLECTING, DRIBBLING, CLOSING = 0, 1, 2  # collect mode's phases (state slot 4)

@@ -127,10 +127,11 @@ def _spot_on_goal(heading_error, offset=0.0):
 def test_approach_mode_switching_by_hand():
     g, goal = dict(DRIBBLE_GAINS), [0.0, 0.0, 0.0, 0.0]
     # spot on the goal's, heading 1.0 off: an in-place turn of 1.0 - 0.5 swings the spot
-    # 2 * 0.31 * sin(0.25) = 0.153 m > 0.1 -> pivot; 0.8 off: 0.093 m -> keep approaching
+    # 2 * 0.31 * sin(0.25) = 0.153 m > 0.1 -> pivot; 0.8 off: 0.093 m, the turn arrives
+    # -> the spot law's in-place turn, held as PIVOT_TURN (session 37)
     assert approach_mode(APPROACH, _spot_on_goal(1.0), goal, g) == PIVOT
     assert approach_mode(APPROACH, _spot_on_goal(-1.0), goal, g) == PIVOT
-    assert approach_mode(APPROACH, _spot_on_goal(0.8), goal, g) == APPROACH
+    assert approach_mode(APPROACH, _spot_on_goal(0.8), goal, g) == PIVOT_TURN
     # 0.25 m away (beyond 2 * position_tolerance): not near, keep approaching
     assert approach_mode(APPROACH, _spot_on_goal(1.0, 0.25), goal, g) == APPROACH
     # a pivot goes on within 2 * min_turn_radius = 0.8 m, then approaches again
@@ -251,10 +252,11 @@ def test_dribble_ball_loops_when_stopped_short_of_the_target_speed():
 
 def test_dribble_ball_pivot_mode_exact():
     # spot on the goal's, heading 0.8 off: the spot law turns in place towards phi_g
-    # (k_alpha * 0.8 * omega_max clipped to omega_in_place, rate limited to alpha_max * 0.1)
+    # (k_alpha * 0.8 * omega_max clipped to omega_in_place, rate limited to alpha_max * 0.1),
+    # as PIVOT_TURN since session 37 (the turn arrives)
     state = _spot_on_goal(0.8)
     action, ctx = _context([0, 0, 0, 0], ball=(0.31, 0.0), state=state)
-    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.3, ActionStatus.RUNNING, APPROACH])
+    np.testing.assert_allclose(_update(action, ctx), [0.0, 0.3, ActionStatus.RUNNING, PIVOT_TURN])
     # 1.0 off: pivot; the axle (0.142, 0.261) is driven to (0, 0), turning first to face
     # it: 1.07 rad to the right, omega_in_place (rate limited to -0.3), no forward speed
     state = _spot_on_goal(1.0)

@@ -64,6 +64,7 @@ from pydrake.multibody.tree import (
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
     ConstantVectorSource,
+    Demultiplexer,
     LogVectorOutput,
     MatrixGain,
     Multiplexer,
@@ -295,6 +296,10 @@ def build_arm_world(
         builder.Connect(chain.GetOutputPort("orientation"), coupling.GetInputPort("orientation"))
         builder.Connect(chain.GetOutputPort("tau"), coupling.GetInputPort("tau"))
         builder.Connect(o_src.get_output_port(), coupling.GetInputPort("obstacle"))
+        # the active goal's position gates the term (off once the ball is past the goal)
+        goal_split = builder.AddNamedSystem("coupling_goal", Demultiplexer([3, 7]))
+        builder.Connect(schedule.GetOutputPort("goal"), goal_split.get_input_port(0))
+        builder.Connect(goal_split.get_output_port(0), coupling.GetInputPort("goal"))
         builder.Connect(coupling.GetOutputPort("coupling"), chain.GetInputPort("coupling"))
     else:
         zero = builder.AddNamedSystem("no_coupling", ConstantVectorSource(np.zeros(3)))

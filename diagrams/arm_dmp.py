@@ -37,7 +37,9 @@ carried cup would hit it; it feeds the DMP's coupling term through
 the cup (tcp, cup bottom, fingers, palm), summed, each faded with its distance
 to the ball (our extension; eq. 10 alone depends only on the heading angle, and
 on the tcp alone it kept the tcp just 6-8 cm from the ball's centre, while the
-cup in hand needs about 9.5 cm). ``obstacle_points: [[0, 0, 0]]`` with
+cup in hand needs about 9.5 cm) and gated off once the ball is farther than the
+active goal (fed from the goal schedule), so the DMP comes to rest at its goal.
+``obstacle_points: [[0, 0, 0]]`` with
 ``obstacle_length_scale: 0`` is the paper's term on the end-effector. An
 :class:`ObstacleClearanceMonitor` records the smallest signed distance between
 the ball and the arm, hand, fingers and cup (SceneGraph) for the

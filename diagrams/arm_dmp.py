@@ -37,7 +37,9 @@ carried cup would hit it; it feeds the DMP's coupling term through
 the cup (tcp, cup bottom, fingers, palm), summed, each faded with its distance
 to the ball (our extension; eq. 10 alone depends only on the heading angle, and
 on the tcp alone it kept the tcp just 6-8 cm from the ball's centre, while the
-cup in hand needs about 9.5 cm). ``obstacle_points: [[0, 0, 0]]`` with
+cup in hand needs about 9.5 cm) and gated off once the ball is farther than the
+active goal (fed from the goal schedule), so the DMP comes to rest at its goal.
+``obstacle_points: [[0, 0, 0]]`` with
 ``obstacle_length_scale: 0`` is the paper's term on the end-effector. An
 :class:`ObstacleClearanceMonitor` records the smallest signed distance between
 the ball and the arm, hand, fingers and cup (SceneGraph) for the
@@ -64,6 +66,7 @@ from pydrake.multibody.tree import (
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
     ConstantVectorSource,
+    Demultiplexer,
     LogVectorOutput,
     MatrixGain,
     Multiplexer,
@@ -295,6 +298,10 @@ def build_arm_world(
         builder.Connect(chain.GetOutputPort("orientation"), coupling.GetInputPort("orientation"))
         builder.Connect(chain.GetOutputPort("tau"), coupling.GetInputPort("tau"))
         builder.Connect(o_src.get_output_port(), coupling.GetInputPort("obstacle"))
+        # the active goal's position gates the term (off once the ball is past the goal)
+        goal_split = builder.AddNamedSystem("coupling_goal", Demultiplexer([3, 7]))
+        builder.Connect(schedule.GetOutputPort("goal"), goal_split.get_input_port(0))
+        builder.Connect(goal_split.get_output_port(0), coupling.GetInputPort("goal"))
         builder.Connect(coupling.GetOutputPort("coupling"), chain.GetInputPort("coupling"))
     else:
         zero = builder.AddNamedSystem("no_coupling", ConstantVectorSource(np.zeros(3)))

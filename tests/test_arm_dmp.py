@@ -446,6 +446,10 @@ def test_coupling_turns_the_active_segments_scaled_velocity_with_the_carry_tuned
     sub = coupling.GetMyContextFromRoot(context)
     tau = coupling.GetInputPort("tau").Eval(sub)
     assert tau.tolist() == [motion_library()["grasp"].tau]  # segment 0 at t = 0
+    # the gate's goal is the active goal's position (the term stops once past it)
+    schedule = diagram.GetSubsystemByName("goal_schedule")
+    active = schedule.GetOutputPort("goal").Eval(schedule.GetMyContextFromRoot(context))
+    np.testing.assert_array_equal(coupling.GetInputPort("goal").Eval(sub), active[:3])
     x, xd = (coupling.GetInputPort(n).Eval(sub) for n in ("position", "velocity"))
     xd = np.array([0.1, 0.2, -0.05])  # a velocity, so the term is not zero
     coupling.GetInputPort("velocity").FixValue(sub, xd)

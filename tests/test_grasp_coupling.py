@@ -12,6 +12,7 @@ from repertoire.systems.grasp import GraspWrench, grip_wrench
 from repertoire.systems.obstacle_coupling import (
     MultiPointObstacleCoupling,
     multi_point_obstacle_coupling,
+    remaining_movement_gate,
 )
 
 from repertoire.errors import RepertoireError
@@ -176,3 +177,90 @@ def test_multi_point_coupling_bad_input():
         MultiPointObstacleCoupling([[0.0, 0.0]])
     with pytest.raises(RepertoireError, match="non-empty k x 3 array"):
         MultiPointObstacleCoupling(np.zeros((0, 3)))
+
+
+def test_remaining_movement_gate_closed_form():
+    assert remaining_movement_gate(0.05, 0.05, 0.03) == 1.0  # the ball as near as the goal
+    assert remaining_movement_gate(0.0, 0.002, 0.03) == 1.0
+    assert remaining_movement_gate(0.08, 0.05, 0.03) == 0.0  # one length scale beyond
+    assert remaining_movement_gate(0.2, 0.0, 0.03) == 0.0
+    assert remaining_movement_gate(0.065, 0.05, 0.03) == pytest.approx(0.5, abs=1e-15)
+    # u = 1 / 3: 3 u^2 - 2 u^3 = 7 / 27
+    assert remaining_movement_gate(0.07, 0.05, 0.03) == pytest.approx(7.0 / 27.0, rel=1e-12)
+
+
+def _settle_point_dmp(goal_gate: bool, gamma: float, seconds: float = 2.0) -> np.ndarray:
+    """A 3-D point DMP past its forcing term (the arm's K, D and carry tau) near its goal.
+
+    The ball's surface is 10 cm from the goal; RK4 at 1 ms. Returns (k, 6) [x, dx/dt].
+    """
+    K, D, tau, g = 156.25, 25.0, 3.0, np.zeros(3)
+    o = np.array([0.0, 0.16, 0.0])
+
+    def rhs(z):
+        x, v = z[:3], z[3:]
+        p = multi_point_obstacle_coupling(
+            x, v / tau, np.eye(3), [[0.0, 0.0, 0.0]], o, gamma, 4.0,
+            obstacle_radius=0.06, length_scale=0.03, tau=tau, goal=g if goal_gate else None,
+        )  # fmt: skip
+        return np.concatenate([v / tau, (K * (g - x) - D * v + p) / tau])
+
+    z, dt, out = np.array([0.005, -0.003, 0.0, 0.03, 0.0, 0.0]), 1e-3, []
+    for _ in range(int(round(seconds / dt))):
+        k1 = rhs(z)
+        k2 = rhs(z + dt / 2 * k1)
+        k3 = rhs(z + dt / 2 * k2)
+        k4 = rhs(z + dt * k3)
+        z = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        out.append(np.concatenate([z[:3], z[3:] / 3.0]))
+    return np.array(out)
+
+
+def test_coupled_dmp_comes_to_rest_at_its_goal():
+    """Eq. 10 with the arm's gain must not keep a DMP circling its goal (session 37).
+
+    The ball is behind the goal (10 cm from it): with the goal gate the term is 0 there,
+    and the coupled DMP is the free one step for step, at rest on its goal after 2 s.
+    Without the gate the exp fade leaves a turning rate above the damping and the
+    slowest mode decays several times slower (the arm's place DMP circled its goal at
+    2.6-4.2 mm/s).
+    """
+    from repertoire.diagrams.arm_dmp_scenarios import OBSTACLE_GAMMA
+
+    free = _settle_point_dmp(True, 0.0)
+    gated = _settle_point_dmp(True, OBSTACLE_GAMMA)
+    np.testing.assert_array_equal(gated, free)
+    assert np.linalg.norm(gated[-1, :3]) < 2e-5 and np.linalg.norm(gated[-1, 3:]) < 1e-4
+    ungated = _settle_point_dmp(False, OBSTACLE_GAMMA)
+    assert np.linalg.norm(ungated[-1, :3]) > 10 * np.linalg.norm(free[-1, :3])
+
+
+def test_multi_point_coupling_system_goal_gate():
+    points = [[0.0, 0.0, 0.0], [0.0, 0.0, -0.085]]
+    system = MultiPointObstacleCoupling(
+        points, gamma=2000.0, beta=4.0, obstacle_radius=0.06, length_scale=0.03
+    )
+    context = system.CreateDefaultContext()
+    x, v, o = np.array([0.5, 0.0, 0.9]), np.array([0.0, 0.4, 0.05]), np.array([0.5, 0.17, 0.9])
+    system.GetInputPort("position").FixValue(context, x)
+    system.GetInputPort("velocity").FixValue(context, v)
+    system.GetInputPort("orientation").FixValue(context, [1.0, 0.0, 0.0, 0.0])
+    system.GetInputPort("obstacle").FixValue(context, o)
+    free = system.GetOutputPort("coupling").Eval(context).copy()
+    assert np.linalg.norm(free) > 0.0
+    for goal in ([0.5, 0.3, 0.9], [0.5, 0.05, 0.9], [0.5, 0.09, 0.9]):
+        system.GetInputPort("goal").FixValue(context, goal)
+        expected = multi_point_obstacle_coupling(
+            x, v, np.eye(3), points, o, 2000.0, 4.0,
+            obstacle_radius=0.06, length_scale=0.03, goal=np.array(goal),
+        )  # fmt: skip
+        np.testing.assert_allclose(system.GetOutputPort("coupling").Eval(context), expected)
+    # the goal farther than the ball: the plain term; the ball beyond the goal: 0
+    system.GetInputPort("goal").FixValue(context, [0.5, 0.3, 0.9])
+    np.testing.assert_array_equal(system.GetOutputPort("coupling").Eval(context), free)
+    system.GetInputPort("goal").FixValue(context, [0.5, 0.005, 0.9])
+    np.testing.assert_array_equal(system.GetOutputPort("coupling").Eval(context), np.zeros(3))
+    with pytest.raises(RepertoireError, match="goal must be a finite 3-vector"):
+        multi_point_obstacle_coupling(
+            x, v, np.eye(3), points, o, 2000.0, 4.0, length_scale=0.03, goal=[0.0, np.nan, 1.0]
+        )

@@ -22,6 +22,7 @@ in a config file for two cups).
 """
 
 import dataclasses
+import functools
 import math
 import time
 from pathlib import Path
@@ -146,9 +147,26 @@ def run_episode(config: KitchenPlanConfig, seed: int) -> RefinementKitchenRecord
 
 
 def summarize(
-    records: list[RefinementKitchenRecord], config: KitchenPlanConfig, out_dir: Path
+    records: list[RefinementKitchenRecord],
+    config: KitchenPlanConfig,
+    out_dir: Path,
+    *,
+    stem: str = "refinement_kitchen",
+    label: str = "",
 ) -> dict[str, Path]:
-    """Writes the scenario's Table 3 row beside the paper's and a paired-time figure."""
+    """Writes the scenario's Table 3 row beside the paper's and a paired-time figure.
+
+    Args:
+        records: the study's records.
+        config: the config they were run with.
+        out_dir: where the files go.
+        stem: the files' name stem (``<stem>_<scenario>_tables.md``, ``_paired.png``,
+            ``_cups.png``).
+        label: added to the titles after the scenario (e.g. ``", far-side cups"``).
+
+    Returns:
+        Label -> path of each file written.
+    """
     from repertoire.studies.refinement_soccer import (
         paired_cells,
         paired_succeeded,
@@ -164,7 +182,7 @@ def summarize(
     for r in records:
         for h, s in ((1, r.status_1), (2, r.status_2)):
             statuses[h][s] = statuses[h].get(s, 0) + 1
-    name = f"Kitchen (scenario {config.scenario})"
+    name = f"Kitchen (scenario {config.scenario}{label})"
     md = [
         f"## Table 3: subgoal refinement, {name}, executed episodes",
         "",
@@ -193,19 +211,19 @@ def summarize(
             "| h = 1 | " + " | ".join(f"{v:.2f}" for v in d1.mean(axis=0)) + " |",
             "| h = 2 | " + " | ".join(f"{v:.2f}" for v in d2.mean(axis=0)) + " |",
         ]
-    tables = out_dir / f"refinement_kitchen_{config.scenario}_tables.md"
+    tables = out_dir / f"{stem}_{config.scenario}_tables.md"
     tables.write_text("\n".join(md) + "\n")
     figure = paired_times_figure(
         t1, t2,
-        f"{name}: mean improvement {paired_cells(t1, t2)[3]} (paper {paper['improvement']:.1%})",
-        out_dir / f"refinement_kitchen_{config.scenario}_paired.png",
+        f"{name}:\nmean improvement {paired_cells(t1, t2)[3]} (paper {paper['improvement']:.1%})",
+        out_dir / f"{stem}_{config.scenario}_paired.png",
     )  # fmt: skip
     out = {"tables": tables, "paired": figure}
     executed = [(r, h) for r in records for h in (2, 1) if getattr(r, f"status_{h}") != "NO_PLAN"]
     if executed:  # the situation whose two cups stand nearest each other (h = 2 first)
         record, h = min(executed, key=lambda e: cups_apart(e[0]))
         out["cups"] = standing_cups_figure(
-            config, record, h, out_dir / f"refinement_kitchen_{config.scenario}_cups.png"
+            config, record, h, out_dir / f"{stem}_{config.scenario}_cups.png", label
         )
     return out
 
@@ -214,6 +232,19 @@ def cups_apart(record) -> float:
     """Horizontal distance between the centres of ``cup_0`` and ``cup_1`` of a record [m]."""
     cups = np.reshape(record.cups, (-1, 3))
     return float(np.hypot(*(cups[1, :2] - cups[0, :2])))
+
+
+def table_0_steps(scenario: int) -> list[int]:
+    """The plan steps in which the robot stands at ``table_0`` with its arm at work.
+
+    The steps after an odd-numbered goToPose (the drive to a stand) up to the next one.
+
+    Args:
+        scenario: 1 or 2.
+    """
+    names = action_names(scenario)
+    drives = np.cumsum([n == "goto_pose" for n in names])
+    return [i for i, n in enumerate(names) if n != "goto_pose" and drives[i] % 2 == 1]
 
 
 #: Clearance [m] below which the figure marks the gripper's path and draws the fingers.
@@ -238,7 +269,9 @@ def engaged_steps(scenario: int, cup: int) -> range:
     return range(first + 3, min(first + fetch + 1, len(action_names(scenario))))
 
 
-def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -> Path:
+def standing_cups_figure(
+    config: KitchenPlanConfig, record, h: int, out: Path, label: str = ""
+) -> Path:
     """Top view and clearance of the fingers around the standing cups in one executed plan.
 
     Runs the plan of ``record``'s horizon ``h`` again with a
@@ -257,6 +290,7 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
         record: the episode.
         h: the horizon whose plan to run (1 or 2).
         out: the PNG to write.
+        label: added to the title after the scenario.
     """
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
@@ -313,12 +347,15 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
     )
     gripper = chassis_points_to_world(base, arm_forward(q))
     top.plot(gripper[:, 0], gripper[:, 1], color="0.6", lw=0.7)
+    top.plot(base[:, 0], base[:, 1], color="tab:purple", lw=0.8, ls="--")
     close = np.where(np.any(standing & (clearance <= CLOSE_M), axis=1), 1.0, np.nan)
     top.plot(gripper[:, 0] * close, gripper[:, 1] * close, color="tab:blue", lw=2.5)
     colours = ("tab:orange", "tab:green")
     handles = [
         Patch(fc="0.92", ec="0.5", label="table_0"),
         Line2D([], [], color="0.6", lw=0.7, label="gripper centre's path"),
+        Line2D([], [], color="tab:purple", lw=0.8, ls="--", label="chassis centre's path"),
+        Line2D([], [], ls="", marker="o", ms=4, color="tab:purple", label="chassis at its stand"),
         Line2D(
             [],
             [],
@@ -385,8 +422,17 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
             label=f"{name}, while it stands",
         )
     handles.append(Line2D([], [], ls="", marker="x", color="k", label="where the cups ended"))
-    top.set_xlim(cx - hx - 0.4, cx + hx + 0.4)
-    top.set_ylim(cy - hy - 0.6, cy + hy + 0.2)
+    # the table with a margin, grown to hold the chassis at its stands (where the arm works
+    # at table_0) and wherever it drives within 1 m of the table's box
+    local = (base[:, :2] - [cx, cy]) @ np.array([[np.cos(yaw), -np.sin(yaw)],
+                                                 [np.sin(yaw), np.cos(yaw)]])  # fmt: skip
+    at_stand = np.isin(steps, table_0_steps(config.scenario))
+    top.plot(base[at_stand, 0], base[at_stand, 1], "o", color="tab:purple", ms=4)
+    near = base[at_stand | np.all(np.abs(local) <= [hx + 1.0, hy + 1.0], axis=1), :2]
+    lo = np.min([[cx - hx - 0.4, cy - hy - 0.6], *(near - 0.3)], axis=0)
+    hi = np.max([[cx + hx + 0.4, cy + hy + 0.2], *(near + 0.3)], axis=0)
+    top.set_xlim(lo[0], hi[0])
+    top.set_ylim(lo[1], hi[1])
     top.set_aspect("equal")
     top.set_xlabel("x [m]")
     top.set_ylabel("y [m]")
@@ -410,7 +456,7 @@ def standing_cups_figure(config: KitchenPlanConfig, record, h: int, out: Path) -
     ax.set_title(f"the fingers around the standing cups (every {1000 * every_s:g} ms)", fontsize=9)
     ax.legend(fontsize=8, loc="upper right")
     fig.suptitle(
-        f"Kitchen scenario {config.scenario}, the situation whose cups stand nearest "
+        f"Kitchen scenario {config.scenario}{label}, the situation whose cups stand nearest "
         f"({cups_apart(record):.2f} m apart): the h = {h} "
         f"plan executed again ({run.status}, {run.total:.1f} s)"
     )
@@ -428,6 +474,22 @@ def smoke_config() -> KitchenPlanConfig:
     return KitchenPlanConfig(x_range=[0.4, 0.8], y_range=[-0.2, 0.2])
 
 
+#: The far-side cups' y range on ``table_0`` (its far half, away from ``table_1``): the
+#: stands are behind the table, where a drop drive must be able to leave the stand
+#: (``_kitchen_arm.exit_clear``).
+FAR_CUP_Y_RANGE = (1.4, 1.65)
+
+
+def far_demo_config() -> KitchenPlanConfig:
+    """The far-side demo config: :func:`demo_config` with the cups on ``table_0``'s far side."""
+    return dataclasses.replace(demo_config(), cup_y_range=list(FAR_CUP_Y_RANGE))
+
+
+def far_smoke_config() -> KitchenPlanConfig:
+    """A tiny far-side config for tests: :func:`smoke_config` with the far-side cups."""
+    return dataclasses.replace(smoke_config(), cup_y_range=list(FAR_CUP_Y_RANGE))
+
+
 register_study(
     "refinement_kitchen",
     config_type=KitchenPlanConfig,
@@ -440,3 +502,17 @@ register_study(
     demo_episodes=2,
     smoke_config=smoke_config,
 ).run_if_main(__name__)
+
+# The same study on far-side cups (one situation in the demo: its first seed, 0).
+FAR_STUDY = register_study(
+    "refinement_kitchen_far",
+    config_type=KitchenPlanConfig,
+    record_type=RefinementKitchenRecord,
+    run_episode=run_episode,
+    description="refinement_kitchen with the cups on table_0's far side "
+    f"(cup_y_range {list(FAR_CUP_Y_RANGE)}): stands behind the table",
+    summarize=functools.partial(summarize, stem="refinement_kitchen_far", label=", far-side cups"),
+    demo_config=far_demo_config,
+    demo_episodes=1,
+    smoke_config=far_smoke_config,
+)

@@ -18,7 +18,9 @@ it to draw how its fingers kept off the standing cups
 ``CUP_MARGIN``).
 
 Run it with ``python -m repertoire.studies.refinement_kitchen --help`` (``scenario: 2``
-in a config file for two cups).
+in a config file for two cups). ``refinement_kitchen_far`` is the same study registered
+with the cups on ``table_0``'s far side (``FAR_CUP_Y_RANGE``; ``repertoire study
+refinement_kitchen_far``); the demo runs its first seed.
 """
 
 import dataclasses
@@ -510,7 +512,7 @@ FAR_STUDY = register_study(
     record_type=RefinementKitchenRecord,
     run_episode=run_episode,
     description="refinement_kitchen with the cups on table_0's far side "
-    f"(cup_y_range {list(FAR_CUP_Y_RANGE)}): stands behind the table",
+    f"(cup_y_range {list(FAR_CUP_Y_RANGE)}): stands beside or behind it",
     summarize=functools.partial(summarize, stem="refinement_kitchen_far", label=", far-side cups"),
     demo_config=far_demo_config,
     demo_episodes=1,

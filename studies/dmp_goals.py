@@ -561,13 +561,21 @@ def sparse_demo_figure(out_dir: Path) -> Path:
 START_VELOCITY_SEED = 0
 """Seed of the demonstration in motion in :func:`start_velocity_figure`."""
 
+#: The old-formulation run of :func:`start_velocity_runs` goes this many times as far.
+OLD_GOAL_FACTOR = 2.0
+
 
 def start_velocity_runs(seed: int = START_VELOCITY_SEED) -> dict:
     """A 1-DOF demonstration that starts in motion, learned and reproduced two ways.
 
     The demonstration is :func:`~repertoire.planning.dmp_demos.sines_in_motion` (1.5 s,
     751 samples), learned with the defaults. It is rolled out at its own time step from the
-    learned initial velocity ``v0`` (the default) and from rest (``v0 = 0``).
+    learned initial velocity ``v0`` (the default) and from rest (``v0 = 0``). The same
+    demonstration learned in the old formulation (eq. 1) is also sent to a goal
+    :data:`OLD_GOAL_FACTOR` times as far, in the study's Drake diagram (:func:`simulate_dmp`)
+    and by ``rollout``: eq. 1 scales the whole run, its start velocity too, by
+    ``(g - x0) / (learned g - learned x0)``, and the DmpSystem scales ``v0`` to its goal
+    input at the onset as ``rollout`` does.
 
     Args:
         seed: Seed of the demonstration.
@@ -576,7 +584,10 @@ def start_velocity_runs(seed: int = START_VELOCITY_SEED) -> dict:
         ``t``, ``x``, ``xd`` (the demonstration, 1-D arrays), ``v0`` (the learned initial
         velocity [m/s]) and ``runs``: ``"v0"`` / ``"rest"`` -> ``(xt, xdt, rms)``, the
         rollout's positions and velocities at the demonstration's stamps and its RMS
-        position error against the demonstration [m].
+        position error against the demonstration [m]; ``old``: ``goal``, ``system`` and
+        ``rollout`` (each ``(x, xd)`` at the demonstration's stamps, the DmpSystem's and
+        the NumPy rollout's), ``unscaled`` (the rollout's positions started from the
+        learned ``v0`` unscaled) and ``gap`` (the largest |system - rollout| position [m]).
     """
     from repertoire.planning.dmp_demos import sines_in_motion
     from repertoire.planning.dmp_learn import learn_dmp
@@ -587,14 +598,31 @@ def start_velocity_runs(seed: int = START_VELOCITY_SEED) -> dict:
     for key, v0 in (("v0", None), ("rest", np.zeros(1))):
         r = dmp.rollout(dt=float(t[1] - t[0]), n_steps=len(t) - 1, v0=v0)
         runs[key] = (r.x[:, 0], r.xd[:, 0], float(np.sqrt(np.mean((r.x - x) ** 2))))
-    return {"t": t, "x": x[:, 0], "xd": xd[:, 0], "v0": float(dmp.v0[0]), "runs": runs}
+    dt = float(t[1] - t[0])
+    old = learn_dmp(t, x, formulation="old")
+    goal = old.x0 + OLD_GOAL_FACTOR * (old.goal - old.x0)
+    _, xs, xds, _ = simulate_dmp(old, [0.0], [goal], float(t[-1] - t[0]), time_step=dt)
+    r = old.rollout(goal=goal, dt=dt, n_steps=len(t) - 1)
+    unscaled = old.rollout(goal=goal, dt=dt, n_steps=len(t) - 1, v0=old.v0)
+    runs_old = {
+        "goal": float(goal[0]),
+        "system": (xs[: len(t), 0], xds[: len(t), 0]),
+        "rollout": (r.x[:, 0], r.xd[:, 0]),
+        "unscaled": unscaled.x[:, 0],
+        "gap": float(np.max(np.abs(xs[: len(t), 0] - r.x[:, 0]))),
+    }
+    v0 = float(dmp.v0[0])
+    return {"t": t, "x": x[:, 0], "xd": xd[:, 0], "v0": v0, "runs": runs, "old": runs_old}
 
 
 def start_velocity_figure(out_dir: Path, seed: int = START_VELOCITY_SEED) -> Path:
     """A demonstration that starts in motion: reproduced from its ``v0``, and from rest.
 
-    Left the position, right the velocity, of :func:`start_velocity_runs`; the legend
-    gives each reproduction's RMS position error against the demonstration.
+    Left the position, middle the velocity, of :func:`start_velocity_runs`; the legend
+    gives each reproduction's RMS position error against the demonstration. Right: the
+    old formulation sent to a goal twice as far, in the DmpSystem and by ``rollout``, and
+    the rollout from the learned ``v0`` unscaled (where the DmpSystem started before
+    session 37).
 
     Args:
         out_dir: Output folder.
@@ -604,8 +632,8 @@ def start_velocity_figure(out_dir: Path, seed: int = START_VELOCITY_SEED) -> Pat
 
     d = start_velocity_runs(seed)
     t = d["t"]
-    fig = Figure(figsize=(10, 4.2), layout="constrained")
-    pos, vel = fig.subplots(1, 2, sharex=True)
+    fig = Figure(figsize=(15, 4.6), layout="constrained")
+    pos, vel, far = fig.subplots(1, 3, sharex=True)
     pos.plot(t, d["x"], c="0.6", lw=4, label="demonstration")
     vel.plot(t, d["xd"], c="0.6", lw=4)
     styles = {
@@ -623,6 +651,17 @@ def start_velocity_figure(out_dir: Path, seed: int = START_VELOCITY_SEED) -> Pat
         ax.grid(alpha=0.3)
     pos.set_title("position")
     vel.set_title("velocity")
+    o = d["old"]
+    far.plot(t, d["x"], c="0.6", lw=4, label="demonstration")
+    far.axhline(o["goal"], c="k", lw=0.8, ls="-.", label=f"goal x0 + {OLD_GOAL_FACTOR:g} (g - x0)")
+    far.plot(t, o["system"][0], c="tab:green", lw=3, label="old form (eq. 1) in the DmpSystem")
+    far.plot(t, o["rollout"][0], "--", c="k", lw=1.2, label=f"its rollout: within {o['gap']:.0e} m")
+    far.plot(t, o["unscaled"], ":", c="tab:red", lw=1.8, label="rollout from the unscaled v0")
+    far.set_xlabel("t (s)")
+    far.set_ylabel("position x (m)")
+    far.grid(alpha=0.3)
+    far.set_title(f"old formulation to a goal {OLD_GOAL_FACTOR:g}x as far: v0 scaled too")
+    far.legend(fontsize=7)
     fig.suptitle(
         f"A demonstration that starts in motion (seed {seed}, sum of sines): "
         "the DMP keeps its initial velocity"

@@ -66,6 +66,23 @@ def test_goals_fig2_draws_the_first_episodes_seed(tmp_path, monkeypatch):
         dmp_goals.summarize([], config, tmp_path)
 
 
+def test_goals_start_velocity_figure_runs_the_old_form_in_the_system_as_its_rollout():
+    """The old form sent twice as far starts at twice v0 in the DmpSystem, as in rollout."""
+    d = dmp_goals.start_velocity_runs()
+    old = d["old"]
+    assert dmp_goals.OLD_GOAL_FACTOR == 2.0
+    (xs, xds), (xr, xdr) = old["system"], old["rollout"]
+    assert xs.shape == xr.shape == d["t"].shape
+    assert old["gap"] == float(np.max(np.abs(xs - xr))) < 1e-9
+    assert xds[0] == pytest.approx(xdr[0], rel=1e-12)
+    assert xds[0] == pytest.approx(2.0 * d["v0"], rel=1e-9)  # the demonstration's v0, twice
+    # eq. 1 scales the whole run about x0: twice the demonstration's displacement
+    assert xr - xr[0] == pytest.approx(2.0 * (d["x"] - d["x"][0]), abs=0.05)
+    assert old["goal"] - xr[0] == pytest.approx(2.0 * (d["x"][-1] - d["x"][0]), rel=1e-9, abs=0.02)
+    # from the learned v0 unscaled the run leaves x0 at half the speed: it lags
+    assert np.max(np.abs(old["unscaled"] - xr)) > 0.05
+
+
 def test_goals_retimed_demonstration_takes_the_same_path():
     config = get_study("dmp_goals").smoke_config()
     runs = dmp_goals.tau_invariance_runs(config, 5)["runs"]
